@@ -1,0 +1,8 @@
+"""File formats and atomic output folders."""
+
+from ._atomic import atomic_output_dir, atomic_write_bytes, atomic_write_text, write_json
+from ._exr import read_exr, write_exr
+from ._png import save_png, save_map_png
+
+__all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "write_json",
+           "read_exr", "write_exr", "save_png", "save_map_png"]

@@ -1,0 +1,100 @@
+"""OpenEXR read/write (float32 channels, JSON-text and typed header attributes).
+
+OpenEXR 3.5's ``File(header, channels)`` mutates both dicts: we pass copies.  Python
+floats are stored as float32 attributes, so exact doubles go in as JSON text
+(``<name>_json``) beside the float attribute.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ._atomic import atomic_write_bytes
+
+_RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
+             "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "name",
+             "version", "chunkCount", "tiles"}
+
+
+def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | None = None) -> Path:
+    """Write float32 channels (all the same 2-D shape) and header attributes.
+
+    Attribute values: str -> string; float/int -> float attribute plus exact JSON text;
+    anything else (tuples, dicts) -> JSON text.  Read back with :func:`read_exr`.
+    """
+    import OpenEXR
+
+    if not channels:
+        raise InputError("write_exr: channels must not be empty")
+    shape = None
+    chans = {}
+    for name, arr in channels.items():
+        a = np.ascontiguousarray(arr, dtype=np.float32)
+        if a.ndim != 2:
+            raise InputError(f"write_exr: channel {name!r} must be 2-D, got shape {a.shape}")
+        if shape is None:
+            shape = a.shape
+        elif a.shape != shape:
+            raise InputError(f"write_exr: channel {name!r} has shape {a.shape}, expected {shape}")
+        chans[name] = a
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    meta = {}
+    for k, v in (attrs or {}).items():
+        if k in _RESERVED:
+            raise InputError(f"write_exr: attribute name {k!r} is reserved by OpenEXR")
+        if isinstance(v, str):
+            header[k] = v
+        elif isinstance(v, (bool, np.bool_)):
+            header[k] = "true" if v else "false"
+        elif isinstance(v, (int, float, np.integer, np.floating)):
+            header[k] = float(v)
+            meta[k] = float(v) if isinstance(v, (float, np.floating)) else int(v)
+        else:
+            header[k] = json.dumps(v, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+    header["render_inspect_attrs_json"] = json.dumps(meta)
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp.exr")
+    try:
+        with OpenEXR.File(dict(header), dict(chans)) as f:
+            f.write(str(tmp))
+        data = tmp.read_bytes()
+    finally:
+        tmp.unlink(missing_ok=True)
+    return atomic_write_bytes(path, data)
+
+
+def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
+    """Return (channels, attrs).  Numbers come back exact (from the JSON text);
+    JSON-text attributes are decoded."""
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"EXR file not found: {str(path)!r}")
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        header = dict(f.header())
+        channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
+                    for name, ch in f.channels().items()}
+    exact = {}
+    if "render_inspect_attrs_json" in header:
+        exact = json.loads(header.pop("render_inspect_attrs_json"))
+    attrs = {}
+    for k, v in header.items():
+        if k in _RESERVED:
+            continue
+        if k in exact:
+            attrs[k] = exact[k]
+        elif isinstance(v, str):
+            try:
+                attrs[k] = json.loads(v) if v[:1] in "[{\"" else v
+            except json.JSONDecodeError:
+                attrs[k] = v
+        elif isinstance(v, bytes):
+            attrs[k] = v.decode()
+        else:
+            attrs[k] = v
+    return channels, attrs

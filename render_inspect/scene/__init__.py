@@ -1,0 +1,144 @@
+"""Scene files: TOML, validated on load.
+
+>>> scene = load_scene("scenes/sts_sinusoidal_grid.toml", overrides=["process.spindle_rpm=100"])
+
+Unknown keys, wrong types and non-physical values raise :class:`SceneError` naming the
+key (dotted path), what is allowed and the value received.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import tomllib
+from pathlib import Path
+from typing import Any, Iterable
+
+from pydantic import Field, ValidationError, model_validator
+
+from ..errors import SceneError
+from ._artifacts import ArtifactsConfig, BurrConfig, ServoConfig, VibrationConfig
+from ._base import Section
+from ._design import DesignConfig
+from ._metrology import MetrologyConfig
+from ._process import ProcessConfig, SimulationConfig, ToolConfig
+from ._render import DiffuseConfig, InterferometerConfig, RenderConfig
+
+__all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
+           "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
+           "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
+           "VibrationConfig", "BurrConfig", "MetrologyConfig"]
+
+
+class Scene(Section):
+    name: str = "scene"
+    description: str = ""
+    design: DesignConfig
+    tool: ToolConfig = Field(default_factory=ToolConfig)
+    process: ProcessConfig = Field(default_factory=ProcessConfig)
+    simulation: SimulationConfig = Field(default_factory=SimulationConfig)
+    render: RenderConfig = Field(default_factory=RenderConfig)
+    artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
+    metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
+
+    @model_validator(mode="after")
+    def _cross_checks(self):
+        fpr = self.process.feed_per_rev
+        rc = self.tool.nose_radius
+        if self.process.kind in ("sts", "fts", "hts", "rcse") and fpr >= rc:
+            raise ValueError(
+                f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
+                f"tool.nose_radius ({rc} mm), received {fpr:g} mm/rev "
+                f"(feed {self.process.feed_mm_per_min} mm/min at {self.process.spindle_rpm} rpm)")
+        return self
+
+    def to_dict(self) -> dict:
+        return self.model_dump(mode="json")
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    def with_overrides(self, overrides: Iterable[str]) -> "Scene":
+        return scene_from_dict(apply_overrides(self.to_dict(), overrides))
+
+
+def _format_error(err: ValidationError, source: str) -> SceneError:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
+        msg = e["msg"]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key (not allowed here; check the spelling)"
+        elif msg.startswith("Value error, "):
+            msg = msg[len("Value error, "):]
+        inp = e.get("input")
+        got = "" if e["type"] in ("missing",) or isinstance(inp, dict) else f"; received {inp!r}"
+        lines.append(f"  {loc or '(top level)'}: {msg}{got}")
+    return SceneError(f"invalid scene {source}:\n" + "\n".join(lines))
+
+
+_UNION_TAGS = {"sinusoidal_grid", "plane", "sphere", "toric", "biconic", "paraboloid",
+               "lenslet_array", "lenslet_rings", "expression", "heightmap", "compound"}
+
+
+def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as err:
+        raise _format_error(err, source) from None
+
+
+def _parse_value(text: str):
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text  # a bare word is taken as a string
+
+
+def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
+    """Return a copy of ``data`` with ``section.key=value`` overrides (TOML values) applied."""
+    data = copy.deepcopy(data)
+    for item in overrides or ():
+        if "=" not in item:
+            raise SceneError(f"--set expects section.key=value, received {item!r}")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        parts = key.split(".")
+        if not all(parts):
+            raise SceneError(f"--set key must be a dotted path like process.spindle_rpm, received {key!r}")
+        node = data
+        for p in parts[:-1]:
+            nxt = node.get(p)
+            if nxt is None:
+                nxt = node[p] = {}
+            if not isinstance(nxt, dict):
+                raise SceneError(f"--set {key}: {p!r} is a value, not a section")
+            node = nxt
+        node[parts[-1]] = _parse_value(text.strip())
+    return data
+
+
+def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scene:
+    """Read a TOML scene file, apply ``--set`` overrides and validate."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"scene file not found: {str(path)!r}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {err}") from None
+    data = apply_overrides(data, overrides)
+    # relative heightmap paths are relative to the scene file
+    _resolve_paths(data.get("design"), path.parent)
+    return scene_from_dict(data, source=str(path))
+
+
+def _resolve_paths(design, base: Path):
+    if not isinstance(design, dict):
+        return
+    if design.get("type") == "heightmap" and isinstance(design.get("path"), str):
+        p = Path(design["path"])
+        if not p.is_absolute():
+            design["path"] = str((base / p).resolve())
+    for k in ("base", "feature"):
+        _resolve_paths(design.get(k), base)
