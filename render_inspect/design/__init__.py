@@ -7,8 +7,14 @@ from __future__ import annotations
 
 from ._analytic import Biconic, Plane, SinusoidalGrid, Sphere, Toric
 from ._base import Surface
+from ._compound import Compound
+from ._expression import ExpressionSurface
+from ._heightmap import HeightMapSurface
+from ._lenslets import LensletArray, LensletRings
 
-__all__ = ["Surface", "SinusoidalGrid", "Plane", "Sphere", "Toric", "Biconic", "make_surface"]
+__all__ = ["Surface", "SinusoidalGrid", "Plane", "Sphere", "Toric", "Biconic", "Compound",
+           "LensletArray", "LensletRings", "ExpressionSurface", "HeightMapSurface",
+           "make_surface"]
 
 
 def make_surface(cfg) -> Surface:

@@ -61,11 +61,18 @@ class Plane(Surface):
         return float(np.hypot(self.sx, self.sy))
 
 
+def _f64(a):
+    return np.asarray(a, dtype=np.float64)
+
+
 class Biconic(Surface):
-    """Biconic sag z = s * c r'^2 / (1 + sqrt(1 - (1+kx) cx^2 x^2 - (1+ky) cy^2 y^2)) form.
+    """Biconic sag ``z = offset - (cx u^2 + cy v^2) / (1 + sqrt(1 - (1+kx) cx^2 u^2 - (1+ky) cy^2 v^2))``
+    with ``u = x - x0``, ``v = y - y0``, ``cx = 1/radius_x``, ``cy = 1/radius_y``.
 
     ``radius`` > 0: convex (apex up, height falls away from the apex);
-    ``radius`` < 0: concave.  Sphere and toric-like surfaces are special cases.
+    ``radius`` < 0: concave.  ``conic = 0`` gives sections close to circles (equal radii:
+    a sphere), ``conic = -1`` a paraboloid ``z = offset - u^2/(2 Rx) - v^2/(2 Ry)``.
+    The apex curvatures are ``-1/radius_x`` and ``-1/radius_y`` (d2z/dx2, d2z/dy2).
     Points outside the surface's domain raise InputError on evaluation (NaN would be
     silent).
     """
@@ -73,14 +80,16 @@ class Biconic(Surface):
 
     def __init__(self, radius_x, radius_y, conic_x=0.0, conic_y=0.0, x0=0.0, y0=0.0, offset=0.0):
         if radius_x == 0 or radius_y == 0:
-            raise InputError(f"radius_x and radius_y must be non-zero, received {radius_x}, {radius_y}")
+            raise InputError(f"design.radius_x and design.radius_y must be non-zero (> 0 convex, "
+                             f"< 0 concave), received {radius_x}, {radius_y}")
+        self.radius_x, self.radius_y = float(radius_x), float(radius_y)
         self.cx, self.cy = 1.0 / radius_x, 1.0 / radius_y
         self.kx, self.ky = float(conic_x), float(conic_y)
         self.x0, self.y0, self.offset = float(x0), float(y0), float(offset)
 
     def _parts(self, x, y):
-        u = np.asarray(x, dtype=np.float64) - self.x0
-        v = np.asarray(y, dtype=np.float64) - self.y0
+        u = _f64(x) - self.x0
+        v = _f64(y) - self.y0
         num = self.cx * u * u + self.cy * v * v
         arg = 1 - (1 + self.kx) * self.cx ** 2 * u * u - (1 + self.ky) * self.cy ** 2 * v * v
         if np.any(arg < 0):
@@ -92,68 +101,143 @@ class Biconic(Surface):
         _, _, num, s = self._parts(x, y)
         return -num / (1 + s) + self.offset
 
-    def gradient(self, x, y):
+    def _derivs(self, x, y):
         u, v, num, s = self._parts(x, y)
         d = 1 + s
-        # z = -num / d ; dnum/du = 2 cx u ; ds/du = -(1+kx) cx^2 u / s
-        dnum_u, dnum_v = 2 * self.cx * u, 2 * self.cy * v
+        ax = (1 + self.kx) * self.cx ** 2
+        ay = (1 + self.ky) * self.cy ** 2
+        # f = num / d ;  num_u = 2 cx u ;  s_u = -ax u / s
+        nu, nv = 2 * self.cx * u, 2 * self.cy * v
         with np.errstate(divide="ignore", invalid="ignore"):
-            ds_u = np.where(s > 0, -(1 + self.kx) * self.cx ** 2 * u / s, 0.0)
-            ds_v = np.where(s > 0, -(1 + self.ky) * self.cy ** 2 * v / s, 0.0)
-        gx = -(dnum_u * d - num * ds_u) / d ** 2
-        gy = -(dnum_v * d - num * ds_v) / d ** 2
+            inv_s = np.where(s > 0, 1.0 / s, 0.0)
+        su, sv = -ax * u * inv_s, -ay * v * inv_s
+        return u, v, num, s, d, ax, ay, nu, nv, su, sv, inv_s
+
+    def gradient(self, x, y):
+        _, _, num, _, d, _, _, nu, nv, su, sv, _ = self._derivs(x, y)
+        gx = -(nu * d - num * su) / d ** 2
+        gy = -(nv * d - num * sv) / d ** 2
         return gx, gy
+
+    def hessian(self, x, y):
+        u, v, num, s, d, ax, ay, nu, nv, su, sv, inv_s = self._derivs(x, y)
+        # second derivatives of s = sqrt(arg): s_uu = -ax/s - su^2/s, s_uv = -su sv / s
+        suu = (-ax - su * su) * inv_s
+        svv = (-ay - sv * sv) * inv_s
+        suv = -su * sv * inv_s
+        d2, d3 = d * d, d * d * d
+        fuu = 2 * self.cx / d - 2 * nu * su / d2 - num * suu / d2 + 2 * num * su * su / d3
+        fvv = 2 * self.cy / d - 2 * nv * sv / d2 - num * svv / d2 + 2 * num * sv * sv / d3
+        fuv = -nu * sv / d2 - nv * su / d2 - num * suv / d2 + 2 * num * su * sv / d3
+        return -fuu, -fuv, -fvv
 
 
 class Sphere(Biconic):
+    """Sphere of radius ``radius`` with its apex at (x0, y0, offset); > 0 convex (cap up),
+    < 0 concave.  ``z = offset -+ r^2 / (R + sqrt(R^2 - r^2))`` (the sag form, exact near
+    the apex); the apex curvature d2z/dx2 = -1/radius."""
     kind = "sphere"
 
     def __init__(self, radius, x0=0.0, y0=0.0, offset=0.0):
         super().__init__(radius, radius, 0.0, 0.0, x0, y0, offset)
         self.radius = float(radius)
+        self._sgn = -1.0 if self.radius > 0 else 1.0
 
-    def height(self, x, y):
-        u = np.asarray(x, dtype=np.float64) - self.x0
-        v = np.asarray(y, dtype=np.float64) - self.y0
+    def _uvw(self, x, y):
+        u = _f64(x) - self.x0
+        v = _f64(y) - self.y0
         r2 = u * u + v * v
         R = abs(self.radius)
         if np.any(r2 > R * R):
-            raise InputError(f"design point outside the sphere (radius {self.radius} mm); "
-                             "shrink simulation.region")
-        sag = r2 / (R + np.sqrt(R * R - r2))
-        return (-sag if self.radius > 0 else sag) + self.offset
+            raise InputError(f"design point outside the sphere (design.radius = {self.radius} mm, "
+                             f"farthest point at {float(np.sqrt(np.max(r2))):.6g} mm from the apex); "
+                             "shrink simulation.region or process.workpiece_radius")
+        return u, v, r2, np.sqrt(R * R - r2)
+
+    def height(self, x, y):
+        _, _, r2, w = self._uvw(x, y)
+        sag = r2 / (abs(self.radius) + w)
+        return self._sgn * sag + self.offset
 
     def gradient(self, x, y):
-        u = np.asarray(x, dtype=np.float64) - self.x0
-        v = np.asarray(y, dtype=np.float64) - self.y0
-        R = abs(self.radius)
-        w = np.sqrt(np.maximum(R * R - u * u - v * v, 1e-300))
-        sgn = -1.0 if self.radius > 0 else 1.0
-        return sgn * u / w, sgn * v / w
+        u, v, _, w = self._uvw(x, y)
+        w = np.maximum(w, 1e-300)
+        return self._sgn * u / w, self._sgn * v / w
+
+    def hessian(self, x, y):
+        u, v, _, w = self._uvw(x, y)
+        w = np.maximum(w, 1e-300)
+        w3 = w ** 3
+        return (self._sgn * (1 / w + u * u / w3), self._sgn * u * v / w3,
+                self._sgn * (1 / w + v * v / w3))
 
 
 class Toric(Surface):
-    """Torus section: circular section of radius ``radius_x`` along x; the y section
-    radius ``radius_y`` (seed 002's R1 = 500, R2 = 250 mm).  Sign: > 0 convex."""
+    """Toric surface with principal radii ``radius_x`` (section y = 0) and ``radius_y``
+    (section x = 0) at the apex (0, 0, offset); sign as for the sphere: > 0 convex.
+
+    Construction: the circular x-section of radius |radius_x| is swept about an axis
+    parallel to x at distance |radius_y| from the apex, so every section x = const is a
+    circle (radius |radius_y| -+ sag_x(x)).  Seed 002's base: R1 = 500, R2 = 250 mm.
+    Apex curvatures: d2z/dx2 = -1/radius_x, d2z/dy2 = -1/radius_y.
+    """
     kind = "toric"
 
     def __init__(self, radius_x, radius_y, offset=0.0):
         if radius_x == 0 or radius_y == 0:
-            raise InputError(f"radius_x and radius_y must be non-zero, received {radius_x}, {radius_y}")
+            raise InputError(f"design.radius_x and design.radius_y must be non-zero (> 0 convex, "
+                             f"< 0 concave), received {radius_x}, {radius_y}")
         self.rx, self.ry, self.offset = float(radius_x), float(radius_y), float(offset)
+        self.radius_x, self.radius_y = self.rx, self.ry
+        self._sx = 1.0 if self.rx > 0 else -1.0
+        self._sy = 1.0 if self.ry > 0 else -1.0
+
+    def _parts(self, x, y):
+        x = _f64(x)
+        y = _f64(y)
+        Rx, Ry = abs(self.rx), abs(self.ry)
+        if np.any(np.abs(x) >= Rx):
+            raise InputError(f"design point outside the toric surface (|x| must be < "
+                             f"|design.radius_x| = {Rx} mm); shrink simulation.region")
+        qx = np.sqrt(Rx * Rx - x * x)
+        sx = x * x / (Rx + qx)                       # sag of the x-section (>= 0)
+        rr = Ry - self._sx * self._sy * sx           # radius of the y-section at this x
+        if np.any(np.abs(y) >= np.abs(rr)) or np.any(rr <= 0):
+            raise InputError("design point outside the toric surface (|y| must be < the local "
+                             f"y-section radius, about |design.radius_y| = {Ry} mm); shrink "
+                             "simulation.region")
+        q = np.sqrt(rr * rr - y * y)
+        return x, y, qx, sx, rr, q
 
     def height(self, x, y):
-        # sag of the x-section, then the ring of radius (Ry - sag_x) swept about the x-parallel axis
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        Rx, Ry = abs(self.rx), abs(self.ry)
-        sx = x * x / (Rx + np.sqrt(np.maximum(Rx * Rx - x * x, 0)))
-        sgn_x = 1.0 if self.rx > 0 else -1.0
-        sgn_y = 1.0 if self.ry > 0 else -1.0
-        # signed sag along x relative to the y-section's own radius
-        rr = Ry - sgn_x * sgn_y * sx
-        if np.any(np.abs(y) > np.abs(rr)) or np.any(np.abs(x) > Rx):
-            raise InputError("design point outside the toric surface; shrink simulation.region")
-        sy = rr - np.sqrt(rr * rr - y * y)
-        total = sgn_x * sx + sgn_y * sy
-        return -total + self.offset
+        x, y, qx, sx, rr, q = self._parts(x, y)
+        sy = y * y / (rr + q)
+        return -(self._sx * sx + self._sy * sy) + self.offset
+
+    def gradient(self, x, y):
+        x, y, qx, sx, rr, q = self._parts(x, y)
+        sig = self._sx * self._sy
+        sx_x = x / qx
+        rr_x = -sig * sx_x
+        sy_x = rr_x * (1 - rr / q)
+        sy_y = y / q
+        gx = -(self._sx * sx_x + self._sy * sy_x)
+        gy = -self._sy * sy_y
+        return np.broadcast_arrays(gx, gy)
+
+    def hessian(self, x, y):
+        x, y, qx, sx, rr, q = self._parts(x, y)
+        sig = self._sx * self._sy
+        Rx = abs(self.rx)
+        sx_x = x / qx
+        sx_xx = Rx * Rx / qx ** 3
+        rr_x = -sig * sx_x
+        rr_xx = -sig * sx_xx
+        q3 = q ** 3
+        sy_xx = rr_xx * (1 - rr / q) + rr_x * rr_x * y * y / q3
+        sy_xy = -y * rr * rr_x / q3
+        sy_yy = rr * rr / q3
+        hxx = -(self._sx * sx_xx + self._sy * sy_xx)
+        hxy = -self._sy * sy_xy
+        hyy = -self._sy * sy_yy
+        return tuple(np.broadcast_arrays(hxx, hxy, hyy))

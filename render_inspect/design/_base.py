@@ -5,10 +5,12 @@ Every length is in mm.  Arrays broadcast like numpy ufuncs.
 
 from __future__ import annotations
 
+import abc
+
 import numpy as np
 
 
-class Surface:
+class Surface(abc.ABC):
     """Base class of design surfaces.
 
     Subclasses implement :meth:`height` and, where they can, analytic :meth:`gradient`
@@ -20,8 +22,9 @@ class Surface:
     #: human-readable name, and the config that built it (provenance)
     kind: str = "surface"
 
+    @abc.abstractmethod
     def height(self, x, y) -> np.ndarray:
-        raise NotImplementedError(f"{type(self).__name__}.height is unsupported")  # abstract
+        """F(x, y) in mm; ``x`` and ``y`` (mm) broadcast like numpy ufuncs."""
 
     def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray]:
         """(dz/dx, dz/dy)."""

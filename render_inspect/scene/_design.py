@@ -62,13 +62,26 @@ class Toric(Section):
 
 class Biconic(Section):
     """Biconic sag; conic 0 = sphere-like sections, -1 = paraboloid.
-    Sign as for sphere: > 0 convex, < 0 concave."""
+    Sign as for sphere: > 0 convex, < 0 concave.  ``type = "paraboloid"`` is the biconic
+    with conic_x = conic_y = -1 (the default there; other conics are rejected)."""
     type: Literal["biconic", "paraboloid"]
     radius_x: float
     radius_y: float
     conic_x: float = 0.0
     conic_y: float = 0.0
     offset: float = 0.0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _paraboloid(cls, data):
+        if isinstance(data, dict) and data.get("type") == "paraboloid":
+            data = dict(data)
+            for k in ("conic_x", "conic_y"):
+                v = data.setdefault(k, -1.0)
+                if v != -1:
+                    raise ValueError(f"{k} must be -1 for type = 'paraboloid' (use type = "
+                                     f"'biconic' for other conics), received {v!r}")
+        return data
 
     @model_validator(mode="after")
     def _nonzero(self):
@@ -82,14 +95,21 @@ class LensletArray(Section):
     """Spherical lenslets on a rectangular grid (seed 000 Table 4, seed 002, seed 003).
 
     ``cells = "round"``: each lenslet is a spherical cap of aperture radius
-    ``aperture_radius`` on a flat (base) surface; ``cells = "quad"``: sharp-edged
-    quadrilateral cells filling the grid (seed 003), the aperture is the cell."""
+    ``aperture_radius`` on a flat (base) surface at ``offset``; concave lenslets are
+    dimples below it, convex ones bumps above it.  ``cells = "quad"``: sharp-edged
+    quadrilateral cells filling the grid (seed 003), ``z = offset +- s^2/(r + sqrt(r^2 - s^2))``
+    (the cell centre at ``offset``), the blank outside the array at the corners' level.
+    Give either ``lens_radius`` or (round cells) ``sag``, the chord height of one
+    lenslet: ``lens_radius = (aperture_radius^2 + sag^2) / (2 sag)``.
+    Centres: ``center + (j - (cols-1)/2) pitch_x``, ``center + (i - (rows-1)/2) pitch_y``."""
     type: Literal["lenslet_array"]
     rows: int = Field(2, ge=1, le=1000)
     cols: int = Field(2, ge=1, le=1000)
     pitch_x: float = Field(..., gt=0, description="mm, centre spacing along x")
     pitch_y: float = Field(..., gt=0, description="mm, centre spacing along y")
-    lens_radius: float = Field(..., gt=0, description="mm, radius of curvature of each lenslet")
+    lens_radius: float | None = Field(None, gt=0, description="mm, radius of curvature of each lenslet")
+    sag: float | None = Field(None, gt=0, description="mm, chord height of a round lenslet "
+                                                      "(instead of lens_radius)")
     aperture_radius: float | None = Field(None, gt=0, description="mm, round cells only")
     concave: bool = True
     cells: Literal["round", "quad"] = "round"
@@ -99,11 +119,34 @@ class LensletArray(Section):
 
     @model_validator(mode="after")
     def _aperture(self):
-        if self.aperture_radius is not None and self.aperture_radius >= self.lens_radius:
-            raise ValueError(f"aperture_radius must be < lens_radius ({self.lens_radius}), "
-                             f"received {self.aperture_radius}")
-        if self.cells == "round" and self.aperture_radius is None:
-            raise ValueError("aperture_radius is required for cells = 'round'")
+        if (self.lens_radius is None) == (self.sag is None):
+            raise ValueError("give exactly one of lens_radius (mm, radius of curvature) and sag "
+                             f"(mm, chord height), received lens_radius={self.lens_radius}, "
+                             f"sag={self.sag}")
+        if self.cells == "round":
+            if self.aperture_radius is None:
+                raise ValueError("aperture_radius is required for cells = 'round'")
+            half = min(self.pitch_x, self.pitch_y) / 2
+            if self.aperture_radius > half:
+                raise ValueError(f"aperture_radius must be <= half the smaller pitch ({half:g} mm; "
+                                 f"round lenslets may not overlap), received {self.aperture_radius}")
+            if self.sag is not None and self.sag >= self.aperture_radius:
+                raise ValueError(f"sag must be < aperture_radius ({self.aperture_radius} mm, a "
+                                 f"lenslet is at most a hemisphere), received {self.sag}")
+            if self.lens_radius is not None and self.aperture_radius >= self.lens_radius:
+                raise ValueError(f"aperture_radius must be < lens_radius ({self.lens_radius}), "
+                                 f"received {self.aperture_radius}")
+        else:
+            if self.sag is not None:
+                raise ValueError("sag is only defined for cells = 'round' (give lens_radius for "
+                                 f"quad cells), received sag={self.sag}")
+            if self.aperture_radius is not None:
+                raise ValueError("aperture_radius is only used with cells = 'round' (a quad cell's "
+                                 f"aperture is the pitch), received {self.aperture_radius}")
+            half_diag = 0.5 * (self.pitch_x ** 2 + self.pitch_y ** 2) ** 0.5
+            if half_diag >= self.lens_radius:
+                raise ValueError(f"lens_radius must be > half the cell diagonal ({half_diag:g} mm) "
+                                 f"for cells = 'quad', received {self.lens_radius}")
         return self
 
 

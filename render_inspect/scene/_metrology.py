@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ._base import Section
 
@@ -14,3 +14,22 @@ class MetrologyConfig(Section):
     polynomial_degree: int = Field(2, ge=1, le=10)
     s_filter: float | None = Field(None, gt=0, description="mm, ISO 16610-61 S-filter nesting index")
     l_filter: float | None = Field(None, gt=0, description="mm, L-filter nesting index")
+    outlier_sigma: float = Field(3.0, gt=0, le=20,
+                                 description="k of the second-difference k-sigma outlier rule")
+    registration: Literal["none", "lsq", "icp"] = "lsq"
+    registration_dof: list[Literal["tx", "ty", "tz", "alpha", "beta", "gamma"]] = Field(
+        default_factory=lambda: ["tx", "ty", "tz", "alpha", "beta", "gamma"], min_length=1,
+        description="rigid-body parameters the registration fits")
+    template_oversample: int = Field(10, ge=1, le=50, description="ICP template density / measured")
+    msa_inner: float = Field(0.95, gt=0, le=1, description="fraction of the aperture that is MSA data")
+    msa_outer: float = Field(1.05, ge=1, le=3, description="beyond this fraction of the aperture: base")
+    profile_sampling_lengths: int = Field(5, ge=1, le=50, description="sampling lengths for Rz")
+    min_coverage: float = Field(0.95, ge=0, le=1,
+                                description="warn when a measurement covers less of the region")
+
+    @model_validator(mode="after")
+    def _filters_nest(self):
+        if self.s_filter is not None and self.l_filter is not None and not self.l_filter > self.s_filter:
+            raise ValueError(f"metrology.l_filter must be > metrology.s_filter ({self.s_filter} mm), "
+                             f"received {self.l_filter} mm")
+        return self

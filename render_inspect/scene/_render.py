@@ -25,6 +25,7 @@ class InterferometerConfig(Section):
     bit_depth: int = Field(12, ge=1, le=16)
     full_well: float = Field(20000.0, gt=0, description="electrons")
     read_noise: float = Field(5.0, ge=0, description="electrons rms")
+    reference_height: float | None = Field(None, description="z_ref, mm (default: mean height in the field)")
 
 
 class DiffuseConfig(Section):

@@ -36,6 +36,9 @@ class ToolPath:
     z: np.ndarray
     t: np.ndarray
     meta: dict = field(default_factory=dict)
+    #: the cutting-contact points the path was made from (radius, design height), if known
+    ccp_rho: np.ndarray | None = field(default=None, repr=False)
+    ccp_z: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self):
         n = len(self.theta)

@@ -1,0 +1,51 @@
+"""Compound surface: a base form plus a feature surface (seed 001, seed 002)."""
+
+from __future__ import annotations
+
+from ..errors import InputError
+from ._base import Surface
+
+__all__ = ["Compound"]
+
+
+class Compound(Surface):
+    """``F = base + feature``: heights, gradients and Hessians add.
+
+    Seed 001: a base of two orthogonal circular sections (r1 = r2 = 1000 mm) plus the
+    sinusoidal grid ``h1 sin(w1 x) + h2 sin(w2 y)``; seed 002: a toric base plus a lenslet
+    array.
+
+    Parameters
+    ----------
+    base, feature : Surface
+        The two parts (any :class:`Surface`, compounds included).
+    """
+    kind = "compound"
+
+    def __init__(self, base: Surface, feature: Surface):
+        for name, s in (("base", base), ("feature", feature)):
+            if not isinstance(s, Surface):
+                raise InputError(f"design.{name} must be a Surface, received {type(s).__name__}")
+        self.base, self.feature = base, feature
+
+    def height(self, x, y):
+        return self.base.height(x, y) + self.feature.height(x, y)
+
+    def gradient(self, x, y):
+        bx, by = self.base.gradient(x, y)
+        fx, fy = self.feature.gradient(x, y)
+        return bx + fx, by + fy
+
+    def hessian(self, x, y):
+        b = self.base.hessian(x, y)
+        f = self.feature.hessian(x, y)
+        return tuple(bi + fi for bi, fi in zip(b, f))
+
+    def centers(self):
+        """The feature's lenslet centres (only when the feature is a lenslet array)."""
+        if not hasattr(self.feature, "centers"):
+            raise InputError(f"design.feature ({type(self.feature).__name__}) has no lenslet centres")
+        return self.feature.centers()
+
+    def __repr__(self):
+        return f"Compound(base={self.base!r}, feature={self.feature!r})"

@@ -1,0 +1,164 @@
+"""Read measured height maps from instrument and exchange formats, in mm.
+
+A registry keyed by file suffix (trimesh's habit): X3P via ``x3pio``; the project's own
+``heightmap.exr``; ``.npy`` with a JSON side-car and ``.npz``; and the instrument formats
+``surfalize`` reads (``.sur``, ``.plu``, ``.plux``, ``.sdf``, ``.al3d``, ``.vk4``, ``.opd``,
+``.zon``, ...; surfalize gives micrometres, converted here).  Zygo ``.datx`` has no
+well-kept Python reader in this environment: export such data to X3P.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["read_measured", "measured_formats"]
+
+_UNIT_TO_MM = {"mm": 1.0, "um": 1e-3, "µm": 1e-3, "nm": 1e-6, "m": 1e3}
+_SURFALIZE = (".sur", ".plu", ".plux", ".sdf", ".al3d", ".vk4", ".vk6", ".vk7", ".opd",
+              ".zon", ".gwy", ".tmd", ".os3d", ".nms", ".lext", ".oir", ".zmg", ".sflz", ".hdat")
+
+
+def _to_mm(name: str, units) -> float:
+    if units not in _UNIT_TO_MM:
+        raise InputError(f"{name}: units must be one of {sorted(_UNIT_TO_MM)}, got {units!r}")
+    return _UNIT_TO_MM[units]
+
+
+def _read_x3p(path, **_):
+    from ._x3p import read_x3p
+
+    return read_x3p(path)
+
+
+def _read_exr(path, *, channel=None, **_):
+    from ._exr import read_exr
+
+    ch, attrs = read_exr(path)
+    if channel is None:
+        for c in ("measured", "height", "machined", "Z", "z"):
+            if c in ch:
+                channel = c
+                break
+        else:
+            if len(ch) != 1:
+                raise InputError(f"{path}: EXR has channels {sorted(ch)}; say which with channel=")
+            channel = next(iter(ch))
+    if channel not in ch:
+        raise InputError(f"{path}: EXR has no channel {channel!r} (channels: {sorted(ch)})")
+    for key in ("pixel_size_mm", "origin_mm"):
+        if key not in attrs:
+            raise InputError(f"{path}: EXR header lacks {key!r}; it is needed to place the map in mm")
+    scale = _to_mm(f"{path} header 'units'", attrs.get("units", "mm"))
+    z = ch[channel].astype(np.float64) * scale
+    o = attrs["origin_mm"]
+    return z, float(attrs["pixel_size_mm"]), (float(o[0]), float(o[1])), {
+        "format": "exr", "channel": channel, "scene": attrs.get("scene")}
+
+
+def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
+    path = Path(path)
+    side = {}
+    sidecar = path.with_suffix(".json")
+    if path.suffix == ".npz":
+        with np.load(path) as npz:
+            key = next((k for k in ("z", "height", "measured") if k in npz.files), None)
+            if key is None:
+                raise InputError(f"{path}: .npz needs an array 'z' (heights), has {npz.files}")
+            z = np.array(npz[key], dtype=np.float64)
+            for k in ("pixel_mm", "origin_mm", "units"):
+                if k in npz.files:
+                    side[k] = npz[k].tolist()
+    else:
+        z = np.load(path, allow_pickle=False).astype(np.float64)
+        if sidecar.is_file():
+            side = json.loads(sidecar.read_text())
+    pixel = pixel if pixel is not None else side.get("pixel_mm")
+    origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
+    units = units or side.get("units", "mm")
+    if pixel is None:
+        raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
+                         f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')
+    return z * _to_mm(f"{path} units", units), float(pixel), (float(origin[0]), float(origin[1])), {
+        "format": path.suffix[1:], "units_in_file": units}
+
+
+def _read_surfalize(path, **_):
+    import surfalize
+
+    try:
+        s = surfalize.Surface.load(str(path))
+    except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
+        raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
+    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # um -> mm
+    if not np.isclose(s.step_x, s.step_y, rtol=1e-6):
+        raise InputError(f"{path}: pixel sizes differ in x ({s.step_x * 1e-3:g} mm) and y "
+                         f"({s.step_y * 1e-3:g} mm); resample to square pixels first")
+    return z, float(s.step_x) * 1e-3, (0.0, 0.0), {"format": Path(path).suffix[1:],
+                                                   "reader": f"surfalize {surfalize.__version__}"}
+
+
+_READERS = {".x3p": _read_x3p, ".exr": _read_exr, ".npy": _read_numpy, ".npz": _read_numpy,
+            **{s: _read_surfalize for s in _SURFALIZE}}
+
+
+def measured_formats() -> list[str]:
+    """File suffixes :func:`read_measured` reads."""
+    return sorted(_READERS)
+
+
+def read_measured(path: str | Path, *, channel: str | None = None, pixel: float | None = None,
+                  origin=None, units: str | None = None):
+    """Read a measured (or exported) height map.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.x3p``, ``.exr`` (our ``heightmap.exr`` or any EXR with ``pixel_size_mm`` /
+        ``origin_mm`` header attributes), ``.npy`` (+ ``<name>.json`` side-car with
+        ``pixel_mm``, ``origin_mm``, ``units``), ``.npz`` (arrays ``z``, ``pixel_mm``,
+        ``origin_mm``, ``units``) or an instrument format read by surfalize
+        (see :func:`measured_formats`).
+    channel : str, optional
+        EXR channel (default: ``measured``, ``height``, ``machined``, or the only one).
+    pixel, origin, units : optional
+        For ``.npy``/``.npz`` without that information: pixel (mm), origin of pixel [0, 0]
+        (mm), and the unit of the heights ("mm", "um", "nm", "m").
+
+    Returns
+    -------
+    z : (ny, nx) float64 array
+        Heights in mm, NaN where not measured; row 0 = smallest y.
+    pixel : float
+        mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+    meta : dict
+        ``format`` and what the file says about itself; ``path``; ``valid_fraction``.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".datx":
+        raise InputError(f"{path}: Zygo .datx has no well-kept reader here; export the map to X3P "
+                         f"(Mx: File > Save Data As > .x3p) and read that")
+    if suffix not in _READERS:
+        raise InputError(f"{path}: unknown height-map format {suffix!r}; supported: "
+                         f"{', '.join(measured_formats())}")
+    if not path.is_file():
+        raise InputError(f"measured file not found: {str(path)!r}")
+    z, pixel_mm, origin_mm, meta = _READERS[suffix](path, channel=channel, pixel=pixel,
+                                                    origin=origin, units=units)
+    if z.ndim != 2 or min(z.shape) < 2:
+        raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
+    if not pixel_mm > 0 or not np.isfinite(pixel_mm):
+        raise InputError(f"{path}: pixel size must be > 0 mm, got {pixel_mm!r}")
+    z = np.where(np.isinf(z), np.nan, z)
+    valid = float(np.isfinite(z).mean())
+    if valid == 0.0:
+        raise InputError(f"{path}: the map has no valid (finite) heights")
+    meta.update({"path": str(path), "valid_fraction": valid})
+    return z, float(pixel_mm), (float(origin_mm[0]), float(origin_mm[1])), meta

@@ -1,0 +1,110 @@
+"""X3P (ISO 25178-72 / ISO 5436-2) height maps, written and read with ``x3pio``.
+
+X3P stores metres; this module converts at the boundary (mm in, mm out).  The origin
+(centre of pixel [0, 0]) goes into the file's placement offset; y grows with the row
+index in both X3P and :class:`~render_inspect.machining.HeightMap`.  The metadata date is
+fixed by default so the same map gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError, check_positive
+from ._atomic import atomic_write_bytes
+
+__all__ = ["write_x3p", "read_x3p"]
+
+_FIXED_DATE = datetime(2000, 1, 1, tzinfo=timezone.utc)
+
+
+def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: str | None = None,
+              date: datetime | None = None) -> Path:
+    """Write a height map (mm) to an X3P file, atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        Destination (``.x3p``).
+    z : (ny, nx) array
+        Heights, mm; NaN = not measured (stored as invalid points).  Row 0 is the smallest y.
+    pixel : float
+        Sampling distance (x and y), mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm (the X3P placement offset).
+    comment : str, optional
+        Free text stored in the metadata record (e.g. the scene as JSON).
+    date : datetime, optional
+        Creation date in the metadata (default 2000-01-01 UTC, so output is reproducible).
+    """
+    import x3pio
+
+    z = np.asarray(z, dtype=np.float64)
+    if z.ndim != 2 or min(z.shape) < 1:
+        raise InputError(f"write_x3p: z must be a 2-D height map, got shape {z.shape}")
+    check_positive("pixel", pixel)
+    if np.isinf(z).any():
+        raise InputError("write_x3p: z contains +-inf; use NaN for points that are not measured")
+    meta = x3pio.Metadata.for_software("render_inspect", __version__, date=date or _FIXED_DATE)
+    if comment:
+        import dataclasses
+
+        meta = dataclasses.replace(meta, comment=str(comment))
+    place = x3pio.Placement.translation(float(origin[0]) * 1e-3, float(origin[1]) * 1e-3, 0.0)
+    buf = io.BytesIO()
+    x3pio.write(buf, z * 1e-3, x_scale=float(pixel) * 1e-3, y_scale=float(pixel) * 1e-3,  # mm -> m
+                metadata=meta, placement=place, coordinate_system=x3pio.CoordinateSystem.VIEW)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def read_x3p(path: str | Path):
+    """Read an X3P surface.
+
+    Returns
+    -------
+    z : (ny, nx) float64 array
+        Heights, mm (NaN where not measured), row 0 = smallest y.
+    pixel : float
+        mm (x and y sampling must agree).
+    origin : (x, y)
+        Centre of pixel [0, 0], mm, from the placement offset.
+    meta : dict
+        ``format`` = "x3p", ``pixel_x_mm``, ``pixel_y_mm``, ``comment``, ``instrument``, ``date``.
+    """
+    import x3pio
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"X3P file not found: {str(path)!r}")
+    try:
+        f = x3pio.read(str(path))
+    except x3pio.X3pError as err:
+        raise InputError(f"{path}: not a readable X3P file ({err})") from None
+    if not isinstance(f, x3pio.Surface):
+        raise InputError(f"{path}: X3P holds a {type(f).__name__}, only surfaces on a regular grid "
+                         f"are supported")
+    if len(f.layers) != 1:
+        raise InputError(f"{path}: X3P has {len(f.layers)} layers, expected 1")
+    layer = f.layers[0]
+    if not layer.is_regular_grid:
+        raise InputError(f"{path}: X3P surface is not on a regular grid")
+    px_m, py_m = layer.spacing
+    z = np.array(layer.z, dtype=np.float64) * 1e3  # m -> mm
+    place = f.placement
+    if not np.allclose(place.rotation, np.eye(3)):
+        raise InputError(f"{path}: X3P placement has a rotation; rotate the data to the view "
+                         f"frame first (only translations are supported)")
+    off = np.asarray(place.offset) * 1e3
+    if off[2]:
+        z = z + off[2]
+    m = f.metadata
+    meta = {"format": "x3p", "pixel_x_mm": px_m * 1e3, "pixel_y_mm": py_m * 1e3,
+            "comment": getattr(m, "comment", None) if m else None,
+            "instrument": str(getattr(m.instrument, "model", "")) if m else "",
+            "date": str(getattr(m, "date", "")) if m else ""}
+    return z, float(px_m * 1e3), (float(off[0]), float(off[1])), meta

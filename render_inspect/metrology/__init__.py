@@ -1,0 +1,27 @@
+"""Metrology: ISO 25178 / 21920 parameters, ISO 16610-61 Gaussian filters, form removal,
+outliers and 6-DOF registration (seed 002), microstructure-array analysis (lenslet
+centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
+scene's design and simulation.  Plain numpy/scipy; lengths in mm."""
+
+from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
+                       coverage, resample_map)
+from ._filters import (GAUSSIAN_ALPHA, gaussian_filter, gaussian_sigma, l_filter, remove_form,
+                       s_filter, valid_mask)
+from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_centers,
+                   lenslet_table, separate_msa)
+from ._params import areal_parameters, extract_section, profile_parameters, section_parameters
+from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
+                            register_icp, register_lsq, rigid_resample, rotation_matrix,
+                            template_surface)
+
+__all__ = [
+    "areal_parameters", "profile_parameters", "extract_section", "section_parameters",
+    "GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
+    "remove_form", "valid_mask",
+    "RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
+    "GridSurface", "template_surface", "register_lsq", "register_icp",
+    "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",
+    "characterise_msa",
+    "characterise_map", "coverage", "check_same_pixel", "resample_map", "Comparison",
+    "compare_measured",
+]

@@ -1,0 +1,242 @@
+"""Characterise a map with a scene's ``[metrology]`` settings, and compare a measured map
+with a scene's design and simulation through the same chain."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError, check_positive
+from ._filters import l_filter, remove_form, s_filter, valid_mask
+from ._params import areal_parameters
+from ._registration import MovedSurface, detect_outliers, register_icp, register_lsq
+
+__all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "Comparison",
+           "compare_measured"]
+
+
+def _cfg_get(cfg, key, default):
+    if cfg is None:
+        return default
+    if isinstance(cfg, dict):
+        return cfg.get(key, default)
+    return getattr(cfg, key, default)
+
+
+def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = "plane",
+                     polynomial_degree: int = 2, design=None, s_filter_mm: float | None = None,
+                     l_filter_mm: float | None = None, mask=None) -> dict:
+    """Form removal, S- and L-filtering, then areal parameters (heights in nm).
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Heights, mm (NaN = missing).
+    pixel, origin
+        mm.
+    form_removal : {"none", "plane", "polynomial", "design"}
+        See :func:`remove_form` (``design`` needs ``design=``, already registered).
+    s_filter_mm, l_filter_mm : float, optional
+        ISO 16610-61 nesting indices, mm (S removes shorter, L longer wavelengths).
+
+    Returns
+    -------
+    dict
+        ``Sa_nm, Sq_nm, Sp_nm, Sv_nm, Sz_nm, Ssk, Sku, Sdq, Sdr_percent, n_valid`` and the
+        settings used (``form_removal``, ``s_filter_mm``, ``l_filter_mm``).
+    """
+    res, _ = remove_form(z, pixel=pixel, method=form_removal, degree=polynomial_degree,
+                         design=design, origin=origin, mask=mask)
+    if s_filter_mm:
+        res = s_filter(res, pixel=pixel, nesting_index=s_filter_mm)
+    if l_filter_mm:
+        if s_filter_mm and not l_filter_mm > s_filter_mm:
+            raise InputError(f"metrology.l_filter ({l_filter_mm} mm) must be > metrology.s_filter "
+                             f"({s_filter_mm} mm)")
+        res = l_filter(res, pixel=pixel, nesting_index=l_filter_mm)
+    p = areal_parameters(res, pixel=pixel)
+    out = {f"{k}_nm": p[k] * 1e6 for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}  # mm -> nm
+    out.update({"Ssk": p["Ssk"], "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"],
+                "n_valid": p["n_valid"], "form_removal": form_removal,
+                "s_filter_mm": s_filter_mm, "l_filter_mm": l_filter_mm})
+    return out
+
+
+def coverage(z, *, pixel: float, origin, region) -> float:
+    """Fraction of ``region`` = (x0, y0, x1, y1) (mm) covered by valid points of the map."""
+    x0, y0, x1, y1 = region
+    if not (x1 > x0 and y1 > y0):
+        raise InputError(f"region must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {region}")
+    ny, nx = np.shape(z)
+    # sample the region on the map's own pixel pitch and look the points up
+    xs = np.arange(x0, x1 + pixel / 2, pixel)
+    ys = np.arange(y0, y1 + pixel / 2, pixel)
+    col = np.rint((xs - origin[0]) / pixel).astype(int)
+    row = np.rint((ys - origin[1]) / pixel).astype(int)
+    cin = (col >= 0) & (col < nx)
+    rin = (row >= 0) & (row < ny)
+    ok = np.isfinite(np.asarray(z))
+    hit = np.zeros((ys.size, xs.size), dtype=bool)
+    if cin.any() and rin.any():
+        hit[np.ix_(rin, cin)] = ok[np.ix_(row[rin], col[cin])]
+    return float(hit.mean())
+
+
+def check_same_pixel(pixel_a: float, pixel_b: float, *, name_a: str = "measured",
+                     name_b: str = "simulated", rtol: float = 1e-6) -> None:
+    """Raise :class:`InputError` naming both pixel sizes when they differ."""
+    if not np.isclose(pixel_a, pixel_b, rtol=rtol, atol=0):
+        raise InputError(f"pixel sizes differ: {name_a} {pixel_a:g} mm vs {name_b} {pixel_b:g} mm; "
+                         f"resample one map (resample_map) or set simulation.pixel = {pixel_a:g}")
+
+
+def resample_map(z, *, pixel: float, origin, target_pixel: float, target_origin, target_shape):
+    """Bilinear resampling of a map onto another grid; NaN outside and next to missing points."""
+    check_positive("pixel", pixel)
+    check_positive("target_pixel", target_pixel)
+    ny, nx = target_shape
+    x = target_origin[0] + target_pixel * np.arange(nx)
+    y = target_origin[1] + target_pixel * np.arange(ny)
+    xx, yy = np.meshgrid(x, y)
+    col = (xx - origin[0]) / pixel
+    row = (yy - origin[1]) / pixel
+    z = np.asarray(z, float)
+    ok = np.isfinite(z)
+    v = ndimage.map_coordinates(np.where(ok, z, 0.0), [row, col], order=1, mode="constant", cval=0.0)
+    bad = ndimage.map_coordinates((~ok).astype(float), [row, col], order=1, mode="constant", cval=1.0)
+    inside = (row >= 0) & (row <= z.shape[0] - 1) & (col >= 0) & (col <= z.shape[1] - 1)
+    return np.where(inside & (bad < 1e-9), v, np.nan)
+
+
+@dataclass
+class Comparison:
+    """Result of :func:`compare_measured`.
+
+    Attributes
+    ----------
+    metrics : dict
+        JSON-able: ``measured``, ``simulated`` (or None), ``difference`` (or None),
+        ``registration``, ``coverage``, ``outliers``, ``source``.
+    maps : dict of (ny, nx) arrays, mm
+        ``measured`` (outliers replaced), ``design`` (registered, on the measured grid),
+        ``residual`` (measured - design), and with a simulation ``simulated_residual`` and
+        ``difference`` (measured residual - simulated residual), all on the measured grid.
+    pixel : float
+    origin : (x, y)
+    """
+
+    metrics: dict
+    maps: dict = field(default_factory=dict)
+    pixel: float = 0.0
+    origin: tuple = (0.0, 0.0)
+
+
+def compare_measured(measured, design_surface, *, metrology=None, simulated=None, region=None,
+                     seed: int = 0) -> Comparison:
+    """Compare a measured height map with the design (and a simulation) of a scene.
+
+    Chain: read (:func:`~render_inspect.io.read_measured`) -> outliers (second difference,
+    ``metrology.outlier_sigma``) -> coverage of ``region`` (warning below
+    ``metrology.min_coverage``; error when nothing overlaps) -> registration to the design
+    (``metrology.registration``: "lsq", "icp" or "none"; free parameters
+    ``metrology.registration_dof``) -> residual = measured - registered design ->
+    :func:`characterise_map` with the scene's form removal and filters.  With
+    ``simulated`` (a HeightMap of the same pixel size) the simulated residual
+    (machined - design) goes through the same :func:`characterise_map`, and the difference
+    of the two residuals is characterised too.
+
+    Parameters
+    ----------
+    measured : str, Path or (z_mm, pixel_mm, origin_mm) tuple
+    design_surface : Surface
+    metrology : MetrologyConfig or dict, optional
+        The scene's ``[metrology]`` section (defaults otherwise).
+    simulated : HeightMap, optional
+    region : (x0, y0, x1, y1), optional
+        mm; the area the comparison should cover (e.g. ``scene.simulation.region``).
+    seed : int
+        Seed of the point subset used by the registration (recorded in the metrics).
+    """
+    from ..io import read_measured
+
+    if isinstance(measured, tuple):
+        z, pixel, origin = measured
+        z = np.asarray(z, float)
+        source = {"format": "array"}
+        pixel, origin = float(pixel), (float(origin[0]), float(origin[1]))
+    else:
+        z, pixel, origin, source = read_measured(measured)
+    k = float(_cfg_get(metrology, "outlier_sigma", 3.0))
+    method = _cfg_get(metrology, "registration", "lsq")
+    dof = tuple(_cfg_get(metrology, "registration_dof",
+                         ("tx", "ty", "tz", "alpha", "beta", "gamma")))
+    min_cov = float(_cfg_get(metrology, "min_coverage", 0.95))
+    if simulated is not None:
+        check_same_pixel(pixel, simulated.pixel)
+    cov = None
+    if region is not None:
+        cov = coverage(z, pixel=pixel, origin=origin, region=region)
+        if cov == 0.0:
+            raise InputError(f"the measured map (origin {origin} mm, {z.shape[1]} x {z.shape[0]} "
+                             f"pixels of {pixel:g} mm) does not overlap the region {tuple(region)} "
+                             f"mm: check the units and origin of the measurement")
+        if cov < min_cov:
+            warnings.warn(f"the measurement covers only {cov:.1%} of the region {tuple(region)} mm "
+                          f"(metrology.min_coverage = {min_cov:.0%}); parameters describe the "
+                          f"covered part only", stacklevel=2)
+    cleaned, outl = detect_outliers(z, pixel=pixel, k=k)
+    use = np.isfinite(cleaned) & ~outl
+    if method == "lsq":
+        reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use, fit=dof,
+                           seed=seed)
+    elif method == "icp":
+        reg = register_icp(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
+                           seed=seed, oversample=int(_cfg_get(metrology, "template_oversample", 10)))
+    elif method == "none":
+        reg = None
+    else:
+        raise InputError(f"metrology.registration must be 'lsq', 'icp' or 'none', got {method!r}")
+    surf = design_surface if reg is None else MovedSurface(design_surface, reg)
+    ny, nx = z.shape
+    x = origin[0] + pixel * np.arange(nx)
+    y = origin[1] + pixel * np.arange(ny)
+    design_map = np.broadcast_to(surf.height(x[None, :], y[:, None]), z.shape).astype(float)
+    residual = np.where(use, cleaned - design_map, np.nan)
+    settings = dict(form_removal=_cfg_get(metrology, "form_removal", "plane"),
+                    polynomial_degree=int(_cfg_get(metrology, "polynomial_degree", 2)),
+                    s_filter_mm=_cfg_get(metrology, "s_filter", None),
+                    l_filter_mm=_cfg_get(metrology, "l_filter", None))
+
+    def char(r):
+        s = dict(settings)
+        if s["form_removal"] == "design":  # the residual is already the deviation from design
+            s["form_removal"] = "none"
+        return characterise_map(r, pixel=pixel, origin=origin, **s)
+
+    metrics = {"measured": char(residual), "simulated": None, "difference": None,
+               "registration": reg, "coverage": cov, "outliers": int(outl.sum()),
+               "source": {k2: v for k2, v in source.items() if k2 != "scene"}, "seed": seed,
+               "pixel_mm": pixel, "origin_mm": list(origin)}
+    maps = {"measured": cleaned, "design": design_map, "residual": residual}
+    if simulated is not None:
+        sim_res = resample_map(np.asarray(simulated.machined) - np.asarray(simulated.design),
+                               pixel=simulated.pixel, origin=simulated.origin, target_pixel=pixel,
+                               target_origin=origin, target_shape=z.shape)
+        both = np.isfinite(sim_res) & np.isfinite(residual)
+        if not both.any():
+            raise InputError(f"the measured map and the simulation do not overlap (measured origin "
+                             f"{origin} mm, simulated origin {tuple(simulated.origin)} mm)")
+        frac = float(both.sum() / max(1, np.isfinite(residual).sum()))
+        if frac < min_cov:
+            warnings.warn(f"the simulation covers only {frac:.1%} of the measured points; the "
+                          f"comparison uses the overlap only", stacklevel=2)
+        metrics["simulated"] = char(np.where(both, sim_res, np.nan))
+        diff = np.where(both, residual - sim_res, np.nan)
+        metrics["difference"] = char(diff)
+        metrics["simulated_overlap"] = frac
+        maps["simulated_residual"] = sim_res
+        maps["difference"] = diff
+    return Comparison(metrics, maps, pixel, origin)

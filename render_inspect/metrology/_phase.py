@@ -1,0 +1,656 @@
+"""Heights from interferometer frames: phase shifting (PSI) and coherence scanning (CSI).
+
+The forward model these functions invert (ARCHITECTURE.md, PHYSICS.md "Instruments")::
+
+    OPD_k = 2 (h - z_ref,k)                                   (mm, normal incidence)
+    I_k   = a + b g(OPD_k) cos(2 pi OPD_k / lambda + delta_k)
+
+PSI: z_ref is fixed, the phase shifts ``delta_k`` are known (``steps_rad``), g = 1.  The
+wrapped phase ``phi = 4 pi (h - z_ref) / lambda`` comes from the 4-step or the 5-step
+(Hariharan) formula or, for any other set of steps, from a per-pixel least-squares fit;
+it is unwrapped in 2-D inside the valid mask (quality-guided flood fill) and converted to
+height ``h = phi lambda / (4 pi)``.  An interferometer measures relative height only: the
+unwrapped height is defined up to a constant (one per connected valid region), which
+:func:`height_error` removes by aligning the mean over the valid pixels with the truth.
+
+CSI: ``delta_k = 0`` and the reference scans, ``z_ref,k = scan_positions[k]``; the
+envelope g peaks where ``z_ref = h``.  The envelope is the modulus of the analytic signal
+(Hilbert transform along the scan) of the frames with their mean removed; its peak is
+located to a fraction of a scan step by a weighted least-squares Gaussian
+(log-parabola) fit over the samples above half maximum.  Optionally the phase of the fringes at the peak refines it.
+
+Every length is in mm; wavelengths are in nm where the name says so
+(``wavelength_nm``); phases in rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError, check_range
+
+__all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
+           "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult",
+           "measure_interferogram", "add_height_measured"]
+
+_ALGORITHMS = ("auto", "4step", "5step", "lsq")
+
+
+@dataclass
+class PhaseResult:
+    """What phase retrieval returns.
+
+    Attributes
+    ----------
+    height : (H, W) float64, mm
+        Measured height (NaN outside ``valid``), relative: defined up to a constant per
+        connected valid region (``labels``).
+    valid : (H, W) bool
+        Pixels with a measurement (light returned and enough fringe modulation).
+    wrapped : (H, W) float64, rad
+        Wrapped phase in (-pi, pi] (PSI) or the fringe phase at the envelope peak (CSI).
+    modulation : (H, W) float64
+        Fringe contrast b / a (PSI) or the envelope peak over the mean (CSI).
+    labels : (H, W) int32
+        Connected valid regions (0 = invalid, 1, 2, ...), each unwrapped on its own.
+    meta : dict
+        Algorithm, wavelength and settings (provenance).
+    """
+
+    height: np.ndarray
+    valid: np.ndarray
+    wrapped: np.ndarray
+    modulation: np.ndarray
+    labels: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------------------
+# input checks
+def _check_frames(frames, *, min_frames=3) -> np.ndarray:
+    f = np.asarray(frames, dtype=np.float64)
+    if f.ndim != 3:
+        raise InputError(f"frames must be an (N, H, W) array of N interferogram frames, "
+                         f"got shape {f.shape}")
+    if f.shape[0] < min_frames:
+        raise InputError(f"frames must hold at least {min_frames} frames (N >= {min_frames}), "
+                         f"got N = {f.shape[0]}")
+    return f
+
+
+def _check_valid(valid, shape) -> np.ndarray:
+    if valid is None:
+        return np.ones(shape, dtype=bool)
+    v = np.asarray(valid)
+    if v.shape != shape:
+        raise InputError(f"valid must have the frames' image shape {shape}, got {v.shape}")
+    return v > 0.5 if v.dtype != bool else v.copy()
+
+
+def _wrap(a):
+    """Wrap to (-pi, pi]."""
+    return a - 2 * np.pi * np.round(a / (2 * np.pi))
+
+
+# --------------------------------------------------------------------------------------
+# PSI: wrapped phase
+def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
+    """Wrapped phase of the zero-shift frame from phase-shifted frames.
+
+    Parameters
+    ----------
+    frames : (N, H, W) array
+        Intensities ``I_k = a + b cos(phi + delta_k)``.
+    steps_rad : (N,) array, optional
+        The phase shifts ``delta_k`` (rad) the instrument applied (nominal values: the
+        algorithm assumes them).  Default ``k pi / 2``.  The 4- and 5-step formulas need
+        equal steps of +pi/2 or -pi/2 (either sign; any offset).
+    algorithm : {"auto", "4step", "5step", "lsq"}
+        "4step": ``phi = atan2(I4 - I2, I1 - I3)`` (for +pi/2 steps from 0).
+        "5step": Hariharan, ``phi = atan2(2 (I2 - I4), 2 I3 - I5 - I1)`` (for steps
+        -pi .. pi), insensitive to a linear step error to first order.
+        "lsq": least-squares fit of a, b cos phi, b sin phi for any known steps.
+        "auto": 4step for N = 4, 5step for N = 5, else lsq.
+
+    Returns
+    -------
+    phase : (H, W) float64, rad in (-pi, pi]
+        ``phi`` such that ``I_k = a + b cos(phi + delta_k)``.
+    modulation : (H, W) float64
+        Fringe contrast ``b / a`` (0 where ``a <= 0``).
+    """
+    f = _check_frames(frames)
+    n = f.shape[0]
+    if algorithm not in _ALGORITHMS:
+        raise InputError(f"algorithm must be one of {_ALGORITHMS}, got {algorithm!r}")
+    steps = (np.arange(n) * np.pi / 2) if steps_rad is None else np.asarray(steps_rad, dtype=np.float64)
+    if steps.shape != (n,):
+        raise InputError(f"steps_rad must have one phase shift per frame ({n}), got shape {steps.shape}")
+    if not np.all(np.isfinite(steps)):
+        raise InputError(f"steps_rad must be finite, got {steps.tolist()}")
+    if algorithm == "auto":
+        algorithm = {4: "4step", 5: "5step"}.get(n, "lsq")
+    a = f.mean(axis=0)
+    if algorithm in ("4step", "5step"):
+        need = 4 if algorithm == "4step" else 5
+        if n != need:
+            raise InputError(f"algorithm {algorithm!r} needs N = {need} frames, got N = {n}")
+        d = np.diff(steps)
+        s = 1.0 if d[0] > 0 else -1.0
+        if not np.allclose(d, s * np.pi / 2, atol=1e-6):
+            raise InputError(f"algorithm {algorithm!r} needs equal steps of +pi/2 or -pi/2, got "
+                             f"steps_rad = {np.round(steps, 6).tolist()}; use algorithm='lsq'")
+        if algorithm == "4step":
+            i1, i2, i3, i4 = f
+            num, den = s * (i4 - i2), i1 - i3
+            b = 0.5 * np.hypot(num, den)
+            psi = np.arctan2(num, den)
+            delta_ref = steps[0]
+        else:
+            i1, i2, i3, i4, i5 = f
+            num, den = s * 2 * (i2 - i4), 2 * i3 - i5 - i1
+            b = 0.25 * np.hypot(num, den)
+            psi = np.arctan2(num, den)
+            delta_ref = steps[2]
+        phase = _wrap(psi - delta_ref)
+    else:
+        m = np.stack([np.ones(n), np.cos(steps), -np.sin(steps)], axis=1)
+        if np.linalg.matrix_rank(m) < 3:
+            raise InputError(f"steps_rad do not determine the phase (need 3 distinct shifts mod "
+                             f"2 pi), got {np.round(steps, 6).tolist()}")
+        coef = np.linalg.pinv(m) @ f.reshape(n, -1)
+        a = coef[0].reshape(f.shape[1:])
+        c, d = coef[1].reshape(f.shape[1:]), coef[2].reshape(f.shape[1:])
+        b = np.hypot(c, d)
+        phase = np.arctan2(d, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mod = np.where(a > 0, b / np.where(a > 0, a, 1.0), 0.0)
+    return phase, mod
+
+
+# --------------------------------------------------------------------------------------
+# unwrapping
+def phase_quality(phase, *, valid=None) -> np.ndarray:
+    """Reliability of each pixel for unwrapping: ``1 / (1 + D)`` with D the root sum of
+    squares of the wrapped second differences (horizontal, vertical, both diagonals;
+    Herraez et al. 2002).  Pixels next to invalid ones or the border get lower quality;
+    invalid pixels get 0.
+
+    Parameters
+    ----------
+    phase : (H, W) wrapped phase, rad
+    valid : (H, W) bool, optional
+    """
+    p = np.asarray(phase, dtype=np.float64)
+    v = _check_valid(valid, p.shape) & np.isfinite(p)
+    q = np.where(v, p, np.nan)
+    pad = np.pad(q, 1, constant_values=np.nan)
+    c = pad[1:-1, 1:-1]
+
+    def sd(a, b):
+        return _wrap(a - c) - _wrap(c - b)
+
+    terms = [sd(pad[1:-1, :-2], pad[1:-1, 2:]), sd(pad[:-2, 1:-1], pad[2:, 1:-1]),
+             sd(pad[:-2, :-2], pad[2:, 2:]), sd(pad[:-2, 2:], pad[2:, :-2])]
+    penalty = 2 * np.pi  # a missing neighbour counts like a large second difference
+    d2 = sum(np.where(np.isfinite(t), t * t, penalty ** 2) for t in terms)
+    out = 1.0 / (1.0 + np.sqrt(d2))
+    out[~v] = 0.0
+    return out
+
+
+def _flood_unwrap_py(phase, valid, quality):  # pragma: no cover - numba replaces it
+    raise RuntimeError("numba kernel not compiled")
+
+
+def _build_kernel():
+    import numba
+
+    @numba.njit(cache=True)
+    def _heap_push(hq, hi, hs, n, q, i, s):
+        hq[n] = q
+        hi[n] = i
+        hs[n] = s
+        k = n
+        while k > 0:
+            parent = (k - 1) // 2
+            if hq[parent] >= hq[k]:
+                break
+            hq[parent], hq[k] = hq[k], hq[parent]
+            hi[parent], hi[k] = hi[k], hi[parent]
+            hs[parent], hs[k] = hs[k], hs[parent]
+            k = parent
+        return n + 1
+
+    @numba.njit(cache=True)
+    def _heap_pop(hq, hi, hs, n):
+        i, s = hi[0], hs[0]
+        n -= 1
+        hq[0], hi[0], hs[0] = hq[n], hi[n], hs[n]
+        k = 0
+        while True:
+            l = 2 * k + 1
+            r = l + 1
+            m = k
+            if l < n and hq[l] > hq[m]:
+                m = l
+            if r < n and hq[r] > hq[m]:
+                m = r
+            if m == k:
+                break
+            hq[m], hq[k] = hq[k], hq[m]
+            hi[m], hi[k] = hi[k], hi[m]
+            hs[m], hs[k] = hs[k], hs[m]
+            k = m
+        return i, s, n
+
+    @numba.njit(cache=True)
+    def flood(phase, valid, quality, order):
+        h, w = phase.shape
+        npx = h * w
+        out = np.full(npx, np.nan)
+        labels = np.zeros(npx, dtype=np.int32)
+        ph = phase.ravel()
+        va = valid.ravel()
+        qu = quality.ravel()
+        cap = 4 * npx + 4
+        hq = np.empty(cap)
+        hi = np.empty(cap, dtype=np.int64)
+        hs = np.empty(cap, dtype=np.int64)
+        twopi = 2.0 * np.pi
+        label = 0
+        for seed in order:  # seeds in decreasing quality: one per connected region
+            if not va[seed] or labels[seed] != 0:
+                continue
+            label += 1
+            out[seed] = ph[seed]
+            labels[seed] = label
+            n = 0
+            cur = seed
+            while True:
+                r, c = cur // w, cur % w
+                for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+                    rr, cc = r + dr, c + dc
+                    if rr < 0 or rr >= h or cc < 0 or cc >= w:
+                        continue
+                    j = rr * w + cc
+                    if va[j] and labels[j] == 0:
+                        n = _heap_push(hq, hi, hs, n, qu[j], j, cur)
+                found = False
+                while n > 0:
+                    j, s, n = _heap_pop(hq, hi, hs, n)
+                    if labels[j] == 0:
+                        d = ph[j] - ph[s]
+                        d -= twopi * np.round(d / twopi)
+                        out[j] = out[s] + d
+                        labels[j] = label
+                        cur = j
+                        found = True
+                        break
+                if not found:
+                    break
+        return out.reshape(h, w), labels.reshape(h, w)
+
+    return flood
+
+
+_KERNEL = None
+
+
+def unwrap_phase(phase, *, valid=None, quality=None):
+    """Unwrap a 2-D wrapped phase inside a mask (quality-guided flood fill).
+
+    Starting from the most reliable pixel of each connected valid region (4-connected),
+    pixels are unwrapped in decreasing order of ``quality`` from an already unwrapped
+    neighbour: ``u_j = u_i + wrap(phi_j - phi_i)``.  Noisy or steep areas (low quality)
+    are reached last, so their errors do not spread.  Regions that do not touch are
+    unwrapped independently (their relative offset is unknown to any interferometer).
+
+    Parameters
+    ----------
+    phase : (H, W) float, rad
+        Wrapped phase (any range; only differences mod 2 pi are used).
+    valid : (H, W) bool, optional
+        Pixels to unwrap; others come back NaN.  NaN phases are invalid too.
+    quality : (H, W) float, optional
+        Higher = more reliable.  Default :func:`phase_quality`.
+
+    Returns
+    -------
+    unwrapped : (H, W) float64, rad (NaN outside the mask)
+    labels : (H, W) int32, connected region of each pixel (0 = invalid)
+    """
+    global _KERNEL
+    p = np.asarray(phase, dtype=np.float64)
+    if p.ndim != 2:
+        raise InputError(f"phase must be a 2-D array, got shape {p.shape}")
+    v = _check_valid(valid, p.shape) & np.isfinite(p)
+    q = phase_quality(p, valid=v) if quality is None else np.asarray(quality, dtype=np.float64)
+    if q.shape != p.shape:
+        raise InputError(f"quality must have the phase's shape {p.shape}, got {q.shape}")
+    q = np.where(np.isfinite(q), q, -np.inf)
+    if _KERNEL is None:
+        _KERNEL = _build_kernel()
+    order = np.argsort(-q.ravel(), kind="stable").astype(np.int64)
+    out, labels = _KERNEL(np.ascontiguousarray(np.where(v, p, 0.0)), np.ascontiguousarray(v),
+                          np.ascontiguousarray(q), order)
+    return out, labels
+
+
+def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
+    """Height (mm) from the unwrapped phase: ``h = phi lambda / (4 pi)`` (double pass,
+    OPD = 2 h at normal incidence)."""
+    check_range("wavelength_nm", wavelength_nm, 100, 2000)
+    lam_mm = float(wavelength_nm) * 1e-6  # nm -> mm
+    return np.asarray(unwrapped, dtype=np.float64) * lam_mm / (4 * np.pi)
+
+
+# --------------------------------------------------------------------------------------
+# the two measurement modes
+def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str = "auto",
+                 valid=None, min_modulation: float = 0.05) -> PhaseResult:
+    """Height from phase-shifting frames: wrapped phase, 2-D unwrapping, height.
+
+    Parameters
+    ----------
+    frames : (N, H, W) array
+        Intensities, frame k taken with phase shift ``steps_rad[k]``.
+    wavelength_nm : float
+        Source wavelength, nm (100..2000).
+    steps_rad : (N,) array, optional
+        Nominal phase shifts, rad; default ``k pi / 2``.
+    algorithm : {"auto", "4step", "5step", "lsq"}
+        See :func:`wrapped_phase`.
+    valid : (H, W) bool, optional
+        Pixels where light returned (the renderer's ``valid``).
+    min_modulation : float
+        Pixels whose fringe contrast ``b / a`` is below this are invalid (0..1).
+
+    Returns
+    -------
+    PhaseResult
+        ``height`` in mm relative to the zero-phase reference, up to a constant per
+        connected region; ``height`` is NaN where ``valid`` is False.
+    """
+    check_range("min_modulation", min_modulation, 0.0, 1.0)
+    f = _check_frames(frames)
+    v = _check_valid(valid, f.shape[1:])
+    phase, mod = wrapped_phase(f, steps_rad=steps_rad, algorithm=algorithm)
+    v &= np.isfinite(phase) & (mod >= min_modulation)
+    un, labels = unwrap_phase(phase, valid=v)
+    h = height_from_phase(un, wavelength_nm=wavelength_nm)
+    n = f.shape[0]
+    alg = algorithm if algorithm != "auto" else {4: "4step", 5: "5step"}.get(n, "lsq")
+    meta = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
+            "min_modulation": float(min_modulation), "unwrap": "quality-guided flood fill",
+            "regions": int(labels.max())}
+    return PhaseResult(h, v, phase, mod, labels, meta)
+
+
+def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
+                 refine: str = "envelope", min_modulation: float = 0.05,
+                 chunk_pixels: int = 65536) -> PhaseResult:
+    """Height from a coherence-scanning (white-light) stack: envelope peak per pixel.
+
+    Parameters
+    ----------
+    frames : (N, H, W) array
+        Intensity at each scan position.
+    scan_positions : (N,) array, mm
+        Reference position ``z_ref`` of each frame (OPD = 2 (h - z_ref)); equally spaced,
+        increasing or decreasing.
+    wavelength_nm : float
+        Mean (centre) wavelength, nm; used for the phase refinement.
+    valid : (H, W) bool, optional
+        Pixels where light returned.
+    refine : {"envelope", "phase"}
+        "envelope": the envelope peak (weighted least-squares Gaussian fit over the
+        samples above half maximum).  "phase": the
+        fringe phase at the peak picks the nearest height consistent with it (resolution
+        of PSI; a "ghost step" of lambda/2 appears where the envelope is off by more than
+        lambda/4).
+    min_modulation : float
+        Pixels whose envelope peak over the mean intensity is below this are invalid.
+    chunk_pixels : int
+        Pixels processed at a time (memory bound: N x chunk complex numbers).
+
+    Returns
+    -------
+    PhaseResult
+        ``height`` in mm, absolute in the scan's frame (no unwrapping needed).
+    """
+    from scipy.signal import hilbert
+
+    f = _check_frames(frames, min_frames=5)
+    n, hgt, wid = f.shape
+    z = np.asarray(scan_positions, dtype=np.float64)
+    if z.shape != (n,):
+        raise InputError(f"scan_positions must have one position per frame ({n}), got shape {z.shape}")
+    dz = np.diff(z)
+    step = float(np.mean(dz))
+    if not (np.all(np.isfinite(z)) and step != 0 and np.allclose(dz, step, rtol=1e-3, atol=0)):
+        raise InputError("scan_positions must be equally spaced and strictly monotone (mm), got "
+                         f"steps from {dz.min():.3g} to {dz.max():.3g} mm")
+    if refine not in ("envelope", "phase"):
+        raise InputError(f"refine must be 'envelope' or 'phase', got {refine!r}")
+    check_range("wavelength_nm", wavelength_nm, 100, 2000)
+    check_range("min_modulation", min_modulation, 0.0, None)
+    v = _check_valid(valid, (hgt, wid))
+    lam = float(wavelength_nm) * 1e-6  # nm -> mm
+    flat = f.reshape(n, -1)
+    npx = flat.shape[1]
+    height = np.full(npx, np.nan)
+    wrapped = np.full(npx, np.nan)
+    mod = np.zeros(npx)
+    ok = np.zeros(npx, dtype=bool)
+    carrier = np.exp(-np.sign(step) * 1j * 4 * np.pi * z / lam)[:, None]
+    k = np.arange(n)[:, None]
+    for s0 in range(0, npx, max(int(chunk_pixels), 1)):
+        blk = flat[:, s0:s0 + chunk_pixels]
+        mean = blk.mean(axis=0)
+        ac = blk - mean
+        ana = hilbert(ac, axis=0)
+        env = np.abs(ana)
+        kmax = np.argmax(env, axis=0)
+        cols = np.arange(blk.shape[1])
+        peak = env[kmax, cols]
+        # Gaussian envelope: fit a parabola to log(envelope) over the samples within about
+        # the half-width at half maximum of the peak (weighted by envelope^2: noise-robust;
+        # exact for a Gaussian envelope)
+        half = np.median(np.sum(env >= 0.5 * peak[None, :], axis=0))
+        w = int(np.clip(np.round(half / 2), 1, max(1, (n - 1) // 2)))
+        km = np.clip(kmax, w, n - 1 - w)
+        j = np.arange(-w, w + 1)[:, None]
+        ej = env[km[None, :] + j, cols[None, :]]
+        yj = np.log(np.maximum(ej, 1e-300))
+        wt = ej * ej
+        m0, m1, m2, m3, m4 = (np.sum(wt * j ** q, axis=0) for q in range(5))
+        t0, t1, t2 = (np.sum(wt * yj * j ** q, axis=0) for q in range(3))
+        mat = np.stack([np.stack([m0, m1, m2], -1), np.stack([m1, m2, m3], -1),
+                        np.stack([m2, m3, m4], -1)], -2)
+        rhs = np.stack([t0, t1, t2], -1)
+        good = np.abs(np.linalg.det(mat)) > 1e-300
+        coef = np.zeros_like(rhs)
+        coef[good] = np.linalg.solve(mat[good], rhs[good][..., None])[..., 0]
+        c1, c2 = coef[:, 1], coef[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            off = np.where(c2 < 0, -c1 / (2 * c2), 0.0)
+        off = np.clip(np.nan_to_num(off), -w, w)
+        interior = (kmax >= 1) & (kmax <= n - 2) & good
+        zpk = z[0] + (km + off) * step
+        with np.errstate(divide="ignore", invalid="ignore"):
+            m = np.where(mean > 0, peak / np.where(mean > 0, mean, 1.0), 0.0)
+        # fringe phase at the peak: the analytic signal is b g e^{-i sgn 4 pi (h - z)/lambda}
+        # (sgn = sign of the scan step); demodulate it with the carrier over +-2 fringes
+        win = np.abs(k - (km + off)[None, :]) * abs(step) <= lam
+        cpx = np.sum(np.where(win, ana * carrier, 0.0), axis=0)
+        ph = -np.angle(cpx) if step > 0 else np.angle(cpx)  # = 4 pi h / lambda (mod 2 pi)
+        if refine == "phase":
+            d = _wrap(ph - 4 * np.pi * zpk / lam)
+            hz = zpk + d * lam / (4 * np.pi)
+        else:
+            hz = zpk
+        sl = slice(s0, s0 + blk.shape[1])
+        height[sl] = hz
+        wrapped[sl] = ph
+        mod[sl] = m
+        ok[sl] = interior & (m >= min_modulation)
+    ok = ok.reshape(hgt, wid) & v
+    height = np.where(ok, height.reshape(hgt, wid), np.nan)
+    labels = _label(ok)
+    meta = {"mode": "csi", "algorithm": f"hilbert envelope peak ({refine})", "frames": int(n),
+            "scan_step_mm": abs(step), "wavelength_nm": float(wavelength_nm),
+            "min_modulation": float(min_modulation), "regions": int(labels.max())}
+    return PhaseResult(height, ok, wrapped.reshape(hgt, wid), mod.reshape(hgt, wid), labels, meta)
+
+
+def _label(mask) -> np.ndarray:
+    from scipy import ndimage
+
+    lab, _ = ndimage.label(mask)
+    return lab.astype(np.int32)
+
+
+# --------------------------------------------------------------------------------------
+# error against the truth
+def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mean"):
+    """Error of a measured height map against the true one, over the valid pixels.
+
+    An interferometer measures relative height: before comparing, the measured map is
+    shifted so that its mean over the valid pixels equals the truth's (``piston="mean"``;
+    one shift per connected region when ``labels`` is given, because separate regions
+    have unrelated offsets), or not at all (``piston="none"``).
+
+    Parameters
+    ----------
+    measured, truth : (H, W) arrays, mm
+    valid : (H, W) bool, optional
+        Pixels to compare (default: where both are finite).
+    labels : (H, W) int, optional
+        Connected regions (:attr:`PhaseResult.labels`).
+    piston : {"mean", "none"}
+
+    Returns
+    -------
+    aligned : (H, W) float64, mm
+        The measured map after piston alignment (NaN outside ``valid``).
+    metrics : dict
+        ``rms_nm``, ``pv_nm``, ``mean_nm`` (after alignment), ``piston_nm`` (the shift
+        applied, of the largest region), ``valid_fraction``, ``valid_pixels``, ``piston``.
+    """
+    m = np.asarray(measured, dtype=np.float64)
+    t = np.asarray(truth, dtype=np.float64)
+    if m.shape != t.shape or m.ndim != 2:
+        raise InputError(f"measured and truth must be 2-D arrays of one shape, got {m.shape} and {t.shape}")
+    if piston not in ("mean", "none"):
+        raise InputError(f"piston must be 'mean' or 'none', got {piston!r}")
+    v = (np.ones(m.shape, bool) if valid is None else _check_valid(valid, m.shape))
+    v &= np.isfinite(m) & np.isfinite(t)
+    aligned = np.full(m.shape, np.nan)
+    shift_main = 0.0
+    if v.any():
+        if piston == "none":
+            aligned[v] = m[v]
+        else:
+            lab = _label(v) if labels is None else np.where(v, np.asarray(labels), 0)
+            ids, counts = np.unique(lab[v], return_counts=True)
+            for i in ids:
+                sel = lab == i
+                shift = float(np.mean(m[sel] - t[sel]))
+                aligned[sel] = m[sel] - shift
+            big = ids[np.argmax(counts)]
+            shift_main = float(np.mean(m[lab == big] - t[lab == big]))
+    e = (aligned - t)[v] * 1e6  # mm -> nm
+    metrics = {"rms_nm": float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
+               "pv_nm": float(e.max() - e.min()) if e.size else float("nan"),
+               "mean_nm": float(e.mean()) if e.size else float("nan"),
+               "piston_nm": shift_main * 1e6,
+               "valid_fraction": float(v.mean()),
+               "valid_pixels": int(v.sum()),
+               "piston": piston}
+    return aligned, metrics
+
+
+# --------------------------------------------------------------------------------------
+# interferograms from the renderer (render_inspect.render.Interferogram)
+def measure_interferogram(ig, *, algorithm: str = "auto", csi_refine: str = "envelope",
+                          min_modulation: float = 0.05):
+    """What the instrument reports: height from a rendered interferogram, and its error.
+
+    Parameters
+    ----------
+    ig : Interferogram
+        From :func:`render_inspect.render.render_interferogram` (or read back from
+        ``interferogram.exr``): ``frames``, ``valid``, ``height_true``, ``mode``,
+        ``wavelength_nm``, ``phase_steps`` (PSI, rad), ``scan_positions`` (CSI, mm),
+        ``z_ref`` (mm).  Its phase convention is ``I_k = a + b cos(4 pi (h - z_ref) /
+        lambda + delta_k)``, the one this module inverts.
+    algorithm : {"auto", "4step", "5step", "lsq"}
+        PSI algorithm (see :func:`wrapped_phase`).
+    csi_refine : {"envelope", "phase"}
+        CSI height from the envelope peak alone or refined by the fringe phase.
+    min_modulation : float
+        Fringe-contrast threshold below which a pixel is not measured.
+
+    Returns
+    -------
+    result : PhaseResult
+        ``height`` (mm) is the measured map after piston alignment to ``height_true``
+        (mean over the valid pixels of each connected region; an interferometer measures
+        relative height), NaN where not measured.
+    metrics : dict
+        ``mode``, ``algorithm``, ``rms_nm``, ``pv_nm`` (of measured - true over the valid
+        pixels), ``mean_nm``, ``piston_nm``, ``valid_fraction`` (measured pixels / all
+        pixels), ``light_fraction`` (pixels where light returned), ``valid_pixels``,
+        ``wavelength_nm``, ``piston`` ("mean").
+    """
+    mode = str(ig.mode)
+    frames = np.asarray(ig.frames, dtype=np.float64)
+    valid = np.asarray(ig.valid, dtype=bool)
+    if mode == "psi":
+        res = retrieve_psi(frames, wavelength_nm=ig.wavelength_nm, steps_rad=ig.phase_steps,
+                           algorithm=algorithm, valid=valid, min_modulation=min_modulation)
+        res.height = res.height + float(ig.z_ref)
+    elif mode == "csi":
+        res = retrieve_csi(frames, ig.scan_positions, wavelength_nm=ig.wavelength_nm, valid=valid,
+                           refine=csi_refine, min_modulation=min_modulation)
+    else:
+        raise InputError(f"interferogram mode must be 'psi' or 'csi', got {mode!r}")
+    truth = np.asarray(ig.height_true, dtype=np.float64)
+    aligned, err = height_error(res.height, truth, valid=res.valid, labels=res.labels)
+    res.valid = res.valid & np.isfinite(aligned)
+    res.height = np.where(res.valid, aligned, np.nan)
+    metrics = {"mode": mode, "algorithm": res.meta["algorithm"],
+               "wavelength_nm": float(ig.wavelength_nm), **err,
+               "light_fraction": float(valid.mean()), "regions": int(res.meta["regions"])}
+    res.meta.update({"piston": "mean over valid pixels aligned to height_true"})
+    return res, metrics
+
+
+def add_height_measured(path, *, algorithm: str = "auto", csi_refine: str = "envelope",
+                        min_modulation: float = 0.05) -> dict:
+    """Add ``height_measured`` (mm, piston-aligned to ``height_true``, NaN where not
+    measured) and ``valid_measured`` (0/1) to an ``interferogram.exr``, rewriting it
+    atomically; the error metrics go into the header as ``measured`` (JSON).
+
+    Returns the metrics of :func:`measure_interferogram`.
+    """
+    import json
+    from pathlib import Path
+
+    from ..io import read_exr, write_exr
+    from ..render._interferometer import read_interferogram_exr  # pure numpy part
+
+    path = Path(path)
+    ig = read_interferogram_exr(path)
+    res, metrics = measure_interferogram(ig, algorithm=algorithm, csi_refine=csi_refine,
+                                         min_modulation=min_modulation)
+    channels, attrs = read_exr(path)
+    channels["height_measured"] = res.height
+    channels["valid_measured"] = res.valid.astype(np.float32)
+    attrs["measured"] = json.dumps(metrics, sort_keys=True)
+    attrs["height_measured_piston"] = res.meta["piston"]
+    write_exr(path, channels, attrs)
+    return metrics

@@ -1,0 +1,360 @@
+"""Outliers, templates and 6-DOF rigid registration of a measured map to a design (seed 002).
+
+Convention: a rigid transform ``(tx, ty, tz, alpha, beta, gamma)`` moves the *design* into
+the measured frame, ``p_measured = R q_design + t`` with ``R = Rz(gamma) Ry(beta) Rx(alpha)``
+(rotations about the fixed x, y, z axes, in that order; radians; translations mm).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy import ndimage
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..errors import InputError, check_positive
+from ._filters import valid_mask
+
+__all__ = ["RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
+           "GridSurface", "template_surface", "register_lsq", "register_icp"]
+
+#: keys of a rigid transform dict, in parameter order
+RIGID_KEYS = ("tx_mm", "ty_mm", "tz_mm", "alpha_rad", "beta_rad", "gamma_rad")
+_SHORT = {"tx": 0, "ty": 1, "tz": 2, "alpha": 3, "beta": 4, "gamma": 5}
+
+
+def _vec(params) -> np.ndarray:
+    if params is None:
+        return np.zeros(6)
+    if isinstance(params, dict):
+        return np.array([float(params.get(k, 0.0)) for k in RIGID_KEYS])
+    v = np.asarray(params, dtype=np.float64).ravel()
+    if v.shape != (6,):
+        raise InputError(f"a rigid transform needs 6 numbers {RIGID_KEYS}, got {v.shape[0]}")
+    return v
+
+
+def rotation_matrix(alpha: float, beta: float, gamma: float) -> np.ndarray:
+    """``Rz(gamma) @ Ry(beta) @ Rx(alpha)`` (radians)."""
+    return Rotation.from_euler("xyz", [alpha, beta, gamma]).as_matrix()
+
+
+def _grid(shape, pixel, origin):
+    ny, nx = shape
+    x = origin[0] + pixel * np.arange(nx)
+    y = origin[1] + pixel * np.arange(ny)
+    return np.meshgrid(x, y)
+
+
+def rigid_resample(surface, params, x, y, *, iterations: int = 30) -> np.ndarray:
+    """Heights at (``x``, ``y``) of ``surface`` moved by the rigid transform ``params``.
+
+    This is the forward model of a (virtual) measurement of a misaligned part: solves
+    ``[R q + t]_xy = (x, y)`` with ``q`` on the surface by fixed-point iteration (converges
+    for the small angles of a set-up error; the result is exact to ~1e-12 mm).
+
+    Parameters
+    ----------
+    surface : object with ``height(x, y)``
+    params : dict with :data:`RIGID_KEYS` or sequence of 6 numbers
+    x, y : arrays (broadcast), mm
+    """
+    v = _vec(params)
+    r = rotation_matrix(*v[3:])
+    t = v[:3]
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    x, y = np.broadcast_arrays(x, y)
+    z = np.asarray(surface.height(x, y), dtype=np.float64) + t[2]
+    for _ in range(iterations):
+        px, py, pz = x - t[0], y - t[1], z - t[2]
+        u = r[0, 0] * px + r[1, 0] * py + r[2, 0] * pz
+        w = r[0, 1] * px + r[1, 1] * py + r[2, 1] * pz
+        h = surface.height(u, w)
+        znew = r[2, 0] * u + r[2, 1] * w + r[2, 2] * h + t[2]
+        if np.nanmax(np.abs(znew - z)) < 1e-13:
+            z = znew
+            break
+        z = znew
+    return z
+
+
+class MovedSurface:
+    """``surface`` moved by a rigid transform (heights by :func:`rigid_resample`): the design
+    as it lies in the measured frame after registration."""
+
+    kind = "moved"
+
+    def __init__(self, surface, params):
+        self.surface = surface
+        self.params = _vec(params)
+        self._rot = rotation_matrix(*self.params[3:])
+
+    def height(self, x, y):
+        return rigid_resample(self.surface, self.params, x, y)
+
+    def gradient(self, x, y, h: float = 1e-4):
+        return ((self.height(np.asarray(x) + h, y) - self.height(np.asarray(x) - h, y)) / (2 * h),
+                (self.height(x, np.asarray(y) + h) - self.height(x, np.asarray(y) - h)) / (2 * h))
+
+    def move_point(self, x, y):
+        """Where the design point above (``x``, ``y``) lies after the move: (x', y', z')."""
+        q = np.array([x, y, float(self.surface.height(np.float64(x), np.float64(y)))])
+        p = self._rot @ q + self.params[:3]
+        return float(p[0]), float(p[1]), float(p[2])
+
+
+def detect_outliers(z, *, pixel: float, k: float = 3.0, mask=None, replace: bool = True,
+                    min_sigma_mm: float = 1e-7):
+    """Outliers by the second-difference ``k``-sigma rule (seed 002, step 1).
+
+    ``f'' = (f(x - d) + f(x + d) - 2 f(x)) / d^2`` along x and along y; a point whose
+    ``|f'' - median(f'')|`` exceeds ``k`` sigma in either direction is an outlier.  Sigma is
+    the robust estimate ``1.4826 * MAD`` of ``f''`` (the plain standard deviation is inflated
+    by the very spikes it should find), and at least ``min_sigma_mm / d^2``.  Outliers are
+    replaced by the mean of their valid, non-outlier 3 x 3 neighbours (NaN if none).
+
+    Returns
+    -------
+    cleaned : (ny, nx) array
+        ``z`` with the outliers replaced (a copy; ``z`` itself if ``replace=False``).
+    outliers : (ny, nx) bool array
+    """
+    z = np.asarray(z, dtype=np.float64)
+    check_positive("pixel", pixel)
+    ok = valid_mask(z, mask)
+    out = np.zeros(z.shape, dtype=bool)
+    zz = np.where(ok, z, np.nan)
+    for axis in (0, 1):
+        if z.shape[axis] < 3:
+            continue
+        f2 = np.full(z.shape, np.nan)
+        sl = [slice(None)] * 2
+        sl[axis] = slice(1, -1)
+        lo = [slice(None)] * 2
+        lo[axis] = slice(0, -2)
+        hi = [slice(None)] * 2
+        hi[axis] = slice(2, None)
+        f2[tuple(sl)] = (zz[tuple(lo)] + zz[tuple(hi)] - 2 * zz[tuple(sl)]) / pixel ** 2
+        fin = np.isfinite(f2)
+        if fin.sum() < 10:
+            continue
+        med = np.median(f2[fin])
+        dev = np.abs(f2 - med)
+        sigma = max(1.4826 * np.median(dev[fin]), min_sigma_mm / pixel ** 2)
+        out |= fin & (dev > k * sigma)
+    if not replace:
+        return z, out
+    good = ok & ~out
+    w = ndimage.uniform_filter(good.astype(np.float64), 3, mode="constant") * 9
+    s = ndimage.uniform_filter(np.where(good, z, 0.0), 3, mode="constant") * 9
+    cleaned = z.copy()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cleaned[out] = np.where(w[out] > 0.5, s[out] / w[out], np.nan)
+    return cleaned, out
+
+
+class GridSurface:
+    """A design template given as heights on a grid, interpolated by bicubic splines
+    (``height``/``gradient`` like a design :class:`~render_inspect.design.Surface`)."""
+
+    kind = "template"
+
+    def __init__(self, z, *, pixel: float, origin=(0.0, 0.0)):
+        from scipy.interpolate import RectBivariateSpline
+
+        z = np.asarray(z, dtype=np.float64)
+        check_positive("pixel", pixel)
+        if z.ndim != 2 or min(z.shape) < 4:
+            raise InputError(f"template must be a 2-D map of at least 4 x 4 points, got {z.shape}")
+        if not np.isfinite(z).all():
+            raise InputError("template must not contain NaN (sample the design where it is defined)")
+        self.pixel = float(pixel)
+        self.origin = (float(origin[0]), float(origin[1]))
+        x = self.origin[0] + pixel * np.arange(z.shape[1])
+        y = self.origin[1] + pixel * np.arange(z.shape[0])
+        self._spl = RectBivariateSpline(y, x, z, kx=3, ky=3)
+        self._bounds = (x[0], x[-1], y[0], y[-1])
+
+    def height(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        h = self._spl.ev(y, x)
+        x0, x1, y0, y1 = self._bounds
+        out = (x < x0) | (x > x1) | (y < y0) | (y > y1)
+        return np.where(out, np.nan, h)
+
+    def gradient(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        return self._spl.ev(y, x, dy=1), self._spl.ev(y, x, dx=1)
+
+
+def template_surface(design, *, region, pixel: float, oversample: int = 10) -> GridSurface:
+    """Sample ``design`` (a Surface) on ``region`` = (x0, y0, x1, y1) at ``pixel / oversample``
+    (seed 002: the template is at least 10 x denser than the measurement)."""
+    check_positive("pixel", pixel)
+    if oversample < 10:
+        warnings.warn(f"template oversample={oversample}: seed 002 asks for >= 10 x the measured "
+                      f"density; registration accuracy may suffer", stacklevel=2)
+    p = pixel / oversample
+    x0, y0, x1, y1 = region
+    nx = int(np.ceil((x1 - x0) / p)) + 1
+    ny = int(np.ceil((y1 - y0) / p)) + 1
+    if nx * ny > 25_000_000:
+        raise InputError(f"template of {ny} x {nx} points is too large; reduce the region or oversample")
+    x = x0 + p * np.arange(nx)
+    y = y0 + p * np.arange(ny)
+    z = np.broadcast_to(design.height(x[None, :], y[:, None]), (ny, nx))
+    return GridSurface(z, pixel=p, origin=(x0, y0))
+
+
+def _prepare(z, pixel, origin, mask, max_points, rng):
+    z = np.asarray(z, dtype=np.float64)
+    check_positive("pixel", pixel)
+    ok = valid_mask(z, mask)
+    if ok.sum() < 6:
+        raise InputError(f"registration needs at least 6 valid points, got {int(ok.sum())} "
+                         f"(is the map all NaN or fully masked?)")
+    xx, yy = _grid(z.shape, pixel, origin)
+    px, py, pz = xx[ok], yy[ok], z[ok]
+    if px.size > max_points:
+        idx = np.random.default_rng(rng).choice(px.size, max_points, replace=False)
+        idx.sort()
+        px, py, pz = px[idx], py[idx], pz[idx]
+    return px, py, pz
+
+
+def _result(v, rms, n, method, **extra):
+    d = {k: float(x) for k, x in zip(RIGID_KEYS, v)}
+    d.update({"rms_mm": float(rms), "n_points": int(n), "method": method})
+    d.update(extra)
+    return d
+
+
+def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=None,
+                 fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), max_points: int = 200_000,
+                 seed: int = 0) -> dict:
+    """Least-squares 6-DOF rigid registration of a measured map to a design (seed 002, step 3).
+
+    Minimises, over the transform, the vertical distances in the design frame
+    ``[R^T (p - t)]_z - F([R^T (p - t)]_x, [R^T (p - t)]_y)`` of the measured points ``p``.
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Measured heights, mm (NaN = missing; remove outliers first, see :func:`detect_outliers`).
+    design : object with ``height(x, y)``
+        The design surface or a :class:`GridSurface` template.
+    pixel : float
+        mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+    mask : bool array, optional
+        Points to use (``False`` leaves out, e.g. the lenslets when matching the base).
+    init : dict or 6 numbers, optional
+        Starting transform (default identity).
+    fit : sequence of {"tx", "ty", "tz", "alpha", "beta", "gamma"}
+        Parameters to fit; the others stay at ``init``.  Leave out those the design cannot
+        determine (a plane fixes only tz, alpha, beta; a sphere has no gamma).
+    max_points : int
+        At most this many points are used (a seeded random subset).
+
+    Returns
+    -------
+    dict
+        :data:`RIGID_KEYS`, ``rms_mm`` (residual RMS), ``n_points``, ``method`` = "lsq".
+    """
+    px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
+    v0 = _vec(init)
+    idx = []
+    for name in fit:
+        if name not in _SHORT:
+            raise InputError(f"fit entries must be among {tuple(_SHORT)}, got {name!r}")
+        idx.append(_SHORT[name])
+    idx = sorted(set(idx))
+    if not idx:
+        raise InputError("fit must name at least one parameter")
+
+    def resid(p):
+        v = v0.copy()
+        v[idx] = p
+        r = rotation_matrix(*v[3:])
+        qx, qy, qz = px - v[0], py - v[1], pz - v[2]
+        u = r[0, 0] * qx + r[1, 0] * qy + r[2, 0] * qz
+        w = r[0, 1] * qx + r[1, 1] * qy + r[2, 1] * qz
+        h = r[0, 2] * qx + r[1, 2] * qy + r[2, 2] * qz
+        res = h - design.height(u, w)
+        return np.where(np.isfinite(res), res, 0.0)
+
+    scale = np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])[idx]
+    sol = least_squares(resid, v0[idx], x_scale=scale, diff_step=1e-7, method="trf",
+                        xtol=1e-12, ftol=1e-14, gtol=1e-14, max_nfev=200)
+    v = v0.copy()
+    v[idx] = sol.x
+    rms = np.sqrt(np.mean(sol.fun ** 2))
+    return _result(v, rms, px.size, "lsq", fitted=[k for k in _SHORT if _SHORT[k] in idx])
+
+
+def register_icp(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=None,
+                 oversample: int = 10, max_iter: int = 50, tol: float = 1e-10,
+                 max_points: int = 100_000, seed: int = 0) -> dict:
+    """Point-to-plane ICP registration of a measured map to a dense design template.
+
+    The design is sampled at ``pixel / oversample`` over the measured area (plus a margin);
+    each iteration pairs every measured point with its nearest template point (k-d tree),
+    leaves out pairs farther than 5 robust sigma, and solves the linearised 6-DOF
+    point-to-plane least squares.  Same conventions and result keys as
+    :func:`register_lsq` (``method`` = "icp", plus ``iterations``).
+    """
+    from scipy.spatial import cKDTree
+
+    px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
+    ny, nx = np.shape(z)
+    margin = 0.05 * max(nx, ny) * pixel + 3 * pixel
+    region = (origin[0] - margin, origin[1] - margin,
+              origin[0] + (nx - 1) * pixel + margin, origin[1] + (ny - 1) * pixel + margin)
+    tp = pixel / oversample
+    n_t = ((region[2] - region[0]) / tp + 1) * ((region[3] - region[1]) / tp + 1)
+    if n_t > 6e6:
+        raise InputError(f"register_icp: the template would have {n_t:.3g} points (> 6e6); "
+                         f"lower oversample ({oversample}) or crop the map")
+    tx = np.arange(region[0], region[2] + tp / 2, tp)
+    ty = np.arange(region[1], region[3] + tp / 2, tp)
+    txx, tyy = np.meshgrid(tx, ty)
+    tz = np.asarray(design.height(txx, tyy), dtype=np.float64)
+    gx, gy = design.gradient(txx, tyy)
+    keep = np.isfinite(tz) & np.isfinite(gx) & np.isfinite(gy)
+    tpts = np.column_stack([txx[keep], tyy[keep], tz[keep]])
+    nrm = np.column_stack([-np.asarray(gx)[keep], -np.asarray(gy)[keep], np.ones(keep.sum())])
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    tree = cKDTree(tpts)
+    v = _vec(init)
+    rot = rotation_matrix(*v[3:])
+    t = v[:3].copy()
+    pts = np.column_stack([px, py, pz])
+    it = 0
+    rms = np.nan
+    for it in range(1, max_iter + 1):
+        q = (pts - t) @ rot  # R^T (p - t), row-wise
+        _, j = tree.query(q, workers=1)
+        d = tpts[j]
+        n = nrm[j]
+        r = np.einsum("ij,ij->i", q - d, n)
+        med = np.median(r)
+        sig = 1.4826 * np.median(np.abs(r - med)) + 1e-15
+        use = np.abs(r - med) < 5 * sig + 1e-9
+        a = np.column_stack([np.cross(q[use], n[use]), n[use]])
+        sol, *_ = np.linalg.lstsq(a, -r[use], rcond=None)
+        w, dt = sol[:3], sol[3:]
+        dr = Rotation.from_rotvec(w).as_matrix()
+        # inverse map q = R^T (p - t) becomes dR R^T (p - t) + dt
+        rot_new = rot @ dr.T
+        t = rot_new @ (dr @ rot.T @ t - dt)
+        rot = rot_new
+        rms = float(np.sqrt(np.mean(r[use] ** 2)))
+        if np.linalg.norm(w) < tol and np.linalg.norm(dt) < tol:
+            break
+    ang = Rotation.from_matrix(rot).as_euler("xyz")
+    return _result(np.concatenate([t, ang]), rms, pts.shape[0], "icp", iterations=it,
+                   template_pixel_mm=float(tp))

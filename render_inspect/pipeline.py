@@ -1,0 +1,147 @@
+"""Command implementations: simulate, toolpath, demo.  Each writes its output folder
+atomically (a failed or interrupted run leaves nothing half-written)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from . import __version__
+
+DEMO_SCENE = Path(__file__).resolve().parent.parent / "scenes" / "sts_sinusoidal_grid.toml"
+
+
+def _log(msg: str):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def build_metrics(scene, res) -> dict:
+    """metrics.json content of one simulation (contract keys of ARCHITECTURE.md)."""
+    m = {"software_version": __version__, "scene_name": scene.name,
+         "process": scene.process.kind, "compensation": scene.process.compensation,
+         "seed": scene.simulation.seed, "samples": int(res.heightmap.design.size),
+         "grid": {"shape": list(res.heightmap.shape), "pixel_mm": res.heightmap.pixel,
+                  "origin_mm": list(res.heightmap.origin)},
+         "timing_s": dict(res.timing_s)}
+    for k, v in res.metrics.items():
+        if k == "toolpath" and isinstance(v, dict):
+            m.setdefault("toolpath", {}).update(v)
+        else:
+            m[k] = v
+    tp = res.toolpath
+    if tp is not None:
+        m.setdefault("toolpath", {}).setdefault("points", int(tp.points))
+        m["toolpath"].setdefault("revolutions", tp.revolutions)
+        m["toolpath"].setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
+        kin = _kinematics(tp, scene)
+        if kin:
+            for k, v in kin.items():
+                m["toolpath"].setdefault(k, v)
+    return m
+
+
+def _kinematics(path, scene) -> dict | None:
+    try:
+        from .toolpath._kinematics import kinematics
+    except ImportError:
+        return None
+    limits = {k: getattr(scene.process, k) for k in ("x_velocity_limit_mm_s", "x_acceleration_limit_mm_s2",
+                                                      "z_velocity_limit_mm_s", "z_acceleration_limit_mm_s2")}
+    return kinematics(path, limits=limits)
+
+
+def write_simulation(scene, res, out_dir: Path, *, preview: bool = True) -> dict:
+    """Write heightmap.exr, metrics.json, toolpath.npz and residual.png into ``out_dir``."""
+    from .io import save_map_png, write_json
+
+    hm = res.heightmap
+    hm.to_exr(out_dir / "heightmap.exr")
+    if res.toolpath is not None:
+        res.toolpath.save_npz(out_dir / "toolpath.npz")
+    metrics = build_metrics(scene, res)
+    if preview:
+        r = metrics["residual"]
+        save_map_png(out_dir / "residual.png", (hm.residual - r["mean_nm"] * 1e-6) * 1e6,
+                     extent=hm.extent, cmap="RdBu_r", symmetric=True, label="machined - design (nm)",
+                     title=f"{scene.name}: residual, compensation {scene.process.compensation}\n"
+                           f"Sq {r['Sq_nm']:.2f} nm, Sz {r['Sz_nm']:.1f} nm, min {r['min_nm']:.1f} nm")
+    write_json(out_dir / "metrics.json", metrics)
+    (out_dir / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    return metrics
+
+
+def run_simulate(scene, out) -> dict:
+    """``render-inspect simulate``: heightmap.exr, metrics.json, toolpath.npz, residual.png."""
+    from .io import atomic_output_dir
+    from .machining import simulate_scene
+
+    t0 = time.perf_counter()
+    res = simulate_scene(scene)
+    _log(f"simulated {res.heightmap.design.size:,} samples in {time.perf_counter() - t0:.2f} s")
+    with atomic_output_dir(out) as tmp:
+        metrics = write_simulation(scene, res, Path(tmp))
+    r = metrics["residual"]
+    _log(f"residual Sq {r['Sq_nm']:.3f} nm, Sz {r['Sz_nm']:.2f} nm, min {r['min_nm']:.2f} nm -> {out}")
+    return metrics
+
+
+def run_toolpath(scene, out, *, fmt: str = "npz"):
+    """``render-inspect toolpath``: the full spiral path (npz, csv or nc) and its facts."""
+    from .design import make_surface
+    from .io import atomic_output_dir, write_json
+    from .toolpath import build_toolpath
+
+    surface = make_surface(scene.design)
+    region = None if scene.process.kind == "sts" else scene.simulation.region
+    if scene.process.kind == "rcse":
+        from .toolpath._rcse import build_rcse_toolpath
+
+        path = build_rcse_toolpath(scene)
+    else:
+        path = build_toolpath(scene, surface, region=region)
+    with atomic_output_dir(out) as tmp:
+        tmp = Path(tmp)
+        if fmt == "npz":
+            path.save_npz(tmp / "toolpath.npz")
+        elif fmt == "csv":
+            from .toolpath._export import write_csv
+
+            write_csv(tmp / "toolpath.csv", path)
+        else:
+            from .toolpath._export import write_nc
+
+            write_nc(tmp / "toolpath.nc", path, scene=scene)
+        info = {"software_version": __version__, "scene_name": scene.name,
+                "toolpath": {"points": path.points, "revolutions": path.revolutions,
+                             "feed_per_rev_mm": scene.process.feed_per_rev,
+                             **{k: v for k, v in path.meta.items() if k != "accessibility"}}}
+        if "accessibility" in path.meta:
+            info["accessibility"] = path.meta["accessibility"]
+        kin = _kinematics(path, scene)
+        if kin:
+            info["toolpath"].update(kin)
+        write_json(tmp / "toolpath.json", info)
+    _log(f"tool path: {path.points:,} points, {path.revolutions:.1f} revolutions -> {out}")
+    return path
+
+
+def run_demo(out, *, quick: bool = False):
+    """``render-inspect demo``: the seed-000 grid, compensated and uncompensated, then the
+    renders and the comparison report when those stages are available."""
+    from .scene import load_scene
+
+    out = Path(out)
+    overrides = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
+    scene = load_scene(DEMO_SCENE, overrides)
+    _log(f"demo: scene {DEMO_SCENE.name} -> {out}")
+    try:
+        from .report import run_compare
+    except ImportError:
+        run_compare = None
+    if run_compare is not None:
+        run_compare(scene, out)
+        return
+    run_simulate(scene, out / "compensated")
+    run_simulate(scene.with_overrides(["process.compensation='none'"]), out / "uncompensated")

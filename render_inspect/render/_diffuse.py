@@ -1,0 +1,234 @@
+"""Diffuse-light images of the machined part: Mitsuba path tracing of aluminium.
+
+The whole scene is described by :func:`diffuse_scene_spec` as plain numbers (camera,
+light, material, exaggeration, mesh decimation) so that another renderer (engineer B2's
+Blender Cycles benchmark, ``render/_cycles.py``) can build the same scene:
+
+* mesh: :func:`render_inspect.mesh.heightmap_mesh` with ``channel``, ``exaggeration``,
+  ``window`` (micro view), ``max_cells``, ``skirt`` (macro view) and smooth vertex normals;
+  vertex z = exaggeration * (h - z_offset_mm), mm;
+* light: an environment (infinitely distant) whose radiance depends only on the zenith
+  angle ``theta`` from +z: linear interpolation of ``light.zenith_profile`` (pairs
+  ``[theta_deg, radiance]``), zero below the horizon.  :func:`environment_map` gives the
+  same light as a lat-long RGB image (row 0 = +z, i.e. the zenith; columns = azimuth);
+* material: Mitsuba ``conductor`` / ``roughconductor`` with ``material = "Al"``
+  (GGX ``alpha`` = roughness); ``reflectance_rgb`` is aluminium's normal-incidence
+  reflectance for renderers without complex IOR;
+* camera: ``perspective`` (macro: ``fov_deg`` horizontal) or ``orthographic`` (micro:
+  ``width_mm`` across the image), ``origin``/``target``/``up`` in mm, ``width`` x ``height``
+  pixels; box reconstruction filter; ``spp`` samples per pixel; path tracer
+  ``max_depth``.
+
+Images are returned with row 0 at the top (camera convention), linear RGB.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+
+__all__ = ["diffuse_scene_spec", "environment_map", "light_profile", "render_diffuse",
+           "LIGHTS", "AL_REFLECTANCE_RGB"]
+
+#: Zenith-angle radiance profiles: [theta_deg, radiance] pairs, linear in between.
+#: dome: uniform diffuse dome with a camera port (dark) around the zenith;
+#: ring: a bright ring at 45..75 degrees from the zenith (low-angle ring light).
+LIGHTS = {
+    "dome": [[0.0, 0.0], [8.0, 0.0], [25.0, 1.0], [90.0, 1.0], [90.001, 0.0], [180.0, 0.0]],
+    "ring": [[0.0, 0.0], [45.0, 0.0], [50.0, 1.0], [70.0, 1.0], [75.0, 0.0], [180.0, 0.0]],
+}
+#: Normal-incidence reflectance of aluminium in linear sRGB (for renderers without
+#: a complex-IOR conductor).
+AL_REFLECTANCE_RGB = [0.913, 0.922, 0.924]
+#: Macro camera: tilt of the view from the zenith and horizontal field of view.
+MACRO_TILT_DEG = 20.0
+MACRO_FOV_DEG = 30.0
+MAX_DEPTH = 6
+
+
+def light_profile(theta, light: str = "dome") -> np.ndarray:
+    """Radiance of ``light`` at zenith angle(s) ``theta`` (rad)."""
+    if light not in LIGHTS:
+        raise InputError(f"render.diffuse.light must be one of {sorted(LIGHTS)}, got {light!r}")
+    tab = np.asarray(LIGHTS[light], dtype=np.float64)
+    return np.interp(np.degrees(theta), tab[:, 0], tab[:, 1])
+
+
+def environment_map(light: str = "dome", *, height: int = 256) -> np.ndarray:
+    """The light as a lat-long image, (height, 2*height, 3) float32, row 0 = zenith (+z).
+
+    Row ``r`` is the zenith angle ``theta = (r + 0.5) / height * pi``; the light does not
+    depend on azimuth.
+    """
+    theta = (np.arange(height) + 0.5) / height * math.pi
+    rad = light_profile(theta, light).astype(np.float32)
+    return np.ascontiguousarray(np.broadcast_to(rad[:, None, None], (height, 2 * height, 3)))
+
+
+def _default_window(heightmap):
+    x_lo, x_hi, y_lo, y_hi = heightmap.extent
+    side = max(min(x_hi - x_lo, y_hi - y_lo) / 8.0, 16 * heightmap.pixel)
+    side = min(side, x_hi - x_lo, y_hi - y_lo)
+    cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
+    return [cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2]
+
+
+def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+                       seed: int = 0) -> dict:
+    """All parameters of a diffuse-light image as plain numbers (JSON-able).
+
+    Parameters
+    ----------
+    heightmap : HeightMap
+    dcfg : DiffuseConfig, optional
+        ``[render.diffuse]`` (defaults when None).
+    view : {"macro", "micro"}
+        macro: the whole part, perspective, tilted ``MACRO_TILT_DEG`` from the zenith
+        (seen from -y); micro: ``dcfg.window`` (default: the central eighth) straight down,
+        orthographic (a microscope view).
+    surface : {"machined", "design"}
+    seed : int
+
+    Returns
+    -------
+    dict
+        keys ``view``, ``surface``, ``seed``, ``spp``, ``max_depth``, ``exaggeration``,
+        ``z_offset_mm``, ``window_mm``, ``mesh`` (``channel``, ``window``, ``max_cells``,
+        ``skirt``), ``camera``, ``light``, ``material`` (see the module docstring).
+    """
+    from ..scene import DiffuseConfig
+
+    if dcfg is None:
+        dcfg = DiffuseConfig()
+    if view not in ("macro", "micro"):
+        raise InputError(f"view must be 'macro' or 'micro', got {view!r}")
+    if surface not in ("machined", "design"):
+        raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
+    z = getattr(heightmap, surface)
+    finite = np.isfinite(z)
+    if not finite.any():
+        raise InputError(f"the height map's {surface} channel has no finite height")
+    x_lo, x_hi, y_lo, y_hi = heightmap.extent
+    ex = float(dcfg.exaggeration)
+    res = int(dcfg.resolution)
+    if view == "macro":
+        window = [x_lo, y_lo, x_hi, y_hi]
+    else:
+        window = list(dcfg.window) if dcfg.window is not None else _default_window(heightmap)
+        x0, y0, x1, y1 = window
+        if not (x1 > x0 and y1 > y0) or x0 < x_lo - 1e-9 or x1 > x_hi + 1e-9 \
+                or y0 < y_lo - 1e-9 or y1 > y_hi + 1e-9:
+            raise InputError(f"render.diffuse.window must be [x0, y0, x1, y1] inside the height map "
+                             f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g} mm), got {window}")
+    x0, y0, x1, y1 = (float(w) for w in window)
+    if view == "micro":
+        from ..mesh import window_indices
+
+        i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
+        zw = z[i0:i1, j0:j1]
+        zf = zw[np.isfinite(zw)]
+        z_offset = float(zf.mean()) if zf.size else float(z[finite].mean())
+    else:
+        z_offset = float(z[finite].mean())
+    zmax = float(np.nanmax(z) - z_offset) * ex
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    wmm, hmm = x1 - x0, y1 - y0
+    if view == "macro":
+        size = max(wmm, hmm)
+        dist = 0.6 * size / math.tan(math.radians(MACRO_FOV_DEG / 2)) + max(zmax, 0.0)
+        t = math.radians(MACRO_TILT_DEG)
+        camera = {"type": "perspective", "fov_deg": MACRO_FOV_DEG,
+                  "origin": [cx, cy - dist * math.sin(t), dist * math.cos(t)],
+                  "target": [cx, cy, 0.0], "up": [0.0, 1.0, 0.0], "width": res, "height": res}
+        light = dcfg.light
+    else:
+        ny = max(16, int(round(res * hmm / wmm)))
+        camera = {"type": "orthographic", "width_mm": wmm,
+                  "origin": [cx, cy, max(zmax, 0.0) + max(wmm, hmm)],
+                  "target": [cx, cy, 0.0], "up": [0.0, 1.0, 0.0], "width": res, "height": ny}
+        light = dcfg.light
+    rough = float(dcfg.roughness)
+    material = {"type": "roughconductor" if rough > 0 else "conductor", "material": "Al",
+                "alpha": rough, "distribution": "ggx", "reflectance_rgb": AL_REFLECTANCE_RGB}
+    return {"view": view, "surface": surface, "seed": int(seed), "spp": int(dcfg.spp),
+            "max_depth": MAX_DEPTH, "exaggeration": ex, "z_offset_mm": z_offset,
+            "window_mm": [x0, y0, x1, y1],
+            "mesh": {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
+                     "max_cells": 2 * res, "skirt": view == "macro"},
+            "camera": camera,
+            "light": {"type": light, "zenith_profile": LIGHTS[light], "up": [0.0, 0.0, 1.0]},
+            "material": material, "units": "mm", "software_version": __version__}
+
+
+def _mitsuba_scene(gm, spec):
+    from ._scene_dicts import mitsuba_mesh, ortho_sensor, perspective_sensor
+    from ._variant import import_mitsuba
+
+    mi, _, _ = import_mitsuba()
+    cam = spec["camera"]
+    if cam["type"] == "perspective":
+        sensor = perspective_sensor(origin=cam["origin"], target=cam["target"], up=cam["up"],
+                                    fov_deg=cam["fov_deg"], nx=cam["width"], ny=cam["height"],
+                                    spp=spec["spp"])
+    else:
+        wmm = cam["width_mm"]
+        sensor = ortho_sensor(x0=cam["origin"][0] - wmm / 2,
+                              y0=cam["origin"][1] - wmm * cam["height"] / cam["width"] / 2,
+                              width_mm=wmm, nx=cam["width"], ny=cam["height"],
+                              z_top=cam["origin"][2], spp=spec["spp"], jitter=True)
+        sensor["sampler"] = {"type": "independent", "sample_count": int(spec["spp"])}
+    m = spec["material"]
+    bsdf = {"type": m["type"], "material": "Al"}
+    if m["type"] == "roughconductor":
+        bsdf.update(alpha=m["alpha"], distribution="ggx")
+    env = environment_map(spec["light"]["type"], height=256)
+    return {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": int(spec["max_depth"])},
+        "sensor": sensor,
+        # the envmap's own up axis is +y: rotate it onto +z
+        "light": {"type": "envmap", "bitmap": mi.Bitmap(env),
+                  "to_world": mi.ScalarTransform4f().rotate([1, 0, 0], 90)},
+        "part": mitsuba_mesh(gm, bsdf=bsdf),
+    }
+
+
+def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+                   seed: int = 0) -> tuple[np.ndarray, dict]:
+    """Path-trace the part (aluminium) under the diffuse dome or ring light.
+
+    Parameters
+    ----------
+    heightmap : HeightMap
+    dcfg : DiffuseConfig, optional
+    view : {"macro", "micro"};  surface : {"machined", "design"};  seed : int
+
+    Returns
+    -------
+    rgb : (height, width, 3) float32, linear radiance; row 0 at the top of the image
+    meta : dict, :func:`diffuse_scene_spec` plus ``mitsuba_variant``, mesh sizes and
+        ``vertical_exaggeration``
+    """
+    from ..mesh import heightmap_mesh
+    from ._scene_dicts import load_scene_dict
+    from ._variant import import_mitsuba
+
+    if int(seed) != seed or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed)
+    mi, _, variant = import_mitsuba()
+    ms = spec["mesh"]
+    gm = heightmap_mesh(heightmap, channel=ms["channel"], exaggeration=spec["exaggeration"],
+                        window=ms["window"], z_offset=spec["z_offset_mm"],
+                        max_cells=ms["max_cells"], skirt=ms["skirt"], normals=True)
+    scene = load_scene_dict(_mitsuba_scene(gm, spec))
+    rgb = np.array(mi.render(scene, seed=int(seed), spp=int(spec["spp"])), dtype=np.float32)[..., :3]
+    meta = dict(spec)
+    meta.update(mitsuba_variant=variant, vertical_exaggeration=spec["exaggeration"],
+                mesh_vertices=gm.n_vertices, mesh_triangles=gm.n_faces,
+                mesh_stride=gm.metadata["stride"])
+    return rgb, meta

@@ -1,0 +1,423 @@
+"""The virtual interference microscope (Mirau/Michelson, PSI and CSI).
+
+Geometry from Mitsuba: the part's mesh is ray-traced through a telecentric
+(orthographic) objective, straight down, at ``s x s`` sub-pixel sample points per camera
+pixel (cell centres), giving each sample's hit height ``h`` and shading normal ``n``; one
+more pass at the pixel centres gives ``height_true``.
+
+Image from the two-beam interference model on top (numpy):
+
+* phase of a sample ``phi = 2 pi OPD / lambda`` with ``OPD = 2 (h - z_ref)``;
+* a sample returns light only if its slope is inside the objective's acceptance,
+  ``n_z >= cos(asin(NA))``; a pixel is ``valid`` when at least half its samples return;
+* a pixel's object field is the mean of ``exp(i phi)`` over its returning samples (zero
+  for the others), so fringe visibility falls where fringes are dense;
+* PSI frame k (phase step ``delta_k = k * step_rad``), balanced beams, 0..1:
+  ``I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4``, i.e. for one sample per pixel
+  ``I_k = (1 + cos(phi + delta_k)) / 2``.  The step corresponds to moving the reference
+  by ``-delta_k lambda / (4 pi)``.  A 4-step retrieval is
+  ``phi = atan2(I_3 - I_1, I_0 - I_2)``, ``h = z_ref + phi lambda / (4 pi)`` (mod lambda/2).
+* CSI (white light, Gaussian spectrum of centre ``lambda_0`` and FWHM ``bandwidth``):
+  frame j at scan position ``z_j`` (reference mirror height),
+  ``I_j = (1 + <|E(k)|^2> + 2 mean_s g(OPD_s) cos(k_0 OPD_s)) / 4`` with
+  ``OPD_s = 2 (h_s - z_j)``, ``g(x) = exp(-sigma_k^2 x^2 / 2)``,
+  ``sigma_k = 2 pi bandwidth / lambda_0^2 / (2 sqrt(2 ln 2))``; the envelope peaks where
+  ``z_j = h``.
+* camera noise: shot (Poisson on ``full_well`` electrons), read (Gaussian, electrons rms)
+  and quantisation to ``bit_depth`` bits, drawn from ``numpy.random.default_rng(seed)``;
+  off with ``noise = false`` (then the frames are the exact model).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError, MemoryBudgetError, check_positive, check_range
+
+__all__ = ["OBJECTIVES", "Interferogram", "render_interferogram", "interferometer_geometry",
+           "trace_heights", "interference_frames", "camera_noise", "write_interferogram_exr",
+           "read_interferogram_exr", "PHASE_CONVENTION"]
+
+#: Objective presets: numerical aperture, field of view (mm, square) and camera pixels.
+OBJECTIVES = {
+    "5x": {"numerical_aperture": 0.13, "field_of_view_mm": 3.6, "camera_pixels": 1024},
+    "10x": {"numerical_aperture": 0.30, "field_of_view_mm": 1.8, "camera_pixels": 1024},
+    "20x": {"numerical_aperture": 0.40, "field_of_view_mm": 0.9, "camera_pixels": 1024},
+    "50x": {"numerical_aperture": 0.55, "field_of_view_mm": 0.36, "camera_pixels": 1024},
+}
+
+#: Default wavelengths (nm): PSI quasi-monochromatic green; CSI white-light LED.
+DEFAULT_PSI_WAVELENGTH_NM = 550.0
+DEFAULT_CSI_WAVELENGTH_NM = 600.0
+DEFAULT_CSI_BANDWIDTH_NM = 120.0
+#: A pixel is valid when at least this fraction of its sub-samples returns light.
+VALID_FRACTION = 0.5
+#: CSI stacks longer than this are refused.
+MAX_CSI_FRAMES = 1024
+
+PHASE_CONVENTION = ("I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4, E = mean over sub-samples of "
+                    "exp(i 4 pi (h - z_ref) / lambda); delta_k = phase_steps_rad[k]")
+
+
+@dataclass
+class Interferogram:
+    """Frames of the virtual interference microscope and what they were made from.
+
+    Attributes
+    ----------
+    frames : (N, H, W) float32, 0..1
+        PSI: one frame per phase step; CSI: one per scan position.
+    intensity : (H, W) float32
+        PSI: the zero-shift frame (``frames[0]``); CSI: the frame nearest ``z_ref``.
+    valid : (H, W) bool
+        Light returned (at least half of the sub-samples inside the NA acceptance).
+    height_true : (H, W) float64, mm
+        Ray-traced height at the pixel centres (NaN where the ray missed).
+    pixel : float, mm;  origin : (x, y) of pixel [0, 0]'s centre, mm.  Row 0 = smallest y.
+    wavelength_nm, bandwidth_nm (CSI, else None), numerical_aperture, mode ("psi"/"csi"),
+    variant (Mitsuba variant), objective, subsamples, z_ref (mm), seed, noise,
+    phase_steps (rad, PSI; empty for CSI), scan_positions (mm, CSI; empty for PSI),
+    accepted_fraction (H, W) float32, surface ("design"/"machined"), meta (dict).
+    """
+
+    frames: np.ndarray
+    intensity: np.ndarray
+    valid: np.ndarray
+    height_true: np.ndarray
+    pixel: float
+    origin: tuple[float, float]
+    wavelength_nm: float
+    numerical_aperture: float
+    mode: str
+    variant: str
+    phase_steps: np.ndarray
+    scan_positions: np.ndarray
+    z_ref: float
+    bandwidth_nm: float | None = None
+    objective: str = ""
+    subsamples: int = 1
+    seed: int = 0
+    noise: bool = False
+    accepted_fraction: np.ndarray | None = None
+    surface: str = "machined"
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def shape(self):
+        return self.intensity.shape
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.origin[0] + self.pixel * np.arange(self.shape[1])
+
+    @property
+    def y(self) -> np.ndarray:
+        return self.origin[1] + self.pixel * np.arange(self.shape[0])
+
+    @property
+    def extent(self):
+        h = self.pixel / 2
+        return (self.x[0] - h, self.x[-1] + h, self.y[0] - h, self.y[-1] + h)
+
+    def header(self) -> dict:
+        """The EXR header attributes (ARCHITECTURE.md names plus provenance)."""
+        return {"pixel_size_mm": float(self.pixel),
+                "origin_mm": [float(self.origin[0]), float(self.origin[1])],
+                "wavelength_nm": float(self.wavelength_nm),
+                "bandwidth_nm": float(self.bandwidth_nm or 0.0),
+                "numerical_aperture": float(self.numerical_aperture),
+                "mode": self.mode, "mitsuba_variant": self.variant,
+                "objective": self.objective, "subsamples": int(self.subsamples),
+                "z_ref_mm": float(self.z_ref), "seed": int(self.seed),
+                "noise": bool(self.noise), "surface": self.surface,
+                "phase_steps_rad": [float(d) for d in self.phase_steps],
+                "scan_positions_mm": [float(z) for z in self.scan_positions],
+                "phase_convention": PHASE_CONVENTION, "units": "mm",
+                "software_version": __version__}
+
+
+# ---------------------------------------------------------------------------- geometry
+def interferometer_geometry(heightmap, icfg) -> dict:
+    """Resolve the objective preset and overrides into plain numbers.
+
+    Returns a dict with ``objective``, ``numerical_aperture``, ``pixel`` (mm),
+    ``nx``, ``ny``, ``origin`` (x, y of the first pixel centre, mm), ``window``
+    ``[x0, y0, x1, y1]`` (pixel edges, mm), ``wavelength_nm``, ``bandwidth_nm`` (CSI).
+    The default field of view is the preset's, centred on the height map and clipped
+    to it.
+    """
+    preset = OBJECTIVES[icfg.objective]
+    na = float(icfg.numerical_aperture if icfg.numerical_aperture is not None
+               else preset["numerical_aperture"])
+    pixel = float(icfg.pixel if icfg.pixel is not None
+                  else preset["field_of_view_mm"] / preset["camera_pixels"])
+    x_lo, x_hi, y_lo, y_hi = heightmap.extent
+    if icfg.field_of_view is not None:
+        x0, y0, x1, y1 = (float(v) for v in icfg.field_of_view)
+        if not (x1 > x0 and y1 > y0):
+            raise InputError(f"render.interferometer.field_of_view must be [x0, y0, x1, y1] with "
+                             f"x1 > x0 and y1 > y0 (mm), got {list(icfg.field_of_view)}")
+        if x0 < x_lo - 1e-9 or x1 > x_hi + 1e-9 or y0 < y_lo - 1e-9 or y1 > y_hi + 1e-9:
+            raise InputError(f"render.interferometer.field_of_view {list(icfg.field_of_view)} mm must "
+                             f"lie inside the height map (x {x_lo:g}..{x_hi:g}, "
+                             f"y {y_lo:g}..{y_hi:g} mm); enlarge simulation.region or move it")
+    else:
+        fov = preset["field_of_view_mm"]
+        cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
+        x0, x1 = max(x_lo, cx - fov / 2), min(x_hi, cx + fov / 2)
+        y0, y1 = max(y_lo, cy - fov / 2), min(y_hi, cy + fov / 2)
+    nx = int(math.floor((x1 - x0) / pixel + 1e-9))
+    ny = int(math.floor((y1 - y0) / pixel + 1e-9))
+    if nx < 2 or ny < 2:
+        raise InputError(f"render.interferometer.pixel = {pixel:g} mm leaves fewer than 2 x 2 "
+                         f"camera pixels in the field of view {[x0, y0, x1, y1]} mm: use a "
+                         f"smaller pixel or a larger field_of_view")
+    if nx * ny > 4096 * 4096:
+        raise MemoryBudgetError(f"the interferogram would have {nx} x {ny} pixels (> 4096 x 4096): "
+                                f"raise render.interferometer.pixel (got {pixel:g} mm) or shrink "
+                                f"field_of_view")
+    # centre the pixel grid in the window
+    x0 += ((x1 - x0) - nx * pixel) / 2
+    y0 += ((y1 - y0) - ny * pixel) / 2
+    csi = icfg.mode == "csi"
+    wl = icfg.wavelength_nm if icfg.wavelength_nm is not None else (
+        DEFAULT_CSI_WAVELENGTH_NM if csi else DEFAULT_PSI_WAVELENGTH_NM)
+    bw = (icfg.bandwidth_nm if icfg.bandwidth_nm is not None else DEFAULT_CSI_BANDWIDTH_NM) if csi else None
+    return {"objective": icfg.objective, "numerical_aperture": na, "pixel": pixel,
+            "nx": nx, "ny": ny, "origin": (x0 + pixel / 2, y0 + pixel / 2),
+            "window": [x0, y0, x0 + nx * pixel, y0 + ny * pixel],
+            "wavelength_nm": float(wl), "bandwidth_nm": None if bw is None else float(bw)}
+
+
+def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):
+    """Ray-trace the mesh of one height-map channel through the objective.
+
+    Returns
+    -------
+    h_sub : (ny*s, nx*s) float64, mm (NaN where missed); row 0 = smallest y
+    nz_sub : (ny*s, nx*s) float32, z component of the shading normal (0 where missed)
+    h_centre : (ny, nx) float64, mm, the height at the pixel centres (NaN where missed)
+    """
+    from ..mesh import heightmap_mesh
+
+    if surface not in ("design", "machined"):
+        raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
+    s = int(subsamples)
+    x0, y0, x1, y1 = geom["window"]
+    gm = heightmap_mesh(heightmap, channel=surface, exaggeration=1.0, window=geom["window"],
+                        margin=2, normals=True)
+    z_off = gm.metadata["z_offset_mm"]
+    z_top = float(gm.vertices[:, 2].max()) + max(1.0, 10 * geom["pixel"])
+    from ._scene_dicts import render_aov_grid
+
+    nx, ny = geom["nx"], geom["ny"]
+    pos, nrm = render_aov_grid(gm, x0=x0, y0=y0, width_mm=x1 - x0, nx=nx * s, ny=ny * s, z_top=z_top)
+    hit = np.einsum("...i,...i->...", nrm, nrm) > 0.25
+    h_sub = np.where(hit, pos[..., 2].astype(np.float64) + z_off, np.nan)
+    nz_sub = np.where(hit, nrm[..., 2], 0.0).astype(np.float32)
+    if s % 2 == 1:
+        c = s // 2
+        h_centre = h_sub[c::s, c::s].copy()
+    else:
+        pos_c, nrm_c = render_aov_grid(gm, x0=x0, y0=y0, width_mm=x1 - x0, nx=nx, ny=ny, z_top=z_top)
+        hit_c = np.einsum("...i,...i->...", nrm_c, nrm_c) > 0.25
+        h_centre = np.where(hit_c, pos_c[..., 2].astype(np.float64) + z_off, np.nan)
+    return h_sub, nz_sub, h_centre
+
+
+# ------------------------------------------------------------------------------- model
+def _block_mean(a: np.ndarray, s: int) -> np.ndarray:
+    ny, nx = a.shape[0] // s, a.shape[1] // s
+    return a.reshape(ny, s, nx, s).mean(axis=(1, 3))
+
+
+def interference_frames(h_sub, nz_sub, *, subsamples: int, numerical_aperture: float,
+                        wavelength_nm: float, z_ref: float, mode: str = "psi", steps: int = 4,
+                        step_rad: float = math.pi / 2, bandwidth_nm: float | None = None,
+                        scan_step_nm: float = 80.0):
+    """Two-beam interference frames from sub-sample heights and normals (no noise).
+
+    Parameters
+    ----------
+    h_sub : (H*s, W*s) array, mm (NaN = no hit);  nz_sub : same shape, normal z component
+    subsamples : int, s;  numerical_aperture : float in (0, 1)
+    wavelength_nm : float, PSI wavelength or CSI centre;  z_ref : float, mm
+    mode : {"psi", "csi"};  steps, step_rad : PSI frames and phase step (rad)
+    bandwidth_nm, scan_step_nm : CSI source FWHM and scan step (nm)
+
+    Returns
+    -------
+    frames : (N, H, W) float64;  accepted : (H, W) float fraction of returning samples;
+    phase_steps : (N,) rad (PSI) or empty;  scan_positions : (M,) mm (CSI) or empty;
+    intensity_index : int, the frame reported as ``intensity``
+    """
+    check_range("numerical_aperture", numerical_aperture, 0, 1, lo_open=True, hi_open=True)
+    check_range("wavelength_nm", wavelength_nm, 100, 2000)
+    s = int(subsamples)
+    cos_acc = math.sqrt(1.0 - numerical_aperture ** 2)
+    ok = np.isfinite(h_sub) & (nz_sub >= cos_acc)
+    acc = ok.astype(np.float64)
+    accepted = _block_mean(acc, s)
+    lam = wavelength_nm * 1e-6  # nm -> mm
+    dh = np.where(ok, h_sub - z_ref, 0.0)  # mm
+    if mode == "psi":
+        field_ = _block_mean(acc * np.exp(1j * (4 * math.pi / lam) * dh), s)
+        dc = 1.0 + np.abs(field_) ** 2
+        deltas = step_rad * np.arange(int(steps))
+        frames = np.stack([(dc + 2 * np.real(field_ * np.exp(1j * d))) / 4 for d in deltas])
+        return frames, accepted, deltas, np.empty(0), 0
+    if mode != "csi":
+        raise InputError(f"render.interferometer.mode must be 'psi' or 'csi', got {mode!r}")
+    bw = DEFAULT_CSI_BANDWIDTH_NM if bandwidth_nm is None else float(bandwidth_nm)
+    check_range("bandwidth_nm", bw, 0, 1000, lo_open=True)
+    k0 = 2 * math.pi / lam  # rad/mm
+    sigma_k = 2 * math.pi * (bw * 1e-6) / lam ** 2 / (2 * math.sqrt(2 * math.log(2)))
+    # <|E(k)|^2> over the spectrum: Gauss-Hermite nodes in k
+    xg, wg = np.polynomial.hermite_e.hermegauss(7)
+    wg = wg / wg.sum()
+    dc = np.zeros(accepted.shape)
+    for xi, wi in zip(xg, wg):
+        k = k0 + sigma_k * xi
+        dc += wi * np.abs(_block_mean(acc * np.exp(2j * k * dh), s)) ** 2
+    dc += 1.0
+    # envelope in scan z: g = exp(-2 sigma_k^2 (h - z)^2), standard deviation 1 / (2 sigma_k)
+    lc = 4.0 / (2.0 * sigma_k)  # scan margin beyond the height range: 4 standard deviations
+    finite = dh[ok]
+    lo = (float(finite.min()) if finite.size else 0.0) - lc
+    hi = (float(finite.max()) if finite.size else 0.0) + lc
+    step = float(scan_step_nm) * 1e-6
+    n = int(math.floor((hi - lo) / step)) + 1
+    if n > MAX_CSI_FRAMES:
+        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) * 1e6:.0f} nm at "
+                                f"render.interferometer.scan_step_nm = {scan_step_nm:g} needs {n} "
+                                f"frames (> {MAX_CSI_FRAMES}): raise scan_step_nm or shrink the "
+                                f"field of view")
+    # scan positions relative to z_ref, on a grid that contains 0 (= z_ref)
+    i_lo = int(math.floor(lo / step))
+    rel = step * np.arange(i_lo, i_lo + n + 1)
+    frames = np.empty((rel.size,) + accepted.shape)
+    for j, zj in enumerate(rel):
+        opd = 2.0 * (dh - zj)
+        cross = acc * np.exp(-0.5 * (sigma_k * opd) ** 2) * np.cos(k0 * opd)
+        frames[j] = (dc + 2 * _block_mean(cross, s)) / 4
+    idx0 = int(np.argmin(np.abs(rel)))
+    return frames, accepted, np.empty(0), z_ref + rel, idx0
+
+
+def camera_noise(frames: np.ndarray, *, seed: int, full_well: float = 20000.0,
+                 read_noise: float = 5.0, bit_depth: int = 12) -> np.ndarray:
+    """Shot noise (Poisson, ``full_well`` electrons at intensity 1), read noise (Gaussian,
+    electrons rms) and quantisation to ``bit_depth`` bits; returns 0..1 float32.
+    Drawn from ``numpy.random.default_rng(seed)`` (same seed -> same noise)."""
+    check_positive("full_well", full_well)
+    check_range("read_noise", read_noise, 0, None)
+    check_range("bit_depth", bit_depth, 1, 16)
+    rng = np.random.default_rng(seed)
+    e = rng.poisson(np.clip(frames, 0, None) * full_well).astype(np.float64)
+    if read_noise > 0:
+        e += rng.normal(0.0, read_noise, size=e.shape)
+    levels = 2 ** int(bit_depth) - 1
+    adu = np.clip(np.rint(e / full_well * levels), 0, levels)
+    return (adu / levels).astype(np.float32)
+
+
+# -------------------------------------------------------------------------- top level
+def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", seed: int = 0) -> Interferogram:
+    """Render the virtual interference microscope over a height map.
+
+    Parameters
+    ----------
+    heightmap : HeightMap
+        Heights in mm; its ``design`` or ``machined`` channel is meshed and ray-traced.
+    icfg : InterferometerConfig, optional
+        ``[render.interferometer]`` (defaults when None).
+    surface : {"machined", "design"}
+    seed : int
+        Seed of the camera noise (recorded in the result).
+
+    Returns
+    -------
+    Interferogram
+    """
+    from ..scene import InterferometerConfig
+    from ._variant import mitsuba_variant
+
+    if icfg is None:
+        icfg = InterferometerConfig()
+    if int(seed) != seed or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    geom = interferometer_geometry(heightmap, icfg)
+    s = int(icfg.subsamples)
+    h_sub, nz_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
+    if icfg.reference_height is not None:
+        z_ref = float(icfg.reference_height)
+    else:
+        z_ref = float(np.nanmean(h_centre)) if np.isfinite(h_centre).any() else 0.0
+    frames, accepted, deltas, scan, i0 = interference_frames(
+        h_sub, nz_sub, subsamples=s, numerical_aperture=geom["numerical_aperture"],
+        wavelength_nm=geom["wavelength_nm"], z_ref=z_ref, mode=icfg.mode, steps=icfg.steps,
+        step_rad=icfg.step_rad, bandwidth_nm=geom["bandwidth_nm"], scan_step_nm=icfg.scan_step_nm)
+    if icfg.noise:
+        frames = camera_noise(frames, seed=int(seed), full_well=icfg.full_well,
+                              read_noise=icfg.read_noise, bit_depth=icfg.bit_depth)
+    else:
+        frames = frames.astype(np.float32)
+    return Interferogram(
+        frames=frames, intensity=frames[i0].copy(), valid=accepted >= VALID_FRACTION,
+        height_true=h_centre, pixel=geom["pixel"], origin=tuple(geom["origin"]),
+        wavelength_nm=geom["wavelength_nm"], numerical_aperture=geom["numerical_aperture"],
+        mode=icfg.mode, variant=mitsuba_variant(), phase_steps=np.asarray(deltas),
+        scan_positions=np.asarray(scan), z_ref=z_ref, bandwidth_nm=geom["bandwidth_nm"],
+        objective=icfg.objective, subsamples=s, seed=int(seed), noise=bool(icfg.noise),
+        accepted_fraction=accepted.astype(np.float32), surface=surface,
+        meta={"window_mm": geom["window"]})
+
+
+def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = None):
+    """Write ``interferogram.exr``: channels ``intensity``, ``frame_000`` ... (all frames),
+    ``valid`` (0/1), ``height_true`` (mm, NaN where missed), ``accepted_fraction``; the
+    header of :meth:`Interferogram.header` plus ``scene`` (JSON)."""
+    import json
+
+    from ..io import write_exr
+
+    ch = {"intensity": ig.intensity}
+    for k, f in enumerate(ig.frames):
+        ch[f"frame_{k:03d}"] = f
+    ch["valid"] = ig.valid.astype(np.float32)
+    ch["height_true"] = ig.height_true
+    if ig.accepted_fraction is not None:
+        ch["accepted_fraction"] = ig.accepted_fraction
+    attrs = ig.header()
+    attrs["scene"] = json.dumps(scene or {}, sort_keys=True, default=str)
+    return write_exr(path, ch, attrs)
+
+
+def read_interferogram_exr(path) -> Interferogram:
+    """Read an ``interferogram.exr`` written by :func:`write_interferogram_exr`."""
+    from ..io import read_exr
+
+    ch, a = read_exr(path)
+    for need in ("intensity", "valid", "height_true"):
+        if need not in ch:
+            raise InputError(f"{path}: no channel {need!r} (channels: {sorted(ch)})")
+    names = sorted(k for k in ch if k.startswith("frame_"))
+    frames = np.stack([ch[k] for k in names]) if names else ch["intensity"][None]
+    bw = float(a.get("bandwidth_nm", 0.0)) or None
+    return Interferogram(
+        frames=frames, intensity=ch["intensity"], valid=ch["valid"] > 0.5,
+        height_true=ch["height_true"].astype(np.float64), pixel=float(a["pixel_size_mm"]),
+        origin=tuple(a["origin_mm"]), wavelength_nm=float(a["wavelength_nm"]),
+        numerical_aperture=float(a["numerical_aperture"]), mode=str(a["mode"]),
+        variant=str(a.get("mitsuba_variant", "")),
+        phase_steps=np.asarray(a.get("phase_steps_rad", []), dtype=np.float64),
+        scan_positions=np.asarray(a.get("scan_positions_mm", []), dtype=np.float64),
+        z_ref=float(a.get("z_ref_mm", 0.0)), bandwidth_nm=bw, objective=str(a.get("objective", "")),
+        subsamples=int(a.get("subsamples", 1)), seed=int(a.get("seed", 0)),
+        noise=str(a.get("noise", "false")) == "true",
+        accepted_fraction=ch.get("accepted_fraction"), surface=str(a.get("surface", "")),
+        meta={k: a[k] for k in ("scene",) if k in a})

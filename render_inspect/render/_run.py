@@ -1,0 +1,182 @@
+"""``render-inspect render``: height map -> interferogram and diffuse images, on disk."""
+
+from __future__ import annotations
+
+import io
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+
+__all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs"]
+
+KINDS = ("interferometer", "diffuse", "all")
+SURFACES = ("design", "machined")
+
+
+def render_heightmap(scene, *, surface: str = "machined"):
+    """The HeightMap a render of ``scene`` uses.
+
+    ``machined``: :func:`render_inspect.machining.simulate_scene` (its height map);
+    ``design``: the design surface sampled on the simulation grid (no machining), with
+    ``machined`` = ``design``.
+    """
+    from ..machining import HeightMap
+
+    if surface == "machined":
+        from ..machining import simulate_scene
+
+        return simulate_scene(scene).heightmap
+    if surface != "design":
+        raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
+    from ..design import make_surface
+    from ..machining import design_grid
+
+    region = tuple(scene.simulation.region)
+    pixel = float(scene.simulation.pixel)
+    z = design_grid(make_surface(scene.design), region, pixel)
+    return HeightMap(z, z.copy(), pixel, (float(region[0]), float(region[1])),
+                     scene=scene.to_dict(), meta={"surface": "design",
+                                                  "seed": int(scene.simulation.seed)})
+
+
+def _png_bytes(img8: np.ndarray, text: dict) -> bytes:
+    from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
+
+    info = PngInfo()
+    for k, v in text.items():
+        info.add_text(str(k), v if isinstance(v, str) else json.dumps(v, default=str))
+    buf = io.BytesIO()
+    Image.fromarray(img8).save(buf, format="PNG", pnginfo=info)
+    return buf.getvalue()
+
+
+def _srgb8(rgb: np.ndarray) -> np.ndarray:
+    a = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
+    a = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
+    return (a * 255 + 0.5).astype(np.uint8)
+
+
+def write_interferogram_outputs(out: Path, ig, *, scene: dict | None = None) -> dict:
+    """Write ``interferogram.exr``, ``interferogram_fringes.png`` (the intensity frame,
+    row 0 = smallest y drawn at the bottom, invalid pixels red) and
+    ``interferogram_height.png`` (false-colour ``height_true - z_ref`` in nm) into ``out``;
+    return the summary dict."""
+    from ..io import atomic_write_bytes, save_map_png
+    from ._interferometer import write_interferogram_exr
+
+    out = Path(out)
+    write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
+    g = np.clip(ig.intensity, 0, 1)[::-1]
+    rgb = np.repeat(g[..., None], 3, axis=2)
+    inval = ~ig.valid[::-1]
+    rgb[inval] = (0.8, 0.1, 0.1)
+    atomic_write_bytes(out / "interferogram_fringes.png",
+                       _png_bytes((rgb * 255 + 0.5).astype(np.uint8),
+                                  {"mitsuba_variant": ig.variant, "mode": ig.mode,
+                                   "wavelength_nm": ig.wavelength_nm,
+                                   "numerical_aperture": ig.numerical_aperture,
+                                   "pixel_size_mm": ig.pixel, "seed": ig.seed,
+                                   "software_version": __version__}))
+    h_nm = (ig.height_true - ig.z_ref) * 1e6  # mm -> nm
+    save_map_png(out / "interferogram_height.png", np.where(ig.valid, h_nm, np.nan),
+                 extent=ig.extent, title=f"ray-traced height ({ig.surface}), {ig.objective} "
+                 f"NA {ig.numerical_aperture:g}", label="height - z_ref (nm)", cmap="turbo")
+    return interferogram_summary(ig)
+
+
+def interferogram_summary(ig) -> dict:
+    return {"mode": ig.mode, "objective": ig.objective, "shape": list(ig.shape),
+            "frames": int(ig.frames.shape[0]), "pixel_mm": ig.pixel,
+            "origin_mm": list(ig.origin), "wavelength_nm": ig.wavelength_nm,
+            "bandwidth_nm": ig.bandwidth_nm, "numerical_aperture": ig.numerical_aperture,
+            "subsamples": ig.subsamples, "noise": ig.noise, "seed": ig.seed,
+            "z_ref_mm": ig.z_ref, "valid_fraction": float(np.mean(ig.valid)),
+            "surface": ig.surface, "mitsuba_variant": ig.variant}
+
+
+def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) -> dict:
+    """Write ``<name>.exr`` (linear R, G, B; header: the scene spec, ``vertical_exaggeration``,
+    ``mitsuba_variant``) and ``<name>.png`` (sRGB 8-bit; the same as PNG text)."""
+    from ..io import atomic_write_bytes, write_exr
+
+    out = Path(out)
+    attrs = {"vertical_exaggeration": float(meta["vertical_exaggeration"]),
+             "mitsuba_variant": meta["mitsuba_variant"], "view": meta["view"],
+             "spp": int(meta["spp"]), "seed": int(meta["seed"]), "units": "mm",
+             "software_version": __version__,
+             "spec": json.dumps(meta, sort_keys=True, default=str)}
+    write_exr(out / f"{name}.exr", {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2]}, attrs)
+    text = {"vertical_exaggeration": f"{meta['vertical_exaggeration']:g}",
+            "Comment": f"heights exaggerated {meta['vertical_exaggeration']:g}x",
+            "mitsuba_variant": meta["mitsuba_variant"], "spec": meta}
+    atomic_write_bytes(out / f"{name}.png", _png_bytes(_srgb8(rgb), text))
+    return {k: meta[k] for k in ("view", "spp", "seed", "vertical_exaggeration", "mesh_triangles",
+                                 "mesh_stride", "window_mm", "mitsuba_variant")} | {
+        "light": meta["light"]["type"], "material": meta["material"]["type"],
+        "shape": [int(rgb.shape[0]), int(rgb.shape[1])]}
+
+
+def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None) -> dict:
+    """Render ``scene`` into the folder ``out`` (written atomically).
+
+    Parameters
+    ----------
+    scene : Scene
+    out : path
+        Output folder; files already there are kept (``render`` can add to ``simulate``'s).
+    surface : {"machined", "design"}
+        ``design`` renders the ideal surface (no machining).
+    kind : {"interferometer", "diffuse", "all"}
+    heightmap : HeightMap, optional
+        Use this instead of simulating / sampling the scene.
+
+    Returns
+    -------
+    dict
+        ``{"render": {...}}`` for metrics.json: ``mitsuba_variant``, ``surface``, ``kind``,
+        ``interferometer`` / ``diffuse_macro`` / ``diffuse_micro`` summaries, ``timing_s``.
+        The same dict is written to ``out/render_metrics.json``.
+
+    Files: ``interferogram.exr``, ``interferogram_fringes.png``, ``interferogram_height.png``
+    (interferometer); ``diffuse_macro.{exr,png}``, ``diffuse_micro.{exr,png}`` (diffuse).
+    """
+    from ..io import atomic_output_dir, write_json
+    from ._diffuse import render_diffuse
+    from ._interferometer import render_interferogram
+    from ._variant import variant_info
+
+    if kind not in KINDS:
+        raise InputError(f"--kind must be one of {KINDS}, got {kind!r}")
+    if surface not in SURFACES:
+        raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
+    timing = {}
+    t0 = time.perf_counter()
+    hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
+    timing["heightmap"] = time.perf_counter() - t0
+    seed = int(scene.simulation.seed)
+    scene_d = scene.to_dict()
+    info = variant_info()
+    res = {"mitsuba_variant": info["mitsuba_variant"], "mitsuba_version": info["mitsuba_version"],
+           "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
+    with atomic_output_dir(out) as tmp:
+        if kind in ("interferometer", "all"):
+            t = time.perf_counter()
+            ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
+            timing["interferogram"] = time.perf_counter() - t
+            res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
+        if kind in ("diffuse", "all"):
+            for view in ("macro", "micro"):
+                t = time.perf_counter()
+                rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
+                                           seed=seed)
+                timing[f"diffuse_{view}"] = time.perf_counter() - t
+                res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
+        res["timing_s"] = timing
+        write_json(Path(tmp) / "render_metrics.json", {"render": res})
+    return {"render": res}

@@ -1,0 +1,168 @@
+"""Choose, check and record the Mitsuba 3 variant; keep renders bitwise repeatable.
+
+The variant is chosen once per process:
+
+1. ``RENDER_INSPECT_MITSUBA_VARIANT`` (environment) if set: used as given, an error if it
+   does not work;
+2. ``cuda_ad_rgb`` when a CUDA GPU is present (``/dev/nvidia0`` or ``nvidia-smi``) and a
+   tiny test render on it succeeds;
+3. ``llvm_ad_rgb`` when a usable libLLVM (>= 16) is found and a tiny test render works
+   (``DRJIT_LIBLLVM_PATH`` is pointed at Debian's ``libLLVM-19`` when it is unset);
+4. ``scalar_rgb`` otherwise, with one message on stderr saying why.
+
+Only this package imports :mod:`mitsuba` / :mod:`drjit`, and only inside functions.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info"]
+
+_LLVM_CANDIDATES = (
+    "/usr/lib/x86_64-linux-gnu/libLLVM-19.so.1",
+    "/usr/lib/x86_64-linux-gnu/libLLVM-19.so",
+    "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",
+    "/usr/lib/llvm-19/lib/libLLVM-19.so",
+    "/usr/lib/llvm-19/lib/libLLVM.so.1",
+    "/usr/lib/aarch64-linux-gnu/libLLVM-19.so.1",
+)
+
+_STATE: dict = {"variant": None, "message": None}
+
+
+def _point_at_llvm() -> str | None:
+    """Set ``DRJIT_LIBLLVM_PATH`` to a libLLVM >= 16 if unset; return the path used."""
+    cur = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if cur:
+        return cur
+    for cand in _LLVM_CANDIDATES:
+        if Path(cand).is_file():
+            os.environ["DRJIT_LIBLLVM_PATH"] = cand
+            return cand
+    return None
+
+
+def _has_cuda_gpu() -> bool:
+    return Path("/dev/nvidia0").exists() or shutil.which("nvidia-smi") is not None
+
+
+def _smoke_test(mi) -> None:
+    """A 4 x 4 AOV render of a rectangle: raises if the variant does not really work."""
+    import numpy as np
+
+    scene = mi.load_dict({
+        "type": "scene",
+        "integrator": {"type": "aov", "aovs": "pp:position"},
+        "sensor": {"type": "orthographic",
+                   "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 1], target=[0, 0, 0],
+                                                              up=[0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 4, "height": 4,
+                            "rfilter": {"type": "box"}},
+                   "sampler": {"type": "stratified", "sample_count": 1, "jitter": False}},
+        "shape": {"type": "rectangle"},
+    })
+    img = np.array(mi.render(scene, seed=0))
+    if img.shape != (4, 4, 3) or not np.allclose(img[0, :, 0], [-0.75, -0.25, 0.25, 0.75],
+                                                 atol=1e-5):
+        raise RuntimeError(f"test render gave unexpected values {img[0, :, 0]}")
+
+
+def _try(mi, variant: str) -> str | None:
+    """Set ``variant`` and smoke-test it; return None on success, else the reason."""
+    if variant not in mi.variants():
+        return f"variant {variant} is not compiled into this Mitsuba build"
+    try:
+        mi.set_variant(variant)
+        _smoke_test(mi)
+    except Exception as exc:  # any failure of the engine means: not usable
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def mitsuba_variant() -> str:
+    """Select (once per process) and return the Mitsuba variant in use.
+
+    Returns
+    -------
+    str
+        ``"cuda_ad_rgb"``, ``"llvm_ad_rgb"`` or ``"scalar_rgb"``.  Recorded by every render
+        in its outputs (``mitsuba_variant``).
+    """
+    if _STATE["variant"] is not None:
+        return _STATE["variant"]
+    _point_at_llvm()
+    import mitsuba as mi
+
+    forced = os.environ.get("RENDER_INSPECT_MITSUBA_VARIANT")
+    if forced:
+        why = _try(mi, forced)
+        if why is not None:
+            raise InputError(f"RENDER_INSPECT_MITSUBA_VARIANT={forced!r} does not work ({why}); "
+                             f"unset it or choose one of {mi.variants()}")
+        _STATE["variant"] = forced
+        return forced
+    reasons = []
+    order = (["cuda_ad_rgb"] if _has_cuda_gpu() else []) + ["llvm_ad_rgb"]
+    for variant in order:
+        why = _try(mi, variant)
+        if why is None:
+            _STATE["variant"] = variant
+            return variant
+        reasons.append(f"{variant}: {why}")
+    why = _try(mi, "scalar_rgb")
+    if why is not None:
+        raise RuntimeError(f"no Mitsuba variant works (scalar_rgb: {why}; {'; '.join(reasons)})")
+    msg = ("render_inspect: Mitsuba falls back to the slow scalar_rgb variant ("
+           + "; ".join(reasons) + "). Install libLLVM >= 16 (Debian: libllvm19) or set "
+           "DRJIT_LIBLLVM_PATH to use llvm_ad_rgb.")
+    print(msg, file=sys.stderr)
+    _STATE["variant"] = "scalar_rgb"
+    _STATE["message"] = msg
+    return "scalar_rgb"
+
+
+def import_mitsuba():
+    """Return ``(mi, dr, variant)`` with the chosen variant set."""
+    variant = mitsuba_variant()
+    import drjit as dr
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return mi, dr, variant
+
+
+def variant_info() -> dict:
+    """Provenance of the renderer: variant, Mitsuba / Dr.Jit versions, libLLVM path."""
+    mi, dr, variant = import_mitsuba()
+    return {"mitsuba_variant": variant, "mitsuba_version": mi.__version__,
+            "drjit_version": dr.__version__,
+            "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH", "") if variant.startswith("llvm") else "",
+            "fallback_message": _STATE["message"] or ""}
+
+
+@contextlib.contextmanager
+def single_thread():
+    """Run the block with one Dr.Jit worker thread (restored afterwards).
+
+    On the LLVM variant, building the BVH of a large mesh with several threads gives
+    slightly different trees from run to run (measured: 17 % of pixels differed between
+    processes); loading scenes inside this block makes renders bitwise repeatable.
+    """
+    mi, dr, variant = import_mitsuba()
+    if not variant.startswith("llvm"):
+        yield
+        return
+    old = dr.thread_count()
+    dr.set_thread_count(1)
+    try:
+        yield
+    finally:
+        dr.set_thread_count(old)

@@ -1,0 +1,180 @@
+"""Figures of the comparison report, as PNG bytes (matplotlib, Agg backend).
+
+Every map is drawn with row 0 (the smallest y) at the bottom and x, y in mm; panels that
+are compared share one colour scale so that equal colours mean equal heights.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _to_png(fig) -> bytes:
+    plt = _plt()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=fig.dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def png_bytes(image) -> bytes:
+    """8-bit PNG of a float image in [0, 1] (H x W or H x W x 3), row 0 at the top."""
+    from PIL import Image
+
+    a = np.clip(np.nan_to_num(np.asarray(image, dtype=np.float64)), 0, 1)
+    buf = io.BytesIO()
+    Image.fromarray((a * 255 + 0.5).astype(np.uint8)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _limits(arrays, symmetric, percentile=None):
+    vals = [np.asarray(a, dtype=np.float64) for a in arrays if a is not None]
+    vals = [v[np.isfinite(v)] for v in vals]
+    vals = [v for v in vals if v.size]
+    if not vals:
+        return -1.0, 1.0
+    allv = np.concatenate(vals)
+    if percentile is not None:
+        lo, hi = np.percentile(allv, [percentile, 100 - percentile])
+    else:
+        lo, hi = float(allv.min()), float(allv.max())
+    if symmetric:
+        m = max(abs(lo), abs(hi)) or 1.0
+        return -m, m
+    if hi <= lo:
+        hi = lo + 1.0
+    return float(lo), float(hi)
+
+
+def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
+               symmetric: bool = False, shared: bool = True, suptitle: str = "",
+               percentile: float | None = None, panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
+    """Side-by-side false-colour maps, each with a colour bar.
+
+    Parameters
+    ----------
+    panels : list of (title, (ny, nx) array)
+        Maps with row 0 = smallest y; NaN is drawn blank.
+    extent : (x0, x1, y0, y1) or list of them, mm
+        Pixel-edge extent (one for all panels or one per panel).
+    label : str
+        Colour-bar label (say the unit).
+    symmetric : bool
+        Colour scale symmetric about 0 (differences, residuals).
+    shared : bool
+        One colour scale for all panels (compare like with like).
+    percentile : float, optional
+        Clip the scale to this lower/upper percentile (robust to a few spikes).
+    """
+    plt = _plt()
+    n = len(panels)
+    fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
+                             squeeze=False)
+    lim = _limits([p[1] for p in panels], symmetric, percentile) if shared else None
+    for i, (title, data) in enumerate(panels):
+        ax = axes[0, i]
+        ext = extent[i] if isinstance(extent, list) else extent
+        if data is None:
+            ax.text(0.5, 0.5, "not available", ha="center", va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            ax.set_title(title, fontsize=10)
+            continue
+        vmin, vmax = lim if lim is not None else _limits([data], symmetric, percentile)
+        im = ax.imshow(np.asarray(data, dtype=np.float64), origin="lower", extent=ext, cmap=cmap,
+                       vmin=vmin, vmax=vmax, interpolation="nearest")
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+        if label:
+            cb.set_label(label)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=11)
+    fig.tight_layout()
+    return _to_png(fig)
+
+
+def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "",
+                 panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
+    """Side-by-side rendered images (grey intensity 0..1 or RGB 0..1), row 0 = smallest y.
+
+    A grey panel gets a colour bar labelled ``gray_label``."""
+    plt = _plt()
+    n = len(panels)
+    fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
+                             squeeze=False)
+    for i, (title, img) in enumerate(panels):
+        ax = axes[0, i]
+        ext = extent[i] if isinstance(extent, list) else extent
+        ax.set_title(title, fontsize=10)
+        if img is None:
+            ax.text(0.5, 0.5, "not available", ha="center", va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            continue
+        a = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float64)), 0, 1)
+        if a.ndim == 2:
+            im = ax.imshow(a, origin="lower", extent=ext, cmap="gray", vmin=0, vmax=1,
+                           interpolation="nearest")
+            cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+            if gray_label:
+                cb.set_label(gray_label)
+        else:
+            ax.imshow(a, origin="lower", extent=ext, interpolation="nearest")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=11)
+    fig.tight_layout()
+    return _to_png(fig)
+
+
+def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
+    """Radial profiles like seed 000 Fig. 16 (b, c): per variant (column), the design and
+    machined heights along radial sections at a few angles (top, um) and machined minus
+    design along them (bottom, nm).
+
+    Parameters
+    ----------
+    sections : dict variant -> list of dict(angle_deg, s, design, machined)
+        ``s`` in mm from the centre, heights in mm.
+    """
+    plt = _plt()
+    names = list(sections)
+    n = max(len(names), 1)
+    fig, axes = plt.subplots(2, n, figsize=(4.6 * n, 6.2), dpi=dpi, squeeze=False,
+                             sharey="row")
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for j, name in enumerate(names):
+        top, bot = axes[0, j], axes[1, j]
+        for k, sec in enumerate(sections[name]):
+            c = colors[k % len(colors)]
+            s = np.asarray(sec["s"])
+            lab = f"{sec['angle_deg']:g} deg"
+            if sec.get("design") is not None:
+                top.plot(s, np.asarray(sec["design"]) * 1e3, color=c, lw=0.8, ls="--")
+            top.plot(s, np.asarray(sec["machined"]) * 1e3, color=c, lw=1.0, label=lab)
+            if sec.get("design") is not None:
+                bot.plot(s, (np.asarray(sec["machined"]) - np.asarray(sec["design"])) * 1e6,
+                         color=c, lw=0.9, label=lab)
+        top.set_title(f"{name}: radial sections (dashed = design)", fontsize=10)
+        top.set_ylabel("height (um)")
+        bot.set_title(f"{name}: machined - design", fontsize=10)
+        bot.set_ylabel("residual (nm)")
+        bot.set_xlabel("radius (mm)")
+        bot.axhline(0, color="k", lw=0.5)
+        top.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    return _to_png(fig)

@@ -1,0 +1,24 @@
+"""``[rcse]``: settings of the RCSE tool path's comparison with the conventional method.
+
+The RCSE path itself needs no keys of its own: its spiral pitch is the feed per
+revolution (``process.feed_mm_per_min / process.spindle_rpm``), its polar step
+``360 / process.points_per_rev`` degrees, its elements the ``lenslet_rings`` design.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from ._base import Section
+
+
+class RcseConfig(Section):
+    """How the conventional (grid-interpolated) path is built for the comparison (seed 004)."""
+    compare_conventional: bool = Field(True, description="also build the conventional path and compare")
+    grid_spacing: float = Field(0.005, gt=0, le=1.0,
+                                description="mm, spacing of the rectangular point cloud (modelling grid)")
+    interpolation: Literal["linear", "cubic"] = Field("linear", description="interpolation in the point cloud")
+    snap_to_rows: bool = Field(True, description="CCPs on the nearest point-cloud row (X reciprocates); "
+                                                 "false: interpolated at the exact spiral point")

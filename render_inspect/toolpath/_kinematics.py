@@ -1,0 +1,230 @@
+"""Axis kinematics of a turning path: X, Z and C positions, velocities, accelerations and
+jerk in time, their maxima, machine-limit warnings and seed-004-style plots (Figs. 8-9).
+
+Machine axes: X = rho (mm), Z = z (mm, tool tip), C = theta (rad, cumulative), each a
+function of the time ``t`` of the path (s).  Derivatives are finite differences on the
+path's own, possibly non-uniform, time axis:
+
+- velocity: second-order central difference for unequal steps (``numpy.gradient``),
+  second-order one-sided at the ends;
+- acceleration: the three-point second difference for unequal steps
+  ``2 [h1 q(i+1) - (h1 + h2) q(i) + h2 q(i-1)] / (h1 h2 (h1 + h2))`` (h1 = t(i) - t(i-1),
+  h2 = t(i+1) - t(i); exact for quadratics), ends copied from their neighbours;
+- jerk: ``numpy.gradient`` of the acceleration.
+
+Every maximum is of the absolute value.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["axis_derivatives", "kinematics", "limits_from_process", "plot_kinematics",
+           "LIMIT_KEYS"]
+
+#: scene key (``[process]``) -> (axis, derivative order, label, unit)
+LIMIT_KEYS = {
+    "x_velocity_limit_mm_s": ("x", 1, "X velocity", "mm/s"),
+    "x_acceleration_limit_mm_s2": ("x", 2, "X acceleration", "mm/s^2"),
+    "z_velocity_limit_mm_s": ("z", 1, "Z velocity", "mm/s"),
+    "z_acceleration_limit_mm_s2": ("z", 2, "Z acceleration", "mm/s^2"),
+}
+
+
+def _check_time(t: np.ndarray) -> None:
+    if t.size >= 2:
+        dt = np.diff(t)
+        bad = np.flatnonzero(~(dt > 0))
+        if bad.size:
+            i = int(bad[0])
+            raise InputError(f"ToolPath.t must be strictly increasing for kinematics; "
+                             f"t[{i}] = {t[i]!r} s and t[{i + 1}] = {t[i + 1]!r} s "
+                             f"({bad.size} such steps)")
+
+
+def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Velocity, acceleration and jerk of the samples ``q(t)`` on a non-uniform time axis.
+
+    Parameters
+    ----------
+    t : (n,) array, s, strictly increasing (n >= 3)
+    q : (n,) array, axis position (any unit u)
+
+    Returns
+    -------
+    v, a, j : (n,) float64 arrays, u/s, u/s^2, u/s^3
+    """
+    t = np.asarray(t, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if t.shape != q.shape or t.ndim != 1:
+        raise InputError(f"t and q must be 1-D arrays of one length, received {t.shape} and {q.shape}")
+    if t.size < 3:
+        raise InputError(f"kinematics needs at least 3 path points, received {t.size}")
+    _check_time(t)
+    v = np.gradient(q, t, edge_order=2)
+    h1 = t[1:-1] - t[:-2]
+    h2 = t[2:] - t[1:-1]
+    a = np.empty_like(q)
+    a[1:-1] = 2.0 * (h1 * q[2:] - (h1 + h2) * q[1:-1] + h2 * q[:-2]) / (h1 * h2 * (h1 + h2))
+    a[0], a[-1] = a[1], a[-2]
+    j = np.gradient(a, t, edge_order=1)
+    return v, a, j
+
+
+def limits_from_process(process_cfg) -> dict:
+    """The machine limits of a ``[process]`` section (or dict) that are set, by scene key."""
+    out = {}
+    for key in LIMIT_KEYS:
+        val = process_cfg.get(key) if isinstance(process_cfg, dict) else getattr(process_cfg, key, None)
+        if val is not None:
+            out[key] = float(val)
+    return out
+
+
+def _at(path, i: int) -> str:
+    return (f"t = {path.t[i]:.4f} s, radius {path.rho[i]:.4f} mm, "
+            f"C = {math.degrees(path.theta[i]):.2f} deg")
+
+
+def kinematics(path, *, limits=None) -> dict:
+    """Axis kinematics of a tool path and warnings where it exceeds the machine limits.
+
+    Parameters
+    ----------
+    path : ToolPath
+        X = ``rho``, Z = ``z``, C = ``theta`` at times ``t`` (strictly increasing).
+    limits : dict or ProcessConfig, optional
+        ``x_velocity_limit_mm_s``, ``x_acceleration_limit_mm_s2``, ``z_velocity_limit_mm_s``,
+        ``z_acceleration_limit_mm_s2`` (None or absent: not checked).
+
+    Returns
+    -------
+    dict
+        ``x_velocity_max_mm_s``, ``x_acceleration_max_mm_s2``, ``x_jerk_max_mm_s3``,
+        ``z_velocity_max_mm_s``, ``z_acceleration_max_mm_s2``, ``z_jerk_max_mm_s3``,
+        ``c_velocity_max_rad_s``, ``x_velocity_mean_mm_s`` (mean of |vX|),
+        ``x_reversals`` (sign changes of the X velocity), ``duration_s``,
+        ``limits`` (the limits checked), ``limits_exceeded`` (scene key -> points over the
+        limit), ``warnings`` (list of str: what, by how much, where: time and radius).
+    """
+    if limits is None:
+        lim = {}
+    elif isinstance(limits, dict):
+        lim = {k: float(v) for k, v in limits.items() if v is not None}
+    else:
+        lim = limits_from_process(limits)
+    unknown = sorted(set(lim) - set(LIMIT_KEYS))
+    if unknown:
+        raise InputError(f"unknown kinematic limit(s) {unknown}; allowed: {sorted(LIMIT_KEYS)}")
+    for k, v in lim.items():
+        if not v > 0:
+            raise InputError(f"{k} must be > 0, received {v}")
+    t = np.asarray(path.t, dtype=np.float64)
+    vx, ax, jx = axis_derivatives(t, path.rho)
+    vz, az, jz = axis_derivatives(t, path.z)
+    vc = np.gradient(np.asarray(path.theta, dtype=np.float64), t, edge_order=2)
+    s = np.sign(vx[np.abs(vx) > 1e-12])
+    series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
+    out = {
+        "x_velocity_max_mm_s": float(np.max(np.abs(vx))),
+        "x_acceleration_max_mm_s2": float(np.max(np.abs(ax))),
+        "x_jerk_max_mm_s3": float(np.max(np.abs(jx))),
+        "z_velocity_max_mm_s": float(np.max(np.abs(vz))),
+        "z_acceleration_max_mm_s2": float(np.max(np.abs(az))),
+        "z_jerk_max_mm_s3": float(np.max(np.abs(jz))),
+        "c_velocity_max_rad_s": float(np.max(np.abs(vc))),
+        "x_velocity_mean_mm_s": float(np.mean(np.abs(vx))),
+        "x_reversals": int(np.count_nonzero(s[1:] != s[:-1])),
+        "duration_s": float(t[-1] - t[0]),
+        "limits": dict(lim),
+        "limits_exceeded": {},
+        "warnings": [],
+    }
+    for key, value in lim.items():
+        axis, order, label, unit = LIMIT_KEYS[key]
+        mag = np.abs(series[(axis, order)])
+        over = np.flatnonzero(mag > value)
+        if over.size:
+            worst = int(np.argmax(mag))
+            out["limits_exceeded"][key] = int(over.size)
+            out["warnings"].append(
+                f"{label} exceeds process.{key} = {value:g} {unit} at {over.size} of {mag.size} "
+                f"points: first at {_at(path, int(over[0]))}; worst {mag[worst]:.4g} {unit} at "
+                f"{_at(path, worst)}")
+    return out
+
+
+def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
+    """Per-bin min/max of y (bins along x): plots of millions of points that keep spikes."""
+    n = x.size
+    if n <= 2 * bins:
+        return x, y, y
+    edges = np.linspace(0, n, bins + 1).astype(np.int64)
+    starts = edges[:-1]
+    xm = x[(starts + edges[1:]) // 2]
+    return xm, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
+
+
+def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventional"),
+                    title: str | None = None) -> Path:
+    """Plot X against C and the X velocity and acceleration against time (seed 004
+    Figs. 8-9), one column per path.
+
+    Parameters
+    ----------
+    path : ToolPath
+    png_path : str or Path
+        Written atomically.
+    reference : ToolPath, optional
+        A second path (e.g. the conventional one) drawn in a second column.
+    labels : (str, str)
+        Column titles for ``path`` and ``reference``.
+    title : str, optional
+
+    Returns
+    -------
+    Path of the PNG.  Every curve is drawn as a per-bin min/max envelope, so spikes of
+    single points stay visible on paths of millions of points.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from ..io import atomic_write_bytes
+
+    paths = [path] + ([reference] if reference is not None else [])
+    fig, axes = plt.subplots(3, len(paths), figsize=(5.2 * len(paths), 8.4), squeeze=False,
+                             sharey="row")
+    for col, (p, lab) in enumerate(zip(paths, labels)):
+        t = np.asarray(p.t, dtype=np.float64)
+        vx, ax, _ = axis_derivatives(t, p.rho)
+        c_rev = np.asarray(p.theta, dtype=np.float64) / (2 * math.pi)
+        rows = [(c_rev, np.asarray(p.rho), "C (revolutions, cumulative)", "X = radius (mm)"),
+                (t, vx, "time (s)", "X velocity (mm/s)"),
+                (t, ax, "time (s)", "X acceleration (mm/s$^2$)")]
+        for r, (xs, ys, xl, yl) in enumerate(rows):
+            axx = axes[r, col]
+            xm, lo, hi = _envelope(xs, ys)
+            axx.plot(xm, lo, lw=0.7, color="C0")
+            if xm.size != xs.size:
+                axx.plot(xm, hi, lw=0.7, color="C0")
+                axx.fill_between(xm, lo, hi, lw=0, color="C0", alpha=0.5)
+            axx.set_xlabel(xl)
+            axx.set_ylabel(yl)
+            axx.grid(alpha=0.3)
+        axes[0, col].set_title(f"{lab}\nmax |vX| {np.max(np.abs(vx)):.3g} mm/s, "
+                               f"max |aX| {np.max(np.abs(ax)):.3g} mm/s$^2$", fontsize=9)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return atomic_write_bytes(png_path, buf.getvalue())

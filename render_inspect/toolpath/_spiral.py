@@ -1,0 +1,102 @@
+"""Spiral cutting-contact points (CCPs): constant angle, constant arc length, hybrid.
+
+The spiral is Archimedean and runs inward: rho(theta) = r_outer - f_rev theta / (2 pi),
+theta cumulative from 0 (seed 000).  The spindle turns at constant speed, so the time of
+a point is t = theta / omega whatever the sampling (a PVT controller takes the uneven
+time steps of the arc-length samplings).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import InputError, check_range
+
+TWO_PI = 2 * math.pi
+
+
+def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
+    """theta at arc length s along rho = r_start - c theta (circumferential arc only)."""
+    # s(theta) = r_start theta - c theta^2 / 2  ->  theta = (r_start - sqrt(r_start^2 - 2 c s)) / c
+    disc = np.maximum(r_start * r_start - 2 * c * s, 0.0)
+    return (r_start - np.sqrt(disc)) / c
+
+
+def spiral_ccps(process_cfg, *, r_outer: float, r_inner: float = 0.0, points_per_rev=None,
+                arc_length=None) -> tuple[np.ndarray, np.ndarray]:
+    """CCP angles (cumulative, rad) and radii (mm) of the inward spiral.
+
+    Parameters
+    ----------
+    process_cfg : ProcessConfig
+        Uses ``feed_per_rev``, ``sampling``, ``points_per_rev``, ``arc_length``,
+        ``switch_radius``.
+    r_outer, r_inner : float
+        mm; the spiral runs from ``r_outer`` to ``r_inner`` (inclusive).
+    points_per_rev, arc_length : optional overrides of the config's values.
+
+    Returns
+    -------
+    theta, rho : (n,) float64
+    """
+    f = process_cfg.feed_per_rev
+    check_range("r_outer", r_outer, 0.0, None, lo_open=True)
+    if not 0 <= r_inner < r_outer:
+        raise InputError(f"r_inner must be in [0, r_outer={r_outer}), received {r_inner}")
+    N = int(points_per_rev or process_cfg.points_per_rev)
+    ds = float(arc_length or process_cfg.arc_length)
+    c = f / TWO_PI
+    theta_end = (r_outer - r_inner) / c
+    mode = process_cfg.sampling
+    if mode == "constant_angle":
+        n = int(math.ceil(theta_end / (TWO_PI / N)))
+        theta = np.arange(n + 1, dtype=np.float64) * (TWO_PI / N)
+        theta[-1] = min(theta[-1], theta_end)
+    else:
+        r_sw = r_inner if mode == "constant_arc" else min(max(process_cfg.switch_radius, r_inner), r_outer)
+        # arc-length part from r_outer down to r_sw; the angular step is capped at 2 pi / 8
+        theta_sw = (r_outer - r_sw) / c
+        s_total = r_outer * theta_sw - c * theta_sw ** 2 / 2
+        n_arc = int(math.ceil(s_total / ds))
+        th_arc = _arc_theta(r_outer, c, np.linspace(0.0, s_total, n_arc + 1))
+        max_step = TWO_PI / 8
+        steps = np.diff(th_arc)
+        if np.any(steps > max_step):  # near the axis: subdivide the long steps
+            reps = np.maximum(1, np.ceil(steps / max_step).astype(int))
+            parts = [th_arc[:1]]
+            for a, b, k in zip(th_arc[:-1], th_arc[1:], reps):
+                parts.append(np.linspace(a, b, k + 1)[1:])
+            th_arc = np.concatenate(parts)
+        if mode == "constant_arc" or theta_sw >= theta_end:
+            theta = th_arc
+        else:
+            dth = TWO_PI / N
+            n_in = int(math.ceil((theta_end - theta_sw) / dth))
+            th_in = theta_sw + dth * np.arange(1, n_in + 1)
+            th_in[-1] = min(th_in[-1], theta_end)
+            theta = np.concatenate([th_arc, th_in])
+    rho = r_outer - c * theta
+    rho = np.maximum(rho, r_inner)
+    return theta, rho
+
+
+def chordal_step_for(tolerance: float, radius_of_curvature: float) -> float:
+    """Largest CCP spacing L whose chord stays within ``tolerance`` of a section of radius
+    R' (seed 001): L = sqrt(8 R' h - 4 h^2)."""
+    h, R = float(tolerance), abs(float(radius_of_curvature))
+    if not np.isfinite(R) or R <= 0:
+        return math.inf
+    return math.sqrt(max(8 * R * h - 4 * h * h, 0.0))
+
+
+def chordal_error(surface, theta: np.ndarray, rho: np.ndarray, z_ccp: np.ndarray) -> np.ndarray:
+    """Linearisation error at each segment's midpoint: |F(mid) - (z_i + z_{i+1}) / 2|, mm.
+
+    The axes interpolate linearly in (C, X, Z), so the mid-point lies on the spiral at the
+    mean angle and radius."""
+    tm = 0.5 * (theta[1:] + theta[:-1])
+    rm = 0.5 * (rho[1:] + rho[:-1])
+    zm = surface.height(rm * np.cos(tm), rm * np.sin(tm))
+    return np.abs(zm - 0.5 * (z_ccp[1:] + z_ccp[:-1]))

@@ -1,0 +1,44 @@
+"""The round-nosed diamond tool."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import check_range
+
+
+@dataclass(frozen=True)
+class Tool:
+    """Round-nosed tool.  Lengths in mm, angles in rad.
+
+    Parameters
+    ----------
+    nose_radius : float
+        Rc, mm (> 0).
+    included_angle : float
+        Included (wrap) angle of the nose arc, rad in (0, pi]; the arc spans
+        +- included_angle / 2 about the tool axis.
+    rake_angle, clearance_angle : float
+        rad.
+    """
+
+    nose_radius: float
+    included_angle: float = math.radians(60.0)
+    rake_angle: float = 0.0
+    clearance_angle: float = math.radians(10.0)
+
+    def __post_init__(self):
+        check_range("tool.nose_radius", self.nose_radius, 0.0, None, lo_open=True)
+        check_range("tool.included_angle", self.included_angle, 0.0, math.pi, lo_open=True)
+        check_range("tool.clearance_angle", self.clearance_angle, 0.0, math.pi / 2)
+
+    @classmethod
+    def from_config(cls, cfg) -> "Tool":
+        return cls(cfg.nose_radius, math.radians(cfg.included_angle_deg),
+                   math.radians(cfg.rake_angle_deg), math.radians(cfg.clearance_angle_deg))
+
+    @property
+    def half_width(self) -> float:
+        """Radial half-width of the cutting arc, Rc sin(included / 2), mm."""
+        return self.nose_radius * math.sin(min(self.included_angle / 2, math.pi / 2))
