@@ -103,7 +103,7 @@ def test_plane_gradient_and_biconic_paraboloid():
     # type = "paraboloid" is the biconic with conic -1: z = -x^2/(2 Rx) - y^2/(2 Ry)
     par = make_surface({"type": "paraboloid", "radius_x": 10.0, "radius_y": -20.0})
     assert_allclose(par.height(XY[0], XY[1]), -XY[0] ** 2 / 20 + XY[1] ** 2 / 40, atol=1e-15)
-    with pytest.raises(Exception, match="conic_x must be -1"):
+    with pytest.raises(SceneError, match="conic_x:? must be -1"):
         make_surface({"type": "paraboloid", "radius_x": 10.0, "radius_y": 20.0, "conic_x": 0.0})
     b = Biconic(20.0, 40.0)
     assert_allclose(b.hessian(0.0, 0.0), [-1 / 20, 0.0, -1 / 40], atol=1e-15)
@@ -265,11 +265,11 @@ def test_lenslet_scene_validation_names_the_key():
     with pytest.raises(SceneError, match="exactly one of lens_radius"):
         scene_from_dict(both)
     big = {"design": dict(base["design"], lens_radius=250.004, aperture_radius=2.5)}
-    with pytest.raises(SceneError, match="aperture_radius must be <= half the smaller pitch"):
+    with pytest.raises(SceneError, match="aperture_radius:? must be <= half the smaller pitch"):
         scene_from_dict(big)
     quad_sag = {"design": {"type": "lenslet_array", "pitch_x": 0.2, "pitch_y": 0.2, "sag": 0.005,
                            "cells": "quad"}}
-    with pytest.raises(SceneError, match="sag is only defined"):
+    with pytest.raises(SceneError, match="sag:? is only defined"):
         scene_from_dict(quad_sag)
     with pytest.raises(InputError, match="design.sag"):
         LensletArray(pitch_x=4.243, pitch_y=4.243, sag=2.5, aperture_radius=2.0)

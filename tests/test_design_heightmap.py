@@ -100,3 +100,24 @@ def test_outside_points_and_bad_maps_are_errors(sphere_exr, tmp_path):
         HeightMapSurface(tmp_path / "map.txt", pixel=0.1, origin=(0, 0))
     with pytest.raises(InputError, match="not found"):
         HeightMapSurface(tmp_path / "missing.exr")
+
+
+@pytest.mark.parametrize("interpolation", ["linear", "cubic"])
+def test_interpolant_passes_through_samples_and_derivatives_are_consistent(interpolation):
+    rng = np.random.default_rng(11)
+    data = rng.normal(0.0, 1e-3, size=(12, 15))
+    hm = HeightMapSurface(None, pixel=0.1, origin=(2.0, -1.0), interpolation=interpolation,
+                          data=data)
+    xs = 2.0 + 0.1 * np.arange(15)
+    ys = -1.0 + 0.1 * np.arange(12)
+    assert_allclose(hm.height(xs[None, :], ys[:, None]), data, atol=1e-15)
+    # derivatives agree with finite differences of the interpolant (away from cell edges)
+    x = 2.0 + 0.1 * (rng.integers(0, 13, 200) + rng.uniform(0.1, 0.9, 200))
+    y = -1.0 + 0.1 * (rng.integers(0, 10, 200) + rng.uniform(0.1, 0.9, 200))
+    h = 1e-6
+    gx, gy = hm.gradient(x, y)
+    assert_allclose(gx, (hm.height(x + h, y) - hm.height(x - h, y)) / (2 * h), atol=1e-7)
+    assert_allclose(gy, (hm.height(x, y + h) - hm.height(x, y - h)) / (2 * h), atol=1e-7)
+    hxx, hxy, hyy = hm.hessian(x, y)
+    assert_allclose(hxy, (hm.gradient(x, y + h)[0] - hm.gradient(x, y - h)[0]) / (2 * h), atol=1e-5)
+    assert_allclose(hxx, (hm.gradient(x + h, y)[0] - hm.gradient(x - h, y)[0]) / (2 * h), atol=1e-5)

@@ -123,7 +123,7 @@ def test_window_is_a_window_of_the_full_spiral(scene, full_ccps):
 def test_conventional_path_reciprocates_and_has_profile_error(scene):
     layout = RingLayout.from_config(scene.design)
     surface = make_surface(scene.design)
-    c = rcse_ccps(layout, r_outer=4.75, pitch=0.005, points_per_rev=1440, r_range=(3.3, 3.4))
+    c = rcse_ccps(layout, r_outer=4.75, pitch=0.005, points_per_rev=1440, r_range=(1.7, 1.8))
     g = 0.005
     conv = conventional_ccps(surface, c.theta, c.rho, grid_spacing=g)
     dev = conv["rho"] - c.rho
@@ -140,14 +140,23 @@ def test_conventional_path_reciprocates_and_has_profile_error(scene):
 
 
 def test_conventional_interpolation_is_exact_on_a_plane():
-    """Known answer: bilinear interpolation of a plane is exact, so the profile error is 0
-    and (snapping) the CCP z is the plane at the snapped point."""
+    """Known answer: bilinear interpolation of a plane is exact.  Without snapping the
+    profile error is 0; with snapping, the CCP is the plane at (x, nearest row y) while the
+    machine (C = theta, X = its polar radius) puts the tool elsewhere on the plane: the
+    error is exactly the plane's height difference between the two points."""
     plane = make_surface({"type": "plane", "slope_x": 0.01, "slope_y": -0.02})
     th = np.linspace(0, 40 * math.pi, 5000)
     rho = 1.0 - 0.005 * th / (2 * math.pi)
-    for snap in (True, False):
-        conv = conventional_ccps(plane, th, rho, grid_spacing=0.01, snap_to_rows=snap)
-        assert np.max(np.abs(conv["profile_error"])) < 1e-14
+    g = 0.01
+    conv = conventional_ccps(plane, th, rho, grid_spacing=g, snap_to_rows=False)
+    assert np.max(np.abs(conv["profile_error"])) < 1e-15
+    conv = conventional_ccps(plane, th, rho, grid_spacing=g, snap_to_rows=True)
+    x, y_row = rho * np.cos(th), g * np.rint(rho * np.sin(th) / g)
+    assert_allclose(conv["z"], plane.height(x, y_row), atol=1e-15)
+    assert_allclose(conv["rho"], np.hypot(x, y_row), atol=1e-15)
+    xm, ym = conv["rho"] * np.cos(th), conv["rho"] * np.sin(th)
+    assert_allclose(conv["profile_error"], plane.height(x, y_row) - plane.height(xm, ym), atol=1e-15)
+    assert np.max(np.abs(conv["profile_error"])) > 1e-5
 
 
 def test_build_rcse_toolpath_uncompensated_equals_ccps(scene):

@@ -20,11 +20,15 @@ __all__ = ["Surface", "SinusoidalGrid", "Plane", "Sphere", "Toric", "Biconic", "
 def make_surface(cfg) -> Surface:
     """Build the :class:`Surface` described by a ``[design]`` config (pydantic model or dict)."""
     if isinstance(cfg, dict):
-        from pydantic import TypeAdapter
+        from pydantic import TypeAdapter, ValidationError
 
+        from ..scene import _format_error
         from ..scene._design import DesignConfig
 
-        cfg = TypeAdapter(DesignConfig).validate_python(cfg)
+        try:
+            cfg = TypeAdapter(DesignConfig).validate_python(cfg)
+        except ValidationError as err:  # -> SceneError naming the key and the value
+            raise _format_error(err, "[design]") from None
     params = cfg.model_dump(exclude={"type"})
     t = cfg.type
     if t == "sinusoidal_grid":

@@ -7,7 +7,8 @@ whole design, z_cmd(t), is split into
   *base* (``design.base`` of a compound design, e.g. the toric form), and the FTS stroke
   ``z_fts = z_cmd - z_base`` (the microstructure, e.g. the lenslet array);
 * ``fts``: the slow slide's share = the rotationally symmetric part of the program (its
-  mean over one spindle revolution, centred), the FTS stroke = the rest.
+  mean over the centred spindle revolution, with the curvature bias of that window removed
+  as 2 M(z) - M(M(z))), the FTS stroke = the rest.
 
 Each servo follows its command through a second-order low-pass
 ``H(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)``, wn = 2 pi ``bandwidth_hz`` (None = ideal),
@@ -142,7 +143,11 @@ def split_commands(path, kind: str, *, base=None, nose_radius: float | None = No
     """
     z = np.asarray(path.z, dtype=np.float64)
     if kind == "fts":
-        z_slow = _revolution_mean(np.asarray(path.theta, dtype=np.float64), z)
+        th = np.asarray(path.theta, dtype=np.float64)
+        m1 = _revolution_mean(th, z)
+        # the window mean of a curved radial profile sits (F'' / 2) var(d rho) off it;
+        # 2 M(z) - M(M(z)) cancels that term (harmonics in theta are removed by both)
+        z_slow = 2 * m1 - _revolution_mean(th, m1)
     elif kind == "hts":
         if base is None:
             raise InputError("split_commands(kind='hts') needs the base surface")

@@ -112,7 +112,8 @@ def _stats_um(r):
 
 def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float | None = None,
                   origin=None, centers=None, aperture_radius: float | None = None,
-                  inner: float = 0.95, mask=None, min_points: int = 12) -> list[dict]:
+                  inner: float = 0.95, mask=None, min_points: int = 12,
+                  min_fraction: float = 0.8) -> list[dict]:
     """Per-lenslet centres, dislocations and form errors.
 
     Parameters
@@ -135,8 +136,10 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
         Fraction of the aperture used for each lenslet's fit (0.95, seed 002).
     mask : bool array, optional
         ``False`` leaves points out (e.g. outliers).
-    min_points : int
-        Lenslets with fewer valid points inside ``inner`` x aperture are left out (warning).
+    min_points, min_fraction : int, float
+        Lenslets with fewer valid points inside ``inner`` x aperture than ``min_points`` or
+        than ``min_fraction`` of the full disc are left out (with a warning naming them):
+        a partly measured lenslet gives a biased centre.
 
     Returns
     -------
@@ -166,7 +169,7 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
         xx, yy = np.meshgrid(x[i0:i1], y[j0:j1])
         sel = ok[j0:j1, i0:i1] & (np.hypot(xx - cx, yy - cy) <= rad)
         full = np.pi * (rad / pixel) ** 2
-        if sel.sum() < max(min_points, 0.5 * full):
+        if sel.sum() < max(min_points, min_fraction * full):
             skipped.append((row, col))
             continue
         px, py, pz = xx[sel], yy[sel], z[j0:j1, i0:i1][sel]
@@ -189,17 +192,23 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
         table.append(entry)
     if skipped:
         warnings.warn(f"lenslet_table: {len(skipped)} of {len(cen)} lenslets left out (fewer than "
-                      f"half their points inside {inner} x aperture are valid or in the map): "
+                      f"{min_fraction:.0%} of their points inside {inner} x aperture are valid or in the map): "
                       f"(row, col) = {skipped[:10]}{' ...' if len(skipped) > 10 else ''}",
                       stacklevel=2)
     return table
 
 
 def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), centers=None,
-                    aperture_radius: float | None = None, outer: float = 1.05, mask=None) -> dict | None:
+                    aperture_radius: float | None = None, outer: float = 1.05, mask=None,
+                    has_base: bool | None = None) -> dict | None:
     """Form error of the base: measured minus design outside ``outer`` x aperture of every
     lenslet, mean removed.  Returns ``{Sa_um, Sq_um, PV_um, n_points}``, or None where no
-    base data is left (lenslets that fill the area, as seed 003's MLA)."""
+    base data is left (lenslets that fill the area, as seed 003's MLA: a design with
+    ``cells == "quad"`` has no base unless ``has_base=True``)."""
+    if has_base is None:
+        has_base = getattr(design_surface, "cells", "round") != "quad"
+    if not has_base:
+        return None
     z = np.asarray(z, float)
     cen = lenslet_centers(design_surface, centers)
     ap = _aperture(design_surface, aperture_radius)
@@ -246,7 +255,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
         _, base, _ = separate_msa(z.shape, cen, pixel=pixel, origin=origin, aperture_radius=ap,
                                   inner=inner, outer=outer)
         init = None
-        if (base & use).sum() > 0.1 * use.sum():
+        if getattr(design_surface, "cells", "round") != "quad" and (base & use).sum() > 0.1 * use.sum():
             init = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin,
                                 mask=base & use, fit=fit)
         reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
@@ -257,7 +266,8 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
     table = lenslet_table((cleaned, pixel, origin), surf, centers=cen, aperture_radius=ap,
                           inner=inner, mask=use)
     base = base_form_error(cleaned, surf, pixel=pixel, origin=origin, centers=cen,
-                           aperture_radius=ap, outer=outer, mask=use)
+                           aperture_radius=ap, outer=outer, mask=use,
+                           has_base=getattr(design_surface, "cells", "round") != "quad")
     disl = [np.hypot(e["dx_um"], e["dy_um"]) for e in table]
     sq = [e["Sq_um"] for e in table]
     summary = {"n_lenslets": len(table),

@@ -630,12 +630,15 @@ def measure_interferogram(ig, *, algorithm: str = "auto", csi_refine: str = "env
 
 
 def add_height_measured(path, *, algorithm: str = "auto", csi_refine: str = "envelope",
-                        min_modulation: float = 0.05) -> dict:
+                        min_modulation: float = 0.05):
     """Add ``height_measured`` (mm, piston-aligned to ``height_true``, NaN where not
     measured) and ``valid_measured`` (0/1) to an ``interferogram.exr``, rewriting it
     atomically; the error metrics go into the header as ``measured`` (JSON).
 
-    Returns the metrics of :func:`measure_interferogram`.
+    Returns
+    -------
+    result, metrics
+        As :func:`measure_interferogram`.
     """
     import json
     from pathlib import Path
@@ -653,4 +656,4 @@ def add_height_measured(path, *, algorithm: str = "auto", csi_refine: str = "env
     attrs["measured"] = json.dumps(metrics, sort_keys=True)
     attrs["height_measured_piston"] = res.meta["piston"]
     write_exr(path, channels, attrs)
-    return metrics
+    return res, metrics

@@ -1,8 +1,10 @@
 """Blender Cycles adapter: a height map as a ``bpy`` mesh and a Cycles CPU render of it.
 
-The Cycles render reproduces the Mitsuba diffuse-light scene (same camera, same vertical
-exaggeration, same light, the same aluminium conductor) so that the two engines can be
-compared image for image (``benchmarks/bench_cycles.py``).  Blender units are mm: a
+The Cycles render reproduces the Mitsuba diffuse-light scene that
+:func:`render_inspect.render.diffuse_scene_spec` describes (the same mesh, camera,
+vertical exaggeration, environment light, aluminium conductor, samples per pixel, box
+filter and path depth) so that the two engines can be compared image for image
+(``benchmarks/bench_cycles.py``).  Blender units are mm: a
 vertex is ``(x, y, exaggeration * z)`` with x, y, z in mm.
 
 ``bpy`` is imported lazily, inside the functions, so importing this module is cheap.
@@ -19,8 +21,10 @@ import numpy as np
 
 from ..errors import InputError, check_positive, check_range
 
-__all__ = ["heightmap_object", "render_cycles", "render_object", "simulate_into_blender",
-           "surface_object", "ALUMINIUM_ETA", "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME"]
+__all__ = ["heightmap_object", "surface_object", "gridmesh_object", "object_heights",
+           "remove_object", "render_spec", "render_cycles", "render_object",
+           "simulate_into_blender", "default_output_dir", "ALUMINIUM_ETA", "ALUMINIUM_K",
+           "OBJECT_NAME", "RENDER_SCENE_NAME"]
 
 #: Name of the mesh object the add-on and :func:`heightmap_object` create.
 OBJECT_NAME = "render_inspect_surface"
@@ -175,7 +179,7 @@ def object_heights(obj) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------
-# the diffuse-light scene in Cycles
+# the diffuse-light scene in Cycles (render_inspect.render.diffuse_scene_spec)
 
 
 def _srgb(linear: np.ndarray) -> np.ndarray:
@@ -184,157 +188,299 @@ def _srgb(linear: np.ndarray) -> np.ndarray:
     return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
 
 
+def _node_tree(bpy, idblock):
+    if bpy.app.version < (5, 0, 0):
+        idblock.use_nodes = True
+    return idblock.node_tree
+
+
 def _render_scene(bpy):
     """A fresh private Blender scene for the render; what an earlier render left (its
-    camera, lights, world) is removed first.  The user's scenes are not touched."""
+    camera, world, render mesh) is removed first.  The user's scenes are not touched."""
     old = bpy.data.scenes.get(RENDER_SCENE_NAME)
     if old is not None:
         bpy.data.scenes.remove(old)
     for obj in [o for o in bpy.data.objects if o.name.startswith(RENDER_SCENE_NAME)]:
         bpy.data.objects.remove(obj, do_unlink=True)
-    for coll in (bpy.data.cameras, bpy.data.lights, bpy.data.meshes, bpy.data.worlds):
+    for coll in (bpy.data.cameras, bpy.data.meshes, bpy.data.worlds, bpy.data.images):
         for block in [b for b in coll if b.name.startswith(RENDER_SCENE_NAME) and b.users == 0]:
             coll.remove(block)
     return bpy.data.scenes.new(RENDER_SCENE_NAME)
 
 
-def _aluminium_material(bpy, *, roughness_alpha: float):
-    """Cycles Metallic BSDF with aluminium's complex IOR (physical conductor Fresnel).
+def _aluminium_material(bpy, material: dict):
+    """Cycles Metallic BSDF with aluminium's complex IOR (physical-conductor Fresnel),
+    the counterpart of Mitsuba's ``conductor`` / ``roughconductor`` with ``material="Al"``.
 
-    ``roughness_alpha`` is the GGX alpha (Mitsuba's ``alpha``); Blender's roughness is
-    its square root (Blender squares it)."""
+    Mitsuba's GGX ``alpha`` is Blender's roughness squared."""
+    if material.get("material", "Al") != "Al":
+        raise InputError(f"material must be 'Al' (aluminium), got {material.get('material')!r}")
     name = f"{RENDER_SCENE_NAME}_aluminium"
     mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    nodes = mat.node_tree.nodes
-    nodes.clear()
-    bsdf = nodes.new("ShaderNodeBsdfMetallic")
+    tree = _node_tree(bpy, mat)
+    tree.nodes.clear()
+    bsdf = tree.nodes.new("ShaderNodeBsdfMetallic")
     bsdf.fresnel_type = "PHYSICAL_CONDUCTOR"
     bsdf.distribution = "GGX"
     bsdf.inputs["IOR"].default_value = ALUMINIUM_ETA
     bsdf.inputs["Extinction"].default_value = ALUMINIUM_K
-    bsdf.inputs["Roughness"].default_value = math.sqrt(max(roughness_alpha, 0.0))
-    out = nodes.new("ShaderNodeOutputMaterial")
+    bsdf.inputs["Roughness"].default_value = math.sqrt(max(float(material.get("alpha", 0.0)), 0.0))
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.target = "CYCLES"
-    mat.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     return mat
 
 
-def _object_window(obj) -> tuple[float, float, float, float]:
-    """(x0, y0, x1, y1) of the mesh (first to last grid point), mm, from the object's
-    properties: the camera sees the surface and nothing beside it."""
-    ny, nx = (int(v) for v in obj[PROP_SHAPE])
-    p = float(obj[PROP_PIXEL])
-    ox, oy = (float(v) for v in obj[PROP_ORIGIN])
-    return (ox, oy, ox + p * (nx - 1), oy + p * (ny - 1))
+def _add_world(bpy, scene, light: dict):
+    """The light at infinity: ``environment_map`` (radiance vs zenith angle) as an
+    equirectangular world texture, +z up, the same bitmap Mitsuba's ``envmap`` gets."""
+    from ._diffuse import environment_map
+
+    env = environment_map(light["type"], height=256)  # row 0 = zenith
+    h, w = env.shape[:2]
+    img = bpy.data.images.new(f"{RENDER_SCENE_NAME}_light", width=w, height=h, alpha=True,
+                              float_buffer=True)
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., :3] = env[::-1]  # Blender's pixel rows run bottom-up: the zenith goes last
+    img.pixels.foreach_set(rgba.ravel())
+    #img.pack()
+    world = bpy.data.worlds.new(f"{RENDER_SCENE_NAME}_world")
+    tree = _node_tree(bpy, world)
+    tex = tree.nodes.new("ShaderNodeTexEnvironment")
+    tex.image = img
+    tex.projection = "EQUIRECTANGULAR"
+    tex.interpolation = "Linear"
+    tree.links.new(tex.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    scene.world = world
 
 
-def _add_camera(bpy, scene, spec: dict, z_top: float):
-    cam = bpy.data.cameras.new(f"{RENDER_SCENE_NAME}_camera")
-    x0, y0, x1, y1 = spec["window"]
-    cam.type = "ORTHO"
-    cam.sensor_fit = "AUTO"
-    cam.ortho_scale = max(x1 - x0, y1 - y0)
-    height = max(x1 - x0, y1 - y0)
-    cam.clip_start = 1e-3 * height
-    cam.clip_end = 1e3 * height + 2 * abs(z_top)
-    obj = bpy.data.objects.new(f"{RENDER_SCENE_NAME}_camera", cam)
-    # Blender cameras look down their local -Z with +Y up: straight down onto the part,
-    # image up = +y, image right = +x (the height map's axes).
-    obj.location = ((x0 + x1) / 2, (y0 + y1) / 2, z_top + height)
-    obj.rotation_euler = (0.0, 0.0, 0.0)
+def _look_at_matrix(origin, target, up):
+    """4 x 4 camera-to-world matrix of a Blender camera at ``origin`` looking at
+    ``target`` (its -Z) with ``up`` (its +Y) as in Mitsuba's ``look_at``."""
+    o = np.asarray(origin, dtype=np.float64)
+    f = np.asarray(target, dtype=np.float64) - o
+    f /= np.linalg.norm(f)
+    r = np.cross(f, np.asarray(up, dtype=np.float64))
+    if np.linalg.norm(r) < 1e-12:
+        raise InputError(f"camera up {list(up)} is parallel to the view direction {f.tolist()}")
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = r, u, -f, o
+    return m
+
+
+def _add_camera(bpy, scene, cam: dict, z_shift: float):
+    import mathutils
+
+    data = bpy.data.cameras.new(f"{RENDER_SCENE_NAME}_camera")
+    data.sensor_fit = "HORIZONTAL"
+    if cam["type"] == "perspective":
+        data.type = "PERSP"
+        data.angle = math.radians(float(cam["fov_deg"]))  # horizontal field of view
+    elif cam["type"] == "orthographic":
+        data.type = "ORTHO"
+        data.ortho_scale = float(cam["width_mm"])  # the image's width, mm
+    else:
+        raise InputError(f"camera type must be 'perspective' or 'orthographic', got {cam['type']!r}")
+    shift = np.array([0.0, 0.0, z_shift])
+    origin = np.asarray(cam["origin"], dtype=np.float64) + shift
+    target = np.asarray(cam["target"], dtype=np.float64) + shift
+    dist = float(np.linalg.norm(target - origin))
+    data.clip_start = 1e-4 * dist
+    data.clip_end = 1e4 * dist
+    obj = bpy.data.objects.new(f"{RENDER_SCENE_NAME}_camera", data)
+    obj.matrix_world = mathutils.Matrix(_look_at_matrix(origin, target, cam["up"]).tolist())
     scene.collection.objects.link(obj)
     scene.camera = obj
     return obj
 
 
-def _add_light(bpy, scene, spec: dict, z_mid: float):
-    world = bpy.data.worlds.new(f"{RENDER_SCENE_NAME}_world")
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    background = world.node_tree.nodes["Background"]
-    scene.world = world
-    light = spec["light"]
-    if light["type"] == "dome":
-        background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        background.inputs["Strength"].default_value = float(light["radiance"])
-        return
-    # ring: an emissive torus around the optical axis at the given elevation
-    background.inputs["Strength"].default_value = 0.0
-    x0, y0, x1, y1 = spec["window"]
-    size = max(x1 - x0, y1 - y0)
-    radius = light["radius_factor"] * size
-    elev = light["elevation_rad"]
-    n_major, n_minor = 96, 12
-    r_minor = light["tube_factor"] * size
-    u = np.linspace(0, 2 * np.pi, n_major, endpoint=False)
-    v = np.linspace(0, 2 * np.pi, n_minor, endpoint=False)
-    U, V = np.meshgrid(u, v, indexing="ij")
-    R = radius + r_minor * np.cos(V)
-    verts = np.stack([(x0 + x1) / 2 + R * np.cos(U), (y0 + y1) / 2 + R * np.sin(U),
-                      z_mid + radius * math.tan(elev) + r_minor * np.sin(V)], -1)
-    idx = np.arange(n_major * n_minor).reshape(n_major, n_minor)
-    i1 = np.roll(idx, -1, axis=0)
-    quads = np.stack([idx, i1, np.roll(i1, -1, axis=1), np.roll(idx, -1, axis=1)], -1)
-    mesh = bpy.data.meshes.new(f"{RENDER_SCENE_NAME}_ring")
-    mesh.from_pydata(verts.reshape(-1, 3).tolist(), [], quads.reshape(-1, 4).tolist())
-    mat = bpy.data.materials.get(f"{RENDER_SCENE_NAME}_emitter") or \
-        bpy.data.materials.new(f"{RENDER_SCENE_NAME}_emitter")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    nodes = mat.node_tree.nodes
-    nodes.clear()
-    em = nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = float(light["radiance"])
-    out = nodes.new("ShaderNodeOutputMaterial")
-    mat.node_tree.links.new(em.outputs["Emission"], out.inputs["Surface"])
-    mesh.materials.append(mat)
-    obj = bpy.data.objects.new(f"{RENDER_SCENE_NAME}_ring", mesh)
-    scene.collection.objects.link(obj)
+def _configure_cycles(scene, spec: dict, *, seed: int, threads: int | None):
+    cam = spec["camera"]
+    c = scene.cycles
+    scene.render.engine = "CYCLES"
+    c.device = "CPU"
+    c.samples = int(spec["spp"])
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.seed = int(seed)
+    c.use_animated_seed = False
+    c.pixel_filter_type = "BOX"  # Mitsuba's films use a box filter too
+    c.filter_width = 1.0
+    # Mitsuba's path tracer: max_depth segments = max_depth - 1 bounces; no clamping,
+    # no glossy blur (both bias the image)
+    bounces = max(int(spec.get("max_depth", 6)) - 1, 0)
+    c.max_bounces = bounces
+    for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "transparent_max_bounces", "volume_bounces"):
+        setattr(c, name, bounces)
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    scene.render.threads_mode = "FIXED" if threads else "AUTO"
+    if threads:
+        scene.render.threads = int(threads)
+    scene.render.resolution_x = int(cam["width"])
+    scene.render.resolution_y = int(cam["height"])
+    scene.render.resolution_percentage = 100
+    scene.render.use_persistent_data = False
+    scene.render.film_transparent = False
+    scene.view_settings.view_transform = "Standard"
+    fmt = scene.render.image_settings
+    fmt.file_format = "OPEN_EXR"
+    fmt.color_mode = "RGB"
+    fmt.color_depth = "32"
+    fmt.exr_codec = "ZIP"
 
 
-def diffuse_spec(window, *, light: str = "dome", roughness: float = 0.0,
-                 resolution: int = 256, spp: int = 64) -> dict:
-    """The diffuse-light inspection scene as plain data (shared with the Mitsuba side).
+def _render(bpy, scene) -> tuple[np.ndarray, float]:
+    """Render ``scene`` with Cycles; (H, W, 3) float32 linear RGB (row 0 at the top) and
+    the seconds the render took."""
+    from ..io import read_exr
+
+    with tempfile.TemporaryDirectory(prefix="render_inspect_cycles_") as tmp:
+        exr = Path(tmp) / "cycles.exr"
+        scene.render.filepath = str(exr)
+        t0 = time.perf_counter()
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+        elapsed = time.perf_counter() - t0
+        if not exr.is_file():
+            raise InputError(f"Cycles wrote no image to {exr}: the render failed")
+        channels, _ = read_exr(exr)
+    rgb = np.stack([channels[c] for c in ("R", "G", "B")], axis=-1).astype(np.float32)
+    return rgb, elapsed
+
+
+def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
+                threads: int | None = None) -> tuple[np.ndarray, float]:
+    """Render a mesh object in the scene ``spec`` describes (:func:`diffuse_scene_spec`).
 
     Parameters
     ----------
-    window : (x0, y0, x1, y1), mm
-        The part of the surface the camera sees (pixel edges).
-    light : {"dome", "ring"}
-        "dome": uniform radiance from every direction (Mitsuba ``constant``, Cycles world
-        background); "ring": an emissive ring of radius 2 x the window size at 30 deg
-        elevation.
-    roughness : float
-        GGX alpha of the aluminium conductor (0 = smooth).
-    resolution : int
-        Pixels along the longer side of the window.
-    spp : int
-        Samples per pixel.
+    obj : bpy.types.Object
+        The part's mesh (mm; z already exaggerated).
+    spec : dict
+        Camera, light, material, ``spp`` and ``max_depth``.
+    seed : int
+        Cycles sampling seed (same seed, same image, bit for bit).
+    z_shift : float
+        mm added to the camera's z: the object's z minus the spec's mesh z (the light is
+        at infinity, so this moves nothing else).
+    threads : int or None
+        CPU threads; None: all.
+
+    Returns
+    -------
+    rgb : (H, W, 3) float32, linear RGB, row 0 at the top
+    seconds : float, the render alone
     """
-    x0, y0, x1, y1 = (float(v) for v in window)
-    if not (x1 > x0 and y1 > y0):
-        raise InputError(f"window must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {window}")
-    check_range("resolution", resolution, 1, 16384)
-    check_range("spp", spp, 1, 65536)
-    check_range("roughness", roughness, 0.0, 1.0)
-    if light == "dome":
-        light_spec = {"type": "dome", "radiance": 1.0}
-    elif light == "ring":
-        light_spec = {"type": "ring", "radiance": 4.0, "radius_factor": 2.0,
-                      "tube_factor": 0.1, "elevation_rad": math.radians(30.0)}
-    else:
-        raise InputError(f"light must be 'dome' or 'ring', got {light!r}")
-    w, h = x1 - x0, y1 - y0
-    if w >= h:
-        width, height = int(resolution), max(1, int(round(resolution * h / w)))
-    else:
-        width, height = max(1, int(round(resolution * w / h))), int(resolution)
-    return {"window": (x0, y0, x1, y1), "camera": "orthographic_top",
-            "resolution": (width, height), "spp": int(spp), "light": light_spec,
-            "material": {"type": "conductor", "eta": ALUMINIUM_ETA, "k": ALUMINIUM_K,
-                         "alpha": float(roughness)}}
+    bpy = _bpy()
+    check_range("seed", seed, 0, 2**31 - 1)
+    scene = _render_scene(bpy)
+    scene.collection.objects.link(obj)
+    mat = _aluminium_material(bpy, spec["material"])
+    obj.data.materials.clear()
+    obj.data.materials.append(mat)
+    _add_camera(bpy, scene, spec["camera"], z_shift)
+    _add_world(bpy, scene, spec["light"])
+    _configure_cycles(scene, spec, seed=seed, threads=threads)
+    return _render(bpy, scene)
+
+
+def gridmesh_object(gm, *, name: str = "render_inspect_part", collection=None):
+    """A Blender mesh object from a :class:`~render_inspect.mesh.GridMesh` (triangles,
+    float32 vertices; its vertex normals become custom normals), via ``foreach_set``."""
+    bpy = _bpy()
+    remove_object(name)
+    mesh = bpy.data.meshes.new(name)
+    faces = np.ascontiguousarray(gm.faces, dtype=np.int32)
+    mesh.vertices.add(gm.n_vertices)
+    mesh.vertices.foreach_set("co", np.ascontiguousarray(gm.vertices, dtype=np.float32).ravel())
+    mesh.loops.add(faces.size)
+    mesh.loops.foreach_set("vertex_index", faces.ravel())
+    mesh.polygons.add(len(faces))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    mesh.shade_smooth()
+    if gm.normals is not None:
+        mesh.normals_split_custom_set_from_vertices(np.asarray(gm.normals, dtype=np.float32))
+    obj = bpy.data.objects.new(name, mesh)
+    if collection is not None:
+        collection.objects.link(obj)
+    for k, v in gm.metadata.items():
+        if isinstance(v, (int, float, str)):
+            obj[f"render_inspect_{k}"] = v
+    return obj
+
+
+def _diffuse_config(dcfg, **overrides):
+    from ..scene import DiffuseConfig
+
+    if dcfg is None:
+        dcfg = DiffuseConfig()
+    elif isinstance(dcfg, dict):
+        dcfg = DiffuseConfig(**dcfg)
+    changes = {k: v for k, v in overrides.items() if v is not None}
+    if changes:
+        from ..errors import SceneError
+
+        try:
+            dcfg = DiffuseConfig(**{**dcfg.model_dump(), **changes})
+        except ValueError as err:
+            raise SceneError(f"render.diffuse: {err}") from None
+    return dcfg
+
+
+def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+                  seed: int = 0, threads: int | None = None) -> tuple[np.ndarray, dict]:
+    """Cycles counterpart of :func:`render_inspect.render.render_diffuse`: the same scene
+    (:func:`~render_inspect.render.diffuse_scene_spec`: the same mesh, camera, light,
+    aluminium, exaggeration, samples and path depth) rendered with Blender Cycles on the CPU.
+
+    Resets Blender to an empty factory scene first: call it from scripts and tests, not
+    from a Blender session you want to keep (the add-on uses :func:`render_object`).
+
+    Parameters
+    ----------
+    heightmap : HeightMap
+    dcfg : DiffuseConfig, dict or None
+        ``[render.diffuse]`` (defaults when None).
+    view : {"macro", "micro"};  surface : {"machined", "design"}
+    seed : int
+        Cycles sampling seed.
+    threads : int or None
+        CPU threads (None: all).
+
+    Returns
+    -------
+    rgb : (height, width, 3) float32, linear radiance; row 0 at the top of the image
+    meta : dict
+        the spec plus ``renderer``, ``render_time_s``, ``mesh_time_s``, mesh sizes and
+        ``vertical_exaggeration``
+    """
+    from ..mesh import heightmap_mesh
+    from ._diffuse import diffuse_scene_spec
+
+    bpy = _bpy()
+    dcfg = _diffuse_config(dcfg)
+    spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    t0 = time.perf_counter()
+    ms = spec["mesh"]
+    gm = heightmap_mesh(heightmap, channel=ms["channel"], exaggeration=spec["exaggeration"],
+                        window=ms["window"], z_offset=spec["z_offset_mm"],
+                        max_cells=ms["max_cells"], skirt=ms["skirt"], normals=True)
+    obj = gridmesh_object(gm)
+    mesh_time = time.perf_counter() - t0
+    rgb, seconds = render_spec(obj, spec, seed=seed, threads=threads)
+    meta = dict(spec)
+    meta.update(renderer=f"blender-cycles {bpy.app.version_string}", render_time_s=seconds,
+                mesh_time_s=mesh_time, vertical_exaggeration=spec["exaggeration"],
+                mesh_vertices=gm.n_vertices, mesh_triangles=gm.n_faces,
+                mesh_stride=gm.metadata["stride"])
+    return rgb, meta
 
 
 def _scene_diffuse(obj) -> dict:
@@ -347,104 +493,64 @@ def _scene_diffuse(obj) -> dict:
         return {}
 
 
-def render_object(obj, *, out=None, resolution: int = 256, spp: int = 64, seed: int = 0,
-                  light: str | None = None, roughness: float | None = None, window=None,
-                  threads: int | None = None, load_image: bool = False) -> dict:
-    """Cycles CPU render of a mesh made by :func:`heightmap_object`.
+def render_object(obj, *, view: str = "macro", out=None, resolution: int | None = None,
+                  spp: int | None = None, seed: int = 0, threads: int | None = None,
+                  load_image: bool = False) -> dict:
+    """Cycles render of a surface mesh made by :func:`heightmap_object` (the add-on's
+    Render) under the diffuse light of the scene it was simulated from.
 
     The render happens in a private Blender scene (``render_inspect_cycles``) holding the
-    object, an orthographic camera looking straight down, the light and the aluminium
-    material; the user's own scenes are left as they are.
+    object, the camera, the light and the aluminium material of
+    :func:`~render_inspect.render.diffuse_scene_spec`; the user's scenes are left alone.
 
     Parameters
     ----------
     obj : bpy.types.Object
-        Made by :func:`heightmap_object` (it carries the grid's custom properties).
+        Made by :func:`heightmap_object` / :func:`simulate_into_blender`.
+    view : {"macro", "micro"}
     out : str, Path or None
         Folder for ``cycles.png`` (sRGB) and ``cycles.exr`` (linear RGB); None writes
         nothing.
-    resolution, spp, light, roughness, window
-        See :func:`diffuse_spec`; ``window`` defaults to the whole grid; ``light`` and
-        ``roughness`` default to the ``[render.diffuse]`` section of the scene the object
-        was simulated from (else "dome" and 0).
+    resolution, spp : int or None
+        Override ``render.diffuse.resolution`` / ``spp`` of the recorded scene.
     seed : int
-        Cycles sampling seed: same seed, same image, bit for bit.
+        Cycles sampling seed (same seed, same image, bit for bit).
     threads : int or None
-        CPU threads (None: all).
     load_image : bool
         Also load ``cycles.png`` into ``bpy.data.images`` (to look at it in Blender).
 
     Returns
     -------
     dict
-        ``image`` (H, W, 3) float32 linear RGB, row 0 at the top (largest y);
-        ``time_s`` (the render alone); ``spec``; ``png``/``exr`` paths when ``out``.
+        ``image`` (H, W, 3) float32 linear RGB, row 0 at the top; ``time_s``; ``spec``;
+        ``png``/``exr`` paths when ``out`` is given.
     """
-    bpy = _bpy()
+    from ..machining import HeightMap
+    from ._diffuse import diffuse_scene_spec
+
     if obj is None or PROP_EXAGGERATION not in obj or PROP_SHAPE not in obj:
         raise InputError("render needs the render_inspect surface mesh: run Simulate first "
                          f"(no object named {OBJECT_NAME!r} with render_inspect properties)")
-    check_range("seed", seed, 0, 2**31 - 1)
-    diffuse = _scene_diffuse(obj)
-    light = light if light is not None else diffuse.get("light", "dome")
-    roughness = roughness if roughness is not None else diffuse.get("roughness", 0.0)
-    spec = diffuse_spec(window or _object_window(obj), light=light, roughness=roughness,
-                        resolution=resolution, spp=spp)
-    scene = _render_scene(bpy)
-    scene.collection.objects.link(obj)
-    mat = _aluminium_material(bpy, roughness_alpha=spec["material"]["alpha"])
-    obj.data.materials.clear()
-    obj.data.materials.append(mat)
-    zs = [v[2] for v in obj.bound_box]
-    _add_camera(bpy, scene, spec, max(zs))
-    _add_light(bpy, scene, spec, (min(zs) + max(zs)) / 2)
-
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = spec["spp"]
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.pixel_filter_type = "BOX"  # Mitsuba's films use a box filter too
-    scene.cycles.filter_width = 1.0
-    scene.cycles.seed = int(seed)
-    scene.cycles.use_animated_seed = False
-    scene.render.use_persistent_data = False
-    if threads:
-        scene.render.threads_mode = "FIXED"
-        scene.render.threads = int(threads)
-    scene.render.resolution_x, scene.render.resolution_y = spec["resolution"]
-    scene.render.resolution_percentage = 100
-    scene.render.film_transparent = False
-    scene.view_settings.view_transform = "Standard"
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_mode = "RGB"
-    settings.color_depth = "32"
-    settings.exr_codec = "ZIP"
-
-    from ..io import read_exr
-
-    with tempfile.TemporaryDirectory(prefix="render_inspect_cycles_") as tmp:
-        exr_tmp = Path(tmp) / "cycles.exr"
-        scene.render.filepath = str(exr_tmp)
-        t0 = time.perf_counter()
-        bpy.ops.render.render(write_still=True, scene=scene.name)
-        elapsed = time.perf_counter() - t0
-        if not exr_tmp.is_file():
-            raise InputError(f"Cycles wrote no image to {exr_tmp} (render failed)")
-        channels, _ = read_exr(exr_tmp)
-    image = np.stack([channels[c] for c in ("R", "G", "B")], axis=-1).astype(np.float32)
-    result = {"image": image, "time_s": elapsed, "spec": spec, "seed": int(seed)}
+    ex = float(obj[PROP_EXAGGERATION])
+    dcfg = _diffuse_config(_scene_diffuse(obj), resolution=resolution, spp=spp, exaggeration=ex)
+    h = object_heights(obj)
+    hm = HeightMap(h, h, float(obj[PROP_PIXEL]), tuple(float(v) for v in obj[PROP_ORIGIN]))
+    spec = diffuse_scene_spec(hm, dcfg, view=view, surface="machined", seed=seed)
+    # the object's z is exaggeration * h; the spec's mesh is offset by z_offset_mm
+    rgb, seconds = render_spec(obj, spec, seed=seed, z_shift=ex * spec["z_offset_mm"],
+                               threads=threads)
+    result = {"image": rgb, "time_s": seconds, "spec": spec, "seed": int(seed)}
     if out is not None:
-        result.update(_write_outputs(image, out, spec=spec, seed=seed, obj=obj))
+        result.update(_write_outputs(rgb, out, spec=spec, seed=seed))
         if load_image:
+            bpy = _bpy()
             img = bpy.data.images.load(str(result["png"]), check_existing=True)
             img.reload()
             result["bpy_image"] = img
     return result
 
 
-def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int, obj) -> dict:
+def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int) -> dict:
     import json
 
     from .. import __version__
@@ -452,8 +558,9 @@ def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int, obj) -> dic
 
     attrs = {"renderer": f"blender-cycles {_bpy().app.version_string}",
              "spp": int(spec["spp"]), "seed": int(seed),
-             "exaggeration": float(obj[PROP_EXAGGERATION]),
-             "window_mm": list(spec["window"]), "light": json.dumps(spec["light"]),
+             "vertical_exaggeration": float(spec["exaggeration"]),
+             "window_mm": list(spec["window_mm"]), "view": spec["view"],
+             "light": spec["light"]["type"], "camera": json.dumps(spec["camera"]),
              "software_version": __version__}
     with atomic_output_dir(out) as tmp:
         write_exr(tmp / "cycles.exr", {"R": image[..., 0], "G": image[..., 1],
@@ -523,23 +630,3 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     return {"object": obj, "heightmap": path, "result": result, "scene": scene}
 
 
-def render_cycles(heightmap, *, surface: str = "machined", exaggeration: float = 200.0,
-                  out=None, resolution: int = 256, spp: int = 64, seed: int = 0,
-                  light: str | None = None, roughness: float | None = None, window=None,
-                  threads: int | None = None) -> dict:
-    """Cycles render of a :class:`~render_inspect.machining.HeightMap` in a clean
-    Blender session (the headless counterpart of the add-on's Render).
-
-    Resets Blender to an empty factory scene first, so only call it from scripts and
-    tests, not from inside a Blender session you want to keep.  Parameters and the
-    returned dict as in :func:`render_object`, plus ``mesh_time_s``.
-    """
-    bpy = _bpy()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    t0 = time.perf_counter()
-    obj = surface_object(heightmap, surface=surface, exaggeration=exaggeration)
-    mesh_time = time.perf_counter() - t0
-    res = render_object(obj, out=out, resolution=resolution, spp=spp, seed=seed, light=light,
-                        roughness=roughness, window=window, threads=threads)
-    res["mesh_time_s"] = mesh_time
-    return res

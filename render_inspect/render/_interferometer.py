@@ -196,6 +196,13 @@ def interferometer_geometry(heightmap, icfg) -> dict:
 def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):
     """Ray-trace the mesh of one height-map channel through the objective.
 
+    Rays that pass exactly through a mesh edge or vertex can slip between the two
+    triangles (floating point), and camera pixels often sit exactly on height-map
+    vertices.  The rays are therefore cast a small, odd offset ``(dx, dy)`` (about 1-3 %
+    of the finer of the two grids) away from the nominal points, and the height is carried
+    back to the nominal point along the hit triangle's plane (its geometric normal):
+    exact for points of that triangle, the height at the sample position otherwise.
+
     Returns
     -------
     h_sub : (ny*s, nx*s) float64, mm (NaN where missed); row 0 = smallest y
@@ -203,6 +210,7 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     h_centre : (ny, nx) float64, mm, the height at the pixel centres (NaN where missed)
     """
     from ..mesh import heightmap_mesh
+    from ._scene_dicts import render_aov_grid
 
     if surface not in ("design", "machined"):
         raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
@@ -212,20 +220,29 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
                         margin=2, normals=True)
     z_off = gm.metadata["z_offset_mm"]
     z_top = float(gm.vertices[:, 2].max()) + max(1.0, 10 * geom["pixel"])
-    from ._scene_dicts import render_aov_grid
+    fine = min(heightmap.pixel, geom["pixel"] / s)
+    coord = max(abs(x0), abs(x1), abs(y0), abs(y1), 1e-3)
+    ulp = float(np.spacing(np.float32(coord)))
+    dx = max(0.0123 * fine, 64 * ulp)
+    dy = max(0.0271 * fine, 150 * ulp)
+
+    def trace(n_x, n_y):
+        pos, nrm, gn = render_aov_grid(gm, x0=x0 + dx, y0=y0 + dy, width_mm=x1 - x0,
+                                       nx=n_x, ny=n_y, z_top=z_top)
+        hit = (np.einsum("...i,...i->...", gn, gn) > 0.25) & (gn[..., 2] > 1e-6)
+        gz = np.where(hit, gn[..., 2], 1.0).astype(np.float64)
+        slope_dx = -gn[..., 0] / gz  # dz/dx of the hit triangle
+        slope_dy = -gn[..., 1] / gz
+        h = pos[..., 2].astype(np.float64) - slope_dx * dx - slope_dy * dy + z_off
+        return np.where(hit, h, np.nan), np.where(hit, nrm[..., 2], 0.0).astype(np.float32)
 
     nx, ny = geom["nx"], geom["ny"]
-    pos, nrm = render_aov_grid(gm, x0=x0, y0=y0, width_mm=x1 - x0, nx=nx * s, ny=ny * s, z_top=z_top)
-    hit = np.einsum("...i,...i->...", nrm, nrm) > 0.25
-    h_sub = np.where(hit, pos[..., 2].astype(np.float64) + z_off, np.nan)
-    nz_sub = np.where(hit, nrm[..., 2], 0.0).astype(np.float32)
+    h_sub, nz_sub = trace(nx * s, ny * s)
     if s % 2 == 1:
         c = s // 2
         h_centre = h_sub[c::s, c::s].copy()
     else:
-        pos_c, nrm_c = render_aov_grid(gm, x0=x0, y0=y0, width_mm=x1 - x0, nx=nx, ny=ny, z_top=z_top)
-        hit_c = np.einsum("...i,...i->...", nrm_c, nrm_c) > 0.25
-        h_centre = np.where(hit_c, pos_c[..., 2].astype(np.float64) + z_off, np.nan)
+        h_centre, _ = trace(nx, ny)
     return h_sub, nz_sub, h_centre
 
 

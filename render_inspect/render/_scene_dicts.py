@@ -84,22 +84,25 @@ def load_scene_dict(d: dict):
 
 
 def render_aov_grid(gm, *, x0: float, y0: float, width_mm: float, nx: int, ny: int,
-                    z_top: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ray-trace the mesh straight down at the centres of an ``ny x nx`` grid of cells.
+                    z_top: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray-trace the mesh straight down at the centres of an ``ny x nx`` grid of cells
+    (cell size ``width_mm / nx``; the grid's lower-left corner at ``(x0, y0)``).
 
     Returns
     -------
     position : (ny, nx, 3) float32, hit point (mm; zeros where nothing was hit)
-    normal : (ny, nx, 3) float32, shading normal (zeros where nothing was hit)
+    sh_normal : (ny, nx, 3) float32, shading (interpolated vertex) normal, zeros on a miss
+    geo_normal : (ny, nx, 3) float32, the hit triangle's normal, zeros on a miss
         Row 0 is the smallest y.
     """
     mi, _, _ = import_mitsuba()
     scene = load_scene_dict({
         "type": "scene",
-        "integrator": {"type": "aov", "aovs": "pp:position,nn:sh_normal"},
+        "integrator": {"type": "aov", "aovs": "pp:position,nn:sh_normal,gn:geo_normal"},
         "sensor": ortho_sensor(x0=x0, y0=y0, width_mm=width_mm, nx=nx, ny=ny, z_top=z_top),
         "part": mitsuba_mesh(gm),
     })
     img = np.array(mi.render(scene, seed=0), dtype=np.float32)
     img = img[::-1]  # film row 0 is the top (largest y)
-    return np.ascontiguousarray(img[..., 0:3]), np.ascontiguousarray(img[..., 3:6])
+    return (np.ascontiguousarray(img[..., 0:3]), np.ascontiguousarray(img[..., 3:6]),
+            np.ascontiguousarray(img[..., 6:9]))

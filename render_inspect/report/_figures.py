@@ -108,10 +108,12 @@ def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
 
 
 def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "",
-                 panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
-    """Side-by-side rendered images (grey intensity 0..1 or RGB 0..1), row 0 = smallest y.
+                 axis_labels: bool = True, panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
+    """Side-by-side rendered images (grey intensity 0..1 or RGB 0..1), row 0 = smallest y
+    (drawn at the bottom).
 
-    A grey panel gets a colour bar labelled ``gray_label``."""
+    A grey panel gets a colour bar labelled ``gray_label``; ``axis_labels=False`` hides
+    the axes (perspective views have no x, y scale)."""
     plt = _plt()
     n = len(panels)
     fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
@@ -133,8 +135,11 @@ def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "
                 cb.set_label(gray_label)
         else:
             ax.imshow(a, origin="lower", extent=ext, interpolation="nearest")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
+        if axis_labels:
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel("y (mm)")
+        else:
+            ax.set_axis_off()
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
     fig.tight_layout()

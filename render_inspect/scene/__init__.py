@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 import tomllib
 from pathlib import Path
 from typing import Any, Iterable
@@ -71,6 +72,10 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
             msg = "unknown key (not allowed here; check the spelling)"
         elif msg.startswith("Value error, "):
             msg = msg[len("Value error, "):]
+            m = re.match(r"^([a-z_][a-z0-9_]*) (must|is|are) ", msg)
+            if m:  # a model-level check about one of its keys: name the key in full
+                loc = f"{loc}.{m.group(1)}" if loc else m.group(1)
+                msg = msg[len(m.group(1)) + 1:]
         inp = e.get("input")
         got = "" if e["type"] in ("missing",) or isinstance(inp, dict) else f"; received {inp!r}"
         lines.append(f"  {loc or '(top level)'}: {msg}{got}")

@@ -31,7 +31,7 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
 
 
 def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float | None = None,
-                   half_width: float | None = None, samples: int = 9, iterations: int = 10,
+                   half_width: float | None = None, samples: int = 9, iterations: int | None = None,
                    chunk: int = 200_000) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (seed 000 eq. 7-8), mm.
 
@@ -45,7 +45,8 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
     half_width : float, optional
         Radial half-width of the nose arc (included angle); contacts beyond are ignored.
     samples, iterations : int
-        Coarse samples of the window, then golden-section refinement of the best bracket.
+        Coarse samples of the window, then golden-section refinement of the best bracket;
+        by default enough iterations to bring the height error below 1e-10 mm.
 
     Returns
     -------
@@ -61,6 +62,10 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
     out = np.empty_like(rho)
     offs = np.linspace(-w, w, samples)
     step = offs[1] - offs[0]
+    if iterations is None:
+        # height error ~ g'' du^2 / 2 with g'' <~ 1 / Rc + curvature: aim at 1e-10 mm
+        du = math.sqrt(2e-10 * Rc)
+        iterations = max(4, int(math.ceil(math.log(du / (2 * step)) / math.log(_GOLD))))
     for a in range(0, rho.size, chunk):
         th1 = theta[a:a + chunk]
         rh1 = rho[a:a + chunk]

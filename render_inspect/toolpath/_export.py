@@ -18,7 +18,8 @@ N2 G01 C0.250000 X4.749997 Z-0.000010 F60480.00000000
 M30
 ```
 
-- ``;`` starts a comment (to the end of the line); ``(...)`` comments are also skipped.
+- ``;`` starts a comment (to the end of the line); ``(...)`` comments and ``%`` tape
+  marks are also skipped by the reader.
 - ``C`` in degrees, ``X`` (radius) and ``Z`` (tool tip) in mm, ``decimals`` places
   (default 6: 1 nm and 1 micro-degree).
 - Time: the first block is the start position at ``t0_s``; every later block carries an
@@ -149,7 +150,7 @@ def read_nc(path):
                         meta[k.strip()] = v.strip()
                 continue
             line = re.sub(r"\([^)]*\)", " ", line.split(";", 1)[0]).strip().upper()
-            if not line:
+            if not line or line == "%":  # '%' marks the start / end of a program
                 continue
             words = _WORD.findall(line)
             rest = _WORD.sub("", line).strip()

@@ -77,6 +77,8 @@ def spiral_ccps(process_cfg, *, r_outer: float, r_inner: float = 0.0, points_per
             th_in = theta_sw + dth * np.arange(1, n_in + 1)
             th_in[-1] = min(th_in[-1], theta_end)
             theta = np.concatenate([th_arc, th_in])
+    if theta.size > 2 and theta[-1] - theta[-2] < 1e-9 * (theta[1] - theta[0]):
+        theta = theta[:-1]  # the end clamp left a duplicate point
     rho = r_outer - c * theta
     rho = np.maximum(rho, r_inner)
     return theta, rho

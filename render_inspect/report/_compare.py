@@ -1,0 +1,452 @@
+"""``render-inspect compare``: compensated vs uncompensated, through the whole chain.
+
+For each variant (same camera, same seed): simulate the machined surface, render the
+virtual interferometer and the diffuse-light views, retrieve the height from the frames
+(what the instrument reports) and characterise everything; then write the variants side
+by side, their differences, ``metrics.json`` and a self-contained ``report.html``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+
+__all__ = ["run_compare", "compare_variants", "preview_render_configs", "VARIANTS",
+           "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
+           "COMPARE_MAX_DIFFUSE_SPP"]
+
+#: The two columns of the comparison, in order.
+VARIANTS = ("compensated", "uncompensated")
+#: Section angles of the radial profiles (seed 000 Fig. 16 shows that the overcut
+#: waviness depends on the angle).
+PROFILE_ANGLES_DEG = (0.0, 30.0, 60.0, 90.0)
+#: Render sizes compare uses unless the scene sets them (keeps compare fast): camera
+#: pixels across the interferometer field, diffuse image size and samples per pixel.
+COMPARE_MAX_CAMERA_PIXELS = 256
+COMPARE_MAX_DIFFUSE_RESOLUTION = 192
+COMPARE_MAX_DIFFUSE_SPP = 16
+#: Default S-filter nesting index of the "filtered" map for turned parts, in feeds per
+#: revolution: removes the turning marks and keeps the waviness (seed 000 Fig. 16 d).
+WAVINESS_FEEDS = 2.5
+MM_TO_NM = 1e6
+
+
+def compare_variants(scene):
+    """The compensated and uncompensated variants of ``scene``.
+
+    Compensated: the scene as given, or with ``process.compensation = "z"`` when it says
+    "none".  Uncompensated: ``process.compensation = "none"``.  Everything else (camera,
+    seed, region) is the same.
+    """
+    comp = scene if scene.process.compensation != "none" else \
+        scene.with_overrides(["process.compensation='z'"])
+    unc = scene.with_overrides(["process.compensation='none'"])
+    return comp, unc
+
+
+def preview_render_configs(scene, heightmap):
+    """Interferometer and diffuse settings for compare: the scene's, with the sizes it
+    does not set capped (:data:`COMPARE_MAX_CAMERA_PIXELS`,
+    :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`, :data:`COMPARE_MAX_DIFFUSE_SPP`).
+
+    Returns (icfg, dcfg, notes) where notes lists what was capped."""
+    from ..render import interferometer_geometry
+
+    icfg = scene.render.interferometer
+    dcfg = scene.render.diffuse
+    notes = []
+    if "pixel" not in icfg.model_fields_set:
+        g = interferometer_geometry(heightmap, icfg)
+        n = max(g["nx"], g["ny"])
+        if n > COMPARE_MAX_CAMERA_PIXELS:
+            x0, y0, x1, y1 = g["window"]
+            pix = max(x1 - x0, y1 - y0) / COMPARE_MAX_CAMERA_PIXELS
+            icfg = icfg.model_copy(update={"pixel": pix})
+            notes.append(f"interferometer pixel {g['pixel'] * 1e3:.3g} um -> {pix * 1e3:.3g} um "
+                         f"({COMPARE_MAX_CAMERA_PIXELS} camera pixels across; set "
+                         f"render.interferometer.pixel to choose)")
+    upd = {}
+    if "resolution" not in dcfg.model_fields_set and dcfg.resolution > COMPARE_MAX_DIFFUSE_RESOLUTION:
+        upd["resolution"] = COMPARE_MAX_DIFFUSE_RESOLUTION
+    if "spp" not in dcfg.model_fields_set and dcfg.spp > COMPARE_MAX_DIFFUSE_SPP:
+        upd["spp"] = COMPARE_MAX_DIFFUSE_SPP
+    if upd:
+        dcfg = dcfg.model_copy(update=upd)
+        notes.append("diffuse " + ", ".join(f"{k} -> {v}" for k, v in upd.items())
+                     + " (set render.diffuse.resolution / spp to choose)")
+    return icfg, dcfg, notes
+
+
+@dataclass
+class _Variant:
+    name: str
+    scene: object
+    heightmap: object = None
+    toolpath: object = None
+    ig: object = None
+    phase: object = None
+    sim: object = None
+    diffuse: dict = field(default_factory=dict)  # view -> (rgb, meta)
+    timing: dict = field(default_factory=dict)
+    filtered: np.ndarray | None = None
+    metrics: dict = field(default_factory=dict)
+
+
+def _filter_settings(scene) -> dict:
+    """Form removal and S/L nesting indices of the "filtered" map (mm)."""
+    m = scene.metrology
+    s_f, l_f = m.s_filter, m.l_filter
+    default = False
+    if s_f is None and l_f is None and scene.process.kind in ("sts", "fts", "hts", "rcse"):
+        s_f = WAVINESS_FEEDS * scene.process.feed_per_rev
+        default = True
+    form = m.form_removal if m.form_removal != "design" else "none"  # residual is vs design
+    return {"form_removal": form, "polynomial_degree": int(m.polynomial_degree),
+            "s_filter_mm": s_f, "l_filter_mm": l_f, "default_waviness_filter": default}
+
+
+def _filtered_map(residual, pixel, settings):
+    from ..metrology import l_filter, remove_form, s_filter
+
+    r, _ = remove_form(residual, pixel=pixel, method=settings["form_removal"],
+                       degree=settings["polynomial_degree"])
+    if settings["s_filter_mm"]:
+        r = s_filter(r, pixel=pixel, nesting_index=settings["s_filter_mm"])
+    if settings["l_filter_mm"]:
+        r = l_filter(r, pixel=pixel, nesting_index=settings["l_filter_mm"])
+    return r
+
+
+def _areal_nm(z, pixel) -> dict:
+    from ..metrology import areal_parameters
+
+    ok = np.isfinite(z)
+    if ok.sum() < 2:
+        return {"Sa_nm": float("nan"), "Sq_nm": float("nan"), "Sz_nm": float("nan")}
+    p = areal_parameters(z, pixel=pixel)
+    return {f"{k}_nm": p[k] * MM_TO_NM for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}
+
+
+def _is_lenslet_design(scene) -> bool:
+    return scene.design.type in ("lenslet_array", "lenslet_rings")
+
+
+def _simulate_variant(v: _Variant, out: Path) -> None:
+    """Simulate one variant; write heightmap.exr, toolpath.npz, residual.png."""
+    from ..io import save_map_png
+    from ..machining import simulate_scene
+
+    d = out / v.name
+    d.mkdir(parents=True, exist_ok=True)
+    t = time.perf_counter()
+    sim = v.sim = simulate_scene(v.scene)
+    v.timing["simulate"] = time.perf_counter() - t
+    hm = v.heightmap = sim.heightmap
+    v.toolpath = sim.toolpath
+    hm.to_exr(d / "heightmap.exr")
+    if sim.toolpath is not None and hasattr(sim.toolpath, "save_npz"):
+        sim.toolpath.save_npz(d / "toolpath.npz")
+    save_map_png(d / "residual.png", hm.residual * MM_TO_NM, extent=hm.extent,
+                 title=f"{v.name}: machined - design", label="residual (nm)", cmap="RdBu_r",
+                 symmetric=True)
+
+
+def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_surface) -> None:
+    """Render, measure and characterise one simulated variant; write its folder."""
+    from ..io import save_map_png, write_json
+    from ..machining import residual_metrics
+    from ..metrology import characterise_map
+    from ..metrology._phase import add_height_measured
+    from ..render import (render_diffuse, render_interferogram, write_diffuse_outputs,
+                          write_interferogram_outputs)
+    from ..render._run import interferogram_summary
+
+    timing = v.timing
+    d = out / v.name
+    hm = v.heightmap
+    sim = v.sim
+    t = time.perf_counter()
+    ig = v.ig = render_interferogram(hm, icfg, surface="machined", seed=seed)
+    timing["interferogram"] = time.perf_counter() - t
+    write_interferogram_outputs(d, ig, scene=v.scene.to_dict())
+    t = time.perf_counter()
+    v.phase, measured = add_height_measured(d / "interferogram.exr")
+    timing["phase_retrieval"] = time.perf_counter() - t
+    err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
+    save_map_png(d / "measurement_error.png", err, extent=ig.extent,
+                 title=f"{v.name}: measured - true height", label="error (nm)", cmap="RdBu_r",
+                 symmetric=True)
+    # what the instrument reports vs the truth, both as residual from the design
+    xx, yy = np.meshgrid(ig.x, ig.y)
+    design_ig = np.broadcast_to(design_surface.height(xx, yy), xx.shape)
+    meas_res = np.where(v.phase.valid, v.phase.height - design_ig, np.nan)
+    true_res = np.where(v.phase.valid, ig.height_true - design_ig, np.nan)
+    v.metrics["_maps"] = {"measured_residual": meas_res, "true_residual": true_res, "error": err}
+    measured.update({f"instrument_residual_{k}": x for k, x in _areal_nm(meas_res, ig.pixel).items()})
+    measured.update({f"true_residual_{k}": x for k, x in _areal_nm(true_res, ig.pixel).items()})
+
+    for view in ("micro", "macro"):
+        t = time.perf_counter()
+        rgb, meta = render_diffuse(hm, dcfg, view=view, surface="machined", seed=seed)
+        timing[f"diffuse_{view}"] = time.perf_counter() - t
+        v.diffuse[view] = (rgb, meta)
+        write_diffuse_outputs(d, rgb, meta, name=f"diffuse_{view}")
+
+    settings = _filter_settings(v.scene)
+    v.filtered = _filtered_map(hm.residual, hm.pixel, settings)
+    save_map_png(d / "filtered.png", v.filtered * MM_TO_NM, extent=hm.extent,
+                 title=f"{v.name}: filtered residual", label="height (nm)", cmap="RdBu_r",
+                 symmetric=True)
+    filt = characterise_map(hm.residual, pixel=hm.pixel, origin=hm.origin,
+                            form_removal=settings["form_removal"],
+                            polynomial_degree=settings["polynomial_degree"],
+                            s_filter_mm=settings["s_filter_mm"], l_filter_mm=settings["l_filter_mm"])
+    filt["default_waviness_filter"] = settings["default_waviness_filter"]
+
+    m = {"compensation": v.scene.process.compensation, "residual": residual_metrics(hm),
+         "measured": measured, "filtered": filt,
+         "interferometer": interferogram_summary(ig),
+         "diffuse": {view: {k: meta[k] for k in ("view", "spp", "seed", "vertical_exaggeration",
+                                                  "window_mm", "mitsuba_variant")}
+                     for view, (_, meta) in v.diffuse.items()}}
+    for k, val in sim.metrics.items():
+        if k != "residual":
+            m[k] = val
+    if _is_lenslet_design(v.scene) and "lenslets" not in m:
+        m["lenslets"] = _lenslets(hm, design_surface)
+    m["timing_s"] = {**{f"sim_{k}": float(x) for k, x in sim.timing_s.items()}, **timing}
+    write_json(d / "metrics.json", {k: x for k, x in m.items()} | {
+        "software_version": __version__, "seed": seed,
+        "mitsuba_variant": ig.variant})
+    v.metrics.update(m)
+
+
+def _lenslets(hm, design_surface) -> list:
+    import warnings
+
+    from ..metrology import lenslet_table
+
+    if not hasattr(design_surface, "centers"):
+        return []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lenslets outside the map are listed as left out
+        return lenslet_table(hm, design_surface, which="machined")
+
+
+def _sections(z, design, *, pixel, origin, center, angles_deg):
+    from ..metrology import extract_section
+
+    out = []
+    for a in angles_deg:
+        s, zm = extract_section(z, pixel=pixel, origin=origin, kind="radial", center=center,
+                                angle=np.radians(a))
+        dz = None
+        if design is not None:
+            _, dz = extract_section(design, pixel=pixel, origin=origin, kind="radial",
+                                    center=center, angle=np.radians(a))
+        if np.isfinite(zm).sum() >= 2:
+            out.append({"angle_deg": float(a), "s": s, "machined": zm, "design": dz})
+    return out
+
+
+def _profile_center(hm):
+    """The spindle axis (0, 0) when it lies in the map, else the map's centre."""
+    x0, x1, y0, y1 = hm.extent
+    if x0 <= 0 <= x1 and y0 <= 0 <= y1:
+        return (0.0, 0.0)
+    return ((x0 + x1) / 2, (y0 + y1) / 2)
+
+
+def _srgb(rgb):
+    a = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
+    return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
+
+
+def _luminance(rgb):
+    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+
+
+def run_compare(scene, out, *, measured=None) -> dict:
+    """Compensated vs uncompensated (and optionally a measured map): files and report.
+
+    Parameters
+    ----------
+    scene : Scene
+        The validated scene.  Its compensated variant is the scene itself (or with
+        ``process.compensation = "z"`` if it says "none"); the uncompensated one has
+        ``process.compensation = "none"``.  Both use the same camera and seed.
+    out : str or Path
+        Output folder, written atomically (:func:`render_inspect.io.atomic_output_dir`).
+    measured : str or Path, optional
+        A measured height map (X3P, EXR, ...; :func:`render_inspect.io.read_measured`),
+        registered to the design and shown as a third column.
+
+    Returns
+    -------
+    dict
+        The content of ``metrics.json``.
+
+    Files in ``out``: ``compensated/`` and ``uncompensated/`` (``heightmap.exr``,
+    ``toolpath.npz``, ``interferogram.exr`` with ``height_measured``, PNGs, the variant's
+    ``metrics.json``), the side-by-side and difference PNGs, ``metrics.json`` and
+    ``report.html``.
+    """
+    from ..design import make_surface
+    from ..io import atomic_output_dir, atomic_write_bytes, atomic_write_text, write_json
+    from ..render import mitsuba_variant
+    from . import _figures as F
+    from ._page import build_page
+
+    if measured is not None and not Path(measured).is_file():
+        raise InputError(f"--measured file not found: {str(measured)!r}")
+    t_all = time.perf_counter()
+    seed = int(scene.simulation.seed)
+    design_surface = make_surface(scene.design)
+    comp_s, unc_s = compare_variants(scene)
+    variants = [_Variant("compensated", comp_s), _Variant("uncompensated", unc_s)]
+    with atomic_output_dir(out) as tmp:
+        tmp = Path(tmp)
+        for v in variants:
+            _simulate_variant(v, tmp)
+        # same camera for both: the render settings come from the compensated map's grid
+        icfg, dcfg, notes = preview_render_configs(scene, variants[0].heightmap)
+        for v in variants:
+            _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed, design_surface=design_surface)
+        c, u = variants
+        meas = None
+        if measured is not None:
+            meas = _measured_column(measured, scene, design_surface, c.heightmap, seed)
+
+        figs = _figures(c, u, meas, F)
+        for name, png in figs.items():
+            atomic_write_bytes(tmp / f"{name}.png", png)
+
+        diff = (c.heightmap.machined - u.heightmap.machined) * MM_TO_NM
+        ok = np.isfinite(diff)
+        metrics = {
+            "compensated": {k: x for k, x in c.metrics.items() if not k.startswith("_")},
+            "uncompensated": {k: x for k, x in u.metrics.items() if not k.startswith("_")},
+            "difference": {
+                "machined_rms_nm": float(np.sqrt(np.mean(diff[ok] ** 2))) if ok.any() else None,
+                "machined_pv_nm": float(np.ptp(diff[ok])) if ok.any() else None,
+                "min_nm_change": c.metrics["residual"]["min_nm"] - u.metrics["residual"]["min_nm"],
+                "Sq_nm_change": c.metrics["residual"]["Sq_nm"] - u.metrics["residual"]["Sq_nm"]},
+            "software_version": __version__, "seed": seed,
+            "mitsuba_variant": mitsuba_variant(),
+            "scene": scene.to_dict(),
+            "render_settings": {"interferometer": icfg.model_dump(mode="json"),
+                                "diffuse": dcfg.model_dump(mode="json"), "notes": notes,
+                                "profile_angles_deg": list(PROFILE_ANGLES_DEG)},
+        }
+        if _is_lenslet_design(scene):
+            metrics["lenslets"] = metrics["compensated"].get("lenslets", [])
+        if meas is not None:
+            metrics["measured_file"] = meas["metrics"]
+        metrics["timing_s"] = {"total": time.perf_counter() - t_all}
+        write_json(tmp / "metrics.json", metrics)
+        page = build_page(scene, metrics, figs, notes=notes)
+        atomic_write_text(tmp / "report.html", page)
+    return json.loads(json.dumps(metrics, default=_jsonable))
+
+
+def _jsonable(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def _measured_column(path, scene, design_surface, sim_hm, seed) -> dict:
+    from ..metrology import compare_measured
+    from ..io import read_measured
+
+    z, pixel, origin, src = read_measured(path)
+    simulated = sim_hm if np.isclose(pixel, sim_hm.pixel, rtol=1e-6) else None
+    comp = compare_measured((z, pixel, origin), design_surface, metrology=scene.metrology,
+                            simulated=simulated, region=tuple(scene.simulation.region), seed=seed)
+    metrics = dict(comp.metrics)
+    metrics["source"] = {k: x for k, x in src.items() if k != "scene"}
+    metrics["compared_with_simulation"] = simulated is not None
+    return {"metrics": metrics, "maps": comp.maps, "pixel": comp.pixel, "origin": comp.origin,
+            "extent": (comp.origin[0] - comp.pixel / 2,
+                       comp.origin[0] + comp.pixel * (z.shape[1] - 0.5),
+                       comp.origin[1] - comp.pixel / 2,
+                       comp.origin[1] + comp.pixel * (z.shape[0] - 0.5))}
+
+
+def _figures(c: _Variant, u: _Variant, meas, F) -> dict:
+    """All top-level PNGs: name -> bytes."""
+    figs = {}
+    names = ("compensated", "uncompensated")
+    ig_ext = c.ig.extent
+    figs["interferogram_side_by_side"] = F.image_panels(
+        [(f"{n}: intensity (zero-shift frame)", v.ig.intensity) for n, v in zip(names, (c, u))],
+        extent=ig_ext, gray_label="intensity (0..1)",
+        suptitle=f"Interferograms ({c.ig.mode.upper()}, {c.ig.objective}, NA "
+                 f"{c.ig.numerical_aperture:g}, {c.ig.wavelength_nm:g} nm)")
+    figs["interferogram_difference"] = F.map_panels(
+        [("compensated - uncompensated", c.ig.intensity.astype(float) - u.ig.intensity)],
+        extent=ig_ext, label="intensity difference", cmap="RdBu_r", symmetric=True)
+    for view in ("micro", "macro"):
+        (rc, mc), (ru, _) = c.diffuse[view], u.diffuse[view]
+        if view == "micro":
+            x0, y0, x1, y1 = mc["window_mm"]
+            ext = (x0, x1, y0, y1)
+        else:
+            ext = None
+        figs[f"diffuse_{view}_side_by_side"] = F.image_panels(
+            [(f"{n}: diffuse {view}", _srgb(r)[::-1]) for n, r in (("compensated", rc),
+                                                                   ("uncompensated", ru))],
+            extent=ext, axis_labels=ext is not None,
+            suptitle=f"Diffuse light ({mc['light']['type']}), heights exaggerated "
+                     f"{mc['vertical_exaggeration']:g}x")
+        if view == "micro":
+            figs["diffuse_difference"] = F.map_panels(
+                [("compensated - uncompensated (luminance)",
+                  (_luminance(rc) - _luminance(ru))[::-1])],
+                extent=ext, label="linear luminance difference", cmap="RdBu_r", symmetric=True)
+    hm_ext = c.heightmap.extent
+    res_panels = [(f"{n}: machined - design", v.heightmap.residual * MM_TO_NM)
+                  for n, v in zip(names, (c, u))]
+    exts = [hm_ext, hm_ext]
+    if meas is not None:
+        res_panels.append(("measured - design (registered)", meas["maps"]["residual"] * MM_TO_NM))
+        exts.append(meas["extent"])
+    figs["residual_side_by_side"] = F.map_panels(res_panels, extent=exts, label="residual (nm)",
+                                                 cmap="RdBu_r", symmetric=True)
+    figs["residual_difference"] = F.map_panels(
+        [("machined: compensated - uncompensated",
+          (c.heightmap.machined - u.heightmap.machined) * MM_TO_NM)],
+        extent=hm_ext, label="height difference (nm)", cmap="RdBu_r", symmetric=True)
+    figs["filtered_side_by_side"] = F.map_panels(
+        [(f"{n}: filtered residual", v.filtered * MM_TO_NM) for n, v in zip(names, (c, u))],
+        extent=hm_ext, label="height (nm)", cmap="RdBu_r", symmetric=True)
+    figs["measurement_error_side_by_side"] = F.map_panels(
+        [(f"{n}: measured - true", v.metrics["_maps"]["error"]) for n, v in zip(names, (c, u))],
+        extent=ig_ext, label="height error (nm)", cmap="RdBu_r", symmetric=True,
+        percentile=0.5)
+    figs["measured_residual_side_by_side"] = F.map_panels(
+        [(f"{n}: measured - design", v.metrics["_maps"]["measured_residual"] * MM_TO_NM)
+         for n, v in zip(names, (c, u))],
+        extent=ig_ext, label="residual seen by the instrument (nm)", cmap="RdBu_r",
+        symmetric=True, percentile=0.5)
+    center = _profile_center(c.heightmap)
+    secs = {}
+    for n, v in zip(names, (c, u)):
+        hm = v.heightmap
+        secs[n] = _sections(hm.machined, hm.design, pixel=hm.pixel, origin=hm.origin,
+                            center=center, angles_deg=PROFILE_ANGLES_DEG)
+    if meas is not None:
+        secs["measured"] = _sections(meas["maps"]["measured"], meas["maps"]["design"],
+                                     pixel=meas["pixel"], origin=meas["origin"], center=center,
+                                     angles_deg=PROFILE_ANGLES_DEG)
+    figs["radial_profiles"] = F.radial_profile_figure(secs)
+    return figs

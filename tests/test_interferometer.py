@@ -1,0 +1,214 @@
+"""The virtual interference microscope: forward models with known answers.
+
+Geometry comes from Mitsuba ray tracing of the mesh; every test recovers a quantity that
+the two-beam model predicts in closed form.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from render_inspect.errors import InputError, SceneError
+from render_inspect.machining import HeightMap
+from render_inspect.render import (Interferogram, camera_noise, read_interferogram_exr,
+                                   render_interferogram, write_interferogram_exr)
+from render_inspect.scene import InterferometerConfig
+
+pytestmark = pytest.mark.mitsuba
+
+LAMBDA_MM = 550e-6
+
+
+def _plane(tilt_rad, *, n=161, pixel=0.001, along="x"):
+    c = np.arange(n) * pixel
+    X, Y = np.meshgrid(c, c)
+    z = (X if along == "x" else Y) * math.tan(tilt_rad)
+    return HeightMap(z, z.copy(), pixel, (0.0, 0.0))
+
+
+def _cfg(**kw):
+    base = dict(pixel=0.001, field_of_view=(0.0105, 0.0105, 0.1495, 0.1495), noise=False,
+                subsamples=1, numerical_aperture=0.3, wavelength_nm=550.0)
+    base.update(kw)
+    return InterferometerConfig(**base)
+
+
+def _phase(ig):
+    """4-step retrieval for I_k = (1 + |E|^2 + 2|E| cos(phi + k pi/2)) / 4."""
+    i0, i1, i2, i3 = ig.frames.astype(np.float64)
+    return np.arctan2(i3 - i1, i0 - i2), np.hypot(i3 - i1, i0 - i2)
+
+
+def test_tilted_plane_gives_straight_fringes_at_lambda_over_2_tan_a():
+    a = math.radians(0.4)
+    ig = render_interferogram(_plane(a), _cfg(), surface="design")
+    assert isinstance(ig, Interferogram) and ig.frames.shape[0] == 4
+    assert ig.valid.all()
+    phi, mod = _phase(ig)
+    un = np.unwrap(phi, axis=1)
+    slope = np.polyfit(ig.x, un.mean(axis=0), 1)[0]  # rad / mm
+    spacing = 2 * math.pi / abs(slope)
+    assert spacing == pytest.approx(LAMBDA_MM / (2 * math.tan(a)), rel=2e-3)
+    # straight: the phase does not change along y (fringes parallel to y)
+    assert np.ptp(un - un[0:1], axis=0).max() < 1e-3
+    # one sample per pixel on a mirror: full visibility, intensity (1 + cos phi) / 2
+    np.testing.assert_allclose(mod, 1.0, atol=1e-4)
+    phi_model = 4 * math.pi * (ig.height_true - ig.z_ref) / LAMBDA_MM
+    np.testing.assert_allclose(ig.intensity, (1 + np.cos(phi_model)) / 2, atol=2e-4)
+
+
+def test_phase_step_moves_the_fringes_by_the_step_fraction():
+    a = math.radians(0.3)
+    ig = render_interferogram(_plane(a), _cfg(steps=5, step_rad=math.pi / 3), surface="design")
+    period = LAMBDA_MM / (2 * math.tan(a))
+    k = 2 * math.pi / period
+    x = ig.x
+    row = ig.frames[:, 70, :].astype(np.float64)
+    # least-squares fit a + b cos(kx) + c sin(kx) gives each frame's fringe position
+    basis = np.stack([np.ones_like(x), np.cos(k * x), np.sin(k * x)], axis=1)
+    coef = np.linalg.lstsq(basis, row.T, rcond=None)[0]
+    c = coef[1] - 1j * coef[2]  # b cos(kx + p) = Re(b e^{ip} e^{ikx})
+    shift = np.angle(c / c[0])  # phase of frame j relative to frame 0
+    np.testing.assert_allclose(np.unwrap(shift), np.arange(5) * math.pi / 3, atol=5e-3)
+    # i.e. frame j's fringes sit -j/6 of a period along +x from frame 0's
+    np.testing.assert_allclose(ig.phase_steps, np.arange(5) * math.pi / 3)
+
+
+def test_valid_mask_follows_the_na_acceptance():
+    R, na, pixel = 0.1, 0.3, 0.0005
+    c = (np.arange(321) - 160) * pixel  # x in [-0.08, 0.08]: slopes up to asin(0.8)
+    X, Y = np.meshgrid(c, c)
+    z = np.sqrt(R * R - X * X) - R  # cylinder: sin(slope) = |x| / R
+    hm = HeightMap(z, z.copy(), pixel, (c[0], c[0]))
+    cfg = _cfg(pixel=pixel, field_of_view=(-0.07525, -0.02025, 0.07525, 0.02025),
+               numerical_aperture=na)
+    ig = render_interferogram(hm, cfg, surface="design")
+    expect = np.abs(ig.x) / R <= na
+    clear = np.abs(np.abs(ig.x) / R - na) > 2.5 * pixel / R
+    assert (ig.valid[:, clear] == expect[None, clear]).all()
+    assert 0.3 < ig.valid.mean() < 0.5
+    # a wider acceptance lets more through
+    ig2 = render_interferogram(hm, cfg.model_copy(update={"numerical_aperture": 0.55}), surface="design")
+    assert (ig2.valid.astype(int) - ig.valid.astype(int) >= 0).all() and ig2.valid.sum() > ig.valid.sum()
+    # no light returns from invalid pixels: no fringes there
+    np.testing.assert_allclose(ig.intensity[~ig.valid], 0.25, atol=0.2)
+
+
+def test_height_true_equals_the_height_map_at_pixel_centres():
+    rng = np.random.default_rng(3)
+    n, q = 101, 0.001
+    c = np.arange(n) * q
+    X, Y = np.meshgrid(c, c)
+    design = 2e-4 * np.sin(2 * np.pi * X / 0.07) * np.cos(2 * np.pi * Y / 0.05)
+    machined = design + 5e-6 * rng.normal(size=design.shape)
+    hm = HeightMap(design, machined, q, (0.0, 0.0))
+    # camera pixel 2 q, pixel centres on height-map pixels 10, 12, ..., 88
+    cfg = _cfg(pixel=2 * q, field_of_view=(0.009, 0.009, 0.089, 0.089), subsamples=2)
+    ig = render_interferogram(hm, cfg)
+    assert ig.shape == (40, 40)
+    np.testing.assert_allclose(ig.origin, (0.010, 0.010), atol=1e-12)
+    np.testing.assert_allclose(ig.height_true, machined[10:90:2, 10:90:2], atol=2e-9)
+    igd = render_interferogram(hm, cfg, surface="design")
+    np.testing.assert_allclose(igd.height_true, design[10:90:2, 10:90:2], atol=2e-9)
+
+
+def test_pixel_integration_lowers_visibility_where_fringes_are_dense():
+    a = math.radians(5.0)  # ~ 3.1 um fringe spacing, 1 um pixels
+    s = 4
+    ig = render_interferogram(_plane(a), _cfg(subsamples=s), surface="design")
+    _, mod = _phase(ig)
+    d = 4 * math.pi * math.tan(a) / LAMBDA_MM * (0.001 / s)  # phase step between sub-samples
+    expect = abs(math.sin(s * d / 2) / (s * math.sin(d / 2)))
+    assert expect < 0.9
+    np.testing.assert_allclose(mod, expect, atol=2e-3)
+    ig1 = render_interferogram(_plane(a), _cfg(subsamples=1), surface="design")
+    assert _phase(ig1)[1].mean() > mod.mean() + 0.04
+
+
+def test_csi_envelope_peaks_at_the_surface_height():
+    a = math.radians(0.8)
+    ig = render_interferogram(_plane(a), _cfg(mode="csi", wavelength_nm=600.0, bandwidth_nm=120.0,
+                                              scan_step_nm=40.0), surface="design")
+    assert ig.mode == "csi" and ig.scan_positions.size == ig.frames.shape[0] > 10
+    f = ig.frames.astype(np.float64)
+    env = np.abs(f - f.mean(axis=0))
+    peak = ig.scan_positions[np.argmax(env, axis=0)]
+    # the envelope peak sits at the height, within a quarter of the centre wavelength
+    err = (peak - ig.height_true) * 1e6  # mm -> nm
+    assert np.abs(err).max() < 150.0
+    assert abs(np.mean(err)) < 40.0
+    # the zero-shift frame is the one nearest z_ref
+    i0 = int(np.argmin(np.abs(ig.scan_positions - ig.z_ref)))
+    np.testing.assert_array_equal(ig.intensity, ig.frames[i0])
+
+
+def test_camera_noise_is_seeded_and_quantised():
+    frames = np.full((2, 8, 8), 0.5)
+    a = camera_noise(frames, seed=7, full_well=1e4, read_noise=3.0, bit_depth=8)
+    b = camera_noise(frames, seed=7, full_well=1e4, read_noise=3.0, bit_depth=8)
+    c = camera_noise(frames, seed=8, full_well=1e4, read_noise=3.0, bit_depth=8)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    np.testing.assert_allclose(a * 255, np.round(a * 255), atol=1e-4)  # 8-bit levels
+    # shot noise ~ sqrt(5000) e- = 0.0071 of full well
+    assert 0.004 < a.std() < 0.011 and abs(a.mean() - 0.5) < 0.005
+    with pytest.raises(InputError, match="bit_depth"):
+        camera_noise(frames, seed=0, bit_depth=0)
+
+
+def test_render_is_repeatable_and_noise_uses_the_seed():
+    hm = _plane(math.radians(0.2), n=61)
+    cfg = _cfg(noise=True, field_of_view=(0.0105, 0.0105, 0.0495, 0.0495), subsamples=2)
+    a = render_interferogram(hm, cfg, seed=5)
+    b = render_interferogram(hm, cfg, seed=5)
+    c = render_interferogram(hm, cfg, seed=6)
+    np.testing.assert_array_equal(a.frames, b.frames)
+    np.testing.assert_array_equal(a.height_true, b.height_true)
+    assert not np.array_equal(a.frames, c.frames)
+    assert a.seed == 5 and a.noise and a.variant in ("llvm_ad_rgb", "scalar_rgb", "cuda_ad_rgb")
+
+
+def test_exr_round_trip_has_the_contract_header(tmp_path):
+    hm = _plane(math.radians(0.2), n=41)
+    ig = render_interferogram(hm, _cfg(field_of_view=(0.0105, 0.0105, 0.0295, 0.0295)))
+    p = write_interferogram_exr(tmp_path / "interferogram.exr", ig, scene={"name": "t"})
+    from render_inspect.io import read_exr
+
+    ch, attrs = read_exr(p)
+    for name in ("intensity", "frame_000", "frame_003", "valid", "height_true"):
+        assert name in ch
+    for key in ("pixel_size_mm", "origin_mm", "wavelength_nm", "numerical_aperture", "mode",
+                "mitsuba_variant", "phase_steps_rad", "seed"):
+        assert key in attrs
+    assert attrs["mitsuba_variant"] == ig.variant and attrs["mode"] == "psi"
+    back = read_interferogram_exr(p)
+    np.testing.assert_array_equal(back.frames, ig.frames)
+    np.testing.assert_array_equal(back.valid, ig.valid)
+    np.testing.assert_allclose(back.height_true, ig.height_true, rtol=1e-7)
+    assert back.pixel == ig.pixel and back.origin == pytest.approx(ig.origin)
+
+
+def test_objective_presets_and_bad_input():
+    hm = _plane(0.0, n=41)
+    with pytest.raises(InputError, match="field_of_view"):
+        render_interferogram(hm, _cfg(field_of_view=(0.0, 0.0, 1.0, 1.0)))
+    with pytest.raises(InputError, match="pixel"):
+        render_interferogram(hm, _cfg(pixel=0.05, field_of_view=None))
+    with pytest.raises(InputError, match="surface"):
+        render_interferogram(hm, _cfg(field_of_view=None), surface="ideal")
+    with pytest.raises(InputError, match="seed"):
+        render_interferogram(hm, _cfg(field_of_view=None), seed=-1)
+    # the 50x preset: NA 0.55, its pixel (0.36 mm / 1024), field clipped to the map
+    ig = render_interferogram(hm, InterferometerConfig(objective="50x", noise=False, subsamples=1))
+    assert ig.numerical_aperture == 0.55 and ig.pixel == pytest.approx(0.36 / 1024)
+    assert ig.shape == (116, 116)  # 0.041 mm / (0.36 mm / 1024)
+    from render_inspect.scene import scene_from_dict
+
+    base = {"design": {"type": "plane"}}
+    with pytest.raises(SceneError, match="render.interferometer.subsamples"):
+        scene_from_dict(base).with_overrides(["render.interferometer.subsamples=0"])
+    with pytest.raises(SceneError, match="render.interferometer.objective"):
+        scene_from_dict(base).with_overrides(["render.interferometer.objective='7x'"])

@@ -1,0 +1,71 @@
+"""Scene files: validation names the key, the allowed range and the value."""
+
+from pathlib import Path
+
+import pytest
+
+from render_inspect.errors import SceneError
+from render_inspect.scene import load_scene, scene_from_dict
+
+REPO = Path(__file__).resolve().parents[1]
+GRID = REPO / "scenes" / "sts_sinusoidal_grid.toml"
+
+
+def test_shipped_scenes_load():
+    for p in sorted((REPO / "scenes").glob("*.toml")):
+        scene = load_scene(p)
+        assert scene.name
+
+
+def test_unknown_key_is_named(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text(GRID.read_text().replace("[tool]", "[tool]\nnose_radiuss = 1.0"))
+    with pytest.raises(SceneError, match=r"tool\.nose_radiuss: unknown key"):
+        load_scene(p)
+
+
+def test_negative_radius_names_key_range_and_value():
+    with pytest.raises(SceneError) as e:
+        load_scene(GRID, ["tool.nose_radius=-0.5"])
+    msg = str(e.value)
+    assert "tool.nose_radius" in msg and "greater than 0" in msg and "-0.5" in msg
+
+
+def test_feed_per_rev_larger_than_nose_radius():
+    with pytest.raises(SceneError, match="feed per revolution.*tool.nose_radius"):
+        load_scene(GRID, ["process.feed_mm_per_min=50"])  # 1 mm/rev > 0.514 mm
+
+
+def test_empty_region():
+    with pytest.raises(SceneError, match="simulation.region"):
+        load_scene(GRID, ["simulation.region=[0.5, 0.0, 0.5, 1.0]"])
+
+
+def test_wrong_type():
+    with pytest.raises(SceneError, match="process.spindle_rpm"):
+        load_scene(GRID, ["process.spindle_rpm='fast'"])
+
+
+def test_set_overrides_any_key_with_toml_values():
+    s = load_scene(GRID, ["process.spindle_rpm=100", "process.compensation='none'",
+                          "simulation.region=[0, 0, 0.1, 0.1]"])
+    assert s.process.spindle_rpm == 100
+    assert s.process.compensation == "none"
+    assert s.simulation.region == (0, 0, 0.1, 0.1)
+    s2 = s.with_overrides(["tool.nose_radius=0.25"])
+    assert s2.tool.nose_radius == 0.25 and s.tool.nose_radius == 0.514
+
+
+def test_bad_override_syntax():
+    with pytest.raises(SceneError, match="section.key=value"):
+        load_scene(GRID, ["process.spindle_rpm"])
+
+
+def test_unknown_design_type():
+    with pytest.raises(SceneError, match="design"):
+        scene_from_dict({"design": {"type": "banana"}})
+
+
+def test_missing_file():
+    with pytest.raises(SceneError, match="not found"):
+        load_scene("/nonexistent/scene.toml")
