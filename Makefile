@@ -39,7 +39,7 @@ test-fast: setup
 	$(VPY) -m pytest -q -m "not slow"
 
 bench: setup
-	$(VPY) benchmarks/run_all.py
+	ONLY=$(ONLY) $(VPY) benchmarks/run_all.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -62,9 +62,9 @@ class RENDER_INSPECT_OT_render(bpy.types.Operator):
         settings = context.scene.render_inspect
         try:
             result = render_object(
-                bpy.data.objects.get(OBJECT_NAME), out=_output_dir(settings),
-                resolution=settings.resolution, spp=settings.samples, seed=settings.seed,
-                load_image=True)
+                bpy.data.objects.get(OBJECT_NAME), view=settings.view,
+                out=_output_dir(settings), resolution=settings.resolution,
+                spp=settings.samples, seed=settings.seed, load_image=True)
         except RenderInspectError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

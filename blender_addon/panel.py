@@ -27,6 +27,7 @@ class RENDER_INSPECT_PT_main(bpy.types.Panel):
         col.prop(settings, "exaggeration")
         layout.operator("render_inspect.simulate", icon="MOD_DISPLACE")
         col = layout.column(align=True)
+        col.prop(settings, "view")
         col.prop(settings, "resolution")
         col.prop(settings, "samples")
         col.prop(settings, "seed")

@@ -45,9 +45,14 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
     exaggeration: FloatProperty(
         name="Exaggeration", default=0.0, min=0.0, max=1e7,
         description="Vertical exaggeration of the mesh; 0 uses render.diffuse.exaggeration")
+    view: EnumProperty(
+        name="View",
+        items=(("macro", "Macro", "The whole part, perspective, tilted 20 degrees"),
+               ("micro", "Micro", "render.diffuse.window straight down (a microscope view)")),
+        default="macro", description="Camera of the diffuse-light render")
     resolution: IntProperty(
-        name="Resolution (px)", default=256, min=8, max=8192,
-        description="Width and height of the Cycles render")
+        name="Resolution (px)", default=256, min=16, max=8192,
+        description="Image width of the Cycles render (render.diffuse.resolution)")
     samples: IntProperty(
         name="Samples", default=64, min=1, max=65536, description="Cycles samples per pixel")
     seed: IntProperty(name="Seed", default=0, min=0, description="Cycles sampling seed")

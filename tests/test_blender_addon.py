@@ -148,7 +148,6 @@ def test_render_writes_a_cycles_image(settings):
 
     with pytest.raises(RuntimeError, match="Simulate first"):
         bpy.ops.render_inspect.render()
-    settings.extra_overrides = SMALL + '; render.diffuse.light="ring"'
     assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
     settings.resolution = 32
     settings.samples = 4

@@ -58,8 +58,14 @@ def test_mesh_vertices_are_the_heights_times_exaggeration():
     assert list(obj["render_inspect_shape"]) == [7, 9]
 
 
-def test_mesh_rejects_bad_input():
+def test_mesh_rejects_bad_input(monkeypatch):
+    from render_inspect.render import _cycles
     from render_inspect.render._cycles import heightmap_object
+
+    monkeypatch.setattr(_cycles, "MAX_VERTICES", 20)
+    with pytest.raises(InputError, match="simulation.pixel"):
+        heightmap_object(np.zeros((5, 5)), pixel=0.1)
+    monkeypatch.undo()
 
     with pytest.raises(InputError, match="exaggeration"):
         heightmap_object(np.zeros((3, 3)), pixel=0.1, exaggeration=0.0)
@@ -71,55 +77,77 @@ def test_mesh_rejects_bad_input():
         heightmap_object(np.full((3, 3), np.nan), pixel=0.1)
 
 
-@pytest.mark.parametrize("tilt_deg", [0.0, 60.0, 75.0])
-def test_tilted_mirror_under_dome_shows_aluminium_fresnel(tilt_deg):
+@pytest.mark.parametrize("light, tilt_deg", [("dome", 0.0), ("dome", 7.5), ("dome", 30.0),
+                                             ("ring", 10.0), ("ring", 30.0)])
+def test_tilted_mirror_reflects_the_light_at_twice_its_tilt(light, tilt_deg):
+    """Straight down onto an aluminium mirror tilted by a: the view ray leaves at zenith
+    angle 2a, so a pixel shows F_Al(a) x L(2a) (Fresnel x the light's zenith profile):
+    dark for a flat part under the dome (its camera port), bright at 30 deg, and so on."""
+    from render_inspect.render import light_profile
     from render_inspect.render._cycles import ALUMINIUM_ETA, ALUMINIUM_K, render_cycles
 
     exaggeration = 10.0
-    hm = _plane(np.tan(np.radians(tilt_deg)) / exaggeration)
-    res = render_cycles(hm, exaggeration=exaggeration, resolution=32, spp=4, light="dome")
-    img = res["image"]
-    assert img.shape == (32, 32, 3)
-    inner = img[6:-6, 6:-6].reshape(-1, 3)  # away from the pixel filter's reach past the edge
-    expected = _fresnel_conductor(np.radians(tilt_deg), ALUMINIUM_ETA, ALUMINIUM_K)
+    hm = _plane(np.tan(np.radians(tilt_deg)) / exaggeration, n=33)
+    dcfg = {"light": light, "exaggeration": exaggeration, "resolution": 32, "spp": 4}
+    rgb, meta = render_cycles(hm, dcfg, view="micro")
+    assert rgb.shape == (32, 32, 3) and rgb.dtype == np.float32
+    assert meta["camera"]["type"] == "orthographic" and meta["vertical_exaggeration"] == 10.0
+    inner = rgb[4:-4, 4:-4].reshape(-1, 3)
+    a = np.radians(tilt_deg)
+    expected = _fresnel_conductor(a, ALUMINIUM_ETA, ALUMINIUM_K) * light_profile(2 * a, light)
     np.testing.assert_allclose(np.median(inner, axis=0), expected, atol=1e-4)
-    # a perfect mirror under a uniform sky: every path returns F(theta), bar the odd
-    # ray that grazes a triangle edge
+    # a perfect mirror under a light at infinity: every path returns the same value, bar
+    # the odd ray that grazes a triangle edge
     assert np.mean(np.abs(inner - expected).max(axis=1) < 1e-3) > 0.98
 
 
 def test_render_is_bitwise_repeatable_and_seed_dependent(tmp_path):
-    from render_inspect.io import read_exr
     from render_inspect.render._cycles import render_cycles
 
     x = np.linspace(-0.1, 0.1, 41)
     X, Y = np.meshgrid(x, x)
     z = 1e-3 * np.sin(2 * np.pi * X / 0.1) * np.cos(2 * np.pi * Y / 0.13)
     hm = HeightMap(z, z.copy(), x[1] - x[0], (-0.1, -0.1))
-    kw = dict(exaggeration=100.0, resolution=32, spp=8, light="ring")
-    a = render_cycles(hm, seed=5, out=tmp_path / "a", **kw)
-    b = render_cycles(hm, seed=5, **kw)
-    c = render_cycles(hm, seed=6, **kw)
-    assert np.array_equal(a["image"], b["image"])
-    assert not np.array_equal(a["image"], c["image"])
-    assert a["image"].std() > 0.01  # the ring's reflections make a pattern
-    channels, attrs = read_exr(tmp_path / "a" / "cycles.exr")
-    np.testing.assert_array_equal(channels["G"], a["image"][..., 1])
-    assert attrs["seed"] == 5 and attrs["spp"] == 8 and attrs["exaggeration"] == 100.0
-    assert (tmp_path / "a" / "cycles.png").is_file()
+    dcfg = {"light": "dome", "exaggeration": 100.0, "resolution": 32, "spp": 8, "roughness": 0.05}
+    a, meta = render_cycles(hm, dcfg, seed=5)
+    b, _ = render_cycles(hm, dcfg, seed=5)
+    c, _ = render_cycles(hm, dcfg, seed=6)
+    assert meta["camera"]["type"] == "perspective" and meta["seed"] == 5
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert a.std() > 0.01  # the waviness shows as shading
+
+
+def test_render_object_writes_exr_and_png(tmp_path):
+    import bpy
+
+    from render_inspect.io import read_exr
+    from render_inspect.render._cycles import render_object, surface_object
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    hm = _plane(0.05, n=9)
+    obj = surface_object(hm, exaggeration=4.0)
+    res = render_object(obj, view="micro", out=tmp_path, resolution=16, spp=2, seed=3)
+    channels, attrs = read_exr(tmp_path / "cycles.exr")
+    np.testing.assert_array_equal(channels["G"], res["image"][..., 1])
+    assert attrs["seed"] == 3 and attrs["spp"] == 2 and attrs["vertical_exaggeration"] == 4.0
+    assert (tmp_path / "cycles.png").is_file()
+    # the user's scene is untouched: no camera, no world was added to it
+    assert bpy.context.scene.name != "render_inspect_cycles" and bpy.context.scene.camera is None
 
 
 def test_render_rejects_bad_input():
     import bpy
 
-    from render_inspect.render._cycles import render_object
+    from render_inspect.errors import SceneError
+    from render_inspect.render._cycles import render_cycles, render_object
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with pytest.raises(InputError, match="Simulate first"):
         render_object(None)
-    from render_inspect.render._cycles import render_cycles
-
-    with pytest.raises(InputError, match="light must be"):
-        render_cycles(_plane(0.0), light="laser", resolution=16, spp=1)
-    with pytest.raises(InputError, match="spp"):
-        render_cycles(_plane(0.0), resolution=16, spp=0)
+    with pytest.raises(SceneError, match="light"):
+        render_cycles(_plane(0.0), {"light": "laser"})
+    with pytest.raises(SceneError, match="spp"):
+        render_cycles(_plane(0.0), {"spp": 0})
+    with pytest.raises(InputError, match="view"):
+        render_cycles(_plane(0.0), {"resolution": 16}, view="side")

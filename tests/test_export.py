@@ -108,3 +108,23 @@ def test_export_dispatch(tmp_path):
     bad.write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="CSV header must be"):
         read_csv(bad)
+
+
+def test_rcse_path_exports_and_parses_back(tmp_path):
+    from pathlib import Path
+
+    from render_inspect.scene import load_scene
+    from render_inspect.toolpath._rcse import build_rcse_toolpath
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "rcse_circular_array.toml",
+                       ["process.workpiece_radius=1.3", "process.inner_radius=1.2"])
+    path = build_rcse_toolpath(scene)
+    f = export_toolpath(path, tmp_path, fmt="nc", scene=scene)
+    q = read_nc(f)
+    assert q.meta["scene"] == "rcse_circular_array" and q.meta["spindle_rpm"] == "42.0"
+    assert q.meta["compensation"] == "z" and int(q.meta["points"]) == path.points
+    assert_allclose(q.rho, path.rho, atol=5.0001e-7)
+    assert_allclose(q.z, path.z, atol=5.0001e-7)
+    assert_allclose(q.theta, path.theta, atol=math.radians(5.0001e-7))
+    assert_allclose(q.t, path.t, atol=1e-6)
+    assert np.all(np.diff(q.rho) < 0)  # X still descends monotonically after the round trip

@@ -204,7 +204,7 @@ def test_objective_presets_and_bad_input():
     # the 50x preset: NA 0.55, its pixel (0.36 mm / 1024), field clipped to the map
     ig = render_interferogram(hm, InterferometerConfig(objective="50x", noise=False, subsamples=1))
     assert ig.numerical_aperture == 0.55 and ig.pixel == pytest.approx(0.36 / 1024)
-    assert ig.shape == (116, 116)  # 0.041 mm / (0.36 mm / 1024)
+    assert ig.shape == (113, 113)  # 0.040 mm (centre span) / (0.36 mm / 1024)
     from render_inspect.scene import scene_from_dict
 
     base = {"design": {"type": "plane"}}

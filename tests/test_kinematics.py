@@ -92,7 +92,7 @@ def test_kinematics_bad_input():
 def test_plot_kinematics_writes_png(tmp_path):
     from PIL import Image
 
-    a = _sine_path(50_000)
+    a = _sine_path(20_000)
     rng = np.random.default_rng(0)
     b = ToolPath(a.theta, a.rho + rng.uniform(-1e-3, 1e-3, a.rho.size), a.z, a.t, {})
     out = plot_kinematics(a, tmp_path / "k.png", reference=b)

@@ -31,7 +31,7 @@ REGION = (-0.5, -0.5, 0.5, 0.5)
 
 
 def _marks(x, y):
-    return 2e-5 * np.sin(2 * np.pi * np.hypot(x, y) / 0.05)  # 20 nm turning-mark ripple
+    return 2e-5 * np.sin(2 * np.pi * np.hypot(x, y) / 0.2)  # 20 nm waviness, 20 pixels/period
 
 
 def _virtual_measurement(tmp_path):
@@ -62,8 +62,8 @@ def test_compare_measured_recovers_residual_and_matches_simulation(tmp_path):
     ref = characterise_map(sim.machined - sim.design, pixel=PIXEL, form_removal="plane")
     # the measured residual is the ripple (seen from a tilted frame) plus 1 nm noise
     assert_allclose(m["measured"]["Sq_nm"], ref["Sq_nm"], rtol=0.05)
-    assert_allclose(m["simulated"]["Sq_nm"], ref["Sq_nm"], rtol=0.02)
-    assert m["difference"]["Sq_nm"] < 0.3 * ref["Sq_nm"]
+    assert_allclose(m["simulated"]["Sq_nm"], ref["Sq_nm"], rtol=0.03)
+    assert m["difference"]["Sq_nm"] < 0.15 * ref["Sq_nm"]
     assert set(cmp_.maps) >= {"measured", "design", "residual", "simulated_residual", "difference"}
 
 
@@ -72,6 +72,14 @@ def test_compare_bad_input(tmp_path):
     sim2 = HeightMap(sim.design[::2, ::2], sim.machined[::2, ::2], 2 * PIXEL, ORIGIN)
     with pytest.raises(InputError, match=r"measured 0.01 mm vs simulated 0.02 mm"):
         compare_measured(path, Freeform(), simulated=sim2)
+    with pytest.warns(UserWarning, match="resampled"):
+        c = compare_measured(path, Freeform(), simulated=sim2, resample_simulated=True)
+    assert c.metrics["difference"]["Sq_nm"] < 5.0
+    # heights in micrometres read as millimetres: 1000 x the design's range
+    zz = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],
+                        (ORIGIN[1] + PIXEL * np.arange(N))[:, None])
+    with pytest.raises(InputError, match="unit is probably wrong"):
+        compare_measured((zz * 1e3, PIXEL, ORIGIN), Freeform())
     with pytest.raises(InputError, match="does not overlap"):
         compare_measured(path, Freeform(), region=(10.0, 10.0, 11.0, 11.0))
     with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):

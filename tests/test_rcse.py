@@ -85,6 +85,7 @@ def test_ratchet_and_shuttle(scene, full_ccps):
     D = d * (2 * math.pi / N) / (2 * math.pi)
     idx = np.flatnonzero((c.ring == ring))[::50]
     idx = idx[idx + step < c.k.size]
+    assert idx.size > 100
     assert_allclose(c.rho[idx] - c.rho[idx + step], D, atol=1e-12)
     # basic element (n = 0) evaluated at the shuttled radius and the same local angle
     R, a = layout.ring_radii[ring], layout.element_radius
@@ -166,6 +167,7 @@ def test_build_rcse_toolpath_uncompensated_equals_ccps(scene):
     assert_allclose(path.z, surface.height(path.x, path.y), atol=1e-12)
     assert_allclose(path.t, path.theta / (2 * math.pi * 42 / 60))
     assert path.meta["method"] == "rcse" and path.meta["compensation"] == "none"
+    assert 0 < path.meta["chordal_error_max_mm"] < 1e-4  # linear C-X-Z between exact CCPs
     # Z compensation keeps X and lifts the tip off the concave spheres (R >> Rc: by ~0)
     pz = build_rcse_toolpath(scene, region=(3.3, -0.1, 3.5, 0.1))
     assert_allclose(pz.rho, path.rho)
@@ -201,7 +203,7 @@ def test_rcse_settings_defaults_and_section():
 def test_simulate_rcse_small_window(scene, tmp_path):
     from render_inspect.machining._rcse import simulate_rcse
 
-    s = scene.with_overrides(["simulation.region=[3.40, -0.06, 3.52, 0.06]", "simulation.pixel=0.004",
+    s = scene.with_overrides(["simulation.region=[0.81, -0.06, 0.93, 0.06]", "simulation.pixel=0.004",
                               "process.x_velocity_limit_mm_s=0.5"])
     res = simulate_rcse(s, plot_dir=tmp_path)
     m = res.metrics
@@ -216,5 +218,16 @@ def test_simulate_rcse_small_window(scene, tmp_path):
     assert cmp_["conventional"]["x_reversals"] > 100
     assert cmp_["conventional"]["x_velocity_max_mm_s"] > 100 * cmp_["rcse"]["x_velocity_max_mm_s"]
     assert cmp_["conventional"]["profile_error_max_nm"] > 1.0
+    # both machined: the RCSE residual is the one of the simulation itself
+    assert cmp_["rcse"]["residual"]["Sq_nm"] == pytest.approx(m["residual"]["Sq_nm"])
+    assert cmp_["conventional"]["residual"]["Sz_nm"] > cmp_["rcse"]["residual"]["Sz_nm"]
     assert (tmp_path / "rcse_kinematics.png").stat().st_size > 10_000
     assert res.heightmap.meta["process"] == "rcse"
+    res.plots["rcse_kinematics.png"](tmp_path / "again.png")
+    assert (tmp_path / "again.png").stat().st_size > 10_000
+
+
+def test_rcse_rejects_overlapping_elements(scene):
+    s = scene.with_overrides(["design.counts=[6, 12, 18, 24, 36]"])
+    with pytest.raises(SceneError, match="36 elements need a radius"):
+        build_rcse_toolpath(s, region=(3.3, -0.1, 3.5, 0.1))

@@ -135,3 +135,18 @@ def test_line_profile_bad_input_is_named():
         sculpt_line_profile(ys, ys, ys, cutting_speed=1.0, amplitude=-1.0)
     with pytest.raises(InputError, match="edges"):
         target_line(Plane(), 0.0, [0.1, 0.0], step=0.01)
+
+
+def test_a_window_matches_the_whole_array(scenes_dir):
+    """Simulating a window of the array cuts only the cells that reach it, with the same
+    result there as the whole array."""
+    full = simulate_sculpt(_scene(scenes_dir, n=5))
+    h = 5 * P / 2
+    k = P        # a window from the centre of lenslet (3, 3) to the top-right corner
+    win = simulate_sculpt(_scene(scenes_dir, n=5, extra=[f"simulation.region=[{k}, {k}, {h}, {h}]"]))
+    a, b = full.heightmap, win.heightmap
+    j0 = int(round((b.origin[1] - a.origin[1]) / a.pixel))
+    i0 = int(round((b.origin[0] - a.origin[0]) / a.pixel))
+    sub = a.machined[j0:j0 + b.shape[0], i0:i0 + b.shape[1]]
+    assert_allclose(b.machined, sub, rtol=0, atol=1e-12)
+    assert win.metrics["sculpt"]["target_points"] < full.metrics["sculpt"]["target_points"]

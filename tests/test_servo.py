@@ -109,8 +109,9 @@ def test_split_adds_up_and_fts_of_a_rotational_design_is_zero():
     assert np.abs(zf).max() < 1e-3 * np.ptp(path.z)
 
 
-def test_ideal_servo_without_lag_reproduces_the_commanded_surface():
-    scene = _lag_scene()
+@pytest.mark.parametrize("kind", ["hts", "fts"])
+def test_ideal_servo_without_lag_reproduces_the_commanded_surface(kind):
+    scene = _lag_scene(kind=kind)
     res = simulate_hts(scene)
     sts = simulate_sts(scene.with_overrides(["process.kind='sts'"]))
     assert_allclose(res.heightmap.machined, sts.heightmap.machined, rtol=0, atol=1e-12)
@@ -196,3 +197,16 @@ def test_hts_scene_file_loads(scenes_dir):
     # every lenslet rim lies on the 15 mm blank
     rims = [math.hypot(x, y) + 0.5 for _, _, x, y in surf.centers()]
     assert len(rims) == 49 and max(rims) < scene.process.workpiece_radius
+
+
+def test_coarse_time_samples_are_refined_for_a_fast_servo():
+    """A 1 kHz servo on a 2.5 kHz path sampling: the linear command is filtered on a fine
+    grid, so the result matches the fine-sampled response at the path's samples."""
+    t_fine = np.arange(0, 0.2, 1e-6)
+    x_fine = np.sin(2 * np.pi * 40 * t_fine)
+    t = t_fine[::400]
+    x = x_fine[::400]
+    x_lin = np.interp(t_fine, t, x)            # what the axes are told between the samples
+    ref = servo_response(x_lin, t_fine, bandwidth_hz=1000.0, damping=0.7)[::400]
+    y = servo_response(x, t, bandwidth_hz=1000.0, damping=0.7)
+    assert_allclose(y, ref, atol=1e-3)     # filtering the 2.5 kHz samples directly: 0.04

@@ -90,8 +90,12 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
 def _read_surfalize(path, **_):
     import surfalize
 
+    import warnings
+
     try:
-        s = surfalize.Surface.load(str(path))
+        with warnings.catch_warnings():  # non-square pixels: we raise a clearer error below
+            warnings.filterwarnings("ignore", message=".*different pixel size.*")
+            s = surfalize.Surface.load(str(path))
     except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
         raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
     z = np.asarray(s.data, dtype=np.float64) * 1e-3  # um -> mm

@@ -3,18 +3,20 @@ compared with the conventional path interpolated from a rectangular point cloud.
 
 from __future__ import annotations
 
+import functools
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ._heightmap import HeightMap
+from ._metrics import residual_metrics
 from ._result import SimulationResult
 
 __all__ = ["simulate_rcse", "rcse_comparison", "plot_rcse_comparison"]
 
 
-def rcse_comparison(scene, path, surface) -> tuple[dict, object]:
+def rcse_comparison(scene, path, surface, *, heightmap: HeightMap | None = None) -> tuple[dict, object]:
     """Compare the RCSE path with the conventional one over the same spiral samples.
 
     Parameters
@@ -24,14 +26,19 @@ def rcse_comparison(scene, path, surface) -> tuple[dict, object]:
         The RCSE path (with ``ccp_rho`` / ``ccp_z``).
     surface : Surface
         The design.
+    heightmap : HeightMap, optional
+        The RCSE simulation (design and machined on ``scene.simulation``'s grid).  If given
+        and ``rcse.simulate_conventional``, the conventional path is Z-compensated on its
+        own point-cloud model and machined over the same grid, and both residuals are
+        reported (``residual``: Sa, Sq, Sz, min in nm).
 
     Returns
     -------
-    (metrics, conventional ToolPath)
-        ``metrics``: ``rcse`` and ``conventional`` kinematics maxima (X velocity /
-        acceleration, reversals), profile errors (nm: max |error|, RMS) and times.
-        The conventional path carries its CCP heights (no tool compensation) so its X
-        motion is what the point cloud gives.
+    (metrics, (rcse CCP path, conventional CCP path))
+        ``metrics``: ``rcse`` and ``conventional`` X velocity / acceleration / jerk
+        maxima, mean |vX|, X reversals, profile errors (nm: max |error|, RMS), the
+        conventional modelling and interpolation times.  The paths carry the CCP heights
+        (no tool compensation): their X motion is what each method programs.
     """
     from ..toolpath import ToolPath
     from ..toolpath._kinematics import kinematics
@@ -41,12 +48,13 @@ def rcse_comparison(scene, path, surface) -> tuple[dict, object]:
     theta = np.asarray(path.theta)
     rho = np.asarray(path.ccp_rho if path.ccp_rho is not None else path.rho)
     z = np.asarray(path.ccp_z if path.ccp_z is not None else path.z)
+    t = np.asarray(path.t)
     conv = conventional_ccps(surface, theta, rho, grid_spacing=st["grid_spacing"],
                              interpolation=st["interpolation"], snap_to_rows=st["snap_to_rows"])
-    conv_path = ToolPath(theta.copy(), conv["rho"], conv["z"], np.asarray(path.t).copy(),
+    conv_path = ToolPath(theta.copy(), conv["rho"], conv["z"], t.copy(),
                          {"method": "conventional", "grid_spacing_mm": st["grid_spacing"],
                           "interpolation": st["interpolation"], "snap_to_rows": st["snap_to_rows"]})
-    ccp_path = ToolPath(theta.copy(), rho.copy(), z.copy(), np.asarray(path.t).copy(), {"method": "rcse"})
+    ccp_path = ToolPath(theta.copy(), rho.copy(), z.copy(), t.copy(), {"method": "rcse"})
     err_rcse = z - surface.height(rho * np.cos(theta), rho * np.sin(theta))
     keys = ("x_velocity_max_mm_s", "x_acceleration_max_mm_s2", "x_jerk_max_mm_s3",
             "x_velocity_mean_mm_s", "x_reversals", "z_velocity_max_mm_s", "z_acceleration_max_mm_s2")
@@ -66,7 +74,34 @@ def rcse_comparison(scene, path, surface) -> tuple[dict, object]:
                          "interpolation": st["interpolation"], "snap_to_rows": st["snap_to_rows"]},
         "points_compared": int(theta.size),
     }
+    if heightmap is not None and st["simulate_conventional"]:
+        out["rcse"]["residual"] = _short(residual_metrics(heightmap))
+        out["conventional"]["residual"] = _short(residual_metrics(
+            _machine_conventional(scene, conv_path, conv["model"], heightmap), heightmap.design))
     return out, (ccp_path, conv_path)
+
+
+def _short(r: dict) -> dict:
+    return {k: r[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm", "min_nm") if k in r}
+
+
+def _machine_conventional(scene, conv_path, model, heightmap) -> np.ndarray:
+    """The surface the conventional path machines: its CCP heights lifted by the Z
+    compensation computed on its own point-cloud model at the machine position (C, X)."""
+    from ..toolpath import Tool, ToolPath, z_compensation
+    from ..toolpath._rcse import RingLayout
+    from ._envelope import simulate_turning
+
+    tool = Tool.from_config(scene.tool)
+    slope = RingLayout.from_config(scene.design).max_slope * 1.05
+    th, rc = conv_path.theta, conv_path.rho
+    m_here = model.height(rc * np.cos(th), rc * np.sin(th))
+    lift = z_compensation(model, th, rc, tool.nose_radius, max_slope=slope,
+                          half_width=tool.half_width) - m_here
+    tip = ToolPath(th, rc, conv_path.z + lift, conv_path.t, dict(conv_path.meta))
+    sim = scene.simulation
+    return simulate_turning(tip, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
+                            half_width=tool.half_width)
 
 
 def plot_rcse_comparison(paths, png_path) -> Path:
@@ -92,6 +127,8 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
         The design (built from ``scene.design`` if None).
     plot_dir : str or Path, optional
         If given, ``rcse_kinematics.png`` (RCSE vs conventional X motion) is written there.
+        Without it, the result's ``plots`` attribute maps ``"rcse_kinematics.png"`` to a
+        function ``fn(png_path)`` that draws it (for the output writer).
 
     Returns
     -------
@@ -106,7 +143,6 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     from ..toolpath._rcse import RingLayout, build_rcse_toolpath, rcse_ccps, rcse_settings
     from ..toolpath._build import region_radii
     from ._envelope import simulate_turning
-    from ._metrics import residual_metrics
     from ._sts import check_memory, design_grid, toolpath_metrics
 
     timing: dict = {}
@@ -145,7 +181,7 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     st = rcse_settings(scene)
     if st["compare_conventional"]:
         t1 = time.perf_counter()
-        comp, pair = rcse_comparison(scene, path, surface)
+        comp, pair = rcse_comparison(scene, path, surface, heightmap=hm)
         rcse["comparison"] = comp
         timing["comparison"] = time.perf_counter() - t1
         if plot_dir is not None:
@@ -153,4 +189,9 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     metrics = {"residual": residual_metrics(hm), "toolpath": tp, "rcse": rcse}
     timing["metrics"] = time.perf_counter() - t0 - timing.get("comparison", 0.0)
     timing["simulate"] = timing["envelope"] + timing["design"] + timing["metrics"]
-    return SimulationResult(hm, path, metrics, timing)
+    res = SimulationResult(hm, path, metrics, timing)
+    # figures the writer may draw into the output folder: file name -> fn(png_path)
+    res.plots = {}
+    if st["compare_conventional"]:
+        res.plots["rcse_kinematics.png"] = functools.partial(plot_rcse_comparison, pair)
+    return res

@@ -35,10 +35,11 @@ from numba import njit
 
 from ..errors import AccessibilityError, InputError, MemoryBudgetError, SceneError, check_range
 from ._heightmap import HeightMap
+from ._metrics import residual_metrics
 from ._result import SimulationResult
 
 __all__ = ["simulate_sculpt", "sculpt_line_profile", "sculpt_surface", "target_line",
-           "lattice_lines"]
+           "lattice_lines", "vibration_phases"]
 
 
 @njit(cache=True)
@@ -67,37 +68,65 @@ def _sweep_segment(ya, za, yb, zb, y0, dy, out):  # pragma: no cover - numba
 
 
 @njit(cache=True)
-def _sweep_line(ys, zs, y_start, vc, amp, freq, dt, n_steps, y0, dy, out):  # pragma: no cover - numba
+def _sweep_line(ys, zs, t_start, vc, amp, freq, phases, y0, dy, out):  # pragma: no cover - numba
     """Lower envelope along one target line of the swept edge's lowest point.
 
-    Time runs from 0 in ``n_steps`` steps of ``dt``; the command's breakpoints ``ys`` are
-    inserted at their own times, so the tool tip moves along straight segments between
-    consecutive (time sample or breakpoint) positions.  ``out[j]`` (row j at y0 + j dy)
-    keeps the lowest z passing it."""
+    The tool tip is followed through a merged sequence of events: the command's
+    breakpoints ``ys`` (at their own times) and, with vibration, the sample ``phases``
+    (rad, sorted in [0, 2 pi)) of every vibration period counted from t = 0 (so a part of a
+    line gives the same samples as the whole line).  Between consecutive events the tip
+    moves on a straight segment; ``out[j]`` (row j at y0 + j dy) keeps the lowest z
+    passing it.  The tool is at ``ys[0]`` at time ``t_start``."""
     m = ys.shape[0]
-    k = 0          # segment of the command holding the current nominal position
-    two_pi_f = 2.0 * math.pi * freq
-    y_prev = y_start + amp
+    y_start = ys[0]
+    t_end = t_start + (ys[m - 1] - y_start) / vc
+    two_pi = 2.0 * math.pi
+    vib = amp > 0.0 and freq > 0.0
+    npha = phases.shape[0]
+    # first vibration sample after t_start
+    p = 0
+    jph = 0
+    t_vib = 1e300
+    if vib:
+        p = int(math.floor(t_start * freq))
+        jph = 0
+        t_vib = (p + phases[0] / two_pi) / freq
+        while t_vib <= t_start:
+            jph += 1
+            if jph == npha:
+                jph = 0
+                p += 1
+            t_vib = (p + phases[jph] / two_pi) / freq
+    kb = 1                                   # next breakpoint
+    y_prev = y_start + amp * math.cos(two_pi * freq * t_start)
     z_prev = zs[0]
-    for i in range(1, n_steps + 1):
-        t = i * dt
-        u = y_start + vc * t
-        if u > ys[m - 1]:
-            u = ys[m - 1]
-        # breakpoints passed since the previous sample, at their own times
-        while k < m - 2 and ys[k + 1] <= u:
-            k += 1
-            tb = (ys[k] - y_start) / vc
-            yb = ys[k] + amp * math.cos(two_pi_f * tb)
-            _sweep_segment(y_prev, z_prev, yb, zs[k], y0, dy, out)
-            y_prev = yb
-            z_prev = zs[k]
-        w = (u - ys[k]) / (ys[k + 1] - ys[k])
-        z = zs[k] + w * (zs[k + 1] - zs[k])
-        y = u + amp * math.cos(two_pi_f * t)
+    while True:
+        t_bp = t_start + (ys[kb] - y_start) / vc
+        if t_bp <= t_vib:
+            t = t_bp
+            z = zs[kb]
+            is_bp = True
+        else:
+            t = t_vib
+            u = y_start + vc * (t - t_start)
+            w = (u - ys[kb - 1]) / (ys[kb] - ys[kb - 1])
+            z = zs[kb - 1] + w * (zs[kb] - zs[kb - 1])
+            is_bp = False
+        y = (ys[kb] if is_bp else u) + amp * math.cos(two_pi * freq * t)
         _sweep_segment(y_prev, z_prev, y, z, y0, dy, out)
         y_prev = y
         z_prev = z
+        if is_bp:
+            if kb == m - 1:
+                break
+            kb += 1
+        else:
+            jph += 1
+            if jph == npha:
+                jph = 0
+                p += 1
+            t_vib = (p + phases[jph] / two_pi) / freq
+    return t_end
 
 
 def target_line(surface, x_line: float, edges, *, step: float):
@@ -123,9 +152,24 @@ def target_line(surface, x_line: float, edges, *, step: float):
     return ys, zs
 
 
+def vibration_phases(cutting_speed: float, amplitude: float, frequency_hz: float,
+                     samples_per_period: int = 16) -> np.ndarray:
+    """Phases (rad, sorted in [0, 2 pi)) at which each vibration period is sampled:
+    ``samples_per_period`` uniform phases plus the front- and back-cut limits, where the
+    tool stops along the cut, y'(t) = v_c - 2 pi f A sin(2 pi f t) = 0 (seed 003 eq. 6), so
+    the envelope's extreme points are exact.  Without reversal (v_c >= 2 pi f A) only the
+    uniform phases."""
+    ph = list(2 * math.pi * np.arange(samples_per_period) / samples_per_period)
+    eps = cutting_speed / (2 * math.pi * frequency_hz * amplitude)
+    if eps < 1:
+        a = math.asin(eps)
+        ph += [a, math.pi - a]
+    return np.unique(np.mod(np.array(ph), 2 * math.pi))
+
+
 def sculpt_line_profile(ys, zs, y_grid, *, cutting_speed: float, amplitude: float = 0.0,
                         frequency_hz: float = 0.0, samples_per_period: int = 16,
-                        max_step: float | None = None) -> np.ndarray:
+                        t_start: float = 0.0) -> np.ndarray:
     """Lowest tool-tip height reached above each y of ``y_grid`` along one target line.
 
     Parameters
@@ -141,10 +185,12 @@ def sculpt_line_profile(ys, zs, y_grid, *, cutting_speed: float, amplitude: floa
     frequency_hz : float
         f, Hz (>= 0); 0 or ``amplitude`` 0 means no vibration.
     samples_per_period : int
-        Time samples per vibration period (>= 4).
-    max_step : float, optional
-        Largest nominal advance per time sample without vibration (mm); defaults to a
-        quarter of the row spacing.
+        Uniform time samples per vibration period (>= 4), plus the front- and back-cut
+        limits (:func:`vibration_phases`).  Without vibration the tip moves straight
+        between the command's breakpoints, which are the only samples needed.
+    t_start : float
+        Time (s) at which the tool is at ``ys[0]``: sets the vibration's phase, so a line
+        cut in part gives the same result as the whole line.
 
     Returns
     -------
@@ -160,18 +206,12 @@ def sculpt_line_profile(ys, zs, y_grid, *, cutting_speed: float, amplitude: floa
     check_range("frequency_hz", frequency_hz, 0.0, None)
     check_range("samples_per_period", samples_per_period, 4, 10_000)
     dy = float(y_grid[1] - y_grid[0]) if y_grid.size > 1 else 1.0
-    length = float(ys[-1] - ys[0])
-    T = length / cutting_speed
     vib = amplitude > 0 and frequency_hz > 0
-    adv = max_step if max_step is not None else dy / 4
-    dt = adv / cutting_speed
-    if vib:
-        dt = min(dt, 1.0 / (frequency_hz * samples_per_period))
-    n_steps = int(math.ceil(T / dt))
-    dt = T / n_steps
+    phases = vibration_phases(cutting_speed, amplitude, frequency_hz, samples_per_period) if vib \
+        else np.zeros(1)
     out = np.full(y_grid.size, np.inf)
-    _sweep_line(ys, zs, float(ys[0]), float(cutting_speed), float(amplitude if vib else 0.0),
-                float(frequency_hz if vib else 0.0), float(dt), n_steps, float(y_grid[0]), dy, out)
+    _sweep_line(ys, zs, float(t_start), float(cutting_speed), float(amplitude if vib else 0.0),
+                float(frequency_hz if vib else 0.0), phases, float(y_grid[0]), dy, out)
     out[~np.isfinite(out)] = np.nan
     return out
 
@@ -287,13 +327,21 @@ def simulate_sculpt(scene) -> SimulationResult:
 
     # lines whose edge reaches the region
     used = [k for k, xk in enumerate(x_lines) if xk + half_width >= x0 and xk - half_width <= x1]
+    # only the cells along y whose cut can reach the region (the vibration reaches A
+    # beyond the nominal position; one whole cell of run-in is kept on either side)
+    reach = 2 * vib.amplitude + px
+    ia = max(int(np.searchsorted(y_edges, y0 - reach, side="right")) - 2, 0)
+    ib = min(int(np.searchsorted(y_edges, y1 + reach, side="left")) + 1, len(y_edges) - 1)
+    y_line_start = float(y_edges[0])
+    y_edges = y_edges[ia:ib + 1]
     t_path = time.perf_counter()
     lines = [target_line(surface, x_lines[k], y_edges, step=step) for k in used]
     t_path = time.perf_counter() - t_path
 
     t_sim = time.perf_counter()
     prof_vib = np.array([sculpt_line_profile(ys, zs, yg, cutting_speed=vc, amplitude=vib.amplitude,
-                                             frequency_hz=vib.frequency_hz, samples_per_period=spp)
+                                             frequency_hz=vib.frequency_hz, samples_per_period=spp,
+                                             t_start=(ys[0] - y_line_start) / vc)
                          for ys, zs in lines]).reshape(len(used), ny)
     prof_0 = np.array([sculpt_line_profile(ys, zs, yg, cutting_speed=vc)
                        for ys, zs in lines]).reshape(len(used), ny)
@@ -308,8 +356,10 @@ def simulate_sculpt(scene) -> SimulationResult:
     seed = int(sim.seed)
     machined, burr_info = apply_burrs(machined, design, pixel=px, origin=(x0, y0),
                                       cfg=scene.artifacts.burrs, seed=seed)
-    n_time = sum(int(math.ceil((ys[-1] - ys[0]) / vc * max(vib.frequency_hz, 1e-300) * spp))
-                 if vib.amplitude > 0 and vib.frequency_hz > 0 else 0 for ys, _ in lines)
+    per_period = (len(vibration_phases(vc, vib.amplitude, vib.frequency_hz, spp))
+                  if vib.amplitude > 0 and vib.frequency_hz > 0 else 0)
+    n_time = sum(int(math.ceil((ys[-1] - ys[0]) / vc * vib.frequency_hz * per_period)) + ys.size
+                 for ys, _ in lines)
     metrics = {
         "sculpt": {"lines": len(used), "line_x_mm": [float(v) for v in xl],
                    "cutting_speed_mm_s": vc, "target_step_mm": step,
@@ -323,11 +373,32 @@ def simulate_sculpt(scene) -> SimulationResult:
                       "samples_per_period": spp,
                       "peak_velocity_mm_s": 2 * math.pi * vib.frequency_hz * vib.amplitude},
         "burrs": burr_info,
-        "seed": seed,
+        # linear X-Y-Z cutting: no spiral; points = target-line samples
+        "toolpath": {"points": int(sum(ys.size for ys, _ in lines)), "revolutions": 0.0,
+                     "feed_per_rev_mm": None, "kind": "sculpt", "lines": len(used),
+                     "line_spacing_mm": float(np.median(np.diff(x_lines))) if len(x_lines) > 1 else None,
+                     "cut_time_s": float(sum((ys[-1] - ys[0]) / vc for ys, _ in lines))},
     }
     meta = {"process": "sculpt", "seed": seed, "compensation": "none",
             "vibration": metrics["vibration"], "burrs": burr_info}
     hm = HeightMap(design, machined, px, (x0, y0), scene=scene.to_dict(), meta=meta)
+    metrics["residual"] = residual_metrics(hm)
+    t_l = time.perf_counter()
+    metrics["lenslets"] = _lenslet_metrics(hm, surface)
+    timing_l = time.perf_counter() - t_l
     total = time.perf_counter() - t0
     return SimulationResult(heightmap=hm, toolpath=None, metrics=metrics,
-                            timing_s={"toolpath": t_path, "simulate": t_sim, "total": total})
+                            timing_s={"toolpath": t_path, "simulate": t_sim, "lenslets": timing_l,
+                                      "total": total})
+
+
+def _lenslet_metrics(hm, surface) -> list[dict]:
+    """``lenslets``: metrology's per-lenslet fit (centre, dislocation, form error inside
+    0.95 x half the pitch) of the machined map; lenslets cut by the region are left out."""
+    import warnings
+
+    from ..metrology._msa import lenslet_table
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return lenslet_table(hm, surface)

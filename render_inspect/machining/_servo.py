@@ -58,7 +58,9 @@ def servo_response(command, t, *, bandwidth_hz: float | None = None, damping: fl
     command : (n,) array, mm
         Commanded axis position.
     t : (n,) array, s
-        Increasing times.  Uneven steps are resampled to the smallest step for filtering.
+        Increasing times.  The command is taken as linear between samples (as the machine
+        axes interpolate); it is filtered on a uniform grid of the smallest step, refined
+        to at least 20 samples per 1 / ``bandwidth_hz``, and read back at ``t``.
     bandwidth_hz : float or None
         Natural frequency fn of the second-order response (its -3 dB bandwidth for
         damping 0.707); None = ideal (no dynamics).
@@ -89,15 +91,20 @@ def servo_response(command, t, *, bandwidth_hz: float | None = None, damping: fl
 
         dt = float(dts.min())
         uniform = float(dts.max() - dt) <= 1e-9 * dt
-        if uniform:
+        # the axes interpolate linearly between points, so the command is the piecewise
+        # linear function of t: filter it on a grid of >= 20 samples per 1 / fn
+        dt_f = min(dt, 1.0 / (20.0 * float(bandwidth_hz)))
+        if uniform and dt_f == dt:
             tu, xu = t, x
         else:
-            n = int(math.ceil((t[-1] - t[0]) / dt)) + 1
+            n = int(math.ceil((t[-1] - t[0]) / dt_f)) + 1
             if n > _MAX_SAMPLES:
-                raise InputError(f"servo_response: resampling the uneven time axis needs {n} samples "
-                                 f"(> {_MAX_SAMPLES}); use constant-angle sampling")
+                raise InputError(f"servo_response: filtering needs {n} time samples (> {_MAX_SAMPLES}); "
+                                 "shorten the path (simulation.region) or lower bandwidth_hz")
+            dt = (t[-1] - t[0]) / (n - 1)
             tu = t[0] + dt * np.arange(n)
             xu = np.interp(tu, t, x)
+            uniform = False
         sos = _second_order_sos(float(bandwidth_hz), float(damping), dt)
         zi = signal.sosfilt_zi(sos) * xu[0]
         yu, _ = signal.sosfilt(sos, xu, zi=zi)

@@ -10,11 +10,13 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, check_positive
-from ._filters import l_filter, remove_form, s_filter, valid_mask
+from ._filters import l_filter, remove_form, s_filter
 from ._params import areal_parameters
-from ._registration import MovedSurface, detect_outliers, register_icp, register_lsq
+from ._registration import (RIGID_KEYS, MovedSurface, detect_outliers, register_icp,
+                            register_lsq, rotation_matrix)
 
-__all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "Comparison",
+__all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
+           "Comparison",
            "compare_measured"]
 
 
@@ -95,12 +97,18 @@ def check_same_pixel(pixel_a: float, pixel_b: float, *, name_a: str = "measured"
 
 def resample_map(z, *, pixel: float, origin, target_pixel: float, target_origin, target_shape):
     """Bilinear resampling of a map onto another grid; NaN outside and next to missing points."""
-    check_positive("pixel", pixel)
     check_positive("target_pixel", target_pixel)
     ny, nx = target_shape
     x = target_origin[0] + target_pixel * np.arange(nx)
     y = target_origin[1] + target_pixel * np.arange(ny)
     xx, yy = np.meshgrid(x, y)
+    return sample_map(z, xx, yy, pixel=pixel, origin=origin)
+
+
+def sample_map(z, xx, yy, *, pixel: float, origin):
+    """Bilinear look-up of a map at points (``xx``, ``yy``) (mm); NaN outside the map and
+    next to missing points."""
+    check_positive("pixel", pixel)
     col = (xx - origin[0]) / pixel
     row = (yy - origin[1]) / pixel
     z = np.asarray(z, float)
@@ -109,6 +117,25 @@ def resample_map(z, *, pixel: float, origin, target_pixel: float, target_origin,
     bad = ndimage.map_coordinates((~ok).astype(float), [row, col], order=1, mode="constant", cval=1.0)
     inside = (row >= 0) & (row <= z.shape[0] - 1) & (col >= 0) & (col <= z.shape[1] - 1)
     return np.where(inside & (bad < 1e-9), v, np.nan)
+
+
+def _check_units(z, design, *, pixel, origin):
+    """Raise when the measured height range and the design's differ by > 100 x: a map in
+    micrometres read as millimetres (or the reverse) would otherwise give silent nonsense."""
+    ny, nx = z.shape
+    step = max(1, max(ny, nx) // 64)
+    x = origin[0] + pixel * np.arange(0, nx, step)
+    y = origin[1] + pixel * np.arange(0, ny, step)
+    d = np.asarray(design.height(x[None, :], y[:, None]), float)
+    zs = z[::step, ::step]
+    ok = np.isfinite(d) & np.isfinite(zs)
+    if ok.sum() < 4:
+        return
+    pd, pm = float(np.ptp(d[ok])), float(np.ptp(zs[ok]))
+    if pd > 1e-6 and pm > 0 and not 0.01 < pm / pd < 100:
+        raise InputError(f"the measured heights span {pm:.4g} mm but the design spans {pd:.4g} mm "
+                         f"over the same area (ratio {pm / pd:.3g}): the measurement's height "
+                         f"unit is probably wrong (read_measured(..., units='um'|'nm'|'mm'))")
 
 
 @dataclass
@@ -135,7 +162,7 @@ class Comparison:
 
 
 def compare_measured(measured, design_surface, *, metrology=None, simulated=None, region=None,
-                     seed: int = 0) -> Comparison:
+                     seed: int = 0, resample_simulated: bool = False) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
 
     Chain: read (:func:`~render_inspect.io.read_measured`) -> outliers (second difference,
@@ -159,6 +186,17 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         mm; the area the comparison should cover (e.g. ``scene.simulation.region``).
     seed : int
         Seed of the point subset used by the registration (recorded in the metrics).
+    resample_simulated : bool
+        When the simulation's pixel differs from the measurement's: False (default) raises
+        an :class:`InputError` naming both; True resamples the simulation (bilinear) onto
+        the measured points with a warning.
+
+    Raises
+    ------
+    InputError
+        Pixel sizes differ (see ``resample_simulated``); the map does not overlap
+        ``region``; the measured heights span a range 100 x larger or smaller than the
+        design's over the same area (wrong units?); no valid points.
     """
     from ..io import read_measured
 
@@ -174,8 +212,12 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
     dof = tuple(_cfg_get(metrology, "registration_dof",
                          ("tx", "ty", "tz", "alpha", "beta", "gamma")))
     min_cov = float(_cfg_get(metrology, "min_coverage", 0.95))
-    if simulated is not None:
+    if simulated is not None and not resample_simulated:
         check_same_pixel(pixel, simulated.pixel)
+    elif simulated is not None and not np.isclose(pixel, simulated.pixel, rtol=1e-6):
+        warnings.warn(f"pixel sizes differ (measured {pixel:g} mm, simulated {simulated.pixel:g} "
+                      f"mm): the simulation is resampled bilinearly onto the measured points",
+                      stacklevel=2)
     cov = None
     if region is not None:
         cov = coverage(z, pixel=pixel, origin=origin, region=region)
@@ -187,6 +229,7 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
             warnings.warn(f"the measurement covers only {cov:.1%} of the region {tuple(region)} mm "
                           f"(metrology.min_coverage = {min_cov:.0%}); parameters describe the "
                           f"covered part only", stacklevel=2)
+    _check_units(z, design_surface, pixel=pixel, origin=origin)
     cleaned, outl = detect_outliers(z, pixel=pixel, k=k)
     use = np.isfinite(cleaned) & ~outl
     if method == "lsq":
@@ -222,9 +265,18 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
                "pixel_mm": pixel, "origin_mm": list(origin)}
     maps = {"measured": cleaned, "design": design_map, "residual": residual}
     if simulated is not None:
-        sim_res = resample_map(np.asarray(simulated.machined) - np.asarray(simulated.design),
-                               pixel=simulated.pixel, origin=simulated.origin, target_pixel=pixel,
-                               target_origin=origin, target_shape=z.shape)
+        # the simulation lives in the design frame: look it up where each measured point
+        # lies in that frame (the inverse of the registration)
+        xx, yy = np.meshgrid(x, y)
+        if reg is not None:
+            vec = np.array([reg[k] for k in RIGID_KEYS])
+            rot = rotation_matrix(*vec[3:])
+            zz = np.where(np.isfinite(design_map), design_map, 0.0)
+            px, py, pz = xx - vec[0], yy - vec[1], zz - vec[2]
+            xx = rot[0, 0] * px + rot[1, 0] * py + rot[2, 0] * pz
+            yy = rot[0, 1] * px + rot[1, 1] * py + rot[2, 1] * pz
+        sim_res = sample_map(np.asarray(simulated.machined) - np.asarray(simulated.design),
+                             xx, yy, pixel=simulated.pixel, origin=simulated.origin)
         both = np.isfinite(sim_res) & np.isfinite(residual)
         if not both.any():
             raise InputError(f"the measured map and the simulation do not overlap (measured origin "

@@ -59,11 +59,19 @@ def lenslet_centers(design, centers=None) -> list[tuple[int, int, float, float]]
     return out
 
 
+def _attr(design, name, default=None):
+    """``design.name``, else ``design.feature.name`` (a lenslet array on a base, Compound)."""
+    v = getattr(design, name, None)
+    if v is None and getattr(design, "feature", None) is not None:
+        v = getattr(design.feature, name, None)
+    return default if v is None else v
+
+
 def _aperture(design, aperture_radius):
     if aperture_radius is None:
-        aperture_radius = getattr(design, "aperture_radius", None)
+        aperture_radius = _attr(design, "aperture_radius")
     if aperture_radius is None:
-        px, py = getattr(design, "pitch_x", None), getattr(design, "pitch_y", None)
+        px, py = _attr(design, "pitch_x"), _attr(design, "pitch_y")
         if px is None or py is None:
             raise InputError("pass aperture_radius= (mm): the design gives neither aperture_radius "
                              "nor pitch_x/pitch_y")
@@ -108,6 +116,24 @@ def _stats_um(r):
     r = r - r.mean()
     return {"Sa_um": float(np.mean(np.abs(r)) * 1e3), "Sq_um": float(np.sqrt(np.mean(r * r)) * 1e3),
             "PV_um": float((r.max() - r.min()) * 1e3)}
+
+
+def _lenslet_model(design, px, py):
+    """Split the design at the points (px, py) into ``fixed + feature(u - dx, v - dy)``: only
+    the lenslet moves, the base stays.  For a Compound (base + lenslet feature) the base is
+    fixed exactly; for a registered Compound (:class:`MovedSurface`) the feature is moved
+    in design coordinates (u, v); otherwise the whole local design is shifted (exact on a
+    flat base; on a base of radius R_base it biases the centre by dislocation x
+    R_lens / R_base)."""
+    inner = design.surface if isinstance(design, MovedSurface) else design
+    base, feat = getattr(inner, "base", None), getattr(inner, "feature", None)
+    if base is None or feat is None or not hasattr(feat, "height"):
+        return 0.0, design, px, py
+    if inner is design:
+        return np.asarray(base.height(px, py), float), feat, px, py
+    m = np.asarray(design.height(px, py), float)
+    u, v, _ = design.to_design(px, py, m)
+    return m - np.asarray(feat.height(u, v), float), feat, u, v
 
 
 def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float | None = None,
@@ -174,11 +200,18 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
             continue
         px, py, pz = xx[sel], yy[sel], z[j0:j1, i0:i1][sel]
 
-        def resid(p, px=px, py=py, pz=pz):
-            return pz - design_surface.height(px - p[0], py - p[1]) - p[2]
+        fixed, feat, u, v = _lenslet_model(design_surface, px, py)
 
-        d0 = pz - design_surface.height(px, py)
+        def resid(p, u=u, v=v, pz=pz, fixed=fixed, feat=feat):
+            return pz - fixed - feat.height(u - p[0], v - p[1]) - p[2]
+
+        def jac(p, u=u, v=v, feat=feat):
+            gx, gy = feat.gradient(u - p[0], v - p[1])
+            return np.column_stack([gx, gy, -np.ones_like(u)])
+
+        d0 = resid(np.zeros(3))
         sol = least_squares(resid, [0.0, 0.0, float(np.mean(d0))], x_scale=[1e-3, 1e-3, 1e-3],
+                            jac=jac if hasattr(feat, "gradient") else "2-point",
                             diff_step=1e-7, xtol=1e-13, ftol=1e-15, gtol=1e-15, max_nfev=200)
         dx, dy, dz = sol.x
         r = sol.fun
@@ -206,7 +239,7 @@ def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cente
     base data is left (lenslets that fill the area, as seed 003's MLA: a design with
     ``cells == "quad"`` has no base unless ``has_base=True``)."""
     if has_base is None:
-        has_base = getattr(design_surface, "cells", "round") != "quad"
+        has_base = _attr(design_surface, "cells", "round") != "quad"
     if not has_base:
         return None
     z = np.asarray(z, float)
@@ -227,7 +260,7 @@ def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cente
 def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), centers=None,
                      aperture_radius: float | None = None, inner: float = 0.95,
                      outer: float = 1.05, outlier_k: float = 3.0, register: bool = True,
-                     fit=("tx", "ty", "tz", "alpha", "beta", "gamma")) -> dict:
+                     fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), metrology=None) -> dict:
     """Seed 002's characterisation of a MSA on a base, end to end.
 
     1. outliers by the second-difference ``outlier_k``-sigma rule (replaced, left out of fits);
@@ -237,6 +270,11 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
        (:func:`lenslet_table`) against the registered design;
     4. base form error (:func:`base_form_error`).
 
+    ``metrology`` (a scene's ``[metrology]`` section or dict), when given, supplies
+    ``inner`` (``msa_inner``), ``outer`` (``msa_outer``), ``outlier_k``
+    (``outlier_sigma``), ``fit`` (``registration_dof``) and ``register``
+    (``registration != "none"``).
+
     Returns
     -------
     dict
@@ -244,6 +282,15 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
         ``registration`` (dict or None), ``outliers`` (count), ``summary``
         (max |dislocation|, mean and max per-lenslet Sq).
     """
+    if metrology is not None:
+        def get(key, default):
+            return metrology.get(key, default) if isinstance(metrology, dict) else getattr(
+                metrology, key, default)
+
+        inner, outer = float(get("msa_inner", inner)), float(get("msa_outer", outer))
+        outlier_k = float(get("outlier_sigma", outlier_k))
+        fit = tuple(get("registration_dof", fit))
+        register = get("registration", "lsq") != "none"
     z = np.asarray(z, float)
     cen = lenslet_centers(design_surface, centers)
     ap = _aperture(design_surface, aperture_radius)
@@ -255,7 +302,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
         _, base, _ = separate_msa(z.shape, cen, pixel=pixel, origin=origin, aperture_radius=ap,
                                   inner=inner, outer=outer)
         init = None
-        if getattr(design_surface, "cells", "round") != "quad" and (base & use).sum() > 0.1 * use.sum():
+        if _attr(design_surface, "cells", "round") != "quad" and (base & use).sum() > 0.1 * use.sum():
             init = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin,
                                 mask=base & use, fit=fit)
         reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
@@ -267,7 +314,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
                           inner=inner, mask=use)
     base = base_form_error(cleaned, surf, pixel=pixel, origin=origin, centers=cen,
                            aperture_radius=ap, outer=outer, mask=use,
-                           has_base=getattr(design_surface, "cells", "round") != "quad")
+                           has_base=_attr(design_surface, "cells", "round") != "quad")
     disl = [np.hypot(e["dx_um"], e["dy_um"]) for e in table]
     sq = [e["Sq_um"] for e in table]
     summary = {"n_lenslets": len(table),

@@ -47,12 +47,14 @@ def areal_parameters(z, *, pixel: float, mask=None) -> dict:
         raise InputError(f"areal_parameters: need at least 2 valid (finite, unmasked) points, got {n}")
     v = z[ok]
     d = v - v.mean()
-    sq = float(np.sqrt(np.mean(d * d)))
+    d2 = d * d
+    sq = float(np.sqrt(np.mean(d2)))
     out = {"Sa": float(np.mean(np.abs(d))), "Sq": sq, "Sp": float(d.max()), "Sv": float(-d.min())}
     out["Sz"] = out["Sp"] + out["Sv"]
-    out["Ssk"] = float(np.mean(d ** 3) / sq ** 3) if sq > 0 else 0.0
-    out["Sku"] = float(np.mean(d ** 4) / sq ** 4) if sq > 0 else 0.0
-    zz = np.where(ok, z, np.nan)
+    out["Ssk"] = float(np.mean(d2 * d) / sq ** 3) if sq > 0 else 0.0
+    out["Sku"] = float(np.mean(d2 * d2) / sq ** 4) if sq > 0 else 0.0
+    del d, d2
+    zz = z if ok.all() else np.where(ok, z, np.nan)
     if min(z.shape) >= 2:
         gy, gx = np.gradient(zz, float(pixel))
         g2 = gx * gx + gy * gy

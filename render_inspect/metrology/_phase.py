@@ -201,10 +201,6 @@ def phase_quality(phase, *, valid=None) -> np.ndarray:
     return out
 
 
-def _flood_unwrap_py(phase, valid, quality):  # pragma: no cover - numba replaces it
-    raise RuntimeError("numba kernel not compiled")
-
-
 def _build_kernel():
     import numba
 

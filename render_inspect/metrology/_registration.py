@@ -99,6 +99,14 @@ class MovedSurface:
         return ((self.height(np.asarray(x) + h, y) - self.height(np.asarray(x) - h, y)) / (2 * h),
                 (self.height(x, np.asarray(y) + h) - self.height(x, np.asarray(y) - h)) / (2 * h))
 
+    def to_design(self, x, y, z):
+        """Design-frame coordinates ``R^T (p - t)`` of measured-frame points: (u, v, w)."""
+        r, t = self._rot, self.params[:3]
+        px, py, pz = np.asarray(x) - t[0], np.asarray(y) - t[1], np.asarray(z) - t[2]
+        return (r[0, 0] * px + r[1, 0] * py + r[2, 0] * pz,
+                r[0, 1] * px + r[1, 1] * py + r[2, 1] * pz,
+                r[0, 2] * px + r[1, 2] * py + r[2, 2] * pz)
+
     def move_point(self, x, y):
         """Where the design point above (``x``, ``y``) lies after the move: (x', y', z')."""
         q = np.array([x, y, float(self.surface.height(np.float64(x), np.float64(y)))])
@@ -287,8 +295,34 @@ def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
         res = h - design.height(u, w)
         return np.where(np.isfinite(res), res, 0.0)
 
+    def jac(p):
+        # r = q_z - F(q_x, q_y), q = R^T (p - t): dr = dq_z - Fx dq_x - Fy dq_y with
+        # dq/dt = -R^T and dq/dangle = (dR/dangle)^T (p - t) (dR by central differences)
+        v = v0.copy()
+        v[idx] = p
+        r = rotation_matrix(*v[3:])
+        d = np.stack([px - v[0], py - v[1], pz - v[2]])
+        q = r.T @ d
+        gx, gy = design.gradient(q[0], q[1])
+        gx, gy = np.nan_to_num(np.asarray(gx, float)), np.nan_to_num(np.asarray(gy, float))
+        cols = []
+        for k in idx:
+            if k < 3:
+                dq = -r.T[:, k][:, None] * np.ones_like(px)
+            else:
+                h = 1e-7
+                a = v[3:].copy()
+                a[k - 3] += h
+                b = v[3:].copy()
+                b[k - 3] -= h
+                dr = (rotation_matrix(*a) - rotation_matrix(*b)) / (2 * h)
+                dq = dr.T @ d
+            cols.append(dq[2] - gx * dq[0] - gy * dq[1])
+        return np.column_stack(cols)
+
     scale = np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])[idx]
-    sol = least_squares(resid, v0[idx], x_scale=scale, diff_step=1e-7, method="trf",
+    sol = least_squares(resid, v0[idx], x_scale=scale, method="trf",
+                        jac=jac if hasattr(design, "gradient") else "2-point", diff_step=1e-7,
                         xtol=1e-12, ftol=1e-14, gtol=1e-14, max_nfev=200)
     v = v0.copy()
     v[idx] = sol.x

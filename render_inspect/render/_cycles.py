@@ -35,6 +35,9 @@ RENDER_SCENE_NAME = "render_inspect_cycles"
 ALUMINIUM_ETA = (1.6575, 0.880405, 0.521244)
 ALUMINIUM_K = (9.22381, 6.2695, 4.837)
 
+#: Largest grid turned into a Blender mesh (about 1.5 GB in Blender at this size).
+MAX_VERTICES = 16_000_000
+
 # custom properties on the mesh object (the add-on and tests read them)
 PROP_EXAGGERATION = "render_inspect_exaggeration"
 PROP_PIXEL = "render_inspect_pixel_mm"
@@ -113,6 +116,10 @@ def heightmap_object(heights: np.ndarray, *, pixel: float, origin=(0.0, 0.0),
         raise InputError(f"heights must be a 2-D array of at least 2 x 2 points, got shape {h.shape}")
     check_positive("pixel (mm)", pixel)
     check_positive("exaggeration", exaggeration)
+    if h.size > MAX_VERTICES:
+        raise InputError(f"heights: {h.shape[0]} x {h.shape[1]} = {h.size} points is more than "
+                         f"the {MAX_VERTICES} vertices a Blender mesh is built from here; "
+                         f"raise simulation.pixel or shrink simulation.region")
     verts, quads = _grid_mesh_arrays(h, pixel=float(pixel), origin=origin,
                                      exaggeration=float(exaggeration))
     remove_object(name)
@@ -232,26 +239,52 @@ def _aluminium_material(bpy, material: dict):
 
 
 def _add_world(bpy, scene, light: dict):
-    """The light at infinity: ``environment_map`` (radiance vs zenith angle) as an
-    equirectangular world texture, +z up, the same bitmap Mitsuba's ``envmap`` gets."""
-    from ._diffuse import environment_map
+    """The light at infinity: radiance as a function of the zenith angle only, the
+    piecewise-linear ``zenith_profile`` (``[theta_deg, radiance]`` pairs) of the spec.
 
-    env = environment_map(light["type"], height=256)  # row 0 = zenith
-    h, w = env.shape[:2]
-    img = bpy.data.images.new(f"{RENDER_SCENE_NAME}_light", width=w, height=h, alpha=True,
-                              float_buffer=True)
-    rgba = np.ones((h, w, 4), dtype=np.float32)
-    rgba[..., :3] = env[::-1]  # Blender's pixel rows run bottom-up: the zenith goes last
-    img.pixels.foreach_set(rgba.ravel())
-    #img.pack()
+    Built as a world shader, ray direction -> theta = acos(z) -> a linear colour ramp
+    with one stop per profile point, so the profile is reproduced exactly (Mitsuba gets
+    the same profile as an ``envmap`` bitmap sampled on its rows)."""
+    profile = np.asarray(light["zenith_profile"], dtype=np.float64)
+    if profile.ndim != 2 or profile.shape[1] != 2 or not 2 <= len(profile) <= 32:
+        raise InputError(f"light zenith_profile must be 2..32 [theta_deg, radiance] pairs, "
+                         f"got {light['zenith_profile']!r}")
+    if tuple(light.get("up", (0.0, 0.0, 1.0))) != (0.0, 0.0, 1.0):
+        raise InputError(f"light up must be [0, 0, 1], got {light.get('up')!r}")
+    peak = float(profile[:, 1].max()) or 1.0
     world = bpy.data.worlds.new(f"{RENDER_SCENE_NAME}_world")
     tree = _node_tree(bpy, world)
-    tex = tree.nodes.new("ShaderNodeTexEnvironment")
-    tex.image = img
-    tex.projection = "EQUIRECTANGULAR"
-    tex.interpolation = "Linear"
-    tree.links.new(tex.outputs["Color"], tree.nodes["Background"].inputs["Color"])
-    tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    nodes, links = tree.nodes, tree.links
+    coord = nodes.new("ShaderNodeTexCoord")  # "Generated" = the ray's direction in a world
+    xyz = nodes.new("ShaderNodeSeparateXYZ")
+    acos = nodes.new("ShaderNodeMath")
+    acos.operation = "ARCCOSINE"
+    acos.use_clamp = False
+    scale = nodes.new("ShaderNodeMath")
+    scale.operation = "MULTIPLY"
+    scale.inputs[1].default_value = 1.0 / math.pi  # theta / pi in [0, 1]
+    ramp = nodes.new("ShaderNodeValToRGB")
+    cr = ramp.color_ramp
+    cr.interpolation = "LINEAR"
+    cr.color_mode = "RGB"
+    while len(cr.elements) > 1:
+        cr.elements.remove(cr.elements[-1])
+    for i, (theta_deg, radiance) in enumerate(profile):
+        el = cr.elements[0] if i == 0 else cr.elements.new(float(theta_deg) / 180.0)
+        el.position = float(theta_deg) / 180.0
+        v = float(radiance) / peak
+        el.color = (v, v, v, 1.0)
+    background = nodes["Background"]
+    background.inputs["Strength"].default_value = peak
+    links.new(coord.outputs["Generated"], xyz.inputs["Vector"])
+    links.new(xyz.outputs["Z"], acos.inputs[0])
+    links.new(acos.outputs["Value"], scale.inputs[0])
+    links.new(scale.outputs["Value"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], background.inputs["Color"])
+    # importance-sample the light on a 0.25-degree map ("AUTOMATIC" builds a far larger
+    # one: seconds per render)
+    world.cycles.sampling_method = "MANUAL"
+    world.cycles.sample_map_resolution = 720
     scene.world = world
 
 
@@ -416,21 +449,21 @@ def gridmesh_object(gm, *, name: str = "render_inspect_part", collection=None):
 
 
 def _diffuse_config(dcfg, **overrides):
+    """A validated ``[render.diffuse]`` (DiffuseConfig, dict or None) with ``overrides``
+    (None values ignored) applied; bad values raise SceneError naming the key."""
+    from pydantic import ValidationError
+
+    from ..errors import SceneError
     from ..scene import DiffuseConfig
 
-    if dcfg is None:
-        dcfg = DiffuseConfig()
-    elif isinstance(dcfg, dict):
-        dcfg = DiffuseConfig(**dcfg)
-    changes = {k: v for k, v in overrides.items() if v is not None}
-    if changes:
-        from ..errors import SceneError
-
-        try:
-            dcfg = DiffuseConfig(**{**dcfg.model_dump(), **changes})
-        except ValueError as err:
-            raise SceneError(f"render.diffuse: {err}") from None
-    return dcfg
+    base = {} if dcfg is None else (dict(dcfg) if isinstance(dcfg, dict) else dcfg.model_dump())
+    base.update({k: v for k, v in overrides.items() if v is not None})
+    try:
+        return DiffuseConfig(**base)
+    except ValidationError as err:
+        lines = [f"render.diffuse.{'.'.join(map(str, e['loc']))}: {e['msg']}; "
+                 f"received {e.get('input')!r}" for e in err.errors()]
+        raise SceneError("invalid render settings:\n  " + "\n  ".join(lines)) from None
 
 
 def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",

@@ -10,7 +10,8 @@ Blender Cycles benchmark, ``render/_cycles.py``) can build the same scene:
 * light: an environment (infinitely distant) whose radiance depends only on the zenith
   angle ``theta`` from +z: linear interpolation of ``light.zenith_profile`` (pairs
   ``[theta_deg, radiance]``), zero below the horizon.  :func:`environment_map` gives the
-  same light as a lat-long RGB image (row 0 = +z, i.e. the zenith; columns = azimuth);
+  same light as a lat-long RGB image (row r at zenith angle r / (rows - 1) * 180 degrees,
+  row 0 = +z; columns = azimuth), which Mitsuba's ``envmap`` uses;
 * material: Mitsuba ``conductor`` / ``roughconductor`` with ``material = "Al"``
   (GGX ``alpha`` = roughness); ``reflectance_rgb`` is aluminium's normal-incidence
   reflectance for renderers without complex IOR;
@@ -38,12 +39,15 @@ __all__ = ["diffuse_scene_spec", "environment_map", "light_profile", "render_dif
 #: dome: uniform diffuse dome with a camera port (dark) around the zenith;
 #: ring: a bright ring at 45..75 degrees from the zenith (low-angle ring light).
 LIGHTS = {
-    "dome": [[0.0, 0.0], [8.0, 0.0], [25.0, 1.0], [90.0, 1.0], [90.001, 0.0], [180.0, 0.0]],
+    "dome": [[0.0, 0.0], [8.0, 0.0], [25.0, 1.0], [90.0, 1.0], [90.5, 0.0], [180.0, 0.0]],
     "ring": [[0.0, 0.0], [45.0, 0.0], [50.0, 1.0], [70.0, 1.0], [75.0, 0.0], [180.0, 0.0]],
 }
-#: Normal-incidence reflectance of aluminium in linear sRGB (for renderers without
-#: a complex-IOR conductor).
-AL_REFLECTANCE_RGB = [0.913, 0.922, 0.924]
+#: Normal-incidence reflectance of aluminium in linear sRGB, ((n-1)^2 + k^2)/((n+1)^2 + k^2)
+#: from Mitsuba's "Al" (eta = 1.6575, 0.8804, 0.5212; k = 9.2238, 6.2695, 4.8370), for
+#: renderers without a complex-IOR conductor.
+AL_REFLECTANCE_RGB = [0.9283, 0.9177, 0.9194]
+#: Rows of the lat-long environment image: 0.5 degree apart, so every profile knot is a row.
+ENV_ROWS = 361
 #: Macro camera: tilt of the view from the zenith and horizontal field of view.
 MACRO_TILT_DEG = 20.0
 MACRO_FOV_DEG = 30.0
@@ -58,15 +62,17 @@ def light_profile(theta, light: str = "dome") -> np.ndarray:
     return np.interp(np.degrees(theta), tab[:, 0], tab[:, 1])
 
 
-def environment_map(light: str = "dome", *, height: int = 256) -> np.ndarray:
-    """The light as a lat-long image, (height, 2*height, 3) float32, row 0 = zenith (+z).
+def environment_map(light: str = "dome", *, height: int = ENV_ROWS) -> np.ndarray:
+    """The light as a lat-long image, (height, 2*(height-1), 3) float32, row 0 = zenith (+z).
 
-    Row ``r`` is the zenith angle ``theta = (r + 0.5) / height * pi``; the light does not
-    depend on azimuth.
+    Row ``r`` is the zenith angle ``theta = r / (height - 1) * pi`` (rows 0 and height-1 are
+    the poles; Mitsuba's ``envmap`` interpolates bilinearly between rows placed so), and the
+    light does not depend on azimuth.  With the default 361 rows (0.5 degree apart) the
+    image reproduces the piecewise-linear :data:`LIGHTS` profile exactly.
     """
-    theta = (np.arange(height) + 0.5) / height * math.pi
+    theta = np.arange(height) / (height - 1) * math.pi
     rad = light_profile(theta, light).astype(np.float32)
-    return np.ascontiguousarray(np.broadcast_to(rad[:, None, None], (height, 2 * height, 3)))
+    return np.ascontiguousarray(np.broadcast_to(rad[:, None, None], (height, 2 * (height - 1), 3)))
 
 
 def _default_window(heightmap):
@@ -160,7 +166,8 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
             "mesh": {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
                      "max_cells": 2 * res, "skirt": view == "macro"},
             "camera": camera,
-            "light": {"type": light, "zenith_profile": LIGHTS[light], "up": [0.0, 0.0, 1.0]},
+            "light": {"type": light, "zenith_profile": LIGHTS[light], "up": [0.0, 0.0, 1.0],
+                      "env_rows": ENV_ROWS},
             "material": material, "units": "mm", "software_version": __version__}
 
 
@@ -185,7 +192,7 @@ def _mitsuba_scene(gm, spec):
     bsdf = {"type": m["type"], "material": "Al"}
     if m["type"] == "roughconductor":
         bsdf.update(alpha=m["alpha"], distribution="ggx")
-    env = environment_map(spec["light"]["type"], height=256)
+    env = environment_map(spec["light"]["type"])
     return {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(spec["max_depth"])},

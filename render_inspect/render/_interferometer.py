@@ -148,14 +148,16 @@ def interferometer_geometry(heightmap, icfg) -> dict:
     ``nx``, ``ny``, ``origin`` (x, y of the first pixel centre, mm), ``window``
     ``[x0, y0, x1, y1]`` (pixel edges, mm), ``wavelength_nm``, ``bandwidth_nm`` (CSI).
     The default field of view is the preset's, centred on the height map and clipped
-    to it.
+    to it (to the span of its pixel centres, which the mesh covers).
     """
     preset = OBJECTIVES[icfg.objective]
     na = float(icfg.numerical_aperture if icfg.numerical_aperture is not None
                else preset["numerical_aperture"])
     pixel = float(icfg.pixel if icfg.pixel is not None
                   else preset["field_of_view_mm"] / preset["camera_pixels"])
-    x_lo, x_hi, y_lo, y_hi = heightmap.extent
+    # the mesh spans the pixel centres of the height map (its vertices)
+    x_lo, x_hi = float(heightmap.x[0]), float(heightmap.x[-1])
+    y_lo, y_hi = float(heightmap.y[0]), float(heightmap.y[-1])
     if icfg.field_of_view is not None:
         x0, y0, x1, y1 = (float(v) for v in icfg.field_of_view)
         if not (x1 > x0 and y1 > y0):
@@ -210,7 +212,7 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     h_centre : (ny, nx) float64, mm, the height at the pixel centres (NaN where missed)
     """
     from ..mesh import heightmap_mesh
-    from ._scene_dicts import render_aov_grid
+    from ._scene_dicts import trace_grids
 
     if surface not in ("design", "machined"):
         raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
@@ -226,9 +228,7 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     dx = max(0.0123 * fine, 64 * ulp)
     dy = max(0.0271 * fine, 150 * ulp)
 
-    def trace(n_x, n_y):
-        pos, nrm, gn = render_aov_grid(gm, x0=x0 + dx, y0=y0 + dy, width_mm=x1 - x0,
-                                       nx=n_x, ny=n_y, z_top=z_top)
+    def heights(pos, nrm, gn):
         hit = (np.einsum("...i,...i->...", gn, gn) > 0.25) & (gn[..., 2] > 1e-6)
         gz = np.where(hit, gn[..., 2], 1.0).astype(np.float64)
         slope_dx = -gn[..., 0] / gz  # dz/dx of the hit triangle
@@ -237,12 +237,17 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
         return np.where(hit, h, np.nan), np.where(hit, nrm[..., 2], 0.0).astype(np.float32)
 
     nx, ny = geom["nx"], geom["ny"]
-    h_sub, nz_sub = trace(nx * s, ny * s)
+    grid = dict(x0=x0 + dx, y0=y0 + dy, width_mm=x1 - x0)
+    grids = [dict(grid, nx=nx * s, ny=ny * s)]
+    if s % 2 == 0:  # the pixel centres are not sub-sample points: one more sensor
+        grids.append(dict(grid, nx=nx, ny=ny))
+    traced = trace_grids(gm, grids, z_top=z_top)
+    h_sub, nz_sub = heights(*traced[0])
     if s % 2 == 1:
         c = s // 2
         h_centre = h_sub[c::s, c::s].copy()
     else:
-        h_centre, _ = trace(nx, ny)
+        h_centre, _ = heights(*traced[1])
     return h_sub, nz_sub, h_centre
 
 

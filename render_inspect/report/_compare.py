@@ -54,7 +54,9 @@ def compare_variants(scene):
 def preview_render_configs(scene, heightmap):
     """Interferometer and diffuse settings for compare: the scene's, with the sizes it
     does not set capped (:data:`COMPARE_MAX_CAMERA_PIXELS`,
-    :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`, :data:`COMPARE_MAX_DIFFUSE_SPP`).
+    :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`, :data:`COMPARE_MAX_DIFFUSE_SPP`).  The
+    interferometer keeps its objective's pixel and gets a smaller field of view (centred)
+    unless the scene sets ``field_of_view`` (then the pixel is coarsened instead).
 
     Returns (icfg, dcfg, notes) where notes lists what was capped."""
     from ..render import interferometer_geometry
@@ -62,16 +64,29 @@ def preview_render_configs(scene, heightmap):
     icfg = scene.render.interferometer
     dcfg = scene.render.diffuse
     notes = []
-    if "pixel" not in icfg.model_fields_set:
+    user = icfg.model_fields_set
+    if "pixel" not in user:
         g = interferometer_geometry(heightmap, icfg)
         n = max(g["nx"], g["ny"])
         if n > COMPARE_MAX_CAMERA_PIXELS:
             x0, y0, x1, y1 = g["window"]
-            pix = max(x1 - x0, y1 - y0) / COMPARE_MAX_CAMERA_PIXELS
-            icfg = icfg.model_copy(update={"pixel": pix})
-            notes.append(f"interferometer pixel {g['pixel'] * 1e3:.3g} um -> {pix * 1e3:.3g} um "
-                         f"({COMPARE_MAX_CAMERA_PIXELS} camera pixels across; set "
-                         f"render.interferometer.pixel to choose)")
+            if "field_of_view" not in user:
+                # keep the objective's pixel (its lateral resolution), crop the field
+                half = COMPARE_MAX_CAMERA_PIXELS * g["pixel"] / 2
+                cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+                fov = (max(x0, cx - half), max(y0, cy - half), min(x1, cx + half),
+                       min(y1, cy + half))
+                icfg = icfg.model_copy(update={"field_of_view": fov})
+                notes.append(f"interferometer field of view cropped to {COMPARE_MAX_CAMERA_PIXELS} "
+                             f"camera pixels of {g['pixel'] * 1e3:.3g} um around the centre "
+                             f"({(fov[2] - fov[0]):.3g} x {(fov[3] - fov[1]):.3g} mm; set "
+                             f"render.interferometer.field_of_view or pixel to choose)")
+            else:
+                pix = max(x1 - x0, y1 - y0) / COMPARE_MAX_CAMERA_PIXELS
+                icfg = icfg.model_copy(update={"pixel": pix})
+                notes.append(f"interferometer pixel {g['pixel'] * 1e3:.3g} um -> {pix * 1e3:.3g} "
+                             f"um ({COMPARE_MAX_CAMERA_PIXELS} camera pixels across the field; "
+                             f"set render.interferometer.pixel to choose)")
     upd = {}
     if "resolution" not in dcfg.model_fields_set and dcfg.resolution > COMPARE_MAX_DIFFUSE_RESOLUTION:
         upd["resolution"] = COMPARE_MAX_DIFFUSE_RESOLUTION
@@ -163,7 +178,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     from ..io import save_map_png, write_json
     from ..machining import residual_metrics
     from ..metrology import characterise_map
-    from ..metrology._phase import add_height_measured
+    from ..metrology import add_height_measured
     from ..render import (render_diffuse, render_interferogram, write_diffuse_outputs,
                           write_interferogram_outputs)
     from ..render._run import interferogram_summary

@@ -23,12 +23,13 @@ from ._base import Section
 from ._design import DesignConfig
 from ._metrology import MetrologyConfig
 from ._process import ProcessConfig, SimulationConfig, ToolConfig
+from ._rcse import RcseConfig
 from ._render import DiffuseConfig, InterferometerConfig, RenderConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
-           "VibrationConfig", "BurrConfig", "MetrologyConfig"]
+           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig"]
 
 
 class Scene(Section):
@@ -41,6 +42,7 @@ class Scene(Section):
     render: RenderConfig = Field(default_factory=RenderConfig)
     artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
+    rcse: RcseConfig = Field(default_factory=RcseConfig)
 
     @model_validator(mode="after")
     def _cross_checks(self):

@@ -20,5 +20,7 @@ class RcseConfig(Section):
     grid_spacing: float = Field(0.005, gt=0, le=1.0,
                                 description="mm, spacing of the rectangular point cloud (modelling grid)")
     interpolation: Literal["linear", "cubic"] = Field("linear", description="interpolation in the point cloud")
+    simulate_conventional: bool = Field(True, description="also simulate the surface the conventional "
+                                                          "path machines over simulation.region")
     snap_to_rows: bool = Field(True, description="CCPs on the nearest point-cloud row (X reciprocates); "
                                                  "false: interpolated at the exact spiral point")

@@ -71,7 +71,7 @@ def _header_lines(header: dict | None, toolpath) -> list[str]:
     return lines
 
 
-def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -> Path:
+def write_nc(path, toolpath, *, header: dict | None = None, scene=None, decimals: int = 6) -> Path:
     """Write ``toolpath`` as a generic C-X-Z NC program (format in the module docstring).
 
     Parameters
@@ -82,6 +82,9 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -
         ``t`` must be strictly increasing.
     header : dict, optional
         Extra ``; key: value`` header lines (e.g. ``{"scene": name, "spindle_rpm": 42}``).
+    scene : Scene, optional
+        Adds ``scene`` (name), ``process``, ``spindle_rpm``, ``feed_per_rev_mm``,
+        ``compensation`` and ``nose_radius`` header lines (``header`` wins on a clash).
     decimals : int
         Places for C (deg), X and Z (mm), 3..12.
 
@@ -110,6 +113,12 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -
             raise InputError(f"ToolPath.{name} has non-finite values at index "
                              f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
     hdr = {"points": n, "t0_s": repr(float(t[0]))}
+    if scene is not None:
+        hdr.update({"scene": scene.name, "process": scene.process.kind,
+                    "spindle_rpm": scene.process.spindle_rpm,
+                    "feed_per_rev_mm": scene.process.feed_per_rev,
+                    "compensation": scene.process.compensation,
+                    "nose_radius": scene.tool.nose_radius})
     hdr.update(header or {})
     lines = _header_lines(hdr, toolpath)
     lines.append("G90 G93")
@@ -221,24 +230,25 @@ def read_csv(path):
                     col["t_s"].copy())
 
 
-def _write_npz(path, toolpath, header=None):
+def _write_npz(path, toolpath, header=None, scene=None):
     return toolpath.save_npz(path)
 
 
-def _write_csv(path, toolpath, header=None):
+def _write_csv(path, toolpath, header=None, scene=None):
     return write_csv(path, toolpath)
 
 
-def _write_nc(path, toolpath, header=None):
-    return write_nc(path, toolpath, header=header)
+def _write_nc(path, toolpath, header=None, scene=None):
+    return write_nc(path, toolpath, header=header, scene=scene)
 
 
-#: format name -> (file name, writer(path, toolpath, header))
+#: format name -> (file name, writer(path, toolpath, header, scene))
 FORMATS = {"npz": ("toolpath.npz", _write_npz), "csv": ("toolpath.csv", _write_csv),
            "nc": ("toolpath.nc", _write_nc)}
 
 
-def export_toolpath(toolpath, out_dir, *, fmt: str = "npz", header: dict | None = None) -> Path:
+def export_toolpath(toolpath, out_dir, *, fmt: str = "npz", header: dict | None = None,
+                    scene=None) -> Path:
     """Write ``toolpath`` into ``out_dir`` as ``toolpath.npz`` / ``.csv`` / ``.nc``.
 
     Parameters
@@ -249,6 +259,8 @@ def export_toolpath(toolpath, out_dir, *, fmt: str = "npz", header: dict | None 
     fmt : {"npz", "csv", "nc"}
     header : dict, optional
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
+    scene : Scene, optional
+        NC header lines from the scene (see :func:`write_nc`); ignored by npz and csv.
 
     Returns
     -------
@@ -259,4 +271,4 @@ def export_toolpath(toolpath, out_dir, *, fmt: str = "npz", header: dict | None 
     name, writer = FORMATS[fmt]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return writer(out / name, toolpath, header)
+    return writer(out / name, toolpath, header, scene)

@@ -49,8 +49,8 @@ from ..errors import InputError, SceneError, check_range
 
 TWO_PI = 2.0 * math.pi
 
-__all__ = ["RingLayout", "RcseCcps", "rcse_ccps", "conventional_ccps", "build_rcse_toolpath",
-           "paper_layout", "rcse_settings"]
+__all__ = ["RingLayout", "RcseCcps", "PointCloudModel", "rcse_ccps", "conventional_ccps",
+           "build_rcse_toolpath", "paper_layout", "rcse_settings"]
 
 
 # ---------------------------------------------------------------------------------------
@@ -348,6 +348,38 @@ def rcse_ccps(layout: RingLayout, *, r_outer: float, pitch: float, points_per_re
 # ---------------------------------------------------------------------------------------
 # conventional: rectangular point cloud + interpolation
 # ---------------------------------------------------------------------------------------
+class PointCloudModel:
+    """The conventional method's surface model: heights on a square grid of nodes at
+    ``g (i - M)`` (both axes), interpolated linearly or by cubic B-spline.
+
+    Parameters
+    ----------
+    z : (2M+1, 2M+1) array, mm (row = y, column = x)
+    spacing : float, mm
+    order : {1, 3}
+    """
+
+    def __init__(self, z: np.ndarray, spacing: float, order: int = 1):
+        from scipy import ndimage
+
+        self.spacing = float(spacing)
+        self.M = (z.shape[0] - 1) // 2
+        self.order = int(order)
+        self.z = np.ascontiguousarray(z, dtype=np.float64)
+        self._coef = ndimage.spline_filter(self.z, order=3) if self.order == 3 else self.z
+
+    def height(self, x, y) -> np.ndarray:
+        from scipy import ndimage
+
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        x, y = np.broadcast_arrays(x, y)
+        coords = np.stack([y.ravel() / self.spacing + self.M, x.ravel() / self.spacing + self.M])
+        out = ndimage.map_coordinates(self._coef, coords, order=self.order, mode="nearest",
+                                      prefilter=False)
+        return out.reshape(x.shape)
+
+
 def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spacing: float,
                       interpolation: str = "linear", snap_to_rows: bool = True,
                       profile_error: bool = True) -> dict:
@@ -376,10 +408,9 @@ def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spaci
     Returns
     -------
     dict with ``rho`` (X, mm), ``z`` (mm), ``profile_error`` (z - design at (C, X), mm, or
-    None), ``modelling_s``, ``toolpath_s``, ``grid_shape``.
+    None), ``modelling_s``, ``toolpath_s``, ``grid_shape``, ``model`` (the
+    :class:`PointCloudModel`, for the conventional tool-radius compensation).
     """
-    from scipy import ndimage
-
     check_range("grid_spacing", grid_spacing, 0.0, None, lo_open=True)
     if interpolation not in ("linear", "cubic"):
         raise InputError(f"interpolation must be 'linear' or 'cubic', received {interpolation!r}")
@@ -395,6 +426,7 @@ def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spaci
     nodes = g * np.arange(-M, M + 1, dtype=np.float64)
     zg = np.asarray(surface.height(nodes[None, :], nodes[:, None]), dtype=np.float64)
     zg = np.broadcast_to(zg, (nodes.size, nodes.size))
+    model = PointCloudModel(zg, g, 1 if interpolation == "linear" else 3)
     t1 = time.perf_counter()
     x = rho * np.cos(theta)
     y = rho * np.sin(theta)
@@ -412,23 +444,22 @@ def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spaci
         w = col - c0
         z = (1.0 - w) * zg[ri, c0] + w * zg[ri, c0 + 1]
     else:
-        order = 1 if interpolation == "linear" else 3
-        z = ndimage.map_coordinates(zg, np.stack([row, col]), order=order, mode="nearest",
-                                    prefilter=order > 1)
+        z = model.height(x, y_cc)
     rho_c = np.hypot(x, y_cc) if snap_to_rows else rho.copy()
     t2 = time.perf_counter()
     err = None
     if profile_error:
         err = z - np.asarray(surface.height(rho_c * np.cos(theta), rho_c * np.sin(theta)))
     return {"rho": rho_c, "z": np.asarray(z, dtype=np.float64), "profile_error": err,
-            "modelling_s": t1 - t0, "toolpath_s": t2 - t1, "grid_shape": list(zg.shape)}
+            "modelling_s": t1 - t0, "toolpath_s": t2 - t1, "grid_shape": list(zg.shape),
+            "model": model}
 
 
 # ---------------------------------------------------------------------------------------
 # scene -> ToolPath
 # ---------------------------------------------------------------------------------------
 _DEFAULTS = {"grid_spacing": 0.005, "interpolation": "linear", "snap_to_rows": True,
-             "compare_conventional": True}
+             "compare_conventional": True, "simulate_conventional": True}
 
 
 def rcse_settings(scene) -> dict:
@@ -451,7 +482,8 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
         ``inner_radius``, ``feed_mm_per_min / spindle_rpm`` = pitch, ``points_per_rev`` =
         polar step, ``compensation``).
     surface : Surface, optional
-        The design surface used by the compensation (built from ``scene.design`` if None).
+        The design surface used by the compensation (the :class:`RingLayout` of
+        ``scene.design`` if None: the same heights as ``design.LensletRings``).
     region : (x0, y0, x1, y1), optional
         mm; keep only the revolutions whose tool nose can reach this window.
     ccps : RcseCcps, optional
@@ -466,6 +498,10 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
     from ._path import ToolPath
 
     layout = RingLayout.from_config(scene.design)
+    bad = layout.overlaps()
+    if bad:
+        raise SceneError("process.kind = 'rcse' needs elements that do not overlap (each CCP on "
+                         "at most one element); design.ring_radii / design.counts: " + "; ".join(bad))
     proc = scene.process
     Rc = float(scene.tool.nose_radius)
     pitch = proc.feed_per_rev
@@ -485,9 +521,7 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
         rho_t, z_t = rho.copy(), z.copy()
     else:
         if surface is None:
-            from ..design import make_surface
-
-            surface = make_surface(scene.design)
+            surface = layout  # the same heights as design.LensletRings, evaluated faster
         from ._compensation import normal_compensation, z_compensation
         from ._tool import Tool
 
@@ -500,6 +534,15 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
             rho_t, z_t = normal_compensation(surface, theta, rho, Rc)
     omega = TWO_PI * proc.spindle_rpm / 60.0
     meta = dict(ccps.meta)
+    # the CCPs are exact, but the axes interpolate linearly between them: chordal error
+    from ._spiral import chordal_error
+
+    if theta.size >= 2:
+        ce = chordal_error(layout, theta, rho, z)
+        i = int(np.argmax(ce))
+        tm, rm = 0.5 * (theta[i] + theta[i + 1]), 0.5 * (rho[i] + rho[i + 1])
+        meta["chordal_error_max_mm"] = float(ce[i])
+        meta["chordal_error_worst_at_mm"] = [float(rm * math.cos(tm)), float(rm * math.sin(tm))]
     meta.update({"compensation": comp, "feed_per_rev_mm": pitch, "nose_radius": Rc,
                  "spindle_rpm": proc.spindle_rpm, "layout": layout.to_dict(),
                  "sampling": "constant_angle"})

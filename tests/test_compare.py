@@ -1,0 +1,257 @@
+"""``render-inspect compare``: both variants through simulate -> render -> phase retrieval
+-> report, on a tiny scene (real Mitsuba renders, real EXR files)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+
+import numpy as np
+import pytest
+
+from render_inspect.cli import main as cli_main
+from render_inspect.errors import InputError
+from render_inspect.io import read_exr
+from render_inspect.scene import load_scene
+
+# A small seed-000 Fig. 16-like grid: Ax = Ay = 1 um, l = 0.5 mm, Rc = 0.5 mm, at a low
+# feed (0.02 mm/rev: scallops ~100 nm, resolvable by the interferometer's pixels) so that
+# the measured height can be checked too.  The uncompensated path overcuts by about
+# Rc slope^2 / 2 ~ 80 nm.
+TINY = """
+name = "tiny_compare"
+description = "tiny Fig. 16-like grid for the compare tests"
+[design]
+type = "sinusoidal_grid"
+amplitude_x = 0.001
+amplitude_y = 0.001
+wavelength_x = 0.5
+wavelength_y = 0.5
+[tool]
+nose_radius = 0.5
+[process]
+kind = "sts"
+spindle_rpm = 50
+feed_mm_per_min = 1
+workpiece_radius = 1.0
+compensation = "z"
+points_per_rev = 720
+[simulation]
+region = [-0.2, -0.2, 0.2, 0.2]
+pixel = 0.002
+seed = 7
+[render.interferometer]
+pixel = 0.002
+field_of_view = [-0.1, -0.1, 0.1, 0.1]
+[render.diffuse]
+resolution = 48
+spp = 4
+"""
+
+VARIANT_FILES = ["heightmap.exr", "toolpath.npz", "interferogram.exr", "interferogram_fringes.png",
+                 "residual.png", "filtered.png", "measurement_error.png", "diffuse_micro.png",
+                 "diffuse_macro.png", "metrics.json"]
+TOP_FILES = ["report.html", "metrics.json", "interferogram_side_by_side.png",
+             "interferogram_difference.png", "diffuse_micro_side_by_side.png",
+             "diffuse_macro_side_by_side.png", "diffuse_difference.png",
+             "residual_side_by_side.png", "residual_difference.png", "filtered_side_by_side.png",
+             "measurement_error_side_by_side.png", "measured_residual_side_by_side.png",
+             "radial_profiles.png"]
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    """Run ``render-inspect compare`` once (CLI), with a measured file for the third
+    column: the design sampled on a shifted grid plus a known tilt."""
+    from render_inspect.design import make_surface
+    from render_inspect.machining import HeightMap
+
+    d = tmp_path_factory.mktemp("compare")
+    scene_path = d / "tiny.toml"
+    scene_path.write_text(TINY)
+    scene = load_scene(scene_path)
+    surf = make_surface(scene.design)
+    pixel = 0.002
+    x = -0.2 + pixel * np.arange(201)
+    xx, yy = np.meshgrid(x, x)
+    z = surf.height(xx, yy) + 2e-4 * xx + 5e-5  # tilt and piston: registration removes them
+    meas = d / "measured.exr"
+    HeightMap(z, z, pixel, (x[0], x[0])).to_exr(meas)
+    out = d / "out"
+    rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas)])
+    assert rc == 0
+    return out, json.loads((out / "metrics.json").read_text())
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_writes_all_files(compared):
+    out, _ = compared
+    for name in TOP_FILES:
+        assert (out / name).is_file(), name
+    for variant in ("compensated", "uncompensated"):
+        for name in VARIANT_FILES:
+            assert (out / variant / name).is_file(), f"{variant}/{name}"
+    assert not [p for p in out.parent.iterdir() if ".partial-" in p.name]  # atomic
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_metrics_contract_and_overcut(compared):
+    _, m = compared
+    for key in ("compensated", "uncompensated", "software_version", "seed", "mitsuba_variant"):
+        assert key in m
+    assert m["seed"] == 7
+    for v in ("compensated", "uncompensated"):
+        r = m[v]["residual"]
+        for k in ("Sa_nm", "Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "min_nm"):
+            assert np.isfinite(r[k]), (v, k)
+        for k in ("rms_nm", "pv_nm", "valid_fraction"):
+            assert k in m[v]["measured"]
+        assert "Sq_nm" in m[v]["filtered"]
+    assert m["compensated"]["compensation"] == "z"
+    assert m["uncompensated"]["compensation"] == "none"
+    # Z compensation is gouge-free; without it the nose overcuts the slopes by ~ Rc s^2 / 2
+    c_min = m["compensated"]["residual"]["min_nm"]
+    u_min = m["uncompensated"]["residual"]["min_nm"]
+    assert c_min > -1.0
+    assert u_min < -30.0
+    assert u_min < c_min - 30.0
+    assert m["difference"]["machined_pv_nm"] > 30.0
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_measured_height_in_interferogram(compared):
+    out, m = compared
+    ch, attrs = read_exr(out / "compensated" / "interferogram.exr")
+    for name in ("intensity", "valid", "height_true", "height_measured", "valid_measured"):
+        assert name in ch
+    ok = ch["valid_measured"] > 0.5
+    assert ok.mean() > 0.9
+    err_nm = (ch["height_measured"][ok].astype(float) - ch["height_true"][ok]) * 1e6
+    # camera noise on: a few nm; float32 storage of ~1e-3 mm heights adds < 0.1 nm
+    assert np.sqrt(np.mean(err_nm ** 2)) < 10.0
+    assert m["compensated"]["measured"]["rms_nm"] == pytest.approx(np.sqrt(np.mean(err_nm ** 2)), abs=0.5)
+    assert json.loads(attrs["measured"]) if isinstance(attrs["measured"], str) else attrs["measured"]
+    # the instrument's view of the residual is close to the truth on the same pixels
+    meas = m["compensated"]["measured"]
+    assert meas["instrument_residual_Sq_nm"] == pytest.approx(meas["true_residual_Sq_nm"], abs=10.0)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_same_camera_for_both(compared):
+    out, m = compared
+    a = m["compensated"]["interferometer"]
+    b = m["uncompensated"]["interferometer"]
+    for k in ("origin_mm", "pixel_mm", "shape", "seed", "numerical_aperture", "wavelength_nm"):
+        assert a[k] == b[k], k
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_measured_column(compared):
+    _, m = compared
+    mf = m["measured_file"]
+    reg = mf["registration"]
+    # registration takes out the known tilt (2e-4 rad about y) and piston (50 nm)
+    assert abs(abs(reg["beta_rad"]) - 2e-4) < 2e-5
+    assert mf["measured"]["Sq_nm"] < 2.0  # the design itself, after registration
+    assert mf["compared_with_simulation"] is True
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_report_html_is_self_contained(compared):
+    out, _ = compared
+    html = (out / "report.html").read_text()
+    srcs = re.findall(r'src="([^"]*)"', html)
+    assert all(s.startswith("data:image/png;base64,") for s in srcs)
+    embedded = {base64.b64decode(s.split(",", 1)[1]) for s in srcs}
+    # every top-level figure is in the page, as the very same PNG
+    pngs = {p.read_bytes() for p in out.glob("*.png")}
+    assert len(pngs) == 11 and embedded == pngs
+    assert not re.search(r'(href|src)="(https?:|//|file:)', html)
+    assert "<script" not in html
+    assert "compensated" in html and "uncompensated" in html and "measured file" in html
+    assert "tiny_compare" in html
+
+
+def test_compare_missing_measured_file(tmp_path):
+    from render_inspect.report import run_compare
+
+    p = tmp_path / "s.toml"
+    p.write_text(TINY)
+    with pytest.raises(InputError, match="--measured file not found"):
+        run_compare(load_scene(p), tmp_path / "out", measured=tmp_path / "nope.x3p")
+    assert not (tmp_path / "out").exists()
+
+
+def test_compare_variants_and_render_caps(tmp_path):
+    from render_inspect.machining import HeightMap
+    from render_inspect.report import (COMPARE_MAX_CAMERA_PIXELS, compare_variants,
+                                       preview_render_configs)
+
+    p = tmp_path / "s.toml"
+    p.write_text(TINY.replace('compensation = "z"', 'compensation = "none"')
+                 .split("[render.interferometer]")[0])
+    scene = load_scene(p)
+    comp, unc = compare_variants(scene)
+    assert comp.process.compensation == "z" and unc.process.compensation == "none"
+    assert comp.simulation.seed == unc.simulation.seed == 7
+    # no render sizes in the scene: the 20x field (0.9 mm, 1024 px) is cropped around the
+    # centre at the objective's pixel; diffuse defaults are capped
+    z = np.zeros((601, 601))
+    hm = HeightMap(z, z, 0.002, (-0.6, -0.6))
+    icfg, dcfg, notes = preview_render_configs(scene, hm)
+    from render_inspect.render import interferometer_geometry
+
+    g = interferometer_geometry(hm, icfg)
+    assert max(g["nx"], g["ny"]) <= COMPARE_MAX_CAMERA_PIXELS
+    assert g["pixel"] == pytest.approx(0.9 / 1024)
+    assert dcfg.resolution <= 192 and dcfg.spp <= 16
+    assert len(notes) == 2
+    # sizes the scene sets are kept
+    p.write_text(TINY)
+    icfg2, dcfg2, notes2 = preview_render_configs(load_scene(p), hm)
+    assert icfg2.pixel == 0.002 and dcfg2.resolution == 48 and notes2 == []
+
+
+def _chromium() -> str:
+    import shutil
+
+    for name in ("chromium", "chromium-browser", "google-chrome", "chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.fail("headless Chromium is needed for the report check: run `make setup` as root "
+                "(apt-get install chromium)")
+
+
+@pytest.mark.browser
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_report_renders_in_headless_chromium(compared, tmp_path):
+    """Open report.html in a real browser and check the screenshot is a page, not blank."""
+    import subprocess
+
+    from PIL import Image
+
+    out, _ = compared
+    shot = tmp_path / "report.png"
+    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+           "--no-first-run", "--disable-background-networking", "--disable-component-update",
+           "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
+           "--window-size=1280,2000", (out / "report.html").resolve().as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert shot.is_file(), proc.stderr[-2000:]
+    img = np.asarray(Image.open(shot).convert("L"), dtype=np.float64)
+    assert img.shape == (2000, 1280)
+    # a page with text, tables and figures: many non-white pixels, real contrast, and
+    # content in the lower half too (the first figures, not just a title)
+    assert (img < 200).mean() > 0.05
+    assert img.std() > 30
+    assert (img[1000:] < 200).mean() > 0.02
