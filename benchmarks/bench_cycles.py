@@ -46,7 +46,10 @@ def image_difference(reference: np.ndarray, test: np.ndarray) -> dict:
             "flip_mean": float(flip_mean), "flip_map": np.asarray(flip_map)}
 
 
-def main(resolution: int = 512, spp: int = 64, *, noise_floor: bool = True) -> dict:
+def main(resolution: int = 512, spp: int = 64, *, exaggeration: float | None = None,
+         noise_floor: bool = True) -> dict:
+    """Render both, compare, print and return the figures (``exaggeration`` None: the
+    scene's ``render.diffuse.exaggeration``, 200)."""
     from render_inspect.io import save_png
     from render_inspect.machining import simulate_scene
     from render_inspect.render import render_diffuse
@@ -56,7 +59,9 @@ def main(resolution: int = 512, spp: int = 64, *, noise_floor: bool = True) -> d
     scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
                        ["simulation.region=[-0.5, -0.5, 0.5, 0.5]", "simulation.pixel=0.002"])
     hm = simulate_scene(scene).heightmap
-    dcfg = DiffuseConfig(resolution=resolution, spp=spp)
+    dcfg = scene.render.diffuse.model_copy(update={"resolution": resolution, "spp": spp})
+    if exaggeration is not None:
+        dcfg = dcfg.model_copy(update={"exaggeration": float(exaggeration)})
     small = DiffuseConfig(resolution=16, spp=1)
 
     # warm-up: Mitsuba's variant choice and JIT, Cycles' kernel load
@@ -108,4 +113,4 @@ def main(resolution: int = 512, spp: int = 64, *, noise_floor: bool = True) -> d
 
 if __name__ == "__main__":
     args = [int(a) for a in sys.argv[1:3]]
-    main(*args)
+    main(*args, **({"exaggeration": float(sys.argv[3])} if len(sys.argv) > 3 else {}))

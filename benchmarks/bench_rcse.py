@@ -113,7 +113,7 @@ def _write_docs(res: dict) -> None:
          f"{res['conventional_modelling_s']:.2f} s; paper 4,734 s"),
         ("conventional: CCPs by interpolation (linear, on rows)",
          f"{res['conventional_toolpath_s']:.3f} s; paper 9,809 s"),
-        ("conventional: cubic at the exact spiral point", f"{res['conventional_cubic_exact_xy_toolpath_s']:.3f} s"),
+        ("conventional: cubic B-spline at the exact spiral point (prefilter counted as modelling)", f"{res['conventional_cubic_exact_xy_toolpath_s']:.3f} s"),
         ("profile error max: RCSE / conventional linear / conventional cubic",
          f"{res['rcse_profile_error_max_nm']:.2g} / {res['conventional_profile_error_max_nm']:.1f} / "
          f"{res['conventional_cubic_exact_xy_profile_error_max_nm']:.1f} nm"),

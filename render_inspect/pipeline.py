@@ -35,9 +35,9 @@ def build_metrics(scene, res) -> dict:
         m.setdefault("toolpath", {}).setdefault("points", int(tp.points))
         m["toolpath"].setdefault("revolutions", tp.revolutions)
         m["toolpath"].setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
-        kin = _kinematics(tp, scene)
-        if kin:
-            for k, v in kin.items():
+        if "x_velocity_max_mm_s" not in m["toolpath"]:
+            kin = _kinematics(tp, scene)
+            for k, v in (kin or {}).items():
                 m["toolpath"].setdefault(k, v)
     return m
 
@@ -67,6 +67,14 @@ def write_simulation(scene, res, out_dir: Path, *, preview: bool = True) -> dict
                      extent=hm.extent, cmap="RdBu_r", symmetric=True, label="machined - design (nm)",
                      title=f"{scene.name}: residual, compensation {scene.process.compensation}\n"
                            f"Sq {r['Sq_nm']:.2f} nm, Sz {r['Sz_nm']:.1f} nm, min {r['min_nm']:.1f} nm")
+        for name, draw in res.plots.items():
+            draw(out_dir / name)
+        if res.toolpath is not None and "rcse_kinematics.png" not in res.plots:
+            from .toolpath._kinematics import plot_kinematics
+
+            plot_kinematics(res.toolpath, out_dir / "kinematics.png",
+                            labels=(f"{scene.process.kind.upper()} path", ""),
+                            title=f"{scene.name}: axis motion")
     write_json(out_dir / "metrics.json", metrics)
     (out_dir / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return metrics
@@ -103,16 +111,9 @@ def run_toolpath(scene, out, *, fmt: str = "npz"):
         path = build_toolpath(scene, surface, region=region)
     with atomic_output_dir(out) as tmp:
         tmp = Path(tmp)
-        if fmt == "npz":
-            path.save_npz(tmp / "toolpath.npz")
-        elif fmt == "csv":
-            from .toolpath._export import write_csv
+        from .toolpath._export import export_toolpath
 
-            write_csv(tmp / "toolpath.csv", path)
-        else:
-            from .toolpath._export import write_nc
-
-            write_nc(tmp / "toolpath.nc", path, scene=scene)
+        export_toolpath(path, tmp, fmt=fmt, scene=scene)
         info = {"software_version": __version__, "scene_name": scene.name,
                 "toolpath": {"points": path.points, "revolutions": path.revolutions,
                              "feed_per_rev_mm": scene.process.feed_per_rev,

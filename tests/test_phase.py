@@ -109,6 +109,17 @@ def test_five_step_robust_to_step_error():
     assert m5["rms_nm"] < 0.1 * m4["rms_nm"]
 
 
+@pytest.mark.parametrize("quality", ["modulation", "reliability"])
+def test_noisy_sphere_either_unwrapping_order(quality):
+    """Frames with additive noise (1 % of the mean): a few nm, no fringe-order slips."""
+    h = _sphere()
+    rng = np.random.default_rng(5)
+    f = _psi_frames(h, np.arange(4) * np.pi / 2) + rng.normal(0, 0.005, (4,) + h.shape)
+    res = retrieve_psi(f, wavelength_nm=LAM_NM, quality=quality)
+    _, m = height_error(res.height, h, valid=res.valid)
+    assert m["rms_nm"] < 3.0 and m["pv_nm"] < 25.0, m
+
+
 def test_unwrap_many_fringes_with_holes():
     """A steep tilt (about 20 fringes) with an invalid disc and a noisy corner."""
     x, y = _grid(128)
@@ -207,6 +218,8 @@ def test_height_from_phase():
     (lambda: retrieve_csi(np.zeros((6, 5, 5)), np.arange(6.0), wavelength_nm=633, refine="x"),
      "refine must be"),
     (lambda: height_error(np.zeros((3, 3)), np.zeros((4, 4))), "one shape"),
+    (lambda: retrieve_psi(np.ones((4, 5, 5)), wavelength_nm=633, quality="best"),
+     "quality must be"),
 ])
 def test_bad_input(call, match):
     with pytest.raises(InputError, match=match):

@@ -150,3 +150,23 @@ def test_a_window_matches_the_whole_array(scenes_dir):
     sub = a.machined[j0:j0 + b.shape[0], i0:i0 + b.shape[1]]
     assert_allclose(b.machined, sub, rtol=0, atol=1e-12)
     assert win.metrics["sculpt"]["target_points"] < full.metrics["sculpt"]["target_points"]
+
+
+def test_sculpt_program_follows_the_design_along_the_lines(scenes_dir):
+    from render_inspect.design import make_surface
+    from render_inspect.machining._sculpt import sculpt_program
+
+    scene = _scene(scenes_dir)
+    prog = sculpt_program(scene)
+    surf = make_surface(scene.design)
+    assert sorted(set(np.round(prog["x"], 9))) == pytest.approx([-P, 0.0, P])
+    assert_allclose(prog["z"], surf.height(prog["x"], prog["y"]), atol=1e-15)
+    assert np.all(np.diff(prog["t"]) >= 0)
+    # each line takes 3 p / v_c at 100 mm/min
+    assert prog["t"][-1] == pytest.approx(3 * (3 * P) / (100 / 60))
+    # the samples are at most 2.5 um apart and include every cell edge
+    for k in range(3):
+        y = prog["y"][prog["line"] == k]
+        assert np.diff(y).max() <= 0.0025 + 1e-12
+        for e in (-1.5 * P, -0.5 * P, 0.5 * P, 1.5 * P):
+            assert np.isclose(y, e, atol=1e-12).any()

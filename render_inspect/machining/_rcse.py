@@ -191,7 +191,7 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     timing["simulate"] = timing["envelope"] + timing["design"] + timing["metrics"]
     res = SimulationResult(hm, path, metrics, timing)
     # figures the writer may draw into the output folder: file name -> fn(png_path)
-    res.plots = {}
+    res.plots = dict(res.plots)
     if st["compare_conventional"]:
         res.plots["rcse_kinematics.png"] = functools.partial(plot_rcse_comparison, pair)
     return res

@@ -13,9 +13,12 @@ class SimulationResult:
     toolpath: the ToolPath (turning processes) or None;
     metrics: extra metrics.json entries (merged into the top level, e.g. ``toolpath``
     maxima, ``servo``, ``vibration``, ``lenslets``);
-    timing_s: seconds per stage (``toolpath``, ``simulate``, ...)."""
+    timing_s: seconds per stage (``toolpath``, ``simulate``, ...);
+    plots: extra figures, file name -> callable(path), drawn by ``simulate``."""
 
     heightmap: HeightMap
     toolpath: object | None = None
     metrics: dict = field(default_factory=dict)
     timing_s: dict = field(default_factory=dict)
+    #: figures to draw into the output folder: file name -> callable(path)
+    plots: dict = field(default_factory=dict)

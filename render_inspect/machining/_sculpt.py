@@ -39,7 +39,7 @@ from ._metrics import residual_metrics
 from ._result import SimulationResult
 
 __all__ = ["simulate_sculpt", "sculpt_line_profile", "sculpt_surface", "target_line",
-           "lattice_lines", "vibration_phases"]
+           "lattice_lines", "vibration_phases", "sculpt_program"]
 
 
 @njit(cache=True)
@@ -79,7 +79,6 @@ def _sweep_line(ys, zs, t_start, vc, amp, freq, phases, y0, dy, out):  # pragma:
     passing it.  The tool is at ``ys[0]`` at time ``t_start``."""
     m = ys.shape[0]
     y_start = ys[0]
-    t_end = t_start + (ys[m - 1] - y_start) / vc
     two_pi = 2.0 * math.pi
     vib = amp > 0.0 and freq > 0.0
     npha = phases.shape[0]
@@ -126,7 +125,6 @@ def _sweep_line(ys, zs, t_start, vc, amp, freq, phases, y0, dy, out):  # pragma:
                 jph = 0
                 p += 1
             t_vib = (p + phases[jph] / two_pi) / freq
-    return t_end
 
 
 def target_line(surface, x_line: float, edges, *, step: float):
@@ -268,6 +266,35 @@ def lattice_lines(surface, design_cfg) -> tuple[np.ndarray, np.ndarray]:
     py = float(design_cfg.pitch_y)
     edges = np.concatenate([[yc[0] - py / 2], 0.5 * (yc[1:] + yc[:-1]), [yc[-1] + py / 2]])
     return xs, edges
+
+
+def sculpt_program(scene) -> dict:
+    """The commanded sculpturing program of ``scene``: every target line of the array, in
+    cutting order, without the vibration (the NC program the machine is given).
+
+    Returns
+    -------
+    dict of (n,) float64 arrays
+        ``x, y, z`` (mm, tool tip), ``t`` (s, nominal cutting time, lines end to end
+        without the moves between them) and ``line`` (index of the target line).
+    """
+    from ..design import make_surface
+
+    surface = make_surface(scene.design)
+    x_lines, y_edges = lattice_lines(surface, scene.design)
+    vc = scene.process.feed_mm_per_min / 60.0
+    xs, ys_all, zs_all, ts, ks = [], [], [], [], []
+    t0 = 0.0
+    for k, xk in enumerate(x_lines):
+        ys, zs = target_line(surface, xk, y_edges, step=scene.process.arc_length)
+        xs.append(np.full(ys.size, xk))
+        ys_all.append(ys)
+        zs_all.append(zs)
+        ts.append(t0 + (ys - ys[0]) / vc)
+        ks.append(np.full(ys.size, k, dtype=np.float64))
+        t0 = ts[-1][-1]
+    return {"x": np.concatenate(xs), "y": np.concatenate(ys_all), "z": np.concatenate(zs_all),
+            "t": np.concatenate(ts), "line": np.concatenate(ks)}
 
 
 def simulate_sculpt(scene) -> SimulationResult:

@@ -346,7 +346,8 @@ def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
 # --------------------------------------------------------------------------------------
 # the two measurement modes
 def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str = "auto",
-                 valid=None, min_modulation: float = 0.05) -> PhaseResult:
+                 valid=None, min_modulation: float = 0.05,
+                 quality: str = "modulation") -> PhaseResult:
     """Height from phase-shifting frames: wrapped phase, 2-D unwrapping, height.
 
     Parameters
@@ -363,6 +364,10 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
         Pixels where light returned (the renderer's ``valid``).
     min_modulation : float
         Pixels whose fringe contrast ``b / a`` is below this are invalid (0..1).
+    quality : {"modulation", "reliability"}
+        Unwrapping order: by fringe contrast (it drops where a pixel spans a large part of
+        a fringe, i.e. where the phase is unreliable; fewer slips on undersampled turning
+        marks) or by the second-difference reliability of :func:`phase_quality`.
 
     Returns
     -------
@@ -373,14 +378,17 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     check_range("min_modulation", min_modulation, 0.0, 1.0)
     f = _check_frames(frames)
     v = _check_valid(valid, f.shape[1:])
+    if quality not in ("modulation", "reliability"):
+        raise InputError(f"quality must be 'modulation' or 'reliability', got {quality!r}")
     phase, mod = wrapped_phase(f, steps_rad=steps_rad, algorithm=algorithm)
     v &= np.isfinite(phase) & (mod >= min_modulation)
-    un, labels = unwrap_phase(phase, valid=v)
+    un, labels = unwrap_phase(phase, valid=v, quality=mod if quality == "modulation" else None)
     h = height_from_phase(un, wavelength_nm=wavelength_nm)
     n = f.shape[0]
     alg = algorithm if algorithm != "auto" else {4: "4step", 5: "5step"}.get(n, "lsq")
     meta = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
-            "min_modulation": float(min_modulation), "unwrap": "quality-guided flood fill",
+            "min_modulation": float(min_modulation),
+            "unwrap": f"quality-guided flood fill ({quality})",
             "regions": int(labels.max())}
     return PhaseResult(h, v, phase, mod, labels, meta)
 

@@ -342,9 +342,10 @@ def _configure_cycles(scene, spec: dict, *, seed: int, threads: int | None):
     c.use_animated_seed = False
     c.pixel_filter_type = "BOX"  # Mitsuba's films use a box filter too
     c.filter_width = 1.0
-    # Mitsuba's path tracer: max_depth segments = max_depth - 1 bounces; no clamping,
-    # no glossy blur (both bias the image)
-    bounces = max(int(spec.get("max_depth", 6)) - 1, 0)
+    # Mitsuba's max_depth counts path segments (2 = one surface hit lit by the light);
+    # Cycles' max_bounces counts bounces after the first hit (0 = that same direct
+    # light), so bounces = max_depth - 2.  No clamping, no glossy blur (both bias).
+    bounces = max(int(spec.get("max_depth", 6)) - 2, 0)
     c.max_bounces = bounces
     for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces",
                  "transparent_max_bounces", "volume_bounces"):

@@ -228,33 +228,28 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     dx = max(0.0123 * fine, 64 * ulp)
     dy = max(0.0271 * fine, 150 * ulp)
 
-    def heights(pos, nrm, gn):
-        hit = (np.einsum("...i,...i->...", gn, gn) > 0.25) & (gn[..., 2] > 1e-6)
-        gz = np.where(hit, gn[..., 2], 1.0).astype(np.float64)
-        slope_dx = -gn[..., 0] / gz  # dz/dx of the hit triangle
-        slope_dy = -gn[..., 1] / gz
-        h = pos[..., 2].astype(np.float64) - slope_dx * dx - slope_dy * dy + z_off
-        return np.where(hit, h, np.nan), np.where(hit, nrm[..., 2], 0.0).astype(np.float32)
-
     nx, ny = geom["nx"], geom["ny"]
-    grid = dict(x0=x0 + dx, y0=y0 + dy, width_mm=x1 - x0)
+    grid = dict(x0=x0, y0=y0, width_mm=x1 - x0)
     grids = [dict(grid, nx=nx * s, ny=ny * s)]
-    if s % 2 == 0:  # the pixel centres are not sub-sample points: one more sensor
+    if s % 2 == 0:  # the pixel centres are not sub-sample points: one more grid
         grids.append(dict(grid, nx=nx, ny=ny))
-    traced = trace_grids(gm, grids, z_top=z_top)
-    h_sub, nz_sub = heights(*traced[0])
+    traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy))
+    z_sub, nz_sub = traced[0]
+    h_sub = z_sub.astype(np.float64) + z_off
     if s % 2 == 1:
         c = s // 2
         h_centre = h_sub[c::s, c::s].copy()
     else:
-        h_centre, _ = heights(*traced[1])
+        h_centre = traced[1][0].astype(np.float64) + z_off
     return h_sub, nz_sub, h_centre
 
 
 # ------------------------------------------------------------------------------- model
 def _block_mean(a: np.ndarray, s: int) -> np.ndarray:
+    if s == 1:
+        return a
     ny, nx = a.shape[0] // s, a.shape[1] // s
-    return a.reshape(ny, s, nx, s).mean(axis=(1, 3))
+    return a.reshape(ny, s, nx, s).mean(axis=(1, 3), dtype=np.result_type(a, np.float32))
 
 
 def interference_frames(h_sub, nz_sub, *, subsamples: int, numerical_aperture: float,
@@ -282,12 +277,14 @@ def interference_frames(h_sub, nz_sub, *, subsamples: int, numerical_aperture: f
     s = int(subsamples)
     cos_acc = math.sqrt(1.0 - numerical_aperture ** 2)
     ok = np.isfinite(h_sub) & (nz_sub >= cos_acc)
-    acc = ok.astype(np.float64)
+    acc = ok.astype(np.float32)
     accepted = _block_mean(acc, s)
     lam = wavelength_nm * 1e-6  # nm -> mm
     dh = np.where(ok, h_sub - z_ref, 0.0)  # mm
     if mode == "psi":
-        field_ = _block_mean(acc * np.exp(1j * (4 * math.pi / lam) * dh), s)
+        # phase in float64, the field in complex64 (phase error < 1e-5 rad)
+        phase = ((4 * math.pi / lam) * dh).astype(np.float32)
+        field_ = _block_mean(acc * np.exp(1j * phase), s).astype(np.complex128)
         dc = 1.0 + np.abs(field_) ** 2
         deltas = step_rad * np.arange(int(steps))
         frames = np.stack([(dc + 2 * np.real(field_ * np.exp(1j * d))) / 4 for d in deltas])
