@@ -101,6 +101,8 @@ def run_toolpath(scene, out, *, fmt: str = "npz"):
     from .io import atomic_output_dir, write_json
     from .toolpath import build_toolpath
 
+    if scene.process.kind == "sculpt":
+        return _run_sculpt_program(scene, out, fmt)
     surface = make_surface(scene.design)
     region = None if scene.process.kind == "sts" else scene.simulation.region
     if scene.process.kind == "rcse":
@@ -146,3 +148,48 @@ def run_demo(out, *, quick: bool = False):
         return
     run_simulate(scene, out / "compensated")
     run_simulate(scene.with_overrides(["process.compensation='none'"]), out / "uncompensated")
+
+
+def _run_sculpt_program(scene, out, fmt):
+    """Sculpturing is linear X-Y-Z, not turning: the program is (x, y, z, t) per target line.
+    npz holds the arrays; csv one row per point; nc a generic G01 X Y Z program."""
+    import io
+
+    import numpy as np
+
+    from .io import atomic_output_dir, atomic_write_bytes, atomic_write_text, write_json
+    from .machining._sculpt import sculpt_program
+
+    prog = sculpt_program(scene)
+    n = prog["x"].size
+    with atomic_output_dir(out) as tmp:
+        tmp = Path(tmp)
+        if fmt == "npz":
+            buf = io.BytesIO()
+            np.savez(buf, **prog)
+            atomic_write_bytes(tmp / "toolpath.npz", buf.getvalue())
+        elif fmt == "csv":
+            rows = np.column_stack([prog["t"], prog["x"], prog["y"], prog["z"], prog["line"]])
+            buf = io.StringIO()
+            np.savetxt(buf, rows, fmt=["%.9f", "%.6f", "%.6f", "%.6f", "%d"], delimiter=",",
+                       header="t_s,x_mm,y_mm,z_mm,line", comments="")
+            atomic_write_text(tmp / "toolpath.csv", buf.getvalue())
+        else:
+            vc = scene.process.feed_mm_per_min
+            lines = ["; render_inspect generic X-Y-Z sculpturing program (mm, mm/min)",
+                     f"; software_version: {__version__}", f"; scene: {scene.name}",
+                     f"; cutting speed: {vc} mm/min; vibration (not programmed): "
+                     f"{scene.artifacts.vibration.frequency_hz} Hz, {scene.artifacts.vibration.amplitude} mm",
+                     "G90 G94 G21"]
+            prev = None
+            for i in range(n):
+                if prev is not None and prog["line"][i] != prev:
+                    lines.append(f"; line {int(prog['line'][i])}")
+                prev = prog["line"][i]
+                lines.append(f"N{i + 1} G01 X{prog['x'][i]:.6f} Y{prog['y'][i]:.6f} Z{prog['z'][i]:.6f} F{vc:g}")
+            atomic_write_text(tmp / "toolpath.nc", "\n".join(lines) + "\n")
+        write_json(tmp / "toolpath.json", {"software_version": __version__, "scene_name": scene.name,
+                                           "toolpath": {"points": int(n), "lines": int(prog["line"].max()) + 1,
+                                                        "kind": "sculpt", "cut_time_s": float(prog["t"][-1])}})
+    _log(f"sculpturing program: {n:,} points -> {out}")
+    return prog

@@ -84,17 +84,19 @@ def test_macro_view_is_seeded_repeatable_and_decimated():
     assert meta["seed"] == 3 and meta["mitsuba_variant"] in ("llvm_ad_rgb", "scalar_rgb", "cuda_ad_rgb")
 
 
-def test_same_image_in_a_new_process():
+def test_same_images_in_a_new_process():
+    # the diffuse image and a (noisy) interferogram, bitwise, in two fresh processes
     code = (
         "import numpy as np, hashlib;"
         "from render_inspect.machining import HeightMap;"
-        "from render_inspect.scene import DiffuseConfig;"
-        "from render_inspect.render import render_diffuse;"
+        "from render_inspect.scene import DiffuseConfig, InterferometerConfig;"
+        "from render_inspect.render import render_diffuse, render_interferogram;"
         "c=np.linspace(-1,1,201); X,Y=np.meshgrid(c,c);"
         "z=5e-4*np.sin(2*np.pi*X/0.5)*np.cos(2*np.pi*Y/0.7);"
-        "hm=HeightMap(z,z,c[1]-c[0],(-1.0,-1.0));"
+        "hm=HeightMap(z,z+1e-6*np.cos(2*np.pi*X/0.03),c[1]-c[0],(-1.0,-1.0));"
         "rgb,_=render_diffuse(hm,DiffuseConfig(spp=4,resolution=48),view='macro',seed=1);"
-        "print(hashlib.sha256(rgb.tobytes()).hexdigest())")
+        "ig=render_interferogram(hm,InterferometerConfig(objective='5x',pixel=0.02),seed=2);"
+        "print(hashlib.sha256(rgb.tobytes()+ig.frames.tobytes()+ig.height_true.tobytes()).hexdigest())")
     out = [subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                           text=True).stdout.strip().splitlines()[-1] for _ in range(2)]
     assert out[0] == out[1]

@@ -56,8 +56,9 @@ DEFAULT_CSI_WAVELENGTH_NM = 600.0
 DEFAULT_CSI_BANDWIDTH_NM = 120.0
 #: A pixel is valid when at least this fraction of its sub-samples returns light.
 VALID_FRACTION = 0.5
-#: CSI stacks longer than this are refused.
+#: CSI stacks longer than this, or larger than this many bytes, are refused.
 MAX_CSI_FRAMES = 1024
+MAX_STACK_BYTES = 2 * 1024**3
 
 PHASE_CONVENTION = ("I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4, E = mean over sub-samples of "
                     "exp(i 4 pi (h - z_ref) / lambda); delta_k = phase_steps_rad[k]")
@@ -318,7 +319,14 @@ def interference_frames(h_sub, nz_sub, *, subsamples: int, numerical_aperture: f
     # scan positions relative to z_ref, on a grid that contains 0 (= z_ref)
     i_lo = int(math.floor(lo / step))
     rel = step * np.arange(i_lo, i_lo + n + 1)
-    frames = np.empty((rel.size,) + accepted.shape)
+    need = rel.size * accepted.size * 4
+    if need > MAX_STACK_BYTES:
+        raise MemoryBudgetError(f"the CSI stack of {rel.size} frames of {accepted.shape[1]} x "
+                                f"{accepted.shape[0]} pixels needs {need / 2**30:.1f} GiB (> "
+                                f"{MAX_STACK_BYTES / 2**30:.0f} GiB): raise "
+                                f"render.interferometer.scan_step_nm (got {scan_step_nm:g}) or "
+                                f"shrink field_of_view / raise pixel")
+    frames = np.empty((rel.size,) + accepted.shape, dtype=np.float32)
     for j, zj in enumerate(rel):
         opd = 2.0 * (dh - zj)
         cross = acc * np.exp(-0.5 * (sigma_k * opd) ** 2) * np.cos(k0 * opd)
