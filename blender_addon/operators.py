@@ -42,7 +42,7 @@ class RENDER_INSPECT_OT_simulate(bpy.types.Operator):
                 out=_output_dir(settings), surface=settings.surface,
                 exaggeration=settings.exaggeration or None,
                 collection=context.scene.collection)
-        except RenderInspectError as e:
+        except (RenderInspectError, OSError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         self.report({"INFO"}, f"render_inspect: {result['object'].name} from {result['heightmap']}")
@@ -65,7 +65,7 @@ class RENDER_INSPECT_OT_render(bpy.types.Operator):
                 bpy.data.objects.get(OBJECT_NAME), view=settings.view,
                 out=_output_dir(settings), resolution=settings.resolution,
                 spp=settings.samples, seed=settings.seed, load_image=True)
-        except RenderInspectError as e:
+        except (RenderInspectError, OSError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         self.report({"INFO"}, f"render_inspect: wrote {result['png']}")

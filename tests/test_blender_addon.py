@@ -162,6 +162,20 @@ def test_render_writes_a_cycles_image(settings):
     assert bpy.context.scene.camera is None
 
 
+def test_default_output_goes_to_temp_not_the_addon_folder(settings, tmp_path, monkeypatch):
+    import tempfile
+
+    import bpy
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    addon_dir = Path(sys.modules[MODULE].__file__).parent
+    before = {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts}
+    settings.output_dir = ""
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    assert (tmp_path / "render_inspect_out" / "sts_sinusoidal_grid" / "heightmap.exr").is_file()
+    assert {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts} == before
+
+
 def test_unregister_and_register_mirror(addon):
     import addon_utils
     import bpy

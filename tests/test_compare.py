@@ -189,6 +189,21 @@ def test_compare_missing_measured_file(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("overrides,match", [
+    (["metrology.phase_algorithm='5step'"], "needs render.interferometer.steps = 5, got 4"),
+    (["metrology.phase_algorithm='4step'", "render.interferometer.step_rad=1.0"],
+     "step_rad = pi/2"),
+])
+def test_compare_refuses_unusable_phase_settings(tmp_path, overrides, match):
+    from render_inspect.report import run_compare
+
+    p = tmp_path / "s.toml"
+    p.write_text(TINY)
+    with pytest.raises(InputError, match=match):
+        run_compare(load_scene(p, overrides), tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
 def test_compare_variants_and_render_caps(tmp_path):
     from render_inspect.machining import HeightMap
     from render_inspect.report import (COMPARE_MAX_CAMERA_PIXELS, compare_variants,
@@ -255,3 +270,60 @@ def test_report_renders_in_headless_chromium(compared, tmp_path):
     assert (img < 200).mean() > 0.05
     assert img.std() > 30
     assert (img[1000:] < 200).mean() > 0.02
+
+
+TINY_MLA = """
+name = "tiny_mla"
+[design]
+type = "lenslet_array"
+cells = "round"
+rows = 2
+cols = 2
+pitch_x = 0.2
+pitch_y = 0.2
+aperture_radius = 0.08
+sag = 0.0005
+concave = true
+[tool]
+nose_radius = 0.5
+[process]
+kind = "sts"
+spindle_rpm = 50
+feed_mm_per_min = 1
+workpiece_radius = 0.5
+compensation = "z"
+points_per_rev = 720
+[simulation]
+region = [-0.2, -0.2, 0.2, 0.2]
+pixel = 0.002
+seed = 1
+[render.interferometer]
+pixel = 0.004
+field_of_view = [-0.1, -0.1, 0.1, 0.1]
+[render.diffuse]
+resolution = 32
+spp = 2
+"""
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_lenslet_array_table(tmp_path):
+    """A 2 x 2 lenslet array: metrics.json carries the ``lenslets`` list of
+    ARCHITECTURE.md, and the report shows it."""
+    from render_inspect.report import run_compare
+
+    p = tmp_path / "mla.toml"
+    p.write_text(TINY_MLA)
+    m = run_compare(load_scene(p), tmp_path / "out")
+    lens = m["lenslets"]
+    assert sorted((e["row"], e["col"]) for e in lens) == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    for e in lens:
+        for k in ("row", "col", "x_mm", "y_mm", "dx_um", "dy_um", "Sa_um", "Sq_um", "PV_um"):
+            assert k in e
+        assert abs(e["x_mm"]) == pytest.approx(0.1, abs=1e-3)
+        assert abs(e["dx_um"]) < 1.0 and abs(e["dy_um"]) < 1.0
+        assert e["PV_um"] < 0.5  # feed scallops (~100 nm) dominate the form error
+    assert len(m["uncompensated"]["lenslets"]) == 4
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert ">Lenslets<" in html

@@ -119,7 +119,6 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
     if not finite.any():
         raise InputError(f"the height map's {surface} channel has no finite height")
     x_lo, x_hi, y_lo, y_hi = heightmap.extent
-    ex = float(dcfg.exaggeration)
     res = int(dcfg.resolution)
     if view == "macro":
         window = [x_lo, y_lo, x_hi, y_hi]
@@ -140,6 +139,8 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
         z_offset = float(zf.mean()) if zf.size else float(z[finite].mean())
     else:
         z_offset = float(z[finite].mean())
+    ex = float(dcfg.exaggeration) if dcfg.exaggeration is not None else \
+        auto_exaggeration(heightmap, surface, None if view == "macro" else window)
     zmax = float(np.nanmax(z) - z_offset) * ex
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
     wmm, hmm = x1 - x0, y1 - y0
@@ -169,6 +170,32 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
             "light": {"type": light, "zenith_profile": LIGHTS[light], "up": [0.0, 0.0, 1.0],
                       "env_rows": ENV_ROWS},
             "material": material, "units": "mm", "software_version": __version__}
+
+
+AUTO_SLOPE_RAD = 0.2
+
+
+def auto_exaggeration(heightmap, surface="machined", window=None) -> float:
+    """Vertical exaggeration that makes the steepest 1 % of the (exaggerated) slopes about
+    ``AUTO_SLOPE_RAD``: nanometre relief on a millimetre part becomes visible as shading
+    and reflection distortion without turning into cliffs.  Rounded to 1-2-5 steps."""
+    z = getattr(heightmap, surface)
+    if window is not None:
+        from ..mesh import window_indices
+
+        i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
+        z = z[i0:i1, j0:j1]
+    step = max(1, int(max(z.shape) // 1024))
+    zz = z[::step, ::step]
+    gy, gx = np.gradient(zz, heightmap.pixel * step)
+    g = np.hypot(gx, gy)
+    g = g[np.isfinite(g)]
+    p99 = float(np.percentile(g, 99)) if g.size else 0.0
+    if p99 <= 0:
+        return 1.0
+    raw = min(max(AUTO_SLOPE_RAD / p99, 1.0), 1e6)
+    e = 10 ** math.floor(math.log10(raw))
+    return float(max(m * e for m in (1, 2, 5) if m * e <= raw))
 
 
 def _mitsuba_scene(gm, spec):

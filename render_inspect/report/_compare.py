@@ -192,7 +192,11 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     timing["interferogram"] = time.perf_counter() - t
     write_interferogram_outputs(d, ig, scene=v.scene.to_dict())
     t = time.perf_counter()
-    v.phase, measured = add_height_measured(d / "interferogram.exr")
+    mcfg = v.scene.metrology
+    v.phase, measured = add_height_measured(d / "interferogram.exr",
+                                            algorithm=mcfg.phase_algorithm,
+                                            csi_refine=mcfg.csi_refine,
+                                            min_modulation=mcfg.min_modulation)
     timing["phase_retrieval"] = time.perf_counter() - t
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
     save_map_png(d / "measurement_error.png", err, extent=ig.extent,
@@ -255,19 +259,21 @@ def _lenslets(hm, design_surface) -> list:
         return lenslet_table(hm, design_surface, which="machined")
 
 
-def _sections(z, design, *, pixel, origin, center, angles_deg):
+def _sections(z, design, *, pixel, origin, center, angles_deg, filtered=None):
     from ..metrology import extract_section
+
+    def sec(m, a):
+        return extract_section(m, pixel=pixel, origin=origin, kind="radial", center=center,
+                               angle=np.radians(a))[1]
 
     out = []
     for a in angles_deg:
         s, zm = extract_section(z, pixel=pixel, origin=origin, kind="radial", center=center,
                                 angle=np.radians(a))
-        dz = None
-        if design is not None:
-            _, dz = extract_section(design, pixel=pixel, origin=origin, kind="radial",
-                                    center=center, angle=np.radians(a))
         if np.isfinite(zm).sum() >= 2:
-            out.append({"angle_deg": float(a), "s": s, "machined": zm, "design": dz})
+            out.append({"angle_deg": float(a), "s": s, "machined": zm,
+                        "design": None if design is None else sec(design, a),
+                        "filtered": None if filtered is None else sec(filtered, a)})
     return out
 
 
@@ -321,6 +327,7 @@ def run_compare(scene, out, *, measured=None) -> dict:
 
     if measured is not None and not Path(measured).is_file():
         raise InputError(f"--measured file not found: {str(measured)!r}")
+    _check_phase_settings(scene)
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
     design_surface = make_surface(scene.design)
@@ -369,6 +376,21 @@ def run_compare(scene, out, *, measured=None) -> dict:
         page = build_page(scene, metrics, figs, notes=notes)
         atomic_write_text(tmp / "report.html", page)
     return json.loads(json.dumps(metrics, default=_jsonable))
+
+
+def _check_phase_settings(scene) -> None:
+    """Refuse, before any work, a PSI algorithm that cannot use the frames rendered."""
+    ic, alg = scene.render.interferometer, scene.metrology.phase_algorithm
+    need = {"4step": 4, "5step": 5}.get(alg)
+    if ic.mode == "psi" and need is not None:
+        if ic.steps != need:
+            raise InputError(f"metrology.phase_algorithm = {alg!r} needs render.interferometer.steps "
+                             f"= {need}, got {ic.steps}; set steps = {need} or phase_algorithm = "
+                             f"'auto' / 'lsq'")
+        if abs(ic.step_rad - np.pi / 2) > 1e-6:
+            raise InputError(f"metrology.phase_algorithm = {alg!r} needs render.interferometer."
+                             f"step_rad = pi/2 (1.5707963...), got {ic.step_rad}; use 'lsq' for "
+                             f"other steps")
 
 
 def _jsonable(o):
@@ -458,7 +480,7 @@ def _figures(c: _Variant, u: _Variant, meas, F) -> dict:
     for n, v in zip(names, (c, u)):
         hm = v.heightmap
         secs[n] = _sections(hm.machined, hm.design, pixel=hm.pixel, origin=hm.origin,
-                            center=center, angles_deg=PROFILE_ANGLES_DEG)
+                            center=center, angles_deg=PROFILE_ANGLES_DEG, filtered=v.filtered)
     if meas is not None:
         secs["measured"] = _sections(meas["maps"]["measured"], meas["maps"]["design"],
                                      pixel=meas["pixel"], origin=meas["origin"], center=center,

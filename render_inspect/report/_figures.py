@@ -148,18 +148,21 @@ def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "
 
 def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
     """Radial profiles like seed 000 Fig. 16 (b, c): per variant (column), the design and
-    machined heights along radial sections at a few angles (top, um) and machined minus
-    design along them (bottom, nm).
+    machined heights along radial sections at a few angles (top, um), machined minus
+    design along them (middle, nm) and, where given, the filtered residual (bottom, nm:
+    the waviness that the turning marks hide).
 
     Parameters
     ----------
-    sections : dict variant -> list of dict(angle_deg, s, design, machined)
+    sections : dict variant -> list of dict(angle_deg, s, design, machined[, filtered])
         ``s`` in mm from the centre, heights in mm.
     """
     plt = _plt()
     names = list(sections)
     n = max(len(names), 1)
-    fig, axes = plt.subplots(2, n, figsize=(4.6 * n, 6.2), dpi=dpi, squeeze=False,
+    has_f = any(sec.get("filtered") is not None for v in sections.values() for sec in v)
+    rows = 3 if has_f else 2
+    fig, axes = plt.subplots(rows, n, figsize=(4.6 * n, 3.1 * rows), dpi=dpi, squeeze=False,
                              sharey="row")
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for j, name in enumerate(names):
@@ -174,6 +177,14 @@ def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
             if sec.get("design") is not None:
                 bot.plot(s, (np.asarray(sec["machined"]) - np.asarray(sec["design"])) * 1e6,
                          color=c, lw=0.9, label=lab)
+            if has_f and sec.get("filtered") is not None:
+                axes[2, j].plot(s, np.asarray(sec["filtered"]) * 1e6, color=c, lw=0.9, label=lab)
+        if has_f:
+            fa = axes[2, j]
+            fa.set_title(f"{name}: filtered residual (waviness)", fontsize=10)
+            fa.set_ylabel("filtered (nm)")
+            fa.set_xlabel("radius (mm)")
+            fa.axhline(0, color="k", lw=0.5)
         top.set_title(f"{name}: radial sections (dashed = design)", fontsize=10)
         top.set_ylabel("height (um)")
         bot.set_title(f"{name}: machined - design", fontsize=10)

@@ -26,6 +26,13 @@ class MetrologyConfig(Section):
     profile_sampling_lengths: int = Field(5, ge=1, le=50, description="sampling lengths for Rz")
     min_coverage: float = Field(0.95, ge=0, le=1,
                                 description="warn when a measurement covers less of the region")
+    # phase retrieval from the rendered interferograms (render_inspect.metrology._phase)
+    phase_algorithm: Literal["auto", "4step", "5step", "lsq"] = Field(
+        "auto", description="PSI: 4-step, 5-step (Hariharan), least squares; auto by frame count")
+    csi_refine: Literal["envelope", "phase"] = Field(
+        "envelope", description="CSI height: envelope peak, or refined by the fringe phase")
+    min_modulation: float = Field(0.05, ge=0, le=1,
+                                  description="pixels with lower fringe contrast are not measured")
 
     @model_validator(mode="after")
     def _filters_nest(self):

@@ -32,7 +32,9 @@ class DiffuseConfig(Section):
     light: Literal["dome", "ring"] = "dome"
     material: Literal["aluminium"] = "aluminium"
     roughness: float = Field(0.0, ge=0, le=1, description="0 = smooth conductor")
-    exaggeration: float = Field(200.0, gt=0, description="vertical exaggeration of the mesh")
+    exaggeration: float | None = Field(None, gt=0, le=1e6,
+                                       description="vertical exaggeration of the mesh; None = auto "
+                                                   "(the steepest 1 % of slopes become ~0.2 rad)")
     spp: int = Field(64, ge=1, le=65536)
     resolution: int = Field(256, ge=16, le=8192)
     window: tuple[float, float, float, float] | None = Field(None, description="mm, microscope view")
