@@ -44,7 +44,8 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
         default="machined", description="Which height layer becomes the mesh")
     exaggeration: FloatProperty(
         name="Exaggeration", default=0.0, min=0.0, max=1e7,
-        description="Vertical exaggeration of the mesh; 0 uses render.diffuse.exaggeration")
+        description="Vertical exaggeration of the mesh; 0 uses render.diffuse.exaggeration "
+                    "(or, when the scene leaves it unset, the renderer's automatic choice)")
     view: EnumProperty(
         name="View",
         items=(("macro", "Macro", "The whole part, perspective, tilted 20 degrees"),

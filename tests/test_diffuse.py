@@ -125,3 +125,15 @@ def test_bad_input():
         diffuse_scene_spec(hm, None, surface="ideal")
     with pytest.raises(InputError, match="seed"):
         render_diffuse(hm, None, seed=-2)
+
+
+def test_auto_exaggeration_brings_the_steepest_slopes_to_0_2_rad():
+    from render_inspect.machining import HeightMap
+    from render_inspect.render._diffuse import auto_exaggeration
+
+    x = np.arange(101) * 0.01
+    z = np.broadcast_to(1e-4 * x[None, :], (101, 101)).copy()  # slope 1e-4
+    hm = HeightMap(z, z.copy(), 0.01, (0.0, 0.0))
+    assert auto_exaggeration(hm) == 2000.0  # 0.2 / 1e-4, on the 1-2-5 steps
+    hm2 = HeightMap(z * 3, z * 3, 0.01, (0.0, 0.0))
+    assert auto_exaggeration(hm2) == 500.0  # 666 -> 500

@@ -631,7 +631,9 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     surface : {"machined", "design", "residual"}
         The height layer that becomes the mesh.
     exaggeration : float or None
-        Vertical exaggeration; None uses the scene's ``render.diffuse.exaggeration``.
+        Vertical exaggeration; None uses the scene's ``render.diffuse.exaggeration``, and
+        when that is unset too, :func:`~render_inspect.render._diffuse.auto_exaggeration`
+        of the simulated surface (as the Mitsuba renders do).
     collection : bpy.types.Collection or None
         Where to link the object (the active scene's collection when None).
 
@@ -650,9 +652,15 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     scene = load_scene(scene_path, list(overrides))
     if exaggeration is not None:
         check_positive("exaggeration", exaggeration)
-    exaggeration = float(exaggeration or scene.render.diffuse.exaggeration)
     result = simulate_scene(scene)
     hm = result.heightmap
+    if exaggeration is None:
+        exaggeration = scene.render.diffuse.exaggeration
+    if exaggeration is None:  # the renderer's automatic choice for this height map
+        from ._diffuse import auto_exaggeration
+
+        exaggeration = auto_exaggeration(hm, surface)
+    exaggeration = float(exaggeration)
     if hm.scene is None:
         hm.scene = scene.to_dict()
     out = Path(out) if out else default_output_dir(scene.name)
