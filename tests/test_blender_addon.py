@@ -174,6 +174,15 @@ def test_default_output_goes_to_temp_not_the_addon_folder(settings, tmp_path, mo
     assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
     assert (tmp_path / "render_inspect_out" / "sts_sinusoidal_grid" / "heightmap.exr").is_file()
     assert {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts} == before
+    # neither the panel nor the scene sets an exaggeration: the renderer's automatic one
+    from render_inspect.machining import simulate_scene
+    from render_inspect.render._diffuse import auto_exaggeration
+    from render_inspect.scene import load_scene
+
+    scene = load_scene(settings.scene_path, [o.strip() for o in SMALL.split(";")])
+    assert scene.render.diffuse.exaggeration is None
+    expected = auto_exaggeration(simulate_scene(scene).heightmap, "machined")
+    assert bpy.data.objects["render_inspect_surface"]["render_inspect_exaggeration"] == expected
 
 
 def test_unregister_and_register_mirror(addon):

@@ -193,7 +193,7 @@ def auto_exaggeration(heightmap, surface="machined", window=None) -> float:
     p99 = float(np.percentile(g, 99)) if g.size else 0.0
     if p99 <= 0:
         return 1.0
-    raw = min(max(AUTO_SLOPE_RAD / p99, 1.0), 1e6)
+    raw = min(max(AUTO_SLOPE_RAD / p99, 1.0), 1e6) * (1 + 1e-9)
     e = 10 ** math.floor(math.log10(raw))
     return float(max(m * e for m in (1, 2, 5) if m * e <= raw))
 
