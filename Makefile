@@ -43,3 +43,9 @@ bench: setup
 
 clean:
 	rm -rf out .pytest_cache
+
+# Build the Blender extension zip (dist/render_inspect-<version>.zip) with Blender's own tool.
+BLENDER_EXT = $(shell $(VPY) -c "import bpy,pathlib;print(pathlib.Path(bpy.utils.system_resource('SCRIPTS'))/'addons_core/bl_pkg/cli/blender_ext.py')" 2>/dev/null)
+.PHONY: blender-addon
+blender-addon: setup
+	mkdir -p dist && $(VPY) $(BLENDER_EXT) build --source-dir blender_addon --output-dir dist
