@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from .._grid import GridCoordinates
 from ..errors import InputError
 
 
 @dataclass
-class HeightMap:
+class HeightMap(GridCoordinates):
     """Heights on a regular grid.  Row 0 is the smallest y, column 0 the smallest x.
 
     Attributes
@@ -47,21 +48,6 @@ class HeightMap:
     @property
     def shape(self):
         return self.design.shape
-
-    @property
-    def x(self) -> np.ndarray:
-        return self.origin[0] + self.pixel * np.arange(self.shape[1])
-
-    @property
-    def y(self) -> np.ndarray:
-        return self.origin[1] + self.pixel * np.arange(self.shape[0])
-
-    @property
-    def extent(self) -> tuple[float, float, float, float]:
-        """(x0, x1, y0, y1) of the pixel edges, for matplotlib ``imshow(origin='lower')``."""
-        h = self.pixel / 2
-        x, y = self.x, self.y
-        return (x[0] - h, x[-1] + h, y[0] - h, y[-1] + h)
 
     def to_exr(self, path: str | Path) -> Path:
         from ..io import write_exr

@@ -142,8 +142,7 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     from ..toolpath._kinematics import kinematics
     from ..toolpath._rcse import RingLayout, build_rcse_toolpath, rcse_ccps, rcse_settings
     from ..toolpath._build import region_radii
-    from ._envelope import simulate_turning
-    from ._sts import check_memory, design_grid, toolpath_metrics
+    from ._sts import check_memory, toolpath_metrics, turned_grid
 
     timing: dict = {}
     check_memory(scene)
@@ -159,13 +158,7 @@ def simulate_rcse(scene, surface=None, *, plot_dir=None) -> SimulationResult:
     path = build_rcse_toolpath(scene, surface, ccps=ccps)
     timing["toolpath"] = time.perf_counter() - t0
     check_memory(scene, path.points)
-    t0 = time.perf_counter()
-    machined = simulate_turning(path, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
-                                half_width=tool.half_width)
-    timing["envelope"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    design = design_grid(surface, sim.region, sim.pixel)
-    timing["design"] = time.perf_counter() - t0
+    machined, design = turned_grid(scene, surface, path, timing)
     t0 = time.perf_counter()
     hm = HeightMap(design, machined, sim.pixel, (sim.region[0], sim.region[1]), scene.to_dict(),
                    {"process": "rcse", "compensation": proc.compensation, "seed": sim.seed})

@@ -230,9 +230,8 @@ def simulate_hts(scene) -> SimulationResult:
     """
     from ..design import make_surface
     from ..toolpath import Tool, build_toolpath
-    from ._envelope import simulate_turning
     from ._metrics import residual_metrics
-    from ._sts import check_memory, design_grid, toolpath_metrics
+    from ._sts import check_memory, design_grid, toolpath_metrics, turned_grid
 
     kind = scene.process.kind
     if kind not in ("hts", "fts"):
@@ -262,13 +261,7 @@ def simulate_hts(scene) -> SimulationResult:
     fpath, zs_f, zf_f = followed_path(path, z_slow, z_fts, servo)
     timing["servo"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    machined = simulate_turning(fpath, nose_radius=tool.nose_radius, region=sim.region,
-                                pixel=sim.pixel, half_width=tool.half_width)
-    timing["envelope"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    design = design_grid(surface, sim.region, sim.pixel)
-    timing["design"] = time.perf_counter() - t0
+    machined, design = turned_grid(scene, surface, fpath, timing)
 
     from ._burrs import apply_burrs
 

@@ -88,11 +88,28 @@ def toolpath_metrics(path) -> dict:
     return d
 
 
+def turned_grid(scene, surface, path, timing: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(machined, design) on the simulation grid for a turning ``path``: the envelope of
+    the tool nose plus the design heights; records ``envelope`` / ``design`` seconds."""
+    from ..toolpath import Tool
+    from ._envelope import simulate_turning
+
+    sim = scene.simulation
+    tool = Tool.from_config(scene.tool)
+    t0 = time.perf_counter()
+    machined = simulate_turning(path, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
+                                half_width=tool.half_width)
+    timing["envelope"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    design = design_grid(surface, sim.region, sim.pixel)
+    timing["design"] = time.perf_counter() - t0
+    return machined, design
+
+
 def simulate_sts(scene, surface=None) -> SimulationResult:
     """Simulate STS turning of ``scene`` over ``scene.simulation.region``."""
     from ..design import make_surface
-    from ..toolpath import Tool, build_toolpath
-    from ._envelope import simulate_turning
+    from ..toolpath import build_toolpath
 
     timing = {}
     check_memory(scene)
@@ -102,18 +119,18 @@ def simulate_sts(scene, surface=None) -> SimulationResult:
     path = build_toolpath(scene, surface, region=sim.region)
     timing["toolpath"] = time.perf_counter() - t0
     check_memory(scene, path.points)
-    tool = Tool.from_config(scene.tool)
+    machined, design = turned_grid(scene, surface, path, timing)
     t0 = time.perf_counter()
-    machined = simulate_turning(path, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
-                                half_width=tool.half_width)
-    timing["envelope"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    design = design_grid(surface, sim.region, sim.pixel)
-    timing["design"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    hm = HeightMap(design, machined, sim.pixel, (sim.region[0], sim.region[1]), scene.to_dict(),
+    origin = (sim.region[0], sim.region[1])
+    metrics = {}
+    if scene.artifacts.burrs.height > 0:
+        from ._burrs import apply_burrs
+
+        machined, metrics["burrs"] = apply_burrs(machined, design, pixel=sim.pixel, origin=origin,
+                                                 cfg=scene.artifacts.burrs, seed=sim.seed)
+    hm = HeightMap(design, machined, sim.pixel, origin, scene.to_dict(),
                    {"process": "sts", "compensation": scene.process.compensation, "seed": sim.seed})
-    metrics = {"residual": residual_metrics(hm), "toolpath": toolpath_metrics(path)}
+    metrics.update(residual=residual_metrics(hm), toolpath=toolpath_metrics(path))
     timing["metrics"] = time.perf_counter() - t0
     timing["simulate"] = timing["envelope"] + timing["design"] + timing["metrics"]
     return SimulationResult(hm, path, metrics, timing)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import __version__
+from .._grid import GridCoordinates
 from ..errors import InputError, MemoryBudgetError, check_positive, check_range
 
 __all__ = ["OBJECTIVES", "Interferogram", "render_interferogram", "interferometer_geometry",
@@ -65,7 +66,7 @@ PHASE_CONVENTION = ("I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4, E = mean ov
 
 
 @dataclass
-class Interferogram:
+class Interferogram(GridCoordinates):
     """Frames of the virtual interference microscope and what they were made from.
 
     Attributes
@@ -111,18 +112,6 @@ class Interferogram:
     def shape(self):
         return self.intensity.shape
 
-    @property
-    def x(self) -> np.ndarray:
-        return self.origin[0] + self.pixel * np.arange(self.shape[1])
-
-    @property
-    def y(self) -> np.ndarray:
-        return self.origin[1] + self.pixel * np.arange(self.shape[0])
-
-    @property
-    def extent(self):
-        h = self.pixel / 2
-        return (self.x[0] - h, self.x[-1] + h, self.y[0] - h, self.y[-1] + h)
 
     def header(self) -> dict:
         """The EXR header attributes (ARCHITECTURE.md names plus provenance)."""

@@ -13,7 +13,7 @@ import json
 import re
 import tomllib
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Iterable
 
 from pydantic import Field, ValidationError, model_validator
 

@@ -28,7 +28,6 @@ def check_accessibility(surface, tool, region, *, samples: int = 201) -> dict:
     ``clearance_angle``): ``ok``, the worst value, the limit, the fraction of the sampled
     area that violates it and the worst location (x, y) in mm."""
     X, Y = _grid(region, samples)
-    rho = np.hypot(X, Y)
     th = np.arctan2(Y, X)
     c, s = np.cos(th), np.sin(th)
     gx, gy = surface.gradient(X, Y)
