@@ -30,6 +30,8 @@ def build_metrics(scene, res) -> dict:
             m.setdefault("toolpath", {}).update(v)
         else:
             m[k] = v
+    if "lenslets" not in m and _is_lenslet_array(scene.design):
+        m["lenslets"] = lenslet_metrics(scene, res.heightmap)
     tp = res.toolpath
     if tp is not None:
         m.setdefault("toolpath", {}).setdefault("points", int(tp.points))
@@ -40,6 +42,24 @@ def build_metrics(scene, res) -> dict:
             for k, v in (kin or {}).items():
                 m["toolpath"].setdefault(k, v)
     return m
+
+
+def _is_lenslet_array(design) -> bool:
+    if design.type == "compound":
+        return _is_lenslet_array(design.feature)
+    return design.type == "lenslet_array"
+
+
+def lenslet_metrics(scene, heightmap) -> list:
+    """The ``lenslets`` table (centres, dislocations, form errors) of a lenslet-array part."""
+    import warnings
+
+    from .design import make_surface
+    from .metrology import lenslet_table
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lenslets outside the simulated window are left out
+        return lenslet_table(heightmap, make_surface(scene.design), which="machined")
 
 
 def _kinematics(path, scene) -> dict | None:
