@@ -14,7 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
+from ._exr import read_exr
+from ._registry import formats, reader, register_reader
+from ._x3p import read_x3p
 
 __all__ = ["read_measured", "measured_formats"]
 
@@ -29,15 +32,13 @@ def _to_mm(name: str, units) -> float:
     return _UNIT_TO_MM[units]
 
 
+@register_reader("measured", ".x3p")
 def _read_x3p(path, **_):
-    from ._x3p import read_x3p
-
     return read_x3p(path)
 
 
+@register_reader("measured", ".exr")
 def _read_exr(path, *, channel=None, **_):
-    from ._exr import read_exr
-
     ch, attrs = read_exr(path)
     if channel is None:
         for c in ("measured", "height", "machined", "Z", "z"):
@@ -60,6 +61,7 @@ def _read_exr(path, *, channel=None, **_):
         "format": "exr", "channel": channel, "scene": attrs.get("scene")}
 
 
+@register_reader("measured", ".npy", ".npz")
 def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     path = Path(path)
     side = {}
@@ -87,10 +89,11 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
         "format": path.suffix[1:], "units_in_file": units}
 
 
+@register_reader("measured", *_SURFALIZE)
 def _read_surfalize(path, **_):
-    import surfalize
-
     import warnings
+
+    import surfalize
 
     try:
         with warnings.catch_warnings():  # non-square pixels: we raise a clearer error below
@@ -106,13 +109,9 @@ def _read_surfalize(path, **_):
                                                    "reader": f"surfalize {surfalize.__version__}"}
 
 
-_READERS = {".x3p": _read_x3p, ".exr": _read_exr, ".npy": _read_numpy, ".npz": _read_numpy,
-            **{s: _read_surfalize for s in _SURFALIZE}}
-
-
 def measured_formats() -> list[str]:
     """File suffixes :func:`read_measured` reads."""
-    return sorted(_READERS)
+    return formats("measured")
 
 
 def read_measured(path: str | Path, *, channel: str | None = None, pixel: float | None = None,
@@ -149,13 +148,11 @@ def read_measured(path: str | Path, *, channel: str | None = None, pixel: float 
     if suffix == ".datx":
         raise InputError(f"{path}: Zygo .datx has no well-kept reader here; export the map to X3P "
                          f"(Mx: File > Save Data As > .x3p) and read that")
-    if suffix not in _READERS:
-        raise InputError(f"{path}: unknown height-map format {suffix!r}; supported: "
-                         f"{', '.join(measured_formats())}")
+    read = reader("measured", path)
     if not path.is_file():
         raise InputError(f"measured file not found: {str(path)!r}")
-    z, pixel_mm, origin_mm, meta = _READERS[suffix](path, channel=channel, pixel=pixel,
-                                                    origin=origin, units=units)
+    z, pixel_mm, origin_mm, meta = read(path, channel=channel, pixel=pixel, origin=origin,
+                                        units=units)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
     if not pixel_mm > 0 or not np.isfinite(pixel_mm):

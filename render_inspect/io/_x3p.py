@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
 
 __all__ = ["write_x3p", "read_x3p"]

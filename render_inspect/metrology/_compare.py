@@ -9,11 +9,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._filters import l_filter, remove_form, s_filter
 from ._params import areal_parameters
-from ._registration import (RIGID_KEYS, MovedSurface, detect_outliers, register_icp,
-                            register_lsq, rotation_matrix)
+from ._registration import (
+    RIGID_KEYS,
+    MovedSurface,
+    detect_outliers,
+    register_icp,
+    register_lsq,
+    rotation_matrix,
+)
 
 __all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
            "Comparison",
@@ -165,7 +171,7 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
                      seed: int = 0, resample_simulated: bool = False) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
 
-    Chain: read (:func:`~render_inspect.io.read_measured`) -> outliers (second difference,
+    Chain: outliers (second difference,
     ``metrology.outlier_sigma``) -> coverage of ``region`` (warning below
     ``metrology.min_coverage``; error when nothing overlaps) -> registration to the design
     (``metrology.registration``: "lsq", "icp" or "none"; free parameters
@@ -177,7 +183,8 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
 
     Parameters
     ----------
-    measured : str, Path or (z_mm, pixel_mm, origin_mm) tuple
+    measured : (z_mm, pixel_mm, origin_mm) or (z_mm, pixel_mm, origin_mm, source) tuple
+        The map as :func:`render_inspect.io.read_measured` returns it.
     design_surface : Surface
     metrology : MetrologyConfig or dict, optional
         The scene's ``[metrology]`` section (defaults otherwise).
@@ -198,15 +205,13 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         ``region``; the measured heights span a range 100 x larger or smaller than the
         design's over the same area (wrong units?); no valid points.
     """
-    from ..io import read_measured
-
-    if isinstance(measured, tuple):
-        z, pixel, origin = measured
-        z = np.asarray(z, float)
-        source = {"format": "array"}
-        pixel, origin = float(pixel), (float(origin[0]), float(origin[1]))
-    else:
-        z, pixel, origin, source = read_measured(measured)
+    if not (isinstance(measured, tuple) and len(measured) in (3, 4)):
+        raise InputError("measured must be a (z_mm, pixel_mm, origin_mm[, source]) tuple; read "
+                         "files with render_inspect.io.read_measured")
+    z, pixel, origin = measured[:3]
+    source = dict(measured[3]) if len(measured) == 4 else {"format": "array"}
+    z = np.asarray(z, float)
+    pixel, origin = float(pixel), (float(origin[0]), float(origin[1]))
     k = float(_cfg_get(metrology, "outlier_sigma", 3.0))
     method = _cfg_get(metrology, "registration", "lsq")
     dof = tuple(_cfg_get(metrology, "registration_dof",

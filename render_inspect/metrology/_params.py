@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._filters import valid_mask
 
 __all__ = ["areal_parameters", "profile_parameters", "extract_section", "section_parameters"]

@@ -14,7 +14,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._filters import valid_mask
 
 __all__ = ["RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
