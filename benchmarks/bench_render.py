@@ -123,6 +123,43 @@ def bench_diffuse(repeats: int = 2) -> dict:
             "mean_radiance": round(float(rgb.mean()), 4), "mitsuba_variant": meta["mitsuba_variant"]}
 
 
+def bench_turned_views(repeats: int = 2) -> dict:
+    """The diffuse views ``compare`` renders for the seed-000 grid: the whole part (macro,
+    512 x 512, the spectral grating BSDF of the feed marks, lamp) and the micro view
+    (512 x 512, anisotropic turned-aluminium lobe), at 32 and 64 samples per pixel."""
+    from render_inspect.pipeline import part_heightmap, part_outline, tool_marks
+    from render_inspect.pipeline import simulate as simulate_scene
+    from render_inspect.render import render_diffuse
+    from render_inspect.scene import load_scene
+
+    scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
+                       ["simulation.region=[-0.5, -0.5, 0.5, 0.5]", "simulation.pixel=0.002"])
+    hm = simulate_scene(scene).heightmap
+    marks = tool_marks(scene)
+    t = time.perf_counter()
+    phm = part_heightmap(scene, hm)
+    part_s = time.perf_counter() - t
+    window = (-0.1, -0.1, 0.1, 0.1)
+    out = {"part_heightmap_s": round(part_s, 2), "part_shape": list(phm.shape)}
+    for spp in (32, 64):
+        for view, h in (("macro", phm), ("micro", hm)):
+            dcfg = scene.render.diffuse.model_copy(update={"resolution": 512, "spp": spp,
+                                                           "window": window})
+            render_diffuse(h, dcfg.model_copy(update={"resolution": 16, "spp": 1}), view=view,
+                           marks=marks, part=part_outline(scene))  # warm-up (JIT)
+            best = math.inf
+            for _ in range(repeats):
+                t = time.perf_counter()
+                rgb, meta = render_diffuse(h, dcfg, view=view, marks=marks,
+                                           part=part_outline(scene))
+                best = min(best, time.perf_counter() - t)
+            out[f"{view}_{spp}spp_s"] = round(best, 2)
+            out[f"{view}_variant"] = meta["mitsuba_variant"]
+            out[f"{view}_triangles"] = meta["mesh_triangles"]
+            out[f"{view}_exaggeration"] = meta["vertical_exaggeration"]
+    return out
+
+
 def bench_large_map(n: int = 4000) -> dict:
     from render_inspect.instruments import render_interferogram
     from render_inspect.mesh import heightmap_mesh
@@ -163,6 +200,8 @@ def main(quick: bool = False) -> dict:
     print(json.dumps({"interferogram": out["interferogram"]}, indent=1), flush=True)
     out["diffuse"] = bench_diffuse()
     print(json.dumps({"diffuse": out["diffuse"]}, indent=1), flush=True)
+    out["turned_views"] = bench_turned_views()
+    print(json.dumps({"turned_views": out["turned_views"]}, indent=1), flush=True)
     if not quick:
         out["large_map"] = bench_large_map()
         print(json.dumps({"large_map": out["large_map"]}, indent=1), flush=True)

@@ -3,6 +3,12 @@
 Exit codes: 0 done, 1 an error in the input or the run (one line on stderr naming the
 parameter, the allowed range and the value received), 2 a usage error (argparse),
 130 interrupted.
+
+Output: progress bars with an ETA on stderr for every step that runs longer than a
+second (rich; plain log lines when stderr is not a terminal), messages through the
+``render_inspect`` logger (``-v``: more, ``-q``: warnings and errors only), and for
+``compare`` and ``demo`` a one-screen summary on stdout with the headline numbers and
+the path of ``report.html``.
 """
 
 from __future__ import annotations
@@ -10,12 +16,27 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import threading
 import time
 
 from . import __version__
 from .core.errors import RenderInspectError
+from .core.progress import set_reporter
 
 log = logging.getLogger("render_inspect")
+
+#: steps shorter than this are not shown
+SHOW_AFTER_S = 1.0
+
+
+def _add_verbosity(p: argparse.ArgumentParser, *, top: bool = False):
+    default = 0 if top else argparse.SUPPRESS
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("-q", "--quiet", dest="quiet", action="store_true",
+                   default=False if top else argparse.SUPPRESS,
+                   help="only warnings and errors; no progress bars or summary")
+    g.add_argument("-v", "--verbose", dest="verbose", action="count", default=default,
+                   help="more messages (every step and its duration)")
 
 
 def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
@@ -25,6 +46,7 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
         p.add_argument("--out", required=True, help="output folder (written atomically)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+    _add_verbosity(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="render-inspect",
         description="Simulate, render and inspect diamond-machined freeform optics before they are cut.")
     ap.add_argument("--version", action="version", version=f"render-inspect {__version__}")
+    _add_verbosity(ap, top=True)
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("simulate", help="tool path + machined surface: heightmap.exr, metrics.json, preview")
@@ -46,17 +69,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--surface", choices=["design", "machined"], default="machined")
     p.add_argument("--kind", choices=["interferometer", "diffuse", "all"], default="all")
 
-    p = sub.add_parser("compare", help="compensated vs uncompensated (or vs --measured): images, metrics, report.html")
+    p = sub.add_parser("compare", help="two variants of the scene (the process's own pair, e.g. "
+                                       "compensated vs uncompensated, or --vary): images, metrics, "
+                                       "report.html")
     _add_scene_args(p)
     p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
+    p.add_argument("--vary", default=None, metavar="KEY=A,B",
+                   help="compare KEY = A against KEY = B instead of the process's own pair, e.g. "
+                        "--vary process.compensation=normal,z (TOML values)")
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
     p.add_argument("--out", required=True)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
+    _add_verbosity(p)
     return ap
 
 
-def _run(args) -> None:
+def _run(args):
     # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
     # module, so that `render-inspect --help` answers at once
     from . import pipeline
@@ -65,36 +94,209 @@ def _run(args) -> None:
     from .scene import load_scene
 
     if args.command == "demo":
-        pipeline.run_demo(args.out, quick=args.quick)
-        return
+        return pipeline.run_demo(args.out, quick=args.quick)
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
-        pipeline.run_simulate(scene, args.out)
-    elif args.command == "toolpath":
-        pipeline.run_toolpath(scene, args.out, fmt=args.format)
-    elif args.command == "render":
-        pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind)
-    elif args.command == "compare":
-        pipeline.run_compare(scene, args.out, measured=args.measured)
+        return pipeline.run_simulate(scene, args.out)
+    if args.command == "toolpath":
+        return pipeline.run_toolpath(scene, args.out, fmt=args.format)
+    if args.command == "render":
+        return pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind)
+    if args.command == "compare":
+        return pipeline.run_compare(scene, args.out, measured=args.measured, vary=args.vary)
+    return None
 
 
-def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+# ---------------------------------------------------------------------------- progress
+class RichReporter:
+    """Progress bars (rich) on stderr: one row per running step, shown once the step has
+    run for :data:`SHOW_AFTER_S`, with its bar, elapsed time and ETA."""
+
+    def __init__(self, console):
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            SpinnerColumn,
+            TaskProgressColumn,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self._progress = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                                  TaskProgressColumn(), TimeElapsedColumn(), TextColumn("ETA"),
+                                  TimeRemainingColumn(), console=console, transient=True)
+        self._lock = threading.Lock()
+        self._tasks = {}  # id -> dict(start, total, timed, shown)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+
+    def __enter__(self):
+        self._progress.start()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+        self._progress.stop()
+        return False
+
+    def start(self, description, total, timed=False):
+        with self._lock:
+            tid = self._progress.add_task(description, total=total, visible=False)
+            self._tasks[tid] = {"start": time.monotonic(), "total": total, "timed": timed}
+        return tid
+
+    def advance(self, handle, amount):
+        with self._lock:
+            if handle in self._tasks and not self._tasks[handle]["timed"]:
+                self._progress.advance(handle, amount)
+
+    def update(self, handle, description):
+        with self._lock:
+            if handle in self._tasks:
+                self._progress.update(handle, description=description)
+
+    def finish(self, handle):
+        with self._lock:
+            info = self._tasks.pop(handle, None)
+            if info is not None:
+                self._progress.remove_task(handle)
+
+    def _tick(self):
+        while not self._stop.wait(0.2):
+            now = time.monotonic()
+            with self._lock:
+                for tid, info in self._tasks.items():
+                    el = now - info["start"]
+                    if el >= SHOW_AFTER_S:
+                        upd = {"visible": True}
+                        if info["timed"] and info["total"]:
+                            upd["completed"] = min(el, 0.99 * info["total"])
+                        self._progress.update(tid, **upd)
+
+
+class LogReporter:
+    """Without a terminal: one log line per step that took longer than
+    :data:`SHOW_AFTER_S` (its duration)."""
+
+    def __init__(self):
+        self._t = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def start(self, description, total, timed=False):
+        h = object()
+        self._t[h] = (description, time.monotonic())
+        return h
+
+    def advance(self, handle, amount):
+        pass
+
+    def update(self, handle, description):
+        # a step of a multi-step task ended: log it, time the next one
+        if handle in self._t:
+            self._log(*self._t[handle])
+            self._t[handle] = (description, time.monotonic())
+
+    def finish(self, handle):
+        if handle in self._t:
+            self._log(*self._t.pop(handle))
+
+    @staticmethod
+    def _log(desc, t0):
+        dt = time.monotonic() - t0
+        if dt >= SHOW_AFTER_S:
+            log.info("%s: %.1f s", desc, dt)
+
+
+class _NullContext:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
+def _reporter(args):
+    if getattr(args, "quiet", False):
+        return _NullContext()
+    if sys.stderr.isatty():
+        from rich.console import Console
+
+        return RichReporter(Console(file=sys.stderr))
+    return LogReporter()
+
+
+# ----------------------------------------------------------------------------- summary
+def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    # the pipeline is imported lazily (see _run)
+    from .pipeline import compare_summary
+
+    con = Console(file=sys.stdout, highlight=False)
+    rows, diff = compare_summary(metrics)
+    va, vb = (v["name"] for v in metrics["variants"])
+    scene = metrics.get("scene", {}).get("name", "")
+    t = Table(title=f"render-inspect compare: {scene} ({seconds:.0f} s)", title_justify="left",
+              show_edge=False)
+    t.add_column("")
+    t.add_column(va, justify="right")
+    t.add_column(vb, justify="right")
+    for r in rows:
+        t.add_row(*r)
+    con.print(t)
+    if metrics.get("pair", {}).get("identical"):
+        con.print(f"The two variants are identical ({metrics['pair']['key']} has no effect here).")
+    else:
+        for k, v in diff:
+            con.print(f"{k}: {v}")
+    con.print(f"report: {metrics.get('report') or (out.rstrip('/') + '/report.html')}")
+
+
+def _setup_logging(args) -> None:
+    level = logging.INFO
+    if getattr(args, "quiet", False):
+        level = logging.WARNING
+    elif getattr(args, "verbose", 0):
+        level = logging.DEBUG
     if not log.handlers:
         handler = logging.StreamHandler(sys.stderr)
         handler.setFormatter(logging.Formatter("%(message)s"))
         log.addHandler(handler)
-        log.setLevel(logging.INFO)
+    log.setLevel(level)
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    _setup_logging(args)
     t0 = time.perf_counter()
+    reporter = _reporter(args)
     try:
-        _run(args)
+        with reporter as rep:
+            old = set_reporter(rep)
+            try:
+                result = _run(args)
+            finally:
+                set_reporter(old)
     except RenderInspectError as err:
         print(f"render-inspect {args.command}: error: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted; no partial output was left", file=sys.stderr)
         return 130
-    print(f"render-inspect {args.command}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    dt = time.perf_counter() - t0
+    if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
+            and not getattr(args, "quiet", False):
+        _print_compare_summary(result, args.out, dt)
+    log.info("render-inspect %s: done in %.1f s", args.command, dt)
     return 0
 
 

@@ -52,12 +52,12 @@ spp = 4
 VARIANT_FILES = ["heightmap.exr", "toolpath.npz", "interferogram.exr", "interferogram_fringes.png",
                  "residual.png", "filtered.png", "measurement_error.png", "diffuse_micro.png",
                  "diffuse_macro.png", "metrics.json"]
-TOP_FILES = ["report.html", "metrics.json", "interferogram_side_by_side.png",
+TOP_FILES = ["report.html", "metrics.json", "difference.png", "interferogram_side_by_side.png",
              "interferogram_difference.png", "diffuse_micro_side_by_side.png",
              "diffuse_macro_side_by_side.png", "diffuse_difference.png",
              "residual_side_by_side.png", "residual_difference.png", "filtered_side_by_side.png",
              "measurement_error_side_by_side.png", "measured_residual_side_by_side.png",
-             "radial_profiles.png"]
+             "sections.png", "kinematics.png"]
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +172,7 @@ def test_report_html_is_self_contained(compared):
     embedded = {base64.b64decode(s.split(",", 1)[1]) for s in srcs}
     # every top-level figure is in the page, as the very same PNG
     pngs = {p.read_bytes() for p in out.glob("*.png")}
-    assert len(pngs) == 11 and embedded == pngs
+    assert len(pngs) == 13 and embedded == pngs
     assert not re.search(r'(href|src)="(https?:|//|file:)', html)
     assert "<script" not in html
     assert "compensated" in html and "uncompensated" in html and "measured file" in html
@@ -208,6 +208,8 @@ def test_compare_variants_and_render_caps(tmp_path):
     from render_inspect.machining import HeightMap
     from render_inspect.pipeline import (
         COMPARE_MAX_CAMERA_PIXELS,
+        COMPARE_MAX_DIFFUSE_RESOLUTION,
+        COMPARE_MAX_DIFFUSE_SPP,
         compare_variants,
         preview_render_configs,
     )
@@ -229,7 +231,7 @@ def test_compare_variants_and_render_caps(tmp_path):
     g = interferometer_geometry(hm, icfg)
     assert max(g["nx"], g["ny"]) <= COMPARE_MAX_CAMERA_PIXELS
     assert g["pixel"] == pytest.approx(0.9 / 1024)
-    assert dcfg.resolution <= 192 and dcfg.spp <= 16
+    assert dcfg.resolution <= COMPARE_MAX_DIFFUSE_RESOLUTION and dcfg.spp <= COMPARE_MAX_DIFFUSE_SPP
     assert len(notes) == 2
     # sizes the scene sets are kept
     p.write_text(TINY)
@@ -330,3 +332,118 @@ def test_compare_lenslet_array_table(tmp_path):
     assert len(m["uncompensated"]["lenslets"]) == 4
     html = (tmp_path / "out" / "report.html").read_text()
     assert ">Lenslets<" in html
+
+
+def test_parse_vary():
+    from render_inspect.pipeline import parse_vary
+
+    assert parse_vary("process.compensation=z,none") == ("process.compensation", ("z", "none"))
+    assert parse_vary("tool.nose_radius=0.5, 0.25") == ("tool.nose_radius", (0.5, 0.25))
+    assert parse_vary("simulation.region=[0,0,1,1],[0,0,2,2]") == \
+        ("simulation.region", ([0, 0, 1, 1], [0, 0, 2, 2]))
+    for bad in ("process.compensation", "process.compensation=z", "=a,b", "k=a,b,c"):
+        with pytest.raises(InputError, match="--vary"):
+            parse_vary(bad)
+
+
+@pytest.mark.parametrize("name,a,b,key", [
+    ("sts_fig16_overcut", "compensated", "uncompensated", "process.compensation"),
+    ("compound_sinusoid", "compensated", "uncompensated", "process.compensation"),
+    ("hts_toric_msa", "servo_lag", "ideal_servo", "artifacts.servo"),
+    ("sculpt_quad_mla", "vibration_on", "vibration_off", "artifacts.vibration.amplitude"),
+    ("rcse_circular_array", "rcse", "conventional", "rcse.path"),
+])
+def test_each_process_kind_has_its_own_pair(name, a, b, key):
+    """The process's variants hook picks the pair that means something, and the two scenes
+    differ in that key only."""
+    from render_inspect.pipeline import compare_pair, compare_variants
+
+    scene = load_scene(name)
+    pair = compare_pair(scene)
+    assert (pair.a.name, pair.b.name, pair.key) == (a, b, key)
+    assert pair.about
+    sa, sb = compare_variants(scene)
+    da, db = sa.to_dict(), sb.to_dict()
+    assert da != db
+    for sec in ("design", "simulation", "render"):
+        assert da[sec] == db[sec]
+    assert sa.simulation.seed == sb.simulation.seed
+
+
+def test_vary_makes_its_own_pair_and_clears_keys():
+    from render_inspect.pipeline import compare_pair, compare_variants
+
+    scene = load_scene("sts_fig16_overcut")
+    pair = compare_pair(scene, "process.compensation=normal,z")
+    assert (pair.a.name, pair.b.name) == ("compensation_normal", "compensation_z")
+    sa, sb = compare_variants(scene, "process.compensation=normal,z")
+    assert sa.process.compensation == "normal" and sb.process.compensation == "z"
+    # the HTS ideal servo clears the bandwidths (None) of the scene
+    hts = compare_variants(load_scene("hts_toric_msa"))[1]
+    assert hts.artifacts.servo.bandwidth_hz is None and hts.artifacts.servo.delay_s == 0
+
+
+def test_common_window_sits_on_the_largest_difference():
+    from render_inspect.pipeline import common_window
+
+    d = np.zeros((201, 301))
+    d[150:170, 40:60] = 5.0  # a blob at x = -0.5 + 0.01 * 50, y = -1 + 0.01 * 160
+    cw = common_window(d, pixel=0.01, origin=(-1.0, -1.0), size_mm=0.4)
+    x0, y0, x1, y1 = cw["window"]
+    assert x1 - x0 == pytest.approx(0.4) and y1 - y0 == pytest.approx(0.4)
+    assert x0 <= -0.5 <= x1 and y0 <= 0.6 <= y1
+    np.testing.assert_allclose(cw["peak"], (-0.5, 0.6), atol=0.05)
+    # inside the map even when the difference is at its edge
+    d2 = np.zeros((201, 301))
+    d2[0:5, 0:5] = 1.0
+    x0, y0, x1, y1 = common_window(d2, pixel=0.01, origin=(0.0, 0.0), size_mm=0.5)["window"]
+    assert x0 >= -1e-9 and y0 >= -1e-9 and x1 <= 3.0 and y1 <= 2.0
+    # no difference: the centre
+    x0, y0, x1, y1 = common_window(np.zeros((101, 101)), pixel=0.01, origin=(0.0, 0.0),
+                                   size_mm=0.2)["window"]
+    assert (x0 + x1) / 2 == pytest.approx(0.5) and (y0 + y1) / 2 == pytest.approx(0.5)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_overcut_shows_in_the_waviness_map(compared):
+    """Fig. 16: the S-filter (chosen from the feed) removes the scallop, and the overcut of
+    the uncompensated path is what differs between the two waviness maps."""
+    out, m = compared
+    f = m["filters"]
+    feed = 1.0 / 50
+    assert f["s_filter_mm"] > feed  # above the feed: the marks are filtered out
+    assert f["mark_transmission"] < 0.05
+    assert f["edges"] in ("cut", "mirror") and f["reasons"]
+    c, u = m["compensated"]["filtered"], m["uncompensated"]["filtered"]
+    # Z compensation leaves (almost) no waviness; no compensation leaves the overcut
+    assert c["Sq_nm"] < 5.0 < u["Sq_nm"]
+    assert m["difference"]["filtered_Sq_nm_change"] < -5.0
+    html = (out / "report.html").read_text()
+    assert "S-filter" in html and ("cut on every side" in html or "mirror" in html)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_exaggeration_and_scale_in_every_diffuse_image(compared):
+    from PIL import Image
+
+    out, m = compared
+    for variant in ("compensated", "uncompensated"):
+        for view in ("micro", "macro"):
+            ex = m[variant]["diffuse"][view]["vertical_exaggeration"]
+            png = Image.open(out / variant / f"diffuse_{view}.png")
+            assert float(png.text["vertical_exaggeration"]) == pytest.approx(ex)
+            assert float(png.text["mm_per_px"]) > 0
+            assert f"{ex:g}x" in png.text["Comment"]
+            _, attrs = read_exr(out / variant / f"diffuse_{view}.exr")
+            assert float(attrs["vertical_exaggeration"]) == pytest.approx(ex)
+            assert float(attrs["mm_per_px"]) == pytest.approx(m[variant]["diffuse"][view]["mm_per_px"])
+            # the caption is written into the picture: the top-left corner is not the render
+            raw = read_exr(out / variant / f"diffuse_{view}.exr")[0]["R"]
+            img = np.asarray(png.convert("RGB"), dtype=float)
+            assert img.shape[:2] == raw.shape
+            assert img[2:12, 4:120].std() > 20  # black text on a light box
+    # the macro view is the whole turned part: a disc of the workpiece radius
+    assert m["windows"]["part"] == {"shape": "disc", "center": [0.0, 0.0], "radius": 1.0}
+    assert m["compensated"]["diffuse"]["macro"]["iridescence"] is True

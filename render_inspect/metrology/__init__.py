@@ -13,10 +13,13 @@ from ._compare import (
                        resample_map,
                        sample_map,
 )
+from ._filter_choice import MARK_LEAK_NM, scallop_pv, waviness_filters
 from ._filters import (
+                       EDGE_MODES,
                        GAUSSIAN_ALPHA,
                        gaussian_filter,
                        gaussian_sigma,
+                       gaussian_transmission,
                        l_filter,
                        remove_form,
                        s_filter,
@@ -63,7 +66,8 @@ from ._registration import (
 __all__ = [
     "areal_parameters", "profile_parameters", "extract_section", "section_parameters",
     "GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
-    "remove_form", "valid_mask",
+    "remove_form", "valid_mask", "EDGE_MODES", "gaussian_transmission",
+    "waviness_filters", "scallop_pv", "MARK_LEAK_NM",
     "RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
     "GridSurface", "template_surface", "register_lsq", "register_icp",
     "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",

@@ -36,7 +36,8 @@ def _cfg_get(cfg, key, default):
 
 def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = "plane",
                      polynomial_degree: int = 2, design=None, s_filter_mm: float | None = None,
-                     l_filter_mm: float | None = None, mask=None) -> dict:
+                     l_filter_mm: float | None = None, mask=None,
+                     filter_edges: str = "normalised") -> dict:
     """Form removal, S- and L-filtering, then areal parameters (heights in nm).
 
     Parameters
@@ -49,6 +50,8 @@ def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = 
         See :func:`remove_form` (``design`` needs ``design=``, already registered).
     s_filter_mm, l_filter_mm : float, optional
         ISO 16610-61 nesting indices, mm (S removes shorter, L longer wavelengths).
+    filter_edges : {"normalised", "mirror", "cut"}
+        Edge handling of both filters (:func:`gaussian_filter`).
 
     Returns
     -------
@@ -59,17 +62,18 @@ def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = 
     res, _ = remove_form(z, pixel=pixel, method=form_removal, degree=polynomial_degree,
                          design=design, origin=origin, mask=mask)
     if s_filter_mm:
-        res = s_filter(res, pixel=pixel, nesting_index=s_filter_mm)
+        res = s_filter(res, pixel=pixel, nesting_index=s_filter_mm, edges=filter_edges)
     if l_filter_mm:
         if s_filter_mm and not l_filter_mm > s_filter_mm:
             raise InputError(f"metrology.l_filter ({l_filter_mm} mm) must be > metrology.s_filter "
                              f"({s_filter_mm} mm)")
-        res = l_filter(res, pixel=pixel, nesting_index=l_filter_mm)
+        res = l_filter(res, pixel=pixel, nesting_index=l_filter_mm, edges=filter_edges)
     p = areal_parameters(res, pixel=pixel)
     out = {f"{k}_nm": p[k] * 1e6 for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}  # mm -> nm
     out.update({"Ssk": p["Ssk"], "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"],
                 "n_valid": p["n_valid"], "form_removal": form_removal,
-                "s_filter_mm": s_filter_mm, "l_filter_mm": l_filter_mm})
+                "s_filter_mm": s_filter_mm, "l_filter_mm": l_filter_mm,
+                "filter_edges": filter_edges})
     return out
 
 

@@ -6,8 +6,14 @@ The Gaussian weighting function of ISO 16610-61 is
 
 so its standard deviation is ``sigma = alpha lambda / sqrt(2 pi)`` (0.1874 lambda), and a
 sinusoid of wavelength ``lambda`` (the cut-off or nesting index) is passed at 50 %.
-Edges and missing points (NaN or ``mask == False``) are handled by a masked, normalised
+Missing points (NaN or ``mask == False``) are handled by a masked, normalised
 convolution: the filter of ``z * w`` divided by the filter of ``w`` (``w`` = 1 where valid).
+At the map's edges (``edges=``): ``"normalised"`` (default) uses only the points inside
+(the weighting function is cut off and renormalised, so near an edge the filter is
+one-sided and passes more of the short wavelengths); ``"mirror"`` extends the map by its
+mirror image (ISO 16610-28's symmetric extension); ``"cut"`` drops the border where the
+weighting function reaches outside the map: half the nesting index on every side (the
+run-in/run-out of ISO 16610-21, 4.7 standard deviations of the Gaussian).
 """
 
 from __future__ import annotations
@@ -20,7 +26,10 @@ from scipy import ndimage
 from ..core.errors import InputError, check_positive
 
 __all__ = ["GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
-           "remove_form", "valid_mask"]
+           "remove_form", "valid_mask", "EDGE_MODES", "gaussian_transmission"]
+
+#: edge handling of the Gaussian filters (see the module docstring)
+EDGE_MODES = ("normalised", "mirror", "cut")
 
 #: alpha of the ISO 16610-61 Gaussian weighting function, sqrt(ln 2 / pi) = 0.4697
 GAUSSIAN_ALPHA = math.sqrt(math.log(2.0) / math.pi)
@@ -52,7 +61,27 @@ def gaussian_sigma(cutoff: float) -> float:
     return GAUSSIAN_ALPHA * float(cutoff) / math.sqrt(2.0 * math.pi)
 
 
-def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: float = 1e-3):
+def gaussian_transmission(wavelength, cutoff):
+    """Amplitude transmission of the ISO 16610-61 Gaussian mean-line filter for a sinusoid
+    of ``wavelength`` (same unit as ``cutoff``): ``exp(-pi (alpha cutoff / wavelength)^2)``
+    (0.5 at the cut-off).  The S-filter passes this fraction, the L-filter one minus it."""
+    check_positive("cutoff", cutoff)
+    w = np.asarray(wavelength, dtype=np.float64)
+    return np.exp(-math.pi * (GAUSSIAN_ALPHA * float(cutoff) / w) ** 2)
+
+
+def _cut_border(out, cutoff, pixel):
+    n = int(math.ceil(0.5 * float(cutoff) / float(pixel) - 1e-9))
+    if n > 0:
+        out[:n] = np.nan
+        out[-n:] = np.nan
+        out[:, :n] = np.nan
+        out[:, -n:] = np.nan
+    return out
+
+
+def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: float = 1e-3,
+                    edges: str = "normalised"):
     """Gaussian mean surface of ``z`` (ISO 16610-61), NaN-aware.
 
     Parameters
@@ -68,37 +97,47 @@ def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: fl
     min_weight : float
         Where the normalising weight falls below this (no valid data within reach) the
         result is NaN.
+    edges : {"normalised", "mirror", "cut"}
+        Edge handling (module docstring): renormalised one-sided weights, mirror
+        extension, or NaN within ``cutoff / 2`` of the map's border.
 
     Returns
     -------
     (ny, nx) array
-        The smoothed (mean) surface; NaN where ``z`` was invalid.
+        The smoothed (mean) surface; NaN where ``z`` was invalid (and, with
+        ``edges="cut"``, in the border).
     """
     z = _as_map(z)
     check_positive("pixel", pixel)
+    if edges not in EDGE_MODES:
+        raise InputError(f"edges must be one of {EDGE_MODES}, got {edges!r}")
     sigma_px = gaussian_sigma(cutoff) / float(pixel)
     ok = valid_mask(z, mask)
     if not ok.any():
         raise InputError("gaussian_filter: the map has no valid (finite, unmasked) points")
     w = ok.astype(np.float64)
-    num = ndimage.gaussian_filter(np.where(ok, z, 0.0), sigma_px, mode="constant", truncate=4.0)
-    den = ndimage.gaussian_filter(w, sigma_px, mode="constant", truncate=4.0)
+    mode = "reflect" if edges == "mirror" else "constant"
+    num = ndimage.gaussian_filter(np.where(ok, z, 0.0), sigma_px, mode=mode, truncate=4.0)
+    den = ndimage.gaussian_filter(w, sigma_px, mode=mode, truncate=4.0)
     out = np.full_like(z, np.nan)
     good = ok & (den > min_weight)
     out[good] = num[good] / den[good]
+    if edges == "cut":
+        _cut_border(out, cutoff, pixel)
     return out
 
 
-def s_filter(z, *, pixel: float, nesting_index: float, mask=None):
-    """S-filter: remove wavelengths shorter than ``nesting_index`` (mm) by Gaussian smoothing."""
-    return gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask)
+def s_filter(z, *, pixel: float, nesting_index: float, mask=None, edges: str = "normalised"):
+    """S-filter: remove wavelengths shorter than ``nesting_index`` (mm) by Gaussian
+    smoothing (``edges``: see :func:`gaussian_filter`)."""
+    return gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask, edges=edges)
 
 
-def l_filter(z, *, pixel: float, nesting_index: float, mask=None):
+def l_filter(z, *, pixel: float, nesting_index: float, mask=None, edges: str = "normalised"):
     """L-filter: remove wavelengths longer than ``nesting_index`` (mm): ``z`` minus its
-    Gaussian mean surface."""
+    Gaussian mean surface (``edges``: see :func:`gaussian_filter`)."""
     z = _as_map(z)
-    return z - gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask)
+    return z - gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask, edges=edges)
 
 
 def _legendre_design(u, v, degree):

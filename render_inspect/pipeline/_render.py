@@ -21,11 +21,17 @@ from ..io import (
     write_exr,
     write_json,
 )
+from ..core.heightmap import HeightMap
+from ..core.progress import task as progress_task
+from ..design import make_surface
+from ..machining import design_grid
+from ..report import annotate_rgb, nice_length
 from ..render import render_diffuse, variant_info
 from ._simulate import design_heightmap, simulate
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
-           "interferogram_summary"]
+           "interferogram_summary", "part_heightmap", "tool_marks", "part_outline",
+           "render_diffuse_views"]
 
 KINDS = ("interferometer", "diffuse", "all")
 SURFACES = ("design", "machined")
@@ -95,24 +101,140 @@ def interferogram_summary(ig) -> dict:
             "surface": ig.surface, "mitsuba_variant": ig.variant}
 
 
+def diffuse_caption(meta: dict) -> list[str]:
+    """The lines written into a diffuse image: vertical exaggeration, view and light."""
+    ex = float(meta["vertical_exaggeration"])
+    first = f"heights x{ex:g} (vertical exaggeration)" if ex != 1 else "heights true scale (x1)"
+    light = meta["light"]["type"] + (" + lamp" if meta.get("lamp") else "")
+    return [first, f"{meta['view']} view, {light}"]
+
+
+def _scale_bar(meta: dict, width_px: int) -> tuple[float, float]:
+    """A 1-2-5 scale bar about a fifth of the image wide: (mm, pixels)."""
+    sc = meta.get("scale") or {}
+    mm_px = sc.get("mm_per_px") or sc.get("mm_per_px_at_target")
+    mm = nice_length(0.2 * width_px * mm_px)
+    return mm, mm / mm_px
+
+
 def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) -> dict:
     """Write ``<name>.exr`` (linear R, G, B; header: the scene spec, ``vertical_exaggeration``,
-    ``mitsuba_variant``) and ``<name>.png`` (sRGB 8-bit; the same as PNG text)."""
+    ``mitsuba_variant``, ``mm_per_px``) and ``<name>.png`` (sRGB 8-bit with the vertical
+    exaggeration and a scale bar written into the picture; the same facts as PNG text)."""
     out = Path(out)
+    sc = meta.get("scale") or {}
+    mm_px = sc.get("mm_per_px") or sc.get("mm_per_px_at_target")
     attrs = {"vertical_exaggeration": float(meta["vertical_exaggeration"]),
              "mitsuba_variant": meta["mitsuba_variant"], "view": meta["view"],
              "spp": int(meta["spp"]), "seed": int(meta["seed"]), "units": "mm",
-             "software_version": __version__,
+             "mm_per_px": float(mm_px), "software_version": __version__,
              "spec": json.dumps(meta, sort_keys=True, default=str)}
     write_exr(out / f"{name}.exr", {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2]}, attrs)
+    bar_mm, bar_px = _scale_bar(meta, rgb.shape[1])
+    where = "" if sc.get("mm_per_px") else " at the part's centre"
     text = {"vertical_exaggeration": f"{meta['vertical_exaggeration']:g}",
-            "Comment": f"heights exaggerated {meta['vertical_exaggeration']:g}x",
-            "mitsuba_variant": meta["mitsuba_variant"], "spec": meta}
-    atomic_write_bytes(out / f"{name}.png", _png_bytes(_srgb8(rgb), text))
+            "Comment": f"heights exaggerated {meta['vertical_exaggeration']:g}x; "
+                       f"scale {mm_px * 1e3:.4g} um per pixel{where}",
+            "mm_per_px": f"{mm_px:.6g}", "mitsuba_variant": meta["mitsuba_variant"], "spec": meta}
+    img8 = annotate_rgb(_srgb8(rgb), lines=diffuse_caption(meta), scale_mm=bar_mm, scale_px=bar_px)
+    atomic_write_bytes(out / f"{name}.png", _png_bytes(img8, text))
     return {k: meta[k] for k in ("view", "spp", "seed", "vertical_exaggeration", "mesh_triangles",
                                  "mesh_stride", "window_mm", "mitsuba_variant")} | {
         "light": meta["light"]["type"], "material": meta["material"]["type"],
         "shape": [int(rgb.shape[0]), int(rgb.shape[1])]}
+
+
+def tool_marks(scene) -> dict | None:
+    """The tool marks the diffuse renderer needs (:func:`~render_inspect.render.render_diffuse`
+    ``marks``): turning leaves circular feed marks about the spindle axis, period = feed
+    per revolution, grooves of the nose radius; sculpturing leaves straight marks along
+    the cut whose period (cutting speed / vibration frequency) is finer than light
+    resolves."""
+    p = scene.process
+    rc = float(scene.tool.nose_radius)
+    if hasattr(p, "feed_per_rev"):
+        return {"kind": "circular", "center_mm": [0.0, 0.0], "period_mm": float(p.feed_per_rev),
+                "nose_radius_mm": rc}
+    if p.kind == "sculpt":
+        vib = scene.artifacts.vibration
+        period = (p.feed_mm_per_min / 60.0) / vib.frequency_hz if vib.frequency_hz > 0 \
+            and vib.amplitude > 0 else None
+        if period is not None and period < 0.2e-3:  # below half the shortest wavelength
+            period = None
+        return {"kind": "linear", "direction": [0.0, 1.0], "period_mm": period,
+                "nose_radius_mm": rc}
+    return None
+
+
+def part_outline(scene) -> dict:
+    """The part as the macro view shows it: ``{"shape": "disc", "center", "radius"}``
+    for turning (the workpiece), else ``{"shape": "rect", "rect"}`` (the simulated
+    region)."""
+    p = scene.process
+    if hasattr(p, "workpiece_radius"):
+        return {"shape": "disc", "center": [0.0, 0.0], "radius": float(p.workpiece_radius)}
+    return {"shape": "rect", "rect": [float(v) for v in scene.simulation.region]}
+
+
+def part_heightmap(scene, hm, *, cells: int = 1024, surface: str = "machined") -> HeightMap:
+    """The whole part for the macro view: the design over the part (:func:`part_outline`,
+    ``cells`` samples across; NaN outside a turned disc) with the simulated residual
+    (area-averaged onto that grid) added inside the simulated region.  A part that is
+    the region itself gets ``hm`` back."""
+    outline = part_outline(scene)
+    if outline["shape"] != "disc":
+        return hm
+    r = outline["radius"]
+    pixel = 2 * r / cells
+    region = (-r, -r, r, r)
+    z = design_grid(make_surface(scene.design), region, pixel)
+    x = -r + pixel * np.arange(z.shape[1])
+    y = -r + pixel * np.arange(z.shape[0])
+    machined = z.copy()
+    if surface == "machined":
+        res = hm.residual
+        f = max(1, int(round(pixel / hm.pixel)))
+        if f > 1:
+            ny, nx = (res.shape[0] // f) * f, (res.shape[1] // f) * f
+            b = res[:ny, :nx].reshape(ny // f, f, nx // f, f)
+            ok = np.isfinite(b)
+            with np.errstate(invalid="ignore"):
+                res = np.where(ok.any(axis=(1, 3)), np.where(ok, b, 0).sum(axis=(1, 3))
+                               / np.maximum(ok.sum(axis=(1, 3)), 1), np.nan)
+        rp = hm.pixel * f
+        ox = hm.origin[0] + (f - 1) / 2 * hm.pixel
+        oy = hm.origin[1] + (f - 1) / 2 * hm.pixel
+        j = np.rint((x - ox) / rp).astype(int)
+        i = np.rint((y - oy) / rp).astype(int)
+        jin = (j >= 0) & (j < res.shape[1])
+        iin = (i >= 0) & (i < res.shape[0])
+        if jin.any() and iin.any():
+            patch = res[np.ix_(i[iin], j[jin])]
+            sub = machined[np.ix_(iin, jin)]
+            machined[np.ix_(iin, jin)] = np.where(np.isfinite(patch), sub + patch, sub)
+    xx, yy = np.meshgrid(x, y)
+    outside = xx * xx + yy * yy > r * r
+    z[outside] = np.nan
+    machined[outside] = np.nan
+    return HeightMap(z, machined, pixel, (-r, -r), meta={"part": outline})
+
+
+def render_diffuse_views(scene, hm, dcfg, *, seed: int, surface: str = "machined",
+                         views=("micro", "macro"), part_hm=None) -> dict:
+    """The diffuse images of a simulated part: ``micro`` (``dcfg.window`` of ``hm``,
+    straight down) and ``macro`` (the whole part, :func:`part_heightmap`), both with the
+    scene's tool marks.  Returns view -> (rgb, meta)."""
+    marks = tool_marks(scene)
+    out = {}
+    for view in views:
+        if view == "macro":
+            phm = part_hm if part_hm is not None else part_heightmap(scene, hm, surface=surface)
+            out[view] = render_diffuse(phm, dcfg, view="macro", surface=surface, seed=seed,
+                                       marks=marks, part=part_outline(scene))
+        else:
+            out[view] = render_diffuse(hm, dcfg, view="micro", surface=surface, seed=seed,
+                                       marks=marks)
+    return out
 
 
 def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None) -> dict:
@@ -145,7 +267,8 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
     timing = {}
     t0 = time.perf_counter()
-    hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
+    with progress_task(f"{surface} height map"):
+        hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
     timing["heightmap"] = time.perf_counter() - t0
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
@@ -155,14 +278,17 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     with atomic_output_dir(out) as tmp:
         if kind in ("interferometer", "all"):
             t = time.perf_counter()
-            ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
+            with progress_task("interferogram"):
+                ig = render_interferogram(hm, scene.render.interferometer, surface=surface,
+                                          seed=seed)
             timing["interferogram"] = time.perf_counter() - t
             res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
         if kind in ("diffuse", "all"):
             for view in ("macro", "micro"):
                 t = time.perf_counter()
-                rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
-                                           seed=seed)
+                with progress_task(f"diffuse {view} view"):
+                    rgb, meta = render_diffuse_views(scene, hm, scene.render.diffuse, seed=seed,
+                                                     surface=surface, views=(view,))[view]
                 timing[f"diffuse_{view}"] = time.perf_counter() - t
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
         res["timing_s"] = timing

@@ -13,6 +13,7 @@ from ..core.toolpath import ToolPath
 from ..design import make_surface
 from ..io import (
     atomic_output_dir,
+    atomic_write_bytes,
     save_map_png,
     write_heightmap_exr,
     write_json,
@@ -20,7 +21,8 @@ from ..io import (
 )
 from ..machining import design_grid
 from ..processes import Cut, Plan, check_budget, process_of
-from ..report import plot_kinematics
+from ..core.progress import task
+from ..report import axis_motion_figure, display_map, plot_kinematics
 from ._metrics import lenslet_metrics, simulation_metrics
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate"]
@@ -86,12 +88,16 @@ def simulate(scene, *, surface=None) -> Simulation:
     check_budget(scene, kind.estimate_memory(scene))
     sim = scene.simulation
     t0 = time.perf_counter()
-    plan = kind.plan(scene, surface, region=tuple(sim.region))
+    with task(f"{scene.process.kind}: plan the tool path"):
+        plan = kind.plan(scene, surface, region=tuple(sim.region))
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
     check_budget(scene, kind.estimate_memory(scene, plan))
     t0 = time.perf_counter()
-    cut = kind.cut(scene, surface, plan)
+    ny, nx = sim.shape
+    with task(f"{scene.process.kind}: cut {ny * nx:,} samples",
+              total=_expected_cut_seconds(scene, plan), timed=True):
+        cut = kind.cut(scene, surface, plan)
     timing.update(cut.timing)
     timing["simulate"] = time.perf_counter() - t0
     hm = HeightMap(cut.design, cut.machined, sim.pixel, (float(sim.region[0]), float(sim.region[1])),
@@ -107,6 +113,16 @@ def simulate(scene, *, surface=None) -> Simulation:
     timing["total"] = time.perf_counter() - t_all
     result.metrics["timing_s"] = dict(timing)
     return result
+
+
+#: samples per second the cut runs at, for the progress bar's ETA (README speed table:
+#: 12 M samples/s for STS on 2 cores; the other kernels are slower)
+_CUT_RATE = {"sts": 8e6, "fts": 4e6, "hts": 4e6, "rcse": 2e6, "sculpt": 1e6}
+
+
+def _expected_cut_seconds(scene, plan) -> float:
+    ny, nx = scene.simulation.shape
+    return max(0.5, ny * nx / _CUT_RATE.get(scene.process.kind, 2e6))
 
 
 def design_heightmap(scene) -> HeightMap:
@@ -126,6 +142,22 @@ def _draw(spec: dict, png: Path) -> None:
         raise ValueError(f"unknown figure kind {spec.get('kind')!r}")
 
 
+def _kinematics_png(sim: Simulation) -> bytes:
+    """The axes that move: X of the RCSE path against the conventional one (seed 004
+    Figs. 8-9), else the followed path's Z (slow slide and FTS for tool-servo turning)."""
+    spec = sim.cut.plots.get("rcse_kinematics.png")
+    if spec is not None:
+        return axis_motion_figure([(spec["labels"][0], spec["path"], {}),
+                                   (spec["labels"][1], spec["reference"], {})], axes=("X",),
+                                  title=f"{sim.scene.name}: X motion, RCSE vs conventional")
+    path = sim.cut.followed if sim.cut.followed is not None else sim.toolpath
+    kind = sim.scene.process.kind.upper()
+    return axis_motion_figure([(f"{kind} path" + (" (followed by the servos)"
+                                                  if sim.cut.followed is not None else ""),
+                                path, sim.plan.data)],
+                              title=f"{sim.scene.name}: the axes that move")
+
+
 def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
     """Write heightmap.exr, metrics.json, scene.json, toolpath.npz (turning) and the
     previews (residual.png, kinematics.png or the process's own figures) into
@@ -137,16 +169,15 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
         write_toolpath_npz(out_dir / "toolpath.npz", sim.toolpath)
     if preview:
         r = metrics["residual"]
-        save_map_png(out_dir / "residual.png", (hm.residual - r["mean_nm"] * 1e-6) * 1e6,
+        # area-averaged to the figure's pixels: turning marks are averaged, not aliased
+        save_map_png(out_dir / "residual.png", display_map((hm.residual - r["mean_nm"] * 1e-6) * 1e6),
                      extent=hm.extent, cmap="RdBu_r", symmetric=True, label="machined - design (nm)",
                      title=f"{scene.name}: residual, compensation {scene.process.compensation}\n"
                            f"Sq {r['Sq_nm']:.2f} nm, Sz {r['Sz_nm']:.1f} nm, min {r['min_nm']:.1f} nm")
         for name, spec in sim.cut.plots.items():
             _draw(spec, out_dir / name)
-        if sim.toolpath is not None and "rcse_kinematics.png" not in sim.cut.plots:
-            plot_kinematics(sim.toolpath, out_dir / "kinematics.png",
-                            labels=(f"{scene.process.kind.upper()} path", ""),
-                            title=f"{scene.name}: axis motion")
+        if sim.toolpath is not None:
+            atomic_write_bytes(out_dir / "kinematics.png", _kinematics_png(sim))
     write_json(out_dir / "metrics.json", metrics)
     (out_dir / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return metrics
@@ -158,7 +189,8 @@ def run_simulate(scene, out) -> dict:
     sim = simulate(scene)
     log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
              time.perf_counter() - t0)
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out) as tmp, task(f"write {sim.heightmap.design.size:,}-sample "
+                                             f"height map and previews"):
         metrics = write_simulation(sim, Path(tmp))
     r = metrics["residual"]
     log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", r["Sq_nm"], r["Sz_nm"],

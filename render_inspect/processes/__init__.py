@@ -17,6 +17,8 @@ from ._registry import (
     Cut,
     Plan,
     ProcessKind,
+    Variant,
+    VariantPair,
     check_budget,
     process_config_union,
     process_kinds,
@@ -43,4 +45,4 @@ __all__ = ["Plan", "Cut", "ProcessKind", "register_process", "process_kinds", "p
            "process_config_union", "check_budget", "DEFAULT_KIND", "ProcessConfig",
            "TurningProcessConfig", "StsProcessConfig", "ServoProcessConfig",
            "SculptProcessConfig", "RcseProcessConfig", "rcse_comparison", "lattice_lines",
-           "compensation_variants", "toolpath_facts", "plan_spiral"]
+           "compensation_variants", "toolpath_facts", "plan_spiral", "Variant", "VariantPair"]

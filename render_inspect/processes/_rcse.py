@@ -15,7 +15,7 @@ from typing import Literal
 import numpy as np
 
 from ..core.toolpath import ToolPath
-from ..machining import residual_metrics, simulate_turning
+from ..machining import apply_burrs, residual_metrics, simulate_turning
 from ..toolpath import (
     RingLayout,
     conventional_ccps,
@@ -25,10 +25,10 @@ from ..toolpath import (
     region_radii,
     z_compensation,
 )
-from ._registry import Cut, Plan, register_process
+from ._registry import Cut, Plan, Variant, VariantPair, register_process
 from ._turning import (
     TurningProcessConfig,
-    compensation_variants,
+    burrs_of,
     cut_turning,
     tool_of,
     toolpath_facts,
@@ -84,7 +84,8 @@ def plan(scene, surface, *, region=None) -> Plan:
     return Plan(path, {"toolpath": toolpath_facts(path, scene), "rcse": rcse}, timing)
 
 
-def rcse_comparison(scene, path, surface, *, machined=None, design=None) -> tuple[dict, tuple]:
+def rcse_comparison(scene, path, surface, *, machined=None, design=None,
+                    conventional_machined: bool = False) -> tuple[dict, tuple]:
     """Compare the RCSE path with the conventional one over the same spiral samples.
 
     Parameters
@@ -100,9 +101,13 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None) -> tupl
         over the same grid, and both residuals are reported (``residual``: Sa, Sq, Sz, min
         in nm).
 
+    conventional_machined : bool
+        Also machine the conventional path over the scene's grid (whatever
+        ``rcse.simulate_conventional`` says) and return it as a third element.
+
     Returns
     -------
-    (metrics, (rcse CCP path, conventional CCP path))
+    (metrics, (rcse CCP path, conventional CCP path)[, conventional machined map])
         ``metrics``: ``rcse`` and ``conventional`` X velocity / acceleration / jerk
         maxima, mean |vX|, X reversals, profile errors (nm: max |error|, RMS), the
         conventional modelling and interpolation times.  The paths carry the CCP heights
@@ -136,10 +141,14 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None) -> tupl
                          "interpolation": st.interpolation, "snap_to_rows": st.snap_to_rows},
         "points_compared": int(theta.size),
     }
+    conv_machined = None
+    if conventional_machined or (machined is not None and st.simulate_conventional):
+        conv_machined = _machine_conventional(scene, conv_path, conv["model"])
     if machined is not None and st.simulate_conventional:
         out["rcse"]["residual"] = _short(residual_metrics(machined, design))
-        out["conventional"]["residual"] = _short(residual_metrics(
-            _machine_conventional(scene, conv_path, conv["model"]), design))
+        out["conventional"]["residual"] = _short(residual_metrics(conv_machined, design))
+    if conventional_machined:
+        return out, (ccp_path, conv_path), conv_machined
     return out, (ccp_path, conv_path)
 
 
@@ -163,23 +172,52 @@ def _machine_conventional(scene, conv_path, model) -> np.ndarray:
 
 
 def cut(scene, surface, plan: Plan) -> Cut:
-    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
+    """Cut along the RCSE path, or (``rcse.path = "conventional"``) along the conventional
+    grid-interpolated path Z-compensated on its own point cloud; the burrs of
+    ``[artifacts.burrs]`` are added to either."""
+    conventional = scene.rcse.path == "conventional"
+    machined, design, timing, burrs = cut_turning(scene, surface, plan.program,
+                                                  burrs=not conventional)
     facts = {} if burrs is None else {"burrs": burrs}
     plots = {}
-    if scene.rcse.compare_conventional:
+    if scene.rcse.compare_conventional or conventional:
         t1 = time.perf_counter()
-        comp, (rcse_path, conv_path) = rcse_comparison(scene, plan.program, surface,
-                                                       machined=machined, design=design)
+        res = rcse_comparison(scene, plan.program, surface, machined=machined, design=design,
+                              conventional_machined=conventional)
+        comp, (rcse_path, conv_path) = res[0], res[1]
         timing["comparison"] = time.perf_counter() - t1
-        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp}
+        if conventional:
+            machined = res[2]
+            if scene.artifacts.burrs.height > 0:
+                sim = scene.simulation
+                machined, info = apply_burrs(machined, design, pixel=sim.pixel,
+                                             origin=(sim.region[0], sim.region[1]),
+                                             **burrs_of(scene))
+                facts["burrs"] = info
+        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp, "path": scene.rcse.path}
         plots["rcse_kinematics.png"] = {
             "kind": "kinematics", "path": rcse_path, "reference": conv_path,
             "labels": ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)"),
             "title": "X-axis motion: RCSE vs conventional (seed 004 Figs. 8-9)"}
     meta = {"process": "rcse", "compensation": scene.process.compensation,
-            "seed": scene.simulation.seed}
+            "seed": scene.simulation.seed, "path": scene.rcse.path}
     return Cut(machined, design, facts, timing, meta, plots=plots)
 
 
+def path_variants(scene) -> VariantPair:
+    """The pair ``compare`` puts side by side for RCSE: the surface cut along the RCSE path
+    against the one cut along the conventional grid-interpolated path (seed 004)."""
+    st = scene.rcse
+    return VariantPair(
+        Variant("rcse", "RCSE path (CCPs on the spiral)", {"rcse.path": "rcse"}),
+        Variant("conventional", f"conventional path ({st.interpolation} interpolation in a "
+                                f"{st.grid_spacing * 1e3:.3g} um point cloud)",
+                {"rcse.path": "conventional"}),
+        key="rcse.path",
+        about=("RCSE against the conventional path: the conventional CCPs come from a "
+               "rectangular point cloud, so X reciprocates and the profile carries the "
+               "interpolation error; the RCSE CCPs lie on the spiral (seed 004)."))
+
+
 register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 program_header=turning_header, variants=compensation_variants)
+                 program_header=turning_header, variants=path_variants)

@@ -18,7 +18,8 @@ three functions, registered with :func:`register_process`:
 
 Optional: ``program_region(scene)`` (the region the ``toolpath`` command plans; None = the
 whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (the pair
-``compare`` puts side by side).
+``compare`` puts side by side: a :class:`VariantPair`, the comparison that means something
+for this process, e.g. compensation on/off for turning, vibration on/off for sculpturing).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from ..core.grid import grid_shape
 from ..core.plugins import literal_values
 
 __all__ = ["Plan", "Cut", "ProcessKind", "register_process", "process_kinds", "process_of",
-           "process_config_union", "check_budget", "DEFAULT_KIND"]
+           "process_config_union", "check_budget", "DEFAULT_KIND", "Variant", "VariantPair"]
 
 #: the kind a scene without ``process.kind`` gets
 DEFAULT_KIND = "sts"
@@ -88,6 +89,51 @@ class Cut:
     meta: dict = field(default_factory=dict)
     followed: object = None
     plots: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One column of ``compare``: the scene with some keys set to other values.
+
+    Attributes
+    ----------
+    name : str
+        Folder and ``metrics.json`` key of the variant (``"compensated"``,
+        ``"vibration_off"``, ...): letters, digits, ``_``, ``-`` and ``.``.
+    label : str
+        What the variant is, for people ("Z compensation", "no vibration").
+    values : dict
+        Dotted scene key -> value (Python; ``None`` allowed) applied to the scene;
+        empty means the scene as given.
+    """
+
+    name: str
+    label: str
+    values: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class VariantPair:
+    """The two variants ``compare`` puts side by side, and why.
+
+    Attributes
+    ----------
+    a, b : Variant
+        Left and right column; the report shows ``a - b``.
+    key : str
+        The scene key (or keys, comma separated) that differ between them.
+    about : str
+        One sentence for the report: what the difference shows.
+    """
+
+    a: Variant
+    b: Variant
+    key: str
+    about: str = ""
+
+    @property
+    def variants(self) -> tuple[Variant, Variant]:
+        return (self.a, self.b)
 
 
 def _whole_part(scene):

@@ -26,8 +26,8 @@ from ..machining import (
     target_line,
     vibration_phases,
 )
-from ._registry import Cut, Plan, register_process
-from ._turning import burrs_of, compensation_variants
+from ._registry import Cut, Plan, Variant, VariantPair, register_process
+from ._turning import burrs_of
 
 __all__ = ["SculptProcessConfig", "lattice_lines"]
 
@@ -41,7 +41,7 @@ class SculptProcessConfig(Section):
     depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded only)")
     allow_gouge: bool = Field(False, description="simulate even if the clearance angle is too small")
     compensation: Literal["none", "normal", "z"] = Field(
-        "none", description="not used: the edge follows the target line (kept for compare)")
+        "none", description="not used: the edge follows the target line (no nose compensation)")
 
     def check_with(self, scene) -> None:
         d = scene.design
@@ -182,6 +182,31 @@ def estimate_memory(scene, plan=None) -> int:
     return 8 * 8 * ny * nx
 
 
+def sculpt_variants(scene) -> VariantPair:
+    """The pair ``compare`` puts side by side for sculpturing (which has no nose-radius
+    compensation): the ultrasonic vibration on against off, or, when the scene has no
+    vibration, the tool edge radius as set against half of it."""
+    vib = scene.artifacts.vibration
+    if vib.amplitude > 0 and vib.frequency_hz > 0:
+        return VariantPair(
+            Variant("vibration_on", f"vibration {vib.frequency_hz / 1e3:.4g} kHz, "
+                                    f"{vib.amplitude * 1e3:.3g} um", {}),
+            Variant("vibration_off", "no vibration", {"artifacts.vibration.amplitude": 0.0}),
+            key="artifacts.vibration.amplitude",
+            about=("Ultrasonic vibration along the cut on against off: the front and back "
+                   "cut limits of each vibration cycle leave cut lines off the target, the "
+                   "error growing with the slope and peaking at the edges between lenslets "
+                   "(seed 003)."))
+    r = scene.tool.nose_radius
+    return VariantPair(
+        Variant(f"edge_radius_{r:g}mm", f"tool edge radius {r:g} mm", {}),
+        Variant(f"edge_radius_{r / 2:g}mm", f"tool edge radius {r / 2:g} mm",
+                {"tool.nose_radius": r / 2}),
+        key="tool.nose_radius",
+        about=("Tool edge radius as set against half of it: the swept edge leaves the "
+               "tool-edge overcut at the cusps between lenslets (seed 003)."))
+
+
 def program_header(scene) -> dict:
     vib = scene.artifacts.vibration
     return {"scene": scene.name, "process": "sculpt",
@@ -190,4 +215,4 @@ def program_header(scene) -> dict:
 
 
 register_process(SculptProcessConfig, plan=plan, cut=cut, estimate_memory=estimate_memory,
-                 program_header=program_header, variants=compensation_variants)
+                 program_header=program_header, variants=sculpt_variants)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..machining import followed_path, split_commands
-from ._registry import Cut, Plan, register_process
+from ._registry import Cut, Plan, Variant, VariantPair, register_process
 from ._turning import (
     TurningProcessConfig,
     compensation_variants,
@@ -107,10 +107,40 @@ def cut(scene, surface, plan: Plan) -> Cut:
     return Cut(machined, design, facts, timing, meta, followed=fpath)
 
 
+def lag_variants(scene) -> VariantPair:
+    """The pair ``compare`` puts side by side for tool-servo turning: the servos as the
+    scene sets them (delay and bandwidths: the lag that rotates every feature by
+    ``omega tau`` and shifts it by ``r omega tau``, seed 002's spiral dislocations)
+    against ideal servos that follow their commands exactly.  A scene without servo
+    dynamics gets the turning pair (compensation on/off) instead."""
+    sv = scene.artifacts.servo
+    if not (sv.delay_s > 0 or sv.bandwidth_hz is not None or sv.slow_bandwidth_hz is not None):
+        return compensation_variants(scene)
+    parts = []
+    if sv.delay_s > 0:
+        parts.append(f"delay {sv.delay_s * 1e3:.3g} ms")
+    if sv.bandwidth_hz is not None:
+        parts.append(f"FTS {sv.bandwidth_hz:.4g} Hz")
+    if sv.slow_bandwidth_hz is not None:
+        parts.append(f"slide {sv.slow_bandwidth_hz:.4g} Hz")
+    omega = 2 * math.pi * scene.process.spindle_rpm / 60.0
+    lag = sv.delay_s + (2 * sv.damping / (2 * math.pi * sv.bandwidth_hz) if sv.bandwidth_hz else 0.0)
+    return VariantPair(
+        Variant("servo_lag", "servo lag as set (" + ", ".join(parts) + ")", {}),
+        Variant("ideal_servo", "ideal servo (no lag)",
+                {"artifacts.servo.delay_s": 0.0, "artifacts.servo.bandwidth_hz": None,
+                 "artifacts.servo.slow_bandwidth_hz": None}),
+        key="artifacts.servo",
+        about=(f"Servo lag on against off: a lag of {lag * 1e3:.3g} ms at "
+               f"{scene.process.spindle_rpm:g} rpm turns every feature by omega tau = "
+               f"{omega * lag * 1e3:.3g} mrad about the spindle axis, i.e. shifts it by "
+               f"r omega tau along the circumference (seed 002's spiral dislocations)."))
+
+
 def program_region(scene):
     return tuple(scene.simulation.region)
 
 
 register_process(ServoProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
                  program_region=program_region, program_header=turning_header,
-                 variants=compensation_variants)
+                 variants=lag_variants)

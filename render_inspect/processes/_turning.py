@@ -13,6 +13,7 @@ from ..core.grid import grid_shape
 from ..core.section import Section
 from ..machining import apply_burrs, design_grid, simulate_turning
 from ..toolpath import Tool, kinematics, limits_from_process, plan_turning, region_radii
+from ._registry import Variant, VariantPair
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
            "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
@@ -150,11 +151,18 @@ def turning_header(scene) -> dict:
             "nose_radius": scene.tool.nose_radius}
 
 
-def compensation_variants(scene) -> list:
-    """The pair ``compare`` puts side by side for a turning process: the scene compensated
-    (as given, or with ``process.compensation = "z"`` when it says "none") and
-    uncompensated."""
-    comp = scene if scene.process.compensation != "none" else \
-        scene.with_overrides(["process.compensation='z'"])
-    unc = scene.with_overrides(["process.compensation='none'"])
-    return [("compensated", comp), ("uncompensated", unc)]
+def compensation_variants(scene) -> VariantPair:
+    """The pair ``compare`` puts side by side for turning: the scene's tool-radius
+    compensation (``"z"`` when it says ``"none"``) against none.  Without compensation
+    the nose overcuts the slopes by about ``Rc slope^2 / 2`` (seed 000 Fig. 16)."""
+    c = scene.process.compensation
+    comp = c if c != "none" else "z"
+    name = {"z": "Z-direction", "normal": "normal-direction"}[comp]
+    return VariantPair(
+        Variant("compensated", f"{name} compensation", {"process.compensation": comp}),
+        Variant("uncompensated", "no compensation", {"process.compensation": "none"}),
+        key="process.compensation",
+        about=(f"Tool-nose radius compensation ({name}) against none: without it the nose "
+               f"(Rc = {scene.tool.nose_radius * 1e3:.4g} um) cuts below the design on the "
+               f"slopes (overcut, about Rc slope^2 / 2), in a pattern that changes with the "
+               f"section angle (seed 000 Fig. 16)."))

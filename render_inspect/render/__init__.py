@@ -27,15 +27,24 @@ from ._cycles import (
 from ._diffuse import (
                       AL_REFLECTANCE_RGB,
                       LIGHTS,
+                      PORT_PROFILES,
                       DiffuseConfig,
                       auto_exaggeration,
+                      diffuse_mesh,
                       diffuse_scene_spec,
                       environment_map,
                       light_profile,
                       render_diffuse,
 )
 from ._scene_dicts import load_scene_dict, trace_grids
-from ._variant import import_mitsuba, mitsuba_variant, single_thread, variant_info
+from ._turned_bsdf import efficiency_tables, grating_efficiencies
+from ._variant import (
+                      import_mitsuba,
+                      mitsuba_variant,
+                      single_thread,
+                      spectral_variant,
+                      variant_info,
+)
 
 __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_profile",
            "auto_exaggeration", "DiffuseConfig", "LIGHTS", "AL_REFLECTANCE_RGB",
@@ -43,4 +52,5 @@ __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_pro
            "single_thread", "import_mitsuba", "render_cycles", "render_object",
            "render_spec", "surface_object", "heightmap_object", "gridmesh_object",
            "object_heights", "remove_object", "default_output_dir", "ALUMINIUM_ETA",
-           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME"]
+           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "PORT_PROFILES", "diffuse_mesh",
+           "spectral_variant", "efficiency_tables", "grating_efficiencies"]

@@ -25,8 +25,7 @@ from .. import __version__
 from ..core.errors import InputError, SceneError, check_positive, check_range
 from ..core.heightmap import HeightMap
 from ..io import atomic_output_dir, read_exr, save_png, write_exr
-from ..mesh import heightmap_mesh
-from ._diffuse import DiffuseConfig, diffuse_scene_spec
+from ._diffuse import DiffuseConfig, diffuse_mesh, diffuse_scene_spec
 
 __all__ = ["heightmap_object", "surface_object", "gridmesh_object", "object_heights",
            "remove_object", "render_spec", "render_cycles", "render_object",
@@ -214,7 +213,8 @@ def _render_scene(bpy):
         bpy.data.scenes.remove(old)
     for obj in [o for o in bpy.data.objects if o.name.startswith(RENDER_SCENE_NAME)]:
         bpy.data.objects.remove(obj, do_unlink=True)
-    for coll in (bpy.data.cameras, bpy.data.meshes, bpy.data.worlds, bpy.data.images):
+    for coll in (bpy.data.cameras, bpy.data.meshes, bpy.data.worlds, bpy.data.images,
+                 bpy.data.lights):
         for block in [b for b in coll if b.name.startswith(RENDER_SCENE_NAME) and b.users == 0]:
             coll.remove(block)
     return bpy.data.scenes.new(RENDER_SCENE_NAME)
@@ -224,7 +224,9 @@ def _aluminium_material(bpy, material: dict):
     """Cycles Metallic BSDF with aluminium's complex IOR (physical-conductor Fresnel),
     the counterpart of Mitsuba's ``conductor`` / ``roughconductor`` with ``material="Al"``.
 
-    Mitsuba's GGX ``alpha`` is Blender's roughness squared."""
+    Mitsuba's GGX ``alpha`` is Blender's roughness squared.  The turned-aluminium BSDF
+    (diffraction by the feed marks, anisotropic roughness) has no Cycles counterpart:
+    its microroughness ``alpha`` is used as an isotropic GGX roughness."""
     if material.get("material", "Al") != "Al":
         raise InputError(f"material must be 'Al' (aluminium), got {material.get('material')!r}")
     name = f"{RENDER_SCENE_NAME}_aluminium"
@@ -244,16 +246,22 @@ def _aluminium_material(bpy, material: dict):
 
 
 def _add_world(bpy, scene, light: dict):
-    """The light at infinity: radiance as a function of the zenith angle only, the
-    piecewise-linear ``zenith_profile`` (``[theta_deg, radiance]`` pairs) of the spec.
+    """The light at infinity (:func:`~render_inspect.render.diffuse_scene_spec`'s
+    ``light``): the piecewise-linear ``port_profile`` (``[angle_deg, radiance]`` pairs)
+    of the angle from the camera port's ``axis``, times the horizon step (0.5 degree
+    wide), times ``1 - zenith_falloff (1 - cos^2 theta)``, times ``radiance``; a spec
+    without an axis gives ``zenith_profile`` about +z (the same light for a camera
+    looking straight down).
 
-    Built as a world shader, ray direction -> theta = acos(z) -> a linear colour ramp
-    with one stop per profile point, so the profile is reproduced exactly (Mitsuba gets
-    the same profile as an ``envmap`` bitmap sampled on its rows)."""
-    profile = np.asarray(light["zenith_profile"], dtype=np.float64)
+    Built as a world shader, ray direction -> angle = acos(d . axis) -> a linear colour
+    ramp with one stop per profile point, so the profile is reproduced exactly (Mitsuba
+    gets the same light as an ``envmap`` bitmap)."""
+    axis = light.get("axis")
+    key = "port_profile" if axis is not None and "port_profile" in light else "zenith_profile"
+    profile = np.asarray(light[key], dtype=np.float64)
     if profile.ndim != 2 or profile.shape[1] != 2 or not 2 <= len(profile) <= 32:
-        raise InputError(f"light zenith_profile must be 2..32 [theta_deg, radiance] pairs, "
-                         f"got {light['zenith_profile']!r}")
+        raise InputError(f"light {key} must be 2..32 [angle_deg, radiance] pairs, "
+                         f"got {light[key]!r}")
     if tuple(light.get("up", (0.0, 0.0, 1.0))) != (0.0, 0.0, 1.0):
         raise InputError(f"light up must be [0, 0, 1], got {light.get('up')!r}")
     peak = float(profile[:, 1].max()) or 1.0
@@ -262,12 +270,25 @@ def _add_world(bpy, scene, light: dict):
     nodes, links = tree.nodes, tree.links
     coord = nodes.new("ShaderNodeTexCoord")  # "Generated" = the ray's direction in a world
     xyz = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(coord.outputs["Generated"], xyz.inputs["Vector"])
     acos = nodes.new("ShaderNodeMath")
     acos.operation = "ARCCOSINE"
     acos.use_clamp = False
+    if axis is not None:
+        dot = nodes.new("ShaderNodeVectorMath")
+        dot.operation = "DOT_PRODUCT"
+        dot.inputs[1].default_value = tuple(float(v) for v in axis)
+        links.new(coord.outputs["Generated"], dot.inputs[0])
+        clamp = nodes.new("ShaderNodeClamp")
+        clamp.inputs["Min"].default_value = -1.0
+        clamp.inputs["Max"].default_value = 1.0
+        links.new(dot.outputs["Value"], clamp.inputs["Value"])
+        links.new(clamp.outputs["Result"], acos.inputs[0])
+    else:
+        links.new(xyz.outputs["Z"], acos.inputs[0])
     scale = nodes.new("ShaderNodeMath")
     scale.operation = "MULTIPLY"
-    scale.inputs[1].default_value = 1.0 / math.pi  # theta / pi in [0, 1]
+    scale.inputs[1].default_value = 1.0 / math.pi  # angle / pi in [0, 1]
     ramp = nodes.new("ShaderNodeValToRGB")
     cr = ramp.color_ramp
     cr.interpolation = "LINEAR"
@@ -279,18 +300,70 @@ def _add_world(bpy, scene, light: dict):
         el.position = float(theta_deg) / 180.0
         v = float(radiance) / peak
         el.color = (v, v, v, 1.0)
-    background = nodes["Background"]
-    background.inputs["Strength"].default_value = peak
-    links.new(coord.outputs["Generated"], xyz.inputs["Vector"])
-    links.new(xyz.outputs["Z"], acos.inputs[0])
     links.new(acos.outputs["Value"], scale.inputs[0])
     links.new(scale.outputs["Value"], ramp.inputs["Fac"])
-    links.new(ramp.outputs["Color"], background.inputs["Color"])
+    background = nodes["Background"]
+    background.inputs["Strength"].default_value = peak * float(light.get("radiance", 1.0))
+    if axis is not None:
+        # horizon step (90 .. 90.5 degrees: linear in cos theta there) and the falloff
+        horizon = nodes.new("ShaderNodeMapRange")
+        horizon.clamp = True
+        horizon.inputs["From Min"].default_value = math.cos(math.radians(90.5))
+        horizon.inputs["From Max"].default_value = 0.0
+        links.new(xyz.outputs["Z"], horizon.inputs["Value"])
+        zc = nodes.new("ShaderNodeMath")
+        zc.operation = "MAXIMUM"
+        zc.inputs[1].default_value = 0.0
+        links.new(xyz.outputs["Z"], zc.inputs[0])
+        z2 = nodes.new("ShaderNodeMath")
+        z2.operation = "MULTIPLY"
+        links.new(zc.outputs["Value"], z2.inputs[0])
+        links.new(zc.outputs["Value"], z2.inputs[1])
+        f = float(light.get("zenith_falloff", 0.0))
+        fall = nodes.new("ShaderNodeMath")
+        fall.operation = "MULTIPLY_ADD"
+        fall.inputs[1].default_value = f
+        fall.inputs[2].default_value = 1.0 - f
+        links.new(z2.outputs["Value"], fall.inputs[0])
+        both = nodes.new("ShaderNodeMath")
+        both.operation = "MULTIPLY"
+        links.new(horizon.outputs["Result"], both.inputs[0])
+        links.new(fall.outputs["Value"], both.inputs[1])
+        mul = nodes.new("ShaderNodeVectorMath")
+        mul.operation = "SCALE"
+        links.new(ramp.outputs["Color"], mul.inputs[0])
+        links.new(both.outputs["Value"], mul.inputs["Scale"])
+        links.new(mul.outputs["Vector"], background.inputs["Color"])
+    else:
+        links.new(ramp.outputs["Color"], background.inputs["Color"])
     # importance-sample the light on a 0.25-degree map ("AUTOMATIC" builds a far larger
     # one: seconds per render)
     world.cycles.sampling_method = "MANUAL"
     world.cycles.sample_map_resolution = 720
     scene.world = world
+
+
+def _add_lamp(bpy, scene, lamp: dict):
+    """The spec's lamp: a sun (directional light, angle 0) whose light travels along
+    ``direction`` with ``irradiance`` (Blender's sun strength is an irradiance too)."""
+    import mathutils
+
+    d = np.asarray(lamp["direction"], dtype=np.float64)
+    d /= np.linalg.norm(d)
+    data = bpy.data.lights.new(f"{RENDER_SCENE_NAME}_lamp", type="SUN")
+    data.energy = float(lamp["irradiance"])
+    data.angle = 0.0
+    obj = bpy.data.objects.new(f"{RENDER_SCENE_NAME}_lamp", data)
+    # a sun shines along its local -Z
+    z = -d
+    x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    obj.matrix_world = mathutils.Matrix(m.tolist())
+    scene.collection.objects.link(obj)
+    return obj
 
 
 def _look_at_matrix(origin, target, up):
@@ -422,6 +495,8 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
     obj.data.materials.append(mat)
     _add_camera(bpy, scene, spec["camera"], z_shift)
     _add_world(bpy, scene, spec["light"])
+    if spec.get("lamp") is not None and spec["lamp"].get("irradiance"):
+        _add_lamp(bpy, scene, spec["lamp"])
     _configure_cycles(scene, spec, seed=seed, threads=threads)
     return _render(bpy, scene)
 
@@ -497,10 +572,7 @@ def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "
     spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     t0 = time.perf_counter()
-    ms = spec["mesh"]
-    gm = heightmap_mesh(heightmap, channel=ms["channel"], exaggeration=spec["exaggeration"],
-                        window=ms["window"], z_offset=spec["z_offset_mm"],
-                        max_cells=ms["max_cells"], skirt=ms["skirt"], normals=True)
+    gm, factor = diffuse_mesh(heightmap, spec)  # the very mesh Mitsuba renders
     obj = gridmesh_object(gm)
     mesh_time = time.perf_counter() - t0
     rgb, seconds = render_spec(obj, spec, seed=seed, threads=threads)
@@ -508,7 +580,7 @@ def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "
     meta.update(renderer=f"blender-cycles {bpy.app.version_string}", render_time_s=seconds,
                 mesh_time_s=mesh_time, vertical_exaggeration=spec["exaggeration"],
                 mesh_vertices=gm.n_vertices, mesh_triangles=gm.n_faces,
-                mesh_stride=gm.metadata["stride"])
+                mesh_stride=int(factor))
     return rgb, meta
 
 

@@ -23,7 +23,8 @@ from pathlib import Path
 
 from ..core.errors import InputError
 
-__all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info"]
+__all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
+           "spectral_variant"]
 
 _LLVM_CANDIDATES = (
     "/usr/lib/x86_64-linux-gnu/libLLVM-19.so.1",
@@ -34,7 +35,7 @@ _LLVM_CANDIDATES = (
     "/usr/lib/aarch64-linux-gnu/libLLVM-19.so.1",
 )
 
-_STATE: dict = {"variant": None, "message": None}
+_STATE: dict = {"variant": None, "message": None, "override": None}
 
 
 def _point_at_llvm() -> str | None:
@@ -129,14 +130,38 @@ def mitsuba_variant() -> str:
 
 
 def import_mitsuba():
-    """Return ``(mi, dr, variant)`` with the chosen variant set."""
-    variant = mitsuba_variant()
+    """Return ``(mi, dr, variant)`` with the chosen variant set (inside
+    :func:`spectral_variant`: its spectral counterpart)."""
+    variant = _STATE["override"] or mitsuba_variant()
     import drjit as dr
     import mitsuba as mi
 
     if mi.variant() != variant:
         mi.set_variant(variant)
     return mi, dr, variant
+
+
+@contextlib.contextmanager
+def spectral_variant():
+    """Run the block with the spectral counterpart of the chosen variant
+    (``llvm_ad_rgb`` -> ``llvm_ad_spectral``, ``cuda_ad_rgb`` -> ``cuda_ad_spectral``);
+    yields its name, or None (and changes nothing) when the chosen variant is
+    ``scalar_rgb`` (a Python BSDF on scalar rays would be far too slow) or the build
+    lacks it.  The chosen RGB variant is set again afterwards."""
+    base = mitsuba_variant()
+    import mitsuba as mi
+
+    spectral = base.replace("_rgb", "_spectral")
+    if base.startswith("scalar") or spectral not in mi.variants() or _STATE["override"]:
+        yield _STATE["override"]
+        return
+    _STATE["override"] = spectral
+    mi.set_variant(spectral)
+    try:
+        yield spectral
+    finally:
+        _STATE["override"] = None
+        mi.set_variant(base)
 
 
 def variant_info() -> dict:

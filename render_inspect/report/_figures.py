@@ -1,16 +1,33 @@
 """Figures of the comparison report, as PNG bytes (matplotlib, Agg backend).
 
-Every map is drawn with row 0 (the smallest y) at the bottom and x, y in mm; panels that
-are compared share one colour scale so that equal colours mean equal heights.
+Conventions of every figure:
+
+* maps are drawn with row 0 (the smallest y) at the bottom, x and y in mm, and a scale
+  bar; maps larger than the panel are area-averaged (NaN-aware block means) down to about
+  the panel's pixel count first, so fine periodic marks are averaged, not aliased into
+  moire;
+* panels that are compared share one colour scale (symmetric about zero for differences),
+  clipped to the 0.5 / 99.5 percentiles so that a few edge pixels cannot flatten the
+  rest; a clipped scale shows arrows on its colour bar;
+* rendered images carry their scale bar and, for diffuse images, the vertical
+  exaggeration written into the picture.
 """
 
 from __future__ import annotations
 
 import io
+import math
 
 import numpy as np
 
-__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes"]
+from ._format import fmt_quantity, nice_length
+
+__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "block_mean",
+           "display_map", "difference_figure", "annotate_rgb", "length_label",
+           "DISPLAY_PIXELS"]
+
+#: maps are area-averaged to at most this many samples across before drawing
+DISPLAY_PIXELS = 400
 
 
 def _plt():
@@ -40,34 +57,111 @@ def png_bytes(image) -> bytes:
     return buf.getvalue()
 
 
+def block_mean(z, factor: int) -> np.ndarray:
+    """NaN-aware area average over ``factor x factor`` blocks (the last partial blocks
+    averaged over what they hold).
+
+    Parameters
+    ----------
+    z : (ny, nx) or (ny, nx, c) array
+    factor : int >= 1
+
+    Returns
+    -------
+    (ceil(ny / factor), ceil(nx / factor)[, c]) float64; NaN where a block holds no
+    finite value.
+    """
+    z = np.asarray(z, dtype=np.float64)
+    f = int(factor)
+    if f <= 1:
+        return z
+    ny, nx = z.shape[:2]
+    py, px = (-ny) % f, (-nx) % f
+    pad = [(0, py), (0, px)] + [(0, 0)] * (z.ndim - 2)
+    zp = np.pad(z, pad, constant_values=np.nan)
+    shp = (zp.shape[0] // f, f, zp.shape[1] // f, f) + zp.shape[2:]
+    blocks = zp.reshape(shp)
+    ok = np.isfinite(blocks)
+    s = np.where(ok, blocks, 0.0).sum(axis=(1, 3))
+    n = ok.sum(axis=(1, 3))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, s / np.maximum(n, 1), np.nan)
+
+
+def display_map(z, max_px: int = DISPLAY_PIXELS) -> np.ndarray:
+    """``z`` area-averaged (:func:`block_mean`) so that its longer side is at most
+    ``max_px`` samples (unchanged when it already is)."""
+    z = np.asarray(z, dtype=np.float64)
+    n = max(z.shape[:2])
+    return block_mean(z, int(math.ceil(n / max_px))) if n > max_px else z
+
+
+def length_label(mm: float) -> str:
+    """A length for a scale bar: ``"50 um"``, ``"1 mm"``."""
+    if mm >= 1.0:
+        return f"{mm:g} mm"
+    if mm >= 1e-3:
+        return f"{mm * 1e3:g} um"
+    return f"{mm * 1e6:g} nm"
+
+
+def _scale_bar(ax, width_mm: float, *, color: str = "black", frac: float = 0.22,
+               loc: str = "lower right") -> None:
+    """A 1-2-5 scale bar about ``frac`` of ``width_mm`` long, in data units (mm)."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    if not width_mm > 0:
+        return
+    L = nice_length(frac * width_mm)
+    bar = AnchoredSizeBar(ax.transData, L, length_label(L), loc, pad=0.3, borderpad=0.4,
+                          sep=3, color=color, frameon=True, size_vertical=0,
+                          fontproperties={"size": 8})
+    bar.patch.set_alpha(0.75)
+    bar.patch.set_edgecolor("none")
+    ax.add_artist(bar)
+
+
 def _limits(arrays, symmetric, percentile=None):
     vals = [np.asarray(a, dtype=np.float64) for a in arrays if a is not None]
     vals = [v[np.isfinite(v)] for v in vals]
     vals = [v for v in vals if v.size]
     if not vals:
-        return -1.0, 1.0
+        return -1.0, 1.0, False
     allv = np.concatenate(vals)
-    if percentile is not None:
-        lo, hi = np.percentile(allv, [percentile, 100 - percentile])
+    full = float(allv.min()), float(allv.max())
+    if percentile:
+        lo, hi = (float(x) for x in np.percentile(allv, [percentile, 100 - percentile]))
     else:
-        lo, hi = float(allv.min()), float(allv.max())
+        lo, hi = full
     if symmetric:
-        m = max(abs(lo), abs(hi)) or 1.0
-        return -m, m
+        m = max(abs(lo), abs(hi))
+        if m == 0:
+            m = max(abs(full[0]), abs(full[1])) or 1.0
+        return -m, m, max(abs(full[0]), abs(full[1])) > m * (1 + 1e-9)
     if hi <= lo:
-        hi = lo + 1.0
-    return float(lo), float(hi)
+        hi = lo + (abs(lo) * 1e-3 or 1.0)
+    return lo, hi, full[0] < lo or full[1] > hi
+
+
+def _extend(data, vmin, vmax) -> str:
+    d = np.asarray(data, dtype=np.float64)
+    d = d[np.isfinite(d)]
+    if not d.size:
+        return "neither"
+    lo, hi = d.min() < vmin - 1e-12 * abs(vmin), d.max() > vmax + 1e-12 * abs(vmax)
+    return {(True, True): "both", (True, False): "min", (False, True): "max"}.get((lo, hi), "neither")
 
 
 def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
                symmetric: bool = False, shared: bool = True, suptitle: str = "",
-               percentile: float | None = None, panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
-    """Side-by-side false-colour maps, each with a colour bar.
+               percentile: float | None = 0.5, panel_size=(4.6, 3.9), dpi: int = 100,
+               max_px: int = DISPLAY_PIXELS, lines=None) -> bytes:
+    """Side-by-side false-colour maps, each with a colour bar and a scale bar.
 
     Parameters
     ----------
     panels : list of (title, (ny, nx) array)
-        Maps with row 0 = smallest y; NaN is drawn blank.
+        Maps with row 0 = smallest y; NaN is drawn blank; None draws "not available".
     extent : (x0, x1, y0, y1) or list of them, mm
         Pixel-edge extent (one for all panels or one per panel).
     label : str
@@ -76,48 +170,63 @@ def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
         Colour scale symmetric about 0 (differences, residuals).
     shared : bool
         One colour scale for all panels (compare like with like).
-    percentile : float, optional
-        Clip the scale to this lower/upper percentile (robust to a few spikes).
+    percentile : float or None
+        Clip the scale to this lower/upper percentile (0.5: robust to a few spikes;
+        arrows on the colour bar show that values go beyond).
+    max_px : int
+        Maps are area-averaged to at most this many samples across.
+    lines : list of ((x0, y0), (x1, y1)), optional
+        A line (mm) drawn on every panel (e.g. where a profile is taken).
     """
     plt = _plt()
     n = len(panels)
     fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
-                             squeeze=False)
+                             squeeze=False, layout="constrained")
+    shown = [(t, None if d is None else display_map(d, max_px)) for t, d in panels]
     lim = _limits([p[1] for p in panels], symmetric, percentile) if shared else None
-    for i, (title, data) in enumerate(panels):
+    for i, (title, data) in enumerate(shown):
         ax = axes[0, i]
         ext = extent[i] if isinstance(extent, list) else extent
+        ax.set_title(title, fontsize=10)
         if data is None:
             ax.text(0.5, 0.5, "not available", ha="center", va="center", transform=ax.transAxes)
             ax.set_axis_off()
-            ax.set_title(title, fontsize=10)
             continue
-        vmin, vmax = lim if lim is not None else _limits([data], symmetric, percentile)
-        im = ax.imshow(np.asarray(data, dtype=np.float64), origin="lower", extent=ext, cmap=cmap,
-                       vmin=vmin, vmax=vmax, interpolation="nearest")
-        ax.set_title(title, fontsize=10)
+        vmin, vmax, _ = lim if lim is not None else _limits([panels[i][1]], symmetric, percentile)
+        im = ax.imshow(data, origin="lower", extent=ext, cmap=cmap, vmin=vmin, vmax=vmax,
+                       interpolation="nearest")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
-        cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+        cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04,
+                          extend=_extend(panels[i][1], vmin, vmax))
         if label:
             cb.set_label(label)
+        if ext is not None:
+            _scale_bar(ax, ext[1] - ext[0])
+        for (a, b) in lines or ():
+            ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=0.9, ls="--")
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
-    fig.tight_layout()
     return _to_png(fig)
 
 
 def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "",
-                 axis_labels: bool = True, panel_size=(4.2, 3.6), dpi: int = 90) -> bytes:
+                 axis_labels: bool = True, panel_size=(4.6, 3.9), dpi: int = 100,
+                 scale_mm=None, notes=None) -> bytes:
     """Side-by-side rendered images (grey intensity 0..1 or RGB 0..1), row 0 = smallest y
     (drawn at the bottom).
 
     A grey panel gets a colour bar labelled ``gray_label``; ``axis_labels=False`` hides
-    the axes (perspective views have no x, y scale)."""
+    the axes (perspective views).  Every image gets a scale bar: from ``extent`` (mm)
+    or, for a perspective view, ``scale_mm`` = (bar length in mm, bar length in image
+    pixels at the part's centre).  ``notes`` (one string per panel) is written into
+    the picture (e.g. the vertical exaggeration)."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
     plt = _plt()
     n = len(panels)
     fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
-                             squeeze=False)
+                             squeeze=False, layout="constrained")
     for i, (title, img) in enumerate(panels):
         ax = axes[0, i]
         ext = extent[i] if isinstance(extent, list) else extent
@@ -128,43 +237,185 @@ def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "
             continue
         a = np.clip(np.nan_to_num(np.asarray(img, dtype=np.float64)), 0, 1)
         if a.ndim == 2:
+            a = display_map(a, 2 * DISPLAY_PIXELS)
             im = ax.imshow(a, origin="lower", extent=ext, cmap="gray", vmin=0, vmax=1,
-                           interpolation="nearest")
+                           interpolation="antialiased")
             cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
             if gray_label:
                 cb.set_label(gray_label)
         else:
-            ax.imshow(a, origin="lower", extent=ext, interpolation="nearest")
-        if axis_labels:
+            ax.imshow(a, origin="lower", extent=ext, interpolation="antialiased")
+        if axis_labels and ext is not None:
             ax.set_xlabel("x (mm)")
             ax.set_ylabel("y (mm)")
+            _scale_bar(ax, ext[1] - ext[0], color="black")
         else:
-            ax.set_axis_off()
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if scale_mm is not None:
+                mm, px = scale_mm[i] if isinstance(scale_mm, list) else scale_mm
+                bar = AnchoredSizeBar(ax.transData, px, length_label(mm) + " (at the centre)",
+                                      "lower right", pad=0.3, borderpad=0.4, sep=3,
+                                      color="black", frameon=True, size_vertical=0,
+                                      fontproperties={"size": 8})
+                bar.patch.set_alpha(0.75)
+                bar.patch.set_edgecolor("none")
+                ax.add_artist(bar)
+        if notes and notes[i]:
+            ax.text(0.02, 0.98, notes[i], transform=ax.transAxes, ha="left", va="top",
+                    fontsize=8, color="black", wrap=True,
+                    bbox={"facecolor": "white", "alpha": 0.75, "edgecolor": "none", "pad": 2})
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
-    fig.tight_layout()
     return _to_png(fig)
 
 
-def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
-    """Radial profiles like seed 000 Fig. 16 (b, c): per variant (column), the design and
-    machined heights along radial sections at a few angles (top, um), machined minus
-    design along them (middle, nm) and, where given, the filtered residual (bottom, nm:
-    the waviness that the turning marks hide).
+def _draw_locator(ax, loc: dict) -> None:
+    """The part, the simulated region and every window of the report, in mm."""
+    from matplotlib.patches import Circle, Rectangle
+
+    part = loc.get("part") or {}
+    bg = loc.get("background")
+    if bg is not None:
+        ax.imshow(display_map(bg[0], 300), origin="lower", extent=bg[1], cmap="Greys",
+                  interpolation="nearest", alpha=0.8)
+    if part.get("shape") == "disc":
+        cx, cy = part["center"]
+        ax.add_patch(Circle((cx, cy), part["radius"], fill=False, color="0.3", lw=1.2))
+        ax.plot([cx], [cy], marker="+", color="0.3", ms=8)
+    elif part.get("shape") == "rect":
+        x0, y0, x1, y1 = part["rect"]
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, color="0.3", lw=1.2))
+    handles = []
+    for name, rect, color, style in loc.get("windows", []):
+        x0, y0, x1, y1 = rect
+        p = Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, color=color, lw=1.6, ls=style,
+                      label=name)
+        ax.add_patch(p)
+        handles.append(p)
+    lims = loc.get("limits")
+    if lims is not None:
+        ax.set_xlim(lims[0], lims[1])
+        ax.set_ylim(lims[2], lims[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    if handles:
+        ax.legend(handles=handles, fontsize=7, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                  framealpha=0.9, borderaxespad=0.3)
+
+
+def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_diff,
+                      measured_extent, profile: dict, title: str = "", dpi: int = 100) -> bytes:
+    """The report's first figure: what differs between the two variants.
+
+    Four panels: where every window lies on the part (``locator``: ``part``,
+    ``windows`` = [(name, (x0, y0, x1, y1), colour, line style)], ``limits``, optional
+    ``background`` = (map, extent) and ``inset`` = a second locator dict drawn small),
+    the true height difference (machined a - machined b, nm) over the common window, the
+    difference of what the virtual instrument measures (nm) over the same window with
+    the same colour scale, and a profile across the largest difference (``profile``:
+    ``s`` (mm), ``true`` (nm), ``measured`` (nm, may hold NaN), ``a`` and ``b`` (true
+    residuals, nm), ``line`` = ((x0, y0), (x1, y1)) mm, ``axis`` label)."""
+    plt = _plt()
+    fig = plt.figure(figsize=(19.0, 4.8), dpi=dpi, layout="constrained")
+    gs = fig.add_gridspec(1, 4, width_ratios=[1.0, 1.05, 1.05, 1.35])
+    ax0 = fig.add_subplot(gs[0, 0])
+    _draw_locator(ax0, locator)
+    inset = locator.get("inset")
+    if inset is not None:
+        ia = ax0.inset_axes([0.62, 0.02, 0.36, 0.36])
+        _draw_locator(ia, {**inset, "windows": inset.get("windows", [])})
+        ia.set_xticks([])
+        ia.set_yticks([])
+        ia.set_xlabel("")
+        ia.set_ylabel("")
+        leg = ia.get_legend()
+        if leg is not None:
+            leg.remove()
+        ia.set_title("whole part", fontsize=7, pad=1)
+    vmin, vmax, _ = _limits([true_diff, measured_diff], True, 0.5)
+    a, b = names
+    line = profile.get("line")
+    for k, (data, ext, what) in enumerate(((true_diff, true_extent, "true (simulated)"),
+                                           (measured_diff, measured_extent,
+                                            "measured by the virtual instrument"))):
+        ax = fig.add_subplot(gs[0, 1 + k])
+        if data is None:
+            ax.text(0.5, 0.5, "not available", ha="center", va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            continue
+        im = ax.imshow(display_map(data), origin="lower", extent=ext, cmap="RdBu_r",
+                       vmin=vmin, vmax=vmax, interpolation="nearest")
+        d = np.asarray(data, dtype=np.float64)
+        d = d[np.isfinite(d)]
+        stat = (f"rms {fmt_quantity(float(np.sqrt(np.mean(d * d))), 'nm')}, "
+                f"PV {fmt_quantity(float(np.ptp(d)), 'nm')}") if d.size else "no data"
+        ax.set_title(f"{a} - {b}: {what}\n{stat}", fontsize=10)
+        ax.set_xlabel("x (mm)")
+        if k == 0:
+            ax.set_ylabel("y (mm)")
+        cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, extend=_extend(data, vmin, vmax))
+        cb.set_label("height difference (nm)")
+        _scale_bar(ax, ext[1] - ext[0])
+        if line is not None:
+            ax.plot([line[0][0], line[1][0]], [line[0][1], line[1][1]], color="k", lw=0.9,
+                    ls="--")
+    ax = fig.add_subplot(gs[0, 3])
+    s = np.asarray(profile["s"])
+    ax.plot(s, profile["true"], color="k", lw=1.6, label=f"{a} - {b} (true)")
+    if profile.get("measured") is not None and np.isfinite(profile["measured"]).any():
+        ax.plot(profile["s_measured"], profile["measured"], color="C3", lw=1.2, ls="--",
+                label=f"{a} - {b} (measured)")
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xlabel(profile.get("axis", "position along the line (mm)"))
+    ax.set_ylabel("height difference (nm)")
+    ax.set_title(profile.get("title", "profile across the largest difference"), fontsize=10)
+    ax.grid(alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    if profile.get("a") is not None or profile.get("b") is not None:
+        # the residuals themselves can be far larger than their difference: own axis
+        ax2 = ax.twinx()
+        for key, name, color in (("a", a, "C0"), ("b", b, "C1")):
+            if profile.get(key) is not None:
+                ax2.plot(s, profile[key], color=color, lw=0.7, alpha=0.6,
+                         label=f"{name}: machined - design (right axis)")
+        ax2.set_ylabel("machined - design (nm)", color="0.35")
+        ax2.tick_params(axis="y", colors="0.35")
+        h2, l2 = ax2.get_legend_handles_labels()
+        handles, labels = handles + h2, labels + l2
+        ax.set_zorder(ax2.get_zorder() + 1)
+        ax.patch.set_visible(False)
+    ax.legend(handles, labels, fontsize=7, loc="best", framealpha=0.85)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return _to_png(fig)
+
+
+def radial_profile_figure(sections, *, dpi: int = 100, radial: bool = True) -> bytes:
+    """Sections like seed 000 Fig. 16 (b, c): per variant (column), the design and
+    machined heights along sections at a few angles (top, um), machined minus design
+    along them (middle, nm) and, where given, the filtered residual (bottom, nm: the
+    waviness that the tool marks hide).
 
     Parameters
     ----------
     sections : dict variant -> list of dict(angle_deg, s, design, machined[, filtered])
-        ``s`` in mm from the centre, heights in mm.
+        ``s`` in mm from the section's centre, heights in mm.
+    radial : bool
+        Radial sections through the spindle axis (turning); else straight sections
+        through the window's centre.
     """
     plt = _plt()
     names = list(sections)
     n = max(len(names), 1)
     has_f = any(sec.get("filtered") is not None for v in sections.values() for sec in v)
     rows = 3 if has_f else 2
-    fig, axes = plt.subplots(rows, n, figsize=(4.6 * n, 3.1 * rows), dpi=dpi, squeeze=False,
+    fig, axes = plt.subplots(rows, n, figsize=(5.0 * n, 3.1 * rows), dpi=dpi, squeeze=False,
                              sharey="row")
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    kind = "radial sections" if radial else "sections"
+    xl = "radius (mm)" if radial else "position along the section (mm)"
     for j, name in enumerate(names):
         top, bot = axes[0, j], axes[1, j]
         for k, sec in enumerate(sections[name]):
@@ -183,14 +434,58 @@ def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
             fa = axes[2, j]
             fa.set_title(f"{name}: filtered residual (waviness)", fontsize=10)
             fa.set_ylabel("filtered (nm)")
-            fa.set_xlabel("radius (mm)")
+            fa.set_xlabel(xl)
             fa.axhline(0, color="k", lw=0.5)
-        top.set_title(f"{name}: radial sections (dashed = design)", fontsize=10)
+        top.set_title(f"{name}: {kind} (dashed = design)", fontsize=10)
         top.set_ylabel("height (um)")
         bot.set_title(f"{name}: machined - design", fontsize=10)
         bot.set_ylabel("residual (nm)")
-        bot.set_xlabel("radius (mm)")
+        bot.set_xlabel(xl)
         bot.axhline(0, color="k", lw=0.5)
         top.legend(fontsize=8, loc="best")
     fig.tight_layout()
     return _to_png(fig)
+
+
+def annotate_rgb(rgb8: np.ndarray, *, lines=(), scale_mm: float | None = None,
+                 scale_px: float | None = None) -> np.ndarray:
+    """Write text lines (top left) and a scale bar (bottom right) into an 8-bit image.
+
+    Parameters
+    ----------
+    rgb8 : (H, W, 3) uint8, row 0 at the top
+    lines : sequence of str
+        E.g. ``"heights x20 (vertical exaggeration)"``.
+    scale_mm, scale_px : float, optional
+        A bar of ``scale_px`` pixels labelled ``scale_mm`` (mm).
+
+    Returns
+    -------
+    (H, W, 3) uint8, a new image.
+    """
+    from PIL import Image, ImageDraw, ImageFont
+
+    img = Image.fromarray(np.ascontiguousarray(rgb8))
+    h, w = rgb8.shape[:2]
+    size = max(10, int(round(min(h, w) / 34)))
+    font = ImageFont.load_default(size=size)
+    draw = ImageDraw.Draw(img, "RGBA")
+    y = 3
+    for text in lines:
+        box = draw.textbbox((4, y), text, font=font)
+        draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(255, 255, 255, 190))
+        draw.text((4, y), text, fill=(0, 0, 0, 255), font=font)
+        y = box[3] + 4
+    if scale_mm is not None and scale_px is not None and scale_px >= 4:
+        label = length_label(scale_mm)
+        tb = draw.textbbox((0, 0), label, font=font)
+        bw = int(round(scale_px))
+        x1 = w - 8
+        x0 = x1 - bw
+        yb = h - 8
+        ty = yb - 6 - (tb[3] - tb[1]) - 2
+        draw.rectangle((min(x0, x1 - (tb[2] - tb[0])) - 4, ty - 3, x1 + 4, yb + 4),
+                       fill=(255, 255, 255, 190))
+        draw.line((x0, yb, x1, yb), fill=(0, 0, 0, 255), width=max(2, size // 6))
+        draw.text((x1 - (tb[2] - tb[0]), ty - tb[1]), label, fill=(0, 0, 0, 255), font=font)
+    return np.asarray(img.convert("RGB"))

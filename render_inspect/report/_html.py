@@ -6,7 +6,8 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
+
+from ._format import fmt_number
 
 __all__ = ["HtmlReport", "data_uri", "table_html"]
 
@@ -24,7 +25,7 @@ figcaption{font-size:13px;color:#57606a;margin-top:4px;max-width:1100px}
 pre{background:#f6f8fa;padding:10px;font-size:12px;overflow:auto;max-height:420px}
 .note{background:#fff8c5;border:1px solid #d4a72c;padding:6px 10px;font-size:13px}
 .good{color:#1a7f37}.bad{color:#cf222e}
-nav a{margin-right:12px;font-size:13px}
+nav a{margin-right:12px;font-size:13px}ul{font-size:14px}
 """
 
 
@@ -34,21 +35,8 @@ def data_uri(png: bytes, mime: str = "image/png") -> str:
 
 
 def _fmt(v) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        if v == 0:
-            return "0"
-        a = abs(v)
-        if a >= 1e5 or a < 1e-3:
-            return f"{v:.4g}"
-        return f"{v:.4g}" if a < 10 else f"{v:.2f}" if a < 1000 else f"{v:.0f}"
+    if v is None or isinstance(v, (bool, int, float)):
+        return html.escape(fmt_number(v, sig=4))
     if isinstance(v, (list, tuple)):
         return ", ".join(_fmt(x) for x in v)
     if isinstance(v, dict):
@@ -101,6 +89,10 @@ class HtmlReport:
 
     def table(self, rows, *, header=None) -> None:
         self.parts.append(table_html(rows, header=header))
+
+    def list(self, items) -> None:
+        self.parts.append("<ul>" + "".join(f"<li>{html.escape(str(i))}</li>" for i in items)
+                          + "</ul>")
 
     def pre(self, text: str) -> None:
         self.parts.append(f"<pre>{html.escape(text)}</pre>")

@@ -1,5 +1,6 @@
-"""Seed-004-style plots of a turning path's axis motion (Figs. 8-9): X against C, the X
-velocity and acceleration against time, one column per path."""
+"""Plots of a turning path's axis motion: the axes that move (Z and the FTS for slow
+and fast tool servo turning, X for RCSE against the conventional path, seed 004
+Figs. 8-9), position, velocity and acceleration against time, one column per path."""
 
 from __future__ import annotations
 
@@ -12,7 +13,12 @@ import numpy as np
 from ..io import atomic_write_bytes
 from ..toolpath import axis_derivatives
 
-__all__ = ["plot_kinematics"]
+__all__ = ["plot_kinematics", "axis_motion_figure", "moving_axes", "turning_axes"]
+
+#: an axis whose velocity varies by less than this fraction of its largest speed moves
+#: at constant speed (its acceleration is rounding noise): its position is not plotted
+#: against velocity and acceleration
+CONSTANT_SPEED_TOL = 1e-4
 
 
 def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
@@ -24,6 +30,112 @@ def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
     starts = edges[:-1]
     xm = x[(starts + edges[1:]) // 2]
     return xm, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
+
+
+def turning_axes(path, data: dict | None = None) -> dict:
+    """The machine axes of a turning path: ``X`` (radius, mm) and ``Z`` (tool tip, mm);
+    with the servo split of a tool-servo program (``data`` holding ``z_slow`` and
+    ``z_fts``, mm): ``Z`` = the slow slide's command and ``FTS`` = the fast tool servo's
+    stroke instead."""
+    axes = {"X": np.asarray(path.rho, dtype=np.float64)}
+    data = data or {}
+    zs, zf = data.get("z_slow"), data.get("z_fts")
+    if zs is not None and zf is not None and np.size(zs) == np.size(path.rho):
+        axes["Z"] = np.asarray(zs, dtype=np.float64)
+        axes["FTS"] = np.asarray(zf, dtype=np.float64)
+    else:
+        axes["Z"] = np.asarray(path.z, dtype=np.float64)
+    return axes
+
+
+def moving_axes(t, axes: dict) -> list[str]:
+    """The axes whose speed changes (more than :data:`CONSTANT_SPEED_TOL` of their top
+    speed): an axis at rest or at constant speed (X of a constant-feed spiral) has
+    nothing to show but rounding noise in its acceleration."""
+    out = []
+    for name, q in axes.items():
+        q = np.asarray(q, dtype=np.float64)
+        if q.size < 3 or not np.ptp(q) > 0:
+            continue
+        v, _, _ = axis_derivatives(t, q)
+        top = float(np.max(np.abs(v)))
+        if top > 0 and float(np.ptp(v)) > CONSTANT_SPEED_TOL * top:
+            out.append(name)
+    return out
+
+
+_UNITS = {"X": ("mm", 1.0), "Z": ("um", 1e3), "FTS": ("um", 1e3)}
+
+
+def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int = 100) -> bytes:
+    """PNG bytes: position, velocity and acceleration against time of the axes that move
+    (:func:`moving_axes`), one column per path.
+
+    Parameters
+    ----------
+    columns : list of (label, ToolPath, data)
+        ``data``: the plan's data (``z_slow`` / ``z_fts`` of a tool-servo program), or {}.
+    axes : sequence of str, optional
+        Only these axes (e.g. ``("X",)``); default every axis that moves in any column.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    series = []
+    for label, path, data in columns:
+        t = np.asarray(path.t, dtype=np.float64)
+        series.append((label, t, turning_axes(path, data)))
+    if axes is None:
+        names = []
+        for _, t, ax in series:
+            for n in moving_axes(t, ax):
+                if n not in names:
+                    names.append(n)
+        if not names:
+            names = ["Z"]
+    else:
+        names = list(axes)
+    rows = [(n, q) for n in names for q in ("position", "velocity", "acceleration")]
+    fig, grid = plt.subplots(len(rows), len(series), figsize=(5.4 * len(series), 1.9 * len(rows)),
+                             dpi=dpi, squeeze=False, sharey="row")
+    for col, (label, t, ax_data) in enumerate(series):
+        still = [n for n in ax_data if n not in names] if axes is None else []
+        for r, (name, qty) in enumerate(rows):
+            axx = grid[r, col]
+            unit, scale = _UNITS.get(name, ("mm", 1.0))
+            q = ax_data.get(name)
+            if q is None:
+                axx.set_axis_off()
+                continue
+            v, a, _ = axis_derivatives(t, q)
+            y = {"position": q, "velocity": v, "acceleration": a}[qty] * scale
+            ylab = {"position": f"{name} ({unit})", "velocity": f"{name} velocity ({unit}/s)",
+                    "acceleration": f"{name} acceleration ({unit}/s$^2$)"}[qty]
+            xm, lo, hi = _envelope(t, y)
+            axx.plot(xm, lo, lw=0.7, color="C0")
+            if xm.size != t.size:
+                axx.plot(xm, hi, lw=0.7, color="C0")
+                axx.fill_between(xm, lo, hi, lw=0, color="C0", alpha=0.5)
+            axx.set_ylabel(ylab, fontsize=8)
+            axx.grid(alpha=0.3)
+            if r == len(rows) - 1:
+                axx.set_xlabel("time (s)")
+            if qty == "acceleration":
+                axx.set_title(f"max |{name} accel.| {np.max(np.abs(a)) * scale:.3g} {unit}/s$^2$",
+                              fontsize=8)
+        head = label
+        if still:
+            head += "\n(" + ", ".join(still) + " at constant speed: not plotted)"
+        grid[0, col].set_title(head, fontsize=9)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
 
 
 def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventional"),

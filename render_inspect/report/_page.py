@@ -1,10 +1,16 @@
-"""The comparison page (report.html) from the compare metrics and figures."""
+"""The comparison page (report.html) from the compare metrics and figures.
+
+The first figure is the difference between the two variants; every number is written
+with its unit and no more digits than the computation resolves; tables show the values
+as rendered (presets resolved), never a placeholder for a value a figure states.
+"""
 
 from __future__ import annotations
 
 import json
 
 from .. import __version__
+from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
 
 __all__ = ["build_page"]
@@ -18,21 +24,63 @@ def _get(d, path, default=None):
     return d
 
 
+#: (label, key, unit) of the summary table
 _SUMMARY_ROWS = [
-    ("residual Sa (nm)", "residual.Sa_nm"),
-    ("residual Sq (nm)", "residual.Sq_nm"),
-    ("residual Sz (nm)", "residual.Sz_nm"),
-    ("residual min, signed (nm; < 0 = overcut)", "residual.min_nm"),
-    ("filtered residual Sq (nm)", "filtered.Sq_nm"),
-    ("filtered residual Sz (nm)", "filtered.Sz_nm"),
-    ("instrument: residual Sq reported (nm)", "measured.instrument_residual_Sq_nm"),
-    ("instrument: residual Sq true, same pixels (nm)", "measured.true_residual_Sq_nm"),
-    ("instrument: height error rms (nm)", "measured.rms_nm"),
-    ("instrument: height error PV (nm)", "measured.pv_nm"),
-    ("instrument: measured pixels (fraction)", "measured.valid_fraction"),
-    ("tool path points", "toolpath.points"),
-    ("tool path revolutions", "toolpath.revolutions"),
+    ("residual Sa", "residual.Sa_nm", "nm"),
+    ("residual Sq", "residual.Sq_nm", "nm"),
+    ("residual Sz", "residual.Sz_nm", "nm"),
+    ("residual min, signed (< 0 = overcut)", "residual.min_nm", "nm"),
+    ("waviness (filtered residual) Sq", "filtered.Sq_nm", "nm"),
+    ("waviness (filtered residual) Sz", "filtered.Sz_nm", "nm"),
+    ("instrument: residual Sq reported", "measured.instrument_residual_Sq_nm", "nm"),
+    ("instrument: residual Sq true, same pixels", "measured.true_residual_Sq_nm", "nm"),
+    ("instrument: height error rms", "measured.rms_nm", "nm"),
+    ("instrument: height error PV", "measured.pv_nm", "nm"),
+    ("instrument: measured pixels", "measured.valid_fraction", "%"),
 ]
+
+_FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "nm"),
+                ("Sv", "Sv_nm", "nm"), ("Sz", "Sz_nm", "nm"), ("Ssk", "Ssk", ""),
+                ("Sku", "Sku", ""), ("Sdq", "Sdq", ""), ("Sdr", "Sdr_percent", "%")]
+
+
+def _q(v, unit=""):
+    if unit == "%" and v is not None and not isinstance(v, str):
+        try:
+            return fmt_quantity(100.0 * float(v), "%") if float(v) <= 1.0 else fmt_quantity(v, "%")
+        except (TypeError, ValueError):
+            return str(v)
+    return fmt_quantity(v, unit)
+
+
+def _value_text(k: str, v):
+    """A scene or settings value for a table: numbers by their unit suffix."""
+    if isinstance(v, (dict, list, tuple)) and not (isinstance(v, (list, tuple))
+                                                   and all(isinstance(x, (int, float)) for x in v)):
+        return json.dumps(v)
+    unit = ""
+    for suffix, u in (("_nm", "nm"), ("_mm", "mm"), ("_deg", "deg"), ("_hz", "Hz"), ("_s", "s"),
+                      ("_rad", "rad"), ("_rpm", "rpm")):
+        if k.endswith(suffix):
+            unit = u
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_g(x) for x in v) + (f" {unit}" if unit else "")
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{_g(v)}{' ' + unit if unit else ''}"
+    return v
+
+
+def _g(x) -> str:
+    """A parameter as given: up to 6 significant figures, no trailing zeros."""
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, (int, float)):
+        return f"{x:.6g}"
+    return str(x)
 
 
 def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
@@ -42,144 +90,316 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     ----------
     scene : Scene
     metrics : dict
-        What ``metrics.json`` holds (``compensated``, ``uncompensated``, optional
-        ``measured_file``, ``lenslets``, provenance).
+        What ``metrics.json`` holds (``variants``, one entry per variant name, ``pair``,
+        ``difference``, ``filters``, ``windows``, optional ``measured_file``,
+        ``lenslets``, provenance).
     figs : dict name -> PNG bytes
-        The figures of :func:`render_inspect.report._compare._figures`.
+        The figures of the comparison (``difference`` first, or ``windows`` when the
+        variants are identical).
     notes : list of str
         Render-size caps and other remarks to show.
     """
-    c, u = metrics["compensated"], metrics["uncompensated"]
+    va, vb = (v["name"] for v in metrics["variants"])
+    la, lb = (v["label"] for v in metrics["variants"])
+    c, u = metrics[va], metrics[vb]
+    pair = metrics.get("pair", {})
     mf = metrics.get("measured_file")
     rep = HtmlReport(f"render_inspect comparison: {scene.name}",
-                     f"{scene.description or scene.design.type} | compensated "
-                     f"({c['compensation']}) vs uncompensated ({u['compensation']}) | seed "
+                     f"{scene.description or scene.design.type} | {va}: {la} vs {vb}: {lb} | seed "
                      f"{metrics['seed']} | Mitsuba {metrics['mitsuba_variant']} | render_inspect "
                      f"{metrics['software_version']}")
 
-    rep.section("Summary")
-    dmin = c["residual"]["min_nm"], u["residual"]["min_nm"]
-    rep.text(f"Signed minimum of machined - design: {dmin[0]:.1f} nm compensated, "
-             f"{dmin[1]:.1f} nm uncompensated (negative = the tool cut below the design, "
-             f"overcut). Residual Sq {c['residual']['Sq_nm']:.1f} nm vs "
-             f"{u['residual']['Sq_nm']:.1f} nm.")
-    header = ["quantity", "compensated", "uncompensated"] + (["measured file"] if mf else [])
-    rows = []
-    for label, key in _SUMMARY_ROWS:
-        row = [label, _get(c, key), _get(u, key)]
-        if mf:
-            mkey = {"residual.Sa_nm": "measured.Sa_nm", "residual.Sq_nm": "measured.Sq_nm",
-                    "residual.Sz_nm": "measured.Sz_nm"}.get(key)
-            row.append(_get(mf, mkey) if mkey else None)
-        rows.append(row)
-    rep.table(rows, header=header)
-    rep.text("Instrument rows: the height is retrieved from the rendered frames (phase "
-             "shifting with 2-D unwrapping, or the coherence envelope peak) and aligned to the "
-             "true height by its mean over the measured pixels (an interferometer measures "
-             "relative height). 'Reported' is what the instrument would give as the residual; "
-             "'true' is the ray-traced height on the same pixels: their difference is the "
-             "instrument's share.")
+    # ---- 1. the difference
+    d = metrics["difference"]
+    w = d.get("window", {})
+    rep.section(f"What differs: {va} - {vb}")
+    if pair.get("about"):
+        rep.text(pair["about"])
+    win = w.get("window_mm") or metrics["windows"]["common_mm"]
+    win_txt = (f"x {fmt_number(win[0], sig=4)} .. {fmt_number(win[2], sig=4)} mm, "
+               f"y {fmt_number(win[1], sig=4)} .. {fmt_number(win[3], sig=4)} mm")
+    if pair.get("identical"):
+        rep.text(f"The two variants are identical: {pair.get('key')} makes no difference to the "
+                 f"machined surface of this scene, so no difference maps are shown.", cls="note")
+        rep.figure(figs["windows"], f"Where the windows are: the simulated region and the common "
+                                    f"window ({win_txt}).")
+    else:
+        tw, mw = w.get("true") or {}, w.get("measured") or {}
+        rep.figure(figs["difference"],
+                   f"Figure 1. {va} - {vb} over one common window ({win_txt}), placed where the "
+                   f"two differ most. Left: where every window of this report lies (simulated "
+                   f"region, interferometer field = common window, micro diffuse view; inset: "
+                   f"the whole part). Middle: the true height difference of the simulated "
+                   f"surfaces, and the difference of what the virtual interferometer measures "
+                   f"(each measurement aligned to its truth by one piston per region: an "
+                   f"interferometer measures relative heights), on one colour scale. Right: "
+                   f"the profile along the dashed line, through the largest difference.")
+        rep.table([["true (simulated)", _q(tw.get("rms_nm"), "nm"), _q(tw.get("pv_nm"), "nm"),
+                    _q(tw.get("mean_nm"), "nm")],
+                   ["measured by the virtual interferometer", _q(mw.get("rms_nm"), "nm"),
+                    _q(mw.get("pv_nm"), "nm"), _q(mw.get("mean_nm"), "nm")],
+                   ["true, whole simulated region", _q(d.get("machined_rms_nm"), "nm"),
+                    _q(d.get("machined_pv_nm"), "nm"), "not computed"]],
+                  header=[f"{va} - {vb}", "rms", "PV", "mean"])
+    rep.table([[k, _q(_get(c, key), unit), _q(_get(u, key), unit)]
+               for k, key, unit in [("residual Sq", "residual.Sq_nm", "nm"),
+                                    ("residual min (< 0 = overcut)", "residual.min_nm", "nm"),
+                                    ("waviness Sq", "filtered.Sq_nm", "nm")]],
+              header=["headline", f"{va}: {la}", f"{vb}: {lb}"])
     for n in notes:
         rep.text(n, cls="note")
 
-    rep.section("Interferograms")
-    rep.figure(figs["interferogram_side_by_side"],
-               "Zero-phase-shift frame of the virtual interference microscope, same camera and "
-               "seed for both variants (row 0 = smallest y at the bottom).")
-    rep.figure(figs["interferogram_difference"], "Intensity difference, compensated - uncompensated.")
+    # ---- 2. summary
+    rep.section("Summary")
+    header = ["quantity", va, vb] + (["measured file"] if mf else [])
+    rows = []
+    for label, key, unit in _SUMMARY_ROWS:
+        row = [label, _q(_get(c, key), unit), _q(_get(u, key), unit)]
+        if mf:
+            mkey = {"residual.Sa_nm": "measured.Sa_nm", "residual.Sq_nm": "measured.Sq_nm",
+                    "residual.Sz_nm": "measured.Sz_nm"}.get(key)
+            row.append(_q(_get(mf, mkey), unit) if mkey else "not measured")
+        rows.append(row)
+    tp_c, tp_u = c.get("toolpath") or {}, u.get("toolpath") or {}
+    if tp_c.get("revolutions"):
+        rows.append(["tool path points", fmt_number(tp_c.get("points")),
+                     fmt_number(tp_u.get("points"))] + (["not measured"] if mf else []))
+        rows.append(["tool path revolutions", fmt_number(tp_c.get("revolutions")),
+                     fmt_number(tp_u.get("revolutions"))] + (["not measured"] if mf else []))
+    elif tp_c.get("lines"):
+        rows.append(["cutting lines", fmt_number(tp_c.get("lines")),
+                     fmt_number(tp_u.get("lines"))] + (["not measured"] if mf else []))
+    rep.table(rows, header=header)
+    rep.text("Instrument rows: the height is retrieved from the rendered frames (phase "
+             "shifting with 2-D unwrapping, or the coherence envelope peak) and aligned to the "
+             "true height by its mean over the measured pixels. 'Reported' is what the "
+             "instrument would give as the residual; 'true' is the ray-traced height on the same "
+             "pixels: their difference is the instrument's share.")
 
-    rep.section("Diffuse light")
-    rep.figure(figs["diffuse_micro_side_by_side"],
-               "Microscope view straight down (orthographic), aluminium under the diffuse "
-               "light; heights exaggerated as stated.")
-    rep.figure(figs["diffuse_difference"], "Luminance difference (linear), compensated - uncompensated.")
-    rep.figure(figs["diffuse_macro_side_by_side"], "Whole part, perspective view.")
-
-    rep.section("Residual and filtered maps")
-    cap = "machined - design (nm), one colour scale for all panels"
+    # ---- 3. maps
+    rep.section("Residual and waviness maps")
+    cap = "machined - design over the simulated region (nm), one colour scale for all panels"
     if mf:
         cap += "; third panel: the measured file after registration to the design"
     rep.figure(figs["residual_side_by_side"], cap + ".")
-    rep.figure(figs["residual_difference"], "Machined height, compensated - uncompensated (nm).")
-    f = c["filtered"]
-    desc = [f"form removal {f.get('form_removal')}"]
+    rep.figure(figs["residual_difference"],
+               f"Machined height, {va} - {vb} (nm), over the simulated region; the dashed line is "
+               f"the profile of Figure 1.")
+    f = metrics.get("filters") or {}
+    rep.heading("Waviness: the filters")
+    desc = []
     if f.get("s_filter_mm"):
-        desc.append(f"S-filter {f['s_filter_mm'] * 1e3:g} um")
+        desc.append(f"S-filter {_q(f['s_filter_mm'] * 1e3, 'um')}")
     if f.get("l_filter_mm"):
-        desc.append(f"L-filter {f['l_filter_mm'] * 1e3:g} um")
-    extra = (" (default waviness filter: 2.5 feeds per revolution, removes the turning marks; "
-             "set metrology.s_filter / l_filter to choose)") if f.get("default_waviness_filter") else ""
+        desc.append(f"L-filter {_q(f['l_filter_mm'], 'mm')}")
+    rep.text("ISO 16610-61 Gaussian filters, form removed first (" + (f.get("form_removal") or "none")
+             + ")" + (": " + ", ".join(desc) if desc else "") + ". Chosen from the scene:")
+    rep.list(f.get("reasons") or [])
     rep.figure(figs["filtered_side_by_side"],
-               "Filtered residual: " + ", ".join(desc) + extra + ".")
-    keys = ["Sa_nm", "Sq_nm", "Sp_nm", "Sv_nm", "Sz_nm", "Ssk", "Sku", "Sdq", "Sdr_percent"]
-    rep.table([[k, c["filtered"].get(k), u["filtered"].get(k)] for k in keys],
-              header=["filtered parameter", "compensated", "uncompensated"])
+               f"Waviness (filtered residual, nm): {va}, {vb} and their difference, one colour "
+               f"scale; the border the filters cannot reach is "
+               + ("cut (blank)." if f.get("edges") == "cut" else "filled by mirroring the map."))
+    rep.table([[label, _q(c["filtered"].get(k), unit), _q(u["filtered"].get(k), unit)]
+               for label, k, unit in _FILTER_KEYS],
+              header=["waviness parameter", va, vb])
 
-    rep.section("Radial profiles")
-    rep.figure(figs["radial_profiles"],
-               "Radial sections through the spindle axis at several angles (after seed 000 "
-               "Fig. 16 b, c): design (dashed) and machined heights, and machined - design. "
-               "Without compensation the overcut waviness changes with the section angle.")
-
-    rep.section("Phase retrieval (what the instrument reports)")
+    # ---- 4. interferometer
+    ic = _get(metrics, "render_settings.interferometer") or {}
+    rep.section("The virtual interferometer")
+    rep.figure(figs["interferogram_side_by_side"],
+               f"Zero-phase-shift frame over the common window, same camera and seed for both "
+               f"({ic.get('objective')}, NA {_g(ic.get('numerical_aperture'))}, "
+               f"{_g(ic.get('wavelength_nm'))} nm, "
+               f"{_q((ic.get('pixel') or 0) * 1e3, 'um')} pixels).")
+    rep.figure(figs["interferogram_difference"], f"Intensity difference, {va} - {vb}.")
     rep.figure(figs["measured_residual_side_by_side"],
                "Measured height - design on the camera grid: the residual as the instrument "
                "sees it (camera noise, pixel averaging, slope drop-outs included).")
     rep.figure(figs["measurement_error_side_by_side"],
                "Measured - true height (nm), piston aligned by the mean over measured pixels.")
-    mkeys = ["mode", "algorithm", "wavelength_nm", "rms_nm", "pv_nm", "piston_nm",
-             "valid_fraction", "light_fraction", "regions"]
-    rep.table([[k, c["measured"].get(k), u["measured"].get(k)] for k in mkeys],
-              header=["phase retrieval", "compensated", "uncompensated"])
-    ik = ["mode", "objective", "numerical_aperture", "wavelength_nm", "bandwidth_nm",
-          "pixel_mm", "shape", "frames", "subsamples", "noise", "valid_fraction"]
-    rep.table([[k, c["interferometer"].get(k), u["interferometer"].get(k)] for k in ik],
-              header=["interferometer", "compensated", "uncompensated"])
+    mrows = [("mode", "mode", ""), ("algorithm", "algorithm", ""),
+             ("height error rms", "rms_nm", "nm"), ("height error PV", "pv_nm", "nm"),
+             ("piston removed", "piston_nm", "nm"), ("measured pixels", "valid_fraction", "%"),
+             ("pixels with light", "light_fraction", "%"), ("regions", "regions", "")]
+    rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
+               for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
+              header=["phase retrieval", va, vb])
+    rep.table([[k, _value_text(k, v)] for k, v in ic.items()],
+              header=["[render.interferometer] as rendered", "value"])
+
+    # ---- 5. diffuse light
+    dif = _get(metrics, "render_settings.diffuse") or {}
+    mic, mac = dif.get("micro") or {}, dif.get("macro") or {}
+    rep.section("Diffuse light")
+    rep.figure(figs["diffuse_micro_side_by_side"],
+               f"Micro view of the common window, straight down (orthographic), aluminium under "
+               f"the {mic.get('light')} light whose camera port is around the line of sight; "
+               f"heights exaggerated {_g(mic.get('vertical_exaggeration'))}x "
+               f"(written into every image).")
+    rep.figure(figs["diffuse_difference"], f"Luminance difference (linear), {va} - {vb}.")
+    rep.figure(figs["diffuse_macro_side_by_side"],
+               f"The whole part, perspective view, heights exaggerated "
+               f"{_g(mac.get('vertical_exaggeration'))}x; the design over the part with "
+               f"the simulated residual inside the simulated region. "
+               + ("The colours are the diffraction of the lamp by the feed marks (period = "
+                  "feed per revolution), rendered spectrally." if mac.get("iridescence") else ""))
+    drows = []
+    for k, unit in (("resolution", "px"), ("spp", ""), ("vertical_exaggeration", "x"),
+                    ("mm_per_px", "um"), ("light", ""), ("lamp", ""), ("material", ""),
+                    ("iridescence", ""), ("orders", ""), ("first_order_efficiency_550nm", ""),
+                    ("sigma_u", ""), ("sigma_v", ""), ("mitsuba_variant", "")):
+        if k not in mic and k not in mac:
+            continue
+        drows.append([k, _diffuse_value(k, mic.get(k)), _diffuse_value(k, mac.get(k))])
+    rep.table(drows, header=["[render.diffuse] as rendered", "micro", "macro"])
+
+    # ---- 6. sections and machine axes
+    turning = bool(tp_c.get("revolutions"))
+    rep.section("Radial sections" if turning else "Sections")
+    rep.figure(figs["sections"],
+               ("Radial sections through the spindle axis at several angles (after seed 000 "
+                "Fig. 16 b, c): design (dashed) and machined heights, machined - design, and the "
+                "waviness. Without compensation the overcut waviness changes with the section "
+                "angle.") if turning else
+               ("Sections through the centre of the simulated region at several angles: design "
+                "(dashed) and machined heights, machined - design, and the waviness."))
+    if "kinematics" in figs:
+        rep.section("Machine axes")
+        rep.figure(figs["kinematics"],
+                   "Position, velocity and acceleration of the axes that move (an axis at "
+                   "constant speed, such as X of a constant-feed spiral, is named but not "
+                   "plotted: its acceleration would be rounding noise).")
+
+    # ---- 7. process facts
+    facts = _process_facts(c, u)
+    if facts:
+        rep.section("Process")
+        rep.table(facts, header=["fact", va, vb])
 
     lens = metrics.get("lenslets")
     if lens:
         rep.section("Lenslets")
         cols = ["row", "col", "x_mm", "y_mm", "dx_um", "dy_um", "Sa_um", "Sq_um", "PV_um"]
-        rep.table([[str(e.get("row"))] + [e.get(k) for k in cols[1:]] for e in lens], header=cols)
-        ul = u.get("lenslets") or []
-        if ul:
-            rep.heading("Uncompensated")
-            rep.table([[str(e.get("row"))] + [e.get(k) for k in cols[1:]] for e in ul], header=cols)
+        units = ["", "", "mm", "mm", "um", "um", "um", "um", "um"]
+        head = ["row", "col", "x (mm)", "y (mm)", "dx (um)", "dy (um)", "Sa (um)", "Sq (um)",
+                "PV (um)"]
+        for name, tab in ((va, lens), (vb, u.get("lenslets") or [])):
+            if not tab:
+                continue
+            rep.heading(name)
+            rep.table([[str(e.get("row"))] + [fmt_number(e.get(k), resolution=_res(un))
+                                              for k, un in zip(cols[1:], units[1:])]
+                       for e in tab], header=head)
 
     if mf:
         rep.section("Measured file")
         meas = mf.get("measured") or {}
         sim = mf.get("simulated") or {}
-        dif = mf.get("difference") or {}
-        rep.table([[k, meas.get(k), sim.get(k), dif.get(k)] for k in keys],
+        dd = mf.get("difference") or {}
+        rep.table([[label, _q(meas.get(k), unit), _q(sim.get(k), unit), _q(dd.get(k), unit)]
+                   for label, k, unit in _FILTER_KEYS],
                   header=["parameter", "measured - design", "simulated (same chain)",
                           "measured - simulated"])
         reg = mf.get("registration") or {}
-        rep.table([[k, v] for k, v in reg.items()], header=["registration", "value"])
-        rep.table([[k, v] for k, v in (mf.get("source") or {}).items()], header=["source", "value"])
+        rep.table([_registration_row(k, v) for k, v in reg.items()],
+                  header=["registration", "value"])
+        rep.table([[k, _value_text(k, v)] for k, v in (mf.get("source") or {}).items()],
+                  header=["source", "value"])
 
+    # ---- 8. parameters and provenance
     rep.section("Parameters")
     sd = scene.to_dict()
-    for sec in ("design", "tool", "process", "simulation", "metrology"):
+    varied = {k for v in metrics["variants"] for k in v.get("values", {})}
+    for sec in ("design", "tool", "process", "simulation", "metrology", "artifacts"):
         val = sd.get(sec, {})
-        rows = [[k, json.dumps(x) if isinstance(x, (dict, list)) else x] for k, x in val.items()]
-        if sec == "process":
-            rows = [r if r[0] != "compensation" else
-                    ["compensation", f"{c['compensation']} | {u['compensation']}"] for r in rows]
-        rep.table(rows, header=[f"[{sec}]", "value"])
-    rs = metrics.get("render_settings", {})
-    for sec in ("interferometer", "diffuse"):
-        val = rs.get(sec, {})
-        rep.table([[k, json.dumps(x) if isinstance(x, (dict, list)) else x] for k, x in val.items()],
-                  header=[f"[render.{sec}] as rendered", "value"])
+        rows = []
+        for k, x in val.items():
+            full = f"{sec}.{k}"
+            if full in varied or any(v.startswith(full + ".") for v in varied):
+                rows.append([k, f"{va}: {_varied(metrics, 0, full, x)} | "
+                                f"{vb}: {_varied(metrics, 1, full, x)}"])
+            else:
+                rows.append([k, _value_text(k, x)])
+        if rows:
+            rep.table(rows, header=[f"[{sec}]", "value"])
 
     rep.section("Scene and provenance")
     prov = [["software_version", metrics.get("software_version", __version__)],
-            ["seed", metrics.get("seed")], ["mitsuba_variant", metrics.get("mitsuba_variant")],
-            ["compare total (s)", _get(metrics, "timing_s.total")]]
-    for name, v in (("compensated", c), ("uncompensated", u)):
+            ["seed", str(metrics.get("seed"))], ["mitsuba_variant", metrics.get("mitsuba_variant")],
+            ["compare total", _q(_get(metrics, "timing_s.total"), "s")]]
+    for name, v in ((va, c), (vb, u)):
         for k, t in (v.get("timing_s") or {}).items():
-            prov.append([f"{name} {k} (s)", t])
+            prov.append([f"{name} {k}", _q(t, "s")])
     rep.table(prov, header=["provenance", "value"])
     rep.pre(json.dumps(sd, indent=2, sort_keys=True))
     return rep.render()
+
+
+def _res(unit):
+    return {"um": 1e-4, "mm": 1e-7}.get(unit)
+
+
+def _varied(metrics, i, full, default):
+    vals = metrics["variants"][i].get("values", {})
+    for k, v in vals.items():
+        if k == full or k.startswith(full + "."):
+            return f"{k.split('.', 1)[1]} = {v if v is not None else 'none'}"
+    return "as the scene"
+
+
+def _diffuse_value(k, v):
+    if v is None:
+        return "none" if k == "lamp" else "n/a"
+    if k == "mm_per_px":
+        return fmt_quantity(v * 1e3, "um")
+    if k == "vertical_exaggeration":
+        return f"{v:g}x"
+    if k == "resolution":
+        return " x ".join(str(x) for x in v) + " px"
+    if k == "lamp":
+        return (f"directional, zenith {fmt_number(v.get('zenith_deg'))} deg, irradiance "
+                f"{fmt_number(v.get('irradiance'))}")
+    if isinstance(v, float):
+        return fmt_number(v)
+    return v
+
+
+def _registration_row(k, v):
+    if k.endswith("_mm") and isinstance(v, (int, float)):
+        return [k[:-3] + " (um)", fmt_quantity(v * 1e3, "um")]
+    if k.endswith("_rad") and isinstance(v, (int, float)):
+        return [k[:-4] + " (urad)", fmt_quantity(v * 1e6, "urad")]
+    return [k, _value_text(k, v)]
+
+
+def _process_facts(c: dict, u: dict) -> list:
+    rows = []
+
+    def add(label, path, unit="", scale=1.0):
+        x, y = _get(c, path), _get(u, path)
+        if x is None and y is None:
+            return
+        f = (lambda v: _q(None if v is None else v * scale, unit))
+        rows.append([label, f(x), f(y)])
+
+    add("servo: effective lag", "servo.effective_lag_s", "ms", 1e3)
+    add("servo: lag angle omega tau", "servo.effective_lag_angle_rad", "mrad", 1e3)
+    add("servo: largest circumferential shift", "servo.max_circumferential_shift_um", "um")
+    add("servo: FTS stroke", "servo.fts_stroke_um", "um")
+    add("servo: FTS following error rms", "servo.fts_following_error.rms_um", "um")
+    add("sculpturing: vibration overcut", "sculpt.vibration_overcut_um", "um")
+    add("sculpturing: tool-edge overcut", "sculpt.tool_edge_overcut_um", "um")
+    add("vibration: peak velocity", "vibration.peak_velocity_mm_s", "mm/s")
+    add("burrs: height", "burrs.height_um", "um")
+    add("RCSE path: X velocity max", "rcse.comparison.rcse.x_velocity_max_mm_s", "mm/s")
+    add("conventional path: X velocity max", "rcse.comparison.conventional.x_velocity_max_mm_s",
+        "mm/s")
+    add("RCSE path: X reversals", "rcse.comparison.rcse.x_reversals")
+    add("conventional path: X reversals", "rcse.comparison.conventional.x_reversals")
+    add("RCSE path: profile error rms", "rcse.comparison.rcse.profile_error_rms_nm", "nm")
+    add("conventional path: profile error rms",
+        "rcse.comparison.conventional.profile_error_rms_nm", "nm")
+    add("tool path: Z velocity max", "toolpath.z_velocity_max_mm_s", "mm/s")
+    add("tool path: Z acceleration max", "toolpath.z_acceleration_max_mm_s2", "mm/s^2")
+    add("tool path: cut time", "toolpath.cut_time_s", "s")
+    return rows

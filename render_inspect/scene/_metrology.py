@@ -12,8 +12,13 @@ from ..core.section import Section
 class MetrologyConfig(Section):
     form_removal: Literal["none", "plane", "polynomial", "design"] = "plane"
     polynomial_degree: int = Field(2, ge=1, le=10)
-    s_filter: float | None = Field(None, gt=0, description="mm, ISO 16610-61 S-filter nesting index")
-    l_filter: float | None = Field(None, gt=0, description="mm, L-filter nesting index")
+    s_filter: float | None = Field(None, gt=0, description="mm, ISO 16610-61 S-filter nesting index "
+                                                          "(None: chosen from the tool marks)")
+    l_filter: float | None = Field(None, gt=0, description="mm, L-filter nesting index (None: "
+                                                          "chosen from the design's feature size)")
+    filter_edges: Literal["cut", "mirror"] = Field(
+        "cut", description="edges of the S/L-filtered maps: cut half the nesting index, or "
+                           "extend by the mirror image (cut falls back to mirror on small windows)")
     outlier_sigma: float = Field(3.0, gt=0, le=20,
                                  description="k of the second-difference k-sigma outlier rule")
     registration: Literal["none", "lsq", "icp"] = "lsq"

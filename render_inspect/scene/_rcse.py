@@ -15,7 +15,12 @@ from ..core.section import Section
 
 
 class RcseConfig(Section):
-    """How the conventional (grid-interpolated) path is built for the comparison (seed 004)."""
+    """How the conventional (grid-interpolated) path is built for the comparison (seed 004),
+    and which of the two paths cuts the simulated surface."""
+    path: Literal["rcse", "conventional"] = Field(
+        "rcse", description="the path that cuts the simulated surface: the RCSE path, or the "
+                            "conventional grid-interpolated one (Z-compensated on its own point "
+                            "cloud); compare shows both")
     compare_conventional: bool = Field(True, description="also build the conventional path and compare")
     grid_spacing: float = Field(0.005, gt=0, le=1.0,
                                 description="mm, spacing of the rectangular point cloud (modelling grid)")

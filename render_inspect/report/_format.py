@@ -1,0 +1,69 @@
+"""Numbers for people: units, sensible significant figures, no false precision."""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["fmt_number", "fmt_quantity", "nice_length"]
+
+
+def fmt_number(v, *, sig: int = 3, resolution: float | None = None) -> str:
+    """A number with ``sig`` significant figures (at most), without exponent notation
+    between 1e-4 and 1e6; magnitudes below ``resolution`` are written ``0`` (a value
+    of -2.7e-4 nm where the computation resolves 0.01 nm is zero, not a measurement).
+
+    Integers are written in full; booleans as yes/no; None and NaN as ``n/a``.
+    """
+    if v is None:
+        return "n/a"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return f"{v:,}" if abs(v) >= 10000 else str(v)
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if math.isnan(x):
+        return "n/a"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if x == 0 or (resolution is not None and abs(x) < resolution):
+        return "0"
+    a = abs(x)
+    if a >= 1e6 or a < 1e-4:
+        return f"{x:.{sig - 1}e}"
+    digits = sig - 1 - int(math.floor(math.log10(a)))
+    if resolution is not None:
+        digits = min(digits, max(0, -int(math.floor(math.log10(resolution)))))
+    digits = max(digits, 0)
+    s = f"{x:.{digits}f}"
+    if s.lstrip("-") in ("0", "0." + "0" * digits):
+        return "0"
+    return s
+
+
+#: display resolution per unit: finer digits are noise of the computation
+_RESOLUTION = {"nm": 0.01, "um": 1e-4, "mm": 1e-7, "urad": 0.01, "mrad": 1e-5, "rad": 1e-8,
+               "deg": 1e-6, "%": 1e-3, "s": 1e-4, "Hz": 1e-3, "mm/s": 1e-9,
+               "mm/s^2": 1e-6}
+
+
+def fmt_quantity(v, unit: str = "", *, sig: int = 3) -> str:
+    """``fmt_number`` with the unit appended and the unit's display resolution (0.01 nm,
+    0.1 nm-equivalent in um, ...)."""
+    s = fmt_number(v, sig=sig, resolution=_RESOLUTION.get(unit))
+    if not unit or s == "n/a":
+        return s
+    return f"{s} {unit}"
+
+
+def nice_length(target: float) -> float:
+    """The 1-2-5 step at or below ``target`` (> 0)."""
+    if not target > 0:
+        return 1.0
+    e = 10 ** math.floor(math.log10(target))
+    for m in (5, 2, 1):
+        if m * e <= target * (1 + 1e-9):
+            return m * e
+    return e
