@@ -253,12 +253,15 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
     for r in rows:
         t.add_row(*r)
     con.print(t)
+    # lines are not wrapped: a path must stay one piece to be copied
     if metrics.get("pair", {}).get("identical"):
-        con.print(f"The two variants are identical ({metrics['pair']['key']} has no effect here).")
+        con.print(f"The two variants are identical ({metrics['pair']['key']} has no effect here).",
+                  soft_wrap=True)
     else:
         for k, v in diff:
-            con.print(f"{k}: {v}")
-    con.print(f"report: {metrics.get('report') or (out.rstrip('/') + '/report.html')}")
+            con.print(f"{k}: {v}", soft_wrap=True)
+    con.print(f"report: {metrics.get('report') or (out.rstrip('/') + '/report.html')}",
+              soft_wrap=True, markup=False)
 
 
 def _setup_logging(args) -> None:

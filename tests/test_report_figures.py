@@ -66,3 +66,8 @@ def test_annotate_rgb_writes_text_and_scale_bar():
     assert (out[:20, :150] != 40).any()        # the caption
     assert (out[-20:, -80:] != 40).any()       # the scale bar
     assert (out[80:120, 100:200] == 40).all()  # the picture itself is untouched
+
+
+def test_large_lengths_move_to_the_next_unit():
+    assert fmt_quantity(12445.0, "nm") == "12.4 um"
+    assert fmt_quantity(-2244.0, "nm") == "-2244 nm"

@@ -56,14 +56,12 @@ from ..metrology import (
 from ..processes import Variant, VariantPair, process_of
 from ..render import mitsuba_variant
 from ..report import _figures as F
-from ..report import build_page, fmt_quantity, nice_length
-from ..report._kinematics import axis_motion_figure
+from ..report import axis_motion_figure, build_page, fmt_quantity, locator_figure, nice_length
 from ..scene import apply_overrides, scene_from_dict
 from ._measure import measure_and_evaluate
 from ._render import (
     diffuse_caption,
     interferogram_summary,
-    part_heightmap,
     part_outline,
     render_diffuse_views,
     write_diffuse_outputs,
@@ -259,7 +257,7 @@ def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None) -> 
     i1 = min(ny, int(math.ceil((y1 - y_lo) / pixel)) + 1)
     sub = d[i0:i1, j0:j1]
     if sub.size and sub.max() > 0:
-        sm = ndimage.uniform_filter(sub, size=max(1, min(sub.shape) // 16))
+        sm = ndimage.gaussian_filter(sub, sigma=max(1.0, min(sub.shape) / 16), mode="nearest")
         i, j = np.unravel_index(np.argmax(sm), sm.shape)
         peak = (x_lo + (j0 + j) * pixel, y_lo + (i0 + i) * pixel)
     else:
@@ -784,7 +782,7 @@ def _figures(a: _Variant, b: _Variant, meas, *, pair, window, part, identical, f
                      "title": "profile across the largest difference"},
             title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]})")
     else:
-        figs["windows"] = _locator_only(locator)
+        figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
     res_panels = [(f"{n}: machined - design", v.heightmap.residual * MM_TO_NM)
                   for n, v in zip(names, (a, b))]
@@ -868,15 +866,6 @@ def _figures(a: _Variant, b: _Variant, meas, *, pair, window, part, identical, f
     if kin is not None:
         figs["kinematics"] = kin
     return figs, diff_metrics
-
-
-def _locator_only(locator) -> bytes:
-    plt = F._plt()
-    fig, ax = plt.subplots(figsize=(5.0, 4.4), dpi=100)
-    F._draw_locator(ax, locator)
-    ax.set_title("where the windows are", fontsize=10)
-    fig.tight_layout()
-    return F._to_png(fig)
 
 
 def _locator(a: _Variant, part: dict, window: dict, ig) -> dict:

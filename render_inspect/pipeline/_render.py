@@ -275,22 +275,25 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     info = variant_info()
     res = {"mitsuba_variant": info["mitsuba_variant"], "mitsuba_version": info["mitsuba_version"],
            "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
-    with atomic_output_dir(out) as tmp:
+    n_steps = (kind in ("interferometer", "all")) + 2 * (kind in ("diffuse", "all"))
+    with atomic_output_dir(out) as tmp, progress_task("render", total=n_steps) as t:
         if kind in ("interferometer", "all"):
-            t = time.perf_counter()
-            with progress_task("interferogram"):
-                ig = render_interferogram(hm, scene.render.interferometer, surface=surface,
-                                          seed=seed)
-            timing["interferogram"] = time.perf_counter() - t
+            t0 = time.perf_counter()
+            t.update("render: interferogram")
+            ig = render_interferogram(hm, scene.render.interferometer, surface=surface,
+                                      seed=seed)
+            timing["interferogram"] = time.perf_counter() - t0
             res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
+            t.advance()
         if kind in ("diffuse", "all"):
             for view in ("macro", "micro"):
-                t = time.perf_counter()
-                with progress_task(f"diffuse {view} view"):
-                    rgb, meta = render_diffuse_views(scene, hm, scene.render.diffuse, seed=seed,
-                                                     surface=surface, views=(view,))[view]
-                timing[f"diffuse_{view}"] = time.perf_counter() - t
+                t0 = time.perf_counter()
+                t.update(f"render: diffuse {view} view")
+                rgb, meta = render_diffuse_views(scene, hm, scene.render.diffuse, seed=seed,
+                                                 surface=surface, views=(view,))[view]
+                timing[f"diffuse_{view}"] = time.perf_counter() - t0
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
+                t.advance()
         res["timing_s"] = timing
         write_json(Path(tmp) / "render_metrics.json", {"render": res})
     return {"render": res}

@@ -189,8 +189,10 @@ def run_simulate(scene, out) -> dict:
     sim = simulate(scene)
     log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
              time.perf_counter() - t0)
-    with atomic_output_dir(out) as tmp, task(f"write {sim.heightmap.design.size:,}-sample "
-                                             f"height map and previews"):
+    n = sim.heightmap.design.size
+    # EXR (3 float32 channels, compressed) and the previews: ~40 MB/s on the CI machine
+    with atomic_output_dir(out) as tmp, task(f"write the {n:,}-sample height map and previews",
+                                             total=1.0 + n * 12 / 40e6, timed=True):
         metrics = write_simulation(sim, Path(tmp))
     r = metrics["residual"]
     log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", r["Sq_nm"], r["Sz_nm"],

@@ -87,7 +87,7 @@ AL_REFLECTANCE_RGB = [0.9283, 0.9177, 0.9194]
 #: Rows of the lat-long environment image: 0.5 degree apart, so every profile knot is a row.
 ENV_ROWS = 361
 #: Macro camera: tilt of the view from the zenith and horizontal field of view.
-MACRO_TILT_DEG = 25.0
+MACRO_TILT_DEG = 20.0
 MACRO_FOV_DEG = 30.0
 MAX_DEPTH = 4
 #: Dome radiance in the macro view, where the lamp is the main light (a dim room).
@@ -459,7 +459,7 @@ def _mitsuba_scene(gm, spec, bsdf):
                               z_top=cam["origin"][2], spp=spec["spp"], jitter=True)
         sensor["sampler"] = {"type": "independent", "sample_count": int(spec["spp"])}
     lt = spec["light"]
-    env = environment_map(lt["type"], axis=lt["axis"], radiance=lt["radiance"],
+    env = environment_map(lt["type"], height=int(lt.get("env_rows", ENV_ROWS)), axis=lt["axis"], radiance=lt["radiance"],
                           zenith_falloff=lt.get("zenith_falloff", 0.0))
     d = {
         "type": "scene",

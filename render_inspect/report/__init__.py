@@ -9,6 +9,7 @@ from ._figures import (
                        difference_figure,
                        display_map,
                        image_panels,
+                       locator_figure,
                        map_panels,
                        png_bytes,
                        radial_profile_figure,
@@ -21,4 +22,4 @@ from ._page import build_page
 __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
            "image_panels", "map_panels", "png_bytes", "radial_profile_figure", "annotate_rgb",
            "block_mean", "display_map", "difference_figure", "fmt_number", "fmt_quantity",
-           "nice_length", "axis_motion_figure", "moving_axes", "turning_axes"]
+           "nice_length", "locator_figure", "axis_motion_figure", "moving_axes", "turning_axes"]

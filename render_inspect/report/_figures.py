@@ -23,7 +23,7 @@ import numpy as np
 from ._format import fmt_quantity, nice_length
 
 __all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "block_mean",
-           "display_map", "difference_figure", "annotate_rgb", "length_label",
+           "display_map", "difference_figure", "locator_figure", "annotate_rgb", "length_label",
            "DISPLAY_PIXELS"]
 
 #: maps are area-averaged to at most this many samples across before drawing
@@ -303,6 +303,15 @@ def _draw_locator(ax, loc: dict) -> None:
     if handles:
         ax.legend(handles=handles, fontsize=7, loc="lower left", bbox_to_anchor=(0.0, 1.0),
                   framealpha=0.9, borderaxespad=0.3)
+
+
+def locator_figure(locator: dict, *, dpi: int = 100) -> bytes:
+    """PNG bytes of the locator panel alone (where the windows are): the figure the
+    report shows instead of the difference when the two variants are identical."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.0, 4.6), dpi=dpi, layout="constrained")
+    _draw_locator(ax, locator)
+    return _to_png(fig)
 
 
 def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_diff,

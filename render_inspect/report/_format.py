@@ -49,9 +49,18 @@ _RESOLUTION = {"nm": 0.01, "um": 1e-4, "mm": 1e-7, "urad": 0.01, "mrad": 1e-5, "
                "mm/s^2": 1e-6}
 
 
+#: a length this large is written in the next unit (12445 nm -> 12.4 um)
+_PROMOTE = {"nm": ("um", 1e-3), "um": ("mm", 1e-3)}
+
+
 def fmt_quantity(v, unit: str = "", *, sig: int = 3) -> str:
     """``fmt_number`` with the unit appended and the unit's display resolution (0.01 nm,
-    0.1 nm-equivalent in um, ...)."""
+    0.1 nm-equivalent in um, ...); lengths of 10,000 nm or um and more are written in the
+    next unit."""
+    if unit in _PROMOTE and isinstance(v, (int, float)) and not isinstance(v, bool) \
+            and abs(v) >= 1e4:
+        unit, scale = _PROMOTE[unit]
+        return fmt_quantity(v * scale, unit, sig=sig)
     s = fmt_number(v, sig=sig, resolution=_RESOLUTION.get(unit))
     if not unit or s == "n/a":
         return s
