@@ -233,6 +233,22 @@ def _reporter(args):
     return LogReporter()
 
 
+class _RichLogHandler(logging.Handler):
+    """Log records printed through the progress display's console (above the bars,
+    which would otherwise be torn by direct writes to stderr)."""
+
+    def __init__(self, console):
+        super().__init__()
+        self.console = console
+
+    def emit(self, record):
+        try:
+            self.console.print(self.format(record), markup=False, highlight=False,
+                               soft_wrap=True)
+        except Exception:  # logging must never raise into the run
+            self.handleError(record)
+
+
 # ----------------------------------------------------------------------------- summary
 def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
     from rich.console import Console
@@ -282,6 +298,11 @@ def main(argv=None) -> int:
     _setup_logging(args)
     t0 = time.perf_counter()
     reporter = _reporter(args)
+    handlers = list(log.handlers)
+    if isinstance(reporter, RichReporter):
+        rich_handler = _RichLogHandler(reporter._progress.console)
+        rich_handler.setFormatter(logging.Formatter("%(message)s"))
+        log.handlers = [rich_handler]
     try:
         with reporter as rep:
             old = set_reporter(rep)
@@ -289,6 +310,7 @@ def main(argv=None) -> int:
                 result = _run(args)
             finally:
                 set_reporter(old)
+                log.handlers = handlers
     except RenderInspectError as err:
         print(f"render-inspect {args.command}: error: {err}", file=sys.stderr)
         return 1

@@ -187,7 +187,13 @@ def part_heightmap(scene, hm, *, cells: int = 1024, surface: str = "machined") -
     r = outline["radius"]
     pixel = 2 * r / cells
     region = (-r, -r, r, r)
-    z = design_grid(make_surface(scene.design), region, pixel)
+    try:
+        z = design_grid(make_surface(scene.design), region, pixel)
+    except InputError:
+        # a design that does not cover the whole part (a height map file): the region
+        return HeightMap(hm.design, hm.machined, hm.pixel, hm.origin, hm.scene,
+                         {**hm.meta, "part": {"shape": "rect", "rect": [
+                             float(v) for v in scene.simulation.region]}})
     x = -r + pixel * np.arange(z.shape[1])
     y = -r + pixel * np.arange(z.shape[0])
     machined = z.copy()
@@ -230,7 +236,7 @@ def render_diffuse_views(scene, hm, dcfg, *, seed: int, surface: str = "machined
         if view == "macro":
             phm = part_hm if part_hm is not None else part_heightmap(scene, hm, surface=surface)
             out[view] = render_diffuse(phm, dcfg, view="macro", surface=surface, seed=seed,
-                                       marks=marks, part=part_outline(scene))
+                                       marks=marks, part=phm.meta.get("part", part_outline(scene)))
         else:
             out[view] = render_diffuse(hm, dcfg, view="micro", surface=surface, seed=seed,
                                        marks=marks)
