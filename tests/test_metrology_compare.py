@@ -83,7 +83,12 @@ def test_compare_bad_input(tmp_path):
     with pytest.raises(InputError, match="does not overlap"):
         compare_measured(path, Freeform(), region=(10.0, 10.0, 11.0, 11.0))
     with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
-        compare_measured(path, Freeform(), region=(0.0, 0.0, 1.0, 1.0))
+        with pytest.raises(InputError, match=r"overlaps 2[0-9]\.[0-9]% of the smaller .* at least "
+                                             r"80% is needed \(--force compares anyway\)"):
+            compare_measured(path, Freeform(), region=(0.0, 0.0, 1.0, 1.0))
+    with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
+        c = compare_measured(path, Freeform(), region=(0.0, 0.0, 1.0, 1.0), force=True)
+    assert c.metrics["checks"]["ok"] is False and c.metrics["checks"]["refusals"]
     # NaNs in the measurement are left out explicitly, and reported through n_valid
     z = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],
                        (ORIGIN[1] + PIXEL * np.arange(N))[:, None])

@@ -403,20 +403,16 @@ def _jsonable(o):
 
 def _measured_column(path, scene, design_surface, sim_hm, seed) -> dict:
     from ..metrology import compare_measured
-    from ..io import read_measured
+    from ..io import read_surface
 
-    z, pixel, origin, src = read_measured(path)
-    simulated = sim_hm if np.isclose(pixel, sim_hm.pixel, rtol=1e-6) else None
-    comp = compare_measured((z, pixel, origin), design_surface, metrology=scene.metrology,
+    m = read_surface(path)
+    simulated = sim_hm if np.allclose(m.pixel, sim_hm.pixel, rtol=1e-6) else None
+    comp = compare_measured(m, design_surface, metrology=scene.metrology,
                             simulated=simulated, region=tuple(scene.simulation.region), seed=seed)
     metrics = dict(comp.metrics)
-    metrics["source"] = {k: x for k, x in src.items() if k != "scene"}
     metrics["compared_with_simulation"] = simulated is not None
     return {"metrics": metrics, "maps": comp.maps, "pixel": comp.pixel, "origin": comp.origin,
-            "extent": (comp.origin[0] - comp.pixel / 2,
-                       comp.origin[0] + comp.pixel * (z.shape[1] - 0.5),
-                       comp.origin[1] - comp.pixel / 2,
-                       comp.origin[1] + comp.pixel * (z.shape[0] - 0.5))}
+            "extent": m.extent}
 
 
 def _figures(c: _Variant, u: _Variant, meas, F) -> dict:
