@@ -11,19 +11,10 @@ from numpy.testing import assert_allclose
 from scipy import ndimage
 
 from render_inspect.errors import InputError
-from render_inspect.metrology import (
-    analyze_map,
-    areal_parameters,
-    fit_sphere,
-    kinematic_sq_mm,
-    parse_filter,
-    register_lsq,
-    registered_overlap,
-    registration_checks,
-    registration_covariance,
-    remove_form,
-    spatial_parameters,
-)
+from render_inspect.metrology import (analyze_map, areal_parameters, fit_sphere, kinematic_sq_mm,
+                                      parse_filter, register_lsq, registered_overlap,
+                                      registration_checks, registration_covariance, remove_form,
+                                      spatial_parameters)
 
 SAL_FACTOR = 2.0 * np.sqrt(np.log(5.0))  # ACF exp(-t^2 / (4 sigma^2)) falls to 0.2 here / sigma
 

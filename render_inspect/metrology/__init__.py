@@ -1,81 +1,27 @@
 """Metrology: ISO 25178 / 21920 parameters (slopes as the reference libraries take them;
 Sal / Str from the autocorrelation), one-map analysis, checks before a comparison,
-ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF registration (seed 002), microstructure-array analysis (lenslet
-centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
-scene's design and simulation.  Plain numpy/scipy; lengths in mm."""
+ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF registration (seed 002),
+microstructure-array analysis (lenslet centres, dislocations, per-lenslet form errors),
+and comparison of measured maps with a scene's design and simulation.  Plain numpy/scipy; lengths in mm."""
 
 from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
-from ._checks import (
-                      DEFAULT_MAX_RESIDUAL_RATIO,
-                      DEFAULT_MIN_OVERLAP,
-                      DEFAULT_RESIDUAL_FLOOR_MM,
-                      correlation_area,
-                      kinematic_sq_mm,
-                      registered_overlap,
-                      registration_checks,
-)
-from ._compare import (
-                      Comparison,
-                      characterise_map,
-                      check_same_pixel,
-                      compare_measured,
-                      coverage,
-                      resample_map,
-                      sample_map,
-)
-from ._filters import (
-                      GAUSSIAN_ALPHA,
-                      fit_sphere,
-                      gaussian_filter,
-                      gaussian_sigma,
-                      l_filter,
-                      pixel_xy,
-                      remove_form,
-                      s_filter,
-                      valid_mask,
-)
-from ._msa import (
-                      LENSLET_KEYS,
-                      base_form_error,
-                      characterise_msa,
-                      lenslet_centers,
-                      lenslet_table,
-                      separate_msa,
-)
-from ._params import (
-                      SLOPE_ESTIMATORS,
-                      areal_parameters,
-                      autocorrelation,
-                      extract_section,
-                      profile_parameters,
-                      section_parameters,
-                      slope_parameters,
-                      spatial_parameters,
-)
-from ._phase import (
-                      PhaseResult,
-                      add_height_measured,
-                      height_error,
-                      height_from_phase,
-                      measure_interferogram,
-                      phase_quality,
-                      retrieve_csi,
-                      retrieve_psi,
-                      unwrap_phase,
-                      wrapped_phase,
-)
-from ._registration import (
-                      RIGID_KEYS,
-                      GridSurface,
-                      MovedSurface,
-                      detect_outliers,
-                      register_icp,
-                      register_lsq,
-                      registration_covariance,
-                      rigid_resample,
-                      rotation_matrix,
-                      template_surface,
-)
+from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
+                      correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
+from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
+                       coverage, resample_map, sample_map)
+from ._filters import (GAUSSIAN_ALPHA, fit_sphere, gaussian_filter, gaussian_sigma, l_filter,
+                       pixel_xy, remove_form, s_filter, valid_mask)
+from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_centers,
+                   lenslet_table, separate_msa)
+from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
+                      profile_parameters, section_parameters, slope_parameters,
+                      spatial_parameters)
+from ._phase import (PhaseResult, add_height_measured, height_error, height_from_phase,
+                     measure_interferogram, phase_quality, retrieve_csi, retrieve_psi,
+                     unwrap_phase, wrapped_phase)
+from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
+                            register_icp, register_lsq, registration_covariance, rigid_resample,
+                            rotation_matrix, template_surface)
 
 __all__ = [
     "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",

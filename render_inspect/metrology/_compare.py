@@ -13,14 +13,8 @@ from ..errors import InputError
 from ._checks import registration_checks
 from ._filters import l_filter, pixel_xy, remove_form, s_filter
 from ._params import areal_parameters
-from ._registration import (
-    RIGID_KEYS,
-    MovedSurface,
-    detect_outliers,
-    register_icp,
-    register_lsq,
-    rotation_matrix,
-)
+from ._registration import (RIGID_KEYS, MovedSurface, detect_outliers, register_icp,
+                            register_lsq, rotation_matrix)
 
 __all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
            "Comparison",
