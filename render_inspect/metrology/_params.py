@@ -23,6 +23,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from scipy import fft as sfft
 from scipy import ndimage
 
 from ..errors import InputError, check_positive, check_range
@@ -141,6 +142,16 @@ def areal_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
     return out
 
 
+def _full_correlation(a):
+    """Linear (zero-padded) autocorrelation sum of ``a``: shape (2 ny - 1, 2 nx - 1), zero
+    lag at (ny - 1, nx - 1)."""
+    ny, nx = a.shape
+    shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
+    f = sfft.rfft2(a, shape)
+    full = sfft.irfft2(f * np.conj(f), shape)
+    return np.roll(full, (ny - 1, nx - 1), axis=(0, 1))[:2 * ny - 1, :2 * nx - 1]
+
+
 def autocorrelation(z, *, mask=None):
     """Areal autocorrelation function of the mean-removed heights.
 
@@ -156,16 +167,17 @@ def autocorrelation(z, *, mask=None):
     pairs : same shape, int
         Number of point pairs behind each lag.
     """
-    from scipy.signal import fftconvolve
-
     z = np.asarray(z, dtype=np.float64)
     ok = valid_mask(z, mask)
     if ok.sum() < 4:
         raise InputError(f"autocorrelation: need at least 4 valid points, got {int(ok.sum())}")
-    w = ok.astype(np.float64)
+    ny, nx = z.shape
     zc = np.where(ok, z - z[ok].mean(), 0.0)
-    num = fftconvolve(zc, zc[::-1, ::-1], mode="full")
-    cnt = np.rint(fftconvolve(w, w[::-1, ::-1], mode="full"))
+    num = _full_correlation(zc)
+    if ok.all():  # pairs at lag (ty, tx): (ny - |ty|) (nx - |tx|)
+        cnt = np.outer(ny - np.abs(np.arange(1 - ny, ny)), nx - np.abs(np.arange(1 - nx, nx)))
+    else:
+        cnt = np.rint(_full_correlation(ok.astype(np.float64)))
     with np.errstate(invalid="ignore", divide="ignore"):
         acf = np.where(cnt > 0.5, num / np.maximum(cnt, 1.0), np.nan)
     c0 = acf[z.shape[0] - 1, z.shape[1] - 1]
@@ -214,26 +226,44 @@ def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int
     a = np.where(usable, acf, np.nan)
     cy, cx = ny - 1, nx - 1
     theta = np.arange(int(n_directions)) * (np.pi / int(n_directions))
+    sin_t, cos_t = np.sin(theta), np.cos(theta)
     step = 0.25 * min(px, py)
     rmax = np.hypot(px * (nx - 1), py * (ny - 1))
     r = np.arange(0.0, rmax + step, step)
-    rows = cy + np.outer(np.sin(theta), r) / py
-    cols = cx + np.outer(np.cos(theta), r) / px
-    inside = (rows >= 0) & (rows <= 2 * ny - 2) & (cols >= 0) & (cols <= 2 * nx - 2)
-    vals = ndimage.map_coordinates(np.nan_to_num(a, nan=np.inf), [rows, cols], order=1,
-                                   mode="constant", cval=np.inf)
-    known = inside & np.isfinite(vals)
-    # the ray's support ends at the first lag without enough pairs (inf propagates there)
-    support_end = np.where(known.all(axis=1), r.size, np.argmin(known, axis=1))
-    below = (vals <= s) & known
-    first = np.where(below.any(axis=1), np.argmax(below, axis=1), r.size)
-    decays = first < support_end
-    lengths = np.full(theta.size, np.nan)
-    i = np.nonzero(decays)[0]
-    j = first[i]
-    v0, v1 = vals[i, j - 1], vals[i, j]
-    frac = np.where(v0 != v1, (v0 - s) / (v0 - v1), 0.0)
-    lengths[i] = r[j - 1] + frac * step
+    field = np.nan_to_num(a, nan=np.inf)  # lags without enough pairs end a ray (inf spreads)
+    nt = theta.size
+    lengths = np.full(nt, np.nan)
+    ended = np.zeros(nt, dtype=bool)  # the ray left the supported lags without decaying
+    prev = np.ones(nt)  # ACF at the last sample of the previous chunk (1 at zero lag)
+    acc_sum, acc_n = np.zeros(nt), np.zeros(nt)
+    chunk = 256
+    for start in range(1, r.size, chunk):
+        act = np.nonzero(np.isnan(lengths) & ~ended)[0]
+        if act.size == 0:
+            break
+        rr = r[start:start + chunk]
+        rows = cy + np.outer(sin_t[act], rr) / py
+        cols = cx + np.outer(cos_t[act], rr) / px
+        inside = (rows >= 0) & (rows <= 2 * ny - 2) & (cols >= 0) & (cols <= 2 * nx - 2)
+        vals = ndimage.map_coordinates(field, [rows, cols], order=1, mode="constant", cval=np.inf)
+        known = inside & np.isfinite(vals)
+        n = rr.size
+        first_unknown = np.where(known.all(axis=1), n, np.argmin(known, axis=1))
+        below = (vals <= s) & known
+        first_below = np.where(below.any(axis=1), np.argmax(below, axis=1), n)
+        dec = first_below < first_unknown
+        i, j = act[dec], first_below[dec]
+        v1 = vals[dec, j]
+        v0 = np.where(j > 0, vals[dec, np.maximum(j - 1, 0)], prev[i])
+        r0 = rr[j] - step
+        frac = np.where(v0 != v1, (v0 - s) / (v0 - v1), 0.0)
+        lengths[i] = r0 + frac * step
+        ended[act[~dec & (first_unknown < n)]] = True
+        kv = np.where(known, vals, 0.0)
+        acc_sum[act] += kv.sum(axis=1)
+        acc_n[act] += known.sum(axis=1)
+        prev[act] = vals[:, -1]
+    decays = np.isfinite(lengths)
     out = {"s": float(s), "decays_in_all_directions": bool(decays.all())}
     if not decays.any():
         warnings.warn(f"Sal: the autocorrelation does not fall to s = {s} within the field in "
@@ -252,7 +282,7 @@ def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int
         out["Str"] = float(lengths[k] / lengths[m])
     else:
         # the most persistent of the directions that do not decay: highest mean ACF
-        acf_mean = np.where(known, vals, 0.0).sum(axis=1) / np.maximum(known.sum(axis=1), 1)
+        acf_mean = acc_sum / np.maximum(acc_n, 1)
         m = int(np.argmax(np.where(decays, -np.inf, acf_mean)))
         out["longest_decay_mm"] = float("nan")
         out["slowest_direction_rad"] = float(theta[m])
