@@ -51,7 +51,7 @@ def main(resolution: int = 512, spp: int = 64, *, exaggeration: float | None = N
     """Render both, compare, print and return the figures (``exaggeration`` None: the
     scene's ``render.diffuse.exaggeration``, 200)."""
     from render_inspect.io import save_png
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.render import render_diffuse
     from render_inspect.render._cycles import render_cycles
     from render_inspect.scene import DiffuseConfig, load_scene

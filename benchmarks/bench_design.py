@@ -18,9 +18,16 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _surfaces(tmp: Path):
-    from render_inspect.design import (Compound, ExpressionSurface, HeightMapSurface,
-                                       LensletArray, LensletRings, SinusoidalGrid, Sphere,
-                                       Toric)
+    from render_inspect.design import (
+        Compound,
+        ExpressionSurface,
+        HeightMapSurface,
+        LensletArray,
+        LensletRings,
+        SinusoidalGrid,
+        Sphere,
+        Toric,
+    )
 
     grid = SinusoidalGrid(0.002, 0.002, 2.5, 2.5)
     x = -1.0 + 0.01 * np.arange(201)

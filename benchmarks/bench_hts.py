@@ -18,7 +18,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _run(overrides):
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.scene import load_scene
 
     scene = load_scene(REPO / "scenes" / "hts_toric_msa.toml", overrides=overrides)
@@ -36,7 +36,7 @@ def _run(overrides):
 
 
 def main(*, full: bool = False, pixel: float = 0.01) -> dict:
-    from render_inspect.machining import simulate_scene  # noqa: F401  (numba warm-up below)
+    from render_inspect.pipeline import simulate as simulate_scene  # noqa: F401  (numba warm-up below)
 
     _run(["simulation.region=[-0.1, -0.1, 0.1, 0.1]"])       # compile the kernels once
     figs = {"default_window": _run([])}

@@ -33,9 +33,17 @@ def _t(fn, *a, **k):
 def main(n_areal: int = 2048) -> dict:
     from render_inspect.design import LensletArray
     from render_inspect.io import read_x3p, write_x3p
-    from render_inspect.metrology import (RIGID_KEYS, areal_parameters, characterise_msa,
-                                          detect_outliers, gaussian_filter, lenslet_table,
-                                          register_icp, register_lsq, rigid_resample)
+    from render_inspect.metrology import (
+        RIGID_KEYS,
+        areal_parameters,
+        characterise_msa,
+        detect_outliers,
+        gaussian_filter,
+        lenslet_table,
+        register_icp,
+        register_lsq,
+        rigid_resample,
+    )
 
     out = {}
     rng = np.random.default_rng(0)

@@ -39,9 +39,9 @@ def main(repeats: int = 3, export: bool = True, write_docs: bool = True) -> dict
     import numpy as np
 
     from render_inspect.design import make_surface
+    from render_inspect.io import write_csv, write_nc
     from render_inspect.scene import load_scene
     from render_inspect.toolpath import ToolPath
-    from render_inspect.toolpath._export import write_csv, write_nc
     from render_inspect.toolpath._kinematics import kinematics
     from render_inspect.toolpath._rcse import RingLayout, conventional_ccps, rcse_ccps
 

@@ -7,7 +7,7 @@ Figures (printed and returned by :func:`main`):
   samples per pixel, camera noise on) of a mesh of >= 2 M triangles (a 1025 x 1025 height
   map window), wall time and its parts (mesh, BVH load, ray tracing, interference model);
 * ``diffuse``: the 512 x 512 macro view at 64 spp of seed 000's machined grid (the scene
-  engineer B2's ``bench_cycles.py`` renders in Blender Cycles);
+  ``bench_cycles.py`` renders it in Blender Cycles);
 * ``large_map``: a 4000 x 4000 map: full-resolution mesh arrays (bytes, seconds), then an
   interferogram of a 1024 x 1024 window and a 512 x 512 macro diffuse view (decimated to
   1024 cells a side), with the process's peak resident memory.
@@ -50,7 +50,7 @@ def synthetic_heightmap(n: int, *, pixel: float = 0.001):
 
 
 def _timed_interferogram(hm, cfg, repeats):
-    import render_inspect.render._interferometer as I
+    import render_inspect.instruments._interferometer as I
     import render_inspect.render._scene_dicts as S
 
     parts = {}
@@ -104,7 +104,7 @@ def bench_interferogram(repeats: int = 2) -> dict:
 
 
 def bench_diffuse(repeats: int = 2) -> dict:
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.render import render_diffuse
     from render_inspect.scene import DiffuseConfig, load_scene
 
@@ -124,8 +124,9 @@ def bench_diffuse(repeats: int = 2) -> dict:
 
 
 def bench_large_map(n: int = 4000) -> dict:
+    from render_inspect.instruments import render_interferogram
     from render_inspect.mesh import heightmap_mesh
-    from render_inspect.render import render_diffuse, render_interferogram
+    from render_inspect.render import render_diffuse
     from render_inspect.scene import DiffuseConfig, InterferometerConfig
 
     rss0 = _peak_rss_mb()

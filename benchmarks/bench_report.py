@@ -26,8 +26,8 @@ def _psi_frames(h, steps, lam):
 
 
 def main(n: int = 1024, compare: bool = True) -> dict:
+    from render_inspect.instruments import interference_frames
     from render_inspect.metrology import height_error, retrieve_csi, retrieve_psi
-    from render_inspect.render import interference_frames
 
     out = {}
     lam_nm = 550.0
@@ -59,7 +59,7 @@ def main(n: int = 1024, compare: bool = True) -> dict:
                                                    piston="none")[1]["rms_nm"]
 
     if compare:
-        from render_inspect.report import run_compare
+        from render_inspect.pipeline import run_compare
         from render_inspect.scene import load_scene
 
         scene = load_scene(REPO / "scenes" / "sts_fig16_overcut.toml")

@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def main() -> dict:
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.scene import load_scene
 
     scene = load_scene(REPO / "scenes" / "sculpt_quad_mla.toml")

@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def main(region=(-1.0, -1.0, 1.0, 1.0), pixel=0.0005, repeats=2) -> dict:
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.scene import load_scene
 
     scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",

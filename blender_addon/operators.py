@@ -33,7 +33,7 @@ class RENDER_INSPECT_OT_simulate(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        from render_inspect.render._cycles import simulate_into_blender
+        from render_inspect.pipeline import simulate_into_blender
 
         settings = context.scene.render_inspect
         try:

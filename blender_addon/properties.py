@@ -1,7 +1,13 @@
 """Settings the panel shows and the operators read (``scene.render_inspect``)."""
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 
 class RenderInspectSettings(bpy.types.PropertyGroup):

@@ -1,53 +1,17 @@
-"""Domain errors.  Every message names the parameter, the allowed range and the
-value received, and says what to do."""
+"""The errors render_inspect raises on purpose (defined in :mod:`render_inspect.core.errors`).
 
-from __future__ import annotations
+Every message names the parameter, the allowed range and the value received, and says
+what to do."""
 
-import math
+from .core.errors import (
+                          AccessibilityError,
+                          InputError,
+                          MemoryBudgetError,
+                          RenderInspectError,
+                          SceneError,
+                          check_positive,
+                          check_range,
+)
 
 __all__ = ["RenderInspectError", "SceneError", "InputError", "MemoryBudgetError",
            "AccessibilityError", "check_range", "check_positive"]
-
-
-class RenderInspectError(Exception):
-    """Base class of the errors render_inspect raises on purpose."""
-
-
-class SceneError(RenderInspectError, ValueError):
-    """A scene file or override is invalid."""
-
-
-class InputError(RenderInspectError, ValueError):
-    """A function argument or an input file is invalid."""
-
-
-class MemoryBudgetError(RenderInspectError, MemoryError):
-    """A request would not fit into the memory budget."""
-
-
-class AccessibilityError(RenderInspectError):
-    """The tool cannot reach (part of) the design surface."""
-
-
-def check_range(name: str, value, lo=None, hi=None, *, lo_open=False, hi_open=False,
-                exc=InputError):
-    """Raise ``exc`` naming ``name``, the allowed range and ``value`` if outside it."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise exc(f"{name} must be a number, got {value!r}") from None
-    bad = not math.isfinite(v)
-    if lo is not None:
-        bad |= v <= lo if lo_open else v < lo
-    if hi is not None:
-        bad |= v >= hi if hi_open else v > hi
-    if bad:
-        lo_s = "-inf" if lo is None else f"{lo:g}"
-        hi_s = "inf" if hi is None else f"{hi:g}"
-        rng = f"{'(' if lo_open or lo is None else '['}{lo_s}, {hi_s}{')' if hi_open or hi is None else ']'}"
-        raise exc(f"{name} must be in {rng}, got {value!r}")
-    return value
-
-
-def check_positive(name: str, value, exc=InputError):
-    return check_range(name, value, 0.0, None, lo_open=True, exc=exc)

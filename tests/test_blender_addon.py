@@ -97,7 +97,8 @@ def test_installed_into_the_user_repository(addon):
 def test_simulate_loads_the_machined_heights_as_a_mesh(settings):
     import bpy
 
-    from render_inspect.machining import HeightMap, simulate_scene
+    from render_inspect.io import read_heightmap_exr
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.scene import load_scene
 
     settings.spindle_rpm = 40.0
@@ -125,7 +126,7 @@ def test_simulate_loads_the_machined_heights_as_a_mesh(settings):
     np.testing.assert_allclose(z, 300.0 * expected, rtol=1e-6, atol=1e-9)
     assert np.ptp(z) > 0
     # and the height map written beside it holds the same heights
-    hm = HeightMap.from_exr(Path(settings.output_dir) / "heightmap.exr")
+    hm = read_heightmap_exr(Path(settings.output_dir) / "heightmap.exr")
     np.testing.assert_allclose(hm.machined, expected, rtol=1e-6, atol=1e-12)
 
 
@@ -175,7 +176,7 @@ def test_default_output_goes_to_temp_not_the_addon_folder(settings, tmp_path, mo
     assert (tmp_path / "render_inspect_out" / "sts_sinusoidal_grid" / "heightmap.exr").is_file()
     assert {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts} == before
     # neither the panel nor the scene sets an exaggeration: the renderer's automatic one
-    from render_inspect.machining import simulate_scene
+    from render_inspect.pipeline import simulate as simulate_scene
     from render_inspect.render._diffuse import auto_exaggeration
     from render_inspect.scene import load_scene
 

@@ -66,7 +66,9 @@ def test_no_burrs_when_height_or_width_is_zero():
 def test_apply_burrs_records_the_seed_and_adds_material():
     _, z = _roof()
     cfg = ArtifactsConfig(burrs={"height": 0.0001, "width": 0.008}).burrs
-    m, info = apply_burrs(z, z, pixel=PIX, origin=(-0.1, -0.1), cfg=cfg, seed=42)
+    m, info = apply_burrs(z, z, pixel=PIX, origin=(-0.1, -0.1), height=cfg.height, width=cfg.width,
+                          variation=cfg.variation, edge_angle_deg=cfg.edge_angle_deg,
+                          correlation_length=cfg.correlation_length, seed=42)
     assert info["seed"] == 42 and info["edge_pixels"] == 201   # the ridge column
     assert (m - z).min() >= 0 and info["max_added_um"] == pytest.approx((m - z).max() * 1e3)
 

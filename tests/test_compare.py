@@ -12,7 +12,7 @@ import pytest
 
 from render_inspect.cli import main as cli_main
 from render_inspect.errors import InputError
-from render_inspect.io import read_exr
+from render_inspect.io import read_exr, write_heightmap_exr
 from render_inspect.scene import load_scene
 
 # A small seed-000 Fig. 16-like grid: Ax = Ay = 1 um, l = 0.5 mm, Rc = 0.5 mm, at a low
@@ -77,7 +77,7 @@ def compared(tmp_path_factory):
     xx, yy = np.meshgrid(x, x)
     z = surf.height(xx, yy) + 2e-4 * xx + 5e-5  # tilt and piston: registration removes them
     meas = d / "measured.exr"
-    HeightMap(z, z, pixel, (x[0], x[0])).to_exr(meas)
+    write_heightmap_exr(meas, HeightMap(z, z, pixel, (x[0], x[0])))
     out = d / "out"
     rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas)])
     assert rc == 0
@@ -180,7 +180,7 @@ def test_report_html_is_self_contained(compared):
 
 
 def test_compare_missing_measured_file(tmp_path):
-    from render_inspect.report import run_compare
+    from render_inspect.pipeline import run_compare
 
     p = tmp_path / "s.toml"
     p.write_text(TINY)
@@ -195,7 +195,7 @@ def test_compare_missing_measured_file(tmp_path):
      "step_rad = pi/2"),
 ])
 def test_compare_refuses_unusable_phase_settings(tmp_path, overrides, match):
-    from render_inspect.report import run_compare
+    from render_inspect.pipeline import run_compare
 
     p = tmp_path / "s.toml"
     p.write_text(TINY)
@@ -206,8 +206,11 @@ def test_compare_refuses_unusable_phase_settings(tmp_path, overrides, match):
 
 def test_compare_variants_and_render_caps(tmp_path):
     from render_inspect.machining import HeightMap
-    from render_inspect.report import (COMPARE_MAX_CAMERA_PIXELS, compare_variants,
-                                       preview_render_configs)
+    from render_inspect.pipeline import (
+        COMPARE_MAX_CAMERA_PIXELS,
+        compare_variants,
+        preview_render_configs,
+    )
 
     p = tmp_path / "s.toml"
     p.write_text(TINY.replace('compensation = "z"', 'compensation = "none"')
@@ -221,7 +224,7 @@ def test_compare_variants_and_render_caps(tmp_path):
     z = np.zeros((601, 601))
     hm = HeightMap(z, z, 0.002, (-0.6, -0.6))
     icfg, dcfg, notes = preview_render_configs(scene, hm)
-    from render_inspect.render import interferometer_geometry
+    from render_inspect.instruments import interferometer_geometry
 
     g = interferometer_geometry(hm, icfg)
     assert max(g["nx"], g["ny"]) <= COMPARE_MAX_CAMERA_PIXELS
@@ -310,8 +313,8 @@ spp = 2
 @pytest.mark.slow
 def test_compare_lenslet_array_table(tmp_path):
     """A 2 x 2 lenslet array: metrics.json carries the ``lenslets`` list of
-    ARCHITECTURE.md, and the report shows it."""
-    from render_inspect.report import run_compare
+    docs/formats.md, and the report shows it."""
+    from render_inspect.pipeline import run_compare
 
     p = tmp_path / "mla.toml"
     p.write_text(TINY_MLA)

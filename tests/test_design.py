@@ -9,9 +9,17 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from render_inspect.design import (Biconic, Compound, ExpressionSurface, LensletArray,
-                                   LensletRings, Plane, SinusoidalGrid, Sphere, Toric,
-                                   make_surface)
+from render_inspect.design import (
+    Biconic,
+    Compound,
+    LensletArray,
+    LensletRings,
+    Plane,
+    SinusoidalGrid,
+    Sphere,
+    Toric,
+    make_surface,
+)
 from render_inspect.errors import InputError, SceneError
 from render_inspect.scene import load_scene, scene_from_dict
 

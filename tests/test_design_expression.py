@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from render_inspect.design import ExpressionSurface, SinusoidalGrid, Sphere, make_surface
+from render_inspect.design import (
+    ExpressionSurface,
+    SinusoidalGrid,
+    Sphere,
+    make_surface,
+)
 from render_inspect.errors import InputError, SceneError
 from render_inspect.scene import scene_from_dict
 

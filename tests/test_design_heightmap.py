@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose
 
 from render_inspect.design import HeightMapSurface, Sphere, make_surface
 from render_inspect.errors import InputError
+from render_inspect.io import write_heightmap_exr
 from render_inspect.machining import HeightMap
 from render_inspect.scene import load_scene
 
@@ -28,7 +29,7 @@ def _sphere_grid():
 def sphere_exr(tmp_path):
     s, z = _sphere_grid()
     path = tmp_path / "heightmap.exr"
-    HeightMap(z, z + 1e-6, PIXEL, ORIGIN, scene={"design": {"type": "sphere"}}).to_exr(path)
+    write_heightmap_exr(path, HeightMap(z, z + 1e-6, PIXEL, ORIGIN, scene={"design": {"type": "sphere"}}))
     return s, path
 
 

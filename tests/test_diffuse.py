@@ -16,8 +16,13 @@ import pytest
 
 from render_inspect.errors import InputError
 from render_inspect.machining import HeightMap
-from render_inspect.render import (AL_REFLECTANCE_RGB, diffuse_scene_spec, environment_map,
-                                   light_profile, render_diffuse)
+from render_inspect.render import (
+    AL_REFLECTANCE_RGB,
+    diffuse_scene_spec,
+    environment_map,
+    light_profile,
+    render_diffuse,
+)
 from render_inspect.scene import DiffuseConfig
 
 pytestmark = pytest.mark.mitsuba
@@ -90,7 +95,7 @@ def test_same_images_in_a_new_process():
         "import numpy as np, hashlib;"
         "from render_inspect.machining import HeightMap;"
         "from render_inspect.scene import DiffuseConfig, InterferometerConfig;"
-        "from render_inspect.render import render_diffuse, render_interferogram;"
+        "from render_inspect.render import render_diffuse; from render_inspect.instruments import render_interferogram;"
         "c=np.linspace(-1,1,201); X,Y=np.meshgrid(c,c);"
         "z=5e-4*np.sin(2*np.pi*X/0.5)*np.cos(2*np.pi*Y/0.7);"
         "hm=HeightMap(z,z+1e-6*np.cos(2*np.pi*X/0.03),c[1]-c[0],(-1.0,-1.0));"

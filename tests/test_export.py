@@ -9,9 +9,16 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
+from render_inspect.io import (
+    CSV_COLUMNS,
+    export_program,
+    read_csv,
+    read_nc,
+    read_toolpath_npz,
+    write_csv,
+    write_nc,
+)
 from render_inspect.toolpath import ToolPath
-from render_inspect.toolpath._export import (CSV_COLUMNS, export_toolpath, read_csv, read_nc,
-                                             write_csv, write_nc)
 
 
 def _path(n=3000, seed=1):
@@ -98,12 +105,12 @@ def test_csv_round_trip_exact(tmp_path):
 def test_export_dispatch(tmp_path):
     p = _path(50)
     for fmt, name in (("npz", "toolpath.npz"), ("csv", "toolpath.csv"), ("nc", "toolpath.nc")):
-        f = export_toolpath(p, tmp_path / "out", fmt=fmt, header={"scene": "x"})
+        f = export_program(p, tmp_path / "out", fmt=fmt, header={"scene": "x"})
         assert f.name == name and f.is_file()
-    q = ToolPath.load_npz(tmp_path / "out" / "toolpath.npz")
+    q = read_toolpath_npz(tmp_path / "out" / "toolpath.npz")
     assert_allclose(q.rho, p.rho)
     with pytest.raises(InputError, match=r"--format must be one of \['csv', 'nc', 'npz'\], received 'gcode'"):
-        export_toolpath(p, tmp_path, fmt="gcode")
+        export_program(p, tmp_path, fmt="gcode")
     bad = tmp_path / "h.csv"
     bad.write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="CSV header must be"):
@@ -113,13 +120,14 @@ def test_export_dispatch(tmp_path):
 def test_rcse_path_exports_and_parses_back(tmp_path):
     from pathlib import Path
 
+    from render_inspect.pipeline import plan_program
+    from render_inspect.processes import process_of
     from render_inspect.scene import load_scene
-    from render_inspect.toolpath._rcse import build_rcse_toolpath
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "rcse_circular_array.toml",
                        ["process.workpiece_radius=1.3", "process.inner_radius=1.2"])
-    path = build_rcse_toolpath(scene)
-    f = export_toolpath(path, tmp_path, fmt="nc", scene=scene)
+    path = plan_program(scene).program
+    f = export_program(path, tmp_path, fmt="nc", header=process_of(scene).program_header(scene))
     q = read_nc(f)
     assert q.meta["scene"] == "rcse_circular_array" and q.meta["spindle_rpm"] == "42.0"
     assert q.meta["compensation"] == "z" and int(q.meta["points"]) == path.points

@@ -12,9 +12,14 @@ import numpy as np
 import pytest
 
 from render_inspect.errors import InputError, SceneError
+from render_inspect.instruments import (
+    Interferogram,
+    camera_noise,
+    read_interferogram_exr,
+    render_interferogram,
+    write_interferogram_exr,
+)
 from render_inspect.machining import HeightMap
-from render_inspect.render import (Interferogram, camera_noise, read_interferogram_exr,
-                                   render_interferogram, write_interferogram_exr)
 from render_inspect.scene import InterferometerConfig
 
 pytestmark = pytest.mark.mitsuba

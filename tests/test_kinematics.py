@@ -9,9 +9,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.scene import ProcessConfig
-from render_inspect.toolpath import ToolPath
-from render_inspect.toolpath._kinematics import axis_derivatives, kinematics, limits_from_process, plot_kinematics
+from render_inspect.processes import StsProcessConfig as ProcessConfig
+from render_inspect.report import plot_kinematics
+from render_inspect.toolpath import (
+    ToolPath,
+    axis_derivatives,
+    kinematics,
+    limits_from_process,
+)
 
 
 def _nonuniform_t(n=400, seed=3):

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from render_inspect.errors import MemoryBudgetError
-from render_inspect.machining import HeightMap, residual_metrics, simulate_scene, simulate_turning
+from render_inspect.io import read_heightmap_exr
+from render_inspect.machining import residual_metrics, simulate_turning
+from render_inspect.pipeline import simulate as simulate_scene
 from render_inspect.scene import load_scene
 from render_inspect.toolpath import ToolPath
 
@@ -110,7 +112,7 @@ def test_simulate_cli_writes_contract_files(tmp_path):
         assert k in m["toolpath"]
     assert {"toolpath", "simulate"} <= set(m["timing_s"]) and m["samples"] == 51 * 51
     assert m["compensation"] == "z" and m["software_version"]
-    hm = HeightMap.from_exr(out / "heightmap.exr")
+    hm = read_heightmap_exr(out / "heightmap.exr")
     assert hm.pixel == 0.002 and hm.origin == (0.2, 0.2)
     from render_inspect.io import read_exr
 
@@ -120,10 +122,10 @@ def test_simulate_cli_writes_contract_files(tmp_path):
     np.testing.assert_allclose(ch["residual"], (hm.machined - hm.design), atol=1e-9)
     tp = np.load(out / "toolpath.npz")
     assert set(tp.files) == {"theta", "rho", "x", "y", "z", "t"}
-    # bad input: clear error, exit code 2, nothing written
+    # bad input: clear error, exit code 1, nothing written
     bad = tmp_path / "bad"
     p = subprocess.run(cmd[:6] + [str(bad), "--set", "tool.nose_radius=-1"], capture_output=True, text=True)
-    assert p.returncode == 2 and "tool.nose_radius" in p.stderr and not bad.exists()
+    assert p.returncode == 1 and "tool.nose_radius" in p.stderr and not bad.exists()
 
 
 def test_help_is_fast_and_imports_no_engine():

@@ -10,8 +10,14 @@ import trimesh
 
 from render_inspect.errors import InputError, MemoryBudgetError
 from render_inspect.machining import HeightMap
-from render_inspect.mesh import (decimation_stride, export_mesh, grid_mesh, heightmap_mesh,
-                                 heightmap_to_trimesh, window_indices)
+from render_inspect.mesh import (
+    decimation_stride,
+    export_mesh,
+    grid_mesh,
+    heightmap_mesh,
+    heightmap_to_trimesh,
+    window_indices,
+)
 
 
 def _hm(ny=6, nx=9, pixel=0.01, origin=(-0.04, 0.02), seed=0):

@@ -11,10 +11,15 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.io import write_x3p
+from render_inspect.io import read_measured, write_x3p
 from render_inspect.machining import HeightMap
-from render_inspect.metrology import (RIGID_KEYS, characterise_map, compare_measured, coverage,
-                                      rigid_resample)
+from render_inspect.metrology import (
+    RIGID_KEYS,
+    characterise_map,
+    compare_measured,
+    coverage,
+    rigid_resample,
+)
 from render_inspect.scene import MetrologyConfig
 
 
@@ -53,7 +58,7 @@ def _virtual_measurement(tmp_path):
 
 def test_compare_measured_recovers_residual_and_matches_simulation(tmp_path):
     path, sim = _virtual_measurement(tmp_path)
-    cmp_ = compare_measured(path, Freeform(), metrology=MetrologyConfig(form_removal="plane"),
+    cmp_ = compare_measured(read_measured(path), Freeform(), metrology=MetrologyConfig(form_removal="plane"),
                             simulated=sim, region=REGION)
     m = cmp_.metrics
     for k in RIGID_KEYS:
@@ -71,9 +76,9 @@ def test_compare_bad_input(tmp_path):
     path, sim = _virtual_measurement(tmp_path)
     sim2 = HeightMap(sim.design[::2, ::2], sim.machined[::2, ::2], 2 * PIXEL, ORIGIN)
     with pytest.raises(InputError, match=r"measured 0.01 mm vs simulated 0.02 mm"):
-        compare_measured(path, Freeform(), simulated=sim2)
+        compare_measured(read_measured(path), Freeform(), simulated=sim2)
     with pytest.warns(UserWarning, match="resampled"):
-        c = compare_measured(path, Freeform(), simulated=sim2, resample_simulated=True)
+        c = compare_measured(read_measured(path), Freeform(), simulated=sim2, resample_simulated=True)
     assert c.metrics["difference"]["Sq_nm"] < 5.0
     # heights in micrometres read as millimetres: 1000 x the design's range
     zz = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],
@@ -81,13 +86,13 @@ def test_compare_bad_input(tmp_path):
     with pytest.raises(InputError, match="unit is probably wrong"):
         compare_measured((zz * 1e3, PIXEL, ORIGIN), Freeform())
     with pytest.raises(InputError, match="does not overlap"):
-        compare_measured(path, Freeform(), region=(10.0, 10.0, 11.0, 11.0))
+        compare_measured(read_measured(path), Freeform(), region=(10.0, 10.0, 11.0, 11.0))
     with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
         with pytest.raises(InputError, match=r"overlaps 2[0-9]\.[0-9]% of the smaller .* at least "
                                              r"80% is needed \(--force compares anyway\)"):
-            compare_measured(path, Freeform(), region=(0.0, 0.0, 1.0, 1.0))
+            compare_measured(read_measured(path), Freeform(), region=(0.0, 0.0, 1.0, 1.0))
     with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
-        c = compare_measured(path, Freeform(), region=(0.0, 0.0, 1.0, 1.0), force=True)
+        c = compare_measured(read_measured(path), Freeform(), region=(0.0, 0.0, 1.0, 1.0), force=True)
     assert c.metrics["checks"]["ok"] is False and c.metrics["checks"]["refusals"]
     # NaNs in the measurement are left out explicitly, and reported through n_valid
     z = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],

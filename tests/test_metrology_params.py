@@ -8,10 +8,19 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.metrology import (GAUSSIAN_ALPHA, areal_parameters, characterise_map,
-                                      extract_section, gaussian_filter, gaussian_sigma, l_filter,
-                                      profile_parameters, remove_form, s_filter,
-                                      section_parameters)
+from render_inspect.metrology import (
+    GAUSSIAN_ALPHA,
+    areal_parameters,
+    characterise_map,
+    extract_section,
+    gaussian_filter,
+    gaussian_sigma,
+    l_filter,
+    profile_parameters,
+    remove_form,
+    s_filter,
+    section_parameters,
+)
 
 
 def _grid(n=200, pixel=0.002):

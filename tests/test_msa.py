@@ -10,9 +10,16 @@ from numpy.testing import assert_allclose
 from render_inspect.design import LensletArray
 from render_inspect.errors import InputError
 from render_inspect.machining import HeightMap
+from render_inspect.metrology import (
+    LENSLET_KEYS,
+    RIGID_KEYS,
+    base_form_error,
+    characterise_msa,
+    lenslet_table,
+    rigid_resample,
+    separate_msa,
+)
 from render_inspect.scene import MetrologyConfig
-from render_inspect.metrology import (LENSLET_KEYS, RIGID_KEYS, base_form_error, characterise_msa,
-                                      lenslet_table, rigid_resample, separate_msa)
 
 PIXEL = 0.01
 

@@ -8,8 +8,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.metrology._phase import (height_error, height_from_phase, retrieve_csi,
-                                             retrieve_psi, unwrap_phase, wrapped_phase)
+from render_inspect.metrology._phase import (
+    height_error,
+    height_from_phase,
+    retrieve_csi,
+    retrieve_psi,
+    unwrap_phase,
+    wrapped_phase,
+)
 
 LAM_NM = 632.8
 LAM = LAM_NM * 1e-6  # mm

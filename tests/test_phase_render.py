@@ -8,10 +8,16 @@ import json
 import numpy as np
 import pytest
 
+from render_inspect.core import HeightMap
 from render_inspect.io import read_exr
-from render_inspect.machining import HeightMap
-from render_inspect.metrology._phase import add_height_measured, measure_interferogram
+from render_inspect.metrology import evaluate_measurement, measure_frames
+from render_inspect.pipeline import measure_and_evaluate
 from render_inspect.scene import InterferometerConfig
+
+
+def measure_interferogram(ig):
+    """Measure the frames alone (the recording), then evaluate against the truth."""
+    return evaluate_measurement(measure_frames(ig.recorded()), ig.height_true)
 
 
 def _sphere_map(radius=2.0, n=121, pixel=0.001):
@@ -22,7 +28,7 @@ def _sphere_map(radius=2.0, n=121, pixel=0.001):
 
 
 def _render(mode, *, noise=False):
-    from render_inspect.render import render_interferogram
+    from render_inspect.instruments import render_interferogram
 
     icfg = InterferometerConfig(mode=mode, pixel=0.002, field_of_view=(-0.05, -0.05, 0.05, 0.05),
                                 noise=noise, subsamples=1)
@@ -48,14 +54,14 @@ def test_camera_noise_costs_a_few_nm():
 
 
 @pytest.mark.mitsuba
-def test_add_height_measured_rewrites_exr(tmp_path):
-    from render_inspect.render import write_interferogram_exr
+def test_measure_and_evaluate_rewrites_exr(tmp_path):
+    from render_inspect.instruments import write_interferogram_exr
 
     ig = _render("psi")
     path = tmp_path / "interferogram.exr"
     write_interferogram_exr(path, ig, scene={"name": "t"})
     before, _ = read_exr(path)
-    res, m = add_height_measured(path)
+    res, m = measure_and_evaluate(path)
     ch, attrs = read_exr(path)
     assert set(before) | {"height_measured", "valid_measured"} == set(ch)
     for k in before:  # the renderer's channels are kept unchanged

@@ -28,8 +28,8 @@ def test_sculpt_program_export(tmp_path, fmt):
 
 
 def test_sts_nc_program_parses_back(tmp_path):
+    from render_inspect.io import read_nc
     from render_inspect.toolpath import ToolPath
-    from render_inspect.toolpath._export import read_nc
 
     out = tmp_path / "nc"
     p = _cli("toolpath", REPO / "scenes" / "sts_fig16_overcut.toml", "--out", out, "--format", "nc",

@@ -9,8 +9,15 @@ from numpy.testing import assert_allclose
 
 from render_inspect.design import LensletArray
 from render_inspect.errors import InputError
-from render_inspect.metrology import (RIGID_KEYS, MovedSurface, detect_outliers, register_icp,
-                                      register_lsq, rigid_resample, template_surface)
+from render_inspect.metrology import (
+    RIGID_KEYS,
+    MovedSurface,
+    detect_outliers,
+    register_icp,
+    register_lsq,
+    rigid_resample,
+    template_surface,
+)
 
 
 class Freeform:

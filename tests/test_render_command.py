@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from render_inspect.errors import InputError
+from render_inspect.instruments import render_interferogram
 from render_inspect.io import read_exr
-from render_inspect.render import render_heightmap, render_interferogram, run_render
+from render_inspect.pipeline import render_heightmap, run_render
 from render_inspect.scene import InterferometerConfig, load_scene
 
 pytestmark = pytest.mark.mitsuba

@@ -69,3 +69,25 @@ def test_unknown_design_type():
 def test_missing_file():
     with pytest.raises(SceneError, match="not found"):
         load_scene("/nonexistent/scene.toml")
+
+
+def test_scene_key_reference_is_current():
+    """docs/scene_keys.md is generated from the schema; regenerate it with
+    ``python -m render_inspect.scene.reference > docs/scene_keys.md``."""
+    from render_inspect.scene._reference import scene_reference_markdown
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "scene_keys.md").read_text()
+    assert doc == scene_reference_markdown()
+    for key in ("spindle_rpm", "nose_radius", "wavelength_nm", "amplitude_x", "region"):
+        assert f"`{key}`" in doc
+
+
+def test_shipped_scenes_are_found_by_name():
+    from render_inspect.scene import find_scene, shipped_scenes
+
+    names = set(shipped_scenes())
+    assert {"sts_sinusoidal_grid", "hts_toric_msa", "sculpt_quad_mla", "rcse_circular_array"} <= names
+    assert find_scene("sts_sinusoidal_grid").name == "sts_sinusoidal_grid.toml"
+    assert load_scene("sts_fig16_overcut.toml").name == "sts_fig16_overcut"
+    with pytest.raises(SceneError, match="shipped scene"):
+        find_scene("no_such_scene")

@@ -10,8 +10,9 @@ from numpy.testing import assert_allclose
 
 from render_inspect.design import Plane
 from render_inspect.errors import AccessibilityError, InputError, SceneError
-from render_inspect.machining import simulate_scene
-from render_inspect.machining._sculpt import sculpt_line_profile, simulate_sculpt, target_line
+from render_inspect.machining import sculpt_line_profile, target_line
+from render_inspect.pipeline import plan_program
+from render_inspect.pipeline import simulate as simulate_scene
 from render_inspect.scene import load_scene
 
 R_LENS = 1.0
@@ -54,8 +55,8 @@ def test_vibration_overcut_on_a_slope_is_amplitude_times_slope():
 
 def test_amplitude_zero_removes_the_vibration_overcut(scenes_dir):
     s0 = _scene(scenes_dir, extra=["artifacts.vibration.amplitude=0.0"])
-    r0 = simulate_sculpt(s0)
-    r_nofreq = simulate_sculpt(_scene(scenes_dir, extra=["artifacts.vibration.frequency_hz=0.0"]))
+    r0 = simulate_scene(s0)
+    r_nofreq = simulate_scene(_scene(scenes_dir, extra=["artifacts.vibration.frequency_hz=0.0"]))
     assert r0.metrics["sculpt"]["vibration_overcut_um"] == 0.0
     assert_allclose(r0.heightmap.machined, r_nofreq.heightmap.machined, rtol=0, atol=0)
     # and what is left is the tool-edge overcut alone
@@ -67,7 +68,7 @@ def test_papers_theoretical_form_errors(scenes_dir):
     """Seed 003 Fig. 5: vibration overcut within 0.1 um, largest at the edges between
     lenslets; tool-edge overcut 0.025 um at the four-lenslet cusp (R = r = 1 mm)."""
     scene = _scene(scenes_dir)
-    res = simulate_sculpt(scene)
+    res = simulate_scene(scene)
     m = res.metrics["sculpt"]
     # vibration: about A x the largest slope along the cut (5.7 deg), and below 0.1 um
     slope = (P / 2) / math.sqrt(R_LENS ** 2 - (P / 2) ** 2)
@@ -81,7 +82,7 @@ def test_papers_theoretical_form_errors(scenes_dir):
     assert m["tool_edge_overcut_um"] == pytest.approx(cusp * 1e3, abs=0.001)
 
     # where: separate the two overcuts and locate them
-    r0 = simulate_sculpt(_scene(scenes_dir, extra=["artifacts.vibration.amplitude=0.0"]))
+    r0 = simulate_scene(_scene(scenes_dir, extra=["artifacts.vibration.amplitude=0.0"]))
     hm, hm0 = res.heightmap, r0.heightmap
     X, Y = np.meshgrid(hm.x, hm.y)
     edge_over = hm0.design - hm0.machined
@@ -112,18 +113,17 @@ def test_sculpt_is_deterministic_and_records_the_seed(scenes_dir):
 
 
 def test_sculpt_needs_quad_cells(scenes_dir):
-    scene = _scene(scenes_dir).with_overrides(
-        ['design={type="lenslet_array", cells="round", rows=3, cols=3, pitch_x=0.2, '
-         'pitch_y=0.2, lens_radius=1.0, aperture_radius=0.09}'])
     with pytest.raises(SceneError, match="quad"):
-        simulate_sculpt(scene)
+        _scene(scenes_dir).with_overrides(
+            ['design={type="lenslet_array", cells="round", rows=3, cols=3, pitch_x=0.2, '
+             'pitch_y=0.2, lens_radius=1.0, aperture_radius=0.09}'])
 
 
 def test_clearance_smaller_than_the_slope_is_refused(scenes_dir):
     scene = _scene(scenes_dir, extra=["tool.clearance_angle_deg=5"])
     with pytest.raises(AccessibilityError, match="clearance_angle_deg"):
-        simulate_sculpt(scene)
-    ok = simulate_sculpt(scene.with_overrides(["process.allow_gouge=true"]))
+        simulate_scene(scene)
+    ok = simulate_scene(scene.with_overrides(["process.allow_gouge=true"]))
     assert np.isfinite(ok.heightmap.machined).all()
 
 
@@ -140,10 +140,10 @@ def test_line_profile_bad_input_is_named():
 def test_a_window_matches_the_whole_array(scenes_dir):
     """Simulating a window of the array cuts only the cells that reach it, with the same
     result there as the whole array."""
-    full = simulate_sculpt(_scene(scenes_dir, n=5))
+    full = simulate_scene(_scene(scenes_dir, n=5))
     h = 5 * P / 2
     k = P        # a window from the centre of lenslet (3, 3) to the top-right corner
-    win = simulate_sculpt(_scene(scenes_dir, n=5, extra=[f"simulation.region=[{k}, {k}, {h}, {h}]"]))
+    win = simulate_scene(_scene(scenes_dir, n=5, extra=[f"simulation.region=[{k}, {k}, {h}, {h}]"]))
     a, b = full.heightmap, win.heightmap
     j0 = int(round((b.origin[1] - a.origin[1]) / a.pixel))
     i0 = int(round((b.origin[0] - a.origin[0]) / a.pixel))
@@ -154,10 +154,10 @@ def test_a_window_matches_the_whole_array(scenes_dir):
 
 def test_sculpt_program_follows_the_design_along_the_lines(scenes_dir):
     from render_inspect.design import make_surface
-    from render_inspect.machining._sculpt import sculpt_program
 
     scene = _scene(scenes_dir)
-    prog = sculpt_program(scene)
+    p = plan_program(scene).program
+    prog = {"x": p.x, "y": p.y, "z": p.z, "t": p.t, "line": p.line}
     surf = make_surface(scene.design)
     assert sorted(set(np.round(prog["x"], 9))) == pytest.approx([-P, 0.0, P])
     assert_allclose(prog["z"], surf.height(prog["x"], prog["y"]), atol=1e-15)

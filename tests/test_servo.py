@@ -8,12 +8,24 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from render_inspect.design import make_surface
 from render_inspect.errors import InputError, SceneError
-from render_inspect.machining import simulate_sts, simulate_turning
-from render_inspect.machining._servo import (followed_path, servo_response, simulate_hts,
-                                             split_commands)
+from render_inspect.machining import (
+    followed_path,
+    servo_response,
+    simulate_turning,
+    split_commands,
+)
+from render_inspect.pipeline import simulate
+from render_inspect.processes import plan_spiral
 from render_inspect.scene import load_scene, scene_from_dict
-from render_inspect.toolpath import build_toolpath
+
+simulate_hts = simulate_sts = simulate
+
+
+def build_toolpath(scene, region):
+    """The scene's commanded turning program over ``region``."""
+    return plan_spiral(scene, make_surface(scene.design), region=region)
 
 
 def _lag_scene(*, delay_s=0.0, bandwidth_hz=None, kind="hts", region=(0.55, -0.45, 2.45, 0.75)):
@@ -122,11 +134,12 @@ def test_ideal_servo_without_lag_reproduces_the_commanded_surface(kind):
 def test_followed_path_equals_command_for_an_ideal_servo():
     scene = _lag_scene()
     path = build_toolpath(scene, region=scene.simulation.region)
-    from render_inspect.design import make_surface
-
     zs, zf = split_commands(path, "hts", base=make_surface(scene.design).base,
                             nose_radius=0.2, half_width=0.1)
-    fpath, _, _ = followed_path(path, zs, zf, scene.artifacts.servo)
+    sv = scene.artifacts.servo
+    fpath, _, _ = followed_path(path, zs, zf, slow_bandwidth_hz=sv.slow_bandwidth_hz,
+                                slow_damping=sv.slow_damping, fts_bandwidth_hz=sv.bandwidth_hz,
+                                fts_damping=sv.damping, fts_delay_s=sv.delay_s)
     region, px = scene.simulation.region, scene.simulation.pixel
     a = simulate_turning(path, nose_radius=0.2, region=region, pixel=px, half_width=0.1)
     b = simulate_turning(fpath, nose_radius=0.2, region=region, pixel=px, half_width=0.1)
@@ -175,9 +188,8 @@ def test_finite_bandwidth_adds_its_group_delay():
 
 
 def test_hts_needs_a_compound_design():
-    scene = _lag_scene().with_overrides(['design={type="sphere", radius=50.0}'])
     with pytest.raises(SceneError, match="compound"):
-        simulate_hts(scene)
+        _lag_scene().with_overrides(['design={type="sphere", radius=50.0}'])
 
 
 def test_servo_scene_keys_are_validated():

@@ -6,19 +6,38 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from render_inspect.design import Plane, SinusoidalGrid, Sphere
+from render_inspect.design import Plane, SinusoidalGrid, Sphere, make_surface
 from render_inspect.errors import AccessibilityError
+from render_inspect.processes import plan_spiral
 from render_inspect.scene import load_scene
-from render_inspect.toolpath import (Tool, build_toolpath, check_accessibility, chordal_step_for,
-                                     normal_compensation, spiral_ccps, z_compensation)
+from render_inspect.toolpath import (
+    Tool,
+    check_accessibility,
+    chordal_step_for,
+    normal_compensation,
+    spiral_ccps,
+    z_compensation,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "scenes" / "sts_sinusoidal_grid.toml"
 
 
+def _spiral(p, **kw):
+    """spiral_ccps with the [process] keys of a scene."""
+    return spiral_ccps(feed_per_rev=p.feed_per_rev, sampling=p.sampling,
+                       points_per_rev=p.points_per_rev, arc_length=p.arc_length,
+                       switch_radius=p.switch_radius, **kw)
+
+
+def build_toolpath(s, region):
+    """The scene's turning program over ``region``."""
+    return plan_spiral(s, make_surface(s.design), region=region)
+
+
 def test_constant_angle_spiral_matches_seed000_formula():
     s = load_scene(GRID, ["process.points_per_rev=360", "process.workpiece_radius=1.0"])
-    theta, rho = spiral_ccps(s.process, r_outer=1.0, r_inner=0.5)
+    theta, rho = _spiral(s.process, r_outer=1.0, r_inner=0.5)
     f, S, N = s.process.feed_mm_per_min, s.process.spindle_rpm, 360
     i = np.arange(len(theta))
     np.testing.assert_allclose(rho, 1.0 - i * f / (S * N), atol=1e-12)  # rho_i = Rw - (i-1) f/(S N)
@@ -28,7 +47,7 @@ def test_constant_angle_spiral_matches_seed000_formula():
 
 def test_constant_arc_spiral_has_equal_arc_steps():
     s = load_scene(GRID, ["process.sampling='constant_arc'", "process.arc_length=0.01"])
-    theta, rho = spiral_ccps(s.process, r_outer=2.0, r_inner=1.0)
+    theta, rho = _spiral(s.process, r_outer=2.0, r_inner=1.0)
     ds = rho[:-1] * np.diff(theta)  # circumferential arc per step
     np.testing.assert_allclose(ds, 0.01, rtol=2e-3)
 
@@ -36,7 +55,7 @@ def test_constant_arc_spiral_has_equal_arc_steps():
 def test_hybrid_switches_from_arc_to_angle():
     s = load_scene(GRID, ["process.sampling='hybrid'", "process.arc_length=0.01", "process.switch_radius=1.0",
                           "process.points_per_rev=720"])
-    theta, rho = spiral_ccps(s.process, r_outer=2.0, r_inner=0.2)
+    theta, rho = _spiral(s.process, r_outer=2.0, r_inner=0.2)
     dth = np.diff(theta)[:-1]  # the last step ends at r_inner and may be shorter
     rho = rho[:-1]
     inner = rho[1:] < 0.99

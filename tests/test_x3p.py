@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.io import read_measured, read_x3p, write_x3p
+from render_inspect.io import read_measured, read_x3p, write_heightmap_exr, write_x3p
 from render_inspect.machining import HeightMap
 
 
@@ -68,7 +68,7 @@ def test_read_measured_sur_written_by_surfalize(tmp_path):
 def test_read_measured_exr_npy_npz(tmp_path):
     z = _map()
     hm = HeightMap(np.zeros_like(z), z, 0.002, (0.1, 0.2))
-    hm.to_exr(tmp_path / "heightmap.exr")
+    write_heightmap_exr(tmp_path / "heightmap.exr", hm)
     zz, pixel, origin, meta = read_measured(tmp_path / "heightmap.exr")
     assert_allclose(zz, z.astype(np.float32), atol=0)
     assert pixel == 0.002 and origin == (0.1, 0.2) and meta["channel"] == "machined"
@@ -83,7 +83,7 @@ def test_read_measured_exr_npy_npz(tmp_path):
 
 
 def test_read_measured_bad_input(tmp_path):
-    with pytest.raises(InputError, match="unknown height-map format '.xyz2'"):
+    with pytest.raises(InputError, match="unknown measured file format '.xyz2'"):
         read_measured(tmp_path / "a.xyz2")
     (tmp_path / "a.datx").write_bytes(b"not HDF5")  # Zygo .datx: SurfaceTopography's reader
     with pytest.raises(InputError, match="DATXReader could not read it"):

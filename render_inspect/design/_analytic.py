@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Literal
 
-from ..errors import InputError
+import numpy as np
+from pydantic import Field, model_validator
+
+from ..core.errors import InputError
+from ..core.section import Section
 from ._base import Surface
+from ._registry import register_design
 
 TWO_PI = 2 * np.pi
 
@@ -241,3 +246,93 @@ class Toric(Surface):
         hxy = -self._sy * sy_xy
         hyy = -self._sy * sy_yy
         return tuple(np.broadcast_arrays(hxx, hxy, hyy))
+
+
+# ------------------------------------------------------------------ scene schema
+class SinusoidalGridConfig(Section):
+    """z = Ax cos(2 pi x / lx + px) + Ay cos(2 pi y / ly + py) + offset (seed 000)."""
+    type: Literal["sinusoidal_grid"]
+    amplitude_x: float = Field(0.002, ge=0, le=1.0, description="mm")
+    amplitude_y: float = Field(0.002, ge=0, le=1.0, description="mm")
+    wavelength_x: float = Field(2.5, gt=0, description="mm")
+    wavelength_y: float = Field(2.5, gt=0, description="mm")
+    phase_x: float = Field(0.0, description="rad")
+    phase_y: float = Field(0.0, description="rad")
+    offset: float = Field(0.0, description="mm")
+
+
+class PlaneConfig(Section):
+    """z = slope_x x + slope_y y + offset."""
+    type: Literal["plane"]
+    slope_x: float = Field(0.0, ge=-10, le=10, description="dz/dx")
+    slope_y: float = Field(0.0, ge=-10, le=10, description="dz/dy")
+    offset: float = 0.0
+
+
+class SphereConfig(Section):
+    """Sphere with apex at (x0, y0, offset); radius > 0 convex (cap up), < 0 concave."""
+    type: Literal["sphere"]
+    radius: float = Field(..., description="mm; > 0 convex, < 0 concave; |radius| > 0")
+    x0: float = 0.0
+    y0: float = 0.0
+    offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _nonzero(self):
+        if self.radius == 0:
+            raise ValueError("radius must be non-zero (> 0 convex, < 0 concave), received 0")
+        return self
+
+
+class ToricConfig(Section):
+    """Toric surface with principal radii along x (radius_x) and y (radius_y).
+    Sign as for sphere: > 0 convex, < 0 concave."""
+    type: Literal["toric"]
+    radius_x: float
+    radius_y: float
+    offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _nonzero(self):
+        for k in ("radius_x", "radius_y"):
+            if getattr(self, k) == 0:
+                raise ValueError(f"{k} must be non-zero, received 0")
+        return self
+
+
+class BiconicConfig(Section):
+    """Biconic sag; conic 0 = sphere-like sections, -1 = paraboloid.
+    Sign as for sphere: > 0 convex, < 0 concave.  ``type = "paraboloid"`` is the biconic
+    with conic_x = conic_y = -1 (the default there; other conics are rejected)."""
+    type: Literal["biconic", "paraboloid"]
+    radius_x: float
+    radius_y: float
+    conic_x: float = 0.0
+    conic_y: float = 0.0
+    offset: float = 0.0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _paraboloid(cls, data):
+        if isinstance(data, dict) and data.get("type") == "paraboloid":
+            data = dict(data)
+            for k in ("conic_x", "conic_y"):
+                v = data.setdefault(k, -1.0)
+                if v != -1:
+                    raise ValueError(f"{k} must be -1 for type = 'paraboloid' (use type = "
+                                     f"'biconic' for other conics), received {v!r}")
+        return data
+
+    @model_validator(mode="after")
+    def _nonzero(self):
+        for k in ("radius_x", "radius_y"):
+            if getattr(self, k) == 0:
+                raise ValueError(f"{k} must be non-zero, received 0")
+        return self
+
+
+register_design(SinusoidalGridConfig, SinusoidalGrid)
+register_design(PlaneConfig, Plane)
+register_design(SphereConfig, Sphere)
+register_design(ToricConfig, Toric)
+register_design(BiconicConfig, Biconic)

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
-from ..errors import InputError
-from ._base import Surface
+from typing import ClassVar, Literal
 
-__all__ = ["Compound"]
+from ..core.errors import InputError
+from ..core.section import Section
+from ._base import Surface
+from ._registry import make_surface, register_design
+
+__all__ = ["Compound", "CompoundConfig"]
 
 
 class Compound(Surface):
@@ -49,3 +53,19 @@ class Compound(Surface):
 
     def __repr__(self):
         return f"Compound(base={self.base!r}, feature={self.feature!r})"
+
+
+# ------------------------------------------------------------------ scene schema
+class CompoundConfig(Section):
+    """Base + feature (seed 001, seed 002): heights add."""
+    nests_design: ClassVar[bool] = True
+    type: Literal["compound"]
+    base: "DesignConfig"  # noqa: F821  (the [design] union, resolved by the registry)
+    feature: "DesignConfig"  # noqa: F821
+
+
+def _compound(cfg: CompoundConfig) -> Compound:
+    return Compound(make_surface(cfg.base), make_surface(cfg.feature))
+
+
+register_design(CompoundConfig, _compound)

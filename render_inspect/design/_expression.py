@@ -12,11 +12,15 @@ from __future__ import annotations
 
 import ast
 import math
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
-from ..errors import InputError
+from ..core.errors import InputError
+from ..core.section import Section
 from ._base import Surface
+from ._registry import register_design
 
 __all__ = ["ExpressionSurface", "parse_expression", "ALLOWED_FUNCTIONS"]
 
@@ -396,3 +400,14 @@ class ExpressionSurface(Surface):
 
     def __repr__(self):
         return f"ExpressionSurface({self.expr!r}, constants={self.constants!r})"
+
+
+# ------------------------------------------------------------------ scene schema
+class ExpressionConfig(Section):
+    """A user expression in x and y (mm), evaluated safely (whitelisted functions)."""
+    type: Literal["expression"]
+    expr: str = Field(..., min_length=1, max_length=2000)
+    constants: dict[str, float] = Field(default_factory=dict)
+
+
+register_design(ExpressionConfig, ExpressionSurface)

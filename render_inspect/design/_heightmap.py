@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
+from ..core.section import Section
+from ..io import read_exr
 from ._base import Surface
+from ._registry import register_design
 
 __all__ = ["HeightMapSurface"]
 
@@ -106,8 +111,6 @@ class HeightMapSurface(Surface):
         if not path.is_file():
             raise InputError(f"design.path: file not found: {str(path)!r}")
         if suffix == ".exr":
-            from ..io import read_exr
-
             chans, attrs = read_exr(path)
             if channel not in chans:
                 raise InputError(f"design.channel {channel!r} is not in {str(path)!r} "
@@ -202,3 +205,17 @@ class HeightMapSurface(Surface):
         return (f"HeightMapSurface({self.path!r}, channel={self.channel!r}, shape="
                 f"{self.data.shape}, pixel={self.pixel}, origin={self.origin}, "
                 f"interpolation={self.interpolation!r})")
+
+
+# ------------------------------------------------------------------ scene schema
+class HeightMapConfig(Section):
+    """A height map loaded from EXR (channel ``channel``) or .npy, interpolated."""
+    type: Literal["heightmap"]
+    path: str
+    channel: str = "design"
+    pixel: float | None = Field(None, gt=0, description="mm; required for .npy")
+    origin: tuple[float, float] | None = Field(None, description="mm, centre of pixel [0, 0]; .npy")
+    interpolation: Literal["linear", "cubic"] = "cubic"
+
+
+register_design(HeightMapConfig, HeightMapSurface)

@@ -8,11 +8,15 @@ element's centre), its gradient ``(dx, dy) / sqrt(R^2 - s^2)``.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
+from pydantic import Field, model_validator
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
+from ..core.section import Section
 from ._base import Surface
+from ._registry import register_design
 
 __all__ = ["LensletArray", "LensletRings", "sphere_sag", "lens_radius_from_sag"]
 
@@ -304,3 +308,92 @@ class LensletRings(Surface):
         return (f"LensletRings(ring_radii={self.ring_radii}, counts={self.counts}, "
                 f"element_radius={self.element_radius}, depth={self.depth}, "
                 f"concave={self.concave})")
+
+
+# ------------------------------------------------------------------ scene schema
+class LensletArrayConfig(Section):
+    """Spherical lenslets on a rectangular grid (seed 000 Table 4, seed 002, seed 003).
+
+    ``cells = "round"``: each lenslet is a spherical cap of aperture radius
+    ``aperture_radius`` on a flat (base) surface at ``offset``; concave lenslets are
+    dimples below it, convex ones bumps above it.  ``cells = "quad"``: sharp-edged
+    quadrilateral cells filling the grid (seed 003), ``z = offset +- s^2/(r + sqrt(r^2 - s^2))``
+    (the cell centre at ``offset``), the blank outside the array at the corners' level.
+    Give either ``lens_radius`` or (round cells) ``sag``, the chord height of one
+    lenslet: ``lens_radius = (aperture_radius^2 + sag^2) / (2 sag)``.
+    Centres: ``center + (j - (cols-1)/2) pitch_x``, ``center + (i - (rows-1)/2) pitch_y``."""
+    type: Literal["lenslet_array"]
+    rows: int = Field(2, ge=1, le=1000)
+    cols: int = Field(2, ge=1, le=1000)
+    pitch_x: float = Field(..., gt=0, description="mm, centre spacing along x")
+    pitch_y: float = Field(..., gt=0, description="mm, centre spacing along y")
+    lens_radius: float | None = Field(None, gt=0, description="mm, radius of curvature of each lenslet")
+    sag: float | None = Field(None, gt=0, description="mm, chord height of a round lenslet "
+                                                      "(instead of lens_radius)")
+    aperture_radius: float | None = Field(None, gt=0, description="mm, round cells only")
+    concave: bool = True
+    cells: Literal["round", "quad"] = "round"
+    center_x: float = 0.0
+    center_y: float = 0.0
+    offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _aperture(self):
+        if (self.lens_radius is None) == (self.sag is None):
+            raise ValueError("give exactly one of lens_radius (mm, radius of curvature) and sag "
+                             f"(mm, chord height), received lens_radius={self.lens_radius}, "
+                             f"sag={self.sag}")
+        if self.cells == "round":
+            if self.aperture_radius is None:
+                raise ValueError("aperture_radius is required for cells = 'round'")
+            half = min(self.pitch_x, self.pitch_y) / 2
+            if self.aperture_radius > half:
+                raise ValueError(f"aperture_radius must be <= half the smaller pitch ({half:g} mm; "
+                                 f"round lenslets may not overlap), received {self.aperture_radius}")
+            if self.sag is not None and self.sag >= self.aperture_radius:
+                raise ValueError(f"sag must be < aperture_radius ({self.aperture_radius} mm, a "
+                                 f"lenslet is at most a hemisphere), received {self.sag}")
+            if self.lens_radius is not None and self.aperture_radius >= self.lens_radius:
+                raise ValueError(f"aperture_radius must be < lens_radius ({self.lens_radius}), "
+                                 f"received {self.aperture_radius}")
+        else:
+            if self.sag is not None:
+                raise ValueError("sag is only defined for cells = 'round' (give lens_radius for "
+                                 f"quad cells), received sag={self.sag}")
+            if self.aperture_radius is not None:
+                raise ValueError("aperture_radius is only used with cells = 'round' (a quad cell's "
+                                 f"aperture is the pitch), received {self.aperture_radius}")
+            half_diag = 0.5 * (self.pitch_x ** 2 + self.pitch_y ** 2) ** 0.5
+            if half_diag >= self.lens_radius:
+                raise ValueError(f"lens_radius must be > half the cell diagonal ({half_diag:g} mm) "
+                                 f"for cells = 'quad', received {self.lens_radius}")
+        return self
+
+
+class LensletRingsConfig(Section):
+    """Lenslets (spherical elements) on concentric rings (seed 004)."""
+    type: Literal["lenslet_rings"]
+    ring_radii: list[float] = Field(..., min_length=1, description="mm, ring radii")
+    counts: list[int] = Field(..., min_length=1, description="elements per ring")
+    element_radius: float = Field(..., gt=0, description="mm, plane (aperture) radius of an element")
+    depth: float = Field(..., gt=0, description="mm, sag of an element")
+    concave: bool = True
+    phase_deg: float = 0.0
+    offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _lengths(self):
+        if len(self.ring_radii) != len(self.counts):
+            raise ValueError(f"ring_radii and counts must have the same length, received "
+                             f"{len(self.ring_radii)} and {len(self.counts)}")
+        if any(r < 0 for r in self.ring_radii):
+            raise ValueError(f"ring_radii must be >= 0, received {self.ring_radii}")
+        if any(c < 1 for c in self.counts):
+            raise ValueError(f"counts must be >= 1, received {self.counts}")
+        if self.depth >= self.element_radius:
+            raise ValueError(f"depth must be < element_radius ({self.element_radius}), received {self.depth}")
+        return self
+
+
+register_design(LensletArrayConfig, LensletArray)
+register_design(LensletRingsConfig, LensletRings)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ._atomic import atomic_write_bytes
 
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",

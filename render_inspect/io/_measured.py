@@ -28,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ._exr import read_exr
+from ._registry import formats, reader, register_reader
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
 
@@ -40,14 +41,16 @@ __all__ = ["MeasuredMap", "read_surface", "read_measured", "measured_formats",
 UNIT_TO_MM = {"m": 1e3, "mm": 1.0, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "nm": 1e-6,
               "pm": 1e-9, "Å": 1e-7, "A": 1e-7}
 
-_READERS: dict = {}
+_LIBRARY: dict = {}  # suffix -> name of the library that reads it
 
 
 def _register(*suffixes, name: str):
+    """Register ``fn`` as the ``measured`` reader of ``suffixes`` (io's registry) and
+    remember which library it uses."""
     def deco(fn):
         for s in suffixes:
-            _READERS[s] = (fn, name)
-        return fn
+            _LIBRARY[s] = name
+        return register_reader("measured", *suffixes)(fn)
     return deco
 
 
@@ -233,15 +236,14 @@ def _read_nms(path, **_):
 
 def measured_formats() -> list[str]:
     """File suffixes :func:`read_surface` reads."""
-    return sorted(_READERS)
+    return formats("measured")
 
 
 def reader_for(suffix: str) -> str:
     """Name of the library that reads ``suffix`` (e.g. ``".plu"`` -> ``"SurfaceTopography"``)."""
     s = suffix.lower() if suffix.startswith(".") else "." + suffix.lower()
-    if s not in _READERS:
-        raise InputError(f"unknown height-map format {s!r}; supported: {', '.join(measured_formats())}")
-    return _READERS[s][1]
+    reader("measured", "file" + s)  # InputError naming the supported ones
+    return _LIBRARY[s]
 
 
 def _library_version(name: str) -> str:
@@ -287,13 +289,10 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
         a pixel that is not > 0, no valid height.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in _READERS:
-        raise InputError(f"{path}: unknown height-map format {suffix!r}; supported: "
-                         f"{', '.join(measured_formats())}")
+    fn = reader("measured", path)
     if not path.is_file():
         raise InputError(f"measured file not found: {str(path)!r}")
-    fn, lib = _READERS[suffix]
+    lib = _LIBRARY[path.suffix.lower()]
     z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units)
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:

@@ -23,7 +23,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 __all__ = ["read_tmd", "read_nms", "read_x3p_plain"]
 

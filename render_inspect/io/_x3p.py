@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
 from ._vendor import read_x3p_plain
 

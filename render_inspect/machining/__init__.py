@@ -1,11 +1,16 @@
-"""Surface-generation simulation: the machined height as the envelope of the tool."""
+"""Surface-generation kernels on explicit numbers and arrays: the envelope of the tool
+nose along a turning path, the sculpturing sweep, servo responses, burrs and residual
+statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
 
-from ._dispatch import simulate_scene
+from ..core.heightmap import HeightMap
+from ._burrs import apply_burrs, burr_map, sharp_edges
+from ._design_grid import design_grid
 from ._envelope import path_radial_slope, simulate_turning
-from ._heightmap import HeightMap
 from ._metrics import residual_metrics
-from ._result import SimulationResult
-from ._sts import design_grid, estimate_memory, simulate_sts
+from ._sculpt import sculpt_line_profile, sculpt_surface, target_line, vibration_phases
+from ._servo import followed_path, servo_response, split_commands
 
-__all__ = ["HeightMap", "SimulationResult", "simulate_scene", "simulate_sts", "simulate_turning",
-           "residual_metrics", "design_grid", "estimate_memory", "path_radial_slope"]
+__all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metrics",
+           "design_grid", "apply_burrs", "burr_map", "sharp_edges", "sculpt_line_profile",
+           "sculpt_surface", "target_line", "vibration_phases", "servo_response",
+           "split_commands", "followed_path"]

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 __all__ = ["sharp_edges", "burr_map", "apply_burrs"]
 
@@ -137,8 +137,10 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     return out
 
 
-def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), cfg, seed: int):
-    """Add the burrs of ``cfg`` (an ``[artifacts.burrs]`` section) to ``machined``.
+def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: float,
+                width: float, variation: float = 0.3, edge_angle_deg: float = 1.0,
+                correlation_length: float | None = None, seed: int = 0):
+    """Add burrs (:func:`burr_map`, same parameters) to ``machined``.
 
     Returns
     -------
@@ -148,16 +150,16 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), cfg, seed:
         what goes into ``metrics["burrs"]``.
     """
     info = {"model": "cos^2 ridge on sharp edges, seeded multiplicative variation",
-            "height_mm": cfg.height, "width_mm": cfg.width, "variation": cfg.variation,
-            "edge_angle_deg": cfg.edge_angle_deg, "correlation_length_mm": cfg.correlation_length,
+            "height_mm": height, "width_mm": width, "variation": variation,
+            "edge_angle_deg": edge_angle_deg, "correlation_length_mm": correlation_length,
             "seed": int(seed), "edge_pixels": 0, "max_added_um": 0.0}
     machined = np.array(machined, dtype=np.float64, copy=True)
-    if cfg.height == 0 or cfg.width == 0:
+    if height == 0 or width == 0:
         return machined, info
-    edges = sharp_edges(design, pixel=pixel, edge_angle_deg=cfg.edge_angle_deg)
-    b = burr_map(design, pixel=pixel, origin=origin, height=cfg.height, width=cfg.width,
-                 variation=cfg.variation, seed=seed, edge_angle_deg=cfg.edge_angle_deg,
-                 correlation_length=cfg.correlation_length, edges=edges)
+    edges = sharp_edges(design, pixel=pixel, edge_angle_deg=edge_angle_deg)
+    b = burr_map(design, pixel=pixel, origin=origin, height=height, width=width,
+                 variation=variation, seed=seed, edge_angle_deg=edge_angle_deg,
+                 correlation_length=correlation_length, edges=edges)
     machined += b
     info["edge_pixels"] = int(edges.sum())
     info["max_added_um"] = float(b.max() * 1e3)

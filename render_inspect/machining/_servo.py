@@ -23,16 +23,14 @@ envelope of the tool nose along the *followed* path.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
-from ..errors import InputError, SceneError, check_range
-from ._heightmap import HeightMap
-from ._result import SimulationResult
+from ..core.errors import InputError, check_range
+from ..core.toolpath import ToolPath
+from ..toolpath import z_compensation
 
-__all__ = ["servo_response", "split_commands", "followed_path", "simulate_hts",
-           "hts_lenslet_metrics"]
+__all__ = ["servo_response", "split_commands", "followed_path"]
 
 _MAX_SAMPLES = 50_000_000
 
@@ -162,8 +160,6 @@ def split_commands(path, kind: str, *, base=None, nose_radius: float | None = No
         if compensation == "none":
             z_slow = base.height(rho * np.cos(theta), rho * np.sin(theta))
         else:
-            from ..toolpath import z_compensation
-
             check_range("nose_radius", nose_radius, 0.0, None, lo_open=True)
             z_slow = z_compensation(base, theta, rho, nose_radius, half_width=half_width)
     else:
@@ -172,131 +168,23 @@ def split_commands(path, kind: str, *, base=None, nose_radius: float | None = No
     return z_slow, z - z_slow
 
 
-def followed_path(path, z_slow, z_fts, servo_cfg):
-    """The path the tool really follows: each command through its servo
-    (``[artifacts.servo]``: ``slow_bandwidth_hz, slow_damping`` for the slow slide,
-    ``bandwidth_hz, damping, delay_s`` for the FTS).
+def followed_path(path, z_slow, z_fts, *, slow_bandwidth_hz: float | None = None,
+                  slow_damping: float = 0.7, fts_bandwidth_hz: float | None = None,
+                  fts_damping: float = 0.7, fts_delay_s: float = 0.0):
+    """The path the tool really follows: the slow slide's command through its servo
+    (``slow_bandwidth_hz``, ``slow_damping``) plus the FTS's through its own
+    (``fts_bandwidth_hz``, ``fts_damping``, late by ``fts_delay_s``); see
+    :func:`servo_response`.
 
     Returns
     -------
     ToolPath (theta, rho and t of ``path``; z = followed slow + followed FTS), and the two
     followed commands (z_slow_f, z_fts_f).
     """
-    from ..toolpath import ToolPath
-
     t = np.asarray(path.t, dtype=np.float64)
-    zs = servo_response(z_slow, t, bandwidth_hz=servo_cfg.slow_bandwidth_hz,
-                        damping=servo_cfg.slow_damping)
-    zf = servo_response(z_fts, t, bandwidth_hz=servo_cfg.bandwidth_hz,
-                        damping=servo_cfg.damping, delay_s=servo_cfg.delay_s)
+    zs = servo_response(z_slow, t, bandwidth_hz=slow_bandwidth_hz, damping=slow_damping)
+    zf = servo_response(z_fts, t, bandwidth_hz=fts_bandwidth_hz, damping=fts_damping,
+                        delay_s=fts_delay_s)
     meta = dict(path.meta)
     meta["servo"] = "followed"
     return ToolPath(path.theta, path.rho, zs + zf, path.t, meta), zs, zf
-
-
-def hts_lenslet_metrics(machined, base_grid, feature, *, pixel: float, origin) -> list[dict]:
-    """``lenslets`` metrics of a lenslet array on a base: the machined map minus the base,
-    matched lenslet by lenslet to the feature (metrology's ``lenslet_table``)."""
-    import warnings
-
-    from ..metrology._msa import lenslet_table
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # lenslets cut by the region's border are left out
-        return lenslet_table((machined - base_grid, pixel, tuple(origin)), feature,
-                             aperture_radius=getattr(feature, "aperture_radius", None))
-
-
-def _error_stats(err) -> dict:
-    err = np.asarray(err)
-    return {"rms_um": float(np.sqrt(np.mean(err * err)) * 1e3), "max_um": float(np.max(np.abs(err)) * 1e3)}
-
-
-def simulate_hts(scene) -> SimulationResult:
-    """Simulate hybrid (``process.kind = "hts"``) or fast (``"fts"``) tool servo turning.
-
-    Scene keys used: everything STS uses (``design``, ``tool``, ``process``,
-    ``simulation``), plus ``[artifacts.servo] delay_s, bandwidth_hz, damping,
-    slow_bandwidth_hz, slow_damping``.  ``hts`` needs ``design.type = "compound"`` (base on
-    the slow slide, feature on the FTS).
-
-    Returns
-    -------
-    SimulationResult
-        ``toolpath``: the commanded program (extra attributes ``z_slow``, ``z_fts``,
-        ``z_followed``); ``metrics``: ``residual``, ``toolpath``, ``servo`` (settings, the
-        lag angle omega tau, strokes and following errors) and, when the feature is a
-        lenslet array, ``lenslets`` (dislocations and form errors).
-    """
-    from ..design import make_surface
-    from ..toolpath import Tool, build_toolpath
-    from ._metrics import residual_metrics
-    from ._sts import check_memory, design_grid, toolpath_metrics, turned_grid
-
-    kind = scene.process.kind
-    if kind not in ("hts", "fts"):
-        raise SceneError(f"simulate_hts handles process.kind 'hts' or 'fts', received {kind!r}")
-    if kind == "hts" and scene.design.type != "compound":
-        raise SceneError("process.kind = 'hts' needs design.type = 'compound' ([design.base] on the "
-                         "slow slide, [design.feature] on the fast tool servo), received "
-                         f"design.type = {scene.design.type!r}; use process.kind = 'fts' for a "
-                         "single surface")
-    timing = {}
-    check_memory(scene)
-    surface = make_surface(scene.design)
-    sim = scene.simulation
-    tool = Tool.from_config(scene.tool)
-    servo = scene.artifacts.servo
-
-    t0 = time.perf_counter()
-    path = build_toolpath(scene, surface, region=sim.region)
-    base = surface.base if kind == "hts" else None
-    z_slow, z_fts = split_commands(path, kind, base=base, nose_radius=tool.nose_radius,
-                                   compensation=scene.process.compensation,
-                                   half_width=tool.half_width)
-    timing["toolpath"] = time.perf_counter() - t0
-    check_memory(scene, path.points)
-
-    t0 = time.perf_counter()
-    fpath, zs_f, zf_f = followed_path(path, z_slow, z_fts, servo)
-    timing["servo"] = time.perf_counter() - t0
-
-    machined, design = turned_grid(scene, surface, fpath, timing)
-
-    from ._burrs import apply_burrs
-
-    origin = (sim.region[0], sim.region[1])
-    machined, burr_info = apply_burrs(machined, design, pixel=sim.pixel, origin=origin,
-                                      cfg=scene.artifacts.burrs, seed=sim.seed)
-    timing["simulate"] = timing["servo"] + timing["envelope"] + timing["design"]
-
-    omega = 2 * math.pi * scene.process.spindle_rpm / 60.0
-    lag = servo.delay_s + (2 * servo.damping / (2 * math.pi * servo.bandwidth_hz)
-                           if servo.bandwidth_hz else 0.0)
-    r_max = float(np.max(path.rho)) if path.points else 0.0
-    servo_m = {"kind": kind, "delay_s": servo.delay_s, "bandwidth_hz": servo.bandwidth_hz,
-               "damping": servo.damping, "slow_bandwidth_hz": servo.slow_bandwidth_hz,
-               "slow_damping": servo.slow_damping, "omega_rad_s": omega,
-               "lag_angle_rad": omega * servo.delay_s,
-               "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
-               "max_circumferential_shift_um": r_max * omega * lag * 1e3,
-               "fts_stroke_um": float(np.ptp(z_fts) * 1e3) if z_fts.size else 0.0,
-               "slow_stroke_um": float(np.ptp(z_slow) * 1e3) if z_slow.size else 0.0,
-               "fts_following_error": _error_stats(zf_f - z_fts),
-               "slow_following_error": _error_stats(zs_f - z_slow)}
-    meta = {"process": kind, "compensation": scene.process.compensation, "seed": sim.seed,
-            "servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
-                                               "slow_bandwidth_hz", "slow_damping")}}
-    hm = HeightMap(design, machined, sim.pixel, origin, scene.to_dict(), meta)
-    metrics = {"residual": residual_metrics(hm), "toolpath": toolpath_metrics(path),
-               "servo": servo_m, "burrs": burr_info}
-    feature = getattr(surface, "feature", surface)
-    if hasattr(feature, "centers") and getattr(feature, "kind", "") == "lenslet_array":
-        t0 = time.perf_counter()
-        base_grid = design_grid(surface.base, sim.region, sim.pixel) if hasattr(surface, "base") \
-            else np.zeros_like(design)
-        metrics["lenslets"] = hts_lenslet_metrics(machined, base_grid, feature, pixel=sim.pixel,
-                                                  origin=origin)
-        timing["lenslets"] = time.perf_counter() - t0
-    path.z_slow, path.z_fts, path.z_followed = z_slow, z_fts, fpath.z
-    return SimulationResult(hm, path, metrics, timing)

@@ -10,8 +10,17 @@ Meshes are built directly from arrays (float32 vertices, uint32 faces), so a 400
 map costs about 1.2 GB; renders crop a window or decimate where detail cannot be seen.
 """
 
-from ._grid import (DEFAULT_MEMORY_BUDGET_BYTES, MESH_FORMATS, GridMesh, decimation_stride,
-                    export_mesh, grid_mesh, heightmap_mesh, heightmap_to_trimesh, window_indices)
+from ._grid import (
+                    DEFAULT_MEMORY_BUDGET_BYTES,
+                    MESH_FORMATS,
+                    GridMesh,
+                    decimation_stride,
+                    export_mesh,
+                    grid_mesh,
+                    heightmap_mesh,
+                    heightmap_to_trimesh,
+                    window_indices,
+)
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "decimation_stride", "window_indices", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]

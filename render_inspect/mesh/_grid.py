@@ -11,6 +11,7 @@ Memory: 12 bytes per vertex + 24 bytes per triangle (+12 per vertex for normals)
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError, MemoryBudgetError, check_positive
+from ..core.errors import InputError, MemoryBudgetError, check_positive
+from ..io import atomic_write_bytes
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
@@ -325,10 +327,6 @@ def export_mesh(mesh, path: str | Path) -> Path:
     """Write a mesh (``GridMesh`` or ``trimesh.Trimesh``) as PLY, OBJ, GLB or STL (chosen by
     the extension), atomically.  The metadata goes into the PLY/OBJ header comment or the
     GLB ``extras``."""
-    import json
-
-    from ..io import atomic_write_bytes
-
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in MESH_FORMATS:

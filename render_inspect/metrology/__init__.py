@@ -1,8 +1,11 @@
-"""Metrology: ISO 25178 / 21920 parameters (slopes as the reference libraries take them;
-Sal / Str from the autocorrelation), one-map analysis, checks before a comparison,
-ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF registration (seed 002),
-microstructure-array analysis (lenslet centres, dislocations, per-lenslet form errors),
-and comparison of measured maps with a scene's design and simulation.  Plain numpy/scipy; lengths in mm."""
+"""Metrology, arrays in and numbers out: measuring interferometer frames (no truth),
+evaluating against a truth, ISO 25178 / 21920 parameters (slopes as the reference
+libraries take them; Sal / Str from the autocorrelation), one-map analysis, checks
+before a comparison, ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF
+registration (seed 002) with its uncertainty, microstructure-array analysis (lenslet
+centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
+scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number or
+(pixel_x, pixel_y)."""
 
 from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
@@ -16,9 +19,9 @@ from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_cent
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
-from ._phase import (PhaseResult, add_height_measured, height_error, height_from_phase,
-                     measure_interferogram, phase_quality, retrieve_csi, retrieve_psi,
-                     unwrap_phase, wrapped_phase)
+from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
+                     measure_frames, phase_quality, retrieve_csi, retrieve_psi, unwrap_phase,
+                     wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
@@ -39,6 +42,6 @@ __all__ = [
     "characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
     "Comparison", "compare_measured",
     "PhaseResult", "wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
-    "retrieve_psi", "retrieve_csi", "height_error", "measure_interferogram",
-    "add_height_measured",
+    "retrieve_psi", "retrieve_csi", "height_error", "measure_frames",
+    "evaluate_measurement",
 ]

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._filters import fit_sphere, l_filter, pixel_xy, remove_form, s_filter, valid_mask
 from ._params import SLOPE_ESTIMATORS, areal_parameters, spatial_parameters
 from ._registration import detect_outliers

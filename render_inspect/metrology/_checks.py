@@ -17,7 +17,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, check_positive, check_range
+from ..core.errors import InputError, check_positive, check_range
 from ._filters import pixel_xy, valid_mask
 from ._params import autocorrelation
 from ._registration import RIGID_KEYS, registration_covariance, rotation_matrix

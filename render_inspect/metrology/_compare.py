@@ -9,12 +9,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ._checks import registration_checks
 from ._filters import l_filter, pixel_xy, remove_form, s_filter
 from ._params import areal_parameters
-from ._registration import (RIGID_KEYS, MovedSurface, detect_outliers, register_icp,
-                            register_lsq, rotation_matrix)
+from ._registration import (
+    RIGID_KEYS,
+    MovedSurface,
+    detect_outliers,
+    register_icp,
+    register_lsq,
+    rotation_matrix,
+)
 
 __all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
            "Comparison",
@@ -181,7 +187,7 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
                      expected_sq_mm: float | None = None, force: bool = False) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
 
-    Chain: read (:func:`~render_inspect.io.read_surface`) -> unit sanity check -> outliers
+    Chain: unit sanity check -> outliers
     (second difference, ``metrology.outlier_sigma``; always left out of the registration
     fit, left out of the parameters only with ``metrology.outliers = "sigma"``) ->
     coverage of ``region`` -> registration to the design (``metrology.registration``:
@@ -195,8 +201,10 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
 
     Parameters
     ----------
-    measured : str, Path, map object (``z``, ``pixel``, ``origin``, ``meta``) or
-        ``(z_mm, pixel_mm, origin_mm)`` tuple (``pixel_mm`` one number or (x, y))
+    measured : map object or tuple
+        A :class:`render_inspect.io.MeasuredMap` (``z``, ``pixel``, ``origin``, ``meta``;
+        from :func:`render_inspect.io.read_surface`) or a ``(z_mm, pixel_mm, origin_mm[,
+        source])`` tuple (``pixel_mm`` one number or (x, y)).
     design_surface : Surface
     metrology : MetrologyConfig or dict, optional
         The scene's ``[metrology]`` section (defaults otherwise); also read:
@@ -224,18 +232,17 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         design's over the same area (wrong units?); no valid points; the checks refuse
         the comparison (unless ``force``).
     """
-    if isinstance(measured, tuple):
-        z, pixel, origin = measured
-        z = np.asarray(z, float)
-        source = {"format": "array"}
-        origin = (float(origin[0]), float(origin[1]))
-    elif hasattr(measured, "z") and hasattr(measured, "pixel"):
-        z, pixel, origin, source = measured.z, measured.pixel, measured.origin, dict(measured.meta)
+    if hasattr(measured, "z") and hasattr(measured, "pixel"):
+        z, pixel, origin = measured.z, measured.pixel, measured.origin
+        source = dict(getattr(measured, "meta", {}) or {})
+    elif isinstance(measured, tuple) and len(measured) in (3, 4):
+        z, pixel, origin = measured[:3]
+        source = dict(measured[3]) if len(measured) == 4 else {"format": "array"}
     else:
-        from ..io import read_surface
-
-        m = read_surface(measured)
-        z, pixel, origin, source = m.z, m.pixel, m.origin, dict(m.meta)
+        raise InputError("measured must be a MeasuredMap or a (z_mm, pixel_mm, origin_mm[, "
+                         "source]) tuple; read files with render_inspect.io.read_surface")
+    z = np.asarray(z, float)
+    origin = (float(origin[0]), float(origin[1]))
     px, py = pixel_xy(pixel)
     pixel = (px, py)
     k = float(_cfg_get(metrology, "outlier_sigma", 3.0))

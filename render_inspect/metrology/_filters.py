@@ -17,7 +17,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 
 __all__ = ["GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
            "remove_form", "valid_mask", "pixel_xy", "fit_sphere"]

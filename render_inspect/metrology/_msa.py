@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..errors import InputError, check_positive
+from ..core.errors import InputError, check_positive
 from ._filters import valid_mask
 from ._registration import MovedSurface, detect_outliers, register_lsq
 

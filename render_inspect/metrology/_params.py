@@ -26,7 +26,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
-from ..errors import InputError, check_positive, check_range
+from ..core.errors import InputError, check_positive, check_range
 from ._filters import pixel_xy, valid_mask
 
 __all__ = ["areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",

@@ -1,6 +1,6 @@
 """Heights from interferometer frames: phase shifting (PSI) and coherence scanning (CSI).
 
-The forward model these functions invert (ARCHITECTURE.md, PHYSICS.md "Instruments")::
+The forward model these functions invert (docs/instrument.md, docs/report.md)::
 
     OPD_k = 2 (h - z_ref,k)                                   (mm, normal incidence)
     I_k   = a + b g(OPD_k) cos(2 pi OPD_k / lambda + delta_k)
@@ -10,8 +10,9 @@ wrapped phase ``phi = 4 pi (h - z_ref) / lambda`` comes from the 4-step or the 5
 (Hariharan) formula or, for any other set of steps, from a per-pixel least-squares fit;
 it is unwrapped in 2-D inside the valid mask (quality-guided flood fill) and converted to
 height ``h = phi lambda / (4 pi)``.  An interferometer measures relative height only: the
-unwrapped height is defined up to a constant (one per connected valid region), which
-:func:`height_error` removes by aligning the mean over the valid pixels with the truth.
+unwrapped height is defined up to a constant (one per connected valid region); an
+evaluation against a known truth (:func:`evaluate_measurement`, :func:`height_error`)
+removes it by aligning the mean over the valid pixels with the truth.
 
 CSI: ``delta_k = 0`` and the reference scans, ``z_ref,k = scan_positions[k]``; the
 envelope g peaks where ``z_ref = h``.  The envelope is the modulus of the analytic signal
@@ -29,11 +30,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
-           "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult",
-           "measure_interferogram", "add_height_measured"]
+           "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult", "measure_frames",
+           "evaluate_measurement"]
 
 _ALGORITHMS = ("auto", "4step", "5step", "lsq")
 
@@ -578,19 +579,19 @@ def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mea
 
 
 # --------------------------------------------------------------------------------------
-# interferograms from the renderer (render_inspect.render.Interferogram)
-def measure_interferogram(ig, *, algorithm: str = "auto", csi_refine: str = "envelope",
-                          min_modulation: float = 0.05):
-    """What the instrument reports: height from a rendered interferogram, and its error.
+# measuring frames (no truth), then evaluating against a truth
+def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str = "envelope",
+                   min_modulation: float = 0.05) -> PhaseResult:
+    """What the instrument reports: height from its frames and settings alone.
 
     Parameters
     ----------
-    ig : Interferogram
-        From :func:`render_inspect.render.render_interferogram` (or read back from
-        ``interferogram.exr``): ``frames``, ``valid``, ``height_true``, ``mode``,
-        ``wavelength_nm``, ``phase_steps`` (PSI, rad), ``scan_positions`` (CSI, mm),
-        ``z_ref`` (mm).  Its phase convention is ``I_k = a + b cos(4 pi (h - z_ref) /
-        lambda + delta_k)``, the one this module inverts.
+    frames : Frames
+        :class:`~render_inspect.core.Frames` (an interferometer's recording: ``frames``,
+        ``valid``, ``mode``, ``wavelength_nm``, ``phase_steps`` (PSI, rad),
+        ``scan_positions`` (CSI, mm), ``z_ref`` (mm)).  Its phase convention is
+        ``I_k = a + b cos(4 pi (h - z_ref) / lambda + delta_k)``, the one this module
+        inverts.  Nothing else is read: no true height.
     algorithm : {"auto", "4step", "5step", "lsq"}
         PSI algorithm (see :func:`wrapped_phase`).
     csi_refine : {"envelope", "phase"}
@@ -600,64 +601,54 @@ def measure_interferogram(ig, *, algorithm: str = "auto", csi_refine: str = "env
 
     Returns
     -------
-    result : PhaseResult
-        ``height`` (mm) is the measured map after piston alignment to ``height_true``
-        (mean over the valid pixels of each connected region; an interferometer measures
-        relative height), NaN where not measured.
+    PhaseResult
+        ``height`` (mm, NaN where not measured) as the instrument reports it: PSI heights
+        are ``z_ref`` plus the unwrapped phase, so each connected region carries its own
+        unknown multiple of lambda/2 (the 2-pi ambiguity of phase shifting); CSI heights
+        are absolute in the scan's frame.  ``meta`` holds the mode, algorithm,
+        wavelength, ``light_fraction`` and the number of ``regions``.
+    """
+    mode = str(frames.mode)
+    stack = np.asarray(frames.frames, dtype=np.float64)
+    valid = np.asarray(frames.valid, dtype=bool)
+    if mode == "psi":
+        res = retrieve_psi(stack, wavelength_nm=frames.wavelength_nm, steps_rad=frames.phase_steps,
+                           algorithm=algorithm, valid=valid, min_modulation=min_modulation)
+        res.height = res.height + float(frames.z_ref)
+    elif mode == "csi":
+        res = retrieve_csi(stack, frames.scan_positions, wavelength_nm=frames.wavelength_nm,
+                           valid=valid, refine=csi_refine, min_modulation=min_modulation)
+    else:
+        raise InputError(f"frames.mode must be 'psi' or 'csi', got {mode!r}")
+    res.meta.update({"mode": mode, "wavelength_nm": float(frames.wavelength_nm),
+                     "light_fraction": float(valid.mean())})
+    return res
+
+
+def evaluate_measurement(result: PhaseResult, truth, *, piston: str = "mean"):
+    """Compare a measurement with the true height (an evaluation step, apart from
+    measuring): the measured map is aligned to the truth by one constant per connected
+    region (:func:`height_error`), since an interferometer measures relative height.
+
+    Returns
+    -------
+    aligned : PhaseResult
+        A copy of ``result`` with ``height`` aligned (NaN where not measured).
     metrics : dict
         ``mode``, ``algorithm``, ``rms_nm``, ``pv_nm`` (of measured - true over the valid
         pixels), ``mean_nm``, ``piston_nm``, ``valid_fraction`` (measured pixels / all
         pixels), ``light_fraction`` (pixels where light returned), ``valid_pixels``,
-        ``wavelength_nm``, ``piston`` ("mean").
+        ``wavelength_nm``, ``regions``, ``piston``.
     """
-    mode = str(ig.mode)
-    frames = np.asarray(ig.frames, dtype=np.float64)
-    valid = np.asarray(ig.valid, dtype=bool)
-    if mode == "psi":
-        res = retrieve_psi(frames, wavelength_nm=ig.wavelength_nm, steps_rad=ig.phase_steps,
-                           algorithm=algorithm, valid=valid, min_modulation=min_modulation)
-        res.height = res.height + float(ig.z_ref)
-    elif mode == "csi":
-        res = retrieve_csi(frames, ig.scan_positions, wavelength_nm=ig.wavelength_nm, valid=valid,
-                           refine=csi_refine, min_modulation=min_modulation)
-    else:
-        raise InputError(f"interferogram mode must be 'psi' or 'csi', got {mode!r}")
-    truth = np.asarray(ig.height_true, dtype=np.float64)
-    aligned, err = height_error(res.height, truth, valid=res.valid, labels=res.labels)
-    res.valid = res.valid & np.isfinite(aligned)
-    res.height = np.where(res.valid, aligned, np.nan)
-    metrics = {"mode": mode, "algorithm": res.meta["algorithm"],
-               "wavelength_nm": float(ig.wavelength_nm), **err,
-               "light_fraction": float(valid.mean()), "regions": int(res.meta["regions"])}
-    res.meta.update({"piston": "mean over valid pixels aligned to height_true"})
-    return res, metrics
-
-
-def add_height_measured(path, *, algorithm: str = "auto", csi_refine: str = "envelope",
-                        min_modulation: float = 0.05):
-    """Add ``height_measured`` (mm, piston-aligned to ``height_true``, NaN where not
-    measured) and ``valid_measured`` (0/1) to an ``interferogram.exr``, rewriting it
-    atomically; the error metrics go into the header as ``measured`` (JSON).
-
-    Returns
-    -------
-    result, metrics
-        As :func:`measure_interferogram`.
-    """
-    import json
-    from pathlib import Path
-
-    from ..io import read_exr, write_exr
-    from ..render._interferometer import read_interferogram_exr  # pure numpy part
-
-    path = Path(path)
-    ig = read_interferogram_exr(path)
-    res, metrics = measure_interferogram(ig, algorithm=algorithm, csi_refine=csi_refine,
-                                         min_modulation=min_modulation)
-    channels, attrs = read_exr(path)
-    channels["height_measured"] = res.height
-    channels["valid_measured"] = res.valid.astype(np.float32)
-    attrs["measured"] = json.dumps(metrics, sort_keys=True)
-    attrs["height_measured_piston"] = res.meta["piston"]
-    write_exr(path, channels, attrs)
-    return res, metrics
+    truth = np.asarray(truth, dtype=np.float64)
+    aligned, err = height_error(result.height, truth, valid=result.valid, labels=result.labels,
+                                piston=piston)
+    valid = result.valid & np.isfinite(aligned)
+    out = PhaseResult(np.where(valid, aligned, np.nan), valid, result.wrapped, result.modulation,
+                      result.labels, dict(result.meta))
+    out.meta["piston"] = f"{piston} over valid pixels of each region, aligned to the true height"
+    metrics = {"mode": result.meta.get("mode"), "algorithm": result.meta.get("algorithm"),
+               "wavelength_nm": result.meta.get("wavelength_nm"), **err,
+               "light_fraction": result.meta.get("light_fraction"),
+               "regions": int(result.meta.get("regions", 0))}
+    return out, metrics

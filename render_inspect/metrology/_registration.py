@@ -15,7 +15,7 @@ from scipy.optimize import least_squares
 from scipy.signal import fftconvolve
 from scipy.spatial.transform import Rotation
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ._filters import pixel_xy, valid_mask
 from ._params import autocorrelation
 

@@ -1,35 +1,46 @@
-"""Off-screen renders with Mitsuba 3: the virtual interference microscope and
-diffuse-light images of the machined part.
+"""Engine adapters: Mitsuba 3 (ray tracing of height/normal grids for the instruments,
+diffuse-light images) and Blender Cycles.  They take engine-neutral inputs (height maps,
+meshes, scene specs as plain dicts) and return arrays.
 
-Mitsuba and Dr.Jit are imported lazily (inside functions), so importing this package is
-cheap.  The variant (``llvm_ad_rgb``, ``scalar_rgb`` or ``cuda_ad_rgb``) is chosen once
-per process by :func:`mitsuba_variant` and recorded in every output.
-
-Entry point of ``render-inspect render``: :func:`run_render`.
+Mitsuba, Dr.Jit and bpy are imported inside functions only, so importing this package is
+cheap.  The Mitsuba variant (``llvm_ad_rgb``, ``scalar_rgb`` or ``cuda_ad_rgb``) is chosen
+once per process by :func:`mitsuba_variant` and recorded in every output.
 """
 
 from __future__ import annotations
 
-from ._diffuse import (AL_REFLECTANCE_RGB, LIGHTS, diffuse_scene_spec, environment_map,
-                       light_profile, render_diffuse)
-from ._interferometer import (OBJECTIVES, Interferogram, camera_noise, interference_frames,
-                              interferometer_geometry, read_interferogram_exr,
-                              render_interferogram, write_interferogram_exr)
-from ._run import render_heightmap, run_render, write_diffuse_outputs, write_interferogram_outputs
-from ._variant import mitsuba_variant, single_thread, variant_info
+from ._cycles import (
+                      ALUMINIUM_ETA,
+                      ALUMINIUM_K,
+                      OBJECT_NAME,
+                      RENDER_SCENE_NAME,
+                      default_output_dir,
+                      gridmesh_object,
+                      heightmap_object,
+                      object_heights,
+                      remove_object,
+                      render_cycles,
+                      render_object,
+                      render_spec,
+                      surface_object,
+)
+from ._diffuse import (
+                      AL_REFLECTANCE_RGB,
+                      LIGHTS,
+                      DiffuseConfig,
+                      auto_exaggeration,
+                      diffuse_scene_spec,
+                      environment_map,
+                      light_profile,
+                      render_diffuse,
+)
+from ._scene_dicts import load_scene_dict, trace_grids
+from ._variant import import_mitsuba, mitsuba_variant, single_thread, variant_info
 
-
-def __getattr__(name):
-    # the Cycles adapter imports bpy lazily too; re-exported on first use
-    if name in ("render_cycles", "render_object", "simulate_into_blender"):
-        from . import _cycles
-
-        return getattr(_cycles, name)
-    raise AttributeError(name)
-
-__all__ = ["run_render", "render_heightmap", "render_interferogram", "render_diffuse",
-           "diffuse_scene_spec", "environment_map", "light_profile", "Interferogram",
-           "write_interferogram_exr", "read_interferogram_exr", "write_interferogram_outputs",
-           "write_diffuse_outputs", "interference_frames", "interferometer_geometry",
-           "camera_noise", "mitsuba_variant", "variant_info", "single_thread", "OBJECTIVES",
-           "LIGHTS", "AL_REFLECTANCE_RGB", "render_cycles", "render_object", "simulate_into_blender"]
+__all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_profile",
+           "auto_exaggeration", "DiffuseConfig", "LIGHTS", "AL_REFLECTANCE_RGB",
+           "trace_grids", "load_scene_dict", "mitsuba_variant", "variant_info",
+           "single_thread", "import_mitsuba", "render_cycles", "render_object",
+           "render_spec", "surface_object", "heightmap_object", "gridmesh_object",
+           "object_heights", "remove_object", "default_output_dir", "ALUMINIUM_ETA",
+           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME"]

@@ -12,18 +12,25 @@ vertex is ``(x, y, exaggeration * z)`` with x, y, z in mm.
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from pydantic import ValidationError
 
-from ..errors import InputError, check_positive, check_range
+from .. import __version__
+from ..core.errors import InputError, SceneError, check_positive, check_range
+from ..core.heightmap import HeightMap
+from ..io import atomic_output_dir, read_exr, save_png, write_exr
+from ..mesh import heightmap_mesh
+from ._diffuse import DiffuseConfig, diffuse_scene_spec
 
 __all__ = ["heightmap_object", "surface_object", "gridmesh_object", "object_heights",
            "remove_object", "render_spec", "render_cycles", "render_object",
-           "simulate_into_blender", "default_output_dir", "ALUMINIUM_ETA", "ALUMINIUM_K",
+           "default_output_dir", "ALUMINIUM_ETA", "ALUMINIUM_K",
            "OBJECT_NAME", "RENDER_SCENE_NAME"]
 
 #: Name of the mesh object the add-on and :func:`heightmap_object` create.
@@ -155,8 +162,6 @@ def surface_object(heightmap, *, surface: str = "machined", exaggeration: float 
               "residual": heightmap.residual}
     if surface not in layers:
         raise InputError(f"surface must be one of {sorted(layers)}, got {surface!r}")
-    import json
-
     meta = {}
     if heightmap.scene:
         meta[PROP_SCENE] = json.dumps(heightmap.scene, sort_keys=True)
@@ -372,8 +377,6 @@ def _configure_cycles(scene, spec: dict, *, seed: int, threads: int | None):
 def _render(bpy, scene) -> tuple[np.ndarray, float]:
     """Render ``scene`` with Cycles; (H, W, 3) float32 linear RGB (row 0 at the top) and
     the seconds the render took."""
-    from ..io import read_exr
-
     with tempfile.TemporaryDirectory(prefix="render_inspect_cycles_") as tmp:
         exr = Path(tmp) / "cycles.exr"
         scene.render.filepath = str(exr)
@@ -452,11 +455,6 @@ def gridmesh_object(gm, *, name: str = "render_inspect_part", collection=None):
 def _diffuse_config(dcfg, **overrides):
     """A validated ``[render.diffuse]`` (DiffuseConfig, dict or None) with ``overrides``
     (None values ignored) applied; bad values raise SceneError naming the key."""
-    from pydantic import ValidationError
-
-    from ..errors import SceneError
-    from ..scene import DiffuseConfig
-
     base = {} if dcfg is None else (dict(dcfg) if isinstance(dcfg, dict) else dcfg.model_dump())
     base.update({k: v for k, v in overrides.items() if v is not None})
     try:
@@ -494,9 +492,6 @@ def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "
         the spec plus ``renderer``, ``render_time_s``, ``mesh_time_s``, mesh sizes and
         ``vertical_exaggeration``
     """
-    from ..mesh import heightmap_mesh
-    from ._diffuse import diffuse_scene_spec
-
     bpy = _bpy()
     dcfg = _diffuse_config(dcfg)
     spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed)
@@ -519,8 +514,6 @@ def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "
 
 def _scene_diffuse(obj) -> dict:
     """The ``[render.diffuse]`` section recorded on the object (empty if none)."""
-    import json
-
     try:
         return dict(json.loads(obj.get(PROP_SCENE, "{}")).get("render", {}).get("diffuse", {}))
     except (TypeError, ValueError, AttributeError):
@@ -559,9 +552,6 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
         ``image`` (H, W, 3) float32 linear RGB, row 0 at the top; ``time_s``; ``spec``;
         ``png``/``exr`` paths when ``out`` is given.
     """
-    from ..machining import HeightMap
-    from ._diffuse import diffuse_scene_spec
-
     if obj is None or PROP_EXAGGERATION not in obj or PROP_SHAPE not in obj:
         raise InputError("render needs the render_inspect surface mesh: run Simulate first "
                          f"(no object named {OBJECT_NAME!r} with render_inspect properties)")
@@ -585,11 +575,6 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
 
 
 def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int) -> dict:
-    import json
-
-    from .. import __version__
-    from ..io import atomic_output_dir, save_png, write_exr
-
     attrs = {"renderer": f"blender-cycles {_bpy().app.version_string}",
              "spp": int(spec["spp"]), "seed": int(seed),
              "vertical_exaggeration": float(spec["exaggeration"]),
@@ -614,61 +599,3 @@ def default_output_dir(scene_name: str) -> Path:
     bpy = _bpy()
     base = Path(bpy.path.abspath("//")) if bpy.data.filepath else Path(tempfile.gettempdir())
     return base / "render_inspect_out" / scene_name
-
-
-def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = "machined",
-                          exaggeration: float | None = None, collection=None) -> dict:
-    """Load a scene file, simulate the machined surface and load it as a mesh object.
-
-    Parameters
-    ----------
-    scene_path : str or Path
-        render_inspect scene (TOML).
-    overrides : sequence of str
-        ``section.key=value`` overrides (the CLI's ``--set``).
-    out : str, Path or None
-        Folder for ``heightmap.exr``; None: :func:`default_output_dir`.
-    surface : {"machined", "design", "residual"}
-        The height layer that becomes the mesh.
-    exaggeration : float or None
-        Vertical exaggeration; None uses the scene's ``render.diffuse.exaggeration``, and
-        when that is unset too, :func:`~render_inspect.render._diffuse.auto_exaggeration`
-        of the simulated surface (as the Mitsuba renders do).
-    collection : bpy.types.Collection or None
-        Where to link the object (the active scene's collection when None).
-
-    Returns
-    -------
-    dict
-        ``object`` (bpy.types.Object named ``render_inspect_surface``), ``heightmap``
-        (Path of the EXR), ``result`` (SimulationResult), ``scene`` (Scene).
-    """
-    from ..io import atomic_output_dir
-    from ..machining import simulate_scene
-    from ..scene import load_scene
-
-    if not str(scene_path).strip():
-        raise InputError("scene file: choose a render_inspect scene (.toml) first; received an empty path")
-    scene = load_scene(scene_path, list(overrides))
-    if exaggeration is not None:
-        check_positive("exaggeration", exaggeration)
-    result = simulate_scene(scene)
-    hm = result.heightmap
-    if exaggeration is None:
-        exaggeration = scene.render.diffuse.exaggeration
-    if exaggeration is None:  # the renderer's automatic choice for this height map
-        from ._diffuse import auto_exaggeration
-
-        exaggeration = auto_exaggeration(hm, surface)
-    exaggeration = float(exaggeration)
-    if hm.scene is None:
-        hm.scene = scene.to_dict()
-    out = Path(out) if out else default_output_dir(scene.name)
-    with atomic_output_dir(out) as tmp:
-        hm.to_exr(tmp / "heightmap.exr")
-    path = out.resolve() / "heightmap.exr"
-    obj = surface_object(hm, surface=surface, exaggeration=exaggeration, collection=collection)
-    obj[PROP_HEIGHTMAP] = str(path)
-    return {"object": obj, "heightmap": path, "result": result, "scene": scene}
-
-

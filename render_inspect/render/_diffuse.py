@@ -1,7 +1,7 @@
 """Diffuse-light images of the machined part: Mitsuba path tracing of aluminium.
 
 The whole scene is described by :func:`diffuse_scene_spec` as plain numbers (camera,
-light, material, exaggeration, mesh decimation) so that another renderer (engineer B2's
+light, material, exaggeration, mesh decimation) so that another renderer (the Blender add-on's
 Blender Cycles benchmark, ``render/_cycles.py``) can build the same scene:
 
 * mesh: :func:`render_inspect.mesh.heightmap_mesh` with ``channel``, ``exaggeration``,
@@ -26,14 +26,25 @@ Images are returned with row 0 at the top (camera convention), linear RGB.
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from .. import __version__
-from ..errors import InputError
+from ..core.errors import InputError
+from ..core.section import Section
+from ..mesh import heightmap_mesh, window_indices
+from ._scene_dicts import (
+    load_scene_dict,
+    mitsuba_mesh,
+    ortho_sensor,
+    perspective_sensor,
+)
+from ._variant import import_mitsuba
 
-__all__ = ["diffuse_scene_spec", "environment_map", "light_profile", "render_diffuse",
-           "LIGHTS", "AL_REFLECTANCE_RGB"]
+__all__ = ["DiffuseConfig", "diffuse_scene_spec", "environment_map", "light_profile",
+           "render_diffuse", "auto_exaggeration", "LIGHTS", "AL_REFLECTANCE_RGB"]
 
 #: Zenith-angle radiance profiles: [theta_deg, radiance] pairs, linear in between.
 #: dome: uniform diffuse dome with a camera port (dark) around the zenith;
@@ -52,6 +63,19 @@ ENV_ROWS = 361
 MACRO_TILT_DEG = 20.0
 MACRO_FOV_DEG = 30.0
 MAX_DEPTH = 6
+
+
+class DiffuseConfig(Section):
+    """``[render.diffuse]``: diffuse-light images of the part (dome or ring light)."""
+    light: Literal["dome", "ring"] = "dome"
+    material: Literal["aluminium"] = "aluminium"
+    roughness: float = Field(0.0, ge=0, le=1, description="0 = smooth conductor")
+    exaggeration: float | None = Field(None, gt=0, le=1e6,
+                                       description="vertical exaggeration of the mesh; None = auto "
+                                                   "(the steepest 1 % of slopes become ~0.2 rad)")
+    spp: int = Field(64, ge=1, le=65536)
+    resolution: int = Field(256, ge=16, le=8192)
+    window: tuple[float, float, float, float] | None = Field(None, description="mm, microscope view")
 
 
 def light_profile(theta, light: str = "dome") -> np.ndarray:
@@ -106,8 +130,6 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
         ``z_offset_mm``, ``window_mm``, ``mesh`` (``channel``, ``window``, ``max_cells``,
         ``skirt``), ``camera``, ``light``, ``material`` (see the module docstring).
     """
-    from ..scene import DiffuseConfig
-
     if dcfg is None:
         dcfg = DiffuseConfig()
     if view not in ("macro", "micro"):
@@ -131,7 +153,6 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
                              f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g} mm), got {window}")
     x0, y0, x1, y1 = (float(w) for w in window)
     if view == "micro":
-        from ..mesh import window_indices
 
         i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
         zw = z[i0:i1, j0:j1]
@@ -181,7 +202,6 @@ def auto_exaggeration(heightmap, surface="machined", window=None) -> float:
     and reflection distortion without turning into cliffs.  Rounded to 1-2-5 steps."""
     z = getattr(heightmap, surface)
     if window is not None:
-        from ..mesh import window_indices
 
         i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
         z = z[i0:i1, j0:j1]
@@ -199,8 +219,6 @@ def auto_exaggeration(heightmap, surface="machined", window=None) -> float:
 
 
 def _mitsuba_scene(gm, spec):
-    from ._scene_dicts import mitsuba_mesh, ortho_sensor, perspective_sensor
-    from ._variant import import_mitsuba
 
     mi, _, _ = import_mitsuba()
     cam = spec["camera"]
@@ -247,10 +265,6 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
     meta : dict, :func:`diffuse_scene_spec` plus ``mitsuba_variant``, mesh sizes and
         ``vertical_exaggeration``
     """
-    from ..mesh import heightmap_mesh
-    from ._scene_dicts import load_scene_dict
-    from ._variant import import_mitsuba
-
     if int(seed) != seed or seed < 0:
         raise InputError(f"seed must be an integer >= 0, got {seed!r}")
     spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed)

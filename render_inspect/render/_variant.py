@@ -21,7 +21,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info"]
 

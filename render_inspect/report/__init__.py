@@ -1,19 +1,12 @@
-"""Reports: ``render-inspect compare`` (compensated vs uncompensated, optionally vs a
-measured map) with its ``metrics.json`` and self-contained ``report.html``.
-
-Entry point: :func:`run_compare`.  Mitsuba is used only through
-:mod:`render_inspect.render`, imported inside the functions.
-"""
+"""Reports: figures (maps, image panels, radial profiles, axis motion) and the
+self-contained ``report.html`` of a comparison, from metrics and images."""
 
 from __future__ import annotations
 
-from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION,
-                       COMPARE_MAX_DIFFUSE_SPP, PROFILE_ANGLES_DEG, VARIANTS, compare_variants,
-                       preview_render_configs, run_compare)
+from ._figures import image_panels, map_panels, png_bytes, radial_profile_figure
 from ._html import HtmlReport, data_uri, table_html
+from ._kinematics import plot_kinematics
 from ._page import build_page
 
-__all__ = ["run_compare", "compare_variants", "preview_render_configs", "build_page",
-           "HtmlReport", "data_uri", "table_html", "VARIANTS", "PROFILE_ANGLES_DEG",
-           "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
-           "COMPARE_MAX_DIFFUSE_SPP"]
+__all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
+           "image_panels", "map_panels", "png_bytes", "radial_profile_figure"]

@@ -12,24 +12,32 @@ import copy
 import json
 import re
 import tomllib
+from importlib import resources
 from pathlib import Path
 from typing import Iterable
 
 from pydantic import Field, ValidationError, model_validator
 
-from ..errors import SceneError
+from ..core.errors import SceneError
+from ..core.section import Section
+from ..design import DesignConfig, design_types
+from ..instruments import InterferometerConfig
+from ..processes import ProcessConfig, StsProcessConfig, process_kinds
+from ..render import DiffuseConfig
 from ._artifacts import ArtifactsConfig, BurrConfig, ServoConfig, VibrationConfig
-from ._base import Section
-from ._design import DesignConfig
 from ._metrology import MetrologyConfig
-from ._process import ProcessConfig, SimulationConfig, ToolConfig
 from ._rcse import RcseConfig
-from ._render import DiffuseConfig, InterferometerConfig, RenderConfig
+from ._render import render_config_class
+from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
+           "shipped_scenes", "find_scene",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
            "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig"]
+
+#: the ``[render]`` section: registered instruments + diffuse light
+RenderConfig = render_config_class()
 
 
 class Scene(Section):
@@ -37,7 +45,7 @@ class Scene(Section):
     description: str = ""
     design: DesignConfig
     tool: ToolConfig = Field(default_factory=ToolConfig)
-    process: ProcessConfig = Field(default_factory=ProcessConfig)
+    process: ProcessConfig = Field(default_factory=StsProcessConfig)
     simulation: SimulationConfig = Field(default_factory=SimulationConfig)
     render: RenderConfig = Field(default_factory=RenderConfig)
     artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
@@ -46,13 +54,9 @@ class Scene(Section):
 
     @model_validator(mode="after")
     def _cross_checks(self):
-        fpr = self.process.feed_per_rev
-        rc = self.tool.nose_radius
-        if self.process.kind in ("sts", "fts", "hts", "rcse") and fpr >= rc:
-            raise ValueError(
-                f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
-                f"tool.nose_radius ({rc} mm), received {fpr:g} mm/rev "
-                f"(feed {self.process.feed_mm_per_min} mm/min at {self.process.spindle_rpm} rpm)")
+        check = getattr(self.process, "check_with", None)
+        if check is not None:
+            check(self)  # the process kind's checks against the design and the tool
         return self
 
     def to_dict(self) -> dict:
@@ -66,9 +70,10 @@ class Scene(Section):
 
 
 def _format_error(err: ValidationError, source: str) -> SceneError:
+    tags = _union_tags()
     lines = []
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _UNION_TAGS))
+        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in tags))
         msg = e["msg"]
         if e["type"] == "extra_forbidden":
             msg = "unknown key (not allowed here; check the spelling)"
@@ -84,8 +89,11 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
     return SceneError(f"invalid scene {source}:\n" + "\n".join(lines))
 
 
-_UNION_TAGS = {"sinusoidal_grid", "plane", "sphere", "toric", "biconic", "paraboloid",
-               "lenslet_array", "lenslet_rings", "expression", "heightmap", "compound"}
+def _union_tags() -> set:
+    """Names pydantic puts into error locations for the members of a union."""
+    tags = set(design_types())
+    tags |= {entry.config.__name__ for entry in process_kinds().values()}
+    return tags
 
 
 def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
@@ -125,11 +133,34 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
     return data
 
 
+def shipped_scenes() -> dict[str, Path]:
+    """The scenes that ship with the package (the seed papers' cases): name -> path."""
+    root = resources.files("render_inspect") / "scenes"
+    return {p.name[:-5]: Path(str(p)) for p in sorted(root.iterdir(), key=lambda q: q.name)
+            if p.name.endswith(".toml")}
+
+
+def find_scene(name_or_path) -> Path:
+    """A scene file: ``name_or_path`` itself when it is a file, else the shipped scene of
+    that name (``sts_sinusoidal_grid`` or ``sts_sinusoidal_grid.toml``)."""
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    shipped = shipped_scenes()
+    key = path.name[:-5] if path.name.endswith(".toml") else path.name
+    if path.parent == Path(".") and key in shipped:
+        return shipped[key]
+    if path.is_dir():
+        raise SceneError(f"scene: {str(path)!r} is a folder; give a scene file (.toml) or the "
+                         f"name of a shipped scene ({', '.join(shipped)})")
+    raise SceneError(f"scene file not found: {str(path)!r}; give a path to a .toml file or the "
+                     f"name of a shipped scene ({', '.join(shipped)})")
+
+
 def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scene:
-    """Read a TOML scene file, apply ``--set`` overrides and validate."""
-    path = Path(path)
-    if not path.is_file():
-        raise SceneError(f"scene file not found: {str(path)!r}")
+    """Read a TOML scene file (or a shipped scene by name), apply ``--set`` overrides and
+    validate."""
+    path = find_scene(path)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:

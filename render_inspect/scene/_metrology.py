@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from ._base import Section
+from ..core.section import Section
 
 
 class MetrologyConfig(Section):

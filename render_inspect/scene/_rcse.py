@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from ._base import Section
+from ..core.section import Section
 
 
 class RcseConfig(Section):

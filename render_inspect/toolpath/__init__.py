@@ -1,12 +1,32 @@
-"""Tools and tool paths: spirals, compensation, accessibility, kinematics, export."""
+"""Tool paths: pure planners on explicit numbers and arrays (spirals, tool-radius
+compensation, accessibility, RCSE cutting-contact points, axis kinematics).  Scene-level
+planning is in :mod:`render_inspect.processes`; files in :mod:`render_inspect.io`."""
 
+from ..core.toolpath import LinearProgram, ToolPath
 from ._access import check_accessibility, describe_accessibility
-from ._build import build_toolpath, region_radii
-from ._compensation import contact_window, gouge_depth, normal_compensation, z_compensation
-from ._path import ToolPath
-from ._spiral import chordal_error, chordal_step_for, spiral_ccps
+from ._build import max_curvature, plan_turning, region_radii
+from ._compensation import (
+                    contact_window,
+                    gouge_depth,
+                    normal_compensation,
+                    z_compensation,
+)
+from ._kinematics import LIMIT_KEYS, axis_derivatives, kinematics, limits_from_process
+from ._rcse import (
+                    PointCloudModel,
+                    RcseCcps,
+                    RingLayout,
+                    conventional_ccps,
+                    paper_layout,
+                    rcse_ccps,
+                    rcse_toolpath,
+)
+from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool
 
-__all__ = ["ToolPath", "Tool", "spiral_ccps", "chordal_error", "chordal_step_for",
-           "z_compensation", "normal_compensation", "gouge_depth", "contact_window",
-           "check_accessibility", "describe_accessibility", "build_toolpath", "region_radii"]
+__all__ = ["ToolPath", "LinearProgram", "Tool", "spiral_ccps", "chordal_error",
+           "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
+           "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
+           "plan_turning", "region_radii", "max_curvature", "kinematics", "axis_derivatives",
+           "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
+           "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout"]

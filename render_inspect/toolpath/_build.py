@@ -1,4 +1,4 @@
-"""Build the STS turning path of a scene: spiral CCPs -> compensation -> ToolPath."""
+"""The turning path: spiral CCPs -> compensation -> :class:`ToolPath`."""
 
 from __future__ import annotations
 
@@ -7,12 +7,14 @@ import time
 
 import numpy as np
 
-from ..errors import AccessibilityError
+from ..core.errors import AccessibilityError, InputError
+from ..core.toolpath import ToolPath
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
-from ._path import ToolPath
 from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool
+
+__all__ = ["plan_turning", "region_radii", "max_curvature"]
 
 
 def region_radii(region, margin: float) -> tuple[float, float]:
@@ -36,29 +38,50 @@ def max_curvature(surface, region, n: int = 129) -> float:
     return float(np.nanmax(np.maximum(np.abs(tr + disc), np.abs(tr - disc))))
 
 
-def build_toolpath(scene, surface=None, *, region=None, check_access: bool = True) -> ToolPath:
-    """The STS spiral path of ``scene`` with its compensation, as a :class:`ToolPath`.
+def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: float,
+                 spindle_rpm: float, compensation: str = "z", sampling: str = "constant_angle",
+                 points_per_rev: int = 3600, arc_length: float = 0.005,
+                 switch_radius: float = 1.0, inner_radius: float = 0.0,
+                 chordal_tolerance: float | None = None, region=None,
+                 check_access: bool = True, allow_gouge: bool = False) -> ToolPath:
+    """The inward spiral turning path over ``surface`` with its tool-radius compensation.
 
     Parameters
     ----------
-    scene : Scene
-    surface : Surface, optional
-        Built from ``scene.design`` if None.
+    surface : Surface
+        The design.
+    tool : Tool
+    workpiece_radius : float
+        Rw, mm: the spiral starts there at theta = 0.
+    feed_per_rev : float
+        mm per revolution (feed / spindle speed).
+    spindle_rpm : float
+        Sets the time of each point, t = theta / omega.
+    compensation : {"none", "normal", "z"}
+        See :mod:`render_inspect.toolpath._compensation`.
+    sampling, points_per_rev, arc_length, switch_radius :
+        See :func:`spiral_ccps`.
+    inner_radius : float
+        mm; the spiral stops there.
+    chordal_tolerance : float, optional
+        mm; bound on the linearisation error (seed 001): the CCP spacing is shortened to
+        L = sqrt(8 R' h - 4 h^2) for the smallest radius of curvature R' of the region.
     region : (x0, y0, x1, y1), optional
         Only the revolutions whose tool arcs can reach ``region`` are generated (the spiral
-        keeps the phase of the full path from ``process.workpiece_radius``).
+        keeps the phase of the full path from ``workpiece_radius``).
     check_access : bool
         Run the accessibility check over ``region`` (or the whole blank) and raise
-        :class:`AccessibilityError` unless ``process.allow_gouge``.
-    """
-    from ..design import make_surface
+        :class:`AccessibilityError` unless ``allow_gouge``.
 
+    Returns
+    -------
+    ToolPath
+        Tool-tip program; ``meta`` holds the path facts (sampling, chordal error, gouge
+        depth, accessibility, cut time).
+    """
     t0 = time.perf_counter()
-    surface = surface if surface is not None else make_surface(scene.design)
-    proc = scene.process
-    tool = Tool.from_config(scene.tool)
-    Rw = proc.workpiece_radius
-    f = proc.feed_per_rev
+    Rw = float(workpiece_radius)
+    f = float(feed_per_rev)
     c = f / TWO_PI
     blank = (-Rw, -Rw, Rw, Rw)
     area = tuple(region) if region is not None else blank
@@ -67,45 +90,45 @@ def build_toolpath(scene, surface=None, *, region=None, check_access: bool = Tru
     # (machining/_envelope.py); keep two more revolutions as margin
     margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
     r_in, r_out = region_radii(area, margin) if region is not None else (0.0, Rw)
-    r_in = max(r_in, proc.inner_radius)
+    r_in = max(r_in, inner_radius)
     r_out = min(r_out, Rw)
-    meta: dict = {"sampling": proc.sampling, "compensation": proc.compensation,
+    meta: dict = {"sampling": sampling, "compensation": compensation,
                   "feed_per_rev_mm": f, "nose_radius_mm": tool.nose_radius,
-                  "spindle_rpm": proc.spindle_rpm, "workpiece_radius_mm": Rw,
+                  "spindle_rpm": spindle_rpm, "workpiece_radius_mm": Rw,
                   "r_range_mm": [r_in, r_out]}
 
-    access = None
     if check_access:
         access = check_accessibility(surface, tool, area)
         meta["accessibility"] = access
-        if not access["ok"] and not proc.allow_gouge:
+        if not access["ok"] and not allow_gouge:
             raise AccessibilityError(
                 "the tool cannot reach the design: " + describe_accessibility(access)
                 + ". Use a smaller tool.nose_radius / larger angles, or set "
                   "process.allow_gouge = true to simulate the gouging anyway.")
 
-    N = proc.points_per_rev
-    ds = proc.arc_length
-    if proc.chordal_tolerance is not None:
+    N = int(points_per_rev)
+    ds = float(arc_length)
+    if chordal_tolerance is not None:
         kmax = max_curvature(surface, area)
-        L = chordal_step_for(proc.chordal_tolerance, 1.0 / kmax if kmax > 0 else math.inf)
+        L = chordal_step_for(chordal_tolerance, 1.0 / kmax if kmax > 0 else math.inf)
         meta["chordal_step_bound_mm"] = L
         if math.isfinite(L):
             ds = min(ds, L)
-            r_ref = r_out if proc.sampling == "constant_angle" else min(proc.switch_radius, r_out)
+            r_ref = r_out if sampling == "constant_angle" else min(switch_radius, r_out)
             N = max(N, int(math.ceil(TWO_PI * max(r_ref, 1e-9) / L)))
     meta["points_per_rev"] = N
     meta["arc_length_mm"] = ds
 
-    if proc.sampling == "constant_angle":
+    if sampling == "constant_angle":
         dth = TWO_PI / N
         i0 = int(math.floor((Rw - r_out) / c / dth))
         i1 = int(math.ceil((Rw - r_in) / c / dth))
         theta = np.arange(i0, i1 + 1, dtype=np.float64) * dth
         rho = np.maximum(Rw - c * theta, 0.0)
     else:
-        theta, rho = spiral_ccps(proc, r_outer=Rw, r_inner=proc.inner_radius,
-                                 points_per_rev=N, arc_length=ds)
+        theta, rho = spiral_ccps(feed_per_rev=f, r_outer=Rw, r_inner=inner_radius,
+                                 sampling=sampling, points_per_rev=N, arc_length=ds,
+                                 switch_radius=switch_radius)
         keep = (rho >= r_in - f) & (rho <= r_out + f)
         idx = np.flatnonzero(keep)
         theta, rho = theta[idx[0]:idx[-1] + 1], rho[idx[0]:idx[-1] + 1]
@@ -113,21 +136,23 @@ def build_toolpath(scene, surface=None, *, region=None, check_access: bool = Tru
     x, y = rho * np.cos(theta), rho * np.sin(theta)
     z_ccp = surface.height(x, y)
     meta["max_slope"] = slope
-    comp = proc.compensation
+    comp = compensation
     if comp == "none":
         rho_tip, z_tip = rho, z_ccp.copy()
     elif comp == "z":
         rho_tip = rho
         z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
                                half_width=tool.half_width)
-    else:
+    elif comp == "normal":
         rho_tip, z_tip = normal_compensation(surface, theta, rho, tool.nose_radius)
+    else:
+        raise InputError(f"compensation must be 'none', 'normal' or 'z', received {comp!r}")
 
     ce = chordal_error(surface, theta, rho, z_ccp)
     meta["chordal_error_max_mm"] = float(ce.max()) if ce.size else 0.0
-    if proc.chordal_tolerance is not None:
-        meta["chordal_tolerance_mm"] = proc.chordal_tolerance
-        meta["chordal_within_tolerance"] = bool(meta["chordal_error_max_mm"] <= proc.chordal_tolerance * 1.0001)
+    if chordal_tolerance is not None:
+        meta["chordal_tolerance_mm"] = chordal_tolerance
+        meta["chordal_within_tolerance"] = bool(meta["chordal_error_max_mm"] <= chordal_tolerance * 1.0001)
 
     # gouge check: how far each programmed position would cut below the design section
     if comp == "z":
@@ -138,7 +163,7 @@ def build_toolpath(scene, surface=None, *, region=None, check_access: bool = Tru
         k = int(np.argmax(g))
         meta["gouge_max_mm"] = float(g[k])
         meta["gouge_worst_at_mm"] = [float(rho_tip[k] * np.cos(theta[k])), float(rho_tip[k] * np.sin(theta[k]))]
-    omega = TWO_PI * proc.spindle_rpm / 60.0
+    omega = TWO_PI * spindle_rpm / 60.0
     t = theta / omega
     meta["time_s"] = float(t[-1] - t[0]) if t.size else 0.0
     meta["build_s"] = time.perf_counter() - t0

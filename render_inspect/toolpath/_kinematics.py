@@ -17,16 +17,13 @@ Every maximum is of the absolute value.
 
 from __future__ import annotations
 
-import io
 import math
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
-__all__ = ["axis_derivatives", "kinematics", "limits_from_process", "plot_kinematics",
-           "LIMIT_KEYS"]
+__all__ = ["axis_derivatives", "kinematics", "limits_from_process", "LIMIT_KEYS"]
 
 #: scene key (``[process]``) -> (axis, derivative order, label, unit)
 LIMIT_KEYS = {
@@ -158,73 +155,3 @@ def kinematics(path, *, limits=None) -> dict:
                 f"points: first at {_at(path, int(over[0]))}; worst {mag[worst]:.4g} {unit} at "
                 f"{_at(path, worst)}")
     return out
-
-
-def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
-    """Per-bin min/max of y (bins along x): plots of millions of points that keep spikes."""
-    n = x.size
-    if n <= 2 * bins:
-        return x, y, y
-    edges = np.linspace(0, n, bins + 1).astype(np.int64)
-    starts = edges[:-1]
-    xm = x[(starts + edges[1:]) // 2]
-    return xm, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
-
-
-def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventional"),
-                    title: str | None = None) -> Path:
-    """Plot X against C and the X velocity and acceleration against time (seed 004
-    Figs. 8-9), one column per path.
-
-    Parameters
-    ----------
-    path : ToolPath
-    png_path : str or Path
-        Written atomically.
-    reference : ToolPath, optional
-        A second path (e.g. the conventional one) drawn in a second column.
-    labels : (str, str)
-        Column titles for ``path`` and ``reference``.
-    title : str, optional
-
-    Returns
-    -------
-    Path of the PNG.  Every curve is drawn as a per-bin min/max envelope, so spikes of
-    single points stay visible on paths of millions of points.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from ..io import atomic_write_bytes
-
-    paths = [path] + ([reference] if reference is not None else [])
-    fig, axes = plt.subplots(3, len(paths), figsize=(5.2 * len(paths), 8.4), squeeze=False,
-                             sharey="row")
-    for col, (p, lab) in enumerate(zip(paths, labels)):
-        t = np.asarray(p.t, dtype=np.float64)
-        vx, ax, _ = axis_derivatives(t, p.rho)
-        c_rev = np.asarray(p.theta, dtype=np.float64) / (2 * math.pi)
-        rows = [(c_rev, np.asarray(p.rho), "C (revolutions, cumulative)", "X = radius (mm)"),
-                (t, vx, "time (s)", "X velocity (mm/s)"),
-                (t, ax, "time (s)", "X acceleration (mm/s$^2$)")]
-        for r, (xs, ys, xl, yl) in enumerate(rows):
-            axx = axes[r, col]
-            xm, lo, hi = _envelope(xs, ys)
-            axx.plot(xm, lo, lw=0.7, color="C0")
-            if xm.size != xs.size:
-                axx.plot(xm, hi, lw=0.7, color="C0")
-                axx.fill_between(xm, lo, hi, lw=0, color="C0", alpha=0.5)
-            axx.set_xlabel(xl)
-            axx.set_ylabel(yl)
-            axx.grid(alpha=0.3)
-        axes[0, col].set_title(f"{lab}\nmax |vX| {np.max(np.abs(vx)):.3g} mm/s, "
-                               f"max |aX| {np.max(np.abs(ax)):.3g} mm/s$^2$", fontsize=9)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(png_path, buf.getvalue())

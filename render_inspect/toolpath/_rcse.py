@@ -45,12 +45,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, SceneError, check_range
+from ..core.errors import InputError, SceneError, check_range
+from ..core.toolpath import ToolPath
+from ._build import region_radii
+from ._compensation import normal_compensation, z_compensation
+from ._spiral import chordal_error
 
 TWO_PI = 2.0 * math.pi
 
 __all__ = ["RingLayout", "RcseCcps", "PointCloudModel", "rcse_ccps", "conventional_ccps",
-           "build_rcse_toolpath", "paper_layout", "rcse_settings"]
+           "rcse_toolpath", "paper_layout"]
 
 
 # ---------------------------------------------------------------------------------------
@@ -456,38 +460,37 @@ def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spaci
 
 
 # ---------------------------------------------------------------------------------------
-# scene -> ToolPath
+# CCPs -> ToolPath
 # ---------------------------------------------------------------------------------------
-_DEFAULTS = {"grid_spacing": 0.005, "interpolation": "linear", "snap_to_rows": True,
-             "compare_conventional": True, "simulate_conventional": True}
-
-
-def rcse_settings(scene) -> dict:
-    """The ``[rcse]`` settings of a scene (defaults where the scene has no such section)."""
-    cfg = getattr(scene, "rcse", None)
-    out = dict(_DEFAULTS)
-    if cfg is not None:
-        data = cfg if isinstance(cfg, dict) else cfg.model_dump()
-        out.update({k: v for k, v in data.items() if v is not None})
-    return out
-
-
-def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | None = None):
-    """The RCSE tool path of a scene: CCPs on the spiral, then tool-radius compensation.
+def rcse_toolpath(layout: RingLayout, tool, *, workpiece_radius: float, pitch: float,
+                  points_per_rev: int, spindle_rpm: float, inner_radius: float = 0.0,
+                  compensation: str = "z", region=None, ccps: RcseCcps | None = None,
+                  surface=None) -> ToolPath:
+    """The RCSE tool path: CCPs on the spiral, then tool-radius compensation.
 
     Parameters
     ----------
-    scene : Scene
-        ``design`` (type ``lenslet_rings``), ``tool``, ``process`` (``workpiece_radius``,
-        ``inner_radius``, ``feed_mm_per_min / spindle_rpm`` = pitch, ``points_per_rev`` =
-        polar step, ``compensation``).
-    surface : Surface, optional
-        The design surface used by the compensation (the :class:`RingLayout` of
-        ``scene.design`` if None: the same heights as ``design.LensletRings``).
+    layout : RingLayout
+        The elements (:meth:`RingLayout.from_config` of a ``lenslet_rings`` design).
+    tool : Tool
+    workpiece_radius : float
+        mm; the spiral starts there at theta = 0.
+    pitch : float
+        Spiral pitch d = feed per revolution, mm.
+    points_per_rev : int
+        Polar step 2 pi / points_per_rev.
+    spindle_rpm : float
+        Sets t = theta / omega.
+    inner_radius : float
+        mm; the spiral stops there.
+    compensation : {"none", "normal", "z"}
     region : (x0, y0, x1, y1), optional
         mm; keep only the revolutions whose tool nose can reach this window.
     ccps : RcseCcps, optional
-        Precomputed CCPs (as returned by :func:`rcse_ccps` for this scene).
+        Precomputed CCPs (as :func:`rcse_ccps` returns them for these settings).
+    surface : Surface, optional
+        The design used by the compensation (``layout`` itself if None: the same heights
+        as ``design.LensletRings``, evaluated faster).
 
     Returns
     -------
@@ -495,48 +498,33 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
         theta (cumulative), rho, z (tool tip), t = theta / omega; ``meta`` holds the
         method, compensation, pitch and the CCP design heights' source.
     """
-    from ._path import ToolPath
-
-    layout = RingLayout.from_config(scene.design)
     bad = layout.overlaps()
     if bad:
         raise SceneError("process.kind = 'rcse' needs elements that do not overlap (each CCP on "
                          "at most one element); design.ring_radii / design.counts: " + "; ".join(bad))
-    proc = scene.process
-    Rc = float(scene.tool.nose_radius)
-    pitch = proc.feed_per_rev
+    Rc = float(tool.nose_radius)
     if ccps is None:
         r_range = None
         if region is not None:
-            from ._build import region_radii
-            from ._tool import Tool
-
-            r_range = region_radii(region, Tool.from_config(scene.tool).half_width + 2 * pitch)
-        ccps = rcse_ccps(layout, r_outer=proc.workpiece_radius, pitch=pitch,
-                         points_per_rev=proc.points_per_rev, r_inner=proc.inner_radius,
-                         r_range=r_range)
+            r_range = region_radii(region, tool.half_width + 2 * pitch)
+        ccps = rcse_ccps(layout, r_outer=workpiece_radius, pitch=pitch,
+                         points_per_rev=points_per_rev, r_inner=inner_radius, r_range=r_range)
     theta, rho, z = ccps.theta, ccps.rho, ccps.z
-    comp = proc.compensation
+    comp = compensation
     if comp == "none":
         rho_t, z_t = rho.copy(), z.copy()
     else:
         if surface is None:
             surface = layout  # the same heights as design.LensletRings, evaluated faster
-        from ._compensation import normal_compensation, z_compensation
-        from ._tool import Tool
-
-        tool = Tool.from_config(scene.tool)
         if comp == "z":
             rho_t = rho.copy()
             z_t = z_compensation(surface, theta, rho, Rc, max_slope=layout.max_slope * 1.05,
                                  half_width=tool.half_width)
         else:
             rho_t, z_t = normal_compensation(surface, theta, rho, Rc)
-    omega = TWO_PI * proc.spindle_rpm / 60.0
+    omega = TWO_PI * spindle_rpm / 60.0
     meta = dict(ccps.meta)
     # the CCPs are exact, but the axes interpolate linearly between them: chordal error
-    from ._spiral import chordal_error
-
     if theta.size >= 2:
         ce = chordal_error(layout, theta, rho, z)
         i = int(np.argmax(ce))
@@ -544,7 +532,7 @@ def build_rcse_toolpath(scene, surface=None, *, region=None, ccps: RcseCcps | No
         meta["chordal_error_max_mm"] = float(ce[i])
         meta["chordal_error_worst_at_mm"] = [float(rm * math.cos(tm)), float(rm * math.sin(tm))]
     meta.update({"compensation": comp, "feed_per_rev_mm": pitch, "nose_radius": Rc,
-                 "spindle_rpm": proc.spindle_rpm, "layout": layout.to_dict(),
+                 "spindle_rpm": spindle_rpm, "layout": layout.to_dict(),
                  "sampling": "constant_angle"})
     meta["r_range_mm"] = [float(rho.min()), float(rho.max())]
     meta["time_s"] = float((theta[-1] - theta[0]) / omega)

@@ -12,9 +12,11 @@ import math
 
 import numpy as np
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 TWO_PI = 2 * math.pi
+
+__all__ = ["spiral_ccps", "chordal_step_for", "chordal_error", "SAMPLINGS", "TWO_PI"]
 
 
 def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
@@ -24,38 +26,50 @@ def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
     return (r_start - np.sqrt(disc)) / c
 
 
-def spiral_ccps(process_cfg, *, r_outer: float, r_inner: float = 0.0, points_per_rev=None,
-                arc_length=None) -> tuple[np.ndarray, np.ndarray]:
+SAMPLINGS = ("constant_angle", "constant_arc", "hybrid")
+
+
+def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
+                sampling: str = "constant_angle", points_per_rev: int = 3600,
+                arc_length: float = 0.005, switch_radius: float = 1.0
+                ) -> tuple[np.ndarray, np.ndarray]:
     """CCP angles (cumulative, rad) and radii (mm) of the inward spiral.
 
     Parameters
     ----------
-    process_cfg : ProcessConfig
-        Uses ``feed_per_rev``, ``sampling``, ``points_per_rev``, ``arc_length``,
-        ``switch_radius``.
+    feed_per_rev : float
+        f, mm per revolution (the spiral pitch).
     r_outer, r_inner : float
         mm; the spiral runs from ``r_outer`` to ``r_inner`` (inclusive).
-    points_per_rev, arc_length : optional overrides of the config's values.
+    sampling : {"constant_angle", "constant_arc", "hybrid"}
+        Constant angle (``points_per_rev`` per revolution), constant arc length
+        (``arc_length`` mm apart), or hybrid: constant arc length outside
+        ``switch_radius``, constant angle inside (seed 001).
+    points_per_rev : int
+    arc_length, switch_radius : float, mm
 
     Returns
     -------
     theta, rho : (n,) float64
     """
-    f = process_cfg.feed_per_rev
+    f = float(feed_per_rev)
+    check_range("feed_per_rev", f, 0.0, None, lo_open=True)
     check_range("r_outer", r_outer, 0.0, None, lo_open=True)
     if not 0 <= r_inner < r_outer:
         raise InputError(f"r_inner must be in [0, r_outer={r_outer}), received {r_inner}")
-    N = int(points_per_rev or process_cfg.points_per_rev)
-    ds = float(arc_length or process_cfg.arc_length)
+    if sampling not in SAMPLINGS:
+        raise InputError(f"sampling must be one of {SAMPLINGS}, received {sampling!r}")
+    N = int(points_per_rev)
+    ds = float(arc_length)
     c = f / TWO_PI
     theta_end = (r_outer - r_inner) / c
-    mode = process_cfg.sampling
+    mode = sampling
     if mode == "constant_angle":
         n = int(math.ceil(theta_end / (TWO_PI / N)))
         theta = np.arange(n + 1, dtype=np.float64) * (TWO_PI / N)
         theta[-1] = min(theta[-1], theta_end)
     else:
-        r_sw = r_inner if mode == "constant_arc" else min(max(process_cfg.switch_radius, r_inner), r_outer)
+        r_sw = r_inner if mode == "constant_arc" else min(max(switch_radius, r_inner), r_outer)
         # arc-length part from r_outer down to r_sw; the angular step is capped at 2 pi / 8
         theta_sw = (r_outer - r_sw) / c
         s_total = r_outer * theta_sw - c * theta_sw ** 2 / 2

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import check_range
+from ..core.errors import check_range
 
 
 @dataclass(frozen=True)

@@ -30,18 +30,26 @@ Image from the two-beam interference model on top (numpy):
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
-from .. import __version__
-from .._grid import GridCoordinates
-from ..errors import InputError, MemoryBudgetError, check_positive, check_range
+from ..core.errors import InputError, MemoryBudgetError, check_positive, check_range
+from ..core.frames import Frames
+from ..core.section import Section
+from ..io import read_frames_exr, write_frames_exr
+from ..mesh import heightmap_mesh
+from ..render import mitsuba_variant, trace_grids
+from ._registry import register_instrument
 
-__all__ = ["OBJECTIVES", "Interferogram", "render_interferogram", "interferometer_geometry",
-           "trace_heights", "interference_frames", "camera_noise", "write_interferogram_exr",
-           "read_interferogram_exr", "PHASE_CONVENTION"]
+__all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "render_interferogram",
+           "interferometer_geometry", "trace_heights", "interference_frames", "camera_noise",
+           "write_interferogram_exr", "read_interferogram_exr"]
 
 #: Objective presets: numerical aperture, field of view (mm, square) and camera pixels.
 OBJECTIVES = {
@@ -61,73 +69,56 @@ VALID_FRACTION = 0.5
 MAX_CSI_FRAMES = 1024
 MAX_STACK_BYTES = 2 * 1024**3
 
-PHASE_CONVENTION = ("I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4, E = mean over sub-samples of "
-                    "exp(i 4 pi (h - z_ref) / lambda); delta_k = phase_steps_rad[k]")
+class InterferometerConfig(Section):
+    """``[render.interferometer]``: the virtual interference microscope."""
+    mode: Literal["psi", "csi"] = "psi"
+    objective: Literal["5x", "10x", "20x", "50x"] = "20x"
+    wavelength_nm: float | None = Field(None, gt=100, lt=2000, description="PSI wavelength / CSI centre")
+    bandwidth_nm: float | None = Field(None, gt=0, lt=1000, description="CSI source FWHM")
+    numerical_aperture: float | None = Field(None, gt=0, lt=1)
+    pixel: float | None = Field(None, gt=0, description="mm at the part")
+    field_of_view: tuple[float, float, float, float] | None = Field(None, description="mm, [x0, y0, x1, y1]")
+    steps: int = Field(4, ge=3, le=16, description="PSI frames")
+    step_rad: float = Field(1.5707963267948966, gt=0, description="PSI phase step")
+    scan_step_nm: float = Field(80.0, gt=0, description="CSI scan step")
+    subsamples: int = Field(2, ge=1, le=8, description="sub-pixel samples per axis")
+    noise: bool = True
+    bit_depth: int = Field(12, ge=1, le=16)
+    full_well: float = Field(20000.0, gt=0, description="electrons")
+    read_noise: float = Field(5.0, ge=0, description="electrons rms")
+    reference_height: float | None = Field(None, description="z_ref, mm (default: mean height in the field)")
+
+
+register_instrument("interferometer", InterferometerConfig)
 
 
 @dataclass
-class Interferogram(GridCoordinates):
-    """Frames of the virtual interference microscope and what they were made from.
+class Interferogram(Frames):
+    """What the virtual interference microscope records (:class:`~render_inspect.core.Frames`:
+    the frames and the instrument settings) plus the truth it was made from, kept apart
+    for evaluation: measuring uses the :class:`Frames` part only (:meth:`recorded`).
 
-    Attributes
-    ----------
-    frames : (N, H, W) float32, 0..1
-        PSI: one frame per phase step; CSI: one per scan position.
-    intensity : (H, W) float32
-        PSI: the zero-shift frame (``frames[0]``); CSI: the frame nearest ``z_ref``.
-    valid : (H, W) bool
-        Light returned (at least half of the sub-samples inside the NA acceptance).
+    Attributes (beyond :class:`~render_inspect.core.Frames`)
+    ----------------------------------------------------------
     height_true : (H, W) float64, mm
         Ray-traced height at the pixel centres (NaN where the ray missed).
-    pixel : float, mm;  origin : (x, y) of pixel [0, 0]'s centre, mm.  Row 0 = smallest y.
-    wavelength_nm, bandwidth_nm (CSI, else None), numerical_aperture, mode ("psi"/"csi"),
-    variant (Mitsuba variant), objective, subsamples, z_ref (mm), seed, noise,
-    phase_steps (rad, PSI; empty for CSI), scan_positions (mm, CSI; empty for PSI),
-    accepted_fraction (H, W) float32, surface ("design"/"machined"), meta (dict).
+    accepted_fraction : (H, W) float32
+        Fraction of each pixel's sub-samples inside the NA acceptance.
+    surface : {"design", "machined"}
     """
 
-    frames: np.ndarray
-    intensity: np.ndarray
-    valid: np.ndarray
-    height_true: np.ndarray
-    pixel: float
-    origin: tuple[float, float]
-    wavelength_nm: float
-    numerical_aperture: float
-    mode: str
-    variant: str
-    phase_steps: np.ndarray
-    scan_positions: np.ndarray
-    z_ref: float
-    bandwidth_nm: float | None = None
-    objective: str = ""
-    subsamples: int = 1
-    seed: int = 0
-    noise: bool = False
+    height_true: np.ndarray | None = None
     accepted_fraction: np.ndarray | None = None
     surface: str = "machined"
-    meta: dict = field(default_factory=dict)
 
-    @property
-    def shape(self):
-        return self.intensity.shape
-
+    def recorded(self) -> Frames:
+        """The frames and settings alone (what an instrument's file would hold)."""
+        return Frames(**{f.name: getattr(self, f.name) for f in dataclasses.fields(Frames)})
 
     def header(self) -> dict:
-        """The EXR header attributes (ARCHITECTURE.md names plus provenance)."""
-        return {"pixel_size_mm": float(self.pixel),
-                "origin_mm": [float(self.origin[0]), float(self.origin[1])],
-                "wavelength_nm": float(self.wavelength_nm),
-                "bandwidth_nm": float(self.bandwidth_nm or 0.0),
-                "numerical_aperture": float(self.numerical_aperture),
-                "mode": self.mode, "mitsuba_variant": self.variant,
-                "objective": self.objective, "subsamples": int(self.subsamples),
-                "z_ref_mm": float(self.z_ref), "seed": int(self.seed),
-                "noise": bool(self.noise), "surface": self.surface,
-                "phase_steps_rad": [float(d) for d in self.phase_steps],
-                "scan_positions_mm": [float(z) for z in self.scan_positions],
-                "phase_convention": PHASE_CONVENTION, "units": "mm",
-                "software_version": __version__}
+        h = super().header()
+        h["surface"] = self.surface
+        return h
 
 
 # ---------------------------------------------------------------------------- geometry
@@ -201,9 +192,6 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     nz_sub : (ny*s, nx*s) float32, z component of the shading normal (0 where missed)
     h_centre : (ny, nx) float64, mm, the height at the pixel centres (NaN where missed)
     """
-    from ..mesh import heightmap_mesh
-    from ._scene_dicts import trace_grids
-
     if surface not in ("design", "machined"):
         raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
     s = int(subsamples)
@@ -359,9 +347,6 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     -------
     Interferogram
     """
-    from ..scene import InterferometerConfig
-    from ._variant import mitsuba_variant
-
     if icfg is None:
         icfg = InterferometerConfig()
     if int(seed) != seed or seed < 0:
@@ -383,57 +368,35 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     else:
         frames = frames.astype(np.float32)
     return Interferogram(
-        frames=frames, intensity=frames[i0].copy(), valid=accepted >= VALID_FRACTION,
-        height_true=h_centre, pixel=geom["pixel"], origin=tuple(geom["origin"]),
-        wavelength_nm=geom["wavelength_nm"], numerical_aperture=geom["numerical_aperture"],
-        mode=icfg.mode, variant=mitsuba_variant(), phase_steps=np.asarray(deltas),
+        frames=frames, valid=accepted >= VALID_FRACTION, pixel=geom["pixel"],
+        origin=tuple(geom["origin"]), mode=icfg.mode, wavelength_nm=geom["wavelength_nm"],
+        numerical_aperture=geom["numerical_aperture"], phase_steps=np.asarray(deltas),
         scan_positions=np.asarray(scan), z_ref=z_ref, bandwidth_nm=geom["bandwidth_nm"],
-        objective=icfg.objective, subsamples=s, seed=int(seed), noise=bool(icfg.noise),
-        accepted_fraction=accepted.astype(np.float32), surface=surface,
-        meta={"window_mm": geom["window"]})
+        objective=icfg.objective, intensity_index=int(i0), variant=mitsuba_variant(),
+        subsamples=s, seed=int(seed), noise=bool(icfg.noise),
+        meta={"window_mm": geom["window"]}, height_true=h_centre,
+        accepted_fraction=accepted.astype(np.float32), surface=surface)
 
 
 def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = None):
-    """Write ``interferogram.exr``: channels ``intensity``, ``frame_000`` ... (all frames),
-    ``valid`` (0/1), ``height_true`` (mm, NaN where missed), ``accepted_fraction``; the
-    header of :meth:`Interferogram.header` plus ``scene`` (JSON)."""
-    import json
-
-    from ..io import write_exr
-
-    ch = {"intensity": ig.intensity}
-    for k, f in enumerate(ig.frames):
-        ch[f"frame_{k:03d}"] = f
-    ch["valid"] = ig.valid.astype(np.float32)
-    ch["height_true"] = ig.height_true
+    """Write ``interferogram.exr``: the frames and settings
+    (:func:`~render_inspect.io.write_frames_exr`) plus the truth channels ``height_true``
+    (mm, NaN where missed) and ``accepted_fraction``, and ``scene`` (JSON) in the header."""
+    extra = {"height_true": ig.height_true}
     if ig.accepted_fraction is not None:
-        ch["accepted_fraction"] = ig.accepted_fraction
-    attrs = ig.header()
-    attrs["scene"] = json.dumps(scene or {}, sort_keys=True, default=str)
-    return write_exr(path, ch, attrs)
+        extra["accepted_fraction"] = ig.accepted_fraction
+    return write_frames_exr(path, ig, extra_channels=extra,
+                            attrs={"scene": json.dumps(scene or {}, sort_keys=True, default=str),
+                                   "surface": ig.surface})
 
 
 def read_interferogram_exr(path) -> Interferogram:
     """Read an ``interferogram.exr`` written by :func:`write_interferogram_exr`."""
-    from ..io import read_exr
-
-    ch, a = read_exr(path)
-    for need in ("intensity", "valid", "height_true"):
-        if need not in ch:
-            raise InputError(f"{path}: no channel {need!r} (channels: {sorted(ch)})")
-    names = sorted(k for k in ch if k.startswith("frame_"))
-    frames = np.stack([ch[k] for k in names]) if names else ch["intensity"][None]
-    bw = float(a.get("bandwidth_nm", 0.0)) or None
-    return Interferogram(
-        frames=frames, intensity=ch["intensity"], valid=ch["valid"] > 0.5,
-        height_true=ch["height_true"].astype(np.float64), pixel=float(a["pixel_size_mm"]),
-        origin=tuple(a["origin_mm"]), wavelength_nm=float(a["wavelength_nm"]),
-        numerical_aperture=float(a["numerical_aperture"]), mode=str(a["mode"]),
-        variant=str(a.get("mitsuba_variant", "")),
-        phase_steps=np.asarray(a.get("phase_steps_rad", []), dtype=np.float64),
-        scan_positions=np.asarray(a.get("scan_positions_mm", []), dtype=np.float64),
-        z_ref=float(a.get("z_ref_mm", 0.0)), bandwidth_nm=bw, objective=str(a.get("objective", "")),
-        subsamples=int(a.get("subsamples", 1)), seed=int(a.get("seed", 0)),
-        noise=str(a.get("noise", "false")) == "true",
-        accepted_fraction=ch.get("accepted_fraction"), surface=str(a.get("surface", "")),
-        meta={k: a[k] for k in ("scene",) if k in a})
+    frames, extra, attrs = read_frames_exr(path)
+    if "height_true" not in extra:
+        raise InputError(f"{path}: no channel 'height_true' (channels: "
+                         f"{sorted(extra) + ['intensity', 'valid']}); it holds frames only")
+    fields = {f.name: getattr(frames, f.name) for f in dataclasses.fields(Frames)}
+    return Interferogram(**fields, height_true=extra["height_true"].astype(np.float64),
+                         accepted_fraction=extra.get("accepted_fraction"),
+                         surface=str(attrs.get("surface", "")))

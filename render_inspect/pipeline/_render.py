@@ -1,4 +1,4 @@
-"""``render-inspect render``: height map -> interferogram and diffuse images, on disk."""
+"""``render``: height map -> interferogram and diffuse images, on disk."""
 
 from __future__ import annotations
 
@@ -8,11 +8,24 @@ import time
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
+from PIL.PngImagePlugin import PngInfo
 
 from .. import __version__
-from ..errors import InputError
+from ..core.errors import InputError
+from ..instruments import render_interferogram, write_interferogram_exr
+from ..io import (
+    atomic_output_dir,
+    atomic_write_bytes,
+    save_map_png,
+    write_exr,
+    write_json,
+)
+from ..render import render_diffuse, variant_info
+from ._simulate import design_heightmap, simulate
 
-__all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs"]
+__all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
+           "interferogram_summary"]
 
 KINDS = ("interferometer", "diffuse", "all")
 SURFACES = ("design", "machined")
@@ -21,33 +34,18 @@ SURFACES = ("design", "machined")
 def render_heightmap(scene, *, surface: str = "machined"):
     """The HeightMap a render of ``scene`` uses.
 
-    ``machined``: :func:`render_inspect.machining.simulate_scene` (its height map);
-    ``design``: the design surface sampled on the simulation grid (no machining), with
-    ``machined`` = ``design``.
+    ``machined``: :func:`~render_inspect.pipeline.simulate`'s height map; ``design``: the
+    design surface sampled on the simulation grid (no machining), with ``machined`` =
+    ``design``.
     """
-    from ..machining import HeightMap
-
     if surface == "machined":
-        from ..machining import simulate_scene
-
-        return simulate_scene(scene).heightmap
+        return simulate(scene).heightmap
     if surface != "design":
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
-    from ..design import make_surface
-    from ..machining import design_grid
-
-    region = tuple(scene.simulation.region)
-    pixel = float(scene.simulation.pixel)
-    z = design_grid(make_surface(scene.design), region, pixel)
-    return HeightMap(z, z.copy(), pixel, (float(region[0]), float(region[1])),
-                     scene=scene.to_dict(), meta={"surface": "design",
-                                                  "seed": int(scene.simulation.seed)})
+    return design_heightmap(scene)
 
 
 def _png_bytes(img8: np.ndarray, text: dict) -> bytes:
-    from PIL import Image
-    from PIL.PngImagePlugin import PngInfo
-
     info = PngInfo()
     for k, v in text.items():
         info.add_text(str(k), v if isinstance(v, str) else json.dumps(v, default=str))
@@ -67,9 +65,6 @@ def write_interferogram_outputs(out: Path, ig, *, scene: dict | None = None) -> 
     row 0 = smallest y drawn at the bottom, invalid pixels red) and
     ``interferogram_height.png`` (false-colour ``height_true - z_ref`` in nm) into ``out``;
     return the summary dict."""
-    from ..io import atomic_write_bytes, save_map_png
-    from ._interferometer import write_interferogram_exr
-
     out = Path(out)
     write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
     g = np.clip(ig.intensity, 0, 1)[::-1]
@@ -103,8 +98,6 @@ def interferogram_summary(ig) -> dict:
 def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) -> dict:
     """Write ``<name>.exr`` (linear R, G, B; header: the scene spec, ``vertical_exaggeration``,
     ``mitsuba_variant``) and ``<name>.png`` (sRGB 8-bit; the same as PNG text)."""
-    from ..io import atomic_write_bytes, write_exr
-
     out = Path(out)
     attrs = {"vertical_exaggeration": float(meta["vertical_exaggeration"]),
              "mitsuba_variant": meta["mitsuba_variant"], "view": meta["view"],
@@ -146,11 +139,6 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     Files: ``interferogram.exr``, ``interferogram_fringes.png``, ``interferogram_height.png``
     (interferometer); ``diffuse_macro.{exr,png}``, ``diffuse_micro.{exr,png}`` (diffuse).
     """
-    from ..io import atomic_output_dir, write_json
-    from ._diffuse import render_diffuse
-    from ._interferometer import render_interferogram
-    from ._variant import variant_info
-
     if kind not in KINDS:
         raise InputError(f"--kind must be one of {KINDS}, got {kind!r}")
     if surface not in SURFACES:

@@ -1,4 +1,4 @@
-"""Shared pydantic base for scene sections: unknown keys are errors."""
+"""Shared pydantic base of every scene section: unknown keys are errors."""
 
 from __future__ import annotations
 

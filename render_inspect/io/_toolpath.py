@@ -1,4 +1,5 @@
-"""Tool-path export: a generic C-X-Z NC program, CSV, and the npz of the contracts.
+"""Machine programs on disk: turning tool paths (npz of the contracts, a generic C-X-Z NC
+program, CSV) and sculpturing programs (npz, CSV, a generic X-Y-Z NC program).
 
 NC program (``toolpath.nc``), a generic, documented dialect (ISO 6983 words):
 
@@ -32,6 +33,10 @@ CSV (``toolpath.csv``), one row per point, header
 ``x_mm``/``y_mm`` the Cartesian tool-tip position in the workpiece frame
 (rho cos theta, rho sin theta), ``z_mm`` Z, ``theta_rad`` = C in rad, ``rho_mm`` = X axis.
 Full double precision (``repr``-exact, 17 significant digits).
+
+Text that reaches a program (names, comments) is reduced to printable ASCII without
+control characters, and ``;``, ``(`` and ``)`` are replaced, so no scene text can start a
+block of its own (:func:`nc_comment_text`).
 """
 
 from __future__ import annotations
@@ -42,36 +47,66 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from .. import __version__
+from ..core.errors import InputError
+from ..core.toolpath import LinearProgram, ToolPath
+from ._atomic import atomic_write_bytes, atomic_write_text
+from ._registry import register_writer, writer
 
-__all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "export_toolpath", "FORMATS",
-           "CSV_COLUMNS"]
+__all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
+           "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
+           "export_program", "nc_comment_text", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS"]
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
+PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")
 _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
-def _header_lines(header: dict | None, toolpath) -> list[str]:
-    from .. import __version__
+def nc_comment_text(value) -> str:
+    """``value`` as text safe inside a ``;`` comment of an NC program: printable ASCII only
+    (every other character, line breaks and carriage returns included, becomes a space),
+    ``;`` -> ``,`` and ``(``/``)`` -> ``[``/``]`` (comment delimiters of common dialects),
+    runs of spaces collapsed."""
+    text = str(value)
+    out = []
+    for ch in text:
+        o = ord(ch)
+        if ch == ";":
+            out.append(",")
+        elif ch == "(":
+            out.append("[")
+        elif ch == ")":
+            out.append("]")
+        elif 32 <= o < 127:
+            out.append(ch)
+        else:
+            out.append(" ")
+    return re.sub(r" {2,}", " ", "".join(out)).strip()
 
+
+def _header_lines(title: str, info: dict) -> list[str]:
+    lines = [f"; {title}"]
+    for k, v in info.items():
+        if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
+            raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
+        lines.append(f"; {k}: {nc_comment_text(v)}")
+    return lines
+
+
+def _turning_header(header: dict | None, toolpath) -> list[str]:
     info = {"software_version": __version__}
     meta = getattr(toolpath, "meta", {}) or {}
     for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm", "nose_radius"):
         if k in meta:
             info[k] = meta[k]
     info.update(header or {})
-    lines = ["; render_inspect generic C-X-Z turning program",
-             "; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)",
-             "; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)"]
-    for k, v in info.items():
-        text = str(v).replace("\n", " ")
-        if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
-            raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
-        lines.append(f"; {k}: {text}")
-    return lines
+    lines = _header_lines("render_inspect generic C-X-Z turning program", {})
+    lines += ["; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)",
+              "; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)"]
+    return lines + _header_lines("", info)[1:]
 
 
-def write_nc(path, toolpath, *, header: dict | None = None, scene=None, decimals: int = 6) -> Path:
+def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -> Path:
     """Write ``toolpath`` as a generic C-X-Z NC program (format in the module docstring).
 
     Parameters
@@ -81,10 +116,8 @@ def write_nc(path, toolpath, *, header: dict | None = None, scene=None, decimals
     toolpath : ToolPath
         ``t`` must be strictly increasing.
     header : dict, optional
-        Extra ``; key: value`` header lines (e.g. ``{"scene": name, "spindle_rpm": 42}``).
-    scene : Scene, optional
-        Adds ``scene`` (name), ``process``, ``spindle_rpm``, ``feed_per_rev_mm``,
-        ``compensation`` and ``nose_radius`` header lines (``header`` wins on a clash).
+        Extra ``; key: value`` header lines (e.g. ``{"scene": name, "spindle_rpm": 42}``);
+        values pass through :func:`nc_comment_text`.
     decimals : int
         Places for C (deg), X and Z (mm), 3..12.
 
@@ -92,8 +125,6 @@ def write_nc(path, toolpath, *, header: dict | None = None, scene=None, decimals
     -------
     Path
     """
-    from ..io import atomic_write_text
-
     if not (isinstance(decimals, int) and 3 <= decimals <= 12):
         raise InputError(f"decimals must be an integer in [3, 12], received {decimals!r}")
     t = np.asarray(toolpath.t, dtype=np.float64)
@@ -113,14 +144,8 @@ def write_nc(path, toolpath, *, header: dict | None = None, scene=None, decimals
             raise InputError(f"ToolPath.{name} has non-finite values at index "
                              f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
     hdr = {"points": n, "t0_s": repr(float(t[0]))}
-    if scene is not None:
-        hdr.update({"scene": scene.name, "process": scene.process.kind,
-                    "spindle_rpm": scene.process.spindle_rpm,
-                    "feed_per_rev_mm": scene.process.feed_per_rev,
-                    "compensation": scene.process.compensation,
-                    "nose_radius": scene.tool.nose_radius})
     hdr.update(header or {})
-    lines = _header_lines(hdr, toolpath)
+    lines = _turning_header(hdr, toolpath)
     lines.append("G90 G93")
     f = "{:.%df}" % decimals
     cs = [f.format(v) for v in c]
@@ -139,8 +164,6 @@ def read_nc(path):
 
     Header ``; key: value`` lines become ``meta``.  Raises :class:`InputError` naming the
     line for malformed blocks."""
-    from ._path import ToolPath
-
     path = Path(path)
     if not path.is_file():
         raise InputError(f"NC file not found: {str(path)!r}")
@@ -202,8 +225,6 @@ def write_csv(path, toolpath) -> Path:
     (atomic; full double precision).  Returns the Path."""
     import io
 
-    from ..io import atomic_write_text
-
     th = np.asarray(toolpath.theta, dtype=np.float64)
     rho = np.asarray(toolpath.rho, dtype=np.float64)
     data = np.column_stack([toolpath.t, np.degrees(th), rho * np.cos(th), toolpath.z, th, rho,
@@ -215,8 +236,6 @@ def write_csv(path, toolpath) -> Path:
 
 def read_csv(path):
     """Read a CSV written by :func:`write_csv` back into a :class:`ToolPath`."""
-    from ._path import ToolPath
-
     path = Path(path)
     if not path.is_file():
         raise InputError(f"CSV file not found: {str(path)!r}")
@@ -230,45 +249,100 @@ def read_csv(path):
                     col["t_s"].copy())
 
 
-def _write_npz(path, toolpath, header=None, scene=None):
-    return toolpath.save_npz(path)
+@register_writer("toolpath", ".npz")
+def write_toolpath_npz(path, toolpath: ToolPath, **_) -> Path:
+    """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y,
+             z=toolpath.z, t=toolpath.t)
+    return atomic_write_bytes(path, buf.getvalue())
 
 
-def _write_csv(path, toolpath, header=None, scene=None):
-    return write_csv(path, toolpath)
+def read_toolpath_npz(path) -> ToolPath:
+    """Read a ``toolpath.npz`` written by :func:`write_toolpath_npz`."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"tool-path file not found: {str(path)!r}")
+    with np.load(path, allow_pickle=False) as d:
+        return ToolPath(d["theta"].copy(), d["rho"].copy(), d["z"].copy(), d["t"].copy())
 
 
-def _write_nc(path, toolpath, header=None, scene=None):
-    return write_nc(path, toolpath, header=header, scene=scene)
+register_writer("toolpath", ".csv")(lambda path, toolpath, **_: write_csv(path, toolpath))
+register_writer("toolpath", ".nc")(
+    lambda path, toolpath, *, header=None, **_: write_nc(path, toolpath, header=header))
 
 
-#: format name -> (file name, writer(path, toolpath, header, scene))
-FORMATS = {"npz": ("toolpath.npz", _write_npz), "csv": ("toolpath.csv", _write_csv),
-           "nc": ("toolpath.nc", _write_nc)}
+# ---------------------------------------------------------------- sculpturing programs
+@register_writer("program", ".npz")
+def write_program_npz(path, program: LinearProgram, **_) -> Path:
+    """Write a sculpturing program as ``toolpath.npz``: arrays x, y, z, t, line."""
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, x=program.x, y=program.y, z=program.z, t=program.t, line=program.line)
+    return atomic_write_bytes(path, buf.getvalue())
 
 
-def export_toolpath(toolpath, out_dir, *, fmt: str = "npz", header: dict | None = None,
-                    scene=None) -> Path:
-    """Write ``toolpath`` into ``out_dir`` as ``toolpath.npz`` / ``.csv`` / ``.nc``.
+@register_writer("program", ".csv")
+def write_program_csv(path, program: LinearProgram, **_) -> Path:
+    """One row per point, header ``t_s,x_mm,y_mm,z_mm,line``."""
+    import io
+
+    rows = np.column_stack([program.t, program.x, program.y, program.z, program.line])
+    buf = io.StringIO()
+    np.savetxt(buf, rows, fmt=["%.9f", "%.6f", "%.6f", "%.6f", "%d"], delimiter=",",
+               header=",".join(PROGRAM_CSV_COLUMNS), comments="")
+    return atomic_write_text(path, buf.getvalue())
+
+
+@register_writer("program", ".nc")
+def write_program_nc(path, program: LinearProgram, *, header: dict | None = None,
+                     feed_mm_per_min: float | None = None, **_) -> Path:
+    """A generic X-Y-Z program (``G90 G94 G21``, ``G01`` moves at the cutting speed
+    ``feed_mm_per_min``), a ``; line k`` comment before each target line."""
+    vc = feed_mm_per_min if feed_mm_per_min is not None else program.meta.get("feed_mm_per_min")
+    if vc is None or not vc > 0:
+        raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
+    info = {"software_version": __version__}
+    info.update(header or {})
+    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program (mm, mm/min)", info)
+    lines.append("G90 G94 G21")
+    prev = None
+    x, y, z, ln = program.x, program.y, program.z, program.line
+    for i in range(program.points):
+        if ln[i] != prev:
+            lines.append(f"; line {int(ln[i])}")
+            prev = ln[i]
+        lines.append(f"N{i + 1} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{vc:g}")
+    lines.append("M30")
+    return atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = None,
+                   **options) -> Path:
+    """Write a turning :class:`ToolPath` or a sculpturing :class:`LinearProgram` into
+    ``out_dir`` as ``toolpath.npz`` / ``.csv`` / ``.nc`` (atomically).
 
     Parameters
     ----------
-    toolpath : ToolPath
+    program : ToolPath or LinearProgram
     out_dir : str or Path
-        Folder (created if needed); the file is written atomically.
+        Folder (created if needed).
     fmt : {"npz", "csv", "nc"}
     header : dict, optional
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
-    scene : Scene, optional
-        NC header lines from the scene (see :func:`write_nc`); ignored by npz and csv.
+    **options
+        Passed to the writer (``feed_mm_per_min`` for sculpturing NC).
 
     Returns
     -------
     Path of the file written.
     """
-    if fmt not in FORMATS:
-        raise InputError(f"--format must be one of {sorted(FORMATS)}, received {fmt!r}")
-    name, writer = FORMATS[fmt]
+    product = "program" if isinstance(program, LinearProgram) else "toolpath"
+    if fmt not in ("npz", "csv", "nc"):
+        raise InputError(f"--format must be one of ['csv', 'nc', 'npz'], received {fmt!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return writer(out / name, toolpath, header, scene)
+    return writer(product, fmt)(out / f"toolpath.{fmt}", program, header=header, **options)

@@ -1,4 +1,4 @@
-"""``render-inspect compare``: compensated vs uncompensated, through the whole chain.
+"""``compare``: compensated vs uncompensated, through the whole chain.
 
 For each variant (same camera, same seed): simulate the machined surface, render the
 virtual interferometer and the diffuse-light views, retrieve the height from the frames
@@ -8,7 +8,6 @@ by side, their differences, ``metrics.json`` and a self-contained ``report.html`
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +15,43 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError
+from ..core.errors import InputError
+from ..design import make_surface
+from ..instruments import (
+    interferometer_geometry,
+    render_interferogram,
+)
+from ..io import (
+    atomic_output_dir,
+    atomic_write_bytes,
+    atomic_write_text,
+    json_safe,
+    read_surface,
+    save_map_png,
+    write_heightmap_exr,
+    write_json,
+    write_toolpath_npz,
+)
+from ..metrology import (
+    areal_parameters,
+    characterise_map,
+    compare_measured,
+    extract_section,
+    l_filter,
+    remove_form,
+    s_filter,
+)
+from ..processes import process_of
+from ..render import mitsuba_variant, render_diffuse
+from ..report import _figures as F
+from ..report import build_page
+from ._measure import measure_and_evaluate
+from ._render import (
+    interferogram_summary,
+    write_diffuse_outputs,
+    write_interferogram_outputs,
+)
+from ._simulate import simulate
 
 __all__ = ["run_compare", "compare_variants", "preview_render_configs", "VARIANTS",
            "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
@@ -39,16 +74,12 @@ MM_TO_NM = 1e6
 
 
 def compare_variants(scene):
-    """The compensated and uncompensated variants of ``scene``.
-
-    Compensated: the scene as given, or with ``process.compensation = "z"`` when it says
-    "none".  Uncompensated: ``process.compensation = "none"``.  Everything else (camera,
-    seed, region) is the same.
-    """
-    comp = scene if scene.process.compensation != "none" else \
-        scene.with_overrides(["process.compensation='z'"])
-    unc = scene.with_overrides(["process.compensation='none'"])
-    return comp, unc
+    """The two variants ``compare`` puts side by side, as the scene's process kind defines
+    them (turning: compensated, i.e. the scene as given or with ``process.compensation =
+    "z"`` when it says "none", and uncompensated).  Everything else (camera, seed,
+    region) is the same."""
+    pairs = process_of(scene).variants(scene)
+    return tuple(s for _, s in pairs)
 
 
 def preview_render_configs(scene, heightmap):
@@ -59,8 +90,6 @@ def preview_render_configs(scene, heightmap):
     unless the scene sets ``field_of_view`` (then the pixel is coarsened instead).
 
     Returns (icfg, dcfg, notes) where notes lists what was capped."""
-    from ..render import interferometer_geometry
-
     icfg = scene.render.interferometer
     dcfg = scene.render.diffuse
     notes = []
@@ -128,8 +157,6 @@ def _filter_settings(scene) -> dict:
 
 
 def _filtered_map(residual, pixel, settings):
-    from ..metrology import l_filter, remove_form, s_filter
-
     r, _ = remove_form(residual, pixel=pixel, method=settings["form_removal"],
                        degree=settings["polynomial_degree"])
     if settings["s_filter_mm"]:
@@ -140,8 +167,6 @@ def _filtered_map(residual, pixel, settings):
 
 
 def _areal_nm(z, pixel) -> dict:
-    from ..metrology import areal_parameters
-
     ok = np.isfinite(z)
     if ok.sum() < 2:
         return {"Sa_nm": float("nan"), "Sq_nm": float("nan"), "Sz_nm": float("nan")}
@@ -149,25 +174,16 @@ def _areal_nm(z, pixel) -> dict:
     return {f"{k}_nm": p[k] * MM_TO_NM for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}
 
 
-def _is_lenslet_design(scene) -> bool:
-    return scene.design.type in ("lenslet_array", "lenslet_rings")
-
-
 def _simulate_variant(v: _Variant, out: Path) -> None:
     """Simulate one variant; write heightmap.exr, toolpath.npz, residual.png."""
-    from ..io import save_map_png
-    from ..machining import simulate_scene
-
     d = out / v.name
     d.mkdir(parents=True, exist_ok=True)
-    t = time.perf_counter()
-    sim = v.sim = simulate_scene(v.scene)
-    v.timing["simulate"] = time.perf_counter() - t
+    sim = v.sim = simulate(v.scene)
     hm = v.heightmap = sim.heightmap
     v.toolpath = sim.toolpath
-    hm.to_exr(d / "heightmap.exr")
-    if sim.toolpath is not None and hasattr(sim.toolpath, "save_npz"):
-        sim.toolpath.save_npz(d / "toolpath.npz")
+    write_heightmap_exr(d / "heightmap.exr", hm)
+    if sim.toolpath is not None:
+        write_toolpath_npz(d / "toolpath.npz", sim.toolpath)
     save_map_png(d / "residual.png", hm.residual * MM_TO_NM, extent=hm.extent,
                  title=f"{v.name}: machined - design", label="residual (nm)", cmap="RdBu_r",
                  symmetric=True)
@@ -175,14 +191,6 @@ def _simulate_variant(v: _Variant, out: Path) -> None:
 
 def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_surface) -> None:
     """Render, measure and characterise one simulated variant; write its folder."""
-    from ..io import save_map_png, write_json
-    from ..machining import residual_metrics
-    from ..metrology import characterise_map
-    from ..metrology import add_height_measured
-    from ..render import (render_diffuse, render_interferogram, write_diffuse_outputs,
-                          write_interferogram_outputs)
-    from ..render._run import interferogram_summary
-
     timing = v.timing
     d = out / v.name
     hm = v.heightmap
@@ -193,10 +201,10 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     write_interferogram_outputs(d, ig, scene=v.scene.to_dict())
     t = time.perf_counter()
     mcfg = v.scene.metrology
-    v.phase, measured = add_height_measured(d / "interferogram.exr",
-                                            algorithm=mcfg.phase_algorithm,
-                                            csi_refine=mcfg.csi_refine,
-                                            min_modulation=mcfg.min_modulation)
+    v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
+                                             algorithm=mcfg.phase_algorithm,
+                                             csi_refine=mcfg.csi_refine,
+                                             min_modulation=mcfg.min_modulation)
     timing["phase_retrieval"] = time.perf_counter() - t
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
     save_map_png(d / "measurement_error.png", err, extent=ig.extent,
@@ -229,39 +237,20 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                             s_filter_mm=settings["s_filter_mm"], l_filter_mm=settings["l_filter_mm"])
     filt["default_waviness_filter"] = settings["default_waviness_filter"]
 
-    m = {"compensation": v.scene.process.compensation, "residual": residual_metrics(hm),
-         "measured": measured, "filtered": filt,
-         "interferometer": interferogram_summary(ig),
-         "diffuse": {view: {k: meta[k] for k in ("view", "spp", "seed", "vertical_exaggeration",
-                                                  "window_mm", "mitsuba_variant")}
-                     for view, (_, meta) in v.diffuse.items()}}
-    for k, val in sim.metrics.items():
-        if k != "residual":
-            m[k] = val
-    if _is_lenslet_design(v.scene) and "lenslets" not in m:
-        m["lenslets"] = _lenslets(hm, design_surface)
-    m["timing_s"] = {**{f"sim_{k}": float(x) for k, x in sim.timing_s.items()}, **timing}
-    write_json(d / "metrics.json", {k: x for k, x in m.items()} | {
-        "software_version": __version__, "seed": seed,
-        "mitsuba_variant": ig.variant})
+    m = dict(sim.metrics)
+    m.update({"measured": measured, "filtered": filt,
+              "interferometer": interferogram_summary(ig),
+              "diffuse": {view: {k: meta[k] for k in ("view", "spp", "seed",
+                                                       "vertical_exaggeration", "window_mm",
+                                                       "mitsuba_variant")}
+                          for view, (_, meta) in v.diffuse.items()},
+              "mitsuba_variant": ig.variant})
+    m["timing_s"] = {**sim.timing_s, **timing}
+    write_json(d / "metrics.json", m)
     v.metrics.update(m)
 
 
-def _lenslets(hm, design_surface) -> list:
-    import warnings
-
-    from ..metrology import lenslet_table
-
-    if not hasattr(design_surface, "centers"):
-        return []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # lenslets outside the map are listed as left out
-        return lenslet_table(hm, design_surface, which="machined")
-
-
 def _sections(z, design, *, pixel, origin, center, angles_deg, filtered=None):
-    from ..metrology import extract_section
-
     def sec(m, a):
         return extract_section(m, pixel=pixel, origin=origin, kind="radial", center=center,
                                angle=np.radians(a))[1]
@@ -319,12 +308,6 @@ def run_compare(scene, out, *, measured=None) -> dict:
     ``metrics.json``), the side-by-side and difference PNGs, ``metrics.json`` and
     ``report.html``.
     """
-    from ..design import make_surface
-    from ..io import atomic_output_dir, atomic_write_bytes, atomic_write_text, write_json
-    from ..render import mitsuba_variant
-    from . import _figures as F
-    from ._page import build_page
-
     if measured is not None and not Path(measured).is_file():
         raise InputError(f"--measured file not found: {str(measured)!r}")
     _check_phase_settings(scene)
@@ -367,15 +350,15 @@ def run_compare(scene, out, *, measured=None) -> dict:
                                 "diffuse": dcfg.model_dump(mode="json"), "notes": notes,
                                 "profile_angles_deg": list(PROFILE_ANGLES_DEG)},
         }
-        if _is_lenslet_design(scene):
-            metrics["lenslets"] = metrics["compensated"].get("lenslets", [])
+        if "lenslets" in metrics["compensated"]:
+            metrics["lenslets"] = metrics["compensated"]["lenslets"]
         if meas is not None:
             metrics["measured_file"] = meas["metrics"]
         metrics["timing_s"] = {"total": time.perf_counter() - t_all}
         write_json(tmp / "metrics.json", metrics)
         page = build_page(scene, metrics, figs, notes=notes)
         atomic_write_text(tmp / "report.html", page)
-    return json.loads(json.dumps(metrics, default=_jsonable))
+    return json_safe(metrics)
 
 
 def _check_phase_settings(scene) -> None:
@@ -393,18 +376,7 @@ def _check_phase_settings(scene) -> None:
                              f"other steps")
 
 
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
-
-
 def _measured_column(path, scene, design_surface, sim_hm, seed) -> dict:
-    from ..metrology import compare_measured
-    from ..io import read_surface
-
     m = read_surface(path)
     simulated = sim_hm if np.allclose(m.pixel, sim_hm.pixel, rtol=1e-6) else None
     comp = compare_measured(m, design_surface, metrology=scene.metrology,

@@ -1,13 +1,15 @@
-"""ToolPath: the programmed tool-tip positions of a turning path, in machine axes."""
+"""Machine programs: :class:`ToolPath` (turning, C-X-Z) and :class:`LinearProgram`
+(sculpturing, X-Y-Z).  Files: see :mod:`render_inspect.io`."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from .errors import InputError
+
+__all__ = ["ToolPath", "LinearProgram"]
 
 
 @dataclass
@@ -64,17 +66,45 @@ class ToolPath:
     def revolutions(self) -> float:
         return float((self.theta[-1] - self.theta[0]) / (2 * np.pi)) if self.points else 0.0
 
-    def save_npz(self, path: str | Path) -> Path:
-        """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
-        import io
 
-        from ..io import atomic_write_bytes
+@dataclass
+class LinearProgram:
+    """Programmed tool-tip points of a linear X-Y-Z (sculpturing) program.
 
-        buf = io.BytesIO()
-        np.savez(buf, theta=self.theta, rho=self.rho, x=self.x, y=self.y, z=self.z, t=self.t)
-        return atomic_write_bytes(path, buf.getvalue())
+    Attributes
+    ----------
+    x, y, z : (n,) float64, mm
+        Tool-tip position.
+    t : (n,) float64, s
+        Nominal time at which each point is reached (lines end to end, without the moves
+        between them).
+    line : (n,) int64
+        Index of the target line each point belongs to.
+    meta : dict
+        Provenance and program facts (cutting speed, vibration, ...).
+    """
 
-    @classmethod
-    def load_npz(cls, path: str | Path) -> "ToolPath":
-        with np.load(path) as d:
-            return cls(d["theta"].copy(), d["rho"].copy(), d["z"].copy(), d["t"].copy())
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    t: np.ndarray
+    line: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        n = len(self.x)
+        for name in ("y", "z", "t", "line"):
+            if len(getattr(self, name)) != n:
+                raise InputError(f"LinearProgram.{name} has {len(getattr(self, name))} points, x has {n}")
+
+    @property
+    def points(self) -> int:
+        return len(self.x)
+
+    @property
+    def lines(self) -> int:
+        return int(self.line.max()) + 1 if self.points else 0
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t[-1] - self.t[0]) if self.points else 0.0

@@ -1,0 +1,51 @@
+"""``heightmap.exr``: the design, machined and residual channels of a
+:class:`~render_inspect.core.HeightMap` and its placement (docs/formats.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..core.errors import InputError
+from ..core.heightmap import HeightMap
+from ._exr import read_exr, write_exr
+from ._registry import register_writer
+
+__all__ = ["write_heightmap_exr", "read_heightmap_exr", "heightmap_attrs"]
+
+
+def heightmap_attrs(hm: HeightMap) -> dict:
+    """Header attributes of ``heightmap.exr`` (and of the other stores of a height map)."""
+    return {"pixel_size_mm": float(hm.pixel),
+            "origin_mm": [float(hm.origin[0]), float(hm.origin[1])],
+            "units": "mm",
+            "scene": json.dumps(hm.scene or {}, sort_keys=True),
+            "software_version": __version__,
+            "meta": json.dumps(hm.meta, sort_keys=True, default=str)}
+
+
+@register_writer("heightmap", ".exr")
+def write_heightmap_exr(path: str | Path, hm: HeightMap, **_) -> Path:
+    """Write float32 channels ``design``, ``machined``, ``residual`` (mm) and the header of
+    :func:`heightmap_attrs` (atomic)."""
+    return write_exr(path, {"design": hm.design, "machined": hm.machined,
+                            "residual": hm.residual}, heightmap_attrs(hm))
+
+
+def read_heightmap_exr(path: str | Path) -> HeightMap:
+    """Read a ``heightmap.exr`` written by :func:`write_heightmap_exr`."""
+    ch, attrs = read_exr(path)
+    for name in ("design", "machined"):
+        if name not in ch:
+            raise InputError(f"{path}: EXR has no channel {name!r} (channels: {sorted(ch)})")
+    if "pixel_size_mm" not in attrs or "origin_mm" not in attrs:
+        raise InputError(f"{path}: EXR lacks pixel_size_mm / origin_mm header attributes")
+    scene = attrs.get("scene")
+    meta = attrs.get("meta", {})
+    return HeightMap(ch["design"].astype(np.float64), ch["machined"].astype(np.float64),
+                     float(attrs["pixel_size_mm"]), tuple(attrs["origin_mm"]),
+                     scene if isinstance(scene, dict) else None,
+                     meta if isinstance(meta, dict) else {})

@@ -1,0 +1,72 @@
+"""The one metrics builder: every command's ``metrics.json`` content comes from here, so
+the contract keys (docs/formats.md) are the same whichever way the pipeline was run."""
+
+from __future__ import annotations
+
+import warnings
+
+from .. import __version__
+from ..core.toolpath import ToolPath
+from ..machining import design_grid, residual_metrics
+from ..metrology import lenslet_table
+
+__all__ = ["simulation_metrics", "lenslet_metrics"]
+
+
+def lenslet_metrics(surface, heightmap) -> list | None:
+    """The ``lenslets`` table (fitted centres, dislocations, form errors) of a lenslet
+    design, or None when the design has no lenslets.
+
+    A compound design whose feature is the lenslet array (a microstructure on a freeform
+    base, seed 002) is evaluated on the machined map minus the base; a plain array or
+    lenslet rings on the machined map.  Lenslets cut by the simulated window are left out.
+    """
+    feature = getattr(surface, "feature", None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lenslets cut by the window's border are left out
+        if feature is not None and hasattr(surface, "base"):
+            if not hasattr(feature, "centers"):
+                return None
+            region = (heightmap.x[0], heightmap.y[0], heightmap.x[-1], heightmap.y[-1])
+            base = design_grid(surface.base, region, heightmap.pixel)
+            return lenslet_table((heightmap.machined - base, heightmap.pixel,
+                                  tuple(heightmap.origin)), feature,
+                                 aperture_radius=getattr(feature, "aperture_radius", None))
+        if hasattr(surface, "centers"):
+            return lenslet_table(heightmap, surface, which="machined")
+    return None
+
+
+def _merge(dst: dict, src: dict) -> None:
+    for k, v in src.items():
+        if isinstance(v, dict) and isinstance(dst.get(k), dict):
+            dst[k].update(v)
+        else:
+            dst[k] = v
+
+
+def simulation_metrics(scene, sim) -> dict:
+    """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
+    ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
+    ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
+    (``Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm, min_nm``, ...), ``toolpath`` (``points``,
+    ``revolutions``, ``feed_per_rev_mm``, kinematics), the process's own facts and, for
+    lenslet designs, ``lenslets``."""
+    hm = sim.heightmap
+    m = {"software_version": __version__, "scene_name": scene.name,
+         "process": scene.process.kind, "compensation": scene.process.compensation,
+         "seed": scene.simulation.seed, "samples": int(hm.design.size),
+         "grid": {"shape": list(hm.shape), "pixel_mm": hm.pixel, "origin_mm": list(hm.origin)},
+         "timing_s": dict(sim.timing_s),
+         "residual": residual_metrics(hm)}
+    _merge(m, sim.plan.facts)
+    _merge(m, sim.cut.facts)
+    prog = sim.program
+    if isinstance(prog, ToolPath):
+        tp = m.setdefault("toolpath", {})
+        tp.setdefault("points", int(prog.points))
+        tp.setdefault("revolutions", prog.revolutions)
+        tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
+    if sim.lenslets is not None:
+        m["lenslets"] = sim.lenslets
+    return m

@@ -1,0 +1,185 @@
+"""Turning along a rotary-coordinate shuttling-element (RCSE) spiral path (seed 004),
+compared with the conventional path interpolated from a rectangular point cloud.
+
+The RCSE program itself needs no keys beyond the turning ones: its spiral pitch is the
+feed per revolution, its polar step ``360 / process.points_per_rev`` degrees, its elements
+the ``lenslet_rings`` design.  The scene's ``[rcse]`` section sets how the conventional
+path is built for the comparison.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Literal
+
+import numpy as np
+
+from ..core.toolpath import ToolPath
+from ..machining import residual_metrics, simulate_turning
+from ..toolpath import (
+    RingLayout,
+    conventional_ccps,
+    kinematics,
+    rcse_ccps,
+    rcse_toolpath,
+    region_radii,
+    z_compensation,
+)
+from ._registry import Cut, Plan, register_process
+from ._turning import (
+    TurningProcessConfig,
+    compensation_variants,
+    cut_turning,
+    tool_of,
+    toolpath_facts,
+    turning_header,
+    turning_memory,
+)
+
+__all__ = ["RcseProcessConfig", "rcse_comparison"]
+
+_KIN_KEYS = ("x_velocity_max_mm_s", "x_acceleration_max_mm_s2", "x_jerk_max_mm_s3",
+             "x_velocity_mean_mm_s", "x_reversals", "z_velocity_max_mm_s",
+             "z_acceleration_max_mm_s2")
+
+
+class RcseProcessConfig(TurningProcessConfig):
+    """``[process]`` of turning along an RCSE path (needs a ``lenslet_rings`` design)."""
+    kind: Literal["rcse"]
+
+    def check_with(self, scene) -> None:
+        super().check_with(scene)
+        if scene.design.type != "lenslet_rings":
+            raise ValueError("process.kind = 'rcse' needs design.type = 'lenslet_rings' (elements on "
+                             f"rings), received design.type = {scene.design.type!r}")
+
+
+def _program(scene, surface, *, region, ccps=None) -> ToolPath:
+    p = scene.process
+    layout = RingLayout.from_config(scene.design)
+    return rcse_toolpath(layout, tool_of(scene), workpiece_radius=p.workpiece_radius,
+                         pitch=p.feed_per_rev, points_per_rev=p.points_per_rev,
+                         spindle_rpm=p.spindle_rpm, inner_radius=p.inner_radius,
+                         compensation=p.compensation, region=region, ccps=ccps,
+                         surface=surface)
+
+
+def plan(scene, surface, *, region=None) -> Plan:
+    p = scene.process
+    tool = tool_of(scene)
+    layout = RingLayout.from_config(scene.design)
+    t0 = time.perf_counter()
+    r_range = None if region is None else region_radii(region, tool.half_width + 2 * p.feed_per_rev)
+    ccps = rcse_ccps(layout, r_outer=p.workpiece_radius, pitch=p.feed_per_rev,
+                     points_per_rev=p.points_per_rev, r_inner=p.inner_radius, r_range=r_range)
+    t_ccps = time.perf_counter() - t0
+    path = _program(scene, surface, region=region, ccps=ccps)
+    timing = {"ccps": t_ccps, "toolpath": time.perf_counter() - t0}
+    subs = ccps.sub_paths()
+    rcse = {"layout": layout.to_dict(), "ccps": int(ccps.k.size),
+            "ccps_on_elements": int(np.count_nonzero(ccps.ring >= 0)),
+            "sub_paths": int(subs.shape[0]), "pitch_mm": p.feed_per_rev,
+            "polar_step_deg": 360.0 / p.points_per_rev,
+            "ccp_generation_s": t_ccps, "layout_overlaps": layout.overlaps()}
+    return Plan(path, {"toolpath": toolpath_facts(path, scene), "rcse": rcse}, timing)
+
+
+def rcse_comparison(scene, path, surface, *, machined=None, design=None) -> tuple[dict, tuple]:
+    """Compare the RCSE path with the conventional one over the same spiral samples.
+
+    Parameters
+    ----------
+    scene : Scene
+    path : ToolPath
+        The RCSE path (with ``ccp_rho`` / ``ccp_z``).
+    surface : Surface
+        The design.
+    machined, design : (ny, nx) arrays, optional
+        The RCSE simulation on the scene's grid.  If given and ``rcse.simulate_conventional``,
+        the conventional path is Z-compensated on its own point-cloud model and machined
+        over the same grid, and both residuals are reported (``residual``: Sa, Sq, Sz, min
+        in nm).
+
+    Returns
+    -------
+    (metrics, (rcse CCP path, conventional CCP path))
+        ``metrics``: ``rcse`` and ``conventional`` X velocity / acceleration / jerk
+        maxima, mean |vX|, X reversals, profile errors (nm: max |error|, RMS), the
+        conventional modelling and interpolation times.  The paths carry the CCP heights
+        (no tool compensation): their X motion is what each method programs.
+    """
+    st = scene.rcse
+    theta = np.asarray(path.theta)
+    rho = np.asarray(path.ccp_rho if path.ccp_rho is not None else path.rho)
+    z = np.asarray(path.ccp_z if path.ccp_z is not None else path.z)
+    t = np.asarray(path.t)
+    conv = conventional_ccps(surface, theta, rho, grid_spacing=st.grid_spacing,
+                             interpolation=st.interpolation, snap_to_rows=st.snap_to_rows)
+    conv_path = ToolPath(theta.copy(), conv["rho"], conv["z"], t.copy(),
+                         {"method": "conventional", "grid_spacing_mm": st.grid_spacing,
+                          "interpolation": st.interpolation, "snap_to_rows": st.snap_to_rows})
+    ccp_path = ToolPath(theta.copy(), rho.copy(), z.copy(), t.copy(), {"method": "rcse"})
+    err_rcse = z - surface.height(rho * np.cos(theta), rho * np.sin(theta))
+    kr = kinematics(ccp_path)
+    kc = kinematics(conv_path)
+    e = conv["profile_error"]
+    out = {
+        "rcse": {**{k: kr[k] for k in _KIN_KEYS},
+                 "profile_error_max_nm": float(np.max(np.abs(err_rcse)) * 1e6),
+                 "profile_error_rms_nm": float(np.sqrt(np.mean(err_rcse ** 2)) * 1e6)},
+        "conventional": {**{k: kc[k] for k in _KIN_KEYS},
+                         "profile_error_max_nm": float(np.max(np.abs(e)) * 1e6),
+                         "profile_error_rms_nm": float(np.sqrt(np.mean(e ** 2)) * 1e6),
+                         "x_deviation_max_um": float(np.max(np.abs(conv["rho"] - rho)) * 1e3),
+                         "modelling_s": conv["modelling_s"], "toolpath_s": conv["toolpath_s"],
+                         "grid_shape": conv["grid_shape"], "grid_spacing_mm": st.grid_spacing,
+                         "interpolation": st.interpolation, "snap_to_rows": st.snap_to_rows},
+        "points_compared": int(theta.size),
+    }
+    if machined is not None and st.simulate_conventional:
+        out["rcse"]["residual"] = _short(residual_metrics(machined, design))
+        out["conventional"]["residual"] = _short(residual_metrics(
+            _machine_conventional(scene, conv_path, conv["model"]), design))
+    return out, (ccp_path, conv_path)
+
+
+def _short(r: dict) -> dict:
+    return {k: r[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm", "min_nm") if k in r}
+
+
+def _machine_conventional(scene, conv_path, model) -> np.ndarray:
+    """The surface the conventional path machines: its CCP heights lifted by the Z
+    compensation computed on its own point-cloud model at the machine position (C, X)."""
+    tool = tool_of(scene)
+    slope = RingLayout.from_config(scene.design).max_slope * 1.05
+    th, rc = conv_path.theta, conv_path.rho
+    m_here = model.height(rc * np.cos(th), rc * np.sin(th))
+    lift = z_compensation(model, th, rc, tool.nose_radius, max_slope=slope,
+                          half_width=tool.half_width) - m_here
+    tip = ToolPath(th, rc, conv_path.z + lift, conv_path.t, dict(conv_path.meta))
+    sim = scene.simulation
+    return simulate_turning(tip, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
+                            half_width=tool.half_width)
+
+
+def cut(scene, surface, plan: Plan) -> Cut:
+    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
+    facts = {} if burrs is None else {"burrs": burrs}
+    plots = {}
+    if scene.rcse.compare_conventional:
+        t1 = time.perf_counter()
+        comp, (rcse_path, conv_path) = rcse_comparison(scene, plan.program, surface,
+                                                       machined=machined, design=design)
+        timing["comparison"] = time.perf_counter() - t1
+        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp}
+        plots["rcse_kinematics.png"] = {
+            "kind": "kinematics", "path": rcse_path, "reference": conv_path,
+            "labels": ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)"),
+            "title": "X-axis motion: RCSE vs conventional (seed 004 Figs. 8-9)"}
+    meta = {"process": "rcse", "compensation": scene.process.compensation,
+            "seed": scene.simulation.seed}
+    return Cut(machined, design, facts, timing, meta, plots=plots)
+
+
+register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 program_header=turning_header, variants=compensation_variants)

@@ -1,0 +1,190 @@
+"""The registry of process kinds: ``process.kind`` -> how that process plans its program
+and cuts the surface.
+
+A process kind is one module of this package: its ``[process]`` schema class (a
+:class:`~render_inspect.core.Section` whose ``kind`` field is a ``Literal`` of names) and
+three functions, registered with :func:`register_process`:
+
+``plan(scene, surface, *, region) -> Plan``
+    The machine program (a :class:`~render_inspect.core.ToolPath` or
+    :class:`~render_inspect.core.LinearProgram`) and its facts.  ``region`` (mm) limits
+    the program to what can reach that window; None plans the whole part.
+``cut(scene, surface, plan) -> Cut``
+    The machined and design heights on the scene's simulation grid, and the facts of the
+    cut (servo, burrs, vibration, ...).
+``estimate_memory(scene, plan=None) -> int``
+    Bytes a simulation of the scene holds at its peak (before planning, and again with the
+    plan's real size).
+
+Optional: ``program_region(scene)`` (the region the ``toolpath`` command plans; None = the
+whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (the pair
+``compare`` puts side by side).
+"""
+
+from __future__ import annotations
+
+import typing
+from dataclasses import dataclass, field
+from typing import Annotated, Callable, Union
+
+import numpy as np
+from pydantic import Discriminator, Tag
+
+from ..core.errors import MemoryBudgetError, SceneError
+from ..core.grid import grid_shape
+
+__all__ = ["Plan", "Cut", "ProcessKind", "register_process", "process_kinds", "process_of",
+           "process_config_union", "check_budget", "DEFAULT_KIND"]
+
+#: the kind a scene without ``process.kind`` gets
+DEFAULT_KIND = "sts"
+
+
+@dataclass
+class Plan:
+    """What a process plans before cutting.
+
+    Attributes
+    ----------
+    program : ToolPath or LinearProgram
+        The commanded machine program.
+    facts : dict
+        metrics.json entries (``toolpath`` facts, ...).
+    timing : dict
+        Seconds per step.
+    data : dict
+        Values the cut needs that are not part of the program (process-private).
+    """
+
+    program: object
+    facts: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    data: dict = field(default_factory=dict)
+
+
+@dataclass
+class Cut:
+    """The machined surface a process cuts on the simulation grid.
+
+    Attributes
+    ----------
+    machined, design : (ny, nx) float64, mm
+    facts : dict
+        metrics.json entries of the cut (``servo``, ``burrs``, ``vibration``, ...).
+    timing : dict
+        Seconds per step.
+    meta : dict
+        Provenance stored with the height map.
+    followed : ToolPath, optional
+        The path the tool really followed (servo dynamics), when it differs from the plan.
+    plots : dict
+        Extra figures: file name -> callable(png_path).
+    """
+
+    machined: np.ndarray
+    design: np.ndarray
+    facts: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+    followed: object = None
+    plots: dict = field(default_factory=dict)
+
+
+def _whole_part(scene):
+    return None
+
+
+@dataclass(frozen=True)
+class ProcessKind:
+    """One registered process: its ``kind`` names, schema class and functions."""
+
+    names: tuple[str, ...]
+    config: type
+    plan: Callable
+    cut: Callable
+    estimate_memory: Callable
+    program_region: Callable = _whole_part
+    program_header: Callable = lambda scene: {}
+    variants: Callable | None = None
+
+
+_PROCESSES: dict[str, ProcessKind] = {}
+_UNION = None
+
+
+def _kind_names(config) -> tuple[str, ...]:
+    ann = config.model_fields["kind"].annotation
+    args = typing.get_args(ann)
+    if typing.get_origin(ann) is not typing.Literal or not args:
+        raise TypeError(f"{config.__name__}.kind must be a typing.Literal of the kind names")
+    return tuple(args)
+
+
+def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: Callable,
+                     program_region: Callable | None = None,
+                     program_header: Callable | None = None,
+                     variants: Callable | None = None) -> ProcessKind:
+    """Register a process kind (see the module docstring)."""
+    kwargs = {}
+    if program_region is not None:
+        kwargs["program_region"] = program_region
+    if program_header is not None:
+        kwargs["program_header"] = program_header
+    entry = ProcessKind(_kind_names(config), config, plan, cut, estimate_memory,
+                        variants=variants, **kwargs)
+    for name in entry.names:
+        _PROCESSES[name] = entry
+    global _UNION
+    _UNION = None
+    return entry
+
+
+def process_kinds() -> dict[str, ProcessKind]:
+    """``process.kind`` name -> :class:`ProcessKind`."""
+    return dict(_PROCESSES)
+
+
+def process_of(scene) -> ProcessKind:
+    """The registered process of ``scene.process.kind``."""
+    kind = scene.process.kind
+    entry = _PROCESSES.get(kind)
+    if entry is None:
+        raise SceneError(f"process.kind must be one of {sorted(_PROCESSES)}, received {kind!r}")
+    return entry
+
+
+def _discriminate(value):
+    kind = value.get("kind", DEFAULT_KIND) if isinstance(value, dict) else getattr(value, "kind", None)
+    entry = _PROCESSES.get(kind)
+    return entry.config.__name__ if entry is not None else None
+
+
+def process_config_union():
+    """The pydantic type of a ``[process]`` section: the registered schema classes,
+    chosen by ``kind`` (``"sts"`` when the key is missing)."""
+    global _UNION
+    if _UNION is None:
+        configs = []
+        for entry in _PROCESSES.values():
+            if entry.config not in configs:
+                configs.append(entry.config)
+        members = tuple(Annotated[c, Tag(c.__name__)] for c in configs)
+        _UNION = Annotated[Union[members], Discriminator(
+            _discriminate, custom_error_type="invalid_kind",
+            custom_error_message=f"kind must be one of {sorted(_PROCESSES)}",
+            custom_error_context={"discriminator": "kind"})]
+    return _UNION
+
+
+def check_budget(scene, nbytes: int) -> int:
+    """Raise :class:`MemoryBudgetError` when ``nbytes`` exceeds
+    ``simulation.max_memory_gb``; return ``nbytes``."""
+    budget = scene.simulation.max_memory_gb * 2 ** 30
+    if nbytes > budget:
+        ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
+        raise MemoryBudgetError(
+            f"the simulation would need about {nbytes / 2**30:.2f} GiB ({ny} x {nx} samples) but "
+            f"simulation.max_memory_gb is {scene.simulation.max_memory_gb}; shrink "
+            f"simulation.region, increase simulation.pixel (each doubling quarters the memory) "
+            f"or raise simulation.max_memory_gb")
+    return nbytes

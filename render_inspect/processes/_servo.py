@@ -1,0 +1,116 @@
+"""Hybrid tool servo turning (seed 002): slow slide servo (S3) + fast tool servo (FTS).
+
+Both servos cut along the same inward spiral as STS.  The compensated Z program of the
+whole design is split into the slow slide's share and the FTS stroke
+(:func:`~render_inspect.machining.split_commands`: ``hts`` puts the design's base on the
+slow slide, ``fts`` its rotationally symmetric part); each share goes through its servo
+(:func:`~render_inspect.machining.followed_path`, ``[artifacts.servo]``), and the machined
+surface is the envelope of the tool nose along the followed path.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Literal
+
+import numpy as np
+
+from ..core.errors import SceneError
+from ..machining import followed_path, split_commands
+from ._registry import Cut, Plan, register_process
+from ._turning import (
+    TurningProcessConfig,
+    compensation_variants,
+    cut_turning,
+    plan_spiral,
+    tool_of,
+    toolpath_facts,
+    turning_header,
+    turning_memory,
+)
+
+__all__ = ["ServoProcessConfig"]
+
+
+class ServoProcessConfig(TurningProcessConfig):
+    """``[process]`` of fast (``fts``) or hybrid slow + fast (``hts``) tool servo turning.
+    ``hts`` needs ``design.type = "compound"`` (base on the slow slide, feature on the
+    FTS)."""
+    kind: Literal["fts", "hts"]
+
+    def check_with(self, scene) -> None:
+        super().check_with(scene)
+        if self.kind == "hts" and scene.design.type != "compound":
+            raise ValueError(
+                "process.kind = 'hts' needs design.type = 'compound' ([design.base] on the slow slide, "
+                f"[design.feature] on the fast tool servo), received design.type = "
+                f"{scene.design.type!r}; use process.kind = 'fts' for a single surface")
+
+
+def _error_stats(err) -> dict:
+    err = np.asarray(err)
+    return {"rms_um": float(np.sqrt(np.mean(err * err)) * 1e3),
+            "max_um": float(np.max(np.abs(err)) * 1e3)}
+
+
+def plan(scene, surface, *, region=None) -> Plan:
+    kind = scene.process.kind
+    if kind == "hts" and not hasattr(surface, "base"):
+        raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
+    t0 = time.perf_counter()
+    path = plan_spiral(scene, surface, region=region)
+    tool = tool_of(scene)
+    z_slow, z_fts = split_commands(path, kind, base=surface.base if kind == "hts" else None,
+                                   nose_radius=tool.nose_radius,
+                                   compensation=scene.process.compensation,
+                                   half_width=tool.half_width)
+    return Plan(path, {"toolpath": toolpath_facts(path, scene)},
+                {"toolpath": time.perf_counter() - t0}, {"z_slow": z_slow, "z_fts": z_fts})
+
+
+def cut(scene, surface, plan: Plan) -> Cut:
+    kind = scene.process.kind
+    servo = scene.artifacts.servo
+    path = plan.program
+    z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
+    t0 = time.perf_counter()
+    fpath, zs_f, zf_f = followed_path(path, z_slow, z_fts,
+                                      slow_bandwidth_hz=servo.slow_bandwidth_hz,
+                                      slow_damping=servo.slow_damping,
+                                      fts_bandwidth_hz=servo.bandwidth_hz,
+                                      fts_damping=servo.damping, fts_delay_s=servo.delay_s)
+    timing = {"servo": time.perf_counter() - t0}
+    machined, design, t_cut, burrs = cut_turning(scene, surface, fpath)
+    timing.update(t_cut)
+    omega = 2 * math.pi * scene.process.spindle_rpm / 60.0
+    lag = servo.delay_s + (2 * servo.damping / (2 * math.pi * servo.bandwidth_hz)
+                           if servo.bandwidth_hz else 0.0)
+    r_max = float(np.max(path.rho)) if path.points else 0.0
+    servo_m = {"kind": kind, "delay_s": servo.delay_s, "bandwidth_hz": servo.bandwidth_hz,
+               "damping": servo.damping, "slow_bandwidth_hz": servo.slow_bandwidth_hz,
+               "slow_damping": servo.slow_damping, "omega_rad_s": omega,
+               "lag_angle_rad": omega * servo.delay_s,
+               "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
+               "max_circumferential_shift_um": r_max * omega * lag * 1e3,
+               "fts_stroke_um": float(np.ptp(z_fts) * 1e3) if z_fts.size else 0.0,
+               "slow_stroke_um": float(np.ptp(z_slow) * 1e3) if z_slow.size else 0.0,
+               "fts_following_error": _error_stats(zf_f - z_fts),
+               "slow_following_error": _error_stats(zs_f - z_slow)}
+    facts = {"servo": servo_m}
+    if burrs is not None:
+        facts["burrs"] = burrs
+    meta = {"process": kind, "compensation": scene.process.compensation,
+            "seed": scene.simulation.seed,
+            "servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
+                                               "slow_bandwidth_hz", "slow_damping")}}
+    return Cut(machined, design, facts, timing, meta, followed=fpath)
+
+
+def program_region(scene):
+    return tuple(scene.simulation.region)
+
+
+register_process(ServoProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 program_region=program_region, program_header=turning_header,
+                 variants=compensation_variants)

@@ -1,0 +1,43 @@
+"""Slow tool servo (STS) turning (seed 000): the Z axis follows the design along the
+inward spiral; the machined surface is the envelope of the tool nose."""
+
+from __future__ import annotations
+
+import time
+from typing import Literal
+
+from ._registry import Cut, Plan, register_process
+from ._turning import (
+    TurningProcessConfig,
+    compensation_variants,
+    cut_turning,
+    plan_spiral,
+    toolpath_facts,
+    turning_header,
+    turning_memory,
+)
+
+__all__ = ["StsProcessConfig"]
+
+
+class StsProcessConfig(TurningProcessConfig):
+    """``[process]`` of slow-tool-servo turning."""
+    kind: Literal["sts"] = "sts"
+
+
+def plan(scene, surface, *, region=None) -> Plan:
+    t0 = time.perf_counter()
+    path = plan_spiral(scene, surface, region=region)
+    return Plan(path, {"toolpath": toolpath_facts(path, scene)},
+                {"toolpath": time.perf_counter() - t0})
+
+
+def cut(scene, surface, plan: Plan) -> Cut:
+    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
+    return Cut(machined, design, {} if burrs is None else {"burrs": burrs}, timing,
+               {"process": "sts", "compensation": scene.process.compensation,
+                "seed": scene.simulation.seed})
+
+
+register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 program_header=turning_header, variants=compensation_variants)

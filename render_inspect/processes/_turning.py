@@ -1,0 +1,160 @@
+"""What every turning process (STS, FTS/HTS, RCSE) shares: the ``[process]`` keys of a
+spiral turning program, the tool, the envelope cut on the simulation grid, and the memory
+estimate."""
+
+from __future__ import annotations
+
+import time
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from ..core.grid import grid_shape
+from ..core.section import Section
+from ..machining import apply_burrs, design_grid, simulate_turning
+from ..toolpath import Tool, kinematics, limits_from_process, plan_turning, region_radii
+
+__all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
+           "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
+
+
+class TurningProcessConfig(Section):
+    """Keys of a spiral turning program (STS, FTS/HTS, RCSE)."""
+    spindle_rpm: float = Field(50.0, gt=0, le=20000)
+    feed_mm_per_min: float = Field(0.5, gt=0, le=1000)
+    workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
+    inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
+    compensation: Literal["none", "normal", "z"] = "z"
+    sampling: Literal["constant_angle", "constant_arc", "hybrid"] = "constant_angle"
+    points_per_rev: int = Field(3600, ge=8, le=10_000_000, description="N, constant-angle sampling")
+    arc_length: float = Field(0.005, gt=0, description="mm, constant-arc sampling step")
+    switch_radius: float = Field(1.0, ge=0, description="mm, hybrid sampling: angle inside, arc outside")
+    chordal_tolerance: float | None = Field(None, gt=0, description="mm; bound on the linearisation error")
+    depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded; the envelope does not depend on it)")
+    allow_gouge: bool = Field(False, description="simulate even if the tool cannot reach everywhere")
+    # machine limits used by the kinematics checks (optional)
+    x_velocity_limit_mm_s: float | None = Field(None, gt=0)
+    x_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
+    z_velocity_limit_mm_s: float | None = Field(None, gt=0)
+    z_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _radii(self):
+        if self.inner_radius >= self.workpiece_radius:
+            raise ValueError(f"inner_radius must be < workpiece_radius ({self.workpiece_radius}), "
+                             f"received {self.inner_radius}")
+        return self
+
+    @property
+    def feed_per_rev(self) -> float:
+        """mm per revolution, f / S."""
+        return self.feed_mm_per_min / self.spindle_rpm
+
+    def check_with(self, scene) -> None:
+        """Cross-checks with the rest of the scene (called by the scene's validator)."""
+        rc = scene.tool.nose_radius
+        if self.feed_per_rev >= rc:
+            raise ValueError(
+                f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
+                f"tool.nose_radius ({rc} mm), received {self.feed_per_rev:g} mm/rev "
+                f"(feed {self.feed_mm_per_min} mm/min at {self.spindle_rpm} rpm)")
+
+
+def tool_of(scene) -> Tool:
+    """The :class:`~render_inspect.toolpath.Tool` of the scene's ``[tool]``."""
+    return Tool.from_config(scene.tool)
+
+
+def plan_spiral(scene, surface, *, region=None):
+    """The compensated spiral program of a turning scene (:func:`plan_turning` with the
+    scene's ``[process]`` keys)."""
+    p = scene.process
+    return plan_turning(surface, tool_of(scene), workpiece_radius=p.workpiece_radius,
+                        feed_per_rev=p.feed_per_rev, spindle_rpm=p.spindle_rpm,
+                        compensation=p.compensation, sampling=p.sampling,
+                        points_per_rev=p.points_per_rev, arc_length=p.arc_length,
+                        switch_radius=p.switch_radius, inner_radius=p.inner_radius,
+                        chordal_tolerance=p.chordal_tolerance, region=region,
+                        allow_gouge=p.allow_gouge)
+
+
+def toolpath_facts(path, scene) -> dict:
+    """``metrics["toolpath"]``: points, revolutions, sampling, chordal error, gouge depth,
+    accessibility, cut time, and the axis kinematics against the ``[process]`` limits."""
+    m = path.meta
+    d = {"points": int(path.points), "revolutions": path.revolutions,
+         "feed_per_rev_mm": m.get("feed_per_rev_mm"), "sampling": m.get("sampling"),
+         "points_per_rev": m.get("points_per_rev"), "compensation": m.get("compensation"),
+         "chordal_error_max_nm": m.get("chordal_error_max_mm", 0.0) * 1e6,
+         "gouge_max_nm": m.get("gouge_max_mm", 0.0) * 1e6,
+         "max_slope": m.get("max_slope"), "cut_time_s": m.get("time_s")}
+    if "chordal_tolerance_mm" in m:
+        d["chordal_tolerance_nm"] = m["chordal_tolerance_mm"] * 1e6
+        d["chordal_within_tolerance"] = m["chordal_within_tolerance"]
+    if "accessibility" in m:
+        d["accessible"] = m["accessibility"]["ok"]
+        d["accessibility"] = m["accessibility"]
+    if path.points >= 3:
+        d.update(kinematics(path, limits=limits_from_process(scene.process)))
+    return d
+
+
+def burrs_of(scene) -> dict:
+    """The ``[artifacts.burrs]`` keys as :func:`~render_inspect.machining.apply_burrs`
+    arguments."""
+    b = scene.artifacts.burrs
+    return {"height": b.height, "width": b.width, "variation": b.variation,
+            "edge_angle_deg": b.edge_angle_deg, "correlation_length": b.correlation_length,
+            "seed": int(scene.simulation.seed)}
+
+
+def cut_turning(scene, surface, path, *, burrs: bool = True) -> tuple:
+    """(machined, design, timing, burr facts or None) on the simulation grid for a turning
+    ``path``: the envelope of the tool nose, the design heights, and the burrs of
+    ``[artifacts.burrs]`` when their height is set."""
+    sim = scene.simulation
+    tool = tool_of(scene)
+    timing = {}
+    t0 = time.perf_counter()
+    machined = simulate_turning(path, nose_radius=tool.nose_radius, region=sim.region,
+                                pixel=sim.pixel, half_width=tool.half_width)
+    timing["envelope"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    design = design_grid(surface, sim.region, sim.pixel)
+    timing["design"] = time.perf_counter() - t0
+    info = None
+    if burrs and scene.artifacts.burrs.height > 0:
+        machined, info = apply_burrs(machined, design, pixel=sim.pixel,
+                                     origin=(sim.region[0], sim.region[1]), **burrs_of(scene))
+    return machined, design, timing, info
+
+
+def turning_memory(scene, plan=None) -> int:
+    """Bytes a turning simulation holds at its peak: design + machined (float64) plus one
+    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table)."""
+    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    if plan is None:
+        r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+        revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
+        n_path_points = int(revs * scene.process.points_per_rev) + 1
+    else:
+        n_path_points = plan.program.points
+    return int(ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10)
+
+
+def turning_header(scene) -> dict:
+    """NC header lines of a turning program."""
+    p = scene.process
+    return {"scene": scene.name, "process": p.kind, "spindle_rpm": p.spindle_rpm,
+            "feed_per_rev_mm": p.feed_per_rev, "compensation": p.compensation,
+            "nose_radius": scene.tool.nose_radius}
+
+
+def compensation_variants(scene) -> list:
+    """The pair ``compare`` puts side by side for a turning process: the scene compensated
+    (as given, or with ``process.compensation = "z"`` when it says "none") and
+    uncompensated."""
+    comp = scene if scene.process.compensation != "none" else \
+        scene.with_overrides(["process.compensation='z'"])
+    unc = scene.with_overrides(["process.compensation='none'"])
+    return [("compensated", comp), ("uncompensated", unc)]
