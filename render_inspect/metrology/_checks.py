@@ -126,6 +126,11 @@ def registration_checks(z, design, registration: dict, *, pixel, origin=(0.0, 0.
     - the registration residual RMS exceeds ``max(max_residual_ratio * expected_sq_mm,
       residual_floor_mm)``.
 
+    - the lateral position is undetermined: the standard uncertainty of the lateral
+      shift exceeds a tenth of the smaller side of the measured field (the design has no
+      lateral structure within the field to register to, e.g. a map read 1000 x too
+      small).
+
     Warned (``warnings``): the standard uncertainty of the lateral shift exceeds
     ``max_shift_sigma_mm`` (default: one pixel) or that of the rotation about z exceeds
     ``max_rotation_sigma_rad``; no expected roughness given (residual not checked).
@@ -186,7 +191,14 @@ def registration_checks(z, design, registration: dict, *, pixel, origin=(0.0, 0.
     s_shift = float(np.hypot(sig.get("tx_mm", 0.0), sig.get("ty_mm", 0.0)))
     s_rot = float(sig.get("gamma_rad", 0.0))
     unc.update({"shift_mm": s_shift, "rotation_rad": s_rot})
-    if s_shift > max_shift:
+    ny, nx = np.shape(z)
+    field_min = min(px * nx, py * ny)
+    if s_shift > 0.1 * field_min:
+        refusals.append(f"the lateral registration is undetermined: standard uncertainty of the "
+                        f"shift {s_shift * 1e3:.3g} um > {0.1 * field_min * 1e3:.3g} um (a tenth "
+                        f"of the measured field); the design has no lateral structure in the "
+                        f"field to register to (wrong units or origin?)")
+    elif s_shift > max_shift:
         warns.append(f"the lateral registration is uncertain: standard uncertainty "
                      f"{s_shift * 1e3:.3g} um > {max_shift * 1e3:.3g} um")
     if s_rot > max_rotation_sigma_rad:

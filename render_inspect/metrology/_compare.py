@@ -77,25 +77,21 @@ def characterise_map(z, *, pixel, origin=(0.0, 0.0), form_removal: str = "plane"
 
 
 def coverage(z, *, pixel, origin, region) -> float:
-    """Fraction of ``region`` = (x0, y0, x1, y1) (mm) covered by valid points of the map
-    (``pixel``: one number or (pixel_x, pixel_y), mm)."""
+    """Fraction of the area of ``region`` = (x0, y0, x1, y1) (mm) covered by the cells
+    (pixel_x x pixel_y, centred on the points) of the map's valid points; ``pixel`` one
+    number or (pixel_x, pixel_y), mm."""
     x0, y0, x1, y1 = region
     if not (x1 > x0 and y1 > y0):
         raise InputError(f"region must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {region}")
     px, py = pixel_xy(pixel)
-    ny, nx = np.shape(z)
-    # sample the region on the map's own pixel pitch and look the points up
-    xs = np.arange(x0, x1 + px / 2, px)
-    ys = np.arange(y0, y1 + py / 2, py)
-    col = np.rint((xs - origin[0]) / px).astype(int)
-    row = np.rint((ys - origin[1]) / py).astype(int)
-    cin = (col >= 0) & (col < nx)
-    rin = (row >= 0) & (row < ny)
-    ok = np.isfinite(np.asarray(z))
-    hit = np.zeros((ys.size, xs.size), dtype=bool)
-    if cin.any() and rin.any():
-        hit[np.ix_(rin, cin)] = ok[np.ix_(row[rin], col[cin])]
-    return float(hit.mean())
+    z = np.asarray(z)
+    ny, nx = z.shape
+    xc = origin[0] + px * np.arange(nx)
+    yc = origin[1] + py * np.arange(ny)
+    lx = np.clip(np.minimum(xc + px / 2, x1) - np.maximum(xc - px / 2, x0), 0.0, None)
+    ly = np.clip(np.minimum(yc + py / 2, y1) - np.maximum(yc - py / 2, y0), 0.0, None)
+    covered = float(ly @ np.isfinite(z).astype(np.float64) @ lx)
+    return min(1.0, covered / ((x1 - x0) * (y1 - y0)))
 
 
 def _pixel_text(p) -> str:

@@ -285,11 +285,25 @@ def register_lsq(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
     px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
     v0 = _vec(init)
     idx = _fit_indices(fit)
-    resid, jac = _lsq_problem(px, py, pz, design, v0, idx)
     scale = np.full(len(idx), 1e-3)
+    use_jac = hasattr(design, "gradient")
+    coarse = 20_000
+    if px.size > 4 * coarse:
+        # coarse to fine: most iterations on a seeded subset, the last ones on all points
+        sub = np.sort(np.random.default_rng(seed + 1).choice(px.size, coarse, replace=False))
+        r_c, j_c = _lsq_problem(px[sub], py[sub], pz[sub], design, v0, idx)
+        sol_c = least_squares(r_c, v0[idx], x_scale=scale, method="trf",
+                              jac=j_c if use_jac else "2-point", diff_step=1e-7,
+                              xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=200)
+        v0 = v0.copy()
+        v0[idx] = sol_c.x
+    resid, jac = _lsq_problem(px, py, pz, design, v0, idx)
+    # after the coarse stage a map of the design converges in a few steps; a map of
+    # something else does not converge at all, and more steps would not change that
     sol = least_squares(resid, v0[idx], x_scale=scale, method="trf",
-                        jac=jac if hasattr(design, "gradient") else "2-point", diff_step=1e-7,
-                        xtol=1e-12, ftol=1e-14, gtol=1e-14, max_nfev=200)
+                        jac=jac if use_jac else "2-point", diff_step=1e-7,
+                        xtol=1e-12, ftol=1e-14, gtol=1e-14,
+                        max_nfev=15 if px.size > 4 * coarse else 200)
     v = v0.copy()
     v[idx] = sol.x
     rms = np.sqrt(np.mean(sol.fun ** 2))
@@ -352,17 +366,31 @@ def _lsq_problem(px, py, pz, design, v0, idx):
     return resid, jac
 
 
+def _normal_inverse(j) -> np.ndarray:
+    """``(J^T J)^-1`` that stays honest when J is (nearly) rank deficient: the columns are
+    scaled to unit norm and the eigenvalues of the scaled normal matrix floored at 1e-16 of
+    the largest, so an undetermined parameter gets a huge variance instead of a truncated
+    (zero) one."""
+    j = np.asarray(j, dtype=np.float64)
+    norm = np.linalg.norm(j, axis=0)
+    norm = np.where(norm > 0, norm, 1.0)
+    a = (j / norm).T @ (j / norm)
+    w, v = np.linalg.eigh(0.5 * (a + a.T))
+    w = np.maximum(w, max(float(w.max()), 1e-300) * 1e-16)
+    inv = (v / w) @ v.T
+    return inv / np.outer(norm, norm)
+
+
 def _formal_sigma(j, fun) -> np.ndarray:
     """Standard errors ``sqrt(diag(s^2 (J^T J)^-1))``, ``s^2 = |r|^2 / (n - p)``."""
     j = np.asarray(j, dtype=np.float64)
     n, p = j.shape
     s2 = float(np.sum(np.asarray(fun) ** 2)) / max(n - p, 1)
-    cov = s2 * np.linalg.pinv(j.T @ j)
-    return np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return np.sqrt(np.maximum(np.diag(s2 * _normal_inverse(j)), 0.0))
 
 
 def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), mask=None,
-                            residual=None) -> dict:
+                            residual=None, max_points: int = 250_000) -> dict:
     """Standard uncertainties of a registration (an LSQ or ICP result).
 
     With independent residuals the covariance of the fitted parameters is the formal
@@ -387,6 +415,10 @@ def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), m
         Points used by the registration.
     residual : (ny, nx) array, optional
         Measured minus registered design (NaN where not used).
+    max_points : int
+        Larger maps are evaluated on every k-th row and column (k the smallest stride that
+        leaves at most this many valid points): the uncertainty of a fit to that subgrid,
+        a little conservative for the full map.
 
     Returns
     -------
@@ -399,6 +431,11 @@ def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), m
     ok = valid_mask(z, mask)
     if ok.sum() < 6:
         raise InputError(f"registration_covariance: need at least 6 valid points, got {int(ok.sum())}")
+    stride = max(1, int(np.ceil(np.sqrt(ok.sum() / max_points))))
+    if stride > 1:
+        z, ok = z[::stride, ::stride], ok[::stride, ::stride]
+        residual = None if residual is None else np.asarray(residual)[::stride, ::stride]
+        sx, sy = sx * stride, sy * stride
     xx, yy = _grid(z.shape, (sx, sy), origin)
     pts = (xx[ok], yy[ok], z[ok])
     idx = _fit_indices(reg.get("fitted") or list(_SHORT))
@@ -413,7 +450,7 @@ def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), m
                              for e in np.eye(len(idx))])
     n, p = j.shape
     s2 = float(np.sum(fun ** 2)) / max(n - p, 1)
-    a_inv = np.linalg.pinv(j.T @ j)
+    a_inv = _normal_inverse(j)
     formal = np.sqrt(np.maximum(np.diag(s2 * a_inv), 0.0))
     cov = s2 * a_inv
     method = "formal (independent residuals)"
@@ -444,7 +481,7 @@ def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), m
     return {"sigma": {k: float(e) for k, e in zip(keys, sig)},
             "sigma_formal": {k: float(e) for k, e in zip(keys, formal)},
             "inflation": {k: float(e / f) if f > 0 else 1.0 for k, e, f in zip(keys, sig, formal)},
-            "method": method, "n_points": int(n)}
+            "method": method, "n_points": int(n), "stride": stride}
 
 
 def register_icp(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
