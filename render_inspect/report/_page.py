@@ -54,7 +54,7 @@ def _measured_section(rep, mf: dict, keys) -> None:
     shape = mf.get("shape") or [None, None]
     units = src.get("units_in_file") or {}
     rep.text(f"{src.get('path', '')}: read by {src.get('reader', '?')}; {shape[0]} x {shape[1]} "
-             f"points, pixel {_fmt(px[0], 1e3)} x {_fmt(px[1], 1e3)} um (x x y); units declared "
+             f"points, pixel {_fmt(px[0], 1e3)} x {_fmt(px[1], 1e3)} um (x by y); units declared "
              f"in the file: lateral {units.get('lateral', '?')}, vertical "
              f"{units.get('vertical', '?')}; read as mm.  Heights below in nm, shifts in um, "
              f"angles in degrees.")
