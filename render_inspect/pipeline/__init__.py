@@ -2,12 +2,15 @@
 Blender add-on call these functions.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
-``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``; ``simulation_metrics``
+``run_toolpath``, ``run_render``, ``run_compare``, ``run_analyze``, ``run_demo``; ``simulation_metrics``
 is the one metrics builder every command's ``metrics.json`` comes from.
 """
 
+from ._analyze import ANALYZE_FILES, run_analyze
 from ._blender import simulate_into_blender
 from ._compare import (
+                       check_measured,
+                       expected_sq_mm,
                        COMPARE_MAX_CAMERA_PIXELS,
                        COMPARE_MAX_DIFFUSE_RESOLUTION,
                        COMPARE_MAX_DIFFUSE_SPP,
@@ -36,7 +39,7 @@ from ._simulate import (
 )
 from ._toolpath import plan_program, run_toolpath
 
-__all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
+__all__ = ["run_analyze", "ANALYZE_FILES", "check_measured", "expected_sq_mm", "Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
            "plan_program", "run_toolpath", "run_render", "render_heightmap",
            "write_interferogram_outputs", "write_diffuse_outputs", "interferogram_summary",
            "run_compare", "compare_variants", "preview_render_configs", "run_demo",
