@@ -2,11 +2,28 @@
 Blender add-on call these functions.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
-``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``; ``simulation_metrics``
+``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``; the Blender add-on's
+``simulate_variants``, ``render_variant``, ``compare_scene``, ``export_variant`` (and
+``surfaces_into_blender``, ``load_render_images`` to show their results in Blender); ``simulation_metrics``
 is the one metrics builder every command's ``metrics.json`` comes from.
 """
 
-from ._blender import simulate_into_blender
+from ._blender import (
+                       EXPORT_FORMATS,
+                       PANEL_METRICS,
+                       blender_output_dir,
+                       blender_presets,
+                       blender_surfaces,
+                       compare_scene,
+                       export_variant,
+                       load_render_images,
+                       remove_blender_surfaces,
+                       render_variant,
+                       simulate_into_blender,
+                       simulate_variants,
+                       surface_info,
+                       surfaces_into_blender,
+)
 from ._compare import (
                        COMPARE_MAX_CAMERA_PIXELS,
                        COMPARE_MAX_DIFFUSE_RESOLUTION,
@@ -41,6 +58,9 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "write_interferogram_outputs", "write_diffuse_outputs", "interferogram_summary",
            "run_compare", "compare_variants", "preview_render_configs", "run_demo",
            "DEMO_SCENE", "measure_and_evaluate", "simulation_metrics", "lenslet_metrics",
-           "simulate_into_blender", "VARIANTS", "PROFILE_ANGLES_DEG",
+           "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
+           "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",
+           "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
+           "blender_presets", "EXPORT_FORMATS", "PANEL_METRICS", "VARIANTS", "PROFILE_ANGLES_DEG",
            "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
            "COMPARE_MAX_DIFFUSE_SPP"]
