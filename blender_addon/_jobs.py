@@ -87,6 +87,7 @@ class Job:
         self.error = None
         self.cancelled = False
         self.tail = deque(maxlen=40)
+        self.steps = deque(maxlen=200)  # every progress message, in order
         self._lock = threading.Lock()
         self._dir = Path(tempfile.mkdtemp(prefix="render_inspect_job_"))
         spec = self._dir / "spec.json"
@@ -119,6 +120,7 @@ class Job:
                 if "progress" in msg:
                     self.progress = min(max(float(msg["progress"]), 0.0), 1.0)
                     self.message = msg.get("message", self.message)
+                    self.steps.append(self.message)
                 if "result" in msg:
                     self.result = msg["result"]
                 if "error" in msg:

@@ -217,12 +217,11 @@ def main(zip_path, out_json, work):
               "surface": "machined", "exaggeration": float(obj["render_inspect_exaggeration"]),
               "view": "micro", "resolution": 24, "samples": 4, "seed": 1,
               "out": str(work / "worker_render"), "interferogram": False}
-    messages = []
     t = time.perf_counter()
     job = jobs.Job("render", params, out_dirs=[params["out"]])
     while job.state == "running":
-        messages.append(job.message)
         time.sleep(0.05)
+    messages = list(job.steps)
     step("worker_render", state=job.state, error=job.error, seconds=time.perf_counter() - t,
          messages=sorted(set(messages)), result=job.result,
          files=sorted(p.name for p in Path(params["out"]).iterdir()) if Path(params["out"]).is_dir() else [])

@@ -301,3 +301,51 @@ def test_glb_reimports_in_blender_upright_and_in_metres(tmp_path):
     np.testing.assert_allclose(obj.dimensions, [2e-3, 1e-3, np.ptp(gm.vertices[:, 2]) * 1e-3],
                                rtol=1e-5)
     assert obj["vertical_exaggeration"] == 50.0 and obj["units"] == "m"
+
+
+def test_the_add_on_calls_only_the_pipeline():
+    """blender_addon/ reaches render_inspect through render_inspect.pipeline alone (and
+    its error classes, to report them): no stage of its own."""
+    import ast
+
+    allowed = {"render_inspect.pipeline", "render_inspect.errors"}
+    offenders = []
+    for py in sorted((REPO / "blender_addon").glob("*.py")):
+        for node in ast.walk(ast.parse(py.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module] if node.module != "render_inspect" else \
+                    [f"render_inspect.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            for name in names:
+                if name.split(".")[0] == "render_inspect" and \
+                        not any(name == a or name.startswith(a + ".") for a in allowed):
+                    offenders.append(f"{py.name}:{node.lineno} imports {name}")
+    assert not offenders, offenders
+
+
+def test_a_render_in_a_worker_process_reports_cycles_progress(settings, addon, tmp_path):
+    import bpy
+
+    from render_inspect import pipeline
+
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    src = pipeline.surface_info(pipeline.blender_surfaces()["uncompensated"])
+    params = dict(src, view="micro", resolution=16, samples=3, seed=2, out=str(tmp_path / "r"),
+                  interferogram=False)
+    job = addon._jobs.Job("render", params, out_dirs=[tmp_path / "r"])
+    assert job.wait(300) == "finished", job.error
+    assert "Cycles sample 3/3" in job.steps and job.progress == 1.0
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == ["cycles.exr", "cycles.png"]
+    # what the worker rendered is what this process renders from the same mesh
+    here = pipeline.render_variant(src["heightmap"], variant="uncompensated",
+                                   surface=src["surface"], exaggeration=src["exaggeration"],
+                                   view="micro", resolution=16, samples=3, seed=2,
+                                   out=tmp_path / "here", interferogram=False)
+    from render_inspect.io import read_exr
+
+    a, _ = read_exr(tmp_path / "r" / "cycles.exr")
+    b, _ = read_exr(here["cycles_exr"])
+    np.testing.assert_allclose(a["G"], b["G"], atol=1e-6)
