@@ -1,10 +1,10 @@
 """Operators: Simulate, Render, Compare, Export (and Cancel, Open report, Load parameters).
 
 Each long operator reads its settings on the main thread (``prepare``), runs a task of
-``_tasks.py`` (one :mod:`render_inspect.pipeline` call) and then, on the main thread again,
-shows the result in Blender through the pipeline (``finish``).  Started from the panel (``INVOKE_DEFAULT``) the task runs in a worker
-process while a modal timer updates the progress bar and the status bar; Esc cancels it and
-nothing is created.  From scripts (``bpy.ops.render_inspect.simulate()``) and in background
+``_tasks.py`` (one :mod:`render_inspect.pipeline` call) and then, on the main thread
+again, shows the result in Blender through the pipeline (``finish``).  Started from the
+panel (``INVOKE_DEFAULT``) the task runs in a worker process while a modal timer updates
+the progress bar and the status bar; Esc cancels it and nothing is created.  From scripts (``bpy.ops.render_inspect.simulate()``) and in background
 mode the same task runs synchronously and the operator returns ``{'FINISHED'}``.  Errors of
 render_inspect reach the user through ``self.report`` in one line.
 
@@ -13,7 +13,6 @@ would keep a copy of them for undo.
 """
 
 import json
-import tempfile
 import webbrowser
 from pathlib import Path
 
@@ -21,6 +20,15 @@ import bpy
 
 from . import _deps, _jobs
 from .properties import load_params, overrides, scene_file
+
+
+#: The custom property on the meshes Simulate makes (``render_inspect.pipeline``'s
+#: ``VARIANT_PROPERTY``), read here so that drawing the panel never imports the pipeline.
+VARIANT_PROPERTY = "render_inspect_variant"
+
+
+def has_variant(variant: str) -> bool:
+    return any(o.get(VARIANT_PROPERTY) == variant for o in bpy.data.objects)
 
 
 class AddonError(Exception):
@@ -259,7 +267,7 @@ class RENDER_INSPECT_OT_render(_Work, bpy.types.Operator):
 
     @classmethod
     def ready(cls, context, settings):
-        if settings.variant not in variant_objects():
+        if not has_variant(settings.variant):
             cls.poll_message_set("run Simulate first")
             return False
         return True
@@ -314,7 +322,7 @@ class RENDER_INSPECT_OT_export(_Work, bpy.types.Operator):
 
     @classmethod
     def ready(cls, context, settings):
-        if settings.variant not in variant_objects():
+        if not has_variant(settings.variant):
             cls.poll_message_set("run Simulate first")
             return False
         if "X3P" in settings.export_formats and not _deps.has_x3p():

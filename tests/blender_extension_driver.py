@@ -107,6 +107,8 @@ def main(zip_path, out_json, work):
 
     s = bpy.context.scene.render_inspect
     rep["panels_before"] = {k: flat(v) for k, v in draw_panels(mod).items()}
+    # drawing the panel (and polling its buttons) must stay instant: no pipeline import
+    rep["install"]["pipeline_imported_by_draw"] = "render_inspect.pipeline" in sys.modules
 
     # -- error state: a missing scene file --------------------------------------------------
     s.scene_path = str(work / "missing.toml")

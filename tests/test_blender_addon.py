@@ -78,6 +78,8 @@ def _draw(addon):
 def test_contract_names(addon):
     import bpy
 
+    from render_inspect import pipeline
+
     for op in ("simulate", "render", "compare", "export"):
         assert getattr(bpy.ops.render_inspect, op).get_rna_type() is not None
     s = bpy.context.scene.render_inspect
@@ -85,6 +87,8 @@ def test_contract_names(addon):
     assert items == SCENES
     assert s.bl_rna.properties["preset"].default == "sts_sinusoidal_grid"
     assert s.bl_rna.properties["scene_path"].subtype == "FILE_PATH"
+    assert items == sorted(pipeline.blender_presets())
+    assert addon.operators.VARIANT_PROPERTY == pipeline.VARIANT_PROPERTY
 
 
 def test_scene_path_is_used_instead_of_the_preset(settings, addon):

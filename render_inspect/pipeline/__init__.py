@@ -11,6 +11,7 @@ is the one metrics builder every command's ``metrics.json`` comes from.
 from ._blender import (
                        EXPORT_FORMATS,
                        PANEL_METRICS,
+                       VARIANT_PROPERTY,
                        blender_output_dir,
                        blender_presets,
                        blender_surfaces,
@@ -61,6 +62,6 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",
            "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
-           "blender_presets", "EXPORT_FORMATS", "PANEL_METRICS", "VARIANTS", "PROFILE_ANGLES_DEG",
+           "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS", "VARIANTS", "PROFILE_ANGLES_DEG",
            "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
            "COMPARE_MAX_DIFFUSE_SPP"]

@@ -52,9 +52,11 @@ from ._simulate import simulate, write_simulation
 __all__ = ["simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "surface_info", "remove_blender_surfaces", "render_variant",
            "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
-           "blender_presets", "EXPORT_FORMATS", "PANEL_METRICS", "SIDE_BY_SIDE_GAP",
+           "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS", "SIDE_BY_SIDE_GAP",
            "RENDER_SOURCE"]
 
+#: The custom property naming the variant of a mesh :func:`surfaces_into_blender` made.
+VARIANT_PROPERTY = PROP_VARIANT
 #: What :func:`export_variant` writes.
 EXPORT_FORMATS = ("EXR", "PLY", "GLB", "X3P")
 #: Gap between the two meshes of :func:`surfaces_into_blender`, in part widths.
