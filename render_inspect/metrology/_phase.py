@@ -71,7 +71,9 @@ class PhaseResult:
 # --------------------------------------------------------------------------------------
 # input checks
 def _check_frames(frames, *, min_frames=3) -> np.ndarray:
-    f = np.asarray(frames, dtype=np.float64)
+    f = np.asarray(frames)
+    # float32 stacks stay float32 (a 1024^2 x 256 CSI stack is 1 GiB; float64 would double it)
+    f = f if f.dtype == np.float32 else f.astype(np.float64)
     if f.ndim != 3:
         raise InputError(f"frames must be an (N, H, W) array of N interferogram frames, "
                          f"got shape {f.shape}")
@@ -153,6 +155,9 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
             i1, i2, i3, i4, i5 = f
             num, den = s * 2 * (i2 - i4), 2 * i3 - i5 - i1
             b = 0.25 * np.hypot(num, den)
+            # the background of the 5-step set (frames 1 and 5 are the same phase): the
+            # plain mean would be biased by b cos(phi) / 5
+            a = (i1 + 2 * (i2 + i3 + i4) + i5) / 8
             psi = np.arctan2(num, den)
             delta_ref = steps[2]
         phase = _wrap(psi - delta_ref)
