@@ -3,7 +3,8 @@ output folders.
 
 Products: ``heightmap`` (``heightmap.exr``), ``measured`` (measured height maps: X3P, EXR,
 npy/npz and instrument formats), ``toolpath`` and ``program`` (machine programs: npz, csv,
-nc), ``frames`` (``interferogram.exr``).  :func:`reader` / :func:`writer` look them up.
+nc), ``frames`` (``interferogram.exr``; TIFF / PNG stacks with a settings JSON),
+``measurement`` (``height.exr``).  :func:`reader` / :func:`writer` look them up.
 """
 
 from ._atomic import (
@@ -20,6 +21,7 @@ from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured
                         reader_for)
 from ._png import save_height_png, save_map_png, save_png
 from ._registry import formats, reader, register_reader, register_writer, writer
+from ._stack import STACK_EXTENSIONS, read_frame_stack, write_measurement_exr
 from ._toolpath import (
                       CSV_COLUMNS,
                       PROGRAM_CSV_COLUMNS,
@@ -41,7 +43,8 @@ from ._x3p import read_x3p, read_x3p_xy, write_x3p
 __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "write_json", "json_safe",
            "read_exr", "write_exr", "save_png", "save_map_png", "read_x3p", "write_x3p",
            "read_measured", "measured_formats", "read_frames_exr", "write_frames_exr",
-           "FRAME_CHANNELS", "read_heightmap_exr", "write_heightmap_exr", "heightmap_attrs",
+           "FRAME_CHANNELS", "read_frame_stack", "write_measurement_exr", "STACK_EXTENSIONS",
+           "read_heightmap_exr", "write_heightmap_exr", "heightmap_attrs",
            "formats", "reader", "writer", "register_reader", "register_writer",
            "export_program", "nc_comment_text", "read_csv", "read_nc", "write_csv", "write_nc",
            "read_toolpath_npz", "write_toolpath_npz", "write_program_csv", "write_program_nc",
