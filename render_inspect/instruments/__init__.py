@@ -12,10 +12,10 @@ registered with :func:`register_instrument`; the modules are found and imported 
 
 from __future__ import annotations
 
+from ..core.frames import PHASE_CONVENTION, Frames
 from ..core.plugins import import_private_modules
 from . import _artefacts as artefacts  # calibration surfaces
 from ._camera import Camera, expose
-from ._frames import PHASE_CONVENTION, Frames
 from ._imaging import (
     Disturbances,
     Microscope,
@@ -28,9 +28,9 @@ from ._imaging import (
 from ._interferometer import (
     Interferogram,
     InterferometerConfig,
-    camera_noise,
-    interference_frames,
+    disturbances_from_config,
     interferometer_geometry,
+    microscope_from_config,
     read_interferogram_exr,
     render_interferogram,
     trace_heights,
@@ -52,13 +52,43 @@ from ._transfer import (
 # instruments added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry",))
 
-__all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "camera_noise",
-           "interference_frames", "interferometer_geometry", "read_interferogram_exr",
-           "render_interferogram", "trace_heights", "write_interferogram_exr",
-           "InstrumentType", "instrument_types", "register_instrument",
-           "artefacts", "Camera", "expose", "Frames", "PHASE_CONVENTION", "Disturbances",
-           "Microscope", "csi_frames", "psi_frames", "interference_intensity",
-           "normals_from_heights", "recommended_subsamples", "Objective", "objective",
-           "Source", "led", "monochromatic", "spectrum_table", "TransferFunction",
-           "acceptance_table", "axial_step", "flat_moments", "linear_itf",
-           "transfer_function", "unit_transfer_table"]
+__all__ = [
+    "OBJECTIVES",
+    "PHASE_CONVENTION",
+    "Camera",
+    "Disturbances",
+    "Frames",
+    "InstrumentType",
+    "Interferogram",
+    "InterferometerConfig",
+    "Microscope",
+    "Objective",
+    "Source",
+    "TransferFunction",
+    "acceptance_table",
+    "artefacts",
+    "axial_step",
+    "csi_frames",
+    "disturbances_from_config",
+    "expose",
+    "flat_moments",
+    "instrument_types",
+    "interference_intensity",
+    "interferometer_geometry",
+    "led",
+    "linear_itf",
+    "microscope_from_config",
+    "monochromatic",
+    "normals_from_heights",
+    "objective",
+    "psi_frames",
+    "read_interferogram_exr",
+    "recommended_subsamples",
+    "register_instrument",
+    "render_interferogram",
+    "spectrum_table",
+    "trace_heights",
+    "transfer_function",
+    "unit_transfer_table",
+    "write_interferogram_exr",
+]

@@ -38,8 +38,8 @@ import scipy.fft as sfft
 from scipy.ndimage import gaussian_filter
 
 from ..core.errors import InputError, MemoryBudgetError, check_range
+from ..core.frames import Frames
 from ._camera import Camera, expose
-from ._frames import Frames
 from ._kernels import filter_fold
 from ._objectives import OBJECTIVES, Objective
 from ._sources import Source, led, monochromatic
@@ -64,6 +64,8 @@ __all__ = [
 
 #: A frame stack (float32) larger than this is refused.
 MAX_STACK_BYTES = 3 * 1024 ** 3
+#: CSI scans with more frames than this are refused.
+MAX_CSI_FRAMES = 4096
 _NM = 1e-6  # nm -> mm
 
 
@@ -405,7 +407,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # make dark facets)
     lam_c = 2 * math.pi / float(np.sum(k_src * w_src))
     sig = lam_c / (4 * (na + na_ill)) / a
-    unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
     del nn, cos_t
     if sig > 0.3:
         unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
@@ -529,6 +532,24 @@ def _check_seed(seed):
     return int(seed)
 
 
+#: A pixel is ``valid`` (light returned) when the object beam alone is at least this
+#: fraction of a mirror's.
+LIGHT_FRACTION = 0.05
+
+
+def _frames(stack, info, mic, *, mode, pixel, origin, delta, scan, z_ref, index, seed, lam_eff,
+            settings):
+    src = mic.source
+    return Frames(frames=stack, valid=info["light"] >= LIGHT_FRACTION * mic.reflectance,
+                  pixel=float(pixel), origin=(float(origin[0]), float(origin[1])), mode=mode,
+                  wavelength_nm=src.wavelength_nm, numerical_aperture=mic.na,
+                  phase_steps=delta, scan_positions=scan, z_ref=z_ref,
+                  bandwidth_nm=src.bandwidth_nm or None, objective=mic.objective.name,
+                  intensity_index=int(index), subsamples=int(settings["model"]["subsamples"]),
+                  seed=int(seed), noise=bool(mic.camera.noise), effective_wavelength_nm=lam_eff,
+                  settings=settings)
+
+
 def _settings(mic, dist, info, s, crop, extra):
     d = {"microscope": mic.describe(), "disturbances": dist.describe(),
          "model": {"subsamples": int(s), "crop_pixels": int(crop),
@@ -545,7 +566,8 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, steps: int = 5,
                step_rad: float = math.pi / 2, z_ref: float | None = None,
                disturbances: Disturbances | None = None, seed: int = 0,
-               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5) -> Frames:
+               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               diagnostics: dict | None = None) -> Frames:
     """Phase-shifting (PSI) frames of a surface.
 
     The phase shifter moves the scanner by ``-delta_k / K_eff`` for a nominal phase step
@@ -569,6 +591,9 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
         Seed of the camera's temporal noise and of the vibration phase.
     origin : (float, float)
         x, y of the centre of output pixel [0, 0], mm.
+    diagnostics : dict, optional
+        Filled with the model's by-products: ``light`` ((H', W') float32, the object beam
+        alone, B), ``axial_bins``, ``undersampled_fraction`` ...
 
     Returns
     -------
@@ -598,20 +623,20 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
     inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
                                          microscope=mic, z_positions=zact, crop=crop,
                                          reference_figure=ref, kz_tolerance=kz_tolerance)
+    if diagnostics is not None:
+        diagnostics.update(info)
     frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
-    src = mic.source
-    return Frames(frames=frames, mode="psi", pixel=float(pixel), origin=tuple(map(float, origin)),
-                  wavelength_nm=src.wavelength_nm, effective_wavelength_nm=lam_eff,
-                  bandwidth_nm=src.bandwidth_nm, numerical_aperture=mic.na,
-                  phase_steps_rad=delta, scan_positions_mm=nominal_z, z_ref=float(z_ref),
-                  seed=seed, settings=_settings(mic, dist, info, s, crop, {"camera_exposure": cam}))
+    return _frames(frames, info, mic, mode="psi", pixel=pixel, origin=origin, delta=delta,
+                   scan=nominal_z, z_ref=float(z_ref), index=0, seed=seed, lam_eff=lam_eff,
+                   settings=_settings(mic, dist, info, s, crop, {"camera_exposure": cam}))
 
 
 def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, scan_step_nm: float | None = None,
                frames: int | None = None, scan_start: float | None = None,
                disturbances: Disturbances | None = None, seed: int = 0,
-               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5) -> Frames:
+               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               diagnostics: dict | None = None) -> Frames:
     """Coherence-scanning (CSI) frames: the scanner moves focus and zero path difference
     through the surface, one frame per step.
 
@@ -630,7 +655,7 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
         First scan position, mm (default: centred on the heights' range).
     disturbances : Disturbances, optional
         ``step_error`` scales the scan; vibration and reference figure apply.
-    seed, origin
+    seed, origin, diagnostics
         See :func:`psi_frames`.
 
     Returns
@@ -656,6 +681,10 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
         if int(frames) != frames or frames < 8:
             raise InputError(f"frames must be an integer >= 8, got {frames!r}")
         n = int(frames)
+    if n > MAX_CSI_FRAMES:
+        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) / _NM:.0f} nm at scan_step_nm = "
+                                f"{step / _NM:.4g} needs {n} frames (> {MAX_CSI_FRAMES}): raise "
+                                f"scan_step_nm, set frames, or shrink the field of view")
     if scan_start is None:
         scan_start = 0.5 * (lo + hi) - 0.5 * (n - 1) * step
     nominal = float(scan_start) + step * np.arange(n)
@@ -666,12 +695,11 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
     inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
                                          microscope=mic, z_positions=zact, crop=crop,
                                          reference_figure=ref, kz_tolerance=kz_tolerance)
+    if diagnostics is not None:
+        diagnostics.update(info)
     fr, cam = expose(inten, mic.camera, seed=seed, inplace=True)
-    src = mic.source
-    return Frames(frames=fr, mode="csi", pixel=float(pixel), origin=tuple(map(float, origin)),
-                  wavelength_nm=src.wavelength_nm, effective_wavelength_nm=lam_eff,
-                  bandwidth_nm=src.bandwidth_nm, numerical_aperture=mic.na,
-                  phase_steps_rad=np.empty(0), scan_positions_mm=nominal,
-                  z_ref=float(nominal[(n - 1) // 2]), seed=seed,
-                  settings=_settings(mic, dist, info, s, crop,
-                                     {"camera_exposure": cam, "scan_step_nm": step / _NM}))
+    mid = (n - 1) // 2
+    return _frames(fr, info, mic, mode="csi", pixel=pixel, origin=origin, delta=np.empty(0),
+                   scan=nominal, z_ref=float(nominal[mid]), index=mid, seed=seed, lam_eff=lam_eff,
+                   settings=_settings(mic, dist, info, s, crop,
+                                      {"camera_exposure": cam, "scan_step_nm": step / _NM}))

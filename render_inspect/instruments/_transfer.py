@@ -326,10 +326,16 @@ def linear_itf(na: float, na_ill: float, obscuration: float, source, frequency) 
     -------
     array of the shape of ``frequency``
     """
-    k, _ = source.sample(dk=1.0)
-    dK = max(float(k.max() - k.min()) / 64, float(k.mean()) * 1e-3)
+    q, curve = _itf_curve(float(na), float(na_ill), float(obscuration), source)
+    f = np.asarray(frequency, dtype=np.float64)
+    return np.interp(2 * math.pi * np.abs(f), q, curve, right=0.0)
+
+
+@lru_cache(maxsize=16)
+def _itf_curve(na, na_ill, obscuration, source):
+    # the axial binning (a linear deposit) keeps sum K H exactly, so a few wide bins do
+    k_lo, k_hi = source.wavenumber_range()
+    dK = max(2.0 * (k_hi - k_lo), 2.0 * k_hi * (1 - math.sqrt(1 - na * na))) / 4 + 1e-9 * k_hi
     tf = transfer_function(na, na_ill, obscuration, source, dK=dK)
     num = np.sum(tf.K[:, None] * tf.table.astype(np.float64), axis=0)
-    q = tf.dq * np.arange(num.size)
-    f = np.asarray(frequency, dtype=np.float64)
-    return np.interp(2 * math.pi * np.abs(f), q, num / num[0], right=0.0)
+    return tf.dq * np.arange(num.size), num / num[0]

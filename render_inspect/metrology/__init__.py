@@ -19,9 +19,11 @@ from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_cent
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
+from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
+                          pupil_overlap, sinusoid_amplitude, slope_table)
+from ._measure import ALGORITHMS, measure_frames
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
-                     measure_frames, phase_quality, retrieve_csi, retrieve_psi, unwrap_phase,
-                     wrapped_phase)
+                     phase_quality, retrieve_csi, retrieve_psi, unwrap_phase, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
@@ -42,6 +44,8 @@ __all__ = [
     "characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
     "Comparison", "compare_measured",
     "PhaseResult", "wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
-    "retrieve_psi", "retrieve_csi", "height_error", "measure_frames",
+    "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
     "evaluate_measurement",
+    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
+    "dropout_slope", "noise_by_subtraction",
 ]
