@@ -68,6 +68,31 @@ def build_parser() -> argparse.ArgumentParser:
                    help="derivative estimator of Sdq/Sdr (forward: as SurfaceTopography and surfalize)")
     p.add_argument("--x3p", action="store_true", help="also write the evaluated surface as height.x3p")
 
+    p = sub.add_parser("measure", help="height from interferometer frames alone: height.exr, metrics.json")
+    p.add_argument("frames", help="interferogram.exr (frames + settings), or a TIFF / PNG stack "
+                                  "or a folder of frames with a settings JSON")
+    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    p.add_argument("--algorithm", default="auto",
+                   choices=["auto", "4step", "5step", "hariharan", "lsq", "envelope",
+                            "envelope+phase"],
+                   help="PSI: 4step, 5step (= hariharan), lsq; CSI: envelope, envelope+phase; "
+                        "auto: by mode and frame count")
+    p.add_argument("--settings", default=None,
+                   help="settings JSON of a TIFF / PNG stack (default: beside it)")
+    p.add_argument("--min-modulation", type=float, default=0.05, dest="min_modulation",
+                   help="pixels with lower fringe contrast are not measured (default 0.05)")
+
+    p = sub.add_parser("characterise", help="the virtual instrument's transfer function, step "
+                                            "response, slope limit and noise (ISO 25178-600 style)")
+    p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
+    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    p.add_argument("--mode", choices=["psi", "csi"], default="psi")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override an instrument key of [render.interferometer], e.g. "
+                        "--set numerical_aperture=0.5 (TOML value syntax)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the camera noise")
+    p.add_argument("--quick", action="store_true", help="fewer points, smaller fields (for tests)")
+
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
     p.add_argument("--out", required=True)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
@@ -80,7 +105,7 @@ def _run(args) -> None:
     from . import pipeline
 
     # (the scene schema imports pydantic and the registries: same reason)
-    from .scene import load_scene
+    from .scene import instrument_config, load_scene
 
     if args.command == "demo":
         pipeline.run_demo(args.out, quick=args.quick)
@@ -88,6 +113,14 @@ def _run(args) -> None:
     if args.command == "analyze":
         pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
                              outliers=args.outliers, slope=args.slope, x3p=args.x3p)
+        return
+    if args.command == "measure":
+        pipeline.run_measure(args.frames, args.out, algorithm=args.algorithm,
+                             settings=args.settings, min_modulation=args.min_modulation)
+        return
+    if args.command == "characterise":
+        pipeline.run_characterise(instrument_config(args.objective, args.mode, args.overrides),
+                                  args.out, quick=args.quick, seed=args.seed)
         return
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":

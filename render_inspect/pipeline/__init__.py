@@ -18,8 +18,9 @@ from ._blender import (EXPORT_FORMATS, PANEL_METRICS, VARIANT_PROPERTY, blender_
 from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION,
                        COMPARE_MAX_DIFFUSE_SPP, PROFILE_ANGLES_DEG, VARIANTS, check_measured,
                        compare_variants, expected_sq_mm, preview_render_configs, run_compare)
+from ._characterise import characterise_instrument, run_characterise
 from ._demo import DEMO_SCENE, run_demo
-from ._measure import measure_and_evaluate
+from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
 from ._metrics import lenslet_metrics, simulation_metrics
 from ._render import (interferogram_summary, render_heightmap, run_render,
                       write_diffuse_outputs, write_interferogram_outputs)
@@ -31,7 +32,8 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "write_interferogram_outputs", "write_diffuse_outputs", "interferogram_summary",
            "run_compare", "compare_variants", "preview_render_configs", "check_measured",
            "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_demo", "DEMO_SCENE",
-           "measure_and_evaluate", "simulation_metrics", "lenslet_metrics",
+           "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
+           "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",
            "load_render_images", "compare_scene", "export_variant", "blender_output_dir",

@@ -47,7 +47,7 @@ from ..processes import process_of
 from ..render import mitsuba_variant, render_diffuse
 from ..report import _figures as F
 from ..report import build_page
-from ._measure import measure_and_evaluate
+from ._measure import measure_and_evaluate, measurement_outputs
 from ._render import (
     interferogram_summary,
     write_diffuse_outputs,
@@ -203,10 +203,13 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     write_interferogram_outputs(d, ig, scene=v.scene.to_dict())
     t = time.perf_counter()
     mcfg = v.scene.metrology
-    v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
-                                             algorithm=mcfg.phase_algorithm,
-                                             csi_refine=mcfg.csi_refine,
-                                             min_modulation=mcfg.min_modulation)
+    # measure from the frames alone (what the instrument reports: height.exr), then
+    # evaluate that measurement against the truth kept beside the frames
+    reported, v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
+                                                       algorithm=mcfg.phase_algorithm,
+                                                       csi_refine=mcfg.csi_refine,
+                                                       min_modulation=mcfg.min_modulation)
+    measured["instrument"] = measurement_outputs(d, ig, reported, source="interferogram.exr")
     timing["phase_retrieval"] = time.perf_counter() - t
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
     save_map_png(d / "measurement_error.png", err, extent=ig.extent,
@@ -215,7 +218,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     # what the instrument reports vs the truth, both as residual from the design
     xx, yy = np.meshgrid(ig.x, ig.y)
     design_ig = np.broadcast_to(design_surface.height(xx, yy), xx.shape)
-    meas_res = np.where(v.phase.valid, v.phase.height - design_ig, np.nan)
+    meas_res = np.where(reported.valid, reported.height - design_ig, np.nan)
     true_res = np.where(v.phase.valid, ig.height_true - design_ig, np.nan)
     v.metrics["_maps"] = {"measured_residual": meas_res, "true_residual": true_res, "error": err}
     measured.update({f"instrument_residual_{k}": x for k, x in _areal_nm(meas_res, ig.pixel).items()})
