@@ -416,7 +416,7 @@ def test_frames_carry_settings_but_no_truth():
     fr = psi_frames(h, nrm, pixel=0.5 * UM, microscope=_mic(0.4))
     assert isinstance(fr, Frames)
     arrays = [k for k, v in vars(fr).items() if isinstance(v, np.ndarray) and v.ndim >= 2]
-    assert arrays == ["frames"]
+    assert arrays == ["frames", "valid"]  # images, and where the object returned light
     head = fr.header()
     assert head["effective_wavelength_nm"] > head["wavelength_nm"]
     assert head["instrument"]["microscope"]["objective"]["name"] == "20x"
