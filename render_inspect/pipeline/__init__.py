@@ -2,7 +2,8 @@
 Blender add-on call these functions.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
-``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``; ``simulation_metrics``
+``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``, ``run_sweep`` (many
+points on Dask), ``run_regress`` (the image regression suite); ``simulation_metrics``
 is the one metrics builder every command's ``metrics.json`` comes from.
 """
 
@@ -20,6 +21,7 @@ from ._compare import (
 from ._demo import DEMO_SCENE, run_demo
 from ._measure import measure_and_evaluate
 from ._metrics import lenslet_metrics, simulation_metrics
+from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
 from ._render import (
                        interferogram_summary,
                        render_heightmap,
@@ -34,6 +36,7 @@ from ._simulate import (
                        simulate,
                        write_simulation,
 )
+from ._sweep import find_sweep, run_point, run_sweep, shipped_sweeps, sweep_tasks
 from ._toolpath import plan_program, run_toolpath
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
@@ -43,4 +46,6 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "DEMO_SCENE", "measure_and_evaluate", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "VARIANTS", "PROFILE_ANGLES_DEG",
            "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
-           "COMPARE_MAX_DIFFUSE_SPP"]
+           "COMPARE_MAX_DIFFUSE_SPP", "run_sweep", "run_point", "sweep_tasks", "find_sweep",
+           "shipped_sweeps", "run_regress",
+           "case_images", "regression_cases_dir", "IMAGE_SETTINGS"]
