@@ -45,8 +45,14 @@ def _rows(records, keys, metric, study=None):
     return rows
 
 
+#: Units of sweep keys whose names do not carry one (lengths are mm).
+_UNITS = {"tool.nose_radius": "mm", "process.workpiece_radius": "mm", "simulation.pixel": "mm",
+          "process.depth_of_cut": "mm", "process.arc_length": "mm"}
+
+
 def _label(key: str) -> str:
-    return key
+    unit = _UNITS.get(key)
+    return f"{key} ({unit})" if unit else key
 
 
 def curves_png(records, *, x: str, y: str = "residual.Sq_nm", series: str | None = None,
@@ -61,7 +67,9 @@ def curves_png(records, *, x: str, y: str = "residual.Sq_nm", series: str | None
     groups: dict = {}
     for row in rows:
         groups.setdefault(row[1] if series else None, []).append((row[0], row[-1]))
-    cmap = __import__("matplotlib").colormaps["viridis"]
+    from matplotlib import colormaps
+
+    cmap = colormaps["viridis"]
     for i, (s, pts) in enumerate(sorted(groups.items(), key=lambda t: (t[0] is None, t[0]))):
         pts = sorted(pts)
         col = cmap(i / max(len(groups) - 1, 1))
@@ -109,8 +117,9 @@ def heatmap_png(records, *, x: str, y: str, value: str = "residual.Sq_nm",
         ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
         if grid.size <= 400:
             for (i, j), vs in acc.items():
+                shade = im.norm(np.mean(vs))  # light text on the dark end of viridis
                 ax.text(j, i, f"{np.mean(vs):.3g}", ha="center", va="center", fontsize=7,
-                        color="w")
+                        color="w" if np.ma.filled(shade, 0.0) < 0.6 else "k")
         cb = fig.colorbar(im, ax=ax)
         cb.set_label(value)
     else:

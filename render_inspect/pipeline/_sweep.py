@@ -50,6 +50,8 @@ __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweep
 log = logging.getLogger("render_inspect")
 
 POINTS = "points"
+#: The summary table is also printed for sweeps of at most this many points.
+SHOW_TABLE_POINTS = 30
 MM_TO_NM = 1e6
 
 
@@ -313,6 +315,8 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
         finally:
             info["elapsed_s"] = time.perf_counter() - t_all
             info = _finish(out, spec, keys, tasks, invalid, records, results, info)
+    if info["points"] <= SHOW_TABLE_POINTS:
+        log.info("%s", (out / "summary.md").read_text().split("\n\n", 3)[-1].rstrip())
     log.info("sweep %s: %d done, %d failed of %d points in %.1f s -> %s", spec.name,
              info["done"], info["failed"], info["points"], info["elapsed_s"], out)
     if info["failed"]:
