@@ -387,6 +387,7 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
                 row, cmp = _compare(case, n, ims[n], entry, settings[n], case.passes)
                 if notes:
                     row["notes"] = notes
+                    row["summary"] += " (note: " + "; ".join(notes) + ")"
                 if not row["passed"]:
                     failures.append(row)
                     if cmp:
