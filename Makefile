@@ -4,7 +4,7 @@ VENV    := .venv
 VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.setup-stamp
 
-.PHONY: setup demo test test-fast bench system-deps clean
+.PHONY: setup demo test test-fast bench regress regress-update system-deps clean
 
 setup: $(STAMP)
 
@@ -40,6 +40,14 @@ test-fast: setup
 
 bench: setup
 	ONLY=$(ONLY) $(VPY) benchmarks/run_all.py
+
+# The image regression suite alone (make test runs it too); regress-update makes the
+# references anew after an intended change to the images (commit them with the change).
+regress: setup
+	$(VENV)/bin/render-inspect regress --out out/regress
+
+regress-update: setup
+	$(VENV)/bin/render-inspect regress --update --out out/regress
 
 clean:
 	rm -rf out .pytest_cache

@@ -93,6 +93,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the camera noise")
     p.add_argument("--quick", action="store_true", help="fewer points, smaller fields (for tests)")
 
+    p = sub.add_parser("sweep", help="parameter sweep on Dask: results.jsonl, results.csv, summary, plots "
+                                     "(resumable)")
+    p.add_argument("sweep", help="sweep file (TOML) or the name of a shipped sweep, e.g. fig15_small")
+    p.add_argument("--out", required=True, help="the sweep's folder; finished points there are not run again")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                            "(default: a LocalCluster on this machine)")
+    where.add_argument("--workers", metavar="N", type=int, default=None,
+                       help="process workers of the LocalCluster (default: the CPU count)")
+    p.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
+
+    p = sub.add_parser("regress", help="image regression: render scenes/regression/ and compare with "
+                                       "the references")
+    p.add_argument("--update", action="store_true",
+                   help="make the references anew (records the software version and Mitsuba variant)")
+    p.add_argument("--only", metavar="NAME", default=None,
+                   help="case names or glob patterns, comma-separated")
+    p.add_argument("--out", default="out/regress",
+                   help="summary.html and the images that differ (default: out/regress)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key in every case (what-if checks; not with --update)")
+
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
     p.add_argument("--out", required=True)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
@@ -122,6 +145,20 @@ def _run(args) -> None:
         pipeline.run_characterise(instrument_config(args.objective, args.mode, args.overrides),
                                   args.out, quick=args.quick, seed=args.seed)
         return
+    if args.command == "sweep":
+        info = pipeline.run_sweep(pipeline.find_sweep(args.sweep), args.out,
+                                  scheduler=args.scheduler, workers=args.workers,
+                                  retry_failed=args.retry_failed)
+        if info["failed"]:
+            raise RenderInspectError(
+                f"{info['failed']} of {info['points']} points failed (their errors are in "
+                f"{args.out}/summary.md and results.csv); the other points are done; rerun "
+                f"with --retry-failed to try the failed ones again")
+        return
+    if args.command == "regress":
+        pipeline.run_regress(update=args.update, only=args.only, out=args.out,
+                             overrides=args.overrides)
+        return
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
         pipeline.run_simulate(scene, args.out)
@@ -147,7 +184,11 @@ def main(argv=None) -> int:
         print(f"render-inspect {args.command}: error: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("interrupted; no partial output was left", file=sys.stderr)
+        if args.command == "sweep":
+            print(f"interrupted; the finished points are kept in {args.out}/results.jsonl: run the "
+                  f"same command again to go on", file=sys.stderr)
+        else:
+            print("interrupted; no partial output was left", file=sys.stderr)
         return 130
     print(f"render-inspect {args.command}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
