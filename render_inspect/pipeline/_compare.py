@@ -20,6 +20,7 @@ import math
 import re
 import time
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from ..io import (
     atomic_write_bytes,
     atomic_write_text,
     json_safe,
-    read_measured,
+    read_surface,
     save_map_png,
     write_heightmap_exr,
     write_json,
@@ -47,6 +48,7 @@ from ..metrology import (
     characterise_map,
     compare_measured,
     extract_section,
+    kinematic_sq_mm,
     l_filter,
     remove_form,
     s_filter,
@@ -58,7 +60,7 @@ from ..render import mitsuba_variant
 from ..report import _figures as F
 from ..report import axis_motion_figure, build_page, fmt_quantity, locator_figure, nice_length
 from ..scene import apply_overrides, scene_from_dict
-from ._measure import measure_and_evaluate
+from ._measure import measure_and_evaluate, measurement_outputs
 from ._render import (
     diffuse_caption,
     interferogram_summary,
@@ -69,8 +71,9 @@ from ._render import (
 )
 from ._simulate import simulate
 
-__all__ = ["run_compare", "compare_variants", "compare_pair", "compare_summary", "variant_scene", "parse_vary",
-           "preview_render_configs", "common_window", "VARIANTS", "PROFILE_ANGLES_DEG",
+__all__ = ["run_compare", "check_measured", "expected_sq_mm", "compare_variants", "compare_pair",
+           "compare_summary", "variant_scene", "parse_vary", "preview_render_configs",
+           "common_window", "VARIANTS", "PROFILE_ANGLES_DEG",
            "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
            "COMPARE_MAX_DIFFUSE_SPP"]
 
@@ -420,10 +423,13 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     t0 = time.perf_counter()
     t.update(f"{v.name}: phase retrieval")
     mcfg = v.scene.metrology
-    v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
-                                             algorithm=mcfg.phase_algorithm,
-                                             csi_refine=mcfg.csi_refine,
-                                             min_modulation=mcfg.min_modulation)
+    # measure from the frames alone (what the instrument reports: height.exr), then
+    # evaluate that measurement against the truth kept beside the frames
+    reported, v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
+                                                       algorithm=mcfg.phase_algorithm,
+                                                       csi_refine=mcfg.csi_refine,
+                                                       min_modulation=mcfg.min_modulation)
+    measured["instrument"] = measurement_outputs(d, ig, reported, source="interferogram.exr")
     timing["phase_retrieval"] = time.perf_counter() - t0
     t.advance()
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
@@ -432,7 +438,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                  symmetric=True)
     xx, yy = np.meshgrid(ig.x, ig.y)
     design_ig = np.broadcast_to(design_surface.height(xx, yy), xx.shape)
-    meas_res = np.where(v.phase.valid, v.phase.height - design_ig, np.nan)
+    meas_res = np.where(reported.valid, reported.height - design_ig, np.nan)
     true_res = np.where(v.phase.valid, ig.height_true - design_ig, np.nan)
     v.maps.update(measured_residual=meas_res, true_residual=true_res, error=err,
                   measured_height=np.where(v.phase.valid, v.phase.height, np.nan))
@@ -495,8 +501,38 @@ def _areal_nm(z, pixel) -> dict:
     return {f"{k}_nm": p[k] * MM_TO_NM for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}
 
 
+def expected_sq_mm(scene) -> float | None:
+    """The Sq the scene's process should leave on its own (mm): the ideal turned profile
+    ``f^2 / (12 sqrt(5) R)`` for feed ``f`` per revolution and nose radius ``R``; None for
+    processes without a feed per revolution."""
+    feed = getattr(scene.process, "feed_per_rev", None)
+    radius = getattr(scene.tool, "nose_radius", None)
+    if feed is None or radius is None or not feed > 0:
+        return None
+    return kinematic_sq_mm(float(feed), float(radius))
+
+
+def check_measured(path, scene, design_surface, *, force: bool = False):
+    """Read a measured file and check, before any simulation, that it is a map of this
+    design: registered overlap with ``simulation.region`` at least ``metrology.min_overlap``
+    of the smaller area, registration residual not far above the process's roughness
+    (:func:`render_inspect.metrology.registration_checks`).
+
+    Returns ``(MeasuredMap, Comparison)``; raises :class:`InputError` (one line, the
+    reasons) when the checks refuse and ``force`` is False."""
+    m = read_surface(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # coverage warnings: repeated in the comparison
+        comp = compare_measured(m, design_surface, metrology=scene.metrology,
+                                region=tuple(scene.simulation.region),
+                                seed=int(scene.simulation.seed),
+                                expected_sq_mm=expected_sq_mm(scene), force=force)
+    return m, comp
+
+
 # --------------------------------------------------------------------------- compare
-def run_compare(scene, out, *, measured=None, vary: str | None = None) -> dict:
+def run_compare(scene, out, *, measured=None, vary: str | None = None,
+                force: bool = False) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 
     Parameters
@@ -506,11 +542,15 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None) -> dict:
     out : str or Path
         Output folder, written atomically (:func:`render_inspect.io.atomic_output_dir`).
     measured : str or Path, optional
-        A measured height map (X3P, EXR, ...; :func:`render_inspect.io.read_measured`),
-        registered to the design and shown as a third column.
+        A measured height map (any format :func:`render_inspect.io.read_surface` reads),
+        registered to the design and shown as a third column.  It is read and checked
+        (:func:`check_measured`) before anything is simulated.
     vary : str, optional
         ``"key=a,b"``: compare the scene with ``key = a`` against ``key = b`` instead of
         the process kind's own pair (:func:`compare_pair`).
+    force : bool
+        Compare the measured map even when the checks refuse it (the reasons are kept in
+        ``measured_file.checks`` and shown in the report).
 
     Returns
     -------
@@ -519,8 +559,8 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None) -> dict:
 
     Files in ``out``: one folder per variant (``compensated/`` and ``uncompensated/`` for
     the turning pair; named after the variants otherwise) with ``heightmap.exr``,
-    ``toolpath.npz`` (turning), ``interferogram.exr`` with ``height_measured``, the
-    diffuse images and PNGs, the variant's ``metrics.json``; the figures (the first,
+    ``toolpath.npz`` (turning), ``interferogram.exr`` with ``height_measured``,
+    ``height.exr`` (what the instrument reports), the diffuse images and PNGs, the variant's ``metrics.json``; the figures (the first,
     ``difference.png``), ``metrics.json`` and ``report.html``.
     """
     if measured is not None and not Path(measured).is_file():
@@ -534,6 +574,9 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None) -> dict:
     for v in variants:
         if not _NAME_OK.match(v.name):
             raise InputError(f"variant name {v.name!r} must use letters, digits, '_', '-', '.'")
+    meas_map = None
+    if measured is not None:  # read and check the file before any simulation
+        meas_map, _ = check_measured(measured, scene, design_surface, force=force)
     log.info("compare %s: %s (%s) vs %s (%s)", scene.name, variants[0].name, variants[0].label,
              variants[1].name, variants[1].label)
     with atomic_output_dir(out) as tmp, task("compare", total=13) as t:
@@ -567,7 +610,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None) -> dict:
         meas = None
         if measured is not None:
             t.update("measured file")
-            meas = _measured_column(measured, scene, design_surface, a.heightmap, seed)
+            meas = _measured_column(meas_map, scene, design_surface, a.heightmap, seed)
         t.update("figures and report")
         part = part_outline(scene)
         figs, diff_metrics = _figures(a, b, meas, pair=pair, window=cw, part=part,
@@ -681,19 +724,25 @@ def _check_phase_settings(scene) -> None:
                              f"other steps")
 
 
-def _measured_column(path, scene, design_surface, sim_hm, seed) -> dict:
-    z, pixel, origin, src = read_measured(path)
-    simulated = sim_hm if np.isclose(pixel, sim_hm.pixel, rtol=1e-6) else None
-    comp = compare_measured((z, pixel, origin), design_surface, metrology=scene.metrology,
-                            simulated=simulated, region=tuple(scene.simulation.region), seed=seed)
+def _measured_column(m, scene, design_surface, sim_hm, seed) -> dict:
+    simulated = sim_hm if np.allclose(m.pixel, sim_hm.pixel, rtol=1e-6) else None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        comp = compare_measured(m, design_surface, metrology=scene.metrology,
+                                simulated=simulated, region=tuple(scene.simulation.region),
+                                seed=seed, expected_sq_mm=expected_sq_mm(scene), force=True)
     metrics = dict(comp.metrics)
-    metrics["source"] = {k: x for k, x in src.items() if k != "scene"}
     metrics["compared_with_simulation"] = simulated is not None
+    notes = [str(w.message) for w in caught]
+    if simulated is None:
+        notes.append(f"the measured pixel ({m.pixel[0] * 1e3:.4g} x {m.pixel[1] * 1e3:.4g} um) "
+                     f"differs from the simulation's ({sim_hm.pixel * 1e3:.4g} um): the "
+                     f"measurement is compared with the design only")
+    checks = metrics.get("checks") or {}
+    metrics["warnings"] = notes + list(checks.get("warnings", [])) + [
+        f"compared with --force although: {r}" for r in checks.get("refusals", [])]
     return {"metrics": metrics, "maps": comp.maps, "pixel": comp.pixel, "origin": comp.origin,
-            "extent": (comp.origin[0] - comp.pixel / 2,
-                       comp.origin[0] + comp.pixel * (z.shape[1] - 0.5),
-                       comp.origin[1] - comp.pixel / 2,
-                       comp.origin[1] + comp.pixel * (z.shape[0] - 0.5))}
+            "extent": m.extent}
 
 
 # ---------------------------------------------------------------------------- figures

@@ -19,6 +19,7 @@ import contextlib
 import os
 import shutil
 import sys
+import warnings
 from pathlib import Path
 
 from ..core.errors import InputError
@@ -156,12 +157,22 @@ def spectral_variant():
         yield _STATE["override"]
         return
     _STATE["override"] = spectral
-    mi.set_variant(spectral)
+    _set_variant_quietly(mi, spectral)
     try:
         yield spectral
     finally:
         _STATE["override"] = None
-        mi.set_variant(base)
+        _set_variant_quietly(mi, base)
+
+
+def _set_variant_quietly(mi, variant: str) -> None:
+    """``mi.set_variant`` without Dr.Jit's hint about ``@dr.syntax``: every switch makes
+    Mitsuba decorate its own Python integrators again, and after 1000 decorations Dr.Jit
+    warns about code in loops (a hint for user code; here it is one switch per render)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="The AST-transforming decorator",
+                                category=RuntimeWarning)
+        mi.set_variant(variant)
 
 
 def variant_info() -> dict:

@@ -3,23 +3,16 @@ self-contained ``report.html`` of a comparison, from metrics and images."""
 
 from __future__ import annotations
 
-from ._figures import (
-                       annotate_rgb,
-                       block_mean,
-                       difference_figure,
-                       display_map,
-                       image_panels,
-                       locator_figure,
-                       map_panels,
-                       png_bytes,
-                       radial_profile_figure,
-)
+from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
+                       line_panels, locator_figure, map_panels, png_bytes,
+                       radial_profile_figure)
 from ._format import fmt_number, fmt_quantity, nice_length
 from ._html import HtmlReport, data_uri, table_html
 from ._kinematics import axis_motion_figure, moving_axes, plot_kinematics, turning_axes
 from ._page import build_page
 
 __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
-           "image_panels", "map_panels", "png_bytes", "radial_profile_figure", "annotate_rgb",
-           "block_mean", "display_map", "difference_figure", "fmt_number", "fmt_quantity",
-           "nice_length", "locator_figure", "axis_motion_figure", "moving_axes", "turning_axes"]
+           "image_panels", "map_panels", "png_bytes", "radial_profile_figure", "line_panels",
+           "annotate_rgb", "block_mean", "display_map", "difference_figure", "fmt_number",
+           "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
+           "turning_axes"]

@@ -22,9 +22,9 @@ import numpy as np
 
 from ._format import fmt_quantity, nice_length
 
-__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "block_mean",
-           "display_map", "difference_figure", "locator_figure", "annotate_rgb", "length_label",
-           "DISPLAY_PIXELS"]
+__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "line_panels",
+           "block_mean", "display_map", "difference_figure", "locator_figure", "annotate_rgb",
+           "length_label", "DISPLAY_PIXELS"]
 
 #: maps are area-averaged to at most this many samples across before drawing
 DISPLAY_PIXELS = 400
@@ -498,3 +498,40 @@ def annotate_rgb(rgb8: np.ndarray, *, lines=(), scale_mm: float | None = None,
         draw.line((x0, yb, x1, yb), fill=(0, 0, 0, 255), width=max(2, size // 6))
         draw.text((x1 - (tb[2] - tb[0]), ty - tb[1]), label, fill=(0, 0, 0, 255), font=font)
     return np.asarray(img.convert("RGB"))
+
+
+def line_panels(panels, *, suptitle: str = "", dpi: int = 90) -> bytes:
+    """Line plots side by side (instrument characterisation curves).
+
+    Parameters
+    ----------
+    panels : list of dict
+        ``title``, ``xlabel``, ``ylabel``, ``series``: list of dict(``x``, ``y``,
+        ``label``, optional ``style`` ("line" | "points" | "dashed")), optional
+        ``vlines``: list of (x, label), ``ylim``.
+    """
+    plt = _plt()
+    n = max(len(panels), 1)
+    fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 3.6), dpi=dpi, squeeze=False)
+    for ax, p in zip(axes[0], panels):
+        for srs in p["series"]:
+            style = srs.get("style", "line")
+            kw = {"marker": "o", "ls": "none", "ms": 4} if style == "points" else (
+                {"ls": "--", "lw": 1.0} if style == "dashed" else {"lw": 1.2})
+            ax.plot(np.asarray(srs["x"]), np.asarray(srs["y"]), label=srs.get("label"), **kw)
+        for xv, lab in p.get("vlines", []):
+            ax.axvline(xv, color="0.4", lw=0.8, ls=":")
+            ax.annotate(lab, (xv, 0.98), xycoords=("data", "axes fraction"), fontsize=8,
+                        rotation=90, va="top", ha="right")
+        if p.get("ylim") is not None:
+            ax.set_ylim(*p["ylim"])
+        ax.set_title(p.get("title", ""), fontsize=10)
+        ax.set_xlabel(p.get("xlabel", ""))
+        ax.set_ylabel(p.get("ylabel", ""))
+        ax.grid(alpha=0.3)
+        if any(s.get("label") for s in p["series"]):
+            ax.legend(fontsize=8, loc="best")
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=11)
+    fig.tight_layout()
+    return _to_png(fig)

@@ -8,6 +8,7 @@ as rendered (presets resolved), never a placeholder for a value a figure states.
 from __future__ import annotations
 
 import json
+import math
 
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
@@ -36,7 +37,7 @@ _SUMMARY_ROWS = [
     ("instrument: residual Sq true, same pixels", "measured.true_residual_Sq_nm", "nm"),
     ("instrument: height error rms", "measured.rms_nm", "nm"),
     ("instrument: height error PV", "measured.pv_nm", "nm"),
-    ("instrument: measured pixels", "measured.valid_fraction", "%"),
+    ("instrument: measured pixels", "measured.valid_fraction", "fraction"),
 ]
 
 _FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "nm"),
@@ -45,11 +46,11 @@ _FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "n
 
 
 def _q(v, unit=""):
-    if unit == "%" and v is not None and not isinstance(v, str):
-        try:
-            return fmt_quantity(100.0 * float(v), "%") if float(v) <= 1.0 else fmt_quantity(v, "%")
-        except (TypeError, ValueError):
-            return str(v)
+    """A value with its unit; ``unit="fraction"`` writes a fraction (0..1) in per cent."""
+    if unit == "fraction":
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return fmt_quantity(100.0 * float(v), "%")
+        return fmt_quantity(v)
     return fmt_quantity(v, unit)
 
 
@@ -81,6 +82,75 @@ def _g(x) -> str:
     if isinstance(x, (int, float)):
         return f"{x:.6g}"
     return str(x)
+
+
+def _scaled(v, scale):
+    """``v * scale`` for a number; anything else as it is (None stays None: ``n/a``)."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return float(v) * scale
+    return v
+
+
+def _measured_section(rep, mf: dict) -> None:
+    """The measured file: checks, coverage, registration with its uncertainty, outliers,
+    warnings, parameters, source (lengths in mm or um, heights in nm, angles in deg)."""
+    rep.section("Measured file")
+    src = mf.get("source") or {}
+    px = mf.get("pixel_mm") or [None, None]
+    shape = mf.get("shape") or [None, None]
+    units = src.get("units_in_file") or {}
+    rep.text(f"{src.get('path', '')}: read by {src.get('reader', '?')}; {shape[0]} x {shape[1]} "
+             f"points, pixel {fmt_quantity(_scaled(px[0], 1e3), 'um')} x "
+             f"{fmt_quantity(_scaled(px[1], 1e3), 'um')} (x by y); units declared in the file: "
+             f"lateral {units.get('lateral', '?')}, vertical {units.get('vertical', '?')}; "
+             f"read as mm.")
+    for w in mf.get("warnings") or []:
+        rep.text(w, cls="note")
+    checks = mf.get("checks") or {}
+    reg = mf.get("registration") or {}
+    unc = (reg.get("uncertainty") or {}).get("sigma", {})
+    out = mf.get("outliers") or {}
+    ov = checks.get("overlap") or {}
+    rows = [["coverage of the simulated region (of its area)",
+             _q(mf.get("coverage"), "fraction")],
+            ["overlap after registration (of the smaller area)",
+             _q(ov.get("fraction"), "fraction")],
+            ["registration residual RMS", fmt_quantity(_scaled(checks.get("residual_rms_mm"), 1e6),
+                                                       "nm")],
+            ["residual limit", fmt_quantity(_scaled(checks.get("residual_limit_mm"), 1e6), "nm")],
+            ["checks", "passed" if checks.get("ok") else
+             ("refused, compared with --force" if checks else "not run")],
+            [f"outliers (second difference, k = {fmt_number(out.get('sigma'))})",
+             f"{fmt_number(out.get('count'))} ({_q(out.get('fraction') or 0.0, 'fraction')}), "
+             f"left out of {' and '.join(out.get('left_out_of', [])) or 'nothing'}"]]
+    rep.table(rows, header=["measured file", "value"])
+    if reg:
+        rrows = []
+        for key, label, scale, res in (("tx_mm", "shift x (um)", 1e3, 1e-4),
+                                       ("ty_mm", "shift y (um)", 1e3, 1e-4),
+                                       ("tz_mm", "piston z (um)", 1e3, 1e-4),
+                                       ("alpha_rad", "tilt about x (deg)", 180 / math.pi, 1e-6),
+                                       ("beta_rad", "tilt about y (deg)", 180 / math.pi, 1e-6),
+                                       ("gamma_rad", "rotation about z (deg)", 180 / math.pi,
+                                        1e-6)):
+            sig = unc.get(key)
+            rrows.append([label, fmt_number(_scaled(reg.get(key), scale), resolution=res),
+                          "not fitted" if sig is None else
+                          fmt_number(sig * scale, resolution=res)])
+        rep.table(rrows, header=["registration (design -> measured)", "value",
+                                 "standard uncertainty"])
+        meth = (reg.get("uncertainty") or {}).get("method")
+        if meth:
+            rep.text(f"Registration by {reg.get('method')} over {fmt_number(reg.get('n_points'))} "
+                     f"points; uncertainty: {meth}.")
+    meas = mf.get("measured") or {}
+    sim = mf.get("simulated") or {}
+    dd = mf.get("difference") or {}
+    rep.table([[label, _q(meas.get(k), unit), _q(sim.get(k), unit), _q(dd.get(k), unit)]
+               for label, k, unit in _FILTER_KEYS],
+              header=["parameter", "measured - design", "simulated (same chain)",
+                      "measured - simulated"])
+    rep.table([[k, _value_text(k, v)] for k, v in src.items()], header=["source", "value"])
 
 
 def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
@@ -219,8 +289,9 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                "Measured - true height (nm), piston aligned by the mean over measured pixels.")
     mrows = [("mode", "mode", ""), ("algorithm", "algorithm", ""),
              ("height error rms", "rms_nm", "nm"), ("height error PV", "pv_nm", "nm"),
-             ("piston removed", "piston_nm", "nm"), ("measured pixels", "valid_fraction", "%"),
-             ("pixels with light", "light_fraction", "%"), ("regions", "regions", "")]
+             ("piston removed", "piston_nm", "nm"),
+             ("measured pixels", "valid_fraction", "fraction"),
+             ("pixels with light", "light_fraction", "fraction"), ("regions", "regions", "")]
     rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
                for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
               header=["phase retrieval", va, vb])
@@ -292,19 +363,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                        for e in tab], header=head)
 
     if mf:
-        rep.section("Measured file")
-        meas = mf.get("measured") or {}
-        sim = mf.get("simulated") or {}
-        dd = mf.get("difference") or {}
-        rep.table([[label, _q(meas.get(k), unit), _q(sim.get(k), unit), _q(dd.get(k), unit)]
-                   for label, k, unit in _FILTER_KEYS],
-                  header=["parameter", "measured - design", "simulated (same chain)",
-                          "measured - simulated"])
-        reg = mf.get("registration") or {}
-        rep.table([_registration_row(k, v) for k, v in reg.items()],
-                  header=["registration", "value"])
-        rep.table([[k, _value_text(k, v)] for k, v in (mf.get("source") or {}).items()],
-                  header=["source", "value"])
+        _measured_section(rep, mf)
 
     # ---- 8. parameters and provenance
     rep.section("Parameters")
@@ -362,14 +421,6 @@ def _diffuse_value(k, v):
     if isinstance(v, float):
         return fmt_number(v)
     return v
-
-
-def _registration_row(k, v):
-    if k.endswith("_mm") and isinstance(v, (int, float)):
-        return [k[:-3] + " (um)", fmt_quantity(v * 1e3, "um")]
-    if k.endswith("_rad") and isinstance(v, (int, float)):
-        return [k[:-4] + " (urad)", fmt_quantity(v * 1e6, "urad")]
-    return [k, _value_text(k, v)]
 
 
 def _process_facts(c: dict, u: dict) -> list:
