@@ -147,14 +147,15 @@ def test_seed003_vibration_lowers_lenslet_roughness_and_burrs_on_steel():
     on the machined edges; the conventional cut's Sa is the preset's (calibrated to seed
     003's 37 nm)."""
     from render_inspect.design import make_surface
-    from render_inspect.machining._sculpt import lattice_lines, sculpt_line_profile, target_line
+    from render_inspect.machining import sculpt_line_profile, target_line
     from render_inspect.metrology._filters import remove_form
     from render_inspect.metrology._params import areal_parameters
+    from render_inspect.processes import lattice_lines
     from render_inspect.scene import load_scene
 
-    sc = load_scene("scenes/sculpt_quad_mla.toml")
+    sc = load_scene("sculpt_quad_mla")
     surf = make_surface(sc.design)
-    xl, ye = lattice_lines(surf, sc.design)
+    xl, ye = lattice_lines(surf, pitch_y=sc.design.pitch_y)
     p = 0.19975
     px = p / 40
     xg = -1.5 * p + px * np.arange(121)

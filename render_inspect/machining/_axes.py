@@ -56,7 +56,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 from numba import njit
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
+from ._errmotion import ErrorMotions, apply_error_motions
 
 __all__ = ["Axis", "Coupling", "Machine", "FollowedPath", "AxisResponse", "MACHINE_PRESETS",
            "machine_preset", "pvt_command", "linear_command", "follow_axis", "follow_turning",
@@ -577,8 +578,6 @@ class Machine:
                                          f"{sorted(names)}")
                     kw[key] = replace(self.coupling, **val)
             elif key == "errors":
-                from ._errmotion import ErrorMotions
-
                 if val is None or isinstance(val, ErrorMotions):
                     kw[key] = val
                 else:
@@ -602,8 +601,6 @@ MACHINE_PRESETS: dict = {}
 
 
 def _register_presets():
-    from ._errmotion import ErrorMotions
-
     g = 9806.65  # mm/s^2
     MACHINE_PRESETS["ideal"] = Machine(
         name="ideal", sources={"all": "no dynamics, no error motions: the commanded path"})
@@ -797,7 +794,5 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         z_f = z_f + dz
         theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), 1e-6))
     if machine.errors is not None and not machine.errors.none:
-        from ._errmotion import apply_error_motions
-
         theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e)
     return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 from ._envelope import _lookup, _lookup_table, path_radial_slope
 
 __all__ = ["cut_turning", "cut_lines", "groove_texture", "machined_edges", "finish_surface",

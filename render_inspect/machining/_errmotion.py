@@ -32,7 +32,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 __all__ = ["ErrorMotions", "apply_error_motions", "error_motion_offsets"]
 

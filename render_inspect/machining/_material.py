@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
            "material_response", "contact_ratio", "min_chip_thickness", "elastic_recovery",

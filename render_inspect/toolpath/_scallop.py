@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from ..errors import InputError, check_range
+from ..core.errors import InputError, check_range
 
 __all__ = ["scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]
 
