@@ -609,18 +609,18 @@ def _register_presets():
     # (seed 004: "the X-axis is connected to the heavier headstock"), hence a lower
     # bandwidth than Z.
     sts_errors = ErrorMotions(
-        radial_sync=((2, _um(0.010), 0.3), (3, _um(0.005), 1.1)),
-        radial_async_rms=_um(0.003), axial_sync=((2, _um(0.008), 0.7), (3, _um(0.004), 2.0)),
-        axial_async_rms=_um(0.003), async_bandwidth_hz=200.0,
+        radial_sync=((2, _um(0.005), 0.3), (3, _um(0.003), 1.1)),
+        radial_async_rms=_um(0.002), axial_sync=((2, _um(0.003), 0.7), (3, _um(0.002), 2.0)),
+        axial_async_rms=_um(0.002), async_bandwidth_hz=200.0,
         x_straightness_rms=_um(0.05), x_straightness_length=50.0)
     MACHINE_PRESETS["sts_lathe"] = Machine(
         name="sts_lathe", servo_rate_hz=5000.0, interpolation="pvt",
         c=Axis(bandwidth_hz=60.0, damping=0.7, velocity_ff=1.0, acceleration_ff=0.9,
                noise_rms=1.0e-6),
         x=Axis(bandwidth_hz=40.0, damping=0.7, velocity_ff=0.95, acceleration_ff=0.5,
-               acceleration_limit=0.2 * g, velocity_limit=50.0, noise_rms=_um(0.005)),
+               acceleration_limit=0.2 * g, velocity_limit=50.0, noise_rms=_um(0.003)),
         z=Axis(bandwidth_hz=100.0, damping=0.7, velocity_ff=0.95, acceleration_ff=0.5,
-               acceleration_limit=0.2 * g, velocity_limit=50.0, noise_rms=_um(0.005)),
+               acceleration_limit=0.2 * g, velocity_limit=50.0, noise_rms=_um(0.003)),
         errors=sts_errors,
         coupling=Coupling(mass_kg=150.0, z_compliance_nm_per_n=0.3, y_compliance_nm_per_n=0.3,
                           mode_hz=120.0, mode_damping=0.05),
@@ -635,20 +635,23 @@ def _register_presets():
             "feed_forward": "slides: velocity feed-forward 0.95, acceleration feed-forward "
                             "0.5 (feed-forward gains are tuned to 90-100 %; assumed); "
                             "C: 1.0 / 0.9",
-            "noise_rms": "5 nm following-error floor per slide (assumed: seed 004 measured a "
-                         "16 nm maximum X following error on a smooth path)",
+            "noise_rms": "3 nm following-error floor per slide: seed 004 measured a 16 nm "
+                         "maximum X following error on a smooth path, and seed 000's measured "
+                         "Sq (7.1 +- 0.3 nm) leaves ~2-3 nm rms for everything beyond the feed "
+                         "scallop (6.7-7.2 nm)",
             "coupling": "X carriage with the headstock 150 kg; cross-compliance from the X "
                         "drive force to the tool-part loop 0.3 nm/N along Z and Y, about 5 % "
                         "of the 5-10 nm/N direct loop compliance of such lathes; frame mode "
                         "120 Hz, damping 0.05 (all assumed)",
             "x_straightness": "0.05 um rms, 50 mm correlation: seed 001 Table 1 gives "
                               "0.2 um straightness over the 220 mm travel (a long-wave bow)",
-            "spindle": "radial / axial synchronous error motion 10 / 8 nm at 2 upr, 5 / 4 nm "
-                       "at 3 upr, 3 nm asynchronous: the order of the <= 25-50 nm motion "
-                       "accuracy quoted for air-bearing spindles of such lathes (assumed)"})
+            "spindle": "radial / axial synchronous error motion 5 / 3 nm at 2 upr, 3 / 2 nm "
+                       "at 3 upr, 2 nm asynchronous: within the <= 25-50 nm motion accuracy "
+                       "quoted for air-bearing spindles of such lathes and small enough for "
+                       "seed 000's measured Sq (assumed)"})
     MACHINE_PRESETS["fts"] = replace(
         MACHINE_PRESETS["sts_lathe"], name="fts", servo_rate_hz=20000.0,
-        fts=Axis(bandwidth_hz=2000.0, damping=0.6, velocity_ff=0.0, acceleration_ff=0.0,
+        fts=Axis(bandwidth_hz=2000.0, damping=0.6, velocity_ff=1.0, acceleration_ff=0.9,
                  noise_rms=_um(0.002)),
         fts_sync="position",
         sources={**MACHINE_PRESETS["sts_lathe"].sources,
@@ -656,6 +659,9 @@ def _register_presets():
                                   "(assumed)",
                  "fts.bandwidth_hz": "2 kHz closed-loop bandwidth of a piezo FTS with a "
                                      "stroke of tens of um (typical 1-3 kHz; assumed)",
+                 "fts.feed_forward": "velocity 1.0, acceleration 0.9: FTS controllers feed "
+                                     "the stroke's derivatives forward (inverse model) to "
+                                     "track within a small fraction of the stroke (assumed)",
                  "fts_sync": "position: the FTS reads the spindle encoder (seed 002 names "
                              "position and time synchronisation)"})
 

@@ -33,7 +33,7 @@ from numba import njit, prange
 from ..core.errors import InputError, check_range
 from ._envelope import _lookup, _lookup_table, path_radial_slope
 
-__all__ = ["cut_turning", "cut_lines", "groove_texture", "machined_edges", "finish_surface",
+__all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "CutResult"]
 
 TWO_PI = 2 * math.pi
@@ -167,7 +167,7 @@ class CutResult(dict):
     towards larger radius), ``added`` (ploughed recovery + side flow, mm)."""
 
 
-def cut_turning(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
+def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
                 h_min: float = 0.0, kappa: float = 0.0, side_flow: bool = True,
                 slope_bound: float | None = None) -> CutResult:
     """Turning envelope with the minimum-chip-thickness mechanics (module docstring).
@@ -193,7 +193,7 @@ def cut_turning(path, *, nose_radius: float, region, pixel: float, half_width: f
     rho = np.ascontiguousarray(path.rho, dtype=np.float64)
     z = np.ascontiguousarray(path.z, dtype=np.float64)
     if theta.size < 2:
-        raise InputError("cut_turning: the path needs at least 2 points")
+        raise InputError("cut_turning_mechanics: the path needs at least 2 points")
     Rc = float(nose_radius)
     hw = min(float(half_width) if half_width is not None else Rc, Rc)
     x0, y0, x1, y1 = region
@@ -219,7 +219,7 @@ def cut_turning(path, *, nose_radius: float, region, pixel: float, half_width: f
     return CutResult(out)
 
 
-def cut_lines(profiles, x_lines, x_grid, *, tool_radius: float, half_width: float | None = None,
+def cut_lines_mechanics(profiles, x_lines, x_grid, *, tool_radius: float, half_width: float | None = None,
               h_min: float = 0.0, kappa: float = 0.0, side_flow: bool = True) -> CutResult:
     """Sculpturing envelope over target lines in cutting order with the same mechanics.
 
@@ -229,7 +229,7 @@ def cut_lines(profiles, x_lines, x_grid, *, tool_radius: float, half_width: floa
         Lowest tool-tip height along each line (``sculpt_line_profile``), in cutting order.
     x_lines : (n_lines,) mm;  x_grid : (nx,) mm
     tool_radius, half_width : float, mm
-    h_min, kappa, side_flow : as :func:`cut_turning`
+    h_min, kappa, side_flow : as :func:`cut_turning_mechanics`
 
     Returns
     -------
@@ -330,7 +330,7 @@ def finish_surface(cut: CutResult, response, *, along, seed: int, across_length:
     Parameters
     ----------
     cut : CutResult
-        From :func:`cut_turning` or :func:`cut_lines` run with ``response.h_min`` and
+        From :func:`cut_turning_mechanics` or :func:`cut_lines_mechanics` run with ``response.h_min`` and
         ``response.kappa``.
     response : MaterialResponse
     along : (ny, nx) array, mm

@@ -135,6 +135,15 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndar
         return np.zeros_like(x)
     k = rng.normal(0.0, 1.0 / length, size=modes)
     ph = rng.uniform(0.0, TWO_PI, size=modes)
+    x = np.asarray(x, dtype=np.float64)
+    lo, hi = float(np.min(x)), float(np.max(x))
+    # the profile is smooth on the scale length / max|k|: tabulate it and interpolate
+    step = min(length, 1.0 / max(float(np.max(np.abs(k))), 1e-12)) / 200.0
+    n = int((hi - lo) / step) + 2
+    if n < x.size:
+        xs = np.linspace(lo, hi, max(n, 2))
+        prof = rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(xs, k) + ph).sum(axis=-1)
+        return np.interp(x, xs, prof)
     return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1)
 
 
