@@ -13,7 +13,7 @@ from scipy.optimize import brentq
 
 from render_inspect.errors import InputError
 from render_inspect.machining import simulate_turning
-from render_inspect.machining._cutting import (cut_lines, cut_turning, finish_surface,
+from render_inspect.machining._cutting import (cut_lines_mechanics, cut_turning_mechanics, finish_surface,
                                                groove_texture, machined_edges)
 from render_inspect.machining._material import (MATERIAL_PRESETS, contact_ratio,
                                                 elastic_recovery, material_preset,
@@ -82,7 +82,7 @@ def test_no_minimum_chip_thickness_is_the_geometric_envelope_exactly():
     p = _face()
     region = (1.92, -0.002, 1.95, 0.002)
     geo = simulate_turning(p, nose_radius=0.1, region=region, pixel=0.0002)
-    cut = cut_turning(p, nose_radius=0.1, region=region, pixel=0.0002)
+    cut = cut_turning_mechanics(p, nose_radius=0.1, region=region, pixel=0.0002)
     assert_allclose(cut["machined"], geo, atol=0, rtol=0)
     assert np.all(cut["added"] == 0)
 
@@ -92,7 +92,7 @@ def test_brammertz_cusp_height_with_full_recovery():
     f^2/(8R) + h_min/2 (1 + R h_min / f^2) (Brammertz 1961, parabolic arcs); here the
     exact circular construction, within the pixel's sampling of the step."""
     R, f, hmin, pixel = 0.1, 0.005, 12e-6, 1e-5
-    cut = cut_turning(_face(R, f), nose_radius=R, region=(1.93, 0.0, 1.9401, 0.0), pixel=pixel,
+    cut = cut_turning_mechanics(_face(R, f), nose_radius=R, region=(1.93, 0.0, 1.9401, 0.0), pixel=pixel,
                       h_min=hmin, kappa=1.0)
     row = cut["machined"][0]
 
@@ -110,7 +110,7 @@ def test_side_flow_raises_the_cusp_by_one_minus_kappa_h_min():
     p = _face(R, f)
     region = (1.93, 0.0, 1.9401, 0.0)
     geo = simulate_turning(p, nose_radius=R, region=region, pixel=1e-5)[0]
-    cut = cut_turning(p, nose_radius=R, region=region, pixel=1e-5, h_min=hmin, kappa=kappa)
+    cut = cut_turning_mechanics(p, nose_radius=R, region=region, pixel=1e-5, h_min=hmin, kappa=kappa)
     row = cut["machined"][0]
     assert_allclose(np.nanmax(row) - np.nanmax(geo), (1 - kappa) * hmin, rtol=0.02)
     # the material is put on the cusps, never taken
@@ -123,7 +123,7 @@ def test_lines_without_minimum_chip_are_sculpt_surface():
     xl = np.array([-0.2, 0.0, 0.2, 0.4])
     xg = np.linspace(-0.3, 0.5, 81)
     a = sculpt_surface(prof, xl, xg, tool_radius=1.0, half_width=0.5)
-    b = cut_lines(prof, xl, xg, tool_radius=1.0, half_width=0.5)
+    b = cut_lines_mechanics(prof, xl, xg, tool_radius=1.0, half_width=0.5)
     assert_allclose(b["machined"], a, atol=0, rtol=0)
     edges = machined_edges(b["pass_line"], jump=0.5)
     assert edges.any() and not edges.all()
@@ -173,7 +173,7 @@ def test_seed003_vibration_lowers_lenslet_roughness_and_burrs_on_steel():
             ys, zs = target_line(surf, xl[k], ye, step=0.0025)
             profs.append(sculpt_line_profile(ys, zs, yg, cutting_speed=vc, amplitude=a,
                                              frequency_hz=f, t_start=(ys[0] - ye[0]) / vc))
-        cut = cut_lines(np.array(profs), xl[used], xg, tool_radius=R, half_width=hw,
+        cut = cut_lines_mechanics(np.array(profs), xl[used], xg, tool_radius=R, half_width=hw,
                         h_min=resp.h_min, kappa=resp.kappa)
         along = np.broadcast_to(yg[:, None] + 10.0 * np.nan_to_num(cut["pass_line"]),
                                 design.shape)
