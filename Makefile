@@ -44,8 +44,14 @@ bench: setup
 clean:
 	rm -rf out .pytest_cache
 
-# Build the Blender extension zip (dist/render_inspect-<version>.zip) with Blender's own tool.
-BLENDER_EXT = $(shell $(VPY) -c "import bpy,pathlib;print(pathlib.Path(bpy.utils.system_resource('SCRIPTS'))/'addons_core/bl_pkg/cli/blender_ext.py')" 2>/dev/null)
-.PHONY: blender-addon
+# The self-contained Blender extension, one zip per platform (linux-x64, windows-x64,
+# macos-arm64, macos-x64) with the wheels of render_inspect and its dependencies, built with
+# the blender_ext.py that ships inside Blender: dist/render_inspect-<version>-<platform>.zip.
+.PHONY: blender-addon blender-venvs
 blender-addon: setup
-	mkdir -p dist && $(VPY) $(BLENDER_EXT) build --source-dir blender_addon --output-dir dist
+	$(VPY) tools/build_blender_extension.py --output-dir dist
+
+# Virtualenvs with only bpy 4.2 LTS and 5.0 (.venv-blender/), for the extension tests
+# (the tests make them too when missing).
+blender-venvs: setup
+	$(VPY) tools/blender_venvs.py

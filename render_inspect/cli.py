@@ -49,6 +49,24 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("compare", help="compensated vs uncompensated (or vs --measured): images, metrics, report.html")
     _add_scene_args(p)
     p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
+    p.add_argument("--force", action="store_true",
+                   help="compare the measured map even when it does not match the design "
+                        "(overlap or residual checks fail)")
+
+    p = sub.add_parser("analyze", help="ISO 25178-2 parameters of one height map file (measured "
+                                       "or simulated): metrics.json, height.png, --x3p")
+    p.add_argument("file", help="height map: X3P, SUR, PLU, DAT (MetroPro), DATX, OPD, TMD, NMS, "
+                                "heightmap.exr, ...")
+    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
+                   help="form removed first (none: the mean only)")
+    p.add_argument("--filter", default=None, metavar="S,L",
+                   help="ISO 16610-61 Gaussian nesting indices in mm, e.g. 0.0025,0.8 or ,0.8")
+    p.add_argument("--outliers", choices=["none", "sigma"], default="none",
+                   help="sigma: leave out the 3-sigma second-difference outliers (counted either way)")
+    p.add_argument("--slope", choices=["forward", "central"], default="forward",
+                   help="derivative estimator of Sdq/Sdr (forward: as SurfaceTopography and surfalize)")
+    p.add_argument("--x3p", action="store_true", help="also write the evaluated surface as height.x3p")
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
     p.add_argument("--out", required=True)
@@ -67,6 +85,10 @@ def _run(args) -> None:
     if args.command == "demo":
         pipeline.run_demo(args.out, quick=args.quick)
         return
+    if args.command == "analyze":
+        pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
+                             outliers=args.outliers, slope=args.slope, x3p=args.x3p)
+        return
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
         pipeline.run_simulate(scene, args.out)
@@ -75,7 +97,7 @@ def _run(args) -> None:
     elif args.command == "render":
         pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind)
     elif args.command == "compare":
-        pipeline.run_compare(scene, args.out, measured=args.measured)
+        pipeline.run_compare(scene, args.out, measured=args.measured, force=args.force)
 
 
 def main(argv=None) -> int:

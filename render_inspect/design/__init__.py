@@ -8,9 +8,7 @@ so adding a file ``_mytype.py`` is all a new design type needs (docs/contributin
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
+from ..core.plugins import import_private_modules
 from ._analytic import (
     Biconic,
     BiconicConfig,
@@ -41,10 +39,8 @@ from ._registry import (
     register_design,
 )
 
-# design types added as modules of this package register themselves on import
-for _m in sorted(m.name for m in pkgutil.iter_modules(__path__)):
-    if _m.startswith("_") and _m not in ("_base", "_registry"):
-        importlib.import_module(f"{__name__}.{_m}")
+# variants added as modules of this package register themselves on import
+import_private_modules(__name__, __path__, skip=("_base", "_registry"))
 
 #: the pydantic type of a scene's [design] section
 DesignConfig = design_config_union()

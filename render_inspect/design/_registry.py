@@ -8,13 +8,13 @@ Each design module registers its own types with :func:`register_design`; the sce
 
 from __future__ import annotations
 
-import typing
 from dataclasses import dataclass
 from typing import Annotated, Callable, Union
 
 from pydantic import Field, TypeAdapter, ValidationError
 
 from ..core.errors import SceneError
+from ..core.plugins import literal_values
 
 __all__ = ["DesignType", "register_design", "design_types", "make_surface",
            "design_config_union"]
@@ -34,14 +34,6 @@ _DESIGNS: dict[str, DesignType] = {}
 _UNION = None
 
 
-def _type_names(config) -> tuple[str, ...]:
-    ann = config.model_fields["type"].annotation
-    args = typing.get_args(ann)
-    if typing.get_origin(ann) is not typing.Literal or not args:
-        raise TypeError(f"{config.__name__}.type must be a typing.Literal of the type names")
-    return tuple(args)
-
-
 def register_design(config, factory: Callable | None = None):
     """Register a design schema class (a :class:`~render_inspect.core.Section` whose
     ``type`` field is a ``Literal`` of names) with ``factory(config) -> Surface``.
@@ -53,7 +45,7 @@ def register_design(config, factory: Callable | None = None):
                 return cls(**cfg.model_dump(exclude={"type"}))
         else:
             build = target
-        entry = DesignType(_type_names(config), config, build)
+        entry = DesignType(literal_values(config, "type"), config, build)
         for name in entry.names:
             _DESIGNS[name] = entry
         global _UNION

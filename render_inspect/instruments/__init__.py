@@ -6,9 +6,7 @@ modules are found and imported here (docs/contributing.md)."""
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
+from ..core.plugins import import_private_modules
 from ._interferometer import (
     OBJECTIVES,
     Interferogram,
@@ -23,9 +21,8 @@ from ._interferometer import (
 )
 from ._registry import InstrumentType, instrument_types, register_instrument
 
-for _m in sorted(m.name for m in pkgutil.iter_modules(__path__)):
-    if _m.startswith("_") and _m != "_registry":
-        importlib.import_module(f"{__name__}.{_m}")
+# instruments added as modules of this package register themselves on import
+import_private_modules(__name__, __path__, skip=("_registry",))
 
 __all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "camera_noise",
            "interference_frames", "interferometer_geometry", "read_interferogram_exr",

@@ -10,9 +10,7 @@ imported here, so a new process kind is one new file (docs/contributing.md).
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
+from ..core.plugins import import_private_modules
 from ._rcse import RcseProcessConfig, rcse_comparison
 from ._registry import (
     DEFAULT_KIND,
@@ -35,10 +33,8 @@ from ._turning import (
     toolpath_facts,
 )
 
-# process kinds added as modules of this package register themselves on import
-for _m in sorted(m.name for m in pkgutil.iter_modules(__path__)):
-    if _m.startswith("_") and _m not in ("_registry", "_turning"):
-        importlib.import_module(f"{__name__}.{_m}")
+# variants added as modules of this package register themselves on import
+import_private_modules(__name__, __path__, skip=("_registry", "_turning"))
 
 #: the pydantic type of a scene's [process] section
 ProcessConfig = process_config_union()

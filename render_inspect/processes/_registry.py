@@ -23,7 +23,6 @@ whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (t
 
 from __future__ import annotations
 
-import typing
 from dataclasses import dataclass, field
 from typing import Annotated, Callable, Union
 
@@ -32,6 +31,7 @@ from pydantic import Discriminator, Tag
 
 from ..core.errors import MemoryBudgetError, SceneError
 from ..core.grid import grid_shape
+from ..core.plugins import literal_values
 
 __all__ = ["Plan", "Cut", "ProcessKind", "register_process", "process_kinds", "process_of",
            "process_config_union", "check_budget", "DEFAULT_KIND"]
@@ -112,14 +112,6 @@ _PROCESSES: dict[str, ProcessKind] = {}
 _UNION = None
 
 
-def _kind_names(config) -> tuple[str, ...]:
-    ann = config.model_fields["kind"].annotation
-    args = typing.get_args(ann)
-    if typing.get_origin(ann) is not typing.Literal or not args:
-        raise TypeError(f"{config.__name__}.kind must be a typing.Literal of the kind names")
-    return tuple(args)
-
-
 def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: Callable,
                      program_region: Callable | None = None,
                      program_header: Callable | None = None,
@@ -130,7 +122,7 @@ def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: 
         kwargs["program_region"] = program_region
     if program_header is not None:
         kwargs["program_header"] = program_header
-    entry = ProcessKind(_kind_names(config), config, plan, cut, estimate_memory,
+    entry = ProcessKind(literal_values(config, "kind"), config, plan, cut, estimate_memory,
                         variants=variants, **kwargs)
     for name in entry.names:
         _PROCESSES[name] = entry
