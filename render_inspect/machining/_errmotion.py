@@ -11,8 +11,9 @@ All are written as the displacement of the *tool relative to the part*, in machi
   noise likewise; on a face it prints n radial *spokes* per harmonic n;
 * spindle **tilt** error motion (rad): e_z = X * sum t_n cos(n C + p_n) (a wobble whose
   print grows with the radius);
-* X-slide **straightness** in Z: e_z = s(X), a seeded smooth random profile of rms
-  ``x_straightness_rms`` and correlation length ``x_straightness_length`` (mm of X travel);
+* X-slide **straightness** in Z: e_z = s(X) - s(0), s a seeded smooth random profile of
+  rms ``x_straightness_rms`` and correlation length ``x_straightness_length`` (mm of X
+  travel); zero at the spindle axis, where the tool height is set;
 * tool-part **vibration** at fixed frequencies: ``(frequency_hz, amplitude, direction,
   phase)`` with direction "x", "y" or "z"; along Y it moves the cut along the
   circumference (the spindle angle changes by e_y / X).
@@ -136,6 +137,8 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndar
     k = rng.normal(0.0, 1.0 / length, size=modes)
     ph = rng.uniform(0.0, TWO_PI, size=modes)
     x = np.asarray(x, dtype=np.float64)
+    # the tool height is set at the spindle axis (X = 0): the deviation is zero there
+    s0 = rms * math.sqrt(2.0 / modes) * float(np.cos(ph).sum())
     lo, hi = float(np.min(x)), float(np.max(x))
     # the profile is smooth on the scale length / max|k|: tabulate it and interpolate
     step = min(length, 1.0 / max(float(np.max(np.abs(k))), 1e-12)) / 200.0
@@ -143,8 +146,8 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndar
     if n < x.size:
         xs = np.linspace(lo, hi, max(n, 2))
         prof = rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(xs, k) + ph).sum(axis=-1)
-        return np.interp(x, xs, prof)
-    return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1)
+        return np.interp(x, xs, prof) - s0
+    return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1) - s0
 
 
 def error_motion_offsets(t, theta, rho, errors: ErrorMotions, *, seed: int = 0) -> dict:

@@ -18,7 +18,7 @@ from ..toolpath import (
     plan_turning,
     region_radii,
 )
-from ._mechanics import turn
+from ._mechanics import machine_of, turn
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
            "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
@@ -150,15 +150,26 @@ def cut_turning(scene, surface, path, *, burrs: bool = True, z_fts=None) -> tupl
 
 def turning_memory(scene, plan=None) -> int:
     """Bytes a turning simulation holds at its peak: design + machined (float64) plus one
-    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table)."""
+    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table); on a
+    non-ideal ``[machine]`` the servo ticks (about 16 arrays of them), with a
+    ``[material]`` the cut's six maps."""
     ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
     if plan is None:
         r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-        revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
+        revs = max(min(r_out, scene.process.workpiece_radius) - r_in, 0.0) / scene.process.feed_per_rev
         n_path_points = int(revs * scene.process.points_per_rev) + 1
+        duration = revs * 60.0 / scene.process.spindle_rpm
     else:
         n_path_points = plan.program.points
-    return int(ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10)
+        t = plan.program.t
+        duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    nbytes = ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10
+    machine = machine_of(scene)
+    if not machine.ideal:
+        nbytes += int(duration * machine.servo_rate_hz) * 8 * 16
+    if scene.material.preset != "ideal":
+        nbytes += ny * nx * 8 * 6
+    return int(nbytes)
 
 
 def turning_header(scene) -> dict:
