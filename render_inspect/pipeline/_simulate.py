@@ -20,8 +20,8 @@ from ..io import (
 )
 from ..machining import design_grid
 from ..processes import Cut, Plan, check_budget, process_of
-from ..report import plot_kinematics
-from ._metrics import lenslet_metrics, simulation_metrics
+from ..report import plot_following_error, plot_following_error_map, plot_kinematics
+from ._metrics import lenslet_metrics, msa_metrics, simulation_metrics
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate"]
 
@@ -47,7 +47,11 @@ class Simulation:
         Seconds per stage: ``toolpath`` (planning), ``simulate`` (cutting), ``metrics``,
         ``total`` and the processes' own steps.
     lenslets : list or None
-        The ``lenslets`` table of a lenslet design.
+        The ``lenslets`` table of a lenslet design (after registration for a lenslet
+        array on a base).
+    msa : dict or None
+        Seed 002's characterisation facts of a lenslet array on a base (registration,
+        base form error, outliers, summary).
     metrics : dict
         The ``metrics.json`` content (:func:`~render_inspect.pipeline.simulation_metrics`).
     """
@@ -60,6 +64,7 @@ class Simulation:
     timing_s: dict = field(default_factory=dict)
     lenslets: list | None = None
     metrics: dict = field(default_factory=dict)
+    msa: dict | None = None
 
     @property
     def program(self):
@@ -97,10 +102,15 @@ def simulate(scene, *, surface=None) -> Simulation:
     hm = HeightMap(cut.design, cut.machined, sim.pixel, (float(sim.region[0]), float(sim.region[1])),
                    scene.to_dict(), dict(cut.meta))
     t0 = time.perf_counter()
-    lenslets = lenslet_metrics(surface, hm)
+    msa = msa_metrics(surface, hm, scene.metrology) if scene.metrology.registration != "none" \
+        else None
+    if msa is not None:
+        lenslets, msa = msa
+    else:
+        lenslets = lenslet_metrics(surface, hm)
     if lenslets is not None:
         timing["lenslets"] = time.perf_counter() - t0
-    result = Simulation(scene, surface, hm, plan, cut, timing, lenslets)
+    result = Simulation(scene, surface, hm, plan, cut, timing, lenslets, msa=msa)
     t0 = time.perf_counter()
     result.metrics = simulation_metrics(scene, result)
     timing["metrics"] = time.perf_counter() - t0
@@ -122,6 +132,12 @@ def _draw(spec: dict, png: Path) -> None:
     if spec.get("kind") == "kinematics":
         plot_kinematics(spec["path"], png, reference=spec.get("reference"),
                         labels=spec.get("labels", ("", "")), title=spec.get("title"))
+    elif spec.get("kind") == "following_error":
+        plot_following_error(spec["t"], spec["errors"], png, title=spec.get("title"),
+                             stats=spec.get("stats"))
+    elif spec.get("kind") == "following_error_map":
+        plot_following_error_map(spec["x_nm"], spec["z_nm"], spec["extent"], png,
+                                 title=spec.get("title"))
     else:
         raise ValueError(f"unknown figure kind {spec.get('kind')!r}")
 
@@ -143,7 +159,8 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
                            f"Sq {r['Sq_nm']:.2f} nm, Sz {r['Sz_nm']:.1f} nm, min {r['min_nm']:.1f} nm")
         for name, spec in sim.cut.plots.items():
             _draw(spec, out_dir / name)
-        if sim.toolpath is not None and "rcse_kinematics.png" not in sim.cut.plots:
+        if sim.toolpath is not None and "rcse_kinematics.png" not in sim.cut.plots \
+                and "kinematics.png" not in sim.cut.plots:
             plot_kinematics(sim.toolpath, out_dir / "kinematics.png",
                             labels=(f"{scene.process.kind.upper()} path", ""),
                             title=f"{scene.name}: axis motion")

@@ -6,11 +6,11 @@ from __future__ import annotations
 import time
 from typing import Literal
 
+from ._mechanics import turn
 from ._registry import Cut, Plan, register_process
 from ._turning import (
     TurningProcessConfig,
     compensation_variants,
-    cut_turning,
     plan_spiral,
     toolpath_facts,
     turning_header,
@@ -33,10 +33,11 @@ def plan(scene, surface, *, region=None) -> Plan:
 
 
 def cut(scene, surface, plan: Plan) -> Cut:
-    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
-    return Cut(machined, design, {} if burrs is None else {"burrs": burrs}, timing,
+    t = turn(scene, surface, plan.program)
+    return Cut(t["machined"], t["design"], t["facts"], t["timing"],
                {"process": "sts", "compensation": scene.process.compensation,
-                "seed": scene.simulation.seed})
+                "seed": scene.simulation.seed, "machine": scene.machine.preset,
+                "material": scene.material.preset}, followed=t["followed"], plots=t["plots"])
 
 
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
