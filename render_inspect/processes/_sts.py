@@ -39,5 +39,12 @@ def cut(scene, surface, plan: Plan) -> Cut:
                 "seed": scene.simulation.seed})
 
 
+def envelope_path(scene, surface, plan: Plan):
+    """The path whose nose envelope is the machined surface (tiled simulations)."""
+    return plan.program, {"process": "sts", "compensation": scene.process.compensation,
+                          "seed": scene.simulation.seed}
+
+
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 program_header=turning_header, variants=compensation_variants)
+                 program_header=turning_header, variants=compensation_variants,
+                 envelope_path=envelope_path)

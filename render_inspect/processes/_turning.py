@@ -12,10 +12,11 @@ from pydantic import Field, model_validator
 from ..core.grid import grid_shape
 from ..core.section import Section
 from ..machining import apply_burrs, design_grid, simulate_turning
+from ..machining._memory import in_memory_bytes
 from ..toolpath import Tool, kinematics, limits_from_process, plan_turning, region_radii
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
+           "turning_memory", "turning_points", "burrs_of", "turning_header", "compensation_variants"]
 
 
 class TurningProcessConfig(Section):
@@ -129,17 +130,21 @@ def cut_turning(scene, surface, path, *, burrs: bool = True) -> tuple:
     return machined, design, timing, info
 
 
+def turning_points(scene, plan=None) -> int:
+    """Points of the scene's path over its region (estimated before planning)."""
+    if plan is not None:
+        return int(plan.program.points)
+    r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+    revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
+    return int(revs * scene.process.points_per_rev) + 1
+
+
 def turning_memory(scene, plan=None) -> int:
-    """Bytes a turning simulation holds at its peak: design + machined (float64) plus one
-    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table)."""
-    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
-    if plan is None:
-        r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-        revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
-        n_path_points = int(revs * scene.process.points_per_rev) + 1
-    else:
-        n_path_points = plan.program.points
-    return int(ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10)
+    """Bytes an in-memory turning simulation and the writing of its outputs hold at their
+    peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
+    of heightmap.exr, the design evaluation's temporaries and the tool path)."""
+    shape = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    return in_memory_bytes(shape, turning_points(scene, plan))
 
 
 def turning_header(scene) -> dict:

@@ -1,0 +1,68 @@
+"""Memory a turning simulation needs, counted from the arrays it allocates (bytes).
+
+An in-memory simulation (the whole map as arrays) goes through four phases; its peak is
+the largest of them:
+
+- planning the path: ``PLAN_BYTES`` per path point (spiral, compensation and
+  accessibility temporaries; measured 152-157 B);
+- cutting: design and machined heights, float64 (16 B per sample), the design
+  evaluation's row chunks (``DESIGN_ROWS`` rows x columns x ``DESIGN_TEMPS`` temporaries
+  of 8 B per thread), the path (``PATH_BYTES`` per point) and the envelope's segment
+  table and slope temporaries (``ENVELOPE_BYTES`` per point);
+- writing heightmap.exr: the float32 design, machined and residual channels (12 B per
+  sample) beside the float64 heights and the path;
+- writing toolpath.npz and the previews: the heights, the path and its npz buffers
+  (``NPZ_BYTES`` per point); the previews are area averages of at most 512 pixels a side.
+
+Tiled, the peak is bounded by the tiles in flight: each holds float64 design and
+machined, float32 design / machined / residual, its share of the block sums and the
+encoded chunks (``TILE_BYTES`` per sample), plus the run of the path the tile needs and
+the whole prepared path.
+
+The test suite checks the in-memory estimate against the measured peak (tracemalloc and
+resident memory) of ``simulate`` on three map sizes: within a factor 1.5.
+"""
+
+from __future__ import annotations
+
+import os
+
+#: bytes per path point while the path is planned
+PLAN_BYTES = 160
+#: bytes per path point of the planned path (theta, rho, z, t, contact points)
+PATH_BYTES = 40
+#: bytes per path point of the envelope's segment table and slope temporaries
+ENVELOPE_BYTES = 80
+#: bytes per path point while toolpath.npz is written (x, y and the file buffer)
+NPZ_BYTES = 100
+#: bytes per sample of a tile in flight
+TILE_BYTES = 48
+#: rows per chunk of the design evaluation, and temporaries per evaluated sample (8 B each)
+DESIGN_ROWS = 128
+DESIGN_TEMPS = 6
+#: previews and overviews (bytes)
+PREVIEW_BYTES = 8 * 2 ** 20
+
+
+def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> int:
+    """Peak bytes of an in-memory simulation of a (ny, nx) map from a path of
+    ``path_points`` points, including writing its outputs (see the module notes)."""
+    ny, nx = int(shape[0]), int(shape[1])
+    px, n = ny * nx, int(path_points)
+    threads = threads or os.cpu_count() or 1
+    design_tmp = min(ny, DESIGN_ROWS) * nx * 8 * DESIGN_TEMPS * threads
+    phases = (n * PLAN_BYTES,
+              px * 16 + design_tmp + n * (PATH_BYTES + ENVELOPE_BYTES),
+              px * 28 + n * PATH_BYTES,
+              px * 16 + n * (PATH_BYTES + NPZ_BYTES) + PREVIEW_BYTES)
+    return int(max(phases))
+
+
+def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None) -> int:
+    """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
+    at once (per process: the caller's share when the tiles run on other machines)."""
+    per_tile = tile * tile * TILE_BYTES + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
+    sl = path_points if slice_points is None else slice_points
+    return int(max(path_points * PLAN_BYTES,
+                   in_flight * (per_tile + sl * 40) + path_points * (PATH_BYTES + ENVELOPE_BYTES + NPZ_BYTES)
+                   + PREVIEW_BYTES))
