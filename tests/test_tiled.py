@@ -246,3 +246,66 @@ def test_gpu_kernel_equals_the_cpu_kernel(simulator):
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     assert float(p.stdout.strip().splitlines()[-1]) < KERNEL_ATOL_MM
+
+
+def _cli(*args, check=True):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "render_inspect.cli", *map(str, args)], capture_output=True,
+                          text=True, check=check)
+
+
+WINDOW = ["--set", "simulation.region=[-0.2,-0.15,0.22,0.2]", "--set", "simulation.pixel=0.001"]
+
+
+def test_simulate_tiles_a_map_that_does_not_fit_the_budget(tmp_path):
+    import json
+
+    # 3.7 M samples: about 0.1 GiB in memory, 0.05 GiB in tiles of 256 x 256
+    small, big = tmp_path / "in_memory", tmp_path / "tiled"
+    fine = WINDOW[:3] + ["simulation.pixel=0.0002"]
+    _cli("simulate", GRID, "--out", small, *fine)
+    p = _cli("simulate", GRID, "--out", big, *fine, "--set", "simulation.max_memory_gb=0.07", "--tile", "256")
+    assert "tiles" in p.stderr and "%" in p.stderr          # progress while it runs
+    names = {f.name for f in big.iterdir()}
+    assert {"heightmap.zarr", "metrics.json", "toolpath.npz", "residual.png", "kinematics.png"} <= names
+    assert "heightmap.exr" not in names
+    a = json.loads((small / "metrics.json").read_text())
+    b = json.loads((big / "metrics.json").read_text())
+    for k in ("Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "min_nm", "mean_nm"):
+        assert b["residual"][k] == pytest.approx(a["residual"][k], rel=1e-12, abs=1e-9), k
+    assert b["residual"]["Sa_nm"] == pytest.approx(a["residual"]["Sa_nm"], rel=1e-6)
+    assert b["samples"] == a["samples"] and b["grid"] == a["grid"] and b["tiles"]["count"] == 63
+    assert b["toolpath"]["points"] == a["toolpath"]["points"]
+    z = ZarrHeightMap(big / "heightmap.zarr")
+    ch, attrs = read_exr(small / "heightmap.exr")
+    assert np.array_equal(z.read("machined"), ch["machined"], equal_nan=True)
+    for sc in (z.scene, attrs["scene"]):
+        sc["simulation"].pop("max_memory_gb")
+    assert z.scene == attrs["scene"] and z.attrs["pixel_size_mm"] == attrs["pixel_size_mm"]
+
+
+def test_tiled_simulate_refuses_what_it_cannot_tile(tmp_path):
+    p = _cli("simulate", GRID, "--out", tmp_path / "b", *WINDOW, "--tiled", "--set",
+             "artifacts.burrs.height=0.0001", "--set", "artifacts.burrs.width=0.002", check=False)
+    assert p.returncode == 1 and "artifacts.burrs.height" in p.stderr and "Traceback" not in p.stderr
+    p = _cli("simulate", GRID, "--out", tmp_path / "c", *WINDOW, "--tile", "100", check=False, )
+    assert p.returncode == 0      # --tile only matters on the tiled path
+    p = _cli("simulate", GRID, "--out", tmp_path / "d", *WINDOW, "--tiled", "--tile", "100", check=False)
+    assert p.returncode == 1 and "multiple of 64" in p.stderr and not (tmp_path / "d").exists()
+
+
+@pytest.mark.slow
+def test_simulate_on_two_dask_worker_processes(tmp_path):
+    import json
+
+    a, b = tmp_path / "threads", tmp_path / "workers"
+    _cli("simulate", GRID, "--out", a, *WINDOW, "--tiled", "--tile", "128")
+    p = _cli("simulate", GRID, "--out", b, *WINDOW, "--workers", "2", "--tile", "128")
+    assert "2 Dask workers" in p.stderr
+    ma, mb = (json.loads((d / "metrics.json").read_text()) for d in (a, b))
+    assert mb["tiles"]["scheduler"] == "LocalCluster" and mb["tiles"]["workers"] == 2
+    assert mb["residual"]["Sq_nm"] == pytest.approx(ma["residual"]["Sq_nm"], rel=1e-12)
+    assert np.array_equal(ZarrHeightMap(a / "heightmap.zarr").read("residual"),
+                          ZarrHeightMap(b / "heightmap.zarr").read("residual"), equal_nan=True)

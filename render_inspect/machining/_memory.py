@@ -60,9 +60,13 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> i
 
 def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None) -> int:
     """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
-    at once (per process: the caller's share when the tiles run on other machines)."""
+    at once in this process (the caller's share when the tiles run on other machines):
+    the largest of planning the path, running the tiles (the path, its prepared segments
+    and per tile its samples and its run of the path) and writing toolpath.npz."""
     per_tile = tile * tile * TILE_BYTES + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
-    sl = path_points if slice_points is None else slice_points
-    return int(max(path_points * PLAN_BYTES,
-                   in_flight * (per_tile + sl * 40) + path_points * (PATH_BYTES + ENVELOPE_BYTES + NPZ_BYTES)
-                   + PREVIEW_BYTES))
+    n = int(path_points)
+    sl = n if slice_points is None else int(slice_points)
+    phases = (n * PLAN_BYTES,
+              n * (PATH_BYTES + 40) + in_flight * (per_tile + sl * 40),
+              n * (PATH_BYTES + NPZ_BYTES))
+    return int(max(phases) + PREVIEW_BYTES)
