@@ -309,3 +309,47 @@ def test_simulate_on_two_dask_worker_processes(tmp_path):
     assert mb["residual"]["Sq_nm"] == pytest.approx(ma["residual"]["Sq_nm"], rel=1e-12)
     assert np.array_equal(ZarrHeightMap(a / "heightmap.zarr").read("residual"),
                           ZarrHeightMap(b / "heightmap.zarr").read("residual"), equal_nan=True)
+
+
+def test_renders_of_a_big_map_read_only_the_windows_they_need(tmp_path):
+    from render_inspect.instruments import interferometer_geometry
+    from render_inspect.pipeline import simulate
+    from render_inspect.pipeline._simulate import run_simulate_tiled
+    from render_inspect.pipeline._views import BigMapViews
+
+    scene = load_scene(GRID, ["simulation.region=[-0.3,-0.25,0.32,0.3]", "simulation.pixel=0.0005",
+                              "render.interferometer.objective='50x'", "render.diffuse.resolution=64"])
+    run_simulate_tiled(scene, tmp_path / "t", tile=256)
+    hm = simulate(scene).heightmap
+    views = BigMapViews(tmp_path / "t" / "heightmap.zarr")
+    hm_i, icfg = views.interferometer(scene.render.interferometer)
+    a = interferometer_geometry(hm, scene.render.interferometer)
+    b = interferometer_geometry(hm_i, icfg)
+    for k in ("nx", "ny", "pixel", "numerical_aperture"):
+        assert a[k] == b[k], k
+    assert_allclose(a["origin"], b["origin"], rtol=0, atol=1e-12)
+    # the window holds the same samples as the in-memory map, and only those (plus 2 pixels)
+    r0 = int(round((hm_i.origin[1] - hm.origin[1]) / hm.pixel))
+    c0 = int(round((hm_i.origin[0] - hm.origin[0]) / hm.pixel))
+    crop = hm.machined[r0:r0 + hm_i.shape[0], c0:c0 + hm_i.shape[1]]
+    assert np.array_equal(hm_i.machined, crop.astype(np.float32).astype(np.float64), equal_nan=True)
+    assert hm_i.design.size < hm.design.size / 2     # 0.36 mm field of view of a 0.62 x 0.55 mm map
+    hm_m, _ = views.diffuse(scene.render.diffuse, "macro")
+    assert max(hm_m.shape) <= 256 and hm_m.pixel > hm.pixel    # the coarsest level of the store
+    hm_u, dcfg = views.diffuse(scene.render.diffuse, "micro")
+    assert dcfg.window is not None and hm_u.design.size < hm.design.size / 16
+    assert set(views.facts["read"]) == {"interferometer", "diffuse_macro", "diffuse_micro"}
+
+
+def test_metrology_reads_a_window_of_a_store(tmp_path):
+    from render_inspect.io import read_measured
+
+    rng = np.random.default_rng(1)
+    design = rng.normal(size=(200, 300)) * 1e-3
+    machined = design + 1e-6
+    write_heightmap_zarr(tmp_path / "m.zarr", design, machined, attrs=grid_attrs(0.001, (1.0, 2.0), None, None),
+                         chunk=64)
+    z, pixel, origin, meta = read_measured(tmp_path / "m.zarr", region=(1.05, 2.02, 1.1, 2.06))
+    assert z.shape == (41, 51) and pixel == 0.001 and origin == pytest.approx((1.05, 2.02))
+    assert np.array_equal(z, machined[20:61, 50:101].astype(np.float32).astype(np.float64))
+    assert meta["format"] == "zarr" and meta["store_shape"] == [200, 300]

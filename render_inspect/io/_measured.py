@@ -18,6 +18,7 @@ from ..core.errors import InputError
 from ._exr import read_exr
 from ._registry import formats, reader, register_reader
 from ._x3p import read_x3p
+from ._zarr import ZarrHeightMap
 
 __all__ = ["read_measured", "measured_formats"]
 
@@ -59,6 +60,16 @@ def _read_exr(path, *, channel=None, **_):
     o = attrs["origin_mm"]
     return z, float(attrs["pixel_size_mm"]), (float(o[0]), float(o[1])), {
         "format": "exr", "channel": channel, "scene": attrs.get("scene")}
+
+
+@register_reader("measured", ".zarr")
+def _read_zarr(path, *, channel=None, region=None, **_):
+    z = ZarrHeightMap(path)
+    channel = channel or "machined"
+    rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
+    data = z.read(channel, rows, cols).astype(np.float64)
+    origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
+    return data, z.pixel, origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
 
 
 @register_reader("measured", ".npy", ".npz")
@@ -115,7 +126,7 @@ def measured_formats() -> list[str]:
 
 
 def read_measured(path: str | Path, *, channel: str | None = None, pixel: float | None = None,
-                  origin=None, units: str | None = None):
+                  origin=None, units: str | None = None, region=None):
     """Read a measured (or exported) height map.
 
     Parameters
@@ -131,6 +142,9 @@ def read_measured(path: str | Path, *, channel: str | None = None, pixel: float 
     pixel, origin, units : optional
         For ``.npy``/``.npz`` without that information: pixel (mm), origin of pixel [0, 0]
         (mm), and the unit of the heights ("mm", "um", "nm", "m").
+    region : (x0, y0, x1, y1), optional
+        For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
+        window (mm), not the whole map.
 
     Returns
     -------
@@ -149,10 +163,10 @@ def read_measured(path: str | Path, *, channel: str | None = None, pixel: float 
         raise InputError(f"{path}: Zygo .datx has no well-kept reader here; export the map to X3P "
                          f"(Mx: File > Save Data As > .x3p) and read that")
     read = reader("measured", path)
-    if not path.is_file():
+    if not (path.is_file() or (suffix == ".zarr" and path.is_dir())):
         raise InputError(f"measured file not found: {str(path)!r}")
     z, pixel_mm, origin_mm, meta = read(path, channel=channel, pixel=pixel, origin=origin,
-                                        units=units)
+                                        units=units, region=region)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
     if not pixel_mm > 0 or not np.isfinite(pixel_mm):
