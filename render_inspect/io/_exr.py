@@ -26,7 +26,7 @@ from numba import njit, prange
 
 from ..core.errors import InputError
 from ._atomic import _umask
-from ._pyramid import block_sums, level_count, means
+from ._pyramid import heightmap_block_sums, level_count, means
 
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
              "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "name",
@@ -212,14 +212,26 @@ def heightmap_channels(design: np.ndarray, machined: np.ndarray) -> dict[str, np
 
 
 def write_height_channels(path: str | Path, design: np.ndarray, machined: np.ndarray, attrs: dict, *,
-                        compression: str = HEIGHTMAP_COMPRESSION, tile: int = HEIGHTMAP_TILE,
-                        overview_side: int = OVERVIEW_SIDE) -> Path:
+                          compression: str = HEIGHTMAP_COMPRESSION, tile: int = HEIGHTMAP_TILE,
+                          overview_side: int = OVERVIEW_SIDE, overview: tuple | None = None) -> Path:
     """heightmap.exr: channels design, machined, residual (float32, mm), tiled, with an
-    area-averaged overview part when the map is larger than ``overview_side``."""
+    area-averaged overview part when the map is larger than ``overview_side``.
+    ``overview`` = (factor, :func:`~render_inspect.io._pyramid.heightmap_block_sums`)
+    when the caller already has them."""
+    if overview is None:
+        overview = heightmap_overview(design, machined, overview_side)
+    factor, sums = overview
+    ov = {name: means(*sc) for name, sc in sums.items()} if factor > 1 else None
     ch = heightmap_channels(design, machined)
-    k = level_count(design.shape, smallest=overview_side)
-    overview = None
-    if k:
-        overview = {name: means(*block_sums(a, 2 ** k)) for name, a in ch.items()}
-    return write_exr(path, ch, attrs, compression=compression, tile=tile, overview=overview,
-                     overview_factor=2 ** k if k else None)
+    return write_exr(path, ch, attrs, compression=compression, tile=tile, overview=ov,
+                     overview_factor=factor if factor > 1 else None)
+
+
+def heightmap_overview(design: np.ndarray, machined: np.ndarray, side: int = OVERVIEW_SIDE) -> tuple:
+    """(factor, block sums of the three channels) of the overview of a map: the smallest
+    power-of-two factor that brings its larger side to at most ``side`` pixels (factor 1
+    and no sums when it already is)."""
+    k = level_count(design.shape, smallest=side)
+    if k == 0:
+        return 1, {}
+    return 2 ** k, heightmap_block_sums(design, machined, 2 ** k)

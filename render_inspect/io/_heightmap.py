@@ -33,12 +33,13 @@ def heightmap_attrs(hm: HeightMap) -> dict:
 
 
 @register_writer("heightmap", ".exr")
-def write_heightmap_exr(path: str | Path, hm: HeightMap, **_) -> Path:
+def write_heightmap_exr(path: str | Path, hm: HeightMap, *, overview: tuple | None = None, **_) -> Path:
     """Write float32 channels ``design``, ``machined``, ``residual`` (mm; the residual formed
     in float64, then rounded) and the header of :func:`heightmap_attrs`, tiled, with an
     area-averaged overview part for maps larger than 1024 pixels a side (atomic; see
-    ``render_inspect.io._exr``)."""
-    return write_height_channels(path, hm.design, hm.machined, heightmap_attrs(hm))
+    ``render_inspect.io._exr``).  ``overview``: see
+    :func:`~render_inspect.io._exr.write_height_channels`."""
+    return write_height_channels(path, hm.design, hm.machined, heightmap_attrs(hm), overview=overview)
 
 
 def read_heightmap_exr(path: str | Path) -> HeightMap:

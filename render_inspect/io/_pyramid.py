@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, nogil=True)
@@ -37,6 +37,38 @@ def _block_sums(a, b, has_b, f, sums, counts):
 
 
 _ZERO = np.zeros((1, 1))
+
+
+@njit(parallel=True, cache=True)
+def _block_sums3(design, machined, f, sums, counts):
+    ny, nx = design.shape
+    nby = sums.shape[1]
+    for bi in prange(nby):
+        for i in range(bi * f, min(bi * f + f, ny)):
+            for j in range(nx):
+                bj = j // f
+                d = np.float64(design[i, j])
+                m = np.float64(machined[i, j])
+                r = m - d
+                if math.isfinite(d):
+                    sums[0, bi, bj] += d
+                    counts[0, bi, bj] += 1
+                if math.isfinite(m):
+                    sums[1, bi, bj] += m
+                    counts[1, bi, bj] += 1
+                if math.isfinite(r):
+                    sums[2, bi, bj] += r
+                    counts[2, bi, bj] += 1
+
+
+def heightmap_block_sums(design: np.ndarray, machined: np.ndarray, factor: int) -> dict:
+    """Block sums and counts of ``design``, ``machined`` and ``residual`` (machined -
+    design, formed in float64) in one parallel pass: {name: (sums, counts)}."""
+    shape = (-(-design.shape[0] // factor), -(-design.shape[1] // factor))
+    sums = np.zeros((3, *shape))
+    counts = np.zeros((3, *shape), dtype=np.int64)
+    _block_sums3(np.asarray(design), np.asarray(machined), int(factor), sums, counts)
+    return {name: (sums[k], counts[k]) for k, name in enumerate(("design", "machined", "residual"))}
 
 
 def block_sums(a: np.ndarray, factor: int, *, minus: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,8 @@ from ..io import (
     write_toolpath_npz,
 )
 from ..io._heightmap import grid_attrs
-from ..io._pyramid import level_count
+from ..io._exr import heightmap_overview
+from ..io._pyramid import coarsen, level_count, means
 from ..io._pyramid import preview as area_preview
 from ..io._quickplot import map_png
 from ..io._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
@@ -142,10 +143,19 @@ def _draw(spec: dict, png: Path) -> None:
         raise ValueError(f"unknown figure kind {spec.get('kind')!r}")
 
 
-def residual_preview_png(png, machined, design, *, extent, mean_nm: float, title: str) -> Path:
-    """residual.png: machined - design less its mean (nm) as area averages of at most 512
-    pixels a side (no aliasing of the feed marks; ``render_inspect.io._pyramid``)."""
-    img, factor = area_preview(machined, 512, minus=design)
+def residual_preview_png(png, machined, design, *, extent, mean_nm: float, title: str,
+                         overview: tuple | None = None, side: int = 512) -> Path:
+    """residual.png: machined - design less its mean (nm) as area averages of at most
+    ``side`` pixels a side (no aliasing of the feed marks; ``render_inspect.io._pyramid``),
+    from the EXR overview's block sums when given (no second pass over the map)."""
+    if overview is not None and overview[0] > 1:
+        factor, (s, c) = overview[0], overview[1]["residual"]
+        while max(s.shape) > side:
+            s, c = coarsen(s, c, 2)
+            factor *= 2
+        img = means(s, c)
+    else:
+        img, factor = area_preview(machined, side, minus=design)
     return residual_png(png, img, factor, extent=extent, mean_nm=mean_nm, title=title)
 
 
@@ -178,13 +188,15 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
     scene, hm, metrics = sim.scene, sim.heightmap, sim.metrics
     tw = {}
     log.info("writing heightmap.exr (%d x %d, %.0f MB) ...", hm.shape[1], hm.shape[0], hm.design.size * 12 / 1e6)
-    _timed(tw, "heightmap.exr", write_heightmap_exr, out_dir / "heightmap.exr", hm)
+    # one pass for the EXR overview and the preview (area averages)
+    overview = _timed(tw, "overview", heightmap_overview, hm.design, hm.machined)
+    _timed(tw, "heightmap.exr", write_heightmap_exr, out_dir / "heightmap.exr", hm, overview=overview)
     if sim.toolpath is not None:
         _timed(tw, "toolpath.npz", write_toolpath_npz, out_dir / "toolpath.npz", sim.toolpath)
     if preview:
         r = metrics["residual"]
         _timed(tw, "residual.png", residual_preview_png, out_dir / "residual.png", hm.machined, hm.design,
-               extent=hm.extent, mean_nm=r["mean_nm"], title=_residual_title(scene, r))
+               extent=hm.extent, mean_nm=r["mean_nm"], title=_residual_title(scene, r), overview=overview)
         for name, spec in sim.cut.plots.items():
             _timed(tw, name, _draw, spec, out_dir / name)
         if sim.toolpath is not None and "rcse_kinematics.png" not in sim.cut.plots:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.toolpath import ToolPath
-from ..io._exr import heightmap_channels
+from ..io._exr import heightmap_channels, heightmap_overview
 from ..io._heightmap import grid_attrs
 from ..io._pyramid import block_sums, preview
 from ..io._zarr import create_heightmap_zarr
@@ -56,6 +56,7 @@ def warm_up() -> float:
         block_sums(arr, 2)
     preview(m, 4, minus=d)
     heightmap_channels(d, m)
+    heightmap_overview(d, m, 4)
     ep = prepare_envelope(_spiral(True), nose_radius=0.1, half_width=0.05)
     with tempfile.TemporaryDirectory() as tmp:
         store = str(Path(tmp) / "w.zarr")
