@@ -353,3 +353,17 @@ def test_metrology_reads_a_window_of_a_store(tmp_path):
     assert z.shape == (41, 51) and pixel == 0.001 and origin == pytest.approx((1.05, 2.02))
     assert np.array_equal(z, machined[20:61, 50:101].astype(np.float32).astype(np.float64))
     assert meta["format"] == "zarr" and meta["store_shape"] == [200, 300]
+
+
+def test_tiles_of_a_constant_arc_path_equal_the_whole_grid():
+    from render_inspect.machining._tiled import compute_tile
+
+    region, pixel = (-0.05, -0.04, 0.09, 0.08), 0.0005
+    _, surface, path, tool = _case(region, pixel, ("process.sampling='constant_arc'",))
+    ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+    assert not ep.uniform
+    whole = simulate_turning(path, nose_radius=tool.nose_radius, half_width=tool.half_width, region=region,
+                             pixel=pixel)
+    for t in plan_tiles(whole.shape, 128):
+        _, m = compute_tile(ep, surface, region[:2], pixel, t)
+        assert np.array_equal(m, whole[t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t
