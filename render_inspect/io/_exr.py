@@ -213,25 +213,25 @@ def heightmap_channels(design: np.ndarray, machined: np.ndarray) -> dict[str, np
 
 def write_height_channels(path: str | Path, design: np.ndarray, machined: np.ndarray, attrs: dict, *,
                           compression: str = HEIGHTMAP_COMPRESSION, tile: int = HEIGHTMAP_TILE,
-                          overview_side: int = OVERVIEW_SIDE, overview: tuple | None = None) -> Path:
+                          overview_side: int = OVERVIEW_SIDE, overview: dict | None = None) -> Path:
     """heightmap.exr: channels design, machined, residual (float32, mm), tiled, with an
-    area-averaged overview part when the map is larger than ``overview_side``.
-    ``overview`` = (factor, :func:`~render_inspect.io._pyramid.heightmap_block_sums`)
-    when the caller already has them."""
+    area-averaged overview part when the map is larger than ``overview_side``
+    (``overview``: :func:`heightmap_overview`, when the caller already has it)."""
     if overview is None:
         overview = heightmap_overview(design, machined, overview_side)
-    factor, sums = overview
-    ov = {name: means(*sc) for name, sc in sums.items()} if factor > 1 else None
     ch = heightmap_channels(design, machined)
-    return write_exr(path, ch, attrs, compression=compression, tile=tile, overview=ov,
-                     overview_factor=factor if factor > 1 else None)
+    return write_exr(path, ch, attrs, compression=compression, tile=tile, overview=overview["means"] or None,
+                     overview_factor=overview["factor"] if overview["means"] else None)
 
 
-def heightmap_overview(design: np.ndarray, machined: np.ndarray, side: int = OVERVIEW_SIDE) -> tuple:
-    """(factor, block sums of the three channels) of the overview of a map: the smallest
-    power-of-two factor that brings its larger side to at most ``side`` pixels (factor 1
-    and no sums when it already is)."""
+def heightmap_overview(design: np.ndarray, machined: np.ndarray, side: int = OVERVIEW_SIDE) -> dict:
+    """The overview of a map: ``factor`` (the smallest power of two that brings its larger
+    side to at most ``side`` pixels), ``means`` (float32 block means of design, machined
+    and residual; empty when the factor is 1) and ``residual`` (the residual's block sums
+    and counts, for coarser previews)."""
     k = level_count(design.shape, smallest=side)
     if k == 0:
-        return 1, {}
-    return 2 ** k, heightmap_block_sums(design, machined, 2 ** k)
+        return {"factor": 1, "means": {}, "residual": None}
+    sums = heightmap_block_sums(design, machined, 2 ** k)
+    return {"factor": 2 ** k, "means": {name: means(*sc) for name, sc in sums.items()},
+            "residual": sums["residual"]}

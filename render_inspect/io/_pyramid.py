@@ -62,11 +62,11 @@ def _block_sums3(design, machined, f, sums, counts):
 
 
 def heightmap_block_sums(design: np.ndarray, machined: np.ndarray, factor: int) -> dict:
-    """Block sums and counts of ``design``, ``machined`` and ``residual`` (machined -
-    design, formed in float64) in one parallel pass: {name: (sums, counts)}."""
+    """Block sums (float64) and counts (int32) of ``design``, ``machined`` and ``residual``
+    (machined - design, formed in float64) in one parallel pass: {name: (sums, counts)}."""
     shape = (-(-design.shape[0] // factor), -(-design.shape[1] // factor))
     sums = np.zeros((3, *shape))
-    counts = np.zeros((3, *shape), dtype=np.int64)
+    counts = np.zeros((3, *shape), dtype=np.int32)
     _block_sums3(np.asarray(design), np.asarray(machined), int(factor), sums, counts)
     return {name: (sums[k], counts[k]) for k, name in enumerate(("design", "machined", "residual"))}
 
@@ -101,9 +101,10 @@ def block_sums_of_sums(s: np.ndarray, factor: int) -> np.ndarray:
 
 
 def means(sums: np.ndarray, counts: np.ndarray, dtype=np.float32) -> np.ndarray:
-    """Block means (NaN where a block has no finite sample)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan).astype(dtype)
+    """Block means (NaN where a block has no finite sample), without float64 temporaries."""
+    out = np.full(sums.shape, np.nan, dtype=dtype)
+    np.divide(sums, counts, out=out, where=counts > 0, casting="unsafe")
+    return out
 
 
 def level_count(shape, *, smallest: int = 256) -> int:

@@ -10,9 +10,12 @@ the largest of them:
   of 8 B per thread), the path (``PATH_BYTES`` per point) and the envelope's segment
   table and slope temporaries (``ENVELOPE_BYTES`` per point);
 - writing heightmap.exr: the float32 design, machined and residual channels (12 B per
-  sample) beside the float64 heights and the path;
+  sample) beside the float64 heights and the path, and the overview (block means of the
+  three channels and the residual's block sums and counts: 24 B per block of F x F
+  samples; while it is computed, 36 B per block);
 - writing toolpath.npz and the previews: the heights, the path and its npz buffers
-  (``NPZ_BYTES`` per point); the previews are area averages of at most 512 pixels a side.
+  (``NPZ_BYTES`` per point), the overview's residual sums and the preview's coarsening
+  (the previews are area averages of at most 512 pixels a side).
 
 Tiled, the peak is bounded by the tiles in flight: each holds float64 design and
 machined, float32 design / machined / residual, its share of the block sums and the
@@ -40,8 +43,11 @@ TILE_BYTES = 48
 #: rows per chunk of the design evaluation, and temporaries per evaluated sample (8 B each)
 DESIGN_ROWS = 128
 DESIGN_TEMPS = 6
-#: previews and overviews (bytes)
-PREVIEW_BYTES = 8 * 2 ** 20
+#: previews: fixed bytes, plus 16 B per overview block (coarsening copies of the residual's
+#: block sums and counts) or 4 B per sample without an overview (2 x 2 block sums)
+PREVIEW_BYTES = 4 * 2 ** 20
+#: largest side of the heightmap.exr overview (pixels; see render_inspect.io._exr)
+OVERVIEW_SIDE = 1024
 
 
 def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> int:
@@ -51,10 +57,16 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> i
     px, n = ny * nx, int(path_points)
     threads = threads or os.cpu_count() or 1
     design_tmp = min(ny, DESIGN_ROWS) * nx * 8 * DESIGN_TEMPS * threads
+    f = 1
+    while max(ny, nx) > OVERVIEW_SIDE * f:
+        f *= 2
+    blocks = 0 if f == 1 else -(-ny // f) * -(-nx // f)
     phases = (n * PLAN_BYTES,
               px * 16 + design_tmp + n * (PATH_BYTES + ENVELOPE_BYTES),
-              px * 28 + n * PATH_BYTES,
-              px * 16 + n * (PATH_BYTES + NPZ_BYTES) + PREVIEW_BYTES)
+              px * 16 + blocks * 36 + n * PATH_BYTES,
+              px * 28 + blocks * 24 + n * PATH_BYTES,
+              px * 16 + blocks * 12 + n * (PATH_BYTES + NPZ_BYTES) + PREVIEW_BYTES
+              + (blocks * 16 if blocks else px * 4))
     return int(max(phases))
 
 

@@ -144,12 +144,12 @@ def _draw(spec: dict, png: Path) -> None:
 
 
 def residual_preview_png(png, machined, design, *, extent, mean_nm: float, title: str,
-                         overview: tuple | None = None, side: int = 512) -> Path:
+                         overview: dict | None = None, side: int = 512) -> Path:
     """residual.png: machined - design less its mean (nm) as area averages of at most
     ``side`` pixels a side (no aliasing of the feed marks; ``render_inspect.io._pyramid``),
     from the EXR overview's block sums when given (no second pass over the map)."""
-    if overview is not None and overview[0] > 1:
-        factor, (s, c) = overview[0], overview[1]["residual"]
+    if overview is not None and overview["residual"] is not None:
+        factor, (s, c) = overview["factor"], overview["residual"]
         while max(s.shape) > side:
             s, c = coarsen(s, c, 2)
             factor *= 2
