@@ -283,30 +283,30 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     est = tiled_bytes(tile, turning_points(scene), in_flight=in_flight)
     check_budget(scene, est)
     timing = {}
-    t0 = time.perf_counter()
-    plan = kind.plan(scene, surface, region=tuple(sim.region))
-    timing.update(plan.timing)
-    timing["toolpath"] = time.perf_counter() - t0
-    path, meta = kind.envelope_path(scene, surface, plan)
-    tool = tool_of(scene)
-    ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
-    est = tiled_bytes(tile, path.points, in_flight=in_flight)
-    if est > budget:
-        check_budget(scene, est)
-    levels = level_count(shape)
-    log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...", f"{shape[0] * shape[1]:,}",
-             len(plan_tiles(shape, tile)), tile, tile,
-             f"scheduler {scheduler}" if scheduler else f"{workers} Dask workers" if workers else "threads")
-    with atomic_output_dir(out) as tmp:
+    # the Dask workers start while the path is planned
+    with dask_client(workers=workers, scheduler=scheduler) as client, atomic_output_dir(out) as tmp:
+        t0 = time.perf_counter()
+        plan = kind.plan(scene, surface, region=tuple(sim.region))
+        timing.update(plan.timing)
+        timing["toolpath"] = time.perf_counter() - t0
+        path, meta = kind.envelope_path(scene, surface, plan)
+        tool = tool_of(scene)
+        ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+        est = tiled_bytes(tile, path.points, in_flight=in_flight)
+        if est > budget:
+            check_budget(scene, est)
+        levels = level_count(shape)
+        log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...", f"{shape[0] * shape[1]:,}",
+                 len(plan_tiles(shape, tile)), tile, tile,
+                 f"scheduler {scheduler}" if scheduler else f"{workers} Dask workers" if workers else "threads")
         tmp = Path(tmp)
         store = str(tmp / "heightmap.zarr")
         create_heightmap_zarr(store, shape, chunk=tile, levels=levels,
                               attrs=grid_attrs(sim.pixel, origin, scene.to_dict(), meta))
         t0 = time.perf_counter()
-        with dask_client(workers=workers, scheduler=scheduler) as client:
-            stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
-                              levels=levels, tile=tile, client=client, workers=None if client else workers,
-                              progress=_progress("tiles"))
+        stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
+                          levels=levels, tile=tile, client=client, workers=None if client else workers,
+                          progress=_progress("tiles"))
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])

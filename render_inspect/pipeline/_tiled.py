@@ -119,6 +119,10 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
     if client is not None:
         from distributed import as_completed
 
+        n = getattr(client, "expected_workers", 0)
+        if n:
+            client.wait_for_workers(n)
+        client.run(_load_kernels)
         big = [client.scatter(v, broadcast=True) if isinstance(v, EnvelopePath) else v for v in shared]
         futures = [client.submit(fn, *big, *args, pure=False) for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
@@ -218,14 +222,27 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
     return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing)
 
 
+def _load_kernels():
+    """Import the tile code and load its compiled kernels (in a worker process)."""
+    import numpy as _np
+
+    from ..machining._envelope import _fill_serial
+    from ..machining._metrics import _moments
+
+    z = _np.zeros((1, 1))
+    _moments(z, z)
+    return _fill_serial is not None
+
+
 @contextlib.contextmanager
 def dask_client(*, workers: int | None = None, scheduler: str | None = None):
     """The Dask client tiles run on: None (the threaded scheduler of this process) when
     neither is given; a ``LocalCluster`` of ``workers`` single-threaded processes; or the
     cluster whose scheduler listens at ``scheduler`` (``tcp://host:8786``).
 
-    Scripts that start a cluster need the ``if __name__ == "__main__":`` guard (worker
-    processes re-import the main module)."""
+    The workers of a LocalCluster start in the background: the caller can plan the path
+    meanwhile, and :func:`run_tiles` waits for them.  Scripts that start a cluster need
+    the ``if __name__ == "__main__":`` guard (worker processes re-import the main module)."""
     if scheduler:
         from distributed import Client
 
@@ -243,6 +260,8 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None):
         raise InputError(f"--workers must be in [1, 1024], got {workers}")
     from distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None,
                       memory_limit=0) as cluster, Client(cluster) as client:
+        cluster.scale(int(workers))
+        client.expected_workers = int(workers)
         yield client
