@@ -522,3 +522,16 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
         elif device == "gpu":
             raise ValueError("simulate_turning: device='gpu' needs a CUDA device and a constant-angle path")
     return envelope_fill(ep, (x0, y0), pixel, out)
+
+
+def load_kernels() -> None:
+    """Compile (or load from numba's cache) the fast kernel for tile workers: one call on a
+    2 x 2 grid of a three-revolution spiral."""
+    theta = np.linspace(0.0, 6 * math.pi, 97)
+    rho = 0.05 - 0.01 * theta / TWO_PI
+    seg = np.empty((theta.size - 1, 4))
+    seg[:, 0], seg[:, 1] = rho[:-1], np.diff(rho)
+    seg[:, 2], seg[:, 3] = 0.0, 0.0
+    ep = EnvelopePath(seg, theta, np.zeros(1, dtype=np.int64), 0.0, 1.0, True, 96 / (6 * math.pi), 32, 0,
+                      theta.size, 0.0, float(theta[-1]), 0.05, 0.01 / TWO_PI, 0.0, 0.01, 0.1, 0.05, 0.0101)
+    envelope_fill(ep, (0.0, 0.0), 0.001, np.empty((2, 2)), parallel=False)

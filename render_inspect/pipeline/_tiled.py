@@ -26,7 +26,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..io._pyramid import block_sums, coarsen, means
-from ..machining._envelope import EnvelopePath
+from ..machining._envelope import EnvelopePath, load_kernels
 from ..machining._metrics import merge_moments, tile_abs_dev, tile_moments
 from ..machining._tiled import TILE, Tile, compute_tile, plan_tiles
 
@@ -222,16 +222,12 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
     return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing)
 
 
-def _load_kernels():
-    """Import the tile code and load its compiled kernels (in a worker process)."""
-    import numpy as _np
-
-    from ..machining._envelope import _fill_serial
-    from ..machining._metrics import _moments
-
-    z = _np.zeros((1, 1))
-    _moments(z, z)
-    return _fill_serial is not None
+def _load_kernels() -> bool:
+    """Load the tile code's compiled kernels (in a worker process)."""
+    load_kernels()
+    z = np.zeros((1, 1))
+    tile_moments(z, z)
+    return True
 
 
 @contextlib.contextmanager
