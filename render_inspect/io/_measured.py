@@ -1,15 +1,29 @@
 """Read measured height maps from instrument and exchange formats, in mm.
 
-A registry keyed by file suffix (trimesh's habit): X3P via ``x3pio``; the project's own
-``heightmap.exr``; ``.npy`` with a JSON side-car and ``.npz``; and the instrument formats
-``surfalize`` reads (``.sur``, ``.plu``, ``.plux``, ``.sdf``, ``.al3d``, ``.vk4``, ``.opd``,
-``.zon``, ...; surfalize gives micrometres, converted here).  Zygo ``.datx`` has no
-well-kept Python reader in this environment: export such data to X3P.
+One reader per file suffix, chosen for reading that format correctly (checked against
+the values published with real instrument files, see docs/metrology.md):
+
+- SurfaceTopography (the reference library of contact.engineering): Zygo MetroPro
+  ``.dat`` and ``.datx``, Sensofar ``.plu`` / ``.plux``, Wyko ``.opd`` / ``.opdx``, Alicona
+  ``.al3d``, Keyence ``.vk3`` .. ``.vk7``, Olympus ``.lext`` / ``.oir``, Gwyddion ``.gwy``,
+  FRT ``.frt``, ``.zon``;
+- x3pio: ISO 25178-72 ``.x3p`` (with our own parser for files whose ``main.xml`` lacks
+  the ISO 5436-2 namespace);
+- surfalize: Digital Surf ``.sur`` (SurfaceTopography 1.18.2 reads its non-measured points
+  as heights) and the formats only it knows (``.sdf``, ``.os3d``, ``.zmg``, ``.sflz``,
+  ``.hdat``);
+- our own parsers: TrueMap / GelSight ``.tmd`` (mm), NanoFocus ``.nms``;
+- the project's ``heightmap.exr``, ``.npy`` + JSON side-car, ``.npz``.
+
+Every reader returns heights in mm, the pixel as ``(pixel_x, pixel_y)`` in mm (never
+squared), and the units the file itself declares (``meta["units_in_file"]``).
 """
 
 from __future__ import annotations
 
 import json
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,28 +31,84 @@ import numpy as np
 from ..core.errors import InputError
 from ._exr import read_exr
 from ._registry import formats, reader, register_reader
-from ._x3p import read_x3p
+from ._vendor import read_nms, read_tmd
+from ._x3p import read_x3p_xy
 from ._zarr import ZarrHeightMap
 
-__all__ = ["read_measured", "measured_formats"]
+__all__ = ["MeasuredMap", "read_surface", "read_measured", "measured_formats",
+           "reader_for", "UNIT_TO_MM"]
 
-_UNIT_TO_MM = {"mm": 1.0, "um": 1e-3, "µm": 1e-3, "nm": 1e-6, "m": 1e3}
-_SURFALIZE = (".sur", ".plu", ".plux", ".sdf", ".al3d", ".vk4", ".vk6", ".vk7", ".opd",
-              ".zon", ".gwy", ".tmd", ".os3d", ".nms", ".lext", ".oir", ".zmg", ".sflz", ".hdat")
+#: Length units a file may declare, in mm.
+UNIT_TO_MM = {"m": 1e3, "mm": 1.0, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "nm": 1e-6,
+              "pm": 1e-9, "Å": 1e-7, "A": 1e-7}
+
+_LIBRARY: dict = {}  # suffix -> name of the library that reads it
+
+
+def _register(*suffixes, name: str):
+    """Register ``fn`` as the ``measured`` reader of ``suffixes`` (io's registry) and
+    remember which library it uses."""
+    def deco(fn):
+        for s in suffixes:
+            _LIBRARY[s] = name
+        return register_reader("measured", *suffixes)(fn)
+    return deco
 
 
 def _to_mm(name: str, units) -> float:
-    if units not in _UNIT_TO_MM:
-        raise InputError(f"{name}: units must be one of {sorted(_UNIT_TO_MM)}, got {units!r}")
-    return _UNIT_TO_MM[units]
+    if units not in UNIT_TO_MM:
+        raise InputError(f"{name}: units must be one of {sorted(UNIT_TO_MM)}, got {units!r}")
+    return UNIT_TO_MM[units]
 
 
-@register_reader("measured", ".x3p")
+@dataclass(frozen=True)
+class MeasuredMap:
+    """A height map read from a file.
+
+    Attributes
+    ----------
+    z : (ny, nx) float64 array
+        Heights, mm; NaN where not measured.  Row 0 is the first row the reader gives
+        (for X3P: the smallest y).
+    pixel : (pixel_x, pixel_y)
+        Sampling distances along x (columns) and y (rows), mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+    meta : dict
+        ``format``, ``reader``, ``units_in_file`` (what the file declares), ``path``,
+        ``valid_fraction``, ``n_invalid`` and what else the file says about itself.
+    """
+
+    z: np.ndarray
+    pixel: tuple
+    origin: tuple
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(self.z.shape)
+
+    @property
+    def square(self) -> bool:
+        """True when the two sampling distances agree to 1e-6."""
+        return bool(np.isclose(self.pixel[0], self.pixel[1], rtol=1e-6, atol=0))
+
+    @property
+    def extent(self) -> tuple:
+        """(x0, x1, y0, y1) of the pixel edges, mm (for ``imshow(origin="lower")``)."""
+        (px, py), (ox, oy) = self.pixel, self.origin
+        ny, nx = self.z.shape
+        return (ox - px / 2, ox + px * (nx - 0.5), oy - py / 2, oy + py * (ny - 0.5))
+
+
+# -- readers ------------------------------------------------------------------------------
+
+@_register(".x3p", name="x3pio")
 def _read_x3p(path, **_):
-    return read_x3p(path)
+    return read_x3p_xy(path)
 
 
-@register_reader("measured", ".exr")
+@_register(".exr", name="render_inspect")
 def _read_exr(path, *, channel=None, **_):
     ch, attrs = read_exr(path)
     if channel is None:
@@ -55,24 +125,27 @@ def _read_exr(path, *, channel=None, **_):
     for key in ("pixel_size_mm", "origin_mm"):
         if key not in attrs:
             raise InputError(f"{path}: EXR header lacks {key!r}; it is needed to place the map in mm")
-    scale = _to_mm(f"{path} header 'units'", attrs.get("units", "mm"))
-    z = ch[channel].astype(np.float64) * scale
+    units = attrs.get("units", "mm")
+    z = ch[channel].astype(np.float64) * _to_mm(f"{path} header 'units'", units)
     o = attrs["origin_mm"]
-    return z, float(attrs["pixel_size_mm"]), (float(o[0]), float(o[1])), {
-        "format": "exr", "channel": channel, "scene": attrs.get("scene")}
+    p = attrs["pixel_size_mm"]
+    pxy = (float(p), float(p)) if np.ndim(p) == 0 else (float(p[0]), float(p[1]))
+    return z, pxy, (float(o[0]), float(o[1])), {
+        "format": "exr", "channel": channel, "scene": attrs.get("scene"),
+        "units_in_file": {"lateral": "mm", "vertical": units}}
 
 
-@register_reader("measured", ".zarr")
+@_register(".zarr", name="zarr")
 def _read_zarr(path, *, channel=None, region=None, **_):
     z = ZarrHeightMap(path)
     channel = channel or "machined"
     rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
     data = z.read(channel, rows, cols).astype(np.float64)
     origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
-    return data, z.pixel, origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
+    return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
 
 
-@register_reader("measured", ".npy", ".npz")
+@_register(".npy", ".npz", name="numpy")
 def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     path = Path(path)
     side = {}
@@ -96,84 +169,174 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     if pixel is None:
         raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
                          f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')
-    return z * _to_mm(f"{path} units", units), float(pixel), (float(origin[0]), float(origin[1])), {
-        "format": path.suffix[1:], "units_in_file": units}
+    pxy = (float(pixel), float(pixel)) if np.ndim(pixel) == 0 else tuple(float(v) for v in pixel)
+    if len(pxy) != 2:
+        raise InputError(f"{path}: pixel_mm must be one number or [x, y], got {pixel!r}")
+    return z * _to_mm(f"{path} units", units), pxy, (float(origin[0]), float(origin[1])), {
+        "format": path.suffix[1:], "units_in_file": {"lateral": "mm", "vertical": units}}
 
 
-@register_reader("measured", *_SURFALIZE)
+_ST_READERS = {".dat": "MetroProReader", ".datx": "DATXReader", ".plu": "PLUReader",
+               ".plux": "PLUXReader", ".opd": "OPDReader", ".opdx": "OPDxReader",
+               ".al3d": "AL3DReader", ".vk3": "VKReader", ".vk4": "VKReader",
+               ".vk6": "VKReader", ".vk7": "VKReader", ".lext": "LEXTReader",
+               ".oir": "OIRReader", ".gwy": "GWYReader", ".frt": "FRTReader",
+               ".zon": "ZONReader"}
+
+
+@_register(*_ST_READERS, name="SurfaceTopography")
+def _read_surface_topography(path, **_):
+    import SurfaceTopography.IO as stio
+
+    cls = getattr(stio, _ST_READERS[Path(path).suffix.lower()])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            t = cls(str(path)).topography()
+    except Exception as err:  # the readers raise their own and builtin errors on bad files
+        raise InputError(f"{path}: SurfaceTopography's {cls.__name__} could not read it "
+                         f"({type(err).__name__}: {err})") from None
+    if t.dim != 2 or not t.is_uniform:
+        raise InputError(f"{path}: holds a {t.dim}-D{' non-uniform' if not t.is_uniform else ''} "
+                         f"topography; only areal maps on a regular grid are supported")
+    unit = t.unit
+    scale = _to_mm(f"{path}: unit declared in the file", unit)
+    h = t.heights()
+    h = h.filled(np.nan) if np.ma.isMaskedArray(h) else np.asarray(h)
+    z = np.asarray(h, dtype=np.float64).T * scale  # SurfaceTopography: [x, y]; here [row=y, col=x]
+    px, py = (float(v) * scale for v in t.pixel_size)
+    info = t.info or {}
+    meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": {"lateral": unit,
+                                                                       "vertical": unit},
+            "instrument": (info.get("instrument") or {}).get("name", ""),
+            "date": str(info.get("acquisition_time", ""))}
+    return z, (px, py), (0.0, 0.0), meta
+
+
+_SURFALIZE_ONLY = (".sur", ".sdf", ".os3d", ".zmg", ".sflz", ".hdat")
+
+
+@_register(*_SURFALIZE_ONLY, name="surfalize")
 def _read_surfalize(path, **_):
-    import warnings
-
     import surfalize
 
     try:
-        with warnings.catch_warnings():  # non-square pixels: we raise a clearer error below
-            warnings.filterwarnings("ignore", message=".*different pixel size.*")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             s = surfalize.Surface.load(str(path))
     except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
         raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
-    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # um -> mm
-    if not np.isclose(s.step_x, s.step_y, rtol=1e-6):
-        raise InputError(f"{path}: pixel sizes differ in x ({s.step_x * 1e-3:g} mm) and y "
-                         f"({s.step_y * 1e-3:g} mm); resample to square pixels first")
-    return z, float(s.step_x) * 1e-3, (0.0, 0.0), {"format": Path(path).suffix[1:],
-                                                   "reader": f"surfalize {surfalize.__version__}"}
+    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # surfalize gives micrometres
+    md = getattr(s, "metadata", {}) or {}
+    declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
+    return z, (float(s.step_x) * 1e-3, float(s.step_y) * 1e-3), (0.0, 0.0), {
+        "format": Path(path).suffix[1:].lower(), "units_in_file": declared}
 
+
+@_register(".tmd", name="render_inspect")
+def _read_tmd(path, **_):
+    return read_tmd(path)
+
+
+@_register(".nms", name="render_inspect")
+def _read_nms(path, **_):
+    return read_nms(path)
+
+
+# -- public -------------------------------------------------------------------------------
 
 def measured_formats() -> list[str]:
-    """File suffixes :func:`read_measured` reads."""
+    """File suffixes :func:`read_surface` reads."""
     return formats("measured")
 
 
-def read_measured(path: str | Path, *, channel: str | None = None, pixel: float | None = None,
-                  origin=None, units: str | None = None, region=None):
+def reader_for(suffix: str) -> str:
+    """Name of the library that reads ``suffix`` (e.g. ``".plu"`` -> ``"SurfaceTopography"``)."""
+    s = suffix.lower() if suffix.startswith(".") else "." + suffix.lower()
+    reader("measured", "file" + s)  # InputError naming the supported ones
+    return _LIBRARY[s]
+
+
+def _library_version(name: str) -> str:
+    from importlib import metadata
+
+    dist = {"SurfaceTopography": "SurfaceTopography", "surfalize": "surfalize",
+            "x3pio": "x3pio"}.get(name)
+    if dist is None:
+        return name
+    try:
+        return f"{name} {metadata.version(dist)}"
+    except metadata.PackageNotFoundError:
+        return name
+
+
+def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
+                 units: str | None = None, region=None) -> MeasuredMap:
     """Read a measured (or exported) height map.
 
     Parameters
     ----------
     path : str or Path
-        ``.x3p``, ``.exr`` (our ``heightmap.exr`` or any EXR with ``pixel_size_mm`` /
-        ``origin_mm`` header attributes), ``.npy`` (+ ``<name>.json`` side-car with
-        ``pixel_mm``, ``origin_mm``, ``units``), ``.npz`` (arrays ``z``, ``pixel_mm``,
-        ``origin_mm``, ``units``) or an instrument format read by surfalize
-        (see :func:`measured_formats`).
+        An instrument file (see :func:`measured_formats`), ``.x3p``, ``.exr`` (our
+        ``heightmap.exr`` or any EXR with ``pixel_size_mm`` / ``origin_mm`` header
+        attributes), ``.npy`` (+ ``<name>.json`` side-car with ``pixel_mm`` (one number or
+        [x, y]), ``origin_mm``, ``units``) or ``.npz`` (arrays ``z``, ``pixel_mm``,
+        ``origin_mm``, ``units``).
     channel : str, optional
         EXR channel (default: ``measured``, ``height``, ``machined``, or the only one).
     pixel, origin, units : optional
-        For ``.npy``/``.npz`` without that information: pixel (mm), origin of pixel [0, 0]
-        (mm), and the unit of the heights ("mm", "um", "nm", "m").
+        For ``.npy``/``.npz`` without that information: pixel (mm, one number or (x, y)),
+        origin of pixel [0, 0] (mm), and the unit of the heights (see :data:`UNIT_TO_MM`).
     region : (x0, y0, x1, y1), optional
         For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
         window (mm), not the whole map.
 
     Returns
     -------
-    z : (ny, nx) float64 array
-        Heights in mm, NaN where not measured; row 0 = smallest y.
-    pixel : float
-        mm.
-    origin : (x, y)
-        Centre of pixel [0, 0], mm.
-    meta : dict
-        ``format`` and what the file says about itself; ``path``; ``valid_fraction``.
+    MeasuredMap
+        Heights in mm, ``pixel = (pixel_x, pixel_y)`` in mm.
+
+    Raises
+    ------
+    InputError
+        Unknown suffix, missing or unreadable file, unknown units, a map that is not 2-D,
+        a pixel that is not > 0, no valid height.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".datx":
-        raise InputError(f"{path}: Zygo .datx has no well-kept reader here; export the map to X3P "
-                         f"(Mx: File > Save Data As > .x3p) and read that")
-    read = reader("measured", path)
-    if not (path.is_file() or (suffix == ".zarr" and path.is_dir())):
+    fn = reader("measured", path)
+    if not (path.is_file() or (path.suffix.lower() == ".zarr" and path.is_dir())):
         raise InputError(f"measured file not found: {str(path)!r}")
-    z, pixel_mm, origin_mm, meta = read(path, channel=channel, pixel=pixel, origin=origin,
-                                        units=units, region=region)
+    lib = _LIBRARY[path.suffix.lower()]
+    kw = {"region": region} if region is not None else {}
+    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units, **kw)
+    z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
-    if not pixel_mm > 0 or not np.isfinite(pixel_mm):
-        raise InputError(f"{path}: pixel size must be > 0 mm, got {pixel_mm!r}")
+    px, py = (float(v) for v in pxy)
+    for name, v in (("pixel_x", px), ("pixel_y", py)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"{path}: {name} must be > 0 mm, got {v!r}")
     z = np.where(np.isinf(z), np.nan, z)
-    valid = float(np.isfinite(z).mean())
-    if valid == 0.0:
+    ok = np.isfinite(z)
+    if not ok.any():
         raise InputError(f"{path}: the map has no valid (finite) heights")
-    meta.update({"path": str(path), "valid_fraction": valid})
-    return z, float(pixel_mm), (float(origin_mm[0]), float(origin_mm[1])), meta
+    meta.setdefault("reader", _library_version(lib))
+    meta.update({"path": str(path), "valid_fraction": float(ok.mean()),
+                 "n_invalid": int(ok.size - ok.sum()), "units": {"lateral": "mm", "vertical": "mm"},
+                 "pixel_x_mm": px, "pixel_y_mm": py})
+    return MeasuredMap(z, (px, py), (float(origin_mm[0]), float(origin_mm[1])), meta)
+
+
+def read_measured(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
+                  units: str | None = None, region=None):
+    """Read a height map with square pixels as ``(z_mm, pixel_mm, origin_mm, meta)``.
+
+    The tuple form of :func:`read_surface` for callers that need one pixel size: a map
+    whose x and y sampling differ (by more than 1e-6) raises :class:`InputError` naming
+    both; use :func:`read_surface`, which keeps ``(pixel_x, pixel_y)``.
+    """
+    m = read_surface(path, channel=channel, pixel=pixel, origin=origin, units=units, region=region)
+    if not m.square:
+        raise InputError(f"{path}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
+                         f"({m.pixel[1]:.6g} mm); read it with read_surface, which keeps both")
+    return m.z, m.pixel[0], m.origin, m.meta

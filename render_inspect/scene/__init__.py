@@ -31,7 +31,7 @@ from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
-           "shipped_scenes", "find_scene",
+           "shipped_scenes", "find_scene", "instrument_config",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
            "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig"]
@@ -131,6 +131,22 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
             node = nxt
         node[parts[-1]] = _parse_value(text.strip())
     return data
+
+
+def instrument_config(objective: str = "20x", mode: str = "psi",
+                      overrides: Iterable[str] | None = None) -> InterferometerConfig:
+    """``[render.interferometer]`` for ``objective`` and ``mode`` with ``KEY=VALUE``
+    overrides (TOML values; the ``render.interferometer.`` prefix is optional), validated
+    with the scene's messages (``render-inspect characterise --set``)."""
+    items = []
+    for item in overrides or ():
+        key = item.split("=", 1)[0].strip()
+        if "=" in item and not key.startswith("render.interferometer."):
+            item = f"render.interferometer.{item.strip()}"
+        items.append(item)
+    data = {"design": {"type": "plane"},
+            "render": {"interferometer": {"objective": objective, "mode": mode}}}
+    return scene_from_dict(apply_overrides(data, items), "(characterise)").render.interferometer
 
 
 def shipped_scenes() -> dict[str, Path]:
