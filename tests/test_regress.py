@@ -173,12 +173,15 @@ def test_another_compensation_mode_is_caught(tmp_path):
 
 
 @pytest.mark.mitsuba
-def test_another_wavelength_changes_the_frames_but_not_the_measured_height(tmp_path):
+def test_another_wavelength_changes_the_frames_but_not_the_surface(tmp_path):
     summary, _ = _run_expect(tmp_path, "sts_grid_z,sts_grid_psi_noise",
                              ["render.interferometer.wavelength_nm=650"], fails=True)
-    # the fringes move; the height the instrument reports does not (nor the surface)
-    assert _failing(summary) == {("sts_grid_z", "interferogram"),
-                                 ("sts_grid_psi_noise", "interferogram")}
+    # the fringes move; the surface and its diffuse images do not.  The height the
+    # instrument reports may change a little: the objective's transfer function cuts off
+    # at NA / lambda, so a longer wavelength passes less of the feed scallop.
+    failing = _failing(summary)
+    assert {("sts_grid_z", "interferogram"), ("sts_grid_psi_noise", "interferogram")} <= failing
+    assert not {name for _, name in failing} & {"residual", "diffuse_micro", "diffuse_macro"}
 
 
 @pytest.mark.mitsuba

@@ -76,6 +76,9 @@ ROOT_EXTRAS = ("render",)
 EXTRA_PACKAGES = ("x3pio",)
 #: Shipped with Blender itself (bundling a second NumPy would break Blender), or Blender.
 PROVIDED_BY_BLENDER = {"numpy", "bpy"}
+#: Dependencies that only other platforms need, so they are not installed here to read
+#: their version from: the versions bundled for those platforms.
+OTHER_PLATFORM_PINS = {"colorama": "0.4.6"}
 
 BEGIN = "# --- wheels: written by tools/build_blender_extension.py --update-manifest ---"
 END = "# --- end of wheels ---"
@@ -102,7 +105,17 @@ def dependency_pins(platform: str) -> dict[str, str]:
         name = canonicalize_name(req.name)
         if name in PROVIDED_BY_BLENDER or name in pins:
             continue
-        dist = md.distribution(req.name)
+        if name in OTHER_PLATFORM_PINS:
+            try:
+                md.distribution(req.name)
+            except md.PackageNotFoundError:
+                pins[name] = OTHER_PLATFORM_PINS[name]
+                continue
+        try:
+            dist = md.distribution(req.name)
+        except md.PackageNotFoundError:
+            raise SystemExit(f"{req.name} (needed on {platform}) is not installed here: add its "
+                             f"version to OTHER_PLATFORM_PINS in {Path(__file__).name}") from None
         version = dist.version
         if not req.specifier.contains(version, prereleases=True):
             raise SystemExit(f"installed {req.name} {version} does not satisfy {req}; run make setup")
