@@ -10,7 +10,7 @@ from ..core.toolpath import ToolPath
 from ..machining import design_grid, residual_metrics
 from ..metrology import characterise_msa, lenslet_table
 
-__all__ = ["simulation_metrics", "lenslet_metrics", "msa_metrics"]
+__all__ = ["simulation_metrics", "lenslet_metrics", "msa_metrics", "tiled_metrics"]
 
 
 def lenslet_metrics(surface, heightmap) -> list | None:
@@ -97,4 +97,23 @@ def simulation_metrics(scene, sim) -> dict:
         m["lenslets"] = sim.lenslets
     if getattr(sim, "msa", None) is not None:
         m["msa"] = sim.msa
+    return m
+
+
+def tiled_metrics(scene, plan, residual: dict, shape, origin, timing: dict) -> dict:
+    """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
+    ``residual`` reduced across tiles (``render_inspect.machining._metrics``)."""
+    m = {"software_version": __version__, "scene_name": scene.name,
+         "process": scene.process.kind, "compensation": scene.process.compensation,
+         "seed": scene.simulation.seed, "samples": int(shape[0] * shape[1]),
+         "grid": {"shape": [int(shape[0]), int(shape[1])], "pixel_mm": float(scene.simulation.pixel),
+                  "origin_mm": [float(origin[0]), float(origin[1])]},
+         "timing_s": dict(timing), "residual": residual}
+    _merge(m, plan.facts)
+    prog = plan.program
+    if isinstance(prog, ToolPath):
+        tp = m.setdefault("toolpath", {})
+        tp.setdefault("points", int(prog.points))
+        tp.setdefault("revolutions", prog.revolutions)
+        tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
     return m

@@ -22,7 +22,8 @@ from ..io import (
     write_json,
 )
 from ..render import render_diffuse, variant_info
-from ._simulate import design_heightmap, simulate
+from ._simulate import design_heightmap, simulate, wants_tiles
+from ._views import BigMapViews, WholeMapViews, big_map_store
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
            "interferogram_summary"]
@@ -145,8 +146,20 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
     timing = {}
     t0 = time.perf_counter()
-    hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
+    if heightmap is None and surface == "machined" and wants_tiles(scene):
+        # a map too large for memory: windows and area-averaged levels of its store
+        views = BigMapViews(*big_map_store(scene, out))
+    else:
+        views = WholeMapViews(heightmap if heightmap is not None else render_heightmap(scene, surface=surface))
     timing["heightmap"] = time.perf_counter() - t0
+    try:
+        return _render_views(scene, out, views, surface=surface, kind=kind, timing=timing)
+    finally:
+        if views.big:
+            views.close()
+
+
+def _render_views(scene, out, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
     info = variant_info()
@@ -155,16 +168,19 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     with atomic_output_dir(out) as tmp:
         if kind in ("interferometer", "all"):
             t = time.perf_counter()
-            ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
+            hm_i, icfg = views.interferometer(scene.render.interferometer)
+            ig = render_interferogram(hm_i, icfg, surface=surface, seed=seed)
             timing["interferogram"] = time.perf_counter() - t
             res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
         if kind in ("diffuse", "all"):
             for view in ("macro", "micro"):
                 t = time.perf_counter()
-                rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
-                                           seed=seed)
+                hm_d, dcfg = views.diffuse(scene.render.diffuse, view)
+                rgb, meta = render_diffuse(hm_d, dcfg, view=view, surface=surface, seed=seed)
                 timing[f"diffuse_{view}"] = time.perf_counter() - t
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
         res["timing_s"] = timing
+        if views.big:
+            res["big_map"] = views.facts
         write_json(Path(tmp) / "render_metrics.json", {"render": res})
     return {"render": res}

@@ -281,3 +281,22 @@ def turn(scene, surface, path, *, z_fts=None, followed: ToolPath | None = None,
                  followed=None if (fp is not None and fp.ideal) else cut_path,
                  followed_path=fp, pass_theta=pass_theta, plots=figs)
     return out
+
+
+def followed_program(scene, path) -> ToolPath:
+    """The path the tool follows on the scene's ``[machine]`` (the commanded ``path`` on an
+    ideal machine): what a tiled simulation cuts, since the machine acts on the whole
+    path while the envelope of its nose can be taken tile by tile.  Material models act
+    on the whole map, so a tiled simulation needs ``material.preset = "ideal"``."""
+    if scene.material.preset != "ideal":
+        raise InputError(
+            f"material.preset must be 'ideal' for a simulation computed tile by tile (the "
+            f"material's side flow and grooves are modelled on the whole map), received "
+            f"{scene.material.preset!r}; set --set material.preset='ideal', or simulate a "
+            f"region that fits simulation.max_memory_gb")
+    machine = machine_of(scene)
+    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine,
+                        seed=int(scene.simulation.seed))
+    if fp.ideal:
+        return path
+    return ToolPath(fp.theta, fp.rho, fp.z, fp.t, {**path.meta, "followed": machine.name})

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from typing import Literal
 
-from ._mechanics import turn
+from ._mechanics import followed_program, turn
 from ._registry import Cut, Plan, register_process
 from ._turning import (
     TurningProcessConfig,
@@ -40,5 +40,14 @@ def cut(scene, surface, plan: Plan) -> Cut:
                 "material": scene.material.preset}, followed=t["followed"], plots=t["plots"])
 
 
+def envelope_path(scene, surface, plan: Plan):
+    """The path whose nose envelope is the machined surface (tiled simulations): the
+    program as the scene's machine follows it."""
+    return followed_program(scene, plan.program), {
+        "process": "sts", "compensation": scene.process.compensation,
+        "seed": scene.simulation.seed, "machine": scene.machine.preset, "material": "ideal"}
+
+
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 program_header=turning_header, variants=compensation_variants)
+                 program_header=turning_header, variants=compensation_variants,
+                 envelope_path=envelope_path)

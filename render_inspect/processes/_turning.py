@@ -10,18 +10,13 @@ from pydantic import Field, model_validator
 
 from ..core.grid import grid_shape
 from ..core.section import Section
-from ..toolpath import (
-    Tool,
-    kinematics,
-    limits_from_process,
-    plan_feed,
-    plan_turning,
-    region_radii,
-)
+from ..machining._memory import in_memory_bytes
+from ..toolpath import (Tool, kinematics, limits_from_process, plan_feed, plan_turning,
+                        region_radii)
 from ._mechanics import machine_of, turn
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
+           "turning_memory", "turning_points", "burrs_of", "turning_header", "compensation_variants"]
 
 
 class TurningProcessConfig(Section):
@@ -148,27 +143,35 @@ def cut_turning(scene, surface, path, *, burrs: bool = True, z_fts=None) -> tupl
     return t["machined"], t["design"], t["timing"], {**t["facts"], "plots": t["plots"]}
 
 
+def turning_points(scene, plan=None) -> int:
+    """Points of the scene's path over its region (estimated before planning)."""
+    if plan is not None:
+        return int(plan.program.points)
+    r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+    revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
+    return int(revs * scene.process.points_per_rev) + 1
+
+
 def turning_memory(scene, plan=None) -> int:
-    """Bytes a turning simulation holds at its peak: design + machined (float64) plus one
-    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table); on a
-    non-ideal ``[machine]`` the servo ticks (about 16 arrays of them), with a
+    """Bytes an in-memory turning simulation and the writing of its outputs hold at their
+    peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
+    of heightmap.exr, the design evaluation's temporaries and the tool path); on a
+    non-ideal ``[machine]`` also the servo ticks (about 16 arrays of them), with a
     ``[material]`` the cut's six maps."""
-    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
-    if plan is None:
-        r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-        revs = max(min(r_out, scene.process.workpiece_radius) - r_in, 0.0) / scene.process.feed_per_rev
-        n_path_points = int(revs * scene.process.points_per_rev) + 1
-        duration = revs * 60.0 / scene.process.spindle_rpm
-    else:
-        n_path_points = plan.program.points
-        t = plan.program.t
-        duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
-    nbytes = ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10
+    shape = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    nbytes = in_memory_bytes(shape, turning_points(scene, plan))
     machine = machine_of(scene)
     if not machine.ideal:
+        if plan is None:
+            r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+            revs = max(min(r_out, scene.process.workpiece_radius) - r_in, 0.0) / scene.process.feed_per_rev
+            duration = revs * 60.0 / scene.process.spindle_rpm
+        else:
+            t = plan.program.t
+            duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
         nbytes += int(duration * machine.servo_rate_hz) * 8 * 16
     if scene.material.preset != "ideal":
-        nbytes += ny * nx * 8 * 6
+        nbytes += shape[0] * shape[1] * 8 * 6
     return int(nbytes)
 
 
