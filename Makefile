@@ -27,6 +27,7 @@ $(STAMP): requirements.txt pyproject.toml
 	$(VPY) -m pip install -q --upgrade pip
 	$(VPY) -m pip install -q -r requirements.txt
 	$(VPY) -m pip install -q --no-deps -e .
+	$(VPY) -m render_inspect.pipeline._warmup
 	@touch $(STAMP)
 
 demo: setup

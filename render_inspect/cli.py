@@ -59,6 +59,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="tool path + machined surface: heightmap.exr, metrics.json, preview")
     _add_scene_args(p)
+    p.add_argument("--tiled", action="store_true",
+                   help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
+                        "simulation.max_memory_gb)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
+    p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
+                   help="tile side in pixels, a multiple of 64 (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc)")
     _add_scene_args(p)
@@ -191,7 +200,9 @@ def _run(args):
                                     overrides=args.overrides)
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
-        return pipeline.run_simulate(scene, args.out)
+        return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
+                                     workers=args.workers, scheduler=args.scheduler,
+                                     tile=args.tile)
     if args.command == "toolpath":
         return pipeline.run_toolpath(scene, args.out, fmt=args.format)
     if args.command == "render":

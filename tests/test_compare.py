@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import re
 
 import numpy as np
@@ -359,7 +360,7 @@ def test_parse_vary():
 @pytest.mark.parametrize("name,a,b,key", [
     ("sts_fig16_overcut", "compensated", "uncompensated", "process.compensation"),
     ("compound_sinusoid", "compensated", "uncompensated", "process.compensation"),
-    ("hts_toric_msa", "servo_lag", "ideal_servo", "artifacts.servo"),
+    ("hts_toric_msa", "servo_lag", "ideal_servo", "machine.fts, machine.z"),
     ("sculpt_quad_mla", "vibration_on", "vibration_off", "artifacts.vibration.amplitude"),
     ("rcse_circular_array", "rcse", "conventional", "rcse.path"),
 ])
@@ -388,8 +389,15 @@ def test_vary_makes_its_own_pair_and_clears_keys():
     assert (pair.a.name, pair.b.name) == ("compensation_normal", "compensation_z")
     sa, sb = compare_variants(scene, "process.compensation=normal,z")
     assert sa.process.compensation == "normal" and sb.process.compensation == "z"
-    # the HTS ideal servo clears the bandwidths (None) of the scene
+    # the HTS ideal servo: the machine's slow slide and FTS without loop, latency and noise
     hts = compare_variants(load_scene("hts_toric_msa"))[1]
+    for ax in (hts.machine.fts, hts.machine.z):
+        assert math.isinf(ax.bandwidth_hz) and ax.delay_s == 0 and ax.noise_nm == 0
+    # on the ideal machine, the [artifacts.servo] model's bandwidths are cleared (None)
+    legacy = load_scene("hts_toric_msa", ["machine.preset='ideal'", "artifacts.servo.delay_s=0.002",
+                                          "artifacts.servo.bandwidth_hz=1000.0"])
+    assert compare_pair(legacy).key == "artifacts.servo"
+    hts = compare_variants(legacy)[1]
     assert hts.artifacts.servo.bandwidth_hz is None and hts.artifacts.servo.delay_s == 0
 
 

@@ -33,6 +33,7 @@ from ._exr import read_exr
 from ._registry import formats, reader, register_reader
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
+from ._zarr import ZarrHeightMap
 
 __all__ = ["MeasuredMap", "read_surface", "read_measured", "measured_formats",
            "reader_for", "UNIT_TO_MM"]
@@ -132,6 +133,16 @@ def _read_exr(path, *, channel=None, **_):
     return z, pxy, (float(o[0]), float(o[1])), {
         "format": "exr", "channel": channel, "scene": attrs.get("scene"),
         "units_in_file": {"lateral": "mm", "vertical": units}}
+
+
+@_register(".zarr", name="zarr")
+def _read_zarr(path, *, channel=None, region=None, **_):
+    z = ZarrHeightMap(path)
+    channel = channel or "machined"
+    rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
+    data = z.read(channel, rows, cols).astype(np.float64)
+    origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
+    return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
 
 
 @_register(".npy", ".npz", name="numpy")
@@ -260,7 +271,7 @@ def _library_version(name: str) -> str:
 
 
 def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                 units: str | None = None) -> MeasuredMap:
+                 units: str | None = None, region=None) -> MeasuredMap:
     """Read a measured (or exported) height map.
 
     Parameters
@@ -276,6 +287,9 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     pixel, origin, units : optional
         For ``.npy``/``.npz`` without that information: pixel (mm, one number or (x, y)),
         origin of pixel [0, 0] (mm), and the unit of the heights (see :data:`UNIT_TO_MM`).
+    region : (x0, y0, x1, y1), optional
+        For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
+        window (mm), not the whole map.
 
     Returns
     -------
@@ -290,10 +304,11 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     """
     path = Path(path)
     fn = reader("measured", path)
-    if not path.is_file():
+    if not (path.is_file() or (path.suffix.lower() == ".zarr" and path.is_dir())):
         raise InputError(f"measured file not found: {str(path)!r}")
     lib = _LIBRARY[path.suffix.lower()]
-    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units)
+    kw = {"region": region} if region is not None else {}
+    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units, **kw)
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
@@ -313,14 +328,14 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
 
 
 def read_measured(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                  units: str | None = None):
+                  units: str | None = None, region=None):
     """Read a height map with square pixels as ``(z_mm, pixel_mm, origin_mm, meta)``.
 
     The tuple form of :func:`read_surface` for callers that need one pixel size: a map
     whose x and y sampling differ (by more than 1e-6) raises :class:`InputError` naming
     both; use :func:`read_surface`, which keeps ``(pixel_x, pixel_y)``.
     """
-    m = read_surface(path, channel=channel, pixel=pixel, origin=origin, units=units)
+    m = read_surface(path, channel=channel, pixel=pixel, origin=origin, units=units, region=region)
     if not m.square:
         raise InputError(f"{path}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
                          f"({m.pixel[1]:.6g} mm); read it with read_surface, which keeps both")

@@ -938,8 +938,8 @@ def _locator(a: _Variant, part: dict, window: dict, ig) -> dict:
 
 
 def _kinematics_png(a: _Variant, b: _Variant):
-    """The machine axes that move, for both variants (turning), or the RCSE comparison's
-    X motion; None for programs without a spindle (sculpturing)."""
+    """The machine axes that move in both variants' programs (turning), or the RCSE
+    comparison's X motion; None for programs without a spindle (sculpturing)."""
     cols = []
     for v in (a, b):
         sim = v.sim
@@ -951,9 +951,10 @@ def _kinematics_png(a: _Variant, b: _Variant):
                                        ("conventional (grid-interpolated)", spec["reference"], {})],
                                       axes=("X",),
                                       title="X motion: RCSE vs conventional (seed 004 Figs. 8-9)")
-        path = sim.cut.followed if sim.cut.followed is not None else sim.toolpath
-        cols.append((f"{v.name}", path, sim.plan.data))
-    return axis_motion_figure(cols, title="Axis motion of the cut (the axes that move)")
+        # the commanded program: a machine's followed path carries its servo noise,
+        # whose derivatives would hide the motion (its following error has own figures)
+        cols.append((f"{v.name}", sim.toolpath, sim.plan.data))
+    return axis_motion_figure(cols, title="Axis motion of the programs (the axes that move)")
 
 
 def _sections(z, design, *, pixel, origin, center, angles_deg, filtered=None, through=False):

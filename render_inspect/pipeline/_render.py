@@ -27,7 +27,8 @@ from ..design import make_surface
 from ..machining import design_grid
 from ..report import annotate_rgb, nice_length
 from ..render import render_diffuse, variant_info
-from ._simulate import design_heightmap, simulate
+from ._simulate import design_heightmap, simulate, wants_tiles
+from ._views import BigMapViews, WholeMapViews, big_map_store
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
            "interferogram_summary", "part_heightmap", "tool_marks", "part_outline",
@@ -274,8 +275,21 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     timing = {}
     t0 = time.perf_counter()
     with progress_task(f"{surface} height map"):
-        hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
+        if heightmap is None and surface == "machined" and wants_tiles(scene):
+            # a map too large for memory: windows and area-averaged levels of its store
+            views = BigMapViews(*big_map_store(scene, out))
+        else:
+            views = WholeMapViews(heightmap if heightmap is not None
+                                  else render_heightmap(scene, surface=surface))
     timing["heightmap"] = time.perf_counter() - t0
+    try:
+        return _render_views(scene, out, views, surface=surface, kind=kind, timing=timing)
+    finally:
+        if views.big:
+            views.close()
+
+
+def _render_views(scene, out, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
     info = variant_info()
@@ -286,8 +300,8 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         if kind in ("interferometer", "all"):
             t0 = time.perf_counter()
             t.update("render: interferogram")
-            ig = render_interferogram(hm, scene.render.interferometer, surface=surface,
-                                      seed=seed)
+            hm_i, icfg = views.interferometer(scene.render.interferometer)
+            ig = render_interferogram(hm_i, icfg, surface=surface, seed=seed)
             timing["interferogram"] = time.perf_counter() - t0
             res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
             t.advance()
@@ -295,11 +309,15 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
             for view in ("macro", "micro"):
                 t0 = time.perf_counter()
                 t.update(f"render: diffuse {view} view")
-                rgb, meta = render_diffuse_views(scene, hm, scene.render.diffuse, seed=seed,
-                                                 surface=surface, views=(view,))[view]
+                # the tool marks' BSDF; the macro view shows the whole part
+                hm_d, dcfg = views.diffuse(scene.render.diffuse, view)
+                rgb, meta = render_diffuse_views(scene, hm_d, dcfg, seed=seed, surface=surface,
+                                                 views=(view,))[view]
                 timing[f"diffuse_{view}"] = time.perf_counter() - t0
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
                 t.advance()
         res["timing_s"] = timing
+        if views.big:
+            res["big_map"] = views.facts
         write_json(Path(tmp) / "render_metrics.json", {"render": res})
     return {"render": res}

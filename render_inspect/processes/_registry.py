@@ -19,7 +19,10 @@ three functions, registered with :func:`register_process`:
 Optional: ``program_region(scene)`` (the region the ``toolpath`` command plans; None = the
 whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (the pair
 ``compare`` puts side by side: a :class:`VariantPair`, the comparison that means something
-for this process, e.g. compensation on/off for turning, vibration on/off for sculpturing).
+for this process, e.g. compensation on/off for turning, vibration on/off for sculpturing),
+``envelope_path(scene, surface, plan) -> (ToolPath, meta)`` (turning processes whose
+machined surface is the nose envelope of one path and nothing else: the tiled,
+out-of-core simulation computes it tile by tile).
 """
 
 from __future__ import annotations
@@ -152,6 +155,7 @@ class ProcessKind:
     program_region: Callable = _whole_part
     program_header: Callable = lambda scene: {}
     variants: Callable | None = None
+    envelope_path: Callable | None = None
 
 
 _PROCESSES: dict[str, ProcessKind] = {}
@@ -161,7 +165,8 @@ _UNION = None
 def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: Callable,
                      program_region: Callable | None = None,
                      program_header: Callable | None = None,
-                     variants: Callable | None = None) -> ProcessKind:
+                     variants: Callable | None = None,
+                     envelope_path: Callable | None = None) -> ProcessKind:
     """Register a process kind (see the module docstring)."""
     kwargs = {}
     if program_region is not None:
@@ -169,7 +174,7 @@ def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: 
     if program_header is not None:
         kwargs["program_header"] = program_header
     entry = ProcessKind(literal_values(config, "kind"), config, plan, cut, estimate_memory,
-                        variants=variants, **kwargs)
+                        variants=variants, envelope_path=envelope_path, **kwargs)
     for name in entry.names:
         _PROCESSES[name] = entry
     global _UNION

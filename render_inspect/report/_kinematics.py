@@ -11,9 +11,11 @@ from pathlib import Path
 import numpy as np
 
 from ..io import atomic_write_bytes
+from ..io._quickplot import panels_png
 from ..toolpath import axis_derivatives
 
-__all__ = ["plot_kinematics", "axis_motion_figure", "moving_axes", "turning_axes"]
+__all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
+           "turning_axes"]
 
 #: an axis whose velocity varies by less than this fraction of its largest speed moves
 #: at constant speed (its acceleration is rounding noise): its position is not plotted
@@ -67,6 +69,26 @@ def moving_axes(t, axes: dict) -> list[str]:
 _UNITS = {"X": ("mm", 1.0), "Z": ("um", 1e3), "FTS": ("um", 1e3)}
 
 
+def _motion_series(columns, axes=None):
+    """``[(label, t, {axis: position})]`` of ``columns`` and the axes to plot: ``axes``,
+    or every axis that moves in any column (Z when none does)."""
+    series = []
+    for label, path, data in columns:
+        t = np.asarray(path.t, dtype=np.float64)
+        series.append((label, t, turning_axes(path, data)))
+    if axes is None:
+        names = []
+        for _, t, ax in series:
+            for n in moving_axes(t, ax):
+                if n not in names:
+                    names.append(n)
+        if not names:
+            names = ["Z"]
+    else:
+        names = list(axes)
+    return series, names
+
+
 def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int = 100) -> bytes:
     """PNG bytes: position, velocity and acceleration against time of the axes that move
     (:func:`moving_axes`), one column per path.
@@ -83,20 +105,7 @@ def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    series = []
-    for label, path, data in columns:
-        t = np.asarray(path.t, dtype=np.float64)
-        series.append((label, t, turning_axes(path, data)))
-    if axes is None:
-        names = []
-        for _, t, ax in series:
-            for n in moving_axes(t, ax):
-                if n not in names:
-                    names.append(n)
-        if not names:
-            names = ["Z"]
-    else:
-        names = list(axes)
+    series, names = _motion_series(columns, axes)
     rows = [(n, q) for n in names for q in ("position", "velocity", "acceleration")]
     fig, grid = plt.subplots(len(rows), len(series), figsize=(5.4 * len(series), 1.9 * len(rows)),
                              dpi=dpi, squeeze=False, sharey="row")
@@ -193,3 +202,46 @@ def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventi
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     return atomic_write_bytes(png_path, buf.getvalue())
+
+
+def kinematics_png(columns, png_path, *, axes=None, title: str = "") -> Path:
+    """kinematics.png: the content of :func:`axis_motion_figure` (position, velocity and
+    acceleration against time of the axes that move, per path) drawn with Pillow as
+    stacked panels (``render_inspect.io._quickplot``: tens of milliseconds, where a
+    matplotlib figure takes about a second with its import).
+
+    The derivatives are taken on the whole path (decimating first would smooth away the
+    single-point spikes a machine limit cares about); only the drawing is decimated, to
+    per-bin minimum / maximum envelopes (1500 bins).
+
+    Parameters
+    ----------
+    columns : list of (label, ToolPath, data)
+        As for :func:`axis_motion_figure`.
+    png_path : str or Path
+        Written atomically.
+    axes : sequence of str, optional
+        Only these axes; default every axis that moves in any path.
+    """
+    series, names = _motion_series(columns, axes)
+    panels = []
+    for label, t, ax_data in series:
+        still = [n for n in ax_data if n not in names] if axes is None else []
+        head = label + (" (" + ", ".join(still) + " at constant speed: not plotted)" if still else "")
+        first = True
+        for name in names:
+            q = ax_data.get(name)
+            if q is None:
+                continue
+            unit, scale = _UNITS.get(name, ("mm", 1.0))
+            v, a, _ = axis_derivatives(t, q)
+            for qty, y, u in (("position", q, unit), ("velocity", v, f"{unit}/s"),
+                              ("acceleration", a, f"{unit}/s^2")):
+                y = np.asarray(y, dtype=np.float64) * scale
+                xm, lo, hi = _envelope(t, y)
+                ylab = f"{name} ({u})" if qty == "position" else f"{name} {qty} ({u})"
+                note = "" if qty == "position" else f"max |{name} {qty}| {np.max(np.abs(y)):.3g} {u}"
+                panels.append({"x": xm, "lo": lo, "hi": hi, "xlabel": "time (s)", "ylabel": ylab,
+                               "title": "; ".join(x for x in ((head if first else ""), note) if x)})
+                first = False
+    return panels_png(png_path, panels, title=title)

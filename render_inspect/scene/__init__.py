@@ -25,6 +25,7 @@ from ..instruments import InterferometerConfig
 from ..processes import ProcessConfig, StsProcessConfig, process_kinds
 from ..render import DiffuseConfig
 from ._artifacts import ArtifactsConfig, BurrConfig, ServoConfig, VibrationConfig
+from ._machine import MachineConfig, MaterialConfig
 from ._metrology import MetrologyConfig
 from ._rcse import RcseConfig
 from ._render import render_config_class
@@ -34,7 +35,8 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
            "shipped_scenes", "find_scene", "instrument_config",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
-           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig"]
+           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig",
+           "MaterialConfig"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
@@ -51,6 +53,8 @@ class Scene(Section):
     artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
     rcse: RcseConfig = Field(default_factory=RcseConfig)
+    machine: MachineConfig = Field(default_factory=MachineConfig)
+    material: MaterialConfig = Field(default_factory=MaterialConfig)
 
     @model_validator(mode="after")
     def _cross_checks(self):

@@ -21,6 +21,7 @@ from ._rcse import (
                     rcse_ccps,
                     rcse_toolpath,
 )
+from ._scallop import feed_for_scallop, max_feed_for_scallop, plan_feed, scallop_height
 from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool
 
@@ -29,4 +30,5 @@ __all__ = ["ToolPath", "LinearProgram", "Tool", "spiral_ccps", "chordal_error",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
            "plan_turning", "region_radii", "max_curvature", "kinematics", "axis_derivatives",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
-           "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout"]
+           "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",
+           "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]
