@@ -53,7 +53,7 @@ from ..instruments import render_interferogram
 from ..io import atomic_write_bytes, write_exr, write_json
 from ..metrology import measure_frames
 from ..render import variant_info
-from ..scene import find_scene, load_scene
+from ..scene import find_scene, load_scene, scene_sections
 from ._render import part_heightmap, render_diffuse_views
 from ._simulate import simulate
 
@@ -353,7 +353,7 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
     with replaced_dir(out) as tmp:
         for name, path in selected.items():
             t0 = time.perf_counter()
-            case = read_case(path)
+            case = read_case(path, sections=scene_sections())
             scene = _case_scene(case, path, overrides)
             settings = {n: _settings(case, n) for n in case.images}
             chash = case_hash(case, settings)

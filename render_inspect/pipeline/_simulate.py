@@ -35,7 +35,7 @@ from ..machining._memory import tiled_bytes
 from ..machining._metrics import metrics_from_moments
 from ..machining._tiled import TILE, plan_tiles
 from ..processes import Cut, Plan, check_budget, process_kinds, process_of
-from ..processes._turning import tool_of, turning_points
+from ..processes._turning import machine_bytes, tool_of, turning_points
 from ..report import kinematics_png, plot_following_error, plot_following_error_map, plot_kinematics
 from ._metrics import lenslet_metrics, msa_metrics, simulation_metrics, tiled_metrics
 from ._tiled import dask_client, run_tiles
@@ -331,7 +331,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     surface = make_surface(scene.design)
     in_flight = 1 if scheduler else (workers or os.cpu_count() or 1)
     budget = sim.max_memory_gb * 2 ** 30
-    est = tiled_bytes(tile, turning_points(scene), in_flight=in_flight)
+    est = tiled_bytes(tile, turning_points(scene), in_flight=in_flight) + machine_bytes(scene)
     check_budget(scene, est)
     timing = {}
     # the Dask workers start while the path is planned
@@ -343,7 +343,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         path, meta = kind.envelope_path(scene, surface, plan)
         tool = tool_of(scene)
         ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
-        est = tiled_bytes(tile, path.points, in_flight=in_flight)
+        est = tiled_bytes(tile, path.points, in_flight=in_flight) + machine_bytes(scene, plan)
         if est > budget:
             check_budget(scene, est)
         levels = level_count(shape)

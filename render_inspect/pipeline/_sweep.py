@@ -39,7 +39,7 @@ from ..batch import (
 )
 from ..core.errors import InputError, RenderInspectError, SceneError
 from ..io import atomic_output_dir, atomic_write_bytes, atomic_write_text, save_map_png, write_json
-from ..scene import find_scene, load_scene, scene_from_dict
+from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
 from ._render import run_render
@@ -282,7 +282,7 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     """
     t_all = time.perf_counter()
     sweep_path = Path(sweep)
-    spec = read_sweep(sweep_path)
+    spec = read_sweep(sweep_path, sections=scene_sections())
     out = Path(out).resolve()
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
     with folder_lock(out):
