@@ -1,16 +1,21 @@
 """``render-inspect`` command line: argparse -> :mod:`render_inspect.pipeline`.
 
 Exit codes: 0 done, 1 an error in the input or the run (one line on stderr naming the
-parameter, the allowed range and the value received), 2 a usage error (argparse),
-130 interrupted.
+parameter, the allowed range and the value received; anything unexpected is reported
+the same way, with a hint how to see the traceback), 2 a usage error (argparse),
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  After an error or an interruption
+the output folder is as it was before the run.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
+import signal
 import sys
 import time
+import traceback
 
 from . import __version__
 from .core.errors import RenderInspectError
@@ -22,9 +27,16 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
     p.add_argument("scene", help="scene file (TOML) or the name of a shipped scene, "
                                  "e.g. sts_sinusoidal_grid")
     if out:
-        p.add_argument("--out", required=True, help="output folder (written atomically)")
+        _add_out_args(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+
+
+def _add_out_args(p: argparse.ArgumentParser):
+    p.add_argument("--out", required=True,
+                   help="output folder: written whole when the run succeeds, untouched otherwise")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even if it holds files render-inspect did not write")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
-    p.add_argument("--out", required=True)
+    _add_out_args(p)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
     return ap
 
@@ -64,37 +76,117 @@ def _run(args) -> None:
     # (the scene schema imports pydantic and the registries: same reason)
     from .scene import load_scene
 
+    ow = bool(getattr(args, "overwrite", False))
     if args.command == "demo":
-        pipeline.run_demo(args.out, quick=args.quick)
+        pipeline.run_demo(args.out, quick=args.quick, overwrite=ow)
         return
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
-        pipeline.run_simulate(scene, args.out)
+        pipeline.run_simulate(scene, args.out, overwrite=ow)
     elif args.command == "toolpath":
-        pipeline.run_toolpath(scene, args.out, fmt=args.format)
+        pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=ow)
     elif args.command == "render":
-        pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind)
+        pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind, overwrite=ow)
     elif args.command == "compare":
-        pipeline.run_compare(scene, args.out, measured=args.measured)
+        pipeline.run_compare(scene, args.out, measured=args.measured, overwrite=ow)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
+
+
+def _on_terminate(signum, frame):
+    raise Terminated(signum)
+
+
+def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
+    """The interruption behind ``err``: Ctrl-C during a compiled (numba) kernel surfaces
+    as a SystemError whose cause or context is the KeyboardInterrupt."""
+    seen = set()
+    e = err
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _traceback_hint(parser) -> str:
+    opts = getattr(parser, "_option_string_actions", {})
+    if "-v" in opts or "--verbose" in opts:
+        return "run with -v for the traceback"
+    return "set RENDER_INSPECT_TRACEBACK=1 for the traceback"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split()) if "\n" not in str(text) else str(text).rstrip()
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if not log.handlers:
         handler = logging.StreamHandler(sys.stderr)
         handler.setFormatter(logging.Formatter("%(message)s"))
         log.addHandler(handler)
         log.setLevel(logging.INFO)
+    show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
+        not in ("", "0")
+    old = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            old[sig] = signal.signal(sig, _on_terminate)
+        except (ValueError, OSError):  # not the main thread: leave the handlers alone
+            pass
+    prefix = f"render-inspect {args.command}"
     t0 = time.perf_counter()
     try:
-        _run(args)
+        try:
+            _run(args)
+        except BaseException as err:
+            if isinstance(err, (SystemExit, GeneratorExit)):
+                raise
+            stop = _interrupt_in(err)
+            if stop is None:
+                raise
+            raise stop from None
     except RenderInspectError as err:
-        print(f"render-inspect {args.command}: error: {err}", file=sys.stderr)
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: {_one_line(err)}", file=sys.stderr)
         return 1
+    except Terminated:
+        print(f"{prefix}: terminated; the output folder was left as it was", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
-        print("interrupted; no partial output was left", file=sys.stderr)
+        print(f"{prefix}: interrupted; the output folder was left as it was", file=sys.stderr)
         return 130
-    print(f"render-inspect {args.command}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    except MemoryError:
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: ran out of memory; set simulation.max_memory_gb lower than "
+              f"the machine's free memory so that render-inspect refuses such runs at the start, "
+              f"or reduce the sizes (simulation.region / simulation.pixel, image resolution)",
+              file=sys.stderr)
+        return 1
+    except OSError as err:
+        if show_tb:
+            traceback.print_exc()
+        where = f": {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"{prefix}: error: {err.strerror or err}{where} ({_traceback_hint(parser)})",
+              file=sys.stderr)
+        return 1
+    except Exception as err:  # a bug: one line, the traceback on request
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: internal error: {type(err).__name__}: {_one_line(err)[:300]} "
+              f"({_traceback_hint(parser)})", file=sys.stderr)
+        return 1
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    print(f"{prefix}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
 
 

@@ -1,11 +1,103 @@
-"""Shared pydantic base of every scene section: unknown keys are errors."""
+"""Shared pydantic base of every scene section: unknown keys are errors, types are strict,
+numbers are finite.
+
+* strict types: a number field takes an int or a float, never ``true``/``false`` or a
+  string (``spindle_rpm = true`` and ``spindle_rpm = "100"`` are errors, not 1 and 100);
+  an integer field takes an integer only; arrays of TOML become tuples where the schema
+  says tuple;
+* finite: NaN and +-inf are refused in every number field;
+* magnitude: a number without a stated range must lie within +-:data:`MAX_MAGNITUDE`;
+  lengths that are positions or heights use :data:`Length` (+-:data:`MAX_LENGTH_MM`),
+  beyond which double precision cannot resolve nanometres.
+"""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+import math
+import typing
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = ["Section", "Length", "Region", "Phase", "MAX_LENGTH_MM", "MAX_MAGNITUDE"]
+
+#: largest |position| or |height| in mm (10 m): a double then still resolves 1e-12 mm
+MAX_LENGTH_MM = 1e4
+#: largest |value| of a number field that states no range of its own
+MAX_MAGNITUDE = 1e9
+
+#: a position or height in mm (finite, within +-MAX_LENGTH_MM)
+Length = Annotated[float, Field(ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)]
+#: [x0, y0, x1, y1], mm
+Region = tuple[Length, Length, Length, Length]
+#: a phase angle in rad (within +-MAX_LENGTH_MM rad: sin keeps 12 digits there)
+Phase = Annotated[float, Field(ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)]
+
+
+def _has_tuple(annotation) -> bool:
+    origin = typing.get_origin(annotation)
+    if origin is tuple or annotation is tuple:
+        return True
+    return any(_has_tuple(a) for a in typing.get_args(annotation)
+               if not isinstance(a, (str, int, float)))
+
+
+def _bounded(field) -> tuple[bool, bool]:
+    """(has a lower bound, has an upper bound) from the field's constraints."""
+    lo = hi = False
+    for m in field.metadata:
+        lo |= getattr(m, "gt", None) is not None or getattr(m, "ge", None) is not None
+        hi |= getattr(m, "lt", None) is not None or getattr(m, "le", None) is not None
+    return lo, hi
+
+
+def _numbers(value):
+    """Every float inside ``value`` (tuples, lists, dict values)."""
+    if isinstance(value, bool):
+        return
+    if isinstance(value, float):
+        yield value
+    elif isinstance(value, (tuple, list)):
+        for v in value:
+            yield from _numbers(v)
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from _numbers(v)
 
 
 class Section(BaseModel):
-    """A scene section.  Unknown keys are rejected; values are validated on assignment."""
+    """A scene section.  Unknown keys are rejected; values are validated on assignment;
+    types are strict and numbers finite (see the module docstring)."""
 
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False,
+                              strict=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _arrays_as_tuples(cls, data):
+        """TOML and JSON have arrays, not tuples: accept a list where a tuple is due
+        (strict mode would refuse it)."""
+        if not isinstance(data, dict):
+            return data
+        out = None
+        for name, field in cls.model_fields.items():
+            key = field.alias or name
+            v = data.get(key)
+            if isinstance(v, list) and _has_tuple(field.annotation):
+                if out is None:
+                    out = dict(data)
+                out[key] = tuple(v)
+        return data if out is None else out
+
+    @model_validator(mode="after")
+    def _magnitudes(self):
+        for name, field in type(self).model_fields.items():
+            lo, hi = _bounded(field)
+            if lo and hi:
+                continue
+            for v in _numbers(getattr(self, name, None)):
+                if math.isfinite(v) and ((not hi and v > MAX_MAGNITUDE)
+                                         or (not lo and v < -MAX_MAGNITUDE)):
+                    raise ValueError(f"{name} must be within [-{MAX_MAGNITUDE:g}, "
+                                     f"{MAX_MAGNITUDE:g}], received {v!r}")
+        return self

@@ -14,7 +14,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..core.errors import InputError, check_positive
-from ..core.section import Section
+from ..core.section import Length, Section
 from ._base import Surface
 from ._registry import register_design
 
@@ -333,9 +333,9 @@ class LensletArrayConfig(Section):
     aperture_radius: float | None = Field(None, gt=0, description="mm, round cells only")
     concave: bool = True
     cells: Literal["round", "quad"] = "round"
-    center_x: float = 0.0
-    center_y: float = 0.0
-    offset: float = 0.0
+    center_x: Length = 0.0
+    center_y: Length = 0.0
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _aperture(self):
@@ -373,13 +373,13 @@ class LensletArrayConfig(Section):
 class LensletRingsConfig(Section):
     """Lenslets (spherical elements) on concentric rings (seed 004)."""
     type: Literal["lenslet_rings"]
-    ring_radii: list[float] = Field(..., min_length=1, description="mm, ring radii")
-    counts: list[int] = Field(..., min_length=1, description="elements per ring")
+    ring_radii: list[Length] = Field(..., min_length=1, max_length=10_000, description="mm, ring radii")
+    counts: list[int] = Field(..., min_length=1, max_length=10_000, description="elements per ring")
     element_radius: float = Field(..., gt=0, description="mm, plane (aperture) radius of an element")
     depth: float = Field(..., gt=0, description="mm, sag of an element")
     concave: bool = True
-    phase_deg: float = 0.0
-    offset: float = 0.0
+    phase_deg: float = Field(0.0, ge=-360, le=360)
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _lengths(self):

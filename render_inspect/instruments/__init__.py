@@ -14,6 +14,7 @@ from ._interferometer import (
     camera_noise,
     interference_frames,
     interferometer_geometry,
+    interferometer_memory,
     read_interferogram_exr,
     render_interferogram,
     trace_heights,
@@ -25,6 +26,7 @@ from ._registry import InstrumentType, instrument_types, register_instrument
 import_private_modules(__name__, __path__, skip=("_registry",))
 
 __all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "camera_noise",
-           "interference_frames", "interferometer_geometry", "read_interferogram_exr",
+           "interference_frames", "interferometer_geometry", "interferometer_memory",
+           "read_interferogram_exr",
            "render_interferogram", "trace_heights", "write_interferogram_exr",
            "InstrumentType", "instrument_types", "register_instrument"]

@@ -41,13 +41,14 @@ from pydantic import Field
 
 from ..core.errors import InputError, MemoryBudgetError, check_positive, check_range
 from ..core.frames import Frames
-from ..core.section import Section
+from ..core.section import Length, Region, Section
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._registry import register_instrument
 
 __all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "render_interferogram",
+           "interferometer_memory",
            "interferometer_geometry", "trace_heights", "interference_frames", "camera_noise",
            "write_interferogram_exr", "read_interferogram_exr"]
 
@@ -76,17 +77,17 @@ class InterferometerConfig(Section):
     wavelength_nm: float | None = Field(None, gt=100, lt=2000, description="PSI wavelength / CSI centre")
     bandwidth_nm: float | None = Field(None, gt=0, lt=1000, description="CSI source FWHM")
     numerical_aperture: float | None = Field(None, gt=0, lt=1)
-    pixel: float | None = Field(None, gt=0, description="mm at the part")
-    field_of_view: tuple[float, float, float, float] | None = Field(None, description="mm, [x0, y0, x1, y1]")
+    pixel: float | None = Field(None, ge=1e-6, le=10, description="mm at the part")
+    field_of_view: Region | None = Field(None, description="mm, [x0, y0, x1, y1]")
     steps: int = Field(4, ge=3, le=16, description="PSI frames")
     step_rad: float = Field(1.5707963267948966, gt=0, description="PSI phase step")
-    scan_step_nm: float = Field(80.0, gt=0, description="CSI scan step")
+    scan_step_nm: float = Field(80.0, ge=0.1, le=1e5, description="CSI scan step")
     subsamples: int = Field(2, ge=1, le=8, description="sub-pixel samples per axis")
     noise: bool = True
     bit_depth: int = Field(12, ge=1, le=16)
     full_well: float = Field(20000.0, gt=0, description="electrons")
     read_noise: float = Field(5.0, ge=0, description="electrons rms")
-    reference_height: float | None = Field(None, description="z_ref, mm (default: mean height in the field)")
+    reference_height: Length | None = Field(None, description="z_ref, mm (default: mean height in the field)")
 
 
 register_instrument("interferometer", InterferometerConfig)
@@ -174,6 +175,26 @@ def interferometer_geometry(heightmap, icfg) -> dict:
             "nx": nx, "ny": ny, "origin": (x0 + pixel / 2, y0 + pixel / 2),
             "window": [x0, y0, x0 + nx * pixel, y0 + ny * pixel],
             "wavelength_nm": float(wl), "bandwidth_nm": None if bw is None else float(bw)}
+
+
+#: bytes per ray-traced sub-sample (heights float64 and float32, normal z, acceptance, the
+#: complex field and its temporaries)
+BYTES_PER_SUBSAMPLE = 48
+#: bytes per camera pixel and frame (float64 frames, float32 copy with noise, the
+#: written channels)
+BYTES_PER_FRAME_PIXEL = 8 + 8 + 4 + 4
+
+
+def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0) -> int:
+    """Bytes the interferometer needs at its peak for the geometry ``geom``
+    (:func:`interferometer_geometry`): the sub-sample rays, the frames (PSI: ``steps``;
+    CSI: at most :data:`MAX_CSI_FRAMES`, limited by :data:`MAX_STACK_BYTES`) and the mesh
+    of the field (``mesh_cells`` height-map cells)."""
+    nx, ny, s = int(geom["nx"]), int(geom["ny"]), int(icfg.subsamples)
+    frames = int(icfg.steps) if icfg.mode == "psi" else MAX_CSI_FRAMES
+    frame_bytes = min(frames * nx * ny * BYTES_PER_FRAME_PIXEL,
+                      MAX_STACK_BYTES * BYTES_PER_FRAME_PIXEL // 4)
+    return int(nx * ny * s * s * BYTES_PER_SUBSAMPLE + frame_bytes + mesh_cells * 2 * 48)
 
 
 def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ._atomic import atomic_write_bytes
+from ._limits import check_exr
 
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
              "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "name",
@@ -67,21 +68,37 @@ def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | N
     return atomic_write_bytes(path, data)
 
 
-def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
+def read_exr(path: str | Path, *, what: str = "EXR file", budget=None
+             ) -> tuple[dict[str, np.ndarray], dict]:
     """Return (channels, attrs).  Numbers come back exact (from the JSON text);
-    JSON-text attributes are decoded."""
+    JSON-text attributes are decoded.
+
+    The header is checked first (:func:`~render_inspect.io._limits.check_exr`: a real EXR
+    whose data window fits ``budget``); a damaged file raises :class:`InputError` naming
+    ``what``."""
     import OpenEXR
 
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"EXR file not found: {str(path)!r}")
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        header = dict(f.header())
-        channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
-                    for name, ch in f.channels().items()}
+        raise InputError(f"{what}: EXR file not found: {str(path)!r}")
+    check_exr(path, what=what, budget=budget)
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            header = dict(f.header())
+            channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
+                        for name, ch in f.channels().items()}
+    except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged data
+        raise InputError(f"{what} {str(path)!r} cannot be read: damaged or truncated EXR "
+                         f"({type(err).__name__}: {err})") from None
     exact = {}
     if "render_inspect_attrs_json" in header:
-        exact = json.loads(header.pop("render_inspect_attrs_json"))
+        try:
+            exact = json.loads(header.pop("render_inspect_attrs_json"))
+        except (TypeError, ValueError):
+            raise InputError(f"{what} {str(path)!r}: damaged render_inspect_attrs_json "
+                             f"attribute") from None
+        if not isinstance(exact, dict):
+            exact = {}
     attrs = {}
     for k, v in header.items():
         if k in _RESERVED:

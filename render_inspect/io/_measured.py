@@ -9,13 +9,15 @@ well-kept Python reader in this environment: export such data to X3P.
 
 from __future__ import annotations
 
-import json
+import math
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import InputError
 from ._exr import read_exr
+from ._limits import check_npy, check_npz, check_real_array, read_json_file
 from ._registry import formats, reader, register_reader
 from ._x3p import read_x3p
 
@@ -34,12 +36,12 @@ def _to_mm(name: str, units) -> float:
 
 @register_reader("measured", ".x3p")
 def _read_x3p(path, **_):
-    return read_x3p(path)
+    return read_x3p(path, what="measured file")
 
 
 @register_reader("measured", ".exr")
 def _read_exr(path, *, channel=None, **_):
-    ch, attrs = read_exr(path)
+    ch, attrs = read_exr(path, what="measured file")
     if channel is None:
         for c in ("measured", "height", "machined", "Z", "z"):
             if c in ch:
@@ -61,27 +63,52 @@ def _read_exr(path, *, channel=None, **_):
         "format": "exr", "channel": channel, "scene": attrs.get("scene")}
 
 
+def _sidecar_values(path, side: dict, pixel, origin, units):
+    """pixel (mm), origin (x, y mm) and units from the arguments or the side-car, checked."""
+    pixel = pixel if pixel is not None else side.get("pixel_mm")
+    origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
+    units = units or side.get("units", "mm")
+    if pixel is not None and (isinstance(pixel, bool) or not isinstance(pixel, (int, float))
+                              or not math.isfinite(pixel) or not pixel > 0):
+        raise InputError(f"{path}: pixel_mm must be a finite number > 0 (mm), received {pixel!r}")
+    if isinstance(origin, np.ndarray):
+        origin = origin.tolist()
+    if not (isinstance(origin, (list, tuple)) and len(origin) == 2 and all(
+            isinstance(o, (int, float)) and not isinstance(o, bool) and math.isfinite(o)
+            for o in origin)):
+        raise InputError(f"{path}: origin_mm must be [x, y], two finite numbers (mm), received "
+                         f"{origin!r}")
+    if not isinstance(units, str):
+        raise InputError(f"{path}: units must be one of {sorted(_UNIT_TO_MM)}, received {units!r}")
+    return pixel, origin, units
+
+
 @register_reader("measured", ".npy", ".npz")
 def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     path = Path(path)
     side = {}
     sidecar = path.with_suffix(".json")
-    if path.suffix == ".npz":
-        with np.load(path) as npz:
-            key = next((k for k in ("z", "height", "measured") if k in npz.files), None)
+    what = "measured file"
+    try:
+        if path.suffix.lower() == ".npz":
+            members = check_npz(path, what=what)
+            key = next((k for k in ("z", "height", "measured") if k in members), None)
             if key is None:
-                raise InputError(f"{path}: .npz needs an array 'z' (heights), has {npz.files}")
-            z = np.array(npz[key], dtype=np.float64)
-            for k in ("pixel_mm", "origin_mm", "units"):
-                if k in npz.files:
-                    side[k] = npz[k].tolist()
-    else:
-        z = np.load(path, allow_pickle=False).astype(np.float64)
-        if sidecar.is_file():
-            side = json.loads(sidecar.read_text())
-    pixel = pixel if pixel is not None else side.get("pixel_mm")
-    origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
-    units = units or side.get("units", "mm")
+                raise InputError(f"{path}: .npz needs an array 'z' (heights), has {sorted(members)}")
+            check_real_array(members[key][1], members[key][0], what=what, name=f"{path}:{key}")
+            with np.load(path, allow_pickle=False) as npz:
+                z = np.array(npz[key], dtype=np.float64)
+                for k in ("pixel_mm", "origin_mm", "units"):
+                    if k in npz.files:
+                        side[k] = npz[k].tolist()
+        else:
+            check_npy(path, what=what)
+            z = np.load(path, allow_pickle=False).astype(np.float64)
+            if sidecar.is_file():
+                side = read_json_file(sidecar, what=f"{what} side-car")
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+        raise InputError(f"{what} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
+    pixel, origin, units = _sidecar_values(path, side, pixel, origin, units)
     if pixel is None:
         raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
                          f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')

@@ -17,6 +17,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
+from ._limits import check_x3p
 
 __all__ = ["write_x3p", "read_x3p"]
 
@@ -62,8 +63,11 @@ def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: 
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def read_x3p(path: str | Path):
+def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
     """Read an X3P surface.
+
+    The archive and the grid size its ``main.xml`` declares are checked first
+    (:func:`~render_inspect.io._limits.check_x3p`: no zip bombs, sizes within ``budget``).
 
     Returns
     -------
@@ -80,10 +84,11 @@ def read_x3p(path: str | Path):
 
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"X3P file not found: {str(path)!r}")
+        raise InputError(f"{what}: X3P file not found: {str(path)!r}")
+    check_x3p(path, what=what, budget=budget)
     try:
         f = x3pio.read(str(path))
-    except x3pio.X3pError as err:
+    except (x3pio.X3pError, ValueError, OSError, EOFError) as err:
         raise InputError(f"{path}: not a readable X3P file ({err})") from None
     if not isinstance(f, x3pio.Surface):
         raise InputError(f"{path}: X3P holds a {type(f).__name__}, only surfaces on a regular grid "

@@ -21,6 +21,7 @@ from ._demo import DEMO_SCENE, run_demo
 from ._measure import measure_and_evaluate
 from ._metrics import lenslet_metrics, simulation_metrics
 from ._render import (
+                       check_render_limits,
                        interferogram_summary,
                        render_heightmap,
                        run_render,
@@ -43,4 +44,4 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "DEMO_SCENE", "measure_and_evaluate", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "VARIANTS", "PROFILE_ANGLES_DEG",
            "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
-           "COMPARE_MAX_DIFFUSE_SPP"]
+           "COMPARE_MAX_DIFFUSE_SPP", "check_render_limits"]

@@ -47,16 +47,17 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     scene = load_scene(scene_path, list(overrides))
     if exaggeration is not None:
         check_positive("exaggeration", exaggeration)
-    result = simulate(scene)
-    hm = result.heightmap
+    out = Path(out) if out else default_output_dir(scene.name)
+    # the folder is checked and locked before the simulation, swapped in when complete
+    with atomic_output_dir(out, command="blender", scene=scene, option="output folder") as tmp:
+        result = simulate(scene)
+        hm = result.heightmap
+        write_heightmap_exr(tmp / "heightmap.exr", hm)
     if exaggeration is None:
         exaggeration = scene.render.diffuse.exaggeration
     if exaggeration is None:  # the renderer's automatic choice for this height map
         exaggeration = auto_exaggeration(hm, surface)
     exaggeration = float(exaggeration)
-    out = Path(out) if out else default_output_dir(scene.name)
-    with atomic_output_dir(out) as tmp:
-        write_heightmap_exr(tmp / "heightmap.exr", hm)
     path = out.resolve() / "heightmap.exr"
     obj = surface_object(hm, surface=surface, exaggeration=exaggeration, collection=collection)
     obj[PROP_HEIGHTMAP] = str(path)

@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError
+from ..core.limits import memory_budget
 from ..design import make_surface
 from ..instruments import (
     interferometer_geometry,
@@ -47,6 +48,7 @@ from ..report import _figures as F
 from ..report import build_page
 from ._measure import measure_and_evaluate
 from ._render import (
+    check_render_limits,
     interferogram_summary,
     write_diffuse_outputs,
     write_interferogram_outputs,
@@ -221,7 +223,8 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
 
     for view in ("micro", "macro"):
         t = time.perf_counter()
-        rgb, meta = render_diffuse(hm, dcfg, view=view, surface="machined", seed=seed)
+        rgb, meta = render_diffuse(hm, dcfg, view=view, surface="machined", seed=seed,
+                                   memory_budget=memory_budget(v.scene.simulation.max_memory_gb)[0])
         timing[f"diffuse_{view}"] = time.perf_counter() - t
         v.diffuse[view] = (rgb, meta)
         write_diffuse_outputs(d, rgb, meta, name=f"diffuse_{view}")
@@ -283,7 +286,7 @@ def _luminance(rgb):
     return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
 
 
-def run_compare(scene, out, *, measured=None) -> dict:
+def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
     """Compensated vs uncompensated (and optionally a measured map): files and report.
 
     Parameters
@@ -297,6 +300,8 @@ def run_compare(scene, out, *, measured=None) -> dict:
     measured : str or Path, optional
         A measured height map (X3P, EXR, ...; :func:`render_inspect.io.read_measured`),
         registered to the design and shown as a third column.
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -316,7 +321,8 @@ def run_compare(scene, out, *, measured=None) -> dict:
     design_surface = make_surface(scene.design)
     comp_s, unc_s = compare_variants(scene)
     variants = [_Variant("compensated", comp_s), _Variant("uncompensated", unc_s)]
-    with atomic_output_dir(out) as tmp:
+    check_render_limits(scene, kind="all")
+    with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene) as tmp:
         tmp = Path(tmp)
         for v in variants:
             _simulate_variant(v, tmp)

@@ -13,7 +13,14 @@ from PIL.PngImagePlugin import PngInfo
 
 from .. import __version__
 from ..core.errors import InputError
-from ..instruments import render_interferogram, write_interferogram_exr
+from ..core.grid import Grid, grid_shape
+from ..core.limits import Driver, check_memory, memory_budget
+from ..instruments import (
+    interferometer_geometry,
+    interferometer_memory,
+    render_interferogram,
+    write_interferogram_exr,
+)
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
@@ -21,14 +28,65 @@ from ..io import (
     write_exr,
     write_json,
 )
-from ..render import render_diffuse, variant_info
+from ..render import MAX_FILM_SIDE, diffuse_memory, render_diffuse, variant_info
 from ._simulate import design_heightmap, simulate
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
-           "interferogram_summary"]
+           "interferogram_summary", "check_render_limits"]
 
 KINDS = ("interferometer", "diffuse", "all")
 SURFACES = ("design", "machined")
+
+
+def check_render_limits(scene, *, kind: str = "all") -> dict:
+    """Check, before anything is simulated or rendered, that the images a scene asks for
+    are within what the renderers can do and within the memory budget.
+
+    Interferometer: the field of view and camera pixels (:func:`interferometer_geometry`:
+    at most 4096 x 4096 pixels) and the memory of the rays, frames and mesh.  Diffuse
+    light: image sides at most :data:`~render_inspect.render.MAX_FILM_SIDE` pixels (the
+    micro view's height follows the window's aspect), the film and mesh memory.  The
+    sample count is not limited: more than 2^26 samples are rendered in passes.
+
+    Returns
+    -------
+    dict
+        Estimated bytes per image (``interferometer``, ``diffuse_macro``, ``diffuse_micro``).
+    """
+    sim = scene.simulation
+    budget = memory_budget(sim.max_memory_gb)
+    shape = grid_shape(sim.region, sim.pixel)
+    grid = Grid((float(sim.region[0]), float(sim.region[1])), float(sim.pixel), shape)
+    need = {}
+    if kind in ("interferometer", "all"):
+        icfg = scene.render.interferometer
+        geom = interferometer_geometry(grid, icfg)
+        x0, y0, x1, y1 = geom["window"]
+        cells = min(shape[0] * shape[1], int(((x1 - x0) / sim.pixel + 5) * ((y1 - y0) / sim.pixel + 5)))
+        need["interferometer"] = check_memory(
+            interferometer_memory(geom, icfg, mesh_cells=cells),
+            what=f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
+                 f"{icfg.subsamples}^2 rays each)", budget=budget,
+            drivers=[Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),
+                     Driver("render.interferometer.pixel", geom["pixel"], -2, "mm")])
+    if kind in ("diffuse", "all"):
+        dcfg = scene.render.diffuse
+        for view in ("macro", "micro"):
+            window = None
+            if view == "micro" and dcfg.window is not None:
+                window = [float(v) for v in dcfg.window]
+                ny_img = int(round(dcfg.resolution * (window[3] - window[1]) / (window[2] - window[0])))
+                if ny_img > MAX_FILM_SIDE:
+                    raise InputError(
+                        f"render.diffuse.window {window} is {ny_img / dcfg.resolution:.3g} times "
+                        f"taller than wide: at render.diffuse.resolution = {dcfg.resolution} the "
+                        f"micro image would be {ny_img} pixels high (at most {MAX_FILM_SIDE}); "
+                        f"widen the window or lower the resolution")
+            need[f"diffuse_{view}"] = check_memory(
+                diffuse_memory(dcfg, shape, view=view, window=window, pixel=sim.pixel),
+                what=f"the diffuse {view} image ({dcfg.resolution} pixels wide)", budget=budget,
+                drivers=[Driver("render.diffuse.resolution", dcfg.resolution, 2, limit=(16, None))])
+    return need
 
 
 def render_heightmap(scene, *, surface: str = "machined"):
@@ -115,19 +173,26 @@ def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) 
         "shape": [int(rgb.shape[0]), int(rgb.shape[1])]}
 
 
-def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None) -> dict:
+def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None,
+               overwrite: bool = False) -> dict:
     """Render ``scene`` into the folder ``out`` (written atomically).
 
     Parameters
     ----------
     scene : Scene
     out : path
-        Output folder; files already there are kept (``render`` can add to ``simulate``'s).
+        Output folder.  The images are added to a folder render_inspect wrote for the same
+        part (a ``simulate`` folder: design, tool, process, simulation and artifacts keys
+        equal), replacing the images of an earlier ``render`` there; the folder is swapped
+        in whole when complete.  A folder of another part, or one holding files
+        render_inspect did not write, is refused unless ``overwrite`` (then replaced).
     surface : {"machined", "design"}
         ``design`` renders the ideal surface (no machining).
     kind : {"interferometer", "diffuse", "all"}
     heightmap : HeightMap, optional
         Use this instead of simulating / sampling the scene.
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -143,6 +208,13 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         raise InputError(f"--kind must be one of {KINDS}, got {kind!r}")
     if surface not in SURFACES:
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
+    check_render_limits(scene, kind=kind)
+    with atomic_output_dir(out, overwrite=overwrite, merge=True, command="render",
+                           scene=scene) as tmp:
+        return _render_into(scene, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
+
+
+def _render_into(scene, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
     timing = {}
     t0 = time.perf_counter()
     hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
@@ -152,19 +224,19 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     info = variant_info()
     res = {"mitsuba_variant": info["mitsuba_variant"], "mitsuba_version": info["mitsuba_version"],
            "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
-    with atomic_output_dir(out) as tmp:
-        if kind in ("interferometer", "all"):
+    if kind in ("interferometer", "all"):
+        t = time.perf_counter()
+        ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
+        timing["interferogram"] = time.perf_counter() - t
+        res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
+    if kind in ("diffuse", "all"):
+        for view in ("macro", "micro"):
             t = time.perf_counter()
-            ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
-            timing["interferogram"] = time.perf_counter() - t
-            res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
-        if kind in ("diffuse", "all"):
-            for view in ("macro", "micro"):
-                t = time.perf_counter()
-                rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
-                                           seed=seed)
-                timing[f"diffuse_{view}"] = time.perf_counter() - t
-                res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
-        res["timing_s"] = timing
-        write_json(Path(tmp) / "render_metrics.json", {"render": res})
+            rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
+                                       seed=seed,
+                                       memory_budget=memory_budget(scene.simulation.max_memory_gb)[0])
+            timing[f"diffuse_{view}"] = time.perf_counter() - t
+            res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
+    res["timing_s"] = timing
+    write_json(tmp / "render_metrics.json", {"render": res})
     return {"render": res}

@@ -13,6 +13,7 @@ from ..core.toolpath import ToolPath
 from ..design import make_surface
 from ..io import (
     atomic_output_dir,
+    atomic_write_text,
     save_map_png,
     write_heightmap_exr,
     write_json,
@@ -83,6 +84,7 @@ def simulate(scene, *, surface=None) -> Simulation:
     t_all = time.perf_counter()
     kind = process_of(scene)
     surface = surface if surface is not None else make_surface(scene.design)
+    kind.precheck(scene, tuple(scene.simulation.region))
     check_budget(scene, kind.estimate_memory(scene))
     sim = scene.simulation
     t0 = time.perf_counter()
@@ -148,17 +150,21 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
                             labels=(f"{scene.process.kind.upper()} path", ""),
                             title=f"{scene.name}: axis motion")
     write_json(out_dir / "metrics.json", metrics)
-    (out_dir / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    atomic_write_text(out_dir / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return metrics
 
 
-def run_simulate(scene, out) -> dict:
-    """``render-inspect simulate``: heightmap.exr, metrics.json, toolpath.npz, residual.png."""
-    t0 = time.perf_counter()
-    sim = simulate(scene)
-    log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
-             time.perf_counter() - t0)
-    with atomic_output_dir(out) as tmp:
+def run_simulate(scene, out, *, overwrite: bool = False) -> dict:
+    """``render-inspect simulate``: heightmap.exr, metrics.json, toolpath.npz, residual.png.
+
+    ``out`` is checked and locked before the simulation starts and replaced as a whole
+    when it is complete (:func:`~render_inspect.io.atomic_output_dir`; ``overwrite``
+    allows replacing a folder render_inspect did not write)."""
+    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
+        t0 = time.perf_counter()
+        sim = simulate(scene)
+        log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
+                 time.perf_counter() - t0)
         metrics = write_simulation(sim, Path(tmp))
     r = metrics["residual"]
     log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", r["Sq_nm"], r["Sz_nm"],

@@ -34,6 +34,7 @@ from ._turning import (
     toolpath_facts,
     turning_header,
     turning_memory,
+    turning_precheck,
 )
 
 __all__ = ["RcseProcessConfig", "rcse_comparison"]
@@ -182,4 +183,5 @@ def cut(scene, surface, plan: Plan) -> Cut:
 
 
 register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 precheck=turning_precheck,
                  program_header=turning_header, variants=compensation_variants)

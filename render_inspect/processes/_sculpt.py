@@ -17,6 +17,7 @@ from pydantic import Field
 
 from ..core.errors import AccessibilityError, SceneError
 from ..core.grid import grid_shape
+from ..core.limits import Driver, format_number
 from ..core.section import Section
 from ..core.toolpath import LinearProgram
 from ..machining import (
@@ -26,7 +27,7 @@ from ..machining import (
     target_line,
     vibration_phases,
 )
-from ._registry import Cut, Plan, register_process
+from ._registry import Cut, Plan, check_budget, register_process
 from ._turning import burrs_of, compensation_variants
 
 __all__ = ["SculptProcessConfig", "lattice_lines"]
@@ -182,6 +183,21 @@ def estimate_memory(scene, plan=None) -> int:
     return 8 * 8 * ny * nx
 
 
+#: bytes per target-line point while planning (the line arrays and the program's)
+PLAN_BYTES_PER_POINT = 96
+
+
+def precheck(scene, region=None) -> None:
+    """Check the points of the target lines (every column's line over every row of cells,
+    one point per ``process.arc_length``) against the memory budget before planning."""
+    d = scene.design
+    step = scene.process.arc_length
+    n = d.cols * (d.rows * d.pitch_y / step + d.rows + 1)
+    check_budget(scene, n * PLAN_BYTES_PER_POINT, what=f"the sculpturing program "
+                 f"({format_number(n)} points on {d.cols} lines)",
+                 drivers=[Driver("process.arc_length", step, -1, "mm")])
+
+
 def program_header(scene) -> dict:
     vib = scene.artifacts.vibration
     return {"scene": scene.name, "process": "sculpt",
@@ -190,4 +206,5 @@ def program_header(scene) -> dict:
 
 
 register_process(SculptProcessConfig, plan=plan, cut=cut, estimate_memory=estimate_memory,
+                 precheck=precheck,
                  program_header=program_header, variants=compensation_variants)

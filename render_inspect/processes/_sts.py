@@ -15,6 +15,7 @@ from ._turning import (
     toolpath_facts,
     turning_header,
     turning_memory,
+    turning_precheck,
 )
 
 __all__ = ["StsProcessConfig"]
@@ -40,4 +41,5 @@ def cut(scene, surface, plan: Plan) -> Cut:
 
 
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 precheck=turning_precheck,
                  program_header=turning_header, variants=compensation_variants)

@@ -10,12 +10,23 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from ..core.grid import grid_shape
+from ..core.limits import Driver, format_number, memory_budget
 from ..core.section import Section
 from ..machining import apply_burrs, design_grid, simulate_turning
-from ..toolpath import Tool, kinematics, limits_from_process, plan_turning, region_radii
+from ..toolpath import (
+    Tool,
+    kinematics,
+    limits_from_process,
+    plan_memory,
+    plan_turning,
+    region_radii,
+    turning_point_count,
+)
+from ._registry import check_budget
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "burrs_of", "turning_header", "compensation_variants"]
+           "turning_memory", "burrs_of", "turning_header", "compensation_variants",
+           "turning_precheck"]
 
 
 class TurningProcessConfig(Section):
@@ -75,7 +86,8 @@ def plan_spiral(scene, surface, *, region=None):
                         points_per_rev=p.points_per_rev, arc_length=p.arc_length,
                         switch_radius=p.switch_radius, inner_radius=p.inner_radius,
                         chordal_tolerance=p.chordal_tolerance, region=region,
-                        allow_gouge=p.allow_gouge)
+                        allow_gouge=p.allow_gouge,
+                        memory_budget=memory_budget(scene.simulation.max_memory_gb))
 
 
 def toolpath_facts(path, scene) -> dict:
@@ -140,6 +152,32 @@ def turning_memory(scene, plan=None) -> int:
     else:
         n_path_points = plan.program.points
     return int(ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10)
+
+
+def turning_precheck(scene, region=None) -> None:
+    """Check the points of the spiral program (``region``: the part of it that reaches
+    that window; None: the whole part) against the memory budget before planning; the
+    error names ``process.points_per_rev`` / ``arc_length`` / the feed.  (The planner
+    checks again with the sampling ``process.chordal_tolerance`` sets.)"""
+    p = scene.process
+    f = p.feed_per_rev
+    r_in, r_out = (region_radii(region, scene.tool.nose_radius + 2 * f) if region is not None
+                   else (0.0, p.workpiece_radius))
+    r_in, r_out = max(r_in, p.inner_radius), min(r_out, p.workpiece_radius)
+    n = turning_point_count(sampling=p.sampling, feed_per_rev=f, workpiece_radius=p.workpiece_radius,
+                            r_in=r_in, r_out=max(r_out, r_in), inner_radius=p.inner_radius,
+                            points_per_rev=p.points_per_rev, arc_length=p.arc_length,
+                            switch_radius=p.switch_radius)
+    drivers = []
+    if p.sampling != "constant_arc":
+        drivers.append(Driver("process.points_per_rev", p.points_per_rev, 1, limit=(8, 1e7)))
+    if p.sampling != "constant_angle":
+        drivers.append(Driver("process.arc_length", p.arc_length, -1, "mm"))
+    drivers.append(Driver("process.feed_mm_per_min", p.feed_mm_per_min, -1, "mm/min",
+                          limit=(None, p.spindle_rpm * scene.tool.nose_radius)))
+    check_budget(scene, plan_memory(n, sampling=p.sampling, compensation=p.compensation),
+                 what=f"the tool path ({format_number(n)} points)", drivers=drivers,
+                 hint="or shrink simulation.region / process.workpiece_radius")
 
 
 def turning_header(scene) -> dict:

@@ -27,12 +27,17 @@ from ._cycles import (
 from ._diffuse import (
                       AL_REFLECTANCE_RGB,
                       LIGHTS,
+                      MAX_FILM_SIDE,
+                      MAX_SAMPLES_PER_PASS,
                       DiffuseConfig,
                       auto_exaggeration,
+                      diffuse_memory,
                       diffuse_scene_spec,
                       environment_map,
                       light_profile,
+                      mitsuba_seed,
                       render_diffuse,
+                      render_passes,
 )
 from ._scene_dicts import load_scene_dict, trace_grids
 from ._variant import import_mitsuba, mitsuba_variant, single_thread, variant_info
@@ -43,4 +48,5 @@ __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_pro
            "single_thread", "import_mitsuba", "render_cycles", "render_object",
            "render_spec", "surface_object", "heightmap_object", "gridmesh_object",
            "object_heights", "remove_object", "default_output_dir", "ALUMINIUM_ETA",
-           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME"]
+           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "render_passes", "mitsuba_seed",
+           "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]

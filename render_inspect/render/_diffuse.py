@@ -33,7 +33,7 @@ from pydantic import Field
 
 from .. import __version__
 from ..core.errors import InputError
-from ..core.section import Section
+from ..core.section import Region, Section
 from ..mesh import heightmap_mesh, window_indices
 from ._scene_dicts import (
     load_scene_dict,
@@ -44,7 +44,9 @@ from ._scene_dicts import (
 from ._variant import import_mitsuba
 
 __all__ = ["DiffuseConfig", "diffuse_scene_spec", "environment_map", "light_profile",
-           "render_diffuse", "auto_exaggeration", "LIGHTS", "AL_REFLECTANCE_RGB"]
+           "render_diffuse", "auto_exaggeration", "render_passes", "mitsuba_seed",
+           "diffuse_memory", "LIGHTS", "AL_REFLECTANCE_RGB", "MAX_FILM_SIDE",
+           "MAX_SAMPLES_PER_PASS"]
 
 #: Zenith-angle radiance profiles: [theta_deg, radiance] pairs, linear in between.
 #: dome: uniform diffuse dome with a camera port (dark) around the zenith;
@@ -63,6 +65,20 @@ ENV_ROWS = 361
 MACRO_TILT_DEG = 20.0
 MACRO_FOV_DEG = 30.0
 MAX_DEPTH = 6
+#: Largest image side (pixels) of a diffuse view; Blender Cycles allows 65536, Mitsuba's
+#: film is limited by memory.
+MAX_FILM_SIDE = 8192
+#: Largest number of Monte Carlo samples (pixels x samples per pixel) given to Mitsuba in
+#: one call: its JIT variants index one wavefront with 32-bit integers, and it crashes
+#: (segmentation fault) when it splits a task of >= 2^32 samples itself.  Larger requests
+#: are rendered in passes of at most this many samples and averaged.
+MAX_SAMPLES_PER_PASS = 2 ** 26
+#: Bytes per image pixel while rendering (Mitsuba's film: RGB, alpha and weight as
+#: float32; the image returned; the float64 sum of the passes)
+FILM_BYTES_PER_PIXEL = 20 + 12 + 24
+#: Bytes per mesh cell (render_inspect's arrays and Mitsuba's copy: 2 triangles, a vertex
+#: with its normal)
+MESH_BYTES_PER_CELL = 2 * (24 + 24)
 
 
 class DiffuseConfig(Section):
@@ -74,8 +90,8 @@ class DiffuseConfig(Section):
                                        description="vertical exaggeration of the mesh; None = auto "
                                                    "(the steepest 1 % of slopes become ~0.2 rad)")
     spp: int = Field(64, ge=1, le=65536)
-    resolution: int = Field(256, ge=16, le=8192)
-    window: tuple[float, float, float, float] | None = Field(None, description="mm, microscope view")
+    resolution: int = Field(256, ge=16, le=MAX_FILM_SIDE)
+    window: Region | None = Field(None, description="mm, microscope view")
 
 
 def light_profile(theta, light: str = "dome") -> np.ndarray:
@@ -153,6 +169,12 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
                              f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g} mm), got {window}")
     x0, y0, x1, y1 = (float(w) for w in window)
     if view == "micro":
+        film_ny = max(16, int(round(res * (y1 - y0) / (x1 - x0))))
+        if film_ny > MAX_FILM_SIDE:
+            raise InputError(f"render.diffuse.window {window} is {(y1 - y0) / (x1 - x0):.3g} times "
+                             f"taller than wide: at render.diffuse.resolution = {res} the image "
+                             f"would be {film_ny} pixels high (at most {MAX_FILM_SIDE}); widen the "
+                             f"window or lower the resolution")
 
         i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
         zw = z[i0:i1, j0:j1]
@@ -249,8 +271,61 @@ def _mitsuba_scene(gm, spec):
     }
 
 
+def render_passes(width: int, height: int, spp: int) -> list[int]:
+    """Samples per pixel of each pass so that no pass gives Mitsuba more than
+    :data:`MAX_SAMPLES_PER_PASS` samples (one pass when the whole image fits)."""
+    pixels = int(width) * int(height)
+    if pixels > MAX_SAMPLES_PER_PASS:
+        raise InputError(f"a diffuse image of {width} x {height} pixels is larger than "
+                         f"{MAX_SAMPLES_PER_PASS} pixels; lower render.diffuse.resolution")
+    per = max(1, MAX_SAMPLES_PER_PASS // pixels)
+    spp = int(spp)
+    return [per] * (spp // per) + ([spp % per] if spp % per else [])
+
+
+def mitsuba_seed(seed: int, index: int = 0) -> int:
+    """The 32-bit seed Mitsuba takes for pass ``index`` of a render with ``seed`` (any
+    integer >= 0): ``seed`` itself for the first pass of a seed below 2^32, else a
+    SplitMix64 hash of both, so every pass and every seed draws its own samples."""
+    seed, index = int(seed), int(index)
+    if index == 0 and 0 <= seed < 2 ** 32:
+        return seed
+    mask = (1 << 64) - 1
+    z = (seed * 0x9E3779B97F4A7C15 + (index + 1) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+    return (z ^ (z >> 31)) & 0xFFFFFFFF
+
+
+def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=None) -> int:
+    """Bytes a diffuse view needs at its peak: the film (with the passes' sum) and the
+    mesh (render_inspect's arrays and Mitsuba's copy).
+
+    Parameters
+    ----------
+    dcfg : DiffuseConfig
+    grid_shape : (ny, nx)
+        The height map's grid.
+    view : {"macro", "micro"}
+    window : [x0, y0, x1, y1], optional
+        The micro view's window (mm) and ``pixel`` the height map's pixel (mm): the mesh
+        covers only the window.
+    """
+    res = int(dcfg.resolution)
+    ny_img = res
+    ny, nx = (int(v) for v in grid_shape)
+    if view == "micro" and window is not None and pixel:
+        x0, y0, x1, y1 = window
+        ny_img = max(16, int(round(res * (y1 - y0) / (x1 - x0))))
+        nx = min(nx, int((x1 - x0) / pixel) + 3)
+        ny = min(ny, int((y1 - y0) / pixel) + 3)
+    stride = max(1, -(-max(ny, nx) // (2 * res)))
+    cells = -(-ny // stride) * -(-nx // stride)
+    return int(res * ny_img * FILM_BYTES_PER_PIXEL + cells * MESH_BYTES_PER_CELL)
+
+
 def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
-                   seed: int = 0) -> tuple[np.ndarray, dict]:
+                   seed: int = 0, memory_budget: int | None = None) -> tuple[np.ndarray, dict]:
     """Path-trace the part (aluminium) under the diffuse dome or ring light.
 
     Parameters
@@ -258,6 +333,11 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
     heightmap : HeightMap
     dcfg : DiffuseConfig, optional
     view : {"macro", "micro"};  surface : {"machined", "design"};  seed : int
+    memory_budget : int, optional
+        Bytes the mesh may take (default: the mesh module's).
+
+    Images of more than :data:`MAX_SAMPLES_PER_PASS` samples (pixels x spp) are rendered
+    in passes (:func:`render_passes`, seeds :func:`mitsuba_seed`) and averaged.
 
     Returns
     -------
@@ -272,11 +352,24 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
     ms = spec["mesh"]
     gm = heightmap_mesh(heightmap, channel=ms["channel"], exaggeration=spec["exaggeration"],
                         window=ms["window"], z_offset=spec["z_offset_mm"],
-                        max_cells=ms["max_cells"], skirt=ms["skirt"], normals=True)
+                        max_cells=ms["max_cells"], skirt=ms["skirt"], normals=True,
+                        memory_budget=memory_budget)
     scene = load_scene_dict(_mitsuba_scene(gm, spec))
-    rgb = np.array(mi.render(scene, seed=int(seed), spp=int(spec["spp"])), dtype=np.float32)[..., :3]
+    cam = spec["camera"]
+    passes = render_passes(cam["width"], cam["height"], spec["spp"])
+    if len(passes) == 1:
+        rgb = np.array(mi.render(scene, seed=mitsuba_seed(seed), spp=passes[0]),
+                       dtype=np.float32)[..., :3]
+    else:
+        acc = None
+        for k, n in enumerate(passes):
+            img = np.array(mi.render(scene, seed=mitsuba_seed(seed, k), spp=n),
+                           dtype=np.float64)[..., :3]
+            acc = img * n if acc is None else acc + img * n
+        rgb = (acc / float(sum(passes))).astype(np.float32)
     meta = dict(spec)
     meta.update(mitsuba_variant=variant, vertical_exaggeration=spec["exaggeration"],
+                passes=len(passes),
                 mesh_vertices=gm.n_vertices, mesh_triangles=gm.n_faces,
                 mesh_stride=gm.metadata["stride"])
     return rgb, meta
