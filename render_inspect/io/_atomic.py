@@ -189,6 +189,11 @@ def check_output_path(out, *, option: str = "--out") -> Path:
     if not os.access(probe, os.W_OK | os.X_OK):
         raise InputError(f"{option} {_shown(text)}: no permission to write in {str(probe)!r} "
                          f"(or the file system is read-only)")
+    try:  # permissions are not the whole story (/proc, read-only mounts): try it
+        os.rmdir(tempfile.mkdtemp(prefix=".render_inspect-probe-", dir=probe))
+    except OSError as err:
+        raise InputError(f"{option} {_shown(text)}: cannot write in {str(probe)!r} "
+                         f"({err.strerror or err})") from None
     try:
         cwd = Path.cwd().resolve()
     except OSError:

@@ -5,8 +5,8 @@ NC program (``toolpath.nc``), a generic, documented dialect (ISO 6983 words):
 
 ```
 ; render_inspect generic C-X-Z turning program
-; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)
-; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)
+; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]
+; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]
 ; software_version: 0.1.0
 ; scene: rcse_circular_array
 ; spindle_rpm: 42
@@ -34,9 +34,10 @@ CSV (``toolpath.csv``), one row per point, header
 (rho cos theta, rho sin theta), ``z_mm`` Z, ``theta_rad`` = C in rad, ``rho_mm`` = X axis.
 Full double precision (``repr``-exact, 17 significant digits).
 
-Text that reaches a program (names, comments) is reduced to printable ASCII without
-control characters, and ``;``, ``(`` and ``)`` are replaced, so no scene text can start a
-block of its own (:func:`nc_comment_text`).
+Every comment line, the program's own and those carrying scene text (names, comments),
+is one ``;`` line of printable ASCII without control characters, with ``;``, ``(`` and
+``)`` replaced (:func:`nc_comment_text`), so no text can start a block of its own or open
+a comment in a dialect that uses parentheses; scene text never reaches the CSV files.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
-CHUNK_ROWS = 65536
+CHUNK_ROWS = 16384
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
 PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")
@@ -90,7 +91,7 @@ def nc_comment_text(value) -> str:
 
 
 def _header_lines(title: str, info: dict) -> list[str]:
-    lines = [f"; {title}"]
+    lines = [f"; {nc_comment_text(title)}"]
     for k, v in info.items():
         if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
             raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
@@ -106,8 +107,8 @@ def _turning_header(header: dict | None, toolpath) -> list[str]:
             info[k] = meta[k]
     info.update(header or {})
     lines = _header_lines("render_inspect generic C-X-Z turning program", {})
-    lines += ["; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)",
-              "; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)"]
+    lines += ["; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]",
+              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]"]
     return lines + _header_lines("", info)[1:]
 
 
@@ -231,16 +232,16 @@ def read_nc(path):
 
 
 def _write_rows(fh, columns, header: str, fmt) -> None:
-    """CSV rows of ``columns`` (callables of a slice -> array), :data:`CHUNK_ROWS` at a time."""
-    import io
-
+    """CSV rows of ``columns`` (callables of a slice -> array), :data:`CHUNK_ROWS` at a
+    time, each value formatted with ``fmt`` (one format, or one per column)."""
+    fmts = [fmt] * len(columns) if isinstance(fmt, str) else list(fmt)
+    row = ",".join(fmts)
     fh.write((header + "\n").encode("ascii"))
     n = len(columns[0](slice(0, None)))
     for a in range(0, n, CHUNK_ROWS):
         s = slice(a, min(a + CHUNK_ROWS, n))
-        buf = io.StringIO()
-        np.savetxt(buf, np.column_stack([col(s) for col in columns]), delimiter=",", fmt=fmt)
-        fh.write(buf.getvalue().encode("ascii"))
+        data = zip(*(col(s).tolist() for col in columns))
+        fh.write(("\n".join(row % r for r in data) + "\n").encode("ascii"))
 
 
 def write_csv(path, toolpath) -> Path:
@@ -321,7 +322,7 @@ def write_program_nc(path, program: LinearProgram, *, header: dict | None = None
         raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
     info = {"software_version": __version__}
     info.update(header or {})
-    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program (mm, mm/min)", info)
+    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program [mm, mm/min]", info)
     lines.append("G90 G94 G21")
     x, y, z, ln = program.x, program.y, program.z, program.line
     for name, arr in (("x", x), ("y", y), ("z", z)):

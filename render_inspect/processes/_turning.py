@@ -167,7 +167,7 @@ def turning_precheck(scene, region=None) -> None:
     n = turning_point_count(sampling=p.sampling, feed_per_rev=f, workpiece_radius=p.workpiece_radius,
                             r_in=r_in, r_out=max(r_out, r_in), inner_radius=p.inner_radius,
                             points_per_rev=p.points_per_rev, arc_length=p.arc_length,
-                            switch_radius=p.switch_radius)
+                            switch_radius=p.switch_radius, parts=True)
     drivers = []
     if p.sampling != "constant_arc":
         drivers.append(Driver("process.points_per_rev", p.points_per_rev, 1, limit=(8, 1e7)))
@@ -176,7 +176,7 @@ def turning_precheck(scene, region=None) -> None:
     drivers.append(Driver("process.feed_mm_per_min", p.feed_mm_per_min, -1, "mm/min",
                           limit=(None, p.spindle_rpm * scene.tool.nose_radius)))
     check_budget(scene, plan_memory(n, sampling=p.sampling, compensation=p.compensation),
-                 what=f"the tool path ({format_number(n)} points)", drivers=drivers,
+                 what=f"the tool path ({format_number(sum(n))} points)", drivers=drivers,
                  hint="or shrink simulation.region / process.workpiece_radius")
 
 

@@ -19,10 +19,9 @@ __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count
            "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES"]
 
 #: Bytes per tool-path point at the peak of planning (the path arrays, compensation and
-#: chordal-error temporaries, the kinematics), measured with tracemalloc
-#: (tests/test_limits.py): by compensation for constant-angle sampling; arc-length
-#: sampling builds the whole spiral first and keeps more temporaries.
-PLAN_BYTES_PER_POINT = {"z": 160, "none": 160, "normal": 216, "arc": 320}
+#: chordal-error temporaries, the kinematics), by compensation, measured with tracemalloc
+#: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py).
+PLAN_BYTES_PER_POINT = {"z": 144, "none": 144, "normal": 200}
 #: Bytes planning holds whatever the path's length (curvature and accessibility grids).
 PLAN_FIXED_BYTES = 16 * 2 ** 20
 
@@ -30,7 +29,7 @@ PLAN_FIXED_BYTES = 16 * 2 ** 20
 def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
                         r_in: float, r_out: float, inner_radius: float = 0.0,
                         points_per_rev: int = 3600, arc_length: float = 0.005,
-                        switch_radius: float = 1.0) -> float:
+                        switch_radius: float = 1.0, parts: bool = False):
     """Number of spiral points :func:`plan_turning` allocates (a float: it may be far
     beyond any array), computed from the parameters alone.
 
@@ -38,31 +37,31 @@ def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius:
     ``points_per_rev``.  Arc-length and hybrid sampling build the spiral from
     ``workpiece_radius`` to ``inner_radius`` first: its arc length over ``arc_length``
     (plus at most 8 points per revolution near the axis), and the inner constant-angle
-    part of a hybrid spiral.
+    part of a hybrid spiral.  ``parts``: return (arc-length points, constant-angle
+    points) instead of their sum.
     """
     f = float(feed_per_rev)
     c = f / TWO_PI
     N = float(points_per_rev)
     if sampling == "constant_angle":
-        return max(r_out - r_in, 0.0) / f * N + 2.0
+        n = max(r_out - r_in, 0.0) / f * N + 2.0
+        return (0.0, n) if parts else n
     Rw, r_inner = float(workpiece_radius), float(inner_radius)
     r_sw = r_inner if sampling == "constant_arc" else min(max(switch_radius, r_inner), Rw)
     theta_sw = (Rw - r_sw) / c
     s_total = Rw * theta_sw - c * theta_sw ** 2 / 2  # arc length of the outer part
     n = s_total / float(arc_length) + 2.0
     n += 8.0 * min((Rw - r_sw) / f, 8.0 * float(arc_length) / TWO_PI / f + 1.0)
-    if sampling != "constant_arc":
-        n += max(r_sw - r_inner, 0.0) / f * N
-    return n
+    n_angle = max(r_sw - r_inner, 0.0) / f * N if sampling != "constant_arc" else 0.0
+    return (n, n_angle) if parts else n + n_angle
 
 
-def plan_memory(n_points: float, *, sampling: str = "constant_angle",
-                compensation: str = "z") -> float:
+def plan_memory(n_points, *, sampling: str = "constant_angle", compensation: str = "z") -> float:
     """Bytes :func:`plan_turning` (and the kinematics after it) holds at its peak for a
-    path of ``n_points`` points."""
-    per = PLAN_BYTES_PER_POINT["arc"] if sampling != "constant_angle" else \
-        PLAN_BYTES_PER_POINT.get(compensation, PLAN_BYTES_PER_POINT["normal"])
-    return PLAN_FIXED_BYTES + float(n_points) * per
+    path of ``n_points`` points, or of (arc-length points, constant-angle points)
+    (:func:`turning_point_count` with ``parts=True``)."""
+    n = sum(n_points) if isinstance(n_points, tuple) else float(n_points)
+    return PLAN_FIXED_BYTES + n * PLAN_BYTES_PER_POINT.get(compensation, PLAN_BYTES_PER_POINT["normal"])
 
 
 def region_radii(region, margin: float) -> tuple[float, float]:
@@ -179,9 +178,11 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
             N = max(N, int(math.ceil(TWO_PI * max(r_ref, 1e-9) / L)))
     meta["points_per_rev"] = N
     meta["arc_length_mm"] = ds
-    n_est = turning_point_count(sampling=sampling, feed_per_rev=f, workpiece_radius=Rw,
-                                r_in=r_in, r_out=r_out, inner_radius=inner_radius,
-                                points_per_rev=N, arc_length=ds, switch_radius=switch_radius)
+    n_parts = turning_point_count(sampling=sampling, feed_per_rev=f, workpiece_radius=Rw,
+                                  r_in=r_in, r_out=r_out, inner_radius=inner_radius,
+                                  points_per_rev=N, arc_length=ds, switch_radius=switch_radius,
+                                  parts=True)
+    n_est = sum(n_parts)
     raised = chordal_tolerance is not None and (N > int(points_per_rev) or ds < float(arc_length))
     drivers = []
     if raised:
@@ -195,7 +196,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
                           "process.spindle_rpm)", f, -1, "mm/rev", limit=(None, tool.nose_radius)))
     why = (f"; process.chordal_tolerance = {format_number(chordal_tolerance)} mm sets "
            f"{format_number(N)} points per revolution" if raised else "")
-    check_memory(plan_memory(n_est, sampling=sampling, compensation=compensation),
+    check_memory(plan_memory(n_parts, sampling=sampling, compensation=compensation),
                  what=f"the tool path ({format_number(n_est)} points, "
                       f"{format_number((r_out - r_in) / f)} revolutions{why})",
                  budget=memory_budget, drivers=drivers,
