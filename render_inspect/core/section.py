@@ -51,18 +51,19 @@ def _bounded(field) -> tuple[bool, bool]:
     return lo, hi
 
 
-def _numbers(value):
-    """Every float inside ``value`` (tuples, lists, dict values)."""
+def _numbers(value, name: str):
+    """(dotted name, value) of every float inside ``value`` (tuples, lists: by index;
+    dicts: by key)."""
     if isinstance(value, bool):
         return
     if isinstance(value, float):
-        yield value
+        yield name, value
     elif isinstance(value, (tuple, list)):
-        for v in value:
-            yield from _numbers(v)
+        for i, v in enumerate(value):
+            yield from _numbers(v, f"{name}.{i}")
     elif isinstance(value, dict):
-        for v in value.values():
-            yield from _numbers(v)
+        for k, v in value.items():
+            yield from _numbers(v, f"{name}.{k}")
 
 
 class Section(BaseModel):
@@ -95,9 +96,9 @@ class Section(BaseModel):
             lo, hi = _bounded(field)
             if lo and hi:
                 continue
-            for v in _numbers(getattr(self, name, None)):
+            for where, v in _numbers(getattr(self, name, None), name):
                 if math.isfinite(v) and ((not hi and v > MAX_MAGNITUDE)
                                          or (not lo and v < -MAX_MAGNITUDE)):
-                    raise ValueError(f"{name} must be within [-{MAX_MAGNITUDE:g}, "
+                    raise ValueError(f"{where} must be within [-{MAX_MAGNITUDE:g}, "
                                      f"{MAX_MAGNITUDE:g}], received {v!r}")
         return self

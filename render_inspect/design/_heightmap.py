@@ -11,7 +11,7 @@ from pydantic import Field
 
 from ..core.errors import InputError, check_positive
 from ..core.section import Length, Section
-from ..io import check_npy, read_exr
+from ..io import check_npy, exr_placement, read_exr
 from ._base import Surface
 from ._registry import register_design
 
@@ -118,11 +118,8 @@ class HeightMapSurface(Surface):
             if channel not in chans:
                 raise InputError(f"design.channel {channel!r} is not in {str(path)!r} "
                                  f"(channels: {sorted(chans)})")
-            if "pixel_size_mm" not in attrs or "origin_mm" not in attrs:
-                raise InputError(f"design.path {str(path)!r}: the EXR header lacks "
-                                 "pixel_size_mm / origin_mm (the heightmap.exr contract)")
-            return (np.asarray(chans[channel], dtype=np.float64), float(attrs["pixel_size_mm"]),
-                    tuple(float(v) for v in attrs["origin_mm"]))
+            pixel, origin = exr_placement(attrs, what="design.path", path=path)
+            return np.asarray(chans[channel], dtype=np.float64), pixel, origin
         if suffix == ".npy":
             check_npy(path, what="design.path")  # header, dtype, size: before loading
             try:

@@ -17,7 +17,7 @@ from ._atomic import (
                       read_marker,
                       write_json,
 )
-from ._exr import read_exr, write_exr
+from ._exr import exr_placement, read_exr, write_exr
 from ._frames import FRAME_CHANNELS, read_frames_exr, write_frames_exr
 from ._heightmap import heightmap_attrs, read_heightmap_exr, write_heightmap_exr
 from ._limits import (
@@ -59,4 +59,5 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "export_program", "nc_comment_text", "read_csv", "read_nc", "read_program_nc", "write_csv", "write_nc",
            "read_toolpath_npz", "write_toolpath_npz", "write_program_csv", "write_program_nc",
            "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "check_exr", "check_npy",
-           "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file"]
+           "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file",
+           "exr_placement"]

@@ -8,6 +8,7 @@ floats are stored as float32 attributes, so exact doubles go in as JSON text
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +69,33 @@ def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | N
     return atomic_write_bytes(path, data)
 
 
+def _safe_repr(v) -> str:
+    """repr of a header value (OpenEXR's opaque attributes may fail to print)."""
+    try:
+        text = repr(v)
+    except Exception:  # an undecodable opaque attribute
+        text = f"<{type(v).__name__}>"
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def exr_placement(attrs: dict, *, what: str, path) -> tuple[float, tuple[float, float]]:
+    """(pixel, (x, y)) from the ``pixel_size_mm`` and ``origin_mm`` header attributes,
+    checked: a finite pixel > 0 and two finite numbers (mm); else :class:`InputError`."""
+    for key in ("pixel_size_mm", "origin_mm"):
+        if key not in attrs:
+            raise InputError(f"{what} {str(path)!r}: the EXR header lacks {key!r}; it is needed "
+                             f"to place the map in mm")
+    p, o = attrs["pixel_size_mm"], attrs["origin_mm"]
+    if isinstance(p, bool) or not isinstance(p, (int, float)) or not (math.isfinite(p) and p > 0):
+        raise InputError(f"{what} {str(path)!r}: header pixel_size_mm must be a finite number > 0, "
+                         f"received {_safe_repr(p)}")
+    if not (isinstance(o, (list, tuple)) and len(o) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in o)):
+        raise InputError(f"{what} {str(path)!r}: header origin_mm must be [x, y], two finite "
+                         f"numbers (mm), received {_safe_repr(o)}")
+    return float(p), (float(o[0]), float(o[1]))
+
+
 def read_exr(path: str | Path, *, what: str = "EXR file", budget=None
              ) -> tuple[dict[str, np.ndarray], dict]:
     """Return (channels, attrs).  Numbers come back exact (from the JSON text);
@@ -111,7 +139,7 @@ def read_exr(path: str | Path, *, what: str = "EXR file", budget=None
             except json.JSONDecodeError:
                 attrs[k] = v
         elif isinstance(v, bytes):
-            attrs[k] = v.decode()
+            attrs[k] = v.decode("utf-8", "replace")
         else:
             attrs[k] = v
     return channels, attrs

@@ -17,6 +17,7 @@ import json
 import re
 import struct
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,9 @@ MAX_ZIP_MEMBERS = 4096
 #: data compresses a few times; a bomb compresses a thousand times)
 MAX_ZIP_RATIO = 200.0
 _RATIO_FLOOR = 64 * 2 ** 20
+#: what reading a damaged or unusual archive raises
+_ZIP_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, OSError, EOFError,
+               ValueError, RuntimeError, NotImplementedError, UnicodeDecodeError)
 #: bytes of working memory a reader needs per declared value (the value as float64, a
 #: copy for the unit conversion and the mask of valid points)
 READ_BYTES_PER_VALUE = 24
@@ -144,7 +148,7 @@ def check_zip(path, *, what: str, budget=None, max_members: int = MAX_ZIP_MEMBER
     try:
         with zipfile.ZipFile(path) as zf:
             infos = zf.infolist()
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as err:
+    except _ZIP_ERRORS as err:
         raise InputError(f"{what} {str(path)!r} is not a readable {kind} ({err})") from None
     if len(infos) > max_members:
         raise InputError(f"{what} {str(path)!r} holds {len(infos)} members (at most {max_members})")
@@ -176,7 +180,7 @@ def check_npz(path, *, what: str, budget=None, names=None) -> dict[str, tuple]:
             try:
                 with zf.open(i) as fh:
                     shape, dtype, _, _ = _npy_header(fh, what, f"{path}:{i.filename}")
-            except (zipfile.BadZipFile, OSError, EOFError, ValueError) as err:
+            except _ZIP_ERRORS as err:
                 raise InputError(f"{what} {str(path)!r}: member {i.filename!r} cannot be read "
                                  f"({err})") from None
             count = 1
@@ -209,7 +213,7 @@ def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
     with zipfile.ZipFile(path) as zf:
         try:
             text = zf.read(main[0])
-        except (zipfile.BadZipFile, OSError, EOFError, ValueError) as err:
+        except _ZIP_ERRORS as err:
             raise InputError(f"{what} {str(path)!r}: main.xml cannot be read ({err})") from None
     sizes = {k.decode(): int(v) for k, v in _SIZE.findall(text)}
     sx, sy, sz = (sizes.get(k, 0) for k in "XYZ")

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ._exr import read_exr
+from ._exr import exr_placement, read_exr
 from ._limits import check_npy, check_npz, check_real_array, read_json_file
 from ._registry import formats, reader, register_reader
 from ._x3p import read_x3p
@@ -29,7 +29,7 @@ _SURFALIZE = (".sur", ".plu", ".plux", ".sdf", ".al3d", ".vk4", ".vk6", ".vk7", 
 
 
 def _to_mm(name: str, units) -> float:
-    if units not in _UNIT_TO_MM:
+    if not isinstance(units, str) or units not in _UNIT_TO_MM:
         raise InputError(f"{name}: units must be one of {sorted(_UNIT_TO_MM)}, got {units!r}")
     return _UNIT_TO_MM[units]
 
@@ -53,13 +53,10 @@ def _read_exr(path, *, channel=None, **_):
             channel = next(iter(ch))
     if channel not in ch:
         raise InputError(f"{path}: EXR has no channel {channel!r} (channels: {sorted(ch)})")
-    for key in ("pixel_size_mm", "origin_mm"):
-        if key not in attrs:
-            raise InputError(f"{path}: EXR header lacks {key!r}; it is needed to place the map in mm")
+    pixel, origin = exr_placement(attrs, what="measured file", path=path)
     scale = _to_mm(f"{path} header 'units'", attrs.get("units", "mm"))
     z = ch[channel].astype(np.float64) * scale
-    o = attrs["origin_mm"]
-    return z, float(attrs["pixel_size_mm"]), (float(o[0]), float(o[1])), {
+    return z, pixel, origin, {
         "format": "exr", "channel": channel, "scene": attrs.get("scene")}
 
 

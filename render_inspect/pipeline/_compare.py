@@ -316,6 +316,8 @@ def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
     if measured is not None and not Path(measured).is_file():
         raise InputError(f"--measured file not found: {str(measured)!r}")
     _check_phase_settings(scene)
+    # read the measured file before any work: a bad file is refused at once
+    measured_map = read_measured(measured) if measured is not None else None
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
     design_surface = make_surface(scene.design)
@@ -332,8 +334,8 @@ def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
             _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed, design_surface=design_surface)
         c, u = variants
         meas = None
-        if measured is not None:
-            meas = _measured_column(measured, scene, design_surface, c.heightmap, seed)
+        if measured_map is not None:
+            meas = _measured_column(measured_map, scene, design_surface, c.heightmap, seed)
 
         figs = _figures(c, u, meas, F)
         for name, png in figs.items():
@@ -382,8 +384,8 @@ def _check_phase_settings(scene) -> None:
                              f"other steps")
 
 
-def _measured_column(path, scene, design_surface, sim_hm, seed) -> dict:
-    z, pixel, origin, src = read_measured(path)
+def _measured_column(measured_map, scene, design_surface, sim_hm, seed) -> dict:
+    z, pixel, origin, src = measured_map
     simulated = sim_hm if np.isclose(pixel, sim_hm.pixel, rtol=1e-6) else None
     comp = compare_measured((z, pixel, origin), design_surface, metrology=scene.metrology,
                             simulated=simulated, region=tuple(scene.simulation.region), seed=seed)

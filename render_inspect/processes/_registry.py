@@ -154,7 +154,7 @@ def process_of(scene) -> ProcessKind:
 
 def _discriminate(value):
     kind = value.get("kind", DEFAULT_KIND) if isinstance(value, dict) else getattr(value, "kind", None)
-    entry = _PROCESSES.get(kind)
+    entry = _PROCESSES.get(kind) if isinstance(kind, str) else None
     return entry.config.__name__ if entry is not None else None
 
 

@@ -31,8 +31,8 @@ __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "too
 
 class TurningProcessConfig(Section):
     """Keys of a spiral turning program (STS, FTS/HTS, RCSE)."""
-    spindle_rpm: float = Field(50.0, gt=0, le=20000)
-    feed_mm_per_min: float = Field(0.5, gt=0, le=1000)
+    spindle_rpm: float = Field(50.0, ge=1e-3, le=20000)
+    feed_mm_per_min: float = Field(0.5, ge=1e-6, le=1000)
     workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
     inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
     compensation: Literal["none", "normal", "z"] = "z"

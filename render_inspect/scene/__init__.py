@@ -172,7 +172,7 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
             msg = "unknown key (not allowed here; check the spelling)"
         elif msg.startswith("Value error, "):
             msg = msg[len("Value error, "):]
-            m = re.match(r"^([a-z_][a-z0-9_]*) (must|is|are) ", msg)
+            m = re.match(r"^([a-z_][a-z0-9_]*(?:\.[A-Za-z0-9_]+)*) (must|is|are) ", msg)
             if m:  # a model-level check about one of its keys: name the key in full
                 loc = f"{loc}.{m.group(1)}" if loc else m.group(1)
                 msg = msg[len(m.group(1)) + 1:]
