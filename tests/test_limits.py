@@ -125,7 +125,7 @@ def test_writers_stream_the_program(tmp_path):
 @pytest.mark.parametrize("over, key", [
     (["process.points_per_rev=10000000"], "process.points_per_rev <= "),
     (["process.chordal_tolerance=1e-12"], "process.chordal_tolerance >= "),
-    (["process.feed_mm_per_min=1e-9"], ">= "),
+    (["process.feed_mm_per_min=1e-6"], "process.feed_mm_per_min >= "),
     (["process.sampling='constant_arc'", "process.arc_length=1e-9"], "process.arc_length >= "),
     (["process.sampling='hybrid'", "process.arc_length=1e-9"], "process.arc_length >= "),
 ])

@@ -37,7 +37,8 @@ def lens_radius_from_sag(aperture_radius: float, sag: float) -> float:
 def _cap_derivs(dx, dy, inside, radius, sign):
     """Gradient and Hessian of ``sign * sag(s)`` where ``inside`` (0 elsewhere)."""
     s2 = dx * dx + dy * dy
-    w = np.sqrt(np.maximum(radius * radius - s2, 1e-300))
+    # outside the apertures the derivatives are 0: keep w away from 0 there (no 0 * inf)
+    w = np.sqrt(np.where(inside, np.maximum(radius * radius - s2, 1e-300), 1.0))
     w3 = w ** 3
     k = np.where(inside, sign, 0.0)
     gx, gy = k * dx / w, k * dy / w

@@ -20,6 +20,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..core.errors import InputError
+
 TWO_PI = 2 * math.pi
 
 
@@ -171,7 +173,9 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
     rho = np.ascontiguousarray(path.rho, dtype=np.float64)
     z = np.ascontiguousarray(path.z, dtype=np.float64)
     if theta.size < 2:
-        raise ValueError("simulate_turning: the path needs at least 2 points")
+        raise InputError(f"the tool path over simulation.region {list(region)} has "
+                         f"{theta.size} point(s), at least 2 are needed: the region lies off the "
+                         f"turned part (process.workpiece_radius, process.inner_radius)")
     Rc = float(nose_radius)
     hw = float(half_width) if half_width is not None else Rc
     hw = min(hw, Rc)

@@ -26,7 +26,8 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     overrides : sequence of str
         ``section.key=value`` overrides (the CLI's ``--set``).
     out : str, Path or None
-        Folder for ``heightmap.exr``; None: :func:`~render_inspect.render.default_output_dir`.
+        Folder for ``heightmap.exr``, replaced as a whole (a non-empty folder render_inspect
+        did not write is refused); None: :func:`~render_inspect.render.default_output_dir`.
     surface : {"machined", "design", "residual"}
         The height layer that becomes the mesh.
     exaggeration : float or None
@@ -47,9 +48,11 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     scene = load_scene(scene_path, list(overrides))
     if exaggeration is not None:
         check_positive("exaggeration", exaggeration)
+    own = not out  # the add-on's own default folder may be replaced whatever it holds
     out = Path(out) if out else default_output_dir(scene.name)
     # the folder is checked and locked before the simulation, swapped in when complete
-    with atomic_output_dir(out, command="blender", scene=scene, option="output folder") as tmp:
+    with atomic_output_dir(out, command="blender", scene=scene, option="output folder",
+                           overwrite=own) as tmp:
         result = simulate(scene)
         hm = result.heightmap
         write_heightmap_exr(tmp / "heightmap.exr", hm)

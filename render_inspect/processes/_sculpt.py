@@ -15,7 +15,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from ..core.errors import AccessibilityError, SceneError
+from ..core.errors import AccessibilityError, InputError, SceneError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number
 from ..core.section import Section
@@ -89,6 +89,14 @@ def plan(scene, surface, *, region=None) -> Plan:
         ia = max(int(np.searchsorted(y_edges, y0 - reach, side="right")) - 2, 0)
         ib = min(int(np.searchsorted(y_edges, y1 + reach, side="left")) + 1, len(y_edges) - 1)
         y_edges = y_edges[ia:ib + 1]
+    if not used or y_edges.size < 2:
+        d = scene.design
+        raise InputError(
+            f"simulation.region {list(region)} mm lies outside the lenslet array: its "
+            f"{len(x_lines)} target lines run at x = {float(x_lines[0]):.6g} .. "
+            f"{float(x_lines[-1]):.6g} mm (design.center_x = {d.center_x:g}, pitch_x = "
+            f"{d.pitch_x:g}) over y = {float(y_line_start):.6g} .. "
+            f"{float(y_line_start) + d.rows * d.pitch_y:.6g} mm; move the region onto the array")
     lines = [target_line(surface, x_lines[k], y_edges, step=scene.process.arc_length)
              for k in used]
     xs, ys_all, zs_all, ts, ks = [], [], [], [], []

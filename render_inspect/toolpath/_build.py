@@ -143,13 +143,14 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     # (machining/_envelope.py); keep two more revolutions as margin
     margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
     r_in, r_out = region_radii(area, margin) if region is not None else (0.0, Rw)
+    reach = (r_in, r_out)
     r_in = max(r_in, inner_radius)
     r_out = min(r_out, Rw)
     if r_out - r_in < f:
         x0, y0, x1, y1 = area
         raise InputError(
             f"simulation.region {[x0, y0, x1, y1]} mm lies outside the turned part: the tool "
-            f"reaches it only between {r_in:.6g} and {r_out:.6g} mm from the spindle axis, but "
+            f"reaches it only between {reach[0]:.6g} and {reach[1]:.6g} mm from the spindle axis, but "
             f"the spiral runs from process.workpiece_radius = {Rw:g} mm in to "
             f"process.inner_radius = {inner_radius:g} mm; move the region or change those radii")
     meta: dict = {"sampling": sampling, "compensation": compensation,
