@@ -156,12 +156,13 @@ def main(argv=None) -> int:
             traceback.print_exc()
         print(f"{prefix}: error: {_one_line(err)}", file=sys.stderr)
         return 1
-    except Terminated:
-        print(f"{prefix}: terminated; the output folder was left as it was", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print(f"{prefix}: interrupted; the output folder was left as it was", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as stop:
+        what = "terminated" if isinstance(stop, Terminated) else "interrupted"
+        done = getattr(stop, "render_inspect_output_complete", None)
+        state = (f"the output folder {done} had been written completely" if done
+                 else "the output folder was left as it was")
+        print(f"{prefix}: {what}; {state}", file=sys.stderr)
+        return 143 if isinstance(stop, Terminated) else 130
     except MemoryError:
         if show_tb:
             traceback.print_exc()

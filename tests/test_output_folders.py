@@ -363,3 +363,38 @@ def test_marker_is_strict_json_and_lists_every_file(tmp_path):
                    if p.is_file() and p.name != MARKER)
     assert sorted(m["files"]) == files and set(m["files"].values()) == {"simulate"}
     assert m["written_by"] == "render_inspect" and len(m["commands"]["simulate"]["part_sha256"]) == 64
+
+
+def test_a_full_disk_while_writing_is_one_line_and_leaves_nothing(tmp_path):
+    """The file-size limit makes every write beyond 64 kB fail inside the kernel (EFBIG,
+    as a full disk gives ENOSPC): exit 1, one line naming --out, the old folder intact,
+    no temporary folder left."""
+    import resource
+
+    out = tmp_path / "o"
+    run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
+    before = _tree(out)
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
+
+    sets = sum((["--set", s] for s in SMALL + ["process.spindle_rpm=60"]), [])
+    r = subprocess.run([sys.executable, "-m", "render_inspect.cli", "simulate",
+                        "sts_sinusoidal_grid", "--out", str(out), *sets],
+                       capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stderr and "Exception ignored" not in r.stderr
+    errors = [line for line in r.stderr.splitlines() if "error" in line]
+    assert len(errors) == 1 and "--out" in errors[0] and "nothing was written" in errors[0], r.stderr
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+
+
+def test_no_space_left_is_reported_naming_out(tmp_path):
+    import errno
+
+    with pytest.raises(InputError, match=r"--out .*No space left on device while writing "
+                                         r"heightmap.exr; nothing was written"):
+        with atomic_output_dir(tmp_path / "o", command="simulate") as tmp:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp / "heightmap.exr"))
+    assert os.listdir(tmp_path) == []

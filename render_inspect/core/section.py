@@ -17,7 +17,9 @@ import math
 import typing
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import SceneError
 
 __all__ = ["Section", "Length", "Region", "Phase", "MAX_LENGTH_MM", "MAX_MAGNITUDE"]
 
@@ -89,6 +91,20 @@ class Section(BaseModel):
                     out = dict(data)
                 out[key] = tuple(v)
         return data if out is None else out
+
+    def __setattr__(self, name, value):
+        # the same on assignment (validated too: validate_assignment)
+        field = type(self).model_fields.get(name)
+        if isinstance(value, list) and field is not None and _has_tuple(field.annotation):
+            value = tuple(value)
+        try:
+            super().__setattr__(name, value)
+        except ValidationError as err:
+            e = err.errors()[0]
+            loc = ".".join(str(p) for p in e["loc"]) or name
+            shown = repr(value)
+            shown = shown if len(shown) <= 80 else shown[:77] + "..."
+            raise SceneError(f"{type(self).__name__}.{loc}: {e['msg']}; received {shown}") from None
 
     @model_validator(mode="after")
     def _magnitudes(self):

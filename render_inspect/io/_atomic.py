@@ -536,12 +536,15 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
             tmp = None
             created = []
     except BaseException as exc:
+        if tmp is None:  # the folder was swapped in; an interruption held back arrived after
+            exc.render_inspect_output_complete = str(target)
         tmp_text = str(tmp) if tmp is not None else None
         with _signals_held():
             _undo(tmp, created, lock)
             lock = None
         if isinstance(exc, OSError) and exc.errno in _OUTPUT_ERRNOS and (
-                exc.errno in (errno.ENOSPC, errno.EDQUOT) or _inside(exc, tmp_text, target)):
+                exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+                or _inside(exc, tmp_text, target)):
             raise InputError(f"{option} {_shown(out_text)}: {exc.strerror} while writing "
                              f"{Path(exc.filename).name if exc.filename else 'the output'}; "
                              f"nothing was written") from None

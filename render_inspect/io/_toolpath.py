@@ -272,10 +272,23 @@ def read_csv(path):
                     col["t_s"].copy())
 
 
+def _savez(fh, **arrays) -> None:
+    """``numpy.savez`` into an open binary file: the same archive (stored ``NAME.npy``
+    members), with a fixed member date so the same arrays give the same bytes, and the
+    archive closed even when a write fails."""
+    import zipfile
+
+    with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            with zf.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(arr), allow_pickle=False)
+
+
 @register_writer("toolpath", ".npz")
 def write_toolpath_npz(path, toolpath: ToolPath, **_) -> Path:
     """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
-    return atomic_write_stream(path, lambda fh: np.savez(
+    return atomic_write_stream(path, lambda fh: _savez(
         fh, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y, z=toolpath.z,
         t=toolpath.t))
 
@@ -299,7 +312,7 @@ register_writer("toolpath", ".nc")(
 @register_writer("program", ".npz")
 def write_program_npz(path, program: LinearProgram, **_) -> Path:
     """Write a sculpturing program as ``toolpath.npz``: arrays x, y, z, t, line."""
-    return atomic_write_stream(path, lambda fh: np.savez(
+    return atomic_write_stream(path, lambda fh: _savez(
         fh, x=program.x, y=program.y, z=program.z, t=program.t, line=program.line))
 
 
