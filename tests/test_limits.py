@@ -315,3 +315,27 @@ def test_render_limits_are_checked_from_the_scene_before_any_work():
     with pytest.raises(SceneError, match=r"render.diffuse.resolution: must be an integer in "
                                          r"\[16, 8192\]"):
         base.with_overrides(["render.diffuse.resolution=16384"])
+
+
+@pytest.mark.mitsuba
+def test_a_render_in_passes_equals_one_pass_within_the_noise(monkeypatch):
+    """The pass mechanism (used beyond 2^26 samples) on a small image: 8 passes of 4 spp
+    average to the 32-spp image within the Monte Carlo noise, and are repeatable."""
+    import render_inspect.render._diffuse as D
+    from render_inspect.core.heightmap import HeightMap
+    from render_inspect.render import DiffuseConfig, render_diffuse
+
+    x = np.linspace(-1, 1, 41)
+    z = 0.002 * np.cos(2 * np.pi * x / 0.5)[None, :] * np.ones((41, 1))
+    hm = HeightMap(z, z, 0.05, (-1.0, -1.0))
+    dcfg = DiffuseConfig(resolution=32, spp=32, exaggeration=50.0)
+    one, meta1 = render_diffuse(hm, dcfg, view="macro", seed=3)
+    monkeypatch.setattr(D, "MAX_SAMPLES_PER_PASS", 32 * 32 * 4)
+    many, meta8 = render_diffuse(hm, dcfg, view="macro", seed=3)
+    again, _ = render_diffuse(hm, dcfg, view="macro", seed=2 ** 40)
+    assert meta1["passes"] == 1 and meta8["passes"] == 8
+    assert np.array_equal(many, render_diffuse(hm, dcfg, view="macro", seed=3)[0])
+    # the same light reaches the image: means agree to the noise of 32 x 32 x 32 samples
+    np.testing.assert_allclose(many.mean(), one.mean(), rtol=0.02)
+    np.testing.assert_allclose(again.mean(), one.mean(), rtol=0.02)
+    assert not np.array_equal(many, one)  # other samples were drawn
