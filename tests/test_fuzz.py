@@ -17,23 +17,18 @@ import math
 import os
 import re
 import string
-import struct
 import subprocess
 import sys
 import tracemalloc
-import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from render_inspect import cli
 from render_inspect.design import make_surface
 from render_inspect.design._expression import ExpressionSurface
 from render_inspect.design._heightmap import HeightMapSurface
 from render_inspect.errors import InputError, RenderInspectError, SceneError
 from render_inspect.io import (
-    MARKER,
     atomic_output_dir,
     check_output_path,
     read_marker,

@@ -9,7 +9,6 @@ import re
 import struct
 import tracemalloc
 import zipfile
-import zlib
 
 import numpy as np
 import pytest
@@ -206,7 +205,7 @@ def test_bad_npy_files_are_input_errors(tmp_path, content, why):
         read_measured(f)
 
 
-def _zip_bomb(path, size: int, *, declared=None):
+def _zip_bomb(path, size: int):
     """An X3P-shaped archive whose data member is ``size`` zero bytes, deflated."""
     main = (b"<?xml version='1.0'?><ISO5436_2><Record3><MatrixDimension><SizeX>16</SizeX>"
             b"<SizeY>16</SizeY><SizeZ>1</SizeZ></MatrixDimension></Record3></ISO5436_2>")
