@@ -4,7 +4,7 @@ VENV    := .venv
 VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.setup-stamp
 
-.PHONY: setup demo test test-fast bench system-deps clean
+.PHONY: setup demo test test-fast bench regress regress-update system-deps clean
 
 setup: $(STAMP)
 
@@ -27,6 +27,7 @@ $(STAMP): requirements.txt pyproject.toml
 	$(VPY) -m pip install -q --upgrade pip
 	$(VPY) -m pip install -q -r requirements.txt
 	$(VPY) -m pip install -q --no-deps -e .
+	$(VPY) -m render_inspect.pipeline._warmup
 	@touch $(STAMP)
 
 demo: setup
@@ -41,11 +42,25 @@ test-fast: setup
 bench: setup
 	ONLY=$(ONLY) $(VPY) benchmarks/run_all.py
 
+# The image regression suite alone (make test runs it too); regress-update makes the
+# references anew after an intended change to the images (commit them with the change).
+regress: setup
+	$(VENV)/bin/render-inspect regress --out out/regress
+
+regress-update: setup
+	$(VENV)/bin/render-inspect regress --update --out out/regress
+
 clean:
 	rm -rf out .pytest_cache
 
-# Build the Blender extension zip (dist/render_inspect-<version>.zip) with Blender's own tool.
-BLENDER_EXT = $(shell $(VPY) -c "import bpy,pathlib;print(pathlib.Path(bpy.utils.system_resource('SCRIPTS'))/'addons_core/bl_pkg/cli/blender_ext.py')" 2>/dev/null)
-.PHONY: blender-addon
+# The self-contained Blender extension, one zip per platform (linux-x64, windows-x64,
+# macos-arm64, macos-x64) with the wheels of render_inspect and its dependencies, built with
+# the blender_ext.py that ships inside Blender: dist/render_inspect-<version>-<platform>.zip.
+.PHONY: blender-addon blender-venvs
 blender-addon: setup
-	mkdir -p dist && $(VPY) $(BLENDER_EXT) build --source-dir blender_addon --output-dir dist
+	$(VPY) tools/build_blender_extension.py --output-dir dist
+
+# Virtualenvs with only bpy 4.2 LTS and 5.0 (.venv-blender/), for the extension tests
+# (the tests make them too when missing).
+blender-venvs: setup
+	$(VPY) tools/blender_venvs.py

@@ -5,7 +5,10 @@
 - seed 002's 7 x 7 lenslet array (pitch 2 mm, aperture 1 mm, radius 10 mm) at 10 um:
   separation + per-lenslet sphere-centre fits (``lenslet_table``), and the full
   ``characterise_msa`` chain with registration;
-- X3P write + read of a 1024^2 map.
+- X3P write + read of a 1024^2 map;
+- the one-map analysis (plane, slopes, Sal/Str) on 2048^2, Sal/Str alone, the
+  correlated-residual registration uncertainty on 300 x 300, and reading each real
+  instrument file in ../shared/realdata.
 Prints seconds per task and returns them with the recovered figures.
 """
 
@@ -92,6 +95,26 @@ def main(n_areal: int = 2048) -> dict:
         big = z[:1024, :1024]
         out["x3p_write_1024_s"], _ = _t(write_x3p, Path(tmp) / "m.x3p", big, pixel=0.001)
         out["x3p_read_1024_s"], _ = _t(read_x3p, Path(tmp) / "m.x3p")
+    from render_inspect.io import read_surface
+    from render_inspect.metrology import analyze_map, registration_covariance, spatial_parameters
+
+    out["analyze_map_2048_s"], _ = _t(analyze_map, z, pixel=0.001)
+    out["spatial_parameters_2048_s"], _ = _t(spatial_parameters, z, pixel=0.001)
+    n = 300
+    p = 1.2 / n
+    g = -0.6 + p * np.arange(n)
+    m = rigid_resample(Freeform(), true, g[None, :], g[:, None]) + rng.normal(0, 2e-6, (n, n))
+    reg = register_lsq(m, Freeform(), pixel=p, origin=(-0.6, -0.6))
+    res = m - rigid_resample(Freeform(), reg, g[None, :], g[:, None])
+    out["registration_covariance_300_s"], _ = _t(registration_covariance, m, Freeform(), reg,
+                                                 pixel=p, origin=(-0.6, -0.6), residual=res)
+    real = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
+    for f in sorted(real.glob("*")):
+        if f.suffix in (".md", ".yaml"):
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out[f"read_{f.name}_s"], _ = _t(read_surface, f)
     out = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}
     print(json.dumps(out, indent=2))
     return out

@@ -50,11 +50,12 @@ def synthetic_heightmap(n: int, *, pixel: float = 0.001):
 
 
 def _timed_interferogram(hm, cfg, repeats):
+    import render_inspect.instruments._imaging as M
     import render_inspect.instruments._interferometer as I
     import render_inspect.render._scene_dicts as S
 
     parts = {}
-    orig_load, orig_frames = S.load_scene_dict, I.interference_frames
+    orig_load, orig_frames = S.load_scene_dict, M.interference_intensity
 
     def load(d):
         t = time.perf_counter()
@@ -69,7 +70,7 @@ def _timed_interferogram(hm, cfg, repeats):
         return r
 
     best, best_parts, ig = math.inf, {}, None
-    S.load_scene_dict, I.interference_frames = load, frames
+    S.load_scene_dict, M.interference_intensity = load, frames
     try:
         for _ in range(repeats):
             t = time.perf_counter()
@@ -78,7 +79,7 @@ def _timed_interferogram(hm, cfg, repeats):
             if wall < best:
                 best, best_parts = wall, dict(parts)
     finally:
-        S.load_scene_dict, I.interference_frames = orig_load, orig_frames
+        S.load_scene_dict, M.interference_intensity = orig_load, orig_frames
     return best, best_parts, ig
 
 

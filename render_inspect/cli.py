@@ -48,6 +48,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="tool path + machined surface: heightmap.exr, metrics.json, preview")
     _add_scene_args(p)
+    p.add_argument("--tiled", action="store_true",
+                   help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
+                        "simulation.max_memory_gb)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
+    p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
+                   help="tile side in pixels, a multiple of 64 (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc)")
     _add_scene_args(p)
@@ -61,6 +70,78 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("compare", help="compensated vs uncompensated (or vs --measured): images, metrics, report.html")
     _add_scene_args(p)
     p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
+    p.add_argument("--force", action="store_true",
+                   help="compare the measured map even when it does not match the design "
+                        "(overlap or residual checks fail)")
+
+    p = sub.add_parser("analyze", help="ISO 25178-2 parameters of one height map file (measured "
+                                       "or simulated): metrics.json, height.png, --x3p")
+    p.add_argument("file", help="height map: X3P, SUR, PLU, DAT (MetroPro), DATX, OPD, TMD, NMS, "
+                                "heightmap.exr, ...")
+    _add_out_args(p)
+    p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
+                   help="form removed first (none: the mean only)")
+    p.add_argument("--filter", default=None, metavar="S,L",
+                   help="ISO 16610-61 Gaussian nesting indices in mm, e.g. 0.0025,0.8 or ,0.8")
+    p.add_argument("--outliers", choices=["none", "sigma"], default="none",
+                   help="sigma: leave out the 3-sigma second-difference outliers (counted either way)")
+    p.add_argument("--slope", choices=["forward", "central"], default="forward",
+                   help="derivative estimator of Sdq/Sdr (forward: as SurfaceTopography and surfalize)")
+    p.add_argument("--x3p", action="store_true", help="also write the evaluated surface as height.x3p")
+
+    p = sub.add_parser("measure", help="height from interferometer frames alone: height.exr, metrics.json")
+    p.add_argument("frames", help="interferogram.exr (frames + settings), or a TIFF / PNG stack "
+                                  "or a folder of frames with a settings JSON")
+    _add_out_args(p)
+    p.add_argument("--algorithm", default="auto",
+                   choices=["auto", "4step", "5step", "hariharan", "lsq", "envelope",
+                            "envelope+phase"],
+                   help="PSI: 4step, 5step (= hariharan), lsq; CSI: envelope, envelope+phase; "
+                        "auto: by mode and frame count")
+    p.add_argument("--settings", default=None,
+                   help="settings JSON of a TIFF / PNG stack (default: beside it)")
+    p.add_argument("--min-modulation", type=float, default=0.05, dest="min_modulation",
+                   help="pixels with lower fringe contrast are not measured (default 0.05)")
+
+    p = sub.add_parser("characterise", help="the virtual instrument's transfer function, step "
+                                            "response, slope limit and noise (ISO 25178-600 style)")
+    p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
+    _add_out_args(p)
+    p.add_argument("--mode", choices=["psi", "csi"], default="psi")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override an instrument key of [render.interferometer], e.g. "
+                        "--set numerical_aperture=0.5 (TOML value syntax)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the camera noise")
+    p.add_argument("--quick", action="store_true", help="fewer points, smaller fields (for tests)")
+
+    p = sub.add_parser("sweep", help="parameter sweep on Dask: results.jsonl, results.csv, summary, plots "
+                                     "(resumable)")
+    p.add_argument("sweep", help="sweep file (TOML) or the name of a shipped sweep, e.g. fig15_small")
+    p.add_argument("--out", required=True, help="the sweep's folder; finished points there are not run again")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write the sweep into a non-empty folder that is not a sweep's (its files "
+                        "are left in place)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                            "(default: a LocalCluster on this machine)")
+    where.add_argument("--workers", metavar="N", type=int, default=None,
+                       help="process workers of the LocalCluster (default: the CPU count)")
+    p.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
+
+    p = sub.add_parser("regress", help="image regression: render scenes/regression/ and compare with "
+                                       "the references")
+    p.add_argument("--update", action="store_true",
+                   help="make the references anew (records the software version and Mitsuba variant)")
+    p.add_argument("--only", metavar="NAME", default=None,
+                   help="case names or glob patterns, comma-separated")
+    p.add_argument("--out", default="out/regress",
+                   help="summary.html and the images that differ (default: out/regress); written "
+                        "whole when the run ends, untouched otherwise")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even if it holds files render-inspect did not write")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key in every case (what-if checks; not with --update)")
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
     _add_out_args(p)
@@ -74,21 +155,49 @@ def _run(args) -> None:
     from . import pipeline
 
     # (the scene schema imports pydantic and the registries: same reason)
-    from .scene import load_scene
+    from .scene import instrument_config, load_scene
 
     ow = bool(getattr(args, "overwrite", False))
     if args.command == "demo":
         pipeline.run_demo(args.out, quick=args.quick, overwrite=ow)
         return
+    if args.command == "analyze":
+        pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
+                             outliers=args.outliers, slope=args.slope, x3p=args.x3p, overwrite=ow)
+        return
+    if args.command == "measure":
+        pipeline.run_measure(args.frames, args.out, algorithm=args.algorithm,
+                             settings=args.settings, min_modulation=args.min_modulation,
+                             overwrite=ow)
+        return
+    if args.command == "characterise":
+        pipeline.run_characterise(instrument_config(args.objective, args.mode, args.overrides),
+                                  args.out, quick=args.quick, seed=args.seed, overwrite=ow)
+        return
+    if args.command == "sweep":
+        info = pipeline.run_sweep(pipeline.find_sweep(args.sweep), args.out,
+                                  scheduler=args.scheduler, workers=args.workers,
+                                  retry_failed=args.retry_failed, overwrite=ow)
+        if info["failed"]:
+            raise RenderInspectError(
+                f"{info['failed']} of {info['points']} points failed (their errors are in "
+                f"{args.out}/summary.md and results.csv); the other points are done; rerun "
+                f"with --retry-failed to try the failed ones again")
+        return
+    if args.command == "regress":
+        pipeline.run_regress(update=args.update, only=args.only, out=args.out,
+                             overrides=args.overrides, overwrite=ow)
+        return
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
-        pipeline.run_simulate(scene, args.out, overwrite=ow)
+        pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None, workers=args.workers,
+                              scheduler=args.scheduler, tile=args.tile, overwrite=ow)
     elif args.command == "toolpath":
         pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=ow)
     elif args.command == "render":
         pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind, overwrite=ow)
     elif args.command == "compare":
-        pipeline.run_compare(scene, args.out, measured=args.measured, overwrite=ow)
+        pipeline.run_compare(scene, args.out, measured=args.measured, force=args.force, overwrite=ow)
 
 
 class Terminated(KeyboardInterrupt):
@@ -159,8 +268,13 @@ def main(argv=None) -> int:
     except KeyboardInterrupt as stop:
         what = "terminated" if isinstance(stop, Terminated) else "interrupted"
         done = getattr(stop, "render_inspect_output_complete", None)
-        state = (f"the output folder {done} had been written completely" if done
-                 else "the output folder was left as it was")
+        if args.command == "sweep":
+            state = (f"the finished points are kept in {args.out}/results.jsonl: run the same "
+                     f"command again to go on")
+        elif done:
+            state = f"the output folder {done} had been written completely"
+        else:
+            state = "the output folder was left as it was"
         print(f"{prefix}: {what}; {state}", file=sys.stderr)
         return 143 if isinstance(stop, Terminated) else 130
     except MemoryError:

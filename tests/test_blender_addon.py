@@ -1,13 +1,21 @@
-"""The Blender add-on (blender_addon/), against real bpy: build the extension zip with
-Blender's own ``blender_ext.py``, install it into a temporary user repository, enable
-it, run its operators, and unregister it again."""
+"""The Blender add-on (blender_addon/) from the source tree, against real bpy in this
+environment: settings contract, presets and parameters, Simulate (both variants) checked
+against the simulation run here, default output folder, errors, the worker process (a job
+that fails, a job that is cancelled), missing dependencies, panels drawn in every state,
+the manifest's wheel list, and a GLB re-imported with Blender's glTF importer.
+
+The installed extension (zip with wheels, bpy-only Pythons 4.2 and 5.0) is tested in
+tests/test_blender_extension.py.
+"""
 
 from __future__ import annotations
 
+import importlib.util
 import json
-import os
 import subprocess
 import sys
+import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -16,199 +24,334 @@ import pytest
 pytestmark = pytest.mark.blender
 
 REPO = Path(__file__).resolve().parents[1]
-MODULE = "bl_ext.user_default.render_inspect"
-SMALL = "simulation.region=[-0.1, -0.1, 0.1, 0.1]; simulation.pixel=0.004"
-
-
-def _blender_ext() -> Path:
-    import bpy
-
-    path = Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core/bl_pkg/cli/blender_ext.py"
-    assert path.is_file(), f"blender_ext.py not found at {path}"
-    return path
+SMALL = ["simulation.region=[-0.1, -0.1, 0.1, 0.1]", "simulation.pixel=0.004"]
+SCENES = sorted(p.stem for p in (REPO / "scenes").glob("*.toml"))
 
 
 @pytest.fixture(scope="module")
-def addon_zip(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("ext")
-    subprocess.run([sys.executable, str(_blender_ext()), "build", "--source-dir",
-                    str(REPO / "blender_addon"), "--output-dir", str(out)],
-                   check=True, capture_output=True, text=True)
-    zips = list(out.glob("render_inspect-*.zip"))
-    assert len(zips) == 1, zips
-    check = subprocess.run([sys.executable, str(_blender_ext()), "validate", str(zips[0])],
-                           capture_output=True, text=True)
-    assert check.returncode == 0, check.stdout + check.stderr
-    return zips[0]
-
-
-@pytest.fixture(scope="module")
-def addon(addon_zip):
-    import addon_utils
+def addon():
+    """The add-on package, loaded from blender_addon/ and registered."""
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    res = bpy.ops.extensions.package_install_files(filepath=str(addon_zip), repo="user_default",
-                                                   enable_on_install=True)
-    assert res == {"FINISHED"}
-    assert MODULE in {m.__name__ for m in addon_utils.modules() if addon_utils.check(m.__name__)[1]}
-    yield MODULE
-    addon_utils.disable(MODULE, default_set=True)
+    spec = importlib.util.spec_from_file_location(
+        "render_inspect_addon", REPO / "blender_addon" / "__init__.py",
+        submodule_search_locations=[str(REPO / "blender_addon")])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    mod.register()
+    yield mod
+    mod.unregister()
+    del sys.modules[spec.name]
 
 
 @pytest.fixture
 def settings(addon, tmp_path):
     import bpy
 
-    from render_inspect.render._cycles import OBJECT_NAME, remove_object
+    from render_inspect import pipeline
 
-    remove_object(OBJECT_NAME)
+    pipeline.remove_blender_surfaces()
     s = bpy.context.scene.render_inspect
-    s.scene_path = str(REPO / "scenes" / "sts_sinusoidal_grid.toml")
+    s.scene_path = ""
+    s.preset = "sts_sinusoidal_grid"
+    addon.properties.load_params(s)
     s.output_dir = str(tmp_path / "out")
-    s.extra_overrides = SMALL
-    s.spindle_rpm = s.feed_mm_per_min = s.nose_radius = s.exaggeration = 0.0
+    s.extra_overrides = "; ".join(SMALL)
+    s.exaggeration = 0.0
     s.compensation = "SCENE"
     s.surface = "machined"
+    s.variant = "compensated"
+    s.last_error = s.last_message = s.simulation_json = s.compare_json = ""
+    s.job_running = False
     return s
 
 
-def test_installed_into_the_user_repository(addon):
-    import addon_utils
+def _draw(addon):
+    sys.path.insert(0, str(REPO / "tests"))
+    from blender_extension_driver import draw_panels, flat
+
+    return {k: flat(v) for k, v in draw_panels(addon).items()}
+
+
+def test_contract_names(addon):
     import bpy
 
-    mod = sys.modules[addon]
-    assert Path(mod.__file__).parent.name == "render_inspect"
-    # installed into the temporary user resources, not run from the source tree
-    assert os.environ["BLENDER_USER_RESOURCES"] in mod.__file__
-    assert addon_utils.check(addon) == (True, True)
-    for name in ("RENDER_INSPECT_OT_simulate", "RENDER_INSPECT_OT_render",
-                 "RENDER_INSPECT_PT_main"):
-        assert hasattr(bpy.types, name), name
-    assert mod.properties.RenderInspectSettings.is_registered
+    from render_inspect import pipeline
+
+    for op in ("simulate", "render", "compare", "export"):
+        assert getattr(bpy.ops.render_inspect, op).get_rna_type() is not None
     s = bpy.context.scene.render_inspect
-    for prop in ("scene_path", "output_dir", "spindle_rpm", "feed_mm_per_min", "nose_radius",
-                 "compensation", "extra_overrides", "exaggeration", "resolution", "samples"):
-        assert hasattr(s, prop), prop
-    assert {i.identifier for i in s.bl_rna.properties["compensation"].enum_items} == \
-        {"SCENE", "none", "normal", "z"}
+    items = [i.identifier for i in s.bl_rna.properties["preset"].enum_items]
+    assert items == SCENES
+    assert s.bl_rna.properties["preset"].default == "sts_sinusoidal_grid"
+    assert s.bl_rna.properties["scene_path"].subtype == "FILE_PATH"
+    assert items == sorted(pipeline.blender_presets())
+    assert addon.operators.VARIANT_PROPERTY == pipeline.VARIANT_PROPERTY
 
 
-def test_simulate_loads_the_machined_heights_as_a_mesh(settings):
+def test_scene_path_is_used_instead_of_the_preset(settings, addon):
+    settings.scene_path = str(REPO / "scenes" / "sts_mla_2x2.toml")
+    assert addon.properties.scene_file(settings) == str(REPO / "scenes" / "sts_mla_2x2.toml")
+    assert settings.params_source == settings.scene_path  # reloaded by the update
+    assert settings.scene_name == "sts_mla_2x2"
+    settings.scene_path = ""
+    assert Path(addon.properties.scene_file(settings)).name == "sts_sinusoidal_grid.toml"
+
+
+def test_changed_parameters_become_overrides(settings, addon):
+    data = tomllib.loads((REPO / "scenes" / "sts_sinusoidal_grid.toml").read_text())
+    params = {p.key: p for p in settings.params}
+    assert params["design.amplitude_x"].original == pytest.approx(data["design"]["amplitude_x"], rel=1e-7)
+    assert params["process.points_per_rev"].is_int
+    assert "process.kind" not in params  # strings are not listed
+    assert addon.properties.overrides(settings) == SMALL
+    params["process.spindle_rpm"].value = 40.0
+    params["process.points_per_rev"].value = 1800
+    params["tool.nose_radius"].value = 0.3
+    settings.compensation = "none"
+    params["process.feed_mm_per_min"].value = 0.45
+    assert addon.properties.overrides(settings) == [
+        "tool.nose_radius=0.3", "process.spindle_rpm=40", "process.feed_mm_per_min=0.45",
+        "process.points_per_rev=1800", 'process.compensation="none"'] + SMALL
+
+
+def test_simulate_makes_both_variants_from_the_simulation(settings, addon):
     import bpy
 
-    from render_inspect.io import read_heightmap_exr
-    from render_inspect.pipeline import simulate as simulate_scene
+    from render_inspect.pipeline import compare_variants, simulate
     from render_inspect.scene import load_scene
 
-    settings.spindle_rpm = 40.0
-    settings.compensation = "none"
+    next(p for p in settings.params if p.key == "process.spindle_rpm").value = 40.0
     settings.exaggeration = 300.0
     assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
-
-    obj = bpy.data.objects["render_inspect_surface"]
-    assert obj.name in bpy.context.scene.objects
-    assert len(obj.data.vertices) == 51 * 51
-    assert obj["render_inspect_exaggeration"] == 300.0
-    rec = json.loads(obj["render_inspect_scene"])
-    assert rec["process"]["spindle_rpm"] == 40.0
-    assert rec["process"]["compensation"] == "none"
-    assert rec["simulation"]["pixel"] == 0.004
-
+    objs = addon.operators.variant_objects()
+    assert sorted(objs) == ["compensated", "uncompensated"]
     # forward model: the same scene simulated here, heights x exaggeration = vertex z
     scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
-                       [o.strip() for o in SMALL.split(";")] +
-                       ["process.spindle_rpm=40.0", 'process.compensation="none"'])
-    expected = simulate_scene(scene).heightmap.machined
-    co = np.empty(51 * 51 * 3, np.float32)
-    obj.data.vertices.foreach_get("co", co)
-    z = co.reshape(51, 51, 3)[..., 2]
-    np.testing.assert_allclose(z, 300.0 * expected, rtol=1e-6, atol=1e-9)
-    assert np.ptp(z) > 0
-    # and the height map written beside it holds the same heights
-    hm = read_heightmap_exr(Path(settings.output_dir) / "heightmap.exr")
-    np.testing.assert_allclose(hm.machined, expected, rtol=1e-6, atol=1e-12)
-
-
-def test_simulate_reports_bad_input(settings):
-    import bpy
-
-    settings.scene_path = str(Path(settings.output_dir) / "missing.toml")
-    with pytest.raises(RuntimeError, match="scene file not found"):
-        bpy.ops.render_inspect.simulate()
-    settings.scene_path = str(REPO / "scenes" / "sts_sinusoidal_grid.toml")
-    settings.extra_overrides = SMALL + "; process.spindle_rpm=-5"
-    with pytest.raises(RuntimeError, match="process.spindle_rpm"):
-        bpy.ops.render_inspect.simulate()
-    assert "render_inspect_surface" not in bpy.data.objects
-
-
-def test_render_writes_a_cycles_image(settings):
-    import bpy
-    from PIL import Image
-
-    with pytest.raises(RuntimeError, match="Simulate first"):
-        bpy.ops.render_inspect.render()
+                       ["process.spindle_rpm=40.0"] + SMALL)
+    for variant, sc in zip(("compensated", "uncompensated"), compare_variants(scene)):
+        obj = objs[variant]
+        assert obj.name == f"render_inspect_{variant}_x300"
+        assert obj["render_inspect_exaggeration"] == 300.0
+        rec = json.loads(obj["render_inspect_scene"])
+        assert rec["process"]["spindle_rpm"] == 40.0
+        assert rec["process"]["compensation"] == sc.process.compensation
+        expected = simulate(sc).heightmap.machined
+        co = np.empty(len(obj.data.vertices) * 3, np.float32)
+        obj.data.vertices.foreach_get("co", co)
+        z = co.reshape(expected.shape + (3,))[..., 2]
+        np.testing.assert_allclose(z, 300.0 * expected, rtol=1e-6, atol=1e-9)
+    assert objs["uncompensated"].location.x == pytest.approx(0.204 * 1.15, rel=1e-6)
+    assert "UNDO" not in bpy.types.RENDER_INSPECT_OT_simulate.bl_options
+    sim = json.loads(settings.simulation_json)
+    assert sim["variants"]["uncompensated"]["residual"]["min_nm"] < \
+        sim["variants"]["compensated"]["residual"]["min_nm"]
+    # simulating again replaces the meshes
+    settings.exaggeration = 100.0
     assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
-    settings.resolution = 32
-    settings.samples = 4
-    assert bpy.ops.render_inspect.render() == {"FINISHED"}
-    png = Path(settings.output_dir) / "cycles.png"
-    img = np.asarray(Image.open(png), dtype=np.float64)
-    assert img.shape[:2] == (32, 32)
-    assert img.std() > 1.0  # not a constant image
-    assert "cycles.png" in bpy.data.images
-    # the user's scene is untouched: the render happened in a private scene
-    assert bpy.context.scene.name != "render_inspect_cycles"
-    assert bpy.context.scene.camera is None
+    assert sorted(o.name for o in addon.operators.variant_objects().values()) == [
+        "render_inspect_compensated_x100", "render_inspect_uncompensated_x100"]
 
 
-def test_default_output_goes_to_temp_not_the_addon_folder(settings, tmp_path, monkeypatch):
+def test_empty_output_folder_goes_to_temp_and_render_writes_there(settings, addon, tmp_path,
+                                                                   monkeypatch):
     import tempfile
 
     import bpy
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    addon_dir = Path(sys.modules[MODULE].__file__).parent
-    before = {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts}
     settings.output_dir = ""
     assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
-    assert (tmp_path / "render_inspect_out" / "sts_sinusoidal_grid" / "heightmap.exr").is_file()
-    assert {p for p in addon_dir.rglob("*") if "__pycache__" not in p.parts} == before
+    base = tmp_path / "render_inspect_out" / "sts_sinusoidal_grid"
+    assert (base / "compensated" / "heightmap.exr").is_file()
+    assert (base / "uncompensated" / "heightmap.exr").is_file()
+    settings.resolution, settings.samples, settings.render_interferogram = 16, 2, False
+    assert bpy.ops.render_inspect.render() == {"FINISHED"}
+    assert (base / "compensated" / "cycles.png").is_file()
+    assert "render_inspect_compensated_cycles" in bpy.data.images
     # neither the panel nor the scene sets an exaggeration: the renderer's automatic one
-    from render_inspect.pipeline import simulate as simulate_scene
-    from render_inspect.render._diffuse import auto_exaggeration
-    from render_inspect.scene import load_scene
+    from render_inspect.io import read_heightmap_exr
+    from render_inspect.render import auto_exaggeration
 
-    scene = load_scene(settings.scene_path, [o.strip() for o in SMALL.split(";")])
-    assert scene.render.diffuse.exaggeration is None
-    expected = auto_exaggeration(simulate_scene(scene).heightmap, "machined")
-    assert bpy.data.objects["render_inspect_surface"]["render_inspect_exaggeration"] == expected
+    hm = read_heightmap_exr(base / "compensated" / "heightmap.exr")
+    ex = addon.operators.variant_objects()["compensated"]["render_inspect_exaggeration"]
+    assert ex == auto_exaggeration(hm, "machined")
 
 
-def test_unregister_and_register_mirror(addon):
-    import addon_utils
+def test_errors_are_one_line_and_leave_nothing(settings, addon):
     import bpy
 
-    addon_utils.disable(addon, default_set=True)
-    for name in ("RENDER_INSPECT_OT_simulate", "RENDER_INSPECT_OT_render",
-                 "RENDER_INSPECT_PT_main"):
-        assert not hasattr(bpy.types, name), name
-    assert not sys.modules[addon].properties.RenderInspectSettings.is_registered
-    assert not hasattr(bpy.types.Scene, "render_inspect")
-    addon_utils.enable(addon, default_set=True)
-    assert hasattr(bpy.types, "RENDER_INSPECT_OT_simulate")
-    assert hasattr(bpy.context.scene, "render_inspect")
+    with pytest.raises(RuntimeError, match="run Simulate first"):
+        bpy.ops.render_inspect.export()
+    settings.extra_overrides = "; ".join(SMALL) + "; process.spindle_rpm=-5"
+    with pytest.raises(RuntimeError, match="process.spindle_rpm"):
+        bpy.ops.render_inspect.simulate()
+    assert settings.last_error.startswith("Simulate:") and "\n" not in settings.last_error.strip()
+    assert addon.operators.variant_objects() == {}
+    assert not Path(settings.output_dir).exists()
 
 
-def test_enabled_again_in_a_new_process(addon):
-    code = ("import bpy, addon_utils\n"
-            f"addon_utils.enable({addon!r}, default_set=True)\n"
-            "assert hasattr(bpy.types, 'RENDER_INSPECT_OT_simulate')\n"
-            "assert hasattr(bpy.context.scene, 'render_inspect')\n"
-            f"addon_utils.disable({addon!r}, default_set=True)\n"
-            "assert not hasattr(bpy.types, 'RENDER_INSPECT_OT_simulate')\n"
-            "print('ok')\n")
-    res = subprocess.run([sys.executable, "-c", code], env=dict(os.environ),
-                         capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0 and "ok" in res.stdout, res.stdout + res.stderr
+def test_a_failing_worker_reports_the_error(settings, addon, tmp_path):
+    job = addon._jobs.Job("simulate", {"scene_path": str(tmp_path / "nope.toml"), "overrides": [],
+                                       "out": str(tmp_path / "o"), "surface": "machined",
+                                       "exaggeration": None}, out_dirs=[tmp_path / "o"])
+    assert job.wait(120) == "failed"
+    assert job.error.startswith("scene file not found") and "nope.toml" in job.error
+    assert not (tmp_path / "o").exists()
+
+
+def test_cancel_stops_the_worker_and_leaves_no_files(settings, addon, tmp_path):
+    out = tmp_path / "long"
+    params = {"scene_path": str(REPO / "scenes" / "sts_sinusoidal_grid.toml"),
+              "overrides": ["simulation.region=[-1.0, -1.0, 1.0, 1.0]", "simulation.pixel=0.001"],
+              "out": str(out), "surface": "machined", "exaggeration": None}
+    job = addon._jobs.start("simulate", params, out_dirs=[out])
+    try:
+        t_end = time.monotonic() + 120
+        while job.progress < 0.05 and job.state == "running" and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert job.state == "running" and job.message.startswith("simulating")
+        time.sleep(0.5)
+        job.cancel()
+    finally:
+        addon._jobs.cancel_current()
+    assert job.state == "cancelled" and job.proc.returncode is not None
+    assert not out.exists()
+    assert list(tmp_path.glob(".long.partial-*")) == []
+
+
+def test_missing_dependency_is_named_and_greys_out_what_needs_it(settings, addon, monkeypatch):
+    import bpy
+
+    deps = addon._deps
+    fake = (("render_inspect_no_such_module", "no-such-dist", "a test feature"),)
+    monkeypatch.setattr(deps, "X3P", deps.X3P + fake)
+    monkeypatch.setitem(deps.NEEDS, "export", deps.NEEDS["export"] + fake)
+    drawn = _draw(addon)["RENDER_INSPECT_PT_main"]
+    assert "label no-such-dist (a test feature)" in drawn
+    assert not bpy.ops.render_inspect.export.poll()
+    assert bpy.ops.render_inspect.simulate.poll()
+
+
+def test_panels_draw_in_every_state(settings, addon):
+    import bpy
+
+    before = _draw(addon)
+    assert "operator render_inspect.simulate" in before["RENDER_INSPECT_PT_main"]
+    assert "label Run Compare to see the metrics here" in before["RENDER_INSPECT_PT_results"]
+    settings.last_error = "Simulate: scene file not found: 'x.toml'"
+    assert any("scene file not found" in x for x in _draw(addon)["RENDER_INSPECT_PT_main"])
+    settings.last_error = ""
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    after = _draw(addon)
+    assert any(x.startswith("label compensated: Sq") for x in after["RENDER_INSPECT_PT_main"])
+    assert sum(x == "prop value" for x in after["RENDER_INSPECT_PT_parameters"]) == len(settings.params)
+    settings.job_running, settings.job_label, settings.job_message = True, "Render", "Cycles sample 3/8"
+    settings.job_progress = 0.3
+    running = _draw(addon)["RENDER_INSPECT_PT_main"]
+    assert "progress 0.3 30 %" in running and "operator render_inspect.cancel" in running
+    assert not bpy.ops.render_inspect.render.poll()
+    settings.job_running = False
+    settings.compare_json = json.dumps({"rows": [{"label": "Residual Sq", "unit": "nm",
+                                                  "compensated": 1.5, "uncompensated": 2.5}],
+                                        "difference_rms_nm": 0.25, "report": "r.html"})
+    results = _draw(addon)["RENDER_INSPECT_PT_results"]
+    assert results[1:7] == ["label ", "label compensated", "label uncompensated",
+                            "label Residual Sq (nm)", "label 1.5", "label 2.5"]
+
+
+def test_manifest_lists_the_pinned_wheels_for_every_platform():
+    manifest = tomllib.loads((REPO / "blender_addon" / "blender_manifest.toml").read_text())
+    assert manifest["blender_version_min"] == "4.2.0"
+    assert manifest["platforms"] == ["linux-x64", "windows-x64", "macos-arm64", "macos-x64"]
+    assert set(manifest["permissions"]) == {"files"}
+    wheels = [Path(w).name for w in manifest["wheels"]]
+    assert all(w.startswith("./wheels/") for w in manifest["wheels"])
+    assert not any(w.startswith("numpy-") for w in wheels)
+    for plat, tag in (("linux", "manylinux"), ("windows", "win_amd64"), ("macos-arm64", "arm64")):
+        assert any(w.startswith("scipy-") and tag in w for w in wheels), plat
+    # Mitsuba has no Intel-macOS wheel: that zip goes without it (the panel says so)
+    assert not any(w.startswith(("mitsuba-", "drjit-")) and "x86_64" in w and "macosx" in w
+                   for w in wheels)
+    res = subprocess.run([sys.executable, str(REPO / "tools" / "build_blender_extension.py"),
+                          "--check-manifest"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_glb_reimports_in_blender_upright_and_in_metres(tmp_path):
+    import bpy
+
+    from render_inspect.core.heightmap import HeightMap
+    from render_inspect.mesh import export_mesh, heightmap_mesh
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    x = np.linspace(0.0, 2.0, 21)
+    y = np.linspace(-1.0, 0.0, 11)
+    X, Y = np.meshgrid(x, y)
+    z = 1e-3 * X + 2e-3 * np.exp(-((X - 1.5) ** 2 + (Y + 0.2) ** 2) / 0.05)  # no symmetry
+    hm = HeightMap(z, z.copy(), 0.1, (0.0, -1.0))
+    gm = heightmap_mesh(hm, exaggeration=50.0, z_offset=0.0)
+    export_mesh(gm, tmp_path / "part.glb")
+    bpy.ops.import_scene.gltf(filepath=str(tmp_path / "part.glb"))
+    (obj,) = [o for o in bpy.data.objects if o.type == "MESH"]
+    co = np.array([obj.matrix_world @ v.co for v in obj.data.vertices])
+    ref = gm.vertices.astype(np.float64) * 1e-3
+    assert co.shape == ref.shape
+    # Blender's importer turns glTF's +Y up back into +Z up: the part lies flat, metres
+    np.testing.assert_allclose(co[np.lexsort(co.T[::-1])], ref[np.lexsort(ref.T[::-1])],
+                               atol=1e-9)
+    np.testing.assert_allclose(obj.dimensions, [2e-3, 1e-3, np.ptp(gm.vertices[:, 2]) * 1e-3],
+                               rtol=1e-5)
+    assert obj["vertical_exaggeration"] == 50.0 and obj["units"] == "m"
+
+
+def test_the_add_on_calls_only_the_pipeline():
+    """blender_addon/ reaches render_inspect through render_inspect.pipeline alone (and
+    its error classes, to report them): no stage of its own."""
+    import ast
+
+    allowed = {"render_inspect.pipeline", "render_inspect.errors"}
+    offenders = []
+    for py in sorted((REPO / "blender_addon").glob("*.py")):
+        for node in ast.walk(ast.parse(py.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module] if node.module != "render_inspect" else \
+                    [f"render_inspect.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            for name in names:
+                if name.split(".")[0] == "render_inspect" and \
+                        not any(name == a or name.startswith(a + ".") for a in allowed):
+                    offenders.append(f"{py.name}:{node.lineno} imports {name}")
+    assert not offenders, offenders
+
+
+def test_a_render_in_a_worker_process_reports_cycles_progress(settings, addon, tmp_path):
+    import bpy
+
+    from render_inspect import pipeline
+
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    src = pipeline.surface_info(pipeline.blender_surfaces()["uncompensated"])
+    params = dict(src, view="micro", resolution=16, samples=3, seed=2, out=str(tmp_path / "r"),
+                  interferogram=False)
+    job = addon._jobs.Job("render", params, out_dirs=[tmp_path / "r"])
+    assert job.wait(300) == "finished", job.error
+    assert "Cycles sample 3/3" in job.steps and job.progress == 1.0
+    # the folder's marker (docs/formats.md, output folders) and the images
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == [".render_inspect.json",
+                                                                   "cycles.exr", "cycles.png"]
+    # what the worker rendered is what this process renders from the same mesh
+    here = pipeline.render_variant(src["heightmap"], variant="uncompensated",
+                                   surface=src["surface"], exaggeration=src["exaggeration"],
+                                   view="micro", resolution=16, samples=3, seed=2,
+                                   out=tmp_path / "here", interferogram=False)
+    from render_inspect.io import read_exr
+
+    a, _ = read_exr(tmp_path / "r" / "cycles.exr")
+    b, _ = read_exr(here["cycles_exr"])
+    np.testing.assert_allclose(a["G"], b["G"], atol=1e-6)

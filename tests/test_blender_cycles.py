@@ -183,3 +183,50 @@ def _diffuse(d):
     from render_inspect.scene import DiffuseConfig
 
     return DiffuseConfig(**d)
+
+
+def test_fresnel_conductor_matches_the_closed_form():
+    from render_inspect.render._cycles import ALUMINIUM_ETA, ALUMINIUM_K, fresnel_conductor
+
+    theta = np.radians([0.0, 20.0, 45.0, 70.0, 85.0])
+    np.testing.assert_allclose(fresnel_conductor(np.cos(theta), ALUMINIUM_ETA, ALUMINIUM_K),
+                               _fresnel_conductor(theta[:, None], ALUMINIUM_ETA, ALUMINIUM_K),
+                               rtol=1e-12)
+    n, k = np.asarray(ALUMINIUM_ETA), np.asarray(ALUMINIUM_K)
+    np.testing.assert_allclose(fresnel_conductor(1.0, n, k),
+                               ((n - 1) ** 2 + k**2) / ((n + 1) ** 2 + k**2), rtol=1e-12)
+
+
+def test_principled_fallback_follows_aluminium_fresnel():
+    """Blender 4.2's fallback: the Principled BSDF's F82-tint metal, F(mu) = Schlick(F0, mu)
+    - a mu (1 - mu)^6 with a set by the specular tint at mu = 1/7.  With
+    f82_tint_colours it equals the conductor Fresnel at 0 and 81.8 deg and stays within
+    0.1 % up to 30 deg and 1 % up to 65 deg."""
+    from render_inspect.render._cycles import (ALUMINIUM_ETA, ALUMINIUM_K, F82_COS,
+                                               f82_tint_colours, fresnel_conductor)
+
+    f0, tint = (np.asarray(c) for c in f82_tint_colours())
+
+    def schlick(mu):
+        return f0 + (1 - f0) * (1 - mu) ** 5
+
+    a = schlick(F82_COS) * (1 - tint) / (F82_COS * (1 - F82_COS) ** 6)
+
+    def model(mu):
+        return schlick(mu) - a * mu * (1 - mu) ** 6
+
+    for deg, rtol in ((0.0, 1e-12), (15.0, 1e-3), (30.0, 1e-3), (50.0, 1e-2), (65.0, 1e-2)):
+        mu = np.cos(np.radians(deg))
+        np.testing.assert_allclose(model(mu), fresnel_conductor(mu, ALUMINIUM_ETA, ALUMINIUM_K),
+                                   rtol=rtol, err_msg=f"{deg} deg")
+    np.testing.assert_allclose(model(F82_COS), fresnel_conductor(F82_COS, ALUMINIUM_ETA, ALUMINIUM_K),
+                               rtol=1e-12)
+
+
+def test_this_blender_has_the_metallic_bsdf():
+    import bpy
+
+    from render_inspect.render._cycles import material_model
+
+    assert material_model(bpy) == ("metallic_bsdf" if bpy.app.version >= (4, 3, 0)
+                                   else "principled_f82")

@@ -160,6 +160,12 @@ def test_compare_measured_column(compared):
     assert abs(abs(reg["beta_rad"]) - 2e-4) < 2e-5
     assert mf["measured"]["Sq_nm"] < 2.0  # the design itself, after registration
     assert mf["compared_with_simulation"] is True
+    # checked before the simulation: it is the design, fully overlapping, tiny residual
+    assert mf["checks"]["ok"] and mf["checks"]["overlap"]["fraction"] > 0.99
+    assert set(reg["uncertainty"]["sigma"]) == {"tx_mm", "ty_mm", "tz_mm", "alpha_rad",
+                                                "beta_rad", "gamma_rad"}
+    assert mf["outliers"]["count"] >= 0 and 0 <= mf["outliers"]["fraction"] < 1
+    assert mf["pixel_mm"] == [0.002, 0.002] and mf["units"]["lateral"] == "mm"
 
 
 @pytest.mark.mitsuba
@@ -176,6 +182,10 @@ def test_report_html_is_self_contained(compared):
     assert not re.search(r'(href|src)="(https?:|//|file:)', html)
     assert "<script" not in html
     assert "compensated" in html and "uncompensated" in html and "measured file" in html
+    for text in ("coverage of the simulated region", "overlap after registration",
+                 "standard uncertainty", "rotation about z (deg)", "outliers (second difference",
+                 "units declared in the file"):
+        assert text in html, text
     assert "tiny_compare" in html
 
 

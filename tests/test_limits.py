@@ -243,6 +243,84 @@ def test_x3p_declared_grid_beyond_the_budget_is_refused(tmp_path):
         read_x3p(g)
 
 
+def _small_budget(monkeypatch, nbytes: int):
+    """Make the automatic budget (a share of the available memory) ``nbytes``."""
+    import render_inspect.core.limits as L
+
+    monkeypatch.setattr(L, "available_memory", lambda: int(nbytes / AUTO_FRACTION))
+
+
+def _tmd(path, rows: int, cols: int) -> None:
+    """A TrueMap .tmd file (GelSight's layout) of zeros."""
+    head = b"Binary TrueMap Data File v2.0\r\n\x00" + b"\x00"
+    head += struct.pack("<2I4f", cols, rows, 0.001 * cols, 0.001 * rows, 0.0, 0.0)
+    path.write_bytes(head + np.zeros(rows * cols, dtype="<f4").tobytes())
+
+
+def test_measured_files_read_whole_are_refused_by_their_size(tmp_path, monkeypatch):
+    from render_inspect.io import read_surface
+
+    f = tmp_path / "m.tmd"
+    _tmd(f, 400, 500)
+    assert read_surface(f).shape == (400, 500)
+    _small_budget(monkeypatch, 2 ** 20)     # 200 000 values need about 5 MiB to read
+    with pytest.raises(MemoryBudgetError, match=r"m.tmd.*memory budget of 1 MiB"):
+        _traced(lambda: read_surface(f))
+    _, peak = _traced(lambda: pytest.raises(MemoryBudgetError, read_surface, f))
+    assert peak < 2 ** 20                    # refused before the file was read
+
+
+def test_zarr_window_and_frame_stack_are_checked_before_reading(tmp_path, monkeypatch):
+    from PIL import Image
+
+    from render_inspect.io import read_frame_stack, read_surface
+    from render_inspect.io._heightmap import grid_attrs
+    from render_inspect.io._zarr import write_heightmap_zarr
+
+    z = np.zeros((300, 400))
+    store = write_heightmap_zarr(tmp_path / "heightmap.zarr", z, z, chunk=128,
+                                 attrs=grid_attrs(0.001, (0.0, 0.0), {}, {}))
+    assert read_surface(store).shape == (300, 400)
+    assert read_surface(store, region=(0, 0, 0.0495, 0.0495)).shape == (50, 50)
+    stack = tmp_path / "frames"
+    stack.mkdir()
+    for i in range(4):
+        Image.fromarray(np.full((300, 400), 100 * i, dtype=np.uint8)).save(stack / f"f{i}.png")
+    (stack / "settings.json").write_text('{"mode": "psi", "pixel_size_mm": 0.001, '
+                                         '"wavelength_nm": 550}')
+    assert read_frame_stack(stack).frames.shape == (4, 300, 400)
+    _small_budget(monkeypatch, 2 ** 20)
+    with pytest.raises(MemoryBudgetError, match="a 300 x 400 window"):
+        read_surface(store)
+    assert read_surface(store, region=(0, 0, 0.0495, 0.0495)).shape == (50, 50)
+    with pytest.raises(MemoryBudgetError, match="frame stack .*480000 pixels"):
+        read_frame_stack(stack)
+
+
+def test_a_map_too_big_for_the_automatic_budget_is_tiled_not_refused(tmp_path, monkeypatch):
+    """With no simulation.max_memory_gb the budget is a share of the memory available: a
+    scene whose map does not fit it takes the tiled path (and fits there)."""
+    from render_inspect.pipeline import run_simulate
+    from render_inspect.pipeline._simulate import wants_tiles
+
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.2,-0.15,0.22,0.2]",
+                                               "simulation.pixel=0.0002", 'material.preset="ideal"',
+                                               'machine.preset="ideal"'])
+    assert scene.simulation.max_memory_gb is None
+    need = process_of(scene).estimate_memory(scene)
+    assert not wants_tiles(scene)
+    _small_budget(monkeypatch, int(0.6 * need))
+    assert wants_tiles(scene)
+    m = run_simulate(scene, tmp_path / "o", tile=128)
+    assert (tmp_path / "o" / "heightmap.zarr").is_dir() and m["tiles"]["tile_px"] == 128
+    assert m["tiles"]["memory_estimate_bytes"] < 0.6 * need
+    # a process that cannot be tiled is refused, naming the grid's key
+    burrs = scene.with_overrides(["artifacts.burrs.height=0.0001", "artifacts.burrs.width=0.002"])
+    with pytest.raises(MemoryBudgetError, match="simulation.pixel >= "):
+        run_simulate(burrs, tmp_path / "b")
+    assert not (tmp_path / "b").exists()
+
+
 def test_garbage_and_truncated_exr_are_input_errors(tmp_path):
     good = write_exr(tmp_path / "g.exr", {"height": np.zeros((32, 32), np.float32)},
                      {"pixel_size_mm": 0.001, "origin_mm": [0.0, 0.0]})
@@ -310,7 +388,7 @@ def test_render_limits_are_checked_from_the_scene_before_any_work():
         check_render_limits(base.with_overrides(["render.diffuse.window=[0,-0.5,0.001,0.5]"]))
     with pytest.raises(MemoryBudgetError, match="render.diffuse.resolution <= "):
         check_render_limits(base.with_overrides(["render.diffuse.resolution=8192",
-                                                 "simulation.max_memory_gb=0.5"]))
+                                                 "simulation.max_memory_gb=0.5"]), kind="diffuse")
     with pytest.raises(SceneError, match=r"render.diffuse.resolution: must be an integer in "
                                          r"\[16, 8192\]"):
         base.with_overrides(["render.diffuse.resolution=16384"])

@@ -19,7 +19,10 @@ from render_inspect.toolpath import ToolPath
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "scenes" / "sts_sinusoidal_grid.toml"
 FIG16 = REPO / "scenes" / "sts_fig16_overcut.toml"
-FLAT = ["design={type='plane'}", "simulation.region=[0.4,-0.05,0.5,0.05]", "simulation.pixel=0.0005"]
+#: the commanded geometry: the shipped scenes cut on a lathe preset with a material
+IDEAL = ["machine.preset='ideal'", "material.preset='ideal'"]
+FLAT = ["design={type='plane'}", "simulation.region=[0.4,-0.05,0.5,0.05]", "simulation.pixel=0.0005",
+        *IDEAL]
 
 
 def test_flat_scallop_height_and_sq():
@@ -37,7 +40,7 @@ def test_flat_scallop_height_and_sq():
 def test_z_compensated_path_never_gouges():
     for scene in (GRID, FIG16):
         s = load_scene(scene, ["process.compensation='z'", "simulation.region=[-0.3,-0.3,0.3,0.3]",
-                               "simulation.pixel=0.003"])
+                               "simulation.pixel=0.003", *IDEAL])
         res = simulate_scene(s)
         # machined >= design up to the reported linearisation (chordal) error of the path:
         # between programmed points the axes move linearly
@@ -50,14 +53,14 @@ def test_uncompensated_overcut_is_rc_slope_squared_over_two():
     slope, Rc = 0.02, 0.5
     s = load_scene(GRID, [f"design={{type='plane', slope_x={slope}}}", "process.compensation='none'",
                           f"tool.nose_radius={Rc}", "process.feed_mm_per_min=0.1",
-                          "simulation.region=[0.5,-0.02,0.6,0.02]", "simulation.pixel=0.001"])
+                          "simulation.region=[0.5,-0.02,0.6,0.02]", "simulation.pixel=0.001", *IDEAL])
     m = simulate_scene(s).metrics["residual"]
     # along +x the radial slope is the plane's slope: overcut Rc s^2 / 2 (minus a small scallop share)
     assert m["min_nm"] == pytest.approx(-Rc * slope ** 2 / 2 * 1e6, rel=0.05)
 
 
 def test_fig16_uncompensated_surface_shows_overcut_waviness():
-    s = load_scene(FIG16, ["simulation.region=[-0.5,-0.5,0.5,0.5]", "simulation.pixel=0.004"])
+    s = load_scene(FIG16, ["simulation.region=[-0.5,-0.5,0.5,0.5]", "simulation.pixel=0.004", *IDEAL])
     none = simulate_scene(s).metrics["residual"]
     zres = simulate_scene(s.with_overrides(["process.compensation='z'"]))
     z = zres.metrics["residual"]

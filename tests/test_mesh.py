@@ -13,6 +13,7 @@ from render_inspect.machining import HeightMap
 from render_inspect.mesh import (
     decimation_stride,
     export_mesh,
+    gltf_from_project,
     grid_mesh,
     heightmap_mesh,
     heightmap_to_trimesh,
@@ -95,6 +96,11 @@ def test_export_round_trip(tmp_path, ext):
     path = export_mesh(gm, tmp_path / f"part{ext}")
     loaded = trimesh.load(path, force="mesh", process=False)
     assert len(loaded.faces) == gm.n_faces
+    if ext == ".glb":  # glTF: metres, +Y up: (x, y, z) mm -> (x, z, -y) / 1000
+        np.testing.assert_allclose(loaded.vertices, gltf_from_project(gm.vertices), atol=1e-9)
+        assert loaded.metadata["vertical_exaggeration"] == 10.0
+        assert loaded.metadata["units"] == "m" and loaded.metadata["up_axis"] == "+Y"
+        return
     # STL stores three corners per face (no shared vertices): compare the sets of heights
     np.testing.assert_allclose(np.unique(np.round(loaded.vertices[:, 2], 6)),
                                np.unique(np.round(gm.vertices[:, 2], 6)), atol=1e-6)

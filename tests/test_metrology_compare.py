@@ -88,7 +88,12 @@ def test_compare_bad_input(tmp_path):
     with pytest.raises(InputError, match="does not overlap"):
         compare_measured(read_measured(path), Freeform(), region=(10.0, 10.0, 11.0, 11.0))
     with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
-        compare_measured(read_measured(path), Freeform(), region=(0.0, 0.0, 1.0, 1.0))
+        with pytest.raises(InputError, match=r"overlaps 2[0-9]\.[0-9]% of the smaller .* at least "
+                                             r"80% is needed \(--force compares anyway\)"):
+            compare_measured(read_measured(path), Freeform(), region=(0.0, 0.0, 1.0, 1.0))
+    with pytest.warns(UserWarning, match=r"covers only 2[0-9]\.[0-9]% of the region"):
+        c = compare_measured(read_measured(path), Freeform(), region=(0.0, 0.0, 1.0, 1.0), force=True)
+    assert c.metrics["checks"]["ok"] is False and c.metrics["checks"]["refusals"]
     # NaNs in the measurement are left out explicitly, and reported through n_valid
     z = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],
                        (ORIGIN[1] + PIXEL * np.arange(N))[:, None])
@@ -107,6 +112,10 @@ def test_compare_bad_input(tmp_path):
 def test_coverage_fraction():
     z = np.zeros((11, 11))
     assert coverage(z, pixel=0.1, origin=(0, 0), region=(0, 0, 1, 1)) == 1.0
-    assert_allclose(coverage(z, pixel=0.1, origin=(0, 0), region=(0.5, 0, 1.5, 1)), 6 / 11)
+    # the cells of columns x = 0.5 .. 1.0 reach x = 1.05: 0.55 of the region's width
+    assert_allclose(coverage(z, pixel=0.1, origin=(0, 0), region=(0.5, 0, 1.5, 1)), 0.55)
+    # rows y = 0 .. 0.5 on 0.05 mm pixels reach y = 0.525
+    assert_allclose(coverage(z, pixel=(0.1, 0.05), origin=(0, 0), region=(0.5, 0, 1.5, 1)),
+                    0.55 * 0.525)
     with pytest.raises(InputError, match="region"):
         coverage(z, pixel=0.1, origin=(0, 0), region=(1, 0, 0, 1))

@@ -398,3 +398,102 @@ def test_no_space_left_is_reported_naming_out(tmp_path):
         with atomic_output_dir(tmp_path / "o", command="simulate") as tmp:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp / "heightmap.exr"))
     assert os.listdir(tmp_path) == []
+
+
+# ------------------------------------------------------------------ the other commands
+def test_every_command_that_writes_a_folder_refuses_a_users_folder(tmp_path, capsys):
+    """analyze, measure, characterise, regress and sweep check --out before any work:
+    a non-empty folder render_inspect did not write is refused and left as it was."""
+    from render_inspect.io import write_x3p
+
+    import numpy as np
+
+    x3p = write_x3p(tmp_path / "m.x3p", np.zeros((8, 8)), pixel=0.001)
+    runs = [["analyze", x3p], ["measure", tmp_path / "no_such_frames.exr"],
+            ["characterise", "--objective", "20x", "--quick"],
+            ["regress", "--only", "no_such_case"],
+            ["sweep", "fig15_small"]]
+    for argv in runs:
+        out = tmp_path / f"mine_{argv[0]}"
+        out.mkdir()
+        (out / "notes.txt").write_text("my notes")
+        rc, err = _main(capsys, *argv, "--out", out)
+        assert rc == 1 and "--out" in err and "notes.txt" in err, (argv, err)
+        assert sorted(os.listdir(out)) == ["notes.txt"], argv
+
+
+def test_analyze_writes_a_marked_folder_and_replaces_it_whole(tmp_path, capsys):
+    import numpy as np
+
+    from render_inspect.io import write_x3p
+
+    z = 1e-5 * np.random.default_rng(1).standard_normal((32, 32))
+    x3p = write_x3p(tmp_path / "m.x3p", z, pixel=0.001)
+    out = tmp_path / "a"
+    assert _main(capsys, "analyze", x3p, "--out", out, "--x3p")[0] == 0
+    assert read_marker(out)["files"]["height.x3p"] == "analyze"
+    assert _main(capsys, "analyze", x3p, "--out", out)[0] == 0
+    assert not (out / "height.x3p").exists()        # the earlier run's file is gone
+    assert sorted(read_marker(out)["files"]) == ["height.png", "metrics.json"]
+
+
+def test_a_sweep_folder_is_claimed_marked_and_resumable(tmp_path):
+    from render_inspect.io import claim_output_dir
+
+    out = tmp_path / "sweep"
+    claim_output_dir(out, command="sweep")
+    (out / "results.jsonl").write_text("")
+    claim_output_dir(out, command="sweep")            # its own folder: resumed
+    assert "sweep" in read_marker(out)["commands"]
+    # another command may not replace the sweep's files
+    with pytest.raises(InputError, match="did not write"):
+        with atomic_output_dir(out, command="simulate"):
+            pass
+    # a sweep folder written before markers existed is recognised
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "results.jsonl").write_text("")
+    claim_output_dir(old, command="sweep", resumable=lambda p: (p / "results.jsonl").is_file())
+    # a user's folder is refused; --overwrite writes beside the user's files
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes")
+    with pytest.raises(InputError, match="--overwrite"):
+        claim_output_dir(mine, command="sweep")
+    claim_output_dir(mine, command="sweep", overwrite=True)
+    assert (mine / "notes.txt").read_text() == "my notes"
+    # the sweep's folder is filled in place: it may hold the current folder
+    claim_output_dir(tmp_path, command="sweep", overwrite=True)
+
+
+def test_nested_outputs_and_stores_are_kept_as_units(tmp_path):
+    """The add-on's layout: a root folder whose variant sub-folders are outputs of their
+    own (renders are added to them) and a compare/ folder of another command; a Zarr
+    store counts as one entry."""
+    from render_inspect.io import write_marker
+
+    root = tmp_path / "root"
+    with atomic_output_dir(root, command="blender simulate", merge=True) as tmp:
+        (tmp / "compensated").mkdir()
+        (tmp / "compensated" / "heightmap.exr").write_text("c1")
+        write_marker(tmp / "compensated", command="simulate")
+        (tmp / "heightmap.zarr" / "machined" / "c").mkdir(parents=True)
+        (tmp / "heightmap.zarr" / "machined" / "c" / "0").write_text("chunk")
+    assert read_marker(root)["files"] == {"compensated/": "blender simulate",
+                                          "heightmap.zarr/": "blender simulate"}
+    # a render adds to the variant folder
+    with atomic_output_dir(root / "compensated", command="render", merge=True) as tmp:
+        (tmp / "cycles.png").write_text("png")
+    assert sorted(os.listdir(root / "compensated")) == [MARKER, "cycles.png", "heightmap.exr"]
+    # another command's output nested in the root is kept when the root is written again
+    with atomic_output_dir(root / "compare", command="compare") as tmp:
+        (tmp / "report.html").write_text("report")
+    (root / ".compensated.lock").write_text("")       # a killed run's lock: not the user's
+    with atomic_output_dir(root, command="blender simulate", merge=True) as tmp:
+        (tmp / "compensated").mkdir()
+        (tmp / "compensated" / "heightmap.exr").write_text("c2")
+        write_marker(tmp / "compensated", command="simulate")
+    assert (root / "compare" / "report.html").read_text() == "report"
+    assert (root / "compensated" / "heightmap.exr").read_text() == "c2"
+    assert not (root / "compensated" / "cycles.png").exists()
+    assert not (root / "heightmap.zarr").exists()      # this command's own earlier output

@@ -54,3 +54,13 @@ def test_wheel_installs_into_a_fresh_venv_and_runs_the_demo(tmp_path):
     assert demo.returncode == 0, demo.stderr
     assert (tmp_path / "demo" / "report.html").stat().st_size > 10_000
     assert (tmp_path / "demo" / "compensated" / "heightmap.exr").is_file()
+
+    # the regression cases, their references and the sweeps ship with the package
+    reg = subprocess.run([str(exe), "regress", "--only", "sts_grid_normal,fig16_overcut_z",
+                          "--out", "regress"], env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert reg.returncode == 0, reg.stderr
+    assert json.loads((tmp_path / "regress" / "summary.json").read_text())["passed"] == 2
+    sweeps = subprocess.run([str(py), "-c", "from render_inspect.pipeline import find_sweep; "
+                             "print(find_sweep('fig15_small'), find_sweep('fig15'))"],
+                            env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert sweeps.returncode == 0 and str(venv) in sweeps.stdout, sweeps.stderr

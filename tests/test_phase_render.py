@@ -43,7 +43,10 @@ def test_rendered_frames_give_true_height(mode):
     assert m["mode"] == mode
     assert np.ptp(ig.height_true[np.isfinite(ig.height_true)]) > 0.55e-3 / 2  # > 1 fringe
     assert m["valid_fraction"] > 0.9
-    assert m["rms_nm"] < 1.0 and m["pv_nm"] < 5.0, m
+    # the objective passes the 30 um ripple at about 97 % (NA 0.4): a fraction of a nm of
+    # the error is the instrument's transfer function; the CSI envelope adds about 1 nm
+    limit = 1.0 if mode == "psi" else 3.0
+    assert m["rms_nm"] < limit and m["pv_nm"] < 5 * limit, m
 
 
 @pytest.mark.mitsuba
@@ -61,7 +64,7 @@ def test_measure_and_evaluate_rewrites_exr(tmp_path):
     path = tmp_path / "interferogram.exr"
     write_interferogram_exr(path, ig, scene={"name": "t"})
     before, _ = read_exr(path)
-    res, m = measure_and_evaluate(path)
+    _, res, m = measure_and_evaluate(path)
     ch, attrs = read_exr(path)
     assert set(before) | {"height_measured", "valid_measured"} == set(ch)
     for k in before:  # the renderer's channels are kept unchanged

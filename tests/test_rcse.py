@@ -216,8 +216,10 @@ def test_rcse_section_defaults_and_values(scene):
 
 @pytest.mark.slow
 def test_simulate_rcse_small_window(scene, tmp_path):
+    # the commanded geometry (the lathe's and the material's effects: test_machine_scene.py)
     s = scene.with_overrides(["simulation.region=[0.81, -0.06, 0.93, 0.06]", "simulation.pixel=0.004",
-                              "process.x_velocity_limit_mm_s=0.5"])
+                              "process.x_velocity_limit_mm_s=0.5", "machine.preset='ideal'",
+                              "material.preset='ideal'"])
     res = simulate(s)
     write_simulation(res, tmp_path)
     m = res.metrics

@@ -28,7 +28,8 @@ def build_toolpath(scene, region):
     return plan_spiral(scene, make_surface(scene.design), region=region)
 
 
-def _lag_scene(*, delay_s=0.0, bandwidth_hz=None, kind="hts", region=(0.55, -0.45, 2.45, 0.75)):
+def _lag_scene(*, delay_s=0.0, bandwidth_hz=None, kind="hts", region=(0.55, -0.45, 2.45, 0.75),
+               registration="none"):
     """Two concave lenslets on the x axis at r = 1 and 2 mm, on a flat base."""
     return scene_from_dict({
         "name": "lag",
@@ -42,6 +43,9 @@ def _lag_scene(*, delay_s=0.0, bandwidth_hz=None, kind="hts", region=(0.55, -0.4
                     "workpiece_radius": 3.0, "points_per_rev": 1440, "compensation": "z"},
         "simulation": {"region": list(region), "pixel": 0.01, "seed": 1},
         "artifacts": {"servo": {"delay_s": delay_s, "bandwidth_hz": bandwidth_hz}},
+        # the raw positions (the 6-DOF registration of seed 002 would turn the lag away:
+        # test_registration_removes_a_constant_lag)
+        "metrology": {"registration": registration},
     })
 
 
@@ -177,6 +181,20 @@ def test_pure_lag_rotates_features_by_omega_tau():
     assert d2 / d1 == pytest.approx(2.0, rel=0.05)
 
 
+def test_registration_removes_a_constant_lag():
+    """Seed 002's characterisation registers the design to the cut (6 DOF): a constant lag
+    is a rigid rotation by omega tau, found by the registration and gone from the
+    dislocations that are left."""
+    tau = 0.005
+    res = simulate_hts(_lag_scene(delay_s=tau, registration="lsq"))
+    rot = 2 * np.pi * 100 / 60 * tau
+    reg = res.metrics["msa"]["registration"]
+    assert reg["gamma_rad"] == pytest.approx(rot, rel=0.02)
+    for e in res.metrics["lenslets"]:
+        # 52 and 105 um of displacement before registration; ~1 um after (the 10 um grid)
+        assert math.hypot(e["dx_um"], e["dy_um"]) < 1.5
+
+
 def test_finite_bandwidth_adds_its_group_delay():
     fn = 300.0
     res = simulate_hts(_lag_scene(bandwidth_hz=fn))
@@ -202,7 +220,7 @@ def test_servo_scene_keys_are_validated():
 def test_hts_scene_file_loads(scenes_dir):
     scene = load_scene(scenes_dir / "hts_toric_msa.toml")
     assert scene.process.kind == "hts"
-    assert scene.artifacts.servo.delay_s == 0.002
+    assert scene.machine.preset == "fts" and scene.material.preset == "al6061"
     from render_inspect.design import make_surface
 
     surf = make_surface(scene.design)

@@ -85,7 +85,8 @@ def test_read_measured_exr_npy_npz(tmp_path):
 def test_read_measured_bad_input(tmp_path):
     with pytest.raises(InputError, match="unknown measured file format '.xyz2'"):
         read_measured(tmp_path / "a.xyz2")
-    with pytest.raises(InputError, match="export the map to X3P"):
+    (tmp_path / "a.datx").write_bytes(b"not HDF5")  # Zygo .datx: SurfaceTopography's reader
+    with pytest.raises(InputError, match="DATXReader could not read it"):
         read_measured(tmp_path / "a.datx")
     with pytest.raises(InputError, match="not found"):
         read_measured(tmp_path / "missing.x3p")

@@ -4,6 +4,7 @@ frames and these settings alone (:mod:`render_inspect.metrology`)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -13,8 +14,8 @@ from .grid import GridCoordinates
 
 __all__ = ["Frames", "PHASE_CONVENTION"]
 
-PHASE_CONVENTION = ("I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4, E = mean over sub-samples of "
-                    "exp(i 4 pi (h - z_ref) / lambda); delta_k = phase_steps_rad[k]")
+PHASE_CONVENTION = ("I_k = a + b cos(4 pi (h - z_k) / lambda_eff); PSI: z_k = z_ref - "
+                    "phase_steps_rad[k] lambda_eff / (4 pi); CSI: z_k = scan_positions_mm[k]")
 
 
 @dataclass
@@ -26,7 +27,8 @@ class Frames(GridCoordinates):
     frames : (N, H, W) float32, 0..1
         PSI: one frame per phase step; CSI: one per scan position.
     valid : (H, W) bool
-        Pixels that returned light (the camera saw fringes there).
+        Pixels where light returned from the part (the object beam is brighter than 5 %
+        of a mirror's); the measurement still decides from the fringes themselves.
     pixel : float, mm at the part;  origin : (x, y) of pixel [0, 0]'s centre, mm.
         Row 0 = smallest y.
     mode : {"psi", "csi"}
@@ -34,11 +36,12 @@ class Frames(GridCoordinates):
         PSI wavelength, or the CSI source's centre wavelength.
     numerical_aperture : float
     phase_steps : (N,) float64, rad
-        PSI phase shifts delta_k (empty for CSI).
+        PSI nominal phase shifts delta_k (empty for CSI).
     scan_positions : (N,) float64, mm
-        CSI reference positions (empty for PSI).
+        Nominal scanner positions (focus and zero path difference move together): CSI
+        one per frame; PSI the phase shifter's positions (or empty).
     z_ref : float, mm
-        Reference position of the PSI frames (the zero of the measured height).
+        Scanner position of the zero phase step (PSI: the zero of the measured height).
     bandwidth_nm : float or None
         CSI source FWHM.
     objective : str
@@ -48,6 +51,13 @@ class Frames(GridCoordinates):
     variant, subsamples, seed, noise : provenance of the rendering
     meta : dict
         Further settings (provenance).
+    effective_wavelength_nm : float or None
+        The calibrated fringe wavelength ``4 pi / K_eff`` (nm): longer than
+        ``wavelength_nm`` by the objective's NA factor.  Heights are
+        ``phase * lambda_eff / (4 pi)``; None = ``wavelength_nm``.
+    settings : dict
+        Everything else the instrument knows (objective, illumination, source spectrum,
+        camera, disturbance settings, model resolution), plain JSON-able values.
     """
 
     frames: np.ndarray
@@ -68,6 +78,8 @@ class Frames(GridCoordinates):
     seed: int = 0
     noise: bool = False
     meta: dict = field(default_factory=dict)
+    effective_wavelength_nm: float | None = None
+    settings: dict = field(default_factory=dict)
 
     def __post_init__(self):
         f = np.asarray(self.frames)
@@ -78,10 +90,29 @@ class Frames(GridCoordinates):
                              f"{np.shape(self.valid)}")
         if self.mode not in ("psi", "csi"):
             raise InputError(f"mode must be 'psi' or 'csi', got {self.mode!r}")
+        self.phase_steps = np.asarray(self.phase_steps, dtype=np.float64)
+        self.scan_positions = np.asarray(self.scan_positions, dtype=np.float64)
+        n = f.shape[0]
+        if self.mode == "psi" and self.phase_steps.shape != (n,):
+            raise InputError(f"phase_steps must hold one phase shift per frame ({n}), got "
+                             f"shape {self.phase_steps.shape}")
+        if self.mode == "csi" and self.scan_positions.shape != (n,):
+            raise InputError(f"scan_positions must hold one position per frame ({n}), got "
+                             f"shape {self.scan_positions.shape}")
 
     @property
     def shape(self) -> tuple[int, int]:
         return tuple(np.shape(self.frames)[1:])
+
+    @property
+    def lambda_eff_nm(self) -> float:
+        """The fringe wavelength heights are measured with, nm."""
+        return float(self.effective_wavelength_nm or self.wavelength_nm)
+
+    @property
+    def effective_wavenumber(self) -> float:
+        """``K_eff = 4 pi / lambda_eff``, rad/mm."""
+        return 4 * math.pi / (self.lambda_eff_nm * 1e-6)
 
     @property
     def intensity(self) -> np.ndarray:
@@ -102,4 +133,6 @@ class Frames(GridCoordinates):
                 "noise": bool(self.noise), "intensity_index": int(self.intensity_index),
                 "phase_steps_rad": [float(d) for d in self.phase_steps],
                 "scan_positions_mm": [float(z) for z in self.scan_positions],
-                "phase_convention": PHASE_CONVENTION, "units": "mm"}
+                "phase_convention": PHASE_CONVENTION, "units": "mm",
+                "effective_wavelength_nm": self.lambda_eff_nm,
+                "instrument": dict(self.settings)}

@@ -5,7 +5,8 @@ numbers are finite.
   string (``spindle_rpm = true`` and ``spindle_rpm = "100"`` are errors, not 1 and 100);
   an integer field takes an integer only; arrays of TOML become tuples where the schema
   says tuple;
-* finite: NaN and +-inf are refused in every number field;
+* finite: NaN and +-inf are refused in every number field (``inf`` only where the schema
+  gives it a meaning, :data:`OrInfinity`);
 * magnitude: a number without a stated range must lie within +-:data:`MAX_MAGNITUDE`;
   lengths that are positions or heights use :data:`Length` (+-:data:`MAX_LENGTH_MM`),
   beyond which double precision cannot resolve nanometres.
@@ -14,14 +15,16 @@ numbers are finite.
 from __future__ import annotations
 
 import math
+import types
 import typing
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .errors import SceneError
 
-__all__ = ["Section", "Length", "Region", "Phase", "MAX_LENGTH_MM", "MAX_MAGNITUDE"]
+__all__ = ["Section", "Length", "Region", "Phase", "OrInfinity", "MAX_LENGTH_MM",
+           "MAX_MAGNITUDE"]
 
 #: largest |position| or |height| in mm (10 m): a double then still resolves 1e-12 mm
 MAX_LENGTH_MM = 1e4
@@ -36,12 +39,53 @@ Region = tuple[Length, Length, Length, Length]
 Phase = Annotated[float, Field(ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)]
 
 
+def _not_nan(v: float) -> float:
+    if math.isnan(v):
+        raise ValueError("must be a number, not nan")
+    return v
+
+
+#: a number for which +inf means something (a closed-loop bandwidth: inf = ideal): the one
+#: kind of number field that takes ``inf`` (never ``nan``)
+OrInfinity = Annotated[float, Field(allow_inf_nan=True), AfterValidator(_not_nan)]
+
+
 def _has_tuple(annotation) -> bool:
     origin = typing.get_origin(annotation)
     if origin is tuple or annotation is tuple:
         return True
     return any(_has_tuple(a) for a in typing.get_args(annotation)
                if not isinstance(a, (str, int, float)))
+
+
+def _as_tuples(annotation, value):
+    """``value`` with TOML / JSON arrays turned into tuples wherever ``annotation`` says
+    tuple (inside lists, dicts, optionals and annotated types too); other values as they
+    are (the validation that follows judges them)."""
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return _as_tuples(args[0], value)
+    if origin is typing.Union or origin is types.UnionType:
+        for a in args:
+            if a is type(None):
+                continue
+            a_origin = typing.get_origin(a)
+            if (isinstance(value, (list, tuple)) and (a is tuple or a_origin in (tuple, list))) \
+                    or (isinstance(value, dict) and a_origin is dict):
+                return _as_tuples(a, value)
+        return value
+    if (origin is tuple or annotation is tuple) and isinstance(value, (list, tuple)):
+        if args and args[-1] is not Ellipsis and len(args) == len(value):
+            return tuple(_as_tuples(a, v) for a, v in zip(args, value))
+        if args and args[-1] is Ellipsis:
+            return tuple(_as_tuples(args[0], v) for v in value)
+        return tuple(value)
+    if origin is list and isinstance(value, list) and args:
+        return [_as_tuples(args[0], v) for v in value]
+    if origin is dict and isinstance(value, dict) and len(args) == 2:
+        return {k: _as_tuples(args[1], v) for k, v in value.items()}
+    return value
 
 
 def _bounded(field) -> tuple[bool, bool]:
@@ -86,17 +130,17 @@ class Section(BaseModel):
         for name, field in cls.model_fields.items():
             key = field.alias or name
             v = data.get(key)
-            if isinstance(v, list) and _has_tuple(field.annotation):
+            if isinstance(v, (list, dict)) and _has_tuple(field.annotation):
                 if out is None:
                     out = dict(data)
-                out[key] = tuple(v)
+                out[key] = _as_tuples(field.annotation, v)
         return data if out is None else out
 
     def __setattr__(self, name, value):
         # the same on assignment (validated too: validate_assignment)
         field = type(self).model_fields.get(name)
-        if isinstance(value, list) and field is not None and _has_tuple(field.annotation):
-            value = tuple(value)
+        if isinstance(value, (list, dict)) and field is not None and _has_tuple(field.annotation):
+            value = _as_tuples(field.annotation, value)
         try:
             super().__setattr__(name, value)
         except ValidationError as err:

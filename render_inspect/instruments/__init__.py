@@ -1,32 +1,96 @@
 """Virtual instruments that look at a height map the way a metrologist's instruments do:
-the interference microscope (geometry ray-traced by :mod:`render_inspect.render`, the
-interference model here).  Each instrument is one module of this package with its
-``[render.<name>]`` schema class, registered with :func:`register_instrument`; the
-modules are found and imported here (docs/contributing.md)."""
+the interference microscope (Mirau / Michelson / Linnik, Koehler illumination).  Mitsuba
+(:mod:`render_inspect.render`) traces the geometry; the imaging model here, in plain
+numpy/scipy, takes the heights and normals of the surface at ``s x s`` sub-samples per
+camera pixel through the 3-D linear (Kirchhoff) transfer function of the objective, the
+source spectrum and the camera, and returns phase-shifting (PSI) or coherence-scanning
+(CSI) frames: images plus the instrument's settings, no truth (docs/instrument.md).
+
+Each instrument is one module of this package with its ``[render.<name>]`` schema class,
+registered with :func:`register_instrument`; the modules are found and imported here
+(docs/contributing.md)."""
 
 from __future__ import annotations
 
+from ..core.frames import PHASE_CONVENTION, Frames
 from ..core.plugins import import_private_modules
+from . import _artefacts as artefacts  # calibration surfaces
+from ._camera import Camera, expose
+from ._imaging import (
+    Disturbances,
+    Microscope,
+    csi_frames,
+    interference_intensity,
+    normals_from_heights,
+    psi_frames,
+    recommended_subsamples,
+)
 from ._interferometer import (
-    OBJECTIVES,
     Interferogram,
     InterferometerConfig,
-    camera_noise,
-    interference_frames,
+    disturbances_from_config,
     interferometer_geometry,
     interferometer_memory,
+    microscope_from_config,
     read_interferogram_exr,
     render_interferogram,
     trace_heights,
     write_interferogram_exr,
 )
+from ._objectives import OBJECTIVES, Objective, objective
 from ._registry import InstrumentType, instrument_types, register_instrument
+from ._sources import Source, led, monochromatic, spectrum_table
+from ._transfer import (
+    TransferFunction,
+    acceptance_table,
+    axial_step,
+    flat_moments,
+    linear_itf,
+    transfer_function,
+    unit_transfer_table,
+)
 
 # instruments added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry",))
 
-__all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "camera_noise",
-           "interference_frames", "interferometer_geometry", "interferometer_memory",
-           "read_interferogram_exr",
-           "render_interferogram", "trace_heights", "write_interferogram_exr",
-           "InstrumentType", "instrument_types", "register_instrument"]
+__all__ = [
+    "OBJECTIVES",
+    "PHASE_CONVENTION",
+    "Camera",
+    "Disturbances",
+    "Frames",
+    "InstrumentType",
+    "Interferogram",
+    "InterferometerConfig",
+    "Microscope",
+    "Objective",
+    "Source",
+    "TransferFunction",
+    "acceptance_table",
+    "artefacts",
+    "axial_step",
+    "csi_frames",
+    "disturbances_from_config",
+    "expose",
+    "flat_moments",
+    "instrument_types",
+    "interference_intensity",
+    "interferometer_geometry",
+    "interferometer_memory",
+    "led",
+    "linear_itf",
+    "microscope_from_config",
+    "monochromatic",
+    "normals_from_heights",
+    "objective",
+    "psi_frames",
+    "read_interferogram_exr",
+    "recommended_subsamples",
+    "register_instrument",
+    "render_interferogram",
+    "spectrum_table",
+    "trace_heights",
+    "transfer_function",
+    "unit_transfer_table",
+    "write_interferogram_exr",
+]

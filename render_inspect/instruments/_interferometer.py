@@ -1,31 +1,15 @@
-"""The virtual interference microscope (Mirau/Michelson, PSI and CSI).
+"""``[render.interferometer]``: the virtual interference microscope over a height map.
 
-Geometry from Mitsuba: the part's mesh is ray-traced through a telecentric
-(orthographic) objective, straight down, at ``s x s`` sub-pixel sample points per camera
-pixel (cell centres), giving each sample's hit height ``h`` and shading normal ``n``; one
-more pass at the pixel centres gives ``height_true``.
+Geometry from Mitsuba: the chosen channel of the height map is meshed and ray-traced
+straight down (a telecentric objective) at ``s x s`` sub-sample points per camera pixel
+over the field of view plus a margin, giving each sample's height and shading normal; one
+more pass at the pixel centres gives the truth, ``height_true``, which is kept beside
+the frames for evaluation and never used to measure.
 
-Image from the two-beam interference model on top (numpy):
-
-* phase of a sample ``phi = 2 pi OPD / lambda`` with ``OPD = 2 (h - z_ref)``;
-* a sample returns light only if its slope is inside the objective's acceptance,
-  ``n_z >= cos(asin(NA))``; a pixel is ``valid`` when at least half its samples return;
-* a pixel's object field is the mean of ``exp(i phi)`` over its returning samples (zero
-  for the others), so fringe visibility falls where fringes are dense;
-* PSI frame k (phase step ``delta_k = k * step_rad``), balanced beams, 0..1:
-  ``I_k = (1 + |E|^2 + 2 Re(E exp(i delta_k))) / 4``, i.e. for one sample per pixel
-  ``I_k = (1 + cos(phi + delta_k)) / 2``.  The step corresponds to moving the reference
-  by ``-delta_k lambda / (4 pi)``.  A 4-step retrieval is
-  ``phi = atan2(I_3 - I_1, I_0 - I_2)``, ``h = z_ref + phi lambda / (4 pi)`` (mod lambda/2).
-* CSI (white light, Gaussian spectrum of centre ``lambda_0`` and FWHM ``bandwidth``):
-  frame j at scan position ``z_j`` (reference mirror height),
-  ``I_j = (1 + <|E(k)|^2> + 2 mean_s g(OPD_s) cos(k_0 OPD_s)) / 4`` with
-  ``OPD_s = 2 (h_s - z_j)``, ``g(x) = exp(-sigma_k^2 x^2 / 2)``,
-  ``sigma_k = 2 pi bandwidth / lambda_0^2 / (2 sqrt(2 ln 2))``; the envelope peaks where
-  ``z_j = h``.
-* camera noise: shot (Poisson on ``full_well`` electrons), read (Gaussian, electrons rms)
-  and quantisation to ``bit_depth`` bits, drawn from ``numpy.random.default_rng(seed)``;
-  off with ``noise = false`` (then the frames are the exact model).
+Image from the imaging model (:mod:`._imaging`, docs/instrument.md): the Kirchhoff 3-D
+transfer function of the objective with Koehler illumination, the source spectrum,
+defocus from the scanner position, pixel integration of intensity and the camera's
+noise; PSI or CSI frames come out as :class:`~render_inspect.core.Frames`.
 """
 
 from __future__ import annotations
@@ -37,57 +21,117 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from ..core.errors import InputError, MemoryBudgetError, check_positive, check_range
+from ..core.errors import InputError, MemoryBudgetError
 from ..core.frames import Frames
 from ..core.section import Length, Region, Section
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
+from ._camera import Camera
+from ._imaging import (
+    Disturbances,
+    Microscope,
+    csi_frames,
+    psi_frames,
+    recommended_subsamples,
+)
+from ._objectives import OBJECTIVES, objective
 from ._registry import register_instrument
+from ._sources import led, monochromatic, spectrum_table
 
-__all__ = ["OBJECTIVES", "Interferogram", "InterferometerConfig", "render_interferogram",
-           "interferometer_memory",
-           "interferometer_geometry", "trace_heights", "interference_frames", "camera_noise",
-           "write_interferogram_exr", "read_interferogram_exr"]
+__all__ = [
+    "DEFAULT_CSI_BANDWIDTH_NM",
+    "DEFAULT_CSI_WAVELENGTH_NM",
+    "DEFAULT_PSI_BANDWIDTH_NM",
+    "DEFAULT_PSI_WAVELENGTH_NM",
+    "Interferogram",
+    "InterferometerConfig",
+    "disturbances_from_config",
+    "interferometer_geometry",
+    "interferometer_memory",
+    "microscope_from_config",
+    "read_interferogram_exr",
+    "render_interferogram",
+    "trace_heights",
+    "write_interferogram_exr",
+]
 
-#: Objective presets: numerical aperture, field of view (mm, square) and camera pixels.
-OBJECTIVES = {
-    "5x": {"numerical_aperture": 0.13, "field_of_view_mm": 3.6, "camera_pixels": 1024},
-    "10x": {"numerical_aperture": 0.30, "field_of_view_mm": 1.8, "camera_pixels": 1024},
-    "20x": {"numerical_aperture": 0.40, "field_of_view_mm": 0.9, "camera_pixels": 1024},
-    "50x": {"numerical_aperture": 0.55, "field_of_view_mm": 0.36, "camera_pixels": 1024},
-}
-
-#: Default wavelengths (nm): PSI quasi-monochromatic green; CSI white-light LED.
+#: Default sources (nm): PSI a filtered green LED; CSI a white LED.
 DEFAULT_PSI_WAVELENGTH_NM = 550.0
+DEFAULT_PSI_BANDWIDTH_NM = 10.0
 DEFAULT_CSI_WAVELENGTH_NM = 600.0
 DEFAULT_CSI_BANDWIDTH_NM = 120.0
-#: A pixel is valid when at least this fraction of its sub-samples returns light.
-VALID_FRACTION = 0.5
-#: CSI stacks longer than this, or larger than this many bytes, are refused.
-MAX_CSI_FRAMES = 1024
-MAX_STACK_BYTES = 2 * 1024**3
+#: Narrowest source band (nm) other than 0 (a line): a narrower Gaussian underflows.
+MIN_BANDWIDTH_NM = 1e-3
+#: Largest number of sub-samples per pixel side chosen automatically.
+MAX_AUTO_SUBSAMPLES = 6
+
+_OBJECTIVE_NAMES = Literal["2.5x", "5x", "10x", "20x", "50x", "100x"]
+
 
 class InterferometerConfig(Section):
     """``[render.interferometer]``: the virtual interference microscope."""
     mode: Literal["psi", "csi"] = "psi"
-    objective: Literal["5x", "10x", "20x", "50x"] = "20x"
-    wavelength_nm: float | None = Field(None, gt=100, lt=2000, description="PSI wavelength / CSI centre")
-    bandwidth_nm: float | None = Field(None, gt=0, lt=1000, description="CSI source FWHM")
-    numerical_aperture: float | None = Field(None, gt=0, lt=1)
-    pixel: float | None = Field(None, ge=1e-6, le=10, description="mm at the part")
+    objective: _OBJECTIVE_NAMES = Field("20x", description="preset: magnification, NA, pixel, field")
+    wavelength_nm: float | None = Field(None, gt=200, lt=2000,
+                                        description="source centre; default 550 (PSI) / 600 (CSI)")
+    bandwidth_nm: float | None = Field(None, ge=0, lt=1000,
+                                       description="source FWHM; default 10 (PSI) / 120 (CSI); 0 = a line")
+    spectrum: list[tuple[float, float]] | None = Field(
+        None, description="measured source spectrum [[wavelength_nm, weight], ...] (replaces "
+                          "wavelength_nm / bandwidth_nm)")
+    numerical_aperture: float | None = Field(None, gt=0, le=0.95, description="overrides the preset")
+    illumination_na: float | None = Field(None, ge=0, le=0.95,
+                                          description="condenser NA; None = filled pupil, 0 = one on-axis wave")
+    central_obscuration: float = Field(0.0, ge=0, le=0.9, description="fraction of the pupil radius")
+    pixel: float | None = Field(None, ge=1e-6, le=1.0, description="mm at the part; overrides the preset")
     field_of_view: Region | None = Field(None, description="mm, [x0, y0, x1, y1]")
     steps: int = Field(4, ge=3, le=16, description="PSI frames")
-    step_rad: float = Field(1.5707963267948966, gt=0, description="PSI phase step")
-    scan_step_nm: float = Field(80.0, ge=0.1, le=1e5, description="CSI scan step")
-    subsamples: int = Field(2, ge=1, le=8, description="sub-pixel samples per axis")
+    step_rad: float = Field(1.5707963267948966, gt=0, lt=6.283185307179586, description="PSI phase step")
+    scan_step_nm: float | None = Field(None, ge=1, le=10000,
+                                       description="CSI scan step; None = lambda_eff / 8")
+    frames: int | None = Field(None, ge=8, le=4096,
+                               description="CSI frames; None = heights + 4.5 envelopes either side")
+    subsamples: int | None = Field(None, ge=1, le=8,
+                                   description="sub-samples per pixel side; None = sampled for the "
+                                               "pupil's cut-off and the surface's slopes")
+    margin: int = Field(8, ge=0, le=256, description="pixels traced around the field and cropped")
+    reflectance: float = Field(1.0, gt=0, le=1, description="power reflectance of the part")
+    reference_reflectance: float | None = Field(None, gt=0, le=1,
+                                                description="None = reflectance (balanced beams)")
     noise: bool = True
     bit_depth: int = Field(12, ge=1, le=16)
     full_well: float = Field(20000.0, gt=0, description="electrons")
     read_noise: float = Field(5.0, ge=0, description="electrons rms")
-    reference_height: Length | None = Field(None, description="z_ref, mm (default: mean height in the field)")
+    prnu: float = Field(0.005, ge=0, le=0.5, description="fixed gain pattern, relative rms")
+    dsnu: float = Field(2.0, ge=0, description="fixed offset pattern, electrons rms")
+    fill_factor: float = Field(1.0, gt=0, le=1, description="sensitive fraction of a pixel")
+    exposure: float = Field(0.8, gt=0, le=10,
+                            description="fraction of the full well at the brightest pixel")
+    fixed_pattern_seed: int = Field(0, ge=0, description="seed of the camera's fixed pattern")
+    step_error: float = Field(0.0, ge=-0.5, le=0.5, description="phase shifter / scanner scale error")
+    step_nonlinearity: float = Field(0.0, ge=-0.5, le=0.5, description="quadratic phase-shifter error")
+    vibration_amplitude_nm: float = Field(0.0, ge=0, le=10000)
+    vibration_frequency_hz: float = Field(0.0, ge=0, le=1e6)
+    frame_rate_hz: float = Field(100.0, gt=0, le=1e6)
+    reference_figure_rms_nm: float = Field(0.0, ge=0, le=1000, description="reference mirror figure")
+    reference_figure_correlation_mm: float = Field(0.02, gt=0)
+    reference_figure_seed: int = Field(0, ge=0)
+    reference_height: Length | None = Field(None, description="PSI z_ref, mm (default: mean height in the field)")
+
+    @model_validator(mode="after")
+    def _apertures(self):
+        if self.bandwidth_nm is not None and 0 < self.bandwidth_nm < MIN_BANDWIDTH_NM:
+            raise ValueError(f"render.interferometer.bandwidth_nm must be 0 (a line) or >= "
+                             f"{MIN_BANDWIDTH_NM:g} nm, received {self.bandwidth_nm!r}")
+        na = (self.numerical_aperture if self.numerical_aperture is not None
+              else OBJECTIVES[self.objective].numerical_aperture)
+        if self.illumination_na is not None and self.illumination_na > na:
+            raise ValueError(f"render.interferometer.illumination_na must be <= the objective's NA "
+                             f"({na:g}), received {self.illumination_na:g}")
+        return self
 
 
 register_instrument("interferometer", InterferometerConfig)
@@ -104,7 +148,8 @@ class Interferogram(Frames):
     height_true : (H, W) float64, mm
         Ray-traced height at the pixel centres (NaN where the ray missed).
     accepted_fraction : (H, W) float32
-        Fraction of each pixel's sub-samples inside the NA acceptance.
+        The object beam alone, as a fraction of a mirror's (the geometric acceptance of the
+        pixel's facets).
     surface : {"design", "machined"}
     """
 
@@ -122,21 +167,65 @@ class Interferogram(Frames):
         return h
 
 
+# -------------------------------------------------------------------------- settings
+def microscope_from_config(icfg: InterferometerConfig) -> Microscope:
+    """The :class:`Microscope` of ``[render.interferometer]`` (objective preset with its
+    overrides, source, illumination, camera)."""
+    obj = objective(icfg.objective, numerical_aperture=icfg.numerical_aperture,
+                    pixel=icfg.pixel, central_obscuration=icfg.central_obscuration)
+    csi = icfg.mode == "csi"
+    if icfg.spectrum is not None:
+        if len(icfg.spectrum) < 1:
+            raise InputError("render.interferometer.spectrum must list at least one "
+                             "[wavelength_nm, weight] pair")
+        lam, w = zip(*icfg.spectrum)
+        source = spectrum_table(lam, w)
+    else:
+        wl = icfg.wavelength_nm or (DEFAULT_CSI_WAVELENGTH_NM if csi else DEFAULT_PSI_WAVELENGTH_NM)
+        bw = icfg.bandwidth_nm
+        if bw is None:
+            bw = DEFAULT_CSI_BANDWIDTH_NM if csi else DEFAULT_PSI_BANDWIDTH_NM
+        if csi and bw == 0:
+            raise InputError("render.interferometer.bandwidth_nm must be > 0 for CSI (a line has "
+                             "no coherence envelope to find), received 0")
+        source = led(wl, bandwidth_nm=bw) if csi else monochromatic(wl, bandwidth_nm=bw)
+    camera = Camera(full_well_e=icfg.full_well, read_noise_e=icfg.read_noise,
+                    bit_depth=icfg.bit_depth, prnu=icfg.prnu, dsnu_e=icfg.dsnu,
+                    fill_factor=icfg.fill_factor, exposure=icfg.exposure,
+                    fixed_pattern_seed=icfg.fixed_pattern_seed, noise=icfg.noise)
+    ref = icfg.reference_reflectance if icfg.reference_reflectance is not None else icfg.reflectance
+    return Microscope(objective=obj, source=source, camera=camera,
+                      illumination_na=icfg.illumination_na, reflectance=icfg.reflectance,
+                      reference_reflectance=ref)
+
+
+def disturbances_from_config(icfg: InterferometerConfig) -> Disturbances:
+    """The :class:`Disturbances` of ``[render.interferometer]``."""
+    return Disturbances(step_error=icfg.step_error, step_nonlinearity=icfg.step_nonlinearity,
+                        vibration_amplitude_nm=icfg.vibration_amplitude_nm,
+                        vibration_frequency_hz=icfg.vibration_frequency_hz,
+                        frame_rate_hz=icfg.frame_rate_hz,
+                        reference_figure_rms_nm=icfg.reference_figure_rms_nm,
+                        reference_figure_correlation_mm=icfg.reference_figure_correlation_mm,
+                        reference_figure_seed=icfg.reference_figure_seed)
+
+
 # ---------------------------------------------------------------------------- geometry
 def interferometer_geometry(heightmap, icfg) -> dict:
     """Resolve the objective preset and overrides into plain numbers.
 
-    Returns a dict with ``objective``, ``numerical_aperture``, ``pixel`` (mm),
-    ``nx``, ``ny``, ``origin`` (x, y of the first pixel centre, mm), ``window``
-    ``[x0, y0, x1, y1]`` (pixel edges, mm), ``wavelength_nm``, ``bandwidth_nm`` (CSI).
-    The default field of view is the preset's, centred on the height map and clipped
-    to it (to the span of its pixel centres, which the mesh covers).
+    Returns a dict with ``objective``, ``numerical_aperture``, ``pixel`` (mm), ``nx``,
+    ``ny``, ``origin`` (x, y of the first pixel centre, mm), ``window``
+    ``[x0, y0, x1, y1]`` (pixel edges, mm), ``margin`` (pixels traced around the window,
+    cropped after imaging), ``trace_window`` (the window with the margin),
+    ``wavelength_nm``, ``bandwidth_nm``.  The default field of view is the preset's,
+    centred on the height map and clipped to it (to the span of its pixel centres,
+    which the mesh covers).
     """
     preset = OBJECTIVES[icfg.objective]
     na = float(icfg.numerical_aperture if icfg.numerical_aperture is not None
-               else preset["numerical_aperture"])
-    pixel = float(icfg.pixel if icfg.pixel is not None
-                  else preset["field_of_view_mm"] / preset["camera_pixels"])
+               else preset.numerical_aperture)
+    pixel = float(icfg.pixel if icfg.pixel is not None else preset.pixel)
     # the mesh spans the pixel centres of the height map (its vertices)
     x_lo, x_hi = float(heightmap.x[0]), float(heightmap.x[-1])
     y_lo, y_hi = float(heightmap.y[0]), float(heightmap.y[-1])
@@ -150,12 +239,12 @@ def interferometer_geometry(heightmap, icfg) -> dict:
                              f"lie inside the height map (x {x_lo:g}..{x_hi:g}, "
                              f"y {y_lo:g}..{y_hi:g} mm); enlarge simulation.region or move it")
     else:
-        fov = preset["field_of_view_mm"]
+        fov = preset.field_of_view
         cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
         x0, x1 = max(x_lo, cx - fov / 2), min(x_hi, cx + fov / 2)
         y0, y1 = max(y_lo, cy - fov / 2), min(y_hi, cy + fov / 2)
-    nx = int(math.floor((x1 - x0) / pixel + 1e-9))
-    ny = int(math.floor((y1 - y0) / pixel + 1e-9))
+    nx = math.floor((x1 - x0) / pixel + 1e-9)
+    ny = math.floor((y1 - y0) / pixel + 1e-9)
     if nx < 2 or ny < 2:
         raise InputError(f"render.interferometer.pixel = {pixel:g} mm leaves fewer than 2 x 2 "
                          f"camera pixels in the field of view {[x0, y0, x1, y1]} mm: use a "
@@ -167,34 +256,67 @@ def interferometer_geometry(heightmap, icfg) -> dict:
     # centre the pixel grid in the window
     x0 += ((x1 - x0) - nx * pixel) / 2
     y0 += ((y1 - y0) - ny * pixel) / 2
+    m = int(icfg.margin)
     csi = icfg.mode == "csi"
-    wl = icfg.wavelength_nm if icfg.wavelength_nm is not None else (
-        DEFAULT_CSI_WAVELENGTH_NM if csi else DEFAULT_PSI_WAVELENGTH_NM)
-    bw = (icfg.bandwidth_nm if icfg.bandwidth_nm is not None else DEFAULT_CSI_BANDWIDTH_NM) if csi else None
+    wl = icfg.wavelength_nm or (DEFAULT_CSI_WAVELENGTH_NM if csi else DEFAULT_PSI_WAVELENGTH_NM)
+    bw = icfg.bandwidth_nm
+    if bw is None:
+        bw = DEFAULT_CSI_BANDWIDTH_NM if csi else DEFAULT_PSI_BANDWIDTH_NM
     return {"objective": icfg.objective, "numerical_aperture": na, "pixel": pixel,
             "nx": nx, "ny": ny, "origin": (x0 + pixel / 2, y0 + pixel / 2),
-            "window": [x0, y0, x0 + nx * pixel, y0 + ny * pixel],
-            "wavelength_nm": float(wl), "bandwidth_nm": None if bw is None else float(bw)}
+            "window": [x0, y0, x0 + nx * pixel, y0 + ny * pixel], "margin": m,
+            "trace_window": [x0 - m * pixel, y0 - m * pixel, x0 + (nx + m) * pixel,
+                             y0 + (ny + m) * pixel],
+            "wavelength_nm": float(wl), "bandwidth_nm": float(bw)}
 
 
-#: bytes per ray-traced sub-sample (heights float64 and float32, normal z, acceptance, the
-#: complex field and its temporaries)
-BYTES_PER_SUBSAMPLE = 48
-#: bytes per camera pixel and frame (float64 frames, float32 copy with noise, the
-#: written channels)
+#: bytes per ray-traced sub-sample (Mitsuba's ray and hit arrays, heights and normals,
+#: the complex field of each wavelength sample and its temporaries): measured 63-68 B
+#: (peak resident memory of the 20x preset, 1024 x 1024 pixels, 1 to 5 sub-samples)
+BYTES_PER_SUBSAMPLE = 72
+#: bytes per camera pixel and frame: PSI (a few frames: float64 frames, float32 copy with
+#: noise, the written channels); CSI (a float32 stack exposed in place, and its
+#: written channels): measured 8 B for 95 frames of 1024 x 1024 pixels
 BYTES_PER_FRAME_PIXEL = 8 + 8 + 4 + 4
+BYTES_PER_CSI_FRAME_PIXEL = 10
+#: the renderer's own working memory (Mitsuba / Dr.Jit start-up, the traced mesh's
+#: acceleration structure of a preset field): measured about 280 MiB
+RENDERER_BYTES = 256 * 2 ** 20
 
 
-def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0) -> int:
+def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
+                          max_slope: float | None = None) -> int:
     """Bytes the interferometer needs at its peak for the geometry ``geom``
-    (:func:`interferometer_geometry`): the sub-sample rays, the frames (PSI: ``steps``;
-    CSI: at most :data:`MAX_CSI_FRAMES`, limited by :data:`MAX_STACK_BYTES`) and the mesh
-    of the field (``mesh_cells`` height-map cells)."""
-    nx, ny, s = int(geom["nx"]), int(geom["ny"]), int(icfg.subsamples)
-    frames = int(icfg.steps) if icfg.mode == "psi" else MAX_CSI_FRAMES
-    frame_bytes = min(frames * nx * ny * BYTES_PER_FRAME_PIXEL,
-                      MAX_STACK_BYTES * BYTES_PER_FRAME_PIXEL // 4)
-    return int(nx * ny * s * s * BYTES_PER_SUBSAMPLE + frame_bytes + mesh_cells * 2 * 48)
+    (:func:`interferometer_geometry`): the sub-sample rays over the field and its margin
+    (``subsamples``; when automatic, what slopes up to ``max_slope`` (rad; default the
+    steepest that returns light) ask for, at most :data:`MAX_AUTO_SUBSAMPLES`), the frames (PSI: ``steps``; CSI: ``frames``, or when
+    automatic the least a scan needs, the coherence envelope either side of one height:
+    the scan over the heights' range is checked again by the imaging model, which refuses
+    stacks over :data:`~render_inspect.instruments._imaging.MAX_STACK_BYTES`) and the
+    mesh of the field (``mesh_cells`` height-map cells)."""
+    nx, ny, m = int(geom["nx"]), int(geom["ny"]), int(geom.get("margin", 0))
+    mic = microscope_from_config(icfg)
+    if icfg.subsamples is not None:
+        s = int(icfg.subsamples)
+    else:
+        s = min(recommended_subsamples(float(geom["pixel"]), mic, max_slope=max_slope),
+                MAX_AUTO_SUBSAMPLES)
+    per_frame = BYTES_PER_FRAME_PIXEL
+    if icfg.mode == "psi":
+        frames = int(icfg.steps)
+    elif icfg.frames is not None:
+        per_frame = BYTES_PER_CSI_FRAME_PIXEL
+        frames = int(icfg.frames)
+    else:
+        lam = mic.effective_wavelength_nm()
+        step = icfg.scan_step_nm if icfg.scan_step_nm is not None else lam / 8
+        sigma = mic.coherence_sigma()
+        span_nm = 2 * 4.5 / sigma * 1e6 if sigma > 0 else 4 * lam
+        frames = int(math.ceil(span_nm / step)) + 1
+        per_frame = BYTES_PER_CSI_FRAME_PIXEL
+    rays = (nx + 2 * m) * (ny + 2 * m) * s * s
+    return int(RENDERER_BYTES + rays * BYTES_PER_SUBSAMPLE
+               + frames * nx * ny * per_frame + mesh_cells * 2 * 48)
 
 
 def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):
@@ -207,17 +329,25 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     back to the nominal point along the hit triangle's plane (its geometric normal):
     exact for points of that triangle, the height at the sample position otherwise.
 
+    The sub-samples cover ``geom["trace_window"]`` (the field plus ``geom["margin"]``
+    pixels each side; outside the height map the rays miss: NaN); the pixel centres cover
+    the field only.
+
     Returns
     -------
-    h_sub : (ny*s, nx*s) float64, mm (NaN where missed); row 0 = smallest y
-    nz_sub : (ny*s, nx*s) float32, z component of the shading normal (0 where missed)
+    h_sub : ((ny + 2 m) s, (nx + 2 m) s) float64, mm (NaN where missed); row 0 = smallest y
+    n_sub : ((ny + 2 m) s, (nx + 2 m) s, 3) float32, unit shading normal ((0, 0, 0) where missed)
     h_centre : (ny, nx) float64, mm, the height at the pixel centres (NaN where missed)
     """
     if surface not in ("design", "machined"):
         raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
     s = int(subsamples)
-    x0, y0, x1, y1 = geom["window"]
-    gm = heightmap_mesh(heightmap, channel=surface, exaggeration=1.0, window=geom["window"],
+    m = int(geom.get("margin", 0))
+    x0, y0, x1, y1 = geom.get("trace_window", geom["window"])
+    # the mesh: the traced window clipped to the height map (its vertices' span)
+    cx0, cy0 = max(x0, float(heightmap.x[0])), max(y0, float(heightmap.y[0]))
+    cx1, cy1 = min(x1, float(heightmap.x[-1])), min(y1, float(heightmap.y[-1]))
+    gm = heightmap_mesh(heightmap, channel=surface, exaggeration=1.0, window=[cx0, cy0, cx1, cy1],
                         margin=2, normals=True)
     z_off = gm.metadata["z_offset_mm"]
     z_top = float(gm.vertices[:, 2].max()) + max(1.0, 10 * geom["pixel"])
@@ -228,126 +358,34 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     dy = max(0.0271 * fine, 150 * ulp)
 
     nx, ny = geom["nx"], geom["ny"]
-    grid = dict(x0=x0, y0=y0, width_mm=x1 - x0)
-    grids = [dict(grid, nx=nx * s, ny=ny * s)]
-    if s % 2 == 0:  # the pixel centres are not sub-sample points: one more grid
-        grids.append(dict(grid, nx=nx, ny=ny))
-    traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy))
-    z_sub, nz_sub = traced[0]
+    wx0, wy0, wx1, _ = geom["window"]
+    grids = [{"x0": x0, "y0": y0, "width_mm": x1 - x0, "nx": (nx + 2 * m) * s, "ny": (ny + 2 * m) * s},
+             {"x0": wx0, "y0": wy0, "width_mm": wx1 - wx0, "nx": nx, "ny": ny}]
+    traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy), full_normals=True)
+    z_sub, n_sub = traced[0]
     h_sub = z_sub.astype(np.float64) + z_off
-    if s % 2 == 1:
-        c = s // 2
-        h_centre = h_sub[c::s, c::s].copy()
-    else:
-        h_centre = traced[1][0].astype(np.float64) + z_off
-    return h_sub, nz_sub, h_centre
+    # a sample outside the height map's own span is not part of the surface
+    xs = x0 + (np.arange((nx + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
+    ys = y0 + (np.arange((ny + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
+    outside = ((xs[None, :] < heightmap.x[0]) | (xs[None, :] > heightmap.x[-1])
+               | (ys[:, None] < heightmap.y[0]) | (ys[:, None] > heightmap.y[-1]))
+    h_sub[outside] = np.nan
+    h_centre = traced[1][0].astype(np.float64) + z_off
+    return h_sub, n_sub, h_centre
 
 
-# ------------------------------------------------------------------------------- model
-def _block_mean(a: np.ndarray, s: int) -> np.ndarray:
-    if s == 1:
-        return a
-    ny, nx = a.shape[0] // s, a.shape[1] // s
-    return a.reshape(ny, s, nx, s).mean(axis=(1, 3), dtype=np.result_type(a, np.float32))
-
-
-def interference_frames(h_sub, nz_sub, *, subsamples: int, numerical_aperture: float,
-                        wavelength_nm: float, z_ref: float, mode: str = "psi", steps: int = 4,
-                        step_rad: float = math.pi / 2, bandwidth_nm: float | None = None,
-                        scan_step_nm: float = 80.0):
-    """Two-beam interference frames from sub-sample heights and normals (no noise).
-
-    Parameters
-    ----------
-    h_sub : (H*s, W*s) array, mm (NaN = no hit);  nz_sub : same shape, normal z component
-    subsamples : int, s;  numerical_aperture : float in (0, 1)
-    wavelength_nm : float, PSI wavelength or CSI centre;  z_ref : float, mm
-    mode : {"psi", "csi"};  steps, step_rad : PSI frames and phase step (rad)
-    bandwidth_nm, scan_step_nm : CSI source FWHM and scan step (nm)
-
-    Returns
-    -------
-    frames : (N, H, W) float64;  accepted : (H, W) float fraction of returning samples;
-    phase_steps : (N,) rad (PSI) or empty;  scan_positions : (M,) mm (CSI) or empty;
-    intensity_index : int, the frame reported as ``intensity``
-    """
-    check_range("numerical_aperture", numerical_aperture, 0, 1, lo_open=True, hi_open=True)
-    check_range("wavelength_nm", wavelength_nm, 100, 2000)
-    s = int(subsamples)
-    cos_acc = math.sqrt(1.0 - numerical_aperture ** 2)
-    ok = np.isfinite(h_sub) & (nz_sub >= cos_acc)
-    acc = ok.astype(np.float32)
-    accepted = _block_mean(acc, s)
-    lam = wavelength_nm * 1e-6  # nm -> mm
-    dh = np.where(ok, h_sub - z_ref, 0.0)  # mm
-    if mode == "psi":
-        # phase in float64, the field in complex64 (phase error < 1e-5 rad)
-        phase = ((4 * math.pi / lam) * dh).astype(np.float32)
-        field_ = _block_mean(acc * np.exp(1j * phase), s).astype(np.complex128)
-        dc = 1.0 + np.abs(field_) ** 2
-        deltas = step_rad * np.arange(int(steps))
-        frames = np.stack([(dc + 2 * np.real(field_ * np.exp(1j * d))) / 4 for d in deltas])
-        return frames, accepted, deltas, np.empty(0), 0
-    if mode != "csi":
-        raise InputError(f"render.interferometer.mode must be 'psi' or 'csi', got {mode!r}")
-    bw = DEFAULT_CSI_BANDWIDTH_NM if bandwidth_nm is None else float(bandwidth_nm)
-    check_range("bandwidth_nm", bw, 0, 1000, lo_open=True)
-    k0 = 2 * math.pi / lam  # rad/mm
-    sigma_k = 2 * math.pi * (bw * 1e-6) / lam ** 2 / (2 * math.sqrt(2 * math.log(2)))
-    # <|E(k)|^2> over the spectrum: Gauss-Hermite nodes in k
-    xg, wg = np.polynomial.hermite_e.hermegauss(7)
-    wg = wg / wg.sum()
-    dc = np.zeros(accepted.shape)
-    for xi, wi in zip(xg, wg):
-        k = k0 + sigma_k * xi
-        dc += wi * np.abs(_block_mean(acc * np.exp(2j * k * dh), s)) ** 2
-    dc += 1.0
-    # envelope in scan z: g = exp(-2 sigma_k^2 (h - z)^2), standard deviation 1 / (2 sigma_k)
-    lc = 4.0 / (2.0 * sigma_k)  # scan margin beyond the height range: 4 standard deviations
-    finite = dh[ok]
-    lo = (float(finite.min()) if finite.size else 0.0) - lc
-    hi = (float(finite.max()) if finite.size else 0.0) + lc
-    step = float(scan_step_nm) * 1e-6
-    n = int(math.floor((hi - lo) / step)) + 1
-    if n > MAX_CSI_FRAMES:
-        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) * 1e6:.0f} nm at "
-                                f"render.interferometer.scan_step_nm = {scan_step_nm:g} needs {n} "
-                                f"frames (> {MAX_CSI_FRAMES}): raise scan_step_nm or shrink the "
-                                f"field of view")
-    # scan positions relative to z_ref, on a grid that contains 0 (= z_ref)
-    i_lo = int(math.floor(lo / step))
-    rel = step * np.arange(i_lo, i_lo + n + 1)
-    need = rel.size * accepted.size * 4
-    if need > MAX_STACK_BYTES:
-        raise MemoryBudgetError(f"the CSI stack of {rel.size} frames of {accepted.shape[1]} x "
-                                f"{accepted.shape[0]} pixels needs {need / 2**30:.1f} GiB (> "
-                                f"{MAX_STACK_BYTES / 2**30:.0f} GiB): raise "
-                                f"render.interferometer.scan_step_nm (got {scan_step_nm:g}) or "
-                                f"shrink field_of_view / raise pixel")
-    frames = np.empty((rel.size,) + accepted.shape, dtype=np.float32)
-    for j, zj in enumerate(rel):
-        opd = 2.0 * (dh - zj)
-        cross = acc * np.exp(-0.5 * (sigma_k * opd) ** 2) * np.cos(k0 * opd)
-        frames[j] = (dc + 2 * _block_mean(cross, s)) / 4
-    idx0 = int(np.argmin(np.abs(rel)))
-    return frames, accepted, np.empty(0), z_ref + rel, idx0
-
-
-def camera_noise(frames: np.ndarray, *, seed: int, full_well: float = 20000.0,
-                 read_noise: float = 5.0, bit_depth: int = 12) -> np.ndarray:
-    """Shot noise (Poisson, ``full_well`` electrons at intensity 1), read noise (Gaussian,
-    electrons rms) and quantisation to ``bit_depth`` bits; returns 0..1 float32.
-    Drawn from ``numpy.random.default_rng(seed)`` (same seed -> same noise)."""
-    check_positive("full_well", full_well)
-    check_range("read_noise", read_noise, 0, None)
-    check_range("bit_depth", bit_depth, 1, 16)
-    rng = np.random.default_rng(seed)
-    e = rng.poisson(np.clip(frames, 0, None) * full_well).astype(np.float64)
-    if read_noise > 0:
-        e += rng.normal(0.0, read_noise, size=e.shape)
-    levels = 2 ** int(bit_depth) - 1
-    adu = np.clip(np.rint(e / full_well * levels), 0, levels)
-    return (adu / levels).astype(np.float32)
+def _max_slope(heightmap, surface: str, window) -> float:
+    """Largest surface slope (rad) inside ``window`` (a robust 99.9th percentile)."""
+    x, y = heightmap.x, heightmap.y
+    ix = np.nonzero((x >= window[0] - heightmap.pixel) & (x <= window[2] + heightmap.pixel))[0]
+    iy = np.nonzero((y >= window[1] - heightmap.pixel) & (y <= window[3] + heightmap.pixel))[0]
+    if ix.size < 2 or iy.size < 2:
+        return 0.0
+    z = getattr(heightmap, surface)[iy[0]:iy[-1] + 1, ix[0]:ix[-1] + 1]
+    gy, gx = np.gradient(np.asarray(z, dtype=np.float64), heightmap.pixel)
+    g = np.hypot(gx, gy)
+    g = g[np.isfinite(g)]
+    return float(math.atan(np.percentile(g, 99.9))) if g.size else 0.0
 
 
 # -------------------------------------------------------------------------- top level
@@ -362,41 +400,42 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
         ``[render.interferometer]`` (defaults when None).
     surface : {"machined", "design"}
     seed : int
-        Seed of the camera noise (recorded in the result).
+        Seed of the camera's temporal noise and of the vibration (recorded in the result).
 
     Returns
     -------
     Interferogram
+        The frames and settings, with ``height_true`` and ``accepted_fraction`` beside.
     """
     if icfg is None:
         icfg = InterferometerConfig()
     if int(seed) != seed or seed < 0:
         raise InputError(f"seed must be an integer >= 0, got {seed!r}")
     geom = interferometer_geometry(heightmap, icfg)
-    s = int(icfg.subsamples)
-    h_sub, nz_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
-    if icfg.reference_height is not None:
-        z_ref = float(icfg.reference_height)
+    mic = microscope_from_config(icfg)
+    dist = disturbances_from_config(icfg)
+    if icfg.subsamples is not None:
+        s = int(icfg.subsamples)
     else:
-        z_ref = float(np.nanmean(h_centre)) if np.isfinite(h_centre).any() else 0.0
-    frames, accepted, deltas, scan, i0 = interference_frames(
-        h_sub, nz_sub, subsamples=s, numerical_aperture=geom["numerical_aperture"],
-        wavelength_nm=geom["wavelength_nm"], z_ref=z_ref, mode=icfg.mode, steps=icfg.steps,
-        step_rad=icfg.step_rad, bandwidth_nm=geom["bandwidth_nm"], scan_step_nm=icfg.scan_step_nm)
-    if icfg.noise:
-        frames = camera_noise(frames, seed=int(seed), full_well=icfg.full_well,
-                              read_noise=icfg.read_noise, bit_depth=icfg.bit_depth)
+        slope = _max_slope(heightmap, surface, geom["trace_window"])
+        s = min(recommended_subsamples(geom["pixel"], mic, max_slope=slope), MAX_AUTO_SUBSAMPLES)
+    h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
+    diag: dict = {}
+    common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,
+                  "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}
+    if icfg.mode == "psi":
+        if icfg.reference_height is not None:
+            z_ref = float(icfg.reference_height)
+        else:
+            z_ref = float(np.nanmean(h_centre)) if np.isfinite(h_centre).any() else 0.0
+        fr = psi_frames(h_sub, n_sub, steps=icfg.steps, step_rad=icfg.step_rad, z_ref=z_ref, **common)
     else:
-        frames = frames.astype(np.float32)
-    return Interferogram(
-        frames=frames, valid=accepted >= VALID_FRACTION, pixel=geom["pixel"],
-        origin=tuple(geom["origin"]), mode=icfg.mode, wavelength_nm=geom["wavelength_nm"],
-        numerical_aperture=geom["numerical_aperture"], phase_steps=np.asarray(deltas),
-        scan_positions=np.asarray(scan), z_ref=z_ref, bandwidth_nm=geom["bandwidth_nm"],
-        objective=icfg.objective, intensity_index=int(i0), variant=mitsuba_variant(),
-        subsamples=s, seed=int(seed), noise=bool(icfg.noise),
-        meta={"window_mm": geom["window"]}, height_true=h_centre,
-        accepted_fraction=accepted.astype(np.float32), surface=surface)
+        fr = csi_frames(h_sub, n_sub, scan_step_nm=icfg.scan_step_nm, frames=icfg.frames, **common)
+    del h_sub, n_sub
+    fields = {f.name: getattr(fr, f.name) for f in dataclasses.fields(Frames)}
+    fields.update(variant=mitsuba_variant(), meta={"window_mm": geom["window"]})
+    light = np.asarray(diag["light"], dtype=np.float32) / np.float32(mic.reflectance)
+    return Interferogram(**fields, height_true=h_centre, accepted_fraction=light, surface=surface)
 
 
 def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = None):

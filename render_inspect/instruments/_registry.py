@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["InstrumentType", "register_instrument", "instrument_types"]
+__all__ = ["InstrumentType", "instrument_types", "register_instrument"]
 
 
 @dataclass(frozen=True)

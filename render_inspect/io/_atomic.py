@@ -10,10 +10,14 @@ in whole, with one rename, when complete:
   folder fail at once with a clear message instead of racing the first;
 * a marker file :data:`MARKER` in every folder render_inspect writes lists the files of
   each command; a non-empty folder without it, or with files the marker does not list,
-  is refused unless ``overwrite`` (``--overwrite``) is given;
+  is refused unless ``overwrite`` (``--overwrite``) is given.  A sub-folder with a marker
+  of its own (another command's output inside this one) and a Zarr store (``*.zarr``)
+  count as one entry each; render_inspect's own temporary names (``.NAME.lock``,
+  ``.NAME.partial-*``, ``.NAME.backup-*``, ``.NAME.*.tmp``) are not counted;
 * ``merge`` (the ``render`` command): the new folder also keeps the files other commands
   wrote there (hard links), provided they were made from the same part (design, tool,
-  process, simulation and artifacts); the command's own earlier files are replaced;
+  process, simulation and artifacts), and the output folders of other commands nested in
+  it; the command's own earlier files are replaced;
 * the swap exchanges the two folders atomically (``renameat2(RENAME_EXCHANGE)``) where
   the file system allows it, else renames the old folder to a backup, the new one into
   place, and deletes the backup only after that succeeded;
@@ -32,6 +36,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import secrets
 import shutil
 import signal
@@ -46,7 +51,7 @@ from ..core.errors import InputError
 
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "json_safe",
            "write_json", "atomic_output_dir", "check_output_path", "read_marker", "MARKER",
-           "part_hash"]
+           "part_hash", "write_marker", "claim_output_dir", "check_output_dir"]
 
 #: marker file in every output folder render_inspect writes (JSON)
 MARKER = ".render_inspect.json"
@@ -56,6 +61,9 @@ PART_SECTIONS = ("design", "tool", "process", "simulation", "artifacts", "rcse")
 _OS_JUNK = {".DS_Store", "Thumbs.db", "desktop.ini"}
 #: characters the hidden sibling names add to the folder's name
 _SIBLING_EXTRA = 48
+#: render_inspect's own temporary names beside the files it writes (locks, folders being
+#: built or replaced, files being written): never counted as the user's
+_OWN_TEMPORARY = re.compile(r"^\..+\.(lock|partial-.+|backup-.+|old-\d+|tmp(\.exr)?)$")
 
 
 def _umask() -> int:
@@ -126,13 +134,14 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
-def check_output_path(out, *, option: str = "--out") -> Path:
+def check_output_path(out, *, option: str = "--out", replaced: bool = True) -> Path:
     """Check an output folder before any work and return it as an absolute path
     (symbolic links resolved).
 
     Raises :class:`InputError` naming ``option`` when ``out`` is empty, is or lies under
-    a file or a device, is too long, holds the current folder, or cannot be written
-    (permissions, a read-only file system, ``/proc``).
+    a file or a device, is too long, cannot be written (permissions, a read-only file
+    system, ``/proc``), or (``replaced``: the folder is swapped as a whole) holds the
+    current folder.
     """
     if out is None:
         raise InputError(f"{option} must name an output folder, received None")
@@ -198,7 +207,7 @@ def check_output_path(out, *, option: str = "--out") -> Path:
         cwd = Path.cwd().resolve()
     except OSError:
         cwd = None
-    if cwd is not None and (cwd == path or path in cwd.parents):
+    if replaced and cwd is not None and (cwd == path or path in cwd.parents):
         raise InputError(f"{option} {_shown(text)} is the current folder or holds it; the "
                          f"output folder is replaced as a whole, so choose a folder inside it")
     return path
@@ -236,21 +245,41 @@ def read_marker(folder: str | Path) -> dict | None:
     return d
 
 
+def _is_unit(folder: Path) -> bool:
+    """A folder listed as one entry: another command's output (its own marker) or a Zarr
+    store."""
+    return folder.name.endswith(".zarr") or read_marker(folder) is not None
+
+
 def _files(folder: Path) -> list[str]:
-    """Relative paths (posix) of every file and link below ``folder``, the marker and OS
-    junk left out."""
+    """Relative paths (posix) of every file and link below ``folder``, the marker, OS
+    junk and render_inspect's temporary names left out; nested output folders and Zarr
+    stores (:func:`_is_unit`) are one entry each, written with a trailing ``/``."""
     out = []
     for root, dirs, names in os.walk(folder):
         for n in names:
-            if n in _OS_JUNK:
+            if n in _OS_JUNK or _OWN_TEMPORARY.match(n):
                 continue
             rel = Path(root, n).relative_to(folder).as_posix()
             if rel != MARKER:
                 out.append(rel)
-        for d in list(dirs):  # a link to a folder is listed as a file, not followed
-            if Path(root, d).is_symlink():
-                out.append(Path(root, d).relative_to(folder).as_posix())
+        for d in list(dirs):
+            full = Path(root, d)
+            if full.is_symlink():  # a link to a folder is listed as a file, not followed
+                out.append(full.relative_to(folder).as_posix())
+                dirs.remove(d)
+            elif _OWN_TEMPORARY.match(d):
+                dirs.remove(d)
+            elif _is_unit(full):
+                out.append(full.relative_to(folder).as_posix() + "/")
+                dirs.remove(d)
     return sorted(out)
+
+
+def _nested_outputs(folder: Path, entries) -> list[str]:
+    """The entries of :func:`_files` (of ``folder``) that are output folders with a marker
+    of their own."""
+    return [e for e in entries if e.endswith("/") and read_marker(folder / e.rstrip("/"))]
 
 
 # ------------------------------------------------------------------------ signals, lock
@@ -413,7 +442,8 @@ def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | No
         raise InputError(f"{option} {_shown(out_text)} is not empty ({len(present)} files: "
                          f"{shown}) and was not written by render-inspect (no {MARKER}); "
                          f"choose a new or empty folder, or pass --overwrite to replace it")
-    foreign = [f for f in present if f not in marker["files"]]
+    nested = set(_nested_outputs(out, present))
+    foreign = [f for f in present if f not in marker["files"] and f not in nested]
     if foreign:
         shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
         raise InputError(f"{option} {_shown(out_text)} holds files render-inspect did not "
@@ -430,6 +460,28 @@ def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | No
     return ("merge" if merge else "replace"), marker
 
 
+def check_output_dir(out, *, overwrite: bool = False, merge: bool = False,
+                     command: str = "output", scene=None, option: str = "--out") -> Path:
+    """The checks :func:`atomic_output_dir` makes before its block runs (the path, and an
+    existing folder's content against ``overwrite`` / ``merge``), without locking or
+    writing anything: for a command that reads its input before it opens its output
+    folder, so that a bad ``--out`` is refused before any work.  Returns the folder
+    (absolute)."""
+    out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
+    target = check_output_path(out, option=option)
+    _inspect_existing(target, overwrite=overwrite, merge=merge, part=part_hash(scene),
+                      command=command, option=option, out_text=out_text)
+    return target
+
+
+def write_marker(folder: str | Path, *, command: str, scene=None) -> None:
+    """Mark ``folder`` (being built) as ``command``'s output: its files and the scene's
+    hashes go into :data:`MARKER`.  For a sub-folder that later commands address on their
+    own (the add-on's variant folders); :func:`atomic_output_dir` marks the folders it
+    writes by itself."""
+    _write_marker(Path(folder), command=command, scene=scene, previous=None, kept={})
+
+
 def _write_marker(folder: Path, *, command: str, scene, previous: dict | None,
                   kept: dict) -> None:
     files = {rel: command for rel in _files(folder) if rel not in kept}
@@ -444,15 +496,24 @@ def _write_marker(folder: Path, *, command: str, scene, previous: dict | None,
     (folder / MARKER).write_text(json.dumps(d, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 
-def _link_or_copy(src: Path, dst: Path) -> None:
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    if src.is_symlink():
-        os.symlink(os.readlink(src), dst)
-        return
+def _link_file(src, dst) -> None:
     try:
         os.link(src, dst)
     except OSError:
         shutil.copy2(src, dst)
+
+
+def _link_or_copy(src: Path, dst: Path) -> None:
+    """Hard-link ``src`` at ``dst`` (a copy where links are not possible); a folder is
+    linked file by file."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    if src.is_symlink():
+        os.symlink(os.readlink(src), dst)
+        return
+    if src.is_dir():
+        shutil.copytree(src, dst, symlinks=True, copy_function=_link_file)
+        return
+    _link_file(src, dst)
 
 
 _OUTPUT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EIO,
@@ -525,11 +586,17 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
             kept = {}
             if mode == "merge" and marker is not None:
                 for rel, owner in marker["files"].items():
-                    src = target / rel
+                    src = target / rel.rstrip("/")
                     if owner == command or (tmp / rel).exists() or not (src.exists() or src.is_symlink()):
                         continue
-                    _link_or_copy(src, tmp / rel)
+                    _link_or_copy(src, tmp / rel.rstrip("/"))
                     kept[rel] = owner
+                # other commands' output folders nested in this one are kept too
+                for rel in _nested_outputs(target, _files(target)):
+                    if rel in marker["files"] or (tmp / rel.rstrip("/")).exists():
+                        continue
+                    _link_or_copy(target / rel.rstrip("/"), tmp / rel.rstrip("/"))
+                    kept[rel] = marker["files"].get(rel) or "nested output"
             _write_marker(tmp, command=command, scene=scene,
                           previous=marker if mode == "merge" else None, kept=kept)
             _swap_in(tmp, target, target.parent / f".{target.name}.backup-{os.getpid()}-"
@@ -574,3 +641,47 @@ def _undo(tmp, created, lock) -> None:
     for d in created:
         with contextlib.suppress(OSError):
             d.rmdir()
+
+
+def claim_output_dir(out, *, command: str, overwrite: bool = False, option: str = "--out",
+                     resumable=None) -> Path:
+    """Check a folder that a command fills in place over many runs (``sweep``: its
+    finished points are kept and the run goes on where it stopped), before any work.
+
+    The path is checked as :func:`check_output_path` does (the folder is not replaced
+    whole, so it may hold the current folder).  An existing non-empty folder must be
+    ``command``'s own (its :data:`MARKER` names it, or ``resumable(path)`` says it is one
+    written before markers were kept); another non-empty folder is refused unless
+    ``overwrite`` (its files are then left in place beside the new ones).  The folder is
+    created and marked as ``command``'s.
+
+    Returns the folder (absolute).
+    """
+    out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
+    target = check_output_path(out, option=option, replaced=False)
+    if target.exists():
+        present = _files(target)
+        marker = read_marker(target)
+        own = (marker is not None and command in marker.get("commands", {})) or \
+            (resumable is not None and resumable(target))
+        if present and not own and not overwrite:
+            shown = ", ".join(present[:3]) + (", ..." if len(present) > 3 else "")
+            what = ("was written by render-inspect " + "/".join(sorted(marker["commands"]))
+                    if marker is not None else "was not written by render-inspect")
+            raise InputError(f"{option} {_shown(out_text)} is not empty ({len(present)} "
+                             f"entries: {shown}) and {what}, not by {command}; choose a new "
+                             f"or empty folder, or pass --overwrite to write there anyway "
+                             f"(the files there are left in place)")
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        marker = read_marker(target)
+        commands = dict(marker.get("commands", {})) if marker is not None else {}
+        commands.setdefault(command, {"part_sha256": None, "scene_sha256": None})
+        d = {"written_by": "render_inspect", "marker_version": 1,
+             "software_version": __version__, "files": {},
+             "commands": dict(sorted(commands.items()))}
+        atomic_write_text(target / MARKER, json.dumps(d, indent=2, sort_keys=True) + "\n")
+    except OSError as err:
+        raise InputError(f"{option} {_shown(out_text)}: cannot write there "
+                         f"({err.strerror or err})") from None
+    return target

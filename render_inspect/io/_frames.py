@@ -88,8 +88,11 @@ def _frames_from(path, ch: dict, a: dict):
         objective=str(a.get("objective", "")),
         intensity_index=int(a.get("intensity_index", 0)),
         variant=str(a.get("mitsuba_variant", "")), subsamples=int(a.get("subsamples", 1)),
-        seed=int(a.get("seed", 0)), noise=str(a.get("noise", "false")) == "true",
-        meta={k: a[k] for k in ("scene", "surface") if k in a})
+        seed=int(a.get("seed", 0)), noise=a.get("noise") in (True, "true"),
+        meta={k: a[k] for k in ("scene", "surface") if k in a},
+        effective_wavelength_nm=(float(a["effective_wavelength_nm"])
+                                 if "effective_wavelength_nm" in a else None),
+        settings=a["instrument"] if isinstance(a.get("instrument"), dict) else {})
     extra = {k: v for k, v in ch.items()
              if k not in FRAME_CHANNELS and not k.startswith("frame_")}
     return frames, extra, a

@@ -11,28 +11,35 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
-from ._exr import exr_placement, read_exr, write_exr
+from ._exr import exr_placement, read_exr, write_height_channels
 from ._registry import register_writer
 
-__all__ = ["write_heightmap_exr", "read_heightmap_exr", "heightmap_attrs"]
+__all__ = ["write_heightmap_exr", "read_heightmap_exr", "heightmap_attrs", "grid_attrs"]
+
+
+def grid_attrs(pixel: float, origin, scene: dict | None, meta: dict | None) -> dict:
+    """Header attributes of a height map on a grid (``heightmap.exr``, ``heightmap.zarr``)."""
+    return {"pixel_size_mm": float(pixel),
+            "origin_mm": [float(origin[0]), float(origin[1])],
+            "units": "mm",
+            "scene": json.dumps(scene or {}, sort_keys=True),
+            "software_version": __version__,
+            "meta": json.dumps(meta or {}, sort_keys=True, default=str)}
 
 
 def heightmap_attrs(hm: HeightMap) -> dict:
     """Header attributes of ``heightmap.exr`` (and of the other stores of a height map)."""
-    return {"pixel_size_mm": float(hm.pixel),
-            "origin_mm": [float(hm.origin[0]), float(hm.origin[1])],
-            "units": "mm",
-            "scene": json.dumps(hm.scene or {}, sort_keys=True),
-            "software_version": __version__,
-            "meta": json.dumps(hm.meta, sort_keys=True, default=str)}
+    return grid_attrs(hm.pixel, hm.origin, hm.scene, hm.meta)
 
 
 @register_writer("heightmap", ".exr")
-def write_heightmap_exr(path: str | Path, hm: HeightMap, **_) -> Path:
-    """Write float32 channels ``design``, ``machined``, ``residual`` (mm) and the header of
-    :func:`heightmap_attrs` (atomic)."""
-    return write_exr(path, {"design": hm.design, "machined": hm.machined,
-                            "residual": hm.residual}, heightmap_attrs(hm))
+def write_heightmap_exr(path: str | Path, hm: HeightMap, *, overview: dict | None = None, **_) -> Path:
+    """Write float32 channels ``design``, ``machined``, ``residual`` (mm; the residual formed
+    in float64, then rounded) and the header of :func:`heightmap_attrs`, tiled, with an
+    area-averaged overview part for maps larger than 1024 pixels a side (atomic; see
+    ``render_inspect.io._exr``).  ``overview``: see
+    :func:`~render_inspect.io._exr.write_height_channels`."""
+    return write_height_channels(path, hm.design, hm.machined, heightmap_attrs(hm), overview=overview)
 
 
 def read_heightmap_exr(path: str | Path) -> HeightMap:

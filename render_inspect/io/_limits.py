@@ -26,7 +26,8 @@ from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
 
 __all__ = ["check_npy", "check_npz", "check_zip", "check_x3p", "check_exr", "read_json_file",
-           "check_real_array", "MAX_JSON_BYTES", "MAX_ZIP_MEMBERS", "MAX_ZIP_RATIO"]
+           "check_real_array", "check_values", "check_file_values", "MAX_JSON_BYTES",
+           "MAX_ZIP_MEMBERS", "MAX_ZIP_RATIO", "READ_BYTES_PER_VALUE"]
 
 #: largest side-car JSON file read, bytes
 MAX_JSON_BYTES = 1 * 2 ** 20
@@ -104,6 +105,25 @@ def _npy_header(fh, what: str, name: str) -> tuple[tuple, np.dtype, bool, int]:
         raise InputError(f"{what} {name!r} holds Python objects (a pickle): refused, as "
                          f"loading it could run code; save the heights as a float array")
     return shape, dtype, fortran, 8 + (2 if major == 1 else 4) + size
+
+
+def check_values(path, *, what: str, desc: str, count: float, budget=None) -> None:
+    """Refuse a file that declares ``count`` height values (``desc`` says how, e.g. "a
+    4096 x 4096 grid") when reading them would not fit the budget
+    (:data:`READ_BYTES_PER_VALUE` bytes each)."""
+    _refuse_size(what, path, desc, float(count) * READ_BYTES_PER_VALUE, budget)
+
+
+def check_file_values(path, *, what: str, bytes_per_value: int, budget=None) -> int:
+    """For a reader that loads a whole uncompressed file at once: refuse it when the
+    values the file can hold (its size / ``bytes_per_value``) would not fit the budget.
+    Returns the file's size in bytes."""
+    path = _file(path, what)
+    size = path.stat().st_size
+    _refuse_size(what, path, f"{format_bytes(size)} of data (up to "
+                             f"{format_number(size / bytes_per_value)} values)",
+                 size + size / bytes_per_value * READ_BYTES_PER_VALUE, budget)
+    return size
 
 
 def check_real_array(dtype, shape, *, what: str, name: str, ndim: int | None = 2) -> None:

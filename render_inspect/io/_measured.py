@@ -1,47 +1,129 @@
 """Read measured height maps from instrument and exchange formats, in mm.
 
-A registry keyed by file suffix (trimesh's habit): X3P via ``x3pio``; the project's own
-``heightmap.exr``; ``.npy`` with a JSON side-car and ``.npz``; and the instrument formats
-``surfalize`` reads (``.sur``, ``.plu``, ``.plux``, ``.sdf``, ``.al3d``, ``.vk4``, ``.opd``,
-``.zon``, ...; surfalize gives micrometres, converted here).  Zygo ``.datx`` has no
-well-kept Python reader in this environment: export such data to X3P.
+One reader per file suffix, chosen for reading that format correctly (checked against
+the values published with real instrument files, see docs/metrology.md):
+
+- SurfaceTopography (the reference library of contact.engineering): Zygo MetroPro
+  ``.dat`` and ``.datx``, Sensofar ``.plu`` / ``.plux``, Wyko ``.opd`` / ``.opdx``, Alicona
+  ``.al3d``, Keyence ``.vk3`` .. ``.vk7``, Olympus ``.lext`` / ``.oir``, Gwyddion ``.gwy``,
+  FRT ``.frt``, ``.zon``;
+- x3pio: ISO 25178-72 ``.x3p`` (with our own parser for files whose ``main.xml`` lacks
+  the ISO 5436-2 namespace);
+- surfalize: Digital Surf ``.sur`` (SurfaceTopography 1.18.2 reads its non-measured points
+  as heights) and the formats only it knows (``.sdf``, ``.os3d``, ``.zmg``, ``.sflz``,
+  ``.hdat``);
+- our own parsers: TrueMap / GelSight ``.tmd`` (mm), NanoFocus ``.nms``;
+- the project's ``heightmap.exr``, ``.npy`` + JSON side-car, ``.npz``.
+
+Every reader returns heights in mm, the pixel as ``(pixel_x, pixel_y)`` in mm (never
+squared), and the units the file itself declares (``meta["units_in_file"]``).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 import zipfile
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import InputError
 from ._exr import exr_placement, read_exr
-from ._limits import check_npy, check_npz, check_real_array, read_json_file
+from ._limits import (
+    check_file_values,
+    check_npy,
+    check_npz,
+    check_real_array,
+    check_values,
+    read_json_file,
+)
 from ._registry import formats, reader, register_reader
-from ._x3p import read_x3p
+from ._vendor import read_nms, read_tmd
+from ._x3p import read_x3p_xy
+from ._zarr import ZarrHeightMap
 
-__all__ = ["read_measured", "measured_formats"]
+__all__ = ["MeasuredMap", "read_surface", "read_measured", "measured_formats",
+           "reader_for", "UNIT_TO_MM"]
 
-_UNIT_TO_MM = {"mm": 1.0, "um": 1e-3, "µm": 1e-3, "nm": 1e-6, "m": 1e3}
-_SURFALIZE = (".sur", ".plu", ".plux", ".sdf", ".al3d", ".vk4", ".vk6", ".vk7", ".opd",
-              ".zon", ".gwy", ".tmd", ".os3d", ".nms", ".lext", ".oir", ".zmg", ".sflz", ".hdat")
+#: Length units a file may declare, in mm.
+UNIT_TO_MM = {"m": 1e3, "mm": 1.0, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "nm": 1e-6,
+              "pm": 1e-9, "Å": 1e-7, "A": 1e-7}
+
+_LIBRARY: dict = {}  # suffix -> name of the library that reads it
+
+
+def _register(*suffixes, name: str):
+    """Register ``fn`` as the ``measured`` reader of ``suffixes`` (io's registry) and
+    remember which library it uses."""
+    def deco(fn):
+        for s in suffixes:
+            _LIBRARY[s] = name
+        return register_reader("measured", *suffixes)(fn)
+    return deco
 
 
 def _to_mm(name: str, units) -> float:
-    if not isinstance(units, str) or units not in _UNIT_TO_MM:
-        raise InputError(f"{name}: units must be one of {sorted(_UNIT_TO_MM)}, got {units!r}")
-    return _UNIT_TO_MM[units]
+    if not isinstance(units, str) or units not in UNIT_TO_MM:
+        raise InputError(f"{name}: units must be one of {sorted(UNIT_TO_MM)}, got {units!r}")
+    return UNIT_TO_MM[units]
 
 
-@register_reader("measured", ".x3p")
+@dataclass(frozen=True)
+class MeasuredMap:
+    """A height map read from a file.
+
+    Attributes
+    ----------
+    z : (ny, nx) float64 array
+        Heights, mm; NaN where not measured.  Row 0 is the first row the reader gives
+        (for X3P: the smallest y).
+    pixel : (pixel_x, pixel_y)
+        Sampling distances along x (columns) and y (rows), mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+    meta : dict
+        ``format``, ``reader``, ``units_in_file`` (what the file declares), ``path``,
+        ``valid_fraction``, ``n_invalid`` and what else the file says about itself.
+    """
+
+    z: np.ndarray
+    pixel: tuple
+    origin: tuple
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(self.z.shape)
+
+    @property
+    def square(self) -> bool:
+        """True when the two sampling distances agree to 1e-6."""
+        return bool(np.isclose(self.pixel[0], self.pixel[1], rtol=1e-6, atol=0))
+
+    @property
+    def extent(self) -> tuple:
+        """(x0, x1, y0, y1) of the pixel edges, mm (for ``imshow(origin="lower")``)."""
+        (px, py), (ox, oy) = self.pixel, self.origin
+        ny, nx = self.z.shape
+        return (ox - px / 2, ox + px * (nx - 0.5), oy - py / 2, oy + py * (ny - 0.5))
+
+
+# -- readers ------------------------------------------------------------------------------
+
+#: what the readers' messages call the file
+_WHAT = "measured file"
+
+
+@_register(".x3p", name="x3pio")
 def _read_x3p(path, **_):
-    return read_x3p(path, what="measured file")
+    return read_x3p_xy(path, what=_WHAT)
 
 
-@register_reader("measured", ".exr")
+@_register(".exr", name="render_inspect")
 def _read_exr(path, *, channel=None, **_):
-    ch, attrs = read_exr(path, what="measured file")
+    ch, attrs = read_exr(path, what=_WHAT)
     if channel is None:
         for c in ("measured", "height", "machined", "Z", "z"):
             if c in ch:
@@ -53,137 +135,263 @@ def _read_exr(path, *, channel=None, **_):
             channel = next(iter(ch))
     if channel not in ch:
         raise InputError(f"{path}: EXR has no channel {channel!r} (channels: {sorted(ch)})")
-    pixel, origin = exr_placement(attrs, what="measured file", path=path)
-    scale = _to_mm(f"{path} header 'units'", attrs.get("units", "mm"))
-    z = ch[channel].astype(np.float64) * scale
-    return z, pixel, origin, {
-        "format": "exr", "channel": channel, "scene": attrs.get("scene")}
+    pxy, origin = exr_placement(attrs, what=_WHAT, path=path, pair=True)
+    units = attrs.get("units", "mm")
+    z = ch[channel].astype(np.float64) * _to_mm(f"{path} header 'units'", units)
+    return z, pxy, origin, {
+        "format": "exr", "channel": channel, "scene": attrs.get("scene"),
+        "units_in_file": {"lateral": "mm", "vertical": units}}
+
+
+@_register(".zarr", name="zarr")
+def _read_zarr(path, *, channel=None, region=None, **_):
+    z = ZarrHeightMap(path, what=_WHAT)
+    channel = channel or "machined"
+    rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
+    check_values(path, what=_WHAT, desc=f"a {rows.stop - rows.start} x {cols.stop - cols.start} window",
+                 count=(rows.stop - rows.start) * (cols.stop - cols.start))
+    data = z.read(channel, rows, cols).astype(np.float64)
+    origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
+    return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _sidecar_values(path, side: dict, pixel, origin, units):
-    """pixel (mm), origin (x, y mm) and units from the arguments or the side-car, checked."""
+    """pixel ((x, y) mm, or None), origin (x, y mm) and units from the arguments or the
+    side-car, checked."""
     pixel = pixel if pixel is not None else side.get("pixel_mm")
     origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
     units = units or side.get("units", "mm")
-    if pixel is not None and (isinstance(pixel, bool) or not isinstance(pixel, (int, float))
-                              or not math.isfinite(pixel) or not pixel > 0):
-        raise InputError(f"{path}: pixel_mm must be a finite number > 0 (mm), received {pixel!r}")
+    if isinstance(pixel, np.ndarray):
+        pixel = pixel.tolist()
+    if isinstance(pixel, np.generic):
+        pixel = pixel.item()
+    if pixel is not None:
+        pxy = [pixel, pixel] if not isinstance(pixel, (list, tuple)) else list(pixel)
+        if len(pxy) != 2 or not all(_finite_number(v) and v > 0 for v in pxy):
+            raise InputError(f"{path}: pixel_mm must be a finite number > 0 (or [x, y] of them) "
+                             f"(mm), received {pixel!r}")
+        pixel = (float(pxy[0]), float(pxy[1]))
     if isinstance(origin, np.ndarray):
         origin = origin.tolist()
-    if not (isinstance(origin, (list, tuple)) and len(origin) == 2 and all(
-            isinstance(o, (int, float)) and not isinstance(o, bool) and math.isfinite(o)
-            for o in origin)):
+    if not (isinstance(origin, (list, tuple)) and len(origin) == 2
+            and all(_finite_number(o) for o in origin)):
         raise InputError(f"{path}: origin_mm must be [x, y], two finite numbers (mm), received "
                          f"{origin!r}")
     if not isinstance(units, str):
-        raise InputError(f"{path}: units must be one of {sorted(_UNIT_TO_MM)}, received {units!r}")
-    return pixel, origin, units
+        raise InputError(f"{path}: units must be one of {sorted(UNIT_TO_MM)}, received {units!r}")
+    return pixel, (float(origin[0]), float(origin[1])), units
 
 
-@register_reader("measured", ".npy", ".npz")
+@_register(".npy", ".npz", name="numpy")
 def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     path = Path(path)
     side = {}
     sidecar = path.with_suffix(".json")
-    what = "measured file"
     try:
         if path.suffix.lower() == ".npz":
-            members = check_npz(path, what=what)
+            members = check_npz(path, what=_WHAT)
             key = next((k for k in ("z", "height", "measured") if k in members), None)
             if key is None:
                 raise InputError(f"{path}: .npz needs an array 'z' (heights), has {sorted(members)}")
-            check_real_array(members[key][1], members[key][0], what=what, name=f"{path}:{key}")
+            check_real_array(members[key][1], members[key][0], what=_WHAT, name=f"{path}:{key}")
             with np.load(path, allow_pickle=False) as npz:
                 z = np.array(npz[key], dtype=np.float64)
                 for k in ("pixel_mm", "origin_mm", "units"):
                     if k in npz.files:
                         side[k] = npz[k].tolist()
         else:
-            check_npy(path, what=what)
+            check_npy(path, what=_WHAT)
             z = np.load(path, allow_pickle=False).astype(np.float64)
             if sidecar.is_file():
-                side = read_json_file(sidecar, what=f"{what} side-car")
+                side = read_json_file(sidecar, what=f"{_WHAT} side-car")
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
-        raise InputError(f"{what} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
-    pixel, origin, units = _sidecar_values(path, side, pixel, origin, units)
-    if pixel is None:
+        raise InputError(f"{_WHAT} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
+    pxy, origin, units = _sidecar_values(path, side, pixel, origin, units)
+    if pxy is None:
         raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
                          f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')
-    return z * _to_mm(f"{path} units", units), float(pixel), (float(origin[0]), float(origin[1])), {
-        "format": path.suffix[1:], "units_in_file": units}
+    return z * _to_mm(f"{path} units", units), pxy, origin, {
+        "format": path.suffix[1:], "units_in_file": {"lateral": "mm", "vertical": units}}
 
 
-@register_reader("measured", *_SURFALIZE)
+_ST_READERS = {".dat": "MetroProReader", ".datx": "DATXReader", ".plu": "PLUReader",
+               ".plux": "PLUXReader", ".opd": "OPDReader", ".opdx": "OPDxReader",
+               ".al3d": "AL3DReader", ".vk3": "VKReader", ".vk4": "VKReader",
+               ".vk6": "VKReader", ".vk7": "VKReader", ".lext": "LEXTReader",
+               ".oir": "OIRReader", ".gwy": "GWYReader", ".frt": "FRTReader",
+               ".zon": "ZONReader"}
+
+
+@_register(*_ST_READERS, name="SurfaceTopography")
+def _read_surface_topography(path, **_):
+    import SurfaceTopography.IO as stio
+
+    cls = getattr(stio, _ST_READERS[Path(path).suffix.lower()])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rd = cls(str(path))
+            # the grid the file declares, checked before the heights are read
+            for ch in rd.channels[:1]:
+                n = ch.nb_grid_pts
+                check_values(path, what=_WHAT, desc=f"a {' x '.join(str(int(v)) for v in n)} grid",
+                             count=math.prod(int(v) for v in n))
+            t = rd.topography()
+    except InputError:
+        raise
+    except Exception as err:  # the readers raise their own and builtin errors on bad files
+        raise InputError(f"{path}: SurfaceTopography's {cls.__name__} could not read it "
+                         f"({type(err).__name__}: {err})") from None
+    if t.dim != 2 or not t.is_uniform:
+        raise InputError(f"{path}: holds a {t.dim}-D{' non-uniform' if not t.is_uniform else ''} "
+                         f"topography; only areal maps on a regular grid are supported")
+    unit = t.unit
+    scale = _to_mm(f"{path}: unit declared in the file", unit)
+    h = t.heights()
+    h = h.filled(np.nan) if np.ma.isMaskedArray(h) else np.asarray(h)
+    z = np.asarray(h, dtype=np.float64).T * scale  # SurfaceTopography: [x, y]; here [row=y, col=x]
+    px, py = (float(v) * scale for v in t.pixel_size)
+    info = t.info or {}
+    meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": {"lateral": unit,
+                                                                       "vertical": unit},
+            "instrument": (info.get("instrument") or {}).get("name", ""),
+            "date": str(info.get("acquisition_time", ""))}
+    return z, (px, py), (0.0, 0.0), meta
+
+
+_SURFALIZE_ONLY = (".sur", ".sdf", ".os3d", ".zmg", ".sflz", ".hdat")
+
+
+@_register(*_SURFALIZE_ONLY, name="surfalize")
 def _read_surfalize(path, **_):
-    import warnings
-
     import surfalize
 
+    # surfalize reads the whole file at once: the file's size bounds what it can declare
+    # (2-byte heights at the least)
+    check_file_values(path, what=_WHAT, bytes_per_value=2)
     try:
-        with warnings.catch_warnings():  # non-square pixels: we raise a clearer error below
-            warnings.filterwarnings("ignore", message=".*different pixel size.*")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             s = surfalize.Surface.load(str(path))
     except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
         raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
-    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # um -> mm
-    if not np.isclose(s.step_x, s.step_y, rtol=1e-6):
-        raise InputError(f"{path}: pixel sizes differ in x ({s.step_x * 1e-3:g} mm) and y "
-                         f"({s.step_y * 1e-3:g} mm); resample to square pixels first")
-    return z, float(s.step_x) * 1e-3, (0.0, 0.0), {"format": Path(path).suffix[1:],
-                                                   "reader": f"surfalize {surfalize.__version__}"}
+    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # surfalize gives micrometres
+    md = getattr(s, "metadata", {}) or {}
+    declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
+    return z, (float(s.step_x) * 1e-3, float(s.step_y) * 1e-3), (0.0, 0.0), {
+        "format": Path(path).suffix[1:].lower(), "units_in_file": declared}
 
+
+@_register(".tmd", name="render_inspect")
+def _read_tmd(path, **_):
+    check_file_values(path, what=_WHAT, bytes_per_value=4)  # float32 heights
+    return read_tmd(path)
+
+
+@_register(".nms", name="render_inspect")
+def _read_nms(path, **_):
+    check_file_values(path, what=_WHAT, bytes_per_value=2)  # uint16 codes
+    return read_nms(path)
+
+
+# -- public -------------------------------------------------------------------------------
 
 def measured_formats() -> list[str]:
-    """File suffixes :func:`read_measured` reads."""
+    """File suffixes :func:`read_surface` reads."""
     return formats("measured")
 
 
-def read_measured(path: str | Path, *, channel: str | None = None, pixel: float | None = None,
-                  origin=None, units: str | None = None):
+def reader_for(suffix: str) -> str:
+    """Name of the library that reads ``suffix`` (e.g. ``".plu"`` -> ``"SurfaceTopography"``)."""
+    s = suffix.lower() if suffix.startswith(".") else "." + suffix.lower()
+    reader("measured", "file" + s)  # InputError naming the supported ones
+    return _LIBRARY[s]
+
+
+def _library_version(name: str) -> str:
+    from importlib import metadata
+
+    dist = {"SurfaceTopography": "SurfaceTopography", "surfalize": "surfalize",
+            "x3pio": "x3pio"}.get(name)
+    if dist is None:
+        return name
+    try:
+        return f"{name} {metadata.version(dist)}"
+    except metadata.PackageNotFoundError:
+        return name
+
+
+def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
+                 units: str | None = None, region=None) -> MeasuredMap:
     """Read a measured (or exported) height map.
 
     Parameters
     ----------
     path : str or Path
-        ``.x3p``, ``.exr`` (our ``heightmap.exr`` or any EXR with ``pixel_size_mm`` /
-        ``origin_mm`` header attributes), ``.npy`` (+ ``<name>.json`` side-car with
-        ``pixel_mm``, ``origin_mm``, ``units``), ``.npz`` (arrays ``z``, ``pixel_mm``,
-        ``origin_mm``, ``units``) or an instrument format read by surfalize
-        (see :func:`measured_formats`).
+        An instrument file (see :func:`measured_formats`), ``.x3p``, ``.exr`` (our
+        ``heightmap.exr`` or any EXR with ``pixel_size_mm`` / ``origin_mm`` header
+        attributes), ``.npy`` (+ ``<name>.json`` side-car with ``pixel_mm`` (one number or
+        [x, y]), ``origin_mm``, ``units``) or ``.npz`` (arrays ``z``, ``pixel_mm``,
+        ``origin_mm``, ``units``).
     channel : str, optional
         EXR channel (default: ``measured``, ``height``, ``machined``, or the only one).
     pixel, origin, units : optional
-        For ``.npy``/``.npz`` without that information: pixel (mm), origin of pixel [0, 0]
-        (mm), and the unit of the heights ("mm", "um", "nm", "m").
+        For ``.npy``/``.npz`` without that information: pixel (mm, one number or (x, y)),
+        origin of pixel [0, 0] (mm), and the unit of the heights (see :data:`UNIT_TO_MM`).
+    region : (x0, y0, x1, y1), optional
+        For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
+        window (mm), not the whole map.
 
     Returns
     -------
-    z : (ny, nx) float64 array
-        Heights in mm, NaN where not measured; row 0 = smallest y.
-    pixel : float
-        mm.
-    origin : (x, y)
-        Centre of pixel [0, 0], mm.
-    meta : dict
-        ``format`` and what the file says about itself; ``path``; ``valid_fraction``.
+    MeasuredMap
+        Heights in mm, ``pixel = (pixel_x, pixel_y)`` in mm.
+
+    Raises
+    ------
+    InputError
+        Unknown suffix, missing or unreadable file, unknown units, a map that is not 2-D,
+        a pixel that is not > 0, no valid height.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".datx":
-        raise InputError(f"{path}: Zygo .datx has no well-kept reader here; export the map to X3P "
-                         f"(Mx: File > Save Data As > .x3p) and read that")
-    read = reader("measured", path)
-    if not path.is_file():
+    fn = reader("measured", path)
+    if not (path.is_file() or (path.suffix.lower() == ".zarr" and path.is_dir())):
         raise InputError(f"measured file not found: {str(path)!r}")
-    z, pixel_mm, origin_mm, meta = read(path, channel=channel, pixel=pixel, origin=origin,
-                                        units=units)
+    lib = _LIBRARY[path.suffix.lower()]
+    kw = {"region": region} if region is not None else {}
+    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units, **kw)
+    z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
-    if not pixel_mm > 0 or not np.isfinite(pixel_mm):
-        raise InputError(f"{path}: pixel size must be > 0 mm, got {pixel_mm!r}")
+    px, py = (float(v) for v in pxy)
+    for name, v in (("pixel_x", px), ("pixel_y", py)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"{path}: {name} must be > 0 mm, got {v!r}")
     z = np.where(np.isinf(z), np.nan, z)
-    valid = float(np.isfinite(z).mean())
-    if valid == 0.0:
+    ok = np.isfinite(z)
+    if not ok.any():
         raise InputError(f"{path}: the map has no valid (finite) heights")
-    meta.update({"path": str(path), "valid_fraction": valid})
-    return z, float(pixel_mm), (float(origin_mm[0]), float(origin_mm[1])), meta
+    meta.setdefault("reader", _library_version(lib))
+    meta.update({"path": str(path), "valid_fraction": float(ok.mean()),
+                 "n_invalid": int(ok.size - ok.sum()), "units": {"lateral": "mm", "vertical": "mm"},
+                 "pixel_x_mm": px, "pixel_y_mm": py})
+    return MeasuredMap(z, (px, py), (float(origin_mm[0]), float(origin_mm[1])), meta)
+
+
+def read_measured(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
+                  units: str | None = None, region=None):
+    """Read a height map with square pixels as ``(z_mm, pixel_mm, origin_mm, meta)``.
+
+    The tuple form of :func:`read_surface` for callers that need one pixel size: a map
+    whose x and y sampling differ (by more than 1e-6) raises :class:`InputError` naming
+    both; use :func:`read_surface`, which keeps ``(pixel_x, pixel_y)``.
+    """
+    m = read_surface(path, channel=channel, pixel=pixel, origin=origin, units=units, region=region)
+    if not m.square:
+        raise InputError(f"{path}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
+                         f"({m.pixel[1]:.6g} mm); read it with read_surface, which keeps both")
+    return m.z, m.pixel[0], m.origin, m.meta

@@ -18,13 +18,14 @@ from .. import __version__
 from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
 from ._limits import check_x3p
+from ._vendor import read_x3p_plain
 
-__all__ = ["write_x3p", "read_x3p"]
+__all__ = ["write_x3p", "read_x3p", "read_x3p_xy"]
 
 _FIXED_DATE = datetime(2000, 1, 1, tzinfo=timezone.utc)
 
 
-def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: str | None = None,
+def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | None = None,
               date: datetime | None = None) -> Path:
     """Write a height map (mm) to an X3P file, atomically.
 
@@ -34,8 +35,9 @@ def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: 
         Destination (``.x3p``).
     z : (ny, nx) array
         Heights, mm; NaN = not measured (stored as invalid points).  Row 0 is the smallest y.
-    pixel : float
-        Sampling distance (x and y), mm.
+    pixel : float or (pixel_x, pixel_y)
+        Sampling distance, mm: one number for square pixels, or the x (column) and y (row)
+        spacings.
     origin : (x, y)
         Centre of pixel [0, 0], mm (the X3P placement offset).
     comment : str, optional
@@ -48,7 +50,9 @@ def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: 
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 1:
         raise InputError(f"write_x3p: z must be a 2-D height map, got shape {z.shape}")
-    check_positive("pixel", pixel)
+    px, py = (pixel, pixel) if np.ndim(pixel) == 0 else tuple(pixel)
+    check_positive("pixel_x", px)
+    check_positive("pixel_y", py)
     if np.isinf(z).any():
         raise InputError("write_x3p: z contains +-inf; use NaN for points that are not measured")
     meta = x3pio.Metadata.for_software("render_inspect", __version__, date=date or _FIXED_DATE)
@@ -58,13 +62,13 @@ def write_x3p(path: str | Path, z, *, pixel: float, origin=(0.0, 0.0), comment: 
         meta = dataclasses.replace(meta, comment=str(comment))
     place = x3pio.Placement.translation(float(origin[0]) * 1e-3, float(origin[1]) * 1e-3, 0.0)
     buf = io.BytesIO()
-    x3pio.write(buf, z * 1e-3, x_scale=float(pixel) * 1e-3, y_scale=float(pixel) * 1e-3,  # mm -> m
+    x3pio.write(buf, z * 1e-3, x_scale=float(px) * 1e-3, y_scale=float(py) * 1e-3,  # mm -> m
                 metadata=meta, placement=place, coordinate_system=x3pio.CoordinateSystem.VIEW)
     return atomic_write_bytes(path, buf.getvalue())
 
 
 def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
-    """Read an X3P surface.
+    """Read an X3P surface with square pixels (:func:`read_x3p_xy` for any pixels).
 
     The archive and the grid size its ``main.xml`` declares are checked first
     (:func:`~render_inspect.io._limits.check_x3p`: no zip bombs, sizes within ``budget``).
@@ -74,11 +78,36 @@ def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
     z : (ny, nx) float64 array
         Heights, mm (NaN where not measured), row 0 = smallest y.
     pixel : float
-        mm (x and y sampling must agree).
+        mm (x and y sampling agree to 1e-6; otherwise :class:`InputError`).
     origin : (x, y)
         Centre of pixel [0, 0], mm, from the placement offset.
     meta : dict
         ``format`` = "x3p", ``pixel_x_mm``, ``pixel_y_mm``, ``comment``, ``instrument``, ``date``.
+    """
+    z, (px, py), origin, meta = read_x3p_xy(path, what=what, budget=budget)
+    if not np.isclose(px, py, rtol=1e-6, atol=0):
+        raise InputError(f"{path}: X3P pixels are not square ({px:.6g} x {py:.6g} mm); read it "
+                         f"with read_surface / read_x3p_xy, which keep (pixel_x, pixel_y)")
+    return z, px, origin, meta
+
+
+def read_x3p_xy(path: str | Path, *, what: str = "X3P file", budget=None):
+    """Read an X3P surface keeping both sampling distances.
+
+    The archive and the grid size its ``main.xml`` declares are checked first
+    (:func:`~render_inspect.io._limits.check_x3p`: no zip bombs, sizes within ``budget``,
+    bytes; default the automatic memory budget); ``what`` names the file in messages.
+
+    Returns
+    -------
+    z : (ny, nx) float64 array
+        Heights, mm (NaN where not measured), row 0 = smallest y.
+    pixel : (pixel_x, pixel_y)
+        mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm, from the placement offset.
+    meta : dict
+        As :func:`read_x3p`.
     """
     import x3pio
 
@@ -88,7 +117,14 @@ def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
     check_x3p(path, what=what, budget=budget)
     try:
         f = x3pio.read(str(path))
-    except (x3pio.X3pError, ValueError, OSError, EOFError) as err:
+    except x3pio.X3pError as err:
+        # x3pio follows ISO 5436-2 strictly; some exporters write a main.xml without the
+        # namespace (or in a sub-folder): read those from their own axes description
+        try:
+            return read_x3p_plain(path)
+        except InputError as err2:
+            raise InputError(f"{path}: not a readable X3P file ({err}; {err2})") from None
+    except (ValueError, OSError, EOFError) as err:
         raise InputError(f"{path}: not a readable X3P file ({err})") from None
     if not isinstance(f, x3pio.Surface):
         raise InputError(f"{path}: X3P holds a {type(f).__name__}, only surfaces on a regular grid "
@@ -112,4 +148,6 @@ def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
             "comment": getattr(m, "comment", None) if m else None,
             "instrument": str(getattr(m.instrument, "model", "")) if m else "",
             "date": str(getattr(m, "date", "")) if m else ""}
-    return z, float(px_m * 1e3), (float(off[0]), float(off[1])), meta
+    meta["reader"] = f"x3pio {getattr(x3pio, '__version__', '')}".strip()
+    meta["units_in_file"] = {"lateral": "m", "vertical": "m"}
+    return z, (float(px_m * 1e3), float(py_m * 1e3)), (float(off[0]), float(off[1])), meta

@@ -1,13 +1,18 @@
-"""Burrs on sharp edges: a phenomenological model (seed 003, section 4).
+"""Burrs on sharp edges: a phenomenological model (seed 003, section 4), the height given
+as an input (an override of the material model of :mod:`._material`, whose side flow
+forms the burrs from the cutting conditions).
 
 Seed 003 saw small burrs on the sharp edges between lenslets and named them a main source
 of the remaining form error; it explains them by plastic side flow of the workpiece
 material.  The paper gives no burr law, so this is a model, not a derivation:
 
-* where: on *sharp edges* of the design, i.e. where its slope jumps (the gradient is
-  discontinuous, e.g. the cell boundaries of a lenslet array or the rim of a lenslet sunk
-  into a base).  An edge is a grid line where the slope difference between neighbouring
-  pixel pairs exceeds ``edge_angle_deg`` and is a local maximum across the edge.
+* where: on *sharp edges* of the machined surface (``edges_from="machined"``, what the
+  processes use: the edges where the machine cut them, moved by servo lag), or of the
+  design, i.e. where the slope jumps (the gradient is discontinuous, e.g. the cell
+  boundaries of a lenslet array or the rim of a lenslet sunk into a base).  An edge is a
+  grid line where the slope difference between neighbouring pixel pairs exceeds
+  ``edge_angle_deg`` and is a local maximum across the edge; on the machined surface the
+  feed marks are smoothed out first (Gaussian of standard deviation ``smoothing``).
 * shape: a ridge centred on the edge, h(d) = height * v * cos^2(pi d / width) for the
   distance d < width / 2 from the edge, 0 beyond (material is pushed up, never removed).
 * variation: v = max(0, 1 + variation * g(x, y)) with g a unit-variance Gaussian random
@@ -32,7 +37,7 @@ from scipy import ndimage
 
 from ..core.errors import InputError, check_range
 
-__all__ = ["sharp_edges", "burr_map", "apply_burrs"]
+__all__ = ["sharp_edges", "machined_sharp_edges", "burr_map", "apply_burrs"]
 
 _MODES = 64
 
@@ -137,10 +142,34 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     return out
 
 
+def machined_sharp_edges(machined, *, pixel: float, smoothing: float = 0.0,
+                         edge_angle_deg: float = 1.0) -> np.ndarray:
+    """Sharp edges of the *machined* surface: :func:`sharp_edges` of the map smoothed by
+    a Gaussian of standard deviation ``smoothing`` (mm; 0 = none), which removes the feed
+    marks so that only the edges of the cut form remain, where the machine put them
+    (shifted by servo lag, not on the design's edges).  NaN pixels are filled from their
+    nearest valid neighbour first."""
+    check_range("smoothing", smoothing, 0.0, None)
+    z = np.asarray(machined, dtype=np.float64)
+    bad = ~np.isfinite(z)
+    if bad.all():
+        return np.zeros(z.shape, dtype=bool)
+    if bad.any():
+        idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
+        z = z[tuple(idx)]
+    if smoothing > 0:
+        z = ndimage.gaussian_filter(z, smoothing / pixel, mode="nearest")
+    return sharp_edges(z, pixel=pixel, edge_angle_deg=edge_angle_deg) & ~bad
+
+
 def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: float,
                 width: float, variation: float = 0.3, edge_angle_deg: float = 1.0,
-                correlation_length: float | None = None, seed: int = 0):
+                correlation_length: float | None = None, seed: int = 0,
+                edges_from: str = "design", smoothing: float = 0.0):
     """Add burrs (:func:`burr_map`, same parameters) to ``machined``.
+
+    ``edges_from``: ``"design"`` puts them on the design's sharp edges, ``"machined"`` on
+    the machined surface's (:func:`machined_sharp_edges` with ``smoothing``, mm).
 
     Returns
     -------
@@ -149,14 +178,21 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
         The settings, the seed, the edge-pixel count and the largest added height (um):
         what goes into ``metrics["burrs"]``.
     """
+    if edges_from not in ("design", "machined"):
+        raise InputError(f"edges_from must be 'design' or 'machined', received {edges_from!r}")
     info = {"model": "cos^2 ridge on sharp edges, seeded multiplicative variation",
             "height_mm": height, "width_mm": width, "variation": variation,
             "edge_angle_deg": edge_angle_deg, "correlation_length_mm": correlation_length,
-            "seed": int(seed), "edge_pixels": 0, "max_added_um": 0.0}
+            "seed": int(seed), "edge_pixels": 0, "max_added_um": 0.0, "edges_from": edges_from}
     machined = np.array(machined, dtype=np.float64, copy=True)
     if height == 0 or width == 0:
         return machined, info
-    edges = sharp_edges(design, pixel=pixel, edge_angle_deg=edge_angle_deg)
+    if edges_from == "design":
+        edges = sharp_edges(design, pixel=pixel, edge_angle_deg=edge_angle_deg)
+    else:
+        edges = machined_sharp_edges(machined, pixel=pixel, smoothing=smoothing,
+                                     edge_angle_deg=edge_angle_deg)
+        info["smoothing_mm"] = smoothing
     b = burr_map(design, pixel=pixel, origin=origin, height=height, width=width,
                  variation=variation, seed=seed, edge_angle_deg=edge_angle_deg,
                  correlation_length=correlation_length, edges=edges)

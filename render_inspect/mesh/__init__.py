@@ -1,5 +1,5 @@
 """Meshes of height maps: a vertical exaggeration stated in the metadata, optional
-skirt and base, PLY/OBJ/GLB/STL export.
+skirt and base, PLY/OBJ/GLB/STL export (GLB in glTF's metres, +Y up).
 
 >>> gm = heightmap_mesh(hm, channel="machined", exaggeration=200.0)
 >>> gm.metadata["vertical_exaggeration"]
@@ -16,6 +16,7 @@ from ._grid import (
                     GridMesh,
                     decimation_stride,
                     export_mesh,
+                    gltf_from_project,
                     grid_mesh,
                     heightmap_mesh,
                     heightmap_to_trimesh,
@@ -23,4 +24,4 @@ from ._grid import (
 )
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
-           "decimation_stride", "window_indices", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
+           "gltf_from_project", "decimation_stride", "window_indices", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]

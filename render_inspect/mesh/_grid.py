@@ -23,7 +23,7 @@ from ..core.errors import InputError, MemoryBudgetError, check_positive
 from ..io import atomic_write_bytes
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
-           "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
+           "gltf_from_project", "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
 
 #: The largest mesh (vertices + faces + normals, bytes) built without an explicit budget.
 DEFAULT_MEMORY_BUDGET_BYTES = 6 * 1024**3
@@ -325,8 +325,15 @@ def heightmap_to_trimesh(heightmap, **kwargs):
 
 def export_mesh(mesh, path: str | Path) -> Path:
     """Write a mesh (``GridMesh`` or ``trimesh.Trimesh``) as PLY, OBJ, GLB or STL (chosen by
-    the extension), atomically.  The metadata goes into the PLY/OBJ header comment or the
-    GLB ``extras``."""
+    the extension), atomically.
+
+    PLY, OBJ and STL keep the project's frame: millimetres, +Z up.  GLB follows glTF 2.0:
+    metres, +Y up (a vertex ``(x, y, z)`` mm is written ``(x, z, -y) / 1000``; see
+    :func:`gltf_from_project`), so glTF viewers and Blender's importer show the part
+    lying flat at its true size.  The metadata (``vertical_exaggeration`` ...) goes into
+    the PLY/OBJ header comment or the GLB ``extras`` of the mesh and of its node (Blender's
+    importer turns node extras into the object's custom properties), with ``units = "m"``,
+    ``up_axis = "+Y"`` and ``source_units = "mm"``."""
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in MESH_FORMATS:
@@ -345,8 +352,9 @@ def export_mesh(mesh, path: str | Path) -> Path:
         text = tm.export(file_type="obj", include_normals=tm.metadata.get("skirt") is False)
         data = ("# render_inspect " + meta_text + "\n" + text).encode()
     elif fmt == "glb":
-        data = tm.export(file_type="glb", extras=tm.metadata) if _glb_takes_extras() else \
-            tm.export(file_type="glb")
+        smooth = isinstance(mesh, GridMesh) and mesh.normals is not None and \
+            not mesh.metadata.get("skirt")
+        data = _glb_bytes(tm, mesh.normals if smooth else None)
     else:
         data = tm.export(file_type="stl")
     if isinstance(data, str):
@@ -354,9 +362,32 @@ def export_mesh(mesh, path: str | Path) -> Path:
     return atomic_write_bytes(path, data)
 
 
-def _glb_takes_extras() -> bool:
-    import inspect
+#: Project frame (mm, +Z up) -> glTF frame (m, +Y up): a rotation by -90 deg about x
+#: (determinant +1, so triangles keep their winding) and mm -> m.
+GLTF_ROTATION = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+GLTF_METRES_PER_MM = 1e-3
 
-    from trimesh.exchange import gltf
 
-    return "extras" in inspect.signature(gltf.export_glb).parameters
+def gltf_from_project(points) -> np.ndarray:
+    """(n, 3) points in the project's frame (mm, +Z up) -> glTF's (m, +Y up):
+    ``(x, y, z) -> (x, z, -y) / 1000``."""
+    return np.asarray(points, dtype=np.float64) @ GLTF_ROTATION.T * GLTF_METRES_PER_MM
+
+
+def _glb_bytes(tm, normals=None) -> bytes:
+    import trimesh
+
+    kw = {}
+    if normals is not None:
+        kw["vertex_normals"] = np.asarray(normals, dtype=np.float64) @ GLTF_ROTATION.T
+    out = trimesh.Trimesh(vertices=gltf_from_project(tm.vertices), faces=tm.faces,
+                          process=False, **kw)
+    extras = json.loads(json.dumps(tm.metadata, default=str))
+    extras.update(units="m", up_axis="+Y", source_units="mm", source_up_axis="+Z")
+    out.metadata.update(extras)
+
+    def add_node_extras(tree):
+        for node in tree.get("nodes", []):
+            node["extras"] = dict(extras)
+
+    return out.export(file_type="glb", tree_postprocessor=add_node_extras)

@@ -1,76 +1,51 @@
 """Metrology, arrays in and numbers out: measuring interferometer frames (no truth),
-evaluating against a truth, ISO 25178 / 21920 parameters, ISO 16610-61 Gaussian filters, form removal,
-outliers and 6-DOF registration (seed 002), microstructure-array analysis (lenslet
+evaluating against a truth, ISO 25178 / 21920 parameters (slopes as the reference
+libraries take them; Sal / Str from the autocorrelation), one-map analysis, checks
+before a comparison, ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF
+registration (seed 002) with its uncertainty, microstructure-array analysis (lenslet
 centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
-scene's design and simulation.  Plain numpy/scipy; lengths in mm."""
+scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number or
+(pixel_x, pixel_y)."""
 
-from ._compare import (
-                       Comparison,
-                       characterise_map,
-                       check_same_pixel,
-                       compare_measured,
-                       coverage,
-                       resample_map,
-                       sample_map,
-)
-from ._filters import (
-                       GAUSSIAN_ALPHA,
-                       gaussian_filter,
-                       gaussian_sigma,
-                       l_filter,
-                       remove_form,
-                       s_filter,
-                       valid_mask,
-)
-from ._msa import (
-                       LENSLET_KEYS,
-                       base_form_error,
-                       characterise_msa,
-                       lenslet_centers,
-                       lenslet_table,
-                       separate_msa,
-)
-from ._params import (
-                       areal_parameters,
-                       extract_section,
-                       profile_parameters,
-                       section_parameters,
-)
-from ._phase import (
-                       PhaseResult,
-                       evaluate_measurement,
-                       height_error,
-                       height_from_phase,
-                       measure_frames,
-                       phase_quality,
-                       retrieve_csi,
-                       retrieve_psi,
-                       unwrap_phase,
-                       wrapped_phase,
-)
-from ._registration import (
-                       RIGID_KEYS,
-                       GridSurface,
-                       MovedSurface,
-                       detect_outliers,
-                       register_icp,
-                       register_lsq,
-                       rigid_resample,
-                       rotation_matrix,
-                       template_surface,
-)
+from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
+from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
+                      correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
+from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
+                       coverage, resample_map, sample_map)
+from ._filters import (GAUSSIAN_ALPHA, fit_sphere, gaussian_filter, gaussian_sigma, l_filter,
+                       pixel_xy, remove_form, s_filter, valid_mask)
+from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_centers,
+                   lenslet_table, separate_msa)
+from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
+                      profile_parameters, section_parameters, slope_parameters,
+                      spatial_parameters)
+from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
+                          pupil_overlap, sinusoid_amplitude, slope_table)
+from ._measure import ALGORITHMS, measure_frames
+from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
+                     phase_quality, retrieve_csi, retrieve_psi, unwrap_phase, wrapped_phase)
+from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
+                            register_icp, register_lsq, registration_covariance, rigid_resample,
+                            rotation_matrix, template_surface)
 
 __all__ = [
-    "areal_parameters", "profile_parameters", "extract_section", "section_parameters",
+    "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
+    "SLOPE_ESTIMATORS", "profile_parameters", "extract_section", "section_parameters",
     "GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
-    "remove_form", "valid_mask",
+    "remove_form", "fit_sphere", "valid_mask", "pixel_xy",
     "RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
     "GridSurface", "template_surface", "register_lsq", "register_icp",
+    "registration_covariance",
+    "FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter",
+    "registered_overlap", "correlation_area", "registration_checks", "kinematic_sq_mm",
+    "DEFAULT_MIN_OVERLAP", "DEFAULT_MAX_RESIDUAL_RATIO", "DEFAULT_RESIDUAL_FLOOR_MM",
     "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",
     "characterise_msa",
     "characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
     "Comparison", "compare_measured",
     "PhaseResult", "wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
-    "retrieve_psi", "retrieve_csi", "height_error", "measure_frames",
+    "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
     "evaluate_measurement",
+    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
+    "dropout_slope", "noise_by_subtraction",
 ]

@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..core.errors import InputError, check_positive
-from ._filters import l_filter, remove_form, s_filter
+from ..core.errors import InputError
+from ._checks import registration_checks
+from ._filters import l_filter, pixel_xy, remove_form, s_filter
 from ._params import areal_parameters
 from ._registration import (
     RIGID_KEYS,
@@ -34,18 +35,20 @@ def _cfg_get(cfg, key, default):
     return getattr(cfg, key, default)
 
 
-def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = "plane",
+def characterise_map(z, *, pixel, origin=(0.0, 0.0), form_removal: str = "plane",
                      polynomial_degree: int = 2, design=None, s_filter_mm: float | None = None,
-                     l_filter_mm: float | None = None, mask=None) -> dict:
+                     l_filter_mm: float | None = None, mask=None, slope: str = "forward") -> dict:
     """Form removal, S- and L-filtering, then areal parameters (heights in nm).
 
     Parameters
     ----------
     z : (ny, nx) array
         Heights, mm (NaN = missing).
-    pixel, origin
+    pixel : float or (pixel_x, pixel_y)
         mm.
-    form_removal : {"none", "plane", "polynomial", "design"}
+    origin : (x, y)
+        mm.
+    form_removal : {"none", "plane", "polynomial", "sphere", "design"}
         See :func:`remove_form` (``design`` needs ``design=``, already registered).
     s_filter_mm, l_filter_mm : float, optional
         ISO 16610-61 nesting indices, mm (S removes shorter, L longer wavelengths).
@@ -65,58 +68,64 @@ def characterise_map(z, *, pixel: float, origin=(0.0, 0.0), form_removal: str = 
             raise InputError(f"metrology.l_filter ({l_filter_mm} mm) must be > metrology.s_filter "
                              f"({s_filter_mm} mm)")
         res = l_filter(res, pixel=pixel, nesting_index=l_filter_mm)
-    p = areal_parameters(res, pixel=pixel)
+    p = areal_parameters(res, pixel=pixel, slope=slope)
     out = {f"{k}_nm": p[k] * 1e6 for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}  # mm -> nm
     out.update({"Ssk": p["Ssk"], "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"],
-                "n_valid": p["n_valid"], "form_removal": form_removal,
+                "n_valid": p["n_valid"], "slope_estimator": slope, "form_removal": form_removal,
                 "s_filter_mm": s_filter_mm, "l_filter_mm": l_filter_mm})
     return out
 
 
-def coverage(z, *, pixel: float, origin, region) -> float:
-    """Fraction of ``region`` = (x0, y0, x1, y1) (mm) covered by valid points of the map."""
+def coverage(z, *, pixel, origin, region) -> float:
+    """Fraction of the area of ``region`` = (x0, y0, x1, y1) (mm) covered by the cells
+    (pixel_x x pixel_y, centred on the points) of the map's valid points; ``pixel`` one
+    number or (pixel_x, pixel_y), mm."""
     x0, y0, x1, y1 = region
     if not (x1 > x0 and y1 > y0):
         raise InputError(f"region must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0, got {region}")
-    ny, nx = np.shape(z)
-    # sample the region on the map's own pixel pitch and look the points up
-    xs = np.arange(x0, x1 + pixel / 2, pixel)
-    ys = np.arange(y0, y1 + pixel / 2, pixel)
-    col = np.rint((xs - origin[0]) / pixel).astype(int)
-    row = np.rint((ys - origin[1]) / pixel).astype(int)
-    cin = (col >= 0) & (col < nx)
-    rin = (row >= 0) & (row < ny)
-    ok = np.isfinite(np.asarray(z))
-    hit = np.zeros((ys.size, xs.size), dtype=bool)
-    if cin.any() and rin.any():
-        hit[np.ix_(rin, cin)] = ok[np.ix_(row[rin], col[cin])]
-    return float(hit.mean())
+    px, py = pixel_xy(pixel)
+    z = np.asarray(z)
+    ny, nx = z.shape
+    xc = origin[0] + px * np.arange(nx)
+    yc = origin[1] + py * np.arange(ny)
+    lx = np.clip(np.minimum(xc + px / 2, x1) - np.maximum(xc - px / 2, x0), 0.0, None)
+    ly = np.clip(np.minimum(yc + py / 2, y1) - np.maximum(yc - py / 2, y0), 0.0, None)
+    covered = float(ly @ np.isfinite(z).astype(np.float64) @ lx)
+    return min(1.0, covered / ((x1 - x0) * (y1 - y0)))
 
 
-def check_same_pixel(pixel_a: float, pixel_b: float, *, name_a: str = "measured",
+def _pixel_text(p) -> str:
+    px, py = pixel_xy(p)
+    return f"{px:g}" if px == py else f"{px:g} x {py:g}"
+
+
+def check_same_pixel(pixel_a, pixel_b, *, name_a: str = "measured",
                      name_b: str = "simulated", rtol: float = 1e-6) -> None:
-    """Raise :class:`InputError` naming both pixel sizes when they differ."""
-    if not np.isclose(pixel_a, pixel_b, rtol=rtol, atol=0):
-        raise InputError(f"pixel sizes differ: {name_a} {pixel_a:g} mm vs {name_b} {pixel_b:g} mm; "
-                         f"resample one map (resample_map) or set simulation.pixel = {pixel_a:g}")
+    """Raise :class:`InputError` naming both pixel sizes (x and y) when they differ."""
+    a, b = pixel_xy(pixel_a), pixel_xy(pixel_b)
+    if not np.allclose(a, b, rtol=rtol, atol=0):
+        raise InputError(f"pixel sizes differ: {name_a} {_pixel_text(a)} mm vs {name_b} "
+                         f"{_pixel_text(b)} mm; resample one map (resample_map) or set "
+                         f"simulation.pixel = {a[0]:g}")
 
 
-def resample_map(z, *, pixel: float, origin, target_pixel: float, target_origin, target_shape):
-    """Bilinear resampling of a map onto another grid; NaN outside and next to missing points."""
-    check_positive("target_pixel", target_pixel)
+def resample_map(z, *, pixel, origin, target_pixel, target_origin, target_shape):
+    """Bilinear resampling of a map onto another grid (pixels: one number or (x, y), mm);
+    NaN outside and next to missing points."""
+    tx, ty = pixel_xy(target_pixel, "target_pixel")
     ny, nx = target_shape
-    x = target_origin[0] + target_pixel * np.arange(nx)
-    y = target_origin[1] + target_pixel * np.arange(ny)
+    x = target_origin[0] + tx * np.arange(nx)
+    y = target_origin[1] + ty * np.arange(ny)
     xx, yy = np.meshgrid(x, y)
     return sample_map(z, xx, yy, pixel=pixel, origin=origin)
 
 
-def sample_map(z, xx, yy, *, pixel: float, origin):
+def sample_map(z, xx, yy, *, pixel, origin):
     """Bilinear look-up of a map at points (``xx``, ``yy``) (mm); NaN outside the map and
     next to missing points."""
-    check_positive("pixel", pixel)
-    col = (xx - origin[0]) / pixel
-    row = (yy - origin[1]) / pixel
+    px, py = pixel_xy(pixel)
+    col = (xx - origin[0]) / px
+    row = (yy - origin[1]) / py
     z = np.asarray(z, float)
     ok = np.isfinite(z)
     v = ndimage.map_coordinates(np.where(ok, z, 0.0), [row, col], order=1, mode="constant", cval=0.0)
@@ -129,9 +138,10 @@ def _check_units(z, design, *, pixel, origin):
     """Raise when the measured height range and the design's differ by > 100 x: a map in
     micrometres read as millimetres (or the reverse) would otherwise give silent nonsense."""
     ny, nx = z.shape
+    px, py = pixel_xy(pixel)
     step = max(1, max(ny, nx) // 64)
-    x = origin[0] + pixel * np.arange(0, nx, step)
-    y = origin[1] + pixel * np.arange(0, ny, step)
+    x = origin[0] + px * np.arange(0, nx, step)
+    y = origin[1] + py * np.arange(0, ny, step)
     d = np.asarray(design.height(x[None, :], y[:, None]), float)
     zs = z[::step, ::step]
     ok = np.isfinite(d) & np.isfinite(zs)
@@ -157,37 +167,44 @@ class Comparison:
         ``measured`` (outliers replaced), ``design`` (registered, on the measured grid),
         ``residual`` (measured - design), and with a simulation ``simulated_residual`` and
         ``difference`` (measured residual - simulated residual), all on the measured grid.
-    pixel : float
+    pixel : (pixel_x, pixel_y)
+        mm.
     origin : (x, y)
     """
 
     metrics: dict
     maps: dict = field(default_factory=dict)
-    pixel: float = 0.0
+    pixel: tuple = (0.0, 0.0)
     origin: tuple = (0.0, 0.0)
 
 
 def compare_measured(measured, design_surface, *, metrology=None, simulated=None, region=None,
-                     seed: int = 0, resample_simulated: bool = False) -> Comparison:
+                     seed: int = 0, resample_simulated: bool = False,
+                     expected_sq_mm: float | None = None, force: bool = False) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
 
-    Chain: outliers (second difference,
-    ``metrology.outlier_sigma``) -> coverage of ``region`` (warning below
-    ``metrology.min_coverage``; error when nothing overlaps) -> registration to the design
-    (``metrology.registration``: "lsq", "icp" or "none"; free parameters
-    ``metrology.registration_dof``) -> residual = measured - registered design ->
-    :func:`characterise_map` with the scene's form removal and filters.  With
-    ``simulated`` (a HeightMap of the same pixel size) the simulated residual
-    (machined - design) goes through the same :func:`characterise_map`, and the difference
-    of the two residuals is characterised too.
+    Chain: unit sanity check -> outliers
+    (second difference, ``metrology.outlier_sigma``; always left out of the registration
+    fit, left out of the parameters only with ``metrology.outliers = "sigma"``) ->
+    coverage of ``region`` -> registration to the design (``metrology.registration``:
+    "lsq", "icp" or "none"; free parameters ``metrology.registration_dof``) -> checks
+    (:func:`registration_checks`: overlap after registration, residual against
+    ``expected_sq_mm``, uncertainty of the registration) -> residual = measured -
+    registered design -> :func:`characterise_map` with the scene's form removal and
+    filters.  With ``simulated`` (a HeightMap) the simulated residual (machined - design)
+    goes through the same :func:`characterise_map`, and the difference of the two
+    residuals is characterised too.  Pixels may be non-square: ``(pixel_x, pixel_y)``.
 
     Parameters
     ----------
-    measured : (z_mm, pixel_mm, origin_mm) or (z_mm, pixel_mm, origin_mm, source) tuple
-        The map as :func:`render_inspect.io.read_measured` returns it.
+    measured : map object or tuple
+        A :class:`render_inspect.io.MeasuredMap` (``z``, ``pixel``, ``origin``, ``meta``;
+        from :func:`render_inspect.io.read_surface`) or a ``(z_mm, pixel_mm, origin_mm[,
+        source])`` tuple (``pixel_mm`` one number or (x, y)).
     design_surface : Surface
     metrology : MetrologyConfig or dict, optional
-        The scene's ``[metrology]`` section (defaults otherwise).
+        The scene's ``[metrology]`` section (defaults otherwise); also read:
+        ``outliers`` ("none" | "sigma"), ``min_overlap`` (0.8).
     simulated : HeightMap, optional
     region : (x0, y0, x1, y1), optional
         mm; the area the comparison should cover (e.g. ``scene.simulation.region``).
@@ -197,66 +214,96 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         When the simulation's pixel differs from the measurement's: False (default) raises
         an :class:`InputError` naming both; True resamples the simulation (bilinear) onto
         the measured points with a warning.
+    expected_sq_mm : float, optional
+        The roughness the process should leave, mm (for the residual check).
+    force : bool
+        Go on (with the reasons in ``metrics["checks"]["refusals"]``) when the checks
+        refuse the comparison.
 
     Raises
     ------
     InputError
         Pixel sizes differ (see ``resample_simulated``); the map does not overlap
         ``region``; the measured heights span a range 100 x larger or smaller than the
-        design's over the same area (wrong units?); no valid points.
+        design's over the same area (wrong units?); no valid points; the checks refuse
+        the comparison (unless ``force``).
     """
-    if not (isinstance(measured, tuple) and len(measured) in (3, 4)):
-        raise InputError("measured must be a (z_mm, pixel_mm, origin_mm[, source]) tuple; read "
-                         "files with render_inspect.io.read_measured")
-    z, pixel, origin = measured[:3]
-    source = dict(measured[3]) if len(measured) == 4 else {"format": "array"}
+    if hasattr(measured, "z") and hasattr(measured, "pixel"):
+        z, pixel, origin = measured.z, measured.pixel, measured.origin
+        source = dict(getattr(measured, "meta", {}) or {})
+    elif isinstance(measured, tuple) and len(measured) in (3, 4):
+        z, pixel, origin = measured[:3]
+        source = dict(measured[3]) if len(measured) == 4 else {"format": "array"}
+    else:
+        raise InputError("measured must be a MeasuredMap or a (z_mm, pixel_mm, origin_mm[, "
+                         "source]) tuple; read files with render_inspect.io.read_surface")
     z = np.asarray(z, float)
-    pixel, origin = float(pixel), (float(origin[0]), float(origin[1]))
+    origin = (float(origin[0]), float(origin[1]))
+    px, py = pixel_xy(pixel)
+    pixel = (px, py)
     k = float(_cfg_get(metrology, "outlier_sigma", 3.0))
+    out_mode = _cfg_get(metrology, "outliers", "none")
+    if out_mode not in ("none", "sigma"):
+        raise InputError(f"metrology.outliers must be 'none' or 'sigma', got {out_mode!r}")
     method = _cfg_get(metrology, "registration", "lsq")
     dof = tuple(_cfg_get(metrology, "registration_dof",
                          ("tx", "ty", "tz", "alpha", "beta", "gamma")))
     min_cov = float(_cfg_get(metrology, "min_coverage", 0.95))
+    min_overlap = float(_cfg_get(metrology, "min_overlap", 0.8))
     if simulated is not None and not resample_simulated:
         check_same_pixel(pixel, simulated.pixel)
-    elif simulated is not None and not np.isclose(pixel, simulated.pixel, rtol=1e-6):
-        warnings.warn(f"pixel sizes differ (measured {pixel:g} mm, simulated {simulated.pixel:g} "
-                      f"mm): the simulation is resampled bilinearly onto the measured points",
-                      stacklevel=2)
+    elif simulated is not None and not np.allclose(pixel, pixel_xy(simulated.pixel), rtol=1e-6):
+        warnings.warn(f"pixel sizes differ (measured {_pixel_text(pixel)} mm, simulated "
+                      f"{_pixel_text(simulated.pixel)} mm): the simulation is resampled "
+                      f"bilinearly onto the measured points", stacklevel=2)
     cov = None
     if region is not None:
         cov = coverage(z, pixel=pixel, origin=origin, region=region)
         if cov == 0.0:
             raise InputError(f"the measured map (origin {origin} mm, {z.shape[1]} x {z.shape[0]} "
-                             f"pixels of {pixel:g} mm) does not overlap the region {tuple(region)} "
-                             f"mm: check the units and origin of the measurement")
+                             f"pixels of {_pixel_text(pixel)} mm) does not overlap the region "
+                             f"{tuple(region)} mm: check the units and origin of the measurement")
         if cov < min_cov:
             warnings.warn(f"the measurement covers only {cov:.1%} of the region {tuple(region)} mm "
                           f"(metrology.min_coverage = {min_cov:.0%}); parameters describe the "
                           f"covered part only", stacklevel=2)
     _check_units(z, design_surface, pixel=pixel, origin=origin)
-    cleaned, outl = detect_outliers(z, pixel=pixel, k=k)
-    use = np.isfinite(cleaned) & ~outl
+    _, outl = detect_outliers(z, pixel=pixel, k=k, replace=False)
+    valid = np.isfinite(z)
+    outl &= valid
+    fit_use = valid & ~outl
     if method == "lsq":
-        reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use, fit=dof,
+        reg = register_lsq(z, design_surface, pixel=pixel, origin=origin, mask=fit_use, fit=dof,
                            seed=seed)
     elif method == "icp":
-        reg = register_icp(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
+        reg = register_icp(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
                            seed=seed, oversample=int(_cfg_get(metrology, "template_oversample", 10)))
+        reg["fitted"] = list(_SHORT_ALL)
     elif method == "none":
         reg = None
     else:
         raise InputError(f"metrology.registration must be 'lsq', 'icp' or 'none', got {method!r}")
     surf = design_surface if reg is None else MovedSurface(design_surface, reg)
     ny, nx = z.shape
-    x = origin[0] + pixel * np.arange(nx)
-    y = origin[1] + pixel * np.arange(ny)
+    x = origin[0] + px * np.arange(nx)
+    y = origin[1] + py * np.arange(ny)
     design_map = np.broadcast_to(surf.height(x[None, :], y[:, None]), z.shape).astype(float)
-    residual = np.where(use, cleaned - design_map, np.nan)
-    settings = dict(form_removal=_cfg_get(metrology, "form_removal", "plane"),
-                    polynomial_degree=int(_cfg_get(metrology, "polynomial_degree", 2)),
-                    s_filter_mm=_cfg_get(metrology, "s_filter", None),
-                    l_filter_mm=_cfg_get(metrology, "l_filter", None))
+    use = fit_use if out_mode == "sigma" else valid
+    residual = np.where(use, z - design_map, np.nan)
+    checks = None
+    if reg is not None and region is not None:
+        checks = registration_checks(z, design_surface, reg, pixel=pixel, origin=origin,
+                                     region=region, expected_sq_mm=expected_sq_mm,
+                                     residual=np.where(fit_use, residual, np.nan), mask=fit_use,
+                                     min_overlap=min_overlap)
+        reg["uncertainty"] = checks["uncertainty"]
+        if not checks["ok"] and not force:
+            raise InputError("the measured file does not match the design: "
+                             + "; ".join(checks["refusals"]) + " (--force compares anyway)")
+    settings = {"form_removal": _cfg_get(metrology, "form_removal", "plane"),
+                    "polynomial_degree": int(_cfg_get(metrology, "polynomial_degree", 2)),
+                    "s_filter_mm": _cfg_get(metrology, "s_filter", None),
+                    "l_filter_mm": _cfg_get(metrology, "l_filter", None)}
 
     def char(r):
         s = dict(settings)
@@ -264,11 +311,19 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
             s["form_removal"] = "none"
         return characterise_map(r, pixel=pixel, origin=origin, **s)
 
+    n_valid = int(valid.sum())
     metrics = {"measured": char(residual), "simulated": None, "difference": None,
-               "registration": reg, "coverage": cov, "outliers": int(outl.sum()),
+               "registration": reg, "coverage": cov, "checks": checks,
+               "outliers": {"method": out_mode, "sigma": k, "count": int(outl.sum()),
+                            "fraction": float(outl.sum() / max(n_valid, 1)),
+                            "left_out_of": ["registration", "parameters"] if out_mode == "sigma"
+                            else ["registration"]},
                "source": {k2: v for k2, v in source.items() if k2 != "scene"}, "seed": seed,
-               "pixel_mm": pixel, "origin_mm": list(origin)}
-    maps = {"measured": cleaned, "design": design_map, "residual": residual}
+               "pixel_mm": [px, py], "origin_mm": list(origin), "shape": [ny, nx],
+               "units": {"lateral": "mm", "heights": "nm (keys *_nm)",
+                         "in_file": source.get("units_in_file")}}
+    maps = {"measured": np.where(valid, z, np.nan), "design": design_map, "residual": residual,
+            "outliers": outl}
     if simulated is not None:
         # the simulation lives in the design frame: look it up where each measured point
         # lies in that frame (the inverse of the registration)
@@ -277,9 +332,9 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
             vec = np.array([reg[k] for k in RIGID_KEYS])
             rot = rotation_matrix(*vec[3:])
             zz = np.where(np.isfinite(design_map), design_map, 0.0)
-            px, py, pz = xx - vec[0], yy - vec[1], zz - vec[2]
-            xx = rot[0, 0] * px + rot[1, 0] * py + rot[2, 0] * pz
-            yy = rot[0, 1] * px + rot[1, 1] * py + rot[2, 1] * pz
+            dx, dy, dz = xx - vec[0], yy - vec[1], zz - vec[2]
+            xx = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz
+            yy = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz
         sim_res = sample_map(np.asarray(simulated.machined) - np.asarray(simulated.design),
                              xx, yy, pixel=simulated.pixel, origin=simulated.origin)
         both = np.isfinite(sim_res) & np.isfinite(residual)
@@ -297,3 +352,6 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         maps["simulated_residual"] = sim_res
         maps["difference"] = diff
     return Comparison(metrics, maps, pixel, origin)
+
+
+_SHORT_ALL = ("tx", "ty", "tz", "alpha", "beta", "gamma")

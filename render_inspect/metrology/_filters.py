@@ -20,7 +20,7 @@ from scipy import ndimage
 from ..core.errors import InputError, check_positive
 
 __all__ = ["GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
-           "remove_form", "valid_mask"]
+           "remove_form", "valid_mask", "pixel_xy", "fit_sphere"]
 
 #: alpha of the ISO 16610-61 Gaussian weighting function, sqrt(ln 2 / pi) = 0.4697
 GAUSSIAN_ALPHA = math.sqrt(math.log(2.0) / math.pi)
@@ -36,6 +36,19 @@ def valid_mask(z, mask=None, *, name: str = "z") -> np.ndarray:
             raise InputError(f"mask must have the shape of {name} {z.shape}, got {mask.shape}")
         ok &= mask
     return ok
+
+
+def pixel_xy(pixel, name: str = "pixel") -> tuple[float, float]:
+    """``(pixel_x, pixel_y)`` (mm) from one number (square pixels) or a pair; both > 0."""
+    if np.ndim(pixel) == 0:
+        check_positive(name, pixel)
+        return float(pixel), float(pixel)
+    p = tuple(np.asarray(pixel, dtype=np.float64).ravel())
+    if len(p) != 2:
+        raise InputError(f"{name} must be one number or (pixel_x, pixel_y) in mm, got {pixel!r}")
+    check_positive(f"{name}_x", p[0])
+    check_positive(f"{name}_y", p[1])
+    return float(p[0]), float(p[1])
 
 
 def _as_map(z, name="z") -> np.ndarray:
@@ -59,8 +72,8 @@ def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: fl
     ----------
     z : (ny, nx) array
         Heights (any unit; returned in the same unit). NaN marks missing points.
-    pixel : float
-        Sampling distance, mm.
+    pixel : float or (pixel_x, pixel_y)
+        Sampling distance, mm (the filter is isotropic in mm on non-square pixels).
     cutoff : float
         Cut-off wavelength / nesting index lambda, mm (50 % transmission).
     mask : (ny, nx) bool array, optional
@@ -75,8 +88,9 @@ def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: fl
         The smoothed (mean) surface; NaN where ``z`` was invalid.
     """
     z = _as_map(z)
-    check_positive("pixel", pixel)
-    sigma_px = gaussian_sigma(cutoff) / float(pixel)
+    px, py = pixel_xy(pixel)
+    sig = gaussian_sigma(cutoff)
+    sigma_px = (sig / py, sig / px)  # (rows, columns)
     ok = valid_mask(z, mask)
     if not ok.any():
         raise InputError("gaussian_filter: the map has no valid (finite, unmasked) points")
@@ -114,7 +128,87 @@ def _legendre_design(u, v, degree):
     return np.stack(cols, axis=-1)
 
 
-def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, design=None,
+def _sag(kappa, rho2):
+    """Sphere sag of curvature ``kappa`` (1/mm) at squared distance ``rho2`` from its apex,
+    in the form that stays exact as ``kappa`` -> 0: kappa rho^2 / (1 + sqrt(1 - kappa^2 rho^2))."""
+    arg = 1.0 - kappa * kappa * rho2
+    return np.where(arg >= 0, kappa * rho2 / (1.0 + np.sqrt(np.maximum(arg, 0.0))), np.nan)
+
+
+def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_000,
+               seed: int = 0) -> dict:
+    """Least-squares sphere (vertical distances) through a height map.
+
+    Start: the paraboloid ``c0 + c1 x + c2 y + c3 (x^2 + y^2)`` (curvature ``2 c3``, apex
+    at ``-(c1, c2) / (2 c3)``); then the exact sphere ``z = z0 + sag(kappa, (x - a)^2 +
+    (y - b)^2)`` is fitted by scipy ``least_squares`` (trust region) on at most
+    ``max_points`` points (a seeded random subset).
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Heights, mm (NaN = missing).
+    pixel : float or (pixel_x, pixel_y)
+        mm.
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+
+    Returns
+    -------
+    dict
+        ``radius_mm`` (signed: > 0 when the centre lies above the surface, i.e. concave
+        up; ``inf`` for a plane), ``apex_mm`` (x, y, z of the apex), ``curvature_per_mm``,
+        ``rms_mm`` (residual RMS), ``form`` ((ny, nx) array, mm).
+    """
+    from scipy.optimize import least_squares
+
+    z = _as_map(z)
+    px, py = pixel_xy(pixel)
+    ok = valid_mask(z, mask)
+    if ok.sum() < 4:
+        raise InputError(f"fit_sphere: need at least 4 valid points, got {int(ok.sum())}")
+    ny, nx = z.shape
+    x = origin[0] + px * np.arange(nx)
+    y = origin[1] + py * np.arange(ny)
+    xm, ym = float(x.mean()), float(y.mean())  # work about the field centre (conditioning)
+    xx, yy = np.meshgrid(x - xm, y - ym)
+    fx, fy, fz = xx[ok], yy[ok], z[ok]
+    if fz.size > max_points:
+        idx = np.sort(np.random.default_rng(seed).choice(fz.size, max_points, replace=False))
+        fx, fy, fz = fx[idx], fy[idx], fz[idx]
+    a = np.column_stack([np.ones_like(fx), fx, fy, fx * fx + fy * fy])
+    c, *_ = np.linalg.lstsq(a, fz, rcond=None)
+    half = 0.5 * np.hypot(px * (nx - 1), py * (ny - 1))
+    kappa0 = 2.0 * c[3]
+    if abs(kappa0) * half < 1e-9 * max(1.0, half):
+        # no measurable curvature: the best sphere is the plane (infinite radius)
+        form = c[0] + c[1] * xx + c[2] * yy
+        res = np.where(ok, z - form, np.nan)
+        return {"radius_mm": float("inf"), "curvature_per_mm": 0.0,
+                "apex_mm": [xm, ym, float(c[0])], "rms_mm": float(np.sqrt(np.nanmean(res ** 2))),
+                "form": form}
+    a0, b0 = -c[1] / kappa0, -c[2] / kappa0
+    z0 = c[0] - 0.5 * kappa0 * (a0 * a0 + b0 * b0)
+
+    def resid(p):
+        r = fz - p[2] - _sag(p[3], (fx - p[0]) ** 2 + (fy - p[1]) ** 2)
+        return np.where(np.isfinite(r), r, 1e3 * (np.nanmax(np.abs(fz)) + 1.0))
+
+    scale = [half, half, max(float(np.ptp(fz)), 1e-9), abs(kappa0)]
+    sol = least_squares(resid, [a0, b0, z0, kappa0], x_scale=scale, method="trf",
+                        xtol=1e-14, ftol=1e-15, gtol=1e-15, max_nfev=200)
+    ca, cb, cz, kap = sol.x
+    form = cz + _sag(kap, (xx - ca) ** 2 + (yy - cb) ** 2)
+    res = np.where(ok, z - form, np.nan)
+    if not np.isfinite(form[ok]).all():
+        raise InputError("fit_sphere: the best-fit sphere is smaller than the map (radius "
+                         f"{1 / abs(kap):.4g} mm); the data is not a spherical cap")
+    return {"radius_mm": float(1.0 / kap), "curvature_per_mm": float(kap),
+            "apex_mm": [float(ca + xm), float(cb + ym), float(cz)],
+            "rms_mm": float(np.sqrt(np.nanmean(res ** 2))), "form": form}
+
+
+def remove_form(z, *, pixel, method: str = "plane", degree: int = 2, design=None,
                 origin=(0.0, 0.0), mask=None):
     """Remove the form of a height map.
 
@@ -122,11 +216,13 @@ def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, desi
     ----------
     z : (ny, nx) array
         Heights, mm (NaN = missing).
-    pixel : float
+    pixel : float or (pixel_x, pixel_y)
         Sampling distance, mm.
-    method : {"none", "plane", "polynomial", "design"}
+    method : {"none", "plane", "polynomial", "sphere", "design"}
+        ``"none"``: nothing (parameters are taken about the mean anyway);
         ``"plane"``: least-squares plane; ``"polynomial"``: least-squares 2-D Legendre
         polynomial of total degree ``degree`` in coordinates scaled to [-1, 1];
+        ``"sphere"``: least-squares sphere (:func:`fit_sphere`);
         ``"design"``: subtract ``design`` (a same-shape array, or an object with
         ``height(x, y)`` evaluated on the grid of ``origin``/``pixel``) and then the mean.
         The design must already be registered to the map (see :func:`register_lsq`).
@@ -135,7 +231,7 @@ def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, desi
     design : array or Surface, optional
         Required for ``method="design"``.
     origin : (x, y)
-        Centre of pixel [0, 0], mm (used with a Surface design).
+        Centre of pixel [0, 0], mm (used with a Surface design and the sphere).
     mask : bool array, optional
         Points to use for the fit (and to keep); ``False`` and NaN are left out.
 
@@ -145,7 +241,7 @@ def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, desi
         ``residual = z - form``; NaN where ``z`` is invalid.
     """
     z = _as_map(z)
-    check_positive("pixel", pixel)
+    px, py = pixel_xy(pixel)
     ok = valid_mask(z, mask)
     if not ok.any():
         raise InputError("remove_form: the map has no valid (finite, unmasked) points")
@@ -166,12 +262,14 @@ def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, desi
         a = _legendre_design(uu, vv, deg)
         coef, *_ = np.linalg.lstsq(a[ok], z[ok], rcond=None)
         form = a @ coef
+    elif method == "sphere":
+        form = fit_sphere(z, pixel=(px, py), origin=origin, mask=ok)["form"]
     elif method == "design":
         if design is None:
             raise InputError("remove_form: method='design' needs design= (array or Surface)")
         if hasattr(design, "height"):
-            x = origin[0] + pixel * np.arange(nx)
-            y = origin[1] + pixel * np.arange(ny)
+            x = origin[0] + px * np.arange(nx)
+            y = origin[1] + py * np.arange(ny)
             d = np.broadcast_to(design.height(x[None, :], y[:, None]), z.shape).astype(np.float64)
         else:
             d = np.asarray(design, dtype=np.float64)
@@ -182,6 +280,7 @@ def remove_form(z, *, pixel: float, method: str = "plane", degree: int = 2, desi
             raise InputError("remove_form: design and map have no valid points in common")
         form = d + np.mean((z - d)[ok])
     else:
-        raise InputError(f"method must be one of 'none', 'plane', 'polynomial', 'design', got {method!r}")
+        raise InputError(f"method must be one of 'none', 'plane', 'polynomial', 'sphere', "
+                         f"'design', got {method!r}")
     res = np.where(ok, z - form, np.nan)
     return res, form

@@ -1,46 +1,127 @@
 """Areal (ISO 25178-2) and profile (ISO 21920-2 / ISO 4287) parameters.
 
 Areal parameters are taken about the mean plane of the valid points (remove the form
-first with :func:`remove_form`).  Sdq and Sdr use central differences (``numpy.gradient``,
-one-sided at the border and next to missing points); Sdr integrates
-``sqrt(1 + zx^2 + zy^2) - 1`` over the valid points, in %.
+first with :func:`remove_form`).  Pixels may be non-square: ``pixel = (pixel_x, pixel_y)``.
+
+Slopes (Sdq, Sdr), ``slope="forward"`` (default, as SurfaceTopography and surfalize):
+forward differences along the cell edges, ``zx = (z[i, j+1] - z[i, j]) / pixel_x`` and
+``zy = (z[i+1, j] - z[i, j]) / pixel_y``.  Sdq is the root mean square of ``|grad z|`` with
+both differences taken at the same corner of each grid cell (SurfaceTopography's
+``rms_gradient``); Sdr is the developed area of ISO 25178-2:2021 D.3 (eq. D.15): each
+cell is split into two triangles along each diagonal and the two areas are averaged,
+divided by the projected area of the cells.  ``slope="central"`` uses central
+differences (``numpy.gradient``) at every point and ``sqrt(1 + |grad z|^2) - 1`` for Sdr:
+it attenuates slopes near the Nyquist frequency (a sinusoid of period ``p`` pixels
+loses a factor ``sin(2 pi / p) / (2 pi / p)``).
+
+Sal and Str come from the autocorrelation function (ISO 25178-2): see
+:func:`spatial_parameters`.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+from scipy import fft as sfft
 from scipy import ndimage
 
-from ..core.errors import InputError, check_positive
-from ._filters import valid_mask
+from ..core.errors import InputError, check_positive, check_range
+from ._filters import pixel_xy, valid_mask
 
-__all__ = ["areal_parameters", "profile_parameters", "extract_section", "section_parameters"]
+__all__ = ["areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
+           "SLOPE_ESTIMATORS", "profile_parameters", "extract_section", "section_parameters"]
+
+#: Derivative estimators of :func:`slope_parameters`.
+SLOPE_ESTIMATORS = ("forward", "central")
 
 
-def areal_parameters(z, *, pixel: float, mask=None) -> dict:
+def slope_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
+    """Sdq (root mean square gradient) and Sdr (developed interfacial area ratio, %).
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Heights, mm (NaN = missing).
+    pixel : float or (pixel_x, pixel_y)
+        Sampling distances, mm (``z`` and ``pixel`` must share a unit).
+    mask : bool array, optional
+        ``False`` leaves a point out.
+    slope : {"forward", "central"}
+        Derivative estimator (see the module docstring).
+
+    Returns
+    -------
+    dict
+        ``Sdq`` (dimensionless), ``Sdr`` (%), ``n_slope`` (gradients used by Sdq),
+        ``n_cells`` (cells used by Sdr), ``slope`` (the estimator).
+    """
+    z = np.asarray(z, dtype=np.float64)
+    px, py = pixel_xy(pixel)
+    ok = valid_mask(z, mask)
+    zz = np.where(ok, z, np.nan)
+    nan = float("nan")
+    if slope == "forward":
+        if min(z.shape) < 2:
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
+        dx = np.diff(zz, axis=1)  # (ny, nx - 1): x edges
+        dy = np.diff(zz, axis=0)  # (ny - 1, nx): y edges
+        gx, gy = dx[:-1, :] / px, dy[:, :-1] / py  # both at the lower-left corner of each cell
+        g2 = gx * gx + gy * gy
+        gok = np.isfinite(g2)
+        sdq = float(np.sqrt(np.mean(g2[gok]))) if gok.any() else nan
+        # ISO 25178-2:2021 D.3: the cell area as the mean of its two triangulations, i.e.
+        # half the sum of the four corner triangles spanned by one x and one y edge
+        cxb, cxt = (py * dx[:-1, :]) ** 2, (py * dx[1:, :]) ** 2
+        cyl, cyr = (px * dy[:, :-1]) ** 2, (px * dy[:, 1:]) ** 2
+        cz = (px * py) ** 2
+        area = 0.25 * (np.sqrt(cxb + cyl + cz) + np.sqrt(cxb + cyr + cz)
+                       + np.sqrt(cxt + cyr + cz) + np.sqrt(cxt + cyl + cz))
+        cok = np.isfinite(area)
+        n_cells = int(cok.sum())
+        sdr = float(100.0 * (np.sum(area[cok]) / (n_cells * px * py) - 1.0)) if n_cells else nan
+        return {"Sdq": sdq, "Sdr": sdr, "n_slope": int(gok.sum()), "n_cells": n_cells,
+                "slope": slope}
+    if slope == "central":
+        if min(z.shape) < 2:
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
+        gy, gx = np.gradient(zz, py, px)
+        g2 = gx * gx + gy * gy
+        gok = np.isfinite(g2)
+        if not gok.any():
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
+        return {"Sdq": float(np.sqrt(np.mean(g2[gok]))),
+                "Sdr": float(100.0 * np.mean(np.sqrt(1.0 + g2[gok]) - 1.0)),
+                "n_slope": int(gok.sum()), "n_cells": int(gok.sum()), "slope": slope}
+    raise InputError(f"slope must be one of {SLOPE_ESTIMATORS}, got {slope!r}")
+
+
+def areal_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
     """ISO 25178-2 areal parameters of a height map.
 
     Parameters
     ----------
     z : (ny, nx) array
         Heights (any length unit; Sa..Sz come back in it). NaN marks missing points.
-    pixel : float
-        Sampling distance in the unit of ``z`` **and** mm-consistent with it: Sdq and Sdr
-        are slopes, so ``z`` and ``pixel`` must share a unit (pass both in mm).
+    pixel : float or (pixel_x, pixel_y)
+        Sampling distances in the unit of ``z``: Sdq and Sdr are slopes, so ``z`` and
+        ``pixel`` must share a unit (pass both in mm).
     mask : bool array, optional
         ``False`` leaves a point out.
+    slope : {"forward", "central"}
+        Derivative estimator of Sdq and Sdr (:func:`slope_parameters`).
 
     Returns
     -------
     dict
         ``Sa, Sq, Sp, Sv, Sz, Ssk, Sku`` (heights about the mean; Sv is positive, the depth
         of the lowest valley), ``Sdq`` (root mean square gradient, dimensionless), ``Sdr``
-        (developed interfacial area ratio, %), ``n_valid``.
+        (developed interfacial area ratio, %), ``n_valid``, ``slope``.
     """
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2:
         raise InputError(f"z must be a 2-D height map, got shape {z.shape}")
-    check_positive("pixel", pixel)
+    pxy = pixel_xy(pixel)
     ok = valid_mask(z, mask)
     n = int(ok.sum())
     if n < 2:
@@ -54,17 +135,158 @@ def areal_parameters(z, *, pixel: float, mask=None) -> dict:
     out["Ssk"] = float(np.mean(d2 * d) / sq ** 3) if sq > 0 else 0.0
     out["Sku"] = float(np.mean(d2 * d2) / sq ** 4) if sq > 0 else 0.0
     del d, d2
-    zz = z if ok.all() else np.where(ok, z, np.nan)
-    if min(z.shape) >= 2:
-        gy, gx = np.gradient(zz, float(pixel))
-        g2 = gx * gx + gy * gy
-        gok = np.isfinite(g2)
-        if gok.any():
-            out["Sdq"] = float(np.sqrt(np.mean(g2[gok])))
-            out["Sdr"] = float(100.0 * np.mean(np.sqrt(1.0 + g2[gok]) - 1.0))
-        else:
-            out["Sdq"] = out["Sdr"] = float("nan")
+    sp = slope_parameters(z, pixel=pxy, mask=ok, slope=slope)
+    out["Sdq"], out["Sdr"] = sp["Sdq"], sp["Sdr"]
     out["n_valid"] = n
+    out["slope"] = slope
+    return out
+
+
+def _full_correlation(a):
+    """Linear (zero-padded) autocorrelation sum of ``a``: shape (2 ny - 1, 2 nx - 1), zero
+    lag at (ny - 1, nx - 1)."""
+    ny, nx = a.shape
+    shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
+    f = sfft.rfft2(a, shape)
+    full = sfft.irfft2(f * np.conj(f), shape)
+    return np.roll(full, (ny - 1, nx - 1), axis=(0, 1))[:2 * ny - 1, :2 * nx - 1]
+
+
+def autocorrelation(z, *, mask=None):
+    """Areal autocorrelation function of the mean-removed heights.
+
+    ``f(tx, ty) = sum z(x, y) z(x + tx, y + ty) / N(tx, ty)`` over the pairs of valid points
+    ``N(tx, ty)`` that overlap at lag (tx, ty) (the unbiased linear estimator: no
+    wrap-around, no suppression of long lags; missing points simply do not pair),
+    divided by its value at zero lag.  Computed with zero-padded FFTs.
+
+    Returns
+    -------
+    acf : (2 ny - 1, 2 nx - 1) array
+        Zero lag at index (ny - 1, nx - 1); NaN where no pairs overlap.
+    pairs : same shape, int
+        Number of point pairs behind each lag.
+    """
+    z = np.asarray(z, dtype=np.float64)
+    ok = valid_mask(z, mask)
+    if ok.sum() < 4:
+        raise InputError(f"autocorrelation: need at least 4 valid points, got {int(ok.sum())}")
+    ny, nx = z.shape
+    zc = np.where(ok, z - z[ok].mean(), 0.0)
+    num = _full_correlation(zc)
+    if ok.all():  # pairs at lag (ty, tx): (ny - |ty|) (nx - |tx|)
+        cnt = np.outer(ny - np.abs(np.arange(1 - ny, ny)), nx - np.abs(np.arange(1 - nx, nx)))
+    else:
+        cnt = np.rint(_full_correlation(ok.astype(np.float64)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        acf = np.where(cnt > 0.5, num / np.maximum(cnt, 1.0), np.nan)
+    c0 = acf[z.shape[0] - 1, z.shape[1] - 1]
+    if not c0 > 0:
+        raise InputError("autocorrelation: the heights have zero variance (a flat map)")
+    return acf / c0, cnt.astype(np.int64)
+
+
+def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int = 360,
+                       min_pairs_fraction: float = 0.05) -> dict:
+    """Autocorrelation length Sal and texture aspect ratio Str (ISO 25178-2).
+
+    The decay length in a direction is the lag distance at which the autocorrelation
+    function (:func:`autocorrelation`) first falls to ``s`` along the ray from zero lag
+    (linear interpolation between samples of the bilinearly interpolated ACF, rays every
+    ``180 / n_directions`` degrees; the ACF is point-symmetric).  Sal is the shortest
+    decay length (ISO: the horizontal distance of the fastest decay to ``s``); Str is the
+    shortest over the longest.  A direction in which the ACF stays above ``s`` as far as
+    the lags are supported by at least ``min_pairs_fraction`` of the points has no decay
+    length within the field: Str is then undefined (NaN) and Sal comes from the
+    directions that decay (NaN if none does).
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Heights (form removed), mm; NaN = missing.
+    pixel : float or (pixel_x, pixel_y)
+        mm.
+    s : float
+        Threshold, 0 < s < 1 (ISO 25178-3 default 0.2).
+
+    Returns
+    -------
+    dict
+        ``Sal_mm``, ``Str``, ``s``, ``decays_in_all_directions`` (bool),
+        ``fastest_direction_rad`` and ``slowest_direction_rad`` (from +x towards +y),
+        ``longest_decay_mm`` (NaN when some direction does not decay).
+    """
+    check_range("s", s, 0.0, 1.0, lo_open=True, hi_open=True)
+    px, py = pixel_xy(pixel)
+    z = np.asarray(z, dtype=np.float64)
+    ny, nx = z.shape
+    acf, cnt = autocorrelation(z, mask=mask)
+    n_valid = int(valid_mask(z, mask).sum())
+    usable = cnt >= max(4, min_pairs_fraction * n_valid)
+    a = np.where(usable, acf, np.nan)
+    cy, cx = ny - 1, nx - 1
+    theta = np.arange(int(n_directions)) * (np.pi / int(n_directions))
+    sin_t, cos_t = np.sin(theta), np.cos(theta)
+    step = 0.25 * min(px, py)
+    rmax = np.hypot(px * (nx - 1), py * (ny - 1))
+    r = np.arange(0.0, rmax + step, step)
+    field = np.nan_to_num(a, nan=np.inf)  # lags without enough pairs end a ray (inf spreads)
+    nt = theta.size
+    lengths = np.full(nt, np.nan)
+    ended = np.zeros(nt, dtype=bool)  # the ray left the supported lags without decaying
+    prev = np.ones(nt)  # ACF at the last sample of the previous chunk (1 at zero lag)
+    acc_sum, acc_n = np.zeros(nt), np.zeros(nt)
+    chunk = 256
+    for start in range(1, r.size, chunk):
+        act = np.nonzero(np.isnan(lengths) & ~ended)[0]
+        if act.size == 0:
+            break
+        rr = r[start:start + chunk]
+        rows = cy + np.outer(sin_t[act], rr) / py
+        cols = cx + np.outer(cos_t[act], rr) / px
+        inside = (rows >= 0) & (rows <= 2 * ny - 2) & (cols >= 0) & (cols <= 2 * nx - 2)
+        vals = ndimage.map_coordinates(field, [rows, cols], order=1, mode="constant", cval=np.inf)
+        known = inside & np.isfinite(vals)
+        n = rr.size
+        first_unknown = np.where(known.all(axis=1), n, np.argmin(known, axis=1))
+        below = (vals <= s) & known
+        first_below = np.where(below.any(axis=1), np.argmax(below, axis=1), n)
+        dec = first_below < first_unknown
+        i, j = act[dec], first_below[dec]
+        v1 = vals[dec, j]
+        v0 = np.where(j > 0, vals[dec, np.maximum(j - 1, 0)], prev[i])
+        r0 = rr[j] - step
+        frac = np.where(v0 != v1, (v0 - s) / (v0 - v1), 0.0)
+        lengths[i] = r0 + frac * step
+        ended[act[~dec & (first_unknown < n)]] = True
+        kv = np.where(known, vals, 0.0)
+        acc_sum[act] += kv.sum(axis=1)
+        acc_n[act] += known.sum(axis=1)
+        prev[act] = vals[:, -1]
+    decays = np.isfinite(lengths)
+    out = {"s": float(s), "decays_in_all_directions": bool(decays.all())}
+    if not decays.any():
+        warnings.warn(f"Sal: the autocorrelation does not fall to s = {s} within the field in "
+                      f"any direction; the field is too small for the correlation length",
+                      RuntimeWarning, stacklevel=2)
+        out.update({"Sal_mm": float("nan"), "Str": float("nan"), "fastest_direction_rad": None,
+                    "slowest_direction_rad": None, "longest_decay_mm": float("nan")})
+        return out
+    k = int(np.nanargmin(lengths))
+    out["Sal_mm"] = float(lengths[k])
+    out["fastest_direction_rad"] = float(theta[k])
+    if decays.all():
+        m = int(np.nanargmax(lengths))
+        out["longest_decay_mm"] = float(lengths[m])
+        out["slowest_direction_rad"] = float(theta[m])
+        out["Str"] = float(lengths[k] / lengths[m])
+    else:
+        # the most persistent of the directions that do not decay: highest mean ACF
+        acf_mean = acc_sum / np.maximum(acc_n, 1)
+        m = int(np.argmax(np.where(decays, -np.inf, acf_mean)))
+        out["longest_decay_mm"] = float("nan")
+        out["slowest_direction_rad"] = float(theta[m])
+        out["Str"] = float("nan")
     return out
 
 
@@ -109,7 +331,7 @@ def profile_parameters(profile, *, spacing: float, n_sampling: int = 5) -> dict:
             "n_points": int(p.size)}
 
 
-def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
+def extract_section(z, *, pixel, origin=(0.0, 0.0), kind: str = "radial",
                     center=(0.0, 0.0), angle: float = 0.0, radius: float | None = None,
                     r_min: float = 0.0, r_max: float | None = None, step: float | None = None):
     """Extract a radial or circumferential section from a height map (bilinear).
@@ -118,7 +340,7 @@ def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
     ----------
     z : (ny, nx) array
         Heights (row 0 = smallest y), NaN = missing.
-    pixel : float
+    pixel : float or (pixel_x, pixel_y)
         mm.
     origin : (x, y)
         Centre of pixel [0, 0], mm.
@@ -126,7 +348,7 @@ def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
         ``"radial"``: along the ray from ``center`` at ``angle`` (rad) from ``r_min`` to
         ``r_max``; ``"circumferential"``: the full circle of ``radius`` about ``center``.
     step : float, optional
-        Distance between samples along the section, mm (default ``pixel``).
+        Distance between samples along the section, mm (default the smaller pixel).
 
     Returns
     -------
@@ -135,15 +357,15 @@ def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
         four neighbours is missing or the point is outside the map).
     """
     z = np.asarray(z, dtype=np.float64)
-    check_positive("pixel", pixel)
-    step = float(step or pixel)
+    sx, sy = pixel_xy(pixel)
+    step = float(step or min(sx, sy))
     check_positive("step", step)
     ny, nx = z.shape
     cx, cy = center
     if kind == "radial":
         if r_max is None:
-            xs = origin[0] + pixel * np.array([0, nx - 1])
-            ys = origin[1] + pixel * np.array([0, ny - 1])
+            xs = origin[0] + sx * np.array([0, nx - 1])
+            ys = origin[1] + sy * np.array([0, ny - 1])
             r_max = float(np.max(np.hypot(xs[:, None] - cx, ys[None, :] - cy)))
         if not r_max > r_min:
             raise InputError(f"r_max must be > r_min ({r_min} mm), got {r_max}")
@@ -160,8 +382,8 @@ def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
         s = radius * t
     else:
         raise InputError(f"kind must be 'radial' or 'circumferential', got {kind!r}")
-    col = (px - origin[0]) / pixel
-    row = (py - origin[1]) / pixel
+    col = (px - origin[0]) / sx
+    row = (py - origin[1]) / sy
     ok = np.isfinite(z)
     vals = ndimage.map_coordinates(np.where(ok, z, 0.0), [row, col], order=1, mode="constant",
                                    cval=np.nan)
@@ -172,7 +394,7 @@ def extract_section(z, *, pixel: float, origin=(0.0, 0.0), kind: str = "radial",
     return s, vals
 
 
-def section_parameters(z, *, pixel: float, origin=(0.0, 0.0), center=(0.0, 0.0),
+def section_parameters(z, *, pixel, origin=(0.0, 0.0), center=(0.0, 0.0),
                        angles=(0.0,), radii=(), n_sampling: int = 5) -> dict:
     """Ra, Rq, Rz on radial sections (at ``angles``, rad) and circumferential sections
     (at ``radii``, mm) of a map.  Returns ``{"radial": [...], "circumferential": [...]}``,
@@ -186,7 +408,7 @@ def section_parameters(z, *, pixel: float, origin=(0.0, 0.0), center=(0.0, 0.0),
             out["skipped"].append({"angle_rad": float(a)})
             continue
         out["radial"].append({"angle_rad": float(a),
-                              **profile_parameters(v, spacing=pixel, n_sampling=n_sampling)})
+                              **profile_parameters(v, spacing=min(pixel_xy(pixel)), n_sampling=n_sampling)})
     for r in radii:
         _, v = extract_section(z, pixel=pixel, origin=origin, kind="circumferential",
                                center=center, radius=float(r))
@@ -194,5 +416,5 @@ def section_parameters(z, *, pixel: float, origin=(0.0, 0.0), center=(0.0, 0.0),
             out["skipped"].append({"radius_mm": float(r)})
             continue
         out["circumferential"].append({"radius_mm": float(r),
-                                       **profile_parameters(v, spacing=pixel, n_sampling=n_sampling)})
+                                       **profile_parameters(v, spacing=min(pixel_xy(pixel)), n_sampling=n_sampling)})
     return out

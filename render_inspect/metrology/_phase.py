@@ -33,7 +33,7 @@ import numpy as np
 from ..core.errors import InputError, check_range
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
-           "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult", "measure_frames",
+           "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult",
            "evaluate_measurement"]
 
 _ALGORITHMS = ("auto", "4step", "5step", "lsq")
@@ -71,7 +71,9 @@ class PhaseResult:
 # --------------------------------------------------------------------------------------
 # input checks
 def _check_frames(frames, *, min_frames=3) -> np.ndarray:
-    f = np.asarray(frames, dtype=np.float64)
+    f = np.asarray(frames)
+    # float32 stacks stay float32 (a 1024^2 x 256 CSI stack is 1 GiB; float64 would double it)
+    f = f if f.dtype == np.float32 else f.astype(np.float64)
     if f.ndim != 3:
         raise InputError(f"frames must be an (N, H, W) array of N interferogram frames, "
                          f"got shape {f.shape}")
@@ -153,6 +155,9 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
             i1, i2, i3, i4, i5 = f
             num, den = s * 2 * (i2 - i4), 2 * i3 - i5 - i1
             b = 0.25 * np.hypot(num, den)
+            # the background of the 5-step set (frames 1 and 5 are the same phase): the
+            # plain mean would be biased by b cos(phi) / 5
+            a = (i1 + 2 * (i2 + i3 + i4) + i5) / 8
             psi = np.arctan2(num, den)
             delta_ref = steps[2]
         phase = _wrap(psi - delta_ref)
@@ -580,51 +585,6 @@ def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mea
 
 # --------------------------------------------------------------------------------------
 # measuring frames (no truth), then evaluating against a truth
-def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str = "envelope",
-                   min_modulation: float = 0.05) -> PhaseResult:
-    """What the instrument reports: height from its frames and settings alone.
-
-    Parameters
-    ----------
-    frames : Frames
-        :class:`~render_inspect.core.Frames` (an interferometer's recording: ``frames``,
-        ``valid``, ``mode``, ``wavelength_nm``, ``phase_steps`` (PSI, rad),
-        ``scan_positions`` (CSI, mm), ``z_ref`` (mm)).  Its phase convention is
-        ``I_k = a + b cos(4 pi (h - z_ref) / lambda + delta_k)``, the one this module
-        inverts.  Nothing else is read: no true height.
-    algorithm : {"auto", "4step", "5step", "lsq"}
-        PSI algorithm (see :func:`wrapped_phase`).
-    csi_refine : {"envelope", "phase"}
-        CSI height from the envelope peak alone or refined by the fringe phase.
-    min_modulation : float
-        Fringe-contrast threshold below which a pixel is not measured.
-
-    Returns
-    -------
-    PhaseResult
-        ``height`` (mm, NaN where not measured) as the instrument reports it: PSI heights
-        are ``z_ref`` plus the unwrapped phase, so each connected region carries its own
-        unknown multiple of lambda/2 (the 2-pi ambiguity of phase shifting); CSI heights
-        are absolute in the scan's frame.  ``meta`` holds the mode, algorithm,
-        wavelength, ``light_fraction`` and the number of ``regions``.
-    """
-    mode = str(frames.mode)
-    stack = np.asarray(frames.frames, dtype=np.float64)
-    valid = np.asarray(frames.valid, dtype=bool)
-    if mode == "psi":
-        res = retrieve_psi(stack, wavelength_nm=frames.wavelength_nm, steps_rad=frames.phase_steps,
-                           algorithm=algorithm, valid=valid, min_modulation=min_modulation)
-        res.height = res.height + float(frames.z_ref)
-    elif mode == "csi":
-        res = retrieve_csi(stack, frames.scan_positions, wavelength_nm=frames.wavelength_nm,
-                           valid=valid, refine=csi_refine, min_modulation=min_modulation)
-    else:
-        raise InputError(f"frames.mode must be 'psi' or 'csi', got {mode!r}")
-    res.meta.update({"mode": mode, "wavelength_nm": float(frames.wavelength_nm),
-                     "light_fraction": float(valid.mean())})
-    return res
-
-
 def evaluate_measurement(result: PhaseResult, truth, *, piston: str = "mean"):
     """Compare a measurement with the true height (an evaluation step, apart from
     measuring): the measured map is aligned to the truth by one constant per connected

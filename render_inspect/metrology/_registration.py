@@ -12,13 +12,16 @@ import warnings
 import numpy as np
 from scipy import ndimage
 from scipy.optimize import least_squares
+from scipy.signal import fftconvolve
 from scipy.spatial.transform import Rotation
 
-from ..core.errors import InputError, check_positive
-from ._filters import valid_mask
+from ..core.errors import InputError
+from ._filters import pixel_xy, valid_mask
+from ._params import autocorrelation
 
 __all__ = ["RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
-           "GridSurface", "template_surface", "register_lsq", "register_icp"]
+           "GridSurface", "template_surface", "register_lsq", "register_icp",
+           "registration_covariance"]
 
 #: keys of a rigid transform dict, in parameter order
 RIGID_KEYS = ("tx_mm", "ty_mm", "tz_mm", "alpha_rad", "beta_rad", "gamma_rad")
@@ -43,8 +46,9 @@ def rotation_matrix(alpha: float, beta: float, gamma: float) -> np.ndarray:
 
 def _grid(shape, pixel, origin):
     ny, nx = shape
-    x = origin[0] + pixel * np.arange(nx)
-    y = origin[1] + pixel * np.arange(ny)
+    px, py = pixel_xy(pixel)
+    x = origin[0] + px * np.arange(nx)
+    y = origin[1] + py * np.arange(ny)
     return np.meshgrid(x, y)
 
 
@@ -114,11 +118,12 @@ class MovedSurface:
         return float(p[0]), float(p[1]), float(p[2])
 
 
-def detect_outliers(z, *, pixel: float, k: float = 3.0, mask=None, replace: bool = True,
+def detect_outliers(z, *, pixel, k: float = 3.0, mask=None, replace: bool = True,
                     min_sigma_mm: float = 1e-7):
     """Outliers by the second-difference ``k``-sigma rule (seed 002, step 1).
 
-    ``f'' = (f(x - d) + f(x + d) - 2 f(x)) / d^2`` along x and along y; a point whose
+    ``f'' = (f(x - d) + f(x + d) - 2 f(x)) / d^2`` along x (``d`` = pixel_x) and along y
+    (``d`` = pixel_y; ``pixel`` is one number or (pixel_x, pixel_y), mm); a point whose
     ``|f'' - median(f'')|`` exceeds ``k`` sigma in either direction is an outlier.  Sigma is
     the robust estimate ``1.4826 * MAD`` of ``f''`` (the plain standard deviation is inflated
     by the very spikes it should find), and at least ``min_sigma_mm / d^2``.  Outliers are
@@ -131,7 +136,7 @@ def detect_outliers(z, *, pixel: float, k: float = 3.0, mask=None, replace: bool
     outliers : (ny, nx) bool array
     """
     z = np.asarray(z, dtype=np.float64)
-    check_positive("pixel", pixel)
+    pxy = pixel_xy(pixel)
     ok = valid_mask(z, mask)
     out = np.zeros(z.shape, dtype=bool)
     zz = np.where(ok, z, np.nan)
@@ -145,13 +150,14 @@ def detect_outliers(z, *, pixel: float, k: float = 3.0, mask=None, replace: bool
         lo[axis] = slice(0, -2)
         hi = [slice(None)] * 2
         hi[axis] = slice(2, None)
-        f2[tuple(sl)] = (zz[tuple(lo)] + zz[tuple(hi)] - 2 * zz[tuple(sl)]) / pixel ** 2
+        d = pxy[1] if axis == 0 else pxy[0]
+        f2[tuple(sl)] = (zz[tuple(lo)] + zz[tuple(hi)] - 2 * zz[tuple(sl)]) / d ** 2
         fin = np.isfinite(f2)
         if fin.sum() < 10:
             continue
         med = np.median(f2[fin])
         dev = np.abs(f2 - med)
-        sigma = max(1.4826 * np.median(dev[fin]), min_sigma_mm / pixel ** 2)
+        sigma = max(1.4826 * np.median(dev[fin]), min_sigma_mm / d ** 2)
         out |= fin & (dev > k * sigma)
     if not replace:
         return z, out
@@ -170,19 +176,19 @@ class GridSurface:
 
     kind = "template"
 
-    def __init__(self, z, *, pixel: float, origin=(0.0, 0.0)):
+    def __init__(self, z, *, pixel, origin=(0.0, 0.0)):
         from scipy.interpolate import RectBivariateSpline
 
         z = np.asarray(z, dtype=np.float64)
-        check_positive("pixel", pixel)
+        px, py = pixel_xy(pixel)
         if z.ndim != 2 or min(z.shape) < 4:
             raise InputError(f"template must be a 2-D map of at least 4 x 4 points, got {z.shape}")
         if not np.isfinite(z).all():
             raise InputError("template must not contain NaN (sample the design where it is defined)")
-        self.pixel = float(pixel)
+        self.pixel = (px, py)
         self.origin = (float(origin[0]), float(origin[1]))
-        x = self.origin[0] + pixel * np.arange(z.shape[1])
-        y = self.origin[1] + pixel * np.arange(z.shape[0])
+        x = self.origin[0] + px * np.arange(z.shape[1])
+        y = self.origin[1] + py * np.arange(z.shape[0])
         self._spl = RectBivariateSpline(y, x, z, kx=3, ky=3)
         self._bounds = (x[0], x[-1], y[0], y[-1])
 
@@ -198,28 +204,28 @@ class GridSurface:
         return self._spl.ev(y, x, dy=1), self._spl.ev(y, x, dx=1)
 
 
-def template_surface(design, *, region, pixel: float, oversample: int = 10) -> GridSurface:
+def template_surface(design, *, region, pixel, oversample: int = 10) -> GridSurface:
     """Sample ``design`` (a Surface) on ``region`` = (x0, y0, x1, y1) at ``pixel / oversample``
-    (seed 002: the template is at least 10 x denser than the measurement)."""
-    check_positive("pixel", pixel)
+    in x and y (seed 002: the template is at least 10 x denser than the measurement)."""
+    ppx, ppy = pixel_xy(pixel)
     if oversample < 10:
         warnings.warn(f"template oversample={oversample}: seed 002 asks for >= 10 x the measured "
                       f"density; registration accuracy may suffer", stacklevel=2)
-    p = pixel / oversample
+    qx, qy = ppx / oversample, ppy / oversample
     x0, y0, x1, y1 = region
-    nx = int(np.ceil((x1 - x0) / p)) + 1
-    ny = int(np.ceil((y1 - y0) / p)) + 1
+    nx = int(np.ceil((x1 - x0) / qx)) + 1
+    ny = int(np.ceil((y1 - y0) / qy)) + 1
     if nx * ny > 25_000_000:
         raise InputError(f"template of {ny} x {nx} points is too large; reduce the region or oversample")
-    x = x0 + p * np.arange(nx)
-    y = y0 + p * np.arange(ny)
+    x = x0 + qx * np.arange(nx)
+    y = y0 + qy * np.arange(ny)
     z = np.broadcast_to(design.height(x[None, :], y[:, None]), (ny, nx))
-    return GridSurface(z, pixel=p, origin=(x0, y0))
+    return GridSurface(z, pixel=(qx, qy), origin=(x0, y0))
 
 
 def _prepare(z, pixel, origin, mask, max_points, rng):
     z = np.asarray(z, dtype=np.float64)
-    check_positive("pixel", pixel)
+    pixel_xy(pixel)
     ok = valid_mask(z, mask)
     if ok.sum() < 6:
         raise InputError(f"registration needs at least 6 valid points, got {int(ok.sum())} "
@@ -240,7 +246,7 @@ def _result(v, rms, n, method, **extra):
     return d
 
 
-def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=None,
+def register_lsq(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
                  fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), max_points: int = 200_000,
                  seed: int = 0) -> dict:
     """Least-squares 6-DOF rigid registration of a measured map to a design (seed 002, step 3).
@@ -254,7 +260,7 @@ def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
         Measured heights, mm (NaN = missing; remove outliers first, see :func:`detect_outliers`).
     design : object with ``height(x, y)``
         The design surface or a :class:`GridSurface` template.
-    pixel : float
+    pixel : float or (pixel_x, pixel_y)
         mm.
     origin : (x, y)
         Centre of pixel [0, 0], mm.
@@ -271,10 +277,42 @@ def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
     Returns
     -------
     dict
-        :data:`RIGID_KEYS`, ``rms_mm`` (residual RMS), ``n_points``, ``method`` = "lsq".
+        :data:`RIGID_KEYS`, ``rms_mm`` (residual RMS), ``n_points``, ``method`` = "lsq",
+        ``fitted``, ``sigma_formal`` (standard errors of the fitted parameters from the
+        Jacobian, assuming independent residuals: ``s^2 (J^T J)^-1``; see
+        :func:`registration_covariance` for residuals that are spatially correlated).
     """
     px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
     v0 = _vec(init)
+    idx = _fit_indices(fit)
+    scale = np.full(len(idx), 1e-3)
+    use_jac = hasattr(design, "gradient")
+    coarse = 20_000
+    if px.size > 4 * coarse:
+        # coarse to fine: most iterations on a seeded subset, the last ones on all points
+        sub = np.sort(np.random.default_rng(seed + 1).choice(px.size, coarse, replace=False))
+        r_c, j_c = _lsq_problem(px[sub], py[sub], pz[sub], design, v0, idx)
+        sol_c = least_squares(r_c, v0[idx], x_scale=scale, method="trf",
+                              jac=j_c if use_jac else "2-point", diff_step=1e-7,
+                              xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=200)
+        v0 = v0.copy()
+        v0[idx] = sol_c.x
+    resid, jac = _lsq_problem(px, py, pz, design, v0, idx)
+    # after the coarse stage a map of the design converges in a few steps; a map of
+    # something else does not converge at all, and more steps would not change that
+    sol = least_squares(resid, v0[idx], x_scale=scale, method="trf",
+                        jac=jac if use_jac else "2-point", diff_step=1e-7,
+                        xtol=1e-12, ftol=1e-14, gtol=1e-14,
+                        max_nfev=15 if px.size > 4 * coarse else 200)
+    v = v0.copy()
+    v[idx] = sol.x
+    rms = np.sqrt(np.mean(sol.fun ** 2))
+    sig = _formal_sigma(sol.jac, sol.fun)
+    return _result(v, rms, px.size, "lsq", fitted=[k for k in _SHORT if _SHORT[k] in idx],
+                   sigma_formal={RIGID_KEYS[i]: float(e) for i, e in zip(idx, sig)})
+
+
+def _fit_indices(fit):
     idx = []
     for name in fit:
         if name not in _SHORT:
@@ -283,6 +321,11 @@ def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
     idx = sorted(set(idx))
     if not idx:
         raise InputError("fit must name at least one parameter")
+    return idx
+
+
+def _lsq_problem(px, py, pz, design, v0, idx):
+    """Residual and Jacobian functions of the registration over the parameters ``idx``."""
 
     def resid(p):
         v = v0.copy()
@@ -320,17 +363,128 @@ def register_lsq(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
             cols.append(dq[2] - gx * dq[0] - gy * dq[1])
         return np.column_stack(cols)
 
-    scale = np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])[idx]
-    sol = least_squares(resid, v0[idx], x_scale=scale, method="trf",
-                        jac=jac if hasattr(design, "gradient") else "2-point", diff_step=1e-7,
-                        xtol=1e-12, ftol=1e-14, gtol=1e-14, max_nfev=200)
-    v = v0.copy()
-    v[idx] = sol.x
-    rms = np.sqrt(np.mean(sol.fun ** 2))
-    return _result(v, rms, px.size, "lsq", fitted=[k for k in _SHORT if _SHORT[k] in idx])
+    return resid, jac
 
 
-def register_icp(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=None,
+def _normal_inverse(j) -> np.ndarray:
+    """``(J^T J)^-1`` that stays honest when J is (nearly) rank deficient: the columns are
+    scaled to unit norm and the eigenvalues of the scaled normal matrix floored at 1e-16 of
+    the largest, so an undetermined parameter gets a huge variance instead of a truncated
+    (zero) one."""
+    j = np.asarray(j, dtype=np.float64)
+    norm = np.linalg.norm(j, axis=0)
+    norm = np.where(norm > 0, norm, 1.0)
+    a = (j / norm).T @ (j / norm)
+    w, v = np.linalg.eigh(0.5 * (a + a.T))
+    w = np.maximum(w, max(float(w.max()), 1e-300) * 1e-16)
+    inv = (v / w) @ v.T
+    return inv / np.outer(norm, norm)
+
+
+def _formal_sigma(j, fun) -> np.ndarray:
+    """Standard errors ``sqrt(diag(s^2 (J^T J)^-1))``, ``s^2 = |r|^2 / (n - p)``."""
+    j = np.asarray(j, dtype=np.float64)
+    n, p = j.shape
+    s2 = float(np.sum(np.asarray(fun) ** 2)) / max(n - p, 1)
+    return np.sqrt(np.maximum(np.diag(s2 * _normal_inverse(j)), 0.0))
+
+
+def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), mask=None,
+                            residual=None, max_points: int = 250_000) -> dict:
+    """Standard uncertainties of a registration (an LSQ or ICP result).
+
+    With independent residuals the covariance of the fitted parameters is the formal
+    ``s^2 (J^T J)^-1``.  Measured residuals are spatially correlated (roughness,
+    waviness, form error), which that underestimates.  Given the residual map, the
+    covariance is the sandwich ``(J^T J)^-1 J^T C J (J^T J)^-1`` with ``C`` the residual
+    autocovariance: ``s^2`` times the residual's autocorrelation (:func:`autocorrelation`)
+    over its positive central lobe, applied to each Jacobian column as a convolution on
+    the grid.  For white residuals it reduces to the formal value.
+
+    Parameters
+    ----------
+    z : (ny, nx) array
+        Measured heights, mm.
+    design : object with ``height`` (and ``gradient``)
+    reg : dict
+        Result of :func:`register_lsq` / :func:`register_icp` (``fitted`` names the free
+        parameters; all six when absent).
+    pixel, origin
+        mm.
+    mask : bool array, optional
+        Points used by the registration.
+    residual : (ny, nx) array, optional
+        Measured minus registered design (NaN where not used).
+    max_points : int
+        Larger maps are evaluated on every k-th row and column (k the smallest stride that
+        leaves at most this many valid points): the uncertainty of a fit to that subgrid,
+        a little conservative for the full map.
+
+    Returns
+    -------
+    dict
+        ``sigma`` (per fitted key of :data:`RIGID_KEYS`; mm or rad), ``sigma_formal``,
+        ``inflation`` (sigma / sigma_formal per key), ``method``, ``n_points``.
+    """
+    z = np.asarray(z, dtype=np.float64)
+    sx, sy = pixel_xy(pixel)
+    ok = valid_mask(z, mask)
+    if ok.sum() < 6:
+        raise InputError(f"registration_covariance: need at least 6 valid points, got {int(ok.sum())}")
+    stride = max(1, int(np.ceil(np.sqrt(ok.sum() / max_points))))
+    if stride > 1:
+        z, ok = z[::stride, ::stride], ok[::stride, ::stride]
+        residual = None if residual is None else np.asarray(residual)[::stride, ::stride]
+        sx, sy = sx * stride, sy * stride
+    xx, yy = _grid(z.shape, (sx, sy), origin)
+    pts = (xx[ok], yy[ok], z[ok])
+    idx = _fit_indices(reg.get("fitted") or list(_SHORT))
+    v = _vec({k: reg.get(k, 0.0) for k in RIGID_KEYS})
+    resid, jac = _lsq_problem(*pts, design, v, idx)
+    fun = resid(v[idx])
+    if hasattr(design, "gradient"):
+        j = jac(v[idx])
+    else:
+        h = 1e-7
+        j = np.column_stack([(resid(v[idx] + h * e) - resid(v[idx] - h * e)) / (2 * h)
+                             for e in np.eye(len(idx))])
+    n, p = j.shape
+    s2 = float(np.sum(fun ** 2)) / max(n - p, 1)
+    a_inv = _normal_inverse(j)
+    formal = np.sqrt(np.maximum(np.diag(s2 * a_inv), 0.0))
+    cov = s2 * a_inv
+    method = "formal (independent residuals)"
+    if residual is not None and np.isfinite(residual).sum() >= 16:
+        acf, _ = autocorrelation(residual)
+        cy, cx = acf.shape[0] // 2, acf.shape[1] // 2
+        lab, _ = ndimage.label(np.nan_to_num(acf, nan=-1.0) > 0)
+        lobe = lab == lab[cy, cx]
+        rows, cols = np.nonzero(lobe)
+        hr = int(max(cy - rows.min(), rows.max() - cy))
+        hc = int(max(cx - cols.min(), cols.max() - cx))
+        kern = np.where(lobe, np.nan_to_num(acf), 0.0)[cy - hr:cy + hr + 1, cx - hc:cx + hc + 1]
+        m = np.empty((p, p))
+        grids = []
+        for c in range(p):
+            g = np.zeros(z.shape)
+            g[ok] = j[:, c]
+            grids.append(g)
+        for b_ in range(p):
+            conv = fftconvolve(grids[b_], kern, mode="same")
+            for a_ in range(p):
+                m[a_, b_] = np.sum(grids[a_][ok] * conv[ok])
+        m = 0.5 * (m + m.T)
+        cov = s2 * a_inv @ m @ a_inv
+        method = "sandwich with the residual autocovariance"
+    sig = np.sqrt(np.maximum(np.diag(cov), np.diag(s2 * a_inv)))
+    keys = [RIGID_KEYS[i] for i in idx]
+    return {"sigma": {k: float(e) for k, e in zip(keys, sig)},
+            "sigma_formal": {k: float(e) for k, e in zip(keys, formal)},
+            "inflation": {k: float(e / f) if f > 0 else 1.0 for k, e, f in zip(keys, sig, formal)},
+            "method": method, "n_points": int(n), "stride": stride}
+
+
+def register_icp(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
                  oversample: int = 10, max_iter: int = 50, tol: float = 1e-10,
                  max_points: int = 100_000, seed: int = 0) -> dict:
     """Point-to-plane ICP registration of a measured map to a dense design template.
@@ -345,10 +499,11 @@ def register_icp(z, design, *, pixel: float, origin=(0.0, 0.0), mask=None, init=
 
     px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
     ny, nx = np.shape(z)
-    margin = 0.05 * max(nx, ny) * pixel + 3 * pixel
+    sx, sy = pixel_xy(pixel)
+    margin = 0.05 * max(nx * sx, ny * sy) + 3 * max(sx, sy)
     region = (origin[0] - margin, origin[1] - margin,
-              origin[0] + (nx - 1) * pixel + margin, origin[1] + (ny - 1) * pixel + margin)
-    tp = pixel / oversample
+              origin[0] + (nx - 1) * sx + margin, origin[1] + (ny - 1) * sy + margin)
+    tp = min(sx, sy) / oversample
     n_t = ((region[2] - region[0]) / tp + 1) * ((region[3] - region[1]) / tp + 1)
     if n_t > 6e6:
         raise InputError(f"register_icp: the template would have {n_t:.3g} points (> 6e6); "

@@ -2,46 +2,48 @@
 Blender add-on call these functions.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
-``run_toolpath``, ``run_render``, ``run_compare``, ``run_demo``; ``simulation_metrics``
-is the one metrics builder every command's ``metrics.json`` comes from.
+``run_toolpath``, ``run_render``, ``run_compare``, ``run_analyze``, ``run_measure``,
+``run_characterise``, ``run_demo``, ``run_sweep`` (many points on Dask), ``run_regress``
+(the image regression suite); the
+Blender add-on's ``simulate_variants``, ``render_variant``, ``compare_scene``,
+``export_variant`` (and ``surfaces_into_blender``, ``load_render_images`` to show their
+results in Blender); ``simulation_metrics`` is the one metrics builder every command's
+``metrics.json`` comes from.
 """
 
-from ._blender import simulate_into_blender
-from ._compare import (
-                       COMPARE_MAX_CAMERA_PIXELS,
-                       COMPARE_MAX_DIFFUSE_RESOLUTION,
-                       COMPARE_MAX_DIFFUSE_SPP,
-                       PROFILE_ANGLES_DEG,
-                       VARIANTS,
-                       compare_variants,
-                       preview_render_configs,
-                       run_compare,
-)
+from ._analyze import ANALYZE_FILES, run_analyze
+from ._blender import (EXPORT_FORMATS, PANEL_METRICS, VARIANT_PROPERTY, blender_output_dir,
+                       blender_presets, blender_surfaces, compare_scene, export_variant,
+                       load_render_images, remove_blender_surfaces, render_variant,
+                       simulate_into_blender, simulate_variants, surface_info,
+                       surfaces_into_blender)
+from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION,
+                       COMPARE_MAX_DIFFUSE_SPP, PROFILE_ANGLES_DEG, VARIANTS, check_measured,
+                       compare_variants, expected_sq_mm, preview_render_configs, run_compare)
+from ._characterise import characterise_instrument, run_characterise
 from ._demo import DEMO_SCENE, run_demo
-from ._measure import measure_and_evaluate
+from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
 from ._metrics import lenslet_metrics, simulation_metrics
-from ._render import (
-                       check_render_limits,
-                       interferogram_summary,
-                       render_heightmap,
-                       run_render,
-                       write_diffuse_outputs,
-                       write_interferogram_outputs,
-)
-from ._simulate import (
-                       Simulation,
-                       design_heightmap,
-                       run_simulate,
-                       simulate,
-                       write_simulation,
-)
+from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
+from ._render import (check_render_limits, interferogram_summary, render_heightmap, run_render,
+                      write_diffuse_outputs, write_interferogram_outputs)
+from ._simulate import Simulation, design_heightmap, run_simulate, simulate, write_simulation
+from ._sweep import find_sweep, run_point, run_sweep, shipped_sweeps, sweep_tasks
 from ._toolpath import plan_program, run_toolpath
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
            "plan_program", "run_toolpath", "run_render", "render_heightmap",
            "write_interferogram_outputs", "write_diffuse_outputs", "interferogram_summary",
-           "run_compare", "compare_variants", "preview_render_configs", "run_demo",
-           "DEMO_SCENE", "measure_and_evaluate", "simulation_metrics", "lenslet_metrics",
-           "simulate_into_blender", "VARIANTS", "PROFILE_ANGLES_DEG",
-           "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
-           "COMPARE_MAX_DIFFUSE_SPP", "check_render_limits"]
+           "run_compare", "compare_variants", "preview_render_configs", "check_measured",
+           "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_demo", "DEMO_SCENE",
+           "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
+           "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",
+           "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
+           "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",
+           "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
+           "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS",
+           "VARIANTS", "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS",
+           "COMPARE_MAX_DIFFUSE_RESOLUTION", "COMPARE_MAX_DIFFUSE_SPP",
+           "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
+           "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
+           "check_render_limits"]

@@ -1,18 +1,382 @@
-"""The pipeline as the Blender add-on drives it: simulate a scene and load the surface
-into Blender as a mesh object."""
+"""The pipeline as the Blender add-on drives it.
+
+Simulate, Render, Compare and Export of the add-on are one function each here; the
+add-on only reads its panel, calls them (in a worker process, or in Blender's own process
+in background mode) and shows the result.  Functions that put data into Blender
+(:func:`surfaces_into_blender`, :func:`load_render_images`) go through the Cycles adapter
+(:mod:`render_inspect.render`), the only place that imports ``bpy``.
+
+Every long function takes ``progress`` (``progress(fraction, message)``, fraction in
+0..1) and writes its output folder atomically (:func:`~render_inspect.io.atomic_output_dir`):
+stopped half-way, it leaves nothing behind.  Results are plain JSON-able dicts, so they
+cross a process boundary unchanged.
+"""
 
 from __future__ import annotations
 
+import importlib.util
+import json
 from pathlib import Path
 
 from ..core.errors import InputError, check_positive
-from ..io import atomic_output_dir, write_heightmap_exr
-from ..render import auto_exaggeration, default_output_dir, surface_object
-from ..render._cycles import PROP_HEIGHTMAP
-from ..scene import load_scene
-from ._simulate import simulate
+from ..instruments import render_interferogram
+from ..io import (
+    atomic_output_dir,
+    read_heightmap_exr,
+    write_heightmap_exr,
+    write_marker,
+    write_x3p,
+)
+from ..mesh import export_mesh, heightmap_mesh
+from ..render import (
+    auto_exaggeration,
+    blend_objects,
+    default_output_dir,
+    load_image,
+    remove_object,
+    render_object,
+    surface_material,
+    surface_object,
+)
+from ..render._cycles import (
+    PROP_EXAGGERATION,
+    PROP_HEIGHTMAP,
+    PROP_OFFSET,
+    PROP_SURFACE,
+    PROP_VARIANT,
+)
+from ..scene import load_scene, scene_from_dict, shipped_scenes
+from ._compare import VARIANTS, compare_variants, run_compare
+from ._render import write_interferogram_outputs
+from ._simulate import simulate, write_simulation
 
-__all__ = ["simulate_into_blender"]
+__all__ = ["simulate_into_blender", "simulate_variants", "surfaces_into_blender",
+           "blender_surfaces", "surface_info", "remove_blender_surfaces", "render_variant",
+           "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
+           "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS", "SIDE_BY_SIDE_GAP",
+           "RENDER_SOURCE"]
+
+#: The custom property naming the variant of a mesh :func:`surfaces_into_blender` made.
+VARIANT_PROPERTY = PROP_VARIANT
+#: What :func:`export_variant` writes.
+EXPORT_FORMATS = ("EXR", "PLY", "GLB", "X3P")
+#: Gap between the two meshes of :func:`surfaces_into_blender`, in part widths.
+SIDE_BY_SIDE_GAP = 0.15
+#: Name of the temporary mesh :func:`render_variant` renders when the surface is not in
+#: this Blender (a worker process).
+RENDER_SOURCE = "render_inspect_render_source"
+#: Metrics :func:`compare_scene` returns for a panel: (label, path in a variant's
+#: metrics, unit).
+PANEL_METRICS = (
+    ("Residual Sq", ("residual", "Sq_nm"), "nm"),
+    ("Residual Sz", ("residual", "Sz_nm"), "nm"),
+    ("Deepest overcut", ("residual", "min_nm"), "nm"),
+    ("Measured Sq", ("measured", "instrument_residual_Sq_nm"), "nm"),
+)
+
+
+def _quiet(fraction: float, message: str) -> None:
+    """The default ``progress``: says nothing."""
+
+
+def blender_presets() -> dict[str, Path]:
+    """The scenes shipped with render_inspect: name -> file."""
+    return shipped_scenes()
+
+
+def blender_output_dir(scene_name: str) -> Path:
+    """Where the add-on writes when no output folder is set: ``render_inspect_out/<scene>``
+    next to the saved .blend file, else in the system's temporary folder."""
+    return default_output_dir(scene_name)
+
+
+def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined",
+                      exaggeration: float | None = None, progress=None) -> dict:
+    """Simulate a scene twice, compensated and uncompensated (as ``render-inspect
+    compare`` does: :func:`compare_variants`), into ``out/compensated/`` and
+    ``out/uncompensated/`` (``heightmap.exr``, ``metrics.json``, ``toolpath.npz``,
+    ``residual.png``, ...), written in one atomic step.
+
+    Parameters
+    ----------
+    scene_path : str or Path
+        A scene file (TOML) or the name of a shipped scene.
+    overrides : sequence of str
+        ``section.key=value`` overrides.
+    out : str or Path
+        Output folder.
+    surface : {"machined", "design", "residual"}
+        The layer the meshes will show (for the automatic exaggeration).
+    exaggeration : float or None
+        Vertical exaggeration of the meshes; None: the scene's
+        ``render.diffuse.exaggeration``, else :func:`~render_inspect.render.auto_exaggeration`
+        of the compensated surface (the same for both, so they compare).
+    progress : callable or None
+
+    Returns
+    -------
+    dict
+        ``scene_name``, ``out``, ``surface``, ``exaggeration`` and ``variants``:
+        {variant: {``heightmap`` (path), ``compensation``, ``residual`` (metrics),
+        ``shape``, ``pixel_mm``}}.
+    """
+    progress = progress or _quiet
+    if surface not in ("machined", "design", "residual"):
+        raise InputError(f"surface must be machined, design or residual, got {surface!r}")
+    if exaggeration is not None:
+        check_positive("exaggeration", exaggeration)
+    progress(0.02, "loading the scene")
+    scene = load_scene(scene_path, list(overrides))
+    out = Path(out)
+    result = {"scene_name": scene.name, "out": str(out.resolve()), "surface": surface,
+              "variants": {}}
+    first = None
+    # the variant folders are replaced; what else the add-on wrote there (compare/,
+    # export/) is kept
+    with atomic_output_dir(out, merge=True, command="blender simulate",
+                           option="output folder") as tmp:
+        for i, (name, sc) in enumerate(zip(VARIANTS, compare_variants(scene))):
+            progress(0.05 + 0.45 * i, f"simulating the {name} surface")
+            sim = simulate(sc)
+            first = first or sim.heightmap
+            (Path(tmp) / name).mkdir()
+            metrics = write_simulation(sim, Path(tmp) / name)
+            # a folder of its own: the renders of this variant are added to it later
+            write_marker(Path(tmp) / name, command="simulate", scene=sc)
+            result["variants"][name] = {
+                "heightmap": str((out / name / "heightmap.exr").resolve()),
+                "compensation": sc.process.compensation,
+                "residual": {k: v for k, v in metrics["residual"].items()
+                             if isinstance(v, (int, float))},
+                "shape": list(sim.heightmap.shape), "pixel_mm": float(sim.heightmap.pixel)}
+        progress(0.97, "writing")
+    if exaggeration is None:
+        exaggeration = scene.render.diffuse.exaggeration
+    if exaggeration is None:
+        exaggeration = auto_exaggeration(first, surface)
+    result["exaggeration"] = float(exaggeration)
+    progress(1.0, "done")
+    return result
+
+
+def surfaces_into_blender(result: dict, *, collection=None) -> dict:
+    """The meshes of a :func:`simulate_variants` result, side by side in Blender.
+
+    Earlier ones are removed first.  Each is named ``render_inspect_<variant>_x<exaggeration>``
+    and carries the custom properties ``render_inspect_variant``,
+    ``render_inspect_exaggeration``, ``render_inspect_heightmap_path``,
+    ``render_inspect_offset_mm`` (its shift along x: the uncompensated one sits
+    ``1 + SIDE_BY_SIDE_GAP`` part widths to the right; vertices keep the part's
+    coordinates) and those of :func:`~render_inspect.render.surface_object`.
+
+    Returns
+    -------
+    dict
+        {variant: bpy.types.Object}
+    """
+    ex = float(result["exaggeration"])
+    maps = {v: read_heightmap_exr(result["variants"][v]["heightmap"]) for v in VARIANTS}
+    remove_blender_surfaces()
+    made, shift = {}, 0.0
+    try:
+        for variant in VARIANTS:
+            hm = maps[variant]
+            obj = surface_object(hm, surface=result["surface"], exaggeration=ex,
+                                 name=f"render_inspect_{variant}_x{ex:g}", collection=collection)
+            made[variant] = obj
+            obj[PROP_VARIANT] = variant
+            obj[PROP_HEIGHTMAP] = result["variants"][variant]["heightmap"]
+            obj[PROP_OFFSET] = shift
+            obj.location.x = shift
+            obj.data.materials.append(surface_material())
+            x_lo, x_hi, _, _ = hm.extent
+            shift += (x_hi - x_lo) * (1.0 + SIDE_BY_SIDE_GAP)
+    except Exception:
+        remove_blender_surfaces()  # nothing half-made
+        raise
+    return made
+
+
+def blender_surfaces(objects=None) -> dict:
+    """{variant: object} of the meshes :func:`surfaces_into_blender` made, among
+    ``objects`` (default: every object of the Blender file)."""
+    if objects is None:
+        objects = blend_objects()
+    return {o[PROP_VARIANT]: o for o in objects if PROP_VARIANT in o}
+
+
+def remove_blender_surfaces() -> None:
+    for obj in list(blender_surfaces().values()):
+        remove_object(obj.name)
+
+
+def surface_info(obj) -> dict:
+    """What :func:`render_variant` and :func:`export_variant` need of a mesh made by
+    :func:`surfaces_into_blender`: ``variant``, ``heightmap``, ``surface``,
+    ``exaggeration``."""
+    if obj is None or PROP_VARIANT not in obj:
+        raise InputError("no render_inspect surface: run Simulate first")
+    return {"variant": str(obj[PROP_VARIANT]), "heightmap": str(obj[PROP_HEIGHTMAP]),
+            "surface": str(obj[PROP_SURFACE]), "exaggeration": float(obj[PROP_EXAGGERATION])}
+
+
+def render_variant(heightmap, *, variant: str, surface: str = "machined",
+                   exaggeration: float, view: str = "macro", resolution: int = 256,
+                   samples: int = 64, seed: int = 0, out, interferogram: bool = True,
+                   progress=None) -> dict:
+    """Cycles render of one simulated surface under its scene's diffuse light, and the
+    interferogram of its scene's instrument (``[render.interferometer]``; needs Mitsuba).
+
+    Renders the mesh on screen when this Blender has it (background mode), else builds
+    the same mesh from ``heightmap`` (a worker process).  Writes ``cycles.exr`` /
+    ``cycles.png`` and ``interferogram.exr``, ``interferogram_fringes.png``,
+    ``interferogram_height.png`` into ``out``.
+
+    Returns
+    -------
+    dict
+        ``variant``, ``cycles_png``, ``cycles_exr``, ``cycles_time_s``, and with the
+        interferogram ``interferogram_png``, ``interferogram_exr``, ``interferogram``
+        (its summary); ``notes`` (what was left out and why).
+    """
+    progress = progress or _quiet
+    progress(0.02, "loading the height map")
+    path = str(Path(heightmap).resolve())
+    hm = read_heightmap_exr(path)
+    ex = float(exaggeration)
+    obj = next((o for o in blend_objects()
+                if o.get(PROP_HEIGHTMAP) == path and o.get(PROP_SURFACE) == surface
+                and o.get(PROP_EXAGGERATION) == ex), None)
+    made = obj is None
+    if made:
+        obj = surface_object(hm, surface=surface, exaggeration=ex, name=RENDER_SOURCE)
+    progress(0.05, "Cycles: building the scene")
+    try:
+        res = render_object(obj, view=view, out=out, resolution=int(resolution),
+                            spp=int(samples), seed=int(seed),
+                            progress=lambda k, n: progress(0.05 + 0.6 * k / n,
+                                                           f"Cycles sample {k}/{n}"))
+    finally:
+        if made:
+            remove_object(RENDER_SOURCE)
+    result = {"variant": variant, "cycles_png": str(res["png"]), "cycles_exr": str(res["exr"]),
+              "cycles_time_s": float(res["time_s"]), "notes": []}
+    if interferogram:
+        if importlib.util.find_spec("mitsuba") is None:
+            result["notes"].append("no interferogram: Mitsuba is not available on this platform")
+        else:
+            progress(0.7, "interferometer: ray tracing the surface (Mitsuba)")
+            if not hm.scene:
+                raise InputError(f"{path}: the height map records no scene; simulate again")
+            sc = scene_from_dict(hm.scene)  # the variant's scene, as simulated
+            ig = render_interferogram(hm, sc.render.interferometer,
+                                      surface="design" if surface == "design" else "machined",
+                                      seed=int(sc.simulation.seed))
+            with atomic_output_dir(out, merge=True, command="interferometer", scene=sc,
+                                   option="output folder") as tmp:
+                summary = write_interferogram_outputs(Path(tmp), ig, scene=sc.to_dict())
+            o = Path(out).resolve()
+            result.update(interferogram_png=str(o / "interferogram_fringes.png"),
+                          interferogram_exr=str(o / "interferogram.exr"),
+                          interferogram={k: v for k, v in summary.items()
+                                         if isinstance(v, (int, float, str))})
+    progress(1.0, "done")
+    return result
+
+
+def load_render_images(result: dict) -> list[str]:
+    """Load the PNGs of a :func:`render_variant` result into Blender as images
+    ``render_inspect_<variant>_cycles`` and ``render_inspect_<variant>_interferogram``;
+    return their names."""
+    names = []
+    for key, suffix in (("cycles_png", "cycles"), ("interferogram_png", "interferogram")):
+        if key in result:
+            names.append(load_image(result[key], f"render_inspect_{result['variant']}_{suffix}").name)
+    return names
+
+
+def _metric(d, path):
+    for k in path:
+        if not isinstance(d, dict) or k not in d:
+            return None
+        d = d[k]
+    return d if isinstance(d, (int, float)) else None
+
+
+def compare_scene(scene_path, *, overrides=(), out, progress=None) -> dict:
+    """``render-inspect compare`` (:func:`run_compare`) into ``out``, with the metrics a
+    panel shows.
+
+    Returns
+    -------
+    dict
+        ``report`` (report.html), ``metrics_json``, ``rows`` ({``label``, ``unit``,
+        ``compensated``, ``uncompensated``} for :data:`PANEL_METRICS`) and
+        ``difference_rms_nm``.
+    """
+    progress = progress or _quiet
+    progress(0.02, "loading the scene")
+    scene = load_scene(scene_path, list(overrides))
+    progress(0.05, "simulating, rendering and measuring both variants")
+    metrics = run_compare(scene, out)
+    o = Path(out).resolve()
+    rows = []
+    for label, path, unit in PANEL_METRICS:
+        vals = [_metric(metrics.get(v, {}), path) for v in VARIANTS]
+        if any(v is not None for v in vals):
+            rows.append({"label": label, "unit": unit, "compensated": vals[0],
+                         "uncompensated": vals[1]})
+    progress(1.0, "done")
+    return {"report": str(o / "report.html"), "metrics_json": str(o / "metrics.json"),
+            "rows": rows, "difference_rms_nm": metrics.get("difference", {}).get("machined_rms_nm")}
+
+
+def export_variant(heightmap, *, variant: str, surface: str = "machined",
+                   exaggeration: float, formats=EXPORT_FORMATS, out, progress=None) -> dict:
+    """One simulated surface as files, into ``out``: ``heightmap.exr`` (design, machined,
+    residual, mm), ``<variant>_<surface>.ply`` (mesh, mm, +Z up),
+    ``<variant>_<surface>.glb`` (glTF: m, +Y up; exaggeration in the extras) and
+    ``<variant>_machined.x3p`` (the machined surface, ISO 25178-72).
+
+    Returns
+    -------
+    dict
+        ``out`` and ``files`` (names written).
+    """
+    progress = progress or _quiet
+    formats = [f for f in EXPORT_FORMATS if f in set(formats)]
+    if not formats:
+        raise InputError(f"export formats: choose at least one of {list(EXPORT_FORMATS)}; "
+                         f"received none")
+    if "X3P" in formats and importlib.util.find_spec("x3pio") is None:
+        raise InputError("export formats: X3P needs the x3pio package, which is not "
+                         "available here; choose EXR, PLY or GLB")
+    progress(0.02, "loading the height map")
+    hm = read_heightmap_exr(heightmap)
+    out = Path(out)
+    files = []
+    with atomic_output_dir(out, command="export", scene=hm.scene, option="output folder") as tmp:
+        tmp = Path(tmp)
+        if "EXR" in formats:
+            progress(0.1, "EXR")
+            write_heightmap_exr(tmp / "heightmap.exr", hm)
+            files.append("heightmap.exr")
+        meshes = [f for f in ("PLY", "GLB") if f in formats]
+        if meshes:
+            progress(0.3, "mesh")
+            gm = heightmap_mesh(hm, channel=surface, exaggeration=float(exaggeration))
+            for f in meshes:
+                name = f"{variant}_{surface}.{f.lower()}"
+                export_mesh(gm, tmp / name)
+                files.append(name)
+        if "X3P" in formats:
+            progress(0.8, "X3P")
+            name = f"{variant}_machined.x3p"
+            write_x3p(tmp / name, hm.machined, pixel=hm.pixel, origin=hm.origin,
+                      comment=json.dumps(hm.scene or {}, sort_keys=True))
+            files.append(name)
+    progress(1.0, "done")
+    return {"out": str(out.resolve()), "files": files}
 
 
 def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = "machined",

@@ -9,6 +9,7 @@ by side, their differences, ``metrics.json`` and a self-contained ``report.html`
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,10 +25,11 @@ from ..instruments import (
 )
 from ..io import (
     atomic_output_dir,
+    check_output_dir,
     atomic_write_bytes,
     atomic_write_text,
     json_safe,
-    read_measured,
+    read_surface,
     save_map_png,
     write_heightmap_exr,
     write_json,
@@ -38,6 +40,7 @@ from ..metrology import (
     characterise_map,
     compare_measured,
     extract_section,
+    kinematic_sq_mm,
     l_filter,
     remove_form,
     s_filter,
@@ -46,7 +49,7 @@ from ..processes import process_of
 from ..render import mitsuba_variant, render_diffuse
 from ..report import _figures as F
 from ..report import build_page
-from ._measure import measure_and_evaluate
+from ._measure import measure_and_evaluate, measurement_outputs
 from ._render import (
     check_render_limits,
     interferogram_summary,
@@ -55,7 +58,7 @@ from ._render import (
 )
 from ._simulate import simulate
 
-__all__ = ["run_compare", "compare_variants", "preview_render_configs", "VARIANTS",
+__all__ = ["run_compare", "check_measured", "expected_sq_mm", "compare_variants", "preview_render_configs", "VARIANTS",
            "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS", "COMPARE_MAX_DIFFUSE_RESOLUTION",
            "COMPARE_MAX_DIFFUSE_SPP"]
 
@@ -203,10 +206,13 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     write_interferogram_outputs(d, ig, scene=v.scene.to_dict())
     t = time.perf_counter()
     mcfg = v.scene.metrology
-    v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
-                                             algorithm=mcfg.phase_algorithm,
-                                             csi_refine=mcfg.csi_refine,
-                                             min_modulation=mcfg.min_modulation)
+    # measure from the frames alone (what the instrument reports: height.exr), then
+    # evaluate that measurement against the truth kept beside the frames
+    reported, v.phase, measured = measure_and_evaluate(d / "interferogram.exr",
+                                                       algorithm=mcfg.phase_algorithm,
+                                                       csi_refine=mcfg.csi_refine,
+                                                       min_modulation=mcfg.min_modulation)
+    measured["instrument"] = measurement_outputs(d, ig, reported, source="interferogram.exr")
     timing["phase_retrieval"] = time.perf_counter() - t
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
     save_map_png(d / "measurement_error.png", err, extent=ig.extent,
@@ -215,7 +221,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     # what the instrument reports vs the truth, both as residual from the design
     xx, yy = np.meshgrid(ig.x, ig.y)
     design_ig = np.broadcast_to(design_surface.height(xx, yy), xx.shape)
-    meas_res = np.where(v.phase.valid, v.phase.height - design_ig, np.nan)
+    meas_res = np.where(reported.valid, reported.height - design_ig, np.nan)
     true_res = np.where(v.phase.valid, ig.height_true - design_ig, np.nan)
     v.metrics["_maps"] = {"measured_residual": meas_res, "true_residual": true_res, "error": err}
     measured.update({f"instrument_residual_{k}": x for k, x in _areal_nm(meas_res, ig.pixel).items()})
@@ -286,7 +292,36 @@ def _luminance(rgb):
     return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
 
 
-def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
+def expected_sq_mm(scene) -> float | None:
+    """The Sq the scene's process should leave on its own (mm): the ideal turned profile
+    ``f^2 / (12 sqrt(5) R)`` for feed ``f`` per revolution and nose radius ``R``; None for
+    processes without a feed per revolution."""
+    feed = getattr(scene.process, "feed_per_rev", None)
+    radius = getattr(scene.tool, "nose_radius", None)
+    if feed is None or radius is None or not feed > 0:
+        return None
+    return kinematic_sq_mm(float(feed), float(radius))
+
+
+def check_measured(path, scene, design_surface, *, force: bool = False):
+    """Read a measured file and check, before any simulation, that it is a map of this
+    design: registered overlap with ``simulation.region`` at least ``metrology.min_overlap``
+    of the smaller area, registration residual not far above the process's roughness
+    (:func:`render_inspect.metrology.registration_checks`).
+
+    Returns ``(MeasuredMap, Comparison)``; raises :class:`InputError` (one line, the
+    reasons) when the checks refuse and ``force`` is False."""
+    m = read_surface(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # coverage warnings: repeated in the comparison
+        comp = compare_measured(m, design_surface, metrology=scene.metrology,
+                                region=tuple(scene.simulation.region),
+                                seed=int(scene.simulation.seed),
+                                expected_sq_mm=expected_sq_mm(scene), force=force)
+    return m, comp
+
+
+def run_compare(scene, out, *, measured=None, force: bool = False, overwrite: bool = False) -> dict:
     """Compensated vs uncompensated (and optionally a measured map): files and report.
 
     Parameters
@@ -298,8 +333,12 @@ def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
     out : str or Path
         Output folder, written atomically (:func:`render_inspect.io.atomic_output_dir`).
     measured : str or Path, optional
-        A measured height map (X3P, EXR, ...; :func:`render_inspect.io.read_measured`),
-        registered to the design and shown as a third column.
+        A measured height map (any format :func:`render_inspect.io.read_surface` reads),
+        registered to the design and shown as a third column.  It is read and checked
+        (:func:`check_measured`) before anything is simulated.
+    force : bool
+        Compare the measured map even when the checks refuse it (the reasons are kept in
+        ``measured_file.checks`` and shown in the report).
     overwrite : bool
         Replace ``out`` even if render_inspect did not write it.
 
@@ -313,14 +352,16 @@ def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
     ``metrics.json``), the side-by-side and difference PNGs, ``metrics.json`` and
     ``report.html``.
     """
+    check_output_dir(out, overwrite=overwrite, command="compare", scene=scene)
     if measured is not None and not Path(measured).is_file():
         raise InputError(f"--measured file not found: {str(measured)!r}")
     _check_phase_settings(scene)
-    # read the measured file before any work: a bad file is refused at once
-    measured_map = read_measured(measured) if measured is not None else None
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
     design_surface = make_surface(scene.design)
+    meas_map = None
+    if measured is not None:  # read and check the file before any simulation
+        meas_map, _ = check_measured(measured, scene, design_surface, force=force)
     comp_s, unc_s = compare_variants(scene)
     variants = [_Variant("compensated", comp_s), _Variant("uncompensated", unc_s)]
     check_render_limits(scene, kind="all")
@@ -334,8 +375,8 @@ def run_compare(scene, out, *, measured=None, overwrite: bool = False) -> dict:
             _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed, design_surface=design_surface)
         c, u = variants
         meas = None
-        if measured_map is not None:
-            meas = _measured_column(measured_map, scene, design_surface, c.heightmap, seed)
+        if measured is not None:
+            meas = _measured_column(meas_map, scene, design_surface, c.heightmap, seed)
 
         figs = _figures(c, u, meas, F)
         for name, png in figs.items():
@@ -384,19 +425,25 @@ def _check_phase_settings(scene) -> None:
                              f"other steps")
 
 
-def _measured_column(measured_map, scene, design_surface, sim_hm, seed) -> dict:
-    z, pixel, origin, src = measured_map
-    simulated = sim_hm if np.isclose(pixel, sim_hm.pixel, rtol=1e-6) else None
-    comp = compare_measured((z, pixel, origin), design_surface, metrology=scene.metrology,
-                            simulated=simulated, region=tuple(scene.simulation.region), seed=seed)
+def _measured_column(m, scene, design_surface, sim_hm, seed) -> dict:
+    simulated = sim_hm if np.allclose(m.pixel, sim_hm.pixel, rtol=1e-6) else None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        comp = compare_measured(m, design_surface, metrology=scene.metrology,
+                                simulated=simulated, region=tuple(scene.simulation.region),
+                                seed=seed, expected_sq_mm=expected_sq_mm(scene), force=True)
     metrics = dict(comp.metrics)
-    metrics["source"] = {k: x for k, x in src.items() if k != "scene"}
     metrics["compared_with_simulation"] = simulated is not None
+    notes = [str(w.message) for w in caught]
+    if simulated is None:
+        notes.append(f"the measured pixel ({m.pixel[0] * 1e3:.4g} x {m.pixel[1] * 1e3:.4g} um) "
+                     f"differs from the simulation's ({sim_hm.pixel * 1e3:.4g} um): the "
+                     f"measurement is compared with the design only")
+    checks = metrics.get("checks") or {}
+    metrics["warnings"] = notes + list(checks.get("warnings", [])) + [
+        f"compared with --force although: {r}" for r in checks.get("refusals", [])]
     return {"metrics": metrics, "maps": comp.maps, "pixel": comp.pixel, "origin": comp.origin,
-            "extent": (comp.origin[0] - comp.pixel / 2,
-                       comp.origin[0] + comp.pixel * (z.shape[1] - 0.5),
-                       comp.origin[1] - comp.pixel / 2,
-                       comp.origin[1] + comp.pixel * (z.shape[0] - 0.5))}
+            "extent": m.extent}
 
 
 def _figures(c: _Variant, u: _Variant, meas, F) -> dict:

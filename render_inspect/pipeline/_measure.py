@@ -1,17 +1,150 @@
-"""Measuring interferometer frames on disk, and evaluating the result against the truth a
-simulation keeps beside them."""
+"""``measure``: interferometer frames on disk -> measured height (no truth), and the
+evaluation of such a measurement against the truth a simulation keeps beside its frames."""
 
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
 
-from ..io import read_exr, read_frames_exr, write_exr
-from ..metrology import evaluate_measurement, measure_frames
+from .. import __version__
+from ..core.errors import InputError
+from ..io import (
+    STACK_EXTENSIONS,
+    atomic_output_dir,
+    check_output_dir,
+    read_exr,
+    read_frame_stack,
+    read_frames_exr,
+    save_map_png,
+    write_exr,
+    write_json,
+    write_measurement_exr,
+)
+from ..metrology import (
+    areal_parameters,
+    evaluate_measurement,
+    measure_frames,
+    remove_form,
+)
 
-__all__ = ["measure_and_evaluate"]
+__all__ = ["measure_and_evaluate", "measurement_outputs", "read_frames", "run_measure"]
+
+
+def read_frames(path, *, settings=None):
+    """Frames and settings from ``interferogram.exr`` (or any EXR with the frames
+    channels and header) or a TIFF / PNG stack with a settings JSON.
+
+    Returns
+    -------
+    frames : Frames
+    ignored : list of str
+        Channels of the file that are not frames (a simulation's truth): not read.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"frames file not found: {str(path)!r}")
+    if path.is_file() and path.suffix.lower() == ".exr":
+        if settings is not None:
+            raise InputError("--settings is for TIFF / PNG stacks; an EXR carries its settings "
+                             "in its header")
+        frames, extra, _ = read_frames_exr(path)
+        return frames, sorted(extra)
+    if path.is_dir() or path.suffix.lower() in STACK_EXTENSIONS:
+        return read_frame_stack(path, settings=settings), []
+    raise InputError(f"{path}: frames must be an .exr, a {'/'.join(STACK_EXTENSIONS)} stack or "
+                     f"a folder of frames, got {path.suffix or 'no extension'!r}")
+
+
+def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
+    """Write ``height.exr`` (``height`` mm, NaN where not measured; ``valid``;
+    ``modulation``; the instrument settings in the header) and ``height.png`` (the
+    height minus its best-fit plane, nm) into ``out``; return the measurement's metrics."""
+    out = Path(out)
+    meta = result.meta
+    attrs = {"mode": frames.mode, "algorithm": meta["algorithm"],
+             "wavelength_nm": float(frames.wavelength_nm),
+             "effective_wavelength_nm": float(meta["effective_wavelength_nm"]),
+             "numerical_aperture": float(frames.numerical_aperture),
+             "objective": str(frames.objective), "min_modulation": meta["min_modulation"],
+             "z_ref_mm": float(frames.z_ref), "source": source,
+             "instrument": dict(frames.settings)}
+    write_measurement_exr(out / "height.exr", result.height, result.valid, pixel=frames.pixel,
+                          origin=frames.origin, modulation=result.modulation, attrs=attrs)
+    valid = result.valid & np.isfinite(result.height)
+    metrics = {"mode": frames.mode, "algorithm": meta["algorithm"],
+               "wavelength_nm": float(frames.wavelength_nm),
+               "effective_wavelength_nm": float(meta["effective_wavelength_nm"]),
+               "shape": list(result.height.shape), "pixel_mm": float(frames.pixel),
+               "origin_mm": [float(v) for v in frames.origin],
+               "valid_fraction": float(valid.mean()),
+               "light_fraction": meta.get("light_fraction"),
+               "saturated_pixels": int(meta.get("saturated_pixels", 0)),
+               "regions": int(meta.get("regions", 0)), "min_modulation": meta["min_modulation"]}
+    if valid.sum() >= 3:
+        flat, _ = remove_form(np.where(valid, result.height, np.nan), pixel=frames.pixel,
+                              method="plane")
+        params = areal_parameters(flat, pixel=frames.pixel)
+        metrics["height"] = {"form_removed": "plane",
+                             **{f"{k}_nm": float(params[k]) * 1e6
+                                for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}}
+        x0 = frames.origin[0] - frames.pixel / 2
+        y0 = frames.origin[1] - frames.pixel / 2
+        ny, nx = result.height.shape
+        save_map_png(out / "height.png", flat * 1e6,
+                     extent=(x0, x0 + nx * frames.pixel, y0, y0 + ny * frames.pixel),
+                     title=f"measured height ({frames.mode.upper()}, {meta['algorithm']}), plane removed",
+                     label="height (nm)", cmap="turbo")
+    return metrics
+
+
+def run_measure(path, out, *, algorithm: str = "auto", settings=None,
+                min_modulation: float = 0.05, overwrite: bool = False) -> dict:
+    """``render-inspect measure FRAMES --out DIR``: height from frames and settings alone.
+
+    Parameters
+    ----------
+    path : path
+        ``interferogram.exr`` (or any EXR with ``frame_000`` ... and the settings header),
+        a multi-page TIFF / PNG, or a folder of frames (with a settings JSON).
+    out : path
+        Output folder (written atomically): ``height.exr``, ``height.png``,
+        ``metrics.json``.
+    algorithm : str
+        PSI ``auto``, ``4step``, ``5step`` / ``hariharan``, ``lsq``; CSI ``auto``,
+        ``envelope``, ``envelope+phase``.
+    settings : path, optional
+        Settings JSON of a TIFF / PNG stack (default beside it).
+    min_modulation : float
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it (``out`` is checked before
+        the frames are read and replaced as a whole when the results are complete).
+
+    Returns
+    -------
+    dict
+        ``metrics.json``: ``measure`` (mode, algorithm, wavelengths, valid fraction,
+        saturated pixels, regions, areal parameters of the height with its plane removed),
+        ``timing_s``, ``software_version``, ``source``.  Channels of the input that are not
+        frames (a simulation's ``height_true``) are listed under ``measure.ignored_channels``
+        and never read.
+    """
+    t0 = time.perf_counter()
+    check_output_dir(out, overwrite=overwrite, command="measure")
+    frames, ignored = read_frames(path, settings=settings)
+    t1 = time.perf_counter()
+    result = measure_frames(frames, algorithm=algorithm, min_modulation=min_modulation)
+    t2 = time.perf_counter()
+    with atomic_output_dir(out, overwrite=overwrite, command="measure") as tmp:
+        m = measurement_outputs(tmp, frames, result, source=str(path))
+        m["ignored_channels"] = ignored
+        metrics = {"software_version": __version__, "source": str(path), "measure": m,
+                   "timing_s": {"read": t1 - t0, "measure": t2 - t1,
+                                "write": time.perf_counter() - t2}}
+        write_json(tmp / "metrics.json", metrics)
+    return metrics
 
 
 def measure_and_evaluate(path, *, algorithm: str = "auto", csi_refine: str = "envelope",
@@ -24,7 +157,10 @@ def measure_and_evaluate(path, *, algorithm: str = "auto", csi_refine: str = "en
 
     Returns
     -------
+    measured : PhaseResult
+        What the instrument reports (no truth used).
     aligned : PhaseResult
+        The same, aligned to the truth.
     metrics : dict
         :func:`~render_inspect.metrology.evaluate_measurement`'s metrics.
     """
@@ -32,6 +168,8 @@ def measure_and_evaluate(path, *, algorithm: str = "auto", csi_refine: str = "en
     frames, extra, _ = read_frames_exr(path)
     result = measure_frames(frames, algorithm=algorithm, csi_refine=csi_refine,
                             min_modulation=min_modulation)
+    if "height_true" not in extra:
+        raise InputError(f"{path}: no channel 'height_true' to evaluate the measurement against")
     aligned, metrics = evaluate_measurement(result, extra["height_true"])
     channels, attrs = read_exr(path)
     channels["height_measured"] = aligned.height
@@ -39,4 +177,4 @@ def measure_and_evaluate(path, *, algorithm: str = "auto", csi_refine: str = "en
     attrs["measured"] = json.dumps(metrics, sort_keys=True)
     attrs["height_measured_piston"] = aligned.meta["piston"]
     write_exr(path, channels, attrs)
-    return aligned, metrics
+    return result, aligned, metrics

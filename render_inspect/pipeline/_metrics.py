@@ -8,9 +8,9 @@ import warnings
 from .. import __version__
 from ..core.toolpath import ToolPath
 from ..machining import design_grid, residual_metrics
-from ..metrology import lenslet_table
+from ..metrology import characterise_msa, lenslet_table
 
-__all__ = ["simulation_metrics", "lenslet_metrics"]
+__all__ = ["simulation_metrics", "lenslet_metrics", "msa_metrics", "tiled_metrics"]
 
 
 def lenslet_metrics(surface, heightmap) -> list | None:
@@ -35,6 +35,32 @@ def lenslet_metrics(surface, heightmap) -> list | None:
         if hasattr(surface, "centers"):
             return lenslet_table(heightmap, surface, which="machined")
     return None
+
+
+def msa_metrics(surface, heightmap, metrology=None) -> tuple[list, dict] | None:
+    """Seed 002's characterisation of a lenslet array on a base (a compound design whose
+    feature is the array): outliers, 6-DOF registration of the design to the machined map
+    (base first, then all data), separation, per-lenslet fits against the registered
+    design, base form error (:func:`~render_inspect.metrology.characterise_msa`, with the
+    scene's ``[metrology]`` settings).  Returns (``lenslets`` table, ``msa`` facts:
+    registration, base form error, outlier count, summary), or None for other designs.
+    What a rigid set-up (or a constant servo lag) does is registered away; what is left
+    are the dislocations that survive registration."""
+    feature = getattr(surface, "feature", None)
+    if feature is None or not hasattr(surface, "base") or not hasattr(feature, "centers"):
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lenslets cut by the window's border are left out
+        res = characterise_msa(heightmap.machined, surface, pixel=heightmap.pixel,
+                               origin=tuple(heightmap.origin),
+                               aperture_radius=getattr(feature, "aperture_radius", None),
+                               metrology=metrology)
+    reg = res["registration"]
+    msa = {"registration": None if reg is None else
+           {k: reg[k] for k in ("tx_mm", "ty_mm", "tz_mm", "alpha_rad", "beta_rad", "gamma_rad",
+                                "rms_mm", "n_points") if k in reg},
+           "base_form_error": res["base"], "outliers": res["outliers"], "summary": res["summary"]}
+    return res["lenslets"], msa
 
 
 def _merge(dst: dict, src: dict) -> None:
@@ -69,4 +95,25 @@ def simulation_metrics(scene, sim) -> dict:
         tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
     if sim.lenslets is not None:
         m["lenslets"] = sim.lenslets
+    if getattr(sim, "msa", None) is not None:
+        m["msa"] = sim.msa
+    return m
+
+
+def tiled_metrics(scene, plan, residual: dict, shape, origin, timing: dict) -> dict:
+    """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
+    ``residual`` reduced across tiles (``render_inspect.machining._metrics``)."""
+    m = {"software_version": __version__, "scene_name": scene.name,
+         "process": scene.process.kind, "compensation": scene.process.compensation,
+         "seed": scene.simulation.seed, "samples": int(shape[0] * shape[1]),
+         "grid": {"shape": [int(shape[0]), int(shape[1])], "pixel_mm": float(scene.simulation.pixel),
+                  "origin_mm": [float(origin[0]), float(origin[1])]},
+         "timing_s": dict(timing), "residual": residual}
+    _merge(m, plan.facts)
+    prog = plan.program
+    if isinstance(prog, ToolPath):
+        tp = m.setdefault("toolpath", {})
+        tp.setdefault("points", int(prog.points))
+        tp.setdefault("revolutions", prog.revolutions)
+        tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
     return m

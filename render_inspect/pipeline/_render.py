@@ -12,7 +12,7 @@ from PIL import Image
 from PIL.PngImagePlugin import PngInfo
 
 from .. import __version__
-from ..core.errors import InputError
+from ..core.errors import InputError, RenderInspectError
 from ..core.grid import Grid, grid_shape
 from ..core.limits import Driver, check_memory, memory_budget
 from ..instruments import (
@@ -21,6 +21,7 @@ from ..instruments import (
     render_interferogram,
     write_interferogram_exr,
 )
+from ..design import make_surface
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
@@ -29,13 +30,32 @@ from ..io import (
     write_json,
 )
 from ..render import MAX_FILM_SIDE, diffuse_memory, render_diffuse, variant_info
-from ._simulate import design_heightmap, simulate
+from ._simulate import design_heightmap, simulate, wants_tiles
+from ._views import BigMapViews, WholeMapViews, big_map_store
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
            "interferogram_summary", "check_render_limits"]
 
 KINDS = ("interferometer", "diffuse", "all")
 SURFACES = ("design", "machined")
+
+
+def _design_slope(scene, window, n: int = 257) -> float | None:
+    """Largest slope (rad, 99.9th percentile) of the design over ``window``, from n x n
+    samples: what sets the automatic sub-sampling of the interferometer (the machined
+    surface follows the design); None when the design cannot be sampled."""
+    x0, y0, x1, y1 = (float(v) for v in window)
+    try:
+        surface = make_surface(scene.design)
+        x = np.linspace(x0, x1, n)
+        y = np.linspace(y0, y1, n)
+        z = np.asarray(surface.height(x[None, :], y[:, None]), dtype=np.float64)
+        gy, gx = np.gradient(z, y, x)
+    except RenderInspectError:
+        return None
+    g = np.hypot(gx, gy)
+    g = g[np.isfinite(g)]
+    return float(np.arctan(np.percentile(g, 99.9))) if g.size else None
 
 
 def check_render_limits(scene, *, kind: str = "all") -> dict:
@@ -63,8 +83,9 @@ def check_render_limits(scene, *, kind: str = "all") -> dict:
         geom = interferometer_geometry(grid, icfg)
         x0, y0, x1, y1 = geom["window"]
         cells = min(shape[0] * shape[1], int(((x1 - x0) / sim.pixel + 5) * ((y1 - y0) / sim.pixel + 5)))
+        slope = _design_slope(scene, geom["trace_window"]) if icfg.subsamples is None else None
         need["interferometer"] = check_memory(
-            interferometer_memory(geom, icfg, mesh_cells=cells),
+            interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=slope),
             what=f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
                  f"{icfg.subsamples}^2 rays each)", budget=budget,
             drivers=[Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),
@@ -211,14 +232,26 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
     check_render_limits(scene, kind=kind)
     with atomic_output_dir(out, overwrite=overwrite, merge=True, command="render",
                            scene=scene) as tmp:
-        return _render_into(scene, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
+        return _render_into(scene, out, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
 
 
-def _render_into(scene, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
+def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
     timing = {}
     t0 = time.perf_counter()
-    hm = heightmap if heightmap is not None else render_heightmap(scene, surface=surface)
+    if heightmap is None and surface == "machined" and wants_tiles(scene):
+        # a map too large for memory: windows and area-averaged levels of its store
+        views = BigMapViews(*big_map_store(scene, out))
+    else:
+        views = WholeMapViews(heightmap if heightmap is not None else render_heightmap(scene, surface=surface))
     timing["heightmap"] = time.perf_counter() - t0
+    try:
+        return _render_views(scene, tmp, views, surface=surface, kind=kind, timing=timing)
+    finally:
+        if views.big:
+            views.close()
+
+
+def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
     info = variant_info()
@@ -226,17 +259,20 @@ def _render_into(scene, tmp: Path, *, surface: str, kind: str, heightmap=None) -
            "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
     if kind in ("interferometer", "all"):
         t = time.perf_counter()
-        ig = render_interferogram(hm, scene.render.interferometer, surface=surface, seed=seed)
+        hm_i, icfg = views.interferometer(scene.render.interferometer)
+        ig = render_interferogram(hm_i, icfg, surface=surface, seed=seed)
         timing["interferogram"] = time.perf_counter() - t
         res["interferometer"] = write_interferogram_outputs(tmp, ig, scene=scene_d)
     if kind in ("diffuse", "all"):
         for view in ("macro", "micro"):
             t = time.perf_counter()
-            rgb, meta = render_diffuse(hm, scene.render.diffuse, view=view, surface=surface,
-                                       seed=seed,
+            hm_d, dcfg = views.diffuse(scene.render.diffuse, view)
+            rgb, meta = render_diffuse(hm_d, dcfg, view=view, surface=surface, seed=seed,
                                        memory_budget=memory_budget(scene.simulation.max_memory_gb)[0])
             timing[f"diffuse_{view}"] = time.perf_counter() - t
             res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
     res["timing_s"] = timing
+    if views.big:
+        res["big_map"] = views.facts
     write_json(tmp / "render_metrics.json", {"render": res})
     return {"render": res}

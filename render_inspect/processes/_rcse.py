@@ -9,6 +9,7 @@ path is built for the comparison.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Literal
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
-from ..machining import residual_metrics, simulate_turning
+from ..machining import residual_metrics
 from ..toolpath import (
     RingLayout,
     conventional_ccps,
@@ -26,11 +27,11 @@ from ..toolpath import (
     region_radii,
     z_compensation,
 )
+from ._mechanics import turn
 from ._registry import Cut, Plan, register_process
 from ._turning import (
     TurningProcessConfig,
     compensation_variants,
-    cut_turning,
     tool_of,
     toolpath_facts,
     turning_header,
@@ -146,8 +147,11 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None) -> tupl
     }
     if machined is not None and st.simulate_conventional:
         out["rcse"]["residual"] = _short(residual_metrics(machined, design))
-        out["conventional"]["residual"] = _short(residual_metrics(
-            _machine_conventional(scene, conv_path, conv["model"]), design))
+        conv_cut = _machine_conventional(scene, surface, conv_path, conv["model"], design=design)
+        out["conventional"]["residual"] = _short(residual_metrics(conv_cut["machined"], design))
+        fe = conv_cut["facts"].get("following_error")
+        if fe is not None:
+            out["conventional"]["following_error"] = fe
     return out, (ccp_path, conv_path)
 
 
@@ -155,8 +159,8 @@ def _short(r: dict) -> dict:
     return {k: r[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm", "min_nm") if k in r}
 
 
-def _machine_conventional(scene, conv_path, model) -> np.ndarray:
-    """The surface the conventional path machines: its CCP heights lifted by the Z
+def _conventional_tip(scene, conv_path, model) -> ToolPath:
+    """The conventional program at the tool tip: its CCP heights lifted by the Z
     compensation computed on its own point-cloud model at the machine position (C, X)."""
     tool = tool_of(scene)
     slope = RingLayout.from_config(scene.design).max_slope * 1.05
@@ -164,29 +168,101 @@ def _machine_conventional(scene, conv_path, model) -> np.ndarray:
     m_here = model.height(rc * np.cos(th), rc * np.sin(th))
     lift = z_compensation(model, th, rc, tool.nose_radius, max_slope=slope,
                           half_width=tool.half_width) - m_here
-    tip = ToolPath(th, rc, conv_path.z + lift, conv_path.t, dict(conv_path.meta))
-    sim = scene.simulation
-    return simulate_turning(tip, nose_radius=tool.nose_radius, region=sim.region, pixel=sim.pixel,
-                            half_width=tool.half_width)
+    return ToolPath(th, rc, conv_path.z + lift, conv_path.t, dict(conv_path.meta))
+
+
+def _machine_conventional(scene, surface, conv_path, model, *, region=None, design=None):
+    """The surface the conventional program machines on the scene's machine and material
+    (:func:`~render_inspect.processes._mechanics.turn`)."""
+    return turn(scene, surface, _conventional_tip(scene, conv_path, model), region=region,
+                plots=False, design=design)
+
+
+def element_windows(layout, n: int, side: float) -> list:
+    """``n`` square fields of side ``side`` (mm) centred on elements spread over the rings
+    (ring after ring; the k-th field's angle steps by the golden ratio of a turn):
+    [(ring, element, (x0, y0, x1, y1)), ...]."""
+    out = []
+    rings = len(layout.ring_radii)
+    golden = (math.sqrt(5.0) - 1.0) / 2.0
+    for k in range(n):
+        i = k % rings
+        N = layout.counts[i]
+        # angles spread by the golden ratio: no two fields alike, every quadrant visited
+        e = int(round(((k * golden) % 1.0) * N)) % N
+        a = layout.phase + 2 * np.pi * e / N
+        R = layout.ring_radii[i]
+        cx, cy = R * np.cos(a), R * np.sin(a)
+        out.append((i, int(e), (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)))
+    return out
+
+
+def element_spread(scene, surface) -> dict:
+    """Sa of both paths on ``rcse.spread_elements`` element fields, their mean and
+    standard deviation, and how much lower RCSE's are (seed 004 Table 2: 60.6 % and
+    91.7 %)."""
+    st = scene.rcse
+    layout = RingLayout.from_config(scene.design)
+    rows = []
+    fe = {"rcse": [], "conventional": []}
+    for ring, elem, win in element_windows(layout, st.spread_elements, st.spread_window):
+        sub = scene.with_overrides([f"simulation.region={list(win)}"])
+        plan_w = plan(sub, surface, region=win)
+        rc = turn(sub, surface, plan_w.program, plots=False)
+        path = plan_w.program
+        conv = conventional_ccps(surface, path.theta, path.ccp_rho, grid_spacing=st.grid_spacing,
+                                 interpolation=st.interpolation, snap_to_rows=st.snap_to_rows)
+        conv_path = ToolPath(path.theta, conv["rho"], conv["z"], path.t, {})
+        cc = _machine_conventional(sub, surface, conv_path, conv["model"], design=rc["design"])
+        sa_r = residual_metrics(rc["machined"], rc["design"])["Sa_nm"]
+        sa_c = residual_metrics(cc["machined"], rc["design"])["Sa_nm"]
+        rows.append({"ring": ring, "element": elem, "region_mm": list(win),
+                     "rcse_Sa_nm": sa_r, "conventional_Sa_nm": sa_c})
+        for key, c in (("rcse", rc), ("conventional", cc)):
+            if "following_error" in c["facts"]:
+                fe[key].append(c["facts"]["following_error"])
+    r = np.array([x["rcse_Sa_nm"] for x in rows])
+    c = np.array([x["conventional_Sa_nm"] for x in rows])
+    sd = (lambda a: float(np.std(a, ddof=1)) if a.size > 1 else 0.0)
+    out = {"elements": rows, "window_mm": st.spread_window,
+           "rcse": {"Sa_mean_nm": float(r.mean()), "Sa_sd_nm": sd(r)},
+           "conventional": {"Sa_mean_nm": float(c.mean()), "Sa_sd_nm": sd(c)}}
+    out["Sa_mean_reduction_percent"] = float(100 * (1 - r.mean() / c.mean()))
+    if sd(c) > 0:
+        out["Sa_sd_reduction_percent"] = float(100 * (1 - sd(r) / sd(c)))
+    for key, lst in fe.items():
+        if lst:
+            out[key]["following_error"] = {
+                k: (max(d[k] for d in lst) if "max" in k else float(np.sqrt(np.mean([d[k] ** 2 for d in lst]))))
+                for k in lst[0]}
+    return out
 
 
 def cut(scene, surface, plan: Plan) -> Cut:
-    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
-    facts = {} if burrs is None else {"burrs": burrs}
-    plots = {}
+    t = turn(scene, surface, plan.program)
+    machined, design, timing = t["machined"], t["design"], t["timing"]
+    facts = dict(t["facts"])
+    plots = dict(t["plots"])
     if scene.rcse.compare_conventional:
         t1 = time.perf_counter()
         comp, (rcse_path, conv_path) = rcse_comparison(scene, plan.program, surface,
                                                        machined=machined, design=design)
         timing["comparison"] = time.perf_counter() - t1
+        if "following_error" in facts:
+            comp["rcse"]["following_error"] = facts["following_error"]
         facts["rcse"] = {**plan.facts["rcse"], "comparison": comp}
+        if scene.rcse.spread_elements:
+            t1 = time.perf_counter()
+            facts["rcse"]["comparison"]["spread"] = element_spread(scene, surface)
+            timing["spread"] = time.perf_counter() - t1
         plots["rcse_kinematics.png"] = {
             "kind": "kinematics", "path": rcse_path, "reference": conv_path,
             "labels": ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)"),
             "title": "X-axis motion: RCSE vs conventional (seed 004 Figs. 8-9)"}
     meta = {"process": "rcse", "compensation": scene.process.compensation,
-            "seed": scene.simulation.seed}
-    return Cut(machined, design, facts, timing, meta, plots=plots)
+            "seed": scene.simulation.seed, "machine": scene.machine.preset,
+            "material": scene.material.preset}
+    return Cut(machined, design, facts, timing, meta, followed=t["followed"], plots=plots)
 
 
 register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,

@@ -20,7 +20,10 @@ Optional: ``program_region(scene)`` (the region the ``toolpath`` command plans; 
 whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (the pair
 ``compare`` puts side by side), ``precheck(scene, region)`` (checks the sizes the
 process's own keys drive, such as the points of the program, against the memory budget
-before anything is planned, and names those keys when they do not fit).
+before anything is planned, and names those keys when they do not fit),
+``envelope_path(scene, surface, plan) -> (ToolPath, meta)`` (turning processes whose
+machined surface is the nose envelope of one path and nothing else: the tiled,
+out-of-core simulation computes it tile by tile).
 """
 
 from __future__ import annotations
@@ -110,6 +113,7 @@ class ProcessKind:
     program_header: Callable = lambda scene: {}
     variants: Callable | None = None
     precheck: Callable = lambda scene, region=None: None
+    envelope_path: Callable | None = None
 
 
 _PROCESSES: dict[str, ProcessKind] = {}
@@ -120,7 +124,8 @@ def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: 
                      program_region: Callable | None = None,
                      program_header: Callable | None = None,
                      variants: Callable | None = None,
-                     precheck: Callable | None = None) -> ProcessKind:
+                     precheck: Callable | None = None,
+                     envelope_path: Callable | None = None) -> ProcessKind:
     """Register a process kind (see the module docstring)."""
     kwargs = {}
     if precheck is not None:
@@ -130,7 +135,7 @@ def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: 
     if program_header is not None:
         kwargs["program_header"] = program_header
     entry = ProcessKind(literal_values(config, "kind"), config, plan, cut, estimate_memory,
-                        variants=variants, **kwargs)
+                        variants=variants, envelope_path=envelope_path, **kwargs)
     for name in entry.names:
         _PROCESSES[name] = entry
     global _UNION

@@ -22,11 +22,14 @@ from ..core.section import Section
 from ..core.toolpath import LinearProgram
 from ..machining import (
     apply_burrs,
+    cut_lines_mechanics,
+    finish_surface,
     sculpt_line_profile,
     sculpt_surface,
     target_line,
     vibration_phases,
 )
+from ._mechanics import material_of, vibration_contact
 from ._registry import Cut, Plan, check_budget, register_process
 from ._turning import burrs_of, compensation_variants
 
@@ -45,6 +48,10 @@ class SculptProcessConfig(Section):
         "none", description="not used: the edge follows the target line (kept for compare)")
 
     def check_with(self, scene) -> None:
+        if scene.machine.preset != "ideal":
+            raise ValueError(
+                "machine.preset must be 'ideal' for process.kind = 'sculpt' (the machine model "
+                f"is a turning lathe's C-X-Z axes), received {scene.machine.preset!r}")
         d = scene.design
         if getattr(d, "type", None) != "lenslet_array" or getattr(d, "cells", None) != "quad":
             raise ValueError(
@@ -154,13 +161,27 @@ def cut(scene, surface, plan: Plan) -> Cut:
                        for ys, zs in lines]).reshape(len(lines), ny)
     machined_0 = sculpt_surface(prof_0, xl, xg, tool_radius=R, half_width=half_width)
     machined = sculpt_surface(prof_vib, xl, xg, tool_radius=R, half_width=half_width)
-    t_sim = time.perf_counter() - t_sim
-
     with np.errstate(invalid="ignore"):
         vib_over = np.nanmax(machined_0 - machined) if np.isfinite(machined).any() else 0.0
         edge_over = np.nanmax(design - machined_0) if np.isfinite(machined_0).any() else 0.0
+    # the material's response: intermittent cutting (contact ratio) against adhesion
+    resp = material_of(scene, contact=vibration_contact(scene, vc))
+    material_facts = None
+    if resp is not None:
+        c = cut_lines_mechanics(prof_vib, xl, xg, tool_radius=R, half_width=half_width,
+                                h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow)
+        # cutting distance: along the line, lines cut one after another
+        line_len = float(np.max([ys[-1] - ys[0] for ys, _ in lines])) if lines else 0.0
+        along = np.broadcast_to(yg[:, None] + line_len * np.nan_to_num(c["pass_line"]),
+                                c["machined"].shape)
+        machined, info = finish_surface(c, resp, along=along, seed=int(sim.seed) + 1,
+                                        across_length=scene.material.groove_across_um * 1e-3,
+                                        along_length=scene.material.groove_along_mm)
+        material_facts = {**resp.to_dict(), **info}
+    t_sim = time.perf_counter() - t_sim
+    b = burrs_of(scene)
     machined, burr_info = apply_burrs(machined, design, pixel=px, origin=(x0, y0),
-                                      **burrs_of(scene))
+                                      edges_from="machined", smoothing=2 * px, **b)
     per_period = (len(vibration_phases(vc, vib.amplitude, vib.frequency_hz, spp))
                   if vib.amplitude > 0 and vib.frequency_hz > 0 else 0)
     n_time = sum(int(math.ceil((ys[-1] - ys[0]) / vc * vib.frequency_hz * per_period)) + ys.size
@@ -179,8 +200,11 @@ def cut(scene, surface, plan: Plan) -> Cut:
                       "peak_velocity_mm_s": 2 * math.pi * vib.frequency_hz * vib.amplitude},
         "burrs": burr_info,
     }
+    if material_facts is not None:
+        facts["material"] = material_facts
     meta = {"process": "sculpt", "seed": int(sim.seed), "compensation": "none",
-            "vibration": facts["vibration"], "burrs": burr_info}
+            "vibration": facts["vibration"], "burrs": burr_info,
+            "material": scene.material.preset}
     return Cut(machined, design, facts, {"sweep": t_sim}, meta)
 
 

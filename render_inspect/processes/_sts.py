@@ -6,11 +6,11 @@ from __future__ import annotations
 import time
 from typing import Literal
 
+from ._mechanics import followed_program, turn
 from ._registry import Cut, Plan, register_process
 from ._turning import (
     TurningProcessConfig,
     compensation_variants,
-    cut_turning,
     plan_spiral,
     toolpath_facts,
     turning_header,
@@ -34,12 +34,22 @@ def plan(scene, surface, *, region=None) -> Plan:
 
 
 def cut(scene, surface, plan: Plan) -> Cut:
-    machined, design, timing, burrs = cut_turning(scene, surface, plan.program)
-    return Cut(machined, design, {} if burrs is None else {"burrs": burrs}, timing,
+    t = turn(scene, surface, plan.program)
+    return Cut(t["machined"], t["design"], t["facts"], t["timing"],
                {"process": "sts", "compensation": scene.process.compensation,
-                "seed": scene.simulation.seed})
+                "seed": scene.simulation.seed, "machine": scene.machine.preset,
+                "material": scene.material.preset}, followed=t["followed"], plots=t["plots"])
+
+
+def envelope_path(scene, surface, plan: Plan):
+    """The path whose nose envelope is the machined surface (tiled simulations): the
+    program as the scene's machine follows it."""
+    return followed_program(scene, plan.program), {
+        "process": "sts", "compensation": scene.process.compensation,
+        "seed": scene.simulation.seed, "machine": scene.machine.preset, "material": "ideal"}
 
 
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
                  precheck=turning_precheck,
-                 program_header=turning_header, variants=compensation_variants)
+                 program_header=turning_header, variants=compensation_variants,
+                 envelope_path=envelope_path)

@@ -4,7 +4,6 @@ estimate."""
 
 from __future__ import annotations
 
-import time
 from typing import Literal
 
 from pydantic import Field, model_validator
@@ -12,20 +11,22 @@ from pydantic import Field, model_validator
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget
 from ..core.section import Section
-from ..machining import apply_burrs, design_grid, simulate_turning
+from ..machining._memory import in_memory_bytes
 from ..toolpath import (
     Tool,
     kinematics,
     limits_from_process,
+    plan_feed,
     plan_memory,
     plan_turning,
     region_radii,
     turning_point_count,
 )
+from ._mechanics import machine_of, turn
 from ._registry import check_budget
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "burrs_of", "turning_header", "compensation_variants",
+           "turning_memory", "turning_points", "burrs_of", "turning_header", "compensation_variants",
            "turning_precheck"]
 
 
@@ -42,6 +43,9 @@ class TurningProcessConfig(Section):
     switch_radius: float = Field(1.0, ge=0, description="mm, hybrid sampling: angle inside, arc outside")
     chordal_tolerance: float | None = Field(None, gt=0, description="mm; bound on the linearisation error")
     depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded; the envelope does not depend on it)")
+    scallop_bound_nm: float | None = Field(
+        None, gt=0, le=1e5, description="plan the largest feed per revolution whose scallop "
+                                        "stays within this bound (seed 001); replaces feed_mm_per_min")
     allow_gouge: bool = Field(False, description="simulate even if the tool cannot reach everywhere")
     # machine limits used by the kinematics checks (optional)
     x_velocity_limit_mm_s: float | None = Field(None, gt=0)
@@ -78,16 +82,33 @@ def tool_of(scene) -> Tool:
 
 def plan_spiral(scene, surface, *, region=None):
     """The compensated spiral program of a turning scene (:func:`plan_turning` with the
-    scene's ``[process]`` keys)."""
+    scene's ``[process]`` keys).  With ``process.scallop_bound_nm`` the feed per revolution
+    is the largest whose scallop stays within the bound on every radial section the path
+    cuts (:func:`~render_inspect.toolpath.plan_feed`, seed 001 eqs. 9-13), recorded in
+    ``path.meta["scallop_plan"]``."""
     p = scene.process
-    return plan_turning(surface, tool_of(scene), workpiece_radius=p.workpiece_radius,
-                        feed_per_rev=p.feed_per_rev, spindle_rpm=p.spindle_rpm,
+    tool = tool_of(scene)
+    feed, scallop = p.feed_per_rev, None
+    if p.scallop_bound_nm is not None:
+        r_in, r_out = (p.inner_radius, p.workpiece_radius) if region is None else \
+            region_radii(region, tool.half_width)
+        scallop = plan_feed(surface, nose_radius=tool.nose_radius,
+                            scallop_bound=p.scallop_bound_nm * 1e-6,
+                            r_outer=min(r_out, p.workpiece_radius),
+                            r_inner=min(max(r_in, p.inner_radius), 0.999 * min(r_out, p.workpiece_radius)),
+                            spindle_rpm=p.spindle_rpm)
+        feed = scallop["feed_per_rev_mm"]
+    path = plan_turning(surface, tool, workpiece_radius=p.workpiece_radius,
+                        feed_per_rev=feed, spindle_rpm=p.spindle_rpm,
                         compensation=p.compensation, sampling=p.sampling,
                         points_per_rev=p.points_per_rev, arc_length=p.arc_length,
                         switch_radius=p.switch_radius, inner_radius=p.inner_radius,
                         chordal_tolerance=p.chordal_tolerance, region=region,
                         allow_gouge=p.allow_gouge,
                         memory_budget=memory_budget(scene.simulation.max_memory_gb))
+    if scallop is not None:
+        path.meta["scallop_plan"] = scallop
+    return path
 
 
 def toolpath_facts(path, scene) -> dict:
@@ -103,6 +124,8 @@ def toolpath_facts(path, scene) -> dict:
     if "chordal_tolerance_mm" in m:
         d["chordal_tolerance_nm"] = m["chordal_tolerance_mm"] * 1e6
         d["chordal_within_tolerance"] = m["chordal_within_tolerance"]
+    if "scallop_plan" in m:
+        d["scallop_plan"] = m["scallop_plan"]
     if "accessibility" in m:
         d["accessible"] = m["accessibility"]["ok"]
         d["accessibility"] = m["accessibility"]
@@ -120,38 +143,48 @@ def burrs_of(scene) -> dict:
             "seed": int(scene.simulation.seed)}
 
 
-def cut_turning(scene, surface, path, *, burrs: bool = True) -> tuple:
-    """(machined, design, timing, burr facts or None) on the simulation grid for a turning
-    ``path``: the envelope of the tool nose, the design heights, and the burrs of
-    ``[artifacts.burrs]`` when their height is set."""
-    sim = scene.simulation
-    tool = tool_of(scene)
-    timing = {}
-    t0 = time.perf_counter()
-    machined = simulate_turning(path, nose_radius=tool.nose_radius, region=sim.region,
-                                pixel=sim.pixel, half_width=tool.half_width)
-    timing["envelope"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    design = design_grid(surface, sim.region, sim.pixel)
-    timing["design"] = time.perf_counter() - t0
-    info = None
-    if burrs and scene.artifacts.burrs.height > 0:
-        machined, info = apply_burrs(machined, design, pixel=sim.pixel,
-                                     origin=(sim.region[0], sim.region[1]), **burrs_of(scene))
-    return machined, design, timing, info
+def cut_turning(scene, surface, path, *, burrs: bool = True, z_fts=None) -> tuple:
+    """(machined, design, timing, facts) on the simulation grid for a turning ``path``
+    cut on the scene's ``[machine]`` with its ``[material]``
+    (:func:`~render_inspect.processes._mechanics.turn`): the followed path's tool-nose
+    envelope with the material's mechanics, the design heights, and the burrs of
+    ``[artifacts.burrs]`` on the machined edges when their height is set.  ``facts``
+    holds ``machine``, ``following_error`` (a non-ideal machine), ``material`` and
+    ``burrs`` as they apply, and ``plots`` the following-error figures."""
+    t = turn(scene, surface, path, burrs=burrs, z_fts=z_fts)
+    return t["machined"], t["design"], t["timing"], {**t["facts"], "plots": t["plots"]}
+
+
+def turning_points(scene, plan=None) -> int:
+    """Points of the scene's path over its region (estimated before planning)."""
+    if plan is not None:
+        return int(plan.program.points)
+    r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+    revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
+    return int(revs * scene.process.points_per_rev) + 1
 
 
 def turning_memory(scene, plan=None) -> int:
-    """Bytes a turning simulation holds at its peak: design + machined (float64) plus one
-    chunk of temporaries, plus the path (theta, rho, z, t, CCPs and lookup table)."""
-    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
-    if plan is None:
-        r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-        revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
-        n_path_points = int(revs * scene.process.points_per_rev) + 1
-    else:
-        n_path_points = plan.program.points
-    return int(ny * nx * 8 * 2 + min(ny, 512) * nx * 8 * 4 + n_path_points * 8 * 10)
+    """Bytes an in-memory turning simulation and the writing of its outputs hold at their
+    peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
+    of heightmap.exr, the design evaluation's temporaries and the tool path); on a
+    non-ideal ``[machine]`` also the servo ticks (about 16 arrays of them), with a
+    ``[material]`` the cut's six maps."""
+    shape = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    nbytes = in_memory_bytes(shape, turning_points(scene, plan))
+    machine = machine_of(scene)
+    if not machine.ideal:
+        if plan is None:
+            r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
+            revs = max(min(r_out, scene.process.workpiece_radius) - r_in, 0.0) / scene.process.feed_per_rev
+            duration = revs * 60.0 / scene.process.spindle_rpm
+        else:
+            t = plan.program.t
+            duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+        nbytes += int(duration * machine.servo_rate_hz) * 8 * 16
+    if scene.material.preset != "ideal":
+        nbytes += shape[0] * shape[1] * 8 * 6
+    return int(nbytes)
 
 
 def turning_precheck(scene, region=None) -> None:

@@ -14,14 +14,20 @@ from ._cycles import (
                       ALUMINIUM_K,
                       OBJECT_NAME,
                       RENDER_SCENE_NAME,
+                      blend_objects,
                       default_output_dir,
+                      f82_tint_colours,
+                      fresnel_conductor,
                       gridmesh_object,
                       heightmap_object,
+                      load_image,
+                      material_model,
                       object_heights,
                       remove_object,
                       render_cycles,
                       render_object,
                       render_spec,
+                      surface_material,
                       surface_object,
 )
 from ._diffuse import (
@@ -47,6 +53,7 @@ __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_pro
            "trace_grids", "load_scene_dict", "mitsuba_variant", "variant_info",
            "single_thread", "import_mitsuba", "render_cycles", "render_object",
            "render_spec", "surface_object", "heightmap_object", "gridmesh_object",
-           "object_heights", "remove_object", "default_output_dir", "ALUMINIUM_ETA",
-           "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "render_passes", "mitsuba_seed",
-           "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]
+           "object_heights", "remove_object", "default_output_dir", "load_image", "blend_objects",
+           "surface_material", "material_model", "fresnel_conductor", "f82_tint_colours",
+           "ALUMINIUM_ETA", "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "render_passes",
+           "mitsuba_seed", "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import tempfile
 import time
 from pathlib import Path
@@ -30,7 +31,8 @@ from ._diffuse import DiffuseConfig, diffuse_scene_spec, mitsuba_seed
 
 __all__ = ["heightmap_object", "surface_object", "gridmesh_object", "object_heights",
            "remove_object", "render_spec", "render_cycles", "render_object",
-           "default_output_dir", "ALUMINIUM_ETA", "ALUMINIUM_K",
+           "default_output_dir", "fresnel_conductor", "f82_tint_colours",
+           "material_model", "load_image", "surface_material", "blend_objects", "ALUMINIUM_ETA", "ALUMINIUM_K",
            "OBJECT_NAME", "RENDER_SCENE_NAME"]
 
 #: Name of the mesh object the add-on and :func:`heightmap_object` create.
@@ -54,6 +56,8 @@ PROP_SURFACE = "render_inspect_surface"
 PROP_UNITS = "render_inspect_units"
 PROP_SCENE = "render_inspect_scene"
 PROP_HEIGHTMAP = "render_inspect_heightmap_path"
+PROP_VARIANT = "render_inspect_variant"
+PROP_OFFSET = "render_inspect_offset_mm"
 
 
 def _bpy():
@@ -220,23 +224,88 @@ def _render_scene(bpy):
     return bpy.data.scenes.new(RENDER_SCENE_NAME)
 
 
-def _aluminium_material(bpy, material: dict):
-    """Cycles Metallic BSDF with aluminium's complex IOR (physical-conductor Fresnel),
-    the counterpart of Mitsuba's ``conductor`` / ``roughconductor`` with ``material="Al"``.
+def fresnel_conductor(cos_theta, eta, k) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a conductor of complex index ``eta + i k``.
 
-    Mitsuba's GGX ``alpha`` is Blender's roughness squared."""
+    Parameters
+    ----------
+    cos_theta : float or (n,) array
+        Cosine of the angle of incidence.
+    eta, k : float or (3,) array
+        Real and imaginary parts of the index (per RGB channel).
+
+    Returns
+    -------
+    ndarray
+        Reflectance in [0, 1], broadcast over ``cos_theta`` and the channels.
+    """
+    n = np.asarray(eta, dtype=np.float64) + 1j * np.asarray(k, dtype=np.float64)
+    c = np.asarray(cos_theta, dtype=np.float64)[..., None] if np.ndim(eta) else \
+        np.asarray(cos_theta, dtype=np.float64)
+    ct = np.sqrt(n**2 - (1.0 - c**2))
+    rs = (c - ct) / (c + ct)
+    rp = (n**2 * c - ct) / (n**2 * c + ct)
+    return (np.abs(rs) ** 2 + np.abs(rp) ** 2) / 2
+
+
+#: cos(theta) of the angle where the F82-tint model of the Principled BSDF is pinned
+#: (Hoffman 2019, "Fresnel equations considered harmful"; Kutz et al. 2021): 1/7, 81.8 deg.
+F82_COS = 1.0 / 7.0
+
+
+def f82_tint_colours(eta=ALUMINIUM_ETA, k=ALUMINIUM_K) -> tuple[tuple, tuple]:
+    """Base colour (F0) and specular tint of the Principled BSDF's metallic F82-tint model
+    that reproduce a conductor's Fresnel reflectance at normal incidence and at 81.8 deg.
+
+    The model is Schlick's curve minus a term that vanishes at 0 and 90 deg; its
+    ``Specular Tint`` is the ratio of the wanted reflectance at ``cos = 1/7`` to Schlick's
+    there.  For aluminium the curve stays within 0.1 % of the exact conductor Fresnel
+    up to 30 deg incidence and within 1 % up to 65 deg.
+    """
+    f0 = fresnel_conductor(1.0, eta, k)
+    schlick = f0 + (1.0 - f0) * (1.0 - F82_COS) ** 5
+    tint = np.clip(fresnel_conductor(F82_COS, eta, k) / schlick, 0.0, 1.0)
+    return tuple(float(v) for v in f0), tuple(float(v) for v in tint)
+
+
+def material_model(bpy) -> str:
+    """Which aluminium shader this Blender has: ``"metallic_bsdf"`` (Blender 4.3 and later:
+    the Metallic BSDF with physical-conductor Fresnel, exact) or ``"principled_f82"``
+    (Blender 4.2: the Principled BSDF's metallic F82-tint approximation)."""
+    return "metallic_bsdf" if hasattr(bpy.types, "ShaderNodeBsdfMetallic") else "principled_f82"
+
+
+def _aluminium_material(bpy, material: dict):
+    """Aluminium with its complex IOR, the counterpart of Mitsuba's ``conductor`` /
+    ``roughconductor`` with ``material="Al"``.
+
+    Blender 4.3+: the Metallic BSDF with physical-conductor Fresnel (exact).  Blender 4.2
+    has no Metallic BSDF: the Principled BSDF, fully metallic, single-scatter GGX, with the
+    base colour and specular tint of :func:`f82_tint_colours` (its F82-tint Fresnel).
+    Mitsuba's GGX ``alpha`` is Blender's roughness squared in both."""
     if material.get("material", "Al") != "Al":
         raise InputError(f"material must be 'Al' (aluminium), got {material.get('material')!r}")
     name = f"{RENDER_SCENE_NAME}_aluminium"
     mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
     tree = _node_tree(bpy, mat)
     tree.nodes.clear()
-    bsdf = tree.nodes.new("ShaderNodeBsdfMetallic")
-    bsdf.fresnel_type = "PHYSICAL_CONDUCTOR"
-    bsdf.distribution = "GGX"
-    bsdf.inputs["IOR"].default_value = ALUMINIUM_ETA
-    bsdf.inputs["Extinction"].default_value = ALUMINIUM_K
-    bsdf.inputs["Roughness"].default_value = math.sqrt(max(float(material.get("alpha", 0.0)), 0.0))
+    roughness = math.sqrt(max(float(material.get("alpha", 0.0)), 0.0))
+    if material_model(bpy) == "metallic_bsdf":
+        bsdf = tree.nodes.new("ShaderNodeBsdfMetallic")
+        bsdf.fresnel_type = "PHYSICAL_CONDUCTOR"
+        bsdf.distribution = "GGX"
+        bsdf.inputs["IOR"].default_value = ALUMINIUM_ETA
+        bsdf.inputs["Extinction"].default_value = ALUMINIUM_K
+        bsdf.inputs["Roughness"].default_value = roughness
+    else:
+        f0, tint = f82_tint_colours()
+        bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.distribution = "GGX"
+        bsdf.inputs["Metallic"].default_value = 1.0
+        bsdf.inputs["Base Color"].default_value = (*f0, 1.0)
+        bsdf.inputs["Specular Tint"].default_value = (*tint, 1.0)
+        bsdf.inputs["Roughness"].default_value = roughness
+    mat["render_inspect_material_model"] = material_model(bpy)
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.target = "CYCLES"
     tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
@@ -374,14 +443,30 @@ def _configure_cycles(scene, spec: dict, *, seed: int, threads: int | None):
     fmt.exr_codec = "ZIP"
 
 
-def _render(bpy, scene) -> tuple[np.ndarray, float]:
+_SAMPLE = re.compile(r"Sample (\d+)/(\d+)")
+
+
+def _render(bpy, scene, progress=None) -> tuple[np.ndarray, float]:
     """Render ``scene`` with Cycles; (H, W, 3) float32 linear RGB (row 0 at the top) and
-    the seconds the render took."""
+    the seconds the render took.  ``progress(done, total)`` is called with Cycles' sample
+    count as it renders (from its ``render_stats`` messages)."""
+
+    def stats(text, *_):
+        m = _SAMPLE.search(str(text))
+        if m and int(m.group(2)):
+            progress(int(m.group(1)), int(m.group(2)))
+
     with tempfile.TemporaryDirectory(prefix="render_inspect_cycles_") as tmp:
         exr = Path(tmp) / "cycles.exr"
         scene.render.filepath = str(exr)
+        if progress is not None:
+            bpy.app.handlers.render_stats.append(stats)
         t0 = time.perf_counter()
-        bpy.ops.render.render(write_still=True, scene=scene.name)
+        try:
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        finally:
+            if progress is not None:
+                bpy.app.handlers.render_stats.remove(stats)
         elapsed = time.perf_counter() - t0
         if not exr.is_file():
             raise InputError(f"Cycles wrote no image to {exr}: the render failed")
@@ -391,7 +476,7 @@ def _render(bpy, scene) -> tuple[np.ndarray, float]:
 
 
 def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
-                threads: int | None = None) -> tuple[np.ndarray, float]:
+                threads: int | None = None, progress=None) -> tuple[np.ndarray, float]:
     """Render a mesh object in the scene ``spec`` describes (:func:`diffuse_scene_spec`).
 
     Parameters
@@ -408,6 +493,8 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
         at infinity, so this moves nothing else).
     threads : int or None
         CPU threads; None: all.
+    progress : callable or None
+        ``progress(samples_done, samples_total)`` while Cycles renders.
 
     Returns
     -------
@@ -427,7 +514,7 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
     _add_camera(bpy, scene, spec["camera"], z_shift)
     _add_world(bpy, scene, spec["light"])
     _configure_cycles(scene, spec, seed=seed, threads=threads)
-    return _render(bpy, scene)
+    return _render(bpy, scene, progress)
 
 
 def gridmesh_object(gm, *, name: str = "render_inspect_part", collection=None):
@@ -526,7 +613,7 @@ def _scene_diffuse(obj) -> dict:
 
 def render_object(obj, *, view: str = "macro", out=None, resolution: int | None = None,
                   spp: int | None = None, seed: int = 0, threads: int | None = None,
-                  load_image: bool = False) -> dict:
+                  load_image: bool = False, progress=None) -> dict:
     """Cycles render of a surface mesh made by :func:`heightmap_object` (the add-on's
     Render) under the diffuse light of the scene it was simulated from.
 
@@ -537,7 +624,7 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     Parameters
     ----------
     obj : bpy.types.Object
-        Made by :func:`heightmap_object` / :func:`simulate_into_blender`.
+        Made by :func:`heightmap_object` / :func:`surface_object`.
     view : {"macro", "micro"}
     out : str, Path or None
         Folder for ``cycles.png`` (sRGB) and ``cycles.exr`` (linear RGB); None writes
@@ -549,6 +636,8 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     threads : int or None
     load_image : bool
         Also load ``cycles.png`` into ``bpy.data.images`` (to look at it in Blender).
+    progress : callable or None
+        ``progress(samples_done, samples_total)`` while Cycles renders.
 
     Returns
     -------
@@ -566,16 +655,33 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     spec = diffuse_scene_spec(hm, dcfg, view=view, surface="machined", seed=seed)
     # the object's z is exaggeration * h; the spec's mesh is offset by z_offset_mm
     rgb, seconds = render_spec(obj, spec, seed=seed, z_shift=ex * spec["z_offset_mm"],
-                               threads=threads)
+                               threads=threads, progress=progress)
     result = {"image": rgb, "time_s": seconds, "spec": spec, "seed": int(seed)}
     if out is not None:
         result.update(_write_outputs(rgb, out, spec=spec, seed=seed))
         if load_image:
-            bpy = _bpy()
-            img = bpy.data.images.load(str(result["png"]), check_existing=True)
-            img.reload()
-            result["bpy_image"] = img
+            result["bpy_image"] = load_image(result["png"])
     return result
+
+
+def load_image(path, name: str | None = None):
+    """Load (or reload) an image file into ``bpy.data.images``, named ``name``."""
+    bpy = _bpy()
+    img = bpy.data.images.load(str(path), check_existing=True)
+    img.reload()
+    if name:
+        img.name = name
+    return img
+
+
+def blend_objects() -> list:
+    """Every object of the open Blender file."""
+    return list(_bpy().data.objects)
+
+
+def surface_material():
+    """The aluminium material of the renders (for the meshes on screen too)."""
+    return _aluminium_material(_bpy(), {"material": "Al", "alpha": 0.0})
 
 
 def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int) -> dict:
@@ -584,6 +690,7 @@ def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int) -> dict:
              "vertical_exaggeration": float(spec["exaggeration"]),
              "window_mm": list(spec["window_mm"]), "view": spec["view"],
              "light": spec["light"]["type"], "camera": json.dumps(spec["camera"]),
+             "material_model": material_model(_bpy()),
              "software_version": __version__}
     with atomic_output_dir(out, merge=True, command="cycles", option="output folder") as tmp:
         write_exr(tmp / "cycles.exr", {"R": image[..., 0], "G": image[..., 1],

@@ -118,7 +118,8 @@ def render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
     return out
 
 
-def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0)) -> list[tuple]:
+def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0),
+                full_normals: bool = False) -> list[tuple]:
     """Ray-trace the mesh straight down near the cell centres of several grids (one BVH
     build) and return the height at the centres.
 
@@ -140,13 +141,16 @@ def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0)) -> lis
         Height the rays start from (mm, mesh coordinates; above the mesh).
     shift : (float, float)
         Ray offset from the cell centres, mm.
+    full_normals : bool
+        Return the whole shading normal instead of its z component.
 
     Returns
     -------
     list of (z, nz)
         ``z`` (ny, nx) float32, mesh height at the cell centres (NaN on a miss);
-        ``nz`` (ny, nx) float32, z component of the shading normal (0 on a miss).
-        Row 0 is the smallest y.
+        ``nz`` (ny, nx) float32, z component of the shading normal (0 on a miss), or with
+        ``full_normals`` the unit shading normal (ny, nx, 3) float32 ((0, 0, 0) on a
+        miss).  Row 0 is the smallest y.
     """
     mi, dr, variant = import_mitsuba()
     dx, dy = float(shift[0]), float(shift[1])
@@ -157,8 +161,10 @@ def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0)) -> lis
             hit = (np.einsum("...i,...i->...", gn, gn) > 0.25) & (gn[..., 2] > 1e-6)
             gz = np.where(hit, gn[..., 2], np.float32(1.0))
             z = pos[..., 2] + (gn[..., 0] * np.float32(dx) + gn[..., 1] * np.float32(dy)) / gz
+            n_out = (np.where(hit[..., None], nrm, np.float32(0.0)) if full_normals
+                     else np.where(hit, nrm[..., 2], np.float32(0.0)))
             out.append((np.where(hit, z, np.float32(np.nan)).astype(np.float32),
-                        np.where(hit, nrm[..., 2], np.float32(0.0)).astype(np.float32)))
+                        np.ascontiguousarray(n_out, dtype=np.float32)))
         return out
     scene = load_scene_dict({"type": "scene", "part": mitsuba_mesh(gm)})
     out = []
@@ -173,8 +179,14 @@ def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0)) -> lis
         hit = si.is_valid() & (si.n.z > 1e-6)
         z = si.p.z + (si.n.x * dx + si.n.y * dy) / dr.select(hit, si.n.z, 1.0)
         z = dr.select(hit, z, dr.nan)
-        nz = dr.select(hit, si.sh_frame.n.z, 0.0)
-        dr.eval(z, nz)
-        out.append((np.array(z, dtype=np.float32).reshape(ny, nx),
-                    np.array(nz, dtype=np.float32).reshape(ny, nx)))
+        if full_normals:
+            comps = [dr.select(hit, c, 0.0) for c in (si.sh_frame.n.x, si.sh_frame.n.y,
+                                                       si.sh_frame.n.z)]
+            dr.eval(z, *comps)
+            n_out = np.stack([np.array(c, dtype=np.float32).reshape(ny, nx) for c in comps], axis=-1)
+        else:
+            nz = dr.select(hit, si.sh_frame.n.z, 0.0)
+            dr.eval(z, nz)
+            n_out = np.array(nz, dtype=np.float32).reshape(ny, nx)
+        out.append((np.array(z, dtype=np.float32).reshape(ny, nx), n_out))
     return out

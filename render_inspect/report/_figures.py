@@ -10,7 +10,7 @@ import io
 
 import numpy as np
 
-__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes"]
+__all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "line_panels"]
 
 
 def _plt():
@@ -192,5 +192,42 @@ def radial_profile_figure(sections, *, dpi: int = 90) -> bytes:
         bot.set_xlabel("radius (mm)")
         bot.axhline(0, color="k", lw=0.5)
         top.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    return _to_png(fig)
+
+
+def line_panels(panels, *, suptitle: str = "", dpi: int = 90) -> bytes:
+    """Line plots side by side (instrument characterisation curves).
+
+    Parameters
+    ----------
+    panels : list of dict
+        ``title``, ``xlabel``, ``ylabel``, ``series``: list of dict(``x``, ``y``,
+        ``label``, optional ``style`` ("line" | "points" | "dashed")), optional
+        ``vlines``: list of (x, label), ``ylim``.
+    """
+    plt = _plt()
+    n = max(len(panels), 1)
+    fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 3.6), dpi=dpi, squeeze=False)
+    for ax, p in zip(axes[0], panels):
+        for srs in p["series"]:
+            style = srs.get("style", "line")
+            kw = {"marker": "o", "ls": "none", "ms": 4} if style == "points" else (
+                {"ls": "--", "lw": 1.0} if style == "dashed" else {"lw": 1.2})
+            ax.plot(np.asarray(srs["x"]), np.asarray(srs["y"]), label=srs.get("label"), **kw)
+        for xv, lab in p.get("vlines", []):
+            ax.axvline(xv, color="0.4", lw=0.8, ls=":")
+            ax.annotate(lab, (xv, 0.98), xycoords=("data", "axes fraction"), fontsize=8,
+                        rotation=90, va="top", ha="right")
+        if p.get("ylim") is not None:
+            ax.set_ylim(*p["ylim"])
+        ax.set_title(p.get("title", ""), fontsize=10)
+        ax.set_xlabel(p.get("xlabel", ""))
+        ax.set_ylabel(p.get("ylabel", ""))
+        ax.grid(alpha=0.3)
+        if any(s.get("label") for s in p["series"]):
+            ax.legend(fontsize=8, loc="best")
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=11)
     fig.tight_layout()
     return _to_png(fig)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 from .. import __version__
 from ._html import HtmlReport
@@ -33,6 +34,72 @@ _SUMMARY_ROWS = [
     ("tool path points", "toolpath.points"),
     ("tool path revolutions", "toolpath.revolutions"),
 ]
+
+
+def _fmt(v, scale=1.0, digits=4):
+    if v is None:
+        return None
+    try:
+        return f"{float(v) * scale:.{digits}g}"
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def _measured_section(rep, mf: dict, keys) -> None:
+    """The measured file: checks, coverage, registration with its uncertainty, outliers,
+    warnings, parameters, source (lengths in mm or um, heights in nm, angles in deg)."""
+    rep.section("Measured file")
+    src = mf.get("source") or {}
+    px = mf.get("pixel_mm") or [None, None]
+    shape = mf.get("shape") or [None, None]
+    units = src.get("units_in_file") or {}
+    rep.text(f"{src.get('path', '')}: read by {src.get('reader', '?')}; {shape[0]} x {shape[1]} "
+             f"points, pixel {_fmt(px[0], 1e3)} x {_fmt(px[1], 1e3)} um (x by y); units declared "
+             f"in the file: lateral {units.get('lateral', '?')}, vertical "
+             f"{units.get('vertical', '?')}; read as mm.  Heights below in nm, shifts in um, "
+             f"angles in degrees.")
+    warns = list(mf.get("warnings") or [])
+    for w in warns:
+        rep.text(w, cls="note")
+    checks = mf.get("checks") or {}
+    reg = mf.get("registration") or {}
+    unc = (reg.get("uncertainty") or {}).get("sigma", {})
+    out = mf.get("outliers") or {}
+    ov = checks.get("overlap") or {}
+    rows = [["coverage of the simulated region (fraction of its area)", _fmt(mf.get("coverage"))],
+            ["overlap after registration (fraction of the smaller area)", _fmt(ov.get("fraction"))],
+            ["registration residual RMS (nm)", _fmt(checks.get("residual_rms_mm"), 1e6)],
+            ["residual limit (nm)", _fmt(checks.get("residual_limit_mm"), 1e6)],
+            ["checks", "passed" if checks.get("ok") else
+             ("refused, compared with --force" if checks else "not run")],
+            ["outliers (second difference, k = " + _fmt(out.get("sigma"), 1, 3) + ")",
+             f"{out.get('count')} ({_fmt(100 * (out.get('fraction') or 0), 1, 3)} %), left out "
+             f"of {' and '.join(out.get('left_out_of', []))}"]]
+    rep.table(rows, header=["measured file", "value"])
+    if reg:
+        rrows = []
+        for key, label, scale in (("tx_mm", "shift x (um)", 1e3), ("ty_mm", "shift y (um)", 1e3),
+                                  ("tz_mm", "piston z (um)", 1e3),
+                                  ("alpha_rad", "tilt about x (deg)", 180 / math.pi),
+                                  ("beta_rad", "tilt about y (deg)", 180 / math.pi),
+                                  ("gamma_rad", "rotation about z (deg)", 180 / math.pi)):
+            sig = unc.get(key)
+            rrows.append([label, _fmt(reg.get(key), scale),
+                          "not fitted" if sig is None else _fmt(sig, scale, 3)])
+        rep.table(rrows, header=["registration (design -> measured)", "value",
+                                 "standard uncertainty"])
+        meth = (reg.get("uncertainty") or {}).get("method")
+        if meth:
+            rep.text(f"Registration by {reg.get('method')} over {reg.get('n_points')} points; "
+                     f"uncertainty: {meth}.")
+    meas = mf.get("measured") or {}
+    sim = mf.get("simulated") or {}
+    dif = mf.get("difference") or {}
+    rep.table([[k, meas.get(k), sim.get(k), dif.get(k)] for k in keys],
+              header=["parameter", "measured - design", "simulated (same chain)",
+                      "measured - simulated"])
+    rep.table([[k, json.dumps(v) if isinstance(v, (dict, list)) else v] for k, v in src.items()],
+              header=["source", "value"])
 
 
 def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
@@ -147,16 +214,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
             rep.table([[str(e.get("row"))] + [e.get(k) for k in cols[1:]] for e in ul], header=cols)
 
     if mf:
-        rep.section("Measured file")
-        meas = mf.get("measured") or {}
-        sim = mf.get("simulated") or {}
-        dif = mf.get("difference") or {}
-        rep.table([[k, meas.get(k), sim.get(k), dif.get(k)] for k in keys],
-                  header=["parameter", "measured - design", "simulated (same chain)",
-                          "measured - simulated"])
-        reg = mf.get("registration") or {}
-        rep.table([[k, v] for k, v in reg.items()], header=["registration", "value"])
-        rep.table([[k, v] for k, v in (mf.get("source") or {}).items()], header=["source", "value"])
+        _measured_section(rep, mf, keys)
 
     rep.section("Parameters")
     sd = scene.to_dict()

@@ -27,16 +27,18 @@ from ..instruments import InterferometerConfig
 from ..processes import ProcessConfig, StsProcessConfig, process_kinds
 from ..render import DiffuseConfig
 from ._artifacts import ArtifactsConfig, BurrConfig, ServoConfig, VibrationConfig
+from ._machine import MachineConfig, MaterialConfig
 from ._metrology import MetrologyConfig
 from ._rcse import RcseConfig
 from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
-           "shipped_scenes", "find_scene",
+           "shipped_scenes", "find_scene", "instrument_config",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
-           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig"]
+           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig",
+           "MaterialConfig"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
@@ -53,6 +55,8 @@ class Scene(Section):
     artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
     rcse: RcseConfig = Field(default_factory=RcseConfig)
+    machine: MachineConfig = Field(default_factory=MachineConfig)
+    material: MaterialConfig = Field(default_factory=MaterialConfig)
 
     @model_validator(mode="after")
     def _cross_checks(self):
@@ -145,13 +149,14 @@ def _expected(loc) -> str | None:
                     lo, lo_open = v, is_open
                 else:
                     hi, hi_open = v, is_open
-    kind = "an integer" if ann is int else "a finite number"
+    infinite = any(getattr(m, "allow_inf_nan", None) for m in meta)  # OrInfinity
+    kind = "an integer" if ann is int else "a number" if infinite else "a finite number"
     if lo is None and hi is None:
         return kind
     lo_s = "-inf" if lo is None else f"{lo:g}"
     hi_s = "inf" if hi is None else f"{hi:g}"
     return (f"{kind} in {'(' if lo_open or lo is None else '['}{lo_s}, {hi_s}"
-            f"{')' if hi_open or hi is None else ']'}")
+            f"{')' if hi_open or (hi is None and not infinite) else ']'}")
 
 
 def _format_error(err: ValidationError, source: str) -> SceneError:
@@ -289,6 +294,22 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
             node = nxt
         node[parts[-1]] = _parse_value(text.strip(), key)
     return data
+
+
+def instrument_config(objective: str = "20x", mode: str = "psi",
+                      overrides: Iterable[str] | None = None) -> InterferometerConfig:
+    """``[render.interferometer]`` for ``objective`` and ``mode`` with ``KEY=VALUE``
+    overrides (TOML values; the ``render.interferometer.`` prefix is optional), validated
+    with the scene's messages (``render-inspect characterise --set``)."""
+    items = []
+    for item in overrides or ():
+        key = item.split("=", 1)[0].strip()
+        if "=" in item and not key.startswith("render.interferometer."):
+            item = f"render.interferometer.{item.strip()}"
+        items.append(item)
+    data = {"design": {"type": "plane"},
+            "render": {"interferometer": {"objective": objective, "mode": mode}}}
+    return scene_from_dict(apply_overrides(data, items), "(characterise)").render.interferometer
 
 
 def shipped_scenes() -> dict[str, Path]:

@@ -10,12 +10,15 @@ from ..core.section import Section
 
 
 class MetrologyConfig(Section):
-    form_removal: Literal["none", "plane", "polynomial", "design"] = "plane"
+    form_removal: Literal["none", "plane", "polynomial", "sphere", "design"] = "plane"
     polynomial_degree: int = Field(2, ge=1, le=10)
     s_filter: float | None = Field(None, gt=0, description="mm, ISO 16610-61 S-filter nesting index")
     l_filter: float | None = Field(None, gt=0, description="mm, L-filter nesting index")
     outlier_sigma: float = Field(3.0, gt=0, le=20,
                                  description="k of the second-difference k-sigma outlier rule")
+    outliers: Literal["none", "sigma"] = Field(
+        "none", description="leave the k-sigma outliers out of the parameters of a measured map "
+                            "(they are always left out of its registration and counted)")
     registration: Literal["none", "lsq", "icp"] = "lsq"
     registration_dof: list[Literal["tx", "ty", "tz", "alpha", "beta", "gamma"]] = Field(
         default_factory=lambda: ["tx", "ty", "tz", "alpha", "beta", "gamma"], min_length=1,
@@ -26,6 +29,9 @@ class MetrologyConfig(Section):
     profile_sampling_lengths: int = Field(5, ge=1, le=50, description="sampling lengths for Rz")
     min_coverage: float = Field(0.95, ge=0, le=1,
                                 description="warn when a measurement covers less of the region")
+    min_overlap: float = Field(0.8, ge=0, le=1,
+                               description="compare --measured refuses a registered overlap below "
+                                           "this fraction of the smaller of the two areas")
     # phase retrieval from the rendered interferograms (render_inspect.metrology._phase)
     phase_algorithm: Literal["auto", "4step", "5step", "lsq"] = Field(
         "auto", description="PSI: 4-step, 5-step (Hariharan), least squares; auto by frame count")

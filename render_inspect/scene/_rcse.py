@@ -24,3 +24,9 @@ class RcseConfig(Section):
                                                           "path machines over simulation.region")
     snap_to_rows: bool = Field(True, description="CCPs on the nearest point-cloud row (X reciprocates); "
                                                  "false: interpolated at the exact spiral point")
+    spread_elements: int = Field(0, ge=0, le=1000,
+                                 description="elements (spread over the rings) on which both paths are "
+                                             "cut to compare Sa and its spread; 0 = none")
+    spread_window: float = Field(0.214, gt=0, le=10.0,
+                                 description="mm, side of the square field measured on each element "
+                                             "(seed 004: 0.214 mm)")

@@ -5,6 +5,7 @@ cannot drift from what the loader accepts:
 from __future__ import annotations
 
 import enum
+import types
 import typing
 
 import annotated_types as at
@@ -21,7 +22,7 @@ def _type_name(ann) -> str:
     args = typing.get_args(ann)
     if origin is typing.Literal:
         return " \\| ".join(f'"{a}"' if isinstance(a, str) else repr(a) for a in args)
-    if origin is typing.Union or str(origin) == "types.UnionType":
+    if origin is typing.Union or origin is types.UnionType:
         names = [_type_name(a) for a in args if a is not type(None)]
         s = " or ".join(names)
         return s + (" or none" if type(None) in args else "")

@@ -28,6 +28,7 @@ from ._rcse import (
                     rcse_ccps,
                     rcse_toolpath,
 )
+from ._scallop import feed_for_scallop, max_feed_for_scallop, plan_feed, scallop_height
 from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool
 
@@ -37,4 +38,5 @@ __all__ = ["ToolPath", "LinearProgram", "Tool", "spiral_ccps", "chordal_error",
            "plan_turning", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
            "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
-           "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout"]
+           "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",
+           "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]

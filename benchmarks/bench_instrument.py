@@ -1,0 +1,97 @@
+"""Benchmark: the interference microscope's imaging model and measuring from frames.
+
+Figures (printed and returned by :func:`main`):
+
+* ``psi_1024_20x``: a 1024 x 1024 PSI image (5 frames) at the 20x preset (NA 0.4,
+  0.879 um pixel, filled illumination aperture, 550 nm / 10 nm source, camera noise on),
+  at the recommended sub-sampling, of a surface like seed 000's sinusoidal grid (2 um
+  amplitude, 2.5 mm wavelength) with 10 nm turning marks; wall time of the imaging model
+  (the ray tracer's output, the sub-sampled heights and normals, is given);
+* ``csi_1024x256_20x``: the same surface as a 256-frame CSI stack (600 nm / 120 nm LED);
+* ``measure_*``: height from those frames (PSI 5-step + unwrapping; CSI envelope);
+* the process's peak resident memory.
+
+Targets (2-core machine): PSI < 10 s, CSI < 60 s.  Run:
+``.venv/bin/python benchmarks/bench_instrument.py`` (or ``make bench ONLY=instrument``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import resource
+import sys
+import time
+
+import numpy as np
+
+
+def _surface(n, pixel, s):
+    from render_inspect.instruments import artefacts
+
+    x, y = artefacts.subsample_grid((n, n), pixel, s, origin=(-n * pixel / 2, -n * pixel / 2))
+    xx, yy = x[None, :], y[:, None]
+    k = 2 * math.pi / 2.5
+    h = 2e-3 * (np.cos(k * xx) + np.cos(k * yy))
+    rr = np.hypot(xx + 3.0, yy)
+    h = h + 10e-6 * np.cos(2 * math.pi * rr / 0.01)
+    gx = -2e-3 * k * np.sin(k * xx) - 10e-6 * 2 * math.pi / 0.01 * np.sin(2 * math.pi * rr / 0.01) * (xx + 3.0) / rr
+    gy = -2e-3 * k * np.sin(k * yy) - 10e-6 * 2 * math.pi / 0.01 * np.sin(2 * math.pi * rr / 0.01) * yy / rr
+    nrm = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    return h, nrm.astype(np.float32)
+
+
+def _rss_mib():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def main(n: int = 1024, frames: int = 256) -> dict:
+    from render_inspect.instruments import (
+        OBJECTIVES,
+        Microscope,
+        csi_frames,
+        led,
+        monochromatic,
+        psi_frames,
+        recommended_subsamples,
+    )
+    from render_inspect.metrology import measure_frames
+
+    obj = OBJECTIVES["20x"]
+    out = {"pixel_mm": obj.pixel, "shape": [n, n]}
+    psi_mic = Microscope(objective=obj, source=monochromatic(550.0, bandwidth_nm=10.0))
+    csi_mic = Microscope(objective=obj, source=led(600.0, bandwidth_nm=120.0))
+    # warm-up: compiled kernels and transfer-function tables (built once per process)
+    for mic in (psi_mic, csi_mic):
+        h, nrm = _surface(64, obj.pixel, 3)
+        (psi_frames if mic is psi_mic else csi_frames)(h, nrm, pixel=obj.pixel, subsamples=3,
+                                                       microscope=mic)
+    for mode, mic in (("psi", psi_mic), ("csi", csi_mic)):
+        s = recommended_subsamples(obj.pixel, mic, max_slope=0.02)
+        h, nrm = _surface(n, obj.pixel, s)
+        t0 = time.perf_counter()
+        if mode == "psi":
+            fr = psi_frames(h, nrm, pixel=obj.pixel, subsamples=s, microscope=mic, steps=5)
+        else:
+            fr = csi_frames(h, nrm, pixel=obj.pixel, subsamples=s, microscope=mic, frames=frames)
+        t_img = time.perf_counter() - t0
+        del h, nrm
+        t0 = time.perf_counter()
+        m = measure_frames(fr)
+        t_meas = time.perf_counter() - t0
+        key = f"psi_{n}_20x" if mode == "psi" else f"csi_{n}x{frames}_20x"
+        out[key] = {"seconds": round(t_img, 2), "subsamples": s,
+                    "frames": int(fr.frames.shape[0]),
+                    "axial_bins": fr.settings["model"]["axial_bins"],
+                    "effective_wavelength_nm": round(fr.effective_wavelength_nm, 2)}
+        out[f"measure_{key}"] = {"seconds": round(t_meas, 2),
+                                 "valid_fraction": round(float(m.valid.mean()), 4)}
+        del fr, m
+    out["max_rss_MiB"] = round(_rss_mib(), 1)
+    print(json.dumps(out, indent=2))
+    return out
+
+
+if __name__ == "__main__":
+    main(*(int(a) for a in sys.argv[1:]))

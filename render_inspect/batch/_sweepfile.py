@@ -1,0 +1,308 @@
+"""Sweep files: a base scene and the scene keys to vary, expanded into points.
+
+A sweep file is TOML::
+
+    name = "fig15_small"
+    scene = "sts_sinusoidal_grid"        # a shipped scene, or a path relative to this file
+
+    [set]                                 # every point (dotted scene keys)
+    "simulation.region" = [-0.15, -0.15, 0.15, 0.15]
+
+    [grid]                                # every combination of these lists
+    "tool.nose_radius" = [0.1, 0.5, 1.0]
+    "process.feed_mm_per_min" = [0.2, 1.0]
+
+    [zip]                                 # lists of one length, varied together
+    "process.spindle_rpm" = [50, 100]
+
+    [[points]]                            # single points (tables of dotted keys)
+    "tool.nose_radius" = 0.25
+
+    [[study]]                             # more sub-sweeps with their own set/grid/zip/points
+    name = "b"
+    set = { "tool.nose_radius" = 0.5 }
+    grid = { "process.spindle_rpm" = [50, 100, 150] }
+
+    [run]                                 # what each point runs
+    render = "none"                       # "none" | "interferometer" | "diffuse" | "all"
+    measure = false                       # measure the interferogram frames (needs the interferometer)
+    compare = false                       # compensated vs uncompensated, per point
+    files = "metrics"                     # "metrics" | "all"
+
+    [[plot]]
+    kind = "curves"                       # metric against one key, a curve per value of another
+    x = "tool.nose_radius"
+    series = "process.feed_mm_per_min"
+    y = "residual.Sq_nm"
+
+A point's overrides are the file's ``set``, then its study's ``set``, then the values of
+its grid / zip / single point, applied to the base scene exactly as ``--set`` would.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, ValidationError, model_validator
+
+from ..core.errors import InputError
+from ..core.section import Section
+
+__all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
+           "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get"]
+
+#: Scene sections a sweep key may start with.
+SCENE_SECTIONS = ("name", "description", "design", "tool", "process", "simulation", "render",
+                  "artifacts", "metrology", "rcse")
+
+
+def _check_keys(keys, where: str) -> None:
+    for k in keys:
+        parts = str(k).split(".")
+        if len(parts) < 2 or not all(parts) or parts[0] not in SCENE_SECTIONS:
+            raise ValueError(f"{where} key must be a dotted scene key such as "
+                             f"'tool.nose_radius' (section one of {', '.join(SCENE_SECTIONS[2:])}), "
+                             f"received {k!r}")
+
+
+def _check_study(set_, grid, zip_, points) -> None:
+    _check_keys(set_, "set")
+    _check_keys(grid, "grid")
+    _check_keys(zip_, "zip")
+    for p in points:
+        _check_keys(p, "points")
+    for k, v in grid.items():
+        if not v:
+            raise ValueError(f"grid must give at least one value for {k!r}, received []")
+    lens = {k: len(v) for k, v in zip_.items()}
+    if len(set(lens.values())) > 1:
+        raise ValueError(f"zip lists must all have the same length, received lengths {lens}")
+    if any(n == 0 for n in lens.values()):
+        raise ValueError(f"zip lists must not be empty, received lengths {lens}")
+    both = set(grid) & set(zip_)
+    if both:
+        raise ValueError(f"zip keys must not also be grid keys, received {sorted(both)} in both")
+
+
+class Study(Section):
+    """One sub-sweep: ``set`` (fixed keys), ``grid`` (every combination), ``zip`` (lists
+    varied together) and ``points`` (single points)."""
+    name: str = ""
+    set: dict[str, Any] = Field(default_factory=dict)
+    grid: dict[str, list[Any]] = Field(default_factory=dict)
+    zip: dict[str, list[Any]] = Field(default_factory=dict)
+    points: list[dict[str, Any]] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _lists(self):
+        _check_study(self.set, self.grid, self.zip, self.points)
+        return self
+
+    def combinations(self) -> list[dict]:
+        """The study's points as dicts of dotted key -> value (without ``set``)."""
+        combos = []
+        if self.grid or self.zip:
+            gkeys = list(self.grid)
+            zkeys = list(self.zip)
+            nz = len(next(iter(self.zip.values()))) if zkeys else 1
+            for values in itertools.product(*(self.grid[k] for k in gkeys)):
+                for i in range(nz):
+                    c = dict(zip(gkeys, values))
+                    c.update({k: self.zip[k][i] for k in zkeys})
+                    combos.append(c)
+        combos.extend(dict(p) for p in self.points)
+        return combos
+
+
+class RunConfig(Section):
+    """``[run]``: what each point runs besides ``simulate``."""
+    render: Literal["none", "interferometer", "diffuse", "all"] = "none"
+    measure: bool = Field(False, description="measure the interferogram frames (needs the interferometer)")
+    compare: bool = Field(False, description="compensated vs uncompensated for each point")
+    files: Literal["metrics", "all"] = Field(
+        "metrics", description="metrics: metrics.json, scene.json, residual.png; all: also "
+                               "heightmap.exr, toolpath.npz and the previews")
+
+    @model_validator(mode="after")
+    def _measure(self):
+        if self.measure and self.render not in ("interferometer", "all"):
+            raise ValueError(f"measure = true needs render = 'interferometer' or 'all', "
+                             f"received render = {self.render!r}")
+        return self
+
+
+class PlotConfig(Section):
+    """``[[plot]]``: ``curves`` (``y`` against ``x``, one curve per value of ``series``) or
+    ``heatmap`` (``value`` over the ``x`` - ``y`` plane)."""
+    kind: Literal["curves", "heatmap"]
+    x: str
+    y: str = Field("residual.Sq_nm", description="curves: a metric; heatmap: a second key")
+    series: str | None = None
+    value: str = Field("residual.Sq_nm", description="heatmap: the metric")
+    study: str | None = Field(None, description="only the points of this study")
+    title: str = ""
+    log: bool = Field(False, description="logarithmic metric axis / colour scale")
+    name: str | None = Field(None, description="file name (without .png)")
+
+
+class SweepFile(Section):
+    """A sweep file (see the module docstring)."""
+    name: str = ""
+    description: str = ""
+    scene: str
+    set: dict[str, Any] = Field(default_factory=dict)
+    grid: dict[str, list[Any]] = Field(default_factory=dict)
+    zip: dict[str, list[Any]] = Field(default_factory=dict)
+    points: list[dict[str, Any]] = Field(default_factory=list)
+    study: list[Study] = Field(default_factory=list)
+    run: RunConfig = Field(default_factory=RunConfig)
+    plot: list[PlotConfig] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _top(self):
+        _check_study(self.set, self.grid, self.zip, self.points)
+        names = [s.name for s in self.study]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"study names must be unique, received {dup} more than once")
+        return self
+
+    def studies(self) -> list[Study]:
+        """The top-level grid/zip/points as a study named "" (when given) plus the
+        ``[[study]]`` tables; a single point when nothing varies."""
+        out = []
+        if self.grid or self.zip or self.points or not self.study:
+            out.append(Study(name="", grid=self.grid, zip=self.zip, points=self.points))
+        out.extend(self.study)
+        return out
+
+
+@dataclass
+class SweepPoint:
+    """One point of a sweep before it is run.
+
+    Attributes
+    ----------
+    overrides : dict
+        Dotted scene key -> value, in the order applied.
+    studies : list of str
+        The studies that contain the point (a point shared by several studies runs once).
+    index : int
+        Position in the sweep (first appearance).
+    """
+    overrides: dict
+    studies: list = field(default_factory=list)
+    index: int = 0
+
+
+def _format_error(err: ValidationError, source: str) -> InputError:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"])
+        msg = e["msg"]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key (not allowed here; check the spelling)"
+        elif msg.startswith("Value error, "):
+            msg = msg[len("Value error, "):]
+        inp = e.get("input")
+        got = "" if e["type"] == "missing" or isinstance(inp, dict) else f"; received {inp!r}"
+        lines.append(f"  {loc or '(top level)'}: {msg}{got}")
+    return InputError(f"invalid sweep file {source}:\n" + "\n".join(lines))
+
+
+def read_sweep(path) -> SweepFile:
+    """Read and validate a sweep file (TOML).
+
+    Raises
+    ------
+    InputError
+        Missing file, bad TOML, unknown keys or bad values (naming the key and the value).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"sweep file not found: {str(path)!r}; give a .toml sweep file "
+                         f"(shipped ones are in render_inspect/scenes/sweeps/)")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"sweep file {str(path)!r} is not valid TOML: {err}") from None
+    try:
+        spec = SweepFile.model_validate(data)
+    except ValidationError as err:
+        raise _format_error(err, str(path)) from None
+    if not spec.name:
+        spec.name = path.stem
+    return spec
+
+
+def expand_points(spec: SweepFile) -> list[SweepPoint]:
+    """All points of a sweep, each once (identical override sets from several studies are
+    merged; their ``studies`` lists them all)."""
+    seen: dict[str, SweepPoint] = {}
+    for st in spec.studies():
+        for combo in st.combinations():
+            ov = {**spec.set, **st.set, **combo}
+            key = json.dumps(ov, sort_keys=True, default=str)
+            if key in seen:
+                if st.name not in seen[key].studies:
+                    seen[key].studies.append(st.name)
+            else:
+                seen[key] = SweepPoint(ov, [st.name], len(seen))
+    return list(seen.values())
+
+
+def sweep_keys(spec: SweepFile) -> list[str]:
+    """The keys that vary across the sweep (study ``set`` keys included), in the order
+    they first appear: the ``params`` of every result."""
+    keys: list[str] = []
+    for st in spec.studies():
+        for k in [*st.set, *st.grid, *st.zip, *(k for p in st.points for k in p)]:
+            if k not in keys:
+                keys.append(k)
+    return keys
+
+
+def toml_value(value) -> str:
+    """``value`` as TOML value text (what ``--set KEY=VALUE`` takes)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{json.dumps(str(k))} = {toml_value(v)}" for k, v in value.items()) + "}"
+    raise InputError(f"sweep value must be a number, string, boolean, list or table, "
+                     f"received {value!r}")
+
+
+def point_id(payload: dict) -> str:
+    """A point's identity: the first 16 hex digits of the SHA-256 of ``payload`` as
+    canonical JSON (keys sorted, no spaces)."""
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def dotted_get(data: dict, key: str, default=None):
+    """``data["a"]["b"]`` for ``key = "a.b"`` (``default`` when a part is missing)."""
+    node = data
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node

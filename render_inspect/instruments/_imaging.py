@@ -1,0 +1,705 @@
+"""Imaging model of the interference microscope: surface -> camera frames.
+
+Input: heights and normals of the surface at ``s x s`` sub-samples per camera pixel (what
+the ray tracer returns; NaN heights = no surface reached).  Output: PSI or CSI frames
+(:class:`Frames`) with the instrument's settings and no truth.
+
+Per frame (scanner position ``z``: the focus and the zero path difference move together,
+as in a Mirau or Linnik objective scanned along its axis) and per camera pixel::
+
+    I(z) = rho_R + B + 2 sqrt(rho_R) Re X(z)
+
+* ``X`` is the interference term, the 3-D linear filter of :mod:`._transfer` applied to
+  the Kirchhoff field ``r exp(i K h)`` of the sub-samples, summed over the source's
+  wavenumbers and the illumination directions, defocus included (the ``K``-dependence
+  of the filter), integrated over the pixel's sensitive area (a box filter in the
+  frequency domain) and sampled at the pixel centre;
+* ``B`` is the light from the object alone, ``sum over k, q_i of |E|^2``: for each
+  sub-sample, the geometric fraction of the illumination its facet (the normal) reflects
+  into the pupil (:func:`acceptance_table`), averaged over the pixel's sensitive area.  It
+  is raised to ``|X|^2`` where diffraction makes that larger (Cauchy-Schwarz), so
+  ``I >= 0``;
+* ``rho_R`` is the reference mirror's reflectance (unit illumination);
+* sub-samples with no surface (NaN height), facing away from every illumination
+  direction, or too steep for any reflected ray to enter the pupil, are dark (``r = 0``).
+
+Frames are periodic over the array (FFT); ``crop`` drops a margin of pixels around the
+field, where the wrap-around would otherwise show.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.ndimage import gaussian_filter
+
+from ..core.errors import InputError, MemoryBudgetError, check_range
+from ..core.frames import Frames
+from ._camera import Camera, expose
+from ._kernels import filter_fold
+from ._objectives import OBJECTIVES, Objective
+from ._sources import Source, led, monochromatic
+from ._transfer import (
+    acceptance_table,
+    axial_step,
+    flat_moments,
+    linear_itf,
+    transfer_function,
+)
+
+__all__ = [
+    "MAX_STACK_BYTES",
+    "Disturbances",
+    "Microscope",
+    "csi_frames",
+    "interference_intensity",
+    "normals_from_heights",
+    "psi_frames",
+    "recommended_subsamples",
+]
+
+#: A frame stack (float32) larger than this is refused.
+MAX_STACK_BYTES = 3 * 1024 ** 3
+#: CSI scans with more frames than this are refused.
+MAX_CSI_FRAMES = 4096
+_NM = 1e-6  # nm -> mm
+
+
+@dataclass(frozen=True)
+class Microscope:
+    """The interference microscope: objective, illumination, source, camera.
+
+    Attributes
+    ----------
+    objective : Objective
+        Default the 20x preset (NA 0.4).
+    source : Source
+        Default :func:`monochromatic` 550 nm, 10 nm FWHM (PSI).  Use :func:`led` for CSI.
+    camera : Camera
+    illumination_na : float or None
+        Condenser (illumination) NA, 0 .. objective NA; None fills the pupil (Koehler
+        illumination with the aperture stop open), 0 is a single on-axis plane wave.
+    reflectance : float
+        Power reflectance of the part (0..1].
+    reference_reflectance : float
+        Power reflectance of the reference mirror (0..1]; equal to ``reflectance`` for
+        balanced beams.
+    """
+
+    objective: Objective = OBJECTIVES["20x"]
+    source: Source = field(default_factory=lambda: monochromatic(550.0, bandwidth_nm=10.0))
+    camera: Camera = field(default_factory=Camera)
+    illumination_na: float | None = None
+    reflectance: float = 1.0
+    reference_reflectance: float = 1.0
+
+    def __post_init__(self):
+        na = self.objective.numerical_aperture
+        if self.illumination_na is not None:
+            check_range("illumination_na", self.illumination_na, 0, na)
+        check_range("reflectance", self.reflectance, 0, 1, lo_open=True)
+        check_range("reference_reflectance", self.reference_reflectance, 0, 1, lo_open=True)
+
+    @property
+    def na(self) -> float:
+        return float(self.objective.numerical_aperture)
+
+    @property
+    def na_ill(self) -> float:
+        return self.na if self.illumination_na is None else float(self.illumination_na)
+
+    @property
+    def obscuration(self) -> float:
+        return float(self.objective.central_obscuration)
+
+    def effective_wavelength_nm(self) -> float:
+        """Fringe wavelength on a flat mirror, ``4 pi / K_eff`` (nm): the NA factor."""
+        k, w = self.source.sample(dk=self._dk_fine())
+        k_eff, _ = flat_moments(self.na, self.na_ill, self.obscuration, k, w)
+        return 4 * math.pi / k_eff / _NM
+
+    def itf(self, frequency) -> np.ndarray:
+        """Instrument transfer function in the linear regime (:func:`linear_itf`) at
+        ``frequency`` (cycles/mm), without the camera pixel's box filter."""
+        return linear_itf(self.na, self.na_ill, self.obscuration, self.source, frequency)
+
+    def coherence_sigma(self) -> float:
+        """Rms width of the axial frequency for a flat mirror, rad/mm."""
+        k, w = self.source.sample(dk=self._dk_fine())
+        return flat_moments(self.na, self.na_ill, self.obscuration, k, w)[1]
+
+    def _dk_fine(self) -> float:
+        k_lo, k_hi = self.source.wavenumber_range()
+        return max((k_hi - k_lo) / 400, 1e-3)
+
+    def describe(self) -> dict:
+        """Plain numbers (recorded in the frames' settings)."""
+        return {"objective": self.objective.describe(), "source": self.source.describe(),
+                "camera": self.camera.describe(), "illumination_na": self.na_ill,
+                "reflectance": float(self.reflectance),
+                "reference_reflectance": float(self.reference_reflectance)}
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """Disturbances of the measurement (all off by default).
+
+    Attributes
+    ----------
+    step_error : float
+        Relative miscalibration of the phase shifter / scanner: it moves
+        ``(1 + step_error)`` times the nominal distance.
+    step_nonlinearity : float
+        Quadratic phase-shifter error (PSI): the actual phase shift is
+        ``delta (1 + step_error + step_nonlinearity * delta / (2 pi))``.
+    vibration_amplitude_nm : float
+        Amplitude of a sinusoidal vibration of the part along the optical axis, nm.
+    vibration_frequency_hz : float
+        Its frequency, Hz; the phase is drawn from the measurement's seed.
+    frame_rate_hz : float
+        Camera frame rate, Hz (frame ``f`` starts at ``f / frame_rate_hz``).
+    exposure_time_s : float or None
+        Integration time of each frame, s (None: ``1 / frame_rate_hz``); the intensity
+        is averaged over it (8 sub-steps).
+    reference_figure_rms_nm : float
+        Rms of the reference mirror's figure error, nm: smooth random (Gaussian
+        correlation), drawn from ``reference_figure_seed`` (a property of the
+        objective).  It adds to the measured height with the opposite sign.
+    reference_figure_correlation_mm : float
+        Correlation length of that figure, mm.
+    reference_figure_seed : int
+    """
+
+    step_error: float = 0.0
+    step_nonlinearity: float = 0.0
+    vibration_amplitude_nm: float = 0.0
+    vibration_frequency_hz: float = 0.0
+    frame_rate_hz: float = 100.0
+    exposure_time_s: float | None = None
+    reference_figure_rms_nm: float = 0.0
+    reference_figure_correlation_mm: float = 0.02
+    reference_figure_seed: int = 0
+
+    def __post_init__(self):
+        check_range("step_error", self.step_error, -0.5, 0.5)
+        check_range("step_nonlinearity", self.step_nonlinearity, -0.5, 0.5)
+        check_range("vibration_amplitude_nm", self.vibration_amplitude_nm, 0, 1e4)
+        check_range("vibration_frequency_hz", self.vibration_frequency_hz, 0, 1e6)
+        check_range("frame_rate_hz", self.frame_rate_hz, 0, 1e6, lo_open=True)
+        if self.exposure_time_s is not None:
+            check_range("exposure_time_s", self.exposure_time_s, 0, 1.0 / self.frame_rate_hz,
+                        lo_open=True)
+        check_range("reference_figure_rms_nm", self.reference_figure_rms_nm, 0, 1e3)
+        check_range("reference_figure_correlation_mm", self.reference_figure_correlation_mm, 0,
+                    None, lo_open=True)
+
+    def describe(self) -> dict:
+        return asdict(self)
+
+    def reference_figure(self, shape, pixel: float) -> np.ndarray | None:
+        """The reference mirror's figure error on the camera grid, mm (None if off)."""
+        if self.reference_figure_rms_nm <= 0:
+            return None
+        rng = np.random.default_rng([int(self.reference_figure_seed), 0x524546])  # "REF"
+        white = rng.standard_normal(shape)
+        sig = self.reference_figure_correlation_mm / pixel / math.sqrt(2)
+        w = gaussian_filter(white, sig, mode="wrap")
+        w -= w.mean()
+        rms = float(np.sqrt(np.mean(w * w)))
+        return w * (self.reference_figure_rms_nm * _NM / rms) if rms > 0 else np.zeros(shape)
+
+    def positions(self, nominal_mm: np.ndarray, *, seed: int, origin_mm: float | None = None,
+                  scale: bool = True):
+        """Actual scanner positions during each frame's exposure, mm.
+
+        Parameters
+        ----------
+        nominal_mm : (N,) float
+            Nominal positions.
+        origin_mm : float, optional
+            Where the actuator's travel starts (default the first nominal position).
+        scale : bool
+            Apply ``step_error`` to the travel (False when the caller already has).
+
+        Returns
+        -------
+        (N, T) float64: T = 1 without vibration, else 8 sub-steps of the exposure.
+        """
+        z = np.asarray(nominal_mm, dtype=np.float64)
+        z0 = float(z[0]) if origin_mm is None else float(origin_mm)
+        if scale:
+            z = z0 + (z - z0) * (1.0 + self.step_error)
+        if self.vibration_amplitude_nm <= 0 or self.vibration_frequency_hz <= 0:
+            return z[:, None]
+        rng = np.random.default_rng([int(seed), 0x564942])  # "VIB"
+        phase0 = rng.uniform(0, 2 * math.pi)
+        texp = self.exposure_time_s if self.exposure_time_s is not None else 1.0 / self.frame_rate_hz
+        t = (np.arange(z.size)[:, None] / self.frame_rate_hz
+             + texp * (np.arange(8)[None, :] + 0.5) / 8)
+        v = self.vibration_amplitude_nm * _NM * np.sin(
+            2 * math.pi * self.vibration_frequency_hz * t + phase0)
+        return z[:, None] + v
+
+
+# ------------------------------------------------------------------------------ helpers
+def normals_from_heights(heights: np.ndarray, spacing: float) -> np.ndarray:
+    """Unit normals ``(-h_x, -h_y, 1) / norm`` from central differences (NaN-aware).
+
+    Parameters
+    ----------
+    heights : (H, W) float, mm (NaN = no surface)
+    spacing : float, mm
+
+    Returns
+    -------
+    (H, W, 3) float32 (NaN where a neighbour is missing)
+    """
+    h = np.asarray(heights, dtype=np.float64)
+    gy, gx = np.gradient(h, spacing)
+    n = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n.astype(np.float32)
+
+
+def recommended_subsamples(pixel: float, microscope: Microscope, *, max_slope: float | None = None) -> int:
+    """Sub-samples per pixel side that sample the surface for this microscope.
+
+    The larger of (a) Nyquist sampling of the highest spatial frequency the pupil passes,
+    ``(NA + NA_ill) / lambda`` at the short end of the spectrum (1st percentile of the
+    power), and (b) less than half a fringe of ``K h`` between sub-samples on slopes up
+    to ``max_slope`` (rad; default the largest slope that can return light).
+    """
+    k, w = microscope.source.sample(dk=microscope._dk_fine())
+    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
+    f_cut = k_hi * (microscope.na + microscope.na_ill) / (2 * math.pi)
+    s_res = math.ceil(2 * pixel * f_cut - 1e-9)
+    slope_lim = 0.5 * (math.asin(microscope.na) + math.asin(microscope.na_ill))
+    slope = slope_lim if max_slope is None else min(float(max_slope), slope_lim)
+    s_slope = math.ceil(pixel * 2 * k_hi * math.tan(slope) / math.pi - 1e-9)
+    return int(max(1, s_res, s_slope))
+
+
+def _exp_i(phase: np.ndarray) -> np.ndarray:
+    out = np.empty(phase.shape, dtype=np.complex64)
+    out.real = np.cos(phase)
+    out.imag = np.sin(phase)
+    return out
+
+
+def _box_weights(s: int, fill_factor: float) -> np.ndarray:
+    """Weight of each of the ``s`` sub-cells (per axis) in a pixel whose sensitive area is
+    a centred square of side ``sqrt(fill_factor)`` pixels."""
+    half = 0.5 * math.sqrt(fill_factor)
+    edges = np.arange(s + 1) / s - 0.5
+    w = np.clip(np.minimum(edges[1:], half) - np.maximum(edges[:-1], -half), 0.0, None)
+    return w / w.sum()
+
+
+# ------------------------------------------------------------------------- the model
+def interference_intensity(heights, normals=None, *, pixel: float, subsamples: int = 1,
+                           microscope: Microscope | None = None, z_positions,
+                           crop: int = 0, reference_figure=None, kz_tolerance: float = 0.5,
+                           workers: int | None = None, return_field: bool = False):
+    """Noise-free intensities of the interference microscope (the imaging model).
+
+    Parameters
+    ----------
+    heights : (H*s, W*s) float array, mm
+        Surface height at the sub-sample centres (NaN where no surface was reached).
+        Sub-sample ``(i, j)`` of pixel ``(r, c)`` sits at ``(i - r s - (s - 1) / 2) pixel/s``
+        from the pixel centre (row = y).
+    normals : (H*s, W*s, 3) float array, optional
+        Surface normals (any length, z > 0 facing the objective); default from the
+        heights' central differences.
+    pixel : float
+        Camera pixel on the part, mm.
+    subsamples : int
+        ``s``, sub-samples per pixel side.
+    microscope : Microscope, optional
+    z_positions : (N,) or (N, T) float array, mm
+        Scanner position (focus and zero path difference) of each frame; with T columns
+        the intensity is averaged over the T positions (motion during the exposure).
+    crop : int
+        Pixels dropped on each side of the output (the FFT wraps around the array).
+    reference_figure : (H - 2 crop, W - 2 crop) float array, optional
+        Figure error of the reference mirror on the output grid, mm.
+    kz_tolerance : float
+        Accuracy of the axial binning (:func:`axial_step`), rad.
+    workers : int, optional
+        FFT threads (default all CPUs).
+    return_field : bool
+        Also return the complex interference term ``X`` (``info["field"]``, (N, H', W')
+        complex64), e.g. to check the model against a direct summation.
+
+    Returns
+    -------
+    intensity : (N, H - 2 crop, W - 2 crop) float32
+        In units of the illumination (a perfect mirror's object beam alone gives 1).
+    info : dict
+        ``effective_wavelength_nm``, ``coherence_sigma_per_mm``, ``axial_bins``,
+        ``axial_step_per_mm``, ``light`` ((H', W') float32: the object beam alone, B),
+        ``undersampled_fraction`` (returning sub-samples whose phase changes by more than
+        pi to the next sub-sample at the shortest wavelength).
+    """
+    mic = Microscope() if microscope is None else microscope
+    s = int(subsamples)
+    if s != subsamples or s < 1:
+        raise InputError(f"subsamples must be an integer >= 1, got {subsamples!r}")
+    check_range("pixel", pixel, 0, 1.0, lo_open=True)
+    check_range("kz_tolerance", kz_tolerance, 0.05, 1.5)
+    h = np.asarray(heights, dtype=np.float64)
+    if h.ndim != 2 or h.shape[0] % s or h.shape[1] % s or h.shape[0] < s or h.shape[1] < s:
+        raise InputError(f"heights must be an (H*s, W*s) array with s = subsamples = {s}, got "
+                         f"shape {h.shape}")
+    hc, wc = h.shape[0] // s, h.shape[1] // s
+    crop = int(crop)
+    if crop < 0 or 2 * crop >= min(hc, wc):
+        raise InputError(f"crop must be in [0, {(min(hc, wc) - 1) // 2}] pixels for a "
+                         f"{wc} x {hc} pixel field, got {crop}")
+    ho, wo = hc - 2 * crop, wc - 2 * crop
+    zpos = np.asarray(z_positions, dtype=np.float64)
+    if zpos.ndim == 1:
+        zpos = zpos[:, None]
+    if zpos.ndim != 2 or zpos.shape[0] < 1 or not np.all(np.isfinite(zpos)):
+        raise InputError(f"z_positions must be a finite (N,) or (N, T) array, got shape {zpos.shape}")
+    nfr = zpos.shape[0]
+    if nfr * ho * wo * 4 > MAX_STACK_BYTES:
+        raise MemoryBudgetError(f"{nfr} frames of {wo} x {ho} pixels need "
+                                f"{nfr * ho * wo * 4 / 2**30:.1f} GiB (> {MAX_STACK_BYTES / 2**30:.0f} "
+                                f"GiB): use fewer frames or a smaller field")
+    if normals is None:
+        nrm = normals_from_heights(h, pixel / s)
+    else:
+        nrm = np.asarray(normals, dtype=np.float32)
+        if nrm.shape != h.shape + (3,):
+            raise InputError(f"normals must have shape {h.shape + (3,)} (heights' shape + 3), "
+                             f"got {nrm.shape}")
+    if reference_figure is not None:
+        reference_figure = np.asarray(reference_figure, dtype=np.float64)
+        if reference_figure.shape != (ho, wo):
+            raise InputError(f"reference_figure must have the output shape {(ho, wo)}, got "
+                             f"{reference_figure.shape}")
+    workers = workers or os.cpu_count() or 1
+    na, na_ill, obs = mic.na, mic.na_ill, mic.obscuration
+
+    # --- which sub-samples reflect: reached, facing the objective, and not a facet that
+    # is both too steep to return any light (geometric optics) and too steep for the
+    # sub-sample grid to carry its phase (it would alias into the pupil)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nz = nrm[..., 2]
+        nn = np.sqrt(nrm[..., 0] ** 2 + nrm[..., 1] ** 2 + nz ** 2)
+        cos_t = nz / nn
+        fin = np.isfinite(h)
+        reached = fin & (cos_t > 0)  # NaN compares False
+    k_src, w_src = mic.source.sample(dk=mic._dk_fine())
+    k99 = float(k_src[min(np.searchsorted(np.cumsum(w_src), 0.99), k_src.size - 1)])
+    alpha, frac = acceptance_table(na, na_ill, obs)
+    a = pixel / s
+    alpha_lim = float(alpha[np.nonzero(frac > 1e-9)[0].max()]) if (frac > 1e-9).any() else 0.0
+    alpha_dark = max(alpha_lim, math.atan(math.pi / (2 * k99 * a)))
+    returns = reached & (cos_t >= np.float32(math.cos(alpha_dark)))
+    # the object beam's own intensity: geometric acceptance of the facets, with the normals
+    # averaged over the point-spread function (sub-resolution texture scatters, it does not
+    # make dark facets)
+    lam_c = 2 * math.pi / float(np.sum(k_src * w_src))
+    sig = lam_c / (4 * (na + na_ill)) / a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
+    del nn, cos_t
+    if sig > 0.3:
+        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
+    cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
+    del unit
+    tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
+    acc = np.take(frac.astype(np.float32),
+                  np.rint(tilt * np.float32((alpha.size - 1) / alpha[-1])).astype(np.int32))
+    del tilt, cos_s
+    acc[~returns] = 0.0
+    refl = float(mic.reflectance)
+    wy = _box_weights(s, mic.camera.fill_factor)
+    b_sub = (np.float32(refl) * acc).reshape(hc, s, wc, s)
+    light = np.einsum("asbt,s,t->ab", b_sub, wy, wy)[crop:hc - crop, crop:wc - crop]
+    del b_sub, acc
+    amp = np.where(returns, np.float32(math.sqrt(refl)), np.float32(0.0))
+
+    # --- heights relative to a reference plane, the range of z - h the frames need
+    any_ret = bool(returns.any())
+    zbar = float(np.mean(h[returns])) if any_ret else (float(np.mean(h[fin])) if fin.any() else 0.0)
+    dh32 = np.where(returns, h - zbar, 0.0).astype(np.float32)
+    hmin, hmax = (float(dh32[returns].min()), float(dh32[returns].max())) if any_ret else (0.0, 0.0)
+    zrel = zpos - zbar
+    zeta = max(abs(float(zrel.max()) - hmin), abs(float(zrel.min()) - hmax))
+    if reference_figure is not None:
+        zeta += float(np.max(np.abs(reference_figure)))
+    k_fine, w_fine = mic.source.sample(dk=mic._dk_fine())
+    k_eff, sigma_k = flat_moments(na, na_ill, obs, k_fine, w_fine)
+    dK = axial_step(sigma_k, zeta, tolerance=kz_tolerance)
+    dK = 1.25 ** math.floor(math.log(dK, 1.25))  # quantised: repeated renders share a table
+    tf = _cached_tf(na, na_ill, obs, mic.source, dK)
+
+    # undersampling diagnostic: phase step to the next sub-sample at the largest K
+    k_top = float(tf.K[np.nonzero(tf.support >= 0)[0].max()]) if (tf.support >= 0).any() else 0.0
+    lim = np.float32(math.pi / k_top) if k_top > 0 else np.float32(np.inf)
+    under = (np.count_nonzero((np.abs(np.diff(dh32, axis=1)) > lim) & returns[:, 1:] & returns[:, :-1])
+             + np.count_nonzero((np.abs(np.diff(dh32, axis=0)) > lim) & returns[1:, :] & returns[:-1, :]))
+    under_frac = under / max(2 * int(returns.sum()), 1)
+
+    # --- frequency grids (fine).  Only frequencies inside each axial bin's support (a
+    # disc, at most k_max (NA + NA_ill)) are filtered and folded onto the camera grid.
+    hs, ws = h.shape
+    qy = 2 * math.pi * sfft.fftfreq(hs, d=a)
+    qx = 2 * math.pi * sfft.fftfreq(ws, d=a)
+    wbox = math.sqrt(mic.camera.fill_factor) * pixel
+    shift = (s - 1) * a / 2
+    sepy = (np.sinc(qy * wbox / (2 * math.pi)) * np.exp(1j * qy * shift)).astype(np.complex64)
+    sepx = (np.sinc(qx * wbox / (2 * math.pi)) * np.exp(1j * qx * shift)).astype(np.complex64)
+    qy2 = (qy ** 2).astype(np.float32)
+    qx2 = (qx ** 2).astype(np.float32)
+    inv_dq = np.float32(1.0 / tf.dq)
+    active = np.nonzero(tf.support >= 0)[0] if returns.any() else np.zeros(0, dtype=np.int64)
+    nb = active.size
+    cstack = np.empty((nb, ho * wo), dtype=np.complex64)
+    kb = tf.K[active]
+    coarse = np.empty((hc, wc), dtype=np.complex64)
+    step = _exp_i(np.float32(tf.dK) * dh32) if nb > 1 else None
+    cur = None
+    for j, b in enumerate(active):
+        Kb = float(tf.K[b])
+        if cur is None or j % 16 == 0 or b != active[j - 1] + 1:
+            cur = _exp_i(np.float32(Kb) * dh32)
+            cur *= amp  # amp is real: it survives the recursion below
+        else:
+            cur *= step
+        qb = float(tf.support[b]) * (1 + 1e-6)
+        cols = np.nonzero(np.abs(qx) <= qb)[0]
+        spec = sfft.fft2(cur, workers=workers)
+        filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
+                    inv_dq, s, coarse)
+        del spec
+        img = sfft.ifft2(coarse, workers=workers, overwrite_x=True)
+        img = img[crop:hc - crop, crop:wc - crop] * np.float32(1.0 / (s * s))
+        if reference_figure is not None:
+            img *= _exp_i((-Kb * reference_figure).astype(np.float32))
+        cstack[j] = img.ravel()
+    del cur, step
+
+    # --- frames: X_f = sum_b coef[f, b] C_b, coef = <exp(-i K_b (z - zbar))> over the exposure
+    coef = np.exp(-1j * kb[None, None, :] * zrel[:, :, None]).mean(axis=1).astype(np.complex64)
+    rho_r = float(mic.reference_reflectance)
+    two_sr = np.float32(2 * math.sqrt(rho_r))
+    out = np.empty((nfr, ho * wo), dtype=np.float32)
+    lightf = light.astype(np.float32).ravel()
+    chunk = max(1, int(2 ** 24 // max(nfr, nb)))
+    xfield = np.empty((nfr, ho * wo), dtype=np.complex64) if return_field else None
+    for p0 in range(0, ho * wo, chunk):
+        x = coef @ cstack[:, p0:p0 + chunk]
+        if xfield is not None:
+            xfield[:, p0:p0 + chunk] = x
+        mag2 = np.max(x.real ** 2 + x.imag ** 2, axis=0)
+        bg = np.maximum(lightf[p0:p0 + chunk], mag2) + np.float32(rho_r)
+        out[:, p0:p0 + chunk] = bg[None, :] + two_sr * x.real
+    np.maximum(out, 0.0, out=out)
+    info = {"effective_wavelength_nm": 4 * math.pi / k_eff / _NM,
+            "coherence_sigma_per_mm": sigma_k, "axial_bins": int(nb),
+            "axial_step_per_mm": float(dK), "light": light.astype(np.float32),
+            "undersampled_fraction": float(under_frac), "reference_plane_mm": zbar}
+    if xfield is not None:
+        info["field"] = xfield.reshape(nfr, ho, wo)
+    return out.reshape(nfr, ho, wo), info
+
+
+_TF_CACHE: dict = {}
+
+
+def _cached_tf(na, na_ill, obs, source, dK):
+    key = (na, na_ill, obs, source, round(dK, 9))
+    tf = _TF_CACHE.get(key)
+    if tf is None:
+        if len(_TF_CACHE) >= 8:
+            _TF_CACHE.pop(next(iter(_TF_CACHE)))
+        tf = _TF_CACHE[key] = transfer_function(na, na_ill, obs, source, dK=dK)
+    return tf
+
+
+# ------------------------------------------------------------------- measurement modes
+def _check_seed(seed):
+    if int(seed) != seed or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    return int(seed)
+
+
+#: A pixel is ``valid`` (light returned) when the object beam alone is at least this
+#: fraction of a mirror's.
+LIGHT_FRACTION = 0.05
+
+
+def _frames(stack, info, mic, *, mode, pixel, origin, delta, scan, z_ref, index, seed, lam_eff,
+            settings):
+    src = mic.source
+    return Frames(frames=stack, valid=info["light"] >= LIGHT_FRACTION * mic.reflectance,
+                  pixel=float(pixel), origin=(float(origin[0]), float(origin[1])), mode=mode,
+                  wavelength_nm=src.wavelength_nm, numerical_aperture=mic.na,
+                  phase_steps=delta, scan_positions=scan, z_ref=z_ref,
+                  bandwidth_nm=src.bandwidth_nm or None, objective=mic.objective.name,
+                  intensity_index=int(index), subsamples=int(settings["model"]["subsamples"]),
+                  seed=int(seed), noise=bool(mic.camera.noise), effective_wavelength_nm=lam_eff,
+                  settings=settings)
+
+
+def _settings(mic, dist, info, s, crop, extra):
+    d = {"microscope": mic.describe(), "disturbances": dist.describe(),
+         "model": {"subsamples": int(s), "crop_pixels": int(crop),
+                   "axial_bins": info["axial_bins"],
+                   "axial_step_per_mm": info["axial_step_per_mm"],
+                   "undersampled_fraction": info["undersampled_fraction"],
+                   "approximations": "Kirchhoff (foil) 3-D linear filter; geometric object "
+                                     "intensity; scalar, no multiple scattering"}}
+    d.update(extra)
+    return d
+
+
+def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
+               microscope: Microscope | None = None, steps: int = 5,
+               step_rad: float = math.pi / 2, z_ref: float | None = None,
+               disturbances: Disturbances | None = None, seed: int = 0,
+               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               diagnostics: dict | None = None) -> Frames:
+    """Phase-shifting (PSI) frames of a surface.
+
+    The phase shifter moves the scanner by ``-delta_k / K_eff`` for a nominal phase step
+    ``delta_k = k step_rad`` (calibrated on a flat mirror, i.e. at the effective
+    wavelength); the disturbances change the actual steps.
+
+    Parameters
+    ----------
+    heights, normals, pixel, subsamples, crop, kz_tolerance
+        See :func:`interference_intensity`.
+    microscope : Microscope, optional
+    steps : int
+        Number of frames (>= 3).
+    step_rad : float
+        Nominal phase step, rad (0 < step < 2 pi).
+    z_ref : float, optional
+        Scanner position of the first frame, mm (default the mean height of the surface
+        returning light: the instrument is focused on the part).
+    disturbances : Disturbances, optional
+    seed : int
+        Seed of the camera's temporal noise and of the vibration phase.
+    origin : (float, float)
+        x, y of the centre of output pixel [0, 0], mm.
+    diagnostics : dict, optional
+        Filled with the model's by-products: ``light`` ((H', W') float32, the object beam
+        alone, B), ``axial_bins``, ``undersampled_fraction`` ...
+
+    Returns
+    -------
+    Frames
+    """
+    mic = Microscope() if microscope is None else microscope
+    dist = Disturbances() if disturbances is None else disturbances
+    seed = _check_seed(seed)
+    if int(steps) != steps or steps < 3:
+        raise InputError(f"steps must be an integer >= 3, got {steps!r}")
+    check_range("step_rad", step_rad, 0, 2 * math.pi, lo_open=True, hi_open=True)
+    h = np.asarray(heights, dtype=np.float64)
+    if z_ref is None:
+        fin = h[np.isfinite(h)]
+        if fin.size == 0:
+            raise InputError("heights are all NaN: no surface in the field")
+        z_ref = float(fin.mean())
+    lam_eff = mic.effective_wavelength_nm()
+    k_eff = 4 * math.pi / (lam_eff * _NM)
+    delta = step_rad * np.arange(int(steps))
+    actual = delta * (1.0 + dist.step_error + dist.step_nonlinearity * delta / (2 * math.pi))
+    nominal_z = z_ref - delta / k_eff
+    zact = dist.positions(z_ref - actual / k_eff, seed=seed, origin_mm=z_ref, scale=False)
+    s = int(subsamples)
+    shape = (h.shape[0] // max(s, 1) - 2 * int(crop), h.shape[1] // max(s, 1) - 2 * int(crop))
+    ref = dist.reference_figure(shape, pixel) if shape[0] > 0 and shape[1] > 0 else None
+    inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
+                                         microscope=mic, z_positions=zact, crop=crop,
+                                         reference_figure=ref, kz_tolerance=kz_tolerance)
+    if diagnostics is not None:
+        diagnostics.update(info)
+    frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
+    return _frames(frames, info, mic, mode="psi", pixel=pixel, origin=origin, delta=delta,
+                   scan=nominal_z, z_ref=float(z_ref), index=0, seed=seed, lam_eff=lam_eff,
+                   settings=_settings(mic, dist, info, s, crop, {"camera_exposure": cam}))
+
+
+def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
+               microscope: Microscope | None = None, scan_step_nm: float | None = None,
+               frames: int | None = None, scan_start: float | None = None,
+               disturbances: Disturbances | None = None, seed: int = 0,
+               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               diagnostics: dict | None = None) -> Frames:
+    """Coherence-scanning (CSI) frames: the scanner moves focus and zero path difference
+    through the surface, one frame per step.
+
+    Parameters
+    ----------
+    heights, normals, pixel, subsamples, crop, kz_tolerance
+        See :func:`interference_intensity`.
+    microscope : Microscope, optional
+        Default: the 20x objective with a white LED (600 nm, 120 nm FWHM).
+    scan_step_nm : float, optional
+        Scan step, nm (default ``lambda_eff / 8``: four frames per fringe).
+    frames : int, optional
+        Number of frames (default: the heights' range plus 4.5 coherence envelopes
+        either side).
+    scan_start : float, optional
+        First scan position, mm (default: centred on the heights' range).
+    disturbances : Disturbances, optional
+        ``step_error`` scales the scan; vibration and reference figure apply.
+    seed, origin, diagnostics
+        See :func:`psi_frames`.
+
+    Returns
+    -------
+    Frames
+    """
+    mic = Microscope(source=led(600.0, bandwidth_nm=120.0)) if microscope is None else microscope
+    dist = Disturbances() if disturbances is None else disturbances
+    seed = _check_seed(seed)
+    h = np.asarray(heights, dtype=np.float64)
+    fin = h[np.isfinite(h)]
+    if fin.size == 0:
+        raise InputError("heights are all NaN: no surface in the field")
+    lam_eff = mic.effective_wavelength_nm()
+    step = (lam_eff / 8 if scan_step_nm is None else float(scan_step_nm)) * _NM
+    check_range("scan_step_nm", step / _NM, 1, 10000)
+    sigma = mic.coherence_sigma()
+    margin = 4.5 / sigma if sigma > 0 else 2 * lam_eff * _NM
+    lo, hi = float(fin.min()) - margin, float(fin.max()) + margin
+    if frames is None:
+        n = math.ceil((hi - lo) / step) + 1
+    else:
+        if int(frames) != frames or frames < 8:
+            raise InputError(f"frames must be an integer >= 8, got {frames!r}")
+        n = int(frames)
+    if n > MAX_CSI_FRAMES:
+        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) / _NM:.0f} nm at scan_step_nm = "
+                                f"{step / _NM:.4g} needs {n} frames (> {MAX_CSI_FRAMES}): raise "
+                                f"scan_step_nm, set frames, or shrink the field of view")
+    if scan_start is None:
+        scan_start = 0.5 * (lo + hi) - 0.5 * (n - 1) * step
+    nominal = float(scan_start) + step * np.arange(n)
+    zact = dist.positions(nominal, seed=seed)
+    s = int(subsamples)
+    shape = (h.shape[0] // max(s, 1) - 2 * int(crop), h.shape[1] // max(s, 1) - 2 * int(crop))
+    ref = dist.reference_figure(shape, pixel) if shape[0] > 0 and shape[1] > 0 else None
+    inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
+                                         microscope=mic, z_positions=zact, crop=crop,
+                                         reference_figure=ref, kz_tolerance=kz_tolerance)
+    if diagnostics is not None:
+        diagnostics.update(info)
+    fr, cam = expose(inten, mic.camera, seed=seed, inplace=True)
+    mid = (n - 1) // 2
+    return _frames(fr, info, mic, mode="csi", pixel=pixel, origin=origin, delta=np.empty(0),
+                   scan=nominal, z_ref=float(nominal[mid]), index=mid, seed=seed, lam_eff=lam_eff,
+                   settings=_settings(mic, dist, info, s, crop,
+                                      {"camera_exposure": cam, "scan_step_nm": step / _NM}))

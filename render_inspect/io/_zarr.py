@@ -1,0 +1,189 @@
+"""Height maps in a chunked Zarr store (``heightmap.zarr``), for maps too large for one array.
+
+Layout (Zarr format 3, a folder):
+
+- group attributes: the same as ``heightmap.exr``'s header: ``pixel_size_mm`` (float),
+  ``origin_mm`` ([x, y] of the centre of pixel [0, 0]), ``units`` = "mm", ``scene`` (JSON
+  text), ``software_version``, ``meta`` (JSON text); plus ``levels``: the pyramid (list of
+  {"path", "factor", "shape"}) and, when known, ``residual_histogram`` ({"lo_mm",
+  "hi_mm", "counts"}).
+- arrays ``design``, ``machined``, ``residual`` (machined - design, computed in float64):
+  float32, (ny, nx), row 0 the smallest y, column 0 the smallest x, NaN where not covered;
+  square chunks (the tiles they were computed in).
+- ``levels/<k>/{design,machined,residual}``: area averages over 2^k x 2^k blocks (see
+  ``render_inspect.io._pyramid``), for previews and coarse views.
+
+float32 keeps 24 bits: a relative error of at most 2^-24 (6e-8), i.e. 0.06 nm on 1 mm of
+sag and below 1e-5 nm on a residual of 100 nm; the residual is formed in float64 before it
+is rounded, so it does not lose the digits the heights share.
+
+Compression: Blosc LZ4, level 5, byte shuffle.  Measured on a 16 M-sample map (two
+channels): 0.26 s and 78 MB, against none 0.42 s / 134 MB (more bytes to write), Blosc
+zstd-1 0.58 s / 75 MB and zstd-1 0.87 s / 113 MB; reading one channel back takes 0.08 s.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ._exr import exr_placement
+from ._pyramid import block_sums, coarsen, level_count, level_shape, means
+
+CHANNELS = ("design", "machined", "residual")
+
+
+def codec():
+    """The compressor of every array in the store (see the module notes)."""
+    from zarr.codecs import BloscCodec
+
+    return BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
+
+
+def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
+    """Create an empty store (arrays filled with NaN) and return its zarr group.
+
+    Parameters
+    ----------
+    path : folder to create (must not exist)
+    shape : (ny, nx) of the full-resolution map
+    chunk : side of the square chunks of the full-resolution arrays (pixels)
+    attrs : ``grid_attrs`` (render_inspect.io._heightmap; more keys may be added)
+    levels : pyramid levels (factors 2 .. 2^levels)
+    """
+    import zarr
+
+    path = Path(path)
+    if path.exists():
+        raise InputError(f"heightmap store already exists: {str(path)!r}")
+    ny, nx = (int(shape[0]), int(shape[1]))
+    g = zarr.open_group(str(path), mode="w-", zarr_format=3)
+    lv = []
+    for k in range(levels + 1):
+        shp = level_shape((ny, nx), k)
+        c = max(chunk >> k, 1) if (1 << k) <= chunk else min(max(shp), 1024)
+        grp = g if k == 0 else g.require_group(f"levels/{k}")
+        for name in CHANNELS:
+            grp.create_array(name, shape=shp, chunks=(min(c, shp[0]), min(c, shp[1])), dtype="float32",
+                             fill_value=np.nan, compressors=[codec()])
+        if k:
+            lv.append({"path": f"levels/{k}", "factor": 1 << k, "shape": list(shp)})
+    g.attrs.update({**attrs, "levels": lv})
+    return g
+
+
+def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndarray, *, attrs: dict,
+                         chunk: int = 1024, levels: int | None = None) -> Path:
+    """Write a height map that is in memory into a new store (residual formed in float64)."""
+    design = np.asarray(design)
+    machined = np.asarray(machined)
+    if levels is None:
+        levels = level_count(design.shape)
+    g = create_heightmap_zarr(path, design.shape, chunk=chunk, attrs=attrs, levels=levels)
+    res = np.empty(design.shape, dtype=np.float32)
+    for a in range(0, design.shape[0], 1024):
+        np.subtract(machined[a:a + 1024], design[a:a + 1024], out=res[a:a + 1024], casting="same_kind")
+    for name, arr in (("design", design), ("machined", machined), ("residual", res)):
+        g[name][...] = np.asarray(arr, dtype=np.float32)
+        if levels:
+            s, c = block_sums(arr, 2)
+            g[f"levels/1/{name}"][...] = means(s, c)
+            for k in range(2, levels + 1):
+                s, c = coarsen(s, c, 2)
+                g[f"levels/{k}/{name}"][...] = means(s, c)
+    return Path(path)
+
+
+def set_store_attrs(path: str | Path, **attrs) -> None:
+    """Add (or replace) group attributes of a store."""
+    import zarr
+
+    zarr.open_group(str(path), mode="r+").attrs.update(attrs)
+
+
+class ZarrHeightMap:
+    """A height map in a store, read window by window.
+
+    Attributes
+    ----------
+    shape : (ny, nx)
+    pixel : float, mm
+    origin : (x, y) of the centre of pixel [0, 0], mm
+    scene, meta : dict
+    attrs : dict (all group attributes)
+    """
+
+    def __init__(self, path: str | Path, *, what: str = "heightmap store"):
+        import zarr
+
+        path = Path(path)
+        if not path.is_dir():
+            raise InputError(f"{what} not found: {str(path)!r}")
+        self.path = path
+        try:
+            self.group = zarr.open_group(str(path), mode="r")
+            self.attrs = dict(self.group.attrs)
+            arrays = {name: self.group[name] for name in CHANNELS if name in self.group}
+        except Exception as err:  # zarr raises its own and builtin errors on damaged stores
+            raise InputError(f"{what} {str(path)!r} is not a readable Zarr store "
+                             f"({type(err).__name__}: {err})") from None
+        if "machined" not in arrays:
+            raise InputError(f"{what} {str(path)!r}: the store has no 'machined' array")
+        self.pixel, self.origin = exr_placement(self.attrs, what=what, path=path)
+        shape = tuple(int(n) for n in arrays["machined"].shape)
+        if len(shape) != 2 or any(a.shape != shape for a in arrays.values()):
+            raise InputError(f"{what} {str(path)!r}: its arrays must be 2-D and of one shape, "
+                             f"received {[tuple(a.shape) for a in arrays.values()]}")
+        self.shape = shape
+        try:
+            self.scene = json.loads(self.attrs.get("scene") or "{}")
+            self.meta = json.loads(self.attrs.get("meta") or "{}")
+        except (TypeError, ValueError):
+            raise InputError(f"{what} {str(path)!r}: damaged 'scene' or 'meta' attribute") from None
+
+    @property
+    def levels(self) -> list[dict]:
+        return list(self.attrs.get("levels", []))
+
+    def index_window(self, region) -> tuple[slice, slice]:
+        """Rows and columns of the pixels whose centres lie in ``region`` (x0, y0, x1, y1; mm)."""
+        x0, y0, x1, y1 = region
+        ox, oy = self.origin
+        p = self.pixel
+        c0 = max(int(np.ceil((x0 - ox) / p - 1e-9)), 0)
+        c1 = min(int(np.floor((x1 - ox) / p + 1e-9)), self.shape[1] - 1)
+        r0 = max(int(np.ceil((y0 - oy) / p - 1e-9)), 0)
+        r1 = min(int(np.floor((y1 - oy) / p + 1e-9)), self.shape[0] - 1)
+        if c1 < c0 or r1 < r0:
+            raise InputError(f"region {list(region)} mm does not overlap the map "
+                             f"(x {ox:g}..{ox + p * (self.shape[1] - 1):g}, y {oy:g}..{oy + p * (self.shape[0] - 1):g} mm)")
+        return slice(r0, r1 + 1), slice(c0, c1 + 1)
+
+    def read(self, channel: str, rows: slice = slice(None), cols: slice = slice(None), *,
+             level: int = 0) -> np.ndarray:
+        """float32 samples of ``channel`` (only the chunks that hold the window are read)."""
+        if channel not in CHANNELS:
+            raise InputError(f"channel must be one of {list(CHANNELS)}, got {channel!r}")
+        arr = self.group[channel] if level == 0 else self.group[f"levels/{level}/{channel}"]
+        return arr[rows, cols]
+
+    def level_for(self, max_side: int) -> int:
+        """The finest pyramid level whose larger side is at most ``max_side`` (the
+        coarsest level if none is)."""
+        best = len(self.levels)
+        for i, lv in enumerate(self.levels, start=1):
+            if max(lv["shape"]) <= max_side:
+                return i
+        return best if max(self.shape) > max_side else 0
+
+    def window(self, region=None) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+        """(design, machined, origin) of the pixels in ``region`` (whole map if None):
+        float64 arrays and the (x, y) centre of their pixel [0, 0], mm."""
+        rows, cols = self.index_window(region) if region is not None else (slice(0, self.shape[0]),
+                                                                           slice(0, self.shape[1]))
+        origin = (self.origin[0] + cols.start * self.pixel, self.origin[1] + rows.start * self.pixel)
+        return (self.read("design", rows, cols).astype(np.float64),
+                self.read("machined", rows, cols).astype(np.float64), origin)

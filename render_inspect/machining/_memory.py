@@ -1,0 +1,84 @@
+"""Memory a turning simulation needs, counted from the arrays it allocates (bytes).
+
+An in-memory simulation (the whole map as arrays) goes through four phases; its peak is
+the largest of them:
+
+- planning the path: ``PLAN_BYTES`` per path point (spiral, compensation and
+  accessibility temporaries; measured 152-157 B);
+- cutting: design and machined heights, float64 (16 B per sample), the design
+  evaluation's row chunks (``DESIGN_ROWS`` rows x columns x ``DESIGN_TEMPS`` temporaries
+  of 8 B per thread), the path (``PATH_BYTES`` per point) and the envelope's segment
+  table and slope temporaries (``ENVELOPE_BYTES`` per point);
+- writing heightmap.exr: the float32 design, machined and residual channels (12 B per
+  sample) beside the float64 heights and the path, and the overview (block means of the
+  three channels and the residual's block sums and counts: 24 B per block of F x F
+  samples; while it is computed, 36 B per block);
+- writing toolpath.npz and the previews: the heights, the path and its npz buffers
+  (``NPZ_BYTES`` per point), the overview's residual sums and the preview's coarsening
+  (the previews are area averages of at most 512 pixels a side).
+
+Tiled, the peak is bounded by the tiles in flight: each holds float64 design and
+machined, float32 design / machined / residual, its share of the block sums and the
+encoded chunks (``TILE_BYTES`` per sample), plus the run of the path the tile needs and
+the whole prepared path.
+
+The test suite checks the in-memory estimate against the measured peak (tracemalloc and
+resident memory) of ``simulate`` on three map sizes: within a factor 1.5.
+"""
+
+from __future__ import annotations
+
+import os
+
+#: bytes per path point while the path is planned
+PLAN_BYTES = 160
+#: bytes per path point of the planned path (theta, rho, z, t, contact points)
+PATH_BYTES = 40
+#: bytes per path point of the envelope's segment table and slope temporaries
+ENVELOPE_BYTES = 80
+#: bytes per path point while toolpath.npz is written (x, y and the file buffer)
+NPZ_BYTES = 100
+#: bytes per sample of a tile in flight
+TILE_BYTES = 48
+#: rows per chunk of the design evaluation, and temporaries per evaluated sample (8 B each)
+DESIGN_ROWS = 128
+DESIGN_TEMPS = 6
+#: previews: fixed bytes, plus 16 B per overview block (coarsening copies of the residual's
+#: block sums and counts) or 4 B per sample without an overview (2 x 2 block sums)
+PREVIEW_BYTES = 4 * 2 ** 20
+#: largest side of the heightmap.exr overview (pixels; see render_inspect.io._exr)
+OVERVIEW_SIDE = 1024
+
+
+def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> int:
+    """Peak bytes of an in-memory simulation of a (ny, nx) map from a path of
+    ``path_points`` points, including writing its outputs (see the module notes)."""
+    ny, nx = int(shape[0]), int(shape[1])
+    px, n = ny * nx, int(path_points)
+    threads = threads or os.cpu_count() or 1
+    design_tmp = min(ny, DESIGN_ROWS) * nx * 8 * DESIGN_TEMPS * threads
+    f = 1
+    while max(ny, nx) > OVERVIEW_SIDE * f:
+        f *= 2
+    blocks = 0 if f == 1 else -(-ny // f) * -(-nx // f)
+    phases = (n * PLAN_BYTES,
+              px * 16 + design_tmp + n * (PATH_BYTES + ENVELOPE_BYTES),
+              px * 16 + blocks * 36 + n * PATH_BYTES,
+              px * 28 + blocks * 24 + n * PATH_BYTES,
+              px * 16 + blocks * 12 + n * (PATH_BYTES + NPZ_BYTES) + PREVIEW_BYTES
+              + (blocks * 16 if blocks else px * 4))
+    return int(max(phases))
+
+
+def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None) -> int:
+    """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
+    at once in this process (the caller's share when the tiles run on other machines):
+    the largest of planning the path, running the tiles (the path, its prepared segments
+    and per tile its samples and its run of the path) and writing toolpath.npz."""
+    per_tile = tile * tile * TILE_BYTES + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
+    n = int(path_points)
+    sl = n if slice_points is None else int(slice_points)
+    phases = (n * PLAN_BYTES,
+              n * (PATH_BYTES + 40) + in_flight * (per_tile + sl * 40),
+              n * (PATH_BYTES + NPZ_BYTES))
+    return int(max(phases) + PREVIEW_BYTES)

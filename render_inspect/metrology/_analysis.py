@@ -1,0 +1,225 @@
+"""One height map in, the ISO 25178-2 parameters a metrologist asks for out.
+
+Chain: outliers (off by default) -> form removal (none | plane | poly2 | sphere) ->
+ISO 16610-61 S- and L-filters -> Sa, Sq, Sz, Sp, Sv, Ssk, Sku, Sdq, Sdr, Sal, Str.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.errors import InputError, check_positive
+from ._filters import fit_sphere, l_filter, pixel_xy, remove_form, s_filter, valid_mask
+from ._params import SLOPE_ESTIMATORS, areal_parameters, spatial_parameters
+from ._registration import detect_outliers
+
+__all__ = ["FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter"]
+
+#: Form removal choices of :func:`analyze_map`.
+FORMS = ("none", "plane", "poly2", "sphere")
+#: Outlier choices of :func:`analyze_map`.
+OUTLIER_METHODS = ("none", "sigma")
+MM_TO_NM = 1e6
+
+
+@dataclass
+class Analysis:
+    """Result of :func:`analyze_map`.
+
+    Attributes
+    ----------
+    metrics : dict
+        JSON-able (see :func:`analyze_map`).
+    height : (ny, nx) array
+        The evaluated surface (outliers left out, form removed, filtered), mm.
+    outliers : (ny, nx) bool array
+        Points flagged as outliers (all False when outliers are off).
+    """
+
+    metrics: dict
+    height: np.ndarray
+    outliers: np.ndarray = field(default=None)
+
+
+def parse_filter(text: str | None):
+    """``"S,L"`` (mm; either may be empty or 0 for none) -> ``(s_mm, l_mm)``."""
+    if text is None or str(text).strip() == "":
+        return None, None
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 2:
+        raise InputError(f"filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
+                         f"',0.8'), got {text!r}")
+    out = []
+    for name, p in zip(("S", "L"), parts):
+        if p == "":
+            out.append(None)
+            continue
+        try:
+            v = float(p)
+        except ValueError:
+            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}") from None
+        if not (math.isfinite(v) and v >= 0):
+            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}")
+        out.append(v or None)
+    s_mm, l_mm = out
+    if s_mm and l_mm and not l_mm > s_mm:
+        raise InputError(f"filter L ({l_mm} mm) must be > S ({s_mm} mm)")
+    return s_mm, l_mm
+
+
+def _nan_to_none(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
+                s_filter_mm: float | None = None, l_filter_mm: float | None = None,
+                outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
+                acf_threshold: float = 0.2, source: dict | None = None) -> Analysis:
+    """ISO 25178-2 parameters of one height map, with everything said about how.
+
+    Parameters
+    ----------
+    z : (ny, nx) array, or a map object with ``z``, ``pixel``, ``origin``, ``meta``
+        Heights, mm (NaN = not measured); e.g. :func:`render_inspect.io.read_surface`.
+    pixel : float or (pixel_x, pixel_y)
+        mm (taken from the map object when one is given).
+    origin : (x, y)
+        Centre of pixel [0, 0], mm.
+    form : {"none", "plane", "poly2", "sphere"}
+        ``none`` removes the mean only (the parameters are about the mean); ``plane`` a
+        least-squares plane; ``poly2`` a least-squares polynomial of total degree 2;
+        ``sphere`` a least-squares sphere (:func:`fit_sphere`).
+    s_filter_mm, l_filter_mm : float, optional
+        ISO 16610-61 Gaussian nesting indices (mm): S removes shorter, L longer
+        wavelengths.
+    outliers : {"none", "sigma"}
+        ``sigma``: points flagged by the second-difference ``outlier_sigma``-sigma rule
+        (:func:`detect_outliers`) are left out (not replaced) of the form fit and the
+        parameters; their count and fraction are reported either way.
+    slope : {"forward", "central"}
+        Derivative estimator of Sdq and Sdr (:func:`slope_parameters`).
+    acf_threshold : float
+        ``s`` of Sal / Str (ISO 25178-3 default 0.2).
+    source : dict, optional
+        What the file said about itself (reader, units in the file, ...), copied into
+        ``metrics["source"]``.
+
+    Returns
+    -------
+    Analysis
+        ``metrics`` holds ``areal`` = {Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm, Ssk, Sku, Sdq,
+        Sdr_percent, Sal_mm, Str}, ``pixel_mm`` = [x, y], ``shape`` = [rows, cols],
+        ``origin_mm``, ``valid_fraction``, ``n_valid``, ``units``, ``form``, ``filter``,
+        ``outliers`` = {method, sigma, count, fraction}, ``slope_estimator``, ``spatial``,
+        ``warnings``, ``source``.  Undefined values (Str when the autocorrelation does
+        not decay in every direction) are None.
+    """
+    if hasattr(z, "z") and hasattr(z, "pixel"):
+        m = z
+        z, pixel, origin = m.z, m.pixel, m.origin
+        if source is None:
+            source = dict(getattr(m, "meta", {}) or {})
+    if pixel is None:
+        raise InputError("analyze_map: pixel= (mm, one number or (x, y)) is needed with an array")
+    px, py = pixel_xy(pixel)
+    z = np.asarray(z, dtype=np.float64)
+    if z.ndim != 2 or min(z.shape) < 3:
+        raise InputError(f"analyze_map: z must be a 2-D map of at least 3 x 3 points, got {z.shape}")
+    if form not in FORMS:
+        raise InputError(f"form must be one of {FORMS}, got {form!r}")
+    if outliers not in OUTLIER_METHODS:
+        raise InputError(f"outliers must be one of {OUTLIER_METHODS}, got {outliers!r}")
+    if slope not in SLOPE_ESTIMATORS:
+        raise InputError(f"slope must be one of {SLOPE_ESTIMATORS}, got {slope!r}")
+    check_positive("outlier_sigma", outlier_sigma)
+    for name, v in (("s_filter_mm", s_filter_mm), ("l_filter_mm", l_filter_mm)):
+        if v is not None:
+            check_positive(name, v)
+    if s_filter_mm and l_filter_mm and not l_filter_mm > s_filter_mm:
+        raise InputError(f"l_filter_mm ({l_filter_mm}) must be > s_filter_mm ({s_filter_mm})")
+    warnings_ = []
+    ok = valid_mask(z)
+    n_measured = int(ok.sum())
+    if n_measured < 10:
+        raise InputError(f"analyze_map: need at least 10 valid points, got {n_measured}")
+    _, flagged = detect_outliers(z, pixel=(px, py), k=outlier_sigma, replace=False)
+    flagged &= ok
+    n_flag = int(flagged.sum())
+    use = ok & ~flagged if outliers == "sigma" else ok
+    work = np.where(use, z, np.nan)
+    form_info = {"method": form}
+    if form == "none":
+        res = work - np.nanmean(work)
+    elif form in ("plane", "poly2"):
+        res, _ = remove_form(work, pixel=(px, py), origin=origin,
+                             method="plane" if form == "plane" else "polynomial", degree=2)
+        if form == "poly2":
+            form_info["degree"] = 2
+    else:
+        fit = fit_sphere(work, pixel=(px, py), origin=origin)
+        res = np.where(np.isfinite(work), work - fit["form"], np.nan)
+        form_info.update({"radius_mm": _nan_to_none(fit["radius_mm"]), "apex_mm": fit["apex_mm"],
+                          "fit_rms_nm": fit["rms_mm"] * MM_TO_NM})
+    if s_filter_mm:
+        res = s_filter(res, pixel=(px, py), nesting_index=s_filter_mm)
+    if l_filter_mm:
+        res = l_filter(res, pixel=(px, py), nesting_index=l_filter_mm)
+    for name, v in (("S", s_filter_mm), ("L", l_filter_mm)):
+        if v and v < 2 * max(px, py):
+            warnings_.append(f"the {name}-filter nesting index {v:g} mm is below two pixels "
+                             f"({2 * max(px, py):g} mm): it hardly acts on this sampling")
+    field_min = min(px * z.shape[1], py * z.shape[0])
+    if l_filter_mm and l_filter_mm > field_min:
+        warnings_.append(f"the L-filter nesting index {l_filter_mm:g} mm exceeds the smaller field "
+                         f"side {field_min:g} mm")
+    p = areal_parameters(res, pixel=(px, py), slope=slope)
+    sp = spatial_parameters(res, pixel=(px, py), s=acf_threshold)
+    if not sp["decays_in_all_directions"]:
+        warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "
+                         f"across the field in at least one direction (a lay longer than the field)")
+    if outliers == "none" and n_flag:
+        frac = n_flag / n_measured
+        warnings_.append(f"{n_flag} points ({frac:.2%}) exceed the {outlier_sigma:g}-sigma "
+                         f"second-difference rule; they are kept (--outliers sigma leaves them out)")
+    if not math.isclose(px, py, rel_tol=1e-6):
+        warnings_.append(f"non-square pixels ({px * 1e3:.6g} x {py * 1e3:.6g} um): slopes and "
+                         f"lengths use each axis' own spacing")
+    areal = {"Sa_nm": p["Sa"] * MM_TO_NM, "Sq_nm": p["Sq"] * MM_TO_NM, "Sz_nm": p["Sz"] * MM_TO_NM,
+             "Sp_nm": p["Sp"] * MM_TO_NM, "Sv_nm": p["Sv"] * MM_TO_NM, "Ssk": p["Ssk"],
+             "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"], "Sal_mm": sp["Sal_mm"],
+             "Str": sp["Str"]}
+    ang = {k: (None if sp[k] is None else math.degrees(sp[k]))
+           for k in ("fastest_direction_rad", "slowest_direction_rad")}
+    src = {k: v for k, v in (source or {}).items() if k not in ("scene",)}
+    metrics = {
+        "areal": {k: _nan_to_none(float(v)) for k, v in areal.items()},
+        "pixel_mm": [px, py], "shape": [int(z.shape[0]), int(z.shape[1])],
+        "origin_mm": [float(origin[0]), float(origin[1])],
+        "field_mm": [px * z.shape[1], py * z.shape[0]],
+        "valid_fraction": float(np.isfinite(res).sum() / z.size),
+        "measured_fraction": float(n_measured / z.size), "n_valid": int(p["n_valid"]),
+        "units": {"lateral": "mm", "heights": "nm (keys *_nm); maps and files in mm",
+                  "Sdq": "1 (rms slope, dz/dx)", "Sdr_percent": "%", "Sal_mm": "mm",
+                  "Str": "1", "pixel_mm": "mm",
+                  "in_file": src.get("units_in_file")},
+        "form": form_info,
+        "filter": {"S_mm": s_filter_mm, "L_mm": l_filter_mm,
+                   "kind": "ISO 16610-61 Gaussian (masked, normalised)"},
+        "outliers": {"method": outliers, "sigma": float(outlier_sigma), "count": n_flag,
+                     "fraction": n_flag / n_measured,
+                     "left_out": outliers == "sigma",
+                     "rule": "second difference along x and y, robust sigma (1.4826 MAD)"},
+        "slope_estimator": slope,
+        "spatial": {"s": acf_threshold, "decays_in_all_directions": sp["decays_in_all_directions"],
+                    "fastest_direction_deg": ang["fastest_direction_rad"],
+                    "slowest_direction_deg": ang["slowest_direction_rad"],
+                    "longest_decay_mm": _nan_to_none(sp["longest_decay_mm"])},
+        "warnings": warnings_,
+        "source": src,
+    }
+    return Analysis(metrics, res, flagged)

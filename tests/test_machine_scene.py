@@ -1,0 +1,176 @@
+"""[machine] and [material] in scenes: presets, overrides, the ideal machine = the
+geometric result of the project before these sections existed, following-error metrics
+and figures, seed 004's RCSE comparison and seed 003's vibration on steel."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from render_inspect.errors import SceneError
+from render_inspect.machining import MACHINE_PRESETS, MATERIAL_PRESETS, machine_preset
+from render_inspect.pipeline import simulate, write_simulation
+from render_inspect.processes._mechanics import machine_of, material_of
+from render_inspect.scene import load_scene
+from render_inspect.scene._machine import MACHINE_PRESET_NAMES, MATERIAL_PRESET_NAMES
+
+IDEAL = ["machine.preset='ideal'", "material.preset='ideal'"]
+
+#: residuals (nm) of these windows computed by the project's code before [machine] and
+#: [material] existed (the tagged layout); the ideal machine must reproduce them exactly
+BEFORE = {
+    "sts_sinusoidal_grid": (["simulation.region=[0.3,0.3,0.5,0.5]", "simulation.pixel=0.002"],
+                            (6.236199331295275, 7.244244004803849, 24.25320091600097)),
+    "compound_sinusoid": (["simulation.region=[1.0,1.0,1.2,1.2]", "simulation.pixel=0.004"],
+                          (164.9588732242798, 191.6174254761108, 646.6607089140666)),
+    "rcse_circular_array": (["simulation.region=[3.38,-0.1,3.58,0.1]", "simulation.pixel=0.004"],
+                            (7.999012375259298, 9.164225832803773, 32.037051515764915)),
+    "hts_toric_msa": (["simulation.region=[1.0,-0.5,2.0,0.5]", "simulation.pixel=0.005",
+                       "artifacts.servo.delay_s=0.002", "artifacts.servo.bandwidth_hz=1000.0",
+                       "artifacts.servo.slow_bandwidth_hz=100.0", "metrology.registration='none'"],
+                      (595.8707867316673, 752.0326081631096, 3761.2565860141694)),
+}
+
+
+def test_preset_names_match_the_schema():
+    machine_preset("ideal")  # the presets are built on first use
+    assert set(MACHINE_PRESET_NAMES) == set(MACHINE_PRESETS)
+    assert set(MATERIAL_PRESET_NAMES) == {"ideal"} | set(MATERIAL_PRESETS)
+
+
+def test_shipped_turning_scenes_cut_on_a_lathe_with_a_material():
+    for name in ("sts_sinusoidal_grid", "sts_mla_2x2", "compound_sinusoid", "sts_fig16_overcut",
+                 "rcse_circular_array"):
+        s = load_scene(name)
+        assert s.machine.preset == "sts_lathe" and s.material.preset != "ideal", name
+    s = load_scene("hts_toric_msa")
+    assert s.machine.preset == "fts"
+    assert load_scene("sculpt_quad_mla").material.preset == "die_steel"
+
+
+@pytest.mark.parametrize("name", sorted(BEFORE))
+def test_ideal_machine_and_material_reproduce_the_geometric_result_exactly(name):
+    over, (sa, sq, sz) = BEFORE[name]
+    m = simulate(load_scene(name, over + IDEAL)).metrics
+    assert_allclose([m["residual"]["Sa_nm"], m["residual"]["Sq_nm"], m["residual"]["Sz_nm"]],
+                    [sa, sq, sz], rtol=1e-12)
+    assert "following_error" not in m and m["machine"]["ideal"]
+
+
+def test_infinite_bandwidth_without_disturbance_is_the_ideal_machine():
+    over, (sa, sq, sz) = BEFORE["sts_sinusoidal_grid"]
+    axes = [f"machine.{a}.{k}={v}" for a in ("c", "x", "z", "fts")
+            for k, v in (("bandwidth_hz", "inf"), ("delay_s", 0))]
+    noise = ["machine.c.noise_urad=0", "machine.x.noise_nm=0", "machine.z.noise_nm=0",
+             "machine.fts.noise_nm=0"]
+    errors = ["machine.errors.radial_sync=[]", "machine.errors.axial_sync=[]",
+              "machine.errors.radial_async_nm=0", "machine.errors.axial_async_nm=0",
+              "machine.errors.x_straightness_nm=0", "machine.coupling.mass_kg=0"]
+    s = load_scene("sts_sinusoidal_grid", over + axes + noise + errors + ["material.preset='ideal'"])
+    assert s.machine.preset == "sts_lathe" and machine_of(s).ideal
+    m = simulate(s).metrics["residual"]
+    assert_allclose([m["Sa_nm"], m["Sq_nm"], m["Sz_nm"]], [sa, sq, sz], rtol=1e-12)
+
+
+def test_scene_units_reach_the_machine_and_the_material():
+    s = load_scene("sts_sinusoidal_grid", [
+        "machine.x.bandwidth_hz=80", "machine.x.noise_nm=3", "machine.c.noise_urad=2",
+        "machine.z.acceleration_limit_mm_s2=1000", "machine.errors.radial_sync=[[1, 20.0, 90.0]]",
+        "machine.errors.vibration=[[115.0, 4.0, 'z', 0.0]]", "machine.coupling.mass_kg=80",
+        "material.friction=0.3", "material.edge_radius_nm=100"])
+    m = machine_of(s)
+    assert m.x.bandwidth_hz == 80 and m.x.noise_rms == pytest.approx(3e-6)
+    assert m.c.noise_rms == pytest.approx(2e-6) and m.z.acceleration_limit == 1000
+    assert m.errors.radial_sync == ((1, pytest.approx(2e-5), pytest.approx(math.pi / 2)),)
+    assert m.errors.vibration[0][:3] == (115.0, pytest.approx(4e-6), "z")
+    assert m.coupling.mass_kg == 80 and m.z.bandwidth_hz == 100.0   # the preset's
+    r = material_of(s)
+    assert r.edge_radius_eff == pytest.approx(100e-6)
+    assert r.h_min == pytest.approx(100e-6 * (1 - math.cos(math.pi / 4 - math.atan(0.3) / 2)))
+
+
+def test_bad_machine_and_material_keys_are_named():
+    with pytest.raises(SceneError, match="machine.preset"):
+        load_scene("sts_sinusoidal_grid", ["machine.preset='lathe9000'"])
+    with pytest.raises(SceneError, match="machine.x.bandwith_hz"):
+        load_scene("sts_sinusoidal_grid", ["machine.x.bandwith_hz=3"])
+    with pytest.raises(SceneError, match="material.preset"):
+        load_scene("sts_sinusoidal_grid", ["material.preset='ideal'", "material.friction=0.2"])
+    with pytest.raises(SceneError, match="machine.preset: must be 'ideal' for process.kind = 'sculpt'"):
+        load_scene("sculpt_quad_mla", ["machine.preset='sts_lathe'"])
+    s = load_scene("hts_toric_msa", ["artifacts.servo.delay_s=0.001",
+                                     "simulation.region=[1.0,-0.2,1.4,0.2]", "simulation.pixel=0.01"])
+    with pytest.raises(SceneError, match=r"artifacts.servo applies to machine.preset = 'ideal' only"):
+        simulate(s)
+
+
+def test_following_error_metrics_and_figures(tmp_path):
+    s = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.3,0.3,0.45,0.45]",
+                                           "simulation.pixel=0.003"])
+    sim = simulate(s)
+    fe = sim.metrics["following_error"]
+    assert set(fe) >= {"x_rms_nm", "x_max_nm", "z_rms_nm", "z_max_nm"}
+    assert 0 < fe["x_rms_nm"] < fe["x_max_nm"] < 100
+    assert sim.metrics["material"]["material"] == "al6082"
+    write_simulation(sim, tmp_path)
+    for f in ("following_error.png", "following_error_map.png", "metrics.json"):
+        assert (tmp_path / f).stat().st_size > 1000
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert m["following_error"]["x_max_nm"] == pytest.approx(fe["x_max_nm"])
+    # same scene, same seed: the same surface
+    again = simulate(s)
+    assert_allclose(again.heightmap.machined, sim.heightmap.machined, rtol=0, atol=0)
+
+
+def test_seed004_rcse_against_the_conventional_path_on_the_sts_lathe():
+    """With the STS lathe preset the grid-interpolated path's reciprocating X has at least
+    ten times RCSE's following error, and RCSE lowers Sa and its spread over elements."""
+    s = load_scene("rcse_circular_array", ["simulation.region=[3.43,-0.05,3.53,0.05]",
+                                           "simulation.pixel=0.004", "rcse.spread_elements=5",
+                                           "rcse.spread_window=0.1"])
+    c = simulate(s).metrics["rcse"]["comparison"]
+    for key in ("rcse", "conventional"):
+        assert set(c[key]["following_error"]) >= {"x_rms_nm", "x_max_nm", "z_rms_nm", "z_max_nm"}
+    assert c["conventional"]["following_error"]["x_max_nm"] >= 10 * c["rcse"]["following_error"]["x_max_nm"]
+    sp = c["spread"]
+    assert len(sp["elements"]) == 5 and len({e["ring"] for e in sp["elements"]}) == 5
+    assert sp["rcse"]["Sa_mean_nm"] < sp["conventional"]["Sa_mean_nm"]
+    assert sp["rcse"]["Sa_sd_nm"] < sp["conventional"]["Sa_sd_nm"]
+    assert sp["Sa_mean_reduction_percent"] > 0 and sp["Sa_sd_reduction_percent"] > 0
+
+
+def test_seed003_vibration_lowers_roughness_and_burrs_on_the_steel_preset():
+    from render_inspect.metrology._filters import remove_form
+    from render_inspect.metrology._params import areal_parameters
+
+    p = 0.19975
+    out = {}
+    for amp in (0.0, 0.00075):
+        s = load_scene("sculpt_quad_mla", [f"artifacts.vibration.amplitude={amp}", "design.rows=3",
+                                           "design.cols=3", f"simulation.pixel={p / 40}",
+                                           f"simulation.region=[{-1.5 * p},{-1.5 * p},{1.5 * p},{1.5 * p}]"])
+        sim = simulate(s)
+        res = sim.heightmap.machined - sim.heightmap.design
+        cell, _ = remove_form(res[42:79, 42:79], pixel=p / 40, method="polynomial", degree=4)
+        out[amp] = (areal_parameters(cell, pixel=p / 40)["Sa"] * 1e6,
+                    sim.metrics["material"]["burr_height_nm"])
+    assert out[0.00075][0] < 0.25 * out[0.0][0]     # seed 003: 37 -> 4 nm
+    assert out[0.00075][1] < 0.25 * out[0.0][1]     # burrs fall with the vibration
+
+
+def test_scallop_bound_plans_the_feed():
+    s = load_scene("sts_sinusoidal_grid", ["process.scallop_bound_nm=50",
+                                           "simulation.region=[0.3,0.3,0.4,0.4]",
+                                           "simulation.pixel=0.005"] + IDEAL)
+    sim = simulate(s)
+    plan = sim.metrics["toolpath"]["scallop_plan"]
+    f = sim.metrics["toolpath"]["feed_per_rev_mm"]
+    assert f == pytest.approx(plan["feed_per_rev_mm"])
+    # on the gentle grid the planned feed is close to the flat-section value
+    r = s.tool.nose_radius
+    assert f == pytest.approx(2 * math.sqrt(50e-6 * (2 * r - 50e-6)), rel=0.1)
+    assert np.isfinite(sim.metrics["residual"]["Sz_nm"])

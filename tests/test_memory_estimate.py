@@ -1,0 +1,94 @@
+"""The memory estimate of ``simulate`` against the measured peak, on three map sizes: the
+estimate the turning processes give (``turning_memory`` -> ``in_memory_bytes``) with the
+path's real size."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+GRID = Path(__file__).resolve().parents[1] / "scenes" / "sts_sinusoidal_grid.toml"
+
+_PROBE = textwrap.dedent('''
+    import json, sys, tempfile, tracemalloc
+    from pathlib import Path
+    from render_inspect.machining._memory import in_memory_bytes
+    from render_inspect.pipeline import run_simulate
+    from render_inspect.scene import load_scene
+
+    def status(key):
+        for line in open("/proc/self/status"):
+            if line.startswith(key):
+                return int(line.split()[1]) * 1024
+
+    half, pixel, scene_file = float(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
+    scene = load_scene(scene_file, [f"simulation.region={[-half, -half, half, half]}",
+                                    f"simulation.pixel={pixel}", "simulation.max_memory_gb=16"])
+    out = Path(tempfile.mkdtemp())
+    # load every library and compiled kernel first: the baseline is what they hold
+    run_simulate(scene.with_overrides(["simulation.region=[-0.01,-0.01,0.01,0.01]"]), out / "warm")
+    base = status("VmRSS")
+    tracemalloc.start()
+    m = run_simulate(scene, out / "run")
+    _, peak = tracemalloc.get_traced_memory()
+    est = in_memory_bytes(m["grid"]["shape"], m["toolpath"]["points"])
+    print(json.dumps({"estimate": est, "traced": peak,
+                      "rss": status("VmHWM") - base, "samples": m["samples"]}))
+''')
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("half", [0.25, 0.5, 0.75])   # 1.0, 4.0 and 9.0 M samples at 0.5 um
+def test_memory_estimate_within_1_5x_of_the_measured_peak(half, tmp_path):
+    p = subprocess.run([sys.executable, "-c", _PROBE, str(half), "0.0005", str(GRID)],
+                       capture_output=True, text=True, check=True, cwd=tmp_path)
+    r = json.loads(p.stdout.strip().splitlines()[-1])
+    assert r["samples"] == (int(round(2 * half / 0.0005)) + 1) ** 2
+    # numpy arrays (tracemalloc) and everything else the process touched (resident set)
+    assert r["traced"] / 1.5 <= r["estimate"] <= 1.5 * r["traced"], r
+    assert r["rss"] <= 1.5 * r["estimate"], r
+
+
+_TILED_PROBE = textwrap.dedent('''
+    import json, os, sys, tempfile, tracemalloc
+    from pathlib import Path
+    from render_inspect.machining._memory import tiled_bytes
+    from render_inspect.pipeline import run_simulate
+    from render_inspect.scene import load_scene
+
+    def status(key):
+        for line in open("/proc/self/status"):
+            if line.startswith(key):
+                return int(line.split()[1]) * 1024
+
+    half, scene_file = float(sys.argv[1]), sys.argv[2]
+    scene = load_scene(scene_file, [f"simulation.region={[-half, -half, half, half]}",
+                                    "simulation.pixel=0.0005"])
+    out = Path(tempfile.mkdtemp())
+    run_simulate(scene.with_overrides(["simulation.region=[-0.05,-0.05,0.05,0.05]"]), out / "warm",
+                 tiled=True, tile=64)
+    base = status("VmRSS")
+    tracemalloc.start()
+    m = run_simulate(scene, out / "run", tiled=True, tile=512)
+    _, peak = tracemalloc.get_traced_memory()
+    est = tiled_bytes(512, m["toolpath"]["points"], in_flight=os.cpu_count())
+    print(json.dumps({"estimate": est, "traced": peak, "rss": status("VmHWM") - base,
+                      "samples": m["samples"]}))
+''')
+
+
+@pytest.mark.slow
+def test_tiled_memory_is_bounded_by_the_tiles_not_the_map(tmp_path):
+    # 9 M samples in tiles of 512 x 512: the in-memory run would hold about 250 MB
+    p = subprocess.run([sys.executable, "-c", _TILED_PROBE, "0.75", str(GRID)],
+                       capture_output=True, text=True, check=True, cwd=tmp_path)
+    r = json.loads(p.stdout.strip().splitlines()[-1])
+    assert r["samples"] == 3001 ** 2
+    assert r["traced"] <= 1.5 * r["estimate"], r
+    assert r["rss"] <= 1.5 * r["estimate"], r
+    assert r["estimate"] < 28 * r["samples"] / 2, r     # well below the in-memory need

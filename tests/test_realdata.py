@@ -1,0 +1,226 @@
+"""Real instrument files (../shared/realdata, see its SOURCES.md): read as the reference
+libraries read them, checked against the values published with the files, and slope
+parameters that agree with SurfaceTopography and surfalize."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from render_inspect.io import read_surface
+from render_inspect.metrology import areal_parameters, remove_form
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
+
+# file: (rows, cols, pixel_x_mm, pixel_y_mm, NaN count, reader)
+EXPECTED = {
+    "alicona_ski.x3p": (940, 1197, 3.678887926e-3, 3.680270397e-3, 4272, "x3pio"),
+    "sensofar_bullet_land.x3p": (256, 918, 2.58e-3, 2.58e-3, 25292, "render_inspect"),
+    "mountainsmap_x3p-2.x3p": (650, 650, 1.27656509837346e-4, 3.14582113527746e-4, 0, "x3pio"),
+    "sensofar_plu_neox.plu": (576, 768, 1.6600000858306885e-3, 1.6600000858306885e-3, 0,
+                              "SurfaceTopography"),
+    "wyko_opd-1.opd": (480, 640, 1.9673303177114576e-4, 1.9673303177114576e-4, 116,
+                       "SurfaceTopography"),
+    "nanofocus_nms-1.nms": (512, 512, 3.125e-4, 3.125e-4, 0, "render_inspect"),
+    "zygo_metropro-1.dat": (480, 640, 1.0982520279867458e-3, 1.0982520279867458e-3, 0,
+                            "SurfaceTopography"),
+    "truemap_tmd-1.tmd": (300, 300, 18.9566 / 300, 18.9566 / 300, 0, "render_inspect"),
+    "gelsight_groove.tmd": (514, 616, 0.027458113509339, 0.027458113509339, 0, "render_inspect"),
+    "digitalsurf_sur-2.sur": (484, 563, 3.4840002190321684e-3, 3.4840002190321684e-3, 117,
+                              "surfalize"),
+}
+
+
+def _path(name):
+    p = REAL / name
+    if not p.is_file():
+        pytest.fail(f"real instrument file missing: {p} (the tests read ../shared/realdata)")
+    return p
+
+
+@pytest.fixture(scope="module")
+def maps():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {name: read_surface(_path(name)) for name in EXPECTED}
+
+
+def _sq(z):
+    v = z[np.isfinite(z)]
+    return float(np.sqrt(np.mean((v - v.mean()) ** 2)))
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_shape_pixel_nan_count_reader_units(maps, name):
+    rows, cols, px, py, n_nan, reader = EXPECTED[name]
+    m = maps[name]
+    assert m.shape == (rows, cols)
+    assert_allclose(m.pixel, (px, py), rtol=2e-6)
+    assert int(np.isnan(m.z).sum()) == n_nan == m.meta["n_invalid"]
+    assert m.meta["reader"].startswith(reader)
+    assert m.meta["units"] == {"lateral": "mm", "vertical": "mm"}
+    assert set(m.meta["units_in_file"]) == {"lateral", "vertical"}
+
+
+def test_published_values_surface_topography_test_suite(maps):
+    # SurfaceTopography's own tests assert these for the same files (SOURCES.md)
+    plu = maps["sensofar_plu_neox.plu"]
+    assert_allclose(_sq(plu.z) * 1e3, 2.834391, rtol=1e-6)  # um
+    res, _ = remove_form(plu.z, pixel=plu.pixel, method="polynomial", degree=2)
+    assert_allclose(_sq(res) * 1e3, 0.01818, rtol=1e-4)  # um, after quadratic detrend
+    x3p2 = maps["mountainsmap_x3p-2.x3p"]
+    assert_allclose(_sq(x3p2.z), 7.728033273597876e-08 * 1e3, rtol=1e-6)
+    assert_allclose(areal_parameters(x3p2.z, pixel=x3p2.pixel)["Sdq"], 0.062070073998443276,
+                    rtol=1e-6)
+    assert x3p2.pixel[1] / x3p2.pixel[0] == pytest.approx(2.4643, rel=1e-4)  # not squared
+    assert_allclose(np.multiply(x3p2.pixel, x3p2.shape[::-1]),
+                    (8.29767313942749e-05 * 1e3, 0.0002044783737930349 * 1e3), rtol=1e-6)
+    mp = maps["zygo_metropro-1.dat"]
+    assert_allclose(_sq(mp.z), 7.528822204734589e-08 * 1e3, rtol=1e-6)
+    res, _ = remove_form(mp.z, pixel=mp.pixel, method="polynomial", degree=2)
+    assert_allclose(_sq(res), 3.911386124282179e-09 * 1e3, rtol=1e-6)
+    opd = maps["wyko_opd-1.opd"]
+    assert_allclose(opd.pixel[0] * opd.shape[1], 0.125909140, rtol=1e-6)  # x field, mm
+    assert_allclose(opd.pixel[1] * opd.shape[0], 0.094431855, rtol=1e-6)
+    tmd = maps["truemap_tmd-1.tmd"]
+    assert_allclose(tmd.pixel[0] * tmd.shape[1], 18.9566, rtol=1e-3)  # mm: the format is mm
+    assert 0.0 <= np.nanmin(tmd.z) and np.nanmax(tmd.z) == pytest.approx(0.351, abs=1e-3)
+    gel = maps["gelsight_groove.tmd"]
+    assert_allclose(gel.pixel[0], 0.027458113509339, rtol=1e-7)  # scan.yaml mmperpixel
+    assert gel.meta["scan_yaml_mm_per_pixel"] == 0.027458113509339
+
+
+def test_units_checked_against_file_metadata(maps):
+    decl = {n: maps[n].meta["units_in_file"] for n in EXPECTED}
+    assert decl["mountainsmap_x3p-2.x3p"] == {"lateral": "m", "vertical": "m"}
+    assert decl["sensofar_plu_neox.plu"]["vertical"] in ("µm", "um")
+    assert decl["wyko_opd-1.opd"] == {"lateral": "mm", "vertical": "mm"}
+    assert decl["zygo_metropro-1.dat"] == {"lateral": "m", "vertical": "m"}
+    assert decl["digitalsurf_sur-2.sur"] == {"lateral": "mm", "vertical": "mm"}
+    assert decl["truemap_tmd-1.tmd"] == {"lateral": "mm", "vertical": "mm"}
+    nms = maps["nanofocus_nms-1.nms"]
+    assert decl["nanofocus_nms-1.nms"] == {"lateral": "nm", "vertical": "um"}
+    # the heights span exactly the header's z range (um)
+    zmin, zmax = nms.meta["z_range_um"]
+    assert_allclose([np.nanmin(nms.z) * 1e3, np.nanmax(nms.z) * 1e3], [zmin, zmax], rtol=1e-12)
+
+
+def test_readers_agree_with_independent_readers(maps):
+    """Where two libraries read a file, they agree; where one is wrong, we know how."""
+    import surfalize
+    from SurfaceTopography import read_topography
+
+    def st(name):
+        t = read_topography(str(_path(name)))
+        h = t.heights()
+        h = h.filled(np.nan) if np.ma.isMaskedArray(h) else h
+        scale = {"m": 1e3, "mm": 1.0, "µm": 1e-3}[t.unit]
+        return np.asarray(h, float).T * scale
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in ("alicona_ski.x3p", "mountainsmap_x3p-2.x3p"):  # x3pio == SurfaceTopography
+            assert_allclose(maps[name].z, st(name), rtol=1e-12, equal_nan=True)
+        sur = maps["digitalsurf_sur-2.sur"]
+        z_st = st("digitalsurf_sur-2.sur")
+        ok = np.isfinite(sur.z)
+        assert_allclose(sur.z[ok], z_st[ok], rtol=1e-12)
+        # SurfaceTopography 1.18.2 turns the 117 non-measured points into heights (one
+        # value below the valid range): surfalize's NaN are right
+        assert np.unique(z_st[~ok]).size == 1 and z_st[~ok][0] < np.nanmin(sur.z)
+        # surfalize 0.19.2 on MetroPro ignores phase_res = 1 (32768 counts per fringe): 8 x
+        s = surfalize.Surface.load(str(_path("zygo_metropro-1.dat")))
+        assert_allclose(_sq(np.asarray(s.data) * 1e-3) / _sq(maps["zygo_metropro-1.dat"].z), 8.0,
+                        rtol=1e-9)
+        # ... and on TrueMap .tmd takes the mm of the format for um: 1000 x too small
+        s = surfalize.Surface.load(str(_path("truemap_tmd-1.tmd")))
+        assert_allclose(s.step_x, maps["truemap_tmd-1.tmd"].pixel[0], rtol=1e-9)  # "um" == mm
+
+
+def _reference_data(m):
+    """Our map, and the map with missing points filled by SurfaceTopography (its own test
+    suite's practice: ``interpolate_undefined_data``), so all three see the same data."""
+    from SurfaceTopography import Topography
+
+    z = m.z
+    t = Topography(np.ma.masked_invalid(z.T), (m.pixel[0] * z.shape[1], m.pixel[1] * z.shape[0]),
+                   unit="mm")
+    if t.has_undefined_data:
+        t = t.interpolate_undefined_data()
+    return np.asarray(t.heights(), float).T, t
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow)
+                                  if n == "sensofar_bullet_land.x3p" else n
+                                  for n in sorted(EXPECTED)])  # filling its holes takes ~10 s
+def test_slope_parameters_agree_with_surfacetopography_and_surfalize(maps, name):
+    import surfalize
+
+    m = maps[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        zf, t = _reference_data(m)
+        ours = areal_parameters(zf, pixel=m.pixel)
+        st_sdq = t.rms_gradient()
+        gx, gy = t.derivative(1)
+        st_sdr = 100.0 * np.mean(np.sqrt(1.0 + gx ** 2 + gy ** 2) - 1.0)  # ISO integral
+        s = surfalize.Surface(zf * 1e3, m.pixel[0] * 1e3, m.pixel[1] * 1e3)
+        sf_sdq, sf_sdr, sf_sq = s.Sdq(), s.Sdr(), s.Sq() * 1e-3
+    # same estimator as SurfaceTopography's rms_gradient: identical
+    assert_allclose(ours["Sdq"], st_sdq, rtol=1e-9)
+    # surfalize averages each direction over its own differences: within 1 % (0.17 % seen)
+    assert_allclose(ours["Sdq"], sf_sdq, rtol=0.01)
+    # Sdr by ISO 25178-2:2021 D.3 triangulation: identical to surfalize ...
+    assert_allclose(ours["Sdr"], sf_sdr, rtol=1e-9)
+    # ... and within 1 % of the ISO integral over SurfaceTopography's gradients (0.82 % seen)
+    assert_allclose(ours["Sdr"], st_sdr, rtol=0.01)
+    assert_allclose(ours["Sq"], sf_sq, rtol=1e-12)
+    assert_allclose(ours["Sq"], t.rms_height_from_area(), rtol=1e-12)
+
+
+def test_raw_maps_with_missing_points_use_every_valid_gradient(maps):
+    """On the raw maps our Sdq uses each gradient whose two differences are measured;
+    SurfaceTopography 1.18.2 also drops those next to a hole (its interpolation stencil
+    touches it) - equal where there is no hole."""
+    from SurfaceTopography import Topography
+
+    for name in ("mountainsmap_x3p-2.x3p", "sensofar_plu_neox.plu", "zygo_metropro-1.dat"):
+        m = maps[name]
+        t = Topography(m.z.T, (m.pixel[0] * m.shape[1], m.pixel[1] * m.shape[0]), unit="mm")
+        assert_allclose(areal_parameters(m.z, pixel=m.pixel)["Sdq"], t.rms_gradient(), rtol=1e-12)
+    m = maps["wyko_opd-1.opd"]
+    ok = np.isfinite(m.z)
+    p = areal_parameters(m.z, pixel=m.pixel)
+    gx_ok = ok[:-1, :-1] & ok[:-1, 1:] & ok[1:, :-1]
+    d = p["Sdq"]
+    zx = np.diff(m.z, axis=1)[:-1, :] / m.pixel[0]
+    zy = np.diff(m.z, axis=0)[:, :-1] / m.pixel[1]
+    assert_allclose(d, np.sqrt(np.mean((zx ** 2 + zy ** 2)[gx_ok])), rtol=1e-12)
+
+
+def test_sal_str_agree_with_surfalize(maps):
+    """Sal / Str from our autocorrelation against surfalize's on the same plane-levelled
+    maps (both use the unbiased linear ACF and s = 0.2)."""
+    import surfalize
+
+    from render_inspect.metrology import spatial_parameters
+
+    for name, str_defined in (("nanofocus_nms-1.nms", True), ("truemap_tmd-1.tmd", True),
+                              ("mountainsmap_x3p-2.x3p", False)):
+        m = maps[name]
+        r, _ = remove_form(m.z, pixel=m.pixel, method="plane")
+        ours = spatial_parameters(r, pixel=m.pixel)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            s = surfalize.Surface(r * 1e3, m.pixel[0] * 1e3, m.pixel[1] * 1e3)
+            sal, str_ = s.Sal() * 1e-3, s.Str()
+        assert_allclose(ours["Sal_mm"], sal, rtol=0.005)
+        assert ours["decays_in_all_directions"] is str_defined
+        if str_defined:
+            assert_allclose(ours["Str"], str_, rtol=0.005)
+        else:
+            assert np.isnan(ours["Str"]) and np.isnan(str_)

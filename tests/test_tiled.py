@@ -1,0 +1,369 @@
+"""Fast envelope kernel, tiled out-of-core simulation, pyramids, Zarr and tiled EXR."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from render_inspect.design import make_surface
+from render_inspect.core.errors import InputError
+from render_inspect.io._exr import read_exr, read_exr_overview, write_height_channels
+from render_inspect.io._heightmap import grid_attrs
+from render_inspect.io._pyramid import block_sums, level_count, means, preview, pyramid
+from render_inspect.io._zarr import ZarrHeightMap, create_heightmap_zarr, write_heightmap_zarr
+from render_inspect.machining import residual_metrics, simulate_turning
+from render_inspect.machining._envelope import prepare_envelope
+from render_inspect.machining._metrics import metrics_from_moments
+from render_inspect.machining import design_grid
+from render_inspect.machining._tiled import plan_tiles
+from render_inspect.pipeline._tiled import run_tiles
+from render_inspect.processes._turning import plan_spiral, tool_of
+from render_inspect.scene import load_scene
+
+GRID = Path(__file__).resolve().parents[1] / "scenes" / "sts_sinusoidal_grid.toml"
+#: the fast kernel differs from the reference only by the rounding of the interpolation
+#: fraction (see render_inspect/machining/_envelope.py)
+KERNEL_ATOL_MM = 1e-12
+
+
+def _case(region, pixel, overrides=()):
+    scene = load_scene(GRID, [f"simulation.region={list(region)}", f"simulation.pixel={pixel}", *overrides])
+    surface = make_surface(scene.design)
+    path = plan_spiral(scene, surface, region=region)
+    tool = tool_of(scene)
+    return scene, surface, path, tool
+
+
+@pytest.mark.parametrize("region, overrides", [
+    ((-0.06, -0.05, 0.07, 0.06), ()),                                      # across the axis
+    ((0.31, -0.2, 0.45, -0.08), ()),                                       # off axis
+    ((-0.05, -0.04, 0.06, 0.05), ("process.sampling='constant_arc'",)),   # not constant-angle
+    ((0.2, 0.2, 0.3, 0.28), ("process.compensation='none'",)),
+])
+def test_fast_kernel_equals_the_reference_kernel(region, overrides):
+    _, _, path, tool = _case(region, 0.001, overrides)
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=0.001)
+    fast = simulate_turning(path, **kw)
+    ref = simulate_turning(path, reference=True, **kw)
+    assert np.array_equal(np.isnan(fast), np.isnan(ref))
+    assert_allclose(fast, ref, rtol=0, atol=KERNEL_ATOL_MM)
+    assert prepare_envelope(path, nose_radius=tool.nose_radius).uniform == (not overrides or "sampling" not in overrides[0])
+
+
+def test_fast_kernel_beyond_the_path_ends_visits_every_pass():
+    # a window wider than the path: pixels outside the outermost pass fall back to every
+    # pass that reaches, as in the reference kernel
+    region = (4.95, -0.05, 5.3, 0.05)
+    _, _, path, tool = _case(region, 0.002)
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=0.002)
+    fast, ref = simulate_turning(path, **kw), simulate_turning(path, reference=True, **kw)
+    assert np.isnan(ref).any() and np.isfinite(ref).any()
+    assert np.array_equal(np.isnan(fast), np.isnan(ref))
+    assert_allclose(fast, ref, rtol=0, atol=KERNEL_ATOL_MM)
+
+
+@pytest.fixture(scope="module")
+def tiled_case(tmp_path_factory):
+    region, pixel = (-0.1, -0.07, 0.16, 0.12), 0.0005   # 381 x 521 pixels, across the axis
+    _, surface, path, tool = _case(region, pixel)
+    ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+    machined = simulate_turning(path, nose_radius=tool.nose_radius, half_width=tool.half_width,
+                                region=region, pixel=pixel)
+    design = design_grid(surface, region, pixel)
+    levels = level_count(machined.shape, smallest=32)
+    store = str(tmp_path_factory.mktemp("tiled") / "heightmap.zarr")
+    create_heightmap_zarr(store, machined.shape, chunk=128,
+                          attrs=grid_attrs(pixel, region[:2], {"name": "t"}, {"seed": 0}), levels=levels)
+    seen = []
+    stats = run_tiles(ep, surface, origin=region[:2], pixel=pixel, shape=machined.shape, store=store,
+                      levels=levels, tile=128, progress=lambda d, t, s: seen.append((d, t)))
+    return dict(machined=machined, design=design, store=store, stats=stats, levels=levels, seen=seen,
+                ep=ep, surface=surface, region=region, pixel=pixel)
+
+
+def test_tiled_heights_equal_the_in_memory_map_without_seams(tiled_case):
+    c = tiled_case
+    z = ZarrHeightMap(c["store"])
+    m = z.read("machined")
+    assert np.array_equal(m, c["machined"].astype(np.float32), equal_nan=True)
+    # the rows and columns on both sides of every tile boundary, in float64 via the residual
+    r = z.read("residual")
+    want = (c["machined"] - c["design"]).astype(np.float32)
+    for b in (128, 256):
+        assert np.array_equal(r[b - 1:b + 1], want[b - 1:b + 1], equal_nan=True)
+        assert np.array_equal(r[:, b - 1:b + 1], want[:, b - 1:b + 1], equal_nan=True)
+    assert c["seen"][-1] == (len(plan_tiles(m.shape, 128)), len(plan_tiles(m.shape, 128)))
+
+
+def test_tiled_metrics_equal_the_single_array_metrics(tiled_case):
+    c = tiled_case
+    ref = residual_metrics(c["machined"], c["design"])
+    got = metrics_from_moments(c["stats"].moments, c["stats"].abs_dev, c["machined"].size)
+    for k in ("Sq_nm", "Sp_nm", "Sv_nm", "Sz_nm", "min_nm", "mean_nm", "valid_fraction"):
+        assert got[k] == pytest.approx(ref[k], rel=1e-12, abs=1e-12), k
+    # Sa from the float32 residual: error <= 2^-24 (Sa + |mean|)
+    assert abs(got["Sa_nm"] - ref["Sa_nm"]) <= 2.0 ** -24 * (ref["Sa_nm"] + abs(ref["mean_nm"]))
+
+
+def test_tiled_histogram_is_the_histogram_of_the_stored_residual(tiled_case):
+    c = tiled_case
+    lo, hi, counts = c["stats"].histogram
+    r = ZarrHeightMap(c["store"]).read("residual").astype(np.float64)
+    r = r[np.isfinite(r)]
+    k = np.clip(((r - lo) / ((hi - lo) / counts.size)).astype(np.int64), 0, counts.size - 1)
+    assert np.array_equal(np.bincount(k, minlength=counts.size), counts)
+    assert counts.sum() == r.size
+
+
+def test_tiled_pyramid_equals_the_area_means_of_the_whole_map(tiled_case):
+    c = tiled_case
+    z = ZarrHeightMap(c["store"])
+    full = z.read("residual")
+    for k, want in enumerate(pyramid(full, c["levels"]), start=1):
+        assert np.array_equal(z.read("residual", level=k), want, equal_nan=True)
+    assert z.level_for(100) >= 1
+
+
+def test_pyramid_averages_instead_of_aliasing():
+    # a feed-mark pattern with a 3-pixel period: 8 x 8 block means nearly cancel it, while
+    # taking every 8th sample would alias it into a full-amplitude pattern
+    x = np.arange(512)
+    a = np.cos(2 * np.pi * x / 3)[None, :] * np.ones((512, 1))
+    lv = pyramid(a, 3)[2]
+    assert np.max(np.abs(lv)) <= 1 / 8 + 1e-6   # what is left of 8 samples of a 3-sample period
+    assert np.max(np.abs(a[::8, ::8])) > 0.9
+    # NaNs are left out of the means; an all-NaN block is NaN
+    b = np.ones((4, 4))
+    b[0, 0] = np.nan
+    b[2:, 2:] = np.nan
+    s, n = block_sums(b, 2)
+    assert_allclose(means(s, n), [[1.0, 1.0], [1.0, np.nan]])
+    img, f = preview(np.zeros((2000, 900)), 512)
+    assert f == 4 and img.shape == (500, 225)
+
+
+def test_tiles_must_align_with_the_kernel_blocks():
+    with pytest.raises(InputError, match="multiple of 64"):
+        plan_tiles((100, 100), 100)
+
+
+def test_zarr_store_has_the_attributes_of_heightmap_exr(tmp_path):
+    rng = np.random.default_rng(0)
+    design = rng.normal(size=(300, 200)) * 1e-3
+    machined = design + rng.normal(size=design.shape) * 1e-6
+    machined[:5, :5] = np.nan
+    attrs = grid_attrs(0.001, (0.25, -0.5), {"name": "x"}, {"seed": 3})
+    write_height_channels(tmp_path / "h.exr", design, machined, attrs, overview_side=64)
+    write_heightmap_zarr(tmp_path / "h.zarr", design, machined, attrs=attrs, chunk=128)
+    ch, ea = read_exr(tmp_path / "h.exr")
+    z = ZarrHeightMap(tmp_path / "h.zarr")
+    for k in ("pixel_size_mm", "origin_mm", "units", "software_version"):
+        assert z.attrs[k] == ea[k], k
+    assert z.scene == ea["scene"] and z.meta == ea["meta"]
+    for name in ("design", "machined", "residual"):
+        assert np.array_equal(z.read(name), ch[name], equal_nan=True)
+    # residual formed in float64, then rounded once
+    assert np.array_equal(ch["residual"], (machined - design).astype(np.float32), equal_nan=True)
+    # float32 storage: relative error at most 2^-24
+    ok = np.isfinite(machined)
+    assert np.all(np.abs(ch["machined"][ok] - machined[ok]) <= 2.0 ** -24 * np.abs(machined[ok]))
+    # overview part: 8 x 8-pixel area means (the first power of two bringing 300 to <= 64)
+    ov, factor = read_exr_overview(tmp_path / "h.exr")
+    assert factor == 8 and ov["residual"].shape == (38, 25)
+    s, n = block_sums(machined, 8, minus=design)
+    assert_allclose(ov["residual"], means(s, n), rtol=1e-6, atol=1e-12)
+    # a window: only the pixels whose centres lie in the region
+    rows, cols = z.index_window((0.3, -0.45, 0.35, -0.4))
+    assert (rows.start, rows.stop, cols.start, cols.stop) == (50, 101, 50, 101)
+    d, m, origin = z.window((0.3, -0.45, 0.35, -0.4))
+    assert d.shape == (51, 51) and origin == pytest.approx((0.3, -0.45))
+    with pytest.raises(InputError, match="does not overlap"):
+        z.index_window((5, 5, 6, 6))
+
+
+def test_small_exr_has_no_overview(tmp_path):
+    a = np.zeros((10, 12))
+    write_height_channels(tmp_path / "s.exr", a, a, grid_attrs(0.001, (0, 0), None, None))
+    assert read_exr_overview(tmp_path / "s.exr") is None
+    assert read_exr(tmp_path / "s.exr")[0]["machined"].shape == (10, 12)
+
+
+@pytest.mark.slow
+def test_tiles_on_a_local_dask_cluster_equal_the_threaded_run(tiled_case, tmp_path):
+    from distributed import Client, LocalCluster
+
+    c = tiled_case
+    store = str(tmp_path / "cluster.zarr")
+    create_heightmap_zarr(store, c["machined"].shape, chunk=128,
+                          attrs=grid_attrs(c["pixel"], c["region"][:2], None, None), levels=c["levels"])
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        stats = run_tiles(c["ep"], c["surface"], origin=c["region"][:2], pixel=c["pixel"],
+                          shape=c["machined"].shape, store=store, levels=c["levels"], tile=128, client=client)
+    assert stats.moments == c["stats"].moments
+    assert math.isclose(stats.abs_dev[1], c["stats"].abs_dev[1], rel_tol=1e-12)
+    a, b = ZarrHeightMap(store), ZarrHeightMap(c["store"])
+    for name in ("machined", "residual"):
+        assert np.array_equal(a.read(name), b.read(name), equal_nan=True)
+
+
+_GPU_CHECK = '''
+import numpy as np, sys
+sys.path.insert(0, sys.argv[1])
+from test_tiled import _case
+from render_inspect.machining._envelope import prepare_envelope, envelope_fill
+from render_inspect.machining._envelope_gpu import cuda_available, envelope_fill_gpu
+assert cuda_available()
+region, pixel = (-0.012, -0.01, 0.011, 0.012), 0.001      # across the axis
+_, _, path, tool = _case(region, pixel)
+ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+cpu = envelope_fill(ep, region[:2], pixel, np.empty((23, 24)))
+gpu = envelope_fill_gpu(ep, region[:2], pixel, np.empty((23, 24)))
+assert np.array_equal(np.isnan(cpu), np.isnan(gpu))
+print(float(np.nanmax(np.abs(cpu - gpu))))
+'''
+
+
+@pytest.mark.parametrize("simulator", [
+    pytest.param(True, id="cuda-simulator"),
+    pytest.param(False, id="cuda-device", marks=pytest.mark.gpu),
+])
+def test_gpu_kernel_equals_the_cpu_kernel(simulator):
+    import os
+    import subprocess
+    import sys
+
+    from render_inspect.machining._envelope_gpu import cuda_available
+
+    if not simulator and not cuda_available():
+        pytest.skip("no CUDA device")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1" if simulator else "0")
+    p = subprocess.run([sys.executable, "-c", _GPU_CHECK, str(Path(__file__).parent)], env=env,
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert float(p.stdout.strip().splitlines()[-1]) < KERNEL_ATOL_MM
+
+
+def _cli(*args, check=True):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "render_inspect.cli", *map(str, args)], capture_output=True,
+                          text=True, check=check)
+
+
+WINDOW = ["--set", "simulation.region=[-0.2,-0.15,0.22,0.2]", "--set", "simulation.pixel=0.001"]
+
+
+def test_simulate_tiles_a_map_that_does_not_fit_the_budget(tmp_path):
+    import json
+
+    # 3.7 M samples: about 0.1 GiB in memory, 0.05 GiB in tiles of 256 x 256
+    small, big = tmp_path / "in_memory", tmp_path / "tiled"
+    fine = WINDOW[:3] + ["simulation.pixel=0.0002"]
+    _cli("simulate", GRID, "--out", small, *fine)
+    p = _cli("simulate", GRID, "--out", big, *fine, "--set", "simulation.max_memory_gb=0.07", "--tile", "256")
+    assert "tiles" in p.stderr and "%" in p.stderr          # progress while it runs
+    names = {f.name for f in big.iterdir()}
+    assert {"heightmap.zarr", "metrics.json", "toolpath.npz", "residual.png", "kinematics.png"} <= names
+    assert "heightmap.exr" not in names
+    a = json.loads((small / "metrics.json").read_text())
+    b = json.loads((big / "metrics.json").read_text())
+    for k in ("Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "min_nm", "mean_nm"):
+        assert b["residual"][k] == pytest.approx(a["residual"][k], rel=1e-12, abs=1e-9), k
+    assert b["residual"]["Sa_nm"] == pytest.approx(a["residual"]["Sa_nm"], rel=1e-6)
+    assert b["samples"] == a["samples"] and b["grid"] == a["grid"] and b["tiles"]["count"] == 63
+    assert b["toolpath"]["points"] == a["toolpath"]["points"]
+    z = ZarrHeightMap(big / "heightmap.zarr")
+    ch, attrs = read_exr(small / "heightmap.exr")
+    assert np.array_equal(z.read("machined"), ch["machined"], equal_nan=True)
+    for sc in (z.scene, attrs["scene"]):
+        sc["simulation"].pop("max_memory_gb")
+    assert z.scene == attrs["scene"] and z.attrs["pixel_size_mm"] == attrs["pixel_size_mm"]
+
+
+def test_tiled_simulate_refuses_what_it_cannot_tile(tmp_path):
+    p = _cli("simulate", GRID, "--out", tmp_path / "b", *WINDOW, "--tiled", "--set",
+             "artifacts.burrs.height=0.0001", "--set", "artifacts.burrs.width=0.002", check=False)
+    assert p.returncode == 1 and "artifacts.burrs.height" in p.stderr and "Traceback" not in p.stderr
+    p = _cli("simulate", GRID, "--out", tmp_path / "c", *WINDOW, "--tile", "100", check=False, )
+    assert p.returncode == 0      # --tile only matters on the tiled path
+    p = _cli("simulate", GRID, "--out", tmp_path / "d", *WINDOW, "--tiled", "--tile", "100", check=False)
+    assert p.returncode == 1 and "multiple of 64" in p.stderr and not (tmp_path / "d").exists()
+
+
+@pytest.mark.slow
+def test_simulate_on_two_dask_worker_processes(tmp_path):
+    import json
+
+    a, b = tmp_path / "threads", tmp_path / "workers"
+    _cli("simulate", GRID, "--out", a, *WINDOW, "--tiled", "--tile", "128")
+    p = _cli("simulate", GRID, "--out", b, *WINDOW, "--workers", "2", "--tile", "128")
+    assert "2 Dask workers" in p.stderr
+    ma, mb = (json.loads((d / "metrics.json").read_text()) for d in (a, b))
+    assert mb["tiles"]["scheduler"] == "LocalCluster" and mb["tiles"]["workers"] == 2
+    assert mb["residual"]["Sq_nm"] == pytest.approx(ma["residual"]["Sq_nm"], rel=1e-12)
+    assert np.array_equal(ZarrHeightMap(a / "heightmap.zarr").read("residual"),
+                          ZarrHeightMap(b / "heightmap.zarr").read("residual"), equal_nan=True)
+
+
+def test_renders_of_a_big_map_read_only_the_windows_they_need(tmp_path):
+    from render_inspect.instruments import interferometer_geometry
+    from render_inspect.pipeline import simulate
+    from render_inspect.pipeline._simulate import run_simulate_tiled
+    from render_inspect.pipeline._views import BigMapViews
+
+    scene = load_scene(GRID, ["simulation.region=[-0.3,-0.25,0.32,0.3]", "simulation.pixel=0.0005",
+                              "render.interferometer.objective='50x'", "render.diffuse.resolution=64"])
+    run_simulate_tiled(scene, tmp_path / "t", tile=256)
+    hm = simulate(scene).heightmap
+    views = BigMapViews(tmp_path / "t" / "heightmap.zarr")
+    hm_i, icfg = views.interferometer(scene.render.interferometer)
+    a = interferometer_geometry(hm, scene.render.interferometer)
+    b = interferometer_geometry(hm_i, icfg)
+    for k in ("nx", "ny", "pixel", "numerical_aperture"):
+        assert a[k] == b[k], k
+    assert_allclose(a["origin"], b["origin"], rtol=0, atol=1e-12)
+    # the window holds the same samples as the in-memory map, and only those (plus 2 pixels)
+    r0 = int(round((hm_i.origin[1] - hm.origin[1]) / hm.pixel))
+    c0 = int(round((hm_i.origin[0] - hm.origin[0]) / hm.pixel))
+    crop = hm.machined[r0:r0 + hm_i.shape[0], c0:c0 + hm_i.shape[1]]
+    assert np.array_equal(hm_i.machined, crop.astype(np.float32).astype(np.float64), equal_nan=True)
+    assert hm_i.design.size < hm.design.size / 2     # 0.36 mm field of view of a 0.62 x 0.55 mm map
+    hm_m, _ = views.diffuse(scene.render.diffuse, "macro")
+    assert max(hm_m.shape) <= 256 and hm_m.pixel > hm.pixel    # the coarsest level of the store
+    hm_u, dcfg = views.diffuse(scene.render.diffuse, "micro")
+    assert dcfg.window is not None and hm_u.design.size < hm.design.size / 16
+    assert set(views.facts["read"]) == {"interferometer", "diffuse_macro", "diffuse_micro"}
+
+
+def test_metrology_reads_a_window_of_a_store(tmp_path):
+    from render_inspect.io import read_measured
+
+    rng = np.random.default_rng(1)
+    design = rng.normal(size=(200, 300)) * 1e-3
+    machined = design + 1e-6
+    write_heightmap_zarr(tmp_path / "m.zarr", design, machined, attrs=grid_attrs(0.001, (1.0, 2.0), None, None),
+                         chunk=64)
+    z, pixel, origin, meta = read_measured(tmp_path / "m.zarr", region=(1.05, 2.02, 1.1, 2.06))
+    assert z.shape == (41, 51) and pixel == 0.001 and origin == pytest.approx((1.05, 2.02))
+    assert np.array_equal(z, machined[20:61, 50:101].astype(np.float32).astype(np.float64))
+    assert meta["format"] == "zarr" and meta["store_shape"] == [200, 300]
+
+
+def test_tiles_of_a_constant_arc_path_equal_the_whole_grid():
+    from render_inspect.machining._tiled import compute_tile
+
+    region, pixel = (-0.05, -0.04, 0.09, 0.08), 0.0005
+    _, surface, path, tool = _case(region, pixel, ("process.sampling='constant_arc'",))
+    ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+    assert not ep.uniform
+    whole = simulate_turning(path, nose_radius=tool.nose_radius, half_width=tool.half_width, region=region,
+                             pixel=pixel)
+    for t in plan_tiles(whole.shape, 128):
+        _, m = compute_tile(ep, surface, region[:2], pixel, t)
+        assert np.array_equal(m, whole[t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t
