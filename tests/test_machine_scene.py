@@ -21,7 +21,10 @@ from render_inspect.scene._machine import MACHINE_PRESET_NAMES, MATERIAL_PRESET_
 IDEAL = ["machine.preset='ideal'", "material.preset='ideal'"]
 
 #: residuals (nm) of these windows computed by the project's code before [machine] and
-#: [material] existed (the tagged layout); the ideal machine must reproduce them exactly
+#: [material] existed (the direct per-pixel envelope kernel); the ideal machine must
+#: reproduce them.  The fast kernel that replaced it rounds the interpolation fraction
+#: differently (heights within 1e-12 mm), which moves these statistics by < 1e-9 relative.
+RTOL = 1e-9
 BEFORE = {
     "sts_sinusoidal_grid": (["simulation.region=[0.3,0.3,0.5,0.5]", "simulation.pixel=0.002"],
                             (6.236199331295275, 7.244244004803849, 24.25320091600097)),
@@ -57,7 +60,7 @@ def test_ideal_machine_and_material_reproduce_the_geometric_result_exactly(name)
     over, (sa, sq, sz) = BEFORE[name]
     m = simulate(load_scene(name, over + IDEAL)).metrics
     assert_allclose([m["residual"]["Sa_nm"], m["residual"]["Sq_nm"], m["residual"]["Sz_nm"]],
-                    [sa, sq, sz], rtol=1e-12)
+                    [sa, sq, sz], rtol=RTOL)
     assert "following_error" not in m and m["machine"]["ideal"]
 
 
@@ -73,7 +76,9 @@ def test_infinite_bandwidth_without_disturbance_is_the_ideal_machine():
     s = load_scene("sts_sinusoidal_grid", over + axes + noise + errors + ["material.preset='ideal'"])
     assert s.machine.preset == "sts_lathe" and machine_of(s).ideal
     m = simulate(s).metrics["residual"]
-    assert_allclose([m["Sa_nm"], m["Sq_nm"], m["Sz_nm"]], [sa, sq, sz], rtol=1e-12)
+    assert_allclose([m["Sa_nm"], m["Sq_nm"], m["Sz_nm"]], [sa, sq, sz], rtol=RTOL)
+    ideal = simulate(load_scene("sts_sinusoidal_grid", over + IDEAL)).metrics["residual"]
+    assert [m[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm")] == [ideal[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm")]
 
 
 def test_scene_units_reach_the_machine_and_the_material():

@@ -41,6 +41,8 @@ SMALL = """
 name = "small"
 scene = "sts_sinusoidal_grid"
 [set]
+"machine.preset" = "ideal"       # the closed form is the kinematic scallop: no servo
+"material.preset" = "ideal"      # errors, no minimum chip thickness
 "simulation.region" = [-0.05, -0.05, 0.05, 0.05]
 "simulation.pixel" = 0.001
 "process.workpiece_radius" = 0.1

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, ValidationInfo, model_validator
 
 from ..core.errors import InputError
 from ..core.section import Section
@@ -62,12 +62,12 @@ class RegressCase(Section):
     tolerance: dict[ImageName, Tolerance] = Field(default_factory=dict)
 
     @model_validator(mode="after")
-    def _keys(self):
-        _check_keys(self.set, "set")
+    def _keys(self, info: ValidationInfo):
+        _check_keys(self.set, "set", (info.context or {}).get("sections"))
         return self
 
 
-def read_case(path) -> RegressCase:
+def read_case(path, *, sections=None) -> RegressCase:
     """Read and validate a case file; its ``name`` is the file's stem."""
     path = Path(path)
     try:
@@ -76,7 +76,7 @@ def read_case(path) -> RegressCase:
         raise InputError(f"regression case {str(path)!r} is not valid TOML: {err}") from None
     data.setdefault("name", path.stem)
     try:
-        case = RegressCase.model_validate(data)
+        case = RegressCase.model_validate(data, context={"sections": sections})
     except ValidationError as err:
         lines = []
         for e in err.errors():

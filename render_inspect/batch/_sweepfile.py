@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, ValidationInfo, model_validator
 
 from ..core.errors import InputError
 from ..core.section import Section
@@ -58,26 +58,27 @@ from ..core.section import Section
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
            "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get"]
 
-#: Scene sections a sweep key may start with.
-SCENE_SECTIONS = ("name", "description", "design", "tool", "process", "simulation", "render",
-                  "artifacts", "metrology", "rcse")
-
-
-def _check_keys(keys, where: str) -> None:
+def _check_keys(keys, where: str, sections=None) -> None:
+    """Dotted scene keys; with ``sections`` (the scene's top-level sections, passed by the
+    caller that knows the scene schema) also their first part."""
     for k in keys:
         parts = str(k).split(".")
-        if len(parts) < 2 or not all(parts) or parts[0] not in SCENE_SECTIONS:
+        if len(parts) < 2 or not all(parts) or (sections is not None and parts[0] not in sections):
+            allowed = f" (section one of {', '.join(sections)})" if sections is not None else ""
             raise ValueError(f"{where} key must be a dotted scene key such as "
-                             f"'tool.nose_radius' (section one of {', '.join(SCENE_SECTIONS[2:])}), "
-                             f"received {k!r}")
+                             f"'tool.nose_radius'{allowed}, received {k!r}")
 
 
-def _check_study(set_, grid, zip_, points) -> None:
-    _check_keys(set_, "set")
-    _check_keys(grid, "grid")
-    _check_keys(zip_, "zip")
+def _sections(info: ValidationInfo):
+    return (info.context or {}).get("sections")
+
+
+def _check_study(set_, grid, zip_, points, sections=None) -> None:
+    _check_keys(set_, "set", sections)
+    _check_keys(grid, "grid", sections)
+    _check_keys(zip_, "zip", sections)
     for p in points:
-        _check_keys(p, "points")
+        _check_keys(p, "points", sections)
     for k, v in grid.items():
         if not v:
             raise ValueError(f"grid must give at least one value for {k!r}, received []")
@@ -101,8 +102,8 @@ class Study(Section):
     points: list[dict[str, Any]] = Field(default_factory=list)
 
     @model_validator(mode="after")
-    def _lists(self):
-        _check_study(self.set, self.grid, self.zip, self.points)
+    def _lists(self, info: ValidationInfo):
+        _check_study(self.set, self.grid, self.zip, self.points, _sections(info))
         return self
 
     def combinations(self) -> list[dict]:
@@ -166,8 +167,8 @@ class SweepFile(Section):
     plot: list[PlotConfig] = Field(default_factory=list)
 
     @model_validator(mode="after")
-    def _top(self):
-        _check_study(self.set, self.grid, self.zip, self.points)
+    def _top(self, info: ValidationInfo):
+        _check_study(self.set, self.grid, self.zip, self.points, _sections(info))
         names = [s.name for s in self.study]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
@@ -217,8 +218,16 @@ def _format_error(err: ValidationError, source: str) -> InputError:
     return InputError(f"invalid sweep file {source}:\n" + "\n".join(lines))
 
 
-def read_sweep(path) -> SweepFile:
+def read_sweep(path, *, sections=None) -> SweepFile:
     """Read and validate a sweep file (TOML).
+
+    Parameters
+    ----------
+    path : path
+        The sweep file.
+    sections : sequence of str, optional
+        The scene's top-level sections: keys must start with one of them (without it, only
+        their dotted form is checked; the scene checks the rest when the points resolve).
 
     Raises
     ------
@@ -234,7 +243,7 @@ def read_sweep(path) -> SweepFile:
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"sweep file {str(path)!r} is not valid TOML: {err}") from None
     try:
-        spec = SweepFile.model_validate(data)
+        spec = SweepFile.model_validate(data, context={"sections": sections})
     except ValidationError as err:
         raise _format_error(err, str(path)) from None
     if not spec.name:

@@ -12,35 +12,6 @@ from ..core.errors import InputError
 MM_TO_NM = 1e6
 
 
-@njit(cache=True)
-def _stats(machined, design):
-    n = 0
-    s = 0.0
-    lo = np.inf
-    hi = -np.inf
-    for v in range(machined.size):
-        r = machined.flat[v] - design.flat[v]
-        if math.isfinite(r):
-            n += 1
-            s += r
-            if r < lo:
-                lo = r
-            if r > hi:
-                hi = r
-    if n == 0:
-        return 0, 0.0, 0.0, 0.0, 0.0, 0.0
-    mean = s / n
-    sa = 0.0
-    sq = 0.0
-    for v in range(machined.size):
-        r = machined.flat[v] - design.flat[v]
-        if math.isfinite(r):
-            d = r - mean
-            sa += abs(d)
-            sq += d * d
-    return n, mean, sa / n, math.sqrt(sq / n), lo, hi
-
-
 def residual_metrics(residual, design=None) -> dict:
     """``Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm`` of machined - design with the mean removed,
     and ``min_nm``: the signed minimum before the mean is removed (negative = overcut).
@@ -101,6 +72,19 @@ def _moments(machined, design):
         if math.isfinite(r):
             m2 += (r - mean) * (r - mean)
     return n, mean, m2, lo, hi
+
+
+@njit(cache=True)
+def _stats(machined, design):
+    n, mean, m2, lo, hi = _moments(machined, design)
+    if n == 0:
+        return 0, 0.0, 0.0, 0.0, 0.0, 0.0
+    sa = 0.0
+    for v in range(machined.size):
+        r = machined.flat[v] - design.flat[v]
+        if math.isfinite(r):
+            sa += abs(r - mean)
+    return n, mean, sa / n, math.sqrt(m2 / n), lo, hi
 
 
 def tile_moments(machined, design) -> tuple:

@@ -52,7 +52,7 @@ from ..instruments import render_interferogram
 from ..io import atomic_output_dir, atomic_write_bytes, check_output_dir, write_exr, write_json
 from ..metrology import measure_frames
 from ..render import render_diffuse, variant_info
-from ..scene import find_scene, load_scene
+from ..scene import find_scene, load_scene, scene_sections
 from ._simulate import simulate
 
 __all__ = ["run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
@@ -352,7 +352,7 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
         tmp = Path(tmp)
         for name, path in selected.items():
             t0 = time.perf_counter()
-            case = read_case(path)
+            case = read_case(path, sections=scene_sections())
             scene = _case_scene(case, path, overrides)
             settings = {n: _settings(case, n) for n in case.images}
             chash = case_hash(case, settings)

@@ -36,7 +36,7 @@ from ..machining._memory import tiled_bytes
 from ..machining._metrics import metrics_from_moments
 from ..machining._tiled import TILE, plan_tiles
 from ..processes import Cut, Plan, check_budget, process_kinds, process_of
-from ..processes._turning import tool_of, turning_points
+from ..processes._turning import machine_bytes, tool_of, turning_points
 from ..report import kinematics_png, plot_following_error, plot_following_error_map, plot_kinematics
 from ._metrics import lenslet_metrics, msa_metrics, simulation_metrics, tiled_metrics
 from ._tiled import dask_client, run_tiles
@@ -331,8 +331,8 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     # the whole program is planned in memory: its points against the budget first
     kind.precheck(scene, tuple(sim.region))
     n_est = turning_points(scene)
-    _tiled_check(scene, tiled_bytes(tile, n_est, in_flight=in_flight), tile=tile,
-                 in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
+    _tiled_check(scene, tiled_bytes(tile, n_est, in_flight=in_flight) + machine_bytes(scene),
+                 tile=tile, in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
     timing = {}
     # the folder is checked and locked first; the Dask workers start while the path is
     # planned, and are shut down before the folder is swapped in
@@ -349,9 +349,9 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                              f"the turned part (process.workpiece_radius, process.inner_radius)")
         tool = tool_of(scene)
         ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
-        est = _tiled_check(scene, tiled_bytes(tile, path.points, in_flight=in_flight), tile=tile,
-                           in_flight=in_flight, points=path.points, workers=workers,
-                           scheduler=scheduler)
+        est = _tiled_check(scene, tiled_bytes(tile, path.points, in_flight=in_flight)
+                           + machine_bytes(scene, plan), tile=tile, in_flight=in_flight,
+                           points=path.points, workers=workers, scheduler=scheduler)
         levels = level_count(shape)
         log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...", f"{shape[0] * shape[1]:,}",
                  len(plan_tiles(shape, tile)), tile, tile,

@@ -47,7 +47,7 @@ from ..io import (
     save_map_png,
     write_json,
 )
-from ..scene import find_scene, load_scene, scene_from_dict
+from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
 from ._render import run_render
@@ -301,7 +301,7 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     """
     t_all = time.perf_counter()
     sweep_path = Path(sweep)
-    spec = read_sweep(sweep_path)
+    spec = read_sweep(sweep_path, sections=scene_sections())
     out = check_output_path(out, replaced=False)
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
     claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)

@@ -11,6 +11,7 @@ from pydantic import Field, model_validator
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget
 from ..core.section import Section
+from ..design import make_surface
 from ..machining._memory import in_memory_bytes
 from ..toolpath import (
     Tool,
@@ -26,8 +27,8 @@ from ._mechanics import machine_of, turn
 from ._registry import check_budget
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "turning_points", "burrs_of", "turning_header", "compensation_variants",
-           "turning_precheck"]
+           "turning_memory", "turning_points", "machine_bytes", "burrs_of", "turning_header",
+           "compensation_variants", "turning_precheck"]
 
 
 class TurningProcessConfig(Section):
@@ -155,35 +156,61 @@ def cut_turning(scene, surface, path, *, burrs: bool = True, z_fts=None) -> tupl
     return t["machined"], t["design"], t["timing"], {**t["facts"], "plots": t["plots"]}
 
 
+def _revolutions(scene) -> float:
+    """Revolutions of the scene's spiral over its region, before planning: the radii the
+    planner keeps (:func:`~render_inspect.toolpath.plan_turning`: the region widened by
+    the passes that can reach it, 2.2 Rc m + f + 2 f for the design's largest slope m)."""
+    sim, p = scene.simulation, scene.process
+    tool = tool_of(scene)
+    slope = make_surface(scene.design).max_slope(tuple(sim.region))
+    f = p.feed_per_rev
+    margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
+    r_in, r_out = region_radii(sim.region, margin)
+    r_in = max(r_in, p.inner_radius)
+    return max(min(r_out, p.workpiece_radius) - r_in, 0.0) / f
+
+
 def turning_points(scene, plan=None) -> int:
     """Points of the scene's path over its region (estimated before planning)."""
     if plan is not None:
         return int(plan.program.points)
-    r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-    revs = (min(r_out, scene.process.workpiece_radius) - r_in) / scene.process.feed_per_rev
-    return int(revs * scene.process.points_per_rev) + 1
+    return int(_revolutions(scene) * scene.process.points_per_rev) + 1
+
+
+#: bytes per servo tick the machine model holds (commands, followed positions, errors and
+#: the loops' states of every axis; measured with tracemalloc: about 250)
+_BYTES_PER_TICK = 8 * 32
+
+
+def machine_bytes(scene, plan=None) -> int:
+    """Bytes the scene's ``[machine]`` model holds while following the path (0 on the
+    ideal machine)."""
+    machine = machine_of(scene)
+    if machine.ideal:
+        return 0
+    if plan is None:
+        duration = _revolutions(scene) * 60.0 / scene.process.spindle_rpm
+    else:
+        t = plan.program.t
+        duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    return int(duration * machine.servo_rate_hz) * _BYTES_PER_TICK
 
 
 def turning_memory(scene, plan=None) -> int:
     """Bytes an in-memory turning simulation and the writing of its outputs hold at their
     peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
     of heightmap.exr, the design evaluation's temporaries and the tool path); on a
-    non-ideal ``[machine]`` also the servo ticks (about 16 arrays of them), with a
-    ``[material]`` the cut's six maps."""
+    non-ideal ``[machine]`` also the servo ticks (:func:`machine_bytes`) and the maps of
+    where each pass cut and its following error, with a ``[material]`` the cut's mechanics
+    maps (measured with tracemalloc: within 1.5 x of the peak in every combination)."""
     shape = grid_shape(scene.simulation.region, scene.simulation.pixel)
-    nbytes = in_memory_bytes(shape, turning_points(scene, plan))
-    machine = machine_of(scene)
-    if not machine.ideal:
-        if plan is None:
-            r_in, r_out = region_radii(scene.simulation.region, scene.tool.nose_radius)
-            revs = max(min(r_out, scene.process.workpiece_radius) - r_in, 0.0) / scene.process.feed_per_rev
-            duration = revs * 60.0 / scene.process.spindle_rpm
-        else:
-            t = plan.program.t
-            duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
-        nbytes += int(duration * machine.servo_rate_hz) * 8 * 16
-    if scene.material.preset != "ideal":
-        nbytes += shape[0] * shape[1] * 8 * 6
+    samples = shape[0] * shape[1]
+    nbytes = in_memory_bytes(shape, turning_points(scene, plan)) + machine_bytes(scene, plan)
+    material = scene.material.preset != "ideal"
+    if material:  # the cut's mechanics maps and the finished surface's grooves
+        nbytes += samples * 8 * 11
+    if not machine_of(scene).ideal:  # pass-angle and following-error maps (shared with the material)
+        nbytes += samples * 8 * (1 if material else 2)
     return int(nbytes)
 
 

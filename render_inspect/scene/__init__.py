@@ -34,7 +34,7 @@ from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
-           "shipped_scenes", "find_scene", "instrument_config",
+           "shipped_scenes", "find_scene", "instrument_config", "scene_sections",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
            "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig",
@@ -368,6 +368,12 @@ def read_scene_text(path: Path) -> str:
         raise SceneError(f"scene file {str(path)!r} contains NUL bytes: it is a binary file, not "
                          f"a TOML scene")
     return text
+
+
+def scene_sections() -> tuple[str, ...]:
+    """The scene's sections (``design``, ``tool``, ... ``material``): what a dotted scene
+    key such as ``tool.nose_radius`` starts with."""
+    return tuple(k for k in Scene.model_fields if k not in ("name", "description"))
 
 
 def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scene:
