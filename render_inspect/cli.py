@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_args(p)
     p.add_argument("--tiled", action="store_true",
                    help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
-                        "simulation.max_memory_gb)")
+                        "the memory budget: simulation.max_memory_gb, by default 80%% of the free memory)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
