@@ -1,8 +1,10 @@
 """``render-inspect`` command line: argparse -> :mod:`render_inspect.pipeline`.
 
 Exit codes: 0 done, 1 an error in the input or the run (one line on stderr naming the
-parameter, the allowed range and the value received), 2 a usage error (argparse),
-130 interrupted.
+parameter, the allowed range and the value received; anything unexpected is reported
+the same way, with a hint how to see the traceback), 2 a usage error (argparse),
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  After an error or an interruption
+the output folder is as it was before the run.
 
 Output: progress bars with an ETA on stderr for every step that runs longer than a
 second (rich; plain log lines when stderr is not a terminal), messages through the
@@ -15,9 +17,12 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+import signal
 import sys
 import threading
 import time
+import traceback
 
 from . import __version__
 from .core.errors import RenderInspectError
@@ -43,10 +48,17 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
     p.add_argument("scene", help="scene file (TOML) or the name of a shipped scene, "
                                  "e.g. sts_sinusoidal_grid")
     if out:
-        p.add_argument("--out", required=True, help="output folder (written atomically)")
+        _add_out_args(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
     _add_verbosity(p)
+
+
+def _add_out_args(p: argparse.ArgumentParser):
+    p.add_argument("--out", required=True,
+                   help="output folder: written whole when the run succeeds, untouched otherwise")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even if it holds files render-inspect did not write")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_args(p)
     p.add_argument("--tiled", action="store_true",
                    help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
-                        "simulation.max_memory_gb)")
+                        "the memory budget: simulation.max_memory_gb, by default 80%% of the free memory)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -94,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
                                        "or simulated): metrics.json, height.png, --x3p")
     p.add_argument("file", help="height map: X3P, SUR, PLU, DAT (MetroPro), DATX, OPD, TMD, NMS, "
                                 "heightmap.exr, ...")
-    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    _add_out_args(p)
     p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
                    help="form removed first (none: the mean only)")
     p.add_argument("--filter", default=None, metavar="S,L",
@@ -109,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("measure", help="height from interferometer frames alone: height.exr, metrics.json")
     p.add_argument("frames", help="interferogram.exr (frames + settings), or a TIFF / PNG stack "
                                   "or a folder of frames with a settings JSON")
-    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    _add_out_args(p)
     p.add_argument("--algorithm", default="auto",
                    choices=["auto", "4step", "5step", "hariharan", "lsq", "envelope",
                             "envelope+phase"],
@@ -124,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("characterise", help="the virtual instrument's transfer function, step "
                                             "response, slope limit and noise (ISO 25178-600 style)")
     p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
-    p.add_argument("--out", required=True, help="output folder (written atomically)")
+    _add_out_args(p)
     p.add_argument("--mode", choices=["psi", "csi"], default="psi")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override an instrument key of [render.interferometer], e.g. "
@@ -137,6 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
                                      "(resumable)")
     p.add_argument("sweep", help="sweep file (TOML) or the name of a shipped sweep, e.g. fig15_small")
     p.add_argument("--out", required=True, help="the sweep's folder; finished points there are not run again")
+    p.add_argument("--overwrite", action="store_true",
+                   help="write the sweep into a non-empty folder that is not a sweep's (its files "
+                        "are left in place)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", default=None,
                        help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
@@ -153,13 +168,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--only", metavar="NAME", default=None,
                    help="case names or glob patterns, comma-separated")
     p.add_argument("--out", default="out/regress",
-                   help="summary.html and the images that differ (default: out/regress)")
+                   help="summary.html and the images that differ (default: out/regress); written "
+                        "whole when the run ends, untouched otherwise")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even if it holds files render-inspect did not write")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key in every case (what-if checks; not with --update)")
     _add_verbosity(p)
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
-    p.add_argument("--out", required=True)
+    _add_out_args(p)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
     _add_verbosity(p)
     return ap
@@ -173,22 +191,25 @@ def _run(args):
     # (the scene schema imports pydantic and the registries: same reason)
     from .scene import instrument_config, load_scene
 
+    ow = bool(getattr(args, "overwrite", False))
     if args.command == "demo":
-        return pipeline.run_demo(args.out, quick=args.quick)
+        return pipeline.run_demo(args.out, quick=args.quick, overwrite=ow)
     if args.command == "analyze":
         return pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
-                                    outliers=args.outliers, slope=args.slope, x3p=args.x3p)
+                                    outliers=args.outliers, slope=args.slope, x3p=args.x3p,
+                                    overwrite=ow)
     if args.command == "measure":
         return pipeline.run_measure(args.frames, args.out, algorithm=args.algorithm,
-                                    settings=args.settings, min_modulation=args.min_modulation)
+                                    settings=args.settings, min_modulation=args.min_modulation,
+                                    overwrite=ow)
     if args.command == "characterise":
         return pipeline.run_characterise(
             instrument_config(args.objective, args.mode, args.overrides), args.out,
-            quick=args.quick, seed=args.seed)
+            quick=args.quick, seed=args.seed, overwrite=ow)
     if args.command == "sweep":
         info = pipeline.run_sweep(pipeline.find_sweep(args.sweep), args.out,
                                   scheduler=args.scheduler, workers=args.workers,
-                                  retry_failed=args.retry_failed)
+                                  retry_failed=args.retry_failed, overwrite=ow)
         if info["failed"]:
             raise RenderInspectError(
                 f"{info['failed']} of {info['points']} points failed (their errors are in "
@@ -197,19 +218,20 @@ def _run(args):
         return info
     if args.command == "regress":
         return pipeline.run_regress(update=args.update, only=args.only, out=args.out,
-                                    overrides=args.overrides)
+                                    overrides=args.overrides, overwrite=ow)
     scene = load_scene(args.scene, args.overrides)
     if args.command == "simulate":
         return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                      workers=args.workers, scheduler=args.scheduler,
-                                     tile=args.tile)
+                                     tile=args.tile, overwrite=ow)
     if args.command == "toolpath":
-        return pipeline.run_toolpath(scene, args.out, fmt=args.format)
+        return pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=ow)
     if args.command == "render":
-        return pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind)
+        return pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind,
+                                   overwrite=ow)
     if args.command == "compare":
         return pipeline.run_compare(scene, args.out, measured=args.measured, vary=args.vary,
-                                    force=args.force)
+                                    force=args.force, overwrite=ow)
     return None
 
 
@@ -386,6 +408,38 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
+
+
+def _on_terminate(signum, frame):
+    raise Terminated(signum)
+
+
+def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
+    """The interruption behind ``err``: Ctrl-C during a compiled (numba) kernel surfaces
+    as a SystemError whose cause or context is the KeyboardInterrupt."""
+    seen = set()
+    e = err
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _traceback_hint(parser) -> str:
+    opts = getattr(parser, "_option_string_actions", {})
+    if "-v" in opts or "--verbose" in opts:
+        return "run with -v for the traceback"
+    return "set RENDER_INSPECT_TRACEBACK=1 for the traceback"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split()) if "\n" not in str(text) else str(text).rstrip()
+
+
 def _setup_logging(args) -> None:
     level = logging.INFO
     if getattr(args, "quiet", False):
@@ -400,8 +454,18 @@ def _setup_logging(args) -> None:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     _setup_logging(args)
+    show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
+        not in ("", "0")
+    old_signals = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            old_signals[sig] = signal.signal(sig, _on_terminate)
+        except (ValueError, OSError):  # not the main thread: leave the handlers alone
+            pass
+    prefix = f"render-inspect {args.command}"
     t0 = time.perf_counter()
     reporter = _reporter(args)
     handlers = list(log.handlers)
@@ -414,24 +478,62 @@ def main(argv=None) -> int:
             old = set_reporter(rep)
             try:
                 result = _run(args)
+            except BaseException as err:
+                if isinstance(err, (SystemExit, GeneratorExit)):
+                    raise
+                stop = _interrupt_in(err)
+                if stop is None:
+                    raise
+                raise stop from None
             finally:
                 set_reporter(old)
                 log.handlers = handlers
     except RenderInspectError as err:
-        print(f"render-inspect {args.command}: error: {err}", file=sys.stderr)
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: {_one_line(err)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
+        what = "terminated" if isinstance(stop, Terminated) else "interrupted"
+        done = getattr(stop, "render_inspect_output_complete", None)
         if args.command == "sweep":
-            print(f"interrupted; the finished points are kept in {args.out}/results.jsonl: run the "
-                  f"same command again to go on", file=sys.stderr)
+            state = (f"the finished points are kept in {args.out}/results.jsonl: run the same "
+                     f"command again to go on")
+        elif done:
+            state = f"the output folder {done} had been written completely"
         else:
-            print("interrupted; no partial output was left", file=sys.stderr)
-        return 130
+            state = "the output folder was left as it was"
+        print(f"{prefix}: {what}; {state}", file=sys.stderr)
+        return 143 if isinstance(stop, Terminated) else 130
+    except MemoryError:
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: ran out of memory; set simulation.max_memory_gb lower than "
+              f"the machine's free memory so that render-inspect refuses such runs at the start, "
+              f"or reduce the sizes (simulation.region / simulation.pixel, image resolution)",
+              file=sys.stderr)
+        return 1
+    except OSError as err:
+        if show_tb:
+            traceback.print_exc()
+        where = f": {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"{prefix}: error: {err.strerror or err}{where} ({_traceback_hint(parser)})",
+              file=sys.stderr)
+        return 1
+    except Exception as err:  # a bug: one line, the traceback on request
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: internal error: {type(err).__name__}: {_one_line(err)[:300]} "
+              f"({_traceback_hint(parser)})", file=sys.stderr)
+        return 1
+    finally:
+        for sig, handler in old_signals.items():
+            signal.signal(sig, handler)
     dt = time.perf_counter() - t0
     if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
             and not getattr(args, "quiet", False):
         _print_compare_summary(result, args.out, dt)
-    log.info("render-inspect %s: done in %.1f s", args.command, dt)
+    log.info("%s: done in %.1f s", prefix, dt)
     return 0
 
 

@@ -376,7 +376,9 @@ def test_a_render_in_a_worker_process_reports_cycles_progress(settings, addon, t
     job = addon._jobs.Job("render", params, out_dirs=[tmp_path / "r"])
     assert job.wait(300) == "finished", job.error
     assert "Cycles sample 3/3" in job.steps and job.progress == 1.0
-    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == ["cycles.exr", "cycles.png"]
+    # the folder's marker (docs/formats.md, output folders) and the images
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == [".render_inspect.json",
+                                                                   "cycles.exr", "cycles.png"]
     # what the worker rendered is what this process renders from the same mesh
     here = pipeline.render_variant(src["heightmap"], variant="uncompensated",
                                    surface=src["surface"], exaggeration=src["exaggeration"],

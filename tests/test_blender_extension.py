@@ -151,8 +151,8 @@ def test_aluminium_reflects_its_fresnel_reflectance_on_every_version(driven):
 def test_export_writes_every_format_and_the_glb_reimports_upright_in_metres(driven):
     e = driven["export"]
     assert e["result"] == ["FINISHED"]
-    assert e["files"] == ["compensated_machined.glb", "compensated_machined.ply",
-                          "compensated_machined.x3p", "heightmap.exr"]
+    assert e["files"] == [".render_inspect.json", "compensated_machined.glb",
+                          "compensated_machined.ply", "compensated_machined.x3p", "heightmap.exr"]
     assert e["glb_vertices"] == e["mesh_vertices"]
     assert e["glb_max_error_m"] < 1e-9  # every vertex where it belongs, Z up, in metres
     x, y, z = e["glb_dimensions_m"]
@@ -182,7 +182,7 @@ def test_a_render_runs_in_a_worker_process_with_progress(driven):
     w = driven["worker_render"]
     assert w["state"] == "finished", w["error"]
     assert any(m.startswith("Cycles sample") for m in w["messages"])
-    assert w["files"] == ["cycles.exr", "cycles.png"]
+    assert w["files"] == [".render_inspect.json", "cycles.exr", "cycles.png"]
 
 
 def test_cancelling_a_long_simulate_leaves_nothing(driven):

@@ -93,7 +93,11 @@ def test_expression_derivatives_match_finite_differences(expr):
     ("not x", "Not"),
     ("x; import os", "valid expression"),
     ("", "empty"),
-    ("x + " * 600 + "1", "characters"),
+    ("x + " * 2600 + "1", "characters"),
+    ("x + 1/0", "constant part"),
+    ("x + 1e12**64", "constant part"),
+    ("x + (-8)**(1/3)", "constant part"),
+    ("*".join(["x"] * 4000), "too long or nested too deeply"),
     ("sin(" * 100 + "x" + ")" * 100, "nested"),
     ("-" * 100 + "x", "nested"),
     ("(" * 300 + "x" + ")" * 300, "valid expression"),
@@ -115,4 +119,22 @@ def test_bad_constants_and_non_finite_results():
         e.height(np.array([0.0, 2.0]), np.array([0.0, 0.0]))
     # the scene schema limits the length too
     with pytest.raises(SceneError, match="design.expr"):
-        scene_from_dict({"design": {"type": "expression", "expr": "x" * 3000}})
+        scene_from_dict({"design": {"type": "expression", "expr": "x" * 12000}})
+
+
+def test_nesting_is_measured_by_depth_not_by_terms():
+    """A degree-10 polynomial in x and y (66 terms, a flat sum) is one level of nesting;
+    its value and derivatives match the same polynomial evaluated term by term."""
+    rng = np.random.default_rng(3)
+    powers = [(i, j) for i in range(11) for j in range(11) if i + j <= 10]
+    coef = rng.uniform(-1e-3, 1e-3, len(powers))
+    expr = " + ".join(f"{c!r}*x**{i}*y**{j}" for c, (i, j) in zip(coef, powers))
+    e = ExpressionSurface(expr)
+    x = rng.uniform(-1, 1, 50)
+    y = rng.uniform(-1, 1, 50)
+    want = sum(c * x ** i * y ** j for c, (i, j) in zip(coef, powers))
+    want_x = sum(c * i * x ** max(i - 1, 0) * y ** j for c, (i, j) in zip(coef, powers))
+    assert_allclose(e.height(x, y), want, rtol=1e-12, atol=1e-15)
+    assert_allclose(e.gradient(x, y)[0], want_x, rtol=1e-12, atol=1e-15)
+    # a flat sum of 2000 terms evaluates without recursion
+    assert_allclose(ExpressionSurface("+".join(["x"] * 2000)).height(0.5, 0.0), 1000.0)

@@ -105,7 +105,7 @@ def test_bad_machine_and_material_keys_are_named():
         load_scene("sts_sinusoidal_grid", ["machine.x.bandwith_hz=3"])
     with pytest.raises(SceneError, match="material.preset"):
         load_scene("sts_sinusoidal_grid", ["material.preset='ideal'", "material.friction=0.2"])
-    with pytest.raises(SceneError, match="machine.preset must be 'ideal' for process.kind = 'sculpt'"):
+    with pytest.raises(SceneError, match="machine.preset: must be 'ideal' for process.kind = 'sculpt'"):
         load_scene("sculpt_quad_mla", ["machine.preset='sts_lathe'"])
     s = load_scene("hts_toric_msa", ["artifacts.servo.delay_s=0.001",
                                      "simulation.region=[1.0,-0.2,1.4,0.2]", "simulation.pixel=0.01"])

@@ -244,6 +244,7 @@ def test_simulate_rcse_small_window(scene, tmp_path):
 
 
 def test_rcse_rejects_overlapping_elements(scene):
-    s = scene.with_overrides(["design.counts=[6, 12, 18, 24, 36]"])
-    with pytest.raises(SceneError, match="36 elements need a radius"):
-        build_rcse_toolpath(s, region=(3.3, -0.1, 3.5, 0.1))
+    # the scene refuses such a layout when it is loaded, naming the keys
+    with pytest.raises(SceneError, match=r"design.element_radius: must let the 36 elements of "
+                                         r"ring 4 \(radius 4.35 mm\) sit side by side"):
+        scene.with_overrides(["design.counts=[6, 12, 18, 24, 36]"])

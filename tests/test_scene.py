@@ -28,7 +28,7 @@ def test_negative_radius_names_key_range_and_value():
     with pytest.raises(SceneError) as e:
         load_scene(GRID, ["tool.nose_radius=-0.5"])
     msg = str(e.value)
-    assert "tool.nose_radius" in msg and "greater than 0" in msg and "-0.5" in msg
+    assert "tool.nose_radius" in msg and "in (0, 50]" in msg and "-0.5" in msg
 
 
 def test_feed_per_rev_larger_than_nose_radius():

@@ -8,9 +8,12 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..core.errors import InputError
-from ..core.section import Section
+from ..core.section import Length, Phase, Section
 from ._base import Surface
 from ._registry import register_design
+
+#: largest |radius of curvature| of the analytic designs, mm (10 km: a flat, for all purposes)
+MAX_RADIUS_MM = 1e7
 
 TWO_PI = 2 * np.pi
 
@@ -256,9 +259,9 @@ class SinusoidalGridConfig(Section):
     amplitude_y: float = Field(0.002, ge=0, le=1.0, description="mm")
     wavelength_x: float = Field(2.5, gt=0, description="mm")
     wavelength_y: float = Field(2.5, gt=0, description="mm")
-    phase_x: float = Field(0.0, description="rad")
-    phase_y: float = Field(0.0, description="rad")
-    offset: float = Field(0.0, description="mm")
+    phase_x: Phase = Field(0.0, description="rad")
+    phase_y: Phase = Field(0.0, description="rad")
+    offset: Length = Field(0.0, description="mm")
 
 
 class PlaneConfig(Section):
@@ -266,16 +269,17 @@ class PlaneConfig(Section):
     type: Literal["plane"]
     slope_x: float = Field(0.0, ge=-10, le=10, description="dz/dx")
     slope_y: float = Field(0.0, ge=-10, le=10, description="dz/dy")
-    offset: float = 0.0
+    offset: Length = 0.0
 
 
 class SphereConfig(Section):
     """Sphere with apex at (x0, y0, offset); radius > 0 convex (cap up), < 0 concave."""
     type: Literal["sphere"]
-    radius: float = Field(..., description="mm; > 0 convex, < 0 concave; |radius| > 0")
-    x0: float = 0.0
-    y0: float = 0.0
-    offset: float = 0.0
+    radius: float = Field(..., ge=-MAX_RADIUS_MM, le=MAX_RADIUS_MM,
+                          description="mm; > 0 convex, < 0 concave; |radius| > 0")
+    x0: Length = 0.0
+    y0: Length = 0.0
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _nonzero(self):
@@ -288,9 +292,9 @@ class ToricConfig(Section):
     """Toric surface with principal radii along x (radius_x) and y (radius_y).
     Sign as for sphere: > 0 convex, < 0 concave."""
     type: Literal["toric"]
-    radius_x: float
-    radius_y: float
-    offset: float = 0.0
+    radius_x: float = Field(..., ge=-MAX_RADIUS_MM, le=MAX_RADIUS_MM, description="mm")
+    radius_y: float = Field(..., ge=-MAX_RADIUS_MM, le=MAX_RADIUS_MM, description="mm")
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _nonzero(self):
@@ -305,11 +309,11 @@ class BiconicConfig(Section):
     Sign as for sphere: > 0 convex, < 0 concave.  ``type = "paraboloid"`` is the biconic
     with conic_x = conic_y = -1 (the default there; other conics are rejected)."""
     type: Literal["biconic", "paraboloid"]
-    radius_x: float
-    radius_y: float
+    radius_x: float = Field(..., ge=-MAX_RADIUS_MM, le=MAX_RADIUS_MM, description="mm")
+    radius_y: float = Field(..., ge=-MAX_RADIUS_MM, le=MAX_RADIUS_MM, description="mm")
     conic_x: float = 0.0
     conic_y: float = 0.0
-    offset: float = 0.0
+    offset: Length = 0.0
 
     @model_validator(mode="before")
     @classmethod

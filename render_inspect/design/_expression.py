@@ -24,9 +24,9 @@ from ._registry import register_design
 
 __all__ = ["ExpressionSurface", "parse_expression", "ALLOWED_FUNCTIONS"]
 
-MAX_LENGTH = 2000      # characters
-MAX_NODES = 1000       # syntax-tree nodes
-MAX_DEPTH = 60         # nesting depth
+MAX_LENGTH = 10000     # characters
+MAX_NODES = 5000       # syntax-tree nodes
+MAX_DEPTH = 60         # nesting depth: parentheses and calls (a flat sum or product is one level)
 MAX_EXPONENT = 64.0    # |constant exponent| of **
 MAX_LITERAL = 1e12     # |numeric literal|
 
@@ -47,6 +47,7 @@ class _Jet:
 
 
 def _const(v, order):
+    v = np.float64(v)  # numpy arithmetic: 1/0 -> inf, (-8)**(1/3) -> nan (checked at the end)
     if order == 0:
         return _Jet(v)
     if order == 1:
@@ -184,6 +185,31 @@ ALLOWED_FUNCTIONS = tuple(sorted(set(_UNARY) | set(_BINARY) | set(_ALIASES)))
 _CONSTANTS = {"pi": math.pi, "e": math.e}
 
 
+_ADDITIVE = (ast.Add, ast.Sub)
+_MULTIPLICATIVE = (ast.Mult, ast.Div)
+
+
+def _family(op):
+    if isinstance(op, _ADDITIVE):
+        return _ADDITIVE
+    if isinstance(op, _MULTIPLICATIVE):
+        return _MULTIPLICATIVE
+    return None
+
+
+def _flatten(node):
+    """A left-leaning chain ``a + b - c + ...`` (or ``a * b / c ...``) as (first operand,
+    [(op, operand), ...]): a flat sum of many terms is one level of nesting, not one per
+    term, and is evaluated by a loop, not by recursion."""
+    fam = _family(node.op)
+    ops = []
+    while isinstance(node, ast.BinOp) and fam is not None and isinstance(node.op, fam):
+        ops.append((node.op, node.right))
+        node = node.left
+    ops.reverse()
+    return node, ops
+
+
 # ---- parsing and checking -----------------------------------------------------------------
 def _reject(msg, expr):
     shown = expr if len(expr) <= 80 else expr[:77] + "..."
@@ -205,7 +231,10 @@ def parse_expression(expr: str, constants: dict | None = None) -> ast.Expression
     names = set(constants or ()) | {"x", "y"} | set(_CONSTANTS)
     try:
         tree = ast.parse(expr.strip(), mode="eval")
-    except (SyntaxError, ValueError, RecursionError, MemoryError) as err:
+    except (RecursionError, MemoryError):
+        raise _reject("is too long or nested too deeply for the parser (split long products "
+                      "into parenthesised groups)", expr) from None
+    except (SyntaxError, ValueError) as err:
         raise _reject(f"is not a valid expression ({type(err).__name__}: "
                       f"{getattr(err, 'msg', err)})", expr) from None
     count = 0
@@ -250,6 +279,12 @@ def parse_expression(expr: str, constants: dict | None = None) -> ast.Expression
                 if c is None and _literal(node.left) is not None and isinstance(node.right, ast.BinOp) \
                         and isinstance(node.right.op, ast.Pow):
                     raise _reject("may not chain powers of numbers (a ** b ** c)", expr)
+            if _family(node.op) is not None:
+                first, ops = _flatten(node)
+                check(first, depth + 1)
+                for _, operand in ops:
+                    check(operand, depth + 1)
+                return
             check(node.left, depth + 1)
             return check(node.right, depth + 1)
         if isinstance(node, ast.Call):
@@ -325,6 +360,25 @@ class ExpressionSurface(Surface):
         self.expr = expr
         self.constants = constants
         self._tree = parse_expression(expr, constants)
+        self._check_constant_parts()
+
+    def _check_constant_parts(self):
+        """Evaluate every largest part without x and y once: a constant that is not a
+        finite number (``1/0``, ``1e12**64``, ``(-8)**(1/3)``) is named at once."""
+        stack = [self._tree.body]
+        while stack:
+            node = stack.pop()
+            if not any(isinstance(n, ast.Name) and n.id in ("x", "y") for n in ast.walk(node)):
+                if isinstance(node, (ast.Constant, ast.Name)) or not isinstance(node, ast.expr):
+                    continue
+                with np.errstate(all="ignore"):
+                    v = self._eval(node, np.float64(0.0), np.float64(0.0), 0).v
+                if not np.all(np.isfinite(v)):
+                    part = ast.unparse(node)
+                    raise _reject(f"has a constant part that is not a finite number: "
+                                  f"{part[:60]!r} = {float(np.ravel(v)[0])!r}", self.expr)
+                continue
+            stack.extend(c for c in ast.iter_child_nodes(node) if isinstance(c, ast.expr))
 
     # interpreter
     def _eval(self, node, x, y, order):
@@ -344,6 +398,20 @@ class ExpressionSurface(Surface):
         if isinstance(node, ast.UnaryOp):
             a = self._eval(node.operand, x, y, order)
             return _neg(a) if isinstance(node.op, ast.USub) else a
+        if isinstance(node, ast.BinOp) and _family(node.op) is not None:
+            first, ops = _flatten(node)
+            acc = self._eval(first, x, y, order)
+            for op, operand in ops:
+                b = self._eval(operand, x, y, order)
+                if isinstance(op, ast.Add):
+                    acc = _add(acc, b)
+                elif isinstance(op, ast.Sub):
+                    acc = _add(acc, b, -1.0)
+                elif isinstance(op, ast.Mult):
+                    acc = _mul(acc, b)
+                else:
+                    acc = _mul(acc, _recip(b))
+            return acc
         if isinstance(node, ast.BinOp):
             a = self._eval(node.left, x, y, order)
             op = node.op
@@ -406,8 +474,8 @@ class ExpressionSurface(Surface):
 class ExpressionConfig(Section):
     """A user expression in x and y (mm), evaluated safely (whitelisted functions)."""
     type: Literal["expression"]
-    expr: str = Field(..., min_length=1, max_length=2000)
-    constants: dict[str, float] = Field(default_factory=dict)
+    expr: str = Field(..., min_length=1, max_length=MAX_LENGTH)
+    constants: dict[str, float] = Field(default_factory=dict, max_length=1000)
 
 
 register_design(ExpressionConfig, ExpressionSurface)

@@ -10,8 +10,8 @@ import numpy as np
 from pydantic import Field
 
 from ..core.errors import InputError, check_positive
-from ..core.section import Section
-from ..io import read_exr
+from ..core.section import Length, Section
+from ..io import check_npy, exr_placement, read_exr
 from ._base import Surface
 from ._registry import register_design
 
@@ -55,7 +55,10 @@ class HeightMapSurface(Surface):
         if path is None:
             if data is None:
                 raise InputError("HeightMapSurface needs design.path or data")
-            z = np.asarray(data, dtype=np.float64)
+            z = np.asarray(data)
+            if np.iscomplexobj(z) or not (np.issubdtype(z.dtype, np.number) or z.dtype == bool):
+                raise InputError(f"design height map data must be real numbers, got dtype {z.dtype}")
+            z = z.astype(np.float64)
             hdr_pixel, hdr_origin = None, None
         else:
             z, hdr_pixel, hdr_origin = self._load(Path(path), channel)
@@ -111,22 +114,18 @@ class HeightMapSurface(Surface):
         if not path.is_file():
             raise InputError(f"design.path: file not found: {str(path)!r}")
         if suffix == ".exr":
-            chans, attrs = read_exr(path)
+            chans, attrs = read_exr(path, what="design.path")
             if channel not in chans:
                 raise InputError(f"design.channel {channel!r} is not in {str(path)!r} "
                                  f"(channels: {sorted(chans)})")
-            if "pixel_size_mm" not in attrs or "origin_mm" not in attrs:
-                raise InputError(f"design.path {str(path)!r}: the EXR header lacks "
-                                 "pixel_size_mm / origin_mm (the heightmap.exr contract)")
-            return (np.asarray(chans[channel], dtype=np.float64), float(attrs["pixel_size_mm"]),
-                    tuple(float(v) for v in attrs["origin_mm"]))
+            pixel, origin = exr_placement(attrs, what="design.path", path=path)
+            return np.asarray(chans[channel], dtype=np.float64), pixel, origin
         if suffix == ".npy":
+            check_npy(path, what="design.path")  # header, dtype, size: before loading
             try:
                 z = np.load(path, allow_pickle=False)
-            except ValueError as err:
+            except (ValueError, OSError, EOFError) as err:
                 raise InputError(f"design.path {str(path)!r} is not a plain .npy array: {err}") from None
-            if not np.issubdtype(z.dtype, np.number):
-                raise InputError(f"design.path {str(path)!r} must hold numbers, got dtype {z.dtype}")
             return np.asarray(z, dtype=np.float64), None, None
         raise InputError(f"design.path must end in .exr or .npy, received {str(path)!r}")
 
@@ -211,10 +210,10 @@ class HeightMapSurface(Surface):
 class HeightMapConfig(Section):
     """A height map loaded from EXR (channel ``channel``) or .npy, interpolated."""
     type: Literal["heightmap"]
-    path: str
-    channel: str = "design"
-    pixel: float | None = Field(None, gt=0, description="mm; required for .npy")
-    origin: tuple[float, float] | None = Field(None, description="mm, centre of pixel [0, 0]; .npy")
+    path: str = Field(..., min_length=1, max_length=4096, pattern=r"^[^\x00]*$")
+    channel: str = Field("design", min_length=1, max_length=256)
+    pixel: float | None = Field(None, gt=0, le=1e3, description="mm; required for .npy")
+    origin: tuple[Length, Length] | None = Field(None, description="mm, centre of pixel [0, 0]; .npy")
     interpolation: Literal["linear", "cubic"] = "cubic"
 
 

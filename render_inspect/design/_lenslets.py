@@ -14,7 +14,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..core.errors import InputError, check_positive
-from ..core.section import Section
+from ..core.section import MAX_LENGTH_MM, Length, Section
 from ._base import Surface
 from ._registry import register_design
 
@@ -37,7 +37,8 @@ def lens_radius_from_sag(aperture_radius: float, sag: float) -> float:
 def _cap_derivs(dx, dy, inside, radius, sign):
     """Gradient and Hessian of ``sign * sag(s)`` where ``inside`` (0 elsewhere)."""
     s2 = dx * dx + dy * dy
-    w = np.sqrt(np.maximum(radius * radius - s2, 1e-300))
+    # outside the apertures the derivatives are 0: keep w away from 0 there (no 0 * inf)
+    w = np.sqrt(np.where(inside, np.maximum(radius * radius - s2, 1e-300), 1.0))
     w3 = w ** 3
     k = np.where(inside, sign, 0.0)
     gx, gy = k * dx / w, k * dy / w
@@ -325,17 +326,17 @@ class LensletArrayConfig(Section):
     type: Literal["lenslet_array"]
     rows: int = Field(2, ge=1, le=1000)
     cols: int = Field(2, ge=1, le=1000)
-    pitch_x: float = Field(..., gt=0, description="mm, centre spacing along x")
-    pitch_y: float = Field(..., gt=0, description="mm, centre spacing along y")
+    pitch_x: float = Field(..., gt=0, le=MAX_LENGTH_MM, description="mm, centre spacing along x")
+    pitch_y: float = Field(..., gt=0, le=MAX_LENGTH_MM, description="mm, centre spacing along y")
     lens_radius: float | None = Field(None, gt=0, description="mm, radius of curvature of each lenslet")
     sag: float | None = Field(None, gt=0, description="mm, chord height of a round lenslet "
                                                       "(instead of lens_radius)")
     aperture_radius: float | None = Field(None, gt=0, description="mm, round cells only")
     concave: bool = True
     cells: Literal["round", "quad"] = "round"
-    center_x: float = 0.0
-    center_y: float = 0.0
-    offset: float = 0.0
+    center_x: Length = 0.0
+    center_y: Length = 0.0
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _aperture(self):
@@ -348,8 +349,9 @@ class LensletArrayConfig(Section):
                 raise ValueError("aperture_radius is required for cells = 'round'")
             half = min(self.pitch_x, self.pitch_y) / 2
             if self.aperture_radius > half:
-                raise ValueError(f"aperture_radius must be <= half the smaller pitch ({half:g} mm; "
-                                 f"round lenslets may not overlap), received {self.aperture_radius}")
+                raise ValueError(f"aperture_radius must be <= half the smaller pitch ({half:g} mm: "
+                                 f"pitch_x = {self.pitch_x:g}, pitch_y = {self.pitch_y:g}; round "
+                                 f"lenslets may not overlap), received {self.aperture_radius}")
             if self.sag is not None and self.sag >= self.aperture_radius:
                 raise ValueError(f"sag must be < aperture_radius ({self.aperture_radius} mm, a "
                                  f"lenslet is at most a hemisphere), received {self.sag}")
@@ -365,21 +367,26 @@ class LensletArrayConfig(Section):
                                  f"aperture is the pitch), received {self.aperture_radius}")
             half_diag = 0.5 * (self.pitch_x ** 2 + self.pitch_y ** 2) ** 0.5
             if half_diag >= self.lens_radius:
-                raise ValueError(f"lens_radius must be > half the cell diagonal ({half_diag:g} mm) "
-                                 f"for cells = 'quad', received {self.lens_radius}")
+                raise ValueError(f"lens_radius must be > half the cell diagonal ({half_diag:g} mm from "
+                                 f"pitch_x = {self.pitch_x:g}, pitch_y = {self.pitch_y:g}) for "
+                                 f"cells = 'quad', received {self.lens_radius}")
         return self
+
+
+#: most elements a ``lenslet_rings`` design may have
+MAX_RING_ELEMENTS = 1_000_000
 
 
 class LensletRingsConfig(Section):
     """Lenslets (spherical elements) on concentric rings (seed 004)."""
     type: Literal["lenslet_rings"]
-    ring_radii: list[float] = Field(..., min_length=1, description="mm, ring radii")
-    counts: list[int] = Field(..., min_length=1, description="elements per ring")
+    ring_radii: list[Length] = Field(..., min_length=1, max_length=10_000, description="mm, ring radii")
+    counts: list[int] = Field(..., min_length=1, max_length=10_000, description="elements per ring")
     element_radius: float = Field(..., gt=0, description="mm, plane (aperture) radius of an element")
     depth: float = Field(..., gt=0, description="mm, sag of an element")
     concave: bool = True
-    phase_deg: float = 0.0
-    offset: float = 0.0
+    phase_deg: float = Field(0.0, ge=-360, le=360)
+    offset: Length = 0.0
 
     @model_validator(mode="after")
     def _lengths(self):
@@ -392,6 +399,24 @@ class LensletRingsConfig(Section):
             raise ValueError(f"counts must be >= 1, received {self.counts}")
         if self.depth >= self.element_radius:
             raise ValueError(f"depth must be < element_radius ({self.element_radius}), received {self.depth}")
+        if any(c > MAX_RING_ELEMENTS for c in self.counts) or sum(self.counts) > MAX_RING_ELEMENTS:
+            raise ValueError(f"counts must add up to at most {MAX_RING_ELEMENTS} elements, received "
+                             f"{sum(self.counts)}")
+        a = self.element_radius
+        for i, (r, n) in enumerate(zip(self.ring_radii, self.counts)):
+            if r == 0 and n > 1:
+                raise ValueError(f"counts must be 1 for a ring of radius 0 (ring {i}), received {n}")
+            if n > 1 and 2 * r * math.sin(math.pi / n) < 2 * a * (1 - 1e-12):
+                raise ValueError(
+                    f"element_radius must let the {n} elements of ring {i} (radius {r} mm) sit "
+                    f"side by side without overlapping: at most {r * math.sin(math.pi / n):.6g} "
+                    f"mm, received {a}; use fewer elements or a larger ring radius")
+        rs = sorted(self.ring_radii)
+        for r0, r1 in zip(rs[:-1], rs[1:]):
+            if r1 - r0 < 2 * a * (1 - 1e-12):
+                raise ValueError(f"ring_radii must be at least 2 * element_radius = {2 * a:g} mm "
+                                 f"apart (elements may not overlap), received rings at {r0} and "
+                                 f"{r1} mm")
         return self
 
 

@@ -25,7 +25,7 @@ from pydantic import Field, model_validator
 
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.frames import Frames
-from ..core.section import Section
+from ..core.section import Length, Region, Section
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
@@ -50,6 +50,7 @@ __all__ = [
     "InterferometerConfig",
     "disturbances_from_config",
     "interferometer_geometry",
+    "interferometer_memory",
     "microscope_from_config",
     "read_interferogram_exr",
     "render_interferogram",
@@ -62,6 +63,8 @@ DEFAULT_PSI_WAVELENGTH_NM = 550.0
 DEFAULT_PSI_BANDWIDTH_NM = 10.0
 DEFAULT_CSI_WAVELENGTH_NM = 600.0
 DEFAULT_CSI_BANDWIDTH_NM = 120.0
+#: Narrowest source band (nm) other than 0 (a line): a narrower Gaussian underflows.
+MIN_BANDWIDTH_NM = 1e-3
 #: Largest number of sub-samples per pixel side chosen automatically.
 MAX_AUTO_SUBSAMPLES = 6
 
@@ -83,11 +86,11 @@ class InterferometerConfig(Section):
     illumination_na: float | None = Field(None, ge=0, le=0.95,
                                           description="condenser NA; None = filled pupil, 0 = one on-axis wave")
     central_obscuration: float = Field(0.0, ge=0, le=0.9, description="fraction of the pupil radius")
-    pixel: float | None = Field(None, gt=0, description="mm at the part; overrides the preset")
-    field_of_view: tuple[float, float, float, float] | None = Field(None, description="mm, [x0, y0, x1, y1]")
+    pixel: float | None = Field(None, ge=1e-6, le=1.0, description="mm at the part; overrides the preset")
+    field_of_view: Region | None = Field(None, description="mm, [x0, y0, x1, y1]")
     steps: int = Field(4, ge=3, le=16, description="PSI frames")
     step_rad: float = Field(1.5707963267948966, gt=0, lt=6.283185307179586, description="PSI phase step")
-    scan_step_nm: float | None = Field(None, gt=0, le=10000,
+    scan_step_nm: float | None = Field(None, ge=1, le=10000,
                                        description="CSI scan step; None = lambda_eff / 8")
     frames: int | None = Field(None, ge=8, le=4096,
                                description="CSI frames; None = heights + 4.5 envelopes either side")
@@ -116,10 +119,13 @@ class InterferometerConfig(Section):
     reference_figure_rms_nm: float = Field(0.0, ge=0, le=1000, description="reference mirror figure")
     reference_figure_correlation_mm: float = Field(0.02, gt=0)
     reference_figure_seed: int = Field(0, ge=0)
-    reference_height: float | None = Field(None, description="PSI z_ref, mm (default: mean height in the field)")
+    reference_height: Length | None = Field(None, description="PSI z_ref, mm (default: mean height in the field)")
 
     @model_validator(mode="after")
     def _apertures(self):
+        if self.bandwidth_nm is not None and 0 < self.bandwidth_nm < MIN_BANDWIDTH_NM:
+            raise ValueError(f"render.interferometer.bandwidth_nm must be 0 (a line) or >= "
+                             f"{MIN_BANDWIDTH_NM:g} nm, received {self.bandwidth_nm!r}")
         na = (self.numerical_aperture if self.numerical_aperture is not None
               else OBJECTIVES[self.objective].numerical_aperture)
         if self.illumination_na is not None and self.illumination_na > na:
@@ -262,6 +268,55 @@ def interferometer_geometry(heightmap, icfg) -> dict:
             "trace_window": [x0 - m * pixel, y0 - m * pixel, x0 + (nx + m) * pixel,
                              y0 + (ny + m) * pixel],
             "wavelength_nm": float(wl), "bandwidth_nm": float(bw)}
+
+
+#: bytes per ray-traced sub-sample (Mitsuba's ray and hit arrays, heights and normals,
+#: the complex field of each wavelength sample and its temporaries): measured 63-68 B
+#: (peak resident memory of the 20x preset, 1024 x 1024 pixels, 1 to 5 sub-samples)
+BYTES_PER_SUBSAMPLE = 72
+#: bytes per camera pixel and frame: PSI (a few frames: float64 frames, float32 copy with
+#: noise, the written channels); CSI (a float32 stack exposed in place, and its
+#: written channels): measured 8 B for 95 frames of 1024 x 1024 pixels
+BYTES_PER_FRAME_PIXEL = 8 + 8 + 4 + 4
+BYTES_PER_CSI_FRAME_PIXEL = 10
+#: the renderer's own working memory (Mitsuba / Dr.Jit start-up, the traced mesh's
+#: acceleration structure of a preset field): measured about 280 MiB
+RENDERER_BYTES = 256 * 2 ** 20
+
+
+def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
+                          max_slope: float | None = None) -> int:
+    """Bytes the interferometer needs at its peak for the geometry ``geom``
+    (:func:`interferometer_geometry`): the sub-sample rays over the field and its margin
+    (``subsamples``; when automatic, what slopes up to ``max_slope`` (rad; default the
+    steepest that returns light) ask for, at most :data:`MAX_AUTO_SUBSAMPLES`), the frames (PSI: ``steps``; CSI: ``frames``, or when
+    automatic the least a scan needs, the coherence envelope either side of one height:
+    the scan over the heights' range is checked again by the imaging model, which refuses
+    stacks over :data:`~render_inspect.instruments._imaging.MAX_STACK_BYTES`) and the
+    mesh of the field (``mesh_cells`` height-map cells)."""
+    nx, ny, m = int(geom["nx"]), int(geom["ny"]), int(geom.get("margin", 0))
+    mic = microscope_from_config(icfg)
+    if icfg.subsamples is not None:
+        s = int(icfg.subsamples)
+    else:
+        s = min(recommended_subsamples(float(geom["pixel"]), mic, max_slope=max_slope),
+                MAX_AUTO_SUBSAMPLES)
+    per_frame = BYTES_PER_FRAME_PIXEL
+    if icfg.mode == "psi":
+        frames = int(icfg.steps)
+    elif icfg.frames is not None:
+        per_frame = BYTES_PER_CSI_FRAME_PIXEL
+        frames = int(icfg.frames)
+    else:
+        lam = mic.effective_wavelength_nm()
+        step = icfg.scan_step_nm if icfg.scan_step_nm is not None else lam / 8
+        sigma = mic.coherence_sigma()
+        span_nm = 2 * 4.5 / sigma * 1e6 if sigma > 0 else 4 * lam
+        frames = int(math.ceil(span_nm / step)) + 1
+        per_frame = BYTES_PER_CSI_FRAME_PIXEL
+    rays = (nx + 2 * m) * (ny + 2 * m) * s * s
+    return int(RENDERER_BYTES + rays * BYTES_PER_SUBSAMPLE
+               + frames * nx * ny * per_frame + mesh_cells * 2 * 48)
 
 
 def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):

@@ -8,15 +8,31 @@ nc), ``frames`` (``interferogram.exr``; TIFF / PNG stacks with a settings JSON),
 """
 
 from ._atomic import (
+                      MARKER,
                       atomic_output_dir,
                       atomic_write_bytes,
+                      atomic_write_stream,
                       atomic_write_text,
+                      check_output_dir,
+                      check_output_path,
+                      claim_output_dir,
                       json_safe,
+                      read_marker,
                       write_json,
+                      write_marker,
 )
-from ._exr import read_exr, write_exr
+from ._exr import exr_placement, read_exr, write_exr
 from ._frames import FRAME_CHANNELS, read_frames_exr, write_frames_exr
 from ._heightmap import heightmap_attrs, read_heightmap_exr, write_heightmap_exr
+from ._limits import (
+                      check_exr,
+                      check_npy,
+                      check_npz,
+                      check_real_array,
+                      check_x3p,
+                      check_zip,
+                      read_json_file,
+)
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
 from ._png import save_height_png, save_map_png, save_png
@@ -29,6 +45,7 @@ from ._toolpath import (
                       nc_comment_text,
                       read_csv,
                       read_nc,
+                      read_program_nc,
                       read_toolpath_npz,
                       write_csv,
                       write_nc,
@@ -40,14 +57,18 @@ from ._toolpath import (
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
 
-__all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "write_json", "json_safe",
+__all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
+           "check_output_path", "check_output_dir", "claim_output_dir", "read_marker", "write_marker", "MARKER",
+           "write_json", "json_safe",
            "read_exr", "write_exr", "save_png", "save_map_png", "read_x3p", "write_x3p",
            "read_measured", "measured_formats", "read_frames_exr", "write_frames_exr",
            "FRAME_CHANNELS", "read_frame_stack", "write_measurement_exr", "STACK_EXTENSIONS",
            "read_heightmap_exr", "write_heightmap_exr", "heightmap_attrs",
            "formats", "reader", "writer", "register_reader", "register_writer",
-           "export_program", "nc_comment_text", "read_csv", "read_nc", "write_csv", "write_nc",
+           "export_program", "nc_comment_text", "read_csv", "read_nc", "read_program_nc", "write_csv", "write_nc",
            "read_toolpath_npz", "write_toolpath_npz", "write_program_csv", "write_program_nc",
-           "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "save_height_png",
+           "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "check_exr", "check_npy",
+           "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file",
+           "exr_placement", "save_height_png",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain"]

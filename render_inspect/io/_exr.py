@@ -18,6 +18,7 @@ Compression is a choice of speed against size, measured on a 16 M-sample height 
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from numba import njit, prange
 
 from ..core.errors import InputError
 from ._atomic import _umask
+from ._limits import check_exr
 from ._pyramid import heightmap_block_sums, level_count, means
 
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
@@ -140,31 +142,97 @@ def read_exr_overview(path: str | Path) -> tuple[dict[str, np.ndarray], int] | N
     path = Path(path)
     if not path.is_file():
         raise InputError(f"EXR file not found: {str(path)!r}")
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        parts = f.parts
-        if len(parts) < 2:
-            return None
-        p = parts[1]
-        chans = {name: np.array(ch.pixels, dtype=np.float32, copy=True) for name, ch in p.channels.items()}
-        meta = json.loads(dict(p.header).get("render_inspect_attrs_json", "{}"))
-    return chans, int(meta.get("overview_factor", 0))
+    h, w, n = check_exr(path, what="EXR file")
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:
+            if len(f.parts) < 2:
+                return None
+            (x0, y0), (x1, y1) = (tuple(int(v) for v in p) for p in f.parts[1].header["dataWindow"])
+        # the overview is a reduced copy: never larger than the full map
+        if (x1 - x0 + 1) * (y1 - y0 + 1) > h * w:
+            raise InputError(f"EXR file {str(path)!r}: its overview part is larger than the map")
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            p = f.parts[1]
+            chans = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
+                     for name, ch in p.channels.items()}
+            meta = json.loads(dict(p.header).get("render_inspect_attrs_json", "{}"))
+        factor = int(meta.get("overview_factor", 0)) if isinstance(meta, dict) else 0
+    except InputError:
+        raise
+    except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged data
+        raise InputError(f"EXR file {str(path)!r}: the overview part cannot be read "
+                         f"({type(err).__name__}: {err})") from None
+    return chans, factor
 
 
-def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
+def _safe_repr(v) -> str:
+    """repr of a header value (OpenEXR's opaque attributes may fail to print)."""
+    try:
+        text = repr(v)
+    except Exception:  # an undecodable opaque attribute
+        text = f"<{type(v).__name__}>"
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _positive_number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and v > 0
+
+
+def exr_placement(attrs: dict, *, what: str, path, pair: bool = False):
+    """(pixel, (x, y)) from the ``pixel_size_mm`` and ``origin_mm`` header attributes,
+    checked: a finite pixel > 0 and two finite numbers (mm); else :class:`InputError`.
+    With ``pair`` the pixel may also be ``[x, y]`` and comes back as (pixel_x, pixel_y)."""
+    for key in ("pixel_size_mm", "origin_mm"):
+        if key not in attrs:
+            raise InputError(f"{what} {str(path)!r}: the EXR header lacks {key!r}; it is needed "
+                             f"to place the map in mm")
+    p, o = attrs["pixel_size_mm"], attrs["origin_mm"]
+    if pair and isinstance(p, (list, tuple)) and len(p) == 2 and all(_positive_number(v) for v in p):
+        p = (float(p[0]), float(p[1]))
+    elif _positive_number(p):
+        p = (float(p), float(p)) if pair else float(p)
+    else:
+        allowed = "a finite number > 0 (or [x, y] of them)" if pair else "a finite number > 0"
+        raise InputError(f"{what} {str(path)!r}: header pixel_size_mm must be {allowed}, "
+                         f"received {_safe_repr(p)}")
+    if not (isinstance(o, (list, tuple)) and len(o) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in o)):
+        raise InputError(f"{what} {str(path)!r}: header origin_mm must be [x, y], two finite "
+                         f"numbers (mm), received {_safe_repr(o)}")
+    return p, (float(o[0]), float(o[1]))
+
+
+def read_exr(path: str | Path, *, what: str = "EXR file", budget=None
+             ) -> tuple[dict[str, np.ndarray], dict]:
     """Return (channels, attrs).  Numbers come back exact (from the JSON text);
-    JSON-text attributes are decoded."""
+    JSON-text attributes are decoded.
+
+    The header is checked first (:func:`~render_inspect.io._limits.check_exr`: a real EXR
+    whose data window fits ``budget``); a damaged file raises :class:`InputError` naming
+    ``what``."""
     import OpenEXR
 
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"EXR file not found: {str(path)!r}")
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        header = dict(f.header())
-        channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
-                    for name, ch in f.channels().items()}
+        raise InputError(f"{what}: EXR file not found: {str(path)!r}")
+    check_exr(path, what=what, budget=budget)
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            header = dict(f.header())
+            channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
+                        for name, ch in f.channels().items()}
+    except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged data
+        raise InputError(f"{what} {str(path)!r} cannot be read: damaged or truncated EXR "
+                         f"({type(err).__name__}: {err})") from None
     exact = {}
     if "render_inspect_attrs_json" in header:
-        exact = json.loads(header.pop("render_inspect_attrs_json"))
+        try:
+            exact = json.loads(header.pop("render_inspect_attrs_json"))
+        except (TypeError, ValueError):
+            raise InputError(f"{what} {str(path)!r}: damaged render_inspect_attrs_json "
+                             f"attribute") from None
+        if not isinstance(exact, dict):
+            exact = {}
     attrs = {}
     for k, v in header.items():
         if k in _RESERVED:
@@ -177,7 +245,7 @@ def read_exr(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
             except json.JSONDecodeError:
                 attrs[k] = v
         elif isinstance(v, bytes):
-            attrs[k] = v.decode()
+            attrs[k] = v.decode("utf-8", "replace")
         else:
             attrs[k] = v
     return channels, attrs

@@ -58,13 +58,21 @@ def read_frames_exr(path) -> tuple[Frames, dict, dict]:
     attrs : dict
         The whole header.
     """
-    ch, a = read_exr(path)
+    ch, a = read_exr(path, what="frames file")
     if "intensity" not in ch and not any(k.startswith("frame_") for k in ch):
         raise InputError(f"{path}: no interferometer frames (channels: {sorted(ch)}); expected "
                          f"'frame_000', 'frame_001', ... or 'intensity'")
     for key in ("pixel_size_mm", "origin_mm", "wavelength_nm", "mode"):
         if key not in a:
             raise InputError(f"{path}: header lacks {key!r}, which measuring the frames needs")
+    try:
+        return _frames_from(path, ch, a)
+    except (TypeError, ValueError, KeyError, IndexError) as err:
+        raise InputError(f"frames file {str(path)!r}: a header attribute or channel is not what "
+                         f"the frames need ({type(err).__name__}: {err})") from None
+
+
+def _frames_from(path, ch: dict, a: dict):
     names = sorted(k for k in ch if k.startswith("frame_"))
     stack = np.stack([ch[k] for k in names]) if names else ch["intensity"][None]
     valid = ch["valid"] > 0.5 if "valid" in ch else np.ones(stack.shape[1:], dtype=bool)

@@ -11,7 +11,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
-from ._exr import read_exr, write_height_channels
+from ._exr import exr_placement, read_exr, write_height_channels
 from ._registry import register_writer
 
 __all__ = ["write_heightmap_exr", "read_heightmap_exr", "heightmap_attrs", "grid_attrs"]
@@ -48,11 +48,12 @@ def read_heightmap_exr(path: str | Path) -> HeightMap:
     for name in ("design", "machined"):
         if name not in ch:
             raise InputError(f"{path}: EXR has no channel {name!r} (channels: {sorted(ch)})")
-    if "pixel_size_mm" not in attrs or "origin_mm" not in attrs:
-        raise InputError(f"{path}: EXR lacks pixel_size_mm / origin_mm header attributes")
+    pixel, origin = exr_placement(attrs, what="height map", path=path)
+    if ch["design"].shape != ch["machined"].shape:
+        raise InputError(f"{path}: channels design and machined differ in shape")
     scene = attrs.get("scene")
     meta = attrs.get("meta", {})
     return HeightMap(ch["design"].astype(np.float64), ch["machined"].astype(np.float64),
-                     float(attrs["pixel_size_mm"]), tuple(attrs["origin_mm"]),
+                     pixel, origin,
                      scene if isinstance(scene, dict) else None,
                      meta if isinstance(meta, dict) else {})

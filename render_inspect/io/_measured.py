@@ -21,15 +21,24 @@ squared), and the units the file itself declares (``meta["units_in_file"]``).
 
 from __future__ import annotations
 
-import json
+import math
 import warnings
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import InputError
-from ._exr import read_exr
+from ._exr import exr_placement, read_exr
+from ._limits import (
+    check_file_values,
+    check_npy,
+    check_npz,
+    check_real_array,
+    check_values,
+    read_json_file,
+)
 from ._registry import formats, reader, register_reader
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
@@ -56,7 +65,7 @@ def _register(*suffixes, name: str):
 
 
 def _to_mm(name: str, units) -> float:
-    if units not in UNIT_TO_MM:
+    if not isinstance(units, str) or units not in UNIT_TO_MM:
         raise InputError(f"{name}: units must be one of {sorted(UNIT_TO_MM)}, got {units!r}")
     return UNIT_TO_MM[units]
 
@@ -103,14 +112,18 @@ class MeasuredMap:
 
 # -- readers ------------------------------------------------------------------------------
 
+#: what the readers' messages call the file
+_WHAT = "measured file"
+
+
 @_register(".x3p", name="x3pio")
 def _read_x3p(path, **_):
-    return read_x3p_xy(path)
+    return read_x3p_xy(path, what=_WHAT)
 
 
 @_register(".exr", name="render_inspect")
 def _read_exr(path, *, channel=None, **_):
-    ch, attrs = read_exr(path)
+    ch, attrs = read_exr(path, what=_WHAT)
     if channel is None:
         for c in ("measured", "height", "machined", "Z", "z"):
             if c in ch:
@@ -122,27 +135,55 @@ def _read_exr(path, *, channel=None, **_):
             channel = next(iter(ch))
     if channel not in ch:
         raise InputError(f"{path}: EXR has no channel {channel!r} (channels: {sorted(ch)})")
-    for key in ("pixel_size_mm", "origin_mm"):
-        if key not in attrs:
-            raise InputError(f"{path}: EXR header lacks {key!r}; it is needed to place the map in mm")
+    pxy, origin = exr_placement(attrs, what=_WHAT, path=path, pair=True)
     units = attrs.get("units", "mm")
     z = ch[channel].astype(np.float64) * _to_mm(f"{path} header 'units'", units)
-    o = attrs["origin_mm"]
-    p = attrs["pixel_size_mm"]
-    pxy = (float(p), float(p)) if np.ndim(p) == 0 else (float(p[0]), float(p[1]))
-    return z, pxy, (float(o[0]), float(o[1])), {
+    return z, pxy, origin, {
         "format": "exr", "channel": channel, "scene": attrs.get("scene"),
         "units_in_file": {"lateral": "mm", "vertical": units}}
 
 
 @_register(".zarr", name="zarr")
 def _read_zarr(path, *, channel=None, region=None, **_):
-    z = ZarrHeightMap(path)
+    z = ZarrHeightMap(path, what=_WHAT)
     channel = channel or "machined"
     rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
+    check_values(path, what=_WHAT, desc=f"a {rows.stop - rows.start} x {cols.stop - cols.start} window",
+                 count=(rows.stop - rows.start) * (cols.stop - cols.start))
     data = z.read(channel, rows, cols).astype(np.float64)
     origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
     return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _sidecar_values(path, side: dict, pixel, origin, units):
+    """pixel ((x, y) mm, or None), origin (x, y mm) and units from the arguments or the
+    side-car, checked."""
+    pixel = pixel if pixel is not None else side.get("pixel_mm")
+    origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
+    units = units or side.get("units", "mm")
+    if isinstance(pixel, np.ndarray):
+        pixel = pixel.tolist()
+    if isinstance(pixel, np.generic):
+        pixel = pixel.item()
+    if pixel is not None:
+        pxy = [pixel, pixel] if not isinstance(pixel, (list, tuple)) else list(pixel)
+        if len(pxy) != 2 or not all(_finite_number(v) and v > 0 for v in pxy):
+            raise InputError(f"{path}: pixel_mm must be a finite number > 0 (or [x, y] of them) "
+                             f"(mm), received {pixel!r}")
+        pixel = (float(pxy[0]), float(pxy[1]))
+    if isinstance(origin, np.ndarray):
+        origin = origin.tolist()
+    if not (isinstance(origin, (list, tuple)) and len(origin) == 2
+            and all(_finite_number(o) for o in origin)):
+        raise InputError(f"{path}: origin_mm must be [x, y], two finite numbers (mm), received "
+                         f"{origin!r}")
+    if not isinstance(units, str):
+        raise InputError(f"{path}: units must be one of {sorted(UNIT_TO_MM)}, received {units!r}")
+    return pixel, (float(origin[0]), float(origin[1])), units
 
 
 @_register(".npy", ".npz", name="numpy")
@@ -150,29 +191,30 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
     path = Path(path)
     side = {}
     sidecar = path.with_suffix(".json")
-    if path.suffix == ".npz":
-        with np.load(path) as npz:
-            key = next((k for k in ("z", "height", "measured") if k in npz.files), None)
+    try:
+        if path.suffix.lower() == ".npz":
+            members = check_npz(path, what=_WHAT)
+            key = next((k for k in ("z", "height", "measured") if k in members), None)
             if key is None:
-                raise InputError(f"{path}: .npz needs an array 'z' (heights), has {npz.files}")
-            z = np.array(npz[key], dtype=np.float64)
-            for k in ("pixel_mm", "origin_mm", "units"):
-                if k in npz.files:
-                    side[k] = npz[k].tolist()
-    else:
-        z = np.load(path, allow_pickle=False).astype(np.float64)
-        if sidecar.is_file():
-            side = json.loads(sidecar.read_text())
-    pixel = pixel if pixel is not None else side.get("pixel_mm")
-    origin = origin if origin is not None else side.get("origin_mm", (0.0, 0.0))
-    units = units or side.get("units", "mm")
-    if pixel is None:
+                raise InputError(f"{path}: .npz needs an array 'z' (heights), has {sorted(members)}")
+            check_real_array(members[key][1], members[key][0], what=_WHAT, name=f"{path}:{key}")
+            with np.load(path, allow_pickle=False) as npz:
+                z = np.array(npz[key], dtype=np.float64)
+                for k in ("pixel_mm", "origin_mm", "units"):
+                    if k in npz.files:
+                        side[k] = npz[k].tolist()
+        else:
+            check_npy(path, what=_WHAT)
+            z = np.load(path, allow_pickle=False).astype(np.float64)
+            if sidecar.is_file():
+                side = read_json_file(sidecar, what=f"{_WHAT} side-car")
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+        raise InputError(f"{_WHAT} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
+    pxy, origin, units = _sidecar_values(path, side, pixel, origin, units)
+    if pxy is None:
         raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
                          f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')
-    pxy = (float(pixel), float(pixel)) if np.ndim(pixel) == 0 else tuple(float(v) for v in pixel)
-    if len(pxy) != 2:
-        raise InputError(f"{path}: pixel_mm must be one number or [x, y], got {pixel!r}")
-    return z * _to_mm(f"{path} units", units), pxy, (float(origin[0]), float(origin[1])), {
+    return z * _to_mm(f"{path} units", units), pxy, origin, {
         "format": path.suffix[1:], "units_in_file": {"lateral": "mm", "vertical": units}}
 
 
@@ -192,7 +234,15 @@ def _read_surface_topography(path, **_):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            t = cls(str(path)).topography()
+            rd = cls(str(path))
+            # the grid the file declares, checked before the heights are read
+            for ch in rd.channels[:1]:
+                n = ch.nb_grid_pts
+                check_values(path, what=_WHAT, desc=f"a {' x '.join(str(int(v)) for v in n)} grid",
+                             count=math.prod(int(v) for v in n))
+            t = rd.topography()
+    except InputError:
+        raise
     except Exception as err:  # the readers raise their own and builtin errors on bad files
         raise InputError(f"{path}: SurfaceTopography's {cls.__name__} could not read it "
                          f"({type(err).__name__}: {err})") from None
@@ -220,6 +270,9 @@ _SURFALIZE_ONLY = (".sur", ".sdf", ".os3d", ".zmg", ".sflz", ".hdat")
 def _read_surfalize(path, **_):
     import surfalize
 
+    # surfalize reads the whole file at once: the file's size bounds what it can declare
+    # (2-byte heights at the least)
+    check_file_values(path, what=_WHAT, bytes_per_value=2)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -235,11 +288,13 @@ def _read_surfalize(path, **_):
 
 @_register(".tmd", name="render_inspect")
 def _read_tmd(path, **_):
+    check_file_values(path, what=_WHAT, bytes_per_value=4)  # float32 heights
     return read_tmd(path)
 
 
 @_register(".nms", name="render_inspect")
 def _read_nms(path, **_):
+    check_file_values(path, what=_WHAT, bytes_per_value=2)  # uint16 codes
     return read_nms(path)
 
 

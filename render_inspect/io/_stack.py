@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -32,12 +33,18 @@ from .. import __version__
 from ..core.errors import InputError
 from ..core.frames import Frames
 from ._exr import write_exr
+from ._limits import check_values, read_json_file
 from ._registry import register_reader, register_writer
 
 __all__ = ["STACK_EXTENSIONS", "read_frame_stack", "write_measurement_exr"]
 
 #: Image files a frame stack may be made of.
 STACK_EXTENSIONS = (".tif", ".tiff", ".png")
+
+
+#: what a damaged or unusual image file raises in Pillow
+_IMAGE_ERRORS = (OSError, ValueError, SyntaxError, EOFError, TypeError, IndexError, KeyError,
+                 struct.error)
 
 
 def _images(path: Path) -> list[np.ndarray]:
@@ -48,14 +55,31 @@ def _images(path: Path) -> list[np.ndarray]:
     if not files:
         raise InputError(f"{path}: no frames (a multi-page TIFF, or a folder of "
                          f"{'/'.join(STACK_EXTENSIONS)} images)")
+    # the sizes the files declare, against the memory budget, before any pixel is decoded
+    count = 0
+    try:
+        for f in files:
+            with Image.open(f) as im:
+                count += im.size[0] * im.size[1] * int(getattr(im, "n_frames", 1))
+    except (Image.DecompressionBombError, *_IMAGE_ERRORS) as err:
+        raise InputError(f"frame stack {str(path)!r}: an image cannot be read "
+                         f"({type(err).__name__}: {err})") from None
+    check_values(path, what="frame stack", desc=f"{len(files)} image file(s) of "
+                                                 f"{count} pixels in all", count=count)
     out = []
-    for f in files:
-        with Image.open(f) as im:
-            for page in ImageSequence.Iterator(im):
-                a = np.asarray(page)
-                if a.ndim == 3:  # RGB(A): use the luminance the camera would record
-                    a = a[..., :3].astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-                out.append(a)
+    try:
+        for f in files:
+            with Image.open(f) as im:
+                for page in ImageSequence.Iterator(im):
+                    a = np.asarray(page)
+                    if a.ndim == 3:  # RGB(A): use the luminance the camera would record
+                        a = a[..., :3].astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+                    out.append(a)
+    except (Image.DecompressionBombError, *_IMAGE_ERRORS) as err:
+        raise InputError(f"frame stack {str(path)!r}: an image cannot be read "
+                         f"({type(err).__name__}: {err})") from None
+    if any(a.ndim != 2 or a.dtype.kind not in "uif" for a in out):
+        raise InputError(f"{path}: the frames must be grey or colour images of numbers")
     shapes = {a.shape for a in out}
     if len(shapes) != 1:
         raise InputError(f"{path}: the frames differ in size: {sorted(shapes)}")
@@ -101,13 +125,17 @@ def read_frame_stack(path, settings=None, **_) -> Frames:
         if not sp.is_file():
             raise InputError(f"{path}: settings file {str(sp)!r} not found; give the instrument "
                              f"settings as JSON (mode, pixel_size_mm, wavelength_nm, ...)")
-        try:
-            settings = json.loads(sp.read_text())
-        except json.JSONDecodeError as e:
-            raise InputError(f"{sp}: not valid JSON ({e.msg}, line {e.lineno})") from None
+        settings = read_json_file(sp, what="settings file")
     if not isinstance(settings, dict):
         raise InputError(f"settings must be a JSON object, got {type(settings).__name__}")
-    s = dict(settings)
+    try:
+        return _stack_frames(path, dict(settings))
+    except (TypeError, ValueError, IndexError, KeyError, OverflowError) as err:
+        raise InputError(f"{path}: a settings value is not what the frames need "
+                         f"({type(err).__name__}: {err})") from None
+
+
+def _stack_frames(path: Path, s: dict) -> Frames:
     mode = s.get("mode")
     if mode not in ("psi", "csi"):
         raise InputError(f"settings mode must be 'psi' or 'csi', got {mode!r}")
@@ -152,6 +180,16 @@ def read_frame_stack(path, settings=None, **_) -> Frames:
             raise InputError(f"settings scan_positions_mm must list one position per frame ({n}), "
                              f"got {scan.size}")
     origin = s.get("origin_mm", [0.0, 0.0])
+    if not (isinstance(origin, (list, tuple)) and len(origin) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in origin)):
+        raise InputError(f"settings origin_mm must be [x, y], two finite numbers (mm), got "
+                         f"{origin!r}")
+    for name, v in (("effective_wavelength_nm", lam_eff), ("z_ref_mm", z_ref)):
+        if not math.isfinite(v):
+            raise InputError(f"settings {name} must be a finite number, got {v!r}")
+    if not np.all(np.isfinite(scan)):
+        raise InputError("settings: the phase steps / scan positions must be finite numbers")
     return Frames(frames=stack, valid=np.ones(stack.shape[1:], dtype=bool), pixel=pixel,
                   origin=(float(origin[0]), float(origin[1])), mode=mode, wavelength_nm=wl,
                   numerical_aperture=float(s.get("numerical_aperture", 0.0)),

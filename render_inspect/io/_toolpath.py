@@ -5,8 +5,8 @@ NC program (``toolpath.nc``), a generic, documented dialect (ISO 6983 words):
 
 ```
 ; render_inspect generic C-X-Z turning program
-; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)
-; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)
+; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]
+; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]
 ; software_version: 0.1.0
 ; scene: rcse_circular_array
 ; spindle_rpm: 42
@@ -34,9 +34,10 @@ CSV (``toolpath.csv``), one row per point, header
 (rho cos theta, rho sin theta), ``z_mm`` Z, ``theta_rad`` = C in rad, ``rho_mm`` = X axis.
 Full double precision (``repr``-exact, 17 significant digits).
 
-Text that reaches a program (names, comments) is reduced to printable ASCII without
-control characters, and ``;``, ``(`` and ``)`` are replaced, so no scene text can start a
-block of its own (:func:`nc_comment_text`).
+Every comment line, the program's own and those carrying scene text (names, comments),
+is one ``;`` line of printable ASCII without control characters, with ``;``, ``(`` and
+``)`` replaced (:func:`nc_comment_text`), so no text can start a block of its own or open
+a comment in a dialect that uses parentheses; scene text never reaches the CSV files.
 """
 
 from __future__ import annotations
@@ -50,12 +51,17 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
-from ._atomic import atomic_write_bytes, atomic_write_text
+from ._atomic import atomic_write_stream
+from ._limits import check_npz
 from ._registry import register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
-           "export_program", "nc_comment_text", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS"]
+           "export_program", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
+           "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS"]
+
+#: rows formatted at a time by the writers (their memory does not grow with the program)
+CHUNK_ROWS = 16384
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
 PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")
@@ -85,7 +91,7 @@ def nc_comment_text(value) -> str:
 
 
 def _header_lines(title: str, info: dict) -> list[str]:
-    lines = [f"; {title}"]
+    lines = [f"; {nc_comment_text(title)}"]
     for k, v in info.items():
         if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
             raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
@@ -101,8 +107,8 @@ def _turning_header(header: dict | None, toolpath) -> list[str]:
             info[k] = meta[k]
     info.update(header or {})
     lines = _header_lines("render_inspect generic C-X-Z turning program", {})
-    lines += ["; units: mm, deg (C cumulative: it keeps counting past 360 over the spiral)",
-              "; time: inverse-time feed (G93); F = 1 / (minutes of the move ending at the block)"]
+    lines += ["; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]",
+              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]"]
     return lines + _header_lines("", info)[1:]
 
 
@@ -148,14 +154,19 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -
     lines = _turning_header(hdr, toolpath)
     lines.append("G90 G93")
     f = "{:.%df}" % decimals
-    cs = [f.format(v) for v in c]
-    xs = [f.format(v) for v in x]
-    zs = [f.format(v) for v in z]
-    feed = ["%.10g" % v for v in (60.0 / dt)] if n > 1 else []
-    lines.append(f"N1 G01 C{cs[0]} X{xs[0]} Z{zs[0]}")
-    lines.extend(f"N{i + 1} G01 C{cs[i]} X{xs[i]} Z{zs[i]} F{feed[i - 1]}" for i in range(1, n))
-    lines.append("M30")
-    return atomic_write_text(path, "\n".join(lines) + "\n")
+
+    def write(fh):
+        fh.write(("\n".join(lines) + "\n").encode("ascii"))
+        for a in range(0, n, CHUNK_ROWS):
+            b = min(a + CHUNK_ROWS, n)
+            rows = []
+            for i in range(a, b):
+                words = f"N{i + 1} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
+                rows.append(words if i == 0 else words + " F%.10g" % (60.0 / dt[i - 1]))
+            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+        fh.write(b"M30\n")
+
+    return atomic_write_stream(path, write)
 
 
 def read_nc(path):
@@ -220,18 +231,30 @@ def read_nc(path):
     return ToolPath(np.radians(np.asarray(C)), np.asarray(X), np.asarray(Z), t, meta)
 
 
+def _write_rows(fh, columns, header: str, fmt) -> None:
+    """CSV rows of ``columns`` (callables of a slice -> array), :data:`CHUNK_ROWS` at a
+    time, each value formatted with ``fmt`` (one format, or one per column)."""
+    fmts = [fmt] * len(columns) if isinstance(fmt, str) else list(fmt)
+    row = ",".join(fmts)
+    fh.write((header + "\n").encode("ascii"))
+    n = len(columns[0](slice(0, None)))
+    for a in range(0, n, CHUNK_ROWS):
+        s = slice(a, min(a + CHUNK_ROWS, n))
+        data = zip(*(col(s).tolist() for col in columns))
+        fh.write(("\n".join(row % r for r in data) + "\n").encode("ascii"))
+
+
 def write_csv(path, toolpath) -> Path:
     """Write ``toolpath`` as CSV with header ``t_s,c_deg,x_mm,z_mm,theta_rad,rho_mm,y_mm``
-    (atomic; full double precision).  Returns the Path."""
-    import io
-
+    (atomic; full double precision; written in pieces).  Returns the Path."""
     th = np.asarray(toolpath.theta, dtype=np.float64)
     rho = np.asarray(toolpath.rho, dtype=np.float64)
-    data = np.column_stack([toolpath.t, np.degrees(th), rho * np.cos(th), toolpath.z, th, rho,
-                            rho * np.sin(th)])
-    buf = io.StringIO()
-    np.savetxt(buf, data, delimiter=",", fmt="%.17g", header=",".join(CSV_COLUMNS), comments="")
-    return atomic_write_text(path, buf.getvalue())
+    t = np.asarray(toolpath.t, dtype=np.float64)
+    z = np.asarray(toolpath.z, dtype=np.float64)
+    cols = [lambda s: t[s], lambda s: np.degrees(th[s]), lambda s: rho[s] * np.cos(th[s]),
+            lambda s: z[s], lambda s: th[s], lambda s: rho[s], lambda s: rho[s] * np.sin(th[s])]
+    return atomic_write_stream(path, lambda fh: _write_rows(fh, cols, ",".join(CSV_COLUMNS),
+                                                              "%.17g"))
 
 
 def read_csv(path):
@@ -249,15 +272,25 @@ def read_csv(path):
                     col["t_s"].copy())
 
 
+def _savez(fh, **arrays) -> None:
+    """``numpy.savez`` into an open binary file: the same archive (stored ``NAME.npy``
+    members), with a fixed member date so the same arrays give the same bytes, and the
+    archive closed even when a write fails."""
+    import zipfile
+
+    with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            with zf.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(arr), allow_pickle=False)
+
+
 @register_writer("toolpath", ".npz")
 def write_toolpath_npz(path, toolpath: ToolPath, **_) -> Path:
     """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
-    import io
-
-    buf = io.BytesIO()
-    np.savez(buf, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y,
-             z=toolpath.z, t=toolpath.t)
-    return atomic_write_bytes(path, buf.getvalue())
+    return atomic_write_stream(path, lambda fh: _savez(
+        fh, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y, z=toolpath.z,
+        t=toolpath.t))
 
 
 def read_toolpath_npz(path) -> ToolPath:
@@ -265,6 +298,7 @@ def read_toolpath_npz(path) -> ToolPath:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"tool-path file not found: {str(path)!r}")
+    check_npz(path, what="tool-path file")
     with np.load(path, allow_pickle=False) as d:
         return ToolPath(d["theta"].copy(), d["rho"].copy(), d["z"].copy(), d["t"].copy())
 
@@ -278,23 +312,17 @@ register_writer("toolpath", ".nc")(
 @register_writer("program", ".npz")
 def write_program_npz(path, program: LinearProgram, **_) -> Path:
     """Write a sculpturing program as ``toolpath.npz``: arrays x, y, z, t, line."""
-    import io
-
-    buf = io.BytesIO()
-    np.savez(buf, x=program.x, y=program.y, z=program.z, t=program.t, line=program.line)
-    return atomic_write_bytes(path, buf.getvalue())
+    return atomic_write_stream(path, lambda fh: _savez(
+        fh, x=program.x, y=program.y, z=program.z, t=program.t, line=program.line))
 
 
 @register_writer("program", ".csv")
 def write_program_csv(path, program: LinearProgram, **_) -> Path:
     """One row per point, header ``t_s,x_mm,y_mm,z_mm,line``."""
-    import io
-
-    rows = np.column_stack([program.t, program.x, program.y, program.z, program.line])
-    buf = io.StringIO()
-    np.savetxt(buf, rows, fmt=["%.9f", "%.6f", "%.6f", "%.6f", "%d"], delimiter=",",
-               header=",".join(PROGRAM_CSV_COLUMNS), comments="")
-    return atomic_write_text(path, buf.getvalue())
+    cols = [lambda s: program.t[s], lambda s: program.x[s], lambda s: program.y[s],
+            lambda s: program.z[s], lambda s: program.line[s]]
+    return atomic_write_stream(path, lambda fh: _write_rows(
+        fh, cols, ",".join(PROGRAM_CSV_COLUMNS), ["%.9f", "%.6f", "%.6f", "%.6f", "%d"]))
 
 
 @register_writer("program", ".nc")
@@ -303,21 +331,90 @@ def write_program_nc(path, program: LinearProgram, *, header: dict | None = None
     """A generic X-Y-Z program (``G90 G94 G21``, ``G01`` moves at the cutting speed
     ``feed_mm_per_min``), a ``; line k`` comment before each target line."""
     vc = feed_mm_per_min if feed_mm_per_min is not None else program.meta.get("feed_mm_per_min")
-    if vc is None or not vc > 0:
+    if vc is None or isinstance(vc, bool) or not (vc > 0 and math.isfinite(vc)):
         raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
     info = {"software_version": __version__}
     info.update(header or {})
-    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program (mm, mm/min)", info)
+    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program [mm, mm/min]", info)
     lines.append("G90 G94 G21")
-    prev = None
     x, y, z, ln = program.x, program.y, program.z, program.line
-    for i in range(program.points):
-        if ln[i] != prev:
-            lines.append(f"; line {int(ln[i])}")
-            prev = ln[i]
-        lines.append(f"N{i + 1} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{vc:g}")
-    lines.append("M30")
-    return atomic_write_text(path, "\n".join(lines) + "\n")
+    for name, arr in (("x", x), ("y", y), ("z", z)):
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"LinearProgram.{name} has non-finite values at index "
+                             f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
+    feed = nc_comment_text(f"{float(vc):g}")
+
+    def write(fh):
+        fh.write(("\n".join(lines) + "\n").encode("ascii"))
+        prev = None
+        for a in range(0, program.points, CHUNK_ROWS):
+            rows = []
+            for i in range(a, min(a + CHUNK_ROWS, program.points)):
+                if ln[i] != prev:
+                    rows.append(f"; line {int(ln[i])}")
+                    prev = ln[i]
+                rows.append(f"N{i + 1} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{feed}")
+            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+        fh.write(b"M30\n")
+
+    return atomic_write_stream(path, write)
+
+
+def read_program_nc(path) -> LinearProgram:
+    """Parse an X-Y-Z program written by :func:`write_program_nc` back into a
+    :class:`LinearProgram` (``line`` from the ``; line k`` comments, ``t`` from the path
+    length at the ``F`` feed, mm/min).  Header ``; key: value`` lines become ``meta``.
+    Raises :class:`InputError` naming the line for malformed blocks."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"NC file not found: {str(path)!r}")
+    meta: dict = {}
+    X, Y, Z, L, F = [], [], [], [], []
+    cur = {"X": None, "Y": None, "Z": None, "F": None}
+    line_no = -1
+    with path.open("r", encoding="utf-8") as fh:
+        for lineno, raw in enumerate(fh, 1):
+            text = raw.strip()
+            if text.startswith(";"):
+                body = text[1:].strip()
+                m = re.fullmatch(r"line (\d+)", body)
+                if m:
+                    line_no = int(m.group(1))
+                elif ":" in body:
+                    k, v = body.split(":", 1)
+                    if re.fullmatch(r"[A-Za-z0-9_]+", k.strip()):
+                        meta[k.strip()] = v.strip()
+                continue
+            text = re.sub(r"\([^)]*\)", " ", text.split(";", 1)[0]).strip().upper()
+            if not text or text == "%":
+                continue
+            words = _WORD.findall(text)
+            rest = _WORD.sub("", text).strip()
+            if rest:
+                raise InputError(f"{path}:{lineno}: cannot parse {rest!r} in block {raw.strip()!r}")
+            d = dict(words)
+            if not any(k in d for k in ("X", "Y", "Z")):
+                continue
+            for k in ("X", "Y", "Z", "F"):
+                if k in d:
+                    cur[k] = float(d[k])
+                if cur[k] is None:
+                    raise InputError(f"{path}:{lineno}: first motion block lacks the {k} word")
+            X.append(cur["X"])
+            Y.append(cur["Y"])
+            Z.append(cur["Z"])
+            F.append(cur["F"])
+            L.append(line_no)
+    if not X:
+        raise InputError(f"{path}: no motion blocks (X/Y/Z words) found")
+    x, y, z, f = (np.asarray(v, dtype=np.float64) for v in (X, Y, Z, F))
+    if np.any(~(f > 0)):
+        raise InputError(f"{path}: F words must be > 0 (mm/min)")
+    seg = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
+    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / 60.0))])
+    if "points" in meta and meta["points"].isdigit() and int(meta["points"]) != x.size:
+        raise InputError(f"{path}: header says {meta['points']} points, the program has {x.size}")
+    return LinearProgram(x, y, z, t, np.asarray(L, dtype=np.int64), meta)
 
 
 def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = None,

@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import struct
 import zipfile
+import zlib
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -116,14 +117,26 @@ def _text(el, tag, default=None):
     return found.text.strip()
 
 
+#: what a damaged container or main.xml raises while it is read
+_X3P_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, ElementTree.ParseError,
+               OSError, EOFError, KeyError, ValueError, TypeError, AttributeError,
+               NotImplementedError, RuntimeError)
+
+
 def read_x3p_plain(path):
     """An X3P container whose ``main.xml`` has no namespace (and may sit in a sub-folder of
-    the archive): regular-grid surfaces (``FeatureType`` SUR, axes I/I/A) in metres."""
+    the archive): regular-grid surfaces (``FeatureType`` SUR, axes I/I/A) in metres.  A
+    damaged container, ``main.xml`` or point file is an :class:`InputError`."""
     path = Path(path)
     try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError) as err:
-        raise InputError(f"{path}: not a readable X3P (zip) container ({err})") from None
+        return _read_x3p_plain(path)
+    except _X3P_ERRORS as err:
+        raise InputError(f"{path}: not a readable X3P container ({type(err).__name__}: "
+                         f"{err})") from None
+
+
+def _read_x3p_plain(path: Path):
+    zf = zipfile.ZipFile(path)
     with zf:
         names = [n for n in zf.namelist() if not n.startswith("__MACOSX/")]
         mains = sorted((n for n in names if n.rsplit("/", 1)[-1] == "main.xml"), key=len)

@@ -17,6 +17,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
+from ._limits import check_x3p
 from ._vendor import read_x3p_plain
 
 __all__ = ["write_x3p", "read_x3p", "read_x3p_xy"]
@@ -66,8 +67,11 @@ def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | N
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def read_x3p(path: str | Path):
+def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
     """Read an X3P surface with square pixels (:func:`read_x3p_xy` for any pixels).
+
+    The archive and the grid size its ``main.xml`` declares are checked first
+    (:func:`~render_inspect.io._limits.check_x3p`: no zip bombs, sizes within ``budget``).
 
     Returns
     -------
@@ -80,15 +84,19 @@ def read_x3p(path: str | Path):
     meta : dict
         ``format`` = "x3p", ``pixel_x_mm``, ``pixel_y_mm``, ``comment``, ``instrument``, ``date``.
     """
-    z, (px, py), origin, meta = read_x3p_xy(path)
+    z, (px, py), origin, meta = read_x3p_xy(path, what=what, budget=budget)
     if not np.isclose(px, py, rtol=1e-6, atol=0):
         raise InputError(f"{path}: X3P pixels are not square ({px:.6g} x {py:.6g} mm); read it "
                          f"with read_surface / read_x3p_xy, which keep (pixel_x, pixel_y)")
     return z, px, origin, meta
 
 
-def read_x3p_xy(path: str | Path):
+def read_x3p_xy(path: str | Path, *, what: str = "X3P file", budget=None):
     """Read an X3P surface keeping both sampling distances.
+
+    The archive and the grid size its ``main.xml`` declares are checked first
+    (:func:`~render_inspect.io._limits.check_x3p`: no zip bombs, sizes within ``budget``,
+    bytes; default the automatic memory budget); ``what`` names the file in messages.
 
     Returns
     -------
@@ -105,7 +113,8 @@ def read_x3p_xy(path: str | Path):
 
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"X3P file not found: {str(path)!r}")
+        raise InputError(f"{what}: X3P file not found: {str(path)!r}")
+    check_x3p(path, what=what, budget=budget)
     try:
         f = x3pio.read(str(path))
     except x3pio.X3pError as err:
@@ -115,6 +124,8 @@ def read_x3p_xy(path: str | Path):
             return read_x3p_plain(path)
         except InputError as err2:
             raise InputError(f"{path}: not a readable X3P file ({err}; {err2})") from None
+    except (ValueError, OSError, EOFError) as err:
+        raise InputError(f"{path}: not a readable X3P file ({err})") from None
     if not isinstance(f, x3pio.Surface):
         raise InputError(f"{path}: X3P holds a {type(f).__name__}, only surfaces on a regular grid "
                          f"are supported")

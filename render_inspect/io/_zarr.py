@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ._exr import exr_placement
 from ._pyramid import block_sums, coarsen, level_count, level_shape, means
 
 CHANNELS = ("design", "machined", "residual")
@@ -115,23 +116,33 @@ class ZarrHeightMap:
     attrs : dict (all group attributes)
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, what: str = "heightmap store"):
         import zarr
 
         path = Path(path)
         if not path.is_dir():
-            raise InputError(f"heightmap store not found: {str(path)!r}")
+            raise InputError(f"{what} not found: {str(path)!r}")
         self.path = path
-        self.group = zarr.open_group(str(path), mode="r")
-        self.attrs = dict(self.group.attrs)
-        for k in ("pixel_size_mm", "origin_mm"):
-            if k not in self.attrs:
-                raise InputError(f"{path}: store lacks the {k!r} attribute")
-        self.pixel = float(self.attrs["pixel_size_mm"])
-        self.origin = tuple(float(v) for v in self.attrs["origin_mm"])
-        self.shape = tuple(self.group["machined"].shape)
-        self.scene = json.loads(self.attrs.get("scene") or "{}")
-        self.meta = json.loads(self.attrs.get("meta") or "{}")
+        try:
+            self.group = zarr.open_group(str(path), mode="r")
+            self.attrs = dict(self.group.attrs)
+            arrays = {name: self.group[name] for name in CHANNELS if name in self.group}
+        except Exception as err:  # zarr raises its own and builtin errors on damaged stores
+            raise InputError(f"{what} {str(path)!r} is not a readable Zarr store "
+                             f"({type(err).__name__}: {err})") from None
+        if "machined" not in arrays:
+            raise InputError(f"{what} {str(path)!r}: the store has no 'machined' array")
+        self.pixel, self.origin = exr_placement(self.attrs, what=what, path=path)
+        shape = tuple(int(n) for n in arrays["machined"].shape)
+        if len(shape) != 2 or any(a.shape != shape for a in arrays.values()):
+            raise InputError(f"{what} {str(path)!r}: its arrays must be 2-D and of one shape, "
+                             f"received {[tuple(a.shape) for a in arrays.values()]}")
+        self.shape = shape
+        try:
+            self.scene = json.loads(self.attrs.get("scene") or "{}")
+            self.meta = json.loads(self.attrs.get("meta") or "{}")
+        except (TypeError, ValueError):
+            raise InputError(f"{what} {str(path)!r}: damaged 'scene' or 'meta' attribute") from None
 
     @property
     def levels(self) -> list[dict]:

@@ -43,6 +43,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit, prange
 
+from ..core.errors import InputError
+
 TWO_PI = 2 * math.pi
 INV_2PI = 1.0 / TWO_PI
 #: side (pixels) of the square blocks the fast kernel works through
@@ -489,6 +491,11 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
     -------
     (ny, nx) float64: NaN where no pass reaches.
     """
+    n_points = int(np.size(path.theta))
+    if n_points < 2:
+        raise InputError(f"the tool path over simulation.region {list(region)} has "
+                         f"{n_points} point(s), at least 2 are needed: the region lies off the "
+                         f"turned part (process.workpiece_radius, process.inner_radius)")
     ep = prepare_envelope(path, nose_radius=nose_radius, half_width=half_width, slope_bound=slope_bound,
                           window=window)
     x0, y0, x1, y1 = region

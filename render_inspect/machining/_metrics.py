@@ -7,6 +7,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..core.errors import InputError
+
 MM_TO_NM = 1e6
 
 
@@ -28,7 +30,9 @@ def residual_metrics(residual, design=None) -> dict:
     d = np.ascontiguousarray(d, dtype=np.float64)
     n, mean, sa, sq, lo, hi = _stats(m, d)
     if n == 0:
-        raise ValueError("residual_metrics: no finite residual values (the path does not cover the region)")
+        raise InputError("simulation.region is not machined anywhere: no finite residual value "
+                         "(the tool path does not reach the region; move simulation.region onto "
+                         "the part or enlarge process.workpiece_radius)")
     sp, sv = hi - mean, mean - lo
     return {"Sa_nm": sa * MM_TO_NM, "Sq_nm": sq * MM_TO_NM,
             "Sp_nm": sp * MM_TO_NM, "Sv_nm": sv * MM_TO_NM, "Sz_nm": (sp + sv) * MM_TO_NM,

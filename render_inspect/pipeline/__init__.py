@@ -27,9 +27,9 @@ from ._demo import DEMO_SCENE, run_demo
 from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
 from ._metrics import lenslet_metrics, simulation_metrics
 from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
-from ._render import (interferogram_summary, part_heightmap, part_outline, render_diffuse_views,
-                      render_heightmap, run_render, tool_marks, write_diffuse_outputs,
-                      write_interferogram_outputs)
+from ._render import (check_render_limits, interferogram_summary, part_heightmap, part_outline,
+                      render_diffuse_views, render_heightmap, run_render, tool_marks,
+                      write_diffuse_outputs, write_interferogram_outputs)
 from ._simulate import Simulation, design_heightmap, run_simulate, simulate, write_simulation
 from ._sweep import find_sweep, run_point, run_sweep, shipped_sweeps, sweep_tasks
 from ._toolpath import plan_program, run_toolpath
@@ -50,4 +50,5 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "VARIANTS", "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS",
            "COMPARE_MAX_DIFFUSE_RESOLUTION", "COMPARE_MAX_DIFFUSE_SPP",
            "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
-           "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS"]
+           "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
+           "check_render_limits"]

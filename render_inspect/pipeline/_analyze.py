@@ -9,8 +9,8 @@ from pathlib import Path
 
 from .. import __version__
 from ..core.errors import InputError
-from ..io import (atomic_output_dir, json_safe, read_surface, save_height_png, write_json,
-                  write_x3p)
+from ..io import (atomic_output_dir, check_output_dir, json_safe, read_surface, save_height_png,
+                  write_json, write_x3p)
 from ..metrology import FORMS, OUTLIER_METHODS, analyze_map, parse_filter
 
 __all__ = ["run_analyze", "ANALYZE_FILES"]
@@ -22,7 +22,7 @@ MM_TO_NM = 1e6
 
 def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | None = None,
                 outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
-                x3p: bool = False, channel: str | None = None) -> dict:
+                x3p: bool = False, channel: str | None = None, overwrite: bool = False) -> dict:
     """Analyse one height map file and write the results.
 
     Parameters
@@ -31,7 +31,8 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
         Any file :func:`render_inspect.io.read_surface` reads (instrument formats, X3P,
         our ``heightmap.exr`` - channel ``machined`` unless ``channel`` says otherwise).
     out : str or Path
-        Output folder (written atomically).
+        Output folder: checked before the file is read, replaced as a whole when the
+        results are complete (:func:`~render_inspect.io.atomic_output_dir`).
     form : {"none", "plane", "poly2", "sphere"}
         Form removed before the parameters (``none``: the mean only).
     filter_spec : "S,L" text or (S, L), optional
@@ -43,6 +44,8 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     x3p : bool
         Also write ``height.x3p``: the evaluated surface (form removed, filtered; metres in
         the file as ISO 25178-72 requires).
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -51,6 +54,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
         metrics plus ``input``, ``files``, ``software_version``, ``timing_s``.
     """
     t0 = time.perf_counter()
+    check_output_dir(out, overwrite=overwrite, command="analyze")
     if form not in FORMS:
         raise InputError(f"--form must be one of {', '.join(FORMS)}, got {form!r}")
     if outliers not in OUTLIER_METHODS:
@@ -88,7 +92,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     title = (f"{Path(path).name}: {', '.join(parts)}\nSq {ar['Sq_nm']:.4g} nm, Sa "
              f"{ar['Sa_nm']:.4g} nm, Sz {ar['Sz_nm']:.4g} nm; pixel "
              f"{m.pixel[0] * 1e3:.4g} x {m.pixel[1] * 1e3:.4g} um")
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="analyze") as tmp:
         tmp = Path(tmp)
         save_height_png(tmp / "height.png", a.height * MM_TO_NM, extent=m.extent, title=title,
                         label="height (nm)")

@@ -24,6 +24,7 @@ from ..io import (
     atomic_output_dir,
     read_heightmap_exr,
     write_heightmap_exr,
+    write_marker,
     write_x3p,
 )
 from ..mesh import export_mesh, heightmap_mesh
@@ -134,7 +135,10 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
     result = {"scene_name": scene.name, "out": str(out.resolve()), "surface": surface,
               "pair": {"key": pair.key, "about": pair.about}, "variants": {}}
     first = None
-    with atomic_output_dir(out) as tmp:
+    # the variant folders are replaced; what else the add-on wrote there (compare/,
+    # export/) is kept
+    with atomic_output_dir(out, merge=True, command="blender simulate",
+                           option="output folder") as tmp:
         for i, v in enumerate(pair.variants):
             name = v.name
             sc = variant_scene(scene, v)
@@ -143,6 +147,8 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
             first = first or sim.heightmap
             (Path(tmp) / name).mkdir()
             metrics = write_simulation(sim, Path(tmp) / name)
+            # a folder of its own: the renders of this variant are added to it later
+            write_marker(Path(tmp) / name, command="simulate", scene=sc)
             result["variants"][name] = {
                 "heightmap": str((out / name / "heightmap.exr").resolve()),
                 "label": v.label, "values": dict(v.values),
@@ -274,7 +280,8 @@ def render_variant(heightmap, *, variant: str, surface: str = "machined",
             ig = render_interferogram(hm, sc.render.interferometer,
                                       surface="design" if surface == "design" else "machined",
                                       seed=int(sc.simulation.seed))
-            with atomic_output_dir(out) as tmp:
+            with atomic_output_dir(out, merge=True, command="interferometer", scene=sc,
+                                   option="output folder") as tmp:
                 summary = write_interferogram_outputs(Path(tmp), ig, scene=sc.to_dict())
             o = Path(out).resolve()
             result.update(interferogram_png=str(o / "interferogram_fringes.png"),
@@ -359,7 +366,7 @@ def export_variant(heightmap, *, variant: str, surface: str = "machined",
     hm = read_heightmap_exr(heightmap)
     out = Path(out)
     files = []
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, command="export", scene=hm.scene, option="output folder") as tmp:
         tmp = Path(tmp)
         if "EXR" in formats:
             progress(0.1, "EXR")
@@ -394,7 +401,8 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     overrides : sequence of str
         ``section.key=value`` overrides (the CLI's ``--set``).
     out : str, Path or None
-        Folder for ``heightmap.exr``; None: :func:`~render_inspect.render.default_output_dir`.
+        Folder for ``heightmap.exr``, replaced as a whole (a non-empty folder render_inspect
+        did not write is refused); None: :func:`~render_inspect.render.default_output_dir`.
     surface : {"machined", "design", "residual"}
         The height layer that becomes the mesh.
     exaggeration : float or None
@@ -415,16 +423,19 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
     scene = load_scene(scene_path, list(overrides))
     if exaggeration is not None:
         check_positive("exaggeration", exaggeration)
-    result = simulate(scene)
-    hm = result.heightmap
+    own = not out  # the add-on's own default folder may be replaced whatever it holds
+    out = Path(out) if out else default_output_dir(scene.name)
+    # the folder is checked and locked before the simulation, swapped in when complete
+    with atomic_output_dir(out, command="blender", scene=scene, option="output folder",
+                           overwrite=own) as tmp:
+        result = simulate(scene)
+        hm = result.heightmap
+        write_heightmap_exr(tmp / "heightmap.exr", hm)
     if exaggeration is None:
         exaggeration = scene.render.diffuse.exaggeration
     if exaggeration is None:  # the renderer's automatic choice for this height map
         exaggeration = auto_exaggeration(hm, surface)
     exaggeration = float(exaggeration)
-    out = Path(out) if out else default_output_dir(scene.name)
-    with atomic_output_dir(out) as tmp:
-        write_heightmap_exr(tmp / "heightmap.exr", hm)
     path = out.resolve() / "heightmap.exr"
     obj = surface_object(hm, surface=surface, exaggeration=exaggeration, collection=collection)
     obj[PROP_HEIGHTMAP] = str(path)

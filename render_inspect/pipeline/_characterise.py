@@ -286,7 +286,8 @@ def _csv(rows, keys) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0) -> dict:
+def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0,
+                     overwrite: bool = False) -> dict:
     """``render-inspect characterise --objective NAME --out DIR``.
 
     Parameters
@@ -300,6 +301,9 @@ def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0) -> dict:
         Fewer points and smaller fields (for tests).
     seed : int
         Seed of the camera noise.
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it (``out`` is checked and
+        locked before the instrument is characterised).
 
     Returns
     -------
@@ -308,10 +312,10 @@ def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0) -> dict:
         ``software_version``.
     """
     t0 = time.perf_counter()
-    metrics, figs = characterise_instrument(icfg, quick=quick, seed=seed)
-    out_m = {"software_version": __version__, "characterise": metrics,
-             "instrument_settings": icfg.model_dump(mode="json")}
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="characterise") as tmp:
+        metrics, figs = characterise_instrument(icfg, quick=quick, seed=seed)
+        out_m = {"software_version": __version__, "characterise": metrics,
+                 "instrument_settings": icfg.model_dump(mode="json")}
         tmp = Path(tmp)
         atomic_write_text(tmp / "itf.csv", _csv(metrics["itf"]["table"], [
             "frequency_per_mm", "period_um", "itf_optics", "itf_instrument", "itf_model",

@@ -34,6 +34,7 @@ from ..design import make_surface
 from ..instruments import interferometer_geometry, render_interferogram
 from ..io import (
     atomic_output_dir,
+    check_output_dir,
     atomic_write_bytes,
     atomic_write_text,
     json_safe,
@@ -63,6 +64,7 @@ from ..scene import apply_overrides, scene_from_dict
 from ._measure import measure_and_evaluate, measurement_outputs
 from ._render import (
     diffuse_caption,
+    check_render_limits,
     interferogram_summary,
     part_outline,
     render_diffuse_views,
@@ -532,7 +534,7 @@ def check_measured(path, scene, design_surface, *, force: bool = False):
 
 # --------------------------------------------------------------------------- compare
 def run_compare(scene, out, *, measured=None, vary: str | None = None,
-                force: bool = False) -> dict:
+                force: bool = False, overwrite: bool = False) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 
     Parameters
@@ -551,6 +553,8 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     force : bool
         Compare the measured map even when the checks refuse it (the reasons are kept in
         ``measured_file.checks`` and shown in the report).
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -563,6 +567,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     ``height.exr`` (what the instrument reports), the diffuse images and PNGs, the variant's ``metrics.json``; the figures (the first,
     ``difference.png``), ``metrics.json`` and ``report.html``.
     """
+    check_output_dir(out, overwrite=overwrite, command="compare", scene=scene)
     if measured is not None and not Path(measured).is_file():
         raise InputError(f"--measured file not found: {str(measured)!r}")
     _check_phase_settings(scene)
@@ -579,7 +584,9 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
         meas_map, _ = check_measured(measured, scene, design_surface, force=force)
     log.info("compare %s: %s (%s) vs %s (%s)", scene.name, variants[0].name, variants[0].label,
              variants[1].name, variants[1].label)
-    with atomic_output_dir(out) as tmp, task("compare", total=13) as t:
+    check_render_limits(scene, kind="all")
+    with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene) as tmp, \
+            task("compare", total=13) as t:
         tmp = Path(tmp)
         for v in variants:
             t.update(f"{v.name}: simulate")
@@ -882,7 +889,7 @@ def _figures(a: _Variant, b: _Variant, meas, *, pair, window, part, identical, f
     figs["diffuse_difference"] = F.map_panels(
         [(f"{names[0]} - {names[1]} (luminance)", (_luminance(rc) - _luminance(ru))[::-1])],
         extent=ext, label="linear luminance difference", cmap="RdBu_r", symmetric=True)
-    (rm, mm_), (rmb, mmb) = a.diffuse["macro"], b.diffuse["macro"]
+    (rm, mm_), (rmb, _) = a.diffuse["macro"], b.diffuse["macro"]
     sc = mm_["scale"]["mm_per_px_at_target"]
     bar = nice_length(0.2 * rm.shape[1] * sc)
     figs["diffuse_macro_side_by_side"] = F.image_panels(

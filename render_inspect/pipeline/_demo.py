@@ -17,11 +17,11 @@ log = logging.getLogger("render_inspect")
 DEMO_SCENE = "sts_sinusoidal_grid"
 
 
-def run_demo(out, *, quick: bool = False) -> dict:
+def run_demo(out, *, quick: bool = False, overwrite: bool = False) -> dict:
     """``render-inspect demo``: :func:`~render_inspect.pipeline.run_compare` on the
     shipped seed-000 grid (``quick``: a 0.5 mm window at 2 um, for tests)."""
     out = Path(out)
     overrides = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
     scene = load_scene(DEMO_SCENE, overrides)
     log.info("demo: scene %s -> %s", shipped_scenes()[DEMO_SCENE].name, out)
-    return run_compare(scene, out)
+    return run_compare(scene, out, overwrite=overwrite)

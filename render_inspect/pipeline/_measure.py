@@ -14,6 +14,7 @@ from ..core.errors import InputError
 from ..io import (
     STACK_EXTENSIONS,
     atomic_output_dir,
+    check_output_dir,
     read_exr,
     read_frame_stack,
     read_frames_exr,
@@ -100,7 +101,7 @@ def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
 
 
 def run_measure(path, out, *, algorithm: str = "auto", settings=None,
-                min_modulation: float = 0.05) -> dict:
+                min_modulation: float = 0.05, overwrite: bool = False) -> dict:
     """``render-inspect measure FRAMES --out DIR``: height from frames and settings alone.
 
     Parameters
@@ -117,6 +118,9 @@ def run_measure(path, out, *, algorithm: str = "auto", settings=None,
     settings : path, optional
         Settings JSON of a TIFF / PNG stack (default beside it).
     min_modulation : float
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it (``out`` is checked before
+        the frames are read and replaced as a whole when the results are complete).
 
     Returns
     -------
@@ -128,11 +132,12 @@ def run_measure(path, out, *, algorithm: str = "auto", settings=None,
         and never read.
     """
     t0 = time.perf_counter()
+    check_output_dir(out, overwrite=overwrite, command="measure")
     frames, ignored = read_frames(path, settings=settings)
     t1 = time.perf_counter()
     result = measure_frames(frames, algorithm=algorithm, min_modulation=min_modulation)
     t2 = time.perf_counter()
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="measure") as tmp:
         m = measurement_outputs(tmp, frames, result, source=str(path))
         m["ignored_channels"] = ignored
         metrics = {"software_version": __version__, "source": str(path), "measure": m,

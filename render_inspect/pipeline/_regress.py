@@ -42,7 +42,6 @@ from ..batch import (
     pass_statistics,
     read_case,
     read_reference,
-    replaced_dir,
     rgb_png,
     toml_value,
     write_reference,
@@ -50,7 +49,7 @@ from ..batch import (
 )
 from ..core.errors import InputError, SceneError
 from ..instruments import render_interferogram
-from ..io import atomic_write_bytes, write_exr, write_json
+from ..io import atomic_output_dir, atomic_write_bytes, check_output_dir, write_exr, write_json
 from ..metrology import measure_frames
 from ..render import variant_info
 from ..scene import find_scene, load_scene, scene_sections
@@ -302,7 +301,7 @@ def _compare(case, name, im, ref, settings, n_test) -> dict:
 
 
 def run_regress(*, update: bool = False, only=None, out=None, cases=None, references=None,
-                overrides=()) -> dict:
+                overrides=(), overwrite: bool = False) -> dict:
     """``render-inspect regress``: render every regression case and compare it with its
     reference (or, with ``update``, make the references anew).
 
@@ -315,7 +314,9 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
         Case names or glob patterns, comma-separated.
     out : path, optional
         Where the summary (``summary.html``, ``summary.json``) and, for every image that
-        differs, its PNGs and EXR go (default ``out/regress``); replaced whole.
+        differs, its PNGs and EXR go (default ``out/regress``): checked and locked before
+        anything is rendered, replaced whole when the run ends
+        (:func:`~render_inspect.io.atomic_output_dir`).
     cases : path, optional
         Folder of case files (default: the shipped ``scenes/regression``).
     references : path, optional
@@ -323,6 +324,8 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
     overrides : list of str
         ``KEY=VALUE`` applied to every case after its own (what-if checks; not with
         ``update``).
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -341,6 +344,7 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
     if update and overrides:
         raise InputError(f"--set cannot be used with --update (references come from the case "
                          f"files alone), got --set {list(overrides)}")
+    check_output_dir(out, overwrite=overwrite, command="regress")
     available = list_cases(cases_dir)
     if not available:
         raise InputError(f"no regression cases (*.toml) in {str(cases_dir)!r}")
@@ -350,7 +354,8 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
             "mitsuba_version": info["mitsuba_version"], "drjit_version": info["drjit_version"],
             "python": platform.python_version()}
     rows, failures = [], []
-    with replaced_dir(out) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="regress") as tmp:
+        tmp = Path(tmp)
         for name, path in selected.items():
             t0 = time.perf_counter()
             case = read_case(path, sections=scene_sections())

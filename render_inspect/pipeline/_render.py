@@ -12,8 +12,18 @@ from PIL import Image
 from PIL.PngImagePlugin import PngInfo
 
 from .. import __version__
-from ..core.errors import InputError
-from ..instruments import render_interferogram, write_interferogram_exr
+from ..core.errors import InputError, RenderInspectError
+from ..core.grid import Grid, grid_shape
+from ..core.heightmap import HeightMap
+from ..core.limits import Driver, check_memory, memory_budget
+from ..core.progress import task as progress_task
+from ..design import make_surface
+from ..instruments import (
+    interferometer_geometry,
+    interferometer_memory,
+    render_interferogram,
+    write_interferogram_exr,
+)
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
@@ -21,21 +31,88 @@ from ..io import (
     write_exr,
     write_json,
 )
-from ..core.heightmap import HeightMap
-from ..core.progress import task as progress_task
-from ..design import make_surface
 from ..machining import design_grid
+from ..render import MAX_FILM_SIDE, diffuse_memory, render_diffuse, variant_info
 from ..report import annotate_rgb, nice_length
-from ..render import render_diffuse, variant_info
 from ._simulate import design_heightmap, simulate, wants_tiles
 from ._views import BigMapViews, WholeMapViews, big_map_store
 
 __all__ = ["run_render", "render_heightmap", "write_interferogram_outputs", "write_diffuse_outputs",
            "interferogram_summary", "part_heightmap", "tool_marks", "part_outline",
-           "render_diffuse_views"]
+           "render_diffuse_views", "check_render_limits"]
 
 KINDS = ("interferometer", "diffuse", "all")
 SURFACES = ("design", "machined")
+
+
+def _design_slope(scene, window, n: int = 257) -> float | None:
+    """Largest slope (rad, 99.9th percentile) of the design over ``window``, from n x n
+    samples: what sets the automatic sub-sampling of the interferometer (the machined
+    surface follows the design); None when the design cannot be sampled."""
+    x0, y0, x1, y1 = (float(v) for v in window)
+    try:
+        surface = make_surface(scene.design)
+        x = np.linspace(x0, x1, n)
+        y = np.linspace(y0, y1, n)
+        z = np.asarray(surface.height(x[None, :], y[:, None]), dtype=np.float64)
+        gy, gx = np.gradient(z, y, x)
+    except RenderInspectError:
+        return None
+    g = np.hypot(gx, gy)
+    g = g[np.isfinite(g)]
+    return float(np.arctan(np.percentile(g, 99.9))) if g.size else None
+
+
+def check_render_limits(scene, *, kind: str = "all") -> dict:
+    """Check, before anything is simulated or rendered, that the images a scene asks for
+    are within what the renderers can do and within the memory budget.
+
+    Interferometer: the field of view and camera pixels (:func:`interferometer_geometry`:
+    at most 4096 x 4096 pixels) and the memory of the rays, frames and mesh.  Diffuse
+    light: image sides at most :data:`~render_inspect.render.MAX_FILM_SIDE` pixels (the
+    micro view's height follows the window's aspect), the film and mesh memory.  The
+    sample count is not limited: more than 2^26 samples are rendered in passes.
+
+    Returns
+    -------
+    dict
+        Estimated bytes per image (``interferometer``, ``diffuse_macro``, ``diffuse_micro``).
+    """
+    sim = scene.simulation
+    budget = memory_budget(sim.max_memory_gb)
+    shape = grid_shape(sim.region, sim.pixel)
+    grid = Grid((float(sim.region[0]), float(sim.region[1])), float(sim.pixel), shape)
+    need = {}
+    if kind in ("interferometer", "all"):
+        icfg = scene.render.interferometer
+        geom = interferometer_geometry(grid, icfg)
+        x0, y0, x1, y1 = geom["window"]
+        cells = min(shape[0] * shape[1], int(((x1 - x0) / sim.pixel + 5) * ((y1 - y0) / sim.pixel + 5)))
+        slope = _design_slope(scene, geom["trace_window"]) if icfg.subsamples is None else None
+        need["interferometer"] = check_memory(
+            interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=slope),
+            what=f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
+                 f"{icfg.subsamples}^2 rays each)", budget=budget,
+            drivers=[Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),
+                     Driver("render.interferometer.pixel", geom["pixel"], -2, "mm")])
+    if kind in ("diffuse", "all"):
+        dcfg = scene.render.diffuse
+        for view in ("macro", "micro"):
+            window = None
+            if view == "micro" and dcfg.window is not None:
+                window = [float(v) for v in dcfg.window]
+                ny_img = int(round(dcfg.resolution * (window[3] - window[1]) / (window[2] - window[0])))
+                if ny_img > MAX_FILM_SIDE:
+                    raise InputError(
+                        f"render.diffuse.window {window} is {ny_img / dcfg.resolution:.3g} times "
+                        f"taller than wide: at render.diffuse.resolution = {dcfg.resolution} the "
+                        f"micro image would be {ny_img} pixels high (at most {MAX_FILM_SIDE}); "
+                        f"widen the window or lower the resolution")
+            need[f"diffuse_{view}"] = check_memory(
+                diffuse_memory(dcfg, shape, view=view, window=window, pixel=sim.pixel),
+                what=f"the diffuse {view} image ({dcfg.resolution} pixels wide)", budget=budget,
+                drivers=[Driver("render.diffuse.resolution", dcfg.resolution, 2, limit=(16, None))])
+    return need
 
 
 def render_heightmap(scene, *, surface: str = "machined"):
@@ -230,33 +307,43 @@ def render_diffuse_views(scene, hm, dcfg, *, seed: int, surface: str = "machined
                          views=("micro", "macro"), part_hm=None) -> dict:
     """The diffuse images of a simulated part: ``micro`` (``dcfg.window`` of ``hm``,
     straight down) and ``macro`` (the whole part, :func:`part_heightmap`), both with the
-    scene's tool marks.  Returns view -> (rgb, meta)."""
+    scene's tool marks, their meshes within the scene's memory budget.  Returns view ->
+    (rgb, meta)."""
+    budget = memory_budget(scene.simulation.max_memory_gb)[0]
     marks = tool_marks(scene)
     out = {}
     for view in views:
         if view == "macro":
             phm = part_hm if part_hm is not None else part_heightmap(scene, hm, surface=surface)
             out[view] = render_diffuse(phm, dcfg, view="macro", surface=surface, seed=seed,
-                                       marks=marks, part=phm.meta.get("part", part_outline(scene)))
+                                       marks=marks, part=phm.meta.get("part", part_outline(scene)),
+                                       memory_budget=budget)
         else:
             out[view] = render_diffuse(hm, dcfg, view="micro", surface=surface, seed=seed,
-                                       marks=marks)
+                                       marks=marks, memory_budget=budget)
     return out
 
 
-def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None) -> dict:
+def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None,
+               overwrite: bool = False) -> dict:
     """Render ``scene`` into the folder ``out`` (written atomically).
 
     Parameters
     ----------
     scene : Scene
     out : path
-        Output folder; files already there are kept (``render`` can add to ``simulate``'s).
+        Output folder.  The images are added to a folder render_inspect wrote for the same
+        part (a ``simulate`` folder: design, tool, process, simulation and artifacts keys
+        equal), replacing the images of an earlier ``render`` there; the folder is swapped
+        in whole when complete.  A folder of another part, or one holding files
+        render_inspect did not write, is refused unless ``overwrite`` (then replaced).
     surface : {"machined", "design"}
         ``design`` renders the ideal surface (no machining).
     kind : {"interferometer", "diffuse", "all"}
     heightmap : HeightMap, optional
         Use this instead of simulating / sampling the scene.
+    overwrite : bool
+        Replace ``out`` even if render_inspect did not write it.
 
     Returns
     -------
@@ -272,6 +359,13 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         raise InputError(f"--kind must be one of {KINDS}, got {kind!r}")
     if surface not in SURFACES:
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
+    check_render_limits(scene, kind=kind)
+    with atomic_output_dir(out, overwrite=overwrite, merge=True, command="render",
+                           scene=scene) as tmp:
+        return _render_into(scene, out, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
+
+
+def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
     timing = {}
     t0 = time.perf_counter()
     with progress_task(f"{surface} height map"):
@@ -283,20 +377,20 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
                                   else render_heightmap(scene, surface=surface))
     timing["heightmap"] = time.perf_counter() - t0
     try:
-        return _render_views(scene, out, views, surface=surface, kind=kind, timing=timing)
+        return _render_views(scene, tmp, views, surface=surface, kind=kind, timing=timing)
     finally:
         if views.big:
             views.close()
 
 
-def _render_views(scene, out, views, *, surface: str, kind: str, timing: dict) -> dict:
+def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
     info = variant_info()
     res = {"mitsuba_variant": info["mitsuba_variant"], "mitsuba_version": info["mitsuba_version"],
            "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
     n_steps = (kind in ("interferometer", "all")) + 2 * (kind in ("diffuse", "all"))
-    with atomic_output_dir(out) as tmp, progress_task("render", total=n_steps) as t:
+    with progress_task("render", total=n_steps) as t:
         if kind in ("interferometer", "all"):
             t0 = time.perf_counter()
             t.update("render: interferogram")
@@ -316,8 +410,8 @@ def _render_views(scene, out, views, *, surface: str, kind: str, timing: dict) -
                 timing[f"diffuse_{view}"] = time.perf_counter() - t0
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
                 t.advance()
-        res["timing_s"] = timing
-        if views.big:
-            res["big_map"] = views.facts
-        write_json(Path(tmp) / "render_metrics.json", {"render": res})
+    res["timing_s"] = timing
+    if views.big:
+        res["big_map"] = views.facts
+    write_json(tmp / "render_metrics.json", {"render": res})
     return {"render": res}

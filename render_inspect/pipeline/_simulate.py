@@ -14,10 +14,12 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.grid import grid_shape
 from ..core.heightmap import HeightMap
+from ..core.limits import Driver, format_number, memory_budget
 from ..core.toolpath import ToolPath
 from ..design import make_surface
 from ..io import (
     atomic_output_dir,
+    atomic_write_text,
     write_heightmap_exr,
     write_json,
     write_toolpath_npz,
@@ -99,13 +101,15 @@ def simulate(scene, *, surface=None) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process kind plans its program for the region, the memory needed is
-    checked against ``simulation.max_memory_gb`` before and after planning, and the
+    checked against the memory budget (``simulation.max_memory_gb``, or a share of the
+    memory available) before and after planning, and the
     process cuts the surface; the metrics are built once
     (:func:`~render_inspect.pipeline.simulation_metrics`).
     """
     t_all = time.perf_counter()
     kind = process_of(scene)
     surface = surface if surface is not None else make_surface(scene.design)
+    kind.precheck(scene, tuple(scene.simulation.region))
     check_budget(scene, kind.estimate_memory(scene))
     sim = scene.simulation
     t0 = time.perf_counter()
@@ -246,15 +250,17 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
                    rcse=sim.cut.plots.get("rcse_kinematics.png"))
     metrics.setdefault("timing_s", {})["write"] = tw
     write_json(out_dir / "metrics.json", metrics)
-    (out_dir / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    atomic_write_text(out_dir / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return metrics
 
 
 def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
                 scheduler: str | None = None) -> bool:
     """Whether ``simulate`` takes the tiled path: when asked (``tiled``, ``workers`` or
-    ``scheduler``), or when the in-memory estimate exceeds ``simulation.max_memory_gb``
-    and the process supports tiles."""
+    ``scheduler``), or when the in-memory estimate (the process's ``estimate_memory``)
+    exceeds the memory budget (``simulation.max_memory_gb``, or the automatic share of
+    the memory available: :func:`~render_inspect.core.limits.memory_budget`) and the
+    process supports tiles."""
     if tiled is not None:
         return bool(tiled)
     if workers is not None or scheduler:
@@ -262,30 +268,35 @@ def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
     kind = process_of(scene)
     return kind.envelope_path is not None and scene.artifacts.burrs.height == 0 and \
         scene.material.preset == "ideal" and \
-        kind.estimate_memory(scene) > scene.simulation.max_memory_gb * 2 ** 30
+        kind.estimate_memory(scene) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 
 def run_simulate(scene, out, *, tiled: bool | None = None, workers: int | None = None,
-                 scheduler: str | None = None, tile: int = TILE) -> dict:
+                 scheduler: str | None = None, tile: int = TILE, overwrite: bool = False) -> dict:
     """``render-inspect simulate``: heightmap.exr (or heightmap.zarr for maps simulated
     tile by tile), metrics.json, toolpath.npz, residual.png, kinematics.png.
 
-    The tiled path is taken when the map does not fit ``simulation.max_memory_gb`` (or
-    when ``tiled`` is True, or ``workers`` / ``scheduler`` are given): tiles of ``tile``
+    The tiled path is taken when the map does not fit the memory budget (or when
+    ``tiled`` is True, or ``workers`` / ``scheduler`` are given): tiles of ``tile``
     pixels run on Dask (threads of this process; a LocalCluster of ``workers`` processes;
-    or the cluster at ``scheduler``)."""
+    or the cluster at ``scheduler``).
+
+    ``out`` is checked and locked before the simulation starts and replaced as a whole
+    when it is complete (:func:`~render_inspect.io.atomic_output_dir`; ``overwrite``
+    allows replacing a folder render_inspect did not write)."""
     if wants_tiles(scene, tiled=tiled, workers=workers, scheduler=scheduler):
-        return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile)
-    t0 = time.perf_counter()
-    sim = simulate(scene)
-    log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
-             time.perf_counter() - t0)
-    n = sim.heightmap.design.size
-    t0 = time.perf_counter()
-    # EXR (3 float32 channels, compressed) and the previews: ~1 M samples/s on the CI machine
-    with atomic_output_dir(out) as tmp, task(f"write the {n:,}-sample height map and previews",
-                                             total=1.0 + n / 1e6, timed=True):
-        metrics = write_simulation(sim, Path(tmp))
+        return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
+                                  overwrite=overwrite)
+    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
+        t0 = time.perf_counter()
+        sim = simulate(scene)
+        log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
+                 time.perf_counter() - t0)
+        n = sim.heightmap.design.size
+        t0 = time.perf_counter()
+        # EXR (3 float32 channels, compressed) and the previews: ~1 M samples/s on the CI machine
+        with task(f"write the {n:,}-sample height map and previews", total=1.0 + n / 1e6, timed=True):
+            metrics = write_simulation(sim, Path(tmp))
     r = metrics["residual"]
     log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
              time.perf_counter() - t0, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)
@@ -310,11 +321,28 @@ def _progress(label: str, step=None):
     return report
 
 
+def _tiled_check(scene, nbytes, *, tile: int, in_flight: int, points: int, workers, scheduler) -> int:
+    """The memory of a tiled simulation against the budget; the message names ``--tile``
+    (memory grows as its square) and the tiles in flight."""
+    where = ("on the cluster's workers" if scheduler else
+             f"{in_flight} at once" + ("" if workers else " (one per core)"))
+    return check_budget(
+        scene, nbytes, what=f"the tiled simulation (tiles of {tile} x {tile} pixels, {where}; "
+                            f"{format_number(points)} path points)",
+        drivers=[Driver("--tile", tile, 2, "pixels", limit=(64, None))],
+        hint="or run fewer tiles at once (--workers) or shrink simulation.region")
+
+
 def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str | None = None,
-                       tile: int = TILE) -> dict:
+                       tile: int = TILE, overwrite: bool = False) -> dict:
     """The tiled, out-of-core ``simulate`` (see :func:`run_simulate`): heightmap.zarr (with
     an area-averaged pyramid), metrics.json, scene.json, toolpath.npz, residual.png and
-    kinematics.png.  Memory is bounded by the tiles in flight, not by the map."""
+    kinematics.png.  Memory is bounded by the tiles in flight, not by the map.
+
+    ``out`` is checked and locked before the simulation starts, built beside it (the
+    store too: Dask workers on other machines need a file system they share with this
+    one) and swapped in whole when complete (``overwrite``: see
+    :func:`~render_inspect.io.atomic_output_dir`)."""
     t_all = time.perf_counter()
     kind = process_of(scene)
     if kind.envelope_path is None:
@@ -326,26 +354,37 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         raise InputError("the tiled simulation does not add burrs: artifacts.burrs.height must be 0 "
                          f"for maps simulated tile by tile, received {scene.artifacts.burrs.height}")
     sim = scene.simulation
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 65536
+            and tile % 64 == 0):
+        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 65536], received {tile!r}")
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)
     in_flight = 1 if scheduler else (workers or os.cpu_count() or 1)
-    budget = sim.max_memory_gb * 2 ** 30
-    est = tiled_bytes(tile, turning_points(scene), in_flight=in_flight) + machine_bytes(scene)
-    check_budget(scene, est)
+    # the whole program is planned in memory: its points against the budget first
+    kind.precheck(scene, tuple(sim.region))
+    n_est = turning_points(scene)
+    _tiled_check(scene, tiled_bytes(tile, n_est, in_flight=in_flight) + machine_bytes(scene),
+                 tile=tile, in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
     timing = {}
-    # the Dask workers start while the path is planned
-    with dask_client(workers=workers, scheduler=scheduler) as client, atomic_output_dir(out) as tmp:
+    # the folder is checked and locked first; the Dask workers start while the path is
+    # planned, and are shut down before the folder is swapped in
+    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp, \
+            dask_client(workers=workers, scheduler=scheduler) as client:
         t0 = time.perf_counter()
         plan = kind.plan(scene, surface, region=tuple(sim.region))
         timing.update(plan.timing)
         timing["toolpath"] = time.perf_counter() - t0
         path, meta = kind.envelope_path(scene, surface, plan)
+        if path.points < 2:
+            raise InputError(f"the tool path over simulation.region {list(sim.region)} has "
+                             f"{path.points} point(s), at least 2 are needed: the region lies off "
+                             f"the turned part (process.workpiece_radius, process.inner_radius)")
         tool = tool_of(scene)
         ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
-        est = tiled_bytes(tile, path.points, in_flight=in_flight) + machine_bytes(scene, plan)
-        if est > budget:
-            check_budget(scene, est)
+        est = _tiled_check(scene, tiled_bytes(tile, path.points, in_flight=in_flight)
+                           + machine_bytes(scene, plan), tile=tile, in_flight=in_flight,
+                           points=path.points, workers=workers, scheduler=scheduler)
         levels = level_count(shape)
         log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...", f"{shape[0] * shape[1]:,}",
                  len(plan_tiles(shape, tile)), tile, tile,
@@ -387,7 +426,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         timing["total"] = time.perf_counter() - t_all
         metrics["timing_s"] = dict(timing)
         write_json(tmp / "metrics.json", metrics)
-        (tmp / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+        atomic_write_text(tmp / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", residual["Sq_nm"], residual["Sz_nm"],
              residual["min_nm"], out)
     return metrics

@@ -38,7 +38,15 @@ from ..batch import (
     toml_value,
 )
 from ..core.errors import InputError, RenderInspectError, SceneError
-from ..io import atomic_output_dir, atomic_write_bytes, atomic_write_text, save_map_png, write_json
+from ..io import (
+    atomic_output_dir,
+    atomic_write_bytes,
+    atomic_write_text,
+    check_output_path,
+    claim_output_dir,
+    save_map_png,
+    write_json,
+)
 from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
@@ -147,7 +155,7 @@ def _point_outputs(scene, folder: Path, run: dict) -> dict:
     else:
         metrics = dict(sim.metrics)
         _residual_png(sim, folder / "residual.png")
-        (folder / "scene.json").write_text(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+        atomic_write_text(folder / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     if run["render"] != "none":
         metrics.update(run_render(scene, folder / "render", kind=run["render"],
                                   heightmap=sim.heightmap))
@@ -180,7 +188,8 @@ def run_point(task: dict) -> dict:
            "software_version": __version__}
     try:
         scene = scene_from_dict(task["scene"], source=f"sweep point {task['id']}")
-        with atomic_output_dir(folder) as tmp:
+        # the sweep owns its points' folders: an earlier one is replaced whatever it holds
+        with atomic_output_dir(folder, overwrite=True, command="sweep point", scene=scene) as tmp:
             metrics = _point_outputs(scene, Path(tmp), task["run"])
             rec.update(status="done", metrics=metrics, seconds=time.perf_counter() - t0)
             write_json(Path(tmp) / "point.json", rec)
@@ -253,8 +262,15 @@ def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: Resul
     return info
 
 
+def _is_sweep_folder(folder: Path) -> bool:
+    """A sweep's folder from before output folders were marked (``results.jsonl`` or
+    ``sweep.toml`` in it)."""
+    return (folder / "results.jsonl").is_file() or (folder / "sweep.toml").is_file()
+
+
 def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None = None,
-              retry_failed: bool = False, progress: bool | None = None) -> dict:
+              retry_failed: bool = False, progress: bool | None = None,
+              overwrite: bool = False) -> dict:
     """``render-inspect sweep``: run every point of a sweep file on Dask.
 
     Parameters
@@ -273,6 +289,9 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
         Run again the points recorded as failed.
     progress : bool, optional
         A progress bar (default: when stderr is a terminal; log lines otherwise).
+    overwrite : bool
+        Write the sweep into a non-empty folder that is not a sweep's (its files are left
+        in place); without it such a folder is refused before anything runs.
 
     Returns
     -------
@@ -283,8 +302,9 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     t_all = time.perf_counter()
     sweep_path = Path(sweep)
     spec = read_sweep(sweep_path, sections=scene_sections())
-    out = Path(out).resolve()
+    out = check_output_path(out, replaced=False)
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
+    claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
     with folder_lock(out):
         atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())
         results = ResultsLog(out / "results.jsonl")

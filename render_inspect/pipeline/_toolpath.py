@@ -6,6 +6,7 @@ import logging
 from pathlib import Path
 
 from .. import __version__
+from ..core.errors import InputError
 from ..core.toolpath import LinearProgram
 from ..design import make_surface
 from ..io import atomic_output_dir, export_program, write_json
@@ -21,18 +22,24 @@ def plan_program(scene, *, surface=None):
     the region its process plans for the ``toolpath`` command)."""
     kind = process_of(scene)
     surface = surface if surface is not None else make_surface(scene.design)
-    return kind.plan(scene, surface, region=kind.program_region(scene))
+    region = kind.program_region(scene)
+    kind.precheck(scene, region)
+    return kind.plan(scene, surface, region=region)
 
 
-def run_toolpath(scene, out, *, fmt: str = "npz"):
+def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
     """``render-inspect toolpath``: the program as ``toolpath.npz`` / ``.csv`` / ``.nc`` and
     ``toolpath.json`` (its facts: points, revolutions or lines, kinematics,
-    accessibility).  Returns the program."""
+    accessibility).  Returns the program.  ``out`` is checked and locked first and
+    replaced as a whole when complete (``overwrite``: see
+    :func:`~render_inspect.io.atomic_output_dir`)."""
+    if fmt not in ("npz", "csv", "nc"):
+        raise InputError(f"--format must be one of ['csv', 'nc', 'npz'], received {fmt!r}")
     kind = process_of(scene)
-    plan = plan_program(scene)
-    prog = plan.program
-    header = kind.program_header(scene)
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="toolpath", scene=scene) as tmp:
+        plan = plan_program(scene)
+        prog = plan.program
+        header = kind.program_header(scene)
         tmp = Path(tmp)
         export_program(prog, tmp, fmt=fmt, header=header)
         facts = dict(plan.facts)

@@ -15,6 +15,7 @@ from typing import Literal
 
 import numpy as np
 
+from ..core.errors import InputError
 from ..core.toolpath import ToolPath
 from ..machining import residual_metrics
 from ..toolpath import (
@@ -34,6 +35,7 @@ from ._turning import (
     toolpath_facts,
     turning_header,
     turning_memory,
+    turning_precheck,
 )
 
 __all__ = ["RcseProcessConfig", "rcse_comparison"]
@@ -70,6 +72,12 @@ def plan(scene, surface, *, region=None) -> Plan:
     layout = RingLayout.from_config(scene.design)
     t0 = time.perf_counter()
     r_range = None if region is None else region_radii(region, tool.half_width + 2 * p.feed_per_rev)
+    if r_range is not None and (r_range[0] > p.workpiece_radius or r_range[1] < p.inner_radius):
+        raise InputError(
+            f"simulation.region {list(region)} mm lies outside the turned part: the tool reaches "
+            f"it only between {r_range[0]:.6g} and {r_range[1]:.6g} mm from the spindle axis, "
+            f"but the spiral runs from process.workpiece_radius = {p.workpiece_radius:g} mm in to "
+            f"process.inner_radius = {p.inner_radius:g} mm; move the region or change those radii")
     ccps = rcse_ccps(layout, r_outer=p.workpiece_radius, pitch=p.feed_per_rev,
                      points_per_rev=p.points_per_rev, r_inner=p.inner_radius, r_range=r_range)
     t_ccps = time.perf_counter() - t0
@@ -296,4 +304,5 @@ def path_variants(scene) -> VariantPair:
 
 
 register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 precheck=turning_precheck,
                  program_header=turning_header, variants=path_variants)

@@ -20,6 +20,9 @@ Optional: ``program_region(scene)`` (the region the ``toolpath`` command plans; 
 whole part), ``program_header(scene)`` (NC header lines), ``variants(scene)`` (the pair
 ``compare`` puts side by side: a :class:`VariantPair`, the comparison that means something
 for this process, e.g. compensation on/off for turning, vibration on/off for sculpturing),
+``precheck(scene, region)`` (checks the sizes the process's own keys drive, such as the
+points of the program, against the memory budget before anything is planned, and names
+those keys when they do not fit),
 ``envelope_path(scene, surface, plan) -> (ToolPath, meta)`` (turning processes whose
 machined surface is the nose envelope of one path and nothing else: the tiled,
 out-of-core simulation computes it tile by tile).
@@ -33,8 +36,9 @@ from typing import Annotated, Callable, Union
 import numpy as np
 from pydantic import Discriminator, Tag
 
-from ..core.errors import MemoryBudgetError, SceneError
+from ..core.errors import SceneError
 from ..core.grid import grid_shape
+from ..core.limits import Driver, check_memory, memory_budget
 from ..core.plugins import literal_values
 
 __all__ = ["Plan", "Cut", "ProcessKind", "register_process", "process_kinds", "process_of",
@@ -155,6 +159,7 @@ class ProcessKind:
     program_region: Callable = _whole_part
     program_header: Callable = lambda scene: {}
     variants: Callable | None = None
+    precheck: Callable = lambda scene, region=None: None
     envelope_path: Callable | None = None
 
 
@@ -166,9 +171,12 @@ def register_process(config, *, plan: Callable, cut: Callable, estimate_memory: 
                      program_region: Callable | None = None,
                      program_header: Callable | None = None,
                      variants: Callable | None = None,
+                     precheck: Callable | None = None,
                      envelope_path: Callable | None = None) -> ProcessKind:
     """Register a process kind (see the module docstring)."""
     kwargs = {}
+    if precheck is not None:
+        kwargs["precheck"] = precheck
     if program_region is not None:
         kwargs["program_region"] = program_region
     if program_header is not None:
@@ -198,7 +206,7 @@ def process_of(scene) -> ProcessKind:
 
 def _discriminate(value):
     kind = value.get("kind", DEFAULT_KIND) if isinstance(value, dict) else getattr(value, "kind", None)
-    entry = _PROCESSES.get(kind)
+    entry = _PROCESSES.get(kind) if isinstance(kind, str) else None
     return entry.config.__name__ if entry is not None else None
 
 
@@ -219,15 +227,22 @@ def process_config_union():
     return _UNION
 
 
-def check_budget(scene, nbytes: int) -> int:
-    """Raise :class:`MemoryBudgetError` when ``nbytes`` exceeds
-    ``simulation.max_memory_gb``; return ``nbytes``."""
-    budget = scene.simulation.max_memory_gb * 2 ** 30
-    if nbytes > budget:
-        ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
-        raise MemoryBudgetError(
-            f"the simulation would need about {nbytes / 2**30:.2f} GiB ({ny} x {nx} samples) but "
-            f"simulation.max_memory_gb is {scene.simulation.max_memory_gb}; shrink "
-            f"simulation.region, increase simulation.pixel (each doubling quarters the memory) "
-            f"or raise simulation.max_memory_gb")
-    return nbytes
+def check_budget(scene, nbytes, *, what: str | None = None, drivers=None,
+                 hint: str | None = None) -> int:
+    """Raise :class:`~render_inspect.core.MemoryBudgetError` when ``nbytes`` exceeds the
+    scene's memory budget (``simulation.max_memory_gb``, or a share of the memory
+    available: :func:`~render_inspect.core.limits.memory_budget`); return ``nbytes``.
+
+    By default the message names the simulation grid and ``simulation.pixel`` (memory
+    grows as 1 / pixel^2) and says to shrink ``simulation.region``; ``what``,
+    ``drivers`` (:class:`~render_inspect.core.limits.Driver`) and ``hint`` override that.
+    """
+    sim = scene.simulation
+    if what is None:
+        ny, nx = grid_shape(sim.region, sim.pixel)
+        what = f"the simulation ({ny} x {nx} samples)"
+    if drivers is None:
+        drivers = [Driver("simulation.pixel", sim.pixel, -2, "mm", limit=(1e-6, 10))]
+        hint = hint or "or shrink simulation.region"
+    return check_memory(nbytes, what=what, budget=memory_budget(sim.max_memory_gb),
+                        drivers=drivers, hint=hint)

@@ -15,8 +15,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from ..core.errors import AccessibilityError, SceneError
+from ..core.errors import AccessibilityError, InputError, SceneError
 from ..core.grid import grid_shape
+from ..core.limits import Driver, format_number
 from ..core.section import Section
 from ..core.toolpath import LinearProgram
 from ..machining import (
@@ -29,7 +30,7 @@ from ..machining import (
     vibration_phases,
 )
 from ._mechanics import material_of, vibration_contact
-from ._registry import Cut, Plan, Variant, VariantPair, register_process
+from ._registry import Cut, Plan, Variant, VariantPair, check_budget, register_process
 from ._turning import burrs_of
 
 __all__ = ["SculptProcessConfig", "lattice_lines"]
@@ -95,6 +96,14 @@ def plan(scene, surface, *, region=None) -> Plan:
         ia = max(int(np.searchsorted(y_edges, y0 - reach, side="right")) - 2, 0)
         ib = min(int(np.searchsorted(y_edges, y1 + reach, side="left")) + 1, len(y_edges) - 1)
         y_edges = y_edges[ia:ib + 1]
+    if not used or y_edges.size < 2:
+        d = scene.design
+        raise InputError(
+            f"simulation.region {list(region)} mm lies outside the lenslet array: its "
+            f"{len(x_lines)} target lines run at x = {float(x_lines[0]):.6g} .. "
+            f"{float(x_lines[-1]):.6g} mm (design.center_x = {d.center_x:g}, pitch_x = "
+            f"{d.pitch_x:g}) over y = {float(y_line_start):.6g} .. "
+            f"{float(y_line_start) + d.rows * d.pitch_y:.6g} mm; move the region onto the array")
     lines = [target_line(surface, x_lines[k], y_edges, step=scene.process.arc_length)
              for k in used]
     xs, ys_all, zs_all, ts, ks = [], [], [], [], []
@@ -229,6 +238,19 @@ def sculpt_variants(scene) -> VariantPair:
         key="tool.nose_radius",
         about=("Tool edge radius as set against half of it: the swept edge leaves the "
                "tool-edge overcut at the cusps between lenslets (seed 003)."))
+#: bytes per target-line point while planning (the line arrays and the program's)
+PLAN_BYTES_PER_POINT = 96
+
+
+def precheck(scene, region=None) -> None:
+    """Check the points of the target lines (every column's line over every row of cells,
+    one point per ``process.arc_length``) against the memory budget before planning."""
+    d = scene.design
+    step = scene.process.arc_length
+    n = d.cols * (d.rows * d.pitch_y / step + d.rows + 1)
+    check_budget(scene, n * PLAN_BYTES_PER_POINT, what=f"the sculpturing program "
+                 f"({format_number(n)} points on {d.cols} lines)",
+                 drivers=[Driver("process.arc_length", step, -1, "mm")])
 
 
 def program_header(scene) -> dict:
@@ -239,4 +261,5 @@ def program_header(scene) -> dict:
 
 
 register_process(SculptProcessConfig, plan=plan, cut=cut, estimate_memory=estimate_memory,
+                 precheck=precheck,
                  program_header=program_header, variants=sculpt_variants)

@@ -28,6 +28,7 @@ from ._turning import (
     toolpath_facts,
     turning_header,
     turning_memory,
+    turning_precheck,
 )
 
 __all__ = ["ServoProcessConfig"]
@@ -193,5 +194,6 @@ def program_region(scene):
 
 
 register_process(ServoProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 precheck=turning_precheck,
                  program_region=program_region, program_header=turning_header,
                  variants=lag_variants)

@@ -15,6 +15,7 @@ from ._turning import (
     toolpath_facts,
     turning_header,
     turning_memory,
+    turning_precheck,
 )
 
 __all__ = ["StsProcessConfig"]
@@ -49,5 +50,6 @@ def envelope_path(scene, surface, plan: Plan):
 
 
 register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
+                 precheck=turning_precheck,
                  program_header=turning_header, variants=compensation_variants,
                  envelope_path=envelope_path)

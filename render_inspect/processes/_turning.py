@@ -9,22 +9,32 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from ..core.grid import grid_shape
+from ..core.limits import Driver, format_number, memory_budget
 from ..core.section import Section
 from ..design import make_surface
 from ..machining._memory import in_memory_bytes
-from ..toolpath import (Tool, kinematics, limits_from_process, plan_feed, plan_turning,
-                        region_radii)
+from ..toolpath import (
+    Tool,
+    kinematics,
+    limits_from_process,
+    plan_feed,
+    plan_memory,
+    plan_turning,
+    region_radii,
+    turning_point_count,
+)
 from ._mechanics import machine_of, turn
-from ._registry import Variant, VariantPair
+from ._registry import Variant, VariantPair, check_budget
 
 __all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "turning_points", "machine_bytes", "burrs_of", "turning_header", "compensation_variants"]
+           "turning_memory", "turning_points", "machine_bytes", "burrs_of", "turning_header",
+           "compensation_variants", "turning_precheck"]
 
 
 class TurningProcessConfig(Section):
     """Keys of a spiral turning program (STS, FTS/HTS, RCSE)."""
-    spindle_rpm: float = Field(50.0, gt=0, le=20000)
-    feed_mm_per_min: float = Field(0.5, gt=0, le=1000)
+    spindle_rpm: float = Field(50.0, ge=1e-3, le=20000)
+    feed_mm_per_min: float = Field(0.5, ge=1e-6, le=1000)
     workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
     inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
     compensation: Literal["none", "normal", "z"] = "z"
@@ -95,7 +105,8 @@ def plan_spiral(scene, surface, *, region=None):
                         points_per_rev=p.points_per_rev, arc_length=p.arc_length,
                         switch_radius=p.switch_radius, inner_radius=p.inner_radius,
                         chordal_tolerance=p.chordal_tolerance, region=region,
-                        allow_gouge=p.allow_gouge)
+                        allow_gouge=p.allow_gouge,
+                        memory_budget=memory_budget(scene.simulation.max_memory_gb))
     if scallop is not None:
         path.meta["scallop_plan"] = scallop
     return path
@@ -201,6 +212,32 @@ def turning_memory(scene, plan=None) -> int:
     if not machine_of(scene).ideal:  # pass-angle and following-error maps (shared with the material)
         nbytes += samples * 8 * (1 if material else 2)
     return int(nbytes)
+
+
+def turning_precheck(scene, region=None) -> None:
+    """Check the points of the spiral program (``region``: the part of it that reaches
+    that window; None: the whole part) against the memory budget before planning; the
+    error names ``process.points_per_rev`` / ``arc_length`` / the feed.  (The planner
+    checks again with the sampling ``process.chordal_tolerance`` sets.)"""
+    p = scene.process
+    f = p.feed_per_rev
+    r_in, r_out = (region_radii(region, scene.tool.nose_radius + 2 * f) if region is not None
+                   else (0.0, p.workpiece_radius))
+    r_in, r_out = max(r_in, p.inner_radius), min(r_out, p.workpiece_radius)
+    n = turning_point_count(sampling=p.sampling, feed_per_rev=f, workpiece_radius=p.workpiece_radius,
+                            r_in=r_in, r_out=max(r_out, r_in), inner_radius=p.inner_radius,
+                            points_per_rev=p.points_per_rev, arc_length=p.arc_length,
+                            switch_radius=p.switch_radius, parts=True)
+    drivers = []
+    if p.sampling != "constant_arc":
+        drivers.append(Driver("process.points_per_rev", p.points_per_rev, 1, limit=(8, 1e7)))
+    if p.sampling != "constant_angle":
+        drivers.append(Driver("process.arc_length", p.arc_length, -1, "mm"))
+    drivers.append(Driver("process.feed_mm_per_min", p.feed_mm_per_min, -1, "mm/min",
+                          limit=(None, p.spindle_rpm * scene.tool.nose_radius)))
+    check_budget(scene, plan_memory(n, sampling=p.sampling, compensation=p.compensation),
+                 what=f"the tool path ({format_number(sum(n))} points)", drivers=drivers,
+                 hint="or shrink simulation.region / process.workpiece_radius")
 
 
 def turning_header(scene) -> dict:

@@ -33,14 +33,19 @@ from ._cycles import (
 from ._diffuse import (
                       AL_REFLECTANCE_RGB,
                       LIGHTS,
+                      MAX_FILM_SIDE,
+                      MAX_SAMPLES_PER_PASS,
                       PORT_PROFILES,
                       DiffuseConfig,
                       auto_exaggeration,
+                      diffuse_memory,
                       diffuse_mesh,
                       diffuse_scene_spec,
                       environment_map,
                       light_profile,
+                      mitsuba_seed,
                       render_diffuse,
+                      render_passes,
 )
 from ._scene_dicts import load_scene_dict, trace_grids
 from ._turned_bsdf import efficiency_tables, grating_efficiencies
@@ -60,4 +65,5 @@ __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_pro
            "object_heights", "remove_object", "default_output_dir", "load_image", "blend_objects",
            "surface_material", "material_model", "fresnel_conductor", "f82_tint_colours",
            "ALUMINIUM_ETA", "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "PORT_PROFILES",
-           "diffuse_mesh", "spectral_variant", "efficiency_tables", "grating_efficiencies"]
+           "diffuse_mesh", "spectral_variant", "efficiency_tables", "grating_efficiencies",
+           "render_passes", "mitsuba_seed", "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]

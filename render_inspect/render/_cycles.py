@@ -26,7 +26,7 @@ from .. import __version__
 from ..core.errors import InputError, SceneError, check_positive, check_range
 from ..core.heightmap import HeightMap
 from ..io import atomic_output_dir, read_exr, save_png, write_exr
-from ._diffuse import DiffuseConfig, diffuse_mesh, diffuse_scene_spec
+from ._diffuse import DiffuseConfig, diffuse_mesh, diffuse_scene_spec, mitsuba_seed
 
 __all__ = ["heightmap_object", "surface_object", "gridmesh_object", "object_heights",
            "remove_object", "render_spec", "render_cycles", "render_object",
@@ -559,7 +559,8 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
     spec : dict
         Camera, light, material, ``spp`` and ``max_depth``.
     seed : int
-        Cycles sampling seed (same seed, same image, bit for bit).
+        Sampling seed, an integer >= 0 (same seed, same image, bit for bit); seeds from
+        2^31 on are hashed into Cycles' range (:func:`mitsuba_seed`, 31 bits).
     z_shift : float
         mm added to the camera's z: the object's z minus the spec's mesh z (the light is
         at infinity, so this moves nothing else).
@@ -574,7 +575,10 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
     seconds : float, the render alone
     """
     bpy = _bpy()
-    check_range("seed", seed, 0, 2**31 - 1)
+    check_range("seed", seed, 0, None)
+    if int(seed) != seed:
+        raise InputError(f"seed must be an integer >= 0, received {seed!r}")
+    seed = int(seed) if int(seed) < 2 ** 31 else mitsuba_seed(int(seed), 1) & 0x7FFFFFFF
     scene = _render_scene(bpy)
     scene.collection.objects.link(obj)
     mat = _aluminium_material(bpy, spec["material"])
@@ -763,7 +767,7 @@ def _write_outputs(image: np.ndarray, out, *, spec: dict, seed: int) -> dict:
              "light": spec["light"]["type"], "camera": json.dumps(spec["camera"]),
              "material_model": material_model(_bpy()),
              "software_version": __version__}
-    with atomic_output_dir(out) as tmp:
+    with atomic_output_dir(out, merge=True, command="cycles", option="output folder") as tmp:
         write_exr(tmp / "cycles.exr", {"R": image[..., 0], "G": image[..., 1],
                                        "B": image[..., 2]}, attrs)
         save_png(tmp / "cycles.png", _srgb(image))

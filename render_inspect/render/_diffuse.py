@@ -51,7 +51,7 @@ from pydantic import Field
 from .. import __version__
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
-from ..core.section import Section
+from ..core.section import Region, Section
 from ..mesh import heightmap_mesh, window_indices
 from ._scene_dicts import (
     load_scene_dict,
@@ -63,8 +63,9 @@ from ._turned_bsdf import efficiency_tables, register_turned_bsdf, store_tables
 from ._variant import import_mitsuba, spectral_variant
 
 __all__ = ["DiffuseConfig", "diffuse_scene_spec", "diffuse_mesh", "environment_map", "light_profile",
-           "render_diffuse", "auto_exaggeration", "LIGHTS", "PORT_PROFILES",
-           "AL_REFLECTANCE_RGB", "MACRO_DOME_RADIANCE", "DEFAULT_MICROROUGHNESS"]
+           "render_diffuse", "auto_exaggeration", "render_passes", "mitsuba_seed",
+           "diffuse_memory", "LIGHTS", "PORT_PROFILES", "AL_REFLECTANCE_RGB", "MACRO_DOME_RADIANCE",
+           "DEFAULT_MICROROUGHNESS", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]
 
 #: Radiance against the angle from the camera port's axis: [angle_deg, radiance] pairs,
 #: linear in between.  dome: a uniform diffuse dome with a camera port (dark) around the
@@ -104,6 +105,20 @@ DEFAULT_MICROROUGHNESS = 0.003
 LAMP_HIGHLIGHT = (0.2, 0.15)
 #: peak radiance the first diffraction order of the lamp is given (auto irradiance)
 LAMP_ORDER_RADIANCE = 3.0
+#: Largest image side (pixels) of a diffuse view; Blender Cycles allows 65536, Mitsuba's
+#: film is limited by memory.
+MAX_FILM_SIDE = 8192
+#: Largest number of Monte Carlo samples (pixels x samples per pixel) given to Mitsuba in
+#: one call: its JIT variants index one wavefront with 32-bit integers, and it crashes
+#: (segmentation fault) when it splits a task of >= 2^32 samples itself.  Larger requests
+#: are rendered in passes of at most this many samples and averaged.
+MAX_SAMPLES_PER_PASS = 2 ** 26
+#: Bytes per image pixel while rendering (Mitsuba's film: RGB, alpha and weight as
+#: float32; the image returned; the float64 sum of the passes)
+FILM_BYTES_PER_PIXEL = 20 + 12 + 24
+#: Bytes per mesh cell (render_inspect's arrays and Mitsuba's copy: 2 triangles, a vertex
+#: with its normal)
+MESH_BYTES_PER_CELL = 2 * (24 + 24)
 
 
 class DiffuseConfig(Section):
@@ -128,8 +143,8 @@ class DiffuseConfig(Section):
                                        description="vertical exaggeration of the mesh; None = auto "
                                                    "(the steepest 1 % of slopes become ~0.2 rad)")
     spp: int = Field(64, ge=1, le=65536)
-    resolution: int = Field(512, ge=16, le=8192)
-    window: tuple[float, float, float, float] | None = Field(None, description="mm, microscope view")
+    resolution: int = Field(512, ge=16, le=MAX_FILM_SIDE)
+    window: Region | None = Field(None, description="mm, microscope view")
 
 
 def _profile(table, angle_deg) -> np.ndarray:
@@ -254,6 +269,13 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
                              f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g} mm), got {window}")
     x0, y0, x1, y1 = (float(w) for w in window)
     if view == "micro":
+        film_ny = max(16, int(round(res * (y1 - y0) / (x1 - x0))))
+        if film_ny > MAX_FILM_SIDE:
+            raise InputError(f"render.diffuse.window {window} is {(y1 - y0) / (x1 - x0):.3g} times "
+                             f"taller than wide: at render.diffuse.resolution = {res} the image "
+                             f"would be {film_ny} pixels high (at most {MAX_FILM_SIDE}); widen the "
+                             f"window or lower the resolution")
+
         i0, i1, j0, j1 = window_indices(heightmap, window, margin=1)
         zw = z[i0:i1, j0:j1]
         zf = zw[np.isfinite(zw)]
@@ -402,10 +424,11 @@ def _block_heightmap(heightmap, window, factor: int, channel: str) -> HeightMap:
     return HeightMap(zb, zb, p * f, origin)
 
 
-def diffuse_mesh(heightmap, spec: dict):
+def diffuse_mesh(heightmap, spec: dict, *, memory_budget: int | None = None):
     """The mesh of a diffuse scene spec (:func:`diffuse_scene_spec`): the spec's channel,
     window and exaggeration, area-averaged (block means) when the map has more than
-    ``mesh.max_cells`` samples across.  Returns (GridMesh, block factor)."""
+    ``mesh.max_cells`` samples across; ``memory_budget``: bytes the mesh may take (default:
+    the mesh module's).  Returns (GridMesh, block factor)."""
     ms = spec["mesh"]
     z = getattr(heightmap, ms["channel"])
     shape = z.shape
@@ -420,7 +443,8 @@ def diffuse_mesh(heightmap, spec: dict):
         hm = _block_heightmap(heightmap, window, factor, channel)
         channel = "machined"
     gm = heightmap_mesh(hm, channel=channel, exaggeration=spec["exaggeration"], window=window,
-                        z_offset=spec["z_offset_mm"], skirt=ms["skirt"], normals=True)
+                        z_offset=spec["z_offset_mm"], skirt=ms["skirt"], normals=True,
+                        memory_budget=memory_budget)
     return gm, factor
 
 
@@ -477,9 +501,62 @@ def _mitsuba_scene(gm, spec, bsdf):
     return d
 
 
+def render_passes(width: int, height: int, spp: int) -> list[int]:
+    """Samples per pixel of each pass so that no pass gives Mitsuba more than
+    :data:`MAX_SAMPLES_PER_PASS` samples (one pass when the whole image fits)."""
+    pixels = int(width) * int(height)
+    if pixels > MAX_SAMPLES_PER_PASS:
+        raise InputError(f"a diffuse image of {width} x {height} pixels is larger than "
+                         f"{MAX_SAMPLES_PER_PASS} pixels; lower render.diffuse.resolution")
+    per = max(1, MAX_SAMPLES_PER_PASS // pixels)
+    spp = int(spp)
+    return [per] * (spp // per) + ([spp % per] if spp % per else [])
+
+
+def mitsuba_seed(seed: int, index: int = 0) -> int:
+    """The 32-bit seed Mitsuba takes for pass ``index`` of a render with ``seed`` (any
+    integer >= 0): ``seed`` itself for the first pass of a seed below 2^32, else a
+    SplitMix64 hash of both, so every pass and every seed draws its own samples."""
+    seed, index = int(seed), int(index)
+    if index == 0 and 0 <= seed < 2 ** 32:
+        return seed
+    mask = (1 << 64) - 1
+    z = (seed * 0x9E3779B97F4A7C15 + (index + 1) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+    return (z ^ (z >> 31)) & 0xFFFFFFFF
+
+
+def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=None) -> int:
+    """Bytes a diffuse view needs at its peak: the film (with the passes' sum) and the
+    mesh (render_inspect's arrays and Mitsuba's copy).
+
+    Parameters
+    ----------
+    dcfg : DiffuseConfig
+    grid_shape : (ny, nx)
+        The height map's grid.
+    view : {"macro", "micro"}
+    window : [x0, y0, x1, y1], optional
+        The micro view's window (mm) and ``pixel`` the height map's pixel (mm): the mesh
+        covers only the window.
+    """
+    res = int(dcfg.resolution)
+    ny_img = res
+    ny, nx = (int(v) for v in grid_shape)
+    if view == "micro" and window is not None and pixel:
+        x0, y0, x1, y1 = window
+        ny_img = max(16, int(round(res * (y1 - y0) / (x1 - x0))))
+        nx = min(nx, int((x1 - x0) / pixel) + 3)
+        ny = min(ny, int((y1 - y0) / pixel) + 3)
+    stride = max(1, -(-max(ny, nx) // (2 * res)))
+    cells = -(-ny // stride) * -(-nx // stride)
+    return int(res * ny_img * FILM_BYTES_PER_PIXEL + cells * MESH_BYTES_PER_CELL)
+
+
 def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
-                   seed: int = 0, marks: dict | None = None,
-                   part: dict | None = None) -> tuple[np.ndarray, dict]:
+                   seed: int = 0, marks: dict | None = None, part: dict | None = None,
+                   memory_budget: int | None = None) -> tuple[np.ndarray, dict]:
     """Path-trace the part (aluminium) under the diffuse dome or ring light.
 
     Parameters
@@ -493,6 +570,11 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
         ``scalar_rgb`` the part is a rough conductor instead, and the metadata says so.
     part : dict, optional
         What the macro view shows (recorded in the metadata).
+    memory_budget : int, optional
+        Bytes the mesh may take (default: the mesh module's).
+
+    Images of more than :data:`MAX_SAMPLES_PER_PASS` samples (pixels x spp) are rendered
+    in passes (:func:`render_passes`, seeds :func:`mitsuba_seed`) and averaged.
 
     Returns
     -------
@@ -505,7 +587,7 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
         raise InputError(f"seed must be an integer >= 0, got {seed!r}")
     spec = diffuse_scene_spec(heightmap, dcfg, view=view, surface=surface, seed=seed,
                               marks=marks, part=part)
-    gm, factor = diffuse_mesh(heightmap, spec)
+    gm, factor = diffuse_mesh(heightmap, spec, memory_budget=memory_budget)
     m = spec["material"]
     with spectral_variant() if m["type"] == "turned_al" else _no_switch() as spectral:
         mi, dr, variant = import_mitsuba()
@@ -531,10 +613,21 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
         if lamp is not None and lamp["irradiance"] is None:
             lamp["irradiance"] = _auto_lamp_irradiance(m)
         scene = load_scene_dict(_mitsuba_scene(gm, spec, _material_dict(spec, key)))
-        img = mi.render(scene, seed=int(seed), spp=int(spec["spp"]))
-        rgb = np.array(img, dtype=np.float32)[..., :3]
+        cam = spec["camera"]
+        passes = render_passes(cam["width"], cam["height"], spec["spp"])
+        if len(passes) == 1:
+            rgb = np.array(mi.render(scene, seed=mitsuba_seed(seed), spp=passes[0]),
+                           dtype=np.float32)[..., :3]
+        else:
+            acc = None
+            for k, n in enumerate(passes):
+                img = np.array(mi.render(scene, seed=mitsuba_seed(seed, k), spp=n),
+                               dtype=np.float64)[..., :3]
+                acc = img * n if acc is None else acc + img * n
+            rgb = (acc / float(sum(passes))).astype(np.float32)
     meta = dict(spec)
     meta.update(mitsuba_variant=variant, vertical_exaggeration=spec["exaggeration"],
+                passes=len(passes),
                 mesh_vertices=gm.n_vertices, mesh_triangles=gm.n_faces,
                 mesh_stride=int(factor))
     return rgb, meta

@@ -22,7 +22,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..core.errors import InputError
+from ..core.errors import InputError, RenderInspectError
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
            "spectral_variant"]
@@ -120,7 +120,8 @@ def mitsuba_variant() -> str:
         reasons.append(f"{variant}: {why}")
     why = _try(mi, "scalar_rgb")
     if why is not None:
-        raise RuntimeError(f"no Mitsuba variant works (scalar_rgb: {why}; {'; '.join(reasons)})")
+        raise RenderInspectError(f"no Mitsuba variant works on this machine (scalar_rgb: {why}; "
+                                 f"{'; '.join(reasons)}); reinstall mitsuba (make setup)")
     msg = ("render_inspect: Mitsuba falls back to the slow scalar_rgb variant ("
            + "; ".join(reasons) + "). Install libLLVM >= 16 (Debian: libllvm19) or set "
            "DRJIT_LIBLLVM_PATH to use llvm_ad_rgb.")

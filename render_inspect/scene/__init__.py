@@ -12,11 +12,13 @@ import copy
 import json
 import re
 import tomllib
+import types
+import typing
 from importlib import resources
 from pathlib import Path
 from typing import Iterable
 
-from pydantic import Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from ..core.errors import SceneError
 from ..core.section import Section
@@ -43,8 +45,8 @@ RenderConfig = render_config_class()
 
 
 class Scene(Section):
-    name: str = "scene"
-    description: str = ""
+    name: str = Field("scene", max_length=200, description="shown in titles and program headers")
+    description: str = Field("", max_length=10_000)
     design: DesignConfig
     tool: ToolConfig = Field(default_factory=ToolConfig)
     process: ProcessConfig = Field(default_factory=StsProcessConfig)
@@ -73,24 +75,120 @@ class Scene(Section):
         return scene_from_dict(apply_overrides(self.to_dict(), overrides))
 
 
+def _shown(value, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters (inputs can be long or deeply nested)."""
+    try:
+        text = repr(value)
+    except RecursionError:
+        text = f"<{type(value).__name__} nested too deeply to show>"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+_NUMERIC_ERRORS = {"float_type", "float_parsing", "int_type", "int_parsing", "int_from_float",
+                   "finite_number", "greater_than", "greater_than_equal", "less_than",
+                   "less_than_equal", "bool_type"}
+
+
+def _union_classes() -> dict:
+    out = {name: entry.config for name, entry in design_types().items()}
+    out.update({entry.config.__name__: entry.config for entry in process_kinds().values()})
+    return out
+
+
+def _plain(annotation):
+    """(base type, constraint metadata) of an annotation: unwraps Optional and Annotated."""
+    meta = []
+    while True:
+        origin = typing.get_origin(annotation)
+        args = typing.get_args(annotation)
+        if origin is typing.Annotated:
+            annotation, meta = args[0], meta + list(args[1:])
+            meta = [m for mm in meta for m in (getattr(mm, "metadata", None) or [mm])]
+        elif origin in (typing.Union, types.UnionType) and type(None) in args:
+            rest = [a for a in args if a is not type(None)]
+            if len(rest) != 1:
+                return annotation, meta
+            annotation = rest[0]
+        else:
+            return annotation, meta
+
+
+def _expected(loc) -> str | None:
+    """What a scene key accepts, e.g. "a number in (0, 20000]", from the schema."""
+    unions = _union_classes()
+    model, ann, meta = Scene, None, []
+    for part in loc:
+        if isinstance(part, str) and part in unions and ann is not None:
+            model, ann, meta = unions[part], None, []
+            continue
+        if isinstance(part, int):
+            base, _ = _plain(ann)
+            args = typing.get_args(base)
+            if not args:
+                return None
+            ann = args[min(part, len(args) - 1)] if typing.get_origin(base) is tuple else args[0]
+            ann, meta = _plain(ann)
+            model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+            continue
+        if model is None or part not in model.model_fields:
+            return None
+        field = model.model_fields[part]
+        ann, meta = _plain(field.annotation)
+        meta = list(field.metadata) + meta
+        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    if ann not in (int, float):
+        return None
+    lo = hi = None
+    lo_open = hi_open = False
+    for m in meta:
+        for attr, is_lo, is_open in (("gt", True, True), ("ge", True, False),
+                                     ("lt", False, True), ("le", False, False)):
+            v = getattr(m, attr, None)
+            if v is not None:
+                if is_lo:
+                    lo, lo_open = v, is_open
+                else:
+                    hi, hi_open = v, is_open
+    infinite = any(getattr(m, "allow_inf_nan", None) for m in meta)  # OrInfinity
+    kind = "an integer" if ann is int else "a number" if infinite else "a finite number"
+    if lo is None and hi is None:
+        return kind
+    lo_s = "-inf" if lo is None else f"{lo:g}"
+    hi_s = "inf" if hi is None else f"{hi:g}"
+    return (f"{kind} in {'(' if lo_open or lo is None else '['}{lo_s}, {hi_s}"
+            f"{')' if hi_open or (hi is None and not infinite) else ']'}")
+
+
 def _format_error(err: ValidationError, source: str) -> SceneError:
     tags = _union_tags()
     lines = []
     for e in err.errors():
         loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in tags))
         msg = e["msg"]
-        if e["type"] == "extra_forbidden":
+        expected = _expected(e["loc"]) if e["type"] in _NUMERIC_ERRORS else None
+        if expected is not None:
+            what = {"bool_type": " (true/false is not a number)"}.get(e["type"], "")
+            if isinstance(e.get("input"), bool):
+                what = " (true/false is not a number)"
+            elif isinstance(e.get("input"), str):
+                what = " (text is not a number: write it without quotes)"
+            msg = f"must be {expected}{what}"
+        elif e["type"] == "extra_forbidden":
             msg = "unknown key (not allowed here; check the spelling)"
         elif msg.startswith("Value error, "):
             msg = msg[len("Value error, "):]
-            m = re.match(r"^([a-z_][a-z0-9_]*) (must|is|are) ", msg)
+            m = re.match(r"^([a-z_][a-z0-9_]*(?:\.[A-Za-z0-9_]+)*) (must|is|are) ", msg)
             if m:  # a model-level check about one of its keys: name the key in full
                 loc = f"{loc}.{m.group(1)}" if loc else m.group(1)
                 msg = msg[len(m.group(1)) + 1:]
         inp = e.get("input")
-        got = "" if e["type"] in ("missing",) or isinstance(inp, dict) else f"; received {inp!r}"
-        lines.append(f"  {loc or '(top level)'}: {msg}{got}")
-    return SceneError(f"invalid scene {source}:\n" + "\n".join(lines))
+        got = "" if e["type"] in ("missing",) or isinstance(inp, dict) or "received" in msg \
+            else f"; received {_shown(inp)}"
+        lines.append(f"{loc or '(top level)'}: {msg}{got}")
+    if len(lines) == 1:
+        return SceneError(f"invalid scene {source}: {lines[0]}")
+    return SceneError(f"invalid scene {source} ({len(lines)} errors):\n"
+                      + "\n".join(f"  {line}" for line in lines))
 
 
 def _union_tags() -> set:
@@ -101,30 +199,91 @@ def _union_tags() -> set:
 
 
 def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
+    if not isinstance(data, dict):
+        raise SceneError(f"invalid scene {source}: expected a table of sections, received "
+                         f"{type(data).__name__}")
+    _check_depth(data, f"scene {source}")
     try:
         return Scene.model_validate(data)
     except ValidationError as err:
         raise _format_error(err, source) from None
 
 
-def _parse_value(text: str):
+#: largest scene file read, bytes
+MAX_SCENE_BYTES = 4 * 2 ** 20
+#: deepest nesting of tables and arrays in a scene (the schema needs 5)
+MAX_SCENE_DEPTH = 32
+
+
+def _depth(data) -> int:
+    """Nesting depth of dicts and lists in ``data`` (iterative: safe on any depth)."""
+    deepest = 0
+    stack = [(data, 1)]
+    while stack:
+        node, d = stack.pop()
+        if isinstance(node, dict):
+            children = node.values()
+        elif isinstance(node, (list, tuple)):
+            children = node
+        else:
+            continue
+        deepest = max(deepest, d)
+        if deepest > MAX_SCENE_DEPTH:
+            return deepest
+        stack.extend((c, d + 1) for c in children)
+    return deepest
+
+
+def _check_depth(data, what: str) -> None:
+    if _depth(data) > MAX_SCENE_DEPTH:
+        raise SceneError(f"{what} nests tables/arrays deeper than {MAX_SCENE_DEPTH} levels; "
+                         f"a scene needs at most a few")
+
+
+def _check_text(key: str, text: str) -> None:
+    bad = next((c for c in text if (ord(c) < 32 and c != "\t") or 0x7f <= ord(c) < 0xa0
+                or c in "\u2028\u2029"), None)
+    if bad is not None:
+        raise SceneError(f"--set {key}: the value must be one line of text without control "
+                         f"characters (write a line break inside a TOML string as \\n), received "
+                         f"{_shown(text)}")
+
+
+def _parse_value(text: str, key: str = "value"):
+    """A ``--set`` value: one TOML value (a bare word is taken as a string)."""
+    _check_text(key, text)
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        parsed = tomllib.loads(f"v = {text}")
     except tomllib.TOMLDecodeError:
-        return text  # a bare word is taken as a string
+        if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-]*", text):
+            return text  # a bare word is taken as a string
+        raise SceneError(f"--set {key}: {_shown(text)} is not a TOML value (quote text: "
+                         f"{key}='...'; numbers like 100 or 0.5; arrays like [0, 0, 1, 1])") from None
+    except RecursionError:
+        raise SceneError(f"--set {key}: the value nests arrays too deeply") from None
+    if set(parsed) != {"v"}:
+        raise SceneError(f"--set {key}: give one value, received {_shown(text)}")
+    _check_depth(parsed, f"--set {key}")
+    return parsed["v"]
 
 
 def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
     """Return a copy of ``data`` with ``section.key=value`` overrides (TOML values) applied."""
+    _check_depth(data, "the scene")
     data = copy.deepcopy(data)
+    if isinstance(overrides, str):
+        overrides = [overrides]
     for item in overrides or ():
+        if not isinstance(item, str):
+            raise SceneError(f"--set expects text section.key=value, received {_shown(item)}")
         if "=" not in item:
-            raise SceneError(f"--set expects section.key=value, received {item!r}")
+            raise SceneError(f"--set expects section.key=value, received {_shown(item)}")
         key, text = item.split("=", 1)
         key = key.strip()
         parts = key.split(".")
-        if not all(parts):
-            raise SceneError(f"--set key must be a dotted path like process.spindle_rpm, received {key!r}")
+        if not all(re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", p) for p in parts) or len(parts) > 8:
+            raise SceneError(f"--set key must be a dotted path like process.spindle_rpm, "
+                             f"received {_shown(key)}")
         node = data
         for p in parts[:-1]:
             nxt = node.get(p)
@@ -133,7 +292,7 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
             if not isinstance(nxt, dict):
                 raise SceneError(f"--set {key}: {p!r} is a value, not a section")
             node = nxt
-        node[parts[-1]] = _parse_value(text.strip())
+        node[parts[-1]] = _parse_value(text.strip(), key)
     return data
 
 
@@ -163,18 +322,52 @@ def shipped_scenes() -> dict[str, Path]:
 def find_scene(name_or_path) -> Path:
     """A scene file: ``name_or_path`` itself when it is a file, else the shipped scene of
     that name (``sts_sinusoidal_grid`` or ``sts_sinusoidal_grid.toml``)."""
+    text = str(name_or_path)
+    if not text.strip():
+        raise SceneError("scene: give a scene file (.toml) or the name of a shipped scene, "
+                         "received an empty name")
+    if "\x00" in text:
+        raise SceneError(f"scene: the name contains a NUL character, received {_shown(text)}")
     path = Path(name_or_path)
-    if path.is_file():
-        return path
-    shipped = shipped_scenes()
-    key = path.name[:-5] if path.name.endswith(".toml") else path.name
-    if path.parent == Path(".") and key in shipped:
-        return shipped[key]
-    if path.is_dir():
-        raise SceneError(f"scene: {str(path)!r} is a folder; give a scene file (.toml) or the "
-                         f"name of a shipped scene ({', '.join(shipped)})")
-    raise SceneError(f"scene file not found: {str(path)!r}; give a path to a .toml file or the "
+    try:
+        if path.is_file():
+            return path
+        shipped = shipped_scenes()
+        key = path.name[:-5] if path.name.endswith(".toml") else path.name
+        if path.parent == Path(".") and key in shipped and not path.exists():
+            return shipped[key]
+        if path.is_dir():
+            raise SceneError(f"scene: {text!r} is a folder; give a scene file (.toml) or the "
+                             f"name of a shipped scene ({', '.join(shipped)})")
+        if path.exists():
+            raise SceneError(f"scene: {text!r} is not a regular file (a device, pipe or "
+                             f"socket); give a scene file (.toml)")
+    except OSError as err:  # a name too long, a path through a file, no permission
+        raise SceneError(f"scene: cannot use {_shown(text)} ({err.strerror or err})") from None
+    raise SceneError(f"scene file not found: {text!r}; give a path to a .toml file or the "
                      f"name of a shipped scene ({', '.join(shipped)})")
+
+
+def read_scene_text(path: Path) -> str:
+    """The text of a scene file: at most :data:`MAX_SCENE_BYTES`, UTF-8, no NUL bytes."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_SCENE_BYTES + 1)
+    except OSError as err:
+        raise SceneError(f"scene file {str(path)!r} cannot be read ({err.strerror or err})") from None
+    if len(raw) > MAX_SCENE_BYTES:
+        raise SceneError(f"scene file {str(path)!r} is larger than {MAX_SCENE_BYTES // 2 ** 20} MiB; "
+                         f"a scene is a short TOML text")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = raw[:err.start].count(b"\n") + 1
+        raise SceneError(f"scene file {str(path)!r} is not UTF-8 text (byte {err.start}, line "
+                         f"{line}: {raw[err.start:err.start + 1]!r}); save it as UTF-8") from None
+    if "\x00" in text:
+        raise SceneError(f"scene file {str(path)!r} contains NUL bytes: it is a binary file, not "
+                         f"a TOML scene")
+    return text
 
 
 def scene_sections() -> tuple[str, ...]:
@@ -187,10 +380,14 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
     """Read a TOML scene file (or a shipped scene by name), apply ``--set`` overrides and
     validate."""
     path = find_scene(path)
+    text = read_scene_text(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {err}") from None
+    except RecursionError:
+        raise SceneError(f"scene file {str(path)!r} nests tables/arrays deeper than "
+                         f"{MAX_SCENE_DEPTH} levels") from None
     data = apply_overrides(data, overrides)
     # relative heightmap paths are relative to the scene file
     _resolve_paths(data.get("design"), path.parent)
@@ -200,7 +397,8 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
 def _resolve_paths(design, base: Path):
     if not isinstance(design, dict):
         return
-    if design.get("type") == "heightmap" and isinstance(design.get("path"), str):
+    if design.get("type") == "heightmap" and isinstance(design.get("path"), str) \
+            and "\x00" not in design["path"]:
         p = Path(design["path"])
         if not p.is_absolute():
             design["path"] = str((base / p).resolve())

@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from ..core.section import Section
+from ..core.section import OrInfinity, Section
 
 __all__ = ["MachineConfig", "MaterialConfig", "LinearAxisConfig", "SpindleAxisConfig",
            "ErrorMotionsConfig", "CouplingConfig", "MACHINE_PRESET_NAMES",
@@ -26,7 +26,7 @@ MATERIAL_PRESET_NAMES = ("ideal", "al6061", "al6082", "ofhc_copper", "nip", "die
 
 class LinearAxisConfig(Section):
     """A slide (X, Z) or the fast tool servo; keys left out keep the preset's values."""
-    bandwidth_hz: float | None = Field(None, gt=0, description="closed-loop natural frequency; inf = ideal")
+    bandwidth_hz: OrInfinity | None = Field(None, gt=0, description="closed-loop natural frequency; inf = ideal")
     damping: float | None = Field(None, gt=0, le=10)
     velocity_ff: float | None = Field(None, ge=0, le=1, description="velocity feed-forward gain")
     acceleration_ff: float | None = Field(None, ge=0, le=1, description="acceleration feed-forward gain")
@@ -38,7 +38,7 @@ class LinearAxisConfig(Section):
 
 class SpindleAxisConfig(Section):
     """The spindle as a C axis; keys left out keep the preset's values."""
-    bandwidth_hz: float | None = Field(None, gt=0, description="closed-loop natural frequency; inf = ideal")
+    bandwidth_hz: OrInfinity | None = Field(None, gt=0, description="closed-loop natural frequency; inf = ideal")
     damping: float | None = Field(None, gt=0, le=10)
     velocity_ff: float | None = Field(None, ge=0, le=1)
     acceleration_ff: float | None = Field(None, ge=0, le=1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 
 from ..core.grid import grid_shape
-from ..core.section import Section
+from ..core.section import Region, Section
 
 __all__ = ["ToolConfig", "SimulationConfig"]
 
@@ -20,11 +20,12 @@ class ToolConfig(Section):
 
 class SimulationConfig(Section):
     """The grid on which the machined surface is computed."""
-    region: tuple[float, float, float, float] = Field((-1.0, -1.0, 1.0, 1.0),
-                                                      description="mm, [x0, y0, x1, y1]")
-    pixel: float = Field(0.002, gt=0, le=10, description="mm, grid spacing")
+    region: Region = Field((-1.0, -1.0, 1.0, 1.0), description="mm, [x0, y0, x1, y1]")
+    pixel: float = Field(0.002, ge=1e-6, le=10, description="mm, grid spacing")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="seed of every random draw")
-    max_memory_gb: float = Field(8.0, gt=0, le=1024, description="refuse requests estimated above this")
+    max_memory_gb: float | None = Field(
+        None, gt=0, le=65536, description="GiB; refuse requests estimated above this; None = "
+                                          "80 % of the memory available when the command starts")
 
     @model_validator(mode="after")
     def _region(self):

@@ -4,7 +4,14 @@ planning is in :mod:`render_inspect.processes`; files in :mod:`render_inspect.io
 
 from ..core.toolpath import LinearProgram, ToolPath
 from ._access import check_accessibility, describe_accessibility
-from ._build import max_curvature, plan_turning, region_radii
+from ._build import (
+    PLAN_BYTES_PER_POINT,
+    max_curvature,
+    plan_memory,
+    plan_turning,
+    region_radii,
+    turning_point_count,
+)
 from ._compensation import (
                     contact_window,
                     gouge_depth,
@@ -28,7 +35,8 @@ from ._tool import Tool
 __all__ = ["ToolPath", "LinearProgram", "Tool", "spiral_ccps", "chordal_error",
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
-           "plan_turning", "region_radii", "max_curvature", "kinematics", "axis_derivatives",
+           "plan_turning", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
+           "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
            "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",
            "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]

@@ -8,13 +8,60 @@ import time
 import numpy as np
 
 from ..core.errors import AccessibilityError, InputError
+from ..core.limits import Driver, check_memory, format_number
 from ..core.toolpath import ToolPath
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
 from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool
 
-__all__ = ["plan_turning", "region_radii", "max_curvature"]
+__all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count",
+           "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES"]
+
+#: Bytes per tool-path point at the peak of planning (the path arrays, compensation and
+#: chordal-error temporaries, the kinematics), by compensation, measured with tracemalloc
+#: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py).
+PLAN_BYTES_PER_POINT = {"z": 144, "none": 144, "normal": 200}
+#: Bytes planning holds whatever the path's length (curvature and accessibility grids).
+PLAN_FIXED_BYTES = 16 * 2 ** 20
+
+
+def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
+                        r_in: float, r_out: float, inner_radius: float = 0.0,
+                        points_per_rev: int = 3600, arc_length: float = 0.005,
+                        switch_radius: float = 1.0, parts: bool = False):
+    """Number of spiral points :func:`plan_turning` allocates (a float: it may be far
+    beyond any array), computed from the parameters alone.
+
+    Constant angle: the revolutions between ``r_in`` and ``r_out`` times
+    ``points_per_rev``.  Arc-length and hybrid sampling build the spiral from
+    ``workpiece_radius`` to ``inner_radius`` first: its arc length over ``arc_length``
+    (plus at most 8 points per revolution near the axis), and the inner constant-angle
+    part of a hybrid spiral.  ``parts``: return (arc-length points, constant-angle
+    points) instead of their sum.
+    """
+    f = float(feed_per_rev)
+    c = f / TWO_PI
+    N = float(points_per_rev)
+    if sampling == "constant_angle":
+        n = max(r_out - r_in, 0.0) / f * N + 2.0
+        return (0.0, n) if parts else n
+    Rw, r_inner = float(workpiece_radius), float(inner_radius)
+    r_sw = r_inner if sampling == "constant_arc" else min(max(switch_radius, r_inner), Rw)
+    theta_sw = (Rw - r_sw) / c
+    s_total = Rw * theta_sw - c * theta_sw ** 2 / 2  # arc length of the outer part
+    n = s_total / float(arc_length) + 2.0
+    n += 8.0 * min((Rw - r_sw) / f, 8.0 * float(arc_length) / TWO_PI / f + 1.0)
+    n_angle = max(r_sw - r_inner, 0.0) / f * N if sampling != "constant_arc" else 0.0
+    return (n, n_angle) if parts else n + n_angle
+
+
+def plan_memory(n_points, *, sampling: str = "constant_angle", compensation: str = "z") -> float:
+    """Bytes :func:`plan_turning` (and the kinematics after it) holds at its peak for a
+    path of ``n_points`` points, or of (arc-length points, constant-angle points)
+    (:func:`turning_point_count` with ``parts=True``)."""
+    n = sum(n_points) if isinstance(n_points, tuple) else float(n_points)
+    return PLAN_FIXED_BYTES + n * PLAN_BYTES_PER_POINT.get(compensation, PLAN_BYTES_PER_POINT["normal"])
 
 
 def region_radii(region, margin: float) -> tuple[float, float]:
@@ -43,7 +90,8 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
                  points_per_rev: int = 3600, arc_length: float = 0.005,
                  switch_radius: float = 1.0, inner_radius: float = 0.0,
                  chordal_tolerance: float | None = None, region=None,
-                 check_access: bool = True, allow_gouge: bool = False) -> ToolPath:
+                 check_access: bool = True, allow_gouge: bool = False,
+                 memory_budget=None) -> ToolPath:
     """The inward spiral turning path over ``surface`` with its tool-radius compensation.
 
     Parameters
@@ -72,6 +120,11 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     check_access : bool
         Run the accessibility check over ``region`` (or the whole blank) and raise
         :class:`AccessibilityError` unless ``allow_gouge``.
+    memory_budget : (bytes, source) or int, optional
+        The path's size (:func:`turning_point_count`, :func:`plan_memory`) is checked
+        against it before any array is allocated, after ``chordal_tolerance`` has set the
+        sampling (:func:`~render_inspect.core.limits.check_memory`; default: the automatic
+        budget).  The error names the parameter to change and how far.
 
     Returns
     -------
@@ -90,8 +143,16 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     # (machining/_envelope.py); keep two more revolutions as margin
     margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
     r_in, r_out = region_radii(area, margin) if region is not None else (0.0, Rw)
+    reach = (r_in, r_out)
     r_in = max(r_in, inner_radius)
     r_out = min(r_out, Rw)
+    if r_out - r_in < f:
+        x0, y0, x1, y1 = area
+        raise InputError(
+            f"simulation.region {[x0, y0, x1, y1]} mm lies outside the turned part: the tool "
+            f"reaches it only between {reach[0]:.6g} and {reach[1]:.6g} mm from the spindle axis, but "
+            f"the spiral runs from process.workpiece_radius = {Rw:g} mm in to "
+            f"process.inner_radius = {inner_radius:g} mm; move the region or change those radii")
     meta: dict = {"sampling": sampling, "compensation": compensation,
                   "feed_per_rev_mm": f, "nose_radius_mm": tool.nose_radius,
                   "spindle_rpm": spindle_rpm, "workpiece_radius_mm": Rw,
@@ -118,6 +179,29 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
             N = max(N, int(math.ceil(TWO_PI * max(r_ref, 1e-9) / L)))
     meta["points_per_rev"] = N
     meta["arc_length_mm"] = ds
+    n_parts = turning_point_count(sampling=sampling, feed_per_rev=f, workpiece_radius=Rw,
+                                  r_in=r_in, r_out=r_out, inner_radius=inner_radius,
+                                  points_per_rev=N, arc_length=ds, switch_radius=switch_radius,
+                                  parts=True)
+    n_est = sum(n_parts)
+    raised = chordal_tolerance is not None and (N > int(points_per_rev) or ds < float(arc_length))
+    drivers = []
+    if raised:
+        drivers.append(Driver("process.chordal_tolerance", chordal_tolerance, -0.5, "mm"))
+    else:
+        if sampling != "constant_arc":
+            drivers.append(Driver("process.points_per_rev", points_per_rev, 1, limit=(8, 1e7)))
+        if sampling != "constant_angle":
+            drivers.append(Driver("process.arc_length", arc_length, -1, "mm"))
+    drivers.append(Driver("the feed per revolution (process.feed_mm_per_min / "
+                          "process.spindle_rpm)", f, -1, "mm/rev", limit=(None, tool.nose_radius)))
+    why = (f"; process.chordal_tolerance = {format_number(chordal_tolerance)} mm sets "
+           f"{format_number(N)} points per revolution" if raised else "")
+    check_memory(plan_memory(n_parts, sampling=sampling, compensation=compensation),
+                 what=f"the tool path ({format_number(n_est)} points, "
+                      f"{format_number((r_out - r_in) / f)} revolutions{why})",
+                 budget=memory_budget, drivers=drivers,
+                 hint="or plan a smaller part of it (simulation.region, process.workpiece_radius)")
 
     if sampling == "constant_angle":
         dth = TWO_PI / N

@@ -29,6 +29,17 @@ def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
 SAMPLINGS = ("constant_angle", "constant_arc", "hybrid")
 
 
+def _subdivide(th: np.ndarray, steps: np.ndarray, reps: np.ndarray) -> np.ndarray:
+    """Split step i of ``th`` into ``reps[i]`` equal steps (vectorised; the values of
+    ``np.linspace(th[i], th[i+1], reps[i] + 1)[1:]``, the interval's end exactly)."""
+    i = np.repeat(np.arange(steps.size), reps)
+    ends = np.cumsum(reps)
+    j = np.arange(1, int(ends[-1]) + 1) - np.repeat(ends - reps, reps)
+    out = th[i] + j * (steps[i] / reps[i])
+    out[ends - 1] = th[1:]
+    return np.concatenate([th[:1], out])
+
+
 def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
                 sampling: str = "constant_angle", points_per_rev: int = 3600,
                 arc_length: float = 0.005, switch_radius: float = 1.0
@@ -78,11 +89,7 @@ def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
         max_step = TWO_PI / 8
         steps = np.diff(th_arc)
         if np.any(steps > max_step):  # near the axis: subdivide the long steps
-            reps = np.maximum(1, np.ceil(steps / max_step).astype(int))
-            parts = [th_arc[:1]]
-            for a, b, k in zip(th_arc[:-1], th_arc[1:], reps):
-                parts.append(np.linspace(a, b, k + 1)[1:])
-            th_arc = np.concatenate(parts)
+            th_arc = _subdivide(th_arc, steps, np.maximum(1, np.ceil(steps / max_step).astype(np.int64)))
         if mode == "constant_arc" or theta_sw >= theta_end:
             theta = th_arc
         else:

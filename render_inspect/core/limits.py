@@ -1,0 +1,215 @@
+"""Memory budget: how much a command may allocate, and the one error when a request would
+not fit.
+
+Every command estimates the bytes its large arrays need *before* allocating them and
+calls :func:`check_memory`.  The budget is ``simulation.max_memory_gb`` when the scene
+sets it, else :data:`AUTO_FRACTION` of the memory the machine has available now
+(``MemAvailable`` of ``/proc/meminfo``, capped by the control group's limit when one is
+set).  The error names what would be allocated, the parameter that drives its size, and
+the value of that parameter that would fit (:func:`fit_value`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+from .errors import MemoryBudgetError
+
+__all__ = ["available_memory", "default_budget", "memory_budget", "check_memory",
+           "fit_value", "format_bytes", "format_number", "AUTO_FRACTION", "Driver"]
+
+#: share of the available memory a command may use when the scene sets no budget
+AUTO_FRACTION = 0.8
+_FALLBACK = 4 * 2 ** 30
+
+
+def _meminfo_available() -> int | None:
+    try:
+        text = Path("/proc/meminfo").read_text()
+    except OSError:
+        return None
+    for line in text.splitlines():
+        if line.startswith("MemAvailable:"):
+            parts = line.split()
+            if len(parts) >= 2 and parts[1].isdigit():
+                return int(parts[1]) * 1024
+    return None
+
+
+def _cgroup_room() -> int | None:
+    """Bytes left under the control group's memory limit (cgroup v2 or v1), if any."""
+    for limit_f, usage_f in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                             ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                              "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        try:
+            limit = Path(limit_f).read_text().strip()
+            usage = Path(usage_f).read_text().strip()
+        except OSError:
+            continue
+        if not limit.isdigit() or not usage.isdigit():
+            continue
+        lim = int(limit)
+        if lim >= 2 ** 60:  # "no limit" in cgroup v1
+            continue
+        return max(lim - int(usage), 0)
+    return None
+
+
+def available_memory() -> int:
+    """Bytes the machine can give a new allocation now (``MemAvailable``, or the room
+    under the control group's limit if smaller); a fixed 4 GiB when neither is known."""
+    cands = [v for v in (_meminfo_available(), _cgroup_room()) if v is not None]
+    if not cands:
+        try:
+            cands = [os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")]
+        except (ValueError, OSError, AttributeError):
+            cands = [_FALLBACK]
+    return int(min(cands))
+
+
+def default_budget() -> int:
+    """:data:`AUTO_FRACTION` of :func:`available_memory`, bytes."""
+    return int(AUTO_FRACTION * available_memory())
+
+
+def memory_budget(max_memory_gb: float | None = None) -> tuple[int, str]:
+    """(bytes, where the figure comes from) for a scene's ``simulation.max_memory_gb``
+    (None: the automatic budget)."""
+    if max_memory_gb is not None:
+        return int(float(max_memory_gb) * 2 ** 30), f"simulation.max_memory_gb = {max_memory_gb:g}"
+    b = default_budget()
+    return b, (f"{AUTO_FRACTION:.0%} of the memory available now, {format_bytes(b / AUTO_FRACTION)}; "
+               f"set simulation.max_memory_gb to choose")
+
+
+def format_number(v) -> str:
+    """A number in at most 3 significant digits (``1.2e+14``, ``3600``, ``0.0025``)."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError, OverflowError):
+        return repr(v)
+    if math.isnan(f):
+        return "nan"
+    if math.isinf(f):
+        return "inf" if f > 0 else "-inf"
+    if f == int(f) and abs(f) < 1e6:
+        return str(int(f))
+    return f"{f:.3g}"
+
+
+def format_bytes(n) -> str:
+    """Bytes as MiB, GiB or TiB with 3 significant digits (huge figures in powers of ten,
+    never hundreds of digits)."""
+    try:
+        f = float(n)
+    except OverflowError:
+        f = math.inf
+    if not math.isfinite(f):
+        return "an unbounded amount of memory"
+    if f < 2 ** 30:
+        return f"{f / 2 ** 20:.3g} MiB"
+    if f < 2 ** 40:
+        return f"{f / 2 ** 30:.3g} GiB"
+    return f"{f / 2 ** 40:.3g} TiB"
+
+
+def fit_value(value: float, nbytes: float, budget: float, exponent: float) -> float:
+    """The value of a parameter that brings ``nbytes`` down to ``budget`` when the memory
+    grows as ``value ** exponent`` (1: linear, -1: inverse, 2: an area, -2: a pixel)."""
+    try:
+        ratio = float(budget) / float(nbytes)
+    except (OverflowError, ZeroDivisionError):
+        ratio = 0.0
+    if ratio <= 0 or not math.isfinite(ratio):
+        return 0.0 if exponent > 0 else math.inf
+    return float(value) * ratio ** (1.0 / exponent)
+
+
+class Driver:
+    """A parameter that drives the size of an allocation.
+
+    Parameters
+    ----------
+    key : str
+        Scene key (dotted) or command-line option.
+    value : float
+        Its value now.
+    exponent : float
+        Memory grows as ``value ** exponent``.
+    unit : str
+        Unit printed after the values.
+    limit : (lo, hi), optional
+        The schema's range; advice outside it is not given.
+    """
+
+    def __init__(self, key: str, value, exponent: float, unit: str = "", *, limit=None):
+        self.key, self.value, self.exponent, self.unit = key, value, exponent, unit
+        self.limit = limit
+
+    def advice(self, nbytes: float, budget: float) -> str | None:
+        try:
+            v = float(self.value)
+        except (TypeError, ValueError, OverflowError):
+            return None
+        if v == 0 or not math.isfinite(v):
+            return None
+        target = fit_value(v, nbytes, budget, self.exponent)
+        if not math.isfinite(target) or target == 0:
+            return None
+        if self.limit is not None:
+            lo, hi = self.limit
+            if (lo is not None and target < lo) or (hi is not None and target > hi):
+                return None
+        rel = "<=" if self.exponent > 0 else ">="
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.key} {rel} {format_number(target)}{unit} (now {format_number(v)}{unit})"
+
+
+def check_memory(nbytes, *, what: str, budget: tuple[int, str] | int | None = None,
+                 drivers=(), hint: str | None = None) -> int:
+    """Raise :class:`MemoryBudgetError` when ``nbytes`` exceeds the budget.
+
+    Parameters
+    ----------
+    nbytes : int or float
+        Estimated bytes at the peak (may be a float, or inf for a request that cannot be
+        counted).
+    what : str
+        What would be allocated ("the tool path (2.1e9 points)").
+    budget : (bytes, source) or bytes, optional
+        From :func:`memory_budget`; default: the automatic budget.
+    drivers : sequence of Driver
+        The parameters that drive the size, most direct first: the message says how far
+        each one would have to change.
+    hint : str, optional
+        Further advice appended to the message.
+
+    Returns
+    -------
+    int
+        ``nbytes`` (as an int when it fits).
+    """
+    if budget is None:
+        budget = memory_budget(None)
+    if isinstance(budget, tuple):
+        limit, source = budget
+    else:
+        limit, source = int(budget), "the memory budget"
+    try:
+        n = float(nbytes)
+    except OverflowError:
+        n = math.inf
+    if math.isnan(n):
+        n = math.inf
+    if n <= limit:
+        return int(n)
+    tips = [t for t in (d.advice(n, limit) for d in drivers) if t]
+    msg = (f"{what} would need about {format_bytes(n)}, more than the memory budget of "
+           f"{format_bytes(limit)} ({source})")
+    if tips:
+        msg += "; to fit, set " + " or ".join(tips)
+    if hint:
+        msg += f"; {hint}"
+    raise MemoryBudgetError(msg)

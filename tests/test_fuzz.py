@@ -1,0 +1,462 @@
+"""Seeded fuzzing of every input path, bounded in time and memory.
+
+Each class of input (scene values, ``--set`` text, scene files, expressions, height-map
+and measured files, output folders, machine-program text, memory-driving parameters,
+renderer sizes, the command line end to end) is mutated from a fixed seed.  Every case
+must either be accepted or be refused with a :class:`RenderInspectError` whose message
+names the key; nothing else may escape (a traceback is a failure), refused runs write
+nothing and accepted ones write everything.  The number of cases per class is in
+:data:`CASES`; the whole module runs in a couple of minutes.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import math
+import os
+import re
+import string
+import subprocess
+import sys
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from render_inspect.design import make_surface
+from render_inspect.design._expression import ExpressionSurface
+from render_inspect.design._heightmap import HeightMapSurface
+from render_inspect.errors import InputError, RenderInspectError, SceneError
+from render_inspect.io import (
+    atomic_output_dir,
+    check_output_path,
+    read_marker,
+    read_measured,
+    read_nc,
+    read_program_nc,
+    write_exr,
+    write_nc,
+    write_program_nc,
+    write_x3p,
+)
+from render_inspect.pipeline import check_render_limits, plan_program
+from render_inspect.processes import process_of
+from render_inspect.render import MAX_SAMPLES_PER_PASS, render_passes
+from render_inspect.scene import find_scene, load_scene, scene_from_dict, shipped_scenes
+from render_inspect.toolpath import LinearProgram, ToolPath
+
+#: the seed of every class (RENDER_INSPECT_FUZZ_SEED changes it, to fuzz further)
+SEED = int(os.environ.get("RENDER_INSPECT_FUZZ_SEED", "16"))
+#: RENDER_INSPECT_FUZZ_SCALE multiplies the number of cases (1 in CI)
+SCALE = max(1, int(os.environ.get("RENDER_INSPECT_FUZZ_SCALE", "1")))
+#: cases per class (kept modest so that CI stays fast)
+CASES = {k: v * SCALE for k, v in {"schema": 600, "set": 500, "scene_file": 150,
+                                   "expression": 400, "files": 160, "out": 120, "nc": 300,
+                                   "memory": 30, "render": 200}.items()}
+CASES["cli"] = 6
+
+HOSTILE = [math.nan, math.inf, -math.inf, 1e300, -1e300, 1e-300, -1e-300, 5e-324, 0, 0.0,
+           -0.0, -1, 1, 2 ** 64, -(2 ** 63), 10 ** 400, True, False, "100", "", "nan", "1e3",
+           "x\ny", [], [1, 2], [math.nan] * 4, [0, 0, 1, 1], [[1]], {}, {"a": 1}, None,
+           1e20, -1e20, 0.5, 3600, 7, "z", "auto"]
+
+
+def _rng(name: str):
+    return np.random.default_rng([SEED, sum(map(ord, name))])
+
+
+def _pick(rng, seq):
+    return seq[int(rng.integers(len(seq)))]
+
+
+def _paths(d, prefix=()):
+    """Every key path of a nested dict (sections and leaves)."""
+    out = []
+    for k, v in d.items():
+        p = prefix + (k,)
+        out.append(p)
+        if isinstance(v, dict):
+            out.extend(_paths(v, p))
+    return out
+
+
+def _names_key(msg: str, path: tuple) -> bool:
+    """The message names the mutated key: its dotted path, or its section and its name."""
+    dotted = ".".join(path)
+    if dotted in msg:
+        return True
+    parent = ".".join(path[:-1])
+    return (not parent or parent in msg) and path[-1] in msg
+
+
+# ------------------------------------------------------------------ A: scene values
+def test_fuzz_scene_values_are_validated_or_named():
+    rng = _rng("schema")
+    bases = {name: load_scene(name).to_dict() for name in shipped_scenes()}
+    accepted = refused = 0
+    for _ in range(CASES["schema"]):
+        name = _pick(rng, list(bases))
+        data = copy.deepcopy(bases[name])
+        path = _pick(rng, _paths(data))
+        node = data
+        for k in path[:-1]:
+            node = node[k]
+        node[path[-1]] = copy.deepcopy(_pick(rng, HOSTILE))
+        if isinstance(data.get("simulation"), dict) and path[-1] != "max_memory_gb":
+            data["simulation"]["max_memory_gb"] = 0.25
+        try:
+            scene = scene_from_dict(data, source=name)
+        except SceneError as err:
+            refused += 1
+            assert _names_key(str(err), path), (path, str(err))
+            continue
+        accepted += 1
+        # what the commands do first with a scene must hold up too
+        try:
+            surface = make_surface(scene.design)
+            x = np.linspace(scene.simulation.region[0], scene.simulation.region[2], 5)
+            with np.errstate(all="ignore"):
+                surface.height(x, x)
+            process_of(scene).precheck(scene, tuple(scene.simulation.region))
+            check_render_limits(scene)
+        except RenderInspectError:
+            pass
+    assert accepted + refused == CASES["schema"] and refused > CASES["schema"] / 3
+
+
+# ------------------------------------------------------------------ B: --set text
+_KEYS = ["process.spindle_rpm", "simulation.region", "design.offset", "name", "tool.nose_radius",
+         "render.diffuse.spp", "design.expr", "simulation.seed", "x", "a.b.c.d.e.f.g.h.i",
+         "process", "simulation", ".", "", "process..kind", "process.kind", "design.type",
+         "simulation.region.0", "render.interferometer.reference_height"]
+_FRAGMENTS = ["[", "]", "{", "}", "'", '"', '"""', "=", ",", "\n", "\r", "\x00", "\x1b", "\u2028",
+              "nan", "inf", "-inf", "1e400", "0x10", "true", "1979-05-27", "#", "\\", "é", "☃",
+              "1", "0.5", "-3", "[0,0,1,1]", "{a=1}", "'a\nb'", "x=1"]
+
+
+def test_fuzz_set_strings_are_parsed_or_named():
+    rng = _rng("set")
+    for i in range(CASES["set"]):
+        key = _pick(rng, _KEYS)
+        if i % 5 == 0:
+            value = "[" * int(rng.integers(30, 3000)) + "1" + "]" * int(rng.integers(0, 40))
+        else:
+            value = "".join(_pick(rng, _FRAGMENTS) for _ in range(int(rng.integers(0, 6))))
+        item = f"{key}={value}" if i % 17 else value
+        try:
+            load_scene("sts_sinusoidal_grid", [item])
+        except SceneError as err:
+            msg = str(err)
+            k = item.split("=", 1)[0].strip()
+            if "=" in item and k and all(re.fullmatch(r"[A-Za-z_]\w*", p) for p in k.split(".")):
+                assert k.split(".")[0] in msg or "--set" in msg, (item, msg)
+
+
+# ------------------------------------------------------------------ C: scene files
+def _mutate_text(rng, raw: bytes) -> bytes:
+    kind = int(rng.integers(8))
+    if kind == 0:
+        return raw[: int(rng.integers(len(raw) + 1))]
+    if kind == 1:
+        b = bytearray(raw)
+        for _ in range(int(rng.integers(1, 8))):
+            b[int(rng.integers(len(b)))] = int(rng.integers(256))
+        return bytes(b)
+    if kind == 2:
+        return b"\xff\xfe" + raw
+    if kind == 3:
+        return raw + b"\nx = [" + b"[" * 5000 + b"]" * 5000 + b"]\n"
+    if kind == 4:
+        return raw + b"\n[" + b".".join([b"a"] * 5000) + b"]\nb = 1\n"
+    if kind == 5:
+        return bytes(rng.integers(0, 256, int(rng.integers(0, 2000)), dtype=np.uint8))
+    if kind == 6:
+        return raw.replace(b"=", b"= true #", 1)
+    return raw + b"\n" + b"\x00" * 10
+
+
+def test_fuzz_scene_files_load_or_fail_cleanly(tmp_path):
+    rng = _rng("scene_file")
+    raws = [find_scene(n).read_bytes() for n in shipped_scenes()]
+    for i in range(CASES["scene_file"]):
+        f = tmp_path / f"s{i}.toml"
+        f.write_bytes(_mutate_text(rng, _pick(rng, raws)))
+        try:
+            load_scene(f)
+        except SceneError:
+            pass
+    for special in [tmp_path, "/dev/null", "/dev/zero", tmp_path / "missing.toml", ""]:
+        with pytest.raises(SceneError, match="scene"):
+            load_scene(special)
+    os.mkfifo(tmp_path / "fifo.toml")
+    with pytest.raises(SceneError, match="not a regular file"):
+        load_scene(tmp_path / "fifo.toml")
+    (tmp_path / "big.toml").write_bytes(b"# " + b"x" * (5 * 2 ** 20))
+    with pytest.raises(SceneError, match="larger than"):
+        load_scene(tmp_path / "big.toml")
+
+
+# ------------------------------------------------------------------ D: expressions
+_ATOMS = ["x", "y", "pi", "e", "1", "0", "2.5", "1e12", "1e-12", "-3", "a", "__import__",
+          "x.real", "'s'", "[x]", "lambda: 1", "None", "True", "1e400", "0x1f", "1j"]
+_UNARY = ["sin", "cos", "tan", "exp", "log", "sqrt", "abs", "arcsin", "tanh", "sign", "eval",
+          "open", "getattr"]
+_BINOPS = ["+", "-", "*", "/", "**", "//", "%", "@", "<", "and", ","]
+
+
+def _expr(rng, depth: int) -> str:
+    if depth <= 0 or rng.random() < 0.25:
+        return _pick(rng, _ATOMS)
+    r = rng.random()
+    if r < 0.45:
+        return f"{_expr(rng, depth - 1)} {_pick(rng, _BINOPS)} {_expr(rng, depth - 1)}"
+    if r < 0.75:
+        return f"{_pick(rng, _UNARY)}({_expr(rng, depth - 1)})"
+    if r < 0.85:
+        return f"({_expr(rng, depth - 1)})"
+    if r < 0.9:
+        return "+".join(_expr(rng, min(depth - 1, 1)) for _ in range(int(rng.integers(2, 200))))
+    return f"-{_expr(rng, depth - 1)}"
+
+
+def test_fuzz_expressions_are_safe():
+    rng = _rng("expression")
+    x = np.linspace(-1, 1, 7)
+    X, Y = np.meshgrid(x, x)
+    ok = 0
+    for i in range(CASES["expression"]):
+        expr = _expr(rng, int(rng.integers(1, 12)))
+        if i % 50 == 0:
+            expr = "sin(" * int(rng.integers(50, 300)) + "x" + ")" * 300
+        try:
+            s = ExpressionSurface(expr, {"a": 2.0})
+            for f in (s.height, s.gradient, s.hessian):
+                for v in np.atleast_1d(f(X, Y)) if f is s.height else f(X, Y):
+                    assert np.all(np.isfinite(v))
+            ok += 1
+        except InputError as err:
+            assert "design.expr" in str(err) or "design.constants" in str(err)
+    assert ok > 10
+
+
+# ------------------------------------------------------------------ E: map files
+def _npy_bytes(rng) -> bytes:
+    buf = io.BytesIO()
+    dtype = _pick(rng, [np.float64, np.float32, np.int16, np.complex128, object, "U4", bool])
+    shape = _pick(rng, [(8, 8), (1, 8), (0, 0), (8,), (2, 2, 2), (5, 7)])
+    try:
+        arr = np.zeros(shape, dtype=dtype)
+        np.save(buf, arr, allow_pickle=True)
+    except (TypeError, ValueError):
+        np.save(buf, np.zeros((8, 8)))
+    raw = buf.getvalue()
+    if rng.random() < 0.3:  # a header claiming another shape
+        raw = raw.replace(repr(shape).encode(), repr(_pick(rng, [(10 ** 6, 10 ** 6), (2 ** 40, 2),
+                                                                 (8, 9), (-1, 8)])).encode(), 1)
+    return raw
+
+
+def _corrupt(rng, raw: bytes) -> bytes:
+    k = int(rng.integers(4))
+    if k == 0 or not raw:
+        return raw
+    if k == 1:
+        return raw[: int(rng.integers(len(raw)))]
+    if k == 2:
+        b = bytearray(raw)
+        for _ in range(int(rng.integers(1, 20))):
+            b[int(rng.integers(len(b)))] = int(rng.integers(256))
+        return bytes(b)
+    return bytes(rng.integers(0, 256, int(rng.integers(0, 600)), dtype=np.uint8))
+
+
+def test_fuzz_measured_and_design_map_files(tmp_path):
+    rng = _rng("files")
+    z = np.random.default_rng(1).normal(0, 1e-4, (12, 12))
+    x3p = write_x3p(tmp_path / "ref.x3p", z, pixel=0.001).read_bytes()
+    exr = write_exr(tmp_path / "ref.exr", {"design": z.astype(np.float32)},
+                    {"pixel_size_mm": 0.001, "origin_mm": [0.0, 0.0]}).read_bytes()
+    buf = io.BytesIO()
+    np.savez(buf, z=z, pixel_mm=0.001)
+    npz = buf.getvalue()
+    sidecars = ['{"pixel_mm": 0.001}', "{", '{"pixel_mm": "a"}', "[]", '{"pixel_mm": 1e999}',
+                '{"pixel_mm": 0.001, "origin_mm": [1, 2, 3]}', "\x00", '{"units": "furlong"}']
+    for i in range(CASES["files"]):
+        kind = _pick(rng, ["npy", "npz", "exr", "x3p"])
+        raw = {"npy": lambda: _npy_bytes(rng), "npz": lambda: npz, "exr": lambda: exr,
+               "x3p": lambda: x3p}[kind]()
+        f = tmp_path / f"m{i}.{kind}"
+        f.write_bytes(_corrupt(rng, raw))
+        f.with_suffix(".json").write_text(_pick(rng, sidecars))
+        try:
+            zz, pixel, origin, meta = read_measured(f, pixel=0.001 if kind == "npz" else None)
+            assert zz.ndim == 2 and zz.dtype == np.float64 and pixel > 0
+        except RenderInspectError:
+            pass
+        if kind in ("npy", "exr"):
+            try:
+                HeightMapSurface(f, pixel=0.001, origin=(0.0, 0.0), interpolation="linear")
+            except RenderInspectError as err:
+                assert "design" in str(err)
+
+
+# ------------------------------------------------------------------ F: output folders
+_OUT_PARTS = ["a", "..", ".", "", " ", "\n", "\x00", "é☃", "x" * 300, "/dev/null", "/proc",
+              "/", "f", "f/sub", "-", "~", ".hidden", "d"]
+
+
+def test_fuzz_output_folders(tmp_path, monkeypatch):
+    rng = _rng("out")
+    work = tmp_path / "work"
+    (work / "d").mkdir(parents=True)
+    (work / "f").write_text("a file")
+    monkeypatch.chdir(work)
+    for i in range(CASES["out"]):
+        parts = [_pick(rng, _OUT_PARTS) for _ in range(int(rng.integers(1, 4)))]
+        out = "/".join(parts)
+        try:
+            target = check_output_path(out)
+        except InputError as err:
+            assert "--out" in str(err)
+            continue
+        if not str(target).startswith(str(tmp_path)):
+            continue  # only ever write inside the test's folder
+        before = {str(p) for p in tmp_path.rglob("*")}
+        fail = rng.random() < 0.5
+        try:
+            with atomic_output_dir(out, command="fuzz", overwrite=bool(rng.random() < 0.3)) as tmp:
+                (tmp / "a.txt").write_text(str(i))
+                if fail:
+                    raise KeyboardInterrupt if rng.random() < 0.5 else RuntimeError("fail")
+        except (KeyboardInterrupt, RuntimeError):
+            assert {str(p) for p in tmp_path.rglob("*")} == before
+            continue
+        except InputError as err:
+            assert "--out" in str(err)
+            assert {str(p) for p in tmp_path.rglob("*")} == before
+            continue
+        assert (target / "a.txt").read_text() == str(i)
+        assert read_marker(target)["files"]["a.txt"] == "fuzz"
+        assert not [p for p in target.parent.iterdir() if ".partial-" in p.name]
+    assert (work / "f").read_text() == "a file"
+
+
+# ------------------------------------------------------------------ G: program text
+_PRINTABLE = set(string.printable) - set("\t\n\r\x0b\x0c")
+
+
+def test_fuzz_program_text(tmp_path):
+    rng = _rng("nc")
+    alphabet = [chr(c) for c in list(range(0, 0x180)) + [0x2028, 0x2029, 0x85, 0xfeff, 0x202e]]
+    n = 20
+    th = np.linspace(0, 4 * np.pi, n)
+    tp = ToolPath(th, 1 - th / 100, 1e-3 * np.sin(th), np.linspace(0, 2, n), {"spindle_rpm": 60})
+    lp = LinearProgram(np.zeros(n), np.linspace(0, 1, n), np.zeros(n), np.linspace(0, 1, n),
+                       np.repeat([0, 1], n // 2), {"feed_mm_per_min": 100.0})
+    for i in range(CASES["nc"]):
+        name = "".join(rng.choice(alphabet, size=int(rng.integers(0, 60))))
+        header = {"scene": name, "comment": name[::-1]}
+        f = write_nc(tmp_path / "t.nc", tp, header=header) if i % 2 else \
+            write_program_nc(tmp_path / "t.nc", lp, header=header)
+        text = f.read_bytes().decode("ascii")
+        for line in text.split("\n")[:-1]:
+            assert set(line) <= _PRINTABLE
+            if line.startswith(";"):
+                assert ";" not in line[1:] and "(" not in line and ")" not in line
+            else:
+                assert re.fullmatch(r"(G90 G93|G90 G94 G21|M30|N\d+ G01( [CXYZF]-?[0-9.e+-]+)+)", line)
+        back = read_nc(f) if i % 2 else read_program_nc(f)
+        assert back.points == n
+
+
+# ------------------------------------------------------------------ H: memory
+def test_fuzz_memory_parameters_stay_within_the_budget():
+    """Random combinations of the keys that drive the size of the program and the grid,
+    under a 64 MiB budget: each is refused naming a key, or planned within 1.5 x the
+    budget (tracemalloc)."""
+    rng = _rng("memory")
+    budget_gb = 64 / 1024
+    choices = {
+        "process.points_per_rev": [8, 3600, 10 ** 5, 10 ** 7],
+        "process.feed_mm_per_min": [1e-9, 1e-3, 0.5, 20.0],
+        "process.sampling": ["'constant_angle'", "'constant_arc'", "'hybrid'"],
+        "process.arc_length": [1e-9, 1e-4, 0.005],
+        "process.chordal_tolerance": [1e-15, 1e-9, 1e-6],
+        "process.workpiece_radius": [0.3, 5.0, 500.0],
+        "simulation.pixel": [1e-6, 1e-3, 0.01],
+    }
+    for _ in range(CASES["memory"]):
+        over = [f"{k}={_pick(rng, v)}" for k, v in choices.items() if rng.random() < 0.6]
+        try:
+            scene = load_scene("sts_sinusoidal_grid", over + [f"simulation.max_memory_gb={budget_gb}"])
+        except SceneError:
+            continue
+        tracemalloc.start()
+        try:
+            plan_program(scene)
+        except RenderInspectError as err:
+            assert re.search(r"process\.|simulation\.", str(err)), str(err)
+            assert not re.search(r"\d{13,}", str(err))
+        finally:
+            _, peak = tracemalloc.get_traced_memory()
+            tracemalloc.stop()
+        assert peak < 1.5 * budget_gb * 2 ** 30, (over, peak)
+
+
+# ------------------------------------------------------------------ I: renderer sizes
+def test_fuzz_render_sizes():
+    rng = _rng("render")
+    base = load_scene("sts_sinusoidal_grid", ["simulation.max_memory_gb=2"])
+    for _ in range(CASES["render"]):
+        res = int(rng.choice([1, 16, 255, 4096, 8192, 8193, 65536]))
+        spp = int(rng.choice([0, 1, 300, 65536, 2 ** 20]))
+        over = [f"render.diffuse.resolution={res}", f"render.diffuse.spp={spp}"]
+        if rng.random() < 0.3:
+            w = float(rng.choice([1e-6, 1e-3, 0.1]))
+            over.append(f"render.diffuse.window=[0, -0.5, {w}, 0.5]")
+        if rng.random() < 0.3:
+            over.append(f"render.interferometer.pixel={rng.choice([1e-7, 1e-6, 1e-4, 0.01])}")
+            over.append(f"render.interferometer.subsamples={rng.integers(0, 10)}")
+        try:
+            scene = base.with_overrides(over)
+        except SceneError as err:
+            assert "render." in str(err)
+            continue
+        try:
+            check_render_limits(scene)
+        except RenderInspectError as err:
+            assert "render." in str(err)
+        passes = render_passes(min(res, 8192), min(res, 8192), max(spp, 1))
+        assert max(passes) * min(res, 8192) ** 2 <= MAX_SAMPLES_PER_PASS
+
+
+# ------------------------------------------------------------------ J: command line
+def _run_cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "render_inspect.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def test_fuzz_command_line_end_to_end(tmp_path):
+    """A few whole runs in a fresh process: exit 1, one line naming the input, no
+    traceback, nothing written."""
+    (tmp_path / "bin.toml").write_bytes(b"\x00\xff" * 50)
+    deep = tmp_path / "deep.toml"
+    deep.write_bytes(b"x = " + b"[" * 5000 + b"]" * 5000 + b"\n")
+    cases = [
+        (["simulate", tmp_path / "bin.toml"], "UTF-8"),
+        (["simulate", deep], "deeper"),
+        (["simulate", tmp_path], "is a folder"),
+        (["simulate", "sts_sinusoidal_grid", "--set", "process.spindle_rpm=true"], "process.spindle_rpm"),
+        (["toolpath", "sts_sinusoidal_grid", "--set", "process.points_per_rev=10000000",
+          "--set", "simulation.max_memory_gb=1"], "process.points_per_rev"),
+        (["compare", "sts_sinusoidal_grid", "--measured", tmp_path / "bin.toml"], "measured"),
+    ]
+    assert len(cases) == CASES["cli"]
+    for args, key in cases:
+        out = tmp_path / "out"
+        r = _run_cli(*args, "--out", out, cwd=tmp_path)
+        assert r.returncode == 1, (args, r.stderr)
+        assert "Traceback" not in r.stderr and key in r.stderr, (args, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert not out.exists() and not [p for p in tmp_path.iterdir() if ".partial" in p.name]

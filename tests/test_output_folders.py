@@ -1,0 +1,499 @@
+"""Output folders: checked before any work, locked, swapped in whole, never merged with
+a user's files, left as they were after an error, an interruption or a kill."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from render_inspect import cli
+from render_inspect.errors import InputError
+from render_inspect.io import MARKER, atomic_output_dir, check_output_path, read_marker
+from render_inspect.pipeline import run_simulate
+from render_inspect.scene import load_scene
+
+SMALL = ["simulation.region=[-0.05,-0.05,0.05,0.05]", "simulation.pixel=0.005",
+         "process.workpiece_radius=0.6"]
+#: a run of a few seconds (for the signal and lock tests)
+SLOW = ["simulation.region=[-1,-1,1,1]", "simulation.pixel=0.0008", "process.workpiece_radius=1.6"]
+
+
+def _tree(folder: Path) -> dict:
+    """Relative path -> sha256 of every file below ``folder``."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _leftovers(parent: Path) -> list[str]:
+    return sorted(p.name for p in parent.iterdir() if ".partial-" in p.name
+                  or ".backup-" in p.name or p.name.endswith(".lock"))
+
+
+def _main(capsys, *argv):
+    """Run the command line in this process; the log handler it installs writes to this
+    test's captured stderr and is removed afterwards."""
+    cli.log.handlers.clear()
+    try:
+        rc = cli.main([str(a) for a in argv])
+    finally:
+        cli.log.handlers.clear()
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return rc, err
+
+
+# ------------------------------------------------------------------ the folder itself
+def test_a_new_folder_gets_the_files_and_the_marker(tmp_path):
+    out = tmp_path / "a" / "b"
+    with atomic_output_dir(out, command="simulate") as tmp:
+        (tmp / "x.txt").write_text("1")
+        (tmp / "sub").mkdir()
+        (tmp / "sub" / "y.txt").write_text("2")
+    assert sorted(os.listdir(out)) == [MARKER, "sub", "x.txt"]
+    m = read_marker(out)
+    assert m["files"] == {"sub/y.txt": "simulate", "x.txt": "simulate"}
+    assert _leftovers(out.parent) == []
+
+
+def test_rerun_replaces_the_whole_folder_and_drops_old_files(tmp_path):
+    out = tmp_path / "o"
+    with atomic_output_dir(out, command="toolpath") as tmp:
+        (tmp / "toolpath.csv").write_text("old")
+        (tmp / "report.html").write_text("old")
+    with atomic_output_dir(out, command="toolpath") as tmp:
+        (tmp / "toolpath.nc").write_text("new")
+    assert sorted(os.listdir(out)) == [MARKER, "toolpath.nc"]
+    assert _leftovers(tmp_path) == []
+
+
+def test_a_folder_render_inspect_did_not_write_is_refused_unless_overwrite(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "metrics.json").write_text('{"mine": 1}')
+    with pytest.raises(InputError, match=r"--out .* not written by render-inspect.*--overwrite"):
+        with atomic_output_dir(out, command="simulate"):
+            raise AssertionError("the block must not run")
+    assert (out / "metrics.json").read_text() == '{"mine": 1}'
+    with atomic_output_dir(out, command="simulate", overwrite=True) as tmp:
+        (tmp / "metrics.json").write_text("{}")
+    assert (out / "metrics.json").read_text() == "{}"
+    assert read_marker(out) is not None
+
+
+def test_files_added_to_an_output_folder_are_not_deleted_silently(tmp_path):
+    out = tmp_path / "o"
+    with atomic_output_dir(out, command="simulate") as tmp:
+        (tmp / "heightmap.exr").write_text("x")
+    (out / "notes.txt").write_text("my notes")
+    with pytest.raises(InputError, match=r"notes\.txt"):
+        with atomic_output_dir(out, command="simulate"):
+            pass
+    assert (out / "notes.txt").read_text() == "my notes"
+
+
+def test_render_merges_into_a_simulate_folder_of_the_same_part_only(tmp_path):
+    scene = load_scene("sts_sinusoidal_grid", SMALL)
+    other = scene.with_overrides(["process.spindle_rpm=60"])
+    out = tmp_path / "o"
+    with atomic_output_dir(out, command="simulate", scene=scene) as tmp:
+        (tmp / "heightmap.exr").write_text("sim")
+    with atomic_output_dir(out, command="render", merge=True, scene=scene) as tmp:
+        (tmp / "interferogram.exr").write_text("r1")
+    assert sorted(os.listdir(out)) == [MARKER, "heightmap.exr", "interferogram.exr"]
+    # a second render replaces the first render's images, keeps simulate's files
+    with atomic_output_dir(out, command="render", merge=True, scene=scene) as tmp:
+        (tmp / "diffuse_macro.png").write_text("r2")
+    assert sorted(os.listdir(out)) == [MARKER, "diffuse_macro.png", "heightmap.exr"]
+    assert read_marker(out)["files"] == {"diffuse_macro.png": "render", "heightmap.exr": "simulate"}
+    # a render settings change is the same part; a process change is not
+    with atomic_output_dir(out, command="render", merge=True,
+                           scene=scene.with_overrides(["render.diffuse.spp=4"])):
+        pass
+    with pytest.raises(InputError, match="different part"):
+        with atomic_output_dir(out, command="render", merge=True, scene=other):
+            pass
+    with atomic_output_dir(out, command="render", merge=True, scene=other, overwrite=True) as tmp:
+        (tmp / "x.png").write_text("")
+    assert sorted(os.listdir(out)) == [MARKER, "x.png"]
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("boom"), KeyboardInterrupt()])
+def test_an_error_or_interruption_leaves_the_folder_as_it_was(tmp_path, exc):
+    out = tmp_path / "o"
+    with atomic_output_dir(out, command="simulate") as tmp:
+        (tmp / "metrics.json").write_text("old")
+    before = _tree(out)
+    with pytest.raises(type(exc)):
+        with atomic_output_dir(out, command="simulate") as tmp:
+            (tmp / "metrics.json").write_text("new")
+            raise exc
+    assert _tree(out) == before
+    assert _leftovers(tmp_path) == []
+    # a new folder that failed is not created at all, nor its parents
+    with pytest.raises(type(exc)):
+        with atomic_output_dir(tmp_path / "p" / "q" / "r", command="simulate"):
+            raise exc
+    assert not (tmp_path / "p").exists()
+
+
+def test_a_second_run_into_the_same_folder_fails_at_once(tmp_path):
+    out = tmp_path / "o"
+    inside = threading.Event()
+    release = threading.Event()
+
+    def first():
+        with atomic_output_dir(out, command="simulate") as tmp:
+            (tmp / "a").write_text("1")
+            inside.set()
+            release.wait(30)
+
+    t = threading.Thread(target=first)
+    t.start()
+    try:
+        assert inside.wait(30)
+        with pytest.raises(InputError, match=rf"being written by another render-inspect run "
+                                             rf"\(process {os.getpid()}\)"):
+            with atomic_output_dir(out, command="simulate"):
+                pass
+    finally:
+        release.set()
+        t.join()
+    assert (out / "a").read_text() == "1"
+    assert _leftovers(tmp_path) == []
+
+
+def test_stale_temporary_folders_are_cleaned_and_a_lost_folder_restored(tmp_path):
+    out = tmp_path / "o"
+    with atomic_output_dir(out, command="simulate") as tmp:
+        (tmp / "a").write_text("1")
+    # what a killed run leaves: its temporary folder, and (killed during the swap) the
+    # old folder renamed to a backup with nothing in its place
+    (tmp_path / ".o.partial-999999-deadbeef").mkdir()
+    (tmp_path / ".o.partial-999999-deadbeef" / "half.exr").write_text("half")
+    os.rename(out, tmp_path / ".o.backup-999999-deadbeef")
+    with atomic_output_dir(out, command="render", merge=True) as tmp:
+        (tmp / "b").write_text("2")
+    assert sorted(os.listdir(out)) == [MARKER, "a", "b"]
+    assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("bad, why", [
+    ("", "must name an output folder"),
+    ("   ", "must name an output folder"),
+    ("/dev/null", "not a folder"),
+    ("/", "root folder"),
+    ("/proc/render_inspect_test", "cannot write"),
+    ("x" * 300, "too long"),
+    ("a\x00b", "NUL"),
+])
+def test_bad_out_is_refused_before_any_work(tmp_path, monkeypatch, bad, why):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=why):
+        check_output_path(bad)
+    assert os.listdir(tmp_path) == []
+    assert not any(n.startswith(".null") for n in os.listdir("/dev"))
+
+
+def test_out_under_a_file_or_holding_the_current_folder_is_refused(tmp_path, monkeypatch):
+    (tmp_path / "f").write_text("")
+    with pytest.raises(InputError, match="lies under .* which is a file"):
+        check_output_path(tmp_path / "f" / "sub")
+    with pytest.raises(InputError, match="exists and is a file"):
+        check_output_path(tmp_path / "f")
+    (tmp_path / "d" / "e").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "d" / "e")
+    for out in (".", "..", str(tmp_path / "d")):
+        with pytest.raises(InputError, match="current folder"):
+            check_output_path(out)
+    long = tmp_path / ("n" * 240)
+    with pytest.raises(InputError, match="too long"):
+        check_output_path(long)
+
+
+def test_read_only_file_system_is_refused(tmp_path):
+    ro = Path("/sys/fs")
+    if os.access(ro, os.W_OK):
+        ro = Path("/proc/sys")
+    with pytest.raises(InputError, match="--out"):
+        with atomic_output_dir(ro / "render_inspect_out"):
+            pass
+
+
+# ------------------------------------------------------------------ the command line
+def test_cli_refuses_bad_out_with_one_line_and_exit_1(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for bad in ["", "/dev/null", str(tmp_path / "f" / "x"), "/proc/x/y"]:
+        (tmp_path / "f").write_text("")
+        rc, err = _main(capsys, "simulate", "sts_sinusoidal_grid", "--out", bad)
+        assert rc == 1 and "--out" in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(os.listdir(tmp_path)) == ["f"]
+
+
+def test_cli_overwrite_and_refusal(tmp_path, capsys):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "metrics.json").write_text("mine")
+    args = ["toolpath", "sts_sinusoidal_grid", "--out", out, *sum((["--set", s] for s in SMALL), [])]
+    rc, err = _main(capsys, *args)
+    assert rc == 1 and "--overwrite" in err and (out / "metrics.json").read_text() == "mine"
+    rc, err = _main(capsys, *args, "--overwrite")
+    assert rc == 0 and not (out / "metrics.json").exists() and (out / "toolpath.npz").exists()
+
+
+def test_outputs_are_byte_identical_between_runs(tmp_path):
+    scene = load_scene("sts_sinusoidal_grid", SMALL)
+    run_simulate(scene, tmp_path / "a")
+    run_simulate(scene, tmp_path / "b")
+    a, b = _tree(tmp_path / "a"), _tree(tmp_path / "b")
+    assert MARKER in a and a.keys() == b.keys()
+    assert {k: v for k, v in a.items() if k != "metrics.json"} == \
+        {k: v for k, v in b.items() if k != "metrics.json"}
+    ma, mb = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in "ab")
+    ma.pop("timing_s"), mb.pop("timing_s")  # the seconds each step took
+    assert ma == mb
+
+
+def _cli_proc(*args):
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.Popen([sys.executable, "-m", "render_inspect.cli", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _wait_for(pred, timeout=60.0):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143),
+                                       (signal.SIGKILL, -9)])
+@pytest.mark.parametrize("delay", [0.0, 1.5])
+def test_signals_leave_the_old_folder_and_no_partial(tmp_path, sig, code, delay):
+    """An earlier run's folder survives a run interrupted at any point (the wait for the
+    lock, planning, the numba kernels, writing): SIGINT and SIGTERM exit 130 / 143
+    without a traceback and remove their temporary folder; after SIGKILL the next run
+    removes it."""
+    out = tmp_path / "o"
+    run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
+    before = _tree(out)
+    sets = sum((["--set", s] for s in SLOW + ["process.spindle_rpm=60"]), [])
+    p = _cli_proc("simulate", "sts_sinusoidal_grid", "--out", out, *sets)
+    assert _wait_for(lambda: any(".partial-" in n for n in os.listdir(tmp_path)))
+    time.sleep(delay)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:  # the run finished before the signal: then it is complete
+        assert read_marker(out)["commands"]["simulate"] and (out / "heightmap.exr").exists()
+        return
+    assert p.returncode == code, err
+    assert "Traceback" not in err and "SystemError" not in err
+    assert _tree(out) == before
+    if sig != signal.SIGKILL:
+        assert _leftovers(tmp_path) == [], err
+        assert "left as it was" in err
+    else:  # the next run into the folder cleans up after the killed one
+        run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
+        assert _leftovers(tmp_path) == []
+
+
+def test_a_concurrent_cli_run_fails_clearly(tmp_path, capsys):
+    out = tmp_path / "o"
+    sets = sum((["--set", s] for s in SLOW), [])
+    p = _cli_proc("simulate", "sts_sinusoidal_grid", "--out", out, *sets)
+    try:
+        assert _wait_for(lambda: (tmp_path / ".o.lock").exists())
+        rc, err = _main(capsys, "simulate", "sts_sinusoidal_grid", "--out", out,
+                        *sum((["--set", s] for s in SMALL), []))
+        assert rc == 1 and f"being written by another render-inspect run (process {p.pid})" in err
+    finally:
+        p.send_signal(signal.SIGTERM)
+        p.communicate(timeout=120)
+
+
+def test_interrupt_inside_a_compiled_kernel_is_an_interruption(capsys, monkeypatch, tmp_path):
+    """Ctrl-C while numba runs surfaces as a SystemError whose context is the
+    KeyboardInterrupt: the command line reports an interruption, exit 130."""
+    from render_inspect import pipeline
+
+    def kernel(*a, **k):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("<numba function> returned a result with an exception set")
+
+    monkeypatch.setattr(pipeline, "run_simulate", kernel)
+    rc, err = _main(capsys, "simulate", "sts_sinusoidal_grid", "--out", tmp_path / "o")
+    assert rc == 130 and "interrupted" in err and "SystemError" not in err
+
+
+def test_unexpected_errors_are_one_line_with_a_hint(capsys, monkeypatch, tmp_path):
+    from render_inspect import pipeline
+
+    def bug(*a, **k):
+        return {}["missing"]
+
+    monkeypatch.setattr(pipeline, "run_simulate", bug)
+    rc, err = _main(capsys, "simulate", "sts_sinusoidal_grid", "--out", tmp_path / "o")
+    assert rc == 1 and len(err.strip().splitlines()) == 1
+    assert "internal error: KeyError" in err and "traceback" in err
+    monkeypatch.setenv("RENDER_INSPECT_TRACEBACK", "1")
+    cli.log.handlers.clear()
+    rc = cli.main(["simulate", "sts_sinusoidal_grid", "--out", str(tmp_path / "o")])
+    cli.log.handlers.clear()
+    assert rc == 1 and "Traceback" in capsys.readouterr().err
+
+
+def test_marker_is_strict_json_and_lists_every_file(tmp_path):
+    scene = load_scene("sts_sinusoidal_grid", SMALL)
+    run_simulate(scene, tmp_path / "o")
+    m = json.loads((tmp_path / "o" / MARKER).read_text())
+    files = sorted(str(p.relative_to(tmp_path / "o")) for p in (tmp_path / "o").rglob("*")
+                   if p.is_file() and p.name != MARKER)
+    assert sorted(m["files"]) == files and set(m["files"].values()) == {"simulate"}
+    assert m["written_by"] == "render_inspect" and len(m["commands"]["simulate"]["part_sha256"]) == 64
+
+
+def test_a_full_disk_while_writing_is_one_line_and_leaves_nothing(tmp_path):
+    """The file-size limit makes every write beyond 64 kB fail inside the kernel (EFBIG,
+    as a full disk gives ENOSPC): exit 1, one line naming --out, the old folder intact,
+    no temporary folder left."""
+    import resource
+
+    out = tmp_path / "o"
+    run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
+    before = _tree(out)
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
+
+    sets = sum((["--set", s] for s in SMALL + ["process.spindle_rpm=60"]), [])
+    r = subprocess.run([sys.executable, "-m", "render_inspect.cli", "simulate",
+                        "sts_sinusoidal_grid", "--out", str(out), *sets],
+                       capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stderr and "Exception ignored" not in r.stderr
+    errors = [line for line in r.stderr.splitlines() if "error" in line]
+    assert len(errors) == 1 and "--out" in errors[0] and "nothing was written" in errors[0], r.stderr
+    assert _tree(out) == before and _leftovers(tmp_path) == []
+
+
+def test_no_space_left_is_reported_naming_out(tmp_path):
+    import errno
+
+    with pytest.raises(InputError, match=r"--out .*No space left on device while writing "
+                                         r"heightmap.exr; nothing was written"):
+        with atomic_output_dir(tmp_path / "o", command="simulate") as tmp:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp / "heightmap.exr"))
+    assert os.listdir(tmp_path) == []
+
+
+# ------------------------------------------------------------------ the other commands
+def test_every_command_that_writes_a_folder_refuses_a_users_folder(tmp_path, capsys):
+    """analyze, measure, characterise, regress and sweep check --out before any work:
+    a non-empty folder render_inspect did not write is refused and left as it was."""
+    from render_inspect.io import write_x3p
+
+    import numpy as np
+
+    x3p = write_x3p(tmp_path / "m.x3p", np.zeros((8, 8)), pixel=0.001)
+    runs = [["analyze", x3p], ["measure", tmp_path / "no_such_frames.exr"],
+            ["characterise", "--objective", "20x", "--quick"],
+            ["regress", "--only", "no_such_case"],
+            ["sweep", "fig15_small"]]
+    for argv in runs:
+        out = tmp_path / f"mine_{argv[0]}"
+        out.mkdir()
+        (out / "notes.txt").write_text("my notes")
+        rc, err = _main(capsys, *argv, "--out", out)
+        assert rc == 1 and "--out" in err and "notes.txt" in err, (argv, err)
+        assert sorted(os.listdir(out)) == ["notes.txt"], argv
+
+
+def test_analyze_writes_a_marked_folder_and_replaces_it_whole(tmp_path, capsys):
+    import numpy as np
+
+    from render_inspect.io import write_x3p
+
+    z = 1e-5 * np.random.default_rng(1).standard_normal((32, 32))
+    x3p = write_x3p(tmp_path / "m.x3p", z, pixel=0.001)
+    out = tmp_path / "a"
+    assert _main(capsys, "analyze", x3p, "--out", out, "--x3p")[0] == 0
+    assert read_marker(out)["files"]["height.x3p"] == "analyze"
+    assert _main(capsys, "analyze", x3p, "--out", out)[0] == 0
+    assert not (out / "height.x3p").exists()        # the earlier run's file is gone
+    assert sorted(read_marker(out)["files"]) == ["height.png", "metrics.json"]
+
+
+def test_a_sweep_folder_is_claimed_marked_and_resumable(tmp_path):
+    from render_inspect.io import claim_output_dir
+
+    out = tmp_path / "sweep"
+    claim_output_dir(out, command="sweep")
+    (out / "results.jsonl").write_text("")
+    claim_output_dir(out, command="sweep")            # its own folder: resumed
+    assert "sweep" in read_marker(out)["commands"]
+    # another command may not replace the sweep's files
+    with pytest.raises(InputError, match="did not write"):
+        with atomic_output_dir(out, command="simulate"):
+            pass
+    # a sweep folder written before markers existed is recognised
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "results.jsonl").write_text("")
+    claim_output_dir(old, command="sweep", resumable=lambda p: (p / "results.jsonl").is_file())
+    # a user's folder is refused; --overwrite writes beside the user's files
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes")
+    with pytest.raises(InputError, match="--overwrite"):
+        claim_output_dir(mine, command="sweep")
+    claim_output_dir(mine, command="sweep", overwrite=True)
+    assert (mine / "notes.txt").read_text() == "my notes"
+    # the sweep's folder is filled in place: it may hold the current folder
+    claim_output_dir(tmp_path, command="sweep", overwrite=True)
+
+
+def test_nested_outputs_and_stores_are_kept_as_units(tmp_path):
+    """The add-on's layout: a root folder whose variant sub-folders are outputs of their
+    own (renders are added to them) and a compare/ folder of another command; a Zarr
+    store counts as one entry."""
+    from render_inspect.io import write_marker
+
+    root = tmp_path / "root"
+    with atomic_output_dir(root, command="blender simulate", merge=True) as tmp:
+        (tmp / "compensated").mkdir()
+        (tmp / "compensated" / "heightmap.exr").write_text("c1")
+        write_marker(tmp / "compensated", command="simulate")
+        (tmp / "heightmap.zarr" / "machined" / "c").mkdir(parents=True)
+        (tmp / "heightmap.zarr" / "machined" / "c" / "0").write_text("chunk")
+    assert read_marker(root)["files"] == {"compensated/": "blender simulate",
+                                          "heightmap.zarr/": "blender simulate"}
+    # a render adds to the variant folder
+    with atomic_output_dir(root / "compensated", command="render", merge=True) as tmp:
+        (tmp / "cycles.png").write_text("png")
+    assert sorted(os.listdir(root / "compensated")) == [MARKER, "cycles.png", "heightmap.exr"]
+    # another command's output nested in the root is kept when the root is written again
+    with atomic_output_dir(root / "compare", command="compare") as tmp:
+        (tmp / "report.html").write_text("report")
+    (root / ".compensated.lock").write_text("")       # a killed run's lock: not the user's
+    with atomic_output_dir(root, command="blender simulate", merge=True) as tmp:
+        (tmp / "compensated").mkdir()
+        (tmp / "compensated" / "heightmap.exr").write_text("c2")
+        write_marker(tmp / "compensated", command="simulate")
+    assert (root / "compare" / "report.html").read_text() == "report"
+    assert (root / "compensated" / "heightmap.exr").read_text() == "c2"
+    assert not (root / "compensated" / "cycles.png").exists()
+    assert not (root / "heightmap.zarr").exists()      # this command's own earlier output
