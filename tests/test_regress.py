@@ -231,5 +231,5 @@ def test_update_makes_references_and_a_missing_one_is_reported(tmp_path):
     with pytest.raises(InputError, match="--set cannot be used with --update"):
         run_regress(cases=cases, update=True, overrides=["simulation.seed=1"], out=tmp_path / "o")
     res = subprocess.run([str(EXE), "regress", "--only", "nope"], capture_output=True, text=True,
-                         timeout=300, env={**os.environ})
+                         timeout=300, env={**os.environ}, cwd=tmp_path)  # default --out out/regress
     assert res.returncode == 1 and "matches no regression case" in res.stderr
