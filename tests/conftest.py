@@ -24,3 +24,39 @@ SCENES = REPO / "scenes"
 @pytest.fixture
 def scenes_dir() -> Path:
     return SCENES
+
+
+#: a scene small enough for command-line tests (0.2 x 0.2 mm at 2 um, tiny renders)
+TINY_SCENE = """
+name = "{name}"
+[design]
+type = "sinusoidal_grid"
+amplitude_x = 0.001
+amplitude_y = 0.001
+wavelength_x = 0.5
+wavelength_y = 0.5
+[tool]
+nose_radius = 0.5
+[process]
+kind = "sts"
+spindle_rpm = 50
+feed_mm_per_min = 1
+workpiece_radius = 0.5
+points_per_rev = 360
+[simulation]
+region = [-0.1, -0.1, 0.1, 0.1]
+pixel = 0.002
+[render.interferometer]
+pixel = 0.004
+[render.diffuse]
+resolution = 32
+spp = 2
+"""
+
+
+@pytest.fixture
+def tiny_scene(tmp_path) -> Path:
+    """A tiny scene file (:data:`TINY_SCENE`) in the test's folder."""
+    p = tmp_path / "tiny.toml"
+    p.write_text(TINY_SCENE.format(name="tiny"))
+    return p

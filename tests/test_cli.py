@@ -11,41 +11,14 @@ import pytest
 
 from render_inspect.core.progress import set_reporter, task
 
-TINY = """
-name = "tiny_cli"
-[design]
-type = "sinusoidal_grid"
-amplitude_x = 0.001
-amplitude_y = 0.001
-wavelength_x = 0.5
-wavelength_y = 0.5
-[tool]
-nose_radius = 0.5
-[process]
-kind = "sts"
-spindle_rpm = 50
-feed_mm_per_min = 1
-workpiece_radius = 0.5
-points_per_rev = 360
-[simulation]
-region = [-0.1, -0.1, 0.1, 0.1]
-pixel = 0.002
-[render.interferometer]
-pixel = 0.004
-[render.diffuse]
-resolution = 32
-spp = 2
-"""
-
 
 def _cli(*args):
     return subprocess.run([sys.executable, "-m", "render_inspect.cli", *map(str, args)],
                           capture_output=True, text=True)
 
 
-def test_quiet_simulate_says_nothing(tmp_path):
-    p = tmp_path / "s.toml"
-    p.write_text(TINY)
+def test_quiet_simulate_says_nothing(tmp_path, tiny_scene):
+    p = tiny_scene
     r = _cli("simulate", p, "--out", tmp_path / "q", "-q")
     assert r.returncode == 0, r.stderr
     assert r.stderr == "" and r.stdout == ""
@@ -55,9 +28,8 @@ def test_quiet_simulate_says_nothing(tmp_path):
     assert args.quiet and not args.verbose
 
 
-def test_verbose_lists_every_step(tmp_path):
-    p = tmp_path / "s.toml"
-    p.write_text(TINY)
+def test_verbose_lists_every_step(tmp_path, tiny_scene):
+    p = tiny_scene
     r = _cli("simulate", p, "--out", tmp_path / "v", "-v")
     assert r.returncode == 0, r.stderr
     assert "sts: plan the tool path:" in r.stderr and "sts: cut" in r.stderr
@@ -96,9 +68,8 @@ def test_rich_progress_shows_eta_for_long_steps():
 
 @pytest.mark.mitsuba
 @pytest.mark.slow
-def test_compare_prints_a_summary_with_the_report_path(tmp_path):
-    p = tmp_path / "s.toml"
-    p.write_text(TINY)
+def test_compare_prints_a_summary_with_the_report_path(tmp_path, tiny_scene):
+    p = tiny_scene
     out = tmp_path / "cmp"
     r = _cli("compare", p, "--out", out)
     assert r.returncode == 0, r.stderr

@@ -130,36 +130,8 @@ def test_tables_state_what_the_figures_state(name, tmp_path_factory):
             assert len(digits) <= 4 or "," in c, c
 
 
-TINY = """
-name = "tiny_identical"
-[design]
-type = "sinusoidal_grid"
-amplitude_x = 0.001
-amplitude_y = 0.001
-wavelength_x = 0.5
-wavelength_y = 0.5
-[tool]
-nose_radius = 0.5
-[process]
-kind = "sts"
-spindle_rpm = 50
-feed_mm_per_min = 1
-workpiece_radius = 0.5
-points_per_rev = 360
-[simulation]
-region = [-0.1, -0.1, 0.1, 0.1]
-pixel = 0.002
-[render.interferometer]
-pixel = 0.004
-[render.diffuse]
-resolution = 32
-spp = 2
-"""
-
-
-def test_identical_variants_are_said_so(tmp_path):
-    p = tmp_path / "tiny.toml"
-    p.write_text(TINY)
+def test_identical_variants_are_said_so(tmp_path, tiny_scene):
+    p = tiny_scene
     out = tmp_path / "out"
     # burr variation without burrs: the two surfaces are the same
     assert cli_main(["compare", str(p), "--out", str(out), "-q",
