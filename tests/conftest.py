@@ -4,6 +4,7 @@ temporary folder before anything imports bpy, mitsuba, drjit or matplotlib."""
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -60,3 +61,14 @@ def tiny_scene(tmp_path) -> Path:
     p = tmp_path / "tiny.toml"
     p.write_text(TINY_SCENE.format(name="tiny"))
     return p
+
+
+@pytest.fixture(scope="session")
+def chromium() -> str:
+    """The headless Chromium the report checks open pages in (``make setup`` installs it)."""
+    for exe in ("chromium", "chromium-browser", "google-chrome", "chrome"):
+        path = shutil.which(exe)
+        if path:
+            return path
+    pytest.fail("headless Chromium is needed for the report check: run `make setup` as root "
+                "(apt-get install chromium)")

@@ -250,21 +250,10 @@ def test_compare_variants_and_render_caps(tmp_path):
     assert icfg2.pixel == 0.002 and dcfg2.resolution == 48 and notes2 == []
 
 
-def _chromium() -> str:
-    import shutil
-
-    for name in ("chromium", "chromium-browser", "google-chrome", "chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    pytest.fail("headless Chromium is needed for the report check: run `make setup` as root "
-                "(apt-get install chromium)")
-
-
 @pytest.mark.browser
 @pytest.mark.mitsuba
 @pytest.mark.slow
-def test_report_renders_in_headless_chromium(compared, tmp_path):
+def test_report_renders_in_headless_chromium(compared, tmp_path, chromium):
     """Open report.html in a real browser and check the screenshot is a page, not blank."""
     import subprocess
 
@@ -272,7 +261,7 @@ def test_report_renders_in_headless_chromium(compared, tmp_path):
 
     out, _ = compared
     shot = tmp_path / "report.png"
-    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
            "--no-first-run", "--disable-background-networking", "--disable-component-update",
            "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
            "--window-size=1280,2000", (out / "report.html").resolve().as_uri()]

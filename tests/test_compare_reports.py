@@ -8,7 +8,6 @@ import base64
 import html as html_lib
 import json
 import re
-import shutil
 import subprocess
 
 import numpy as np
@@ -144,23 +143,14 @@ def test_identical_variants_are_said_so(tmp_path, tiny_scene):
     assert page.count("The two variants are identical") == 1
 
 
-def _chromium() -> str:
-    for exe in ("chromium", "chromium-browser", "google-chrome", "chrome"):
-        path = shutil.which(exe)
-        if path:
-            return path
-    pytest.fail("headless Chromium is needed for the report check: run `make setup` as root "
-                "(apt-get install chromium)")
-
-
 @pytest.mark.browser
 @pytest.mark.parametrize("name", sorted(SMALL))
-def test_report_renders_in_chromium(name, tmp_path_factory, tmp_path):
+def test_report_renders_in_chromium(name, tmp_path_factory, tmp_path, chromium):
     from PIL import Image
 
     out, _ = _compare(name, tmp_path_factory)
     shot = tmp_path / "report.png"
-    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
            "--no-first-run", "--disable-background-networking", "--disable-component-update",
            "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
            "--window-size=1400,1200", (out / "report.html").resolve().as_uri()]

@@ -562,6 +562,23 @@ def _settings(mic, dist, info, s, crop, extra):
     return d
 
 
+def _exposed_frames(h, normals, mic, dist, zact, *, pixel, subsamples, crop, kz_tolerance, seed,
+                    diagnostics):
+    """The camera frames at the reference mirror's positions ``zact``: the interference
+    intensity (with the reference's own figure) exposed on the camera.  Returns
+    (frames, imaging info, camera info)."""
+    s = int(subsamples)
+    shape = (h.shape[0] // max(s, 1) - 2 * int(crop), h.shape[1] // max(s, 1) - 2 * int(crop))
+    ref = dist.reference_figure(shape, pixel) if shape[0] > 0 and shape[1] > 0 else None
+    inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
+                                         microscope=mic, z_positions=zact, crop=crop,
+                                         reference_figure=ref, kz_tolerance=kz_tolerance)
+    if diagnostics is not None:
+        diagnostics.update(info)
+    frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
+    return frames, info, cam
+
+
 def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, steps: int = 5,
                step_rad: float = math.pi / 2, z_ref: float | None = None,
@@ -617,18 +634,14 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
     actual = delta * (1.0 + dist.step_error + dist.step_nonlinearity * delta / (2 * math.pi))
     nominal_z = z_ref - delta / k_eff
     zact = dist.positions(z_ref - actual / k_eff, seed=seed, origin_mm=z_ref, scale=False)
-    s = int(subsamples)
-    shape = (h.shape[0] // max(s, 1) - 2 * int(crop), h.shape[1] // max(s, 1) - 2 * int(crop))
-    ref = dist.reference_figure(shape, pixel) if shape[0] > 0 and shape[1] > 0 else None
-    inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
-                                         microscope=mic, z_positions=zact, crop=crop,
-                                         reference_figure=ref, kz_tolerance=kz_tolerance)
-    if diagnostics is not None:
-        diagnostics.update(info)
-    frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
+    frames, info, cam = _exposed_frames(h, normals, mic, dist, zact, pixel=pixel,
+                                        subsamples=subsamples, crop=crop,
+                                        kz_tolerance=kz_tolerance, seed=seed,
+                                        diagnostics=diagnostics)
     return _frames(frames, info, mic, mode="psi", pixel=pixel, origin=origin, delta=delta,
                    scan=nominal_z, z_ref=float(z_ref), index=0, seed=seed, lam_eff=lam_eff,
-                   settings=_settings(mic, dist, info, s, crop, {"camera_exposure": cam}))
+                   settings=_settings(mic, dist, info, int(subsamples), crop,
+                                      {"camera_exposure": cam}))
 
 
 def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
@@ -689,17 +702,11 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
         scan_start = 0.5 * (lo + hi) - 0.5 * (n - 1) * step
     nominal = float(scan_start) + step * np.arange(n)
     zact = dist.positions(nominal, seed=seed)
-    s = int(subsamples)
-    shape = (h.shape[0] // max(s, 1) - 2 * int(crop), h.shape[1] // max(s, 1) - 2 * int(crop))
-    ref = dist.reference_figure(shape, pixel) if shape[0] > 0 and shape[1] > 0 else None
-    inten, info = interference_intensity(h, normals, pixel=pixel, subsamples=subsamples,
-                                         microscope=mic, z_positions=zact, crop=crop,
-                                         reference_figure=ref, kz_tolerance=kz_tolerance)
-    if diagnostics is not None:
-        diagnostics.update(info)
-    fr, cam = expose(inten, mic.camera, seed=seed, inplace=True)
+    fr, info, cam = _exposed_frames(h, normals, mic, dist, zact, pixel=pixel,
+                                    subsamples=subsamples, crop=crop, kz_tolerance=kz_tolerance,
+                                    seed=seed, diagnostics=diagnostics)
     mid = (n - 1) // 2
     return _frames(fr, info, mic, mode="csi", pixel=pixel, origin=origin, delta=np.empty(0),
                    scan=nominal, z_ref=float(nominal[mid]), index=mid, seed=seed, lam_eff=lam_eff,
-                   settings=_settings(mic, dist, info, s, crop,
+                   settings=_settings(mic, dist, info, int(subsamples), crop,
                                       {"camera_exposure": cam, "scan_step_nm": step / _NM}))

@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..core.errors import InputError, check_range
-from ._envelope import _lookup, _lookup_table, path_radial_slope
+from ._envelope import _lookup, _lookup_table, _pass_window, path_radial_slope
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "CutResult"]
@@ -43,20 +43,7 @@ TWO_PI = 2 * math.pi
 def _gather(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, hw, bs, bz, br, bd):
     """Passes at angle phi within W of sgn * r, in time order, into the buffers
     (s, arc z, tool radius, signed edge position); returns the count."""
-    t_first = theta[0]
-    t_last = theta[theta.size - 1]
-    if cc > 0:
-        s_lo = t_first + (a - (r * sgn + W)) / cc
-        s_hi = t_first + (a - (r * sgn - W)) / cc
-    else:
-        s_lo = t_first
-        s_hi = t_last
-    if s_lo < t_first:
-        s_lo = t_first
-    if s_hi > t_last:
-        s_hi = t_last
-    j0 = math.ceil((s_lo - phi) / TWO_PI)
-    j1 = math.floor((s_hi - phi) / TWO_PI)
+    j0, j1 = _pass_window(theta, a, cc, phi, r, sgn, W)
     n = 0
     Rc2 = Rc * Rc
     for j in range(j0, j1 + 1):

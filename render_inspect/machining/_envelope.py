@@ -71,8 +71,9 @@ def _lookup(theta, tab, tab_t0, tab_w, s):
 
 
 @njit(cache=True, inline="always")
-def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, hw, best):
-    """Visit the passes at angle phi whose nominal radius is within W of sgn * r."""
+def _pass_window(theta, a, cc, phi, r, sgn, W):
+    """First and last pass j (at cumulative angle phi + 2 pi j on the path) whose nominal
+    radius is within W of sgn * r."""
     t_first = theta[0]
     t_last = theta[theta.size - 1]
     # nominal rho(s) = a - cc (s - t_first); want |sgn r - rho| <= W with rho >= 0
@@ -86,8 +87,13 @@ def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, 
         s_lo = t_first
     if s_hi > t_last:
         s_hi = t_last
-    j0 = math.ceil((s_lo - phi) / TWO_PI)
-    j1 = math.floor((s_hi - phi) / TWO_PI)
+    return math.ceil((s_lo - phi) / TWO_PI), math.floor((s_hi - phi) / TWO_PI)
+
+
+@njit(cache=True, inline="always")
+def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, hw, best):
+    """Visit the passes at angle phi whose nominal radius is within W of sgn * r."""
+    j0, j1 = _pass_window(theta, a, cc, phi, r, sgn, W)
     for j in range(j0, j1 + 1):
         s = phi + TWO_PI * j
         i = _lookup(theta, tab, tab_t0, tab_w, s)
