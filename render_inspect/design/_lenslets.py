@@ -374,7 +374,7 @@ class LensletArrayConfig(Section):
 
 
 #: most elements a ``lenslet_rings`` design may have
-MAX_RING_ELEMENTS = 1_000_000
+MAX_RING_ELEMENTS = 1_000_000  # not a unit conversion
 
 
 class LensletRingsConfig(Section):

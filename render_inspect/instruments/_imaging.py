@@ -39,6 +39,7 @@ from scipy.ndimage import gaussian_filter
 
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.frames import Frames
+from ..core.units import GIB_TO_BYTES, NM_TO_MM
 from ._camera import Camera, expose
 from ._kernels import filter_fold
 from ._objectives import OBJECTIVES, Objective
@@ -63,10 +64,9 @@ __all__ = [
 ]
 
 #: A frame stack (float32) larger than this is refused.
-MAX_STACK_BYTES = 3 * 1024 ** 3
+MAX_STACK_BYTES = 3 * GIB_TO_BYTES
 #: CSI scans with more frames than this are refused.
 MAX_CSI_FRAMES = 4096
-_NM = 1e-6  # nm -> mm
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class Microscope:
         """Fringe wavelength on a flat mirror, ``4 pi / K_eff`` (nm): the NA factor."""
         k, w = self.source.sample(dk=self._dk_fine())
         k_eff, _ = flat_moments(self.na, self.na_ill, self.obscuration, k, w)
-        return 4 * math.pi / k_eff / _NM
+        return 4 * math.pi / k_eff / NM_TO_MM
 
     def itf(self, frequency) -> np.ndarray:
         """Instrument transfer function in the linear regime (:func:`linear_itf`) at
@@ -210,7 +210,7 @@ class Disturbances:
         w = gaussian_filter(white, sig, mode="wrap")
         w -= w.mean()
         rms = float(np.sqrt(np.mean(w * w)))
-        return w * (self.reference_figure_rms_nm * _NM / rms) if rms > 0 else np.zeros(shape)
+        return w * (self.reference_figure_rms_nm * NM_TO_MM / rms) if rms > 0 else np.zeros(shape)
 
     def positions(self, nominal_mm: np.ndarray, *, seed: int, origin_mm: float | None = None,
                   scale: bool = True):
@@ -240,7 +240,7 @@ class Disturbances:
         texp = self.exposure_time_s if self.exposure_time_s is not None else 1.0 / self.frame_rate_hz
         t = (np.arange(z.size)[:, None] / self.frame_rate_hz
              + texp * (np.arange(8)[None, :] + 0.5) / 8)
-        v = self.vibration_amplitude_nm * _NM * np.sin(
+        v = self.vibration_amplitude_nm * NM_TO_MM * np.sin(
             2 * math.pi * self.vibration_frequency_hz * t + phase0)
         return z[:, None] + v
 
@@ -369,7 +369,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     nfr = zpos.shape[0]
     if nfr * ho * wo * 4 > MAX_STACK_BYTES:
         raise MemoryBudgetError(f"{nfr} frames of {wo} x {ho} pixels need "
-                                f"{nfr * ho * wo * 4 / 2**30:.1f} GiB (> {MAX_STACK_BYTES / 2**30:.0f} "
+                                f"{nfr * ho * wo * 4 / GIB_TO_BYTES:.1f} GiB "
+                                f"(> {MAX_STACK_BYTES / GIB_TO_BYTES:.0f} "
                                 f"GiB): use fewer frames or a smaller field")
     if normals is None:
         nrm = normals_from_heights(h, pixel / s)
@@ -503,7 +504,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         bg = np.maximum(lightf[p0:p0 + chunk], mag2) + np.float32(rho_r)
         out[:, p0:p0 + chunk] = bg[None, :] + two_sr * x.real
     np.maximum(out, 0.0, out=out)
-    info = {"effective_wavelength_nm": 4 * math.pi / k_eff / _NM,
+    info = {"effective_wavelength_nm": 4 * math.pi / k_eff / NM_TO_MM,
             "coherence_sigma_per_mm": sigma_k, "axial_bins": int(nb),
             "axial_step_per_mm": float(dK), "light": light.astype(np.float32),
             "undersampled_fraction": float(under_frac), "reference_plane_mm": zbar}
@@ -629,7 +630,7 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
             raise InputError("heights are all NaN: no surface in the field")
         z_ref = float(fin.mean())
     lam_eff = mic.effective_wavelength_nm()
-    k_eff = 4 * math.pi / (lam_eff * _NM)
+    k_eff = 4 * math.pi / (lam_eff * NM_TO_MM)
     delta = step_rad * np.arange(int(steps))
     actual = delta * (1.0 + dist.step_error + dist.step_nonlinearity * delta / (2 * math.pi))
     nominal_z = z_ref - delta / k_eff
@@ -683,10 +684,10 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
     if fin.size == 0:
         raise InputError("heights are all NaN: no surface in the field")
     lam_eff = mic.effective_wavelength_nm()
-    step = (lam_eff / 8 if scan_step_nm is None else float(scan_step_nm)) * _NM
-    check_range("scan_step_nm", step / _NM, 1, 10000)
+    step = (lam_eff / 8 if scan_step_nm is None else float(scan_step_nm)) * NM_TO_MM
+    check_range("scan_step_nm", step / NM_TO_MM, 1, 10000)
     sigma = mic.coherence_sigma()
-    margin = 4.5 / sigma if sigma > 0 else 2 * lam_eff * _NM
+    margin = 4.5 / sigma if sigma > 0 else 2 * lam_eff * NM_TO_MM
     lo, hi = float(fin.min()) - margin, float(fin.max()) + margin
     if frames is None:
         n = math.ceil((hi - lo) / step) + 1
@@ -695,8 +696,9 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
             raise InputError(f"frames must be an integer >= 8, got {frames!r}")
         n = int(frames)
     if n > MAX_CSI_FRAMES:
-        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) / _NM:.0f} nm at scan_step_nm = "
-                                f"{step / _NM:.4g} needs {n} frames (> {MAX_CSI_FRAMES}): raise "
+        raise MemoryBudgetError(f"the CSI scan over {(hi - lo) / NM_TO_MM:.0f} nm at "
+                                f"scan_step_nm = {step / NM_TO_MM:.4g} needs {n} frames "
+                                f"(> {MAX_CSI_FRAMES}): raise "
                                 f"scan_step_nm, set frames, or shrink the field of view")
     if scan_start is None:
         scan_start = 0.5 * (lo + hi) - 0.5 * (n - 1) * step
@@ -709,4 +711,4 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
     return _frames(fr, info, mic, mode="csi", pixel=pixel, origin=origin, delta=np.empty(0),
                    scan=nominal, z_ref=float(nominal[mid]), index=mid, seed=seed, lam_eff=lam_eff,
                    settings=_settings(mic, dist, info, int(subsamples), crop,
-                                      {"camera_exposure": cam, "scan_step_nm": step / _NM}))
+                                      {"camera_exposure": cam, "scan_step_nm": step / NM_TO_MM}))

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_UM
 
 __all__ = ["sharp_edges", "machined_sharp_edges", "burr_map", "apply_burrs"]
 
@@ -198,5 +199,5 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
                  correlation_length=correlation_length, edges=edges)
     machined += b
     info["edge_pixels"] = int(edges.sum())
-    info["max_added_um"] = float(b.max() * 1e3)
+    info["max_added_um"] = float(b.max() * MM_TO_UM)
     return machined, info

@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM
 from ._envelope import _lookup, _lookup_table, _pass_window, path_radial_slope
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
@@ -345,8 +346,9 @@ def finish_surface(cut: CutResult, response, *, along, seed: int, across_length:
     key = "pass_theta" if "pass_theta" in cut else "pass_line"
     edges = machined_edges(cut[key], jump=math.pi if key == "pass_theta" else 0.5)
     added = cut["added"]
-    info = {"groove_rms_nm": response.groove_rms * 1e6,
-            "grooves_rms_nm": float(np.sqrt(np.mean(g[ok] ** 2)) * 1e6) if ok.any() else 0.0,
-            "side_flow_max_nm": float(np.nanmax(added) * 1e6) if np.isfinite(added).any() else 0.0,
-            "edge_pixels": int(edges.sum()), "burr_height_nm": response.burr_height * 1e6}
+    info = {"groove_rms_nm": response.groove_rms * MM_TO_NM,
+            "grooves_rms_nm": float(np.sqrt(np.mean(g[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0,
+            "side_flow_max_nm": (float(np.nanmax(added) * MM_TO_NM) if np.isfinite(added).any()
+                                 else 0.0),
+            "edge_pixels": int(edges.sum()), "burr_height_nm": response.burr_height * MM_TO_NM}
     return m, info

@@ -51,6 +51,8 @@ INV_2PI = 1.0 / TWO_PI
 BLOCK = 64
 #: grids at least this large go to a CUDA GPU when one is present (simulate_turning)
 GPU_MIN_SAMPLES = 1 << 22
+#: relative tolerance within which a path's angles count as a uniform grid
+_UNIFORM_RTOL = 1e-9  # not a unit conversion
 
 
 @njit(cache=True, inline="always")
@@ -422,8 +424,9 @@ def prepare_envelope(path, *, nose_radius: float, half_width: float | None = Non
     dth = span / (n - 1)
     nrev_f = TWO_PI / dth if dth > 0 else 0.0
     nrev = int(round(nrev_f))
-    uniform = bool(dth > 0 and nrev >= 1 and abs(nrev_f - nrev) < 1e-9 * nrev
-                   and np.max(np.abs(theta - (theta[0] + dth * np.arange(n)))) < 1e-9 * dth)
+    uniform = bool(dth > 0 and nrev >= 1 and abs(nrev_f - nrev) < _UNIFORM_RTOL * nrev
+                   and np.max(np.abs(theta - (theta[0] + dth * np.arange(n))))
+                   < _UNIFORM_RTOL * dth)
     if uniform:
         tab, tt0, tw = np.zeros(1, dtype=np.int64), float(theta[0]), 1.0
     else:

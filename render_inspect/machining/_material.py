@@ -41,6 +41,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM, NM_TO_MM
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
            "material_response", "contact_ratio", "min_chip_thickness", "elastic_recovery",
@@ -130,7 +131,7 @@ MATERIAL_PRESETS = {
         sources={"E, nu, hardness": "Al 6082-T6: 70 GPa, 0.33, 95 HV (ASM handbook)",
                  "friction": "as al6061", "adhesion": "none", "texture_nm": "as al6061"}),
     "ofhc_copper": Material(
-        "ofhc_copper", 117.0, 0.34, 60 * _HV, 0.2, 0.0, 0.0, 0.8,
+        "ofhc_copper", 117.0, 0.34, 60 * _HV, 0.2, 0.0, 0.0, 0.8,  # not a unit conversion
         sources={"E, nu, hardness": "OFHC copper C10100, half hard: 117 GPa, 0.34, ~60 HV",
                  "friction": "0.2 (assumed)", "adhesion": "none",
                  "texture_nm": "0.8 nm rms: grain-orientation dependent recovery (assumed)"}),
@@ -244,10 +245,10 @@ class MaterialResponse:
     material: str
 
     def to_dict(self) -> dict:
-        return {"material": self.material, "h_min_nm": self.h_min * 1e6, "kappa": self.kappa,
-                "edge_radius_eff_nm": self.edge_radius_eff * 1e6,
-                "contact_ratio": self.contact_ratio, "groove_rms_nm": self.groove_rms * 1e6,
-                "side_flow": self.side_flow, "burr_height_nm": self.burr_height * 1e6}
+        return {"material": self.material, "h_min_nm": self.h_min * MM_TO_NM, "kappa": self.kappa,
+                "edge_radius_eff_nm": self.edge_radius_eff * MM_TO_NM,
+                "contact_ratio": self.contact_ratio, "groove_rms_nm": self.groove_rms * MM_TO_NM,
+                "side_flow": self.side_flow, "burr_height_nm": self.burr_height * MM_TO_NM}
 
 
 def material_response(material: Material, *, edge_radius: float = 50e-6,
@@ -257,10 +258,10 @@ def material_response(material: Material, *, edge_radius: float = 50e-6,
     check_range("edge_radius", edge_radius, 0.0, 1e-2)
     check_range("contact_ratio", contact_ratio, 0.0, 1.0, lo_open=True)
     eta = float(contact_ratio)
-    layer = material.adhesion_layer_nm * 1e-6 * eta
+    layer = material.adhesion_layer_nm * NM_TO_MM * eta
     r_eff = float(edge_radius) + layer
     h_min = min_chip_thickness(r_eff, material.friction)
     kappa = elastic_recovery(material)
-    groove = math.hypot(material.adhesion_roughness_nm * eta, material.texture_nm) * 1e-6
+    groove = math.hypot(material.adhesion_roughness_nm * eta, material.texture_nm) * NM_TO_MM
     return MaterialResponse(h_min, kappa, r_eff, eta, groove, bool(side_flow),
                             (1.0 - kappa) * h_min if side_flow else 0.0, material.name)

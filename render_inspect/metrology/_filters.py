@@ -223,7 +223,7 @@ def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_
     c, *_ = np.linalg.lstsq(a, fz, rcond=None)
     half = 0.5 * np.hypot(px * (nx - 1), py * (ny - 1))
     kappa0 = 2.0 * c[3]
-    if abs(kappa0) * half < 1e-9 * max(1.0, half):
+    if abs(kappa0) * half < 1e-9 * max(1.0, half):  # not a unit conversion: a tolerance
         # no measurable curvature: the best sphere is the plane (infinite radius)
         form = c[0] + c[1] * xx + c[2] * yy
         res = np.where(ok, z - form, np.nan)
@@ -235,7 +235,9 @@ def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_
 
     def resid(p):
         r = fz - p[2] - _sag(p[3], (fx - p[0]) ** 2 + (fy - p[1]) ** 2)
-        return np.where(np.isfinite(r), r, 1e3 * (np.nanmax(np.abs(fz)) + 1.0))
+        # where the sag is undefined: a residual far above any finite one
+        far = 1e3 * (np.nanmax(np.abs(fz)) + 1.0)  # not a unit conversion
+        return np.where(np.isfinite(r), r, far)
 
     scale = [half, half, max(float(np.ptp(fz)), 1e-9), abs(kappa0)]
     sol = least_squares(resid, [a0, b0, z0, kappa0], x_scale=scale, method="trf",

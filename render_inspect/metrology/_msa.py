@@ -17,6 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..core.errors import InputError, check_positive
+from ..core.units import MM_TO_UM
 from ._filters import valid_mask
 from ._registration import MovedSurface, detect_outliers, register_lsq
 
@@ -114,8 +115,9 @@ def separate_msa(shape, centers, *, pixel: float, origin=(0.0, 0.0), aperture_ra
 
 def _stats_um(r):
     r = r - r.mean()
-    return {"Sa_um": float(np.mean(np.abs(r)) * 1e3), "Sq_um": float(np.sqrt(np.mean(r * r)) * 1e3),
-            "PV_um": float((r.max() - r.min()) * 1e3)}
+    return {"Sa_um": float(np.mean(np.abs(r)) * MM_TO_UM),
+            "Sq_um": float(np.sqrt(np.mean(r * r)) * MM_TO_UM),
+            "PV_um": float((r.max() - r.min()) * MM_TO_UM)}
 
 
 def _lenslet_model(design, px, py):
@@ -219,8 +221,9 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
             skipped.append((row, col))
             continue
         entry = {"row": row, "col": col, "x_mm": float(cx + dx), "y_mm": float(cy + dy),
-                 "dx_um": float(dx * 1e3), "dy_um": float(dy * 1e3), **_stats_um(r),
-                 "x_design_mm": float(cx), "y_design_mm": float(cy), "dz_um": float(dz * 1e3),
+                 "dx_um": float(dx * MM_TO_UM), "dy_um": float(dy * MM_TO_UM), **_stats_um(r),
+                 "x_design_mm": float(cx), "y_design_mm": float(cy),
+                 "dz_um": float(dz * MM_TO_UM),
                  "n_points": int(r.size)}
         table.append(entry)
     if skipped:

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM, NM_TO_MM
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
            "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult",
@@ -345,7 +346,7 @@ def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
     """Height (mm) from the unwrapped phase: ``h = phi lambda / (4 pi)`` (double pass,
     OPD = 2 h at normal incidence)."""
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
-    lam_mm = float(wavelength_nm) * 1e-6  # nm -> mm
+    lam_mm = float(wavelength_nm) * NM_TO_MM
     return np.asarray(unwrapped, dtype=np.float64) * lam_mm / (4 * np.pi)
 
 
@@ -448,7 +449,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
     check_range("min_modulation", min_modulation, 0.0, None)
     v = _check_valid(valid, (hgt, wid))
-    lam = float(wavelength_nm) * 1e-6  # nm -> mm
+    lam = float(wavelength_nm) * NM_TO_MM
     flat = f.reshape(n, -1)
     npx = flat.shape[1]
     height = np.full(npx, np.nan)
@@ -572,11 +573,11 @@ def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mea
                 aligned[sel] = m[sel] - shift
             big = ids[np.argmax(counts)]
             shift_main = float(np.mean(m[lab == big] - t[lab == big]))
-    e = (aligned - t)[v] * 1e6  # mm -> nm
+    e = (aligned - t)[v] * MM_TO_NM
     metrics = {"rms_nm": float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
                "pv_nm": float(e.max() - e.min()) if e.size else float("nan"),
                "mean_nm": float(e.mean()) if e.size else float("nan"),
-               "piston_nm": shift_main * 1e6,
+               "piston_nm": shift_main * MM_TO_NM,
                "valid_fraction": float(v.mean()),
                "valid_pixels": int(v.sum()),
                "piston": piston}

@@ -10,6 +10,7 @@ import numpy as np
 from ..core.errors import AccessibilityError, InputError
 from ..core.limits import Driver, check_memory, format_number
 from ..core.toolpath import ToolPath
+from ..core.units import MIB_TO_BYTES, MIN_TO_S
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
 from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
@@ -23,7 +24,7 @@ __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count
 #: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py).
 PLAN_BYTES_PER_POINT = {"z": 144, "none": 144, "normal": 200}
 #: Bytes planning holds whatever the path's length (curvature and accessibility grids).
-PLAN_FIXED_BYTES = 16 * 2 ** 20
+PLAN_FIXED_BYTES = 16 * MIB_TO_BYTES
 
 
 def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
@@ -247,7 +248,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
         k = int(np.argmax(g))
         meta["gouge_max_mm"] = float(g[k])
         meta["gouge_worst_at_mm"] = [float(rho_tip[k] * np.cos(theta[k])), float(rho_tip[k] * np.sin(theta[k]))]
-    omega = TWO_PI * spindle_rpm / 60.0
+    omega = TWO_PI * spindle_rpm / MIN_TO_S  # rpm -> rad/s
     t = theta / omega
     meta["time_s"] = float(t[-1] - t[0]) if t.size else 0.0
     meta["build_s"] = time.perf_counter() - t0

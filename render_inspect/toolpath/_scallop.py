@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM
 
 __all__ = ["scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]
 
@@ -150,5 +151,5 @@ def plan_feed(surface, *, nose_radius: float, scallop_bound: float, r_outer: flo
             "limiting_curvature_per_mm": float(k[i]),
             "limiting_slope_deg": float(math.degrees(math.atan(abs(slope[i])))),
             "flat_feed_mm": float(feed_for_scallop(scallop_bound, r, 0.0)),
-            "scallop_bound_nm": float(scallop_bound) * 1e6,
+            "scallop_bound_nm": float(scallop_bound) * MM_TO_NM,
             "curvature_range_per_mm": [float(np.min(k)), float(np.max(k))]}

@@ -27,6 +27,8 @@ def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
 
 
 SAMPLINGS = ("constant_angle", "constant_arc", "hybrid")
+#: a last step shorter than this fraction of the first is a duplicate end point
+_DUPLICATE_RTOL = 1e-9  # not a unit conversion
 
 
 def _subdivide(th: np.ndarray, steps: np.ndarray, reps: np.ndarray) -> np.ndarray:
@@ -98,7 +100,7 @@ def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
             th_in = theta_sw + dth * np.arange(1, n_in + 1)
             th_in[-1] = min(th_in[-1], theta_end)
             theta = np.concatenate([th_arc, th_in])
-    if theta.size > 2 and theta[-1] - theta[-2] < 1e-9 * (theta[1] - theta[0]):
+    if theta.size > 2 and theta[-1] - theta[-2] < _DUPLICATE_RTOL * (theta[1] - theta[0]):
         theta = theta[:-1]  # the end clamp left a duplicate point
     rho = r_outer - c * theta
     rho = np.maximum(rho, r_inner)
