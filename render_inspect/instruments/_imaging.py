@@ -9,7 +9,8 @@ as in a Mirau or Linnik objective scanned along its axis) and per camera pixel::
 
     I(z) = rho_R + B + 2 sqrt(rho_R) Re X(z)
 
-* ``X`` is the interference term, the 3-D linear filter of :mod:`._transfer` applied to
+* ``X`` is the interference term, the 3-D linear filter of :mod:`._transfer` (Coupland et
+  al. 2013 [1]_; the signal model of de Groot and Colonna de Lega [2]_) applied to
   the Kirchhoff field ``r exp(i K h)`` of the sub-samples, summed over the source's
   wavenumbers and the illumination directions, defocus included (the ``K``-dependence
   of the filter), integrated over the pixel's sensitive area (a box filter in the
@@ -25,6 +26,14 @@ as in a Mirau or Linnik objective scanned along its axis) and per camera pixel::
 
 Frames are periodic over the array (FFT); ``crop`` drops a margin of pixels around the
 field, where the wrap-around would otherwise show.
+
+References
+----------
+.. [1] J. M. Coupland, R. Mandal, K. Palodhi, R. K. Leach, "Coherence scanning
+       interferometry: linear theory of surface measurement," Applied Optics 52(16),
+       3662-3670 (2013).
+.. [2] P. de Groot, X. Colonna de Lega, "Signal modeling for low-coherence height-scanning
+       interference microscopy," Applied Optics 43, 4821-4830 (2004).
 """
 
 from __future__ import annotations

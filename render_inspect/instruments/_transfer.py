@@ -12,7 +12,7 @@ reflected field is ::
            = r |K|^2 / (2 k_zo K) * Integral exp(i (K h - Q . x)) d^2x
 
 (the second line by integrating the slope term by parts; ``|K|^2 = |Q|^2 + K^2``), so the
-interference term of the image is the 3-D linear filter of Coupland et al. (2013)::
+interference term of the image is the 3-D linear filter of Coupland et al. (2013) [1]_::
 
     X(x, z) = sum_K  exp(-i K z)  IFFT[ H(Q, K) FFT[ r exp(i K h) ] ](x)
 
@@ -30,7 +30,17 @@ with the transfer function ::
 ``Q_m = m dq``.  Binning replaces ``exp(i K zeta)`` (``zeta = z - h``) by its linear
 interpolation between bins: an amplitude error of at most ``(dK zeta)^2 / 8`` and a phase
 error of third order, so :func:`axial_step` picks ``dK`` from the range of ``zeta`` the
-frames need.
+frames need.  For an ideal instrument the transfer function is set by the NA and the
+source spectrum alone, as Mandal et al. (2014) [2]_ measured it.
+
+References
+----------
+.. [1] J. M. Coupland, R. Mandal, K. Palodhi, R. K. Leach, "Coherence scanning
+       interferometry: linear theory of surface measurement," Applied Optics 52(16),
+       3662-3670 (2013).
+.. [2] R. Mandal, J. Coupland, R. Leach, D. Mansfield, "Coherence scanning interferometry:
+       measurement and correction of three-dimensional transfer and point-spread
+       characteristics," Applied Optics 53(8), 1554-1563 (2014).
 """
 
 from __future__ import annotations

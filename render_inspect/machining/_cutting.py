@@ -3,7 +3,8 @@ its uncut chip thickness reaches h_min; thinner material is ploughed, springs ba
 kappa and the rest flows sideways onto the cusp it shares with the earlier cut.
 
 Per pixel the passes are visited in cutting order (time).  With s the surface left so far
-(+inf before the first cut) and z_j the nose arc of pass j at the pixel:
+(+inf before the first cut) and z_j the nose arc of pass j at the pixel (h_min after Son et
+al. 2005 [1]_, side flow after Liu & Melkote 2006 [2]_; :mod:`._material`):
 
 * z_j < s, h = s - z_j >= h_min (or the first cut): a chip forms, s = z_j; pass j is
   the pixel's *cutting pass* and h its uncut chip thickness;
@@ -14,13 +15,23 @@ Per pixel the passes are visited in cutting order (time).  With s the surface le
 Near a cusp whose flanks meet at a slope difference ds, the ploughed band is h_min / ds
 wide on the later pass's side and the side-flow pile as wide on the earlier side; both
 are evaluated exactly at the pixel centres (point sampling, as for the feed scallops).
-With kappa = 1 nothing is displaced and a flat face gets Brammertz's peak-to-valley
+With kappa = 1 nothing is displaced and a flat face gets Brammertz's [3]_ peak-to-valley
 f^2/(8R) + h_min/2 (1 + R h_min / f^2).  h_min = 0 gives the geometric envelope exactly.
 
 Besides the surface, the kernel returns for each pixel its cutting pass (spindle angle
 and tool radius), the position along the nose edge that cut it and the uncut chip
 thickness, from which the machined edges (pass boundaries) and the groove texture
 (:func:`groove_texture`) follow.
+
+References
+----------
+.. [1] S. M. Son, H. S. Lim, J. H. Ahn, "Effects of the friction coefficient on the minimum
+       cutting thickness in micro cutting," International Journal of Machine Tools and
+       Manufacture 45(4-5), 529-535 (2005). :DOI:`10.1016/j.ijmachtools.2004.10.001`
+.. [2] K. Liu, S. N. Melkote, "Effect of plastic side flow on surface roughness in
+       micro-turning process," International Journal of Machine Tools and Manufacture 46,
+       1778-1785 (2006). :DOI:`10.1016/j.ijmachtools.2005.11.014`
+.. [3] W. Brammertz, Industrie-Anzeiger 83, 525 (1961).
 """
 
 from __future__ import annotations

@@ -4,8 +4,9 @@ In each radial section (angle phi) the tool passes once per revolution.  Pass j 
 cumulative angle theta_j = phi + 2 pi j; between programmed points the C, X and Z axes
 interpolate linearly, giving the tool tip (rho_j, z_j).  Its nose arc cuts
 z_j + Rc - sqrt(Rc^2 - (r - rho_j)^2) for |r - rho_j| <= the arc's half-width, and the
-machined height at (r, phi) is the minimum over all passes (seed 000 section 3).  Turning
-marks (feed scallops) and, without compensation, overcut waviness come out of this.
+machined height at (r, phi) is the minimum over all passes (Li et al. 2018 [1]_, section
+3).  Turning marks (feed scallops) and, without compensation, overcut waviness come out of
+this.
 
 Only passes that can win are visited: an arc at distance d from the pixel is at least
 d^2 / (2 Rc) above its tip, and tips differ by at most m |d - d0| between passes (m the
@@ -32,6 +33,13 @@ A tile of the grid needs only the passes whose nose arcs reach it:
 ``EnvelopePath.slice_for(region)`` keeps those (a contiguous run of the spiral, plus the
 innermost passes for tiles near the axis) and carries the whole path's constants, so a
 tile computed from its slice equals the same pixels of the whole-grid run bit for bit.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
 """
 
 from __future__ import annotations

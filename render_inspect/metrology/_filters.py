@@ -1,6 +1,6 @@
 """ISO 16610-61 areal Gaussian filters (S and L) and form removal.
 
-The Gaussian weighting function of ISO 16610-61 is
+The Gaussian weighting function of ISO 16610-61 [1]_ is
 
     s(x) = 1 / (alpha lambda) exp(-pi (x / (alpha lambda))^2),  alpha = sqrt(ln 2 / pi)
 
@@ -11,9 +11,18 @@ convolution: the filter of ``z * w`` divided by the filter of ``w`` (``w`` = 1 w
 At the map's edges (``edges=``): ``"normalised"`` (default) uses only the points inside
 (the weighting function is cut off and renormalised, so near an edge the filter is
 one-sided and passes more of the short wavelengths); ``"mirror"`` extends the map by its
-mirror image (ISO 16610-28's symmetric extension); ``"cut"`` drops the border where the
-weighting function reaches outside the map: half the nesting index on every side (the
-run-in/run-out of ISO 16610-21, 4.7 standard deviations of the Gaussian).
+mirror image (ISO 16610-28's symmetric extension [2]_); ``"cut"`` drops the border where
+the weighting function reaches outside the map: half the nesting index on every side (the
+run-in/run-out of ISO 16610-21 [3]_, 4.7 standard deviations of the Gaussian).
+
+References
+----------
+.. [1] ISO 16610-61:2015, Geometrical product specification (GPS) - Filtration - Part 61:
+       Linear areal filters - Gaussian filters.
+.. [2] ISO 16610-28, Geometrical product specifications (GPS) - Filtration - Part 28:
+       Profile filters: End effects.
+.. [3] ISO 16610-21, Geometrical product specifications (GPS) - Filtration - Part 21:
+       Linear profile filters: Gaussian filters.
 """
 
 from __future__ import annotations

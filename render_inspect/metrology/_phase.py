@@ -7,7 +7,8 @@ The forward model these functions invert (docs/instrument.md, docs/report.md)::
 
 PSI: z_ref is fixed, the phase shifts ``delta_k`` are known (``steps_rad``), g = 1.  The
 wrapped phase ``phi = 4 pi (h - z_ref) / lambda`` comes from the 4-step or the 5-step
-(Hariharan) formula or, for any other set of steps, from a per-pixel least-squares fit;
+(Hariharan et al. 1987 [1]_) formula or, for any other set of steps, from a per-pixel
+least-squares fit;
 it is unwrapped in 2-D inside the valid mask (quality-guided flood fill) and converted to
 height ``h = phi lambda / (4 pi)``.  An interferometer measures relative height only: the
 unwrapped height is defined up to a constant (one per connected valid region); an
@@ -18,10 +19,17 @@ CSI: ``delta_k = 0`` and the reference scans, ``z_ref,k = scan_positions[k]``; t
 envelope g peaks where ``z_ref = h``.  The envelope is the modulus of the analytic signal
 (Hilbert transform along the scan) of the frames with their mean removed; its peak is
 located to a fraction of a scan step by a weighted least-squares Gaussian
-(log-parabola) fit over the samples above half maximum.  Optionally the phase of the fringes at the peak refines it.
+(log-parabola) fit over the samples above half maximum.  Optionally the phase of the
+fringes at the peak refines it.
 
 Every length is in mm; wavelengths are in nm where the name says so
 (``wavelength_nm``); phases in rad.
+
+References
+----------
+.. [1] P. Hariharan, B. F. Oreb, T. Eiju, "Digital phase-shifting interferometry: a simple
+       error-compensating phase calculation algorithm," Applied Optics 26(13), 2504-2506
+       (1987). :DOI:`10.1364/AO.26.002504`
 """
 
 from __future__ import annotations

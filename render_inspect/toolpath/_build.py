@@ -113,8 +113,9 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     inner_radius : float
         mm; the spiral stops there.
     chordal_tolerance : float, optional
-        mm; bound on the linearisation error (seed 001): the CCP spacing is shortened to
-        L = sqrt(8 R' h - 4 h^2) for the smallest radius of curvature R' of the region.
+        mm; bound on the linearisation error (the compound sinusoidal grid paper): the CCP
+        spacing is shortened to L = sqrt(8 R' h - 4 h^2) for the smallest radius of
+        curvature R' of the region.
     region : (x0, y0, x1, y1), optional
         Only the revolutions whose tool arcs can reach ``region`` are generated (the spiral
         keeps the phase of the full path from ``workpiece_radius``).

@@ -1,4 +1,4 @@
-"""Rotary-coordinate, shuttling-element (RCSE) spiral tool paths (seed 004).
+"""Rotary-coordinate, shuttling-element (RCSE) spiral tool paths, after the RCSE paper [1]_.
 
 The part is a set of identical elements (spherical dimples or bumps) on concentric rings.
 Instead of modelling the whole surface on a rectangular grid and interpolating cutting
@@ -35,6 +35,12 @@ CCP lies on the nearest point-cloud row, its height interpolated along that row,
 polar radius - the X axis - jitters by up to ``g / 2`` about the spiral; without it, the
 height is interpolated (bilinear or cubic spline) at the exact spiral point and only the
 profile error remains.
+
+References
+----------
+.. [1] "Rotary-coordinate and shuttling-element cutting strategy for ultra-precision
+       diamond turning of optical microstructures," Optica Publishing Group (2024); the
+       project's copy lacks the author list (docs/references.md).
 """
 
 from __future__ import annotations
