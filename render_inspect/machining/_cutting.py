@@ -43,7 +43,8 @@ from numba import njit, prange
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM
-from ._envelope import _lookup, _lookup_table, _pass_window, path_radial_slope
+from ._envelope import (_lookup, _lookup_table, _nominal_spiral, _nose_arc, _pass_window,
+                        path_radial_slope)
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "CutResult"]
@@ -193,16 +194,11 @@ def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, hal
     z = np.ascontiguousarray(path.z, dtype=np.float64)
     if theta.size < 2:
         raise InputError("cut_turning_mechanics: the path needs at least 2 points")
-    Rc = float(nose_radius)
-    hw = min(float(half_width) if half_width is not None else Rc, Rc)
+    Rc, hw = _nose_arc(nose_radius, half_width)
     x0, y0, x1, y1 = region
     nx = int(round((x1 - x0) / pixel)) + 1
     ny = int(round((y1 - y0) / pixel)) + 1
-    span = theta[-1] - theta[0]
-    cc = (rho[0] - rho[-1]) / span if span > 0 else 0.0
-    a = float(rho[0])
-    dev = float(np.max(np.abs(rho - (a - cc * (theta - theta[0])))))
-    f = abs(cc) * TWO_PI
+    a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
     # the geometric window, widened by one feed: the adjacent (cusp) pass is always visited
     W = min(hw, 2.1 * Rc * m + 1.5 * f + h_min * 4 * Rc / max(f, 1e-12) + 1e-9)

@@ -14,7 +14,7 @@ from ..core.units import MIB_TO_BYTES, MIN_TO_S
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
 from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
-from ._tool import Tool
+from ._tool import Tool, pass_margin
 
 __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count",
            "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES"]
@@ -141,9 +141,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     blank = (-Rw, -Rw, Rw, Rw)
     area = tuple(region) if region is not None else blank
     slope = surface.max_slope(area)
-    # passes farther than 2 Rc m + f from a pixel never form the envelope there
-    # (machining/_envelope.py); keep two more revolutions as margin
-    margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
+    margin = pass_margin(tool, slope, f)
     r_in, r_out = region_radii(area, margin) if region is not None else (0.0, Rw)
     reach = (r_in, r_out)
     r_in = max(r_in, inner_radius)
