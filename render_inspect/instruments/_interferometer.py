@@ -31,13 +31,8 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._imaging import (
-    Disturbances,
-    Microscope,
-    csi_frames,
-    psi_frames,
-    recommended_subsamples,
-)
+from ._imaging import csi_frames, psi_frames
+from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
 from ._registry import register_instrument
 from ._sources import led, monochromatic, spectrum_table

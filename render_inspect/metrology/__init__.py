@@ -26,10 +26,11 @@ from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtracti
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._measure import ALGORITHMS, measure_frames
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
-                     phase_quality, retrieve_csi, retrieve_psi, unwrap_phase, wrapped_phase)
+                     retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
+from ._unwrap import phase_quality, unwrap_phase
 
 __all__ = [
     "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
