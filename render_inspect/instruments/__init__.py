@@ -16,15 +16,7 @@ from ..core.frames import PHASE_CONVENTION, Frames
 from ..core.plugins import import_private_modules
 from . import _artefacts as artefacts  # calibration surfaces
 from ._camera import Camera, expose
-from ._imaging import (
-    Disturbances,
-    Microscope,
-    csi_frames,
-    interference_intensity,
-    normals_from_heights,
-    psi_frames,
-    recommended_subsamples,
-)
+from ._imaging import csi_frames, interference_intensity, normals_from_heights, psi_frames
 from ._interferometer import (
     Interferogram,
     InterferometerConfig,
@@ -37,6 +29,7 @@ from ._interferometer import (
     trace_heights,
     write_interferogram_exr,
 )
+from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, Objective, objective
 from ._registry import InstrumentType, instrument_types, register_instrument
 from ._sources import Source, led, monochromatic, spectrum_table

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MM_TO_NM, MM_TO_UM
 from ._atomic import atomic_write_bytes
 
 
@@ -64,8 +65,8 @@ def _nice_length(mm: float) -> tuple[float, str]:
     if v >= 1:
         return v, f"{v:g} mm"
     if v >= 1e-3:
-        return v, f"{v * 1e3:g} um"
-    return v, f"{v * 1e6:g} nm"
+        return v, f"{v * MM_TO_UM:g} um"
+    return v, f"{v * MM_TO_NM:g} nm"
 
 
 def save_height_png(path: str | Path, height_nm: np.ndarray, *, extent, title: str = "",

@@ -51,6 +51,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
+from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
 from ._registry import register_writer, writer
@@ -162,7 +163,7 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -
             rows = []
             for i in range(a, b):
                 words = f"N{i + 1} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
-                rows.append(words if i == 0 else words + " F%.10g" % (60.0 / dt[i - 1]))
+                rows.append(words if i == 0 else words + " F%.10g" % (MIN_TO_S / dt[i - 1]))
             fh.write(("\n".join(rows) + "\n").encode("ascii"))
         fh.write(b"M30\n")
 
@@ -225,7 +226,7 @@ def read_nc(path):
     if np.any(~(f > 0)):
         raise InputError(f"{path}: F words must be > 0 (inverse time, 1/min)")
     t0 = float(meta.get("t0_s", 0.0))
-    t = t0 + np.concatenate([[0.0], np.cumsum(60.0 / f)])
+    t = t0 + np.concatenate([[0.0], np.cumsum(MIN_TO_S / f)])
     if "points" in meta and int(meta["points"]) != len(C):
         raise InputError(f"{path}: header says {meta['points']} points, the program has {len(C)}")
     return ToolPath(np.radians(np.asarray(C)), np.asarray(X), np.asarray(Z), t, meta)
@@ -411,7 +412,7 @@ def read_program_nc(path) -> LinearProgram:
     if np.any(~(f > 0)):
         raise InputError(f"{path}: F words must be > 0 (mm/min)")
     seg = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
-    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / 60.0))])
+    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / MIN_TO_S))])  # mm/min -> mm/s
     if "points" in meta and meta["points"].isdigit() and int(meta["points"]) != x.size:
         raise InputError(f"{path}: header says {meta['points']} points, the program has {x.size}")
     return LinearProgram(x, y, z, t, np.asarray(L, dtype=np.int64), meta)

@@ -2,10 +2,11 @@
 evaluating against a truth, ISO 25178 / 21920 parameters (slopes as the reference
 libraries take them; Sal / Str from the autocorrelation), one-map analysis, checks
 before a comparison, ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF
-registration (seed 002) with its uncertainty, microstructure-array analysis (lenslet
-centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
-scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number or
-(pixel_x, pixel_y)."""
+registration (after Kong et al. 2020) with its uncertainty, microstructure-array analysis
+(lenslet centres, dislocations, per-lenslet form errors), and comparison of measured maps
+with a scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number
+or (pixel_x, pixel_y).  The papers and standards each model follows are cited in its
+module's References (docs/references.md lists them all)."""
 
 from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
@@ -25,10 +26,11 @@ from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtracti
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._measure import ALGORITHMS, measure_frames
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
-                     phase_quality, retrieve_csi, retrieve_psi, unwrap_phase, wrapped_phase)
+                     retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
+from ._unwrap import phase_quality, unwrap_phase
 
 __all__ = [
     "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
