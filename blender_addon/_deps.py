@@ -21,6 +21,9 @@ CORE = (
 MITSUBA = (("mitsuba", "mitsuba", "the interferometer"), ("drjit", "drjit", "the interferometer"))
 MESH = (("trimesh", "trimesh", "PLY/GLB export"),)
 X3P = (("x3pio", "x3pio", "X3P export"),)
+#: Everything the add-on imports: the extension bundles these distributions (and what they
+#: require), at the versions of the project's lock (tools/build_blender_extension.py).
+ALL = CORE + MITSUBA + MESH + X3P
 
 NEEDS = {
     "simulate": CORE,
@@ -45,7 +48,7 @@ def available(module: str) -> bool:
 def missing(groups=None) -> list[tuple[str, str, str]]:
     """The (module, distribution, use) entries of ``groups`` (default: every one) that
     cannot be imported, without duplicates."""
-    groups = groups if groups is not None else CORE + MITSUBA + MESH + X3P
+    groups = groups if groups is not None else ALL
     seen, out = set(), []
     for entry in groups:
         if entry[0] not in seen and not available(entry[0]):
