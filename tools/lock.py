@@ -177,6 +177,28 @@ def pins(text: str) -> dict[str, str]:
     return {name: version for name, version, _, _ in entries(text) if name}
 
 
+def read_lock(path: Path = LOCK) -> list[dict]:
+    """The lock's entries: ``name`` (canonical), ``version``, ``marker`` (or None) and
+    ``hashes`` (``sha256:...``)."""
+    out = []
+    for name, version, marker, lines in entries(path.read_text()):
+        if name:
+            hashes = [h for line in lines for h in re.findall(r"--hash=(sha256:[0-9a-f]{64})", line)]
+            out.append({"name": name, "version": version, "marker": marker, "hashes": hashes})
+    return out
+
+
+def applies(entry: dict, platform: str) -> bool:
+    """Whether a lock entry is installed on ``platform`` (CPython 3.11)."""
+    return not entry["marker"] or Marker(entry["marker"]).evaluate(marker_env(platform))
+
+
+def constraints(path: Path = LOCK) -> str:
+    """The lock as a pip constraints file without hashes (``name==version ; marker``)."""
+    return "".join(f"{e['name']}=={e['version']}" + (f" ; {e['marker']}" if e["marker"] else "")
+                   + "\n" for e in read_lock(path))
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--output", type=Path, default=LOCK)
