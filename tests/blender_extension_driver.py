@@ -9,6 +9,7 @@ records what it saw in OUT_JSON; the test asserts on it.
 """
 
 import json
+import os
 import sys
 import time
 import traceback
@@ -97,17 +98,20 @@ def main(zip_path, out_json, work):
                                                    enable_on_install=True)
     enabled = MODULE in {m.__name__ for m in addon_utils.modules() if addon_utils.check(m.__name__)[1]}
     mod = sys.modules[MODULE]
-    import render_inspect
+    lib = mod._lib.module  # render_inspect inside the extension (shipped as source)
+    render_inspect = lib()
 
     step("install", result=sorted(res), enabled=enabled, seconds=time.perf_counter() - t,
          addon_file=mod.__file__, render_inspect_file=render_inspect.__file__,
+         render_inspect_name=render_inspect.__name__, numpy=np.__version__,
+         numba_cache_dir=os.environ.get("NUMBA_CACHE_DIR", ""),
          missing=[m[0] for m in mod._deps.missing()],
          presets=[i[0] for i in mod.properties._PRESET_ITEMS])
 
     s = bpy.context.scene.render_inspect
     rep["panels_before"] = {k: flat(v) for k, v in draw_panels(mod).items()}
     # drawing the panel (and polling its buttons) must stay instant: no pipeline import
-    rep["install"]["pipeline_imported_by_draw"] = "render_inspect.pipeline" in sys.modules
+    rep["install"]["pipeline_imported_by_draw"] = f"{render_inspect.__name__}.pipeline" in sys.modules
 
     # -- error state: a missing scene file --------------------------------------------------
     s.scene_path = str(work / "missing.toml")
@@ -132,8 +136,8 @@ def main(zip_path, out_json, work):
     t = time.perf_counter()
     res = bpy.ops.render_inspect.simulate()
     objs = mod.operators.variant_objects()
-    from render_inspect.core.heightmap import HeightMap
-    from render_inspect.io import read_heightmap_exr
+    HeightMap = lib("core.heightmap").HeightMap  # noqa: N806
+    read_heightmap_exr = lib("io").read_heightmap_exr
 
     checks = {}
     for variant, obj in objs.items():
@@ -179,7 +183,7 @@ def main(zip_path, out_json, work):
     files = sorted(p.name for p in out.iterdir())
     glb = out / "compensated_machined.glb"
     obj = mod.operators.variant_objects()["compensated"]
-    from render_inspect.mesh import heightmap_mesh
+    heightmap_mesh = lib("mesh").heightmap_mesh
 
     hm = read_heightmap_exr(obj["render_inspect_heightmap_path"])
     gm = heightmap_mesh(hm, channel="machined", exaggeration=obj["render_inspect_exaggeration"])
@@ -256,9 +260,10 @@ def main(zip_path, out_json, work):
          poll_while_running=poll_while_running)
 
     # -- the 4.2 fallback material against the conductor Fresnel equation --------------------
-    from render_inspect.render import light_profile
-    from render_inspect.render._cycles import (ALUMINIUM_ETA, ALUMINIUM_K, fresnel_conductor,
-                                               render_cycles)
+    light_profile = lib("render").light_profile
+    cyc = lib("render._cycles")
+    ALUMINIUM_ETA, ALUMINIUM_K = cyc.ALUMINIUM_ETA, cyc.ALUMINIUM_K  # noqa: N806
+    fresnel_conductor, render_cycles = cyc.fresnel_conductor, cyc.render_cycles
 
     mirror = {}
     for tilt_deg in (7.5, 30.0):
