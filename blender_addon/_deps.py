@@ -53,7 +53,7 @@ def available(module: str) -> bool:
 def missing(groups=None) -> list[tuple[str, str, str]]:
     """The (module, distribution, use) entries of ``groups`` (default: every one) that
     cannot be imported, without duplicates."""
-    groups = groups if groups is not None else ALL
+    groups = groups if groups is not None else CORE + MITSUBA + MESH + X3P
     seen, out = set(), []
     for entry in groups:
         if entry[0] not in seen and not available(entry[0]):

@@ -154,8 +154,12 @@ def main(zip_path, out_json, work):
                            "compensation": json.loads(obj["render_inspect_scene"])["process"]["compensation"],
                            "pixel": json.loads(obj["render_inspect_scene"])["simulation"]["pixel"],
                            "materials": [m.name for m in obj.data.materials]}
+    cache = Path(os.environ.get("NUMBA_CACHE_DIR", "/nonexistent"))
+    installed = Path(mod.__file__).parent
     step("simulate", result=sorted(res), seconds=time.perf_counter() - t, params=params,
-         overrides=overrides, objects=checks, output=s.output_path)
+         overrides=overrides, objects=checks, output=s.output_path,
+         numba_cache_files=len(list(cache.rglob("*.nbi"))),
+         numba_files_in_install=len(list(installed.rglob("*.nbi"))))
     rep["panels_after_simulate"] = {k: flat(v) for k, v in draw_panels(mod).items()}
 
     # -- Render (Cycles + interferogram) in this process -------------------------------------

@@ -27,6 +27,9 @@ Usage::
     .venv/bin/python tools/build_blender_extension.py                    # all platforms
     .venv/bin/python tools/build_blender_extension.py --platforms linux-x64
     .venv/bin/python tools/build_blender_extension.py --update-docs      # and the docs table
+
+It needs only ``packaging`` and a ``bpy`` to find ``blender_ext.py`` in (this Python's, or
+``--blender-python``'s): nothing else installed here is read.
 """
 
 from __future__ import annotations
@@ -190,10 +193,17 @@ def platform_wheels(platform: str) -> tuple[list[Path], list[str]]:
     return wheels, sorted(missing)
 
 
-def blender_ext() -> Path:
-    import bpy  # only to locate the blender_ext.py that ships inside Blender
-
-    path = Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core/bl_pkg/cli/blender_ext.py"
+def blender_ext(blender_python: str | None = None) -> Path:
+    """The ``blender_ext.py`` that ships inside Blender: that of this Python's ``bpy``, or
+    of the ``bpy`` of ``blender_python`` (a Python that has it)."""
+    code = ("import bpy, os; print(os.path.join(bpy.utils.system_resource('SCRIPTS'), "
+            "'addons_core', 'bl_pkg', 'cli', 'blender_ext.py'))")
+    res = subprocess.run([blender_python or sys.executable, "-c", code], capture_output=True,
+                         text=True)
+    if res.returncode != 0:
+        raise SystemExit("bpy is needed to find Blender's blender_ext.py: run this with the "
+                         "project's .venv, or pass --blender-python")
+    path = Path(res.stdout.strip().splitlines()[-1])
     if not path.is_file():
         raise SystemExit(f"blender_ext.py not found at {path}")
     return path
@@ -266,6 +276,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--platforms", nargs="+", choices=sorted(PLATFORMS), default=list(PLATFORMS))
     p.add_argument("--output-dir", type=Path, default=REPO / "dist")
+    p.add_argument("--blender-python", help="a Python with bpy, to find Blender's blender_ext.py "
+                   "(default: this one)")
     p.add_argument("--update-docs", action="store_true",
                    help="write the sizes and wheel counts into docs/blender.md (all platforms)")
     args = p.parse_args(argv)
@@ -274,7 +286,7 @@ def main(argv=None) -> int:
 
     manifest = tomllib.loads(MANIFEST.read_text())
     args.output_dir.mkdir(parents=True, exist_ok=True)
-    ext = blender_ext()
+    ext = blender_ext(args.blender_python)
     report = {}
     for platform in args.platforms:
         wheels, missing = platform_wheels(platform)
