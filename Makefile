@@ -65,11 +65,13 @@ clean:
 	rm -rf out .pytest_cache
 
 # The self-contained Blender extension, one zip per platform (linux-x64, windows-x64,
-# macos-arm64, macos-x64) with the wheels of render_inspect and its dependencies, built with
-# the blender_ext.py that ships inside Blender: dist/render_inspect-<version>-<platform>.zip.
+# macos-arm64, macos-x64): the add-on, render_inspect as source and the wheels of what the
+# add-on imports at the versions of requirements.lock, built with the blender_ext.py that
+# ships inside Blender: dist/render_inspect-<version>-<platform>.zip (and the table of
+# sizes in docs/blender.md).
 .PHONY: blender-addon blender-venvs
 blender-addon: setup
-	$(VPY) tools/build_blender_extension.py --output-dir dist
+	$(VPY) tools/build_blender_extension.py --output-dir dist --update-docs
 
 # Virtualenvs with only bpy 4.2 LTS, 4.5 LTS and 5.0 and the NumPy each Blender ships
 # (.venv-blender/), for the extension tests (the tests make them too when missing).

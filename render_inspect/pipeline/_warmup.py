@@ -85,8 +85,11 @@ def warm_up_scenes() -> float:
     """Cut both variants of every shipped scene in a small window at the scene's own
     pixel (the kernels they use, with the types they use), and run the demo's
     comparison on a small window; return the seconds it took."""
+    # the scenes and the public pipeline, imported when the warm-up runs (the package's
+    # __init__ is complete by then; this module is not imported by it)
     from ..scene import load_scene, shipped_scenes
-    from . import DEMO_SCENE, compare_variants, run_compare, simulate  # the public pipeline
+    # (see above)
+    from . import DEMO_SCENE, compare_variants, run_compare, simulate
 
     t0 = time.perf_counter()
     for path in shipped_scenes().values():
