@@ -224,3 +224,28 @@ def test_sal_str_agree_with_surfalize(maps):
             assert_allclose(ours["Str"], str_, rtol=0.005)
         else:
             assert np.isnan(ours["Str"]) and np.isnan(str_)
+
+
+def test_wyko_16_bit_opd_reads_its_invalid_points_as_missing():
+    """A Wyko OPD file with 16-bit heights marks points it did not measure with the
+    largest 16-bit values.  SurfaceTopography up to 1.18.2 (the last for NumPy 1, which
+    this environment keeps) reads them as heights; render_inspect masks them
+    (io/_wyko.py).  Published reading (SOURCES.md, SurfaceTopography 1.27.1 and surfalize
+    0.19.2): 809 invalid points; with a plane removed over the valid points Sa 1593.8 nm,
+    Sq 1926.5 nm, Sz 18844 nm."""
+    from render_inspect.core.units import MM_TO_NM
+    from render_inspect.io._wyko import invalid_points
+
+    path = _path("wyko_opd-int16.opd")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = read_surface(path)
+    assert m.z.shape == (480, 736)
+    assert_allclose(m.pixel, (1.63424e-3, 1.90661e-3), rtol=1e-5)
+    assert int(np.isnan(m.z).sum()) == 809
+    assert int(invalid_points(path).sum()) == 809
+    z, _ = remove_form(m.z, pixel=m.pixel, method="plane")
+    p = areal_parameters(z, pixel=m.pixel)
+    assert p["Sq"] * MM_TO_NM == pytest.approx(1926.5, abs=0.1)
+    assert p["Sa"] * MM_TO_NM == pytest.approx(1593.8, abs=0.1)
+    assert p["Sz"] * MM_TO_NM == pytest.approx(18844, abs=1)

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from . import _wyko
 from ._exr import exr_placement, read_exr
 from ._limits import (
     check_file_values,
@@ -254,6 +255,8 @@ def _read_surface_topography(path, **_):
     h = t.heights()
     h = h.filled(np.nan) if np.ma.isMaskedArray(h) else np.asarray(h)
     z = np.asarray(h, dtype=np.float64).T * scale  # SurfaceTopography: [x, y]; here [row=y, col=x]
+    if Path(path).suffix.lower() == ".opd":  # 16-bit invalid-point markers (io/_wyko.py)
+        z = _wyko.mask_invalid(path, z)
     px, py = (float(v) * scale for v in t.pixel_size)
     info = t.info or {}
     meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": {"lateral": unit,

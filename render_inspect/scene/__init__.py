@@ -314,7 +314,8 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
 
 def shipped_scenes() -> dict[str, Path]:
     """The scenes that ship with the package (the seed papers' cases): name -> path."""
-    root = resources.files("render_inspect") / "scenes"
+    # the package by its own name (render_inspect, or the copy inside the Blender extension)
+    root = resources.files(__package__.rpartition(".")[0]) / "scenes"
     return {p.name[:-5]: Path(str(p)) for p in sorted(root.iterdir(), key=lambda q: q.name)
             if p.name.endswith(".toml")}
 
