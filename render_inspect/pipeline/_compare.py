@@ -36,8 +36,9 @@ from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
                   export_program, json_safe, read_surface, write_heightmap_exr)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
-                         difference_profiles, expected_sq_mm, profile_center, sections,
-                         waviness_choice, waviness_map)
+                         difference_profiles, profile_center, sections, waviness_choice,
+                         waviness_map)
+from ..metrology import expected_sq_mm as _marks_sq_mm
 from ..processes import process_of
 from ..render import mitsuba_variant
 from ..report import (ComparedVariant, axis_motion_figure, build_page, comparison_figures,
@@ -159,6 +160,13 @@ def _traits(scene):
     return process.traits(process.inputs_of(scene))
 
 
+def expected_sq_mm(scene) -> float | None:
+    """The Sq the scene's process should leave on its own (mm): the ideal turned profile
+    ``f^2 / (12 sqrt(5) R)`` of its feed marks (:func:`render_inspect.metrology.expected_sq_mm`
+    of the marks its traits state); None for processes without a feed scallop."""
+    return _marks_sq_mm(_traits(scene).marks)
+
+
 def _simulate_variant(v: _Variant, out: Path) -> None:
     """Simulate one variant; write heightmap.exr, the program (toolpath.npz), residual.png."""
     d = out / v.name
@@ -253,7 +261,7 @@ def check_measured(path, scene, design_surface, *, force: bool = False):
         comp = compare_measured(m, design_surface, metrology=scene.metrology,
                                 region=tuple(scene.simulation.region),
                                 seed=int(scene.simulation.seed),
-                                expected_sq_mm=expected_sq_mm(_traits(scene).marks), force=force)
+                                expected_sq_mm=expected_sq_mm(scene), force=force)
     return m, comp
 
 
@@ -263,7 +271,7 @@ def _measured_column(m, scene, design_surface, sim_hm, seed) -> dict:
         warnings.simplefilter("always")
         comp = compare_measured(m, design_surface, metrology=scene.metrology,
                                 simulated=simulated, region=tuple(scene.simulation.region),
-                                seed=seed, expected_sq_mm=expected_sq_mm(_traits(scene).marks),
+                                seed=seed, expected_sq_mm=expected_sq_mm(scene),
                                 force=True)
     metrics = dict(comp.metrics)
     metrics["compared_with_simulation"] = simulated is not None
