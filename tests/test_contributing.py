@@ -70,6 +70,44 @@ spp = 2
 """
 
 
+#: the least a process kind is: a schema class and the three required hooks (no
+#: compensation, no feed, no traits): simulate must run it
+BARE_PROCESS = '''
+from typing import Literal
+
+import numpy as np
+
+from ..core.section import Section
+from ..core.toolpath import LinearProgram
+from ..core.units import NM_TO_MM
+from ..machining import design_grid
+from ._contract import Cut, Plan, Process
+from ._registry import register_process
+
+
+class BareConfig(Section):
+    kind: Literal["bare"]
+
+
+class Bare(Process):
+    config = BareConfig
+
+    def plan(self, cfg, surface, *, region=None):
+        x = np.array([0.0, 1.0])
+        return Plan(LinearProgram(x, 0 * x, 0 * x, x, np.zeros(2, dtype=np.int64)))
+
+    def cut(self, cfg, surface, plan):
+        design = design_grid(surface, cfg.simulation.region, cfg.simulation.pixel)
+        return Cut(design + NM_TO_MM, design)
+
+    def estimate_memory(self, cfg, plan=None):
+        return 0
+
+
+register_process(Bare())
+'''
+
+
 def examples() -> dict[str, str]:
     """Relative path -> code of every "Create `render_inspect/...py`:" example."""
     text = DOC.read_text()
@@ -83,7 +121,7 @@ def package(tmp_path_factory) -> Path:
     """A copy of the package with every example of the page added as its own file."""
     root = tmp_path_factory.mktemp("contributing")
     shutil.copytree(PKG, root / "render_inspect", ignore=shutil.ignore_patterns("__pycache__"))
-    for rel, code in examples().items():
+    for rel, code in {**examples(), "render_inspect/processes/_bare.py": BARE_PROCESS}.items():
         target = root / rel
         assert not target.exists(), f"{rel}: the example must be a new file"
         target.write_text(code)
@@ -111,6 +149,20 @@ def test_a_new_design_type_is_one_file(package, tmp_path):
     assert r.returncode == 0, r.stderr
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["scene_name"] == "saddle" and m["residual"]["Sq_nm"] > 0
+
+
+def test_a_process_needs_only_its_three_hooks(package, tmp_path):
+    """No compensation key, no feed, no traits: the chain asks nothing else of it."""
+    scene = SADDLE_SCENE.replace('kind = "sts"', 'kind = "bare"').replace(
+        "workpiece_radius = 0.5\nspindle_rpm = 50\nfeed_mm_per_min = 1\npoints_per_rev = 360\n", "")
+    (tmp_path / "b.toml").write_text(scene)
+    r = _run(package, "simulate", str(tmp_path / "b.toml"), "--out", str(tmp_path / "o"),
+             cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["process"] == "bare" and m["compensation"] == "none"
+    assert m["residual"]["mean_nm"] == pytest.approx(1.0) and m["toolpath"]["points"] == 2
+    assert not (tmp_path / "o" / "toolpath.npz").exists()
 
 
 @pytest.mark.mitsuba

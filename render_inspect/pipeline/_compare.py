@@ -34,7 +34,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM
 from ..design import make_surface
 from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  export_program, json_safe, read_surface, write_heightmap_exr)
+                  export_program, json_safe, read_surface, writer)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
                          difference_profiles, profile_center, sections, waviness_choice,
                          waviness_map)
@@ -173,7 +173,7 @@ def _simulate_variant(v: _Variant, out: Path) -> None:
     d.mkdir(parents=True, exist_ok=True)
     sim = v.sim = simulate(v.scene)
     hm = v.heightmap = sim.heightmap
-    write_heightmap_exr(d / "heightmap.exr", hm)
+    writer("heightmap", ".exr")(d / "heightmap.exr", hm)
     if sim.toolpath is not None:
         export_program(sim.toolpath, d, fmt="npz")
     save_map_png(d / "residual.png", display_map(hm.residual * MM_TO_NM), extent=hm.extent,

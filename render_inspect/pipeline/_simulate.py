@@ -16,7 +16,7 @@ from ..core.heightmap import HeightMap
 from ..core.progress import task
 from ..core.units import BYTES_TO_MIB
 from ..design import make_surface
-from ..io import atomic_write_text, export_program, heightmap_overview, write_heightmap_exr
+from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
@@ -166,7 +166,8 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
              hm.design.size * 12 * BYTES_TO_MIB)
     # one pass for the EXR overview and the preview (area averages)
     overview = timed(tw, "overview", heightmap_overview, hm.design, hm.machined)
-    timed(tw, "heightmap.exr", write_heightmap_exr, out_dir / "heightmap.exr", hm, overview=overview)
+    timed(tw, "heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr", hm,
+          overview=overview)
     if sim.toolpath is not None:
         timed(tw, "toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
     if preview:
