@@ -4,6 +4,7 @@ are drawn in :mod:`render_inspect.report`)."""
 from __future__ import annotations
 
 import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +26,6 @@ def save_png(path: str | Path, image: np.ndarray) -> Path:
 def png_bytes_with_text(img8: np.ndarray, text: dict) -> bytes:
     """8-bit PNG of ``img8`` (H x W or H x W x 3, row 0 at the top) with PNG text chunks
     ``text`` (values that are not text are written as JSON)."""
-    import json
-
     from PIL import Image
     from PIL.PngImagePlugin import PngInfo
 
