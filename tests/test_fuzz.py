@@ -118,7 +118,8 @@ def test_fuzz_scene_values_are_validated_or_named():
             x = np.linspace(scene.simulation.region[0], scene.simulation.region[2], 5)
             with np.errstate(all="ignore"):
                 surface.height(x, x)
-            process_of(scene).precheck(scene, tuple(scene.simulation.region))
+            process = process_of(scene)
+            process.precheck(process.inputs_of(scene), tuple(scene.simulation.region))
             check_render_limits(scene)
         except RenderInspectError:
             pass

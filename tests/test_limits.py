@@ -143,11 +143,12 @@ def test_chordal_tolerance_raising_the_points_is_checked_in_the_planner():
     scene = load_scene("sts_sinusoidal_grid", ["process.chordal_tolerance=1e-13",
                                                "simulation.max_memory_gb=0.5"])
     kind = process_of(scene)
-    kind.precheck(scene, None)  # fits
+    cfg = kind.inputs_of(scene)
+    kind.precheck(cfg, None)  # fits
     surface = make_surface(scene.design)
     with pytest.raises(MemoryBudgetError, match=r"chordal_tolerance = 1e-13 mm sets .* points "
                                                 r"per revolution") as e:
-        _, peak = _traced(lambda: kind.plan(scene, surface, region=None))
+        _, peak = _traced(lambda: kind.plan(cfg, surface, region=None))
     assert "process.chordal_tolerance >= " in str(e.value)
 
 
@@ -301,13 +302,13 @@ def test_a_map_too_big_for_the_automatic_budget_is_tiled_not_refused(tmp_path, m
     """With no simulation.max_memory_gb the budget is a share of the memory available: a
     scene whose map does not fit it takes the tiled path (and fits there)."""
     from render_inspect.pipeline import run_simulate
-    from render_inspect.pipeline._simulate import wants_tiles
+    from render_inspect.pipeline import wants_tiles
 
     scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.2,-0.15,0.22,0.2]",
                                                "simulation.pixel=0.0002", 'material.preset="ideal"',
                                                'machine.preset="ideal"'])
     assert scene.simulation.max_memory_gb is None
-    need = process_of(scene).estimate_memory(scene)
+    need = process_of(scene).estimate_memory(process_of(scene).inputs_of(scene))
     assert not wants_tiles(scene)
     _small_budget(monkeypatch, int(0.6 * need))
     assert wants_tiles(scene)

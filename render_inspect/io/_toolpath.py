@@ -54,11 +54,11 @@ from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
-from ._registry import register_writer, writer
+from ._registry import formats, register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
-           "export_program", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
+           "export_program", "program_formats", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
            "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
@@ -418,17 +418,25 @@ def read_program_nc(path) -> LinearProgram:
     return LinearProgram(x, y, z, t, np.asarray(L, dtype=np.int64), meta)
 
 
+def program_formats() -> list[str]:
+    """The names ``toolpath --format`` takes: the extensions (without the dot) a machine
+    program has a registered writer for (products ``toolpath`` and ``program``)."""
+    exts = set(formats("toolpath", kind="write")) | set(formats("program", kind="write"))
+    return sorted(e.lstrip(".") for e in exts)
+
+
 def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = None,
                    **options) -> Path:
     """Write a turning :class:`ToolPath` or a sculpturing :class:`LinearProgram` into
-    ``out_dir`` as ``toolpath.npz`` / ``.csv`` / ``.nc`` (atomically).
+    ``out_dir`` as ``toolpath.<fmt>`` (atomically) with the writer registered for it.
 
     Parameters
     ----------
     program : ToolPath or LinearProgram
     out_dir : str or Path
         Folder (created if needed).
-    fmt : {"npz", "csv", "nc"}
+    fmt : str
+        One of :func:`program_formats` (``npz``, ``csv``, ``nc``, ...).
     header : dict, optional
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
     **options
@@ -439,8 +447,8 @@ def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = 
     Path of the file written.
     """
     product = "program" if isinstance(program, LinearProgram) else "toolpath"
-    if fmt not in ("npz", "csv", "nc"):
-        raise InputError(f"--format must be one of ['csv', 'nc', 'npz'], received {fmt!r}")
+    if fmt not in program_formats():
+        raise InputError(f"--format must be one of {program_formats()}, received {fmt!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return writer(product, fmt)(out / f"toolpath.{fmt}", program, header=header, **options)

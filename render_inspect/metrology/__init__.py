@@ -13,12 +13,18 @@ from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_R
                       correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
 from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
                        coverage, resample_map, sample_map)
-from ._filter_choice import MARK_LEAK_NM, scallop_pv, waviness_filters
+from ._filter_choice import (FINEST_RENDERED_MARKS_MM, MARK_LEAK_NM, expected_sq_mm, feature_size,
+                             mark_size, render_marks, scallop_pv, waviness_choice,
+                             waviness_filters, waviness_map)
+from ._lenslet_facts import lenslet_facts, lenslet_metrics, msa_metrics
 from ._filters import (EDGE_MODES, GAUSSIAN_ALPHA, fit_sphere, gaussian_filter, gaussian_sigma,
                        gaussian_transmission, l_filter, pixel_xy, remove_form, s_filter,
                        valid_mask)
 from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_centers,
                    lenslet_table, separate_msa)
+from ._profiles import (areal_nm, common_window, crop_window, difference_profiles,
+                        difference_stats, line_profile, profile_center, sections,
+                        surface_slope)
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
@@ -53,4 +59,8 @@ __all__ = [
     "evaluate_measurement",
     "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
     "dropout_slope", "noise_by_subtraction",
+    "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
+    "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",
+    "common_window", "crop_window", "line_profile", "difference_stats", "sections",
+    "profile_center", "areal_nm", "difference_profiles", "surface_slope",
 ]

@@ -23,14 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..batch import run_tiles
 from ..core.toolpath import ToolPath
-from ..io._exr import heightmap_channels, heightmap_overview
-from ..io._heightmap import grid_attrs
-from ..io._pyramid import block_sums, preview
-from ..io._zarr import create_heightmap_zarr
-from ..machining._envelope import prepare_envelope, simulate_turning
-from ..machining._metrics import residual_metrics, tile_abs_dev, tile_moments
-from ._tiled import run_tiles
+from ..io import (block_sums, create_heightmap_zarr, grid_attrs, heightmap_channels,
+                  heightmap_overview, preview)
+from ..machining import (prepare_envelope, residual_metrics, simulate_turning, tile_abs_dev,
+                         tile_moments)
 
 
 class _Flat:

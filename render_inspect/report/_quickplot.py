@@ -4,7 +4,7 @@ stacked line panels.
 Writing a simulation's outputs should cost less than the simulation.  matplotlib takes
 about 0.5 s to import and 0.2-0.4 s per figure on the 2-core benchmark machine; these
 figures take a few tens of milliseconds.  The data are small by construction: the map
-is an area-averaged preview (``render_inspect.io._pyramid.preview``) and the line panels
+is an area-averaged preview (:func:`render_inspect.io.preview`) and the line panels
 are per-bin minimum / maximum envelopes, so single-point spikes stay visible.
 
 Colour maps are linear interpolations of ColorBrewer's 11-class diverging "RdBu"
@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._atomic import atomic_write_bytes
+from ..io import atomic_write_bytes
+
+__all__ = ["map_png", "panels_png", "CMAPS"]
 
 #: ColorBrewer RdBu (11 classes), from blue (low) to red (high)
 _RDBU_R = ["#053061", "#2166ac", "#4393c3", "#92c5de", "#d1e5f0", "#f7f7f7", "#fddbc7", "#f4a582", "#d6604d",
