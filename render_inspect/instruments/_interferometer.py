@@ -34,7 +34,6 @@ from ._camera import Camera
 from ._imaging import csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
-from ._registry import register_instrument
 from ._sources import led, monochromatic, spectrum_table
 
 __all__ = [
@@ -129,8 +128,6 @@ class InterferometerConfig(Section):
                              f"({na:g}), received {self.illumination_na:g}")
         return self
 
-
-register_instrument("interferometer", InterferometerConfig)
 
 
 @dataclass

@@ -65,7 +65,7 @@ log = logging.getLogger("render_inspect")
 #: Seeds of the reference passes: REFERENCE_SEED0, +1, ...  Test passes use
 #: ``simulation.seed * SEED_STRIDE + i``: the two never overlap (seed < 2,000,000).
 REFERENCE_SEED0 = 2_000_000_000
-SEED_STRIDE = 1000
+SEED_STRIDE = 1000  # not a unit conversion
 
 #: Per image: unit, tolerances of a deterministic comparison, significance of a
 #: Monte-Carlo one.  ``atol`` covers what differs between Mitsuba variants and machines

@@ -32,7 +32,7 @@ __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles"]
 log = logging.getLogger("render_inspect")
 
 #: samples per second the EXR and previews are written at (the progress bar's estimate)
-_WRITE_RATE = 1e6
+_WRITE_RATE = 1e6  # not a unit conversion
 
 
 def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,

@@ -39,7 +39,7 @@ from ._registry import register_process, register_section
 from ._turning import TurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
 #: samples per second the cut runs at on 2 cores (the progress bar's estimate)
-CUT_RATE = 1e6
+CUT_RATE = 1e6  # not a unit conversion
 
 __all__ = ["RcseProcessConfig", "RcseConfig", "RcseInputs", "RcseProcess", "rcse_comparison"]
 

@@ -21,6 +21,7 @@ from ..toolpath import (
     Tool,
     kinematics,
     limits_from_process,
+    pass_margin,
     plan_feed,
     plan_memory,
     plan_turning,
@@ -154,8 +155,7 @@ def _revolutions(cfg, design) -> float:
     tool = Tool.from_config(cfg.tool)
     slope = make_surface(design).max_slope(tuple(sim.region))
     f = p.feed_per_rev
-    margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
-    r_in, r_out = region_radii(sim.region, margin)
+    r_in, r_out = region_radii(sim.region, pass_margin(tool, slope, f))
     r_in = max(r_in, p.inner_radius)
     return max(min(r_out, p.workpiece_radius) - r_in, 0.0) / f
 

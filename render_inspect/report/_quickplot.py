@@ -49,7 +49,7 @@ def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
 
 
 def _fmt(v: float, step: float | None = None) -> str:
-    if v == 0 or (step is not None and abs(v) < 1e-9 * step):
+    if v == 0 or (step is not None and abs(v) < 1e-9 * step):  # not a unit conversion
         return "0"
     if step is not None and 1e-4 <= abs(v) < 1e6 and step >= 1e-6:
         txt = f"{v:.{max(0, -math.floor(math.log10(step)) + 1)}f}"
@@ -60,7 +60,7 @@ def _fmt(v: float, step: float | None = None) -> str:
 def _offset(lo: float, hi: float) -> float:
     """A value to subtract from tick labels whose range is tiny against their size."""
     big = max(abs(lo), abs(hi))
-    if big > 0 and hi - lo < 1e-3 * big:
+    if big > 0 and hi - lo < 1e-3 * big:  # not a unit conversion
         q = 10.0 ** (math.floor(math.log10(hi - lo)) + 1)
         return round((lo + hi) / 2 / q) * q
     return 0.0
@@ -101,7 +101,7 @@ def map_png(path: str | Path, data: np.ndarray, *, extent, title: str = "", labe
     if vmax is None:
         vmax = float(d[finite].max()) if finite.any() else 1.0
     if vmax <= vmin:
-        vmax = vmin + (abs(vmin) or 1.0) * 1e-6
+        vmax = vmin + (abs(vmin) or 1.0) * 1e-6  # not a unit conversion
     lut = _lut(cmap)
     idx = np.clip(((d - vmin) / (vmax - vmin) * 255 + 0.5), 0, 255)
     rgb = lut[np.where(finite, idx, 0).astype(np.uint8)]

@@ -27,6 +27,7 @@ from typing import Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
+from ..core.units import MIB_TO_BYTES
 from ..core.errors import SceneError
 from ..core.section import Section
 from ..design import DesignConfig, design_types
@@ -253,7 +254,7 @@ def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
 
 
 #: largest scene file read, bytes
-MAX_SCENE_BYTES = 4 * 2 ** 20
+MAX_SCENE_BYTES = 4 * MIB_TO_BYTES
 #: deepest nesting of tables and arrays in a scene (the schema needs 5)
 MAX_SCENE_DEPTH = 32
 
@@ -400,7 +401,7 @@ def read_scene_text(path: Path) -> str:
     except OSError as err:
         raise SceneError(f"scene file {str(path)!r} cannot be read ({err.strerror or err})") from None
     if len(raw) > MAX_SCENE_BYTES:
-        raise SceneError(f"scene file {str(path)!r} is larger than {MAX_SCENE_BYTES // 2 ** 20} MiB; "
+        raise SceneError(f"scene file {str(path)!r} is larger than {MAX_SCENE_BYTES // MIB_TO_BYTES} MiB; "
                          f"a scene is a short TOML text")
     try:
         text = raw.decode("utf-8")
