@@ -18,10 +18,34 @@ from pathlib import Path
 from .errors import MemoryBudgetError
 
 __all__ = ["available_memory", "default_budget", "memory_budget", "check_memory",
-           "fit_value", "format_bytes", "format_number", "AUTO_FRACTION", "Driver"]
+           "fit_value", "format_bytes", "format_number", "AUTO_FRACTION", "Driver",
+           "PIXEL_RANGE_MM", "MAX_FIELD_MM", "MAX_ABS_MM", "MOSTLY_EMPTY_FRACTION",
+           "mostly_empty_warning"]
 
 #: share of the available memory a command may use when the scene sets no budget
 AUTO_FRACTION = 0.8
+
+# -- plausibility bounds of measured height maps (the readers and ``analyze`` refuse or
+#    warn beyond them; see docs/limits.md)
+#: sampling distance of a measured map, mm (0.1 nm .. 100 mm): outside this the file's
+#: lateral unit was not understood
+PIXEL_RANGE_MM = (1e-7, 100.0)
+#: largest side of a measured field, mm
+MAX_FIELD_MM = 2e4
+#: largest height or origin coordinate, mm (the scene's positions keep within the same
+#: bound: beyond it a double no longer resolves nanometres)
+MAX_ABS_MM = 1e4
+#: a map with more than this share of points not measured gets a warning
+MOSTLY_EMPTY_FRACTION = 0.5
+
+
+def mostly_empty_warning(unmeasured_fraction: float) -> str:
+    """The warning for a map more than :data:`MOSTLY_EMPTY_FRACTION` of which is not
+    measured."""
+    return (f"{unmeasured_fraction:.0%} of the map is not measured (more than "
+            f"{MOSTLY_EMPTY_FRACTION:.0%}): its parameters describe the measured "
+            f"{1.0 - unmeasured_fraction:.0%} only; check the instrument's settings or crop "
+            f"the map to the measured area")
 _FALLBACK = 4 * 2 ** 30
 
 
