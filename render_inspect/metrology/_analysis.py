@@ -57,8 +57,8 @@ def parse_filter(text: str | None):
         return None, None
     parts = [p.strip() for p in str(text).split(",")]
     if len(parts) != 2:
-        raise InputError(f"filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
-                         f"',0.8'), got {text!r}")
+        raise InputError(f"--filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
+                         f"',0.8'), received {str(text)[:80]!r}")
     out = []
     for name, p in zip(("S", "L"), parts):
         if p == "":
@@ -67,13 +67,16 @@ def parse_filter(text: str | None):
         try:
             v = float(p)
         except ValueError:
-            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}") from None
+            raise InputError(f"--filter {name} must be a number of mm >= 0, received "
+                             f"{p[:40]!r}") from None
         if not (math.isfinite(v) and v >= 0):
-            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}")
+            raise InputError(f"--filter {name} must be a finite number of mm >= 0, received "
+                             f"{p[:40]!r}")
         out.append(v or None)
     s_mm, l_mm = out
     if s_mm and l_mm and not l_mm > s_mm:
-        raise InputError(f"filter L ({l_mm} mm) must be > S ({s_mm} mm)")
+        raise InputError(f"--filter L must be longer than S, received S {s_mm:g} mm and L "
+                         f"{l_mm:g} mm")
     return s_mm, l_mm
 
 
@@ -111,7 +114,8 @@ def check_filter(s_mm, l_mm, *, pixel, shape, option: str = "--filter") -> None:
                f"({nx} x {ny} points of {px:.3g} x {py:.3g} mm: two pixels to the field's "
                f"smaller side), received {v:.6g} mm ({where})")
         as_um = {k: (float(x) * UM_TO_MM if x is not None else None) for k, x in values.items()}
-        if v > hi and all(x is None or lo <= x <= hi for x in as_um.values()):
+        if v > hi and all(x is None or lo <= x <= hi for x in as_um.values()) \
+                and (as_um["L"] is None or as_um["L"] >= 5 * lo):
             meant = ",".join("" if x is None else f"{x:g}" for x in as_um.values())
             msg += (f"; the value looks like micrometres: {option} {meant} (mm) was probably "
                     f"meant")
