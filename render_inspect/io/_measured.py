@@ -157,7 +157,7 @@ def _read_zarr(path, *, channel=None, region=None, **_):
     # the window's values, and the chunks zarr decodes at once to fill it
     check_values(path, what=_WHAT, desc=f"a {rows.stop - rows.start} x {cols.stop - cols.start} window",
                  count=(rows.stop - rows.start) * (cols.stop - cols.start),
-                 extra_bytes=zarr_read_overhead(z))
+                 extra_bytes=zarr_read_overhead(z, rows, cols))
     data = z.read(channel, rows, cols).astype(np.float64)
     origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
     return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
@@ -427,6 +427,11 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     return MeasuredMap(z, (px, py), (ox, oy), meta)
 
 
+#: the key that gives the pixel, by format (named when it is out of bounds)
+_PIXEL_KEYS = {"exr": "pixel_size_mm", "zarr": "pixel_size_mm", "npy": "pixel_mm",
+               "npz": "pixel_mm", "x3p": "the CX / CY increment"}
+
+
 def _check_plausible(path, z, pixel, origin, meta) -> None:
     """Bounds a measured map must keep (:data:`PIXEL_RANGE_MM`, :data:`MAX_FIELD_MM`,
     :data:`MAX_ABS_MM`): beyond them the file's units or its invalid-point marker were
@@ -436,10 +441,12 @@ def _check_plausible(path, z, pixel, origin, meta) -> None:
     lat = f" (the file's lateral unit: {lateral!r})" if lateral else ""
     lo, hi = PIXEL_RANGE_MM
     ny, nx = z.shape
+    key = _PIXEL_KEYS.get(str(meta.get("format", "")).lower())
     for name, v, n in (("pixel_x", pixel[0], nx), ("pixel_y", pixel[1], ny)):
         if not (math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{path}: {name} must lie within {lo:g} .. {hi:g} mm, received "
-                             f"{v:.3g} mm{lat}")
+            said = f" ({key} in the file)" if key else ""
+            raise InputError(f"{path}: {name}{said} must lie within {lo:g} .. {hi:g} mm, "
+                             f"received {v:.3g} mm{lat}")
         if v * n > MAX_FIELD_MM:
             raise InputError(f"{path}: the field ({n} x {name} = {v * n:.3g} mm) must be at most "
                              f"{MAX_FIELD_MM:g} mm{lat}")

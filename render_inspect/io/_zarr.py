@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
 from ._exr import exr_placement
 from ._pyramid import block_sums, coarsen, level_count, level_shape, means
 
@@ -50,16 +51,23 @@ def codec():
     return BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
 
 
-def zarr_read_overhead(store: "ZarrHeightMap") -> int:
+def zarr_read_overhead(store: "ZarrHeightMap", rows: slice | None = None,
+                       cols: slice | None = None) -> int:
     """Bytes zarr holds beyond the window while it reads one: the chunks it decodes at
-    once (``async.concurrency`` of zarr's configuration), each compressed and decoded."""
+    once (the chunks the window touches, at most ``async.concurrency`` of zarr's
+    configuration), each compressed and decoded."""
     try:
         import zarr
 
         concurrency = int(zarr.config.get("async.concurrency") or 10)
     except Exception:  # an unusual configuration: assume zarr's default
         concurrency = 10
-    return 2 * max(concurrency, 1) * store.chunk_bytes
+    cy, cx = store.chunk_shape
+    ny, nx = store.shape
+    r0, r1 = (rows.start or 0, rows.stop if rows and rows.stop is not None else ny) if rows else (0, ny)
+    c0, c1 = (cols.start or 0, cols.stop if cols and cols.stop is not None else nx) if cols else (0, nx)
+    touched = ((r1 - 1) // cy - r0 // cy + 1) * ((c1 - 1) // cx - c0 // cx + 1)
+    return 2 * max(min(concurrency, touched), 1) * store.chunk_bytes
 
 
 def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
@@ -156,6 +164,13 @@ class ZarrHeightMap:
             raise InputError(f"{what} {str(path)!r}: the store has no 'machined' array")
         self.what = what
         self.pixel, self.origin = exr_placement(self.attrs, what=what, path=path)
+        lo, hi = PIXEL_RANGE_MM
+        if not lo <= self.pixel <= hi:
+            raise InputError(f"{what} {str(path)!r}: pixel_size_mm must lie within {lo:g} .. "
+                             f"{hi:g} mm, received {self.pixel:.3g}")
+        if max(abs(self.origin[0]), abs(self.origin[1])) > MAX_ABS_MM:
+            raise InputError(f"{what} {str(path)!r}: origin_mm must lie within +-{MAX_ABS_MM:g} "
+                             f"mm, received {list(self.origin)}")
         shape = tuple(int(n) for n in arrays["machined"].shape)
         if len(shape) != 2 or any(a.shape != shape for a in arrays.values()):
             raise InputError(f"{what} {str(path)!r}: its arrays must be 2-D and of one shape, "
@@ -165,6 +180,7 @@ class ZarrHeightMap:
         self.shape = shape
         self._checked: dict[str, int] = {}
         self.chunk_bytes = max(self._check_array(name, a) for name, a in arrays.items())
+        self.chunk_shape = tuple(int(c) for c in arrays["machined"].chunks)
         try:
             self.scene = json.loads(self.attrs.get("scene") or "{}")
             self.meta = json.loads(self.attrs.get("meta") or "{}")
