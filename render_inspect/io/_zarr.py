@@ -206,17 +206,30 @@ class ZarrHeightMap:
         return slice(r0, r1 + 1), slice(c0, c1 + 1)
 
     def _check_declared_type(self, name: str) -> None:
-        """The data type an array's metadata declares (``zarr.json`` of format 3,
-        ``.zarray`` of format 2), checked before zarr opens it: real numbers only."""
+        """What an array's metadata declares (``zarr.json`` of format 3, ``.zarray`` of
+        format 2), checked before zarr opens it: a 2-D shape and chunk shape of whole
+        numbers >= 1, real numbers only."""
         for meta, key in (("zarr.json", "data_type"), (".zarray", "dtype")):
             f = self.path / name / meta
             try:
                 if not f.is_file() or f.stat().st_size > 2 ** 20:
                     continue
-                declared = json.loads(f.read_text(encoding="utf-8")).get(key)
+                d = json.loads(f.read_text(encoding="utf-8"))
+                declared = d.get(key)
             except (OSError, ValueError, AttributeError):
                 continue  # zarr says what is wrong with it
             where = f"{self.what} {str(self.path)!r}: array {name!r}"
+            if meta == "zarr.json":
+                grid = d.get("chunk_grid")
+                chunks = (grid.get("configuration") or {}).get("chunk_shape") \
+                    if isinstance(grid, dict) else None
+            else:
+                chunks = d.get("chunks")
+            for what_key, value in (("shape", d.get("shape")), ("chunk_shape", chunks)):
+                if not (isinstance(value, list) and len(value) == 2 and all(
+                        type(v) is int and v >= 1 for v in value)):
+                    raise InputError(f"{where}: {what_key} must be two whole numbers >= 1, "
+                                     f"received {str(value)[:60]}")
             try:
                 dtype = np.dtype(declared) if isinstance(declared, str) else None
             except TypeError:
