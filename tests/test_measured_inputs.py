@@ -191,3 +191,17 @@ def test_analyze_map_refuses_a_map_its_memory_cannot_hold():
     z = np.random.default_rng(0).normal(0, 1e-5, (200, 200))
     with pytest.raises(MemoryBudgetError, match=r"analysing a 200 x 200 map would need about .* crop or resample"):
         analyze_map(z, pixel=0.001, budget=2 ** 20)
+
+
+def test_frames_without_a_finite_pixel_are_refused():
+    from render_inspect.io._limits import check_frames
+
+    frames = np.random.default_rng(0).random((4, 6, 7))
+    frames[2, 1, 1] = np.nan
+    valid = np.ones((6, 7), bool)
+    valid[0, 0] = False
+    usable = check_frames(frames, valid, what="frames", path="f.exr")
+    assert not usable[1, 1] and not usable[0, 0] and usable.sum() == 40
+    with pytest.raises(InputError, match=r"frames 'f.exr' has no pixel with a finite intensity in "
+                                         r"every frame \(42 of 42 pixels"):
+        check_frames(np.full((4, 6, 7), np.nan), None, what="frames", path="f.exr")

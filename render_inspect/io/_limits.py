@@ -28,6 +28,7 @@ from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
 
 __all__ = ["check_npy", "check_npz", "check_zip", "check_x3p", "check_exr", "read_json_file",
+           "check_frames",
            "check_real_array", "check_values", "check_file_values", "MAX_JSON_BYTES",
            "MAX_ZIP_MEMBERS", "MAX_ZIP_RATIO", "READ_BYTES_PER_VALUE", "reading_for",
            "per_value_bytes"]
@@ -339,6 +340,33 @@ def check_exr(path, *, what: str, budget=None) -> tuple[int, int, int]:
                  w * h * n * (4 + 8 + 8) + w * h * (per_value_bytes() - READ_BYTES_PER_VALUE),
                  budget)
     return h, w, n
+
+
+def check_frames(frames, valid=None, *, what: str, path) -> np.ndarray:
+    """Check an interferogram's frames (``(n, ny, nx)``) before a measurement: a pixel is
+    usable when it is ``valid`` and every frame holds a finite intensity there.  Returns
+    that mask; refuses (one line naming ``what`` and the file) a stack in which no pixel
+    is usable, e.g. all-NaN frames, which would otherwise give an empty height map and
+    exit 0."""
+    frames = np.asarray(frames)
+    if frames.ndim != 3 or frames.shape[0] < 1:
+        raise InputError(f"{what} {str(path)!r} must hold frames of shape (n, rows, columns), "
+                         f"received shape {frames.shape}")
+    if frames.dtype.kind not in "fiu":
+        raise InputError(f"{what} {str(path)!r} must hold real intensities, received dtype "
+                         f"{frames.dtype}")
+    usable = np.ones(frames.shape[1:], dtype=bool) if valid is None else np.asarray(valid, bool).copy()
+    if usable.shape != frames.shape[1:]:
+        raise InputError(f"{what} {str(path)!r}: the valid mask has shape {usable.shape}, the "
+                         f"frames {frames.shape[1:]}")
+    for k in range(frames.shape[0]):
+        usable &= np.isfinite(frames[k])
+    if not usable.any():
+        bad = int(np.count_nonzero(~np.isfinite(frames[0])))
+        raise InputError(f"{what} {str(path)!r} has no pixel with a finite intensity in every "
+                         f"frame ({bad} of {frames[0].size} pixels of the first frame are NaN or "
+                         f"infinite): nothing can be measured")
+    return usable
 
 
 def read_json_file(path, *, what: str, max_bytes: int = MAX_JSON_BYTES) -> dict:
