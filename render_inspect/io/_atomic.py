@@ -62,7 +62,7 @@ from ..core.errors import InputError
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "json_safe",
            "write_json", "atomic_output_dir", "check_output_path", "read_marker", "MARKER",
            "part_hash", "write_marker", "claim_output_dir", "check_output_dir",
-           "completed_outputs", "MARKER_VERSION"]
+           "completed_outputs", "MARKER_VERSION", "open_lock_file"]
 
 #: marker file in every output folder render_inspect writes (JSON)
 MARKER = ".render_inspect.json"
@@ -448,6 +448,48 @@ def completed_outputs(since: float = 0.0) -> list[str]:
     return [f for t, f in _COMPLETED if t >= since]
 
 
+def open_lock_file(path, *, option: str = "--out", out_text: str | None = None) -> int:
+    """Open (creating it) the lock file ``path`` for ``flock`` and return the descriptor,
+    without following a symbolic link and without blocking on a pipe: a link, a hard
+    link to another file, a device or pipe, or a file holding more than a process id
+    under that name is refused with one line naming ``option`` (it is never truncated or
+    written through)."""
+    path = Path(path)
+    out_text = str(path.parent) if out_text is None else out_text
+    flags = os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags, 0o666 & ~_umask() | 0o600)
+    except OSError as err:
+        if err.errno in (errno.ELOOP, errno.EMLINK) or os.path.islink(path):
+            raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} is a symbolic link, "
+                             f"not render-inspect's lock file; remove it (the lock is never "
+                             f"written through a link)") from None
+        raise InputError(f"{option} {_shown(out_text)}: cannot write in {str(path.parent)!r} "
+                         f"({err.strerror})") from None
+    try:
+        st = os.fstat(fd)
+        why = None
+        if not stat.S_ISREG(st.st_mode):
+            why = "is not a regular file"
+        elif st.st_nlink != 1:
+            why = f"is a hard link ({st.st_nlink} names for one file)"
+        elif st.st_size > _LOCK_MAX:
+            why = f"holds {st.st_size} bytes, not a process id"
+        else:
+            text = os.pread(fd, _LOCK_MAX + 1, 0).strip()
+            if text and not text.isdigit():
+                why = "holds something other than a process id"
+        if why:
+            raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} {why}, so it is not "
+                             f"render-inspect's lock file; move it away (it is never "
+                             f"truncated or written)")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 class _Lock:
     """An exclusive ``flock`` on ``.NAME.lock`` beside the output folder (released by the
     kernel if the process dies).
@@ -461,23 +503,8 @@ class _Lock:
         import fcntl
 
         self.path = path
-        flags = os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | getattr(os, "O_NOFOLLOW", 0) \
-            | getattr(os, "O_NONBLOCK", 0)
         while True:
-            try:
-                fd = os.open(path, flags, 0o666 & ~_umask() | 0o600)
-            except OSError as err:
-                if err.errno in (errno.ELOOP, errno.EMLINK) or os.path.islink(path):
-                    raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} is a symbolic "
-                                     f"link, not render-inspect's lock file; remove it (the lock "
-                                     f"is never written through a link)") from None
-                raise InputError(f"{option} {_shown(out_text)}: cannot write in "
-                                 f"{str(path.parent)!r} ({err.strerror})") from None
-            try:
-                self._check_lock_file(fd, path, out_text, option)
-            except BaseException:
-                os.close(fd)
-                raise
+            fd = open_lock_file(path, option=option, out_text=out_text)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as err:
@@ -505,25 +532,6 @@ class _Lock:
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-
-    @staticmethod
-    def _check_lock_file(fd: int, path: Path, out_text: str, option: str) -> None:
-        st = os.fstat(fd)
-        why = None
-        if not stat.S_ISREG(st.st_mode):
-            why = "is not a regular file"
-        elif st.st_nlink != 1:
-            why = f"is a hard link ({st.st_nlink} names for one file)"
-        elif st.st_size > _LOCK_MAX:
-            why = f"holds {st.st_size} bytes, not a process id"
-        else:
-            text = os.pread(fd, _LOCK_MAX + 1, 0).strip()
-            if text and not text.isdigit():
-                why = "holds something other than a process id"
-        if why:
-            raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} {why}, so it is not "
-                             f"render-inspect's lock file; move it away (it is never "
-                             f"truncated or written)")
 
     def release(self):
         if self.fd is None:
