@@ -503,15 +503,17 @@ def test_analyze_estimate_is_within_a_factor_of_the_measured_peak(tmp_path):
     np.save(tmp_path / "m.npy", z)
     (tmp_path / "m.json").write_text(json.dumps({"pixel_mm": 0.001}))
     del z
+    # the peak resident memory above what the process held before the command ran (the
+    # interpreter and the package, measured in the same process)
     probe = ("import resource, sys, render_inspect.cli, render_inspect.pipeline, "
              "render_inspect.metrology, render_inspect.io\n"
-             "if len(sys.argv) > 1:\n    render_inspect.cli.main(sys.argv[1:])\n"
-             "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)")
-    base = int(subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                              check=True).stdout.split()[-1])
+             "r = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024\n"
+             "before = r()\nrc = render_inspect.cli.main(sys.argv[1:])\nprint(rc, r() - before)")
     run = subprocess.run([sys.executable, "-c", probe, "analyze", str(tmp_path / "m.npy"),
                           "--out", str(tmp_path / "o"), "-q"], capture_output=True, text=True,
                          check=True)
-    peak = int(run.stdout.split()[-1]) - base
+    rc, peak = (int(v) for v in run.stdout.split()[-2:])
+    assert rc == 0 and (tmp_path / "o" / "metrics.json").is_file(), run.stderr
     est = analyze_memory((n, n), holes=False)
+    print("analyze peak", format_bytes(peak), "estimate", format_bytes(est))
     assert peak / FACTOR < est < peak * FACTOR, (format_bytes(est), format_bytes(peak))
