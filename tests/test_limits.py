@@ -505,9 +505,11 @@ def test_analyze_estimate_is_within_a_factor_of_the_measured_peak(tmp_path):
     del z
     # the peak resident memory above what the process held before the command ran (the
     # interpreter and the package, measured in the same process)
-    probe = ("import resource, sys, render_inspect.cli, render_inspect.pipeline, "
+    # (VmHWM of /proc: getrusage's ru_maxrss would start from the parent's at the fork)
+    probe = ("import sys, render_inspect.cli, render_inspect.pipeline, "
              "render_inspect.metrology, render_inspect.io\n"
-             "r = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024\n"
+             "def r():\n    for line in open('/proc/self/status'):\n"
+             "        if line.startswith('VmHWM'):\n            return int(line.split()[1]) * 1024\n"
              "before = r()\nrc = render_inspect.cli.main(sys.argv[1:])\nprint(rc, r() - before)")
     run = subprocess.run([sys.executable, "-c", probe, "analyze", str(tmp_path / "m.npy"),
                           "--out", str(tmp_path / "o"), "-q"], capture_output=True, text=True,
