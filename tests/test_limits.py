@@ -519,3 +519,22 @@ def test_analyze_estimate_is_within_a_factor_of_the_measured_peak(tmp_path):
     est = analyze_memory((n, n), holes=False)
     print("analyze peak", format_bytes(peak), "estimate", format_bytes(est))
     assert peak / FACTOR < est < peak * FACTOR, (format_bytes(est), format_bytes(peak))
+
+
+def test_a_map_too_big_to_analyse_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """read_surface with the analysis' bytes per point checks the file's declared size
+    against what analysing it needs, not just reading it."""
+    from render_inspect.io import read_surface
+    from render_inspect.metrology._analysis import analyze_memory_per_point
+
+    np.save(tmp_path / "m.npy", np.zeros((300, 400)))
+    (tmp_path / "m.json").write_text('{"pixel_mm": 0.001}')
+    _small_budget(monkeypatch, 8 * 2 ** 20)  # reading 120 000 values needs about 3 MiB
+    assert read_surface(tmp_path / "m.npy").shape == (300, 400)
+    per_point = analyze_memory_per_point()
+    with pytest.raises(MemoryBudgetError, match=r"a 300 x 400 array, which would need about "
+                                                r"[\d.]+ MiB to read and analyse"):
+        _traced(lambda: read_surface(tmp_path / "m.npy", bytes_per_value=per_point))
+    _, peak = _traced(lambda: pytest.raises(MemoryBudgetError, read_surface, tmp_path / "m.npy",
+                                            bytes_per_value=per_point))
+    assert peak < 2 ** 20

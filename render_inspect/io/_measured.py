@@ -369,7 +369,8 @@ def _library_version(name: str) -> str:
 
 
 def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                 units: str | None = None, region=None) -> MeasuredMap:
+                 units: str | None = None, region=None, bytes_per_value: float | None = None,
+                 purpose: str = "analyse") -> MeasuredMap:
     """Read a measured (or exported) height map.
 
     Parameters
@@ -388,6 +389,11 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     region : (x0, y0, x1, y1), optional
         For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
         window (mm), not the whole map.
+    bytes_per_value : float, optional
+        What the caller will hold per map point once the map is read (e.g.
+        ``analyze_memory_per_point()``): the declared size of the file is checked against
+        the memory budget with it, so a map too large for ``purpose`` is refused before
+        it is read (:func:`~render_inspect.io._limits.reading_for`).
 
     Returns
     -------
@@ -406,7 +412,13 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
         raise InputError(f"measured file not found: {str(path)!r}")
     lib = _LIBRARY[path.suffix.lower()]
     kw = {"region": region} if region is not None else {}
-    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units, **kw)
+    if bytes_per_value is not None:
+        with reading_for(bytes_per_value, purpose):
+            z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin,
+                                         units=units, **kw)
+    else:
+        z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin,
+                                     units=units, **kw)
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
