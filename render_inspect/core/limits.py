@@ -16,6 +16,7 @@ import math
 import os
 from pathlib import Path
 
+from .units import GIB_TO_BYTES, MIB_TO_BYTES, TIB_TO_BYTES
 from .errors import MemoryBudgetError
 
 __all__ = ["available_memory", "default_budget", "memory_budget", "check_memory",
@@ -29,15 +30,15 @@ __all__ = ["available_memory", "default_budget", "memory_budget", "check_memory"
 AUTO_FRACTION = 0.8
 #: address space kept free under ``ulimit -v`` (beyond the budget's own 20 %) for what
 #: libraries map as they go on (thread stacks, small buffers)
-ADDRESS_SPACE_HEADROOM = 32 * 2 ** 20
+ADDRESS_SPACE_HEADROOM = 32 * MIB_TO_BYTES
 #: address space a Mitsuba render (Mitsuba 3.9, ``llvm_ad_rgb``) reserves beyond what
 #: the process held before Mitsuba was imported, and per Dr.Jit thread.  Measured with
 #: ``render`` on the shipped sts_sinusoidal_grid scene, 2 threads: 642 MB held before,
 #: peaks 446 MB (diffuse), 454 MB (interferometer) and 658 MB (both) above it; under
 #: ``prlimit --as`` of 1100 MiB the diffuse render ends with a segmentation fault;
 #: Dr.Jit's threads add about 12 MiB each (2 to 32 threads)
-MITSUBA_ADDRESS_SPACE = 640 * 2 ** 20
-MITSUBA_ADDRESS_SPACE_PER_THREAD = 16 * 2 ** 20
+MITSUBA_ADDRESS_SPACE = 640 * MIB_TO_BYTES
+MITSUBA_ADDRESS_SPACE_PER_THREAD = 16 * MIB_TO_BYTES
 
 # -- plausibility bounds of measured height maps (the readers and ``analyze`` refuse or
 #    warn beyond them; see docs/limits.md)
@@ -60,7 +61,7 @@ def mostly_empty_warning(unmeasured_fraction: float) -> str:
             f"{MOSTLY_EMPTY_FRACTION:.0%}): its parameters describe the measured "
             f"{1.0 - unmeasured_fraction:.0%} only; check the instrument's settings or crop "
             f"the map to the measured area")
-_FALLBACK = 4 * 2 ** 30
+_FALLBACK = 4 * GIB_TO_BYTES
 
 
 def _meminfo_available() -> int | None:
@@ -168,7 +169,7 @@ def memory_budget(max_memory_gb: float | None = None) -> tuple[int, str]:
     an allocation beyond it fails however much memory the machine has."""
     room = address_space_room()
     if max_memory_gb is not None:
-        asked = int(float(max_memory_gb) * 2 ** 30)
+        asked = int(float(max_memory_gb) * GIB_TO_BYTES)
         if room is not None and room < asked:
             return room, (f"simulation.max_memory_gb = {max_memory_gb:g}, capped by "
                           f"{_limit_text()}")
@@ -234,11 +235,11 @@ def format_bytes(n) -> str:
         f = math.inf
     if not math.isfinite(f):
         return "an unbounded amount of memory"
-    if f < 2 ** 30:
-        return f"{f / 2 ** 20:.3g} MiB"
-    if f < 2 ** 40:
-        return f"{f / 2 ** 30:.3g} GiB"
-    return f"{f / 2 ** 40:.3g} TiB"
+    if f < GIB_TO_BYTES:
+        return f"{f / MIB_TO_BYTES:.3g} MiB"
+    if f < TIB_TO_BYTES:
+        return f"{f / GIB_TO_BYTES:.3g} GiB"
+    return f"{f / TIB_TO_BYTES:.3g} TiB"
 
 
 def fit_value(value: float, nbytes: float, budget: float, exponent: float) -> float:

@@ -70,3 +70,8 @@ URAD_TO_RAD = 1e-6
 HZ_TO_KHZ = 1e-3
 
 __all__ += ["RAD_TO_URAD", "URAD_TO_RAD", "HZ_TO_KHZ"]
+
+#: TiB -> bytes
+TIB_TO_BYTES = 2**40
+
+__all__ += ["TIB_TO_BYTES"]

@@ -56,6 +56,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from .. import __version__
 from ..core.errors import InputError
 
@@ -255,7 +256,7 @@ def read_marker(folder: str | Path) -> dict | None:
     f = Path(folder) / MARKER
     try:
         st = os.lstat(f)
-        if not stat.S_ISREG(st.st_mode) or st.st_size > 16 * 2 ** 20:
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 16 * MIB_TO_BYTES:
             return None
         d = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, ValueError):

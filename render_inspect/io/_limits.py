@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
 
@@ -34,13 +35,13 @@ __all__ = ["check_npy", "check_npz", "check_zip", "check_x3p", "check_exr", "rea
            "per_value_bytes"]
 
 #: largest side-car JSON file read, bytes
-MAX_JSON_BYTES = 1 * 2 ** 20
+MAX_JSON_BYTES = 1 * MIB_TO_BYTES
 #: most members an archive (npz, X3P) may hold
 MAX_ZIP_MEMBERS = 4096
 #: largest uncompressed / compressed size of one zip member above 64 MiB (real height
 #: data compresses a few times; a bomb compresses a thousand times)
 MAX_ZIP_RATIO = 200.0
-_RATIO_FLOOR = 64 * 2 ** 20
+_RATIO_FLOOR = 64 * MIB_TO_BYTES
 #: what reading a damaged or unusual archive raises
 _ZIP_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, OSError, EOFError,
                ValueError, RuntimeError, NotImplementedError, UnicodeDecodeError)
@@ -293,7 +294,7 @@ def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
     main = [i for i in infos if i.filename.replace("\\", "/").rsplit("/", 1)[-1] == "main.xml"]
     if not main:
         raise InputError(f"{what} {str(path)!r} is not an X3P file (no main.xml in the archive)")
-    if main[0].file_size > 64 * 2 ** 20:
+    if main[0].file_size > 64 * MIB_TO_BYTES:
         raise InputError(f"{what} {str(path)!r}: main.xml is {format_bytes(main[0].file_size)}; "
                          f"refused (an X3P's main.xml is a few kB unless it lists the points)")
     with zipfile.ZipFile(path) as zf:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES, UM_TO_MM
 from ..core.errors import InputError
 from ..core.limits import (MAX_ABS_MM, MAX_FIELD_MM, MOSTLY_EMPTY_FRACTION, PIXEL_RANGE_MM,
                            mostly_empty_warning)
@@ -296,7 +297,7 @@ def _check_plux(path) -> None:
     if "index.xml" not in names:
         raise InputError(f"{path}: not a Sensofar .plux file (no index.xml in the archive)")
     index = next(i for i in infos if i.filename == "index.xml")
-    if index.file_size > 16 * 2 ** 20:
+    if index.file_size > 16 * MIB_TO_BYTES:
         raise InputError(f"{path}: index.xml is {index.file_size} bytes; refused (a .plux "
                          f"index is a few kB)")
     try:
@@ -325,10 +326,10 @@ def _read_surfalize(path, **_):
             s = surfalize.Surface.load(str(path))
     except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
         raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
-    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # surfalize gives micrometres
+    z = np.asarray(s.data, dtype=np.float64) * UM_TO_MM  # surfalize gives micrometres
     md = getattr(s, "metadata", {}) or {}
     declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
-    return z, (float(s.step_x) * 1e-3, float(s.step_y) * 1e-3), (0.0, 0.0), {
+    return z, (float(s.step_x) * UM_TO_MM, float(s.step_y) * UM_TO_MM), (0.0, 0.0), {
         "format": Path(path).suffix[1:].lower(), "units_in_file": declared}
 
 

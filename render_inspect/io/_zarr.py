@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.errors import InputError
 from ..core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
 from ._exr import exr_placement
@@ -39,7 +40,7 @@ from ._pyramid import block_sums, coarsen, level_count, level_shape, means
 CHANNELS = ("design", "machined", "residual")
 #: most bytes one chunk of a store may decode to: a 16384 x 16384 float32 tile (the
 #: stores render_inspect writes use the simulation's tiles, 1024 x 1024 by default)
-MAX_CHUNK_BYTES = 2 ** 30
+MAX_CHUNK_BYTES = GIB_TO_BYTES
 #: metadata files of a Zarr store (format 2 and 3)
 _METADATA = {"zarr.json", ".zarray", ".zattrs", ".zgroup", ".zmetadata"}
 
@@ -212,7 +213,7 @@ class ZarrHeightMap:
         for meta, key in (("zarr.json", "data_type"), (".zarray", "dtype")):
             f = self.path / name / meta
             try:
-                if not f.is_file() or f.stat().st_size > 2 ** 20:
+                if not f.is_file() or f.stat().st_size > MIB_TO_BYTES:
                     continue
                 d = json.loads(f.read_text(encoding="utf-8"))
                 declared = d.get(key)
@@ -267,8 +268,8 @@ class ZarrHeightMap:
         chunk_bytes = int(chunks[0]) * int(chunks[1]) * dtype.itemsize
         if chunk_bytes > MAX_CHUNK_BYTES:
             raise InputError(f"{where}: a chunk of {chunks[0]} x {chunks[1]} values decodes to "
-                             f"{chunk_bytes / 2 ** 20:.0f} MiB, more than the "
-                             f"{MAX_CHUNK_BYTES // 2 ** 20} MiB allowed per chunk (a small "
+                             f"{chunk_bytes / MIB_TO_BYTES:.0f} MiB, more than the "
+                             f"{MAX_CHUNK_BYTES // MIB_TO_BYTES} MiB allowed per chunk (a small "
                              f"compressed chunk could expand without bound); rechunk the store")
         shards = tuple(getattr(arr, "shards", None) or ())
         file_limit = chunk_bytes
@@ -290,7 +291,7 @@ class ZarrHeightMap:
                     raise InputError(f"{self.what} {str(self.path)!r}: {rel!r} holds "
                                      f"{st.st_size} bytes, more than a chunk of array {name!r} "
                                      f"can ({file_limit} bytes)")
-                if n in _METADATA and st.st_size > 2 ** 20:
+                if n in _METADATA and st.st_size > MIB_TO_BYTES:
                     raise InputError(f"{self.what} {str(self.path)!r}: {rel!r} is "
                                      f"{st.st_size} bytes; metadata files are at most 1 MiB")
         self._checked[name] = chunk_bytes

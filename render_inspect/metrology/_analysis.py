@@ -13,7 +13,7 @@ import numpy as np
 
 from ..core.errors import InputError, check_positive
 from ..core.limits import MAX_ABS_MM, MOSTLY_EMPTY_FRACTION, check_memory, mostly_empty_warning
-from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
+from ..core.units import MIB_TO_BYTES, MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ._filters import fit_sphere, l_filter, pixel_xy, remove_form, s_filter, valid_mask
 from ._params import SLOPE_ESTIMATORS, areal_parameters, spatial_parameters
 from ._registration import detect_outliers
@@ -133,7 +133,7 @@ ANALYZE_BYTES_PER_POINT = {"held": 80.0, "fft": 22.0, "holes_fft": 8.0, "form_po
 #: zero-padded FFT points per map point assumed before the map's shape is known
 _FFT_PER_POINT = 4.4
 #: fixed part of the estimate (figures, file buffers)
-_ANALYZE_FIXED = 64 * 2 ** 20
+_ANALYZE_FIXED = 64 * MIB_TO_BYTES
 
 
 def _fft_points(shape) -> int:
