@@ -369,5 +369,5 @@ def test_tiles_of_a_constant_arc_path_equal_the_whole_grid():
     whole = simulate_turning(path, nose_radius=tool.nose_radius, half_width=tool.half_width, region=region,
                              pixel=pixel)
     for t in plan_tiles(whole.shape, 128):
-        _, m = compute_tile(ep, surface, region[:2], pixel, t)
+        _, m, _ = compute_tile(ep, surface, region[:2], pixel, t)
         assert np.array_equal(m, whole[t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t

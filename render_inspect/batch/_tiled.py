@@ -26,8 +26,8 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..io import block_sums, coarsen, means
-from ..machining import (TILE, EnvelopePath, Tile, compute_tile, load_kernels, merge_moments,
-                         plan_tiles, tile_abs_dev, tile_moments)
+from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
+                         merge_moments, plan_tiles, tile_abs_dev, tile_moments)
 
 __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 
@@ -56,12 +56,14 @@ def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) 
     return coarse
 
 
-def tile_task(ep: EnvelopePath, surface, origin, pixel: float, tile: Tile, store: str, levels: int,
-              tile_levels: int) -> dict:
-    """Compute one tile and write it into ``store``; return its partial statistics."""
+def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, tile: Tile, store: str,
+              levels: int, tile_levels: int) -> dict:
+    """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
+    return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
     import zarr
 
-    design, machined = compute_tile(ep, surface, origin, pixel, tile)
+    design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
+                                         stride=stride)
     moments = tile_moments(machined, design)
     residual = np.subtract(machined, design).astype(np.float32)
     machined32 = machined.astype(np.float32)
@@ -71,7 +73,7 @@ def tile_task(ep: EnvelopePath, surface, origin, pixel: float, tile: Tile, store
     group = zarr.open_group(store, mode="r+")
     coarse = _write_tile(group, tile, {"design": design32, "machined": machined32, "residual": residual},
                          levels, tile_levels)
-    return {"tile": tile, "moments": moments, "coarse": coarse}
+    return {"tile": tile, "moments": moments, "coarse": coarse, "cut": cut}
 
 
 def abs_dev_task(store: str, tile: Tile, mean: float, lo: float, hi: float, bins: int) -> tuple:
@@ -91,6 +93,9 @@ class TiledStats:
     histogram : (lo_mm, hi_mm, counts) of the stored residual
     tiles : number of tiles
     timing_s : seconds of ``tiles`` (pass 1), ``pass2``, ``levels``
+    cut : the material's sums over the tiles (a cut with the cutting mechanics):
+        ``grooves_sumsq``, ``grooves_n``, ``added_max``, ``edge_pixels``; and
+        ``pass_theta``, the cutting pass's angle on every ``stride``-th row and column
     """
 
     moments: tuple
@@ -98,6 +103,7 @@ class TiledStats:
     histogram: tuple
     tiles: int
     timing_s: dict = field(default_factory=dict)
+    cut: dict = field(default_factory=dict)
 
 
 class _Counter:
@@ -124,7 +130,8 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
         if n:
             client.wait_for_workers(n)
         client.run(_load_kernels)
-        big = [client.scatter(v, broadcast=True) if isinstance(v, EnvelopePath) else v for v in shared]
+        big = [client.scatter(v, broadcast=True) if isinstance(v, (EnvelopePath, CutPath)) else v
+               for v in shared]
         futures = [client.submit(fn, *big, *args, pure=False) for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(futures)
@@ -136,7 +143,8 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
     import dask
     from dask.diagnostics import Callback
 
-    shared_d = [dask.delayed(v, traverse=False) if isinstance(v, EnvelopePath) else v for v in shared]
+    shared_d = [dask.delayed(v, traverse=False) if isinstance(v, (EnvelopePath, CutPath)) else v
+                for v in shared]
     tasks = [dask.delayed(fn, pure=False)(*shared_d, *args) for args in arg_lists]
     keys = {t.key for t in tasks}
 
@@ -148,15 +156,16 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
         return list(dask.compute(*tasks, scheduler="threads", num_workers=workers or os.cpu_count() or 1))
 
 
-def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: str, levels: int,
+def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: int,
               tile: int = TILE, client=None, workers: int | None = None, progress=None,
-              bins: int = BINS) -> TiledStats:
+              bins: int = BINS, grooves=None, stride: int = 0) -> TiledStats:
     """Compute the machined surface of ``ep`` over the grid tile by tile into ``store``.
 
     Parameters
     ----------
-    ep : EnvelopePath
-        The whole path (``prepare_envelope``).
+    ep : EnvelopePath or CutPath
+        The whole path (``prepare_envelope``: the geometric envelope; ``prepare_cut``:
+        with the cutting mechanics of a material).
     surface : Surface
         The design (``height(x, y)``).
     origin : (x, y)
@@ -176,6 +185,10 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
         Called as tiles finish (pass 1).
     bins : int
         Residual histogram bins.
+    grooves : Grooves, optional
+        The grooves of a cut with the cutting mechanics.
+    stride : int
+        Keep the cutting pass's angle on every ``stride``-th row and column (0: none).
     """
     tiles = plan_tiles(shape, tile)
     tile_levels = min(levels, int(math.log2(tile))) if tile & (tile - 1) == 0 else 0
@@ -183,7 +196,8 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
         raise InputError(f"tile must be a power of two for a pyramid, got {tile}")
     timing = {}
     t0 = time.perf_counter()
-    parts = _run(tile_task, [(t, store, levels, tile_levels) for t in tiles], (ep, surface, origin, pixel),
+    parts = _run(tile_task, [(t, store, levels, tile_levels) for t in tiles],
+                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride)),
                  client=client, workers=workers, progress=progress)
     timing["tiles"] = time.perf_counter() - t0
     moments = (0, 0.0, 0.0, math.inf, -math.inf)
@@ -220,12 +234,30 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
                 s, c = coarsen(s, c, 2)
                 group[f"levels/{k}/{name}"][...] = means(s, c)
     timing["levels"] = time.perf_counter() - t0
-    return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing)
+    return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing,
+                      _merge_cut(parts, shape, stride) if isinstance(ep, CutPath) else {})
+
+
+def _merge_cut(parts: list, shape, stride: int) -> dict:
+    """The material's sums over the tiles, and the strided pass-angle map."""
+    cuts = [p["cut"] for p in parts]
+    out = {"grooves_sumsq": math.fsum(c["grooves_sumsq"] for c in cuts),
+           "grooves_n": int(sum(c["grooves_n"] for c in cuts)),
+           "added_max": max((c["added_max"] for c in cuts), default=-math.inf),
+           "edge_pixels": int(sum(c["edge_pixels"] for c in cuts))}
+    if stride > 0:
+        pt = np.full((-(-shape[0] // stride), -(-shape[1] // stride)), np.nan)
+        for c in cuts:
+            i0, j0, a = c["pass_theta"]
+            pt[i0:i0 + a.shape[0], j0:j0 + a.shape[1]] = a
+        out["pass_theta"] = pt
+    return out
 
 
 def _load_kernels() -> bool:
     """Load the tile code's compiled kernels (in a worker process)."""
     load_kernels()
+    load_cut_kernels()
     z = np.zeros((1, 1))
     tile_moments(z, z)
     return True

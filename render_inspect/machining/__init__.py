@@ -14,7 +14,10 @@ from ._cutting import (
     finish_surface,
     groove_texture,
     machined_edges,
+    mechanics_facts,
 )
+from ._cut_kernel import (CutPath, Grooves, cut_fill, cut_turning, cutting_distance, load_cut_kernels,
+                          prepare_cut)
 from ._design_grid import design_grid
 from ._envelope import EnvelopePath, load_kernels, path_radial_slope, prepare_envelope, simulate_turning
 from ._errmotion import ErrorMotions, apply_error_motions
@@ -50,7 +53,8 @@ __all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metri
            "Material", "MaterialResponse", "MATERIAL_PRESETS", "material_preset",
            "material_response", "contact_ratio", "min_chip_thickness",
            "cut_turning_mechanics", "cut_lines_mechanics", "finish_surface", "groove_texture",
-           "machined_edges"]
+           "machined_edges", "mechanics_facts", "CutPath", "Grooves", "cut_fill", "cut_turning",
+           "cutting_distance", "load_cut_kernels", "prepare_cut"]
 
 #: the names ``material.preset`` takes ("ideal": no material response)
 MATERIAL_PRESET_NAMES = ("ideal", *MATERIAL_PRESETS)

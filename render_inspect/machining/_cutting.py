@@ -47,7 +47,7 @@ from ._envelope import (_lookup, _lookup_table, _nominal_spiral, _nose_arc, _pas
                         path_radial_slope)
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
-           "CutResult"]
+           "mechanics_facts", "CutResult"]
 
 TWO_PI = 2 * math.pi
 
@@ -353,9 +353,22 @@ def finish_surface(cut: CutResult, response, *, along, seed: int, across_length:
     key = "pass_theta" if "pass_theta" in cut else "pass_line"
     edges = machined_edges(cut[key], jump=math.pi if key == "pass_theta" else 0.5)
     added = cut["added"]
-    info = {"groove_rms_nm": response.groove_rms * MM_TO_NM,
-            "grooves_rms_nm": float(np.sqrt(np.mean(g[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0,
-            "side_flow_max_nm": (float(np.nanmax(added) * MM_TO_NM) if np.isfinite(added).any()
-                                 else 0.0),
-            "edge_pixels": int(edges.sum()), "burr_height_nm": response.burr_height * MM_TO_NM}
+    gk = g[ok]
+    info = mechanics_facts(response, grooves_sumsq=float(np.sum(gk * gk)), grooves_n=int(gk.size),
+                           added_max=float(np.nanmax(added)) if np.isfinite(added).any() else 0.0,
+                           edge_pixels=int(edges.sum()))
     return m, info
+
+
+def mechanics_facts(response, *, grooves_sumsq: float, grooves_n: int, added_max: float,
+                    edge_pixels: int) -> dict:
+    """The material facts of a cut (``metrics["material"]`` besides the response's own):
+    ``groove_rms_nm`` (requested), ``grooves_rms_nm`` (added, measured: from the sum of
+    their squares over the ``grooves_n`` pixels that got them), ``side_flow_max_nm``
+    (largest ploughed recovery + side-flow pile, at least 0), ``edge_pixels`` (machined-edge
+    pixels), ``burr_height_nm`` (the model's ridge height on a machined edge,
+    (1 - kappa) h_min)."""
+    return {"groove_rms_nm": response.groove_rms * MM_TO_NM,
+            "grooves_rms_nm": (math.sqrt(grooves_sumsq / grooves_n) * MM_TO_NM if grooves_n else 0.0),
+            "side_flow_max_nm": max(float(added_max), 0.0) * MM_TO_NM,
+            "edge_pixels": int(edge_pixels), "burr_height_nm": response.burr_height * MM_TO_NM}

@@ -42,6 +42,12 @@ ENVELOPE_BYTES = 80
 NPZ_BYTES = 100
 #: bytes per sample of a tile in flight
 TILE_BYTES = 48
+#: further bytes per sample of a tile cut with the material's mechanics (the pass-angle and
+#: displaced-material maps, the machined-edge masks)
+CUT_TILE_BYTES = 24
+#: further bytes per path point of the cutting mechanics' prepared path (its lookup table
+#: and cutting distance)
+CUT_PATH_BYTES = 16
 #: rows per chunk of the design evaluation, and temporaries per evaluated sample (8 B each)
 DESIGN_ROWS = 128
 DESIGN_TEMPS = 6
@@ -52,9 +58,12 @@ PREVIEW_BYTES = 4 * MIB_TO_BYTES
 OVERVIEW_SIDE = 1024
 
 
-def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> int:
+def in_memory_bytes(shape, path_points: int, *, threads: int | None = None, cut_sample_bytes: int = 0,
+                    cut_bytes: int = 0) -> int:
     """Peak bytes of an in-memory simulation of a (ny, nx) map from a path of
-    ``path_points`` points, including writing its outputs (see the module notes)."""
+    ``path_points`` points, including writing its outputs (see the module notes).
+    ``cut_sample_bytes`` per sample and ``cut_bytes`` more are held while cutting only
+    (a process's own maps and the followed path)."""
     ny, nx = int(shape[0]), int(shape[1])
     px, n = ny * nx, int(path_points)
     threads = threads or os.cpu_count() or 1
@@ -64,7 +73,7 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> i
         f *= 2
     blocks = 0 if f == 1 else -(-ny // f) * -(-nx // f)
     phases = (n * PLAN_BYTES,
-              px * 16 + design_tmp + n * (PATH_BYTES + ENVELOPE_BYTES),
+              px * (16 + cut_sample_bytes) + design_tmp + n * (PATH_BYTES + ENVELOPE_BYTES) + cut_bytes,
               px * 16 + blocks * 36 + n * PATH_BYTES,
               px * 28 + blocks * 24 + n * PATH_BYTES,
               px * 16 + blocks * 12 + n * (PATH_BYTES + NPZ_BYTES) + PREVIEW_BYTES
@@ -72,15 +81,19 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None) -> i
     return int(max(phases))
 
 
-def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None) -> int:
+def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None,
+                material: bool = False) -> int:
     """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
     at once in this process (the caller's share when the tiles run on other machines):
     the largest of planning the path, running the tiles (the path, its prepared segments
-    and per tile its samples and its run of the path) and writing toolpath.npz."""
-    per_tile = tile * tile * TILE_BYTES + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
+    and per tile its samples and its run of the path) and writing toolpath.npz.
+    ``material``: the tiles are cut with the material's mechanics."""
+    per_sample = TILE_BYTES + (CUT_TILE_BYTES if material else 0)
+    per_point = 40 + (CUT_PATH_BYTES if material else 0)
+    per_tile = tile * tile * per_sample + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
     n = int(path_points)
     sl = n if slice_points is None else int(slice_points)
     phases = (n * PLAN_BYTES,
-              n * (PATH_BYTES + 40) + in_flight * (per_tile + sl * 40),
+              n * (PATH_BYTES + per_point) + in_flight * (per_tile + sl * per_point),
               n * (PATH_BYTES + NPZ_BYTES))
     return int(max(phases) + PREVIEW_BYTES)

@@ -14,6 +14,15 @@ block, aligned to the grid origin).  Each tile task
    and the tile's part of every pyramid level (block sums, exact across tiles);
 4. returns only the small partials.
 
+With the cutting mechanics of a material (a :class:`~._cut_kernel.CutPath` instead of an
+``EnvelopePath``) the tile is computed with a halo of ``HALO`` pixels on every side that
+lies inside the grid: each pixel of the kernel depends only on the path and its own
+position (the path's reach is in the slice of passes, :meth:`CutPath.slice_for`), and
+the machined edges (a pixel whose neighbour was cut by another pass) need the neighbours
+of the tile's border pixels.  The tile also returns the partial sums of the material's
+facts (the grooves' squares, the largest displaced material, the edge pixels) and, for
+the following-error map, its pixels on a stride of the whole grid.
+
 Peak memory is bounded by (tiles in flight) x (tile size), not by the part.  The
 scheduling on Dask, the store and the reductions are in ``render_inspect.batch``; this
 module holds the pure per-tile computation.
@@ -25,7 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import math
+
 from ..core.errors import InputError
+from ._cut_kernel import OUT_CHANNELS, CutPath, Grooves, cut_fill
+from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
 
 #: default tile side (pixels): a power of two (pyramid levels stay inside a tile) and a
@@ -69,10 +82,51 @@ def design_tile(surface, origin, pixel: float, tile: Tile, *, rows_per_chunk: in
     return out
 
 
-def compute_tile(ep: EnvelopePath, surface, origin, pixel: float, tile: Tile) -> tuple[np.ndarray, np.ndarray]:
-    """(design, machined) of one tile, float64 (mm): machined equals the same pixels of
-    ``simulate_turning`` over the whole grid bit for bit."""
-    sl = ep.slice_for(tile.region(origin, pixel))
-    machined = np.empty((tile.rows, tile.cols))
-    envelope_fill(sl, origin, pixel, machined, start=(tile.row, tile.col), parallel=False)
-    return design_tile(surface, origin, pixel, tile), machined
+#: pixels of halo around a tile cut with the material's mechanics (the machined edges
+#: compare each pixel with its four neighbours)
+HALO = 1
+
+
+def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Grooves | None = None,
+                 shape=None, stride: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(design, machined, partials) of one tile, float64 (mm).
+
+    ``ep`` is an ``EnvelopePath`` (the geometric envelope: machined equals the same pixels
+    of ``simulate_turning`` over the whole grid bit for bit; no partials) or a
+    :class:`CutPath` (the cutting mechanics with ``grooves``, on the tile and a halo of
+    :data:`HALO` pixels inside the grid of ``shape`` (ny, nx): machined equals the same
+    pixels of :func:`~render_inspect.machining.cut_turning` over the whole grid bit for
+    bit).  The partials of a cut: ``grooves_sumsq``, ``grooves_n``, ``added_max``,
+    ``edge_pixels`` (the tile's pixels on a machined edge) and, when ``stride`` > 0,
+    ``pass_theta``: (first row, first column, map) of the cutting pass's spindle angle on
+    the pixels of the whole grid whose row and column are multiples of ``stride``, the
+    first row and column counted on that coarse grid."""
+    design = design_tile(surface, origin, pixel, tile)
+    if isinstance(ep, EnvelopePath):
+        sl = ep.slice_for(tile.region(origin, pixel))
+        machined = np.empty((tile.rows, tile.cols))
+        envelope_fill(sl, origin, pixel, machined, start=(tile.row, tile.col), parallel=False)
+        return design, machined, {}
+    if not isinstance(ep, CutPath):
+        raise TypeError(f"compute_tile: an EnvelopePath or a CutPath, got {type(ep).__name__}")
+    ny, nx = shape if shape is not None else (tile.row + tile.rows, tile.col + tile.cols)
+    r0, c0 = max(tile.row - HALO, 0), max(tile.col - HALO, 0)
+    r1, c1 = min(tile.row + tile.rows + HALO, ny), min(tile.col + tile.cols + HALO, nx)
+    big = Tile(r0, c0, r1 - r0, c1 - c0)
+    sl = ep.slice_for(big.region(origin, pixel))
+    maps = {k: np.empty((big.rows, big.cols)) for k in OUT_CHANNELS}
+    st = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel, maps,
+                  start=(r0, c0), parallel=False, stat_cols=(tile.col - c0, tile.col - c0 + tile.cols))
+    rows = slice(tile.row - r0, tile.row - r0 + tile.rows)
+    cols = slice(tile.col - c0, tile.col - c0 + tile.cols)
+    edges = machined_edges(maps["pass_theta"], jump=math.pi)[rows, cols]
+    part = {"grooves_sumsq": float(st[rows, 0].sum()), "grooves_n": int(st[rows, 1].sum()),
+            "added_max": float(st[rows, 2].max()) if tile.rows else -math.inf}
+    part["edge_pixels"] = int(edges.sum())
+    if stride > 0:
+        i0 = -(-tile.row // stride)
+        j0 = -(-tile.col // stride)
+        pr = np.arange(i0 * stride, tile.row + tile.rows, stride) - r0
+        pc = np.arange(j0 * stride, tile.col + tile.cols, stride) - c0
+        part["pass_theta"] = (i0, j0, maps["pass_theta"][np.ix_(pr, pc)])
+    return design, maps["machined"][rows, cols].copy(), part

@@ -73,12 +73,16 @@ def simulation_metrics(scene, sim) -> dict:
     return m
 
 
-def tiled_metrics(scene, plan, traits, residual: dict, shape, origin, timing: dict) -> dict:
+def tiled_metrics(scene, plan, traits, residual: dict, shape, origin, timing: dict,
+                  facts: dict | None = None) -> dict:
     """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
-    ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)."""
+    ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)
+    and the cut's ``facts`` (the machine, its following error, the material) summed over
+    them."""
     m = _simulation_head(scene.name, traits, scene.simulation.seed, shape,
                          scene.simulation.pixel, origin, timing, residual)
     _program_facts(m, plan)
+    _merge(m, facts or {})
     return m
 
 

@@ -21,7 +21,7 @@ from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
                   export_program, grid_attrs, level_count, set_store_attrs)
-from ..machining import TILE, metrics_from_moments, plan_tiles, prepare_envelope, tiled_bytes
+from ..machining import TILE, metrics_from_moments, plan_tiles, prepare_cut, prepare_envelope, tiled_bytes
 from ..processes import check_budget, process_of
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
@@ -33,6 +33,8 @@ log = logging.getLogger("render_inspect")
 
 #: samples per second the EXR and previews are written at (the progress bar's estimate)
 _WRITE_RATE = 1e6  # not a unit conversion
+#: largest side (points) of the following-error map of a tiled cut
+_FIGURE_POINTS = 800
 
 
 def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
@@ -161,9 +163,17 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
             raise InputError(f"the tool path over simulation.region {list(sim.region)} has "
                              f"{path.points} point(s), at least 2 are needed: the region lies off "
                              f"the turned part (process.workpiece_radius, process.inner_radius)")
-        ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width)
+        mat = env.mechanics
+        if mat is None:
+            ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width)
+        else:  # the material's cutting mechanics, pixel by pixel
+            ep = prepare_cut(path, nose_radius=env.nose_radius, half_width=env.half_width,
+                             h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow)
+        # the following-error map of the pass that cut each point, on a coarse grid
+        stride = -(-max(shape) // _FIGURE_POINTS) if env.followed is not None else 0
         extra, _ = process.tiled_memory(cfg, plan)
-        est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight) + extra,
+        est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight,
+                                            material=mat is not None) + extra,
                            tile=tile, in_flight=in_flight, points=path.points, workers=workers,
                            scheduler=scheduler)
         levels = level_count(shape)
@@ -181,11 +191,12 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
             stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
                               levels=levels, tile=tile, client=client,
                               workers=None if client else workers,
-                              progress=_progress("tiles", step))
+                              progress=_progress("tiles", step), grooves=env.grooves, stride=stride)
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])
-        metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing)
+        facts, cut_plots = process.tiled_facts(cfg, env, stats.cut, stride=stride)
+        metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing, facts=facts)
         metrics["tiles"] = {"count": stats.tiles, "tile_px": tile, "pyramid_levels": levels,
                             "scheduler": scheduler or ("LocalCluster" if workers else "threads"),
                             "workers": workers or (None if scheduler else os.cpu_count()),
@@ -204,7 +215,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                   origin[1] + gy[0] - sim.pixel / 2, origin[1] + gy[-1] + sim.pixel / 2)
         timed(tw, "residual.png", residual_png, tmp / "residual.png", img, 2 ** k, extent=extent,
               mean_nm=residual["mean_nm"], title=residual_title(scene.name, traits, residual))
-        for name, spec in plan.plots.items():
+        for name, spec in {**plan.plots, **cut_plots}.items():
             timed(tw, name, draw_figure, spec, tmp / name)
         timing["write"] = tw
         timing["total"] = time.perf_counter() - t_all

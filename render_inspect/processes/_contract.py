@@ -28,7 +28,7 @@ and implements the hooks
 
 The optional hooks have defaults: ``precheck``, ``program_region``, ``program_header``,
 ``program_facts``, ``variants`` (the pair ``compare`` puts side by side) and the tiled
-simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory``.
+simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory`` / ``tiled_facts``.
 """
 
 from __future__ import annotations
@@ -193,12 +193,25 @@ class Envelope:
         The nose arc, mm.
     meta : dict
         Provenance stored with the height map.
+    mechanics : MaterialResponse or None
+        The material whose cutting mechanics (minimum chip thickness, elastic recovery,
+        side flow) cut the path; None: the geometric envelope.
+    grooves : Grooves or None
+        The grooves of the material's cutting edge.
+    facts : dict
+        Facts of the cut known before the tiles run (the machine, its following error).
+    followed : object
+        What :meth:`Process.tiled_facts` needs of the path (the followed path), or None.
     """
 
     path: object
     nose_radius: float
     half_width: float
     meta: dict = field(default_factory=dict)
+    mechanics: object = None
+    grooves: object = None
+    facts: dict = field(default_factory=dict)
+    followed: object = None
 
 
 @dataclass(frozen=True)
@@ -315,3 +328,9 @@ class Process(ABC):
         """(bytes the process holds besides the tiles, points of its program) of a tiled
         simulation (estimated before planning when ``plan`` is None)."""
         raise NotImplementedError(self.tile_refusal(cfg))
+
+    def tiled_facts(self, cfg: Inputs, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
+        """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
+        :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every
+        ``stride``-th row and column); default: ``env.facts`` and no figures."""
+        return dict(env.facts), {}

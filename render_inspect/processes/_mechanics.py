@@ -15,17 +15,19 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field
 
-from ..core.errors import InputError
 from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
+    Grooves,
     apply_burrs,
-    cut_turning_mechanics,
+    cut_turning,
     design_grid,
-    finish_surface,
     follow_turning,
     following_error_stats,
+    machined_edges,
+    mechanics_facts,
+    prepare_cut,
     simulate_turning,
 )
 from ..toolpath import Tool
@@ -34,7 +36,7 @@ from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
-           "followed_program", "burrs_of", "Turned"]
+           "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of"]
 
 TWO_PI = 2 * math.pi
 
@@ -100,11 +102,18 @@ def pass_angle_map(path, region, pixel) -> np.ndarray:
     return np.where((s >= theta[0]) & (s <= theta[-1]), s, np.nan)
 
 
-def _cutting_distance(path) -> tuple[np.ndarray, np.ndarray]:
-    th = np.asarray(path.theta, dtype=np.float64)
-    rho = np.abs(np.asarray(path.rho, dtype=np.float64))
-    d = np.concatenate([[0.0], np.cumsum(0.5 * (rho[1:] + rho[:-1]) * np.diff(th))])
-    return th, d
+def material_cut_path(path, tool, resp):
+    """The followed path prepared for the cutting-mechanics kernel with the material's
+    minimum chip thickness, elastic recovery and side flow."""
+    return prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width,
+                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow)
+
+
+def grooves_of(cfg, resp) -> Grooves:
+    """The grooves of the material's cutting edge (seeded by ``simulation.seed`` + 1)."""
+    return Grooves.of(rms=resp.groove_rms, seed=int(cfg.simulation.seed) + 1,
+                      across_length=cfg.material.groove_across_um * UM_TO_MM,
+                      along_length=cfg.material.groove_along_mm)
 
 
 def _error_maps(fp, pass_theta, stride: int) -> tuple[np.ndarray, np.ndarray]:
@@ -165,17 +174,9 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
     sim = cfg.simulation
     region = tuple(sim.region) if region is None else tuple(region)
     tool = Tool.from_config(cfg.tool)
-    timing, facts, figs = {}, {}, {}
+    timing, figs = {}, {}
     t0 = time.perf_counter()
-    machine = machine_of(cfg.machine)
-    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine, z_fts=z_fts,
-                        seed=int(sim.seed))
-    cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
-                                              {**path.meta, "followed": machine.name})
-    facts["machine"] = {"preset": cfg.machine.preset, "ideal": fp.ideal,
-                        "settings": machine.to_dict(), "ticks": int(fp.t.size)}
-    if not fp.ideal:
-        facts["following_error"] = following_error_stats(fp.errors)
+    cut_path, fp, facts = follow(cfg, path, z_fts=z_fts)
     timing["machine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     resp = material_of(cfg.material)
@@ -184,15 +185,14 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
                                     pixel=sim.pixel, half_width=tool.half_width)
     else:
-        c = cut_turning_mechanics(cut_path, nose_radius=tool.nose_radius, region=region,
-                                  pixel=sim.pixel, half_width=tool.half_width, h_min=resp.h_min,
-                                  kappa=resp.kappa, side_flow=resp.side_flow)
-        th, dist = _cutting_distance(cut_path)
-        pass_theta = c["pass_theta"]
-        along = np.interp(np.nan_to_num(pass_theta, nan=th[0]), th, dist)
-        machined, info = finish_surface(c, resp, along=along, seed=int(sim.seed) + 1,
-                                        across_length=cfg.material.groove_across_um * UM_TO_MM,
-                                        along_length=cfg.material.groove_along_mm)
+        # the fast kernel of the direct model (machining.cut_turning_mechanics +
+        # finish_surface), in row blocks
+        c = cut_turning(material_cut_path(cut_path, tool, resp), grooves_of(cfg, resp),
+                        region=region, pixel=sim.pixel)
+        pass_theta, machined = c["pass_theta"], c["machined"]
+        info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
+                               added_max=c["added_max"],
+                               edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
         facts["material"] = {**resp.to_dict(), **info}
     timing["envelope"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -216,20 +216,19 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
                   pass_theta=pass_theta, plots=figs)
 
 
-def followed_program(cfg: TurningInputs, path) -> ToolPath:
-    """The path the tool follows on the ``[machine]`` (the commanded ``path`` on an ideal
-    machine): what a tiled simulation cuts, since the machine acts on the whole path while
-    the envelope of its nose can be taken tile by tile.  Material models act on the whole
-    map, so a tiled simulation needs ``material.preset = "ideal"``."""
-    if cfg.material.preset != "ideal":
-        raise InputError(
-            f"material.preset must be 'ideal' for a simulation computed tile by tile (the "
-            f"material's side flow and grooves are modelled on the whole map), received "
-            f"{cfg.material.preset!r}; set --set material.preset='ideal', or simulate a "
-            f"region that fits simulation.max_memory_gb")
+def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, object, dict]:
+    """The program ``path`` followed by the ``[machine]`` (its axes, error motions; seeded
+    by ``simulation.seed``): (the path the tool follows, the FollowedPath, the facts
+    ``machine`` and ``following_error``).  On an ideal machine the path is ``path``
+    itself.  A tiled simulation follows the whole program once and cuts each tile from
+    the run of the followed path that reaches it."""
     machine = machine_of(cfg.machine)
-    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine,
+    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine, z_fts=z_fts,
                         seed=int(cfg.simulation.seed))
-    if fp.ideal:
-        return path
-    return ToolPath(fp.theta, fp.rho, fp.z, fp.t, {**path.meta, "followed": machine.name})
+    cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
+                                              {**path.meta, "followed": machine.name})
+    facts = {"machine": {"preset": cfg.machine.preset, "ideal": fp.ideal,
+                         "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
+    if not fp.ideal:
+        facts["following_error"] = following_error_stats(fp.errors)
+    return cut_path, fp, facts

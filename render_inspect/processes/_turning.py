@@ -16,7 +16,10 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining import in_memory_bytes
+from ..machining import in_memory_bytes, mechanics_facts
+
+#: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
+_PATH_BYTES = 40
 from ..toolpath import (
     Tool,
     kinematics,
@@ -29,8 +32,8 @@ from ..toolpath import (
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
-from ._machine import machine_of
-from ._mechanics import TurningInputs, followed_program, turn
+from ._machine import machine_of, material_of
+from ._mechanics import TurningInputs, follow, following_error_plots, grooves_of, turn
 from ._registry import check_budget
 
 __all__ = ["TurningProcessConfig", "TurningProcess", "TurningInputs", "plan_spiral",
@@ -167,14 +170,22 @@ def turning_points(cfg, plan=None) -> int:
     return int(_revolutions(cfg, cfg.design) * cfg.process.points_per_rev) + 1
 
 
-#: bytes per servo tick the machine model holds (commands, followed positions, errors and
-#: the loops' states of every axis; measured with tracemalloc: about 250)
+#: bytes per servo tick the machine model holds while it follows the path (commands,
+#: followed positions, errors and the loops' states of every axis; measured with
+#: tracemalloc: about 250), and what stays of it while the surface is cut (the followed
+#: path, its commands and errors: 13 arrays, and the kernel's segments, lookup table and
+#: cutting distance: 7 more)
 _BYTES_PER_TICK = 8 * 32
+_KEPT_BYTES_PER_TICK = 8 * 20
 
 
 def machine_bytes(cfg, plan=None) -> int:
     """Bytes the ``[machine]`` model holds while following the path (0 on the ideal
     machine)."""
+    return _ticks(cfg, plan) * _BYTES_PER_TICK
+
+
+def _ticks(cfg, plan=None) -> int:
     machine = machine_of(cfg.machine)
     if machine.ideal:
         return 0
@@ -183,25 +194,27 @@ def machine_bytes(cfg, plan=None) -> int:
     else:
         t = plan.program.t
         duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
-    return int(duration * machine.servo_rate_hz) * _BYTES_PER_TICK
+    return int(duration * machine.servo_rate_hz)
 
 
 def turning_memory(cfg, plan=None) -> int:
     """Bytes an in-memory turning simulation and the writing of its outputs hold at their
     peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
     of heightmap.exr, the design evaluation's temporaries and the tool path); on a
-    non-ideal ``[machine]`` also the servo ticks (:func:`machine_bytes`) and the maps of
-    where each pass cut and its following error, with a ``[material]`` the cut's mechanics
-    maps (measured with tracemalloc: within 1.5 x of the peak in every combination)."""
+    non-ideal ``[machine]`` the servo ticks while the path is followed
+    (:func:`machine_bytes`), the followed path while it is cut and the map of where each
+    pass cut, with a ``[material]`` the displaced material and the machined-edge masks
+    (measured with tracemalloc: within 1.5 x of the peak in every combination)."""
     shape = grid_shape(cfg.simulation.region, cfg.simulation.pixel)
-    samples = shape[0] * shape[1]
-    nbytes = in_memory_bytes(shape, turning_points(cfg, plan)) + machine_bytes(cfg, plan)
+    points = turning_points(cfg, plan)
+    ticks = _ticks(cfg, plan)
     material = cfg.material.preset != "ideal"
-    if material:  # the cut's mechanics maps and the finished surface's grooves
-        nbytes += samples * 8 * 11
-    if not machine_of(cfg.machine).ideal:  # pass-angle and following-error maps (shared with the material)
-        nbytes += samples * 8 * (1 if material else 2)
-    return int(nbytes)
+    # material: pass angle, displaced material, edge masks; a machine alone: the pass-angle map
+    per_sample = 8 * 2 + 4 if material else (8 * 2 if ticks else 0)
+    cutting = in_memory_bytes(shape, points, cut_sample_bytes=per_sample,
+                              cut_bytes=ticks * _KEPT_BYTES_PER_TICK)
+    following = ticks * _BYTES_PER_TICK + points * 2 * _PATH_BYTES
+    return int(max(cutting, following))
 
 
 def turning_precheck(cfg, region=None) -> None:
@@ -337,24 +350,42 @@ class TurningProcess(Process):
 
 
 class TiledTurningProcess(TurningProcess):
-    """A turning process whose machined surface is the nose envelope of one followed path
-    (no burrs, no material response): it can be simulated tile by tile."""
+    """A turning process whose machined surface is cut along one followed path (the
+    machine's axes and error motions act on the whole program, the material's mechanics
+    pixel by pixel): it can be simulated tile by tile.  Burrs (``[artifacts.burrs]``) are
+    not added tile by tile."""
 
     def tile_refusal(self, cfg) -> str | None:
         if cfg.burrs.height > 0:
             return (f"the tiled simulation does not add burrs: artifacts.burrs.height must be 0 "
                     f"for maps simulated tile by tile, received {cfg.burrs.height}")
-        if cfg.material.preset != "ideal":
-            return (f"material.preset must be 'ideal' for a simulation computed tile by tile "
-                    f"(the material's side flow and grooves are modelled on the whole map), "
-                    f"received {cfg.material.preset!r}; set --set material.preset='ideal', or "
-                    f"simulate a region that fits simulation.max_memory_gb")
         return None
+
+    def follow_program(self, cfg, plan: Plan):
+        """:func:`~render_inspect.processes._mechanics.follow` of the plan's program (a
+        process that splits the program between axes passes its share here)."""
+        return follow(cfg, plan.program)
 
     def envelope(self, cfg, surface, plan: Plan) -> Envelope:
         tool = Tool.from_config(cfg.tool)
-        return Envelope(followed_program(cfg, plan.program), tool.nose_radius, tool.half_width,
-                        _meta(cfg, material="ideal"))
+        cut_path, fp, facts = self.follow_program(cfg, plan)
+        resp = material_of(cfg.material)
+        return Envelope(cut_path, tool.nose_radius, tool.half_width, _meta(cfg), mechanics=resp,
+                        grooves=None if resp is None else grooves_of(cfg, resp), facts=facts,
+                        followed=None if fp.ideal else fp)
+
+    def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
+        facts, plots = dict(env.facts), {}
+        if env.mechanics is not None:
+            info = mechanics_facts(env.mechanics, grooves_sumsq=cut["grooves_sumsq"],
+                                   grooves_n=cut["grooves_n"], added_max=cut["added_max"],
+                                   edge_pixels=cut["edge_pixels"])
+            facts["material"] = {**env.mechanics.to_dict(), **info}
+        if env.followed is not None and "pass_theta" in cut:
+            sim = cfg.simulation
+            plots = following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
+                                          sim.pixel * stride, name=cfg.name)
+        return facts, plots
 
     def tiled_memory(self, cfg, plan=None) -> tuple[int, int]:
         return machine_bytes(cfg, plan), turning_points(cfg, plan)

@@ -25,10 +25,94 @@ References
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from numba import njit
 
 _GOLD = (math.sqrt(5) - 1) / 2
+
+
+# The golden-section search of z_compensation, written as loops over the points: the same
+# operations, in the same order, as the array form it replaced (a value of numpy.where
+# here is the branch taken), so the tool path is the same to the last bit.  The surface
+# itself is evaluated by its own (numpy) code between the steps.
+@njit(cache=True, nogil=True)
+def _bracket(g, offs, step, w, G):
+    """From the coarse samples g (n, samples) at offsets ``offs``: the best value and the
+    golden-section bracket (lo, hi) around it and its two inner points (c, d)."""
+    n = g.shape[0]
+    best = np.empty(n)
+    lo = np.empty(n)
+    hi = np.empty(n)
+    c = np.empty(n)
+    d = np.empty(n)
+    for i in range(n):
+        k = 0
+        for j in range(1, g.shape[1]):
+            if g[i, j] > g[i, k]:
+                k = j
+        best[i] = g[i, k]
+        lo[i] = max(offs[k] - step, -w)
+        hi[i] = min(offs[k] + step, w)
+        c[i] = hi[i] - G * (hi[i] - lo[i])
+        d[i] = lo[i] + G * (hi[i] - lo[i])
+    return best, lo, hi, c, d
+
+
+@njit(cache=True, nogil=True)
+def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
+    """One step of the search in place: keep the better half, and the point ``x`` to
+    evaluate next (``left``: the maximum lies in [lo, d])."""
+    for i in range(gc.size):
+        lf = gc[i] > gd[i]
+        left[i] = lf
+        if lf:
+            hi[i] = d[i]
+            cn = hi[i] - G * (hi[i] - lo[i])
+            dn = c[i]
+            x[i] = cn
+        else:
+            lo[i] = c[i]
+            cn = d[i]
+            dn = lo[i] + G * (hi[i] - lo[i])
+            x[i] = dn
+        c[i] = cn
+        d[i] = dn
+
+
+@njit(cache=True, nogil=True)
+def _golden_take(left, g_eval, gc, gd):
+    for i in range(gc.size):
+        if left[i]:
+            gd[i] = gc[i]
+            gc[i] = g_eval[i]
+        else:
+            gc[i] = gd[i]
+            gd[i] = g_eval[i]
+
+
+@njit(cache=True, nogil=True)
+def _points(rho, cs, sn, d, X, Y):
+    """The points u (cos, sin) at u = rho + d along each radial section."""
+    for i in range(rho.size):
+        u = rho[i] + d[i]
+        X[i] = u * cs[i]
+        Y[i] = u * sn[i]
+
+
+@njit(cache=True, nogil=True)
+def _minus_arc(h, d, Rc, out):
+    """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d."""
+    for i in range(h.size):
+        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]))
+
+
+@njit(cache=True, nogil=True)
+def _final(best, gc, gd, out):
+    for i in range(best.size):
+        out[i] = max(best[i], max(gc[i], gd[i]))
 
 
 def contact_window(nose_radius: float, max_slope: float, half_width: float | None = None) -> float:
@@ -76,43 +160,38 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
         # height error ~ g'' du^2 / 2 with g'' <~ 1 / Rc + curvature: aim at 1e-10 mm
         du = math.sqrt(2e-10 * Rc)
         iterations = max(4, int(math.ceil(math.log(du / (2 * step)) / math.log(_GOLD))))
+
     def run(a):
         th1 = theta[a:a + chunk]
         rh1 = rho[a:a + chunk]
         cs, sn = np.cos(th1), np.sin(th1)
-
-        def gfun(d):
-            u = rh1 + d
-            return surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - d * d))
-
-        g = np.empty((rh1.size, samples))
+        m = rh1.size
+        X, Y = np.empty(m), np.empty(m)
+        g = np.empty((m, samples))
         for k, o in enumerate(offs):
-            g[:, k] = gfun(o)
-        k = np.argmax(g, axis=1)
-        best = g[np.arange(g.shape[0]), k]
-        lo = np.maximum(offs[k] - step, -w)
-        hi = np.minimum(offs[k] + step, w)
-        c = hi - _GOLD * (hi - lo)
-        d = lo + _GOLD * (hi - lo)
+            u = rh1 + o
+            g[:, k] = surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - o * o))
+        best, lo, hi, c, d = _bracket(g, offs, step, w, _GOLD)
+        del g
+
+        def gfun(dd):
+            _points(rh1, cs, sn, dd, X, Y)
+            v = np.empty(m)
+            _minus_arc(surface.height(X, Y), dd, Rc, v)
+            return v
+
         gc, gd = gfun(c), gfun(d)
+        left = np.empty(m, dtype=np.bool_)
+        x = np.empty(m)
         for _ in range(iterations):
-            left = gc > gd  # the maximum lies in [lo, d]
-            hi = np.where(left, d, hi)
-            lo = np.where(left, lo, c)
-            c_new = np.where(left, hi - _GOLD * (hi - lo), d)
-            d_new = np.where(left, c, lo + _GOLD * (hi - lo))
-            g_eval = gfun(np.where(left, c_new, d_new))
-            gc, gd = np.where(left, g_eval, gd), np.where(left, gc, g_eval)
-            c, d = c_new, d_new
-        out[a:a + chunk] = np.maximum(best, np.maximum(gc, gd))
+            _golden_step(gc, gd, lo, hi, c, d, _GOLD, left, x)
+            _golden_take(left, gfun(x), gc, gd)
+        _final(best, gc, gd, out[a:a + chunk])
 
     starts = list(range(0, rho.size, chunk))
     if len(starts) == 1:
         run(0)
-    else:  # numpy releases the GIL in its ufuncs: one thread per core
-        import os
-        from concurrent.futures import ThreadPoolExecutor
-
+    else:  # numpy and the loops above release the GIL: one thread per core
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
             list(ex.map(run, starts))
     return out

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..core.errors import InputError
 
@@ -45,6 +46,63 @@ def _check_time(t: np.ndarray) -> None:
                              f"({bad.size} such steps)")
 
 
+@njit(cache=True, nogil=True)
+def _gradient(t, f, edge_order, out):
+    """``numpy.gradient(f, t, edge_order=edge_order)`` into ``out``: the same formulas in
+    the same order (uniform steps, when every step equals the first, the plain ones)."""
+    n = f.size
+    h0 = t[1] - t[0]
+    uniform = True
+    for i in range(1, n - 1):
+        if t[i + 1] - t[i] != h0:
+            uniform = False
+            break
+    for i in range(1, n - 1):
+        if uniform:
+            out[i] = (f[i + 1] - f[i - 1]) / (2.0 * h0)
+        else:
+            dx1 = t[i] - t[i - 1]
+            dx2 = t[i + 1] - t[i]
+            a = -(dx2) / (dx1 * (dx1 + dx2))
+            b = (dx2 - dx1) / (dx1 * dx2)
+            c = dx1 / (dx2 * (dx1 + dx2))
+            out[i] = a * f[i - 1] + b * f[i] + c * f[i + 1]
+    if edge_order == 1:
+        out[0] = (f[1] - f[0]) / (h0 if uniform else t[1] - t[0])
+        out[n - 1] = (f[n - 1] - f[n - 2]) / (h0 if uniform else t[n - 1] - t[n - 2])
+        return
+    if uniform:
+        a, b, c = -1.5 / h0, 2.0 / h0, -0.5 / h0
+    else:
+        dx1 = t[1] - t[0]
+        dx2 = t[2] - t[1]
+        a = -(2. * dx1 + dx2) / (dx1 * (dx1 + dx2))
+        b = (dx1 + dx2) / (dx1 * dx2)
+        c = - dx1 / (dx2 * (dx1 + dx2))
+    out[0] = a * f[0] + b * f[1] + c * f[2]
+    if uniform:
+        a, b, c = 0.5 / h0, -2.0 / h0, 1.5 / h0
+    else:
+        dx1 = t[n - 2] - t[n - 3]
+        dx2 = t[n - 1] - t[n - 2]
+        a = (dx2) / (dx1 * (dx1 + dx2))
+        b = - (dx2 + dx1) / (dx1 * dx2)
+        c = (2. * dx2 + dx1) / (dx2 * (dx1 + dx2))
+    out[n - 1] = a * f[n - 3] + b * f[n - 2] + c * f[n - 1]
+
+
+@njit(cache=True, nogil=True)
+def _second(t, q, a):
+    """The three-point second difference for unequal steps, ends copied."""
+    n = q.size
+    for i in range(1, n - 1):
+        h1 = t[i] - t[i - 1]
+        h2 = t[i + 1] - t[i]
+        a[i] = 2.0 * (h1 * q[i + 1] - (h1 + h2) * q[i] + h2 * q[i - 1]) / (h1 * h2 * (h1 + h2))
+    a[0] = a[1]
+    a[n - 1] = a[n - 2]
+
+
 def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity, acceleration and jerk of the samples ``q(t)`` on a non-uniform time axis.
 
@@ -64,13 +122,12 @@ def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if t.size < 3:
         raise InputError(f"kinematics needs at least 3 path points, received {t.size}")
     _check_time(t)
-    v = np.gradient(q, t, edge_order=2)
-    h1 = t[1:-1] - t[:-2]
-    h2 = t[2:] - t[1:-1]
-    a = np.empty_like(q)
-    a[1:-1] = 2.0 * (h1 * q[2:] - (h1 + h2) * q[1:-1] + h2 * q[:-2]) / (h1 * h2 * (h1 + h2))
-    a[0], a[-1] = a[1], a[-2]
-    j = np.gradient(a, t, edge_order=1)
+    t = np.ascontiguousarray(t)
+    q = np.ascontiguousarray(q)
+    v, a, j = np.empty_like(q), np.empty_like(q), np.empty_like(q)
+    _gradient(t, q, 2, v)
+    _second(t, q, a)
+    _gradient(t, a, 1, j)
     return v, a, j
 
 
@@ -125,7 +182,8 @@ def kinematics(path, *, limits=None) -> dict:
     t = np.asarray(path.t, dtype=np.float64)
     vx, ax, jx = axis_derivatives(t, path.rho)
     vz, az, jz = axis_derivatives(t, path.z)
-    vc = np.gradient(np.asarray(path.theta, dtype=np.float64), t, edge_order=2)
+    vc = np.empty_like(t)
+    _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
     s = np.sign(vx[np.abs(vx) > 1e-12])
     series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
     out = {

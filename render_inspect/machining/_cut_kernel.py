@@ -1,0 +1,597 @@
+"""The fast, tileable kernel of the cutting mechanics: the model of :mod:`._cutting` (minimum
+chip thickness, elastic recovery, side flow, the grooves of the cutting edge) computed pixel
+by pixel in row blocks or tiles.
+
+Per pixel it visits the same passes in the same (time) order as the direct kernel of
+:func:`~render_inspect.machining.cut_turning_mechanics` (the passes whose nominal radius lies
+within the mechanics window of the pixel, on both sides of the axis near it, every pass that
+reaches where the window holds none) and applies the same state machine, so the machined
+height, the cutting pass and the displaced material are those of the direct model.  What
+makes it fast:
+
+- no pass buffers away from the axis: the passes of one side are already in time order and
+  go straight through the state machine (near the axis both sides are gathered and merged
+  by time, as in the direct kernel);
+- the polar angle advances along a row with the series of the angle difference (one exact
+  ``atan2`` at each 64-pixel block of the whole grid, as the envelope kernel does), so a
+  tile or a row block gets the very angles of a whole-grid run;
+- the grooves (:func:`~render_inspect.machining.groove_texture`: 128 random Fourier modes)
+  are summed in the kernel, at the pixel's edge position and cutting distance, with a cosine
+  written for the SIMD units (Cody-Waite reduction by pi / 2, the fdlibm kernels; |error| <
+  1 ulp after the reduction, tested against numpy's cosine), instead of 128 passes over
+  whole-map arrays;
+- the cutting distance of the cutting pass comes from the pass's own segment and fraction.
+
+The kernel runs on rows ``row0 .. row1`` and columns ``col0 .. col1`` of the whole grid, so
+:func:`cut_fill` can be called block after block (progress, interruption) or on one tile
+with :meth:`CutPath.slice_for` (the passes that reach it).  Every pixel depends only on the
+path and its own position: a tile, with or without a halo, equals the same pixels of the
+whole-grid run bit for bit (tested).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numba import njit, prange
+
+from ..core.errors import InputError, check_range
+from ..core.toolpath import ToolPath
+from ._cutting import cut_turning_mechanics
+from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
+                        path_radial_slope)
+
+__all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
+           "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
+
+TWO_PI = 2 * math.pi
+#: the maps :func:`cut_fill` writes (each (rows, cols) float64)
+OUT_CHANNELS = ("machined", "pass_theta", "added")
+#: passes a pixel may gather on one side of the axis (the direct kernel's cap)
+_MAX_BUF = 1_000_000  # not a unit conversion
+#: pi split in two (the first part with 33 significant bits: k pi_1 is exact for k < 2^20)
+#: and the Taylor coefficients (-1)^n / (2n)! of cos up to r^22 (|r| <= pi / 2: the
+#: truncation is below 2e-17)
+_PI_1 = 3.14159265346825122833e+00
+_PI_1T = 1.21542010130123844986e-10
+_INVPI = 3.18309886183790671538e-01
+_K = tuple((-1) ** n / math.factorial(2 * n) for n in range(12))
+_K0, _K1, _K2, _K3, _K4, _K5, _K6, _K7, _K8, _K9, _K10, _K11 = _K
+#: largest |argument| the two-part reduction keeps exact (k pi/2 with k < 2^20)
+_COS_ARG_MAX = 1.5e6
+
+
+def cutting_distance(theta, rho) -> np.ndarray:
+    """Cumulative cutting distance (mm) along a turning path at its points: the arc length
+    of the tool's circle, sum 0.5 (|rho_i| + |rho_(i+1)|) (theta_(i+1) - theta_i)."""
+    th = np.asarray(theta, dtype=np.float64)
+    r = np.abs(np.asarray(rho, dtype=np.float64))
+    return np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(th))])
+
+
+def mechanics_window(nose_radius, f, slope, h_min, half_width) -> float:
+    """Radial window (mm) of the passes that can take part in a pixel's cut: the geometric
+    window 2.1 Rc m + f / 2 widened by one feed (the cusp's pass is always visited) and by
+    the ploughed band h_min 4 Rc / f."""
+    return min(half_width, 2.1 * nose_radius * slope + 1.5 * f + h_min * 4 * nose_radius / max(f, 1e-12)
+               + 1e-9)
+
+
+@dataclass(frozen=True)
+class Grooves:
+    """The random Fourier modes of :func:`~render_inspect.machining.groove_texture`
+    (the same draws from the same seed) and the scale rms sqrt(2 / modes)."""
+
+    ku: np.ndarray
+    kv: np.ndarray
+    ph: np.ndarray
+    scale: float
+
+    @classmethod
+    def of(cls, *, rms: float, seed: int, across_length: float = 0.001, along_length: float = 0.05,
+           modes: int = 128) -> "Grooves":
+        check_range("rms", rms, 0.0, 1.0)
+        check_range("across_length", across_length, 0.0, None, lo_open=True)
+        check_range("along_length", along_length, 0.0, None, lo_open=True)
+        if rms == 0:
+            z = np.zeros(0)
+            return cls(z, z, z, 0.0)
+        rng = np.random.default_rng(seed)
+        ku = rng.normal(0.0, 1.0 / across_length, size=modes)
+        kv = rng.normal(0.0, 1.0 / along_length, size=modes)
+        ph = rng.uniform(0.0, TWO_PI, size=modes)
+        return cls(ku, kv, ph, rms * math.sqrt(2.0 / modes))
+
+    @classmethod
+    def none(cls) -> "Grooves":
+        return cls.of(rms=0.0, seed=0)
+
+
+@dataclass(frozen=True)
+class CutPath:
+    """A turning path prepared for the cutting-mechanics kernel (or the run of it one tile
+    needs, :meth:`slice_for`).
+
+    Attributes
+    ----------
+    ep : EnvelopePath
+        Segments, angles, the lookup table (always built) and the whole path's constants;
+        ``ep.window`` is the mechanics window (:func:`mechanics_window`).
+    dist : (m + 1,) float64
+        Cutting distance at the segment ends (mm, counted from the whole path's start).
+    h_min, kappa : float
+        Minimum chip thickness (mm) and elastic recovery.
+    side_flow : bool
+    """
+
+    ep: EnvelopePath
+    dist: np.ndarray
+    h_min: float
+    kappa: float
+    side_flow: bool
+
+    def slice_for(self, region) -> "CutPath":
+        """The passes whose nose arcs the kernel visits for pixels in ``region``
+        (x0, y0, x1, y1; mm)."""
+        sl = self.ep.slice_for(region)
+        i0 = sl.offset - self.ep.offset
+        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]))
+
+    def reach(self, rmin: float, rmax: float) -> float:
+        """Largest radial distance (mm) between a pixel at rmin..rmax from the axis and a
+        pass the kernel may visit there."""
+        return self.ep.reach(rmin, rmax)
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.ep.nbytes + self.dist.nbytes)
+
+
+def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_min: float = 0.0,
+                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None) -> CutPath:
+    """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
+    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`)."""
+    check_range("h_min", h_min, 0.0, 1e-2)
+    check_range("kappa", kappa, 0.0, 1.0)
+    theta = np.ascontiguousarray(path.theta, dtype=np.float64)
+    rho = np.ascontiguousarray(path.rho, dtype=np.float64)
+    z = np.ascontiguousarray(path.z, dtype=np.float64)
+    if theta.size < 2:
+        raise InputError("the cutting mechanics need a path of at least 2 points")
+    Rc, hw = _nose_arc(nose_radius, half_width)
+    a, cc, dev, f = _nominal_spiral(theta, rho)
+    m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
+    W = mechanics_window(Rc, f, m, h_min, hw)
+    seg = np.empty((theta.size - 1, 4))
+    seg[:, 0] = rho[:-1]
+    seg[:, 1] = rho[1:] - rho[:-1]
+    seg[:, 2] = z[:-1]
+    seg[:, 3] = z[1:] - z[:-1]
+    tab, tt0, tw = _lookup_table(theta)
+    dth = (theta[-1] - theta[0]) / (theta.size - 1)
+    ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
+                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W))
+    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow))
+
+
+# ------------------------------------------------------------------ the kernel
+@njit(cache=True, inline="always")
+def _cos(x):
+    """cos(x) for |x| < _COS_ARG_MAX: x = k pi + r (Cody-Waite), (-1)^k cos(r) by its
+    Taylor polynomial; branch-free, so that a loop over modes vectorises."""
+    k = math.floor(x * _INVPI + 0.5)
+    r = (x - k * _PI_1) - k * _PI_1T
+    z = r * r
+    c = _K0 + z * (_K1 + z * (_K2 + z * (_K3 + z * (_K4 + z * (_K5 + z * (_K6 + z * (
+        _K7 + z * (_K8 + z * (_K9 + z * (_K10 + z * _K11))))))))))
+    return (1.0 - 2.0 * (k - 2.0 * math.floor(k * 0.5))) * c
+
+
+@njit(cache=True, fastmath={"reassoc", "contract", "nsz"})
+def _groove_sum(ku, kv, ph, u, v):
+    """sum_i cos(ku_i u + kv_i v + ph_i) (SIMD: the modes summed in any order)."""
+    g = 0.0
+    for i in range(ku.size):
+        g += _cos(ku[i] * u + kv[i] * v + ph[i])
+    return g
+
+
+@njit(cache=True)
+def _groove_sum_libm(ku, kv, ph, u, v):
+    g = 0.0
+    for i in range(ku.size):
+        g += math.cos(ku[i] * u + kv[i] * v + ph[i])
+    return g
+
+
+@njit(cache=True, inline="always")
+def _find(theta, tab, tab_t0, tab_iw, s):
+    """Index i with theta[i] <= s <= theta[i + 1] (s inside the path): the lookup table's
+    bin, then a walk (``_envelope._lookup`` with the bin width's reciprocal)."""
+    b = int((s - tab_t0) * tab_iw)
+    if b < 0:
+        b = 0
+    if b >= tab.size:
+        b = tab.size - 1
+    i = tab[b]
+    n = theta.size
+    while i < n - 2 and theta[i + 1] < s:
+        i += 1
+    while i > 0 and theta[i] > s:
+        i -= 1
+    return i
+
+
+@njit(cache=True, inline="always")
+def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2):
+    """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
+    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic)."""
+    i = _find(theta, tab, tab_t0, tab_iw, s)
+    dt = theta[i + 1] - theta[i]
+    fr = (s - theta[i]) / dt if dt > 0 else 0.0
+    rj = seg[i, 0] + fr * seg[i, 1]
+    d = sgn * r - rj
+    if abs(d) <= hw:
+        return True, seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d), rj, d * sgn, i, fr
+    return False, 0.0, 0.0, 0.0, 0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
+    """One pass through the state (surface, chip, pass angle, segment, fraction, edge
+    position, added, piled) of the direct model."""
+    surf, h_cut, sw, iw, fw, dw, add, piled = st
+    if zj < surf:
+        h = surf - zj
+        if h >= h_min or surf == np.inf:
+            return zj, h, sj, ij, frj, dj, 0.0, False
+        return zj + kappa * h, h_cut, sw, iw, fw, dw, kappa * h, piled
+    if side_flow and not piled:
+        g = zj - surf
+        if g < h_min:
+            p = (1.0 - kappa) * (h_min - g)
+            return surf + p, h_cut, sw, iw, fw, dw, add + p, True
+    return st
+
+
+@njit(cache=True, inline="always")
+def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
+            h_min, kappa, side_flow, st):
+    """The passes of one side in time order straight through the state; (state, count).
+    A pass whose arc provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc,
+    a lower bound of the arc, less 1e-12 mm for rounding) changes nothing and skips the
+    square root."""
+    j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
+    n = 0
+    half_inv_rc = 0.5 / Rc
+    for j in range(j0, j1 + 1):
+        s = phi + TWO_PI * j
+        i = _find(theta, tab, tab_t0, tab_iw, s)
+        dt = theta[i + 1] - theta[i]
+        fr = (s - theta[i]) / dt if dt > 0 else 0.0
+        rj = seg[i, 0] + fr * seg[i, 1]
+        d = sgn * r - rj
+        if abs(d) <= hw:
+            n += 1
+            zt = seg[i, 2] + fr * seg[i, 3]
+            if zt + d * d * half_inv_rc - 1e-12 >= st[0] + h_min:
+                continue
+            st = _step(st, s, zt + Rc - math.sqrt(Rc2 - d * d), i, fr, d * sgn, h_min, kappa, side_flow)
+            if n >= _MAX_BUF:
+                break
+    return st, n
+
+
+@njit(cache=True, inline="always")
+def _window(t_first, t_last, a, cc, phi, r, sgn, W):
+    """First and last pass j whose nominal radius is within W of sgn r (the direct kernel's
+    ``_pass_window`` on the whole path's ends)."""
+    if cc > 0:
+        s_lo = t_first + (a - (r * sgn + W)) / cc
+        s_hi = t_first + (a - (r * sgn - W)) / cc
+    else:
+        s_lo = t_first
+        s_hi = t_last
+    if s_lo < t_first:
+        s_lo = t_first
+    if s_hi > t_last:
+        s_hi = t_last
+    return math.ceil((s_lo - phi) / TWO_PI), math.floor((s_hi - phi) / TWO_PI)
+
+
+@njit(cache=True, inline="always")
+def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
+            bs, bz, bi, bf, bd):
+    j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
+    n = 0
+    for j in range(j0, j1 + 1):
+        if n >= bs.size:
+            break
+        s = phi + TWO_PI * j
+        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2)
+        if ok:
+            bs[n] = s
+            bz[n] = zj
+            bi[n] = ij
+            bf[n] = frj
+            bd[n] = dj
+            n += 1
+    return n
+
+
+@njit(cache=True, inline="always")
+def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st):
+    k1 = 0
+    k2 = 0
+    while k1 < n1 or k2 < n2:
+        if k2 >= n2 or (k1 < n1 and b1s[k1] <= b2s[k2]):
+            st = _step(st, b1s[k1], b1z[k1], b1i[k1], b1f[k1], b1d[k1], h_min, kappa, side_flow)
+            k1 += 1
+        else:
+            st = _step(st, b2s[k2], b2z[k2], b2i[k2], b2f[k2], b2d[k2], h_min, kappa, side_flow)
+            k2 += 1
+    return st
+
+
+@njit(cache=True, nogil=True)
+def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
+             h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0, sc0, sc1,
+             machined, pass_theta, added, stats, bufs, ibufs):
+    """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
+    row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
+    squared grooves, the pixels that got grooves, the largest added material."""
+    cols = machined.size
+    Rc2 = Rc * Rc
+    Wd = W + dev
+    grooves = ku.size > 0
+    b1s, b1z, b1f, b1d = bufs[0], bufs[1], bufs[2], bufs[3]
+    b2s, b2z, b2f, b2d = bufs[4], bufs[5], bufs[6], bufs[7]
+    b1i, b2i = ibufs[0], ibufs[1]
+    c_first = (col0 // BLOCK) * BLOCK
+    g2 = 0.0
+    ng = 0.0
+    amax = -np.inf
+    phi = 0.0
+    xp = 0.0
+    for c in range(c_first, col0 + cols):
+        x = x0 + c * pixel
+        # polar angle: exact at each block of the whole grid, the series step after it
+        dot = xp * x + y * y
+        t = y * (xp - x) / dot if c % BLOCK != 0 and dot > 0 else 1.0
+        if -0.01 < t < 0.01:
+            t2 = t * t
+            phi += t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0))))
+            if phi < 0:
+                phi += TWO_PI
+            elif phi >= TWO_PI:
+                phi -= TWO_PI
+        else:
+            phi = math.atan2(y, x)
+            if phi < 0:
+                phi += TWO_PI
+        xp = x
+        if c < col0:
+            continue
+        r = math.sqrt(x * x + y * y)
+        Wp = Wd + (0.5 * f if r < 2.0 * f + dev else 0.0)
+        st = (np.inf, np.nan, np.nan, -1, 0.0, np.nan, 0.0, False)
+        phi2 = phi + math.pi
+        if phi2 >= TWO_PI:
+            phi2 -= TWO_PI
+        if r < Wp + hw:
+            n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp, Rc,
+                         Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+            n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0, Wp,
+                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+            n = n1 + n2
+            st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
+                        side_flow, st)
+        else:
+            st, n = _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp,
+                            Rc, Rc2, hw, h_min, kappa, side_flow, st)
+        if n == 0 and Wp < hw + dev:
+            # no pass within the window (beyond the path's ends): every pass that reaches
+            n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0,
+                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+            n2 = 0
+            if r < hw + dev:
+                n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0,
+                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+            st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
+                        side_flow, st)
+        surf, h_cut, sw, iw, fw, dw, add, piled = st
+        ix = c - col0
+        counted = sc0 <= ix < sc1
+        if surf < np.inf:
+            if grooves:
+                v = dist[iw] + fw * (dist[iw + 1] - dist[iw])
+                if fast_cos:
+                    gs = _groove_sum(ku, kv, ph, dw, v) * gscale
+                else:
+                    gs = _groove_sum_libm(ku, kv, ph, dw, v) * gscale
+                if counted:
+                    g2 += gs * gs
+                    ng += 1.0
+                surf += gs
+            machined[ix] = surf
+            pass_theta[ix] = sw
+            added[ix] = add
+            if counted and add > amax:
+                amax = add
+        else:
+            machined[ix] = np.nan
+            pass_theta[ix] = np.nan
+            added[ix] = 0.0
+    stats[0] = g2
+    stats[1] = ng
+    stats[2] = amax
+
+
+def _buffer_size(W, dev, f):
+    nb = int(2 * (W + dev + f) / max(f, 1e-12)) + 8 if f > 0 else 64
+    return min(nb, _MAX_BUF)
+
+
+def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
+              h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
+              sc1, machined, pass_theta, added, stats):
+    """Rows row0 .. row0 + rows - 1, columns col0 .. col0 + cols - 1 of the whole grid
+    (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
+    rows = machined.shape[0]
+    nb = _buffer_size(W, dev, f)
+    for k in prange(rows):
+        bufs = np.empty((8, nb))
+        ibufs = np.empty((2, nb), dtype=np.int64)
+        _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
+                 h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs)
+
+
+#: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
+#: side by a scheduler)
+_buffer_size = njit(cache=True)(_buffer_size)
+_cut_parallel = njit(parallel=True, cache=True)(_cut_rows)
+_cut_serial = njit(nogil=True, cache=True)(_cut_rows)
+
+
+def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, start=(0, 0),
+             parallel: bool = True, stat_cols=None) -> np.ndarray:
+    """The machined surface with the cutting mechanics and the grooves (mm), the cumulative
+    spindle angle of each pixel's cutting pass (rad) and the material ploughed back or
+    piled up by side flow (mm), written into ``out`` in place; NaN (0 added) where no pass
+    reaches.
+
+    Parameters
+    ----------
+    cp : CutPath
+        The prepared path (or its slice for these pixels).
+    grooves : Grooves
+    origin : (x, y)
+        Centre of pixel [0, 0] of the whole grid, mm.
+    pixel : float
+        Grid spacing, mm.
+    out : dict
+        ``machined``, ``pass_theta``, ``added``: (rows, cols) float64 arrays, pixels
+        [start[0]:start[0] + rows, start[1]:start[1] + cols] of the whole grid.
+    start : (row, col)
+        Index of ``out[...][0, 0]`` in the whole grid (any: each pixel depends only on its
+        position).
+    parallel : bool
+        All cores (numba threads) over the rows; False: the calling thread, without the GIL.
+    stat_cols : (first, stop), optional
+        The columns of ``out`` the returned sums cover (default: all).
+
+    Returns
+    -------
+    (rows, 3) float64: per row the sum of the squared grooves (mm^2), the pixels that got
+    grooves and the largest added material (mm; -inf where none).
+    """
+    m = out["machined"]
+    rows = m.shape[0]
+    sc0, sc1 = (0, m.shape[1]) if stat_cols is None else (int(stat_cols[0]), int(stat_cols[1]))
+    stats = np.empty((rows, 3))
+    ep = cp.ep
+    if ep.cc <= 0:
+        raise ValueError("cut_fill: the path must feed towards the axis (use cut_turning_mechanics)")
+    gr = grooves
+    fast_cos = bool(gr.ku.size == 0 or np.max(np.abs(gr.ku)) * (ep.half_width + 1.0)
+                    + np.max(np.abs(gr.kv)) * float(np.max(np.abs(cp.dist))) + TWO_PI < _COS_ARG_MAX)
+    fn = _cut_parallel if parallel else _cut_serial
+    fn(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc, ep.dev, ep.f,
+       ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow, grooves.ku, grooves.kv,
+       grooves.ph, float(grooves.scale), fast_cos, float(origin[0]), float(origin[1]), float(pixel), int(start[0]),
+       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats)
+    return stats
+
+
+#: samples per row block of :func:`cut_turning` (about 0.1 s on one core): the driver
+#: returns to Python between blocks, where a progress callback runs and an interrupt
+#: (Ctrl-C) is raised
+BLOCK_SAMPLES = 1 << 20  # not a unit conversion
+
+
+def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=None, progress=None,
+                block_samples: int = BLOCK_SAMPLES, parallel: bool = True) -> dict:
+    """The machined surface of ``region`` (x0, y0, x1, y1; mm) with the cutting mechanics
+    and grooves, computed in row blocks.
+
+    Parameters
+    ----------
+    cp : CutPath
+    grooves : Grooves
+    region : (x0, y0, x1, y1), mm;  pixel : float, mm
+    origin : (x, y), optional
+        Centre of pixel [0, 0] of the whole grid the region belongs to (default: the
+        region's first pixel); the region's first pixel must lie on that grid.
+    progress : callable(done, total), optional
+        Called after each row block with the rows done and the rows in all; it may raise
+        to stop the cut (the maps are then incomplete).
+    block_samples : int
+        Samples per row block (at least one row).
+    parallel : bool
+        All cores within each block; False: the calling thread.
+
+    Returns
+    -------
+    dict
+        ``machined`` (mm), ``pass_theta`` (rad, cumulative spindle angle of the cutting
+        pass), ``added`` (mm): (ny, nx) float64; ``grooves_sumsq`` (mm^2), ``grooves_n``,
+        ``added_max`` (mm, -inf where nothing was cut).
+    """
+    x0, y0, x1, y1 = region
+    nx = int(round((x1 - x0) / pixel)) + 1
+    ny = int(round((y1 - y0) / pixel)) + 1
+    if origin is None:
+        origin, start = (x0, y0), (0, 0)
+    else:
+        start = (int(round((y0 - origin[1]) / pixel)), int(round((x0 - origin[0]) / pixel)))
+    if cp.ep.cc <= 0:
+        return _cut_direct(cp, grooves, region=region, pixel=pixel)
+    maps = {k: np.empty((ny, nx)) for k in OUT_CHANNELS}
+    step = max(1, int(block_samples) // max(nx, 1))
+    stats = np.empty((ny, 3))
+    for r0 in range(0, ny, step):
+        r1 = min(r0 + step, ny)
+        stats[r0:r1] = cut_fill(cp, grooves, origin, pixel, {k: v[r0:r1] for k, v in maps.items()},
+                                start=(start[0] + r0, start[1]), parallel=parallel)
+        if progress is not None:
+            progress(r1, ny)
+    return {**maps, "grooves_sumsq": float(stats[:, 0].sum()), "grooves_n": int(stats[:, 1].sum()),
+            "added_max": float(stats[:, 2].max()) if ny else -math.inf}
+
+
+def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
+    """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
+    ep = cp.ep
+    theta = ep.theta
+    rho = np.append(ep.seg[:, 0], ep.seg[-1, 0] + ep.seg[-1, 1])
+    z = np.append(ep.seg[:, 2], ep.seg[-1, 2] + ep.seg[-1, 3])
+    c = cut_turning_mechanics(ToolPath(theta, rho, z, theta), nose_radius=ep.nose_radius, region=region,
+                              pixel=pixel, half_width=ep.half_width, h_min=cp.h_min, kappa=cp.kappa,
+                              side_flow=cp.side_flow)
+    m = c["machined"]
+    ok = np.isfinite(m) & np.isfinite(c["edge_pos"])
+    along = np.interp(np.where(ok, c["pass_theta"], theta[0]), theta, cp.dist)
+    g = np.zeros(m.shape)
+    for i in range(grooves.ku.size):
+        g += np.cos(grooves.ku[i] * c["edge_pos"] + grooves.kv[i] * along + grooves.ph[i])
+    g = np.where(ok, g * grooves.scale, 0.0)
+    m = np.where(ok, m + g, m)
+    added = c["added"]
+    return {"machined": m, "pass_theta": c["pass_theta"], "added": added,
+            "grooves_sumsq": float(np.sum(g * g)) if grooves.ku.size else 0.0,
+            "grooves_n": int(ok.sum()) if grooves.ku.size else 0,
+            "added_max": float(np.max(added[ok])) if ok.any() else -math.inf}
+
+
+def load_cut_kernels() -> None:
+    """Compile (or load from numba's cache) the kernel for both targets: one call each on a
+    2 x 2 grid of a three-revolution spiral."""
+    theta = np.linspace(0.0, 6 * math.pi, 97)
+    path = ToolPath(theta, 0.05 - 0.01 * theta / TWO_PI, np.zeros(theta.size), theta)
+    cp = prepare_cut(path, nose_radius=0.1, half_width=0.05, h_min=1e-5, kappa=0.05)
+    gr = Grooves.of(rms=1e-6, seed=0, modes=4)
+    for par in (True, False):
+        cut_fill(cp, gr, (0.0, 0.0), 0.001, {k: np.empty((2, 2)) for k in OUT_CHANNELS}, parallel=par)
