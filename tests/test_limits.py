@@ -451,12 +451,14 @@ def test_the_budget_follows_the_address_space_limit():
 
 def test_a_capped_simulation_is_refused_at_the_start_naming_the_limit(tmp_path):
     """A grid that fits the machine but not ``ulimit -v`` is refused before any work, one
-    line naming the limit and the pixel that would fit, not a late MemoryError."""
+    line naming the limit and the pixel that would fit, not a late MemoryError (burrs: a
+    scene that cannot be simulated tile by tile, which a map this large otherwise is)."""
     code = "import sys; from render_inspect.cli import main; sys.exit(main(sys.argv[1:]))"
     out = tmp_path / "o"
     r = _under_address_limit(code, 2 * 2 ** 30, "simulate", "sts_sinusoidal_grid", "--out", out,
                              "-q", "--set", "simulation.region=[-1,-1,1,1]",
-                             "--set", "simulation.pixel=0.0003")
+                             "--set", "simulation.pixel=0.0003",
+                             "--set", "artifacts.burrs.height=0.0001", "--set", "artifacts.burrs.width=0.002")
     assert r.returncode == 1, r.stderr
     err = r.stderr.strip().splitlines()
     assert len(err) == 1 and "Traceback" not in r.stderr

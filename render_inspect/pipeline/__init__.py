@@ -39,12 +39,12 @@ from ._render import (check_render_limits, part_heightmap, part_outline, render_
                       write_diffuse_outputs, write_instrument_outputs,
                       write_interferogram_outputs)
 from ._simulate import Simulation, design_heightmap, simulate, write_simulation
-from ._simulate_command import run_simulate, run_simulate_tiled, wants_tiles
+from ._simulate_command import TILED_SAMPLES, run_simulate, run_simulate_tiled, wants_tiles
 from ._sweep import find_sweep, run_point, run_sweep, shipped_sweeps, sweep_tasks
 from ._toolpath import plan_program, program_formats, run_toolpath
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
-           "run_simulate_tiled", "wants_tiles",
+           "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES",
            "plan_program", "run_toolpath", "program_formats", "run_render", "render_heightmap", "render_kinds",
            "write_interferogram_outputs", "write_instrument_outputs", "write_diffuse_outputs",
            "interferogram_summary",

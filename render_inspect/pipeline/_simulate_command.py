@@ -27,7 +27,7 @@ from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
 
-__all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles"]
+__all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
 log = logging.getLogger("render_inspect")
 
@@ -35,22 +35,31 @@ log = logging.getLogger("render_inspect")
 _WRITE_RATE = 1e6  # not a unit conversion
 #: largest side (points) of the following-error map of a tiled cut
 _FIGURE_POINTS = 800
+#: maps of more samples than this are simulated tile by tile whatever the memory budget
+#: (when the process can): the in-memory run would hold several GiB and write a
+#: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
+#: a Zarr store with its pyramid
+TILED_SAMPLES = 1 << 25  # not a unit conversion
 
 
 def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
                 scheduler: str | None = None) -> bool:
     """Whether ``simulate`` takes the tiled path: when asked (``tiled``, ``workers`` or
-    ``scheduler``), or when the in-memory estimate (the process's ``estimate_memory``)
-    exceeds the memory budget (``simulation.max_memory_gb``, or the automatic share of
-    the memory available: :func:`~render_inspect.core.limits.memory_budget`) and the
-    process can be simulated tile by tile."""
+    ``scheduler``), or when the process can be simulated tile by tile and the map has more
+    than :data:`TILED_SAMPLES` samples or its in-memory estimate (the process's
+    ``estimate_memory``) exceeds the memory budget (``simulation.max_memory_gb``, or the
+    automatic share of the memory available:
+    :func:`~render_inspect.core.limits.memory_budget`)."""
     if tiled is not None:
         return bool(tiled)
     if workers is not None or scheduler:
         return True
     process = process_of(scene)
     cfg = process.inputs_of(scene)
-    return process.tile_refusal(cfg) is None and \
+    if process.tile_refusal(cfg) is not None:
+        return False
+    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    return ny * nx > TILED_SAMPLES or \
         process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 

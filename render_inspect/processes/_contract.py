@@ -202,6 +202,8 @@ class Envelope:
         Facts of the cut known before the tiles run (the machine, its following error).
     followed : object
         What :meth:`Process.tiled_facts` needs of the path (the followed path), or None.
+    plots : dict
+        Figures of the cut known before the tiles run (file name -> figure spec).
     """
 
     path: object
@@ -212,6 +214,7 @@ class Envelope:
     grooves: object = None
     facts: dict = field(default_factory=dict)
     followed: object = None
+    plots: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -332,5 +335,5 @@ class Process(ABC):
     def tiled_facts(self, cfg: Inputs, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
         :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every
-        ``stride``-th row and column); default: ``env.facts`` and no figures."""
-        return dict(env.facts), {}
+        ``stride``-th row and column); default: ``env.facts`` and ``env.plots``."""
+        return dict(env.facts), dict(env.plots)

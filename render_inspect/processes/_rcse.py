@@ -34,9 +34,9 @@ from ..toolpath import (
     z_compensation,
 )
 from ._contract import Cut, Plan, Traits, Variant, VariantPair
-from ._mechanics import TurningInputs, turn
+from ._mechanics import TurningInputs, follow, turn
 from ._registry import register_process, register_section
-from ._turning import TurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
+from ._turning import TiledTurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
 #: samples per second the cut runs at on 2 cores (the progress bar's estimate)
 CUT_RATE = 1e6  # not a unit conversion
@@ -129,7 +129,8 @@ def _plan(cfg, surface, *, region=None) -> Plan:
 
 
 def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
-                    conventional_machined: bool = False) -> tuple[dict, tuple]:
+                    conventional_machined: bool = False,
+                    conventional_program: bool = False) -> tuple[dict, tuple]:
     """Compare the RCSE path with the conventional one over the same spiral samples.
 
     Parameters
@@ -149,6 +150,9 @@ def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
         Also machine the conventional path over the simulation grid (whatever
         ``rcse.simulate_conventional`` says) and return its cut (``Turned``: machined map,
         facts, following-error figures) as a third element.
+    conventional_program : bool
+        Return the conventional program at the tool tip (Z-compensated on its own point
+        cloud, not machined) as a third element instead.
 
     Returns
     -------
@@ -186,6 +190,8 @@ def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
                          "interpolation": st.interpolation, "snap_to_rows": st.snap_to_rows},
         "points_compared": int(theta.size),
     }
+    if conventional_program:
+        return out, (ccp_path, conv_path), _conventional_tip(cfg, conv_path, conv["model"])
     conv_cut = None
     if conventional_machined or (machined is not None and st.simulate_conventional):
         conv_cut = _machine_conventional(cfg, surface, conv_path, conv["model"], design=design,
@@ -286,6 +292,42 @@ def element_spread(cfg, surface) -> dict:
     return out
 
 
+def _comparison_plots(cfg, rcse_path, conv_path) -> dict:
+    """``rcse_kinematics.png`` and the pair of X motions in ``kinematics.png``."""
+    labels = ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)")
+    return {"rcse_kinematics.png": {
+                "kind": "kinematics", "path": rcse_path, "reference": conv_path, "labels": labels,
+                "title": "X-axis motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"},
+            "kinematics.png": {
+                "kind": "axes", "columns": [(labels[0], rcse_path, {}), (labels[1], conv_path, {})],
+                "axes": ("X",), "title": f"{cfg.name}: X motion, RCSE vs conventional",
+                "pair": True,
+                "pair_title": "X motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}}
+
+
+def _tiled_envelope(process, cfg, surface, plan: Plan):
+    """The RCSE cut tile by tile: the path that cuts (RCSE or conventional) followed by the
+    machine, with the comparison's kinematics and profile errors (the residuals of both
+    paths over the grid, ``residual``, need the map in memory and are left out)."""
+    conventional = cfg.rcse.path == "conventional"
+    program, facts, plots = plan.program, {}, {}
+    if cfg.rcse.compare_conventional or conventional:
+        comp, (rcse_path, conv_path), conv_tip = rcse_comparison(cfg, plan.program, surface,
+                                                                 conventional_program=True)
+        if conventional:
+            program = conv_tip
+        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp, "path": cfg.rcse.path}
+        if cfg.rcse.spread_elements:
+            facts["rcse"]["comparison"]["spread"] = element_spread(cfg, surface)
+        plots = _comparison_plots(cfg, rcse_path, conv_path)
+    cut_path, fp, mfacts = follow(cfg, program)
+    if "following_error" in mfacts and "comparison" in facts.get("rcse", {}):
+        facts["rcse"]["comparison"]["conventional" if conventional else "rcse"]["following_error"] = \
+            mfacts["following_error"]
+    return process.envelope_of(cfg, cut_path, fp, {**mfacts, **facts}, plots=plots,
+                               meta={"process": "rcse", "path": cfg.rcse.path})
+
+
 def _cut(cfg, surface, plan: Plan) -> Cut:
     """Cut along the RCSE path, or (``rcse.path = "conventional"``) along the conventional
     grid-interpolated path Z-compensated on its own point cloud, either on the
@@ -314,22 +356,16 @@ def _cut(cfg, surface, plan: Plan) -> Cut:
             t1 = time.perf_counter()
             facts["rcse"]["comparison"]["spread"] = element_spread(cfg, surface)
             timing["spread"] = time.perf_counter() - t1
-        labels = ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)")
-        plots["rcse_kinematics.png"] = {
-            "kind": "kinematics", "path": rcse_path, "reference": conv_path, "labels": labels,
-            "title": "X-axis motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}
-        plots["kinematics.png"] = {
-            "kind": "axes", "columns": [(labels[0], rcse_path, {}), (labels[1], conv_path, {})],
-            "axes": ("X",), "title": f"{cfg.name}: X motion, RCSE vs conventional",
-            "pair": True, "pair_title": "X motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}
+        plots.update(_comparison_plots(cfg, rcse_path, conv_path))
     meta = {"process": "rcse", "compensation": cfg.process.compensation,
             "seed": cfg.simulation.seed, "path": cfg.rcse.path,
             "machine": cfg.machine.preset, "material": cfg.material.preset}
     return Cut(machined, design, facts, timing, meta, followed=followed, plots=plots)
 
 
-class RcseProcess(TurningProcess):
-    """Turning along the RCSE path; ``compare`` puts it against the conventional path."""
+class RcseProcess(TiledTurningProcess):
+    """Turning along the RCSE path; ``compare`` puts it against the conventional path.
+    Tiled when large (without the residuals of the comparison)."""
 
     config = RcseProcessConfig
     inputs = RcseInputs
@@ -341,6 +377,9 @@ class RcseProcess(TurningProcess):
 
     def cut(self, cfg, surface, plan: Plan) -> Cut:
         return _cut(cfg, surface, plan)
+
+    def envelope(self, cfg, surface, plan: Plan):
+        return _tiled_envelope(self, cfg, surface, plan)
 
     def traits(self, cfg) -> Traits:
         return turning_traits(cfg, cut_rate=CUT_RATE)

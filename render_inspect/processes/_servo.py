@@ -27,12 +27,12 @@ from ..core.errors import SceneError
 from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
 from ..machining import split_commands
 from ..toolpath import Tool
-from ._contract import Cut, Plan, Traits, Variant, VariantPair
+from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import machine_of
-from ._mechanics import turn
+from ._mechanics import follow, turn
 from ._registry import register_migration, register_process, register_retired_key
 from ._turning import (
-    TurningProcess,
+    TiledTurningProcess,
     TurningProcessConfig,
     compensation_variants,
     toolpath_facts,
@@ -131,9 +131,41 @@ def _error_stats(err) -> dict:
             "max_um": float(np.max(np.abs(err)) * MM_TO_UM)}
 
 
-class ServoProcess(TurningProcess):
+def _servo_facts(cfg, plan: Plan, fp) -> tuple[dict, dict]:
+    """(``metrics["servo"]``, the height map's ``servo`` provenance) of the followed path
+    ``fp`` of the plan: the servos' settings, their lag and strokes, their following errors."""
+    kind = cfg.process.kind
+    path = plan.program
+    z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
+    omega = 2 * math.pi * cfg.process.spindle_rpm / MIN_TO_S
+    r_max = float(np.max(path.rho)) if path.points else 0.0
+    machine = machine_of(cfg.machine)
+    if fp.ideal:
+        fts_err, slow_err = np.zeros_like(z_fts), np.zeros_like(z_slow)
+    else:
+        fts_err = -np.interp(path.t, fp.t, fp.errors["fts"])
+        slow_err = -np.interp(path.t, fp.t, fp.errors["z"])
+    settings = {"delay_s": machine.fts.delay_s, "bandwidth_hz": machine.fts.bandwidth_hz,
+                "damping": machine.fts.damping, "slow_bandwidth_hz": machine.z.bandwidth_hz,
+                "slow_damping": machine.z.damping, "fts_sync": machine.fts_sync}
+    bw = settings["bandwidth_hz"]
+    lag = settings["delay_s"] + (2 * settings["damping"] / (2 * math.pi * bw) if bw else 0.0)
+    servo_m = {"kind": kind, **settings, "omega_rad_s": omega,
+               "lag_angle_rad": omega * settings["delay_s"],
+               "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
+               "max_circumferential_shift_um": r_max * omega * lag * MM_TO_UM,
+               "fts_stroke_um": float(np.ptp(z_fts) * MM_TO_UM) if z_fts.size else 0.0,
+               "slow_stroke_um": float(np.ptp(z_slow) * MM_TO_UM) if z_slow.size else 0.0,
+               "fts_following_error": _error_stats(fts_err),
+               "slow_following_error": _error_stats(slow_err)}
+    meta = {"servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
+                                               "slow_bandwidth_hz", "slow_damping")}}
+    return servo_m, meta
+
+
+class ServoProcess(TiledTurningProcess):
     """Tool-servo turning: the spiral's Z program split between the slow slide and the FTS,
-    each followed by its axis of the machine."""
+    each followed by its axis of the machine; tiled when large."""
 
     config = ServoProcessConfig
 
@@ -156,39 +188,22 @@ class ServoProcess(TurningProcess):
 
     def cut(self, cfg, surface, plan: Plan) -> Cut:
         kind = cfg.process.kind
-        path = plan.program
-        z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
-        omega = 2 * math.pi * cfg.process.spindle_rpm / MIN_TO_S
-        r_max = float(np.max(path.rho)) if path.points else 0.0
-        machine = machine_of(cfg.machine)
-        t = turn(cfg, surface, path, z_fts=z_fts)
-        fp = t["followed_path"]
-        if fp.ideal:
-            fts_err, slow_err = np.zeros_like(z_fts), np.zeros_like(z_slow)
-        else:
-            fts_err = -np.interp(path.t, fp.t, fp.errors["fts"])
-            slow_err = -np.interp(path.t, fp.t, fp.errors["z"])
-        settings = {"delay_s": machine.fts.delay_s, "bandwidth_hz": machine.fts.bandwidth_hz,
-                    "damping": machine.fts.damping, "slow_bandwidth_hz": machine.z.bandwidth_hz,
-                    "slow_damping": machine.z.damping, "fts_sync": machine.fts_sync}
-        bw = settings["bandwidth_hz"]
-        lag = settings["delay_s"] + (2 * settings["damping"] / (2 * math.pi * bw) if bw else 0.0)
-        servo_m = {"kind": kind, **settings, "omega_rad_s": omega,
-                   "lag_angle_rad": omega * settings["delay_s"],
-                   "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
-                   "max_circumferential_shift_um": r_max * omega * lag * MM_TO_UM,
-                   "fts_stroke_um": float(np.ptp(z_fts) * MM_TO_UM) if z_fts.size else 0.0,
-                   "slow_stroke_um": float(np.ptp(z_slow) * MM_TO_UM) if z_slow.size else 0.0,
-                   "fts_following_error": _error_stats(fts_err),
-                   "slow_following_error": _error_stats(slow_err)}
+        t = turn(cfg, surface, plan.program, z_fts=plan.data["z_fts"])
+        servo_m, servo_meta = _servo_facts(cfg, plan, t["followed_path"])
         facts = {"servo": servo_m, **t["facts"]}
         meta = {"process": kind, "compensation": cfg.process.compensation,
                 "seed": cfg.simulation.seed, "machine": cfg.machine.preset,
-                "material": cfg.material.preset,
-                "servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
-                                                   "slow_bandwidth_hz", "slow_damping")}}
+                "material": cfg.material.preset, **servo_meta}
         return Cut(t["machined"], t["design"], facts, t["timing"], meta, followed=t["followed"],
                    plots=t["plots"])
+
+    def follow_program(self, cfg, plan: Plan):
+        return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
+
+    def envelope(self, cfg, surface, plan: Plan) -> Envelope:
+        cut_path, fp, facts = self.follow_program(cfg, plan)
+        servo_m, servo_meta = _servo_facts(cfg, plan, fp)
+        return self.envelope_of(cfg, cut_path, fp, {"servo": servo_m, **facts}, meta=servo_meta)
 
     def variants(self, cfg) -> VariantPair:
         """The servos as the machine has them (``[machine.z]``, ``[machine.fts]``: the lag

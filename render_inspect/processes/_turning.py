@@ -367,15 +367,18 @@ class TiledTurningProcess(TurningProcess):
         return follow(cfg, plan.program)
 
     def envelope(self, cfg, surface, plan: Plan) -> Envelope:
+        return self.envelope_of(cfg, *self.follow_program(cfg, plan))
+
+    def envelope_of(self, cfg, cut_path, fp, facts, *, plots=None, meta=None) -> Envelope:
+        """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
-        cut_path, fp, facts = self.follow_program(cfg, plan)
         resp = material_of(cfg.material)
-        return Envelope(cut_path, tool.nose_radius, tool.half_width, _meta(cfg), mechanics=resp,
-                        grooves=None if resp is None else grooves_of(cfg, resp), facts=facts,
-                        followed=None if fp.ideal else fp)
+        return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
+                        mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
+                        facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}))
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
-        facts, plots = dict(env.facts), {}
+        facts, plots = dict(env.facts), dict(env.plots)
         if env.mechanics is not None:
             info = mechanics_facts(env.mechanics, grooves_sumsq=cut["grooves_sumsq"],
                                    grooves_n=cut["grooves_n"], added_max=cut["added_max"],
@@ -383,8 +386,8 @@ class TiledTurningProcess(TurningProcess):
             facts["material"] = {**env.mechanics.to_dict(), **info}
         if env.followed is not None and "pass_theta" in cut:
             sim = cfg.simulation
-            plots = following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
-                                          sim.pixel * stride, name=cfg.name)
+            plots.update(following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
+                                               sim.pixel * stride, name=cfg.name))
         return facts, plots
 
     def tiled_memory(self, cfg, plan=None) -> tuple[int, int]:

@@ -21,8 +21,9 @@ __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count
 
 #: Bytes per tool-path point at the peak of planning (the path arrays, compensation and
 #: chordal-error temporaries, the kinematics), by compensation, measured with tracemalloc
-#: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py).
-PLAN_BYTES_PER_POINT = {"z": 144, "none": 144, "normal": 200}
+#: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py: 66-97
+#: with Z or no compensation, 170-193 with normal compensation).
+PLAN_BYTES_PER_POINT = {"z": 104, "none": 104, "normal": 200}
 #: Bytes planning holds whatever the path's length (curvature and accessibility grids).
 PLAN_FIXED_BYTES = 16 * MIB_TO_BYTES
 

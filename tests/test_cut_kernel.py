@@ -1,0 +1,253 @@
+"""The fast, tileable kernel of the cutting mechanics against the direct model, its tiles
+against the whole grid, its cosine, its row blocks; the planner's loops (z compensation,
+kinematics) against their array forms; which maps ``simulate`` tiles."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from render_inspect.design import make_surface
+from render_inspect.machining import (Grooves, cut_turning, cut_turning_mechanics, cutting_distance,
+                                      finish_surface, follow_turning, machined_edges, plan_tiles,
+                                      prepare_cut)
+from render_inspect.machining._cut_kernel import _cos
+from render_inspect.machining._material import MaterialResponse
+from render_inspect.machining import compute_tile
+from render_inspect.processes import machine_of, plan_spiral, process_of
+from render_inspect.scene import load_scene
+from render_inspect.toolpath import Tool, ToolPath
+from render_inspect.toolpath._compensation import _GOLD, contact_window, z_compensation
+from render_inspect.toolpath._kinematics import axis_derivatives
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+GRID = SCENES / "sts_sinusoidal_grid.toml"
+#: the equality the fast kernel keeps with the direct model, relative to the map's heights
+REL = 1e-9
+#: Al 6082 with a 50 nm edge (the shipped grid's material): h_min, kappa, grooves
+H_MIN, KAPPA, GROOVE_RMS = 1.2113e-05, 0.0404, 1e-06
+
+
+def _followed(region, pixel, overrides=(), machine=True):
+    """The shipped grid's program over ``region``, followed by the lathe (or not)."""
+    scene = load_scene(GRID, [f"simulation.region={list(region)}", f"simulation.pixel={pixel}", *overrides])
+    surface = make_surface(scene.design)
+    path = plan_spiral(scene, surface, region=region)
+    tool = Tool.from_config(scene.tool)
+    if not machine:
+        return path, tool
+    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine_of(scene.machine), seed=0)
+    return ToolPath(fp.theta, fp.rho, fp.z, fp.t), tool
+
+
+def _direct(path, tool, region, pixel, h_min, kappa, grooves_seed):
+    """The direct model: every pixel's passes in a per-pixel loop, then the grooves over the
+    whole map (what ``turn`` computed before the fast kernel)."""
+    c = cut_turning_mechanics(path, nose_radius=tool.nose_radius, half_width=tool.half_width, region=region,
+                              pixel=pixel, h_min=h_min, kappa=kappa)
+    th = np.asarray(path.theta)
+    along = np.interp(np.nan_to_num(c["pass_theta"], nan=th[0]), th, cutting_distance(th, path.rho))
+    resp = MaterialResponse(h_min, kappa, 5e-5, 1.0, GROOVE_RMS, True, (1 - kappa) * h_min, "test")
+    m, info = finish_surface(c, resp, along=along, seed=grooves_seed)
+    return c, m, info
+
+
+@pytest.mark.parametrize("region, pixel, overrides, machine", [
+    ((-0.05, -0.04, 0.06, 0.05), 0.001, (), True),                                  # across the axis
+    ((0.31, -0.2, 0.39, -0.14), 0.0005, (), True),                                  # off axis
+    ((0.2, 0.2, 0.28, 0.26), 0.001, ("process.compensation='none'",), True),
+    ((-0.03, -0.03, 0.04, 0.03), 0.001, ("process.sampling='constant_arc'",), False),  # not constant-angle
+])
+def test_fast_cut_equals_the_direct_model(region, pixel, overrides, machine):
+    path, tool = _followed(region, pixel, overrides, machine)
+    c, m, info = _direct(path, tool, region, pixel, H_MIN, KAPPA, 5)
+    cp = prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width, h_min=H_MIN, kappa=KAPPA)
+    fast = cut_turning(cp, Grooves.of(rms=GROOVE_RMS, seed=5), region=region, pixel=pixel, block_samples=2000)
+    assert np.array_equal(np.isnan(fast["machined"]), np.isnan(m)) and np.isfinite(m).all()
+    scale = np.nanmax(np.abs(m))
+    assert np.nanmax(np.abs(fast["machined"] - m)) <= REL * scale
+    assert_allclose(fast["pass_theta"], c["pass_theta"], rtol=1e-12)
+    assert_allclose(fast["added"], c["added"], rtol=0, atol=REL * scale)
+    assert c["added"].max() > 0.5 * (1 - KAPPA) * H_MIN            # side flow did happen
+    assert math.sqrt(fast["grooves_sumsq"] / fast["grooves_n"]) * 1e6 == \
+        pytest.approx(info["grooves_rms_nm"], rel=1e-9)
+    assert int(machined_edges(fast["pass_theta"], jump=math.pi).sum()) == info["edge_pixels"]
+
+
+def test_fast_cut_beyond_the_path_ends_visits_every_pass():
+    # a window wider than the path: pixels outside the outermost pass fall back to every
+    # pass that reaches, as in the direct kernel
+    region, pixel = (4.95, -0.05, 5.3, 0.05), 0.002
+    path, tool = _followed(region, pixel, machine=False)
+    c, m, _ = _direct(path, tool, region, pixel, H_MIN, KAPPA, 1)
+    cp = prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width, h_min=H_MIN, kappa=KAPPA)
+    fast = cut_turning(cp, Grooves.of(rms=GROOVE_RMS, seed=1), region=region, pixel=pixel)
+    assert np.isnan(m).any() and np.isfinite(m).any()
+    assert np.array_equal(np.isnan(fast["machined"]), np.isnan(m))
+    assert np.nanmax(np.abs(fast["machined"] - m)) <= REL * np.nanmax(np.abs(m))
+
+
+def test_without_minimum_chip_thickness_the_cut_is_the_geometric_envelope():
+    region, pixel = (0.1, 0.1, 0.15, 0.14), 0.0005
+    path, tool = _followed(region, pixel)
+    cp = prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+    fast = cut_turning(cp, Grooves.none(), region=region, pixel=pixel)
+    c = cut_turning_mechanics(path, nose_radius=tool.nose_radius, half_width=tool.half_width, region=region,
+                              pixel=pixel)
+    assert_allclose(fast["machined"], c["machined"], rtol=0, atol=1e-12)
+    assert np.all(fast["added"] == 0) and fast["grooves_n"] == 0
+
+
+@pytest.fixture(scope="module")
+def cut_case():
+    region, pixel = (-0.03, -0.025, 0.1, 0.07), 0.0005     # 191 x 261 pixels, across the axis
+    path, tool = _followed(region, pixel)
+    cp = prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width, h_min=H_MIN, kappa=KAPPA)
+    gr = Grooves.of(rms=GROOVE_RMS, seed=2)
+    whole = cut_turning(cp, gr, region=region, pixel=pixel)
+    return dict(region=region, pixel=pixel, cp=cp, grooves=gr, whole=whole)
+
+
+class _Flat:
+    def height(self, x, y):
+        return np.zeros(np.broadcast(x, y).shape)
+
+
+@pytest.mark.parametrize("tile", [64, 128])
+def test_cut_tiles_with_their_halo_equal_the_whole_grid(cut_case, tile):
+    c = cut_case
+    w = c["whole"]
+    shape = w["machined"].shape
+    sums = {"grooves_sumsq": 0.0, "grooves_n": 0, "edge_pixels": 0, "added_max": -math.inf}
+    stride = 7
+    coarse = np.full((-(-shape[0] // stride), -(-shape[1] // stride)), np.nan)
+    for t in plan_tiles(shape, tile):
+        _, m, part = compute_tile(c["cp"], _Flat(), c["region"][:2], c["pixel"], t, grooves=c["grooves"],
+                                  shape=shape, stride=stride)
+        # bit for bit: each pixel depends only on the path and its position
+        assert np.array_equal(m, w["machined"][t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t
+        for k in ("grooves_sumsq", "grooves_n", "edge_pixels"):
+            sums[k] += part[k]
+        sums["added_max"] = max(sums["added_max"], part["added_max"])
+        i0, j0, a = part["pass_theta"]
+        coarse[i0:i0 + a.shape[0], j0:j0 + a.shape[1]] = a
+    assert sums["grooves_n"] == w["grooves_n"]
+    assert sums["grooves_sumsq"] == pytest.approx(w["grooves_sumsq"], rel=1e-12)
+    assert sums["added_max"] == w["added_max"]
+    assert sums["edge_pixels"] == int(machined_edges(w["pass_theta"], jump=math.pi).sum())
+    assert np.array_equal(coarse, w["pass_theta"][::stride, ::stride], equal_nan=True)
+
+
+def test_row_blocks_report_progress_and_stop_when_asked(cut_case):
+    c = cut_case
+    seen = []
+    out = cut_turning(c["cp"], c["grooves"], region=c["region"], pixel=c["pixel"], block_samples=5000,
+                      progress=lambda done, total: seen.append((done, total)))
+    assert np.array_equal(out["machined"], c["whole"]["machined"], equal_nan=True)
+    rows = c["whole"]["machined"].shape[0]
+    assert len(seen) > 5 and seen[-1] == (rows, rows) and all(a[0] < b[0] for a, b in zip(seen, seen[1:]))
+
+    class Stop(Exception):
+        pass
+
+    def stop(done, total):
+        if done > total // 2:
+            raise Stop
+
+    with pytest.raises(Stop):
+        cut_turning(c["cp"], c["grooves"], region=c["region"], pixel=c["pixel"], block_samples=5000,
+                    progress=stop)
+
+
+def test_the_kernels_cosine_is_numpys_to_the_last_bits():
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.uniform(-1.4e6, 1.4e6, 200_000), rng.uniform(-10, 10, 200_000),
+                        np.arange(-40, 41) * (math.pi / 2)])
+    got = np.array([_cos(v) for v in x[::50]])
+    assert np.max(np.abs(got - np.cos(x[::50]))) < 4.5e-16
+
+
+def test_the_kernels_grooves_are_those_of_groove_texture():
+    from render_inspect.machining import groove_texture
+
+    rng = np.random.default_rng(3)
+    u, v = rng.uniform(-0.1, 0.1, 500), rng.uniform(0.0, 500.0, 500)
+    g = Grooves.of(rms=2e-6, seed=9, across_length=0.002, along_length=0.1)
+    ref = groove_texture(u, v, rms=2e-6, seed=9, across_length=0.002, along_length=0.1)
+    mine = np.array([sum(np.cos(g.ku * a + g.kv * b + g.ph)) for a, b in zip(u, v)]) * g.scale
+    assert_allclose(mine, ref, rtol=0, atol=1e-18)
+
+
+# ---- the planner's loops ----------------------------------------------------------------
+def _z_compensation_arrays(surface, theta, rho, Rc, *, max_slope, half_width, samples=9):
+    """z_compensation as it was written on arrays (the reference of the loops)."""
+    w = contact_window(Rc, max_slope, half_width)
+    offs = np.linspace(-w, w, samples)
+    step = offs[1] - offs[0]
+    iterations = max(4, int(math.ceil(math.log(math.sqrt(2e-10 * Rc) / (2 * step)) / math.log(_GOLD))))
+    cs, sn = np.cos(theta), np.sin(theta)
+
+    def gfun(d):
+        u = rho + d
+        return surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - d * d))
+
+    g = np.stack([gfun(o) for o in offs], axis=1)
+    k = np.argmax(g, axis=1)
+    best = g[np.arange(g.shape[0]), k]
+    lo, hi = np.maximum(offs[k] - step, -w), np.minimum(offs[k] + step, w)
+    c, d = hi - _GOLD * (hi - lo), lo + _GOLD * (hi - lo)
+    gc, gd = gfun(c), gfun(d)
+    for _ in range(iterations):
+        left = gc > gd
+        hi = np.where(left, d, hi)
+        lo = np.where(left, lo, c)
+        c_new = np.where(left, hi - _GOLD * (hi - lo), d)
+        d_new = np.where(left, c, lo + _GOLD * (hi - lo))
+        ge = gfun(np.where(left, c_new, d_new))
+        gc, gd = np.where(left, ge, gd), np.where(left, gc, ge)
+        c, d = c_new, d_new
+    return np.maximum(best, np.maximum(gc, gd))
+
+
+@pytest.mark.parametrize("scene", ["sts_sinusoidal_grid", "compound_sinusoid", "sts_mla_2x2"])
+def test_z_compensation_loops_equal_the_array_form(scene):
+    s = load_scene(SCENES / f"{scene}.toml")
+    surface = make_surface(s.design)
+    rng = np.random.default_rng(1)
+    theta = np.sort(rng.uniform(0, 3000, 70_000))          # two chunks, on two threads
+    rho = rng.uniform(0.0, 3.0, theta.size)
+    kw = dict(max_slope=surface.max_slope((-3.6, -3.6, 3.6, 3.6)), half_width=0.5 * s.tool.nose_radius)
+    got = z_compensation(surface, theta, rho, s.tool.nose_radius, **kw)
+    assert np.array_equal(got, _z_compensation_arrays(surface, theta, rho, s.tool.nose_radius, **kw))
+
+
+@pytest.mark.parametrize("t", [np.cumsum(np.random.default_rng(0).uniform(0.5, 1.5, 500)),
+                               np.arange(500) * 0.25])
+def test_kinematics_loops_equal_numpys_differences(t):
+    q = np.sin(t) + np.random.default_rng(1).normal(size=t.size)
+    v, a, j = axis_derivatives(t, q)
+    assert np.array_equal(v, np.gradient(q, t, edge_order=2))
+    h1, h2 = t[1:-1] - t[:-2], t[2:] - t[1:-1]
+    want = 2.0 * (h1 * q[2:] - (h1 + h2) * q[1:-1] + h2 * q[:-2]) / (h1 * h2 * (h1 + h2))
+    assert np.array_equal(a[1:-1], want) and a[0] == a[1] and a[-1] == a[-2]
+    assert np.array_equal(j, np.gradient(a, t, edge_order=1))
+
+
+# ---- which maps simulate tiles ------------------------------------------------------------
+@pytest.mark.parametrize("scene", ["sts_sinusoidal_grid", "hts_toric_msa", "rcse_circular_array",
+                                   "compound_sinusoid", "sts_mla_2x2", "sts_fig16_overcut"])
+def test_every_shipped_turning_scene_is_tiled_at_whole_part_size(scene):
+    from render_inspect.pipeline import TILED_SAMPLES, wants_tiles
+
+    s = load_scene(SCENES / f"{scene}.toml")
+    r = s.process.workpiece_radius
+    assert process_of(s).tile_refusal(process_of(s).inputs_of(s)) is None
+    whole = s.with_overrides([f"simulation.region={[-r, -r, r, r]}", "simulation.max_memory_gb=1000"])
+    ny, nx = whole.simulation.shape
+    assert wants_tiles(whole) == (ny * nx > TILED_SAMPLES)
+    assert not wants_tiles(s)                     # the shipped window runs in memory
+    assert wants_tiles(whole.with_overrides(["simulation.max_memory_gb=0.01"]))
