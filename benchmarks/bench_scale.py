@@ -1,16 +1,20 @@
-"""Benchmark: the whole ``simulate`` command against its kernel as maps grow, a whole part
-through the tiled path, and Dask workers.
+"""Benchmark: the whole ``simulate`` command against its kernel as maps grow, whole parts
+through the tiled path, and Dask workers; the shipped scenes as they are (the lathe's
+servo model and the material's cutting mechanics) and the ideal ones.
 
-1. ``render-inspect simulate`` of the seed-000 grid (Z compensation) at 1, 16 and 64 M
-   samples (1 x 1 mm at 1 um, 2 x 2 mm at 0.5 um, 2 x 2 mm at 0.25 um), in memory, each in
-   a fresh process: wall time of the command (imports included), the envelope kernel, the
-   other simulation steps, the writing of each output file (and its share of the wall
-   time), and the process's peak resident memory against the estimate.
-2. A whole 10 mm part at 0.5 um (20001 x 20001 = 400 M samples) through the tiled path
-   (threads): wall time, tiles, peak resident memory, the store's size on disk.
-   It writes about 3 GB into a temporary folder and takes minutes: ``BENCH_WHOLE_PART=0``
-   skips it.
-3. The tiled path on a 64 M-sample map on a LocalCluster of 1 and of 2 Dask workers.
+1. ``render-inspect simulate`` of the Li et al. (2018) grid (Z compensation) at 1 and
+   16 M samples (1 x 1 mm at 1 um, 2 x 2 mm at 0.5 um), in memory, each in a fresh
+   process, as shipped and on the ideal machine and material: wall time of the command
+   (imports included), the cut, the other simulation steps, the writing of each output
+   file (and its share of the wall time), and the process's peak resident memory against
+   the estimate.
+2. The tiled path on a 64 M-sample map (2 x 2 mm at 0.25 um) as shipped: on the threads of
+   the process, and on a LocalCluster of 1 and of 2 Dask workers.
+3. Whole parts, as ``simulate`` runs them on the defaults (the tiled path, chosen by the
+   map's size): the grid's 10 mm part at 0.5 um (20001 x 20001 = 400 M samples) as shipped
+   and ideal, and every other shipped turning scene over its whole part at its own pixel.
+   They write several GB into a temporary folder and take minutes: ``BENCH_WHOLE_PART=0``
+   skips them.
 
 Every command runs in a child process whose peak resident set (``ru_maxrss``) is
 reported.  Outputs go to a temporary folder that is removed afterwards.
@@ -29,6 +33,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = "sts_sinusoidal_grid"
+#: the ideal machine and material (the geometric envelope)
+IDEAL = ("--set", "machine.preset='ideal'", "--set", "material.preset='ideal'")
+#: the other shipped turning scenes, simulated over their whole part at their own pixel
+WHOLE_PART_SCENES = ("sts_fig16_overcut", "sts_mla_2x2", "compound_sinusoid", "hts_toric_msa",
+                     "rcse_circular_array")
 
 _CHILD = """
 import json, resource, sys, time
@@ -56,9 +65,10 @@ def run_cli(args: list[str]) -> dict:
     return r
 
 
-def simulate(out: Path, region, pixel, *extra) -> dict:
-    args = ["simulate", SCENE, "--out", str(out), "--set", f"simulation.region={list(region)}",
-            "--set", f"simulation.pixel={pixel}", "--set", "simulation.max_memory_gb=20", *extra]
+def simulate(out: Path, region, pixel, *extra, scene: str = SCENE, budget: bool = True) -> dict:
+    args = ["simulate", scene, "--out", str(out), "--set", f"simulation.region={list(region)}",
+            *(("--set", f"simulation.pixel={pixel}") if pixel else ()),
+            *(("--set", "simulation.max_memory_gb=20") if budget else ()), *extra]
     r = run_cli(args)
     m = json.loads((out / "metrics.json").read_text())
     ts = m["timing_s"]
@@ -67,19 +77,24 @@ def simulate(out: Path, region, pixel, *extra) -> dict:
     fig = {"samples": m["samples"], "shape": m["grid"]["shape"], "path_points": m["toolpath"]["points"],
            "command_wall_s": round(r["process_wall_s"], 2),
            "kernel_s": round(ts.get("envelope", ts.get("tiles_tiles", 0.0)), 3),
+           "machine_s": round(ts.get("machine", 0.0), 3),
            "toolpath_s": round(ts["toolpath"], 3), "simulate_s": round(ts["simulate"], 3),
            "write_s": {k: round(v, 3) for k, v in write.items()}, "write_total_s": round(wsum, 3),
            "write_share_of_wall": round(wsum / r["process_wall_s"], 3),
            "max_rss_MiB": round(r["max_rss_MiB"], 1), "Sq_nm": round(m["residual"]["Sq_nm"], 4),
-           "Msamples_per_s_command": round(m["samples"] / r["process_wall_s"] / 1e6, 2)}
+           "Msamples_per_s_command": round(m["samples"] / r["process_wall_s"] / 1e6, 2),
+           "load_average": os.getloadavg()}
     if "tiles" in m:
         fig["tiles"] = m["tiles"]
         fig["store_MB"] = round(_du(out / "heightmap.zarr") / 1e6, 1)
         fig["timing_s"] = {k: v for k, v in ts.items() if k != "write"}
     else:
-        from render_inspect.machining import in_memory_bytes
+        from render_inspect.processes import process_of
+        from render_inspect.scene import load_scene
 
-        fig["estimate_MiB"] = round(in_memory_bytes(m["grid"]["shape"], m["toolpath"]["points"]) / 2**20, 1)
+        sc = load_scene(scene, [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--set"])
+        process = process_of(sc)
+        fig["estimate_MiB"] = round(process.estimate_memory(process.inputs_of(sc)) / 2**20, 1)
         fig["exr_MB"] = round((out / "heightmap.exr").stat().st_size / 1e6, 1)
     return fig
 
@@ -87,23 +102,29 @@ def simulate(out: Path, region, pixel, *extra) -> dict:
 def main() -> dict:
     res = {"load_average_at_start": os.getloadavg()}
     tmp = Path(tempfile.mkdtemp(prefix="bench_scale_"))
+
+    def run(key, name, *a, **kw):
+        res.setdefault(key, {})[name] = simulate(tmp / "o", *a, **kw)
+        shutil.rmtree(tmp / "o", ignore_errors=True)
+        print(key, name, json.dumps(res[key][name]), flush=True)
+
     try:
-        sizes = {"1M": ((-0.5, -0.5, 0.5, 0.5), 0.001), "16M": ((-1, -1, 1, 1), 0.0005),
-                 "64M": ((-1, -1, 1, 1), 0.00025)}
-        res["in_memory"] = {}
+        sizes = {"1M": ((-0.5, -0.5, 0.5, 0.5), 0.001), "16M": ((-1, -1, 1, 1), 0.0005)}
         for name, (region, pixel) in sizes.items():
-            res["in_memory"][name] = simulate(tmp / f"mem_{name}", region, pixel)
-            shutil.rmtree(tmp / f"mem_{name}", ignore_errors=True)
-            print(name, json.dumps(res["in_memory"][name]), flush=True)
-        res["tiled_64M"] = {}
+            run("in_memory", name, region, pixel)
+            run("in_memory_ideal", name, region, pixel, *IDEAL)
         for label, extra in (("threads", ["--tiled"]), ("workers_1", ["--workers", "1"]),
                              ("workers_2", ["--workers", "2"])):
-            res["tiled_64M"][label] = simulate(tmp / f"t_{label}", (-1, -1, 1, 1), 0.00025, *extra)
-            shutil.rmtree(tmp / f"t_{label}", ignore_errors=True)
-            print("tiled 64M", label, json.dumps(res["tiled_64M"][label]), flush=True)
+            run("tiled_64M", label, (-1, -1, 1, 1), 0.00025, *extra)
         if os.environ.get("BENCH_WHOLE_PART", "1") != "0":
-            res["whole_part_10mm_0.5um"] = simulate(tmp / "part", (-5, -5, 5, 5), 0.0005, "--tiled")
-            print("whole part", json.dumps(res["whole_part_10mm_0.5um"]), flush=True)
+            # as simulate runs them on the defaults: the automatic memory budget
+            run("whole_part", "grid_10mm_0.5um", (-5, -5, 5, 5), 0.0005, budget=False)
+            run("whole_part", "grid_10mm_0.5um_ideal", (-5, -5, 5, 5), 0.0005, *IDEAL, budget=False)
+            from render_inspect.scene import load_scene
+
+            for name in WHOLE_PART_SCENES:
+                r = load_scene(REPO / "scenes" / f"{name}.toml").process.workpiece_radius
+                run("whole_part", name, (-r, -r, r, r), None, scene=name, budget=False)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     res["load_average_at_end"] = os.getloadavg()

@@ -27,8 +27,8 @@ from ..batch import run_tiles
 from ..core.toolpath import ToolPath
 from ..io import (block_sums, create_heightmap_zarr, grid_attrs, heightmap_channels,
                   heightmap_overview, preview)
-from ..machining import (prepare_envelope, residual_metrics, simulate_turning, tile_abs_dev,
-                         tile_moments)
+from ..machining import (load_cut_kernels, prepare_envelope, residual_metrics, simulate_turning,
+                         tile_abs_dev, tile_moments)
 
 
 class _Flat:
@@ -52,6 +52,7 @@ def warm_up() -> float:
         path = _spiral(uniform)
         m = simulate_turning(path, nose_radius=0.1, half_width=0.05, region=region, pixel=0.002)
         simulate_turning(path, nose_radius=0.1, half_width=0.05, region=region, pixel=0.002, reference=True)
+    load_cut_kernels()
     d = np.zeros_like(m)
     residual_metrics(m, d)
     tile_moments(m, d)

@@ -147,7 +147,7 @@ def following_error_plots(fp, pass_theta, region, pixel, *, name: str) -> dict:
 
 
 def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, region=None,
-         plots: bool = True, design=None) -> Turned:
+         plots: bool = True, design=None, progress=None) -> Turned:
     """Cut a turning program through the machine and material of ``cfg``.
 
     Parameters
@@ -166,6 +166,9 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         Add the following-error figures to the facts' plots.
     design : (ny, nx) array, optional
         The design on the grid (computed if None).
+    progress : callable(done, total), optional
+        Called between the row blocks of the material's cut (rows done, rows in all); it
+        may raise to stop the cut.
 
     Returns
     -------
@@ -188,7 +191,7 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         # the fast kernel of the direct model (machining.cut_turning_mechanics +
         # finish_surface), in row blocks
         c = cut_turning(material_cut_path(cut_path, tool, resp), grooves_of(cfg, resp),
-                        region=region, pixel=sim.pixel)
+                        region=region, pixel=sim.pixel, progress=progress)
         pass_theta, machined = c["pass_theta"], c["machined"]
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
                                added_max=c["added_max"],
