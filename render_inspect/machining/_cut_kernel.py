@@ -17,10 +17,11 @@ makes it fast:
   tile or a row block gets the very angles of a whole-grid run;
 - the grooves (:func:`~render_inspect.machining.groove_texture`: 128 random Fourier modes)
   are summed in the kernel, at the pixel's edge position and cutting distance, with a cosine
-  written for the SIMD units (Cody-Waite reduction by pi / 2, the fdlibm kernels; |error| <
-  1 ulp after the reduction, tested against numpy's cosine), instead of 128 passes over
-  whole-map arrays;
-- the cutting distance of the cutting pass comes from the pass's own segment and fraction.
+  written for the SIMD units (x = k pi + r with pi in two parts, then the Taylor polynomial
+  of cos r to r^22; |error| < 4.5e-16, tested against numpy's cosine), instead of 128
+  passes over whole-map arrays;
+- the cutting distance of the cutting pass comes from the pass's own segment and fraction;
+  a pass whose arc provably stays h_min above the surface so far skips its square root.
 
 The kernel runs on rows ``row0 .. row1`` and columns ``col0 .. col1`` of the whole grid, so
 :func:`cut_fill` can be called block after block (progress, interruption) or on one tile
@@ -189,12 +190,20 @@ def _cos(x):
     return (1.0 - 2.0 * (k - 2.0 * math.floor(k * 0.5))) * c
 
 
-@njit(cache=True, fastmath={"reassoc", "contract", "nsz"})
-def _groove_sum(ku, kv, ph, u, v):
-    """sum_i cos(ku_i u + kv_i v + ph_i) (SIMD: the modes summed in any order)."""
-    g = 0.0
+@njit(cache=True, nogil=True)
+def _groove_args(ku, kv, ph, u, v, x):
+    """The modes' arguments ku_i u + kv_i v + ph_i, rounded as numpy rounds them."""
     for i in range(ku.size):
-        g += _cos(ku[i] * u + kv[i] * v + ph[i])
+        x[i] = ku[i] * u + kv[i] * v + ph[i]
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _cos_sum(x):
+    """sum_i cos(x_i) (SIMD: the terms summed in any order; the reduction's fused
+    multiply-adds only make each cosine more exact)."""
+    g = 0.0
+    for i in range(x.size):
+        g += _cos(x[i])
     return g
 
 
@@ -349,6 +358,7 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
     b1s, b1z, b1f, b1d = bufs[0], bufs[1], bufs[2], bufs[3]
     b2s, b2z, b2f, b2d = bufs[4], bufs[5], bufs[6], bufs[7]
     b1i, b2i = ibufs[0], ibufs[1]
+    gx = np.empty(ku.size)
     c_first = (col0 // BLOCK) * BLOCK
     g2 = 0.0
     ng = 0.0
@@ -408,7 +418,8 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
             if grooves:
                 v = dist[iw] + fw * (dist[iw + 1] - dist[iw])
                 if fast_cos:
-                    gs = _groove_sum(ku, kv, ph, dw, v) * gscale
+                    _groove_args(ku, kv, ph, dw, v, gx)
+                    gs = _cos_sum(gx) * gscale
                 else:
                     gs = _groove_sum_libm(ku, kv, ph, dw, v) * gscale
                 if counted:
