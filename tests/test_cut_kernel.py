@@ -251,3 +251,34 @@ def test_every_shipped_turning_scene_is_tiled_at_whole_part_size(scene):
     assert wants_tiles(whole) == (ny * nx > TILED_SAMPLES)
     assert not wants_tiles(s)                     # the shipped window runs in memory
     assert wants_tiles(whole.with_overrides(["simulation.max_memory_gb=0.01"]))
+
+
+def test_simulate_tiles_the_shipped_scene_as_it_runs_in_memory(tmp_path):
+    """The shipped grid (lathe, Al 6082) cut tile by tile: the same heights and the same
+    facts of the machine and the material as in memory, and the following-error figures."""
+    import json
+    import subprocess
+    import sys
+
+    from render_inspect.io import ZarrHeightMap, read_exr
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "render_inspect.cli", "simulate", str(GRID), *args,
+                               "--set", "simulation.region=[-0.2,-0.15,0.22,0.2]", "-q"],
+                              capture_output=True, text=True, check=True)
+
+    cli("--out", str(tmp_path / "mem"))
+    cli("--out", str(tmp_path / "tiled"), "--tiled", "--tile", "128")
+    a, b = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in ("mem", "tiled"))
+    assert b["machine"] == a["machine"] and b["following_error"] == a["following_error"]
+    assert b["material"].keys() == a["material"].keys()
+    for k, v in a["material"].items():
+        assert b["material"][k] == (pytest.approx(v, rel=1e-12) if isinstance(v, float) else v), k
+    for k in ("Sq_nm", "Sz_nm", "min_nm", "mean_nm"):
+        assert b["residual"][k] == pytest.approx(a["residual"][k], rel=1e-12), k
+    assert b["tiles"]["count"] == 12
+    ch, _ = read_exr(tmp_path / "mem" / "heightmap.exr")
+    assert np.array_equal(ZarrHeightMap(tmp_path / "tiled" / "heightmap.zarr").read("machined"), ch["machined"],
+                          equal_nan=True)
+    names = {f.name for f in (tmp_path / "tiled").iterdir()}
+    assert {"following_error.png", "following_error_map.png", "kinematics.png"} <= names

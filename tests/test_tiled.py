@@ -255,8 +255,8 @@ def _cli(*args, check=True):
                           text=True, check=check)
 
 
-#: the shipped scene's lathe with an ideal material: material models act on the whole map,
-#: so only an ideal material can be cut tile by tile
+#: the shipped scene's lathe with an ideal material (tests/test_cut_kernel.py tiles the
+#: shipped material)
 WINDOW = ["--set", "simulation.region=[-0.2,-0.15,0.22,0.2]", "--set", "material.preset='ideal'",
           "--set", "simulation.pixel=0.001"]
 
