@@ -48,6 +48,7 @@ __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutt
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
 
 TWO_PI = 2 * math.pi
+INV_2PI = 1.0 / TWO_PI
 #: the maps :func:`cut_fill` writes (each (rows, cols) float64)
 OUT_CHANNELS = ("machined", "pass_theta", "added")
 #: passes a pixel may gather on one side of the axis (the direct kernel's cap)
@@ -307,7 +308,7 @@ def _window(t_first, t_last, a, cc, phi, r, sgn, W):
         s_lo = t_first
     if s_hi > t_last:
         s_hi = t_last
-    return math.ceil((s_lo - phi) / TWO_PI), math.floor((s_hi - phi) / TWO_PI)
+    return math.ceil((s_lo - phi) * INV_2PI), math.floor((s_hi - phi) * INV_2PI)
 
 
 @njit(cache=True, inline="always")
