@@ -235,6 +235,12 @@ def test_kinematics_loops_equal_numpys_differences(t):
     want = 2.0 * (h1 * q[2:] - (h1 + h2) * q[1:-1] + h2 * q[:-2]) / (h1 * h2 * (h1 + h2))
     assert np.array_equal(a[1:-1], want) and a[0] == a[1] and a[-1] == a[-2]
     assert np.array_equal(j, np.gradient(a, t, edge_order=1))
+    from render_inspect.toolpath import kinematics
+
+    k = kinematics(ToolPath(np.cumsum(np.full(t.size, 0.01)), q, np.cos(t), t))
+    s = np.sign(v[np.abs(v) > 1e-12])
+    assert k["x_reversals"] == np.count_nonzero(s[1:] != s[:-1]) > 10
+    assert k["x_velocity_max_mm_s"] == np.max(np.abs(v)) and k["x_jerk_max_mm_s3"] == np.max(np.abs(j))
 
 
 # ---- which maps simulate tiles ------------------------------------------------------------

@@ -103,6 +103,33 @@ def _second(t, q, a):
     a[n - 1] = a[n - 2]
 
 
+@njit(cache=True, nogil=True)
+def _abs_max(a):
+    """max |a_i| (NaN if any is NaN, as numpy's)."""
+    m = 0.0
+    for i in range(a.size):
+        v = abs(a[i])
+        if not v <= m:
+            m = v
+            if v != v:
+                return v
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _reversals(v, eps):
+    """Sign changes of v among its values with |v| > eps."""
+    n = 0
+    last = 0.0
+    for i in range(v.size):
+        if abs(v[i]) > eps:
+            sg = 1.0 if v[i] > 0 else -1.0
+            if last != 0.0 and sg != last:
+                n += 1
+            last = sg
+    return n
+
+
 def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity, acceleration and jerk of the samples ``q(t)`` on a non-uniform time axis.
 
@@ -184,18 +211,17 @@ def kinematics(path, *, limits=None) -> dict:
     vz, az, jz = axis_derivatives(t, path.z)
     vc = np.empty_like(t)
     _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
-    s = np.sign(vx[np.abs(vx) > 1e-12])
     series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
     out = {
-        "x_velocity_max_mm_s": float(np.max(np.abs(vx))),
-        "x_acceleration_max_mm_s2": float(np.max(np.abs(ax))),
-        "x_jerk_max_mm_s3": float(np.max(np.abs(jx))),
-        "z_velocity_max_mm_s": float(np.max(np.abs(vz))),
-        "z_acceleration_max_mm_s2": float(np.max(np.abs(az))),
-        "z_jerk_max_mm_s3": float(np.max(np.abs(jz))),
-        "c_velocity_max_rad_s": float(np.max(np.abs(vc))),
+        "x_velocity_max_mm_s": float(_abs_max(vx)),
+        "x_acceleration_max_mm_s2": float(_abs_max(ax)),
+        "x_jerk_max_mm_s3": float(_abs_max(jx)),
+        "z_velocity_max_mm_s": float(_abs_max(vz)),
+        "z_acceleration_max_mm_s2": float(_abs_max(az)),
+        "z_jerk_max_mm_s3": float(_abs_max(jz)),
+        "c_velocity_max_rad_s": float(_abs_max(vc)),
         "x_velocity_mean_mm_s": float(np.mean(np.abs(vx))),
-        "x_reversals": int(np.count_nonzero(s[1:] != s[:-1])),
+        "x_reversals": int(_reversals(vx, 1e-12)),
         "duration_s": float(t[-1] - t[0]),
         "limits": dict(lim),
         "limits_exceeded": {},
