@@ -138,7 +138,7 @@ def _stroke_frequency(z_fts, t) -> float | None:
     t = np.asarray(t, dtype=np.float64)
     if z.size < 16 or np.ptp(z) == 0 or t[-1] <= t[0]:
         return None
-    n = min(z.size, 1 << 20)
+    n = min(z.size, 1_000_000)
     tu = np.linspace(t[0], t[-1], n)
     zu = np.interp(tu, t, z)
     spec = np.abs(np.fft.rfft((zu - zu.mean()) * np.hanning(n)))
