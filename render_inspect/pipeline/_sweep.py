@@ -297,7 +297,7 @@ def morris_table(morris: dict) -> list[str]:
     for name, ind in morris["indices"].items():
         lines += [f"### {name}", "", "| factor | mu* | mu | sigma |", "|---|---|---|---|"]
         fmt = (lambda v: "-" if v is None else f"{v:.4g}")
-        for key, v in ind.items():
+        for key, v in sorted(ind.items(), key=lambda kv: -(kv[1]["mu_star"] or 0.0)):
             lines.append(f"| {key} | {fmt(v['mu_star'])} | {fmt(v['mu'])} | {fmt(v['sigma'])} |")
         lines.append("")
     return lines

@@ -19,26 +19,35 @@ def _short(key: str) -> str:
 def morris_png(morris: dict, output: str, *, title: str = "") -> bytes:
     """PNG bytes of the indices of ``output`` in ``morris`` (what
     :func:`render_inspect.batch.morris_indices` returns): left mu* against sigma, one labelled
-    point per factor (the line sigma = mu* parts effects that depend on the other factors
-    from nearly linear ones), right mu* as bars with +-sigma, largest first."""
+    point per factor on logarithmic axes (the line sigma = mu* parts effects that depend on
+    the other factors from nearly linear ones; values below 1e-4 of the largest sit on
+    the axes), right mu* as bars with +-sigma, largest first."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     ind = morris.get("indices", {}).get(output, {})
-    rows = [(k, v["mu_star"], v["sigma"] or 0.0) for k, v in ind.items() if v["mu_star"] is not None]
+    rows = sorted(((k, v["mu_star"], v["sigma"] or 0.0) for k, v in ind.items()
+                   if v["mu_star"] is not None), key=lambda r: -r[1])
     fig = Figure(figsize=(11.0, 4.6), dpi=100)
     FigureCanvasAgg(fig)
     ax, bx = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     if rows:
         mu = np.array([r[1] for r in rows])
         sd = np.array([r[2] for r in rows])
-        ax.scatter(mu, sd, s=22, color="C0", zorder=3)
+        top0 = max(float(mu.max()), float(sd.max()), 1e-12) * 1.5 * 1e-4
+        ax.scatter(np.maximum(mu, top0), np.maximum(sd, top0), s=22, color="C0", zorder=3)
         for (k, m, s) in rows:
-            ax.annotate(_short(k), (m, s), fontsize=7, xytext=(3, 2), textcoords="offset points")
-        top = max(float(mu.max()), float(sd.max()), 1e-12) * 1.1
-        ax.plot([0, top], [0, top], ":", color="0.5", lw=1, label="sigma = mu*")
-        ax.set_xlim(0, top)
-        ax.set_ylim(0, top)
+            ax.annotate(_short(k), (max(m, top0), max(s, top0)), fontsize=7, xytext=(3, 2),
+                        textcoords="offset points")
+        top = max(float(mu.max()), float(sd.max()), 1e-12) * 1.5
+        # the factors span decades: logarithmic axes, the smallest kept a decade below
+        floor = top * 1e-4
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.scatter(np.maximum(mu, floor), np.maximum(sd, floor), s=0)  # the autoscale
+        ax.plot([floor, top], [floor, top], ":", color="0.5", lw=1, label="sigma = mu*")
+        ax.set_xlim(floor, top)
+        ax.set_ylim(floor, top)
         ax.legend(fontsize=8, loc="upper left")
         y = np.arange(len(rows))[::-1]
         bx.barh(y, mu, xerr=sd, color="C0", alpha=0.8, error_kw={"lw": 0.8, "capsize": 2})
