@@ -34,7 +34,7 @@ def test_min_chip_thickness_of_son_et_al():
 def test_presets_are_physical():
     for name, m in MATERIAL_PRESETS.items():
         k = elastic_recovery(m)
-        assert 0.0 < k < 0.3, name
+        assert 0.0 < k < 1.0, name
         assert m.sources
     # the reduced modulus is below both moduli
     steel = material_preset("die_steel")
@@ -57,18 +57,18 @@ def test_contact_ratio_of_one_dimensional_vibration_cutting():
     assert 0.02 < eta < 0.05
 
 
-def test_vibration_lowers_grooves_edge_radius_and_burrs_on_steel_only():
+def test_the_contact_ratio_scales_nothing_and_continuous_steel_is_outside_the_model():
+    """No source relates the contact ratio to the surface left: it is reported, nothing
+    scales with it; continuous cutting of a diamond-reactive material is flagged."""
     eta = contact_ratio(100 / 60, 0.75e-3, 104e3)
     for name in ("die_steel", "al6061"):
         cs = material_response(material_preset(name), edge_radius=50e-6)
         uv = material_response(material_preset(name), edge_radius=50e-6, contact_ratio=eta)
-        if name == "die_steel":
-            assert uv.groove_rms < 0.1 * cs.groove_rms
-            assert uv.burr_height < 0.2 * cs.burr_height
-            assert uv.h_min < cs.h_min
-        else:  # no adhesion: the vibration changes nothing in the model
-            assert_allclose(uv.burr_height, cs.burr_height)
-            assert_allclose(uv.groove_rms, cs.groove_rms)
+        for k in ("h_min", "kappa", "groove_rms", "burr_height", "texture_rms", "burr_coefficient"):
+            assert getattr(uv, k) == getattr(cs, k), (name, k)
+        assert uv.validity is None
+        assert (cs.validity is not None) == (name == "die_steel")
+    assert "outside the model" in material_response(material_preset("die_steel")).validity
 
 
 # ---- the envelope with the cutting mechanics ---------------------------------------------
@@ -143,50 +143,3 @@ def test_grooves_are_seeded_positional_and_sized():
     along = np.corrcoef(g[:-1].ravel(), g[1:].ravel())[0, 1]
     across = np.corrcoef(g[:, :-12].ravel(), g[:, 12:].ravel())[0, 1]  # 3 um apart
     assert along > 0.9 and across < 0.5
-
-
-def test_seed003_vibration_lowers_lenslet_roughness_and_burrs_on_steel():
-    """Seed 003's case on a strip of the quadrilateral array (steel preset): the
-    intermittent cut (contact ratio ~ 0.03) lowers the grooves' Sa and the side-flow burr
-    on the machined edges; the conventional cut's Sa is the preset's (calibrated to seed
-    003's 37 nm)."""
-    from render_inspect.design import make_surface
-    from render_inspect.machining import sculpt_line_profile, target_line
-    from render_inspect.metrology._filters import remove_form
-    from render_inspect.metrology._params import areal_parameters
-    from render_inspect.processes import lattice_lines
-    from render_inspect.scene import load_scene
-
-    sc = load_scene("sculpt_quad_mla")
-    surf = make_surface(sc.design)
-    xl, ye = lattice_lines(surf, pitch_y=sc.design.pitch_y)
-    p = 0.19975
-    px = p / 40
-    xg = -1.5 * p + px * np.arange(121)
-    yg = -0.5 * p + px * np.arange(41)
-    R, hw, vc = 1.0, 0.5, 100 / 60
-    used = [k for k, x in enumerate(xl) if abs(x) < 2 * p]
-    design = surf.height(xg[None, :], yg[:, None])
-    out = {}
-    for vib in (False, True):
-        a, f = (0.75e-3, 104e3) if vib else (0.0, 0.0)
-        resp = material_response(material_preset("die_steel"), edge_radius=50e-6,
-                                 contact_ratio=contact_ratio(vc, a, f))
-        profs = []
-        for k in used:
-            ys, zs = target_line(surf, xl[k], ye, step=0.0025)
-            profs.append(sculpt_line_profile(ys, zs, yg, cutting_speed=vc, amplitude=a,
-                                             frequency_hz=f, t_start=(ys[0] - ye[0]) / vc))
-        cut = cut_lines_mechanics(np.array(profs), xl[used], xg, tool_radius=R, half_width=hw,
-                        h_min=resp.h_min, kappa=resp.kappa)
-        along = np.broadcast_to(yg[:, None] + 10.0 * np.nan_to_num(cut["pass_line"]),
-                                design.shape)
-        m, info = finish_surface(cut, resp, along=along, seed=3)
-        cell = (m - design)[1:40, 41:80]          # the middle lenslet
-        r, _ = remove_form(cell, pixel=px, method="polynomial", degree=4)
-        out[vib] = (areal_parameters(r, pixel=px)["Sa"] * 1e6, info["burr_height_nm"],
-                    info["side_flow_max_nm"])
-    (sa_cs, burr_cs, sf_cs), (sa_uv, burr_uv, sf_uv) = out[False], out[True]
-    assert 20.0 < sa_cs < 50.0            # seed 003: 37 nm
-    assert sa_uv < 0.25 * sa_cs           # seed 003: 4 nm
-    assert burr_uv < 0.2 * burr_cs and sf_uv < sf_cs

@@ -24,6 +24,8 @@ from ._imagetest import (
                      pass_statistics,
                      sidak_threshold,
 )
+from ._morris import (MORRIS_STUDY, MorrisConfig, MorrisFactor, elementary_effects,
+                      morris_design, morris_indices, morris_unit_design, point_key)
 from ._plots import default_plots, plot_rows
 from ._progress import Progress
 from ._results import (
@@ -59,4 +61,5 @@ __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_
            "flip_mean", "RegressCase", "Tolerance", "read_case", "list_cases", "case_hash",
            "read_reference", "write_reference", "IMAGE_NAMES",
            "write_summary_html", "RegressionFailed", "replaced_dir", "run_tiles", "tile_client",
-           "TiledStats"]
+           "TiledStats", "MorrisConfig", "MorrisFactor", "morris_design", "morris_unit_design",
+           "morris_indices", "elementary_effects", "point_key", "MORRIS_STUDY"]

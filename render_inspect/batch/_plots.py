@@ -4,6 +4,7 @@ points (:func:`plot_rows`), and the plots a sweep file without ``[[plot]]`` gets
 
 from __future__ import annotations
 
+from ._morris import MORRIS_STUDY
 from ._results import flatten
 from ._sweepfile import PlotConfig
 
@@ -38,9 +39,11 @@ def plot_rows(records, plot: PlotConfig) -> list[tuple]:
 def default_plots(spec) -> list[PlotConfig]:
     """Plots for a sweep file without ``[[plot]]``: per study, ``residual.Sq_nm`` against
     each varied key (a curve per value of the next key) and a heat map for every pair of
-    varied keys."""
+    varied keys (a ``[morris]`` design gets its indices' plots instead)."""
     out = []
     for st in spec.studies():
+        if st.name == MORRIS_STUDY and spec.morris is not None:
+            continue  # drawn as the Morris indices (report.morris_png)
         keys = [*st.grid, *st.zip]
         keys += [k for p in st.points for k in p if k not in keys]
         study = st.name if len(spec.studies()) > 1 else None

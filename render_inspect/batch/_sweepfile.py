@@ -23,6 +23,13 @@ A sweep file is TOML::
     set = { "tool.nose_radius" = 0.5 }
     grid = { "process.spindle_rpm" = [50, 100, 150] }
 
+    [morris]                              # a Morris screening design (batch._morris)
+    trajectories = 10
+    [[morris.factor]]
+    key = "material.edge_radius_nm"
+    low = 10.0
+    high = 100.0
+
     [run]                                 # what each point runs
     render = "none"                       # "none" | "interferometer" | "diffuse" | "all"
     measure = false                       # measure the interferogram frames (needs the interferometer)
@@ -54,6 +61,7 @@ from pydantic import Field, ValidationError, ValidationInfo, model_validator
 
 from ..core.errors import InputError
 from ..core.section import Section
+from ._morris import MORRIS_STUDY, MorrisConfig
 
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
            "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get"]
@@ -163,13 +171,17 @@ class SweepFile(Section):
     zip: dict[str, list[Any]] = Field(default_factory=dict)
     points: list[dict[str, Any]] = Field(default_factory=list)
     study: list[Study] = Field(default_factory=list)
+    morris: MorrisConfig | None = Field(None, description="a Morris elementary-effects design, "
+                                                          "run as the study 'morris'")
     run: RunConfig = Field(default_factory=RunConfig)
     plot: list[PlotConfig] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _top(self, info: ValidationInfo):
         _check_study(self.set, self.grid, self.zip, self.points, _sections(info))
-        names = [s.name for s in self.study]
+        if self.morris is not None:
+            _check_keys([f.key for f in self.morris.factor], "morris.factor", _sections(info))
+        names = [s.name for s in self.study] + ([MORRIS_STUDY] if self.morris else [])
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"study names must be unique, received {dup} more than once")
@@ -177,11 +189,15 @@ class SweepFile(Section):
 
     def studies(self) -> list[Study]:
         """The top-level grid/zip/points as a study named "" (when given) plus the
-        ``[[study]]`` tables; a single point when nothing varies."""
+        ``[[study]]`` tables and the ``[morris]`` design (the study ``morris``); a single
+        point when nothing varies."""
         out = []
-        if self.grid or self.zip or self.points or not self.study:
+        if self.grid or self.zip or self.points or not (self.study or self.morris):
             out.append(Study(name="", grid=self.grid, zip=self.zip, points=self.points))
         out.extend(self.study)
+        if self.morris is not None:
+            pts = [p for traj in self.morris.design() for p in traj]
+            out.append(Study(name=MORRIS_STUDY, points=pts))
         return out
 
 

@@ -56,14 +56,14 @@ def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) 
     return coarse
 
 
-def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, tile: Tile, store: str,
-              levels: int, tile_levels: int) -> dict:
+def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, texture, tile: Tile,
+              store: str, levels: int, tile_levels: int) -> dict:
     """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
     return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
     import zarr
 
     design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
-                                         stride=stride)
+                                         stride=stride, texture=texture)
     moments = tile_moments(machined, design)
     residual = np.subtract(machined, design).astype(np.float32)
     machined32 = machined.astype(np.float32)
@@ -158,7 +158,7 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
 
 def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: int,
               tile: int = TILE, client=None, workers: int | None = None, progress=None,
-              bins: int = BINS, grooves=None, stride: int = 0) -> TiledStats:
+              bins: int = BINS, grooves=None, stride: int = 0, texture=None) -> TiledStats:
     """Compute the machined surface of ``ep`` over the grid tile by tile into ``store``.
 
     Parameters
@@ -189,6 +189,8 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
         The grooves of a cut with the cutting mechanics.
     stride : int
         Keep the cutting pass's angle on every ``stride``-th row and column (0: none).
+    texture : (rms, correlation length, seed), optional
+        The part's texture added to a cut with the cutting mechanics (mm).
     """
     tiles = plan_tiles(shape, tile)
     tile_levels = min(levels, int(math.log2(tile))) if tile & (tile - 1) == 0 else 0
@@ -197,7 +199,7 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
     timing = {}
     t0 = time.perf_counter()
     parts = _run(tile_task, [(t, store, levels, tile_levels) for t in tiles],
-                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride)),
+                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture),
                  client=client, workers=workers, progress=progress)
     timing["tiles"] = time.perf_counter() - t0
     moments = (0, 0.0, 0.0, math.inf, -math.inf)
@@ -244,7 +246,9 @@ def _merge_cut(parts: list, shape, stride: int) -> dict:
     out = {"grooves_sumsq": math.fsum(c["grooves_sumsq"] for c in cuts),
            "grooves_n": int(sum(c["grooves_n"] for c in cuts)),
            "added_max": max((c["added_max"] for c in cuts), default=-math.inf),
-           "edge_pixels": int(sum(c["edge_pixels"] for c in cuts))}
+           "edge_pixels": int(sum(c["edge_pixels"] for c in cuts)),
+           "texture_sumsq": math.fsum(c.get("texture_sumsq", 0.0) for c in cuts),
+           "texture_n": int(sum(c.get("texture_n", 0) for c in cuts))}
     if stride > 0:
         pt = np.full((-(-shape[0] // stride), -(-shape[1] // stride)), np.nan)
         for c in cuts:

@@ -1,13 +1,15 @@
 """Surface-generation kernels on explicit numbers and arrays: the envelope of the tool
 nose along a turning path (whole or tile by tile), the sculpturing sweep, machine axis
-dynamics (the one servo model), error motions, the material's response to the cut, burrs
-and residual statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
+dynamics (the one servo model), error motions, the material's response to the cut and the
+part's texture, burrs and residual statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
 
 from ..core.heightmap import HeightMap
-from ._axes import Axis, Coupling, Machine, follow_axis, second_order_sos
+from ._axes import (Axis, Coupling, Machine, follow_axis, force_noise_rms, loop_lag, loop_response,
+                    second_order_sos)
 from ._follow import FollowedPath, follow_turning, following_error_stats
 from ._interpolate import linear_command, pvt_command
-from ._burrs import apply_burrs, burr_map, machined_sharp_edges, sharp_edges
+from ._burrs import (BURR_WIDTH_PER_CHIP, apply_burrs, burr_height_law, burr_map, edge_turns,
+                     machined_sharp_edges, material_burrs, sharp_edges)
 from ._cutting import (
     cut_lines_mechanics,
     cut_turning_mechanics,
@@ -29,6 +31,8 @@ from ._material import (
     material_preset,
     material_response,
     min_chip_thickness,
+    texture_field,
+    uncut_chip_thickness,
 )
 from ._machines import MACHINE_PRESET_NAMES, MACHINE_PRESETS, machine_preset
 from ._memory import in_memory_bytes, tiled_bytes
@@ -54,7 +58,10 @@ __all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metri
            "material_response", "contact_ratio", "min_chip_thickness",
            "cut_turning_mechanics", "cut_lines_mechanics", "finish_surface", "groove_texture",
            "machined_edges", "mechanics_facts", "CutPath", "Grooves", "cut_fill", "cut_turning",
-           "cutting_distance", "load_cut_kernels", "prepare_cut"]
+           "cutting_distance", "load_cut_kernels", "prepare_cut",
+           "material_burrs", "edge_turns", "burr_height_law",
+           "BURR_WIDTH_PER_CHIP", "texture_field", "uncut_chip_thickness", "loop_lag",
+           "loop_response", "force_noise_rms"]
 
 #: the names ``material.preset`` takes ("ideal": no material response)
 MATERIAL_PRESET_NAMES = ("ideal", *MATERIAL_PRESETS)

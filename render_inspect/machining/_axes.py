@@ -31,13 +31,29 @@ Chain (one axis; C, X, Z and the fast tool servo alike)
    equation is integrated exactly over each tick with the command's mean velocity and
    acceleration over the tick (second-order accurate; straight moves enter as velocity
    steps at the ticks).
-   ``acceleration_limit`` bounds u (the motor's force limit; the feed-forward part alone
-   is clipped to it first): while it is exceeded the axis accelerates at the limit and
-   the error grows; ``velocity_limit`` bounds q'.
+   ``acceleration_limit`` bounds u: the *drive's* limit, the motor's peak force over the
+   moving mass, a_max = F_peak / m (the feed-forward part alone is clipped to it first);
+   while it is exceeded the axis accelerates at the limit and the error grows.  It is not
+   the acceleration a program was planned with (a setting of one job, e.g. the 0.2 g of
+   the compound sinusoidal grid study): that is checked against the program by the
+   kinematics (``process.x_acceleration_limit_mm_s2``).  ``velocity_limit`` bounds q'
+   (the amplifier's bus voltage against the motor's back-EMF).
+
+   The loop's transfer from command to position is
+
+       T(s) = (ka s^2 + 2 zeta wn kv s + wn^2) / (s^2 + 2 zeta wn s + wn^2),
+
+   whose low-frequency group delay is 2 zeta (1 - kv) / wn (:func:`loop_lag`): with full
+   velocity feed-forward the axis does not lag; what is left is an amplitude error
+   (1 - ka) (w / wn)^2 (:func:`loop_response`).
 
 3. **Disturbance.**  Broadband force noise (air/oil bearing, amplifier, floor), white at
    the tick rate, scaled so that the following error it causes has the rms
    ``noise_rms`` in steady state (discrete Lyapunov equation of the loop), from the seed.
+   A force noise of two-sided spectral density S_F (N^2/Hz) on a mass m gives
+   var(e) = S_F / (4 zeta wn^3 m^2) (:func:`force_noise_rms`), so axes of one machine that
+   share the noise sources scale as 1 / (m wn^1.5).  It is drawn in time: a servo's noise
+   is a temporal process, and a change of feed redraws it along the part.
 
 4. **Latency.**  ``delay_s`` delays the axis output (communication between controllers).
 
@@ -68,7 +84,7 @@ from ._errmotion import ErrorMotions
 from ._interpolate import check_program, linear_command, pvt_command
 
 __all__ = ["Axis", "Coupling", "Machine", "AxisResponse", "follow_axis", "second_order_sos",
-           "servo_ticks"]
+           "servo_ticks", "loop_lag", "loop_response", "force_noise_rms"]
 
 _MAX_TICKS = 60_000_000
 TWO_PI = 2.0 * math.pi
@@ -91,8 +107,8 @@ class Axis:
     velocity_ff, acceleration_ff : float
         Feed-forward gains kv, ka in [0, 1] (1 = perfectly tuned).
     velocity_limit, acceleration_limit : float or None
-        Bounds on the axis velocity and on the commanded acceleration (axis unit / s,
-        / s^2); None = unbounded.
+        Bounds on the axis velocity and on the drive's acceleration (its peak force over
+        the moving mass; axis unit / s, / s^2); None = unbounded.
     noise_rms : float
         Steady-state rms of the following error caused by broadband force disturbance
         (axis unit), >= 0.
@@ -203,6 +219,46 @@ def second_order_sos(fn: float, zeta: float, dt: float) -> np.ndarray:
     wa = 2 * fs * math.tan(min(wn / (2 * fs), 0.5 * math.pi * 0.999))
     z, p, k = signal.bilinear_zpk([], np.roots([1.0, 2 * zeta * wa, wa * wa]), wa * wa, fs)
     return signal.zpk2sos(z, p, np.real(k))
+
+
+def loop_lag(axis: Axis) -> float:
+    """Low-frequency lag of ``axis`` (s): its output delay plus the group delay of its loop
+    at zero frequency, 2 zeta (1 - kv) / wn (exact first-order term of the phase of T(s)
+    in the module docstring); 0 for an ideal axis."""
+    lag = float(axis.delay_s)
+    if axis.bandwidth_hz is not None:
+        lag += 2 * axis.damping * (1.0 - axis.velocity_ff) / (TWO_PI * axis.bandwidth_hz)
+    return lag
+
+
+def loop_response(axis: Axis, frequency_hz) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitude ratio |T| and time lag -arg(T) / w (s, delay included) of ``axis`` at
+    ``frequency_hz`` (> 0): what a sinusoidal command of that frequency comes out as."""
+    f = np.asarray(frequency_hz, dtype=np.float64)
+    w = TWO_PI * f
+    if axis.bandwidth_hz is None:
+        return np.ones_like(w), np.full_like(w, float(axis.delay_s))
+    wn, z = TWO_PI * float(axis.bandwidth_hz), float(axis.damping)
+    ka, kv = float(axis.acceleration_ff), float(axis.velocity_ff)
+    s = 1j * w
+    t = (ka * s * s + 2 * z * wn * kv * s + wn * wn) / (s * s + 2 * z * wn * s + wn * wn)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lag = np.where(w > 0, -np.angle(t) / w, 0.0)
+    return np.abs(t), lag + float(axis.delay_s)
+
+
+def force_noise_rms(force_psd_n2_hz: float, mass_kg: float, bandwidth_hz: float,
+                    damping: float) -> float:
+    """Rms following error (m) of a loop wn, zeta on a mass ``mass_kg`` driven by white force
+    noise of two-sided spectral density ``force_psd_n2_hz`` (N^2/Hz):
+    sqrt(S_F / (4 zeta wn^3 m^2)), the integral of |H|^2 S_F over all frequencies with
+    H = 1 / (m (wn^2 - w^2 + 2 i zeta wn w))."""
+    check_range("force_psd_n2_hz", force_psd_n2_hz, 0.0, None)
+    check_range("mass_kg", mass_kg, 0.0, None, lo_open=True)
+    check_range("bandwidth_hz", bandwidth_hz, 0.0, None, lo_open=True)
+    check_range("damping", damping, 0.0, None, lo_open=True)
+    wn = TWO_PI * bandwidth_hz
+    return math.sqrt(force_psd_n2_hz / (4 * damping * wn ** 3 * mass_kg ** 2))
 
 
 @dataclass
@@ -399,6 +455,12 @@ class Machine:
     fts_sync : {"position", "time"}
         How the FTS stroke is timed: ``"position"`` evaluates the stroke at the measured
         (followed) spindle angle, ``"time"`` plays it against the clock.
+    fts_sync_delay_s : float
+        Signed timing of the FTS stroke relative to the spindle position (or clock) it is
+        synchronised to, s: > 0 the stroke comes late (it is evaluated for where the
+        spindle was that long ago), < 0 early.  Communication between the FTS controller
+        and the motion controller ("two processes controlled separately"); 0 in the
+        presets.
     errors : ErrorMotions or None
         Spindle and slide error motions and tool-part vibration
         (:class:`~render_inspect.machining._errmotion.ErrorMotions`).
@@ -416,6 +478,7 @@ class Machine:
     z: Axis = field(default_factory=Axis)
     fts: Axis = field(default_factory=Axis)
     fts_sync: str = "position"
+    fts_sync_delay_s: float = 0.0
     errors: object = None
     coupling: Coupling = field(default_factory=Coupling)
     sources: dict = field(default_factory=dict, compare=False)
@@ -427,6 +490,7 @@ class Machine:
                              f"{self.interpolation!r}")
         if self.fts_sync not in ("position", "time"):
             raise InputError(f"machine.fts_sync must be 'position' or 'time', received {self.fts_sync!r}")
+        check_range("machine.fts_sync_delay_s", self.fts_sync_delay_s, -1.0, 1.0)
         for k in ("c", "x", "z", "fts"):
             if not isinstance(getattr(self, k), Axis):
                 raise InputError(f"machine.{k} must be an Axis, received {type(getattr(self, k)).__name__}")
@@ -436,11 +500,12 @@ class Machine:
         """All axes ideal and no error motions: the program is followed exactly."""
         no_err = self.errors is None or getattr(self.errors, "none", True)
         return (all(getattr(self, k).ideal for k in ("c", "x", "z", "fts")) and no_err
-                and self.coupling.none)
+                and self.coupling.none and self.fts_sync_delay_s == 0)
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "servo_rate_hz": self.servo_rate_hz,
-             "interpolation": self.interpolation, "fts_sync": self.fts_sync}
+             "interpolation": self.interpolation, "fts_sync": self.fts_sync,
+             "fts_sync_delay_s": self.fts_sync_delay_s}
         for k in ("c", "x", "z", "fts"):
             d[k] = getattr(self, k).to_dict()
         d["errors"] = None if self.errors is None else self.errors.to_dict()
@@ -493,9 +558,10 @@ class Machine:
                 else:
                     base = self.errors if self.errors is not None else ErrorMotions()
                     kw[key] = base.with_overrides(val)
-            elif key in ("name", "servo_rate_hz", "interpolation", "fts_sync"):
+            elif key in ("name", "servo_rate_hz", "interpolation", "fts_sync", "fts_sync_delay_s"):
                 kw[key] = val
             else:
                 raise InputError(f"unknown machine setting {key!r}; allowed: name, servo_rate_hz, "
-                                 "interpolation, fts_sync, c, x, z, fts, errors, coupling")
+                                 "interpolation, fts_sync, fts_sync_delay_s, c, x, z, fts, "
+                                 "errors, coupling")
         return replace(self, **kw)

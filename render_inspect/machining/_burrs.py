@@ -1,33 +1,45 @@
-"""Burrs on sharp edges: a phenomenological model (after Zhang et al. 2022 [1]_, section 4),
-the height given as an input (an override of the material model of :mod:`._material`,
-whose side flow forms the burrs from the cutting conditions).
+"""Burrs on the sharp edges of a machined surface: where they form, their height and shape.
 
-Zhang et al. (2022) saw small burrs on the sharp edges between lenslets and named them a
-main source of the remaining form error; they explain them by plastic side flow of the
-workpiece material: the lateral deformation of Gillespie and Blotter's three burr
-mechanisms [2]_ (chip rollover and tearing are the others; this model leaves them out).
-The paper gives no burr law, so this is a model, not a derivation:
+Two ways to set them:
+
+* **from the material** (:func:`material_burrs`, what the processes do when a
+  ``[material]`` is set): a burr model from the micro-cutting burr literature.  Gillespie
+  & Blotter [2]_ name three mechanisms (lateral deformation, chip rollover at the exit,
+  tearing); Hashimura, Chang & Dornfeld [3]_ show the burr growing with the uncut chip
+  thickness, shrinking as the exit angle opens and following the workpiece's ductility
+  (a brittle workpiece breaks out instead).  The model keeps exactly those dependences::
+
+      h_b = C * min(1, A / A_ref) * h_u * g,     g = clip(turn / (pi / 2), 0, 1)
+
+  with h_u the uncut chip thickness of the finishing cut, ``turn`` = pi - psi the angle
+  by which the surface turns at the edge (psi the exit angle between the cutting
+  direction and the exit face: psi = pi / 2 at a square edge, g = 1; psi -> pi at a smooth
+  exit, no burr), A the elongation at break (ductility), A_ref = 10 % and C the burr
+  coefficient (assumed 1, range 0.5-1.5: no source gives it for diamond cutting; the
+  linear g is an assumed shape).  Lateral (side) burrs along the passes and exit
+  (rollover) burrs across them take the same law with the turn measured across the edge.
+  The plastic side flow of the ploughed material at the cusps (a burr of (1 - kappa) h_min
+  where two passes meet) is the material kernel's (:mod:`._cutting`).
+* **given** (:func:`apply_burrs`, ``[artifacts.burrs] height``): a ridge of the height
+  the scene gives (an override of the model; no formation physics).
+
+Both put the same ridge on the edges:
 
 * where: on *sharp edges* of the machined surface (``edges_from="machined"``, what the
   processes use: the edges where the machine cut them, moved by servo lag), or of the
-  design, i.e. where the slope jumps (the gradient is discontinuous, e.g. the cell
-  boundaries of a lenslet array or the rim of a lenslet sunk into a base).  An edge is a
-  grid line where the slope difference between neighbouring pixel pairs exceeds
-  ``edge_angle_deg`` and is a local maximum across the edge; on the machined surface the
-  feed marks are smoothed out first (Gaussian of standard deviation ``smoothing``).
+  design.  An edge is a grid line where the slope difference between neighbouring pixel
+  pairs exceeds ``edge_angle_deg`` and is a local maximum across the edge; on the
+  machined surface the feed marks are smoothed out first (Gaussian of standard deviation
+  ``smoothing``).  The turn at an edge is measured between the slopes a few pixels to
+  either side (beyond the smoothing), so a smoothed edge keeps its angle.
 * shape: a ridge centred on the edge, h(d) = height * v * cos^2(pi d / width) for the
   distance d < width / 2 from the edge, 0 beyond (material is pushed up, never removed).
 * variation: v = max(0, 1 + variation * g(x, y)) with g a unit-variance Gaussian random
   field of correlation length ``correlation_length`` (default 4 x width), built from 64
   random Fourier modes drawn from ``simulation.seed``; g depends on the position in mm
   only, so the same seed gives the same burr at the same place on any grid.
-* size: ``height`` and ``width`` are inputs.  They stand for one material and one process:
-  side flow grows with the uncut chip thickness (depth of cut) and the tool edge radius,
-  and ultrasonic vibration (HFUVAS) reduces it (Zhang et al. 2022: Sz 1.2 um conventional against
-  0.13 um with vibration on Mirrax 40); scale ``height`` accordingly.
 * assumptions: the burr does not change the cut elsewhere (it is added after the
-  envelope), it does not depend on the cutting direction, and the edge position is
-  resolved to one pixel.
+  envelope) and the edge position is resolved to one pixel.
 
 References
 ----------
@@ -36,6 +48,9 @@ References
        optical microstructures," Applied Sciences 12(21), 10937 (2022).
 .. [2] L. K. Gillespie, P. T. Blotter, "The formation and properties of machining burrs,"
        Journal of Engineering for Industry 98(1), 66 (1976).
+.. [3] M. Hashimura, Y. P. Chang, D. Dornfeld, "Analysis of burr formation mechanism in
+       orthogonal cutting," Journal of Manufacturing Science and Engineering 121(1), 1-7
+       (1999). :DOI:`10.1115/1.2830569`
 """
 
 from __future__ import annotations
@@ -48,9 +63,44 @@ from scipy import ndimage
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
 
-__all__ = ["sharp_edges", "machined_sharp_edges", "burr_map", "apply_burrs"]
+__all__ = ["sharp_edges", "edge_turns", "machined_sharp_edges", "burr_map", "apply_burrs",
+           "material_burrs", "burr_height_law", "BURR_WIDTH_PER_CHIP"]
+
+#: full base width of a burr per unit uncut chip thickness (assumed, range 2-5)
+BURR_WIDTH_PER_CHIP = 3.0
 
 _MODES = 64
+
+
+def _edge_masks(z, *, pixel: float, edge_angle_deg: float):
+    """Per grid axis (0: along y, 1: along x): the edge pixels of that axis (the turn
+    between neighbouring pixel pairs exceeds ``edge_angle_deg`` and is a local maximum
+    along the axis; ``edge_angle_deg = 0``: every local maximum of the turn) and the
+    slope between neighbouring pixels (s[i] between i and i + 1, along the axis)."""
+    out = []
+    for axis in (0, 1):
+        zz = np.moveaxis(z, axis, 0)
+        if zz.shape[0] < 3:
+            out.append((np.zeros(z.shape, dtype=bool), None))
+            continue
+        s = np.diff(zz, axis=0) / pixel                     # slope between pixels i, i+1
+        j = np.abs(np.arctan(s[1:]) - np.arctan(s[:-1]))    # turn at pixel i (1..n-2), rad
+        j = np.nan_to_num(j, nan=0.0)
+        jp = np.pad(j, ((1, 1),) + ((0, 0),) * (j.ndim - 1))
+        peak = (j > math.radians(edge_angle_deg)) & (j >= jp[:-2]) & (j >= jp[2:]) & (j > 0)
+        m = np.zeros(zz.shape, dtype=bool)
+        m[1:-1] = peak
+        out.append((np.moveaxis(m, 0, axis), s))
+    return out
+
+
+def _check_map(z, pixel, edge_angle_deg):
+    z = np.asarray(z, dtype=np.float64)
+    if z.ndim != 2:
+        raise InputError(f"design must be a 2-D array, received shape {z.shape}")
+    check_range("pixel", pixel, 0.0, None, lo_open=True)
+    check_range("edge_angle_deg", edge_angle_deg, 0.0, 90.0, lo_open=True, hi_open=True)
+    return z
 
 
 def sharp_edges(design, *, pixel: float, edge_angle_deg: float = 1.0) -> np.ndarray:
@@ -69,25 +119,81 @@ def sharp_edges(design, *, pixel: float, edge_angle_deg: float = 1.0) -> np.ndar
     -------
     (ny, nx) bool
     """
-    z = np.asarray(design, dtype=np.float64)
-    if z.ndim != 2:
-        raise InputError(f"design must be a 2-D array, received shape {z.shape}")
-    check_range("pixel", pixel, 0.0, None, lo_open=True)
-    check_range("edge_angle_deg", edge_angle_deg, 0.0, 90.0, lo_open=True, hi_open=True)
+    z = _check_map(design, pixel, edge_angle_deg)
     mask = np.zeros(z.shape, dtype=bool)
-    for axis in (0, 1):
-        zz = np.moveaxis(z, axis, 0)
-        if zz.shape[0] < 3:
-            continue
-        s = np.diff(zz, axis=0) / pixel                     # slope between pixels i, i+1
-        j = np.abs(np.arctan(s[1:]) - np.arctan(s[:-1]))    # turn at pixel i (1..n-2), rad
-        j = np.nan_to_num(j, nan=0.0)
-        jp = np.pad(j, ((1, 1),) + ((0, 0),) * (j.ndim - 1))
-        peak = (j > math.radians(edge_angle_deg)) & (j >= jp[:-2]) & (j >= jp[2:])
-        m = np.zeros(zz.shape, dtype=bool)
-        m[1:-1] = peak
-        mask |= np.moveaxis(m, 0, axis)
+    for m, _ in _edge_masks(z, pixel=pixel, edge_angle_deg=edge_angle_deg):
+        mask |= m
     return mask
+
+
+def edge_turns(z, *, pixel: float, edge_angle_deg: float = 1.0, span: int = 1):
+    """Sharp edges of ``z`` and the angle by which the surface turns at each: a local
+    maximum of the pixel-to-pixel turn where the difference of the two faces' slope angles
+    at the edge exceeds ``edge_angle_deg``, that difference across it (the
+    larger of the two grid directions where both hold), each face's angle extrapolated
+    linearly to the edge from its slopes ``span`` and 2 ``span`` pixels away (beyond the
+    rounding that smoothing gives the edge).
+
+    Parameters
+    ----------
+    z : (ny, nx) array, mm
+    pixel : float, mm
+    edge_angle_deg : float
+        See :func:`sharp_edges`.
+    span : int
+        Pixels between the edge and the slopes compared (>= 1; beyond any smoothing).
+
+    Returns
+    -------
+    edges : (ny, nx) bool
+    turn : (ny, nx) float64, rad (0 off the edges)
+    """
+    z = _check_map(z, pixel, edge_angle_deg)
+    span = int(check_range("span", span, 1, None))
+    edges = np.zeros(z.shape, dtype=bool)
+    turn = np.zeros(z.shape)
+    # candidates: every local maximum of the pixel-to-pixel turn; an edge where the turn
+    # measured between the faces exceeds edge_angle_deg (a smoothed edge spreads its turn
+    # over several pixels, none of which need exceed it)
+    for axis, (m, s) in enumerate(_edge_masks(z, pixel=pixel, edge_angle_deg=0.0)):
+        if s is None or not m.any():
+            continue
+        n = s.shape[0]                                       # slopes 0..n-1, pixels 0..n
+        i = np.arange(n + 1)
+        a = np.arctan(s)
+        # slope angles at span - 1/2 and 2 span - 1/2 pixels to either side (slope k lies
+        # at k + 1/2), extrapolated linearly to the edge: curved faces keep their angle
+        c = (span - 0.5) / span
+
+        def face(k1, k2):
+            a1 = np.take(a, np.clip(k1, 0, n - 1), axis=0)
+            a2 = np.take(a, np.clip(k2, 0, n - 1), axis=0)
+            return a1 - c * (a2 - a1)
+
+        t = np.abs(face(i + span - 1, i + 2 * span - 1) - face(i - span, i - 2 * span))
+        t = np.moveaxis(np.nan_to_num(t, nan=0.0), 0, axis)
+        # the pixel-to-pixel turn must peak within the whole stencil, +-3 span pixels (one
+        # pixel per edge; no ripple beside an edge is measured across it)
+        j = np.zeros(z.shape)
+        jj = np.abs(np.diff(np.arctan(s), axis=0))
+        jm = np.moveaxis(j, axis, 0)
+        jm[1:-1] = np.nan_to_num(jj, nan=0.0)
+        peak = j >= ndimage.maximum_filter1d(j, 6 * span + 1, axis=axis, mode="nearest")
+        m = m & peak & (t > math.radians(edge_angle_deg))
+        turn = np.where(m, np.maximum(turn, t), turn)
+        edges |= m
+    return edges, turn
+
+
+def burr_height_law(chip_thickness: float, coefficient: float, turn) -> np.ndarray:
+    """h_b = coefficient * chip_thickness * clip(turn / (pi / 2), 0, 1) (module docstring):
+    the burr on an edge where the surface turns by ``turn`` (rad; the exit angle is pi -
+    turn), for an uncut chip thickness ``chip_thickness`` (mm) and the material's burr
+    coefficient (ductility included)."""
+    check_range("chip_thickness", chip_thickness, 0.0, 1.0)
+    check_range("coefficient", coefficient, 0.0, 10.0)
+    g = np.clip(np.asarray(turn, dtype=np.float64) / (math.pi / 2), 0.0, 1.0)
+    return coefficient * chip_thickness * g
 
 
 def _random_field(x, y, *, correlation_length: float, seed: int) -> np.ndarray:
@@ -109,8 +215,11 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     design : (ny, nx) array, mm (row 0 = smallest y)
     pixel : float, mm
     origin : (x, y) of pixel [0, 0], mm (positions of the seeded variation)
-    height, width : float, mm
-        Nominal burr height and full base width (>= 0; either 0 gives no burrs).
+    height : float or (ny, nx) array, mm
+        Nominal burr height (>= 0), or the height of each edge pixel's burr (read on the
+        edge pixels; a ridge takes the height of its nearest edge pixel).
+    width : float, mm
+        Full base width (>= 0; 0 gives no burrs).
     variation : float
         Relative seeded variation along the edges, in [0, 1].
     seed : int
@@ -126,12 +235,19 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     -------
     (ny, nx) float64
     """
-    check_range("burrs.height", height, 0.0, 0.1)
+    per_pixel = np.ndim(height) > 0
+    if not per_pixel:
+        check_range("burrs.height", height, 0.0, 0.1)
     check_range("burrs.width", width, 0.0, 1.0)
     check_range("burrs.variation", variation, 0.0, 1.0)
     design = np.asarray(design, dtype=np.float64)
     out = np.zeros(design.shape)
-    if height == 0 or width == 0:
+    if per_pixel:
+        height = np.asarray(height, dtype=np.float64)
+        if height.shape != design.shape:
+            raise InputError(f"height must be a number or have the design's shape {design.shape}, "
+                             f"received {height.shape}")
+    if width == 0 or (not per_pixel and height == 0):
         return out
     mask = sharp_edges(design, pixel=pixel, edge_angle_deg=edge_angle_deg) if edges is None \
         else np.asarray(edges, dtype=bool)
@@ -149,8 +265,32 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     ex = origin[0] + pixel * ix[near]
     ey = origin[1] + pixel * iy[near]
     v = np.maximum(1.0 + variation * _random_field(ex, ey, correlation_length=ell, seed=seed), 0.0)
-    out[near] = height * v * np.cos(np.pi * d[near] / width) ** 2
+    h = height[iy[near], ix[near]] if per_pixel else height
+    out[near] = h * v * np.cos(np.pi * d[near] / width) ** 2
     return out
+
+
+def _smoothed(machined, pixel: float, smoothing: float):
+    """The map with NaN pixels filled from their nearest valid neighbour and smoothed by a
+    Gaussian of standard deviation ``smoothing`` (mm), and the mask of pixels where no
+    edge is looked for: NaN pixels and, when smoothed, the band of 3 standard deviations
+    along the grid's border, where the smoothing bends the map (None for the map when all
+    pixels are NaN)."""
+    check_range("smoothing", smoothing, 0.0, None)
+    z = np.asarray(machined, dtype=np.float64)
+    bad = ~np.isfinite(z)
+    if bad.all():
+        return None, bad
+    if bad.any():
+        idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
+        z = z[tuple(idx)]
+    if smoothing > 0:
+        z = ndimage.gaussian_filter(z, smoothing / pixel, mode="nearest")
+        b = int(math.ceil(3 * smoothing / pixel))
+        bad = bad.copy()
+        bad[:b] = bad[-b:] = True
+        bad[:, :b] = bad[:, -b:] = True
+    return z, bad
 
 
 def machined_sharp_edges(machined, *, pixel: float, smoothing: float = 0.0,
@@ -160,16 +300,9 @@ def machined_sharp_edges(machined, *, pixel: float, smoothing: float = 0.0,
     marks so that only the edges of the cut form remain, where the machine put them
     (shifted by servo lag, not on the design's edges).  NaN pixels are filled from their
     nearest valid neighbour first."""
-    check_range("smoothing", smoothing, 0.0, None)
-    z = np.asarray(machined, dtype=np.float64)
-    bad = ~np.isfinite(z)
-    if bad.all():
-        return np.zeros(z.shape, dtype=bool)
-    if bad.any():
-        idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
-        z = z[tuple(idx)]
-    if smoothing > 0:
-        z = ndimage.gaussian_filter(z, smoothing / pixel, mode="nearest")
+    z, bad = _smoothed(machined, pixel, smoothing)
+    if z is None:
+        return np.zeros(bad.shape, dtype=bool)
     return sharp_edges(z, pixel=pixel, edge_angle_deg=edge_angle_deg) & ~bad
 
 
@@ -210,4 +343,64 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
     machined += b
     info["edge_pixels"] = int(edges.sum())
     info["max_added_um"] = float(b.max() * MM_TO_UM)
+    return machined, info
+
+
+def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_thickness: float,
+                   coefficient: float, variation: float = 0.3, seed: int = 0,
+                   edge_angle_deg: float = 1.0, smoothing: float = 0.0,
+                   width: float | None = None):
+    """Add the burrs of the material model (module docstring) on the sharp edges of the
+    machined surface.
+
+    Parameters
+    ----------
+    machined, design : (ny, nx) arrays, mm
+    pixel : float, mm;  origin : (x, y) of pixel [0, 0], mm
+    chip_thickness : float, mm
+        Uncut chip thickness h_u of the finishing cut
+        (:func:`~render_inspect.machining.uncut_chip_thickness` in turning, the last
+        layer's depth in sculpturing).
+    coefficient : float
+        The material's burr coefficient with its ductility
+        (:attr:`~render_inspect.machining.MaterialResponse.burr_coefficient`).
+    variation, seed, edge_angle_deg : as :func:`burr_map`
+    smoothing : float, mm
+        Gaussian smoothing of the machined map before the edges are found (removes the
+        feed marks).
+    width : float, optional
+        mm; default :data:`BURR_WIDTH_PER_CHIP` x ``chip_thickness``.
+
+    Returns
+    -------
+    machined : (ny, nx) float64, mm (a new array; NaN stays NaN)
+    info : dict
+        ``model``, ``chip_thickness_um``, ``coefficient``, ``width_um``, ``edge_pixels``,
+        ``turn_max_deg`` (largest turn at an edge), ``height_max_um`` (the law's largest
+        height), ``max_added_um`` (with the variation), ``seed``: ``metrics["burrs"]``.
+    """
+    check_range("chip_thickness", chip_thickness, 0.0, 1.0)
+    w = BURR_WIDTH_PER_CHIP * chip_thickness if width is None else float(width)
+    machined = np.array(machined, dtype=np.float64, copy=True)
+    info = {"model": "material: h = C min(1, A / A_ref) h_u clip(turn / 90 deg, 0, 1) on "
+                     "the machined edges",
+            "chip_thickness_um": chip_thickness * MM_TO_UM, "coefficient": float(coefficient),
+            "width_um": w * MM_TO_UM, "variation": variation, "edge_angle_deg": edge_angle_deg,
+            "smoothing_mm": smoothing, "seed": int(seed), "edge_pixels": 0, "turn_max_deg": 0.0,
+            "height_max_um": 0.0, "max_added_um": 0.0}
+    z, bad = _smoothed(machined, pixel, smoothing)
+    if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:
+        return machined, info
+    span = max(2, int(math.ceil(3 * smoothing / pixel)) + 1)
+    edges, turn = edge_turns(z, pixel=pixel, edge_angle_deg=edge_angle_deg, span=span)
+    edges &= ~bad
+    if not edges.any():
+        return machined, info
+    heights = np.where(edges, burr_height_law(chip_thickness, coefficient, turn), 0.0)
+    b = burr_map(design, pixel=pixel, origin=origin, height=heights, width=w,
+                 variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges)
+    machined += b
+    info.update(edge_pixels=int(edges.sum()), turn_max_deg=float(np.degrees(turn[edges].max())),
+                height_max_um=float(heights.max() * MM_TO_UM),
+                max_added_um=float(np.nanmax(b) * MM_TO_UM))
     return machined, info

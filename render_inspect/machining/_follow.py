@@ -82,7 +82,8 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         source draws from its own stream derived from it).
     fts_theta : (n,) array, optional
         The spindle angle each FTS stroke belongs to (default ``theta``), for
-        position synchronisation.
+        position synchronisation.  ``machine.fts_sync_delay_s`` shifts the stroke in time
+        against the spindle (late > 0).
 
     Returns
     -------
@@ -116,12 +117,18 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         zf_cmd = np.zeros_like(tk)
         zf = zf_cmd
     else:
+        tau = float(machine.fts_sync_delay_s)
         if machine.fts_sync == "position":
             # the FTS evaluates its stroke table at the measured spindle angle
             th_ref = theta if fts_theta is None else np.asarray(fts_theta, dtype=np.float64)
             th_meas = np.maximum.accumulate(rc.followed)
-            # time at which the program meant that angle, then the PVT stroke there
-            t_equiv = np.interp(th_meas, th_ref, t)
+            # time at which the program meant that angle (tau earlier when the stroke comes
+            # late), then the PVT stroke there
+            t_equiv = np.interp(th_meas, th_ref, t) - tau
+        else:
+            t_equiv = tk - tau
+        if machine.fts_sync == "position" or tau != 0:
+            t_equiv = np.clip(t_equiv, t[0], t[-1])
             cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)

@@ -40,6 +40,7 @@ from ..core.errors import InputError
 from ._cut_kernel import OUT_CHANNELS, CutPath, Grooves, cut_fill
 from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
+from ._material import texture_field
 
 #: default tile side (pixels): a power of two (pyramid levels stay inside a tile) and a
 #: multiple of the kernel's block (tiles equal the whole-grid run bit for bit)
@@ -88,7 +89,7 @@ HALO = 1
 
 
 def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Grooves | None = None,
-                 shape=None, stride: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
+                 shape=None, stride: int = 0, texture=None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(design, machined, partials) of one tile, float64 (mm).
 
     ``ep`` is an ``EnvelopePath`` (the geometric envelope: machined equals the same pixels
@@ -100,7 +101,11 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
     ``edge_pixels`` (the tile's pixels on a machined edge) and, when ``stride`` > 0,
     ``pass_theta``: (first row, first column, map) of the cutting pass's spindle angle on
     the pixels of the whole grid whose row and column are multiples of ``stride``, the
-    first row and column counted on that coarse grid."""
+    first row and column counted on that coarse grid.  ``texture`` = (rms, correlation
+    length, seed) (mm) adds the part's texture
+    (:func:`~render_inspect.machining.texture_field`, a field of the position: the tile's
+    pixels equal the whole grid's) where the tile is cut; its partials ``texture_sumsq``
+    and ``texture_n``."""
     design = design_tile(surface, origin, pixel, tile)
     if isinstance(ep, EnvelopePath):
         sl = ep.slice_for(tile.region(origin, pixel))
@@ -129,4 +134,12 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
         pr = np.arange(i0 * stride, tile.row + tile.rows, stride) - r0
         pc = np.arange(j0 * stride, tile.col + tile.cols, stride) - c0
         part["pass_theta"] = (i0, j0, maps["pass_theta"][np.ix_(pr, pc)])
-    return design, maps["machined"][rows, cols].copy(), part
+    machined = maps["machined"][rows, cols].copy()
+    if texture is not None and texture[0] > 0:
+        x = origin[0] + pixel * np.arange(tile.col, tile.col + tile.cols)
+        y = origin[1] + pixel * np.arange(tile.row, tile.row + tile.rows)
+        tex = texture_field(x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
+        ok = np.isfinite(machined)
+        machined[ok] += tex[ok]
+        part["texture_sumsq"], part["texture_n"] = float(np.sum(tex[ok] ** 2)), int(ok.sum())
+    return design, machined, part

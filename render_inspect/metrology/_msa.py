@@ -273,12 +273,14 @@ def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cente
 def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), centers=None,
                      aperture_radius: float | None = None, inner: float = 0.95,
                      outer: float = 1.05, outlier_k: float = 3.0, register: bool = True,
-                     fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), metrology=None) -> dict:
+                     fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), metrology=None,
+                     stages: str = "base_then_all") -> dict:
     """The characterisation of a MSA on a base of Kong et al. (2020), end to end.
 
     1. outliers by the second-difference ``outlier_k``-sigma rule (replaced, left out of fits);
     2. least-squares 6-DOF registration on the base data (outside ``outer`` x aperture)
-       when there is enough of it, then on all data (``fit`` names the free parameters);
+       when there is enough of it, then on all data (``fit`` names the free parameters;
+       ``stages = "base"`` stops after the base);
     3. separation (``inner`` / ``outer`` x aperture) and per-lenslet fits
        (:func:`lenslet_table`) against the registered design;
     4. base form error (:func:`base_form_error`).
@@ -304,6 +306,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
         outlier_k = float(get("outlier_sigma", outlier_k))
         fit = tuple(get("registration_dof", fit))
         register = get("registration", "lsq") != "none"
+        stages = get("registration_stages", stages)
     z = np.asarray(z, float)
     cen = lenslet_centers(design_surface, centers)
     ap = _aperture(design_surface, aperture_radius)
@@ -318,8 +321,11 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
         if _attr(design_surface, "cells", "round") != "quad" and (base & use).sum() > 0.1 * use.sum():
             init = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin,
                                 mask=base & use, fit=fit)
-        reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
-                           init=init, fit=fit)
+        if stages == "base" and init is not None:
+            reg = dict(init)
+        else:
+            reg = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin, mask=use,
+                               init=init, fit=fit)
         reg["base_stage"] = None if init is None else {k: init[k] for k in init if k != "fitted"}
         surf = MovedSurface(design_surface, reg)
         cen = [(r, c) + surf.move_point(x, y)[:2] for r, c, x, y in cen]

@@ -200,7 +200,8 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
             stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
                               levels=levels, tile=tile, client=client,
                               workers=None if client else workers,
-                              progress=_progress("tiles", step), grooves=env.grooves, stride=stride)
+                              progress=_progress("tiles", step), grooves=env.grooves, stride=stride,
+                              texture=env.texture)
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])

@@ -29,9 +29,12 @@ from ..batch import (
     default_plots,
     dotted_get,
     expand_points,
+    flatten,
     folder_lock,
+    morris_indices,
     plot_rows,
     point_id,
+    point_key,
     read_sweep,
     summary_table,
     sweep_keys,
@@ -48,14 +51,14 @@ from ..io import (
     write_json,
 )
 from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
-from ..report import save_map_png, sweep_plot_png
+from ..report import morris_png, save_map_png, sweep_plot_png
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
 from ._render import run_render
 from ._simulate import residual_title, simulate, write_simulation
 
-__all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps"]
+__all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_morris"]
 
 log = logging.getLogger("render_inspect")
 
@@ -250,6 +253,15 @@ def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: Resul
         name = p.name or f"plot_{i:02d}_{p.kind}"
         atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, plot_rows(mine, p)))
         names.append(f"{name}.png")
+    morris_lines = []
+    if spec.morris is not None:
+        morris = sweep_morris(spec, mine)
+        write_json(out / "morris.json", morris)
+        for name in spec.morris.outputs:
+            png = f"morris_{name.replace('.', '_')}.png"
+            atomic_write_bytes(out / png, morris_png(morris, name, title=f"{spec.name}: {name}"))
+            names.append(png)
+        morris_lines = morris_table(morris)
     info = {**info, "name": spec.name, "description": spec.description, "keys": keys,
             "points": total, "done": done, "failed": failed, "pending": total - done - failed,
             "records_from_other_sweeps": len(others), "plots": names,
@@ -257,9 +269,38 @@ def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: Resul
     head = [f"# Sweep {spec.name}", "", spec.description, "",
             f"{total} points: {done} done, {failed} failed, {total - done - failed} not run.  "
             f"Sweep keys: {', '.join(keys) or '(none)'}.  Plots: {', '.join(names)}.", ""]
-    atomic_write_text(out / "summary.md", "\n".join(head) + "\n" + summary_table(mine, keys))
+    atomic_write_text(out / "summary.md", "\n".join(head) + "\n" + summary_table(mine, keys)
+                      + ("\n" + "\n".join(morris_lines) + "\n" if morris_lines else ""))
     write_json(out / "sweep.json", info)
     return info
+
+
+def sweep_morris(spec, records) -> dict:
+    """The Morris indices of a sweep's ``[morris]`` design from its finished records
+    (:func:`~render_inspect.batch.morris_indices`; ``morris.json``)."""
+    keys = [f.key for f in spec.morris.factor]
+    found = {}
+    for r in records:
+        if r.get("status") != "done":
+            continue
+        p = r.get("params") or {}
+        if any(p.get(k) is None for k in keys):
+            continue
+        found[point_key({k: p[k] for k in keys})] = flatten(r.get("metrics") or {})
+    return morris_indices(spec.morris, lambda point: found.get(point_key(point)))
+
+
+def morris_table(morris: dict) -> list[str]:
+    """Markdown lines of the Morris indices (``summary.md``)."""
+    lines = [f"## Morris elementary effects ({morris['complete']} of {morris['trajectories']} "
+             f"trajectories complete, {morris['levels']} levels)", ""]
+    for name, ind in morris["indices"].items():
+        lines += [f"### {name}", "", "| factor | mu* | mu | sigma |", "|---|---|---|---|"]
+        fmt = (lambda v: "-" if v is None else f"{v:.4g}")
+        for key, v in sorted(ind.items(), key=lambda kv: -(kv[1]["mu_star"] or 0.0)):
+            lines.append(f"| {key} | {fmt(v['mu_star'])} | {fmt(v['mu'])} | {fmt(v['sigma'])} |")
+        lines.append("")
+    return lines
 
 
 def _is_sweep_folder(folder: Path) -> bool:

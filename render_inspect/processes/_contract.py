@@ -198,6 +198,9 @@ class Envelope:
         side flow) cut the path; None: the geometric envelope.
     grooves : Grooves or None
         The grooves of the material's cutting edge.
+    texture : tuple or None
+        The part's texture (rms, correlation length, seed), mm, added where the tiles are
+        cut with the material's mechanics.
     facts : dict
         Facts of the cut known before the tiles run (the machine, its following error).
     followed : object
@@ -212,6 +215,7 @@ class Envelope:
     meta: dict = field(default_factory=dict)
     mechanics: object = None
     grooves: object = None
+    texture: object = None
     facts: dict = field(default_factory=dict)
     followed: object = None
     plots: dict = field(default_factory=dict)

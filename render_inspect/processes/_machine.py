@@ -39,7 +39,9 @@ class LinearAxisConfig(Section):
     velocity_ff: float | None = Field(None, ge=0, le=1, description="velocity feed-forward gain")
     acceleration_ff: float | None = Field(None, ge=0, le=1, description="acceleration feed-forward gain")
     velocity_limit_mm_s: float | None = Field(None, gt=0)
-    acceleration_limit_mm_s2: float | None = Field(None, gt=0)
+    acceleration_limit_mm_s2: float | None = Field(
+        None, gt=0, description="the drive's limit: peak motor force / moving mass (not a "
+                                "program's planned acceleration: process.*_acceleration_limit_mm_s2)")
     noise_nm: float | None = Field(None, ge=0, le=1e5, description="following-error rms from disturbance")
     delay_s: float | None = Field(None, ge=0, le=10, description="output latency")
 
@@ -88,6 +90,10 @@ class MachineConfig(Section):
     interpolation: Literal["pvt", "linear"] | None = None
     fts_sync: Literal["position", "time"] | None = Field(
         None, description="FTS stroke timed by the measured spindle angle or by the clock")
+    fts_sync_delay_s: float | None = Field(
+        None, ge=-1, le=1, description="s, signed timing of the FTS stroke against the spindle "
+                                       "position (or clock) it is synchronised to: > 0 late, "
+                                       "< 0 early")
     c: SpindleAxisConfig = Field(default_factory=SpindleAxisConfig)
     x: LinearAxisConfig = Field(default_factory=LinearAxisConfig)
     z: LinearAxisConfig = Field(default_factory=LinearAxisConfig)
@@ -100,36 +106,52 @@ class MachineConfig(Section):
         return self.model_dump(exclude_none=True, exclude={"preset"}, exclude_defaults=False)
 
 
+_MATERIAL_PROPS = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction",
+                   "elongation_percent", "burr_coefficient", "texture_nm", "texture_length_um",
+                   "adhesion_layer_nm", "adhesion_roughness_nm")
+
+
 class MaterialConfig(Section):
     """The workpiece material and its response to the cut."""
     preset: Literal[MATERIAL_PRESET_NAMES] = Field(
         "ideal", description="ideal = geometric cut (no material response)")
     edge_radius_nm: float = Field(50.0, ge=0, le=1e4, description="cutting-edge radius of the tool")
     side_flow: bool = Field(True, description="ploughed material flows onto the cusps")
+    burrs: bool = Field(True, description="burrs on the machined edges from the material model "
+                                          "([artifacts.burrs] height > 0 replaces them)")
     youngs_modulus_gpa: float | None = Field(None, gt=0, le=2000)
     poisson: float | None = Field(None, ge=0, lt=0.5)
     hardness_gpa: float | None = Field(None, gt=0, le=100)
     friction: float | None = Field(None, ge=0, le=2)
-    adhesion_layer_nm: float | None = Field(None, ge=0, le=1e5)
-    adhesion_roughness_nm: float | None = Field(None, ge=0, le=1e5)
-    texture_nm: float | None = Field(None, ge=0, le=1e5)
-    groove_across_um: float = Field(1.0, gt=0, le=1000, description="correlation length of the grooves across the cut")
-    groove_along_mm: float = Field(0.05, gt=0, le=1000, description="correlation length of the grooves along the cut")
+    elongation_percent: float | None = Field(None, ge=0, le=100,
+                                             description="elongation at break: the ductility "
+                                                         "that scales the burrs")
+    burr_coefficient: float | None = Field(None, ge=0, le=10,
+                                           description="burr height per unit uncut chip "
+                                                       "thickness on a square exit edge")
+    texture_nm: float | None = Field(None, ge=0, le=1e5, description="Sq of the part's own texture")
+    texture_length_um: float | None = Field(None, gt=0, le=1e5,
+                                            description="correlation length of the part's texture")
+    adhesion_layer_nm: float | None = Field(
+        None, ge=0, le=1e5, description="empirical: an adhered layer blunting the edge, as measured")
+    adhesion_roughness_nm: float | None = Field(
+        None, ge=0, le=1e5, description="empirical: Sq of the grooves an adhered layer ploughs "
+                                        "along the cut, as measured")
+    groove_across_um: float = Field(1.0, gt=0, le=1000, description="correlation length of the "
+                                                                    "adhesion grooves across the cut")
+    groove_along_mm: float = Field(0.05, gt=0, le=1000, description="correlation length of the "
+                                                                    "adhesion grooves along the cut")
 
     @model_validator(mode="after")
     def _ideal_has_no_properties(self):
-        props = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction", "adhesion_layer_nm",
-                 "adhesion_roughness_nm", "texture_nm")
-        if self.preset == "ideal" and any(getattr(self, k) is not None for k in props):
+        if self.preset == "ideal" and any(getattr(self, k) is not None for k in _MATERIAL_PROPS):
             raise ValueError(f"preset must name a material ({', '.join(MATERIAL_PRESET_NAMES[1:])}) "
                              "when material properties are set; 'ideal' has none")
         return self
 
     def overrides(self) -> dict:
         """The material properties set (field name -> value)."""
-        keys = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction", "adhesion_layer_nm",
-                "adhesion_roughness_nm", "texture_nm")
-        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+        return {k: getattr(self, k) for k in _MATERIAL_PROPS if getattr(self, k) is not None}
 
 
 # ---------------------------------------------------------------------------------------
@@ -182,7 +204,8 @@ def _errors(cfg) -> dict:
 
 def machine_of(cfg: "MachineConfig"):
     """The :class:`~render_inspect.machining.Machine` of a ``[machine]`` section."""
-    ov = {k: getattr(cfg, k) for k in ("servo_rate_hz", "interpolation", "fts_sync")
+    ov = {k: getattr(cfg, k) for k in ("servo_rate_hz", "interpolation", "fts_sync",
+                                       "fts_sync_delay_s")
           if getattr(cfg, k) is not None}
     for k in ("x", "z", "fts"):
         d = _linear_axis(getattr(cfg, k))

@@ -1,13 +1,18 @@
 """The cut of a turning program through the scene's machine and material: the program is
 followed by the machine's axes (servo dynamics, error motions:
 :func:`~render_inspect.machining.follow_turning`), the followed path is cut with the
-material's mechanics (minimum chip thickness, side flow, grooves), and the burrs of
-``[artifacts.burrs]`` (an input, this module's section) are put on the machined edges.
-``preset = "ideal"`` for both machine and material gives the geometric cut exactly.
+material's mechanics (minimum chip thickness, side flow), the part's texture is added (a
+field of the position on the part), and burrs are put on the machined edges: the material's
+(:func:`~render_inspect.machining.material_burrs`, from the uncut chip thickness of the
+finishing cut, the exit angle and the ductility), or a given height
+(``[artifacts.burrs]``, this module's section, an override).  ``preset = "ideal"`` for
+both machine and material gives the geometric cut exactly.  The scallop of the feed used
+is reported always (``metrics["scallop"]``).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -26,24 +31,29 @@ from ..machining import (
     follow_turning,
     following_error_stats,
     machined_edges,
+    material_burrs,
     mechanics_facts,
     prepare_cut,
     simulate_turning,
+    texture_field,
+    uncut_chip_thickness,
 )
-from ..toolpath import Tool
+from ..toolpath import Tool, scallop_height
 from ._contract import Inputs, section
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
-           "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of"]
+           "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of", "feed_scallop",
+           "add_texture", "texture_of"]
 
 TWO_PI = 2 * math.pi
+log = logging.getLogger("render_inspect")
 
 
 class BurrConfig(Section):
-    """``[artifacts.burrs]``: ridges put on the machined edges (a given input, not a model
-    of their formation; the material's side flow models that)."""
+    """``[artifacts.burrs]``: ridges of a given height put on the machined edges, in place
+    of the material's burr model (an override, not a model of their formation)."""
     height: float = Field(0.0, ge=0, le=0.1, description="mm")
     width: float = Field(0.0, ge=0, le=1.0, description="mm")
     variation: float = Field(0.3, ge=0, le=1, description="relative seeded variation")
@@ -146,6 +156,38 @@ def following_error_plots(fp, pass_theta, region, pixel, *, name: str) -> dict:
                                                  "each point"}}
 
 
+def feed_scallop(feed: float, nose_radius: float) -> dict:
+    """``metrics["scallop"]``: the scallop the feed per revolution ``feed`` leaves with a
+    nose of radius ``nose_radius`` (mm) on a flat section: its height
+    H = R - sqrt(R^2 - f^2 / 4) (exact circle) and the Sa = 4 H / (9 sqrt 3) and
+    Sq = f^2 / (R sqrt 720) of the parabolic scallop (mean removed): the roughness the feed
+    alone leaves across the feed marks."""
+    f, r = float(feed), float(nose_radius)
+    h = float(scallop_height(f, r))
+    return {"feed_per_rev_mm": f, "nose_radius_mm": r, "height_nm": h * MM_TO_NM,
+            "Sa_nm": 4 * f * f / (8 * r) / (9 * math.sqrt(3)) * MM_TO_NM,
+            "Sq_nm": f * f / (r * math.sqrt(720.0)) * MM_TO_NM}
+
+
+def texture_of(cfg, resp) -> tuple[float, float, int]:
+    """The part's texture of the material response ``resp``: (rms, correlation length,
+    seed), mm (seeded by ``simulation.seed`` + 2)."""
+    return float(resp.texture_rms), float(resp.texture_length), int(cfg.simulation.seed) + 2
+
+
+def add_texture(machined, resp, region, pixel, seed: int):
+    """``machined`` with the part's texture (:func:`~render_inspect.machining.texture_field`
+    of the grid's positions, from ``seed``) added where it is finite; the texture's
+    measured rms (nm)."""
+    x0, y0, x1, y1 = region
+    ny, nx = machined.shape
+    tex = texture_field(x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
+                        rms=resp.texture_rms, correlation_length=resp.texture_length, seed=seed)
+    ok = np.isfinite(machined)
+    out = np.where(ok, machined + tex, machined)
+    return out, (float(np.sqrt(np.mean(tex[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0)
+
+
 def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, region=None,
          plots: bool = True, design=None, progress=None) -> Turned:
     """Cut a turning program through the machine and material of ``cfg``.
@@ -196,20 +238,31 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
                                added_max=c["added_max"],
                                edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
+        machined, info["texture_measured_rms_nm"] = add_texture(machined, resp, region,
+                                                                sim.pixel, texture_of(cfg, resp)[2])
         facts["material"] = {**resp.to_dict(), **info}
+        if resp.validity:
+            log.warning("%s", resp.validity)
     timing["envelope"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if design is None:
         design = design_grid(surface, region, sim.pixel)
     timing["design"] = time.perf_counter() - t0
+    feed = float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
+    facts["scallop"] = feed_scallop(feed, tool.nose_radius)
     if burrs and cfg.burrs.height > 0:
         b = cfg.burrs
-        feed = abs(float(cut_path.rho[0] - cut_path.rho[-1])) / max(cut_path.revolutions, 1e-12)
         machined, facts["burrs"] = apply_burrs(
             machined, design, pixel=sim.pixel, origin=(region[0], region[1]), height=b.height,
             width=b.width, variation=b.variation, edge_angle_deg=b.edge_angle_deg,
             correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
             smoothing=max(feed, 2 * sim.pixel))
+    elif burrs and resp is not None and cfg.material.burrs:
+        h_u = uncut_chip_thickness(feed, cfg.process.depth_of_cut, tool.nose_radius)
+        machined, facts["burrs"] = material_burrs(
+            machined, design, pixel=sim.pixel, origin=(region[0], region[1]), chip_thickness=h_u,
+            coefficient=resp.burr_coefficient, seed=int(sim.seed), edge_angle_deg=cfg.burrs.edge_angle_deg,
+            variation=cfg.burrs.variation, smoothing=max(feed, 2 * sim.pixel))
     if plots and not fp.ideal:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)

@@ -9,6 +9,7 @@ and their geometry are described in :mod:`render_inspect.machining._sculpt`.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from ..machining import (
     contact_ratio,
     cut_lines_mechanics,
     finish_surface,
+    material_burrs,
     sculpt_line_profile,
     sculpt_surface,
     target_line,
@@ -37,8 +39,10 @@ from ..machining import (
 )
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, material_of
-from ._mechanics import BurrConfig, burrs_of
+from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
+
+log = logging.getLogger("render_inspect")
 
 __all__ = ["SculptProcessConfig", "SculptProcess", "SculptInputs", "VibrationConfig",
            "lattice_lines"]
@@ -62,7 +66,9 @@ class SculptProcessConfig(Section):
     feed_mm_per_min: float = Field(100.0, gt=0, le=100000,
                                    description="nominal cutting speed v_c along the lines, mm/min")
     arc_length: float = Field(0.0025, gt=0, description="mm, target-line sampling step")
-    depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded only)")
+    depth_of_cut: float = Field(0.003, ge=0, le=1.0,
+                                description="mm, depth of the finishing (last) layer: the "
+                                            "uncut chip thickness of the material's burrs")
     allow_gouge: bool = Field(False, description="simulate even if the clearance angle is too small")
 
     @model_validator(mode="before")
@@ -205,7 +211,8 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
     with np.errstate(invalid="ignore"):
         vib_over = np.nanmax(machined_0 - machined) if np.isfinite(machined).any() else 0.0
         edge_over = np.nanmax(design - machined_0) if np.isfinite(machined_0).any() else 0.0
-    # the material's response: intermittent cutting (contact ratio) against adhesion
+    # the material's response (the vibration's contact ratio is reported: no source relates
+    # it to the surface left; continuous cutting of steel is outside the model)
     resp = material_of(cfg.material, contact=contact_ratio(vc, vib.amplitude, vib.frequency_hz))
     material_facts = None
     if resp is not None:
@@ -218,11 +225,21 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
         machined, info = finish_surface(c, resp, along=along, seed=int(sim.seed) + 1,
                                         across_length=cfg.material.groove_across_um * UM_TO_MM,
                                         along_length=cfg.material.groove_along_mm)
+        machined, info["texture_measured_rms_nm"] = add_texture(machined, resp, sim.region, px,
+                                                                int(sim.seed) + 2)
         material_facts = {**resp.to_dict(), **info}
+        if resp.validity:
+            log.warning("%s", resp.validity)
     t_sim = time.perf_counter() - t_sim
     b = burrs_of(cfg.burrs, sim.seed)
-    machined, burr_info = apply_burrs(machined, design, pixel=px, origin=(x0, y0),
-                                      edges_from="machined", smoothing=2 * px, **b)
+    if cfg.burrs.height == 0 and resp is not None and cfg.material.burrs:
+        machined, burr_info = material_burrs(
+            machined, design, pixel=px, origin=(x0, y0), chip_thickness=cfg.process.depth_of_cut,
+            coefficient=resp.burr_coefficient, variation=b["variation"], seed=b["seed"],
+            edge_angle_deg=b["edge_angle_deg"], smoothing=2 * px)
+    else:
+        machined, burr_info = apply_burrs(machined, design, pixel=px, origin=(x0, y0),
+                                          edges_from="machined", smoothing=2 * px, **b)
     per_period = (len(vibration_phases(vc, vib.amplitude, vib.frequency_hz, spp))
                   if vib.amplitude > 0 and vib.frequency_hz > 0 else 0)
     n_time = sum(int(math.ceil((ys[-1] - ys[0]) / vc * vib.frequency_hz * per_period)) + ys.size

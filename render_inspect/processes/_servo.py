@@ -25,7 +25,7 @@ import numpy as np
 from ..core.deprecation import warn_deprecated
 from ..core.errors import SceneError
 from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
-from ..machining import split_commands
+from ..machining import loop_lag, loop_response, split_commands
 from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import machine_of
@@ -42,7 +42,7 @@ from ._turning import (
 #: samples per second the cut runs at on 2 cores (the progress bar's estimate)
 CUT_RATE = 2e6
 
-__all__ = ["ServoProcessConfig", "ServoProcess", "RETIRED_SERVO_KEYS"]
+__all__ = ["ServoProcessConfig", "ServoProcess", "RETIRED_SERVO_KEYS", "servo_lags"]
 
 
 class ServoProcessConfig(TurningProcessConfig):
@@ -131,9 +131,50 @@ def _error_stats(err) -> dict:
             "max_um": float(np.max(np.abs(err)) * MM_TO_UM)}
 
 
+def _stroke_frequency(z_fts, t) -> float | None:
+    """The FTS stroke's dominant frequency (Hz): the peak of its spectrum over the program's
+    uniform-time resampling (None when the stroke is flat)."""
+    z = np.asarray(z_fts, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if z.size < 16 or np.ptp(z) == 0 or t[-1] <= t[0]:
+        return None
+    n = min(z.size, 1_000_000)
+    tu = np.linspace(t[0], t[-1], n)
+    zu = np.interp(tu, t, z)
+    spec = np.abs(np.fft.rfft((zu - zu.mean()) * np.hanning(n)))
+    k = int(np.argmax(spec[1:])) + 1
+    return float(k / (tu[-1] - tu[0]))
+
+
+def servo_lags(machine, *, omega: float, r_max: float, z_fts=None, t=None) -> dict:
+    """The lags of a tool-servo machine (``metrics["servo"]``): ``effective_lag_s``, the FTS
+    stroke's lag behind the spindle angle it belongs to at low frequency (its loop's group
+    delay 2 zeta (1 - kv) / wn, its output delay and ``fts_sync_delay_s``; with full velocity
+    feed-forward the loop adds none), ``slow_lag_s`` (the slow slide's, likewise),
+    ``relative_lag_s`` (FTS minus slide: what turns the features against the base), the
+    angles omega tau and the largest circumferential shift r omega tau they give, and at
+    the stroke's dominant frequency the FTS loop's amplitude ratio and lag
+    (``stroke_frequency_hz``, ``fts_amplitude_ratio``, ``fts_lag_at_stroke_s``): with full
+    velocity feed-forward what is left is an amplitude error, not a lag."""
+    tau_f = loop_lag(machine.fts) + float(machine.fts_sync_delay_s)
+    tau_s = loop_lag(machine.z)
+    out = {"effective_lag_s": tau_f, "effective_lag_angle_rad": omega * tau_f,
+           "slow_lag_s": tau_s, "relative_lag_s": tau_f - tau_s,
+           "relative_lag_angle_rad": omega * (tau_f - tau_s),
+           "max_circumferential_shift_um": r_max * omega * abs(tau_f) * MM_TO_UM,
+           "max_relative_shift_um": r_max * omega * abs(tau_f - tau_s) * MM_TO_UM}
+    f = _stroke_frequency(z_fts, t) if z_fts is not None and t is not None else None
+    if f:
+        amp, lag = loop_response(machine.fts, f)
+        out.update(stroke_frequency_hz=f, fts_amplitude_ratio=float(amp),
+                   fts_lag_at_stroke_s=float(lag) + float(machine.fts_sync_delay_s))
+    return out
+
+
 def _servo_facts(cfg, plan: Plan, fp) -> tuple[dict, dict]:
     """(``metrics["servo"]``, the height map's ``servo`` provenance) of the followed path
-    ``fp`` of the plan: the servos' settings, their lag and strokes, their following errors."""
+    ``fp`` of the plan: the servos' settings, their lags (:func:`servo_lags`) and strokes,
+    their following errors."""
     kind = cfg.process.kind
     path = plan.program
     z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
@@ -146,14 +187,14 @@ def _servo_facts(cfg, plan: Plan, fp) -> tuple[dict, dict]:
         fts_err = -np.interp(path.t, fp.t, fp.errors["fts"])
         slow_err = -np.interp(path.t, fp.t, fp.errors["z"])
     settings = {"delay_s": machine.fts.delay_s, "bandwidth_hz": machine.fts.bandwidth_hz,
-                "damping": machine.fts.damping, "slow_bandwidth_hz": machine.z.bandwidth_hz,
-                "slow_damping": machine.z.damping, "fts_sync": machine.fts_sync}
-    bw = settings["bandwidth_hz"]
-    lag = settings["delay_s"] + (2 * settings["damping"] / (2 * math.pi * bw) if bw else 0.0)
+                "damping": machine.fts.damping, "velocity_ff": machine.fts.velocity_ff,
+                "acceleration_ff": machine.fts.acceleration_ff,
+                "slow_bandwidth_hz": machine.z.bandwidth_hz,
+                "slow_damping": machine.z.damping, "slow_velocity_ff": machine.z.velocity_ff,
+                "fts_sync": machine.fts_sync, "fts_sync_delay_s": machine.fts_sync_delay_s}
     servo_m = {"kind": kind, **settings, "omega_rad_s": omega,
                "lag_angle_rad": omega * settings["delay_s"],
-               "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
-               "max_circumferential_shift_um": r_max * omega * lag * MM_TO_UM,
+               **servo_lags(machine, omega=omega, r_max=r_max, z_fts=z_fts, t=path.t),
                "fts_stroke_um": float(np.ptp(z_fts) * MM_TO_UM) if z_fts.size else 0.0,
                "slow_stroke_um": float(np.ptp(z_slow) * MM_TO_UM) if z_slow.size else 0.0,
                "fts_following_error": _error_stats(fts_err),
@@ -212,7 +253,7 @@ class ServoProcess(TiledTurningProcess):
         commands exactly.  A machine without servo dynamics gets the turning pair
         (compensation on/off) instead."""
         machine = machine_of(cfg.machine)
-        if machine.z.ideal and machine.fts.ideal:
+        if machine.z.ideal and machine.fts.ideal and machine.fts_sync_delay_s == 0:
             return compensation_variants(cfg)
         # the slow slide (Z) and FTS: ideal = no loop (inf bandwidth), no latency, no
         # disturbance; the spindle, X and the error motions stay as set
@@ -223,14 +264,17 @@ class ServoProcess(TiledTurningProcess):
                              f"{ax.velocity_ff:.3g}")
             if ax.delay_s > 0:
                 parts.append(f"{name} delay {ax.delay_s * S_TO_MS:.3g} ms")
-        ideal = {}
+        if machine.fts_sync_delay_s != 0:
+            parts.append(f"FTS {machine.fts_sync_delay_s * S_TO_MS:+.3g} ms against the spindle")
+        ideal = {"machine.fts_sync_delay_s": 0.0}
         for ax in ("fts", "z"):
             ideal.update({f"machine.{ax}.bandwidth_hz": math.inf, f"machine.{ax}.delay_s": 0.0,
                           f"machine.{ax}.noise_nm": 0.0})
         preset = cfg.machine.preset
         return VariantPair(
             Variant("servo_lag", f"servos of the {preset} machine (" + "; ".join(parts) + ")", {}),
-            Variant("ideal_servo", "ideal slow slide and FTS (no lag, no disturbance)", ideal),
+            Variant("ideal_servo", "ideal slow slide and FTS (no lag, no disturbance, FTS in "
+                                   "time with the spindle)", ideal),
             key="machine.fts, machine.z",
             about=("Servo lag on against off: the slow slide and the fast tool servo as the "
                    f"{preset} machine has them, against servos that follow their commands "

@@ -5,6 +5,8 @@ the pair ``compare`` shows by default (compensation on against off)."""
 
 from __future__ import annotations
 
+import logging
+import math
 import time
 from typing import Literal
 
@@ -33,8 +35,11 @@ from ..toolpath import (
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._machine import machine_of, material_of
-from ._mechanics import TurningInputs, follow, following_error_plots, grooves_of, turn
+from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of, texture_of,
+                         turn)
 from ._registry import check_budget
+
+log = logging.getLogger("render_inspect")
 
 __all__ = ["TurningProcessConfig", "TurningProcess", "TurningInputs", "plan_spiral",
            "toolpath_facts", "turning_memory", "turning_points", "machine_bytes",
@@ -375,6 +380,7 @@ class TiledTurningProcess(TurningProcess):
         resp = material_of(cfg.material)
         return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
+                        texture=None if resp is None else texture_of(cfg, resp),
                         facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}))
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
@@ -383,7 +389,15 @@ class TiledTurningProcess(TurningProcess):
             info = mechanics_facts(env.mechanics, grooves_sumsq=cut["grooves_sumsq"],
                                    grooves_n=cut["grooves_n"], added_max=cut["added_max"],
                                    edge_pixels=cut["edge_pixels"])
+            n = cut.get("texture_n", 0)
+            info["texture_measured_rms_nm"] = (math.sqrt(cut["texture_sumsq"] / n) * MM_TO_NM
+                                               if n else 0.0)
             facts["material"] = {**env.mechanics.to_dict(), **info}
+            if cfg.material.burrs:
+                facts["burrs"] = {"model": "not added: the material's burrs need the whole map's "
+                                           "edges, which a simulation tile by tile does not have"}
+                log.warning("the tiled simulation adds no burrs on the machined edges (the "
+                            "material's burr model needs the whole map)")
         if env.followed is not None and "pass_theta" in cut:
             sim = cfg.simulation
             plots.update(following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),

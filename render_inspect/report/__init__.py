@@ -1,6 +1,6 @@
 """Reports: every figure the package draws (maps, image panels, radial profiles, axis
 motion, following error, the comparison's figures, the instrument's characterisation,
-sweep plots, the regression's images) and the self-contained ``report.html`` of a
+sweep plots and their Morris indices, the regression's images) and the self-contained ``report.html`` of a
 comparison, from metrics and arrays.  Stages describe the figures they want as data
 (:func:`draw_figure`); only this package draws."""
 
@@ -18,6 +18,7 @@ from ._html import HtmlReport, data_uri, table_html
 from ._instrument import characterise_figures
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
                           turning_axes)
+from ._morris import morris_png
 from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
                     save_map_png)
 from ._page import build_page
@@ -32,5 +33,6 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "turning_axes", "draw_figure", "FIGURE_KINDS", "save_map_png", "save_height_png",
            "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
            "panels_png", "characterise_figures", "curves_png", "heatmap_png", "sweep_plot_png",
+           "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
            "luminance"]

@@ -434,7 +434,10 @@ def _process_facts(c: dict, u: dict) -> list:
         f = (lambda v: _q(None if v is None else v * scale, unit))
         rows.append([label, f(x), f(y)])
 
+    add("feed scallop: height", "scallop.height_nm", "nm")
+    add("feed scallop: Sq", "scallop.Sq_nm", "nm")
     add("servo: effective lag", "servo.effective_lag_s", "ms", 1e3)
+    add("servo: FTS lag against the slide", "servo.relative_lag_s", "ms", 1e3)
     add("servo: lag angle omega tau", "servo.effective_lag_angle_rad", "mrad", 1e3)
     add("servo: largest circumferential shift", "servo.max_circumferential_shift_um", "um")
     add("servo: FTS stroke", "servo.fts_stroke_um", "um")

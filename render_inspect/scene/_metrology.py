@@ -28,6 +28,11 @@ class MetrologyConfig(Section):
     registration_dof: list[Literal["tx", "ty", "tz", "alpha", "beta", "gamma"]] = Field(
         default_factory=lambda: ["tx", "ty", "tz", "alpha", "beta", "gamma"], min_length=1,
         description="rigid-body parameters the registration fits")
+    registration_stages: Literal["base_then_all", "base"] = Field(
+        "base_then_all", description="a microstructure on a base: register on the base, then on "
+                                     "all data; or on the base only (the lenslets are then "
+                                     "located against the base, what their relative timing "
+                                     "turns stays visible)")
     template_oversample: int = Field(10, ge=1, le=50, description="ICP template density / measured")
     msa_inner: float = Field(0.95, gt=0, le=1, description="fraction of the aperture that is MSA data")
     msa_outer: float = Field(1.05, ge=1, le=3, description="beyond this fraction of the aperture: base")

@@ -1,0 +1,150 @@
+"""Every shipped seed scene next to its paper's measured value, compared like with like.
+
+The papers measured their parts with an instrument and removed the form before quoting a
+roughness.  This script simulates each shipped scene (or the window of it named below)
+and reports the residual machined - design three ways:
+
+* ``raw``: mean removed (as ``metrics.json``'s ``residual``);
+* ``poly2``: a second-order polynomial (the form) removed;
+* ``instrument``: through the 20x interference objective's linear transfer function
+  (NA 0.4, LED 600 nm / 120 nm, the illumination pupil filled or stopped down to
+  ``--illumination-na``), the camera pixel's box (0.9 mm / 1024), then poly2 removed: what
+  the coherence-correlation interferometer of Li et al. (2018) would report.
+
+Usage::
+
+    python tools/paper_comparison.py [--scene NAME ...] [--illumination-na 0.3] [--json OUT]
+          [--set KEY=VALUE ...]
+
+Prints a Markdown table (docs/machine_and_material.md shows it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from render_inspect.core.units import MM_TO_NM
+from render_inspect.instruments import Microscope, led
+from render_inspect.pipeline import simulate
+from render_inspect.scene import load_scene
+
+#: the 20x CCI 3000 field: 0.9 mm on 1024 camera pixels
+CAMERA_PIXEL_MM = 0.9 / 1024
+#: the paper's values (mean +- the stated uncertainty, nm) and the window compared
+PAPERS = {
+    "sts_sinusoidal_grid": {"metric": "Sq", "value": 7.1, "sd": 0.3,
+                            "paper": "Li et al. (2018), sinusoidal grid, CCI 3000 20x",
+                            "windows": {"scene (centre)": [],
+                                        "off axis": ["simulation.region=[1.5, 1.5, 2.4, 2.4]"]}},
+    "sts_mla_2x2": {"metric": "Sq", "value": 7.4, "sd": 0.34,
+                    "paper": "Li et al. (2018), 2 x 2 MLA, CCI 3000 20x",
+                    "windows": {"scene (lenslet rim)": []}},
+    "sts_fig16_overcut": {"metric": None, "paper": "Li et al. (2018), Fig. 16: a simulation, "
+                                                   "no measurement", "windows": {"scene": []}},
+    "compound_sinusoid": {"metric": None, "paper": "Ra 89 nm (stylus, direction and cut-off "
+                                                   "not given), PV 4.25 um (whole part)",
+                          "windows": {"scene": []}},
+    "hts_toric_msa": {"metric": None, "paper": "lenslet form error Sa 0.112-0.836 um; "
+                                               "dislocations 13.5-144 um (Table 3)",
+                      "windows": {"scene": []}},
+    "rcse_circular_array": {"metric": None, "paper": "Sa 60.6 % lower than the conventional "
+                                                     "path, spread 91.7 % lower",
+                            "windows": {"scene": []}},
+    "sculpt_quad_mla": {"metric": None, "paper": "single lenslet Sa 4 nm, Sz 0.13 um (HFUVAS); "
+                                                 "edge form error E2 0.2 um",
+                        "windows": {"scene": []}},
+}
+
+
+def poly_remove(r, degree=2):
+    """``r`` minus its least-squares polynomial of ``degree`` in x and y (NaN kept)."""
+    ny, nx = r.shape
+    y, x = np.mgrid[0:ny, 0:nx]
+    x = (x - nx / 2) / nx
+    y = (y - ny / 2) / ny
+    cols = [x ** i * y ** j for i in range(degree + 1) for j in range(degree + 1 - i)]
+    ok = np.isfinite(r)
+    a = np.stack([c[ok] for c in cols], 1)
+    coef, *_ = np.linalg.lstsq(a, r[ok], rcond=None)
+    out = np.full_like(r, np.nan)
+    out[ok] = r[ok] - a @ coef
+    return out
+
+
+def instrument_filter(r, pixel, *, illumination_na=None):
+    """``r`` (mm) through the 20x objective's linear ITF and the camera pixel's box."""
+    mic = Microscope(source=led(600.0, bandwidth_nm=120.0), illumination_na=illumination_na)
+    rr = np.where(np.isfinite(r), r, np.nanmean(r))
+    fy = np.fft.fftfreq(r.shape[0], pixel)
+    fx = np.fft.fftfreq(r.shape[1], pixel)
+    gx, gy = np.meshgrid(fx, fy)
+    h = mic.itf(np.hypot(gx, gy)) * np.sinc(gx * CAMERA_PIXEL_MM) * np.sinc(gy * CAMERA_PIXEL_MM)
+    return np.real(np.fft.ifft2(np.fft.fft2(rr) * h))
+
+
+def sq_nm(a):
+    a = a[np.isfinite(a)]
+    a = a - a.mean()
+    return float(np.sqrt(np.mean(a * a)) * MM_TO_NM)
+
+
+def sa_nm(a):
+    a = a[np.isfinite(a)]
+    return float(np.mean(np.abs(a - a.mean())) * MM_TO_NM)
+
+
+def compare(name, overrides=(), *, illumination_na=None) -> dict:
+    """Sq and Sa of one scene's residual raw, poly2 and through the instrument."""
+    scene = load_scene(name, list(overrides))
+    t0 = time.perf_counter()
+    sim = simulate(scene)
+    r = sim.heightmap.machined - sim.heightmap.design
+    px = scene.simulation.pixel
+    p2 = poly_remove(r)
+    it = poly_remove(instrument_filter(r, px, illumination_na=illumination_na))
+    return {"raw_Sq_nm": sq_nm(r), "raw_Sa_nm": sa_nm(r), "poly2_Sq_nm": sq_nm(p2),
+            "instrument_Sq_nm": sq_nm(it), "instrument_Sa_nm": sa_nm(it),
+            "scallop_Sq_nm": sim.metrics.get("scallop", {}).get("Sq_nm"),
+            "seconds": time.perf_counter() - t0}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scene", action="append", help="scene (default: every one in PAPERS)")
+    ap.add_argument("--illumination-na", type=float, default=None,
+                    help="illumination NA of the objective (default: the pupil filled, 0.4)")
+    ap.add_argument("--set", action="append", default=[], help="a scene override for every run")
+    ap.add_argument("--json", help="write the numbers here too")
+    a = ap.parse_args(argv)
+    rows, out = [], {}
+    for name in a.scene or list(PAPERS):
+        spec = PAPERS[name]
+        for label, over in spec["windows"].items():
+            res = compare(name, over + a.set, illumination_na=a.illumination_na)
+            out[f"{name}: {label}"] = res
+            if spec["metric"]:
+                inside = abs(res["instrument_Sq_nm"] - spec["value"]) <= spec["sd"]
+                rows.append(f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
+                            f"{res['instrument_Sq_nm']:.2f} / {res['instrument_Sa_nm']:.2f} | "
+                            f"{spec['value']} +- {spec['sd']} ({spec['paper']}) | "
+                            f"{'inside' if inside else 'outside'} |")
+            else:
+                rows.append(f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
+                            f"- | {spec['paper']} | |")
+            print(rows[-1], file=sys.stderr, flush=True)
+    print("| scene, window | raw Sq / Sa (nm) | through the instrument, poly2: Sq / Sa (nm) | "
+          "paper | |")
+    print("|---|---|---|---|---|")
+    print("\n".join(rows))
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
