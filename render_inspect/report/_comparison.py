@@ -113,9 +113,9 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
                      "title": "profile across the largest difference"},
             panel_labels=("truth (the simulation)",
                           f"measured, {_removed(lev)} removed"),
-            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]}): the measured "
-                  f"difference with {_removed(lev)} removed (two set-ups differ by both), "
-                  f"beside the simulation's truth" + _reorder_note(lev))
+            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]}): measured with "
+                  f"{_removed(lev)} removed (two set-ups differ by both), beside the truth"
+                  + _reorder_note(lev).replace(";\n", "; "))
     else:
         figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
@@ -150,7 +150,7 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         extent=ig_ext, label="intensity difference", cmap="RdBu_r", symmetric=True)
     figs["measured_residual_side_by_side"] = map_panels(
         [(f"{n}: measured - design, {_removed(v.maps.get('measured_residual_levelling'))} "
-          f"removed{_reorder_note(v.maps.get('measured_residual_levelling'), short=True)}",
+          f"removed{_reorder_note(v.maps.get('measured_residual_levelling'))}",
           v.maps["measured_residual"] * MM_TO_NM) for n, v in zip(names, (a, b))],
         extent=ig_ext, label="residual seen by the instrument (nm)", cmap="RdBu_r",
         symmetric=True)
@@ -195,18 +195,16 @@ def _removed(levelling) -> str:
     return (levelling or {}).get("removed") or "piston and tilt"
 
 
-def _reorder_note(levelling, *, short: bool = False) -> str:
-    """The fringe orders a PSI levelling assigned to regions apart from the largest."""
+def _reorder_note(levelling) -> str:
+    """The fringe orders a PSI levelling assigned to the regions apart from the largest
+    (PSI cannot tell orders apart across gaps), as a second title line."""
     lev = levelling or {}
     moved = lev.get("reordered") or []
     order = lev.get("fringe_order_nm")
     if not moved or order is None:
         return ""
     n = len(moved)
-    if short:
-        return f";\n{n} region{'s' if n > 1 else ''} moved by whole fringe orders"
-    return (f"; {n} region{'s' if n > 1 else ''} not touching the largest moved by whole "
-            f"fringe orders of {order:.0f} nm (PSI cannot tell orders apart across gaps)")
+    return f";\n{n} region{'s' if n > 1 else ''} moved by whole fringe orders ({order:.0f} nm)"
 
 
 def _locator(a: ComparedVariant, part: dict, window: dict, ig) -> dict:
