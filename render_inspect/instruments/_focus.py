@@ -8,8 +8,10 @@ difference lies on it.  Here the scanner steps through the height span of the fi
 sees fringes, started where the part is), and at each position the mean fringe amplitude
 over the field is read from the imaging model on a binned camera (super-pixels of
 ``b x b`` camera pixels, at most :data:`AUTOFOCUS_PIXELS` across, as autofocus routines
-bin the camera for speed).  The focus is the position of the largest mean amplitude,
-refined by a parabola through it and its neighbours.  No height of the part is used to
+bin the camera for speed; facets steeper than the binned sampling can carry are left
+out, and the binning is made finer while they are most of the field).  The focus is the
+position of the largest mean amplitude, refined by a parabola through it and its
+neighbours.  No height of the part is used to
 place it: where the field holds several heights, the focus lands where most of the
 light's fringes are.
 
@@ -25,12 +27,15 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import NM_TO_MM
-from ._imaging import interference_intensity
+from ._imaging import interference_intensity, normals_from_heights
 from ._microscope import Microscope
 
 __all__ = ["AUTOFOCUS_PIXELS", "autofocus"]
 
-#: Largest number of (binned) camera pixels across the field the autofocus looks at.
+#: Largest number of (binned) camera pixels across the field the autofocus looks at (a
+#: speed choice: on 256 x 256 pixel fields of a sphere, a grid with turning marks and
+#: scallops the focus found at 48 is the one found at full resolution within 0.01 of the
+#: depth of focus; at 24 a sphere's moves by half of it).
 AUTOFOCUS_PIXELS = 48
 #: Most scanner positions of the autofocus scan.
 AUTOFOCUS_STEPS = 400
@@ -64,15 +69,30 @@ def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
         raise InputError("heights are all NaN: no surface in the field")
     hc, wc = h.shape[0] // s, h.shape[1] // s
     crop = int(crop)
+    nrm = normals_from_heights(h, pixel / s) if normals is None else np.asarray(normals)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tan = np.hypot(nrm[..., 0], nrm[..., 1]) / nrm[..., 2]
+    k, w = mic.source.sample(dk=mic._dk_fine())
+    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
     b = math.ceil(max(hc - 2 * crop, wc - 2 * crop) / AUTOFOCUS_PIXELS)
     b = max(1, min(b, min(hc, wc) // 4))  # a narrow field keeps a few rows
-    hb, wb = hc // b, wc // b
-    off = (b - 1) // 2
-    # s sub-samples per super-pixel, spread over it: every b-th sub-sample
-    hsub = h[:hb * b * s, :wb * b * s][off::b, off::b]
-    nsub = None
-    if normals is not None:
-        nsub = np.asarray(normals)[:hb * b * s, :wb * b * s][off::b, off::b]
+    while True:
+        # s sub-samples per super-pixel of b x b camera pixels: every b-th sub-sample.
+        # Facets steeper than that sampling carries (more than pi of phase from one
+        # sample to the next) are left out rather than folded into the pupil; the
+        # binning is made finer while they are most of the field.
+        hb, wb = hc // b, wc // b
+        off = (b - 1) // 2
+        hsub = h[:hb * b * s, :wb * b * s][off::b, off::b]
+        nsub = nrm[:hb * b * s, :wb * b * s][off::b, off::b]
+        tsub = tan[:hb * b * s, :wb * b * s][off::b, off::b]
+        steep = ~(tsub <= math.pi / (2 * k_hi * b * pixel / s))
+        fin_b = np.isfinite(hsub)
+        if b == 1 or (fin_b & ~steep).sum() >= 0.5 * fin_b.sum():
+            break
+        b = max(1, b // 2)
+    if b > 1:
+        hsub = np.where(steep, np.nan, hsub)
     cb = min(math.ceil(crop / b), (min(hb, wb) - 1) // 2)
     sigma = mic.coherence_sigma()
     env = 1.0 / sigma if sigma > 0 else 10 * mic.effective_wavelength_nm() * NM_TO_MM

@@ -35,7 +35,8 @@ import numpy as np
 
 __all__ = ["FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas"]
 
-#: Probability that a pixel holding noise alone passes as fringes (per pixel).
+#: Probability that a pixel holding noise alone passes as fringes (per pixel); assumed:
+#: about one such pixel in a 1024 x 1024 field (1e-8 .. 1e-3 are plausible choices).
 FALSE_ALARM = 1e-6  # not a unit conversion
 #: Intensity groups of the pooled phase-shifting noise estimate, and the fewest pixels
 #: a group holds.

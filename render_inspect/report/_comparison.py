@@ -115,7 +115,7 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
                           f"measured, {_removed(lev)} removed"),
             title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]}): measured with "
                   f"{_removed(lev)} removed (two set-ups differ by both), beside the truth"
-                  + _reorder_note(lev).replace(";\n", "; "))
+                  + _reorder_note(lev))
     else:
         figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
