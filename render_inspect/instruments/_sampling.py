@@ -8,14 +8,14 @@ finer than the sub-samples can carry folds back to ``|f - n / a|``; where that l
 inside the pupil it comes back as a false, coarse grating (a 0.3 um grating sampled at
 0.293 um reads as a 12.5 um one), although physically its light leaves the pupil and
 nothing returns.  Content folds into the pupil only from frequencies above both the
-sub-samples' Nyquist frequency and ``1 / a - f_cut``, so the sub-sampling is chosen such that the surface has (next to) no
-content there: the height map's spectrum (a DCT, i.e. the map mirrored at its edges, its
-plane removed) gives the rms of the heights above any frequency, and ``s`` is the
-smallest for which that rms is below :data:`ALIAS_TOLERANCE_NM`.  A height map holds no
-content above its own Nyquist frequency ``1 / (2 pixel_map)``, which bounds ``s``
-(:func:`grid_subsamples`).  Where ``s`` is fixed by the user or capped, the content that
-still folds into the pupil is reported (``aliased_rms_nm``): the under-sampling
-diagnostic.
+sub-samples' Nyquist frequency and ``1 / a - f_cut``, so the sub-sampling is chosen such
+that the surface has (next to) no content there: the height map's spectrum (a DCT, i.e.
+the map mirrored at its edges, its plane removed) gives the rms of the heights above any
+frequency, and ``s`` is the smallest for which that rms is below
+:data:`ALIAS_TOLERANCE_NM`.  A height map holds no content above its own Nyquist
+frequency ``1 / (2 pixel_map)``, which bounds ``s`` (:func:`grid_subsamples`).  Where
+``s`` is fixed by the user or capped, the content that still folds into the pupil is
+reported (``aliased_rms_nm``): the under-sampling diagnostic.
 
 Sampling the heights more finely, not averaging them, is what makes this right: the
 field is a nonlinear function of the height, and the mean of ``exp(i K h)`` over an area

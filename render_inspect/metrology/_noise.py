@@ -20,8 +20,9 @@ that the fringe model cannot explain.
   modulation floor applies.
 * **Coherence scanning.**  Each pixel's noise is the robust spread (1.4826 times the
   median absolute value) of its mean-removed signal along the scan, where the fringes
-  fill only the frames near the envelope peak; the envelope of noise alone is Rayleigh distributed per frame, so a pixel holds fringes
-  when its envelope peak exceeds ``sigma sqrt(2 ln(N / p))`` (the largest of N frames).
+  fill only the frames near the envelope peak; the envelope of noise alone is Rayleigh
+  distributed per frame, so a pixel holds fringes when its envelope peak exceeds ``sigma
+  sqrt(2 ln(N / p))`` (the largest of N frames).
 
 Model misfit (a miscalibrated phase shifter, vibration) adds to the residual and makes
 the estimate conservative: it raises the threshold, it never lets noise pass.
