@@ -23,6 +23,7 @@ import sys
 import threading
 import time
 import traceback
+from pathlib import Path
 
 from . import __version__
 from .core.errors import RenderInspectError
@@ -451,6 +452,28 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
+def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
+    """``measure`` and ``analyze``: their headline numbers and where the files are."""
+    from rich.console import Console
+    from rich.table import Table
+
+    # the pipeline is imported lazily (see _run)
+    from .pipeline import analyze_summary, measure_summary
+
+    rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
+    src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
+    con = Console(file=sys.stdout, highlight=False)
+    t = Table(title=f"render-inspect {command}: {Path(str(src)).name} ({seconds:.0f} s)",
+              title_justify="left",
+              show_edge=False, show_header=False)
+    t.add_column("")
+    t.add_column("")
+    for r in rows:
+        t.add_row(*r)
+    con.print(t)
+    con.print(f"output: {str(Path(out).resolve())}", soft_wrap=True, markup=False)
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
 
@@ -576,6 +599,9 @@ def main(argv=None) -> int:
     if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
             and not getattr(args, "quiet", False):
         _print_compare_summary(result, args.out, dt)
+    elif args.command in ("measure", "analyze") and isinstance(result, dict) \
+            and not getattr(args, "quiet", False):
+        _print_summary(args.command, result, args.out, dt)
     log.info("%s: done in %.1f s", prefix, dt)
     return 0
 

@@ -56,7 +56,14 @@ def test_analyze_non_square_x3p_writes_metrics_png_x3p(tmp_path, capsys):
     s = surfalize.Surface.load(str(out / "height.x3p"))  # third-party reader
     assert_allclose([s.step_x * 1e-3, s.step_y * 1e-3], m["pixel_mm"], rtol=1e-12)
     assert_allclose(s.Sq(), m["areal"]["Sq_nm"] * 1e-3, rtol=1e-9)
-    assert "done" in capsys.readouterr().err
+    cap = capsys.readouterr()
+    assert "done" in cap.err
+    # a one-screen summary on stdout: the headline numbers and the output folder
+    assert f"render-inspect analyze: {src.name}" in cap.out and "Sa, Sq" in cap.out
+    from render_inspect.report import fmt_quantity
+
+    assert fmt_quantity(m["areal"]["Sq_nm"], "nm") in cap.out
+    assert str(out.resolve()) in cap.out.replace("\n", "")
 
 
 def test_analyze_sphere_outliers_and_filter_on_a_forward_model(tmp_path):

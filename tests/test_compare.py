@@ -143,6 +143,52 @@ def test_compare_measured_height_in_interferogram(compared):
 
 @pytest.mark.mitsuba
 @pytest.mark.slow
+def test_each_height_exr_is_what_measure_returns(compared, tmp_path):
+    # ``render-inspect measure`` on the variant's interferogram.exr (frames and settings,
+    # the truth channels ignored) gives the variant's height.exr, bit for bit
+    out, _ = compared
+    for variant in ("compensated", "uncompensated"):
+        rc = cli_main(["measure", str(out / variant / "interferogram.exr"), "--out",
+                       str(tmp_path / variant), "-q"])
+        assert rc == 0
+        a, _ = read_exr(tmp_path / variant / "height.exr")
+        b, _ = read_exr(out / variant / "height.exr")
+        assert set(a) == set(b) == {"height", "valid", "modulation"}
+        for k in a:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=f"{variant}: {k}")
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_window_difference_comes_from_the_measurements_alone(compared):
+    # the measured difference over the common window, formed again from the two
+    # height.exr files alone (piston and tilt removed, PSI fringe orders of separate
+    # regions taken nearest the largest one's plane), is what metrics.json states
+    from render_inspect.metrology import measured_difference
+
+    out, m = compared
+    w = m["difference"]["window"]
+    assert w["measured"]["form_removed"] == "piston and tilt"
+    assert w["measured_piston_removed"]["form_removed"] == "piston"
+    h = {}
+    for v in ("compensated", "uncompensated"):
+        ch, attrs = read_exr(out / v / "height.exr")
+        h[v] = np.where(ch["valid"] > 0.5, ch["height"].astype(np.float64), np.nan)
+    lam = attrs["effective_wavelength_nm"] * 1e-6
+    d, info = measured_difference(h["compensated"], h["uncompensated"],
+                                  pixel=attrs["pixel_size_mm"], fringe_order_mm=lam / 2)
+    ok = np.isfinite(d)
+    rms = float(np.sqrt(np.mean(d[ok] ** 2))) * 1e6
+    assert rms == pytest.approx(w["measured"]["rms_nm"], rel=1e-3, abs=1e-3)
+    assert abs(w["measured"]["mean_nm"]) < 1e-6  # the piston is gone
+    # the truth sits beside it, labelled, with and without the same terms removed
+    assert "truth" in w["true"]["source"] and "truth" in w["true_same_form_removed"]["source"]
+    assert w["measured"]["rms_nm"] == pytest.approx(w["true_same_form_removed"]["rms_nm"],
+                                                    abs=3.0)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
 def test_compare_same_camera_for_both(compared):
     out, m = compared
     a = m["compensated"]["interferometer"]

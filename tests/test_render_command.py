@@ -25,7 +25,8 @@ def test_run_render_design_writes_all_outputs(scenes_dir, tmp_path):
     out = tmp_path / "run"
     res = run_render(scene, out, surface="design", kind="all")
     r = res["render"]
-    for name in ("interferogram.exr", "interferogram_fringes.png", "interferogram_height.png",
+    assert not (out / "interferogram_height.png").exists()  # the truth stays in the height map
+    for name in ("interferogram.exr", "interferogram_fringes.png",
                  "diffuse_macro.exr", "diffuse_macro.png", "diffuse_micro.exr", "diffuse_micro.png",
                  "render_metrics.json"):
         assert (out / name).is_file(), name

@@ -28,8 +28,8 @@ class Frames(GridCoordinates):
     frames : (N, H, W) float32, 0..1
         PSI: one frame per phase step; CSI: one per scan position.
     valid : (H, W) bool
-        Pixels where light returned from the part (the object beam is brighter than 5 %
-        of a mirror's); the measurement still decides from the fringes themselves.
+        Pixels the recording holds (rendered frames: every pixel).  Measuring never reads
+        it: which pixels hold fringes is decided from the frames themselves.
     pixel : float, mm at the part;  origin : (x, y) of pixel [0, 0]'s centre, mm.
         Row 0 = smallest y.
     mode : {"psi", "csi"}

@@ -18,7 +18,9 @@ from ..core.frames import PHASE_CONVENTION, Frames
 from ..core.plugins import import_private_modules
 from . import _artefacts as artefacts  # calibration surfaces
 from ._camera import Camera, expose
-from ._imaging import csi_frames, interference_intensity, normals_from_heights, psi_frames
+from ._focus import autofocus
+from ._imaging import interference_intensity, normals_from_heights
+from ._modes import csi_frames, psi_frames
 from ._interferometer import (
     Interferogram,
     InterferometerConfig,
@@ -68,6 +70,7 @@ __all__ = [
     "TransferFunction",
     "acceptance_table",
     "artefacts",
+    "autofocus",
     "axial_step",
     "csi_frames",
     "disturbances_from_config",

@@ -37,7 +37,9 @@ from ..metrology import (
     slope_table,
 )
 from . import _artefacts as artefacts
-from ._imaging import Microscope, csi_frames, psi_frames, recommended_subsamples
+from ._microscope import Microscope, recommended_subsamples
+from ._modes import csi_frames, psi_frames
+from ._sampling import pupil_cutoff
 from ._interferometer import disturbances_from_config, microscope_from_config
 from ._objectives import OBJECTIVES
 
@@ -47,8 +49,10 @@ _NM = NM_TO_MM
 _UM = UM_TO_MM
 #: Step heights of the batwing study, nm.
 BATWING_STEPS_NM = (50.0, 100.0, 200.0, 1000.0, 5000.0)
-#: ITF sweep, as fractions of the textbook cut-off frequency.
-ITF_FRACTIONS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.05)
+#: ITF sweep, as fractions of the textbook cut-off frequency; beyond 1 nothing may come
+#: back (a grating whose first order leaves the pupil), whatever the camera's sampling.
+ITF_FRACTIONS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.05, 1.5, 2.0,
+                 3.0)
 
 
 def _measure(h, n, *, pixel, s, mic, dist, mode, seed, algorithm="auto", **kw):
@@ -69,25 +73,33 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
     amp = lam_nm * _NM / 40  # K a ~ 0.3 rad: the linear regime
     alg = "auto" if mode == "psi" else "envelope+phase"
     quiet = _quiet(mic)
-    fracs = ITF_FRACTIONS[::2] + (0.95,) if quick else ITF_FRACTIONS
+    fracs = ITF_FRACTIONS[::2] + (0.95, 2.0) if quick else ITF_FRACTIONS
     rows = []
     for frac in sorted(set(fracs)):
         f = frac * fc
         period = 1 / f
         row = {"frequency_per_mm": f, "period_um": period / _UM}
         for key, p in (("itf_optics", fine), ("itf_instrument", pixel)):
-            if key == "itf_instrument" and f > 0.5 / p:
-                row[key] = None  # above the camera's Nyquist frequency
-                continue
             nper = max(2, math.ceil(max(32 * p, 16 * _UM) / period))
             n = max(16, round(nper * period / p))
             per = n * p / nper  # an integer number of periods in the (periodic) field
-            s = 1 if p == fine else recommended_subsamples(p, quiet, max_slope=2 * math.pi * amp / per)
+            # sampled finely enough that the grating itself cannot fold into the pupil
+            s = max(recommended_subsamples(p, quiet, max_slope=2 * math.pi * amp / per),
+                    math.ceil(p * (pupil_cutoff(quiet) + 1 / per) * (1 + 1e-6)))
             h, nrm = artefacts.sinusoid((4, n), p, s, period=per, amplitude=amp)
             _, m = _measure(h, nrm, pixel=p, s=s, mic=quiet, dist=dist, mode=mode, seed=0,
                             algorithm=alg)
             x = p * np.arange(n)
-            row[key] = sinusoid_amplitude(np.nanmean(m.height, axis=0), x, per) / amp
+            prof = np.nanmean(m.height, axis=0)
+            if 1 / per <= 0.5 / p:
+                row[key] = sinusoid_amplitude(prof, x, per) / amp
+            else:
+                # above the camera's Nyquist frequency: the amplitude of whatever pattern
+                # comes back (the camera's alias of what the optics pass; none beyond the
+                # cut-off)
+                d = prof[np.isfinite(prof)]
+                d = d - d.mean()
+                row[key] = float(math.sqrt(2 * np.mean(d * d))) / amp if d.size else None
         row["itf_model"] = float(mic.itf(f))
         row["itf_textbook"] = float(pupil_overlap(f, numerical_aperture=na, illumination_na=na_ill,
                                                   wavelength_nm=lam_nm))
@@ -98,7 +110,10 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
         if a0 >= 0.5 > a1:
             half = f0 + (a0 - 0.5) / (a0 - a1) * (f1 - f0)
             break
+    beyond = [r["itf_instrument"] for r in rows
+              if r["frequency_per_mm"] > fc and r["itf_instrument"] is not None]
     return {"amplitude_nm": amp / _NM, "cutoff_per_mm": fc, "cutoff_period_um": 1 / fc / _UM,
+            "beyond_cutoff_max": max(beyond) if beyond else None,
             "half_transfer_per_mm": half, "camera_nyquist_per_mm": 0.5 / pixel,
             "fine_pixel_um": fine / _UM, "algorithm": alg, "table": rows}
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -31,9 +32,11 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._imaging import csi_frames, psi_frames
+from ._modes import csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
+from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, content_subsamples,
+                        grid_subsamples, pupil_cutoff)
 from ._sources import led, monochromatic, spectrum_table
 
 __all__ = [
@@ -52,6 +55,8 @@ __all__ = [
     "trace_heights",
     "write_interferogram_exr",
 ]
+
+log = logging.getLogger("render_inspect")
 
 #: Default sources (nm): PSI a filtered green LED; CSI a white LED.
 DEFAULT_PSI_WAVELENGTH_NM = 550.0
@@ -91,7 +96,8 @@ class InterferometerConfig(Section):
                                description="CSI frames; None = heights + 4.5 envelopes either side")
     subsamples: int | None = Field(None, ge=1, le=8,
                                    description="sub-samples per pixel side; None = sampled for the "
-                                               "pupil's cut-off and the surface's slopes")
+                                               "pupil's cut-off, the surface's slopes and its "
+                                               "content finer than the pupil passes")
     margin: int = Field(8, ge=0, le=256, description="pixels traced around the field and cropped")
     reflectance: float = Field(1.0, gt=0, le=1, description="power reflectance of the part")
     reference_reflectance: float | None = Field(None, gt=0, le=1,
@@ -114,7 +120,8 @@ class InterferometerConfig(Section):
     reference_figure_rms_nm: float = Field(0.0, ge=0, le=1000, description="reference mirror figure")
     reference_figure_correlation_mm: float = Field(0.02, gt=0)
     reference_figure_seed: int = Field(0, ge=0)
-    reference_height: Length | None = Field(None, description="PSI z_ref, mm (default: mean height in the field)")
+    reference_height: Length | None = Field(None, description="PSI z_ref (focus), mm (default: "
+                                                              "the instrument's autofocus)")
 
     @model_validator(mode="after")
     def _apertures(self):
@@ -278,11 +285,13 @@ RENDERER_BYTES = 256 * MIB_TO_BYTES
 
 
 def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
-                          max_slope: float | None = None) -> int:
+                          max_slope: float | None = None, grid_pixel: float | None = None) -> int:
     """Bytes the interferometer needs at its peak for the geometry ``geom``
     (:func:`interferometer_geometry`): the sub-sample rays over the field and its margin
     (``subsamples``; when automatic, what slopes up to ``max_slope`` (rad; default the
-    steepest that returns light) ask for, at most :data:`MAX_AUTO_SUBSAMPLES`), the frames (PSI: ``steps``; CSI: ``frames``, or when
+    steepest that returns light) ask for, or what a map of ``grid_pixel`` (mm) can hold
+    that folds into the pupil (:func:`~._sampling.grid_subsamples`), at most
+    :data:`MAX_AUTO_SUBSAMPLES`), the frames (PSI: ``steps``; CSI: ``frames``, or when
     automatic the least a scan needs, the coherence envelope either side of one height:
     the scan over the heights' range is checked again by the imaging model, which refuses
     stacks over :data:`~render_inspect.instruments._imaging.MAX_STACK_BYTES`) and the
@@ -292,8 +301,10 @@ def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
     if icfg.subsamples is not None:
         s = int(icfg.subsamples)
     else:
-        s = min(recommended_subsamples(float(geom["pixel"]), mic, max_slope=max_slope),
-                MAX_AUTO_SUBSAMPLES)
+        s = recommended_subsamples(float(geom["pixel"]), mic, max_slope=max_slope)
+        if grid_pixel is not None:
+            s = max(s, grid_subsamples(float(geom["pixel"]), float(grid_pixel), mic))
+        s = min(s, MAX_AUTO_SUBSAMPLES)
     per_frame = BYTES_PER_FRAME_PIXEL
     if icfg.mode == "psi":
         frames = int(icfg.steps)
@@ -381,6 +392,51 @@ def _max_slope(heightmap, surface: str, window) -> float:
     return float(math.atan(np.percentile(g, 99.9))) if g.size else 0.0
 
 
+def _window_of(heightmap, surface: str, window):
+    """The ``surface`` channel of ``heightmap`` over ``window`` (mm) and a pixel around."""
+    x, y = heightmap.x, heightmap.y
+    ix = np.nonzero((x >= window[0] - heightmap.pixel) & (x <= window[2] + heightmap.pixel))[0]
+    iy = np.nonzero((y >= window[1] - heightmap.pixel) & (y <= window[3] + heightmap.pixel))[0]
+    if ix.size < 2 or iy.size < 2:
+        return None
+    return np.asarray(getattr(heightmap, surface)[iy[0]:iy[-1] + 1, ix[0]:ix[-1] + 1])
+
+
+def surface_sampling(heightmap, surface: str, geom: dict, mic, *, s_rec: int,
+                     fixed: bool = False) -> tuple[int, dict]:
+    """Sub-samples per pixel side for ``heightmap``'s ``surface`` channel over the traced
+    window (:mod:`._sampling`): at least ``s_rec`` (the pupil and the slopes'), more where
+    the surface holds content that would fold into the pupil (at most
+    :data:`MAX_AUTO_SUBSAMPLES`); ``fixed`` keeps ``s_rec`` (the user's).  Returns ``s``
+    and the diagnostic: ``aliased_rms_nm`` (the content that still folds into the pupil),
+    ``alias_onset_per_mm``, ``pupil_cutoff_per_mm``, ``map_pixel_mm``, ``tolerance_nm``,
+    ``chosen_from``."""
+    pixel = float(geom["pixel"])
+    s_grid = grid_subsamples(pixel, heightmap.pixel, mic)
+    info = {"map_pixel_mm": float(heightmap.pixel), "pupil_cutoff_per_mm": pupil_cutoff(mic),
+            "tolerance_nm": ALIAS_TOLERANCE_NM,
+            "chosen_from": "set (render.interferometer.subsamples)" if fixed
+            else "the pupil and the slopes"}
+    s = int(s_rec)
+    rms = 0.0
+    z = None if s_grid <= s else _window_of(heightmap, surface, geom["trace_window"])
+    if z is not None:
+        spec = SurfaceSpectrum(z, heightmap.pixel)
+        s_max = s if fixed else max(s, min(s_grid, MAX_AUTO_SUBSAMPLES))
+        s, rms = content_subsamples(pixel, mic, spec, s_min=s, s_max=s_max)
+        if s > s_rec:
+            info["chosen_from"] = "the surface's content"
+    info.update(aliased_rms_nm=float(rms), alias_onset_per_mm=alias_onset(pixel, s, mic),
+                subsamples=int(s))
+    if rms > ALIAS_TOLERANCE_NM:
+        log.warning("the interferometer samples the surface with %d x %d sub-samples per "
+                    "pixel: %.3g nm rms of the surface's content finer than that folds into "
+                    "the pupil and comes back as a false coarse pattern (set "
+                    "render.interferometer.subsamples higher%s)", s, s, rms,
+                    "" if fixed else f", up to {s_grid}")
+    return s, info
+
+
 # -------------------------------------------------------------------------- top level
 def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", seed: int = 0) -> Interferogram:
     """Render the virtual interference microscope over a height map.
@@ -404,27 +460,30 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
         icfg = InterferometerConfig()
     if int(seed) != seed or seed < 0:
         raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    if surface not in ("design", "machined"):
+        raise InputError(f"surface must be 'design' or 'machined', got {surface!r}")
     geom = interferometer_geometry(heightmap, icfg)
     mic = microscope_from_config(icfg)
     dist = disturbances_from_config(icfg)
     if icfg.subsamples is not None:
-        s = int(icfg.subsamples)
+        s_rec = int(icfg.subsamples)
     else:
         slope = _max_slope(heightmap, surface, geom["trace_window"])
-        s = min(recommended_subsamples(geom["pixel"], mic, max_slope=slope), MAX_AUTO_SUBSAMPLES)
+        s_rec = min(recommended_subsamples(geom["pixel"], mic, max_slope=slope), MAX_AUTO_SUBSAMPLES)
+    s, sampling = surface_sampling(heightmap, surface, geom, mic, s_rec=s_rec,
+                                   fixed=icfg.subsamples is not None)
     h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
     diag: dict = {}
     common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,
                   "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}
     if icfg.mode == "psi":
-        if icfg.reference_height is not None:
-            z_ref = float(icfg.reference_height)
-        else:
-            z_ref = float(np.nanmean(h_centre)) if np.isfinite(h_centre).any() else 0.0
+        # the focus: the user's, or the one the instrument finds on its own fringes
+        z_ref = None if icfg.reference_height is None else float(icfg.reference_height)
         fr = psi_frames(h_sub, n_sub, steps=icfg.steps, step_rad=icfg.step_rad, z_ref=z_ref, **common)
     else:
         fr = csi_frames(h_sub, n_sub, scan_step_nm=icfg.scan_step_nm, frames=icfg.frames, **common)
     del h_sub, n_sub
+    fr.settings["model"]["surface_sampling"] = sampling
     fields = {f.name: getattr(fr, f.name) for f in dataclasses.fields(Frames)}
     fields.update(variant=mitsuba_variant(), meta={"window_mm": geom["window"]})
     light = np.asarray(diag["light"], dtype=np.float32) / np.float32(mic.reflectance)

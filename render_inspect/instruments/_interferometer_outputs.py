@@ -1,7 +1,7 @@
 """The interference microscope as a registered instrument: what it images
 (:func:`~render_inspect.instruments.render_interferogram`), the field it looks at, the
-memory it needs, and the files it writes (``interferogram.exr``, the fringe image and the
-ray-traced height map) with its summary."""
+memory it needs, and the files it writes (``interferogram.exr`` and the fringe image)
+with its summary."""
 
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ import numpy as np
 
 from .. import __version__
 from ..core.limits import Driver
-from ..core.units import MM_TO_NM
 from ..io import atomic_write_bytes, png_bytes_with_text
 from ._interferometer import (
     InterferometerConfig,
@@ -20,6 +19,7 @@ from ._interferometer import (
     render_interferogram,
     write_interferogram_exr,
 )
+from ._modes import LIGHT_FRACTION
 from ._registry import register_instrument
 
 __all__ = ["write_interferogram_outputs", "interferogram_summary", "interferometer_needs",
@@ -27,27 +27,36 @@ __all__ = ["write_interferogram_outputs", "interferogram_summary", "interferomet
 
 
 def interferogram_summary(ig) -> dict:
-    """What ``render_metrics.json`` and ``compare``'s metrics say of an interferogram."""
+    """What ``render_metrics.json`` and ``compare``'s metrics say of an interferogram.
+    ``valid_fraction`` is the simulation's estimate of where light returns (the object
+    beam alone at least 5 % of a mirror's: truth, not what the instrument measures);
+    ``focus`` how the PSI focus was found; ``sampling`` the imaging model's sampling of
+    the surface and its under-sampling diagnostics."""
+    light = ig.accepted_fraction
+    model = dict(ig.settings.get("model", {}))
     return {"mode": ig.mode, "objective": ig.objective, "shape": list(ig.shape),
             "frames": int(ig.frames.shape[0]), "pixel_mm": ig.pixel,
             "origin_mm": list(ig.origin), "wavelength_nm": ig.wavelength_nm,
             "bandwidth_nm": ig.bandwidth_nm, "numerical_aperture": ig.numerical_aperture,
             "subsamples": ig.subsamples, "noise": ig.noise, "seed": ig.seed,
-            "z_ref_mm": ig.z_ref, "valid_fraction": float(np.mean(ig.valid)),
+            "z_ref_mm": ig.z_ref,
+            "valid_fraction": None if light is None
+            else float(np.mean(np.asarray(light) >= LIGHT_FRACTION)),
+            "focus": ig.settings.get("focus"),
+            "sampling": {k: model.get(k) for k in ("subsamples", "undersampled_fraction",
+                                                   "surface_sampling")},
             "surface": ig.surface, "mitsuba_variant": ig.variant}
 
 
 def write_interferogram_outputs(out, ig, *, scene: dict | None = None) -> tuple[dict, dict]:
-    """Write ``interferogram.exr`` and ``interferogram_fringes.png`` (the intensity frame,
-    row 0 = smallest y drawn at the bottom, invalid pixels red) into ``out``; return the
-    summary and the figure of the ray-traced height (``interferogram_height.png``:
-    false-colour ``height_true - z_ref`` in nm)."""
+    """Write ``interferogram.exr`` and ``interferogram_fringes.png`` (the intensity frame as
+    the camera records it, row 0 = smallest y drawn at the bottom) into ``out``; return
+    the summary and no figures (the true height stays in ``heightmap.exr``: an
+    instrument's outputs show what it records)."""
     out = Path(out)
     write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
     g = np.clip(ig.intensity, 0, 1)[::-1]
     rgb = np.repeat(g[..., None], 3, axis=2)
-    inval = ~ig.valid[::-1]
-    rgb[inval] = (0.8, 0.1, 0.1)
     atomic_write_bytes(out / "interferogram_fringes.png",
                        png_bytes_with_text((rgb * 255 + 0.5).astype(np.uint8),
                                            {"mitsuba_variant": ig.variant, "mode": ig.mode,
@@ -55,12 +64,7 @@ def write_interferogram_outputs(out, ig, *, scene: dict | None = None) -> tuple[
                                             "numerical_aperture": ig.numerical_aperture,
                                             "pixel_size_mm": ig.pixel, "seed": ig.seed,
                                             "software_version": __version__}))
-    h_nm = (ig.height_true - ig.z_ref) * MM_TO_NM
-    figures = {"interferogram_height.png": {
-        "kind": "map", "data": np.where(ig.valid, h_nm, np.nan), "extent": ig.extent,
-        "title": f"ray-traced height ({ig.surface}), {ig.objective} NA {ig.numerical_aperture:g}",
-        "label": "height - z_ref (nm)", "cmap": "turbo"}}
-    return interferogram_summary(ig), figures
+    return interferogram_summary(ig), {}
 
 
 def rendered_settings(ig, icfg) -> dict:
@@ -102,7 +106,8 @@ def interferometer_needs(grid, icfg, *, slope=None) -> tuple[int, str, list]:
     cells = min(ny * nx, int(((x1 - x0) / grid.pixel + 5) * ((y1 - y0) / grid.pixel + 5)))
     max_slope = slope(geom["trace_window"]) if (icfg.subsamples is None and slope is not None) \
         else None
-    nbytes = interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=max_slope)
+    nbytes = interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=max_slope,
+                                   grid_pixel=grid.pixel)
     what = (f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
             f"{icfg.subsamples}^2 rays each)")
     drivers = [Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),

@@ -30,7 +30,9 @@ from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extra
                       spatial_parameters)
 from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
                           pupil_overlap, sinusoid_amplitude, slope_table)
+from ._levelling import FORM_TERMS, level_map, measured_difference
 from ._measure import ALGORITHMS, measure_frames
+from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
                      retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
@@ -56,7 +58,8 @@ __all__ = [
     "Comparison", "compare_measured",
     "PhaseResult", "wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
     "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
-    "evaluate_measurement",
+    "evaluate_measurement", "FORM_TERMS", "level_map", "measured_difference",
+    "FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas",
     "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
     "dropout_slope", "noise_by_subtraction",
     "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ._noise import FALSE_ALARM
 from ._phase import PhaseResult, retrieve_csi, retrieve_psi
 
 __all__ = ["ALGORITHMS", "measure_frames"]
@@ -25,7 +26,8 @@ ALGORITHMS = {"psi": ("auto", "4step", "5step", "hariharan", "lsq"),
 
 
 def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str | None = None,
-                   min_modulation: float = 0.05, unwrap_quality: str = "modulation") -> PhaseResult:
+                   min_modulation: float = 0.05, unwrap_quality: str = "modulation",
+                   false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
     """What the instrument reports: height from its frames and settings alone.
 
     Parameters
@@ -50,6 +52,14 @@ def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str | None = 
         not measured.
     unwrap_quality : {"modulation", "reliability"}
         PSI unwrapping order (see :func:`~._phase.retrieve_psi`).
+    false_alarm : float or None
+        Pixels whose fringes do not rise above the noise the frames show
+        (:mod:`~._noise`) are not measured; this is the chance that a pixel holding
+        noise alone passes (default 1e-6); None leaves the test out.
+
+    Validity is decided from the frames alone: saturated pixels, fringes below the
+    frames' own noise, and fringe contrast below ``min_modulation``.  ``frames.valid``
+    (a simulator's estimate of where light returns, or a file's mask) is not read.
 
     Returns
     -------
@@ -58,8 +68,9 @@ def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str | None = 
         each connected region carrying its own unknown multiple of ``lambda_eff / 2``;
         CSI: absolute in the scanner's frame.  Pixels that reach full scale in any frame
         (saturated) are not measured.  ``meta``: ``mode``, ``algorithm``,
-        ``wavelength_nm``, ``effective_wavelength_nm``, ``light_fraction``,
-        ``saturated_pixels``, ``regions``, ``min_modulation``.
+        ``wavelength_nm``, ``effective_wavelength_nm``, ``light_fraction`` (pixels
+        whose fringes rise above the noise), ``noise`` (the frames' noise and the
+        threshold), ``saturated_pixels``, ``regions``, ``min_modulation``.
     """
     mode = str(getattr(frames, "mode", ""))
     if mode not in ALGORITHMS:
@@ -76,25 +87,32 @@ def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str | None = 
     stack = np.asarray(frames.frames)
     if stack.ndim != 3:
         raise InputError(f"frames.frames must be an (N, H, W) stack, got shape {stack.shape}")
+    if false_alarm is not None:
+        check_range("false_alarm", false_alarm, 0.0, 0.5, lo_open=True)
     lam_eff = float(getattr(frames, "effective_wavelength_nm", None) or frames.wavelength_nm)
+    # validity from the frames alone: saturated or non-finite pixels, then (in the
+    # retrieval) fringes that do not rise above the frames' own noise or the
+    # modulation floor.  ``frames.valid`` is never read: the same frames give the same
+    # map whatever else the file holds.
     saturated = np.max(stack, axis=0) >= 1.0
-    light = np.asarray(frames.valid, dtype=bool)
-    valid = light & ~saturated & np.all(np.isfinite(stack), axis=0)
+    valid = ~saturated & np.all(np.isfinite(stack), axis=0)
     if mode == "psi":
         alg = {"hariharan": "5step"}.get(algorithm, algorithm)
         res = retrieve_psi(stack, wavelength_nm=lam_eff, steps_rad=frames.phase_steps,
                            algorithm=alg, valid=valid, min_modulation=min_modulation,
-                           quality=unwrap_quality)
+                           quality=unwrap_quality, false_alarm=false_alarm)
         res.height = res.height + float(frames.z_ref)
         name = res.meta["algorithm"]
     else:
         refine = "phase" if algorithm == "envelope+phase" else "envelope"
         res = retrieve_csi(stack, frames.scan_positions, wavelength_nm=lam_eff, valid=valid,
-                           refine=refine, min_modulation=min_modulation)
+                           refine=refine, min_modulation=min_modulation,
+                           false_alarm=false_alarm)
         name = "envelope+phase" if refine == "phase" else "envelope"
     res.meta.update({"mode": mode, "algorithm": name,
                      "wavelength_nm": float(frames.wavelength_nm),
-                     "effective_wavelength_nm": lam_eff, "light_fraction": float(light.mean()),
+                     "effective_wavelength_nm": lam_eff,
+                     "light_fraction": float(res.meta.get("signal_fraction", 1.0)),
                      "saturated_pixels": int(saturated.sum()),
                      "min_modulation": float(min_modulation),
                      "regions": int(res.labels.max())})

@@ -41,6 +41,7 @@ import numpy as np
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM, NM_TO_MM
 # unwrapping (importable from here as before)
+from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
 from ._unwrap import _check_valid, _wrap, phase_quality, unwrap_phase
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
@@ -121,6 +122,16 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
     modulation : (H, W) float64
         Fringe contrast ``b / a`` (0 where ``a <= 0``).
     """
+    phase, b, a, _ = _phase_terms(frames, steps_rad=steps_rad, algorithm=algorithm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mod = np.where(a > 0, b / np.where(a > 0, a, 1.0), 0.0)
+    return phase, mod
+
+
+def _phase_terms(frames, *, steps_rad=None, algorithm: str = "auto"):
+    """(phase, b, a, (w_c, w_d)): the wrapped phase, the modulation amplitude, the
+    background and the weights of the frames in the two components of ``b`` (for its
+    noise, :func:`~._noise.psi_noise`)."""
     f = _check_frames(frames)
     n = f.shape[0]
     if algorithm not in _ALGORITHMS:
@@ -148,6 +159,7 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
             b = 0.5 * np.hypot(num, den)
             psi = np.arctan2(num, den)
             delta_ref = steps[0]
+            weights = (0.5 * np.array([1.0, 0, -1, 0]), 0.5 * s * np.array([0.0, -1, 0, 1]))
         else:
             i1, i2, i3, i4, i5 = f
             num, den = s * 2 * (i2 - i4), 2 * i3 - i5 - i1
@@ -157,20 +169,21 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
             a = (i1 + 2 * (i2 + i3 + i4) + i5) / 8
             psi = np.arctan2(num, den)
             delta_ref = steps[2]
+            weights = (0.25 * np.array([-1.0, 0, 2, 0, -1]), 0.5 * s * np.array([0.0, 1, 0, -1, 0]))
         phase = _wrap(psi - delta_ref)
     else:
         m = np.stack([np.ones(n), np.cos(steps), -np.sin(steps)], axis=1)
         if np.linalg.matrix_rank(m) < 3:
             raise InputError(f"steps_rad do not determine the phase (need 3 distinct shifts mod "
                              f"2 pi), got {np.round(steps, 6).tolist()}")
-        coef = np.linalg.pinv(m) @ f.reshape(n, -1)
+        pinv = np.linalg.pinv(m)
+        coef = pinv @ f.reshape(n, -1)
         a = coef[0].reshape(f.shape[1:])
         c, d = coef[1].reshape(f.shape[1:]), coef[2].reshape(f.shape[1:])
         b = np.hypot(c, d)
         phase = np.arctan2(d, c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mod = np.where(a > 0, b / np.where(a > 0, a, 1.0), 0.0)
-    return phase, mod
+        weights = (pinv[1], pinv[2])
+    return phase, b, a, weights
 
 
 def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
@@ -185,7 +198,8 @@ def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
 # the two measurement modes
 def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str = "auto",
                  valid=None, min_modulation: float = 0.05,
-                 quality: str = "modulation") -> PhaseResult:
+                 quality: str = "modulation",
+                 false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
     """Height from phase-shifting frames: wrapped phase, 2-D unwrapping, height.
 
     Parameters
@@ -199,9 +213,13 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     algorithm : {"auto", "4step", "5step", "lsq"}
         See :func:`wrapped_phase`.
     valid : (H, W) bool, optional
-        Pixels where light returned (the renderer's ``valid``).
+        Pixels to measure at most (a mask of the caller's; default all).
     min_modulation : float
         Pixels whose fringe contrast ``b / a`` is below this are invalid (0..1).
+    false_alarm : float or None
+        Pixels whose modulation amplitude does not rise above the frames' own noise
+        (:func:`~._noise.psi_noise`: the chance that noise alone passes is
+        ``false_alarm`` per pixel) are invalid; None leaves this test out.
     quality : {"modulation", "reliability"}
         Unwrapping order: by fringe contrast (it drops where a pixel spans a large part of
         a fringe, i.e. where the phase is unreliable; fewer slips on undersampled turning
@@ -218,22 +236,37 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     v = _check_valid(valid, f.shape[1:])
     if quality not in ("modulation", "reliability"):
         raise InputError(f"quality must be 'modulation' or 'reliability', got {quality!r}")
-    phase, mod = wrapped_phase(f, steps_rad=steps_rad, algorithm=algorithm)
-    v &= np.isfinite(phase) & (mod >= min_modulation)
+    phase, b, a, weights = _phase_terms(f, steps_rad=steps_rad, algorithm=algorithm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mod = np.where(a > 0, b / np.where(a > 0, a, 1.0), 0.0)
+    n = f.shape[0]
+    steps = (np.arange(n) * np.pi / 2) if steps_rad is None else np.asarray(steps_rad, float)
+    signal = np.ones(mod.shape, dtype=bool)
+    noise = {"method": "not tested", "frame_noise": None, "threshold_sigmas": None}
+    if false_alarm is not None:
+        check_range("false_alarm", false_alarm, 0.0, 0.5, lo_open=True)
+        sigma_b, noise = psi_noise(f, steps, a, weights)
+        kappa = noise_sigmas(false_alarm)
+        noise["threshold_sigmas"] = kappa
+        noise["false_alarm"] = float(false_alarm)
+        if sigma_b is not None:
+            signal = b >= kappa * sigma_b
+    v &= np.isfinite(phase) & signal & (mod >= min_modulation)
     un, labels = unwrap_phase(phase, valid=v, quality=mod if quality == "modulation" else None)
     h = height_from_phase(un, wavelength_nm=wavelength_nm)
-    n = f.shape[0]
     alg = algorithm if algorithm != "auto" else {4: "4step", 5: "5step"}.get(n, "lsq")
     meta = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
             "min_modulation": float(min_modulation),
             "unwrap": f"quality-guided flood fill ({quality})",
-            "regions": int(labels.max())}
+            "regions": int(labels.max()), "noise": noise,
+            "signal_fraction": float(np.mean(signal & np.isfinite(phase)))}
     return PhaseResult(h, v, phase, mod, labels, meta)
 
 
 def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
                  refine: str = "envelope", min_modulation: float = 0.05,
-                 chunk_pixels: int = 65536) -> PhaseResult:
+                 chunk_pixels: int = 65536,
+                 false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
     """Height from a coherence-scanning (white-light) stack: envelope peak per pixel.
 
     Parameters
@@ -246,7 +279,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     wavelength_nm : float
         Mean (centre) wavelength, nm; used for the phase refinement.
     valid : (H, W) bool, optional
-        Pixels where light returned.
+        Pixels to measure at most (a mask of the caller's; default all).
     refine : {"envelope", "phase"}
         "envelope": the envelope peak (weighted least-squares Gaussian fit over the
         samples above half maximum).  "phase": the
@@ -255,6 +288,10 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
         lambda/4).
     min_modulation : float
         Pixels whose envelope peak over the mean intensity is below this are invalid.
+    false_alarm : float or None
+        Pixels whose envelope peak does not rise above their own noise
+        (:func:`~._noise.csi_noise_threshold`: the chance that noise alone passes is
+        ``false_alarm`` per pixel) are invalid; None leaves this test out.
     chunk_pixels : int
         Pixels processed at a time (memory bound: N x chunk complex numbers).
 
@@ -279,6 +316,8 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
         raise InputError(f"refine must be 'envelope' or 'phase', got {refine!r}")
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
     check_range("min_modulation", min_modulation, 0.0, None)
+    if false_alarm is not None:
+        check_range("false_alarm", false_alarm, 0.0, 0.5, lo_open=True)
     v = _check_valid(valid, (hgt, wid))
     lam = float(wavelength_nm) * NM_TO_MM
     flat = f.reshape(n, -1)
@@ -287,6 +326,8 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     wrapped = np.full(npx, np.nan)
     mod = np.zeros(npx)
     ok = np.zeros(npx, dtype=bool)
+    signal = np.ones(npx, dtype=bool)
+    sigma = np.zeros(npx)
     carrier = np.exp(-np.sign(step) * 1j * 4 * np.pi * z / lam)[:, None]
     k = np.arange(n)[:, None]
     for s0 in range(0, npx, max(int(chunk_pixels), 1)):
@@ -338,13 +379,24 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
         height[sl] = hz
         wrapped[sl] = ph
         mod[sl] = m
-        ok[sl] = interior & (m >= min_modulation)
+        if false_alarm is not None:
+            thr, sigma[sl] = csi_noise_threshold(ac, false_alarm=false_alarm)
+            signal[sl] = peak >= thr
+        ok[sl] = interior & signal[sl] & (m >= min_modulation)
     ok = ok.reshape(hgt, wid) & v
     height = np.where(ok, height.reshape(hgt, wid), np.nan)
     labels = _label(ok)
     meta = {"mode": "csi", "algorithm": f"hilbert envelope peak ({refine})", "frames": int(n),
             "scan_step_mm": abs(step), "wavelength_nm": float(wavelength_nm),
-            "min_modulation": float(min_modulation), "regions": int(labels.max())}
+            "min_modulation": float(min_modulation), "regions": int(labels.max()),
+            "noise": {"method": "robust spread of each pixel's signal along the scan"
+                      if false_alarm is not None else "not tested",
+                      "frame_noise": float(np.median(sigma)) if false_alarm is not None
+                      else None,
+                      "threshold_sigmas": noise_sigmas(false_alarm, n)
+                      if false_alarm is not None else None,
+                      "false_alarm": false_alarm},
+            "signal_fraction": float(np.mean(signal))}
     return PhaseResult(height, ok, wrapped.reshape(hgt, wid), mod.reshape(hgt, wid), labels, meta)
 
 

@@ -31,7 +31,8 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
                        expected_sq_mm, parse_vary, preview_render_configs, run_compare,
                        variant_scene)
 from ._demo import DEMO_SCENE, run_demo
-from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
+from ._measure import (analyze_summary, measure_and_evaluate, measure_summary,
+                       measurement_outputs, read_frames, run_measure)
 from ._metrics import simulation_metrics
 from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
 from ._render import (check_render_limits, part_heightmap, part_outline, render_diffuse_views,
@@ -54,6 +55,7 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "variant_scene", "common_window", "preview_render_configs", "check_measured",
            "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_demo", "DEMO_SCENE",
            "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
+           "measure_summary", "analyze_summary",
            "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",

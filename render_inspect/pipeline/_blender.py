@@ -236,8 +236,7 @@ def render_variant(heightmap, *, variant: str, surface: str = "machined",
 
     Renders the mesh on screen when this Blender has it (background mode), else builds
     the same mesh from ``heightmap`` (a worker process).  Writes ``cycles.exr`` /
-    ``cycles.png`` and ``interferogram.exr``, ``interferogram_fringes.png``,
-    ``interferogram_height.png`` into ``out``.
+    ``cycles.png`` and ``interferogram.exr``, ``interferogram_fringes.png`` into ``out``.
 
     Returns
     -------

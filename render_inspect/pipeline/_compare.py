@@ -30,14 +30,14 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import task
-from ..core.units import MM_TO_NM, MM_TO_UM
+from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
 from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
                   export_program, json_safe, read_surface, writer)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
-                         difference_profiles, profile_center, sections, waviness_choice,
-                         waviness_map)
+                         difference_profiles, difference_stats, level_map, line_profile,
+                         measured_difference, profile_center, sections, waviness_choice, waviness_map)
 from ..metrology import expected_sq_mm as _marks_sq_mm
 from ..processes import process_of
 from ..render import mitsuba_variant
@@ -141,7 +141,8 @@ class _Variant:
     scene: object
     heightmap: object = None
     ig: object = None
-    phase: object = None
+    reported: object = None  # what the instrument reports (height.exr)
+    phase: object = None  # the same, aligned to the truth (evaluation only)
     sim: object = None
     diffuse: dict = field(default_factory=dict)  # view -> (rgb, meta)
     timing: dict = field(default_factory=dict)
@@ -204,19 +205,27 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                                                        algorithm=mcfg.phase_algorithm,
                                                        csi_refine=mcfg.csi_refine,
                                                        min_modulation=mcfg.min_modulation)
+    v.reported = reported
     measured["instrument"] = measurement_outputs(d, ig, reported, source="interferogram.exr")
     timing["phase_retrieval"] = time.perf_counter() - t0
     t.advance()
+    # the evaluation against the simulation's truth (labelled as such)
     err = np.where(v.phase.valid, v.phase.height - ig.height_true, np.nan) * MM_TO_NM
     save_map_png(d / "measurement_error.png", err, extent=ig.extent,
-                 title=f"{v.label}: measured - true height", label="error (nm)", cmap="RdBu_r",
-                 symmetric=True)
+                 title=f"{v.label}: measured - true height (truth: the simulation)",
+                 label="error (nm)", cmap="RdBu_r", symmetric=True)
     xx, yy = np.meshgrid(ig.x, ig.y)
     design_ig = np.broadcast_to(design_surface.height(xx, yy), xx.shape)
-    meas_res = np.where(reported.valid, reported.height - design_ig, np.nan)
+    # measured - design as instrument software forms it: piston and tilt removed, the
+    # fringe order of regions apart from the largest one taken nearest its plane (PSI)
+    meas_res, levelling = level_map(np.where(reported.valid, reported.height - design_ig, np.nan),
+                                    pixel=ig.pixel, labels=reported.labels,
+                                    fringe_order_mm=_fringe_order(ig))
     true_res = np.where(v.phase.valid, ig.height_true - design_ig, np.nan)
     v.maps.update(measured_residual=meas_res, true_residual=true_res, error=err,
-                  measured_height=np.where(v.phase.valid, v.phase.height, np.nan))
+                  measured_height=np.where(reported.valid, reported.height, np.nan),
+                  measured_residual_levelling=levelling)
+    measured["instrument_residual_levelling"] = levelling
     measured.update({f"instrument_residual_{k}": x for k, x in areal_nm(meas_res, ig.pixel).items()})
     measured.update({f"true_residual_{k}": x for k, x in areal_nm(true_res, ig.pixel).items()})
 
@@ -245,6 +254,33 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                         mitsuba_variant=ig.variant, timing={**sim.timing_s, **timing})
     write_metrics(d, m)
     v.metrics.update(m)
+
+
+def _fringe_order(frames) -> float | None:
+    """``lambda_eff / 2`` (mm) of phase-shifting frames: the step a PSI height is known
+    up to between regions that do not touch; None for coherence scanning."""
+    return frames.lambda_eff_nm * NM_TO_MM / 2 if frames.mode == "psi" else None
+
+
+def _window_difference(a: _Variant, b: _Variant) -> dict:
+    """The two measurements' difference over the common window, formed from the
+    measurements alone (:func:`~render_inspect.metrology.measured_difference`: piston
+    and tilt removed, and piston only), and the truth at the same camera pixels with the
+    same terms removed."""
+    ig = a.ig
+    ra, rb = a.reported, b.reported
+    common = dict(pixel=ig.pixel, labels_a=ra.labels, labels_b=rb.labels,
+                  fringe_order_mm=_fringe_order(ig))
+    ha = np.where(ra.valid, ra.height, np.nan)
+    hb = np.where(rb.valid, rb.height, np.nan)
+    tilt, info = measured_difference(ha, hb, terms="piston and tilt", **common)
+    piston, pinfo = measured_difference(ha, hb, terms="piston", **common)
+    both = np.isfinite(tilt)
+    true_cam = np.where(both, a.ig.height_true - b.ig.height_true, np.nan)
+    true_lev, tinfo = level_map(true_cam, pixel=ig.pixel, terms="piston and tilt")
+    return {"levelled": tilt * MM_TO_NM, "piston_removed": piston * MM_TO_NM,
+            "true_levelled": true_lev * MM_TO_NM, "info": info, "piston_info": pinfo,
+            "true_info": tinfo}
 
 
 def check_measured(path, scene, design_surface, *, force: bool = False):
@@ -320,16 +356,30 @@ def _kinematics(a: _Variant, b: _Variant):
     return axis_motion_figure(cols, title="Axis motion of the programs (the axes that move)")
 
 
-def _difference_numbers(a: _Variant, b: _Variant, diff, profile: dict) -> dict:
+def _difference_numbers(a: _Variant, b: _Variant, diff, profile: dict, wdiff: dict) -> dict:
     ok = np.isfinite(diff)
     rc = a.metrics["residual"], b.metrics["residual"]
     fa, fb = a.metrics["filtered"].get("Sq_nm"), b.metrics["filtered"].get("Sq_nm")
-    return {"machined_rms_nm": float(np.sqrt(np.mean(diff[ok] ** 2))) if ok.any() else None,
-            "machined_pv_nm": float(np.ptp(diff[ok])) if ok.any() else None,
-            "min_nm_change": rc[0]["min_nm"] - rc[1]["min_nm"],
-            "Sq_nm_change": rc[0]["Sq_nm"] - rc[1]["Sq_nm"],
-            "filtered_Sq_nm_change": None if fa is None or fb is None else fa - fb,
-            **profile["metrics"]}
+    m = {"machined_rms_nm": float(np.sqrt(np.mean(diff[ok] ** 2))) if ok.any() else None,
+         "machined_pv_nm": float(np.ptp(diff[ok])) if ok.any() else None,
+         "min_nm_change": rc[0]["min_nm"] - rc[1]["min_nm"],
+         "Sq_nm_change": rc[0]["Sq_nm"] - rc[1]["Sq_nm"],
+         "filtered_Sq_nm_change": None if fa is None or fb is None else fa - fb,
+         **profile["metrics"]}
+    w = m["window"] = dict(m["window"])
+    # ``true``: the simulation's machined maps (truth); ``measured``: the two measurements
+    # alone, piston and tilt removed as instrument software does (said in ``measured``)
+    w["true"] = {**w["true"], "source": "truth: the simulated machined maps, nothing removed"}
+    w["measured"] = {**w["measured"], "form_removed": wdiff["info"]["removed"],
+                     "source": "the two measurements alone (height.exr of each variant)",
+                     "levelling": wdiff["info"]}
+    w["measured_piston_removed"] = {**difference_stats(wdiff["piston_removed"]),
+                                    "form_removed": "piston",
+                                    "levelling": wdiff["piston_info"]}
+    w["true_same_form_removed"] = {**difference_stats(wdiff["true_levelled"]),
+                                   "form_removed": wdiff["true_info"]["removed"],
+                                   "source": "truth at the camera pixels both measured"}
+    return m
 
 
 def run_compare(scene, out, *, measured=None, vary: str | None = None,
@@ -427,10 +477,16 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
         part = part_outline(scene)
         ig = a.ig
         window = ig.meta.get("window_mm", cw["window"])
+        wdiff = _window_difference(a, b)
         profile = difference_profiles(
-            diff, hm, (a.maps["measured_height"] - b.maps["measured_height"]) * MM_TO_NM, ig,
+            diff, hm, wdiff["levelled"], ig,
             (a.heightmap.residual * MM_TO_NM, b.heightmap.residual * MM_TO_NM),
             window=window, peak=cw["peak"])
+        line = profile["line"]
+        _, profile["true_levelled"] = line_profile(wdiff["true_levelled"], pixel=ig.pixel,
+                                                   origin=ig.origin, p0=line[0], p1=line[1],
+                                                   step=ig.pixel)
+        profile.update(measured_levelled=wdiff["levelled"], levelling=wdiff["info"])
         center = profile_center(hm, traits.axis)
         through = traits.axis is None
         secs = {v.name: sections(v.heightmap.machined, v.heightmap.design, pixel=hm.pixel,
@@ -459,7 +515,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                            "notes": notes, "profile_angles_deg": list(PROFILE_ANGLES_DEG)}
         metrics = comparison_metrics(
             scene, pair=pair, variants=variants,
-            difference={**_difference_numbers(a, b, diff, profile), "identical": identical},
+            difference={**_difference_numbers(a, b, diff, profile, wdiff), "identical": identical},
             filters=filters, windows=windows, seed=seed, mitsuba_variant=mitsuba_variant(),
             render_settings=render_settings,
             measured_file=None if meas is None else meas["metrics"],

@@ -27,10 +27,15 @@ from ..metrology import (
     measure_frames,
     remove_form,
 )
-from ..report import save_map_png
+from ..report import analysis_summary, measurement_summary, save_map_png
 from ._metrics import measurement_metrics, write_metrics
 
-__all__ = ["measure_and_evaluate", "measurement_outputs", "read_frames", "run_measure"]
+__all__ = ["measure_and_evaluate", "measurement_outputs", "read_frames", "run_measure",
+           "measure_summary", "analyze_summary"]
+
+#: the one-screen summaries of ``measure`` and ``analyze`` (the command line prints them)
+measure_summary = measurement_summary
+analyze_summary = analysis_summary
 
 
 def read_frames(path, *, settings=None):
@@ -82,7 +87,10 @@ def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
                "valid_fraction": float(valid.mean()),
                "light_fraction": meta.get("light_fraction"),
                "saturated_pixels": int(meta.get("saturated_pixels", 0)),
-               "regions": int(meta.get("regions", 0)), "min_modulation": meta["min_modulation"]}
+               "regions": int(meta.get("regions", 0)), "min_modulation": meta["min_modulation"],
+               "noise": meta.get("noise"), "z_ref_mm": float(frames.z_ref),
+               "validity": "decided from the frames: not saturated, fringes above the frames' "
+                           "own noise, contrast >= min_modulation"}
     if valid.sum() >= 3:
         flat, _ = remove_form(np.where(valid, result.height, np.nan), pixel=frames.pixel,
                               method="plane")

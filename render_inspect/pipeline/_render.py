@@ -138,8 +138,7 @@ def write_instrument_outputs(name: str, out: Path, result, *, scene: dict | None
 
 def write_interferogram_outputs(out: Path, ig, *, scene: dict | None = None) -> dict:
     """The files and figures of the instrument that records interferometer frames
-    (``interferogram.exr``, ``interferogram_fringes.png``, ``interferogram_height.png``);
-    return its summary."""
+    (``interferogram.exr``, ``interferogram_fringes.png``); return its summary."""
     return write_instrument_outputs(height_instrument().name, out, ig, scene=scene)
 
 
@@ -271,9 +270,8 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         ``diffuse_micro`` summaries, ``timing_s``.  The same dict is written to
         ``out/render_metrics.json``.
 
-    Files: the instruments' (``interferogram.exr``, ``interferogram_fringes.png``,
-    ``interferogram_height.png``); ``diffuse_macro.{exr,png}``, ``diffuse_micro.{exr,png}``
-    (diffuse).
+    Files: the instruments' (``interferogram.exr``, ``interferogram_fringes.png``);
+    ``diffuse_macro.{exr,png}``, ``diffuse_micro.{exr,png}`` (diffuse).
     """
     kinds = render_kinds()
     if kind not in kinds:

@@ -15,7 +15,7 @@ from ._figures import (annotate_rgb, block_mean, difference_figure, display_map,
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length
 from ._html import HtmlReport, data_uri, table_html
-from ._instrument import characterise_figures
+from ._instrument import analysis_summary, characterise_figures, measurement_summary
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
                           turning_axes)
 from ._morris import morris_png
@@ -32,7 +32,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
            "turning_axes", "draw_figure", "FIGURE_KINDS", "save_map_png", "save_height_png",
            "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
-           "panels_png", "characterise_figures", "curves_png", "heatmap_png", "sweep_plot_png",
-           "morris_png",
+           "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",
+           "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
            "luminance"]

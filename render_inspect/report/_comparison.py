@@ -89,8 +89,10 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
     labels = (a.label, b.label)
     d = difference
     true_full = (a.heightmap.machined - b.heightmap.machined) * MM_TO_NM
-    ma, mb = a.maps["measured_height"], b.maps["measured_height"]
-    meas_diff = (ma - mb) * MM_TO_NM
+    # the two measurements' difference as instrument software forms it (piston and tilt
+    # removed; the truth is drawn beside it, labelled as truth)
+    meas_diff = d["measured_levelled"]
+    lev = d.get("levelling") or {}
     ig_ext = ig.extent
     line = d["line"]
     along_x = d["along_x"]
@@ -104,10 +106,16 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
             profile={"s": d["s"] + (x0 if along_x else y0), "true": d["true"], "a": d["a"],
                      "b": d["b"], "s_measured": d["s_measured"] + (x0 if along_x else y0),
                      "measured": d["measured"], "line": line,
+                     "true_levelled": d.get("true_levelled"),
+                     "measured_label": f"measured, {_removed(lev)} removed",
                      "axis": f"x (mm) at y = {py:.4g} mm" if along_x
                      else f"y (mm) at x = {px:.4g} mm",
                      "title": "profile across the largest difference"},
-            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]})")
+            panel_labels=("truth (the simulation)",
+                          f"measured, {_removed(lev)} removed"),
+            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]}): measured with "
+                  f"{_removed(lev)} removed (two set-ups differ by both), beside the truth"
+                  + _reorder_note(lev))
     else:
         figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
@@ -141,12 +149,14 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         [(f"{names[0]} - {names[1]}", a.ig.intensity.astype(float) - b.ig.intensity)],
         extent=ig_ext, label="intensity difference", cmap="RdBu_r", symmetric=True)
     figs["measured_residual_side_by_side"] = map_panels(
-        [(f"{n}: measured - design", v.maps["measured_residual"] * MM_TO_NM)
-         for n, v in zip(names, (a, b))],
+        [(f"{n}: measured - design, {_removed(v.maps.get('measured_residual_levelling'))} "
+          f"removed{_reorder_note(v.maps.get('measured_residual_levelling'))}",
+          v.maps["measured_residual"] * MM_TO_NM) for n, v in zip(names, (a, b))],
         extent=ig_ext, label="residual seen by the instrument (nm)", cmap="RdBu_r",
         symmetric=True)
     figs["measurement_error_side_by_side"] = map_panels(
-        [(f"{n}: measured - true", v.maps["error"]) for n, v in zip(names, (a, b))],
+        [(f"{n}: measured - true (truth: the simulation)", v.maps["error"])
+         for n, v in zip(names, (a, b))],
         extent=ig_ext, label="height error (nm)", cmap="RdBu_r", symmetric=True)
     # --- diffuse light
     (rc, mc), (ru, _) = a.diffuse["micro"], b.diffuse["micro"]
@@ -178,6 +188,23 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
     if kinematics is not None:
         figs["kinematics"] = kinematics
     return figs
+
+
+def _removed(levelling) -> str:
+    """What a levelling removed, in words ("piston and tilt")."""
+    return (levelling or {}).get("removed") or "piston and tilt"
+
+
+def _reorder_note(levelling) -> str:
+    """The fringe orders a PSI levelling assigned to the regions apart from the largest
+    (PSI cannot tell orders apart across gaps), as a second title line."""
+    lev = levelling or {}
+    moved = lev.get("reordered") or []
+    order = lev.get("fringe_order_nm")
+    if not moved or order is None:
+        return ""
+    n = len(moved)
+    return f";\n{n} region{'s' if n > 1 else ''} moved by whole fringe orders ({order:.0f} nm)"
 
 
 def _locator(a: ComparedVariant, part: dict, window: dict, ig) -> dict:
@@ -225,12 +252,16 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
              fmt_quantity(b["residual"]["min_nm"], "nm")),
             ("waviness Sq (filtered)", fmt_quantity(a["filtered"].get("Sq_nm"), "nm"),
              fmt_quantity(b["filtered"].get("Sq_nm"), "nm")),
-            ("instrument height error rms", fmt_quantity(a["measured"].get("rms_nm"), "nm"),
+            ("measured - true rms (truth)", fmt_quantity(a["measured"].get("rms_nm"), "nm"),
              fmt_quantity(b["measured"].get("rms_nm"), "nm"))]
-    lines = [(f"{va} - {vb}, simulated region",
+    meas = w.get("measured") or {}
+    same = w.get("true_same_form_removed") or {}
+    removed = meas.get("form_removed", "piston and tilt")
+    lines = [(f"{va} - {vb}, simulated region (truth)",
               f"rms {fmt_quantity(d.get('machined_rms_nm'), 'nm')}, "
               f"PV {fmt_quantity(d.get('machined_pv_nm'), 'nm')}"),
              (f"{va} - {vb}, common window",
-              f"true rms {fmt_quantity((w.get('true') or {}).get('rms_nm'), 'nm')}, "
-              f"measured rms {fmt_quantity((w.get('measured') or {}).get('rms_nm'), 'nm')}")]
+              f"measured rms {fmt_quantity(meas.get('rms_nm'), 'nm')} ({removed} removed: the "
+              f"measurements alone); truth: rms {fmt_quantity((w.get('true') or {}).get('rms_nm'), 'nm')}, "
+              f"{fmt_quantity(same.get('rms_nm'), 'nm')} with the same {removed} removed")]
     return rows, lines

@@ -316,7 +316,9 @@ def locator_figure(locator: dict, *, dpi: int = 100) -> bytes:
 
 
 def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_diff,
-                      measured_extent, profile: dict, title: str = "", dpi: int = 100) -> bytes:
+                      measured_extent, profile: dict, title: str = "", dpi: int = 100,
+                      panel_labels=("true (simulated)", "measured by the virtual instrument")
+                      ) -> bytes:
     """The report's first figure: what differs between the two variants.
 
     Four panels: where every window lies on the part (``locator``: ``part``,
@@ -326,7 +328,9 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
     difference of what the virtual instrument measures (nm) over the same window with
     the same colour scale, and a profile across the largest difference (``profile``:
     ``s`` (mm), ``true`` (nm), ``measured`` (nm, may hold NaN), ``a`` and ``b`` (true
-    residuals, nm), ``line`` = ((x0, y0), (x1, y1)) mm, ``axis`` label)."""
+    residuals, nm), ``line`` = ((x0, y0), (x1, y1)) mm, ``axis`` label, optional
+    ``true_levelled`` (nm, on ``s_measured``: the truth with the measurement's form removal)
+    and ``measured_label``); ``panel_labels`` name the two maps."""
     plt = _plt()
     fig = plt.figure(figsize=(19.0, 4.8), dpi=dpi, layout="constrained")
     gs = fig.add_gridspec(1, 4, width_ratios=[1.0, 1.05, 1.05, 1.35])
@@ -347,9 +351,8 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
     vmin, vmax, _ = _limits([true_diff, measured_diff], True, 0.5)
     a, b = names
     line = profile.get("line")
-    for k, (data, ext, what) in enumerate(((true_diff, true_extent, "true (simulated)"),
-                                           (measured_diff, measured_extent,
-                                            "measured by the virtual instrument"))):
+    for k, (data, ext, what) in enumerate(((true_diff, true_extent, panel_labels[0]),
+                                           (measured_diff, measured_extent, panel_labels[1]))):
         ax = fig.add_subplot(gs[0, 1 + k])
         if data is None:
             ax.text(0.5, 0.5, "not available", ha="center", va="center", transform=ax.transAxes)
@@ -374,9 +377,12 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
     ax = fig.add_subplot(gs[0, 3])
     s = np.asarray(profile["s"])
     ax.plot(s, profile["true"], color="k", lw=1.6, label=f"{a} - {b} (true)")
+    if profile.get("true_levelled") is not None and np.isfinite(profile["true_levelled"]).any():
+        ax.plot(profile["s_measured"], profile["true_levelled"], color="0.45", lw=1.0, ls=":",
+                label=f"{a} - {b} (true, same form removed)")
     if profile.get("measured") is not None and np.isfinite(profile["measured"]).any():
         ax.plot(profile["s_measured"], profile["measured"], color="C3", lw=1.2, ls="--",
-                label=f"{a} - {b} (measured)")
+                label=f"{a} - {b} ({profile.get('measured_label', 'measured')})")
     ax.axhline(0, color="0.5", lw=0.5)
     ax.set_xlabel(profile.get("axis", "position along the line (mm)"))
     ax.set_ylabel("height difference (nm)")

@@ -1,11 +1,14 @@
 """Figures of the virtual instrument's characterisation (``render-inspect characterise``):
-its transfer function, step response, slope limit and noise."""
+its transfer function, step response, slope limit and noise; and the one-screen
+summaries of ``measure`` and ``analyze``."""
 
 from __future__ import annotations
 
+from ..core.units import MM_TO_UM
 from ._figures import line_panels, map_panels
+from ._format import fmt_number, fmt_quantity
 
-__all__ = ["characterise_figures"]
+__all__ = ["analysis_summary", "characterise_figures", "measurement_summary"]
 
 
 def characterise_figures(m, curves) -> dict:
@@ -26,7 +29,8 @@ def characterise_figures(m, curves) -> dict:
                    {"x": f, "y": [r["itf_optics"] for r in t], "label": "measured, optics (fine pixel)",
                     "style": "points"},
                    {"x": [a for a, _ in inst], "y": [b for _, b in inst],
-                    "label": "measured, at the camera pixel", "style": "points"}],
+                    "label": "measured, at the camera pixel (above its Nyquist: any alias)",
+                    "style": "points"}],
         "vlines": [(itf["cutoff_per_mm"], "cut-off"), (itf["camera_nyquist_per_mm"], "camera Nyquist")],
         "ylim": (-0.05, 1.15)}])}
     psi = m["step"]["psi_profile"]
@@ -50,3 +54,56 @@ def characterise_figures(m, curves) -> dict:
     figs["flat_noise.png"] = map_panels([("flat: difference of two measurements", diff)],
                                         label="nm", cmap="RdBu_r", symmetric=True)
     return figs
+
+
+def measurement_summary(metrics: dict) -> list[tuple[str, str]]:
+    """The headline numbers of ``measure``'s ``metrics.json`` for a one-screen summary:
+    (quantity, text) rows."""
+    m = metrics.get("measure", {})
+    noise = m.get("noise") or {}
+    h = m.get("height") or {}
+    shape = m.get("shape") or [0, 0]
+    rows = [("mode, algorithm", f"{str(m.get('mode', '')).upper()}, {m.get('algorithm')} "
+                                f"(lambda_eff {fmt_quantity(m.get('effective_wavelength_nm'), 'nm')})"),
+            ("camera", f"{shape[1]} x {shape[0]} pixels of "
+                       f"{fmt_quantity((m.get('pixel_mm') or 0) * MM_TO_UM, 'um')}"),
+            ("measured pixels", _percent(m.get("valid_fraction"))),
+            ("fringes above the noise", _percent(m.get("light_fraction"))
+             + (f" (frame noise {fmt_number(noise['frame_noise'])} of full scale, threshold "
+                f"{fmt_number(noise.get('threshold_sigmas'))} sigma)"
+                if noise.get("frame_noise") is not None else "")),
+            ("regions, saturated pixels", f"{m.get('regions')}, {m.get('saturated_pixels')}")]
+    if h:
+        rows.append((f"height, {h.get('form_removed', 'plane')} removed",
+                     f"Sq {fmt_quantity(h.get('Sq_nm'), 'nm')}, Sa {fmt_quantity(h.get('Sa_nm'), 'nm')}, "
+                     f"Sz {fmt_quantity(h.get('Sz_nm'), 'nm')}"))
+    return rows
+
+
+def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
+    """The headline numbers of ``analyze``'s ``metrics.json`` for a one-screen summary:
+    (quantity, text) rows."""
+    a = metrics.get("areal", {})
+    f = metrics.get("filter", {})
+    shape = metrics.get("shape") or [0, 0]
+    px = metrics.get("pixel_mm") or [0, 0]
+    filt = ", ".join(f"{k[0]} {v:g} mm" for k, v in (("S_mm", f.get("S_mm")),
+                                                     ("L_mm", f.get("L_mm"))) if v)
+    out = metrics.get("outliers", {})
+    rows = [("map", f"{shape[1]} x {shape[0]} points of {fmt_quantity(px[0] * MM_TO_UM, 'um')}"
+                    + (f" x {fmt_quantity(px[1] * MM_TO_UM, 'um')}" if px[1] != px[0] else "")
+                    + f", {_percent(metrics.get('valid_fraction'))} valid"),
+            ("form removed, filter", f"{(metrics.get('form') or {}).get('method')}, "
+                                     f"{filt or 'none'}"),
+            ("Sa, Sq", f"{fmt_quantity(a.get('Sa_nm'), 'nm')}, {fmt_quantity(a.get('Sq_nm'), 'nm')}"),
+            ("Sp, Sv, Sz", f"{fmt_quantity(a.get('Sp_nm'), 'nm')}, {fmt_quantity(a.get('Sv_nm'), 'nm')}, "
+                           f"{fmt_quantity(a.get('Sz_nm'), 'nm')}"),
+            ("Ssk, Sku, Sdq", f"{fmt_number(a.get('Ssk'))}, {fmt_number(a.get('Sku'))}, "
+                              f"{fmt_number(a.get('Sdq'))}"),
+            ("outliers (3-sigma rule)", f"{out.get('count')} "
+                                        + ("left out" if out.get("left_out") else "kept"))]
+    return rows
+
+
+def _percent(v) -> str:
+    return "n/a" if v is None else f"{100 * float(v):.1f} %"

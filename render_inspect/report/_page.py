@@ -285,14 +285,19 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     rep.figure(figs["interferogram_difference"], f"Intensity difference, {va} - {vb}.")
     rep.figure(figs["measured_residual_side_by_side"],
                "Measured height - design on the camera grid: the residual as the instrument "
-               "sees it (camera noise, pixel averaging, slope drop-outs included).")
+               "sees it (camera noise, pixel averaging, slope drop-outs included), with its "
+               "piston and tilt removed as instrument software does (an interferometer "
+               "measures relative height; phase shifting knows heights only up to whole "
+               "fringe orders of lambda_eff / 2 between regions that do not touch).")
     rep.figure(figs["measurement_error_side_by_side"],
-               "Measured - true height (nm), piston aligned by the mean over measured pixels.")
+               "Measured - true height (nm): the evaluation against the simulation's truth, "
+               "each region's piston aligned to it by the mean over its measured pixels.")
     mrows = [("mode", "mode", ""), ("algorithm", "algorithm", ""),
              ("height error rms", "rms_nm", "nm"), ("height error PV", "pv_nm", "nm"),
              ("piston removed", "piston_nm", "nm"),
              ("measured pixels", "valid_fraction", "fraction"),
-             ("pixels with light", "light_fraction", "fraction"), ("regions", "regions", "")]
+             ("pixels with fringes above the noise", "light_fraction", "fraction"),
+             ("regions", "regions", "")]
     rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
                for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
               header=["phase retrieval", va, vb])
