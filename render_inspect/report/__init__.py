@@ -13,7 +13,7 @@ from ._figures import (annotate_rgb, block_mean, difference_figure, display_map,
                        line_panels, locator_figure, map_panels, png_bytes,
                        radial_profile_figure)
 from ._following import plot_following_error, plot_following_error_map
-from ._format import fmt_number, fmt_quantity, nice_length
+from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length
 from ._html import HtmlReport, data_uri, table_html
 from ._instrument import characterise_figures
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
@@ -28,7 +28,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "kinematics_png", "image_panels", "map_panels", "png_bytes", "radial_profile_figure",
            "line_panels", "plot_following_error", "plot_following_error_map",
            "annotate_rgb", "block_mean", "display_map", "difference_figure", "fmt_number",
-           "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
+           "fmt_quantity", "nice_length", "scale_bar_length", "locator_figure", "axis_motion_figure", "moving_axes",
            "turning_axes", "draw_figure", "FIGURE_KINDS", "save_map_png", "save_height_png",
            "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
            "panels_png", "characterise_figures", "curves_png", "heatmap_png", "sweep_plot_png",

@@ -58,7 +58,7 @@ def diffuse_caption(meta: dict) -> list[str]:
 
 def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, difference: dict,
                        window: dict, part: dict, identical: bool, sections: dict,
-                       radial: bool, kinematics) -> dict:
+                       radial: bool, kinematics, lowpass_mm: float | None = None) -> dict:
     """All top-level PNGs of a comparison (name -> bytes).
 
     Parameters
@@ -81,6 +81,9 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         The sections are radial about a spindle axis.
     kinematics : bytes or None
         The axis-motion figure.
+    lowpass_mm : float, optional
+        The first figure's maps are drawn low-passed at this nesting index (tool marks the
+        simulation does not resolve).
     """
     figs = {}
     hm = a.heightmap
@@ -107,7 +110,7 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
                      "axis": f"x (mm) at y = {py:.4g} mm" if along_x
                      else f"y (mm) at x = {px:.4g} mm",
                      "title": "profile across the largest difference"},
-            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]})")
+            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]})", lowpass_mm=lowpass_mm)
     else:
         figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
