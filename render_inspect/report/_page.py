@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 
-from ..core.units import MM_TO_UM
+from ..core.units import MM_TO_NM, MM_TO_UM
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
@@ -295,25 +295,23 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     mic, mac = dif.get("micro") or {}, dif.get("macro") or {}
     rep.section("Diffuse light")
     rep.figure(figs["diffuse_micro_side_by_side"],
-               f"Micro view of the common window, straight down (orthographic), aluminium under "
-               f"the {mic.get('light')} light whose camera port is around the line of sight; "
-               f"heights exaggerated {_g(mic.get('vertical_exaggeration'))}x "
+               f"Micro view of the common window, straight down (orthographic), aluminium "
+               + _micro_light_words(mic)
+               + f"; heights exaggerated {_g(mic.get('vertical_exaggeration'))}x "
                f"(written into every image).")
     rep.figure(figs["diffuse_difference"], f"Luminance difference (linear), {va} - {vb}.")
     rep.figure(figs["diffuse_macro_side_by_side"],
                f"The whole part, perspective view, heights exaggerated "
                f"{_g(mac.get('vertical_exaggeration'))}x; the design over the part with "
                f"the simulated residual inside the simulated region. "
-               + ("The colours are the diffraction of the lamp by the feed marks (period = "
-                  "feed per revolution), rendered spectrally." if mac.get("iridescence") else ""))
+               + _macro_light_words(mac))
     drows = []
-    for k, unit in (("resolution", "px"), ("spp", ""), ("vertical_exaggeration", "x"),
-                    ("mm_per_px", "um"), ("light", ""), ("lamp", ""), ("material", ""),
-                    ("iridescence", ""), ("orders", ""), ("first_order_efficiency_550nm", ""),
-                    ("sigma_u", ""), ("sigma_v", ""), ("mitsuba_variant", "")):
+    for k in ("resolution", "spp", "vertical_exaggeration", "mm_per_px", "light", "lamp",
+              "material", "iridescence", "orders", "first_order_efficiency_550nm", "sigma_u",
+              "sigma_v", "mitsuba_variant"):
         if k not in mic and k not in mac:
             continue
-        drows.append([k, _diffuse_value(k, mic.get(k)), _diffuse_value(k, mac.get(k))])
+        drows.append([k, _diffuse_value(k, mic.get(k), mic), _diffuse_value(k, mac.get(k), mac)])
     rep.table(drows, header=["[render.diffuse] as rendered", "micro", "macro"])
 
     # ---- 6. sections and machine axes
@@ -456,8 +454,8 @@ def _overcut_sentences(metrics: dict) -> list[str]:
             continue
         x, y = b["at_mm"]
         text = (f"Why {var['name']} ({var['label']}) cuts {_q(-b['min_nm'], 'nm')} below the "
-                f"design (residual min {_q(b['min_nm'], 'nm')}, at x = {fmt_number(x, sig=4)} mm, "
-                f"y = {fmt_number(y, sig=4)} mm): simulated again around that point, the "
+                f"design (residual min {_q(b['min_nm'], 'nm')}, at x = {x:.4g} mm, "
+                f"y = {y:.4g} mm): simulated again around that point, the "
                 f"commanded geometry alone (machine and material ideal) leaves "
                 f"{_q(b['geometry_nm'], 'nm')}")
         g = b["geometry_nm"]
@@ -480,18 +478,54 @@ def _res(unit):
     return {"um": 1e-4, "mm": 1e-7}.get(unit)
 
 
-def _diffuse_value(k, v):
+def _micro_light_words(mic: dict) -> str:
+    light = mic.get("light")
+    if light == "brightfield":
+        return ("in a microscope's brightfield: the objective illuminates through its own "
+                "aperture and takes back what the surface returns into it, so flat areas are "
+                "bright and slopes darken")
+    return f"under the {light} light whose camera port is around the line of sight"
+
+
+def _macro_light_words(mac: dict) -> str:
+    words = []
+    if mac.get("light") == "studio":
+        words.append("Staged as in a photo studio: a softbox behind the part (its mirror image "
+                     "on the face), a strip light in front (the chamfer's bright line), a small "
+                     "lamp, a dim room; the chamfer and the side wall of a turned disc are "
+                     "staging too.")
+    if mac.get("iridescence"):
+        words.append("The colours are the diffraction of the lights by the feed marks (period "
+                     "= feed per revolution), rendered spectrally.")
+    return " ".join(words)
+
+
+def _diffuse_value(k, v, view: dict):
+    """A value of the diffuse settings table, with its unit or why it has none."""
     if v is None:
-        return "none" if k == "lamp" else "n/a"
+        if k == "lamp":
+            return ("in the studio's light" if view.get("light") == "studio"
+                    else "no lamp in this view")
+        return "not used in this view"
     if k == "mm_per_px":
         return fmt_quantity(v * MM_TO_UM, "um")
     if k == "vertical_exaggeration":
         return f"{v:g}x"
     if k == "resolution":
         return " x ".join(str(x) for x in v) + " px"
+    if k == "spp":
+        return f"{v} samples per pixel"
     if k == "lamp":
         return (f"directional, zenith {fmt_number(v.get('zenith_deg'))} deg, irradiance "
-                f"{fmt_number(v.get('irradiance'))}")
+                f"{fmt_number(v.get('irradiance'))} (radiance units)")
+    if k == "orders":
+        return f"{v} diffraction orders" if v else "none: the marks are in the mesh"
+    if k == "first_order_efficiency_550nm":
+        return fmt_quantity(100.0 * v, "%") if v else "0 % (no grating in this view)"
+    if k in ("sigma_u", "sigma_v"):
+        return f"{fmt_number(v)} (rms, direction cosine)"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
     if isinstance(v, float):
         return fmt_number(v)
     return v

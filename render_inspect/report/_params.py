@@ -134,7 +134,17 @@ def value_text(key: str, v, field=None, *, preset: str | None = None) -> str:
     return str(v)
 
 
+#: what a quantity is, by its unit (the meaning column of a key the schema does not describe)
+_KIND_OF_UNIT = {"nm": "a length", "um": "a length", "mm": "a length",
+                 "deg": "an angle", "rad": "an angle", "urad": "an angle", "mrad": "an angle",
+                 "Hz": "a frequency", "s": "a time", "rpm": "a spindle speed",
+                 "mm/min": "a feed rate", "mm/s": "a velocity", "mm/s^2": "an acceleration",
+                 "GPa": "a modulus", "kg": "a mass", "nm/N": "a compliance", "GiB": "memory",
+                 "%": "a fraction"}
+
+
 def _meaning(key: str, field, value) -> str:
+    """The schema's description of the key, else what kind of quantity it is."""
     desc = (getattr(field, "description", None) or "").strip()
     unit = key_unit(key, field)
     if desc == unit:
@@ -142,7 +152,15 @@ def _meaning(key: str, field, value) -> str:
     if isinstance(value, (int, float)) and not isinstance(value, bool) and not unit:
         kind = "a count" if isinstance(value, int) else "no unit"
         return f"{desc}; {kind}" if desc else kind
-    return desc
+    if desc:
+        return desc
+    if isinstance(value, bool):
+        return "on or off"
+    if isinstance(value, str):
+        return "a choice"
+    if unit:
+        return f"{_KIND_OF_UNIT.get(unit, 'a quantity')}, {unit}"
+    return "a list" if isinstance(value, (list, tuple)) else "not described by the schema"
 
 
 def section_rows(name: str, section, values: dict, *, varied: dict | None = None,
