@@ -99,8 +99,7 @@ def run_grid() -> dict:
     return {"grid.sq_ideal": (ideal["residual"]["Sq_nm"], ".3g"),
             "grid.sq_offaxis_ideal": (off["residual"]["Sq_nm"], ".3g"),
             "grid.sq_lathe": (lathe["residual"]["Sq_nm"], ".3g"),
-            "grid.sq": (full["residual"]["Sq_nm"], ".3g"),
-            "grid.min": (full["residual"]["min_nm"], ".3g")}
+            "grid.sq": (full["residual"]["Sq_nm"], ".3g")}
 
 
 def _summary_text(metrics: dict, seconds: float) -> str:
@@ -184,7 +183,8 @@ def run_filters() -> dict:
         f = waviness_choice(marks, sc.design, sc.metrology, pixel=sc.simulation.pixel,
                             window_mm=(x1 - x0, y1 - y0))
         out[f"filters.{key}_s_um"] = (f["s_filter_mm"] * MM_TO_UM, ".3g")
-        out[f"filters.{key}_s_per_feed"] = (f["s_filter_mm"] / marks.period_mm, ".2g")
+        if key != "hts":
+            out[f"filters.{key}_s_per_feed"] = (f["s_filter_mm"] / marks.period_mm, ".2g")
         out[f"filters.{key}_a1_nm"] = (f["mark_first_harmonic_nm"], ".3g")
     return out
 
@@ -230,11 +230,16 @@ def run_instrument() -> dict:
     return out
 
 
+def _about(fn) -> str:
+    """The first paragraph of a run's docstring, on one line."""
+    return " ".join(fn.__doc__.split("\n\n")[0].split()).replace("``", "`")
+
+
 RUNS = {r.name: r for r in (
-    Run("grid", run_grid.__doc__.split("\n\n")[0], run_grid, cheap=True),
-    Run("filters", run_filters.__doc__.split("\n\n")[0], run_filters, cheap=True),
-    Run("fig16", run_fig16.__doc__.split("\n\n")[0], run_fig16),
-    Run("instrument", run_instrument.__doc__.split("\n\n")[0], run_instrument),
+    Run("grid", _about(run_grid), run_grid, cheap=True),
+    Run("filters", _about(run_filters), run_filters, cheap=True),
+    Run("fig16", _about(run_fig16), run_fig16),
+    Run("instrument", _about(run_instrument), run_instrument),
 )}
 
 
@@ -268,6 +273,9 @@ def make(names, data: dict) -> dict:
 
 
 def write_numbers(data: dict, path: Path = NUMBERS_JSON) -> None:
+    for name, run in data.get("runs", {}).items():
+        if name in RUNS:
+            run["about"] = RUNS[name].about
     path.write_text(json.dumps(data, indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
@@ -334,7 +342,7 @@ def main(argv=None) -> int:
         return 1 if bad else 0
     if not args.docs:
         data = make(args.only or list(RUNS), data)
-        write_numbers(data)
+    write_numbers(data)
     unknown = write_docs(data)
     if unknown:
         print("marked spans without a number:\n  " + "\n  ".join(unknown), file=sys.stderr)

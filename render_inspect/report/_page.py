@@ -238,7 +238,10 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
 
     # ---- 3. maps
     rep.section("Residual and waviness maps")
-    cap = "machined - design over the simulated region (nm), one colour scale for all panels"
+    cap = ("machined - design over the simulated region (nm), one colour scale for all panels; "
+           "blue is below the design (an overcut): where each variant's deepest point comes "
+           "from (the commanded geometry, the lathe, the material) is said under the headline "
+           "numbers")
     if mf:
         cap += "; third panel: the measured file after registration to the design"
     rep.figure(figs["residual_side_by_side"], cap + ".")

@@ -189,7 +189,7 @@ def section_rows(name: str, section, values: dict, *, varied: dict | None = None
         field = fields.get(k)
         full = f"{prefix}{name}.{k}"
         sub = getattr(section, k, None) if section is not None else None
-        if isinstance(v, dict) and hasattr(sub, "model_fields"):
+        if isinstance(v, dict) and hasattr(type(sub), "model_fields"):
             nested.extend(section_rows(f"{name}.{k}", sub, v, varied=varied, prefix=prefix,
                                        preset=preset))
             continue
