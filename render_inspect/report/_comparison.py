@@ -170,7 +170,8 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         [(f"{n}: the whole part", srgb(r)) for n, r in zip(names, (rm, rmb))],
         extent=[(0, r.shape[1], 0, r.shape[0]) for r in (rm, rmb)], axis_labels=False,
         scale_mm=(bar, bar / sc), notes=[", ".join(diffuse_caption(mm_))] * 2,
-        suptitle=f"The part under the {mm_['light']['type']}"
+        suptitle=("The part in the photo studio" if mm_["light"]["type"] == "studio"
+                  else f"The part under the {mm_['light']['type']}")
                  + (" and a lamp" if mm_.get("lamp") else "")
                  + f", heights exaggerated {mm_['vertical_exaggeration']:g}x"
                  + (" (colours: diffraction by the feed marks)"

@@ -288,8 +288,8 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
                for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
               header=["phase retrieval", va, vb])
-    ifields = type(getattr(scene.render, "interferometer", None)).model_fields \
-        if hasattr(getattr(scene.render, "interferometer", None), "model_fields") else {}
+    icls = type(getattr(scene.render, "interferometer", None))
+    ifields = icls.model_fields if hasattr(icls, "model_fields") else {}
     rep.table([[k, value_text(k, v, ifields.get(k))] for k, v in ic.items()],
               header=["[render.interferometer] as rendered", "value"])
 
