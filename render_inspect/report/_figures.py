@@ -382,7 +382,10 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
         if leg is not None:
             leg.remove()
         ia.set_title("whole part", fontsize=7, pad=1)
-    vmin, vmax, _ = _limits([true_diff, measured_diff], True, 0.5)
+    # one colour scale, set by the true difference when there is one: a measurement's
+    # slips (a fringe order at a steep flank) are clipped (arrows) instead of washing the
+    # truth out
+    vmin, vmax, _ = _limits([true_diff if true_diff is not None else measured_diff], True, 0.5)
     bar = _shared_bar([e for d, e in ((true_diff, true_extent), (measured_diff, measured_extent))
                        if d is not None])
     a, b = names
@@ -402,7 +405,7 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
         stat = (f"rms {fmt_quantity(float(np.sqrt(np.mean(d * d))), 'nm')}, "
                 f"PV {fmt_quantity(float(np.ptp(d)), 'nm')}") if d.size else "no data"
         if lowpass_mm:
-            stat += f", low-passed at {length_label(lowpass_mm)}"
+            stat += f", low-passed at {fmt_quantity(lowpass_mm * MM_TO_UM, 'um')}"
         ax.set_title(f"{a} - {b}: {what}\n{stat}", fontsize=10)
         ax.set_xlabel("x (mm)")
         if k == 0:
