@@ -14,7 +14,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
-from ._params import SECTION_ORDER, section_rows, settings_rows, value_text
+from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
 
 __all__ = ["build_page"]
 
@@ -290,8 +290,9 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
               header=["phase retrieval", va, vb])
     icls = type(getattr(scene.render, "interferometer", None))
     ifields = icls.model_fields if hasattr(icls, "model_fields") else {}
-    rep.table([[k, value_text(k, v, ifields.get(k))] for k, v in ic.items()],
-              header=["[render.interferometer] as rendered", "value"])
+    rep.table([[k, value_text(k, v, ifields.get(k)), meaning(k, ifields.get(k), v)]
+               for k, v in ic.items()],
+              header=["[render.interferometer] as rendered", "value", "meaning"])
 
     # ---- 5. diffuse light
     dif = _get(metrics, "render_settings.diffuse") or {}

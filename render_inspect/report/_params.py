@@ -18,7 +18,7 @@ from ..core.section import MAX_LENGTH_MM
 from ..core.units import MM_TO_NM, MM_TO_UM, RAD_TO_URAD
 from ._format import fmt_number
 
-__all__ = ["key_unit", "value_text", "section_rows", "settings_rows", "SECTION_ORDER"]
+__all__ = ["key_unit", "value_text", "meaning", "section_rows", "settings_rows", "SECTION_ORDER"]
 
 #: the scene sections the Parameters part of the report lists, in this order
 SECTION_ORDER = ("design", "tool", "process", "machine", "material", "simulation", "metrology",
@@ -63,7 +63,7 @@ def key_unit(key: str, field=None) -> str:
     head = re.split(r"[,;( ]", desc, maxsplit=1)[0] if desc else ""
     if head in _DESCRIPTION_UNITS:
         return head
-    m = re.search(r",\s*(mm|um|nm)\b", desc)
+    m = re.search(r",\s*(mm|um|nm|electrons)\b", desc)
     if m:
         return m.group(1)
     if field is not None and (_length_bounds(getattr(field, "metadata", None))
@@ -93,12 +93,11 @@ def _none_reason(key: str, field, preset: str | None) -> str:
     desc = getattr(field, "description", None) or ""
     if "limit" in key:
         return "not set: no limit"
-    m = re.search(r"\bNone\s*[=:]\s*([^;)]+)", desc)
-    if m:
-        return f"not set: {m.group(1).strip()}"
-    m = re.search(r"\b(default[^;)]*)", desc)
-    if m:
-        return f"not set: {m.group(1).strip()}"
+    for pattern in (r"\bNone\s*[=:]\s*([^;)]+)", r"\b(default[^;)]*)"):
+        m = re.search(pattern, desc)
+        if m:
+            text = m.group(1).strip()
+            return f"not set: {text}{')' * (text.count('(') - text.count(')'))}"
     return "not set (not used)"
 
 
@@ -143,7 +142,7 @@ _KIND_OF_UNIT = {"nm": "a length", "um": "a length", "mm": "a length",
                  "%": "a fraction"}
 
 
-def _meaning(key: str, field, value) -> str:
+def meaning(key: str, field, value) -> str:
     """The schema's description of the key, else what kind of quantity it is."""
     desc = (getattr(field, "description", None) or "").strip()
     unit = key_unit(key, field)
@@ -205,12 +204,12 @@ def section_rows(name: str, section, values: dict, *, varied: dict | None = None
                                  f"{tag}: cleared, {_none_reason(k, field, preset)}")
                 else:
                     texts.append(f"{tag}: {value_text(k, value, field)}")
-            own.append([k, " | ".join(texts), _meaning(k, field, v)])
+            own.append([k, " | ".join(texts), meaning(k, field, v)])
             continue
         text = value_text(k, v, field, preset=preset)
         if isinstance(v, dict) and v and section is None:
             text = ", ".join(f"{kk} = {value_text(kk, vv)}" for kk, vv in v.items())
-        own.append([k, text, _meaning(k, field, v)])
+        own.append([k, text, meaning(k, field, v)])
     return ([(f"[{prefix}{name}]", own)] if own else []) + nested
 
 
