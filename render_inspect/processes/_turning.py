@@ -255,15 +255,22 @@ def compensation_variants(cfg) -> VariantPair:
                f"section angle (Li et al. 2018, Fig. 16)."))
 
 
-def _ideal_values(section, name: str) -> dict:
-    """Scene values that make ``[name]`` (machine, material) ideal: its preset, and the
-    keys an ideal preset may not carry, cleared."""
-    values = {f"{name}.preset": "ideal"}
+def _cleared(section, prefix: str) -> dict:
+    """The keys of ``section`` (and its tables) that are set, cleared (dotted -> None)."""
+    values = {}
     for key, fld in type(section).model_fields.items():
         value = getattr(section, key)
-        if fld.default is None and value is not None and not isinstance(value, Section):
-            values[f"{name}.{key}"] = None
+        if isinstance(value, Section):
+            values.update(_cleared(value, f"{prefix}.{key}"))
+        elif fld.default is None and value is not None:
+            values[f"{prefix}.{key}"] = None
     return values
+
+
+def _ideal_values(section, name: str) -> dict:
+    """Scene values that make ``[name]`` (machine, material) ideal: its preset, and every
+    key that would change the preset, cleared."""
+    return {f"{name}.preset": "ideal", **_cleared(section, name)}
 
 
 def turning_contributions(cfg) -> dict:

@@ -360,9 +360,10 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
             "prefilter": "block_mean", "kind": "grid"}
     if view == "macro" and (part or {}).get("shape") == "disc":
         r = float(part["radius"])
-        mesh.update(kind="disc", skirt=True, center=[float(v) for v in part["center"]], radius=r,
-                    rings=res, sectors=4 * res, chamfer_mm=DISC_CHAMFER * r,
-                    wall_mm=DISC_WALL * r if studio is not None else 0.0)
+        wall = DISC_WALL * r if studio is not None else 0.0
+        mesh.update(kind="disc", skirt=wall > 0, center=[float(v) for v in part["center"]],
+                    radius=r, rings=res, sectors=4 * res, chamfer_mm=DISC_CHAMFER * r,
+                    wall_mm=wall)
     elif view == "micro":
         # finer than the grid: a smooth (cubic) surface through the samples, not facets
         mesh["refine"] = int(min(4, max(1, math.ceil(heightmap.pixel / (wmm / res) - 1e-9))))
