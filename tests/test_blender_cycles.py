@@ -88,7 +88,8 @@ def test_tilted_mirror_reflects_the_light_at_twice_its_tilt(light, tilt_deg):
 
     exaggeration = 10.0
     hm = _plane(np.tan(np.radians(tilt_deg)) / exaggeration, n=33)
-    dcfg = {"light": light, "exaggeration": exaggeration, "resolution": 32, "spp": 4}
+    dcfg = {"light": light, "micro_light": light, "exaggeration": exaggeration, "resolution": 32,
+            "spp": 4}
     rgb, meta = render_cycles(hm, dcfg, view="micro")
     assert rgb.shape == (32, 32, 3) and rgb.dtype == np.float32
     assert meta["camera"]["type"] == "orthographic" and meta["vertical_exaggeration"] == 10.0

@@ -36,7 +36,7 @@ def _tilted(zenith_deg, exaggeration, n=41, pixel=0.01):
 
 
 def _micro(light, ex=200.0, **kw):
-    return DiffuseConfig(light=light, spp=8, resolution=24, exaggeration=ex,
+    return DiffuseConfig(light=light, micro_light=light, spp=8, resolution=24, exaggeration=ex,
                          window=(0.1, 0.1, 0.3, 0.3), **kw)
 
 
@@ -50,6 +50,31 @@ def test_tilted_mirror_reflects_the_light_profile(light, zenith, profile):
     np.testing.assert_allclose(rgb.reshape(-1, 3).mean(axis=0), expect, rtol=0.02, atol=1e-3)
     assert rgb.std() < 0.01  # a flat mirror: uniform
     assert meta["vertical_exaggeration"] == ex
+
+
+@pytest.mark.parametrize("zenith", [0.0, 12.0, 25.0, 40.0])
+def test_brightfield_is_the_overlap_of_the_objective_cones(zenith):
+    """A reflected-light microscope's brightfield: a mirror tilted so that it turns the
+    optical axis by ``zenith`` returns the share of the illumination cone that lands in
+    the objective's cone (two caps of asin(NA), ``zenith`` apart): 1 flat, 0 beyond
+    2 asin(NA)."""
+    from render_inspect.render._studio import brightfield_profile, cap_overlap
+
+    na, ex = 0.3, 200.0
+    cfg = DiffuseConfig(micro_light="brightfield", objective_na=na, spp=8, resolution=24,
+                        exaggeration=ex, window=(0.1, 0.1, 0.3, 0.3))
+    rgb, meta = render_diffuse(_tilted(zenith, ex), cfg, view="micro")
+    a = math.asin(na)
+    exact = float(cap_overlap(a, a, math.radians(zenith)))
+    prof = np.asarray(brightfield_profile(na))
+    assert float(np.interp(zenith, prof[:, 0], prof[:, 1])) == pytest.approx(exact, abs=0.02)
+    np.testing.assert_allclose(rgb.reshape(-1, 3).mean(axis=0),
+                               exact * np.asarray(AL_REFLECTANCE_RGB), rtol=0.03, atol=0.01)
+    assert meta["light"]["type"] == "brightfield" and meta["light"]["objective_na"] == na
+    if zenith == 0.0:
+        assert exact == 1.0
+    if zenith == 40.0:
+        assert exact == 0.0
 
 
 def test_exaggeration_is_applied_and_stated():
@@ -263,9 +288,42 @@ def test_macro_view_of_a_turned_part_has_rainbow_colours():
     cfg = DiffuseConfig(resolution=64, spp=16, exaggeration=1.0)
     rgb, meta = render_diffuse(hm, cfg, view="macro", marks=marks, seed=1)
     assert meta["material"]["type"] == "turned_al" and meta["material"]["grating"]
-    assert meta["lamp"]["irradiance"] > 0 and meta["scale"]["mm_per_px_at_target"] > 0
+    assert meta["light"]["type"] == "studio" and meta["light"]["lamp"]["radiance"] > 0
+    assert meta["scale"]["mm_per_px_at_target"] > 0
     sat = rgb.max(axis=2) - rgb.min(axis=2)
     assert (sat > 0.2).mean() > 0.002   # coloured pixels: the orders
     plain, _ = render_diffuse(hm, cfg.model_copy(update={"lamp": False}), view="macro",
                               seed=1)
     assert (plain.max(axis=2) - plain.min(axis=2)).max() < 0.05
+
+
+@pytest.mark.slow
+def test_studio_view_of_a_turned_disc_shows_its_edge_and_the_softbox():
+    """The whole turned part in the studio: a round solid (face, chamfer, side wall), the
+    softbox's mirror image on the far half of the face (bright), the dark backdrop around
+    the part, and the front chamfer lit by the strip light."""
+    R = 2.0
+    x = np.linspace(-R, R, 129)
+    X, Y = np.meshgrid(x, x)
+    z = np.zeros_like(X)
+    z[X ** 2 + Y ** 2 > R * R] = np.nan
+    hm = HeightMap(z, z.copy(), x[1] - x[0], (-R, -R))
+    marks = {"kind": "circular", "center_mm": [0.0, 0.0], "period_mm": 0.01,
+             "nose_radius_mm": 0.514}
+    part = {"shape": "disc", "center": [0.0, 0.0], "radius": R}
+    cfg = DiffuseConfig(resolution=96, spp=16, exaggeration=1.0)
+    rgb, meta = render_diffuse(hm, cfg, view="macro", marks=marks, part=part, seed=2)
+    ms = meta["mesh"]
+    assert ms["kind"] == "disc" and ms["chamfer_mm"] > 0 and ms["wall_mm"] > 0
+    assert len(meta["light"]["softboxes"]) == 2
+    lum = rgb.mean(axis=2)
+    n = lum.shape[0]
+    backdrop = np.r_[lum[:4].ravel(), lum[:, :3].ravel()]
+    assert backdrop.max() < 0.05 and backdrop.mean() > 0.005   # dim, not black
+    # the face mirrors the softbox (bright) and the room (dim): both show
+    face = lum[int(0.3 * n):int(0.75 * n), int(0.35 * n):int(0.65 * n)]
+    assert np.percentile(face, 90) > 0.4 and np.percentile(face, 10) < 0.3
+    # plain: no studio, no chamfer: the face ends where the map ends
+    flat, m2 = render_diffuse(hm, cfg.model_copy(update={"studio": False}), view="macro",
+                              marks=marks, part=part, seed=2)
+    assert m2["light"]["type"] == "dome" and m2["mesh"]["wall_mm"] == 0

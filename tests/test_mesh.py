@@ -133,3 +133,35 @@ def test_bad_input_is_named():
         export_mesh(heightmap_mesh(hm), "part.xyz")
     with pytest.raises(MemoryBudgetError, match="stride"):
         grid_mesh(np.zeros((100, 100)), pixel=1.0, memory_budget=1000)
+
+
+def test_disc_mesh_is_a_round_solid_sampled_from_the_map():
+    """A turned disc: its face on polar rings through the map's heights (a tilted plane
+    comes back exactly), its rim on the radius, a 45 degree chamfer, a vertical side wall,
+    the face's normals up and one vertex at the centre (no seam at the axis)."""
+    from render_inspect.mesh import disc_mesh
+
+    R, c, wall, ex = 2.0, 0.1, 0.5, 10.0
+    x = np.linspace(-R, R, 81)
+    X, Y = np.meshgrid(x, x)
+    z = 1e-3 * X + 2e-3 * Y
+    z[X ** 2 + Y ** 2 > R * R] = np.nan
+    gm = disc_mesh(z, pixel=x[1] - x[0], origin=(-R, -R), center=(0.0, 0.0), radius=R,
+                   exaggeration=ex, z_offset=0.0, rings=16, sectors=64, chamfer=c, wall=wall)
+    v, n = gm.vertices.astype(float), gm.normals.astype(float)
+    face = slice(0, 1 + 16 * 64)
+    r = np.hypot(v[face, 0], v[face, 1])
+    np.testing.assert_allclose(v[face, 2], ex * (1e-3 * v[face, 0] + 2e-3 * v[face, 1]), atol=1e-5)
+    assert r.max() == pytest.approx(R - c, rel=1e-6) and r[0] == 0.0
+    assert np.all(n[face, 2] > 0.9)
+    rim = np.hypot(v[:, 0], v[:, 1])
+    assert rim.max() == pytest.approx(R, rel=1e-6)
+    assert v[:, 2].min() < v[face, 2].min() - wall + 1e-6
+    tm = gm.to_trimesh()
+    assert tm.is_winding_consistent
+    # the outward faces point away from the axis or up; the bottom down
+    fn, fc = tm.face_normals, tm.triangles_center
+    radial = (fn[:, 0] * fc[:, 0] + fn[:, 1] * fc[:, 1])
+    side = np.hypot(fc[:, 0], fc[:, 1]) > R - c + 1e-6
+    assert np.all(radial[side & (np.abs(fn[:, 2]) < 0.99)] > 0)
+    assert gm.metadata["shape"] == "disc" and gm.metadata["chamfer_mm"] == c

@@ -10,6 +10,7 @@ Meshes are built directly from arrays (float32 vertices, uint32 faces), so a 400
 map costs about 1.2 GB; renders crop a window or decimate where detail cannot be seen.
 """
 
+from ._disc import disc_mesh
 from ._grid import (
                     DEFAULT_MEMORY_BUDGET_BYTES,
                     MESH_FORMATS,
@@ -23,5 +24,5 @@ from ._grid import (
                     window_indices,
 )
 
-__all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
+__all__ = ["GridMesh", "grid_mesh", "disc_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "gltf_from_project", "decimation_stride", "window_indices", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]

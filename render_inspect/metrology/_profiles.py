@@ -14,20 +14,52 @@ from ..core.errors import RenderInspectError
 from ..core.units import MM_TO_NM
 from ._params import areal_parameters, extract_section
 
-__all__ = ["common_window", "crop_window", "line_profile", "difference_stats", "sections",
+__all__ = ["common_window", "design_features", "crop_window", "line_profile", "difference_stats", "sections",
            "profile_center", "areal_nm", "difference_profiles", "surface_slope"]
 
 
-def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None) -> dict:
+#: a design has features of its own (lenslets, elements on a base) when the 90th
+#: percentile of its curvature is this many times the median (a sinusoid: about 2)
+FEATURE_CURVATURE_RATIO = 5.0
+
+
+def design_features(design, pixel: float) -> np.ndarray | None:
+    """Where a design has features of its own against a smooth base (lenslets on a toric
+    base, elements on a plane): a 0/1 map on the design's grid, or None when the design
+    is alike everywhere (a sinusoid, lenslets tiling the whole map).
+
+    The features are the pixels whose curvature ``|laplacian(design)|`` is above the
+    geometric mean of its median and 90th percentile, used only when the 90th
+    percentile is :data:`FEATURE_CURVATURE_RATIO` times the median or more."""
+    z = np.asarray(design, dtype=np.float64)
+    ok = np.isfinite(z)
+    if ok.sum() < 16:
+        return None
+    zf = np.where(ok, z, np.nanmean(z))
+    lap = np.abs(ndimage.laplace(zf)) / (pixel * pixel)
+    p50, p90 = np.percentile(lap[ok], [50, 90])
+    if not p90 > FEATURE_CURVATURE_RATIO * p50:
+        return None
+    mask = (lap > math.sqrt(max(p50, 0.0) * p90)) & ok
+    return ndimage.binary_opening(mask, iterations=1).astype(np.float64)
+
+
+def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None,
+                  design=None) -> dict:
     """The window every close-up of the report shows: ``fixed`` (mm) if given, else a
     square of ``size_mm`` placed where the two variants differ most (the largest mean
     ``|diff|`` over the window, inside the map), or the map's centre when they do not
-    differ.
+    differ.  With ``design`` (the design heights on the same grid) of a design with
+    features of its own (:func:`design_features`: lenslets, elements), only the
+    difference over the features counts, so the window lands on them rather than on the
+    base between them.
 
     Parameters
     ----------
     diff : (ny, nx) array
         Height difference of the two variants (any unit; NaN = not covered).
+    design : (ny, nx) array, optional
+        The design heights on the same grid, mm.
     pixel, origin
         Grid of ``diff``, mm.
     size_mm : float
@@ -47,6 +79,9 @@ def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None) -> 
     else:
         side = min(float(size_mm), x_hi - x_lo, y_hi - y_lo)
         n = max(1, int(round(side / pixel)))
+        feats = design_features(design, pixel) if design is not None else None
+        if feats is not None and (d * feats).max() > 0:
+            d = d * feats
         if d.max() > 0:
             mean = ndimage.uniform_filter(d, size=n, mode="constant")
             # keep the window inside the map

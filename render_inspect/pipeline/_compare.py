@@ -44,6 +44,7 @@ from ..render import mitsuba_variant
 from ..report import (ComparedVariant, axis_motion_figure, build_page, comparison_figures,
                       comparison_summary, display_map, save_map_png)
 from ..scene import compare_pair, compare_variants, parse_vary, variant_scene
+from ._budget import overcut_budget
 from ._measure import measure_and_evaluate, measurement_outputs
 from ._metrics import (comparison_metrics, diffuse_summary, variant_metrics, write_metrics)
 from ._render import (check_render_limits, part_outline, render_diffuse_views,
@@ -252,6 +253,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                         filtered=filt, interferometer=summary,
                         diffuse={view: diffuse_summary(meta) for view, (_, meta) in v.diffuse.items()},
                         mitsuba_variant=ig.variant, timing={**sim.timing_s, **timing})
+    m["overcut"] = overcut_budget(v.scene, hm)  # why it cuts below the design, in numbers
     write_metrics(d, m)
     v.metrics.update(m)
 
@@ -453,7 +455,8 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
         g0 = entry.field(hm, icfg0)
         size = COMPARE_MAX_CAMERA_PIXELS * g0["pixel"] if "pixel" not in icfg0.model_fields_set \
             else max(g0["window"][2] - g0["window"][0], g0["window"][3] - g0["window"][1])
-        cw = common_window(diff, pixel=hm.pixel, origin=hm.origin, size_mm=size, fixed=fixed)
+        cw = common_window(diff, pixel=hm.pixel, origin=hm.origin, size_mm=size, fixed=fixed,
+                           design=hm.design)
         icfg, dcfg, notes = preview_render_configs(scene, hm, window=cw["window"])
         marks = traits.marks
         feed = marks.period_mm if marks is not None and marks.scallop else None
@@ -500,7 +503,9 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                                              through=through)
         figs = comparison_figures(a.shown(), b.shown(), meas, difference=profile, window=cw,
                                   part=part, identical=identical, sections=secs,
-                                  radial=not through, kinematics=_kinematics(a, b))
+                                  radial=not through, kinematics=_kinematics(a, b),
+                                  lowpass_mm=filters["s_filter_mm"] if feed is not None
+                                  and feed < 4 * hm.pixel else None)
         for name, png in figs.items():
             atomic_write_bytes(tmp / f"{name}.png", png)
         windows = {"simulation_mm": [float(x) for x in scene.simulation.region],

@@ -24,7 +24,7 @@ from ..machining import part_heightmap as _part_map
 from ..metrology import render_marks, surface_slope
 from ..processes import process_of
 from ..render import MAX_FILM_SIDE, diffuse_memory, render_diffuse, variant_info
-from ..report import annotate_rgb, diffuse_caption, draw_figure, nice_length
+from ..report import annotate_rgb, diffuse_caption, draw_figure, scale_bar_length
 from ._metrics import write_metrics
 from ._simulate import design_heightmap, simulate
 from ._simulate_command import wants_tiles
@@ -149,10 +149,10 @@ def _srgb8(rgb: np.ndarray) -> np.ndarray:
 
 
 def _scale_bar(meta: dict, width_px: int) -> tuple[float, float]:
-    """A 1-2-5 scale bar about a fifth of the image wide: (mm, pixels)."""
+    """The scale bar of the image (:func:`~render_inspect.report.scale_bar_length`): (mm, pixels)."""
     sc = meta.get("scale") or {}
     mm_px = sc.get("mm_per_px") or sc.get("mm_per_px_at_target")
-    mm = nice_length(0.2 * width_px * mm_px)
+    mm = scale_bar_length(width_px * mm_px)
     return mm, mm / mm_px
 
 

@@ -169,6 +169,11 @@ class Traits:
         ``simulate`` writes the program as ``toolpath.npz`` next to the height map.
     cut_rate : float
         Samples per second the cut runs at (the progress bar's estimate).
+    contributions : dict
+        What the machined surface owes to parts of the model beyond the commanded
+        geometry (the lathe, the material): name -> ``{"label": text, "off": {dotted
+        scene key: value}}``, the scene values that turn that part off (``compare``
+        splits the deepest cut into them); empty: the commanded geometry is all there is.
     """
 
     name: str
@@ -178,6 +183,7 @@ class Traits:
     part: dict | None = None
     saves_program: bool = False
     cut_rate: float = 2e6
+    contributions: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -273,16 +273,49 @@ def compensation_variants(cfg) -> VariantPair:
                f"section angle (Li et al. 2018, Fig. 16)."))
 
 
+def _cleared(section, prefix: str) -> dict:
+    """The keys of ``section`` (and its tables) that are set, cleared (dotted -> None)."""
+    values = {}
+    for key, fld in type(section).model_fields.items():
+        value = getattr(section, key)
+        if isinstance(value, Section):
+            values.update(_cleared(value, f"{prefix}.{key}"))
+        elif fld.default is None and value is not None:
+            values[f"{prefix}.{key}"] = None
+    return values
+
+
+def _ideal_values(section, name: str) -> dict:
+    """Scene values that make ``[name]`` (machine, material) ideal: its preset, and every
+    key that would change the preset, cleared."""
+    return {f"{name}.preset": "ideal", **_cleared(section, name)}
+
+
+def turning_contributions(cfg) -> dict:
+    """The lathe and the material, when not ideal, and the scene values that turn each off
+    (:attr:`Traits.contributions`)."""
+    out = {}
+    if cfg.machine.preset != "ideal":
+        out["lathe"] = {"label": f"the lathe ({cfg.machine.preset})",
+                        "off": _ideal_values(cfg.machine, "machine")}
+    if cfg.material.preset != "ideal":
+        out["material"] = {"label": f"the material ({cfg.material.preset})",
+                           "off": _ideal_values(cfg.material, "material")}
+    return out
+
+
 def turning_traits(cfg, *, cut_rate: float = CUT_RATE) -> Traits:
     """A turned part: circular feed marks of the nose radius about the spindle axis, the
-    disc of the workpiece, the program saved as ``toolpath.npz``."""
+    disc of the workpiece, the program saved as ``toolpath.npz``, the lathe and the
+    material as contributions beyond the commanded geometry."""
     p = cfg.process
     return Traits(name=p.kind, compensation=p.compensation,
                   marks=ToolMarks("circular", float(p.feed_per_rev), float(cfg.tool.nose_radius),
                                   scallop=True),
                   axis=(0.0, 0.0),
                   part={"shape": "disc", "center": [0.0, 0.0], "radius": float(p.workpiece_radius)},
-                  saves_program=True, cut_rate=cut_rate)
+                  saves_program=True, cut_rate=cut_rate,
+                  contributions=turning_contributions(cfg))
 
 
 def _meta(cfg, **extra) -> dict:

@@ -384,9 +384,16 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     h = object_heights(obj)
     hm = HeightMap(h, h, float(obj[PROP_PIXEL]), tuple(float(v) for v in obj[PROP_ORIGIN]))
     spec = diffuse_scene_spec(hm, dcfg, view=view, surface="machined", seed=seed)
-    # the object's z is exaggeration * h; the spec's mesh is offset by z_offset_mm
-    rgb, seconds = render_spec(obj, spec, seed=seed, z_shift=ex * spec["z_offset_mm"],
-                               threads=threads, progress=progress)
+    # the object's z is exaggeration * h; the spec's mesh is offset by z_offset_mm.  The
+    # camera is placed for the map's own coordinates: an object shown shifted beside
+    # another (the second variant) is rendered where the map is, then put back
+    where = tuple(obj.location)
+    obj.location = (0.0, 0.0, 0.0)
+    try:
+        rgb, seconds = render_spec(obj, spec, seed=seed, z_shift=ex * spec["z_offset_mm"],
+                                   threads=threads, progress=progress)
+    finally:
+        obj.location = where
     result = {"image": rgb, "time_s": seconds, "spec": spec, "seed": int(seed)}
     if out is not None:
         result.update(_write_outputs(rgb, out, spec=spec, seed=seed))

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
-from ..mesh import heightmap_mesh, window_indices
+from ..mesh import disc_mesh, heightmap_mesh, window_indices
 # the engine-neutral scene (importable from here as before; _default_window for pipeline/)
 from ._diffuse_scene import (
     AL_REFLECTANCE_RGB,
@@ -43,6 +43,7 @@ from ._scene_dicts import (
     ortho_sensor,
     perspective_sensor,
 )
+from ._studio import studio_environment
 from ._turned_bsdf import efficiency_tables, register_turned_bsdf, store_tables
 from ._variant import import_mitsuba, spectral_variant
 
@@ -102,10 +103,48 @@ def diffuse_mesh(heightmap, spec: dict, *, memory_budget: int | None = None):
     if factor > 1:
         hm = _block_heightmap(heightmap, window, factor, channel)
         channel = "machined"
+    elif ms.get("refine", 1) > 1 and window is not None:
+        hm = _refined_heightmap(heightmap, window, int(ms["refine"]), channel)
+        channel = "machined"
+    if ms.get("kind") == "disc":
+        z = getattr(hm, channel)
+        gm = disc_mesh(z, pixel=hm.pixel, origin=hm.origin, center=ms["center"],
+                       radius=ms["radius"], exaggeration=spec["exaggeration"],
+                       z_offset=spec["z_offset_mm"], rings=ms["rings"], sectors=ms["sectors"],
+                       chamfer=ms["chamfer_mm"], wall=ms["wall_mm"], memory_budget=memory_budget,
+                       channel=ms["channel"])
+        return gm, factor
     gm = heightmap_mesh(hm, channel=channel, exaggeration=spec["exaggeration"], window=window,
                         z_offset=spec["z_offset_mm"], skirt=ms["skirt"], normals=True,
                         memory_budget=memory_budget)
     return gm, factor
+
+
+def _refined_heightmap(heightmap, window, factor: int, channel: str) -> HeightMap:
+    """The ``channel`` inside ``window`` resampled ``factor`` times finer by a cubic spline
+    through the samples (a map with holes: bilinear), so that a micro view finer than the
+    simulation grid shows a smooth surface through the samples instead of the grid's
+    triangles (whose diagonals turn every curved tool mark into a staircase)."""
+    from scipy import ndimage
+
+    z = getattr(heightmap, channel)
+    i0, i1, j0, j1 = window_indices(heightmap, window, margin=2)
+    z = z[i0:i1, j0:j1]
+    f = int(factor)
+    ny, nx = z.shape
+    yy = np.arange((ny - 1) * f + 1) / f
+    xx = np.arange((nx - 1) * f + 1) / f
+    ok = np.isfinite(z)
+    order = 3 if ok.all() else 1
+    zf = np.where(ok, z, np.nanmean(z)) if not ok.all() else z
+    grid = np.meshgrid(yy, xx, indexing="ij")
+    zr = ndimage.map_coordinates(zf, grid, order=order, mode="nearest")
+    if not ok.all():
+        holes = ndimage.map_coordinates((~ok).astype(np.float64), grid, order=1) > 0
+        zr = np.where(holes, np.nan, zr)
+    p = heightmap.pixel / f
+    origin = (heightmap.origin[0] + j0 * heightmap.pixel, heightmap.origin[1] + i0 * heightmap.pixel)
+    return HeightMap(zr, zr, p, origin)
 
 
 def _material_dict(spec, key: str) -> dict:
@@ -143,8 +182,13 @@ def _mitsuba_scene(gm, spec, bsdf):
                               z_top=cam["origin"][2], spp=spec["spp"], jitter=True)
         sensor["sampler"] = {"type": "independent", "sample_count": int(spec["spp"])}
     lt = spec["light"]
-    env = environment_map(lt["type"], height=int(lt.get("env_rows", ENV_ROWS)), axis=lt["axis"], radiance=lt["radiance"],
-                          zenith_falloff=lt.get("zenith_falloff", 0.0))
+    if lt["type"] == "studio":
+        env = studio_environment(lt, height=int(lt.get("env_rows", ENV_ROWS)))
+    else:
+        env = environment_map(lt["type"], height=int(lt.get("env_rows", ENV_ROWS)),
+                              axis=lt["axis"], radiance=lt["radiance"],
+                              zenith_falloff=lt.get("zenith_falloff", 0.0),
+                              profile=lt.get("port_profile"))
     d = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(spec["max_depth"])},
@@ -272,6 +316,9 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
         lamp = spec.get("lamp")
         if lamp is not None and lamp["irradiance"] is None:
             lamp["irradiance"] = _auto_lamp_irradiance(m)
+        bulb = spec["light"].get("lamp") if spec["light"]["type"] == "studio" else None
+        if bulb is not None and bulb["radiance"] is None:
+            bulb["radiance"] = _auto_lamp_radiance(m)
         scene = load_scene_dict(_mitsuba_scene(gm, spec, _material_dict(spec, key)))
         cam = spec["camera"]
         passes = render_passes(cam["width"], cam["height"], spec["spp"])
@@ -303,6 +350,20 @@ def _auto_lamp_irradiance(material: dict) -> float:
     peak = 1.0 / (2 * math.pi * su * sv)
     eta = material.get("first_order_efficiency_550nm") or 0.01
     return float(min(max(LAMP_ORDER_RADIANCE / (0.9 * eta * peak), 1e-4), 1e4))
+
+
+#: the studio lamp's radiance at most: brighter, its few paths through the narrow grating
+#: orders would be single bright pixels (Monte Carlo fireflies) at a few dozen samples
+LAMP_MAX_RADIANCE = 50.0
+
+
+def _auto_lamp_radiance(material: dict) -> float:
+    """Radiance of the studio's lamp disc that makes its first diffraction order (the
+    share ``first_order_efficiency_550nm`` of its light) :data:`LAMP_ORDER_RADIANCE`
+    bright: a lamp disc wider than the roughness lobe is imaged at its own radiance times
+    each order's efficiency.  The lamp's own mirror image is far brighter (a highlight)."""
+    eta = material.get("first_order_efficiency_550nm") or 0.01
+    return float(min(max(LAMP_ORDER_RADIANCE / eta, 5.0), LAMP_MAX_RADIANCE))
 
 
 class _no_switch:

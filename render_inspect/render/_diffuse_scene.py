@@ -51,6 +51,7 @@ from .. import __version__
 from ..core.errors import InputError
 from ..core.section import Region, Section
 from ..mesh import window_indices
+from ._studio import LAMP_RADIUS_DEG, brightfield_profile, studio_light
 
 __all__ = ["DiffuseConfig", "diffuse_scene_spec", "environment_map", "light_profile",
            "auto_exaggeration", "LIGHTS", "PORT_PROFILES", "AL_REFLECTANCE_RGB",
@@ -92,8 +93,18 @@ MACRO_ZENITH_FALLOFF = 1.0
 DEFAULT_MICROROUGHNESS = 0.003
 #: lamp highlight position as a fraction of the part's half-size (x, y) from its centre
 LAMP_HIGHLIGHT = (0.2, 0.15)
+#: in the studio: on the near half of the face, away from the softbox's image
+STUDIO_LAMP_HIGHLIGHT = (-0.35, -0.4)
 #: peak radiance the first diffraction order of the lamp is given (auto irradiance)
 LAMP_ORDER_RADIANCE = 3.0
+#: Macro camera of the studio: tilted more, so that the part's chamfer and side show
+STUDIO_TILT_DEG = 30.0
+#: the turned disc's chamfer (width = depth, 45 degrees) and side wall, as fractions of its
+#: radius (staging: the design does not state them)
+DISC_CHAMFER = 0.04
+DISC_WALL = 0.35
+#: Rows of the studio's lat-long image (0.25 degree: the lamp is 1 degree across)
+STUDIO_ENV_ROWS = 721
 #: Largest image side (pixels) of a diffuse view; Blender Cycles allows 65536, Mitsuba's
 #: film is limited by memory.
 MAX_FILM_SIDE = 8192
@@ -120,6 +131,16 @@ class DiffuseConfig(Section):
     exaggeration: float | None = Field(None, gt=0, le=1e6,
                                        description="vertical exaggeration of the mesh; None = auto "
                                                    "(the steepest 1 % of slopes become ~0.2 rad)")
+    studio: bool = Field(True, description="the macro view of a part with tool marks in a photo "
+                                           "studio (a softbox, a small lamp, a dim room: staging) "
+                                           "instead of the dome; a turned disc gets a chamfer and "
+                                           "a side wall")
+    micro_light: Literal["brightfield", "dome", "ring"] = Field(
+        "brightfield", description="light of the micro view: brightfield = a microscope "
+                                   "objective's own illumination through its aperture; dome / "
+                                   "ring as light")
+    objective_na: float = Field(0.3, gt=0, le=0.95, description="numerical aperture of the micro "
+                                                                "view's objective (brightfield)")
     spp: int = Field(64, ge=1, le=65536)
     resolution: int = Field(512, ge=16, le=MAX_FILM_SIDE)
     window: Region | None = Field(None, description="mm, microscope view")
@@ -139,7 +160,8 @@ def light_profile(theta, light: str = "dome") -> np.ndarray:
 
 
 def environment_map(light: str = "dome", *, height: int = ENV_ROWS, axis=(0.0, 0.0, 1.0),
-                    radiance: float = 1.0, zenith_falloff: float = 0.0) -> np.ndarray:
+                    radiance: float = 1.0, zenith_falloff: float = 0.0,
+                    profile=None) -> np.ndarray:
     """The light as a lat-long image, (height, 2*(height-1), 3) float32, row 0 = zenith (+z).
 
     Row ``r`` is the zenith angle ``theta = r / (height - 1) * pi`` (rows 0 and height-1 are
@@ -149,10 +171,13 @@ def environment_map(light: str = "dome", *, height: int = ENV_ROWS, axis=(0.0, 0
     checked against ``Emitter.eval`` in ``tests/test_diffuse.py``).  The radiance is
     the port profile at the angle from ``axis`` (unit vector, part -> camera) times the
     horizon step, times ``radiance``.  With the default axis (+z) every column is the
-    :data:`LIGHTS` profile, reproduced exactly on the 0.5 degree rows.
+    :data:`LIGHTS` profile, reproduced exactly on the 0.5 degree rows.  ``profile``
+    (``[angle_deg, radiance]`` pairs) replaces the named light's (the brightfield of
+    :func:`~render_inspect.render._studio.brightfield_profile`).
     """
-    if light not in PORT_PROFILES:
+    if profile is None and light not in PORT_PROFILES:
         raise InputError(f"render.diffuse.light must be one of {sorted(PORT_PROFILES)}, got {light!r}")
+    table = PORT_PROFILES[light] if profile is None else profile
     theta = np.arange(height) / (height - 1) * math.pi
     width = 2 * (height - 1)
     alpha = math.pi / 2 - (np.arange(width) + 0.5) / width * 2 * math.pi
@@ -164,7 +189,7 @@ def environment_map(light: str = "dome", *, height: int = ENV_ROWS, axis=(0.0, 0
     horizon = np.interp(np.degrees(theta), [90.0, 90.5], [1.0, 0.0])[:, None]
     # a room rather than an integrating dome: brighter overhead than at the horizon
     horizon = horizon * (1.0 - zenith_falloff * (1.0 - np.clip(np.cos(theta), 0.0, 1.0) ** 2))[:, None]
-    rad = (_profile(PORT_PROFILES[light], ang) * horizon * float(radiance)).astype(np.float32)
+    rad = (_profile(table, ang) * horizon * float(radiance)).astype(np.float32)
     return np.ascontiguousarray(np.repeat(rad[..., None], 3, axis=2))
 
 
@@ -267,10 +292,12 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
     wmm, hmm = x1 - x0, y1 - y0
     lamp = None
+    studio = None
     if view == "macro":
         size = max(wmm, hmm)
         dist = 0.6 * size / math.tan(math.radians(MACRO_FOV_DEG / 2)) + max(zmax, 0.0)
-        t = math.radians(MACRO_TILT_DEG)
+        in_studio = bool(dcfg.studio and marks is not None)
+        t = math.radians(STUDIO_TILT_DEG if in_studio else MACRO_TILT_DEG)
         origin = [cx, cy - dist * math.sin(t), dist * math.cos(t)]
         camera = {"type": "perspective", "fov_deg": MACRO_FOV_DEG, "origin": origin,
                   "target": [cx, cy, 0.0], "up": [0.0, 1.0, 0.0], "width": res, "height": res}
@@ -280,7 +307,13 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
         scale = {"mm_per_px_at_target": 2 * dist * math.tan(math.radians(MACRO_FOV_DEG / 2)) / res}
         if use_lamp:
             lamp = _lamp(heightmap, surface, ex, origin, (cx, cy), (wmm, hmm),
-                         None if dcfg.lamp_irradiance is None else float(dcfg.lamp_irradiance))
+                         None if dcfg.lamp_irradiance is None else float(dcfg.lamp_irradiance),
+                         where=STUDIO_LAMP_HIGHLIGHT if in_studio else LAMP_HIGHLIGHT)
+        if in_studio:
+            studio = studio_light(origin, camera["target"],
+                                  lamp_direction=None if lamp is None else -np.asarray(lamp["direction"]),
+                                  lamp_radiance=0.0 if lamp is None else _lamp_radiance(lamp))
+            lamp = None  # the lamp is a small bright disc of the studio's light
     else:
         ny = max(16, int(round(res * hmm / wmm)))
         camera = {"type": "orthographic", "width_mm": wmm,
@@ -306,22 +339,51 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
         material = {"type": "roughconductor" if rough > 0 else "conductor", "material": "Al",
                     "alpha": rough, "distribution": "ggx", "reflectance_rgb": AL_REFLECTANCE_RGB}
     stride_cells = 2 * res
-    light = {"type": dcfg.light, "axis": [float(v) for v in axis], "radiance": radiance,
-             "zenith_falloff": MACRO_ZENITH_FALLOFF if radiance != 1.0 else 0.0,
-             "port_profile": PORT_PROFILES[dcfg.light], "up": [0.0, 0.0, 1.0],
-             "zenith_profile": LIGHTS[dcfg.light], "env_rows": ENV_ROWS}
+    if studio is not None:
+        light = {**studio, "axis": [float(v) for v in axis], "radiance": 1.0,
+                 "env_rows": STUDIO_ENV_ROWS}
+    elif view == "micro" and dcfg.micro_light == "brightfield":
+        prof = brightfield_profile(dcfg.objective_na)
+        light = {"type": "brightfield", "axis": [0.0, 0.0, 1.0], "radiance": 1.0,
+                 "zenith_falloff": 0.0, "port_profile": prof, "zenith_profile": prof,
+                 "up": [0.0, 0.0, 1.0], "objective_na": float(dcfg.objective_na),
+                 "env_rows": ENV_ROWS}
+    else:
+        kind = dcfg.light if view == "macro" else dcfg.micro_light
+        light = {"type": kind, "axis": [float(v) for v in axis], "radiance": radiance,
+                 "zenith_falloff": MACRO_ZENITH_FALLOFF if radiance != 1.0 else 0.0,
+                 "port_profile": PORT_PROFILES[kind], "up": [0.0, 0.0, 1.0],
+                 "zenith_profile": LIGHTS[kind], "env_rows": ENV_ROWS}
     has_holes = not bool(finite.all())
+    mesh = {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
+            "max_cells": stride_cells, "skirt": view == "macro" and not has_holes,
+            "prefilter": "block_mean", "kind": "grid"}
+    if view == "macro" and (part or {}).get("shape") == "disc":
+        r = float(part["radius"])
+        wall = DISC_WALL * r if studio is not None else 0.0
+        mesh.update(kind="disc", skirt=wall > 0, center=[float(v) for v in part["center"]],
+                    radius=r, rings=res, sectors=4 * res, chamfer_mm=DISC_CHAMFER * r,
+                    wall_mm=wall)
+    elif view == "micro":
+        # finer than the grid: a smooth (cubic) surface through the samples, not facets
+        mesh["refine"] = int(min(4, max(1, math.ceil(heightmap.pixel / (wmm / res) - 1e-9))))
     return {"view": view, "surface": surface, "seed": int(seed), "spp": int(dcfg.spp),
             "max_depth": MAX_DEPTH, "exaggeration": ex, "z_offset_mm": z_offset,
-            "window_mm": [x0, y0, x1, y1],
-            "mesh": {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
-                     "max_cells": stride_cells, "skirt": view == "macro" and not has_holes,
-                     "prefilter": "block_mean"},
+            "window_mm": [x0, y0, x1, y1], "mesh": mesh,
             "camera": camera, "light": light, "lamp": lamp, "material": material,
             "scale": scale, "part": part, "units": "mm", "software_version": __version__}
 
 
-def _lamp(heightmap, surface, ex, cam_origin, centre, size, irradiance) -> dict:
+def _lamp_radiance(lamp: dict) -> float | None:
+    """Radiance of the studio's lamp disc that gives the irradiance asked for (None: chosen
+    when the grating is known, :func:`render_inspect.render._diffuse` auto)."""
+    if lamp.get("irradiance") is None:
+        return None
+    return float(lamp["irradiance"]) / (math.pi * math.radians(LAMP_RADIUS_DEG) ** 2)
+
+
+def _lamp(heightmap, surface, ex, cam_origin, centre, size, irradiance,
+          where=LAMP_HIGHLIGHT) -> dict:
     """The macro view's lamp: a directional light whose mirror reflection lands on the
     part at the flattest point (smallest exaggerated slope) near
     :data:`LAMP_HIGHLIGHT`, reflected about that point's own normal, so the highlight
@@ -333,8 +395,8 @@ def _lamp(heightmap, surface, ex, cam_origin, centre, size, irradiance) -> dict:
     gy, gx = np.gradient(zz, px)
     xs = heightmap.origin[0] + px * np.arange(zz.shape[1])
     ys = heightmap.origin[1] + px * np.arange(zz.shape[0])
-    hx = centre[0] + LAMP_HIGHLIGHT[0] * size[0] / 2
-    hy = centre[1] + LAMP_HIGHLIGHT[1] * size[1] / 2
+    hx = centre[0] + where[0] * size[0] / 2
+    hy = centre[1] + where[1] * size[1] / 2
     r = 0.12 * max(size)
     near = (np.abs(xs[None, :] - hx) <= r) & (np.abs(ys[:, None] - hy) <= r)
     g = np.where(near & np.isfinite(gx) & np.isfinite(gy), np.hypot(gx, gy), np.inf)

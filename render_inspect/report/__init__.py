@@ -10,10 +10,10 @@ from ._comparison import (ComparedVariant, comparison_figures, comparison_summar
                           diffuse_caption, luminance, srgb)
 from ._draw import FIGURE_KINDS, draw_figure
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
-                       line_panels, locator_figure, map_panels, png_bytes,
+                       line_panels, locator_figure, lowpass_map, map_panels, png_bytes,
                        radial_profile_figure)
 from ._following import plot_following_error, plot_following_error_map
-from ._format import fmt_number, fmt_quantity, nice_length
+from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length
 from ._html import HtmlReport, data_uri, table_html
 from ._instrument import analysis_summary, characterise_figures, measurement_summary
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
@@ -28,8 +28,8 @@ from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
 __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
            "kinematics_png", "image_panels", "map_panels", "png_bytes", "radial_profile_figure",
            "line_panels", "plot_following_error", "plot_following_error_map",
-           "annotate_rgb", "block_mean", "display_map", "difference_figure", "fmt_number",
-           "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
+           "annotate_rgb", "block_mean", "display_map", "lowpass_map", "difference_figure", "fmt_number",
+           "fmt_quantity", "nice_length", "scale_bar_length", "locator_figure", "axis_motion_figure", "moving_axes",
            "turning_axes", "draw_figure", "FIGURE_KINDS", "save_map_png", "save_height_png",
            "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
            "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",

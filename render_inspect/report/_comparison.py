@@ -58,7 +58,7 @@ def diffuse_caption(meta: dict) -> list[str]:
 
 def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, difference: dict,
                        window: dict, part: dict, identical: bool, sections: dict,
-                       radial: bool, kinematics) -> dict:
+                       radial: bool, kinematics, lowpass_mm: float | None = None) -> dict:
     """All top-level PNGs of a comparison (name -> bytes).
 
     Parameters
@@ -81,6 +81,9 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         The sections are radial about a spindle axis.
     kinematics : bytes or None
         The axis-motion figure.
+    lowpass_mm : float, optional
+        The first figure's maps are drawn low-passed at this nesting index (tool marks the
+        simulation does not resolve).
     """
     figs = {}
     hm = a.heightmap
@@ -115,7 +118,7 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
                           f"measured, {_removed(lev)} removed"),
             title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]}): measured with "
                   f"{_removed(lev)} removed (two set-ups differ by both), beside the truth"
-                  + _reorder_note(lev))
+                  + _reorder_note(lev), lowpass_mm=lowpass_mm)
     else:
         figs["windows"] = locator_figure(locator)
     # --- residual maps (full simulated region), one scale
@@ -177,7 +180,8 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         [(f"{n}: the whole part", srgb(r)) for n, r in zip(names, (rm, rmb))],
         extent=[(0, r.shape[1], 0, r.shape[0]) for r in (rm, rmb)], axis_labels=False,
         scale_mm=(bar, bar / sc), notes=[", ".join(diffuse_caption(mm_))] * 2,
-        suptitle=f"The part under the {mm_['light']['type']}"
+        suptitle=("The part in the photo studio" if mm_["light"]["type"] == "studio"
+                  else f"The part under the {mm_['light']['type']}")
                  + (" and a lamp" if mm_.get("lamp") else "")
                  + f", heights exaggerated {mm_['vertical_exaggeration']:g}x"
                  + (" (colours: diffraction by the feed marks)"

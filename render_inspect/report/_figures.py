@@ -21,14 +21,16 @@ import math
 import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ._format import fmt_quantity, nice_length
+from ._format import fmt_quantity, scale_bar_length
 
 __all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "line_panels",
            "block_mean", "display_map", "difference_figure", "locator_figure", "annotate_rgb",
-           "length_label", "DISPLAY_PIXELS"]
+           "length_label", "lowpass_map", "DISPLAY_PIXELS"]
 
 #: maps are area-averaged to at most this many samples across before drawing
 DISPLAY_PIXELS = 400
+#: alpha of the ISO 16610-61 Gaussian weighting function, sqrt(ln 2 / pi)
+ISO_GAUSSIAN_ALPHA = math.sqrt(math.log(2) / math.pi)
 
 
 def _plt():
@@ -106,20 +108,27 @@ def length_label(mm: float) -> str:
     return f"{mm * MM_TO_NM:g} nm"
 
 
-def _scale_bar(ax, width_mm: float, *, color: str = "black", frac: float = 0.22,
+def _scale_bar(ax, width_mm: float, *, color: str = "black", length: float | None = None,
                loc: str = "lower right") -> None:
-    """A 1-2-5 scale bar about ``frac`` of ``width_mm`` long, in data units (mm)."""
+    """A scale bar, in data units (mm): ``length``, or :func:`scale_bar_length` of
+    ``width_mm`` (panels of one figure pass the figure's one length)."""
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     if not width_mm > 0:
         return
-    L = nice_length(frac * width_mm)
+    L = length if length is not None else scale_bar_length(width_mm)
     bar = AnchoredSizeBar(ax.transData, L, length_label(L), loc, pad=0.3, borderpad=0.4,
                           sep=3, color=color, frameon=True, size_vertical=0,
                           fontproperties={"size": 8})
     bar.patch.set_alpha(0.75)
     bar.patch.set_edgecolor("none")
     ax.add_artist(bar)
+
+
+def _shared_bar(extents) -> float | None:
+    """One scale bar for the panels of a figure: that of the narrowest panel."""
+    widths = [e[1] - e[0] for e in extents if e is not None and e[1] - e[0] > 0]
+    return scale_bar_length(min(widths)) if widths else None
 
 
 def _limits(arrays, symmetric, percentile=None):
@@ -185,6 +194,8 @@ def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
                              squeeze=False, layout="constrained")
     shown = [(t, None if d is None else display_map(d, max_px)) for t, d in panels]
     lim = _limits([p[1] for p in panels], symmetric, percentile) if shared else None
+    bar = _shared_bar([extent[i] if isinstance(extent, list) else extent
+                       for i in range(n) if shown[i][1] is not None])
     for i, (title, data) in enumerate(shown):
         ax = axes[0, i]
         ext = extent[i] if isinstance(extent, list) else extent
@@ -203,7 +214,7 @@ def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
         if label:
             cb.set_label(label)
         if ext is not None:
-            _scale_bar(ax, ext[1] - ext[0])
+            _scale_bar(ax, ext[1] - ext[0], length=bar)
         for (a, b) in lines or ():
             ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=0.9, ls="--")
     if suptitle:
@@ -228,6 +239,8 @@ def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "
     n = len(panels)
     fig, axes = plt.subplots(1, n, figsize=(panel_size[0] * n, panel_size[1]), dpi=dpi,
                              squeeze=False, layout="constrained")
+    bar = _shared_bar([extent[i] if isinstance(extent, list) else extent
+                       for i in range(n) if panels[i][1] is not None]) if axis_labels else None
     for i, (title, img) in enumerate(panels):
         ax = axes[0, i]
         ext = extent[i] if isinstance(extent, list) else extent
@@ -249,7 +262,7 @@ def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "
         if axis_labels and ext is not None:
             ax.set_xlabel("x (mm)")
             ax.set_ylabel("y (mm)")
-            _scale_bar(ax, ext[1] - ext[0], color="black")
+            _scale_bar(ax, ext[1] - ext[0], color="black", length=bar)
         else:
             ax.set_xticks([])
             ax.set_yticks([])
@@ -315,10 +328,28 @@ def locator_figure(locator: dict, *, dpi: int = 100) -> bytes:
     return _to_png(fig)
 
 
+def lowpass_map(z, pixel: float, cutoff_mm: float) -> np.ndarray:
+    """``z`` through the ISO 16610-61 Gaussian low-pass of nesting index ``cutoff_mm``
+    (50 % transmission at that wavelength), NaN-aware (normalised convolution: NaN stays
+    NaN).  Detail the map cannot hold (marks finer than a few pixels, which alias into
+    false stripes) is averaged out before the map is drawn."""
+    from scipy import ndimage
+
+    z = np.asarray(z, dtype=np.float64)
+    sigma = ISO_GAUSSIAN_ALPHA * cutoff_mm / math.sqrt(2 * math.pi) / pixel
+    if not sigma > 0.3:
+        return z
+    ok = np.isfinite(z)
+    num = ndimage.gaussian_filter(np.where(ok, z, 0.0), sigma, mode="nearest")
+    den = ndimage.gaussian_filter(ok.astype(np.float64), sigma, mode="nearest")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(ok & (den > 1e-6), num / den, np.nan)
+
+
 def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_diff,
                       measured_extent, profile: dict, title: str = "", dpi: int = 100,
-                      panel_labels=("true (simulated)", "measured by the virtual instrument")
-                      ) -> bytes:
+                      panel_labels=("true (simulated)", "measured by the virtual instrument"),
+                      lowpass_mm: float | None = None) -> bytes:
     """The report's first figure: what differs between the two variants.
 
     Four panels: where every window lies on the part (``locator``: ``part``,
@@ -330,8 +361,14 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
     ``s`` (mm), ``true`` (nm), ``measured`` (nm, may hold NaN), ``a`` and ``b`` (true
     residuals, nm), ``line`` = ((x0, y0), (x1, y1)) mm, ``axis`` label, optional
     ``true_levelled`` (nm, on ``s_measured``: the truth with the measurement's form removal)
-    and ``measured_label``); ``panel_labels`` name the two maps."""
+    and ``measured_label``); ``panel_labels`` name the two maps.  ``lowpass_mm``: the two maps
+    are drawn through :func:`lowpass_map` of that nesting index (tool marks the simulation
+    does not resolve would alias into false stripes); the figure says so."""
     plt = _plt()
+    if lowpass_mm:
+        true_diff, measured_diff = (
+            None if d is None else lowpass_map(d, (e[1] - e[0]) / np.shape(d)[1], lowpass_mm)
+            for d, e in ((true_diff, true_extent), (measured_diff, measured_extent)))
     fig = plt.figure(figsize=(19.0, 4.8), dpi=dpi, layout="constrained")
     gs = fig.add_gridspec(1, 4, width_ratios=[1.0, 1.05, 1.05, 1.35])
     ax0 = fig.add_subplot(gs[0, 0])
@@ -348,7 +385,12 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
         if leg is not None:
             leg.remove()
         ia.set_title("whole part", fontsize=7, pad=1)
-    vmin, vmax, _ = _limits([true_diff, measured_diff], True, 0.5)
+    # one colour scale, set by the true difference when there is one: a measurement's
+    # slips (a fringe order at a steep flank) are clipped (arrows) instead of washing the
+    # truth out
+    vmin, vmax, _ = _limits([true_diff if true_diff is not None else measured_diff], True, 0.5)
+    bar = _shared_bar([e for d, e in ((true_diff, true_extent), (measured_diff, measured_extent))
+                       if d is not None])
     a, b = names
     line = profile.get("line")
     for k, (data, ext, what) in enumerate(((true_diff, true_extent, panel_labels[0]),
@@ -364,13 +406,15 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
         d = d[np.isfinite(d)]
         stat = (f"rms {fmt_quantity(float(np.sqrt(np.mean(d * d))), 'nm')}, "
                 f"PV {fmt_quantity(float(np.ptp(d)), 'nm')}") if d.size else "no data"
+        if lowpass_mm:
+            stat += f", low-passed at {fmt_quantity(lowpass_mm * MM_TO_UM, 'um')}"
         ax.set_title(f"{a} - {b}: {what}\n{stat}", fontsize=10)
         ax.set_xlabel("x (mm)")
         if k == 0:
             ax.set_ylabel("y (mm)")
         cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, extend=_extend(data, vmin, vmax))
         cb.set_label("height difference (nm)")
-        _scale_bar(ax, ext[1] - ext[0])
+        _scale_bar(ax, ext[1] - ext[0], length=bar)
         if line is not None:
             ax.plot([line[0][0], line[1][0]], [line[0][1], line[1][1]], color="k", lw=0.9,
                     ls="--")

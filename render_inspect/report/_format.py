@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["fmt_number", "fmt_quantity", "nice_length"]
+__all__ = ["fmt_number", "fmt_quantity", "nice_length", "scale_bar_length", "SCALE_BAR_FRACTION"]
 
 
 def fmt_number(v, *, sig: int = 3, resolution: float | None = None) -> str:
@@ -76,3 +76,18 @@ def nice_length(target: float) -> float:
         if m * e <= target * (1 + 1e-9):
             return m * e
     return e
+
+
+#: a scale bar is the 1-2-5 length at or below this fraction of the width it stands in
+SCALE_BAR_FRACTION = 0.25
+
+
+def scale_bar_length(width: float) -> float:
+    """The scale bar of a picture ``width`` wide (any length unit): the 1-2-5 step at or
+    below :data:`SCALE_BAR_FRACTION` of the width rounded to two significant figures, so
+    that pictures of nearly the same width (a window and its pixel-edge extent, 0.225
+    and 0.2275 mm) carry the same bar."""
+    if not width > 0:
+        return 1.0
+    e = 10 ** (math.floor(math.log10(width)) - 1)
+    return nice_length(SCALE_BAR_FRACTION * round(width / e) * e)

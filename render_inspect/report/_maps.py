@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM, UM_TO_MM
+from ..core.units import MM_TO_NM, NM_TO_MM
 from ..io import atomic_write_bytes, coarsen, means
 from ..io import preview as area_preview
-from ._figures import map_panels
+from ._figures import length_label, map_panels
+from ._format import scale_bar_length
 from ._quickplot import map_png
 
 __all__ = ["save_map_png", "save_height_png", "residual_png", "residual_preview_png",
@@ -33,20 +34,13 @@ def save_map_png(path: str | Path, data: np.ndarray, *, extent=None, title: str 
     return atomic_write_bytes(path, png)
 
 
-def _nice_length(mm: float) -> tuple[float, str]:
-    """A round scale-bar length near ``mm`` and its label (nm / um / mm)."""
-    if not mm > 0:
+def _nice_length(width_mm: float) -> tuple[float, str]:
+    """The scale bar of a map ``width_mm`` wide (:func:`~render_inspect.report.scale_bar_length`)
+    and its label (nm / um / mm)."""
+    if not width_mm > 0:
         return 0.0, ""
-    exp = np.floor(np.log10(mm))
-    for m in (5, 2, 1):
-        v = m * 10 ** exp
-        if v <= mm:
-            break
-    if v >= 1:
-        return v, f"{v:g} mm"
-    if v >= UM_TO_MM:
-        return v, f"{v * MM_TO_UM:g} um"
-    return v, f"{v * MM_TO_NM:g} nm"
+    v = scale_bar_length(width_mm)
+    return v, length_label(v)
 
 
 def save_height_png(path: str | Path, height_nm: np.ndarray, *, extent, title: str = "",
@@ -93,7 +87,7 @@ def save_height_png(path: str | Path, height_nm: np.ndarray, *, extent, title: s
     ax.set_ylabel("y (mm)")
     if title:
         ax.set_title(title, fontsize=9)
-    length, text = _nice_length(0.25 * w)
+    length, text = _nice_length(w)
     if length:
         bar = AnchoredSizeBar(ax.transData, length, text, "lower right", pad=0.4, color="white",
                               frameon=True, size_vertical=h / 150, label_top=True)

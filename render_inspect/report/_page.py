@@ -10,10 +10,11 @@ from __future__ import annotations
 import json
 import math
 
-from ..core.units import MM_TO_UM
+from ..core.units import MM_TO_NM, MM_TO_UM
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
+from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
 
 __all__ = ["build_page"]
 
@@ -56,24 +57,8 @@ def _q(v, unit=""):
 
 
 def _value_text(k: str, v):
-    """A scene or settings value for a table: numbers by their unit suffix."""
-    if isinstance(v, (dict, list, tuple)) and not (isinstance(v, (list, tuple))
-                                                   and all(isinstance(x, (int, float)) for x in v)):
-        return json.dumps(v)
-    unit = ""
-    for suffix, u in (("_nm", "nm"), ("_mm", "mm"), ("_deg", "deg"), ("_hz", "Hz"), ("_s", "s"),
-                      ("_rad", "rad"), ("_rpm", "rpm")):
-        if k.endswith(suffix):
-            unit = u
-    if isinstance(v, (list, tuple)):
-        return ", ".join(_g(x) for x in v) + (f" {unit}" if unit else "")
-    if v is None:
-        return "none"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        return f"{_g(v)}{' ' + unit if unit else ''}"
-    return v
+    """A value of a measured file's source for a table, with its unit."""
+    return "not stated in the file" if v is None else value_text(k, v)
 
 
 def _g(x) -> str:
@@ -204,19 +189,23 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                    f"surfaces, and the difference of what the virtual interferometer measures "
                    f"(each measurement aligned to its truth by one piston per region: an "
                    f"interferometer measures relative heights), on one colour scale. Right: "
-                   f"the profile along the dashed line, through the largest difference.")
+                   f"the profile along the dashed line, through the largest difference."
+                   + _lowpass_caption(metrics))
         rep.table([["true (simulated)", _q(tw.get("rms_nm"), "nm"), _q(tw.get("pv_nm"), "nm"),
                     _q(tw.get("mean_nm"), "nm")],
                    ["measured by the virtual interferometer", _q(mw.get("rms_nm"), "nm"),
-                    _q(mw.get("pv_nm"), "nm"), _q(mw.get("mean_nm"), "nm")],
-                   ["true, whole simulated region", _q(d.get("machined_rms_nm"), "nm"),
-                    _q(d.get("machined_pv_nm"), "nm"), "not computed"]],
-                  header=[f"{va} - {vb}", "rms", "PV", "mean"])
+                    _q(mw.get("pv_nm"), "nm"), _q(mw.get("mean_nm"), "nm")]],
+                  header=[f"{va} - {vb} over the common window", "rms", "PV", "mean"])
+        rep.text(f"Over the whole simulated region the true difference {va} - {vb} has an rms "
+                 f"of {_q(d.get('machined_rms_nm'), 'nm')} and a PV of "
+                 f"{_q(d.get('machined_pv_nm'), 'nm')}.")
     rep.table([[k, _q(_get(c, key), unit), _q(_get(u, key), unit)]
                for k, key, unit in [("residual Sq", "residual.Sq_nm", "nm"),
                                     ("residual min (< 0 = overcut)", "residual.min_nm", "nm"),
                                     ("waviness Sq", "filtered.Sq_nm", "nm")]],
               header=["headline", f"{va}: {la}", f"{vb}: {lb}"])
+    for text in _overcut_sentences(metrics):
+        rep.text(text)
     for n in notes:
         rep.text(n, cls="note")
 
@@ -249,7 +238,10 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
 
     # ---- 3. maps
     rep.section("Residual and waviness maps")
-    cap = "machined - design over the simulated region (nm), one colour scale for all panels"
+    cap = ("machined - design over the simulated region (nm), one colour scale for all panels; "
+           "blue is below the design (an overcut): where each variant's deepest point comes "
+           "from (the commanded geometry, the lathe, the material) is said under the headline "
+           "numbers")
     if mf:
         cap += "; third panel: the measured file after registration to the design"
     rep.figure(figs["residual_side_by_side"], cap + ".")
@@ -301,33 +293,34 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
                for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
               header=["phase retrieval", va, vb])
-    rep.table([[k, _value_text(k, v)] for k, v in ic.items()],
-              header=["[render.interferometer] as rendered", "value"])
+    icls = type(getattr(scene.render, "interferometer", None))
+    ifields = icls.model_fields if hasattr(icls, "model_fields") else {}
+    rep.table([[k, value_text(k, v, ifields.get(k)), meaning(k, ifields.get(k), v)]
+               for k, v in ic.items()],
+              header=["[render.interferometer] as rendered", "value", "meaning"])
 
     # ---- 5. diffuse light
     dif = _get(metrics, "render_settings.diffuse") or {}
     mic, mac = dif.get("micro") or {}, dif.get("macro") or {}
     rep.section("Diffuse light")
     rep.figure(figs["diffuse_micro_side_by_side"],
-               f"Micro view of the common window, straight down (orthographic), aluminium under "
-               f"the {mic.get('light')} light whose camera port is around the line of sight; "
-               f"heights exaggerated {_g(mic.get('vertical_exaggeration'))}x "
+               f"Micro view of the common window, straight down (orthographic), aluminium "
+               + _micro_light_words(mic)
+               + f"; heights exaggerated {_g(mic.get('vertical_exaggeration'))}x "
                f"(written into every image).")
     rep.figure(figs["diffuse_difference"], f"Luminance difference (linear), {va} - {vb}.")
     rep.figure(figs["diffuse_macro_side_by_side"],
                f"The whole part, perspective view, heights exaggerated "
                f"{_g(mac.get('vertical_exaggeration'))}x; the design over the part with "
                f"the simulated residual inside the simulated region. "
-               + ("The colours are the diffraction of the lamp by the feed marks (period = "
-                  "feed per revolution), rendered spectrally." if mac.get("iridescence") else ""))
+               + _macro_light_words(mac))
     drows = []
-    for k, unit in (("resolution", "px"), ("spp", ""), ("vertical_exaggeration", "x"),
-                    ("mm_per_px", "um"), ("light", ""), ("lamp", ""), ("material", ""),
-                    ("iridescence", ""), ("orders", ""), ("first_order_efficiency_550nm", ""),
-                    ("sigma_u", ""), ("sigma_v", ""), ("mitsuba_variant", "")):
+    for k in ("resolution", "spp", "vertical_exaggeration", "mm_per_px", "light", "lamp",
+              "material", "iridescence", "orders", "first_order_efficiency_550nm", "sigma_u",
+              "sigma_v", "mitsuba_variant"):
         if k not in mic and k not in mac:
             continue
-        drows.append([k, _diffuse_value(k, mic.get(k)), _diffuse_value(k, mac.get(k))])
+        drows.append([k, _diffuse_value(k, mic.get(k), mic), _diffuse_value(k, mac.get(k), mac)])
     rep.table(drows, header=["[render.diffuse] as rendered", "micro", "macro"])
 
     # ---- 6. sections and machine axes
@@ -373,20 +366,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
 
     # ---- 8. parameters and provenance
     rep.section("Parameters")
-    sd = scene.to_dict()
-    varied = {k for v in metrics["variants"] for k in v.get("values", {})}
-    for sec in ("design", "tool", "process", "simulation", "metrology", "artifacts"):
-        val = sd.get(sec, {})
-        rows = []
-        for k, x in val.items():
-            full = f"{sec}.{k}"
-            if full in varied or any(v.startswith(full + ".") for v in varied):
-                rows.append([k, f"{va}: {_varied(metrics, 0, full, x)} | "
-                                f"{vb}: {_varied(metrics, 1, full, x)}"])
-            else:
-                rows.append([k, _value_text(k, x)])
-        if rows:
-            rep.table(rows, header=[f"[{sec}]", "value"])
+    _parameters(rep, scene, metrics)
 
     rep.section("Scene and provenance")
     prov = [["software_version", metrics.get("software_version", __version__)],
@@ -396,34 +376,165 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
         for k, t in (v.get("timing_s") or {}).items():
             prov.append([f"{name} {k}", _q(t, "s")])
     rep.table(prov, header=["provenance", "value"])
-    rep.pre(json.dumps(sd, indent=2, sort_keys=True))
+    rep.pre(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return rep.render()
+
+
+def _parameters(rep, scene, metrics: dict) -> None:
+    """The scene's sections, each key with its value and unit (or why it has none), the
+    keys the comparison varies per variant; the machine and the material as simulated."""
+    sd = scene.to_dict()
+    a = metrics["variants"][0]["name"]
+    used = metrics.get(a) or {}
+    keys = sorted({k for v in metrics["variants"] for k in v.get("values", {})})
+    varied = {k: tuple((k in v.get("values", {}), v.get("values", {}).get(k))
+                       for v in metrics["variants"]) for k in keys}
+    rep.text("Every key of the scene with its value and unit; a key without a value says why "
+             "(left to its preset, chosen automatically, or not used). Keys the comparison "
+             "varies show both variants (a, b).")
+    for sec in SECTION_ORDER:
+        if sec not in sd or not isinstance(sd[sec], dict):
+            continue
+        if sec in ("machine", "material", "rcse") and sec not in used:
+            continue  # the process does not use the section
+        for title, rows in section_rows(sec, getattr(scene, sec, None), sd[sec], varied=varied):
+            rep.table(rows, header=[title, "value", "meaning"])
+        if sec == "machine" and (used.get("machine") or {}).get("settings"):
+            m = used["machine"]
+            rep.table(settings_rows(m["settings"]),
+                      header=[f"[machine] as simulated (preset {m.get('preset')!r} with the "
+                              f"scene's keys)", "value"])
+        if sec == "material" and isinstance(used.get("material"), dict):
+            rows = [[k, value_text(k, v)] for k, v in used["material"].items()
+                    if not isinstance(v, (dict, list))]
+            rep.table(rows, header=["[material] as simulated (the cut's mechanics)", "value"])
+
+
+def _lowpass_caption(metrics: dict) -> str:
+    """The sentence saying the first figure's maps are low-passed, when the simulation
+    does not resolve the tool marks (fewer than 4 pixels per period)."""
+    f = metrics.get("filters") or {}
+    a = metrics["variants"][0]["name"]
+    pixel = _get(metrics, f"{a}.grid.pixel_mm")
+    period, cut = f.get("mark_period_mm"), f.get("s_filter_mm")
+    if not (period and cut and pixel) or period >= 4 * pixel:
+        return ""
+    return (f" The two maps are drawn through the ISO Gaussian low-pass of "
+            f"{_q(cut * MM_TO_UM, 'um')}: the simulation samples the {_q(period * MM_TO_UM, 'um')} "
+            f"feed marks with {fmt_number(period / pixel, sig=2)} pixels per period, and drawn "
+            f"as sampled they would alias into false stripes.")
+
+
+def _lathe_facts(v: dict) -> list[str]:
+    """What the lathe does to the cut, from the variant's machine facts and settings."""
+    facts = []
+    fe = v.get("following_error") or {}
+    if fe.get("z_max_nm"):
+        facts.append(f"its Z slide follows the program within {_q(fe['z_max_nm'], 'nm')} "
+                     f"(rms {_q(fe.get('z_rms_nm'), 'nm')})")
+    if fe.get("fts_max_nm"):
+        facts.append(f"its fast tool servo within {_q(fe['fts_max_nm'], 'nm')}")
+    err = _get(v, "machine.settings.errors") or {}
+    sync = sum(abs(a) for _, a, _ in err.get("axial_sync") or []) * MM_TO_NM
+    asyn = (err.get("axial_async_rms") or 0.0) * MM_TO_NM
+    if sync or asyn:
+        facts.append(f"its spindle moves axially by up to {_q(sync, 'nm')} once per turn "
+                     f"(synchronous error motion) and {_q(asyn, 'nm')} rms at random "
+                     f"(asynchronous)")
+    return facts
+
+
+def _material_facts(v: dict) -> list[str]:
+    """What the material does below the design: its random grooves along the cut."""
+    mat = v.get("material") or {}
+    rms = mat.get("grooves_rms_nm") or mat.get("groove_rms_nm")
+    return [f"its grooves along the cut ({_q(rms, 'nm')} rms)"] if rms else []
+
+
+def _overcut_sentences(metrics: dict) -> list[str]:
+    """Why each variant cuts below the design: its deepest point split into the commanded
+    geometry, the lathe and the material (``overcut`` of the variant's metrics, from
+    simulations of a window around that point with one contribution at a time)."""
+    out = []
+    for var in metrics["variants"]:
+        v = metrics.get(var["name"]) or {}
+        b = v.get("overcut")
+        if not b:
+            continue
+        x, y = b["at_mm"]
+        text = (f"Why {var['name']} ({var['label']}) cuts {_q(-b['min_nm'], 'nm')} below the "
+                f"design (residual min {_q(b['min_nm'], 'nm')}, at x = {x:.4g} mm, "
+                f"y = {y:.4g} mm): simulated again around that point, the "
+                f"commanded geometry alone (machine and material ideal) leaves "
+                f"{_q(b['geometry_nm'], 'nm')}")
+        g = b["geometry_nm"]
+        text += (" (the tool path itself does not overcut)" if g > -0.5 else
+                 " (the nose of the tool path itself overcuts)")
+        parts = []
+        for key, label in (b.get("labels") or {}).items():
+            facts = {"lathe": _lathe_facts, "material": _material_facts}.get(key, lambda _: [])(v)
+            parts.append(f"{label} alone {_q(b['alone_nm'].get(key), 'nm')}"
+                         + (": " + ", ".join(facts) if facts else ""))
+        if parts:
+            text += "; " + "; ".join(parts)
+        text += (f"; all together {_q(b['min_nm'], 'nm')} (a minimum: the contributions do not "
+                 f"simply add)." if len(parts) > 1 else ".")
+        out.append(text)
+    return out
 
 
 def _res(unit):
     return {"um": 1e-4, "mm": 1e-7}.get(unit)
 
 
-def _varied(metrics, i, full, default):
-    vals = metrics["variants"][i].get("values", {})
-    for k, v in vals.items():
-        if k == full or k.startswith(full + "."):
-            return f"{k.split('.', 1)[1]} = {v if v is not None else 'none'}"
-    return "as the scene"
+def _micro_light_words(mic: dict) -> str:
+    light = mic.get("light")
+    if light == "brightfield":
+        return ("in a microscope's brightfield: the objective illuminates through its own "
+                "aperture and takes back what the surface returns into it, so flat areas are "
+                "bright and slopes darken")
+    return f"under the {light} light whose camera port is around the line of sight"
 
 
-def _diffuse_value(k, v):
+def _macro_light_words(mac: dict) -> str:
+    words = []
+    if mac.get("light") == "studio":
+        words.append("Staged as in a photo studio: a softbox behind the part (its mirror image "
+                     "on the face), a strip light in front (the chamfer's bright line), a small "
+                     "lamp, a dim room; the chamfer and the side wall of a turned disc are "
+                     "staging too.")
+    if mac.get("iridescence"):
+        words.append("The colours are the diffraction of the lights by the feed marks (period "
+                     "= feed per revolution), rendered spectrally.")
+    return " ".join(words)
+
+
+def _diffuse_value(k, v, view: dict):
+    """A value of the diffuse settings table, with its unit or why it has none."""
     if v is None:
-        return "none" if k == "lamp" else "n/a"
+        if k == "lamp":
+            return ("in the studio's light" if view.get("light") == "studio"
+                    else "no lamp in this view")
+        return "not used in this view"
     if k == "mm_per_px":
         return fmt_quantity(v * MM_TO_UM, "um")
     if k == "vertical_exaggeration":
         return f"{v:g}x"
     if k == "resolution":
         return " x ".join(str(x) for x in v) + " px"
+    if k == "spp":
+        return f"{v} samples per pixel"
     if k == "lamp":
         return (f"directional, zenith {fmt_number(v.get('zenith_deg'))} deg, irradiance "
-                f"{fmt_number(v.get('irradiance'))}")
+                f"{fmt_number(v.get('irradiance'))} (radiance units)")
+    if k == "orders":
+        return f"{v} diffraction orders" if v else "none: the marks are in the mesh"
+    if k == "first_order_efficiency_550nm":
+        return fmt_quantity(100.0 * v, "%") if v else "0 % (no grating in this view)"
+    if k in ("sigma_u", "sigma_v"):
+        return f"{fmt_number(v)} (rms, direction cosine)"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
     if isinstance(v, float):
         return fmt_number(v)
     return v
