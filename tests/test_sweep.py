@@ -122,8 +122,11 @@ def test_shipped_sweeps_resolve(tmp_path):
     # panels a (10 x 5), b (5 x 5), c (5 x 10) share 5 + 10 + 5 points, 1 of them thrice
     assert len(tasks) == 50 + 25 + 50 - 5 - 10 - 5 + 1 and not invalid
     triple = [t for t in tasks if len(t["studies"]) == 3]
+    # the sweep keys, then the keys [set] fixes for every point
     assert len(triple) == 1 and triple[0]["params"] == {
-        "process.spindle_rpm": 100, "tool.nose_radius": 0.5, "process.feed_mm_per_min": 0.6}
+        "process.spindle_rpm": 100, "tool.nose_radius": 0.5, "process.feed_mm_per_min": 0.6,
+        "machine.preset": "ideal", "material.preset": "ideal", "process.workpiece_radius": 0.25,
+        "simulation.pixel": 0.001, "simulation.region": [-0.15, -0.15, 0.15, 0.15]}
 
 
 def test_point_identity_is_the_resolved_scene(tmp_path):

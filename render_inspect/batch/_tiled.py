@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError
+from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, EnvelopePath, Tile, compute_tile, load_kernels, merge_moments,
                          plan_tiles, tile_abs_dev, tile_moments)
@@ -120,12 +121,13 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
     if client is not None:
         from distributed import as_completed
 
-        n = getattr(client, "expected_workers", 0)
-        if n:
-            client.wait_for_workers(n)
+        wait_for_workers(client, label="the tiled simulation",
+                         n=getattr(client, "expected_workers", None))
         client.run(_load_kernels)
+        threads = cluster_info(client)["threads"]
         big = [client.scatter(v, broadcast=True) if isinstance(v, EnvelopePath) else v for v in shared]
-        futures = [client.submit(fn, *big, *args, pure=False) for args in arg_lists]
+        futures = [client.submit(call_with_threads, threads, fn, *big, *args, pure=False)
+                   for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(futures)
         for fut in as_completed(futures):
@@ -232,33 +234,18 @@ def _load_kernels() -> bool:
 
 
 @contextlib.contextmanager
-def tile_client(*, workers: int | None = None, scheduler: str | None = None):
-    """The Dask client tiles run on: None (the threaded scheduler of this process) when
-    neither is given; a ``LocalCluster`` of ``workers`` single-threaded processes; or the
-    cluster whose scheduler listens at ``scheduler`` (``tcp://host:8786``).
+def tile_client(*, workers: int | None = None, scheduler: str | None = None, client=None):
+    """The Dask client tiles run on (:func:`render_inspect.batch.dask_client`): ``client``
+    when given; the cluster whose scheduler listens at ``scheduler``; a ``LocalCluster`` of
+    ``workers`` single-threaded processes; the client open in this process (a notebook's);
+    or None (the threaded scheduler of this process) when there is none of these.
 
     The workers of a LocalCluster start in the background: the caller can plan the path
     meanwhile, and :func:`run_tiles` waits for them.  Scripts that start a cluster need
     the ``if __name__ == "__main__":`` guard (worker processes re-import the main module)."""
-    if scheduler:
-        from distributed import Client
-
-        try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
-            raise InputError(f"--scheduler: no Dask scheduler answers at {scheduler!r} ({err})") from None
-        with client:
-            yield client
-        return
-    if workers is None:
+    if client is None and scheduler is None and workers is None and open_client() is None:
         yield None
         return
-    if not 1 <= int(workers) <= 1024:
-        raise InputError(f"--workers must be in [1, 1024], got {workers}")
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None,
-                      memory_limit=0) as cluster, Client(cluster) as client:
-        cluster.scale(int(workers))
-        client.expected_workers = int(workers)
-        yield client
+    with dask_client(client=client, scheduler=scheduler, workers=workers, wait=False,
+                     label="--scheduler" if scheduler else None) as c:
+        yield c
