@@ -19,6 +19,7 @@ from ._cases import (
 from ._cluster import (
                      MAX_WORKERS,
                      call_with_threads,
+                     check_scheduler,
                      check_workers_option,
                      cluster_info,
                      dashboard_text,
@@ -72,7 +73,7 @@ __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_
            "ResultsLog", "flatten", "csv_text", "summary_table", "folder_lock", "SUMMARY_METRICS",
            "plot_rows", "default_plots", "Progress",
            "dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
-           "plan_workers", "cluster_info", "call_with_threads", "open_client", "wait_for_workers",
+           "plan_workers", "check_scheduler", "cluster_info", "call_with_threads", "open_client", "wait_for_workers",
            "compare_deterministic", "image_t_test", "pass_statistics", "sidak_threshold",
            "flip_mean", "RegressCase", "Tolerance", "read_case", "list_cases", "case_hash",
            "read_reference", "write_reference", "IMAGE_NAMES",

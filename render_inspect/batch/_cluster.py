@@ -52,7 +52,8 @@ from ..core.units import MIB_TO_BYTES
 
 __all__ = ["dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
            "plan_workers", "cluster_info", "call_with_threads", "wait_for_workers",
-           "CONNECT_TIMEOUT_S", "WORKER_WAIT_S", "WORKER_BASE_BYTES", "open_client"]
+           "CONNECT_TIMEOUT_S", "WORKER_WAIT_S", "WORKER_BASE_BYTES", "open_client",
+           "check_scheduler"]
 
 log = logging.getLogger("render_inspect")
 
@@ -69,6 +70,7 @@ WORKER_BASE_BYTES = 256 * MIB_TO_BYTES
 #: the largest first message a scheduler's handshake can plausibly be (bytes)
 _HANDSHAKE_MAX = 1 << 16
 _ADDRESS = re.compile(r"^(?:(tcp|tls|inproc|ucx|ws|wss)://)?[^\s:/]+(?::\d{1,5})?$")
+_START = "start one with `dask scheduler` and give its tcp:// address"
 _QUIET_LOGGERS = ("distributed", "tornado", "asyncio", "bokeh")
 #: what :func:`cluster_info` knows about each client this module handed out
 _INFO: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -228,24 +230,33 @@ def _scheduler_address(scheduler) -> str:
     return address if "://" in address else f"tcp://{address}"
 
 
-def _connect(address: str):
-    import distributed
-
+def check_scheduler(scheduler) -> str:
+    """The address of ``--scheduler`` (``tcp://`` added when no scheme is given), after
+    checking, within :data:`CONNECT_TIMEOUT_S` and without reading more than a handshake,
+    that a Dask scheduler answers there (TCP addresses; others are checked on connecting).
+    Anything else is an :class:`InputError` saying what answered."""
+    address = _scheduler_address(scheduler)
     scheme, _, rest = address.partition("://")
-    start = f"start one with `dask scheduler` and give its tcp:// address"
     if scheme == "tcp":
         host, _, port = rest.rpartition(":")
         if not host:
             host, port = rest, "8786"
         why = _probe_tcp(host.strip("[]"), int(port), CONNECT_TIMEOUT_S)
         if why is not None:
-            raise InputError(f"--scheduler {address}: not a Dask scheduler: {why}; {start}")
+            raise InputError(f"--scheduler {address}: not a Dask scheduler: {why}; {_START}")
+    return address
+
+
+def _connect(address: str):
+    import distributed
+
+    check_scheduler(address)
     try:
         return distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s",
                                   set_as_default=False)
     except (OSError, TimeoutError, ValueError, MemoryError) as err:
         raise InputError(f"--scheduler {address}: no Dask scheduler answered within "
-                         f"{CONNECT_TIMEOUT_S} s ({type(err).__name__}); {start}") from None
+                         f"{CONNECT_TIMEOUT_S} s ({type(err).__name__}); {_START}") from None
 
 
 def wait_for_workers(client, *, label: str, n: int | None = None,

@@ -185,17 +185,31 @@ def csv_text(records, param_keys, *, columns: dict | None = None) -> str:
     return buf.getvalue()
 
 
-#: characters with a meaning in Markdown (CommonMark lets any of them be escaped)
-_MD_SPECIAL = re.compile(r"([\\`*_{}\[\]<>()#+\-.!|~=&])")
+#: characters with a meaning anywhere in a line of Markdown (code, emphasis, links, HTML,
+#: tables, strike-through); ``_`` only at a word's edge (``nose_radius`` stays as it is)
+_MD_INLINE = re.compile(r"([\\`*\[\]<>|~&]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9]))")
+#: what gives a line of Markdown a meaning at its start (headings, quotes, lists, rules)
+_MD_LINE_START = re.compile(r"^(\s*)([#>+=-]|\d+[.)])")
+
+
+def _escape_start(m) -> str:
+    mark = m.group(2)
+    if mark[0].isdigit():  # an ordered list's "1." is escaped at its dot
+        return m.group(1) + mark[:-1] + "\\" + mark[-1]
+    return m.group(1) + "\\" + mark
 
 
 def md_text(v, *, block: bool = False) -> str:
-    """``v`` as literal Markdown text: every Markdown character escaped and, unless
-    ``block``, line breaks turned into spaces (a value cannot start a heading or break a
-    table); a ``block`` keeps its lines, each escaped."""
+    """``v`` as literal Markdown text: the characters that would format it escaped and,
+    unless ``block``, line breaks turned into spaces (a value cannot start a heading or
+    break a table); a ``block`` keeps its lines, each escaped, its start too."""
     text = "" if v is None else str(v)
     lines = text.splitlines() if block else [" ".join(text.split())]
-    return "\n".join(_MD_SPECIAL.sub(r"\\\1", ln) for ln in lines)
+    out = []
+    for ln in lines:
+        ln = _MD_INLINE.sub(r"\\\1", ln)
+        out.append(_MD_LINE_START.sub(_escape_start, ln))
+    return "\n".join(out)
 
 
 def _fmt(v) -> str:

@@ -74,7 +74,7 @@ def check_file_name(value: str, what: str) -> str:
     if not isinstance(value, str) or not _FILE_NAME.match(value) or ".." in value:
         raise ValueError(f"{what} must be a file name of letters, digits, '.', '_' and '-' "
                          f"(starting with a letter or digit, at most 100 characters, no "
-                         f"folders), received {str(value)[:120]!r}")
+                         f"folders)")
     return value
 
 def _check_keys(keys, where: str, sections=None) -> None:

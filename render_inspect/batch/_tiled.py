@@ -130,7 +130,7 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
                    for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(futures)
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):
             out[index[fut.key]] = fut.result()
             counter.step()
             fut.release()

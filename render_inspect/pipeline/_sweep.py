@@ -9,6 +9,7 @@ client process (the one that calls :func:`run_sweep`) is the only writer of
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -25,7 +26,10 @@ from ..batch import (
     Progress,
     ResultsLog,
     call_with_threads,
+    check_scheduler,
+    check_workers_option,
     cluster_info,
+    wait_for_workers,
     csv_text,
     dask_client,
     default_plots,
@@ -196,16 +200,22 @@ def check_sweep_tasks(sweep_path, tasks: list, invalid: list) -> None:
     if not invalid:
         return
     total = len(tasks) + len(invalid)
-    seen: dict[str, list[int]] = {}
+    seen: dict[str, tuple[list[int], list[str]]] = {}
     for rec in invalid:
         for line in _error_lines(rec["error"]):
-            seen.setdefault(line, []).append(rec["index"])
+            what, _, value = line.partition("; received ")
+            idx, values = seen.setdefault(what, ([], []))
+            idx.append(rec["index"])
+            if value and value not in values:
+                values.append(value)
     shown = []
-    for line, idx in list(seen.items())[:SHOW_ERRORS]:
+    for what, (idx, values) in list(seen.items())[:SHOW_ERRORS]:
         where = (f"point {idx[0]}" if len(idx) == 1 else
-                 f"{len(idx)} points ({', '.join(str(i) for i in idx[:5])}"
-                 f"{', ...' if len(idx) > 5 else ''})")
-        shown.append(f"  {line} [{where}]")
+                 f"{len(idx)} points: {', '.join(str(i) for i in idx[:5])}"
+                 f"{', ...' if len(idx) > 5 else ''}")
+        got = (f"; received {', '.join(values[:5])}{', ...' if len(values) > 5 else ''}"
+               if values else "")
+        shown.append(f"  {what}{got} [{where}]")
     if len(seen) > SHOW_ERRORS:
         shown.append(f"  ... and {len(seen) - SHOW_ERRORS} more")
     raise InputError(f"sweep file {str(sweep_path)!r}: {len(invalid)} of {total} points are "
@@ -430,32 +440,44 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     out = check_output_path(out, replaced=False)
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
     check_sweep_tasks(sweep_path, tasks, invalid)
-    claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
-    with folder_lock(out):
-        atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())
-        results = ResultsLog(out / "results.jsonl")
-        records = results.read()
-        recovered = _recover(out, tasks, records, results)
+    check_workers_option(workers)
+    if scheduler is not None:  # before the folder is made: an address that is no scheduler
+        scheduler = check_scheduler(scheduler)
 
-        def pending(t):
-            r = records.get(t["id"])
-            return r is None or (retry_failed and r.get("status") == "failed")
+    def pending(t, records):
+        r = records.get(t["id"])
+        return r is None or (retry_failed and r.get("status") == "failed")
 
-        todo = [t for t in tasks if pending(t)]
-        total = len(tasks)
-        skipped = total - len(todo)
-        info = {"sweep_file": str(sweep_path.resolve()), "out": str(out), "scheduler": scheduler,
-                "workers": None, "dashboard": None, "ran": 0, "skipped": skipped,
-                "recovered": recovered}
-        log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
-                 len(todo), skipped)
-        try:
-            if todo:
-                _run_on_dask(todo, records, results, info, scheduler=scheduler, workers=workers,
-                             client=client, total=total, progress=progress)
-        finally:
-            info["elapsed_s"] = time.perf_counter() - t_all
-            info = _finish(out, spec, keys, tasks, records, results, info)
+    # the cluster is reached (or its workers started) before the folder is claimed: a
+    # cluster without workers is refused with nothing written
+    before = ResultsLog(out / "results.jsonl").read() if out.is_dir() else {}
+    n_todo = sum(pending(t, before) for t in tasks)
+    with contextlib.ExitStack() as stack:
+        c = None
+        if n_todo:
+            c = stack.enter_context(dask_client(
+                client=client, scheduler=scheduler, workers=workers, tasks=n_todo, wait=False,
+                memory_per_task=max(t["memory_bytes"] for t in tasks), budget=memory_budget(None)))
+        claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
+        with folder_lock(out):
+            atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())
+            results = ResultsLog(out / "results.jsonl")
+            records = results.read()
+            recovered = _recover(out, tasks, records, results)
+            todo = [t for t in tasks if pending(t, records)]
+            total = len(tasks)
+            skipped = total - len(todo)
+            info = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
+                    "scheduler": scheduler, "workers": None, "dashboard": None, "ran": 0,
+                    "skipped": skipped, "recovered": recovered}
+            log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
+                     len(todo), skipped)
+            try:
+                if todo and c is not None:
+                    _run_on_dask(c, todo, records, results, info, total=total, progress=progress)
+            finally:
+                info["elapsed_s"] = time.perf_counter() - t_all
+                info = _finish(out, spec, keys, tasks, records, results, info)
     if info["points"] <= SHOW_TABLE_POINTS:
         log.info("%s", (out / "summary.md").read_text().split("\n\n", 3)[-1].rstrip())
     log.info("sweep %s: %d done, %d failed of %d points in %.1f s -> %s", spec.name,
@@ -494,40 +516,36 @@ def _failed(t: dict, err: BaseException, memory_limit) -> dict:
             "error_type": name, "software_version": __version__}
 
 
-def _run_on_dask(todo, records, results, info, *, scheduler, workers, client, total, progress):
+def _run_on_dask(c, todo, records, results, info, *, total, progress):
     from distributed import as_completed
 
-    per_point = max(t.get("memory_bytes", 0) for t in todo)
-    budget = memory_budget(None)
-    with dask_client(client=client, scheduler=scheduler, workers=workers, tasks=len(todo),
-                     memory_per_task=per_point, budget=budget) as c:
-        ci = cluster_info(c)
-        nw = ci["workers"] or len(c.scheduler_info().get("workers", {}))
-        info["workers"] = nw
-        info["dashboard"] = ci["dashboard"]
-        info["cluster"] = {k: ci.get(k) for k in ("kind", "workers", "threads", "capped",
-                                                  "memory_limit_bytes")}
-        log.info("Dask: %d workers at %s; dashboard: %s", nw, c.scheduler.address, ci["dashboard"])
-        prog = Progress(total, done=total - len(todo), desc="sweep", bar=progress)
-        futures = {}
-        for t in todo:
-            futures[c.submit(call_with_threads, ci["threads"], run_point, t,
-                             key=f"render-inspect-point-{t['id']}", pure=False)] = t
-        try:
-            for fut in as_completed(futures):
-                t = futures.pop(fut)
-                try:
-                    rec = fut.result()
-                except Exception as err:  # the worker died or the task was lost: recorded
-                    rec = _failed(t, err, ci.get("memory_limit_bytes"))
-                results.append(rec)
-                records[rec["id"]] = rec
-                info["ran"] += 1
-                ok = rec["status"] == "done"
-                note = (f"{t['id']} Sq {rec['metrics']['residual']['Sq_nm']:.4g} nm" if ok
-                        else f"{t['id']} failed: {rec['error'].splitlines()[0][:100]}")
-                prog.update(note, failed=not ok)
-        finally:
-            for fut in futures:
-                fut.cancel()
-            prog.close()
+    ci = cluster_info(c)
+    nw = wait_for_workers(c, label="sweep", n=getattr(c, "expected_workers", None))
+    info["workers"] = nw
+    info["dashboard"] = ci["dashboard"]
+    info["cluster"] = {k: ci.get(k) for k in ("kind", "workers", "threads", "capped",
+                                              "memory_limit_bytes")}
+    log.info("Dask: %d workers at %s; dashboard: %s", nw, c.scheduler.address, ci["dashboard"])
+    prog = Progress(total, done=total - len(todo), desc="sweep", bar=progress)
+    futures = {}
+    for t in todo:
+        futures[c.submit(call_with_threads, ci["threads"], run_point, t,
+                         key=f"render-inspect-point-{t['id']}", pure=False)] = t
+    try:
+        for fut in as_completed(futures, loop=c.loop):
+            t = futures.pop(fut)
+            try:
+                rec = fut.result()
+            except Exception as err:  # the worker died or the task was lost: recorded
+                rec = _failed(t, err, ci.get("memory_limit_bytes"))
+            results.append(rec)
+            records[rec["id"]] = rec
+            info["ran"] += 1
+            ok = rec["status"] == "done"
+            note = (f"{t['id']} Sq {rec['metrics']['residual']['Sq_nm']:.4g} nm" if ok
+                    else f"{t['id']} failed: {rec['error'].splitlines()[0][:100]}")
+            prog.update(note, failed=not ok)
+    finally:
+        for fut in futures:
+            fut.cancel()
+        prog.close()
