@@ -405,6 +405,38 @@ class ZarrHeightMap:
             raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
                              f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
 
+    def dask(self, channel: str, *, level: int = 0):
+        """``channel`` (at pyramid ``level``) as a ``dask.array`` in the store's chunks:
+        nothing is read until a window of it is computed (:meth:`rows` reads one, turning
+        a damaged chunk into an :class:`InputError`)."""
+        import dask.array as da
+
+        name = self._name(channel, level)
+        arr = self.group[name]
+        self._check_array(name, arr)
+        return da.from_zarr(arr)
+
+    def rows(self, channel: str, r0: int, r1: int, *, level: int = 0) -> np.ndarray:
+        """Rows ``r0`` .. ``r1 - 1`` of ``channel`` (float64), read through
+        :meth:`dask` (the chunks decoded in parallel threads)."""
+        name = self._name(channel, level)
+        try:
+            return self.dask(channel, level=level)[r0:r1].compute(scheduler="threads") \
+                .astype(np.float64, copy=False)
+        except (MemoryError, KeyboardInterrupt, InputError):
+            raise
+        except Exception as err:  # codecs raise RuntimeError/ValueError/... on damaged chunks
+            raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
+                             f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
+
+    def _name(self, channel: str, level: int) -> str:
+        if channel not in CHANNELS:
+            raise InputError(f"channel must be one of {list(CHANNELS)}, got {channel!r}")
+        name = channel if level == 0 else f"levels/{level}/{channel}"
+        if name not in self.group:
+            raise InputError(f"{self.what} {str(self.path)!r} has no array {name!r}")
+        return name
+
     def level_for(self, max_side: int) -> int:
         """The finest pyramid level whose larger side is at most ``max_side`` (the
         coarsest level if none is)."""
