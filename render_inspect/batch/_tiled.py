@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError
+from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, EnvelopePath, Tile, compute_tile, load_kernels, merge_moments,
@@ -197,11 +198,8 @@ def run_tiles(ep: EnvelopePath, surface, *, origin, pixel: float, shape, store: 
     _, mean, _, lo, hi = moments
     # the histogram spans the float32 values actually stored
     lo32, hi32 = float(np.float32(lo)), float(np.float32(hi))
-    p2 = _run(abs_dev_task, [(t, mean, lo32, hi32, bins) for t in tiles], (store,), client=client,
-              workers=workers)
-    n2 = sum(p[0] for p in p2)
-    sa = math.fsum(p[1] for p in p2)
-    counts = np.sum([p[2] for p in p2], axis=0) if p2 else np.zeros(bins, dtype=np.int64)
+    # the stored residual read back as a dask.array whose chunks are the tiles
+    n2, sa, counts = stored_abs_dev(store, mean, lo32, hi32, bins, client=client, workers=workers)
     timing["pass2"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if levels > tile_levels:
