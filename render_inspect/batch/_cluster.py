@@ -192,33 +192,34 @@ def _read_exact(sock: socket.socket, n: int, deadline: float) -> bytes:
 
 
 def _probe_tcp(host: str, port: int, timeout: float) -> str | None:
-    """Why the endpoint is not a Dask scheduler (None when it is): connect and read its
-    handshake (a scheduler sends one at once) with a deadline and a bounded size."""
+    """What is wrong with the endpoint (None when a Dask scheduler answers there): connect
+    and read its handshake (a scheduler sends one at once) with a deadline and a bounded
+    size."""
     deadline = time.monotonic() + timeout
+    silent = f"no Dask scheduler answered within {timeout:g} s"
     try:
         sock = socket.create_connection((host, port), timeout=timeout)
     except socket.timeout:
-        return f"nothing answered within {timeout:g} s"
+        return f"{silent} (the connection was not accepted)"
     except OSError as err:
-        return f"cannot connect ({err.strerror or err})"
+        return f"no Dask scheduler answered (cannot connect: {err.strerror or err})"
+    foreign = "not a Dask scheduler: it answered with data that is not Dask's protocol"
     with sock:
         try:
             (total,) = struct.unpack("<Q", _read_exact(sock, 8, deadline))
             if not 16 <= total <= _HANDSHAKE_MAX:
-                return (f"it answered with data that is not Dask's protocol (a first message of "
-                        f"{total} bytes)")
+                return f"{foreign} (a first message of {total} bytes)"
             body = _read_exact(sock, total, deadline)
         except TimeoutError:
-            return (f"it accepted the connection but sent nothing a Dask scheduler sends within "
-                    f"{timeout:g} s")
+            return f"{silent} (it accepted the connection but sent no handshake)"
         except (ConnectionError, OSError):
-            return "it closed the connection without a Dask handshake"
+            return "not a Dask scheduler: it closed the connection without a handshake"
     (nframes,) = struct.unpack_from("<Q", body)
     if not 1 <= nframes <= 64 or 8 * (nframes + 1) > len(body):
-        return "it answered with data that is not Dask's protocol"
+        return foreign
     lengths = struct.unpack_from(f"<{nframes}Q", body, 8)
     if sum(lengths) + 8 * (nframes + 1) != len(body) or b"pickle-protocol" not in body:
-        return "it answered with data that is not Dask's protocol"
+        return foreign
     return None
 
 
@@ -243,7 +244,7 @@ def check_scheduler(scheduler) -> str:
             host, port = rest, "8786"
         why = _probe_tcp(host.strip("[]"), int(port), CONNECT_TIMEOUT_S)
         if why is not None:
-            raise InputError(f"--scheduler {address}: not a Dask scheduler: {why}; {_START}")
+            raise InputError(f"--scheduler {address}: {why}; {_START}")
     return address
 
 
