@@ -42,6 +42,7 @@ import os
 import re
 import socket
 import struct
+import threading
 import time
 import weakref
 
@@ -203,6 +204,8 @@ def _probe_tcp(host: str, port: int, timeout: float) -> str | None:
         return f"{silent} (the connection was not accepted)"
     except OSError as err:
         return f"no Dask scheduler answered (cannot connect: {err.strerror or err})"
+    except (UnicodeError, ValueError, OverflowError) as err:  # a host name the resolver refuses
+        return f"no Dask scheduler answered (cannot connect: {type(err).__name__}: {err})"
     foreign = "not a Dask scheduler: it answered with data that is not Dask's protocol"
     with sock:
         try:
@@ -225,9 +228,13 @@ def _probe_tcp(host: str, port: int, timeout: float) -> str | None:
 
 def _scheduler_address(scheduler) -> str:
     address = str(scheduler).strip()
-    if not _ADDRESS.match(address):
-        raise InputError(f"--scheduler must be a scheduler address like tcp://host:8786, "
-                         f"got {str(scheduler)[:80]!r}")
+    m = _ADDRESS.match(address)
+    host_port = address.partition("://")[2] if "://" in address else address
+    host, _, port = host_port.rpartition(":") if ":" in host_port else (host_port, "", "")
+    if not m or len(host or host_port) > 253 or (port and not 1 <= int(port) <= 65535):
+        raise InputError(f"--scheduler must be a scheduler address like tcp://host:8786 (a host "
+                         f"name of at most 253 characters, a port in 1 .. 65535), got "
+                         f"{str(scheduler)[:80]!r}")
     return address if "://" in address else f"tcp://{address}"
 
 
@@ -252,12 +259,29 @@ def _connect(address: str):
     import distributed
 
     check_scheduler(address)
-    try:
-        return distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s",
-                                  set_as_default=False)
-    except (OSError, TimeoutError, ValueError, MemoryError) as err:
+    # Dask's own connection has a deadline for connecting, none for the handshake after
+    # it (an endpoint that accepts and stays silent): the client is made in a thread that
+    # is given up on after the deadline
+    box: dict = {}
+
+    def make():
+        try:
+            box["client"] = distributed.Client(address, timeout=f"{CONNECT_TIMEOUT_S}s",
+                                               set_as_default=False)
+        except BaseException as err:  # handed to the caller below
+            box["error"] = err
+
+    t = threading.Thread(target=make, name="render-inspect-connect", daemon=True)
+    t.start()
+    t.join(CONNECT_TIMEOUT_S + 5)
+    err = box.get("error")
+    if "client" in box:
+        return box["client"]
+    if err is None or isinstance(err, (OSError, TimeoutError, ValueError, MemoryError)):
+        why = type(err).__name__ if err is not None else "no handshake"
         raise InputError(f"--scheduler {address}: no Dask scheduler answered within "
-                         f"{CONNECT_TIMEOUT_S} s ({type(err).__name__}); {_START}") from None
+                         f"{CONNECT_TIMEOUT_S} s ({why}); {_START}") from None
+    raise err
 
 
 def wait_for_workers(client, *, label: str, n: int | None = None,
