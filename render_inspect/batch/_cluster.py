@@ -40,6 +40,7 @@ import importlib.metadata
 import logging
 import os
 import re
+import signal
 import socket
 import struct
 import threading
@@ -359,23 +360,41 @@ def _plugin():
     return _PLUGIN()
 
 
+class _QuietFilter(logging.Filter):
+    """Drops Dask's (and its libraries') log records once an interruption has arrived."""
+
+    def __init__(self):
+        super().__init__()
+        self.on = False
+
+    def filter(self, record) -> bool:
+        return not (self.on and any(record.name == q or record.name.startswith(q + ".")
+                                    for q in _QUIET_LOGGERS))
+
+
 @contextlib.contextmanager
 def _quiet_interrupts():
-    """While the block runs, SIGINT and SIGTERM first silence Dask's own loggers, then do
-    what they did before (Ctrl-C: KeyboardInterrupt): the connections an interruption
-    cancels print no tracebacks.  The loggers' levels are restored when the block ends."""
+    """While the block runs, the first SIGINT or SIGTERM silences Dask's own log records
+    (the connections an interruption cancels print no tracebacks) and then does what it
+    did before (Ctrl-C: KeyboardInterrupt); a second one while the cluster shuts down is
+    ignored, so that the shutdown is not itself interrupted half-way.  The handler takes
+    no lock (it sets a flag that a logging filter reads)."""
     import signal
     import threading
 
-    levels = {name: logging.getLogger(name).level for name in _QUIET_LOGGERS}
+    quiet = _QuietFilter()
+    targets = [logging.getLogger(n) for n in
+               set(_QUIET_LOGGERS) | {n for n in list(logging.root.manager.loggerDict)
+                                      if any(n.startswith(q + ".") for q in _QUIET_LOGGERS)}]
+    targets += list(logging.root.handlers)
+    for t in targets:
+        t.addFilter(quiet)
     old = {}
 
-    def silence():
-        for name in _QUIET_LOGGERS:
-            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
-
     def handler(signum, frame):
-        silence()
+        if quiet.on:
+            return  # the shutdown after the first interruption goes on
+        quiet.on = True
         return old[signum](signum, frame)
 
     if threading.current_thread() is threading.main_thread():
@@ -387,14 +406,14 @@ def _quiet_interrupts():
     try:
         yield
     except KeyboardInterrupt:
-        silence()
+        quiet.on = True
         raise
     finally:
         for sig, prev in old.items():
             with contextlib.suppress(ValueError, TypeError):
-                signal.signal(sig, prev if prev is not None else signal.SIG_DFL)
-        for name, level in levels.items():
-            logging.getLogger(name).setLevel(level)
+                signal.signal(sig, prev)
+        for t in targets:
+            t.removeFilter(quiet)
 
 
 @contextlib.contextmanager
@@ -404,9 +423,28 @@ def _local_cluster(n: int, threads: int, *, memory_limit: int, wait: bool, cappe
     dash = None
     if _has_bokeh():
         dash = "127.0.0.1:8787" if _port_free(8787) else "127.0.0.1:0"
-    cluster = distributed.LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=dash,
-                                       silence_logs=logging.ERROR, memory_limit=memory_limit)
+    # the cluster's event-loop thread, which spawns the worker processes, starts with
+    # SIGINT blocked: the workers inherit the blocked signal through fork and exec, so
+    # Ctrl-C (sent to every process of the terminal's group) reaches only this process,
+    # which shuts them down; this thread's mask is restored at once
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        # multiprocessing's resource tracker, started with the first process, unblocks
+        # SIGINT in the thread that starts it: started here first, it leaves the mask be
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if main else None
+    try:
+        # the workers' own log lines (heartbeats to a scheduler that is shutting down,
+        # connections it closes) are not shown: what fails comes back with its task
+        cluster = distributed.LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
+                                           host="127.0.0.1", dashboard_address=dash,
+                                           silence_logs=logging.CRITICAL,
+                                           memory_limit=memory_limit)
+    finally:
+        if mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     try:
         client = distributed.Client(cluster, set_as_default=False)
         try:
