@@ -7,9 +7,6 @@ analysis; ``render`` into a ``simulate`` folder reading its store."""
 from __future__ import annotations
 
 import json
-import math
-import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
