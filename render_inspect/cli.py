@@ -254,11 +254,9 @@ def _run(args):
         info = pipeline.run_sweep(pipeline.find_sweep(args.sweep), args.out,
                                   scheduler=args.scheduler, workers=args.workers,
                                   retry_failed=args.retry_failed, overwrite=ow)
-        if info["failed"]:
-            raise RenderInspectError(
-                f"{info['failed']} of {info['points']} points failed (their errors are in "
-                f"{args.out}/summary.md and results.csv); the other points are done; rerun "
-                f"with --retry-failed to try the failed ones again")
+        failure = pipeline.sweep_failure(info, args.out)
+        if failure:
+            raise RenderInspectError(failure)
         return info
     if args.command == "regress":
         return pipeline.run_regress(update=args.update, only=args.only, out=args.out,

@@ -840,3 +840,176 @@ def test_fuzz_commands_under_an_address_space_limit(tmp_path):
             err = r.stderr.strip().splitlines()
             assert len(err) == 1 and "ulimit -v" in err[0] and "Traceback" not in r.stderr, err
             assert not out.exists()
+
+
+# ------------------------------------------------------------------ O: sweeps and regress
+CASES.update({"sweep_files": 60 * SCALE, "regress_inputs": 60 * SCALE,
+              "scheduler_addresses": 40 * SCALE})
+
+_SWEEP_KEYS = ["tool.nose_radius", "process.feed_mm_per_min", "process.spindle_rpm",
+               "simulation.seed", "tool.nose_radus", "nose_radius", "simulation.region",
+               "process.kind", "machine.preset", "material.preset", "design.amplitude_x",
+               "render.interferometer.wavelength_nm", "..", "a.", ".b", "x.y.z", "=cmd.x"]
+_SWEEP_VALUES = [0.2, 0.5, 1, -1, 0, 1e300, "ideal", "=1+2", "@SUM(A1)", "-x", "a\n# b", True,
+                 [0.1], [-0.02, -0.02, 0.02, 0.02], [], {}, "sts", 7]
+_NAMES = ["ok", "ok_2.v", "", "../evil", "/tmp/evil", ".hidden", "a/b", "x\ny", "=HYPERLINK(1)",
+          "-", "a" * 101, "con", "..", "a..b", " sp", "\t"]
+_SCENES = ["sts_sinusoidal_grid", "/etc/passwd", "../../nope.toml", "nope", "", "/dev/null",
+           "sweep.toml"]
+
+
+def _sweep_text(rng) -> str:
+    """A sweep file: a small valid core (ideal machine, small region) and random mutations."""
+    from render_inspect.batch import toml_value
+
+    lines = [f"scene = {toml_value(_pick(rng, _SCENES) if rng.random() < 0.3 else 'sts_sinusoidal_grid')}"]
+    if rng.random() < 0.5:
+        lines.append(f"name = {toml_value(_pick(rng, _NAMES))}")
+    sets = {"machine.preset": "ideal", "material.preset": "ideal",
+            "simulation.region": [-0.02, -0.02, 0.02, 0.02], "simulation.pixel": 0.002,
+            "process.workpiece_radius": 0.05}
+    if rng.random() < 0.4:
+        sets[_pick(rng, _SWEEP_KEYS)] = _pick(rng, _SWEEP_VALUES)
+    lines.append("[set]")
+    lines += [f"{json.dumps(k)} = {toml_value(v)}" for k, v in sets.items()]
+    kind = rng.integers(4)
+    if kind == 1:
+        n = int(_pick(rng, [1, 2, 3, 1000]))
+        lines.append("[grid]")
+        for _ in range(int(rng.integers(1, 4))):
+            lines.append(f"{json.dumps(_pick(rng, _SWEEP_KEYS))} = "
+                         f"{toml_value([_pick(rng, _SWEEP_VALUES) for _ in range(n)] if n < 10 else list(range(n)))}")
+    elif kind == 2:
+        lines.append("[[study]]")
+        lines.append(f"name = {toml_value(_pick(rng, _NAMES))}")
+        lines.append(f"set = {{ {json.dumps(_pick(rng, _SWEEP_KEYS))} = {toml_value(_pick(rng, _SWEEP_VALUES))} }}")
+    elif kind == 3:
+        lines.append("[[plot]]")
+        lines.append('kind = "curves"\nx = "tool.nose_radius"')
+        lines.append(f"name = {toml_value(_pick(rng, _NAMES))}")
+    if rng.random() < 0.2:
+        lines.append(_pick(rng, ["[run]\nrender = \"nope\"", "[run]\nmeasure = true",
+                                 "workers = 3", "[zip]\n\"tool.nose_radius\" = [1, 2]\n"
+                                 "\"process.spindle_rpm\" = [1]", "\x00"]))
+    return "\n".join(lines) + "\n"
+
+
+def test_fuzz_sweep_files(tmp_path, capsys, monkeypatch):
+    """Random sweep files through ``render-inspect sweep`` (the points' runs replaced by a
+    stub: what is fuzzed is everything before and after them): exit 0, or 1 with one
+    message and no traceback; a refused sweep writes nothing; nothing is written outside
+    ``--out`` whatever the names say; each case within a few seconds."""
+    import time as _time
+
+    import render_inspect.pipeline._sweep as sw
+    from render_inspect.cli import log, main
+
+    ran = []
+
+    @__import__("contextlib").contextmanager
+    def no_cluster(**kw):
+        yield None
+
+    def fake_run(c, todo, records, results, info, *, total, progress):
+        ran.append(len(todo))  # every point refused or recorded failed: the files still follow
+        for t in todo:
+            rec = {"id": t["id"], "index": t["index"], "params": t["params"], "studies": t["studies"],
+                   "overrides": t["overrides"], "folder": None, "status": "failed",
+                   "error": "=not run (fuzz)\n# x", "error_type": "Fuzz"}
+            results.append(rec)
+            records[t["id"]] = rec
+
+    monkeypatch.setattr(sw, "dask_client", no_cluster)
+    monkeypatch.setattr(sw, "_run_on_dask", fake_run)
+    rng = _rng("sweep_files")
+    root = tmp_path / "root"
+    for i in range(CASES["sweep_files"]):
+        case = root / f"c{i}"
+        (case / "in").mkdir(parents=True)
+        f = case / "in" / "sweep.toml"
+        f.write_text(_sweep_text(rng))
+        before = {p for p in tmp_path.rglob("*")}
+        out = case / "in" / "out"
+        log.handlers.clear()
+        t0 = _time.monotonic()
+        rc = main(["sweep", str(f), "--out", str(out), "-q"])
+        dt = _time.monotonic() - t0
+        err = capsys.readouterr().err.strip()
+        log.handlers.clear()
+        assert dt < 20, (f.read_text(), dt)
+        assert rc in (0, 1), (rc, err, f.read_text())
+        assert "Traceback" not in err and "internal error" not in err, (err, f.read_text())
+        new = {p for p in tmp_path.rglob("*")} - before
+        assert all(out == p or out in p.parents for p in new), (sorted(map(str, new)), f.read_text())
+        if out.exists():
+            csv_text = (out / "results.csv").read_text()
+            for row in __import__("csv").reader(io.StringIO(csv_text)):
+                assert not any(c.startswith(("=", "+", "@", "\t", "\r")) for c in row), row
+            md = (out / "summary.md").read_text()
+            assert not any(ln.startswith("# ") for ln in md.splitlines()[1:]), md
+        else:
+            assert rc == 1 and err.startswith("render-inspect sweep: error:"), err
+
+
+def test_fuzz_regress_inputs(tmp_path):
+    """Random ``--only`` patterns, ``--set`` texts and case files through ``run_regress``
+    (rendering replaced by a stub that says a case was accepted): a case is accepted or
+    refused with a :class:`RenderInspectError`; nothing else escapes."""
+    import render_inspect.pipeline._regress as rg
+    from render_inspect.pipeline import run_regress
+
+    class Accepted(Exception):
+        pass
+
+    def stub(*a, **k):
+        raise Accepted
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(rg, "case_images", stub)
+    rng = _rng("regress_inputs")
+    shipped = (Path(rg.regression_cases_dir()) / "sts_grid_z.toml").read_text()
+    onlys = [None, "sts_grid_z", "nope", "*", "sts_*", "a,,b", "../x", "[", "\x00", "," * 50,
+             "c0"]
+    sets = ["simulation.seed=7", "simulation.seed=-1", "simulation.seed=1e9",
+            "simulation.seed='x'", "simulation.seed=", "tool.nose_radius=0.4",
+            "tool.nose_radus=1", "=", "x", "simulation.seed=2000000", "render.diffuse.spp=0"]
+    mutations = ["", "\nimages = [\"nope\"]", "\npasses = 0", "\nreference_passes = -1",
+                 "\n[tolerance.residual]\natol = -1", "\n[set]\n\"x.y\" = 1", "\x00",
+                 "\nscene = \"/etc/passwd\""]
+    try:
+        for i in range(CASES["regress_inputs"]):
+            cases = tmp_path / f"r{i}"
+            cases.mkdir()
+            text = shipped + _pick(rng, mutations) if rng.random() < 0.7 else \
+                shipped.replace("sts_sinusoidal_grid", _pick(rng, _SCENES))
+            (cases / "c0.toml").write_text(text)
+            overrides = [_pick(rng, sets) for _ in range(int(rng.integers(0, 3)))]
+            try:
+                run_regress(cases=cases, only=_pick(rng, onlys), out=cases / "out",
+                            overrides=overrides, update=bool(rng.random() < 0.1))
+            except Accepted:
+                pass
+            except RenderInspectError as err:
+                assert str(err).strip() and "Traceback" not in str(err)
+    finally:
+        mp.undo()
+
+
+def test_fuzz_scheduler_addresses(tmp_path):
+    """Random ``--scheduler`` texts: malformed ones refused at once, well-formed ones to
+    closed ports refused within seconds; always one :class:`InputError`."""
+    import time as _time
+
+    from render_inspect.batch import dask_client
+
+    rng = _rng("scheduler_addresses")
+    pieces = ["tcp://", "tls://", "", "127.0.0.1", "localhost", "[::1]", "host with space",
+              "a" * 300, ":9", ":0", ":99999", ":-1", "/x", "\n", "\x00", "tcp://127.0.0.1:9",
+              "udp://x:1", "127.0.0.1:1"]
+    for _ in range(CASES["scheduler_addresses"]):
+        addr = "".join(_pick(rng, pieces) for _ in range(int(rng.integers(1, 4))))
+        t0 = _time.monotonic()
+        with pytest.raises(InputError):
+            with dask_client(scheduler=addr):
+                pass
+        assert _time.monotonic() - t0 < 20, addr

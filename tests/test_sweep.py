@@ -8,6 +8,8 @@ the turned sinusoidal grid follows within ~1.5 % (its curvature and the sampling
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -23,13 +25,15 @@ from render_inspect.batch import (
     ResultsLog,
     csv_text,
     expand_points,
+    md_text,
+    summary_table,
     point_id,
     read_sweep,
     sweep_keys,
     toml_value,
 )
-from render_inspect.core.errors import InputError
-from render_inspect.pipeline import find_sweep, shipped_sweeps, sweep_tasks
+from render_inspect.core.errors import InputError, SceneError
+from render_inspect.pipeline import find_sweep, run_sweep, shipped_sweeps, sweep_tasks
 
 REPO = Path(__file__).resolve().parents[1]
 EXE = Path(sys.executable).parent / "render-inspect"
@@ -59,9 +63,8 @@ def _sq_closed_form_nm(rc_mm, feed_mm_per_min, rpm):
 
 
 def _env():
-    env = dict(os.environ)
-    env.pop("PYTHONPATH", None)
-    return env
+    """This checkout first on the path (the command runs the code under test)."""
+    return {**os.environ, "PYTHONPATH": str(REPO)}
 
 
 def _check_points(records, n):
@@ -122,8 +125,11 @@ def test_shipped_sweeps_resolve(tmp_path):
     # panels a (10 x 5), b (5 x 5), c (5 x 10) share 5 + 10 + 5 points, 1 of them thrice
     assert len(tasks) == 50 + 25 + 50 - 5 - 10 - 5 + 1 and not invalid
     triple = [t for t in tasks if len(t["studies"]) == 3]
+    # the sweep keys, then the keys [set] fixes for every point
     assert len(triple) == 1 and triple[0]["params"] == {
-        "process.spindle_rpm": 100, "tool.nose_radius": 0.5, "process.feed_mm_per_min": 0.6}
+        "process.spindle_rpm": 100, "tool.nose_radius": 0.5, "process.feed_mm_per_min": 0.6,
+        "machine.preset": "ideal", "material.preset": "ideal", "process.workpiece_radius": 0.25,
+        "simulation.pixel": 0.001, "simulation.region": [-0.15, -0.15, 0.15, 0.15]}
 
 
 def test_point_identity_is_the_resolved_scene(tmp_path):
@@ -325,36 +331,131 @@ def test_killed_sweep_resumes_and_ends_with_every_point_once(tmp_path):
     assert len(list((tmp_path / "out" / "points").iterdir())) == 12
 
 
-@pytest.mark.slow
-def test_failing_points_are_recorded_and_the_sweep_goes_on(tmp_path):
-    (tmp_path / "fail.toml").write_text(SMALL.replace('[grid]\n"tool.nose_radius" = [0.2, 0.5, 1.0]',
-                                                      '[grid]\n"tool.nose_radius" = [0.5, 1.0]') + """
-[[points]]                       # refused when it runs: over its memory budget
+def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path):
+    """A misspelt key inside [grid], a value out of range, a point over its memory budget:
+    the whole sweep is checked first, one message lists each complaint with its points,
+    and nothing runs or is written."""
+    (tmp_path / "bad.toml").write_text(SMALL.replace(
+        '"process.feed_mm_per_min" = [0.4, 1.0]', '"process.feed_mm_per_min" = [0.4, 1.0]\n'
+        '"tool.nose_radus" = [0.1, 0.2]') + """
+[[points]]                       # over its memory budget
 "tool.nose_radius" = 0.3
 "simulation.max_memory_gb" = 1e-6
-[[points]]                       # refused when it is resolved: no such nose radius
+[[points]]                       # no such nose radius
 "tool.nose_radius" = -1.0
+""")
+    res = subprocess.run([str(EXE), "sweep", "bad.toml", "--out", "out"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=LIMIT_S, env=_env())
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    err = res.stderr
+    assert "14 of 14 points are not valid scenes" in err and "nothing was run" in err
+    assert "tool.nose_radus: unknown key (not allowed here; check the spelling); received 0.1, 0.2 " \
+           "[12 points: 0, 1, 2, 3, 4, ...]" in err
+    assert "simulation.max_memory_gb" in err and "tool.nose_radius" in err and "-1.0" in err
+    assert "the other points are done" not in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('[[plot]]\nkind = "curves"\nx = "tool.nose_radius"\nname = "../../evil"', "plot name must be a file name"),
+    ('[[plot]]\nkind = "curves"\nx = "tool.nose_radius"\nname = "/tmp/evil"', "plot name must be a file name"),
+    ('[[plot]]\nkind = "curves"\nx = "tool.nose_radius"\nname = ".hidden"', "plot name must be a file name"),
+    ('[[study]]\nname = "a/b"', "study name must be a file name"),
+    ('[[study]]\nname = "x\\ny"', "study name must be a file name"),
+    ('[grid]\n"tool.nose_radius" = [' + ", ".join(["0.1"] * 1000) + ']\n"process.spindle_rpm" = ['
+     + ", ".join(["1"] * 1000) + ']\n"simulation.seed" = [' + ", ".join(["1"] * 1000) + "]",
+     "has 1,000,000,000 points (grid 1000 x 1000 x 1000), more than the 10,000"),
+])
+def test_names_that_are_not_file_names_and_huge_grids_are_refused(tmp_path, text, needle):
+    f = tmp_path / "s.toml"
+    f.write_text('scene = "sts_sinusoidal_grid"\n' + text)
+    t0 = time.monotonic()
+    with pytest.raises(InputError) as err:
+        read_sweep(f)
+    assert needle in str(err.value) and time.monotonic() - t0 < 5
+
+
+def test_a_sweep_where_nothing_varies_is_one_point_of_a_checked_scene(tmp_path):
+    (tmp_path / "s.toml").write_text('scene = "sts_sinusoidal_grid"\n[set]\n"tool.nose_radius" = 0.3\n')
+    tasks, invalid, keys = sweep_tasks(read_sweep(tmp_path / "s.toml"), tmp_path / "s.toml", tmp_path)
+    assert len(tasks) == 1 and not invalid and keys == []
+    assert tasks[0]["params"] == {"tool.nose_radius": 0.3}
+    (tmp_path / "p.toml").write_text('scene = "/etc/passwd"\n')
+    with pytest.raises(SceneError, match=r"scene = '/etc/passwd': scene file '/etc/passwd' is not "
+                                         r"valid TOML"):
+        run_sweep(tmp_path / "p.toml", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_results_csv_and_summary_are_safe_to_open():
+    """Text cells that a spreadsheet would read as a formula are written as text (OWASP);
+    Markdown in names, values and errors cannot start a heading or break the table."""
+    recs = [{"id": "=HYPERLINK(\"x\")", "status": "failed", "studies": ["@SUM(A1)"],
+             "params": {"design.expr": "+1\n# injected", "tool.nose_radius": -0.5},
+             "error": "-2+3 failed\n| x |", "seconds": 1.0}]
+    text = csv_text(recs, ["design.expr", "tool.nose_radius"],
+                    columns={"tool.nose_radius": "tool.nose_radius_mm"})
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows[0][:4] == ["id", "status", "design.expr", "tool.nose_radius_mm"]
+    assert rows[1][:4] == ["'=HYPERLINK(\"x\")", "failed", "'+1\n# injected", "-0.5"]
+    assert rows[1][4] == "'@SUM(A1)" and rows[1][7] == "'-2+3 failed"
+    for row in rows:
+        for cell in row:
+            assert not cell.startswith(("=", "+", "@", "\t", "\r")) and not (
+                cell.startswith("-") and not _is_number(cell)), cell
+    md = summary_table(recs, ["design.expr"])
+    assert not any(ln.lstrip().startswith("#") for ln in md.splitlines())
+    assert len(md.strip().splitlines()) == 3 and md.splitlines()[2].count(" | ") == 4
+    assert md_text("a\n# b") == "a # b" and md_text("# b") == "\\# b"
+    assert md_text("tool.nose_radius") == "tool.nose_radius"
+
+
+def _is_number(text):
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+def test_failing_points_are_recorded_and_the_sweep_goes_on(tmp_path):
+    """A point that is a valid scene but fails when it runs (its region lies off the
+    turned part) is recorded; the others run; the message says how many are done."""
+    (tmp_path / "fail.toml").write_text(SMALL.replace('[grid]\n"tool.nose_radius" = [0.2, 0.5, 1.0]',
+                                                      '[grid]\n"tool.nose_radius" = [0.5, 1.0]') + """
+[[points]]                       # fails when it runs: the region lies off the part
+"tool.nose_radius" = 0.3
+"simulation.region" = [0.3, 0.3, 0.35, 0.35]
 """)
     cmd = [str(EXE), "sweep", "fail.toml", "--out", "out", "--workers", "1"]
     res = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=LIMIT_S,
                          env=_env())
     assert res.returncode == 1, res.stderr[-3000:]
-    assert "2 of 6 points failed" in res.stderr and "Traceback" not in res.stderr
+    assert "1 of 5 points failed" in res.stderr and "4 points are done" in res.stderr
+    assert "Traceback" not in res.stderr
     recs = _records(tmp_path / "out")
-    assert len(recs) == 6
+    assert len(recs) == 5
     _check_points([r for r in recs if r["params"]["tool.nose_radius"] in (0.5, 1.0)], 4)
-    mem, neg = ([r for r in recs if r["params"]["tool.nose_radius"] == v][0] for v in (0.3, -1.0))
-    assert mem["status"] == "failed" and mem["error_type"] == "MemoryBudgetError"
-    assert "max_memory_gb" in mem["error"] and mem["folder"] is None
-    assert neg["status"] == "failed" and neg["error_type"] == "SceneError"
-    assert "tool.nose_radius" in neg["error"] and "-1.0" in neg["error"]
-    assert "failed" in (tmp_path / "out" / "summary.md").read_text()
+    (off,) = [r for r in recs if r["params"]["tool.nose_radius"] == 0.3]
+    assert off["status"] == "failed" and off["error_type"] == "InputError"
+    assert "lies outside the turned part" in off["error"] and off["folder"] is None
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    assert "failed" in summary and "Fixed for every point: machine.preset = \"ideal\"" in summary
+    head = (tmp_path / "out" / "results.csv").read_text().splitlines()[0].split(",")
+    # units in the scene keys' columns; the keys [set] fixes are columns too
+    assert head[:9] == ["id", "status", "tool.nose_radius_mm", "process.feed_mm_per_min",
+                        "simulation.region_mm", "machine.preset", "material.preset",
+                        "simulation.pixel_mm", "process.workpiece_radius_mm"]
+    assert "process.spindle_rpm" in head
+    info = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert info["columns"]["tool.nose_radius"] == "tool.nose_radius_mm"
     # a rerun runs nothing (failed points are finished too) ...
     res = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=LIMIT_S,
                          env=_env())
-    assert res.returncode == 1 and "(0 to run, 5 finished before, 1 invalid)" in res.stderr
+    assert res.returncode == 1 and "(0 to run, 5 finished before)" in res.stderr
     # ... unless asked to retry them: still failing, still one record each
     res = subprocess.run(cmd + ["--retry-failed"], cwd=tmp_path, capture_output=True, text=True,
                          timeout=LIMIT_S, env=_env())
-    assert res.returncode == 1 and "(1 to run, 4 finished before, 1 invalid)" in res.stderr
-    assert len(_records(tmp_path / "out")) == 6
+    assert res.returncode == 1 and "(1 to run, 4 finished before)" in res.stderr
+    assert len(_records(tmp_path / "out")) == 5

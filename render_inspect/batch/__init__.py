@@ -16,7 +16,18 @@ from ._cases import (
                      read_reference,
                      write_reference,
 )
-from ._cluster import MAX_WORKERS, check_workers_option, dashboard_text, dask_client
+from ._cluster import (
+                     MAX_WORKERS,
+                     call_with_threads,
+                     check_scheduler,
+                     check_workers_option,
+                     cluster_info,
+                     dashboard_text,
+                     dask_client,
+                     open_client,
+                     plan_workers,
+                     wait_for_workers,
+)
 from ._imagetest import (
                      compare_deterministic,
                      flip_mean,
@@ -31,9 +42,11 @@ from ._progress import Progress
 from ._results import (
                      SUMMARY_METRICS,
                      ResultsLog,
+                     csv_safe,
                      csv_text,
                      flatten,
                      folder_lock,
+                     md_text,
                      summary_table,
 )
 from ._summary import RegressionFailed, replaced_dir, write_summary_html
@@ -42,10 +55,14 @@ from ._sweepfile import (
                      PlotConfig,
                      RunConfig,
                      Study,
+                     MAX_POINTS,
                      SweepFile,
                      SweepPoint,
+                     check_file_name,
+                     count_points,
                      dotted_get,
                      expand_points,
+                     fixed_keys,
                      point_id,
                      read_sweep,
                      sweep_keys,
@@ -54,9 +71,11 @@ from ._sweepfile import (
 
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
            "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get",
+           "fixed_keys", "count_points", "MAX_POINTS", "check_file_name", "csv_safe", "md_text",
            "ResultsLog", "flatten", "csv_text", "summary_table", "folder_lock", "SUMMARY_METRICS",
            "plot_rows", "default_plots", "Progress",
            "dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
+           "plan_workers", "check_scheduler", "cluster_info", "call_with_threads", "open_client", "wait_for_workers",
            "compare_deterministic", "image_t_test", "pass_statistics", "sidak_threshold",
            "flip_mean", "RegressCase", "Tolerance", "read_case", "list_cases", "case_hash",
            "read_reference", "write_reference", "IMAGE_NAMES",

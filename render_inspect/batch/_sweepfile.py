@@ -52,19 +52,38 @@ import hashlib
 import itertools
 import json
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, ValidationError, ValidationInfo, model_validator
+from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from ..core.errors import InputError
 from ..core.section import Section
 from ._morris import MORRIS_STUDY, MorrisConfig
 
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
-           "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get"]
+           "expand_points", "sweep_keys", "fixed_keys", "count_points", "toml_value",
+           "point_id", "dotted_get", "MAX_POINTS", "check_file_name"]
+
+#: the most points one sweep file may have (checked before its grids are expanded;
+#: split a larger study into several sweep files)
+MAX_POINTS = 10_000
+#: names that become file names (``[[plot]] name``, ``[[study]] name``): letters, digits,
+#: '.', '_' and '-', starting with a letter or digit, at most 100 characters
+_FILE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+
+
+def check_file_name(value: str, what: str) -> str:
+    """``value`` when it is a safe file name (see :data:`_FILE_NAME`), else a ValueError
+    naming ``what``: a name may not hold a folder (``/``, ``..``) or start with '.'."""
+    if not isinstance(value, str) or not _FILE_NAME.match(value) or ".." in value:
+        raise ValueError(f"{what} must be a file name of letters, digits, '.', '_' and '-' "
+                         f"(starting with a letter or digit, at most 100 characters, no "
+                         f"folders)")
+    return value
 
 def _check_keys(keys, where: str, sections=None) -> None:
     """Dotted scene keys; with ``sections`` (the scene's top-level sections, passed by the
@@ -109,13 +128,28 @@ class Study(Section):
     zip: dict[str, list[Any]] = Field(default_factory=dict)
     points: list[dict[str, Any]] = Field(default_factory=list)
 
+    @field_validator("name")
+    @classmethod
+    def _name(cls, v):
+        return v if v == "" else check_file_name(v, "study name")
+
     @model_validator(mode="after")
     def _lists(self, info: ValidationInfo):
         _check_study(self.set, self.grid, self.zip, self.points, _sections(info))
         return self
 
+    def count(self) -> int:
+        """The number of combinations (:meth:`combinations`), without making them."""
+        n = 0
+        if self.grid or self.zip:
+            nz = len(next(iter(self.zip.values()))) if self.zip else 1
+            n = math.prod(len(v) for v in self.grid.values()) * nz
+        n += len(self.points)
+        return n or 1
+
     def combinations(self) -> list[dict]:
-        """The study's points as dicts of dotted key -> value (without ``set``)."""
+        """The study's points as dicts of dotted key -> value (without ``set``); a study
+        where nothing varies is one point (its ``set`` on the base scene)."""
         combos = []
         if self.grid or self.zip:
             gkeys = list(self.grid)
@@ -127,7 +161,7 @@ class Study(Section):
                     c.update({k: self.zip[k][i] for k in zkeys})
                     combos.append(c)
         combos.extend(dict(p) for p in self.points)
-        return combos
+        return combos or [{}]
 
 
 class RunConfig(Section):
@@ -158,7 +192,13 @@ class PlotConfig(Section):
     study: str | None = Field(None, description="only the points of this study")
     title: str = ""
     log: bool = Field(False, description="logarithmic metric axis / colour scale")
-    name: str | None = Field(None, description="file name (without .png)")
+    name: str | None = Field(None, description="file name (without .png): letters, digits, "
+                                               "'.', '_' and '-'")
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, v):
+        return v if v is None else check_file_name(v, "plot name")
 
 
 class SweepFile(Section):
@@ -190,7 +230,7 @@ class SweepFile(Section):
     def studies(self) -> list[Study]:
         """The top-level grid/zip/points as a study named "" (when given) plus the
         ``[[study]]`` tables and the ``[morris]`` design (the study ``morris``); a single
-        point when nothing varies."""
+        point (the base scene with ``set``) when nothing varies."""
         out = []
         if self.grid or self.zip or self.points or not (self.study or self.morris):
             out.append(Study(name="", grid=self.grid, zip=self.zip, points=self.points))
@@ -264,7 +304,30 @@ def read_sweep(path, *, sections=None) -> SweepFile:
         raise _format_error(err, str(path)) from None
     if not spec.name:
         spec.name = path.stem
+    n = count_points(spec)
+    if n > MAX_POINTS:
+        sizes = "; ".join(_shape_text(st) for st in spec.studies())
+        raise InputError(f"sweep file {str(path)!r} has {n:,} points ({sizes}), more than the "
+                         f"{MAX_POINTS:,} one sweep may have; split it into several sweep files")
     return spec
+
+
+def _shape_text(st: Study) -> str:
+    parts = []
+    if st.grid:
+        parts.append("grid " + " x ".join(str(len(v)) for v in st.grid.values()))
+    if st.zip:
+        parts.append(f"zip of {len(next(iter(st.zip.values())))}")
+    text = " x ".join(parts)
+    if st.points:
+        text += (" + " if text else "") + f"{len(st.points)} single points"
+    return (f"study {st.name!r}: " if st.name else "") + (text or "1 point")
+
+
+def count_points(spec: SweepFile) -> int:
+    """The points of a sweep before expansion (an upper bound: points shared by studies
+    count once each)."""
+    return sum(st.count() for st in spec.studies())
 
 
 def expand_points(spec: SweepFile) -> list[SweepPoint]:
@@ -292,6 +355,13 @@ def sweep_keys(spec: SweepFile) -> list[str]:
             if k not in keys:
                 keys.append(k)
     return keys
+
+
+def fixed_keys(spec: SweepFile) -> list[str]:
+    """The keys the file's top-level ``set`` fixes for every point (those that do not
+    also vary), in file order."""
+    varied = set(sweep_keys(spec))
+    return [k for k in spec.set if k not in varied]
 
 
 def toml_value(value) -> str:

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError
+from ._store_stats import stored_abs_dev
+from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
                          merge_moments, plan_tiles, tile_abs_dev, tile_moments)
@@ -126,16 +128,16 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
     if client is not None:
         from distributed import as_completed
 
-        n = getattr(client, "expected_workers", 0)
-        if n:
-            client.wait_for_workers(n)
+        wait_for_workers(client, label="the tiled simulation",
+                         n=getattr(client, "expected_workers", None))
         client.run(_load_kernels)
-        big = [client.scatter(v, broadcast=True) if isinstance(v, (EnvelopePath, CutPath)) else v
-               for v in shared]
-        futures = [client.submit(fn, *big, *args, pure=False) for args in arg_lists]
+        threads = cluster_info(client)["threads"]
+        big = [client.scatter(v, broadcast=True) if isinstance(v, (EnvelopePath, CutPath)) else v for v in shared]
+        futures = [client.submit(call_with_threads, threads, fn, *big, *args, pure=False)
+                   for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(futures)
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):
             out[index[fut.key]] = fut.result()
             counter.step()
             fut.release()
@@ -211,11 +213,8 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
     _, mean, _, lo, hi = moments
     # the histogram spans the float32 values actually stored
     lo32, hi32 = float(np.float32(lo)), float(np.float32(hi))
-    p2 = _run(abs_dev_task, [(t, mean, lo32, hi32, bins) for t in tiles], (store,), client=client,
-              workers=workers)
-    n2 = sum(p[0] for p in p2)
-    sa = math.fsum(p[1] for p in p2)
-    counts = np.sum([p[2] for p in p2], axis=0) if p2 else np.zeros(bins, dtype=np.int64)
+    # the stored residual read back as a dask.array whose chunks are the tiles
+    n2, sa, counts = stored_abs_dev(store, mean, lo32, hi32, bins, client=client, workers=workers)
     timing["pass2"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if levels > tile_levels:
@@ -268,33 +267,18 @@ def _load_kernels() -> bool:
 
 
 @contextlib.contextmanager
-def tile_client(*, workers: int | None = None, scheduler: str | None = None):
-    """The Dask client tiles run on: None (the threaded scheduler of this process) when
-    neither is given; a ``LocalCluster`` of ``workers`` single-threaded processes; or the
-    cluster whose scheduler listens at ``scheduler`` (``tcp://host:8786``).
+def tile_client(*, workers: int | None = None, scheduler: str | None = None, client=None):
+    """The Dask client tiles run on (:func:`render_inspect.batch.dask_client`): ``client``
+    when given; the cluster whose scheduler listens at ``scheduler``; a ``LocalCluster`` of
+    ``workers`` single-threaded processes; the client open in this process (a notebook's);
+    or None (the threaded scheduler of this process) when there is none of these.
 
     The workers of a LocalCluster start in the background: the caller can plan the path
     meanwhile, and :func:`run_tiles` waits for them.  Scripts that start a cluster need
     the ``if __name__ == "__main__":`` guard (worker processes re-import the main module)."""
-    if scheduler:
-        from distributed import Client
-
-        try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
-            raise InputError(f"--scheduler: no Dask scheduler answers at {scheduler!r} ({err})") from None
-        with client:
-            yield client
-        return
-    if workers is None:
+    if client is None and scheduler is None and workers is None and open_client() is None:
         yield None
         return
-    if not 1 <= int(workers) <= 1024:
-        raise InputError(f"--workers must be in [1, 1024], got {workers}")
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None,
-                      memory_limit=0) as cluster, Client(cluster) as client:
-        cluster.scale(int(workers))
-        client.expected_workers = int(workers)
-        yield client
+    with dask_client(client=client, scheduler=scheduler, workers=workers, wait=False,
+                     label="--scheduler" if scheduler else None) as c:
+        yield c

@@ -18,6 +18,7 @@ from ._atomic import (
                       check_output_path,
                       claim_output_dir,
                       json_safe,
+                      open_lock_file,
                       read_marker,
                       write_json,
                       write_marker,
@@ -70,7 +71,7 @@ import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limit
 
 __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
            "check_output_path", "check_output_dir", "claim_output_dir", "read_marker", "write_marker", "MARKER",
-           "write_json", "json_safe",
+           "write_json", "json_safe", "open_lock_file",
            "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",
            "read_measured", "measured_formats", "read_frames_exr", "write_frames_exr",
            "FRAME_CHANNELS", "read_frame_stack", "write_measurement_exr", "STACK_EXTENSIONS",

@@ -71,6 +71,8 @@ MARKER = ".render_inspect.json"
 MARKER_VERSION = 2
 #: what the scene keys that shape the part are (a render may join a folder of the same part)
 PART_SECTIONS = ("design", "tool", "process", "simulation", "artifacts", "rcse")
+#: keys of those sections that do not shape the part: the memory budget of a run
+NOT_PART = {"simulation": ("max_memory_gb",)}
 #: files operating systems drop into folders by themselves (never counted as the user's)
 _OS_JUNK = {".DS_Store", "Thumbs.db", "desktop.ini"}
 #: characters the hidden sibling names add to the folder's name
@@ -234,13 +236,24 @@ def check_output_path(out, *, option: str = "--out", replaced: bool = True) -> P
 
 
 # ------------------------------------------------------------------------ marker
-def part_hash(scene) -> str | None:
-    """SHA-256 of the scene keys that shape the part (:data:`PART_SECTIONS`)."""
+def part_hash(scene, *, legacy: bool = False) -> str | None:
+    """SHA-256 of the scene keys that shape the part (:data:`PART_SECTIONS`, less
+    :data:`NOT_PART`: the memory a run may use is no property of the part).  ``legacy``:
+    the hash as folders written before that distinction recorded it."""
     if scene is None:
         return None
     d = scene.to_dict() if hasattr(scene, "to_dict") else dict(scene)
     part = {k: d.get(k) for k in PART_SECTIONS}
+    if not legacy:
+        for sec, keys in NOT_PART.items():
+            if isinstance(part.get(sec), dict):
+                part[sec] = {k: v for k, v in part[sec].items() if k not in keys}
     return hashlib.sha256(json.dumps(json_safe(part), sort_keys=True).encode()).hexdigest()
+
+
+def _part_hashes(scene) -> tuple | None:
+    """The hashes a folder of the same part may record (now and before :data:`NOT_PART`)."""
+    return None if scene is None else (part_hash(scene), part_hash(scene, legacy=True))
 
 
 def _scene_hash(scene) -> str | None:
@@ -674,7 +687,7 @@ def _check_inputs(target: Path, inputs, option: str, out_text: str) -> None:
                              f"choose another {option} or move the input out of it")
 
 
-def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | None,
+def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: tuple | None,
                       command: str, option: str, out_text: str,
                       inputs=()) -> tuple[str, dict | None]:
     """How to treat an existing ``out``: ("new" | "replace" | "merge", its marker)."""
@@ -706,7 +719,7 @@ def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | No
     if merge and part is not None:
         parts = {c: v.get("part_sha256") for c, v in marker.get("commands", {}).items()
                  if isinstance(v, dict) and v.get("part_sha256") and c != command}
-        other = sorted(c for c, h in parts.items() if h != part)
+        other = sorted(c for c, h in parts.items() if h not in part)
         if other:
             raise InputError(f"{option} {_shown(out_text)} holds the {', '.join(other)} output "
                              f"of a different part (design, tool, process or simulation keys "
@@ -725,7 +738,7 @@ def check_output_dir(out, *, overwrite: bool = False, merge: bool = False,
     out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
     target = check_output_path(out, option=option)
     _check_link(out_text, overwrite, option)
-    _inspect_existing(target, overwrite=overwrite, merge=merge, part=part_hash(scene),
+    _inspect_existing(target, overwrite=overwrite, merge=merge, part=_part_hashes(scene),
                       command=command, option=option, out_text=out_text, inputs=inputs)
     return target
 
@@ -835,7 +848,7 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
         lock = _Lock(target.parent / f".{target.name}.lock", out_text, option)
         _restore_backup(target)
         mode, marker = _inspect_existing(target, overwrite=overwrite, merge=merge,
-                                         part=part_hash(scene), command=command, option=option,
+                                         part=_part_hashes(scene), command=command, option=option,
                                          out_text=out_text, inputs=inputs)
         tmp = target.parent / f".{target.name}.partial-{os.getpid()}-{secrets.token_hex(4)}"
         os.mkdir(tmp, 0o777 & ~_umask() | 0o700)

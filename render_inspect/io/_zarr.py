@@ -12,6 +12,12 @@ Layout (Zarr format 3, a folder):
   square chunks (the tiles they were computed in).
 - ``levels/<k>/{design,machined,residual}``: area averages over 2^k x 2^k blocks (see
   ``render_inspect.io._pyramid``), for previews and coarse views.
+- every array has the dimension names ``y``, ``x``; beside them (at full resolution and
+  in each level's group) 1-D coordinate arrays ``x`` and ``y``: the pixel centres in mm.
+  ``xarray.open_zarr(path)`` opens the store as a Dataset with these coordinates.
+- group attribute ``ome``: OME-NGFF 0.5 ``multiscales`` metadata, one multiscale image
+  per channel whose datasets are the full resolution and the levels, each with its
+  ``scale`` and ``translation`` (mm; axes y, x).
 
 float32 keeps 24 bits: a relative error of at most 2^-24 (6e-8), i.e. 0.06 nm on 1 mm of
 sag and below 1e-5 nm on a residual of 100 nm; the residual is formed in float64 before it
@@ -71,15 +77,73 @@ def zarr_read_overhead(store: "ZarrHeightMap", rows: slice | None = None,
     return 2 * max(min(concurrency, touched), 1) * store.chunk_bytes
 
 
+#: the axes of every array of a store (rows are y, columns x), as xarray and OME-NGFF name them
+DIMS = ("y", "x")
+#: what each channel holds (the arrays' ``long_name``)
+LONG_NAMES = {"design": "design height", "machined": "machined height",
+              "residual": "machined - design height"}
+#: the OME-NGFF version whose ``multiscales`` metadata the stores carry (Zarr format 3)
+OME_VERSION = "0.5"
+
+
+def level_coordinates(n: int, origin: float, pixel: float, factor: int) -> np.ndarray:
+    """Centres (mm) of the ``n`` pixels of a pyramid level of ``factor`` along one axis:
+    origin + ((F - 1) / 2 + i F) pixel (the centre of a full block)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return origin + ((factor - 1) / 2.0 + np.arange(int(n), dtype=np.float64) * factor) * pixel
+
+
+def ome_multiscales(shape, pixel: float, origin, levels: int) -> dict:
+    """The OME-NGFF (0.5) ``ome`` group attribute of a store: one multiscale image per
+    channel, its datasets the full-resolution array and the pyramid levels, each with
+    its ``scale`` (the level's pixel, mm) and ``translation`` (its pixel [0, 0]'s centre,
+    mm), axes y and x in millimetres."""
+    ox, oy = float(origin[0]), float(origin[1])
+    out = []
+    for name in CHANNELS:
+        datasets = []
+        for k in range(levels + 1):
+            f = 1 << k
+            shift = (f - 1) / 2.0 * pixel
+            datasets.append({"path": name if k == 0 else f"levels/{k}/{name}",
+                             "coordinateTransformations": [
+                                 {"type": "scale", "scale": [pixel * f, pixel * f]},
+                                 {"type": "translation", "translation": [oy + shift, ox + shift]}]})
+        out.append({"name": name,
+                    "axes": [{"name": d, "type": "space", "unit": "millimeter"} for d in DIMS],
+                    "datasets": datasets, "type": "mean",
+                    "metadata": {"description": "level k: means of the finite samples of "
+                                                "2^k x 2^k blocks of full-resolution pixels",
+                                 "height_unit": "millimeter"}})
+    return {"version": OME_VERSION, "multiscales": out}
+
+
+def _coordinates(grp, shape, pixel: float, origin, factor: int) -> None:
+    """1-D coordinate arrays ``x`` and ``y`` (pixel centres, mm) beside a level's arrays."""
+    for axis, n, o in (("x", shape[1], origin[0]), ("y", shape[0], origin[1])):
+        a = grp.create_array(axis, shape=(int(n),), chunks=(min(int(n), 1 << 16),),
+                             dtype="float64", dimension_names=(axis,), compressors=[codec()])
+        a[...] = level_coordinates(n, float(o), pixel, factor)
+        a.attrs.update({"units": "mm", "long_name": f"{axis} of the pixel centres",
+                        "axis": axis.upper()})
+
+
 def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
     """Create an empty store (arrays filled with NaN) and return its zarr group.
+
+    Every level (the full resolution and each pyramid level) holds the arrays of
+    :data:`CHANNELS` with dimension names ``y`` and ``x`` and 1-D coordinate arrays ``x``
+    and ``y`` (pixel centres, mm), so that ``xarray.open_zarr(path)`` (or ``group =
+    "levels/2"``) opens it as a Dataset; the group attribute ``ome`` carries OME-NGFF
+    ``multiscales`` metadata of the pyramid (:func:`ome_multiscales`).
 
     Parameters
     ----------
     path : folder to create (must not exist)
     shape : (ny, nx) of the full-resolution map
     chunk : side of the square chunks of the full-resolution arrays (pixels)
-    attrs : ``grid_attrs`` (render_inspect.io._heightmap; more keys may be added)
+    attrs : ``grid_attrs`` (render_inspect.io._heightmap; more keys may be added):
+        ``pixel_size_mm`` and ``origin_mm`` place the coordinates
     levels : pyramid levels (factors 2 .. 2^levels)
     """
     import zarr
@@ -88,6 +152,8 @@ def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, l
     if path.exists():
         raise InputError(f"heightmap store already exists: {str(path)!r}")
     ny, nx = (int(shape[0]), int(shape[1]))
+    pixel = float(attrs.get("pixel_size_mm", 1.0))
+    origin = tuple(float(v) for v in attrs.get("origin_mm", (0.0, 0.0)))
     g = zarr.open_group(str(path), mode="w-", zarr_format=3)
     lv = []
     for k in range(levels + 1):
@@ -95,12 +161,30 @@ def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, l
         c = max(chunk >> k, 1) if (1 << k) <= chunk else min(max(shp), 1024)
         grp = g if k == 0 else g.require_group(f"levels/{k}")
         for name in CHANNELS:
-            grp.create_array(name, shape=shp, chunks=(min(c, shp[0]), min(c, shp[1])), dtype="float32",
-                             fill_value=np.nan, compressors=[codec()])
+            a = grp.create_array(name, shape=shp, chunks=(min(c, shp[0]), min(c, shp[1])),
+                                 dtype="float32", fill_value=np.nan, compressors=[codec()],
+                                 dimension_names=DIMS)
+            a.attrs.update({"units": "mm", "long_name": LONG_NAMES[name]})
+        _coordinates(grp, shp, pixel, origin, 1 << k)
         if k:
             lv.append({"path": f"levels/{k}", "factor": 1 << k, "shape": list(shp)})
-    g.attrs.update({**attrs, "levels": lv})
+    g.attrs.update({**attrs, "levels": lv,
+                    "ome": ome_multiscales((ny, nx), pixel, origin, levels)})
+    consolidate(path)
     return g
+
+
+def consolidate(path: str | Path) -> None:
+    """Gather the store's metadata into its root ``zarr.json`` (what ``xarray.open_zarr``
+    reads first; zarr-python's consolidated metadata, not yet part of the Zarr format 3
+    specification: readers without it read each array's own ``zarr.json``)."""
+    import warnings
+
+    import zarr
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "not part of the Zarr format 3 specification"
+        zarr.consolidate_metadata(str(path))
 
 
 def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndarray, *, attrs: dict,
@@ -129,7 +213,8 @@ def set_store_attrs(path: str | Path, **attrs) -> None:
     """Add (or replace) group attributes of a store."""
     import zarr
 
-    zarr.open_group(str(path), mode="r+").attrs.update(attrs)
+    zarr.open_group(str(path), mode="r+", use_consolidated=False).attrs.update(attrs)
+    consolidate(path)
 
 
 class ZarrHeightMap:
@@ -155,7 +240,9 @@ class ZarrHeightMap:
         for name in CHANNELS:
             self._check_declared_type(name)
         try:
-            self.group = zarr.open_group(str(path), mode="r")
+            # each array's own metadata (what _check_declared_type read), not the copy
+            # gathered in the root (consolidated metadata) that a store may also hold
+            self.group = zarr.open_group(str(path), mode="r", use_consolidated=False)
             self.attrs = dict(self.group.attrs)
             arrays = {name: self.group[name] for name in CHANNELS if name in self.group}
         except Exception as err:  # zarr raises its own and builtin errors on damaged stores
@@ -317,6 +404,38 @@ class ZarrHeightMap:
         except Exception as err:  # codecs raise RuntimeError/ValueError/... on damaged chunks
             raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
                              f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
+
+    def dask(self, channel: str, *, level: int = 0):
+        """``channel`` (at pyramid ``level``) as a ``dask.array`` in the store's chunks:
+        nothing is read until a window of it is computed (:meth:`rows` reads one, turning
+        a damaged chunk into an :class:`InputError`)."""
+        import dask.array as da
+
+        name = self._name(channel, level)
+        arr = self.group[name]
+        self._check_array(name, arr)
+        return da.from_zarr(arr)
+
+    def rows(self, channel: str, r0: int, r1: int, *, level: int = 0) -> np.ndarray:
+        """Rows ``r0`` .. ``r1 - 1`` of ``channel`` (float64), read through
+        :meth:`dask` (the chunks decoded in parallel threads)."""
+        name = self._name(channel, level)
+        try:
+            return self.dask(channel, level=level)[r0:r1].compute(scheduler="threads") \
+                .astype(np.float64, copy=False)
+        except (MemoryError, KeyboardInterrupt, InputError):
+            raise
+        except Exception as err:  # codecs raise RuntimeError/ValueError/... on damaged chunks
+            raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
+                             f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
+
+    def _name(self, channel: str, level: int) -> str:
+        if channel not in CHANNELS:
+            raise InputError(f"channel must be one of {list(CHANNELS)}, got {channel!r}")
+        name = channel if level == 0 else f"levels/{level}/{channel}"
+        if name not in self.group:
+            raise InputError(f"{self.what} {str(self.path)!r} has no array {name!r}")
+        return name
 
     def level_for(self, max_side: int) -> int:
         """The finest pyramid level whose larger side is at most ``max_side`` (the

@@ -8,7 +8,10 @@ with a scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels 
 or (pixel_x, pixel_y).  The papers and standards each model follows are cited in its
 module's References (docs/references.md lists them all)."""
 
-from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
+from ._analysis import (FORMS, OUTLIER_METHODS, Analysis, analyze_map, analyze_memory,
+                        analyze_memory_per_point, parse_filter)
+from ._windowed import (WINDOWED_FORMS, analyze_bands, band_bytes_per_point, form_on_grid,
+                        windowed_refusal)
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
                       correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
 from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
@@ -25,7 +28,7 @@ from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_cent
 from ._profiles import (areal_nm, common_window, crop_window, difference_profiles,
                         difference_stats, line_profile, profile_center, sections,
                         surface_slope)
-from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
+from ._params import (SLOPE_ESTIMATORS, areal_parameters, forward_slope_sums, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
 from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
@@ -41,6 +44,8 @@ from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outlie
 from ._unwrap import phase_quality, unwrap_phase
 
 __all__ = [
+    "analyze_memory", "analyze_memory_per_point", "WINDOWED_FORMS", "analyze_bands",
+    "band_bytes_per_point", "form_on_grid", "windowed_refusal", "forward_slope_sums",
     "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
     "SLOPE_ESTIMATORS", "profile_parameters", "extract_section", "section_parameters",
     "GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",

@@ -32,7 +32,7 @@ from scipy import ndimage
 from ..core.errors import InputError, check_positive, check_range
 from ._filters import pixel_xy, valid_mask
 
-__all__ = ["areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
+__all__ = ["areal_parameters", "slope_parameters", "forward_slope_sums", "spatial_parameters", "autocorrelation",
            "SLOPE_ESTIMATORS", "profile_parameters", "extract_section", "section_parameters"]
 
 #: Derivative estimators of :func:`slope_parameters`.
@@ -54,6 +54,56 @@ def _border_free(ok: np.ndarray) -> np.ndarray:
 _WRAP = False
 #: rows of the map processed at once by :func:`slope_parameters` (bounds its memory)
 _SLOPE_ROWS = 256
+
+
+def forward_slope_sums(z, ok, pixel, corners: tuple[int, int], *, holes: bool):
+    """The sums behind the forward estimator's Sdq and Sdr over the grid corners of rows
+    ``corners[0]`` .. ``corners[1] - 1`` of ``z`` (each corner's cell reaches one row and
+    column further; the border rule looks two rows further, and rows beyond ``z`` count
+    as measured): ``(g2_sum, g2_n, area_sum, area_n)``, each a pair [border left out,
+    border included] (the first is the second's copy unless ``holes``).  Sums over row
+    bands of a map (each band with the two rows after it) add up to the whole map's."""
+    px, py = pixel
+    ny = z.shape[0]
+    g2_sum, g2_n, area_sum, area_n = np.zeros(2), np.zeros(2, np.int64), np.zeros(2), \
+        np.zeros(2, np.int64)
+    cz = (px * py) ** 2
+    for r0 in range(corners[0], corners[1], _SLOPE_ROWS):
+        r1 = min(r0 + _SLOPE_ROWS, corners[1])  # corners r0 .. r1 - 1
+        zz = np.where(ok[r0:r1 + 1], z[r0:r1 + 1], np.nan)  # rows r0 .. r1
+        dx = np.diff(zz, axis=1)  # x edges
+        dy = np.diff(zz, axis=0)  # y edges
+        gx, gy = dx[:-1, :] / px, dy[:, :-1] / py  # both at the lower-left corner of each cell
+        g2 = gx * gx + gy * gy
+        del gx, gy
+        gok = np.isfinite(g2)
+        # ISO 25178-2:2021 D.3: the cell area as the mean of its two triangulations, i.e.
+        # half the sum of the four corner triangles spanned by one x and one y edge
+        cxb, cxt = (py * dx[:-1, :]) ** 2, (py * dx[1:, :]) ** 2
+        cyl, cyr = (px * dy[:, :-1]) ** 2, (px * dy[:, 1:]) ** 2
+        del dx, dy, zz
+        area = np.sqrt(cxb + cyl + cz)
+        area += np.sqrt(cxb + cyr + cz)
+        area += np.sqrt(cxt + cyr + cz)
+        area += np.sqrt(cxt + cyl + cz)
+        area *= 0.25
+        del cxb, cxt, cyl, cyr
+        cok = np.isfinite(area)
+        g2_sum[1] += g2[gok].sum()
+        g2_n[1] += int(gok.sum())
+        area_sum[1] += area[cok].sum()
+        area_n[1] += int(cok.sum())
+        if holes:
+            free = _border_free(ok[r0:min(r1 + 2, ny)])[:r1 - r0, :-1]
+            gok &= free
+            cok &= free
+            g2_sum[0] += g2[gok].sum()
+            g2_n[0] += int(gok.sum())
+            area_sum[0] += area[cok].sum()
+            area_n[0] += int(cok.sum())
+    if not holes:
+        g2_sum[0], g2_n[0], area_sum[0], area_n[0] = g2_sum[1], g2_n[1], area_sum[1], area_n[1]
+    return g2_sum, g2_n, area_sum, area_n
 
 
 def slope_parameters(z, *, pixel, mask=None, slope: str = "forward",
@@ -97,47 +147,9 @@ def slope_parameters(z, *, pixel, mask=None, slope: str = "forward",
             return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope,
                     "hole_border": hole_border, "Sdq_with_border": nan,
                     "Sdr_with_border": nan, "n_border": 0}
-        ny = z.shape[0]
         holes = not ok.all()
-        # sums over corners/cells, [border left out, border included]
-        g2_sum, g2_n, area_sum, area_n = np.zeros(2), np.zeros(2, np.int64), np.zeros(2), \
-            np.zeros(2, np.int64)
-        cz = (px * py) ** 2
-        for r0 in range(0, ny - 1, _SLOPE_ROWS):
-            r1 = min(r0 + _SLOPE_ROWS, ny - 1)  # corners r0 .. r1 - 1
-            zz = np.where(ok[r0:r1 + 1], z[r0:r1 + 1], np.nan)  # rows r0 .. r1
-            dx = np.diff(zz, axis=1)  # x edges
-            dy = np.diff(zz, axis=0)  # y edges
-            gx, gy = dx[:-1, :] / px, dy[:, :-1] / py  # both at the lower-left corner of each cell
-            g2 = gx * gx + gy * gy
-            del gx, gy
-            gok = np.isfinite(g2)
-            # ISO 25178-2:2021 D.3: the cell area as the mean of its two triangulations, i.e.
-            # half the sum of the four corner triangles spanned by one x and one y edge
-            cxb, cxt = (py * dx[:-1, :]) ** 2, (py * dx[1:, :]) ** 2
-            cyl, cyr = (px * dy[:, :-1]) ** 2, (px * dy[:, 1:]) ** 2
-            del dx, dy, zz
-            area = np.sqrt(cxb + cyl + cz)
-            area += np.sqrt(cxb + cyr + cz)
-            area += np.sqrt(cxt + cyr + cz)
-            area += np.sqrt(cxt + cyl + cz)
-            area *= 0.25
-            del cxb, cxt, cyl, cyr
-            cok = np.isfinite(area)
-            g2_sum[1] += g2[gok].sum()
-            g2_n[1] += int(gok.sum())
-            area_sum[1] += area[cok].sum()
-            area_n[1] += int(cok.sum())
-            if holes:
-                free = _border_free(ok[r0:min(r1 + 2, ny)])[:r1 - r0, :-1]
-                gok &= free
-                cok &= free
-                g2_sum[0] += g2[gok].sum()
-                g2_n[0] += int(gok.sum())
-                area_sum[0] += area[cok].sum()
-                area_n[0] += int(cok.sum())
-        if not holes:
-            g2_sum[0], g2_n[0], area_sum[0], area_n[0] = g2_sum[1], g2_n[1], area_sum[1], area_n[1]
+        g2_sum, g2_n, area_sum, area_n = forward_slope_sums(z, ok, (px, py), (0, z.shape[0] - 1),
+                                                            holes=holes)
         sdq = [float(np.sqrt(g2_sum[k] / g2_n[k])) if g2_n[k] else nan for k in (0, 1)]
         sdr = [float(100.0 * (area_sum[k] / (area_n[k] * px * py) - 1.0)) if area_n[k] else nan
                for k in (0, 1)]

@@ -41,7 +41,7 @@ from ._render import (check_render_limits, part_heightmap, part_outline, render_
                       write_interferogram_outputs)
 from ._simulate import Simulation, design_heightmap, simulate, write_simulation
 from ._simulate_command import TILED_SAMPLES, run_simulate, run_simulate_tiled, wants_tiles
-from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_morris,
+from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_failure, sweep_morris,
                      sweep_tasks)
 from ._toolpath import plan_program, program_formats, run_toolpath
 
@@ -63,6 +63,7 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS",
            "VARIANTS", "PROFILE_ANGLES_DEG", "COMPARE_MAX_CAMERA_PIXELS",
            "COMPARE_MAX_DIFFUSE_RESOLUTION", "COMPARE_MAX_DIFFUSE_SPP",
-           "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_morris",
+           "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_failure",
+           "sweep_morris",
            "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
            "check_render_limits"]

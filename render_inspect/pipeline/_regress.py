@@ -24,6 +24,7 @@ import logging
 import platform
 import shutil
 import time
+import tomllib
 from datetime import datetime, timezone
 from importlib import resources
 from pathlib import Path
@@ -66,6 +67,8 @@ log = logging.getLogger("render_inspect")
 #: ``simulation.seed * SEED_STRIDE + i``: the two never overlap (seed < 2,000,000).
 REFERENCE_SEED0 = 2_000_000_000
 SEED_STRIDE = 1000  # not a unit conversion
+#: the passes' seeds stay below the reference's: ``seed * SEED_STRIDE + i < REFERENCE_SEED0``
+MAX_PASS_SEED = REFERENCE_SEED0 // SEED_STRIDE
 
 #: Per image: unit, tolerances of a deterministic comparison, significance of a
 #: Monte-Carlo one.  ``atol`` covers what differs between Mitsuba variants and machines
@@ -100,6 +103,29 @@ def _relative_nm(result) -> np.ndarray:
         if m.any():
             out[m] = (h[m] - h[m].mean()) * MM_TO_NM
     return out
+
+
+def _split_seed(overrides) -> tuple[list[str], int | None]:
+    """``--set`` overrides without ``simulation.seed``, and that seed: in ``regress`` it is
+    the seed of the Monte-Carlo passes (camera noise, path tracing) only.  The surface's
+    own random draws (the machine's error motions, the material, the burrs) keep the
+    case's seed, so that a case is one surface whatever the passes' seed."""
+    rest, seed = [], None
+    for ov in overrides or ():
+        key, sep, value = str(ov).partition("=")
+        if sep and key.strip() == "simulation.seed":
+            try:
+                v = tomllib.loads(f"v = {value.strip()}")["v"]
+            except tomllib.TOMLDecodeError:
+                v = None
+            if type(v) is not int or not 0 <= v < MAX_PASS_SEED:
+                raise InputError(f"--set simulation.seed must be a whole number in [0, "
+                                 f"{MAX_PASS_SEED - 1}] (the seed of the Monte-Carlo passes), "
+                                 f"received {value.strip()[:40]!r}")
+            seed = v
+        else:
+            rest.append(ov)
+    return rest, seed
 
 
 def _case_scene(case, path: Path, overrides=()):
@@ -324,7 +350,10 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
         Folder of references (default: ``<cases>/references``).
     overrides : list of str
         ``KEY=VALUE`` applied to every case after its own (what-if checks; not with
-        ``update``).
+        ``update``).  ``simulation.seed=N`` sets the seed of the Monte-Carlo passes only
+        (camera noise, path tracing: passes ``N x 1000 + i``); the surface's random draws
+        (the machine's error motions, the material, the burrs) keep the case's own seed,
+        so that another seed tests the statistics, not another surface.
     overwrite : bool
         Replace ``out`` even if render_inspect did not write it.
 
@@ -345,6 +374,7 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
     if update and overrides:
         raise InputError(f"--set cannot be used with --update (references come from the case "
                          f"files alone), got --set {list(overrides)}")
+    overrides, pass_seed = _split_seed(overrides)
     check_output_dir(out, overwrite=overwrite, command="regress")
     available = list_cases(cases_dir)
     if not available:
@@ -386,7 +416,8 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
                          ", ".join(case.images), time.perf_counter() - t0)
                 continue
             ref = read_reference(refs_dir, name)
-            seeds = [int(scene.simulation.seed) * SEED_STRIDE + i for i in range(case.passes)]
+            seed = int(scene.simulation.seed) if pass_seed is None else pass_seed
+            seeds = [seed * SEED_STRIDE + i for i in range(case.passes)]
             ims = case_images(scene, case.images, seeds=seeds)
             notes = []
             if ref is not None and ref.get("case_hash") != chash:
@@ -416,13 +447,15 @@ def run_regress(*, update: bool = False, only=None, out=None, cases=None, refere
         summary = {**meta, "update": update, "cases": list(selected), "images": len(rows),
                    "passed": sum(r["passed"] for r in rows), "failed": len(failures),
                    "elapsed_s": time.perf_counter() - t_all, "references": str(refs_dir),
-                   "overrides": list(overrides or ()), "results": rows}
+                   "overrides": list(overrides or ()), "pass_seed": pass_seed, "results": rows}
         write_json(tmp / "summary.json", summary)
         write_summary_html(tmp / "summary.html", rows,
                            {"software": f"render_inspect {__version__}",
                             "Mitsuba": f"{meta['mitsuba_variant']} {meta['mitsuba_version']}",
                             "references": str(refs_dir), "cases": ", ".join(selected),
                             "overrides": " ".join(overrides or ()) or "none",
+                            "seed of the Monte-Carlo passes": (
+                                "each case's own" if pass_seed is None else str(pass_seed)),
                             "time": f"{summary['elapsed_s']:.1f} s"})
     out = out.resolve()
     if failures:

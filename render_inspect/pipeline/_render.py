@@ -28,7 +28,7 @@ from ..report import annotate_rgb, diffuse_caption, draw_figure, scale_bar_lengt
 from ._metrics import write_metrics
 from ._simulate import design_heightmap, simulate
 from ._simulate_command import wants_tiles
-from ._views import BigMapViews, WholeMapViews, big_map_store
+from ._views import BigMapViews, WholeMapViews, big_map_store, existing_store
 
 __all__ = ["run_render", "render_heightmap", "render_instrument", "write_diffuse_outputs",
            "write_instrument_outputs", "write_interferogram_outputs",
@@ -288,7 +288,12 @@ def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=No
     timing = {}
     t0 = time.perf_counter()
     with progress_task(f"{surface} height map"):
-        if heightmap is None and surface == "machined" and wants_tiles(scene):
+        store = existing_store(scene, out) if heightmap is None and surface == "machined" \
+            else None
+        if store is not None:
+            # the store simulate wrote here for this part: its windows, not a new simulation
+            views = BigMapViews(store)
+        elif heightmap is None and surface == "machined" and wants_tiles(scene):
             # a map too large for memory: windows and area-averaged levels of its store
             views = BigMapViews(*big_map_store(scene, out))
         else:

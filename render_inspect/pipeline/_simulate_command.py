@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..batch import run_tiles, tile_client
+from ..batch import cluster_info, run_tiles, tile_client
 from ..core.errors import InputError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget
@@ -151,7 +151,8 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)
-    in_flight = 1 if scheduler else (workers or os.cpu_count() or 1)
+    # a LocalCluster has at most one worker per core (batch.plan_workers)
+    in_flight = 1 if scheduler else min(workers or os.cpu_count() or 1, os.cpu_count() or 1)
     # the whole program is planned in memory: its points against the budget first
     process.precheck(cfg, tuple(sim.region))
     extra, n_est = process.tiled_memory(cfg)
@@ -189,8 +190,8 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         n_tiles = len(plan_tiles(shape, tile))
         log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...",
                  f"{shape[0] * shape[1]:,}", n_tiles, tile, tile,
-                 f"scheduler {scheduler}" if scheduler else f"{workers} Dask workers" if workers
-                 else "threads")
+                 f"scheduler {scheduler}" if scheduler else
+                 f"{cluster_info(client)['workers']} Dask workers" if client else "threads")
         tmp = Path(tmp)
         store = str(tmp / "heightmap.zarr")
         create_heightmap_zarr(store, shape, chunk=tile, levels=levels,
@@ -208,8 +209,10 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         facts, cut_plots = process.tiled_facts(cfg, env, stats.cut, stride=stride)
         metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing, facts=facts)
         metrics["tiles"] = {"count": stats.tiles, "tile_px": tile, "pyramid_levels": levels,
-                            "scheduler": scheduler or ("LocalCluster" if workers else "threads"),
-                            "workers": workers or (None if scheduler else os.cpu_count()),
+                            "scheduler": scheduler or ("LocalCluster" if workers else
+                                                       "client" if client else "threads"),
+                            "workers": (cluster_info(client)["workers"] if client else
+                                        os.cpu_count()),
                             "memory_estimate_bytes": est}
         lo, hi, counts = stats.histogram
         set_store_attrs(store, residual_histogram={"lo_mm": lo, "hi_mm": hi,

@@ -9,9 +9,11 @@ client process (the one that calls :func:`run_sweep`) is the only writer of
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
+import re
 import shutil
 import socket
 import time
@@ -23,14 +25,20 @@ from .. import __version__
 from ..batch import (
     Progress,
     ResultsLog,
+    call_with_threads,
+    check_scheduler,
+    check_workers_option,
+    cluster_info,
+    wait_for_workers,
     csv_text,
-    dashboard_text,
     dask_client,
     default_plots,
     dotted_get,
     expand_points,
+    fixed_keys,
     flatten,
     folder_lock,
+    md_text,
     morris_indices,
     plot_rows,
     point_id,
@@ -41,7 +49,8 @@ from ..batch import (
     toml_value,
 )
 from ..core.errors import InputError, RenderInspectError, SceneError
-from ..core.units import MM_TO_NM
+from ..core.limits import format_bytes, memory_budget
+from ..core.units import MIB_TO_BYTES, MM_TO_NM
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
@@ -50,6 +59,7 @@ from ..io import (
     claim_output_dir,
     write_json,
 )
+from ..processes import check_budget, process_of
 from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
 from ..report import morris_png, save_map_png, sweep_plot_png
 from ._compare import run_compare
@@ -58,13 +68,25 @@ from ._metrics import point_metrics, write_metrics
 from ._render import run_render
 from ._simulate import residual_title, simulate, write_simulation
 
-__all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_morris"]
+__all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
+           "column_names", "check_sweep_tasks", "sweep_failure", "sweep_morris"]
 
 log = logging.getLogger("render_inspect")
 
 POINTS = "points"
 #: The summary table is also printed for sweeps of at most this many points.
 SHOW_TABLE_POINTS = 30
+#: what a point's renders add to its simulation at the peak (Mitsuba 3, llvm_ad_rgb:
+#: 446 - 658 MB measured above the simulation on the shipped sinusoidal grid; docs/limits.md)
+RENDER_BYTES = 700 * MIB_TO_BYTES
+#: distinct errors a refused sweep lists
+SHOW_ERRORS = 8
+#: units of the scene keys whose names do not say it, as their descriptions begin
+_UNITS = ("mm", "um", "nm", "rad", "deg", "s", "Hz", "%", "1/mm", "mm/s", "mm/min", "N", "GPa",
+          "MPa", "K")
+#: key names that already end in their unit
+_UNIT_SUFFIX = re.compile(r"_(mm|um|nm|deg|rad|s|hz|rpm|gb|percent|per_min|per_rev|"
+                          r"mm_per_min|mm_s|nm_rms)$", re.IGNORECASE)
 
 
 def shipped_sweeps() -> dict[str, Path]:
@@ -89,32 +111,55 @@ def find_sweep(name_or_path) -> Path:
 
 
 def _base_scene(spec, sweep_path: Path) -> Path:
-    """The base scene: a path relative to the sweep file, else a shipped scene's name."""
+    """The base scene: a path relative to the sweep file, else a shipped scene's name;
+    loaded once here so that a scene that is not one is refused before any point."""
     rel = sweep_path.parent / spec.scene
-    if rel.is_file():
-        return rel.resolve()
+    where = f"sweep file {str(sweep_path)!r}: scene = {spec.scene!r}"
     try:
-        return find_scene(spec.scene)
+        base = rel.resolve() if rel.is_file() else find_scene(spec.scene)
+        load_scene(base, [])
     except SceneError as err:
-        raise SceneError(f"sweep file {str(sweep_path)!r}: scene = {spec.scene!r}: {err}") from None
+        raise SceneError(f"{where}: {err}") from None
+    except (OSError, ValueError) as err:
+        raise SceneError(f"{where}: cannot be read ({type(err).__name__}: {err})") from None
+    return base
+
+
+def _point_memory(scene, run: dict) -> int:
+    """Bytes one point holds at its peak: the process's estimate, checked against the
+    memory budget (a point that cannot fit is not valid), and the renders it runs."""
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    sim = scene.simulation
+    process.precheck(cfg, tuple(sim.region))
+    need = check_budget(sim, process.estimate_memory(cfg))
+    return int(need) + (RENDER_BYTES if run.get("render", "none") != "none" else 0)
 
 
 def sweep_tasks(spec, sweep_path, out) -> tuple[list[dict], list[dict], list[str]]:
     """Resolve every point of ``spec`` into a task for :func:`run_point`.
 
+    The base scene is read first (a scene that is not one is an error naming the sweep
+    file); each point is its scene with the point's overrides, validated, and its memory
+    checked against the budget.
+
     Returns
     -------
     tasks : list of dict
-        ``id``, ``index``, ``params``, ``studies``, ``overrides``, ``scene`` (validated,
-        as a dict), ``run``, ``folder`` (absolute path of the point's folder).
+        ``id``, ``index``, ``params`` (the sweep keys and the keys ``set`` fixes, as the
+        resolved scene has them), ``studies``, ``overrides``, ``scene`` (validated, as a
+        dict), ``run``, ``folder`` (absolute path of the point's folder),
+        ``memory_bytes`` (the point's estimated peak).
     invalid : list of dict
-        Failure records of points whose scene does not validate.
+        Points whose scene does not validate or does not fit the memory budget:
+        ``index``, ``overrides``, ``error`` (:func:`run_sweep` refuses a sweep with any).
     keys : list of str
-        The sweep keys (``params`` of every record).
+        The sweep keys (they vary).
     """
     sweep_path = Path(sweep_path)
     base = _base_scene(spec, sweep_path)
     keys = sweep_keys(spec)
+    fixed = fixed_keys(spec)
     run = spec.run.model_dump(mode="json")
     by_id: dict = {}
     invalid: list = []
@@ -122,13 +167,11 @@ def sweep_tasks(spec, sweep_path, out) -> tuple[list[dict], list[dict], list[str
         sets = [f"{k}={toml_value(v)}" for k, v in p.overrides.items()]
         try:
             scene = load_scene(base, sets)
-        except SceneError as err:
-            pid = point_id({"base": str(base), "overrides": p.overrides, "run": run})
-            invalid.append({"id": pid, "index": p.index, "status": "failed",
-                            "params": {k: p.overrides.get(k) for k in keys},
-                            "studies": list(p.studies), "overrides": p.overrides,
-                            "folder": None, "error": str(err), "error_type": "SceneError",
-                            "software_version": __version__})
+            memory = _point_memory(scene, run)
+        except RenderInspectError as err:
+            invalid.append({"index": p.index, "overrides": p.overrides,
+                            "studies": list(p.studies), "error": str(err),
+                            "error_type": type(err).__name__})
             continue
         sd = scene.to_dict()
         pid = point_id({"scene": sd, "run": run})
@@ -136,10 +179,83 @@ def sweep_tasks(spec, sweep_path, out) -> tuple[list[dict], list[dict], list[str
             t = by_id[pid]
             t["studies"] += [s for s in p.studies if s not in t["studies"]]
             continue
-        by_id[pid] = {"id": pid, "index": p.index, "params": {k: dotted_get(sd, k) for k in keys},
+        by_id[pid] = {"id": pid, "index": p.index,
+                      "params": {k: dotted_get(sd, k) for k in [*keys, *fixed]},
                       "studies": list(p.studies), "overrides": p.overrides, "scene": sd,
-                      "run": run, "folder": str(Path(out).resolve() / POINTS / pid)}
+                      "run": run, "folder": str(Path(out).resolve() / POINTS / pid),
+                      "memory_bytes": memory}
     return list(by_id.values()), invalid, keys
+
+
+def _error_lines(text: str) -> list[str]:
+    """The separate complaints of one error message (a scene's errors are listed one a
+    line under a heading naming the scene file)."""
+    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
+    if len(lines) > 1 and lines[0].endswith(":"):
+        lines = lines[1:]
+    return [re.sub(r"^invalid scene .*?: ", "", ln) for ln in lines] or [str(text)]
+
+
+def check_sweep_tasks(sweep_path, tasks: list, invalid: list) -> None:
+    """Refuse a sweep with any point that is not a valid scene (or does not fit the
+    memory budget) before anything runs: one message with each distinct complaint and
+    the points it concerns."""
+    if not invalid:
+        return
+    total = len(tasks) + len(invalid)
+    seen: dict[str, tuple[list[int], list[str]]] = {}
+    for rec in invalid:
+        for line in _error_lines(rec["error"]):
+            what, _, value = line.partition("; received ")
+            idx, values = seen.setdefault(what, ([], []))
+            idx.append(rec["index"])
+            if value and value not in values:
+                values.append(value)
+    shown = []
+    for what, (idx, values) in list(seen.items())[:SHOW_ERRORS]:
+        where = (f"point {idx[0]}" if len(idx) == 1 else
+                 f"{len(idx)} points: {', '.join(str(i) for i in idx[:5])}"
+                 f"{', ...' if len(idx) > 5 else ''}")
+        got = (f"; received {', '.join(values[:5])}{', ...' if len(values) > 5 else ''}"
+               if values else "")
+        shown.append(f"  {what}{got} [{where}]")
+    if len(seen) > SHOW_ERRORS:
+        shown.append(f"  ... and {len(seen) - SHOW_ERRORS} more")
+    raise InputError(f"sweep file {str(sweep_path)!r}: {len(invalid)} of {total} points are "
+                     f"not valid scenes (point numbers count from 0 in the order of the file); "
+                     f"nothing was run:\n" + "\n".join(shown))
+
+
+def _unit_of(scene, key: str) -> str:
+    """The unit of a scene key whose name does not say it ("" when it has none or its
+    name ends in it): the first word of its description when that is a unit."""
+    parts = key.split(".")
+    if _UNIT_SUFFIX.search(parts[-1]):
+        return ""
+    node = scene
+    for part in parts[:-1]:
+        node = getattr(node, part, None)
+        if node is None:
+            return ""
+    fields = getattr(type(node), "model_fields", {})
+    f = fields.get(parts[-1])
+    desc = (getattr(f, "description", None) or "").strip()
+    first = re.split(r"[,;( ]", desc, maxsplit=1)[0] if desc else ""
+    return first if first in _UNITS else ""
+
+
+def column_names(scene, keys) -> dict:
+    """``results.csv`` column of each scene key: the key with its unit added when its
+    name does not say it (``tool.nose_radius`` -> ``tool.nose_radius_mm``; a key whose
+    name ends in its unit, such as ``process.feed_mm_per_min``, and a key without a
+    unit keep their name)."""
+    out = {}
+    for k in keys:
+        unit = _unit_of(scene, k) if scene is not None else ""
+        suffix = {"%": "percent", "1/mm": "per_mm", "mm/s": "mm_per_s",
+                  "mm/min": "mm_per_min"}.get(unit, unit)
+        out[k] = f"{k}_{suffix}" if suffix else k
+    return out
 
 
 # ------------------------------------------------------------------------ on a worker
@@ -232,21 +348,24 @@ def _recover(out: Path, tasks, records: dict, results: ResultsLog) -> int:
     return n
 
 
-def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: ResultsLog,
+def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
             info: dict) -> dict:
     """Compact results.jsonl; write results.csv, summary.md, sweep.json and the plots."""
-    order = {t["id"]: t["index"] for t in [*tasks, *invalid]}
-    studies = {t["id"]: t["studies"] for t in [*tasks, *invalid]}
+    order = {t["id"]: t["index"] for t in tasks}
+    studies = {t["id"]: t["studies"] for t in tasks}
     mine = sorted((r for i, r in records.items() if i in order), key=lambda r: order[r["id"]])
     for r in mine:
         r["studies"] = studies[r["id"]]
         r["index"] = order[r["id"]]
     others = [r for i, r in records.items() if i not in order]
     results.rewrite(mine + others)
-    atomic_write_text(out / "results.csv", csv_text(mine, keys))
+    fixed = fixed_keys(spec)
+    scene = scene_from_dict(tasks[0]["scene"], source="sweep point") if tasks else None
+    columns = column_names(scene, [*keys, *fixed])
+    atomic_write_text(out / "results.csv", csv_text(mine, [*keys, *fixed], columns=columns))
     done = sum(r["status"] == "done" for r in mine)
     failed = sum(r["status"] == "failed" for r in mine)
-    total = len(tasks) + len(invalid)
+    total = len(tasks)
     plots = spec.plot or default_plots(spec)
     names = []
     for i, p in enumerate(plots):
@@ -263,12 +382,17 @@ def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: Resul
             names.append(png)
         morris_lines = morris_table(morris)
     info = {**info, "name": spec.name, "description": spec.description, "keys": keys,
+            "fixed_keys": fixed, "columns": columns,
             "points": total, "done": done, "failed": failed, "pending": total - done - failed,
             "records_from_other_sweeps": len(others), "plots": names,
             "run": spec.run.model_dump(mode="json"), "software_version": __version__}
-    head = [f"# Sweep {spec.name}", "", spec.description, "",
+    fixed_text = ", ".join(f"{md_text(k)} = {md_text(toml_value(tasks[0]['params'].get(k)))}"
+                           for k in fixed) if tasks else ""
+    head = [f"# Sweep {md_text(spec.name)}", "", md_text(spec.description, block=True), "",
             f"{total} points: {done} done, {failed} failed, {total - done - failed} not run.  "
-            f"Sweep keys: {', '.join(keys) or '(none)'}.  Plots: {', '.join(names)}.", ""]
+            f"Sweep keys: {md_text(', '.join(keys)) or '(none)'}.  "
+            f"Fixed for every point: {fixed_text or '(none)'}.  "
+            f"Plots: {md_text(', '.join(names))}.", ""]
     atomic_write_text(out / "summary.md", "\n".join(head) + "\n" + summary_table(mine, keys)
                       + ("\n" + "\n".join(morris_lines) + "\n" if morris_lines else ""))
     write_json(out / "sweep.json", info)
@@ -310,9 +434,14 @@ def _is_sweep_folder(folder: Path) -> bool:
 
 
 def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None = None,
-              retry_failed: bool = False, progress: bool | None = None,
+              client=None, retry_failed: bool = False, progress: bool | None = None,
               overwrite: bool = False) -> dict:
     """``render-inspect sweep``: run every point of a sweep file on Dask.
+
+    The whole sweep is checked before the first point runs: the file, its names, the
+    number of points (at most :data:`render_inspect.batch.MAX_POINTS`), the base scene,
+    and every point's scene and memory; any error refuses the sweep with one message and
+    nothing is written.
 
     Parameters
     ----------
@@ -323,9 +452,14 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
         ``sweep.json``, the plots (PNG) and ``points/<id>/`` (each point's outputs).  Points
         already recorded there are not run again.
     scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://host:8786``); default: a LocalCluster.
+        Address of a running Dask scheduler (``tcp://host:8786``).
     workers : int, optional
-        Process workers of the LocalCluster (default: the CPU count, at most the points).
+        Process workers of a new LocalCluster (default: the CPU count), capped by the CPU
+        count, the points to run and the memory budget (the log says which applied).
+    client : distributed.Client, optional
+        Run on this client (a notebook's, for example; left open).  Without ``client``,
+        ``scheduler`` and ``workers``, a client open in this process
+        (``distributed.get_client()``) is used, else a new LocalCluster.
     retry_failed : bool
         Run again the points recorded as failed.
     progress : bool, optional
@@ -338,44 +472,53 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     -------
     dict
         ``sweep.json``'s content: ``points``, ``done``, ``failed``, ``ran`` (this call),
-        ``skipped``, ``elapsed_s``, ``workers``, ``dashboard``, ...
+        ``skipped``, ``elapsed_s``, ``workers``, ``dashboard``, ``columns`` (the scene key
+        of each ``results.csv`` column), ...
     """
     t_all = time.perf_counter()
     sweep_path = Path(sweep)
     spec = read_sweep(sweep_path, sections=scene_sections())
     out = check_output_path(out, replaced=False)
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
-    claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
-    with folder_lock(out):
-        atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())
-        results = ResultsLog(out / "results.jsonl")
-        records = results.read()
-        recovered = _recover(out, tasks, records, results)
-        for rec in invalid:
-            old = records.get(rec["id"])
-            if old is None or (retry_failed and old.get("status") == "failed"):
-                results.append(rec)
-                records[rec["id"]] = rec
+    check_sweep_tasks(sweep_path, tasks, invalid)
+    check_workers_option(workers)
+    if scheduler is not None:  # before the folder is made: an address that is no scheduler
+        scheduler = check_scheduler(scheduler)
 
-        def pending(t):
-            r = records.get(t["id"])
-            return r is None or (retry_failed and r.get("status") == "failed")
+    def pending(t, records):
+        r = records.get(t["id"])
+        return r is None or (retry_failed and r.get("status") == "failed")
 
-        todo = [t for t in tasks if pending(t)]
-        total = len(tasks) + len(invalid)
-        skipped = total - len(todo) - len(invalid)
-        info = {"sweep_file": str(sweep_path.resolve()), "out": str(out), "scheduler": scheduler,
-                "workers": None, "dashboard": None, "ran": 0, "skipped": skipped,
-                "recovered": recovered, "invalid": len(invalid)}
-        log.info("sweep %s: %d points (%d to run, %d finished before, %d invalid)", spec.name,
-                 total, len(todo), skipped, len(invalid))
-        try:
-            if todo:
-                _run_on_dask(todo, records, results, info, scheduler=scheduler, workers=workers,
-                             total=total, progress=progress)
-        finally:
-            info["elapsed_s"] = time.perf_counter() - t_all
-            info = _finish(out, spec, keys, tasks, invalid, records, results, info)
+    # the cluster is reached (or its workers started) before the folder is claimed: a
+    # cluster without workers is refused with nothing written
+    before = ResultsLog(out / "results.jsonl").read() if out.is_dir() else {}
+    n_todo = sum(pending(t, before) for t in tasks)
+    with contextlib.ExitStack() as stack:
+        c = None
+        if n_todo:
+            c = stack.enter_context(dask_client(
+                client=client, scheduler=scheduler, workers=workers, tasks=n_todo, wait=False,
+                memory_per_task=max(t["memory_bytes"] for t in tasks), budget=memory_budget(None)))
+        claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
+        with folder_lock(out):
+            atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())
+            results = ResultsLog(out / "results.jsonl")
+            records = results.read()
+            recovered = _recover(out, tasks, records, results)
+            todo = [t for t in tasks if pending(t, records)]
+            total = len(tasks)
+            skipped = total - len(todo)
+            info = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
+                    "scheduler": scheduler, "workers": None, "dashboard": None, "ran": 0,
+                    "skipped": skipped, "recovered": recovered}
+            log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
+                     len(todo), skipped)
+            try:
+                if todo and c is not None:
+                    _run_on_dask(c, todo, records, results, info, total=total, progress=progress)
+            finally:
+                info["elapsed_s"] = time.perf_counter() - t_all
+                info = _finish(out, spec, keys, tasks, records, results, info)
     if info["points"] <= SHOW_TABLE_POINTS:
         log.info("%s", (out / "summary.md").read_text().split("\n\n", 3)[-1].rstrip())
     log.info("sweep %s: %d done, %d failed of %d points in %.1f s -> %s", spec.name,
@@ -386,38 +529,64 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     return info
 
 
-def _run_on_dask(todo, records, results, info, *, scheduler, workers, total, progress):
+def sweep_failure(info: dict, out) -> str | None:
+    """The command line's message for a sweep with failed points (None when none
+    failed): how many failed, how many are done and how many did not run."""
+    if not info.get("failed"):
+        return None
+    done, pending = info.get("done", 0), info.get("pending", 0)
+    rest = (f"{done} point{'s are' if done != 1 else ' is'} done" if done else
+            "no point is done")
+    if pending:
+        rest += f", {pending} did not run"
+    return (f"{info['failed']} of {info['points']} points failed (their errors are in "
+            f"{out}/summary.md and results.csv); {rest}; rerun with --retry-failed to try "
+            f"the failed ones again")
+
+
+def _failed(t: dict, err: BaseException, memory_limit) -> dict:
+    """The record of a point whose task did not return (its worker died or was lost)."""
+    name = type(err).__name__
+    text = f"{name}: {err}"
+    if name == "KilledWorker":
+        text = ("the Dask worker running the point died (" + (
+            f"it may have exceeded its memory limit of {format_bytes(memory_limit)}, "
+            if memory_limit else "") + f"{name})")
+    return {"id": t["id"], "index": t["index"], "params": t["params"], "studies": t["studies"],
+            "overrides": t["overrides"], "folder": None, "status": "failed", "error": text,
+            "error_type": name, "software_version": __version__}
+
+
+def _run_on_dask(c, todo, records, results, info, *, total, progress):
     from distributed import as_completed
 
-    with dask_client(scheduler=scheduler, workers=workers, tasks=len(todo)) as client:
-        nw = len(client.scheduler_info().get("workers", {}))
-        info["workers"] = nw
-        info["dashboard"] = dashboard_text(client)
-        log.info("Dask: %d workers at %s; dashboard: %s", nw, client.scheduler.address,
-                 info["dashboard"])
-        prog = Progress(total, done=total - len(todo), desc="sweep", bar=progress)
-        futures = {}
-        for t in todo:
-            futures[client.submit(run_point, t, key=f"render-inspect-point-{t['id']}",
-                                  pure=False)] = t
-        try:
-            for fut in as_completed(futures):
-                t = futures.pop(fut)
-                try:
-                    rec = fut.result()
-                except Exception as err:  # the worker died or the task was lost: recorded
-                    rec = {"id": t["id"], "index": t["index"], "params": t["params"],
-                           "studies": t["studies"], "overrides": t["overrides"], "folder": None,
-                           "status": "failed", "error": f"{type(err).__name__}: {err}",
-                           "error_type": type(err).__name__, "software_version": __version__}
-                results.append(rec)
-                records[rec["id"]] = rec
-                info["ran"] += 1
-                ok = rec["status"] == "done"
-                note = (f"{t['id']} Sq {rec['metrics']['residual']['Sq_nm']:.4g} nm" if ok
-                        else f"{t['id']} failed: {rec['error'].splitlines()[0][:100]}")
-                prog.update(note, failed=not ok)
-        finally:
-            for fut in futures:
-                fut.cancel()
-            prog.close()
+    ci = cluster_info(c)
+    nw = wait_for_workers(c, label="sweep", n=getattr(c, "expected_workers", None))
+    info["workers"] = nw
+    info["dashboard"] = ci["dashboard"]
+    info["cluster"] = {k: ci.get(k) for k in ("kind", "workers", "threads", "capped",
+                                              "memory_limit_bytes")}
+    log.info("Dask: %d workers at %s; dashboard: %s", nw, c.scheduler.address, ci["dashboard"])
+    prog = Progress(total, done=total - len(todo), desc="sweep", bar=progress)
+    futures = {}
+    for t in todo:
+        futures[c.submit(call_with_threads, ci["threads"], run_point, t,
+                         key=f"render-inspect-point-{t['id']}", pure=False)] = t
+    try:
+        for fut in as_completed(futures, loop=c.loop):
+            t = futures.pop(fut)
+            try:
+                rec = fut.result()
+            except Exception as err:  # the worker died or the task was lost: recorded
+                rec = _failed(t, err, ci.get("memory_limit_bytes"))
+            results.append(rec)
+            records[rec["id"]] = rec
+            info["ran"] += 1
+            ok = rec["status"] == "done"
+            note = (f"{t['id']} Sq {rec['metrics']['residual']['Sq_nm']:.4g} nm" if ok
+                    else f"{t['id']} failed: {rec['error'].splitlines()[0][:100]}")
+            prog.update(note, failed=not ok)
+    finally:
+        for fut in futures:
+            fut.cancel()
+        prog.close()

@@ -1,6 +1,7 @@
-"""The height maps a render reads: the whole map when it is in memory, or, for a map too
-large for memory (simulated tile by tile into ``heightmap.zarr``), only the windows and
-area-averaged levels each view needs.
+"""The height maps a render reads: the whole map when it is in memory, or, from a height-map
+store (``heightmap.zarr``: the one ``simulate`` wrote into the output folder for the same
+part, whatever its size, or one simulated tile by tile for a map too large for memory),
+only the windows and area-averaged levels each view needs (float32 heights, as stored).
 
 - an instrument (the interferometer, ...): its field (its ``field`` hook: the objective's
   field of view, resolved on the whole map exactly as for an in-memory map), read at full
@@ -29,7 +30,7 @@ from ..io import ZarrHeightMap
 from ..render import default_window
 from ._simulate_command import run_simulate_tiled
 
-__all__ = ["WholeMapViews", "BigMapViews", "big_map_store"]
+__all__ = ["WholeMapViews", "BigMapViews", "big_map_store", "existing_store"]
 
 log = logging.getLogger("render_inspect")
 
@@ -118,16 +119,26 @@ def _same_scene(a: dict, b: dict) -> bool:
     return a == b
 
 
+def existing_store(scene, out) -> Path | None:
+    """``out/heightmap.zarr`` when ``simulate`` wrote it there for the same part (the
+    scene's keys equal, the memory budget and the render settings aside), else None."""
+    existing = Path(out) / "heightmap.zarr"
+    if not existing.is_dir():
+        return None
+    z = ZarrHeightMap(existing)
+    if not _same_scene(z.scene, scene.to_dict()):
+        return None
+    log.info("reading the windows to render from %s", existing)
+    return existing
+
+
 def big_map_store(scene, out) -> tuple[Path, Path | None]:
     """The store of ``scene``'s machined map: ``out/heightmap.zarr`` when ``simulate``
-    wrote it there for the same scene, else a tiled simulation into a temporary folder
+    wrote it there for the same part, else a tiled simulation into a temporary folder
     (returned second, to be removed after use)."""
-    existing = Path(out) / "heightmap.zarr"
-    if existing.is_dir():
-        z = ZarrHeightMap(existing)
-        if _same_scene(z.scene, scene.to_dict()):
-            log.info("reading the windows to render from %s", existing)
-            return existing, None
+    existing = existing_store(scene, out)
+    if existing is not None:
+        return existing, None
     tmp = Path(tempfile.mkdtemp(prefix="render_inspect_map_"))
     log.info("the map does not fit in memory: simulating it tile by tile first")
     run_simulate_tiled(scene, tmp / "sim")
