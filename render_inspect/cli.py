@@ -118,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
     p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
-                   help="tile side in pixels, a multiple of 64 (default 1024)")
+                   help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "
                                         "any registered format)")
@@ -516,6 +516,7 @@ def main(argv=None) -> int:
         rich_handler = _RichLogHandler(reporter._progress.console)
         rich_handler.setFormatter(logging.Formatter("%(message)s"))
         log.handlers = [rich_handler]
+    t_start = time.monotonic()
     try:
         with reporter as rep:
             old = set_reporter(rep)
@@ -538,7 +539,14 @@ def main(argv=None) -> int:
         return 1
     except KeyboardInterrupt as stop:
         what = "terminated" if isinstance(stop, Terminated) else "interrupted"
+        # the folder an interruption arriving after the swap leaves complete (the
+        # exception's attribute, or a folder swapped in since this run started; nothing
+        # was written when the pipeline was never imported)
         done = getattr(stop, "render_inspect_output_complete", None)
+        if done is None and f"{__package__}.pipeline" in sys.modules:
+            from .pipeline import completed_outputs
+
+            done = next(iter(completed_outputs(since=t_start)), None)
         if args.command == "sweep":
             state = (f"the finished points are kept in {args.out}/results.jsonl: run the same "
                      f"command again to go on")

@@ -16,8 +16,11 @@ from ._atomic import (
                       atomic_write_text,
                       check_output_dir,
                       check_output_path,
+                      MARKER_VERSION,
                       claim_output_dir,
+                      completed_outputs,
                       json_safe,
+                      open_lock_file,
                       read_marker,
                       write_json,
                       write_marker,
@@ -31,8 +34,11 @@ from ._limits import (
                       check_npz,
                       check_real_array,
                       check_x3p,
+                      check_frames,
                       check_zip,
+                      per_value_bytes,
                       read_json_file,
+                      reading_for,
 )
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
@@ -84,4 +90,5 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "ZarrHeightMap", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
-           "read_nms", "read_x3p_plain"]
+           "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
+           "reading_for", "per_value_bytes", "check_frames"]

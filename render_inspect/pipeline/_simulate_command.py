@@ -134,9 +134,12 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         raise InputError(refusal)
     traits = process.traits(cfg)
     sim = scene.simulation
-    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 65536
+    # (safety) at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
+    # chunk may hold, and the store could not be read back
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
             and tile % 64 == 0):
-        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 65536], received {tile!r}")
+        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 16384] (a larger tile "
+                         f"makes zarr chunks over 1 GiB), received {tile!r}")
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)
