@@ -544,6 +544,7 @@ def main(argv=None) -> int:
         # was written when the pipeline was never imported)
         done = getattr(stop, "render_inspect_output_complete", None)
         if done is None and f"{__package__}.pipeline" in sys.modules:
+            # (the pipeline is imported lazily, see _run; here only when it was)
             from .pipeline import completed_outputs
 
             done = next(iter(completed_outputs(since=t_start)), None)

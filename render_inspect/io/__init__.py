@@ -52,7 +52,9 @@ from ._toolpath import (
                       export_program,
                       program_formats,
                       nc_comment_text,
+                      program_blocks,
                       read_csv,
+                      read_nc_blocks,
                       read_nc,
                       read_program_nc,
                       read_toolpath_npz,
@@ -91,4 +93,4 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
-           "reading_for", "per_value_bytes", "check_frames"]
+           "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks"]

@@ -35,6 +35,8 @@ from ..machining import (
     target_line,
     vibration_phases,
 )
+from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
+                        PartModel)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, material_of
 from ._mechanics import BurrConfig, burrs_of
@@ -64,6 +66,13 @@ class SculptProcessConfig(Section):
     arc_length: float = Field(0.0025, gt=0, description="mm, target-line sampling step")
     depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded only)")
     allow_gouge: bool = Field(False, description="simulate even if the clearance angle is too small")
+    clearance: float = Field(DEFAULT_CLEARANCE, ge=MIN_CLEARANCE, le=100,
+                             description="mm above the part's highest point (stock included): "
+                                         "the clearance plane the program's rapid moves between "
+                                         "the lines run in")
+    plunge_feed_mm_per_min: float = Field(DEFAULT_PLUNGE_FEED, gt=0, le=100000,
+                                          description="feed of the vertical plunge onto each "
+                                                      "line and of the retract from it")
 
     @model_validator(mode="before")
     @classmethod
@@ -304,6 +313,23 @@ class SculptProcess(Process):
         return {"scene": cfg.name, "process": "sculpt",
                 "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
                 "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
+
+    def program_part(self, cfg, surface, plan: Plan) -> PartModel:
+        """The lenslet array the program is checked against: the design over the cells
+        (between the outer target lines' cell edges and the first and last row's edges),
+        the depth of cut as stock."""
+        d = cfg.design
+        x_lines, y_edges = lattice_lines(surface, pitch_y=d.pitch_y)
+        box = ("box", float(x_lines[0]) - d.pitch_x / 2, float(y_edges[0]),
+               float(x_lines[-1]) + d.pitch_x / 2, float(y_edges[-1]))
+        return PartModel(surface.height, box, stock=float(cfg.process.depth_of_cut),
+                         half_width=_half_width(cfg.tool))
+
+    def program_limits(self, cfg) -> MachineLimits:
+        """The cutting speed as set is the largest feed the program may use."""
+        return MachineLimits(source="process.feed_mm_per_min (the cutting speed)",
+                             feed_mm_per_min=float(max(cfg.process.feed_mm_per_min,
+                                                       cfg.process.plunge_feed_mm_per_min)))
 
     def program_facts(self, cfg, plan: Plan) -> dict:
         prog = plan.program
