@@ -52,6 +52,8 @@ from ._toolpath import (
                       export_program,
                       program_formats,
                       nc_comment_text,
+                      cut_points,
+                      program_axes,
                       program_blocks,
                       read_csv,
                       read_nc_blocks,
@@ -93,4 +95,5 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
-           "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks"]
+           "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
+           "program_axes"]

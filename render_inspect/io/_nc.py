@@ -28,7 +28,7 @@ from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 
 __all__ = ["write_nc", "read_nc", "write_program_nc", "read_program_nc", "read_nc_blocks",
-           "program_blocks", "nc_comment_text", "CHUNK_ROWS"]
+           "program_blocks", "cut_points", "program_axes", "nc_comment_text", "CHUNK_ROWS"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
 CHUNK_ROWS = 16384
@@ -600,6 +600,37 @@ def _cut_start(blocks: Blocks, i0: int, path, axes) -> int:
     return j
 
 
+def cut_points(blocks: Blocks, path="program") -> np.ndarray:
+    """Indices of the blocks whose ends are the cutting points, in order: each run of
+    cutting blocks (a ``; cut`` section, a ``; line k``), starting with the point the
+    plunge before it leaves the tool on."""
+    axes = _TURN_AXES if blocks.dialect == "turning" else _LINEAR_AXES
+    cut = blocks.role == ROLE_CUT
+    idx = []
+    i, n = 0, blocks.count
+    while i < n:
+        if not cut[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and cut[j] and blocks.line[j] == blocks.line[i]:
+            j += 1
+        s = _cut_start(blocks, i, path, axes)
+        idx.extend(range(s, j) if s != i else range(i, j))
+        i = j
+    return np.asarray(idx, dtype=np.int64)
+
+
+def program_axes(program) -> dict:
+    """The axes an NC program of ``program`` carries, as written: C (deg), X, Z of a
+    turning :class:`ToolPath`, or X, Y, Z of a sculpturing :class:`LinearProgram`."""
+    if isinstance(program, LinearProgram):
+        return {"X": np.asarray(program.x, np.float64), "Y": np.asarray(program.y, np.float64),
+                "Z": np.asarray(program.z, np.float64)}
+    return {"C": np.degrees(np.asarray(program.theta, np.float64)),
+            "X": np.asarray(program.rho, np.float64), "Z": np.asarray(program.z, np.float64)}
+
+
 def read_nc(path):
     """Parse a turning program written by :func:`write_nc` (or any program in that dialect)
     back into a :class:`ToolPath` (theta from C, rho = X, z = Z, t from ``t0_s`` and the
@@ -608,11 +639,9 @@ def read_nc(path):
     naming the line of malformed blocks."""
     path = Path(path)
     b = read_nc_blocks(path)
-    cut = np.flatnonzero(b.role == ROLE_CUT)
-    if b.count == 0 or "C" not in b.axes or cut.size == 0:
+    if b.count == 0 or "C" not in b.axes or not np.any(b.role == ROLE_CUT):
         raise InputError(f"{path}: no motion blocks (C/X/Z words) found")
-    j = _cut_start(b, int(cut[0]), path, _TURN_AXES)
-    idx = np.r_[j, cut[cut > j]] if j != cut[0] else cut
+    idx = cut_points(b, path)
     lines = b.meta["_file_line"]
     for i in idx[1:]:
         if math.isnan(b.feed[i]):
@@ -653,22 +682,9 @@ def read_program_nc(path) -> LinearProgram:
         if math.isnan(fmod[i]):
             fmod[i] = last
         last = fmod[i]
-    idx, lab = [], []
-    cut = b.role == ROLE_CUT
-    i = 0
-    while i < b.count:
-        if not cut[i]:
-            i += 1
-            continue
-        j = i
-        while j < b.count and cut[j] and b.line[j] == b.line[i]:
-            j += 1
-        s = _cut_start(b, i, path, _LINEAR_AXES)
-        run = list(range(s, j)) if s != i else list(range(i, j))
-        idx += run
-        lab += [int(b.line[i])] * len(run)
-        i = j
-    idx = np.asarray(idx, dtype=np.int64)
+    idx = cut_points(b, path)
+    # a line's label: that of its cutting blocks (the plunge's end point takes the next one's)
+    lab = b.line[np.minimum(idx + (b.role[idx] != ROLE_CUT), b.count - 1)]
     for a in _LINEAR_AXES:
         bad = np.flatnonzero(np.isnan(b.axes[a][idx]))
         if bad.size:

@@ -70,14 +70,15 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
-from ._nc import (CHUNK_ROWS, nc_comment_text, program_blocks, read_nc, read_nc_blocks,
-                  read_program_nc, write_nc, write_program_nc)
+from ._nc import (CHUNK_ROWS, cut_points, nc_comment_text, program_axes, program_blocks,
+                  read_nc, read_nc_blocks, read_program_nc, write_nc, write_program_nc)
 from ._registry import formats, register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
            "export_program", "program_formats", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
-           "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS", "read_nc_blocks", "program_blocks"]
+           "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS", "read_nc_blocks", "program_blocks", "cut_points",
+           "program_axes"]
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
 PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")

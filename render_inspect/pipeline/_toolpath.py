@@ -9,9 +9,10 @@ from pathlib import Path
 
 from ..core.errors import InputError
 from ..design import make_surface
-from ..io import atomic_output_dir, export_program, program_blocks, program_formats, read_nc_blocks
+from ..io import (atomic_output_dir, cut_points, export_program, program_axes, program_blocks,
+                  program_formats, read_nc_blocks)
 from ..processes import process_of
-from ..toolpath import verify_blocks
+from ..toolpath import compare_with_plan, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
 __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
@@ -34,7 +35,8 @@ def plan_program(scene, *, surface=None):
 def verify_program_file(path, process, cfg, surface, plan, links) -> dict | None:
     """Read the NC program ``path`` back and check every block of it against the part,
     the design and the machine (:func:`~render_inspect.toolpath.verify_blocks`); returns
-    the check's facts, None for a process that states no part to check against.  A
+    the check's facts, None for a process that states no part to check against.  The
+    cutting points must be the planned program's (``plan``) to the written places.  A
     failure is an :class:`InputError` naming the block number."""
     part = process.program_part(cfg, surface, plan)
     if part is None or links is None:
@@ -42,7 +44,11 @@ def verify_program_file(path, process, cfg, surface, plan, links) -> dict | None
                     "it against)", Path(path).name)
         return None
     blocks = read_nc_blocks(path)
-    return verify_blocks(blocks, part, process.program_limits(cfg), links, what=Path(path).name)
+    what = Path(path).name
+    facts = verify_blocks(blocks, part, process.program_limits(cfg), links, what=what)
+    facts["as_planned"] = compare_with_plan(blocks, cut_points(blocks, path),
+                                            program_axes(plan.program), what=what)
+    return facts
 
 
 def check_links(process, cfg, surface, plan) -> dict | None:

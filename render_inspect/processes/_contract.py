@@ -30,9 +30,10 @@ The optional hooks have defaults: ``precheck``, ``program_region``, ``program_he
 ``program_facts``, ``variants`` (the pair ``compare`` puts side by side), the tiled
 simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory``, and what the written
 program is checked against: ``program_part`` (the part: design heights, outline, stock),
-``program_limits`` (the machine's feeds, velocities and travel) and ``program_links``
+``program_limits`` (the machine's feeds, velocities and travel), ``program_links``
 (the clearance plane and plunge feed of the moves between cuts, from the scene's
-``process.clearance`` and ``process.plunge_feed_mm_per_min``).
+``process.clearance`` and ``process.plunge_feed_mm_per_min``) and ``program_plan`` (the plan
+of a program read back from its file, to simulate it again).
 """
 
 from __future__ import annotations
@@ -301,6 +302,11 @@ class Process(ABC):
         facts = dict(plan.facts)
         facts.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
         return facts
+
+    def program_plan(self, cfg: Inputs, surface, program) -> Plan:
+        """The plan of a program read back from a file (``toolpath.nc``, ...), for
+        :meth:`cut` to simulate it again; default: the program and nothing else."""
+        return Plan(program)
 
     def program_part(self, cfg: Inputs, surface, plan: Plan) -> PartModel | None:
         """The part the written program is checked against (design heights, outline,

@@ -36,7 +36,7 @@ from ..machining import (
     vibration_phases,
 )
 from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
-                        PartModel)
+                        PartModel, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, material_of
 from ._mechanics import BurrConfig, burrs_of
@@ -314,6 +314,21 @@ class SculptProcess(Process):
                 "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
                 "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
 
+    def program_plan(self, cfg, surface, program) -> Plan:
+        """The plan of a sculpturing program read back from its file: its target lines
+        (points grouped by ``line``) as the cut takes them."""
+        _, y_edges = lattice_lines(surface, pitch_y=cfg.design.pitch_y)
+        vc = cfg.process.feed_mm_per_min / MIN_TO_S
+        lines, x_lines = [], []
+        for k in np.unique(program.line):
+            sel = program.line == k
+            lines.append((np.asarray(program.y[sel], np.float64),
+                          np.asarray(program.z[sel], np.float64)))
+            x_lines.append(float(program.x[sel][0]))
+        cut_time = float(sum((ys[-1] - ys[0]) / vc for ys, _ in lines))
+        return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
+                                      "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
+
     def program_part(self, cfg, surface, plan: Plan) -> PartModel:
         """The lenslet array the program is checked against: the design over the cells
         (between the outer target lines' cell edges and the first and last row's edges),
@@ -322,8 +337,10 @@ class SculptProcess(Process):
         x_lines, y_edges = lattice_lines(surface, pitch_y=d.pitch_y)
         box = ("box", float(x_lines[0]) - d.pitch_x / 2, float(y_edges[0]),
                float(x_lines[-1]) + d.pitch_x / 2, float(y_edges[-1]))
+        prog = plan.program
         return PartModel(surface.height, box, stock=float(cfg.process.depth_of_cut),
-                         half_width=_half_width(cfg.tool))
+                         half_width=_half_width(cfg.tool),
+                         max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
 
     def program_limits(self, cfg) -> MachineLimits:
         """The cutting speed as set is the largest feed the program may use."""

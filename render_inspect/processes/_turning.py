@@ -25,6 +25,7 @@ from ..toolpath import (
     PartModel,
     Tool,
     kinematics,
+    longest_step,
     limits_from_process,
     pass_margin,
     plan_feed,
@@ -249,12 +250,15 @@ def turning_header(cfg) -> dict:
             "nose_radius": cfg.tool.nose_radius}
 
 
-def turning_part(cfg, surface) -> PartModel:
+def turning_part(cfg, surface, path=None) -> PartModel:
     """The turned part a program is checked against: the design over the disc of
-    ``process.workpiece_radius``, the depth of cut as stock."""
+    ``process.workpiece_radius``, the depth of cut as stock, the planned ``path``'s
+    longest step."""
     p = cfg.process
+    step = None if path is None else longest_step(path.x, path.y, path.z)
     return PartModel(surface.height, ("disc", 0.0, 0.0, float(p.workpiece_radius)),
-                     stock=float(p.depth_of_cut), half_width=Tool.from_config(cfg.tool).half_width)
+                     stock=float(p.depth_of_cut), half_width=Tool.from_config(cfg.tool).half_width,
+                     max_step=step)
 
 
 def turning_limits(cfg) -> MachineLimits:
@@ -356,7 +360,7 @@ class TurningProcess(Process):
         return turning_header(cfg)
 
     def program_part(self, cfg, surface, plan) -> PartModel:
-        return turning_part(cfg, surface)
+        return turning_part(cfg, surface, plan.program)
 
     def program_limits(self, cfg) -> MachineLimits:
         return turning_limits(cfg)

@@ -16,7 +16,8 @@ part, the design and the machine:
 * plunges and retracts (``G01`` outside the cut) are vertical, run between the
   clearance plane and a point of the cut, and at the plunge feed;
 * cutting blocks end on or above the design surface (within ``cut_tolerance``, the
-  chordal and rounding error), inside the part's outline (plus the tool's half width);
+  chordal and rounding error), inside the part's outline (plus the tool's half width),
+  and are no longer than the planned program's longest step;
 * every feed is positive and within the machine's limits: the programmed feed, each
   axis's velocity, the spindle speed, the axes' travel.
 
@@ -38,7 +39,8 @@ from ..core.toolpath import (ROLE_CUT, ROLE_NAMES, ROLE_PLUNGE, ROLE_RAPID, ROLE
                              Links)
 from ..core.units import MIN_TO_S, MM_TO_NM
 
-__all__ = ["PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks",
+__all__ = ["PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks", "longest_step",
+           "compare_with_plan",
            "MIN_CLEARANCE", "DEFAULT_CLEARANCE", "DEFAULT_PLUNGE_FEED", "CUT_TOLERANCE", "DECIMALS"]
 
 #: the least height of the clearance plane above the part's highest point, mm
@@ -74,12 +76,16 @@ class PartModel:
     half_width : float
         Half the width of the tool's cutting edge, mm (a cut may reach this far beyond
         the outline).
+    max_step : float or None
+        The longest cutting move of the planned program, mm: a longer one is not part of
+        the cut (a move between cuts that does not go through the clearance plane).
     """
 
     height: object
     outline: tuple
     stock: float = 0.0
     half_width: float = 0.0
+    max_step: float | None = None
 
 
 @dataclass(frozen=True)
@@ -121,6 +127,18 @@ def _grid(outline, n: int):
         return x.ravel(), y.ravel()
     raise InputError(f"part outline must be ('disc', cx, cy, r) or ('box', x0, y0, x1, y1), "
                      f"received {outline!r}")
+
+
+def longest_step(x, y, z, line=None) -> float:
+    """The longest straight move between consecutive points of a planned program (within
+    each line when ``line`` is given), mm."""
+    x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
+    if x.size < 2:
+        return 0.0
+    step = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
+    if line is not None:
+        step = step[np.diff(np.asarray(line)) == 0]
+    return float(step.max()) if step.size else 0.0
 
 
 def part_top(part: PartModel, *, program_z=None) -> float:
@@ -253,11 +271,17 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
         _fail(what, blocks, i + 1, f"the block moves before every axis has a position "
                                    f"({', '.join(blocks.axes)})")
     zs = np.r_[z[0], z[:-1]]
+    # every check notes the first block it refuses; the earliest block is reported
+    problems: list[tuple[int, int, str]] = []
+
+    def note(i, text):  # (block, order of the check, message)
+        problems.append((int(i), len(problems), text))
+
     # 2. rapids stay in the clearance plane
     low = rapid & ((z < zc - _ROUND) | (zs < zc - _ROUND))
     i = _first(low)
     if i is not None:
-        _fail(what, blocks, i, f"a rapid from Z {zs[i]:.6f} to Z {z[i]:.6f} mm leaves the "
+        note(i, f"a rapid from Z {zs[i]:.6f} to Z {z[i]:.6f} mm leaves the "
                                f"clearance plane Z {zc:.6f} mm (the part's top is at {top:.6f} mm)")
     # 3. plunges and retracts: vertical, between the plane and the cut
     feedmove = ~rapid & (role != ROLE_CUT)
@@ -267,16 +291,16 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
         moved[1:] |= np.abs(np.diff(v)) > _ROUND / 2
     i = _first(feedmove & moved)
     if i is not None:
-        _fail(what, blocks, i, "a plunge or retract must be vertical (only Z moves): a feed move "
+        note(i, "a plunge or retract must be vertical (only Z moves): a feed move "
                                "outside the cut that also moves sideways could cut through the part")
     hi = np.maximum(z, zs)
     i = _first(feedmove & (hi < zc - _ROUND))
     if i is not None:
-        _fail(what, blocks, i, f"a plunge or retract must reach the clearance plane Z {zc:.6f} mm, "
+        note(i, f"a plunge or retract must reach the clearance plane Z {zc:.6f} mm, "
                                f"its top is at Z {hi[i]:.6f} mm")
     i = _first(((role == ROLE_PLUNGE) & (z > zs)) | ((role == ROLE_RETRACT) & (z < zs)))
     if i is not None:
-        _fail(what, blocks, i, "a plunge must move down and a retract up")
+        note(i, "a plunge must move down and a retract up")
     # the lower ends of plunges and retracts are points of the cut: checked with the cut
     lower = np.zeros(n, dtype=bool)
     lower |= feedmove & (z <= zs)                       # a plunge's end
@@ -285,7 +309,7 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     # 4. cutting blocks: inside the outline, on or above the design
     i = _first(cutpt & ~_inside(part.outline, x, y, part.half_width))
     if i is not None:
-        _fail(what, blocks, i, f"the cut at x {x[i]:.6f}, y {y[i]:.6f} mm lies outside the part "
+        note(i, f"the cut at x {x[i]:.6f}, y {y[i]:.6f} mm lies outside the part "
                                f"({part.outline[0]} {', '.join(f'{v:g}' for v in part.outline[1:])} mm)")
     below_max = 0.0
     if check_cuts:
@@ -298,11 +322,18 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             bad = np.flatnonzero(d > cut_tolerance)
             if bad.size:
                 j = int(sel[bad[0]])
-                _fail(what, blocks, j, f"the tool tip ends {d[bad[0]] * MM_TO_NM:.0f} nm below "
+                note(j, f"the tool tip ends {d[bad[0]] * MM_TO_NM:.0f} nm below "
                                        f"the design surface at x {x[j]:.6f}, y {y[j]:.6f} mm (at "
                                        f"most {cut_tolerance * MM_TO_NM:.0f} nm allowed)")
             if sel.size:
                 below_max = max(below_max, float(np.max(d)))
+    if part.max_step is not None:
+        step = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
+        i = _first((role == ROLE_CUT) & (step > part.max_step + 4 * _ROUND))
+        if i is not None:
+            note(i, f"a cutting move of {step[i]:.6g} mm, longer than the "
+                                   f"program's longest planned step ({part.max_step:.6g} mm): a "
+                                   f"move between cuts must retract to the clearance plane")
     # 5. feeds and limits
     feed_mm_min = _feeds(blocks, x, y, z, what)
     f = blocks.feed
@@ -310,20 +341,23 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     if limits.feed_mm_per_min is not None and blocks.dialect == "linear":
         i = _first(fm & (feed_mm_min > limits.feed_mm_per_min * (1 + 1e-9)))
         if i is not None:
-            _fail(what, blocks, i, f"feed {feed_mm_min[i]:g} mm/min over the {limits.feed_mm_per_min:g} "
+            note(i, f"feed {feed_mm_min[i]:g} mm/min over the {limits.feed_mm_per_min:g} "
                                    f"mm/min {limits.source} allows")
     i = _first(feedmove & (feed_mm_min > links.plunge_feed * (1 + 1e-6) + 1e-9))
     if i is not None:
-        _fail(what, blocks, i, f"plunges and retracts run at the plunge feed "
+        note(i, f"plunges and retracts run at the plunge feed "
                                f"({links.plunge_feed:g} mm/min), this one at {feed_mm_min[i]:g} mm/min")
-    _velocities(blocks, x, y, z, feed_mm_min, limits, what)
     for a, (lo, hi_) in limits.travel.items():
         if a in blocks.axes:
             v = blocks.axes[a]
             i = _first((v < lo - _ROUND) | (v > hi_ + _ROUND))
             if i is not None:
-                _fail(what, blocks, i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
+                note(i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
                                        f"of {limits.source}")
+    _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
+    if problems:
+        i, _, text = min(problems)
+        _fail(what, blocks, i, text)
     rz = np.minimum(z, zs)[rapid & (np.arange(n) > 0)]
     return {"blocks": int(n), "rapids": int(rapid.sum()),
             "plunges": int((role == ROLE_PLUNGE).sum()),
@@ -333,6 +367,30 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             "cut_below_design_max_nm": max(below_max, 0.0) * MM_TO_NM if check_cuts else None,
             "max_feed_mm_per_min": float(np.nanmax(feed_mm_min[fm])) if fm.any() else 0.0,
             "plunge_feed_mm_per_min": float(links.plunge_feed)}
+
+
+def compare_with_plan(blocks: Blocks, points, planned: dict, *, what: str = "toolpath.nc",
+                      tolerance: float = _ROUND) -> dict:
+    """Check that the cutting points of a written program (the blocks ``points``, in
+    order) are the planned program's (``planned``: axis -> array, C in deg), each axis to
+    ``tolerance`` plus the written places' rounding; returns ``{"points", "max_deviation"}``
+    (largest difference of any axis, mm or deg).  A failure names the block."""
+    points = np.asarray(points, dtype=np.int64)
+    n = len(next(iter(planned.values())))
+    if points.size != n:
+        raise InputError(f"{what}: the program has {points.size} cutting points, the plan "
+                         f"{n}: the written program is not the planned one")
+    worst = 0.0
+    for a, v in planned.items():
+        d = np.abs(blocks.axes[a][points] - np.asarray(v, dtype=np.float64))
+        bad = np.flatnonzero(~(d <= tolerance / 2 + tolerance * 1e-3))
+        if bad.size:
+            i = int(points[bad[0]])
+            _fail(what, blocks, i, f"{a} {blocks.axes[a][i]:.6f} differs from the planned "
+                                   f"{float(v[bad[0]]):.6f} (point {int(bad[0])} of the plan): "
+                                   f"the written program is not the planned one")
+        worst = max(worst, float(d.max()) if d.size else 0.0)
+    return {"points": int(n), "max_deviation": worst}
 
 
 def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
@@ -366,7 +424,7 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
     return feed
 
 
-def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str):
+def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str, note):
     n = blocks.count
     fm = np.r_[False, blocks.motion[1:] == 1]
     if blocks.dialect == "turning":
@@ -380,7 +438,7 @@ def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, wha
             rpm[fm] = turns[fm] / dt[fm] * MIN_TO_S
             i = _first(rpm > limits.spindle_rpm * (1 + 1e-6))
             if i is not None:
-                _fail(what, blocks, i, f"the C axis turns at {rpm[i]:.6g} rev/min, over the "
+                note(i, f"the C axis turns at {rpm[i]:.6g} rev/min, over the "
                                        f"{limits.spindle_rpm:g} rev/min of {limits.source}")
         moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
                  for a in ("X", "Z")}
@@ -398,5 +456,5 @@ def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, wha
             v = np.where(fm & (dt > 0), moves[a] / dt, 0.0)
         i = _first(v > vmax * (1 + 1e-6))
         if i is not None:
-            _fail(what, blocks, i, f"the {a} axis moves at {v[i]:.6g} mm/s, over the {vmax:g} mm/s "
+            note(i, f"the {a} axis moves at {v[i]:.6g} mm/s, over the {vmax:g} mm/s "
                                    f"of {limits.source}")
