@@ -4,7 +4,9 @@ Exit codes: 0 done, 1 an error in the input or the run (one line on stderr namin
 parameter, the allowed range and the value received; anything unexpected is reported
 the same way, with a hint how to see the traceback), 2 a usage error (argparse),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  After an error or an interruption
-the output folder is as it was before the run.
+the output folder is as it was before the run.  Long steps run in blocks and stop
+within about a block (a fraction of a second to a second or two) of the signal
+(:mod:`render_inspect.core.cancel`).
 
 Output: progress bars with an ETA on stderr for every step that runs longer than a
 second (rich; plain log lines when stderr is not a terminal), messages through the
@@ -25,6 +27,8 @@ import time
 import traceback
 
 from . import __version__
+from .core import cancel
+from .core.cancel import Terminated
 from .core.errors import RenderInspectError
 from .core.progress import set_reporter
 
@@ -329,6 +333,18 @@ class RichReporter:
             if handle in self._tasks:
                 self._progress.update(handle, description=description)
 
+    def progress(self, handle, completed):
+        """A step estimated by time reports its measured progress: shown from now on by
+        it (the bar and the ETA start again from this point)."""
+        with self._lock:
+            info = self._tasks.get(handle)
+            if info is not None and info["timed"]:
+                info["timed"] = False
+                self._progress.reset(handle, total=info["total"], completed=completed,
+                                     visible=time.monotonic() - info["start"] >= SHOW_AFTER_S)
+            elif info is not None:
+                self._progress.update(handle, completed=completed)
+
     def finish(self, handle):
         with self._lock:
             info = self._tasks.pop(handle, None)
@@ -451,11 +467,15 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
+def _on_interrupt(signum, frame):
+    # Ctrl-C: the main thread stops here, and every long computation running in blocks
+    # (kernels, tiles, worker threads) at its next check (core.cancel)
+    cancel.request(signum)
+    raise KeyboardInterrupt
 
 
 def _on_terminate(signum, frame):
+    cancel.request(signum)
     raise Terminated(signum)
 
 
@@ -503,9 +523,11 @@ def main(argv=None) -> int:
     show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
         not in ("", "0")
     old_signals = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    cancel.clear()
+    for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
+                         (signal.SIGHUP, _on_terminate)):
         try:
-            old_signals[sig] = signal.signal(sig, _on_terminate)
+            old_signals[sig] = signal.signal(sig, handler)
         except (ValueError, OSError):  # not the main thread: leave the handlers alone
             pass
     prefix = f"render-inspect {args.command}"
@@ -522,6 +544,9 @@ def main(argv=None) -> int:
             old = set_reporter(rep)
             try:
                 result = _run(args)
+                # a signal whose exception was swallowed (raised inside a __del__ or a
+                # callback that ignores exceptions) still ends the run as an interruption
+                cancel.check()
             except BaseException as err:
                 if isinstance(err, (SystemExit, GeneratorExit)):
                     raise
@@ -581,6 +606,7 @@ def main(argv=None) -> int:
     finally:
         for sig, handler in old_signals.items():
             signal.signal(sig, handler)
+        cancel.clear()
     dt = time.perf_counter() - t0
     if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
             and not getattr(args, "quiet", False):

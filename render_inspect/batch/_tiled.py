@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import cancel
 from ..core.errors import InputError
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, EnvelopePath, Tile, compute_tile, load_kernels, merge_moments,
@@ -60,6 +61,8 @@ def tile_task(ep: EnvelopePath, surface, origin, pixel: float, tile: Tile, store
               tile_levels: int) -> dict:
     """Compute one tile and write it into ``store``; return its partial statistics."""
     import zarr
+
+    cancel.check()  # (safety) a tile not started when the run is stopped is not started
 
     design, machined = compute_tile(ep, surface, origin, pixel, tile)
     moments = tile_moments(machined, design)

@@ -46,6 +46,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.ndimage import gaussian_filter
 
+from ..core import cancel
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.frames import Frames
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
@@ -391,6 +392,7 @@ def _exposed_frames(h, normals, mic, dist, zact, *, pixel, subsamples, crop, kz_
                                          reference_figure=ref, kz_tolerance=kz_tolerance)
     if diagnostics is not None:
         diagnostics.update(info)
+    cancel.check()  # (safety) between the intensity and the exposure
     frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
     return frames, info, cam
 
