@@ -236,7 +236,7 @@ def _run(args):
     from . import pipeline
 
     # (the scene schema imports pydantic and the registries: same reason)
-    from .scene import instrument_config, load_scene
+    from .scene import instrument_config, load_scene, unit_warnings
 
     ow = bool(getattr(args, "overwrite", False))
     if args.command == "demo":
@@ -267,6 +267,10 @@ def _run(args):
         return pipeline.run_regress(update=args.update, only=args.only, out=args.out,
                                     overrides=args.overrides, overwrite=ow)
     scene = load_scene(args.scene, args.overrides)
+    # values that are probably unit mistakes (a feed per revolution typed per minute, a
+    # pixel that aliases the feed marks): said before the run, which goes on
+    for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):
+        log.warning("warning: %s", text)
     if args.command == "simulate":
         return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                      workers=args.workers, scheduler=args.scheduler,

@@ -39,13 +39,14 @@ from ..render import DiffuseConfig
 from ._metrology import MetrologyConfig
 from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
+from ._units import unit_errors, unit_warnings
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
            "shipped_scenes", "find_scene", "instrument_config", "scene_sections",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
-           "parse_vary", "compare_pair", "variant_scene", "compare_variants"]
+           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
@@ -99,6 +100,8 @@ class _SceneBase(Section):
         check = getattr(self.process, "check_with", None)
         if check is not None:
             check(self)  # the process kind's checks against the design and the tool
+        for mistake in unit_errors(self):  # a region typed in micrometres, ...
+            raise ValueError(mistake)
         return self
 
     def to_dict(self) -> dict:
