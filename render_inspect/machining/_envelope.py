@@ -66,7 +66,7 @@ BLOCK = 64
 GPU_MIN_SAMPLES = 1 << 22
 #: samples of one band of rows of the CPU kernel (a fraction of a second): the progress
 #: is reported, and a stop asked by a signal honoured, between bands
-BAND_SAMPLES = 1 << 20
+BAND_SAMPLES = 1 << 20  # not a unit conversion
 #: relative tolerance within which a path's angles count as a uniform grid
 _UNIFORM_RTOL = 1e-9  # not a unit conversion
 

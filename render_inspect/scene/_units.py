@@ -21,10 +21,12 @@ SMALLEST_FEED_PER_REV_MM = 0.5 * UM_TO_MM
 MARK_PIXELS_ALIAS = 2.0
 #: pixels per period that resolve the marks' shape (the compare report's figure)
 MARK_PIXELS_RESOLVE = 4.0
-#: a region this many times the part's size (and a part-sized region when read as um)
-_REGION_FACTOR = 20.0
+#: a region this many times the part's size, at least :data:`_REGION_MM` across, that lies
+#: on the part when read as micrometres, was typed in micrometres
+_REGION_FACTOR = 5.0
+_REGION_MM = 50.0
 #: the largest part considered when the process does not state one, mm
-_LARGEST_PART_MM = 1000.0
+_LARGEST_PART_MM = 1000.0  # not a unit conversion
 
 
 def _fmt(v: float) -> str:
@@ -52,9 +54,9 @@ def _overlaps(a, b) -> bool:
 
 def unit_errors(scene) -> list[str]:
     """Unit mistakes that cannot be meant, as messages naming the key: a
-    ``simulation.region`` whose sides are more than :data:`_REGION_FACTOR` times the part
-    (or than a metre when the part's size is not known) while, read as micrometres, it
-    lies on the part."""
+    ``simulation.region`` more than :data:`_REGION_FACTOR` times the part and
+    :data:`_REGION_MM` mm across (or than a metre when the part's size is not known) that,
+    read as micrometres, lies on the part."""
     out = []
     region = tuple(float(v) for v in scene.simulation.region)
     side = max(region[2] - region[0], region[3] - region[1])
@@ -62,7 +64,7 @@ def unit_errors(scene) -> list[str]:
     as_mm = tuple(v * UM_TO_MM for v in region)
     if part is not None:
         size = max(part[2] - part[0], part[3] - part[1])
-        too_big = side > _REGION_FACTOR * size and _overlaps(as_mm, part)
+        too_big = side > max(_REGION_FACTOR * size, _REGION_MM) and _overlaps(as_mm, part)
         what = f"{side / size:.0f} times the part ({_fmt(size)} mm across)"
     else:
         too_big = side > _LARGEST_PART_MM

@@ -383,7 +383,7 @@ def compare_with_plan(blocks: Blocks, points, planned: dict, *, what: str = "too
     worst = 0.0
     for a, v in planned.items():
         d = np.abs(blocks.axes[a][points] - np.asarray(v, dtype=np.float64))
-        bad = np.flatnonzero(~(d <= tolerance / 2 + tolerance * 1e-3))
+        bad = np.flatnonzero(~(d <= 0.501 * tolerance))  # half a place, and float error
         if bad.size:
             i = int(points[bad[0]])
             _fail(what, blocks, i, f"{a} {blocks.axes[a][i]:.6f} differs from the planned "
