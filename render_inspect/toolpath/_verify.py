@@ -305,7 +305,7 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     lower = np.zeros(n, dtype=bool)
     lower |= feedmove & (z <= zs)                       # a plunge's end
     lower[:-1] |= feedmove[1:] & (z[1:] >= zs[1:])      # the point a retract leaves
-    cutpt = (role == ROLE_CUT) | lower
+    cutpt = ((role == ROLE_CUT) | lower) & np.isfinite(x) & np.isfinite(y)
     # 4. cutting blocks: inside the outline, on or above the design
     i = _first(cutpt & ~_inside(part.outline, x, y, part.half_width))
     if i is not None:
@@ -316,8 +316,12 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
         idx = np.flatnonzero(cutpt)
         for a in range(0, idx.size, _CHUNK):
             sel = idx[a:a + _CHUNK]
-            with np.errstate(invalid="ignore"):
-                d = np.asarray(part.height(x[sel], y[sel]), dtype=np.float64) - z[sel]
+            try:
+                with np.errstate(invalid="ignore"):
+                    d = np.asarray(part.height(x[sel], y[sel]), dtype=np.float64) - z[sel]
+            except InputError as err:  # the design is not defined where the program cuts
+                note(int(sel[0]), f"the design cannot be evaluated where the program cuts ({err})")
+                break
             d = np.where(np.isfinite(d), d, -np.inf)
             bad = np.flatnonzero(d > cut_tolerance)
             if bad.size:
