@@ -145,3 +145,57 @@ def test_the_command_line_prints_the_warning_and_runs(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 0, err
     assert "warning: process.feed_mm_per_min = 0.01" in err and "0.5" in err
+
+
+# ------------------------------------------------------------------------- measured data
+def test_force_compares_a_map_in_another_height_unit(tmp_path):
+    """A measured map whose heights span 1000 x the design's (micrometres read as mm) is
+    refused naming the likely unit and --force; with force it is compared, warned."""
+    import warnings
+
+    from render_inspect.design import make_surface
+    from render_inspect.metrology import compare_measured
+    from render_inspect.pipeline import check_measured
+
+    scene = load_scene("sts_sinusoidal_grid")
+    surface = make_surface(scene.design)
+    px = 0.004
+    x = -0.2 + px * np.arange(100)
+    z = np.asarray(surface.height(x[None, :], x[:, None]), float) * 1000.0  # um read as mm
+    np.save(tmp_path / "um.npy", z)
+    (tmp_path / "um.json").write_text(f'{{"pixel_mm": {px}, "origin_mm": [-0.2, -0.2]}}')
+    with pytest.raises(Exception) as err:
+        check_measured(tmp_path / "um.npy", scene, surface)
+    msg = str(err.value)
+    assert "micrometres or nanometres read as millimetres" in msg and "--force" in msg
+    m, comp = check_measured(tmp_path / "um.npy", scene, surface, force=True)
+    assert comp.metrics["measured"] is not None
+    with warnings.catch_warnings(record=True) as caught:  # said in the comparison's warnings
+        warnings.simplefilter("always")
+        compare_measured(m, surface, region=tuple(scene.simulation.region), force=True)
+    assert any("compared anyway (--force)" in str(w.message) for w in caught)
+
+
+def test_compare_measured_takes_a_zarr_store(tmp_path, capsys):
+    """``--measured heightmap.zarr`` (a folder) is a height map, not "file not found"."""
+    from render_inspect.design import make_surface
+    from render_inspect.pipeline import check_measured, run_simulate
+
+    scene = load_scene("sts_sinusoidal_grid", ["material.preset='ideal'",
+                                               "simulation.region=[-0.1,-0.1,0.1,0.1]",
+                                               "simulation.pixel=0.002",
+                                               "process.workpiece_radius=0.2"])
+    run_simulate(scene, tmp_path / "sim", tiled=True, tile=64)
+    store = tmp_path / "sim" / "heightmap.zarr"
+    assert store.is_dir()
+    m, comp = check_measured(store, scene, make_surface(scene.design), force=True)
+    assert m.z.shape == (101, 101) and np.isfinite(m.z).mean() > 0.9
+    rc = main(["compare", "sts_sinusoidal_grid", "--measured", str(store), "--vary",
+               "process.nope=1,2", "--out", str(tmp_path / "cmp"), "-q"])
+    err = capsys.readouterr().err
+    assert rc == 1 and "process.nope" in err and "not found" not in err, err
+    # and the folder that holds it is not replaced
+    rc = main(["compare", "sts_sinusoidal_grid", "--measured", str(store), "--out",
+               str(tmp_path / "sim"), "--overwrite", "-q"])
+    err = capsys.readouterr().err
+    assert rc == 1 and "holds the input" in err, err
