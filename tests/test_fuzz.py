@@ -62,7 +62,7 @@ CASES = {k: v * SCALE for k, v in {"schema": 600, "set": 500, "scene_file": 150,
                                    "memory": 30, "render": 200}.items()}
 CASES["cli"] = 6
 CASES.update({"hostile_out": 80 * SCALE, "hostile_files": 120 * SCALE, "filters": 150 * SCALE,
-              "analyze_cli": 12 * SCALE, "signals": 4 * SCALE, "address_space": 2,
+              "analyze_cli": 12 * SCALE, "signals": 4 * SCALE, "address_space": 3,
               "blender": 20 * SCALE, "programs": 14 * SCALE})
 
 HOSTILE = [math.nan, math.inf, -math.inf, 1e300, -1e300, 1e-300, -1e-300, 5e-324, 0, 0.0,
@@ -828,7 +828,9 @@ def test_fuzz_commands_under_an_address_space_limit(tmp_path):
     del big
     runs = [["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
              "--set", "simulation.pixel=0.0004"],
-            ["analyze", str(tmp_path / "big.npy")]]
+            ["analyze", str(tmp_path / "big.npy")],
+            ["render", "sts_sinusoidal_grid", "--kind", "diffuse", "--set",
+             "simulation.region=[-0.1,-0.1,0.1,0.1]"]]
     for i, args in enumerate(runs[:CASES["address_space"]]):
         out = tmp_path / f"o{i}"
 

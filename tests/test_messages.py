@@ -199,3 +199,35 @@ def test_compare_measured_takes_a_zarr_store(tmp_path, capsys):
                str(tmp_path / "sim"), "--overwrite", "-q"])
     err = capsys.readouterr().err
     assert rc == 1 and "holds the input" in err, err
+
+
+def test_measure_refuses_frames_without_a_finite_pixel(tmp_path, capsys):
+    """All-NaN frames: refused in one line (they gave an empty map and exit 0)."""
+    from render_inspect.instruments import Camera, Microscope, artefacts, objective, psi_frames
+    from render_inspect.io import write_frames_exr
+
+    h, nrm = artefacts.sinusoid((32, 32), 5e-4, period=0.008, amplitude=2e-5)
+    fr = psi_frames(h + 2e-3, nrm, pixel=5e-4, microscope=Microscope(objective=objective("20x"),
+                                                                      camera=Camera(noise=False)))
+    fr.frames = np.full_like(fr.frames, np.nan)
+    write_frames_exr(tmp_path / "nan.exr", fr)
+    rc = main(["measure", str(tmp_path / "nan.exr"), "--out", str(tmp_path / "m"), "-q"])
+    err = capsys.readouterr().err
+    assert rc == 1 and "no pixel with a finite intensity" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "m").exists()
+
+
+def test_the_mesh_refusal_names_the_address_space_limit(monkeypatch):
+    """Under ``ulimit -v`` the budget can be 0 MiB: the refusal says where it comes from
+    and to raise the limit, not only to raise the stride."""
+    from render_inspect.core.errors import MemoryBudgetError
+    from render_inspect.mesh import _grid
+
+    monkeypatch.setattr(_grid, "address_space_room", lambda: 0)
+    monkeypatch.setattr(_grid, "address_space_limit", lambda: 1536 * 2 ** 20)
+    with pytest.raises(MemoryBudgetError, match=r"capped by the address-space limit \(ulimit -v\) "
+                                                r"of 1536 MiB.*raise the limit"):
+        _grid.grid_mesh(np.zeros((64, 64)), pixel=0.001, memory_budget=0)
+    monkeypatch.setattr(_grid, "address_space_room", lambda: None)
+    with pytest.raises(MemoryBudgetError, match=r"from simulation\.max_memory_gb.*raise stride"):
+        _grid.grid_mesh(np.zeros((64, 64)), pixel=0.001, memory_budget=1000)
