@@ -77,19 +77,6 @@ def _program_formats() -> list:
     return program_formats()
 
 
-def _tile_pixels(text: str) -> int:
-    """``--tile``: a multiple of 64 in [64, 16384] (a larger tile makes zarr chunks over
-    the 1 GiB the reader accepts)."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number of pixels, received {text!r}") from None
-    if not (64 <= v <= 16384 and v % 64 == 0):
-        raise argparse.ArgumentTypeError(f"must be a multiple of 64 in [64, 16384] (a larger tile "
-                                         f"makes zarr chunks over 1 GiB), received {v}")
-    return v
-
-
 def _add_verbosity(p: argparse.ArgumentParser, *, top: bool = False):
     default = 0 if top else argparse.SUPPRESS
     g = p.add_mutually_exclusive_group()
@@ -134,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
-    p.add_argument("--tile", type=_tile_pixels, default=1024, metavar="PIXELS",
+    p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
                    help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "

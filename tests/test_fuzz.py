@@ -856,7 +856,8 @@ def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
     sweep.write_text('name = "s"\nscene = "sts_sinusoidal_grid"\n[grid]\n"process.spindle_rpm" = [10, 20]\n'
                      '[run]\nrender = "bogus"\n')
     return [
-        (["simulate", "sts_sinusoidal_grid", "--tile", "20000"], "--tile", 2),
+        (["simulate", "sts_sinusoidal_grid", "--tiled", "--tile", "20000", "--set",
+          "material.preset='ideal'"], "--tile", 1),
         (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-500,-500,500,500]"],
          "simulation.region", 1),
         (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[0,0,1]"],

@@ -26,6 +26,7 @@ from ..processes import check_budget, process_of
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
+from ._toolpath import check_links
 
 __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles"]
 
@@ -158,6 +159,10 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         plan = process.plan(cfg, surface, region=tuple(sim.region))
         timing.update(plan.timing)
         timing["toolpath"] = time.perf_counter() - t0
+        # (safety) the moves between the cuts never touch the part (metrics toolpath.links)
+        links = check_links(process, cfg, surface, plan)
+        if links is not None:
+            plan.facts.setdefault("toolpath", {})["links"] = links
         env = process.envelope(cfg, surface, plan)
         path = env.path
         if path.points < 2:
