@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import signal
 import sys
@@ -364,8 +365,18 @@ class RichReporter:
                     if el >= SHOW_AFTER_S:
                         upd = {"visible": True}
                         if info["timed"] and info["total"]:
-                            upd["completed"] = min(el, 0.99 * info["total"])
+                            upd["completed"] = timed_fill(el, info["total"])
                         self._progress.update(tid, **upd)
+
+
+def timed_fill(elapsed: float, expected: float) -> float:
+    """How far to fill the bar of a step known only by its expected duration: the elapsed
+    time up to 80 % of the expectation, then ever more slowly towards (never reaching) the
+    end, so that a step that takes longer than expected keeps moving instead of sitting
+    at 99 %.  A step that reports its real progress leaves this estimate."""
+    x = elapsed / expected
+    frac = x if x < 0.8 else 1.0 - 0.2 * math.exp(-(x - 0.8) / 0.2)
+    return frac * expected
 
 
 class LogReporter:

@@ -160,3 +160,11 @@ def test_cli_stops_at_the_next_block_when_asked(tmp_path, capsys):
     assert "terminated" in err and time.monotonic() - t0 < 60
     assert sorted(p.name for p in out.iterdir()) == [".render_inspect.json", "earlier.txt"]
     assert cancel.requested() is None  # cleared for the next run
+
+
+def test_a_step_known_by_its_expected_time_keeps_moving():
+    """Without measured progress the bar follows the clock to 80 % of the expected time,
+    then slows without stopping or reaching the end (no bar sitting at 99 %)."""
+    f = [cli.timed_fill(e, 10.0) for e in np.linspace(0, 60, 601)]
+    assert f[40] == pytest.approx(4.0) and all(b > a for a, b in zip(f, f[1:]) if b < 9.999)
+    assert max(f) < 10.0 and f[150] > 9.9
