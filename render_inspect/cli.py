@@ -4,7 +4,9 @@ Exit codes: 0 done, 1 an error in the input or the run (one line on stderr namin
 parameter, the allowed range and the value received; anything unexpected is reported
 the same way, with a hint how to see the traceback), 2 a usage error (argparse),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  After an error or an interruption
-the output folder is as it was before the run.
+the output folder is as it was before the run.  Long steps run in blocks and stop
+within about a block (a fraction of a second to a second or two) of the signal
+(:mod:`render_inspect.core.cancel`).
 
 Output: progress bars with an ETA on stderr for every step that runs longer than a
 second (rich; plain log lines when stderr is not a terminal), messages through the
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import signal
 import sys
@@ -26,6 +29,8 @@ import traceback
 from pathlib import Path
 
 from . import __version__
+from .core import cancel
+from .core.cancel import Terminated
 from .core.errors import RenderInspectError
 from .core.progress import set_reporter
 
@@ -119,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
     p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
-                   help="tile side in pixels, a multiple of 64 (default 1024)")
+                   help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "
                                         "any registered format)")
@@ -233,7 +238,7 @@ def _run(args):
     from . import pipeline
 
     # (the scene schema imports pydantic and the registries: same reason)
-    from .scene import instrument_config, load_scene
+    from .scene import instrument_config, load_scene, unit_warnings
 
     ow = bool(getattr(args, "overwrite", False))
     if args.command == "demo":
@@ -262,6 +267,10 @@ def _run(args):
         return pipeline.run_regress(update=args.update, only=args.only, out=args.out,
                                     overrides=args.overrides, overwrite=ow)
     scene = load_scene(args.scene, args.overrides)
+    # values that are probably unit mistakes (a feed per revolution typed per minute, a
+    # pixel that aliases the feed marks): said before the run, which goes on
+    for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):
+        log.warning("warning: %s", text)
     if args.command == "simulate":
         return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                      workers=args.workers, scheduler=args.scheduler,
@@ -328,6 +337,18 @@ class RichReporter:
             if handle in self._tasks:
                 self._progress.update(handle, description=description)
 
+    def progress(self, handle, completed):
+        """A step estimated by time reports its measured progress: shown from now on by
+        it (the bar and the ETA start again from this point)."""
+        with self._lock:
+            info = self._tasks.get(handle)
+            if info is not None and info["timed"]:
+                info["timed"] = False
+                self._progress.reset(handle, total=info["total"], completed=completed,
+                                     visible=time.monotonic() - info["start"] >= SHOW_AFTER_S)
+            elif info is not None:
+                self._progress.update(handle, completed=completed)
+
     def finish(self, handle):
         with self._lock:
             info = self._tasks.pop(handle, None)
@@ -343,8 +364,18 @@ class RichReporter:
                     if el >= SHOW_AFTER_S:
                         upd = {"visible": True}
                         if info["timed"] and info["total"]:
-                            upd["completed"] = min(el, 0.99 * info["total"])
+                            upd["completed"] = timed_fill(el, info["total"])
                         self._progress.update(tid, **upd)
+
+
+def timed_fill(elapsed: float, expected: float) -> float:
+    """How far to fill the bar of a step known only by its expected duration: the elapsed
+    time up to 80 % of the expectation, then ever more slowly towards (never reaching) the
+    end, so that a step that takes longer than expected keeps moving instead of sitting
+    at 99 %.  A step that reports its real progress leaves this estimate."""
+    x = elapsed / expected
+    frac = x if x < 0.8 else 1.0 - 0.2 * math.exp(-(x - 0.8) / 0.2)
+    return frac * expected
 
 
 class LogReporter:
@@ -472,11 +503,15 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
     con.print(f"output: {str(Path(out).resolve())}", soft_wrap=True, markup=False)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
+def _on_interrupt(signum, frame):
+    # Ctrl-C: the main thread stops here, and every long computation running in blocks
+    # (kernels, tiles, worker threads) at its next check (core.cancel)
+    cancel.request(signum)
+    raise KeyboardInterrupt
 
 
 def _on_terminate(signum, frame):
+    cancel.request(signum)
     raise Terminated(signum)
 
 
@@ -524,9 +559,11 @@ def main(argv=None) -> int:
     show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
         not in ("", "0")
     old_signals = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    cancel.clear()
+    for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
+                         (signal.SIGHUP, _on_terminate)):
         try:
-            old_signals[sig] = signal.signal(sig, _on_terminate)
+            old_signals[sig] = signal.signal(sig, handler)
         except (ValueError, OSError):  # not the main thread: leave the handlers alone
             pass
     prefix = f"render-inspect {args.command}"
@@ -537,11 +574,15 @@ def main(argv=None) -> int:
         rich_handler = _RichLogHandler(reporter._progress.console)
         rich_handler.setFormatter(logging.Formatter("%(message)s"))
         log.handlers = [rich_handler]
+    t_start = time.monotonic()
     try:
         with reporter as rep:
             old = set_reporter(rep)
             try:
                 result = _run(args)
+                # a signal whose exception was swallowed (raised inside a __del__ or a
+                # callback that ignores exceptions) still ends the run as an interruption
+                cancel.check()
             except BaseException as err:
                 if isinstance(err, (SystemExit, GeneratorExit)):
                     raise
@@ -559,7 +600,15 @@ def main(argv=None) -> int:
         return 1
     except KeyboardInterrupt as stop:
         what = "terminated" if isinstance(stop, Terminated) else "interrupted"
+        # the folder an interruption arriving after the swap leaves complete (the
+        # exception's attribute, or a folder swapped in since this run started; nothing
+        # was written when the pipeline was never imported)
         done = getattr(stop, "render_inspect_output_complete", None)
+        if done is None and f"{__package__}.pipeline" in sys.modules:
+            # (the pipeline is imported lazily, see _run; here only when it was)
+            from .pipeline import completed_outputs
+
+            done = next(iter(completed_outputs(since=t_start)), None)
         if args.command == "sweep":
             state = (f"the finished points are kept in {args.out}/results.jsonl: run the same "
                      f"command again to go on")
@@ -593,6 +642,7 @@ def main(argv=None) -> int:
     finally:
         for sig, handler in old_signals.items():
             signal.signal(sig, handler)
+        cancel.clear()
     dt = time.perf_counter() - t0
     if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
             and not getattr(args, "quiet", False):

@@ -3,8 +3,9 @@
 Each class of input (scene values, ``--set`` text, scene files, expressions, height-map
 and measured files, output folders, machine-program text, memory-driving parameters,
 renderer sizes, the command line end to end; hostile output folders and measured files,
-filter texts, signals at each phase of writing a folder, address-space limits) is mutated
-from a fixed seed.  Every case
+filter texts, signals at each phase of writing a folder, address-space limits; bad input
+to every command; the Blender operators' tasks; the written NC program of every shipped
+scene and unsafe changes of it) is mutated from a fixed seed.  Every case
 must either be accepted or be refused with a :class:`RenderInspectError` whose message
 names the key; nothing else may escape (a traceback is a failure), refused runs write
 nothing and accepted ones write everything.  The number of cases per class is in
@@ -61,7 +62,8 @@ CASES = {k: v * SCALE for k, v in {"schema": 600, "set": 500, "scene_file": 150,
                                    "memory": 30, "render": 200}.items()}
 CASES["cli"] = 6
 CASES.update({"hostile_out": 80 * SCALE, "hostile_files": 120 * SCALE, "filters": 150 * SCALE,
-              "analyze_cli": 12 * SCALE, "signals": 4 * SCALE, "address_space": 2})
+              "analyze_cli": 12 * SCALE, "signals": 4 * SCALE, "address_space": 3,
+              "blender": 20 * SCALE, "programs": 14 * SCALE})
 
 HOSTILE = [math.nan, math.inf, -math.inf, 1e300, -1e300, 1e-300, -1e-300, 5e-324, 0, 0.0,
            -0.0, -1, 1, 2 ** 64, -(2 ** 63), 10 ** 400, True, False, "100", "", "nan", "1e3",
@@ -826,7 +828,9 @@ def test_fuzz_commands_under_an_address_space_limit(tmp_path):
     del big
     runs = [["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
              "--set", "simulation.pixel=0.0004"],
-            ["analyze", str(tmp_path / "big.npy")]]
+            ["analyze", str(tmp_path / "big.npy")],
+            ["render", "sts_sinusoidal_grid", "--kind", "diffuse", "--set",
+             "simulation.region=[-0.1,-0.1,0.1,0.1]"]]
     for i, args in enumerate(runs[:CASES["address_space"]]):
         out = tmp_path / f"o{i}"
 
@@ -1013,3 +1017,208 @@ def test_fuzz_scheduler_addresses(tmp_path):
             with dask_client(scheduler=addr):
                 pass
         assert _time.monotonic() - t0 < 20, addr
+
+
+# ------------------------------------------------------------------ P: every command, bad input
+def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
+    """(arguments, what the one line must name, exit code) for every command."""
+    (tmp / "bin.toml").write_bytes(b"\x00\xff" * 50)
+    (tmp / "empty.npy").write_bytes(b"")
+    (tmp / "a_file").write_text("x")
+    sweep = tmp / "bad_sweep.toml"
+    sweep.write_text('name = "s"\nscene = "sts_sinusoidal_grid"\n[grid]\n"process.spindle_rpm" = [10, 20]\n'
+                     '[run]\nrender = "bogus"\n')
+    return [
+        (["simulate", "sts_sinusoidal_grid", "--tiled", "--tile", "20000", "--set",
+          "material.preset='ideal'"], "--tile", 1),
+        (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-500,-500,500,500]"],
+         "simulation.region", 1),
+        (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[0,0,1]"],
+         "simulation.region", 1),
+        (["toolpath", "sts_sinusoidal_grid", "--set", "process.clearance=0.001"],
+         "process.clearance", 1),
+        (["toolpath", "sculpt_quad_mla", "--format", "bogus"], "--format", 2),
+        (["render", "sts_sinusoidal_grid", "--set", "render.interferometer.numerical_aperture=3"],
+         "numerical_aperture", 1),
+        (["compare", "sts_sinusoidal_grid", "--measured", tmp / "missing.zarr"], "--measured", 1),
+        (["compare", "sts_sinusoidal_grid", "--vary", "process.nope=1,2"], "process.nope", 1),
+        (["analyze", tmp / "empty.npy"], "empty.npy", 1),
+        (["analyze", tmp / "a_file", "--filter", "a,b"], "--filter", 1),
+        (["measure", tmp / "nope.exr"], "nope.exr", 1),
+        (["measure", tmp / "a_file", "--min-modulation", "5"], "a_file", 1),
+        (["characterise", "--objective", "7x"], "7x", 1),
+        (["characterise", "--set", "numerical_aperture=3"], "numerical_aperture", 1),
+        (["sweep", tmp / "bin.toml"], "bin.toml", 1),
+        (["sweep", sweep], "run.render", 1),
+        (["regress", "--only", "no_such_case"], "no_such_case", 1),
+        (["regress", "--update", "--set", "process.spindle_rpm=10"], "--set", 1),
+        (["demo"], "--out", 1),
+    ]
+
+
+def test_fuzz_every_command_refuses_bad_input_in_one_line(tmp_path):
+    """Bad input to every command, in a fresh process: one line naming the input, exit 1
+    (2 for a usage error), no traceback, no output folder and no temporary left."""
+    cases = _every_command_cases(tmp_path)
+    assert {c[0][0] for c in cases} == {"simulate", "toolpath", "render", "compare", "analyze",
+                                        "measure", "characterise", "sweep", "regress", "demo"}
+    for i, (args, key, code) in enumerate(cases):
+        out = tmp_path / f"out{i}"
+        extra = ["--out", str(tmp_path / "a_file" / "out")] if args[0] == "demo" else \
+            ["--out", str(out)]
+        r = subprocess.run([sys.executable, "-m", "render_inspect.cli", *map(str, args), *extra, "-q"],
+                           capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        assert r.returncode == code, (args, r.returncode, r.stderr[-500:])
+        assert "Traceback" not in r.stderr and key in r.stderr, (args, r.stderr[-500:])
+        if code == 1:
+            assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert not out.exists()
+        assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or
+                    p.name.endswith(".lock")], args
+
+
+# ------------------------------------------------------------------ Q: the Blender operators' tasks
+def test_fuzz_blender_tasks_refuse_bad_parameters_cleanly(tmp_path):
+    """The add-on's operators run the tasks of ``blender_addon/_tasks.py`` (in a worker or
+    in Blender): bad parameters of every task end as the errors the worker reports in one
+    line (RenderInspectError or OSError), never another exception, and write nothing."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "render_inspect_addon_tasks", Path(__file__).resolve().parents[1] / "blender_addon" / "_tasks.py")
+    tasks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tasks)
+    (tmp_path / "a_file").write_text("x")
+    render = {"heightmap": str(tmp_path / "none.exr"), "variant": "v", "surface": "machined",
+              "exaggeration": 1.0, "view": "micro", "resolution": 64, "samples": 4, "seed": 0,
+              "out": str(tmp_path / "o")}
+    rng = _rng("blender")
+    cases = [
+        ("simulate", {"scene_path": str(tmp_path / "none.toml"), "out": str(tmp_path / "o")}),
+        ("simulate", {"scene_path": "sts_sinusoidal_grid", "overrides": ["process.spindle_rpm=-1"],
+                      "out": str(tmp_path / "o")}),
+        ("simulate", {"scene_path": "sts_sinusoidal_grid", "overrides": [5], "out": str(tmp_path / "o")}),
+        ("simulate", {"scene_path": "sts_sinusoidal_grid", "out": str(tmp_path / "a_file" / "o")}),
+        ("simulate", {"scene_path": "sts_sinusoidal_grid", "surface": "bogus", "out": str(tmp_path / "o")}),
+        ("simulate", {"scene_path": "sts_sinusoidal_grid", "exaggeration": -5, "out": str(tmp_path / "o")}),
+        ("render", render),
+        ("render", {**render, "heightmap": str(tmp_path / "a_file")}),
+        ("compare", {"scene_path": "sts_sinusoidal_grid", "overrides": ["bad key=1"],
+                     "out": str(tmp_path / "o")}),
+        ("compare", {"scene_path": str(tmp_path / "a_file"), "out": str(tmp_path / "o")}),
+        ("export", {"heightmap": str(tmp_path / "none.exr"), "variant": "v", "surface": "machined",
+                    "exaggeration": 1.0, "formats": ["bogus"], "out": str(tmp_path / "o")}),
+        ("export", {"heightmap": str(tmp_path / "none.exr"), "variant": "v", "surface": "machined",
+                    "exaggeration": 1.0, "formats": [{"a": 1}], "out": str(tmp_path / "o")}),
+    ]
+    for _ in range(CASES["blender"]):  # hostile values in the render task's parameters
+        key = _pick(rng, [k for k in render if k not in ("heightmap", "out")])
+        cases.append(("render", {**render, key: copy.deepcopy(_pick(rng, HOSTILE))}))
+    for task, params in cases:
+        with pytest.raises((RenderInspectError, OSError)):
+            tasks.run(task, params)
+        assert not (tmp_path / "o").exists(), (task, params)
+
+
+# ------------------------------------------------------------------ R: written programs
+def _shipped_program_scenes():
+    """Every shipped scene with its program kept small: the turning programs sampled at
+    360 points per revolution (the same part, links and limits)."""
+    out = {}
+    for name in shipped_scenes():
+        scene = load_scene(name)
+        sets = ["process.points_per_rev=360"] if hasattr(scene.process, "points_per_rev") else []
+        if scene.process.kind == "sculpt":
+            sets = ["process.arc_length=0.01"]
+        out[name] = load_scene(name, sets)
+    return out
+
+
+_UNSAFE = ["rapid_low", "plunge_sideways", "cut_below", "feed_high", "no_retract", "no_link",
+           "plunge_fast"]
+
+
+def _mutate_program(lines: list[str], kind: str, rng) -> list[str] | None:
+    """One unsafe change of a written program (None when the program has no block for it)."""
+    blocks = [i for i, ln in enumerate(lines) if ln.startswith("N")]
+    sec, where = None, {}
+    for i, ln in enumerate(lines):
+        if ln.startswith("; ") and ln[2:].split(" ")[0] in ("approach", "cut", "link", "exit", "line"):
+            sec = ln[2:].split(" ")[0]
+        elif ln.startswith("N"):
+            where[i] = sec
+    rapids = [i for i in blocks[1:] if " G00 " in lines[i] and "X" in lines[i]]
+    feeds = [i for i in blocks if " G01 " in lines[i] and where[i] in ("approach", "link", "exit")]
+    cuts = [i for i in blocks if where[i] in ("cut", "line") and " F" in lines[i]]
+    out = list(lines)
+
+    def sub(i, word, fn):
+        out[i] = re.sub(rf"{word}(-?[0-9.e+]+)", lambda m: f"{word}{fn(float(m.group(1))):.6f}",
+                        out[i], count=1)
+
+    if kind == "rapid_low" and rapids:
+        sub(int(_pick(rng, rapids)), "Z", lambda z: 0.0)
+    elif kind == "plunge_sideways" and feeds:
+        sub(int(_pick(rng, feeds)), "X", lambda x: x + 0.05)
+    elif kind == "cut_below" and len(cuts) > 2:
+        sub(int(_pick(rng, cuts[1:-1])), "Z", lambda z: z - 0.01)
+    elif kind == "feed_high" and cuts:
+        i = int(_pick(rng, cuts))
+        out[i] = re.sub(r"F([0-9.e+]+)", lambda m: f"F{float(m.group(1)) * 1e4:.10g}", out[i])
+    elif kind == "no_retract" and feeds:
+        retracts = [i for i in feeds if i + 1 < len(out) and " G00 " in out[i + 1]]
+        if not retracts:
+            return None
+        del out[int(_pick(rng, retracts))]
+    elif kind == "no_link" and "; link" in out:
+        k = out.index("; link")
+        del out[k:k + 4]
+    elif kind == "plunge_fast" and feeds:
+        i = int(_pick(rng, feeds))
+        out[i] = re.sub(r"F([0-9.e+]+)", lambda m: f"F{float(m.group(1)) * 100:.10g}", out[i])
+    else:
+        return None
+    return out
+
+
+def test_fuzz_written_programs_are_verified_and_unsafe_ones_refused(tmp_path):
+    """The NC program of every shipped scene is written, read back and verified (the
+    toolpath command refuses to write one that fails); seeded unsafe changes of those
+    programs (a rapid through the part, a sideways plunge, a cut below the design, a feed
+    over the limit, a missing retract or link, a plunge far faster than the plunge feed)
+    are all refused
+    naming a block: zero unsafe programs accepted, zero tracebacks."""
+    from render_inspect.io import read_nc_blocks
+    from render_inspect.pipeline import run_toolpath
+    from render_inspect.toolpath import verify_blocks
+
+    rng = _rng("programs")
+    accepted_unsafe, refused = [], 0
+    for name, scene in _shipped_program_scenes().items():
+        folder = tmp_path / name
+        run_toolpath(scene, folder, fmt="nc")
+        facts = json.loads((folder / "toolpath.json").read_text())["program_check"]
+        assert facts["clearance_above_part_mm"] >= 0.1 - 2e-6 and facts["as_planned"]["points"] > 0
+        process = process_of(scene)
+        cfg = process.inputs_of(scene)
+        surface = make_surface(scene.design)
+        plan = plan_program(scene, surface=surface)
+        part, limits = process.program_part(cfg, surface, plan), process.program_limits(cfg)
+        links = process.program_links(cfg, surface, plan)
+        lines = (folder / "toolpath.nc").read_text().splitlines()
+        for k in range(CASES["programs"]):
+            kind = _UNSAFE[k % len(_UNSAFE)]
+            bad = _mutate_program(lines, kind, rng)
+            if bad is None:
+                continue
+            f = tmp_path / "mutated.nc"
+            f.write_text("\n".join(bad) + "\n")
+            try:
+                verify_blocks(read_nc_blocks(f), part, limits, links)
+            except InputError as err:
+                assert re.search(r"block N\d+ \(G0[01], ", str(err)), str(err)
+                refused += 1
+            else:
+                accepted_unsafe.append((name, kind))
+    assert not accepted_unsafe, accepted_unsafe
+    assert refused >= len(_UNSAFE)

@@ -65,18 +65,24 @@ def _scene_file(tmp_path, shipped: str, name: str, i: int):
 
 
 _PRINTABLE = set(string.printable) - set("\t\n\r\x0b\x0c")
-_TURN_BLOCK = re.compile(r"^N\d+ G01 C-?\d+\.\d+ X-?\d+\.\d+ Z-?\d+\.\d+( F[0-9.e+-]+)?$")
-_SCULPT_BLOCK = re.compile(r"^N\d+ G01 X-?\d+\.\d+ Y-?\d+\.\d+ Z-?\d+\.\d+ F[0-9.e+-]+$")
+# cutting blocks, and the links' rapids (G00, the first one Z alone), plunges and retracts
+_TURN_BLOCK = re.compile(r"^N\d+ (G01 C-?\d+\.\d+ X-?\d+\.\d+ Z-?\d+\.\d+( F[0-9.e+-]+)?"
+                         r"|G00( C-?\d+\.\d+ X-?\d+\.\d+)? Z-?\d+\.\d+)$")
+_SCULPT_BLOCK = re.compile(r"^N\d+ (G01 X-?\d+\.\d+ Y-?\d+\.\d+ Z-?\d+\.\d+ F[0-9.e+-]+"
+                           r"|G00( X-?\d+\.\d+ Y-?\d+\.\d+)? Z-?\d+\.\d+)$")
+_SECTIONS = re.compile(r"^; (approach|cut|link|exit|line \d+)$")
 
 
 def _check_program_lines(text: str, block: re.Pattern, preamble: str) -> int:
     """Every line is a one-line ``;`` comment of printable ASCII without ``(`` ``)`` or a
     second ``;``, the modal preamble, a motion block of the expected form, or M30.
-    Returns the number of motion blocks."""
+    Returns the number of cutting points (the cutting blocks, and the point each plunge
+    leaves the tool on)."""
     assert "\r" not in text
     lines = text.split("\n")
     assert lines[-1] == "" and lines[-2] == "M30"
     n = 0
+    section = None
     for line in lines[:-2]:
         assert set(line) <= _PRINTABLE, repr(line)
         if line.startswith(";"):
@@ -85,7 +91,12 @@ def _check_program_lines(text: str, block: re.Pattern, preamble: str) -> int:
             pass
         else:
             assert block.match(line), repr(line)
-            n += 1
+            n += section == "cut"
+        m = _SECTIONS.match(line)
+        if m:
+            new = "cut" if m.group(1).startswith("line") else m.group(1)
+            n += new == "cut" and section in ("approach", "link")  # the plunge's end point
+            section = new
     return n
 
 

@@ -146,13 +146,13 @@ def test_point_identity_is_the_resolved_scene(tmp_path):
 
 
 @pytest.mark.parametrize("text, needle", [
-    ('scene = "sts_sinusoidal_grid"\n[grid]\n"tool.nose_radius" = []', "grid must give at least one value"),
+    ('scene = "sts_sinusoidal_grid"\n[grid]\n"tool.nose_radius" = []', "grid: must give at least one value"),
     ('scene = "sts_sinusoidal_grid"\n[zip]\n"tool.nose_radius" = [1, 2]\n"process.spindle_rpm" = [1]',
      "zip lists must all have the same length"),
     ('scene = "sts_sinusoidal_grid"\n[grid]\nnose_radius = [0.1]', "dotted scene key"),
     ('scene = "sts_sinusoidal_grid"\nworkers = 3', "workers: unknown key"),
     ('scene = "sts_sinusoidal_grid"\n[run]\nmeasure = true', "measure = true needs render"),
-    ('[grid]\n"tool.nose_radius" = [0.1]', "scene: Field required"),
+    ('[grid]\n"tool.nose_radius" = [0.1]', "scene: is required here"),
 ])
 def test_bad_sweep_files_name_the_key(tmp_path, text, needle):
     f = tmp_path / "bad.toml"

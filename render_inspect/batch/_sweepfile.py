@@ -60,6 +60,7 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from ..core.messages import validation_line
 from ..core.errors import InputError
 from ..core.section import Section
 from ._morris import MORRIS_STUDY, MorrisConfig
@@ -260,18 +261,15 @@ class SweepPoint:
 
 
 def _format_error(err: ValidationError, source: str) -> InputError:
+    # (messages) every error in the scene's words: the key, what it accepts, the value
     lines = []
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"])
-        msg = e["msg"]
-        if e["type"] == "extra_forbidden":
-            msg = "unknown key (not allowed here; check the spelling)"
-        elif msg.startswith("Value error, "):
-            msg = msg[len("Value error, "):]
-        inp = e.get("input")
-        got = "" if e["type"] == "missing" or isinstance(inp, dict) else f"; received {inp!r}"
-        lines.append(f"  {loc or '(top level)'}: {msg}{got}")
-    return InputError(f"invalid sweep file {source}:\n" + "\n".join(lines))
+        key, text = validation_line(e, key=".".join(str(p) for p in e["loc"]))
+        lines.append(f"{key or '(top level)'}: {text}")
+    if len(lines) == 1:
+        return InputError(f"invalid sweep file {source}: {lines[0]}")
+    return InputError(f"invalid sweep file {source} ({len(lines)} errors):\n"
+                      + "\n".join(f"  {line}" for line in lines))
 
 
 def read_sweep(path, *, sections=None) -> SweepFile:
@@ -295,9 +293,14 @@ def read_sweep(path, *, sections=None) -> SweepFile:
         raise InputError(f"sweep file not found: {str(path)!r}; give a .toml sweep file "
                          f"(shipped ones are in render_inspect/scenes/sweeps/)")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"sweep file {str(path)!r} is not valid TOML: {err}") from None
+    except UnicodeDecodeError as err:  # (safety) a binary file given as the sweep
+        raise InputError(f"sweep file {str(path)!r} is not UTF-8 text (byte {err.start}): a "
+                         f"sweep file is a TOML text") from None
+    except RecursionError:
+        raise InputError(f"sweep file {str(path)!r} nests tables/arrays too deeply") from None
     try:
         spec = SweepFile.model_validate(data, context={"sections": sections})
     except ValidationError as err:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import cancel
 from ..core.errors import InputError
 from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
@@ -63,6 +64,8 @@ def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, te
     """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
     return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
     import zarr
+
+    cancel.check()  # a tile not started when the run is stopped is not started
 
     design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
                                          stride=stride, texture=texture)

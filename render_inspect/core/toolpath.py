@@ -9,7 +9,8 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["ToolPath", "LinearProgram"]
+__all__ = ["ToolPath", "LinearProgram", "Links", "Blocks", "ROLE_CUT", "ROLE_RAPID",
+           "ROLE_PLUNGE", "ROLE_RETRACT", "ROLE_NAMES"]
 
 
 @dataclass
@@ -108,3 +109,92 @@ class LinearProgram:
     @property
     def duration_s(self) -> float:
         return float(self.t[-1] - self.t[0]) if self.points else 0.0
+
+
+@dataclass(frozen=True)
+class Links:
+    """The moves of a machine program that do not cut: how the tool reaches the first
+    cut, goes from one cut to the next, and leaves the part.
+
+    Every program written with links starts with a rapid (``G00``) up to the clearance
+    plane, then rapids within that plane above the start of the cut and plunges
+    vertically onto it at ``plunge_feed``; between the lines of a sculpturing program it
+    retracts vertically at ``plunge_feed`` to the clearance plane, rapids within the plane
+    above the next line's start and plunges again; at the end it retracts and rapids
+    back above the start.  Rapids never leave the clearance plane, plunges and retracts
+    never move sideways.
+
+    Attributes
+    ----------
+    clearance_z : float
+        Z of the clearance plane, mm (the part's highest point plus the scene's
+        ``process.clearance``).
+    plunge_feed : float
+        Feed of the plunges and retracts, mm/min.
+    part_top : float
+        The part's highest point the plane was set from (stock included), mm.
+    """
+
+    clearance_z: float
+    plunge_feed: float
+    part_top: float
+
+    def __post_init__(self):
+        for name in ("clearance_z", "plunge_feed", "part_top"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) \
+                    or not np.isfinite(v):
+                raise InputError(f"Links.{name} must be a finite number, received {v!r}")
+        if not self.plunge_feed > 0:
+            raise InputError(f"Links.plunge_feed must be > 0 mm/min, received {self.plunge_feed!r}")
+        if not self.clearance_z > self.part_top:
+            raise InputError(f"Links.clearance_z ({self.clearance_z!r} mm) must lie above the "
+                             f"part's highest point ({self.part_top!r} mm)")
+
+
+#: what a block of a machine program does (:class:`Blocks` ``role``)
+ROLE_CUT, ROLE_RAPID, ROLE_PLUNGE, ROLE_RETRACT = 0, 1, 2, 3
+ROLE_NAMES = ("cut", "rapid", "plunge", "retract")
+
+
+@dataclass
+class Blocks:
+    """The motion blocks of an NC program as written (or read back): what the verifier
+    checks and the simulation of the links walks.
+
+    Attributes
+    ----------
+    dialect : str
+        ``"turning"`` (C-X-Z, inverse-time feed ``G93``) or ``"linear"`` (X-Y-Z, ``G94``
+        feed in mm/min).
+    number : (n,) int64
+        The block number (``N`` word).
+    motion : (n,) int8
+        0 for ``G00`` (rapid), 1 for ``G01`` (feed).
+    role : (n,) int8
+        :data:`ROLE_CUT`, :data:`ROLE_RAPID`, :data:`ROLE_PLUNGE` or :data:`ROLE_RETRACT`,
+        from the section the block stands in (``; cut`` / ``; line k``, ``; approach``,
+        ``; link``, ``; exit``): the writer's statement of what the block is for.
+    axes : dict of (n,) float64
+        The position at the end of each block (``C`` deg, ``X``, ``Z`` or ``X``, ``Y``,
+        ``Z`` mm; modal words filled in; NaN where not yet known).
+    feed : (n,) float64
+        ``F`` of the block (NaN where absent): 1/min (inverse time) or mm/min.
+    line : (n,) int64
+        The sculpturing line a cutting block belongs to (-1 otherwise).
+    meta : dict
+        ``; key: value`` header lines.
+    """
+
+    dialect: str
+    number: np.ndarray
+    motion: np.ndarray
+    role: np.ndarray
+    axes: dict
+    feed: np.ndarray
+    line: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def count(self) -> int:
+        return len(self.number)

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from ..core import cancel
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.frames import Frames
 from ..core.units import NM_TO_MM
@@ -76,6 +77,7 @@ def _exposed_frames(h, normals, mic, dist, zact, *, pixel, subsamples, crop, kz_
                                          reference_figure=ref, kz_tolerance=kz_tolerance)
     if diagnostics is not None:
         diagnostics.update(info)
+    cancel.check()  # a stop asked for during the intensity ends the run here
     frames, cam = expose(inten, mic.camera, seed=seed, inplace=True)
     return frames, info, cam
 

@@ -16,7 +16,9 @@ from ._atomic import (
                       atomic_write_text,
                       check_output_dir,
                       check_output_path,
+                      MARKER_VERSION,
                       claim_output_dir,
+                      completed_outputs,
                       json_safe,
                       open_lock_file,
                       read_marker,
@@ -32,8 +34,11 @@ from ._limits import (
                       check_npz,
                       check_real_array,
                       check_x3p,
+                      check_frames,
                       check_zip,
+                      per_value_bytes,
                       read_json_file,
+                      reading_for,
 )
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
@@ -47,7 +52,11 @@ from ._toolpath import (
                       export_program,
                       program_formats,
                       nc_comment_text,
+                      cut_points,
+                      program_axes,
+                      program_blocks,
                       read_csv,
+                      read_nc_blocks,
                       read_nc,
                       read_program_nc,
                       read_toolpath_npz,
@@ -85,4 +94,6 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "ZarrHeightMap", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
-           "read_nms", "read_x3p_plain"]
+           "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
+           "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
+           "program_axes"]

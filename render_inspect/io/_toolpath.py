@@ -12,10 +12,19 @@ NC program (``toolpath.nc``), a generic, documented dialect (ISO 6983 words):
 ; spindle_rpm: 42
 ; points: 1368001
 ; t0_s: 0.0
+; clearance_z_mm: 0.112
+; plunge_feed_mm_per_min: 10
 G90 G93
-N1 G01 C0.000000 X4.750000 Z-0.000010
-N2 G01 C0.250000 X4.749997 Z-0.000010 F60480.00000000
+; approach
+N1 G00 Z0.112000
+N2 G00 C0.000000 X4.750000 Z0.112000
+N3 G01 C0.000000 X4.750000 Z-0.000010 F89.10000000
+; cut
+N4 G01 C0.250000 X4.749997 Z-0.000010 F60480.00000000
 ...
+; exit
+N1368004 G01 C342000.000000 X0.000000 Z0.112000 F90.90909091
+N1368005 G00 C342000.000000 X4.750000 Z0.112000
 M30
 ```
 
@@ -23,10 +32,21 @@ M30
   marks are also skipped by the reader.
 - ``C`` in degrees, ``X`` (radius) and ``Z`` (tool tip) in mm, ``decimals`` places
   (default 6: 1 nm and 1 micro-degree).
-- Time: the first block is the start position at ``t0_s``; every later block carries an
-  inverse-time feed word ``F`` (G93: the move ending at this block takes 1/F minutes),
-  written with 10 significant digits, so t is recovered to better than 1e-6 s.
+- Time: the cut starts at ``t0_s`` where the approach leaves the tool; every cutting
+  block carries an inverse-time feed word ``F`` (G93: the move ending at this block
+  takes 1/F minutes), written with 10 significant digits, so t is recovered to better
+  than 1e-6 s.
 - Words are modal: a block without a word keeps the previous value.
+- With links (:class:`~render_inspect.core.toolpath.Links`, written by the ``toolpath``
+  command): ``; approach`` (a rapid ``G00`` up to the clearance plane, Z alone since
+  where the machine starts is not known; a rapid within the plane above the first cut
+  point; a vertical plunge ``G01`` onto it at the plunge feed), ``; cut`` (the cutting
+  blocks), ``; exit`` (a vertical retract at the plunge feed to the clearance plane, a
+  rapid within it back above the start).  A sculpturing program has the same approach
+  and exit and, between two lines, ``; link``: a vertical retract, a rapid within the
+  clearance plane above the next line's start and a vertical plunge; each line's
+  cutting blocks follow a ``; line k`` comment.  Without links (a program written by
+  :func:`write_nc` without ``links``) every motion block is a cutting block.
 
 CSV (``toolpath.csv``), one row per point, header
 ``t_s,c_deg,x_mm,z_mm,theta_rad,rho_mm,y_mm``: ``c_deg`` = C (cumulative deg),
@@ -42,194 +62,26 @@ a comment in a dialect that uses parentheses; scene text never reaches the CSV f
 
 from __future__ import annotations
 
-import math
-import re
 from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
-from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
+from ._nc import (CHUNK_ROWS, cut_points, nc_comment_text, program_axes, program_blocks,
+                  read_nc, read_nc_blocks, read_program_nc, write_nc, write_program_nc)
 from ._registry import formats, register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
            "export_program", "program_formats", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
-           "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS"]
-
-#: rows formatted at a time by the writers (their memory does not grow with the program)
-CHUNK_ROWS = 16384
+           "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS", "read_nc_blocks", "program_blocks", "cut_points",
+           "program_axes"]
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
 PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")
-_WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
-
-
-def nc_comment_text(value) -> str:
-    """``value`` as text safe inside a ``;`` comment of an NC program: printable ASCII only
-    (every other character, line breaks and carriage returns included, becomes a space),
-    ``;`` -> ``,`` and ``(``/``)`` -> ``[``/``]`` (comment delimiters of common dialects),
-    runs of spaces collapsed."""
-    text = str(value)
-    out = []
-    for ch in text:
-        o = ord(ch)
-        if ch == ";":
-            out.append(",")
-        elif ch == "(":
-            out.append("[")
-        elif ch == ")":
-            out.append("]")
-        elif 32 <= o < 127:
-            out.append(ch)
-        else:
-            out.append(" ")
-    return re.sub(r" {2,}", " ", "".join(out)).strip()
-
-
-def _header_lines(title: str, info: dict) -> list[str]:
-    lines = [f"; {nc_comment_text(title)}"]
-    for k, v in info.items():
-        if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
-            raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
-        lines.append(f"; {k}: {nc_comment_text(v)}")
-    return lines
-
-
-def _turning_header(header: dict | None, toolpath) -> list[str]:
-    info = {"software_version": __version__}
-    meta = getattr(toolpath, "meta", {}) or {}
-    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm", "nose_radius"):
-        if k in meta:
-            info[k] = meta[k]
-    info.update(header or {})
-    lines = _header_lines("render_inspect generic C-X-Z turning program", {})
-    lines += ["; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]",
-              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]"]
-    return lines + _header_lines("", info)[1:]
-
-
-def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -> Path:
-    """Write ``toolpath`` as a generic C-X-Z NC program (format in the module docstring).
-
-    Parameters
-    ----------
-    path : str or Path
-        Output file (written atomically).
-    toolpath : ToolPath
-        ``t`` must be strictly increasing.
-    header : dict, optional
-        Extra ``; key: value`` header lines (e.g. ``{"scene": name, "spindle_rpm": 42}``);
-        values pass through :func:`nc_comment_text`.
-    decimals : int
-        Places for C (deg), X and Z (mm), 3..12.
-
-    Returns
-    -------
-    Path
-    """
-    if not (isinstance(decimals, int) and 3 <= decimals <= 12):
-        raise InputError(f"decimals must be an integer in [3, 12], received {decimals!r}")
-    t = np.asarray(toolpath.t, dtype=np.float64)
-    n = t.size
-    if n == 0:
-        raise InputError("cannot write an NC program of an empty tool path (0 points)")
-    dt = np.diff(t)
-    if np.any(~(dt > 0)):
-        i = int(np.flatnonzero(~(dt > 0))[0])
-        raise InputError(f"ToolPath.t must be strictly increasing to write inverse-time feeds; "
-                         f"t[{i}] = {t[i]!r} s, t[{i + 1}] = {t[i + 1]!r} s")
-    c = np.degrees(np.asarray(toolpath.theta, dtype=np.float64))
-    x = np.asarray(toolpath.rho, dtype=np.float64)
-    z = np.asarray(toolpath.z, dtype=np.float64)
-    for name, arr in (("theta", c), ("rho", x), ("z", z), ("t", t)):
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"ToolPath.{name} has non-finite values at index "
-                             f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
-    hdr = {"points": n, "t0_s": repr(float(t[0]))}
-    hdr.update(header or {})
-    lines = _turning_header(hdr, toolpath)
-    lines.append("G90 G93")
-    f = "{:.%df}" % decimals
-
-    def write(fh):
-        fh.write(("\n".join(lines) + "\n").encode("ascii"))
-        for a in range(0, n, CHUNK_ROWS):
-            b = min(a + CHUNK_ROWS, n)
-            rows = []
-            for i in range(a, b):
-                words = f"N{i + 1} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
-                rows.append(words if i == 0 else words + " F%.10g" % (MIN_TO_S / dt[i - 1]))
-            fh.write(("\n".join(rows) + "\n").encode("ascii"))
-        fh.write(b"M30\n")
-
-    return atomic_write_stream(path, write)
-
-
-def read_nc(path):
-    """Parse a program written by :func:`write_nc` (or any program in that dialect) back
-    into a :class:`ToolPath` (theta from C, rho = X, z = Z, t from t0 and the F words).
-
-    Header ``; key: value`` lines become ``meta``.  Raises :class:`InputError` naming the
-    line for malformed blocks."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"NC file not found: {str(path)!r}")
-    meta: dict = {}
-    C, X, Z, F = [], [], [], []
-    cur = {"C": None, "X": None, "Z": None}
-    inverse_time = False
-    with path.open("r", encoding="utf-8") as fh:
-        for lineno, raw in enumerate(fh, 1):
-            line = raw.strip()
-            if line.startswith(";"):
-                body = line[1:].strip()
-                if ":" in body:
-                    k, v = body.split(":", 1)
-                    if re.fullmatch(r"[A-Za-z0-9_]+", k.strip()):
-                        meta[k.strip()] = v.strip()
-                continue
-            line = re.sub(r"\([^)]*\)", " ", line.split(";", 1)[0]).strip().upper()
-            if not line or line == "%":  # '%' marks the start / end of a program
-                continue
-            words = _WORD.findall(line)
-            rest = _WORD.sub("", line).strip()
-            if rest:
-                raise InputError(f"{path}:{lineno}: cannot parse {rest!r} in block {raw.strip()!r}")
-            d = {}
-            for letter, num in words:
-                if letter == "G" and float(num) == 93:
-                    inverse_time = True
-                d[letter] = num
-            if not any(k in d for k in ("C", "X", "Z")):
-                continue
-            for k in ("C", "X", "Z"):
-                if k in d:
-                    cur[k] = float(d[k])
-                if cur[k] is None:
-                    raise InputError(f"{path}:{lineno}: first motion block lacks the {k} word")
-            if C and "F" not in d:
-                raise InputError(f"{path}:{lineno}: motion block without an F (inverse-time) word")
-            C.append(cur["C"])
-            X.append(cur["X"])
-            Z.append(cur["Z"])
-            F.append(float(d["F"]) if "F" in d else math.nan)
-    if not C:
-        raise InputError(f"{path}: no motion blocks (C/X/Z words) found")
-    if len(C) > 1 and not inverse_time:
-        raise InputError(f"{path}: the program must select inverse-time feed (G93) to carry time")
-    f = np.asarray(F[1:], dtype=np.float64)
-    if np.any(~(f > 0)):
-        raise InputError(f"{path}: F words must be > 0 (inverse time, 1/min)")
-    t0 = float(meta.get("t0_s", 0.0))
-    t = t0 + np.concatenate([[0.0], np.cumsum(MIN_TO_S / f)])
-    if "points" in meta and int(meta["points"]) != len(C):
-        raise InputError(f"{path}: header says {meta['points']} points, the program has {len(C)}")
-    return ToolPath(np.radians(np.asarray(C)), np.asarray(X), np.asarray(Z), t, meta)
 
 
 def _write_rows(fh, columns, header: str, fmt) -> None:
@@ -306,7 +158,8 @@ def read_toolpath_npz(path) -> ToolPath:
 
 register_writer("toolpath", ".csv")(lambda path, toolpath, **_: write_csv(path, toolpath))
 register_writer("toolpath", ".nc")(
-    lambda path, toolpath, *, header=None, **_: write_nc(path, toolpath, header=header))
+    lambda path, toolpath, *, header=None, links=None, **_: write_nc(path, toolpath, header=header,
+                                                                     links=links))
 
 
 # ---------------------------------------------------------------- sculpturing programs
@@ -326,96 +179,7 @@ def write_program_csv(path, program: LinearProgram, **_) -> Path:
         fh, cols, ",".join(PROGRAM_CSV_COLUMNS), ["%.9f", "%.6f", "%.6f", "%.6f", "%d"]))
 
 
-@register_writer("program", ".nc")
-def write_program_nc(path, program: LinearProgram, *, header: dict | None = None,
-                     feed_mm_per_min: float | None = None, **_) -> Path:
-    """A generic X-Y-Z program (``G90 G94 G21``, ``G01`` moves at the cutting speed
-    ``feed_mm_per_min``), a ``; line k`` comment before each target line."""
-    vc = feed_mm_per_min if feed_mm_per_min is not None else program.meta.get("feed_mm_per_min")
-    if vc is None or isinstance(vc, bool) or not (vc > 0 and math.isfinite(vc)):
-        raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
-    info = {"software_version": __version__}
-    info.update(header or {})
-    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program [mm, mm/min]", info)
-    lines.append("G90 G94 G21")
-    x, y, z, ln = program.x, program.y, program.z, program.line
-    for name, arr in (("x", x), ("y", y), ("z", z)):
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"LinearProgram.{name} has non-finite values at index "
-                             f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
-    feed = nc_comment_text(f"{float(vc):g}")
-
-    def write(fh):
-        fh.write(("\n".join(lines) + "\n").encode("ascii"))
-        prev = None
-        for a in range(0, program.points, CHUNK_ROWS):
-            rows = []
-            for i in range(a, min(a + CHUNK_ROWS, program.points)):
-                if ln[i] != prev:
-                    rows.append(f"; line {int(ln[i])}")
-                    prev = ln[i]
-                rows.append(f"N{i + 1} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{feed}")
-            fh.write(("\n".join(rows) + "\n").encode("ascii"))
-        fh.write(b"M30\n")
-
-    return atomic_write_stream(path, write)
-
-
-def read_program_nc(path) -> LinearProgram:
-    """Parse an X-Y-Z program written by :func:`write_program_nc` back into a
-    :class:`LinearProgram` (``line`` from the ``; line k`` comments, ``t`` from the path
-    length at the ``F`` feed, mm/min).  Header ``; key: value`` lines become ``meta``.
-    Raises :class:`InputError` naming the line for malformed blocks."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"NC file not found: {str(path)!r}")
-    meta: dict = {}
-    X, Y, Z, L, F = [], [], [], [], []
-    cur = {"X": None, "Y": None, "Z": None, "F": None}
-    line_no = -1
-    with path.open("r", encoding="utf-8") as fh:
-        for lineno, raw in enumerate(fh, 1):
-            text = raw.strip()
-            if text.startswith(";"):
-                body = text[1:].strip()
-                m = re.fullmatch(r"line (\d+)", body)
-                if m:
-                    line_no = int(m.group(1))
-                elif ":" in body:
-                    k, v = body.split(":", 1)
-                    if re.fullmatch(r"[A-Za-z0-9_]+", k.strip()):
-                        meta[k.strip()] = v.strip()
-                continue
-            text = re.sub(r"\([^)]*\)", " ", text.split(";", 1)[0]).strip().upper()
-            if not text or text == "%":
-                continue
-            words = _WORD.findall(text)
-            rest = _WORD.sub("", text).strip()
-            if rest:
-                raise InputError(f"{path}:{lineno}: cannot parse {rest!r} in block {raw.strip()!r}")
-            d = dict(words)
-            if not any(k in d for k in ("X", "Y", "Z")):
-                continue
-            for k in ("X", "Y", "Z", "F"):
-                if k in d:
-                    cur[k] = float(d[k])
-                if cur[k] is None:
-                    raise InputError(f"{path}:{lineno}: first motion block lacks the {k} word")
-            X.append(cur["X"])
-            Y.append(cur["Y"])
-            Z.append(cur["Z"])
-            F.append(cur["F"])
-            L.append(line_no)
-    if not X:
-        raise InputError(f"{path}: no motion blocks (X/Y/Z words) found")
-    x, y, z, f = (np.asarray(v, dtype=np.float64) for v in (X, Y, Z, F))
-    if np.any(~(f > 0)):
-        raise InputError(f"{path}: F words must be > 0 (mm/min)")
-    seg = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
-    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / MIN_TO_S))])  # mm/min -> mm/s
-    if "points" in meta and meta["points"].isdigit() and int(meta["points"]) != x.size:
-        raise InputError(f"{path}: header says {meta['points']} points, the program has {x.size}")
-    return LinearProgram(x, y, z, t, np.asarray(L, dtype=np.int64), meta)
+register_writer("program", ".nc")(write_program_nc)
 
 
 def program_formats() -> list[str]:
@@ -440,7 +204,8 @@ def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = 
     header : dict, optional
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
     **options
-        Passed to the writer (``feed_mm_per_min`` for sculpturing NC).
+        Passed to the writer (``links``: the clearance plane and plunge feed of an NC
+        program; ``feed_mm_per_min`` for sculpturing NC).
 
     Returns
     -------

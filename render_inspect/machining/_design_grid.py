@@ -8,6 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..core.grid import grid_shape
+from ..core.progress import report
 
 __all__ = ["design_grid"]
 
@@ -25,6 +26,7 @@ def design_grid(surface, region, pixel, *, rows_per_chunk: int = 128, out=None) 
     def rows(a):
         y = y0 + pixel * np.arange(a, min(a + rows_per_chunk, ny))
         out[a:a + len(y)] = surface.height(x[None, :], y[:, None])
+        report(a + len(y), ny)  # (and stop here when a signal asked to)
 
     starts = range(0, ny, rows_per_chunk)
     if ny * nx < 1_000_000:

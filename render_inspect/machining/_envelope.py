@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..core.errors import InputError
+from ..core.progress import report
 
 TWO_PI = 2 * math.pi
 INV_2PI = 1.0 / TWO_PI
@@ -63,6 +64,9 @@ INV_2PI = 1.0 / TWO_PI
 BLOCK = 64
 #: grids at least this large go to a CUDA GPU when one is present (simulate_turning)
 GPU_MIN_SAMPLES = 1 << 22
+#: samples of one band of rows of the CPU kernel (a fraction of a second): the progress
+#: is reported, and a stop asked by a signal honoured, between bands
+BAND_SAMPLES = 1 << 20  # not a unit conversion
 #: relative tolerance within which a path's angles count as a uniform grid
 _UNIFORM_RTOL = 1e-9  # not a unit conversion
 
@@ -596,7 +600,14 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
                           stacklevel=2)
         elif device == "gpu":
             raise ValueError("simulate_turning: device='gpu' needs a CUDA device and a constant-angle path")
-    return envelope_fill(ep, (x0, y0), pixel, out)
+    # in bands of rows (whole blocks: each band equals the same rows of one whole-grid
+    # call bit for bit), reporting the progress and stopping when asked between bands
+    rows = BLOCK * max(1, BAND_SAMPLES // max(BLOCK * nx, 1))
+    for r0 in range(0, ny, rows):
+        r1 = min(r0 + rows, ny)
+        envelope_fill(ep, (x0, y0), pixel, out[r0:r1], start=(r0, 0))
+        report(r1, ny)
+    return out
 
 
 def load_kernels() -> None:

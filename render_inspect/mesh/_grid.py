@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError, MemoryBudgetError, check_positive
+from ..core.limits import address_space_limit, address_space_room
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES, MM_TO_M
 from ..io import atomic_write_bytes
 
@@ -177,9 +178,7 @@ def grid_mesh(z, *, pixel: float, origin=(0.0, 0.0), exaggeration: float = 1.0,
     budget = DEFAULT_MEMORY_BUDGET_BYTES if memory_budget is None else int(memory_budget)
     need = ny * nx * (12 + (12 if normals else 0)) + (ny - 1) * (nx - 1) * 24
     if need > budget:
-        raise MemoryBudgetError(
-            f"a {ny} x {nx} mesh needs {need / MIB_TO_BYTES:.0f} MiB, over the memory budget of "
-            f"{budget / MIB_TO_BYTES:.0f} MiB: raise stride (got {stride}) or crop a window")
+        raise MemoryBudgetError(_mesh_refusal(ny, nx, need, budget, memory_budget, stride))
     finite = np.isfinite(z)
     if not finite.any():
         raise InputError("z has no finite height: nothing to mesh")
@@ -226,6 +225,25 @@ def grid_mesh(z, *, pixel: float, origin=(0.0, 0.0), exaggeration: float = 1.0,
     if skirt:
         meta["base_z_mm"] = base_z
     return GridMesh(vertices, faces, nrm, meta)
+
+
+def _mesh_refusal(ny, nx, need, budget, given, stride) -> str:
+    """The mesh refusal, naming where its budget comes from (the default, the scene's
+    budget, or what the address-space limit leaves) and the fix that fits."""
+    text = (f"a {ny} x {nx} mesh needs {need / MIB_TO_BYTES:.0f} MiB, over the memory budget "
+            f"of {budget / MIB_TO_BYTES:.0f} MiB")
+    if given is None:
+        source = f"the mesh default, {DEFAULT_MEMORY_BUDGET_BYTES / MIB_TO_BYTES:.0f} MiB"
+    else:
+        source = "simulation.max_memory_gb, or 80 % of the free memory when it is not set"
+    room = address_space_room()
+    if room is not None and room <= need:
+        limit = address_space_limit()
+        return (f"{text} (from {source}, capped by the address-space limit (ulimit -v) of "
+                f"{limit / MIB_TO_BYTES:.0f} MiB, which leaves {room / MIB_TO_BYTES:.0f} MiB): "
+                f"raise the limit (ulimit -v unlimited), or raise stride (got {stride}) or crop "
+                f"a window")
+    return f"{text} (from {source}): raise stride (got {stride}) or crop a window"
 
 
 def _add_skirt(vertices, faces, nrm, ny, nx, base_z):

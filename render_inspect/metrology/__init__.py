@@ -9,7 +9,8 @@ or (pixel_x, pixel_y).  The papers and standards each model follows are cited in
 module's References (docs/references.md lists them all)."""
 
 from ._analysis import (FORMS, OUTLIER_METHODS, Analysis, analyze_map, analyze_memory,
-                        analyze_memory_per_point, parse_filter)
+                        analyze_memory_per_point, check_filter, filter_range,
+                        parse_filter)
 from ._windowed import (WINDOWED_FORMS, analyze_bands, band_bytes_per_point, form_on_grid,
                         windowed_refusal)
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
@@ -54,7 +55,8 @@ __all__ = [
     "RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
     "GridSurface", "template_surface", "register_lsq", "register_icp",
     "registration_covariance",
-    "FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter",
+    "FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter", "check_filter",
+    "filter_range", "analyze_memory", "analyze_memory_per_point",
     "registered_overlap", "correlation_area", "registration_checks", "kinematic_sq_mm",
     "DEFAULT_MIN_OVERLAP", "DEFAULT_MAX_RESIDUAL_RATIO", "DEFAULT_RESIDUAL_FLOOR_MM",
     "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",

@@ -3,6 +3,7 @@ with a scene's design and simulation through the same chain."""
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
@@ -140,9 +141,11 @@ def sample_map(z, xx, yy, *, pixel, origin):
     return np.where(inside & (bad < 1e-9), v, np.nan)
 
 
-def _check_units(z, design, *, pixel, origin):
-    """Raise when the measured height range and the design's differ by > 100 x: a map in
-    micrometres read as millimetres (or the reverse) would otherwise give silent nonsense."""
+def _check_units(z, design, *, pixel, origin, force: bool = False):
+    """Refuse (warn with ``force``) when the measured height range and the design's
+    differ by > 100 x: a map in micrometres read as millimetres (or the reverse) would
+    otherwise give silent nonsense.  The message says which unit the heights were probably
+    in, and names ``--force`` (compare anyway) and the reader's ``units``."""
     ny, nx = z.shape
     px, py = pixel_xy(pixel)
     step = max(1, max(ny, nx) // 64)
@@ -155,9 +158,26 @@ def _check_units(z, design, *, pixel, origin):
         return
     pd, pm = float(np.ptp(d[ok])), float(np.ptp(zs[ok]))
     if pd > 1e-6 and pm > 0 and not 0.01 < pm / pd < 100:
-        raise InputError(f"the measured heights span {pm:.4g} mm but the design spans {pd:.4g} mm "
-                         f"over the same area (ratio {pm / pd:.3g}): the measurement's height "
-                         f"unit is probably wrong (read_measured(..., units='um'|'nm'|'mm'))")
+        ratio = pm / pd
+        # the unit factor (10^3 steps: mm, um, nm) closest to the ratio
+        steps = round(math.log10(ratio) / 3)
+        if abs(math.log10(ratio) - 3 * steps) > 0.5:
+            steps = 0
+        likely = {1: "heights in micrometres or nanometres read as millimetres",
+                  2: "heights in nanometres read as millimetres",
+                  -1: "heights in millimetres read as micrometres",
+                  -2: "heights in millimetres read as nanometres"}.get(
+            max(-2, min(2, steps)), "a height unit that does not match, or a pixel size in "
+                                    "another unit than the file declares")
+        msg = (f"the measured heights span {pm:.4g} mm but the design spans {pd:.4g} mm over "
+               f"the same area (ratio {ratio:.3g}): probably {likely}; check the file's "
+               f"height unit (Python: read_surface(path, units='um' | 'nm' | 'mm')), or "
+               f"compare anyway with --force")
+        if force:
+            warnings.warn(msg.replace(", or compare anyway with --force",
+                                      "; compared anyway (--force)"), stacklevel=3)
+            return
+        raise InputError(msg)
 
 
 @dataclass
@@ -273,7 +293,7 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
             warnings.warn(f"the measurement covers only {cov:.1%} of the region {tuple(region)} mm "
                           f"(metrology.min_coverage = {min_cov:.0%}); parameters describe the "
                           f"covered part only", stacklevel=2)
-    _check_units(z, design_surface, pixel=pixel, origin=origin)
+    _check_units(z, design_surface, pixel=pixel, origin=origin, force=force)
     _, outl = detect_outliers(z, pixel=pixel, k=k, replace=False)
     valid = np.isfinite(z)
     outl &= valid

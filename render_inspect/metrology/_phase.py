@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.progress import report
 from ..core.units import MM_TO_NM, NM_TO_MM
 # unwrapping (importable from here as before)
 from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
@@ -331,6 +332,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     carrier = np.exp(-np.sign(step) * 1j * 4 * np.pi * z / lam)[:, None]
     k = np.arange(n)[:, None]
     for s0 in range(0, npx, max(int(chunk_pixels), 1)):
+        report(s0, npx)  # (the progress, and a stop asked by a signal, between chunks)
         blk = flat[:, s0:s0 + chunk_pixels]
         mean = blk.mean(axis=0)
         ac = blk - mean

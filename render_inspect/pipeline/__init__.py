@@ -17,6 +17,7 @@ built in one place (``render_inspect.pipeline._metrics``; ``simulation_metrics``
 """
 
 from ..instruments import interferogram_summary
+from ..io import completed_outputs
 from ..metrology import lenslet_metrics
 from ._analyze import ANALYZE_FILES, run_analyze
 from ._blender import (EXPORT_FORMATS, PANEL_METRICS, VARIANT_PROPERTY, blender_output_dir,
@@ -45,7 +46,7 @@ from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_fai
                      sweep_tasks)
 from ._toolpath import plan_program, program_formats, run_toolpath
 
-__all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
+__all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
            "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES",
            "plan_program", "run_toolpath", "program_formats", "run_render", "render_heightmap", "render_kinds",
            "write_interferogram_outputs", "write_instrument_outputs", "write_diffuse_outputs",

@@ -354,10 +354,12 @@ def export_variant(heightmap, *, variant: str, surface: str = "machined",
         ``out`` and ``files`` (names written).
     """
     progress = progress or _quiet
-    formats = [f for f in EXPORT_FORMATS if f in set(formats)]
-    if not formats:
-        raise InputError(f"export formats: choose at least one of {list(EXPORT_FORMATS)}; "
-                         f"received none")
+    asked = list(formats) if isinstance(formats, (list, tuple, set)) else [formats]
+    unknown = [f for f in asked if not isinstance(f, str) or f not in EXPORT_FORMATS]
+    formats = [f for f in EXPORT_FORMATS if f in asked]
+    if unknown or not formats:  # (messages: name what was received)
+        raise InputError(f"export formats: choose one or more of {list(EXPORT_FORMATS)}; "
+                         f"received {asked!r}")
     if "X3P" in formats and importlib.util.find_spec("x3pio") is None:
         raise InputError("export formats: X3P needs the x3pio package, which is not "
                          "available here; choose EXR, PLY or GLB")

@@ -419,9 +419,13 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     variant's ``metrics.json``; the figures (the first, ``difference.png``),
     ``metrics.json`` and ``report.html``.
     """
-    check_output_dir(out, overwrite=overwrite, command="compare", scene=scene)
-    if measured is not None and not Path(measured).is_file():
-        raise InputError(f"--measured file not found: {str(measured)!r}")
+    inputs = (measured,) if measured is not None else ()
+    check_output_dir(out, overwrite=overwrite, command="compare", scene=scene, inputs=inputs)
+    # (safety) a file, or a heightmap.zarr store (a folder)
+    if measured is not None and not (Path(measured).is_file() or (
+            Path(measured).suffix.lower() == ".zarr" and Path(measured).is_dir())):
+        raise InputError(f"--measured file not found: {str(measured)!r} (a height map file, "
+                         f"or a .zarr store folder)")
     _check_phase_settings(scene)
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
@@ -440,7 +444,8 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     entry, icfg0 = _instrument(scene)
     check_render_limits(scene, kind=entry.name)
     check_render_limits(scene, kind="diffuse")
-    with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene) as tmp, \
+    with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
+                           inputs=inputs) as tmp, \
             task("compare", total=13) as t:
         tmp = Path(tmp)
         for v in variants:

@@ -14,6 +14,7 @@ from ..core.units import MM_TO_NM
 from ..io import (
     STACK_EXTENSIONS,
     atomic_output_dir,
+    check_frames,
     check_output_dir,
     read_exr,
     read_frame_stack,
@@ -56,11 +57,18 @@ def read_frames(path, *, settings=None):
             raise InputError("--settings is for TIFF / PNG stacks; an EXR carries its settings "
                              "in its header")
         frames, extra, _ = read_frames_exr(path)
-        return frames, sorted(extra)
+        return _usable(frames, path), sorted(extra)
     if path.is_dir() or path.suffix.lower() in STACK_EXTENSIONS:
-        return read_frame_stack(path, settings=settings), []
+        return _usable(read_frame_stack(path, settings=settings), path), []
     raise InputError(f"{path}: frames must be an .exr, a {'/'.join(STACK_EXTENSIONS)} stack or "
                      f"a folder of frames, got {path.suffix or 'no extension'!r}")
+
+
+def _usable(frames, path):
+    # (safety) pixels without a finite intensity in every frame are not measured; a stack
+    # with none is refused (all-NaN frames would give an empty map and exit 0)
+    frames.valid = check_frames(frames.frames, frames.valid, what="frames", path=path)
+    return frames
 
 
 def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
@@ -140,12 +148,13 @@ def run_measure(path, out, *, algorithm: str = "auto", settings=None,
         and never read.
     """
     t0 = time.perf_counter()
-    check_output_dir(out, overwrite=overwrite, command="measure")
+    check_output_dir(out, overwrite=overwrite, command="measure", inputs=(path, settings))
     frames, ignored = read_frames(path, settings=settings)
     t1 = time.perf_counter()
     result = measure_frames(frames, algorithm=algorithm, min_modulation=min_modulation)
     t2 = time.perf_counter()
-    with atomic_output_dir(out, overwrite=overwrite, command="measure") as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="measure",
+                           inputs=(path, settings)) as tmp:
         m = measurement_outputs(tmp, frames, result, source=str(path))
         m["ignored_channels"] = ignored
         metrics = measurement_metrics(path, m, {"read": t1 - t0, "measure": t2 - t1,

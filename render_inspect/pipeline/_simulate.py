@@ -22,6 +22,7 @@ from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
 from ..report import draw_figure, residual_preview_png
 from ._metrics import simulation_metrics, write_metrics
+from ._toolpath import check_links
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "residual_title",
            "timed"]
@@ -108,6 +109,11 @@ def simulate(scene, *, surface=None) -> Simulation:
         plan = process.plan(cfg, surface, region=region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
+    # (safety) the program's moves between its cuts are simulated too: they never touch
+    # the part (metrics toolpath.links; an error naming the block otherwise)
+    links = check_links(process, cfg, surface, plan)
+    if links is not None:
+        plan.facts.setdefault("toolpath", {})["links"] = links
     check_budget(sim, process.estimate_memory(cfg, plan))
     t0 = time.perf_counter()
     ny, nx = sim.shape

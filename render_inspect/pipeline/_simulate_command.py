@@ -26,6 +26,7 @@ from ..processes import check_budget, process_of
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
+from ._toolpath import check_links
 
 __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
@@ -145,9 +146,12 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         raise InputError(refusal)
     traits = process.traits(cfg)
     sim = scene.simulation
-    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 65536
+    # (safety) at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
+    # chunk may hold, and the store could not be read back
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
             and tile % 64 == 0):
-        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 65536], received {tile!r}")
+        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 16384] (a larger tile "
+                         f"makes zarr chunks over 1 GiB), received {tile!r}")
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)
@@ -167,6 +171,10 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         plan = process.plan(cfg, surface, region=tuple(sim.region))
         timing.update(plan.timing)
         timing["toolpath"] = time.perf_counter() - t0
+        # (safety) the moves between the cuts never touch the part (metrics toolpath.links)
+        links = check_links(process, cfg, surface, plan)
+        if links is not None:
+            plan.facts.setdefault("toolpath", {})["links"] = links
         env = process.envelope(cfg, surface, plan)
         path = env.path
         if path.points < 2:

@@ -349,8 +349,9 @@ def _recover(out: Path, tasks, records: dict, results: ResultsLog) -> int:
 
 
 def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
-            info: dict) -> dict:
-    """Compact results.jsonl; write results.csv, summary.md, sweep.json and the plots."""
+            info: dict, *, plots: bool = True) -> dict:
+    """Compact results.jsonl; write results.csv, summary.md, sweep.json and the plots
+    (``plots`` False: those of an earlier run are left as they are)."""
     order = {t["id"]: t["index"] for t in tasks}
     studies = {t["id"]: t["studies"] for t in tasks}
     mine = sorted((r for i, r in records.items() if i in order), key=lambda r: order[r["id"]])
@@ -366,9 +367,10 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
     done = sum(r["status"] == "done" for r in mine)
     failed = sum(r["status"] == "failed" for r in mine)
     total = len(tasks)
+    draw = plots
     plots = spec.plot or default_plots(spec)
     names = []
-    for i, p in enumerate(plots):
+    for i, p in enumerate(plots if draw else []):
         name = p.name or f"plot_{i:02d}_{p.kind}"
         atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, plot_rows(mine, p)))
         names.append(f"{name}.png")
@@ -513,12 +515,17 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
                     "skipped": skipped, "recovered": recovered}
             log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
                      len(todo), skipped)
+            stopped = False
             try:
                 if todo and c is not None:
                     _run_on_dask(c, todo, records, results, info, total=total, progress=progress)
+            except KeyboardInterrupt:
+                stopped = True  # stop within a second or two: no plots (the next run draws them)
+                raise
             finally:
                 info["elapsed_s"] = time.perf_counter() - t_all
-                info = _finish(out, spec, keys, tasks, records, results, info)
+                info = _finish(out, spec, keys, tasks, records, results, info,
+                               plots=not stopped)
     if info["points"] <= SHOW_TABLE_POINTS:
         log.info("%s", (out / "summary.md").read_text().split("\n\n", 3)[-1].rstrip())
     log.info("sweep %s: %d done, %d failed of %d points in %.1f s -> %s", spec.name,

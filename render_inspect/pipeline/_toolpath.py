@@ -1,5 +1,6 @@
 """``toolpath``: the machine program of a scene (in any format the io registry writes for
-it) and its facts."""
+it) and its facts; every NC program written is read back and verified against the part,
+the design and the machine before the folder is put in place."""
 
 from __future__ import annotations
 
@@ -8,11 +9,14 @@ from pathlib import Path
 
 from ..core.errors import InputError
 from ..design import make_surface
-from ..io import atomic_output_dir, export_program, program_formats
+from ..io import (atomic_output_dir, cut_points, export_program, program_axes, program_blocks,
+                  program_formats, read_nc_blocks)
 from ..processes import process_of
+from ..toolpath import compare_with_plan, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
-__all__ = ["plan_program", "run_toolpath", "program_formats"]
+__all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
+           "check_links"]
 
 log = logging.getLogger("render_inspect")
 
@@ -28,21 +32,68 @@ def plan_program(scene, *, surface=None):
     return process.plan(cfg, surface, region=region)
 
 
+def verify_program_file(path, process, cfg, surface, plan, links) -> dict | None:
+    """Read the NC program ``path`` back and check every block of it against the part,
+    the design and the machine (:func:`~render_inspect.toolpath.verify_blocks`); returns
+    the check's facts, None for a process that states no part to check against.  The
+    cutting points must be the planned program's (``plan``) to the written places.  A
+    failure is an :class:`InputError` naming the block number."""
+    part = process.program_part(cfg, surface, plan)
+    if part is None or links is None:
+        log.warning("%s: the program is not verified (its process states no part to check "
+                    "it against)", Path(path).name)
+        return None
+    blocks = read_nc_blocks(path)
+    what = Path(path).name
+    facts = verify_blocks(blocks, part, process.program_limits(cfg), links, what=what)
+    facts["as_planned"] = compare_with_plan(blocks, cut_points(blocks, path),
+                                            program_axes(plan.program), what=what)
+    return facts
+
+
+def check_links(process, cfg, surface, plan) -> dict | None:
+    """The moves between the cuts of the planned program (approach, links, exit: the
+    blocks :func:`~render_inspect.io.program_blocks` gives) checked against the part and
+    the machine: the rapids stay in the clearance plane, plunges and retracts are
+    vertical, no link touches the part.  Returns the facts (``metrics.json``
+    ``toolpath.links``), None for a process without a part to check against."""
+    links = process.program_links(cfg, surface, plan)
+    if links is None:
+        return None
+    part = process.program_part(cfg, surface, plan)
+    blocks = program_blocks(plan.program, links)
+    return verify_blocks(blocks, part, process.program_limits(cfg), links,
+                         what="the planned program", check_cuts=False)
+
+
 def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
-    facts: points, revolutions or lines, kinematics, accessibility).  Returns the
-    program.  ``out`` is checked and locked first and replaced as a whole when complete
-    (``overwrite``: see :func:`~render_inspect.io.atomic_output_dir`)."""
+    facts: points, revolutions or lines, kinematics, accessibility; for an NC program
+    ``program_check``, what its verification found).  Returns the program.  ``out`` is
+    checked and locked first and replaced as a whole when complete (``overwrite``: see
+    :func:`~render_inspect.io.atomic_output_dir`).
+
+    An NC program is written with its links (approach, the moves between cuts, exit
+    through the clearance plane) and read back and verified block by block before the
+    folder is put in place: a program that fails is not written (the error names the
+    block)."""
     formats = program_formats()
     if fmt not in formats:
         raise InputError(f"--format must be one of {formats}, received {fmt!r}")
     process = process_of(scene)
     cfg = process.inputs_of(scene)
     with atomic_output_dir(out, overwrite=overwrite, command="toolpath", scene=scene) as tmp:
-        plan = plan_program(scene)
-        export_program(plan.program, Path(tmp), fmt=fmt, header=process.program_header(cfg))
+        surface = make_surface(scene.design)
+        plan = plan_program(scene, surface=surface)
+        links = process.program_links(cfg, surface, plan)
+        written = export_program(plan.program, Path(tmp), fmt=fmt,
+                                 header=process.program_header(cfg), links=links)
         facts = process.program_facts(cfg, plan)
+        if fmt == "nc":
+            check = verify_program_file(written, process, cfg, surface, plan, links)
+            if check is not None:
+                facts["program_check"] = check
         write_metrics(tmp, toolpath_metrics(scene.name, facts), name="toolpath.json")
     log.info("%s program: %s points -> %s", process.traits(cfg).name,
              f"{facts['toolpath']['points']:,}", out)

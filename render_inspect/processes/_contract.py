@@ -27,8 +27,13 @@ and implements the hooks
     downstream asks which kind it is.
 
 The optional hooks have defaults: ``precheck``, ``program_region``, ``program_header``,
-``program_facts``, ``variants`` (the pair ``compare`` puts side by side) and the tiled
-simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory`` / ``tiled_facts``.
+``program_facts``, ``variants`` (the pair ``compare`` puts side by side), the tiled
+simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory`` / ``tiled_facts``, and what the written
+program is checked against: ``program_part`` (the part: design heights, outline, stock),
+``program_limits`` (the machine's feeds, velocities and travel), ``program_links``
+(the clearance plane and plunge feed of the moves between cuts, from the scene's
+``process.clearance`` and ``process.plunge_feed_mm_per_min``) and ``program_plan`` (the plan
+of a program read back from its file, to simulate it again).
 """
 
 from __future__ import annotations
@@ -41,6 +46,8 @@ from typing import ClassVar
 import numpy as np
 
 from ..core.marks import ToolMarks
+from ..core.toolpath import Links
+from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, PartModel, plan_links
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
            "section"]
@@ -321,6 +328,34 @@ class Process(ABC):
         facts = dict(plan.facts)
         facts.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
         return facts
+
+    def program_plan(self, cfg: Inputs, surface, program) -> Plan:
+        """The plan of a program read back from a file (``toolpath.nc``, ...), for
+        :meth:`cut` to simulate it again; default: the program and nothing else."""
+        return Plan(program)
+
+    def program_part(self, cfg: Inputs, surface, plan: Plan) -> PartModel | None:
+        """The part the written program is checked against (design heights, outline,
+        stock, the tool's half width); None: the program is written without links and
+        not checked."""
+        return None
+
+    def program_limits(self, cfg: Inputs) -> MachineLimits:
+        """What the machine allows the program (feeds, axis velocities, spindle speed,
+        travel); default: no limits."""
+        return MachineLimits(source="the machine")
+
+    def program_links(self, cfg: Inputs, surface, plan: Plan) -> Links | None:
+        """The clearance plane and plunge feed of the moves between the cuts: the part's
+        highest point (:meth:`program_part`) plus ``process.clearance``, the feed
+        ``process.plunge_feed_mm_per_min``.  None when :meth:`program_part` is None."""
+        part = self.program_part(cfg, surface, plan)
+        if part is None:
+            return None
+        p = cfg.process
+        return plan_links(part, clearance=getattr(p, "clearance", DEFAULT_CLEARANCE),
+                          plunge_feed=getattr(p, "plunge_feed_mm_per_min", DEFAULT_PLUNGE_FEED),
+                          program_z=plan.program.z)
 
     def variants(self, cfg: Inputs) -> VariantPair | None:
         """The pair ``compare`` puts side by side (None: only ``--vary``)."""

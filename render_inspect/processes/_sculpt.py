@@ -37,6 +37,8 @@ from ..machining import (
     target_line,
     vibration_phases,
 )
+from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
+                        PartModel, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, material_of
 from ._mechanics import BurrConfig, add_texture, burrs_of
@@ -70,6 +72,13 @@ class SculptProcessConfig(Section):
                                 description="mm, depth of the finishing (last) layer: the "
                                             "uncut chip thickness of the material's burrs")
     allow_gouge: bool = Field(False, description="simulate even if the clearance angle is too small")
+    clearance: float = Field(DEFAULT_CLEARANCE, ge=MIN_CLEARANCE, le=100,
+                             description="mm above the part's highest point (stock included): "
+                                         "the clearance plane the program's rapid moves between "
+                                         "the lines run in")
+    plunge_feed_mm_per_min: float = Field(DEFAULT_PLUNGE_FEED, gt=0, le=100000,
+                                          description="feed of the vertical plunge onto each "
+                                                      "line and of the retract from it")
 
     @model_validator(mode="before")
     @classmethod
@@ -321,6 +330,40 @@ class SculptProcess(Process):
         return {"scene": cfg.name, "process": "sculpt",
                 "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
                 "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
+
+    def program_plan(self, cfg, surface, program) -> Plan:
+        """The plan of a sculpturing program read back from its file: its target lines
+        (points grouped by ``line``) as the cut takes them."""
+        _, y_edges = lattice_lines(surface, pitch_y=cfg.design.pitch_y)
+        vc = cfg.process.feed_mm_per_min / MIN_TO_S
+        lines, x_lines = [], []
+        for k in np.unique(program.line):
+            sel = program.line == k
+            lines.append((np.asarray(program.y[sel], np.float64),
+                          np.asarray(program.z[sel], np.float64)))
+            x_lines.append(float(program.x[sel][0]))
+        cut_time = float(sum((ys[-1] - ys[0]) / vc for ys, _ in lines))
+        return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
+                                      "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
+
+    def program_part(self, cfg, surface, plan: Plan) -> PartModel:
+        """The lenslet array the program is checked against: the design over the cells
+        (between the outer target lines' cell edges and the first and last row's edges),
+        the depth of cut as stock."""
+        d = cfg.design
+        x_lines, y_edges = lattice_lines(surface, pitch_y=d.pitch_y)
+        box = ("box", float(x_lines[0]) - d.pitch_x / 2, float(y_edges[0]),
+               float(x_lines[-1]) + d.pitch_x / 2, float(y_edges[-1]))
+        prog = plan.program
+        return PartModel(surface.height, box, stock=float(cfg.process.depth_of_cut),
+                         half_width=_half_width(cfg.tool),
+                         max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
+
+    def program_limits(self, cfg) -> MachineLimits:
+        """The cutting speed as set is the largest feed the program may use."""
+        return MachineLimits(source="process.feed_mm_per_min (the cutting speed)",
+                             feed_mm_per_min=float(max(cfg.process.feed_mm_per_min,
+                                                       cfg.process.plunge_feed_mm_per_min)))
 
     def program_facts(self, cfg, plan: Plan) -> dict:
         prog = plan.program

@@ -211,12 +211,19 @@ class ServoProcess(TiledTurningProcess):
     config = ServoProcessConfig
 
     def plan(self, cfg, surface, *, region=None) -> Plan:
+        t0 = time.perf_counter()
+        plan = self.program_plan(cfg, surface, self.program(cfg, surface, region=region))
+        plan.timing["toolpath"] = time.perf_counter() - t0
+        return plan
+
+    def program_plan(self, cfg, surface, path) -> Plan:
+        """The plan of a program (planned, or read back from its file): its Z commands
+        split between the slow slide and the fast tool servo."""
         kind = cfg.process.kind
         base = getattr(surface, "base", None)
         if kind == "hts" and base is None:
             raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
         t0 = time.perf_counter()
-        path = self.program(cfg, surface, region=region)
         tool = Tool.from_config(cfg.tool)
         z_slow, z_fts = split_commands(path, kind, base=base if kind == "hts" else None,
                                        nose_radius=tool.nose_radius,

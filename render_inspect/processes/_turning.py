@@ -23,8 +23,14 @@ from ..machining import in_memory_bytes, mechanics_facts
 #: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
 _PATH_BYTES = 40
 from ..toolpath import (
+    DEFAULT_CLEARANCE,
+    DEFAULT_PLUNGE_FEED,
+    MIN_CLEARANCE,
+    MachineLimits,
+    PartModel,
     Tool,
     kinematics,
+    longest_step,
     limits_from_process,
     pass_margin,
     plan_feed,
@@ -44,7 +50,7 @@ log = logging.getLogger("render_inspect")
 __all__ = ["TurningProcessConfig", "TurningProcess", "TurningInputs", "plan_spiral",
            "toolpath_facts", "turning_memory", "turning_points", "machine_bytes",
            "turning_header", "compensation_variants", "turning_precheck", "turning_traits",
-           "TiledTurningProcess"]
+           "TiledTurningProcess", "turning_part", "turning_limits"]
 
 #: samples per second the envelope cut runs at on 2 cores (the progress bar's estimate;
 #: README speed table)
@@ -70,6 +76,12 @@ class TurningProcessConfig(Section):
                                         "the compound sinusoidal grid study); replaces "
                                         "feed_mm_per_min")
     allow_gouge: bool = Field(False, description="simulate even if the tool cannot reach everywhere")
+    clearance: float = Field(DEFAULT_CLEARANCE, ge=MIN_CLEARANCE, le=100,
+                             description="mm above the part's highest point (stock included): "
+                                         "the clearance plane the program's rapid moves run in")
+    plunge_feed_mm_per_min: float = Field(DEFAULT_PLUNGE_FEED, gt=0, le=1000,
+                                          description="feed of the vertical plunge onto the "
+                                                      "cut and of the retract from it")
     # machine limits used by the kinematics checks (optional)
     x_velocity_limit_mm_s: float | None = Field(None, gt=0)
     x_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
@@ -256,6 +268,37 @@ def turning_header(cfg) -> dict:
             "nose_radius": cfg.tool.nose_radius}
 
 
+def turning_part(cfg, surface, path=None) -> PartModel:
+    """The turned part a program is checked against: the design over the disc of
+    ``process.workpiece_radius``, the depth of cut as stock, the planned ``path``'s
+    longest step."""
+    p = cfg.process
+    step = None if path is None else longest_step(path.x, path.y, path.z)
+    return PartModel(surface.height, ("disc", 0.0, 0.0, float(p.workpiece_radius)),
+                     stock=float(p.depth_of_cut), half_width=Tool.from_config(cfg.tool).half_width,
+                     max_step=step)
+
+
+def turning_limits(cfg) -> MachineLimits:
+    """What the lathe allows a turning program: the slides' velocity limits (the
+    ``[machine]`` preset's, or ``process.x_velocity_limit_mm_s`` /
+    ``z_velocity_limit_mm_s`` when lower) and the spindle speed ``process.spindle_rpm``
+    (the program's C axis never turns faster)."""
+    p = cfg.process
+    machine = machine_of(cfg.machine)
+    vel = {}
+    # on a machine with a fast tool servo the programmed Z is the slide's and the servo's
+    # stroke together: the servo's limit bounds it, not the slide's
+    z_axis = machine.fts if not machine.fts.ideal else machine.z
+    for axis, key, ax in (("X", "x_velocity_limit_mm_s", machine.x),
+                          ("Z", "z_velocity_limit_mm_s", z_axis)):
+        lims = [v for v in (ax.velocity_limit, getattr(p, key)) if v is not None]
+        vel[axis] = min(lims) if lims else None
+    return MachineLimits(source=f"machine.preset {cfg.machine.preset!r} with process.spindle_rpm "
+                                f"{p.spindle_rpm:g} and the [process] velocity limits",
+                         velocity_mm_s=vel, spindle_rpm=float(p.spindle_rpm))
+
+
 def compensation_variants(cfg) -> VariantPair:
     """The pair ``compare`` puts side by side for turning: the tool-radius compensation
     (``"z"`` when the scene says ``"none"``) against none.  Without compensation the nose
@@ -366,6 +409,12 @@ class TurningProcess(Process):
 
     def program_header(self, cfg) -> dict:
         return turning_header(cfg)
+
+    def program_part(self, cfg, surface, plan) -> PartModel:
+        return turning_part(cfg, surface, plan.program)
+
+    def program_limits(self, cfg) -> MachineLimits:
+        return turning_limits(cfg)
 
     def program_facts(self, cfg, plan: Plan) -> dict:
         """``toolpath.json``: the plan's facts with the path's own (points, revolutions,

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
+from ..core.progress import report
 from ..mesh import disc_mesh, heightmap_mesh, window_indices
 # the engine-neutral scene (importable from here as before; _default_window for pipeline/)
 from ._diffuse_scene import (
@@ -328,6 +329,7 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
         else:
             acc = None
             for k, n in enumerate(passes):
+                report(k, len(passes))  # (and stop between passes when a signal asked)
                 img = np.array(mi.render(scene, seed=mitsuba_seed(seed, k), spp=n),
                                dtype=np.float64)[..., :3]
                 acc = img * n if acc is None else acc + img * n

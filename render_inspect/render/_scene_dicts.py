@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.progress import report
 from ._variant import import_mitsuba, single_thread
 
 __all__ = ["mitsuba_mesh", "ortho_sensor", "perspective_sensor", "load_scene_dict",
@@ -111,6 +112,7 @@ def render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
     scene = load_scene_dict(d)
     out = []
     for k in range(len(grids)):
+        report(k, len(grids))  # (and stop between sensors when a signal asked)
         img = np.array(mi.render(scene, sensor=k, seed=0), dtype=np.float32)
         img = img[::-1]  # film row 0 is the top (largest y)
         out.append((np.ascontiguousarray(img[..., 0:3]), np.ascontiguousarray(img[..., 3:6]),

@@ -23,6 +23,7 @@ import warnings
 from pathlib import Path
 
 from ..core.errors import InputError, RenderInspectError
+from ..core.limits import check_address_space, mitsuba_address_space
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
            "spectral_variant"]
@@ -100,6 +101,10 @@ def mitsuba_variant() -> str:
     if _STATE["variant"] is not None:
         return _STATE["variant"]
     _point_at_llvm()
+    if "mitsuba" not in sys.modules:
+        # Mitsuba's LLVM JIT ends with a segmentation fault when its reservations are
+        # refused: refuse the render first under an address-space limit it cannot meet
+        check_address_space(mitsuba_address_space(), what="a Mitsuba render")
     import mitsuba as mi
 
     forced = os.environ.get("RENDER_INSPECT_MITSUBA_VARIANT")

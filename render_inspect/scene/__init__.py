@@ -27,8 +27,9 @@ from typing import Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
-from ..core.units import MIB_TO_BYTES
 from ..core.errors import SceneError
+from ..core.messages import NUMERIC_ERRORS, shown, validation_line
+from ..core.units import MIB_TO_BYTES
 from ..core.section import Section
 from ..design import DesignConfig, design_types
 from ..instruments import InterferometerConfig
@@ -39,13 +40,14 @@ from ..render import DiffuseConfig
 from ._metrology import MetrologyConfig
 from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
+from ._units import unit_errors, unit_warnings
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
            "shipped_scenes", "find_scene", "instrument_config", "scene_sections",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
-           "parse_vary", "compare_pair", "variant_scene", "compare_variants"]
+           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
@@ -99,6 +101,8 @@ class _SceneBase(Section):
         check = getattr(self.process, "check_with", None)
         if check is not None:
             check(self)  # the process kind's checks against the design and the tool
+        for mistake in unit_errors(self):  # a region typed in micrometres, ...
+            raise ValueError(mistake)
         return self
 
     def to_dict(self) -> dict:
@@ -119,18 +123,8 @@ Scene = create_model(
     **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
 
 
-def _shown(value, limit: int = 80) -> str:
-    """``repr(value)`` cut to ``limit`` characters (inputs can be long or deeply nested)."""
-    try:
-        text = repr(value)
-    except RecursionError:
-        text = f"<{type(value).__name__} nested too deeply to show>"
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-_NUMERIC_ERRORS = {"float_type", "float_parsing", "int_type", "int_parsing", "int_from_float",
-                   "finite_number", "greater_than", "greater_than_equal", "less_than",
-                   "less_than_equal", "bool_type"}
+_shown = shown
+_NUMERIC_ERRORS = NUMERIC_ERRORS | {"bool_type"}
 
 
 def _union_classes() -> dict:
@@ -204,31 +198,25 @@ def _expected(loc) -> str | None:
 
 
 def _format_error(err: ValidationError, source: str) -> SceneError:
+    """The errors of a validation as one line each in the scene's words
+    (:func:`~render_inspect.core.messages.validation_line`): the dotted key, what it
+    accepts, the value received.  The values missing from an array of fixed length are
+    said once ("must hold 4 values")."""
     tags = _union_tags()
-    lines = []
+    lines, short = [], {}
     for e in err.errors():
-        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in tags))
-        msg = e["msg"]
+        loc = tuple(p for p in e["loc"] if not (isinstance(p, str) and p in tags))
+        if e["type"] == "missing" and loc and isinstance(loc[-1], int):
+            parent = ".".join(str(p) for p in loc[:-1])
+            short[parent] = (max(short.get(parent, (0,))[0], loc[-1] + 1), e.get("input"))
+            continue
         expected = _expected(e["loc"]) if e["type"] in _NUMERIC_ERRORS else None
-        if expected is not None:
-            what = {"bool_type": " (true/false is not a number)"}.get(e["type"], "")
-            if isinstance(e.get("input"), bool):
-                what = " (true/false is not a number)"
-            elif isinstance(e.get("input"), str):
-                what = " (text is not a number: write it without quotes)"
-            msg = f"must be {expected}{what}"
-        elif e["type"] == "extra_forbidden":
-            msg = "unknown key (not allowed here; check the spelling)"
-        elif msg.startswith("Value error, "):
-            msg = msg[len("Value error, "):]
-            m = re.match(r"^([a-z_][a-z0-9_]*(?:\.[A-Za-z0-9_]+)*) (must|is|are) ", msg)
-            if m:  # a model-level check about one of its keys: name the key in full
-                loc = f"{loc}.{m.group(1)}" if loc else m.group(1)
-                msg = msg[len(m.group(1)) + 1:]
-        inp = e.get("input")
-        got = "" if e["type"] in ("missing",) or isinstance(inp, dict) or "received" in msg \
-            else f"; received {_shown(inp)}"
-        lines.append(f"{loc or '(top level)'}: {msg}{got}")
+        key, text = validation_line(e, key=".".join(str(p) for p in loc), expected=expected,
+                                    tags=sorted(design_types()))
+        lines.append(f"{key or '(top level)'}: {text}")
+    for parent, (n, inp) in short.items():
+        inp = list(inp) if isinstance(inp, tuple) else inp
+        lines.append(f"{parent}: must hold {n} values; received {_shown(inp)}")
     if len(lines) == 1:
         return SceneError(f"invalid scene {source}: {lines[0]}")
     return SceneError(f"invalid scene {source} ({len(lines)} errors):\n"

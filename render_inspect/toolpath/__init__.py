@@ -31,6 +31,9 @@ from ._rcse import (
 from ._scallop import feed_for_scallop, max_feed_for_scallop, plan_feed, scallop_height
 from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool, pass_margin
+from ._verify import (CUT_TOLERANCE, DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE,
+                      MachineLimits, PartModel, compare_with_plan, longest_step, part_top, plan_links,
+                      verify_blocks)
 
 __all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "spiral_ccps", "chordal_error",
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
@@ -39,4 +42,6 @@ __all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "spiral_ccps", "c
            "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
            "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",
-           "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]
+           "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed",
+           "PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks", "longest_step", "compare_with_plan",
+           "MIN_CLEARANCE", "DEFAULT_CLEARANCE", "DEFAULT_PLUNGE_FEED", "CUT_TOLERANCE"]

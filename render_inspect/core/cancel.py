@@ -1,0 +1,64 @@
+"""Stopping long work when the user asks (Ctrl-C, SIGTERM).
+
+Python runs a signal's handler in the main thread, between two steps of Python code: a
+compiled kernel (numba), a long C call or a worker thread does not see it until it
+returns.  So long computations run in blocks of a fraction of a second and call
+:func:`check` between them (or :func:`~render_inspect.core.progress.report`, which also
+moves the progress bar): the command line's handlers :func:`request` the stop, and the
+next :func:`check` in any thread raises the interruption, so that every command stops
+within about one block of the signal (exit 130 / 143, the output folder as it was).
+
+>>> clear()
+>>> for a, b in blocks(10, 4):   # (0, 4), (4, 8), (8, 10), with a check between
+...     pass
+"""
+
+from __future__ import annotations
+
+import signal
+
+__all__ = ["Terminated", "request", "requested", "clear", "check", "blocks"]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
+
+
+_STATE: dict = {"signum": None}
+
+
+def request(signum: int = signal.SIGINT) -> None:
+    """Ask every long computation to stop at its next :func:`check` (``signum``: the
+    signal that asked, SIGINT by default)."""
+    if _STATE["signum"] is None:
+        _STATE["signum"] = int(signum)
+
+
+def requested() -> int | None:
+    """The signal that asked to stop, or None."""
+    return _STATE["signum"]
+
+
+def clear() -> None:
+    """Forget a request (a new run starts)."""
+    _STATE["signum"] = None
+
+
+def check() -> None:
+    """Raise the interruption asked for (:class:`KeyboardInterrupt` for SIGINT,
+    :class:`Terminated` for SIGTERM / SIGHUP), if any; in any thread."""
+    signum = _STATE["signum"]
+    if signum is None:
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+def blocks(total: int, size: int):
+    """``(start, stop)`` ranges of at most ``size`` covering ``range(total)``, with a
+    :func:`check` before each."""
+    size = max(int(size), 1)
+    for a in range(0, int(total), size):
+        check()
+        yield a, min(a + size, int(total))

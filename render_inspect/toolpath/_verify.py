@@ -1,0 +1,464 @@
+"""The links of a machine program and its verification against the part.
+
+:func:`plan_links` sets the clearance plane (the part's highest point, stock included,
+plus the scene's ``process.clearance``) and the plunge feed every written program moves
+through between its cuts (:class:`~render_inspect.core.toolpath.Links`).
+
+:func:`verify_blocks` checks every block of a program as it was written (read back
+from the file, :func:`render_inspect.io.read_nc_blocks`, in either dialect) against the
+part, the design and the machine:
+
+* the program starts with a rapid that raises Z alone to the clearance plane (where the
+  machine starts is not known);
+* rapids (``G00``) start and end in the clearance plane, which lies at least
+  :data:`MIN_CLEARANCE` above the part's highest point: no rapid can pass through the
+  part;
+* plunges and retracts (``G01`` outside the cut) are vertical, run between the
+  clearance plane and a point of the cut, and at the plunge feed;
+* cutting blocks end on or above the design surface (within ``cut_tolerance``, the
+  chordal and rounding error), inside the part's outline (plus the tool's half width),
+  and are no longer than the planned program's longest step;
+* every feed is positive and within the machine's limits: the programmed feed, each
+  axis's velocity, the spindle speed, the axes' travel.
+
+A failure is an :class:`InputError` naming the block number (``N`` word), what the block
+does and the limit it breaks.  The same checks run on the blocks a program would have
+(:func:`render_inspect.io.program_blocks`) when ``simulate`` plans it: the links are
+part of the simulated program and never touch the part.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.toolpath import (ROLE_CUT, ROLE_NAMES, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT, Blocks,
+                             Links)
+from ..core.units import MIN_TO_S, MM_TO_NM
+
+__all__ = ["PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks", "longest_step",
+           "compare_with_plan",
+           "MIN_CLEARANCE", "DEFAULT_CLEARANCE", "DEFAULT_PLUNGE_FEED", "CUT_TOLERANCE", "DECIMALS"]
+
+#: the least height of the clearance plane above the part's highest point, mm
+MIN_CLEARANCE = 0.01
+#: ``process.clearance`` when the scene does not set it, mm
+DEFAULT_CLEARANCE = 0.1
+#: ``process.plunge_feed_mm_per_min`` when the scene does not set it
+DEFAULT_PLUNGE_FEED = 10.0
+#: how far a cutting block may end below the design surface, mm: the chordal error of
+#: the linear moves, the curvature under a compensated tip and the written places
+CUT_TOLERANCE = 1e-4
+#: places the programs are written with (mm, deg) and the step they round to
+DECIMALS = 6
+_ROUND = 10.0 ** -DECIMALS
+#: samples across the part's outline when its highest point is sought
+_TOP_SAMPLES = 257
+#: cutting blocks whose design height is evaluated at a time
+_CHUNK = 1 << 18
+
+
+@dataclass(frozen=True)
+class PartModel:
+    """The part a program cuts, as the verifier sees it.
+
+    Attributes
+    ----------
+    height : callable
+        ``height(x, y) -> z`` of the design surface, mm (numpy arrays in and out).
+    outline : tuple
+        Where the part is: ``("disc", cx, cy, radius)`` or ``("box", x0, y0, x1, y1)``, mm.
+    stock : float
+        Material above the design (the depth of cut), mm.
+    half_width : float
+        Half the width of the tool's cutting edge, mm (a cut may reach this far beyond
+        the outline).
+    max_step : float or None
+        The longest cutting move of the planned program, mm: a longer one is not part of
+        the cut (a move between cuts that does not go through the clearance plane).
+    """
+
+    height: object
+    outline: tuple
+    stock: float = 0.0
+    half_width: float = 0.0
+    max_step: float | None = None
+
+
+@dataclass(frozen=True)
+class MachineLimits:
+    """What the machine allows (None: no limit).
+
+    Attributes
+    ----------
+    source : str
+        Where the limits come from, for messages (``"machine.preset 'sts_lathe'"``).
+    feed_mm_per_min : float or None
+        The largest programmed feed of a linear (``G94``) program.
+    velocity_mm_s : dict
+        Axis (``"X"``, ``"Y"``, ``"Z"``) -> largest velocity, mm/s.
+    spindle_rpm : float or None
+        The largest speed of the C axis, rev/min.
+    travel : dict
+        Axis -> (lowest, highest) position, mm (C has none).
+    """
+
+    source: str = "the machine"
+    feed_mm_per_min: float | None = None
+    velocity_mm_s: dict = field(default_factory=dict)
+    spindle_rpm: float | None = None
+    travel: dict = field(default_factory=dict)
+
+
+def _grid(outline, n: int):
+    kind = outline[0]
+    if kind == "disc":
+        _, cx, cy, r = outline
+        u = np.linspace(-r, r, n)
+        x, y = np.meshgrid(cx + u, cy + u)
+        inside = (x - cx) ** 2 + (y - cy) ** 2 <= r * r
+        return x[inside], y[inside]
+    if kind == "box":
+        _, x0, y0, x1, y1 = outline
+        x, y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
+        return x.ravel(), y.ravel()
+    raise InputError(f"part outline must be ('disc', cx, cy, r) or ('box', x0, y0, x1, y1), "
+                     f"received {outline!r}")
+
+
+def longest_step(x, y, z, line=None) -> float:
+    """The longest straight move between consecutive points of a planned program (within
+    each line when ``line`` is given), mm."""
+    x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
+    if x.size < 2:
+        return 0.0
+    step = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
+    if line is not None:
+        step = step[np.diff(np.asarray(line)) == 0]
+    return float(step.max()) if step.size else 0.0
+
+
+def part_top(part: PartModel, *, program_z=None) -> float:
+    """The part's highest point, mm: the design's highest height over the outline
+    (sampled on a :data:`_TOP_SAMPLES` grid) or the highest programmed cutting point,
+    whichever is higher, plus the stock."""
+    x, y = _grid(part.outline, _TOP_SAMPLES)
+    with np.errstate(invalid="ignore"):
+        z = np.asarray(part.height(x, y), dtype=np.float64)
+    top = float(np.nanmax(z)) if np.isfinite(z).any() else -math.inf
+    if program_z is not None and np.size(program_z):
+        top = max(top, float(np.nanmax(program_z)))
+    if not math.isfinite(top):
+        raise InputError("the part's highest point cannot be found: the design has no finite "
+                         "height over the part")
+    return top + float(part.stock)
+
+
+def plan_links(part: PartModel, *, clearance: float = DEFAULT_CLEARANCE,
+               plunge_feed: float = DEFAULT_PLUNGE_FEED, program_z=None,
+               keys: tuple[str, str] = ("process.clearance", "process.plunge_feed_mm_per_min")
+               ) -> Links:
+    """The :class:`Links` of a program: the clearance plane ``clearance`` mm above the
+    part's highest point (:func:`part_top`), the plunge feed.  ``keys`` name the scene
+    keys in messages."""
+    if not (isinstance(clearance, (int, float)) and math.isfinite(clearance)
+            and clearance >= MIN_CLEARANCE):
+        raise InputError(f"{keys[0]} must be a number >= {MIN_CLEARANCE} mm (the clearance "
+                         f"plane's height above the part), received {clearance!r}")
+    if not (isinstance(plunge_feed, (int, float)) and math.isfinite(plunge_feed)
+            and plunge_feed > 0):
+        raise InputError(f"{keys[1]} must be a number > 0 mm/min, received {plunge_feed!r}")
+    top = part_top(part, program_z=program_z)
+    # the plane rounded up to the written places, so that it stays above the part
+    zc = math.ceil((top + clearance) / _ROUND) * _ROUND
+    return Links(clearance_z=round(zc, 6), plunge_feed=float(plunge_feed), part_top=top)
+
+
+# ---------------------------------------------------------------------------- checks
+def _fail(what: str, blocks: Blocks, i: int, text: str):
+    n = int(blocks.number[i])
+    role = ROLE_NAMES[int(blocks.role[i])]
+    move = "G00" if blocks.motion[i] == 0 else "G01"
+    where = f"block N{n}" if n >= 0 else f"block {i + 1}"
+    raise InputError(f"{what} {where} ({move}, {role}): {text}")
+
+
+def _tip(blocks: Blocks):
+    """(x, y, z) of the tool tip at the end of each block, mm."""
+    ax = blocks.axes
+    if blocks.dialect == "turning":
+        c = np.radians(ax["C"])
+        return ax["X"] * np.cos(c), ax["X"] * np.sin(c), ax["Z"]
+    return ax["X"], ax["Y"], ax["Z"]
+
+
+def _inside(outline, x, y, margin: float) -> np.ndarray:
+    if outline[0] == "disc":
+        _, cx, cy, r = outline
+        return np.hypot(x - cx, y - cy) <= r + margin + _ROUND
+    _, x0, y0, x1, y1 = outline
+    return (x >= x0 - margin - _ROUND) & (x <= x1 + margin + _ROUND) & \
+        (y >= y0 - margin - _ROUND) & (y <= y1 + margin + _ROUND)
+
+
+def _first(mask) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links: Links, *,
+                  cut_tolerance: float = CUT_TOLERANCE, what: str = "toolpath.nc",
+                  check_cuts: bool = True) -> dict:
+    """Check every block of a program (see the module docstring); raise
+    :class:`InputError` naming the first block that fails.
+
+    Parameters
+    ----------
+    blocks : Blocks
+        The program as written (:func:`render_inspect.io.read_nc_blocks`).
+    part : PartModel
+    limits : MachineLimits
+    links : Links
+        The clearance plane and plunge feed the program was written with.
+    cut_tolerance : float
+        mm a cutting block may end below the design.
+    what : str
+        The program's name in messages.
+    check_cuts : bool
+        Also check the cutting blocks against the design (False: the links, feeds and
+        limits only, e.g. when the cut is simulated anyway).
+
+    Returns
+    -------
+    dict
+        Facts: ``blocks``, ``rapids``, ``plunges``, ``retracts``, ``cuts``,
+        ``clearance_z_mm``, ``part_top_mm``, ``clearance_above_part_mm``,
+        ``rapids_above_part_min_mm`` (the lowest point of any rapid above the part's
+        highest point), ``cut_below_design_max_nm``, ``max_feed_mm_per_min``,
+        ``plunge_feed_mm_per_min``.
+    """
+    n = blocks.count
+    if n == 0:
+        raise InputError(f"{what}: no motion blocks")
+    num = blocks.number
+    if np.any(num < 1) or np.any(np.diff(num) <= 0):
+        i = _first((num < 1) | np.r_[False, np.diff(num) <= 0])
+        _fail(what, blocks, i, "block numbers must be positive and increase from block to block")
+    x, y, z = _tip(blocks)
+    zc = float(links.clearance_z)
+    top = part_top(part, program_z=z[blocks.role == ROLE_CUT])
+    if zc - top < MIN_CLEARANCE - _ROUND:
+        raise InputError(f"{what}: the clearance plane Z {zc:.6f} mm lies {zc - top:.6g} mm above "
+                         f"the part's highest point ({top:.6f} mm, stock included); it must be at "
+                         f"least {MIN_CLEARANCE} mm above (process.clearance)")
+    rapid = blocks.motion == 0
+    role = blocks.role
+    # 1. the start: Z alone up to the clearance plane
+    others = [a for a in blocks.axes if a != "Z"]
+    if not rapid[0] or any(np.isfinite(blocks.axes[a][0]) for a in others) \
+            or not z[0] >= zc - _ROUND:
+        _fail(what, blocks, 0, f"the program must start with a rapid that raises Z alone to the "
+                               f"clearance plane Z {zc:.6f} mm (where the machine starts is not "
+                               f"known)")
+    known = np.ones(n, dtype=bool)
+    for a in blocks.axes:
+        known &= np.isfinite(blocks.axes[a])
+    i = _first(~known[1:])
+    if i is not None:
+        _fail(what, blocks, i + 1, f"the block moves before every axis has a position "
+                                   f"({', '.join(blocks.axes)})")
+    zs = np.r_[z[0], z[:-1]]
+    # every check notes the first block it refuses; the earliest block is reported
+    problems: list[tuple[int, int, str]] = []
+
+    def note(i, text):  # (block, order of the check, message)
+        problems.append((int(i), len(problems), text))
+
+    # 2. rapids stay in the clearance plane
+    low = rapid & ((z < zc - _ROUND) | (zs < zc - _ROUND))
+    i = _first(low)
+    if i is not None:
+        note(i, f"a rapid from Z {zs[i]:.6f} to Z {z[i]:.6f} mm leaves the "
+                               f"clearance plane Z {zc:.6f} mm (the part's top is at {top:.6f} mm)")
+    # 3. plunges and retracts: vertical, between the plane and the cut
+    feedmove = ~rapid & (role != ROLE_CUT)
+    moved = np.zeros(n, dtype=bool)
+    for a in others:
+        v = blocks.axes[a]
+        moved[1:] |= np.abs(np.diff(v)) > _ROUND / 2
+    i = _first(feedmove & moved)
+    if i is not None:
+        note(i, "a plunge or retract must be vertical (only Z moves): a feed move "
+                               "outside the cut that also moves sideways could cut through the part")
+    hi = np.maximum(z, zs)
+    i = _first(feedmove & (hi < zc - _ROUND))
+    if i is not None:
+        note(i, f"a plunge or retract must reach the clearance plane Z {zc:.6f} mm, "
+                               f"its top is at Z {hi[i]:.6f} mm")
+    i = _first(((role == ROLE_PLUNGE) & (z > zs)) | ((role == ROLE_RETRACT) & (z < zs)))
+    if i is not None:
+        note(i, "a plunge must move down and a retract up")
+    # the lower ends of plunges and retracts are points of the cut: checked with the cut
+    lower = np.zeros(n, dtype=bool)
+    lower |= feedmove & (z <= zs)                       # a plunge's end
+    lower[:-1] |= feedmove[1:] & (z[1:] >= zs[1:])      # the point a retract leaves
+    cutpt = ((role == ROLE_CUT) | lower) & np.isfinite(x) & np.isfinite(y)
+    # 4. cutting blocks: inside the outline, on or above the design
+    i = _first(cutpt & ~_inside(part.outline, x, y, part.half_width))
+    if i is not None:
+        note(i, f"the cut at x {x[i]:.6f}, y {y[i]:.6f} mm lies outside the part "
+                               f"({part.outline[0]} {', '.join(f'{v:g}' for v in part.outline[1:])} mm)")
+    below_max = 0.0
+    if check_cuts:
+        idx = np.flatnonzero(cutpt)
+        for a in range(0, idx.size, _CHUNK):
+            sel = idx[a:a + _CHUNK]
+            try:
+                with np.errstate(invalid="ignore"):
+                    d = np.asarray(part.height(x[sel], y[sel]), dtype=np.float64) - z[sel]
+            except InputError as err:  # the design is not defined where the program cuts
+                note(int(sel[0]), f"the design cannot be evaluated where the program cuts ({err})")
+                break
+            d = np.where(np.isfinite(d), d, -np.inf)
+            bad = np.flatnonzero(d > cut_tolerance)
+            if bad.size:
+                j = int(sel[bad[0]])
+                note(j, f"the tool tip ends {d[bad[0]] * MM_TO_NM:.0f} nm below "
+                                       f"the design surface at x {x[j]:.6f}, y {y[j]:.6f} mm (at "
+                                       f"most {cut_tolerance * MM_TO_NM:.0f} nm allowed)")
+            if sel.size:
+                below_max = max(below_max, float(np.max(d)))
+    if part.max_step is not None:
+        step = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
+        i = _first((role == ROLE_CUT) & (step > part.max_step + 4 * _ROUND))
+        if i is not None:
+            note(i, f"a cutting move of {step[i]:.6g} mm, longer than the "
+                                   f"program's longest planned step ({part.max_step:.6g} mm): a "
+                                   f"move between cuts must retract to the clearance plane")
+    # 5. feeds and limits
+    feed_mm_min = _feeds(blocks, x, y, z, what)
+    f = blocks.feed
+    fm = ~rapid
+    if limits.feed_mm_per_min is not None and blocks.dialect == "linear":
+        i = _first(fm & (feed_mm_min > limits.feed_mm_per_min * (1 + 1e-9)))
+        if i is not None:
+            note(i, f"feed {feed_mm_min[i]:g} mm/min over the {limits.feed_mm_per_min:g} "
+                                   f"mm/min {limits.source} allows")
+    i = _first(feedmove & (feed_mm_min > links.plunge_feed * (1 + 1e-6) + 1e-9))
+    if i is not None:
+        note(i, f"plunges and retracts run at the plunge feed "
+                               f"({links.plunge_feed:g} mm/min), this one at {feed_mm_min[i]:g} mm/min")
+    for a, (lo, hi_) in limits.travel.items():
+        if a in blocks.axes:
+            v = blocks.axes[a]
+            i = _first((v < lo - _ROUND) | (v > hi_ + _ROUND))
+            if i is not None:
+                note(i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
+                                       f"of {limits.source}")
+    _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
+    if problems:
+        i, _, text = min(problems)
+        _fail(what, blocks, i, text)
+    rz = np.minimum(z, zs)[rapid & (np.arange(n) > 0)]
+    return {"blocks": int(n), "rapids": int(rapid.sum()),
+            "plunges": int((role == ROLE_PLUNGE).sum()),
+            "retracts": int((role == ROLE_RETRACT).sum()), "cuts": int((role == ROLE_CUT).sum()),
+            "clearance_z_mm": zc, "part_top_mm": top, "clearance_above_part_mm": zc - top,
+            "rapids_above_part_min_mm": float(rz.min() - top) if rz.size else None,
+            "cut_below_design_max_nm": max(below_max, 0.0) * MM_TO_NM if check_cuts else None,
+            "max_feed_mm_per_min": float(np.nanmax(feed_mm_min[fm])) if fm.any() else 0.0,
+            "plunge_feed_mm_per_min": float(links.plunge_feed)}
+
+
+def compare_with_plan(blocks: Blocks, points, planned: dict, *, what: str = "toolpath.nc",
+                      tolerance: float = _ROUND) -> dict:
+    """Check that the cutting points of a written program (the blocks ``points``, in
+    order) are the planned program's (``planned``: axis -> array, C in deg), each axis to
+    ``tolerance`` plus the written places' rounding; returns ``{"points", "max_deviation"}``
+    (largest difference of any axis, mm or deg).  A failure names the block."""
+    points = np.asarray(points, dtype=np.int64)
+    n = len(next(iter(planned.values())))
+    if points.size != n:
+        raise InputError(f"{what}: the program has {points.size} cutting points, the plan "
+                         f"{n}: the written program is not the planned one")
+    worst = 0.0
+    for a, v in planned.items():
+        d = np.abs(blocks.axes[a][points] - np.asarray(v, dtype=np.float64))
+        bad = np.flatnonzero(~(d <= 0.501 * tolerance))  # half a place, and float error
+        if bad.size:
+            i = int(points[bad[0]])
+            _fail(what, blocks, i, f"{a} {blocks.axes[a][i]:.6f} differs from the planned "
+                                   f"{float(v[bad[0]]):.6f} (point {int(bad[0])} of the plan): "
+                                   f"the written program is not the planned one")
+        worst = max(worst, float(d.max()) if d.size else 0.0)
+    return {"points": int(n), "max_deviation": worst}
+
+
+def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
+    """Feed of each ``G01`` block along the tool tip's straight move, mm/min (NaN for
+    rapids); refuses a feed block without a positive ``F``."""
+    n = blocks.count
+    f = blocks.feed.copy()
+    feed = np.full(n, np.nan)
+    fm = blocks.motion == 1
+    if blocks.dialect == "linear":
+        last = np.nan
+        for i in np.flatnonzero(~np.isnan(f) | fm):  # F is modal in G94
+            if np.isnan(f[i]):
+                f[i] = last
+            last = f[i]
+        bad = fm & ~(f > 0)
+        i = _first(bad)
+        if i is not None:
+            _fail(what, blocks, i, f"a feed move needs F > 0 mm/min, received {f[i]!r}")
+        feed[fm] = f[fm]
+        return feed
+    bad = fm & ~(f > 0)
+    i = _first(bad[1:])
+    if i is not None:
+        _fail(what, blocks, i + 1, f"a feed move needs an inverse-time F > 0 (G93), received "
+                                   f"{f[i + 1]!r}")
+    # length of the axes' move (X, Z; C is a rotation) over its duration 1/F min
+    ax = blocks.axes
+    dist = np.r_[0.0, np.hypot(np.diff(ax["X"]), np.diff(ax["Z"]))]
+    feed[fm] = dist[fm] * f[fm]
+    return feed
+
+
+def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str, note):
+    n = blocks.count
+    fm = np.r_[False, blocks.motion[1:] == 1]
+    if blocks.dialect == "turning":
+        dt = np.full(n, np.nan)
+        dt[fm] = MIN_TO_S / blocks.feed[fm]  # s
+        if limits.spindle_rpm is not None:
+            rpm = np.zeros(n)
+            # (less the rounding of the written places at either end of the move)
+            dc = np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes["C"])]) - 2 * _ROUND, 0.0)
+            turns = np.radians(dc) / (2 * math.pi)
+            rpm[fm] = turns[fm] / dt[fm] * MIN_TO_S
+            i = _first(rpm > limits.spindle_rpm * (1 + 1e-6))
+            if i is not None:
+                note(i, f"the C axis turns at {rpm[i]:.6g} rev/min, over the "
+                                       f"{limits.spindle_rpm:g} rev/min of {limits.source}")
+        moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
+                 for a in ("X", "Z")}
+    else:
+        length = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
+        dt = np.full(n, np.nan)
+        ok = fm & (length > 0)
+        dt[ok] = length[ok] / (feed_mm_min[ok] / MIN_TO_S)
+        moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
+                 for a in ("X", "Y", "Z")}
+    for a, vmax in limits.velocity_mm_s.items():
+        if vmax is None or a not in moves:
+            continue
+        with np.errstate(invalid="ignore", divide="ignore"):
+            v = np.where(fm & (dt > 0), moves[a] / dt, 0.0)
+        i = _first(v > vmax * (1 + 1e-6))
+        if i is not None:
+            note(i, f"the {a} axis moves at {v[i]:.6g} mm/s, over the {vmax:g} mm/s "
+                                   f"of {limits.source}")

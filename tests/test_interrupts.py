@@ -1,0 +1,131 @@
+"""Every command stops when asked: SIGINT or SIGTERM sent while the command works (its
+temporary output folder exists and it has been busy for a moment) ends it within
+:data:`LATENCY_S` with exit 130 / 143, one line on stderr and no traceback, the output
+folder as it was before the run (here: an earlier run's files, untouched) and no
+temporary folder left behind.  The latency of each command is printed (``-s``).
+
+The long steps run in blocks and stop between them (:mod:`render_inspect.core.cancel`);
+the bound leaves room for a loaded machine (the target is about 2 s)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from render_inspect.io import atomic_output_dir
+
+REPO = Path(__file__).resolve().parents[1]
+#: the largest stop latency accepted, s
+LATENCY_S = float(os.environ.get("RENDER_INSPECT_STOP_LATENCY_S", "3.5"))
+#: how long the command works before the signal, s (after its temporary folder appears)
+BUSY_S = 1.5
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("inputs")
+    z = np.random.default_rng(0).normal(0, 1e-5, (3000, 3000))
+    np.save(d / "big.npy", z)
+    (d / "big.json").write_text('{"pixel_mm": 0.00025}')
+    # interferometer frames: a CSI scan of a tilted plane, large enough to take a while
+    from render_inspect.instruments import Microscope, artefacts, csi_frames, led, objective
+    from render_inspect.io import write_frames_exr
+
+    p = 0.5e-3
+    h, nrm = artefacts.sinusoid((1000, 1000), p, period=0.05, amplitude=2e-5)
+    fr = csi_frames(h + 2e-3, nrm, pixel=p, origin=(0.0, 0.0),
+                    microscope=Microscope(objective=objective("20x"), source=led()))
+    write_frames_exr(d / "frames.exr", fr)
+    return d
+
+
+# (name, arguments, signal); the output folder is added as --out
+COMMANDS = [
+    ("simulate", ["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
+                  "--set", "material.preset='ideal'"], "SIGINT"),
+    ("simulate-material", ["simulate", "sts_sinusoidal_grid"], "SIGTERM"),
+    ("simulate-tiled", ["simulate", "sts_sinusoidal_grid", "--tiled", "--set",
+                        "material.preset='ideal'", "--set", "simulation.region=[-1.5,-1.5,1.5,1.5]"],
+     "SIGTERM"),
+    ("toolpath", ["toolpath", "rcse_circular_array", "--format", "nc"], "SIGINT"),
+    ("render", ["render", "sts_sinusoidal_grid"], "SIGTERM"),
+    ("compare", ["compare", "sts_sinusoidal_grid"], "SIGINT"),
+    ("analyze", ["analyze", "{inputs}/big.npy", "--filter", "0.0025,0.5"], "SIGTERM"),
+    ("measure", ["measure", "{inputs}/frames.exr"], "SIGINT"),
+    ("characterise", ["characterise", "--objective", "20x"], "SIGTERM"),
+    ("sweep", ["sweep", "fig15_small"], "SIGINT"),
+    ("regress", ["regress", "--only", "fig16_overcut_z,hts_toric_z"], "SIGTERM"),
+    ("demo", ["demo", "--quick"], "SIGINT"),
+]
+
+
+def _tree(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def _stop_once_busy(args, out: Path, sig: str, cwd: Path):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, "-m", "render_inspect.cli", *args, "--out", str(out),
+                             "-q"], cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    busy_since = None
+    while proc.poll() is None and time.monotonic() - t0 < 400:
+        started = any(".partial-" in p.name for p in out.parent.iterdir()) or \
+            (out / ".lock").exists()  # a sweep's folder is locked, not swapped
+        if started and busy_since is None:
+            busy_since = time.monotonic()
+        if busy_since is not None and time.monotonic() - busy_since >= BUSY_S:
+            break
+        time.sleep(0.05)
+    still = any(".partial-" in p.name for p in out.parent.iterdir()) or (out / ".lock").exists()
+    if proc.poll() is not None or not still:
+        proc.wait()
+        _, err = proc.communicate()
+        pytest.fail(f"{args[0]} finished its work before it was stopped (rc {proc.returncode}): "
+                    f"{err[-500:]}; give it more to do")
+    ts = time.monotonic()
+    proc.send_signal(getattr(signal, sig))
+    try:
+        proc.wait(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        pytest.fail(f"{args[0]} did not stop within 120 s of {sig}")
+    latency = time.monotonic() - ts
+    _, err = proc.communicate()
+    return proc.returncode, latency, err
+
+
+@pytest.mark.parametrize("name,args,sig", COMMANDS, ids=[c[0] for c in COMMANDS])
+def test_command_stops_within_seconds(name, args, sig, inputs, tmp_path):
+    args = [a.replace("{inputs}", str(inputs)) for a in args]
+    out = tmp_path / "out"
+    if name != "sweep":  # an earlier run's folder, which must stay as it was
+        with atomic_output_dir(out, command=args[0]) as tmp:
+            (tmp / "earlier.txt").write_text("an earlier run")
+    before = _tree(out) if out.exists() else {}
+    rc, latency, err = _stop_once_busy(args, out, sig, tmp_path)
+    print(f"\n{name}: {sig} -> exit {rc} after {latency:.2f} s")
+    assert rc == (130 if sig == "SIGINT" else 143), (name, rc, err[-800:])
+    lines = err.strip().splitlines()
+    assert "Traceback" not in err and len(lines) == 1, err[-800:]
+    assert ("interrupted" if sig == "SIGINT" else "terminated") in lines[0]
+    assert latency < LATENCY_S, (name, latency)
+    leftovers = [p.name for p in tmp_path.iterdir() if ".partial-" in p.name or
+                 p.name.endswith(".lock")]
+    assert not leftovers, leftovers
+    if name == "sweep":  # the finished points are kept, the folder is a sweep's
+        assert "results.jsonl" in lines[0]
+        assert json.loads((out / ".render_inspect.json").read_text())
+    else:
+        assert _tree(out) == before
