@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..core.errors import InputError, check_range
+from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cutting import cut_turning_mechanics
 from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
@@ -539,7 +540,9 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=N
         region's first pixel); the region's first pixel must lie on that grid.
     progress : callable(done, total), optional
         Called after each row block with the rows done and the rows in all; it may raise
-        to stop the cut (the maps are then incomplete).
+        to stop the cut (the maps are then incomplete).  Default:
+        :func:`render_inspect.core.progress.report` (the running step's bar, and a stop
+        asked for by Ctrl-C or SIGTERM).
     block_samples : int
         Samples per row block (at least one row).
     parallel : bool
@@ -568,8 +571,8 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=N
         r1 = min(r0 + step, ny)
         stats[r0:r1] = cut_fill(cp, grooves, origin, pixel, {k: v[r0:r1] for k, v in maps.items()},
                                 start=(start[0] + r0, start[1]), parallel=parallel)
-        if progress is not None:
-            progress(r1, ny)
+        # the running step's progress, and a stop asked for by a signal, between blocks
+        (report if progress is None else progress)(r1, ny)
     return {**maps, "grooves_sumsq": float(stats[:, 0].sum()), "grooves_n": int(stats[:, 1].sum()),
             "added_max": float(stats[:, 2].max()) if ny else -math.inf}
 
