@@ -59,3 +59,10 @@ __all__ = ["MM_TO_NM", "NM_TO_MM", "MM_TO_UM", "UM_TO_MM", "UM_TO_NM", "NM_TO_UM
            "MM_TO_M", "MIN_TO_S", "PER_MIN_TO_PER_S", "RPM_TO_RAD_PER_S", "RPM_TO_HZ",
            "S_TO_MS", "S_TO_US", "BYTES_TO_GIB", "GIB_TO_BYTES", "BYTES_TO_MIB",
            "STANDARD_GRAVITY_MM_S2"]
+
+#: radians -> microradians
+RAD_TO_URAD = 1e6
+#: microradians -> radians
+URAD_TO_RAD = 1e-6
+
+__all__ += ["RAD_TO_URAD", "URAD_TO_RAD"]

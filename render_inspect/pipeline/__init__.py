@@ -3,7 +3,8 @@ Blender add-on call these functions.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
 ``run_toolpath``, ``run_render``, ``run_compare``, ``run_analyze``, ``run_measure``,
-``run_characterise``, ``run_demo``, ``run_sweep`` (many points on Dask), ``run_regress``
+``run_characterise``, ``run_demo``, ``run_fit`` (a measured surface -> the scene's
+settings), ``run_sweep`` (many points on Dask), ``run_regress``
 (the image regression suite); the
 Blender add-on's ``simulate_variants``, ``render_variant``, ``compare_scene``,
 ``export_variant`` (and ``surfaces_into_blender``, ``load_render_images`` to show their
@@ -24,6 +25,7 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
                        variant_scene)
 from ._characterise import characterise_instrument, run_characterise
 from ._demo import DEMO_SCENE, run_demo
+from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
 from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
 from ._metrics import lenslet_metrics, simulation_metrics
 from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
@@ -51,4 +53,4 @@ __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "ru
            "COMPARE_MAX_DIFFUSE_RESOLUTION", "COMPARE_MAX_DIFFUSE_SPP",
            "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
            "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
-           "check_render_limits"]
+           "check_render_limits", "run_fit", "predict_measurement", "preset_value", "FIT_FILES"]

@@ -7,6 +7,7 @@ from __future__ import annotations
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
                        line_panels, locator_figure, map_panels, png_bytes,
                        radial_profile_figure)
+from ._fit import fit_figures, fit_page, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length
 from ._html import HtmlReport, data_uri, table_html
@@ -19,4 +20,4 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "line_panels", "plot_following_error", "plot_following_error_map",
            "annotate_rgb", "block_mean", "display_map", "difference_figure", "fmt_number",
            "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
-           "turning_axes"]
+           "turning_axes", "fit_figures", "fit_page", "psd_figure"]
