@@ -41,6 +41,8 @@ __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bi
 
 #: form removal the user may choose (as ``analyze``)
 FORMS = ("none", "plane", "poly2", "sphere")
+#: PSD bins this many decades below the strongest are left out (the Hann window's leakage)
+PSD_RANGE_DECADES = 5.0
 TERMS = ("map", "psd", "harmonics")
 
 
@@ -348,7 +350,10 @@ def make_target(z, *, pixel, origin, spec: MisfitSpec) -> Target:
     rows, cols = rows * stride, cols * stride
     rms = float(np.sqrt(np.mean(wavy[ok] ** 2))) if ok.any() else 0.0
     sigma_map = max(spec.sigma_map_fraction * rms, spec.sigma_map_min_nm / MM_TO_NM)
-    return Target(h, pixel, tuple(origin), spec, (k_lo, k_hi), psd, np.isfinite(psd), psd_sigma,
+    # bins more than PSD_RANGE_DECADES below the strongest hold the window's leakage of the
+    # marks (which moves with their phase), not the surface's own spectrum
+    use = np.isfinite(psd) & (psd >= np.nanmax(psd) - PSD_RANGE_DECADES)
+    return Target(h, pixel, tuple(origin), spec, (k_lo, k_hi), psd, use, psd_sigma,
                   peak, centroid, amps, cutoff, wavy, (rows, cols), sigma_map)
 
 

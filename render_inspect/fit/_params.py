@@ -250,6 +250,16 @@ def free_parameters(scene, keys, bounds: dict | None = None, *, defaults=None) -
         lo, hi, lo_open, hi_open, value = schema_range(scene, key)
         if value is None and defaults is not None:
             value = defaults(key)
+        if value is None and defaults is not None:
+            parts = _split(key)
+            for i, part in enumerate(parts):
+                if isinstance(part, int):
+                    arr = defaults(".".join(str(q) for q in parts[:i]))
+                    if isinstance(arr, (list, tuple)) and part >= len(arr):
+                        raise InputError(f"--free {key}: {'.'.join(str(q) for q in parts[:i])} "
+                                         f"has {len(arr)} entries (the preset's); index {part} "
+                                         f"is out of range")
+                    break
         if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InputError(f"--free {key}: the scene sets no number there and its preset has "
                              f"none either; set a starting value with --set {key}=VALUE")

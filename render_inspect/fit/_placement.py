@@ -120,14 +120,22 @@ def register_field(z, pixel, design, region, *, max_side: int = 512) -> dict:
     s1 = fftconvolve(dd, m[::-1, ::-1], mode="valid")
     s2 = fftconvolve(dd * dd, m[::-1, ::-1], mode="valid")
     cnt = m.sum()
-    var_d = np.maximum(s2 - s1 * s1 / cnt, 1e-300)
+    # the design under each placement loses its own best plane too (the template has lost
+    # its): the variance less the projections on the window's constant and two ramps
+    yy, xx = np.mgrid[:t.shape[0], :t.shape[1]].astype(np.float64)
+    var_d = s2 - s1 * s1 / cnt
+    for ramp in (xx, yy):
+        r = (ramp - np.sum(ramp * m) / cnt) * m
+        sr = fftconvolve(dd, r[::-1, ::-1], mode="valid")
+        var_d = var_d - sr * sr / max(float(np.sum(r * r)), 1e-300)
+    var_d = np.maximum(var_d, 1e-300)
     ncc = num / np.sqrt(var_d * float(np.sum(tm * tm)) + 1e-300)
     i, j = np.unravel_index(int(np.argmax(ncc)), ncc.shape)
     peak = float(ncc[i, j])
-    # the best peak at least a tenth of the field away
+    # the best peak at least half the field away
     far = np.ones_like(ncc, dtype=bool)
-    ri = max(1, t.shape[0] // 10)
-    rj = max(1, t.shape[1] // 10)
+    ri = max(1, t.shape[0] // 2)
+    rj = max(1, t.shape[1] // 2)
     far[max(0, i - ri):i + ri + 1, max(0, j - rj):j + rj + 1] = False
     second = float(ncc[far].max()) if far.any() else float("nan")
     origin0 = (rx[j] - sx / 2 + px / 2, ry[i] - sy / 2 + py / 2)

@@ -19,7 +19,6 @@ correlation exceeds :data:`UNRESOLVED` cannot be told apart by the data.
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 

@@ -3,7 +3,6 @@ maps, the areal PSD of both, the misfit along each parameter, and ``fit.html``."
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
