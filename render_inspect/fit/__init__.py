@@ -15,7 +15,7 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 * :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`).
 """
 
-from ._cache import EvaluationCache, task_hash
+from ._cache import EvaluationCache, scene_hash, task_hash
 from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, noise_floor, set_noise_floor,
                         predict_features,
                         prepare_map, radial_psd, residual_vector, soft_l1, waviness)
@@ -28,7 +28,7 @@ from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResul
 __all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
            "set_value", "get_value", "MisfitSpec", "Target", "Prediction", "FORMS",
            "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map", "radial_psd", "residual_vector",
-           "soft_l1", "waviness", "EvaluationCache", "task_hash", "Evaluation", "Evaluator",
+           "soft_l1", "waviness", "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
            "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
            "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
            "misfit_maps"]

@@ -16,7 +16,13 @@ from .. import __version__
 from ..core.errors import InputError
 from ..io import atomic_write_bytes
 
-__all__ = ["EvaluationCache", "task_hash"]
+__all__ = ["EvaluationCache", "task_hash", "scene_hash"]
+
+
+def scene_hash(scene: dict) -> str:
+    """SHA-256 (hex) of a scene dictionary's canonical JSON (sorted keys, no spaces)."""
+    text = json.dumps(scene, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def task_hash(task: dict) -> str:

@@ -28,7 +28,7 @@ from ..design import make_surface
 from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_units,
                    field_extent, fit_record, fit_window, free_parameters, make_target,
                    misfit_maps, parse_bounds, set_noise_floor, parse_free, predict_features,
-                   prepare_map, radial_psd, register_field, set_value, solve, task_hash)
+                   prepare_map, radial_psd, register_field, scene_hash, set_value, solve, task_hash)
 from ..instruments import (InterferometerConfig, microscope_from_config, recommended_subsamples,
                            render_interferogram)
 from ..instruments._interferometer import MAX_AUTO_SUBSAMPLES
@@ -421,8 +421,8 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     fitted = copy.deepcopy(base)
     for k, v in fitted_values.items():
         set_value(fitted, k, v, fill=fill)
-    provenance = {"seed": int(seed), "scene_sha256": task_hash(base),
-                  "fitted_scene_sha256": task_hash(fitted),
+    provenance = {"seed": int(seed), "scene_sha256": scene_hash(base),
+                  "fitted_scene_sha256": scene_hash(fitted),
                   "objective": icfg["objective"], "objective_from": icfg_source,
                   "instrument": {k: icfg[k] for k in ("mode", "objective", "pixel",
                                                       "subsamples", "noise")},
