@@ -1,7 +1,7 @@
 """Benchmark: ``render-inspect fit`` - forward-model evaluations per second and the time to a
 fit.
 
-The case is the one of ``tests/test_fit.py``: the shipped seed-000 grid scene
+The case is the one of ``tests/test_fit.py``: the shipped sinusoidal-grid scene
 (``sts_sinusoidal_grid``, sts_lathe machine and Al 6082 without their random parts) cut with
 a tool nose radius of 0.525 mm and a feed of 0.51 mm/min, imaged over a 0.2 x 0.2 mm field
 (centre 0.35 mm from the axis) by the 20x virtual interferometer and measured; then fitted

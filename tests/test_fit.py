@@ -3,7 +3,7 @@
 Fast tests check the pieces against known answers (schema bounds, preset values, the feed
 marks' frequency and harmonic amplitudes of a synthetic cusp map, translation invariance
 of the spectral terms, the optimiser on an analytic forward model, the cache, bad input).
-The slow tests build the truth with the forward model itself: the shipped seed-000 grid
+The slow tests build the truth with the forward model itself: the shipped sinusoidal-grid
 scene cut with other settings, measured through the virtual interference microscope
 (``render`` + ``measure``, the commands a user runs), then fitted from the shipped
 scene's values."""
