@@ -3,8 +3,9 @@ PY      ?= python3
 VENV    := .venv
 VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.setup-stamp
+LOCK    := requirements.lock
 
-.PHONY: setup demo test test-fast bench regress regress-update system-deps clean
+.PHONY: setup demo test test-fast bench regress regress-update system-deps clean lock lock-upgrade
 
 setup: $(STAMP)
 
@@ -21,14 +22,24 @@ system-deps:
 	  apt-get install -y -q chromium >/dev/null 2>&1 || (apt-get update -q >/dev/null 2>&1 && apt-get install -y -q chromium >/dev/null 2>&1) \
 	    || echo "note: could not install chromium; the report screenshot check needs it"; fi
 
-$(STAMP): requirements.txt pyproject.toml
+# .venv holds exactly the lock (made anew when the lock changes): every distribution at
+# its locked version, each file checked against the lock's hashes, wheels only; then
+# render_inspect itself, editable, built with the locked setuptools.
+$(STAMP): $(LOCK) pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
-	@test -x $(VPY) || $(PY) -m venv $(VENV)
-	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q -r requirements.txt
-	$(VPY) -m pip install -q --no-deps -e .
+	$(PY) -m venv --clear $(VENV)
+	$(VPY) -m pip install -q --require-hashes --no-deps --only-binary=:all: -r $(LOCK)
+	$(VPY) -m pip install -q --no-deps --no-build-isolation -e .
 	$(VPY) -m render_inspect.pipeline._warmup
 	@touch $(STAMP)
+
+# requirements.lock anew from the ranges in pyproject.toml (tools/lock.py: uv's resolver,
+# the lock's versions kept where they still fit); lock-upgrade takes the newest instead.
+lock: setup
+	$(VPY) tools/lock.py
+
+lock-upgrade: setup
+	$(VPY) tools/lock.py --upgrade
 
 demo: setup
 	$(VENV)/bin/render-inspect demo --out out/demo
@@ -54,13 +65,15 @@ clean:
 	rm -rf out .pytest_cache
 
 # The self-contained Blender extension, one zip per platform (linux-x64, windows-x64,
-# macos-arm64, macos-x64) with the wheels of render_inspect and its dependencies, built with
-# the blender_ext.py that ships inside Blender: dist/render_inspect-<version>-<platform>.zip.
+# macos-arm64, macos-x64): the add-on, render_inspect as source and the wheels of what the
+# add-on imports at the versions of requirements.lock, built with the blender_ext.py that
+# ships inside Blender: dist/render_inspect-<version>-<platform>.zip (and the table of
+# sizes in docs/blender.md).
 .PHONY: blender-addon blender-venvs
 blender-addon: setup
-	$(VPY) tools/build_blender_extension.py --output-dir dist
+	$(VPY) tools/build_blender_extension.py --output-dir dist --update-docs
 
-# Virtualenvs with only bpy 4.2 LTS and 5.0 (.venv-blender/), for the extension tests
-# (the tests make them too when missing).
+# Virtualenvs with only bpy 4.2 LTS, 4.5 LTS and 5.0 and the NumPy each Blender ships
+# (.venv-blender/), for the extension tests (the tests make them too when missing).
 blender-venvs: setup
 	$(VPY) tools/blender_venvs.py

@@ -45,14 +45,15 @@ def main(repeats: int = 3) -> dict:
 
     from render_inspect.design import make_surface
     from render_inspect.machining import simulate_turning
-    from render_inspect.processes._turning import plan_spiral, tool_of
+    from render_inspect.processes import plan_spiral
+    from render_inspect.toolpath import Tool
     from render_inspect.scene import load_scene
 
     region, pixel = (-1.0, -1.0, 1.0, 1.0), 0.0005
     scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
                        [f"simulation.region={list(region)}", f"simulation.pixel={pixel}"])
     path = plan_spiral(scene, make_surface(scene.design), region=region)
-    tool = tool_of(scene)
+    tool = Tool.from_config(scene.tool)
     kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=pixel)
     out = np.empty((4001, 4001))
     simulate_turning(path, **{**kw, "region": (0, 0, 0.01, 0.01)})

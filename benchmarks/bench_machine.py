@@ -40,13 +40,13 @@ def main(repeats: int = 2) -> dict:
         material_response,
         simulate_turning,
     )
-    from render_inspect.processes import plan_spiral
-    from render_inspect.processes._rcse import plan as rcse_plan
+    from render_inspect.processes import plan_spiral, process_of
     from render_inspect.scene import load_scene
 
     scene = load_scene(REPO / "scenes" / "rcse_circular_array.toml")
     surface = make_surface(scene.design)
-    path = rcse_plan(scene, surface).program
+    rcse = process_of(scene)
+    path = rcse.plan(rcse.inputs_of(scene), surface).program
     machine = machine_preset("sts_lathe")
     t_follow, fp = _best(lambda: follow_turning(path.t, path.theta, path.rho, path.z, machine,
                                                 seed=0), repeats)

@@ -77,7 +77,7 @@ def simulate(out: Path, region, pixel, *extra) -> dict:
         fig["store_MB"] = round(_du(out / "heightmap.zarr") / 1e6, 1)
         fig["timing_s"] = {k: v for k, v in ts.items() if k != "write"}
     else:
-        from render_inspect.machining._memory import in_memory_bytes
+        from render_inspect.machining import in_memory_bytes
 
         fig["estimate_MiB"] = round(in_memory_bytes(m["grid"]["shape"], m["toolpath"]["points"]) / 2**20, 1)
         fig["exr_MB"] = round((out / "heightmap.exr").stat().st_size / 1e6, 1)

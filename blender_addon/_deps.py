@@ -21,6 +21,9 @@ CORE = (
 MITSUBA = (("mitsuba", "mitsuba", "the interferometer"), ("drjit", "drjit", "the interferometer"))
 MESH = (("trimesh", "trimesh", "PLY/GLB export"),)
 X3P = (("x3pio", "x3pio", "X3P export"),)
+#: Everything the add-on imports: the extension bundles these distributions (and what they
+#: require), at the versions of the project's lock (tools/build_blender_extension.py).
+ALL = CORE + MITSUBA + MESH + X3P
 
 NEEDS = {
     "simulate": CORE,
@@ -35,6 +38,11 @@ _found: dict[str, bool] = {}
 def available(module: str) -> bool:
     """True when ``module`` can be imported here (checked once; nothing is imported)."""
     if module not in _found:
+        if module == "render_inspect":  # the extension's own copy (blender_addon/_lib.py)
+            from . import _lib
+
+            _found[module] = _lib.name() is not None
+            return _found[module]
         try:
             _found[module] = importlib.util.find_spec(module) is not None
         except (ImportError, ValueError):
@@ -68,4 +76,7 @@ def has_x3p() -> bool:
 
 def forget() -> None:
     """Look again next time (after the user installed something)."""
+    from . import _lib
+
     _found.clear()
+    _lib.forget()

@@ -91,7 +91,11 @@ class Job:
         self._lock = threading.Lock()
         self._dir = Path(tempfile.mkdtemp(prefix="render_inspect_job_"))
         spec = self._dir / "spec.json"
-        spec.write_text(json.dumps({"task": task, "params": params, "tasks_file": str(TASKS)}))
+        from . import _lib
+
+        where = _lib.folder()  # the worker imports this render_inspect (the extension's copy)
+        spec.write_text(json.dumps({"task": task, "params": params, "tasks_file": str(TASKS),
+                                    "render_inspect_path": str(where.parent) if where else ""}))
         env = dict(os.environ)
         env["RENDER_INSPECT_SYS_PATH"] = json.dumps([p for p in sys.path if p])
         env["PYTHONUNBUFFERED"] = "1"

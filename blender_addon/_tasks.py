@@ -7,10 +7,22 @@ output folder atomically: a cancelled or failed run leaves nothing behind); the 
 turn the results into Blender data on the main thread.
 
 This module is imported both as part of the add-on and, in the worker, as a top-level
-module: no relative imports, and render_inspect only inside the tasks.
+module: render_inspect only inside the tasks, through :func:`_pipeline`.
 """
 
 from __future__ import annotations
+
+import importlib
+
+
+def _pipeline():
+    """``render_inspect.pipeline``: the add-on's (``_lib``: the copy inside the extension)
+    when this module is part of the add-on, else (the worker) the one on ``sys.path``."""
+    if __package__:
+        from . import _lib
+
+        return _lib.module("pipeline")
+    return importlib.import_module("render_inspect.pipeline")
 
 
 def _nothing(fraction: float, message: str) -> None:
@@ -18,7 +30,7 @@ def _nothing(fraction: float, message: str) -> None:
 
 
 def simulate(p: dict, progress=_nothing) -> dict:
-    from render_inspect import pipeline
+    pipeline = _pipeline()
 
     return pipeline.simulate_variants(p["scene_path"], overrides=p.get("overrides", ()),
                                       out=p["out"], surface=p.get("surface", "machined"),
@@ -26,7 +38,7 @@ def simulate(p: dict, progress=_nothing) -> dict:
 
 
 def render(p: dict, progress=_nothing) -> dict:
-    from render_inspect import pipeline
+    pipeline = _pipeline()
 
     return pipeline.render_variant(p["heightmap"], variant=p["variant"], surface=p["surface"],
                                    exaggeration=p["exaggeration"], view=p["view"],
@@ -36,14 +48,14 @@ def render(p: dict, progress=_nothing) -> dict:
 
 
 def compare(p: dict, progress=_nothing) -> dict:
-    from render_inspect import pipeline
+    pipeline = _pipeline()
 
     return pipeline.compare_scene(p["scene_path"], overrides=p.get("overrides", ()),
                                   out=p["out"], progress=progress)
 
 
 def export(p: dict, progress=_nothing) -> dict:
-    from render_inspect import pipeline
+    pipeline = _pipeline()
 
     return pipeline.export_variant(p["heightmap"], variant=p["variant"], surface=p["surface"],
                                    exaggeration=p["exaggeration"], formats=p["formats"],

@@ -2,9 +2,11 @@
 
 Started by :class:`_jobs.Job` as ``python _worker.py SPEC.json`` or, for a task that needs
 Blender (the Cycles render), ``blender --background --factory-startup --python _worker.py --
-SPEC.json``.  ``SPEC.json`` holds ``task``, ``params`` and ``tasks_file``; the environment
-variable ``RENDER_INSPECT_SYS_PATH`` holds the parent's ``sys.path`` (where Blender put the
-extension's wheels); its entries are appended to the worker's own.  Lines starting with :data:`PREFIX` carry JSON: ``{"progress": f,
+SPEC.json``.  ``SPEC.json`` holds ``task``, ``params``, ``tasks_file`` and
+``render_inspect_path`` (the folder holding the add-on's render_inspect package: inside the
+extension, its bundled copy); the environment variable ``RENDER_INSPECT_SYS_PATH`` holds the
+parent's ``sys.path`` (where Blender put the extension's wheels).  Both are appended to the
+worker's own ``sys.path``.  Lines starting with :data:`PREFIX` carry JSON: ``{"progress": f,
 "message": s}`` while working, then ``{"result": {...}}`` or ``{"error": "one line"}``.
 SIGTERM (Esc in Blender) raises SystemExit, so output folders being written are removed.
 """
@@ -33,7 +35,10 @@ def main(argv) -> int:
         spec = json.load(fh)
     # after this interpreter's own entries: its bpy (the module, not Blender's scripts/modules
     # package of the same name) must win; the extension's wheels are found at the end
-    for entry in json.loads(os.environ.get("RENDER_INSPECT_SYS_PATH", "[]")):
+    extra = json.loads(os.environ.get("RENDER_INSPECT_SYS_PATH", "[]"))
+    if spec.get("render_inspect_path"):
+        extra.insert(0, spec["render_inspect_path"])
+    for entry in extra:
         if entry not in sys.path:
             sys.path.append(entry)
     signal.signal(signal.SIGTERM, _stop)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import bpy
 
-from . import _deps, _jobs
+from . import _deps, _jobs, _lib
 from .properties import load_params, overrides, scene_file
 
 
@@ -46,7 +46,7 @@ def one_line(text: str) -> str:
 
 def _error_text(err) -> str:
     try:
-        from render_inspect.errors import RenderInspectError
+        RenderInspectError = _lib.module("errors").RenderInspectError  # noqa: N806
     except ImportError:
         RenderInspectError = ()  # noqa: N806
     if isinstance(err, (AddonError, OSError)) or (RenderInspectError and
@@ -62,7 +62,7 @@ def _settings(context):
 def output_root(settings) -> Path:
     """The output folder: the panel's, else ``render_inspect_out/<scene>`` next to the saved
     .blend file, else in the system's temporary folder."""
-    from render_inspect import pipeline
+    pipeline = _lib.module("pipeline")
 
     if settings.output_dir.strip():
         return Path(bpy.path.abspath(settings.output_dir.strip())).resolve()
@@ -72,14 +72,14 @@ def output_root(settings) -> Path:
 
 def variant_objects() -> dict:
     """{variant: object} of the meshes Simulate made."""
-    from render_inspect import pipeline
+    pipeline = _lib.module("pipeline")
 
     return pipeline.blender_surfaces()
 
 
 def _variant_source(settings) -> dict:
     """Height map, surface, exaggeration of the variant the panel chose."""
-    from render_inspect import pipeline
+    pipeline = _lib.module("pipeline")
 
     obj = variant_objects().get(settings.variant)
     if obj is None:
@@ -245,7 +245,7 @@ class RENDER_INSPECT_OT_simulate(_Work, bpy.types.Operator):
         return p, [out]
 
     def finish(self, context, params, result):
-        from render_inspect import pipeline
+        pipeline = _lib.module("pipeline")
 
         settings = _settings(context)
         made = pipeline.surfaces_into_blender(result, collection=context.scene.collection)
@@ -283,7 +283,7 @@ class RENDER_INSPECT_OT_render(_Work, bpy.types.Operator):
         return p, [out]
 
     def finish(self, context, params, result):
-        from render_inspect import pipeline
+        pipeline = _lib.module("pipeline")
 
         names = pipeline.load_render_images(result)
         notes = "; ".join(result.get("notes", []))

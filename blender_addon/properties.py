@@ -5,7 +5,6 @@ is used instead.  The scene's main numbers (design, tool, process, simulation) a
 in ``params``: a changed value becomes a ``section.key=value`` override.
 """
 
-import importlib.util
 import json
 import math
 import tomllib
@@ -14,6 +13,8 @@ from pathlib import Path
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
                        IntProperty, PointerProperty, StringProperty)
+
+from . import _callbacks, _lib
 
 #: Sections of a scene file whose numbers the panel lists.
 PARAM_SECTIONS = ("design", "tool", "process", "simulation")
@@ -24,16 +25,12 @@ _PRESET_PATHS: dict[str, str] = {}
 
 
 def scenes_folder() -> Path | None:
-    """The folder of the scenes shipped with render_inspect (package data in the
-    installed wheel; ``scenes/`` beside the package in a source checkout), found without
-    importing render_inspect."""
-    try:
-        spec = importlib.util.find_spec("render_inspect")
-    except (ImportError, ValueError):
-        spec = None
-    if spec is None or not spec.submodule_search_locations:
+    """The folder of the scenes shipped with render_inspect (package data of the copy in
+    the extension or of an installed render_inspect; ``scenes/`` beside the package in a
+    source checkout), found without importing render_inspect."""
+    pkg = _lib.folder()
+    if pkg is None:
         return None
-    pkg = Path(list(spec.submodule_search_locations)[0])
     for folder in (pkg / "scenes", pkg / "data" / "scenes", pkg.parent / "scenes"):
         if any(folder.glob("*.toml")):
             return folder
@@ -59,27 +56,9 @@ def scan_presets() -> list[tuple[str, str, str]]:
     return _PRESET_ITEMS
 
 
-#: Variants before the first Simulate: the turning pair.
-_DEFAULT_VARIANT_ITEMS = (("compensated", "Compensated", "The compensated tool path"),
-                          ("uncompensated", "Uncompensated",
-                           "The same part cut without compensation"))
-_VARIANT_ITEMS: list[tuple[str, str, str]] = []
-
-
-def variant_items(self, context):
-    """The two variants of the last Simulate, in order (the process's own pair:
-    compensated / uncompensated for turning, servo lag / ideal servo, vibration on /
-    off, RCSE / conventional); the turning pair before the first Simulate."""
-    try:
-        sim = json.loads(self.simulation_json) if self.simulation_json else {}
-    except ValueError:
-        sim = {}
-    variants = sim.get("variants") if isinstance(sim, dict) else None
-    items = [(str(name), str(name).replace("_", " ").capitalize(),
-              str((info or {}).get("label", name))[:200])
-             for name, info in (variants or {}).items()]
-    _VARIANT_ITEMS[:] = items or _DEFAULT_VARIANT_ITEMS
-    return _VARIANT_ITEMS
+#: Property callbacks live in _callbacks.py, a module without ``bpy`` in its globals (why:
+#: its docstring).
+variant_items = _callbacks.variant_items
 
 
 #: The preset chosen when nothing else is.
@@ -125,10 +104,6 @@ def load_params(settings) -> None:
             item.value = float(value)
 
 
-def _scene_changed(self, context):
-    load_params(self)
-
-
 def overrides(settings) -> list[str]:
     """The ``section.key=value`` overrides the panel stands for."""
     out = []
@@ -162,7 +137,7 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
 
     # preset: an EnumProperty of the shipped scenes, added in register()
     scene_path: StringProperty(
-        name="Scene file", subtype="FILE_PATH", default="", update=_scene_changed,
+        name="Scene file", subtype="FILE_PATH", default="", update=_callbacks.scene_changed,
         description="A render_inspect scene (TOML); used instead of the preset when set")
     output_dir: StringProperty(
         name="Output folder", subtype="DIR_PATH", default="",
@@ -243,7 +218,7 @@ CLASSES = (RenderInspectParam, RenderInspectSettings)
 def _preset_property() -> EnumProperty:
     items = tuple(scan_presets())
     names = [i[0] for i in items]
-    return EnumProperty(name="Preset", items=items, update=_scene_changed,
+    return EnumProperty(name="Preset", items=items, update=_callbacks.scene_changed,
                         default=DEFAULT_PRESET if DEFAULT_PRESET in names else names[0],
                         description="A scene shipped with render_inspect")
 

@@ -34,6 +34,45 @@ log = logging.getLogger("render_inspect")
 SHOW_AFTER_S = 1.0
 
 
+class _Registered:
+    """argparse ``choices`` read from a registry the first time they are needed (checking
+    a value, or ``render-inspect render --help``), so that building the parser imports
+    nothing heavy."""
+
+    def __init__(self, load):
+        self._load = load
+        self._values = None
+
+    def _get(self) -> tuple:
+        if self._values is None:
+            self._values = tuple(self._load())
+        return self._values
+
+    def __contains__(self, value) -> bool:
+        return value in self._get()
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
+def _render_kinds() -> tuple:
+    # the registered instruments (the pipeline and its registries are imported lazily:
+    # `render-inspect --help` must answer at once)
+    from .pipeline import render_kinds
+
+    return render_kinds()
+
+
+def _program_formats() -> list:
+    # the formats the io registry writes machine programs in (imported lazily, as above)
+    from .pipeline import program_formats
+
+    return program_formats()
+
+
 def _add_verbosity(p: argparse.ArgumentParser, *, top: bool = False):
     default = 0 if top else argparse.SUPPRESS
     g = p.add_mutually_exclusive_group()
@@ -81,14 +120,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
                    help="tile side in pixels, a multiple of 64 (default 1024)")
 
-    p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc)")
+    p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "
+                                        "any registered format)")
     _add_scene_args(p)
-    p.add_argument("--format", choices=["npz", "csv", "nc"], default="npz")
+    p.add_argument("--format", choices=_Registered(_program_formats), default="npz",
+                   metavar="FORMAT", help="a registered program format: %(choices)s (default npz)")
 
     p = sub.add_parser("render", help="virtual interferometer and diffuse-light images (Mitsuba 3)")
     _add_scene_args(p)
     p.add_argument("--surface", choices=["design", "machined"], default="machined")
-    p.add_argument("--kind", choices=["interferometer", "diffuse", "all"], default="all")
+    p.add_argument("--kind", choices=_Registered(_render_kinds), default="all", metavar="KIND",
+                   help="a registered instrument, diffuse or all: %(choices)s (default all)")
 
     p = sub.add_parser("compare", help="two variants of the scene (the process's own pair, e.g. "
                                        "compensated vs uncompensated, or --vary): images, metrics, "
@@ -178,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a key in every case (what-if checks; not with --update)")
     _add_verbosity(p)
 
-    p = sub.add_parser("demo", help="set-up check plus the main job on the shipped seed-000 grid scene")
+    p = sub.add_parser("demo", help="set-up check plus the main job on the shipped sinusoidal grid "
+                                        "(Li et al. 2018)")
     _add_out_args(p)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
     _add_verbosity(p)

@@ -98,17 +98,20 @@ def main(zip_path, out_json, work):
                                                    enable_on_install=True)
     enabled = MODULE in {m.__name__ for m in addon_utils.modules() if addon_utils.check(m.__name__)[1]}
     mod = sys.modules[MODULE]
-    import render_inspect
+    lib = mod._lib.module  # render_inspect inside the extension (shipped as source)
+    render_inspect = lib()
 
     step("install", result=sorted(res), enabled=enabled, seconds=time.perf_counter() - t,
          addon_file=mod.__file__, render_inspect_file=render_inspect.__file__,
+         render_inspect_name=render_inspect.__name__, numpy=np.__version__,
+         numba_cache_dir=os.environ.get("NUMBA_CACHE_DIR", ""),
          missing=[m[0] for m in mod._deps.missing()],
          presets=[i[0] for i in mod.properties._PRESET_ITEMS])
 
     s = bpy.context.scene.render_inspect
     rep["panels_before"] = {k: flat(v) for k, v in draw_panels(mod).items()}
     # drawing the panel (and polling its buttons) must stay instant: no pipeline import
-    rep["install"]["pipeline_imported_by_draw"] = "render_inspect.pipeline" in sys.modules
+    rep["install"]["pipeline_imported_by_draw"] = f"{render_inspect.__name__}.pipeline" in sys.modules
 
     # -- error state: a missing scene file --------------------------------------------------
     s.scene_path = str(work / "missing.toml")
@@ -133,8 +136,8 @@ def main(zip_path, out_json, work):
     t = time.perf_counter()
     res = bpy.ops.render_inspect.simulate()
     objs = mod.operators.variant_objects()
-    from render_inspect.core.heightmap import HeightMap
-    from render_inspect.io import read_heightmap_exr
+    HeightMap = lib("core.heightmap").HeightMap  # noqa: N806
+    read_heightmap_exr = lib("io").read_heightmap_exr
 
     checks = {}
     for variant, obj in objs.items():
@@ -151,8 +154,12 @@ def main(zip_path, out_json, work):
                            "compensation": json.loads(obj["render_inspect_scene"])["process"]["compensation"],
                            "pixel": json.loads(obj["render_inspect_scene"])["simulation"]["pixel"],
                            "materials": [m.name for m in obj.data.materials]}
+    cache = Path(os.environ.get("NUMBA_CACHE_DIR", "/nonexistent"))
+    installed = Path(mod.__file__).parent
     step("simulate", result=sorted(res), seconds=time.perf_counter() - t, params=params,
-         overrides=overrides, objects=checks, output=s.output_path)
+         overrides=overrides, objects=checks, output=s.output_path,
+         numba_cache_files=len(list(cache.rglob("*.nbi"))),
+         numba_files_in_install=len(list(installed.rglob("*.nbi"))))
     rep["panels_after_simulate"] = {k: flat(v) for k, v in draw_panels(mod).items()}
 
     # -- Render (Cycles + interferogram) in this process -------------------------------------
@@ -180,7 +187,7 @@ def main(zip_path, out_json, work):
     files = sorted(p.name for p in out.iterdir())
     glb = out / "compensated_machined.glb"
     obj = mod.operators.variant_objects()["compensated"]
-    from render_inspect.mesh import heightmap_mesh
+    heightmap_mesh = lib("mesh").heightmap_mesh
 
     hm = read_heightmap_exr(obj["render_inspect_heightmap_path"])
     gm = heightmap_mesh(hm, channel="machined", exaggeration=obj["render_inspect_exaggeration"])
@@ -257,9 +264,10 @@ def main(zip_path, out_json, work):
          poll_while_running=poll_while_running)
 
     # -- the 4.2 fallback material against the conductor Fresnel equation --------------------
-    from render_inspect.render import light_profile
-    from render_inspect.render._cycles import (ALUMINIUM_ETA, ALUMINIUM_K, fresnel_conductor,
-                                               render_cycles)
+    light_profile = lib("render").light_profile
+    cyc = lib("render._cycles")
+    ALUMINIUM_ETA, ALUMINIUM_K = cyc.ALUMINIUM_ETA, cyc.ALUMINIUM_K  # noqa: N806
+    fresnel_conductor, render_cycles = cyc.fresnel_conductor, cyc.render_cycles
 
     mirror = {}
     for tilt_deg in (7.5, 30.0):
@@ -296,13 +304,9 @@ def main(zip_path, out_json, work):
 if __name__ == "__main__":
     try:
         main(*sys.argv[1:4])
-        # the report is written: leave without the interpreter's teardown, where the bpy 4.2
-        # module (not this code) crashes on exit (fixed in later Blender versions)
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(0)
     except Exception:
         REPORT["failed"] = traceback.format_exc()
         Path(sys.argv[2]).write_text(json.dumps(REPORT, indent=1, default=str))
         traceback.print_exc()
         sys.exit(1)
+    # a normal exit: the test checks that Blender shuts down cleanly (exit code 0)

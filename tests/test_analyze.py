@@ -87,6 +87,16 @@ def test_analyze_sphere_outliers_and_filter_on_a_forward_model(tmp_path):
     (["nope.plu"], "measured file not found"),
     (["SOURCES.md"], "unknown measured file format '.md'"),
     (["truemap_tmd-1.tmd", "--filter", "1,0.5"], "filter L"),
+    # tmd-1: 300 x 300 points of 63.2 um, an 18.96 mm field
+    (["truemap_tmd-1.tmd", "--filter", "0.0025,0.8"],
+     "--filter S must lie within 0.126 .. 19 mm on this map (300 x 300 points of 0.0632 x "
+     "0.0632 mm: two pixels to the field's smaller side), received 0.0025 mm (shorter than "
+     "two pixels)"),
+    (["truemap_tmd-1.tmd", "--filter", ",25"], "--filter L must lie within 0.126 .. 19 mm"),
+    (["truemap_tmd-1.tmd", "--filter", "1e-9,1e300"], "--filter S must lie within"),
+    (["truemap_tmd-1.tmd", "--filter", ",1e308"], "received 1e+308 mm (longer than the map)"),
+    (["truemap_tmd-1.tmd", "--filter", "250,8000"],
+     "the value looks like micrometres: --filter 0.25,8 (mm) was probably meant"),
 ])
 def test_analyze_bad_input_one_line_exit_1_nothing_written(tmp_path, capsys, args, match):
     out = tmp_path / "bad"
@@ -188,3 +198,38 @@ def test_check_measured_accepts_the_design_and_reports_uncertainty(grid_scene, t
     _, forced = check_measured(_real("alicona_ski.x3p"), scene, make_surface(scene.design),
                                force=True)
     assert not forced.metrics["checks"]["ok"] and forced.metrics["checks"]["refusals"]
+
+
+def test_analyze_warns_about_hole_borders_and_mostly_empty_maps(tmp_path, capsys):
+    """Digital Surf sur-2: Sdq/Sdr without the gradients bordering its 117 missing points
+    (as SurfaceTopography), both values in metrics.json and a warning; a map 88 %
+    unmeasured: a warning naming the share."""
+    out = tmp_path / "a"
+    assert cli_main(["analyze", str(_real("digitalsurf_sur-2.sur")), "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    h = m["holes"]
+    assert h["n_unmeasured"] == 117 and h["n_border_gradients"] > 0
+    assert h["Sdq_with_border"] > 1.05 * m["areal"]["Sdq"]
+    assert any("border the map's 117 missing points" in w for w in m["warnings"])
+    z = np.random.default_rng(0).normal(0, 1e-5, (80, 80))
+    z[:, :71] = np.nan
+    np.save(tmp_path / "e.npy", z)
+    (tmp_path / "e.json").write_text(json.dumps({"pixel_mm": 0.001}))
+    assert cli_main(["analyze", str(tmp_path / "e.npy"), "--out", str(tmp_path / "e")]) == 0
+    m = json.loads((tmp_path / "e" / "metrics.json").read_text())
+    assert any(w.startswith("89% of the map is not measured") for w in m["warnings"])
+
+
+@pytest.mark.parametrize("z, match", [
+    (np.full((30, 30), 1e300), "heights must lie within +-10000 mm"),
+    (np.full((30, 30), np.iinfo(np.uint64).max, dtype=np.uint64), "received values up to 1.84e+19 mm"),
+    (np.full((30, 30), np.nan), "no valid (finite) heights"),
+])
+def test_analyze_implausible_maps_one_line_exit_1(tmp_path, capsys, z, match):
+    np.save(tmp_path / "m.npy", z)
+    (tmp_path / "m.json").write_text(json.dumps({"pixel_mm": 0.001}))
+    out = tmp_path / "o"
+    assert cli_main(["analyze", str(tmp_path / "m.npy"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0] and "internal error" not in err[0]
+    assert not out.exists()

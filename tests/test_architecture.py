@@ -20,12 +20,12 @@ ALLOWED = {
     "machining": {"core", "toolpath"},
     "mesh": {"core", "io"},
     "render": {"core", "io", "mesh"},
-    "instruments": {"core", "io", "mesh", "render"},
+    "instruments": {"core", "io", "mesh", "render", "metrology"},
     "metrology": {"core"},
     "processes": {"core", "design", "toolpath", "machining"},
     "scene": {"core", "design", "processes", "instruments", "render"},
     "report": {"core", "io", "toolpath"},
-    "batch": {"core", "io"},
+    "batch": {"core", "io", "machining"},
     "fit": {"core", "io", "metrology"},
     "pipeline": {"core", "io", "design", "toolpath", "machining", "mesh", "render",
                  "instruments", "metrology", "processes", "scene", "report", "batch", "fit"},
@@ -36,6 +36,17 @@ ALLOWED = {
 }
 #: subpackages that may import the rendering engines (inside functions only)
 ENGINE_USERS = {"render"}
+#: the one subpackage that draws figures
+DRAWING = {"matplotlib", "mpl_toolkits"}
+#: what the pipeline may not ask of a scene: its process-specific sections (the process's
+#: hooks read them), and of a process its kind or keys (its traits answer instead)
+PROCESS_SECTIONS = {"process", "rcse", "machine", "material", "artifacts"}
+PROCESS_KEYS = {"kind", "feed_per_rev", "workpiece_radius", "compensation", "spindle_rpm"}
+#: pipeline modules that are no stage (the kernels' warm-up of ``make setup``)
+NOT_STAGES = {"_warmup.py"}
+#: subpackages whose modules stay under MAX_LINES
+SIZED = {"pipeline", "processes", "scene", "report", "batch"}
+MAX_LINES = 600
 
 
 def _unit(path: Path) -> str:
@@ -125,101 +136,105 @@ def test_help_imports_no_heavy_module():
     assert out.stdout.strip() == "[]", out.stdout
 
 
-_SADDLE = '''
-from typing import Literal
-
-from pydantic import Field
-
-from ..core.section import Section
-from ._base import Surface
-from ._registry import register_design
-
-
-class Saddle(Surface):
-    kind = "saddle"
-
-    def __init__(self, radius):
-        self.radius = radius
-
-    def height(self, x, y):
-        return (x * x - y * y) / (2 * self.radius)
-
-
-class SaddleConfig(Section):
-    type: Literal["saddle"]
-    radius: float = Field(..., gt=0)
+def _private_target(path: Path, node) -> str | None:
+    """The ``render_inspect.<pkg>._module`` an import reaches, if any."""
+    rel = path.relative_to(PKG)
+    if isinstance(node, ast.ImportFrom):
+        if node.level:
+            base = ["render_inspect", *rel.parts[:-1]][:len(rel.parts) - node.level + 1]
+            mods = [".".join(base + ([node.module] if node.module else []))]
+            if not node.module:
+                mods = [f"{mods[0]}.{a.name}" for a in node.names]
+        else:
+            mods = [node.module or ""]
+    elif isinstance(node, ast.Import):
+        mods = [a.name for a in node.names]
+    else:
+        return None
+    for mod in mods:
+        parts = mod.split(".")
+        if parts[0] == "render_inspect" and len(parts) > 2 and parts[2].startswith("_") \
+                and parts[1] != _unit(path):
+            return mod
+    return None
 
 
-register_design(SaddleConfig, Saddle)
-'''
-
-_FACING = '''
-import time
-from typing import Literal
-
-from ._registry import Cut, Plan, register_process
-from ._turning import (TurningProcessConfig, cut_turning, plan_spiral, toolpath_facts,
-                       turning_memory)
-
-
-class FacingProcessConfig(TurningProcessConfig):
-    kind: Literal["facing"]
+def test_no_module_reaches_into_another_subpackages_private_modules():
+    """Subpackages meet through what their ``__init__`` exports."""
+    offenders = []
+    for py in _modules():
+        for node in ast.walk(ast.parse(py.read_text())):
+            target = _private_target(py, node)
+            if target:
+                offenders.append(f"{py.relative_to(PKG)}:{node.lineno} imports {target}")
+    assert not offenders, "\n".join(offenders)
 
 
-def plan(scene, surface, *, region=None):
-    path = plan_spiral(scene, surface, region=region)
-    return Plan(path, {"toolpath": toolpath_facts(path, scene)}, {})
+def test_the_pipeline_asks_a_process_nothing_but_its_hooks():
+    """No ``hasattr``, no ``kind`` / ``process`` / ``feed_per_rev``... attributes, no
+    ``isinstance`` of a machine program in pipeline/: what differs between processes is
+    in their hooks and traits."""
+    offenders = []
+    for py in sorted((PKG / "pipeline").glob("*.py")):
+        if py.name in NOT_STAGES:
+            continue
+        for node in ast.walk(ast.parse(py.read_text())):
+            where = f"{py.name}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+                if node.func.id == "hasattr":
+                    offenders.append(f"{where} hasattr")
+                if node.func.id == "isinstance" and any(
+                        isinstance(n, ast.Name) and n.id in ("ToolPath", "LinearProgram")
+                        for n in ast.walk(node.args[1])):
+                    offenders.append(f"{where} isinstance of a program")
+            if isinstance(node, ast.Attribute):
+                owner = node.value.attr if isinstance(node.value, ast.Attribute) else \
+                    getattr(node.value, "id", "")
+                if node.attr in PROCESS_SECTIONS or (node.attr in PROCESS_KEYS and (
+                        owner in PROCESS_SECTIONS or (node.attr != "kind" and owner != "traits"))):
+                    offenders.append(f"{where} .{node.attr}")
+            if isinstance(node, ast.ImportFrom) and any(a.name in ("ToolPath", "LinearProgram")
+                                                         for a in node.names):
+                offenders.append(f"{where} imports a program class")
+    assert not offenders, "\n".join(offenders)
 
 
-def cut(scene, surface, plan):
-    machined, design, timing, _ = cut_turning(scene, surface, plan.program)
-    return Cut(machined, design, {"facing": {"ok": True}}, timing, {"process": "facing"})
+def test_only_report_draws():
+    """Figures are drawn in report/ only (the stages hand it data or figure specs)."""
+    offenders = []
+    for py in _modules():
+        if _unit(py) == "report":
+            continue
+        for target, line, _, top in _project_imports(py):
+            if top in DRAWING:
+                offenders.append(f"{py.relative_to(PKG)}:{line} imports {top}")
+        for node in ast.walk(ast.parse(py.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module == "PIL" and any(
+                    a.name in ("ImageDraw", "ImageFont") for a in node.names):
+                offenders.append(f"{py.relative_to(PKG)}:{node.lineno} draws with PIL")
+    assert not offenders, offenders
 
 
-register_process(FacingProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory)
-'''
-
-_CONFOCAL = '''
-from pydantic import Field
-
-from ..core.section import Section
-from ._registry import register_instrument
-
-
-class ConfocalConfig(Section):
-    numerical_aperture: float = Field(0.8, gt=0, lt=1)
-
-
-register_instrument("confocal", ConfocalConfig)
-'''
+def test_metrics_json_is_written_in_one_place():
+    """Every command's metrics.json goes through pipeline/_metrics.py (write_metrics)."""
+    offenders = []
+    for py in _modules():
+        if py == PKG / "pipeline" / "_metrics.py":
+            continue
+        for node in ast.walk(ast.parse(py.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) \
+                    in ("write_json", "atomic_write_text"):
+                for sub in ast.walk(node):
+                    if isinstance(sub, ast.Constant) and sub.value == "metrics.json":
+                        offenders.append(f"{py.relative_to(PKG)}:{node.lineno}")
+    assert not offenders, offenders
 
 
-def test_a_new_design_process_and_instrument_are_one_file_each(tmp_path):
-    """Copy the package, drop one file into design/, processes/ and instruments/, and use
-    the new design type, process kind and instrument section from a scene."""
-    import shutil
-
-    pkg = tmp_path / "render_inspect"
-    shutil.copytree(PKG, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    (pkg / "design" / "_saddle.py").write_text(_SADDLE)
-    (pkg / "processes" / "_facing.py").write_text(_FACING)
-    (pkg / "instruments" / "_confocal.py").write_text(_CONFOCAL)
-    code = (
-        "import render_inspect, json\n"
-        f"assert render_inspect.__file__.startswith({str(tmp_path)!r})\n"
-        "from render_inspect.scene import scene_from_dict\n"
-        "from render_inspect.pipeline import simulate\n"
-        "s = scene_from_dict({'design': {'type': 'saddle', 'radius': 200.0},\n"
-        "    'process': {'kind': 'facing', 'workpiece_radius': 0.5},\n"
-        "    'simulation': {'region': [0.1, 0.1, 0.14, 0.14], 'pixel': 0.002},\n"
-        "    'render': {'confocal': {'numerical_aperture': 0.9}}})\n"
-        "m = simulate(s).metrics\n"
-        "print(json.dumps({'Sq': m['residual']['Sq_nm'], 'facing': m['facing'],\n"
-        "                  'na': s.render.confocal.numerical_aperture}))\n")
-    env = {k: v for k, v in __import__("os").environ.items() if k != "PYTHONPATH"}
-    env["PYTHONPATH"] = str(tmp_path)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         cwd=tmp_path, env=env)
-    assert out.returncode == 0, out.stderr
-    res = __import__("json").loads(out.stdout.strip().splitlines()[-1])
-    assert res["facing"] == {"ok": True} and res["na"] == 0.9 and res["Sq"] > 0
+def test_modules_stay_small():
+    big = []
+    for py in _modules():
+        if _unit(py) in SIZED or py == PKG / "machining" / "_axes.py":
+            n = len(py.read_text().splitlines())
+            if n > MAX_LINES:
+                big.append(f"{py.relative_to(PKG)}: {n} lines")
+    assert not big, big

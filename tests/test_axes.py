@@ -8,9 +8,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.errors import InputError
-from render_inspect.machining._axes import (Axis, Coupling, Machine, follow_axis, follow_turning,
-                                            linear_command, machine_preset, pvt_command,
-                                            pvt_velocities)
+from render_inspect.machining import (Axis, Coupling, Machine, follow_axis, follow_turning,
+                                      linear_command, machine_preset, pvt_command)
+from render_inspect.machining._interpolate import pvt_velocities
 
 
 # ---- interpolators ----------------------------------------------------------------------

@@ -1,8 +1,10 @@
-"""The extension as a Blender user gets it: the linux-x64 zip built with Blender's own
-``blender_ext.py`` (wheels of render_inspect and its dependencies inside), installed with
-``package_install_files`` into Pythons that have only ``bpy`` 4.2 LTS or 5.0 (no
-render_inspect), enabled, driven (preset, Simulate, Render, Export, Compare, a worker
-process, a cancelled run, the panels in every state), disabled and removed.
+"""The extension as a Blender user gets it: the linux-x64 zip built from the lock with
+Blender's own ``blender_ext.py`` in a fresh virtual environment (render_inspect as source,
+the wheels of what the add-on imports), installed with ``package_install_files`` into
+Pythons that have only ``bpy`` 4.2 LTS, 4.5 LTS or 5.0 and the NumPy that Blender ships
+(4.2: 1.24.3), enabled, driven (preset, Simulate, Render, Export, Compare, a worker
+process, a cancelled run, the panels in every state), disabled and removed; each Python
+then exits, and its exit code must be 0.
 
 ``tests/blender_extension_driver.py`` does the work inside each of those Pythons and writes
 what it saw to a JSON file; the assertions are here.  The virtualenvs live in
@@ -25,53 +27,103 @@ pytestmark = [pytest.mark.blender, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tools"))
 import blender_venvs  # noqa: E402
+import build_blender_extension as build  # noqa: E402
+import lock  # noqa: E402
 
 SCENES = sorted(p.stem for p in (REPO / "scenes").glob("*.toml"))
 
 
 def _pip_env() -> dict:
-    """This environment, plus the user's pip configuration (the package index) although
-    HOME points at a temporary folder during the tests."""
+    """This environment, plus the user's pip configuration (the package index) and pip's
+    cache although HOME points at a temporary folder during the tests."""
     env = dict(os.environ)
     home = Path(os.environ.get("RENDER_INSPECT_REAL_HOME") or "~").expanduser()
     for conf in (home / ".config/pip/pip.conf", home / ".pip/pip.conf"):
         if conf.is_file() and "PIP_CONFIG_FILE" not in env:
             env["PIP_CONFIG_FILE"] = str(conf)
+    env.setdefault("PIP_CACHE_DIR", str(home / ".cache" / "pip"))
+    env.pop("PYTHONPATH", None)
     return env
 
 
 @pytest.fixture(scope="module")
 def linux_zip(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("dist")
-    res = subprocess.run([sys.executable, str(REPO / "tools/build_blender_extension.py"),
-                          "--platforms", "linux-x64", "--output-dir", str(out)],
-                         capture_output=True, text=True, env=_pip_env(), timeout=900)
+    """The linux-x64 zip, built in a fresh virtual environment that holds nothing but
+    ``packaging`` (the lock's, hash-checked): the build reads the lock, not what is
+    installed.  Blender's ``blender_ext.py`` comes from a bpy-only Python."""
+    env = _pip_env()
+    work = tmp_path_factory.mktemp("build")
+    venv = work / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, env=env)
+    (pkg,) = [e for e in lock.read_lock() if e["name"] == "packaging"]
+    (work / "packaging.txt").write_text(
+        f"packaging=={pkg['version']} " + " ".join(f"--hash={h}" for h in pkg["hashes"]) + "\n")
+    subprocess.run([str(venv / "bin/python"), "-m", "pip", "install", "-q", "--require-hashes",
+                    "-r", str(work / "packaging.txt")], check=True, env=env, capture_output=True)
+    out = work / "dist"
+    bpy_python = blender_venvs.ensure(blender_venvs.VERSIONS[-1], env=env)
+    res = subprocess.run([str(venv / "bin/python"), str(REPO / "tools/build_blender_extension.py"),
+                          "--platforms", "linux-x64", "--output-dir", str(out),
+                          "--blender-python", str(bpy_python)],
+                         capture_output=True, text=True, env=env, timeout=900)
     assert res.returncode == 0, res.stdout + res.stderr
     build = json.loads((out / "blender_extension_build.json").read_text())
     assert build["linux-x64"]["missing"] == []
     return Path(build["linux-x64"]["zip"])
 
 
-def test_the_zip_holds_the_add_on_and_every_wheel(linux_zip):
+def test_the_zip_holds_the_add_on_its_source_and_the_wheels_of_its_imports(linux_zip):
+    """Blender's rules: render_inspect as source, wheels only of third-party packages
+    (one wheel each, at the lock's version and hash), only what the add-on imports and
+    what those require, no test data."""
+    import hashlib
     import tomllib
     import zipfile
 
+    from packaging.utils import canonicalize_name, parse_wheel_filename
+
+    locked = {e["name"]: e for e in lock.read_lock()}
     with zipfile.ZipFile(linux_zip) as zf:
         names = zf.namelist()
         manifest = tomllib.loads(zf.read("blender_manifest.toml").decode())
-    wheels = {Path(n).name for n in names if n.startswith("wheels/")}
+        digests = {Path(n).name: "sha256:" + hashlib.sha256(zf.read(n)).hexdigest()
+                   for n in names if n.startswith("wheels/")}
+    wheels = sorted(digests)
     assert manifest["platforms"] == ["linux-x64"]
-    assert {Path(w).name for w in manifest["wheels"]} == wheels
-    dists = {w.split("-")[0].lower() for w in wheels}
-    for needed in ("render_inspect", "scipy", "pydantic", "pydantic_core", "matplotlib",
-                   "numba", "llvmlite", "openexr", "pillow", "trimesh", "mitsuba", "drjit", "x3pio"):
+    assert sorted(Path(w).name for w in manifest["wheels"]) == wheels
+    dists = [canonicalize_name(str(parse_wheel_filename(w)[0])) for w in wheels]
+    assert len(dists) == len(set(dists)), "a distribution twice"
+    for w, name in zip(wheels, dists):
+        assert str(parse_wheel_filename(w)[1]) == locked[name]["version"], w
+        assert digests[w] in locked[name]["hashes"], f"{w} is not the file the lock names"
+    for needed in ("scipy", "pydantic", "pydantic-core", "matplotlib", "numba", "llvmlite",
+                   "openexr", "pillow", "trimesh", "mitsuba", "drjit", "x3pio"):
         assert needed in dists, needed
-    assert "numpy" not in dists  # Blender's own NumPy is used
+    # not imported by the add-on: the batch engine, the store, the console; NumPy is Blender's
+    for unused in ("numpy", "dask", "distributed", "zarr", "numcodecs", "colorama", "rich",
+                   "tqdm", "render-inspect", "bpy"):
+        assert unused not in dists, unused
     assert all("win" not in w and "macosx" not in w for w in wheels)
+    # render_inspect's own code as source, its shipped scenes, no test data
+    assert "_bundled/render_inspect/__init__.py" in names
+    assert "_bundled/render_inspect/scenes/sts_sinusoidal_grid.toml" in names
+    assert not [n for n in names if "regression" in n or n.endswith((".exr", ".pyc"))]
     for py in ("__init__.py", "operators.py", "panel.py", "properties.py", "_jobs.py",
-               "_tasks.py", "_worker.py", "_deps.py"):
+               "_tasks.py", "_worker.py", "_deps.py", "_lib.py", "_callbacks.py"):
         assert py in names, py
     assert manifest["permissions"]["files"]
+    assert manifest["blender_version_min"] == "4.2.0" and manifest["blender_version_max"] == "5.1.0"
+    assert manifest["copyright"]
+
+
+def test_the_documented_sizes_are_the_builds(linux_zip):
+    """docs/blender.md's table of zip sizes and wheel counts is written by the build
+    (--update-docs): the linux-x64 row is what this build made."""
+    made = json.loads((linux_zip.parent / "blender_extension_build.json").read_text())["linux-x64"]
+    row = build.docs_rows()["linux-x64"]
+    assert row["wheels"] == made["wheels"] and row["missing"] == made["missing"]
+    assert row["size_mib"] == pytest.approx(made["size_mib"], abs=0.2)
+    assert set(build.docs_rows()) == set(build.PLATFORMS)
 
 
 @pytest.fixture(scope="module", params=blender_venvs.VERSIONS)
@@ -89,11 +141,23 @@ def driven(request, linux_zip, tmp_path_factory) -> dict:
                           str(linux_zip), str(report), str(work)], cwd=work, env=env,
                          capture_output=True, text=True, timeout=900)
     rep = json.loads(report.read_text()) if report.is_file() else {}
-    assert res.returncode == 0 and rep.get("done"), (
+    assert rep.get("done"), (
         f"bpy {version}: {rep.get('failed', '')}\n{res.stdout[-4000:]}\n{res.stderr[-4000:]}")
     rep["version"] = version
     rep["home"] = str(home)
+    rep["returncode"] = res.returncode
+    rep["stderr_tail"] = res.stderr[-2000:]
     return rep
+
+
+def test_blender_exits_cleanly_after_using_the_extension(driven):
+    """The Python that ran everything above exits by itself with code 0 (Blender 4.2
+    crashed at exit while a property callback kept the bpy module alive)."""
+    assert driven["returncode"] == 0, f"bpy {driven['version']}: {driven['stderr_tail']}"
+
+
+def test_each_blender_runs_with_the_numpy_it_ships(driven):
+    assert driven["install"]["numpy"] == blender_venvs.numpy_for(driven["version"])
 
 
 def test_installs_into_a_bpy_only_python_and_enables(driven):
@@ -103,6 +167,11 @@ def test_installs_into_a_bpy_only_python_and_enables(driven):
     # the add-on and render_inspect both come from the installed extension
     assert inst["addon_file"].startswith(driven["home"])
     assert inst["render_inspect_file"].startswith(driven["home"])
+    assert inst["render_inspect_name"] == "bl_ext.user_default.render_inspect._bundled.render_inspect"
+    # numba's cache in the extension's user folder, not beside the installed code
+    assert "/extensions/.user/user_default/render_inspect/" in inst["numba_cache_dir"]
+    assert driven["simulate"]["numba_cache_files"] > 0
+    assert driven["simulate"]["numba_files_in_install"] == 0
     assert inst["missing"] == []
     assert inst["presets"] == SCENES
     assert inst["pipeline_imported_by_draw"] is False

@@ -382,12 +382,15 @@ def test_vary_makes_its_own_pair_and_clears_keys():
     hts = compare_variants(load_scene("hts_toric_msa"))[1]
     for ax in (hts.machine.fts, hts.machine.z):
         assert math.isinf(ax.bandwidth_hz) and ax.delay_s == 0 and ax.noise_nm == 0
-    # on the ideal machine, the [artifacts.servo] model's bandwidths are cleared (None)
-    legacy = load_scene("hts_toric_msa", ["machine.preset='ideal'", "artifacts.servo.delay_s=0.002",
-                                          "artifacts.servo.bandwidth_hz=1000.0"])
-    assert compare_pair(legacy).key == "artifacts.servo"
+    # the servos of an ideal machine (the retired [artifacts.servo] keys become them): the
+    # same pair, the FTS and slide ideal on the right
+    with pytest.warns(UserWarning, match="artifacts.servo.delay_s is deprecated"):
+        legacy = load_scene("hts_toric_msa", ["machine.preset='ideal'", "artifacts.servo.delay_s=0.002",
+                                              "artifacts.servo.bandwidth_hz=1000.0"])
+    assert legacy.machine.fts.delay_s == 0.002 and legacy.machine.fts.bandwidth_hz == 1000.0
+    assert compare_pair(legacy).key == "machine.fts, machine.z"
     hts = compare_variants(legacy)[1]
-    assert hts.artifacts.servo.bandwidth_hz is None and hts.artifacts.servo.delay_s == 0
+    assert math.isinf(hts.machine.fts.bandwidth_hz) and hts.machine.fts.delay_s == 0
 
 
 def test_common_window_sits_on_the_largest_difference():

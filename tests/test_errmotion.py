@@ -10,7 +10,7 @@ from scipy import ndimage
 
 from render_inspect.errors import InputError
 from render_inspect.machining import simulate_turning
-from render_inspect.machining._axes import Machine, follow_turning
+from render_inspect.machining import Machine, follow_turning
 from render_inspect.machining._errmotion import ErrorMotions, error_motion_offsets
 from render_inspect.toolpath import ToolPath
 

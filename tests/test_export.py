@@ -127,7 +127,9 @@ def test_rcse_path_exports_and_parses_back(tmp_path):
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "rcse_circular_array.toml",
                        ["process.workpiece_radius=1.3", "process.inner_radius=1.2"])
     path = plan_program(scene).program
-    f = export_program(path, tmp_path, fmt="nc", header=process_of(scene).program_header(scene))
+    process = process_of(scene)
+    f = export_program(path, tmp_path, fmt="nc",
+                       header=process.program_header(process.inputs_of(scene)))
     q = read_nc(f)
     assert q.meta["scene"] == "rcse_circular_array" and q.meta["spindle_rpm"] == "42.0"
     assert q.meta["compensation"] == "z" and int(q.meta["points"]) == path.points

@@ -2,7 +2,9 @@
 
 Each class of input (scene values, ``--set`` text, scene files, expressions, height-map
 and measured files, output folders, machine-program text, memory-driving parameters,
-renderer sizes, the command line end to end) is mutated from a fixed seed.  Every case
+renderer sizes, the command line end to end; hostile output folders and measured files,
+filter texts, signals at each phase of writing a folder, address-space limits) is mutated
+from a fixed seed.  Every case
 must either be accepted or be refused with a :class:`RenderInspectError` whose message
 names the key; nothing else may escape (a traceback is a failure), refused runs write
 nothing and accepted ones write everything.  The number of cases per class is in
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import io
+import json
 import math
 import os
 import re
@@ -20,6 +23,7 @@ import string
 import subprocess
 import sys
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +33,7 @@ from render_inspect.design._expression import ExpressionSurface
 from render_inspect.design._heightmap import HeightMapSurface
 from render_inspect.errors import InputError, RenderInspectError, SceneError
 from render_inspect.io import (
+    MARKER,
     atomic_output_dir,
     check_output_path,
     read_marker,
@@ -55,6 +60,8 @@ CASES = {k: v * SCALE for k, v in {"schema": 600, "set": 500, "scene_file": 150,
                                    "expression": 400, "files": 160, "out": 120, "nc": 300,
                                    "memory": 30, "render": 200}.items()}
 CASES["cli"] = 6
+CASES.update({"hostile_out": 80 * SCALE, "hostile_files": 120 * SCALE, "filters": 150 * SCALE,
+              "analyze_cli": 12 * SCALE, "signals": 4 * SCALE, "address_space": 2})
 
 HOSTILE = [math.nan, math.inf, -math.inf, 1e300, -1e300, 1e-300, -1e-300, 5e-324, 0, 0.0,
            -0.0, -1, 1, 2 ** 64, -(2 ** 63), 10 ** 400, True, False, "100", "", "nan", "1e3",
@@ -118,7 +125,8 @@ def test_fuzz_scene_values_are_validated_or_named():
             x = np.linspace(scene.simulation.region[0], scene.simulation.region[2], 5)
             with np.errstate(all="ignore"):
                 surface.height(x, x)
-            process_of(scene).precheck(scene, tuple(scene.simulation.region))
+            process = process_of(scene)
+            process.precheck(process.inputs_of(scene), tuple(scene.simulation.region))
             check_render_limits(scene)
         except RenderInspectError:
             pass
@@ -460,3 +468,375 @@ def test_fuzz_command_line_end_to_end(tmp_path):
         assert "Traceback" not in r.stderr and key in r.stderr, (args, r.stderr)
         assert len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert not out.exists() and not [p for p in tmp_path.iterdir() if ".partial" in p.name]
+
+
+# ------------------------------------------------------------------ K: hostile output folders
+def _digest(paths) -> dict:
+    out = {}
+    for p in paths:
+        try:
+            out[str(p)] = p.read_bytes() if p.is_file() and not p.is_symlink() else os.readlink(p) \
+                if p.is_symlink() else None
+        except OSError:
+            out[str(p)] = None
+    return out
+
+
+def test_fuzz_hostile_output_folders(tmp_path):
+    """Random mixes of what a user or an attacker leaves around an output folder: user
+    files (some named like render-inspect's temporaries), a user file inside a nested
+    output, a marker copied from elsewhere or of an earlier layout, siblings named like
+    backups, a planted lock (link, hard link, garbage), ``--out`` a link to a user's
+    folder, an input inside ``--out``.  Whatever the run does, a user's file is never
+    changed or deleted without --overwrite, the lock's target never written, a refused or
+    failed run changes nothing, and a finished run leaves a complete folder."""
+    rng = _rng("hostile_out")
+    user_names = ["notes.txt", ".metrics.json.backup-1", ".x.lock", ".a.txt.partial-1",
+                  ".heightmap.exr.123.tmp", "sub/mine.txt", ".DS_Store.bak"]
+    for i in range(CASES["hostile_out"]):
+        root = tmp_path / f"c{i}"
+        root.mkdir()
+        victim = root / "victim.txt"
+        victim.write_text("secret")
+        out = root / "out"
+        user: list = [victim]
+        traits = {k for k in ("ours", "user_file", "nested", "forged", "old_marker", "siblings",
+                              "lock", "link", "input") if rng.random() < 0.35}
+        if "ours" in traits or "nested" in traits:
+            with atomic_output_dir(out, command="simulate") as tmp:
+                (tmp / "a.txt").write_text("old")
+        if "nested" in traits:
+            with atomic_output_dir(out / "sub", command="toolpath") as tmp:
+                (tmp / "t.txt").write_text("nested")
+            (out / "sub" / "mine.txt").write_text("user's")
+            user.append(out / "sub" / "mine.txt")
+        if "user_file" in traits:
+            name = _pick(rng, user_names)
+            f = out / name
+            f.parent.mkdir(parents=True, exist_ok=True)
+            f.write_text("user's")
+            user.append(f)
+        if "forged" in traits or "old_marker" in traits:
+            mine = root / "mine"
+            (mine / "data.txt").parent.mkdir(parents=True, exist_ok=True)
+            (mine / "data.txt").write_text("user's")
+            user.append(mine / "data.txt")
+            marker = {"written_by": "render_inspect", "marker_version": 1,
+                      "files": {"data.txt": "simulate"}, "commands": {"simulate": {}}}
+            if "forged" in traits:
+                marker.update(marker_version=2, stat={"data.txt": [1, 2]})
+            (mine / MARKER).write_text(json.dumps(marker))
+            out = mine
+        if "siblings" in traits:
+            for name in (f".{out.name}.backup-1", f".{out.name}.backup-7-0123abcd"):
+                (root / name).mkdir(exist_ok=True)
+                (root / name / "keep.txt").write_text("user's")
+            user.append(root / f".{out.name}.backup-1" / "keep.txt")
+        if "lock" in traits:
+            lock = root / f".{out.name}.lock"
+            kind = int(rng.integers(3))
+            if kind == 0:
+                lock.symlink_to(victim)
+            elif kind == 1:
+                os.link(victim, lock)
+            else:
+                lock.write_text("not a process id")
+                user.append(lock)
+        target = out
+        if "link" in traits:
+            real = root / "precious"
+            real.mkdir(exist_ok=True)
+            (real / "keep.txt").write_text("user's")
+            user.append(real / "keep.txt")
+            out = root / "link"
+            out.symlink_to(real)
+        inputs = []
+        if "input" in traits and target.is_dir():
+            f = target / "input.npy"
+            f.write_text("input")
+            user.append(f)
+            inputs = [f]
+        overwrite = bool(rng.random() < 0.4)
+        fail = rng.random() < 0.2
+        before = _digest(user)
+        try:
+            with atomic_output_dir(out, command="fuzz", overwrite=overwrite, inputs=inputs) as tmp:
+                (tmp / "a.txt").write_text(f"new {i}")
+                if fail:
+                    raise RuntimeError("fail")
+        except RuntimeError:
+            assert _digest(user) == before, (traits, "a failed run changed a user's file")
+            continue
+        except InputError as err:
+            assert str(err).startswith("--out") and "\n" not in str(err), str(err)
+            assert _digest(user) == before, (traits, "a refused run changed a user's file")
+            continue
+        assert victim.read_text() == "secret"
+        final = Path(os.path.realpath(out))
+        assert (final / "a.txt").read_text() == f"new {i}" and read_marker(final) is not None
+        after = _digest(user)
+        for f, content in before.items():
+            inside = Path(f).resolve().is_relative_to(final) if os.path.exists(f) else \
+                Path(f).parent.resolve().is_relative_to(final)
+            if after[f] != content:
+                assert overwrite and inside and not inputs, (traits, f, overwrite)
+        assert not [p for p in root.iterdir() if ".partial-" in p.name]
+
+
+# ------------------------------------------------------------------ L: hostile measured files
+def _hostile_npy(rng, d: Path) -> Path:
+    f = d / "m.npy"
+    kind = int(rng.integers(6))
+    z = np.random.default_rng(int(rng.integers(1 << 30))).normal(0, 1e-5, (12, 12))
+    if kind == 0:
+        z = np.full((12, 12), _pick(rng, [1e300, -1e300, 1e5, np.inf, np.nan, 5e-324]))
+    elif kind == 1:
+        z = np.full((12, 12), np.iinfo(np.uint64).max, dtype=np.uint64)
+    elif kind == 2:
+        z = z.astype(_pick(rng, [np.complex128, "U3", np.int8, np.float16, bool]))
+    np.save(f, z)
+    if kind == 3:
+        shape = _pick(rng, [b"(True, True)", b"(-1, 12)", b"(12, 1e3)", b"(10**6, 10**6)",
+                            b"(1, 1)", b"(12,)"])
+        f.write_bytes(f.read_bytes().replace(b"(12, 12)", shape, 1))
+    pixel = _pick(rng, [0.001, 1e300, 1e-12, 0.0, -1.0, [0.001, 1e9], "1", None, 150.0])
+    origin = _pick(rng, [[0, 0], [1e300, 0], [1, 2, 3], None])
+    side = {k: v for k, v in (("pixel_mm", pixel), ("origin_mm", origin)) if v is not None}
+    if kind == 4:
+        side["units"] = _pick(rng, ["m", "nm", "furlong", 3])
+    f.with_suffix(".json").write_text(json.dumps(side))
+    return f
+
+
+def _hostile_zarr(rng, d: Path) -> Path:
+    from render_inspect.io._heightmap import grid_attrs
+    from render_inspect.io._zarr import write_heightmap_zarr
+
+    z = np.random.default_rng(int(rng.integers(1 << 30))).normal(0, 1e-5, (24, 24))
+    pixel = _pick(rng, [0.001, 0.001, 1e300, 1e-12])
+    store = write_heightmap_zarr(d / "s.zarr", z, z, chunk=16, levels=0,
+                                 attrs=grid_attrs(pixel, (0.0, 0.0), {}, {}))
+    kind = int(rng.integers(7))
+    for ch in ("design", "machined", "residual"):
+        meta = store / ch / "zarr.json"
+        m = json.loads(meta.read_text())
+        if kind == 0:
+            m["chunk_grid"]["configuration"]["chunk_shape"] = _pick(
+                rng, [[0, 0], [-1, 4], [40000, 40000], [1, 1], [16]])
+        elif kind == 1:
+            m["data_type"] = _pick(rng, ["string", "complex128", "bool", "float64", "int8", "x"])
+        elif kind == 2:
+            m["shape"] = _pick(rng, [[0, 0], [24], [10 ** 6, 10 ** 6], [24, 25]])
+        meta.write_text(json.dumps(m))
+    chunk = store / "machined" / "c" / "0" / "0"
+    if kind == 3:
+        chunk.write_bytes(bytes(rng.integers(0, 256, int(rng.integers(0, 4000)), dtype=np.uint8)))
+    elif kind == 4:
+        chunk.unlink()
+        os.symlink(_pick(rng, ["/dev/zero", "/dev/null", "/etc/hostname", "missing"]), chunk)
+    elif kind == 5:
+        chunk.unlink()  # a missing chunk reads as the fill value (NaN): fine
+    return store
+
+
+def _hostile_x3p(rng, d: Path, ref: Path) -> Path:
+    import hashlib
+    import zipfile
+
+    zin = zipfile.ZipFile(ref)
+    main = zin.read("main.xml").decode()
+    size = _pick(rng, ["<SizeX >{n}</SizeX>", "<SizeX>{n}<!-- c --></SizeX>",
+                       "<SizeX><![CDATA[{n}]]></SizeX>", "<SizeX>{n}</SizeX>", "<SizeX>1e{k}</SizeX>",
+                       "<SizeX>-{n}</SizeX>", "<SizeX>{n}</SizeX><SizeX>12</SizeX>"])
+    n = _pick(rng, [12, 13, 10 ** 5, 10 ** 9, 2 ** 40])
+    main = main.replace("<SizeX>12</SizeX>", size.format(n=n, k=int(rng.integers(1, 30))))
+    if rng.random() < 0.2:
+        main = main.replace('<?xml version="1.0" encoding="UTF-8"?>',
+                            '<?xml version="1.0"?><!DOCTYPE p [<!ENTITY e "1">]>')
+    f = d / "m.x3p"
+    with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as zout:
+        for i in zin.infolist():
+            data = zin.read(i)
+            if i.filename == "main.xml":
+                data = main.encode()
+            elif i.filename == "md5checksum.hex":
+                data = (hashlib.md5(main.encode()).hexdigest() + " *main.xml\n").encode()
+            zout.writestr(i.filename, data)
+    return f
+
+
+def _hostile_frt(rng, d: Path) -> Path:
+    from render_inspect.io._frt import frt_bytes
+
+    counts = rng.integers(0, 3, size=(int(rng.integers(1, 8)), int(rng.integers(1, 8))))
+    raw = frt_bytes(counts.astype(np.uint16), pixel_m=float(_pick(rng, [1e-6, 0.0, 1e300, -1e-6])),
+                    zscale_m=float(_pick(rng, [1e-9, 1e300, 0.0])))
+    f = d / "m.frt"
+    f.write_bytes(_corrupt(rng, raw) if rng.random() < 0.4 else raw)
+    return f
+
+
+def test_fuzz_hostile_measured_files(tmp_path, monkeypatch):
+    """Hostile .npy headers and values, side-cars, Zarr stores (chunk shapes, data types,
+    damaged or linked chunks, declared shapes), X3P size declarations and DTDs, FRT files:
+    each is read as a plausible map (heights and pixels within bounds) or refused with an
+    InputError naming the file; under a 256 MiB budget nothing allocates beyond it."""
+    import render_inspect.core.limits as L
+    from render_inspect.core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
+    from render_inspect.io import read_surface
+
+    monkeypatch.setattr(L, "available_memory", lambda: int(256 * 2 ** 20 / L.AUTO_FRACTION))
+    rng = _rng("hostile_files")
+    ref = write_x3p(tmp_path / "ref.x3p", np.random.default_rng(3).normal(0, 1e-5, (12, 12)),
+                    pixel=0.001)
+    makers = [_hostile_npy, _hostile_zarr, lambda r, d: _hostile_x3p(r, d, ref), _hostile_frt]
+    accepted = 0
+    for i in range(CASES["hostile_files"]):
+        d = tmp_path / f"f{i}"
+        d.mkdir()
+        f = makers[i % len(makers)](rng, d)
+        tracemalloc.start()
+        try:
+            m = read_surface(f)
+        except RenderInspectError as err:
+            msg = str(err)
+            assert f.name in msg and "\n" not in msg, msg
+            continue
+        finally:
+            _, peak = tracemalloc.get_traced_memory()
+            tracemalloc.stop()
+            assert peak < 384 * 2 ** 20, (f, peak)
+        accepted += 1
+        ok = np.isfinite(m.z)
+        assert ok.any() and np.abs(m.z[ok]).max() <= MAX_ABS_MM
+        assert all(PIXEL_RANGE_MM[0] <= p <= PIXEL_RANGE_MM[1] for p in m.pixel)
+    assert 0 < accepted < CASES["hostile_files"]
+
+
+def test_fuzz_analyze_filters_and_maps(tmp_path):
+    """Random --filter texts on random small maps: parse_filter and analyze_map accept
+    them or refuse naming --filter (and the allowed range), never anything else."""
+    from render_inspect.metrology import analyze_map, parse_filter
+
+    rng = _rng("filters")
+    tokens = ["", "0", "0.0025", "0.8", "2.5", "800", "1e-9", "1e300", "1e308", "-1", "nan",
+              "inf", "0.01", "0.05", "x", " 0.02 ", "1e-3"]
+    refused = 0
+    for i in range(CASES["filters"]):
+        spec = ",".join(_pick(rng, tokens) for _ in range(int(_pick(rng, [1, 2, 2, 2, 3]))))
+        ny, nx = int(rng.integers(3, 40)), int(rng.integers(3, 40))
+        z = np.random.default_rng(i).normal(0, 1e-5, (ny, nx))
+        if rng.random() < 0.3:
+            z[rng.random(z.shape) < 0.5] = np.nan
+        try:
+            s_mm, l_mm = parse_filter(spec)
+            analyze_map(z, pixel=float(_pick(rng, [0.001, 0.0005, 0.01])), s_filter_mm=s_mm,
+                        l_filter_mm=l_mm, form=_pick(rng, ["none", "plane"]))
+        except InputError as err:
+            refused += 1
+            msg = str(err)
+            assert msg.startswith(("--filter", "analyze_map:", "autocorrelation:",
+                                   "areal_parameters:")), (spec, msg)
+            assert "\n" not in msg
+    assert 0 < refused < CASES["filters"]
+
+
+def test_fuzz_analyze_command_on_hostile_files(tmp_path, capsys, monkeypatch):
+    """The analyze command on hostile files: exit 1, one line without a traceback or
+    "internal error", no output folder."""
+    rng = _rng("analyze_cli")
+    ref = write_x3p(tmp_path / "ref.x3p", np.random.default_rng(3).normal(0, 1e-5, (12, 12)),
+                    pixel=0.001)
+    makers = [_hostile_npy, _hostile_zarr, lambda r, d: _hostile_x3p(r, d, ref), _hostile_frt]
+    from render_inspect.cli import log, main
+
+    for i in range(CASES["analyze_cli"]):
+        d = tmp_path / f"a{i}"
+        d.mkdir()
+        f = makers[i % len(makers)](rng, d)
+        out = d / "out"
+        log.handlers.clear()
+        rc = main(["analyze", str(f), "--out", str(out), "-q",
+                   "--filter", _pick(rng, ["", ",0.005", "2.5,800", "1e-9,1e300"])])
+        err = capsys.readouterr().err.strip().splitlines()
+        log.handlers.clear()
+        if rc == 0:
+            assert (out / "metrics.json").is_file()
+            continue
+        assert rc == 1 and len(err) == 1, err
+        assert "Traceback" not in err[0] and "internal error" not in err[0], err[0]
+        assert not out.exists()
+
+
+# ------------------------------------------------------------------ N: signals, limits
+_SIGNAL_AT = """
+import os, signal, sys
+from render_inspect.io import _atomic
+phase, sig = sys.argv[1], getattr(signal, sys.argv[2])
+def hook(name, fn):
+    orig = getattr(_atomic, name)
+    def wrapped(*a, **k):
+        if name == phase:
+            os.kill(os.getpid(), sig)
+        return orig(*a, **k)
+    setattr(_atomic, name, wrapped)
+for name in ("_restore_backup", "_write_marker", "_swap_in", "_clean_stale"):
+    hook(name, None)
+from render_inspect import cli
+sys.exit(cli.main(sys.argv[3:]))
+"""
+
+
+def test_fuzz_signals_at_every_phase_of_the_folder(tmp_path):
+    """SIGINT / SIGTERM at each phase of writing an output folder (after the lock, while
+    the marker is written, during the swap, during the clean-up after it): exit 130 /
+    143, and the message matches what happened to the folder."""
+    rng = _rng("signals")
+    scene_args = ["toolpath", "sts_sinusoidal_grid", "-q"]
+    phases = ["_restore_backup", "_write_marker", "_swap_in", "_clean_stale"]
+    for i in range(CASES["signals"]):
+        phase = phases[i % len(phases)]
+        sig, code = _pick(rng, [("SIGINT", 130), ("SIGTERM", 143)])
+        out = tmp_path / f"o{i}"
+        with atomic_output_dir(out, command="old") as tmp:
+            (tmp / "old.txt").write_text("old")
+        r = subprocess.run([sys.executable, "-c", _SIGNAL_AT, phase, sig, *scene_args,
+                            "--out", str(out)], capture_output=True, text=True, timeout=300)
+        assert r.returncode == code, (phase, sig, r.stderr)
+        assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        replaced = not (out / "old.txt").exists()
+        # the marker, the swap and the clean-up run with the signals held: the folder is
+        # put in place first; the lock and the inspection come before anything is written
+        assert replaced == (phase != "_restore_backup"), (phase, r.stderr)
+        if replaced:
+            assert "had been written completely" in r.stderr and (out / "toolpath.npz").is_file()
+        else:
+            assert "left as it was" in r.stderr and set(read_marker(out)["commands"]) == {"old"}
+        assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or ".lock" in p.name]
+
+
+def test_fuzz_commands_under_an_address_space_limit(tmp_path):
+    """Commands run under ``ulimit -v`` (RLIMIT_AS): refused at the start with one line
+    naming the limit, or finished; never a segmentation fault or a late MemoryError."""
+    import resource
+
+    big = np.random.default_rng(0).normal(0, 1e-5, (3000, 3000))
+    np.save(tmp_path / "big.npy", big)
+    (tmp_path / "big.json").write_text('{"pixel_mm": 0.001}')
+    del big
+    runs = [["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
+             "--set", "simulation.pixel=0.0004"],
+            ["analyze", str(tmp_path / "big.npy")]]
+    for i, args in enumerate(runs[:CASES["address_space"]]):
+        out = tmp_path / f"o{i}"
+
+        def cap():
+            resource.setrlimit(resource.RLIMIT_AS, (1536 * 2 ** 20, 1536 * 2 ** 20))
+
+        r = subprocess.run([sys.executable, "-m", "render_inspect.cli", *args, "--out", str(out),
+                            "-q"], capture_output=True, text=True, timeout=300, preexec_fn=cap)
+        assert r.returncode in (0, 1), (args, r.returncode, r.stderr[-500:])
+        if r.returncode == 1:
+            err = r.stderr.strip().splitlines()
+            assert len(err) == 1 and "ulimit -v" in err[0] and "Traceback" not in r.stderr, err
+            assert not out.exists()

@@ -143,11 +143,12 @@ def test_chordal_tolerance_raising_the_points_is_checked_in_the_planner():
     scene = load_scene("sts_sinusoidal_grid", ["process.chordal_tolerance=1e-13",
                                                "simulation.max_memory_gb=0.5"])
     kind = process_of(scene)
-    kind.precheck(scene, None)  # fits
+    cfg = kind.inputs_of(scene)
+    kind.precheck(cfg, None)  # fits
     surface = make_surface(scene.design)
     with pytest.raises(MemoryBudgetError, match=r"chordal_tolerance = 1e-13 mm sets .* points "
                                                 r"per revolution") as e:
-        _, peak = _traced(lambda: kind.plan(scene, surface, region=None))
+        _, peak = _traced(lambda: kind.plan(cfg, surface, region=None))
     assert "process.chordal_tolerance >= " in str(e.value)
 
 
@@ -301,13 +302,13 @@ def test_a_map_too_big_for_the_automatic_budget_is_tiled_not_refused(tmp_path, m
     """With no simulation.max_memory_gb the budget is a share of the memory available: a
     scene whose map does not fit it takes the tiled path (and fits there)."""
     from render_inspect.pipeline import run_simulate
-    from render_inspect.pipeline._simulate import wants_tiles
+    from render_inspect.pipeline import wants_tiles
 
     scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.2,-0.15,0.22,0.2]",
                                                "simulation.pixel=0.0002", 'material.preset="ideal"',
                                                'machine.preset="ideal"'])
     assert scene.simulation.max_memory_gb is None
-    need = process_of(scene).estimate_memory(scene)
+    need = process_of(scene).estimate_memory(process_of(scene).inputs_of(scene))
     assert not wants_tiles(scene)
     _small_budget(monkeypatch, int(0.6 * need))
     assert wants_tiles(scene)
@@ -416,3 +417,125 @@ def test_a_render_in_passes_equals_one_pass_within_the_noise(monkeypatch):
     np.testing.assert_allclose(many.mean(), one.mean(), rtol=0.02)
     np.testing.assert_allclose(again.mean(), one.mean(), rtol=0.02)
     assert not np.array_equal(many, one)  # other samples were drawn
+
+
+# ------------------------------------------------------------------ address space
+def _under_address_limit(code: str, limit_bytes: int, *args, timeout=300):
+    """Run Python ``code`` in a fresh process whose address space is capped (RLIMIT_AS,
+    what ``ulimit -v`` / ``prlimit --as`` set)."""
+    import resource
+    import subprocess
+    import sys
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout, preexec_fn=cap)
+
+
+def test_the_budget_follows_the_address_space_limit():
+    """Under ``ulimit -v`` the budget is 80 % of the room left under the limit, and says
+    so; a scene's max_memory_gb above it is capped."""
+    code = ("from render_inspect.core.limits import memory_budget, address_space_limit;"
+            "b, s = memory_budget(); c, t = memory_budget(64.0);"
+            "print(b, c, address_space_limit()); print(s); print(t)")
+    r = _under_address_limit(code, 3 * 2 ** 30)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    b, c, limit = (int(v) for v in lines[0].split())
+    assert limit == 3 * 2 ** 30 and 0 < b < 0.8 * limit and b < c < limit
+    assert "80% of the room under the address-space limit (ulimit -v) of 3 GiB" in lines[1]
+    assert "simulation.max_memory_gb = 64, capped by the address-space limit (ulimit -v)" in lines[2]
+
+
+def test_a_capped_simulation_is_refused_at_the_start_naming_the_limit(tmp_path):
+    """A grid that fits the machine but not ``ulimit -v`` is refused before any work, one
+    line naming the limit and the pixel that would fit, not a late MemoryError."""
+    code = "import sys; from render_inspect.cli import main; sys.exit(main(sys.argv[1:]))"
+    out = tmp_path / "o"
+    r = _under_address_limit(code, 2 * 2 ** 30, "simulate", "sts_sinusoidal_grid", "--out", out,
+                             "-q", "--set", "simulation.region=[-1,-1,1,1]",
+                             "--set", "simulation.pixel=0.0003")
+    assert r.returncode == 1, r.stderr
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in r.stderr
+    assert "the address-space limit (ulimit -v) of 2 GiB" in err[0]
+    assert "simulation.pixel >=" in err[0] and not out.exists()
+
+
+def test_mitsuba_is_refused_up_front_when_its_address_space_does_not_fit():
+    """A Mitsuba render reserves about 0.5 to 0.7 GiB of address space beyond the process's
+    (LLVM, Dr.Jit's threads; measured, see MITSUBA_ADDRESS_SPACE) and ends with a
+    segmentation fault when the limit refuses it: check_address_space says so first."""
+    from render_inspect.core.limits import (MITSUBA_ADDRESS_SPACE, check_address_space,
+                                            mitsuba_address_space)
+
+    assert mitsuba_address_space(4) == MITSUBA_ADDRESS_SPACE + 4 * 16 * 2 ** 20
+    check_address_space(10 ** 15, what="anything")  # no limit in this process: nothing to say
+    code = ("from render_inspect.core.limits import check_address_space as c, "
+            "mitsuba_address_space as m, address_space_used as u, address_space_limit as l\n"
+            "try:\n    c(m(2), what='a Mitsuba render')\nexcept Exception as e:\n    print(e)\n"
+            "else:\n    print('fits', u(), l())")
+    tight = _under_address_limit(code, 600 * 2 ** 20)
+    assert tight.returncode == 0, tight.stderr
+    msg = tight.stdout.strip()
+    assert msg.startswith("a Mitsuba render reserves about 672 MiB of address space, more than")
+    assert "address-space limit (ulimit -v, RLIMIT_AS) of 600 MiB" in msg
+    assert "(ulimit -v unlimited)" in msg and "\n" not in msg
+    roomy = _under_address_limit(code, 4 * 2 ** 30)
+    assert roomy.stdout.startswith("fits"), roomy.stdout
+
+
+# ------------------------------------------------------------------ analyze
+@pytest.mark.slow
+def test_analyze_estimate_is_within_a_factor_of_the_measured_peak(tmp_path):
+    """The peak resident memory of ``analyze`` on a 2000 x 2000 map (above the
+    interpreter's with the package imported), against analyze_memory: within 1.5 x, and
+    not below it by more than that either."""
+    import json
+    import subprocess
+    import sys
+
+    from render_inspect.metrology._analysis import analyze_memory
+
+    n = 2000
+    z = np.random.default_rng(0).normal(0, 1e-5, (n, n))
+    np.save(tmp_path / "m.npy", z)
+    (tmp_path / "m.json").write_text(json.dumps({"pixel_mm": 0.001}))
+    del z
+    # the peak resident memory above what the process held before the command ran (the
+    # interpreter and the package, measured in the same process)
+    # (VmHWM of /proc: getrusage's ru_maxrss would start from the parent's at the fork)
+    probe = ("import sys, render_inspect.cli, render_inspect.pipeline, "
+             "render_inspect.metrology, render_inspect.io\n"
+             "def r():\n    for line in open('/proc/self/status'):\n"
+             "        if line.startswith('VmHWM'):\n            return int(line.split()[1]) * 1024\n"
+             "before = r()\nrc = render_inspect.cli.main(sys.argv[1:])\nprint(rc, r() - before)")
+    run = subprocess.run([sys.executable, "-c", probe, "analyze", str(tmp_path / "m.npy"),
+                          "--out", str(tmp_path / "o"), "-q"], capture_output=True, text=True,
+                         check=True)
+    rc, peak = (int(v) for v in run.stdout.split()[-2:])
+    assert rc == 0 and (tmp_path / "o" / "metrics.json").is_file(), run.stderr
+    est = analyze_memory((n, n), holes=False)
+    print("analyze peak", format_bytes(peak), "estimate", format_bytes(est))
+    assert peak / FACTOR < est < peak * FACTOR, (format_bytes(est), format_bytes(peak))
+
+
+def test_a_map_too_big_to_analyse_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """read_surface with the analysis' bytes per point checks the file's declared size
+    against what analysing it needs, not just reading it."""
+    from render_inspect.io import read_surface
+    from render_inspect.metrology._analysis import analyze_memory_per_point
+
+    np.save(tmp_path / "m.npy", np.zeros((300, 400)))
+    (tmp_path / "m.json").write_text('{"pixel_mm": 0.001}')
+    _small_budget(monkeypatch, 8 * 2 ** 20)  # reading 120 000 values needs about 3 MiB
+    assert read_surface(tmp_path / "m.npy").shape == (300, 400)
+    per_point = analyze_memory_per_point()
+    with pytest.raises(MemoryBudgetError, match=r"a 300 x 400 array, which would need about "
+                                                r"[\d.]+ MiB to read and analyse"):
+        _traced(lambda: read_surface(tmp_path / "m.npy", bytes_per_value=per_point))
+    _, peak = _traced(lambda: pytest.raises(MemoryBudgetError, read_surface, tmp_path / "m.npy",
+                                            bytes_per_value=per_point))
+    assert peak < 2 ** 20

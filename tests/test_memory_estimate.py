@@ -38,7 +38,7 @@ _PROBE = textwrap.dedent('''
     _, peak = tracemalloc.get_traced_memory()
     # the estimate the budget check uses, made before planning (the shipped scene: a lathe
     # and aluminium 6082, so the machine's and the material's maps are in it)
-    est = process_of(scene).estimate_memory(scene)
+    est = process_of(scene).estimate_memory(process_of(scene).inputs_of(scene))
     print(json.dumps({"estimate": est, "traced": peak,
                       "rss": status("VmHWM") - base, "samples": m["samples"]}))
 ''')
@@ -59,7 +59,7 @@ def test_memory_estimate_within_1_5x_of_the_measured_peak(half, tmp_path):
 _TILED_PROBE = textwrap.dedent('''
     import json, os, sys, tempfile, tracemalloc
     from pathlib import Path
-    from render_inspect.machining._memory import tiled_bytes
+    from render_inspect.machining import tiled_bytes
     from render_inspect.pipeline import run_simulate
     from render_inspect.processes._turning import machine_bytes
     from render_inspect.scene import load_scene

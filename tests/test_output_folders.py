@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
+import shutil
 import os
 import signal
 import subprocess
@@ -255,8 +257,13 @@ def test_outputs_are_byte_identical_between_runs(tmp_path):
     run_simulate(scene, tmp_path / "b")
     a, b = _tree(tmp_path / "a"), _tree(tmp_path / "b")
     assert MARKER in a and a.keys() == b.keys()
-    assert {k: v for k, v in a.items() if k != "metrics.json"} == \
-        {k: v for k, v in b.items() if k != "metrics.json"}
+    assert {k: v for k, v in a.items() if k not in ("metrics.json", MARKER)} == \
+        {k: v for k, v in b.items() if k not in ("metrics.json", MARKER)}
+    # the marker differs only in the files' modification times it records
+    ka, kb = (json.loads((tmp_path / d / MARKER).read_text()) for d in "ab")
+    sizes = [{k: v[0] for k, v in m.pop("stat").items() if k != "metrics.json"} for m in (ka, kb)]
+    assert sizes[0] == sizes[1] and "heightmap.exr" in sizes[0]
+    assert ka == kb
     ma, mb = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in "ab")
     ma.pop("timing_s"), mb.pop("timing_s")  # the seconds each step took
     assert ma == mb
@@ -497,3 +504,148 @@ def test_nested_outputs_and_stores_are_kept_as_units(tmp_path):
     assert (root / "compensated" / "heightmap.exr").read_text() == "c2"
     assert not (root / "compensated" / "cycles.png").exists()
     assert not (root / "heightmap.zarr").exists()      # this command's own earlier output
+
+
+# ------------------------------------------------------------------ hostile folders
+def _write(out, name="a.txt", text="1", **kw):
+    with atomic_output_dir(out, command="t", **kw) as tmp:
+        (tmp / name).write_text(text)
+
+
+def test_the_lock_file_is_never_written_through_a_link(tmp_path):
+    """A planted ``.NAME.lock`` (a symbolic link, a hard link, a file with other content)
+    is refused naming it; the file it points to is untouched."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("secret")
+    lock = tmp_path / ".o.lock"
+    for plant in (lambda: lock.symlink_to(victim), lambda: os.link(victim, lock),
+                  lambda: lock.write_text("not a pid")):
+        plant()
+        with pytest.raises(InputError, match=r"--out .*\.o\.lock"):
+            _write(tmp_path / "o")
+        assert victim.read_text() == "secret" and not (tmp_path / "o").exists()
+        lock.unlink()
+    _write(tmp_path / "o")  # an ordinary run afterwards
+    assert not lock.exists() and victim.read_text() == "secret"
+
+
+def test_files_that_look_like_temporaries_are_the_users(tmp_path):
+    """Only render_inspect's own temporaries, exactly named, are not counted: a user's
+    ``.metrics.json.backup-1`` makes the folder refused, not deleted."""
+    out = tmp_path / "o"
+    _write(out)
+    for name in (".metrics.json.backup-1", ".x.lock", ".a.txt.partial-1", ".a.tmp"):
+        (out / name).write_text("mine")
+        with pytest.raises(InputError, match=re.escape(name)):
+            _write(out)
+        assert (out / name).read_text() == "mine"
+        (out / name).unlink()
+    # what a killed run into a nested folder leaves is not the user's
+    (out / ".sub.lock").write_text("123\n")
+    (out / ".sub.partial-123-0123abcd").mkdir()
+    (out / ".a.txt.abcd_123.tmp").write_text("half")
+    _write(out, text="2")
+    assert (out / "a.txt").read_text() == "2"
+
+
+def test_a_users_file_in_a_nested_output_folder_is_not_deleted(tmp_path):
+    out = tmp_path / "A"
+    _write(out)
+    _write(out / "sub", name="b.txt")
+    _write(out, text="2")  # a nested output of render-inspect's own is fine
+    _write(out / "sub", name="b.txt")
+    (out / "sub" / "mine.txt").write_text("mine")
+    with pytest.raises(InputError, match=r"sub/mine\.txt"):
+        _write(out, text="3")
+    assert (out / "sub" / "mine.txt").read_text() == "mine"
+
+
+def test_a_refused_run_removes_no_sibling_folder(tmp_path):
+    """Siblings named like a backup are removed only by a run that completes, and only
+    when exactly so named."""
+    out = tmp_path / "A"
+    out.mkdir()
+    (out / "user.txt").write_text("u")
+    for name in (".A.backup-1", ".A.backup-123-0123abcd", ".A.partial-9-0123abcd"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "x").write_text("keep")
+    with pytest.raises(InputError, match="not written by render-inspect"):
+        _write(out)
+    assert all((tmp_path / n / "x").exists() for n in (".A.backup-1", ".A.backup-123-0123abcd",
+                                                       ".A.partial-9-0123abcd"))
+    _write(tmp_path / "A2")
+    _write(out, overwrite=True)
+    assert (tmp_path / ".A.backup-1" / "x").exists()  # not one of render-inspect's names
+    assert not (tmp_path / ".A.backup-123-0123abcd").exists()
+    assert not (tmp_path / ".A.partial-9-0123abcd").exists()
+
+
+def test_changed_files_and_forged_markers_are_not_trusted(tmp_path):
+    """The marker vouches only for files unchanged since they were written (size and
+    date), only when it belongs to this user and records them."""
+    out = tmp_path / "o"
+    _write(out)
+    (out / "a.txt").write_text("edited by the user")
+    with pytest.raises(InputError, match=r"changed since .*a\.txt"):
+        _write(out)
+    # a marker copied into (or written for) a folder of other files
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "a.txt").write_text("precious")
+    shutil.copy(out / MARKER, mine / MARKER)
+    with pytest.raises(InputError, match=r"a\.txt"):
+        _write(mine)
+    # a marker of an earlier layout (no sizes and dates) is not enough
+    m = json.loads((mine / MARKER).read_text())
+    m.pop("stat")
+    m["marker_version"] = 1
+    (mine / MARKER).write_text(json.dumps(m))
+    with pytest.raises(InputError, match="earlier render-inspect version"):
+        _write(mine)
+    assert (mine / "a.txt").read_text() == "precious"
+
+
+def test_overwrite_does_not_follow_a_link_and_inputs_are_kept(tmp_path):
+    target = tmp_path / "precious"
+    target.mkdir()
+    (target / "data.txt").write_text("keep")
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    with pytest.raises(InputError, match="symbolic link.*--overwrite does not replace"):
+        _write(link, overwrite=True)
+    assert (target / "data.txt").read_text() == "keep"
+    # an output folder that holds the command's input is refused, even with --overwrite
+    out = tmp_path / "o"
+    _write(out)
+    with pytest.raises(InputError, match=r"holds the input .*a\.txt"):
+        _write(out, overwrite=True, inputs=[out / "a.txt"])
+    assert (out / "a.txt").read_text() == "1"
+
+
+_SWAP_SIGNAL = """
+import os, signal, sys
+from render_inspect.io import _atomic
+swap = _atomic._swap_in
+def slow_swap(new, out, backup):
+    os.kill(os.getpid(), getattr(signal, sys.argv[1]))  # arrives in the middle of the swap
+    swap(new, out, backup)
+_atomic._swap_in = slow_swap
+from render_inspect import cli
+sys.exit(cli.main(sys.argv[2:]))
+"""
+
+
+@pytest.mark.parametrize("sig, code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_during_the_swap_is_held_and_reported_truthfully(tmp_path, sig, code):
+    """The swap is completed, then the interruption is delivered: the exit code is 130 /
+    143 and the message says the folder was written (it was), never "left as it was"."""
+    out = tmp_path / "o"
+    run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
+    old = read_marker(out)
+    r = subprocess.run([sys.executable, "-c", _SWAP_SIGNAL, sig, "toolpath", "sts_sinusoidal_grid",
+                        "--out", str(out), "-q"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == code, r.stderr
+    assert "Traceback" not in r.stderr and "left as it was" not in r.stderr
+    assert f"the output folder {out} had been written completely" in r.stderr
+    assert read_marker(out) != old and (out / "toolpath.npz").exists()
+    assert _leftovers(tmp_path) == []

@@ -1,6 +1,7 @@
 """The package as a user gets it: a wheel built from this checkout, installed with pip
 into a fresh virtual environment outside the checkout, runs the demo and finds the shipped
-scenes by name."""
+scenes by name.  And the environment as `make setup` makes it: exactly the lock
+(requirements.lock), whose versions satisfy the ranges of pyproject.toml."""
 
 from __future__ import annotations
 
@@ -11,8 +12,52 @@ import sys
 from pathlib import Path
 
 import pytest
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tools"))
+import lock  # noqa: E402  (tools/lock.py)
+
+
+def test_the_lock_holds_every_distribution_of_the_environment_and_nothing_else():
+    """pip list of this environment (make setup's .venv) against the lock: the same
+    distributions at the same versions; render_inspect itself is installed from the
+    checkout, not locked."""
+    res = subprocess.run([sys.executable, "-m", "pip", "list", "--format=json"],
+                         capture_output=True, text=True, check=True)
+    installed = {canonicalize_name(d["name"]): d["version"] for d in json.loads(res.stdout)}
+    assert installed.pop("render-inspect", None), "render_inspect is not installed here"
+    locked = {e["name"]: e["version"] for e in lock.read_lock() if lock.applies(e, "linux-x64")}
+    assert {n: v for n, v in installed.items() if locked.get(n) != v} == {}, \
+        "installed but not at a locked version: run make setup (or make lock after a change)"
+    assert sorted(set(locked) - set(installed)) == []
+    for name in ("pip", "setuptools", "uv", "numpy", "bpy", "mitsuba", "pytest"):
+        assert name in locked, name
+
+
+def test_the_lock_has_hashes_and_satisfies_the_ranges_of_pyproject():
+    import tomllib
+
+    entries = lock.read_lock()
+    assert entries and all(e["hashes"] for e in entries), \
+        [e["name"] for e in entries if not e["hashes"]]
+    names = [e["name"] for e in entries]
+    assert len(names) == len(set(names))  # one version each
+    versions = {e["name"]: e["version"] for e in entries}
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    reqs = [Requirement(r) for r in project["dependencies"]]
+    reqs += [Requirement(r) for extra in project["optional-dependencies"].values() for r in extra]
+    for req in reqs:
+        name = canonicalize_name(req.name)
+        if name == "render-inspect":
+            continue
+        assert name in versions, f"{req} is not locked"
+        assert req.specifier.contains(versions[name], prereleases=True), (req, versions[name])
+    # the package itself allows NumPy 2 (library users resolve their own); the lock holds
+    # NumPy 1.x because bpy 5.0 needs it
+    numpy = next(r for r in project["dependencies"] if r.startswith("numpy"))
+    assert Requirement(numpy).specifier.contains("2.3.0")
 
 
 def _env() -> dict:
@@ -33,9 +78,10 @@ def test_wheel_installs_into_a_fresh_venv_and_runs_the_demo(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, env=env)
     py = venv / "bin" / "python"
-    # the tested versions (requirements.txt) as constraints: pip's cache serves them
+    # the tested versions (the lock, without its hashes) as constraints: pip's cache serves them
+    (tmp_path / "constraints.txt").write_text(lock.constraints())
     subprocess.run([str(py), "-m", "pip", "install", "-q", "--constraint",
-                    str(REPO / "requirements.txt"), f"{wheel}[render]"],
+                    str(tmp_path / "constraints.txt"), f"{wheel}[render]"],
                    check=True, env=env, cwd=tmp_path, capture_output=True)
     exe = venv / "bin" / "render-inspect"
     where = subprocess.run([str(py), "-c", "import render_inspect; print(render_inspect.__file__)"],

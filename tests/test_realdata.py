@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.io import read_surface
-from render_inspect.metrology import areal_parameters, remove_form
+from render_inspect.metrology import analyze_map, areal_parameters, remove_form, slope_parameters
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
@@ -182,24 +182,48 @@ def test_slope_parameters_agree_with_surfacetopography_and_surfalize(maps, name)
     assert_allclose(ours["Sq"], t.rms_height_from_area(), rtol=1e-12)
 
 
-def test_raw_maps_with_missing_points_use_every_valid_gradient(maps):
-    """On the raw maps our Sdq uses each gradient whose two differences are measured;
-    SurfaceTopography 1.18.2 also drops those next to a hole (its interpolation stencil
-    touches it) - equal where there is no hole."""
+def test_raw_maps_with_holes_leave_the_hole_borders_out_as_surfacetopography(maps):
+    """On the raw maps with missing points, Sdq leaves out the gradients bordering a hole
+    as SurfaceTopography's rms_gradient does (its stencil and one point beyond in +x and
+    +y measured); the value with them is reported too, and is what the bare differences
+    give.  Equal to SurfaceTopography where there is no hole."""
     from SurfaceTopography import Topography
 
-    for name in ("mountainsmap_x3p-2.x3p", "sensofar_plu_neox.plu", "zygo_metropro-1.dat"):
+    for name in ("mountainsmap_x3p-2.x3p", "sensofar_plu_neox.plu", "zygo_metropro-1.dat",
+                 "wyko_opd-1.opd", "digitalsurf_sur-2.sur", "alicona_ski.x3p"):
         m = maps[name]
-        t = Topography(m.z.T, (m.pixel[0] * m.shape[1], m.pixel[1] * m.shape[0]), unit="mm")
-        assert_allclose(areal_parameters(m.z, pixel=m.pixel)["Sdq"], t.rms_gradient(), rtol=1e-12)
-    m = maps["wyko_opd-1.opd"]
-    ok = np.isfinite(m.z)
+        t = Topography(np.ma.masked_invalid(m.z.T), (m.pixel[0] * m.shape[1],
+                                                     m.pixel[1] * m.shape[0]), unit="mm")
+        p = areal_parameters(m.z, pixel=m.pixel)
+        holes = int(np.isnan(m.z).sum())
+        # identical where the holes stay off the map's last two rows and columns (where
+        # SurfaceTopography's interpolation wraps around and its positions round)
+        assert_allclose(p["Sdq"], t.rms_gradient(), rtol=1e-4 if holes else 1e-12)
+        assert (p["n_border"] > 0) == (holes > 0)
+        ok = np.isfinite(m.z)
+        every = ok[:-1, :-1] & ok[:-1, 1:] & ok[1:, :-1]
+        zx = np.diff(m.z, axis=1)[:-1, :] / m.pixel[0]
+        zy = np.diff(m.z, axis=0)[:, :-1] / m.pixel[1]
+        assert_allclose(p["Sdq_with_border"], np.sqrt(np.mean((zx ** 2 + zy ** 2)[every])),
+                        rtol=1e-12)
+        sp = slope_parameters(m.z, pixel=m.pixel)
+        assert sp["n_slope"] + sp["n_border"] == int(every.sum()) and sp["Sdq"] == p["Sdq"]
+    # the bullet land's 25292 missing points come up to the map's edges, where
+    # SurfaceTopography's stencil wraps around: within 1 % (0.6 %), against +9.6 % with
+    # the border gradients
+    m = maps["sensofar_bullet_land.x3p"]
+    t = Topography(np.ma.masked_invalid(m.z.T), (m.pixel[0] * m.shape[1], m.pixel[1] * m.shape[0]),
+                   unit="mm")
     p = areal_parameters(m.z, pixel=m.pixel)
-    gx_ok = ok[:-1, :-1] & ok[:-1, 1:] & ok[1:, :-1]
-    d = p["Sdq"]
-    zx = np.diff(m.z, axis=1)[:-1, :] / m.pixel[0]
-    zy = np.diff(m.z, axis=0)[:, :-1] / m.pixel[1]
-    assert_allclose(d, np.sqrt(np.mean((zx ** 2 + zy ** 2)[gx_ok])), rtol=1e-12)
+    assert_allclose(p["Sdq"], t.rms_gradient(), rtol=0.01)
+    assert p["Sdq_with_border"] > 1.08 * t.rms_gradient()
+    # Digital Surf sur-2: its 117 missing points border 73 gradients that raise Sdq by 6 %
+    # and Sdr by 7 %: left out by default, both values reported (analyze warns)
+    p = areal_parameters(maps["digitalsurf_sur-2.sur"].z, pixel=maps["digitalsurf_sur-2.sur"].pixel)
+    assert p["Sdq_with_border"] / p["Sdq"] > 1.05 and p["Sdr_with_border"] / p["Sdr"] > 1.05
+    a = analyze_map(maps["digitalsurf_sur-2.sur"], form="none").metrics
+    assert a["holes"]["n_border_gradients"] == p["n_border"]
+    assert any("hole" in w and "Sdq" in w for w in a["warnings"])
 
 
 def test_sal_str_agree_with_surfalize(maps):
@@ -224,3 +248,28 @@ def test_sal_str_agree_with_surfalize(maps):
             assert_allclose(ours["Str"], str_, rtol=0.005)
         else:
             assert np.isnan(ours["Str"]) and np.isnan(str_)
+
+
+def test_wyko_16_bit_opd_reads_its_invalid_points_as_missing():
+    """A Wyko OPD file with 16-bit heights marks points it did not measure with the
+    largest 16-bit values.  SurfaceTopography up to 1.18.2 (the last for NumPy 1, which
+    this environment keeps) reads them as heights; render_inspect masks them
+    (io/_wyko.py).  Published reading (SOURCES.md, SurfaceTopography 1.27.1 and surfalize
+    0.19.2): 809 invalid points; with a plane removed over the valid points Sa 1593.8 nm,
+    Sq 1926.5 nm, Sz 18844 nm."""
+    from render_inspect.core.units import MM_TO_NM
+    from render_inspect.io._wyko import invalid_points
+
+    path = _path("wyko_opd-int16.opd")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = read_surface(path)
+    assert m.z.shape == (480, 736)
+    assert_allclose(m.pixel, (1.63424e-3, 1.90661e-3), rtol=1e-5)
+    assert int(np.isnan(m.z).sum()) == 809
+    assert int(invalid_points(path).sum()) == 809
+    z, _ = remove_form(m.z, pixel=m.pixel, method="plane")
+    p = areal_parameters(z, pixel=m.pixel)
+    assert p["Sq"] * MM_TO_NM == pytest.approx(1926.5, abs=0.1)
+    assert p["Sa"] * MM_TO_NM == pytest.approx(1593.8, abs=0.1)
+    assert p["Sz"] * MM_TO_NM == pytest.approx(18844, abs=1)

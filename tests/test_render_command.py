@@ -50,7 +50,8 @@ def test_run_render_design_writes_all_outputs(scenes_dir, tmp_path):
     assert dattrs["vertical_exaggeration"] == r["diffuse_micro"]["vertical_exaggeration"]
     saved = json.loads((out / "render_metrics.json").read_text())
     assert saved["render"]["interferometer"]["valid_fraction"] == r["interferometer"]["valid_fraction"]
-    assert set(r["timing_s"]) >= {"interferogram", "diffuse_macro", "diffuse_micro"}
+    # seconds per instrument (by its name) and per diffuse view
+    assert set(r["timing_s"]) >= {"interferometer", "diffuse_macro", "diffuse_micro"}
 
 
 def test_run_render_is_bitwise_repeatable(scenes_dir, tmp_path):

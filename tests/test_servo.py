@@ -1,4 +1,5 @@
-"""Hybrid tool servo (seed 002): servo dynamics, lag -> rotation, ideal servo = commanded."""
+"""Hybrid tool servo (Kong et al. 2020): the split of the program between the slow slide
+and the FTS, their servos (the machine's axes), lag -> rotation, ideal servo = commanded."""
 
 from __future__ import annotations
 
@@ -9,13 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from render_inspect.design import make_surface
-from render_inspect.errors import InputError, SceneError
-from render_inspect.machining import (
-    followed_path,
-    servo_response,
-    simulate_turning,
-    split_commands,
-)
+from render_inspect.errors import SceneError
+from render_inspect.machining import Axis, follow_axis, split_commands
 from render_inspect.pipeline import simulate
 from render_inspect.processes import plan_spiral
 from render_inspect.scene import load_scene, scene_from_dict
@@ -42,73 +38,22 @@ def _lag_scene(*, delay_s=0.0, bandwidth_hz=None, kind="hts", region=(0.55, -0.4
         "process": {"kind": kind, "spindle_rpm": 100, "feed_mm_per_min": 1.0,
                     "workpiece_radius": 3.0, "points_per_rev": 1440, "compensation": "z"},
         "simulation": {"region": list(region), "pixel": 0.01, "seed": 1},
-        "artifacts": {"servo": {"delay_s": delay_s, "bandwidth_hz": bandwidth_hz}},
-        # the raw positions (the 6-DOF registration of seed 002 would turn the lag away:
+        # the FTS of an otherwise ideal machine: a second-order servo without feed-forward
+        "machine": {"fts": {"delay_s": delay_s,
+                            **({} if bandwidth_hz is None else {"bandwidth_hz": bandwidth_hz})}},
+        # the raw positions (the 6-DOF registration of Kong et al. would turn the lag away:
         # test_registration_removes_a_constant_lag)
         "metrology": {"registration": registration},
     })
 
 
-# ---- servo_response: the second-order model and the lag ------------------------------
-def test_ideal_servo_returns_the_command():
-    t = np.linspace(0, 1, 1001)
-    x = np.sin(2 * np.pi * 3 * t) + t
-    assert_allclose(servo_response(x, t), x, rtol=0, atol=0)
-
-
-def test_second_order_steady_state_matches_transfer_function():
-    fs, fn, zeta, f = 20000.0, 200.0, 0.4, 150.0
-    t = np.arange(0, 0.5, 1 / fs)
-    x = np.sin(2 * np.pi * f * t)
-    y = servo_response(x, t, bandwidth_hz=fn, damping=zeta)
-    w = 2 * np.pi * f
-    wn = 2 * np.pi * fn
-    H = wn ** 2 / (wn ** 2 - w ** 2 + 2j * zeta * wn * w)
-    expected = np.abs(H) * np.sin(w * t + np.angle(H))
-    tail = t > 0.25                       # transients have died (time constant 2 ms)
-    assert_allclose(y[tail], expected[tail], atol=2e-3)
-
-
-def test_second_order_step_overshoot():
-    t = np.arange(0, 0.2, 1e-5)
-    x = np.where(t > 0.01, 1.0, 0.0)
-    zeta = 0.5
-    y = servo_response(x, t, bandwidth_hz=100.0, damping=zeta)
-    overshoot = y.max() - 1.0
-    assert overshoot == pytest.approx(math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2)), abs=2e-3)
-    assert y[-1] == pytest.approx(1.0, abs=1e-6)
-    assert abs(y[t < 0.01]).max() < 1e-12   # causal: nothing before the step
-
-
+# ---- the servo: the machine's axis (test_axes.py: the second-order response, the lag) ---
 def test_pure_delay_shifts_in_time():
     t = np.linspace(0, 1, 10001)
     x = np.sin(2 * np.pi * 2 * t)
-    y = servo_response(x, t, delay_s=0.05)
-    late = t >= 0.05
-    assert_allclose(y[late], np.sin(2 * np.pi * 2 * (t[late] - 0.05)), atol=1e-6)
-
-
-def test_uneven_time_axis_is_resampled():
-    t = np.cumsum(np.r_[0, np.where(np.arange(3999) % 2, 1e-4, 2e-4)])
-    x = np.sin(2 * np.pi * 5 * t)
-    y = servo_response(x, t, bandwidth_hz=500.0, damping=0.7)
-    lag = 2 * 0.7 / (2 * np.pi * 500)     # low-frequency group delay
-    late = t > 0.1
-    assert_allclose(y[late], np.sin(2 * np.pi * 5 * (t[late] - lag)), atol=2e-3)
-
-
-@pytest.mark.parametrize("kw, word", [({"bandwidth_hz": -1.0}, "bandwidth_hz"),
-                                      ({"delay_s": -0.1}, "delay_s"),
-                                      ({"damping": 0.0}, "damping")])
-def test_servo_bad_values_are_named(kw, word):
-    t = np.linspace(0, 1, 11)
-    with pytest.raises(InputError, match=word):
-        servo_response(np.zeros(11), t, **kw)
-
-
-def test_servo_needs_increasing_time():
-    with pytest.raises(InputError, match="increasing"):
-        servo_response(np.zeros(3), np.array([0.0, 0.2, 0.1]))
+    r = follow_axis(t, x, Axis(delay_s=0.05), rate_hz=10000.0)
+    late = r.t >= 0.05
+    assert_allclose(r.followed[late], np.sin(2 * np.pi * 2 * (r.t[late] - 0.05)), atol=1e-6)
 
 
 # ---- the split and the HTS simulation ------------------------------------------------
@@ -133,21 +78,6 @@ def test_ideal_servo_without_lag_reproduces_the_commanded_surface(kind):
     assert_allclose(res.heightmap.machined, sts.heightmap.machined, rtol=0, atol=1e-12)
     assert res.metrics["servo"]["fts_following_error"]["max_um"] < 1e-9
     assert res.metrics["servo"]["fts_stroke_um"] > 4.0     # the lenslets are on the FTS
-
-
-def test_followed_path_equals_command_for_an_ideal_servo():
-    scene = _lag_scene()
-    path = build_toolpath(scene, region=scene.simulation.region)
-    zs, zf = split_commands(path, "hts", base=make_surface(scene.design).base,
-                            nose_radius=0.2, half_width=0.1)
-    sv = scene.artifacts.servo
-    fpath, _, _ = followed_path(path, zs, zf, slow_bandwidth_hz=sv.slow_bandwidth_hz,
-                                slow_damping=sv.slow_damping, fts_bandwidth_hz=sv.bandwidth_hz,
-                                fts_damping=sv.damping, fts_delay_s=sv.delay_s)
-    region, px = scene.simulation.region, scene.simulation.pixel
-    a = simulate_turning(path, nose_radius=0.2, region=region, pixel=px, half_width=0.1)
-    b = simulate_turning(fpath, nose_radius=0.2, region=region, pixel=px, half_width=0.1)
-    assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
 def _fit_dimple_centre(hm, cx, cy, radius):
@@ -182,7 +112,7 @@ def test_pure_lag_rotates_features_by_omega_tau():
 
 
 def test_registration_removes_a_constant_lag():
-    """Seed 002's characterisation registers the design to the cut (6 DOF): a constant lag
+    """Kong et al. 2020's characterisation registers the design to the cut (6 DOF): a constant lag
     is a rigid rotation by omega tau, found by the registration and gone from the
     dislocations that are left."""
     tau = 0.005
@@ -211,7 +141,10 @@ def test_hts_needs_a_compound_design():
 
 
 def test_servo_scene_keys_are_validated():
-    with pytest.raises(SceneError, match="bandwidth_hz"):
+    with pytest.raises(SceneError, match="machine.fts.bandwidth_hz"):
+        _lag_scene().with_overrides(["machine.fts.bandwidth_hz=-5"])
+    # the retired keys: mapped (and checked) as their successors, unknown ones named
+    with pytest.raises(SceneError, match="machine.fts.bandwidth_hz"), pytest.warns(UserWarning):
         _lag_scene().with_overrides(["artifacts.servo.bandwidth_hz=-5"])
     with pytest.raises(SceneError, match="slow_bandwidth"):
         _lag_scene().with_overrides(["artifacts.servo.slow_bandwidth=5"])
@@ -227,16 +160,3 @@ def test_hts_scene_file_loads(scenes_dir):
     # every lenslet rim lies on the 15 mm blank
     rims = [math.hypot(x, y) + 0.5 for _, _, x, y in surf.centers()]
     assert len(rims) == 49 and max(rims) < scene.process.workpiece_radius
-
-
-def test_coarse_time_samples_are_refined_for_a_fast_servo():
-    """A 1 kHz servo on a 2.5 kHz path sampling: the linear command is filtered on a fine
-    grid, so the result matches the fine-sampled response at the path's samples."""
-    t_fine = np.arange(0, 0.2, 1e-6)
-    x_fine = np.sin(2 * np.pi * 40 * t_fine)
-    t = t_fine[::400]
-    x = x_fine[::400]
-    x_lin = np.interp(t_fine, t, x)            # what the axes are told between the samples
-    ref = servo_response(x_lin, t_fine, bandwidth_hz=1000.0, damping=0.7)[::400]
-    y = servo_response(x, t, bandwidth_hz=1000.0, damping=0.7)
-    assert_allclose(y, ref, atol=1e-3)     # filtering the 2.5 kHz samples directly: 0.04

@@ -17,11 +17,10 @@ from render_inspect.io._pyramid import block_sums, level_count, means, preview, 
 from render_inspect.io._zarr import ZarrHeightMap, create_heightmap_zarr, write_heightmap_zarr
 from render_inspect.machining import residual_metrics, simulate_turning
 from render_inspect.machining._envelope import prepare_envelope
-from render_inspect.machining._metrics import metrics_from_moments
-from render_inspect.machining import design_grid
-from render_inspect.machining._tiled import plan_tiles
-from render_inspect.pipeline._tiled import run_tiles
-from render_inspect.processes._turning import plan_spiral, tool_of
+from render_inspect.batch import run_tiles
+from render_inspect.machining import design_grid, metrics_from_moments, plan_tiles
+from render_inspect.processes import plan_spiral
+from render_inspect.toolpath import Tool
 from render_inspect.scene import load_scene
 
 GRID = Path(__file__).resolve().parents[1] / "scenes" / "sts_sinusoidal_grid.toml"
@@ -34,7 +33,7 @@ def _case(region, pixel, overrides=()):
     scene = load_scene(GRID, [f"simulation.region={list(region)}", f"simulation.pixel={pixel}", *overrides])
     surface = make_surface(scene.design)
     path = plan_spiral(scene, surface, region=region)
-    tool = tool_of(scene)
+    tool = Tool.from_config(scene.tool)
     return scene, surface, path, tool
 
 
@@ -316,9 +315,8 @@ def test_simulate_on_two_dask_worker_processes(tmp_path):
 
 
 def test_renders_of_a_big_map_read_only_the_windows_they_need(tmp_path):
-    from render_inspect.instruments import interferometer_geometry
-    from render_inspect.pipeline import simulate
-    from render_inspect.pipeline._simulate import run_simulate_tiled
+    from render_inspect.instruments import instrument_types, interferometer_geometry
+    from render_inspect.pipeline import run_simulate_tiled, simulate
     from render_inspect.pipeline._views import BigMapViews
 
     scene = load_scene(GRID, ["simulation.region=[-0.3,-0.25,0.32,0.3]", "simulation.pixel=0.0005",
@@ -327,7 +325,8 @@ def test_renders_of_a_big_map_read_only_the_windows_they_need(tmp_path):
     run_simulate_tiled(scene, tmp_path / "t", tile=256)
     hm = simulate(scene).heightmap
     views = BigMapViews(tmp_path / "t" / "heightmap.zarr")
-    hm_i, icfg = views.interferometer(scene.render.interferometer)
+    hm_i, icfg = views.instrument(instrument_types()["interferometer"],
+                                  scene.render.interferometer)
     a = interferometer_geometry(hm, scene.render.interferometer)
     b = interferometer_geometry(hm_i, icfg)
     for k in ("nx", "ny", "pixel", "numerical_aperture"):
@@ -361,7 +360,7 @@ def test_metrology_reads_a_window_of_a_store(tmp_path):
 
 
 def test_tiles_of_a_constant_arc_path_equal_the_whole_grid():
-    from render_inspect.machining._tiled import compute_tile
+    from render_inspect.machining import compute_tile
 
     region, pixel = (-0.05, -0.04, 0.09, 0.08), 0.0005
     _, surface, path, tool = _case(region, pixel, ("process.sampling='constant_arc'",))

@@ -106,3 +106,56 @@ def test_read_measured_bad_input(tmp_path):
         write_x3p(tmp_path / "f.x3p", np.zeros((3, 3)), pixel=0)
     with pytest.raises(InputError, match="inf"):
         write_x3p(tmp_path / "g.x3p", np.full((3, 3), np.inf), pixel=0.1)
+
+
+def _with_main(src, dst, edit):
+    """A copy of the X3P ``src`` whose main.xml is ``edit(text)``, its MD5 record updated."""
+    import hashlib
+    import zipfile
+
+    zin = zipfile.ZipFile(src)
+    main = edit(zin.read("main.xml").decode()).encode()
+    with zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for i in zin.infolist():
+            data = zin.read(i)
+            if i.filename == "main.xml":
+                data = main
+            elif i.filename == "md5checksum.hex":
+                data = (hashlib.md5(main).hexdigest() + " *main.xml\n").encode()
+            zout.writestr(i.filename, data)
+    return dst
+
+
+@pytest.mark.parametrize("size", [
+    "<SizeX >200000</SizeX>", "<SizeX>200000<!-- a comment --></SizeX>",
+    "<SizeX>\n  200000\n</SizeX >", "<SizeX><![CDATA[200000]]></SizeX>",
+    "<SizeX>20</SizeX><SizeX>200000</SizeX>",
+])
+def test_x3p_sizes_are_read_as_xml_whatever_the_spelling(tmp_path, size):
+    """Spacing, comments, CDATA or a repeated element in main.xml do not hide the grid it
+    declares: the size check (parsed with defusedxml) refuses it before x3pio allocates."""
+    from render_inspect.core.errors import MemoryBudgetError
+    from render_inspect.io import check_x3p
+
+    src = write_x3p(tmp_path / "a.x3p", _map(20, 20), pixel=0.001)
+    f = _with_main(src, tmp_path / "b.x3p", lambda t: t.replace("<SizeX>20</SizeX>", size)
+                   .replace("<SizeY>20</SizeY>", "<SizeY>200000</SizeY>"))
+    with pytest.raises(MemoryBudgetError, match=r"declares a 200000 x 200000 x 1 grid"):
+        check_x3p(f, what="measured file", budget=2 ** 30)
+    with pytest.raises(MemoryBudgetError, match=r"200000 x 200000 x 1 grid"):
+        read_measured(f)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda t: t.replace("<SizeX>20</SizeX>", "<SizeX>2e5</SizeX>"),
+     r"main.xml SizeX must be a whole number >= 0, received '2e5'"),
+    (lambda t: t.replace("<SizeX>20</SizeX>", "<SizeX>-3</SizeX>"), r"SizeX must be a whole number"),
+    (lambda t: t.replace('<?xml version="1.0" encoding="UTF-8"?>',
+                         '<?xml version="1.0"?><!DOCTYPE p [<!ENTITY n "200000">]>')
+     .replace("<SizeX>20</SizeX>", "<SizeX>&n;</SizeX>"), r"XML features refused for safety"),
+    (lambda t: t[: len(t) // 2], r"main.xml is not well-formed XML"),
+])
+def test_x3p_main_xml_that_is_not_plain_xml_is_refused(tmp_path, edit, match):
+    src = write_x3p(tmp_path / "a.x3p", _map(20, 20), pixel=0.001)
+    with pytest.raises(InputError, match=match):
+        read_measured(_with_main(src, tmp_path / "b.x3p", edit))

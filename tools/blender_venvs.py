@@ -1,10 +1,10 @@
 """Virtual environments with nothing but ``bpy`` (Blender as a Python module), for the
 extension tests: ``.venv-blender/bpy-<version>/``.
 
-Each holds ``bpy==<version>`` and the NumPy Blender ships (1.26.4: bpy 4.2 does not pin it
-and would otherwise get NumPy 2), and not render_inspect: the extension must bring it.
-Made once (about a minute and 1 GB each) and reused; ``make blender-venvs`` or the tests
-call this.
+Each holds ``bpy==<version>`` and the NumPy that Blender version ships (:data:`NUMPY`:
+the ``bpy`` wheels do not all pin it, and 4.2 would otherwise get NumPy 2), and not
+render_inspect: the extension must bring it.  Made once (about a minute and 1 GB each) and
+reused; ``make blender-venvs`` or the tests call this.
 
 Usage: python tools/blender_venvs.py [VERSION ...]   (default: every tested version)
 """
@@ -19,12 +19,21 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 ROOT = REPO / ".venv-blender"
-#: The Blender versions the extension is tested with: 4.2 LTS (the manifest's minimum) and
-#: 5.0; RENDER_INSPECT_BPY_VERSIONS (comma-separated, e.g. "4.5.15") replaces them.
+#: The Blender versions the extension is tested with and the NumPy each ships (its build
+#: files: 4.2 LTS pins 1.24.3; 4.5 LTS and 5.0 pin 1.26.4).  4.2 is the manifest's minimum
+#: and its NumPy the oldest the extension's wheels must run on (tools/lock.py).
+NUMPY = {"4.2.23": "1.24.3", "4.5.15": "1.26.4", "5.0.1": "1.26.4"}
+#: RENDER_INSPECT_BPY_VERSIONS (comma-separated, e.g. "4.5.15") picks some of them.
 VERSIONS = tuple(v.strip() for v in os.environ.get("RENDER_INSPECT_BPY_VERSIONS", "").split(",")
-                 if v.strip()) or ("4.2.23", "5.0.1")
-#: NumPy of Blender 4.2 to 5.0 (the VFX reference platform's 1.26).
-NUMPY = "numpy==1.26.4"
+                 if v.strip()) or tuple(NUMPY)
+
+
+def numpy_for(version: str) -> str:
+    """The NumPy Blender ``version`` ships (that of the same major.minor in NUMPY)."""
+    for known, numpy in NUMPY.items():
+        if known.split(".")[:2] == version.split(".")[:2]:
+            return numpy
+    raise SystemExit(f"no NumPy known for Blender {version}: add it to NUMPY in {__file__}")
 
 
 def venv_python(version: str) -> Path:
@@ -43,7 +52,8 @@ def ensure(version: str, *, env: dict | None = None) -> Path:
         base = os.environ.get("RENDER_INSPECT_BASE_PYTHON", sys.executable)
         subprocess.run([base, "-m", "venv", "--clear", str(target)], check=True, env=env)
         subprocess.run([str(venv_python(version)), "-m", "pip", "install", "--quiet",
-                        f"bpy=={version}", NUMPY], check=True, env=env)
+                        f"bpy=={version}", f"numpy=={numpy_for(version)}"],
+                       check=True, env=env)
         out = subprocess.run([str(venv_python(version)), "-c",
                               "import bpy, numpy; print(bpy.app.version_string, numpy.__version__)"],
                              check=True, capture_output=True, text=True, env=env)

@@ -1,37 +1,47 @@
 """Build the self-contained Blender extension: ``dist/render_inspect-<version>-<platform>.zip``.
 
-Blender 4.2 to 5.0 run Python 3.11 and ship NumPy; everything else the add-on's code path
-imports is bundled as wheels (Blender's extension format), one zip per platform, built with
-the ``blender_ext.py`` that ships inside Blender (here: inside the ``bpy`` package):
+Blender 4.2 to 5.0 run Python 3.11 and ship NumPy; everything else the add-on imports is
+bundled, one zip per platform, built with the ``blender_ext.py`` that ships inside Blender
+(here: inside the ``bpy`` package):
 
-1. the wheel of this checkout (``render_inspect``, the shipped scenes as package data);
-2. the wheels of its dependencies, at the versions installed in the tested environment
-   (``.venv``, pinned by ``requirements.txt``), fetched with ``pip download --only-binary``
-   for each platform and Python 3.11;
-3. ``blender_addon/`` staged with those wheels under ``wheels/`` and its manifest's
-   ``wheels`` / ``platforms`` lists, then ``blender_ext.py build --split-platforms`` and
-   ``blender_ext.py validate`` of every zip.
+1. the add-on (``blender_addon/``) and render_inspect's own code as source
+   (``_bundled/render_inspect``; without the regression references and other test data);
+2. for each platform, the wheels of the distributions the add-on imports
+   (``blender_addon/_deps.py``) and of what they require (their wheels' ``Requires-Dist``
+   for that platform and Python 3.11), each at the version of ``requirements.lock`` and
+   checked against the lock's hashes: ``pip download --require-hashes --only-binary``
+   from the package index, unmodified;
+3. a manifest per platform with those wheels and that platform, ``blender_ext.py build``
+   and ``blender_ext.py validate``.
 
-A dependency without a wheel for a platform is left out of that platform's zip and named
-on stdout; the add-on names it in its panel and disables the operations that need it.
+There is no list of wheels to keep by hand: the lock is the one list.  A dependency with
+no wheel for a platform is left out of that platform's zip and named on stdout; the add-on
+names it in its panel and disables the operations that need it.
+
+``dist/blender_extension_build.json`` records each zip's size and wheels;
+``--update-docs`` writes the table of sizes and wheel counts into docs/blender.md (a test
+compares the table with a fresh build).
 
 Usage::
 
     .venv/bin/python tools/build_blender_extension.py                    # all platforms
     .venv/bin/python tools/build_blender_extension.py --platforms linux-x64
-    .venv/bin/python tools/build_blender_extension.py --update-manifest  # rewrite the list
-    .venv/bin/python tools/build_blender_extension.py --check-manifest   # list == pins?
+    .venv/bin/python tools/build_blender_extension.py --update-docs      # and the docs table
+
+It needs only ``packaging`` and a ``bpy`` to find ``blender_ext.py`` in (this Python's, or
+``--blender-python``'s): nothing else installed here is read.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.metadata as md
+import email.parser
 import json
 import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 import zipfile
 from pathlib import Path
@@ -39,14 +49,19 @@ from pathlib import Path
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name, parse_wheel_filename
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import lock  # noqa: E402  (tools/lock.py: the lock and the platforms' markers)
+
 REPO = Path(__file__).resolve().parents[1]
 ADDON = REPO / "blender_addon"
+PACKAGE = REPO / "render_inspect"
 MANIFEST = ADDON / "blender_manifest.toml"
 CACHE = REPO / "build" / "blender_wheels"
 STAGE = REPO / "build" / "blender_extension"
+DOCS = REPO / "docs" / "blender.md"
 
 #: Python of Blender 4.2 LTS, 4.3, 4.4, 4.5 LTS and 5.0 (all 3.11).
-PYTHON_VERSION = "3.11"
+PYTHON_VERSION = lock.PYTHON
 #: Blender platform -> the pip platform tags accepted for it.  Linux: Blender 4.2+ needs
 #: glibc 2.28, so manylinux up to 2_28; macOS: Blender 4.2+ needs macOS 11.2 (pip expands
 #: ``macosx_11_0_*`` to every older tag and universal2), but SciPy 1.15 has Apple-silicon
@@ -58,254 +73,243 @@ PLATFORMS = {
     "macos-arm64": ["macosx_12_0_arm64"],
     "macos-x64": ["macosx_11_0_x86_64"],
 }
-#: Environment markers of each platform (for dependencies declared per platform).
-MARKERS = {
-    "linux-x64": {"sys_platform": "linux", "platform_system": "Linux", "platform_machine": "x86_64",
-                  "os_name": "posix"},
-    "windows-x64": {"sys_platform": "win32", "platform_system": "Windows",
-                    "platform_machine": "AMD64", "os_name": "nt"},
-    "macos-arm64": {"sys_platform": "darwin", "platform_system": "Darwin",
-                    "platform_machine": "arm64", "os_name": "posix"},
-    "macos-x64": {"sys_platform": "darwin", "platform_system": "Darwin",
-                  "platform_machine": "x86_64", "os_name": "posix"},
-}
-#: The add-on's code path: render_inspect's own dependencies, its "render" extra (Mitsuba
-#: for the interferometer) and the X3P writer of the "metrology" extra.
-ROOT = "render_inspect"
-ROOT_EXTRAS = ("render",)
-EXTRA_PACKAGES = ("x3pio",)
 #: Shipped with Blender itself (bundling a second NumPy would break Blender), or Blender.
 PROVIDED_BY_BLENDER = {"numpy", "bpy"}
-#: Dependencies that only other platforms need, so they are not installed here to read
-#: their version from: the versions bundled for those platforms.
-OTHER_PLATFORM_PINS = {"colorama": "0.4.6"}
+#: What of render_inspect's source stays out of the extension: test data (the regression
+#: cases and their reference images) and Python's caches.
+PACKAGE_EXCLUDE = ("__pycache__", "*.pyc", "regression")
 
-BEGIN = "# --- wheels: written by tools/build_blender_extension.py --update-manifest ---"
-END = "# --- end of wheels ---"
+DOCS_BEGIN = "<!-- extension sizes: written by tools/build_blender_extension.py --update-docs -->"
+DOCS_END = "<!-- end of extension sizes -->"
 
 
 def log(msg: str) -> None:
     print(msg, flush=True)
 
 
-def _markers(platform: str, extra: str = "") -> dict:
-    return {"python_version": PYTHON_VERSION, "python_full_version": PYTHON_VERSION + ".0",
-            "implementation_name": "cpython", "platform_python_implementation": "CPython",
-            "extra": extra, **MARKERS[platform]}
+def locked_versions() -> dict[str, dict]:
+    """{name: lock entry} of requirements.lock."""
+    return {e["name"]: e for e in lock.read_lock()}
 
 
-def dependency_pins(platform: str) -> dict[str, str]:
-    """{distribution name: version} the add-on needs on ``platform``: the closure of
-    render_inspect's requirements, at the versions installed in this environment."""
-    todo = [(Requirement(f"{ROOT}[{','.join(ROOT_EXTRAS)}]"), "")]
-    todo += [(Requirement(name), "") for name in EXTRA_PACKAGES]
-    pins: dict[str, str] = {}
-    while todo:
-        req, _ = todo.pop()
-        name = canonicalize_name(req.name)
-        if name in PROVIDED_BY_BLENDER or name in pins:
-            continue
-        if name in OTHER_PLATFORM_PINS:
-            try:
-                md.distribution(req.name)
-            except md.PackageNotFoundError:
-                pins[name] = OTHER_PLATFORM_PINS[name]
-                continue
-        try:
-            dist = md.distribution(req.name)
-        except md.PackageNotFoundError:
-            raise SystemExit(f"{req.name} (needed on {platform}) is not installed here: add its "
-                             f"version to OTHER_PLATFORM_PINS in {Path(__file__).name}") from None
-        version = dist.version
-        if not req.specifier.contains(version, prereleases=True):
-            raise SystemExit(f"installed {req.name} {version} does not satisfy {req}; run make setup")
-        if name != canonicalize_name(ROOT):
-            pins[name] = version
-        for text in dist.requires or ():
-            sub = Requirement(text)
-            wanted = sub.marker is None or any(
-                sub.marker.evaluate(_markers(platform, e)) for e in ("", *req.extras))
-            if wanted:
-                todo.append((sub, ""))
-    return dict(sorted(pins.items()))
-
-
-def _cached(dest: Path, name: str, version: str) -> list[Path]:
+def _requires(wheel: Path, extras: frozenset, platform: str) -> list[Requirement]:
+    """The requirements a wheel declares (``Requires-Dist``) that apply on ``platform``
+    with CPython 3.11 and the given extras."""
+    with zipfile.ZipFile(wheel) as zf:
+        meta = next(n for n in zf.namelist()
+                    if n.endswith(".dist-info/METADATA") and n.count("/") == 1)
+        msg = email.parser.Parser().parsestr(zf.read(meta).decode("utf-8"))
     out = []
-    for whl in dest.glob("*.whl"):
-        wname, wver, _, _ = parse_wheel_filename(whl.name)
-        if wname == canonicalize_name(name) and str(wver) == version:
-            out.append(whl)
+    for text in msg.get_all("Requires-Dist") or ():
+        req = Requirement(text)
+        if req.marker is None or any(req.marker.evaluate(lock.marker_env(platform, extra=e))
+                                     for e in ("", *extras)):
+            out.append(req)
     return out
 
 
-def _pip_download(dest: Path, platform: str, specs: list[str]) -> subprocess.CompletedProcess:
+def _pip_download(dest: Path, platform: str, entries: list[dict]) -> subprocess.CompletedProcess:
+    """``pip download`` of the locked versions of ``entries`` for ``platform``, with the
+    lock's hashes (pip refuses a file whose hash the lock does not list)."""
+    reqs = dest / "requirements.txt"
+    reqs.write_text("".join(f"{e['name']}=={e['version']}"
+                            + "".join(f" --hash={h}" for h in e["hashes"]) + "\n"
+                            for e in entries))
     cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--no-deps", "--only-binary=:all:",
-           "--python-version", PYTHON_VERSION, "--implementation", "cp", "--dest", str(dest)]
+           "--require-hashes", "--python-version", PYTHON_VERSION, "--implementation", "cp",
+           "--dest", str(dest)]
     for tag in PLATFORMS[platform]:
         cmd += ["--platform", tag]
-    return subprocess.run(cmd + specs, capture_output=True, text=True)
+    return subprocess.run(cmd + ["-r", str(reqs)], capture_output=True, text=True)
 
 
-def download_wheels(platform: str) -> tuple[list[Path], list[str]]:
-    """Wheels of every pinned dependency for ``platform`` (cached in build/blender_wheels/)
-    and the ``name==version`` of those with no wheel for it."""
+def _fetch(platform: str, entries: list[dict], index: dict) -> list[str]:
+    """Download the wheels of ``entries`` for ``platform`` into the cache (``index``: name
+    -> file name, updated); return the ``name==version`` of those with no wheel."""
+    dest = CACHE / platform
+    todo = [e for e in entries
+            if not (e["name"] in index and (dest / index[e["name"]]).is_file()
+                    and str(parse_wheel_filename(index[e["name"]])[1]) == e["version"])]
+    missing = []
+    for batch in ([todo] if todo else []):
+        with tempfile.TemporaryDirectory(dir=CACHE) as tmp:
+            if _pip_download(Path(tmp), platform, batch).returncode != 0:
+                batch_ok = []
+                for e in batch:  # one at a time to find the ones that have no wheel here
+                    one = Path(tmp) / e["name"]
+                    one.mkdir()
+                    res = _pip_download(one, platform, [e])
+                    if res.returncode != 0:
+                        missing.append(f"{e['name']}=={e['version']}")
+                        log(f"  {platform}: no wheel for {e['name']}=={e['version']} "
+                            f"({res.stderr.strip().splitlines()[-1]})")
+                    else:
+                        batch_ok += list(one.glob("*.whl"))
+                files = batch_ok
+            else:
+                files = list(Path(tmp).glob("*.whl"))
+            for f in files:
+                name = canonicalize_name(str(parse_wheel_filename(f.name)[0]))
+                shutil.move(str(f), dest / f.name)
+                index[name] = f.name
+    return missing
+
+
+def platform_wheels(platform: str) -> tuple[list[Path], list[str]]:
+    """The wheels the add-on needs on ``platform`` (the closure of its imports through the
+    wheels' requirements, at the locked versions) and the ``name==version`` of those with
+    no wheel for it."""
     dest = CACHE / platform
     dest.mkdir(parents=True, exist_ok=True)
-    pins = dependency_pins(platform)
-    todo = [f"{n}=={v}" for n, v in pins.items() if not _cached(dest, n, v)]
-    missing = []
-    if todo and _pip_download(dest, platform, todo).returncode != 0:
-        for spec in todo:  # one at a time to find the ones that have no wheel here
-            res = _pip_download(dest, platform, [spec])
-            if res.returncode != 0:
-                missing.append(spec)
-                log(f"  {platform}: no wheel for {spec} ({res.stderr.strip().splitlines()[-1]})")
-    wheels = []
-    for n, v in pins.items():
-        found = _cached(dest, n, v)
-        if not found and f"{n}=={v}" not in missing:
-            raise SystemExit(f"{platform}: pip reported {n}=={v} downloaded but no wheel is in {dest}")
-        wheels += found
-    return sorted(wheels), missing
+    index_file = dest / "index.json"
+    index = json.loads(index_file.read_text()) if index_file.is_file() else {}
+    locked = locked_versions()
+    wanted: dict[str, frozenset] = {}
+    level = {(name, frozenset()) for name in lock.addon_distributions()}
+    missing: list[str] = []
+    while level:
+        new = []
+        for name, extras in sorted(level):
+            if name in PROVIDED_BY_BLENDER:
+                continue
+            if name not in locked:
+                raise SystemExit(f"{name} (needed on {platform}) is not in "
+                                 f"{lock.LOCK.name}: run make lock")
+            if name not in wanted or not extras <= wanted[name]:
+                wanted[name] = wanted.get(name, frozenset()) | extras
+                new.append(name)
+        missing += _fetch(platform, [locked[n] for n in new], index)
+        index_file.write_text(json.dumps(index, indent=1, sort_keys=True))
+        level = set()
+        for name in new:
+            if f"{name}=={locked[name]['version']}" in missing:
+                continue
+            for req in _requires(dest / index[name], wanted[name], platform):
+                level.add((canonicalize_name(req.name), frozenset(req.extras)))
+    wheels = sorted((dest / index[n] for n in wanted
+                     if n not in PROVIDED_BY_BLENDER
+                     and f"{n}=={locked[n]['version']}" not in missing),
+                    key=lambda p: p.name.lower())
+    return wheels, sorted(missing)
 
 
-def build_project_wheel() -> Path:
-    """The render_inspect wheel of this checkout (the shipped scenes are package data:
-    ``render_inspect/scenes/*.toml``)."""
-    out = CACHE / "project"
-    if out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--wheel-dir",
-                    str(out), str(REPO)], check=True)
-    (wheel,) = out.glob("render_inspect-*.whl")
-    with zipfile.ZipFile(wheel) as zf:
-        shipped = [n for n in zf.namelist() if n.startswith("render_inspect/scenes/")]
-    if not shipped:
-        raise SystemExit(f"{wheel.name} holds no scenes under render_inspect/scenes/")
-    return wheel
-
-
-def manifest_wheels(text: str) -> list[str]:
-    return tomllib.loads(text).get("wheels", [])
-
-
-def write_wheel_list(text: str, wheels: list[str]) -> str:
-    body = "wheels = [\n" + "".join(f'  "./wheels/{w}",\n' for w in wheels) + "]"
-    block = f"{BEGIN}\n{body}\n{END}"
-    if BEGIN not in text:  # top-level keys must come before the first [table]
-        raise SystemExit(f"{MANIFEST.name} has no line {BEGIN!r} to put the wheels after")
-    return re.sub(re.escape(BEGIN) + r".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-
-
-def blender_ext() -> Path:
-    import bpy  # only to locate the blender_ext.py that ships inside Blender
-
-    path = Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core/bl_pkg/cli/blender_ext.py"
+def blender_ext(blender_python: str | None = None) -> Path:
+    """The ``blender_ext.py`` that ships inside Blender: that of this Python's ``bpy``, or
+    of the ``bpy`` of ``blender_python`` (a Python that has it)."""
+    code = ("import bpy, os; print(os.path.join(bpy.utils.system_resource('SCRIPTS'), "
+            "'addons_core', 'bl_pkg', 'cli', 'blender_ext.py'))")
+    res = subprocess.run([blender_python or sys.executable, "-c", code], capture_output=True,
+                         text=True)
+    if res.returncode != 0:
+        raise SystemExit("bpy is needed to find Blender's blender_ext.py: run this with the "
+                         "project's .venv, or pass --blender-python")
+    path = Path(res.stdout.strip().splitlines()[-1])
     if not path.is_file():
         raise SystemExit(f"blender_ext.py not found at {path}")
     return path
+
+
+def manifest_for(platform: str, wheels: list[Path]) -> str:
+    """The tracked manifest with this platform and its wheels (top-level keys go before
+    the first table)."""
+    text = MANIFEST.read_text()
+    if re.search(r"(?m)^wheels\s*=", text):
+        raise SystemExit(f"{MANIFEST.name} must not list wheels: the build writes them from the lock")
+    text, n = re.subn(r"(?m)^platforms = \[.*?\]$", f'platforms = ["{platform}"]', text)
+    if n != 1:
+        raise SystemExit(f"{MANIFEST.name} must declare platforms on one line")
+    body = "wheels = [\n" + "".join(f'  "./wheels/{w.name}",\n' for w in wheels) + "]\n\n"
+    first_table = re.search(r"(?m)^\[", text)
+    return text[:first_table.start()] + body + text[first_table.start():]
+
+
+def stage(platform: str, wheels: list[Path]) -> Path:
+    """The extension's source folder for ``platform``: the add-on, render_inspect's source
+    under ``_bundled/``, the wheels, the manifest."""
+    root = STAGE / platform
+    if root.exists():
+        shutil.rmtree(root)
+    shutil.copytree(ADDON, root, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "wheels"))
+    (root / "_bundled").mkdir()
+    (root / "_bundled" / "__init__.py").write_text(
+        '"""render_inspect\'s own code, shipped as source with the add-on."""\n')
+    shutil.copytree(PACKAGE, root / "_bundled" / "render_inspect",
+                    ignore=shutil.ignore_patterns(*PACKAGE_EXCLUDE))
+    (root / "wheels").mkdir()
+    for w in wheels:
+        shutil.copy2(w, root / "wheels" / w.name)
+    (root / "blender_manifest.toml").write_text(manifest_for(platform, wheels))
+    return root
+
+
+def docs_table(report: dict) -> str:
+    rows = ["| Platform | Zip (MiB) | Wheels | Not available |", "| --- | ---: | ---: | --- |"]
+    for platform in PLATFORMS:
+        if platform in report:
+            r = report[platform]
+            rows.append(f"| {platform} | {r['size_mib']:.1f} | {r['wheels']} | "
+                        + (", ".join(r["missing"]) or "-") + " |")
+    return "\n".join(rows)
+
+
+def update_docs(report: dict) -> None:
+    text = DOCS.read_text()
+    if DOCS_BEGIN not in text or DOCS_END not in text:
+        raise SystemExit(f"{DOCS.name} has no lines {DOCS_BEGIN!r} ... {DOCS_END!r}")
+    block = f"{DOCS_BEGIN}\n{docs_table(report)}\n{DOCS_END}"
+    DOCS.write_text(re.sub(re.escape(DOCS_BEGIN) + r".*?" + re.escape(DOCS_END),
+                           lambda _: block, text, flags=re.S))
+
+
+def docs_rows() -> dict[str, dict]:
+    """{platform: {size_mib, wheels, missing}} of the table in docs/blender.md."""
+    text = DOCS.read_text()
+    block = text[text.index(DOCS_BEGIN):text.index(DOCS_END)]
+    out = {}
+    for m in re.finditer(r"(?m)^\| (\S+) \| ([\d.]+) \| (\d+) \| (.*?) \|$", block):
+        out[m.group(1)] = {"size_mib": float(m.group(2)), "wheels": int(m.group(3)),
+                           "missing": [] if m.group(4) == "-" else m.group(4).split(", ")}
+    return out
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--platforms", nargs="+", choices=sorted(PLATFORMS), default=list(PLATFORMS))
     p.add_argument("--output-dir", type=Path, default=REPO / "dist")
-    p.add_argument("--update-manifest", action="store_true",
-                   help="rewrite the wheels list of blender_addon/blender_manifest.toml")
-    p.add_argument("--check-manifest", action="store_true",
-                   help="only check that the manifest lists the pinned versions (no build)")
+    p.add_argument("--blender-python", help="a Python with bpy, to find Blender's blender_ext.py "
+                   "(default: this one)")
+    p.add_argument("--update-docs", action="store_true",
+                   help="write the sizes and wheel counts into docs/blender.md (all platforms)")
     args = p.parse_args(argv)
+    if args.update_docs and set(args.platforms) != set(PLATFORMS):
+        raise SystemExit("--update-docs needs every platform")
 
-    manifest_text = MANIFEST.read_text()
-    if args.check_manifest:
-        return check_manifest(manifest_text)
-
-    project = build_project_wheel()
-    log(f"project wheel: {project.name}")
-    per_platform: dict[str, list[Path]] = {}
-    missing: dict[str, list[str]] = {}
-    for platform in args.platforms:
-        wheels, miss = download_wheels(platform)
-        per_platform[platform] = [project] + wheels
-        missing[platform] = miss
-        size = sum(w.stat().st_size for w in per_platform[platform]) / 2**20
-        log(f"{platform}: {len(per_platform[platform])} wheels, {size:.0f} MiB"
-            + (f"; not available: {', '.join(miss)}" if miss else ""))
-
-    all_wheels = sorted({w.name: w for ws in per_platform.values() for w in ws}.values(),
-                        key=lambda w: w.name.lower())
-    if args.update_manifest:
-        if set(args.platforms) != set(PLATFORMS):
-            raise SystemExit("--update-manifest needs every platform")
-        MANIFEST.write_text(write_wheel_list(manifest_text, [w.name for w in all_wheels]))
-        manifest_text = MANIFEST.read_text()
-        log(f"wrote {len(all_wheels)} wheels into {MANIFEST.relative_to(REPO)}")
-    listed = {Path(w).name for w in manifest_wheels(manifest_text)}
-    unlisted = sorted(w.name for w in all_wheels if w.name not in listed)
-    if unlisted:
-        raise SystemExit("the manifest does not list these wheels (run with --update-manifest): "
-                         + ", ".join(unlisted))
-
-    # stage: the add-on's files, the wheels for these platforms, the manifest restricted to them
-    if STAGE.exists():
-        shutil.rmtree(STAGE)
-    shutil.copytree(ADDON, STAGE, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "wheels"))
-    (STAGE / "wheels").mkdir()
-    for w in all_wheels:
-        shutil.copy2(w, STAGE / "wheels" / w.name)
-    staged = tomllib.loads(manifest_text)
-    text = write_wheel_list(manifest_text, [w.name for w in all_wheels])
-    text = re.sub(r"(?m)^platforms = \[.*?\]$",
-                  "platforms = [" + ", ".join(f'"{p}"' for p in args.platforms) + "]", text)
-    if "platforms" not in staged:
-        raise SystemExit("the manifest must declare platforms")
-    (STAGE / "blender_manifest.toml").write_text(text)
-
+    manifest = tomllib.loads(MANIFEST.read_text())
     args.output_dir.mkdir(parents=True, exist_ok=True)
-    ext = blender_ext()
-    res = subprocess.run([sys.executable, str(ext), "build", "--split-platforms",
-                          "--source-dir", str(STAGE), "--output-dir", str(args.output_dir)],
-                         capture_output=True, text=True)
-    if res.returncode != 0:
-        raise SystemExit(f"blender_ext.py build failed:\n{res.stdout}\n{res.stderr}")
-    version = staged["version"]
+    ext = blender_ext(args.blender_python)
     report = {}
     for platform in args.platforms:
-        z = args.output_dir / f"{staged['id']}-{version}-{platform.replace('-', '_')}.zip"
-        if not z.is_file():
-            raise SystemExit(f"blender_ext.py wrote no {z.name}:\n{res.stdout}")
+        wheels, missing = platform_wheels(platform)
+        root = stage(platform, wheels)
+        z = args.output_dir / f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
+        res = subprocess.run([sys.executable, str(ext), "build", "--source-dir", str(root),
+                              "--output-filepath", str(z)], capture_output=True, text=True)
+        if res.returncode != 0 or not z.is_file():
+            raise SystemExit(f"blender_ext.py build failed for {platform}:\n{res.stdout}\n{res.stderr}")
         check = subprocess.run([sys.executable, str(ext), "validate", str(z)],
                                capture_output=True, text=True)
         if check.returncode != 0:
             raise SystemExit(f"{z.name} does not validate:\n{check.stdout}\n{check.stderr}")
         report[platform] = {"zip": str(z), "size_mib": round(z.stat().st_size / 2**20, 1),
-                            "wheels": len(per_platform[platform]), "missing": missing[platform]}
-        log(f"built {z.name}: {report[platform]['size_mib']} MiB")
+                            "wheels": len(wheels), "wheel_files": [w.name for w in wheels],
+                            "missing": missing}
+        log(f"built {z.name}: {report[platform]['size_mib']} MiB, {len(wheels)} wheels"
+            + (f"; not available: {', '.join(missing)}" if missing else ""))
     (args.output_dir / "blender_extension_build.json").write_text(json.dumps(report, indent=2))
+    if args.update_docs:
+        update_docs(report)
+        log(f"wrote the table of sizes into {DOCS.relative_to(REPO)}")
     return 0
-
-
-def check_manifest(text: str) -> int:
-    """Every wheel the manifest lists is at the pinned version, and every pinned
-    dependency has a wheel listed (for some platform)."""
-    listed: dict[str, set[str]] = {}
-    for w in manifest_wheels(text):
-        name, ver, _, _ = parse_wheel_filename(Path(w).name)
-        listed.setdefault(str(name), set()).add(str(ver))
-    problems = []
-    pins: dict[str, str] = {}
-    for platform in PLATFORMS:
-        pins.update(dependency_pins(platform))
-    for name, ver in pins.items():
-        if listed.get(name) != {ver}:
-            problems.append(f"{name}: pinned {ver}, manifest lists {sorted(listed.get(name, []))}")
-    extra = set(listed) - set(pins) - {canonicalize_name(ROOT)}
-    problems += [f"{name}: listed but not a dependency" for name in sorted(extra)]
-    for p in problems:
-        log(p)
-    return 1 if problems else 0
 
 
 if __name__ == "__main__":

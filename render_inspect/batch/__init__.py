@@ -1,5 +1,6 @@
-"""Batch work: parameter sweeps (sweep files, results on disk, plots, the Dask cluster,
-progress) and image regression (case files, references, statistics, the HTML summary).
+"""Batch work: parameter sweeps (sweep files, results on disk, what their plots show, the
+Dask cluster, progress), the tiled out-of-core simulation of a height map on Dask, and
+image regression (case files, references, statistics, the HTML summary).
 
 The pipeline chains the stages (``pipeline.run_sweep``, ``pipeline.run_regress``); this
 package holds what those two need besides the stages: numbers, files and the cluster.
@@ -23,7 +24,7 @@ from ._imagetest import (
                      pass_statistics,
                      sidak_threshold,
 )
-from ._plots import curves_png, default_plots, heatmap_png, plot_png
+from ._plots import default_plots, plot_rows
 from ._progress import Progress
 from ._results import (
                      SUMMARY_METRICS,
@@ -33,7 +34,8 @@ from ._results import (
                      folder_lock,
                      summary_table,
 )
-from ._summary import RegressionFailed, map_png, replaced_dir, rgb_png, write_summary_html
+from ._summary import RegressionFailed, replaced_dir, write_summary_html
+from ._tiled import TiledStats, run_tiles, tile_client
 from ._sweepfile import (
                      PlotConfig,
                      RunConfig,
@@ -51,9 +53,10 @@ from ._sweepfile import (
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
            "expand_points", "sweep_keys", "toml_value", "point_id", "dotted_get",
            "ResultsLog", "flatten", "csv_text", "summary_table", "folder_lock", "SUMMARY_METRICS",
-           "curves_png", "heatmap_png", "plot_png", "default_plots", "Progress",
+           "plot_rows", "default_plots", "Progress",
            "dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
            "compare_deterministic", "image_t_test", "pass_statistics", "sidak_threshold",
            "flip_mean", "RegressCase", "Tolerance", "read_case", "list_cases", "case_hash",
-           "read_reference", "write_reference", "IMAGE_NAMES", "map_png", "rgb_png",
-           "write_summary_html", "RegressionFailed", "replaced_dir"]
+           "read_reference", "write_reference", "IMAGE_NAMES",
+           "write_summary_html", "RegressionFailed", "replaced_dir", "run_tiles", "tile_client",
+           "TiledStats"]

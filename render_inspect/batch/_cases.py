@@ -2,7 +2,7 @@
 
 A case is a TOML file in ``scenes/regression/``::
 
-    description = "Seed 000 grid, Z compensation"
+    description = "Li et al. (2018) grid, Z compensation"
     scene = "sts_sinusoidal_grid"            # a shipped scene, or a path relative to this file
     images = ["residual", "interferogram", "measured_height", "diffuse_micro"]
 
@@ -95,8 +95,10 @@ def list_cases(folder) -> dict[str, Path]:
 
 
 def case_hash(case: RegressCase, settings: dict) -> str:
-    """Identity of a case's definition and the image settings that apply to it."""
-    return point_id({"case": case.model_dump(mode="json"), "settings": settings})
+    """Identity of a case's definition and the image settings that apply to it (its
+    ``description``, prose that does not change an image, is left out)."""
+    return point_id({"case": case.model_dump(mode="json", exclude={"description"}),
+                     "settings": settings})
 
 
 def _channels(prefix_names, arr) -> dict:

@@ -1,31 +1,13 @@
-"""Sweep figures: a metric against one key with a curve per value of another (seed 000
-Fig. 15 a-c as curves), and a metric over two keys as a heat map."""
+"""What the sweep's figures show: the rows of (sweep key values..., metric) of the finished
+points (:func:`plot_rows`), and the plots a sweep file without ``[[plot]]`` gets
+(:func:`default_plots`); :func:`render_inspect.report.sweep_plot_png` draws them."""
 
 from __future__ import annotations
-
-import io
-
-import numpy as np
 
 from ._results import flatten
 from ._sweepfile import PlotConfig
 
-__all__ = ["curves_png", "heatmap_png", "default_plots", "plot_png"]
-
-
-def _figure(figsize=(6.0, 4.4)):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, dpi=100)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+__all__ = ["plot_rows", "default_plots"]
 
 
 def _rows(records, keys, metric, study=None):
@@ -45,100 +27,12 @@ def _rows(records, keys, metric, study=None):
     return rows
 
 
-#: Units of sweep keys whose names do not carry one (lengths are mm).
-_UNITS = {"tool.nose_radius": "mm", "process.workpiece_radius": "mm", "simulation.pixel": "mm",
-          "process.depth_of_cut": "mm", "process.arc_length": "mm"}
-
-
-def _label(key: str) -> str:
-    unit = _UNITS.get(key)
-    return f"{key} ({unit})" if unit else key
-
-
-def curves_png(records, *, x: str, y: str = "residual.Sq_nm", series: str | None = None,
-               study: str | None = None, title: str = "", log: bool = False) -> bytes:
-    """``y`` (a metric, dotted path into metrics.json) against the sweep key ``x``, one curve
-    per value of the key ``series`` (points with other values of further keys are drawn
-    as separate curves too, labelled by them).  Returns PNG bytes."""
-    keys = [x] + ([series] if series else [])
-    rows = _rows(records, keys, y, study)
-    fig = _figure()
-    ax = fig.add_subplot(111)
-    groups: dict = {}
-    for row in rows:
-        groups.setdefault(row[1] if series else None, []).append((row[0], row[-1]))
-    from matplotlib import colormaps
-
-    cmap = colormaps["viridis"]
-    for i, (s, pts) in enumerate(sorted(groups.items(), key=lambda t: (t[0] is None, t[0]))):
-        pts = sorted(pts)
-        col = cmap(i / max(len(groups) - 1, 1))
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", color=col, ms=4,
-                label=None if s is None else f"{series} = {s:g}")
-    ax.set_xlabel(_label(x))
-    ax.set_ylabel(_label(y))
-    if log:
-        ax.set_yscale("log")
-    ax.grid(True, alpha=0.3)
-    if series and groups:
-        ax.legend(fontsize=8)
-    ax.set_title(title or f"{y} vs {x}" + (f" (study {study})" if study else ""), fontsize=10)
-    if not rows:
-        ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
-    fig.tight_layout()
-    return _png(fig)
-
-
-def heatmap_png(records, *, x: str, y: str, value: str = "residual.Sq_nm",
-                study: str | None = None, title: str = "", log: bool = False) -> bytes:
-    """``value`` (a metric) over the plane of the sweep keys ``x`` and ``y``: cells on the
-    grid of the values met, each annotated with its value (the mean where several points
-    share a cell).  Returns PNG bytes."""
-    from matplotlib.colors import LogNorm
-
-    rows = _rows(records, [x, y], value, study)
-    fig = _figure((6.2, 4.8))
-    ax = fig.add_subplot(111)
-    if rows:
-        xs = sorted({r[0] for r in rows})
-        ys = sorted({r[1] for r in rows})
-        grid = np.full((len(ys), len(xs)), np.nan)
-        acc: dict = {}
-        for a, b, v in rows:
-            acc.setdefault((ys.index(b), xs.index(a)), []).append(v)
-        for (i, j), vs in acc.items():
-            grid[i, j] = float(np.mean(vs))
-        finite = grid[np.isfinite(grid)]
-        norm = LogNorm(vmin=finite[finite > 0].min(), vmax=finite.max()) \
-            if log and (finite > 0).any() else None
-        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis", norm=norm,
-                       interpolation="nearest")
-        ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
-        ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
-        if grid.size <= 400:
-            for (i, j), vs in acc.items():
-                shade = im.norm(np.mean(vs))  # light text on the dark end of viridis
-                ax.text(j, i, f"{np.mean(vs):.3g}", ha="center", va="center", fontsize=7,
-                        color="w" if np.ma.filled(shade, 0.0) < 0.6 else "k")
-        cb = fig.colorbar(im, ax=ax)
-        cb.set_label(value)
-    else:
-        ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
-    ax.set_xlabel(_label(x))
-    ax.set_ylabel(_label(y))
-    ax.set_title(title or f"{value} over {x} and {y}" + (f" (study {study})" if study else ""),
-                 fontsize=10)
-    fig.tight_layout()
-    return _png(fig)
-
-
-def plot_png(records, plot: PlotConfig) -> bytes:
-    """The PNG of one ``[[plot]]`` entry."""
+def plot_rows(records, plot: PlotConfig) -> list[tuple]:
+    """The rows one ``[[plot]]`` entry draws: (x, metric) or (x, series, metric) for
+    ``curves``, (x, y, value) for ``heatmap``."""
     if plot.kind == "curves":
-        return curves_png(records, x=plot.x, y=plot.y, series=plot.series, study=plot.study,
-                          title=plot.title, log=plot.log)
-    return heatmap_png(records, x=plot.x, y=plot.y, value=plot.value, study=plot.study,
-                       title=plot.title, log=plot.log)
+        return _rows(records, [plot.x] + ([plot.series] if plot.series else []), plot.y, plot.study)
+    return _rows(records, [plot.x, plot.y], plot.value, plot.study)
 
 
 def default_plots(spec) -> list[PlotConfig]:

@@ -1,74 +1,20 @@
-"""What ``regress`` writes when an image differs from its reference: the image, the
-reference, their difference and the p-values as PNGs, and an HTML page with them side by
-side."""
+"""What ``regress`` writes when an image differs from its reference: an HTML page with the
+image, the reference, their difference and the p-values side by side (the PNGs are drawn
+by :func:`render_inspect.report.image_png`)."""
 
 from __future__ import annotations
 
 import contextlib
 import html
-import io
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from ..core.errors import RenderInspectError
 from ..io import atomic_write_text
 
-__all__ = ["map_png", "rgb_png", "write_summary_html", "RegressionFailed", "replaced_dir"]
-
-#: Images in the summary are enlarged (nearest neighbour) to at least this many pixels.
-MIN_SIDE = 192
-
-
-def _encode(rgb8: np.ndarray) -> bytes:
-    from PIL import Image
-
-    h, w = rgb8.shape[:2]
-    k = max(1, int(np.ceil(MIN_SIDE / max(min(h, w), 1))))
-    img = Image.fromarray(rgb8)
-    if k > 1:
-        img = img.resize((w * k, h * k), Image.NEAREST)
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
-    return buf.getvalue()
-
-
-def map_png(data, *, cmap: str = "viridis", vmin=None, vmax=None, symmetric: bool = False,
-            flip_rows: bool = True) -> tuple[bytes, float, float]:
-    """A 2-D array as a false-colour PNG (NaN grey); returns (png, vmin, vmax).
-    ``flip_rows``: row 0 is the smallest y and is drawn at the bottom."""
-    from matplotlib import colormaps
-
-    d = np.asarray(data, dtype=np.float64)
-    fin = np.isfinite(d)
-    if vmin is None or vmax is None:
-        if fin.any():
-            lo, hi = float(d[fin].min()), float(d[fin].max())
-        else:
-            lo, hi = 0.0, 1.0
-        if symmetric:
-            m = max(abs(lo), abs(hi)) or 1.0
-            lo, hi = -m, m
-        vmin = lo if vmin is None else vmin
-        vmax = hi if vmax is None else vmax
-    span = (vmax - vmin) or 1.0
-    rgba = colormaps[cmap](np.clip((np.nan_to_num(d) - vmin) / span, 0, 1))
-    rgba[~fin] = (0.55, 0.55, 0.55, 1.0)
-    rgb8 = (rgba[..., :3] * 255 + 0.5).astype(np.uint8)
-    if flip_rows:
-        rgb8 = rgb8[::-1]
-    return _encode(rgb8), float(vmin), float(vmax)
-
-
-def rgb_png(rgb) -> bytes:
-    """Linear RGB (H, W, 3), row 0 at the top, as an sRGB PNG."""
-    a = np.clip(np.nan_to_num(np.asarray(rgb, dtype=np.float64)), 0, 1)
-    a = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
-    return _encode((a * 255 + 0.5).astype(np.uint8))
-
+__all__ = ["write_summary_html", "RegressionFailed", "replaced_dir"]
 
 def write_summary_html(path, results: list, meta: dict) -> Path:
     """The HTML summary: one row per image (case, image, test, numbers, result) and, for

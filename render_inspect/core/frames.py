@@ -11,6 +11,7 @@ import numpy as np
 
 from .errors import InputError
 from .grid import GridCoordinates
+from .units import NM_TO_MM
 
 __all__ = ["Frames", "PHASE_CONVENTION"]
 
@@ -112,7 +113,7 @@ class Frames(GridCoordinates):
     @property
     def effective_wavenumber(self) -> float:
         """``K_eff = 4 pi / lambda_eff``, rad/mm."""
-        return 4 * math.pi / (self.lambda_eff_nm * 1e-6)
+        return 4 * math.pi / (self.lambda_eff_nm * NM_TO_MM)
 
     @property
     def intensity(self) -> np.ndarray:

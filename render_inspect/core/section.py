@@ -29,7 +29,7 @@ __all__ = ["Section", "Length", "Region", "Phase", "OrInfinity", "MAX_LENGTH_MM"
 #: largest |position| or |height| in mm (10 m): a double then still resolves 1e-12 mm
 MAX_LENGTH_MM = 1e4
 #: largest |value| of a number field that states no range of its own
-MAX_MAGNITUDE = 1e9
+MAX_MAGNITUDE = 1e9  # not a unit conversion
 
 #: a position or height in mm (finite, within +-MAX_LENGTH_MM)
 Length = Annotated[float, Field(ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)]

@@ -51,6 +51,8 @@ BYTES_TO_GIB = 1.0 / 2**30
 GIB_TO_BYTES = 2**30
 #: bytes -> MiB
 BYTES_TO_MIB = 1.0 / 2**20
+#: MiB -> bytes
+MIB_TO_BYTES = 2**20
 
 #: standard gravity in mm/s^2 (CGPM 1901; 9.80665 m/s^2)
 STANDARD_GRAVITY_MM_S2 = 9806.65
@@ -58,11 +60,18 @@ STANDARD_GRAVITY_MM_S2 = 9806.65
 __all__ = ["MM_TO_NM", "NM_TO_MM", "MM_TO_UM", "UM_TO_MM", "UM_TO_NM", "NM_TO_UM", "M_TO_MM",
            "MM_TO_M", "MIN_TO_S", "PER_MIN_TO_PER_S", "RPM_TO_RAD_PER_S", "RPM_TO_HZ",
            "S_TO_MS", "S_TO_US", "BYTES_TO_GIB", "GIB_TO_BYTES", "BYTES_TO_MIB",
-           "STANDARD_GRAVITY_MM_S2"]
+           "MIB_TO_BYTES", "STANDARD_GRAVITY_MM_S2"]
 
 #: radians -> microradians
 RAD_TO_URAD = 1e6
 #: microradians -> radians
 URAD_TO_RAD = 1e-6
+#: hertz -> kilohertz
+HZ_TO_KHZ = 1e-3
 
-__all__ += ["RAD_TO_URAD", "URAD_TO_RAD"]
+__all__ += ["RAD_TO_URAD", "URAD_TO_RAD", "HZ_TO_KHZ"]
+
+#: TiB -> bytes
+TIB_TO_BYTES = 2**40
+
+__all__ += ["TIB_TO_BYTES"]

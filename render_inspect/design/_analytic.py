@@ -1,4 +1,15 @@
-"""Closed-form surfaces: sinusoidal grid, plane, sphere, toric, biconic."""
+"""Closed-form surfaces: sinusoidal grid, plane, sphere, toric, biconic.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
+.. [2] L. Kong, Y. Ma, M. Ren, M. Xu, C.-F. Cheung, "Generation and characterization of
+       ultra-precision compound freeform surfaces," Science Progress 103(1), 1-12 (2020).
+       :DOI:`10.1177/0036850419880112`
+"""
 
 from __future__ import annotations
 
@@ -19,7 +30,7 @@ TWO_PI = 2 * np.pi
 
 
 class SinusoidalGrid(Surface):
-    """z = Ax cos(2 pi x / lx + px) + Ay cos(2 pi y / ly + py) + offset (seed 000)."""
+    """z = Ax cos(2 pi x / lx + px) + Ay cos(2 pi y / ly + py) + offset (Li et al. 2018 [1]_)."""
     kind = "sinusoidal_grid"
 
     def __init__(self, amplitude_x, amplitude_y, wavelength_x, wavelength_y, phase_x=0.0,
@@ -186,7 +197,8 @@ class Toric(Surface):
 
     Construction: the circular x-section of radius |radius_x| is swept about an axis
     parallel to x at distance |radius_y| from the apex, so every section x = const is a
-    circle (radius |radius_y| -+ sag_x(x)).  Seed 002's base: R1 = 500, R2 = 250 mm.
+    circle (radius |radius_y| -+ sag_x(x)).  The base of Kong et al. (2020) [2]_: R1 = 500,
+    R2 = 250 mm.
     Apex curvatures: d2z/dx2 = -1/radius_x, d2z/dy2 = -1/radius_y.
     """
     kind = "toric"
@@ -253,7 +265,7 @@ class Toric(Surface):
 
 # ------------------------------------------------------------------ scene schema
 class SinusoidalGridConfig(Section):
-    """z = Ax cos(2 pi x / lx + px) + Ay cos(2 pi y / ly + py) + offset (seed 000)."""
+    """z = Ax cos(2 pi x / lx + px) + Ay cos(2 pi y / ly + py) + offset (Li et al. 2018)."""
     type: Literal["sinusoidal_grid"]
     amplitude_x: float = Field(0.002, ge=0, le=1.0, description="mm")
     amplitude_y: float = Field(0.002, ge=0, le=1.0, description="mm")

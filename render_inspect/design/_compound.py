@@ -1,4 +1,14 @@
-"""Compound surface: a base form plus a feature surface (seed 001, seed 002)."""
+"""Compound surface: a base form plus a feature surface.
+
+References
+----------
+.. [1] "Compound sinusoidal grid surface" machined by slow tool servo diamond turning
+       (a paraboloidal base plus a sinusoidal grid; the project's copy lacks authors,
+       journal and year: docs/references.md).
+.. [2] L. Kong, Y. Ma, M. Ren, M. Xu, C.-F. Cheung, "Generation and characterization of
+       ultra-precision compound freeform surfaces," Science Progress 103(1), 1-12 (2020).
+       :DOI:`10.1177/0036850419880112`
+"""
 
 from __future__ import annotations
 
@@ -15,9 +25,9 @@ __all__ = ["Compound", "CompoundConfig"]
 class Compound(Surface):
     """``F = base + feature``: heights, gradients and Hessians add.
 
-    Seed 001: a base of two orthogonal circular sections (r1 = r2 = 1000 mm) plus the
-    sinusoidal grid ``h1 sin(w1 x) + h2 sin(w2 y)``; seed 002: a toric base plus a lenslet
-    array.
+    The compound sinusoidal grid paper [1]_: a base of two orthogonal circular sections
+    (r1 = r2 = 1000 mm) plus the sinusoidal grid ``h1 sin(w1 x) + h2 sin(w2 y)``; Kong et
+    al. (2020) [2]_: a toric base plus a lenslet array.
 
     Parameters
     ----------
@@ -57,7 +67,7 @@ class Compound(Surface):
 
 # ------------------------------------------------------------------ scene schema
 class CompoundConfig(Section):
-    """Base + feature (seed 001, seed 002): heights add."""
+    """Base + feature (the compound sinusoidal grid paper; Kong et al. 2020): heights add."""
     nests_design: ClassVar[bool] = True
     type: Literal["compound"]
     base: "DesignConfig"  # noqa: F821  (the [design] union, resolved by the registry)

@@ -28,7 +28,7 @@ MAX_LENGTH = 10000     # characters
 MAX_NODES = 5000       # syntax-tree nodes
 MAX_DEPTH = 60         # nesting depth: parentheses and calls (a flat sum or product is one level)
 MAX_EXPONENT = 64.0    # |constant exponent| of **
-MAX_LITERAL = 1e12     # |numeric literal|
+MAX_LITERAL = 1e12     # |numeric literal|  # not a unit conversion
 
 _NAME = "design.expr"
 

@@ -139,7 +139,7 @@ class HeightMapSurface(Surface):
         y = np.asarray(y, dtype=np.float64)
         x, y = np.broadcast_arrays(x, y)
         x0, y0, x1, y1 = self.bounds
-        tol = 1e-9 * self.pixel
+        tol = 1e-9 * self.pixel  # not a unit conversion: a relative tolerance
         out = ~((x >= x0 - tol) & (x <= x1 + tol) & (y >= y0 - tol) & (y <= y1 + tol))
         if np.any(out):
             k = np.flatnonzero(out.ravel())[0]

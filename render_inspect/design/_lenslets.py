@@ -3,6 +3,21 @@
 Every length is in mm.  Heights, gradients and Hessians are analytic: inside an element
 of radius of curvature R the sag is ``s^2 / (R + sqrt(R^2 - s^2))`` (s = distance from the
 element's centre), its gradient ``(dx, dy) / sqrt(R^2 - s^2)``.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
+.. [2] L. Kong, Y. Ma, M. Ren, M. Xu, C.-F. Cheung, "Generation and characterization of
+       ultra-precision compound freeform surfaces," Science Progress 103(1), 1-12 (2020).
+       :DOI:`10.1177/0036850419880112`
+.. [3] C. Zhang, C.-F. Cheung, X. Liang, B. Bulla, "A theoretical and experimental
+       investigation of high-frequency ultrasonic vibration-assisted sculpturing of
+       optical microstructures," Applied Sciences 12(21), 10937 (2022).
+.. [4] "Rotary-coordinate and shuttling-element cutting strategy for ultra-precision
+       diamond turning of optical microstructures," Optica Publishing Group (2024).
 """
 
 from __future__ import annotations
@@ -65,9 +80,10 @@ class LensletArray(Surface):
         True: dimples (round) / bowls (quad); False: bumps.
     cells : {"round", "quad"}
         ``"round"``: spherical caps of radius ``aperture_radius`` on a flat base at
-        ``offset`` (seed 000 Table 4, seed 002).  ``"quad"``: sharp-edged rectangular cells
-        filling the grid, ``z = offset +- sag(s)`` with the cell centre at ``offset``
-        (seed 003); outside the array the blank stays at the corners' level.
+        ``offset`` (Li et al. 2018 [1]_, Table 4; Kong et al. 2020 [2]_).  ``"quad"``:
+        sharp-edged rectangular cells filling the grid, ``z = offset +- sag(s)`` with the
+        cell centre at ``offset`` (Zhang et al. 2022 [3]_); outside the array the blank
+        stays at the corners' level.
     center_x, center_y : float
         Centre of the array (mm).
     offset : float
@@ -200,7 +216,7 @@ class LensletArray(Surface):
 
 
 class LensletRings(Surface):
-    """Spherical elements on concentric rings (seed 004's RCSE microstructure).
+    """Spherical elements on concentric rings (the microstructure of the RCSE paper [4]_).
 
     Element ``n`` of ring ``k`` is centred at radius ``ring_radii[k]`` and angle
     ``phase + 2 pi n / counts[k]``.  Each element is a spherical cap of plane radius
@@ -313,13 +329,15 @@ class LensletRings(Surface):
 
 # ------------------------------------------------------------------ scene schema
 class LensletArrayConfig(Section):
-    """Spherical lenslets on a rectangular grid (seed 000 Table 4, seed 002, seed 003).
+    """Spherical lenslets on a rectangular grid (Li et al. 2018, Table 4; Kong et al. 2020;
+    Zhang et al. 2022).
 
     ``cells = "round"``: each lenslet is a spherical cap of aperture radius
     ``aperture_radius`` on a flat (base) surface at ``offset``; concave lenslets are
     dimples below it, convex ones bumps above it.  ``cells = "quad"``: sharp-edged
-    quadrilateral cells filling the grid (seed 003), ``z = offset +- s^2/(r + sqrt(r^2 - s^2))``
-    (the cell centre at ``offset``), the blank outside the array at the corners' level.
+    quadrilateral cells filling the grid (Zhang et al. 2022),
+    ``z = offset +- s^2/(r + sqrt(r^2 - s^2))`` (the cell centre at ``offset``), the blank
+    outside the array at the corners' level.
     Give either ``lens_radius`` or (round cells) ``sag``, the chord height of one
     lenslet: ``lens_radius = (aperture_radius^2 + sag^2) / (2 sag)``.
     Centres: ``center + (j - (cols-1)/2) pitch_x``, ``center + (i - (rows-1)/2) pitch_y``."""
@@ -374,11 +392,11 @@ class LensletArrayConfig(Section):
 
 
 #: most elements a ``lenslet_rings`` design may have
-MAX_RING_ELEMENTS = 1_000_000
+MAX_RING_ELEMENTS = 1_000_000  # not a unit conversion
 
 
 class LensletRingsConfig(Section):
-    """Lenslets (spherical elements) on concentric rings (seed 004)."""
+    """Lenslets (spherical elements) on concentric rings (the RCSE paper, 2024)."""
     type: Literal["lenslet_rings"]
     ring_radii: list[Length] = Field(..., min_length=1, max_length=10_000, description="mm, ring radii")
     counts: list[int] = Field(..., min_length=1, max_length=10_000, description="elements per ring")

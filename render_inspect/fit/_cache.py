@@ -5,9 +5,11 @@ evaluations it has already made from here instead of simulating them again."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -39,14 +41,49 @@ class EvaluationCache:
         self.folder = None if folder is None else Path(folder)
         self._memory: dict = {}
         self.hits = 0
+        self.written = 0          # entries this object stored on disk
+        self._mine: list = []     # their keys (those not on disk before)
+        self._made = None         # the folders this object created (the deepest last)
         if self.folder is not None:
-            try:
-                self.folder.mkdir(parents=True, exist_ok=True)
-            except OSError as err:
-                raise InputError(f"--cache {str(self.folder)!r}: cannot create the folder "
-                                 f"({err.strerror or err})") from None
-            if not os.access(self.folder, os.W_OK):
-                raise InputError(f"--cache {str(self.folder)!r}: the folder is not writable")
+            if self.folder.exists() and not self.folder.is_dir():
+                raise InputError(f"--cache {str(self.folder)!r}: not a folder")
+            probe = self.folder
+            while not probe.exists() and probe != probe.parent:
+                probe = probe.parent
+            if not os.access(probe, os.W_OK):
+                raise InputError(f"--cache {str(self.folder)!r}: "
+                                 f"{'the folder' if probe == self.folder else str(probe)!r} "
+                                 f"is not writable")
+
+    def _create(self) -> None:
+        """Create the folder on the first entry (a fit refused before it evaluates
+        anything leaves none)."""
+        if self._made is not None:
+            return
+        made = []
+        p = self.folder
+        while not p.exists():
+            made.append(p)
+            p = p.parent
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise InputError(f"--cache {str(self.folder)!r}: cannot create the folder "
+                             f"({err.strerror or err})") from None
+        self._made = made
+
+    def discard(self) -> None:
+        """Remove what this object wrote: the folders it created with their entries, or
+        its entries in a folder that was there before."""
+        if self.folder is None or self._made is None:
+            return
+        if self._made:
+            shutil.rmtree(self._made[-1], ignore_errors=True)
+        else:
+            for key in self._mine:
+                with contextlib.suppress(OSError):
+                    self._path(key).unlink()
+        self._made, self._mine, self.written = None, [], 0
 
     def _path(self, key: str) -> Path:
         return self.folder / f"{key}.npz"
@@ -82,7 +119,12 @@ class EvaluationCache:
 
         buf = io.BytesIO()
         np.savez_compressed(buf, height=h, meta=np.array(json.dumps(meta, default=str)))
+        self._create()
+        existed = self._path(key).exists()
         atomic_write_bytes(self._path(key), buf.getvalue())
+        if not existed:
+            self._mine.append(key)
+        self.written += 1
         return self._memory[key][0]
 
     def __len__(self) -> int:

@@ -27,7 +27,7 @@ has.  The misfit is the sum over all entries.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -37,13 +37,16 @@ from ..metrology import gaussian_filter, remove_form
 
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor", "set_noise_floor",
-           "residual_vector", "soft_l1", "robust_weights", "radial_psd"]
+           "residual_vector", "soft_l1", "robust_weights", "radial_psd",
+           "realisation_shifts"]
 
 #: form removal the user may choose (as ``analyze``)
 FORMS = ("none", "plane", "poly2", "sphere")
 #: PSD bins this many decades below the strongest are left out (the Hann window's leakage)
 PSD_RANGE_DECADES = 5.0
 TERMS = ("map", "psd", "harmonics")
+#: the feed marks are looked for above this many cycles per window
+PEAK_MIN_PERIODS = 6.0
 
 
 @dataclass(frozen=True)
@@ -298,7 +301,12 @@ class Target:
     wavy: np.ndarray            # the measured waviness (mm)
     points: tuple               # (rows, cols) of the map term's points
     sigma_map: float            # mm
-    psd_floor: np.ndarray | None = None   # the instrument noise's power per bin (mm^4)
+    psd_floor: np.ndarray | None = None   # the random parts' and noise's power per bin (mm^4)
+    psd_scaled: list = field(default_factory=list)  # (index, start, floor) of fitted random parts
+    sigma_frequency: float | None = None  # relative; None: the spec's
+    sigma_amplitudes: np.ndarray | None = None  # mm per harmonic; None: the spec's
+    scatter: dict = field(default_factory=dict)  # what the random parts' realisations vary by
+    draws: list = field(default_factory=list)  # Predictions (measured=True) of the realisations
     amplitude_gain: np.ndarray | None = None  # measured / noise-free harmonic amplitudes
 
     def summary(self) -> dict:
@@ -307,7 +315,11 @@ class Target:
                 "harmonic_amplitudes_nm": [float(a) * MM_TO_NM for a in self.amplitudes],
                 "waviness_cutoff_mm": self.cutoff, "map_points": int(len(self.points[0])),
                 "psd_bins": int(self.psd_use.sum()), "psd_k_range": list(self.k_range),
-                "sigma_map_nm": self.sigma_map * MM_TO_NM}
+                "sigma_map_nm": self.sigma_map * MM_TO_NM,
+                "sigma_frequency": self.sigma_frequency or self.spec.sigma_frequency,
+                "sigma_amplitudes_nm": None if self.sigma_amplitudes is None else
+                [float(a) * MM_TO_NM for a in self.sigma_amplitudes],
+                "random_parts_scatter": self.scatter}
 
 
 def make_target(z, *, pixel, origin, spec: MisfitSpec) -> Target:
@@ -327,7 +339,12 @@ def make_target(z, *, pixel, origin, spec: MisfitSpec) -> Target:
     # the scatter of a periodogram averaged over n cells (about n / 4 independent ones
     # under the Hann window): 0.434 / sqrt(n / 4) decades
     psd_sigma = np.maximum(spec.sigma_psd_decades, 1.0 / np.sqrt(np.maximum(cells, 1)))
-    peak = feed_peak(h, pixel=pixel, k_min=4.0 / length)
+    # the marks are looked for on the map less its waviness (a Gaussian filter of a tenth
+    # of the window): the window's leakage of a curved form would otherwise outshine them
+    # in a large window; a window must hold ten feed periods, so the search starts a
+    # little below ten cycles per window
+    high = h - gaussian_filter(h, pixel=pixel, cutoff=length / 10.0, min_weight=0.3)
+    peak = feed_peak(high, pixel=pixel, k_min=PEAK_MIN_PERIODS / length)
     centroid = None
     if peak is not None:
         centroid, amps = harmonic_features(h, pixel=pixel, k0=peak, n=spec.harmonics)
@@ -368,60 +385,151 @@ class Prediction:
     amplitudes: np.ndarray
 
 
-def predict_features(z, target: Target) -> Prediction:
+def predict_features(z, target: Target, values=None, *, measured: bool = False) -> Prediction:
+    """The features of a predicted map ``z`` (mm) made at parameter ``values`` (needed
+    when a random part's amplitude is fitted: its floor scales with it).  ``measured``:
+    the features of a map that holds its random parts and noise (a realisation), as the
+    measured map's are taken: no floor, no gain."""
     spec = target.spec
     h = prepare_map(z, pixel=target.pixel, form=spec.form, origin=target.origin)
     psd = psd_bins(h, pixel=target.pixel, k_range=target.k_range,
                    radial_bins=spec.psd_radial_bins, angle_bins=spec.psd_angle_bins)
-    if target.psd_floor is not None:
+    if target.psd_floor is not None and not measured:
         psd = psd + target.psd_floor
+    for i, v0, floor in (() if measured else target.psd_scaled):
+        psd = psd + floor * (float(values[i]) / v0) ** 2
     psd = _log10(psd)
     centroid = None
     amps = np.zeros(spec.harmonics)
     if target.peak is not None:
         centroid, amps = harmonic_features(h, pixel=target.pixel, k0=target.peak,
                                            n=spec.harmonics)
-        if target.amplitude_gain is not None:
+        if target.amplitude_gain is not None and not measured:
             amps = amps * target.amplitude_gain
     wavy = waviness(z, pixel=target.pixel, cutoff=target.cutoff, form=spec.form,
                     origin=target.origin)
     return Prediction(h, wavy, psd, centroid, amps)
 
 
-def noise_floor(target: Target, noisy, clean):
-    """(floor, clean PSD): the power per PSD bin (mm^4) that the instrument's noise adds (the PSD of a
-    prediction imaged with the camera's noise less that of the same prediction without
-    (the evaluations image without noise, its expected value, and add this floor to
-    their spectra; noise is independent of the surface, so powers add), and the noise-free
-    prediction's own PSD per bin."""
+def _mean_psd(maps, target: Target):
+    """The PSD per bin (mm^4) of maps, averaged over them."""
     spec = target.spec
     kw = dict(pixel=target.pixel, k_range=target.k_range, radial_bins=spec.psd_radial_bins,
               angle_bins=spec.psd_angle_bins)
-    a = psd_bins(prepare_map(noisy, pixel=target.pixel, form=spec.form, origin=target.origin), **kw)
-    b = psd_bins(prepare_map(clean, pixel=target.pixel, form=spec.form, origin=target.origin), **kw)
+    return np.mean([psd_bins(prepare_map(z, pixel=target.pixel, form=spec.form,
+                                         origin=target.origin), **kw) for z in maps], axis=0)
+
+
+def _mean_power(maps, target: Target):
+    """The feed harmonics' power (mm^2), averaged over maps."""
+    kw = dict(pixel=target.pixel, k0=target.peak, n=target.spec.harmonics)
+    return np.mean([harmonic_features(prepare_map(z, pixel=target.pixel, form=target.spec.form,
+                                                  origin=target.origin), **kw)[1] ** 2
+                    for z in maps], axis=0)
+
+
+def noise_floor(target: Target, noisy, clean):
+    """(floor, clean PSD): the power per PSD bin (mm^4) that the random parts add: the PSD
+    of predictions with them (``noisy``: one map or several realisations, averaged) less
+    that of the same prediction without them (``clean``), and the clean prediction's own
+    PSD per bin.  The evaluations predict without the random parts (their expected value)
+    and add this floor to their spectra: the random parts are independent of the surface,
+    so powers add."""
+    noisy = [noisy] if np.ndim(noisy) == 2 else list(noisy)
+    a = _mean_psd(noisy, target)
+    b = _mean_psd([clean], target)
     return np.where(np.isfinite(a - b), np.maximum(a - b, 0.0), 0.0), b
 
 
-def set_noise_floor(target: Target, noisy, clean, *, above: float = 3.0) -> None:
-    """Give ``target`` the instrument noise's floor (:func:`noise_floor`) and leave out of
-    the ``psd`` term the bins where the noise-free prediction is below ``above`` times the
-    floor: there the spectrum is the camera's noise, whose print-through of the fringes
-    depends on the surface and is not worth fitting."""
+def set_noise_floor(target: Target, noisy, clean, *, above: float = 3.0, scaled=()) -> None:
+    """Give ``target`` the random parts' floor (:func:`noise_floor`) and leave out of the
+    ``psd`` term the bins where the clean prediction is below ``above`` times the floor:
+    there the spectrum is the camera's noise and the random parts' (whose realisation is
+    not the measured one, and whose print-through of the fringes depends on the surface).
+
+    ``scaled``: (index, start, maps) of random parts whose amplitude is fitted: their
+    floor (from ``maps``, realisations with that part alone at ``start``) enters each
+    prediction's spectrum scaled by (value / start)^2 (the power of a linear random
+    part grows with its amplitude squared)."""
     floor, clean_psd = noise_floor(target, noisy, clean)
     target.psd_floor = floor
     keep = np.isfinite(clean_psd) & (clean_psd > above * floor)
     target.psd_use = target.psd_use & keep
+    target.psd_scaled = [(int(i), float(v0), noise_floor(target, maps, clean)[0])
+                         for i, v0, maps in scaled]
     # the noise also lowers the measured harmonics (fringe-locked errors of the phase
-    # steps): the noise-free predictions' amplitudes are scaled by the same ratio
+    # steps): the clean predictions' amplitudes are scaled by the same ratio
+    noisy = [noisy] if np.ndim(noisy) == 2 else list(noisy)
     if target.peak is not None:
-        kw = dict(pixel=target.pixel, k0=target.peak, n=target.spec.harmonics)
-        _, a_noisy = harmonic_features(prepare_map(noisy, pixel=target.pixel, form=target.spec.form,
-                                                   origin=target.origin), **kw)
-        _, a_clean = harmonic_features(prepare_map(clean, pixel=target.pixel, form=target.spec.form,
-                                                   origin=target.origin), **kw)
+        p_noisy = _mean_power(noisy, target)
+        p_clean = _mean_power([clean], target)
         with np.errstate(divide="ignore", invalid="ignore"):
-            gain = np.where(a_clean > 0, a_noisy / a_clean, 1.0)
+            gain = np.where(p_clean > 0, np.sqrt(p_noisy / p_clean), 1.0)
         target.amplitude_gain = np.clip(np.nan_to_num(gain, nan=1.0), 0.5, 2.0)
+    if len(noisy) > 1:
+        _set_scatter(target, noisy, clean)
+
+
+def _set_scatter(target: Target, noisy, clean) -> None:
+    """Widen the scales of the ``map`` and ``harmonics`` terms to what the realisations
+    ``noisy`` of the random parts (and the camera's noise) differ by from the clean
+    prediction: the measured map holds a realisation the clean prediction cannot
+    reproduce, so a residual of that size is expected at the true values."""
+    spec = target.spec
+    r, c = target.points
+    w0 = waviness(clean, pixel=target.pixel, cutoff=target.cutoff, form=spec.form,
+                  origin=target.origin)[r, c]
+    diffs = np.concatenate([waviness(z, pixel=target.pixel, cutoff=target.cutoff,
+                                     form=spec.form, origin=target.origin)[r, c] - w0
+                            for z in noisy])
+    diffs = diffs[np.isfinite(diffs)]
+    scatter = {"draws": len(noisy)}
+    if diffs.size:
+        s_map = float(np.sqrt(np.mean(diffs ** 2)))
+        scatter["waviness_rms_nm"] = s_map * MM_TO_NM
+        target.sigma_map = max(target.sigma_map, s_map)
+    if target.peak is not None:
+        feats = [harmonic_features(prepare_map(z, pixel=target.pixel, form=spec.form,
+                                               origin=target.origin), pixel=target.pixel,
+                                   k0=target.peak, n=spec.harmonics) for z in noisy]
+        k = np.array([f[0] for f in feats], dtype=np.float64)
+        a = np.array([f[1] for f in feats], dtype=np.float64)
+        if np.all(np.isfinite(k)) and target.centroid:
+            s_f = float(np.std(k, ddof=1) / target.centroid)
+            scatter["frequency_relative"] = s_f
+            target.sigma_frequency = max(spec.sigma_frequency, s_f)
+        s_a = np.std(a, axis=0, ddof=1)
+        scatter["amplitudes_nm"] = [float(v) * MM_TO_NM for v in s_a]
+        floor = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
+        target.sigma_amplitudes = np.maximum(np.nan_to_num(s_a), floor)
+    target.scatter = scatter
+    target.draws = [predict_features(z, target, measured=True) for z in noisy]
+
+
+def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
+    """(R, m): how the normalised residuals of ``pred`` change when the measured map's
+    features are replaced by those of each realisation of the random parts
+    (``target.draws``), less their mean: the spread of the residual vector that the random
+    parts alone cause (an empty array without at least two realisations)."""
+    feats = target.draws
+    if len(feats) < 2:
+        return np.zeros((0, 0))
+
+    def with_features(wavy, psd, centroid, amplitudes):
+        return replace(target, wavy=wavy, psd=psd, centroid=centroid, amplitudes=amplitudes)
+
+    def mean(values):
+        return np.mean(np.asarray(values, dtype=np.float64), axis=0)
+
+    centroids = [f.centroid for f in feats]
+    has_peak = target.peak is not None and all(c is not None and np.isfinite(c) for c in centroids)
+    mean_target = with_features(mean([f.wavy for f in feats]), mean([f.psd for f in feats]),
+                                float(np.mean(centroids)) if has_peak else target.centroid,
+                                mean([f.amplitudes for f in feats]))
+    base = residual_vector(pred, mean_target)[0]
+    return np.array([residual_vector(pred, with_features(
+        f.wavy, f.psd, f.centroid if has_peak else target.centroid, f.amplitudes))[0] - base
+        for f in feats])
 
 
 def soft_l1(d) -> np.ndarray:
@@ -461,12 +569,15 @@ def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.nd
         use = target.psd_use
         add("psd", (pred.psd[use] - target.psd[use]) / target.psd_sigma[use])
     if w.get("harmonics", 0) > 0 and target.peak is not None:
+        sf = target.sigma_frequency or spec.sigma_frequency
         if pred.centroid is None or not np.isfinite(pred.centroid):
-            df = 1.0 / spec.sigma_frequency
+            df = 1.0 / sf
         else:
-            df = (pred.centroid / target.centroid - 1.0) / spec.sigma_frequency
-        a0 = max(float(target.amplitudes[0]), 1e-12)
-        da = (pred.amplitudes - target.amplitudes) / (spec.sigma_amplitude * a0)
+            df = (pred.centroid / target.centroid - 1.0) / sf
+        sa = target.sigma_amplitudes
+        if sa is None:
+            sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
+        da = (pred.amplitudes - target.amplitudes) / sa
         add("harmonics", np.concatenate([[df], da]))
     if not ds:
         return np.zeros(1), np.zeros(1), terms

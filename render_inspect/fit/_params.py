@@ -27,9 +27,9 @@ __all__ = ["FreeParameter", "parse_free", "parse_bounds", "free_parameters", "se
 #: one part of a dotted key: a name or an array index
 KEY_PATTERN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$|^[0-9]+$")
 #: a number without a stated range must lie within this (the scene's own rule)
-_MAX_MAGNITUDE = 1e9
+_MAX_MAGNITUDE = 1e9  # not a unit conversion
 #: open bounds (gt / lt) are moved inside by this fraction of the value's scale
-_OPEN_MARGIN = 1e-9
+_OPEN_MARGIN = 1e-9  # not a unit conversion
 
 
 @dataclass(frozen=True)

@@ -73,7 +73,7 @@ def fit_window(z, pixel, origin, region, size_mm: float, *, how: str = "") -> tu
     counts = cs[n:, n:] - cs[:-n, n:] - cs[n:, :-n] + cs[:-n, :-n]
     cy, cx = (counts.shape[0] - 1) / 2, (counts.shape[1] - 1) / 2
     yy, xx = np.mgrid[:counts.shape[0], :counts.shape[1]]
-    score = counts - 1e-6 * np.hypot(yy - cy, xx - cx)
+    score = counts - 1e-6 * np.hypot(yy - cy, xx - cx)  # not a unit conversion
     i, j = np.unravel_index(int(np.argmax(score)), score.shape)
     if counts[i, j] < 0.5 * n * n:
         raise InputError(f"the fit window has {int(counts[i, j])} of {n * n} pixels measured; at "

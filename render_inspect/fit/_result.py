@@ -45,7 +45,11 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
     keys = [p.key for p in result.params]
     params = {}
     for i, p in enumerate(result.params):
+        real = result.stderr_realisations
         params[p.key] = {"value": float(result.values[i]), "stderr": _num(result.stderr[i]),
+                         "stderr_formal": _num(None if result.stderr_formal is None
+                                               else result.stderr_formal[i]),
+                         "stderr_random_parts": _num(None if real is None else real[i]),
                          "start": float(p.start), "bounds": [float(p.lower), float(p.upper)],
                          "schema_range": [_num(p.schema[0]), _num(p.schema[1])],
                          "change_from_start": float(result.values[i] - p.start),
@@ -62,6 +66,14 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
                    "terms": result.best.terms, "start_terms": result.start.terms,
                    "waviness_rms_nm": waviness["rms_nm"], "map": maps,
                    "definition": spec.to_dict()},
+        "uncertainty": {"stderr": "sqrt(stderr_formal^2 + stderr_random_parts^2)",
+                        "stderr_formal": "s^2 (J^T J)^-1 of the weighted residuals at the "
+                                         "solution (residuals taken as independent)",
+                        "stderr_random_parts": "the spread of the solution over the "
+                                               "realisations of the random parts and the "
+                                               "camera's noise, each taken as the measured "
+                                               "map (linearised)",
+                        "realisations": int(result.realisations)},
         "evaluations": int(result.evaluations),
         "cache_hits": int(result.cache_hits),
         "status": result.status,

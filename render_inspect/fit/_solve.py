@@ -28,7 +28,8 @@ from scipy.optimize import least_squares
 from ..core.errors import InputError, RenderInspectError
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
-from ._features import Target, predict_features, residual_vector, robust_weights, soft_l1
+from ._features import (Target, predict_features, realisation_shifts, residual_vector,
+                        robust_weights, soft_l1)
 
 __all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted"]
 
@@ -37,7 +38,7 @@ log = logging.getLogger("render_inspect")
 #: |correlation| above which two parameters are reported as not told apart
 UNRESOLVED = 0.95
 #: residual entries of an evaluation the forward model refused (a value it cannot cut)
-FAILED_RESIDUAL = 1e3
+FAILED_RESIDUAL = 1e3  # not a unit conversion
 
 
 class BudgetExhausted(Exception):
@@ -165,7 +166,7 @@ class Evaluator:
     def _record(self, x, k, h, meta, dt, *, cached: bool, error: str | None = None) -> None:
         if error is None:
             try:
-                pred = predict_features(h, self.target)
+                pred = predict_features(h, self.target, x)
                 d, a, terms = residual_vector(pred, self.target)
             except InputError as e:  # a predicted map with too few valid points
                 error, d, a, terms = str(e), None, None, {}
@@ -229,6 +230,9 @@ class FitResult:
     seconds: float
     model_seconds: float
     history: list
+    stderr_formal: np.ndarray | None = None      # from the residuals alone
+    stderr_realisations: np.ndarray | None = None  # from the random parts' realisations
+    realisations: int = 0
 
 
 def _unit_bounds(params):
@@ -275,23 +279,41 @@ def _jacobian(ev: Evaluator, u, lo, hi, steps, sw):
 
 
 def _covariance(j_units, residual, scales):
-    """``residual``: the weighted residual vector at the solution."""
-    """Formal covariance (physical units) from the Jacobian in scaled units."""
+    """Formal covariance (physical units) from the Jacobian in scaled units; ``residual``:
+    the weighted residual vector at the solution."""
     m, n = j_units.shape
     jp = j_units / scales[None, :]
     jtj = jp.T @ jp
     dof = max(m - n, 1)
     s2 = float(residual @ residual) / dof
     w, v = np.linalg.eigh(jtj)
-    floor = max(float(w.max()), 1e-300) * 1e-12
+    floor = max(float(w.max()), 1e-300) * 1e-12  # not a unit conversion
     inv = (v / np.maximum(w, floor)) @ v.T
     cov = s2 * inv
     d = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return cov, d, _correlation(cov, d)
+
+
+def _correlation(cov, d):
     with np.errstate(divide="ignore", invalid="ignore"):
         corr = cov / np.outer(d, d)
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)
-    return cov, d, np.clip(corr, -1.0, 1.0)
+    return np.clip(corr, -1.0, 1.0)
+
+
+def _realisation_covariance(j_units, weights, best, target, scales):
+    """The covariance (physical units) of the fitted values over the realisations of the
+    random parts: each realisation, taken as the measured map, moves the weighted residual
+    vector by ``weights * shift`` (:func:`realisation_shifts`) and the solution by the
+    linearised least-squares step ``-pinv(J) weights shift``.  None without realisations."""
+    pred = predict_features(best.height, target, best.values)
+    shifts = realisation_shifts(pred, target)
+    if shifts.shape[0] < 2 or shifts.shape[1] != j_units.shape[0]:
+        return None
+    du = -(np.linalg.pinv(j_units) @ (weights[None, :] * shifts).T).T
+    dx = du * scales[None, :]
+    return np.atleast_2d(np.cov(dx, rowvar=False, ddof=1))
 
 
 def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0,
@@ -321,7 +343,7 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
     lo, hi = _unit_bounds(params)
     u0 = np.ones(n)
     # least_squares needs a start strictly inside the bounds
-    inside = 1e-6 * np.maximum(hi - lo, 1e-12)
+    inside = 1e-6 * np.maximum(hi - lo, 1e-12)  # not a unit conversion
     u0 = np.clip(u0, lo + inside, hi - inside)
     budget = evaluator.max_evaluations
     with progress_task(f"fit: up to {budget} evaluations", total=budget) as step:
@@ -392,6 +414,13 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             j = _jacobian(evaluator, u_best, lo, hi, steps, sw)
         scales = np.array([p.scale for p in params])
         cov, stderr, corr = _covariance(j, sw * best.a * best.d, scales)
+        stderr_formal, stderr_real = stderr, None
+        cov_real = _realisation_covariance(j, sw * best.a, best, evaluator.target, scales)
+        if cov_real is not None:
+            stderr_real = np.sqrt(np.maximum(np.diag(cov_real), 0.0))
+            cov = cov + cov_real
+            stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
+            corr = _correlation(cov, stderr)
     evaluator.step = None
     profiles = {}
     if profile_points:
@@ -401,7 +430,8 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
     return FitResult(params, best.values.copy(), stderr, cov, corr, best, start,
                      evaluator.count, evaluator.cache.hits, status, message, glob, profiles,
                      unresolved, time.perf_counter() - t_all, evaluator.seconds,
-                     list(evaluator.history))
+                     list(evaluator.history), stderr_formal, stderr_real,
+                     len(evaluator.target.draws))
 
 
 def _global_start(params, evaluator, points, seed, lo, hi):

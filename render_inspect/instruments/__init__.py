@@ -6,9 +6,11 @@ camera pixel through the 3-D linear (Kirchhoff) transfer function of the objecti
 source spectrum and the camera, and returns phase-shifting (PSI) or coherence-scanning
 (CSI) frames: images plus the instrument's settings, no truth (docs/instrument.md).
 
-Each instrument is one module of this package with its ``[render.<name>]`` schema class,
-registered with :func:`register_instrument`; the modules are found and imported here
-(docs/contributing.md)."""
+Each instrument is one module of this package with its ``[render.<name>]`` schema class
+and the hooks the pipeline images with, registered with :func:`register_instrument`; the
+modules are found and imported here (docs/contributing.md).  The instrument's own
+metrological characteristics (transfer function, step response, slope limit, noise) come
+from :func:`characterise_instrument`."""
 
 from __future__ import annotations
 
@@ -16,16 +18,9 @@ from ..core.frames import PHASE_CONVENTION, Frames
 from ..core.plugins import import_private_modules
 from . import _artefacts as artefacts  # calibration surfaces
 from ._camera import Camera, expose
-from ._imaging import (
-    Disturbances,
-    Microscope,
-    csi_frames,
-    interference_intensity,
-    normals_from_heights,
-    psi_frames,
-    recommended_subsamples,
-)
+from ._imaging import csi_frames, interference_intensity, normals_from_heights, psi_frames
 from ._interferometer import (
+    MAX_AUTO_SUBSAMPLES,
     Interferogram,
     InterferometerConfig,
     disturbances_from_config,
@@ -37,8 +32,14 @@ from ._interferometer import (
     trace_heights,
     write_interferogram_exr,
 )
+from ._characterise import characterise_instrument
+from ._interferometer_outputs import (interferogram_summary, interferometer_field,
+                                      interferometer_needs, rendered_settings,
+                                      write_interferogram_outputs)
+from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, Objective, objective
-from ._registry import InstrumentType, instrument_types, register_instrument
+from ._registry import (InstrumentType, height_instrument, instrument_types, register_instrument,
+                        renderable_instruments)
 from ._sources import Source, led, monochromatic, spectrum_table
 from ._transfer import (
     TransferFunction,
@@ -54,6 +55,7 @@ from ._transfer import (
 import_private_modules(__name__, __path__, skip=("_registry",))
 
 __all__ = [
+    "MAX_AUTO_SUBSAMPLES",
     "OBJECTIVES",
     "PHASE_CONVENTION",
     "Camera",
@@ -93,4 +95,12 @@ __all__ = [
     "transfer_function",
     "unit_transfer_table",
     "write_interferogram_exr",
+    "characterise_instrument",
+    "height_instrument",
+    "renderable_instruments",
+    "interferogram_summary",
+    "interferometer_field",
+    "interferometer_needs",
+    "write_interferogram_outputs",
+    "rendered_settings",
 ]

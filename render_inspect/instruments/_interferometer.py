@@ -26,22 +26,18 @@ from pydantic import Field, model_validator
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.frames import Frames
 from ..core.section import Length, Region, Section
+from ..core.units import MIB_TO_BYTES, MM_TO_NM
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._imaging import (
-    Disturbances,
-    Microscope,
-    csi_frames,
-    psi_frames,
-    recommended_subsamples,
-)
+from ._imaging import csi_frames, psi_frames
+from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
-from ._registry import register_instrument
 from ._sources import led, monochromatic, spectrum_table
 
 __all__ = [
+    "MAX_AUTO_SUBSAMPLES",
     "DEFAULT_CSI_BANDWIDTH_NM",
     "DEFAULT_CSI_WAVELENGTH_NM",
     "DEFAULT_PSI_BANDWIDTH_NM",
@@ -64,7 +60,7 @@ DEFAULT_PSI_BANDWIDTH_NM = 10.0
 DEFAULT_CSI_WAVELENGTH_NM = 600.0
 DEFAULT_CSI_BANDWIDTH_NM = 120.0
 #: Narrowest source band (nm) other than 0 (a line): a narrower Gaussian underflows.
-MIN_BANDWIDTH_NM = 1e-3
+MIN_BANDWIDTH_NM = 1e-3  # not a unit conversion
 #: Largest number of sub-samples per pixel side chosen automatically.
 MAX_AUTO_SUBSAMPLES = 6
 
@@ -133,8 +129,6 @@ class InterferometerConfig(Section):
                              f"({na:g}), received {self.illumination_na:g}")
         return self
 
-
-register_instrument("interferometer", InterferometerConfig)
 
 
 @dataclass
@@ -281,7 +275,7 @@ BYTES_PER_FRAME_PIXEL = 8 + 8 + 4 + 4
 BYTES_PER_CSI_FRAME_PIXEL = 10
 #: the renderer's own working memory (Mitsuba / Dr.Jit start-up, the traced mesh's
 #: acceleration structure of a preset field): measured about 280 MiB
-RENDERER_BYTES = 256 * 2 ** 20
+RENDERER_BYTES = 256 * MIB_TO_BYTES
 
 
 def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
@@ -311,7 +305,7 @@ def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
         lam = mic.effective_wavelength_nm()
         step = icfg.scan_step_nm if icfg.scan_step_nm is not None else lam / 8
         sigma = mic.coherence_sigma()
-        span_nm = 2 * 4.5 / sigma * 1e6 if sigma > 0 else 4 * lam
+        span_nm = 2 * 4.5 / sigma * MM_TO_NM if sigma > 0 else 4 * lam
         frames = int(math.ceil(span_nm / step)) + 1
         per_frame = BYTES_PER_CSI_FRAME_PIXEL
     rays = (nx + 2 * m) * (ny + 2 * m) * s * s

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import NM_TO_MM
 
 __all__ = ["FWHM_PER_SIGMA", "Source", "led", "monochromatic", "spectrum_table"]
 
@@ -31,7 +32,6 @@ FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
 #: A Gaussian band is sampled over centre +- this many FWHM (3.5 sigma: 2e-4 of the power
 #: lies beyond on each side, where the density is 2e-3 of the peak).
 _GAUSS_SPAN_FWHM = 1.5
-_NM = 1e-6  # nm -> mm
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class Source:
             lo = max(self.wavelength_nm - _GAUSS_SPAN_FWHM * self.bandwidth_nm,
                      0.25 * self.wavelength_nm)
             hi = self.wavelength_nm + _GAUSS_SPAN_FWHM * self.bandwidth_nm
-        return 2 * math.pi / (hi * _NM), 2 * math.pi / (lo * _NM)
+        return 2 * math.pi / (hi * NM_TO_MM), 2 * math.pi / (lo * NM_TO_MM)
 
     def density_per_wavelength(self, wavelength_nm) -> np.ndarray:
         """Relative power per unit wavelength (unnormalised) at ``wavelength_nm``."""
@@ -100,13 +100,13 @@ class Source:
         weight : (n,) float64, power fractions summing to 1
         """
         if self.is_line:
-            return np.array([2 * math.pi / (self.wavelength_nm * _NM)]), np.ones(1)
+            return np.array([2 * math.pi / (self.wavelength_nm * NM_TO_MM)]), np.ones(1)
         k_lo, k_hi = self.wavenumber_range()
         n = max(math.ceil((k_hi - k_lo) / float(dk)) + 1, 9)
         k = np.linspace(k_lo, k_hi, n)
-        lam_nm = 2 * math.pi / k / _NM
+        lam_nm = 2 * math.pi / k / NM_TO_MM
         w = self.density_per_wavelength(lam_nm) * (2 * math.pi / k ** 2)
-        keep = w > 1e-9 * w.max()
+        keep = w > 1e-9 * w.max()  # not a unit conversion: a relative floor
         k, w = k[keep], w[keep]
         return k, w / w.sum()
 
@@ -176,9 +176,10 @@ def spectrum_table(wavelength_nm, weight) -> Source:
     if lam.size == 1:
         return monochromatic(float(lam[0]))
     src = Source("table", 0.0, 0.0, tuple(lam.tolist()), tuple(w.tolist()))
-    k, p = src.sample(dk=(2 * math.pi / (lam[0] * _NM) - 2 * math.pi / (lam[-1] * _NM)) / 2000)
+    k, p = src.sample(dk=(2 * math.pi / (lam[0] * NM_TO_MM)
+                          - 2 * math.pi / (lam[-1] * NM_TO_MM)) / 2000)
     k_mean = float(np.sum(k * p))
-    lam_k = 2 * math.pi / k / _NM
-    lam_mean = 2 * math.pi / k_mean / _NM
+    lam_k = 2 * math.pi / k / NM_TO_MM
+    lam_mean = 2 * math.pi / k_mean / NM_TO_MM
     rms = math.sqrt(float(np.sum(p * (lam_k - lam_mean) ** 2)))
     return Source("table", lam_mean, rms * FWHM_PER_SIGMA, src.table_nm, src.table_weight)

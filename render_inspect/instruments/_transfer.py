@@ -12,7 +12,7 @@ reflected field is ::
            = r |K|^2 / (2 k_zo K) * Integral exp(i (K h - Q . x)) d^2x
 
 (the second line by integrating the slope term by parts; ``|K|^2 = |Q|^2 + K^2``), so the
-interference term of the image is the 3-D linear filter of Coupland et al. (2013)::
+interference term of the image is the 3-D linear filter of Coupland et al. (2013) [1]_::
 
     X(x, z) = sum_K  exp(-i K z)  IFFT[ H(Q, K) FFT[ r exp(i K h) ] ](x)
 
@@ -30,7 +30,17 @@ with the transfer function ::
 ``Q_m = m dq``.  Binning replaces ``exp(i K zeta)`` (``zeta = z - h``) by its linear
 interpolation between bins: an amplitude error of at most ``(dK zeta)^2 / 8`` and a phase
 error of third order, so :func:`axial_step` picks ``dK`` from the range of ``zeta`` the
-frames need.
+frames need.  For an ideal instrument the transfer function is set by the NA and the
+source spectrum alone, as Mandal et al. (2014) [2]_ measured it.
+
+References
+----------
+.. [1] J. M. Coupland, R. Mandal, K. Palodhi, R. K. Leach, "Coherence scanning
+       interferometry: linear theory of surface measurement," Applied Optics 52(16),
+       3662-3670 (2013).
+.. [2] R. Mandal, J. Coupland, R. Leach, D. Mansfield, "Coherence scanning interferometry:
+       measurement and correction of three-dimensional transfer and point-spread
+       characteristics," Applied Optics 53(8), 1554-1563 (2014).
 """
 
 from __future__ import annotations
@@ -42,6 +52,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..core.errors import InputError, MemoryBudgetError
+from ..core.units import MM_TO_NM
 
 __all__ = [
     "MAX_AXIAL_BINS",
@@ -247,7 +258,7 @@ class TransferFunction:
 
     @property
     def effective_wavelength_nm(self) -> float:
-        return 4 * math.pi / self.k_eff * 1e6
+        return 4 * math.pi / self.k_eff * MM_TO_NM
 
 
 def transfer_function(na: float, na_ill: float, obscuration: float, source, *, dK: float,
@@ -298,7 +309,7 @@ def transfer_function(na: float, na_ill: float, obscuration: float, source, *, d
         np.add.at(dep, (b0, cols), 1 - t)
         np.add.at(dep, (b0 + 1, cols), t)
         table += wj * (dep @ gu.T)
-    nz = table > 1e-12 * max(table.max(), 1e-300)
+    nz = table > 1e-12 * max(table.max(), 1e-300)  # not a unit conversion: a relative floor
     support = np.where(nz.any(axis=1), q[np.where(nz, np.arange(n_q)[None, :], 0).max(axis=1)], -1.0)
     table[~nz] = 0.0
     return TransferFunction(K=K, table=table.astype(np.float32), dq=float(dq), q_max=q_max,
@@ -335,7 +346,8 @@ def linear_itf(na: float, na_ill: float, obscuration: float, source, frequency) 
 def _itf_curve(na, na_ill, obscuration, source):
     # the axial binning (a linear deposit) keeps sum K H exactly, so a few wide bins do
     k_lo, k_hi = source.wavenumber_range()
-    dK = max(2.0 * (k_hi - k_lo), 2.0 * k_hi * (1 - math.sqrt(1 - na * na))) / 4 + 1e-9 * k_hi
+    dK = (max(2.0 * (k_hi - k_lo), 2.0 * k_hi * (1 - math.sqrt(1 - na * na))) / 4
+          + 1e-9 * k_hi)  # not a unit conversion: a relative margin
     tf = transfer_function(na, na_ill, obscuration, source, dK=dK)
     num = np.sum(tf.K[:, None] * tf.table.astype(np.float64), axis=0)
     return tf.dq * np.arange(num.size), num / num[0]

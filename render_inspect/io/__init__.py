@@ -1,5 +1,6 @@
 """Files: readers and writers registered by (product, extension), atomic writes and
-output folders.
+output folders.  Every ``_*.py`` module of this package is imported on start, so a new
+file format is one new module that registers its reader or writer.
 
 Products: ``heightmap`` (``heightmap.exr``), ``measured`` (measured height maps: X3P, EXR,
 npy/npz and instrument formats), ``toolpath`` and ``program`` (machine programs: npz, csv,
@@ -35,13 +36,15 @@ from ._limits import (
 )
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
-from ._png import save_height_png, save_map_png, save_png
+from ._png import png_bytes_with_text, save_png
+from ._pyramid import block_sums, coarsen, level_count, means, preview
 from ._registry import formats, reader, register_reader, register_writer, writer
 from ._stack import STACK_EXTENSIONS, read_frame_stack, write_measurement_exr
 from ._toolpath import (
                       CSV_COLUMNS,
                       PROGRAM_CSV_COLUMNS,
                       export_program,
+                      program_formats,
                       nc_comment_text,
                       read_csv,
                       read_nc,
@@ -54,21 +57,31 @@ from ._toolpath import (
                       write_program_npz,
                       write_toolpath_npz,
 )
+from ._tables import table_csv
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
+from ._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
+from ._exr import heightmap_channels, heightmap_overview
+from ._heightmap import grid_attrs
+from ..core.plugins import import_private_modules
+
+# file formats added as modules of this package register themselves on import
+import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
 
 __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
            "check_output_path", "check_output_dir", "claim_output_dir", "read_marker", "write_marker", "MARKER",
            "write_json", "json_safe",
-           "read_exr", "write_exr", "save_png", "save_map_png", "read_x3p", "write_x3p",
+           "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",
            "read_measured", "measured_formats", "read_frames_exr", "write_frames_exr",
            "FRAME_CHANNELS", "read_frame_stack", "write_measurement_exr", "STACK_EXTENSIONS",
            "read_heightmap_exr", "write_heightmap_exr", "heightmap_attrs",
            "formats", "reader", "writer", "register_reader", "register_writer",
-           "export_program", "nc_comment_text", "read_csv", "read_nc", "read_program_nc", "write_csv", "write_nc",
+           "export_program", "program_formats", "nc_comment_text", "read_csv", "read_nc", "read_program_nc", "write_csv", "write_nc",
            "read_toolpath_npz", "write_toolpath_npz", "write_program_csv", "write_program_nc",
            "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "check_exr", "check_npy",
            "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file",
-           "exr_placement", "save_height_png",
+           "exr_placement", "block_sums", "coarsen", "level_count", "means", "preview",
+           "ZarrHeightMap", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
+           "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain"]

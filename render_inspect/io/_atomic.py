@@ -9,11 +9,17 @@ in whole, with one rename, when complete:
 * a lock (``.NAME.lock`` beside the folder, ``flock``) makes a second run into the same
   folder fail at once with a clear message instead of racing the first;
 * a marker file :data:`MARKER` in every folder render_inspect writes lists the files of
-  each command; a non-empty folder without it, or with files the marker does not list,
-  is refused unless ``overwrite`` (``--overwrite``) is given.  A sub-folder with a marker
-  of its own (another command's output inside this one) and a Zarr store (``*.zarr``)
-  count as one entry each; render_inspect's own temporary names (``.NAME.lock``,
-  ``.NAME.partial-*``, ``.NAME.backup-*``, ``.NAME.*.tmp``) are not counted;
+  each command with their sizes and modification times; a non-empty folder without it,
+  with a marker of another user or of an earlier version, or with files the marker does
+  not list or that changed since, is refused unless ``overwrite`` (``--overwrite``) is
+  given.  A sub-folder with a marker of its own (another command's output inside this
+  one) is checked against its own marker; a Zarr store (``*.zarr``) counts as one entry;
+  render_inspect's own temporaries (``.NAME.lock`` holding a process id,
+  ``.NAME.partial-PID-XXXXXXXX/``, ``.NAME.backup-PID-XXXXXXXX/``, ``.NAME.XXXXXXXX.tmp``,
+  exactly so named) are not counted, while a file that merely looks like one is the
+  user's;
+* ``overwrite`` never follows a symbolic link given as the folder, and a folder that
+  holds the command's input (``inputs``) is refused even with it;
 * ``merge`` (the ``render`` command): the new folder also keeps the files other commands
   wrote there (hard links), provided they were made from the same part (design, tool,
   process, simulation and artifacts), and the output folders of other commands nested in
@@ -21,10 +27,12 @@ in whole, with one rename, when complete:
 * the swap exchanges the two folders atomically (``renameat2(RENAME_EXCHANGE)``) where
   the file system allows it, else renames the old folder to a backup, the new one into
   place, and deletes the backup only after that succeeded;
-* interruptions (SIGINT, SIGTERM) are held back while the folder is swapped or the
-  temporary folder removed; folders left by a killed run (``.NAME.partial-*``,
-  ``.NAME.backup-*``) are removed, or the backup restored, by the next run into the same
-  folder.
+* interruptions (SIGINT, SIGTERM, SIGHUP) are held back while the folder is swapped or
+  the temporary folder removed, and delivered once that is done (the exception then
+  says the folder is complete); folders left by a killed run (``.NAME.partial-*``,
+  ``.NAME.backup-*``) are removed by the next run into the same folder once that run
+  has put its own folder in place (a refused run removes nothing); a backup is put back
+  first when the folder itself is missing.
 """
 
 from __future__ import annotations
@@ -42,28 +50,40 @@ import shutil
 import signal
 import stat
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from .. import __version__
 from ..core.errors import InputError
 
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "json_safe",
            "write_json", "atomic_output_dir", "check_output_path", "read_marker", "MARKER",
-           "part_hash", "write_marker", "claim_output_dir", "check_output_dir"]
+           "part_hash", "write_marker", "claim_output_dir", "check_output_dir",
+           "completed_outputs", "MARKER_VERSION", "open_lock_file"]
 
 #: marker file in every output folder render_inspect writes (JSON)
 MARKER = ".render_inspect.json"
+#: the marker's layout: 2 records each file's size and modification time (``stat``)
+MARKER_VERSION = 2
 #: what the scene keys that shape the part are (a render may join a folder of the same part)
 PART_SECTIONS = ("design", "tool", "process", "simulation", "artifacts", "rcse")
 #: files operating systems drop into folders by themselves (never counted as the user's)
 _OS_JUNK = {".DS_Store", "Thumbs.db", "desktop.ini"}
 #: characters the hidden sibling names add to the folder's name
 _SIBLING_EXTRA = 48
-#: render_inspect's own temporary names beside the files it writes (locks, folders being
-#: built or replaced, files being written): never counted as the user's
-_OWN_TEMPORARY = re.compile(r"^\..+\.(lock|partial-.+|backup-.+|old-\d+|tmp(\.exr)?)$")
+#: render_inspect's own temporary names beside the files it writes, exactly as it makes
+#: them (the part after ``.NAME.``): the lock, folders being built (``partial``) or
+#: replaced (``backup``, ``old``), files being written (``tmp``).  A name that merely looks
+#: like one (``.metrics.json.backup-1``) is the user's.
+_TEMP_FILE = re.compile(r"^\..+\.(?:lock|[A-Za-z0-9_]{8}\.tmp|\d+\.tmp\.exr)$")
+_TEMP_DIR = re.compile(r"^\..+\.(?:partial-\d+-[0-9a-f]{8}|partial-[A-Za-z0-9_]{8}|"
+                       r"backup-\d+-[0-9a-f]{8}|old-\d+)$")
+#: the largest lock file render_inspect writes (a process id and a newline)
+_LOCK_MAX = 32
 
 
 def _umask() -> int:
@@ -231,10 +251,12 @@ def _scene_hash(scene) -> str | None:
 
 
 def read_marker(folder: str | Path) -> dict | None:
-    """The marker of a folder render_inspect wrote (:data:`MARKER`), or None."""
+    """The marker of a folder render_inspect wrote (:data:`MARKER`), or None (no marker, a
+    link, a damaged or foreign file)."""
     f = Path(folder) / MARKER
     try:
-        if not f.is_file() or f.stat().st_size > 16 * 2 ** 20:
+        st = os.lstat(f)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 16 * MIB_TO_BYTES:
             return None
         d = json.loads(f.read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -245,22 +267,66 @@ def read_marker(folder: str | Path) -> dict | None:
     return d
 
 
+def _distrust(folder: Path, marker: dict | None) -> str | None:
+    """Why the marker of ``folder`` does not vouch for its files (None: it does).  It must
+    belong to the user running render-inspect and record each file's size and date
+    (:data:`MARKER_VERSION`)."""
+    if marker is None:
+        return "is missing"
+    try:
+        owner = os.lstat(folder / MARKER).st_uid
+    except OSError:
+        return "cannot be read"
+    if hasattr(os, "geteuid") and owner != os.geteuid():
+        return f"belongs to another user (uid {owner})"
+    if not isinstance(marker.get("marker_version"), int) \
+            or marker["marker_version"] < MARKER_VERSION or not isinstance(marker.get("stat"), dict):
+        return ("comes from an earlier render-inspect version that did not record the files' "
+                "sizes and dates")
+    return None
+
+
 def _is_unit(folder: Path) -> bool:
     """A folder listed as one entry: another command's output (its own marker) or a Zarr
     store."""
     return folder.name.endswith(".zarr") or read_marker(folder) is not None
 
 
+def _own_temporary(full: Path, name: str, is_dir: bool) -> bool:
+    """Whether ``name`` is one of render_inspect's temporaries (:data:`_TEMP_FILE`,
+    :data:`_TEMP_DIR`): the exact name and the right kind (a lock file holding at most a
+    process id; a file; a folder), never a link."""
+    try:
+        st = os.lstat(full)
+    except OSError:
+        return False
+    if is_dir:
+        return stat.S_ISDIR(st.st_mode) and bool(_TEMP_DIR.match(name))
+    if not stat.S_ISREG(st.st_mode) or not _TEMP_FILE.match(name):
+        return False
+    if name.endswith(".lock"):
+        if st.st_size > _LOCK_MAX or st.st_nlink != 1:
+            return False
+        try:
+            text = full.read_bytes().strip()
+        except OSError:
+            return False
+        return text == b"" or text.isdigit()
+    return True
+
+
 def _files(folder: Path) -> list[str]:
     """Relative paths (posix) of every file and link below ``folder``, the marker, OS
-    junk and render_inspect's temporary names left out; nested output folders and Zarr
-    stores (:func:`_is_unit`) are one entry each, written with a trailing ``/``."""
+    junk and render_inspect's temporaries (:func:`_own_temporary`) left out; nested output
+    folders and Zarr stores (:func:`_is_unit`) are one entry each, written with a trailing
+    ``/``."""
     out = []
     for root, dirs, names in os.walk(folder):
         for n in names:
-            if n in _OS_JUNK or _OWN_TEMPORARY.match(n):
+            full = Path(root, n)
+            if n in _OS_JUNK or _own_temporary(full, n, False):
                 continue
-            rel = Path(root, n).relative_to(folder).as_posix()
+            rel = full.relative_to(folder).as_posix()
             if rel != MARKER:
                 out.append(rel)
         for d in list(dirs):
@@ -268,7 +334,7 @@ def _files(folder: Path) -> list[str]:
             if full.is_symlink():  # a link to a folder is listed as a file, not followed
                 out.append(full.relative_to(folder).as_posix())
                 dirs.remove(d)
-            elif _OWN_TEMPORARY.match(d):
+            elif _own_temporary(full, d, True):
                 dirs.remove(d)
             elif _is_unit(full):
                 out.append(full.relative_to(folder).as_posix() + "/")
@@ -282,36 +348,164 @@ def _nested_outputs(folder: Path, entries) -> list[str]:
     return [e for e in entries if e.endswith("/") and read_marker(folder / e.rstrip("/"))]
 
 
+def _stat_record(path: Path) -> list[int]:
+    """What the marker records of an entry: [size, modification time (ns)] of a file or
+    link; [bytes, latest modification time (ns), number of files] of a Zarr store."""
+    st = os.lstat(path)
+    if not stat.S_ISDIR(st.st_mode):
+        return [int(st.st_size), int(st.st_mtime_ns)]
+    size = latest = count = 0
+    for root, dirs, names in os.walk(path):
+        for n in names + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            s = os.lstat(os.path.join(root, n))
+            size, latest, count = size + s.st_size, max(latest, s.st_mtime_ns), count + 1
+    return [int(size), int(latest), int(count)]
+
+
+def _foreign(folder: Path, marker: dict, depth: int = 0) -> list[str]:
+    """The entries below ``folder`` its (trusted) marker does not vouch for: not listed, or
+    changed since render-inspect wrote them (size or date); the output folders of other
+    commands nested in it are checked against their own markers, to any depth."""
+    out = []
+    stats = marker.get("stat", {})
+    for rel in _files(folder):
+        full = folder / rel.rstrip("/")
+        sub = read_marker(full) if rel.endswith("/") else None
+        if sub is not None:  # another command's output: its own marker speaks for it
+            if depth >= 32 or _distrust(full, sub):
+                out.append(rel)
+            else:
+                out.extend(rel + f for f in _foreign(full, sub, depth + 1))
+            continue
+        try:
+            same = rel in marker["files"] and stats.get(rel) == _stat_record(full)
+        except OSError:
+            same = False
+        if not same:
+            out.append(rel)
+    return out
+
+
 # ------------------------------------------------------------------------ signals, lock
+_HELD_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+                      if hasattr(signal, n))
+
+
+def _deliver(signum: int, handler) -> None:
+    """Deliver a signal that was held back to the handler it would have reached."""
+    if handler is signal.SIG_IGN:
+        return
+    if callable(handler):
+        handler(signum, None)
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    os.kill(os.getpid(), signum)  # the default action: end the process
+
+
 @contextlib.contextmanager
 def _signals_held():
-    """Hold SIGINT/SIGTERM/SIGHUP back while a block runs (the swap, the clean-up)."""
-    sigs = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+    """Hold SIGINT, SIGTERM and SIGHUP back while a block runs (the swap, the clean-up).
+
+    Their handlers are replaced by one that only notes the signal; when the block ends
+    the handlers are restored and the first noted signal goes to its handler then (an
+    exception from the block wins).  Replacing the handlers, not masking the signals,
+    is what holds them back in a process with several threads: a masked signal is
+    delivered to another thread, and Python then runs its handler in the main thread at
+    once.  Outside the main thread (where Python runs no handler) the block runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+
+    def note(signum, frame):
+        noted.append(signum)
+
+    old = {}
     try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-    except (ValueError, OSError, AttributeError):
-        old = None
-    try:
+        for sig in _HELD_SIGNALS:
+            try:
+                old[sig] = signal.signal(sig, note)
+            except (ValueError, OSError):
+                pass
         yield
     finally:
-        if old is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, handler in old.items():
+            with contextlib.suppress(ValueError, OSError, TypeError):
+                signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+    if noted:
+        _deliver(noted[0], old.get(noted[0]))
+
+
+#: output folders swapped in by this process: (time.monotonic(), folder)
+_COMPLETED: list[tuple[float, str]] = []
+
+
+def completed_outputs(since: float = 0.0) -> list[str]:
+    """The output folders :func:`atomic_output_dir` swapped in (complete) in this process
+    since ``since`` (a :func:`time.monotonic` time), oldest first: what a command stopped
+    by an interruption after writing its folder reports as written."""
+    return [f for t, f in _COMPLETED if t >= since]
+
+
+def open_lock_file(path, *, option: str = "--out", out_text: str | None = None) -> int:
+    """Open (creating it) the lock file ``path`` for ``flock`` and return the descriptor,
+    without following a symbolic link and without blocking on a pipe: a link, a hard
+    link to another file, a device or pipe, or a file holding more than a process id
+    under that name is refused with one line naming ``option`` (it is never truncated or
+    written through)."""
+    path = Path(path)
+    out_text = str(path.parent) if out_text is None else out_text
+    flags = os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | getattr(os, "O_NOFOLLOW", 0) \
+        | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags, 0o666 & ~_umask() | 0o600)
+    except OSError as err:
+        if err.errno in (errno.ELOOP, errno.EMLINK) or os.path.islink(path):
+            raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} is a symbolic link, "
+                             f"not render-inspect's lock file; remove it (the lock is never "
+                             f"written through a link)") from None
+        raise InputError(f"{option} {_shown(out_text)}: cannot write in {str(path.parent)!r} "
+                         f"({err.strerror})") from None
+    try:
+        st = os.fstat(fd)
+        why = None
+        if not stat.S_ISREG(st.st_mode):
+            why = "is not a regular file"
+        elif st.st_nlink != 1:
+            why = f"is a hard link ({st.st_nlink} names for one file)"
+        elif st.st_size > _LOCK_MAX:
+            why = f"holds {st.st_size} bytes, not a process id"
+        else:
+            text = os.pread(fd, _LOCK_MAX + 1, 0).strip()
+            if text and not text.isdigit():
+                why = "holds something other than a process id"
+        if why:
+            raise InputError(f"{option} {_shown(out_text)}: {str(path)!r} {why}, so it is not "
+                             f"render-inspect's lock file; move it away (it is never "
+                             f"truncated or written)")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
 
 
 class _Lock:
     """An exclusive ``flock`` on ``.NAME.lock`` beside the output folder (released by the
-    kernel if the process dies)."""
+    kernel if the process dies).
+
+    The lock file is opened without following a symbolic link (``O_NOFOLLOW``) and must
+    be a regular file with one name that holds at most a process id: a link, a hard link
+    to another file, a device or a file with other content planted under that name is
+    refused, never truncated or written through."""
 
     def __init__(self, path: Path, out_text: str, option: str):
         import fcntl
 
         self.path = path
         while True:
-            try:
-                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666 & ~_umask() | 0o600)
-            except OSError as err:
-                raise InputError(f"{option} {_shown(out_text)}: cannot write in "
-                                 f"{str(path.parent)!r} ({err.strerror})") from None
+            fd = open_lock_file(path, option=option, out_text=out_text)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as err:
@@ -329,7 +523,7 @@ class _Lock:
                                  f"({err.strerror})") from None
             # the file may have been removed and re-created by the previous holder
             try:
-                same = os.path.samestat(os.fstat(fd), os.stat(path))
+                same = os.path.samestat(os.fstat(fd), os.lstat(path))
             except FileNotFoundError:
                 same = False
             if same:
@@ -344,7 +538,8 @@ class _Lock:
         if self.fd is None:
             return
         with contextlib.suppress(OSError):
-            os.unlink(self.path)
+            if os.path.samestat(os.fstat(self.fd), os.lstat(self.path)):
+                os.unlink(self.path)
         with contextlib.suppress(OSError):
             os.close(self.fd)
         self.fd = None
@@ -402,53 +597,112 @@ def _swap_in(new: Path, out: Path, backup: Path) -> None:
     _rmtree(backup)
 
 
-def _clean_stale(out: Path) -> list[str]:
-    """Remove the temporary folders of earlier runs into ``out`` that did not finish (we
-    hold the lock: nobody else is using them); restore a backup if ``out`` is missing."""
+def _stale_siblings(out: Path) -> tuple[list[Path], list[Path]]:
+    """(partial folders, backups newest first) that earlier runs into ``out`` left beside
+    it: folders named exactly as :func:`atomic_output_dir` names them."""
     parent, name = out.parent, out.name
-    done = []
+    pat = re.compile(rf"^\.{re.escape(name)}\.(partial|backup)-\d+-[0-9a-f]{{8}}$")
+    partials, backups = [], []
     try:
         entries = list(os.scandir(parent))
     except OSError:
-        return done
-    partials = [e for e in entries if e.name.startswith(f".{name}.partial-")]
-    backups = sorted((e for e in entries if e.name.startswith(f".{name}.backup-")),
-                     key=lambda e: e.stat(follow_symlinks=False).st_mtime, reverse=True)
-    if backups and not out.exists():
+        return partials, backups
+    for e in entries:
+        m = pat.match(e.name)
+        if m is None:
+            continue
+        try:
+            if not e.is_dir(follow_symlinks=False):
+                continue
+            (partials if m.group(1) == "partial" else backups).append(
+                (e.stat(follow_symlinks=False).st_mtime, Path(e.path)))
+        except OSError:
+            continue
+    return [p for _, p in partials], [p for _, p in sorted(backups, reverse=True)]
+
+
+def _restore_backup(out: Path) -> str | None:
+    """A run killed in the middle of a swap can leave ``out`` missing and its old content
+    in a backup beside it: put the newest backup back (we hold the lock)."""
+    if out.exists() or out.is_symlink():
+        return None
+    _, backups = _stale_siblings(out)
+    for b in backups:
         with contextlib.suppress(OSError):
-            os.rename(backups[0].path, out)
-            done.append(f"restored {backups[0].name}")
-            backups = backups[1:]
-    for e in partials + backups:
-        _rmtree(Path(e.path))
-        done.append(f"removed {e.name}")
+            os.rename(b, out)
+            return f"restored {b.name}"
+    return None
+
+
+def _clean_stale(out: Path) -> list[str]:
+    """Remove the temporary folders of earlier runs into ``out`` that did not finish (we
+    hold the lock: nobody else is using them).  Called only once this run's folder is in
+    place, so a refused or failed run removes nothing."""
+    partials, backups = _stale_siblings(out)
+    done = []
+    for p in partials + backups:
+        _rmtree(p)
+        done.append(f"removed {p.name}")
     return done
 
 
 # ------------------------------------------------------------------------ the folder
+def _listing(entries) -> str:
+    return ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+
+
+def _check_link(out_text: str, overwrite: bool, option: str) -> None:
+    """``--overwrite`` does not replace the folder a symbolic link points to."""
+    full = os.path.abspath(out_text)
+    if overwrite and os.path.islink(full):
+        raise InputError(f"{option} {_shown(out_text)} is a symbolic link to "
+                         f"{os.path.realpath(full)!r}; --overwrite does not replace the folder a "
+                         f"link points to: give that folder itself as {option}, or remove the link")
+
+
+def _check_inputs(target: Path, inputs, option: str, out_text: str) -> None:
+    """Refuse an output folder that holds one of the command's input files (it would be
+    deleted with the folder), whatever ``--overwrite`` says."""
+    for f in inputs or ():
+        try:
+            full = Path(os.path.abspath(os.fspath(f))).resolve()
+        except (OSError, RuntimeError, TypeError, ValueError):
+            continue
+        if full == target or target in full.parents:
+            raise InputError(f"{option} {_shown(out_text)} holds the input {str(f)!r}; the "
+                             f"output folder is replaced as a whole, which would delete it: "
+                             f"choose another {option} or move the input out of it")
+
+
 def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | None,
-                      command: str, option: str, out_text: str) -> tuple[str, dict | None]:
+                      command: str, option: str, out_text: str,
+                      inputs=()) -> tuple[str, dict | None]:
     """How to treat an existing ``out``: ("new" | "replace" | "merge", its marker)."""
     if not out.exists():
         return "new", None
+    _check_inputs(out, inputs, option, out_text)
     present = _files(out)
     marker = read_marker(out)
     if not present:
-        return ("merge" if merge and marker else "new"), marker
+        return ("merge" if merge and marker and not _distrust(out, marker) else "new"), marker
     if overwrite:
         return "replace", marker
     if marker is None:
-        shown = ", ".join(present[:3]) + (", ..." if len(present) > 3 else "")
         raise InputError(f"{option} {_shown(out_text)} is not empty ({len(present)} files: "
-                         f"{shown}) and was not written by render-inspect (no {MARKER}); "
-                         f"choose a new or empty folder, or pass --overwrite to replace it")
-    nested = set(_nested_outputs(out, present))
-    foreign = [f for f in present if f not in marker["files"] and f not in nested]
+                         f"{_listing(present)}) and was not written by render-inspect (no "
+                         f"{MARKER}); choose a new or empty folder, or pass --overwrite to "
+                         f"replace it")
+    why = _distrust(out, marker)
+    if why:
+        raise InputError(f"{option} {_shown(out_text)} is not empty ({len(present)} files: "
+                         f"{_listing(present)}) and its {MARKER} {why}; choose a new or empty "
+                         f"folder, or pass --overwrite to replace it")
+    foreign = _foreign(out, marker)
     if foreign:
-        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
         raise InputError(f"{option} {_shown(out_text)} holds files render-inspect did not "
-                         f"write ({shown}); move them away, choose another folder, or pass "
-                         f"--overwrite to replace the folder")
+                         f"write or that changed since it wrote them ({_listing(foreign)}); "
+                         f"move them away, choose another folder, or pass --overwrite to "
+                         f"replace the folder")
     if merge and part is not None:
         parts = {c: v.get("part_sha256") for c, v in marker.get("commands", {}).items()
                  if isinstance(v, dict) and v.get("part_sha256") and c != command}
@@ -461,16 +715,18 @@ def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: str | No
 
 
 def check_output_dir(out, *, overwrite: bool = False, merge: bool = False,
-                     command: str = "output", scene=None, option: str = "--out") -> Path:
+                     command: str = "output", scene=None, option: str = "--out",
+                     inputs=()) -> Path:
     """The checks :func:`atomic_output_dir` makes before its block runs (the path, and an
-    existing folder's content against ``overwrite`` / ``merge``), without locking or
-    writing anything: for a command that reads its input before it opens its output
-    folder, so that a bad ``--out`` is refused before any work.  Returns the folder
+    existing folder's content against ``overwrite`` / ``merge`` / ``inputs``), without
+    locking or writing anything: for a command that reads its input before it opens its
+    output folder, so that a bad ``--out`` is refused before any work.  Returns the folder
     (absolute)."""
     out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
     target = check_output_path(out, option=option)
+    _check_link(out_text, overwrite, option)
     _inspect_existing(target, overwrite=overwrite, merge=merge, part=part_hash(scene),
-                      command=command, option=option, out_text=out_text)
+                      command=command, option=option, out_text=out_text, inputs=inputs)
     return target
 
 
@@ -491,8 +747,12 @@ def _write_marker(folder: Path, *, command: str, scene, previous: dict | None,
         commands = {c: v for c, v in previous.get("commands", {}).items()
                     if c in set(kept.values()) and isinstance(v, dict)}
     commands[command] = {"part_sha256": part_hash(scene), "scene_sha256": _scene_hash(scene)}
-    d = {"written_by": "render_inspect", "marker_version": 1, "software_version": __version__,
-         "files": dict(sorted(files.items())), "commands": dict(sorted(commands.items()))}
+    # each entry's size and date (a nested output folder speaks for itself with its marker)
+    stats = {rel: _stat_record(folder / rel.rstrip("/")) for rel in files
+             if not (rel.endswith("/") and read_marker(folder / rel.rstrip("/")) is not None)}
+    d = {"written_by": "render_inspect", "marker_version": MARKER_VERSION,
+         "software_version": __version__, "files": dict(sorted(files.items())),
+         "stat": dict(sorted(stats.items())), "commands": dict(sorted(commands.items()))}
     (folder / MARKER).write_text(json.dumps(d, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 
@@ -523,7 +783,7 @@ _OUTPUT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EI
 
 @contextlib.contextmanager
 def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool = False,
-                      command: str = "output", scene=None, option: str = "--out"):
+                      command: str = "output", scene=None, option: str = "--out", inputs=()):
     """Yield a fresh temporary folder; when the block ends without an exception it
     becomes ``out``, whole, in one swap (see the module docstring).
 
@@ -544,14 +804,22 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
         Recorded (as hashes) in the marker; a merge needs the same part.
     option : str
         The option named in error messages.
+    inputs : sequence of paths
+        The command's input files: an ``out`` that holds one is refused (it would be
+        deleted with the folder), even with ``overwrite``.
 
-    On an exception (an interruption included) the temporary folder is removed, ``out``
-    is left as it was and the exception propagates; errors writing into the temporary
-    folder (a full disk, a read-only file system) become :class:`InputError` naming
-    ``option``.
+    ``overwrite`` does not follow a symbolic link: an ``out`` that is a link is refused
+    with it (give the folder itself).  On an exception (an interruption included) before
+    the swap the temporary folder is removed, ``out`` is left as it was and the exception
+    propagates; an interruption that arrives during the swap is held back until the
+    folder is in place and then raised with the attribute
+    ``render_inspect_output_complete`` (the folder); :func:`completed_outputs` lists the
+    folders swapped in.  Errors writing into the temporary folder (a full disk, a
+    read-only file system) become :class:`InputError` naming ``option``.
     """
     out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
     target = check_output_path(out, option=option)
+    _check_link(out_text, overwrite, option)
     created = []
     p = target.parent
     while not p.exists():
@@ -565,10 +833,10 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
             except FileExistsError:
                 pass
         lock = _Lock(target.parent / f".{target.name}.lock", out_text, option)
-        _clean_stale(target)
+        _restore_backup(target)
         mode, marker = _inspect_existing(target, overwrite=overwrite, merge=merge,
                                          part=part_hash(scene), command=command, option=option,
-                                         out_text=out_text)
+                                         out_text=out_text, inputs=inputs)
         tmp = target.parent / f".{target.name}.partial-{os.getpid()}-{secrets.token_hex(4)}"
         os.mkdir(tmp, 0o777 & ~_umask() | 0o700)
     except OSError as err:
@@ -603,6 +871,10 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
                                                   f"{secrets.token_hex(4)}")
             tmp = None
             created = []
+            _COMPLETED.append((time.monotonic(), str(target)))
+            _clean_stale(target)  # earlier runs' leftovers, now that this run is complete
+        # an interruption held back during the swap is delivered here, inside this block,
+        # so the handler below says that the folder is complete
     except BaseException as exc:
         if tmp is None:  # the folder was swapped in; an interruption held back arrived after
             exc.render_inspect_output_complete = str(target)
@@ -677,8 +949,8 @@ def claim_output_dir(out, *, command: str, overwrite: bool = False, option: str 
         marker = read_marker(target)
         commands = dict(marker.get("commands", {})) if marker is not None else {}
         commands.setdefault(command, {"part_sha256": None, "scene_sha256": None})
-        d = {"written_by": "render_inspect", "marker_version": 1,
-             "software_version": __version__, "files": {},
+        d = {"written_by": "render_inspect", "marker_version": MARKER_VERSION,
+             "software_version": __version__, "files": {}, "stat": {},
              "commands": dict(sorted(commands.items()))}
         atomic_write_text(target / MARKER, json.dumps(d, indent=2, sort_keys=True) + "\n")
     except OSError as err:

@@ -13,6 +13,8 @@ the automatic budget of :func:`~render_inspect.core.limits.memory_budget`).
 from __future__ import annotations
 
 import ast
+import contextlib
+import contextvars
 import json
 import re
 import struct
@@ -22,27 +24,58 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
 
 __all__ = ["check_npy", "check_npz", "check_zip", "check_x3p", "check_exr", "read_json_file",
+           "check_frames",
            "check_real_array", "check_values", "check_file_values", "MAX_JSON_BYTES",
-           "MAX_ZIP_MEMBERS", "MAX_ZIP_RATIO", "READ_BYTES_PER_VALUE"]
+           "MAX_ZIP_MEMBERS", "MAX_ZIP_RATIO", "READ_BYTES_PER_VALUE", "reading_for",
+           "per_value_bytes"]
 
 #: largest side-car JSON file read, bytes
-MAX_JSON_BYTES = 1 * 2 ** 20
+MAX_JSON_BYTES = 1 * MIB_TO_BYTES
 #: most members an archive (npz, X3P) may hold
 MAX_ZIP_MEMBERS = 4096
 #: largest uncompressed / compressed size of one zip member above 64 MiB (real height
 #: data compresses a few times; a bomb compresses a thousand times)
 MAX_ZIP_RATIO = 200.0
-_RATIO_FLOOR = 64 * 2 ** 20
+_RATIO_FLOOR = 64 * MIB_TO_BYTES
 #: what reading a damaged or unusual archive raises
 _ZIP_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, OSError, EOFError,
                ValueError, RuntimeError, NotImplementedError, UnicodeDecodeError)
 #: bytes of working memory a reader needs per declared value (the value as float64, a
 #: copy for the unit conversion and the mask of valid points)
 READ_BYTES_PER_VALUE = 24
+#: (bytes per value, purpose) of what the caller does with the map once read
+#: (:func:`reading_for`)
+_AFTER: contextvars.ContextVar = contextvars.ContextVar("render_inspect_after_read",
+                                                        default=(0.0, ""))
+
+
+@contextlib.contextmanager
+def reading_for(bytes_per_value: float, purpose: str):
+    """Within the block, the readers' size checks count ``bytes_per_value`` bytes per
+    declared value (when more than :data:`READ_BYTES_PER_VALUE`): the peak of what the
+    caller does with the map once read, e.g. ``analyze``'s parameters, so that a map too
+    large for that is refused before it is read; ``purpose`` ("analyse") goes into the
+    message ("would need about 7 GiB to read and analyse")."""
+    token = _AFTER.set((float(bytes_per_value), str(purpose)))
+    try:
+        yield
+    finally:
+        _AFTER.reset(token)
+
+
+def per_value_bytes() -> float:
+    """Bytes per declared value the size checks count now (see :func:`reading_for`)."""
+    return max(float(READ_BYTES_PER_VALUE), _AFTER.get()[0])
+
+
+def _purpose() -> str:
+    after, purpose = _AFTER.get()
+    return f"read and {purpose}" if purpose and after > READ_BYTES_PER_VALUE else "read"
 
 
 def _budget(budget) -> tuple[int, str]:
@@ -57,7 +90,7 @@ def _refuse_size(what: str, path, desc: str, nbytes: float, budget) -> None:
     limit, source = _budget(budget)
     if nbytes > limit:
         raise MemoryBudgetError(f"{what} {str(path)!r} declares {desc}, which would need about "
-                                f"{format_bytes(nbytes)} to read, more than the memory budget of "
+                                f"{format_bytes(nbytes)} to {_purpose()}, more than the memory budget of "
                                 f"{format_bytes(limit)} ({source}); crop or resample the map")
 
 
@@ -98,7 +131,7 @@ def _npy_header(fh, what: str, name: str) -> tuple[tuple, np.dtype, bool, int]:
         dtype = np.lib.format.descr_to_dtype(descr)
     except Exception:  # a damaged header can fail in many ways; all mean "not readable"
         raise InputError(f"{what} {name!r}: damaged .npy header {text[:80]!r}") from None
-    if not all(isinstance(n, int) and n >= 0 for n in shape):
+    if not all(type(n) is int and n >= 0 for n in shape):  # True is an int, not a size
         raise InputError(f"{what} {name!r}: .npy shape must be non-negative integers, "
                          f"received {shape!r}")
     if dtype.hasobject:
@@ -107,11 +140,12 @@ def _npy_header(fh, what: str, name: str) -> tuple[tuple, np.dtype, bool, int]:
     return shape, dtype, fortran, 8 + (2 if major == 1 else 4) + size
 
 
-def check_values(path, *, what: str, desc: str, count: float, budget=None) -> None:
+def check_values(path, *, what: str, desc: str, count: float, budget=None,
+                 extra_bytes: float = 0) -> None:
     """Refuse a file that declares ``count`` height values (``desc`` says how, e.g. "a
     4096 x 4096 grid") when reading them would not fit the budget
-    (:data:`READ_BYTES_PER_VALUE` bytes each)."""
-    _refuse_size(what, path, desc, float(count) * READ_BYTES_PER_VALUE, budget)
+    (:func:`per_value_bytes` each, plus ``extra_bytes`` the reader holds besides)."""
+    _refuse_size(what, path, desc, float(count) * per_value_bytes() + float(extra_bytes), budget)
 
 
 def check_file_values(path, *, what: str, bytes_per_value: int, budget=None) -> int:
@@ -122,7 +156,7 @@ def check_file_values(path, *, what: str, bytes_per_value: int, budget=None) -> 
     size = path.stat().st_size
     _refuse_size(what, path, f"{format_bytes(size)} of data (up to "
                              f"{format_number(size / bytes_per_value)} values)",
-                 size + size / bytes_per_value * READ_BYTES_PER_VALUE, budget)
+                 size + size / bytes_per_value * per_value_bytes(), budget)
     return size
 
 
@@ -151,7 +185,7 @@ def check_npy(path, *, what: str, budget=None, ndim: int | None = 2) -> tuple[tu
         count *= n
     nbytes = count * dtype.itemsize
     _refuse_size(what, path, f"a {' x '.join(format_number(n) for n in shape)} array",
-                 count * READ_BYTES_PER_VALUE, budget)
+                 count * per_value_bytes(), budget)
     have = path.stat().st_size - offset
     if have < nbytes:
         raise InputError(f"{what} {str(path)!r} is truncated: its header declares "
@@ -211,23 +245,56 @@ def check_npz(path, *, what: str, budget=None, names=None) -> dict[str, tuple]:
                                  f"(its header declares more data than it holds)")
             total += count
             out[name] = (shape, dtype)
-    _refuse_size(what, path, f"{format_number(total)} values", total * READ_BYTES_PER_VALUE, budget)
+    _refuse_size(what, path, f"{format_number(total)} values", total * per_value_bytes(), budget)
     return out
 
 
-_SIZE = re.compile(rb"<Size([XYZ])>\s*(\d{1,20})\s*</Size\1>")
+def _x3p_sizes(text: bytes, what: str, path) -> tuple[int, int, int]:
+    """SizeX, SizeY, SizeZ of an X3P ``main.xml`` (0 where not declared), parsed as XML
+    with defusedxml (no DTDs, entities or external references), whatever the spacing,
+    comments or namespace prefixes."""
+    try:
+        from defusedxml import ElementTree as SafeET
+        from defusedxml.common import DefusedXmlException
+    except ImportError:  # pragma: no cover - installed with x3pio
+        raise InputError(f"{what} {str(path)!r}: reading X3P files needs the defusedxml package "
+                         f"(pip install render_inspect[metrology])") from None
+    try:
+        root = SafeET.fromstring(text, forbid_dtd=True, forbid_entities=True,
+                                 forbid_external=True)
+    except DefusedXmlException as err:
+        raise InputError(f"{what} {str(path)!r}: main.xml uses XML features refused for safety "
+                         f"({type(err).__name__})") from None
+    except Exception as err:  # ParseError, UnicodeDecodeError, ValueError
+        raise InputError(f"{what} {str(path)!r}: main.xml is not well-formed XML "
+                         f"({type(err).__name__}: {err})") from None
+    found: dict[str, list[str]] = {"X": [], "Y": [], "Z": []}
+    for el in root.iter():
+        tag = el.tag.rsplit("}", 1)[-1] if isinstance(el.tag, str) else ""
+        if tag in ("SizeX", "SizeY", "SizeZ"):
+            found[tag[-1]].append("".join(el.itertext()).strip())
+    sizes = []
+    for axis in "XYZ":
+        vals = []
+        for t in found[axis]:
+            if not re.fullmatch(r"\+?\d{1,19}", t):
+                raise InputError(f"{what} {str(path)!r}: main.xml Size{axis} must be a whole "
+                                 f"number >= 0, received {t[:40]!r}")
+            vals.append(int(t))
+        sizes.append(max(vals, default=0))  # several declarations: the largest counts
+    return sizes[0], sizes[1], sizes[2]
 
 
 def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
     """Check an X3P file before reading: :func:`check_zip`, then the grid size its
-    ``main.xml`` declares (SizeX x SizeY x SizeZ) within the budget.  Returns the sizes
-    (0 where not declared)."""
+    ``main.xml`` declares (SizeX x SizeY x SizeZ, read as XML: :func:`_x3p_sizes`) within
+    the budget.  Returns the sizes (0 where not declared)."""
     path = _file(path, what)
     infos = check_zip(path, what=what, budget=budget, kind="X3P file (a zip archive)")
     main = [i for i in infos if i.filename.replace("\\", "/").rsplit("/", 1)[-1] == "main.xml"]
     if not main:
         raise InputError(f"{what} {str(path)!r} is not an X3P file (no main.xml in the archive)")
-    if main[0].file_size > 64 * 2 ** 20:
+    if main[0].file_size > 64 * MIB_TO_BYTES:
         raise InputError(f"{what} {str(path)!r}: main.xml is {format_bytes(main[0].file_size)}; "
                          f"refused (an X3P's main.xml is a few kB unless it lists the points)")
     with zipfile.ZipFile(path) as zf:
@@ -235,10 +302,9 @@ def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
             text = zf.read(main[0])
         except _ZIP_ERRORS as err:
             raise InputError(f"{what} {str(path)!r}: main.xml cannot be read ({err})") from None
-    sizes = {k.decode(): int(v) for k, v in _SIZE.findall(text)}
-    sx, sy, sz = (sizes.get(k, 0) for k in "XYZ")
+    sx, sy, sz = _x3p_sizes(text, what, path)
     count = max(sx, 1) * max(sy, 1) * max(sz, 1)
-    _refuse_size(what, path, f"a {sx} x {sy} x {sz} grid", count * (READ_BYTES_PER_VALUE + 16),
+    _refuse_size(what, path, f"a {sx} x {sy} x {sz} grid", count * (per_value_bytes() + 16),
                  budget)
     return sx, sy, sz
 
@@ -271,9 +337,37 @@ def check_exr(path, *, what: str, budget=None) -> tuple[int, int, int]:
     if w <= 0 or h <= 0:
         raise InputError(f"{what} {str(path)!r}: the EXR data window is empty ({w} x {h})")
     n = max(len(chans), 1)
-    _refuse_size(what, path, f"{n} channel(s) of {w} x {h} pixels", w * h * n * (4 + 8 + 8),
+    _refuse_size(what, path, f"{n} channel(s) of {w} x {h} pixels",
+                 w * h * n * (4 + 8 + 8) + w * h * (per_value_bytes() - READ_BYTES_PER_VALUE),
                  budget)
     return h, w, n
+
+
+def check_frames(frames, valid=None, *, what: str, path) -> np.ndarray:
+    """Check an interferogram's frames (``(n, ny, nx)``) before a measurement: a pixel is
+    usable when it is ``valid`` and every frame holds a finite intensity there.  Returns
+    that mask; refuses (one line naming ``what`` and the file) a stack in which no pixel
+    is usable, e.g. all-NaN frames, which would otherwise give an empty height map and
+    exit 0."""
+    frames = np.asarray(frames)
+    if frames.ndim != 3 or frames.shape[0] < 1:
+        raise InputError(f"{what} {str(path)!r} must hold frames of shape (n, rows, columns), "
+                         f"received shape {frames.shape}")
+    if frames.dtype.kind not in "fiu":
+        raise InputError(f"{what} {str(path)!r} must hold real intensities, received dtype "
+                         f"{frames.dtype}")
+    usable = np.ones(frames.shape[1:], dtype=bool) if valid is None else np.asarray(valid, bool).copy()
+    if usable.shape != frames.shape[1:]:
+        raise InputError(f"{what} {str(path)!r}: the valid mask has shape {usable.shape}, the "
+                         f"frames {frames.shape[1:]}")
+    for k in range(frames.shape[0]):
+        usable &= np.isfinite(frames[k])
+    if not usable.any():
+        bad = int(np.count_nonzero(~np.isfinite(frames[0])))
+        raise InputError(f"{what} {str(path)!r} has no pixel with a finite intensity in every "
+                         f"frame ({bad} of {frames[0].size} pixels of the first frame are NaN or "
+                         f"infinite): nothing can be measured")
+    return usable
 
 
 def read_json_file(path, *, what: str, max_bytes: int = MAX_JSON_BYTES) -> dict:

@@ -29,23 +29,31 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES, UM_TO_MM
 from ..core.errors import InputError
+from ..core.limits import (MAX_ABS_MM, MAX_FIELD_MM, MOSTLY_EMPTY_FRACTION, PIXEL_RANGE_MM,
+                           mostly_empty_warning)
+from . import _wyko
 from ._exr import exr_placement, read_exr
+from ._frt import reader_keeps_stored_order
 from ._limits import (
     check_file_values,
     check_npy,
     check_npz,
     check_real_array,
     check_values,
+    check_zip,
     read_json_file,
+    reading_for,
 )
 from ._registry import formats, reader, register_reader
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
-from ._zarr import ZarrHeightMap
+from ._zarr import ZarrHeightMap, zarr_read_overhead
 
 __all__ = ["MeasuredMap", "read_surface", "read_measured", "measured_formats",
-           "reader_for", "UNIT_TO_MM"]
+           "reader_for", "UNIT_TO_MM", "PIXEL_RANGE_MM", "MAX_FIELD_MM", "MAX_ABS_MM",
+           "MOSTLY_EMPTY_FRACTION", "mostly_empty_warning"]
 
 #: Length units a file may declare, in mm.
 UNIT_TO_MM = {"m": 1e3, "mm": 1.0, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "nm": 1e-6,
@@ -148,8 +156,10 @@ def _read_zarr(path, *, channel=None, region=None, **_):
     z = ZarrHeightMap(path, what=_WHAT)
     channel = channel or "machined"
     rows, cols = z.index_window(region) if region is not None else (slice(0, z.shape[0]), slice(0, z.shape[1]))
+    # the window's values, and the chunks zarr decodes at once to fill it
     check_values(path, what=_WHAT, desc=f"a {rows.stop - rows.start} x {cols.stop - cols.start} window",
-                 count=(rows.stop - rows.start) * (cols.stop - cols.start))
+                 count=(rows.stop - rows.start) * (cols.stop - cols.start),
+                 extra_bytes=zarr_read_overhead(z, rows, cols))
     data = z.read(channel, rows, cols).astype(np.float64)
     origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
     return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
@@ -208,7 +218,9 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
             z = np.load(path, allow_pickle=False).astype(np.float64)
             if sidecar.is_file():
                 side = read_json_file(sidecar, what=f"{_WHAT} side-car")
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as err:
+    except InputError:
+        raise
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, TypeError) as err:
         raise InputError(f"{_WHAT} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
     pxy, origin, units = _sidecar_values(path, side, pixel, origin, units)
     if pxy is None:
@@ -230,11 +242,16 @@ _ST_READERS = {".dat": "MetroProReader", ".datx": "DATXReader", ".plu": "PLURead
 def _read_surface_topography(path, **_):
     import SurfaceTopography.IO as stio
 
-    cls = getattr(stio, _ST_READERS[Path(path).suffix.lower()])
+    suffix = Path(path).suffix.lower()
+    cls = getattr(stio, _ST_READERS[suffix])
+    if suffix == ".plux":
+        _check_plux(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             rd = cls(str(path))
+            if not rd.channels:
+                raise InputError(f"{path}: the file holds no height data (no height layer)")
             # the grid the file declares, checked before the heights are read
             for ch in rd.channels[:1]:
                 n = ch.nb_grid_pts
@@ -254,13 +271,43 @@ def _read_surface_topography(path, **_):
     h = t.heights()
     h = h.filled(np.nan) if np.ma.isMaskedArray(h) else np.asarray(h)
     z = np.asarray(h, dtype=np.float64).T * scale  # SurfaceTopography: [x, y]; here [row=y, col=x]
+    if Path(path).suffix.lower() == ".opd":  # 16-bit invalid-point markers (io/_wyko.py)
+        z = _wyko.mask_invalid(path, z)
     px, py = (float(v) * scale for v in t.pixel_size)
     info = t.info or {}
     meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": {"lateral": unit,
                                                                        "vertical": unit},
             "instrument": (info.get("instrument") or {}).get("name", ""),
             "date": str(info.get("acquisition_time", ""))}
+    if suffix == ".frt":
+        # Gwyddion's row order (the file's last stored row first), whichever order the
+        # installed SurfaceTopography gives (see render_inspect.io._frt)
+        if reader_keeps_stored_order():
+            z = z[::-1]
+        meta["row_order"] = "Gwyddion's: the last stored row first"
     return z, (px, py), (0.0, 0.0), meta
+
+
+def _check_plux(path) -> None:
+    """A Sensofar ``.plux`` is a zip archive with ``index.xml``, ``recipe.txt`` and one
+    raster per layer: checked (sizes, members) before SurfaceTopography reads it, so
+    that a container without a height layer says so."""
+    infos = check_zip(path, what=_WHAT, kind=".plux file (a zip archive)")
+    names = {i.filename for i in infos}
+    if "index.xml" not in names:
+        raise InputError(f"{path}: not a Sensofar .plux file (no index.xml in the archive)")
+    index = next(i for i in infos if i.filename == "index.xml")
+    if index.file_size > 16 * MIB_TO_BYTES:
+        raise InputError(f"{path}: index.xml is {index.file_size} bytes; refused (a .plux "
+                         f"index is a few kB)")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            text = zf.read(index)
+    except (zipfile.BadZipFile, OSError, ValueError, RuntimeError, EOFError) as err:
+        raise InputError(f"{path}: index.xml cannot be read ({err})") from None
+    if b"LAYER_0" not in text or "recipe.txt" not in names:
+        raise InputError(f"{path}: the file holds no height data (no height layer"
+                         f"{'' if 'recipe.txt' in names else ' and no recipe.txt'})")
 
 
 _SURFALIZE_ONLY = (".sur", ".sdf", ".os3d", ".zmg", ".sflz", ".hdat")
@@ -279,10 +326,10 @@ def _read_surfalize(path, **_):
             s = surfalize.Surface.load(str(path))
     except Exception as err:  # surfalize raises its own and builtin errors on corrupt files
         raise InputError(f"{path}: surfalize could not read it ({type(err).__name__}: {err})") from None
-    z = np.asarray(s.data, dtype=np.float64) * 1e-3  # surfalize gives micrometres
+    z = np.asarray(s.data, dtype=np.float64) * UM_TO_MM  # surfalize gives micrometres
     md = getattr(s, "metadata", {}) or {}
     declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
-    return z, (float(s.step_x) * 1e-3, float(s.step_y) * 1e-3), (0.0, 0.0), {
+    return z, (float(s.step_x) * UM_TO_MM, float(s.step_y) * UM_TO_MM), (0.0, 0.0), {
         "format": Path(path).suffix[1:].lower(), "units_in_file": declared}
 
 
@@ -308,8 +355,8 @@ def measured_formats() -> list[str]:
 def reader_for(suffix: str) -> str:
     """Name of the library that reads ``suffix`` (e.g. ``".plu"`` -> ``"SurfaceTopography"``)."""
     s = suffix.lower() if suffix.startswith(".") else "." + suffix.lower()
-    reader("measured", "file" + s)  # InputError naming the supported ones
-    return _LIBRARY[s]
+    fn = reader("measured", "file" + s)  # InputError naming the supported ones
+    return _LIBRARY.get(s, getattr(fn, "__module__", "render_inspect"))
 
 
 def _library_version(name: str) -> str:
@@ -326,7 +373,8 @@ def _library_version(name: str) -> str:
 
 
 def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                 units: str | None = None, region=None) -> MeasuredMap:
+                 units: str | None = None, region=None, bytes_per_value: float | None = None,
+                 purpose: str = "analyse") -> MeasuredMap:
     """Read a measured (or exported) height map.
 
     Parameters
@@ -345,6 +393,11 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     region : (x0, y0, x1, y1), optional
         For a ``heightmap.zarr`` store: read only the pixels whose centres lie in this
         window (mm), not the whole map.
+    bytes_per_value : float, optional
+        What the caller will hold per map point once the map is read (e.g.
+        ``analyze_memory_per_point()``): the declared size of the file is checked against
+        the memory budget with it, so a map too large for ``purpose`` is refused before
+        it is read (:func:`~render_inspect.io._limits.reading_for`).
 
     Returns
     -------
@@ -361,25 +414,74 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
     fn = reader("measured", path)
     if not (path.is_file() or (path.suffix.lower() == ".zarr" and path.is_dir())):
         raise InputError(f"measured file not found: {str(path)!r}")
-    lib = _LIBRARY[path.suffix.lower()]
+    # a reader registered from another module of io/ names itself (its module)
+    lib = _LIBRARY.get(path.suffix.lower(), getattr(fn, "__module__", "render_inspect"))
     kw = {"region": region} if region is not None else {}
-    z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin, units=units, **kw)
+    if bytes_per_value is not None:
+        with reading_for(bytes_per_value, purpose):
+            z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin,
+                                         units=units, **kw)
+    else:
+        z, pxy, origin_mm, meta = fn(path, channel=channel, pixel=pixel, origin=origin,
+                                     units=units, **kw)
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 2:
         raise InputError(f"{path}: expected a 2-D height map of at least 2 x 2 points, got shape {z.shape}")
     px, py = (float(v) for v in pxy)
-    for name, v in (("pixel_x", px), ("pixel_y", py)):
-        if not (np.isfinite(v) and v > 0):
-            raise InputError(f"{path}: {name} must be > 0 mm, got {v!r}")
-    z = np.where(np.isinf(z), np.nan, z)
+    ox, oy = (float(v) for v in origin_mm)
+    _check_plausible(path, z, (px, py), (ox, oy), meta)
+    z[np.isinf(z)] = np.nan
     ok = np.isfinite(z)
-    if not ok.any():
+    n_ok = int(np.count_nonzero(ok))
+    if not n_ok:
         raise InputError(f"{path}: the map has no valid (finite) heights")
     meta.setdefault("reader", _library_version(lib))
-    meta.update({"path": str(path), "valid_fraction": float(ok.mean()),
-                 "n_invalid": int(ok.size - ok.sum()), "units": {"lateral": "mm", "vertical": "mm"},
+    meta.update({"path": str(path), "valid_fraction": n_ok / ok.size,
+                 "n_invalid": int(ok.size - n_ok), "units": {"lateral": "mm", "vertical": "mm"},
                  "pixel_x_mm": px, "pixel_y_mm": py})
-    return MeasuredMap(z, (px, py), (float(origin_mm[0]), float(origin_mm[1])), meta)
+    if n_ok / ok.size < 1.0 - MOSTLY_EMPTY_FRACTION:
+        meta.setdefault("warnings", []).append(mostly_empty_warning(1.0 - n_ok / ok.size))
+    return MeasuredMap(z, (px, py), (ox, oy), meta)
+
+
+#: the key that gives the pixel, by format (named when it is out of bounds)
+_PIXEL_KEYS = {"exr": "pixel_size_mm", "zarr": "pixel_size_mm", "npy": "pixel_mm",
+               "npz": "pixel_mm", "x3p": "the CX / CY increment"}
+
+
+def _check_plausible(path, z, pixel, origin, meta) -> None:
+    """Bounds a measured map must keep (:data:`PIXEL_RANGE_MM`, :data:`MAX_FIELD_MM`,
+    :data:`MAX_ABS_MM`): beyond them the file's units or its invalid-point marker were
+    not understood, and a double could no longer resolve nanometres."""
+    lateral = (meta.get("units_in_file") or {}).get("lateral")
+    vertical = (meta.get("units_in_file") or {}).get("vertical")
+    lat = f" (the file's lateral unit: {lateral!r})" if lateral else ""
+    lo, hi = PIXEL_RANGE_MM
+    ny, nx = z.shape
+    key = _PIXEL_KEYS.get(str(meta.get("format", "")).lower())
+    for name, v, n in (("pixel_x", pixel[0], nx), ("pixel_y", pixel[1], ny)):
+        if not (math.isfinite(v) and lo <= v <= hi):
+            said = f" ({key} in the file)" if key else ""
+            raise InputError(f"{path}: {name}{said} must lie within {lo:g} .. {hi:g} mm, "
+                             f"received {v:.3g} mm{lat}")
+        if v * n > MAX_FIELD_MM:
+            raise InputError(f"{path}: the field ({n} x {name} = {v * n:.3g} mm) must be at most "
+                             f"{MAX_FIELD_MM:g} mm{lat}")
+    for name, v in (("origin x", origin[0]), ("origin y", origin[1])):
+        if not (math.isfinite(v) and abs(v) <= MAX_ABS_MM):
+            raise InputError(f"{path}: the {name} must lie within +-{MAX_ABS_MM:g} mm, received "
+                             f"{v:.3g} mm{lat}")
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(z)
+        if finite.any():
+            zmin, zmax = float(np.min(z, where=finite, initial=np.inf)), \
+                float(np.max(z, where=finite, initial=-np.inf))
+            big = max(abs(zmin), abs(zmax))
+            if big > MAX_ABS_MM:
+                unit = f" from the file's unit {vertical!r}" if vertical else ""
+                raise InputError(f"{path}: heights must lie within +-{MAX_ABS_MM:g} mm (converted"
+                                 f"{unit}), received values up to {big:.3g} mm; the file's unit "
+                                 f"or its marker of points not measured was not understood")
 
 
 def read_measured(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,

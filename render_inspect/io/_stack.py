@@ -32,6 +32,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.frames import Frames
+from ..core.units import NM_TO_MM, UM_TO_MM
 from ._exr import write_exr
 from ._limits import check_values, read_json_file
 from ._registry import register_reader, register_writer
@@ -142,7 +143,7 @@ def _stack_frames(path: Path, s: dict) -> Frames:
     if "pixel_size_mm" in s:
         pixel = float(s["pixel_size_mm"])
     elif "pixel_size_um" in s:
-        pixel = float(s["pixel_size_um"]) * 1e-3  # um -> mm
+        pixel = float(s["pixel_size_um"]) * UM_TO_MM
     else:
         raise InputError("settings need pixel_size_mm (or pixel_size_um): the pixel on the part")
     if not (math.isfinite(pixel) and pixel > 0):
@@ -166,13 +167,14 @@ def _stack_frames(path: Path, s: dict) -> Frames:
         if steps.shape != (n,):
             raise InputError(f"settings phase_steps_rad must list one step per frame ({n}), got "
                              f"{steps.size}")
-        scan = z_ref - steps * lam_eff * 1e-6 / (4 * math.pi)
+        scan = z_ref - steps * lam_eff * NM_TO_MM / (4 * math.pi)
     else:
         steps = np.empty(0)
         if "scan_positions_mm" in s:
             scan = np.asarray(s["scan_positions_mm"], dtype=np.float64)
         elif "scan_step_nm" in s:
-            scan = float(s.get("scan_start_mm", 0.0)) + float(s["scan_step_nm"]) * 1e-6 * np.arange(n)
+            scan = (float(s.get("scan_start_mm", 0.0))
+                    + float(s["scan_step_nm"]) * NM_TO_MM * np.arange(n))
         else:
             raise InputError("CSI settings need scan_positions_mm, or scan_step_nm (and "
                              "scan_start_mm)")

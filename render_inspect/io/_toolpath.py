@@ -51,13 +51,14 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
+from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
-from ._registry import register_writer, writer
+from ._registry import formats, register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
-           "export_program", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
+           "export_program", "program_formats", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
            "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
@@ -162,7 +163,7 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6) -
             rows = []
             for i in range(a, b):
                 words = f"N{i + 1} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
-                rows.append(words if i == 0 else words + " F%.10g" % (60.0 / dt[i - 1]))
+                rows.append(words if i == 0 else words + " F%.10g" % (MIN_TO_S / dt[i - 1]))
             fh.write(("\n".join(rows) + "\n").encode("ascii"))
         fh.write(b"M30\n")
 
@@ -225,7 +226,7 @@ def read_nc(path):
     if np.any(~(f > 0)):
         raise InputError(f"{path}: F words must be > 0 (inverse time, 1/min)")
     t0 = float(meta.get("t0_s", 0.0))
-    t = t0 + np.concatenate([[0.0], np.cumsum(60.0 / f)])
+    t = t0 + np.concatenate([[0.0], np.cumsum(MIN_TO_S / f)])
     if "points" in meta and int(meta["points"]) != len(C):
         raise InputError(f"{path}: header says {meta['points']} points, the program has {len(C)}")
     return ToolPath(np.radians(np.asarray(C)), np.asarray(X), np.asarray(Z), t, meta)
@@ -411,23 +412,31 @@ def read_program_nc(path) -> LinearProgram:
     if np.any(~(f > 0)):
         raise InputError(f"{path}: F words must be > 0 (mm/min)")
     seg = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
-    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / 60.0))])
+    t = np.concatenate([[0.0], np.cumsum(seg / (f[1:] / MIN_TO_S))])  # mm/min -> mm/s
     if "points" in meta and meta["points"].isdigit() and int(meta["points"]) != x.size:
         raise InputError(f"{path}: header says {meta['points']} points, the program has {x.size}")
     return LinearProgram(x, y, z, t, np.asarray(L, dtype=np.int64), meta)
 
 
+def program_formats() -> list[str]:
+    """The names ``toolpath --format`` takes: the extensions (without the dot) a machine
+    program has a registered writer for (products ``toolpath`` and ``program``)."""
+    exts = set(formats("toolpath", kind="write")) | set(formats("program", kind="write"))
+    return sorted(e.lstrip(".") for e in exts)
+
+
 def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = None,
                    **options) -> Path:
     """Write a turning :class:`ToolPath` or a sculpturing :class:`LinearProgram` into
-    ``out_dir`` as ``toolpath.npz`` / ``.csv`` / ``.nc`` (atomically).
+    ``out_dir`` as ``toolpath.<fmt>`` (atomically) with the writer registered for it.
 
     Parameters
     ----------
     program : ToolPath or LinearProgram
     out_dir : str or Path
         Folder (created if needed).
-    fmt : {"npz", "csv", "nc"}
+    fmt : str
+        One of :func:`program_formats` (``npz``, ``csv``, ``nc``, ...).
     header : dict, optional
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
     **options
@@ -438,8 +447,8 @@ def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = 
     Path of the file written.
     """
     product = "program" if isinstance(program, LinearProgram) else "toolpath"
-    if fmt not in ("npz", "csv", "nc"):
-        raise InputError(f"--format must be one of ['csv', 'nc', 'npz'], received {fmt!r}")
+    if fmt not in program_formats():
+        raise InputError(f"--format must be one of {program_formats()}, received {fmt!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return writer(product, fmt)(out / f"toolpath.{fmt}", program, header=header, **options)

@@ -25,6 +25,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.units import M_TO_MM, NM_TO_MM, UM_TO_MM
 
 __all__ = ["read_tmd", "read_nms", "read_x3p_plain"]
 
@@ -97,14 +98,14 @@ def read_nms(path):
     raw = np.frombuffer(buf, dtype="<u2", count=nx * ny, offset=_NMS_HEADER).reshape(ny, nx)
     # code 0 is zmin and 65535 is zmax: in the reference file both codes occur once, at
     # the two ends of a smooth tilt, where the header's zmin / zmax are the data's extremes
-    z = (raw / 65535.0 * (zmax - zmin) + zmin) * 1e-3
+    z = (raw / 65535.0 * (zmax - zmin) + zmin) * UM_TO_MM
     text = buf[:_NMS_HEADER]
     kind = text[52:52 + 64].split(b"\x00")[0].decode("latin-1").strip()
     date = text[1076:1076 + 16].split(b"\x00")[0].decode("latin-1").strip()
     meta = {"format": "nms", "reader": "render_inspect (NanoFocus @OM_MS_2.0 layout)",
             "content": kind, "date": date, "z_range_um": [float(zmin), float(zmax)],
             "units_in_file": {"lateral": "nm", "vertical": "um"}}
-    return z, (dx_nm * 1e-6, dy_nm * 1e-6), (0.0, 0.0), meta
+    return z, (dx_nm * NM_TO_MM, dy_nm * NM_TO_MM), (0.0, 0.0), meta
 
 
 _X3P_DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
@@ -197,9 +198,9 @@ def _read_x3p_plain(path: Path):
     instrument = "" if inst is None else " ".join(
         v for v in (_text(inst, "Manufacturer"), _text(inst, "Model"), _text(inst, "Serial")) if v)
     meta = {"format": "x3p", "reader": "render_inspect (X3P without namespace)",
-            "pixel_x_mm": px * 1e3, "pixel_y_mm": py * 1e3, "instrument": instrument,
+            "pixel_x_mm": px * M_TO_MM, "pixel_y_mm": py * M_TO_MM, "instrument": instrument,
             "date": _text(r2, "Date", "") if r2 is not None else "",
             "comment": _text(r2, "Comment") if r2 is not None else None,
             "md5_ok": checksum_ok, "non_conformant": "main.xml root has no ISO 5436-2 namespace",
             "units_in_file": {"lateral": "m", "vertical": "m"}}
-    return z * 1e3, (px * 1e3, py * 1e3), (ox * 1e3, oy * 1e3), meta
+    return z * M_TO_MM, (px * M_TO_MM, py * M_TO_MM), (ox * M_TO_MM, oy * M_TO_MM), meta

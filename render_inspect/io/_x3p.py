@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MM_TO_M, M_TO_MM
 from .. import __version__
 from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
@@ -60,9 +61,9 @@ def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | N
         import dataclasses
 
         meta = dataclasses.replace(meta, comment=str(comment))
-    place = x3pio.Placement.translation(float(origin[0]) * 1e-3, float(origin[1]) * 1e-3, 0.0)
+    place = x3pio.Placement.translation(float(origin[0]) * MM_TO_M, float(origin[1]) * MM_TO_M, 0.0)
     buf = io.BytesIO()
-    x3pio.write(buf, z * 1e-3, x_scale=float(px) * 1e-3, y_scale=float(py) * 1e-3,  # mm -> m
+    x3pio.write(buf, z * MM_TO_M, x_scale=float(px) * MM_TO_M, y_scale=float(py) * MM_TO_M,  # mm -> m
                 metadata=meta, placement=place, coordinate_system=x3pio.CoordinateSystem.VIEW)
     return atomic_write_bytes(path, buf.getvalue())
 
@@ -135,19 +136,19 @@ def read_x3p_xy(path: str | Path, *, what: str = "X3P file", budget=None):
     if not layer.is_regular_grid:
         raise InputError(f"{path}: X3P surface is not on a regular grid")
     px_m, py_m = layer.spacing
-    z = np.array(layer.z, dtype=np.float64) * 1e3  # m -> mm
+    z = np.array(layer.z, dtype=np.float64) * M_TO_MM
     place = f.placement
     if not np.allclose(place.rotation, np.eye(3)):
         raise InputError(f"{path}: X3P placement has a rotation; rotate the data to the view "
                          f"frame first (only translations are supported)")
-    off = np.asarray(place.offset) * 1e3
+    off = np.asarray(place.offset) * M_TO_MM
     if off[2]:
         z = z + off[2]
     m = f.metadata
-    meta = {"format": "x3p", "pixel_x_mm": px_m * 1e3, "pixel_y_mm": py_m * 1e3,
+    meta = {"format": "x3p", "pixel_x_mm": px_m * M_TO_MM, "pixel_y_mm": py_m * M_TO_MM,
             "comment": getattr(m, "comment", None) if m else None,
             "instrument": str(getattr(m.instrument, "model", "")) if m else "",
             "date": str(getattr(m, "date", "")) if m else ""}
     meta["reader"] = f"x3pio {getattr(x3pio, '__version__', '')}".strip()
     meta["units_in_file"] = {"lateral": "m", "vertical": "m"}
-    return z, (float(px_m * 1e3), float(py_m * 1e3)), (float(off[0]), float(off[1])), meta
+    return z, (float(px_m * M_TO_MM), float(py_m * M_TO_MM)), (float(off[0]), float(off[1])), meta

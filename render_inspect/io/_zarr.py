@@ -25,15 +25,24 @@ zstd-1 0.58 s / 75 MB and zstd-1 0.87 s / 113 MB; reading one channel back takes
 from __future__ import annotations
 
 import json
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
 
+from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.errors import InputError
+from ..core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
 from ._exr import exr_placement
 from ._pyramid import block_sums, coarsen, level_count, level_shape, means
 
 CHANNELS = ("design", "machined", "residual")
+#: most bytes one chunk of a store may decode to: a 16384 x 16384 float32 tile (the
+#: stores render_inspect writes use the simulation's tiles, 1024 x 1024 by default)
+MAX_CHUNK_BYTES = GIB_TO_BYTES
+#: metadata files of a Zarr store (format 2 and 3)
+_METADATA = {"zarr.json", ".zarray", ".zattrs", ".zgroup", ".zmetadata"}
 
 
 def codec():
@@ -41,6 +50,25 @@ def codec():
     from zarr.codecs import BloscCodec
 
     return BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")
+
+
+def zarr_read_overhead(store: "ZarrHeightMap", rows: slice | None = None,
+                       cols: slice | None = None) -> int:
+    """Bytes zarr holds beyond the window while it reads one: the chunks it decodes at
+    once (the chunks the window touches, at most ``async.concurrency`` of zarr's
+    configuration), each compressed and decoded."""
+    try:
+        import zarr
+
+        concurrency = int(zarr.config.get("async.concurrency") or 10)
+    except Exception:  # an unusual configuration: assume zarr's default
+        concurrency = 10
+    cy, cx = store.chunk_shape
+    ny, nx = store.shape
+    r0, r1 = (rows.start or 0, rows.stop if rows and rows.stop is not None else ny) if rows else (0, ny)
+    c0, c1 = (cols.start or 0, cols.stop if cols and cols.stop is not None else nx) if cols else (0, nx)
+    touched = ((r1 - 1) // cy - r0 // cy + 1) * ((c1 - 1) // cx - c0 // cx + 1)
+    return 2 * max(min(concurrency, touched), 1) * store.chunk_bytes
 
 
 def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
@@ -123,6 +151,9 @@ class ZarrHeightMap:
         if not path.is_dir():
             raise InputError(f"{what} not found: {str(path)!r}")
         self.path = path
+        self.what = what
+        for name in CHANNELS:
+            self._check_declared_type(name)
         try:
             self.group = zarr.open_group(str(path), mode="r")
             self.attrs = dict(self.group.attrs)
@@ -132,12 +163,25 @@ class ZarrHeightMap:
                              f"({type(err).__name__}: {err})") from None
         if "machined" not in arrays:
             raise InputError(f"{what} {str(path)!r}: the store has no 'machined' array")
+        self.what = what
         self.pixel, self.origin = exr_placement(self.attrs, what=what, path=path)
+        lo, hi = PIXEL_RANGE_MM
+        if not lo <= self.pixel <= hi:
+            raise InputError(f"{what} {str(path)!r}: pixel_size_mm must lie within {lo:g} .. "
+                             f"{hi:g} mm, received {self.pixel:.3g}")
+        if max(abs(self.origin[0]), abs(self.origin[1])) > MAX_ABS_MM:
+            raise InputError(f"{what} {str(path)!r}: origin_mm must lie within +-{MAX_ABS_MM:g} "
+                             f"mm, received {list(self.origin)}")
         shape = tuple(int(n) for n in arrays["machined"].shape)
         if len(shape) != 2 or any(a.shape != shape for a in arrays.values()):
             raise InputError(f"{what} {str(path)!r}: its arrays must be 2-D and of one shape, "
                              f"received {[tuple(a.shape) for a in arrays.values()]}")
+        if min(shape) < 1:
+            raise InputError(f"{what} {str(path)!r}: its arrays are empty (shape {list(shape)})")
         self.shape = shape
+        self._checked: dict[str, int] = {}
+        self.chunk_bytes = max(self._check_array(name, a) for name, a in arrays.items())
+        self.chunk_shape = tuple(int(c) for c in arrays["machined"].chunks)
         try:
             self.scene = json.loads(self.attrs.get("scene") or "{}")
             self.meta = json.loads(self.attrs.get("meta") or "{}")
@@ -162,13 +206,117 @@ class ZarrHeightMap:
                              f"(x {ox:g}..{ox + p * (self.shape[1] - 1):g}, y {oy:g}..{oy + p * (self.shape[0] - 1):g} mm)")
         return slice(r0, r1 + 1), slice(c0, c1 + 1)
 
+    def _check_declared_type(self, name: str) -> None:
+        """What an array's metadata declares (``zarr.json`` of format 3, ``.zarray`` of
+        format 2), checked before zarr opens it: a 2-D shape and chunk shape of whole
+        numbers >= 1, real numbers only."""
+        for meta, key in (("zarr.json", "data_type"), (".zarray", "dtype")):
+            f = self.path / name / meta
+            try:
+                if not f.is_file() or f.stat().st_size > MIB_TO_BYTES:
+                    continue
+                d = json.loads(f.read_text(encoding="utf-8"))
+                declared = d.get(key)
+            except (OSError, ValueError, AttributeError):
+                continue  # zarr says what is wrong with it
+            where = f"{self.what} {str(self.path)!r}: array {name!r}"
+            if meta == "zarr.json":
+                grid = d.get("chunk_grid")
+                chunks = (grid.get("configuration") or {}).get("chunk_shape") \
+                    if isinstance(grid, dict) else None
+            else:
+                chunks = d.get("chunks")
+            for what_key, value in (("shape", d.get("shape")), ("chunk_shape", chunks)):
+                if not (isinstance(value, list) and len(value) == 2 and all(
+                        type(v) is int and v >= 1 for v in value)):
+                    raise InputError(f"{where}: {what_key} must be two whole numbers >= 1, "
+                                     f"received {str(value)[:60]}")
+            try:
+                dtype = np.dtype(declared) if isinstance(declared, str) else None
+            except TypeError:
+                dtype = None
+            if dtype is not None and dtype.kind == "c":
+                raise InputError(f"{where} holds complex numbers ({dtype}); a height map must be "
+                                 f"real (store np.real(z) or np.abs(z) explicitly)")
+            if dtype is None or dtype.kind not in "fiu":
+                raise InputError(f"{where} must hold real numbers (float or integer), its data "
+                                 f"type is {str(declared)[:40]!r}")
+
+    def _check_array(self, name: str, arr) -> int:
+        """Check one array of the store before any chunk is read: real numbers, chunks of
+        at least one and at most :data:`MAX_CHUNK_BYTES` bytes decoded, and only regular
+        files in its folder, none larger than a chunk can be (no links to devices, no
+        chunk that would expand without bound).  Returns the bytes one chunk decodes to."""
+        if name in self._checked:
+            return self._checked[name]
+        where = f"{self.what} {str(self.path)!r}: array {name!r}"
+        try:
+            dtype = np.dtype(arr.dtype)
+        except TypeError:
+            raise InputError(f"{where} must hold real numbers, its data type is "
+                             f"{arr.dtype!s:.40}") from None
+        if dtype.kind == "c":
+            raise InputError(f"{where} holds complex numbers ({dtype}); a height map must be "
+                             f"real (store np.real(z) or np.abs(z) explicitly)")
+        if dtype.kind not in "fiu":
+            raise InputError(f"{where} must hold real numbers (float or integer), its data type "
+                             f"is {dtype}")
+        chunks = tuple(getattr(arr, "chunks", ()) or ())
+        if len(chunks) != 2 or not all(isinstance(c, (int, np.integer)) and c >= 1 for c in chunks):
+            raise InputError(f"{where}: chunk_shape must be two whole numbers >= 1, received "
+                             f"{list(chunks)}")
+        chunk_bytes = int(chunks[0]) * int(chunks[1]) * dtype.itemsize
+        if chunk_bytes > MAX_CHUNK_BYTES:
+            raise InputError(f"{where}: a chunk of {chunks[0]} x {chunks[1]} values decodes to "
+                             f"{chunk_bytes / MIB_TO_BYTES:.0f} MiB, more than the "
+                             f"{MAX_CHUNK_BYTES // MIB_TO_BYTES} MiB allowed per chunk (a small "
+                             f"compressed chunk could expand without bound); rechunk the store")
+        shards = tuple(getattr(arr, "shards", None) or ())
+        file_limit = chunk_bytes
+        if len(shards) == 2 and all(isinstance(c, (int, np.integer)) and c >= 1 for c in shards):
+            file_limit = int(shards[0]) * int(shards[1]) * dtype.itemsize
+        file_limit = int(file_limit * 1.1) + 2 ** 16  # codecs may add a little
+        folder = self.path / name
+        for root, dirs, files in os.walk(folder):
+            for n in dirs + files:
+                full = os.path.join(root, n)
+                st = os.lstat(full)
+                rel = os.path.relpath(full, self.path)
+                if n in dirs and stat.S_ISDIR(st.st_mode):
+                    continue
+                if not stat.S_ISREG(st.st_mode):
+                    raise InputError(f"{self.what} {str(self.path)!r}: {rel!r} is not a regular "
+                                     f"file (a link, a device or a pipe): refused")
+                if n not in _METADATA and st.st_size > file_limit:
+                    raise InputError(f"{self.what} {str(self.path)!r}: {rel!r} holds "
+                                     f"{st.st_size} bytes, more than a chunk of array {name!r} "
+                                     f"can ({file_limit} bytes)")
+                if n in _METADATA and st.st_size > MIB_TO_BYTES:
+                    raise InputError(f"{self.what} {str(self.path)!r}: {rel!r} is "
+                                     f"{st.st_size} bytes; metadata files are at most 1 MiB")
+        self._checked[name] = chunk_bytes
+        return chunk_bytes
+
     def read(self, channel: str, rows: slice = slice(None), cols: slice = slice(None), *,
              level: int = 0) -> np.ndarray:
-        """float32 samples of ``channel`` (only the chunks that hold the window are read)."""
+        """Samples of ``channel`` as stored (float32 in the stores render_inspect writes;
+        only the chunks that hold the window are read).  A chunk that cannot be decoded is
+        an :class:`InputError` naming the store."""
         if channel not in CHANNELS:
             raise InputError(f"channel must be one of {list(CHANNELS)}, got {channel!r}")
-        arr = self.group[channel] if level == 0 else self.group[f"levels/{level}/{channel}"]
-        return arr[rows, cols]
+        name = channel if level == 0 else f"levels/{level}/{channel}"
+        try:
+            arr = self.group[name]
+        except KeyError:
+            raise InputError(f"{self.what} {str(self.path)!r} has no array {name!r}") from None
+        self._check_array(name, arr)
+        try:
+            return arr[rows, cols]
+        except (MemoryError, KeyboardInterrupt):
+            raise
+        except Exception as err:  # codecs raise RuntimeError/ValueError/... on damaged chunks
+            raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
+                             f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
 
     def level_for(self, max_side: int) -> int:
         """The finest pyramid level whose larger side is at most ``max_side`` (the

@@ -1,21 +1,12 @@
 """Surface-generation kernels on explicit numbers and arrays: the envelope of the tool
-nose along a turning path, the sculpturing sweep, servo responses and machine axis
-dynamics, error motions, the material's response to the cut, burrs and residual
-statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
+nose along a turning path (whole or tile by tile), the sculpturing sweep, machine axis
+dynamics (the one servo model), error motions, the material's response to the cut, burrs
+and residual statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
 
 from ..core.heightmap import HeightMap
-from ._axes import (
-    MACHINE_PRESETS,
-    Axis,
-    Coupling,
-    FollowedPath,
-    Machine,
-    follow_axis,
-    follow_turning,
-    following_error_stats,
-    machine_preset,
-    pvt_command,
-)
+from ._axes import Axis, Coupling, Machine, follow_axis, second_order_sos
+from ._follow import FollowedPath, follow_turning, following_error_stats
+from ._interpolate import linear_command, pvt_command
 from ._burrs import apply_burrs, burr_map, machined_sharp_edges, sharp_edges
 from ._cutting import (
     cut_lines_mechanics,
@@ -25,7 +16,7 @@ from ._cutting import (
     machined_edges,
 )
 from ._design_grid import design_grid
-from ._envelope import path_radial_slope, simulate_turning
+from ._envelope import EnvelopePath, load_kernels, path_radial_slope, prepare_envelope, simulate_turning
 from ._errmotion import ErrorMotions, apply_error_motions
 from ._material import (
     MATERIAL_PRESETS,
@@ -36,18 +27,30 @@ from ._material import (
     material_response,
     min_chip_thickness,
 )
-from ._metrics import residual_metrics
+from ._machines import MACHINE_PRESET_NAMES, MACHINE_PRESETS, machine_preset
+from ._memory import in_memory_bytes, tiled_bytes
+from ._part_map import part_heightmap
+from ._metrics import (merge_moments, metrics_from_moments, residual_metrics, tile_abs_dev,
+                       tile_moments)
 from ._sculpt import sculpt_line_profile, sculpt_surface, target_line, vibration_phases
-from ._servo import followed_path, servo_response, split_commands
+from ._servo import split_commands
+from ._tiled import TILE, Tile, compute_tile, plan_tiles
 
 __all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metrics",
            "design_grid", "apply_burrs", "burr_map", "sharp_edges", "sculpt_line_profile",
-           "sculpt_surface", "target_line", "vibration_phases", "servo_response",
-           "split_commands", "followed_path", "machined_sharp_edges",
-           "Axis", "Coupling", "Machine", "FollowedPath", "MACHINE_PRESETS", "machine_preset",
-           "follow_axis", "follow_turning", "following_error_stats", "pvt_command",
+           "sculpt_surface", "target_line", "vibration_phases", "split_commands",
+           "machined_sharp_edges", "Axis", "Coupling", "Machine", "FollowedPath",
+           "MACHINE_PRESETS", "MACHINE_PRESET_NAMES", "machine_preset", "follow_axis",
+           "follow_turning", "following_error_stats", "pvt_command", "linear_command",
+           "second_order_sos", "EnvelopePath", "prepare_envelope", "load_kernels",
+           "in_memory_bytes", "tiled_bytes", "merge_moments", "metrics_from_moments",
+           "tile_abs_dev", "tile_moments", "TILE", "Tile", "compute_tile", "plan_tiles",
+           "MATERIAL_PRESET_NAMES", "part_heightmap",
            "ErrorMotions", "apply_error_motions",
            "Material", "MaterialResponse", "MATERIAL_PRESETS", "material_preset",
            "material_response", "contact_ratio", "min_chip_thickness",
            "cut_turning_mechanics", "cut_lines_mechanics", "finish_surface", "groove_texture",
            "machined_edges"]
+
+#: the names ``material.preset`` takes ("ideal": no material response)
+MATERIAL_PRESET_NAMES = ("ideal", *MATERIAL_PRESETS)

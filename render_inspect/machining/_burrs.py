@@ -1,10 +1,12 @@
-"""Burrs on sharp edges: a phenomenological model (seed 003, section 4), the height given
-as an input (an override of the material model of :mod:`._material`, whose side flow
-forms the burrs from the cutting conditions).
+"""Burrs on sharp edges: a phenomenological model (after Zhang et al. 2022 [1]_, section 4),
+the height given as an input (an override of the material model of :mod:`._material`,
+whose side flow forms the burrs from the cutting conditions).
 
-Seed 003 saw small burrs on the sharp edges between lenslets and named them a main source
-of the remaining form error; it explains them by plastic side flow of the workpiece
-material.  The paper gives no burr law, so this is a model, not a derivation:
+Zhang et al. (2022) saw small burrs on the sharp edges between lenslets and named them a
+main source of the remaining form error; they explain them by plastic side flow of the
+workpiece material: the lateral deformation of Gillespie and Blotter's three burr
+mechanisms [2]_ (chip rollover and tearing are the others; this model leaves them out).
+The paper gives no burr law, so this is a model, not a derivation:
 
 * where: on *sharp edges* of the machined surface (``edges_from="machined"``, what the
   processes use: the edges where the machine cut them, moved by servo lag), or of the
@@ -21,11 +23,19 @@ material.  The paper gives no burr law, so this is a model, not a derivation:
   only, so the same seed gives the same burr at the same place on any grid.
 * size: ``height`` and ``width`` are inputs.  They stand for one material and one process:
   side flow grows with the uncut chip thickness (depth of cut) and the tool edge radius,
-  and ultrasonic vibration (HFUVAS) reduces it (seed 003: Sz 1.2 um conventional against
+  and ultrasonic vibration (HFUVAS) reduces it (Zhang et al. 2022: Sz 1.2 um conventional against
   0.13 um with vibration on Mirrax 40); scale ``height`` accordingly.
 * assumptions: the burr does not change the cut elsewhere (it is added after the
   envelope), it does not depend on the cutting direction, and the edge position is
   resolved to one pixel.
+
+References
+----------
+.. [1] C. Zhang, C.-F. Cheung, X. Liang, B. Bulla, "A theoretical and experimental
+       investigation of high-frequency ultrasonic vibration-assisted sculpturing of
+       optical microstructures," Applied Sciences 12(21), 10937 (2022).
+.. [2] L. K. Gillespie, P. T. Blotter, "The formation and properties of machining burrs,"
+       Journal of Engineering for Industry 98(1), 66 (1976).
 """
 
 from __future__ import annotations
@@ -36,6 +46,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_UM
 
 __all__ = ["sharp_edges", "machined_sharp_edges", "burr_map", "apply_burrs"]
 
@@ -198,5 +209,5 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
                  correlation_length=correlation_length, edges=edges)
     machined += b
     info["edge_pixels"] = int(edges.sum())
-    info["max_added_um"] = float(b.max() * 1e3)
+    info["max_added_um"] = float(b.max() * MM_TO_UM)
     return machined, info

@@ -3,7 +3,8 @@ its uncut chip thickness reaches h_min; thinner material is ploughed, springs ba
 kappa and the rest flows sideways onto the cusp it shares with the earlier cut.
 
 Per pixel the passes are visited in cutting order (time).  With s the surface left so far
-(+inf before the first cut) and z_j the nose arc of pass j at the pixel:
+(+inf before the first cut) and z_j the nose arc of pass j at the pixel (h_min after Son et
+al. 2005 [1]_, side flow after Liu & Melkote 2006 [2]_; :mod:`._material`):
 
 * z_j < s, h = s - z_j >= h_min (or the first cut): a chip forms, s = z_j; pass j is
   the pixel's *cutting pass* and h its uncut chip thickness;
@@ -14,13 +15,23 @@ Per pixel the passes are visited in cutting order (time).  With s the surface le
 Near a cusp whose flanks meet at a slope difference ds, the ploughed band is h_min / ds
 wide on the later pass's side and the side-flow pile as wide on the earlier side; both
 are evaluated exactly at the pixel centres (point sampling, as for the feed scallops).
-With kappa = 1 nothing is displaced and a flat face gets Brammertz's peak-to-valley
+With kappa = 1 nothing is displaced and a flat face gets Brammertz's [3]_ peak-to-valley
 f^2/(8R) + h_min/2 (1 + R h_min / f^2).  h_min = 0 gives the geometric envelope exactly.
 
 Besides the surface, the kernel returns for each pixel its cutting pass (spindle angle
 and tool radius), the position along the nose edge that cut it and the uncut chip
 thickness, from which the machined edges (pass boundaries) and the groove texture
 (:func:`groove_texture`) follow.
+
+References
+----------
+.. [1] S. M. Son, H. S. Lim, J. H. Ahn, "Effects of the friction coefficient on the minimum
+       cutting thickness in micro cutting," International Journal of Machine Tools and
+       Manufacture 45(4-5), 529-535 (2005). :DOI:`10.1016/j.ijmachtools.2004.10.001`
+.. [2] K. Liu, S. N. Melkote, "Effect of plastic side flow on surface roughness in
+       micro-turning process," International Journal of Machine Tools and Manufacture 46,
+       1778-1785 (2006). :DOI:`10.1016/j.ijmachtools.2005.11.014`
+.. [3] W. Brammertz, Industrie-Anzeiger 83, 525 (1961).
 """
 
 from __future__ import annotations
@@ -31,7 +42,9 @@ import numpy as np
 from numba import njit, prange
 
 from ..core.errors import InputError, check_range
-from ._envelope import _lookup, _lookup_table, _pass_window, path_radial_slope
+from ..core.units import MM_TO_NM
+from ._envelope import (_lookup, _lookup_table, _nominal_spiral, _nose_arc, _pass_window,
+                        path_radial_slope)
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "CutResult"]
@@ -181,16 +194,11 @@ def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, hal
     z = np.ascontiguousarray(path.z, dtype=np.float64)
     if theta.size < 2:
         raise InputError("cut_turning_mechanics: the path needs at least 2 points")
-    Rc = float(nose_radius)
-    hw = min(float(half_width) if half_width is not None else Rc, Rc)
+    Rc, hw = _nose_arc(nose_radius, half_width)
     x0, y0, x1, y1 = region
     nx = int(round((x1 - x0) / pixel)) + 1
     ny = int(round((y1 - y0) / pixel)) + 1
-    span = theta[-1] - theta[0]
-    cc = (rho[0] - rho[-1]) / span if span > 0 else 0.0
-    a = float(rho[0])
-    dev = float(np.max(np.abs(rho - (a - cc * (theta - theta[0])))))
-    f = abs(cc) * TWO_PI
+    a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
     # the geometric window, widened by one feed: the adjacent (cusp) pass is always visited
     W = min(hw, 2.1 * Rc * m + 1.5 * f + h_min * 4 * Rc / max(f, 1e-12) + 1e-9)
@@ -345,8 +353,9 @@ def finish_surface(cut: CutResult, response, *, along, seed: int, across_length:
     key = "pass_theta" if "pass_theta" in cut else "pass_line"
     edges = machined_edges(cut[key], jump=math.pi if key == "pass_theta" else 0.5)
     added = cut["added"]
-    info = {"groove_rms_nm": response.groove_rms * 1e6,
-            "grooves_rms_nm": float(np.sqrt(np.mean(g[ok] ** 2)) * 1e6) if ok.any() else 0.0,
-            "side_flow_max_nm": float(np.nanmax(added) * 1e6) if np.isfinite(added).any() else 0.0,
-            "edge_pixels": int(edges.sum()), "burr_height_nm": response.burr_height * 1e6}
+    info = {"groove_rms_nm": response.groove_rms * MM_TO_NM,
+            "grooves_rms_nm": float(np.sqrt(np.mean(g[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0,
+            "side_flow_max_nm": (float(np.nanmax(added) * MM_TO_NM) if np.isfinite(added).any()
+                                 else 0.0),
+            "edge_pixels": int(edges.sum()), "burr_height_nm": response.burr_height * MM_TO_NM}
     return m, info

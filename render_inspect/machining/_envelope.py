@@ -4,8 +4,9 @@ In each radial section (angle phi) the tool passes once per revolution.  Pass j 
 cumulative angle theta_j = phi + 2 pi j; between programmed points the C, X and Z axes
 interpolate linearly, giving the tool tip (rho_j, z_j).  Its nose arc cuts
 z_j + Rc - sqrt(Rc^2 - (r - rho_j)^2) for |r - rho_j| <= the arc's half-width, and the
-machined height at (r, phi) is the minimum over all passes (seed 000 section 3).  Turning
-marks (feed scallops) and, without compensation, overcut waviness come out of this.
+machined height at (r, phi) is the minimum over all passes (Li et al. 2018 [1]_, section
+3).  Turning marks (feed scallops) and, without compensation, overcut waviness come out of
+this.
 
 Only passes that can win are visited: an arc at distance d from the pixel is at least
 d^2 / (2 Rc) above its tip, and tips differ by at most m |d - d0| between passes (m the
@@ -32,6 +33,17 @@ A tile of the grid needs only the passes whose nose arcs reach it:
 ``EnvelopePath.slice_for(region)`` keeps those (a contiguous run of the spiral, plus the
 innermost passes for tiles near the axis) and carries the whole path's constants, so a
 tile computed from its slice equals the same pixels of the whole-grid run bit for bit.
+
+The module is a little over 600 lines on purpose: the per-pixel step, the two kernels and
+the path preparation share the pass window and the nominal spiral, and the reference
+kernel stays next to the fast one it checks.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
 """
 
 from __future__ import annotations
@@ -51,9 +63,20 @@ INV_2PI = 1.0 / TWO_PI
 BLOCK = 64
 #: grids at least this large go to a CUDA GPU when one is present (simulate_turning)
 GPU_MIN_SAMPLES = 1 << 22
+#: relative tolerance within which a path's angles count as a uniform grid
+_UNIFORM_RTOL = 1e-9  # not a unit conversion
 
 
-@njit(cache=True, inline="always")
+# ------------------------------------------------------------------ the per-pixel step
+# The fast kernel's per-pixel step is written once, as the plain functions below (the
+# segment lookup, the pass loop, the pass windows and the step itself), and compiled
+# twice: here with numba.njit for the CPU kernels, and in ``_envelope_gpu`` with
+# numba.cuda.jit(device=True) for the GPU kernel (:data:`DEVICE_FUNCTIONS`, in the order
+# they call each other).  Only the loop over the pixels differs between the targets: the
+# CPU walks square blocks and steps the polar angle by a series, a GPU thread takes one
+# pixel and an exact atan2.  The functions use only what both targets compile (scalars,
+# 1-D / 2-D float and int arrays, math, tuples).
+
 def _lookup(theta, tab, tab_t0, tab_w, s):
     """Index i with theta[i] <= s <= theta[i+1] (s inside the path)."""
     b = int((s - tab_t0) / tab_w)
@@ -70,6 +93,112 @@ def _lookup(theta, tab, tab_t0, tab_w, s):
     return i
 
 
+def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, icc,
+            jw, K, phi, r, sgn, Rc, Rc2, hw, best, win):
+    """Lowest nose arc at (sgn r, phi) over K consecutive passes, the first being the first
+    within ``jw`` revolutions of the pass whose nominal radius is sgn r: (lowest over the
+    K passes, lowest over those within the window)."""
+    jc = (t0 + (a - r * sgn) * icc - phi) * INV_2PI
+    j0 = math.ceil(jc - jw)
+    kmax = math.floor(jc + jw) - j0
+    sr = sgn * r
+    nseg = seg.shape[0]
+    if uniform:
+        # pass j0 + k sits k revolutions = k nrev points after pass j0, at the same fraction
+        u = (phi - t0) * inv
+        fl = math.floor(u)
+        g0 = int(fl) + j0 * nrev
+        fr0 = u - fl
+        for k in range(K):
+            g = g0 + k * nrev
+            fr = fr0
+            # a pass through an end point of the path: rounding may put it one segment out
+            if g == -1 and fr > 1.0 - 1e-9:
+                g = 0
+                fr = 0.0
+            elif g == n_total - 1 and fr < 1e-9:
+                g = n_total - 2
+                fr = 1.0
+            ii = g - offset
+            if g >= 0 and g < n_total - 1 and ii >= 0 and ii < nseg:
+                rj = seg[ii, 0] + fr * seg[ii, 1]
+                d = abs(sr - rj)
+                if d <= hw:
+                    zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
+                    best = min(best, zj)
+                    if k <= kmax:
+                        win = min(win, zj)
+    else:
+        t_first = theta[0]
+        t_last = theta[nseg]
+        for k in range(K):
+            s = phi + TWO_PI * (j0 + k)
+            if s >= t_first and s <= t_last:
+                ii = _lookup(theta, tab, tab_t0, tab_w, s)
+                dt = theta[ii + 1] - theta[ii]
+                fr = (s - theta[ii]) / dt if dt > 0 else 0.0
+                rj = seg[ii, 0] + fr * seg[ii, 1]
+                d = abs(sr - rj)
+                if d <= hw:
+                    zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
+                    best = min(best, zj)
+                    if k <= kmax:
+                        win = min(win, zj)
+    return best, win
+
+
+def _pass_windows(cc, Wd, f, hw, dev):
+    """The pass windows in revolutions: (1 / cc, the proven window, the window near the
+    axis where the spiral ends, every pass that reaches)."""
+    icc = 1.0 / cc
+    jw_a = Wd * icc * INV_2PI
+    jw_b = (Wd + 0.5 * f) * icc * INV_2PI
+    jw_c = (hw + dev) * icc * INV_2PI
+    return icc, jw_a, jw_b, jw_c
+
+
+def _pass_count(jw):
+    """Passes visited for a window of ``jw`` revolutions on each side (fixed per kernel)."""
+    return int(math.floor(2.0 * jw)) + 1
+
+
+def _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a,
+                  icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b, jw_c, K_a, K_b, K_c, phi, r):
+    """Machined height at the pixel at radius ``r`` and polar angle ``phi`` (NaN where no
+    pass reaches): the passes in the proven window on this side of the axis, on the far
+    side near the axis, and every pass that reaches where the window holds none."""
+    near = r < 2.0 * f + dev
+    Wp = Wd + 0.5 * f if near else Wd
+    jw = jw_b if near else jw_a
+    K = K_b if near else K_a
+    best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a,
+                        icc, jw, K, phi, r, 1.0, Rc, Rc2, hw, math.inf, math.inf)
+    phi2 = phi + math.pi
+    if phi2 >= TWO_PI:
+        phi2 -= TWO_PI
+    if r < Wp + hw:
+        best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
+                            a, icc, jw, K, phi2, r, -1.0, Rc, Rc2, hw, best, win)
+    if win == math.inf and Wp < hw + dev:
+        # no pass within the window (beyond the path's ends): every pass that reaches
+        best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
+                            a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win)
+        if r < hw + dev:
+            best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
+                                t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw, best, win)
+    return best if best < math.inf else math.nan
+
+
+#: the functions of the per-pixel step, in the order they call each other
+DEVICE_FUNCTIONS = ("_lookup", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
+_lookup = njit(cache=True, inline="always")(_lookup)
+_passes = njit(cache=True, inline="always")(_passes)
+_pass_windows = njit(cache=True, inline="always")(_pass_windows)
+_pass_count = njit(cache=True, inline="always")(_pass_count)
+_pixel_height = njit(cache=True, inline="always")(_pixel_height)
+
+
+# ------------------------------------------------------------------ the reference kernel
 @njit(cache=True, inline="always")
 def _pass_window(theta, a, cc, phi, r, sgn, W):
     """First and last pass j (at cumulative angle phi + 2 pi j on the path) whose nominal
@@ -174,75 +303,16 @@ def path_radial_slope(theta: np.ndarray, rho: np.ndarray, z: np.ndarray) -> floa
     return float(np.max(dz[good] / dr[good])) if good.any() else 0.0
 
 
-
-
-@njit(cache=True, inline="always")
-def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, icc,
-            jw, K, phi, r, sgn, Rc, Rc2, hw, best, win):
-    """Lowest nose arc at (sgn r, phi) over K consecutive passes, the first being the first
-    within ``jw`` revolutions of the pass whose nominal radius is sgn r: (lowest over the
-    K passes, lowest over those within the window)."""
-    jc = (t0 + (a - r * sgn) * icc - phi) * INV_2PI
-    j0 = math.ceil(jc - jw)
-    kmax = math.floor(jc + jw) - j0
-    sr = sgn * r
-    nseg = seg.shape[0]
-    if uniform:
-        # pass j0 + k sits k revolutions = k nrev points after pass j0, at the same fraction
-        u = (phi - t0) * inv
-        fl = math.floor(u)
-        g0 = int(fl) + j0 * nrev
-        fr0 = u - fl
-        for k in range(K):
-            g = g0 + k * nrev
-            fr = fr0
-            # a pass through an end point of the path: rounding may put it one segment out
-            if g == -1 and fr > 1.0 - 1e-9:
-                g = 0
-                fr = 0.0
-            elif g == n_total - 1 and fr < 1e-9:
-                g = n_total - 2
-                fr = 1.0
-            ii = g - offset
-            if g >= 0 and g < n_total - 1 and ii >= 0 and ii < nseg:
-                rj = seg[ii, 0] + fr * seg[ii, 1]
-                d = abs(sr - rj)
-                if d <= hw:
-                    zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
-                    best = min(best, zj)
-                    if k <= kmax:
-                        win = min(win, zj)
-    else:
-        t_first = theta[0]
-        t_last = theta[nseg]
-        for k in range(K):
-            s = phi + TWO_PI * (j0 + k)
-            if s >= t_first and s <= t_last:
-                ii = _lookup(theta, tab, tab_t0, tab_w, s)
-                dt = theta[ii + 1] - theta[ii]
-                fr = (s - theta[ii]) / dt if dt > 0 else 0.0
-                rj = seg[ii, 0] + fr * seg[ii, 1]
-                d = abs(sr - rj)
-                if d <= hw:
-                    zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
-                    best = min(best, zj)
-                    if k <= kmax:
-                        win = min(win, zj)
-    return best, win
-
-
+# ------------------------------------------------------------------ the fast kernel (CPU)
 def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc,
                dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out):
     ny, nx = out.shape
     Rc2 = Rc * Rc
     Wd = W + dev
-    icc = 1.0 / cc
-    jw_a = Wd * icc * INV_2PI               # proven window, in revolutions
-    jw_b = (Wd + 0.5 * f) * icc * INV_2PI   # near the axis, where the spiral ends
-    jw_c = (hw + dev) * icc * INV_2PI       # every pass that reaches
-    K_a = int(math.floor(2.0 * jw_a)) + 1
-    K_b = int(math.floor(2.0 * jw_b)) + 1
-    K_c = int(math.floor(2.0 * jw_c)) + 1
+    icc, jw_a, jw_b, jw_c = _pass_windows(cc, Wd, f, hw, dev)
+    K_a = _pass_count(jw_a)
+    K_b = _pass_count(jw_b)
+    K_c = _pass_count(jw_c)
     bx = (nx + BLOCK - 1) // BLOCK
     by = (ny + BLOCK - 1) // BLOCK
     for b in prange(bx * by):
@@ -271,32 +341,9 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
                     if phi < 0:
                         phi += TWO_PI
                 xp = x
-                near = r < 2.0 * f + dev
-                Wp = Wd + 0.5 * f if near else Wd
-                best = np.inf
-                win = np.inf
-                if near:
-                    best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                        t0, a, icc, jw_b, K_b, phi, r, 1.0, Rc, Rc2, hw, best, win)
-                else:
-                    best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                        t0, a, icc, jw_a, K_a, phi, r, 1.0, Rc, Rc2, hw, best, win)
-                phi2 = phi + math.pi
-                if phi2 >= TWO_PI:
-                    phi2 -= TWO_PI
-                if r < Wp + hw:
-                    best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                        t0, a, icc, jw_b if near else jw_a, K_b if near else K_a, phi2, r,
-                                        -1.0, Rc, Rc2, hw, best, win)
-                if win == np.inf and Wp < hw + dev:
-                    # no pass within the window (beyond the path's ends): every pass that reaches
-                    best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                        t0, a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win)
-                    if r < hw + dev:
-                        best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset,
-                                            n_total, t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw,
-                                            best, win)
-                out[iy, ix] = best if best < np.inf else np.nan
+                out[iy, ix] = _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset,
+                                            n_total, t0, a, icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b,
+                                            jw_c, K_a, K_b, K_c, phi, r)
 
 
 #: the fast kernel on all cores (whole grids) and on one core without the GIL (tiles run
@@ -395,6 +442,24 @@ class EnvelopePath:
         return int(self.seg.nbytes + self.theta.nbytes + self.tab.nbytes)
 
 
+def _nose_arc(nose_radius, half_width=None):
+    """(Rc, radial half-width of the nose arc), mm: the half-width is at most Rc, and Rc
+    when not given."""
+    Rc = float(nose_radius)
+    return Rc, min(float(half_width) if half_width is not None else Rc, Rc)
+
+
+def _nominal_spiral(theta, rho):
+    """The nominal spiral through the path's ends, rho = a - cc (theta - theta[0]), that the
+    pass windows are counted on: (a, cc, dev, f) = first radius (mm), radial feed per
+    radian (mm/rad), the path's largest deviation from it (mm), feed per revolution (mm)."""
+    span = theta[-1] - theta[0]
+    cc = (rho[0] - rho[-1]) / span if span > 0 else 0.0
+    a = float(rho[0])
+    dev = float(np.max(np.abs(rho - (a - cc * (theta - theta[0])))))
+    return a, cc, dev, abs(cc) * TWO_PI
+
+
 def prepare_envelope(path, *, nose_radius: float, half_width: float | None = None,
                      slope_bound: float | None = None, window: float | None = None) -> EnvelopePath:
     """Prepare a turning path for :func:`envelope_fill` (see :func:`simulate_turning` for
@@ -404,14 +469,10 @@ def prepare_envelope(path, *, nose_radius: float, half_width: float | None = Non
     z = np.ascontiguousarray(path.z, dtype=np.float64)
     if theta.size < 2:
         raise ValueError("simulate_turning: the path needs at least 2 points")
-    Rc = float(nose_radius)
-    hw = min(float(half_width) if half_width is not None else Rc, Rc)
+    Rc, hw = _nose_arc(nose_radius, half_width)
     n = theta.size
     span = theta[-1] - theta[0]
-    cc = (rho[0] - rho[-1]) / span if span > 0 else 0.0
-    a = float(rho[0])
-    dev = float(np.max(np.abs(rho - (a - cc * (theta - theta[0])))))
-    f = abs(cc) * TWO_PI
+    a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
     W = min(hw, 2.1 * Rc * m + 0.5 * f + 1e-9) if window is None else float(window)
     seg = np.empty((n - 1, 4))
@@ -422,8 +483,9 @@ def prepare_envelope(path, *, nose_radius: float, half_width: float | None = Non
     dth = span / (n - 1)
     nrev_f = TWO_PI / dth if dth > 0 else 0.0
     nrev = int(round(nrev_f))
-    uniform = bool(dth > 0 and nrev >= 1 and abs(nrev_f - nrev) < 1e-9 * nrev
-                   and np.max(np.abs(theta - (theta[0] + dth * np.arange(n)))) < 1e-9 * dth)
+    uniform = bool(dth > 0 and nrev >= 1 and abs(nrev_f - nrev) < _UNIFORM_RTOL * nrev
+                   and np.max(np.abs(theta - (theta[0] + dth * np.arange(n))))
+                   < _UNIFORM_RTOL * dth)
     if uniform:
         tab, tt0, tw = np.zeros(1, dtype=np.int64), float(theta[0]), 1.0
     else:

@@ -3,34 +3,49 @@ side flow, adhesion, and what intermittent (ultrasonic vibration) cutting change
 
 The model (sources and approximations in docs/machine_and_material.md)
 ----------------------------------------------------------------------
-* **Minimum uncut chip thickness** (Son, Lim & Ahn, Int. J. Mach. Tools Manuf. 45 (2005)
-  529): a round cutting edge of radius r_e forms a chip only where the local uncut chip
-  thickness h reaches h_min = r_e (1 - cos(pi/4 - beta/2)), beta = atan(mu) the friction
-  angle between tool and work.  Thinner material is ploughed.
+* **Minimum uncut chip thickness** (Son, Lim & Ahn 2005 [1]_): a round cutting edge of
+  radius r_e forms a chip only where the local uncut chip thickness h reaches
+  h_min = r_e (1 - cos(pi/4 - beta/2)), beta = atan(mu) the friction angle between tool
+  and work.  Thinner material is ploughed.
 * **Elastic recovery** of the ploughed material: a fraction kappa of the ploughed depth
   springs back.  kappa = c (H / E_r) with E_r the reduced modulus of the diamond-work
   contact and c = 0.727 (pi / 2) tan(70.3 deg) ~ 3.2, the elastic unloading depth of a
-  conical contact (Sneddon; Oliver & Pharr, J. Mater. Res. 7 (1992) 1564) for the
-  Berkovich-equivalent cone.  For metals kappa ~ 0.02-0.1: ploughed material is mostly
-  displaced plastically.
-* **Side flow** (Liu & Melkote, Int. J. Mach. Tools Manuf. 46 (2006) 1778): the
-  plastically displaced part (1 - kappa) of the ploughed material flows sideways onto the
-  neighbouring, already machined surface, raising the feed-mark peaks.  With kappa = 1
-  (everything left uncut) the cusp height is Brammertz's
-  f^2 / (8 R) + h_min / 2 (1 + R h_min / f^2) (Brammertz, Industrie-Anzeiger 83 (1961)
-  525), which the envelope reproduces (tested).  Where two cuts meet at a sharp machined
-  edge the same mechanism forms a burr on that edge.
-* **Adhesion** (chemical affinity of the work to diamond: iron, chromium, nickel; seed 003
-  saw Cr and Fe adhered to the tool after conventional sculpturing of steel): in
-  continuous contact an adhered layer of thickness ``adhesion_layer`` builds on the edge;
-  it blunts it (r_eff = r_e + layer) and its irregularities plough grooves along the cut
-  of rms ``adhesion_roughness``.  Intermittent cutting with tool-work separation every
-  vibration period stops the layer from building: both scale with the *contact ratio*
-  eta, the fraction of time the tool advances into fresh material (1 in continuous
-  cutting).  For 1-D vibration along the cut, y = v t + A cos(2 pi f t), eta ~
-  sqrt(v / (pi A 2 pi f)) when v << 2 pi f A (:func:`contact_ratio`, computed exactly).
+  conical contact (Sneddon; Oliver & Pharr 1992 [2]_) for the Berkovich-equivalent cone.
+  For metals kappa ~ 0.02-0.1: ploughed material is mostly displaced plastically.
+* **Side flow** (Liu & Melkote 2006 [3]_): the plastically displaced part (1 - kappa) of
+  the ploughed material flows sideways onto the neighbouring, already machined surface,
+  raising the feed-mark peaks.  With kappa = 1 (everything left uncut) the cusp height is
+  Brammertz's f^2 / (8 R) + h_min / 2 (1 + R h_min / f^2) (Brammertz 1961 [4]_), which the
+  envelope reproduces (tested).  Where two cuts meet at a sharp machined edge the same
+  mechanism forms a burr on that edge.
+* **Adhesion** (chemical affinity of the work to diamond: iron, chromium, nickel; Zhang et
+  al. 2022 [5]_ saw Cr and Fe adhered to the tool after conventional sculpturing of
+  steel): in continuous contact an adhered layer of thickness ``adhesion_layer`` builds on
+  the edge; it blunts it (r_eff = r_e + layer) and its irregularities plough grooves
+  along the cut of rms ``adhesion_roughness``.  Intermittent cutting with tool-work
+  separation every vibration period stops the layer from building: both scale with the
+  *contact ratio* eta, the fraction of time the tool advances into fresh material (1 in
+  continuous cutting).  For 1-D vibration along the cut, y = v t + A cos(2 pi f t),
+  eta ~ sqrt(v / (pi A 2 pi f)) when v << 2 pi f A (:func:`contact_ratio`, computed
+  exactly).
 
 Lengths in mm in code (``*_nm`` keys in presets and outputs); moduli and hardness in GPa.
+
+References
+----------
+.. [1] S. M. Son, H. S. Lim, J. H. Ahn, "Effects of the friction coefficient on the minimum
+       cutting thickness in micro cutting," International Journal of Machine Tools and
+       Manufacture 45(4-5), 529-535 (2005). :DOI:`10.1016/j.ijmachtools.2004.10.001`
+.. [2] W. C. Oliver, G. M. Pharr, "An improved technique for determining hardness and
+       elastic modulus using load and displacement sensing indentation experiments,"
+       Journal of Materials Research 7(6), 1564-1583 (1992). :DOI:`10.1557/JMR.1992.1564`
+.. [3] K. Liu, S. N. Melkote, "Effect of plastic side flow on surface roughness in
+       micro-turning process," International Journal of Machine Tools and Manufacture 46,
+       1778-1785 (2006). :DOI:`10.1016/j.ijmachtools.2005.11.014`
+.. [4] W. Brammertz, Industrie-Anzeiger 83, 525 (1961).
+.. [5] C. Zhang, C.-F. Cheung, X. Liang, B. Bulla, "A theoretical and experimental
+       investigation of high-frequency ultrasonic vibration-assisted sculpturing of
+       optical microstructures," Applied Sciences 12(21), 10937 (2022).
 """
 
 from __future__ import annotations
@@ -41,6 +56,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM, NM_TO_MM
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
            "material_response", "contact_ratio", "min_chip_thickness", "elastic_recovery",
@@ -115,8 +131,8 @@ class Material:
 _HV = 9.80665e-3  # GPa per HV unit
 
 #: Material presets.  Property values are handbook figures (ASM / manufacturers' sheets);
-#: the adhesion values for the die steel are set from seed 003's conventional
-#: sculpturing (see ``sources``).
+#: the adhesion values for the die steel are set from the conventional sculpturing of
+#: Zhang et al. (2022) (see ``sources``).
 MATERIAL_PRESETS = {
     "al6061": Material(
         "al6061", 68.9, 0.33, 107 * _HV, 0.15, 0.0, 0.0, 1.0,
@@ -130,7 +146,7 @@ MATERIAL_PRESETS = {
         sources={"E, nu, hardness": "Al 6082-T6: 70 GPa, 0.33, 95 HV (ASM handbook)",
                  "friction": "as al6061", "adhesion": "none", "texture_nm": "as al6061"}),
     "ofhc_copper": Material(
-        "ofhc_copper", 117.0, 0.34, 60 * _HV, 0.2, 0.0, 0.0, 0.8,
+        "ofhc_copper", 117.0, 0.34, 60 * _HV, 0.2, 0.0, 0.0, 0.8,  # not a unit conversion
         sources={"E, nu, hardness": "OFHC copper C10100, half hard: 117 GPa, 0.34, ~60 HV",
                  "friction": "0.2 (assumed)", "adhesion": "none",
                  "texture_nm": "0.8 nm rms: grain-orientation dependent recovery (assumed)"}),
@@ -147,12 +163,13 @@ MATERIAL_PRESETS = {
         sources={"E, nu, hardness": "Mirrax 40 (Uddeholm), pre-hardened 40 HRC ~ 392 HV, "
                                     "E ~ 200 GPa",
                  "friction": "0.2 (assumed)",
-                 "adhesion_roughness_nm": "46 nm Sq: seed 003 measured Sa 37 nm (Sq ~ Sa / 0.8) "
+                 "adhesion_roughness_nm": "46 nm Sq: Zhang et al. (2022) measured Sa 37 nm "
+                                          "(Sq ~ Sa / 0.8) "
                                           "after conventional sculpturing of Mirrax 40, "
                                           "attributed to adhered material ploughing the surface",
                  "adhesion_layer_nm": "0.5 um adhered layer on the edge in continuous cutting "
-                                      "(assumed; seed 003 Fig. 11 shows considerable Cr / Fe "
-                                      "adhesion and a blunted edge)",
+                                      "(assumed; Fig. 11 of Zhang et al. (2022) shows "
+                                      "considerable Cr / Fe adhesion and a blunted edge)",
                  "texture_nm": "1 nm rms (assumed)"}),
 }
 
@@ -166,7 +183,7 @@ def material_preset(name: str, overrides: dict | None = None) -> Material:
 
 
 def min_chip_thickness(edge_radius: float, friction: float) -> float:
-    """h_min = r_e (1 - cos(pi/4 - beta/2)), beta = atan(friction) (Son et al. 2005).
+    """h_min = r_e (1 - cos(pi/4 - beta/2)), beta = atan(friction) (Son et al. 2005 [1]_).
 
     Parameters
     ----------
@@ -244,10 +261,10 @@ class MaterialResponse:
     material: str
 
     def to_dict(self) -> dict:
-        return {"material": self.material, "h_min_nm": self.h_min * 1e6, "kappa": self.kappa,
-                "edge_radius_eff_nm": self.edge_radius_eff * 1e6,
-                "contact_ratio": self.contact_ratio, "groove_rms_nm": self.groove_rms * 1e6,
-                "side_flow": self.side_flow, "burr_height_nm": self.burr_height * 1e6}
+        return {"material": self.material, "h_min_nm": self.h_min * MM_TO_NM, "kappa": self.kappa,
+                "edge_radius_eff_nm": self.edge_radius_eff * MM_TO_NM,
+                "contact_ratio": self.contact_ratio, "groove_rms_nm": self.groove_rms * MM_TO_NM,
+                "side_flow": self.side_flow, "burr_height_nm": self.burr_height * MM_TO_NM}
 
 
 def material_response(material: Material, *, edge_radius: float = 50e-6,
@@ -257,10 +274,10 @@ def material_response(material: Material, *, edge_radius: float = 50e-6,
     check_range("edge_radius", edge_radius, 0.0, 1e-2)
     check_range("contact_ratio", contact_ratio, 0.0, 1.0, lo_open=True)
     eta = float(contact_ratio)
-    layer = material.adhesion_layer_nm * 1e-6 * eta
+    layer = material.adhesion_layer_nm * NM_TO_MM * eta
     r_eff = float(edge_radius) + layer
     h_min = min_chip_thickness(r_eff, material.friction)
     kappa = elastic_recovery(material)
-    groove = math.hypot(material.adhesion_roughness_nm * eta, material.texture_nm) * 1e-6
+    groove = math.hypot(material.adhesion_roughness_nm * eta, material.texture_nm) * NM_TO_MM
     return MaterialResponse(h_min, kappa, r_eff, eta, groove, bool(side_flow),
                             (1.0 - kappa) * h_min if side_flow else 0.0, material.name)

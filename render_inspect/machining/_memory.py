@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import os
 
+from ..core.units import MIB_TO_BYTES
+
 #: bytes per path point while the path is planned
 PLAN_BYTES = 160
 #: bytes per path point of the planned path (theta, rho, z, t, contact points)
@@ -45,7 +47,7 @@ DESIGN_ROWS = 128
 DESIGN_TEMPS = 6
 #: previews: fixed bytes, plus 16 B per overview block (coarsening copies of the residual's
 #: block sums and counts) or 4 B per sample without an overview (2 x 2 block sums)
-PREVIEW_BYTES = 4 * 2 ** 20
+PREVIEW_BYTES = 4 * MIB_TO_BYTES
 #: largest side of the heightmap.exr overview (pixels; see render_inspect.io._exr)
 OVERVIEW_SIDE = 1024
 

@@ -8,8 +8,7 @@ import numpy as np
 from numba import njit
 
 from ..core.errors import InputError
-
-MM_TO_NM = 1e6
+from ..core.units import MM_TO_NM
 
 
 def residual_metrics(residual, design=None) -> dict:

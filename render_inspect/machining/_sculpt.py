@@ -1,11 +1,12 @@
-"""Vibration-assisted diamond sculpturing (HFUVAS, seed 003) of a quadrilateral lenslet array.
+"""Vibration-assisted diamond sculpturing (HFUVAS) of a quadrilateral lenslet array, after
+Zhang et al. (2022) [1]_.
 
 Linear X-Y-Z cutting, not turning.  The tool moves along target lines x = x_k (the
 lenslets' symmetry lines, one per column of cells) in the cutting direction y.  Its round
 edge (radius R, in the x-z plane, rake 0) is swept along the line; the machined surface is
 the lower envelope of every position the edge passes through.
 
-Kinematics (seed 003 eq. 2-9)::
+Kinematics (Zhang et al. 2022, eq. 2-9)::
 
     u(t) = y_start + v_c t                      nominal position along the line
     y(t) = u(t) + A cos(2 pi f t)               ultrasonic vibration along the cut
@@ -23,6 +24,12 @@ Two theoretical form errors come out of this geometry, without being put in:
 * tool-edge overcut: the section of a lenslet across the cut has radius
   sqrt(r^2 - (y - y_c)^2) <= r = R, so a round edge of radius R cuts below it away from
   the line (largest at the four-lenslet cusp, 0.025 um for the paper's data).
+
+References
+----------
+.. [1] C. Zhang, C.-F. Cheung, X. Liang, B. Bulla, "A theoretical and experimental
+       investigation of high-frequency ultrasonic vibration-assisted sculpturing of
+       optical microstructures," Applied Sciences 12(21), 10937 (2022).
 """
 
 from __future__ import annotations
@@ -123,7 +130,7 @@ def _sweep_line(ys, zs, t_start, vc, amp, freq, phases, y0, dy, out):  # pragma:
 
 
 def target_line(surface, x_line: float, edges, *, step: float):
-    """Target line (seed 003 eq. 2): the design along x = ``x_line``, sampled every
+    """Target line (Zhang et al. 2022, eq. 2): the design along x = ``x_line``, sampled every
     ``step`` mm inside each segment between consecutive ``edges`` (mm, increasing), with a
     sample on every edge (segment cutting keeps the sharp edges).
 
@@ -149,9 +156,9 @@ def vibration_phases(cutting_speed: float, amplitude: float, frequency_hz: float
                      samples_per_period: int = 16) -> np.ndarray:
     """Phases (rad, sorted in [0, 2 pi)) at which each vibration period is sampled:
     ``samples_per_period`` uniform phases plus the front- and back-cut limits, where the
-    tool stops along the cut, y'(t) = v_c - 2 pi f A sin(2 pi f t) = 0 (seed 003 eq. 6), so
-    the envelope's extreme points are exact.  Without reversal (v_c >= 2 pi f A) only the
-    uniform phases."""
+    tool stops along the cut, y'(t) = v_c - 2 pi f A sin(2 pi f t) = 0 (Zhang et al. 2022,
+    eq. 6), so the envelope's extreme points are exact.  Without reversal
+    (v_c >= 2 pi f A) only the uniform phases."""
     ph = list(2 * math.pi * np.arange(samples_per_period) / samples_per_period)
     eps = cutting_speed / (2 * math.pi * frequency_hz * amplitude)
     if eps < 1:

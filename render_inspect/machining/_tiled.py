@@ -15,7 +15,7 @@ block, aligned to the grid origin).  Each tile task
 4. returns only the small partials.
 
 Peak memory is bounded by (tiles in flight) x (tile size), not by the part.  The
-scheduling, the store and the reductions are in ``render_inspect.pipeline._tiled``; this
+scheduling on Dask, the store and the reductions are in ``render_inspect.batch``; this
 module holds the pure per-tile computation.
 """
 

@@ -20,13 +20,14 @@ import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError, MemoryBudgetError, check_positive
+from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES, MM_TO_M
 from ..io import atomic_write_bytes
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "gltf_from_project", "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
 
 #: The largest mesh (vertices + faces + normals, bytes) built without an explicit budget.
-DEFAULT_MEMORY_BUDGET_BYTES = 6 * 1024**3
+DEFAULT_MEMORY_BUDGET_BYTES = 6 * GIB_TO_BYTES
 
 #: Export formats, keyed by file extension (trimesh's exporters).
 MESH_FORMATS = {".ply": "ply", ".obj": "obj", ".glb": "glb", ".stl": "stl"}
@@ -177,8 +178,8 @@ def grid_mesh(z, *, pixel: float, origin=(0.0, 0.0), exaggeration: float = 1.0,
     need = ny * nx * (12 + (12 if normals else 0)) + (ny - 1) * (nx - 1) * 24
     if need > budget:
         raise MemoryBudgetError(
-            f"a {ny} x {nx} mesh needs {need / 2**20:.0f} MiB, over the memory budget of "
-            f"{budget / 2**20:.0f} MiB: raise stride (got {stride}) or crop a window")
+            f"a {ny} x {nx} mesh needs {need / MIB_TO_BYTES:.0f} MiB, over the memory budget of "
+            f"{budget / MIB_TO_BYTES:.0f} MiB: raise stride (got {stride}) or crop a window")
     finite = np.isfinite(z)
     if not finite.any():
         raise InputError("z has no finite height: nothing to mesh")
@@ -365,13 +366,12 @@ def export_mesh(mesh, path: str | Path) -> Path:
 #: Project frame (mm, +Z up) -> glTF frame (m, +Y up): a rotation by -90 deg about x
 #: (determinant +1, so triangles keep their winding) and mm -> m.
 GLTF_ROTATION = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-GLTF_METRES_PER_MM = 1e-3
 
 
 def gltf_from_project(points) -> np.ndarray:
     """(n, 3) points in the project's frame (mm, +Z up) -> glTF's (m, +Y up):
     ``(x, y, z) -> (x, z, -y) / 1000``."""
-    return np.asarray(points, dtype=np.float64) @ GLTF_ROTATION.T * GLTF_METRES_PER_MM
+    return np.asarray(points, dtype=np.float64) @ GLTF_ROTATION.T * MM_TO_M
 
 
 def _glb_bytes(tm, normals=None) -> bytes:

@@ -2,22 +2,29 @@
 evaluating against a truth, ISO 25178 / 21920 parameters (slopes as the reference
 libraries take them; Sal / Str from the autocorrelation), one-map analysis, checks
 before a comparison, ISO 16610-61 Gaussian filters, form removal, outliers and 6-DOF
-registration (seed 002) with its uncertainty, microstructure-array analysis (lenslet
-centres, dislocations, per-lenslet form errors), and comparison of measured maps with a
-scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number or
-(pixel_x, pixel_y)."""
+registration (after Kong et al. 2020) with its uncertainty, microstructure-array analysis
+(lenslet centres, dislocations, per-lenslet form errors), and comparison of measured maps
+with a scene's design and simulation.  Plain numpy/scipy; lengths in mm; pixels one number
+or (pixel_x, pixel_y).  The papers and standards each model follows are cited in its
+module's References (docs/references.md lists them all)."""
 
 from ._analysis import FORMS, OUTLIER_METHODS, Analysis, analyze_map, parse_filter
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
                       correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
 from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
                        coverage, resample_map, sample_map)
-from ._filter_choice import MARK_LEAK_NM, scallop_pv, waviness_filters
+from ._filter_choice import (FINEST_RENDERED_MARKS_MM, MARK_LEAK_NM, expected_sq_mm, feature_size,
+                             mark_size, render_marks, scallop_pv, waviness_choice,
+                             waviness_filters, waviness_map)
+from ._lenslet_facts import lenslet_facts, lenslet_metrics, msa_metrics
 from ._filters import (EDGE_MODES, GAUSSIAN_ALPHA, fit_sphere, gaussian_filter, gaussian_sigma,
                        gaussian_transmission, l_filter, pixel_xy, remove_form, s_filter,
                        valid_mask)
 from ._msa import (LENSLET_KEYS, base_form_error, characterise_msa, lenslet_centers,
                    lenslet_table, separate_msa)
+from ._profiles import (areal_nm, common_window, crop_window, difference_profiles,
+                        difference_stats, line_profile, profile_center, sections,
+                        surface_slope)
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
@@ -25,10 +32,11 @@ from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtracti
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._measure import ALGORITHMS, measure_frames
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
-                     phase_quality, retrieve_csi, retrieve_psi, unwrap_phase, wrapped_phase)
+                     retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
+from ._unwrap import phase_quality, unwrap_phase
 
 __all__ = [
     "areal_parameters", "slope_parameters", "spatial_parameters", "autocorrelation",
@@ -51,4 +59,8 @@ __all__ = [
     "evaluate_measurement",
     "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
     "dropout_slope", "noise_by_subtraction",
+    "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
+    "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",
+    "common_window", "crop_window", "line_profile", "difference_stats", "sections",
+    "profile_center", "areal_nm", "difference_profiles", "surface_slope",
 ]

@@ -12,17 +12,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError, check_positive
+from ..core.limits import MAX_ABS_MM, MOSTLY_EMPTY_FRACTION, check_memory, mostly_empty_warning
+from ..core.units import MIB_TO_BYTES, MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ._filters import fit_sphere, l_filter, pixel_xy, remove_form, s_filter, valid_mask
 from ._params import SLOPE_ESTIMATORS, areal_parameters, spatial_parameters
 from ._registration import detect_outliers
 
-__all__ = ["FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter"]
+__all__ = ["FORMS", "OUTLIER_METHODS", "Analysis", "analyze_map", "parse_filter",
+           "check_filter", "filter_range", "analyze_memory", "analyze_memory_per_point",
+           "ANALYZE_BYTES_PER_POINT"]
 
 #: Form removal choices of :func:`analyze_map`.
 FORMS = ("none", "plane", "poly2", "sphere")
 #: Outlier choices of :func:`analyze_map`.
 OUTLIER_METHODS = ("none", "sigma")
-MM_TO_NM = 1e6
+#: Sdq or Sdr with the hole borders differing by more than this share gets a warning
+HOLE_BORDER_WARN = 0.05
+HOLE_BORDER_RULE = ("gradients and Sdr cells whose stencil, or the next point beyond it in "
+                    "+x or +y, is not measured are left out (SurfaceTopography's rms_gradient)")
 
 
 @dataclass
@@ -50,8 +57,8 @@ def parse_filter(text: str | None):
         return None, None
     parts = [p.strip() for p in str(text).split(",")]
     if len(parts) != 2:
-        raise InputError(f"filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
-                         f"',0.8'), got {text!r}")
+        raise InputError(f"--filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
+                         f"',0.8'), received {str(text)[:80]!r}")
     out = []
     for name, p in zip(("S", "L"), parts):
         if p == "":
@@ -60,14 +67,116 @@ def parse_filter(text: str | None):
         try:
             v = float(p)
         except ValueError:
-            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}") from None
+            raise InputError(f"--filter {name} must be a number of mm >= 0, received "
+                             f"{p[:40]!r}") from None
         if not (math.isfinite(v) and v >= 0):
-            raise InputError(f"filter {name} must be a number of mm >= 0, got {p!r}")
+            raise InputError(f"--filter {name} must be a finite number of mm >= 0, received "
+                             f"{p[:40]!r}")
         out.append(v or None)
     s_mm, l_mm = out
     if s_mm and l_mm and not l_mm > s_mm:
-        raise InputError(f"filter L ({l_mm} mm) must be > S ({s_mm} mm)")
+        raise InputError(f"--filter L must be longer than S, received S {s_mm:g} mm and L "
+                         f"{l_mm:g} mm")
     return s_mm, l_mm
+
+
+def filter_range(pixel, shape) -> tuple[float, float]:
+    """(shortest, longest) nesting index in mm a filter may have on a map of ``shape``
+    (rows, columns) with ``pixel`` (mm, one number or (x, y)): two of the larger pixel,
+    and the smaller side of the field."""
+    px, py = pixel_xy(pixel)
+    ny, nx = int(shape[0]), int(shape[1])
+    return 2.0 * max(px, py), min(px * nx, py * ny)
+
+
+def check_filter(s_mm, l_mm, *, pixel, shape, option: str = "--filter") -> None:
+    """Refuse S- and L-filter nesting indices (mm) that this map cannot carry: shorter
+    than two pixels or longer than the field's smaller side (:func:`filter_range`), with
+    one line naming ``option``, the unit, the allowed range and the value, and, when the
+    values read as micrometres would fit, the values that were probably meant."""
+    lo, hi = filter_range(pixel, shape)
+    px, py = pixel_xy(pixel)
+    ny, nx = int(shape[0]), int(shape[1])
+    values = {"S": s_mm, "L": l_mm}
+    for name, v in values.items():
+        if v is None:
+            continue
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise InputError(f"{option} {name} must be a number of mm, received {v!r}") from None
+        if not math.isfinite(v) or v <= 0:
+            raise InputError(f"{option} {name} must be a number of mm > 0, received {v!r}")
+        if lo <= v <= hi:
+            continue
+        where = "shorter than two pixels" if v < lo else "longer than the map"
+        msg = (f"{option} {name} must lie within {lo:.3g} .. {hi:.3g} mm on this map "
+               f"({nx} x {ny} points of {px:.3g} x {py:.3g} mm: two pixels to the field's "
+               f"smaller side), received {v:.6g} mm ({where})")
+        as_um = {k: (float(x) * UM_TO_MM if x is not None else None) for k, x in values.items()}
+        if v > hi and all(x is None or lo <= x <= hi for x in as_um.values()) \
+                and (as_um["L"] is None or as_um["L"] >= 5 * lo):
+            meant = ",".join("" if x is None else f"{x:g}" for x in as_um.values())
+            msg += (f"; the value looks like micrometres: {option} {meant} (mm) was probably "
+                    f"meant")
+        raise InputError(msg)
+
+
+#: bytes at the peak of ``analyze``, measured as the peak resident memory of the command
+#: (above the interpreter's) on random 2000 x 2000 to 6000 x 6000 maps (docs/limits.md):
+#: ``held`` per map point (the map, its working copies, the slopes in row blocks) plus
+#: ``fft`` per point of the zero-padded grid of the autocorrelation (about 4 per map
+#: point), ``holes_fft`` more on a map with missing points (the pair counts); the steps
+#: ``form_poly2`` and ``outliers_sigma`` peak higher per map point by themselves.
+ANALYZE_BYTES_PER_POINT = {"held": 80.0, "fft": 22.0, "holes_fft": 8.0, "form_poly2": 215.0,
+                           "outliers_sigma": 215.0, "form_sphere": 180.0}
+#: zero-padded FFT points per map point assumed before the map's shape is known
+_FFT_PER_POINT = 4.4
+#: fixed part of the estimate (figures, file buffers)
+_ANALYZE_FIXED = 64 * MIB_TO_BYTES
+
+
+def _fft_points(shape) -> int:
+    from scipy import fft as sfft
+
+    ny, nx = int(shape[0]), int(shape[1])
+    return sfft.next_fast_len(2 * ny - 1, real=True) * sfft.next_fast_len(2 * nx - 1, real=True)
+
+
+def _step_peak(form: str, outliers: str) -> float:
+    b = ANALYZE_BYTES_PER_POINT
+    peaks = [0.0]
+    if form == "poly2":
+        peaks.append(b["form_poly2"])
+    if form == "sphere":
+        peaks.append(b["form_sphere"])
+    if outliers == "sigma":
+        peaks.append(b["outliers_sigma"])
+    return max(peaks)
+
+
+def analyze_memory(shape, *, form: str = "plane", s_filter_mm=None, l_filter_mm=None,
+                   outliers: str = "none", slope: str = "forward", holes: bool = True) -> float:
+    """Bytes at the peak of ``analyze`` on a map of ``shape`` (rows, columns) with these
+    options (:data:`ANALYZE_BYTES_PER_POINT`): the map, the analysis and the figures;
+    reading the file peaks lower and is over by then.  ``holes``: count the pair counts
+    of the autocorrelation that a map with missing points needs."""
+    b = ANALYZE_BYTES_PER_POINT
+    n = float(int(shape[0]) * int(shape[1]))
+    spatial = b["held"] * n + (b["fft"] + (b["holes_fft"] if holes else 0.0)) * _fft_points(shape)
+    return max(spatial, _step_peak(form, outliers) * n) + _ANALYZE_FIXED
+
+
+def analyze_memory_per_point(*, form: str = "plane", s_filter_mm=None, l_filter_mm=None,
+                             outliers: str = "none", slope: str = "forward",
+                             holes: bool = True) -> float:
+    """:func:`analyze_memory` per map point before the map's shape is known (the padded
+    FFT grid taken as 4.4 points per map point): for
+    :func:`render_inspect.io.reading_for`, so that a file too large to analyse is refused
+    before it is read."""
+    b = ANALYZE_BYTES_PER_POINT
+    spatial = b["held"] + (b["fft"] + (b["holes_fft"] if holes else 0.0)) * _FFT_PER_POINT
+    return max(spatial, _step_peak(form, outliers))
 
 
 def _nan_to_none(v):
@@ -79,7 +188,8 @@ def _nan_to_none(v):
 def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
                 s_filter_mm: float | None = None, l_filter_mm: float | None = None,
                 outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
-                acf_threshold: float = 0.2, source: dict | None = None) -> Analysis:
+                acf_threshold: float = 0.2, source: dict | None = None, budget=None,
+                filter_option: str = "--filter") -> Analysis:
     """ISO 25178-2 parameters of one height map, with everything said about how.
 
     Parameters
@@ -108,6 +218,17 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
     source : dict, optional
         What the file said about itself (reader, units in the file, ...), copied into
         ``metrics["source"]``.
+    budget : (bytes, source) or bytes, optional
+        Memory budget (default: the automatic one): a map whose analysis
+        (:func:`analyze_memory`) would not fit is refused before any work.
+    filter_option : str
+        How messages name the filter (``--filter`` on the command line).
+
+    The filters must lie within :func:`filter_range` (two pixels to the field's smaller
+    side, :func:`check_filter`) and the heights within +-10 000 mm; a map more than half
+    of which is not measured gets a warning, and on a map with missing points the
+    gradients bordering them are left out of Sdq and Sdr (``metrics["holes"]`` gives
+    both values; a warning when they differ by more than 5 %).
 
     Returns
     -------
@@ -116,7 +237,9 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         Sdr_percent, Sal_mm, Str}, ``pixel_mm`` = [x, y], ``shape`` = [rows, cols],
         ``origin_mm``, ``valid_fraction``, ``n_valid``, ``units``, ``form``, ``filter``,
         ``outliers`` = {method, sigma, count, fraction}, ``slope_estimator``, ``spatial``,
-        ``warnings``, ``source``.  Undefined values (Str when the autocorrelation does
+        ``warnings``, ``source`` and, on a map with missing points, ``holes`` =
+        {n_unmeasured, unmeasured_fraction, n_border_gradients, Sdq_with_border,
+        Sdr_percent_with_border, rule}.  Undefined values (Str when the autocorrelation does
         not decay in every direction) are None.
     """
     if hasattr(z, "z") and hasattr(z, "pixel"):
@@ -142,11 +265,22 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
             check_positive(name, v)
     if s_filter_mm and l_filter_mm and not l_filter_mm > s_filter_mm:
         raise InputError(f"l_filter_mm ({l_filter_mm}) must be > s_filter_mm ({s_filter_mm})")
+    check_filter(s_filter_mm, l_filter_mm, pixel=(px, py), shape=z.shape, option=filter_option)
+    need = analyze_memory(z.shape, form=form, s_filter_mm=s_filter_mm, l_filter_mm=l_filter_mm,
+                          outliers=outliers, slope=slope, holes=not np.isfinite(z).all())
+    check_memory(need, what=f"analysing a {z.shape[0]} x {z.shape[1]} map", budget=budget,
+                 hint="crop or resample the map (fewer points)")
     warnings_ = []
     ok = valid_mask(z)
     n_measured = int(ok.sum())
     if n_measured < 10:
         raise InputError(f"analyze_map: need at least 10 valid points, got {n_measured}")
+    big = float(np.max(np.abs(z), where=ok, initial=0.0))
+    if big > MAX_ABS_MM:
+        raise InputError(f"analyze_map: heights must lie within +-{MAX_ABS_MM:g} mm, received "
+                         f"values up to {big:.3g} mm (heights are in mm)")
+    if n_measured < (1.0 - MOSTLY_EMPTY_FRACTION) * z.size:
+        warnings_.append(mostly_empty_warning(1.0 - n_measured / z.size))
     _, flagged = detect_outliers(z, pixel=(px, py), k=outlier_sigma, replace=False)
     flagged &= ok
     n_flag = int(flagged.sum())
@@ -169,15 +303,23 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         res = s_filter(res, pixel=(px, py), nesting_index=s_filter_mm)
     if l_filter_mm:
         res = l_filter(res, pixel=(px, py), nesting_index=l_filter_mm)
-    for name, v in (("S", s_filter_mm), ("L", l_filter_mm)):
-        if v and v < 2 * max(px, py):
-            warnings_.append(f"the {name}-filter nesting index {v:g} mm is below two pixels "
-                             f"({2 * max(px, py):g} mm): it hardly acts on this sampling")
-    field_min = min(px * z.shape[1], py * z.shape[0])
-    if l_filter_mm and l_filter_mm > field_min:
-        warnings_.append(f"the L-filter nesting index {l_filter_mm:g} mm exceeds the smaller field "
-                         f"side {field_min:g} mm")
     p = areal_parameters(res, pixel=(px, py), slope=slope)
+    holes = None
+    if "n_border" in p and p["n_valid"] < z.size:
+        holes = {"n_unmeasured": int(z.size - p["n_valid"]),
+                 "unmeasured_fraction": float(1.0 - p["n_valid"] / z.size),
+                 "n_border_gradients": int(p["n_border"]),
+                 "Sdq_with_border": _nan_to_none(float(p["Sdq_with_border"])),
+                 "Sdr_percent_with_border": _nan_to_none(float(p["Sdr_with_border"])),
+                 "rule": HOLE_BORDER_RULE}
+        dq = p["Sdq_with_border"] / p["Sdq"] - 1.0 if p["Sdq"] > 0 else 0.0
+        dr = p["Sdr_with_border"] / p["Sdr"] - 1.0 if p["Sdr"] > 0 else 0.0
+        if p["n_border"] and max(abs(dq), abs(dr)) > HOLE_BORDER_WARN:
+            warnings_.append(
+                f"{p['n_border']} gradients border the map's {holes['n_unmeasured']} missing "
+                f"points; they are left out of Sdq and Sdr (as SurfaceTopography does): with "
+                f"them Sdq would be {p['Sdq_with_border']:.4g} ({dq:+.0%}) and Sdr "
+                f"{p['Sdr_with_border']:.4g} % ({dr:+.0%}); see metrics holes")
     sp = spatial_parameters(res, pixel=(px, py), s=acf_threshold)
     if not sp["decays_in_all_directions"]:
         warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "
@@ -187,7 +329,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         warnings_.append(f"{n_flag} points ({frac:.2%}) exceed the {outlier_sigma:g}-sigma "
                          f"second-difference rule; they are kept (--outliers sigma leaves them out)")
     if not math.isclose(px, py, rel_tol=1e-6):
-        warnings_.append(f"non-square pixels ({px * 1e3:.6g} x {py * 1e3:.6g} um): slopes and "
+        warnings_.append(f"non-square pixels ({px * MM_TO_UM:.6g} x {py * MM_TO_UM:.6g} um): slopes and "
                          f"lengths use each axis' own spacing")
     areal = {"Sa_nm": p["Sa"] * MM_TO_NM, "Sq_nm": p["Sq"] * MM_TO_NM, "Sz_nm": p["Sz"] * MM_TO_NM,
              "Sp_nm": p["Sp"] * MM_TO_NM, "Sv_nm": p["Sv"] * MM_TO_NM, "Ssk": p["Ssk"],
@@ -222,4 +364,6 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         "warnings": warnings_,
         "source": src,
     }
+    if holes is not None:
+        metrics["holes"] = holes
     return Analysis(metrics, res, flagged)

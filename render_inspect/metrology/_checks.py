@@ -18,6 +18,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.errors import InputError, check_positive, check_range
+from ..core.units import MM_TO_NM, MM_TO_UM
 from ._filters import pixel_xy, valid_mask
 from ._params import autocorrelation
 from ._registration import RIGID_KEYS, registration_covariance, rotation_matrix
@@ -182,9 +183,10 @@ def registration_checks(z, design, registration: dict, *, pixel, origin=(0.0, 0.
         check_positive("expected_sq_mm", expected_sq_mm)
         limit = max(max_residual_ratio * float(expected_sq_mm), residual_floor_mm)
         if not rms <= limit:
-            refusals.append(f"the registration residual RMS {rms * 1e6:.4g} nm is above "
-                            f"{limit * 1e6:.4g} nm (max of {max_residual_ratio:g} x the expected Sq "
-                            f"{expected_sq_mm * 1e6:.3g} nm and {residual_floor_mm * 1e6:.4g} nm)")
+            refusals.append(f"the registration residual RMS {rms * MM_TO_NM:.4g} nm is above "
+                            f"{limit * MM_TO_NM:.4g} nm (max of {max_residual_ratio:g} x the "
+                            f"expected Sq {expected_sq_mm * MM_TO_NM:.3g} nm and "
+                            f"{residual_floor_mm * MM_TO_NM:.4g} nm)")
     unc = registration_covariance(z, design, registration, pixel=(px, py), origin=origin,
                                   mask=mask, residual=residual)
     sig = unc["sigma"]
@@ -195,12 +197,13 @@ def registration_checks(z, design, registration: dict, *, pixel, origin=(0.0, 0.
     field_min = min(px * nx, py * ny)
     if s_shift > 0.1 * field_min:
         refusals.append(f"the lateral registration is undetermined: standard uncertainty of the "
-                        f"shift {s_shift * 1e3:.3g} um > {0.1 * field_min * 1e3:.3g} um (a tenth "
+                        f"shift {s_shift * MM_TO_UM:.3g} um > {0.1 * field_min * MM_TO_UM:.3g} um "
+                        f"(a tenth "
                         f"of the measured field); the design has no lateral structure in the "
                         f"field to register to (wrong units or origin?)")
     elif s_shift > max_shift:
         warns.append(f"the lateral registration is uncertain: standard uncertainty "
-                     f"{s_shift * 1e3:.3g} um > {max_shift * 1e3:.3g} um")
+                     f"{s_shift * MM_TO_UM:.3g} um > {max_shift * MM_TO_UM:.3g} um")
     if s_rot > max_rotation_sigma_rad:
         warns.append(f"the rotation about z is uncertain: standard uncertainty "
                      f"{np.degrees(s_rot):.3g} deg > {np.degrees(max_rotation_sigma_rad):.3g} deg")

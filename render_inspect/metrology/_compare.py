@@ -10,6 +10,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..core.errors import InputError
+from ..core.units import MM_TO_NM
 from ._checks import registration_checks
 from ._filters import l_filter, pixel_xy, remove_form, s_filter
 from ._params import areal_parameters
@@ -73,7 +74,7 @@ def characterise_map(z, *, pixel, origin=(0.0, 0.0), form_removal: str = "plane"
                              f"({s_filter_mm} mm)")
         res = l_filter(res, pixel=pixel, nesting_index=l_filter_mm, edges=filter_edges)
     p = areal_parameters(res, pixel=pixel, slope=slope)
-    out = {f"{k}_nm": p[k] * 1e6 for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}  # mm -> nm
+    out = {f"{k}_nm": p[k] * MM_TO_NM for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}
     out.update({"Ssk": p["Ssk"], "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"],
                 "n_valid": p["n_valid"], "slope_estimator": slope, "form_removal": form_removal,
                 "s_filter_mm": s_filter_mm, "l_filter_mm": l_filter_mm,

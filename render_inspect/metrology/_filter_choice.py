@@ -22,6 +22,13 @@ middle one (ISO 16610-61 Gaussian filters, ISO 25178-3 S-F/S-L surfaces):
   weighting function reaches outside the map); when that would leave less than half the
   window's shorter side, the map is extended by its mirror image instead
   (``"mirror"``).  Either way the choice is returned and stated in the report.
+
+What the part is made of comes from the process (its
+:class:`~render_inspect.core.marks.ToolMarks`: period, nose radius, whether the marks
+are a feed scallop) and from the design (its feature size), never from asking which
+process or design kind it is.  The same marks set the diffuse renderer's texture
+(:func:`render_marks`) and the roughness a process leaves on its own
+(:func:`expected_sq_mm`).
 """
 
 from __future__ import annotations
@@ -29,9 +36,14 @@ from __future__ import annotations
 import math
 
 from ..core.errors import InputError, check_positive
-from ._filters import GAUSSIAN_ALPHA, gaussian_transmission
+from ..core.marks import ToolMarks
+from ..core.units import MM_TO_NM, MM_TO_UM
+from ._checks import kinematic_sq_mm
+from ._filters import GAUSSIAN_ALPHA, gaussian_transmission, l_filter, remove_form, s_filter
 
-__all__ = ["waviness_filters", "scallop_pv", "L_FILTER_FACTOR", "MARK_LEAK_NM"]
+__all__ = ["waviness_filters", "scallop_pv", "L_FILTER_FACTOR", "MARK_LEAK_NM", "mark_size",
+           "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
+           "FINEST_RENDERED_MARKS_MM", "waviness_map"]
 
 #: lambda_c = L_FILTER_FACTOR x the waviness of interest
 L_FILTER_FACTOR = 2.5
@@ -100,7 +112,7 @@ def waviness_filters(*, pixel: float, window_mm: tuple, mark_period: float | Non
         reasons.append(f"no S-filter: the tool marks (period {_um(mark_period)}) are finer "
                        f"than two pixels ({_um(2 * pixel)}) and not resolved by the map")
     else:
-        a1_nm = 4.0 * (mark_pv or 0.0) / math.pi ** 2 * 1e6
+        a1_nm = 4.0 * (mark_pv or 0.0) / math.pi ** 2 * MM_TO_NM
         ratio = math.sqrt(math.log(a1_nm / leak_nm) / math.pi) / GAUSSIAN_ALPHA \
             if a1_nm > leak_nm else 1.0
         ls = max(1.0, ratio) * mark_period
@@ -156,8 +168,96 @@ def waviness_filters(*, pixel: float, window_mm: tuple, mark_period: float | Non
 
 
 def _um(v_mm: float) -> str:
-    return f"{v_mm * 1e3:.3g} um"
+    return f"{v_mm * MM_TO_UM:.3g} um"
 
 
 def _mm(v_mm: float) -> str:
     return f"{v_mm:.3g} mm" if v_mm >= 0.1 else _um(v_mm)
+
+
+# ------------------------------------------------------------------ from the scene's parts
+#: linear marks finer than this (mm, half the shortest visible wavelength) are not
+#: resolved by light: the diffuse renderer gets no period for them
+FINEST_RENDERED_MARKS_MM = 0.2e-3
+
+
+def mark_size(marks: ToolMarks | None) -> tuple[float | None, float | None]:
+    """(period, peak-to-valley) of the marks, mm: a feed scallop's height from the nose
+    radius (:func:`scallop_pv`), other marks' as the process states it; (None, None)
+    without periodic marks."""
+    if marks is None or marks.period_mm is None:
+        return None, None
+    if marks.scallop:
+        return marks.period_mm, scallop_pv(marks.period_mm, marks.nose_radius_mm)
+    return marks.period_mm, marks.pv_mm
+
+
+def feature_size(design) -> float | None:
+    """The design's own lateral scale (mm): the waviness a process leaves on it is on
+    this scale (sinusoid wavelength, lenslet pitch, element diameter; a compound design's
+    feature's).  ``design``: the ``[design]`` section."""
+    sizes = []
+    for a in ("wavelength_x", "wavelength_y", "pitch_x", "pitch_y"):
+        v = getattr(design, a, None)
+        if v:
+            sizes.append(float(v))
+    er = getattr(design, "element_radius", None)
+    if er:
+        sizes.append(2 * float(er))
+    feat = getattr(design, "feature", None)
+    if not sizes and feat is not None:
+        return feature_size(feat)
+    return max(sizes) if sizes else None
+
+
+def waviness_choice(marks: ToolMarks | None, design, metrology, *, pixel: float,
+                    window_mm) -> dict:
+    """The S/L filters, edge handling and form removal of a simulated map's waviness:
+    :func:`waviness_filters` from the process's marks and the design's feature size, with
+    the ``[metrology]`` section's choices (``s_filter``, ``l_filter``, ``filter_edges``,
+    ``form_removal``, ``polynomial_degree``)."""
+    period, pv = mark_size(marks)
+    choice = waviness_filters(pixel=pixel, window_mm=window_mm, mark_period=period, mark_pv=pv,
+                              waviness=feature_size(design), edges=metrology.filter_edges,
+                              s_filter=metrology.s_filter, l_filter=metrology.l_filter)
+    choice["form_removal"] = metrology.form_removal if metrology.form_removal != "design" else "none"
+    choice["polynomial_degree"] = int(metrology.polynomial_degree)
+    return choice
+
+
+def render_marks(marks: ToolMarks | None) -> dict | None:
+    """The tool marks as the diffuse renderer takes them
+    (:func:`~render_inspect.render.render_diffuse` ``marks``): circular feed marks about
+    the spindle axis with their period and nose radius, or straight marks along the cut
+    whose period is dropped when light cannot resolve it."""
+    if marks is None:
+        return None
+    if marks.pattern == "circular":
+        return {"kind": "circular", "center_mm": [float(v) for v in marks.center_mm],
+                "period_mm": float(marks.period_mm), "nose_radius_mm": marks.nose_radius_mm}
+    period = marks.period_mm
+    if period is not None and period < FINEST_RENDERED_MARKS_MM:
+        period = None
+    return {"kind": "linear", "direction": [float(v) for v in marks.direction],
+            "period_mm": period, "nose_radius_mm": marks.nose_radius_mm}
+
+
+def expected_sq_mm(marks: ToolMarks | None) -> float | None:
+    """The Sq a process leaves on its own (mm): the ideal turned profile
+    ``f^2 / (12 sqrt(5) R)`` of a feed scallop (:func:`kinematic_sq_mm`); None for other
+    marks."""
+    if marks is None or not marks.scallop or marks.period_mm is None or not marks.period_mm > 0:
+        return None
+    return kinematic_sq_mm(float(marks.period_mm), float(marks.nose_radius_mm))
+
+
+def waviness_map(residual, pixel: float, choice: dict):
+    """The waviness of a residual map (mm): the form of ``choice`` removed, then its S-
+    and L-filters (:func:`waviness_choice`) with its edge handling."""
+    r, _ = remove_form(residual, pixel=pixel, method=choice["form_removal"],
+                       degree=choice["polynomial_degree"])
+    if choice["s_filter_mm"]:
+        r = s_filter(r, pixel=pixel, nesting_index=choice["s_filter_mm"], edges=choice["edges"])
+    if choice["l_filter_mm"]:
+        r = l_filter(r, pixel=pixel, nesting_index=choice["l_filter_mm"], edges=choice["edges"])
+    return r

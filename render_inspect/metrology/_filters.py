@@ -1,6 +1,6 @@
 """ISO 16610-61 areal Gaussian filters (S and L) and form removal.
 
-The Gaussian weighting function of ISO 16610-61 is
+The Gaussian weighting function of ISO 16610-61 [1]_ is
 
     s(x) = 1 / (alpha lambda) exp(-pi (x / (alpha lambda))^2),  alpha = sqrt(ln 2 / pi)
 
@@ -11,9 +11,18 @@ convolution: the filter of ``z * w`` divided by the filter of ``w`` (``w`` = 1 w
 At the map's edges (``edges=``): ``"normalised"`` (default) uses only the points inside
 (the weighting function is cut off and renormalised, so near an edge the filter is
 one-sided and passes more of the short wavelengths); ``"mirror"`` extends the map by its
-mirror image (ISO 16610-28's symmetric extension); ``"cut"`` drops the border where the
-weighting function reaches outside the map: half the nesting index on every side (the
-run-in/run-out of ISO 16610-21, 4.7 standard deviations of the Gaussian).
+mirror image (ISO 16610-28's symmetric extension [2]_); ``"cut"`` drops the border where
+the weighting function reaches outside the map: half the nesting index on every side (the
+run-in/run-out of ISO 16610-21 [3]_, 4.7 standard deviations of the Gaussian).
+
+References
+----------
+.. [1] ISO 16610-61:2015, Geometrical product specification (GPS) - Filtration - Part 61:
+       Linear areal filters - Gaussian filters.
+.. [2] ISO 16610-28, Geometrical product specifications (GPS) - Filtration - Part 28:
+       Profile filters: End effects.
+.. [3] ISO 16610-21, Geometrical product specifications (GPS) - Filtration - Part 21:
+       Linear profile filters: Gaussian filters.
 """
 
 from __future__ import annotations
@@ -223,7 +232,7 @@ def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_
     c, *_ = np.linalg.lstsq(a, fz, rcond=None)
     half = 0.5 * np.hypot(px * (nx - 1), py * (ny - 1))
     kappa0 = 2.0 * c[3]
-    if abs(kappa0) * half < 1e-9 * max(1.0, half):
+    if abs(kappa0) * half < 1e-9 * max(1.0, half):  # not a unit conversion: a tolerance
         # no measurable curvature: the best sphere is the plane (infinite radius)
         form = c[0] + c[1] * xx + c[2] * yy
         res = np.where(ok, z - form, np.nan)
@@ -235,7 +244,9 @@ def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_
 
     def resid(p):
         r = fz - p[2] - _sag(p[3], (fx - p[0]) ** 2 + (fy - p[1]) ** 2)
-        return np.where(np.isfinite(r), r, 1e3 * (np.nanmax(np.abs(fz)) + 1.0))
+        # where the sag is undefined: a residual far above any finite one
+        far = 1e3 * (np.nanmax(np.abs(fz)) + 1.0)  # not a unit conversion
+        return np.where(np.isfinite(r), r, far)
 
     scale = [half, half, max(float(np.ptp(fz)), 1e-9), abs(kappa0)]
     sol = least_squares(resid, [a0, b0, z0, kappa0], x_scale=scale, method="trf",

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.units import NM_TO_MM
 
 __all__ = [
     "batwing",
@@ -61,7 +62,7 @@ def pupil_overlap(frequency, *, numerical_aperture: float, illumination_na: floa
     -------
     array of the shape of ``frequency``, 0..1
     """
-    lam = wavelength_nm * 1e-6  # nm -> mm
+    lam = wavelength_nm * NM_TO_MM
     r1, r2 = illumination_na / lam, numerical_aperture / lam
     d = np.abs(np.asarray(frequency, dtype=np.float64))
     if r1 <= 0:

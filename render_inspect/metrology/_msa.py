@@ -1,12 +1,22 @@
 """Microstructure arrays (MSA) on a base: separation, lenslet centres, dislocations and
-per-lenslet form errors (seed 002, steps 4-5; seed 003's quadrilateral MLA).
+per-lenslet form errors (Kong et al. 2020 [1]_, steps 4-5; the quadrilateral MLA of Zhang et
+al. 2022 [2]_).
 
-Lateral positions: seed 002 takes each lenslet's lowest point in its pitch cell, which is
-pixel-quantised.  Here each lenslet's centre is fitted by least squares inside
+Lateral positions: Kong et al. (2020) take each lenslet's lowest point in its pitch cell,
+which is pixel-quantised.  Here each lenslet's centre is fitted by least squares inside
 ``inner`` x aperture (0.95): the measured heights are matched to the (registered) design
 shifted by (dx, dy) plus a piston dz.  For a spherical lenslet this is the least-squares
 fit of the sphere's centre with the design radius, and it is sub-pixel accurate; the base
 under the lenslet is taken from the design, so a sloped base does not bias the centre.
+
+References
+----------
+.. [1] L. Kong, Y. Ma, M. Ren, M. Xu, C.-F. Cheung, "Generation and characterization of
+       ultra-precision compound freeform surfaces," Science Progress 103(1), 1-12 (2020).
+       :DOI:`10.1177/0036850419880112`
+.. [2] C. Zhang, C.-F. Cheung, X. Liang, B. Bulla, "A theoretical and experimental
+       investigation of high-frequency ultrasonic vibration-assisted sculpturing of
+       optical microstructures," Applied Sciences 12(21), 10937 (2022).
 """
 
 from __future__ import annotations
@@ -17,6 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..core.errors import InputError, check_positive
+from ..core.units import MM_TO_UM
 from ._filters import valid_mask
 from ._registration import MovedSurface, detect_outliers, register_lsq
 
@@ -82,7 +93,7 @@ def _aperture(design, aperture_radius):
 
 def separate_msa(shape, centers, *, pixel: float, origin=(0.0, 0.0), aperture_radius: float,
                  inner: float = 0.95, outer: float = 1.05):
-    """Masks separating MSA data from base data (seed 002, step 4).
+    """Masks separating MSA data from base data (Kong et al. 2020, step 4).
 
     Returns
     -------
@@ -114,8 +125,9 @@ def separate_msa(shape, centers, *, pixel: float, origin=(0.0, 0.0), aperture_ra
 
 def _stats_um(r):
     r = r - r.mean()
-    return {"Sa_um": float(np.mean(np.abs(r)) * 1e3), "Sq_um": float(np.sqrt(np.mean(r * r)) * 1e3),
-            "PV_um": float((r.max() - r.min()) * 1e3)}
+    return {"Sa_um": float(np.mean(np.abs(r)) * MM_TO_UM),
+            "Sq_um": float(np.sqrt(np.mean(r * r)) * MM_TO_UM),
+            "PV_um": float((r.max() - r.min()) * MM_TO_UM)}
 
 
 def _lenslet_model(design, px, py):
@@ -159,7 +171,7 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
     aperture_radius : float, optional
         mm (default ``design_surface.aperture_radius``, else half the smaller pitch).
     inner : float
-        Fraction of the aperture used for each lenslet's fit (0.95, seed 002).
+        Fraction of the aperture used for each lenslet's fit (0.95, as Kong et al. 2020).
     mask : bool array, optional
         ``False`` leaves points out (e.g. outliers).
     min_points, min_fraction : int, float
@@ -219,8 +231,9 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
             skipped.append((row, col))
             continue
         entry = {"row": row, "col": col, "x_mm": float(cx + dx), "y_mm": float(cy + dy),
-                 "dx_um": float(dx * 1e3), "dy_um": float(dy * 1e3), **_stats_um(r),
-                 "x_design_mm": float(cx), "y_design_mm": float(cy), "dz_um": float(dz * 1e3),
+                 "dx_um": float(dx * MM_TO_UM), "dy_um": float(dy * MM_TO_UM), **_stats_um(r),
+                 "x_design_mm": float(cx), "y_design_mm": float(cy),
+                 "dz_um": float(dz * MM_TO_UM),
                  "n_points": int(r.size)}
         table.append(entry)
     if skipped:
@@ -236,8 +249,8 @@ def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cente
                     has_base: bool | None = None) -> dict | None:
     """Form error of the base: measured minus design outside ``outer`` x aperture of every
     lenslet, mean removed.  Returns ``{Sa_um, Sq_um, PV_um, n_points}``, or None where no
-    base data is left (lenslets that fill the area, as seed 003's MLA: a design with
-    ``cells == "quad"`` has no base unless ``has_base=True``)."""
+    base data is left (lenslets that fill the area, as the MLA of Zhang et al. 2022: a
+    design with ``cells == "quad"`` has no base unless ``has_base=True``)."""
     if has_base is None:
         has_base = _attr(design_surface, "cells", "round") != "quad"
     if not has_base:
@@ -261,7 +274,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
                      aperture_radius: float | None = None, inner: float = 0.95,
                      outer: float = 1.05, outlier_k: float = 3.0, register: bool = True,
                      fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), metrology=None) -> dict:
-    """Seed 002's characterisation of a MSA on a base, end to end.
+    """The characterisation of a MSA on a base of Kong et al. (2020), end to end.
 
     1. outliers by the second-difference ``outlier_k``-sigma rule (replaced, left out of fits);
     2. least-squares 6-DOF registration on the base data (outside ``outer`` x aperture)

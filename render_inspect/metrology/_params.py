@@ -9,7 +9,10 @@ forward differences along the cell edges, ``zx = (z[i, j+1] - z[i, j]) / pixel_x
 both differences taken at the same corner of each grid cell (SurfaceTopography's
 ``rms_gradient``); Sdr is the developed area of ISO 25178-2:2021 D.3 (eq. D.15): each
 cell is split into two triangles along each diagonal and the two areas are averaged,
-divided by the projected area of the cells.  ``slope="central"`` uses central
+divided by the projected area of the cells.  On a map with missing points the gradients
+and cells bordering a hole are left out, as SurfaceTopography's ``rms_gradient`` does
+(``hole_border="exclude"``; the value with them is reported too): instruments measure
+edge effects there, and a few percent of such cells can raise Sdq by tens of percent.  ``slope="central"`` uses central
 differences (``numpy.gradient``) at every point and ``sqrt(1 + |grad z|^2) - 1`` for Sdr:
 it attenuates slopes near the Nyquist frequency (a sinusoid of period ``p`` pixels
 loses a factor ``sin(2 pi / p) / (2 pi / p)``).
@@ -36,7 +39,25 @@ __all__ = ["areal_parameters", "slope_parameters", "spatial_parameters", "autoco
 SLOPE_ESTIMATORS = ("forward", "central")
 
 
-def slope_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
+def _border_free(ok: np.ndarray) -> np.ndarray:
+    """For each grid corner (r, c) of ``ok`` (True = measured), whether the points
+    SurfaceTopography's forward gradient at that corner rests on are all measured: the
+    corner, its two neighbours in +x and +y, and the next point beyond each of those
+    (``z[r, c..c+2]``, ``z[r+1, c..c+1]``, ``z[r+2, c]``; its linear interpolation
+    reaches one point further than the differences).  Points beyond the map count as
+    measured.  Shape (ny, nx)."""
+    p = np.pad(ok, ((0, 2), (0, 2)), mode="wrap") if _WRAP else np.pad(ok, ((0, 2), (0, 2)), constant_values=True)
+    return (p[:-2, :-2] & p[:-2, 1:-1] & p[:-2, 2:] & p[1:-1, :-2] & p[1:-1, 1:-1]
+            & p[2:, :-2])
+
+
+_WRAP = False
+#: rows of the map processed at once by :func:`slope_parameters` (bounds its memory)
+_SLOPE_ROWS = 256
+
+
+def slope_parameters(z, *, pixel, mask=None, slope: str = "forward",
+                     hole_border: str = "exclude") -> dict:
     """Sdq (root mean square gradient) and Sdr (developed interfacial area ratio, %).
 
     Parameters
@@ -49,54 +70,101 @@ def slope_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
         ``False`` leaves a point out.
     slope : {"forward", "central"}
         Derivative estimator (see the module docstring).
+    hole_border : {"exclude", "include"}
+        Forward estimator on a map with points missing: ``exclude`` (default) uses a
+        gradient, and the developed area of a cell, only where the points around it are
+        measured as SurfaceTopography's ``rms_gradient`` requires (:func:`_border_free`:
+        the gradient's points and one more in +x and +y), which leaves out the points
+        bordering a hole, where instruments measure edge effects; ``include`` uses every
+        gradient whose own differences are measured.  Both values are returned.
 
     Returns
     -------
     dict
         ``Sdq`` (dimensionless), ``Sdr`` (%), ``n_slope`` (gradients used by Sdq),
-        ``n_cells`` (cells used by Sdr), ``slope`` (the estimator).
+        ``n_cells`` (cells used by Sdr), ``slope`` (the estimator), ``hole_border``;
+        forward only: ``Sdq_with_border``, ``Sdr_with_border``, ``n_border`` (gradients
+        left out next to holes).
     """
+    if hole_border not in ("exclude", "include"):
+        raise InputError(f"hole_border must be 'exclude' or 'include', got {hole_border!r}")
     z = np.asarray(z, dtype=np.float64)
     px, py = pixel_xy(pixel)
     ok = valid_mask(z, mask)
-    zz = np.where(ok, z, np.nan)
     nan = float("nan")
     if slope == "forward":
         if min(z.shape) < 2:
-            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
-        dx = np.diff(zz, axis=1)  # (ny, nx - 1): x edges
-        dy = np.diff(zz, axis=0)  # (ny - 1, nx): y edges
-        gx, gy = dx[:-1, :] / px, dy[:, :-1] / py  # both at the lower-left corner of each cell
-        g2 = gx * gx + gy * gy
-        gok = np.isfinite(g2)
-        sdq = float(np.sqrt(np.mean(g2[gok]))) if gok.any() else nan
-        # ISO 25178-2:2021 D.3: the cell area as the mean of its two triangulations, i.e.
-        # half the sum of the four corner triangles spanned by one x and one y edge
-        cxb, cxt = (py * dx[:-1, :]) ** 2, (py * dx[1:, :]) ** 2
-        cyl, cyr = (px * dy[:, :-1]) ** 2, (px * dy[:, 1:]) ** 2
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope,
+                    "hole_border": hole_border, "Sdq_with_border": nan,
+                    "Sdr_with_border": nan, "n_border": 0}
+        ny = z.shape[0]
+        holes = not ok.all()
+        # sums over corners/cells, [border left out, border included]
+        g2_sum, g2_n, area_sum, area_n = np.zeros(2), np.zeros(2, np.int64), np.zeros(2), \
+            np.zeros(2, np.int64)
         cz = (px * py) ** 2
-        area = 0.25 * (np.sqrt(cxb + cyl + cz) + np.sqrt(cxb + cyr + cz)
-                       + np.sqrt(cxt + cyr + cz) + np.sqrt(cxt + cyl + cz))
-        cok = np.isfinite(area)
-        n_cells = int(cok.sum())
-        sdr = float(100.0 * (np.sum(area[cok]) / (n_cells * px * py) - 1.0)) if n_cells else nan
-        return {"Sdq": sdq, "Sdr": sdr, "n_slope": int(gok.sum()), "n_cells": n_cells,
-                "slope": slope}
+        for r0 in range(0, ny - 1, _SLOPE_ROWS):
+            r1 = min(r0 + _SLOPE_ROWS, ny - 1)  # corners r0 .. r1 - 1
+            zz = np.where(ok[r0:r1 + 1], z[r0:r1 + 1], np.nan)  # rows r0 .. r1
+            dx = np.diff(zz, axis=1)  # x edges
+            dy = np.diff(zz, axis=0)  # y edges
+            gx, gy = dx[:-1, :] / px, dy[:, :-1] / py  # both at the lower-left corner of each cell
+            g2 = gx * gx + gy * gy
+            del gx, gy
+            gok = np.isfinite(g2)
+            # ISO 25178-2:2021 D.3: the cell area as the mean of its two triangulations, i.e.
+            # half the sum of the four corner triangles spanned by one x and one y edge
+            cxb, cxt = (py * dx[:-1, :]) ** 2, (py * dx[1:, :]) ** 2
+            cyl, cyr = (px * dy[:, :-1]) ** 2, (px * dy[:, 1:]) ** 2
+            del dx, dy, zz
+            area = np.sqrt(cxb + cyl + cz)
+            area += np.sqrt(cxb + cyr + cz)
+            area += np.sqrt(cxt + cyr + cz)
+            area += np.sqrt(cxt + cyl + cz)
+            area *= 0.25
+            del cxb, cxt, cyl, cyr
+            cok = np.isfinite(area)
+            g2_sum[1] += g2[gok].sum()
+            g2_n[1] += int(gok.sum())
+            area_sum[1] += area[cok].sum()
+            area_n[1] += int(cok.sum())
+            if holes:
+                free = _border_free(ok[r0:min(r1 + 2, ny)])[:r1 - r0, :-1]
+                gok &= free
+                cok &= free
+                g2_sum[0] += g2[gok].sum()
+                g2_n[0] += int(gok.sum())
+                area_sum[0] += area[cok].sum()
+                area_n[0] += int(cok.sum())
+        if not holes:
+            g2_sum[0], g2_n[0], area_sum[0], area_n[0] = g2_sum[1], g2_n[1], area_sum[1], area_n[1]
+        sdq = [float(np.sqrt(g2_sum[k] / g2_n[k])) if g2_n[k] else nan for k in (0, 1)]
+        sdr = [float(100.0 * (area_sum[k] / (area_n[k] * px * py) - 1.0)) if area_n[k] else nan
+               for k in (0, 1)]
+        k = 0 if hole_border == "exclude" else 1
+        return {"Sdq": sdq[k], "Sdr": sdr[k], "n_slope": int(g2_n[k]), "n_cells": int(area_n[k]),
+                "slope": slope, "hole_border": hole_border, "Sdq_with_border": sdq[1],
+                "Sdr_with_border": sdr[1], "n_border": int(g2_n[1] - g2_n[0])}
     if slope == "central":
+        zz = np.where(ok, z, np.nan)
         if min(z.shape) < 2:
-            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope,
+                    "hole_border": hole_border}
         gy, gx = np.gradient(zz, py, px)
         g2 = gx * gx + gy * gy
         gok = np.isfinite(g2)
         if not gok.any():
-            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope}
+            return {"Sdq": nan, "Sdr": nan, "n_slope": 0, "n_cells": 0, "slope": slope,
+                    "hole_border": hole_border}
         return {"Sdq": float(np.sqrt(np.mean(g2[gok]))),
                 "Sdr": float(100.0 * np.mean(np.sqrt(1.0 + g2[gok]) - 1.0)),
-                "n_slope": int(gok.sum()), "n_cells": int(gok.sum()), "slope": slope}
+                "n_slope": int(gok.sum()), "n_cells": int(gok.sum()), "slope": slope,
+                "hole_border": hole_border}
     raise InputError(f"slope must be one of {SLOPE_ESTIMATORS}, got {slope!r}")
 
 
-def areal_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
+def areal_parameters(z, *, pixel, mask=None, slope: str = "forward",
+                     hole_border: str = "exclude") -> dict:
     """ISO 25178-2 areal parameters of a height map.
 
     Parameters
@@ -110,13 +178,17 @@ def areal_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
         ``False`` leaves a point out.
     slope : {"forward", "central"}
         Derivative estimator of Sdq and Sdr (:func:`slope_parameters`).
+    hole_border : {"exclude", "include"}
+        Whether the gradients next to missing points count (:func:`slope_parameters`).
 
     Returns
     -------
     dict
         ``Sa, Sq, Sp, Sv, Sz, Ssk, Sku`` (heights about the mean; Sv is positive, the depth
         of the lowest valley), ``Sdq`` (root mean square gradient, dimensionless), ``Sdr``
-        (developed interfacial area ratio, %), ``n_valid``, ``slope``.
+        (developed interfacial area ratio, %), ``n_valid``, ``slope``, ``hole_border``;
+        with the forward estimator also ``Sdq_with_border``, ``Sdr_with_border`` (every
+        gradient whose differences are measured) and ``n_border``.
     """
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2:
@@ -135,21 +207,72 @@ def areal_parameters(z, *, pixel, mask=None, slope: str = "forward") -> dict:
     out["Ssk"] = float(np.mean(d2 * d) / sq ** 3) if sq > 0 else 0.0
     out["Sku"] = float(np.mean(d2 * d2) / sq ** 4) if sq > 0 else 0.0
     del d, d2
-    sp = slope_parameters(z, pixel=pxy, mask=ok, slope=slope)
+    sp = slope_parameters(z, pixel=pxy, mask=ok, slope=slope, hole_border=hole_border)
     out["Sdq"], out["Sdr"] = sp["Sdq"], sp["Sdr"]
     out["n_valid"] = n
     out["slope"] = slope
+    out["hole_border"] = hole_border
+    if "Sdq_with_border" in sp:
+        out["Sdq_with_border"], out["Sdr_with_border"] = sp["Sdq_with_border"], sp["Sdr_with_border"]
+        out["n_border"] = sp["n_border"]
     return out
 
 
 def _full_correlation(a):
     """Linear (zero-padded) autocorrelation sum of ``a``: shape (2 ny - 1, 2 nx - 1), zero
-    lag at (ny - 1, nx - 1)."""
+    lag at (ny - 1, nx - 1).  The power spectrum is formed in place and the lags are
+    copied out of the periodic result quadrant by quadrant (no rolled copy), so the peak
+    is the spectrum, the periodic result and the output."""
     ny, nx = a.shape
     shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
     f = sfft.rfft2(a, shape)
-    full = sfft.irfft2(f * np.conj(f), shape)
-    return np.roll(full, (ny - 1, nx - 1), axis=(0, 1))[:2 * ny - 1, :2 * nx - 1]
+    power = f.imag * f.imag
+    f.real *= f.real
+    f.real += power
+    f.imag[...] = 0.0
+    del power
+    full = sfft.irfft2(f, shape, overwrite_x=True)
+    del f
+    out = np.empty((2 * ny - 1, 2 * nx - 1))
+    # lag t sits at index t (t >= 0) or shape + t (t < 0) of the periodic result
+    rows = ((slice(0, ny - 1), slice(shape[0] - ny + 1, shape[0])), (slice(ny - 1, 2 * ny - 1), slice(0, ny)))
+    cols = ((slice(0, nx - 1), slice(shape[1] - nx + 1, shape[1])), (slice(nx - 1, 2 * nx - 1), slice(0, nx)))
+    for ro, ri in rows:
+        for co, ci in cols:
+            out[ro, co] = full[ri, ci]
+    return out
+
+
+def _acf(z, mask=None, *, keep_pairs: bool = True):
+    """(acf, pairs) of :func:`autocorrelation`, formed in place (``pairs`` None unless
+    ``keep_pairs``; for a map without missing points it is not needed)."""
+    z = np.asarray(z, dtype=np.float64)
+    ok = valid_mask(z, mask)
+    n_ok = int(ok.sum())
+    if n_ok < 4:
+        raise InputError(f"autocorrelation: need at least 4 valid points, got {n_ok}")
+    ny, nx = z.shape
+    zc = np.where(ok, z - z[ok].mean(), 0.0)
+    acf = _full_correlation(zc)
+    del zc
+    if ok.all():  # pairs at lag (ty, tx): (ny - |ty|) (nx - |tx|)
+        ry = (ny - np.abs(np.arange(1 - ny, ny))).astype(np.float64)
+        rx = (nx - np.abs(np.arange(1 - nx, nx))).astype(np.float64)
+        acf /= ry[:, None]
+        acf /= rx[None, :]
+        cnt = np.outer(ry, rx).astype(np.int64) if keep_pairs else None
+    else:
+        cnt = _full_correlation(ok.astype(np.float64))
+        np.rint(cnt, out=cnt)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            acf /= np.maximum(cnt, 1.0)
+        acf[cnt < 0.5] = np.nan
+        cnt = cnt.astype(np.int64)
+    c0 = acf[ny - 1, nx - 1]
+    if not c0 > 0:
+        raise InputError("autocorrelation: the heights have zero variance (a flat map)")
+    acf /= c0
+    return acf, cnt
 
 
 def autocorrelation(z, *, mask=None):
@@ -167,23 +290,7 @@ def autocorrelation(z, *, mask=None):
     pairs : same shape, int
         Number of point pairs behind each lag.
     """
-    z = np.asarray(z, dtype=np.float64)
-    ok = valid_mask(z, mask)
-    if ok.sum() < 4:
-        raise InputError(f"autocorrelation: need at least 4 valid points, got {int(ok.sum())}")
-    ny, nx = z.shape
-    zc = np.where(ok, z - z[ok].mean(), 0.0)
-    num = _full_correlation(zc)
-    if ok.all():  # pairs at lag (ty, tx): (ny - |ty|) (nx - |tx|)
-        cnt = np.outer(ny - np.abs(np.arange(1 - ny, ny)), nx - np.abs(np.arange(1 - nx, nx)))
-    else:
-        cnt = np.rint(_full_correlation(ok.astype(np.float64)))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        acf = np.where(cnt > 0.5, num / np.maximum(cnt, 1.0), np.nan)
-    c0 = acf[z.shape[0] - 1, z.shape[1] - 1]
-    if not c0 > 0:
-        raise InputError("autocorrelation: the heights have zero variance (a flat map)")
-    return acf / c0, cnt.astype(np.int64)
+    return _acf(z, mask)
 
 
 def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int = 360,
@@ -220,17 +327,26 @@ def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int
     px, py = pixel_xy(pixel)
     z = np.asarray(z, dtype=np.float64)
     ny, nx = z.shape
-    acf, cnt = autocorrelation(z, mask=mask)
     n_valid = int(valid_mask(z, mask).sum())
-    usable = cnt >= max(4, min_pairs_fraction * n_valid)
-    a = np.where(usable, acf, np.nan)
+    full = n_valid == z.size
+    field, cnt = _acf(z, mask, keep_pairs=not full)
+    # lags without enough pairs end a ray (inf spreads through the interpolation)
+    min_pairs = max(4, min_pairs_fraction * n_valid)
+    if full:  # pairs (ny - |ty|) (nx - |tx|), row by row
+        ry = ny - np.abs(np.arange(1 - ny, ny))
+        rx = nx - np.abs(np.arange(1 - nx, nx))
+        for i in np.nonzero(ry * rx.min() < min_pairs)[0]:
+            field[i, ry[i] * rx < min_pairs] = np.inf
+    else:
+        field[cnt < min_pairs] = np.inf
+        del cnt
+    np.nan_to_num(field, copy=False, nan=np.inf, posinf=np.inf)
     cy, cx = ny - 1, nx - 1
     theta = np.arange(int(n_directions)) * (np.pi / int(n_directions))
     sin_t, cos_t = np.sin(theta), np.cos(theta)
     step = 0.25 * min(px, py)
     rmax = np.hypot(px * (nx - 1), py * (ny - 1))
     r = np.arange(0.0, rmax + step, step)
-    field = np.nan_to_num(a, nan=np.inf)  # lags without enough pairs end a ray (inf spreads)
     nt = theta.size
     lengths = np.full(nt, np.nan)
     ended = np.zeros(nt, dtype=bool)  # the ray left the supported lags without decaying

@@ -7,21 +7,29 @@ The forward model these functions invert (docs/instrument.md, docs/report.md)::
 
 PSI: z_ref is fixed, the phase shifts ``delta_k`` are known (``steps_rad``), g = 1.  The
 wrapped phase ``phi = 4 pi (h - z_ref) / lambda`` comes from the 4-step or the 5-step
-(Hariharan) formula or, for any other set of steps, from a per-pixel least-squares fit;
-it is unwrapped in 2-D inside the valid mask (quality-guided flood fill) and converted to
-height ``h = phi lambda / (4 pi)``.  An interferometer measures relative height only: the
-unwrapped height is defined up to a constant (one per connected valid region); an
-evaluation against a known truth (:func:`evaluate_measurement`, :func:`height_error`)
-removes it by aligning the mean over the valid pixels with the truth.
+(Hariharan et al. 1987 [1]_) formula or, for any other set of steps, from a per-pixel
+least-squares fit; it is unwrapped in 2-D inside the valid mask (quality-guided flood
+fill, :mod:`._unwrap`) and converted to height ``h = phi lambda / (4 pi)``.  An
+interferometer measures relative height only: the unwrapped height is defined up to a
+constant (one per connected valid region); an evaluation against a known truth
+(:func:`evaluate_measurement`, :func:`height_error`) removes it by aligning the mean over
+the valid pixels with the truth.
 
 CSI: ``delta_k = 0`` and the reference scans, ``z_ref,k = scan_positions[k]``; the
 envelope g peaks where ``z_ref = h``.  The envelope is the modulus of the analytic signal
 (Hilbert transform along the scan) of the frames with their mean removed; its peak is
 located to a fraction of a scan step by a weighted least-squares Gaussian
-(log-parabola) fit over the samples above half maximum.  Optionally the phase of the fringes at the peak refines it.
+(log-parabola) fit over the samples above half maximum.  Optionally the phase of the
+fringes at the peak refines it.
 
 Every length is in mm; wavelengths are in nm where the name says so
 (``wavelength_nm``); phases in rad.
+
+References
+----------
+.. [1] P. Hariharan, B. F. Oreb, T. Eiju, "Digital phase-shifting interferometry: a simple
+       error-compensating phase calculation algorithm," Applied Optics 26(13), 2504-2506
+       (1987). :DOI:`10.1364/AO.26.002504`
 """
 
 from __future__ import annotations
@@ -31,6 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM, NM_TO_MM
+# unwrapping (importable from here as before)
+from ._unwrap import _check_valid, _wrap, phase_quality, unwrap_phase
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
            "retrieve_psi", "retrieve_csi", "height_error", "PhaseResult",
@@ -81,20 +92,6 @@ def _check_frames(frames, *, min_frames=3) -> np.ndarray:
         raise InputError(f"frames must hold at least {min_frames} frames (N >= {min_frames}), "
                          f"got N = {f.shape[0]}")
     return f
-
-
-def _check_valid(valid, shape) -> np.ndarray:
-    if valid is None:
-        return np.ones(shape, dtype=bool)
-    v = np.asarray(valid)
-    if v.shape != shape:
-        raise InputError(f"valid must have the frames' image shape {shape}, got {v.shape}")
-    return v > 0.5 if v.dtype != bool else v.copy()
-
-
-def _wrap(a):
-    """Wrap to (-pi, pi]."""
-    return a - 2 * np.pi * np.round(a / (2 * np.pi))
 
 
 # --------------------------------------------------------------------------------------
@@ -176,176 +173,11 @@ def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
     return phase, mod
 
 
-# --------------------------------------------------------------------------------------
-# unwrapping
-def phase_quality(phase, *, valid=None) -> np.ndarray:
-    """Reliability of each pixel for unwrapping: ``1 / (1 + D)`` with D the root sum of
-    squares of the wrapped second differences (horizontal, vertical, both diagonals;
-    Herraez et al. 2002).  Pixels next to invalid ones or the border get lower quality;
-    invalid pixels get 0.
-
-    Parameters
-    ----------
-    phase : (H, W) wrapped phase, rad
-    valid : (H, W) bool, optional
-    """
-    p = np.asarray(phase, dtype=np.float64)
-    v = _check_valid(valid, p.shape) & np.isfinite(p)
-    q = np.where(v, p, np.nan)
-    pad = np.pad(q, 1, constant_values=np.nan)
-    c = pad[1:-1, 1:-1]
-
-    def sd(a, b):
-        return _wrap(a - c) - _wrap(c - b)
-
-    terms = [sd(pad[1:-1, :-2], pad[1:-1, 2:]), sd(pad[:-2, 1:-1], pad[2:, 1:-1]),
-             sd(pad[:-2, :-2], pad[2:, 2:]), sd(pad[:-2, 2:], pad[2:, :-2])]
-    penalty = 2 * np.pi  # a missing neighbour counts like a large second difference
-    d2 = sum(np.where(np.isfinite(t), t * t, penalty ** 2) for t in terms)
-    out = 1.0 / (1.0 + np.sqrt(d2))
-    out[~v] = 0.0
-    return out
-
-
-def _build_kernel():
-    import numba
-
-    @numba.njit(cache=True)
-    def _heap_push(hq, hi, hs, n, q, i, s):
-        hq[n] = q
-        hi[n] = i
-        hs[n] = s
-        k = n
-        while k > 0:
-            parent = (k - 1) // 2
-            if hq[parent] >= hq[k]:
-                break
-            hq[parent], hq[k] = hq[k], hq[parent]
-            hi[parent], hi[k] = hi[k], hi[parent]
-            hs[parent], hs[k] = hs[k], hs[parent]
-            k = parent
-        return n + 1
-
-    @numba.njit(cache=True)
-    def _heap_pop(hq, hi, hs, n):
-        i, s = hi[0], hs[0]
-        n -= 1
-        hq[0], hi[0], hs[0] = hq[n], hi[n], hs[n]
-        k = 0
-        while True:
-            l = 2 * k + 1
-            r = l + 1
-            m = k
-            if l < n and hq[l] > hq[m]:
-                m = l
-            if r < n and hq[r] > hq[m]:
-                m = r
-            if m == k:
-                break
-            hq[m], hq[k] = hq[k], hq[m]
-            hi[m], hi[k] = hi[k], hi[m]
-            hs[m], hs[k] = hs[k], hs[m]
-            k = m
-        return i, s, n
-
-    @numba.njit(cache=True)
-    def flood(phase, valid, quality, order):
-        h, w = phase.shape
-        npx = h * w
-        out = np.full(npx, np.nan)
-        labels = np.zeros(npx, dtype=np.int32)
-        ph = phase.ravel()
-        va = valid.ravel()
-        qu = quality.ravel()
-        cap = 4 * npx + 4
-        hq = np.empty(cap)
-        hi = np.empty(cap, dtype=np.int64)
-        hs = np.empty(cap, dtype=np.int64)
-        twopi = 2.0 * np.pi
-        label = 0
-        for seed in order:  # seeds in decreasing quality: one per connected region
-            if not va[seed] or labels[seed] != 0:
-                continue
-            label += 1
-            out[seed] = ph[seed]
-            labels[seed] = label
-            n = 0
-            cur = seed
-            while True:
-                r, c = cur // w, cur % w
-                for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                    rr, cc = r + dr, c + dc
-                    if rr < 0 or rr >= h or cc < 0 or cc >= w:
-                        continue
-                    j = rr * w + cc
-                    if va[j] and labels[j] == 0:
-                        n = _heap_push(hq, hi, hs, n, qu[j], j, cur)
-                found = False
-                while n > 0:
-                    j, s, n = _heap_pop(hq, hi, hs, n)
-                    if labels[j] == 0:
-                        d = ph[j] - ph[s]
-                        d -= twopi * np.round(d / twopi)
-                        out[j] = out[s] + d
-                        labels[j] = label
-                        cur = j
-                        found = True
-                        break
-                if not found:
-                    break
-        return out.reshape(h, w), labels.reshape(h, w)
-
-    return flood
-
-
-_KERNEL = None
-
-
-def unwrap_phase(phase, *, valid=None, quality=None):
-    """Unwrap a 2-D wrapped phase inside a mask (quality-guided flood fill).
-
-    Starting from the most reliable pixel of each connected valid region (4-connected),
-    pixels are unwrapped in decreasing order of ``quality`` from an already unwrapped
-    neighbour: ``u_j = u_i + wrap(phi_j - phi_i)``.  Noisy or steep areas (low quality)
-    are reached last, so their errors do not spread.  Regions that do not touch are
-    unwrapped independently (their relative offset is unknown to any interferometer).
-
-    Parameters
-    ----------
-    phase : (H, W) float, rad
-        Wrapped phase (any range; only differences mod 2 pi are used).
-    valid : (H, W) bool, optional
-        Pixels to unwrap; others come back NaN.  NaN phases are invalid too.
-    quality : (H, W) float, optional
-        Higher = more reliable.  Default :func:`phase_quality`.
-
-    Returns
-    -------
-    unwrapped : (H, W) float64, rad (NaN outside the mask)
-    labels : (H, W) int32, connected region of each pixel (0 = invalid)
-    """
-    global _KERNEL
-    p = np.asarray(phase, dtype=np.float64)
-    if p.ndim != 2:
-        raise InputError(f"phase must be a 2-D array, got shape {p.shape}")
-    v = _check_valid(valid, p.shape) & np.isfinite(p)
-    q = phase_quality(p, valid=v) if quality is None else np.asarray(quality, dtype=np.float64)
-    if q.shape != p.shape:
-        raise InputError(f"quality must have the phase's shape {p.shape}, got {q.shape}")
-    q = np.where(np.isfinite(q), q, -np.inf)
-    if _KERNEL is None:
-        _KERNEL = _build_kernel()
-    order = np.argsort(-q.ravel(), kind="stable").astype(np.int64)
-    out, labels = _KERNEL(np.ascontiguousarray(np.where(v, p, 0.0)), np.ascontiguousarray(v),
-                          np.ascontiguousarray(q), order)
-    return out, labels
-
-
 def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
     """Height (mm) from the unwrapped phase: ``h = phi lambda / (4 pi)`` (double pass,
     OPD = 2 h at normal incidence)."""
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
-    lam_mm = float(wavelength_nm) * 1e-6  # nm -> mm
+    lam_mm = float(wavelength_nm) * NM_TO_MM
     return np.asarray(unwrapped, dtype=np.float64) * lam_mm / (4 * np.pi)
 
 
@@ -448,7 +280,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
     check_range("min_modulation", min_modulation, 0.0, None)
     v = _check_valid(valid, (hgt, wid))
-    lam = float(wavelength_nm) * 1e-6  # nm -> mm
+    lam = float(wavelength_nm) * NM_TO_MM
     flat = f.reshape(n, -1)
     npx = flat.shape[1]
     height = np.full(npx, np.nan)
@@ -572,11 +404,11 @@ def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mea
                 aligned[sel] = m[sel] - shift
             big = ids[np.argmax(counts)]
             shift_main = float(np.mean(m[lab == big] - t[lab == big]))
-    e = (aligned - t)[v] * 1e6  # mm -> nm
+    e = (aligned - t)[v] * MM_TO_NM
     metrics = {"rms_nm": float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
                "pv_nm": float(e.max() - e.min()) if e.size else float("nan"),
                "mean_nm": float(e.mean()) if e.size else float("nan"),
-               "piston_nm": shift_main * 1e6,
+               "piston_nm": shift_main * MM_TO_NM,
                "valid_fraction": float(v.mean()),
                "valid_pixels": int(v.sum()),
                "piston": piston}

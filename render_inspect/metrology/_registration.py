@@ -1,8 +1,15 @@
-"""Outliers, templates and 6-DOF rigid registration of a measured map to a design (seed 002).
+"""Outliers, templates and 6-DOF rigid registration of a measured map to a design, after
+the template-based characterisation of Kong et al. (2020) [1]_.
 
 Convention: a rigid transform ``(tx, ty, tz, alpha, beta, gamma)`` moves the *design* into
 the measured frame, ``p_measured = R q_design + t`` with ``R = Rz(gamma) Ry(beta) Rx(alpha)``
 (rotations about the fixed x, y, z axes, in that order; radians; translations mm).
+
+References
+----------
+.. [1] L. Kong, Y. Ma, M. Ren, M. Xu, C.-F. Cheung, "Generation and characterization of
+       ultra-precision compound freeform surfaces," Science Progress 103(1), 1-12 (2020).
+       :DOI:`10.1177/0036850419880112`
 """
 
 from __future__ import annotations
@@ -120,7 +127,7 @@ class MovedSurface:
 
 def detect_outliers(z, *, pixel, k: float = 3.0, mask=None, replace: bool = True,
                     min_sigma_mm: float = 1e-7):
-    """Outliers by the second-difference ``k``-sigma rule (seed 002, step 1).
+    """Outliers by the second-difference ``k``-sigma rule (Kong et al. 2020, step 1).
 
     ``f'' = (f(x - d) + f(x + d) - 2 f(x)) / d^2`` along x (``d`` = pixel_x) and along y
     (``d`` = pixel_y; ``pixel`` is one number or (pixel_x, pixel_y), mm); a point whose
@@ -206,11 +213,12 @@ class GridSurface:
 
 def template_surface(design, *, region, pixel, oversample: int = 10) -> GridSurface:
     """Sample ``design`` (a Surface) on ``region`` = (x0, y0, x1, y1) at ``pixel / oversample``
-    in x and y (seed 002: the template is at least 10 x denser than the measurement)."""
+    in x and y (Kong et al. 2020: the template is at least 10 x denser than the
+    measurement)."""
     ppx, ppy = pixel_xy(pixel)
     if oversample < 10:
-        warnings.warn(f"template oversample={oversample}: seed 002 asks for >= 10 x the measured "
-                      f"density; registration accuracy may suffer", stacklevel=2)
+        warnings.warn(f"template oversample={oversample}: Kong et al. (2020) ask for >= 10 x "
+                      f"the measured density; registration accuracy may suffer", stacklevel=2)
     qx, qy = ppx / oversample, ppy / oversample
     x0, y0, x1, y1 = region
     nx = int(np.ceil((x1 - x0) / qx)) + 1
@@ -249,7 +257,8 @@ def _result(v, rms, n, method, **extra):
 def register_lsq(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
                  fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), max_points: int = 200_000,
                  seed: int = 0) -> dict:
-    """Least-squares 6-DOF rigid registration of a measured map to a design (seed 002, step 3).
+    """Least-squares 6-DOF rigid registration of a measured map to a design (Kong et al.
+    2020, step 3).
 
     Minimises, over the transform, the vertical distances in the design frame
     ``[R^T (p - t)]_z - F([R^T (p - t)]_x, [R^T (p - t)]_y)`` of the measured points ``p``.

@@ -1,44 +1,55 @@
 """The pipeline: the only place where stages are chained.  The command line and the
 Blender add-on call these functions.
 
+Every stage is a function with typed inputs and outputs in its own layer: the process
+(:class:`~render_inspect.processes.Process`: inputs, plan, cut, traits), the instruments
+(:mod:`render_inspect.instruments`), the metrology, the writers of :mod:`render_inspect.io`
+and the figures of :mod:`render_inspect.report`; the pipeline calls them in order and
+asks nothing of a process but its hooks.
+
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
 ``run_toolpath``, ``run_render``, ``run_compare``, ``run_analyze``, ``run_measure``,
 ``run_characterise``, ``run_demo``, ``run_fit`` (a measured surface -> the scene's
 settings), ``run_sweep`` (many points on Dask), ``run_regress``
-(the image regression suite); the
-Blender add-on's ``simulate_variants``, ``render_variant``, ``compare_scene``,
-``export_variant`` (and ``surfaces_into_blender``, ``load_render_images`` to show their
-results in Blender); ``simulation_metrics`` is the one metrics builder every command's
-``metrics.json`` comes from.
+(the image regression suite); the Blender add-on's ``simulate_variants``,
+``render_variant``, ``compare_scene``, ``export_variant`` (and ``surfaces_into_blender``,
+``load_render_images`` to show their results in Blender).  Every ``metrics.json`` is
+built in one place (``render_inspect.pipeline._metrics``; ``simulation_metrics``).
 """
 
+from ..instruments import interferogram_summary
+from ..metrology import lenslet_metrics
 from ._analyze import ANALYZE_FILES, run_analyze
 from ._blender import (EXPORT_FORMATS, PANEL_METRICS, VARIANT_PROPERTY, blender_output_dir,
                        blender_presets, blender_surfaces, compare_scene, export_variant,
                        load_render_images, remove_blender_surfaces, render_variant,
                        simulate_into_blender, simulate_variants, surface_info,
                        surfaces_into_blender)
+from ._characterise import characterise_instrument, run_characterise
 from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION,
                        COMPARE_MAX_DIFFUSE_SPP, PROFILE_ANGLES_DEG, VARIANTS, check_measured,
                        common_window, compare_pair, compare_summary, compare_variants,
                        expected_sq_mm, parse_vary, preview_render_configs, run_compare,
                        variant_scene)
-from ._characterise import characterise_instrument, run_characterise
 from ._demo import DEMO_SCENE, run_demo
 from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
 from ._measure import measure_and_evaluate, measurement_outputs, read_frames, run_measure
-from ._metrics import lenslet_metrics, simulation_metrics
+from ._metrics import simulation_metrics
 from ._regress import IMAGE_SETTINGS, case_images, regression_cases_dir, run_regress
-from ._render import (check_render_limits, interferogram_summary, part_heightmap, part_outline,
-                      render_diffuse_views, render_heightmap, run_render, tool_marks,
-                      write_diffuse_outputs, write_interferogram_outputs)
-from ._simulate import Simulation, design_heightmap, run_simulate, simulate, write_simulation
+from ._render import (check_render_limits, part_heightmap, part_outline, render_diffuse_views,
+                      render_heightmap, render_kinds, run_render, tool_marks,
+                      write_diffuse_outputs, write_instrument_outputs,
+                      write_interferogram_outputs)
+from ._simulate import Simulation, design_heightmap, simulate, write_simulation
+from ._simulate_command import run_simulate, run_simulate_tiled, wants_tiles
 from ._sweep import find_sweep, run_point, run_sweep, shipped_sweeps, sweep_tasks
-from ._toolpath import plan_program, run_toolpath
+from ._toolpath import plan_program, program_formats, run_toolpath
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
-           "plan_program", "run_toolpath", "run_render", "render_heightmap",
-           "write_interferogram_outputs", "write_diffuse_outputs", "interferogram_summary",
+           "run_simulate_tiled", "wants_tiles",
+           "plan_program", "run_toolpath", "program_formats", "run_render", "render_heightmap", "render_kinds",
+           "write_interferogram_outputs", "write_instrument_outputs", "write_diffuse_outputs",
+           "interferogram_summary",
            "part_heightmap", "part_outline", "render_diffuse_views", "tool_marks",
            "run_compare", "compare_variants", "compare_pair", "compare_summary", "parse_vary",
            "variant_scene", "common_window", "preview_render_configs", "check_measured",

@@ -9,15 +9,16 @@ from pathlib import Path
 
 from .. import __version__
 from ..core.errors import InputError
-from ..io import (atomic_output_dir, check_output_dir, json_safe, read_surface, save_height_png,
-                  write_json, write_x3p)
+from ..core.units import MM_TO_NM, MM_TO_UM
+from ..io import atomic_output_dir, check_output_dir, json_safe, read_surface, write_x3p
 from ..metrology import FORMS, OUTLIER_METHODS, analyze_map, parse_filter
+from ..report import save_height_png
+from ._metrics import analysis_metrics, write_metrics
 
 __all__ = ["run_analyze", "ANALYZE_FILES"]
 
 #: Files ``analyze`` writes into its output folder.
 ANALYZE_FILES = ("metrics.json", "height.png", "height.x3p")
-MM_TO_NM = 1e6
 
 
 def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | None = None,
@@ -65,22 +66,13 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     t_read = time.perf_counter() - t0
     a = analyze_map(m, form=form, s_filter_mm=s_mm, l_filter_mm=l_mm, outliers=outliers,
                     outlier_sigma=outlier_sigma, slope=slope)
-    metrics = dict(a.metrics)
-    src = metrics.pop("source", {})
-    metrics["input"] = {"path": str(Path(path)), "reader": src.get("reader"),
-                        "format": src.get("format"), "units_in_file": src.get("units_in_file"),
-                        "instrument": src.get("instrument") or None, "date": src.get("date") or None,
-                        "n_invalid": src.get("n_invalid"),
-                        "channel": src.get("channel")}
     files = {"metrics.json": "these metrics",
              "height.png": "evaluated surface: heights in nm (colour bar), x and y in mm, "
                            "scale bar"}
     if x3p:
         files["height.x3p"] = ("evaluated surface (outliers left out if asked, form removed, "
                                "filtered): ISO 25178-72, metres in the file")
-    metrics["files"] = files
-    metrics["software_version"] = __version__
-    metrics["command"] = "analyze"
+    metrics = analysis_metrics(a.metrics, path=path, files=files, timing={})
     ar = metrics["areal"]
     parts = [f"form {form}"]
     if s_mm:
@@ -91,7 +83,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
         parts.append(f"{metrics['outliers']['count']} outliers left out")
     title = (f"{Path(path).name}: {', '.join(parts)}\nSq {ar['Sq_nm']:.4g} nm, Sa "
              f"{ar['Sa_nm']:.4g} nm, Sz {ar['Sz_nm']:.4g} nm; pixel "
-             f"{m.pixel[0] * 1e3:.4g} x {m.pixel[1] * 1e3:.4g} um")
+             f"{m.pixel[0] * MM_TO_UM:.4g} x {m.pixel[1] * MM_TO_UM:.4g} um")
     with atomic_output_dir(out, overwrite=overwrite, command="analyze") as tmp:
         tmp = Path(tmp)
         save_height_png(tmp / "height.png", a.height * MM_TO_NM, extent=m.extent, title=title,
@@ -104,5 +96,5 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
             write_x3p(tmp / "height.x3p", a.height, pixel=m.pixel, origin=m.origin,
                       comment=comment)
         metrics["timing_s"] = {"read": t_read, "total": time.perf_counter() - t0}
-        write_json(tmp / "metrics.json", metrics)
+        write_metrics(tmp, metrics)
     return json_safe(metrics)

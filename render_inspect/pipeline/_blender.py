@@ -19,7 +19,7 @@ import json
 from pathlib import Path
 
 from ..core.errors import InputError, check_positive
-from ..instruments import render_interferogram
+from ..instruments import height_instrument
 from ..io import (
     atomic_output_dir,
     read_heightmap_exr,
@@ -29,6 +29,11 @@ from ..io import (
 )
 from ..mesh import export_mesh, heightmap_mesh
 from ..render import (
+    PROP_EXAGGERATION,
+    PROP_HEIGHTMAP,
+    PROP_OFFSET,
+    PROP_SURFACE,
+    PROP_VARIANT,
     auto_exaggeration,
     blend_objects,
     default_output_dir,
@@ -38,15 +43,8 @@ from ..render import (
     surface_material,
     surface_object,
 )
-from ..render._cycles import (
-    PROP_EXAGGERATION,
-    PROP_HEIGHTMAP,
-    PROP_OFFSET,
-    PROP_SURFACE,
-    PROP_VARIANT,
-)
-from ..scene import load_scene, scene_from_dict, shipped_scenes
-from ._compare import compare_pair, run_compare, variant_scene
+from ..scene import compare_pair, load_scene, scene_from_dict, shipped_scenes, variant_scene
+from ._compare import run_compare
 from ._render import write_interferogram_outputs
 from ._simulate import simulate, write_simulation
 
@@ -119,8 +117,9 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
     dict
         ``scene_name``, ``out``, ``surface``, ``exaggeration``, ``pair`` (``key``,
         ``about``) and ``variants``, in the pair's order: {variant: {``heightmap`` (path),
-        ``label``, ``values`` (the scene keys the variant sets), ``compensation``
-        (``process.compensation``; None for sculpturing), ``residual`` (metrics),
+        ``label``, ``values`` (the scene keys the variant sets), ``compensation`` (the
+        tool-radius compensation the process applies; ``"none"`` for sculpturing),
+        ``residual`` (metrics),
         ``shape``, ``pixel_mm``}}.
     """
     progress = progress or _quiet
@@ -152,7 +151,7 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
             result["variants"][name] = {
                 "heightmap": str((out / name / "heightmap.exr").resolve()),
                 "label": v.label, "values": dict(v.values),
-                "compensation": getattr(sc.process, "compensation", None),
+                "compensation": sim.traits.compensation,
                 "residual": {k: v for k, v in metrics["residual"].items()
                              if isinstance(v, (int, float))},
                 "shape": list(sim.heightmap.shape), "pixel_mm": float(sim.heightmap.pixel)}
@@ -277,9 +276,10 @@ def render_variant(heightmap, *, variant: str, surface: str = "machined",
             if not hm.scene:
                 raise InputError(f"{path}: the height map records no scene; simulate again")
             sc = scene_from_dict(hm.scene)  # the variant's scene, as simulated
-            ig = render_interferogram(hm, sc.render.interferometer,
-                                      surface="design" if surface == "design" else "machined",
-                                      seed=int(sc.simulation.seed))
+            entry = height_instrument()
+            ig = entry.render(hm, getattr(sc.render, entry.name),
+                              surface="design" if surface == "design" else "machined",
+                              seed=int(sc.simulation.seed))
             with atomic_output_dir(out, merge=True, command="interferometer", scene=sc,
                                    option="output folder") as tmp:
                 summary = write_interferogram_outputs(Path(tmp), ig, scene=sc.to_dict())

@@ -1,4 +1,4 @@
-"""``demo``: the seed-000 sinusoidal grid, compensated and uncompensated, through the
+"""``demo``: the sinusoidal grid of Li et al. 2018, compensated and uncompensated, through the
 whole chain into a report."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ DEMO_SCENE = "sts_sinusoidal_grid"
 
 def run_demo(out, *, quick: bool = False, overwrite: bool = False) -> dict:
     """``render-inspect demo``: :func:`~render_inspect.pipeline.run_compare` on the
-    shipped seed-000 grid (``quick``: a 0.5 mm window at 2 um, for tests)."""
+    shipped grid of Li et al. 2018 (``quick``: a 0.5 mm window at 2 um, for tests)."""
     out = Path(out)
     overrides = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
     scene = load_scene(DEMO_SCENE, overrides)

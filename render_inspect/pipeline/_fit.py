@@ -22,23 +22,21 @@ import numpy as np
 from .. import __version__
 from ..batch import dask_client
 from ..core.errors import InputError
-from ..core.progress import set_reporter, task
-from ..core.units import MM_TO_NM, MM_TO_UM, RAD_TO_URAD
+from ..core.progress import task
+from ..core.units import MM_TO_UM
 from ..design import make_surface
 from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_units,
                    field_extent, fit_record, fit_window, free_parameters, make_target,
-                   misfit_maps, parse_bounds, set_noise_floor, parse_free, predict_features,
-                   prepare_map, radial_psd, register_field, scene_hash, set_value, solve, task_hash)
-from ..instruments import (InterferometerConfig, microscope_from_config, recommended_subsamples,
-                           render_interferogram)
-from ..instruments._interferometer import MAX_AUTO_SUBSAMPLES
-from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_exr, read_surface
+                   misfit_maps, parse_bounds, parse_free, predict_features, prepare_map,
+                   radial_psd, register_field, scene_hash, set_noise_floor, set_value, solve)
+from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
 from ..io import write_exr, write_json, write_marker
-from ..machining import material_preset
-from ..metrology import measure_frames
-from ..processes._mechanics import machine_of
+from ..processes import RANDOM_PART_KEYS, random_parts
 from ..report import fit_figures, fit_page
 from ..scene import apply_overrides, scene_from_dict
+from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, file_instrument,
+                         compute_all, instrument_settings, predict_measurement, preset_fill,
+                         preset_value, quiet)
 from ._simulate import simulate, write_simulation
 
 __all__ = ["run_fit", "predict_measurement", "FIT_FILES", "preset_value"]
@@ -48,185 +46,8 @@ log = logging.getLogger("render_inspect")
 #: Files ``fit`` writes into its output folder (``predict/`` with ``--predict``).
 FIT_FILES = ("fit.json", "fit.html", "maps.png", "residual.png", "psd.png", "misfit.png",
              "fitted.exr", "scene.json", "predict/")
-#: pixels traced around the fit window by the virtual instrument (cropped after imaging)
-MARGIN_PX = 8
 #: simulation samples per feed period at least (the evaluations' simulation.pixel)
-SIM_SAMPLES_PER_PERIOD = 20
-
-
-# --------------------------------------------------------------------- the forward model
-def predict_measurement(task_spec: dict):
-    """One evaluation: what the virtual instrument reports for the scene of ``task_spec``
-    (``scene``: a scene dictionary whose region covers the field and whose
-    ``render.interferometer`` is the instrument; ``seed``: the camera noise's seed;
-    ``algorithm``).  Returns (height (ny, nx) mm with NaN where not measured, meta).
-    Runs in this process or on a Dask worker."""
-    _numba_threads_as_launched()
-    scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
-    sim = simulate(scene)
-    ig = render_interferogram(sim.heightmap, scene.render.interferometer,
-                              seed=int(task_spec["seed"]))
-    r = measure_frames(ig.recorded(), algorithm=task_spec.get("algorithm", "auto"))
-    h = np.where(r.valid, r.height, np.nan)
-    return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
-               "shape": list(h.shape), "residual_sq_nm": sim.metrics["residual"]["Sq_nm"]}
-
-
-def _numba_threads_as_launched() -> None:
-    """Make ``NUMBA_NUM_THREADS`` in the environment agree with the thread count numba runs
-    with.  A Dask worker may get the variable from its nanny after numba has read it; a
-    kernel compiled there (the first call of one not yet in the cache) re-reads the
-    environment and refuses a count that differs from the running pool's."""
-    import os
-
-    import numba
-
-    os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
-
-
-@contextlib.contextmanager
-def _quiet():
-    """The forward model's own progress bars are not shown during a fit."""
-    old = set_reporter(None)
-    try:
-        yield
-    finally:
-        set_reporter(old)
-
-
-# ------------------------------------------------------------------ preset values
-def _axis_scene_units(axis: dict, spindle: bool) -> dict:
-    bw = axis.get("bandwidth_hz")
-    d = {"bandwidth_hz": math.inf if bw is None else bw, "damping": axis["damping"],
-         "velocity_ff": axis["velocity_ff"], "acceleration_ff": axis["acceleration_ff"],
-         "delay_s": axis["delay_s"]}
-    if spindle:
-        d["noise_urad"] = axis["noise_rms"] * RAD_TO_URAD
-    else:
-        d["noise_nm"] = axis["noise_rms"] * MM_TO_NM
-        d["velocity_limit_mm_s"] = axis.get("velocity_limit")
-        d["acceleration_limit_mm_s2"] = axis.get("acceleration_limit")
-    return d
-
-
-def _machine_scene_units(scene) -> dict:
-    """The scene's machine (its preset with the scene's changes) in the scene's units."""
-    m = machine_of(scene).to_dict()
-    out = {"servo_rate_hz": m["servo_rate_hz"]}
-    for k in ("x", "z", "fts"):
-        out[k] = _axis_scene_units(m[k], False)
-    out["c"] = _axis_scene_units(m["c"], True)
-    e = m["errors"] or {}
-    errs = {}
-    for k in ("radial_sync", "axial_sync"):
-        errs[k] = [[int(n), a * MM_TO_NM, math.degrees(p)] for n, a, p in e.get(k, ())]
-    errs["tilt_sync"] = [[int(n), a * RAD_TO_URAD, math.degrees(p)] for n, a, p in e.get("tilt_sync", ())]
-    errs["radial_async_nm"] = e.get("radial_async_rms", 0.0) * MM_TO_NM
-    errs["axial_async_nm"] = e.get("axial_async_rms", 0.0) * MM_TO_NM
-    errs["async_bandwidth_hz"] = e.get("async_bandwidth_hz")
-    errs["x_straightness_nm"] = e.get("x_straightness_rms", 0.0) * MM_TO_NM
-    errs["x_straightness_length"] = e.get("x_straightness_length")
-    errs["vibration"] = [[f, a * MM_TO_NM, d, math.degrees(p)]
-                         for f, a, d, p in e.get("vibration", ())]
-    out["errors"] = errs
-    out["coupling"] = dict(m["coupling"])
-    return out
-
-
-def preset_value(scene, key: str):
-    """The value of a machine or material key the scene leaves to its preset (scene
-    units), or None."""
-    parts = key.split(".")
-    if parts[0] == "machine":
-        node = _machine_scene_units(scene)
-    elif parts[0] == "material" and scene.material.preset != "ideal":
-        node = material_preset(scene.material.preset).to_dict()
-    else:
-        return None
-    for p in parts[1:]:
-        if isinstance(node, dict):
-            node = node.get(p)
-        elif isinstance(node, list) and p.isdigit() and int(p) < len(node):
-            node = node[int(p)]
-        else:
-            return None
-        if node is None:
-            return None
-    return node
-
-
-def _fill(scene):
-    """The preset's array for an array key the scene leaves unset."""
-    def fill(prefix: str):
-        v = preset_value(scene, prefix)
-        return copy.deepcopy(v) if isinstance(v, list) else None
-    return fill
-
-
-# ------------------------------------------------------------------ the measured file
-_INSTRUMENT_ATTRS = ("objective", "mode", "wavelength_nm", "bandwidth_nm", "numerical_aperture")
-
-
-def _file_instrument(path) -> dict:
-    """The instrument settings a ``height.exr`` (written by ``measure``) names in its
-    header; {} for other files."""
-    if Path(path).suffix.lower() != ".exr":
-        return {}
-    _, attrs = read_exr(path)
-    out = {}
-    for k in _INSTRUMENT_ATTRS:
-        v = attrs.get(k)
-        if v not in (None, ""):
-            out[k] = v
-    inst = attrs.get("instrument")
-    if isinstance(inst, str):
-        try:
-            inst = json.loads(inst)
-        except ValueError:
-            inst = None
-    s = ((inst or {}).get("model") or {}).get("subsamples") if isinstance(inst, dict) else None
-    if isinstance(s, int) and 1 <= s <= 8:
-        out["subsamples"] = s
-    return out
-
-
-def _instrument(scene, file_settings: dict, objective: str | None, pixel: float, window,
-                z, subsamples=None) -> tuple[dict, str]:
-    """The ``[render.interferometer]`` of the evaluations: the scene's, with the file's
-    objective and settings (else ``objective``), the measured pixel, the fit window as
-    field of view, and the sub-sampling pinned (so that it does not jump between
-    evaluations)."""
-    icfg = scene.render.interferometer.model_dump(mode="json")
-    source = "scene"
-    if file_settings.get("objective"):
-        icfg["objective"] = str(file_settings["objective"])
-        source = "file"
-        for k in ("mode", "wavelength_nm", "bandwidth_nm", "numerical_aperture"):
-            if k in file_settings:
-                icfg[k] = file_settings[k]
-        if icfg.get("bandwidth_nm") == 0 and icfg.get("mode") == "csi":
-            icfg["bandwidth_nm"] = None
-    elif objective:
-        icfg["objective"] = objective
-        source = "--objective"
-    icfg.update(pixel=float(pixel), field_of_view=[float(v) for v in window], margin=MARGIN_PX,
-                reference_height=None)
-    try:
-        cfg = InterferometerConfig.model_validate(icfg)
-    except Exception as err:  # pydantic's error: say which setting
-        raise InputError(f"the instrument settings of the measured file are not usable "
-                         f"({' '.join(str(err).split())[:300]})") from None
-    if file_settings.get("subsamples") and source == "file":
-        icfg["subsamples"] = int(file_settings["subsamples"])
-    elif cfg.subsamples is None:
-        gy, gx = np.gradient(np.asarray(z, dtype=np.float64), pixel)
-        g = np.hypot(gx, gy)
-        g = g[np.isfinite(g)]
-        slope = float(math.atan(np.percentile(g, 99.9))) if g.size else None
-        s = subsamples or min(recommended_subsamples(pixel, microscope_from_config(cfg),
-                                                     max_slope=slope), MAX_AUTO_SUBSAMPLES)
-        icfg["subsamples"] = int(s)
-    return InterferometerConfig.model_validate(icfg).model_dump(mode="json"), source
+SIM_SAMPLES_PER_PERIOD = 18
 
 
 def _weights(items) -> dict:
@@ -312,7 +133,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     """
     t_all = time.perf_counter()
     out = Path(out)
-    check_output_dir(out, overwrite=overwrite, command="fit")
+    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
     keys = parse_free(free)
     user_bounds = parse_bounds(bounds)
     spec = MisfitSpec(form=form, weights=_weights(weights))
@@ -324,8 +145,15 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         if not (isinstance(v, int) and v >= lo):
             raise InputError(f"{name} must be an integer >= {lo}, received {v!r}")
     params = free_parameters(scene, keys, user_bounds, defaults=lambda k: preset_value(scene, k))
+    random = random_parts(scene)
+    free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
+    for k in free_random:
+        if k not in random:
+            raise InputError(f"--free {k}: the amplitude of a random part is fitted through the "
+                             f"power it adds to the spectrum, scaled from its start value, "
+                             f"which is 0 here; start it above 0 with --set {k}=VALUE")
     base = scene.to_dict()
-    fill = _fill(scene)
+    fill = preset_fill(scene)
     # the prediction's scene is checked before the fit runs
     predict = list(predict or ())
     if predict:
@@ -337,9 +165,8 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                          f"({m.pixel[1]:.6g} mm); the virtual instrument has square pixels: "
                          f"resample the map first")
     pixel = float(m.pixel[0])
-    file_settings = _file_instrument(measured)
+    file_settings = file_instrument(measured)
     region = [float(v) for v in scene.simulation.region]
-    placement = {}
     if at == "register":
         reg = register_field(m.z, m.pixel, make_surface(scene.design), region)
         origin = tuple(reg["origin_mm"])
@@ -366,7 +193,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     log.info("fit window %.4g x %.4g mm (%d x %d pixels) at x %.4g..%.4g, y %.4g..%.4g mm "
              "(field placed %s)", n * pixel, n * pixel, n, n, window[0], window[2], window[1],
              window[3], how)
-    icfg, icfg_source = _instrument(scene, file_settings, objective, pixel, window, zw)
+    icfg, icfg_source = instrument_settings(scene, file_settings, objective, pixel, window, zw)
     target = make_target(zw, pixel=(pixel, pixel), origin=w_origin, spec=spec)
     # the simulation grid samples the feed marks finely enough that its aliasing of the
     # cusps (a waviness that moves with the marks' phase, hence with the feed) stays far
@@ -378,43 +205,56 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     sim_region = [window[0] - grow, window[1] - grow, window[2] + grow, window[3] + grow]
     log.info("evaluations simulate %.4g x %.4g mm at a %.3g um pixel", sim_region[2] - sim_region[0],
              sim_region[3] - sim_region[1], sim_pixel * MM_TO_UM)
-
-    # evaluations image without the camera's noise (its expected value: smooth in the
-    # parameters); the noise's power is added to their spectra as a floor measured once
-    icfg_clean = dict(icfg, noise=False)
-
-    def make_task(values: dict, *, noise: bool = False) -> dict:
-        d = copy.deepcopy(base)
-        for k, v in values.items():
-            set_value(d, k, v, fill=fill)
-        d["simulation"]["region"] = sim_region
-        d["simulation"]["pixel"] = sim_pixel
-        d.setdefault("render", {})["interferometer"] = icfg if noise else icfg_clean
-        return {"scene": d, "seed": int(seed), "algorithm": "auto"}
-
-    scene_from_dict(make_task({p.key: p.start for p in params})["scene"], "(the fit window)")
+    # evaluations run without the random parts and the camera's noise (their expected
+    # value, smooth in the parameters); the power those add is measured on a few
+    # realisations and added to the predictions' spectra
+    model = ForwardModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random, free_random)
+    start_values = {p.key: p.start for p in params}
+    scene_from_dict(model.task(start_values)["scene"], "(the fit window)")
     cache_dir = Path(cache) if cache is not None else out.parent / f"{out.name}.cache"
     store = EvaluationCache(cache_dir)
-    with contextlib.ExitStack() as stack:
-        client = None
-        if workers is not None or scheduler is not None:
-            client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
-        evaluator = Evaluator(params, target, make_task, predict_measurement, store,
-                              client=client, max_evaluations=max_evaluations, quiet=_quiet)
-        start_values = {p.key: p.start for p in params}
-        with task("fit: the scene's values, with and without the camera's noise"):
-            clean0 = _compute(store, make_task(start_values), client)
-            noisy0 = _compute(store, make_task(start_values, noise=True), client) \
-                if icfg.get("noise", True) else clean0
-        set_noise_floor(target, noisy0, clean0)
-        check_units(_rms(target.height), _rms(prepare_map(noisy0, pixel=target.pixel,
-                                                          form=spec.form, origin=w_origin)))
-        first = evaluator.evaluate([[p.start for p in params]])[0]
-        pred0 = predict_features(first.height, target)
-        log.info("first evaluation: %.1f s; misfit %.4g", first.seconds, first.cost)
-        result = solve(params, evaluator, global_points=global_points, seed=seed,
-                       profile_points=profile_points)
-    best = predict_features(result.best.height, target)
+    try:
+        with contextlib.ExitStack() as stack:
+            client = None
+            if workers is not None or scheduler is not None:
+                client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
+            evaluator = Evaluator(params, target, model.task, predict_measurement, store,
+                                  client=client, max_evaluations=max_evaluations, quiet=quiet)
+            clean0 = compute_all(store, [model.task(start_values)], client)[0]
+            check_units(_rms(target.height), _rms(prepare_map(clean0, pixel=target.pixel,
+                                                              form=spec.form, origin=w_origin)))
+            draws = FLOOR_DRAWS if model.has_floor() else 0
+            with task(f"fit: the power of the random parts and the camera's noise "
+                      f"({draws} realisations)"):
+                runs = [model.draw(start_values, r) for r in range(draws)]
+                for k in free_random:
+                    runs += [model.draw(start_values, r, only=k) for r in range(FLOOR_DRAWS)]
+                maps = compute_all(store, runs, client)
+            noisy = maps[:draws] or [clean0]
+            free_idx = [i for i, p in enumerate(params) if p.key in free_random]
+            scaled = [(i, params[i].start,
+                       maps[draws + j * FLOOR_DRAWS:draws + (j + 1) * FLOOR_DRAWS])
+                      for j, i in enumerate(free_idx)]
+            set_noise_floor(target, noisy, clean0, scaled=scaled)
+            if target.scatter.get("waviness_rms_nm") is not None:
+                log.info("the random parts and the camera's noise: %.3g nm rms of waviness, "
+                         "harmonics %s nm, frequency %.2g (their realisations' scatter)",
+                         target.scatter["waviness_rms_nm"],
+                         ", ".join(f"{a:.3g}" for a in target.scatter.get("amplitudes_nm", [])),
+                         target.scatter.get("frequency_relative", float("nan")))
+            first = evaluator.evaluate([[p.start for p in params]])[0]
+            pred0 = predict_features(first.height, target, first.values)
+            log.info("first evaluation: %.1f s; misfit %.4g", first.seconds, first.cost)
+            result = solve(params, evaluator, global_points=global_points, seed=seed,
+                           profile_points=profile_points)
+            # the fitted values once more with a realisation of the random parts and the
+            # camera's noise (for the PSD figure: what a measurement of the fit would show)
+            drawn = compute_all(store, [model.draw(dict(zip(keys, result.values)), 0)],
+                                client)[0] if draws else None
+    except BaseException as err:
+        _after_failure(store, err)
+        raise
+    best = predict_features(result.best.height, target, result.best.values)
     maps = misfit_maps(target.height, best.height)
     wavy = misfit_maps(target.wavy, best.wavy)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
@@ -432,10 +272,15 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                   "placement": placement, "scene": scene.name,
                   "simulation": {"region_mm": sim_region, "pixel_mm": sim_pixel},
                   "cache": str(cache_dir),
-                  "workers": workers, "scheduler": scheduler}
+                  "random_parts": {"held_at_zero_in_evaluations": random,
+                                   "fitted_through_their_power": list(free_random),
+                                   "realisations": draws},
+                  "workers": workers, "scheduler": scheduler,
+                  "evaluated_by": sorted({e.meta["worker"] for e in result.history
+                                          if not e.cached and e.meta.get("worker")})}
     record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
                         waviness=wavy)
-    with atomic_output_dir(out, overwrite=overwrite, command="fit") as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
         tmp = Path(tmp)
         if predict:
             pred_scene = _predicted_scene(fitted, {}, predict, fill)
@@ -457,6 +302,9 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                            extent=(window[0], window[2], window[1], window[3]),
                            psd={"measured": radial_psd(target.height, pixel=target.pixel),
                                 "fitted": radial_psd(best.height, pixel=target.pixel),
+                                **({} if drawn is None else {"fitted, with the random parts": radial_psd(
+                                    prepare_map(drawn, pixel=target.pixel, form=spec.form,
+                                                origin=w_origin), pixel=target.pixel)}),
                                 "start": radial_psd(pred0.height, pixel=target.pixel)})
         for name, png in figs.items():
             (tmp / name).write_bytes(png)
@@ -475,21 +323,15 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     return record
 
 
-def _compute(store, task_spec: dict, client):
-    """One forward-model run through the evaluation cache (in this process or on Dask)."""
-    key = task_hash(task_spec)
-    hit = store.get(key)
-    if hit is not None:
-        return hit[0]
-    try:
-        if client is None:
-            with _quiet():
-                h, meta = predict_measurement(task_spec)
-        else:
-            h, meta = client.submit(predict_measurement, task_spec, pure=False).result()
-    except InputError as err:
-        raise InputError(f"the forward model fails at the scene's values: {err}") from None
-    return store.put(key, h, meta)
+def _after_failure(store, err) -> None:
+    """A refused fit (bad input) leaves no cache folder it made; an interrupted or failed
+    one keeps the evaluations it made, so that the same command resumes from them."""
+    if isinstance(err, InputError):
+        store.discard()
+    elif store.written:
+        log.warning("fit stopped: the %d evaluations made are kept in %s; the same command "
+                    "resumes from them (deleting the folder is safe)", store.written,
+                    store.folder)
 
 
 def _rms(z) -> float:

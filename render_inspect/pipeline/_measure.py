@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..core.errors import InputError
+from ..core.units import MM_TO_NM
 from ..io import (
     STACK_EXTENSIONS,
     atomic_output_dir,
@@ -18,9 +18,7 @@ from ..io import (
     read_exr,
     read_frame_stack,
     read_frames_exr,
-    save_map_png,
     write_exr,
-    write_json,
     write_measurement_exr,
 )
 from ..metrology import (
@@ -29,6 +27,8 @@ from ..metrology import (
     measure_frames,
     remove_form,
 )
+from ..report import save_map_png
+from ._metrics import measurement_metrics, write_metrics
 
 __all__ = ["measure_and_evaluate", "measurement_outputs", "read_frames", "run_measure"]
 
@@ -88,12 +88,12 @@ def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
                               method="plane")
         params = areal_parameters(flat, pixel=frames.pixel)
         metrics["height"] = {"form_removed": "plane",
-                             **{f"{k}_nm": float(params[k]) * 1e6
+                             **{f"{k}_nm": float(params[k]) * MM_TO_NM
                                 for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}}
         x0 = frames.origin[0] - frames.pixel / 2
         y0 = frames.origin[1] - frames.pixel / 2
         ny, nx = result.height.shape
-        save_map_png(out / "height.png", flat * 1e6,
+        save_map_png(out / "height.png", flat * MM_TO_NM,
                      extent=(x0, x0 + nx * frames.pixel, y0, y0 + ny * frames.pixel),
                      title=f"measured height ({frames.mode.upper()}, {meta['algorithm']}), plane removed",
                      label="height (nm)", cmap="turbo")
@@ -140,10 +140,9 @@ def run_measure(path, out, *, algorithm: str = "auto", settings=None,
     with atomic_output_dir(out, overwrite=overwrite, command="measure") as tmp:
         m = measurement_outputs(tmp, frames, result, source=str(path))
         m["ignored_channels"] = ignored
-        metrics = {"software_version": __version__, "source": str(path), "measure": m,
-                   "timing_s": {"read": t1 - t0, "measure": t2 - t1,
-                                "write": time.perf_counter() - t2}}
-        write_json(tmp / "metrics.json", metrics)
+        metrics = measurement_metrics(path, m, {"read": t1 - t0, "measure": t2 - t1,
+                                                "write": time.perf_counter() - t2})
+        write_metrics(tmp, metrics)
     return metrics
 
 

@@ -1,66 +1,34 @@
-"""The one metrics builder: every command's ``metrics.json`` content comes from here, so
-the contract keys (docs/formats.md) are the same whichever way the pipeline was run."""
+"""The one metrics builder: every command's ``metrics.json`` is assembled and written here
+(:func:`write_metrics`), so the contract keys (docs/formats.md) are the same whichever
+way the pipeline was run.
+
+Documents: a simulation's (:func:`simulation_metrics`, also for maps simulated tile by
+tile), a compared variant's and the comparison's, a sweep point's, a measurement's, an
+analysis's and an instrument characterisation's; the ``toolpath`` command's
+``toolpath.json``.
+"""
 
 from __future__ import annotations
 
-import warnings
+from pathlib import Path
 
 from .. import __version__
-from ..core.toolpath import ToolPath
-from ..machining import design_grid, residual_metrics
-from ..metrology import characterise_msa, lenslet_table
+from ..io import write_json
+from ..machining import residual_metrics
 
-__all__ = ["simulation_metrics", "lenslet_metrics", "msa_metrics", "tiled_metrics"]
+__all__ = ["simulation_metrics", "tiled_metrics", "variant_metrics", "comparison_metrics",
+           "toolpath_metrics", "measurement_metrics", "analysis_metrics",
+           "characterisation_metrics", "point_metrics", "write_metrics", "METRICS_FILE",
+           "diffuse_summary"]
 
-
-def lenslet_metrics(surface, heightmap) -> list | None:
-    """The ``lenslets`` table (fitted centres, dislocations, form errors) of a lenslet
-    design, or None when the design has no lenslets.
-
-    A compound design whose feature is the lenslet array (a microstructure on a freeform
-    base, seed 002) is evaluated on the machined map minus the base; a plain array or
-    lenslet rings on the machined map.  Lenslets cut by the simulated window are left out.
-    """
-    feature = getattr(surface, "feature", None)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # lenslets cut by the window's border are left out
-        if feature is not None and hasattr(surface, "base"):
-            if not hasattr(feature, "centers"):
-                return None
-            region = (heightmap.x[0], heightmap.y[0], heightmap.x[-1], heightmap.y[-1])
-            base = design_grid(surface.base, region, heightmap.pixel)
-            return lenslet_table((heightmap.machined - base, heightmap.pixel,
-                                  tuple(heightmap.origin)), feature,
-                                 aperture_radius=getattr(feature, "aperture_radius", None))
-        if hasattr(surface, "centers"):
-            return lenslet_table(heightmap, surface, which="machined")
-    return None
+#: the file every command writes its metrics into
+METRICS_FILE = "metrics.json"
 
 
-def msa_metrics(surface, heightmap, metrology=None) -> tuple[list, dict] | None:
-    """Seed 002's characterisation of a lenslet array on a base (a compound design whose
-    feature is the array): outliers, 6-DOF registration of the design to the machined map
-    (base first, then all data), separation, per-lenslet fits against the registered
-    design, base form error (:func:`~render_inspect.metrology.characterise_msa`, with the
-    scene's ``[metrology]`` settings).  Returns (``lenslets`` table, ``msa`` facts:
-    registration, base form error, outlier count, summary), or None for other designs.
-    What a rigid set-up (or a constant servo lag) does is registered away; what is left
-    are the dislocations that survive registration."""
-    feature = getattr(surface, "feature", None)
-    if feature is None or not hasattr(surface, "base") or not hasattr(feature, "centers"):
-        return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # lenslets cut by the window's border are left out
-        res = characterise_msa(heightmap.machined, surface, pixel=heightmap.pixel,
-                               origin=tuple(heightmap.origin),
-                               aperture_radius=getattr(feature, "aperture_radius", None),
-                               metrology=metrology)
-    reg = res["registration"]
-    msa = {"registration": None if reg is None else
-           {k: reg[k] for k in ("tx_mm", "ty_mm", "tz_mm", "alpha_rad", "beta_rad", "gamma_rad",
-                                "rms_mm", "n_points") if k in reg},
-           "base_form_error": res["base"], "outliers": res["outliers"], "summary": res["summary"]}
-    return res["lenslets"], msa
+def write_metrics(folder, doc: dict, name: str = METRICS_FILE) -> Path:
+    """Write the metrics document ``doc`` as ``folder/metrics.json`` (strict JSON, keys
+    sorted, atomically)."""
+    return write_json(Path(folder) / name, doc)
 
 
 def _merge(dst: dict, src: dict) -> None:
@@ -71,49 +39,152 @@ def _merge(dst: dict, src: dict) -> None:
             dst[k] = v
 
 
+def _simulation_head(name: str, traits, seed, shape, pixel, origin, timing: dict,
+                     residual: dict) -> dict:
+    return {"software_version": __version__, "scene_name": name, "process": traits.name,
+            "compensation": traits.compensation, "seed": seed,
+            "samples": int(shape[0] * shape[1]),
+            "grid": {"shape": [int(shape[0]), int(shape[1])], "pixel_mm": float(pixel),
+                     "origin_mm": [float(origin[0]), float(origin[1])]},
+            "timing_s": dict(timing), "residual": residual}
+
+
+def _program_facts(m: dict, plan) -> None:
+    _merge(m, plan.facts)
+    m.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
+
+
 def simulation_metrics(scene, sim) -> dict:
     """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
     ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
     ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
     (``Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm, min_nm``, ...), ``toolpath`` (``points``,
     ``revolutions``, ``feed_per_rev_mm``, kinematics), the process's own facts and, for
-    lenslet designs, ``lenslets``."""
+    lenslet designs, ``lenslets`` (and ``msa`` for an array on a base)."""
     hm = sim.heightmap
-    m = {"software_version": __version__, "scene_name": scene.name,
-         "process": scene.process.kind, "compensation": scene.process.compensation,
-         "seed": scene.simulation.seed, "samples": int(hm.design.size),
-         "grid": {"shape": list(hm.shape), "pixel_mm": hm.pixel, "origin_mm": list(hm.origin)},
-         "timing_s": dict(sim.timing_s),
-         "residual": residual_metrics(hm)}
-    _merge(m, sim.plan.facts)
+    m = _simulation_head(scene.name, sim.traits, scene.simulation.seed, hm.shape, hm.pixel,
+                         hm.origin, sim.timing_s, residual_metrics(hm))
+    _program_facts(m, sim.plan)
     _merge(m, sim.cut.facts)
-    prog = sim.program
-    if isinstance(prog, ToolPath):
-        tp = m.setdefault("toolpath", {})
-        tp.setdefault("points", int(prog.points))
-        tp.setdefault("revolutions", prog.revolutions)
-        tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
     if sim.lenslets is not None:
         m["lenslets"] = sim.lenslets
-    if getattr(sim, "msa", None) is not None:
+    if sim.msa is not None:
         m["msa"] = sim.msa
     return m
 
 
-def tiled_metrics(scene, plan, residual: dict, shape, origin, timing: dict) -> dict:
+def tiled_metrics(scene, plan, traits, residual: dict, shape, origin, timing: dict) -> dict:
     """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
-    ``residual`` reduced across tiles (``render_inspect.machining._metrics``)."""
-    m = {"software_version": __version__, "scene_name": scene.name,
-         "process": scene.process.kind, "compensation": scene.process.compensation,
-         "seed": scene.simulation.seed, "samples": int(shape[0] * shape[1]),
-         "grid": {"shape": [int(shape[0]), int(shape[1])], "pixel_mm": float(scene.simulation.pixel),
-                  "origin_mm": [float(origin[0]), float(origin[1])]},
-         "timing_s": dict(timing), "residual": residual}
-    _merge(m, plan.facts)
-    prog = plan.program
-    if isinstance(prog, ToolPath):
-        tp = m.setdefault("toolpath", {})
-        tp.setdefault("points", int(prog.points))
-        tp.setdefault("revolutions", prog.revolutions)
-        tp.setdefault("feed_per_rev_mm", scene.process.feed_per_rev)
+    ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)."""
+    m = _simulation_head(scene.name, traits, scene.simulation.seed, shape,
+                         scene.simulation.pixel, origin, timing, residual)
+    _program_facts(m, plan)
     return m
+
+
+def variant_metrics(sim_metrics: dict, *, name: str, label: str, measured: dict, filtered: dict,
+                    interferometer: dict, diffuse: dict, mitsuba_variant: str,
+                    timing: dict) -> dict:
+    """A compared variant's ``metrics.json``: its simulation's metrics with what was
+    measured (``measured``), its waviness (``filtered``), the interferometer and the
+    diffuse views."""
+    m = dict(sim_metrics)
+    m.update({"variant": {"name": name, "label": label}, "measured": measured,
+              "filtered": filtered, "interferometer": interferometer, "diffuse": diffuse,
+              "mitsuba_variant": mitsuba_variant})
+    m["timing_s"] = dict(timing)
+    return m
+
+
+def comparison_metrics(scene, *, pair, variants, difference: dict, filters: dict,
+                       windows: dict, seed: int, mitsuba_variant: str, render_settings: dict,
+                       measured_file: dict | None, total_s: float, report: str) -> dict:
+    """``compare``'s ``metrics.json``: the pair, both variants' metrics (under their names),
+    the difference, the filters, the windows, the render settings and the measured file's
+    comparison."""
+    a, b = variants
+    metrics = {
+        "variants": [{"name": v.name, "label": v.label, "values": pv.values}
+                     for v, pv in zip(variants, pair.variants)],
+        "pair": {"key": pair.key, "about": pair.about, "identical": difference["identical"]},
+        a.name: {k: x for k, x in a.metrics.items() if not k.startswith("_")},
+        b.name: {k: x for k, x in b.metrics.items() if not k.startswith("_")},
+        "difference": {k: v for k, v in difference.items() if k != "identical"},
+        "filters": dict(filters),
+        "windows": windows,
+        "software_version": __version__, "seed": seed,
+        "mitsuba_variant": mitsuba_variant,
+        "scene": scene.to_dict(),
+        "render_settings": render_settings,
+    }
+    if "lenslets" in metrics[a.name]:
+        metrics["lenslets"] = metrics[a.name]["lenslets"]
+    if measured_file is not None:
+        metrics["measured_file"] = measured_file
+    metrics["timing_s"] = {"total": total_s}
+    metrics["report"] = report
+    return metrics
+
+
+def toolpath_metrics(scene_name: str, facts: dict) -> dict:
+    """``toolpath.json`` of the ``toolpath`` command: the program's facts."""
+    return {"software_version": __version__, "scene_name": scene_name, **facts}
+
+
+def measurement_metrics(source, measure: dict, timing: dict) -> dict:
+    """``measure``'s ``metrics.json``."""
+    return {"software_version": __version__, "source": str(source), "measure": measure,
+            "timing_s": dict(timing)}
+
+
+def analysis_metrics(analysis: dict, *, path, files: dict, timing: dict) -> dict:
+    """``analyze``'s ``metrics.json``: the analysis's metrics with where the map came
+    from (``input``), the files written, the version and the timing."""
+    metrics = dict(analysis)
+    src = metrics.pop("source", {})
+    metrics["input"] = {"path": str(Path(path)), "reader": src.get("reader"),
+                        "format": src.get("format"), "units_in_file": src.get("units_in_file"),
+                        "instrument": src.get("instrument") or None,
+                        "date": src.get("date") or None, "n_invalid": src.get("n_invalid"),
+                        "channel": src.get("channel")}
+    metrics["files"] = files
+    metrics["software_version"] = __version__
+    metrics["command"] = "analyze"
+    metrics["timing_s"] = dict(timing)
+    return metrics
+
+
+def characterisation_metrics(metrics: dict, settings: dict, timing: dict) -> dict:
+    """``characterise``'s ``metrics.json``."""
+    return {"software_version": __version__, "characterise": metrics,
+            "instrument_settings": settings, "timing_s": dict(timing)}
+
+
+def point_metrics(sim_metrics: dict, *, render: dict | None = None, measured: dict | None = None,
+                  compare: dict | None = None) -> dict:
+    """A sweep point's ``metrics.json``: its simulation's metrics and what its ``[run]``
+    added (``render``, ``measured``, ``compare``)."""
+    m = dict(sim_metrics)
+    if render is not None:
+        m.update(render)
+    if measured is not None:
+        m["measured"] = measured
+    if compare is not None:
+        m["compare"] = compare
+    return m
+
+
+def diffuse_summary(meta: dict) -> dict:
+    """What the metrics say of a diffuse image (its settings, size, light, material)."""
+    sc = meta.get("scale") or {}
+    out = {k: meta[k] for k in ("view", "spp", "seed", "vertical_exaggeration", "window_mm",
+                                 "mitsuba_variant")}
+    out.update(resolution=[meta["camera"]["width"], meta["camera"]["height"]],
+               light=meta["light"]["type"], lamp=meta.get("lamp"),
+               material=meta["material"]["type"],
+               iridescence=bool(meta["material"].get("grating")),
+               mm_per_px=sc.get("mm_per_px") or sc.get("mm_per_px_at_target"))
+    for k in ("orders", "first_order_efficiency_550nm", "sigma_u", "sigma_v"):
+        if k in meta["material"]:
+            out[k] = meta["material"][k]
+    return out

@@ -38,20 +38,21 @@ from ..batch import (
     flip_mean,
     image_t_test,
     list_cases,
-    map_png,
     pass_statistics,
     read_case,
     read_reference,
-    rgb_png,
     toml_value,
     write_reference,
     write_summary_html,
 )
 from ..core.errors import InputError, SceneError
-from ..instruments import render_interferogram
+from ..core.units import MM_TO_NM
+from ..instruments import height_instrument
 from ..io import atomic_output_dir, atomic_write_bytes, check_output_dir, write_exr, write_json
 from ..metrology import measure_frames
 from ..render import variant_info
+from ..report import image_png as map_png
+from ..report import rgb_png
 from ..scene import find_scene, load_scene, scene_sections
 from ._render import part_heightmap, render_diffuse_views
 from ._simulate import simulate
@@ -61,11 +62,10 @@ __all__ = ["run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS
 
 log = logging.getLogger("render_inspect")
 
-MM_TO_NM = 1e6
 #: Seeds of the reference passes: REFERENCE_SEED0, +1, ...  Test passes use
 #: ``simulation.seed * SEED_STRIDE + i``: the two never overlap (seed < 2,000,000).
 REFERENCE_SEED0 = 2_000_000_000
-SEED_STRIDE = 1000
+SEED_STRIDE = 1000  # not a unit conversion
 
 #: Per image: unit, tolerances of a deterministic comparison, significance of a
 #: Monte-Carlo one.  ``atol`` covers what differs between Mitsuba variants and machines
@@ -140,12 +140,13 @@ def case_images(scene, images, *, seeds) -> dict:
         out["residual"] = {"kind": "deterministic", "channels": ["residual_nm"],
                            "value": r[None], "flip_rows": True}
     if "interferogram" in images or "measured_height" in images:
-        icfg = scene.render.interferometer
+        entry = height_instrument()
+        icfg = getattr(scene.render, entry.name)
         mcfg = scene.metrology
         noisy = bool(icfg.noise)
         frames, heights = [], []
         for s in (seeds if noisy else [seed]):
-            ig = render_interferogram(hm, icfg, surface="machined", seed=int(s))
+            ig = entry.render(hm, icfg, surface="machined", seed=int(s))
             frames.append(np.concatenate([ig.frames.astype(np.float64),
                                           ig.valid[None].astype(np.float64)]))
             if "measured_height" in images:

@@ -30,7 +30,7 @@ from ..batch import (
     dotted_get,
     expand_points,
     folder_lock,
-    plot_png,
+    plot_rows,
     point_id,
     read_sweep,
     summary_table,
@@ -38,20 +38,22 @@ from ..batch import (
     toml_value,
 )
 from ..core.errors import InputError, RenderInspectError, SceneError
+from ..core.units import MM_TO_NM
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
     atomic_write_text,
     check_output_path,
     claim_output_dir,
-    save_map_png,
     write_json,
 )
 from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
+from ..report import save_map_png, sweep_plot_png
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
+from ._metrics import point_metrics, write_metrics
 from ._render import run_render
-from ._simulate import simulate, write_simulation
+from ._simulate import residual_title, simulate, write_simulation
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps"]
 
@@ -60,7 +62,6 @@ log = logging.getLogger("render_inspect")
 POINTS = "points"
 #: The summary table is also printed for sweeps of at most this many points.
 SHOW_TABLE_POINTS = 30
-MM_TO_NM = 1e6
 
 
 def shipped_sweeps() -> dict[str, Path]:
@@ -144,30 +145,29 @@ def _residual_png(sim, path: Path) -> None:
     r = sim.metrics["residual"]
     save_map_png(path, (hm.residual - r["mean_nm"] / MM_TO_NM) * MM_TO_NM, extent=hm.extent,
                  cmap="RdBu_r", symmetric=True, label="machined - design (nm)",
-                 title=f"{scene.name}: residual, compensation {scene.process.compensation}\n"
-                       f"Sq {r['Sq_nm']:.3g} nm, Sz {r['Sz_nm']:.3g} nm")
+                 title=residual_title(scene.name, sim.traits, r))
 
 
 def _point_outputs(scene, folder: Path, run: dict) -> dict:
     sim = simulate(scene)
     if run["files"] == "all":
-        metrics = dict(write_simulation(sim, folder))
+        sim_metrics = write_simulation(sim, folder)
     else:
-        metrics = dict(sim.metrics)
+        sim_metrics = sim.metrics
         _residual_png(sim, folder / "residual.png")
         atomic_write_text(folder / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    render = measured = compare = None
     if run["render"] != "none":
-        metrics.update(run_render(scene, folder / "render", kind=run["render"],
-                                  heightmap=sim.heightmap))
+        render = run_render(scene, folder / "render", kind=run["render"], heightmap=sim.heightmap)
     if run["measure"]:
         m = scene.metrology
         _, _, measured = measure_and_evaluate(folder / "render" / "interferogram.exr",
                                            algorithm=m.phase_algorithm, csi_refine=m.csi_refine,
                                            min_modulation=m.min_modulation)
-        metrics["measured"] = measured
     if run["compare"]:
-        metrics["compare"] = run_compare(scene, folder / "compare")
-    write_json(folder / "metrics.json", metrics)
+        compare = run_compare(scene, folder / "compare")
+    metrics = point_metrics(sim_metrics, render=render, measured=measured, compare=compare)
+    write_metrics(folder, metrics)
     return metrics
 
 
@@ -248,7 +248,7 @@ def _finish(out: Path, spec, keys, tasks, invalid, records: dict, results: Resul
     names = []
     for i, p in enumerate(plots):
         name = p.name or f"plot_{i:02d}_{p.kind}"
-        atomic_write_bytes(out / f"{name}.png", plot_png(mine, p))
+        atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, plot_rows(mine, p)))
         names.append(f"{name}.png")
     info = {**info, "name": spec.name, "description": spec.description, "keys": keys,
             "points": total, "done": done, "failed": failed, "pending": total - done - failed,

@@ -2,8 +2,9 @@
 large for memory (simulated tile by tile into ``heightmap.zarr``), only the windows and
 area-averaged levels each view needs.
 
-- interferometer: the objective's field of view, resolved on the whole map exactly as for
-  an in-memory map (centred, clipped), read at full resolution with a 2-pixel margin;
+- an instrument (the interferometer, ...): its field (its ``field`` hook: the objective's
+  field of view, resolved on the whole map exactly as for an in-memory map), read at full
+  resolution with a 2-pixel margin;
 - diffuse ``micro``: its window (``render.diffuse.window`` or the default centred one), at
   full resolution;
 - diffuse ``macro``: the whole part from the finest pyramid level with at most
@@ -21,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.errors import InputError
 from ..core.grid import GridCoordinates
 from ..core.heightmap import HeightMap
-from ..instruments import interferometer_geometry
-from ..io._zarr import ZarrHeightMap
-from ..render._diffuse import _default_window
-from ._simulate import run_simulate_tiled
+from ..io import ZarrHeightMap
+from ..render import default_window
+from ._simulate_command import run_simulate_tiled
 
 __all__ = ["WholeMapViews", "BigMapViews", "big_map_store"]
 
@@ -45,8 +46,8 @@ class WholeMapViews:
         self.hm = hm
         self.facts = {}
 
-    def interferometer(self, icfg):
-        return self.hm, icfg
+    def instrument(self, entry, cfg):
+        return self.hm, cfg
 
     def diffuse(self, dcfg, view: str):
         return self.hm, dcfg
@@ -89,15 +90,19 @@ class BigMapViews:
         self.facts["read"][name] = {"shape": list(design.shape), "level": k, "factor": f}
         return HeightMap(design, machined, p * f, origin, self.store.scene or None, self.store.meta)
 
-    def interferometer(self, icfg):
-        geo = interferometer_geometry(self.grid, icfg)
-        window = [float(v) for v in geo["window"]]
-        return self._window(window, "interferometer"), icfg.model_copy(update={"field_of_view": tuple(window)})
+    def instrument(self, entry, cfg):
+        if entry.field is None:
+            raise InputError(f"render.{entry.name}: the instrument states no field, so a map "
+                             f"too large for memory cannot be read in part for it; shrink "
+                             f"simulation.region or raise simulation.max_memory_gb")
+        field = entry.field(self.grid, cfg)
+        window = [float(v) for v in field["window"]]
+        return self._window(window, entry.name), field.get("settings", cfg)
 
     def diffuse(self, dcfg, view: str):
         if view == "macro":
             return self._level(2 * int(dcfg.resolution), "diffuse_macro"), dcfg
-        window = list(dcfg.window) if dcfg.window is not None else _default_window(self.grid)
+        window = list(dcfg.window) if dcfg.window is not None else default_window(self.grid)
         return self._window(window, f"diffuse_{view}"), dcfg.model_copy(update={"window": tuple(window)})
 
     def close(self):

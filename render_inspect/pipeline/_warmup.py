@@ -1,10 +1,16 @@
-"""Compile the numba kernels of turning simulations once per environment.
+"""Compile the numba kernels once per environment.
 
 ``make setup`` runs ``python -m render_inspect.pipeline._warmup``: every kernel is
 called once with the argument types the commands use, and numba stores the machine code
 in its cache (``cache=True``: the ``__pycache__`` folders beside the sources, or numba's
 user cache folder where those are read-only).  Later processes, Dask workers included,
 load the code instead of compiling it.
+
+Besides the turning kernels and the tiled path, it cuts both variants of every shipped
+scene in a window of 40 x 40 points (so the machine, servo, material and sculpturing
+kernels those scenes use are compiled with the types the commands use) and runs the
+comparison of the demo's scene on a small window (the interferometer's and the phase
+retrieval's kernels).
 """
 
 from __future__ import annotations
@@ -17,14 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..batch import run_tiles
 from ..core.toolpath import ToolPath
-from ..io._exr import heightmap_channels, heightmap_overview
-from ..io._heightmap import grid_attrs
-from ..io._pyramid import block_sums, preview
-from ..io._zarr import create_heightmap_zarr
-from ..machining._envelope import prepare_envelope, simulate_turning
-from ..machining._metrics import residual_metrics, tile_abs_dev, tile_moments
-from ._tiled import run_tiles
+from ..io import (block_sums, create_heightmap_zarr, grid_attrs, heightmap_channels,
+                  heightmap_overview, preview)
+from ..machining import (prepare_envelope, residual_metrics, simulate_turning, tile_abs_dev,
+                         tile_moments)
 
 
 class _Flat:
@@ -68,6 +72,43 @@ def warm_up() -> float:
     return time.perf_counter() - t0
 
 
+#: the window of the shipped scenes' warm-up cut, in pixels of each scene
+_WINDOW_PIXELS = 40
+#: the demo's comparison made small: a 0.1 mm field, tiny diffuse renders
+_SMALL_COMPARE = ("render.interferometer.field_of_view=[-0.05, -0.05, 0.05, 0.05]",
+                  "render.diffuse.resolution=32", "render.diffuse.spp=4")
+
+
+def warm_up_scenes() -> float:
+    """Cut both variants of every shipped scene in a small window at the scene's own
+    pixel (the kernels they use, with the types they use), and run the demo's
+    comparison on a small window; return the seconds it took."""
+    # the scenes and the public pipeline, imported when the warm-up runs (the package's
+    # __init__ is complete by then; this module is not imported by it)
+    from ..scene import load_scene, shipped_scenes
+    # (see above)
+    from . import DEMO_SCENE, compare_variants, run_compare, simulate
+
+    t0 = time.perf_counter()
+    for path in shipped_scenes().values():
+        scene = load_scene(path)
+        x0, y0, x1, y1 = scene.simulation.region
+        half = _WINDOW_PIXELS / 2 * scene.simulation.pixel
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        window = f"simulation.region=[{cx - half!r}, {cy - half!r}, {cx + half!r}, {cy + half!r}]"
+        for variant in compare_variants(load_scene(path, [window])):
+            simulate(variant)
+    scene = load_scene(DEMO_SCENE, ["simulation.region=[-0.05, -0.05, 0.05, 0.05]",
+                                    *_SMALL_COMPARE])
+    with tempfile.TemporaryDirectory() as tmp:
+        run_compare(scene, Path(tmp) / "compare")
+    return time.perf_counter() - t0
+
+
 if __name__ == "__main__":
+    import logging
+
+    logging.getLogger("render_inspect").setLevel(logging.WARNING)
     dt = warm_up()
+    dt += warm_up_scenes()
     print(f"numba kernels compiled or loaded from the cache in {dt:.1f} s", file=sys.stderr)

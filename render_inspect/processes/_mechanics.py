@@ -1,134 +1,77 @@
-"""The machine and the material of a scene (``[machine]``, ``[material]``) and the cut of a
-turning program through them: the program is followed by the machine's axes (servo
-dynamics, error motions), the followed path is cut with the material's mechanics
-(minimum chip thickness, side flow, grooves), and the burrs given as an input are put on
-the machined edges.  ``preset = "ideal"`` for both gives the geometric cut exactly.
+"""The cut of a turning program through the scene's machine and material: the program is
+followed by the machine's axes (servo dynamics, error motions:
+:func:`~render_inspect.machining.follow_turning`), the followed path is cut with the
+material's mechanics (minimum chip thickness, side flow, grooves), and the burrs of
+``[artifacts.burrs]`` (an input, this module's section) are put on the machined edges.
+``preset = "ideal"`` for both machine and material gives the geometric cut exactly.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
+from pydantic import Field
 
-from ..core.errors import InputError, SceneError
+from ..core.errors import InputError
+from ..core.section import Section
 from ..core.toolpath import ToolPath
+from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
     apply_burrs,
-    contact_ratio,
     cut_turning_mechanics,
     design_grid,
     finish_surface,
     follow_turning,
     following_error_stats,
-    machine_preset,
-    material_preset,
-    material_response,
     simulate_turning,
 )
 from ..toolpath import Tool
+from ._contract import Inputs, section
+from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
+from ._registry import register_section
 
-__all__ = ["machine_of", "material_of", "turn", "pass_angle_map", "following_error_plots",
-           "Turned"]
+__all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
+           "followed_program", "burrs_of", "Turned"]
 
 TWO_PI = 2 * math.pi
 
 
-# ---------------------------------------------------------------------------------------
-# scene sections -> machining objects (scene units -> mm, rad)
-# ---------------------------------------------------------------------------------------
-def _linear_axis(cfg) -> dict:
-    d = {}
-    for k, v in cfg.model_dump(exclude_none=True).items():
-        if k == "bandwidth_hz":
-            d[k] = None if math.isinf(v) else v
-        elif k == "noise_nm":
-            d["noise_rms"] = v * 1e-6
-        elif k == "velocity_limit_mm_s":
-            d["velocity_limit"] = v
-        elif k == "acceleration_limit_mm_s2":
-            d["acceleration_limit"] = v
-        else:
-            d[k] = v
-    return d
+class BurrConfig(Section):
+    """``[artifacts.burrs]``: ridges put on the machined edges (a given input, not a model
+    of their formation; the material's side flow models that)."""
+    height: float = Field(0.0, ge=0, le=0.1, description="mm")
+    width: float = Field(0.0, ge=0, le=1.0, description="mm")
+    variation: float = Field(0.3, ge=0, le=1, description="relative seeded variation")
+    edge_angle_deg: float = Field(1.0, gt=0, lt=90, description="smallest slope jump that is a sharp edge")
+    correlation_length: float | None = Field(None, gt=0, description="mm, of the variation; None = 4 x width")
 
 
-def _spindle_axis(cfg) -> dict:
-    d = {}
-    for k, v in cfg.model_dump(exclude_none=True).items():
-        if k == "bandwidth_hz":
-            d[k] = None if math.isinf(v) else v
-        elif k == "noise_urad":
-            d["noise_rms"] = v * 1e-6
-        else:
-            d[k] = v
-    return d
+register_section("artifacts.burrs", BurrConfig)
 
 
-def _errors(cfg) -> dict:
-    d = {}
-    for k, v in cfg.model_dump(exclude_none=True).items():
-        if k in ("radial_sync", "axial_sync", "tilt_sync"):   # nm (urad for tilt), deg
-            d[k] = tuple((int(n), a * 1e-6, math.radians(p)) for n, a, p in v)
-        elif k in ("radial_async_nm", "axial_async_nm"):
-            d[k.replace("_nm", "_rms")] = v * 1e-6
-        elif k == "x_straightness_nm":
-            d["x_straightness_rms"] = v * 1e-6
-        elif k == "vibration":
-            d[k] = tuple((f, a * 1e-6, direction, math.radians(p)) for f, a, direction, p in v)
-        else:
-            d[k] = v
-    return d
+@dataclass(frozen=True)
+class TurningInputs(Inputs):
+    """What a turning process reads: ``[process]``, ``[tool]``, ``[simulation]``, the
+    ``[design]`` (the planner's reach, the memory estimate), the ``[machine]`` and
+    ``[material]`` and ``[artifacts.burrs]``."""
+
+    design: object
+    machine: MachineConfig
+    material: MaterialConfig
+    burrs: BurrConfig = section("artifacts.burrs")
 
 
-def machine_of(scene):
-    """The :class:`~render_inspect.machining.Machine` of the scene's ``[machine]``."""
-    cfg = scene.machine
-    ov = {k: getattr(cfg, k) for k in ("servo_rate_hz", "interpolation", "fts_sync")
-          if getattr(cfg, k) is not None}
-    for k in ("x", "z", "fts"):
-        d = _linear_axis(getattr(cfg, k))
-        if d:
-            ov[k] = d
-    d = _spindle_axis(cfg.c)
-    if d:
-        ov["c"] = d
-    d = _errors(cfg.errors)
-    if d:
-        ov["errors"] = d
-    d = cfg.coupling.model_dump(exclude_none=True)
-    if d:
-        ov["coupling"] = d
-    try:
-        return machine_preset(cfg.preset, ov)
-    except InputError as err:
-        raise SceneError(f"machine (preset {cfg.preset!r}): {err}") from None
+def burrs_of(burrs: BurrConfig, seed: int) -> dict:
+    """The ``[artifacts.burrs]`` keys as :func:`~render_inspect.machining.apply_burrs`
+    arguments."""
+    return {"height": burrs.height, "width": burrs.width, "variation": burrs.variation,
+            "edge_angle_deg": burrs.edge_angle_deg,
+            "correlation_length": burrs.correlation_length, "seed": int(seed)}
 
 
-def material_of(scene, *, contact=1.0):
-    """The :class:`~render_inspect.machining.MaterialResponse` of ``[material]`` at the
-    contact ratio ``contact`` (1 = continuous cutting), or None for ``preset = "ideal"``."""
-    cfg = scene.material
-    if cfg.preset == "ideal":
-        return None
-    try:
-        mat = material_preset(cfg.preset, cfg.overrides())
-        return material_response(mat, edge_radius=cfg.edge_radius_nm * 1e-6,
-                                 contact_ratio=contact, side_flow=cfg.side_flow)
-    except InputError as err:
-        raise SceneError(f"material (preset {cfg.preset!r}): {err}") from None
-
-
-def vibration_contact(scene, cutting_speed: float) -> float:
-    """Contact ratio of the scene's ``[artifacts.vibration]`` at ``cutting_speed`` (mm/s)."""
-    v = scene.artifacts.vibration
-    return contact_ratio(cutting_speed, v.amplitude, v.frequency_hz)
-
-
-# ---------------------------------------------------------------------------------------
-# the cut
-# ---------------------------------------------------------------------------------------
 class Turned(dict):
     """``machined``, ``design`` (maps, mm), ``timing``, ``facts`` (metrics entries),
     ``followed`` (ToolPath or None), ``followed_path`` (FollowedPath or None),
@@ -168,8 +111,8 @@ def _error_maps(fp, pass_theta, stride: int) -> tuple[np.ndarray, np.ndarray]:
     s = pass_theta[::stride, ::stride]
     ok = np.isfinite(s)
     t = np.interp(np.where(ok, s, fp.theta[0]), fp.theta, fp.t)
-    ex = np.where(ok, np.interp(t, fp.t, fp.errors["x"]) * 1e6, np.nan)
-    ez = np.where(ok, np.interp(t, fp.t, fp.errors["z"] + fp.errors["fts"]) * 1e6, np.nan)
+    ex = np.where(ok, np.interp(t, fp.t, fp.errors["x"]) * MM_TO_NM, np.nan)
+    ez = np.where(ok, np.interp(t, fp.t, fp.errors["z"] + fp.errors["fts"]) * MM_TO_NM, np.nan)
     return ex, ez
 
 
@@ -194,21 +137,18 @@ def following_error_plots(fp, pass_theta, region, pixel, *, name: str) -> dict:
                                                  "each point"}}
 
 
-def turn(scene, surface, path, *, z_fts=None, followed: ToolPath | None = None,
-         burrs: bool = True, region=None, plots: bool = True, design=None) -> Turned:
-    """Cut a turning program through the scene's machine and material.
+def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, region=None,
+         plots: bool = True, design=None) -> Turned:
+    """Cut a turning program through the machine and material of ``cfg``.
 
     Parameters
     ----------
-    scene : Scene
+    cfg : TurningInputs
     surface : Surface
     path : ToolPath
         The commanded program (tool tip).
     z_fts : (n,) array, optional
         The fast tool servo's share of ``path.z`` (mm).
-    followed : ToolPath, optional
-        A path already followed by other means (the ``[artifacts.servo]`` model of an
-        ideal machine); the machine is then not applied again.
     burrs : bool
         Add the ``[artifacts.burrs]`` ridges (on the machined edges) when their height is set.
     region : (x0, y0, x1, y1), optional
@@ -222,29 +162,23 @@ def turn(scene, surface, path, *, z_fts=None, followed: ToolPath | None = None,
     -------
     Turned
     """
-    sim = scene.simulation
+    sim = cfg.simulation
     region = tuple(sim.region) if region is None else tuple(region)
-    tool = Tool.from_config(scene.tool)
+    tool = Tool.from_config(cfg.tool)
     timing, facts, figs = {}, {}, {}
-    fp = None
     t0 = time.perf_counter()
-    if followed is None:
-        machine = machine_of(scene)
-        fp = follow_turning(path.t, path.theta, path.rho, path.z, machine, z_fts=z_fts,
-                            seed=int(sim.seed))
-        cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
-                                                  {**path.meta, "followed": machine.name})
-        facts["machine"] = {"preset": scene.machine.preset, "ideal": fp.ideal,
-                            "settings": machine.to_dict(), "ticks": int(fp.t.size)}
-        if not fp.ideal:
-            facts["following_error"] = following_error_stats(fp.errors)
-    else:
-        cut_path = followed
-        facts["machine"] = {"preset": scene.machine.preset, "ideal": True,
-                            "followed": "artifacts.servo"}
+    machine = machine_of(cfg.machine)
+    fp = follow_turning(path.t, path.theta, path.rho, path.z, machine, z_fts=z_fts,
+                        seed=int(sim.seed))
+    cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
+                                              {**path.meta, "followed": machine.name})
+    facts["machine"] = {"preset": cfg.machine.preset, "ideal": fp.ideal,
+                        "settings": machine.to_dict(), "ticks": int(fp.t.size)}
+    if not fp.ideal:
+        facts["following_error"] = following_error_stats(fp.errors)
     timing["machine"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    resp = material_of(scene)
+    resp = material_of(cfg.material)
     pass_theta = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
@@ -257,46 +191,45 @@ def turn(scene, surface, path, *, z_fts=None, followed: ToolPath | None = None,
         pass_theta = c["pass_theta"]
         along = np.interp(np.nan_to_num(pass_theta, nan=th[0]), th, dist)
         machined, info = finish_surface(c, resp, along=along, seed=int(sim.seed) + 1,
-                                        across_length=scene.material.groove_across_um * 1e-3,
-                                        along_length=scene.material.groove_along_mm)
+                                        across_length=cfg.material.groove_across_um * UM_TO_MM,
+                                        along_length=cfg.material.groove_along_mm)
         facts["material"] = {**resp.to_dict(), **info}
     timing["envelope"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if design is None:
         design = design_grid(surface, region, sim.pixel)
     timing["design"] = time.perf_counter() - t0
-    if burrs and scene.artifacts.burrs.height > 0:
-        b = scene.artifacts.burrs
+    if burrs and cfg.burrs.height > 0:
+        b = cfg.burrs
         feed = abs(float(cut_path.rho[0] - cut_path.rho[-1])) / max(cut_path.revolutions, 1e-12)
         machined, facts["burrs"] = apply_burrs(
             machined, design, pixel=sim.pixel, origin=(region[0], region[1]), height=b.height,
             width=b.width, variation=b.variation, edge_angle_deg=b.edge_angle_deg,
             correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
             smoothing=max(feed, 2 * sim.pixel))
-    if plots and fp is not None and not fp.ideal:
+    if plots and not fp.ideal:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
-        figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=scene.name)
-    out = Turned(machined=machined, design=design, timing=timing, facts=facts,
-                 followed=None if (fp is not None and fp.ideal) else cut_path,
-                 followed_path=fp, pass_theta=pass_theta, plots=figs)
-    return out
+        figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=cfg.name)
+    return Turned(machined=machined, design=design, timing=timing, facts=facts,
+                  followed=None if fp.ideal else cut_path, followed_path=fp,
+                  pass_theta=pass_theta, plots=figs)
 
 
-def followed_program(scene, path) -> ToolPath:
-    """The path the tool follows on the scene's ``[machine]`` (the commanded ``path`` on an
-    ideal machine): what a tiled simulation cuts, since the machine acts on the whole
-    path while the envelope of its nose can be taken tile by tile.  Material models act
-    on the whole map, so a tiled simulation needs ``material.preset = "ideal"``."""
-    if scene.material.preset != "ideal":
+def followed_program(cfg: TurningInputs, path) -> ToolPath:
+    """The path the tool follows on the ``[machine]`` (the commanded ``path`` on an ideal
+    machine): what a tiled simulation cuts, since the machine acts on the whole path while
+    the envelope of its nose can be taken tile by tile.  Material models act on the whole
+    map, so a tiled simulation needs ``material.preset = "ideal"``."""
+    if cfg.material.preset != "ideal":
         raise InputError(
             f"material.preset must be 'ideal' for a simulation computed tile by tile (the "
             f"material's side flow and grooves are modelled on the whole map), received "
-            f"{scene.material.preset!r}; set --set material.preset='ideal', or simulate a "
+            f"{cfg.material.preset!r}; set --set material.preset='ideal', or simulate a "
             f"region that fits simulation.max_memory_gb")
-    machine = machine_of(scene)
+    machine = machine_of(cfg.machine)
     fp = follow_turning(path.t, path.theta, path.rho, path.z, machine,
-                        seed=int(scene.simulation.seed))
+                        seed=int(cfg.simulation.seed))
     if fp.ideal:
         return path
     return ToolPath(fp.theta, fp.rho, fp.z, fp.t, {**path.meta, "followed": machine.name})

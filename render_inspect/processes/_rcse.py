@@ -1,25 +1,31 @@
-"""Turning along a rotary-coordinate shuttling-element (RCSE) spiral path (seed 004),
-compared with the conventional path interpolated from a rectangular point cloud.
+"""Turning along a rotary-coordinate shuttling-element (RCSE) spiral path (the RCSE study,
+Optica Publishing Group 2024), compared with the conventional path interpolated from a
+rectangular point cloud.
 
 The RCSE program itself needs no keys beyond the turning ones: its spiral pitch is the
 feed per revolution, its polar step ``360 / process.points_per_rev`` degrees, its elements
-the ``lenslet_rings`` design.  The scene's ``[rcse]`` section sets how the conventional
-path is built for the comparison.
+the ``lenslet_rings`` design.  The ``[rcse]`` section (defined here) sets how the
+conventional path is built for the comparison and which path cuts the simulated surface.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from ..core.errors import InputError
+from ..core.section import Section
 from ..core.toolpath import ToolPath
+from ..core.units import MM_TO_NM, MM_TO_UM
 from ..machining import residual_metrics
 from ..toolpath import (
     RingLayout,
+    Tool,
     conventional_ccps,
     kinematics,
     rcse_ccps,
@@ -27,22 +33,45 @@ from ..toolpath import (
     region_radii,
     z_compensation,
 )
-from ._mechanics import turn
-from ._registry import Cut, Plan, Variant, VariantPair, register_process
-from ._turning import (
-    TurningProcessConfig,
-    tool_of,
-    toolpath_facts,
-    turning_header,
-    turning_memory,
-    turning_precheck,
-)
+from ._contract import Cut, Plan, Traits, Variant, VariantPair
+from ._mechanics import TurningInputs, turn
+from ._registry import register_process, register_section
+from ._turning import TurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
-__all__ = ["RcseProcessConfig", "rcse_comparison"]
+#: samples per second the cut runs at on 2 cores (the progress bar's estimate)
+CUT_RATE = 1e6  # not a unit conversion
+
+__all__ = ["RcseProcessConfig", "RcseConfig", "RcseInputs", "RcseProcess", "rcse_comparison"]
 
 _KIN_KEYS = ("x_velocity_max_mm_s", "x_acceleration_max_mm_s2", "x_jerk_max_mm_s3",
              "x_velocity_mean_mm_s", "x_reversals", "z_velocity_max_mm_s",
              "z_acceleration_max_mm_s2")
+
+
+class RcseConfig(Section):
+    """How the conventional (grid-interpolated) path is built for the comparison (the RCSE study, Optica 2024),
+    and which of the two paths cuts the simulated surface."""
+    path: Literal["rcse", "conventional"] = Field(
+        "rcse", description="the path that cuts the simulated surface: the RCSE path, or the "
+                            "conventional grid-interpolated one (Z-compensated on its own point "
+                            "cloud); compare shows both")
+    compare_conventional: bool = Field(True, description="also build the conventional path and compare")
+    grid_spacing: float = Field(0.005, gt=0, le=1.0,
+                                description="mm, spacing of the rectangular point cloud (modelling grid)")
+    interpolation: Literal["linear", "cubic"] = Field("linear", description="interpolation in the point cloud")
+    simulate_conventional: bool = Field(True, description="also simulate the surface the conventional "
+                                                          "path machines over simulation.region")
+    snap_to_rows: bool = Field(True, description="CCPs on the nearest point-cloud row (X reciprocates); "
+                                                 "false: interpolated at the exact spiral point")
+    spread_elements: int = Field(0, ge=0, le=1000,
+                                 description="elements (spread over the rings) on which both paths are "
+                                             "cut to compare Sa and its spread; 0 = none")
+    spread_window: float = Field(0.214, gt=0, le=10.0,
+                                 description="mm, side of the square field measured on each element "
+                                             "(the RCSE study: 0.214 mm)")
+
+
+register_section("rcse", RcseConfig)
 
 
 class RcseProcessConfig(TurningProcessConfig):
@@ -56,20 +85,27 @@ class RcseProcessConfig(TurningProcessConfig):
                              f"rings), received design.type = {scene.design.type!r}")
 
 
-def _program(scene, surface, *, region, ccps=None) -> ToolPath:
-    p = scene.process
-    layout = RingLayout.from_config(scene.design)
-    return rcse_toolpath(layout, tool_of(scene), workpiece_radius=p.workpiece_radius,
+@dataclass(frozen=True)
+class RcseInputs(TurningInputs):
+    """A turning process's sections and ``[rcse]``."""
+
+    rcse: RcseConfig
+
+
+def _program(cfg, surface, *, region, ccps=None) -> ToolPath:
+    p = cfg.process
+    layout = RingLayout.from_config(cfg.design)
+    return rcse_toolpath(layout, Tool.from_config(cfg.tool), workpiece_radius=p.workpiece_radius,
                          pitch=p.feed_per_rev, points_per_rev=p.points_per_rev,
                          spindle_rpm=p.spindle_rpm, inner_radius=p.inner_radius,
                          compensation=p.compensation, region=region, ccps=ccps,
                          surface=surface)
 
 
-def plan(scene, surface, *, region=None) -> Plan:
-    p = scene.process
-    tool = tool_of(scene)
-    layout = RingLayout.from_config(scene.design)
+def _plan(cfg, surface, *, region=None) -> Plan:
+    p = cfg.process
+    tool = Tool.from_config(cfg.tool)
+    layout = RingLayout.from_config(cfg.design)
     t0 = time.perf_counter()
     r_range = None if region is None else region_radii(region, tool.half_width + 2 * p.feed_per_rev)
     if r_range is not None and (r_range[0] > p.workpiece_radius or r_range[1] < p.inner_radius):
@@ -81,7 +117,7 @@ def plan(scene, surface, *, region=None) -> Plan:
     ccps = rcse_ccps(layout, r_outer=p.workpiece_radius, pitch=p.feed_per_rev,
                      points_per_rev=p.points_per_rev, r_inner=p.inner_radius, r_range=r_range)
     t_ccps = time.perf_counter() - t0
-    path = _program(scene, surface, region=region, ccps=ccps)
+    path = _program(cfg, surface, region=region, ccps=ccps)
     timing = {"ccps": t_ccps, "toolpath": time.perf_counter() - t0}
     subs = ccps.sub_paths()
     rcse = {"layout": layout.to_dict(), "ccps": int(ccps.k.size),
@@ -89,28 +125,28 @@ def plan(scene, surface, *, region=None) -> Plan:
             "sub_paths": int(subs.shape[0]), "pitch_mm": p.feed_per_rev,
             "polar_step_deg": 360.0 / p.points_per_rev,
             "ccp_generation_s": t_ccps, "layout_overlaps": layout.overlaps()}
-    return Plan(path, {"toolpath": toolpath_facts(path, scene), "rcse": rcse}, timing)
+    return Plan(path, {"toolpath": toolpath_facts(path, p), "rcse": rcse}, timing)
 
 
-def rcse_comparison(scene, path, surface, *, machined=None, design=None,
+def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
                     conventional_machined: bool = False) -> tuple[dict, tuple]:
     """Compare the RCSE path with the conventional one over the same spiral samples.
 
     Parameters
     ----------
-    scene : Scene
+    cfg : RcseInputs
     path : ToolPath
         The RCSE path (with ``ccp_rho`` / ``ccp_z``).
     surface : Surface
         The design.
     machined, design : (ny, nx) arrays, optional
-        The RCSE simulation on the scene's grid.  If given and ``rcse.simulate_conventional``,
+        The RCSE simulation on the simulation grid.  If given and ``rcse.simulate_conventional``,
         the conventional path is Z-compensated on its own point-cloud model and machined
         over the same grid, and both residuals are reported (``residual``: Sa, Sq, Sz, min
         in nm).
 
     conventional_machined : bool
-        Also machine the conventional path over the scene's grid (whatever
+        Also machine the conventional path over the simulation grid (whatever
         ``rcse.simulate_conventional`` says) and return its cut (``Turned``: machined map,
         facts, following-error figures) as a third element.
 
@@ -122,7 +158,7 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None,
         conventional modelling and interpolation times.  The paths carry the CCP heights
         (no tool compensation): their X motion is what each method programs.
     """
-    st = scene.rcse
+    st = cfg.rcse
     theta = np.asarray(path.theta)
     rho = np.asarray(path.ccp_rho if path.ccp_rho is not None else path.rho)
     z = np.asarray(path.ccp_z if path.ccp_z is not None else path.z)
@@ -139,12 +175,12 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None,
     e = conv["profile_error"]
     out = {
         "rcse": {**{k: kr[k] for k in _KIN_KEYS},
-                 "profile_error_max_nm": float(np.max(np.abs(err_rcse)) * 1e6),
-                 "profile_error_rms_nm": float(np.sqrt(np.mean(err_rcse ** 2)) * 1e6)},
+                 "profile_error_max_nm": float(np.max(np.abs(err_rcse)) * MM_TO_NM),
+                 "profile_error_rms_nm": float(np.sqrt(np.mean(err_rcse ** 2)) * MM_TO_NM)},
         "conventional": {**{k: kc[k] for k in _KIN_KEYS},
-                         "profile_error_max_nm": float(np.max(np.abs(e)) * 1e6),
-                         "profile_error_rms_nm": float(np.sqrt(np.mean(e ** 2)) * 1e6),
-                         "x_deviation_max_um": float(np.max(np.abs(conv["rho"] - rho)) * 1e3),
+                         "profile_error_max_nm": float(np.max(np.abs(e)) * MM_TO_NM),
+                         "profile_error_rms_nm": float(np.sqrt(np.mean(e ** 2)) * MM_TO_NM),
+                         "x_deviation_max_um": float(np.max(np.abs(conv["rho"] - rho)) * MM_TO_UM),
                          "modelling_s": conv["modelling_s"], "toolpath_s": conv["toolpath_s"],
                          "grid_shape": conv["grid_shape"], "grid_spacing_mm": st.grid_spacing,
                          "interpolation": st.interpolation, "snap_to_rows": st.snap_to_rows},
@@ -152,7 +188,7 @@ def rcse_comparison(scene, path, surface, *, machined=None, design=None,
     }
     conv_cut = None
     if conventional_machined or (machined is not None and st.simulate_conventional):
-        conv_cut = _machine_conventional(scene, surface, conv_path, conv["model"], design=design,
+        conv_cut = _machine_conventional(cfg, surface, conv_path, conv["model"], design=design,
                                          plots=conventional_machined)
     if machined is not None and st.simulate_conventional:
         out["rcse"]["residual"] = _short(residual_metrics(machined, design))
@@ -169,11 +205,11 @@ def _short(r: dict) -> dict:
     return {k: r[k] for k in ("Sa_nm", "Sq_nm", "Sz_nm", "min_nm") if k in r}
 
 
-def _conventional_tip(scene, conv_path, model) -> ToolPath:
+def _conventional_tip(cfg, conv_path, model) -> ToolPath:
     """The conventional program at the tool tip: its CCP heights lifted by the Z
     compensation computed on its own point-cloud model at the machine position (C, X)."""
-    tool = tool_of(scene)
-    slope = RingLayout.from_config(scene.design).max_slope * 1.05
+    tool = Tool.from_config(cfg.tool)
+    slope = RingLayout.from_config(cfg.design).max_slope * 1.05
     th, rc = conv_path.theta, conv_path.rho
     m_here = model.height(rc * np.cos(th), rc * np.sin(th))
     lift = z_compensation(model, th, rc, tool.nose_radius, max_slope=slope,
@@ -181,12 +217,12 @@ def _conventional_tip(scene, conv_path, model) -> ToolPath:
     return ToolPath(th, rc, conv_path.z + lift, conv_path.t, dict(conv_path.meta))
 
 
-def _machine_conventional(scene, surface, conv_path, model, *, region=None, design=None,
+def _machine_conventional(cfg, surface, conv_path, model, *, region=None, design=None,
                           plots: bool = False):
-    """The surface the conventional program machines on the scene's machine and material
+    """The surface the conventional program machines on the machine and material
     (:func:`~render_inspect.processes._mechanics.turn`; ``plots``: with its
     following-error figures)."""
-    return turn(scene, surface, _conventional_tip(scene, conv_path, model), region=region,
+    return turn(cfg, surface, _conventional_tip(cfg, conv_path, model), region=region,
                 plots=plots, design=design)
 
 
@@ -209,17 +245,17 @@ def element_windows(layout, n: int, side: float) -> list:
     return out
 
 
-def element_spread(scene, surface) -> dict:
+def element_spread(cfg, surface) -> dict:
     """Sa of both paths on ``rcse.spread_elements`` element fields, their mean and
-    standard deviation, and how much lower RCSE's are (seed 004 Table 2: 60.6 % and
-    91.7 %)."""
-    st = scene.rcse
-    layout = RingLayout.from_config(scene.design)
+    standard deviation, and how much lower RCSE's are (the RCSE study's Table 2: 60.6 %
+    and 91.7 %)."""
+    st = cfg.rcse
+    layout = RingLayout.from_config(cfg.design)
     rows = []
     fe = {"rcse": [], "conventional": []}
     for ring, elem, win in element_windows(layout, st.spread_elements, st.spread_window):
-        sub = scene.with_overrides([f"simulation.region={list(win)}"])
-        plan_w = plan(sub, surface, region=win)
+        sub = cfg.replace(simulation=cfg.simulation.model_copy(update={"region": tuple(win)}))
+        plan_w = _plan(sub, surface, region=win)
         rc = turn(sub, surface, plan_w.program, plots=False)
         path = plan_w.program
         conv = conventional_ccps(surface, path.theta, path.ccp_rho, grid_spacing=st.grid_spacing,
@@ -250,19 +286,19 @@ def element_spread(scene, surface) -> dict:
     return out
 
 
-def cut(scene, surface, plan: Plan) -> Cut:
+def _cut(cfg, surface, plan: Plan) -> Cut:
     """Cut along the RCSE path, or (``rcse.path = "conventional"``) along the conventional
-    grid-interpolated path Z-compensated on its own point cloud, either on the scene's
+    grid-interpolated path Z-compensated on its own point cloud, either on the
     machine and material, with the burrs of ``[artifacts.burrs]``."""
-    conventional = scene.rcse.path == "conventional"
-    t = turn(scene, surface, plan.program, plots=not conventional)
+    conventional = cfg.rcse.path == "conventional"
+    t = turn(cfg, surface, plan.program, plots=not conventional)
     machined, design, timing = t["machined"], t["design"], t["timing"]
     facts = dict(t["facts"])
     plots = dict(t["plots"])
     followed = t["followed"]
-    if scene.rcse.compare_conventional or conventional:
+    if cfg.rcse.compare_conventional or conventional:
         t1 = time.perf_counter()
-        res = rcse_comparison(scene, plan.program, surface, machined=machined, design=design,
+        res = rcse_comparison(cfg, plan.program, surface, machined=machined, design=design,
                               conventional_machined=conventional)
         comp, (rcse_path, conv_path) = res[0], res[1]
         timing["comparison"] = time.perf_counter() - t1
@@ -273,36 +309,56 @@ def cut(scene, surface, plan: Plan) -> Cut:
             machined, followed = conv_cut["machined"], conv_cut["followed"]
             facts = dict(conv_cut["facts"])
             plots = dict(conv_cut["plots"])
-        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp, "path": scene.rcse.path}
-        if scene.rcse.spread_elements:
+        facts["rcse"] = {**plan.facts["rcse"], "comparison": comp, "path": cfg.rcse.path}
+        if cfg.rcse.spread_elements:
             t1 = time.perf_counter()
-            facts["rcse"]["comparison"]["spread"] = element_spread(scene, surface)
+            facts["rcse"]["comparison"]["spread"] = element_spread(cfg, surface)
             timing["spread"] = time.perf_counter() - t1
+        labels = ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)")
         plots["rcse_kinematics.png"] = {
-            "kind": "kinematics", "path": rcse_path, "reference": conv_path,
-            "labels": ("RCSE (CCPs on the spiral)", "conventional (grid-interpolated)"),
-            "title": "X-axis motion: RCSE vs conventional (seed 004 Figs. 8-9)"}
-    meta = {"process": "rcse", "compensation": scene.process.compensation,
-            "seed": scene.simulation.seed, "path": scene.rcse.path,
-            "machine": scene.machine.preset, "material": scene.material.preset}
+            "kind": "kinematics", "path": rcse_path, "reference": conv_path, "labels": labels,
+            "title": "X-axis motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}
+        plots["kinematics.png"] = {
+            "kind": "axes", "columns": [(labels[0], rcse_path, {}), (labels[1], conv_path, {})],
+            "axes": ("X",), "title": f"{cfg.name}: X motion, RCSE vs conventional",
+            "pair": True, "pair_title": "X motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}
+    meta = {"process": "rcse", "compensation": cfg.process.compensation,
+            "seed": cfg.simulation.seed, "path": cfg.rcse.path,
+            "machine": cfg.machine.preset, "material": cfg.material.preset}
     return Cut(machined, design, facts, timing, meta, followed=followed, plots=plots)
 
 
-def path_variants(scene) -> VariantPair:
-    """The pair ``compare`` puts side by side for RCSE: the surface cut along the RCSE path
-    against the one cut along the conventional grid-interpolated path (seed 004)."""
-    st = scene.rcse
-    return VariantPair(
-        Variant("rcse", "RCSE path (CCPs on the spiral)", {"rcse.path": "rcse"}),
-        Variant("conventional", f"conventional path ({st.interpolation} interpolation in a "
-                                f"{st.grid_spacing * 1e3:.3g} um point cloud)",
-                {"rcse.path": "conventional"}),
-        key="rcse.path",
-        about=("RCSE against the conventional path: the conventional CCPs come from a "
-               "rectangular point cloud, so X reciprocates and the profile carries the "
-               "interpolation error; the RCSE CCPs lie on the spiral (seed 004)."))
+class RcseProcess(TurningProcess):
+    """Turning along the RCSE path; ``compare`` puts it against the conventional path."""
+
+    config = RcseProcessConfig
+    inputs = RcseInputs
+
+    def plan(self, cfg, surface, *, region=None) -> Plan:
+        plan = _plan(cfg, surface, region=region)
+        plan.plots = self.program_plots(cfg, plan.program)
+        return plan
+
+    def cut(self, cfg, surface, plan: Plan) -> Cut:
+        return _cut(cfg, surface, plan)
+
+    def traits(self, cfg) -> Traits:
+        return turning_traits(cfg, cut_rate=CUT_RATE)
+
+    def variants(self, cfg) -> VariantPair:
+        """The surface cut along the RCSE path against the one cut along the conventional
+        grid-interpolated path."""
+        st = cfg.rcse
+        return VariantPair(
+            Variant("rcse", "RCSE path (CCPs on the spiral)", {"rcse.path": "rcse"}),
+            Variant("conventional", f"conventional path ({st.interpolation} interpolation in a "
+                                    f"{st.grid_spacing * MM_TO_UM:.3g} um point cloud)",
+                    {"rcse.path": "conventional"}),
+            key="rcse.path",
+            about=("RCSE against the conventional path: the conventional CCPs come from a "
+                   "rectangular point cloud, so X reciprocates and the profile carries the "
+                   "interpolation error; the RCSE CCPs lie on the spiral (the RCSE study, "
+                   "Optica 2024)."))
 
 
-register_process(RcseProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 precheck=turning_precheck,
-                 program_header=turning_header, variants=path_variants)
+register_process(RcseProcess())

@@ -1,27 +1,33 @@
-"""Vibration-assisted diamond sculpturing (HFUVAS, seed 003) of a quadrilateral lenslet array.
+"""Vibration-assisted diamond sculpturing (HFUVAS; Zhang, Cheung, Liang and Bulla, Applied
+Sciences) of a quadrilateral lenslet array.
 
 Linear X-Y-Z cutting, not turning: the tool moves along target lines x = x_k (the
 lenslets' symmetry lines, one per column of cells) in the cutting direction y, with an
-ultrasonic vibration along the cut; the kernels and their geometry are described in
-:mod:`render_inspect.machining._sculpt`.
+ultrasonic vibration along the cut (``[artifacts.vibration]``, defined here); the kernels
+and their geometry are described in :mod:`render_inspect.machining._sculpt`.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
+from ..core.deprecation import warn_deprecated
 from ..core.errors import AccessibilityError, InputError, SceneError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number
+from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.toolpath import LinearProgram
+from ..core.units import HZ_TO_KHZ, MIN_TO_S, MM_TO_UM, UM_TO_MM
 from ..machining import (
     apply_burrs,
+    contact_ratio,
     cut_lines_mechanics,
     finish_surface,
     sculpt_line_profile,
@@ -29,11 +35,25 @@ from ..machining import (
     target_line,
     vibration_phases,
 )
-from ._mechanics import material_of, vibration_contact
-from ._registry import Cut, Plan, Variant, VariantPair, check_budget, register_process
-from ._turning import burrs_of
+from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
+from ._machine import MaterialConfig, material_of
+from ._mechanics import BurrConfig, burrs_of
+from ._registry import check_budget, register_process, register_retired_key, register_section
 
-__all__ = ["SculptProcessConfig", "lattice_lines"]
+__all__ = ["SculptProcessConfig", "SculptProcess", "SculptInputs", "VibrationConfig",
+           "lattice_lines"]
+
+
+class VibrationConfig(Section):
+    """``[artifacts.vibration]``: the ultrasonic vibration along the cut of sculpturing."""
+    frequency_hz: float = Field(0.0, ge=0, le=1e7)
+    amplitude: float = Field(0.0, ge=0, le=0.1, description="mm")
+    samples_per_period: int = Field(16, ge=4, le=1000, description="time samples per vibration period")
+
+
+register_section("artifacts.vibration", VibrationConfig)
+register_retired_key("process.compensation", None,
+                     "process.kind 'sculpt': sculpturing has no nose-radius compensation")
 
 
 class SculptProcessConfig(Section):
@@ -44,8 +64,17 @@ class SculptProcessConfig(Section):
     arc_length: float = Field(0.0025, gt=0, description="mm, target-line sampling step")
     depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded only)")
     allow_gouge: bool = Field(False, description="simulate even if the clearance angle is too small")
-    compensation: Literal["none", "normal", "z"] = Field(
-        "none", description="not used: the edge follows the target line (no nose compensation)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _retired_compensation(cls, data):
+        """``process.compensation`` meant nothing for sculpturing (the edge follows the
+        target line): accepted with a warning and dropped."""
+        if isinstance(data, dict) and "compensation" in data:
+            warn_deprecated("process.compensation", None,
+                            "sculpturing has no nose-radius compensation")
+            data = {k: v for k, v in data.items() if k != "compensation"}
+        return data
 
     def check_with(self, scene) -> None:
         if scene.machine.preset != "ideal":
@@ -73,38 +102,50 @@ def lattice_lines(surface, *, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
     return xs, edges
 
 
-def _half_width(scene) -> float:
-    R = scene.tool.nose_radius
-    return R * math.sin(min(math.radians(scene.tool.included_angle_deg) / 2, math.pi / 2))
+@dataclass(frozen=True)
+class SculptInputs(Inputs):
+    """What sculpturing reads: ``[process]``, ``[tool]``, ``[simulation]``, the lenslet
+    array of ``[design]``, ``[material]``, ``[artifacts.vibration]`` and
+    ``[artifacts.burrs]``."""
+
+    design: object
+    material: MaterialConfig
+    vibration: VibrationConfig = section("artifacts.vibration")
+    burrs: BurrConfig = section("artifacts.burrs")
 
 
-def plan(scene, surface, *, region=None) -> Plan:
+def _half_width(tool) -> float:
+    R = tool.nose_radius
+    return R * math.sin(min(math.radians(tool.included_angle_deg) / 2, math.pi / 2))
+
+
+def _plan(cfg: SculptInputs, surface, *, region=None) -> Plan:
     """The commanded program: every target line (or, with ``region``, the lines and cells
     whose cut can reach it), without the vibration (the NC program the machine gets)."""
     t0 = time.perf_counter()
-    x_lines, y_edges = lattice_lines(surface, pitch_y=scene.design.pitch_y)
-    vc = scene.process.feed_mm_per_min / 60.0
+    x_lines, y_edges = lattice_lines(surface, pitch_y=cfg.design.pitch_y)
+    vc = cfg.process.feed_mm_per_min / MIN_TO_S
     y_line_start = float(y_edges[0])
     used = list(range(len(x_lines)))
     if region is not None:
         x0, y0, x1, y1 = region
-        hw = _half_width(scene)
+        hw = _half_width(cfg.tool)
         used = [k for k, xk in enumerate(x_lines) if xk + hw >= x0 and xk - hw <= x1]
         # only the cells along y whose cut can reach the region (the vibration reaches A
         # beyond the nominal position; one whole cell of run-in is kept on either side)
-        reach = 2 * scene.artifacts.vibration.amplitude + scene.simulation.pixel
+        reach = 2 * cfg.vibration.amplitude + cfg.simulation.pixel
         ia = max(int(np.searchsorted(y_edges, y0 - reach, side="right")) - 2, 0)
         ib = min(int(np.searchsorted(y_edges, y1 + reach, side="left")) + 1, len(y_edges) - 1)
         y_edges = y_edges[ia:ib + 1]
     if not used or y_edges.size < 2:
-        d = scene.design
+        d = cfg.design
         raise InputError(
             f"simulation.region {list(region)} mm lies outside the lenslet array: its "
             f"{len(x_lines)} target lines run at x = {float(x_lines[0]):.6g} .. "
             f"{float(x_lines[-1]):.6g} mm (design.center_x = {d.center_x:g}, pitch_x = "
             f"{d.pitch_x:g}) over y = {float(y_line_start):.6g} .. "
             f"{float(y_line_start) + d.rows * d.pitch_y:.6g} mm; move the region onto the array")
-    lines = [target_line(surface, x_lines[k], y_edges, step=scene.process.arc_length)
+    lines = [target_line(surface, x_lines[k], y_edges, step=cfg.process.arc_length)
              for k in used]
     xs, ys_all, zs_all, ts, ks = [], [], [], [], []
     t = 0.0
@@ -117,7 +158,7 @@ def plan(scene, surface, *, region=None) -> Plan:
         t = ts[-1][-1]
     prog = LinearProgram(np.concatenate(xs), np.concatenate(ys_all), np.concatenate(zs_all),
                          np.concatenate(ts), np.concatenate(ks),
-                         {"kind": "sculpt", "feed_mm_per_min": scene.process.feed_mm_per_min})
+                         {"kind": "sculpt", "feed_mm_per_min": cfg.process.feed_mm_per_min})
     cut_time = float(sum((ys[-1] - ys[0]) / vc for ys, _ in lines))
     facts = {"toolpath": {"points": int(prog.points), "revolutions": 0.0, "feed_per_rev_mm": None,
                           "kind": "sculpt", "lines": len(used),
@@ -128,24 +169,24 @@ def plan(scene, surface, *, region=None) -> Plan:
     return Plan(prog, facts, {"toolpath": time.perf_counter() - t0}, data)
 
 
-def cut(scene, surface, plan: Plan) -> Cut:
-    sim = scene.simulation
+def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
+    sim = cfg.simulation
     x0, y0, x1, y1 = sim.region
     ny, nx = grid_shape(sim.region, sim.pixel)
     px = sim.pixel
     xg = x0 + px * np.arange(nx)
     yg = y0 + px * np.arange(ny)
-    R = scene.tool.nose_radius
-    half_width = _half_width(scene)
-    vc = scene.process.feed_mm_per_min / 60.0
-    vib = scene.artifacts.vibration
+    R = cfg.tool.nose_radius
+    half_width = _half_width(cfg.tool)
+    vc = cfg.process.feed_mm_per_min / MIN_TO_S
+    vib = cfg.vibration
     spp = vib.samples_per_period
     design = surface.sample(sim.region, px)[2]
     # accessibility: clearance angle vs the largest slope along the cut (rake 0)
     gy = np.abs(surface.gradient(xg[None, ::4], yg[::4, None])[1])
     max_slope_deg = float(np.degrees(np.arctan(np.nanmax(gy)))) if gy.size else 0.0
-    clearance = scene.tool.clearance_angle_deg
-    if max_slope_deg >= clearance and not scene.process.allow_gouge:
+    clearance = cfg.tool.clearance_angle_deg
+    if max_slope_deg >= clearance and not cfg.process.allow_gouge:
         raise AccessibilityError(
             f"tool.clearance_angle_deg must exceed the largest slope along the cutting direction "
             f"({max_slope_deg:.2f} deg), received {clearance}; use a larger clearance angle or "
@@ -165,7 +206,7 @@ def cut(scene, surface, plan: Plan) -> Cut:
         vib_over = np.nanmax(machined_0 - machined) if np.isfinite(machined).any() else 0.0
         edge_over = np.nanmax(design - machined_0) if np.isfinite(machined_0).any() else 0.0
     # the material's response: intermittent cutting (contact ratio) against adhesion
-    resp = material_of(scene, contact=vibration_contact(scene, vc))
+    resp = material_of(cfg.material, contact=contact_ratio(vc, vib.amplitude, vib.frequency_hz))
     material_facts = None
     if resp is not None:
         c = cut_lines_mechanics(prof_vib, xl, xg, tool_radius=R, half_width=half_width,
@@ -175,11 +216,11 @@ def cut(scene, surface, plan: Plan) -> Cut:
         along = np.broadcast_to(yg[:, None] + line_len * np.nan_to_num(c["pass_line"]),
                                 c["machined"].shape)
         machined, info = finish_surface(c, resp, along=along, seed=int(sim.seed) + 1,
-                                        across_length=scene.material.groove_across_um * 1e-3,
-                                        along_length=scene.material.groove_along_mm)
+                                        across_length=cfg.material.groove_across_um * UM_TO_MM,
+                                        along_length=cfg.material.groove_along_mm)
         material_facts = {**resp.to_dict(), **info}
     t_sim = time.perf_counter() - t_sim
-    b = burrs_of(scene)
+    b = burrs_of(cfg.burrs, sim.seed)
     machined, burr_info = apply_burrs(machined, design, pixel=px, origin=(x0, y0),
                                       edges_from="machined", smoothing=2 * px, **b)
     per_period = (len(vibration_phases(vc, vib.amplitude, vib.frequency_hz, spp))
@@ -188,12 +229,12 @@ def cut(scene, surface, plan: Plan) -> Cut:
                  for ys, _ in lines)
     facts = {
         "sculpt": {"lines": len(lines), "line_x_mm": [float(v) for v in xl],
-                   "cutting_speed_mm_s": vc, "target_step_mm": scene.process.arc_length,
+                   "cutting_speed_mm_s": vc, "target_step_mm": cfg.process.arc_length,
                    "target_points": int(sum(ys.size for ys, _ in lines)),
                    "time_samples": n_time,
                    "tool_radius_mm": R, "max_slope_deg": max_slope_deg,
-                   "vibration_overcut_um": float(max(vib_over, 0.0) * 1e3),
-                   "tool_edge_overcut_um": float(max(edge_over, 0.0) * 1e3),
+                   "vibration_overcut_um": float(max(vib_over, 0.0) * MM_TO_UM),
+                   "tool_edge_overcut_um": float(max(edge_over, 0.0) * MM_TO_UM),
                    "cutting_time_s": plan.data["cut_time_s"]},
         "vibration": {"frequency_hz": vib.frequency_hz, "amplitude_mm": vib.amplitude,
                       "samples_per_period": spp,
@@ -204,62 +245,99 @@ def cut(scene, surface, plan: Plan) -> Cut:
         facts["material"] = material_facts
     meta = {"process": "sculpt", "seed": int(sim.seed), "compensation": "none",
             "vibration": facts["vibration"], "burrs": burr_info,
-            "material": scene.material.preset}
+            "material": cfg.material.preset}
     return Cut(machined, design, facts, {"sweep": t_sim}, meta)
 
 
-def estimate_memory(scene, plan=None) -> int:
-    """Bytes at the peak: eight float64 maps of the grid (design, two cuts, profiles and
-    temporaries)."""
-    ny, nx = grid_shape(scene.simulation.region, scene.simulation.pixel)
-    return 8 * 8 * ny * nx
-
-
-def sculpt_variants(scene) -> VariantPair:
-    """The pair ``compare`` puts side by side for sculpturing (which has no nose-radius
-    compensation): the ultrasonic vibration on against off, or, when the scene has no
-    vibration, the tool edge radius as set against half of it."""
-    vib = scene.artifacts.vibration
-    if vib.amplitude > 0 and vib.frequency_hz > 0:
-        return VariantPair(
-            Variant("vibration_on", f"vibration {vib.frequency_hz / 1e3:.4g} kHz, "
-                                    f"{vib.amplitude * 1e3:.3g} um", {}),
-            Variant("vibration_off", "no vibration", {"artifacts.vibration.amplitude": 0.0}),
-            key="artifacts.vibration.amplitude",
-            about=("Ultrasonic vibration along the cut on against off: the front and back "
-                   "cut limits of each vibration cycle leave cut lines off the target, the "
-                   "error growing with the slope and peaking at the edges between lenslets "
-                   "(seed 003)."))
-    r = scene.tool.nose_radius
-    return VariantPair(
-        Variant(f"edge_radius_{r:g}mm", f"tool edge radius {r:g} mm", {}),
-        Variant(f"edge_radius_{r / 2:g}mm", f"tool edge radius {r / 2:g} mm",
-                {"tool.nose_radius": r / 2}),
-        key="tool.nose_radius",
-        about=("Tool edge radius as set against half of it: the swept edge leaves the "
-               "tool-edge overcut at the cusps between lenslets (seed 003)."))
 #: bytes per target-line point while planning (the line arrays and the program's)
 PLAN_BYTES_PER_POINT = 96
+#: samples per second of the sculpturing sweep (the progress bar's estimate)
+CUT_RATE = 5e5
 
 
-def precheck(scene, region=None) -> None:
-    """Check the points of the target lines (every column's line over every row of cells,
-    one point per ``process.arc_length``) against the memory budget before planning."""
-    d = scene.design
-    step = scene.process.arc_length
-    n = d.cols * (d.rows * d.pitch_y / step + d.rows + 1)
-    check_budget(scene, n * PLAN_BYTES_PER_POINT, what=f"the sculpturing program "
-                 f"({format_number(n)} points on {d.cols} lines)",
-                 drivers=[Driver("process.arc_length", step, -1, "mm")])
+class SculptProcess(Process):
+    """Sculpturing: one target line per column of cells, the edge swept along it."""
+
+    config = SculptProcessConfig
+    inputs = SculptInputs
+
+    def plan(self, cfg, surface, *, region=None) -> Plan:
+        """The commanded program: every target line (or, with ``region``, the lines and
+        cells whose cut can reach it), without the vibration (the NC program the machine
+        gets)."""
+        return _plan(cfg, surface, region=region)
+
+    def cut(self, cfg, surface, plan: Plan) -> Cut:
+        return _cut(cfg, surface, plan)
+
+    def estimate_memory(self, cfg, plan=None) -> int:
+        """Bytes at the peak: eight float64 maps of the grid (design, two cuts, profiles
+        and temporaries)."""
+        ny, nx = grid_shape(cfg.simulation.region, cfg.simulation.pixel)
+        return 8 * 8 * ny * nx
+
+    def traits(self, cfg) -> Traits:
+        """Straight marks along the cut, one per vibration cycle (cutting speed / vibration
+        frequency; none without vibration); the simulated region is the part."""
+        vib = cfg.vibration
+        period = pv = None
+        if vib.frequency_hz > 0 and vib.amplitude > 0:
+            period = (cfg.process.feed_mm_per_min / MIN_TO_S) / vib.frequency_hz
+            pv = 2 * vib.amplitude
+        return Traits(name=cfg.process.kind,
+                      marks=ToolMarks("linear", period, float(cfg.tool.nose_radius), pv_mm=pv,
+                                      direction=(0.0, 1.0)),
+                      cut_rate=CUT_RATE)
+
+    def precheck(self, cfg, region=None) -> None:
+        """Check the points of the target lines (every column's line over every row of
+        cells, one point per ``process.arc_length``) against the memory budget."""
+        d = cfg.design
+        step = cfg.process.arc_length
+        n = d.cols * (d.rows * d.pitch_y / step + d.rows + 1)
+        check_budget(cfg.simulation, n * PLAN_BYTES_PER_POINT, what=f"the sculpturing program "
+                     f"({format_number(n)} points on {d.cols} lines)",
+                     drivers=[Driver("process.arc_length", step, -1, "mm")])
+
+    def program_header(self, cfg) -> dict:
+        vib = cfg.vibration
+        return {"scene": cfg.name, "process": "sculpt",
+                "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
+                "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
+
+    def program_facts(self, cfg, plan: Plan) -> dict:
+        prog = plan.program
+        facts = dict(plan.facts)
+        tp = facts.setdefault("toolpath", {})
+        tp.setdefault("points", prog.points)
+        tp.setdefault("lines", prog.lines)
+        tp.setdefault("kind", "sculpt")
+        tp.setdefault("cut_time_s", prog.duration_s)
+        return facts
+
+    def variants(self, cfg) -> VariantPair:
+        """The ultrasonic vibration on against off, or, without vibration, the tool edge
+        radius as set against half of it (sculpturing has no nose-radius compensation)."""
+        vib = cfg.vibration
+        if vib.amplitude > 0 and vib.frequency_hz > 0:
+            return VariantPair(
+                Variant("vibration_on", f"vibration {vib.frequency_hz * HZ_TO_KHZ:.4g} kHz, "
+                                        f"{vib.amplitude * MM_TO_UM:.3g} um", {}),
+                Variant("vibration_off", "no vibration", {"artifacts.vibration.amplitude": 0.0}),
+                key="artifacts.vibration.amplitude",
+                about=("Ultrasonic vibration along the cut on against off: the front and back "
+                       "cut limits of each vibration cycle leave cut lines off the target, the "
+                       "error growing with the slope and peaking at the edges between lenslets "
+                       "(Zhang et al., Applied Sciences)."))
+        r = cfg.tool.nose_radius
+        return VariantPair(
+            Variant(f"edge_radius_{r:g}mm", f"tool edge radius {r:g} mm", {}),
+            Variant(f"edge_radius_{r / 2:g}mm", f"tool edge radius {r / 2:g} mm",
+                    {"tool.nose_radius": r / 2}),
+            key="tool.nose_radius",
+            about=("Tool edge radius as set against half of it: the swept edge leaves the "
+                   "tool-edge overcut at the cusps between lenslets (Zhang et al., Applied "
+                   "Sciences)."))
 
 
-def program_header(scene) -> dict:
-    vib = scene.artifacts.vibration
-    return {"scene": scene.name, "process": "sculpt",
-            "cutting_speed_mm_per_min": scene.process.feed_mm_per_min,
-            "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
-
-
-register_process(SculptProcessConfig, plan=plan, cut=cut, estimate_memory=estimate_memory,
-                 precheck=precheck,
-                 program_header=program_header, variants=sculpt_variants)
+register_process(SculptProcess())

@@ -1,11 +1,17 @@
-"""Hybrid tool servo turning (seed 002): slow slide servo (S3) + fast tool servo (FTS).
+"""Fast and hybrid tool servo turning (Kong et al. 2020): slow slide servo (S3) + fast tool
+servo (FTS).
 
 Both servos cut along the same inward spiral as STS.  The compensated Z program of the
 whole design is split into the slow slide's share and the FTS stroke
 (:func:`~render_inspect.machining.split_commands`: ``hts`` puts the design's base on the
-slow slide, ``fts`` its rotationally symmetric part); each share goes through its servo
-(:func:`~render_inspect.machining.followed_path`, ``[artifacts.servo]``), and the machined
-surface is the envelope of the tool nose along the followed path.
+slow slide, ``fts`` its rotationally symmetric part); the machine follows each share with
+its own axis (``[machine.z]``, ``[machine.fts]``: the package's one servo model,
+:mod:`render_inspect.machining._axes`), and the machined surface is the envelope of the
+tool nose along the followed path.
+
+The retired ``[artifacts.servo]`` keys (a plain second-order servo on the ideal machine)
+are accepted with a warning and become the same keys of ``[machine.fts]`` and
+``[machine.z]``: a servo with no feed-forward is that second-order low-pass.
 """
 
 from __future__ import annotations
@@ -16,22 +22,27 @@ from typing import Literal
 
 import numpy as np
 
+from ..core.deprecation import warn_deprecated
 from ..core.errors import SceneError
-from ..machining import followed_path, split_commands
-from ._mechanics import machine_of, turn
-from ._registry import Cut, Plan, Variant, VariantPair, register_process
+from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
+from ..machining import split_commands
+from ..toolpath import Tool
+from ._contract import Cut, Plan, Traits, Variant, VariantPair
+from ._machine import machine_of
+from ._mechanics import turn
+from ._registry import register_migration, register_process, register_retired_key
 from ._turning import (
+    TurningProcess,
     TurningProcessConfig,
     compensation_variants,
-    plan_spiral,
-    tool_of,
     toolpath_facts,
-    turning_header,
-    turning_memory,
-    turning_precheck,
+    turning_traits,
 )
 
-__all__ = ["ServoProcessConfig"]
+#: samples per second the cut runs at on 2 cores (the progress bar's estimate)
+CUT_RATE = 2e6
+
+__all__ = ["ServoProcessConfig", "ServoProcess", "RETIRED_SERVO_KEYS"]
 
 
 class ServoProcessConfig(TurningProcessConfig):
@@ -49,151 +60,175 @@ class ServoProcessConfig(TurningProcessConfig):
                 f"{scene.design.type!r}; use process.kind = 'fts' for a single surface")
 
 
+#: retired ``artifacts.servo.<key>`` -> its successor
+RETIRED_SERVO_KEYS = {"delay_s": "machine.fts.delay_s", "bandwidth_hz": "machine.fts.bandwidth_hz",
+                      "damping": "machine.fts.damping",
+                      "slow_bandwidth_hz": "machine.z.bandwidth_hz",
+                      "slow_damping": "machine.z.damping"}
+
+
+for _old, _new in RETIRED_SERVO_KEYS.items():
+    register_retired_key(f"artifacts.servo.{_old}", _new,
+                         "process.kind 'fts' / 'hts' on machine.preset 'ideal'")
+
+
+@register_migration
+def _retired_servo_keys(data: dict) -> dict:
+    """``[artifacts.servo]`` -> ``[machine.fts]`` / ``[machine.z]`` (with a warning per
+    key); it applied to the ideal machine of an ``fts`` / ``hts`` scene only, and is
+    ignored (with a warning) for the other kinds, as it always was."""
+    art = data.get("artifacts") if isinstance(data, dict) else None
+    if not isinstance(art, dict) or "servo" not in art:
+        return data
+    servo = art["servo"]
+    if not isinstance(servo, dict):
+        raise ValueError(f"artifacts.servo must be a table of {sorted(RETIRED_SERVO_KEYS)} (retired: "
+                         f"use [machine.fts] and [machine.z]), received {servo!r}")
+    unknown = sorted(set(servo) - set(RETIRED_SERVO_KEYS))
+    if unknown:
+        raise ValueError(f"artifacts.servo.{unknown[0]}: unknown key (the retired [artifacts.servo] "
+                         f"had {', '.join(RETIRED_SERVO_KEYS)}; use [machine.fts] and [machine.z])")
+    data = dict(data)
+    data["artifacts"] = {k: v for k, v in art.items() if k != "servo"}
+    process = data.get("process") if isinstance(data.get("process"), dict) else {}
+    if process.get("kind") not in ("fts", "hts"):
+        for key in servo:
+            warn_deprecated(f"artifacts.servo.{key}", RETIRED_SERVO_KEYS[key],
+                            "it applies to process.kind 'fts' and 'hts' only and is ignored here")
+        return data
+    machine = dict(data.get("machine") or {}) if isinstance(data.get("machine", {}), dict) else None
+    if machine is None:
+        return data  # [machine] is not a table: the schema says so
+    preset = machine.get("preset", "ideal")
+    active = (servo.get("delay_s", 0) != 0 or servo.get("bandwidth_hz") is not None
+              or servo.get("slow_bandwidth_hz") is not None)
+    if active and preset != "ideal":
+        raise ValueError(
+            f"artifacts.servo applies to machine.preset = 'ideal' only; with machine.preset = "
+            f"{preset!r} set the fast tool servo in [machine.fts] (bandwidth_hz, damping, "
+            f"delay_s) and the slow slide in [machine.z]")
+    for key, value in servo.items():
+        new = RETIRED_SERVO_KEYS[key]
+        warn_deprecated(f"artifacts.servo.{key}", new,
+                        "a machine axis without feed-forward is the same second-order servo")
+        if value is None or preset != "ideal":
+            continue
+        _, axis, name = new.split(".")
+        table = machine.get(axis)
+        table = dict(table) if isinstance(table, dict) else {}
+        if name in table and table[name] != value:
+            raise ValueError(f"artifacts.servo.{key} = {value!r} and {new} = {table[name]!r} "
+                             f"disagree: set {new} only")
+        table[name] = value
+        machine[axis] = table
+    data["machine"] = machine
+    return data
+
+
 def _error_stats(err) -> dict:
     err = np.asarray(err)
-    return {"rms_um": float(np.sqrt(np.mean(err * err)) * 1e3),
-            "max_um": float(np.max(np.abs(err)) * 1e3)}
+    return {"rms_um": float(np.sqrt(np.mean(err * err)) * MM_TO_UM),
+            "max_um": float(np.max(np.abs(err)) * MM_TO_UM)}
 
 
-def plan(scene, surface, *, region=None) -> Plan:
-    kind = scene.process.kind
-    if kind == "hts" and not hasattr(surface, "base"):
-        raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
-    t0 = time.perf_counter()
-    path = plan_spiral(scene, surface, region=region)
-    tool = tool_of(scene)
-    z_slow, z_fts = split_commands(path, kind, base=surface.base if kind == "hts" else None,
-                                   nose_radius=tool.nose_radius,
-                                   compensation=scene.process.compensation,
-                                   half_width=tool.half_width)
-    return Plan(path, {"toolpath": toolpath_facts(path, scene)},
-                {"toolpath": time.perf_counter() - t0}, {"z_slow": z_slow, "z_fts": z_fts})
+class ServoProcess(TurningProcess):
+    """Tool-servo turning: the spiral's Z program split between the slow slide and the FTS,
+    each followed by its axis of the machine."""
 
+    config = ServoProcessConfig
 
-def _legacy_servo_set(servo) -> bool:
-    return (servo.delay_s != 0 or servo.bandwidth_hz is not None
-            or servo.slow_bandwidth_hz is not None)
-
-
-def cut(scene, surface, plan: Plan) -> Cut:
-    kind = scene.process.kind
-    servo = scene.artifacts.servo
-    path = plan.program
-    z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
-    omega = 2 * math.pi * scene.process.spindle_rpm / 60.0
-    r_max = float(np.max(path.rho)) if path.points else 0.0
-    machine = machine_of(scene)
-    timing = {}
-    if machine.ideal:
-        # [artifacts.servo]: the slow slide and the FTS as plain second-order servos
+    def plan(self, cfg, surface, *, region=None) -> Plan:
+        kind = cfg.process.kind
+        base = getattr(surface, "base", None)
+        if kind == "hts" and base is None:
+            raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
         t0 = time.perf_counter()
-        fpath, zs_f, zf_f = followed_path(path, z_slow, z_fts,
-                                          slow_bandwidth_hz=servo.slow_bandwidth_hz,
-                                          slow_damping=servo.slow_damping,
-                                          fts_bandwidth_hz=servo.bandwidth_hz,
-                                          fts_damping=servo.damping, fts_delay_s=servo.delay_s)
-        timing["servo"] = time.perf_counter() - t0
-        t = turn(scene, surface, path, followed=fpath)
-        fts_err, slow_err = zf_f - z_fts, zs_f - z_slow
-        settings = {"delay_s": servo.delay_s, "bandwidth_hz": servo.bandwidth_hz,
-                    "damping": servo.damping, "slow_bandwidth_hz": servo.slow_bandwidth_hz,
-                    "slow_damping": servo.slow_damping}
-    else:
-        if _legacy_servo_set(servo):
-            raise SceneError("artifacts.servo applies to machine.preset = 'ideal' only; with "
-                             f"machine.preset = {scene.machine.preset!r} set the fast tool servo "
-                             "in [machine.fts] (bandwidth_hz, damping, delay_s) and the slow slide "
-                             "in [machine.z]")
-        t = turn(scene, surface, path, z_fts=z_fts)
+        path = self.program(cfg, surface, region=region)
+        tool = Tool.from_config(cfg.tool)
+        z_slow, z_fts = split_commands(path, kind, base=base if kind == "hts" else None,
+                                       nose_radius=tool.nose_radius,
+                                       compensation=cfg.process.compensation,
+                                       half_width=tool.half_width)
+        data = {"z_slow": z_slow, "z_fts": z_fts}
+        return Plan(path, {"toolpath": toolpath_facts(path, cfg.process)},
+                    {"toolpath": time.perf_counter() - t0}, data,
+                    plots=self.program_plots(cfg, path, data))
+
+    def cut(self, cfg, surface, plan: Plan) -> Cut:
+        kind = cfg.process.kind
+        path = plan.program
+        z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
+        omega = 2 * math.pi * cfg.process.spindle_rpm / MIN_TO_S
+        r_max = float(np.max(path.rho)) if path.points else 0.0
+        machine = machine_of(cfg.machine)
+        t = turn(cfg, surface, path, z_fts=z_fts)
         fp = t["followed_path"]
-        fts_err = -np.interp(path.t, fp.t, fp.errors["fts"])
-        slow_err = -np.interp(path.t, fp.t, fp.errors["z"])
+        if fp.ideal:
+            fts_err, slow_err = np.zeros_like(z_fts), np.zeros_like(z_slow)
+        else:
+            fts_err = -np.interp(path.t, fp.t, fp.errors["fts"])
+            slow_err = -np.interp(path.t, fp.t, fp.errors["z"])
         settings = {"delay_s": machine.fts.delay_s, "bandwidth_hz": machine.fts.bandwidth_hz,
                     "damping": machine.fts.damping, "slow_bandwidth_hz": machine.z.bandwidth_hz,
                     "slow_damping": machine.z.damping, "fts_sync": machine.fts_sync}
-    timing.update(t["timing"])
-    bw = settings["bandwidth_hz"]
-    lag = settings["delay_s"] + (2 * settings["damping"] / (2 * math.pi * bw) if bw else 0.0)
-    servo_m = {"kind": kind, **settings, "omega_rad_s": omega,
-               "lag_angle_rad": omega * settings["delay_s"],
-               "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
-               "max_circumferential_shift_um": r_max * omega * lag * 1e3,
-               "fts_stroke_um": float(np.ptp(z_fts) * 1e3) if z_fts.size else 0.0,
-               "slow_stroke_um": float(np.ptp(z_slow) * 1e3) if z_slow.size else 0.0,
-               "fts_following_error": _error_stats(fts_err),
-               "slow_following_error": _error_stats(slow_err)}
-    facts = {"servo": servo_m, **t["facts"]}
-    meta = {"process": kind, "compensation": scene.process.compensation,
-            "seed": scene.simulation.seed, "machine": scene.machine.preset,
-            "material": scene.material.preset,
-            "servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
-                                               "slow_bandwidth_hz", "slow_damping")}}
-    return Cut(t["machined"], t["design"], facts, timing, meta, followed=t["followed"],
-               plots=t["plots"])
+        bw = settings["bandwidth_hz"]
+        lag = settings["delay_s"] + (2 * settings["damping"] / (2 * math.pi * bw) if bw else 0.0)
+        servo_m = {"kind": kind, **settings, "omega_rad_s": omega,
+                   "lag_angle_rad": omega * settings["delay_s"],
+                   "effective_lag_s": lag, "effective_lag_angle_rad": omega * lag,
+                   "max_circumferential_shift_um": r_max * omega * lag * MM_TO_UM,
+                   "fts_stroke_um": float(np.ptp(z_fts) * MM_TO_UM) if z_fts.size else 0.0,
+                   "slow_stroke_um": float(np.ptp(z_slow) * MM_TO_UM) if z_slow.size else 0.0,
+                   "fts_following_error": _error_stats(fts_err),
+                   "slow_following_error": _error_stats(slow_err)}
+        facts = {"servo": servo_m, **t["facts"]}
+        meta = {"process": kind, "compensation": cfg.process.compensation,
+                "seed": cfg.simulation.seed, "machine": cfg.machine.preset,
+                "material": cfg.material.preset,
+                "servo": {k: servo_m[k] for k in ("delay_s", "bandwidth_hz", "damping",
+                                                   "slow_bandwidth_hz", "slow_damping")}}
+        return Cut(t["machined"], t["design"], facts, t["timing"], meta, followed=t["followed"],
+                   plots=t["plots"])
 
-
-def lag_variants(scene) -> VariantPair:
-    """The pair ``compare`` puts side by side for tool-servo turning: the servos as the
-    scene sets them (the slow slide and the FTS of ``[machine]``, or the ``[artifacts.servo]``
-    model on the ideal machine: the lag that rotates every feature by ``omega tau`` and
-    shifts it by ``r omega tau``, seed 002's spiral dislocations) against ideal servos
-    that follow their commands exactly.  A scene without servo dynamics gets the turning
-    pair (compensation on/off) instead."""
-    sv = scene.artifacts.servo
-    omega = 2 * math.pi * scene.process.spindle_rpm / 60.0
-    machine = machine_of(scene)
-    if not machine.ideal and not (machine.z.ideal and machine.fts.ideal):
-        # the machine's slow slide (Z) and FTS: ideal = no loop (inf bandwidth), no
-        # latency, no disturbance; the spindle, X and the error motions stay as set
+    def variants(self, cfg) -> VariantPair:
+        """The servos as the machine has them (``[machine.z]``, ``[machine.fts]``: the lag
+        that rotates every feature by ``omega tau`` and shifts it by ``r omega tau``,
+        Kong et al. 2020's spiral dislocations) against ideal servos that follow their
+        commands exactly.  A machine without servo dynamics gets the turning pair
+        (compensation on/off) instead."""
+        machine = machine_of(cfg.machine)
+        if machine.z.ideal and machine.fts.ideal:
+            return compensation_variants(cfg)
+        # the slow slide (Z) and FTS: ideal = no loop (inf bandwidth), no latency, no
+        # disturbance; the spindle, X and the error motions stay as set
         parts = []
         for name, ax in (("FTS", machine.fts), ("slide", machine.z)):
             if ax.bandwidth_hz is not None:
                 parts.append(f"{name} {ax.bandwidth_hz:.4g} Hz, velocity feed-forward "
                              f"{ax.velocity_ff:.3g}")
             if ax.delay_s > 0:
-                parts.append(f"{name} delay {ax.delay_s * 1e3:.3g} ms")
+                parts.append(f"{name} delay {ax.delay_s * S_TO_MS:.3g} ms")
         ideal = {}
         for ax in ("fts", "z"):
             ideal.update({f"machine.{ax}.bandwidth_hz": math.inf, f"machine.{ax}.delay_s": 0.0,
                           f"machine.{ax}.noise_nm": 0.0})
+        preset = cfg.machine.preset
         return VariantPair(
-            Variant("servo_lag", f"servos of the {scene.machine.preset} machine ("
-                                 + "; ".join(parts) + ")", {}),
+            Variant("servo_lag", f"servos of the {preset} machine (" + "; ".join(parts) + ")", {}),
             Variant("ideal_servo", "ideal slow slide and FTS (no lag, no disturbance)", ideal),
             key="machine.fts, machine.z",
             about=("Servo lag on against off: the slow slide and the fast tool servo as the "
-                   f"{scene.machine.preset} machine has them, against servos that follow "
-                   f"their commands exactly (spindle, X and error motions unchanged); at "
-                   f"{scene.process.spindle_rpm:g} rpm a lag tau turns every feature by "
+                   f"{preset} machine has them, against servos that follow their commands "
+                   f"exactly (spindle, X and error motions unchanged); at "
+                   f"{cfg.process.spindle_rpm:g} rpm a lag tau turns every feature by "
                    f"omega tau about the spindle axis and shifts it by r omega tau along the "
-                   f"circumference (seed 002's spiral dislocations)."))
-    if not _legacy_servo_set(sv):
-        return compensation_variants(scene)
-    parts = []
-    if sv.delay_s > 0:
-        parts.append(f"delay {sv.delay_s * 1e3:.3g} ms")
-    if sv.bandwidth_hz is not None:
-        parts.append(f"FTS {sv.bandwidth_hz:.4g} Hz")
-    if sv.slow_bandwidth_hz is not None:
-        parts.append(f"slide {sv.slow_bandwidth_hz:.4g} Hz")
-    lag = sv.delay_s + (2 * sv.damping / (2 * math.pi * sv.bandwidth_hz) if sv.bandwidth_hz else 0.0)
-    return VariantPair(
-        Variant("servo_lag", "servo lag as set (" + ", ".join(parts) + ")", {}),
-        Variant("ideal_servo", "ideal servo (no lag)",
-                {"artifacts.servo.delay_s": 0.0, "artifacts.servo.bandwidth_hz": None,
-                 "artifacts.servo.slow_bandwidth_hz": None}),
-        key="artifacts.servo",
-        about=(f"Servo lag on against off: a lag of {lag * 1e3:.3g} ms at "
-               f"{scene.process.spindle_rpm:g} rpm turns every feature by omega tau = "
-               f"{omega * lag * 1e3:.3g} mrad about the spindle axis, i.e. shifts it by "
-               f"r omega tau along the circumference (seed 002's spiral dislocations)."))
+                   f"circumference (the spiral dislocations of Kong et al. 2020)."))
+
+    def program_region(self, cfg):
+        return tuple(cfg.simulation.region)
+
+    def traits(self, cfg) -> Traits:
+        return turning_traits(cfg, cut_rate=CUT_RATE)
 
 
-def program_region(scene):
-    return tuple(scene.simulation.region)
-
-
-register_process(ServoProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 precheck=turning_precheck,
-                 program_region=program_region, program_header=turning_header,
-                 variants=lag_variants)
+register_process(ServoProcess())

@@ -1,24 +1,15 @@
-"""Slow tool servo (STS) turning (seed 000): the Z axis follows the design along the
-inward spiral; the machined surface is the envelope of the tool nose."""
+"""Slow tool servo (STS) turning (Li et al. 2018): the Z axis follows the design along the
+inward spiral; the machined surface is the envelope of the tool nose.  A part too large
+for memory is simulated tile by tile."""
 
 from __future__ import annotations
 
-import time
 from typing import Literal
 
-from ._mechanics import followed_program, turn
-from ._registry import Cut, Plan, register_process
-from ._turning import (
-    TurningProcessConfig,
-    compensation_variants,
-    plan_spiral,
-    toolpath_facts,
-    turning_header,
-    turning_memory,
-    turning_precheck,
-)
+from ._registry import register_process
+from ._turning import TiledTurningProcess, TurningProcessConfig
 
-__all__ = ["StsProcessConfig"]
+__all__ = ["StsProcessConfig", "StsProcess"]
 
 
 class StsProcessConfig(TurningProcessConfig):
@@ -26,30 +17,10 @@ class StsProcessConfig(TurningProcessConfig):
     kind: Literal["sts"] = "sts"
 
 
-def plan(scene, surface, *, region=None) -> Plan:
-    t0 = time.perf_counter()
-    path = plan_spiral(scene, surface, region=region)
-    return Plan(path, {"toolpath": toolpath_facts(path, scene)},
-                {"toolpath": time.perf_counter() - t0})
+class StsProcess(TiledTurningProcess):
+    """Slow-tool-servo turning: the turning defaults, tiled when large."""
+
+    config = StsProcessConfig
 
 
-def cut(scene, surface, plan: Plan) -> Cut:
-    t = turn(scene, surface, plan.program)
-    return Cut(t["machined"], t["design"], t["facts"], t["timing"],
-               {"process": "sts", "compensation": scene.process.compensation,
-                "seed": scene.simulation.seed, "machine": scene.machine.preset,
-                "material": scene.material.preset}, followed=t["followed"], plots=t["plots"])
-
-
-def envelope_path(scene, surface, plan: Plan):
-    """The path whose nose envelope is the machined surface (tiled simulations): the
-    program as the scene's machine follows it."""
-    return followed_program(scene, plan.program), {
-        "process": "sts", "compensation": scene.process.compensation,
-        "seed": scene.simulation.seed, "machine": scene.machine.preset, "material": "ideal"}
-
-
-register_process(StsProcessConfig, plan=plan, cut=cut, estimate_memory=turning_memory,
-                 precheck=turning_precheck,
-                 program_header=turning_header, variants=compensation_variants,
-                 envelope_path=envelope_path)
+register_process(StsProcess())

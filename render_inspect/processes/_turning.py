@@ -1,34 +1,46 @@
 """What every turning process (STS, FTS/HTS, RCSE) shares: the ``[process]`` keys of a
-spiral turning program, the tool, the envelope cut on the simulation grid, and the memory
-estimate."""
+spiral turning program, the :class:`TurningProcess` base class (plan the compensated
+spiral, cut it through the machine and material, the memory estimate, the facts), and
+the pair ``compare`` shows by default (compensation on against off)."""
 
 from __future__ import annotations
 
+import time
 from typing import Literal
 
 from pydantic import Field, model_validator
 
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget
+from ..core.marks import ToolMarks
 from ..core.section import Section
+from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining._memory import in_memory_bytes
+from ..machining import in_memory_bytes
 from ..toolpath import (
     Tool,
     kinematics,
     limits_from_process,
+    pass_margin,
     plan_feed,
     plan_memory,
     plan_turning,
     region_radii,
     turning_point_count,
 )
-from ._mechanics import machine_of, turn
-from ._registry import Variant, VariantPair, check_budget
+from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
+from ._machine import machine_of
+from ._mechanics import TurningInputs, followed_program, turn
+from ._registry import check_budget
 
-__all__ = ["TurningProcessConfig", "tool_of", "plan_spiral", "cut_turning", "toolpath_facts",
-           "turning_memory", "turning_points", "machine_bytes", "burrs_of", "turning_header",
-           "compensation_variants", "turning_precheck"]
+__all__ = ["TurningProcessConfig", "TurningProcess", "TurningInputs", "plan_spiral",
+           "toolpath_facts", "turning_memory", "turning_points", "machine_bytes",
+           "turning_header", "compensation_variants", "turning_precheck", "turning_traits",
+           "TiledTurningProcess"]
+
+#: samples per second the envelope cut runs at on 2 cores (the progress bar's estimate;
+#: README speed table)
+CUT_RATE = 4e6
 
 
 class TurningProcessConfig(Section):
@@ -46,7 +58,9 @@ class TurningProcessConfig(Section):
     depth_of_cut: float = Field(0.003, ge=0, description="mm (recorded; the envelope does not depend on it)")
     scallop_bound_nm: float | None = Field(
         None, gt=0, le=1e5, description="plan the largest feed per revolution whose scallop "
-                                        "stays within this bound (seed 001); replaces feed_mm_per_min")
+                                        "stays within this bound (the residual-height bound of "
+                                        "the compound sinusoidal grid study); replaces "
+                                        "feed_mm_per_min")
     allow_gouge: bool = Field(False, description="simulate even if the tool cannot reach everywhere")
     # machine limits used by the kinematics checks (optional)
     x_velocity_limit_mm_s: float | None = Field(None, gt=0)
@@ -76,25 +90,22 @@ class TurningProcessConfig(Section):
                 f"(feed {self.feed_mm_per_min} mm/min at {self.spindle_rpm} rpm)")
 
 
-def tool_of(scene) -> Tool:
-    """The :class:`~render_inspect.toolpath.Tool` of the scene's ``[tool]``."""
-    return Tool.from_config(scene.tool)
 
-
-def plan_spiral(scene, surface, *, region=None):
-    """The compensated spiral program of a turning scene (:func:`plan_turning` with the
-    scene's ``[process]`` keys).  With ``process.scallop_bound_nm`` the feed per revolution
-    is the largest whose scallop stays within the bound on every radial section the path
-    cuts (:func:`~render_inspect.toolpath.plan_feed`, seed 001 eqs. 9-13), recorded in
+def plan_spiral(cfg, surface, *, region=None):
+    """The compensated spiral program of a turning process (:func:`plan_turning` with the
+    ``[process]`` keys of ``cfg``).  With ``process.scallop_bound_nm`` the feed per
+    revolution is the largest whose scallop stays within the bound on every radial section
+    the path cuts (:func:`~render_inspect.toolpath.plan_feed`, the residual-height
+    formulas of the compound sinusoidal grid study, eqs. 9-13), recorded in
     ``path.meta["scallop_plan"]``."""
-    p = scene.process
-    tool = tool_of(scene)
+    p = cfg.process
+    tool = Tool.from_config(cfg.tool)
     feed, scallop = p.feed_per_rev, None
     if p.scallop_bound_nm is not None:
         r_in, r_out = (p.inner_radius, p.workpiece_radius) if region is None else \
             region_radii(region, tool.half_width)
         scallop = plan_feed(surface, nose_radius=tool.nose_radius,
-                            scallop_bound=p.scallop_bound_nm * 1e-6,
+                            scallop_bound=p.scallop_bound_nm * NM_TO_MM,
                             r_outer=min(r_out, p.workpiece_radius),
                             r_inner=min(max(r_in, p.inner_radius), 0.999 * min(r_out, p.workpiece_radius)),
                             spindle_rpm=p.spindle_rpm)
@@ -106,24 +117,25 @@ def plan_spiral(scene, surface, *, region=None):
                         switch_radius=p.switch_radius, inner_radius=p.inner_radius,
                         chordal_tolerance=p.chordal_tolerance, region=region,
                         allow_gouge=p.allow_gouge,
-                        memory_budget=memory_budget(scene.simulation.max_memory_gb))
+                        memory_budget=memory_budget(cfg.simulation.max_memory_gb))
     if scallop is not None:
         path.meta["scallop_plan"] = scallop
     return path
 
 
-def toolpath_facts(path, scene) -> dict:
+def toolpath_facts(path, process) -> dict:
     """``metrics["toolpath"]``: points, revolutions, sampling, chordal error, gouge depth,
-    accessibility, cut time, and the axis kinematics against the ``[process]`` limits."""
+    accessibility, cut time, and the axis kinematics against the limits of the
+    ``[process]`` section ``process``."""
     m = path.meta
     d = {"points": int(path.points), "revolutions": path.revolutions,
          "feed_per_rev_mm": m.get("feed_per_rev_mm"), "sampling": m.get("sampling"),
          "points_per_rev": m.get("points_per_rev"), "compensation": m.get("compensation"),
-         "chordal_error_max_nm": m.get("chordal_error_max_mm", 0.0) * 1e6,
-         "gouge_max_nm": m.get("gouge_max_mm", 0.0) * 1e6,
+         "chordal_error_max_nm": m.get("chordal_error_max_mm", 0.0) * MM_TO_NM,
+         "gouge_max_nm": m.get("gouge_max_mm", 0.0) * MM_TO_NM,
          "max_slope": m.get("max_slope"), "cut_time_s": m.get("time_s")}
     if "chordal_tolerance_mm" in m:
-        d["chordal_tolerance_nm"] = m["chordal_tolerance_mm"] * 1e6
+        d["chordal_tolerance_nm"] = m["chordal_tolerance_mm"] * MM_TO_NM
         d["chordal_within_tolerance"] = m["chordal_within_tolerance"]
     if "scallop_plan" in m:
         d["scallop_plan"] = m["scallop_plan"]
@@ -131,50 +143,28 @@ def toolpath_facts(path, scene) -> dict:
         d["accessible"] = m["accessibility"]["ok"]
         d["accessibility"] = m["accessibility"]
     if path.points >= 3:
-        d.update(kinematics(path, limits=limits_from_process(scene.process)))
+        d.update(kinematics(path, limits=limits_from_process(process)))
     return d
 
 
-def burrs_of(scene) -> dict:
-    """The ``[artifacts.burrs]`` keys as :func:`~render_inspect.machining.apply_burrs`
-    arguments."""
-    b = scene.artifacts.burrs
-    return {"height": b.height, "width": b.width, "variation": b.variation,
-            "edge_angle_deg": b.edge_angle_deg, "correlation_length": b.correlation_length,
-            "seed": int(scene.simulation.seed)}
-
-
-def cut_turning(scene, surface, path, *, burrs: bool = True, z_fts=None) -> tuple:
-    """(machined, design, timing, facts) on the simulation grid for a turning ``path``
-    cut on the scene's ``[machine]`` with its ``[material]``
-    (:func:`~render_inspect.processes._mechanics.turn`): the followed path's tool-nose
-    envelope with the material's mechanics, the design heights, and the burrs of
-    ``[artifacts.burrs]`` on the machined edges when their height is set.  ``facts``
-    holds ``machine``, ``following_error`` (a non-ideal machine), ``material`` and
-    ``burrs`` as they apply, and ``plots`` the following-error figures."""
-    t = turn(scene, surface, path, burrs=burrs, z_fts=z_fts)
-    return t["machined"], t["design"], t["timing"], {**t["facts"], "plots": t["plots"]}
-
-
-def _revolutions(scene) -> float:
-    """Revolutions of the scene's spiral over its region, before planning: the radii the
+def _revolutions(cfg, design) -> float:
+    """Revolutions of the spiral over the simulated region, before planning: the radii the
     planner keeps (:func:`~render_inspect.toolpath.plan_turning`: the region widened by
     the passes that can reach it, 2.2 Rc m + f + 2 f for the design's largest slope m)."""
-    sim, p = scene.simulation, scene.process
-    tool = tool_of(scene)
-    slope = make_surface(scene.design).max_slope(tuple(sim.region))
+    sim, p = cfg.simulation, cfg.process
+    tool = Tool.from_config(cfg.tool)
+    slope = make_surface(design).max_slope(tuple(sim.region))
     f = p.feed_per_rev
-    margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
-    r_in, r_out = region_radii(sim.region, margin)
+    r_in, r_out = region_radii(sim.region, pass_margin(tool, slope, f))
     r_in = max(r_in, p.inner_radius)
     return max(min(r_out, p.workpiece_radius) - r_in, 0.0) / f
 
 
-def turning_points(scene, plan=None) -> int:
-    """Points of the scene's path over its region (estimated before planning)."""
+def turning_points(cfg, plan=None) -> int:
+    """Points of the spiral over the simulated region (estimated before planning)."""
     if plan is not None:
         return int(plan.program.points)
-    return int(_revolutions(scene) * scene.process.points_per_rev) + 1
+    return int(_revolutions(cfg, cfg.design) * cfg.process.points_per_rev) + 1
 
 
 #: bytes per servo tick the machine model holds (commands, followed positions, errors and
@@ -182,46 +172,46 @@ def turning_points(scene, plan=None) -> int:
 _BYTES_PER_TICK = 8 * 32
 
 
-def machine_bytes(scene, plan=None) -> int:
-    """Bytes the scene's ``[machine]`` model holds while following the path (0 on the
-    ideal machine)."""
-    machine = machine_of(scene)
+def machine_bytes(cfg, plan=None) -> int:
+    """Bytes the ``[machine]`` model holds while following the path (0 on the ideal
+    machine)."""
+    machine = machine_of(cfg.machine)
     if machine.ideal:
         return 0
     if plan is None:
-        duration = _revolutions(scene) * 60.0 / scene.process.spindle_rpm
+        duration = _revolutions(cfg, cfg.design) * MIN_TO_S / cfg.process.spindle_rpm
     else:
         t = plan.program.t
         duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     return int(duration * machine.servo_rate_hz) * _BYTES_PER_TICK
 
 
-def turning_memory(scene, plan=None) -> int:
+def turning_memory(cfg, plan=None) -> int:
     """Bytes an in-memory turning simulation and the writing of its outputs hold at their
     peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
     of heightmap.exr, the design evaluation's temporaries and the tool path); on a
     non-ideal ``[machine]`` also the servo ticks (:func:`machine_bytes`) and the maps of
     where each pass cut and its following error, with a ``[material]`` the cut's mechanics
     maps (measured with tracemalloc: within 1.5 x of the peak in every combination)."""
-    shape = grid_shape(scene.simulation.region, scene.simulation.pixel)
+    shape = grid_shape(cfg.simulation.region, cfg.simulation.pixel)
     samples = shape[0] * shape[1]
-    nbytes = in_memory_bytes(shape, turning_points(scene, plan)) + machine_bytes(scene, plan)
-    material = scene.material.preset != "ideal"
+    nbytes = in_memory_bytes(shape, turning_points(cfg, plan)) + machine_bytes(cfg, plan)
+    material = cfg.material.preset != "ideal"
     if material:  # the cut's mechanics maps and the finished surface's grooves
         nbytes += samples * 8 * 11
-    if not machine_of(scene).ideal:  # pass-angle and following-error maps (shared with the material)
+    if not machine_of(cfg.machine).ideal:  # pass-angle and following-error maps (shared with the material)
         nbytes += samples * 8 * (1 if material else 2)
     return int(nbytes)
 
 
-def turning_precheck(scene, region=None) -> None:
+def turning_precheck(cfg, region=None) -> None:
     """Check the points of the spiral program (``region``: the part of it that reaches
     that window; None: the whole part) against the memory budget before planning; the
     error names ``process.points_per_rev`` / ``arc_length`` / the feed.  (The planner
     checks again with the sampling ``process.chordal_tolerance`` sets.)"""
-    p = scene.process
+    p = cfg.process
     f = p.feed_per_rev
-    r_in, r_out = (region_radii(region, scene.tool.nose_radius + 2 * f) if region is not None
+    r_in, r_out = (region_radii(region, cfg.tool.nose_radius + 2 * f) if region is not None
                    else (0.0, p.workpiece_radius))
     r_in, r_out = max(r_in, p.inner_radius), min(r_out, p.workpiece_radius)
     n = turning_point_count(sampling=p.sampling, feed_per_rev=f, workpiece_radius=p.workpiece_radius,
@@ -234,25 +224,25 @@ def turning_precheck(scene, region=None) -> None:
     if p.sampling != "constant_angle":
         drivers.append(Driver("process.arc_length", p.arc_length, -1, "mm"))
     drivers.append(Driver("process.feed_mm_per_min", p.feed_mm_per_min, -1, "mm/min",
-                          limit=(None, p.spindle_rpm * scene.tool.nose_radius)))
-    check_budget(scene, plan_memory(n, sampling=p.sampling, compensation=p.compensation),
+                          limit=(None, p.spindle_rpm * cfg.tool.nose_radius)))
+    check_budget(cfg.simulation, plan_memory(n, sampling=p.sampling, compensation=p.compensation),
                  what=f"the tool path ({format_number(sum(n))} points)", drivers=drivers,
                  hint="or shrink simulation.region / process.workpiece_radius")
 
 
-def turning_header(scene) -> dict:
+def turning_header(cfg) -> dict:
     """NC header lines of a turning program."""
-    p = scene.process
-    return {"scene": scene.name, "process": p.kind, "spindle_rpm": p.spindle_rpm,
+    p = cfg.process
+    return {"scene": cfg.name, "process": p.kind, "spindle_rpm": p.spindle_rpm,
             "feed_per_rev_mm": p.feed_per_rev, "compensation": p.compensation,
-            "nose_radius": scene.tool.nose_radius}
+            "nose_radius": cfg.tool.nose_radius}
 
 
-def compensation_variants(scene) -> VariantPair:
-    """The pair ``compare`` puts side by side for turning: the scene's tool-radius
-    compensation (``"z"`` when it says ``"none"``) against none.  Without compensation
-    the nose overcuts the slopes by about ``Rc slope^2 / 2`` (seed 000 Fig. 16)."""
-    c = scene.process.compensation
+def compensation_variants(cfg) -> VariantPair:
+    """The pair ``compare`` puts side by side for turning: the tool-radius compensation
+    (``"z"`` when the scene says ``"none"``) against none.  Without compensation the nose
+    overcuts the slopes by about ``Rc slope^2 / 2`` (Li et al. 2018, Fig. 16)."""
+    c = cfg.process.compensation
     comp = c if c != "none" else "z"
     name = {"z": "Z-direction", "normal": "normal-direction"}[comp]
     return VariantPair(
@@ -260,6 +250,111 @@ def compensation_variants(scene) -> VariantPair:
         Variant("uncompensated", "no compensation", {"process.compensation": "none"}),
         key="process.compensation",
         about=(f"Tool-nose radius compensation ({name}) against none: without it the nose "
-               f"(Rc = {scene.tool.nose_radius * 1e3:.4g} um) cuts below the design on the "
+               f"(Rc = {cfg.tool.nose_radius * MM_TO_UM:.4g} um) cuts below the design on the "
                f"slopes (overcut, about Rc slope^2 / 2), in a pattern that changes with the "
-               f"section angle (seed 000 Fig. 16)."))
+               f"section angle (Li et al. 2018, Fig. 16)."))
+
+
+def turning_traits(cfg, *, cut_rate: float = CUT_RATE) -> Traits:
+    """A turned part: circular feed marks of the nose radius about the spindle axis, the
+    disc of the workpiece, the program saved as ``toolpath.npz``."""
+    p = cfg.process
+    return Traits(name=p.kind, compensation=p.compensation,
+                  marks=ToolMarks("circular", float(p.feed_per_rev), float(cfg.tool.nose_radius),
+                                  scallop=True),
+                  axis=(0.0, 0.0),
+                  part={"shape": "disc", "center": [0.0, 0.0], "radius": float(p.workpiece_radius)},
+                  saves_program=True, cut_rate=cut_rate)
+
+
+def _meta(cfg, **extra) -> dict:
+    """Provenance of a turned height map."""
+    return {"process": cfg.process.kind, "compensation": cfg.process.compensation,
+            "seed": cfg.simulation.seed, "machine": cfg.machine.preset,
+            "material": cfg.material.preset, **extra}
+
+
+class TurningProcess(Process):
+    """A turning process: the compensated spiral (:func:`plan_spiral`) cut through the
+    machine and material (:func:`~render_inspect.processes._mechanics.turn`).  Subclasses
+    set ``config`` and change what differs."""
+
+    inputs = TurningInputs
+
+    def program(self, cfg, surface, *, region=None):
+        """The commanded turning program (:func:`plan_spiral`); a subclass that programs
+        the spiral otherwise (another time axis, other sampling) overrides this."""
+        return plan_spiral(cfg, surface, region=region)
+
+    def plan(self, cfg, surface, *, region=None) -> Plan:
+        t0 = time.perf_counter()
+        path = self.program(cfg, surface, region=region)
+        return Plan(path, {"toolpath": toolpath_facts(path, cfg.process)},
+                    {"toolpath": time.perf_counter() - t0}, plots=self.program_plots(cfg, path))
+
+    def program_plots(self, cfg, path, data=None) -> dict:
+        """``kinematics.png``: the axes of the program that move."""
+        return {"kinematics.png": {"kind": "axes",
+                                   "columns": [(f"{cfg.process.kind.upper()} program", path,
+                                                data or {})],
+                                   "title": f"{cfg.name}: the axes that move"}}
+
+    def cut(self, cfg, surface, plan: Plan) -> Cut:
+        t = turn(cfg, surface, plan.program)
+        return Cut(t["machined"], t["design"], t["facts"], t["timing"], _meta(cfg),
+                   followed=t["followed"], plots=t["plots"])
+
+    def estimate_memory(self, cfg, plan=None) -> int:
+        return turning_memory(cfg, plan)
+
+    def traits(self, cfg) -> Traits:
+        return turning_traits(cfg)
+
+    def precheck(self, cfg, region=None) -> None:
+        turning_precheck(cfg, region)
+
+    def program_header(self, cfg) -> dict:
+        return turning_header(cfg)
+
+    def program_facts(self, cfg, plan: Plan) -> dict:
+        """``toolpath.json``: the plan's facts with the path's own (points, revolutions,
+        feed, the planner's records) and its accessibility check."""
+        prog = plan.program
+        facts = dict(plan.facts)
+        tp = facts.setdefault("toolpath", {})
+        tp.setdefault("points", prog.points)
+        tp.setdefault("revolutions", prog.revolutions)
+        tp.setdefault("feed_per_rev_mm", cfg.process.feed_per_rev)
+        for k, v in prog.meta.items():
+            if k != "accessibility":
+                tp.setdefault(k, v)
+        if "accessibility" in prog.meta:
+            facts["accessibility"] = prog.meta["accessibility"]
+        return facts
+
+    def variants(self, cfg) -> VariantPair:
+        return compensation_variants(cfg)
+
+
+class TiledTurningProcess(TurningProcess):
+    """A turning process whose machined surface is the nose envelope of one followed path
+    (no burrs, no material response): it can be simulated tile by tile."""
+
+    def tile_refusal(self, cfg) -> str | None:
+        if cfg.burrs.height > 0:
+            return (f"the tiled simulation does not add burrs: artifacts.burrs.height must be 0 "
+                    f"for maps simulated tile by tile, received {cfg.burrs.height}")
+        if cfg.material.preset != "ideal":
+            return (f"material.preset must be 'ideal' for a simulation computed tile by tile "
+                    f"(the material's side flow and grooves are modelled on the whole map), "
+                    f"received {cfg.material.preset!r}; set --set material.preset='ideal', or "
+                    f"simulate a region that fits simulation.max_memory_gb")
+        return None
+
+    def envelope(self, cfg, surface, plan: Plan) -> Envelope:
+        tool = Tool.from_config(cfg.tool)
+        return Envelope(followed_program(cfg, plan.program), tool.nose_radius, tool.half_width,
+                        _meta(cfg, material="ideal"))
+
+    def tiled_memory(self, cfg, plan=None) -> tuple[int, int]:
+        return machine_bytes(cfg, plan), turning_points(cfg, plan)

@@ -13,6 +13,11 @@ from ._cycles import (
                       ALUMINIUM_ETA,
                       ALUMINIUM_K,
                       OBJECT_NAME,
+                      PROP_EXAGGERATION,
+                      PROP_HEIGHTMAP,
+                      PROP_OFFSET,
+                      PROP_SURFACE,
+                      PROP_VARIANT,
                       RENDER_SCENE_NAME,
                       blend_objects,
                       default_output_dir,
@@ -47,6 +52,7 @@ from ._diffuse import (
                       render_diffuse,
                       render_passes,
 )
+from ._diffuse import _default_window as default_window
 from ._scene_dicts import load_scene_dict, trace_grids
 from ._turned_bsdf import efficiency_tables, grating_efficiencies
 from ._variant import (
@@ -66,4 +72,6 @@ __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_pro
            "surface_material", "material_model", "fresnel_conductor", "f82_tint_colours",
            "ALUMINIUM_ETA", "ALUMINIUM_K", "OBJECT_NAME", "RENDER_SCENE_NAME", "PORT_PROFILES",
            "diffuse_mesh", "spectral_variant", "efficiency_tables", "grating_efficiencies",
-           "render_passes", "mitsuba_seed", "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS"]
+           "render_passes", "mitsuba_seed", "diffuse_memory", "MAX_FILM_SIDE", "MAX_SAMPLES_PER_PASS",
+           "default_window", "PROP_EXAGGERATION", "PROP_HEIGHTMAP", "PROP_OFFSET", "PROP_SURFACE",
+           "PROP_VARIANT"]

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.units import NM_TO_MM
 from ._variant import import_mitsuba
 
 __all__ = ["grating_efficiencies", "efficiency_tables", "aluminium_nk", "register_turned_bsdf",
@@ -91,7 +92,7 @@ def grating_efficiencies(profile_mm, *, period: float, wavelength_nm: float, q: 
     if n < 2 * orders + 1:
         raise InputError(f"profile_mm needs at least {2 * orders + 1} samples for {orders} "
                          f"orders, got {n}")
-    k = 2 * math.pi / (wavelength_nm * 1e-6)
+    k = 2 * math.pi / (wavelength_nm * NM_TO_MM)
     c = np.fft.fft(np.exp(-2j * k * q * h)) / n
     m = np.arange(-orders, orders + 1)
     return np.abs(c[m % n]) ** 2
@@ -120,7 +121,7 @@ def efficiency_tables(*, period: float | None, nose_radius: float | None) -> dic
         eta = np.ones((L, Q, 1))
         M = 0
     else:
-        M = int(min(math.ceil(period / (WAVELENGTHS_NM[0] * 1e-6)) + 1, MAX_ORDER))
+        M = int(min(math.ceil(period / (WAVELENGTHS_NM[0] * NM_TO_MM)) + 1, MAX_ORDER))
         n = 1 << int(math.ceil(math.log2(max(8 * (2 * M + 1), 4096))))
         h = arc_profile(period, nose_radius, n)
         eta = np.empty((L, Q, 2 * M + 1))
@@ -225,7 +226,7 @@ def _make_class(mi, dr):
             self.k_al = mi.Float(k_al.astype(np.float32))
             # orders summed around the nearest one: enough to cover 3.5 lobe widths
             if self.period > 0 and self.M > 0:
-                spacing = lam0 * 1e-6 / self.period
+                spacing = lam0 * NM_TO_MM / self.period
                 self.terms = int(min(LOBE_TERMS, math.ceil(3.5 * self.su / spacing)))
             else:
                 self.terms = 0
@@ -265,7 +266,7 @@ def _make_class(mi, dr):
                 du = (u + au) / self.su
                 s = e * dr.exp(gv - 0.5 * du * du)
             else:
-                rel = lam * 1e-6 / self.period
+                rel = lam * NM_TO_MM / self.period
                 m0 = dr.round((u + au) / rel)
                 for kk in range(-self.terms, self.terms + 1):
                     m = m0 + kk
@@ -330,7 +331,7 @@ def _make_class(mi, dr):
                                        lambda i: dr.gather(mi.Float, self.cdf, base + i) < s1)
                 m = mi.Float(mi.Int32(idx) - self.M)
                 if self.period > 0:
-                    u = u + m * (lam * 1e-6 / self.period)
+                    u = u + m * (lam * NM_TO_MM / self.period)
             r = dr.sqrt(-2.0 * dr.log(dr.maximum(1.0 - sample2.x, 1e-12)))
             ph = 2.0 * math.pi * sample2.y
             u = u + self.su * r * dr.cos(ph)

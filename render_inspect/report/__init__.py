@@ -1,9 +1,14 @@
-"""Reports: figures (maps, image panels, radial profiles, axis motion, following error)
-and the
-self-contained ``report.html`` of a comparison, from metrics and images."""
+"""Reports: every figure the package draws (maps, image panels, radial profiles, axis
+motion, following error, the comparison's figures, the instrument's characterisation,
+sweep plots, the regression's images) and the self-contained ``report.html`` of a
+comparison, from metrics and arrays.  Stages describe the figures they want as data
+(:func:`draw_figure`); only this package draws."""
 
 from __future__ import annotations
 
+from ._comparison import (ComparedVariant, comparison_figures, comparison_summary,
+                          diffuse_caption, luminance, srgb)
+from ._draw import FIGURE_KINDS, draw_figure
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
                        line_panels, locator_figure, map_panels, png_bytes,
                        radial_profile_figure)
@@ -11,13 +16,22 @@ from ._fit import fit_figures, fit_page, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length
 from ._html import HtmlReport, data_uri, table_html
+from ._instrument import characterise_figures
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
                           turning_axes)
+from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
+                    save_map_png)
 from ._page import build_page
+from ._quickplot import map_png, panels_png
+from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
 
 __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
            "kinematics_png", "image_panels", "map_panels", "png_bytes", "radial_profile_figure",
            "line_panels", "plot_following_error", "plot_following_error_map",
            "annotate_rgb", "block_mean", "display_map", "difference_figure", "fmt_number",
            "fmt_quantity", "nice_length", "locator_figure", "axis_motion_figure", "moving_axes",
-           "turning_axes", "fit_figures", "fit_page", "psd_figure"]
+           "turning_axes", "draw_figure", "FIGURE_KINDS", "save_map_png", "save_height_png",
+           "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
+           "panels_png", "characterise_figures", "curves_png", "heatmap_png", "sweep_plot_png",
+           "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
+           "luminance", "fit_figures", "fit_page", "psd_figure"]

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from ..core.units import MM_TO_NM, MM_TO_UM
 from ._format import fmt_quantity, nice_length
 
 __all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "line_panels",
@@ -101,8 +102,8 @@ def length_label(mm: float) -> str:
     if mm >= 1.0:
         return f"{mm:g} mm"
     if mm >= 1e-3:
-        return f"{mm * 1e3:g} um"
-    return f"{mm * 1e6:g} nm"
+        return f"{mm * MM_TO_UM:g} um"
+    return f"{mm * MM_TO_NM:g} nm"
 
 
 def _scale_bar(ax, width_mm: float, *, color: str = "black", frac: float = 0.22,
@@ -139,7 +140,7 @@ def _limits(arrays, symmetric, percentile=None):
             m = max(abs(full[0]), abs(full[1])) or 1.0
         return -m, m, max(abs(full[0]), abs(full[1])) > m * (1 + 1e-9)
     if hi <= lo:
-        hi = lo + (abs(lo) * 1e-3 or 1.0)
+        hi = lo + (abs(lo) * 1e-3 or 1.0)  # not a unit conversion
     return lo, hi, full[0] < lo or full[1] > hi
 
 
@@ -148,7 +149,7 @@ def _extend(data, vmin, vmax) -> str:
     d = d[np.isfinite(d)]
     if not d.size:
         return "neither"
-    lo, hi = d.min() < vmin - 1e-12 * abs(vmin), d.max() > vmax + 1e-12 * abs(vmax)
+    lo, hi = d.min() < vmin - 1e-12 * abs(vmin), d.max() > vmax + 1e-12 * abs(vmax)  # not a unit conversion
     return {(True, True): "both", (True, False): "min", (False, True): "max"}.get((lo, hi), "neither")
 
 
@@ -402,7 +403,7 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
 
 
 def radial_profile_figure(sections, *, dpi: int = 100, radial: bool = True) -> bytes:
-    """Sections like seed 000 Fig. 16 (b, c): per variant (column), the design and
+    """Sections like Li et al. (2018), Fig. 16 (b, c): per variant (column), the design and
     machined heights along sections at a few angles (top, um), machined minus design
     along them (middle, nm) and, where given, the filtered residual (bottom, nm: the
     waviness that the tool marks hide).
@@ -432,13 +433,13 @@ def radial_profile_figure(sections, *, dpi: int = 100, radial: bool = True) -> b
             s = np.asarray(sec["s"])
             lab = f"{sec['angle_deg']:g} deg"
             if sec.get("design") is not None:
-                top.plot(s, np.asarray(sec["design"]) * 1e3, color=c, lw=0.8, ls="--")
-            top.plot(s, np.asarray(sec["machined"]) * 1e3, color=c, lw=1.0, label=lab)
+                top.plot(s, np.asarray(sec["design"]) * MM_TO_UM, color=c, lw=0.8, ls="--")
+            top.plot(s, np.asarray(sec["machined"]) * MM_TO_UM, color=c, lw=1.0, label=lab)
             if sec.get("design") is not None:
-                bot.plot(s, (np.asarray(sec["machined"]) - np.asarray(sec["design"])) * 1e6,
+                bot.plot(s, (np.asarray(sec["machined"]) - np.asarray(sec["design"])) * MM_TO_NM,
                          color=c, lw=0.9, label=lab)
             if has_f and sec.get("filtered") is not None:
-                axes[2, j].plot(s, np.asarray(sec["filtered"]) * 1e6, color=c, lw=0.9, label=lab)
+                axes[2, j].plot(s, np.asarray(sec["filtered"]) * MM_TO_NM, color=c, lw=0.9, label=lab)
         if has_f:
             fa = axes[2, j]
             fa.set_title(f"{name}: filtered residual (waviness)", fontsize=10)

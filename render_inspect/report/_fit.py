@@ -19,7 +19,8 @@ def psd_figure(curves: dict, *, title: str = "", dpi: int = 100) -> bytes:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=dpi, layout="constrained")
     styles = {"measured": {"color": "k", "lw": 1.6}, "fitted": {"color": "C3", "lw": 1.2},
-              "start": {"color": "C0", "lw": 1.0, "ls": "--"}}
+              "start": {"color": "C0", "lw": 1.0, "ls": "--"},
+              "fitted, with the random parts": {"color": "C1", "lw": 1.0, "ls": ":"}}
     for name, (k, p) in curves.items():
         ok = np.isfinite(p) & (p > 0)
         ax.loglog(np.asarray(k)[ok], np.asarray(p)[ok], label=name, **styles.get(name, {}))

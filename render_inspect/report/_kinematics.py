@@ -1,6 +1,6 @@
 """Plots of a turning path's axis motion: the axes that move (Z and the FTS for slow
-and fast tool servo turning, X for RCSE against the conventional path, seed 004
-Figs. 8-9), position, velocity and acceleration against time, one column per path."""
+and fast tool servo turning, X for RCSE against the conventional path, the RCSE
+study's Figs. 8-9), position, velocity and acceleration against time, one column per path."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
-from ..io._quickplot import panels_png
+from ._quickplot import panels_png
 from ..toolpath import axis_derivatives
 
 __all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
@@ -66,7 +67,7 @@ def moving_axes(t, axes: dict) -> list[str]:
     return out
 
 
-_UNITS = {"X": ("mm", 1.0), "Z": ("um", 1e3), "FTS": ("um", 1e3)}
+_UNITS = {"X": ("mm", 1.0), "Z": ("um", MM_TO_UM), "FTS": ("um", MM_TO_UM)}
 
 
 def _motion_series(columns, axes=None):
@@ -149,8 +150,8 @@ def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int
 
 def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventional"),
                     title: str | None = None) -> Path:
-    """Plot X against C and the X velocity and acceleration against time (seed 004
-    Figs. 8-9), one column per path.
+    """Plot X against C and the X velocity and acceleration against time (the RCSE
+    study's Figs. 8-9), one column per path.
 
     Parameters
     ----------

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 
+from ..core.units import MM_TO_UM
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
@@ -259,7 +260,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     rep.heading("Waviness: the filters")
     desc = []
     if f.get("s_filter_mm"):
-        desc.append(f"S-filter {_q(f['s_filter_mm'] * 1e3, 'um')}")
+        desc.append(f"S-filter {_q(f['s_filter_mm'] * MM_TO_UM, 'um')}")
     if f.get("l_filter_mm"):
         desc.append(f"L-filter {_q(f['l_filter_mm'], 'mm')}")
     rep.text("ISO 16610-61 Gaussian filters, form removed first (" + (f.get("form_removal") or "none")
@@ -280,7 +281,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                f"Zero-phase-shift frame over the common window, same camera and seed for both "
                f"({ic.get('objective')}, NA {_g(ic.get('numerical_aperture'))}, "
                f"{_g(ic.get('wavelength_nm'))} nm, "
-               f"{_q((ic.get('pixel') or 0) * 1e3, 'um')} pixels).")
+               f"{_q((ic.get('pixel') or 0) * MM_TO_UM, 'um')} pixels).")
     rep.figure(figs["interferogram_difference"], f"Intensity difference, {va} - {vb}.")
     rep.figure(figs["measured_residual_side_by_side"],
                "Measured height - design on the camera grid: the residual as the instrument "
@@ -328,8 +329,8 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     turning = bool(tp_c.get("revolutions"))
     rep.section("Radial sections" if turning else "Sections")
     rep.figure(figs["sections"],
-               ("Radial sections through the spindle axis at several angles (after seed 000 "
-                "Fig. 16 b, c): design (dashed) and machined heights, machined - design, and the "
+               ("Radial sections through the spindle axis at several angles (after Li et al. "
+                "2018, Fig. 16 b, c): design (dashed) and machined heights, machined - design, and the "
                 "waviness. Without compensation the overcut waviness changes with the section "
                 "angle.") if turning else
                ("Sections through the centre of the simulated region at several angles: design "
@@ -410,7 +411,7 @@ def _diffuse_value(k, v):
     if v is None:
         return "none" if k == "lamp" else "n/a"
     if k == "mm_per_px":
-        return fmt_quantity(v * 1e3, "um")
+        return fmt_quantity(v * MM_TO_UM, "um")
     if k == "vertical_exaggeration":
         return f"{v:g}x"
     if k == "resolution":

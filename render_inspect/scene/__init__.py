@@ -3,7 +3,14 @@
 >>> scene = load_scene("scenes/sts_sinusoidal_grid.toml", overrides=["process.spindle_rpm=100"])
 
 Unknown keys, wrong types and non-physical values raise :class:`SceneError` naming the
-key (dotted path), what is allowed and the value received.
+key (dotted path), what is allowed and the value received.  Retired keys are rewritten
+into their successors with a :class:`~render_inspect.core.deprecation.DeprecatedKeyWarning`.
+
+The schema is assembled from the registries: ``[design]`` from the design types,
+``[process]`` from the process kinds, ``[render]`` from the instruments, and the sections
+the process modules define (``[machine]``, ``[material]``, ``[rcse]``,
+``[artifacts.burrs]``, ``[artifacts.vibration]``, ...) from
+:func:`~render_inspect.processes.scene_sections`.
 """
 
 from __future__ import annotations
@@ -18,33 +25,60 @@ from importlib import resources
 from pathlib import Path
 from typing import Iterable
 
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
+from ..core.units import MIB_TO_BYTES
 from ..core.errors import SceneError
 from ..core.section import Section
 from ..design import DesignConfig, design_types
 from ..instruments import InterferometerConfig
-from ..processes import ProcessConfig, StsProcessConfig, process_kinds
+from ..processes import (BurrConfig, MachineConfig, MaterialConfig, ProcessConfig, RcseConfig,
+                         StsProcessConfig, VibrationConfig, migrate_scene, process_kinds)
+from ..processes import scene_sections as registered_sections
 from ..render import DiffuseConfig
-from ._artifacts import ArtifactsConfig, BurrConfig, ServoConfig, VibrationConfig
-from ._machine import MachineConfig, MaterialConfig
 from ._metrology import MetrologyConfig
-from ._rcse import RcseConfig
 from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
            "shipped_scenes", "find_scene", "instrument_config", "scene_sections",
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
-           "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "ServoConfig",
-           "VibrationConfig", "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig",
-           "MaterialConfig"]
+           "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
+           "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
+           "parse_vary", "compare_pair", "variant_scene", "compare_variants"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
 
 
-class Scene(Section):
+def _registered() -> tuple[dict, dict]:
+    """(top-level section -> class, table -> {section -> class}) of the registered
+    sections (``"artifacts.burrs"`` goes into the ``artifacts`` table)."""
+    top, tables = {}, {}
+    for path, cls in registered_sections().items():
+        if "." in path:
+            table, name = path.split(".")
+            tables.setdefault(table, {})[name] = cls
+        else:
+            top[path] = cls
+    return top, tables
+
+
+_TOP, _TABLES = _registered()
+#: tables of registered sections (``[artifacts]``: process errors added to the ideal cut)
+_TABLE_CLASSES = {
+    table: create_model(f"{table.capitalize()}Config", __base__=Section,
+                        __doc__=f"``[{table}]``: " + ", ".join(f"``[{table}.{n}]``" for n in members),
+                        **{n: (c, Field(default_factory=c)) for n, c in members.items()})
+    for table, members in _TABLES.items()}
+#: the ``[artifacts]`` table (burrs, vibration, ...)
+ArtifactsConfig = _TABLE_CLASSES.get("artifacts")
+
+
+class _SceneBase(Section):
+    """A scene: the design, the tool, the process and how to simulate, render and
+    characterise the part."""
+
     name: str = Field("scene", max_length=200, description="shown in titles and program headers")
     description: str = Field("", max_length=10_000)
     design: DesignConfig
@@ -52,11 +86,13 @@ class Scene(Section):
     process: ProcessConfig = Field(default_factory=StsProcessConfig)
     simulation: SimulationConfig = Field(default_factory=SimulationConfig)
     render: RenderConfig = Field(default_factory=RenderConfig)
-    artifacts: ArtifactsConfig = Field(default_factory=ArtifactsConfig)
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
-    rcse: RcseConfig = Field(default_factory=RcseConfig)
-    machine: MachineConfig = Field(default_factory=MachineConfig)
-    material: MaterialConfig = Field(default_factory=MaterialConfig)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _retired_keys(cls, data):
+        """Rewrite retired keys into their successors (the process modules' migrations)."""
+        return migrate_scene(data) if isinstance(data, dict) else data
 
     @model_validator(mode="after")
     def _cross_checks(self):
@@ -73,6 +109,14 @@ class Scene(Section):
 
     def with_overrides(self, overrides: Iterable[str]) -> "Scene":
         return scene_from_dict(apply_overrides(self.to_dict(), overrides))
+
+
+#: the scene schema: the sections above, the tables of registered sections and the
+#: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
+Scene = create_model(
+    "Scene", __base__=_SceneBase, __doc__=_SceneBase.__doc__,
+    **{t: (c, Field(default_factory=c)) for t, c in _TABLE_CLASSES.items()},
+    **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
 
 
 def _shown(value, limit: int = 80) -> str:
@@ -210,7 +254,7 @@ def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
 
 
 #: largest scene file read, bytes
-MAX_SCENE_BYTES = 4 * 2 ** 20
+MAX_SCENE_BYTES = 4 * MIB_TO_BYTES
 #: deepest nesting of tables and arrays in a scene (the schema needs 5)
 MAX_SCENE_DEPTH = 32
 
@@ -314,7 +358,8 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
 
 def shipped_scenes() -> dict[str, Path]:
     """The scenes that ship with the package (the seed papers' cases): name -> path."""
-    root = resources.files("render_inspect") / "scenes"
+    # the package by its own name (render_inspect, or the copy inside the Blender extension)
+    root = resources.files(__package__.rpartition(".")[0]) / "scenes"
     return {p.name[:-5]: Path(str(p)) for p in sorted(root.iterdir(), key=lambda q: q.name)
             if p.name.endswith(".toml")}
 
@@ -356,7 +401,7 @@ def read_scene_text(path: Path) -> str:
     except OSError as err:
         raise SceneError(f"scene file {str(path)!r} cannot be read ({err.strerror or err})") from None
     if len(raw) > MAX_SCENE_BYTES:
-        raise SceneError(f"scene file {str(path)!r} is larger than {MAX_SCENE_BYTES // 2 ** 20} MiB; "
+        raise SceneError(f"scene file {str(path)!r} is larger than {MAX_SCENE_BYTES // MIB_TO_BYTES} MiB; "
                          f"a scene is a short TOML text")
     try:
         text = raw.decode("utf-8")
@@ -404,3 +449,7 @@ def _resolve_paths(design, base: Path):
             design["path"] = str((base / p).resolve())
     for k in ("base", "feature"):
         _resolve_paths(design.get(k), base)
+
+
+# the compared variants of a scene (they build scenes with the functions above)
+from ._variants import compare_pair, compare_variants, parse_vary, variant_scene  # noqa: E402

@@ -12,6 +12,7 @@ import annotated_types as at
 from pydantic import BaseModel
 from pydantic_core import PydanticUndefined
 
+from ..processes import retired_keys
 from . import Scene
 
 __all__ = ["scene_reference_markdown"]
@@ -177,4 +178,12 @@ def scene_reference_markdown() -> str:
             _union(path, sub, lines)
         else:
             _section(path, sub, lines)
+    retired = retired_keys()
+    if retired:
+        lines += ["## Retired keys", "",
+                  "Still accepted, with a warning naming the key to use instead; they will be "
+                  "removed.", "", "| key | use instead | where it applied |", "|---|---|---|"]
+        for old, (new, note) in retired.items():
+            lines.append(f"| `{old}` | {f'`{new}`' if new else '(nothing: ignored)'} | {note} |")
+        lines.append("")
     return "\n".join(lines).rstrip() + "\n"

@@ -30,9 +30,9 @@ from ._rcse import (
 )
 from ._scallop import feed_for_scallop, max_feed_for_scallop, plan_feed, scallop_height
 from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
-from ._tool import Tool
+from ._tool import Tool, pass_margin
 
-__all__ = ["ToolPath", "LinearProgram", "Tool", "spiral_ccps", "chordal_error",
+__all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "spiral_ccps", "chordal_error",
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
            "plan_turning", "region_radii", "max_curvature", "plan_memory", "turning_point_count",

@@ -1,10 +1,20 @@
-"""Tool accessibility (seed 000 eq. 4-5, seed 001): can the tool reach every point?
+"""Tool accessibility (Li et al. 2018 [1]_, eq. 4-5; the compound sinusoidal grid paper
+[2]_): can the tool reach every point?
 
 Checks on the radial sections (the tool edge lies in the radial plane):
 1. nose radius <= the smallest radius of curvature of concave radial sections;
 2. included angle >= 2 x the largest radial slope angle (the nose flanks must not hit);
 3. clearance angle > the largest slope angle seen in the cutting direction
    (circumferential), so the flank face does not rub.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
+.. [2] "Compound sinusoidal grid surface" machined by slow tool servo diamond turning
+       (the project's copy lacks authors, journal and year: docs/references.md).
 """
 
 from __future__ import annotations

@@ -10,10 +10,11 @@ import numpy as np
 from ..core.errors import AccessibilityError, InputError
 from ..core.limits import Driver, check_memory, format_number
 from ..core.toolpath import ToolPath
+from ..core.units import MIB_TO_BYTES, MIN_TO_S
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
 from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
-from ._tool import Tool
+from ._tool import Tool, pass_margin
 
 __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count",
            "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES"]
@@ -23,7 +24,7 @@ __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count
 #: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py).
 PLAN_BYTES_PER_POINT = {"z": 144, "none": 144, "normal": 200}
 #: Bytes planning holds whatever the path's length (curvature and accessibility grids).
-PLAN_FIXED_BYTES = 16 * 2 ** 20
+PLAN_FIXED_BYTES = 16 * MIB_TO_BYTES
 
 
 def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
@@ -112,8 +113,9 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     inner_radius : float
         mm; the spiral stops there.
     chordal_tolerance : float, optional
-        mm; bound on the linearisation error (seed 001): the CCP spacing is shortened to
-        L = sqrt(8 R' h - 4 h^2) for the smallest radius of curvature R' of the region.
+        mm; bound on the linearisation error (the compound sinusoidal grid paper): the CCP
+        spacing is shortened to L = sqrt(8 R' h - 4 h^2) for the smallest radius of
+        curvature R' of the region.
     region : (x0, y0, x1, y1), optional
         Only the revolutions whose tool arcs can reach ``region`` are generated (the spiral
         keeps the phase of the full path from ``workpiece_radius``).
@@ -139,9 +141,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
     blank = (-Rw, -Rw, Rw, Rw)
     area = tuple(region) if region is not None else blank
     slope = surface.max_slope(area)
-    # passes farther than 2 Rc m + f from a pixel never form the envelope there
-    # (machining/_envelope.py); keep two more revolutions as margin
-    margin = min(tool.half_width, 2.2 * tool.nose_radius * slope + f) + 2 * f
+    margin = pass_margin(tool, slope, f)
     r_in, r_out = region_radii(area, margin) if region is not None else (0.0, Rw)
     reach = (r_in, r_out)
     r_in = max(r_in, inner_radius)
@@ -247,7 +247,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
         k = int(np.argmax(g))
         meta["gouge_max_mm"] = float(g[k])
         meta["gouge_worst_at_mm"] = [float(rho_tip[k] * np.cos(theta[k])), float(rho_tip[k] * np.sin(theta[k]))]
-    omega = TWO_PI * spindle_rpm / 60.0
+    omega = TWO_PI * spindle_rpm / MIN_TO_S  # rpm -> rad/s
     t = theta / omega
     meta["time_s"] = float(t[-1] - t[0]) if t.size else 0.0
     meta["build_s"] = time.perf_counter() - t0

@@ -1,15 +1,25 @@
-"""Tool-radius compensation of turning paths (seed 000 eq. 6-8, seed 001 eq. 5-8).
+"""Tool-radius compensation of turning paths (Li et al. 2018 [1]_, eq. 6-8; the compound
+sinusoidal grid paper [2]_, eq. 5-8).
 
 ``none``: the tool tip follows the design, z_tip = F(rho).
 ``normal``: the tool centre sits at CCP + Rc n along the surface normal projected into
-    the cutting (radial) plane; rho moves as well as z.  Seed 001's 3-D form
-    (n_o = n_c - (n_c . n_p) n_p) reduces to seed 000's radial form
-    rho' = rho - Rc sin(phi), z' = F + Rc cos(phi) - Rc (tan phi = dF/drho) because the
-    tangential part of the normal is exactly what the projection removes.
+    the cutting (radial) plane; rho moves as well as z.  The 3-D form of the compound
+    sinusoidal grid paper (n_o = n_c - (n_c . n_p) n_p) reduces to the radial form of Li et
+    al. (2018), rho' = rho - Rc sin(phi), z' = F + Rc cos(phi) - Rc (tan phi = dF/drho),
+    because the tangential part of the normal is exactly what the projection removes.
 ``z``: rho is kept; the tool is lifted in Z until the nose arc touches the radial section:
     z' = max_u [F(u) - (Rc - sqrt(Rc^2 - (u - rho)^2))], |u - rho| <= w.  This is the
     paper's implicit equation solved robustly (several competing contacts are handled
     because the global maximum is taken).
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
+.. [2] "Compound sinusoidal grid surface" machined by slow tool servo diamond turning
+       (the project's copy lacks authors, journal and year: docs/references.md).
 """
 
 from __future__ import annotations
@@ -33,7 +43,7 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
 def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
                    chunk: int = 32_768) -> np.ndarray:
-    """Tool-tip Z for Z-direction compensation (seed 000 eq. 7-8), mm.
+    """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
     ----------
@@ -109,7 +119,8 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
 
 
 def normal_compensation(surface, theta, rho, nose_radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Normal-direction compensation (seed 001 eq. 5-8 = seed 000 eq. 6 in a turning set-up).
+    """Normal-direction compensation (the compound sinusoidal grid paper, eq. 5-8; in a
+    turning set-up the same as Li et al. 2018, eq. 6).
 
     Returns (rho_tip, z_tip): the tool centre is P + Rc n_o / |n_o| with
     n_c = (-Fx, -Fy, 1), n_p = (-sin theta, cos theta, 0), n_o = n_c - (n_c . n_p) n_p;

@@ -1,4 +1,4 @@
-"""Rotary-coordinate, shuttling-element (RCSE) spiral tool paths (seed 004).
+"""Rotary-coordinate, shuttling-element (RCSE) spiral tool paths, after the RCSE paper [1]_.
 
 The part is a set of identical elements (spherical dimples or bumps) on concentric rings.
 Instead of modelling the whole surface on a rectangular grid and interpolating cutting
@@ -35,6 +35,12 @@ CCP lies on the nearest point-cloud row, its height interpolated along that row,
 polar radius - the X axis - jitters by up to ``g / 2`` about the spiral; without it, the
 height is interpolated (bilinear or cubic spline) at the exact spiral point and only the
 profile error remains.
+
+References
+----------
+.. [1] "Rotary-coordinate and shuttling-element cutting strategy for ultra-precision
+       diamond turning of optical microstructures," Optica Publishing Group (2024); the
+       project's copy lacks the author list (docs/references.md).
 """
 
 from __future__ import annotations
@@ -47,11 +53,14 @@ import numpy as np
 
 from ..core.errors import InputError, SceneError, check_range
 from ..core.toolpath import ToolPath
+from ..core.units import MIN_TO_S
 from ._build import region_radii
 from ._compensation import normal_compensation, z_compensation
 from ._spiral import chordal_error
 
 TWO_PI = 2.0 * math.pi
+#: ring stride of the integer key of a (ring, element) pair: ring * stride + element
+_RING_KEY_STRIDE = 1_000_000  # not a unit conversion
 
 __all__ = ["RingLayout", "RcseCcps", "PointCloudModel", "rcse_ccps", "conventional_ccps",
            "rcse_toolpath", "paper_layout"]
@@ -262,7 +271,7 @@ class RcseCcps:
         """(m, 4) int array of (ring, element, first, last) CCP index runs on elements,
         in cutting order: the sub-paths that RCSE stitches end to end."""
         on = self.ring >= 0
-        key = np.where(on, self.ring.astype(np.int64) * 1_000_000 + self.element, -1)
+        key = np.where(on, self.ring.astype(np.int64) * _RING_KEY_STRIDE + self.element, -1)
         change = np.flatnonzero(np.diff(key) != 0) + 1
         starts = np.concatenate([[0], change])
         ends = np.concatenate([change - 1, [key.size - 1]])
@@ -522,7 +531,7 @@ def rcse_toolpath(layout: RingLayout, tool, *, workpiece_radius: float, pitch: f
                                  half_width=tool.half_width)
         else:
             rho_t, z_t = normal_compensation(surface, theta, rho, Rc)
-    omega = TWO_PI * spindle_rpm / 60.0
+    omega = TWO_PI * spindle_rpm / MIN_TO_S  # rpm -> rad/s
     meta = dict(ccps.meta)
     # the CCPs are exact, but the axes interpolate linearly between them: chordal error
     if theta.size >= 2:

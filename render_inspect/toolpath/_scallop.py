@@ -1,21 +1,22 @@
 """Residual (scallop) height between neighbouring passes on curved sections, and the
-largest feed that keeps it within a bound (seed 001, eqs. 9-13).
+largest feed that keeps it within a bound (the compound sinusoidal grid paper [1]_,
+eqs. 9-13).
 
 Geometry.  A section of radius R is cut by a nose of radius r whose centres, one feed
 apart, lie on the offset curve at distance r; ``feed`` f is the distance between
-neighbouring tool centres (the chord, as in seed 001).  With u = (f / 2)^2,
+neighbouring tool centres (the chord, as in the paper).  With u = (f / 2)^2,
 s = sqrt(r^2 - u) and the signed curvature k = 1 / R (k > 0 convex: the section bulges
 towards the tool; k < 0 concave, |R| > r; k = 0 flat):
 
-    convex   H = sqrt((R + r)^2 - u) - s - R              (seed 001 eq. 11)
-    concave  H = |R| - sqrt((|R| - r)^2 - u) - s          (seed 001 eq. 10)
-    flat     H = r - s                                    (seed 001 eq.  9)
+    convex   H = sqrt((R + r)^2 - u) - s - R              (eq. 11)
+    concave  H = |R| - sqrt((|R| - r)^2 - u) - s          (eq. 10)
+    flat     H = r - s                                    (eq.  9)
 
 all three are the single expression, free of cancellation for small k,
 
     H = 2 (r - s) / (1 + k s + sqrt((1 + k r)^2 - k^2 u)),
 
-and its inverse (seed 001 eq. 12, f1 - f3) is
+and its inverse (eq. 12, f1 - f3) is
 
     c = (2 (r - H) - k H^2) / (2 (1 + k H)),    f = 2 sqrt(r^2 - c^2).
 
@@ -24,7 +25,12 @@ For a given spacing of the tool centres a concave section leaves the largest sca
 The planner (:func:`plan_feed`) samples the radial sections of a surface, takes at each
 point the largest feed meeting the bound and converts it to the X spacing per revolution
 (feed per rev = f cos(phi), phi the radial slope angle: the tool centres step f along the
-section); the result is the minimum over the points (seed 001 eq. 13).
+section); the result is the minimum over the points (eq. 13).
+
+References
+----------
+.. [1] "Compound sinusoidal grid surface" machined by slow tool servo diamond turning
+       (the project's copy lacks authors, journal and year: docs/references.md).
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ import math
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.units import MM_TO_NM
 
 __all__ = ["scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed"]
 
@@ -74,7 +81,8 @@ def scallop_height(feed, nose_radius: float, curvature=0.0) -> np.ndarray:
 
 def feed_for_scallop(height, nose_radius: float, curvature=0.0) -> np.ndarray:
     """Largest distance f (mm) between tool centres that leaves the residual ``height``
-    (mm, 0 <= H < r) on a section of signed ``curvature`` (1/mm), seed 001 eq. 12."""
+    (mm, 0 <= H < r) on a section of signed ``curvature`` (1/mm): eq. 12 of the compound
+    sinusoidal grid paper."""
     r = float(check_range("nose_radius", nose_radius, 0.0, None, lo_open=True))
     H = np.asarray(height, dtype=np.float64)
     if np.any(H < 0) or np.any(H >= r):
@@ -86,7 +94,8 @@ def feed_for_scallop(height, nose_radius: float, curvature=0.0) -> np.ndarray:
 
 
 def max_feed_for_scallop(height: float, nose_radius: float, curvatures=(0.0,)) -> float:
-    """f <= min over ``curvatures`` of :func:`feed_for_scallop` (seed 001 eq. 13), mm."""
+    """f <= min over ``curvatures`` of :func:`feed_for_scallop` (the compound sinusoidal
+    grid paper, eq. 13), mm."""
     k = np.atleast_1d(np.asarray(curvatures, dtype=np.float64))
     if k.size == 0:
         raise InputError("curvatures must hold at least one value")
@@ -116,7 +125,7 @@ def plan_feed(surface, *, nose_radius: float, scallop_bound: float, r_outer: flo
         ``feed_per_rev_mm`` (X spacing per revolution), ``feed_mm_per_min`` (or None),
         ``centre_spacing_mm`` (f along the section at the limiting point),
         ``limiting_point_mm`` (x, y), ``limiting_curvature_per_mm``,
-        ``limiting_slope_deg``, ``flat_feed_mm`` (seed 001 eq. 9 alone),
+        ``limiting_slope_deg``, ``flat_feed_mm`` (compound sinusoidal grid paper, eq. 9 alone),
         ``scallop_bound_nm``, ``curvature_range_per_mm`` (min, max sampled).
     """
     r = float(check_range("nose_radius", nose_radius, 0.0, None, lo_open=True))
@@ -150,5 +159,5 @@ def plan_feed(surface, *, nose_radius: float, scallop_bound: float, r_outer: flo
             "limiting_curvature_per_mm": float(k[i]),
             "limiting_slope_deg": float(math.degrees(math.atan(abs(slope[i])))),
             "flat_feed_mm": float(feed_for_scallop(scallop_bound, r, 0.0)),
-            "scallop_bound_nm": float(scallop_bound) * 1e6,
+            "scallop_bound_nm": float(scallop_bound) * MM_TO_NM,
             "curvature_range_per_mm": [float(np.min(k)), float(np.max(k))]}

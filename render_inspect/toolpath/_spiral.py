@@ -1,9 +1,19 @@
 """Spiral cutting-contact points (CCPs): constant angle, constant arc length, hybrid.
 
 The spiral is Archimedean and runs inward: rho(theta) = r_outer - f_rev theta / (2 pi),
-theta cumulative from 0 (seed 000).  The spindle turns at constant speed, so the time of
-a point is t = theta / omega whatever the sampling (a PVT controller takes the uneven
-time steps of the arc-length samplings).
+theta cumulative from 0 (Li et al. 2018 [1]_).  The spindle turns at constant speed, so the
+time of a point is t = theta / omega whatever the sampling (a PVT controller takes the
+uneven time steps of the arc-length samplings).  The hybrid sampling and the chordal-error
+bound are those of the compound sinusoidal grid paper [2]_.
+
+References
+----------
+.. [1] D. Li, Z. Qiao, K. Walton, Y. Liu, J. Xue, B. Wang, X. Jiang, "Theoretical and
+       experimental investigation of surface topography generation in slow tool servo
+       ultra-precision machining of freeform surfaces," Materials 11(12), 2566 (2018).
+       :DOI:`10.3390/ma11122566`
+.. [2] "Compound sinusoidal grid surface" machined by slow tool servo diamond turning
+       (the project's copy lacks authors, journal and year: docs/references.md).
 """
 
 from __future__ import annotations
@@ -27,6 +37,8 @@ def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
 
 
 SAMPLINGS = ("constant_angle", "constant_arc", "hybrid")
+#: a last step shorter than this fraction of the first is a duplicate end point
+_DUPLICATE_RTOL = 1e-9  # not a unit conversion
 
 
 def _subdivide(th: np.ndarray, steps: np.ndarray, reps: np.ndarray) -> np.ndarray:
@@ -55,7 +67,7 @@ def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
     sampling : {"constant_angle", "constant_arc", "hybrid"}
         Constant angle (``points_per_rev`` per revolution), constant arc length
         (``arc_length`` mm apart), or hybrid: constant arc length outside
-        ``switch_radius``, constant angle inside (seed 001).
+        ``switch_radius``, constant angle inside (the compound sinusoidal grid paper).
     points_per_rev : int
     arc_length, switch_radius : float, mm
 
@@ -98,7 +110,7 @@ def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
             th_in = theta_sw + dth * np.arange(1, n_in + 1)
             th_in[-1] = min(th_in[-1], theta_end)
             theta = np.concatenate([th_arc, th_in])
-    if theta.size > 2 and theta[-1] - theta[-2] < 1e-9 * (theta[1] - theta[0]):
+    if theta.size > 2 and theta[-1] - theta[-2] < _DUPLICATE_RTOL * (theta[1] - theta[0]):
         theta = theta[:-1]  # the end clamp left a duplicate point
     rho = r_outer - c * theta
     rho = np.maximum(rho, r_inner)
@@ -107,7 +119,7 @@ def spiral_ccps(*, feed_per_rev: float, r_outer: float, r_inner: float = 0.0,
 
 def chordal_step_for(tolerance: float, radius_of_curvature: float) -> float:
     """Largest CCP spacing L whose chord stays within ``tolerance`` of a section of radius
-    R' (seed 001): L = sqrt(8 R' h - 4 h^2)."""
+    R' (the compound sinusoidal grid paper): L = sqrt(8 R' h - 4 h^2)."""
     h, R = float(tolerance), abs(float(radius_of_curvature))
     if not np.isfinite(R) or R <= 0:
         return math.inf

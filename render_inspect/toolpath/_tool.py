@@ -42,3 +42,17 @@ class Tool:
     def half_width(self) -> float:
         """Radial half-width of the cutting arc, Rc sin(included / 2), mm."""
         return self.nose_radius * math.sin(min(self.included_angle / 2, math.pi / 2))
+
+
+def pass_margin(tool: Tool, max_slope: float, feed_per_rev: float) -> float:
+    """Radial distance (mm) around a region within which a turning pass can still cut it.
+
+    A pass farther than 2 Rc m + f / 2 from a point never forms the envelope there (m the
+    largest radial slope, f the feed per revolution: the proven pass window of
+    ``machining/_envelope.py``), nor farther than the nose arc's half-width.  The margin
+    takes 2.2 Rc m + f, capped by :attr:`Tool.half_width`, plus two more revolutions.  The
+    planner keeps the radii of the region widened by it, and the memory estimates count
+    the revolutions over them.
+    """
+    f = float(feed_per_rev)
+    return min(tool.half_width, 2.2 * tool.nose_radius * max_slope + f) + 2 * f

@@ -4,7 +4,7 @@ stacked line panels.
 Writing a simulation's outputs should cost less than the simulation.  matplotlib takes
 about 0.5 s to import and 0.2-0.4 s per figure on the 2-core benchmark machine; these
 figures take a few tens of milliseconds.  The data are small by construction: the map
-is an area-averaged preview (``render_inspect.io._pyramid.preview``) and the line panels
+is an area-averaged preview (:func:`render_inspect.io.preview`) and the line panels
 are per-bin minimum / maximum envelopes, so single-point spikes stay visible.
 
 Colour maps are linear interpolations of ColorBrewer's 11-class diverging "RdBu"
@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._atomic import atomic_write_bytes
+from ..io import atomic_write_bytes
+
+__all__ = ["map_png", "panels_png", "CMAPS"]
 
 #: ColorBrewer RdBu (11 classes), from blue (low) to red (high)
 _RDBU_R = ["#053061", "#2166ac", "#4393c3", "#92c5de", "#d1e5f0", "#f7f7f7", "#fddbc7", "#f4a582", "#d6604d",
@@ -47,7 +49,7 @@ def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
 
 
 def _fmt(v: float, step: float | None = None) -> str:
-    if v == 0 or (step is not None and abs(v) < 1e-9 * step):
+    if v == 0 or (step is not None and abs(v) < 1e-9 * step):  # not a unit conversion
         return "0"
     if step is not None and 1e-4 <= abs(v) < 1e6 and step >= 1e-6:
         txt = f"{v:.{max(0, -math.floor(math.log10(step)) + 1)}f}"
@@ -58,7 +60,7 @@ def _fmt(v: float, step: float | None = None) -> str:
 def _offset(lo: float, hi: float) -> float:
     """A value to subtract from tick labels whose range is tiny against their size."""
     big = max(abs(lo), abs(hi))
-    if big > 0 and hi - lo < 1e-3 * big:
+    if big > 0 and hi - lo < 1e-3 * big:  # not a unit conversion
         q = 10.0 ** (math.floor(math.log10(hi - lo)) + 1)
         return round((lo + hi) / 2 / q) * q
     return 0.0
@@ -99,7 +101,7 @@ def map_png(path: str | Path, data: np.ndarray, *, extent, title: str = "", labe
     if vmax is None:
         vmax = float(d[finite].max()) if finite.any() else 1.0
     if vmax <= vmin:
-        vmax = vmin + (abs(vmin) or 1.0) * 1e-6
+        vmax = vmin + (abs(vmin) or 1.0) * 1e-6  # not a unit conversion
     lut = _lut(cmap)
     idx = np.clip(((d - vmin) / (vmax - vmin) * 255 + 0.5), 0, 255)
     rgb = lut[np.where(finite, idx, 0).astype(np.uint8)]

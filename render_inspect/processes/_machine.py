@@ -1,27 +1,35 @@
-"""``[machine]`` and ``[material]``: the turning machine's dynamics and error motions, and
-the workpiece material's response (docs/machine_and_material.md).
+"""``[machine]`` and ``[material]``: the turning machine's dynamics and error motions
+(:mod:`render_inspect.machining._axes`), and the workpiece material's response to the cut
+(:mod:`render_inspect.machining._material`); docs/machine_and_material.md.
 
-Both start from a preset; every key left out keeps the preset's value.  ``preset =
-"ideal"`` (the default) is the commanded geometry: no dynamics, no error motions, no
-material response, exactly the result of a scene without these sections.
+Both start from a preset (the names are the presets of :mod:`render_inspect.machining`);
+every key left out keeps the preset's value.  ``preset = "ideal"`` (the default) is the
+commanded geometry: no dynamics, no error motions, no material response, exactly the
+result of a scene without these sections.  Scene units (nm, urad, deg) become the
+machining units (mm, rad) here.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from pydantic import Field, model_validator
 
+from ..core.errors import InputError, SceneError
 from ..core.section import OrInfinity, Section
+from ..core.units import NM_TO_MM, URAD_TO_RAD
+from ..machining import (
+    MACHINE_PRESET_NAMES,
+    MATERIAL_PRESET_NAMES,
+    machine_preset,
+    material_preset,
+    material_response,
+)
+from ._registry import register_section
 
 __all__ = ["MachineConfig", "MaterialConfig", "LinearAxisConfig", "SpindleAxisConfig",
-           "ErrorMotionsConfig", "CouplingConfig", "MACHINE_PRESET_NAMES",
-           "MATERIAL_PRESET_NAMES"]
-
-#: the machine presets of :mod:`render_inspect.machining` (kept equal by a test)
-MACHINE_PRESET_NAMES = ("ideal", "sts_lathe", "fts")
-#: the material presets of :mod:`render_inspect.machining` (kept equal by a test)
-MATERIAL_PRESET_NAMES = ("ideal", "al6061", "al6082", "ofhc_copper", "nip", "die_steel")
+           "ErrorMotionsConfig", "CouplingConfig", "machine_of", "material_of"]
 
 
 class LinearAxisConfig(Section):
@@ -113,8 +121,8 @@ class MaterialConfig(Section):
         props = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction", "adhesion_layer_nm",
                  "adhesion_roughness_nm", "texture_nm")
         if self.preset == "ideal" and any(getattr(self, k) is not None for k in props):
-            raise ValueError("preset must name a material (al6061, al6082, ofhc_copper, nip, "
-                             "die_steel) when material properties are set; 'ideal' has none")
+            raise ValueError(f"preset must name a material ({', '.join(MATERIAL_PRESET_NAMES[1:])}) "
+                             "when material properties are set; 'ideal' has none")
         return self
 
     def overrides(self) -> dict:
@@ -122,3 +130,92 @@ class MaterialConfig(Section):
         keys = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction", "adhesion_layer_nm",
                 "adhesion_roughness_nm", "texture_nm")
         return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+
+# ---------------------------------------------------------------------------------------
+# sections -> machining objects (scene units -> mm, rad)
+# ---------------------------------------------------------------------------------------
+def _linear_axis(cfg) -> dict:
+    d = {}
+    for k, v in cfg.model_dump(exclude_none=True).items():
+        if k == "bandwidth_hz":
+            d[k] = None if math.isinf(v) else v
+        elif k == "noise_nm":
+            d["noise_rms"] = v * NM_TO_MM
+        elif k == "velocity_limit_mm_s":
+            d["velocity_limit"] = v
+        elif k == "acceleration_limit_mm_s2":
+            d["acceleration_limit"] = v
+        else:
+            d[k] = v
+    return d
+
+
+def _spindle_axis(cfg) -> dict:
+    d = {}
+    for k, v in cfg.model_dump(exclude_none=True).items():
+        if k == "bandwidth_hz":
+            d[k] = None if math.isinf(v) else v
+        elif k == "noise_urad":
+            d["noise_rms"] = v * URAD_TO_RAD
+        else:
+            d[k] = v
+    return d
+
+
+def _errors(cfg) -> dict:
+    d = {}
+    for k, v in cfg.model_dump(exclude_none=True).items():
+        if k in ("radial_sync", "axial_sync", "tilt_sync"):   # nm (urad for tilt), deg
+            scale = URAD_TO_RAD if k == "tilt_sync" else NM_TO_MM
+            d[k] = tuple((int(n), a * scale, math.radians(p)) for n, a, p in v)
+        elif k in ("radial_async_nm", "axial_async_nm"):
+            d[k.replace("_nm", "_rms")] = v * NM_TO_MM
+        elif k == "x_straightness_nm":
+            d["x_straightness_rms"] = v * NM_TO_MM
+        elif k == "vibration":
+            d[k] = tuple((f, a * NM_TO_MM, direction, math.radians(p)) for f, a, direction, p in v)
+        else:
+            d[k] = v
+    return d
+
+
+def machine_of(cfg: "MachineConfig"):
+    """The :class:`~render_inspect.machining.Machine` of a ``[machine]`` section."""
+    ov = {k: getattr(cfg, k) for k in ("servo_rate_hz", "interpolation", "fts_sync")
+          if getattr(cfg, k) is not None}
+    for k in ("x", "z", "fts"):
+        d = _linear_axis(getattr(cfg, k))
+        if d:
+            ov[k] = d
+    d = _spindle_axis(cfg.c)
+    if d:
+        ov["c"] = d
+    d = _errors(cfg.errors)
+    if d:
+        ov["errors"] = d
+    d = cfg.coupling.model_dump(exclude_none=True)
+    if d:
+        ov["coupling"] = d
+    try:
+        return machine_preset(cfg.preset, ov)
+    except InputError as err:
+        raise SceneError(f"machine (preset {cfg.preset!r}): {err}") from None
+
+
+def material_of(cfg: "MaterialConfig", *, contact=1.0):
+    """The :class:`~render_inspect.machining.MaterialResponse` of a ``[material]`` section
+    at the contact ratio ``contact`` (1 = continuous cutting), or None for
+    ``preset = "ideal"``."""
+    if cfg.preset == "ideal":
+        return None
+    try:
+        mat = material_preset(cfg.preset, cfg.overrides())
+        return material_response(mat, edge_radius=cfg.edge_radius_nm * NM_TO_MM,
+                                 contact_ratio=contact, side_flow=cfg.side_flow)
+    except InputError as err:
+        raise SceneError(f"material (preset {cfg.preset!r}): {err}") from None
+
+
+register_section("machine", MachineConfig)
+register_section("material", MaterialConfig)

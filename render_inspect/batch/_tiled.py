@@ -1,12 +1,12 @@
 """Tiled, out-of-core simulation of a turning path on Dask: the height map computed tile by
 tile into a chunked Zarr store, its statistics reduced exactly across tiles.
 
-Each tile task (``tile_task``) computes one tile (``render_inspect.machining._tiled``),
+Each tile task (``tile_task``) computes one tile (:func:`render_inspect.machining.compute_tile`),
 reduces its residual to (n, mean, M2, min, max), writes design, machined and residual
 (float32) into the store's chunks of the tile and the tile's part of every pyramid level
 (block sums, exact across tiles), and returns only the small partials.  A second,
 read-only pass over the stored residual gives Sa and a histogram once the global mean and
-range are known (``render_inspect.machining._metrics``).
+range are known (:func:`render_inspect.machining.tile_abs_dev`).
 
 Tiles run on Dask: the threaded scheduler on this machine by default, or a
 ``distributed.Client`` (a ``LocalCluster`` started with ``--workers N`` or a cluster
@@ -25,10 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError
-from ..io._pyramid import block_sums, coarsen, means
-from ..machining._envelope import EnvelopePath, load_kernels
-from ..machining._metrics import merge_moments, tile_abs_dev, tile_moments
-from ..machining._tiled import TILE, Tile, compute_tile, plan_tiles
+from ..io import block_sums, coarsen, means
+from ..machining import (TILE, EnvelopePath, Tile, compute_tile, load_kernels, merge_moments,
+                         plan_tiles, tile_abs_dev, tile_moments)
+
+__all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 
 #: histogram bins of the residual (pass 2)
 BINS = 1024
@@ -231,7 +232,7 @@ def _load_kernels() -> bool:
 
 
 @contextlib.contextmanager
-def dask_client(*, workers: int | None = None, scheduler: str | None = None):
+def tile_client(*, workers: int | None = None, scheduler: str | None = None):
     """The Dask client tiles run on: None (the threaded scheduler of this process) when
     neither is given; a ``LocalCluster`` of ``workers`` single-threaded processes; or the
     cluster whose scheduler listens at ``scheduler`` (``tcp://host:8786``).

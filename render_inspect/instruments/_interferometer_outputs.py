@@ -1,0 +1,117 @@
+"""The interference microscope as a registered instrument: what it images
+(:func:`~render_inspect.instruments.render_interferogram`), the field it looks at, the
+memory it needs, and the files it writes (``interferogram.exr``, the fringe image and the
+ray-traced height map) with its summary."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..core.limits import Driver
+from ..core.units import MM_TO_NM
+from ..io import atomic_write_bytes, png_bytes_with_text
+from ._interferometer import (
+    InterferometerConfig,
+    interferometer_geometry,
+    interferometer_memory,
+    render_interferogram,
+    write_interferogram_exr,
+)
+from ._registry import register_instrument
+
+__all__ = ["write_interferogram_outputs", "interferogram_summary", "interferometer_needs",
+           "interferometer_field", "rendered_settings"]
+
+
+def interferogram_summary(ig) -> dict:
+    """What ``render_metrics.json`` and ``compare``'s metrics say of an interferogram."""
+    return {"mode": ig.mode, "objective": ig.objective, "shape": list(ig.shape),
+            "frames": int(ig.frames.shape[0]), "pixel_mm": ig.pixel,
+            "origin_mm": list(ig.origin), "wavelength_nm": ig.wavelength_nm,
+            "bandwidth_nm": ig.bandwidth_nm, "numerical_aperture": ig.numerical_aperture,
+            "subsamples": ig.subsamples, "noise": ig.noise, "seed": ig.seed,
+            "z_ref_mm": ig.z_ref, "valid_fraction": float(np.mean(ig.valid)),
+            "surface": ig.surface, "mitsuba_variant": ig.variant}
+
+
+def write_interferogram_outputs(out, ig, *, scene: dict | None = None) -> tuple[dict, dict]:
+    """Write ``interferogram.exr`` and ``interferogram_fringes.png`` (the intensity frame,
+    row 0 = smallest y drawn at the bottom, invalid pixels red) into ``out``; return the
+    summary and the figure of the ray-traced height (``interferogram_height.png``:
+    false-colour ``height_true - z_ref`` in nm)."""
+    out = Path(out)
+    write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
+    g = np.clip(ig.intensity, 0, 1)[::-1]
+    rgb = np.repeat(g[..., None], 3, axis=2)
+    inval = ~ig.valid[::-1]
+    rgb[inval] = (0.8, 0.1, 0.1)
+    atomic_write_bytes(out / "interferogram_fringes.png",
+                       png_bytes_with_text((rgb * 255 + 0.5).astype(np.uint8),
+                                           {"mitsuba_variant": ig.variant, "mode": ig.mode,
+                                            "wavelength_nm": ig.wavelength_nm,
+                                            "numerical_aperture": ig.numerical_aperture,
+                                            "pixel_size_mm": ig.pixel, "seed": ig.seed,
+                                            "software_version": __version__}))
+    h_nm = (ig.height_true - ig.z_ref) * MM_TO_NM
+    figures = {"interferogram_height.png": {
+        "kind": "map", "data": np.where(ig.valid, h_nm, np.nan), "extent": ig.extent,
+        "title": f"ray-traced height ({ig.surface}), {ig.objective} NA {ig.numerical_aperture:g}",
+        "label": "height - z_ref (nm)", "cmap": "turbo"}}
+    return interferogram_summary(ig), figures
+
+
+def rendered_settings(ig, icfg) -> dict:
+    """The interferometer settings as rendered: the scene's keys with the preset values
+    resolved (wavelength, NA, pixel, field of view)."""
+    d = icfg.model_dump(mode="json")
+    d.update(wavelength_nm=ig.wavelength_nm, numerical_aperture=ig.numerical_aperture,
+             pixel=ig.pixel, field_of_view=list(ig.meta.get("window_mm", [])),
+             bandwidth_nm=ig.bandwidth_nm, camera_pixels=list(ig.shape))
+    if d.get("reference_height") is None:
+        d["reference_height"] = ig.z_ref
+    if ig.mode == "psi":
+        d.pop("scan_step_nm", None)
+        d.pop("bandwidth_nm", None)
+    else:
+        d.pop("steps", None)
+        d.pop("step_rad", None)
+    return d
+
+
+def interferometer_field(grid, icfg) -> dict:
+    """The field the interferometer images on ``grid`` (:func:`interferometer_geometry`),
+    with ``settings``: ``icfg`` fixed on that field (the same image from a crop of the
+    map)."""
+    geom = interferometer_geometry(grid, icfg)
+    window = tuple(float(v) for v in geom["window"])
+    return {**geom, "window": list(window),
+            "settings": icfg.model_copy(update={"field_of_view": window})}
+
+
+def interferometer_needs(grid, icfg, *, slope=None) -> tuple[int, str, list]:
+    """(bytes, what, drivers) of the interferometer over ``grid`` (a height map's grid):
+    the rays, frames and mesh of its field (:func:`interferometer_memory`); ``slope`` is
+    called with the traced window to get the design's largest slope (rad) when the
+    sub-sampling is automatic."""
+    geom = interferometer_geometry(grid, icfg)
+    x0, y0, x1, y1 = geom["window"]
+    ny, nx = grid.shape
+    cells = min(ny * nx, int(((x1 - x0) / grid.pixel + 5) * ((y1 - y0) / grid.pixel + 5)))
+    max_slope = slope(geom["trace_window"]) if (icfg.subsamples is None and slope is not None) \
+        else None
+    nbytes = interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=max_slope)
+    what = (f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
+            f"{icfg.subsamples}^2 rays each)")
+    drivers = [Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),
+               Driver("render.interferometer.pixel", geom["pixel"], -2, "mm")]
+    return nbytes, what, drivers
+
+
+# the interference microscope with its hooks (its schema class is defined, and first
+# registered, in render_inspect.instruments._interferometer)
+register_instrument("interferometer", InterferometerConfig, render=render_interferogram,
+                    write=write_interferogram_outputs, field=interferometer_field,
+                    memory=interferometer_needs, frames=True)

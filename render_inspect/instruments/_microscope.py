@@ -1,0 +1,217 @@
+"""The interference microscope as an instrument: what it is (:class:`Microscope`: objective,
+illumination, source, camera, reflectances) and what disturbs a measurement
+(:class:`Disturbances`: scanner miscalibration and nonlinearity, vibration, the reference
+mirror's figure), with the sampling the imaging model needs
+(:func:`recommended_subsamples`).  The image they form is :mod:`._imaging`'s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+from ..core.errors import check_range
+from ..core.units import NM_TO_MM
+from ._camera import Camera
+from ._objectives import OBJECTIVES, Objective
+from ._sources import Source, monochromatic
+from ._transfer import flat_moments, linear_itf
+
+__all__ = ["Disturbances", "Microscope", "recommended_subsamples"]
+
+
+@dataclass(frozen=True)
+class Microscope:
+    """The interference microscope: objective, illumination, source, camera.
+
+    Attributes
+    ----------
+    objective : Objective
+        Default the 20x preset (NA 0.4).
+    source : Source
+        Default :func:`monochromatic` 550 nm, 10 nm FWHM (PSI).  Use :func:`led` for CSI.
+    camera : Camera
+    illumination_na : float or None
+        Condenser (illumination) NA, 0 .. objective NA; None fills the pupil (Koehler
+        illumination with the aperture stop open), 0 is a single on-axis plane wave.
+    reflectance : float
+        Power reflectance of the part (0..1].
+    reference_reflectance : float
+        Power reflectance of the reference mirror (0..1]; equal to ``reflectance`` for
+        balanced beams.
+    """
+
+    objective: Objective = OBJECTIVES["20x"]
+    source: Source = field(default_factory=lambda: monochromatic(550.0, bandwidth_nm=10.0))
+    camera: Camera = field(default_factory=Camera)
+    illumination_na: float | None = None
+    reflectance: float = 1.0
+    reference_reflectance: float = 1.0
+
+    def __post_init__(self):
+        na = self.objective.numerical_aperture
+        if self.illumination_na is not None:
+            check_range("illumination_na", self.illumination_na, 0, na)
+        check_range("reflectance", self.reflectance, 0, 1, lo_open=True)
+        check_range("reference_reflectance", self.reference_reflectance, 0, 1, lo_open=True)
+
+    @property
+    def na(self) -> float:
+        return float(self.objective.numerical_aperture)
+
+    @property
+    def na_ill(self) -> float:
+        return self.na if self.illumination_na is None else float(self.illumination_na)
+
+    @property
+    def obscuration(self) -> float:
+        return float(self.objective.central_obscuration)
+
+    def effective_wavelength_nm(self) -> float:
+        """Fringe wavelength on a flat mirror, ``4 pi / K_eff`` (nm): the NA factor."""
+        k, w = self.source.sample(dk=self._dk_fine())
+        k_eff, _ = flat_moments(self.na, self.na_ill, self.obscuration, k, w)
+        return 4 * math.pi / k_eff / NM_TO_MM
+
+    def itf(self, frequency) -> np.ndarray:
+        """Instrument transfer function in the linear regime (:func:`linear_itf`) at
+        ``frequency`` (cycles/mm), without the camera pixel's box filter."""
+        return linear_itf(self.na, self.na_ill, self.obscuration, self.source, frequency)
+
+    def coherence_sigma(self) -> float:
+        """Rms width of the axial frequency for a flat mirror, rad/mm."""
+        k, w = self.source.sample(dk=self._dk_fine())
+        return flat_moments(self.na, self.na_ill, self.obscuration, k, w)[1]
+
+    def _dk_fine(self) -> float:
+        k_lo, k_hi = self.source.wavenumber_range()
+        return max((k_hi - k_lo) / 400, 1e-3)
+
+    def describe(self) -> dict:
+        """Plain numbers (recorded in the frames' settings)."""
+        return {"objective": self.objective.describe(), "source": self.source.describe(),
+                "camera": self.camera.describe(), "illumination_na": self.na_ill,
+                "reflectance": float(self.reflectance),
+                "reference_reflectance": float(self.reference_reflectance)}
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """Disturbances of the measurement (all off by default).
+
+    Attributes
+    ----------
+    step_error : float
+        Relative miscalibration of the phase shifter / scanner: it moves
+        ``(1 + step_error)`` times the nominal distance.
+    step_nonlinearity : float
+        Quadratic phase-shifter error (PSI): the actual phase shift is
+        ``delta (1 + step_error + step_nonlinearity * delta / (2 pi))``.
+    vibration_amplitude_nm : float
+        Amplitude of a sinusoidal vibration of the part along the optical axis, nm.
+    vibration_frequency_hz : float
+        Its frequency, Hz; the phase is drawn from the measurement's seed.
+    frame_rate_hz : float
+        Camera frame rate, Hz (frame ``f`` starts at ``f / frame_rate_hz``).
+    exposure_time_s : float or None
+        Integration time of each frame, s (None: ``1 / frame_rate_hz``); the intensity
+        is averaged over it (8 sub-steps).
+    reference_figure_rms_nm : float
+        Rms of the reference mirror's figure error, nm: smooth random (Gaussian
+        correlation), drawn from ``reference_figure_seed`` (a property of the
+        objective).  It adds to the measured height with the opposite sign.
+    reference_figure_correlation_mm : float
+        Correlation length of that figure, mm.
+    reference_figure_seed : int
+    """
+
+    step_error: float = 0.0
+    step_nonlinearity: float = 0.0
+    vibration_amplitude_nm: float = 0.0
+    vibration_frequency_hz: float = 0.0
+    frame_rate_hz: float = 100.0
+    exposure_time_s: float | None = None
+    reference_figure_rms_nm: float = 0.0
+    reference_figure_correlation_mm: float = 0.02
+    reference_figure_seed: int = 0
+
+    def __post_init__(self):
+        check_range("step_error", self.step_error, -0.5, 0.5)
+        check_range("step_nonlinearity", self.step_nonlinearity, -0.5, 0.5)
+        check_range("vibration_amplitude_nm", self.vibration_amplitude_nm, 0, 1e4)
+        check_range("vibration_frequency_hz", self.vibration_frequency_hz, 0, 1e6)
+        check_range("frame_rate_hz", self.frame_rate_hz, 0, 1e6, lo_open=True)
+        if self.exposure_time_s is not None:
+            check_range("exposure_time_s", self.exposure_time_s, 0, 1.0 / self.frame_rate_hz,
+                        lo_open=True)
+        check_range("reference_figure_rms_nm", self.reference_figure_rms_nm, 0, 1e3)
+        check_range("reference_figure_correlation_mm", self.reference_figure_correlation_mm, 0,
+                    None, lo_open=True)
+
+    def describe(self) -> dict:
+        return asdict(self)
+
+    def reference_figure(self, shape, pixel: float) -> np.ndarray | None:
+        """The reference mirror's figure error on the camera grid, mm (None if off)."""
+        if self.reference_figure_rms_nm <= 0:
+            return None
+        rng = np.random.default_rng([int(self.reference_figure_seed), 0x524546])  # "REF"
+        white = rng.standard_normal(shape)
+        sig = self.reference_figure_correlation_mm / pixel / math.sqrt(2)
+        w = gaussian_filter(white, sig, mode="wrap")
+        w -= w.mean()
+        rms = float(np.sqrt(np.mean(w * w)))
+        return w * (self.reference_figure_rms_nm * NM_TO_MM / rms) if rms > 0 else np.zeros(shape)
+
+    def positions(self, nominal_mm: np.ndarray, *, seed: int, origin_mm: float | None = None,
+                  scale: bool = True):
+        """Actual scanner positions during each frame's exposure, mm.
+
+        Parameters
+        ----------
+        nominal_mm : (N,) float
+            Nominal positions.
+        origin_mm : float, optional
+            Where the actuator's travel starts (default the first nominal position).
+        scale : bool
+            Apply ``step_error`` to the travel (False when the caller already has).
+
+        Returns
+        -------
+        (N, T) float64: T = 1 without vibration, else 8 sub-steps of the exposure.
+        """
+        z = np.asarray(nominal_mm, dtype=np.float64)
+        z0 = float(z[0]) if origin_mm is None else float(origin_mm)
+        if scale:
+            z = z0 + (z - z0) * (1.0 + self.step_error)
+        if self.vibration_amplitude_nm <= 0 or self.vibration_frequency_hz <= 0:
+            return z[:, None]
+        rng = np.random.default_rng([int(seed), 0x564942])  # "VIB"
+        phase0 = rng.uniform(0, 2 * math.pi)
+        texp = self.exposure_time_s if self.exposure_time_s is not None else 1.0 / self.frame_rate_hz
+        t = (np.arange(z.size)[:, None] / self.frame_rate_hz
+             + texp * (np.arange(8)[None, :] + 0.5) / 8)
+        v = self.vibration_amplitude_nm * NM_TO_MM * np.sin(
+            2 * math.pi * self.vibration_frequency_hz * t + phase0)
+        return z[:, None] + v
+
+
+def recommended_subsamples(pixel: float, microscope: Microscope, *, max_slope: float | None = None) -> int:
+    """Sub-samples per pixel side that sample the surface for this microscope.
+
+    The larger of (a) Nyquist sampling of the highest spatial frequency the pupil passes,
+    ``(NA + NA_ill) / lambda`` at the short end of the spectrum (1st percentile of the
+    power), and (b) less than half a fringe of ``K h`` between sub-samples on slopes up
+    to ``max_slope`` (rad; default the largest slope that can return light).
+    """
+    k, w = microscope.source.sample(dk=microscope._dk_fine())
+    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
+    f_cut = k_hi * (microscope.na + microscope.na_ill) / (2 * math.pi)
+    s_res = math.ceil(2 * pixel * f_cut - 1e-9)
+    slope_lim = 0.5 * (math.asin(microscope.na) + math.asin(microscope.na_ill))
+    slope = slope_lim if max_slope is None else min(float(max_slope), slope_lim)
+    s_slope = math.ceil(pixel * 2 * k_hi * math.tan(slope) / math.pi - 1e-9)
+    return int(max(1, s_res, s_slope))

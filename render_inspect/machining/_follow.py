@@ -1,0 +1,144 @@
+"""A turning program followed by a machine: every axis through its servo
+(:mod:`render_inspect.machining._axes`), the fast tool servo timed by the spindle angle or
+the clock, the X slide's reaction force and the error motions, and the following error
+that is left."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
+from ._axes import Machine, follow_axis, servo_ticks
+from ._errmotion import apply_error_motions
+from ._interpolate import check_program, linear_command, pvt_command
+
+__all__ = ["FollowedPath", "follow_turning", "following_error_stats"]
+
+
+@dataclass
+class FollowedPath:
+    """The path a turning machine really follows.
+
+    Attributes
+    ----------
+    t, theta, rho, z : (m,) arrays
+        Tick times (s) and the tool-tip position relative to the part (rad cumulative,
+        mm, mm) after the servos and the error motions: what the envelope cuts.
+    commanded : dict
+        The interpolated commands at the ticks: ``theta, rho, z, z_slow, z_fts``.
+    errors : dict
+        Following errors (command - followed) at the ticks: ``c`` (rad), ``x``, ``z``
+        (Z slide), ``fts`` (mm).
+    ideal : bool
+        True when the program was returned unchanged (ideal machine).
+    machine : Machine
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    rho: np.ndarray
+    z: np.ndarray
+    commanded: dict
+    errors: dict
+    ideal: bool
+    machine: Machine
+
+    def following_error(self) -> dict:
+        """:func:`following_error_stats` of this path."""
+        return following_error_stats(self.errors)
+
+
+def following_error_stats(errors: dict) -> dict:
+    """``{x_rms_nm, x_max_nm, z_rms_nm, z_max_nm, c_rms_urad, c_max_urad, fts_rms_nm,
+    fts_max_nm}`` of following-error arrays (mm; rad for ``c``)."""
+    out = {}
+    for k, unit, scale in (("x", "nm", MM_TO_NM), ("z", "nm", MM_TO_NM), ("c", "urad", RAD_TO_URAD),
+                           ("fts", "nm", MM_TO_NM)):
+        e = np.asarray(errors.get(k, np.zeros(1)), dtype=np.float64)
+        e = e[np.isfinite(e)]
+        out[f"{k}_rms_{unit}"] = float(np.sqrt(np.mean(e * e)) * scale) if e.size else 0.0
+        out[f"{k}_max_{unit}"] = float(np.max(np.abs(e)) * scale) if e.size else 0.0
+    return out
+
+
+def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int = 0,
+                   fts_theta=None) -> FollowedPath:
+    """The path a turning program is cut along on ``machine``.
+
+    Parameters
+    ----------
+    t, theta, rho, z : (n,) arrays
+        The program: times (s, increasing), spindle angle C (rad, cumulative), X (mm) and
+        the tool-tip Z (mm, slow slide + FTS).
+    machine : Machine
+    z_fts : (n,) array, optional
+        The fast tool servo's share of ``z`` (mm); the Z slide gets ``z - z_fts``.  None:
+        everything on the Z slide.
+    seed : int
+        Seed of the disturbances and the asynchronous error motions (each axis and error
+        source draws from its own stream derived from it).
+    fts_theta : (n,) array, optional
+        The spindle angle each FTS stroke belongs to (default ``theta``), for
+        position synchronisation.
+
+    Returns
+    -------
+    FollowedPath
+        With the program unchanged when ``machine.ideal``.
+    """
+    t, theta = check_program(t, theta)
+    rho = np.asarray(rho, dtype=np.float64)
+    z = np.asarray(z, dtype=np.float64)
+    if rho.shape != t.shape or z.shape != t.shape:
+        raise InputError(f"theta, rho, z and t must have one length, received {theta.shape}, "
+                         f"{rho.shape}, {z.shape}, {t.shape}")
+    zf_prog = np.zeros_like(z) if z_fts is None else np.asarray(z_fts, dtype=np.float64)
+    if zf_prog.shape != z.shape:
+        raise InputError(f"z_fts must have the path's length {z.size}, received {zf_prog.shape}")
+    zs_prog = z - zf_prog
+    if machine.ideal:
+        zero = np.zeros_like(z)
+        return FollowedPath(t.copy(), theta.copy(), rho.copy(), z.copy(),
+                            {"theta": theta, "rho": rho, "z": z, "z_slow": zs_prog, "z_fts": zf_prog},
+                            {"c": zero, "x": zero, "z": zero, "fts": zero}, True, machine)
+    ss = np.random.SeedSequence(int(seed))
+    s_c, s_x, s_z, s_f, s_e = (int(s.generate_state(1)[0]) for s in ss.spawn(5))
+    rate = machine.servo_rate_hz
+    tk = servo_ticks(float(t[0]), float(t[-1]), rate)
+    kw = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
+    rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
+    rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
+    rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)
+    if z_fts is None:
+        zf_cmd = np.zeros_like(tk)
+        zf = zf_cmd
+    else:
+        if machine.fts_sync == "position":
+            # the FTS evaluates its stroke table at the measured spindle angle
+            th_ref = theta if fts_theta is None else np.asarray(fts_theta, dtype=np.float64)
+            th_meas = np.maximum.accumulate(rc.followed)
+            # time at which the program meant that angle, then the PVT stroke there
+            t_equiv = np.interp(th_meas, th_ref, t)
+            cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
+                linear_command(t, zf_prog, t_equiv)
+            rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)
+        else:
+            rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, **kw)
+        zf_cmd, zf = rf.command, rf.followed
+    theta_f = np.maximum.accumulate(rc.followed)
+    rho_f = rx.followed
+    z_f = rz.followed + zf
+    errors = {"c": rc.error, "x": rx.error, "z": rz.error,
+              "fts": (zf_cmd - zf) if z_fts is not None else np.zeros_like(tk)}
+    commanded = {"theta": rc.command, "rho": rx.command, "z": rz.command + zf_cmd,
+                 "z_slow": rz.command, "z_fts": zf_cmd}
+    if not machine.coupling.none:
+        dz, dy = machine.coupling.deflection(tk, rx.followed)
+        z_f = z_f + dz
+        theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), NM_TO_MM))
+    if machine.errors is not None and not machine.errors.none:
+        theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e)
+    return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)

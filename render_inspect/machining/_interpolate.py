@@ -1,0 +1,112 @@
+"""The interpolator of a turning machine's controller: the program's points (t_i, q_i)
+evaluated as a command q_c(t), v_c(t), a_c(t) at every servo tick (step 1 of the chain in
+:mod:`render_inspect.machining._axes`).
+
+* ``"pvt"`` (position-velocity-time, the interpolation of the compound sinusoidal grid
+  study's Nanoform 250, its Table 3): a cubic Hermite segment between consecutive points, with the velocity at each point the slope of
+  the parabola through it and its two neighbours (one-sided at the ends);
+* ``"linear"`` (G01 blocks): straight segments.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.errors import InputError
+
+__all__ = ["check_program", "pvt_velocities", "pvt_command", "linear_command"]
+
+
+def check_program(t, q) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if t.ndim != 1 or t.shape != q.shape or t.size < 2:
+        raise InputError(f"t and q must be 1-D arrays of one length >= 2, received {t.shape} "
+                         f"and {q.shape}")
+    dt = np.diff(t)
+    bad = np.flatnonzero(~(dt > 0))
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(f"program times must increase strictly; t[{i}] = {t[i]!r} s, "
+                         f"t[{i + 1}] = {t[i + 1]!r} s")
+    if not np.all(np.isfinite(q)):
+        raise InputError("program positions must be finite")
+    return t, q
+
+
+def pvt_velocities(t, q) -> np.ndarray:
+    """Velocity at each program point: slope of the parabola through it and its
+    neighbours (second-order, uneven steps), one-sided (the segment slope) at the ends.
+
+    Parameters
+    ----------
+    t, q : (n,) arrays (s, axis unit), n >= 2
+
+    Returns
+    -------
+    (n,) float64, axis unit / s
+    """
+    t, q = check_program(t, q)
+    s = np.diff(q) / np.diff(t)
+    v = np.empty_like(q)
+    v[0], v[-1] = s[0], s[-1]
+    if q.size > 2:
+        h1 = t[1:-1] - t[:-2]
+        h2 = t[2:] - t[1:-1]
+        v[1:-1] = (h2 * s[:-1] + h1 * s[1:]) / (h1 + h2)
+    return v
+
+
+def _segments(t, tk):
+    i = np.searchsorted(t, tk, side="right") - 1
+    return np.clip(i, 0, t.size - 2)
+
+
+def pvt_command(t, q, tk, *, velocities=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration of the PVT (cubic Hermite) command at ``tk``.
+
+    Parameters
+    ----------
+    t, q : (n,) arrays
+        Program times (s, increasing) and positions.
+    tk : (m,) array, s
+        Evaluation times in [t[0], t[-1]].
+    velocities : (n,) array, optional
+        Velocities at the points (default :func:`pvt_velocities`).
+
+    Returns
+    -------
+    q_c, v_c, a_c : (m,) float64 arrays
+    """
+    t, q = check_program(t, q)
+    v = pvt_velocities(t, q) if velocities is None else np.asarray(velocities, dtype=np.float64)
+    tk = np.asarray(tk, dtype=np.float64)
+    i = _segments(t, tk)
+    h = t[i + 1] - t[i]
+    s = (tk - t[i]) / h
+    q0, q1 = q[i], q[i + 1]
+    m0, m1 = v[i] * h, v[i + 1] * h
+    s2 = s * s
+    s3 = s2 * s
+    pos = (2 * s3 - 3 * s2 + 1) * q0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * q1 + (s3 - s2) * m1
+    vel = ((6 * s2 - 6 * s) * q0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * q1
+           + (3 * s2 - 2 * s) * m1) / h
+    acc = ((12 * s - 6) * q0 + (6 * s - 4) * m0 + (-12 * s + 6) * q1 + (6 * s - 2) * m1) / (h * h)
+    return pos, vel, acc
+
+
+def linear_command(t, q, tk) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration at ``tk`` of straight-line (G01) moves.
+
+    The velocity is the segment's slope (at a point exactly on a program point, the mean
+    of the slopes on either side); the acceleration is zero between points (the
+    velocity steps are impulses: the servo sees them through the change of velocity
+    between its ticks)."""
+    t, q = check_program(t, q)
+    tk = np.asarray(tk, dtype=np.float64)
+    slope = np.diff(q) / np.diff(t)
+    i = _segments(t, tk)
+    pos = q[i] + slope[i] * (tk - t[i])
+    il = np.clip(np.searchsorted(t, tk, side="left") - 1, 0, t.size - 2)
+    vel = 0.5 * (slope[i] + slope[il])
+    return pos, vel, np.zeros_like(pos)

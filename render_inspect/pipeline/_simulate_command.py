@@ -1,0 +1,216 @@
+"""``render-inspect simulate``: the in-memory simulation (:func:`~render_inspect.pipeline.simulate`)
+written into its folder, or, for a map too large for memory, the tiled, out-of-core
+chain: the process's program and the path its nose envelope follows, tiles on Dask into a
+Zarr store (:func:`render_inspect.batch.run_tiles`), the metrics reduced across tiles."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..batch import run_tiles, tile_client
+from ..core.errors import InputError
+from ..core.grid import grid_shape
+from ..core.limits import Driver, format_number, memory_budget
+from ..core.progress import task
+from ..design import make_surface
+from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
+                  export_program, grid_attrs, level_count, set_store_attrs)
+from ..machining import TILE, metrics_from_moments, plan_tiles, prepare_envelope, tiled_bytes
+from ..processes import check_budget, process_of
+from ..report import draw_figure, residual_png
+from ._metrics import tiled_metrics, write_metrics
+from ._simulate import residual_title, simulate, timed, write_simulation
+
+__all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles"]
+
+log = logging.getLogger("render_inspect")
+
+#: samples per second the EXR and previews are written at (the progress bar's estimate)
+_WRITE_RATE = 1e6  # not a unit conversion
+
+
+def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
+                scheduler: str | None = None) -> bool:
+    """Whether ``simulate`` takes the tiled path: when asked (``tiled``, ``workers`` or
+    ``scheduler``), or when the in-memory estimate (the process's ``estimate_memory``)
+    exceeds the memory budget (``simulation.max_memory_gb``, or the automatic share of
+    the memory available: :func:`~render_inspect.core.limits.memory_budget`) and the
+    process can be simulated tile by tile."""
+    if tiled is not None:
+        return bool(tiled)
+    if workers is not None or scheduler:
+        return True
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    return process.tile_refusal(cfg) is None and \
+        process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
+
+
+def run_simulate(scene, out, *, tiled: bool | None = None, workers: int | None = None,
+                 scheduler: str | None = None, tile: int = TILE, overwrite: bool = False) -> dict:
+    """``render-inspect simulate``: heightmap.exr (or heightmap.zarr for maps simulated
+    tile by tile), metrics.json, toolpath.npz, residual.png, kinematics.png.
+
+    The tiled path is taken when the map does not fit the memory budget (or when
+    ``tiled`` is True, or ``workers`` / ``scheduler`` are given): tiles of ``tile``
+    pixels run on Dask (threads of this process; a LocalCluster of ``workers`` processes;
+    or the cluster at ``scheduler``).
+
+    ``out`` is checked and locked before the simulation starts and replaced as a whole
+    when it is complete (:func:`~render_inspect.io.atomic_output_dir`; ``overwrite``
+    allows replacing a folder render_inspect did not write)."""
+    if wants_tiles(scene, tiled=tiled, workers=workers, scheduler=scheduler):
+        return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
+                                  overwrite=overwrite)
+    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
+        t0 = time.perf_counter()
+        sim = simulate(scene)
+        log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
+                 time.perf_counter() - t0)
+        n = sim.heightmap.design.size
+        t0 = time.perf_counter()
+        # EXR (3 float32 channels, compressed) and the previews: ~1 M samples/s on the CI machine
+        with task(f"write the {n:,}-sample height map and previews", total=1.0 + n / _WRITE_RATE,
+                  timed=True):
+            metrics = write_simulation(sim, Path(tmp))
+    r = metrics["residual"]
+    log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
+             time.perf_counter() - t0, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)
+    return metrics
+
+
+def _progress(label: str, step=None):
+    """A progress callback that logs at most every 2 s (and at the end) and advances
+    ``step`` (a :func:`~render_inspect.core.progress.task`: the command line's bar)."""
+    last = [0.0]
+    shown = [0]
+
+    def report(done: int, total: int, elapsed: float):
+        if step is not None and done > shown[0]:
+            step.advance(done - shown[0])
+            shown[0] = done
+        if done == total or elapsed - last[0] >= 2.0:
+            last[0] = elapsed
+            left = elapsed / done * (total - done) if done else float("nan")
+            log.info("%s %d/%d (%.0f %%), %.1f s, about %.0f s left", label, done, total,
+                     100 * done / total, elapsed, left)
+    return report
+
+
+def _tiled_check(simulation, nbytes, *, tile: int, in_flight: int, points: int, workers,
+                 scheduler) -> int:
+    """The memory of a tiled simulation against the budget; the message names ``--tile``
+    (memory grows as its square) and the tiles in flight."""
+    where = ("on the cluster's workers" if scheduler else
+             f"{in_flight} at once" + ("" if workers else " (one per core)"))
+    return check_budget(
+        simulation, nbytes, what=f"the tiled simulation (tiles of {tile} x {tile} pixels, "
+                                 f"{where}; {format_number(points)} path points)",
+        drivers=[Driver("--tile", tile, 2, "pixels", limit=(64, None))],
+        hint="or run fewer tiles at once (--workers) or shrink simulation.region")
+
+
+def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str | None = None,
+                       tile: int = TILE, overwrite: bool = False) -> dict:
+    """The tiled, out-of-core ``simulate`` (see :func:`run_simulate`): heightmap.zarr (with
+    an area-averaged pyramid), metrics.json, scene.json, toolpath.npz, residual.png and
+    the program's figures.  Memory is bounded by the tiles in flight, not by the map.
+
+    ``out`` is checked and locked before the simulation starts, built beside it (the
+    store too: Dask workers on other machines need a file system they share with this
+    one) and swapped in whole when complete (``overwrite``: see
+    :func:`~render_inspect.io.atomic_output_dir`)."""
+    t_all = time.perf_counter()
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    refusal = process.tile_refusal(cfg)
+    if refusal is not None:
+        raise InputError(refusal)
+    traits = process.traits(cfg)
+    sim = scene.simulation
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 65536
+            and tile % 64 == 0):
+        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 65536], received {tile!r}")
+    shape = grid_shape(sim.region, sim.pixel)
+    origin = (float(sim.region[0]), float(sim.region[1]))
+    surface = make_surface(scene.design)
+    in_flight = 1 if scheduler else (workers or os.cpu_count() or 1)
+    # the whole program is planned in memory: its points against the budget first
+    process.precheck(cfg, tuple(sim.region))
+    extra, n_est = process.tiled_memory(cfg)
+    _tiled_check(sim, tiled_bytes(tile, n_est, in_flight=in_flight) + extra, tile=tile,
+                 in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
+    timing = {}
+    # the folder is checked and locked first; the Dask workers start while the path is
+    # planned, and are shut down before the folder is swapped in
+    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp, \
+            tile_client(workers=workers, scheduler=scheduler) as client:
+        t0 = time.perf_counter()
+        plan = process.plan(cfg, surface, region=tuple(sim.region))
+        timing.update(plan.timing)
+        timing["toolpath"] = time.perf_counter() - t0
+        env = process.envelope(cfg, surface, plan)
+        path = env.path
+        if path.points < 2:
+            raise InputError(f"the tool path over simulation.region {list(sim.region)} has "
+                             f"{path.points} point(s), at least 2 are needed: the region lies off "
+                             f"the turned part (process.workpiece_radius, process.inner_radius)")
+        ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width)
+        extra, _ = process.tiled_memory(cfg, plan)
+        est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight) + extra,
+                           tile=tile, in_flight=in_flight, points=path.points, workers=workers,
+                           scheduler=scheduler)
+        levels = level_count(shape)
+        n_tiles = len(plan_tiles(shape, tile))
+        log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...",
+                 f"{shape[0] * shape[1]:,}", n_tiles, tile, tile,
+                 f"scheduler {scheduler}" if scheduler else f"{workers} Dask workers" if workers
+                 else "threads")
+        tmp = Path(tmp)
+        store = str(tmp / "heightmap.zarr")
+        create_heightmap_zarr(store, shape, chunk=tile, levels=levels,
+                              attrs=grid_attrs(sim.pixel, origin, scene.to_dict(), env.meta))
+        t0 = time.perf_counter()
+        with task(f"{traits.name}: cut {n_tiles} tiles", total=n_tiles) as step:
+            stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
+                              levels=levels, tile=tile, client=client,
+                              workers=None if client else workers,
+                              progress=_progress("tiles", step))
+        timing["simulate"] = time.perf_counter() - t0
+        timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
+        residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])
+        metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing)
+        metrics["tiles"] = {"count": stats.tiles, "tile_px": tile, "pyramid_levels": levels,
+                            "scheduler": scheduler or ("LocalCluster" if workers else "threads"),
+                            "workers": workers or (None if scheduler else os.cpu_count()),
+                            "memory_estimate_bytes": est}
+        lo, hi, counts = stats.histogram
+        set_store_attrs(store, residual_histogram={"lo_mm": lo, "hi_mm": hi,
+                                                   "counts": counts.tolist()})
+        z = ZarrHeightMap(store)
+        tw = {}
+        if traits.saves_program:
+            timed(tw, "toolpath.npz", export_program, plan.program, tmp, fmt="npz")
+        k = z.level_for(512)
+        img = z.read("residual", level=k)
+        gx, gy = (np.arange(shape[1]) * sim.pixel, np.arange(shape[0]) * sim.pixel)
+        extent = (origin[0] + gx[0] - sim.pixel / 2, origin[0] + gx[-1] + sim.pixel / 2,
+                  origin[1] + gy[0] - sim.pixel / 2, origin[1] + gy[-1] + sim.pixel / 2)
+        timed(tw, "residual.png", residual_png, tmp / "residual.png", img, 2 ** k, extent=extent,
+              mean_nm=residual["mean_nm"], title=residual_title(scene.name, traits, residual))
+        for name, spec in plan.plots.items():
+            timed(tw, name, draw_figure, spec, tmp / name)
+        timing["write"] = tw
+        timing["total"] = time.perf_counter() - t_all
+        metrics["timing_s"] = dict(timing)
+        write_metrics(tmp, metrics)
+        atomic_write_text(tmp / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", residual["Sq_nm"],
+             residual["Sz_nm"], residual["min_nm"], out)
+    return metrics

@@ -1,0 +1,317 @@
+"""The contract of a process kind: the typed hooks the pipeline calls, and the data that
+flows through them.
+
+A process kind is a subclass of :class:`Process` in one module of this package.  It
+declares
+
+* ``config``: its ``[process]`` schema class (a :class:`~render_inspect.core.section.Section`
+  whose ``kind`` field is a ``Literal`` of the names it answers to);
+* ``inputs``: an :class:`Inputs` dataclass whose fields are the scene sections its hooks
+  read (``process``, ``tool`` and ``simulation`` always; a turning process adds
+  ``machine``, ``material`` and ``burrs``, a sculpturing process ``vibration`` and
+  ``design``).  The pipeline fills it from the scene (:meth:`Process.inputs_of`); the
+  hooks see nothing else of the scene;
+
+and implements the hooks
+
+``plan(cfg, surface, *, region) -> Plan``
+    The machine program and its facts.  ``region`` (mm) limits the program to what can
+    reach that window; None plans the whole part.
+``cut(cfg, surface, plan) -> Cut``
+    The machined and design heights on the simulation grid, and the facts of the cut.
+``estimate_memory(cfg, plan=None) -> int``
+    Bytes a simulation holds at its peak (before planning, and again with the plan).
+``traits(cfg) -> Traits``
+    What the pipeline, the metrology and the reports need to know of the process (its
+    tool marks, the part's outline, the compensation it applies, ...), so that nothing
+    downstream asks which kind it is.
+
+The optional hooks have defaults: ``precheck``, ``program_region``, ``program_header``,
+``program_facts``, ``variants`` (the pair ``compare`` puts side by side) and the tiled
+simulation's ``tile_refusal`` / ``envelope`` / ``tiled_memory``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field, fields
+from typing import ClassVar
+
+import numpy as np
+
+from ..core.marks import ToolMarks
+
+__all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
+           "section"]
+
+
+def section(path: str, **kw):
+    """A field of an :class:`Inputs` subclass filled from the scene section ``path``
+    (dotted, e.g. ``"artifacts.burrs"``) instead of the section named like the field."""
+    return field(metadata={"section": path}, **kw)
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """The scene sections a process's hooks read.
+
+    A process that needs more declares a subclass with one field per further section
+    (named like the section, or :func:`section` for a nested one).
+
+    Attributes
+    ----------
+    name : str
+        The scene's name (titles, program headers).
+    process : Section
+        ``[process]``.
+    tool : Section
+        ``[tool]``.
+    simulation : Section
+        ``[simulation]`` (grid, seed, memory budget).
+    """
+
+    name: str
+    process: object
+    tool: object
+    simulation: object
+
+    @classmethod
+    def of(cls, scene) -> "Inputs":
+        """The sections of ``scene`` this class declares."""
+        values = {}
+        for f in fields(cls):
+            node = scene
+            for part in f.metadata.get("section", f.name).split("."):
+                node = getattr(node, part)
+            values[f.name] = node
+        return cls(**values)
+
+    def replace(self, **sections) -> "Inputs":
+        """A copy with some sections replaced (e.g. another ``simulation`` region)."""
+        return dataclasses.replace(self, **sections)
+
+
+@dataclass
+class Plan:
+    """What a process plans before cutting.
+
+    Attributes
+    ----------
+    program : ToolPath or LinearProgram
+        The commanded machine program.
+    facts : dict
+        metrics.json entries (``toolpath`` facts, ...).
+    timing : dict
+        Seconds per step.
+    data : dict
+        Values the cut needs that are not part of the program (process-private).
+    plots : dict
+        Figures of the program: file name -> figure spec (:mod:`render_inspect.report`).
+    """
+
+    program: object
+    facts: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    data: dict = field(default_factory=dict)
+    plots: dict = field(default_factory=dict)
+
+
+@dataclass
+class Cut:
+    """The machined surface a process cuts on the simulation grid.
+
+    Attributes
+    ----------
+    machined, design : (ny, nx) float64, mm
+    facts : dict
+        metrics.json entries of the cut (``servo``, ``burrs``, ``vibration``, ...).
+    timing : dict
+        Seconds per step.
+    meta : dict
+        Provenance stored with the height map.
+    followed : ToolPath, optional
+        The path the tool really followed (servo dynamics), when it differs from the plan.
+    plots : dict
+        Figures of the cut: file name -> figure spec (:mod:`render_inspect.report`); they
+        replace the plan's figures of the same name.
+    """
+
+    machined: np.ndarray
+    design: np.ndarray
+    facts: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+    followed: object = None
+    plots: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Traits:
+    """What the rest of the chain needs to know of a process, stated by the process.
+
+    Attributes
+    ----------
+    name : str
+        The process kind (metrics.json ``process``).
+    compensation : str
+        The tool-radius compensation applied (metrics.json ``compensation``; ``"none"``
+        for processes without one).
+    marks : ToolMarks or None
+        The periodic marks it leaves (waviness filters, the diffuse renderer's texture,
+        the expected roughness); None: no periodic marks.
+    axis : (x, y) or None
+        The spindle axis of a turned part (mm): sections of the part are radial about it.
+    part : dict or None
+        The whole part for the macro view (``{"shape": "disc", "center", "radius"}``);
+        None: the simulated region is the part.
+    saves_program : bool
+        ``simulate`` writes the program as ``toolpath.npz`` next to the height map.
+    cut_rate : float
+        Samples per second the cut runs at (the progress bar's estimate).
+    """
+
+    name: str
+    compensation: str = "none"
+    marks: ToolMarks | None = None
+    axis: tuple[float, float] | None = None
+    part: dict | None = None
+    saves_program: bool = False
+    cut_rate: float = 2e6
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """A machined surface that is the envelope of the tool nose along one path and nothing
+    else (what the tiled, out-of-core simulation computes tile by tile).
+
+    Attributes
+    ----------
+    path : ToolPath
+        The path the nose follows (after the machine's dynamics).
+    nose_radius, half_width : float
+        The nose arc, mm.
+    meta : dict
+        Provenance stored with the height map.
+    """
+
+    path: object
+    nose_radius: float
+    half_width: float
+    meta: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One column of ``compare``: the scene with some keys set to other values.
+
+    Attributes
+    ----------
+    name : str
+        Folder and ``metrics.json`` key of the variant (``"compensated"``,
+        ``"vibration_off"``, ...): letters, digits, ``_``, ``-`` and ``.``.
+    label : str
+        What the variant is, for people ("Z compensation", "no vibration").
+    values : dict
+        Dotted scene key -> value (Python; ``None`` allowed) applied to the scene;
+        empty means the scene as given.
+    """
+
+    name: str
+    label: str
+    values: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class VariantPair:
+    """The two variants ``compare`` puts side by side, and why.
+
+    Attributes
+    ----------
+    a, b : Variant
+        Left and right column; the report shows ``a - b``.
+    key : str
+        The scene key (or keys, comma separated) that differ between them.
+    about : str
+        One sentence for the report: what the difference shows.
+    """
+
+    a: Variant
+    b: Variant
+    key: str
+    about: str = ""
+
+    @property
+    def variants(self) -> tuple[Variant, Variant]:
+        return (self.a, self.b)
+
+
+class Process(ABC):
+    """A process kind (see the module docstring).  Register an instance with
+    :func:`~render_inspect.processes.register_process`."""
+
+    #: the ``[process]`` schema class; its ``kind`` Literal names the kinds
+    config: ClassVar[type]
+    #: the scene sections the hooks read
+    inputs: ClassVar[type[Inputs]] = Inputs
+
+    def inputs_of(self, scene) -> Inputs:
+        """The hooks' view of ``scene``: the sections :attr:`inputs` declares."""
+        return self.inputs.of(scene)
+
+    # ---------------------------------------------------------------- required hooks
+    @abstractmethod
+    def plan(self, cfg: Inputs, surface, *, region=None) -> Plan:
+        """The machine program (whole part, or what reaches ``region``) and its facts."""
+
+    @abstractmethod
+    def cut(self, cfg: Inputs, surface, plan: Plan) -> Cut:
+        """The machined and design heights on ``cfg.simulation``'s grid."""
+
+    @abstractmethod
+    def estimate_memory(self, cfg: Inputs, plan: Plan | None = None) -> int:
+        """Bytes the simulation holds at its peak."""
+
+    def traits(self, cfg: Inputs) -> Traits:
+        """What the chain needs to know of this process (default: its name only)."""
+        return Traits(name=cfg.process.kind)
+
+    # ---------------------------------------------------------------- optional hooks
+    def precheck(self, cfg: Inputs, region=None) -> None:
+        """Check the sizes the process's own keys drive against the memory budget before
+        anything is planned (:func:`~render_inspect.processes.check_budget`)."""
+
+    def program_region(self, cfg: Inputs):
+        """The region the ``toolpath`` command plans (None: the whole part)."""
+        return None
+
+    def program_header(self, cfg: Inputs) -> dict:
+        """NC header lines of the program."""
+        return {}
+
+    def program_facts(self, cfg: Inputs, plan: Plan) -> dict:
+        """``toolpath.json`` of the ``toolpath`` command: the plan's facts, with the
+        program's point count at least."""
+        facts = dict(plan.facts)
+        facts.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
+        return facts
+
+    def variants(self, cfg: Inputs) -> VariantPair | None:
+        """The pair ``compare`` puts side by side (None: only ``--vary``)."""
+        return None
+
+    def tile_refusal(self, cfg: Inputs) -> str | None:
+        """Why the scene cannot be simulated tile by tile (None: it can, through
+        :meth:`envelope` and :meth:`tiled_memory`)."""
+        return (f"process.kind = {cfg.process.kind!r} has no tiled simulation (its surface "
+                f"is not the envelope of one tool path); shrink simulation.region or raise "
+                f"simulation.max_memory_gb to simulate it in memory")
+
+    def envelope(self, cfg: Inputs, surface, plan: Plan) -> Envelope:
+        """The path whose nose envelope is the machined surface (tiled simulation)."""
+        raise NotImplementedError(self.tile_refusal(cfg))
+
+    def tiled_memory(self, cfg: Inputs, plan: Plan | None = None) -> tuple[int, int]:
+        """(bytes the process holds besides the tiles, points of its program) of a tiled
+        simulation (estimated before planning when ``plan`` is None)."""
+        raise NotImplementedError(self.tile_refusal(cfg))

@@ -1,0 +1,236 @@
+"""The figures of ``compare``: the difference of the two variants over the common window
+(the first figure), their residual, waviness, interferogram, measured and diffuse-light
+panels, the sections and the axis motion; and the caption written into diffuse images."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.units import MM_TO_NM, MM_TO_UM
+from ._figures import (difference_figure, image_panels, locator_figure, map_panels,
+                       radial_profile_figure)
+from ._format import fmt_quantity, nice_length
+
+__all__ = ["ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption",
+           "srgb", "luminance"]
+
+
+@dataclass
+class ComparedVariant:
+    """One column of a comparison as the figures show it.
+
+    Attributes
+    ----------
+    name, label : str
+    region : (x0, y0, x1, y1)
+        The simulated region, mm.
+    heightmap : HeightMap
+        The simulated map.
+    ig : Interferogram
+        The interferometer's frames of it.
+    maps : dict
+        ``measured_height``, ``measured_residual``, ``error`` on the camera's grid.
+    filtered : array
+        The waviness map (mm) on the height map's grid.
+    diffuse : dict
+        View -> (linear RGB image, its meta).
+    """
+
+    name: str
+    label: str
+    region: tuple
+    heightmap: object
+    ig: object
+    maps: dict = field(default_factory=dict)
+    filtered: np.ndarray | None = None
+    diffuse: dict = field(default_factory=dict)
+
+
+def diffuse_caption(meta: dict) -> list[str]:
+    """The lines written into a diffuse image: vertical exaggeration, view and light."""
+    ex = float(meta["vertical_exaggeration"])
+    first = f"heights x{ex:g} (vertical exaggeration)" if ex != 1 else "heights true scale (x1)"
+    light = meta["light"]["type"] + (" + lamp" if meta.get("lamp") else "")
+    return [first, f"{meta['view']} view, {light}"]
+
+
+def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, difference: dict,
+                       window: dict, part: dict, identical: bool, sections: dict,
+                       radial: bool, kinematics) -> dict:
+    """All top-level PNGs of a comparison (name -> bytes).
+
+    Parameters
+    ----------
+    a, b : ComparedVariant
+        The two columns.
+    meas : dict or None
+        The measured file's column (``maps``, ``extent``).
+    difference : dict
+        :func:`render_inspect.metrology.difference_profiles` of the two.
+    window : dict
+        The common window (``window``, ``peak``).
+    part : dict
+        The part's outline.
+    identical : bool
+        The two machined maps are equal (no difference figure, the windows instead).
+    sections : dict
+        Label -> :func:`render_inspect.metrology.sections` of that map.
+    radial : bool
+        The sections are radial about a spindle axis.
+    kinematics : bytes or None
+        The axis-motion figure.
+    """
+    figs = {}
+    hm = a.heightmap
+    ig = a.ig
+    names = (a.name, b.name)
+    labels = (a.label, b.label)
+    d = difference
+    true_full = (a.heightmap.machined - b.heightmap.machined) * MM_TO_NM
+    ma, mb = a.maps["measured_height"], b.maps["measured_height"]
+    meas_diff = (ma - mb) * MM_TO_NM
+    ig_ext = ig.extent
+    line = d["line"]
+    along_x = d["along_x"]
+    px, py = d["peak"]
+    x0, y0 = d["metrics"]["window"]["window_mm"][:2]
+    locator = _locator(a, part, window, ig)
+    if not identical:
+        figs["difference"] = difference_figure(
+            names=names, locator=locator, true_diff=d["true_window"], true_extent=d["true_extent"],
+            measured_diff=meas_diff, measured_extent=ig_ext,
+            profile={"s": d["s"] + (x0 if along_x else y0), "true": d["true"], "a": d["a"],
+                     "b": d["b"], "s_measured": d["s_measured"] + (x0 if along_x else y0),
+                     "measured": d["measured"], "line": line,
+                     "axis": f"x (mm) at y = {py:.4g} mm" if along_x
+                     else f"y (mm) at x = {px:.4g} mm",
+                     "title": "profile across the largest difference"},
+            title=f"{labels[0]} ({names[0]}) - {labels[1]} ({names[1]})")
+    else:
+        figs["windows"] = locator_figure(locator)
+    # --- residual maps (full simulated region), one scale
+    res_panels = [(f"{n}: machined - design", v.heightmap.residual * MM_TO_NM)
+                  for n, v in zip(names, (a, b))]
+    exts = [hm.extent, hm.extent]
+    if meas is not None:
+        res_panels.append(("measured file - design (registered)",
+                           meas["maps"]["residual"] * MM_TO_NM))
+        exts.append(meas["extent"])
+    figs["residual_side_by_side"] = map_panels(res_panels, extent=exts, label="residual (nm)",
+                                                 cmap="RdBu_r", symmetric=True)
+    figs["residual_difference"] = map_panels(
+        [(f"machined: {names[0]} - {names[1]}", true_full)], extent=hm.extent,
+        label="height difference (nm)", cmap="RdBu_r", symmetric=True,
+        lines=[(line[0], line[1])])
+    # --- waviness (filtered) maps, one scale, and their difference
+    fa, fb = a.filtered * MM_TO_NM, b.filtered * MM_TO_NM
+    figs["filtered_side_by_side"] = map_panels(
+        [(f"{names[0]}: waviness", fa), (f"{names[1]}: waviness", fb),
+         (f"{names[0]} - {names[1]}", fa - fb)],
+        extent=hm.extent, label="filtered height (nm)", cmap="RdBu_r", symmetric=True)
+    # --- interferometer
+    figs["interferogram_side_by_side"] = image_panels(
+        [(f"{n}: intensity (zero-shift frame)", v.ig.intensity) for n, v in zip(names, (a, b))],
+        extent=ig_ext, gray_label="intensity (0..1)",
+        suptitle=f"Interferograms ({ig.mode.upper()}, {ig.objective}, NA "
+                 f"{ig.numerical_aperture:g}, {ig.wavelength_nm:g} nm, "
+                 f"{ig.pixel * MM_TO_UM:.3g} um pixels)")
+    figs["interferogram_difference"] = map_panels(
+        [(f"{names[0]} - {names[1]}", a.ig.intensity.astype(float) - b.ig.intensity)],
+        extent=ig_ext, label="intensity difference", cmap="RdBu_r", symmetric=True)
+    figs["measured_residual_side_by_side"] = map_panels(
+        [(f"{n}: measured - design", v.maps["measured_residual"] * MM_TO_NM)
+         for n, v in zip(names, (a, b))],
+        extent=ig_ext, label="residual seen by the instrument (nm)", cmap="RdBu_r",
+        symmetric=True)
+    figs["measurement_error_side_by_side"] = map_panels(
+        [(f"{n}: measured - true", v.maps["error"]) for n, v in zip(names, (a, b))],
+        extent=ig_ext, label="height error (nm)", cmap="RdBu_r", symmetric=True)
+    # --- diffuse light
+    (rc, mc), (ru, _) = a.diffuse["micro"], b.diffuse["micro"]
+    x0m, y0m, x1m, y1m = mc["window_mm"]
+    ext = (x0m, x1m, y0m, y1m)
+    figs["diffuse_micro_side_by_side"] = image_panels(
+        [(f"{n}: diffuse micro view", srgb(r)[::-1]) for n, r in zip(names, (rc, ru))],
+        extent=ext, notes=[", ".join(diffuse_caption(mc))] * 2,
+        suptitle=f"Diffuse light ({mc['light']['type']}), straight down, heights exaggerated "
+                 f"{mc['vertical_exaggeration']:g}x")
+    figs["diffuse_difference"] = map_panels(
+        [(f"{names[0]} - {names[1]} (luminance)", (luminance(rc) - luminance(ru))[::-1])],
+        extent=ext, label="linear luminance difference", cmap="RdBu_r", symmetric=True)
+    (rm, mm_), (rmb, _) = a.diffuse["macro"], b.diffuse["macro"]
+    sc = mm_["scale"]["mm_per_px_at_target"]
+    bar = nice_length(0.2 * rm.shape[1] * sc)
+    figs["diffuse_macro_side_by_side"] = image_panels(
+        [(f"{n}: the whole part", srgb(r)) for n, r in zip(names, (rm, rmb))],
+        extent=[(0, r.shape[1], 0, r.shape[0]) for r in (rm, rmb)], axis_labels=False,
+        scale_mm=(bar, bar / sc), notes=[", ".join(diffuse_caption(mm_))] * 2,
+        suptitle=f"The part under the {mm_['light']['type']}"
+                 + (" and a lamp" if mm_.get("lamp") else "")
+                 + f", heights exaggerated {mm_['vertical_exaggeration']:g}x"
+                 + (" (colours: diffraction by the feed marks)"
+                    if mm_["material"].get("grating") else ""))
+    # --- sections
+    figs["sections"] = radial_profile_figure(sections, radial=radial)
+    # --- machine axes
+    if kinematics is not None:
+        figs["kinematics"] = kinematics
+    return figs
+
+
+def _locator(a: ComparedVariant, part: dict, window: dict, ig) -> dict:
+    hm = a.heightmap
+    r = [float(v) for v in a.region]
+    x0, x1, y0, y1 = hm.extent
+    windows = [("simulated region = macro residual patch", (x0, y0, x1, y1), "0.2", "-"),
+               ("interferometer field = common window", tuple(ig.meta.get("window_mm",
+                                                                          window["window"])),
+                "C3", "-"),
+               ("diffuse micro view", tuple(a.diffuse["micro"][1]["window_mm"]), "C0", "--")]
+    pad = 0.04 * max(x1 - x0, y1 - y0)
+    loc = {"part": part if part.get("shape") == "rect" else {}, "windows": windows,
+           "limits": (x0 - pad, x1 + pad, y0 - pad, y1 + pad),
+           "background": (a.heightmap.design, hm.extent)}
+    if part.get("shape") == "disc":
+        R = part["radius"]
+        loc["inset"] = {"part": part, "windows": [("region", tuple(r), "C3", "-")],
+                        "limits": (-1.05 * R, 1.05 * R, -1.05 * R, 1.05 * R)}
+    return loc
+
+
+def srgb(rgb):
+    """Linear RGB -> sRGB (0..1)."""
+    a = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
+    return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
+
+
+def luminance(rgb):
+    """Linear luminance (Rec. 709 weights) of linear RGB."""
+    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+
+
+def comparison_summary(metrics: dict) -> tuple[list, list]:
+    """The headline numbers of a comparison for a one-screen summary: rows
+    (quantity, variant a, variant b) and lines (quantity, text) about the difference."""
+    va, vb = (v["name"] for v in metrics["variants"])
+    a, b = metrics[va], metrics[vb]
+    d = metrics["difference"]
+    w = d.get("window", {})
+    rows = [("variant", a["variant"]["label"], b["variant"]["label"]),
+            ("residual Sq", fmt_quantity(a["residual"]["Sq_nm"], "nm"),
+             fmt_quantity(b["residual"]["Sq_nm"], "nm")),
+            ("residual min (< 0: overcut)", fmt_quantity(a["residual"]["min_nm"], "nm"),
+             fmt_quantity(b["residual"]["min_nm"], "nm")),
+            ("waviness Sq (filtered)", fmt_quantity(a["filtered"].get("Sq_nm"), "nm"),
+             fmt_quantity(b["filtered"].get("Sq_nm"), "nm")),
+            ("instrument height error rms", fmt_quantity(a["measured"].get("rms_nm"), "nm"),
+             fmt_quantity(b["measured"].get("rms_nm"), "nm"))]
+    lines = [(f"{va} - {vb}, simulated region",
+              f"rms {fmt_quantity(d.get('machined_rms_nm'), 'nm')}, "
+              f"PV {fmt_quantity(d.get('machined_pv_nm'), 'nm')}"),
+             (f"{va} - {vb}, common window",
+              f"true rms {fmt_quantity((w.get('true') or {}).get('rms_nm'), 'nm')}, "
+              f"measured rms {fmt_quantity((w.get('measured') or {}).get('rms_nm'), 'nm')}")]
+    return rows, lines

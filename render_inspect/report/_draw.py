@@ -1,0 +1,47 @@
+"""Figures described by data: the stages (a process's plan and cut, an instrument's
+outputs) say what to draw as a *figure spec*, a dict whose ``kind`` names the figure,
+and :func:`draw_figure` draws it into a PNG file.
+
+Kinds: ``"axes"`` (the axes of machine programs that move, ``columns`` of (label,
+program, data); :func:`~render_inspect.report.kinematics_png`), ``"kinematics"`` (X of a
+path against a reference; :func:`~render_inspect.report.plot_kinematics`),
+``"following_error"`` and ``"following_error_map"`` (a machine's following error;
+:mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
+:func:`~render_inspect.report.save_map_png`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ._following import plot_following_error, plot_following_error_map
+from ._kinematics import kinematics_png, plot_kinematics
+from ._maps import save_map_png
+
+__all__ = ["draw_figure", "FIGURE_KINDS"]
+
+#: the figure kinds :func:`draw_figure` draws
+FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map")
+
+
+def draw_figure(spec: dict, png) -> Path:
+    """Draw the figure ``spec`` into the PNG file ``png`` (written atomically)."""
+    kind = spec.get("kind")
+    if kind == "axes":
+        return kinematics_png(spec["columns"], png, axes=spec.get("axes"),
+                              title=spec.get("title", ""))
+    if kind == "kinematics":
+        return plot_kinematics(spec["path"], png, reference=spec.get("reference"),
+                               labels=spec.get("labels", ("", "")), title=spec.get("title"))
+    if kind == "following_error":
+        return plot_following_error(spec["t"], spec["errors"], png, title=spec.get("title"),
+                                    stats=spec.get("stats"))
+    if kind == "following_error_map":
+        return plot_following_error_map(spec["x_nm"], spec["z_nm"], spec["extent"], png,
+                                        title=spec.get("title"))
+    if kind == "map":
+        return save_map_png(png, spec["data"], extent=spec.get("extent"),
+                            title=spec.get("title", ""), label=spec.get("label", ""),
+                            cmap=spec.get("cmap", "viridis"),
+                            symmetric=spec.get("symmetric", False))
+    raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")

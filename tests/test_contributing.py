@@ -1,0 +1,220 @@
+"""docs/contributing.md's examples are tests: the package is copied, each example is
+written into it as the one new file the page says, exactly as printed there, and the
+commands the page names run on it in a fresh interpreter (a new design type, a new
+process kind through ``simulate``, ``toolpath`` and ``compare``, a new instrument through
+``render --kind``, a new program format through ``toolpath --format``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PKG = REPO / "render_inspect"
+DOC = REPO / "docs" / "contributing.md"
+
+#: a small saddle, cut by STS on the ideal machine
+SADDLE_SCENE = """
+name = "saddle"
+[design]
+type = "saddle"
+radius = 200.0
+[process]
+kind = "sts"
+workpiece_radius = 0.5
+spindle_rpm = 50
+feed_mm_per_min = 1
+points_per_rev = 360
+[simulation]
+region = [0.1, 0.1, 0.14, 0.14]
+pixel = 0.002
+"""
+
+#: constant-surface-speed turning of a sinusoidal grid on a lathe with servo dynamics,
+#: with small renders for compare
+CSS_SCENE = """
+name = "css"
+[design]
+type = "sinusoidal_grid"
+amplitude_x = 0.001
+amplitude_y = 0.001
+wavelength_x = 0.5
+wavelength_y = 0.5
+[tool]
+nose_radius = 0.5
+[process]
+kind = "css"
+cutting_speed_mm_s = 5.0
+spindle_rpm = 3000
+feed_mm_per_min = 60
+workpiece_radius = 0.5
+points_per_rev = 360
+[simulation]
+region = [0.1, -0.05, 0.2, 0.05]
+pixel = 0.002
+[machine]
+preset = "sts_lathe"
+[render.interferometer]
+pixel = 0.004
+[render.diffuse]
+resolution = 32
+spp = 2
+"""
+
+
+#: the least a process kind is: a schema class and the three required hooks (no
+#: compensation, no feed, no traits): simulate must run it
+BARE_PROCESS = '''
+from typing import Literal
+
+import numpy as np
+
+from ..core.section import Section
+from ..core.toolpath import LinearProgram
+from ..core.units import NM_TO_MM
+from ..machining import design_grid
+from ._contract import Cut, Plan, Process
+from ._registry import register_process
+
+
+class BareConfig(Section):
+    kind: Literal["bare"]
+
+
+class Bare(Process):
+    config = BareConfig
+
+    def plan(self, cfg, surface, *, region=None):
+        x = np.array([0.0, 1.0])
+        return Plan(LinearProgram(x, 0 * x, 0 * x, x, np.zeros(2, dtype=np.int64)))
+
+    def cut(self, cfg, surface, plan):
+        design = design_grid(surface, cfg.simulation.region, cfg.simulation.pixel)
+        return Cut(design + NM_TO_MM, design)
+
+    def estimate_memory(self, cfg, plan=None):
+        return 0
+
+
+register_process(Bare())
+'''
+
+
+def examples() -> dict[str, str]:
+    """Relative path -> code of every "Create `render_inspect/...py`:" example."""
+    text = DOC.read_text()
+    found = re.findall(r"Create\s+`(render_inspect/[\w/]+\.py)`:\n```python\n(.*?)```", text,
+                       re.S)
+    return dict(found)
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory) -> Path:
+    """A copy of the package with every example of the page added as its own file."""
+    root = tmp_path_factory.mktemp("contributing")
+    shutil.copytree(PKG, root / "render_inspect", ignore=shutil.ignore_patterns("__pycache__"))
+    for rel, code in {**examples(), "render_inspect/processes/_bare.py": BARE_PROCESS}.items():
+        target = root / rel
+        assert not target.exists(), f"{rel}: the example must be a new file"
+        target.write_text(code)
+    return root
+
+
+def _run(package: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(package)
+    return subprocess.run([sys.executable, "-m", "render_inspect.cli", *args, "-q"],
+                          capture_output=True, text=True, cwd=cwd, env=env)
+
+
+def test_the_page_has_the_four_examples():
+    assert sorted(examples()) == ["render_inspect/design/_saddle.py",
+                                  "render_inspect/instruments/_stylus.py",
+                                  "render_inspect/io/_xyz.py",
+                                  "render_inspect/processes/_css.py"]
+
+
+def test_a_new_design_type_is_one_file(package, tmp_path):
+    (tmp_path / "s.toml").write_text(SADDLE_SCENE)
+    r = _run(package, "simulate", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"),
+             cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["scene_name"] == "saddle" and m["residual"]["Sq_nm"] > 0
+
+
+def test_a_process_needs_only_its_three_hooks(package, tmp_path):
+    """No compensation key, no feed, no traits: the chain asks nothing else of it."""
+    scene = SADDLE_SCENE.replace('kind = "sts"', 'kind = "bare"').replace(
+        "workpiece_radius = 0.5\nspindle_rpm = 50\nfeed_mm_per_min = 1\npoints_per_rev = 360\n", "")
+    (tmp_path / "b.toml").write_text(scene)
+    r = _run(package, "simulate", str(tmp_path / "b.toml"), "--out", str(tmp_path / "o"),
+             cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["process"] == "bare" and m["compensation"] == "none"
+    assert m["residual"]["mean_nm"] == pytest.approx(1.0) and m["toolpath"]["points"] == 2
+    assert not (tmp_path / "o" / "toolpath.npz").exists()
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_a_new_process_kind_is_one_file(package, tmp_path):
+    """The constant-surface-speed process: simulate, toolpath and compare end to end."""
+    scene = tmp_path / "css.toml"
+    scene.write_text(CSS_SCENE)
+    r = _run(package, "simulate", str(scene), "--out", str(tmp_path / "sim"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "sim" / "metrics.json").read_text())
+    assert m["process"] == "css" and m["compensation"] == "z" and m["residual"]["Sq_nm"] > 0
+    assert m["machine"]["preset"] == "sts_lathe" and m["following_error"]["x_max_nm"] > 0
+    # the program keeps the cutting speed: rho * dtheta / dt = 5 mm/s where the cap allows
+    r = _run(package, "toolpath", str(scene), "--out", str(tmp_path / "tp"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    tp = np.load(tmp_path / "tp" / "toolpath.npz")
+    speed = tp["rho"][1:] * np.diff(tp["theta"]) / np.diff(tp["t"])
+    assert np.allclose(speed[tp["rho"][1:] > 0.05], 5.0, rtol=0.02)
+    facts = json.loads((tmp_path / "tp" / "toolpath.json").read_text())
+    assert facts["toolpath"]["cut_time_s"] == pytest.approx(tp["t"][-1] - tp["t"][0])
+    r = _run(package, "compare", str(scene), "--out", str(tmp_path / "cmp"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    c = json.loads((tmp_path / "cmp" / "metrics.json").read_text())
+    assert [v["name"] for v in c["variants"]] == ["speed_as_set", "speed_halved"]
+    assert c["pair"]["key"] == "process.cutting_speed_mm_s"
+    assert c["speed_as_set"]["process"] == "css" and (tmp_path / "cmp" / "report.html").is_file()
+
+
+@pytest.mark.mitsuba
+def test_a_new_instrument_is_one_file(package, tmp_path):
+    (tmp_path / "s.toml").write_text(SADDLE_SCENE + "[render.stylus]\ntip_radius = 0.01\n")
+    r = _run(package, "render", str(tmp_path / "s.toml"), "--kind", "stylus",
+             "--out", str(tmp_path / "o"), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    res = json.loads((tmp_path / "o" / "render_metrics.json").read_text())["render"]
+    assert res["stylus"]["tip_radius_mm"] == 0.01 and res["stylus"]["points"] == 21
+    rows = np.loadtxt(tmp_path / "o" / "stylus_profile.csv", delimiter=",", skiprows=1)
+    # the tip rides on the surface: never below it
+    assert np.all(rows[:, 2] >= rows[:, 1] - 1e-12)
+    # and the command line lists it among the kinds
+    r = _run(package, "render", str(tmp_path / "s.toml"), "--kind", "nope", "--out",
+             str(tmp_path / "x"), cwd=tmp_path)
+    assert r.returncode == 2 and "'stylus'" in r.stderr
+
+
+def test_a_new_file_format_is_one_file(package, tmp_path):
+    (tmp_path / "s.toml").write_text(SADDLE_SCENE)
+    for fmt in ("xyz", "npz"):
+        r = _run(package, "toolpath", str(tmp_path / "s.toml"), "--format", fmt,
+                 "--out", str(tmp_path / fmt), cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    xyz = np.loadtxt(tmp_path / "xyz" / "toolpath.xyz")
+    npz = np.load(tmp_path / "npz" / "toolpath.npz")
+    assert np.allclose(xyz, np.column_stack([npz["x"], npz["y"], npz["z"]]), atol=1e-9)
