@@ -16,9 +16,9 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 """
 
 from ._cache import EvaluationCache, scene_hash, task_hash
-from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, noise_floor, set_noise_floor,
-                        predict_features,
-                        prepare_map, radial_psd, residual_vector, soft_l1, waviness)
+from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, noise_floor,
+                        predict_features, prepare_map, radial_psd, realisation_shifts,
+                        residual_vector, set_noise_floor, soft_l1, waviness)
 from ._params import (FreeParameter, free_parameters, get_value, parse_bounds, parse_free,
                       schema_range, set_value)
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
@@ -27,8 +27,9 @@ from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResul
 
 __all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
            "set_value", "get_value", "MisfitSpec", "Target", "Prediction", "FORMS",
-           "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map", "radial_psd", "residual_vector",
-           "soft_l1", "waviness", "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
+           "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map",
+           "radial_psd", "residual_vector", "realisation_shifts", "soft_l1", "waviness",
+           "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
            "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
            "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
            "misfit_maps"]

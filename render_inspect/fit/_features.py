@@ -6,8 +6,8 @@ Three terms, each a vector of residuals of fixed length:
 * ``map``: the waviness of the two maps (each smoothed by an ISO 16610-61 Gaussian filter
   whose cut-off is five feed periods, so the feed marks themselves, whose phase is set by
   where the spiral began, are averaged out; the border of half a cut-off left out; then
-  the form removed), compared point by point on a coarse grid.  Error motions, servo lags and the design's features
-  live here.
+  the form removed), compared point by point on a coarse grid.  Error motions, servo lags
+  and the design's features live here.
 * ``psd``: the areal power spectral density of the two maps (Hann window), averaged in
   bins of log spatial frequency and of direction, compared as log10 (decades).  Invariant
   to translation: registration and phase do not enter.
@@ -15,8 +15,15 @@ Three terms, each a vector of residuals of fixed length:
   spectrum above the waviness band, refined to a small fraction of a bin by the
   power-weighted centroid of the annulus: concentric marks put their power on a ring,
   straight ones on two points of it, and either way the centroid is the frequency) and
-  the amplitudes of its first harmonics (the power in annuli around their multiples).  The frequency gives the feed per
-  revolution, the amplitudes the cusp shape (tool nose radius, minimum chip thickness).
+  the amplitudes of its first harmonics (the power in annuli around their multiples).  The
+  frequency gives the feed per revolution, the amplitudes the cusp shape (tool nose radius,
+  minimum chip thickness).
+
+The random parts of the cut and the camera's noise are not in the predictions (their
+expected value is): their power is added to the predicted PSD as a floor, their effect on
+the harmonics as a gain, and the spread of their realisations widens the scales of the
+``map`` and ``harmonics`` terms (:func:`set_noise_floor`) and gives the fit's second
+standard error (:func:`realisation_shifts`).
 
 Each term's residuals are normalised (``d = difference / sigma``) and enter through the
 soft-L1 (pseudo-Huber) loss ``2 (sqrt(1 + d^2) - 1)`` (quadratic near 0, linear far out),
@@ -36,7 +43,8 @@ from ..core.units import MM_TO_NM, MM_TO_UM
 from ..metrology import gaussian_filter, remove_form
 
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
-           "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor", "set_noise_floor",
+           "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
+           "set_noise_floor",
            "residual_vector", "soft_l1", "robust_weights", "radial_psd",
            "realisation_shifts"]
 
@@ -270,7 +278,8 @@ def harmonic_features(z, *, pixel, k0: float, n: int, ring: float = 0.1):
     return first, np.array(amps)
 
 
-def waviness(z, *, pixel, cutoff: float | None, form: str = "plane", origin=(0.0, 0.0)) -> np.ndarray:
+def waviness(z, *, pixel, cutoff: float | None, form: str = "plane",
+             origin=(0.0, 0.0)) -> np.ndarray:
     """The map smoothed by the Gaussian filter of ``cutoff`` (mm), with the border of half
     a cut-off left out (there the filter would be one-sided and the feed marks' phase would
     leak in), then its form removed (after the filter: a plane fitted through the marks

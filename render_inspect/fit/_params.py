@@ -106,7 +106,8 @@ def parse_bounds(items) -> dict:
         try:
             a, b = (float(p) for p in parts)
         except ValueError:
-            raise InputError(f"--bounds {key}: expects two numbers A,B, received {text!r}") from None
+            raise InputError(f"--bounds {key}: expects two numbers A,B, received "
+                             f"{text!r}") from None
         if not (math.isfinite(a) and math.isfinite(b) and a < b):
             raise InputError(f"--bounds {key}: expects two finite numbers A < B, received {text!r}")
         if key in out:
@@ -227,7 +228,8 @@ def _range_text(lo, hi, lo_open, hi_open) -> str:
             f"{'inf' if hi is None else f'{hi:g}'}{')' if hi_open or hi is None else ']'}")
 
 
-def free_parameters(scene, keys, bounds: dict | None = None, *, defaults=None) -> list[FreeParameter]:
+def free_parameters(scene, keys, bounds: dict | None = None, *,
+                    defaults=None) -> list[FreeParameter]:
     """The free parameters of a fit, checked against the schema.
 
     Parameters

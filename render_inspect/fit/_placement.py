@@ -157,6 +157,7 @@ def check_units(measured_rms_mm: float, predicted_rms_mm: float, *, limit: float
     if not 1.0 / limit < ratio < limit:
         raise InputError(f"unit mismatch: the measured map's rms height (form removed) is "
                          f"{measured_rms_mm * MM_TO_NM:.4g} nm but the scene predicts "
-                         f"{predicted_rms_mm * MM_TO_NM:.4g} nm at its own values (ratio {ratio:.3g}); "
+                         f"{predicted_rms_mm * MM_TO_NM:.4g} nm at its own values (ratio "
+                         f"{ratio:.3g}); "
                          f"the file's height unit is probably wrong, or the scene does not "
                          f"describe this part")

@@ -149,8 +149,8 @@ class Evaluator:
 
         futures = {}
         for k, (x, t) in items:
-            fut = self.client.submit(_timed_compute, self.compute, t, key=f"render-inspect-fit-{k[:16]}",
-                                     pure=False)
+            fut = self.client.submit(_timed_compute, self.compute, t,
+                                     key=f"render-inspect-fit-{k[:16]}", pure=False)
             futures[fut] = (k, x)
         for fut in as_completed(list(futures)):
             k, x = futures[fut]
@@ -395,7 +395,8 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
                 gain = (before - evaluator.best.cost) / max(before, 1e-300)
                 if gain < ftol or rounds >= max_rounds:
                     break
-                u0 = np.clip(np.array([p.to_unit(v) for p, v in zip(params, evaluator.best.values)]),
+                u0 = np.clip(np.array([p.to_unit(v)
+                                       for p, v in zip(params, evaluator.best.values)]),
                              lo + inside, hi - inside)
                 sw[:] = robust_weights(evaluator.best.d)
                 log.info("trust-region round %d gained %.3g of the misfit; starting again from "
@@ -463,7 +464,8 @@ def _profiles(params, evaluator, best, stderr, k):
             pts.append(xx)
             where.append((p.key, float(v)))
     out = {p.key: {"values": [], "misfit": [], "terms": []} for p in params}
-    with progress_task(f"fit: misfit along each parameter ({len(pts)} points)", total=len(pts)) as st:
+    with progress_task(f"fit: misfit along each parameter ({len(pts)} points)",
+                       total=len(pts)) as st:
         evaluator.step = st
         try:
             evs = evaluator.evaluate(pts, budget=False)

@@ -57,12 +57,14 @@ def _weights(items) -> dict:
             if not part.strip():
                 continue
             if "=" not in part:
-                raise InputError(f"--weights expects TERM=W (map, psd, harmonics), received {part!r}")
+                raise InputError(f"--weights expects TERM=W (map, psd, harmonics), received "
+                                 f"{part!r}")
             k, v = part.split("=", 1)
             try:
                 out[k.strip()] = float(v)
             except ValueError:
-                raise InputError(f"--weights {k.strip()} must be a number >= 0, received {v!r}") from None
+                raise InputError(f"--weights {k.strip()} must be a number >= 0, received "
+                                 f"{v!r}") from None
     return out
 
 
@@ -203,8 +205,8 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         sim_pixel /= 2.0
     grow = (MARGIN_PX + 2) * pixel + 2 * sim_pixel
     sim_region = [window[0] - grow, window[1] - grow, window[2] + grow, window[3] + grow]
-    log.info("evaluations simulate %.4g x %.4g mm at a %.3g um pixel", sim_region[2] - sim_region[0],
-             sim_region[3] - sim_region[1], sim_pixel * MM_TO_UM)
+    log.info("evaluations simulate %.4g x %.4g mm at a %.3g um pixel",
+             sim_region[2] - sim_region[0], sim_region[3] - sim_region[1], sim_pixel * MM_TO_UM)
     # evaluations run without the random parts and the camera's noise (their expected
     # value, smooth in the parameters); the power those add is measured on a few
     # realisations and added to the predictions' spectra
@@ -297,15 +299,16 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         record["timing_s"]["total"] = time.perf_counter() - t_all
         record["files"] = {f: d for f, d in _file_notes().items()
                            if f != "predict/" or predict}
+        psd = {"measured": radial_psd(target.height, pixel=target.pixel),
+               "fitted": radial_psd(best.height, pixel=target.pixel)}
+        if drawn is not None:
+            psd["fitted, with the random parts"] = radial_psd(
+                prepare_map(drawn, pixel=target.pixel, form=spec.form, origin=w_origin),
+                pixel=target.pixel)
+        psd["start"] = radial_psd(pred0.height, pixel=target.pixel)
         figs = fit_figures(record, measured=target.height, fitted=best.height,
                            start=pred0.height, measured_wavy=target.wavy, fitted_wavy=best.wavy,
-                           extent=(window[0], window[2], window[1], window[3]),
-                           psd={"measured": radial_psd(target.height, pixel=target.pixel),
-                                "fitted": radial_psd(best.height, pixel=target.pixel),
-                                **({} if drawn is None else {"fitted, with the random parts": radial_psd(
-                                    prepare_map(drawn, pixel=target.pixel, form=spec.form,
-                                                origin=w_origin), pixel=target.pixel)}),
-                                "start": radial_psd(pred0.height, pixel=target.pixel)})
+                           extent=(window[0], window[2], window[1], window[3]), psd=psd)
         for name, png in figs.items():
             (tmp / name).write_bytes(png)
         atomic_write_text(tmp / "fit.html", fit_page(record, figs))

@@ -51,7 +51,8 @@ def machine_settings(cfg) -> dict:
             for k in ("radial_sync", "axial_sync")}
     errs["tilt_sync"] = [[int(n), a * RAD_TO_URAD, math.degrees(p)]
                          for n, a, p in e.get("tilt_sync", ())]
-    for key, name in (("radial_async_nm", "radial_async_rms"), ("axial_async_nm", "axial_async_rms"),
+    for key, name in (("radial_async_nm", "radial_async_rms"),
+                      ("axial_async_nm", "axial_async_rms"),
                       ("x_straightness_nm", "x_straightness_rms")):
         errs[key] = e.get(name, 0.0) * MM_TO_NM
     errs["async_bandwidth_hz"] = e.get("async_bandwidth_hz")

@@ -87,12 +87,21 @@ def fit_page(record: dict, figs: dict) -> str:
     for k, p in record["parameters"].items():
         rel = p.get("relative_stderr")
         rows.append([k, _val(p["value"]), _val(p["stderr"]),
-                     "n/a" if rel is None else f"{100 * rel:.3g} %", _val(p["start"]),
-                     f"{_val(p['bounds'][0])} .. {_val(p['bounds'][1])}"])
-    rep.table(rows, header=["key", "value", "stderr", "relative", "start", "bounds"])
-    rep.text("Standard errors are formal (from the Jacobian at the solution, residuals taken "
-             "as independent); the misfit along each parameter below shows how well each one "
-             "is pinned.")
+                     "n/a" if rel is None else f"{100 * rel:.3g} %",
+                     _val(p.get("stderr_formal")), _val(p.get("stderr_random_parts")),
+                     _val(p["start"]), f"{_val(p['bounds'][0])} .. {_val(p['bounds'][1])}"])
+    rep.table(rows, header=["key", "value", "stderr", "relative", "formal", "random parts",
+                            "start", "bounds"])
+    n = (record.get("uncertainty") or {}).get("realisations", 0)
+    rep.text("The standard error combines the formal one (from the Jacobian at the solution, "
+             "residuals taken as independent: a lower bound) and the spread of the solution "
+             f"over {n} realisations of the random parts and the camera's noise, each taken "
+             "as the measured map; the misfit along each parameter below shows how well each "
+             "one is pinned.")
+    held = (record.get("random_parts") or {}).get("held_at_zero_in_evaluations") or {}
+    if held:
+        rep.text("Random parts held at 0 in the evaluations (their power enters the spectra): "
+                 + ", ".join(f"{k} = {fmt_number(v)}" for k, v in held.items()) + ".")
     keys = list(record["parameters"])
     if len(keys) > 1:
         rep.section("Correlation")
@@ -115,7 +124,10 @@ def fit_page(record: dict, figs: dict) -> str:
     for name, cap in (("maps.png", "Measured and fitted heights (form removed)."),
                       ("residual.png", "Fitted minus measured; right: after the waviness "
                                        "filter that removes the feed marks."),
-                      ("psd.png", "Areal PSD, radially averaged."),
+                      ("psd.png", "Areal PSD, radially averaged: measured, the fitted "
+                                  "expected surface (without the random parts), the same "
+                                  "with one realisation of the random parts and the "
+                                  "camera's noise, and the scene's values."),
                       ("misfit.png", "The misfit along each parameter through the solution "
                                      "(the others held at their fitted values).")):
         if name in figs:
