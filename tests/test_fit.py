@@ -314,6 +314,31 @@ def test_unit_mismatch_is_refused_and_leaves_no_cache(tmp_path, capsys):
     assert not (tmp_path / "out").exists() and not (tmp_path / "out.cache").exists()
 
 
+@pytest.mark.slow
+def test_an_interrupted_fit_keeps_its_cache_and_says_so(tmp_path, monkeypatch, caplog):
+    """Ctrl-C during the fit: the output folder is not made, the evaluations made so far
+    stay in the cache (one line says where) for the same command to resume from (a resumed
+    fit is checked in the nose-radius-and-feed test)."""
+    import logging
+
+    import render_inspect.pipeline._fit as fit_module
+
+    meas = _measured_file(tmp_path / "height.exr")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(fit_module, "solve", interrupted)
+    with caplog.at_level(logging.WARNING, logger="render_inspect"), \
+            pytest.raises(KeyboardInterrupt):
+        run_fit(meas, load_scene("sts_sinusoidal_grid"), ["tool.nose_radius"], tmp_path / "out",
+                window_mm=0.11, profile_points=0)
+    assert not (tmp_path / "out").exists()
+    kept = sorted((tmp_path / "out.cache").glob("*.npz"))
+    assert len(kept) == 7  # the clean prediction and six realisations of the random parts
+    assert any("evaluations made are kept in" in r.getMessage() for r in caplog.records)
+
+
 # ------------------------------------------------------------------ identifiability
 TOOL = ["tool.nose_radius=0.525", "process.feed_mm_per_min=0.51"]
 MACHINE = ["machine.z.delay_s=0.0021",
