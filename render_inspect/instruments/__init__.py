@@ -22,6 +22,7 @@ from ._focus import autofocus
 from ._imaging import interference_intensity, normals_from_heights
 from ._modes import csi_frames, psi_frames
 from ._interferometer import (
+    MAX_AUTO_SUBSAMPLES,
     Interferogram,
     InterferometerConfig,
     disturbances_from_config,
@@ -56,6 +57,7 @@ from ._transfer import (
 import_private_modules(__name__, __path__, skip=("_registry",))
 
 __all__ = [
+    "MAX_AUTO_SUBSAMPLES",
     "OBJECTIVES",
     "PHASE_CONVENTION",
     "Camera",

@@ -40,6 +40,7 @@ from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, conten
 from ._sources import led, monochromatic, spectrum_table
 
 __all__ = [
+    "MAX_AUTO_SUBSAMPLES",
     "DEFAULT_CSI_BANDWIDTH_NM",
     "DEFAULT_CSI_WAVELENGTH_NM",
     "DEFAULT_PSI_BANDWIDTH_NM",

@@ -9,7 +9,8 @@ asks nothing of a process but its hooks.
 
 ``simulate`` (scene -> plan -> cut -> height map and metrics), ``run_simulate``,
 ``run_toolpath``, ``run_render``, ``run_compare``, ``run_analyze``, ``run_measure``,
-``run_characterise``, ``run_demo``, ``run_sweep`` (many points on Dask), ``run_regress``
+``run_characterise``, ``run_demo``, ``run_fit`` (a measured surface -> the scene's
+settings), ``run_sweep`` (many points on Dask), ``run_regress``
 (the image regression suite); the Blender add-on's ``simulate_variants``,
 ``render_variant``, ``compare_scene``, ``export_variant`` (and ``surfaces_into_blender``,
 ``load_render_images`` to show their results in Blender).  Every ``metrics.json`` is
@@ -32,6 +33,7 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
                        expected_sq_mm, parse_vary, preview_render_configs, run_compare,
                        variant_scene)
 from ._demo import DEMO_SCENE, run_demo
+from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
 from ._measure import (analyze_summary, measure_and_evaluate, measure_summary,
                        measurement_outputs, read_frames, run_measure)
 from ._metrics import simulation_metrics
@@ -67,4 +69,4 @@ __all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "w
            "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_failure",
            "sweep_morris",
            "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
-           "check_render_limits"]
+           "check_render_limits", "run_fit", "predict_measurement", "preset_value", "FIT_FILES"]

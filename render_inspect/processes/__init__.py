@@ -33,6 +33,8 @@ from ._registry import (
     scene_sections,
 )
 from ._sculpt import SculptProcessConfig, VibrationConfig, lattice_lines
+from ._settings import (RANDOM_PART_KEYS, machine_settings, material_settings, preset_settings,
+                        random_parts)
 from ._servo import ServoProcessConfig
 from ._sts import StsProcessConfig
 from ._turning import (
@@ -60,4 +62,5 @@ __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", 
            "SculptProcessConfig", "RcseProcessConfig", "RcseConfig", "MachineConfig",
            "MaterialConfig", "BurrConfig", "VibrationConfig", "machine_of", "material_of",
            "turn", "rcse_comparison", "lattice_lines", "compensation_variants",
-           "toolpath_facts", "plan_spiral"]
+           "toolpath_facts", "plan_spiral", "machine_settings", "material_settings",
+           "preset_settings", "random_parts", "RANDOM_PART_KEYS"]

@@ -12,6 +12,7 @@ from ._draw import FIGURE_KINDS, draw_figure
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
                        line_panels, locator_figure, lowpass_map, map_panels, png_bytes,
                        radial_profile_figure)
+from ._fit import fit_figures, fit_page, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length
 from ._html import HtmlReport, data_uri, table_html
@@ -35,4 +36,4 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
-           "luminance"]
+           "luminance", "fit_figures", "fit_page", "psd_figure"]

@@ -1,0 +1,110 @@
+"""Benchmark: ``render-inspect fit`` - forward-model evaluations per second and the time to a
+fit.
+
+The case is the one of ``tests/test_fit.py`` on the shipped defaults: the sinusoidal-grid
+scene (``sts_sinusoidal_grid``, sts_lathe machine and Al 6082 with their random parts) cut
+with a tool nose radius of 0.525 mm and a feed of 0.51 mm/min, imaged over a 0.2 x 0.2 mm
+field (centre 0.35 mm from the axis) by the 20x virtual interferometer and measured; then
+fitted from the shipped values (0.514 mm, 0.5 mm/min).
+
+Figures (printed and returned by :func:`main`):
+
+* ``evaluation_s``: one evaluation (simulate the 0.22 mm window at 0.5 um, image 227 x 227
+  camera pixels at 3 x 3 sub-samples, measure), median of 5 in this process;
+* ``evaluations_per_s``: its inverse; ``dask_evaluations_per_s``: a batch of 8 evaluations
+  on a LocalCluster of 2 workers (after the workers' start);
+* ``fit_s``, ``fit_evaluations``: the two-parameter fit (serial, its six realisations of
+  the random parts included), its result, error and standard error.
+
+Run: ``.venv/bin/python benchmarks/bench_fit.py`` (or ``make bench ONLY=fit``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+FIELD = (0.25, -0.1, 0.45, 0.1)
+TRUTH = {"tool.nose_radius": 0.525, "process.feed_mm_per_min": 0.51}
+
+
+def _truth(folder: Path) -> Path:
+    from render_inspect.pipeline import run_measure, run_render
+    from render_inspect.scene import load_scene
+
+    x0, y0, x1, y1 = FIELD
+    m = 0.03
+    scene = load_scene("sts_sinusoidal_grid", [
+        *[f"{k}={v}" for k, v in TRUTH.items()], "simulation.pixel=0.0005",
+        f"simulation.region=[{x0 - m}, {y0 - m}, {x1 + m}, {y1 + m}]",
+        f"render.interferometer.field_of_view=[{x0}, {y0}, {x1}, {y1}]"])
+    run_render(scene, folder / "render", kind="interferometer")
+    run_measure(folder / "render" / "interferogram.exr", folder / "measure")
+    return folder / "measure" / "height.exr"
+
+
+def main() -> dict:
+    from render_inspect.batch import dask_client
+    from render_inspect.pipeline import predict_measurement, preset_value, run_fit
+    from render_inspect.scene import load_scene
+
+    out = {"cpus": os.cpu_count(), "load_average": os.getloadavg()[0]}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        meas = _truth(tmp)
+        scene = load_scene("sts_sinusoidal_grid")
+        t0 = time.perf_counter()
+        rec = run_fit(meas, scene, [",".join(TRUTH)], tmp / "fit", seed=1, profile_points=0,
+                      cache=tmp / "cache")
+        out["fit_s"] = round(time.perf_counter() - t0, 1)
+        out["fit_evaluations"] = rec["evaluations"]
+        out["fit_per_evaluation_s"] = round(rec["timing_s"]["per_evaluation"], 3)
+        for k, v in TRUTH.items():
+            got = rec["parameters"][k]["value"]
+            out[f"fit_{k}"] = got
+            out[f"fit_{k}_error_percent"] = round(100 * (got - v) / v, 4)
+            out[f"fit_{k}_stderr_percent"] = round(100 * rec["parameters"][k]["stderr"] / v, 4)
+        # single evaluations: the task of the fit's solution, its seed moved so that the
+        # cache is not used
+        fitted = json.loads((tmp / "fit" / "fit.json").read_text())
+        from render_inspect.fit import set_value
+
+        d = scene.to_dict()
+        for k, v in {**TRUTH, **{k: 0.0 for k in fitted["random_parts"]
+                                  ["held_at_zero_in_evaluations"]}}.items():
+            set_value(d, k, v, fill=lambda key: preset_value(scene, key))
+        d["simulation"]["region"] = fitted["simulation"]["region_mm"]
+        d["simulation"]["pixel"] = fitted["simulation"]["pixel_mm"]
+        icfg = load_scene("sts_sinusoidal_grid").render.interferometer.model_dump(mode="json")
+        icfg.update(pixel=fitted["measured"]["pixel_mm"], noise=False,
+                    field_of_view=fitted["placement"]["window_mm"],
+                    subsamples=fitted["instrument"]["subsamples"])
+        d["render"]["interferometer"] = icfg
+        spec = {"scene": d, "seed": 7}
+        predict_measurement(spec)
+        times = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            predict_measurement(spec)
+            times.append(time.perf_counter() - t0)
+        out["evaluation_s"] = round(statistics.median(times), 3)
+        out["evaluations_per_s"] = round(1 / statistics.median(times), 3)
+        with dask_client(workers=2) as client:
+            client.gather(client.map(predict_measurement, [spec, spec], pure=False))  # warm
+            t0 = time.perf_counter()
+            client.gather(client.map(predict_measurement, [spec] * 8, pure=False))
+            dt = time.perf_counter() - t0
+        out["dask_workers"] = 2
+        out["dask_evaluations_per_s"] = round(8 / dt, 3)
+    out["load_average_after"] = os.getloadavg()[0]
+    print(json.dumps(out, indent=2))
+    return out
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main() else 1)

@@ -1,0 +1,35 @@
+"""Fitting the scene to a measured surface: which tool, feed, machine and material settings
+produced it.
+
+Arrays and numbers in, numbers out, like :mod:`render_inspect.metrology`: the forward model
+(the cut and the virtual instrument) is handed in as a function, so this package needs no
+import of the simulation itself (``render_inspect.pipeline`` chains it).
+
+* :func:`free_parameters`: the free scene keys, their start values and their bounds from the
+  scene's schema (:mod:`._params`);
+* :class:`MisfitSpec`, :func:`make_target`, :func:`residual_vector`: the robust misfit with
+  its spectral terms (:mod:`._features`);
+* :class:`Evaluator`, :func:`solve`: the bounded least-squares fit with its evaluations in
+  batches on Dask, cached by the hash of each evaluation (:mod:`._solve`, :mod:`._cache`);
+* :func:`fit_window`, :func:`register_field`: where the measured field lies (:mod:`._placement`);
+* :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`).
+"""
+
+from ._cache import EvaluationCache, scene_hash, task_hash
+from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, noise_floor,
+                        predict_features, prepare_map, radial_psd, realisation_shifts,
+                        residual_vector, set_noise_floor, soft_l1, waviness)
+from ._params import (FreeParameter, free_parameters, get_value, parse_bounds, parse_free,
+                      schema_range, set_value)
+from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
+from ._result import fit_record, misfit_maps
+from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
+
+__all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
+           "set_value", "get_value", "MisfitSpec", "Target", "Prediction", "FORMS",
+           "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map",
+           "radial_psd", "residual_vector", "realisation_shifts", "soft_l1", "waviness",
+           "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
+           "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
+           "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
+           "misfit_maps"]

@@ -1,0 +1,379 @@
+"""``fit``: a measured surface -> the tool, feed, machine and material settings that cut it
+(:mod:`render_inspect.fit` does the fitting), then the next cut predicted.
+
+The forward model of one evaluation is chained here and nowhere else
+(:func:`predict_measurement`): the scene with the trial values -> :func:`simulate` over the
+fit window -> the virtual interference microscope with the measured file's settings ->
+:func:`~render_inspect.metrology.measure_frames` -> the height the instrument reports.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import json
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..batch import dask_client
+from ..core.errors import InputError
+from ..core.progress import task
+from ..core.units import MM_TO_UM
+from ..design import make_surface
+from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_units,
+                   field_extent, fit_record, fit_window, free_parameters, make_target,
+                   misfit_maps, parse_bounds, parse_free, predict_features, prepare_map,
+                   radial_psd, register_field, scene_hash, set_noise_floor, set_value, solve)
+from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
+from ..io import write_exr, write_json, write_marker
+from ..processes import RANDOM_PART_KEYS, random_parts
+from ..report import fit_figures, fit_page
+from ..scene import apply_overrides, scene_from_dict
+from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, file_instrument,
+                         compute_all, instrument_settings, predict_measurement, preset_fill,
+                         preset_value, quiet)
+from ._simulate import simulate, write_simulation
+
+__all__ = ["run_fit", "predict_measurement", "FIT_FILES", "preset_value"]
+
+log = logging.getLogger("render_inspect")
+
+#: Files ``fit`` writes into its output folder (``predict/`` with ``--predict``).
+FIT_FILES = ("fit.json", "fit.html", "maps.png", "residual.png", "psd.png", "misfit.png",
+             "fitted.exr", "scene.json", "predict/")
+#: simulation samples per feed period at least (the evaluations' simulation.pixel)
+SIM_SAMPLES_PER_PERIOD = 18
+
+
+def _weights(items) -> dict:
+    out = {"map": 1.0, "psd": 1.0, "harmonics": 1.0}
+    for item in items or ():
+        for part in str(item).split(","):
+            if not part.strip():
+                continue
+            if "=" not in part:
+                raise InputError(f"--weights expects TERM=W (map, psd, harmonics), received "
+                                 f"{part!r}")
+            k, v = part.split("=", 1)
+            try:
+                out[k.strip()] = float(v)
+            except ValueError:
+                raise InputError(f"--weights {k.strip()} must be a number >= 0, received "
+                                 f"{v!r}") from None
+    return out
+
+
+def _parse_at(at):
+    if at is None or at == "register":
+        return at
+    parts = str(at).split(",")
+    try:
+        x, y = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(f"--at expects X,Y (the measured field's centre on the part, mm) or "
+                         f"'register', received {at!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise InputError(f"--at expects two finite numbers X,Y (mm), received {at!r}")
+    return (x, y)
+
+
+# ------------------------------------------------------------------------- run_fit
+def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = None,
+            at=None, window_mm: float = 0.2, form: str = "plane", weights=None,
+            workers: int | None = None, scheduler: str | None = None, predict=(),
+            seed: int = 0, global_points: int = 0, max_evaluations: int = 150,
+            profile_points: int = 3, cache=None, overwrite: bool = False) -> dict:
+    """``render-inspect fit MEASURED --scene SCENE --free KEY,... --out DIR``.
+
+    Parameters
+    ----------
+    measured : path
+        Anything ``analyze`` reads: an instrument file, or the ``height.exr`` that
+        ``measure`` writes.
+    scene : Scene
+        The cut (its ``--set`` overrides applied).
+    free : list of str
+        Scene keys to fit (``--free``, comma-separated allowed).
+    out : path
+        Output folder, written whole when the fit is done.
+    bounds : list of "KEY=A,B"
+        Bounds inside the schema's (default: the schema's).
+    objective : str, optional
+        The virtual instrument's objective when the file names none (default: the
+        scene's ``render.interferometer``).
+    at : None, "X,Y" or "register"
+        Where the field lies: the file's origin (None), its centre at X, Y (mm), or found
+        by registration to the design.
+    window_mm : float
+        Side of the fitted square (mm): the part of the field that is simulated in each
+        evaluation.
+    form : {"none", "plane", "poly2", "sphere"}
+        Form removed from both maps before they are compared.
+    weights : list of "TERM=W"
+        Weights of the misfit's terms (``map``, ``psd``, ``harmonics``; 1 each).
+    workers, scheduler :
+        Run the evaluations on a Dask LocalCluster of ``workers`` processes or on the
+        cluster at ``scheduler`` (default: in this process).
+    predict : list of "KEY=VALUE"
+        After the fit, simulate the fitted scene with these changes into ``predict/``.
+    seed : int
+        Seed of the virtual camera's noise and of the Latin hypercube.
+    global_points : int
+        Latin-hypercube points before the local fit (0: start from the scene's values).
+    max_evaluations : int
+        Largest number of forward-model evaluations of the fit.
+    profile_points : int
+        Points either side of the solution along each parameter (misfit.png).
+    cache : path, optional
+        Folder of cached evaluations (default: ``OUT.cache`` beside the output folder).
+    overwrite : bool
+    """
+    t_all = time.perf_counter()
+    out = Path(out)
+    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    keys = parse_free(free)
+    user_bounds = parse_bounds(bounds)
+    spec = MisfitSpec(form=form, weights=_weights(weights))
+    at = _parse_at(at)
+    if not (isinstance(window_mm, (int, float)) and math.isfinite(window_mm) and window_mm > 0):
+        raise InputError(f"--window must be a side length > 0 (mm), received {window_mm!r}")
+    for name, v, lo in (("--max-evaluations", max_evaluations, 2), ("--global", global_points, 0),
+                        ("--profile-points", profile_points, 0), ("--seed", seed, 0)):
+        if not (isinstance(v, int) and v >= lo):
+            raise InputError(f"{name} must be an integer >= {lo}, received {v!r}")
+    params = free_parameters(scene, keys, user_bounds, defaults=lambda k: preset_value(scene, k))
+    random = random_parts(scene)
+    free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
+    for k in free_random:
+        if k not in random:
+            raise InputError(f"--free {k}: the amplitude of a random part is fitted through the "
+                             f"power it adds to the spectrum, scaled from its start value, "
+                             f"which is 0 here; start it above 0 with --set {k}=VALUE")
+    base = scene.to_dict()
+    fill = preset_fill(scene)
+    # the prediction's scene is checked before the fit runs
+    predict = list(predict or ())
+    if predict:
+        _predicted_scene(base, {p.key: p.start for p in params}, predict, fill)
+
+    m = read_surface(measured)
+    if not m.square:
+        raise InputError(f"{measured}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
+                         f"({m.pixel[1]:.6g} mm); the virtual instrument has square pixels: "
+                         f"resample the map first")
+    pixel = float(m.pixel[0])
+    file_settings = file_instrument(measured)
+    region = [float(v) for v in scene.simulation.region]
+    if at == "register":
+        reg = register_field(m.z, m.pixel, make_surface(scene.design), region)
+        origin = tuple(reg["origin_mm"])
+        how = "by registration to the design"
+        placement = {"method": "register", **reg}
+    elif at is not None:
+        origin = centred_origin(m.z.shape, m.pixel, at)
+        how = f"with its centre at {at[0]:g}, {at[1]:g} mm (--at)"
+        placement = {"method": "at", "centre_mm": list(at)}
+    else:
+        origin = tuple(m.origin)
+        how = "from the file's origin"
+        placement = {"method": "file origin"}
+    placement["origin_mm"] = [float(origin[0]), float(origin[1])]
+    placement["field_mm"] = [float(v) for v in field_extent(m.z.shape, m.pixel, origin)]
+    rows, cols = fit_window(m.z, m.pixel, origin, region, float(window_mm), how=how)
+    zw = m.z[rows, cols]
+    w_origin = (origin[0] + cols.start * pixel, origin[1] + rows.start * pixel)
+    n = zw.shape[0]
+    window = [w_origin[0] - pixel / 2, w_origin[1] - pixel / 2,
+              w_origin[0] - pixel / 2 + n * pixel, w_origin[1] - pixel / 2 + n * pixel]
+    placement["window_mm"] = window
+    placement["window_px"] = [int(rows.start), int(cols.start), int(n)]
+    log.info("fit window %.4g x %.4g mm (%d x %d pixels) at x %.4g..%.4g, y %.4g..%.4g mm "
+             "(field placed %s)", n * pixel, n * pixel, n, n, window[0], window[2], window[1],
+             window[3], how)
+    icfg, icfg_source = instrument_settings(scene, file_settings, objective, pixel, window, zw)
+    target = make_target(zw, pixel=(pixel, pixel), origin=w_origin, spec=spec)
+    # the simulation grid samples the feed marks finely enough that its aliasing of the
+    # cusps (a waviness that moves with the marks' phase, hence with the feed) stays far
+    # below the waviness the fit compares
+    sim_pixel = float(scene.simulation.pixel)
+    while target.centroid and sim_pixel * target.centroid * SIM_SAMPLES_PER_PERIOD > 1.0 + 1e-9:
+        sim_pixel /= 2.0
+    grow = (MARGIN_PX + 2) * pixel + 2 * sim_pixel
+    sim_region = [window[0] - grow, window[1] - grow, window[2] + grow, window[3] + grow]
+    log.info("evaluations simulate %.4g x %.4g mm at a %.3g um pixel",
+             sim_region[2] - sim_region[0], sim_region[3] - sim_region[1], sim_pixel * MM_TO_UM)
+    # evaluations run without the random parts and the camera's noise (their expected
+    # value, smooth in the parameters); the power those add is measured on a few
+    # realisations and added to the predictions' spectra
+    model = ForwardModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random, free_random)
+    start_values = {p.key: p.start for p in params}
+    scene_from_dict(model.task(start_values)["scene"], "(the fit window)")
+    cache_dir = Path(cache) if cache is not None else out.parent / f"{out.name}.cache"
+    store = EvaluationCache(cache_dir)
+    try:
+        with contextlib.ExitStack() as stack:
+            client = None
+            if workers is not None or scheduler is not None:
+                client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
+            evaluator = Evaluator(params, target, model.task, predict_measurement, store,
+                                  client=client, max_evaluations=max_evaluations, quiet=quiet)
+            clean0 = compute_all(store, [model.task(start_values)], client)[0]
+            check_units(_rms(target.height), _rms(prepare_map(clean0, pixel=target.pixel,
+                                                              form=spec.form, origin=w_origin)))
+            draws = FLOOR_DRAWS if model.has_floor() else 0
+            with task(f"fit: the power of the random parts and the camera's noise "
+                      f"({draws} realisations)"):
+                runs = [model.draw(start_values, r) for r in range(draws)]
+                for k in free_random:
+                    runs += [model.draw(start_values, r, only=k) for r in range(FLOOR_DRAWS)]
+                maps = compute_all(store, runs, client)
+            noisy = maps[:draws] or [clean0]
+            free_idx = [i for i, p in enumerate(params) if p.key in free_random]
+            scaled = [(i, params[i].start,
+                       maps[draws + j * FLOOR_DRAWS:draws + (j + 1) * FLOOR_DRAWS])
+                      for j, i in enumerate(free_idx)]
+            set_noise_floor(target, noisy, clean0, scaled=scaled)
+            if target.scatter.get("waviness_rms_nm") is not None:
+                log.info("the random parts and the camera's noise: %.3g nm rms of waviness, "
+                         "harmonics %s nm, frequency %.2g (their realisations' scatter)",
+                         target.scatter["waviness_rms_nm"],
+                         ", ".join(f"{a:.3g}" for a in target.scatter.get("amplitudes_nm", [])),
+                         target.scatter.get("frequency_relative", float("nan")))
+            first = evaluator.evaluate([[p.start for p in params]])[0]
+            pred0 = predict_features(first.height, target, first.values)
+            log.info("first evaluation: %.1f s; misfit %.4g", first.seconds, first.cost)
+            result = solve(params, evaluator, global_points=global_points, seed=seed,
+                           profile_points=profile_points)
+            # the fitted values once more with a realisation of the random parts and the
+            # camera's noise (for the PSD figure: what a measurement of the fit would show)
+            drawn = compute_all(store, [model.draw(dict(zip(keys, result.values)), 0)],
+                                client)[0] if draws else None
+    except BaseException as err:
+        _after_failure(store, err)
+        raise
+    best = predict_features(result.best.height, target, result.best.values)
+    maps = misfit_maps(target.height, best.height)
+    wavy = misfit_maps(target.wavy, best.wavy)
+    fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
+    fitted = copy.deepcopy(base)
+    for k, v in fitted_values.items():
+        set_value(fitted, k, v, fill=fill)
+    provenance = {"seed": int(seed), "scene_sha256": scene_hash(base),
+                  "fitted_scene_sha256": scene_hash(fitted),
+                  "objective": icfg["objective"], "objective_from": icfg_source,
+                  "instrument": {k: icfg[k] for k in ("mode", "objective", "pixel",
+                                                      "subsamples", "noise")},
+                  "measured": {"path": str(measured), "shape": list(m.z.shape),
+                               "pixel_mm": pixel, "reader": m.meta.get("reader"),
+                               "format": m.meta.get("format")},
+                  "placement": placement, "scene": scene.name,
+                  "simulation": {"region_mm": sim_region, "pixel_mm": sim_pixel},
+                  "cache": str(cache_dir),
+                  "random_parts": {"held_at_zero_in_evaluations": random,
+                                   "fitted_through_their_power": list(free_random),
+                                   "realisations": draws},
+                  "workers": workers, "scheduler": scheduler,
+                  "evaluated_by": sorted({e.meta["worker"] for e in result.history
+                                          if not e.cached and e.meta.get("worker")})}
+    record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
+                        waviness=wavy)
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
+        tmp = Path(tmp)
+        if predict:
+            pred_scene = _predicted_scene(fitted, {}, predict, fill)
+            pred_scene = scene_from_dict(apply_overrides(
+                pred_scene.to_dict(), [f"simulation.region={json.dumps(window)}"]), "(predict)")
+            with task("fit: predict the next cut"):
+                sim = simulate(pred_scene)
+            (tmp / "predict").mkdir()
+            pm = write_simulation(sim, tmp / "predict")
+            write_marker(tmp / "predict", command="simulate", scene=pred_scene)
+            record["prediction"] = {"settings": list(predict), "folder": "predict",
+                                    "residual": pm.get("residual"),
+                                    "toolpath": pm.get("toolpath")}
+        record["timing_s"]["total"] = time.perf_counter() - t_all
+        record["files"] = {f: d for f, d in _file_notes().items()
+                           if f != "predict/" or predict}
+        psd = {"measured": radial_psd(target.height, pixel=target.pixel),
+               "fitted": radial_psd(best.height, pixel=target.pixel)}
+        if drawn is not None:
+            psd["fitted, with the random parts"] = radial_psd(
+                prepare_map(drawn, pixel=target.pixel, form=spec.form, origin=w_origin),
+                pixel=target.pixel)
+        psd["start"] = radial_psd(pred0.height, pixel=target.pixel)
+        figs = fit_figures(record, measured=target.height, fitted=best.height,
+                           start=pred0.height, measured_wavy=target.wavy, fitted_wavy=best.wavy,
+                           extent=(window[0], window[2], window[1], window[3]), psd=psd)
+        for name, png in figs.items():
+            (tmp / name).write_bytes(png)
+        atomic_write_text(tmp / "fit.html", fit_page(record, figs))
+        write_exr(tmp / "fitted.exr",
+                  {"measured": target.height.astype(np.float32),
+                   "fitted": best.height.astype(np.float32),
+                   "residual": (best.height - target.height).astype(np.float32)},
+                  {"pixel_size_mm": pixel, "origin_mm": [float(w_origin[0]), float(w_origin[1])],
+                   "units": "mm", "software_version": __version__,
+                   "form_removed": spec.form})
+        atomic_write_text(tmp / "scene.json", json.dumps(
+            scene_from_dict(fitted, "(fitted)").to_dict(), indent=2, sort_keys=True))
+        write_json(tmp / "fit.json", record)
+    _log_summary(record)
+    return record
+
+
+def _after_failure(store, err) -> None:
+    """A refused fit (bad input) leaves no cache folder it made; an interrupted or failed
+    one keeps the evaluations it made, so that the same command resumes from them."""
+    if isinstance(err, InputError):
+        store.discard()
+    elif store.written:
+        log.warning("fit stopped: the %d evaluations made are kept in %s; the same command "
+                    "resumes from them (deleting the folder is safe)", store.written,
+                    store.folder)
+
+
+def _rms(z) -> float:
+    ok = np.isfinite(z)
+    return float(np.sqrt(np.mean(z[ok] ** 2))) if ok.any() else 0.0
+
+
+def _predicted_scene(data: dict, values: dict, predict, fill):
+    d = copy.deepcopy(data)
+    for k, v in values.items():
+        set_value(d, k, v, fill=fill)
+    items = []
+    for item in predict:
+        if "=" not in str(item):
+            raise InputError(f"--predict expects KEY=VALUE (TOML value), received {item!r}")
+        items.append(str(item))
+    return scene_from_dict(apply_overrides(d, items), "(--predict)")
+
+
+def _file_notes() -> dict:
+    return {"fit.json": "fitted values, standard errors, correlations, misfit, provenance",
+            "fit.html": "the fit's page: tables and figures",
+            "maps.png": "measured and fitted maps (form removed)",
+            "residual.png": "fitted - measured, and the same for the waviness",
+            "psd.png": "areal PSD (radially averaged): measured, fitted, start",
+            "misfit.png": "the misfit along each parameter through the solution",
+            "fitted.exr": "channels measured, fitted, residual (mm, form removed)",
+            "scene.json": "the scene with the fitted values",
+            "predict/": "the predicted cut (heightmap.exr, metrics.json, ...) for --predict"}
+
+
+def _log_summary(record: dict) -> None:
+    for k, p in record["parameters"].items():
+        se = p["stderr"]
+        log.info("%s = %.6g +- %s (start %.6g)", k, p["value"],
+                 "n/a" if se is None else f"{se:.3g}", p["start"])
+    for pair in record["unresolved_pairs"]:
+        log.info("%s and %s cannot be told apart (correlation %.3f)", *pair["keys"],
+                 pair["correlation"])
+    log.info("misfit rms %.3g nm (waviness %.3g nm) after %d evaluations",
+             record["misfit_rms_nm"] or float("nan"),
+             record["misfit"]["waviness_rms_nm"] or float("nan"), record["evaluations"])

@@ -1,0 +1,258 @@
+"""The forward model of ``fit`` (one evaluation: the scene with trial values -> the cut ->
+the virtual interference microscope -> the height it reports), the tasks that describe an
+evaluation, the instrument the measured file names, the values a key left to a preset
+starts from, and the power the cut's random parts and the camera's noise add.
+
+:mod:`render_inspect.fit` does the fitting on numbers; this module chains the stages for
+it (:func:`predict_measurement` runs in this process or on a Dask worker)."""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import json
+import math
+import os
+import socket
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.progress import set_reporter
+from ..fit import set_value, task_hash
+from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, microscope_from_config,
+                           recommended_subsamples, render_interferogram)
+from ..io import read_exr
+from ..metrology import measure_frames
+from ..processes import preset_settings
+from ..scene import scene_from_dict
+from ._simulate import simulate
+
+__all__ = ["predict_measurement", "preset_value", "preset_fill", "ForwardModel",
+           "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS"]
+
+#: pixels traced around the fit window by the virtual instrument (cropped after imaging)
+MARGIN_PX = 8
+#: realisations of the random parts (and the camera's noise) whose power is averaged into
+#: the predictions' spectra
+FLOOR_DRAWS = 6
+
+
+# --------------------------------------------------------------------- the forward model
+def predict_measurement(task_spec: dict):
+    """One evaluation: what the virtual instrument reports for the scene of ``task_spec``
+    (``scene``: a scene dictionary whose region covers the field and whose
+    ``render.interferometer`` is the instrument; ``seed``: the camera noise's seed;
+    ``algorithm``).  Returns (height (ny, nx) mm with NaN where not measured, meta).
+    Runs in this process or on a Dask worker."""
+    _numba_threads_as_launched()
+    scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
+    sim = simulate(scene)
+    ig = render_interferogram(sim.heightmap, scene.render.interferometer,
+                              seed=int(task_spec["seed"]))
+    r = measure_frames(ig.recorded(), algorithm=task_spec.get("algorithm", "auto"))
+    h = np.where(r.valid, r.height, np.nan)
+    return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
+               "shape": list(h.shape), "residual_sq_nm": sim.metrics["residual"]["Sq_nm"],
+               "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def _numba_threads_as_launched() -> None:
+    """Make ``NUMBA_NUM_THREADS`` in the environment agree with the thread count numba runs
+    with.  A Dask worker may get the variable from its nanny after numba has read it; a
+    kernel compiled there (the first call of one not yet in the cache) re-reads the
+    environment and refuses a count that differs from the running pool's.  (Harmless where
+    the cluster sets the variable before numba starts.)"""
+    import numba
+
+    os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
+
+
+@contextlib.contextmanager
+def quiet():
+    """The forward model's own progress bars are not shown during a fit."""
+    old = set_reporter(None)
+    try:
+        yield
+    finally:
+        set_reporter(old)
+
+
+def compute_all(store, tasks, client) -> list:
+    """Forward-model runs through the evaluation cache (in this process, or as one batch
+    on Dask): the predicted maps, in order."""
+    keys = [task_hash(t) for t in tasks]
+    out = [None] * len(tasks)
+    todo = {}
+    for i, k in enumerate(keys):
+        hit = store.get(k)
+        if hit is not None:
+            out[i] = hit[0]
+        else:
+            todo.setdefault(k, []).append(i)
+    try:
+        if client is None:
+            for k, idx in todo.items():
+                with quiet():
+                    h, meta = predict_measurement(tasks[idx[0]])
+                for i in idx:
+                    out[i] = store.put(k, h, meta)
+        elif todo:
+            futures = {k: client.submit(predict_measurement, tasks[idx[0]], pure=False)
+                       for k, idx in todo.items()}
+            for k, fut in futures.items():
+                h, meta = fut.result()
+                for i in todo[k]:
+                    out[i] = store.put(k, h, meta)
+    except InputError as err:
+        raise InputError(f"the forward model fails at the scene's values: {err}") from None
+    return out
+
+
+# ------------------------------------------------------------------ preset values
+def preset_value(scene, key: str):
+    """The value of a machine or material key the scene leaves to its preset (scene
+    units), or None."""
+    parts = key.split(".")
+    node = preset_settings(scene).get(parts[0])
+    if not node:
+        return None
+    for p in parts[1:]:
+        if isinstance(node, dict):
+            node = node.get(p)
+        elif isinstance(node, list) and p.isdigit() and int(p) < len(node):
+            node = node[int(p)]
+        else:
+            return None
+        if node is None:
+            return None
+    return node
+
+
+def preset_fill(scene):
+    """``fill(prefix)``: the preset's array for an array key the scene leaves unset."""
+    def fill(prefix: str):
+        v = preset_value(scene, prefix)
+        return copy.deepcopy(v) if isinstance(v, list) else None
+    return fill
+
+
+# ------------------------------------------------------------------ the measured file
+_INSTRUMENT_ATTRS = ("objective", "mode", "wavelength_nm", "bandwidth_nm", "numerical_aperture")
+
+
+def file_instrument(path) -> dict:
+    """The instrument settings a ``height.exr`` (written by ``measure``) names in its
+    header; {} for other files."""
+    if Path(path).suffix.lower() != ".exr":
+        return {}
+    _, attrs = read_exr(path)
+    out = {}
+    for k in _INSTRUMENT_ATTRS:
+        v = attrs.get(k)
+        if v not in (None, ""):
+            out[k] = v
+    inst = attrs.get("instrument")
+    if isinstance(inst, str):
+        try:
+            inst = json.loads(inst)
+        except ValueError:
+            inst = None
+    s = ((inst or {}).get("model") or {}).get("subsamples") if isinstance(inst, dict) else None
+    if isinstance(s, int) and 1 <= s <= 8:
+        out["subsamples"] = s
+    return out
+
+
+def instrument_settings(scene, file_settings: dict, objective: str | None, pixel: float,
+                        window, z) -> tuple[dict, str]:
+    """The ``[render.interferometer]`` of the evaluations: the scene's, with the file's
+    objective and settings (else ``objective``), the measured pixel, the fit window as
+    field of view, and the sub-sampling pinned (so that it does not jump between
+    evaluations).  Returns (settings, where the objective came from)."""
+    icfg = scene.render.interferometer.model_dump(mode="json")
+    source = "scene"
+    if file_settings.get("objective"):
+        icfg["objective"] = str(file_settings["objective"])
+        source = "file"
+        for k in ("mode", "wavelength_nm", "bandwidth_nm", "numerical_aperture"):
+            if k in file_settings:
+                icfg[k] = file_settings[k]
+        if icfg.get("bandwidth_nm") == 0 and icfg.get("mode") == "csi":
+            icfg["bandwidth_nm"] = None
+    elif objective:
+        icfg["objective"] = objective
+        source = "--objective"
+    icfg.update(pixel=float(pixel), field_of_view=[float(v) for v in window], margin=MARGIN_PX,
+                reference_height=None)
+    try:
+        cfg = InterferometerConfig.model_validate(icfg)
+    except Exception as err:  # pydantic's error: say which setting
+        raise InputError(f"the instrument settings of the measured file are not usable "
+                         f"({' '.join(str(err).split())[:300]})") from None
+    if file_settings.get("subsamples") and source == "file":
+        icfg["subsamples"] = int(file_settings["subsamples"])
+    elif cfg.subsamples is None:
+        gy, gx = np.gradient(np.asarray(z, dtype=np.float64), pixel)
+        g = np.hypot(gx, gy)
+        g = g[np.isfinite(g)]
+        slope = float(math.atan(np.percentile(g, 99.9))) if g.size else None
+        s = min(recommended_subsamples(pixel, microscope_from_config(cfg), max_slope=slope),
+                MAX_AUTO_SUBSAMPLES)
+        icfg["subsamples"] = int(s)
+    return InterferometerConfig.model_validate(icfg).model_dump(mode="json"), source
+
+
+# ------------------------------------------------------------------ tasks
+@dataclass
+class ForwardModel:
+    """What an evaluation's task holds: the scene (``base``, a dictionary) with the trial
+    values, its region the fit window and margin at ``sim_pixel``, the instrument
+    ``icfg`` (its camera noise off in the evaluations), and the random parts ``held`` at
+    0 (their expected value; their power enters the spectra instead).
+
+    ``random``: the scene's random parts (key -> amplitude); ``free_random``: those among
+    the free keys (their power is scaled by (value / start)^2)."""
+
+    base: dict
+    fill: object
+    sim_region: list
+    sim_pixel: float
+    icfg: dict
+    seed: int
+    random: dict = field(default_factory=dict)
+    free_random: tuple = ()
+
+    def _scene(self, values: dict, *, random: dict) -> dict:
+        d = copy.deepcopy(self.base)
+        for k, v in {**values, **random}.items():
+            set_value(d, k, v, fill=self.fill)
+        d["simulation"]["region"] = self.sim_region
+        d["simulation"]["pixel"] = self.sim_pixel
+        return d
+
+    def task(self, values: dict) -> dict:
+        """An evaluation: random parts at 0, no camera noise."""
+        d = self._scene(values, random={k: 0.0 for k in self.random})
+        d.setdefault("render", {})["interferometer"] = dict(self.icfg, noise=False)
+        return {"scene": d, "seed": int(self.seed), "algorithm": "auto"}
+
+    def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
+        """Realisation ``r`` at ``values``: the random parts as set (free ones at 0) and
+        the camera's noise on; with ``only``, that random part alone, no camera noise."""
+        if only is None:
+            rnd = {k: (0.0 if k in self.free_random else v) for k, v in self.random.items()}
+        else:
+            rnd = {k: (values[k] if k == only else 0.0) for k in self.random}
+        d = self._scene(values, random=rnd)
+        seeds = np.random.SeedSequence([int(self.seed), int(r)]).generate_state(2)
+        d["simulation"]["seed"] = int(seeds[0] % 2**31)
+        noise = only is None and bool(self.icfg.get("noise", True))
+        d.setdefault("render", {})["interferometer"] = dict(self.icfg, noise=noise)
+        return {"scene": d, "seed": int(seeds[1] % 2**31), "algorithm": "auto"}
+
+    def has_floor(self) -> bool:
+        fixed = any(k not in self.free_random for k in self.random)
+        return fixed or bool(self.icfg.get("noise", True))

@@ -1,0 +1,153 @@
+"""The figures and the page of a fit (``render-inspect fit``): measured, fitted and residual
+maps, the areal PSD of both, the misfit along each parameter, and ``fit.html``."""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from ..core.units import MM_TO_NM
+from ._figures import _plt, _to_png, line_panels, map_panels
+from ._format import fmt_number
+from ._html import HtmlReport
+
+__all__ = ["fit_figures", "fit_page", "psd_figure"]
+
+
+def psd_figure(curves: dict, *, title: str = "", dpi: int = 100) -> bytes:
+    """Log-log areal PSD curves: ``curves`` name -> (k cycles/mm, PSD nm^2 mm^2)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=dpi, layout="constrained")
+    styles = {"measured": {"color": "k", "lw": 1.6}, "fitted": {"color": "C3", "lw": 1.2},
+              "start": {"color": "C0", "lw": 1.0, "ls": "--"},
+              "fitted, with the random parts": {"color": "C1", "lw": 1.0, "ls": ":"}}
+    for name, (k, p) in curves.items():
+        ok = np.isfinite(p) & (p > 0)
+        ax.loglog(np.asarray(k)[ok], np.asarray(p)[ok], label=name, **styles.get(name, {}))
+    ax.set_xlabel("spatial frequency (1/mm)")
+    ax.set_ylabel("areal PSD, radially averaged (nm$^2$ mm$^2$)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=10)
+    return _to_png(fig)
+
+
+def fit_figures(record: dict, *, measured, fitted, start, measured_wavy, fitted_wavy, extent,
+                psd: dict) -> dict:
+    """``maps.png``, ``residual.png``, ``psd.png``, ``misfit.png`` as PNG bytes; maps in
+    mm (form removed), ``extent`` = (x0, x1, y0, y1) of the pixel edges."""
+    nm = MM_TO_NM
+    figs = {}
+    figs["maps.png"] = map_panels(
+        [("measured", measured * nm), ("fitted (the model through the virtual instrument)",
+                                       fitted * nm)],
+        extent=extent, label="height, form removed (nm)", cmap="turbo",
+        suptitle=f"misfit rms {fmt_number(record['misfit_rms_nm'])} nm")
+    figs["residual.png"] = map_panels(
+        [("fitted - measured", (fitted - measured) * nm),
+         ("waviness: fitted - measured", (fitted_wavy - measured_wavy) * nm)],
+        extent=extent, label="nm", cmap="RdBu_r", symmetric=True, shared=False,
+        suptitle="residual of the fit (the feed marks' phase is not fitted: see fit.json's "
+                 "waviness misfit)")
+    figs["psd.png"] = psd_figure(psd, title="measured vs fitted (and the scene's values)")
+    panels = []
+    for key, prof in record.get("profiles", {}).items():
+        p = record["parameters"][key]
+        vals = [v for v, c in zip(prof["values"], prof["misfit"]) if c is not None]
+        cost = [c for c in prof["misfit"] if c is not None]
+        series = [{"x": vals, "y": cost, "label": "misfit", "style": "line"}]
+        for term in ("map", "psd", "harmonics"):
+            ys = [t.get(term) for t, c in zip(prof["terms"], prof["misfit"]) if c is not None]
+            if ys and all(y is not None for y in ys):
+                series.append({"x": vals, "y": ys, "label": term, "style": "dashed"})
+        vl = [(p["value"], "fitted")]
+        if p["bounds"][0] <= p["start"] <= p["bounds"][1] and vals and \
+                min(vals) <= p["start"] <= max(vals):
+            vl.append((p["start"], "start"))
+        panels.append({"title": key, "xlabel": key, "ylabel": "misfit (sum of squares)",
+                       "series": series, "vlines": vl})
+    if panels:
+        figs["misfit.png"] = line_panels(panels, suptitle="the misfit along each parameter "
+                                                          "(the others at their fitted values)")
+    return figs
+
+
+def _val(v) -> str:
+    return "n/a" if v is None else fmt_number(v, sig=5)
+
+
+def fit_page(record: dict, figs: dict) -> str:
+    """``fit.html``: the fitted values, correlations, misfit, provenance and figures."""
+    rep = HtmlReport(f"render-inspect fit: {record.get('scene', '')}",
+                     f"{record['measured']['path']}: {len(record['parameters'])} parameters, "
+                     f"{record['evaluations']} evaluations, status {record['status']}")
+    rep.section("Fitted parameters")
+    rows = []
+    for k, p in record["parameters"].items():
+        rel = p.get("relative_stderr")
+        rows.append([k, _val(p["value"]), _val(p["stderr"]),
+                     "n/a" if rel is None else f"{100 * rel:.3g} %",
+                     _val(p.get("stderr_formal")), _val(p.get("stderr_random_parts")),
+                     _val(p["start"]), f"{_val(p['bounds'][0])} .. {_val(p['bounds'][1])}"])
+    rep.table(rows, header=["key", "value", "stderr", "relative", "formal", "random parts",
+                            "start", "bounds"])
+    n = (record.get("uncertainty") or {}).get("realisations", 0)
+    rep.text("The standard error combines the formal one (from the Jacobian at the solution, "
+             "residuals taken as independent: a lower bound) and the spread of the solution "
+             f"over {n} realisations of the random parts and the camera's noise, each taken "
+             "as the measured map; the misfit along each parameter below shows how well each "
+             "one is pinned.")
+    held = (record.get("random_parts") or {}).get("held_at_zero_in_evaluations") or {}
+    if held:
+        rep.text("Random parts held at 0 in the evaluations (their power enters the spectra): "
+                 + ", ".join(f"{k} = {fmt_number(v)}" for k, v in held.items()) + ".")
+    keys = list(record["parameters"])
+    if len(keys) > 1:
+        rep.section("Correlation")
+        rep.table([[a] + [f"{record['correlation'][a][b]:+.3f}" for b in keys] for a in keys],
+                  header=[""] + keys)
+        if record["unresolved_pairs"]:
+            rep.list([f"{p['keys'][0]} and {p['keys'][1]} cannot be told apart by this "
+                      f"measurement (correlation {p['correlation']:+.3f})"
+                      for p in record["unresolved_pairs"]])
+        else:
+            rep.text("Every pair is told apart (|correlation| below 0.95).")
+    rep.section("Misfit")
+    mf = record["misfit"]
+    rep.table([["misfit (sum of squares)", _val(mf["start"]), _val(mf["value"])],
+               *[[f"term {t}", _val(mf["start_terms"].get(t)), _val(mf["terms"].get(t))]
+                 for t in mf["terms"]],
+               ["map rms (nm)", "", _val(record["misfit_rms_nm"])],
+               ["waviness rms (nm)", "", _val(mf["waviness_rms_nm"])]],
+              header=["", "start", "fitted"])
+    for name, cap in (("maps.png", "Measured and fitted heights (form removed)."),
+                      ("residual.png", "Fitted minus measured; right: after the waviness "
+                                       "filter that removes the feed marks."),
+                      ("psd.png", "Areal PSD, radially averaged: measured, the fitted "
+                                  "expected surface (without the random parts), the same "
+                                  "with one realisation of the random parts and the "
+                                  "camera's noise, and the scene's values."),
+                      ("misfit.png", "The misfit along each parameter through the solution "
+                                     "(the others held at their fitted values).")):
+        if name in figs:
+            rep.figure(figs[name], cap)
+    if record.get("prediction"):
+        rep.section("Prediction")
+        pr = record["prediction"]
+        r = pr.get("residual") or {}
+        rep.text(f"Settings {', '.join(pr['settings'])} on the fitted scene: residual Sq "
+                 f"{_val(r.get('Sq_nm'))} nm, Sz {_val(r.get('Sz_nm'))} nm "
+                 f"(files in {pr['folder']}/).")
+    rep.section("Provenance")
+    meas = record["measured"]
+    rep.table([["measured file", meas["path"]], ["reader", str(meas.get("reader"))],
+               ["placement", record["placement"]["method"]],
+               ["fit window (mm)", ", ".join(f"{v:.5g}" for v in record["placement"]["window_mm"])],
+               ["objective", f"{record['objective']} (from the {record['objective_from']})"],
+               ["seed", record["seed"]], ["scene sha256", record["scene_sha256"][:16]],
+               ["software version", record["software_version"]],
+               ["fit time (s)", _val(record["timing_s"].get("total"))],
+               ["per evaluation (s)", _val(record["timing_s"].get("per_evaluation"))]],
+              header=["", ""])
+    return rep.render()
