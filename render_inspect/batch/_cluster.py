@@ -481,7 +481,7 @@ def _local_clusters() -> list:
 
 
 def _abandon(clusters) -> None:
-    """(safety) Clusters whose start was interrupted: end their workers and forget them, so
+    """Clusters whose start was interrupted: end their workers and forget them, so
     that nothing tries to close a half-started cluster at exit (which prints tracebacks);
     the messages of their unfinished start are not shown."""
     from distributed.deploy.spec import SpecCluster
@@ -495,7 +495,7 @@ def _abandon(clusters) -> None:
 
 
 def _end_local_workers(cluster) -> None:
-    """(safety) The run was stopped (Ctrl-C, SIGTERM): end the LocalCluster's worker
+    """The run was stopped (Ctrl-C, SIGTERM): end the LocalCluster's worker
     processes at once instead of waiting seconds for the points they are running (a
     point's folder is written whole or not at all; the next run into the sweep's folder
     removes what a stopped point left)."""

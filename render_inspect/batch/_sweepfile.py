@@ -296,7 +296,7 @@ def read_sweep(path, *, sections=None) -> SweepFile:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"sweep file {str(path)!r} is not valid TOML: {err}") from None
-    except UnicodeDecodeError as err:  # (safety) a binary file given as the sweep
+    except UnicodeDecodeError as err:  # a binary file given as the sweep
         raise InputError(f"sweep file {str(path)!r} is not UTF-8 text (byte {err.start}): a "
                          f"sweep file is a TOML text") from None
     except RecursionError:

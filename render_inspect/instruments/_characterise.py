@@ -57,7 +57,7 @@ ITF_FRACTIONS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 
 
 
 def _measure(h, n, *, pixel, s, mic, dist, mode, seed, algorithm="auto", **kw):
-    cancel.check()  # (safety) a stop asked by a signal is honoured between measurements
+    cancel.check()  # a stop asked by a signal is honoured between measurements
     fn = psi_frames if mode == "psi" else csi_frames
     fr = fn(h, n, pixel=pixel, subsamples=s, microscope=mic, disturbances=dist, seed=seed, **kw)
     return fr, measure_frames(fr, algorithm=algorithm)

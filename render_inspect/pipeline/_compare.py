@@ -421,7 +421,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     """
     inputs = (measured,) if measured is not None else ()
     check_output_dir(out, overwrite=overwrite, command="compare", scene=scene, inputs=inputs)
-    # (safety) a file, or a heightmap.zarr store (a folder)
+    # a file, or a heightmap.zarr store (a folder)
     if measured is not None and not (Path(measured).is_file() or (
             Path(measured).suffix.lower() == ".zarr" and Path(measured).is_dir())):
         raise InputError(f"--measured file not found: {str(measured)!r} (a height map file, "

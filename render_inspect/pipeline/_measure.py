@@ -65,7 +65,7 @@ def read_frames(path, *, settings=None):
 
 
 def _usable(frames, path):
-    # (safety) pixels without a finite intensity in every frame are not measured; a stack
+    # pixels without a finite intensity in every frame are not measured; a stack
     # with none is refused (all-NaN frames would give an empty map and exit 0)
     frames.valid = check_frames(frames.frames, frames.valid, what="frames", path=path)
     return frames

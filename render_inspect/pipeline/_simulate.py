@@ -109,7 +109,7 @@ def simulate(scene, *, surface=None) -> Simulation:
         plan = process.plan(cfg, surface, region=region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
-    # (safety) the program's moves between its cuts are simulated too: they never touch
+    # the program's moves between its cuts are simulated too: they never touch
     # the part (metrics toolpath.links; an error naming the block otherwise)
     links = check_links(process, cfg, surface, plan)
     if links is not None:

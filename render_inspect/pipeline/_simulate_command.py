@@ -146,7 +146,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         raise InputError(refusal)
     traits = process.traits(cfg)
     sim = scene.simulation
-    # (safety) at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
+    # at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
     # chunk may hold, and the store could not be read back
     if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
             and tile % 64 == 0):
@@ -171,7 +171,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         plan = process.plan(cfg, surface, region=tuple(sim.region))
         timing.update(plan.timing)
         timing["toolpath"] = time.perf_counter() - t0
-        # (safety) the moves between the cuts never touch the part (metrics toolpath.links)
+        # the moves between the cuts never touch the part (metrics toolpath.links)
         links = check_links(process, cfg, surface, plan)
         if links is not None:
             plan.facts.setdefault("toolpath", {})["links"] = links
