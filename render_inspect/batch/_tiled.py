@@ -59,7 +59,7 @@ def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) 
     return coarse
 
 
-def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, texture, tile: Tile,
+def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, texture, burrs, tile: Tile,
               store: str, levels: int, tile_levels: int) -> dict:
     """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
     return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
@@ -68,7 +68,7 @@ def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, te
     cancel.check()  # a tile not started when the run is stopped is not started
 
     design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
-                                         stride=stride, texture=texture)
+                                         stride=stride, texture=texture, burrs=burrs)
     moments = tile_moments(machined, design)
     residual = np.subtract(machined, design).astype(np.float32)
     machined32 = machined.astype(np.float32)
@@ -99,7 +99,9 @@ class TiledStats:
     tiles : number of tiles
     timing_s : seconds of ``tiles`` (pass 1), ``pass2``, ``levels``
     cut : the material's sums over the tiles (a cut with the cutting mechanics):
-        ``grooves_sumsq``, ``grooves_n``, ``added_max``, ``edge_pixels``; and
+        ``grooves_sumsq``, ``grooves_n``, ``added_max``, ``edge_pixels``, the texture's
+        ``texture_sumsq`` and ``texture_n``, with the material's burrs ``burr_edge_pixels``,
+        ``burr_turn_max`` (rad), ``burr_height_max`` and ``burr_added_max`` (mm); and
         ``pass_theta``, the cutting pass's angle on every ``stride``-th row and column
     """
 
@@ -163,7 +165,7 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
 
 def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: int,
               tile: int = TILE, client=None, workers: int | None = None, progress=None,
-              bins: int = BINS, grooves=None, stride: int = 0, texture=None) -> TiledStats:
+              bins: int = BINS, grooves=None, stride: int = 0, texture=None, burrs=None) -> TiledStats:
     """Compute the machined surface of ``ep`` over the grid tile by tile into ``store``.
 
     Parameters
@@ -196,6 +198,11 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
         Keep the cutting pass's angle on every ``stride``-th row and column (0: none).
     texture : (rms, correlation length, seed), optional
         The part's texture added to a cut with the cutting mechanics (mm).
+    burrs : dict, optional
+        The material's burrs added to a cut with the cutting mechanics, after the texture
+        (the keyword arguments of :func:`~render_inspect.machining.material_burrs` but the
+        grid's; each tile is cut with the burr model's halo,
+        :func:`~render_inspect.machining.compute_tile`).
     """
     tiles = plan_tiles(shape, tile)
     tile_levels = min(levels, int(math.log2(tile))) if tile & (tile - 1) == 0 else 0
@@ -204,7 +211,7 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
     timing = {}
     t0 = time.perf_counter()
     parts = _run(tile_task, [(t, store, levels, tile_levels) for t in tiles],
-                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture),
+                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
                  client=client, workers=workers, progress=progress)
     timing["tiles"] = time.perf_counter() - t0
     moments = (0, 0.0, 0.0, math.inf, -math.inf)
@@ -251,6 +258,10 @@ def _merge_cut(parts: list, shape, stride: int) -> dict:
            "edge_pixels": int(sum(c["edge_pixels"] for c in cuts)),
            "texture_sumsq": math.fsum(c.get("texture_sumsq", 0.0) for c in cuts),
            "texture_n": int(sum(c.get("texture_n", 0) for c in cuts))}
+    if any("burr_edge_pixels" in c for c in cuts):
+        out["burr_edge_pixels"] = int(sum(c["burr_edge_pixels"] for c in cuts))
+        for k in ("burr_turn_max", "burr_height_max", "burr_added_max"):
+            out[k] = max(c[k] for c in cuts)
     if stride > 0:
         pt = np.full((-(-shape[0] // stride), -(-shape[1] // stride)), np.nan)
         for c in cuts:

@@ -8,8 +8,9 @@ from ._axes import (Axis, Coupling, Machine, follow_axis, force_noise_rms, loop_
                     second_order_sos)
 from ._follow import FollowedPath, follow_turning, following_error_stats
 from ._interpolate import linear_command, pvt_command
-from ._burrs import (BURR_WIDTH_PER_CHIP, apply_burrs, burr_height_law, burr_map, edge_turns,
-                     machined_sharp_edges, material_burrs, sharp_edges)
+from ._burrs import (BURR_WIDTH_PER_CHIP, apply_burrs, burr_halo, burr_height_law, burr_map, edge_turns,
+                     machined_sharp_edges, material_burr_block, material_burr_facts, material_burrs,
+                     sharp_edges)
 from ._cutting import (
     cut_lines_mechanics,
     cut_turning_mechanics,
@@ -59,7 +60,7 @@ __all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metri
            "cut_turning_mechanics", "cut_lines_mechanics", "finish_surface", "groove_texture",
            "machined_edges", "mechanics_facts", "CutPath", "Grooves", "cut_fill", "cut_turning",
            "cutting_distance", "load_cut_kernels", "prepare_cut",
-           "material_burrs", "edge_turns", "burr_height_law",
+           "material_burrs", "edge_turns", "burr_height_law", "burr_halo", "material_burr_block", "material_burr_facts",
            "BURR_WIDTH_PER_CHIP", "texture_field", "uncut_chip_thickness", "loop_lag",
            "loop_response", "force_noise_rms"]
 

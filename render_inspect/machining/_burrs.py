@@ -64,7 +64,8 @@ from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
 
 __all__ = ["sharp_edges", "edge_turns", "machined_sharp_edges", "burr_map", "apply_burrs",
-           "material_burrs", "burr_height_law", "BURR_WIDTH_PER_CHIP"]
+           "material_burrs", "material_burr_block", "material_burr_facts", "burr_halo", "burr_height_law",
+           "BURR_WIDTH_PER_CHIP"]
 
 #: full base width of a burr per unit uncut chip thickness (assumed, range 2-5)
 BURR_WIDTH_PER_CHIP = 3.0
@@ -207,7 +208,7 @@ def _random_field(x, y, *, correlation_length: float, seed: int) -> np.ndarray:
 
 def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: float,
              variation: float = 0.3, seed: int = 0, edge_angle_deg: float = 1.0,
-             correlation_length: float | None = None, edges=None) -> np.ndarray:
+             correlation_length: float | None = None, edges=None, start=(0, 0)) -> np.ndarray:
     """Height (mm, >= 0) that burrs add on the sharp edges of ``design``.
 
     Parameters
@@ -230,6 +231,10 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
         mm; default 4 x ``width``.
     edges : (ny, nx) bool, optional
         Edge pixels; detected with :func:`sharp_edges` if None.
+    start : (row, column)
+        Grid index of the arrays' pixel [0, 0] when they are a block of a larger grid
+        whose pixel [0, 0] lies at ``origin`` (a tile: the variation is read at the same
+        positions as on the whole grid, to the last bit).
 
     Returns
     -------
@@ -262,20 +267,22 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
         return out
     ell = correlation_length if correlation_length is not None else 4.0 * width
     check_range("burrs.correlation_length", ell, 0.0, None, lo_open=True)
-    ex = origin[0] + pixel * ix[near]
-    ey = origin[1] + pixel * iy[near]
+    ex = origin[0] + pixel * (ix[near] + start[1])
+    ey = origin[1] + pixel * (iy[near] + start[0])
     v = np.maximum(1.0 + variation * _random_field(ex, ey, correlation_length=ell, seed=seed), 0.0)
     h = height[iy[near], ix[near]] if per_pixel else height
     out[near] = h * v * np.cos(np.pi * d[near] / width) ** 2
     return out
 
 
-def _smoothed(machined, pixel: float, smoothing: float):
+def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True, True)):
     """The map with NaN pixels filled from their nearest valid neighbour and smoothed by a
     Gaussian of standard deviation ``smoothing`` (mm), and the mask of pixels where no
     edge is looked for: NaN pixels and, when smoothed, the band of 3 standard deviations
     along the grid's border, where the smoothing bends the map (None for the map when all
-    pixels are NaN)."""
+    pixels are NaN).  ``border``: which sides of the map (first rows, last rows, first
+    columns, last columns) are the grid's border (a block of a grid has the band only
+    there)."""
     check_range("smoothing", smoothing, 0.0, None)
     z = np.asarray(machined, dtype=np.float64)
     bad = ~np.isfinite(z)
@@ -288,8 +295,14 @@ def _smoothed(machined, pixel: float, smoothing: float):
         z = ndimage.gaussian_filter(z, smoothing / pixel, mode="nearest")
         b = int(math.ceil(3 * smoothing / pixel))
         bad = bad.copy()
-        bad[:b] = bad[-b:] = True
-        bad[:, :b] = bad[:, -b:] = True
+        if border[0]:
+            bad[:b] = True
+        if border[1]:
+            bad[-b:] = True
+        if border[2]:
+            bad[:, :b] = True
+        if border[3]:
+            bad[:, -b:] = True
     return z, bad
 
 
@@ -382,25 +395,99 @@ def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_th
     check_range("chip_thickness", chip_thickness, 0.0, 1.0)
     w = BURR_WIDTH_PER_CHIP * chip_thickness if width is None else float(width)
     machined = np.array(machined, dtype=np.float64, copy=True)
-    info = {"model": "material: h = C min(1, A / A_ref) h_u clip(turn / 90 deg, 0, 1) on "
+    info = material_burr_facts(chip_thickness=chip_thickness, coefficient=coefficient,
+                               variation=variation, seed=seed, edge_angle_deg=edge_angle_deg,
+                               smoothing=smoothing, width=w)
+    if np.shape(design) != machined.shape:
+        raise InputError(f"design must have the machined map's shape {machined.shape}, "
+                         f"received {np.shape(design)}")
+    r = material_burr_block(machined, pixel=pixel, origin=origin, chip_thickness=chip_thickness,
+                            coefficient=coefficient, variation=variation, seed=seed,
+                            edge_angle_deg=edge_angle_deg, smoothing=smoothing, width=w)
+    if r is None:
+        return machined, info
+    b, edges, turn, heights = r
+    machined += b
+    info.update(material_burr_facts(
+        chip_thickness=chip_thickness, coefficient=coefficient, variation=variation, seed=seed,
+        edge_angle_deg=edge_angle_deg, smoothing=smoothing, width=w, edge_pixels=int(edges.sum()),
+        turn_max=turn[edges].max(), height_max=heights.max(), added_max=np.nanmax(b)))
+    return machined, info
+
+
+def material_burr_facts(*, chip_thickness: float, coefficient: float, variation: float, seed: int,
+                        edge_angle_deg: float, smoothing: float, width: float | None = None,
+                        edge_pixels: int = 0, turn_max: float = 0.0, height_max: float = 0.0,
+                        added_max: float = 0.0) -> dict:
+    """``metrics["burrs"]`` of :func:`material_burrs` (its settings, and the edge pixels,
+    the largest turn (rad), law's height and added height (mm) it found): also what the
+    sums and maxima of a simulation tile by tile give."""
+    w = BURR_WIDTH_PER_CHIP * chip_thickness if width is None else float(width)
+    return {"model": "material: h = C min(1, A / A_ref) h_u clip(turn / 90 deg, 0, 1) on "
                      "the machined edges",
             "chip_thickness_um": chip_thickness * MM_TO_UM, "coefficient": float(coefficient),
             "width_um": w * MM_TO_UM, "variation": variation, "edge_angle_deg": edge_angle_deg,
-            "smoothing_mm": smoothing, "seed": int(seed), "edge_pixels": 0, "turn_max_deg": 0.0,
-            "height_max_um": 0.0, "max_added_um": 0.0}
-    z, bad = _smoothed(machined, pixel, smoothing)
+            "smoothing_mm": smoothing, "seed": int(seed), "edge_pixels": int(edge_pixels),
+            "turn_max_deg": float(np.degrees(turn_max)) if edge_pixels else 0.0,
+            "height_max_um": float(height_max * MM_TO_UM),
+            "max_added_um": float(added_max * MM_TO_UM)}
+
+
+def material_burr_block(machined, *, pixel: float, origin=(0.0, 0.0), chip_thickness: float,
+                        coefficient: float, variation: float = 0.3, seed: int = 0,
+                        edge_angle_deg: float = 1.0, smoothing: float = 0.0, width: float,
+                        border=(True, True, True, True), start=(0, 0)):
+    """The burrs of :func:`material_burrs` on ``machined`` (a whole grid, or a block of
+    it): (added height, edges, turn at the edges (rad), the law's height at the edges),
+    maps of the block (mm), or None where there are none.  A block of a grid: ``start`` =
+    its grid index (row, column) of pixel [0, 0] (``origin`` stays the grid's) and
+    ``border`` = which of its sides (first rows, last rows, first columns, last columns)
+    are the grid's; on the pixels farther than :func:`burr_halo` from the block's other
+    sides the result equals the whole grid's bit for bit."""
+    w = float(width)
+    z, bad = _smoothed(machined, pixel, smoothing, border)
     if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:
-        return machined, info
-    span = max(2, int(math.ceil(3 * smoothing / pixel)) + 1)
+        return None
+    span = _span(pixel, smoothing)
     edges, turn = edge_turns(z, pixel=pixel, edge_angle_deg=edge_angle_deg, span=span)
     edges &= ~bad
     if not edges.any():
-        return machined, info
+        return None
     heights = np.where(edges, burr_height_law(chip_thickness, coefficient, turn), 0.0)
-    b = burr_map(design, pixel=pixel, origin=origin, height=heights, width=w,
-                 variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges)
-    machined += b
-    info.update(edge_pixels=int(edges.sum()), turn_max_deg=float(np.degrees(turn[edges].max())),
-                height_max_um=float(heights.max() * MM_TO_UM),
-                max_added_um=float(np.nanmax(b) * MM_TO_UM))
-    return machined, info
+    b = burr_map(machined, pixel=pixel, origin=origin, height=heights, width=w,
+                 variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges,
+                 start=start)
+    return b, edges, turn, heights
+
+
+def _span(pixel: float, smoothing: float) -> int:
+    """Pixels between a machined edge and the slopes its turn is measured from (beyond
+    the smoothing's 3 standard deviations)."""
+    return max(2, int(math.ceil(3 * smoothing / pixel)) + 1)
+
+
+def burr_halo(pixel: float, smoothing: float, width: float, *, nan: bool = False) -> int:
+    """Pixels around a block of the grid beyond which :func:`material_burrs` does not
+    reach: its burrs on the block's inner pixels equal the whole grid's.
+
+    The reach adds up from the steps of the model (sigma = ``smoothing`` / ``pixel``):
+
+    * the burr ridge: an edge pixel less than ``width`` / 2 away, ceil(width / (2 pixel));
+    * the edge and its turn: the pixel-to-pixel turn must peak within +-3 span pixels of
+      the edge and each turn is taken from three pixels, 3 span + 1 with span =
+      max(2, ceil(3 sigma) + 1) (:func:`edge_turns`);
+    * the Gaussian smoothing: scipy truncates it at int(4 sigma + 0.5) pixels;
+    * ``nan``: where the machined map has NaN pixels (the path did not reach them), each
+      is filled from its nearest valid pixel before the smoothing.  A filled pixel that
+      matters lies within (3 span + 1 + r_g, r_g) pixels of a valid edge candidate (r_g
+      the Gaussian's reach), so its nearest valid pixel is at most the length D of that
+      offset away: floor(D) + 1 more pixels.
+    """
+    check_range("pixel", pixel, 0.0, None, lo_open=True)
+    sd = smoothing / pixel
+    r_g = int(4.0 * sd + 0.5) if smoothing > 0 else 0
+    reach = 3 * _span(pixel, smoothing) + 1
+    halo = int(math.ceil(width / (2 * pixel))) + reach + r_g
+    if nan:
+        halo += int(math.floor(math.hypot(reach + r_g, r_g))) + 1
+    return halo

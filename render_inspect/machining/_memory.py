@@ -20,7 +20,8 @@ the largest of them:
 Tiled, the peak is bounded by the tiles in flight: each holds float64 design and
 machined, float32 design / machined / residual, its share of the block sums and the
 encoded chunks (``TILE_BYTES`` per sample), plus the run of the path the tile needs and
-the whole prepared path.
+the whole prepared path.  With the material's burrs a tile is cut on a block wider by the
+burr model's reach (``BURR_BLOCK_BYTES`` per sample of the block).
 
 The test suite checks the in-memory estimate against the measured peak (tracemalloc and
 resident memory) of ``simulate`` on three map sizes: within a factor 1.5.
@@ -45,6 +46,10 @@ TILE_BYTES = 48
 #: further bytes per sample of a tile cut with the material's mechanics (the pass-angle and
 #: displaced-material maps, the machined-edge masks)
 CUT_TILE_BYTES = 24
+#: bytes per sample of the halo'd block of a tile whose material burrs are added tile by
+#: tile (the burr model's smoothed map, edge masks, turns, distance transform and ridge:
+#: 109 B measured with tracemalloc, and the block's machined copy and texture)
+BURR_BLOCK_BYTES = 128
 #: further bytes per path point of the cutting mechanics' prepared path (its lookup table
 #: and cutting distance)
 CUT_PATH_BYTES = 16
@@ -82,15 +87,20 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None, cut_
 
 
 def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None,
-                material: bool = False) -> int:
+                material: bool = False, burr_halo: int = 0) -> int:
     """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
     at once in this process (the caller's share when the tiles run on other machines):
     the largest of planning the path, running the tiles (the path, its prepared segments
     and per tile its samples and its run of the path) and writing toolpath.npz.
-    ``material``: the tiles are cut with the material's mechanics."""
+    ``material``: the tiles are cut with the material's mechanics; ``burr_halo`` > 0: with
+    the material's burrs, each tile cut on a block ``burr_halo`` pixels wider on every
+    side (the cut's maps and the burr model's temporaries on the block)."""
     per_sample = TILE_BYTES + (CUT_TILE_BYTES if material else 0)
     per_point = 40 + (CUT_PATH_BYTES if material else 0)
     per_tile = tile * tile * per_sample + min(tile, DESIGN_ROWS) * tile * 8 * DESIGN_TEMPS
+    if burr_halo > 0:
+        block = (tile + 2 * int(burr_halo)) ** 2
+        per_tile += (block - tile * tile) * (CUT_TILE_BYTES + 8) + block * BURR_BLOCK_BYTES
     n = int(path_points)
     sl = n if slice_points is None else int(slice_points)
     phases = (n * PLAN_BYTES,

@@ -37,6 +37,7 @@ import numpy as np
 import math
 
 from ..core.errors import InputError
+from ._burrs import BURR_WIDTH_PER_CHIP, burr_halo, material_burr_block
 from ._cut_kernel import OUT_CHANNELS, CutPath, Grooves, cut_fill
 from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
@@ -89,7 +90,8 @@ HALO = 1
 
 
 def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Grooves | None = None,
-                 shape=None, stride: int = 0, texture=None) -> tuple[np.ndarray, np.ndarray, dict]:
+                 shape=None, stride: int = 0, texture=None,
+                 burrs: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(design, machined, partials) of one tile, float64 (mm).
 
     ``ep`` is an ``EnvelopePath`` (the geometric envelope: machined equals the same pixels
@@ -105,9 +107,23 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
     length, seed) (mm) adds the part's texture
     (:func:`~render_inspect.machining.texture_field`, a field of the position: the tile's
     pixels equal the whole grid's) where the tile is cut; its partials ``texture_sumsq``
-    and ``texture_n``."""
+    and ``texture_n``.
+
+    ``burrs`` (a cut only) = the keyword arguments of
+    :func:`~render_inspect.machining.material_burrs` but ``origin`` and ``pixel``
+    (``chip_thickness``, ``coefficient``, ``variation``, ``seed``, ``edge_angle_deg``,
+    ``smoothing``, optional ``width``) adds the material's burrs after the texture, as on
+    the whole grid: the tile is cut with a halo of :func:`~._burrs.burr_halo` pixels (the
+    burr model's reach; a wider one where the halo'd block has NaN pixels, which are
+    filled from their nearest valid pixel), inside the grid, and the burrs of that block
+    are cropped to the tile (equal to the whole grid's bit for bit).  Partials
+    ``burr_edge_pixels``, ``burr_turn_max`` (rad), ``burr_height_max`` and
+    ``burr_added_max`` (mm): summed and maximised over the tiles they give the facts of
+    :func:`~render_inspect.machining.material_burrs`."""
     design = design_tile(surface, origin, pixel, tile)
     if isinstance(ep, EnvelopePath):
+        if burrs is not None:
+            raise InputError("compute_tile: burrs need a cut with the material's mechanics (a CutPath)")
         sl = ep.slice_for(tile.region(origin, pixel))
         machined = np.empty((tile.rows, tile.cols))
         envelope_fill(sl, origin, pixel, machined, start=(tile.row, tile.col), parallel=False)
@@ -115,13 +131,19 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
     if not isinstance(ep, CutPath):
         raise TypeError(f"compute_tile: an EnvelopePath or a CutPath, got {type(ep).__name__}")
     ny, nx = shape if shape is not None else (tile.row + tile.rows, tile.col + tile.cols)
-    r0, c0 = max(tile.row - HALO, 0), max(tile.col - HALO, 0)
-    r1, c1 = min(tile.row + tile.rows + HALO, ny), min(tile.col + tile.cols + HALO, nx)
-    big = Tile(r0, c0, r1 - r0, c1 - c0)
-    sl = ep.slice_for(big.region(origin, pixel))
-    maps = {k: np.empty((big.rows, big.cols)) for k in OUT_CHANNELS}
-    st = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel, maps,
-                  start=(r0, c0), parallel=False, stat_cols=(tile.col - c0, tile.col - c0 + tile.cols))
+    if burrs is not None:
+        burrs = dict(burrs)
+        if burrs.get("width") is None:
+            burrs["width"] = BURR_WIDTH_PER_CHIP * burrs["chip_thickness"]
+        halo = max(HALO, burr_halo(pixel, burrs["smoothing"], burrs["width"]))
+    else:
+        halo = HALO
+    maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx))
+    if burrs is not None and big.rows * big.cols < ny * nx and not np.isfinite(maps["machined"]).all():
+        # NaN pixels are filled from their nearest valid pixel: a wider halo
+        halo = max(HALO, burr_halo(pixel, burrs["smoothing"], burrs["width"], nan=True))
+        maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx))
+    r0, c0 = big.row, big.col
     rows = slice(tile.row - r0, tile.row - r0 + tile.rows)
     cols = slice(tile.col - c0, tile.col - c0 + tile.cols)
     edges = machined_edges(maps["pass_theta"], jump=math.pi)[rows, cols]
@@ -134,12 +156,48 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
         pr = np.arange(i0 * stride, tile.row + tile.rows, stride) - r0
         pc = np.arange(j0 * stride, tile.col + tile.cols, stride) - c0
         part["pass_theta"] = (i0, j0, maps["pass_theta"][np.ix_(pr, pc)])
-    machined = maps["machined"][rows, cols].copy()
+    # the texture and the burrs on the block that the burrs need (the tile alone without)
+    blk = (slice(None), slice(None)) if burrs is not None else (rows, cols)
+    at = (rows, cols) if burrs is not None else (slice(None), slice(None))
+    machined = maps["machined"][blk].copy()
+    del maps
     if texture is not None and texture[0] > 0:
-        x = origin[0] + pixel * np.arange(tile.col, tile.col + tile.cols)
-        y = origin[1] + pixel * np.arange(tile.row, tile.row + tile.rows)
+        r_a, c_a = (r0, c0) if burrs is not None else (tile.row, tile.col)
+        x = origin[0] + pixel * np.arange(c_a, c_a + machined.shape[1])
+        y = origin[1] + pixel * np.arange(r_a, r_a + machined.shape[0])
         tex = texture_field(x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
         ok = np.isfinite(machined)
         machined[ok] += tex[ok]
-        part["texture_sumsq"], part["texture_n"] = float(np.sum(tex[ok] ** 2)), int(ok.sum())
+        tt, ot = tex[at], ok[at]
+        part["texture_sumsq"], part["texture_n"] = float(np.sum(tt[ot] ** 2)), int(ot.sum())
+        del tex, ok
+    if burrs is not None:
+        part.update(burr_edge_pixels=0, burr_turn_max=0.0, burr_height_max=0.0, burr_added_max=0.0)
+        r = material_burr_block(machined, pixel=pixel, origin=origin, **burrs,
+                                border=(r0 == 0, big.row + big.rows == ny, c0 == 0, big.col + big.cols == nx),
+                                start=(r0, c0))
+        machined = machined[at].copy()
+        if r is not None:
+            b, e, turn, heights = (a[at] for a in r)
+            del r
+            machined += b
+            part["burr_edge_pixels"] = int(e.sum())
+            if part["burr_edge_pixels"]:
+                part["burr_turn_max"] = float(turn[e].max())
+            part["burr_height_max"] = float(heights.max())
+            part["burr_added_max"] = float(np.nanmax(b))
     return design, machined, part
+
+
+def _cut_block(ep: CutPath, grooves, origin, pixel: float, tile: Tile, halo: int, shape):
+    """The cut's maps and row statistics on the tile and a halo of ``halo`` pixels inside
+    the grid of ``shape``, and that block (a Tile)."""
+    ny, nx = shape
+    r0, c0 = max(tile.row - halo, 0), max(tile.col - halo, 0)
+    r1, c1 = min(tile.row + tile.rows + halo, ny), min(tile.col + tile.cols + halo, nx)
+    big = Tile(r0, c0, r1 - r0, c1 - c0)
+    sl = ep.slice_for(big.region(origin, pixel))
+    maps = {k: np.empty((big.rows, big.cols)) for k in OUT_CHANNELS}
+    st = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel, maps,
+                  start=(r0, c0), parallel=False, stat_cols=(tile.col - c0, tile.col - c0 + tile.cols))
+    return maps, st, big

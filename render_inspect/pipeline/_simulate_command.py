@@ -21,7 +21,8 @@ from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
                   export_program, grid_attrs, level_count, set_store_attrs)
-from ..machining import TILE, metrics_from_moments, plan_tiles, prepare_cut, prepare_envelope, tiled_bytes
+from ..machining import (TILE, burr_halo, metrics_from_moments, plan_tiles, prepare_cut, prepare_envelope,
+                         tiled_bytes)
 from ..processes import check_budget, process_of
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
@@ -190,8 +191,12 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         # the following-error map of the pass that cut each point, on a coarse grid
         stride = -(-max(shape) // _FIGURE_POINTS) if env.followed is not None else 0
         extra, _ = process.tiled_memory(cfg, plan)
+        # with the material's burrs each tile is cut with the burr model's halo (the wider
+        # one of a block with NaN pixels: the bound)
+        halo = 0 if env.burrs is None else burr_halo(sim.pixel, env.burrs["smoothing"],
+                                                     env.burrs["width"], nan=True)
         est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight,
-                                            material=mat is not None) + extra,
+                                            material=mat is not None, burr_halo=halo) + extra,
                            tile=tile, in_flight=in_flight, points=path.points, workers=workers,
                            scheduler=scheduler)
         levels = level_count(shape)
@@ -210,7 +215,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                               levels=levels, tile=tile, client=client,
                               workers=None if client else workers,
                               progress=_progress("tiles", step), grooves=env.grooves, stride=stride,
-                              texture=env.texture)
+                              texture=env.texture, burrs=env.burrs)
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])

@@ -214,6 +214,11 @@ class Envelope:
     texture : tuple or None
         The part's texture (rms, correlation length, seed), mm, added where the tiles are
         cut with the material's mechanics.
+    burrs : dict or None
+        The material's burrs added tile by tile: the keyword arguments of
+        :func:`~render_inspect.machining.material_burrs` but the grid's (``chip_thickness``,
+        ``coefficient``, ``variation``, ``seed``, ``edge_angle_deg``, ``smoothing``,
+        ``width``); None: no burrs.
     facts : dict
         Facts of the cut known before the tiles run (the machine, its following error).
     followed : object
@@ -229,6 +234,7 @@ class Envelope:
     mechanics: object = None
     grooves: object = None
     texture: object = None
+    burrs: dict | None = None
     facts: dict = field(default_factory=dict)
     followed: object = None
     plots: dict = field(default_factory=dict)

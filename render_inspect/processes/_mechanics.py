@@ -24,6 +24,7 @@ from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
+    BURR_WIDTH_PER_CHIP,
     Grooves,
     apply_burrs,
     cut_turning,
@@ -45,7 +46,7 @@ from ._registry import register_section
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
            "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of", "feed_scallop",
-           "add_texture", "texture_of"]
+           "add_texture", "texture_of", "material_burr_args"]
 
 TWO_PI = 2 * math.pi
 log = logging.getLogger("render_inspect")
@@ -188,6 +189,23 @@ def add_texture(machined, resp, region, pixel, seed: int):
     return out, (float(np.sqrt(np.mean(tex[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0)
 
 
+def material_burr_args(cfg, resp, path, tool) -> dict | None:
+    """The material's burrs of a turning cut (:func:`~render_inspect.machining.material_burrs`'
+    keyword arguments but the grid's: the uncut chip thickness of the finishing cut at the
+    feed of ``path`` (its ``feed_per_rev_mm``, else ``process.feed_per_rev``), the
+    material ``resp``'s burr coefficient, the smoothing max(feed, 2 pixels) that removes
+    the feed marks), or None where none are added (no material, ``material.burrs`` off,
+    or ``[artifacts.burrs] height`` set in their place)."""
+    if resp is None or not cfg.material.burrs or cfg.burrs.height > 0:
+        return None
+    sim = cfg.simulation
+    feed = float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
+    h_u = uncut_chip_thickness(feed, cfg.process.depth_of_cut, tool.nose_radius)
+    return {"chip_thickness": h_u, "coefficient": resp.burr_coefficient, "seed": int(sim.seed),
+            "edge_angle_deg": cfg.burrs.edge_angle_deg, "variation": cfg.burrs.variation,
+            "smoothing": max(feed, 2 * sim.pixel), "width": BURR_WIDTH_PER_CHIP * h_u}
+
+
 def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, region=None,
          plots: bool = True, design=None, progress=None) -> Turned:
     """Cut a turning program through the machine and material of ``cfg``.
@@ -257,12 +275,9 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             width=b.width, variation=b.variation, edge_angle_deg=b.edge_angle_deg,
             correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
             smoothing=max(feed, 2 * sim.pixel))
-    elif burrs and resp is not None and cfg.material.burrs:
-        h_u = uncut_chip_thickness(feed, cfg.process.depth_of_cut, tool.nose_radius)
-        machined, facts["burrs"] = material_burrs(
-            machined, design, pixel=sim.pixel, origin=(region[0], region[1]), chip_thickness=h_u,
-            coefficient=resp.burr_coefficient, seed=int(sim.seed), edge_angle_deg=cfg.burrs.edge_angle_deg,
-            variation=cfg.burrs.variation, smoothing=max(feed, 2 * sim.pixel))
+    elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
+        machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
+                                                  origin=(region[0], region[1]), **args)
     if plots and not fp.ideal:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)

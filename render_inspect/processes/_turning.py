@@ -18,7 +18,7 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining import in_memory_bytes, mechanics_facts
+from ..machining import in_memory_bytes, material_burr_facts, mechanics_facts
 
 #: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
 _PATH_BYTES = 40
@@ -41,8 +41,8 @@ from ..toolpath import (
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._machine import machine_of, material_of
-from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of, texture_of,
-                         turn)
+from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
+                         material_burr_args, texture_of, turn)
 from ._registry import check_budget
 
 log = logging.getLogger("render_inspect")
@@ -439,12 +439,13 @@ class TurningProcess(Process):
 class TiledTurningProcess(TurningProcess):
     """A turning process whose machined surface is cut along one followed path (the
     machine's axes and error motions act on the whole program, the material's mechanics
-    pixel by pixel): it can be simulated tile by tile.  Burrs (``[artifacts.burrs]``) are
-    not added tile by tile."""
+    pixel by pixel, the material's burrs within their reach): it can be simulated tile by
+    tile.  Burrs of a given height (``[artifacts.burrs] height``) are not added tile by
+    tile."""
 
     def tile_refusal(self, cfg) -> str | None:
         if cfg.burrs.height > 0:
-            return (f"the tiled simulation does not add burrs: artifacts.burrs.height must be 0 "
+            return (f"the tiled simulation adds the material's burrs, not ridges of a given height: artifacts.burrs.height must be 0 "
                     f"for maps simulated tile by tile, received {cfg.burrs.height}")
         return None
 
@@ -463,6 +464,7 @@ class TiledTurningProcess(TurningProcess):
         return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
                         texture=None if resp is None else texture_of(cfg, resp),
+                        burrs=material_burr_args(cfg, resp, cut_path, tool),
                         facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}))
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
@@ -475,11 +477,10 @@ class TiledTurningProcess(TurningProcess):
             info["texture_measured_rms_nm"] = (math.sqrt(cut["texture_sumsq"] / n) * MM_TO_NM
                                                if n else 0.0)
             facts["material"] = {**env.mechanics.to_dict(), **info}
-            if cfg.material.burrs:
-                facts["burrs"] = {"model": "not added: the material's burrs need the whole map's "
-                                           "edges, which a simulation tile by tile does not have"}
-                log.warning("the tiled simulation adds no burrs on the machined edges (the "
-                            "material's burr model needs the whole map)")
+            if env.burrs is not None and "burr_edge_pixels" in cut:
+                facts["burrs"] = material_burr_facts(
+                    **env.burrs, edge_pixels=cut["burr_edge_pixels"], turn_max=cut["burr_turn_max"],
+                    height_max=cut["burr_height_max"], added_max=cut["burr_added_max"])
         if env.followed is not None and "pass_theta" in cut:
             sim = cfg.simulation
             plots.update(following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
