@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from render_inspect.core.units import MM_TO_UM
 from render_inspect.errors import InputError
 from render_inspect.machining._burrs import apply_burrs, burr_map, sharp_edges
 from render_inspect.scene import ArtifactsConfig
@@ -88,3 +89,64 @@ def test_sharp_edges_checks_its_input():
         sharp_edges(np.zeros((5, 5)), pixel=PIX, edge_angle_deg=95)
     with pytest.raises(InputError, match="2-D"):
         sharp_edges(np.zeros(5), pixel=PIX)
+
+
+def _facets():
+    """Facets meeting on sharp edges (a pyramid and a step in slope), a feed-mark ripple and
+    NaN holes (pixels the path did not reach), on a 150 x 170 grid of 1 um."""
+    y, x = np.mgrid[0:150, 0:170] * PIX
+    z = (0.02 * np.abs(x - 0.08) + 0.015 * np.abs(y - 0.07) + 0.03 * np.maximum(0, x - 0.13)
+         + 1e-6 * np.sin(x / 0.01))
+    z[100:140, 10:40] = np.nan
+    z[:20, 150:] = np.nan
+    z[60:63, 60:120] = np.nan
+    z[75:80, 85:90] = np.nan          # a hole on an edge
+    return z
+
+
+def test_material_burrs_of_blocks_with_their_halo_equal_the_whole_map():
+    """Each tile's burrs from a block of the map with the halo of burr_halo (the wider one
+    where the block has NaN pixels): the whole map's burrs on the tile, bit for bit, and
+    the facts' sums and maxima over the tiles the whole map's facts."""
+    from render_inspect.machining import burr_halo, material_burr_block, material_burrs, plan_tiles
+
+    z = _facets()
+    ny, nx = z.shape
+    kw = dict(pixel=PIX, origin=(-0.3, 0.2), chip_thickness=0.002, coefficient=1.0, variation=0.3,
+              seed=3, edge_angle_deg=1.0, smoothing=0.004)
+    w = 3 * kw["chip_thickness"]
+    whole, info = material_burrs(z, z, **kw)
+    assert info["edge_pixels"] > 100 and info["max_added_um"] > 0
+    edges, turn, height, added = 0, 0.0, 0.0, 0.0
+    for t in plan_tiles(z.shape, 64):
+        for nan in (False, True):
+            h = burr_halo(PIX, kw["smoothing"], w, nan=nan)
+            r0, c0 = max(t.row - h, 0), max(t.col - h, 0)
+            r1, c1 = min(t.row + t.rows + h, ny), min(t.col + t.cols + h, nx)
+            if nan or np.isfinite(z[r0:r1, c0:c1]).all():
+                break
+        r = material_burr_block(z[r0:r1, c0:c1], width=w, border=(r0 == 0, r1 == ny, c0 == 0, c1 == nx),
+                                start=(r0, c0), **kw)
+        at = (slice(t.row - r0, t.row - r0 + t.rows), slice(t.col - c0, t.col - c0 + t.cols))
+        got = z[t.row:t.row + t.rows, t.col:t.col + t.cols].copy()
+        if r is not None:
+            b, e, tn, hb = (a[at] for a in r)
+            got += b
+            edges += int(e.sum())
+            turn = max(turn, float(tn[e].max()) if e.any() else 0.0)
+            height, added = max(height, float(hb.max())), max(added, float(np.nanmax(b)))
+        assert np.array_equal(got, whole[t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t
+    assert edges == info["edge_pixels"]
+    assert np.degrees(turn) == info["turn_max_deg"]
+    assert height * MM_TO_UM == info["height_max_um"] and added * MM_TO_UM == info["max_added_um"]
+
+
+def test_burr_halo_adds_up_the_reach_of_each_step():
+    from render_inspect.machining import burr_halo
+
+    # 1 um pixel, 10 um smoothing (sigma 10 px: Gaussian reach int(40.5) = 40, span 31),
+    # 9 um wide burrs (ceil(4.5) = 5): 5 + 3 * 31 + 1 + 40
+    assert burr_halo(0.001, 0.01, 0.009) == 5 + 94 + 40
+    # NaN pixels: + floor(hypot(134, 40)) + 1
+    assert burr_halo(0.001, 0.01, 0.009, nan=True) == 139 + 139 + 1
+    assert burr_halo(0.001, 0.0, 0.0) == 0 + 3 * 2 + 1 + 0

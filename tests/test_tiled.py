@@ -11,6 +11,7 @@ from numpy.testing import assert_allclose
 
 from render_inspect.design import make_surface
 from render_inspect.core.errors import InputError
+from render_inspect.core.units import MM_TO_UM
 from render_inspect.io._exr import read_exr, read_exr_overview, write_height_channels
 from render_inspect.io._heightmap import grid_attrs
 from render_inspect.io._pyramid import block_sums, level_count, means, preview, pyramid
@@ -371,3 +372,84 @@ def test_tiles_of_a_constant_arc_path_equal_the_whole_grid():
     for t in plan_tiles(whole.shape, 128):
         _, m, _ = compute_tile(ep, surface, region[:2], pixel, t)
         assert np.array_equal(m, whole[t.row:t.row + t.rows, t.col:t.col + t.cols], equal_nan=True), t
+
+
+# ---- the material's burrs tile by tile -------------------------------------------------------
+#: the shipped HTS toric scene over a window where the machined surface has sharp edges
+#: (the lenslets' rims): 161 x 201 pixels of 2.5 um
+TORIC = Path(__file__).resolve().parents[1] / "scenes" / "hts_toric_msa.toml"
+TORIC_WINDOW = (0.1, 0.1, 0.6, 0.5)
+
+
+@pytest.fixture(scope="module")
+def burr_case():
+    from render_inspect.machining import cut_turning
+    from render_inspect.processes import process_of
+    from render_inspect.processes._mechanics import material_cut_path
+
+    scene = load_scene(TORIC, [f"simulation.region={list(TORIC_WINDOW)}"])
+    proc = process_of(scene)
+    cfg = proc.inputs_of(scene)
+    surface = make_surface(scene.design)
+    env = proc.envelope(cfg, surface, proc.plan(cfg, surface, region=TORIC_WINDOW))
+    cp = material_cut_path(env.path, Tool.from_config(cfg.tool), env.mechanics)
+    pixel = cfg.simulation.pixel
+    cut = cut_turning(cp, env.grooves, region=TORIC_WINDOW, pixel=pixel)
+    return dict(env=env, cp=cp, surface=surface, pixel=pixel, cut=cut, resp=env.mechanics)
+
+
+@pytest.mark.parametrize("texture", [False, True])
+def test_tiles_with_the_burr_halo_equal_the_material_burrs_of_the_whole_map(burr_case, texture):
+    """compute_tile with the material's burrs against material_burrs on the whole cut map
+    (after the texture, as ``turn`` adds them), on every tile of 64 pixels: those at the
+    grid's border too.  Without texture bit for bit; the texture's random modes are summed
+    by a matrix product whose last bits depend on the grid's size, so with it to 1e-12."""
+    from render_inspect.machining import compute_tile, material_burrs
+    from render_inspect.processes._mechanics import add_texture
+
+    c = burr_case
+    env, pixel, origin = c["env"], c["pixel"], TORIC_WINDOW[:2]
+    m = c["cut"]["machined"]
+    if texture:
+        m, _ = add_texture(m, c["resp"], TORIC_WINDOW, pixel, env.texture[2])
+    whole, info = material_burrs(m, m, pixel=pixel, origin=origin, **env.burrs)
+    assert info["edge_pixels"] > 50 and info["max_added_um"] > 0.01     # burrs there are
+    shape = whole.shape
+    sums = {"burr_edge_pixels": 0, "burr_turn_max": 0.0, "burr_height_max": 0.0, "burr_added_max": 0.0}
+    tiles = plan_tiles(shape, 64)
+    assert len(tiles) == 12
+    for t in tiles:
+        _, mt, part = compute_tile(c["cp"], c["surface"], origin, pixel, t, grooves=env.grooves, shape=shape,
+                                   texture=env.texture if texture else None, burrs=env.burrs)
+        ref = whole[t.row:t.row + t.rows, t.col:t.col + t.cols]
+        if texture:
+            assert_allclose(mt, ref, rtol=1e-12, atol=0), t
+        else:
+            assert np.array_equal(mt, ref, equal_nan=True), t
+        sums["burr_edge_pixels"] += part["burr_edge_pixels"]
+        for k in ("burr_turn_max", "burr_height_max", "burr_added_max"):
+            sums[k] = max(sums[k], part[k])
+    assert sums["burr_edge_pixels"] == info["edge_pixels"]
+    assert math.degrees(sums["burr_turn_max"]) == pytest.approx(info["turn_max_deg"], rel=1e-12)
+    assert sums["burr_height_max"] * MM_TO_UM == pytest.approx(info["height_max_um"], rel=1e-12)
+    assert sums["burr_added_max"] * MM_TO_UM == pytest.approx(info["max_added_um"], rel=1e-12)
+
+
+def test_simulate_tiles_the_material_burrs_as_in_memory(tmp_path):
+    """The shipped HTS scene over a window with machined edges, in memory and tile by tile:
+    the same burr facts and heights."""
+    import json
+
+    win = ("--set", f"simulation.region={list(TORIC_WINDOW)}")
+    _cli("simulate", TORIC, "--out", tmp_path / "mem", *win, "-q")
+    _cli("simulate", TORIC, "--out", tmp_path / "tiled", *win, "--tiled", "--tile", "64", "-q")
+    a, b = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in ("mem", "tiled"))
+    assert a["burrs"]["edge_pixels"] > 50
+    assert b["burrs"].keys() == a["burrs"].keys()
+    for k, v in a["burrs"].items():
+        assert b["burrs"][k] == (pytest.approx(v, rel=1e-12) if isinstance(v, float) else v), k
+    for k in ("Sq_nm", "Sz_nm", "min_nm", "mean_nm"):
+        assert b["residual"][k] == pytest.approx(a["residual"][k], rel=1e-12), k
+    ch, _ = read_exr(tmp_path / "mem" / "heightmap.exr")
+    assert_allclose(ZarrHeightMap(tmp_path / "tiled" / "heightmap.zarr").read("machined"), ch["machined"],
+                    rtol=1e-6, atol=0)

@@ -19,9 +19,12 @@ With the cutting mechanics of a material (a :class:`~._cut_kernel.CutPath` inste
 lies inside the grid: each pixel of the kernel depends only on the path and its own
 position (the path's reach is in the slice of passes, :meth:`CutPath.slice_for`), and
 the machined edges (a pixel whose neighbour was cut by another pass) need the neighbours
-of the tile's border pixels.  The tile also returns the partial sums of the material's
-facts (the grooves' squares, the largest displaced material, the edge pixels) and, for
-the following-error map, its pixels on a stride of the whole grid.
+of the tile's border pixels.  With the material's burrs the halo is the burr model's reach
+(:func:`~._burrs.burr_halo`: the smoothing, the edge's turn, the ridge's half width) and
+the texture and burrs are computed on the halo'd block and cropped to the tile.  The tile
+also returns the partial sums of the material's facts (the grooves' squares, the largest
+displaced material, the edge pixels, the burrs' edge pixels and maxima) and, for the
+following-error map, its pixels on a stride of the whole grid.
 
 Peak memory is bounded by (tiles in flight) x (tile size), not by the part.  The
 scheduling on Dask, the store and the reductions are in ``render_inspect.batch``; this

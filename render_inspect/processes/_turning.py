@@ -445,8 +445,9 @@ class TiledTurningProcess(TurningProcess):
 
     def tile_refusal(self, cfg) -> str | None:
         if cfg.burrs.height > 0:
-            return (f"the tiled simulation adds the material's burrs, not ridges of a given height: artifacts.burrs.height must be 0 "
-                    f"for maps simulated tile by tile, received {cfg.burrs.height}")
+            return (f"the tiled simulation adds the material's burrs, not ridges of a given "
+                    f"height: artifacts.burrs.height must be 0 for maps simulated tile by tile, "
+                    f"received {cfg.burrs.height}")
         return None
 
     def follow_program(self, cfg, plan: Plan):
