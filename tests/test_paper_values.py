@@ -18,6 +18,7 @@ import math
 import numpy as np
 import pytest
 
+from render_inspect.core.units import MM_TO_UM
 from render_inspect.instruments import Microscope, led
 from render_inspect.pipeline import simulate
 from render_inspect.scene import load_scene
@@ -85,7 +86,7 @@ def test_kong_et_al_dislocations_grow_with_the_radius_and_turn_tangentially():
     rows.sort()
     assert rows[0][0] < 0.1 and rows[0][1] < 1.0                 # on the axis: nothing
     for r, d, tangential in rows[1:]:
-        assert d == pytest.approx(r * omega * rel, rel=0.12)       # grows with r
+        assert d == pytest.approx(r * omega * rel * MM_TO_UM, rel=0.12)  # grows with r (um)
         assert tangential == pytest.approx(d, rel=0.02)            # along the circumference
     assert rows[-1][1] > 1.3 * rows[1][1]
 
