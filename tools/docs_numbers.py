@@ -21,6 +21,14 @@ Each run is a function of nothing but the shipped scenes and the package: the sa
 commands a user would type (``compare``, ``simulate``, ``render`` + ``measure``), through
 the package's Python API.  After a change that moves the results, run this script and
 commit ``docs/numbers.json`` with the docs.
+
+The shipped scenes next to their papers (``papers_li``, ``papers``) are made with the
+functions of ``tools/paper_comparison.py`` (which prints the same comparison as a table).
+The runs marked cheap (seconds to a minute each) are what the slow test makes again; the
+whole script takes about half an hour on a busy 2-core machine (each run's time is kept in
+``docs/numbers.json``).  Not here: the Morris sensitivity results of
+docs/machine_and_material.md, which come from the ``sensitivity_*`` sweeps (tens of
+minutes each) and are updated by hand.
 """
 
 from __future__ import annotations
@@ -230,6 +238,245 @@ def run_instrument() -> dict:
     return out
 
 
+_SIMS: dict = {}
+
+
+def _sim(scene_name: str, overrides=()):
+    """``simulate`` of a shipped scene with overrides, kept for the other runs of the
+    same invocation (the paper comparison and the paper runs share their simulations)."""
+    from render_inspect.pipeline import simulate
+    from render_inspect.scene import load_scene
+
+    key = (scene_name, tuple(overrides))
+    if key not in _SIMS:
+        _SIMS.clear()  # one at a time: the maps are large
+        _SIMS[key] = simulate(load_scene(scene_name, list(overrides)))
+    return _SIMS[key]
+
+
+def _paper_comparison():
+    """``tools/paper_comparison.py`` as a module (the tools are scripts, not a package)."""
+    import importlib.util
+
+    if "paper_comparison" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("paper_comparison",
+                                                      REPO / "tools" / "paper_comparison.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules["paper_comparison"] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules["paper_comparison"]
+
+
+def _range(values, spec: str) -> str:
+    """``lo-hi`` of ``values`` in ``spec`` (one number when they print alike)."""
+    lo, hi = fmt(min(values), spec), fmt(max(values), spec)
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+#: the windows of Li et al. (2018) that the paper measured, by the key of their numbers
+LI_WINDOWS = {"grid_centre": ("sts_sinusoidal_grid", "scene (centre)"),
+              "grid_offaxis": ("sts_sinusoidal_grid", "off axis"),
+              "mla": ("sts_mla_2x2", "scene (lenslet rim)")}
+#: the other shipped scenes compared (their paper gives no like-with-like value)
+OTHER_WINDOWS = {"fig16": "sts_fig16_overcut", "compound": "compound_sinusoid",
+                 "rcse": "rcse_circular_array", "sculpt": "sculpt_quad_mla", "hts": "hts_toric_msa"}
+#: the illumination NA of the stopped-down objective
+STOPPED_NA = 0.3
+
+
+def _comparison_numbers(prefix: str, res: dict) -> dict:
+    """Raw and instrument Sq / Sa as the table writes them: two decimals, one from 100 nm;
+    and each to three figures (``..._3g``) for the text."""
+    out = {}
+    for key, name in (("raw_sq", "raw_Sq_nm"), ("raw_sa", "raw_Sa_nm"),
+                      ("inst_sq", "instrument_Sq_nm"), ("inst_sa", "instrument_Sa_nm")):
+        v = res[name]
+        out[f"{prefix}.{key}"] = (v, ".1f" if abs(v) >= 100 else ".2f")
+        out[f"{prefix}.{key}_3g"] = (v, ".3g")
+    out[f"{prefix}.raw_sq_short"] = (res["raw_Sq_nm"], ".2g")
+    return out
+
+
+def run_papers_li() -> dict:
+    """Li et al. (2018) compared like with like (`tools/paper_comparison.py`): the shipped
+    grid (1 mm at the centre, 0.9 mm off the axis) and 2 x 2 MLA simulated, the residual
+    raw and through the 20x objective's transfer function (filled pupil and stopped down
+    to NA 0.3), the camera pixel and a poly2 form removal; the ideal scallop the same way;
+    the transfer function at the feed's 100 and 200 cycles/mm."""
+    from render_inspect.instruments import Microscope, led
+
+    pc = _paper_comparison()
+    out, above, raw = {}, [], []
+    for key, (name, label) in LI_WINDOWS.items():
+        spec = pc.PAPERS[name]
+        sim = _sim(name, spec["windows"][label])
+        res = pc.compare_sim(sim)
+        out.update(_comparison_numbers(f"papers.{key}", res))
+        sq = res["instrument_Sq_nm"]
+        out[f"papers.{key}.sigma"] = (abs(sq - spec["value"]) / spec["sd"], ".1f")
+        out[f"papers.{key}.above_band"] = (sq - spec["value"] - spec["sd"], ".2f")
+        stopped = pc.compare_sim(sim, illumination_na=STOPPED_NA)["instrument_Sq_nm"]
+        out[f"papers.{key}.na03_sq"] = (stopped, ".2f")
+        above.append(stopped - spec["value"] - spec["sd"])
+        raw.append(res["raw_Sq_nm"])
+    out["papers.li_raw_sq_range"] = _range(raw, ".2g")
+    out["papers.na03_above_band_range"] = _range(above, ".2f")
+    out["papers.na03_above_band_range_short"] = _range(above, ".1f")
+    ideal = pc.compare_sim(_sim("sts_sinusoidal_grid", GRID_IDEAL))
+    out["papers.ideal_grid_inst_sq"] = (ideal["instrument_Sq_nm"], ".3g")
+    filled = Microscope(source=led(600.0, bandwidth_nm=120.0))
+    stopped = Microscope(source=led(600.0, bandwidth_nm=120.0), illumination_na=STOPPED_NA)
+    out["papers.itf_100"] = (float(filled.itf(100.0)), ".3f")
+    out["papers.itf_200"] = (float(filled.itf(200.0)), ".2f")
+    out["papers.itf_100_stopped"] = (float(stopped.itf(100.0)), ".2f")
+    return out
+
+
+def run_papers() -> dict:
+    """The other shipped scenes next to their papers (`tools/paper_comparison.py`): each
+    scene as shipped, the residual raw and through the 20x objective (filled pupil),
+    the camera pixel and a poly2 form removal."""
+    pc = _paper_comparison()
+    out = {}
+    for key, name in OTHER_WINDOWS.items():
+        out.update(_comparison_numbers(f"papers.{key}", pc.compare_sim(_sim(name))))
+    return out
+
+
+RCSE_COMPLIANCES = (0.0, 0.02, 0.05, 0.1, 0.2, 0.5)
+
+
+def run_rcse() -> dict:
+    """The RCSE paper (2024): `rcse_circular_array` with `rcse.spread_elements = 10` (both
+    paths cut on ten element fields through the `sts_lathe` and `al6061`): the X following
+    errors, the mean Sa and its spread, at the preset's cross-compliance and over
+    0-0.5 nm/N (`machine.coupling.{z,y}_compliance_nm_per_n`)."""
+    from render_inspect.core.units import NM_TO_UM
+
+    out, red = {}, []
+    for c in RCSE_COMPLIANCES:
+        tag = fmt(c, "g").replace(".", "p")
+        over = ["rcse.spread_elements=10", f"machine.coupling.z_compliance_nm_per_n={c}",
+                f"machine.coupling.y_compliance_nm_per_n={c}"]
+        sp = _sim("rcse_circular_array", over).metrics["rcse"]["comparison"]["spread"]
+        out[f"rcse.c{tag}.sa_rcse"] = (sp["rcse"]["Sa_mean_nm"], ".2f")
+        out[f"rcse.c{tag}.sa_conv"] = (sp["conventional"]["Sa_mean_nm"], ".2f")
+        out[f"rcse.c{tag}.sa_lower_pct"] = (sp["Sa_mean_reduction_percent"], ".1f")
+        out[f"rcse.c{tag}.sd_lower_pct"] = (sp.get("Sa_sd_reduction_percent"), ".1f")
+        if c == 0.1:  # the preset
+            out["rcse.sa_reduction_pct"] = (sp["Sa_mean_reduction_percent"], ".0f")
+            out["rcse.sd_reduction_pct"] = (sp.get("Sa_sd_reduction_percent"), ".0f")
+            fe_r = sp["rcse"]["following_error"]["x_max_nm"]
+            fe_c = sp["conventional"]["following_error"]["x_max_nm"]
+            out["rcse.x_fe_rcse_nm"] = (fe_r, ".3g")
+            out["rcse.x_fe_rcse_nm_short"] = (fe_r, ".2g")
+            out["rcse.x_fe_conv_um"] = (fe_c * NM_TO_UM, ".2g")
+        if c > 0:
+            red.append(sp["Sa_mean_reduction_percent"])
+    out["rcse.sa_reduction_range"] = f"{fmt(min(red), '.0f')} to {fmt(max(red), '.0f')}"
+    return out
+
+
+def run_rcse_ideal() -> dict:
+    """The RCSE paper (2024), the commanded geometry (`machine.preset` and
+    `material.preset` "ideal"): `rcse_circular_array` on the ring-4 element at 4 um
+    pixels (0.4 mm window) and on the scene's window; the kinematics, profile errors and
+    residuals of the RCSE and the conventional paths (`rcse.comparison`)."""
+    from render_inspect.core.units import MM_TO_UM
+
+    ideal = ["machine.preset='ideal'", "material.preset='ideal'"]
+    out = {}
+    small = ["simulation.region=[3.28,-0.2,3.68,0.2]", "simulation.pixel=0.004"]
+    for tag, over in (("small", small),
+                      ("scene", [])):
+        m = _sim("rcse_circular_array", ideal + over).metrics
+        c = m["rcse"]["comparison"]
+        for path in ("rcse", "conventional"):
+            short = "conv" if path == "conventional" else path
+            r = c[path]["residual"]
+            out[f"rcse_ideal.{tag}.{short}_sa"] = (r["Sa_nm"], "#.2g")
+            out[f"rcse_ideal.{tag}.{short}_sz"] = (r["Sz_nm"], ".2g")
+            out[f"rcse_ideal.{tag}.{short}_min"] = (r["min_nm"], ".3g" if tag == "small" else ".2g")
+        if tag == "small":
+            k, kc = c["rcse"], c["conventional"]
+            out.update({
+                "rcse_ideal.small.points": (m["toolpath"]["points"], ",.0f"),
+                "rcse_ideal.small.rcse_vx_um_s": (k["x_velocity_max_mm_s"] * MM_TO_UM, ".2g"),
+                "rcse_ideal.small.rcse_reversals": (k["x_reversals"], ".0f"),
+                "rcse_ideal.small.conv_vx_mm_s": (kc["x_velocity_max_mm_s"], ".2g"),
+                "rcse_ideal.small.conv_ax": f"{kc['x_acceleration_max_mm_s2'] / 1000:.2g}e3",
+                "rcse_ideal.small.conv_reversals": (kc["x_reversals"], ",.0f"),
+                "rcse_ideal.small.conv_profile_max": (kc["profile_error_max_nm"], ".2g"),
+                "rcse_ideal.small.conv_profile_rms": (kc["profile_error_rms_nm"], ".1g")})
+        else:
+            out["rcse_ideal.scene.chordal_nm"] = (m["toolpath"]["chordal_error_max_nm"], ".2g")
+    return out
+
+
+def run_zhang() -> dict:
+    """Zhang et al. (2022): `sculpt_quad_mla` on 3 x 3 lenslets at p / 40 pixels, with the
+    104 kHz vibration, without it, and with an ideal material; a single lenslet's Sa and
+    Sz after a degree-4 form removal over the middle cell, the largest burr, the contact
+    ratio and the two overcuts (the shipped 10 x 10 array)."""
+    from render_inspect.core.units import MM_TO_NM, MM_TO_UM
+    from render_inspect.metrology._filters import remove_form
+    from render_inspect.metrology._params import areal_parameters
+
+    p = 0.19975
+    cell_of = ["design.rows=3", "design.cols=3", f"simulation.pixel={p / 40}",
+               f"simulation.region=[{-1.5 * p},{-1.5 * p},{1.5 * p},{1.5 * p}]"]
+
+    def lenslet(over):
+        sim = _sim("sculpt_quad_mla", cell_of + over)
+        res = sim.heightmap.machined - sim.heightmap.design
+        cell, _ = remove_form(res[42:79, 42:79], pixel=p / 40, method="polynomial", degree=4)
+        a = areal_parameters(cell, pixel=p / 40)
+        return a["Sa"] * MM_TO_NM, a["Sz"] * MM_TO_UM, sim.metrics
+
+    sa, sz, m = lenslet([])
+    out = {"zhang.sa_nm": (sa, ".3g"), "zhang.sa_nm_short": (sa, ".2g"), "zhang.sz_um": (sz, ".2g"),
+           "zhang.burr_um": (m["burrs"]["max_added_um"], ".2f"),
+           "zhang.contact_ratio": (m["material"]["contact_ratio"], ".2g")}
+    sa0, _, m0 = lenslet(["artifacts.vibration.amplitude=0"])
+    out["zhang.conv_sa_nm"] = (sa0, ".2f")
+    out["zhang.conv_burr_um"] = (m0["burrs"]["max_added_um"], ".2f")
+    sa_i, _, _ = lenslet(["material.preset='ideal'"])
+    out["zhang.ideal_sa_nm"] = (sa_i, ".1f")
+    out["zhang.unexplained_nm"] = (math.sqrt(max(4.0 ** 2 - sa ** 2, 0.0)), ".2g")
+    whole = _sim("sculpt_quad_mla").metrics["sculpt"]
+    out["zhang.vibration_overcut_um"] = (whole["vibration_overcut_um"], ".3g")
+    out["zhang.tool_edge_overcut_um"] = (whole["tool_edge_overcut_um"], ".3g")
+    return out
+
+
+def run_hts() -> dict:
+    """Kong et al. (2020): `hts_toric_msa` as shipped (the FTS 1.3 ms late): the lags, the
+    lenslets' dislocations after registration on the base, their growth per mm of
+    radius, the lenslets' form error and the residual's Sq."""
+    import numpy as np
+
+    from render_inspect.core.units import S_TO_MS, S_TO_US
+
+    m = _sim("hts_toric_msa").metrics
+    sv = m["servo"]
+    out = {"hts.relative_lag_ms": (sv["relative_lag_s"] * S_TO_MS, ".3g"),
+           "hts.fts_late_ms": (sv["relative_lag_s"] * S_TO_MS, ".2g"),
+           "hts.slow_lag_us": (sv["slow_lag_s"] * S_TO_US, ".3g"),
+           "hts.slow_lag_ms": (sv["slow_lag_s"] * S_TO_MS, ".2f"),
+           "hts.relative_angle_mrad": (sv["relative_lag_s"] * sv["omega_rad_s"] * S_TO_MS, ".3g"),
+           "hts.sq_nm": (m["residual"]["Sq_nm"], ".3g")}
+    rows = sorted(((math.hypot(e["x_mm"], e["y_mm"]), math.hypot(e["dx_um"], e["dy_um"]), e)
+                   for e in m["lenslets"]), key=lambda row: row[:2])
+    mid = [d for r, d, _ in rows if 1.0 < r < 1.8]
+    far = [(r, d) for r, d, _ in rows if r > 1.8]
+    out["hts.disloc_centre_um"] = (rows[0][1], ".1g")
+    out["hts.disloc_mid_um"] = (float(np.mean(mid)), ".3g")
+    out["hts.disloc_far_um"] = (far[-1][1], ".3g")
+    out["hts.disloc_per_mm"] = (far[-1][1] / far[-1][0], ".3g")
+    out["hts.form_sa_um"] = (float(np.median([e["Sa_um"] for _, _, e in rows])), ".2g")
+    return out
+
+
 def _about(fn) -> str:
     """The first paragraph of a run's docstring, on one line."""
     return " ".join(fn.__doc__.split("\n\n")[0].split()).replace("``", "`")
@@ -238,8 +485,15 @@ def _about(fn) -> str:
 RUNS = {r.name: r for r in (
     Run("grid", _about(run_grid), run_grid, cheap=True),
     Run("filters", _about(run_filters), run_filters, cheap=True),
+    Run("papers_li", _about(run_papers_li), run_papers_li, cheap=True),
+    Run("zhang", _about(run_zhang), run_zhang, cheap=True),
     Run("fig16", _about(run_fig16), run_fig16),
     Run("instrument", _about(run_instrument), run_instrument),
+    # papers ends on hts_toric_msa, which the hts run then takes from the same simulation
+    Run("papers", _about(run_papers), run_papers),
+    Run("hts", _about(run_hts), run_hts),
+    Run("rcse", _about(run_rcse), run_rcse),
+    Run("rcse_ideal", _about(run_rcse_ideal), run_rcse_ideal),
 )}
 
 
@@ -258,7 +512,16 @@ def make(names, data: dict) -> dict:
         run = RUNS[name]
         print(f"docs_numbers: {name}: {run.about}", file=sys.stderr)
         t0 = time.perf_counter()
-        got = run.make()
+        try:
+            got = run.make()
+        except Exception as exc:  # one failed run keeps its old numbers; the others go on
+            import traceback
+
+            traceback.print_exc()
+            print(f"docs_numbers: {name} failed ({type(exc).__name__}: {exc}); its numbers "
+                  f"are kept as they were", file=sys.stderr)
+            data.setdefault("failed", []).append(name)
+            continue
         data["numbers"] = {k: v for k, v in data.get("numbers", {}).items() if v.get("run") != name}
         for key, item in got.items():
             value, spec = (item, None) if isinstance(item, str) else item
@@ -340,14 +603,22 @@ def main(argv=None) -> int:
         bad = check(data)
         print("\n".join(bad) or "every marked number is current", file=sys.stderr if bad else sys.stdout)
         return 1 if bad else 0
+    failed = []
     if not args.docs:
-        data = make(args.only or list(RUNS), data)
+        t0 = time.perf_counter()
+        for name in args.only or list(RUNS):
+            data = make([name], data)        # numbers.json after each run: a stop keeps them
+            failed += data.pop("failed", [])
+            write_numbers(data)
+        print(f"docs_numbers: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     write_numbers(data)
     unknown = write_docs(data)
     if unknown:
         print("marked spans without a number:\n  " + "\n  ".join(unknown), file=sys.stderr)
-        return 1
-    return 0
+    if failed:
+        print("runs that failed (their numbers are the earlier ones): " + ", ".join(failed),
+              file=sys.stderr)
+    return 1 if unknown or failed else 0
 
 
 if __name__ == "__main__":

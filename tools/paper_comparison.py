@@ -16,7 +16,8 @@ Usage::
     python tools/paper_comparison.py [--scene NAME ...] [--illumination-na 0.3] [--json OUT]
           [--set KEY=VALUE ...]
 
-Prints a Markdown table (docs/machine_and_material.md shows it).
+Prints a Markdown table.  ``tools/docs_numbers.py`` makes the numbers
+docs/machine_and_material.md quotes from the same functions (``compare_sim``).
 """
 
 from __future__ import annotations
@@ -98,19 +99,42 @@ def sa_nm(a):
     return float(np.mean(np.abs(a - a.mean())) * MM_TO_NM)
 
 
-def compare(name, overrides=(), *, illumination_na=None) -> dict:
-    """Sq and Sa of one scene's residual raw, poly2 and through the instrument."""
-    scene = load_scene(name, list(overrides))
-    t0 = time.perf_counter()
-    sim = simulate(scene)
+def compare_sim(sim, *, illumination_na=None) -> dict:
+    """Sq and Sa of a simulation's residual raw, poly2 and through the instrument."""
     r = sim.heightmap.machined - sim.heightmap.design
-    px = scene.simulation.pixel
+    px = sim.scene.simulation.pixel
     p2 = poly_remove(r)
     it = poly_remove(instrument_filter(r, px, illumination_na=illumination_na))
     return {"raw_Sq_nm": sq_nm(r), "raw_Sa_nm": sa_nm(r), "poly2_Sq_nm": sq_nm(p2),
             "instrument_Sq_nm": sq_nm(it), "instrument_Sa_nm": sa_nm(it),
-            "scallop_Sq_nm": sim.metrics.get("scallop", {}).get("Sq_nm"),
-            "seconds": time.perf_counter() - t0}
+            "scallop_Sq_nm": sim.metrics.get("scallop", {}).get("Sq_nm")}
+
+
+def compare(name, overrides=(), *, illumination_na=None) -> dict:
+    """Sq and Sa of one scene's residual raw, poly2 and through the instrument."""
+    scene = load_scene(name, list(overrides))
+    t0 = time.perf_counter()
+    out = compare_sim(simulate(scene), illumination_na=illumination_na)
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def table_row(name, label, res) -> str:
+    """One Markdown row of the table: the scene, its window, raw and instrument Sq / Sa,
+    the paper's value and whether the instrument's Sq lies inside its band."""
+    spec = PAPERS[name]
+    if spec["metric"]:
+        inside = abs(res["instrument_Sq_nm"] - spec["value"]) <= spec["sd"]
+        return (f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
+                f"{res['instrument_Sq_nm']:.2f} / {res['instrument_Sa_nm']:.2f} | "
+                f"{spec['value']} +- {spec['sd']} ({spec['paper']}) | "
+                f"{'inside' if inside else 'outside'} |")
+    return (f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
+            f"{res['instrument_Sq_nm']:.2f} / {res['instrument_Sa_nm']:.2f} | {spec['paper']} | |")
+
+
+TABLE_HEAD = ("| scene, window | raw Sq / Sa (nm) | through the instrument, poly2: Sq / Sa (nm) | "
+              "paper | |\n|---|---|---|---|---|")
 
 
 def main(argv=None):
@@ -123,23 +147,12 @@ def main(argv=None):
     a = ap.parse_args(argv)
     rows, out = [], {}
     for name in a.scene or list(PAPERS):
-        spec = PAPERS[name]
-        for label, over in spec["windows"].items():
+        for label, over in PAPERS[name]["windows"].items():
             res = compare(name, over + a.set, illumination_na=a.illumination_na)
             out[f"{name}: {label}"] = res
-            if spec["metric"]:
-                inside = abs(res["instrument_Sq_nm"] - spec["value"]) <= spec["sd"]
-                rows.append(f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
-                            f"{res['instrument_Sq_nm']:.2f} / {res['instrument_Sa_nm']:.2f} | "
-                            f"{spec['value']} +- {spec['sd']} ({spec['paper']}) | "
-                            f"{'inside' if inside else 'outside'} |")
-            else:
-                rows.append(f"| {name}, {label} | {res['raw_Sq_nm']:.2f} / {res['raw_Sa_nm']:.2f} | "
-                            f"- | {spec['paper']} | |")
+            rows.append(table_row(name, label, res))
             print(rows[-1], file=sys.stderr, flush=True)
-    print("| scene, window | raw Sq / Sa (nm) | through the instrument, poly2: Sq / Sa (nm) | "
-          "paper | |")
-    print("|---|---|---|---|---|")
+    print(TABLE_HEAD)
     print("\n".join(rows))
     if a.json:
         with open(a.json, "w") as fh:
