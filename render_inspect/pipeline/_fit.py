@@ -329,8 +329,17 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
 def _after_failure(store, err) -> None:
     """A refused fit (bad input) leaves no cache folder it made; an interrupted or failed
     one keeps the evaluations it made, so that the same command resumes from them."""
+    stop = err  # an interruption (Ctrl-C in a compiled kernel surfaces wrapped)
+    for _ in range(8):
+        if stop is None or isinstance(stop, KeyboardInterrupt):
+            break
+        stop = stop.__cause__ or stop.__context__
     if isinstance(err, InputError):
         store.discard()
+    elif store.written and isinstance(stop, KeyboardInterrupt):
+        # said in the command line's one line about the stop
+        stop.render_inspect_kept = (f"the {store.written} evaluations made are kept in "
+                                   f"{store.folder}: the same command resumes from them")
     elif store.written:
         log.warning("fit stopped: the %d evaluations made are kept in %s; the same command "
                     "resumes from them (deleting the folder is safe)", store.written,
