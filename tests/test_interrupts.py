@@ -1,5 +1,6 @@
 """Every command stops when asked: SIGINT or SIGTERM sent while the command works (its
-temporary output folder exists and it has been busy for a moment) ends it within
+temporary output folder exists, or its computation before that folder is under way, and
+it has been busy for a moment) ends it within
 :data:`LATENCY_S` with exit 130 / 143, one line on stderr and no traceback, the output
 folder as it was before the run (here: an earlier run's files, untouched) and no
 temporary folder left behind.  The latency of each command is printed (``-s``).

@@ -184,3 +184,21 @@ def test_a_step_known_by_its_expected_time_keeps_moving():
     f = [cli.timed_fill(e, 10.0) for e in np.linspace(0, 60, 601)]
     assert f[40] == pytest.approx(4.0) and all(b > a for a, b in zip(f, f[1:]) if b < 9.999)
     assert max(f) < 10.0 and f[150] > 9.9
+
+
+def test_a_stop_inside_a_deferred_block_is_raised_when_it_ends():
+    """Inside :func:`cancel.deferred` the handlers only record a stop; it is raised as the
+    block ends (nested blocks: as the outermost ends), not before."""
+    cancel.clear()
+    steps = []
+    with pytest.raises(cancel.Terminated):
+        with cancel.deferred():
+            with cancel.deferred():
+                cancel.request(signal.SIGTERM)
+                assert cancel.deferring()
+                steps.append("inner")
+            steps.append("outer")
+    assert steps == ["inner", "outer"] and not cancel.deferring()
+    cancel.clear()
+    with cancel.deferred():
+        pass  # nothing asked: nothing raised
