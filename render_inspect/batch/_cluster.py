@@ -51,6 +51,7 @@ from .. import __version__
 from ..core.errors import InputError
 from ..core.limits import format_bytes, memory_budget
 from ..core.units import MIB_TO_BYTES
+from ._cluster_stop import abandon, end_local_workers, local_clusters
 
 __all__ = ["dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
            "plan_workers", "cluster_info", "call_with_threads", "wait_for_workers",
@@ -438,14 +439,14 @@ def _local_cluster(n: int, threads: int, *, memory_limit: int, wait: bool, cappe
     try:
         # the workers' own log lines (heartbeats to a scheduler that is shutting down,
         # connections it closes) are not shown: what fails comes back with its task
-        known = set(map(id, _local_clusters()))
+        known = set(map(id, local_clusters()))
         try:
             cluster = distributed.LocalCluster(n_workers=0, threads_per_worker=1, processes=True,
                                                host="127.0.0.1", dashboard_address=dash,
                                                silence_logs=logging.CRITICAL,
                                                memory_limit=memory_limit)
         except KeyboardInterrupt:  # stopped while the cluster starts
-            _abandon(c for c in _local_clusters() if id(c) not in known)
+            abandon(c for c in local_clusters() if id(c) not in known)
             raise
     finally:
         if mask is not None:
@@ -468,43 +469,10 @@ def _local_cluster(n: int, threads: int, *, memory_limit: int, wait: bool, cappe
         finally:
             client.close()
     except KeyboardInterrupt:
-        _end_local_workers(cluster)
+        end_local_workers(cluster)
         raise
     finally:
         cluster.close()
-
-
-def _local_clusters() -> list:
-    from distributed.deploy.spec import SpecCluster
-
-    return list(getattr(SpecCluster, "_instances", ()))
-
-
-def _abandon(clusters) -> None:
-    """Clusters whose start was interrupted: end their workers and forget them, so
-    that nothing tries to close a half-started cluster at exit (which prints tracebacks);
-    the messages of their unfinished start are not shown."""
-    from distributed.deploy.spec import SpecCluster
-
-    for name in ("asyncio", "distributed", "tornado"):
-        logging.getLogger(name).setLevel(logging.CRITICAL)
-    for cluster in list(clusters):
-        _end_local_workers(cluster)
-        with contextlib.suppress(Exception):
-            SpecCluster._instances.discard(cluster)
-
-
-def _end_local_workers(cluster) -> None:
-    """The run was stopped (Ctrl-C, SIGTERM): end the LocalCluster's worker
-    processes at once instead of waiting seconds for the points they are running (a
-    point's folder is written whole or not at all; the next run into the sweep's folder
-    removes what a stopped point left)."""
-    for nanny in list(getattr(cluster, "workers", {}).values()):
-        proc = getattr(getattr(nanny, "process", None), "process", None)
-        pid = getattr(proc, "pid", None)
-        if pid:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGTERM)
 
 
 @contextlib.contextmanager

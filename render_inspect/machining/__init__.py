@@ -36,7 +36,7 @@ from ._material import (
     uncut_chip_thickness,
 )
 from ._machines import MACHINE_PRESET_NAMES, MACHINE_PRESETS, machine_preset
-from ._memory import in_memory_bytes, tiled_bytes
+from ._memory import BURR_BLOCK_BYTES, in_memory_bytes, tiled_bytes
 from ._part_map import part_heightmap
 from ._metrics import (merge_moments, metrics_from_moments, residual_metrics, tile_abs_dev,
                        tile_moments)
@@ -51,7 +51,7 @@ __all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metri
            "MACHINE_PRESETS", "MACHINE_PRESET_NAMES", "machine_preset", "follow_axis",
            "follow_turning", "following_error_stats", "pvt_command", "linear_command",
            "second_order_sos", "EnvelopePath", "prepare_envelope", "load_kernels",
-           "in_memory_bytes", "tiled_bytes", "merge_moments", "metrics_from_moments",
+           "in_memory_bytes", "tiled_bytes", "BURR_BLOCK_BYTES", "merge_moments", "metrics_from_moments",
            "tile_abs_dev", "tile_moments", "TILE", "Tile", "compute_tile", "plan_tiles",
            "MATERIAL_PRESET_NAMES", "part_heightmap",
            "ErrorMotions", "apply_error_motions",

@@ -18,7 +18,7 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining import in_memory_bytes, material_burr_facts, mechanics_facts
+from ..machining import BURR_BLOCK_BYTES, in_memory_bytes, material_burr_facts, mechanics_facts
 
 #: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
 _PATH_BYTES = 40
@@ -226,8 +226,11 @@ def turning_memory(cfg, plan=None) -> int:
     points = turning_points(cfg, plan)
     ticks = _ticks(cfg, plan)
     material = cfg.material.preset != "ideal"
-    # material: pass angle, displaced material, edge masks; a machine alone: the pass-angle map
-    per_sample = 8 * 2 + 4 if material else (8 * 2 if ticks else 0)
+    # material: pass angle, displaced material, edge masks, and then the part's texture
+    # and the burr model's temporaries (BURR_BLOCK_BYTES: smoothed map, edge masks, turns,
+    # distance transform and ridge) while the cut maps are held; a machine alone: the
+    # pass-angle map
+    per_sample = ((8 * 2 + 4 + BURR_BLOCK_BYTES) if material else (8 * 2 if ticks else 0))
     cutting = in_memory_bytes(shape, points, cut_sample_bytes=per_sample,
                               cut_bytes=ticks * _KEPT_BYTES_PER_TICK)
     following = ticks * _BYTES_PER_TICK + points * 2 * _PATH_BYTES
