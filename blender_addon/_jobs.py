@@ -46,6 +46,16 @@ def worker_command(task: str, spec: Path) -> list[str]:
     return [sys.executable, str(WORKER), str(spec)]
 
 
+def worker_numba_cache(folder: str) -> str:
+    """The workers' own numba cache inside ``folder`` (Blender's).  Blender imports the
+    extension's render_inspect as ``bl_ext.<repository>.render_inspect._bundled.render_inspect``,
+    a worker as ``render_inspect``; numba names a cache file after the source file alone,
+    but a cached kernel that calls another kernel refers to it by its module's full name, so
+    a kernel cached by one process fails to load in the other (``No module named
+    'bl_ext'``).  Separate folders keep each process to kernels it can load."""
+    return os.path.join(folder, "render_inspect_worker")
+
+
 def remove_partials(out, since: float) -> list[str]:
     """Remove the hidden ``.<name>.partial-*`` folders next to ``out`` made after
     ``since`` (time.time()) by an output folder being written; return their paths."""
@@ -99,6 +109,8 @@ class Job:
         env = dict(os.environ)
         env["RENDER_INSPECT_SYS_PATH"] = json.dumps([p for p in sys.path if p])
         env["PYTHONUNBUFFERED"] = "1"
+        if env.get("NUMBA_CACHE_DIR"):
+            env["NUMBA_CACHE_DIR"] = worker_numba_cache(env["NUMBA_CACHE_DIR"])
         kwargs = {}
         if os.name == "posix":
             kwargs["start_new_session"] = True  # Ctrl-C in Blender's terminal is not the child's

@@ -568,14 +568,18 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
 
 def _on_interrupt(signum, frame):
     # Ctrl-C: the main thread stops here, and every long computation running in blocks
-    # (kernels, tiles, worker threads) at its next check (core.cancel)
+    # (kernels, tiles, worker threads) at its next check (core.cancel); inside native code
+    # that cannot unwind an exception (importing Mitsuba, loading a scene), at the end of
+    # that block (cancel.deferred)
     cancel.request(signum)
-    raise KeyboardInterrupt
+    if not cancel.deferring():
+        raise KeyboardInterrupt
 
 
 def _on_terminate(signum, frame):
     cancel.request(signum)
-    raise Terminated(signum)
+    if not cancel.deferring():
+        raise Terminated(signum)
 
 
 def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
@@ -608,11 +612,29 @@ def _setup_logging(args) -> None:
         level = logging.WARNING
     elif getattr(args, "verbose", 0):
         level = logging.DEBUG
-    if not log.handlers:
-        handler = logging.StreamHandler(sys.stderr)
+    if not any(isinstance(h, _StderrHandler) for h in log.handlers):
+        handler = _StderrHandler()
         handler.setFormatter(logging.Formatter("%(message)s"))
         log.addHandler(handler)
     log.setLevel(level)
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Log records on the *current* ``sys.stderr``: a handler holding the stream it was
+    made with writes into a closed file once ``sys.stderr`` has been replaced (a second
+    ``main()`` in one process under a captured or redirected stderr), which logging
+    reports as "--- Logging error ---" instead of the message."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):  # StreamHandler.__init__ / setStream set it: always stderr
+        pass
 
 
 def main(argv=None) -> int:
@@ -679,6 +701,9 @@ def main(argv=None) -> int:
             state = f"the output folder {done} had been written completely"
         else:
             state = "the output folder was left as it was"
+        kept = getattr(stop, "render_inspect_kept", None)  # (fit: its evaluations)
+        if kept:
+            state += f"; {kept}"
         print(f"{prefix}: {what}; {state}", file=sys.stderr)
         return 143 if isinstance(stop, Terminated) else 130
     except MemoryError:

@@ -252,12 +252,15 @@ def main(zip_path, out_json, work):
     poll_while_running = bpy.ops.render_inspect.simulate.poll()
     time.sleep(1.0)  # into the cut
     state_before = job.state
+    error_before = job.error  # why, should it have stopped by itself
+    tail_before = list(job.tail)[-5:]
     t = time.perf_counter()
     job.cancel()
     jobs.finish_current()
     s.job_running = False
     partials = sorted(p.name for p in long_out.parent.glob(f".{long_out.name}.partial-*"))
-    step("cancel", state_before=state_before, message_before=s.job_message, state=job.state,
+    step("cancel", state_before=state_before, error_before=error_before,
+         tail_before=tail_before, message_before=s.job_message, state=job.state,
          seconds=time.perf_counter() - t, returncode=job.proc.returncode,
          out_exists=long_out.exists(), partials=partials,
          objects_unchanged=len(bpy.data.objects) == n_objects,
@@ -275,8 +278,10 @@ def main(zip_path, out_json, work):
         X, _ = np.meshgrid(x, x)
         z = np.tan(np.radians(tilt_deg)) / 10.0 * X
         hm = HeightMap(z, z.copy(), x[1] - x[0], (-0.5, -0.5))
-        rgb, meta = render_cycles(hm, {"light": "dome", "exaggeration": 10.0, "resolution": 32,
-                                       "spp": 4}, view="micro")
+        # the micro view's own light is a microscope's brightfield by default: the closed
+        # form below is that of the dome, so the dome lights the micro view here
+        rgb, meta = render_cycles(hm, {"light": "dome", "micro_light": "dome", "exaggeration": 10.0,
+                                       "resolution": 32, "spp": 4}, view="micro")
         a = np.radians(tilt_deg)
         expected = fresnel_conductor(np.cos(a), ALUMINIUM_ETA, ALUMINIUM_K) * light_profile(2 * a, "dome")
         mirror[str(tilt_deg)] = {"median": np.median(rgb[4:-4, 4:-4].reshape(-1, 3), axis=0).tolist(),

@@ -256,7 +256,8 @@ def test_a_render_runs_in_a_worker_process_with_progress(driven):
 
 def test_cancelling_a_long_simulate_leaves_nothing(driven):
     c = driven["cancel"]
-    assert c["state_before"] == "running" and c["state"] == "cancelled"
+    assert c["state_before"] == "running" and c["state"] == "cancelled", (
+        c.get("error_before"), c.get("tail_before"))
     assert c["message_before"].startswith("simulating")
     assert c["returncode"] != 0
     assert not c["out_exists"] and c["partials"] == []

@@ -1028,6 +1028,13 @@ def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
     sweep = tmp / "bad_sweep.toml"
     sweep.write_text('name = "s"\nscene = "sts_sinusoidal_grid"\n[grid]\n"process.spindle_rpm" = [10, 20]\n'
                      '[run]\nrender = "bogus"\n')
+    from render_inspect.io import write_measurement_exr
+
+    measured = tmp / "height.exr"  # a measured map as measure writes it (a tilted plane)
+    z = 1e-5 * np.arange(64)[None, :] + np.zeros((64, 1))
+    write_measurement_exr(measured, z, np.ones_like(z, bool), pixel=0.001, origin=(0.3, -0.05),
+                          attrs={"objective": "20x", "mode": "psi"})
+    fit = ["fit", measured, "--scene", "sts_sinusoidal_grid"]
     return [
         (["simulate", "sts_sinusoidal_grid", "--tiled", "--tile", "20000", "--set",
           "material.preset='ideal'"], "--tile", 1),
@@ -1053,6 +1060,14 @@ def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
         (["regress", "--only", "no_such_case"], "no_such_case", 1),
         (["regress", "--update", "--set", "process.spindle_rpm=10"], "--set", 1),
         (["demo"], "--out", 1),
+        (["fit", tmp / "nope.exr", "--scene", "sts_sinusoidal_grid", "--free", "tool.nose_radius"],
+         "nope.exr", 1),
+        ([*fit, "--free", "tool.nose_radius", "--bounds", "tool.nose_radius=-1,2"],
+         "tool.nose_radius", 1),
+        ([*fit, "--free", "process.nope"], "process.nope", 1),
+        ([*fit, "--free", "tool.nose_radius", "--cache", tmp / "a_file"], "--cache", 1),
+        ([*fit, "--free", "tool.nose_radius", "--window", "-1"], "--window", 1),
+        (fit, "--free", 2),
     ]
 
 
@@ -1061,7 +1076,8 @@ def test_fuzz_every_command_refuses_bad_input_in_one_line(tmp_path):
     (2 for a usage error), no traceback, no output folder and no temporary left."""
     cases = _every_command_cases(tmp_path)
     assert {c[0][0] for c in cases} == {"simulate", "toolpath", "render", "compare", "analyze",
-                                        "measure", "characterise", "sweep", "regress", "demo"}
+                                        "measure", "characterise", "sweep", "regress", "demo",
+                                        "fit"}
     for i, (args, key, code) in enumerate(cases):
         out = tmp_path / f"out{i}"
         extra = ["--out", str(tmp_path / "a_file" / "out")] if args[0] == "demo" else \
@@ -1072,7 +1088,7 @@ def test_fuzz_every_command_refuses_bad_input_in_one_line(tmp_path):
         assert "Traceback" not in r.stderr and key in r.stderr, (args, r.stderr[-500:])
         if code == 1:
             assert len(r.stderr.strip().splitlines()) == 1, r.stderr
-        assert not out.exists()
+        assert not out.exists() and not (tmp_path / f"out{i}.cache").exists(), args
         assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or
                     p.name.endswith(".lock")], args
 

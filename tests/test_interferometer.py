@@ -110,9 +110,20 @@ def test_light_returns_where_the_objective_accepts_the_slope():
     # a wider aperture lets more through
     ig2 = render_interferogram(hm, cfg.model_copy(update={"numerical_aperture": 0.55}), surface="design")
     assert (ig2.accepted_fraction >= 0.05).sum() > light.sum()
-    # no fringes where no light returns: nothing is measured there
+    # what is measured is decided from the frames: a balanced interferometer whose object
+    # beam is the fraction F of a mirror's shows the contrast 2 F / (1 + F) at most (the
+    # camera pixel averaging dense fringes lowers it), so the instrument's contrast floor
+    # (min_modulation 0.05) sits at F = 0.026, not at the 5 % light estimate above: a
+    # facet returning 3 % of the light still shows real fringes of 5.3 % contrast.  With
+    # a noise-free camera the floor alone decides, clearly on both sides of it.
     m = measure_frames(ig.recorded())
-    assert not m.valid[:, ~expect & clear].any()
+    floor = m.meta["min_modulation"]
+    F = ig.accepted_fraction.astype(np.float64)
+    contrast = 2 * F / (1 + F)
+    dark = contrast < 0.9 * floor
+    assert (~expect & clear).sum() * ig.shape[0] > dark.sum() > 0.95 * (~expect & clear).sum() * ig.shape[0]
+    assert not m.valid[dark].any()  # no fringes above the floor: nothing is measured there
+    assert m.valid[contrast > 1.4 * floor].all()  # fringes well above it: all measured
 
 
 def test_height_true_equals_the_height_map_at_pixel_centres():

@@ -1,5 +1,6 @@
 """Every command stops when asked: SIGINT or SIGTERM sent while the command works (its
-temporary output folder exists and it has been busy for a moment) ends it within
+temporary output folder exists, or its computation before that folder is under way, and
+it has been busy for a moment) ends it within
 :data:`LATENCY_S` with exit 130 / 143, one line on stderr and no traceback, the output
 folder as it was before the run (here: an earlier run's files, untouched) and no
 temporary folder left behind.  The latency of each command is printed (``-s``).
@@ -44,6 +45,16 @@ def inputs(tmp_path_factory):
     fr = csi_frames(h + 2e-3, nrm, pixel=p, origin=(0.0, 0.0),
                     microscope=Microscope(objective=objective("20x"), source=led()))
     write_frames_exr(d / "frames.exr", fr)
+    # a measured height map (as measure writes it) for fit: turning marks of 10 um
+    from render_inspect.io import write_measurement_exr
+
+    n, px = 128, 0.00087890625
+    x = (np.arange(n) - n / 2) * px
+    r = np.hypot(x[None, :] + 0.3, x[:, None] - 0.05)
+    u = (r / 0.0101 - np.round(r / 0.0101)) * 0.0101
+    z = 0.514 - np.sqrt(0.514 ** 2 - u ** 2) + 1e-5 * np.arange(n)[None, :]
+    write_measurement_exr(d / "height.exr", z, np.ones_like(z, bool), pixel=px,
+                          origin=(0.3, -0.05), attrs={"objective": "20x", "mode": "psi"})
     return d
 
 
@@ -64,7 +75,13 @@ COMMANDS = [
     ("sweep", ["sweep", "fig15_small"], "SIGINT"),
     ("regress", ["regress", "--only", "fig16_overcut_z,hts_toric_z"], "SIGTERM"),
     ("demo", ["demo", "--quick"], "SIGINT"),
+    ("fit", ["fit", "{inputs}/height.exr", "--scene", "sts_sinusoidal_grid", "--free",
+             "tool.nose_radius", "--window", "0.11"], "SIGTERM"),
 ]
+#: commands that compute before they open their output folder: busy this long after the
+#: start, s (analyze: the Gaussian L-filter of the 3000 x 3000 map; measure: the frames'
+#: demodulation after reading them)
+STARTED_AFTER_S = {"analyze": 4.0, "measure": 8.0}
 
 
 def _tree(folder: Path) -> dict:
@@ -72,7 +89,18 @@ def _tree(folder: Path) -> dict:
             if p.is_file()}
 
 
-def _stop_once_busy(args, out: Path, sig: str, cwd: Path):
+def _working(name: str, out: Path, t0: float) -> bool:
+    """Whether the command is at work: its temporary output folder exists (a sweep's folder
+    is locked, not swapped; fit writes its evaluations to ``<out>.cache`` and its folder only
+    at the end), or it has run for :data:`STARTED_AFTER_S`."""
+    if name == "fit":
+        return any(out.parent.glob(f"{out.name}.cache/*.npz"))
+    if name in STARTED_AFTER_S:
+        return time.monotonic() - t0 >= STARTED_AFTER_S[name]
+    return any(".partial-" in p.name for p in out.parent.iterdir()) or (out / ".lock").exists()
+
+
+def _stop_once_busy(name, args, out: Path, sig: str, cwd: Path):
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.Popen([sys.executable, "-m", "render_inspect.cli", *args, "--out", str(out),
                              "-q"], cwd=cwd, env=env, stdout=subprocess.PIPE,
@@ -80,15 +108,13 @@ def _stop_once_busy(args, out: Path, sig: str, cwd: Path):
     t0 = time.monotonic()
     busy_since = None
     while proc.poll() is None and time.monotonic() - t0 < 400:
-        started = any(".partial-" in p.name for p in out.parent.iterdir()) or \
-            (out / ".lock").exists()  # a sweep's folder is locked, not swapped
+        started = _working(name, out, t0)
         if started and busy_since is None:
             busy_since = time.monotonic()
         if busy_since is not None and time.monotonic() - busy_since >= BUSY_S:
             break
         time.sleep(0.05)
-    still = any(".partial-" in p.name for p in out.parent.iterdir()) or (out / ".lock").exists()
-    if proc.poll() is not None or not still:
+    if proc.poll() is not None or not _working(name, out, t0):
         proc.wait()
         _, err = proc.communicate()
         pytest.fail(f"{args[0]} finished its work before it was stopped (rc {proc.returncode}): "
@@ -114,7 +140,7 @@ def test_command_stops_within_seconds(name, args, sig, inputs, tmp_path):
         with atomic_output_dir(out, command=args[0]) as tmp:
             (tmp / "earlier.txt").write_text("an earlier run")
     before = _tree(out) if out.exists() else {}
-    rc, latency, err = _stop_once_busy(args, out, sig, tmp_path)
+    rc, latency, err = _stop_once_busy(name, args, out, sig, tmp_path)
     print(f"\n{name}: {sig} -> exit {rc} after {latency:.2f} s")
     assert rc == (130 if sig == "SIGINT" else 143), (name, rc, err[-800:])
     lines = err.strip().splitlines()
@@ -129,3 +155,58 @@ def test_command_stops_within_seconds(name, args, sig, inputs, tmp_path):
         assert json.loads((out / ".render_inspect.json").read_text())
     else:
         assert _tree(out) == before
+    if name == "fit":  # the evaluations made are kept (and said where), nothing else
+        cache = tmp_path / "out.cache"
+        assert f"evaluations made are kept in {cache}" in lines[0], lines[0]
+        kept = [p.name for p in cache.iterdir()]
+        assert kept and all(k.endswith(".npz") for k in kept), kept
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "out.cache"]
+
+
+#: a stop while Mitsuba / Dr.Jit are imported: the signal is sent from an audit hook at the
+#: k-th module import after ``import mitsuba`` began, so that its handler runs inside that
+#: import (without the deferral, k = 7 ... 10 failed to import drjit.llvm and k = 25 ... 35
+#: aborted the process with SIGABRT from inside Mitsuba's C++ module set-up)
+_STOP_IN_IMPORT = """
+import os, signal, sys
+from render_inspect import cli
+from render_inspect.core import cancel
+from render_inspect.core.cancel import Terminated
+k = int(sys.argv[1])
+def handler(signum, frame):  # the command line's handler; one stop is enough here
+    if cancel.requested() is None:
+        cli._on_terminate(signum, frame)
+signal.signal(signal.SIGTERM, handler)
+n = [0]
+def hook(event, args):
+    if event == "import" and n[0] >= 0:
+        if n[0] == 0 and not str(args[0]).startswith(("mitsuba", "drjit")):
+            return
+        n[0] += 1
+        if n[0] == k:
+            n[0] = -1
+            print("signal during the import of", args[0], flush=True)
+            os.kill(os.getpid(), signal.SIGTERM)
+sys.addaudithook(hook)
+from render_inspect.render import import_mitsuba
+try:
+    import_mitsuba()
+except Terminated:
+    print("stopped after the import", flush=True)
+    sys.exit(143)
+print("no signal was sent: Mitsuba imports", n, "modules")
+sys.exit(3)
+"""
+
+
+@pytest.mark.parametrize("k", [7, 10, 25, 30, 35])
+def test_a_stop_while_mitsuba_is_imported_waits_for_the_import(k):
+    """SIGTERM arriving while Mitsuba and Dr.Jit are imported (their C++ module set-up
+    builds Python objects, which cannot unwind an exception raised by the handler) is
+    raised right after the import: a clean stop, never an abort."""
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", _STOP_IN_IMPORT, str(k)], capture_output=True,
+                       text=True, env=env, timeout=120)
+    assert "signal during the import of" in r.stdout, (r.returncode, r.stdout, r.stderr[-800:])
+    assert r.returncode == 143 and "stopped after the import" in r.stdout, \
+        (r.returncode, r.stdout, r.stderr[-800:])

@@ -231,3 +231,25 @@ def test_the_mesh_refusal_names_the_address_space_limit(monkeypatch):
     monkeypatch.setattr(_grid, "address_space_room", lambda: None)
     with pytest.raises(MemoryBudgetError, match=r"from simulation\.max_memory_gb.*raise stride"):
         _grid.grid_mesh(np.zeros((64, 64)), pixel=0.001, memory_budget=1000)
+
+
+def test_log_lines_go_to_the_stderr_of_the_moment(capsys):
+    """The command line's log handler writes to the current ``sys.stderr``: one made while
+    another stream was stderr (an earlier run under a captured or redirected stderr, since
+    closed) does not end in "--- Logging error ---"."""
+    import argparse
+    import io
+    import sys
+
+    from render_inspect import cli
+
+    earlier, sys.stderr = sys.stderr, io.StringIO()
+    try:
+        cli._setup_logging(argparse.Namespace(quiet=False, verbose=0))
+    finally:
+        sys.stderr.close()
+        sys.stderr = earlier
+    cli.log.warning("warning: %s", "process.feed_mm_per_min = 0.01 (100 % too slow)")
+    err = capsys.readouterr().err
+    assert "warning: process.feed_mm_per_min = 0.01 (100 % too slow)" in err
+    assert "Logging error" not in err

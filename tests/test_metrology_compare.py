@@ -83,7 +83,8 @@ def test_compare_bad_input(tmp_path):
     # heights in micrometres read as millimetres: 1000 x the design's range
     zz = rigid_resample(Freeform(), TRUE, (ORIGIN[0] + PIXEL * np.arange(N))[None, :],
                         (ORIGIN[1] + PIXEL * np.arange(N))[:, None])
-    with pytest.raises(InputError, match="unit is probably wrong"):
+    with pytest.raises(InputError, match=r"unit is probably wrong \(heights in micrometres or "
+                                         r"nanometres read as millimetres\).*--force"):
         compare_measured((zz * 1e3, PIXEL, ORIGIN), Freeform())
     with pytest.raises(InputError, match="does not overlap"):
         compare_measured(read_measured(path), Freeform(), region=(10.0, 10.0, 11.0, 11.0))

@@ -142,20 +142,36 @@ def test_rich_bars_show_the_measured_progress_with_an_eta():
 
 
 def test_cli_stops_at_the_next_block_when_asked(tmp_path, capsys):
-    """In process: a stop requested while ``simulate`` works (as the signal handler does)
-    ends it with 143, the earlier folder untouched."""
+    """In process: a stop requested while ``simulate`` works (as the signal handler does;
+    here once its temporary folder has existed for a second) ends it with 143, the
+    earlier folder untouched."""
     out = tmp_path / "out"
     with atomic_output_dir(out, command="simulate") as tmp:
         (tmp / "earlier.txt").write_text("earlier")
-    timer = threading.Timer(4.0, cancel.request, args=(signal.SIGTERM,))
-    timer.start()
+    asked = threading.Event()
+    done = threading.Event()
+
+    def busy() -> bool:
+        return any(".partial-" in p.name for p in tmp_path.iterdir())
+
+    def stop_once_busy():
+        while not done.is_set() and not busy():
+            time.sleep(0.02)
+        if not done.wait(1.0) and busy():
+            asked.set()
+            cancel.request(signal.SIGTERM)
+
+    watcher = threading.Thread(target=stop_once_busy, daemon=True)
+    watcher.start()
     try:
         t0 = time.monotonic()
-        rc = cli.main(["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
+        rc = cli.main(["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-2,-2,2,2]",
                        "--set", "material.preset='ideal'", "--out", str(out), "-q"])
     finally:
-        timer.cancel()
+        done.set()
+        watcher.join()
     err = capsys.readouterr().err
+    assert asked.is_set(), f"simulate finished (rc {rc}) before it was asked to stop: {err}"
     assert rc == 143, err
     assert "terminated" in err and time.monotonic() - t0 < 60
     assert sorted(p.name for p in out.iterdir()) == [".render_inspect.json", "earlier.txt"]
@@ -168,3 +184,21 @@ def test_a_step_known_by_its_expected_time_keeps_moving():
     f = [cli.timed_fill(e, 10.0) for e in np.linspace(0, 60, 601)]
     assert f[40] == pytest.approx(4.0) and all(b > a for a, b in zip(f, f[1:]) if b < 9.999)
     assert max(f) < 10.0 and f[150] > 9.9
+
+
+def test_a_stop_inside_a_deferred_block_is_raised_when_it_ends():
+    """Inside :func:`cancel.deferred` the handlers only record a stop; it is raised as the
+    block ends (nested blocks: as the outermost ends), not before."""
+    cancel.clear()
+    steps = []
+    with pytest.raises(cancel.Terminated):
+        with cancel.deferred():
+            with cancel.deferred():
+                cancel.request(signal.SIGTERM)
+                assert cancel.deferring()
+                steps.append("inner")
+            steps.append("outer")
+    assert steps == ["inner", "outer"] and not cancel.deferring()
+    cancel.clear()
+    with cancel.deferred():
+        pass  # nothing asked: nothing raised

@@ -15,16 +15,19 @@ within about one block of the signal (exit 130 / 143, the output folder as it wa
 
 from __future__ import annotations
 
+import contextlib
 import signal
+import threading
 
-__all__ = ["Terminated", "request", "requested", "clear", "check", "blocks"]
+__all__ = ["Terminated", "request", "requested", "clear", "check", "blocks", "deferred",
+           "deferring"]
 
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM (or SIGHUP): handled like Ctrl-C, the run stops and cleans up."""
 
 
-_STATE: dict = {"signum": None}
+_STATE: dict = {"signum": None, "deferred": 0}
 
 
 def request(signum: int = signal.SIGINT) -> None:
@@ -62,3 +65,33 @@ def blocks(total: int, size: int):
     for a in range(0, int(total), size):
         check()
         yield a, min(a + size, int(total))
+
+
+@contextlib.contextmanager
+def deferred():
+    """Run the block without being interrupted part-way: a stop asked for meanwhile is only
+    recorded, and raised when the block ends (the command line's handlers ask
+    :func:`deferring` before raising).
+
+    For native code that calls back into Python and cannot unwind an exception raised
+    there by a signal's handler: importing Mitsuba / Dr.Jit (their C++ module set-up builds
+    Python enums), switching its variant, loading a scene.  An exception raised inside
+    aborts the whole process (SIGABRT) instead of stopping it cleanly.  Keep such blocks
+    short (they delay the stop by their length); only the main thread's blocks count, as
+    the handlers run there."""
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        _STATE["deferred"] += 1
+    try:
+        yield
+    finally:
+        if main:
+            _STATE["deferred"] -= 1
+    if main and not _STATE["deferred"]:
+        check()
+
+
+def deferring() -> bool:
+    """Whether the main thread is inside a :func:`deferred` block (a signal's handler
+    then only records the stop, see :func:`request`)."""
+    return _STATE["deferred"] > 0

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import math
 import re
-import types
 import typing
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.annotations import annotation_bounds, unwrap_annotation
 from ..core.errors import InputError
 
 __all__ = ["FreeParameter", "parse_free", "parse_bounds", "free_parameters", "set_value",
@@ -117,25 +117,6 @@ def parse_bounds(items) -> dict:
 
 
 # ------------------------------------------------------------------------ the schema
-def _unwrap(annotation):
-    """(base annotation, constraint metadata): unwraps Annotated and Optional."""
-    meta = []
-    while True:
-        origin = typing.get_origin(annotation)
-        args = typing.get_args(annotation)
-        if origin is typing.Annotated:
-            annotation = args[0]
-            for m in args[1:]:
-                meta.extend(getattr(m, "metadata", None) or [m])
-        elif origin in (typing.Union, types.UnionType) and type(None) in args:
-            rest = [a for a in args if a is not type(None)]
-            if len(rest) != 1:
-                return annotation, meta
-            annotation = rest[0]
-        else:
-            return annotation, meta
-
-
 def _is_model(obj) -> bool:
     return hasattr(type(obj), "model_fields") and not isinstance(obj, type)
 
@@ -159,7 +140,7 @@ def _walk(scene, parts, key):
                 raise InputError(f"--free {key}: unknown key {part!r} in {where} (keys there: "
                                  f"{known})")
             f = fields[part]
-            ann, meta = _unwrap(f.annotation)
+            ann, meta = unwrap_annotation(f.annotation)
             meta = list(f.metadata) + meta
             node = getattr(node, part) if node is not None else None
         else:
@@ -178,7 +159,7 @@ def _walk(scene, parts, key):
                 ann = args[part]
             else:
                 ann = args[0] if args else float
-            ann, meta = _unwrap(ann)
+            ann, meta = unwrap_annotation(ann)
             node = node[part] if node is not None else None
     return ann, meta, node
 
@@ -197,18 +178,9 @@ def schema_range(scene, key: str):
     if ann is not float:
         raise InputError(f"--free {key}: not a numeric key (it takes {_kind(ann)}); only real "
                          f"numbers can be fitted")
-    lo = hi = None
-    lo_open = hi_open = False
-    for m in meta:
-        for attr, is_lo, is_open in (("gt", True, True), ("ge", True, False),
-                                     ("lt", False, True), ("le", False, False)):
-            v = getattr(m, attr, None)
-            if v is not None:
-                if is_lo:
-                    lo, lo_open = float(v), is_open
-                else:
-                    hi, hi_open = float(v), is_open
-    return lo, hi, lo_open, hi_open, value
+    lo, hi, lo_open, hi_open = annotation_bounds(meta)
+    return (None if lo is None else float(lo), None if hi is None else float(hi), lo_open,
+            hi_open, value)
 
 
 def _kind(ann) -> str:

@@ -152,7 +152,9 @@ class Evaluator:
             fut = self.client.submit(_timed_compute, self.compute, t,
                                      key=f"render-inspect-fit-{k[:16]}", pure=False)
             futures[fut] = (k, x)
-        for fut in as_completed(list(futures)):
+        # the client need not be this process's default one (the batch helpers make theirs
+        # with set_as_default=False): the futures are awaited on its own event loop
+        for fut in as_completed(list(futures), loop=self.client.loop):
             k, x = futures[fut]
             h, meta, dt, err = fut.result()
             self._finish(x, k, h, meta, dt, err)

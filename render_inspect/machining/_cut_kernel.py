@@ -43,7 +43,7 @@ from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cutting import cut_turning_mechanics
 from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
-                        path_radial_slope)
+                        _polar_step, path_radial_slope)
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
@@ -370,19 +370,7 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
     for c in range(c_first, col0 + cols):
         x = x0 + c * pixel
         # polar angle: exact at each block of the whole grid, the series step after it
-        dot = xp * x + y * y
-        t = y * (xp - x) / dot if c % BLOCK != 0 and dot > 0 else 1.0
-        if -0.01 < t < 0.01:
-            t2 = t * t
-            phi += t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0))))
-            if phi < 0:
-                phi += TWO_PI
-            elif phi >= TWO_PI:
-                phi -= TWO_PI
-        else:
-            phi = math.atan2(y, x)
-            if phi < 0:
-                phi += TWO_PI
+        phi = _polar_step(phi, xp, x, y, c % BLOCK == 0)
         xp = x
         if c < col0:
             continue

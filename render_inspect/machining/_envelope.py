@@ -204,6 +204,27 @@ _pixel_height = njit(cache=True, inline="always")(_pixel_height)
 
 # ------------------------------------------------------------------ the reference kernel
 @njit(cache=True, inline="always")
+def _polar_step(phi, xp, x, y, exact):
+    """The polar angle in [0, 2 pi) of (x, y), from ``phi``, that of the previous pixel
+    (xp, y) of the row: atan's difference series while the step is small, the exact
+    atan2 when ``exact`` or otherwise (the CPU kernels' walk along a row)."""
+    dot = xp * x + y * y
+    t = y * (xp - x) / dot if not exact and dot > 0 else 1.0
+    if -0.01 < t < 0.01:
+        t2 = t * t
+        phi += t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0))))
+        if phi < 0:
+            phi += TWO_PI
+        elif phi >= TWO_PI:
+            phi -= TWO_PI
+    else:
+        phi = math.atan2(y, x)
+        if phi < 0:
+            phi += TWO_PI
+    return phi
+
+
+@njit(cache=True, inline="always")
 def _pass_window(theta, a, cc, phi, r, sgn, W):
     """First and last pass j (at cumulative angle phi + 2 pi j on the path) whose nominal
     radius is within W of sgn * r."""
@@ -331,19 +352,7 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
                 x = x0 + (ix_off + ix) * pixel
                 r = math.sqrt(x * x + y * y)
                 # polar angle: series step from the previous pixel, exact atan2 otherwise
-                dot = xp * x + y * y
-                t = y * (xp - x) / dot if ix > ix0 and dot > 0 else 1.0
-                if -0.01 < t < 0.01:
-                    t2 = t * t
-                    phi += t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0))))
-                    if phi < 0:
-                        phi += TWO_PI
-                    elif phi >= TWO_PI:
-                        phi -= TWO_PI
-                else:
-                    phi = math.atan2(y, x)
-                    if phi < 0:
-                        phi += TWO_PI
+                phi = _polar_step(phi, xp, x, y, ix == ix0)
                 xp = x
                 out[iy, ix] = _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset,
                                             n_total, t0, a, icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b,

@@ -179,6 +179,28 @@ def analyze_memory_per_point(*, form: str = "plane", s_filter_mm=None, l_filter_
     return max(spatial, _step_peak(form, outliers))
 
 
+def hole_border_facts(p: dict, *, n_total: int, n_valid: int, warnings: list) -> dict:
+    """``metrics["holes"]`` of a map with ``n_total - n_valid`` unmeasured points, from the
+    slope parameters ``p`` (``n_border``, ``Sdq``/``Sdr`` without and ``*_with_border``
+    with the gradients that border the holes); a line is appended to ``warnings`` when
+    those gradients would change Sdq or Sdr by more than :data:`HOLE_BORDER_WARN`."""
+    holes = {"n_unmeasured": int(n_total - n_valid),
+             "unmeasured_fraction": float(1.0 - n_valid / n_total),
+             "n_border_gradients": int(p["n_border"]),
+             "Sdq_with_border": _nan_to_none(float(p["Sdq_with_border"])),
+             "Sdr_percent_with_border": _nan_to_none(float(p["Sdr_with_border"])),
+             "rule": HOLE_BORDER_RULE}
+    dq = p["Sdq_with_border"] / p["Sdq"] - 1.0 if p["Sdq"] > 0 else 0.0
+    dr = p["Sdr_with_border"] / p["Sdr"] - 1.0 if p["Sdr"] > 0 else 0.0
+    if p["n_border"] and max(abs(dq), abs(dr)) > HOLE_BORDER_WARN:
+        warnings.append(
+            f"{p['n_border']} gradients border the map's {holes['n_unmeasured']} missing "
+            f"points; they are left out of Sdq and Sdr (as SurfaceTopography does): with "
+            f"them Sdq would be {p['Sdq_with_border']:.4g} ({dq:+.0%}) and Sdr "
+            f"{p['Sdr_with_border']:.4g} % ({dr:+.0%}); see metrics holes")
+    return holes
+
+
 def _nan_to_none(v):
     if isinstance(v, float) and not math.isfinite(v):
         return None
@@ -306,20 +328,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
     p = areal_parameters(res, pixel=(px, py), slope=slope)
     holes = None
     if "n_border" in p and p["n_valid"] < z.size:
-        holes = {"n_unmeasured": int(z.size - p["n_valid"]),
-                 "unmeasured_fraction": float(1.0 - p["n_valid"] / z.size),
-                 "n_border_gradients": int(p["n_border"]),
-                 "Sdq_with_border": _nan_to_none(float(p["Sdq_with_border"])),
-                 "Sdr_percent_with_border": _nan_to_none(float(p["Sdr_with_border"])),
-                 "rule": HOLE_BORDER_RULE}
-        dq = p["Sdq_with_border"] / p["Sdq"] - 1.0 if p["Sdq"] > 0 else 0.0
-        dr = p["Sdr_with_border"] / p["Sdr"] - 1.0 if p["Sdr"] > 0 else 0.0
-        if p["n_border"] and max(abs(dq), abs(dr)) > HOLE_BORDER_WARN:
-            warnings_.append(
-                f"{p['n_border']} gradients border the map's {holes['n_unmeasured']} missing "
-                f"points; they are left out of Sdq and Sdr (as SurfaceTopography does): with "
-                f"them Sdq would be {p['Sdq_with_border']:.4g} ({dq:+.0%}) and Sdr "
-                f"{p['Sdr_with_border']:.4g} % ({dr:+.0%}); see metrics holes")
+        holes = hole_border_facts(p, n_total=z.size, n_valid=p["n_valid"], warnings=warnings_)
     sp = spatial_parameters(res, pixel=(px, py), s=acf_threshold)
     if not sp["decays_in_all_directions"]:
         warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "

@@ -170,8 +170,9 @@ def _check_units(z, design, *, pixel, origin, force: bool = False):
             max(-2, min(2, steps)), "a height unit that does not match, or a pixel size in "
                                     "another unit than the file declares")
         msg = (f"the measured heights span {pm:.4g} mm but the design spans {pd:.4g} mm over "
-               f"the same area (ratio {ratio:.3g}): probably {likely}; check the file's "
-               f"height unit (Python: read_surface(path, units='um' | 'nm' | 'mm')), or "
+               f"the same area (ratio {ratio:.3g}): the height unit is probably wrong "
+               f"({likely}); check the file's height unit (an .npy's side-car "
+               f"\"units\", or read_surface(path, units='um' | 'nm' | 'mm')), or "
                f"compare anyway with --force")
         if force:
             warnings.warn(msg.replace(", or compare anyway with --force",

@@ -30,7 +30,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.limits import MAX_ABS_MM, MOSTLY_EMPTY_FRACTION, mostly_empty_warning
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ._analysis import HOLE_BORDER_RULE, HOLE_BORDER_WARN, Analysis
+from ._analysis import Analysis, hole_border_facts
 from ._filters import _legendre_design, pixel_xy
 from ._params import SLOPE_ESTIMATORS, forward_slope_sums, spatial_parameters
 
@@ -256,19 +256,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
         warnings_.append(mostly_empty_warning(1.0 - n_measured / (ny * nx)))
     holes_info = None
     if "n_border" in p and holes:
-        holes_info = {"n_unmeasured": int(ny * nx - n), "unmeasured_fraction": 1.0 - n / (ny * nx),
-                      "n_border_gradients": p["n_border"],
-                      "Sdq_with_border": _finite(p["Sdq_with_border"]),
-                      "Sdr_percent_with_border": _finite(p["Sdr_with_border"]),
-                      "rule": HOLE_BORDER_RULE}
-        dq = p["Sdq_with_border"] / p["Sdq"] - 1.0 if p["Sdq"] > 0 else 0.0
-        dr = p["Sdr_with_border"] / p["Sdr"] - 1.0 if p["Sdr"] > 0 else 0.0
-        if p["n_border"] and max(abs(dq), abs(dr)) > HOLE_BORDER_WARN:
-            warnings_.append(
-                f"{p['n_border']} gradients border the map's {holes_info['n_unmeasured']} "
-                f"missing points; they are left out of Sdq and Sdr (as SurfaceTopography does): "
-                f"with them Sdq would be {p['Sdq_with_border']:.4g} ({dq:+.0%}) and Sdr "
-                f"{p['Sdr_with_border']:.4g} % ({dr:+.0%}); see metrics holes")
+        holes_info = hole_border_facts(p, n_total=ny * nx, n_valid=n, warnings=warnings_)
     # ---- Sal and Str from the coarse view
     sp = {"Sal_mm": None, "Str": None, "decays_in_all_directions": None,
           "fastest_direction_rad": None, "slowest_direction_rad": None, "longest_decay_mm": None}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import json
 import logging
 import math
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..batch import dask_client
+from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_UM
@@ -217,12 +218,18 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     store = EvaluationCache(cache_dir)
     try:
         with contextlib.ExitStack() as stack:
-            client = None
+            client, cluster = None, {}
             if workers is not None or scheduler is not None:
                 client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
-            evaluator = Evaluator(params, target, model.task, predict_measurement, store,
+                cluster = cluster_info(client)
+            # on a cluster each evaluation sets its numba threads (the cores a LocalCluster's
+            # worker has; the cluster's own count elsewhere)
+            compute = (functools.partial(call_with_threads, cluster["threads"],
+                                         predict_measurement)
+                       if client is not None else predict_measurement)
+            evaluator = Evaluator(params, target, model.task, compute, store,
                                   client=client, max_evaluations=max_evaluations, quiet=quiet)
-            clean0 = compute_all(store, [model.task(start_values)], client)[0]
+            clean0 = compute_all(store, [model.task(start_values)], client, compute)[0]
             check_units(_rms(target.height), _rms(prepare_map(clean0, pixel=target.pixel,
                                                               form=spec.form, origin=w_origin)))
             draws = FLOOR_DRAWS if model.has_floor() else 0
@@ -231,7 +238,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                 runs = [model.draw(start_values, r) for r in range(draws)]
                 for k in free_random:
                     runs += [model.draw(start_values, r, only=k) for r in range(FLOOR_DRAWS)]
-                maps = compute_all(store, runs, client)
+                maps = compute_all(store, runs, client, compute)
             noisy = maps[:draws] or [clean0]
             free_idx = [i for i, p in enumerate(params) if p.key in free_random]
             scaled = [(i, params[i].start,
@@ -252,7 +259,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
             # the fitted values once more with a realisation of the random parts and the
             # camera's noise (for the PSD figure: what a measurement of the fit would show)
             drawn = compute_all(store, [model.draw(dict(zip(keys, result.values)), 0)],
-                                client)[0] if draws else None
+                                client, compute)[0] if draws else None
     except BaseException as err:
         _after_failure(store, err)
         raise
@@ -278,6 +285,9 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                                    "fitted_through_their_power": list(free_random),
                                    "realisations": draws},
                   "workers": workers, "scheduler": scheduler,
+                  "cluster": ({k: cluster.get(k) for k in ("kind", "workers", "threads",
+                                                            "capped")}
+                              if client is not None else None),
                   "evaluated_by": sorted({e.meta["worker"] for e in result.history
                                           if not e.cached and e.meta.get("worker")})}
     record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
@@ -329,8 +339,17 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
 def _after_failure(store, err) -> None:
     """A refused fit (bad input) leaves no cache folder it made; an interrupted or failed
     one keeps the evaluations it made, so that the same command resumes from them."""
+    stop = err  # an interruption (Ctrl-C in a compiled kernel surfaces wrapped)
+    for _ in range(8):
+        if stop is None or isinstance(stop, KeyboardInterrupt):
+            break
+        stop = stop.__cause__ or stop.__context__
     if isinstance(err, InputError):
         store.discard()
+    elif store.written and isinstance(stop, KeyboardInterrupt):
+        # said in the command line's one line about the stop
+        stop.render_inspect_kept = (f"the {store.written} evaluations made are kept in "
+                                   f"{store.folder}: the same command resumes from them")
     elif store.written:
         log.warning("fit stopped: the %d evaluations made are kept in %s; the same command "
                     "resumes from them (deleting the folder is safe)", store.written,

@@ -80,9 +80,11 @@ def quiet():
         set_reporter(old)
 
 
-def compute_all(store, tasks, client) -> list:
+def compute_all(store, tasks, client, compute=None) -> list:
     """Forward-model runs through the evaluation cache (in this process, or as one batch
-    on Dask): the predicted maps, in order."""
+    on Dask, each task run by ``compute``, default :func:`predict_measurement`): the
+    predicted maps, in order."""
+    compute = predict_measurement if compute is None else compute
     keys = [task_hash(t) for t in tasks]
     out = [None] * len(tasks)
     todo = {}
@@ -100,7 +102,7 @@ def compute_all(store, tasks, client) -> list:
                 for i in idx:
                     out[i] = store.put(k, h, meta)
         elif todo:
-            futures = {k: client.submit(predict_measurement, tasks[idx[0]], pure=False)
+            futures = {k: client.submit(compute, tasks[idx[0]], pure=False)
                        for k, idx in todo.items()}
             for k, fut in futures.items():
                 h, meta = fut.result()

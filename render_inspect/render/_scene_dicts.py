@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core import cancel
 from ..core.progress import report
 from ._variant import import_mitsuba, single_thread
 
@@ -28,7 +29,8 @@ def mitsuba_mesh(gm, *, name: str = "part", bsdf: dict | None = None):
     mi, dr, _ = import_mitsuba()
     props = mi.Properties()
     if bsdf is not None:
-        props["bsdf"] = mi.load_dict(bsdf)
+        with cancel.deferred():  # (Python plugins are built from C++; see mitsuba_variant)
+            props["bsdf"] = mi.load_dict(bsdf)
     has_n = gm.normals is not None
     mesh = mi.Mesh(name, gm.n_vertices, gm.n_faces, props, has_vertex_normals=has_n,
                    has_vertex_texcoords=False)
@@ -80,7 +82,7 @@ def perspective_sensor(*, origin, target, up, fov_deg: float, nx: int, ny: int, 
 def load_scene_dict(d: dict):
     """``mi.load_dict`` with one Dr.Jit thread, so the BVH (and the image) is repeatable."""
     mi, _, _ = import_mitsuba()
-    with single_thread():
+    with single_thread(), cancel.deferred():  # (see mitsuba_mesh)
         return mi.load_dict(d)
 
 

@@ -22,6 +22,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..core import cancel
 from ..core.errors import InputError, RenderInspectError
 from ..core.limits import check_address_space, mitsuba_address_space
 
@@ -105,6 +106,14 @@ def mitsuba_variant() -> str:
         # Mitsuba's LLVM JIT ends with a segmentation fault when its reservations are
         # refused: refuse the render first under an address-space limit it cannot meet
         check_address_space(mitsuba_address_space(), what="a Mitsuba render")
+    # importing Mitsuba and trying its variants are not interrupted part-way: an
+    # exception raised by a signal's handler inside their C++ set-up (which builds Python
+    # objects) aborts the process; a stop asked for meanwhile is raised right after
+    with cancel.deferred():
+        return _choose_variant()
+
+
+def _choose_variant() -> str:
     import mitsuba as mi
 
     forced = os.environ.get("RENDER_INSPECT_MITSUBA_VARIANT")
@@ -140,11 +149,12 @@ def import_mitsuba():
     """Return ``(mi, dr, variant)`` with the chosen variant set (inside
     :func:`spectral_variant`: its spectral counterpart)."""
     variant = _STATE["override"] or mitsuba_variant()
-    import drjit as dr
-    import mitsuba as mi
+    with cancel.deferred():  # (see mitsuba_variant)
+        import drjit as dr
+        import mitsuba as mi
 
-    if mi.variant() != variant:
-        mi.set_variant(variant)
+        if mi.variant() != variant:
+            mi.set_variant(variant)
     return mi, dr, variant
 
 
@@ -175,7 +185,7 @@ def _set_variant_quietly(mi, variant: str) -> None:
     """``mi.set_variant`` without Dr.Jit's hint about ``@dr.syntax``: every switch makes
     Mitsuba decorate its own Python integrators again, and after 1000 decorations Dr.Jit
     warns about code in loops (a hint for user code; here it is one switch per render)."""
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), cancel.deferred():  # (see mitsuba_variant)
         warnings.filterwarnings("ignore", message="The AST-transforming decorator",
                                 category=RuntimeWarning)
         mi.set_variant(variant)

@@ -19,7 +19,6 @@ import copy
 import json
 import re
 import tomllib
-import types
 import typing
 from importlib import resources
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
+from ..core.annotations import annotation_bounds, unwrap_annotation
 from ..core.errors import SceneError
 from ..core.messages import NUMERIC_ERRORS, shown, validation_line
 from ..core.units import MIB_TO_BYTES
@@ -133,24 +133,6 @@ def _union_classes() -> dict:
     return out
 
 
-def _plain(annotation):
-    """(base type, constraint metadata) of an annotation: unwraps Optional and Annotated."""
-    meta = []
-    while True:
-        origin = typing.get_origin(annotation)
-        args = typing.get_args(annotation)
-        if origin is typing.Annotated:
-            annotation, meta = args[0], meta + list(args[1:])
-            meta = [m for mm in meta for m in (getattr(mm, "metadata", None) or [mm])]
-        elif origin in (typing.Union, types.UnionType) and type(None) in args:
-            rest = [a for a in args if a is not type(None)]
-            if len(rest) != 1:
-                return annotation, meta
-            annotation = rest[0]
-        else:
-            return annotation, meta
-
-
 def _expected(loc) -> str | None:
     """What a scene key accepts, e.g. "a number in (0, 20000]", from the schema."""
     unions = _union_classes()
@@ -160,33 +142,23 @@ def _expected(loc) -> str | None:
             model, ann, meta = unions[part], None, []
             continue
         if isinstance(part, int):
-            base, _ = _plain(ann)
+            base, _ = unwrap_annotation(ann)
             args = typing.get_args(base)
             if not args:
                 return None
             ann = args[min(part, len(args) - 1)] if typing.get_origin(base) is tuple else args[0]
-            ann, meta = _plain(ann)
+            ann, meta = unwrap_annotation(ann)
             model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
             continue
         if model is None or part not in model.model_fields:
             return None
         field = model.model_fields[part]
-        ann, meta = _plain(field.annotation)
+        ann, meta = unwrap_annotation(field.annotation)
         meta = list(field.metadata) + meta
         model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
     if ann not in (int, float):
         return None
-    lo = hi = None
-    lo_open = hi_open = False
-    for m in meta:
-        for attr, is_lo, is_open in (("gt", True, True), ("ge", True, False),
-                                     ("lt", False, True), ("le", False, False)):
-            v = getattr(m, attr, None)
-            if v is not None:
-                if is_lo:
-                    lo, lo_open = v, is_open
-                else:
-                    hi, hi_open = v, is_open
+    lo, hi, lo_open, hi_open = annotation_bounds(meta)
     infinite = any(getattr(m, "allow_inf_nan", None) for m in meta)  # OrInfinity
     kind = "an integer" if ann is int else "a number" if infinite else "a finite number"
     if lo is None and hi is None:
