@@ -1,5 +1,5 @@
 """Axis kinematics of a turning path: X, Z and C positions, velocities, accelerations and
-jerk in time, their maxima, machine-limit warnings and seed-004-style plots (Figs. 8-9).
+jerk in time, their maxima, machine-limit warnings and plots in the style of the RCSE paper's Figs. 8-9.
 
 Machine axes: X = rho (mm), Z = z (mm, tool tip), C = theta (rad, cumulative), each a
 function of the time ``t`` of the path (s).  Derivatives are finite differences on the

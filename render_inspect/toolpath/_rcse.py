@@ -214,7 +214,7 @@ class RingLayout:
 
 def paper_layout(*, region_radius: float = 4.75, element_radius: float = 0.4, depth: float = 0.002,
                  rings: int = 5, max_count: int = 36, gap: float = 0.05) -> RingLayout:
-    """A seed-004-like layout that fits: ``rings`` equally spaced rings, the outermost
+    """A layout like the RCSE paper's that fits: ``rings`` equally spaced rings, the outermost
     element edge at ``region_radius``, ``min(max_count, 6 k)`` elements on ring ``k``.
 
     With the paper's numbers (0.4 mm elements in a 9.5 mm region) no ring can hold 36
