@@ -319,12 +319,11 @@ def test_unit_mismatch_is_refused_and_leaves_no_cache(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_an_interrupted_fit_keeps_its_cache_and_says_so(tmp_path, monkeypatch, caplog):
+def test_an_interrupted_fit_keeps_its_cache_and_says_so(tmp_path, monkeypatch):
     """Ctrl-C during the fit: the output folder is not made, the evaluations made so far
-    stay in the cache (one line says where) for the same command to resume from (a resumed
-    fit is checked in the nose-radius-and-feed test)."""
-    import logging
-
+    stay in the cache for the same command to resume from (a resumed fit is checked in
+    the nose-radius-and-feed test), and the interruption carries where they are, for the
+    command line's one line about the stop."""
     import render_inspect.pipeline._fit as fit_module
 
     meas = _measured_file(tmp_path / "height.exr")
@@ -333,14 +332,14 @@ def test_an_interrupted_fit_keeps_its_cache_and_says_so(tmp_path, monkeypatch, c
         raise KeyboardInterrupt
 
     monkeypatch.setattr(fit_module, "solve", interrupted)
-    with caplog.at_level(logging.WARNING, logger="render_inspect"), \
-            pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt) as stop:
         run_fit(meas, load_scene("sts_sinusoidal_grid"), ["tool.nose_radius"], tmp_path / "out",
                 window_mm=0.11, profile_points=0)
     assert not (tmp_path / "out").exists()
     kept = sorted((tmp_path / "out.cache").glob("*.npz"))
     assert len(kept) == 7  # the clean prediction and six realisations of the random parts
-    assert any("evaluations made are kept in" in r.getMessage() for r in caplog.records)
+    said = getattr(stop.value, "render_inspect_kept", "")
+    assert "the 7 evaluations made are kept in" in said and "out.cache" in said, said
 
 
 # ------------------------------------------------------------------ identifiability

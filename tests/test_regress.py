@@ -169,10 +169,11 @@ def test_a_larger_nose_radius_is_caught(tmp_path):
 @pytest.mark.mitsuba
 def test_another_compensation_mode_is_caught(tmp_path):
     summary, _ = _run_expect(tmp_path, "sts_grid_z", ["process.compensation='normal'"], fails=True)
-    # as docs/batch.md says: four of five; the macro view (the whole part, 128 pixels a
-    # side) averages the feed marks out, and the compensation changes only them
+    # as docs/batch.md says: all five; the macro view (the whole part in the studio) sees
+    # the compensation too, in the mirror reflections of the feed marks' slopes
     assert _failing(summary) == {("sts_grid_z", n) for n in
-                                 ("residual", "interferogram", "measured_height", "diffuse_micro")}
+                                 ("residual", "interferogram", "measured_height", "diffuse_micro",
+                                  "diffuse_macro")}
     rows = {r["image"]: r for r in summary["results"]}
     assert 10 < rows["residual"]["max_abs_diff"] < 25  # nm (16 nm measured)
 

@@ -383,11 +383,15 @@ def _quiet_interrupts():
     import signal
     import threading
 
+    import distributed  # noqa: F401  (its loggers and their handlers exist from here on)
+
     quiet = _QuietFilter()
     targets = [logging.getLogger(n) for n in
                set(_QUIET_LOGGERS) | {n for n in list(logging.root.manager.loggerDict)
                                       if any(n.startswith(q + ".") for q in _QUIET_LOGGERS)}]
-    targets += list(logging.root.handlers)
+    # a record propagates to its parents' handlers past their loggers' filters: the
+    # handlers get the filter too
+    targets += [h for lg in list(targets) for h in lg.handlers] + list(logging.root.handlers)
     for t in targets:
         t.addFilter(quiet)
     old = {}
