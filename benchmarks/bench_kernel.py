@@ -24,19 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
+
 REPO = Path(__file__).resolve().parents[1]
 
 _COLD = ("import time; t0 = time.perf_counter(); from render_inspect.pipeline._warmup import warm_up; "
          "warm_up(); print(time.perf_counter() - t0)")
-
-
-def _best(fn, repeats):
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return min(ts)
 
 
 def main(repeats: int = 3) -> dict:
@@ -60,11 +53,11 @@ def main(repeats: int = 3) -> dict:
     simulate_turning(path, reference=True, **{**kw, "region": (0, 0, 0.01, 0.01)})
     n = out.size
     cores = numba.get_num_threads()
-    fast = _best(lambda: simulate_turning(path, out=out, **kw), repeats)
+    fast = best_of(lambda: simulate_turning(path, out=out, **kw), repeats)[0]
     numba.set_num_threads(1)
-    fast1 = _best(lambda: simulate_turning(path, out=out, **kw), repeats)
+    fast1 = best_of(lambda: simulate_turning(path, out=out, **kw), repeats)[0]
     numba.set_num_threads(cores)
-    ref = _best(lambda: simulate_turning(path, out=out, reference=True, **kw), max(1, repeats - 1))
+    ref = best_of(lambda: simulate_turning(path, out=out, reference=True, **kw), max(1, repeats - 1))[0]
     a = simulate_turning(path, **kw)
     b = simulate_turning(path, reference=True, **kw)
     max_diff = float(np.nanmax(np.abs(a - b)))
@@ -77,7 +70,7 @@ def main(repeats: int = 3) -> dict:
 
     x, y, z = np.empty(n), np.ones(n), np.ones(n)
     triad(x, y, z, 2.0)
-    t_triad = _best(lambda: triad(x, y, z, 2.0), 5)
+    t_triad = best_of(lambda: triad(x, y, z, 2.0), 5)[0]
     bw = 32 * n / t_triad
     bound = 16 * n / bw
 

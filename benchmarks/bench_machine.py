@@ -18,17 +18,9 @@ import json
 import time
 from pathlib import Path
 
+from _timing import best_of
+
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _best(fn, repeats):
-    best, out = None, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        dt = time.perf_counter() - t0
-        best = dt if best is None or dt < best else best
-    return best, out
 
 
 def main(repeats: int = 2) -> dict:
@@ -52,7 +44,7 @@ def main(repeats: int = 2) -> dict:
     rcse = process_of(scene)
     path = rcse.plan(rcse.inputs_of(scene), surface).program
     machine = machine_preset("sts_lathe")
-    t_follow, fp = _best(lambda: follow_turning(path.t, path.theta, path.rho, path.z, machine,
+    t_follow, fp = best_of(lambda: follow_turning(path.t, path.theta, path.rho, path.z, machine,
                                                 seed=0), repeats)
     grid = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
                       ["simulation.region=[-0.5,-0.5,0.5,0.5]", "simulation.pixel=0.001"])
@@ -61,13 +53,13 @@ def main(repeats: int = 2) -> dict:
     resp = material_response(material_preset("al6061"), edge_radius=50e-6)
     kw = {"nose_radius": grid.tool.nose_radius, "region": tuple(grid.simulation.region),
           "pixel": grid.simulation.pixel}
-    t_geo, _ = _best(lambda: simulate_turning(gpath, **kw), repeats)
-    t_mech, _ = _best(lambda: cut_turning_mechanics(gpath, h_min=resp.h_min, kappa=resp.kappa,
+    t_geo, _ = best_of(lambda: simulate_turning(gpath, **kw), repeats)
+    t_mech, _ = best_of(lambda: cut_turning_mechanics(gpath, h_min=resp.h_min, kappa=resp.kappa,
                                                     **kw), repeats)
     cp = prepare_cut(gpath, nose_radius=grid.tool.nose_radius, h_min=resp.h_min, kappa=resp.kappa)
     gr = Grooves.of(rms=resp.groove_rms, seed=1)
     cut_turning(cp, gr, region=(0.0, 0.0, 0.01, 0.01), pixel=kw["pixel"])
-    t_fast, _ = _best(lambda: cut_turning(cp, gr, region=kw["region"], pixel=kw["pixel"]), repeats)
+    t_fast, _ = best_of(lambda: cut_turning(cp, gr, region=kw["region"], pixel=kw["pixel"]), repeats)
     out = {"rcse_program_points": int(path.points), "servo_ticks": int(fp.t.size),
            "follow_turning_s": t_follow, "ticks_per_s": fp.t.size / t_follow,
            "following_error": fp.following_error(),

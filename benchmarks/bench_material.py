@@ -25,17 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
+
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _best(fn, repeats):
-    best, out = None, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        dt = time.perf_counter() - t0
-        best = dt if best is None or dt < best else best
-    return best, out
 
 
 def main(repeats: int = 3) -> dict:
@@ -52,12 +44,12 @@ def main(repeats: int = 3) -> dict:
     scene = load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml",
                        [f"simulation.region={list(region)}", f"simulation.pixel={pixel}"])
     path = plan_spiral(scene, make_surface(scene.design), region=region)
-    t_follow, fp = _best(lambda: follow_turning(path.t, path.theta, path.rho, path.z,
+    t_follow, fp = best_of(lambda: follow_turning(path.t, path.theta, path.rho, path.z,
                                                 machine_of(scene.machine), seed=0), 1)
     cut = ToolPath(fp.theta, fp.rho, fp.z, fp.t)
     tool = Tool.from_config(scene.tool)
     resp = material_of(scene.material)
-    t_prep, cp = _best(lambda: prepare_cut(cut, nose_radius=tool.nose_radius, half_width=tool.half_width,
+    t_prep, cp = best_of(lambda: prepare_cut(cut, nose_radius=tool.nose_radius, half_width=tool.half_width,
                                            h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow), 1)
     grooves = Grooves.of(rms=resp.groove_rms, seed=1)
     small = (0.0, 0.0, 0.01, 0.01)
@@ -67,14 +59,14 @@ def main(repeats: int = 3) -> dict:
     fig = {"samples": n, "followed_path_ticks": int(fp.t.size), "threads": cores,
            "load_average_at_start": os.getloadavg(),
            "follow_turning_s": round(t_follow, 3), "prepare_cut_s": round(t_prep, 3)}
-    t, out = _best(lambda: cut_turning(cp, grooves, region=region, pixel=pixel), repeats)
+    t, out = best_of(lambda: cut_turning(cp, grooves, region=region, pixel=pixel), repeats)
     fig.update(fast_s=round(t, 3), fast_Msamples_per_s=round(n / t / 1e6, 1))
     del out
-    t, _ = _best(lambda: cut_turning(cp, Grooves.none(), region=region, pixel=pixel), repeats)
+    t, _ = best_of(lambda: cut_turning(cp, Grooves.none(), region=region, pixel=pixel), repeats)
     fig.update(fast_no_grooves_s=round(t, 3), fast_no_grooves_Msamples_per_s=round(n / t / 1e6, 1))
     numba.set_num_threads(1)
     try:
-        t, _ = _best(lambda: cut_turning(cp, grooves, region=region, pixel=pixel), max(1, repeats - 1))
+        t, _ = best_of(lambda: cut_turning(cp, grooves, region=region, pixel=pixel), max(1, repeats - 1))
     finally:
         numba.set_num_threads(cores)
     fig.update(fast_1thread_s=round(t, 3), fast_1thread_Msamples_per_s=round(n / t / 1e6, 1))
@@ -90,7 +82,7 @@ def main(repeats: int = 3) -> dict:
                           cutting_distance(cut.theta, cut.rho))
         return finish_surface(c, resp, along=along, seed=1)[0]
 
-    t, ref = _best(direct, 1)
+    t, ref = best_of(direct, 1)
     fast = cut_turning(cp, grooves, region=sub, pixel=pixel)["machined"]
     d = float(np.nanmax(np.abs(fast - ref)))
     fig.update(direct_part_samples=m, direct_part_s=round(t, 2),

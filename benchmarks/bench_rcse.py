@@ -20,19 +20,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from _timing import best_of
+
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "rcse_and_kinematics.md"
 BEGIN, END = "<!-- bench_rcse:begin -->", "<!-- bench_rcse:end -->"
-
-
-def _best(fn, repeats):
-    best, out = None, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        dt = time.perf_counter() - t0
-        best = dt if best is None or dt < best else best
-    return best, out
 
 
 def main(repeats: int = 3, export: bool = True, write_docs: bool = True) -> dict:
@@ -55,7 +47,7 @@ def main(repeats: int = 3, export: bool = True, write_docs: bool = True) -> dict
                          points_per_rev=p.points_per_rev)
 
     gen()  # warm caches
-    t_rcse, c = _best(gen, repeats)
+    t_rcse, c = best_of(gen, repeats)
     res = {"ccps": int(c.theta.size), "rcse_s": t_rcse,
            "rcse_ccps_per_s": c.theta.size / t_rcse}
 
