@@ -179,6 +179,19 @@ def analyze_memory_per_point(*, form: str = "plane", s_filter_mm=None, l_filter_
     return max(spatial, _step_peak(form, outliers))
 
 
+def areal_metrics(p: dict, sp: dict) -> tuple[dict, dict]:
+    """(``metrics["areal"]`` in the file's units: heights in nm, Sdr in %, Sal in mm; the
+    texture's fastest and slowest decay directions in degrees) from the height and slope
+    parameters ``p`` (mm) and the spatial ones ``sp``."""
+    areal = {"Sa_nm": p["Sa"] * MM_TO_NM, "Sq_nm": p["Sq"] * MM_TO_NM, "Sz_nm": p["Sz"] * MM_TO_NM,
+             "Sp_nm": p["Sp"] * MM_TO_NM, "Sv_nm": p["Sv"] * MM_TO_NM, "Ssk": p["Ssk"],
+             "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"], "Sal_mm": sp["Sal_mm"],
+             "Str": sp["Str"]}
+    ang = {k: (None if sp.get(k) is None else math.degrees(sp[k]))
+           for k in ("fastest_direction_rad", "slowest_direction_rad")}
+    return areal, ang
+
+
 def hole_border_facts(p: dict, *, n_total: int, n_valid: int, warnings: list) -> dict:
     """``metrics["holes"]`` of a map with ``n_total - n_valid`` unmeasured points, from the
     slope parameters ``p`` (``n_border``, ``Sdq``/``Sdr`` without and ``*_with_border``
@@ -340,12 +353,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
     if not math.isclose(px, py, rel_tol=1e-6):
         warnings_.append(f"non-square pixels ({px * MM_TO_UM:.6g} x {py * MM_TO_UM:.6g} um): slopes and "
                          f"lengths use each axis' own spacing")
-    areal = {"Sa_nm": p["Sa"] * MM_TO_NM, "Sq_nm": p["Sq"] * MM_TO_NM, "Sz_nm": p["Sz"] * MM_TO_NM,
-             "Sp_nm": p["Sp"] * MM_TO_NM, "Sv_nm": p["Sv"] * MM_TO_NM, "Ssk": p["Ssk"],
-             "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"], "Sal_mm": sp["Sal_mm"],
-             "Str": sp["Str"]}
-    ang = {k: (None if sp[k] is None else math.degrees(sp[k]))
-           for k in ("fastest_direction_rad", "slowest_direction_rad")}
+    areal, ang = areal_metrics(p, sp)
     src = {k: v for k, v in (source or {}).items() if k not in ("scene",)}
     metrics = {
         "areal": {k: _nan_to_none(float(v)) for k, v in areal.items()},

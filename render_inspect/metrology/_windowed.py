@@ -29,8 +29,8 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.limits import MAX_ABS_MM, MOSTLY_EMPTY_FRACTION, mostly_empty_warning
-from ..core.units import MM_TO_NM, MM_TO_UM
-from ._analysis import Analysis, hole_border_facts
+from ..core.units import MM_TO_UM
+from ._analysis import Analysis, areal_metrics, hole_border_facts
 from ._filters import _legendre_design, pixel_xy
 from ._params import SLOPE_ESTIMATORS, forward_slope_sums, spatial_parameters
 
@@ -288,12 +288,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
     if sp.get("decays_in_all_directions") is False:
         warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "
                          f"across the field in at least one direction (a lay longer than the field)")
-    areal = {"Sa_nm": p["Sa"] * MM_TO_NM, "Sq_nm": p["Sq"] * MM_TO_NM, "Sz_nm": p["Sz"] * MM_TO_NM,
-             "Sp_nm": p["Sp"] * MM_TO_NM, "Sv_nm": p["Sv"] * MM_TO_NM, "Ssk": p["Ssk"],
-             "Sku": p["Sku"], "Sdq": p["Sdq"], "Sdr_percent": p["Sdr"], "Sal_mm": sp["Sal_mm"],
-             "Str": sp["Str"]}
-    ang = {k: (None if sp.get(k) is None else math.degrees(sp[k]))
-           for k in ("fastest_direction_rad", "slowest_direction_rad")}
+    areal, ang = areal_metrics(p, sp)
     form_info = {"method": form}
     if form == "poly2":
         form_info["degree"] = 2
