@@ -30,7 +30,7 @@ from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
-                         merge_moments, plan_tiles, tile_abs_dev, tile_moments)
+                         merge_moments, plan_tiles, tile_moments)
 
 __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 
@@ -79,14 +79,6 @@ def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, te
     coarse = _write_tile(group, tile, {"design": design32, "machined": machined32, "residual": residual},
                          levels, tile_levels)
     return {"tile": tile, "moments": moments, "coarse": coarse, "cut": cut}
-
-
-def abs_dev_task(store: str, tile: Tile, mean: float, lo: float, hi: float, bins: int) -> tuple:
-    """Pass 2 of one tile: (n, sum |r - mean|, histogram counts) of its stored residual."""
-    import zarr
-
-    r = zarr.open_array(f"{store}/residual", mode="r")[tile.row:tile.row + tile.rows, tile.col:tile.col + tile.cols]
-    return tile_abs_dev(r, mean, lo, hi, bins)
 
 
 @dataclass

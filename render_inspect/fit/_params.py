@@ -312,7 +312,3 @@ def set_value(data: dict, key: str, value, *, fill=None) -> dict:
     else:
         node[last] = float(value)
     return data
-
-
-def as_vector(params, values: dict) -> np.ndarray:
-    return np.array([float(values[p.key]) for p in params])

@@ -38,10 +38,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit, prange
 
-from ..core.errors import InputError, check_range
+from ..core.errors import check_range
 from ..core.progress import report
 from ..core.toolpath import ToolPath
-from ._cutting import cut_turning_mechanics
+from ._cutting import cut_turning_mechanics, mechanics_path
 from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
                         _polar_step, path_radial_slope)
 
@@ -156,13 +156,7 @@ def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_
                 kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None) -> CutPath:
     """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
     (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`)."""
-    check_range("h_min", h_min, 0.0, 1e-2)
-    check_range("kappa", kappa, 0.0, 1.0)
-    theta = np.ascontiguousarray(path.theta, dtype=np.float64)
-    rho = np.ascontiguousarray(path.rho, dtype=np.float64)
-    z = np.ascontiguousarray(path.z, dtype=np.float64)
-    if theta.size < 2:
-        raise InputError("the cutting mechanics need a path of at least 2 points")
+    theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
     Rc, hw = _nose_arc(nose_radius, half_width)
     a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
@@ -236,14 +230,21 @@ def _find(theta, tab, tab_t0, tab_iw, s):
 
 
 @njit(cache=True, inline="always")
-def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2):
-    """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
-    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic)."""
+def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
+    """(segment, fraction, nominal radius, distance from the pixel at sgn r) of the pass at
+    cumulative angle s."""
     i = _find(theta, tab, tab_t0, tab_iw, s)
     dt = theta[i + 1] - theta[i]
     fr = (s - theta[i]) / dt if dt > 0 else 0.0
     rj = seg[i, 0] + fr * seg[i, 1]
-    d = sgn * r - rj
+    return i, fr, rj, sgn * r - rj
+
+
+@njit(cache=True, inline="always")
+def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2):
+    """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
+    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic)."""
+    i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
     if abs(d) <= hw:
         return True, seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d), rj, d * sgn, i, fr
     return False, 0.0, 0.0, 0.0, 0, 0.0
@@ -279,11 +280,7 @@ def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
     half_inv_rc = 0.5 / Rc
     for j in range(j0, j1 + 1):
         s = phi + TWO_PI * j
-        i = _find(theta, tab, tab_t0, tab_iw, s)
-        dt = theta[i + 1] - theta[i]
-        fr = (s - theta[i]) / dt if dt > 0 else 0.0
-        rj = seg[i, 0] + fr * seg[i, 1]
-        d = sgn * r - rj
+        i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
         if abs(d) <= hw:
             n += 1
             zt = seg[i, 2] + fr * seg[i, 3]

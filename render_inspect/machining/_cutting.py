@@ -167,6 +167,19 @@ class CutResult(dict):
     towards larger radius), ``added`` (ploughed recovery + side flow, mm)."""
 
 
+def mechanics_path(path, *, h_min: float, kappa: float):
+    """(theta, rho, z) of a turning path as contiguous float64 arrays, after checking the
+    cutting mechanics' ``h_min`` and ``kappa`` and that the path has at least 2 points."""
+    check_range("h_min", h_min, 0.0, 1e-2)
+    check_range("kappa", kappa, 0.0, 1.0)
+    theta = np.ascontiguousarray(path.theta, dtype=np.float64)
+    rho = np.ascontiguousarray(path.rho, dtype=np.float64)
+    z = np.ascontiguousarray(path.z, dtype=np.float64)
+    if theta.size < 2:
+        raise InputError("the cutting mechanics need a path of at least 2 points")
+    return theta, rho, z
+
+
 def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
                 h_min: float = 0.0, kappa: float = 0.0, side_flow: bool = True,
                 slope_bound: float | None = None) -> CutResult:
@@ -187,13 +200,7 @@ def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, hal
     -------
     CutResult
     """
-    check_range("h_min", h_min, 0.0, 1e-2)
-    check_range("kappa", kappa, 0.0, 1.0)
-    theta = np.ascontiguousarray(path.theta, dtype=np.float64)
-    rho = np.ascontiguousarray(path.rho, dtype=np.float64)
-    z = np.ascontiguousarray(path.z, dtype=np.float64)
-    if theta.size < 2:
-        raise InputError("cut_turning_mechanics: the path needs at least 2 points")
+    theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
     Rc, hw = _nose_arc(nose_radius, half_width)
     x0, y0, x1, y1 = region
     nx = int(round((x1 - x0) / pixel)) + 1

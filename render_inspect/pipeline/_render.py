@@ -30,7 +30,7 @@ from ._simulate import design_heightmap, simulate
 from ._simulate_command import wants_tiles
 from ._views import BigMapViews, WholeMapViews, big_map_store, existing_store
 
-__all__ = ["run_render", "render_heightmap", "render_instrument", "write_diffuse_outputs",
+__all__ = ["run_render", "render_heightmap", "write_diffuse_outputs",
            "write_instrument_outputs", "write_interferogram_outputs",
            "part_heightmap", "tool_marks", "part_outline", "render_diffuse_views",
            "check_render_limits", "render_kinds", "SURFACES"]
@@ -120,11 +120,6 @@ def render_heightmap(scene, *, surface: str = "machined"):
     if surface != "design":
         raise InputError(f"--surface must be one of {SURFACES}, got {surface!r}")
     return design_heightmap(scene)
-
-
-def render_instrument(name: str, heightmap, cfg, *, surface: str, seed: int):
-    """Image ``heightmap`` with the registered instrument ``name`` (its ``render`` hook)."""
-    return renderable_instruments()[name].render(heightmap, cfg, surface=surface, seed=seed)
 
 
 def write_instrument_outputs(name: str, out: Path, result, *, scene: dict | None = None) -> dict:

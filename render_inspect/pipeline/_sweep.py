@@ -378,7 +378,7 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
     if spec.morris is not None:
         morris = sweep_morris(spec, mine)
         write_json(out / "morris.json", morris)
-        for name in spec.morris.outputs:
+        for name in spec.morris.outputs if draw else []:
             png = f"morris_{name.replace('.', '_')}.png"
             atomic_write_bytes(out / png, morris_png(morris, name, title=f"{spec.name}: {name}"))
             names.append(png)
