@@ -44,6 +44,7 @@ def _write(path, fr, h):
 
 @pytest.mark.parametrize("mode,alg", [("psi", "auto"), ("psi", "hariharan"), ("csi", "envelope"),
                                       ("csi", "envelope+phase")])
+@pytest.mark.slow
 def test_measure_exr_writes_height_and_metrics(tmp_path, mode, alg, capsys):
     fr, h = _frames(mode)
     src = tmp_path / "interferogram.exr"
@@ -90,6 +91,7 @@ def test_measure_exr_writes_height_and_metrics(tmp_path, mode, alg, capsys):
     assert str(out.resolve()) in text.replace("\n", "")
 
 
+@pytest.mark.slow
 def test_measure_tiff_stack_and_png_folder(tmp_path):
     fr, h = _frames("psi", noise=True)
     adu = np.rint(fr.frames * 4095).astype(np.uint16)
