@@ -149,6 +149,7 @@ def test_engines_only_in_render_adapters_and_only_inside_functions():
     assert not offenders, offenders
 
 
+@pytest.mark.slow
 def test_help_imports_no_heavy_module():
     code = ("import sys\nfrom render_inspect.cli import build_parser\nbuild_parser()\n"
             "heavy = {'numba', 'scipy', 'mitsuba', 'drjit', 'bpy', 'matplotlib', 'OpenEXR', "
