@@ -472,7 +472,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                          f"in the maps and the micro view; set simulation.pixel <= "
                          f"{feed / 4 * MM_TO_UM:.3g} um to resolve them")
         x0, x1, y0, y1 = hm.extent
-        filters = waviness_choice(marks, scene.design, scene.metrology, pixel=hm.pixel,
+        filters = waviness_choice(marks, design_surface, scene.metrology, pixel=hm.pixel,
                                   window_mm=(x1 - x0, y1 - y0))
         for v in variants:
             _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed,
