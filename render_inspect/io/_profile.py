@@ -31,8 +31,8 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import M_TO_MM
-from ._limits import check_file_values
-from ._registry import register_reader
+from ._limits import check_file_values, check_x3p
+from ._registry import reader, register_reader
 
 __all__ = ["MeasuredProfile", "read_profile", "is_profile_file", "parse_units",
            "PROFILE_TEXT_SUFFIXES", "PROFILE_UNITS"]
@@ -300,8 +300,6 @@ def _x3p_feature(path: Path) -> str | None:
 def _read_x3p_profile(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     import x3pio
 
-    from ._limits import check_x3p
-
     if units is not None:
         raise InputError(f"{path}: an X3P file states its own units (metres); --units is only "
                          f"for text files that do not, received {units!r}")
@@ -398,8 +396,6 @@ def read_profile(path: str | Path, *, units=None) -> MeasuredProfile:
         Unknown suffix, missing or unreadable file, units not stated and not given,
         uneven or non-increasing positions, no measured height.
     """
-    from ._registry import reader
-
     path = Path(path)
     fn = reader("profile", path)
     if not path.is_file():
