@@ -277,7 +277,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
                      stages: str = "base_then_all") -> dict:
     """The characterisation of a MSA on a base of Kong et al. (2020), end to end.
 
-    1. outliers by the second-difference ``outlier_k``-sigma rule (replaced, left out of fits);
+    1. outliers by the ``outlier_k``-sigma spike rule (replaced, left out of fits);
     2. least-squares 6-DOF registration on the base data (outside ``outer`` x aperture)
        when there is enough of it, then on all data (``fit`` names the free parameters;
        ``stages = "base"`` stops after the base);

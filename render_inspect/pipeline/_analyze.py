@@ -97,7 +97,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     filter_spec : "S,L" text or (S, L), optional
         ISO 16610-61 Gaussian nesting indices in mm; either may be empty / None.
     outliers : {"none", "sigma"}
-        ``sigma`` leaves the second-difference ``outlier_sigma``-sigma outliers out.
+        ``sigma`` leaves the ``outlier_sigma``-sigma spikes out.
     slope : {"forward", "central"}
         Derivative estimator of Sdq and Sdr.
     x3p : bool
