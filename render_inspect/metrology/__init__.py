@@ -47,6 +47,7 @@ from ._iso21920 import (LAMBDA_C_SERIES, default_cutoffs, evaluate_profile,
                         gaussian_profile_weights, material_ratio_curve, parse_profile_filter,
                         profile_gaussian_filter, profile_texture, rmr, roughness_profile)
 from ._periods import dominant_periods, map_periods, mirror_centre, profile_periods
+from ._profile_analysis import PROFILE_FORMS, PROFILE_KEYS, analyze_profile, profile_metrics
 
 __all__ = [
     "analyze_memory", "analyze_memory_per_point", "WINDOWED_FORMS", "analyze_bands",
@@ -81,4 +82,5 @@ __all__ = [
     "material_ratio_curve", "parse_profile_filter", "profile_gaussian_filter",
     "profile_texture", "rmr", "roughness_profile",
     "dominant_periods", "map_periods", "mirror_centre", "profile_periods",
+    "PROFILE_FORMS", "PROFILE_KEYS", "analyze_profile", "profile_metrics",
 ]

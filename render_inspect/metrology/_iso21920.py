@@ -38,7 +38,10 @@ Parameters (heights in the unit of the profile, here mm; ``RSm`` in mm; ``Rdq`` 
 Default cut-offs (ISO 21920-3, the table carried over from ISO 4288:1996): a periodic
 profile takes ``lambda_c`` from RSm, a non-periodic one from Ra; the choice is iterated
 until the RSm (or Ra) measured with it falls in its row.  ``lambda_s`` follows ``lambda_c``
-(2.5 um up to 0.8 mm, 8 um for 2.5 mm, 25 um for 8 mm).
+(2.5 um up to 0.8 mm, 8 um for 2.5 mm, 25 um for 8 mm).  A trace too short for the table's
+cut-off (2 lambda_c are needed: the ends and one section length) takes the largest cut-off
+of the ISO 16610-21 series that fits, continued below the table to 0.025 mm (lambda_s
+0.8 um) and 0.008 mm (lambda_s 0.25 um), with a warning.
 
 References
 ----------
@@ -67,7 +70,7 @@ GAUSSIAN_ALPHA = math.sqrt(math.log(2.0) / math.pi)
 LAMBDA_C_SERIES = (0.08, 0.25, 0.8, 2.5, 8.0)
 
 #: lambda_s that goes with each lambda_c, mm (ISO 21920-3 / ISO 3274)
-_LAMBDA_S = {0.025: 0.0008, 0.08: 0.0025, 0.25: 0.0025, 0.8: 0.0025, 2.5: 0.008, 8.0: 0.025}
+_LAMBDA_S = {0.008: 0.00025, 0.025: 0.0008, 0.08: 0.0025, 0.25: 0.0025, 0.8: 0.0025, 2.5: 0.008, 8.0: 0.025}
 
 #: default lambda_c by RSm (periodic profiles): (RSm upper bound mm, lambda_c mm)
 _BY_RSM = ((0.04, 0.08), (0.13, 0.25), (0.4, 0.8), (1.3, 2.5), (math.inf, 8.0))
@@ -358,13 +361,19 @@ def default_cutoffs(x, z, *, spacing: float, form: str = "line", periodic: bool 
 
 
 def _fits(length: float, spacing: float, lc: float) -> float:
-    """``lc``, or the largest cut-off of the series (down to 0.025 mm) that leaves one
-    section length after the ends on a trace of ``length``."""
-    series = (0.025,) + LAMBDA_C_SERIES
-    if length - lc >= lc:
+    """``lc``, or the largest cut-off of the series (down to 0.008 mm, continuing the
+    ISO 16610-21 series below the standard's table) that leaves one section length after
+    the ends on a trace of ``length`` (with a spare sample at each end)."""
+    series = (0.008, 0.025) + LAMBDA_C_SERIES
+    need = 2.0 * lc + 2 * spacing
+    if length >= need:
         return lc
-    ok = [c for c in series if length - c >= c and c < lc]
-    return max(ok) if ok else 0.025
+    ok = [c for c in series if length >= 2.0 * c + 2 * spacing and c < lc]
+    if not ok:
+        raise InputError(f"the trace ({length:.4g} mm) is too short for any Gaussian cut-off "
+                         f"of the series down to 0.008 mm (a trace of 2 lambda_c is needed); "
+                         f"set one with --filter S,L")
+    return max(ok)
 
 
 def evaluate_profile(x, z, *, spacing: float, lambda_s: float | None = None,

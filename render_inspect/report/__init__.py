@@ -23,6 +23,7 @@ from ._morris import morris_png
 from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
                     save_map_png)
 from ._page import build_page
+from ._profile_figs import profile_figure, profile_overlay_figure
 from ._quickplot import map_png, panels_png
 from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
 
@@ -36,4 +37,5 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
-           "luminance", "fit_figures", "fit_page", "psd_figure"]
+           "luminance", "fit_figures", "fit_page", "psd_figure", "profile_figure",
+           "profile_overlay_figure"]
