@@ -88,8 +88,8 @@ def profile_overlay_figure(series, *, title: str = "", dpi: int = 90) -> bytes:
     ``label``)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(11, 3.8), dpi=dpi)
-    styles = [{"lw": 1.0, "color": "0.15"}, {"lw": 1.0, "color": "tab:blue"},
-              {"lw": 1.0, "color": "tab:orange", "ls": "--"}]
+    styles = [{"lw": 1.0, "color": "0.15"}, {"lw": 1.4, "color": "tab:blue", "alpha": 0.9},
+              {"lw": 0.8, "color": "tab:orange", "ls": "--", "alpha": 0.9}]
     for srs, st in zip(series, styles * 3):
         ax.plot(np.asarray(srs["s"]), np.asarray(srs["z"]) * MM_TO_NM, label=srs["label"], **st)
     ax.set_xlabel("position along the line (mm)")
