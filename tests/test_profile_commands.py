@@ -125,23 +125,24 @@ def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium):
 
 @pytest.mark.slow
 def test_compare_recovers_a_forward_modelled_profile(tmp_path):
-    """The simulated cut along a line, written as a text profile shifted by 7 um and with
-    its units in the header, compared back along the same line: the shift is recovered
-    and the measured and true parameters agree."""
+    """The simulated cut along a diameter, written as a text profile shifted by 7 um and
+    with its units in the header, compared back along the same line: the shift is
+    recovered (the feed marks repeat every 10 um along the line; the mirror centres at
+    the axis tell the periods apart) and the measured and true parameters agree."""
     from render_inspect.pipeline._compare_profile import run_compare_profile
     from render_inspect.scene import load_scene
 
     scene = load_scene(SCENES / "sts_sinusoidal_grid.toml", [])
-    line = "0.05,0.0,0.35,0.0"
+    line = "-0.15,0.0,0.15,0.0"
     # the truth along the line, sampled anew at 0.5 um from the simulation's own heights
     from render_inspect.metrology import line_profile
     from render_inspect.pipeline._compare_profile import _band_scene
     from render_inspect.pipeline._simulate import simulate
 
-    band, _ = _band_scene(scene, (0.05, 0.0), (0.35, 0.0))
+    band, _ = _band_scene(scene, (-0.15, 0.0), (0.15, 0.0))
     hm = simulate(band).heightmap
-    s, z = line_profile(hm.machined, pixel=hm.pixel, origin=hm.origin, p0=(0.057, 0.0),
-                        p1=(0.34, 0.0), step=0.5e-3)
+    s, z = line_profile(hm.machined, pixel=hm.pixel, origin=hm.origin, p0=(-0.143, 0.0),
+                        p1=(0.14, 0.0), step=0.5e-3)
     text = "x (um), height (nm)\n" + "".join(f"{a * 1e3:.6f}, {b * 1e6:.6f}\n" for a, b in zip(s, z))
     src = tmp_path / "cut.csv"
     src.write_text(text)

@@ -8,8 +8,8 @@ the scene is simulated over a thin band about the line and the band imaged by th
 interferometer (``render.interferometer``, its field of view the band); the true profile
 (the simulated cut) and the simulated measurement are sampled along the line at the
 measured spacing; the measured profile is registered along the line to the simulated
-measurement (the shift with the largest correlation, searched within one feed period of
-the mirror centres' match when both profiles have one, over the whole line otherwise);
+measurement (the shift with the largest correlation, weighted by the overlap's share of the
+longest overlap possible, searched within one feed period of the mirror centres' match when both profiles have one, over the whole line otherwise);
 the three get the same form removal (a parabola, the sag of the design over the line)
 and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile, or
 ``--filter``), and their ISO 21920-2 parameters and periods are set side by side.
@@ -123,7 +123,7 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period):
     else:
         lags = np.arange(-(n // 2), n // 2 + 1)
         how = "over half the line either way"
-    best = (-2.0, 0)
+    best = (-2.0, 0, -2.0)
     for lag in lags:
         # measured sample i lies at simulated sample i + lag (positions from the line start)
         k0 = int(round((s_meas[0] - s_sim[0]) / spacing)) + int(lag)
@@ -135,8 +135,10 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period):
         if su == 0 or sv == 0:
             continue
         r = float(np.mean((u - u.mean()) * (v - v.mean())) / (su * sv))
-        if r > best[0]:
-            best = (r, int(lag))
+        # a partial overlap counts for its share of the longest one possible
+        score = r * (i1 - i0) / n
+        if score > best[2]:
+            best = (r, int(lag), score)
     return best[1] * spacing, best[0], how
 
 
