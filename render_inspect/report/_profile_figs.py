@@ -9,8 +9,38 @@ import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._figures import _plt, _to_png
+from ._format import fmt_number, fmt_quantity
 
-__all__ = ["profile_figure", "profile_overlay_figure"]
+__all__ = ["profile_figure", "profile_overlay_figure", "profile_summary"]
+
+
+def profile_summary(metrics: dict) -> list[tuple[str, str]]:
+    """The headline numbers of a profile's ``metrics.json`` (``analyze``): (quantity, text)
+    rows."""
+    p = metrics.get("profile", {})
+    f = metrics.get("filter", {})
+    per = metrics.get("periods") or {}
+    dom = (per.get("dominant") or {}).get("period_mm")
+    ta = per.get("through_axis")
+    out = metrics.get("outliers", {})
+    rows = [("profile", f"{metrics.get('n_measured')} of {metrics.get('n_points')} points "
+                        f"measured, spacing {fmt_quantity(metrics.get('spacing_mm', 0) * MM_TO_UM, 'um')}"),
+            ("filter", f"lambda_s {f.get('lambda_s_mm') or 0:g} mm, lambda_c "
+                       f"{f.get('lambda_c_mm'):g} mm ({f.get('chosen_by')})"),
+            ("Ra, Rq", f"{fmt_quantity(p.get('Ra_nm'), 'nm')}, {fmt_quantity(p.get('Rq_nm'), 'nm')}"),
+            ("Rp, Rv, Rz, Rt", ", ".join(fmt_quantity(p.get(k), "nm")
+                                        for k in ("Rp_nm", "Rv_nm", "Rz_nm", "Rt_nm"))),
+            ("Rsk, Rku, Rdq", f"{fmt_number(p.get('Rsk'))}, {fmt_number(p.get('Rku'))}, "
+                              f"{fmt_number(p.get('Rdq'))}"),
+            ("RSm", fmt_quantity((p.get("RSm_mm") or 0) * MM_TO_UM, "um") if p.get("RSm_mm")
+             else "n/a"),
+            ("dominant period", fmt_quantity(dom * MM_TO_UM, "um") if dom else "none")]
+    if ta:
+        rows.append(("through the axis", f"centre {ta['centre_mm']:.4g} mm; period left "
+                     f"{(ta.get('left') or {}).get('period_mm', 0) * MM_TO_UM:.4g} um, right "
+                     f"{(ta.get('right') or {}).get('period_mm', 0) * MM_TO_UM:.4g} um"))
+    rows.append(("spikes", f"{out.get('count')} " + ("left out" if out.get("left_out") else "kept")))
+    return rows
 
 
 def profile_figure(arrays: dict, metrics: dict, *, title: str = "", dpi: int = 90) -> bytes:
