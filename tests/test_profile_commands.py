@@ -154,3 +154,26 @@ def test_compare_recovers_a_forward_modelled_profile(tmp_path):
     pm, pt = m["profiles"]["measured"]["profile"], m["profiles"]["true"]["profile"]
     assert pm["Rq_nm"] == pytest.approx(pt["Rq_nm"], rel=0.1)
     assert pm["RSm_mm"] == pytest.approx(pt["RSm_mm"], rel=0.05)
+
+
+@pytest.mark.parametrize("text,match", [("1,2,3", "four numbers"), ("0,0,0,0", "two different"),
+                                        ("a,b,c,d", "four numbers"), ("0,0,nan,1", "four numbers")])
+def test_line_option_is_checked(text, match):
+    from render_inspect.pipeline._compare_profile import parse_line
+
+    with pytest.raises(InputError, match=f"--line must .*{match}"):
+        parse_line(text)
+
+
+def test_compare_profile_needs_a_line_without_a_spindle_axis(tmp_path):
+    """A sculptured part has no spindle axis: without --line the command stops before
+    simulating, naming the option."""
+    from render_inspect.pipeline._compare_profile import run_compare_profile
+    from render_inspect.scene import load_scene
+
+    src = tmp_path / "p.csv"
+    src.write_text("x (um), z (nm)\n" + "".join(f"{i}, {np.sin(i / 3):.4f}\n" for i in range(200)))
+    scene = load_scene(SCENES / "sculpt_quad_mla.toml", [])
+    with pytest.raises(InputError, match="--line X0,Y0,X1,Y1 .* no spindle axis"):
+        run_compare_profile(scene, tmp_path / "c", measured=src)
+    assert not (tmp_path / "c").exists()
