@@ -354,3 +354,17 @@ def test_spike_rule_on_the_real_slices(name):
     m = read_profile(_real("turned", name), units="um")
     _, flagged = detect_outliers(m.z, pixel=m.spacing, replace=False)
     assert flagged.sum() < 0.01 * m.n_measured
+
+
+def test_mirror_centre_of_a_long_trace():
+    """A 60000-point trace through the axis (searched on block means, then refined): the
+    centre within one sample."""
+    R, dx = 0.2, 0.05e-3
+    x = np.arange(60000) * dx
+    c = 1.7231
+    r = np.abs(x - c)
+    feed = 0.02 + 0.01 * r / 3.0
+    revs = np.log(feed / 0.02) * 3.0 / 0.01
+    z = -(R - np.sqrt(R * R - (((revs % 1.0) - 0.5) * feed) ** 2))
+    mc = mirror_centre(z, spacing=dx)
+    assert mc["centre_mm"] == pytest.approx(c, abs=dx) and mc["symmetry"] > 0.99

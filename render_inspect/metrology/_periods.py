@@ -136,16 +136,16 @@ def map_periods(z, *, pixel: float) -> dict:
     return _peaks(freq, power, spacing=pixel, n_total=n)
 
 
-def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
-    """Where a profile is most nearly mirror-symmetric: ``centre_mm`` (position, with
-    ``x0`` the position of the first point), ``symmetry`` (the correlation coefficient of
-    the two arms, -1..1) and ``arm_mm`` (the length compared on each side)."""
-    f = _filled(z)
-    ok = np.isfinite(np.asarray(z, dtype=np.float64).ravel())
+#: profiles longer than this are searched for their mirror centre on block means first
+MIRROR_FULL_POINTS = 4000
+
+
+def _mirror_search(f, ok, twices, min_arm):
+    """(correlation, centre in samples, arm) of the best mirror centre among ``twices``
+    (twice the centre, in samples)."""
     n = f.size
-    min_arm = max(4, n // 5)
     best = (-2.0, None, 0)
-    for twice in range(2 * min_arm, 2 * (n - 1 - min_arm) + 1):
+    for twice in twices:
         c = twice / 2.0
         k = twice // 2
         if twice % 2 == 0:  # centre on sample k: pairs (k - t, k + t), t >= 1
@@ -156,6 +156,8 @@ def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
             arm = min(k, n - 2 - k)
             t = np.arange(0, arm + 1)
             left, right = k - t, k + 1 + t
+        if arm < 1:
+            continue
         m = ok[left] & ok[right]
         if m.sum() < min_arm:
             continue
@@ -166,6 +168,33 @@ def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
         r = float(np.mean((a - a.mean()) * (b - b.mean())) / (sa * sb))
         if r > best[0]:
             best = (r, c, arm)
+    return best
+
+
+def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
+    """Where a profile is most nearly mirror-symmetric: ``centre_mm`` (position, with
+    ``x0`` the position of the first point), ``symmetry`` (the correlation coefficient of
+    the two arms, -1..1) and ``arm_mm`` (the length compared on each side).  A profile of
+    more than :data:`MIRROR_FULL_POINTS` points is searched on block means first and the
+    centre then refined on the points themselves."""
+    f = _filled(z)
+    ok = np.isfinite(np.asarray(z, dtype=np.float64).ravel())
+    n = f.size
+    min_arm = max(4, n // 5)
+    twices = range(2 * min_arm, 2 * (n - 1 - min_arm) + 1)
+    if n > MIRROR_FULL_POINTS:
+        q = int(math.ceil(n / (MIRROR_FULL_POINTS / 2)))
+        m = n // q
+        fc = f[:m * q].reshape(m, q).mean(axis=1)
+        okc = ok[:m * q].reshape(m, q).all(axis=1)
+        coarse = _mirror_search(fc, okc, range(2 * max(4, m // 5), 2 * (m - 1 - max(4, m // 5)) + 1),
+                                max(4, m // 5))
+        if coarse[1] is not None:
+            # block j's mean sits at sample j q + (q - 1) / 2
+            c = coarse[1] * q + (q - 1) / 2
+            twices = range(max(twices.start, int(2 * c) - 4 * q),
+                           min(twices.stop, int(2 * c) + 4 * q + 1))
+    best = _mirror_search(f, ok, twices, min_arm)
     if best[1] is None:
         return {"centre_mm": None, "symmetry": None, "arm_mm": 0.0}
     return {"centre_mm": float(x0 + best[1] * spacing), "symmetry": best[0],
