@@ -7,25 +7,25 @@ import json
 import subprocess
 from pathlib import Path
 
+# imported at collection, not inside a test: their first import starts a process (uname,
+# fc-list), which the quick tier does not allow in a test
+import matplotlib.pyplot  # noqa: F401
 import numpy as np
 import pytest
+import SurfaceTopography.IO  # noqa: F401
+import surfalize  # noqa: F401
+from conftest import real_file
 
 from render_inspect.core.errors import InputError
 from render_inspect.io import read_profile
 from render_inspect.metrology import evaluate_profile
 from render_inspect.pipeline._analyze import run_analyze
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 
 
 def _real(*parts) -> Path:
-    p = REAL.joinpath(*parts)
-    if not REAL.is_dir():
-        pytest.skip("real instrument files absent: ../shared/realdata absent")
-    if not p.is_file():
-        pytest.fail(f"real instrument file missing: {p}")
-    return p
+    return real_file(*parts)
 
 
 def test_analyze_a_real_slice(tmp_path):
@@ -94,6 +94,7 @@ def _chromium_shot(chromium, html: Path, tmp_path: Path) -> np.ndarray:
     return np.asarray(Image.open(shot).convert("L"), dtype=np.float64)
 
 
+@pytest.mark.browser
 @pytest.mark.slow
 def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium):
     """The 1016 slice (0.01 mm/rev by its program's name) against the shipped STS scene
@@ -177,3 +178,45 @@ def test_compare_profile_needs_a_line_without_a_spindle_axis(tmp_path):
     with pytest.raises(InputError, match="--line X0,Y0,X1,Y1 .* no spindle axis"):
         run_compare_profile(scene, tmp_path / "c", measured=src)
     assert not (tmp_path / "c").exists()
+
+
+def test_cli_analyze_a_profile(tmp_path, capsys):
+    from render_inspect.cli import main as cli_main
+
+    src = _real("turned", "1022-WLI-2D.csv")
+    out = tmp_path / "a"
+    assert cli_main(["analyze", str(src), "--out", str(out), "--units", "um",
+                     "--filter", "0.0025,0.08"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["filter"] == {**m["filter"], "lambda_s_mm": 0.0025, "lambda_c_mm": 0.08,
+                           "chosen_by": "--filter"}
+    shown = capsys.readouterr().out
+    assert "Ra, Rq" in shown and "through the axis" in shown
+
+
+@pytest.mark.parametrize("args,match", [
+    ([], "does not state its units; say which with --units um|mm|nm"),
+    (["--units", "inch"], "--units must be one of um, mm, nm"),
+    (["--units", "um", "--filter", "0.8,0.08"], "lambda_s (0.8 mm) must be smaller"),
+    (["--units", "um", "--filter", ",2.5"], "too short for lambda_c = 2.5 mm"),
+    (["--units", "um", "--x3p"], "is a profile"),
+])
+def test_cli_analyze_profile_bad_input_one_line(tmp_path, capsys, args, match):
+    from render_inspect.cli import main as cli_main
+
+    out = tmp_path / "bad"
+    assert cli_main(["analyze", str(_real("turned", "1016-WLI-2D.csv")), "--out", str(out),
+                     *args]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0] and "Traceback" not in err[0]
+    assert not out.exists()
+
+
+def test_cli_compare_profile_options_need_a_profile(tmp_path, capsys):
+    from render_inspect.cli import main as cli_main
+
+    rc = cli_main(["compare", str(SCENES / "sts_sinusoidal_grid.toml"), "--out",
+                   str(tmp_path / "c"), "--line", "0,0,1,0"])
+    assert rc == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--line is for --measured PROFILE" in err[0]

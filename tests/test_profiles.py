@@ -11,8 +11,15 @@ import io
 import math
 from pathlib import Path
 
+# imported at collection, not inside a test: their first import starts a process (uname,
+# fc-list), which the quick tier does not allow in a test
+import matplotlib.pyplot  # noqa: F401
 import numpy as np
 import pytest
+import SurfaceTopography.IO  # noqa: F401
+import surfalize  # noqa: F401
+from numpy.testing import assert_allclose, assert_array_equal
+from conftest import real_file
 
 from render_inspect.core.errors import InputError
 from render_inspect.io import is_profile_file, read_profile
@@ -20,7 +27,6 @@ from render_inspect.metrology import (GAUSSIAN_ALPHA, default_cutoffs, dominant_
                                       evaluate_profile, mirror_centre, profile_gaussian_filter,
                                       profile_periods, profile_texture, rmr)
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
 #: (file, rows, measured points, mirror centre (um) the data's SOURCES.md states)
 SLICES = [("1021-WLI-2D.csv", 1143, 999, 536.0), ("1022-WLI-2D.csv", 1047, 951, 478.0),
@@ -28,12 +34,7 @@ SLICES = [("1021-WLI-2D.csv", 1143, 999, 536.0), ("1022-WLI-2D.csv", 1047, 951, 
 
 
 def _real(*parts) -> Path:
-    p = REAL.joinpath(*parts)
-    if not REAL.is_dir():
-        pytest.skip("real instrument files absent: ../shared/realdata absent")
-    if not p.is_file():
-        pytest.fail(f"real instrument file missing: {p}")
-    return p
+    return real_file(*parts)
 
 
 def _csv_numbers(path):
@@ -59,8 +60,8 @@ def test_real_slices_read_in_micrometres(name, rows, measured, centre_um):
     x_um, z_um = _csv_numbers(path)
     assert m.meta["n_points"] == rows and m.n_measured == measured
     assert m.spacing == pytest.approx(0.8712e-3, rel=2e-4)  # 0.8712 um pixel
-    np.testing.assert_allclose(m.x, x_um * 1e-3, rtol=1e-12)
-    np.testing.assert_array_equal(np.isnan(m.z), np.isnan(z_um))
+    assert_allclose(m.x, x_um * 1e-3, rtol=1e-12)
+    assert_array_equal(np.isnan(m.z), np.isnan(z_um))
     assert m.meta["label"].startswith("Slice")
     # the trace is a diameter through the spindle centre (SOURCES.md: 'centre near x')
     mc = mirror_centre(m.z, spacing=m.spacing, x0=m.x[0])
@@ -97,7 +98,7 @@ def test_dektak_opdx_profile():
     assert m.meta["n_points"] == 3001 and m.n_measured == 3001
     assert m.spacing == pytest.approx(1.6655563e-05, rel=1e-7)
     assert m.length == pytest.approx(0.0499667, rel=1e-6)
-    np.testing.assert_allclose(m.z[:2], [1.3718306e-06, 1.3122408e-06], rtol=1e-6)
+    assert_allclose(m.z[:2], [1.3718306e-06, 1.3122408e-06], rtol=1e-6)
     assert m.meta["units_in_file"] == {"position": "um", "height": "um"}
     with pytest.raises(InputError, match="states its own units"):
         read_profile(path, units="um")
@@ -114,7 +115,7 @@ def test_x3p_profile_round_trip(tmp_path):
     m = read_profile(path)
     assert m.meta["n_points"] == 400
     assert m.spacing == pytest.approx(5e-4)
-    np.testing.assert_allclose(m.z, z_m * 1e3, rtol=1e-12, atol=1e-15)
+    assert_allclose(m.z, z_m * 1e3, rtol=1e-12, atol=1e-15)
     areal = _real("more", "alicona_kautschuk.x3p")
     assert not is_profile_file(areal)
     with pytest.raises(InputError, match="not a profile"):
@@ -141,7 +142,7 @@ def test_text_units_scale(tmp_path):
     p.write_text("X (um), Height (nm)\n0, 10\n2, 20\n4, 30\n")
     m = read_profile(p)
     assert m.spacing == pytest.approx(2e-3)
-    np.testing.assert_allclose(m.z, [1e-5, 2e-5, 3e-5])
+    assert_allclose(m.z, [1e-5, 2e-5, 3e-5])
     with pytest.raises(InputError, match="contradicts"):
         read_profile(p, units="mm")
 
@@ -182,7 +183,7 @@ def test_gaussian_filter_matches_its_frequency_domain_transmission():
     spec = np.fft.rfft(np.r_[z, np.zeros(pad - n)]) * np.exp(-np.pi * (GAUSSIAN_ALPHA * lc * f) ** 2)
     ref = np.fft.irfft(spec, n=pad)[:n]
     m = int(lc / dx) + 1
-    np.testing.assert_allclose(w[m:-m], ref[m:-m], atol=1e-9 * np.ptp(z))
+    assert_allclose(w[m:-m], ref[m:-m], atol=1e-9 * np.ptp(z))
 
 
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 2.0])
@@ -325,7 +326,7 @@ def test_spike_rule_keeps_cusp_tips_and_finds_spikes():
     zs[idx] += rng.choice([-1, 1], idx.size) * rng.uniform(2e-5, 2e-4, idx.size)
     cleaned, flagged = detect_outliers(zs, pixel=dx)
     assert flagged[idx].all() and flagged.sum() <= idx.size + 2
-    np.testing.assert_allclose(cleaned[idx], z[idx], atol=2e-5)
+    assert_allclose(cleaned[idx], z[idx], atol=2e-5)
 
 
 def test_spike_rule_on_a_turned_map():

@@ -33,7 +33,7 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
                        common_window, compare_pair, compare_summary, compare_variants,
                        expected_sq_mm, parse_vary, preview_render_configs, run_compare,
                        variant_scene)
-from ._compare_profile import run_compare_profile
+from ._compare_profile import run_compare_command, run_compare_profile
 from ._demo import DEMO_SCENE, run_demo
 from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
 from ._measure import (analyze_summary, measure_and_evaluate, measure_summary,
@@ -59,7 +59,7 @@ __all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "w
            "run_compare", "compare_variants", "compare_pair", "compare_summary", "parse_vary",
            "variant_scene", "common_window", "preview_render_configs", "check_measured",
            "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_analyze_profile", "PROFILE_FILES",
-           "run_compare_profile", "run_demo", "DEMO_SCENE",
+           "run_compare_profile", "run_compare_command", "run_demo", "DEMO_SCENE",
            "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
            "measure_summary", "analyze_summary",
            "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",

@@ -29,16 +29,17 @@ from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..instruments import render_interferogram
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  json_safe, read_profile)
+                  is_profile_file, json_safe, read_profile)
 from ..metrology import (analyze_profile, line_profile, measure_frames, mirror_centre,
                          parse_profile_filter)
 from ..processes import process_of
 from ..report import HtmlReport, profile_figure, profile_overlay_figure
 from ..scene import scene_from_dict
+from ._compare import run_compare
 from ._metrics import write_metrics
 from ._simulate import simulate
 
-__all__ = ["run_compare_profile", "parse_line", "default_line"]
+__all__ = ["run_compare_profile", "run_compare_command", "parse_line", "default_line"]
 
 log = logging.getLogger("render_inspect")
 
@@ -325,3 +326,23 @@ def _page(metrics: dict, figs: dict) -> str:
     rep.section("Notes")
     rep.list(notes)
     return rep.render()
+
+
+def run_compare_command(scene, out, *, measured=None, vary=None, force: bool = False, line=None,
+                        units=None, filter_spec=None, overwrite: bool = False) -> dict:
+    """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,
+    :func:`~render_inspect.pipeline.run_compare` otherwise (``line``, ``units`` and
+    ``filter_spec`` are then refused, naming the option)."""
+    if measured is not None and is_profile_file(measured):
+        if vary is not None or force:
+            raise InputError(f"{'--vary' if vary is not None else '--force'} is for two "
+                             f"variants or a measured map; --measured {str(measured)!r} is a "
+                             f"profile")
+        return run_compare_profile(scene, out, measured=measured, line=line, units=units,
+                                   filter_spec=filter_spec, overwrite=overwrite)
+    for opt, v in (("--line", line), ("--units", units), ("--filter", filter_spec)):
+        if v is not None:
+            raise InputError(f"{opt} is for --measured PROFILE (a profile file); received "
+                             f"{opt} {v} with --measured {measured!r}")
+    return run_compare(scene, out, measured=measured, vary=vary, force=force,
+                       overwrite=overwrite)
