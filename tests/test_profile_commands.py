@@ -97,15 +97,16 @@ def _chromium_shot(chromium, html: Path, tmp_path: Path) -> np.ndarray:
 @pytest.mark.browser
 @pytest.mark.slow
 def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium):
-    """The 1016 slice (0.01 mm/rev by its program's name) against the shipped STS scene
-    (0.01 mm/rev): along the default diameter through the axis, both show the feed as
-    their period, the report holds the overlay and the table, and it renders."""
-    from render_inspect.pipeline._compare_profile import run_compare_profile
-    from render_inspect.scene import load_scene
+    """``compare --measured`` with the 1016 slice (0.01 mm/rev by its program's name) and
+    the shipped STS scene (0.01 mm/rev): along the default diameter through the axis, both
+    show the feed as their period, the report holds the overlay and the table, and it
+    renders in headless Chromium."""
+    from render_inspect.cli import main as cli_main
 
-    scene = load_scene(SCENES / "sts_sinusoidal_grid.toml", [])
     out = tmp_path / "c"
-    m = run_compare_profile(scene, out, measured=_real("turned", "1016-WLI-2D.csv"), units="um")
+    assert cli_main(["compare", str(SCENES / "sts_sinusoidal_grid.toml"), "--out", str(out),
+                     "--measured", str(_real("turned", "1016-WLI-2D.csv")), "--units", "um"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
     assert m["kind"] == "profile" and "spindle axis" in m["line_from"]
     p = m["profiles"]
     assert p["measured"]["periods"]["dominant"]["period_mm"] == pytest.approx(0.01, rel=0.05)
