@@ -3,7 +3,8 @@ output folders.  Every ``_*.py`` module of this package is imported on start, so
 file format is one new module that registers its reader or writer.
 
 Products: ``heightmap`` (``heightmap.exr``), ``measured`` (measured height maps: X3P, EXR,
-npy/npz and instrument formats), ``toolpath`` and ``program`` (machine programs: npz, csv,
+npy/npz and instrument formats), ``profile`` (measured profiles: text exports, Dektak
+``.opdx``, X3P PRF), ``toolpath`` and ``program`` (machine programs: npz, csv,
 nc), ``frames`` (``interferogram.exr``; TIFF / PNG stacks with a settings JSON),
 ``measurement`` (``height.exr``).  :func:`reader` / :func:`writer` look them up.
 """
