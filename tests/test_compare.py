@@ -230,7 +230,7 @@ def test_report_html_is_self_contained(compared):
     assert "<script" not in html
     assert "compensated" in html and "uncompensated" in html and "measured file" in html
     for text in ("coverage of the simulated region", "overlap after registration",
-                 "standard uncertainty", "rotation about z (deg)", "outliers (second difference",
+                 "standard uncertainty", "rotation about z (deg)", "outliers (spikes",
                  "units declared in the file"):
         assert text in html, text
     assert "tiny_compare" in html

@@ -43,6 +43,11 @@ from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outlie
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
 from ._unwrap import phase_quality, unwrap_phase
+from ._iso21920 import (LAMBDA_C_SERIES, default_cutoffs, evaluate_profile,
+                        gaussian_profile_weights, material_ratio_curve, parse_profile_filter,
+                        profile_gaussian_filter, profile_texture, rmr, roughness_profile)
+from ._periods import dominant_periods, map_periods, mirror_centre, profile_periods
+from ._profile_analysis import PROFILE_FORMS, PROFILE_KEYS, analyze_profile, profile_metrics
 
 __all__ = [
     "analyze_memory", "analyze_memory_per_point", "WINDOWED_FORMS", "analyze_bands",
@@ -73,4 +78,9 @@ __all__ = [
     "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",
     "common_window", "crop_window", "line_profile", "difference_stats", "sections",
     "profile_center", "areal_nm", "difference_profiles", "surface_slope",
+    "LAMBDA_C_SERIES", "default_cutoffs", "evaluate_profile", "gaussian_profile_weights",
+    "material_ratio_curve", "parse_profile_filter", "profile_gaussian_filter",
+    "profile_texture", "rmr", "roughness_profile",
+    "dominant_periods", "map_periods", "mirror_centre", "profile_periods",
+    "PROFILE_FORMS", "PROFILE_KEYS", "analyze_profile", "profile_metrics",
 ]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ..core.units import MM_TO_UM
 from ._figures import line_panels, map_panels
+from ._profile_figs import profile_summary
 from ._format import fmt_number, fmt_quantity
 
 __all__ = ["analysis_summary", "characterise_figures", "measurement_summary"]
@@ -82,7 +83,9 @@ def measurement_summary(metrics: dict) -> list[tuple[str, str]]:
 
 def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     """The headline numbers of ``analyze``'s ``metrics.json`` for a one-screen summary:
-    (quantity, text) rows."""
+    (quantity, text) rows (a profile's: :func:`profile_summary`)."""
+    if metrics.get("kind") == "profile":
+        return profile_summary(metrics)
     a = metrics.get("areal", {})
     f = metrics.get("filter", {})
     shape = metrics.get("shape") or [0, 0]
@@ -102,6 +105,9 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
                               f"{fmt_number(a.get('Sdq'))}"),
             ("outliers (3-sigma rule)", f"{out.get('count')} "
                                         + ("left out" if out.get("left_out") else "kept"))]
+    period = ((metrics.get("periods") or {}).get("dominant") or {}).get("period_mm")
+    if period:
+        rows.append(("dominant period", fmt_quantity(period * MM_TO_UM, "um")))
     return rows
 
 

@@ -106,7 +106,7 @@ def _measured_section(rep, mf: dict) -> None:
             ["residual limit", fmt_quantity(_scaled(checks.get("residual_limit_mm"), 1e6), "nm")],
             ["checks", "passed" if checks.get("ok") else
              ("refused, compared with --force" if checks else "not run")],
-            [f"outliers (second difference, k = {fmt_number(out.get('sigma'))})",
+            [f"outliers (spikes, k = {fmt_number(out.get('sigma'))})",
              f"{fmt_number(out.get('count'))} ({_q(out.get('fraction') or 0.0, 'fraction')}), "
              f"left out of {' and '.join(out.get('left_out_of', [])) or 'nothing'}"]]
     rep.table(rows, header=["measured file", "value"])
