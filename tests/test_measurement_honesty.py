@@ -1,0 +1,148 @@
+"""Two measurements are two measurements: each pixel's height noise estimated from the
+frames, the difference's noise floor and whether it is resolved, and fringe-order
+failures found from the measurement itself.  Known answers from the forward model
+``I_k = a + b cos(4 pi (h - z_ref) / lambda + delta_k) + noise``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from render_inspect.metrology import (difference_noise, difference_order_check,
+                                      fringe_order_check, measured_difference,
+                                      measurement_seeds, repeat_statistics, resolution,
+                                      retrieve_csi, retrieve_psi)
+
+LAM_NM = 550.0
+LAM = LAM_NM * 1e-6  # mm
+STEPS = np.arange(4) * np.pi / 2
+PIX = 0.002
+
+
+def _grid(n=96):
+    x = (np.arange(n) - n / 2) * PIX
+    return np.meshgrid(x, x)
+
+
+def _frames(h, seed, *, a=0.5, b=0.3, sigma=0.004):
+    rng = np.random.default_rng(seed)
+    f = np.stack([a + b * np.cos(4 * np.pi * h / LAM + d) for d in STEPS])
+    return f + rng.normal(0.0, sigma, f.shape)
+
+
+def _measure(h, seed, **kw):
+    return retrieve_psi(_frames(h, seed, **kw), wavelength_nm=LAM_NM, steps_rad=STEPS)
+
+
+def test_psi_height_noise_matches_the_scatter_it_predicts():
+    x, y = _grid()
+    h = 4e-4 * x + 2e-4 * y
+    sigma, b = 0.004, 0.3
+    r = _measure(h, 1, sigma=sigma, b=b)
+    # forward model: the phase noise of the 4-step formula is sigma / (b sqrt(2))
+    expect_nm = LAM_NM / (4 * np.pi) * sigma / (b * np.sqrt(2))
+    est = r.meta["noise"]["height_noise_rms_nm"]
+    assert est == pytest.approx(expect_nm, rel=0.1)
+    # two independent realisations: the difference scatters by sqrt(2) x one
+    r2 = _measure(h, 2, sigma=sigma, b=b)
+    d, _ = measured_difference(r.height, r2.height, pixel=PIX, labels_a=r.labels,
+                               labels_b=r2.labels, fringe_order_mm=LAM / 2)
+    rms = float(np.sqrt(np.nanmean(d ** 2))) * 1e6
+    fl = difference_noise(r.height_noise, r2.height_noise)
+    assert fl["floor_nm"] == pytest.approx(np.sqrt(2) * expect_nm, rel=0.1)
+    assert rms == pytest.approx(fl["floor_nm"], rel=0.1)
+    assert resolution(rms, fl["floor_nm"])["verdict"] == "not resolved"
+
+
+def test_csi_height_noise_matches_the_scatter_it_predicts():
+    x, _ = _grid(48)
+    h = 2e-4 + 0.0 * x
+    z = np.linspace(h.min() - 0.004, h.max() + 0.004, 129)
+    lc = 0.0012
+    rng = np.random.default_rng(3)
+    opd = 2 * (h[None] - z[:, None, None])
+    st = 0.5 + 0.3 * np.exp(-(opd / lc) ** 2) * np.cos(2 * np.pi * opd / LAM)
+    st = st + rng.normal(0, 0.003, st.shape)
+    r = retrieve_csi(st, z, wavelength_nm=LAM_NM)
+    scatter = float(np.nanstd(r.height)) * 1e6
+    assert r.meta["noise"]["height_noise_rms_nm"] == pytest.approx(scatter, rel=0.35)
+
+
+def test_a_difference_above_the_noise_is_resolved_and_one_below_is_not():
+    x, y = _grid()
+    base = 4e-4 * x
+    for amp_nm, verdict in ((0.2, "not resolved"), (5.0, "resolved")):
+        bump = amp_nm * 1e-6 * np.sin(2 * np.pi * x / 0.05)
+        ra, rb = _measure(base + bump, 11), _measure(base, 12)
+        d, _ = measured_difference(ra.height, rb.height, pixel=PIX, terms="piston",
+                                   labels_a=ra.labels, labels_b=rb.labels)
+        rms = float(np.sqrt(np.nanmean(d ** 2))) * 1e6
+        v = resolution(rms, difference_noise(ra.height_noise, rb.height_noise)["floor_nm"])
+        assert v["verdict"] == verdict
+        if verdict == "resolved":  # the part above the noise is the true rms
+            assert v["above_noise_nm"] == pytest.approx(amp_nm / np.sqrt(2), rel=0.1)
+
+
+def test_measurement_seeds_are_independent_and_reproducible():
+    s = measurement_seeds(0, 2)
+    assert s[0] != s[1] and s == measurement_seeds(0, 2)
+    assert measurement_seeds(0, 2, repeat=1) != s
+
+
+def test_repeat_statistics_measures_the_floor():
+    rng = np.random.default_rng(0)
+    maps = rng.normal(0, 0.5, (6, 40, 40)) + 0.1
+    st = repeat_statistics(maps, [float(np.sqrt(np.mean(m ** 2))) for m in maps])
+    assert st["pixel_repeatability_nm"] == pytest.approx(0.5, rel=0.05)
+    assert st["mean_map_floor_nm"] == pytest.approx(0.5 / np.sqrt(6), rel=0.05)
+
+
+def _partial_step(cross):
+    """A tilted plane with a step along the middle row whose height grows from 0 at the
+    left to 0.5 lambda at the right: beyond column ``cross`` it is higher than lambda / 4
+    and the unwrapping cannot follow it (a residue where it crosses)."""
+    x, y = _grid()
+    n = x.shape[0]
+    col = np.arange(n)
+    step = np.clip(0.25 * LAM * col / cross, 0.0, 0.5 * LAM)
+    h = 1e-4 * x
+    h[n // 2:, :] += step[None, :]
+    return h
+
+
+def test_fringe_order_slips_are_found_from_the_measurement():
+    good = _measure(_grid()[0] * 1e-4, 0)
+    chk = fringe_order_check(good, fringe_order_mm=LAM / 2)
+    assert chk["residues"] == 0 and chk["slips"] == 0
+    bad = _measure(_partial_step(60), 0)
+    chk = fringe_order_check(bad, fringe_order_mm=LAM / 2)
+    assert chk["residues"] >= 1 and chk["slips"] > 0
+
+
+def test_a_slipped_difference_is_failed_not_measured():
+    # two surfaces that differ by a small bump; one measurement also slips
+    x, y = _grid()
+    ra = _measure(_partial_step(60), 0)
+    rb = _measure(_partial_step(30), 1)
+    fo = LAM / 2
+    checks = [fringe_order_check(r, fringe_order_mm=fo) for r in (ra, rb)]
+    d, info = measured_difference(ra.height, rb.height, pixel=PIX, labels_a=ra.labels,
+                                  labels_b=rb.labels, fringe_order_mm=fo)
+    out = difference_order_check(d, fringe_order_mm=fo, checks=checks)
+    assert out["status"] == "failed" and out["jumps"] > 0 and out["reasons"]
+    # the same pair without the step: nothing to mask
+    ra, rb = _measure(1e-4 * x, 0), _measure(1e-4 * x + 1e-6 * np.sin(x / 0.02), 1)
+    d, _ = measured_difference(ra.height, rb.height, pixel=PIX, fringe_order_mm=fo)
+    assert difference_order_check(d, fringe_order_mm=fo)["status"] == "ok"
+
+
+def test_separate_regions_between_two_orders_are_ambiguous():
+    x, y = _grid()
+    fo = LAM / 2
+    d = np.zeros_like(x)
+    d[:, 40:44] = np.nan  # two regions that do not touch
+    d[:, 44:] = 0.5 * fo  # half an order off: either order is as likely
+    out = difference_order_check(d, fringe_order_mm=fo)
+    assert out["ambiguous_regions"] == 1 and out["status"] == "failed"
+    d[:, 44:] = 1.02 * fo  # a whole order off: the nearest order is clear
+    assert difference_order_check(d, fringe_order_mm=fo)["status"] == "ok"
