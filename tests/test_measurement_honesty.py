@@ -146,3 +146,70 @@ def test_separate_regions_between_two_orders_are_ambiguous():
     assert out["ambiguous_regions"] == 1 and out["status"] == "failed"
     d[:, 44:] = 1.02 * fo  # a whole order off: the nearest order is clear
     assert difference_order_check(d, fringe_order_mm=fo)["status"] == "ok"
+
+
+@pytest.mark.mitsuba
+def test_a_csi_scan_too_short_for_the_heights_is_refused_before_rendering(monkeypatch):
+    """A tilted plane spanning 2.4 um in the field, scanned with 40 frames of 40 nm
+    (1.56 um): refused, naming the range needed; a scan long enough is rendered."""
+    import math
+
+    from render_inspect.errors import InputError
+    from render_inspect.instruments import _interferometer, render_interferogram
+    from render_inspect.instruments._modes import scan_needed
+    from render_inspect.machining import HeightMap
+    from render_inspect.scene import InterferometerConfig
+
+    n, pixel = 81, 0.001
+    c = np.arange(n) * pixel
+    xx, _ = np.meshgrid(c, c)
+    tilt = math.radians(2.0)
+    z = xx * math.tan(tilt)
+    hm = HeightMap(z, z.copy(), pixel, (0.0, 0.0))
+    kw = dict(mode="csi", pixel=0.001, field_of_view=(0.0105, 0.0105, 0.0695, 0.0695),
+              noise=False, subsamples=1, numerical_aperture=0.3, wavelength_nm=600.0,
+              bandwidth_nm=120.0, margin=0, scan_step_nm=40.0)
+    traced = []
+    monkeypatch.setattr(_interferometer, "trace_heights",
+                        lambda *a, **k: traced.append(1) or (_ for _ in ()).throw(AssertionError))
+    with pytest.raises(InputError, match=r"frames = 40 .* must cover at least \d+ nm \(frames >= \d+"):
+        render_interferogram(hm, InterferometerConfig(**kw, frames=40), surface="design")
+    assert not traced  # refused before anything was traced
+    monkeypatch.undo()
+    cfg = InterferometerConfig(**kw, frames=40)
+    from render_inspect.instruments._interferometer import microscope_from_config
+    need = scan_needed(0.0, float(z[:, :71].max()) + 2e-6, microscope_from_config(cfg),
+                       scan_step_nm=40.0)
+    ig = render_interferogram(hm, InterferometerConfig(**kw, frames=need["frames"]), surface="design")
+    assert ig.frames.shape[0] == need["frames"]
+    from render_inspect.metrology import measure_frames
+    assert measure_frames(ig.recorded()).valid.mean() > 0.9
+
+
+@pytest.mark.slow
+def test_characterise_stops_the_transfer_function_at_the_camera_nyquist():
+    """At the 20x camera pixel (0.879 um: Nyquist 569 /mm, below the 1455 /mm cut-off)
+    the transfer function is a number up to Nyquist only; above it the aliased pattern is
+    kept apart and said to be one."""
+    from render_inspect.instruments._characterise import _itf
+    from render_inspect.instruments._interferometer import (disturbances_from_config,
+                                                            microscope_from_config)
+    from render_inspect.scene import InterferometerConfig
+
+    cfg = InterferometerConfig(objective="20x")
+    mic, dist = microscope_from_config(cfg), disturbances_from_config(cfg)
+    pixel = 0.000879
+    fine = 550e-6 / (8 * 0.8)
+    itf = _itf(mic, dist, mode="psi", pixel=pixel, fine=fine, quick=True)
+    nyq = itf["camera_nyquist_per_mm"]
+    assert nyq == pytest.approx(0.5 / pixel)
+    assert itf["instrument_transfer_up_to_per_mm"] == pytest.approx(nyq)
+    assert "Nyquist" in itf["instrument_note"]
+    above = [r for r in itf["table"] if r["frequency_per_mm"] > nyq]
+    below = [r for r in itf["table"] if r["frequency_per_mm"] <= nyq]
+    assert above and below
+    for r in above:
+        assert r["itf_instrument"] is None and r["aliased_instrument"] is not None
+    for r in below:  # the optics' transfer times the camera pixel's box filter
+        box = abs(np.sinc(r["frequency_per_mm"] * pixel))
+        assert r["itf_instrument"] == pytest.approx(r["itf_optics"] * box, abs=0.06)

@@ -96,12 +96,15 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
             if 1 / per <= 0.5 / p:
                 row[key] = sinusoid_amplitude(prof, x, per) / amp
             else:
-                # above the camera's Nyquist frequency: the amplitude of whatever pattern
-                # comes back (the camera's alias of what the optics pass; none beyond the
-                # cut-off)
+                # above the camera's Nyquist frequency there is no transfer function: the
+                # camera cannot sample the grating.  What comes back is kept apart, as the
+                # amplitude of the aliased pattern (the camera's alias of what the optics
+                # pass; none beyond the cut-off)
                 d = prof[np.isfinite(prof)]
                 d = d - d.mean()
-                row[key] = float(math.sqrt(2 * np.mean(d * d))) / amp if d.size else None
+                row[key] = None
+                row[key.replace("itf_", "aliased_")] = (
+                    float(math.sqrt(2 * np.mean(d * d))) / amp if d.size else None)
         row["itf_model"] = float(mic.itf(f))
         row["itf_textbook"] = float(pupil_overlap(f, numerical_aperture=na, illumination_na=na_ill,
                                                   wavelength_nm=lam_nm))
@@ -112,11 +115,19 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
         if a0 >= 0.5 > a1:
             half = f0 + (a0 - 0.5) / (a0 - a1) * (f1 - f0)
             break
-    beyond = [r["itf_instrument"] for r in rows
-              if r["frequency_per_mm"] > fc and r["itf_instrument"] is not None]
+    beyond = [r["itf_instrument"] if r["itf_instrument"] is not None
+              else r.get("aliased_instrument") for r in rows if r["frequency_per_mm"] > fc]
+    beyond = [b for b in beyond if b is not None]
+    nyq = 0.5 / pixel
     return {"amplitude_nm": amp / _NM, "cutoff_per_mm": fc, "cutoff_period_um": 1 / fc / _UM,
             "beyond_cutoff_max": max(beyond) if beyond else None,
-            "half_transfer_per_mm": half, "camera_nyquist_per_mm": 0.5 / pixel,
+            "half_transfer_per_mm": half, "camera_nyquist_per_mm": nyq,
+            "instrument_transfer_up_to_per_mm": min(nyq, fc),
+            "instrument_note": (f"the transfer function at the camera pixel stops at the camera's "
+                                f"Nyquist frequency ({nyq:.4g} /mm): above it the camera cannot "
+                                f"sample a grating, and what comes back (aliased_instrument) is "
+                                f"an alias, not a transfer value")
+            if nyq < fc * max(ITF_FRACTIONS) else None,
             "fine_pixel_um": fine / _UM, "algorithm": alg, "table": rows}
 
 

@@ -32,7 +32,7 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._modes import csi_frames, psi_frames
+from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
 from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, content_subsamples,
@@ -471,6 +471,12 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     else:
         slope = _max_slope(heightmap, surface, geom["trace_window"])
         s_rec = min(recommended_subsamples(geom["pixel"], mic, max_slope=slope), MAX_AUTO_SUBSAMPLES)
+    if icfg.mode == "csi" and icfg.frames is not None:
+        # a scan that cannot reach the heights is refused before anything is traced
+        z = _window_of(heightmap, surface, geom["trace_window"])
+        if z is not None and np.isfinite(z).any():
+            check_scan_covers(float(np.nanmin(z)), float(np.nanmax(z)), mic,
+                              scan_step_nm=icfg.scan_step_nm, frames=int(icfg.frames))
     s, sampling = surface_sampling(heightmap, surface, geom, mic, s_rec=s_rec,
                                    fixed=icfg.subsamples is not None)
     h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
