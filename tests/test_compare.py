@@ -193,8 +193,20 @@ def test_compare_same_camera_for_both(compared):
     out, m = compared
     a = m["compensated"]["interferometer"]
     b = m["uncompensated"]["interferometer"]
-    for k in ("origin_mm", "pixel_mm", "shape", "seed", "numerical_aperture", "wavelength_nm"):
+    for k in ("origin_mm", "pixel_mm", "shape", "numerical_aperture", "wavelength_nm"):
         assert a[k] == b[k], k
+    # two measurements, two noise realisations (seeded from the scene's seed, recorded)
+    from render_inspect.metrology import measurement_seeds
+
+    assert a["seed"] != b["seed"]
+    assert [a["seed"], b["seed"]] == measurement_seeds(m["seed"], 2)
+    noise = m["difference"]["window"]["measured"]["noise"]
+    assert noise["seeds"] == {"compensated": a["seed"], "uncompensated": b["seed"]}
+    # the floor: the two measurements' own noise in quadrature
+    assert noise["floor_nm"] == pytest.approx(math.hypot(noise["a_nm"], noise["b_nm"]))
+    assert 0.1 < noise["floor_nm"] < 3.0
+    res = m["difference"]["window"]["measured"]["resolution"]
+    assert res["verdict"] in ("resolved", "not resolved")
 
 
 @pytest.mark.mitsuba
@@ -503,3 +515,25 @@ def test_exaggeration_and_scale_in_every_diffuse_image(compared):
     # the macro view is the whole turned part: a disc of the workpiece radius
     assert m["windows"]["part"] == {"shape": "disc", "center": [0.0, 0.0], "radius": 1.0}
     assert m["compensated"]["diffuse"]["macro"]["iridescence"] is True
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_report_table_states_measured_and_both_truths_and_how_formed(compared):
+    # the table of Figure 1: measured, true like with like (the truth at the camera pixels
+    # both measured with the same piston and tilt removed) and true raw, each said how
+    # it was formed; and whether the measured difference is resolved
+    from render_inspect.report._format import fmt_quantity
+
+    out, m = compared
+    html = (out / "report.html").read_text()
+    w = m["difference"]["window"]
+    for label, block in (("measured by the virtual interferometer", w["measured"]),
+                         ("true, like with like", w["true_same_form_removed"]),
+                         ("true, raw", w["true"])):
+        row = re.search(rf"<td[^>]*>{re.escape(label)}</td><td[^>]*>([^<]*)</td>", html)
+        assert row, label
+        assert row.group(1) == fmt_quantity(block["rms_nm"], "nm")
+    assert "how the number is formed" in html and "nothing removed" in html
+    assert "Is the measured difference resolved?" in html
+    assert "aligned to its truth by one piston per region" not in html

@@ -213,3 +213,69 @@ def test_characterise_stops_the_transfer_function_at_the_camera_nyquist():
     for r in below:  # the optics' transfer times the camera pixel's box filter
         box = abs(np.sinc(r["frequency_per_mm"] * pixel))
         assert r["itf_instrument"] == pytest.approx(r["itf_optics"] * box, abs=0.06)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("obj", ["20x", "50x"])
+def test_nothing_beyond_the_slope_limit_is_valid_on_a_sphere(obj):
+    """A sphere whose slopes reach 1.25 times the slope limit, imaged by coherence
+    scanning (characterise's sphere): no light returns from a facet steeper than
+    asin(NA) (geometric optics, filled illumination), so no pixel beyond it may be
+    measured; below it the drop-out is gradual (the contrast fades towards the limit)."""
+    import math
+
+    from render_inspect.instruments._characterise import _sphere
+    from render_inspect.instruments._interferometer import (disturbances_from_config,
+                                                            microscope_from_config)
+    from render_inspect.instruments._objectives import OBJECTIVES
+    from render_inspect.scene import InterferometerConfig
+
+    cfg = InterferometerConfig(objective=obj, mode="csi")
+    mic = microscope_from_config(cfg)
+    out = _sphere(mic, disturbances_from_config(cfg), pixel=OBJECTIVES[obj].pixel, n=96, seed=0)
+    limit = math.degrees(math.asin(mic.na))
+    assert out["slope_limit_deg"] == pytest.approx(limit)
+    beyond = [r for r in out["table"] if r["slope_deg"] - 0.25 > limit]
+    assert len(beyond) >= 5
+    for r in beyond:
+        assert r["valid_fraction"] == 0.0, r
+    assert out["dropout_50_deg"] < limit
+    assert out["table"][0]["valid_fraction"] == 1.0
+
+
+@pytest.mark.mitsuba
+def test_the_truth_channel_does_not_alias_texture_finer_than_the_pixel():
+    """A 10 nm grating of 0.6 um period on a tilted plane, imaged with 1 um pixels and
+    5 x 5 sub-samples (0.2 um apart): point samples at the pixel centres would alias it
+    to a full 10 nm pattern of 3 um period; the pixel's mean keeps 1/5 of it (three
+    sub-samples per period cancel), and the plane itself is kept exactly."""
+    import math
+
+    from render_inspect.instruments import render_interferogram
+    from render_inspect.machining import HeightMap
+    from render_inspect.scene import InterferometerConfig
+
+    fine = 0.00005  # map pixel, mm
+    n = 601
+    c = np.arange(n) * fine
+    xx, yy = np.meshgrid(c, c)
+    amp = 10e-6  # mm
+    plane = 2e-3 * xx + 1e-3 * yy
+    z = plane + amp * np.cos(2 * math.pi * xx / 0.0006)
+    hm = HeightMap(z, plane.copy(), fine, (0.0, 0.0))
+    cfg = InterferometerConfig(pixel=0.001, field_of_view=(0.005, 0.005, 0.025, 0.025),
+                               noise=False, subsamples=5, margin=2)
+    ig = render_interferogram(hm, cfg, surface="machined")
+    xs, ys = np.meshgrid(ig.x, ig.y)
+    ref = 2e-3 * xs + 1e-3 * ys
+    err = (ig.height_true - ref) * 1e6  # nm
+    err -= np.nanmean(err)
+    rms = float(np.sqrt(np.nanmean(err ** 2)))
+    # a point sample: |cos| of the grating at the centres, 10 nm at Nyquist (rms ~ 7 nm)
+    point = amp * np.cos(2 * math.pi * xs / 0.0006) * 1e6
+    assert float(np.sqrt(np.mean((point - point.mean()) ** 2))) > 5.0
+    assert rms < 0.25 * 10.0 / math.sqrt(2) + 0.1
+    assert ig.meta["height_true_unresolved_rms_nm"] == pytest.approx(10 / math.sqrt(2), rel=0.25)
+    # the design channel (the plane): the mean is the centre value
+    ig2 = render_interferogram(hm, cfg, surface="design")
+    np.testing.assert_allclose(ig2.height_true, ref, atol=2e-8)

@@ -167,6 +167,10 @@ def _steps(mic, dist, *, csi_mic, fine, quick):
     return out, profiles
 
 
+#: Pixels imaged around the sphere's field and cropped.
+_SPHERE_MARGIN = 8
+
+
 def _sphere(mic, dist, *, pixel, n, seed):
     # measured by coherence scanning: every pixel is seen in its own focus, so the
     # contrast and drop-out depend on the slope alone, not on defocus across the sphere
@@ -174,9 +178,13 @@ def _sphere(mic, dist, *, pixel, n, seed):
     r_edge = 0.5 * n * pixel
     radius = r_edge / math.sin(min(1.25 * alpha_lim, 1.2))
     s = min(recommended_subsamples(pixel, mic), 8)
-    h, nrm = artefacts.sphere((n, n), pixel, s, radius=radius)
+    # imaged with a margin of pixels around the field, cropped after imaging (as the
+    # renderer does): the model's field is periodic, and the sphere's steep opposite
+    # borders must not meet
+    h, nrm = artefacts.sphere((n + 2 * _SPHERE_MARGIN, n + 2 * _SPHERE_MARGIN), pixel, s,
+                              radius=radius)
     fr, m = _measure(h, nrm, pixel=pixel, s=s, mic=mic, dist=dist, mode="csi", seed=seed,
-                     algorithm="envelope")
+                     algorithm="envelope", crop=_SPHERE_MARGIN)
     x = pixel * np.arange(n)
     xc = x.mean()  # the artefact's centre (the sub-samples are centred on the pixels)
     r = np.hypot(x[None, :] - xc, x[:, None] - xc)

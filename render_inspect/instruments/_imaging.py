@@ -24,7 +24,12 @@ as in a Mirau or Linnik objective scanned along its axis) and per camera pixel::
   ``I >= 0``;
 * ``rho_R`` is the reference mirror's reflectance (unit illumination);
 * sub-samples with no surface (NaN height), facing away from every illumination
-  direction, or too steep for any reflected ray to enter the pupil, are dark (``r = 0``).
+  direction, or too steep for any reflected ray to enter the pupil, are dark (``r = 0``);
+  facets beyond the slope limit that the sub-sample grid still carries fade to dark (a
+  raised cosine in their tilt, from the limit to where the grid can no longer carry
+  their phase), so that no sharp edge diffracts false fringes into the pupil; on a
+  surface that reaches the limit the sub-samples carry twice its slope's phase
+  (:func:`~._microscope.recommended_subsamples`), so the fade is a gentle one.
 
 Frames are periodic over the array (FFT); ``crop`` drops a margin of pixels around the
 field, where the wrap-around would otherwise show.
@@ -212,6 +217,19 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     alpha_lim = float(alpha[np.nonzero(frac > 1e-9)[0].max()]) if (frac > 1e-9).any() else 0.0
     alpha_dark = max(alpha_lim, math.atan(math.pi / (2 * k99 * a)))
     returns = reached & (cos_t >= np.float32(math.cos(alpha_dark)))
+    # facets beyond the slope limit return no light; those the sub-sample grid still
+    # carries (up to ``alpha_dark``) fade out smoothly towards it (a raised cosine in the
+    # facet's tilt) instead of ending at a sharp edge, whose diffraction would put a
+    # false ring of fringes beyond the slope limit into the pupil
+    fade = None
+    if alpha_dark > alpha_lim:
+        with np.errstate(invalid="ignore"):
+            t = (np.arccos(np.clip(cos_t, -1.0, 1.0)) - np.float32(alpha_lim)) \
+                / np.float32(alpha_dark - alpha_lim)
+        t = np.where(np.isfinite(t), t, np.float32(1.0))  # no surface: dark anyway
+        fade = np.where(t <= 0, np.float32(1.0),
+                        np.cos(np.float32(math.pi / 2) * np.clip(t, 0, 1)) ** 2).astype(np.float32)
+        del t
     # the object beam's own intensity: geometric acceptance of the facets, with the normals
     # averaged over the point-spread function (sub-resolution texture scatters, it does not
     # make dark facets)
@@ -235,6 +253,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     light = np.einsum("asbt,s,t->ab", b_sub, wy, wy)[crop:hc - crop, crop:wc - crop]
     del b_sub, acc
     amp = np.where(returns, np.float32(math.sqrt(refl)), np.float32(0.0))
+    if fade is not None:
+        amp *= fade
+        del fade
 
     # --- heights relative to a reference plane, the range of z - h the frames need
     any_ret = bool(returns.any())
