@@ -130,6 +130,24 @@ def test_a_slipped_difference_is_failed_not_measured():
                                   labels_b=rb.labels, fringe_order_mm=fo)
     out = difference_order_check(d, fringe_order_mm=fo, checks=checks)
     assert out["status"] == "failed" and out["jumps"] > 0 and out["reasons"]
+    # what the summary and the report say of it: failed, no measured number
+    from render_inspect.report import comparison_summary
+    from render_inspect.report._comparison import resolution_text
+
+    meas = {"status": "failed", "rms_nm": None, "fringe_order": out,
+            "resolution": {"verdict": "failed", "resolved": None}}
+    text = resolution_text(meas)
+    assert text.startswith("failed") and "not a measured difference" in text
+    m = {"variants": [{"name": "a"}, {"name": "b"}],
+         "a": {"variant": {"label": "A"}, "residual": {"Sq_nm": 1.0, "min_nm": -1.0},
+               "filtered": {}, "measured": {}},
+         "b": {"variant": {"label": "B"}, "residual": {"Sq_nm": 1.0, "min_nm": -1.0},
+               "filtered": {}, "measured": {}},
+         "difference": {"window": {"measured": meas, "true": {"rms_nm": 20.6},
+                                   "true_same_form_removed": {"rms_nm": 20.0}}}}
+    _, lines = comparison_summary(m)
+    joined = " ".join(t for _, t in lines)
+    assert "FAILED" in joined and "measured rms" not in joined
     # the same pair without the step: nothing to mask
     ra, rb = _measure(1e-4 * x, 0), _measure(1e-4 * x + 1e-6 * np.sin(x / 0.02), 1)
     d, _ = measured_difference(ra.height, rb.height, pixel=PIX, fringe_order_mm=fo)
