@@ -280,7 +280,7 @@ def test_the_truth_channel_does_not_alias_texture_finer_than_the_pixel():
     amp = 10e-6  # mm
     plane = 2e-3 * xx + 1e-3 * yy
     z = plane + amp * np.cos(2 * math.pi * xx / 0.0006)
-    hm = HeightMap(z, plane.copy(), fine, (0.0, 0.0))
+    hm = HeightMap(plane.copy(), z, fine, (0.0, 0.0))  # design: the plane; machined: + grating
     cfg = InterferometerConfig(pixel=0.001, field_of_view=(0.005, 0.005, 0.025, 0.025),
                                noise=False, subsamples=5, margin=2)
     ig = render_interferogram(hm, cfg, surface="machined")

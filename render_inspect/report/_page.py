@@ -291,7 +291,8 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     ic = _get(metrics, "render_settings.interferometer") or {}
     rep.section("The virtual interferometer")
     rep.figure(figs["interferogram_side_by_side"],
-               f"Zero-phase-shift frame over the common window, same camera and seed for both "
+               f"Zero-phase-shift frame over the common window, same camera for both, each "
+               f"with its own noise "
                f"({ic.get('objective')}, NA {_g(ic.get('numerical_aperture'))}, "
                f"{_g(ic.get('wavelength_nm'))} nm, "
                f"{_q((ic.get('pixel') or 0) * MM_TO_UM, 'um')} pixels).")
