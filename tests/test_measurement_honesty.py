@@ -297,3 +297,25 @@ def test_the_truth_channel_does_not_alias_texture_finer_than_the_pixel():
     # the design channel (the plane): the mean is the centre value
     ig2 = render_interferogram(hm, cfg, surface="design")
     np.testing.assert_allclose(ig2.height_true, ref, atol=2e-8)
+
+
+def test_the_summary_says_whether_the_difference_is_resolved():
+    """The one-screen summary that compare and demo print: the measured rms with its
+    noise floor and the verdict, from two forward-model measurements."""
+    from render_inspect.report import comparison_summary
+
+    x, _ = _grid()
+    ra, rb = _measure(4e-4 * x + 0.2e-6 * np.sin(x / 0.01), 5), _measure(4e-4 * x, 6)
+    d, info = measured_difference(ra.height, rb.height, pixel=PIX)
+    rms = float(np.sqrt(np.nanmean(d ** 2))) * 1e6
+    noise = difference_noise(ra.height_noise, rb.height_noise)
+    meas = {"status": "ok", "rms_nm": rms, "noise": noise, "fringe_order": {},
+            "resolution": resolution(rms, noise["floor_nm"])}
+    side = {"variant": {"label": "A"}, "residual": {"Sq_nm": 1.0, "min_nm": -1.0},
+            "filtered": {}, "measured": {}}
+    m = {"variants": [{"name": "a"}, {"name": "b"}], "a": side, "b": side,
+         "difference": {"window": {"measured": meas, "true": {"rms_nm": 0.2},
+                                   "true_same_form_removed": {"rms_nm": 0.14}}}}
+    _, lines = comparison_summary(m)
+    verdict = dict(lines)["a - b, resolved?"]
+    assert verdict.startswith("not resolved") and "noise floor" in verdict
