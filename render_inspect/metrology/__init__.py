@@ -32,7 +32,7 @@ from ._profiles import (areal_nm, common_window, crop_window, difference_profile
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, forward_slope_sums, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
-from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
+from ._instrument import (BatwingLobes, batwing, dropout_slope, edge_width, noise_by_subtraction,
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._levelling import FORM_TERMS, level_map, measured_difference
 from ._measure import ALGORITHMS, measure_frames
@@ -75,7 +75,7 @@ __all__ = [
     "psi_height_noise", "csi_height_noise", "AMBIGUOUS_ORDER", "FAILED_FRACTION",
     "difference_order_check", "fringe_order_check", "phase_residues", "RESOLVED_RATIO",
     "difference_noise", "measurement_seeds", "repeat_statistics", "resolution",
-    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
+    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "BatwingLobes", "slope_table",
     "dropout_slope", "noise_by_subtraction",
     "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
     "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",
