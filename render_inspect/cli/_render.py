@@ -24,6 +24,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="compare the measured map even when it does not match the design "
                         "(overlap or residual checks fail)")
+    p.add_argument("--repeat", type=int, default=1, metavar="N",
+                   help="measure each variant N times (1..100), each with fresh camera noise, "
+                        "and report the difference's repeatability (default 1)")
 
 
 def _render(args, overwrite: bool):
@@ -40,7 +43,8 @@ def _compare(args, overwrite: bool):
     from .. import pipeline
 
     return pipeline.run_compare(scene_of(args), args.out, measured=args.measured,
-                                vary=args.vary, force=args.force, overwrite=overwrite)
+                                vary=args.vary, force=args.force, overwrite=overwrite,
+                                repeat=args.repeat)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``
