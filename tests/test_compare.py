@@ -80,7 +80,8 @@ def compared(tmp_path_factory):
     meas = d / "measured.exr"
     write_heightmap_exr(meas, HeightMap(z, z, pixel, (x[0], x[0])))
     out = d / "out"
-    rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas)])
+    rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas),
+                   "--repeat", "2"])
     assert rc == 0
     return out, json.loads((out / "metrics.json").read_text())
 
@@ -207,6 +208,10 @@ def test_compare_same_camera_for_both(compared):
     assert 0.1 < noise["floor_nm"] < 3.0
     res = m["difference"]["window"]["measured"]["resolution"]
     assert res["verdict"] in ("resolved", "not resolved")
+    # --repeat 2: the first pair and one more, with two fresh realisations
+    rep = m["difference"]["window"]["measured"]["repeat"]
+    assert rep["repeats"] == 2 and rep["seeds"][0] == [a["seed"], b["seed"]]
+    assert rep["seeds"][1] == measurement_seeds(m["seed"], 2, repeat=1)
 
 
 @pytest.mark.mitsuba
