@@ -473,9 +473,12 @@ def _difference_numbers(a: _Variant, b: _Variant, diff, profile: dict, wdiff: di
     else:
         meas["resolution"] = resolution(meas.get("rms_nm"), wdiff["noise"]["floor_nm"])
     w["measured"] = meas
-    w["measured_piston_removed"] = {**difference_stats(wdiff["piston_removed"]),
-                                    "form_removed": "piston",
-                                    "levelling": wdiff["piston_info"]}
+    pist = {**difference_stats(wdiff["piston_removed"]), "form_removed": "piston",
+            "levelling": wdiff["piston_info"], "status": order["status"]}
+    if order["status"] == "failed":
+        pist["unreliable"] = {k: pist.pop(k) for k in ("rms_nm", "pv_nm", "mean_nm")}
+        pist.update(rms_nm=None, pv_nm=None, mean_nm=None)
+    w["measured_piston_removed"] = pist
     w["true_same_form_removed"] = {**difference_stats(wdiff["true_levelled"]),
                                    "form_removed": wdiff["true_info"]["removed"],
                                    "source": "truth at the camera pixels both measured"}

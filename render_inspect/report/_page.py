@@ -184,6 +184,9 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
         tw, mw = w.get("true") or {}, w.get("measured") or {}
         same = w.get("true_same_form_removed") or {}
         removed = mw.get("form_removed", "piston and tilt")
+        failed_note = (" The measured difference FAILED (fringe-order failures, said below): "
+                       "its panel and profile show what the unwrapping gave, not a "
+                       "measurement." if mw.get("status") == "failed" else "")
         rep.figure(figs["difference"],
                    f"Figure 1. {va} - {vb} over one common window ({win_txt}), placed where the "
                    f"two differ most. Left: where every window of this report lies (simulated "
@@ -194,7 +197,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                    f"removed; the fringe order of separate regions taken nearest the largest "
                    f"region's plane; pixels of unknown fringe order masked), on one colour scale. "
                    f"Right: the profile along the dashed line, through the largest difference."
-                   + _lowpass_caption(metrics))
+                   + failed_note + _lowpass_caption(metrics))
         failed = mw.get("status") == "failed"
         floor = (mw.get("noise") or {}).get("floor_nm")
         rep.table([["measured by the virtual interferometer",
