@@ -34,6 +34,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--filter", default=None, metavar="S,L",
                    help="with --measured PROFILE: ISO 16610-21 Gaussian cut-offs lambda_s,lambda_c "
                         "in mm (default: ISO 21920-3's choice for the measured profile)")
+    p.add_argument("--repeat", type=int, default=1, metavar="N",
+                   help="measure each variant N times (1..100), each with fresh camera noise, "
+                        "and report the difference's repeatability (default 1)")
 
 
 def _render(args, overwrite: bool):
@@ -53,7 +56,7 @@ def _compare(args, overwrite: bool):
     return pipeline.run_compare_command(scene_of(args), args.out, measured=args.measured,
                                         vary=args.vary, force=args.force, line=args.line,
                                         units=args.units, filter_spec=args.filter,
-                                        overwrite=overwrite)
+                                        repeat=args.repeat, overwrite=overwrite)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

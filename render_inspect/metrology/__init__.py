@@ -36,7 +36,12 @@ from ._instrument import (BatwingLobes, batwing, dropout_slope, edge_width, nois
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._levelling import FORM_TERMS, level_map, measured_difference
 from ._measure import ALGORITHMS, measure_frames
-from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
+from ._noise import (FALSE_ALARM, csi_height_noise, csi_noise_threshold, noise_sigmas,
+                     psi_height_noise, psi_noise)
+from ._fringe_order import (AMBIGUOUS_ORDER, FAILED_FRACTION, difference_order_check,
+                            fringe_order_check, phase_residues)
+from ._resolution import (RESOLVED_RATIO, difference_noise, measurement_seeds,
+                          repeat_statistics, resolution)
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
                      retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
@@ -72,6 +77,9 @@ __all__ = [
     "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
     "evaluate_measurement", "FORM_TERMS", "level_map", "measured_difference",
     "FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas",
+    "psi_height_noise", "csi_height_noise", "AMBIGUOUS_ORDER", "FAILED_FRACTION",
+    "difference_order_check", "fringe_order_check", "phase_residues", "RESOLVED_RATIO",
+    "difference_noise", "measurement_seeds", "repeat_statistics", "resolution",
     "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "BatwingLobes", "slope_table",
     "dropout_slope", "noise_by_subtraction",
     "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",

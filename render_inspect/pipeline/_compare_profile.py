@@ -329,15 +329,16 @@ def _page(metrics: dict, figs: dict) -> str:
 
 
 def run_compare_command(scene, out, *, measured=None, vary=None, force: bool = False, line=None,
-                        units=None, filter_spec=None, overwrite: bool = False) -> dict:
+                        units=None, filter_spec=None, repeat: int = 1,
+                        overwrite: bool = False) -> dict:
     """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,
     :func:`~render_inspect.pipeline.run_compare` otherwise (``line``, ``units`` and
     ``filter_spec`` are then refused, naming the option)."""
     if measured is not None and is_profile_file(measured):
-        if vary is not None or force:
-            raise InputError(f"{'--vary' if vary is not None else '--force'} is for two "
-                             f"variants or a measured map; --measured {str(measured)!r} is a "
-                             f"profile")
+        if vary is not None or force or repeat != 1:
+            opt = "--vary" if vary is not None else "--force" if force else "--repeat"
+            raise InputError(f"{opt} is for two variants or a measured map; --measured "
+                             f"{str(measured)!r} is a profile")
         return run_compare_profile(scene, out, measured=measured, line=line, units=units,
                                    filter_spec=filter_spec, overwrite=overwrite)
     for opt, v in (("--line", line), ("--units", units), ("--filter", filter_spec)):
@@ -345,4 +346,4 @@ def run_compare_command(scene, out, *, measured=None, vary=None, force: bool = F
             raise InputError(f"{opt} is for --measured PROFILE (a profile file); received "
                              f"{opt} {v} with --measured {measured!r}")
     return run_compare(scene, out, measured=measured, vary=vary, force=force,
-                       overwrite=overwrite)
+                       overwrite=overwrite, repeat=repeat)

@@ -20,6 +20,8 @@ def characterise_figures(m, curves) -> dict:
     t = itf["table"]
     f = [r["frequency_per_mm"] for r in t]
     inst = [(r["frequency_per_mm"], r["itf_instrument"]) for r in t if r["itf_instrument"] is not None]
+    alias = [(r["frequency_per_mm"], r["aliased_instrument"]) for r in t
+             if r.get("aliased_instrument") is not None]
     obj = m["objective"]
     figs = {"itf.png": line_panels([{
         "title": f"Instrument transfer function, {obj['name']} NA {obj['numerical_aperture']:g}",
@@ -30,8 +32,11 @@ def characterise_figures(m, curves) -> dict:
                    {"x": f, "y": [r["itf_optics"] for r in t], "label": "measured, optics (fine pixel)",
                     "style": "points"},
                    {"x": [a for a, _ in inst], "y": [b for _, b in inst],
-                    "label": "measured, at the camera pixel (above its Nyquist: any alias)",
-                    "style": "points"}],
+                    "label": "measured, at the camera pixel (up to its Nyquist frequency)",
+                    "style": "points"}]
+        + ([{"x": [a for a, _ in alias], "y": [b for _, b in alias],
+             "label": "above the camera's Nyquist: aliased pattern (not a transfer value)",
+             "style": "points"}] if alias else []),
         "vlines": [(itf["cutoff_per_mm"], "cut-off"), (itf["camera_nyquist_per_mm"], "camera Nyquist")],
         "ylim": (-0.05, 1.15)}])}
     psi = m["step"]["psi_profile"]
