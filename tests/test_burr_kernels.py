@@ -98,3 +98,21 @@ def test_material_burrs_keep_their_numbers():
     bad[:, :6] = bad[:, -6:] = True
     assert np.array_equal(edges, ref_edges & ~bad)
     assert np.array_equal(turn[edges], ref_turn[edges])
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (40, 53)])
+def test_machined_edges_match_the_array_definition(shape):
+    from render_inspect.machining import machined_edges
+
+    rng = np.random.default_rng(4)
+    p = rng.uniform(0.0, 8.0, shape)
+    p[rng.uniform(size=shape) < 0.1] = np.nan
+    ref = np.zeros(shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        dy = np.abs(np.diff(p, axis=0)) > math.pi
+        dx = np.abs(np.diff(p, axis=1)) > math.pi
+    ref[1:] |= dy
+    ref[:-1] |= dy
+    ref[:, 1:] |= dx
+    ref[:, :-1] |= dx
+    assert np.array_equal(machined_edges(p, jump=math.pi), ref)

@@ -239,3 +239,32 @@ def edge_turn_maps(z, *, pixel: float, edge_angle_deg: float, span: int):
     if nx >= 3:
         _turns_axis1(a1, int(span), thr, edges, turn)
     return edges, turn
+
+
+@njit(parallel=True, cache=True)
+def _pass_jumps(p, jump, m):
+    ny, nx = p.shape
+    for i in prange(ny):
+        for q in range(nx):
+            v = p[i, q]
+            e = False
+            if i > 0 and abs(v - p[i - 1, q]) > jump:
+                e = True
+            elif i < ny - 1 and abs(p[i + 1, q] - v) > jump:
+                e = True
+            elif q > 0 and abs(v - p[i, q - 1]) > jump:
+                e = True
+            elif q < nx - 1 and abs(p[i, q + 1] - v) > jump:
+                e = True
+            m[i, q] = e
+
+
+def pass_jump_mask(pass_map, jump: float) -> np.ndarray:
+    """Pixels next to a pixel whose value differs by more than ``jump`` along a grid axis
+    (NaN never differs): :func:`._cutting.machined_edges`, compiled and threaded."""
+    p = np.ascontiguousarray(pass_map, dtype=np.float64)
+    m = np.zeros(p.shape, dtype=bool)
+    if p.ndim == 2 and p.size:
+        _pass_jumps(p, float(jump), m)
+        return m
+    raise ValueError("pass_map must be a 2-D array")

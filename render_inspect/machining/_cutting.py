@@ -314,6 +314,10 @@ def machined_edges(pass_map, *, jump: float) -> np.ndarray:
     (``pass_map`` differs by more than ``jump``: pi for spindle angles, 0.5 for line
     indices).  Returns an (ny, nx) bool mask."""
     p = np.asarray(pass_map, dtype=np.float64)
+    if p.ndim == 2 and p.size:
+        from ._burr_kernels import pass_jump_mask     # the same mask, compiled and threaded
+
+        return pass_jump_mask(p, jump)
     m = np.zeros(p.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
         dy = np.abs(np.diff(p, axis=0)) > jump
