@@ -26,7 +26,7 @@ def test_unknown_key_is_named(tmp_path):
 
 @pytest.mark.parametrize("override, hint", [
     ("simulation.pixl=0.001", "did you mean 'pixel'?"),
-    ("simulaton.pixel=0.001", "did you mean 'simulation'?"),
+    ("simulaton=0.001", "did you mean 'simulation'?"),
     ("design.amplitud_x=0.001", "did you mean 'amplitude_x' or 'amplitude_y'?"),
     ("machine.x.bandwith_hz=3", "did you mean 'bandwidth_hz'?"),
     ("tool.zzz=1", "keys here: clearance_angle_deg, included_angle_deg, nose_radius, "
