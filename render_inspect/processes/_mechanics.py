@@ -281,8 +281,10 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
             smoothing=max(feed, 2 * sim.pixel))
     elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
+        t0 = time.perf_counter()
         machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
                                                   origin=(region[0], region[1]), **args)
+        timing["burrs"] = time.perf_counter() - t0
     if plots and not fp.ideal:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
