@@ -93,10 +93,9 @@ def gaussian_nearest(z, sigma: float) -> np.ndarray:
         from scipy import ndimage
 
         return ndimage.gaussian_filter(z, sigma, mode="nearest")
-    tmp = np.empty_like(z)
-    _smooth_axis0(z, w, tmp)
     out = np.empty_like(z)
-    _smooth_axis1(tmp, w, out)
+    _smooth_axis0(z, w, out)
+    _smooth_axis1(out, w, out)      # in place: each row is copied out before it is written
     return out
 
 
