@@ -17,3 +17,11 @@ from render_inspect.report._sweep_plots import _label
 ])
 def test_sweep_axis_labels(key, label):
     assert _label(key) == label
+
+
+def test_key_units_for_report_tables():
+    from render_inspect.report._keys import key_unit
+
+    assert [key_unit(k) for k in ("tool.nose_radius", "material.texture_nm",
+                                  "machine.x.bandwidth_hz", "process.spindle_rpm",
+                                  "toolpath.points")] == ["mm", "nm", "Hz", "rpm", ""]

@@ -7,6 +7,8 @@ import io
 
 import numpy as np
 
+from ._keys import key_label as _label
+
 __all__ = ["curves_png", "heatmap_png", "sweep_plot_png"]
 
 
@@ -23,39 +25,6 @@ def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
-
-
-#: Units of sweep keys whose names do not carry one (lengths are mm).
-_UNITS = {"tool.nose_radius": "mm", "process.workpiece_radius": "mm", "simulation.pixel": "mm",
-          "process.depth_of_cut": "mm", "process.arc_length": "mm", "process.feed_per_rev": "mm/rev",
-          "tool.edge_radius": "mm", "process.step_over": "mm", "process.pitch": "mm"}
-#: unit suffixes of key names (longest first) and the unit they name
-_SUFFIXES = (("_mm_per_min", "mm/min"), ("_mm_per_rev", "mm/rev"), ("_per_rev", "mm/rev"),
-             ("_nm", "nm"), ("_um", "um"), ("_mm", "mm"), ("_deg", "deg"), ("_rad", "rad"),
-             ("_hz", "Hz"), ("_rpm", "rpm"), ("_s", "s"), ("_gb", "GB"), ("_percent", "%"),
-             ("_pct", "%"))
-#: words of key names that read better otherwise
-_WORDS = {"spindle_rpm": "spindle speed", "feed_mm_per_min": "feed rate",
-          "feed_per_rev": "feed per revolution"}
-
-
-def _label(key: str) -> str:
-    """A sweep key or metric in words with its unit: ``tool.nose_radius`` -> "tool nose
-    radius (mm)", ``residual.Sq_nm`` -> "residual Sq (nm)", ``process.spindle_rpm`` ->
-    "process spindle speed (rpm)"; a key already in words is kept."""
-    parts = str(key).split(".")
-    last, unit = parts[-1], _UNITS.get(key)
-    if last in _WORDS:
-        word = _WORDS[last]
-        unit = unit or next((u for suf, u in _SUFFIXES if last.endswith(suf)), None)
-    else:
-        word = last
-        for suf, u in _SUFFIXES:
-            if last.endswith(suf) and len(last) > len(suf):
-                word, unit = last[:-len(suf)], unit or u
-                break
-    words = " ".join(p.replace("_", " ") for p in [*parts[:-1], word] if p)
-    return f"{words} ({unit})" if unit else words
 
 
 def curves_png(rows, *, x: str, y: str = "residual.Sq_nm", series: str | None = None,
