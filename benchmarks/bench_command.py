@@ -42,7 +42,9 @@ def run_simulate(out: Path, size) -> dict:
         args += ["--set", f"simulation.region={size[0]}", "--set", f"simulation.pixel={size[1]}"]
     load0 = os.getloadavg()[0]
     c0, t0 = _child_cpu(), time.perf_counter()
-    p = subprocess.run(args, capture_output=True, text=True)
+    # run outside the repository: the package comes from PYTHONPATH or the environment
+    p = subprocess.run(args, capture_output=True, text=True, cwd=out.parent,
+                       env={**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", str(REPO))})
     wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
     if p.returncode != 0:
         raise RuntimeError(f"simulate failed:\n{p.stderr[-3000:]}")
