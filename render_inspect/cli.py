@@ -544,6 +544,10 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
+#: commands whose summary rows pipeline.command_summary gives
+_ROW_SUMMARIES = ("toolpath", "characterise", "render")
+
+
 def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
     """``measure`` and ``analyze``: their headline numbers and where the files are."""
     from rich.console import Console
@@ -552,8 +556,14 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
     # the pipeline is imported lazily (see _run)
     from .pipeline import analyze_summary, measure_summary
 
-    rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
-    src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
+    if command in _ROW_SUMMARIES:
+        # toolpath, characterise, render: their rows from the pipeline (lazily, as above)
+        from .pipeline import command_summary
+
+        rows, src = command_summary(command, metrics, out), out
+    else:
+        rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
+        src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
     con = Console(file=sys.stdout, highlight=False)
     t = Table(title=f"render-inspect {command}: {Path(str(src)).name} ({seconds:.0f} s)",
               title_justify="left",
@@ -738,6 +748,8 @@ def main(argv=None) -> int:
     elif args.command in ("measure", "analyze") and isinstance(result, dict) \
             and not getattr(args, "quiet", False):
         _print_summary(args.command, result, args.out, dt)
+    elif args.command in _ROW_SUMMARIES and not getattr(args, "quiet", False):
+        _print_summary(args.command, result if isinstance(result, dict) else {}, args.out, dt)
     log.info("%s: done in %.1f s", prefix, dt)
     return 0
 
