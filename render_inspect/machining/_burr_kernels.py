@@ -161,8 +161,8 @@ def _turns_axis0(a, span, thr, edges, turn):
     for p in prange(n_pix):
         for q in range(nx):
             j = _jturn(a, p, n_pix, q)
-            if not (j > 0.0):
-                continue
+            if not (j > 0.0) or j < _jturn(a, p - 1, n_pix, q) or j < _jturn(a, p + 1, n_pix, q):
+                continue                # not a local maximum of the turn: no candidate
             t = abs(_face(a, p + span - 1, p + 2 * span - 1, n, q, c)
                     - _face(a, p - span, p - 2 * span, n, q, c))
             if t != t:
@@ -206,7 +206,7 @@ def _turns_axis1(a, span, thr, edges, turn):
     for i in prange(ny):
         for p in range(n_pix):
             j = _jturn1(a, i, p, n_pix)
-            if not (j > 0.0):
+            if not (j > 0.0) or j < _jturn1(a, i, p - 1, n_pix) or j < _jturn1(a, i, p + 1, n_pix):
                 continue
             t = abs(_face1(a, i, p + span - 1, p + 2 * span - 1, n, c)
                     - _face1(a, i, p - span, p - 2 * span, n, c))
