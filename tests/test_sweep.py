@@ -331,6 +331,7 @@ def test_killed_sweep_resumes_and_ends_with_every_point_once(tmp_path):
     assert len(list((tmp_path / "out" / "points").iterdir())) == 12
 
 
+@pytest.mark.slow
 def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path):
     """A misspelt key inside [grid], a value out of range, a point over its memory budget:
     the whole sweep is checked first, one message lists each complaint with its points,
