@@ -36,7 +36,7 @@ log = logging.getLogger("render_inspect")
 #: samples per second the EXR and previews are written at (the progress bar's estimate)
 _WRITE_RATE = 1e6  # not a unit conversion
 #: largest side (points) of the following-error map of a tiled cut
-_FIGURE_POINTS = 800
+_FIGURE_POINTS = 440
 #: maps of more samples than this are simulated tile by tile whatever the memory budget
 #: (when the process can): the in-memory run would hold several GiB and write a
 #: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
