@@ -68,6 +68,8 @@ from ._toolpath import (
                       write_toolpath_npz,
 )
 from ._tables import table_csv
+from ._program import ImportedProgram, program_dialect, read_program
+from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
 from ._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
@@ -96,4 +98,4 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
            "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
-           "program_axes"]
+           "program_axes", "read_program", "ImportedProgram", "program_dialect", "scan_program"]

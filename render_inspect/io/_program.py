@@ -445,7 +445,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         dialect = "lathe G-code"
         inferred["c"] = (f"C from the spindle's turning, sampled at {ppr} points per "
                          f"revolution (process.points_per_rev)")
-    meta = {"source": str(path), "dialect": dialect, "x_mode": mode,
+    meta = {"source": path.name, "dialect": dialect, "x_mode": mode,
             "sampling": "program", "compensation": "as programmed"}
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
@@ -496,7 +496,7 @@ def _linear(sp: ScannedProgram, feed, rapid, feed_source) -> ImportedProgram:
     # a line: a run of feed moves; each rapid starts the next one at its end point
     line = np.r_[0, np.cumsum(mo == 0)].astype(np.int64)
     _, line = np.unique(line, return_inverse=True)
-    meta = {"source": str(path), "dialect": "linear G-code", "feed_mm_per_min": float(feed)}
+    meta = {"source": path.name, "dialect": "linear G-code", "feed_mm_per_min": float(feed)}
     prog = LinearProgram(x, y, z, t, line.astype(np.int64), meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
              "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
