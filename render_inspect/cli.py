@@ -96,7 +96,24 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
         _add_out_args(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+    _add_program_arg(p)
     _add_verbosity(p)
+
+
+def _add_program_arg(p: argparse.ArgumentParser):
+    p.add_argument("--program", default=None, metavar="FILE",
+                   help="a machine program (NC / G-code / C X Z point list) simulated in place "
+                        "of the planned path (= --set process.program=FILE; docs/programs.md)")
+
+
+def _program_override(args) -> list:
+    """``--program FILE`` as the scene override ``process.program`` (an absolute path)."""
+    prog = getattr(args, "program", None)
+    if not prog:
+        return list(getattr(args, "overrides", []) or [])
+    import json
+
+    return list(args.overrides or []) + [f"process.program={json.dumps(str(Path(prog).resolve()))}"]
 
 
 def _add_out_args(p: argparse.ArgumentParser):
@@ -273,6 +290,7 @@ def _add_fit_parser(sub) -> None:
                         "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key before fitting (TOML value syntax)")
+    _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
                                                        "of the global search")
     p.add_argument("--global", dest="global_points", type=int, default=0, metavar="N",
@@ -323,13 +341,13 @@ def _run(args):
                                     overrides=args.overrides, overwrite=ow)
     if args.command == "fit":
         return pipeline.run_fit(
-            args.measured, load_scene(args.scene, args.overrides), args.free, args.out,
+            args.measured, load_scene(args.scene, _program_override(args)), args.free, args.out,
             bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
             form=args.form, weights=args.weights, workers=args.workers,
             scheduler=args.scheduler, predict=args.predict, seed=args.seed,
             global_points=args.global_points, max_evaluations=args.max_evaluations,
             profile_points=args.profile_points, cache=args.cache, overwrite=ow)
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, _program_override(args))
     # values that are probably unit mistakes (a feed per revolution typed per minute, a
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):

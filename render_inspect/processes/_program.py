@@ -268,3 +268,48 @@ def fit_paraboloid(paths, *, nose_radius: float = 0.0) -> dict:
     return {"radius_mm": float(-1.0 / (2.0 * coef[1])), "offset_mm": float(coef[0]),
             "rms_nm": float(np.sqrt(np.mean(res ** 2)) * MM_TO_NM),
             "max_nm": float(np.max(np.abs(res)) * MM_TO_NM), "points": int(r.size)}
+
+
+def imported_sculpt_plan(process, cfg, surface):
+    """The plan of the X-Y-Z program of ``process.program`` for the sculpturing cut: its
+    lines (runs of feed moves; each rapid starts the next) must each keep X constant and
+    move along Y (the cut sweeps the edge along Y); of consecutive points over the same
+    (X, Y) (a vertical plunge or retract) the lowest is kept."""
+    prog, imp = imported_linear(cfg)
+    x, y, z, line = (np.asarray(a) for a in (prog.x, prog.y, prog.z, prog.line))
+    lines_of = imp.file_line
+    keep = np.ones(x.size, bool)
+    same = (np.diff(x) == 0) & (np.diff(y) == 0) & (np.diff(line) == 0)
+    # of a run of points over one (X, Y), keep the lowest
+    n = x.size
+    starts = np.flatnonzero(np.r_[True, ~same])
+    ends = np.r_[starts[1:], n]
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        if b - a > 1:
+            keep[a:b] = False
+            keep[a + int(np.argmin(z[a:b]))] = True
+    x, y, z, line, t, lines_of = x[keep], y[keep], z[keep], line[keep], prog.t[keep], lines_of[keep]
+    for k in np.unique(line):
+        sel = np.flatnonzero(line == k)
+        if sel.size < 2:
+            continue
+        if np.ptp(x[sel]) > 1e-9:
+            j = sel[np.flatnonzero(np.abs(x[sel] - x[sel[0]]) > 1e-9)[0]]
+            raise InputError(f"{imp.path}:{int(lines_of[j])}: the sculpturing cut takes lines "
+                             f"along Y at constant X; this line moves X from {x[sel[0]]:g} to "
+                             f"{x[j]:g} mm")
+        dy = np.diff(y[sel])
+        if not (np.all(dy > 0) or np.all(dy < 0)):
+            j = sel[1:][np.flatnonzero(dy == 0)[0]] if np.any(dy == 0) else sel[-1]
+            raise InputError(f"{imp.path}:{int(lines_of[j])}: a sculpturing line must move Y "
+                             f"one way (it turns back or stands still here)")
+        if dy[0] < 0:  # the cut takes each line with Y increasing
+            y[sel], z[sel] = y[sel][::-1], z[sel][::-1]
+    _, line = np.unique(line, return_inverse=True)
+    from ..core.toolpath import LinearProgram
+    prog2 = LinearProgram(x, y, z, t, line.astype(np.int64), dict(prog.meta))
+    plan = process.program_plan(cfg, surface, prog2)
+    plan.facts["toolpath"] = {"points": int(prog2.points), "lines": int(prog2.lines),
+                              "kind": "sculpt", "cut_time_s": float(plan.data.get("cut_time_s", 0.0))}
+    plan.facts["program"] = dict(prog.meta.get("program", {}))
+    return plan
