@@ -41,7 +41,7 @@ _BAD_PAIR = np.ones(64, dtype=bool)
 for _a, _b in [(1, 2), (1, 3), (1, 4), (2, 1), (2, 2), (2, 3), (2, 5), (3, 1), (3, 2), (3, 5),
                (4, 2), (4, 3), (5, 1), (5, 5)]:
     _BAD_PAIR[_a * 8 + _b] = False
-_POW10 = 10.0 ** np.arange(16)
+_POW10 = 10.0 ** np.arange(301)
 _CLASS_TABLE = _CLASS.tobytes()
 _BAD_PAIR_TABLE = np.r_[_BAD_PAIR, np.ones(192, dtype=bool)].astype(np.uint8).tobytes()
 
@@ -253,22 +253,26 @@ class _Scanner:
         if err.size:
             k = int(pos[err[0]])
             fail(s.count(b"\n", 0, k), f"the word {chr(a[k])!r} has no valid number")
-        if ndig.max() > 15:
-            k = int(pos[np.flatnonzero(ndig > 15)[0]])
-            fail(s.count(b"\n", 0, k), f"the word {chr(a[k])!r} has more than 15 digits")
         # the numbers: digits weighted by their powers of ten (exact integers below 2^53),
         # divided by 10^(digits after the point): the correctly rounded value, as float()
         before = np.cumsum(ndig) - ndig            # digits of the words before
         rank = np.arange(dig.size, dtype=np.int64) - before[dw]    # digit's index in its word
         power = ndig[dw] - 1 - rank
-        mant = np.bincount(dw, weights=(a[dig] - 48) * _POW10[power], minlength=nw)
+        mant = np.bincount(dw, weights=(a[dig] - 48) * _POW10[np.minimum(power, 300)], minlength=nw)
         frac = np.zeros(nw, dtype=np.int64)
         if dots.size:
             dword = wid[dots]
             # digits after the point: those of the word at positions after the dot
             after = np.searchsorted(dig, dots)      # first digit after each dot
             frac[dword] = (before[dword] + ndig[dword]) - after
-        vals = mant / _POW10[frac]
+        vals = mant / _POW10[np.minimum(frac, 300)]
+        long = np.flatnonzero(ndig > 15)
+        if long.size:  # more digits than a double holds exactly: read as float() reads them
+            nxt_nl = nlpos[np.searchsorted(nlpos, pos[long])]
+            nxt_letter = np.r_[pos, a.size][long + 1]
+            ends = np.minimum(nxt_nl, nxt_letter)
+            for j, e in zip(long.tolist(), ends.tolist()):
+                vals[j] = abs(float(s[pos[j] + 1:e]))
         neg = np.flatnonzero(a[np.minimum(pos + 1, a.size - 1)] == ord("-"))
         vals[neg] = -vals[neg]
         letters = a[pos]

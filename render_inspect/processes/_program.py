@@ -112,7 +112,7 @@ def feed_per_rev(path: ToolPath) -> tuple[np.ndarray, np.ndarray]:
     theta, rho = np.asarray(path.theta), np.asarray(path.rho)
     if theta.size < 2:
         return np.zeros(0), np.zeros(0)
-    ok = theta + 2 * math.pi <= theta[-1]
+    ok = theta + 2 * math.pi <= theta[-1] + 1e-9
     r_next = np.interp(theta[ok] + 2 * math.pi, theta, rho)
     return rho[ok], rho[ok] - r_next
 
