@@ -348,8 +348,12 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         inferred["spindle"] += (" ; constant surface speed (G96) below the clamp (G50 S, or "
                                 f"{spindle_source} where the program sets none)")
 
+    any_css = bool(css.any())
+
     def spin(r, i):
         """rpm of the moves ``i`` at radius ``r``."""
+        if not any_css:
+            return base[i]
         return _css_rpm(s_prog[i], clampv[i], r, css[i], base[i])
 
     # ---- time of each move (from the point before)

@@ -20,30 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ._program_kernel import G_GROUP, GROUP_NAMES, INIT_STATE, ROW_FIELDS, scan_piece
 
 __all__ = ["ScannedProgram", "scan_program", "PIECE_BYTES", "INCH_MM"]
 
 #: bytes read and parsed at a time (the scanner's memory does not grow with the program)
-PIECE_BYTES = 1 << 23
+PIECE_BYTES = 1 << 20
 #: one inch, mm
 INCH_MM = 25.4
-
-# byte classes: 0 not allowed, 1 letter, 2 digit, 3 '.', 4 sign, 5 line break
-_CLASS = np.zeros(256, dtype=np.uint8)
-_CLASS[ord("A"):ord("Z") + 1] = 1
-_CLASS[ord("0"):ord("9") + 1] = 2
-_CLASS[ord(".")] = 3
-_CLASS[ord("+")] = 4
-_CLASS[ord("-")] = 4
-_CLASS[ord("\n")] = 5
-#: byte pairs (class of a byte * 8 + class of the next) that no program holds
-_BAD_PAIR = np.ones(64, dtype=bool)
-for _a, _b in [(1, 2), (1, 3), (1, 4), (2, 1), (2, 2), (2, 3), (2, 5), (3, 1), (3, 2), (3, 5),
-               (4, 2), (4, 3), (5, 1), (5, 5)]:
-    _BAD_PAIR[_a * 8 + _b] = False
-_POW10 = 10.0 ** np.arange(301)
-_CLASS_TABLE = _CLASS.tobytes()
-_BAD_PAIR_TABLE = np.r_[_BAD_PAIR, np.ones(192, dtype=bool)].astype(np.uint8).tobytes()
 
 _PAREN = re.compile(rb"\([^()\n]*\)")
 _SEMI = re.compile(rb";[^\n]*")
@@ -51,33 +35,12 @@ _PERCENT = re.compile(rb"(?m)^[ \t]*%[^\n]*")
 _COLON = re.compile(rb"(?m)^[ \t]*:[0-9]*")
 _SLASH = re.compile(rb"(?m)^[ \t]*/")
 
-#: the G codes read, by modal group (anything else is refused with its line)
-MOTION = (0, 1, 2, 3)
-_GROUPS = {
-    "motion": MOTION,
-    "distance": (90, 91),
-    "feed": (93, 94, 95),
-    "units": (20, 21, 70, 71),        # G20/G70 inch, G21/G71 metric
-    "plane": (17, 18, 19),
-    "spindle": (96, 97),              # constant surface speed / constant rpm
-    "radius_comp": (40,),
-}
-#: G codes taken as written without effect on the path (work offsets, exact stop, cancel
-#: canned cycles, ...)
-_NO_EFFECT = (8, 9, 54, 55, 56, 57, 58, 59, 61, 64, 80)
-#: non-modal G codes: dwell, return home, spindle clamp
-_DWELL, _HOME, _CLAMP = 4, 28, 50
 _REFUSED = {41: "controller tool-nose radius compensation (G41/G42) moves the tool by an "
                 "offset the program does not state; program the tool centre or tip path",
             42: "controller tool-nose radius compensation (G41/G42) moves the tool by an "
                 "offset the program does not state; program the tool centre or tip path"}
-_KNOWN_G = sorted({g for v in _GROUPS.values() for g in v} | set(_NO_EFFECT)
-                  | {_DWELL, _HOME, _CLAMP} | set(_REFUSED))
-
-#: letters whose value is one per block; G and M may repeat
-_SINGLE = "XYZCUVWHIJKRFSNOTPQDL"
-#: axis letter -> its incremental letter (lathe controllers' U, V, W, H)
-_INCREMENTAL = {"X": "U", "Y": "V", "Z": "W", "C": "H"}
+#: the G codes read (the others are refused with their line)
+_KNOWN_G = sorted(int(g) for g in np.flatnonzero(G_GROUP >= 0))
 
 
 @dataclass
@@ -161,24 +124,16 @@ def _header(first: bytes) -> tuple[str, dict]:
     return title, info
 
 
-def _ffill(vals: np.ndarray, start: float) -> np.ndarray:
-    """``vals`` with each NaN replaced by the last value before it (``start`` first)."""
-    vals = np.r_[start, vals]
-    ok = ~np.isnan(vals)
-    idx = np.where(ok, np.arange(vals.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    return vals[idx][1:]
-
-
 class _Scanner:
     def __init__(self, path: Path):
         self.path = path
-        self.state = {"motion": 1.0, "distance": 90.0, "feed": 94.0, "units": 21.0,
-                      "plane": 18.0, "spindle": 97.0, "F": math.nan, "S": math.nan,
-                      "clamp": math.nan}
-        self.pos = {a: math.nan for a in "XYZC"}
+        self.state = INIT_STATE.copy()
+        self.seen_g = np.zeros(100, dtype=np.bool_)
+        self.seen_m = np.zeros(100, dtype=np.bool_)
+        self.seen_letter = np.zeros(26, dtype=np.bool_)
+        self.flags = np.zeros(2, dtype=np.bool_)   # dwell, return home
         self.out = []
-        self.g_codes, self.m_codes, self.words, self.notes = set(), set(), set(), []
+        self.notes = []
         self.blocks = 0
         self.ended = False
 
@@ -211,216 +166,76 @@ class _Scanner:
                                   "block-delete switch off")
         s = up.translate(None, b" \t\r")
         a = np.frombuffer(s, dtype=np.uint8)
-        cls_b = s.translate(_CLASS_TABLE)
-        cls = np.frombuffer(cls_b, dtype=np.uint8)
-        # one pass over the byte pairs: a bad byte, a letter without its number, a number
-        # without its letter, a sign inside a number
-        pair = np.empty(cls.size, dtype=np.uint8)
-        pair[0] = 5 * 8 + cls[0]
-        np.multiply(cls[:-1], 8, out=pair[1:])
-        pair[1:] += cls[1:]
-        k = pair.tobytes().translate(_BAD_PAIR_TABLE).find(b"\x01")
-        if k >= 0:
-            code = int(pair[k])
-            first, second = divmod(code, 8)
-            at = k if second == 0 or first != 1 else k - 1
-            line = s.count(b"\n", 0, at)
-            if second == 0:
-                ch = chr(a[k]) if 32 <= a[k] < 127 else f"byte 0x{a[k]:02x}"
-                fail(line, f"cannot read {ch!r} (a block holds words: a letter and a number, "
-                           f"e.g. X1.25)")
-            if first == 1:
-                fail(line, f"the word {chr(a[k - 1])!r} has no number")
-            if second == 4:
-                fail(line, "a sign inside a number")
-            if first in (2, 3, 4):
-                fail(line, "a malformed number (two points or a sign without digits)")
-            fail(line, "a number without its letter")
-        letter = cls == 1
-        pos = np.flatnonzero(letter)
-        nw = pos.size
-        if nw == 0:
-            return
-        wid = np.cumsum(letter, dtype=np.int32)
-        wid -= 1
-        dig = np.flatnonzero(cls == 2)
-        dots = np.flatnonzero(cls == 3)
-        nlpos = np.flatnonzero(cls == 5)
-        dw = wid[dig]
-        ndig = np.bincount(dw, minlength=nw)
-        ndot = np.bincount(wid[dots], minlength=nw)
-        err = np.flatnonzero((ndot > 1) | (ndig == 0))
-        if err.size:
-            k = int(pos[err[0]])
-            fail(s.count(b"\n", 0, k), f"the word {chr(a[k])!r} has no valid number")
-        # the numbers: digits weighted by their powers of ten (exact integers below 2^53),
-        # divided by 10^(digits after the point): the correctly rounded value, as float()
-        before = np.cumsum(ndig) - ndig            # digits of the words before
-        rank = np.arange(dig.size, dtype=np.int64) - before[dw]    # digit's index in its word
-        power = ndig[dw] - 1 - rank
-        mant = np.bincount(dw, weights=(a[dig] - 48) * _POW10[np.minimum(power, 300)], minlength=nw)
-        frac = np.zeros(nw, dtype=np.int64)
-        if dots.size:
-            dword = wid[dots]
-            # digits after the point: those of the word at positions after the dot
-            after = np.searchsorted(dig, dots)      # first digit after each dot
-            frac[dword] = (before[dword] + ndig[dword]) - after
-        vals = mant / _POW10[np.minimum(frac, 300)]
-        long = np.flatnonzero(ndig > 15)
-        if long.size:  # more digits than a double holds exactly: read as float() reads them
-            nxt_nl = nlpos[np.searchsorted(nlpos, pos[long])]
-            nxt_letter = np.r_[pos, a.size][long + 1]
-            ends = np.minimum(nxt_nl, nxt_letter)
-            for j, e in zip(long.tolist(), ends.tolist()):
-                vals[j] = abs(float(s[pos[j] + 1:e]))
-        neg = np.flatnonzero(a[np.minimum(pos + 1, a.size - 1)] == ord("-"))
-        vals[neg] = -vals[neg]
-        letters = a[pos]
-        wline = np.searchsorted(nlpos, pos)  # line index inside the piece
-        self._blocks(letters, vals, wline, raw, line0, fail)
+        rows = np.empty((s.count(b"\n") + 1, len(ROW_FIELDS)))
+        nrow, blocks, err, at, detail, line = scan_piece(
+            a, self.state, rows, self.seen_g, self.seen_m, self.seen_letter, self.flags)
+        self.blocks += int(blocks)
+        if err:
+            self._error(err, s, int(at), int(detail), int(line), fail)
+        if self.state[13]:
+            self.ended = True
+        if nrow:
+            r = rows[:nrow]
 
-    # ------------------------------------------------------------------ blocks
-    def _blocks(self, letters, vals, wline, raw, line0, fail):
-        new = np.r_[True, wline[1:] != wline[:-1]]
-        bid = np.cumsum(new) - 1
-        nb = int(bid[-1]) + 1
-        bline = wline[new]
-        present = set(chr(c) for c in np.unique(letters))
-        self.words |= present
-        col = {}
-        for ch in present:
-            if ch in "GM":
-                continue
-            if ch not in _SINGLE:
-                k = int(np.flatnonzero(letters == ord(ch))[0])
-                fail(int(wline[k]), f"the word {ch!r} is not a word this reader takes "
-                                    f"(axes X Y Z C, U V W H, arcs I J K R, F, S, N, O, T, M, G, P)")
-            m = letters == ord(ch)
-            b = bid[m]
-            dup = np.flatnonzero(b[1:] == b[:-1])
-            if dup.size:
-                fail(int(bline[b[dup[0]]]), f"the word {ch!r} appears twice")
-            v = np.full(nb, math.nan)
-            v[b] = vals[m]
-            col[ch] = v
-        nan = np.full(nb, math.nan)
-        # ---- G codes
-        grp = {g: nan.copy() for g in _GROUPS}
-        dwell = np.zeros(nb, bool)
-        home = np.zeros(nb, bool)
-        clamp = np.zeros(nb, bool)
-        if "G" in present:
-            m = letters == ord("G")
-            gv, gb = vals[m], bid[m]
-            known = np.isin(gv, _KNOWN_G)
-            if not known.all():
-                k = int(np.flatnonzero(~known)[0])
-                fail(int(bline[gb[k]]), f"G{gv[k]:g} is not a G code this reader takes "
-                                        f"(it takes {', '.join(f'G{g:02d}' for g in _KNOWN_G if g not in _REFUSED)})")
-            refused = np.isin(gv, list(_REFUSED))
-            if refused.any():
-                k = int(np.flatnonzero(refused)[0])
-                fail(int(bline[gb[k]]), f"G{gv[k]:g} is refused: {_REFUSED[int(gv[k])]}")
-            self.g_codes |= {int(g) for g in np.unique(gv)}
-            for name, codes in _GROUPS.items():
-                sel = np.isin(gv, codes)
-                if not sel.any():
-                    continue
-                b = gb[sel]
-                dup = np.flatnonzero(b[1:] == b[:-1])
-                if dup.size:
-                    fail(int(bline[b[dup[0]]]), f"two G codes of the same group ({name})")
-                grp[name][b] = gv[sel]
-            dwell[gb[gv == _DWELL]] = True
-            home[gb[gv == _HOME]] = True
-            clamp[gb[gv == _CLAMP]] = True
-        if "M" in present:
-            m = letters == ord("M")
-            mv, mb = vals[m], bid[m]
-            self.m_codes |= {int(v) for v in np.unique(mv)}
-            end = np.flatnonzero(np.isin(mv, (2, 30)))
-            if end.size:  # the program ends here: blocks after it are not run
-                last = int(mb[end[0]])
-                self.ended = True
-                keep = bid <= last
-                return self._blocks(letters[keep], vals[keep], wline[keep], raw, line0, fail) \
-                    if last < nb - 1 else self._finish(nb, col, grp, dwell, home, clamp, bline,
-                                                       line0, fail)
-        return self._finish(nb, col, grp, dwell, home, clamp, bline, line0, fail)
-
-    def _finish(self, nb, col, grp, dwell, home, clamp, bline, line0, fail):
-        st = self.state
-        nan = np.full(nb, math.nan)
-        self.blocks += nb
-        modal = {}
-        for name in _GROUPS:
-            if name == "radius_comp":
-                continue
-            modal[name] = _ffill(grp[name], st[name])
-            st[name] = float(modal[name][-1])
-        inch = (modal["units"] == 20) | (modal["units"] == 70)
-        scale = np.where(inch, INCH_MM, 1.0)
-        # G50 S: the spindle clamp (G50 with axis words would set coordinates: refused)
-        if clamp.any():
-            for ax in "XZUW":
-                if ax in col and np.any(clamp & ~np.isnan(col[ax])):
-                    k = int(np.flatnonzero(clamp & ~np.isnan(col[ax]))[0])
-                    fail(int(bline[k]), "G50 with axis words sets the coordinate system; the "
-                                        "reader takes G50 S (the spindle clamp) only")
-        s_words = col.get("S", nan)
-        clamp_v = np.where(clamp, s_words, math.nan)
-        clamp_m = _ffill(clamp_v, st["clamp"])
-        st["clamp"] = float(clamp_m[-1])
-        s_spindle = np.where(clamp, math.nan, s_words)
-        s_m = _ffill(s_spindle, st["S"])
-        st["S"] = float(s_m[-1])
-        f_words = col.get("F", nan)
-        # F in length units is scaled by the unit mode; inverse time (G93) is not
-        fscale = np.where(modal["feed"] == 93, 1.0, scale)
-        f_m = _ffill(f_words * fscale, st["F"])
-        st["F"] = float(f_m[-1])
-        non_motion = dwell | home | clamp
-        if dwell.any():
-            self.notes.append("dwells (G04) are not simulated (the tool stands still)")
-        if home.any():
-            self.notes.append("returns home (G28) are not simulated (the home position is not "
-                              "known; the next move starts from the last point programmed)")
-        # ---- positions
-        inc_mode = modal["distance"] == 91
-        axes, written = {}, {}
-        any_axis = np.zeros(nb, bool)
-        for ax, inc_letter in _INCREMENTAL.items():
-            v = col.get(ax, nan)
-            u = col.get(inc_letter, nan)
-            if ax != "C":
-                v, u = v * scale, u * scale
-            has_v, has_u = ~np.isnan(v) & ~non_motion, ~np.isnan(u) & ~non_motion
-            both = np.flatnonzero(has_v & has_u)
-            if both.size:
-                fail(int(bline[both[0]]), f"both {ax} and {inc_letter} (absolute and incremental "
-                                          f"{ax}) in one block")
-            absolute = has_v & ~inc_mode
-            step = np.where(has_v & inc_mode, v, 0.0) + np.where(has_u, u, 0.0)
-            cs = np.cumsum(step)
-            anchor = np.where(absolute, v - cs, math.nan)
-            start = self.pos[ax]
-            p = _ffill(anchor, start) + cs
-            self.pos[ax] = float(p[-1])
-            axes[ax] = p
-            written[ax] = has_v | has_u
-            any_axis |= written[ax]
-        arcs = {k: col.get(k, nan) * scale for k in "IJKR"}
-        moving = np.flatnonzero(any_axis)
-        if moving.size:
+            def kept(k):  # a column nothing in this piece sets is not stored
+                v = r[:, k].copy()
+                return None if np.isnan(v).all() else v
+            w = r[:, 16].astype(np.int8)
             self.out.append({
-                "line": (bline[moving] + line0).astype(np.int64),
-                "motion": modal["motion"][moving].astype(np.int8),
-                "axes": {a: v[moving] for a, v in axes.items()},
-                "written": {a: v[moving] for a, v in written.items()},
-                "arc": {a: v[moving] for a, v in arcs.items()},
-                "feed": f_m[moving], "feed_mode": modal["feed"][moving].astype(np.int16),
-                "spindle": s_m[moving], "spindle_mode": modal["spindle"][moving].astype(np.int16),
-                "clamp": clamp_m[moving], "plane": modal["plane"][moving].astype(np.int16)})
+                "n": int(nrow),
+                "line": r[:, 0].astype(np.int64) + line0,
+                "motion": r[:, 1].astype(np.int8),
+                "axes": {ax: kept(2 + k) for k, ax in enumerate("XYZC")},
+                "written": {ax: (w & (1 << k)) != 0 for k, ax in enumerate("XYZC")},
+                "arc": {ax: kept(6 + k) for k, ax in enumerate("IJKR")},
+                "feed": kept(10), "feed_mode": r[:, 11].astype(np.int16),
+                "spindle": kept(12), "spindle_mode": r[:, 13].astype(np.int16),
+                "clamp": kept(14), "plane": r[:, 15].astype(np.int16)})
+
+    def _error(self, err, s, at, detail, line, fail):
+        """One line for the error ``err`` of :func:`scan_piece` (see its module)."""
+        a = s
+        if err == 1:
+            ch = chr(a[at]) if 32 <= a[at] < 127 else f"byte 0x{a[at]:02x}"
+            fail(line, f"cannot read {ch!r} (a block holds words: a letter and a number, "
+                       f"e.g. X1.25)")
+        letter = chr(65 + detail) if 0 <= detail < 26 else "?"
+        if err == 2:
+            fail(line, f"the word {letter!r} has no number")
+        if err == 3:
+            prev = a[at - 1] if at > 0 else 10
+            if 48 <= prev <= 57 or prev == 46:
+                fail(line, "a sign inside a number")
+            fail(line, "a number without its letter")
+        if err == 4:
+            fail(line, f"the word {letter!r} has no valid number")
+        if err == 5:
+            fail(line, f"the word {letter!r} is not a word this reader takes (axes X Y Z C, "
+                       f"U V W H, arcs I J K R, F, S, N, O, T, M, G, P)")
+        if err == 6:
+            fail(line, f"the word {letter!r} appears twice")
+        text = s.split(b"\n")[line].decode("ascii", "replace")
+        gs = re.findall(r"G([-+]?[0-9.]+)", text)
+        if err in (7, 8):
+            g = gs[detail] if detail < len(gs) else "?"
+            try:
+                gv = f"G{float(g):g}"
+            except ValueError:
+                gv = f"G{g}"
+            if err == 8:
+                fail(line, f"{gv} is refused: {_REFUSED[int(float(g))]}")
+            fail(line, f"{gv} is not a G code this reader takes (it takes "
+                       f"{', '.join(f'G{g:02d}' for g in _KNOWN_G if g not in _REFUSED)})")
+        if err == 9:
+            fail(line, f"two G codes of the same group ({GROUP_NAMES[detail]})")
+        if err == 10:
+            fail(line, "G50 with axis words sets the coordinate system; the reader takes "
+                       "G50 S (the spindle clamp) only")
+        if err == 11:
+            inc = {"X": "U", "Y": "V", "Z": "W", "C": "H"}[letter]
+            fail(line, f"both {letter} and {inc} (absolute and incremental {letter}) in one "
+                       f"block")
+        fail(line, "cannot read the block")
 
 
 def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
@@ -445,10 +260,24 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         if sc.ended:
             break
     out = sc.out
-    cat = (lambda key, dt: np.concatenate([o[key] for o in out]).astype(dt) if out
-           else np.zeros(0, dt))
-    sub = (lambda key, name, dt: np.concatenate([o[key][name] for o in out]).astype(dt) if out
-           else np.zeros(0, dt))
+
+    def join(parts, dt):
+        """The pieces' columns end to end; NaN for pieces that did not store one."""
+        if not out:
+            return np.zeros(0, dt)
+        if all(v is None for v in parts):  # never set: a read-only view, no memory
+            return np.broadcast_to(np.asarray(math.nan, dt), (sum(o["n"] for o in out),))
+        return np.concatenate([np.full(o["n"], math.nan) if v is None else v
+                               for o, v in zip(out, parts)]).astype(dt, copy=False)
+
+    cat = (lambda key, dt: join([o[key] for o in out], dt))
+    sub = (lambda key, name, dt: join([o[key][name] for o in out], dt))
+    notes = list(sc.notes)
+    if sc.flags[0]:
+        notes.append("dwells (G04) are not simulated (the tool stands still)")
+    if sc.flags[1]:
+        notes.append("returns home (G28) are not simulated (the home position is not known; "
+                     "the next move starts from the last point programmed)")
     return ScannedProgram(
         path=path, line=cat("line", np.int64), motion=cat("motion", np.int8),
         axes={a: sub("axes", a, np.float64) for a in "XYZC"},
@@ -457,5 +286,8 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         feed=cat("feed", np.float64), feed_mode=cat("feed_mode", np.int16),
         spindle=cat("spindle", np.float64), spindle_mode=cat("spindle_mode", np.int16),
         clamp_rpm=cat("clamp", np.float64), plane=cat("plane", np.int16),
-        header=header, title=title, blocks=sc.blocks, g_codes=sc.g_codes, m_codes=sc.m_codes,
-        notes=list(dict.fromkeys(sc.notes)), words=sc.words, lines=lines)
+        header=header, title=title, blocks=sc.blocks,
+        g_codes={int(g) for g in np.flatnonzero(sc.seen_g)},
+        m_codes={int(m) for m in np.flatnonzero(sc.seen_m)},
+        notes=list(dict.fromkeys(notes)),
+        words={chr(65 + int(k)) for k in np.flatnonzero(sc.seen_letter)}, lines=lines)
