@@ -33,12 +33,12 @@ _CHUNK = 200_000
 
 
 def write_point_list(path: Path, n: int) -> Path:
-    """A spiral point list of ``n`` blocks: 0.5 deg steps, 20 um per revolution."""
+    """A spiral point list of ``n`` blocks: 0.5 deg steps, from X 50 mm to the centre."""
     with path.open("w") as fh:
         for a in range(0, n, _CHUNK):
             k = np.arange(a, min(a + _CHUNK, n))
             c = (k * 0.5) % 360.0
-            x = 50.0 - 0.02 * k / 720.0
+            x = 50.0 - 50.0 * k / n
             z = x * x / 200.0
             fh.write("\n".join(f"C{ci:.6f} X{xi:.6f} Z{zi:.6f}" for ci, xi, zi in zip(c, x, z)))
             fh.write("\n")

@@ -69,6 +69,7 @@ from ._toolpath import (
 )
 from ._tables import table_csv
 from ._program import ImportedProgram, program_dialect, read_program
+from ..core.programs import register_program_reader
 from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
@@ -76,6 +77,9 @@ from ._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
 from ..core.plugins import import_private_modules
+
+# the processes read [process] program files through core (they do not import io)
+register_program_reader(read_program)
 
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))

@@ -11,7 +11,8 @@ from ..core.errors import InputError
 from ..design import make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
-from ..processes import process_of
+from ..processes import findings_summary, process_of
+from ..report import draw_figure
 from ..toolpath import compare_with_plan, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
@@ -107,8 +108,6 @@ def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
 def write_program_report(folder: Path, plan, facts: dict) -> None:
     """The figures of a program read from a file (``feed_per_rev.png``,
     ``kinematics.png``) and its feed per revolution by radius as ``feed_per_rev.csv``."""
-    from ..report import draw_figure
-
     for name, spec in plan.plots.items():
         draw_figure(spec, folder / name)
     rows = facts["program"].get("feed_per_rev", {}).get("by_radius", [])
@@ -122,8 +121,6 @@ def write_program_report(folder: Path, plan, facts: dict) -> None:
 def log_program_summary(info: dict) -> None:
     """What was read and inferred, and the findings, one line each (findings as a
     warning)."""
-    from ..processes import findings_summary
-
     log.info("program %s (%s): %s", info.get("file"), info.get("dialect"),
              "; ".join(info.get("inferred", {}).values()))
     f = info.get("feed_per_rev")

@@ -20,7 +20,8 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, MIN_TO_S
-from ..io._program import read_program
+from ..core.programs import read_program_file
+from ..core.toolpath import LinearProgram
 from ..toolpath import Tool, region_radii
 
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
@@ -49,7 +50,7 @@ def imported_path(cfg, surface, *, region=None) -> ToolPath:
     ``process.points_per_rev``), cut to the points that can reach ``region``; its
     ``meta["program"]`` holds the dialect and what was inferred."""
     p = cfg.process
-    imp = read_program(p.program, kind="turning", spindle_rpm=float(p.spindle_rpm),
+    imp = read_program_file(p.program, kind="turning", spindle_rpm=float(p.spindle_rpm),
                        feed_mm_per_min=float(p.feed_mm_per_min),
                        part_radius=float(p.workpiece_radius), x_mode=p.program_x,
                        points_per_rev=int(p.points_per_rev), design_height=surface.height)
@@ -96,7 +97,7 @@ def imported_linear(cfg):
     """The X-Y-Z program of ``process.program`` (feed from ``process.feed_mm_per_min``
     where it gives none)."""
     p = cfg.process
-    imp = read_program(p.program, kind="linear", feed_mm_per_min=float(p.feed_mm_per_min),
+    imp = read_program_file(p.program, kind="linear", feed_mm_per_min=float(p.feed_mm_per_min),
                        feed_source="process.feed_mm_per_min")
     prog = imp.program
     prog.meta["program"] = {"file": Path(imp.path).name, "dialect": imp.dialect,
@@ -306,7 +307,6 @@ def imported_sculpt_plan(process, cfg, surface):
         if dy[0] < 0:  # the cut takes each line with Y increasing
             y[sel], z[sel] = y[sel][::-1], z[sel][::-1]
     _, line = np.unique(line, return_inverse=True)
-    from ..core.toolpath import LinearProgram
     prog2 = LinearProgram(x, y, z, t, line.astype(np.int64), dict(prog.meta))
     plan = process.program_plan(cfg, surface, prog2)
     plan.facts["toolpath"] = {"points": int(prog2.points), "lines": int(prog2.lines),

@@ -18,6 +18,7 @@ from pathlib import Path
 from ._following import plot_following_error, plot_following_error_map
 from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
+from ._program import plot_feed_per_rev
 
 __all__ = ["draw_figure", "FIGURE_KINDS"]
 
@@ -47,7 +48,6 @@ def draw_figure(spec: dict, png) -> Path:
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
     if kind == "feed_per_rev":
-        from ._program import plot_feed_per_rev
         return plot_feed_per_rev(spec["radius_mm"], spec["feed_um"], png,
                                  title=spec.get("title", ""))
     raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")
