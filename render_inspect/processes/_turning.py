@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, model_serializer, model_validator
@@ -497,7 +498,22 @@ class TurningProcess(Process):
         return facts
 
     def variants(self, cfg) -> VariantPair:
+        if program_path(cfg):
+            return program_variants(cfg)
         return compensation_variants(cfg)
+
+
+def program_variants(cfg) -> VariantPair:
+    """The pair ``compare`` shows for a program read from a file: the program as written
+    against the spiral the process would plan from the scene."""
+    name = Path(str(cfg.process.program)).name
+    return VariantPair(
+        Variant("program", f"the program {name}", {}),
+        Variant("planned", "the planned spiral", {"process.program": None}),
+        key="process.program",
+        about=(f"The program {name} as written against the spiral planned from the scene "
+               f"(feed {cfg.process.feed_per_rev * MM_TO_UM:.4g} um/rev, compensation "
+               f"{cfg.process.compensation}): what the program cuts differently."))
 
 
 class TiledTurningProcess(TurningProcess):
