@@ -201,10 +201,9 @@ def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, o
     rows with G02 / G03 replaced by chord points of their arcs in the plane
     ``plane_axes`` = (a, b) (centre offsets ``offsets`` = (ia, ib) from the start, or
     ``R``; G02 clockwise seen with a to the right and b up)."""
-    mot = sp.motion[rows]
-    arcs = np.flatnonzero(mot >= 2)
+    arcs = np.flatnonzero(sp.motion[rows] >= 2)
     if arcs.size == 0:
-        return np.arange(rows.size), axes, np.ones(rows.size)
+        return None, axes, None
     a, b = plane_axes
     ia, ib = offsets
     pieces_idx, pieces = [], {k: [] for k in axes}
@@ -322,7 +321,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         axes["C"] = sp.axes["C"][rows].copy()
     # arcs in the Z-X plane (G18): Z to the right, X up; I and K from the start, in radius
     src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM)
-    blk = rows[src]
+    blk = rows if src is None else rows[src]
     if np.any(sp.plane[blk[sp.motion[blk] >= 2]] != 18):
         k = int(blk[np.flatnonzero((sp.motion[blk] >= 2) & (sp.plane[blk] != 18))[0]])
         raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
@@ -333,10 +332,14 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     fval = sp.feed[blk]
     has_f = bool(np.isfinite(sp.feed).any())
     # ---- the spindle
-    s_prog = sp.spindle[blk]
     css = sp.spindle_mode[blk] == 96
-    clampv = np.where(np.isfinite(sp.clamp_rpm[blk]), sp.clamp_rpm[blk], float(spindle_rpm))
-    base = np.where(np.isfinite(s_prog) & ~css, s_prog, float(spindle_rpm))
+    if np.isfinite(sp.spindle).any() or css.any():
+        s_prog = sp.spindle[blk]
+        clampv = np.where(np.isfinite(sp.clamp_rpm[blk]), sp.clamp_rpm[blk], float(spindle_rpm))
+        base = np.where(np.isfinite(s_prog) & ~css, s_prog, float(spindle_rpm))
+    else:  # no S anywhere: the scene's speed everywhere (views, no memory)
+        s_prog = np.broadcast_to(np.float64(math.nan), blk.shape)
+        clampv = base = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
     if np.isfinite(s_prog).any():
         inferred["spindle"] = "spindle speed from the program's S words"
         if (~np.isfinite(s_prog)).any():
@@ -357,8 +360,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         return _css_rpm(s_prog[i], clampv[i], r, css[i], base[i])
 
     # ---- time of each move (from the point before)
-    dx, dz = np.diff(x), np.diff(z)
-    length = np.hypot(dx, dz)
+    length = np.hypot(np.diff(x), np.diff(z))
     if has_c:
         c = axes["C"]
         dc = np.diff(c)
@@ -417,12 +419,22 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             k = int(blk[1:][np.flatnonzero(bad)[0]])
             raise InputError(f"{path}:{int(sp.line[k])}: the move takes no time (F or the "
                              f"spindle speed is 0)")
-    sel = np.flatnonzero(keep)
-    x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
-    s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
-    t = np.r_[0.0, np.cumsum(dt_k)]
+    del length, fm, fv, mo, rp, rapid_mask
+    if zero.any():
+        sel = np.flatnonzero(keep)
+        x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
+        s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
+        if has_c:
+            c_cum = c_cum[sel]
+    else:  # every point kept (the usual case): no copies
+        dt_k = dt
+    del dt, zero, keep
+    t = np.empty(dt_k.size + 1)
+    t[0] = 0.0
+    np.cumsum(dt_k, out=t[1:])
     if has_c:
-        theta = np.radians(c_cum[sel])
+        theta = np.radians(c_cum)
+        del c_cum
         dialect = "point list" if not has_f and not sp.g_codes else "C-X-Z G-code"
     else:
         # the spindle turns while X and Z move: C follows from the time, each move sampled
@@ -479,7 +491,7 @@ def _linear(sp: ScannedProgram, feed, rapid, feed_source) -> ImportedProgram:
     pa = {17: (("X", "Y"), ("I", "J")), 18: (("Z", "X"), ("K", "I")),
           19: (("Y", "Z"), ("J", "K"))}[plane]
     src, axes, _ = _expand_arcs(sp, rows, axes, pa[0], pa[1], ARC_TOLERANCE_MM)
-    blk = rows[src]
+    blk = rows if src is None else rows[src]
     x, y, z = axes["X"], axes["Y"], axes["Z"]
     motion = sp.motion[blk]
     length = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
