@@ -419,3 +419,61 @@ def test_round_trip_same_surface(tmp_path):
     d = np.abs(b.heightmap.machined - a.heightmap.machined)
     assert np.nanmax(d) < 1e-6
     assert b.metrics["program"]["dialect"] == "render_inspect turning"
+
+
+def test_refused_programs_one_line(tmp_path):
+    down = _write(tmp_path, "down.nc", "".join(f"C{360 - k:.1f} X1.0 Z0\n" for k in range(10)))
+    with pytest.raises(InputError, match=r"down.nc:2: C decreases"):
+        read_program(down, part_radius=1.0)
+    both = _write(tmp_path, "both.nc", "G01 X1 Y0 Z0 F10\nC10 X1 Y1 Z0\n")
+    with pytest.raises(InputError, match=r"both.nc:2: a program with both Y and C"):
+        read_program(both)
+    g50 = _write(tmp_path, "g50.nc", "G90\nG50 X10 Z5\n")
+    with pytest.raises(InputError, match=r"g50.nc:2: G50 with axis words"):
+        read_program(g50)
+    xu = _write(tmp_path, "xu.nc", "G90\nG01 X1 U1 Z0 F1\n")
+    with pytest.raises(InputError, match=r"xu.nc:2: both X and U"):
+        read_program(xu)
+
+
+def test_compare_names_program_variants():
+    from render_inspect.scene import compare_pair, load_scene
+    pair = compare_pair(load_scene("sts_fig16_overcut"),
+                        "process.program=../progs/cam_a.nc,/abs/cam_b.nc")
+    assert (pair.a.name, pair.b.name) == ("program_cam_a", "program_cam_b")
+    assert pair.a.values == {"process.program": "../progs/cam_a.nc"}
+
+
+def test_program_pair_is_program_against_plan(tmp_path):
+    from render_inspect.processes import process_of
+    from render_inspect.scene import load_scene
+    c_cum, x, z, c = _spiral(r0=0.5, feed=0.01, revs=3)
+    p = _write(tmp_path, "s.nc", "".join(f"C{c[i]:.4f} X{x[i]:.6f} Z{z[i]:.6f}\n"
+                                        for i in range(c.size)))
+    sc = load_scene("sts_fig16_overcut", [f"process.program={json.dumps(str(p))}"])
+    pair = process_of(sc).variants(process_of(sc).inputs_of(sc))
+    assert (pair.a.name, pair.b.name) == ("program", "planned")
+    assert pair.b.values == {"process.program": None}
+
+
+def test_sculpt_takes_a_raster_program(tmp_path):
+    """An X-Y-Z raster program (lines along Y at constant X, linked by rapids) read for
+    the sculpturing cut: one target line per run of feed moves."""
+    from render_inspect.design import make_surface
+    from render_inspect.processes import process_of
+    from render_inspect.scene import load_scene
+    rows = ["G90 G94 G21 G17 F100"]
+    for k, xk in enumerate((-0.099875, 0.099875)):
+        rows += [f"G00 X{xk} Y-0.2 Z0.05", "G01 Z0.0"]
+        rows += [f"G01 Y{y:.4f} Z0.0" for y in np.linspace(-0.19, 0.2, 40)]
+        rows += ["G01 Z0.05"]
+    p = _write(tmp_path, "raster.nc", "\n".join(rows) + "\n")
+    sc = load_scene("sculpt_quad_mla", ["design.rows=2", "design.cols=2",
+                                        "simulation.region=[-0.19975,-0.19975,0.19975,0.19975]",
+                                        f"process.program={json.dumps(str(p))}"])
+    proc = process_of(sc)
+    cfg = proc.inputs_of(sc)
+    plan = proc.plan(cfg, make_surface(sc.design))
+    assert plan.facts["toolpath"]["lines"] == 2
+    assert plan.facts["program"]["dialect"] == "linear G-code"
+    assert np.allclose(plan.data["x_lines"], [-0.099875, 0.099875])
