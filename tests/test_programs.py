@@ -477,3 +477,30 @@ def test_sculpt_takes_a_raster_program(tmp_path):
     assert plan.facts["toolpath"]["lines"] == 2
     assert plan.facts["program"]["dialect"] == "linear G-code"
     assert np.allclose(plan.data["x_lines"], [-0.099875, 0.099875])
+
+
+def test_findings_rapid_through_part(tmp_path):
+    """A rapid across the part below its top is a finding; the rapid that rises straight
+    up from the cut is not."""
+    from render_inspect.design import make_surface
+    from render_inspect.processes import process_of
+    from render_inspect.scene import load_scene
+    text = """G90 G18 G95 G97 S600 F0.01
+G00 X1.0 Z0.1
+G01 Z0.0
+X0.5
+G00 Z0.05
+G00 X0.8 Z0.0005
+"""
+    p = _write(tmp_path, "rapid.nc", text)
+    sc = load_scene("sts_fig16_overcut", [
+        "design={type='plane'}", f"process.program={json.dumps(str(p))}",
+        "process.workpiece_radius=1.0", "process.points_per_rev=36", "process.program_x='radius'"])
+    proc = process_of(sc)
+    cfg = proc.inputs_of(sc)
+    surface = make_surface(sc.design)
+    checks = program_checks(cfg, surface, proc.program(cfg, surface))
+    kinds = {f["kind"]: f for f in checks["findings"]}
+    assert "below_design" not in kinds
+    assert kinds["rapid_through_part"]["worst_line"] == 6
+    assert set(kinds["rapid_through_part"]["first_lines"]) == {6}

@@ -156,8 +156,9 @@ def program_checks(cfg, surface, path: ToolPath) -> dict:
     radius; median, least and largest), ``chordal_error_max_nm`` (the chords' midpoints
     against the design, beyond the end points' own offsets), ``c_rate_max_rpm``, and
     ``findings``: points of cutting moves below the design (more than
-    :data:`FINDING_TOLERANCE_MM`) and rapid moves (G00) through the part (below the design
-    plus ``process.depth_of_cut`` inside the part's radius), each with counts, the worst
+    :data:`FINDING_TOLERANCE_MM`) and rapid moves (G00) through the part (ending below the
+    design plus ``process.depth_of_cut`` inside the part's radius, other than a rise
+    straight up), each with counts, the worst
     and the first file lines."""
     p = cfg.process
     theta, rho, z, t = (np.asarray(a, np.float64) for a in (path.theta, path.rho, path.z, path.t))
@@ -202,7 +203,10 @@ def program_checks(cfg, surface, path: ToolPath) -> dict:
     findings += _finding("below_design", "cutting moves end below the design", below, -off,
                          idx, lines, rho, theta)
     stock = float(getattr(p, "depth_of_cut", 0.0))
-    through = inside & ~cutting & np.isfinite(off) & (off < stock)
+    # a rapid that only rises (a retract straight up from the cut) leaves the part
+    prev = np.maximum(idx - 1, 0)
+    rising = (z[idx] > z[prev]) & (np.abs(rho[idx] - rho[prev]) <= 1e-9)
+    through = inside & ~cutting & ~rising & np.isfinite(off) & (off < stock)
     findings += _finding("rapid_through_part", "rapid moves (G00) end inside the part", through,
                          stock - off, idx, lines, rho, theta)
     out["findings"] = findings
