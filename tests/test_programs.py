@@ -504,3 +504,15 @@ G00 X0.8 Z0.0005
     assert "below_design" not in kinds
     assert kinds["rapid_through_part"]["worst_line"] == 6
     assert set(kinds["rapid_through_part"]["first_lines"]) == {6}
+
+
+def test_compare_summary_names_program_findings():
+    from render_inspect.report import comparison_summary
+    side = {"variant": {"label": "x"}, "residual": {"Sq_nm": 1.0, "min_nm": -1.0},
+            "filtered": {}, "measured": {}}
+    m = {"variants": [{"name": "program"}, {"name": "planned"}],
+         "program": {**side, "program": {"findings_count": 12, "file": "a.nc"}},
+         "planned": dict(side), "difference": {}}
+    rows, _ = comparison_summary(m)
+    assert rows[-1] == ("program findings (below the design, rapids in the part)",
+                        "12 points (a.nc)", "(planned)")
