@@ -237,14 +237,6 @@ def findings_summary(checks: dict) -> str:
                      f"line {f['worst_line']}, radius {f['worst_radius_mm']:.4g} mm)" for f in fs)
 
 
-def check_program_kind(kind: str, program) -> None:
-    """Refuse ``process.program`` for a process that cannot take an imported program."""
-    if program:
-        raise InputError(f"process.program: process.kind = {kind!r} plans its own path and "
-                         f"cannot take a program file; use process.kind = 'sts' (or 'fts', "
-                         f"'hts') to simulate a turning program, 'sculpt' for an X-Y-Z one")
-
-
 def fit_paraboloid(paths, *, nose_radius: float = 0.0) -> dict:
     """The paraboloid ``z = offset - r^2 / (2 R)`` (``design.type = "paraboloid"`` with
     ``radius_x = radius_y = R``) that fits the Z of turning programs best (least squares
