@@ -516,3 +516,38 @@ def test_compare_summary_names_program_findings():
     rows, _ = comparison_summary(m)
     assert rows[-1] == ("program findings (below the design, rapids in the part)",
                         "12 points (a.nc)", "(planned)")
+
+
+def test_lathe_constant_surface_speed_with_clamp(tmp_path):
+    """G96 (surface speed, m/min) under a G50 S clamp, in the form of the published
+    face-and-turn sample (docs/programs.md): the spindle turns at V / (2 pi r) until the
+    clamp."""
+    text = """%
+O4968 (SAMPLE FACE)
+N01 M216
+N02 G21 G90 G54 D200 G40
+N03 G50 S2000
+N04 T0300
+N05 G96 S100 M03
+N06 G00 X20.0 Z0.1
+N07 G95 G01 Z0.0 F0.01
+N08 X0.0
+N09 G00 Z5.0
+N10 M30
+%
+"""
+    imp = read_program(_write(tmp_path, "css.nc", text), part_radius=10.0, points_per_rev=20)
+    path = imp.program
+    assert imp.inferred["x"].startswith("X is the diameter")
+    face = imp.file_line == 10  # N08 X0.0
+    i = np.flatnonzero(face)
+    r = 0.5 * (path.rho[i[1:]] + path.rho[i[:-1]])
+    rpm = np.diff(path.theta[i]) / np.diff(path.t[i]) * 60 / (2 * math.pi)
+    expect = np.minimum(2000.0, 100_000.0 / (2 * math.pi * r))
+    ok = r > 0.05
+    assert np.allclose(rpm[ok], expect[ok], rtol=2e-3)
+    assert rpm.max() == pytest.approx(2000.0, rel=1e-9)
+    # the feed per revolution stays 0.01 mm whatever the speed
+    rr, f = feed_per_rev(path)
+    sel = (rr > 1.0) & (rr < 9.0)
+    assert np.allclose(f[sel], 0.01, rtol=2e-3)

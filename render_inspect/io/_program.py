@@ -451,9 +451,20 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
         xs = x[seg] + (x[seg + 1] - x[seg]) * u
         zs = z[seg] + (z[seg + 1] - z[seg]) * u
-        ts = t[seg] + dt_k[seg] * u
-        rpm_s = spin(xs, seg + 1)
-        dts = np.diff(np.r_[0.0, ts])
+        dts = dt_k[seg] / n_sub[seg]
+        if any_css:
+            # the spindle speed at each step's middle; a feed per revolution (G95) under
+            # constant surface speed sets each step's time from it
+            xm = xs - 0.5 * (x[seg + 1] - x[seg]) / n_sub[seg]
+            rpm_s = spin(xm, seg + 1)
+            bk = blk[1:][seg]
+            g95 = (sp.feed_mode[bk] == 95) & (motion[1:][seg] > 0) & css[seg + 1]
+            if g95.any():
+                step = np.hypot(x[seg + 1] - x[seg], z[seg + 1] - z[seg]) / n_sub[seg]
+                dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
+        else:
+            rpm_s = spin(xs, seg + 1)
+        ts = np.cumsum(dts)
         theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
         x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
         blk = np.r_[blk[0], blk[1:][seg]]
