@@ -433,7 +433,17 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
     data = apply_overrides(data, overrides)
     # relative heightmap paths are relative to the scene file
     _resolve_paths(data.get("design"), path.parent)
+    _resolve_program(data.get("process"), path.parent)
     return scene_from_dict(data, source=str(path))
+
+
+def _resolve_program(process, base: Path):
+    """``process.program`` (a machine program file) relative to the scene file."""
+    if isinstance(process, dict) and isinstance(process.get("program"), str) \
+            and process["program"] and "\x00" not in process["program"]:
+        p = Path(process["program"]).expanduser()
+        if not p.is_absolute():
+            process["program"] = str((base / p).resolve())
 
 
 def _resolve_paths(design, base: Path):
