@@ -24,6 +24,7 @@ from ._morris import morris_png
 from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
                     save_map_png)
 from ._page import build_page
+from ._profile_figs import profile_figure, profile_overlay_figure
 from ._quickplot import map_png, panels_png
 from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
 from ..core.plugins import import_private_modules
@@ -39,7 +40,8 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
            "luminance", "fit_figures", "fit_page", "psd_figure", "figure_kinds",
-           "register_figure", "registered_figures"]
+           "register_figure", "registered_figures", "profile_figure",
+           "profile_overlay_figure"]
 
 # figure kinds added as modules of this package register themselves on import
 import_private_modules(__name__, __path__)
