@@ -2,8 +2,8 @@
 written into it as the one new file the page says, exactly as printed there, and the
 commands the page names run on it in a fresh interpreter (a new design type, a new
 process kind through ``simulate``, ``toolpath`` and ``compare``, a new instrument through
-``render --kind``, a new program format through ``toolpath --format``, a new figure kind
-through ``draw_figure``)."""
+``render --kind``, a new program format through ``toolpath --format``, a new reader of
+measured files through ``analyze``, a new figure kind through ``draw_figure``)."""
 
 from __future__ import annotations
 
@@ -136,9 +136,10 @@ def _run(package: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, cwd=cwd, env=env)
 
 
-def test_the_page_has_the_five_examples():
+def test_the_page_has_the_six_examples():
     assert sorted(examples()) == ["render_inspect/design/_saddle.py",
                                   "render_inspect/instruments/_stylus.py",
+                                  "render_inspect/io/_asc.py",
                                   "render_inspect/io/_xyz.py",
                                   "render_inspect/processes/_css.py",
                                   "render_inspect/report/_histogram.py"]
@@ -251,3 +252,49 @@ def test_a_new_figure_kind_is_one_file(package, tmp_path):
     kinds, size = r.stdout.split()
     assert "histogram" in kinds.split(",") and "map" in kinds.split(",") and int(size) > 1000
     assert (tmp_path / "h.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_a_new_measured_file_reader_is_one_file(package, tmp_path):
+    """A known map (a plane tilted 2 um over the field plus a 50 nm sine, in um, one
+    point not measured) written in the example's format and analysed: the heights come back
+    in mm, the pixel and the invalid point as written."""
+    x = np.arange(40) * 0.5e-3                                   # mm, pixel 0.5 um
+    z_um = 2.0 * x[None, :] / x[-1] + 0.05 * np.sin(2 * np.pi * x[None, :] / 5e-3) \
+        + 0.0 * x[:, None]
+    z_um[3, 7] = np.nan
+    lines = ["pixel_um 0.5"] + [" ".join(f"{v:.9f}" for v in row) for row in z_um]
+    (tmp_path / "map.asc").write_text("\n".join(lines) + "\n")
+    r = _run(package, "analyze", str(tmp_path / "map.asc"), "--out", str(tmp_path / "o"),
+             "--form", "plane", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert m["input"]["path"].endswith("map.asc")
+    assert m["input"]["n_invalid"] == 1 and np.allclose(m["pixel_mm"], 0.5e-3), m["pixel_mm"]
+    # the plane is removed: what is left is the sine, Sq = 50 nm / sqrt(2) to within what
+    # the plane fit takes of four periods
+    assert abs(m["areal"]["Sq_nm"] - 50 / np.sqrt(2)) < 3, m["areal"]["Sq_nm"]
+    # a file the reader refuses: one line naming the file and what it expected
+    (tmp_path / "bad.asc").write_text("step 1\n1 2\n3 4\n")
+    r = _run(package, "analyze", str(tmp_path / "bad.asc"), "--out", str(tmp_path / "b"),
+             cwd=tmp_path)
+    assert r.returncode == 1 and "pixel_um" in r.stderr and len(r.stderr.splitlines()) == 1
+
+
+_NEW_INSTRUMENT_JOINS = """
+from render_inspect.pipeline import render_kinds
+from render_inspect.pipeline._render import _instruments
+
+print(",".join(render_kinds()), ",".join(_instruments("all")))
+"""
+
+
+@pytest.mark.slow
+def test_a_new_instrument_joins_every_render_run(package, tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(package)
+    r = subprocess.run([sys.executable, "-c", _NEW_INSTRUMENT_JOINS], capture_output=True,
+                       text=True, cwd=tmp_path, env=env)
+    assert r.returncode == 0, r.stderr
+    kinds, joined = (part.split(",") for part in r.stdout.split())
+    assert "stylus" in kinds and {"stylus", "interferometer"} <= set(joined)

@@ -44,6 +44,13 @@ def render_kinds() -> tuple[str, ...]:
     return (*renderable_instruments(), "diffuse", "all")
 
 
+def sweep_render_names() -> dict:
+    """What a sweep file's ``[run] render`` may name and the instrument whose frames
+    ``[run] measure`` measures (:func:`~render_inspect.batch.read_sweep`'s
+    ``render_kinds`` and ``frames_kind``)."""
+    return {"render_kinds": render_kinds(), "frames_kind": height_instrument().name}
+
+
 def _instruments(kind: str) -> dict:
     entries = renderable_instruments()
     if kind == "all":
