@@ -1238,3 +1238,48 @@ def test_fuzz_written_programs_are_verified_and_unsafe_ones_refused(tmp_path):
                 accepted_unsafe.append((name, kind))
     assert not accepted_unsafe, accepted_unsafe
     assert refused >= len(_UNSAFE)
+
+
+# ------------------------------------------------------------------ R1: the part's top
+CASES.update({"peaks": 40 * SCALE, "bounded_expressions": 150 * SCALE})
+
+
+class TestFuzzPartTop:
+    """The clearance plane's height: the design's true highest point over the part, found
+    by an interval bound however narrow the peak and wherever it stands, and never below
+    any height the design takes there."""
+
+    def test_narrow_peaks_anywhere_are_found(self):
+        from render_inspect.design import max_height
+
+        rng = _rng("peaks")
+        for _ in range(CASES["peaks"]):
+            r, a = 0.95 * math.sqrt(rng.random()), rng.uniform(0, 2 * math.pi)
+            cx, cy = r * math.cos(a), r * math.sin(a)
+            h, w = rng.uniform(1e-3, 1.0), 10 ** rng.uniform(-4.5, -2)
+            expr = (f"{h!r}*exp(-((x-{cx!r})**2 + (y-{cy!r})**2)/(2*{w!r}**2)) "
+                    f"+ 1e-3*cos(3*x) - 2e-3*y**2")
+            s = ExpressionSurface(expr)
+            b = max_height(s, ("disc", 0.0, 0.0, 1.0), tolerance=1e-6)
+            peak = float(s.height(np.array([cx]), np.array([cy]))[0])
+            assert b.method == "interval" and b.high >= peak and b.high - b.low <= 1.1e-6, expr
+
+    def test_random_formulas_are_bounded_from_above(self):
+        from render_inspect.design import max_height
+
+        rng = _rng("bounded_expressions")
+        checked = 0
+        u = rng.uniform(-1, 1, (2, 4000))
+        inside = np.hypot(*u) <= 1
+        for _ in range(CASES["bounded_expressions"]):
+            try:
+                s = ExpressionSurface(_expr(rng, int(rng.integers(1, 6))), {"a": 2.0})
+                z = s.height(u[0][inside], u[1][inside])
+            except InputError:
+                continue
+            b = max_height(s, ("disc", 0.0, 0.0, 1.0))
+            if b is None:
+                continue
+            assert float(z.max()) <= b.high, s.expr
+            checked += 1
+        assert checked > 20
