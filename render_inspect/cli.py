@@ -17,7 +17,13 @@ the path of ``report.html``.
 
 from __future__ import annotations
 
-import argparse
+# first of all, before the slow imports: a signal during start-up ends with one line
+from . import _early_signals
+
+if _early_signals.is_program(__name__ == "__main__"):
+    _early_signals.install()
+
+import argparse  # noqa: E402
 import logging
 import math
 import os
@@ -645,12 +651,7 @@ def main(argv=None) -> int:
         not in ("", "0")
     old_signals = {}
     cancel.clear()
-    for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
-                         (signal.SIGHUP, _on_terminate)):
-        try:
-            old_signals[sig] = signal.signal(sig, handler)
-        except (ValueError, OSError):  # not the main thread: leave the handlers alone
-            pass
+    _early_signals.command(args.command)
     prefix = f"render-inspect {args.command}"
     t0 = time.perf_counter()
     reporter = _reporter(args)
@@ -661,6 +662,14 @@ def main(argv=None) -> int:
         log.handlers = [rich_handler]
     t_start = time.monotonic()
     try:
+        # the handlers are put in place inside this block, so that a signal arriving
+        # right after them is reported like any other
+        for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
+                             (signal.SIGHUP, _on_terminate)):
+            try:
+                old_signals[sig] = signal.signal(sig, handler)
+            except (ValueError, OSError):  # not the main thread: leave the handlers alone
+                pass
         with reporter as rep:
             old = set_reporter(rep)
             try:
@@ -728,6 +737,7 @@ def main(argv=None) -> int:
               f"({_traceback_hint(parser)})", file=sys.stderr)
         return 1
     finally:
+        _early_signals.finished()
         for sig, handler in old_signals.items():
             signal.signal(sig, handler)
         cancel.clear()

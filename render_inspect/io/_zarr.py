@@ -30,6 +30,7 @@ zstd-1 0.58 s / 75 MB and zstd-1 0.87 s / 113 MB; reading one channel back takes
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import stat
@@ -37,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core import cancel
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.errors import InputError
 from ..core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
@@ -128,6 +130,19 @@ def _coordinates(grp, shape, pixel: float, origin, factor: int) -> None:
                         "axis": axis.upper()})
 
 
+def _whole(fn):
+    """Run ``fn`` with a stop (Ctrl-C, SIGTERM) held back until it returns: zarr writes
+    metadata and chunks on its own I/O thread, and a stop that ended the main thread's
+    wait for it would leave that thread writing on into an output folder already
+    removed (:func:`render_inspect.core.cancel.deferred`)."""
+    @functools.wraps(fn)
+    def run(*a, **k):
+        with cancel.deferred():
+            return fn(*a, **k)
+    return run
+
+
+@_whole
 def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
     """Create an empty store (arrays filled with NaN) and return its zarr group.
 
@@ -174,6 +189,7 @@ def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, l
     return g
 
 
+@_whole
 def consolidate(path: str | Path) -> None:
     """Gather the store's metadata into its root ``zarr.json`` (what ``xarray.open_zarr``
     reads first; zarr-python's consolidated metadata, not yet part of the Zarr format 3
@@ -187,6 +203,7 @@ def consolidate(path: str | Path) -> None:
         zarr.consolidate_metadata(str(path))
 
 
+@_whole
 def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndarray, *, attrs: dict,
                          chunk: int = 1024, levels: int | None = None) -> Path:
     """Write a height map that is in memory into a new store (residual formed in float64)."""
@@ -209,6 +226,7 @@ def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndar
     return Path(path)
 
 
+@_whole
 def set_store_attrs(path: str | Path, **attrs) -> None:
     """Add (or replace) group attributes of a store."""
     import zarr

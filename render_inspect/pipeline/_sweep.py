@@ -52,13 +52,11 @@ from ..core.errors import InputError, RenderInspectError, SceneError
 from ..core.limits import format_bytes, memory_budget
 from ..core.units import MIB_TO_BYTES, MM_TO_NM
 from ..io import (
-    MARKER,
-    atomic_output_dir,
+    MARKER, atomic_output_dir,
     atomic_write_bytes,
     atomic_write_text,
     check_output_path,
-    claim_output_dir,
-    discarding_new_folder,
+    claim_output_dir, discarding_new_folder,
     write_json,
 )
 from ..processes import check_budget, process_of
@@ -503,7 +501,6 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
             c = stack.enter_context(dask_client(
                 client=client, scheduler=scheduler, workers=workers, tasks=n_todo, wait=False,
                 memory_per_task=max(t["memory_bytes"] for t in tasks), budget=memory_budget(None)))
-        # a failure before any point is recorded (a full disk) leaves no folder behind
         stack.enter_context(discarding_new_folder(out, (MARKER, ".lock", "sweep.toml")))
         claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
         with folder_lock(out):
