@@ -235,6 +235,48 @@ def set_store_attrs(path: str | Path, **attrs) -> None:
     consolidate(path)
 
 
+#: most bytes of the root group's metadata (its attributes and the consolidated metadata of
+#: every array; a store render_inspect writes holds a few tens of kB)
+MAX_ROOT_METADATA_BYTES = 16 * MIB_TO_BYTES
+#: most bytes of any other metadata file (one array's or group's)
+MAX_METADATA_BYTES = MIB_TO_BYTES
+
+
+def check_store_tree(path, *, what: str = "heightmap store") -> None:
+    """A store read as untrusted input, checked before zarr reads a byte of it: every
+    entry inside the folder is a plain folder or a regular file (no symbolic link,
+    whatever it points to, so that nothing outside the store is read through it; no
+    device, pipe or socket), and no metadata file is larger than
+    :data:`MAX_ROOT_METADATA_BYTES` (the root ``zarr.json``) or
+    :data:`MAX_METADATA_BYTES` (any other), so that a huge JSON file is refused before it
+    is parsed.  Chunk sizes are checked when an array is read (``_check_array``)."""
+    root = Path(path)
+    for top, dirs, files in os.walk(root, followlinks=False):
+        for n in dirs + files:
+            full = os.path.join(top, n)
+            rel = os.path.relpath(full, root)
+            try:
+                st = os.lstat(full)
+            except OSError as err:
+                raise InputError(f"{what} {str(root)!r}: {rel!r} cannot be read "
+                                 f"({err.strerror or err})") from None
+            if stat.S_ISLNK(st.st_mode):
+                raise InputError(f"{what} {str(root)!r}: {rel!r} is a symbolic link; a store's "
+                                 f"arrays, groups and files must lie inside it (copy the "
+                                 f"store with the links resolved): refused")
+            if stat.S_ISDIR(st.st_mode):
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                raise InputError(f"{what} {str(root)!r}: {rel!r} is not a regular file (a "
+                                 f"device, a pipe or a socket): refused")
+            if n in _METADATA:
+                limit = MAX_ROOT_METADATA_BYTES if top == str(root) else MAX_METADATA_BYTES
+                if st.st_size > limit:
+                    raise InputError(f"{what} {str(root)!r}: {rel!r} is {st.st_size} bytes; "
+                                     f"metadata files are at most {limit // MIB_TO_BYTES} MiB "
+                                     f"(refused before it is read)")
+
+
 class ZarrHeightMap:
     """A height map in a store, read window by window.
 
@@ -255,6 +297,7 @@ class ZarrHeightMap:
             raise InputError(f"{what} not found: {str(path)!r}")
         self.path = path
         self.what = what
+        check_store_tree(path, what=what)
         for name in CHANNELS:
             self._check_declared_type(name)
         try:
