@@ -26,6 +26,7 @@ from ._atomic import (
                       write_marker,
 )
 from ._discard import discard_unused, discarding_new_folder
+from ._special import not_a_file
 from ._exr import exr_placement, read_exr, write_exr
 from ._frames import FRAME_CHANNELS, read_frames_exr, write_frames_exr
 from ._heightmap import heightmap_attrs, read_heightmap_exr, write_heightmap_exr
@@ -79,7 +80,7 @@ from ..core.plugins import import_private_modules
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
 
-__all__ = ["discard_unused", "discarding_new_folder", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
+__all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
            "check_output_path", "check_output_dir", "claim_output_dir", "read_marker", "write_marker", "MARKER",
            "write_json", "json_safe", "open_lock_file",
            "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",

@@ -34,7 +34,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
 from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  export_program, json_safe, read_surface, writer)
+                  export_program, json_safe, not_a_file, read_surface, writer)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
                          difference_profiles, difference_stats, level_map, line_profile,
                          measured_difference, profile_center, sections, waviness_choice, waviness_map)
@@ -422,10 +422,15 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     inputs = (measured,) if measured is not None else ()
     check_output_dir(out, overwrite=overwrite, command="compare", scene=scene, inputs=inputs)
     # a file, or a heightmap.zarr store (a folder)
-    if measured is not None and not (Path(measured).is_file() or (
-            Path(measured).suffix.lower() == ".zarr" and Path(measured).is_dir())):
-        raise InputError(f"--measured file not found: {str(measured)!r} (a height map file, "
-                         f"or a .zarr store folder)")
+    if measured is not None and not (Path(measured).suffix.lower() == ".zarr"
+                                     and Path(measured).is_dir()):
+        problem = not_a_file(measured)
+        if problem == "not found":
+            raise InputError(f"--measured file not found: {str(measured)!r} (a height map "
+                             f"file, or a .zarr store folder)")
+        if problem is not None:
+            raise InputError(f"--measured {str(measured)!r} {problem} (a height map file, or "
+                             f"a .zarr store folder)")
     _check_phase_settings(scene)
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
