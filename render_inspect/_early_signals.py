@@ -42,11 +42,12 @@ def _handler(signum, frame):
     os._exit(130 if signum == signal.SIGINT else 143)
 
 
-def is_program(main_module: bool = False) -> bool:
+def is_program() -> bool:
     """Whether this process is the ``render-inspect`` program (its console script, or
-    ``python -m render_inspect.cli`` when ``main_module``), not a program that imports
-    the package."""
-    return main_module or os.path.basename(sys.argv[0] if sys.argv else "") == "render-inspect"
+    ``python -m render_inspect.cli``, while Python locates the module and ``sys.argv[0]``
+    is ``-m``), not a program that imports the package."""
+    first = sys.argv[0] if sys.argv else ""
+    return first == "-m" or os.path.basename(first) == "render-inspect"
 
 
 def install() -> None:

@@ -114,12 +114,13 @@ def test_an_unused_folder_is_discarded_a_used_one_kept(tmp_path):
     assert not discard_unused(b, (".render_inspect.json",)) and b.exists()
 
 
+@pytest.mark.slow  # the sweep starts its Dask cluster before it claims the folder
 @pytest.mark.parametrize("code", FAULTS)
 def test_sweep_on_a_full_disk_leaves_no_folder(tmp_path, monkeypatch, capsys, code):
     """The sweep's folder is made and marked before any point runs: a write error there
     (its marker, its copy of the sweep file) is one line, and no empty folder is left."""
     from render_inspect import cli
-    from render_inspect.io import _atomic
+    from render_inspect.io import _atomic_write
     from render_inspect.pipeline import _sweep
 
     sweep = tmp_path / "s.toml"
@@ -129,7 +130,7 @@ def test_sweep_on_a_full_disk_leaves_no_folder(tmp_path, monkeypatch, capsys, co
     def full(path, *a, **k):
         raise OSError(code, os.strerror(code), str(path))
 
-    for where, name in ((_atomic, "atomic_write_stream"), (_sweep, "atomic_write_bytes")):
+    for where, name in ((_atomic_write, "atomic_write_stream"), (_sweep, "atomic_write_bytes")):
         with monkeypatch.context() as m:
             m.setattr(where, name, full)
             out = tmp_path / f"out_{name}"
