@@ -275,6 +275,7 @@ def test_existing_cluster_scheduler_and_two_workers_on_loopback(tmp_path):
                 p.wait()
 
 
+@pytest.mark.slow
 def test_scheduler_that_does_not_answer_is_one_clear_error(tmp_path):
     (tmp_path / "small.toml").write_text(SMALL)
     res = subprocess.run([str(EXE), "sweep", "small.toml", "--out", "out", "--scheduler",
@@ -331,6 +332,7 @@ def test_killed_sweep_resumes_and_ends_with_every_point_once(tmp_path):
     assert len(list((tmp_path / "out" / "points").iterdir())) == 12
 
 
+@pytest.mark.slow
 def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path):
     """A misspelt key inside [grid], a value out of range, a point over its memory budget:
     the whole sweep is checked first, one message lists each complaint with its points,
@@ -349,8 +351,8 @@ def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path
     assert res.returncode == 1 and "Traceback" not in res.stderr
     err = res.stderr
     assert "14 of 14 points are not valid scenes" in err and "nothing was run" in err
-    assert "tool.nose_radus: unknown key (not allowed here; check the spelling) " \
-           "[12 points: 0, 1, 2, 3, 4, ...]" in err
+    assert "tool.nose_radus: unknown key (not allowed here; check the spelling); did you mean " \
+           "'nose_radius'? [12 points: 0, 1, 2, 3, 4, ...]" in err
     assert "simulation.max_memory_gb" in err and "tool.nose_radius" in err and "-1.0" in err
     assert "the other points are done" not in err
     assert not (tmp_path / "out").exists()

@@ -3,7 +3,8 @@ output folders.  Every ``_*.py`` module of this package is imported on start, so
 file format is one new module that registers its reader or writer.
 
 Products: ``heightmap`` (``heightmap.exr``), ``measured`` (measured height maps: X3P, EXR,
-npy/npz and instrument formats), ``toolpath`` and ``program`` (machine programs: npz, csv,
+npy/npz and instrument formats), ``profile`` (measured profiles: text exports, Dektak
+``.opdx``, X3P PRF), ``toolpath`` and ``program`` (machine programs: npz, csv,
 nc), ``frames`` (``interferogram.exr``; TIFF / PNG stacks with a settings JSON),
 ``measurement`` (``height.exr``).  :func:`reader` / :func:`writer` look them up.
 """
@@ -45,6 +46,7 @@ from ._limits import (
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
 from ._png import png_bytes_with_text, save_png
+from ._profile import MeasuredProfile, is_profile_file, read_profile
 from ._pyramid import block_sums, coarsen, level_count, means, preview
 from ._registry import formats, reader, register_reader, register_writer, writer
 from ._stack import STACK_EXTENSIONS, read_frame_stack, write_measurement_exr
@@ -70,12 +72,18 @@ from ._toolpath import (
                       write_toolpath_npz,
 )
 from ._tables import table_csv
+from ._program import ImportedProgram, program_dialect, read_program
+from ..core.programs import register_program_reader
+from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
 from ._zarr import ZarrHeightMap, check_store_tree, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
 from ..core.plugins import import_private_modules
+
+# the processes read [process] program files through core (they do not import io)
+register_program_reader(read_program)
 
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
@@ -98,4 +106,5 @@ __all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_outp
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
            "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
-           "program_axes"]
+           "program_axes", "MeasuredProfile", "read_profile", "is_profile_file",
+           "read_program", "ImportedProgram", "program_dialect", "scan_program"]
