@@ -32,8 +32,9 @@ ALLOWED = {
     "pipeline": {"core", "io", "design", "toolpath", "machining", "mesh", "render",
                  "instruments", "metrology", "processes", "scene", "report", "batch", "fit"},
     "errors": {"core"},
-    "cli": {"core", "scene", "pipeline"},
+    "cli": {"core", "scene", "pipeline", "_early_signals"},
     "__init__": set(),
+    "_early_signals": set(),
     "__main__": {"cli"},
 }
 #: subpackages that may import the rendering engines (inside functions only)

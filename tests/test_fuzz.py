@@ -1246,3 +1246,256 @@ def test_fuzz_written_programs_are_verified_and_unsafe_ones_refused(tmp_path):
                 accepted_unsafe.append((name, kind))
     assert not accepted_unsafe, accepted_unsafe
     assert refused >= len(_UNSAFE)
+
+
+# ------------------------------------------------------------------ R1: the part's top
+CASES.update({"peaks": 40 * SCALE, "bounded_expressions": 150 * SCALE})
+
+
+class TestFuzzPartTop:
+    """The clearance plane's height: the design's true highest point over the part, found
+    by an interval bound however narrow the peak and wherever it stands, and never below
+    any height the design takes there."""
+
+    def test_narrow_peaks_anywhere_are_found(self):
+        from render_inspect.design import max_height
+
+        rng = _rng("peaks")
+        for _ in range(CASES["peaks"]):
+            r, a = 0.95 * math.sqrt(rng.random()), rng.uniform(0, 2 * math.pi)
+            cx, cy = r * math.cos(a), r * math.sin(a)
+            h, w = rng.uniform(1e-3, 1.0), 10 ** rng.uniform(-4.5, -2)
+            expr = (f"{h!r}*exp(-((x-{cx!r})**2 + (y-{cy!r})**2)/(2*{w!r}**2)) "
+                    f"+ 1e-3*cos(3*x) - 2e-3*y**2")
+            s = ExpressionSurface(expr)
+            b = max_height(s, ("disc", 0.0, 0.0, 1.0), tolerance=1e-6)
+            peak = float(s.height(np.array([cx]), np.array([cy]))[0])
+            assert b.method == "interval" and b.high >= peak and b.high - b.low <= 1.1e-6, expr
+
+    def test_random_formulas_are_bounded_from_above(self):
+        from render_inspect.design import max_height
+
+        rng = _rng("bounded_expressions")
+        checked = 0
+        u = rng.uniform(-1, 1, (2, 4000))
+        inside = np.hypot(*u) <= 1
+        for _ in range(CASES["bounded_expressions"]):
+            try:
+                s = ExpressionSurface(_expr(rng, int(rng.integers(1, 6))), {"a": 2.0})
+                z = s.height(u[0][inside], u[1][inside])
+            except InputError:
+                continue
+            b = max_height(s, ("disc", 0.0, 0.0, 1.0))
+            if b is None:
+                continue
+            assert float(z.max()) <= b.high, s.expr
+            checked += 1
+        assert checked > 20
+
+
+# ------------------------------------------------------------------ R2: write errors
+CASES.update({"write_errors": 24 * SCALE, "zarr_trees": 30 * SCALE, "diffuse_sizes": 60 * SCALE,
+              "tile_stops": 6 * SCALE, "input_kinds": 20 * SCALE})
+
+
+class TestFuzzWriteErrors:
+    """A write that fails for want of space, quota or a working disk, in any writer and
+    any file of an output folder: one line naming the file and the cause, and nothing
+    left behind (no folder, no partial folder, no temporary file)."""
+
+    def test_write_errors_in_an_output_folder(self, tmp_path, monkeypatch):
+        import errno as errno_
+
+        import OpenEXR as real_exr
+
+        from render_inspect.io import _atomic_write
+
+        rng = _rng("write_errors")
+        codes = [errno_.ENOSPC, errno_.EDQUOT, errno_.EIO, errno_.EFBIG]
+        for i in range(CASES["write_errors"]):
+            code = int(_pick(rng, codes))
+            writer = _pick(rng, ["exr", "text", "x3p"])
+            name = {"exr": "diffuse.exr", "text": "metrics.json", "x3p": "height.x3p"}[writer]
+
+            class File:
+                def __init__(self, *a, **k):
+                    pass
+
+                def __enter__(self):
+                    return self
+
+                def __exit__(self, *exc):
+                    return False
+
+                def write(self, path, code=code):
+                    raise RuntimeError(f'Failed to write pixel data to image file "{path}". '
+                                       f'{os.strerror(code)}.')
+
+            with monkeypatch.context() as m:
+                if writer == "exr":
+                    import types
+
+                    fake = types.ModuleType("OpenEXR")
+                    fake.__dict__.update({k: getattr(real_exr, k) for k in dir(real_exr)
+                                          if not k.startswith("__")})
+                    fake.File = File
+                    m.setitem(sys.modules, "OpenEXR", fake)
+                else:
+                    def full(path, *a, code=code, **k):
+                        raise OSError(code, os.strerror(code), str(path))
+                    m.setattr(_atomic_write, "atomic_write_stream", full)
+                out = tmp_path / f"o{i}"
+                with pytest.raises(InputError) as info:
+                    with atomic_output_dir(out, command="render") as tmp:
+                        if writer == "exr":
+                            write_exr(tmp / name, {"R": np.zeros((4, 4))})
+                        elif writer == "text":
+                            _atomic_write.atomic_write_text(tmp / name, "{}")
+                        else:
+                            write_x3p(tmp / name, np.zeros((4, 4)), pixel=0.001)
+            msg = str(info.value)
+            assert "\n" not in msg and os.strerror(code) in msg, (writer, msg)
+            if writer != "x3p":  # the x3p writer names its own temporary member
+                assert name in msg, (writer, msg)
+            assert os.listdir(tmp_path) == [], (writer, os.listdir(tmp_path))
+
+
+# ------------------------------------------------------------------ R3: zarr stores
+class TestFuzzZarrStores:
+    """Stores with links, pipes and oversized metadata anywhere inside: refused in one
+    line before zarr reads them; a store without them reads."""
+
+    def test_hostile_store_trees(self, tmp_path):
+        from render_inspect.io import ZarrHeightMap
+        from render_inspect.io._heightmap import grid_attrs
+        from render_inspect.io._zarr import write_heightmap_zarr
+
+        rng = _rng("zarr_trees")
+        z = np.zeros((24, 24))
+        other = write_heightmap_zarr(tmp_path / "other.zarr", z + 1, z + 1, chunk=16, levels=1,
+                                     attrs=grid_attrs(0.001, (0.0, 0.0), {}, {}))
+        for i in range(CASES["zarr_trees"]):
+            s = write_heightmap_zarr(tmp_path / f"s{i}.zarr", z, z, chunk=16, levels=1,
+                                     attrs=grid_attrs(0.001, (0.0, 0.0), {}, {}))
+            entries = sorted(p.relative_to(s) for p in s.rglob("*"))
+            rel = _pick(rng, entries)
+            target = s / rel
+            kind = _pick(rng, ["link_other", "link_outside", "dangling", "fifo", "huge", "none"])
+            if kind in ("link_other", "link_outside", "dangling", "fifo"):
+                if target.is_dir():
+                    import shutil
+
+                    shutil.rmtree(target)
+                else:
+                    target.unlink()
+                if kind == "fifo":
+                    os.mkfifo(target)
+                else:
+                    os.symlink({"link_other": other / rel, "link_outside": "/etc/hostname",
+                                "dangling": tmp_path / "missing"}[kind], target)
+            elif kind == "huge":
+                meta = [p for p in s.rglob("zarr.json")]
+                f = _pick(rng, meta)
+                with open(f, "r+b") as fh:
+                    fh.truncate(17 * 2 ** 20)
+            if kind == "none":
+                ZarrHeightMap(s).read("machined")
+                continue
+            with pytest.raises(InputError) as info:
+                ZarrHeightMap(s).read("machined")
+            msg = str(info.value)
+            assert "\n" not in msg and str(s) in msg, (kind, rel, msg)
+
+
+# ------------------------------------------------------------------ R4: memory estimates
+class TestFuzzMemoryEstimates:
+    """The diffuse estimate grows with the image, not with the samples per pixel (the
+    wavefront's per-pixel arrays), and a spectral render needs more than an RGB one;
+    the NC program's estimate grows with its points."""
+
+    def test_estimates_follow_their_drivers(self):
+        from render_inspect.pipeline._toolpath import nc_memory
+        from render_inspect.render import DiffuseConfig, diffuse_memory
+
+        rng = _rng("diffuse_sizes")
+        for _ in range(CASES["diffuse_sizes"]):
+            res = int(rng.integers(16, 8193))
+            spp = int(rng.integers(1, 1025))
+            shape = (int(rng.integers(2, 4000)), int(rng.integers(2, 4000)))
+            a = diffuse_memory(DiffuseConfig(resolution=res, spp=spp), shape)
+            b = diffuse_memory(DiffuseConfig(resolution=res, spp=1), shape)
+            c = diffuse_memory(DiffuseConfig(resolution=min(res * 2, 8192), spp=spp), shape)
+            rgb = diffuse_memory(DiffuseConfig(resolution=res, spp=spp), shape, spectral=False)
+            assert a == b and c >= a and rgb < a
+            assert a >= res * res * 1000
+        scene = load_scene("sts_sinusoidal_grid", ["simulation.max_memory_gb=64"])
+        assert nc_memory(scene, 2_000_000) > nc_memory(scene, 1_000_000) > 1_000_000 * 250
+
+
+# ------------------------------------------------------------------ R5: signals
+class TestFuzzSignalsAnytime:
+    """A stop at a random moment of a threaded tile run: the run raises only once every
+    tile that started has ended (none writes into a folder after it was removed)."""
+
+    def test_stops_at_random_moments(self):
+        import threading
+        import time
+
+        from render_inspect.batch import _tiled
+
+        rng = _rng("tile_stops")
+        for _ in range(CASES["tile_stops"]):
+            state = {"started": 0, "ended": 0}
+            lock = threading.Lock()
+            durations = rng.uniform(0.01, 0.15, 12)
+            stop_after = int(rng.integers(1, 8))
+
+            def tile(i):
+                with lock:
+                    state["started"] += 1
+                time.sleep(float(durations[i]))
+                with lock:
+                    state["ended"] += 1
+                return i
+
+            def progress(done, total, dt):
+                if done >= stop_after:
+                    raise KeyboardInterrupt
+
+            with pytest.raises(KeyboardInterrupt):
+                _tiled._run(tile, [(i,) for i in range(12)], (), workers=int(rng.integers(2, 5)),
+                            progress=progress)
+            assert state["ended"] == state["started"], state
+
+
+# ------------------------------------------------------------------ R6: input kinds
+class TestFuzzInputKinds:
+    """Paths that are not files (pipes, devices, folders, missing) given to the readers:
+    one line saying which; a scene with a byte-order mark reads as the scene."""
+
+    def test_paths_that_are_not_files(self, tmp_path, capsys):
+        from render_inspect import cli
+
+        rng = _rng("input_kinds")
+        want = {"fifo": "named pipe", "device": "device", "folder": "folder",
+                "missing": "not found"}
+        for i in range(CASES["input_kinds"]):
+            kind = _pick(rng, list(want))
+            suffix = _pick(rng, [".npy", ".exr", ".x3p", ".sur", ".tmd"])
+            p = tmp_path / f"in{i}{suffix}"
+            if kind == "fifo":
+                os.mkfifo(p)
+            elif kind == "device":
+                os.symlink(_pick(rng, ["/dev/zero", "/dev/null", "/dev/urandom"]), p)
+            elif kind == "folder":
+                p.mkdir()
+            rc = cli.main(["analyze", str(p), "--out", str(tmp_path / f"o{i}"), "-q"])
+            err = capsys.readouterr().err.strip().splitlines()
+            assert rc == 1 and len(err) == 1 and want[kind] in err[0], (kind, err)
+            assert not (tmp_path / f"o{i}").exists()
+
+    def test_a_byte_order_mark(self, tmp_path):
+        raw = find_scene("sts_sinusoidal_grid").read_bytes()
+        (tmp_path / "a.toml").write_bytes(b"\xef\xbb\xbf" + raw)
+        assert load_scene(str(tmp_path / "a.toml")).to_dict() == \
+            load_scene("sts_sinusoidal_grid").to_dict()

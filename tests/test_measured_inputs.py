@@ -151,7 +151,7 @@ def test_zarr_chunks_that_are_links_damaged_or_oversized_are_refused(tmp_path):
         read_surface(store)
     chunk.unlink()
     os.symlink("/dev/zero", chunk)
-    with pytest.raises(InputError, match=r"'machined/c/0/0' is not a regular file"):
+    with pytest.raises(InputError, match=r"'machined/c/0/0' is a symbolic link.*refused"):
         read_surface(store)
     chunk.unlink()
     chunk.write_bytes(b"\0" * (2 * 32 * 32 * 4 + 2 ** 17))

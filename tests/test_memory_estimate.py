@@ -98,3 +98,89 @@ def test_tiled_memory_is_bounded_by_the_tiles_not_the_map(tmp_path):
     assert r["traced"] <= 1.5 * r["estimate"], r
     assert r["rss"] <= 1.5 * r["estimate"], r
     assert r["estimate"] < 28 * r["samples"] / 2, r     # well below the in-memory need
+
+
+# ------------------------------------------------------------------ every command, two sizes
+#: the peak of a command's own work: the resident set's high-water mark above what the
+#: process held before it (libraries loaded), against the estimate its budget check uses
+_STATUS = '''
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+'''
+
+_RENDER_PROBE = textwrap.dedent('''
+    import json, sys, tempfile
+    from pathlib import Path
+    from render_inspect.pipeline import check_render_limits, run_render
+    from render_inspect.scene import load_scene
+''') + _STATUS + textwrap.dedent('''
+    kind, sets = sys.argv[1], sys.argv[2:]
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.1,-0.1,0.1,0.1]",
+                                               "simulation.max_memory_gb=16", *sets])
+    need = check_render_limits(scene, kind=kind)
+    base = status("VmRSS")
+    run_render(scene, Path(tempfile.mkdtemp()) / "o", surface="design", kind=kind)
+    print(json.dumps({"estimate": max(need.values()), "rss": status("VmHWM") - base}))
+''')
+
+_NC_PROBE = textwrap.dedent('''
+    import json, sys, tempfile
+    from pathlib import Path
+    from render_inspect.pipeline import run_toolpath
+    from render_inspect.pipeline._toolpath import nc_memory
+    from render_inspect.scene import load_scene
+''') + _STATUS + textwrap.dedent('''
+    ppr = int(sys.argv[1])
+    scene = load_scene("sts_sinusoidal_grid", ["process.workpiece_radius=1.0",
+                                               f"process.points_per_rev={ppr}",
+                                               "simulation.max_memory_gb=16"])
+    d = Path(tempfile.mkdtemp())
+    run_toolpath(scene.with_overrides(["process.workpiece_radius=0.05"]), d / "warm", fmt="nc")
+    base = status("VmRSS")
+    prog = run_toolpath(scene, d / "o", fmt="nc")
+    print(json.dumps({"estimate": nc_memory(scene, prog.points),
+                      "rss": status("VmHWM") - base}))
+''')
+
+#: (what, probe, arguments of the small and the large run)
+_RUNS = {
+    "diffuse": (_RENDER_PROBE, ["diffuse", "render.diffuse.resolution=256", "render.diffuse.spp=4"],
+                ["diffuse", "render.diffuse.resolution=512", "render.diffuse.spp=4"]),
+    "interferometer": (_RENDER_PROBE,
+                       ["interferometer", "render.interferometer.field_of_view=[-0.1,-0.1,0.1,0.1]",
+                        "render.interferometer.pixel=0.0005"],
+                       ["interferometer", "render.interferometer.field_of_view=[-0.2,-0.2,0.2,0.2]",
+                        "render.interferometer.pixel=0.0005", "simulation.region=[-0.2,-0.2,0.2,0.2]"]),
+    "nc": (_NC_PROBE, ["3600"], ["14400"]),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("what", list(_RUNS))
+def test_estimates_within_1_5x_of_the_peak_at_two_sizes(what, tmp_path):
+    """The diffuse render (a 4096^2 image at 300 spp was estimated at 897 MiB and killed at
+    12 GiB), the interferometer and the NC program's writing and verification (4.2x over
+    its estimate): each estimate within 1.5x of the measured peak at two sizes, and the
+    larger run's peak above the smaller's (the sizes drive the memory)."""
+    probe, small, large = _RUNS[what]
+    peaks = []
+    for args in (small, large):
+        p = subprocess.run([sys.executable, "-c", probe, *args], capture_output=True, text=True,
+                           cwd=tmp_path, timeout=900)
+        assert p.returncode == 0, p.stderr[-800:]
+        r = json.loads(p.stdout.strip().splitlines()[-1])
+        assert r["estimate"] / 1.5 <= r["rss"] <= 1.5 * r["estimate"], (what, args, r)
+        peaks.append(r["rss"])
+    assert peaks[1] > peaks[0], (what, peaks)
+
+
+def test_the_diffuse_estimate_refuses_the_image_that_was_killed():
+    """4096 x 4096 pixels of the turned part: about 1 kB per pixel in the spectral
+    variant, far above the 897 MiB once estimated."""
+    from render_inspect.render import DiffuseConfig, diffuse_memory
+
+    dcfg = DiffuseConfig(resolution=4096, spp=300)
+    assert diffuse_memory(dcfg, (401, 401)) > 16 * 2 ** 30
+    assert diffuse_memory(dcfg, (401, 401), spectral=False) < 3 * 2 ** 30

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -134,17 +135,24 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
                    for args in arg_lists]
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(futures)
-        for fut in as_completed(futures, loop=client.loop):
-            out[index[fut.key]] = fut.result()
-            counter.step()
-            fut.release()
+        try:
+            for fut in as_completed(futures, loop=client.loop):
+                out[index[fut.key]] = fut.result()
+                counter.step()
+                fut.release()
+        except BaseException:
+            # stopped: no tile not yet started starts (running ones cannot be stopped)
+            with contextlib.suppress(Exception):
+                client.cancel(futures)
+            raise
         return out
     import dask
     from dask.diagnostics import Callback
 
     shared_d = [dask.delayed(v, traverse=False) if isinstance(v, (EnvelopePath, CutPath)) else v
                 for v in shared]
-    tasks = [dask.delayed(fn, pure=False)(*shared_d, *args) for args in arg_lists]
+    running = _Running()
+    tasks = [dask.delayed(running.wrap(fn), pure=False)(*shared_d, *args) for args in arg_lists]
     keys = {t.key for t in tasks}
 
     def posttask(key, result, dsk, state, worker_id):
@@ -152,7 +160,45 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
             counter.step()
 
     with Callback(posttask=posttask):
-        return list(dask.compute(*tasks, scheduler="threads", num_workers=workers or os.cpu_count() or 1))
+        try:
+            return list(dask.compute(*tasks, scheduler="threads",
+                                     num_workers=workers or os.cpu_count() or 1))
+        except BaseException:
+            # a stop (or a failed tile) ends the main thread's wait at once, but the pool's
+            # threads finish the tiles they run, writing into the store: wait for them, so
+            # that the output folder is removed after its last write, not before
+            running.wait_idle(DRAIN_S)
+            raise
+
+
+#: how long a stopped threaded run waits for the tiles its threads are cutting, s
+DRAIN_S = 120.0
+
+
+class _Running:
+    """Counts the calls of a function running in the pool's threads."""
+
+    def __init__(self):
+        self._n = 0
+        self._cond = threading.Condition()
+
+    def wrap(self, fn):
+        def tracked(*a):
+            with self._cond:
+                self._n += 1
+            try:
+                return fn(*a)
+            finally:
+                with self._cond:
+                    self._n -= 1
+                    self._cond.notify_all()
+        tracked.__name__ = getattr(fn, "__name__", "tile")
+        return tracked
+
+    def wait_idle(self, timeout: float) -> bool:
+        """Wait until no call runs (at most ``timeout`` s); returns whether none does."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._n == 0, timeout=timeout)
 
 
 def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: int,
@@ -235,7 +281,8 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
                 c[t.row // f0:t.row // f0 + tc.shape[0], t.col // f0:t.col // f0 + tc.shape[1]] = tc
             for k in range(tile_levels + 1, levels + 1):
                 s, c = coarsen(s, c, 2)
-                group[f"levels/{k}/{name}"][...] = means(s, c)
+                with cancel.deferred():  # zarr's I/O thread finishes the write first
+                    group[f"levels/{k}/{name}"][...] = means(s, c)
     timing["levels"] = time.perf_counter() - t0
     return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing,
                       _merge_cut(parts, shape, stride) if isinstance(ep, CutPath) else {})

@@ -23,7 +23,13 @@ the progress display, ``_summary`` the summaries on stdout and ``_main`` the ent
 
 from __future__ import annotations
 
-from ._args import (
+# first of all, before the slow imports: a signal during start-up ends with one line
+from .. import _early_signals
+
+if _early_signals.is_program():
+    _early_signals.install()
+
+from ._args import (  # noqa: E402
     _add_out_args,
     _add_scene_args,
     _add_verbosity,

@@ -11,7 +11,7 @@ import sys
 import time
 import traceback
 
-from .. import __version__
+from .. import __version__, _early_signals
 from ..core import cancel
 from ..core.cancel import Terminated
 from ..core.errors import RenderInspectError
@@ -127,12 +127,7 @@ def main(argv=None) -> int:
         not in ("", "0")
     old_signals = {}
     cancel.clear()
-    for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
-                         (signal.SIGHUP, _on_terminate)):
-        try:
-            old_signals[sig] = signal.signal(sig, handler)
-        except (ValueError, OSError):  # not the main thread: leave the handlers alone
-            pass
+    _early_signals.command(args.command)
     prefix = f"render-inspect {args.command}"
     t0 = time.perf_counter()
     reporter = _reporter(args)
@@ -143,6 +138,14 @@ def main(argv=None) -> int:
         log.handlers = [rich_handler]
     t_start = time.monotonic()
     try:
+        # the handlers are put in place inside this block, so that a signal arriving
+        # right after them is reported like any other
+        for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
+                             (signal.SIGHUP, _on_terminate)):
+            try:
+                old_signals[sig] = signal.signal(sig, handler)
+            except (ValueError, OSError):  # not the main thread: leave the handlers alone
+                pass
         with reporter as rep:
             old = set_reporter(rep)
             try:
@@ -210,6 +213,7 @@ def main(argv=None) -> int:
               f"({_traceback_hint(parser)})", file=sys.stderr)
         return 1
     finally:
+        _early_signals.finished()
         for sig, handler in old_signals.items():
             signal.signal(sig, handler)
         cancel.clear()

@@ -22,6 +22,7 @@ from ._analytic import (
     ToricConfig,
 )
 from ._base import Surface
+from ._bounds import HeightBound, height_interval, max_height
 from ._compound import Compound, CompoundConfig
 from ._expression import ExpressionConfig, ExpressionSurface
 from ._heightmap import HeightMapConfig, HeightMapSurface
@@ -50,4 +51,5 @@ __all__ = ["Surface", "SinusoidalGrid", "Plane", "Sphere", "Toric", "Biconic", "
            "make_surface", "register_design", "design_types", "design_config_union",
            "DesignType", "DesignConfig", "SinusoidalGridConfig", "PlaneConfig", "SphereConfig",
            "ToricConfig", "BiconicConfig", "CompoundConfig", "ExpressionConfig",
-           "HeightMapConfig", "LensletArrayConfig", "LensletRingsConfig"]
+           "HeightMapConfig", "LensletArrayConfig", "LensletRingsConfig",
+           "HeightBound", "height_interval", "max_height"]

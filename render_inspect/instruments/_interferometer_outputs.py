@@ -108,10 +108,13 @@ def interferometer_needs(grid, icfg, *, slope=None) -> tuple[int, str, list]:
         else None
     nbytes = interferometer_memory(geom, icfg, mesh_cells=cells, max_slope=max_slope,
                                    grid_pixel=grid.pixel)
-    what = (f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, "
-            f"{icfg.subsamples}^2 rays each)")
-    drivers = [Driver("render.interferometer.subsamples", icfg.subsamples, 2, limit=(1, 8)),
-               Driver("render.interferometer.pixel", geom["pixel"], -2, "mm")]
+    rays = (f"{icfg.subsamples}^2 rays each" if icfg.subsamples is not None else
+            "rays sub-sampled by the design's slopes")
+    what = f"the interferometer ({geom['nx']} x {geom['ny']} camera pixels, {rays})"
+    drivers = [Driver("render.interferometer.pixel", geom["pixel"], -2, "mm")]
+    if icfg.subsamples is not None:  # (automatic sub-sampling has no value to lower)
+        drivers.insert(0, Driver("render.interferometer.subsamples", icfg.subsamples, 2,
+                                 limit=(1, 8)))
     return nbytes, what, drivers
 
 

@@ -26,6 +26,8 @@ from ._atomic import (
                       write_json,
                       write_marker,
 )
+from ._discard import discard_unused, discarding_new_folder
+from ._special import not_a_file
 from ._exr import exr_placement, read_exr, write_exr
 from ._frames import FRAME_CHANNELS, read_frames_exr, write_frames_exr
 from ._heightmap import heightmap_attrs, read_heightmap_exr, write_heightmap_exr
@@ -75,7 +77,7 @@ from ..core.programs import register_program_reader
 from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
-from ._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
+from ._zarr import ZarrHeightMap, check_store_tree, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
 from ..core.plugins import import_private_modules
@@ -86,7 +88,7 @@ register_program_reader(read_program)
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
 
-__all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
+__all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
            "check_output_path", "check_output_dir", "claim_output_dir", "read_marker", "write_marker", "MARKER",
            "write_json", "json_safe", "open_lock_file",
            "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",
@@ -99,7 +101,7 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "check_exr", "check_npy",
            "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file",
            "exr_placement", "block_sums", "coarsen", "level_count", "means", "preview",
-           "ZarrHeightMap", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
+           "ZarrHeightMap", "check_store_tree", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",

@@ -52,6 +52,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..core.errors import InputError
+from ._discard import discard_unused
 from ._atomic_write import (
     _umask,
     atomic_write_bytes,
@@ -324,6 +325,7 @@ def claim_output_dir(out, *, command: str, overwrite: bool = False, option: str 
                              f"entries: {shown}) and {what}, not by {command}; choose a new "
                              f"or empty folder, or pass --overwrite to write there anyway "
                              f"(the files there are left in place)")
+    fresh = not target.exists()
     try:
         target.mkdir(parents=True, exist_ok=True)
         marker = read_marker(target)
@@ -334,6 +336,8 @@ def claim_output_dir(out, *, command: str, overwrite: bool = False, option: str 
              "commands": dict(sorted(commands.items()))}
         atomic_write_text(target / MARKER, json.dumps(d, indent=2, sort_keys=True) + "\n")
     except OSError as err:
+        if fresh:  # a folder this call made is not left behind empty
+            discard_unused(target, (MARKER,))
         raise InputError(f"{option} {_shown(out_text)}: cannot write there "
-                         f"({err.strerror or err})") from None
+                         f"({err.strerror or err} while writing {MARKER})") from None
     return target

@@ -29,6 +29,7 @@ from ..core.errors import InputError
 from ._atomic import _umask
 from ._limits import check_exr
 from ._pyramid import heightmap_block_sums, level_count, means
+from ._write_errors import write_errors
 
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
              "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "name",
@@ -122,10 +123,10 @@ def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | N
                        "overview_factor": float(overview_factor or 0),
                        "render_inspect_attrs_json": json.dumps({"overview_factor": int(overview_factor or 0)})}
             parts = [OpenEXR.Part(dict(header), dict(chans), "heightmap"), OpenEXR.Part(oheader, dict(ov), "overview")]
-            with OpenEXR.File(parts) as f:
+            with write_errors(path), OpenEXR.File(parts) as f:
                 f.write(str(tmp))
         else:
-            with OpenEXR.File(dict(header), dict(chans)) as f:
+            with write_errors(path), OpenEXR.File(dict(header), dict(chans)) as f:
                 f.write(str(tmp))
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)

@@ -27,6 +27,7 @@ import numpy as np
 from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
+from ._special import not_a_file
 
 __all__ = ["check_npy", "check_npz", "check_zip", "check_x3p", "check_exr", "read_json_file",
            "check_frames",
@@ -96,11 +97,11 @@ def _refuse_size(what: str, path, desc: str, nbytes: float, budget) -> None:
 
 def _file(path, what: str) -> Path:
     path = Path(path)
-    try:
-        if not path.is_file():
-            raise InputError(f"{what}: file not found: {str(path)!r}")
-    except OSError as err:
-        raise InputError(f"{what}: cannot use {str(path)!r} ({err.strerror})") from None
+    problem = not_a_file(path)
+    if problem == "not found":
+        raise InputError(f"{what}: file not found: {str(path)!r}")
+    if problem is not None:
+        raise InputError(f"{what}: {str(path)!r} {problem}")
     return path
 
 

@@ -47,6 +47,7 @@ from ._limits import (
     reading_for,
 )
 from ._registry import formats, reader, register_reader
+from ._special import not_a_file
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
 from ._zarr import ZarrHeightMap, zarr_read_overhead
@@ -411,8 +412,11 @@ def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, or
         a pixel that is not > 0, no valid height.
     """
     path = Path(path)
+    problem = None if path.suffix.lower() == ".zarr" and path.is_dir() else not_a_file(path)
+    if problem is not None and problem != "not found":  # a pipe, a device, a folder
+        raise InputError(f"measured file {str(path)!r} {problem}")
     fn = reader("measured", path)
-    if not (path.is_file() or (path.suffix.lower() == ".zarr" and path.is_dir())):
+    if problem is not None:
         raise InputError(f"measured file not found: {str(path)!r}")
     # a reader registered from another module of io/ names itself (its module)
     lib = _LIBRARY.get(path.suffix.lower(), getattr(fn, "__module__", "render_inspect"))

@@ -30,6 +30,7 @@ zstd-1 0.58 s / 75 MB and zstd-1 0.87 s / 113 MB; reading one channel back takes
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import stat
@@ -37,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core import cancel
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.errors import InputError
 from ..core.limits import MAX_ABS_MM, PIXEL_RANGE_MM
@@ -128,6 +130,19 @@ def _coordinates(grp, shape, pixel: float, origin, factor: int) -> None:
                         "axis": axis.upper()})
 
 
+def _whole(fn):
+    """Run ``fn`` with a stop (Ctrl-C, SIGTERM) held back until it returns: zarr writes
+    metadata and chunks on its own I/O thread, and a stop that ended the main thread's
+    wait for it would leave that thread writing on into an output folder already
+    removed (:func:`render_inspect.core.cancel.deferred`)."""
+    @functools.wraps(fn)
+    def run(*a, **k):
+        with cancel.deferred():
+            return fn(*a, **k)
+    return run
+
+
+@_whole
 def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
     """Create an empty store (arrays filled with NaN) and return its zarr group.
 
@@ -174,6 +189,7 @@ def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, l
     return g
 
 
+@_whole
 def consolidate(path: str | Path) -> None:
     """Gather the store's metadata into its root ``zarr.json`` (what ``xarray.open_zarr``
     reads first; zarr-python's consolidated metadata, not yet part of the Zarr format 3
@@ -187,6 +203,7 @@ def consolidate(path: str | Path) -> None:
         zarr.consolidate_metadata(str(path))
 
 
+@_whole
 def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndarray, *, attrs: dict,
                          chunk: int = 1024, levels: int | None = None) -> Path:
     """Write a height map that is in memory into a new store (residual formed in float64)."""
@@ -209,12 +226,55 @@ def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndar
     return Path(path)
 
 
+@_whole
 def set_store_attrs(path: str | Path, **attrs) -> None:
     """Add (or replace) group attributes of a store."""
     import zarr
 
     zarr.open_group(str(path), mode="r+", use_consolidated=False).attrs.update(attrs)
     consolidate(path)
+
+
+#: most bytes of the root group's metadata (its attributes and the consolidated metadata of
+#: every array; a store render_inspect writes holds a few tens of kB)
+MAX_ROOT_METADATA_BYTES = 16 * MIB_TO_BYTES
+#: most bytes of any other metadata file (one array's or group's)
+MAX_METADATA_BYTES = MIB_TO_BYTES
+
+
+def check_store_tree(path, *, what: str = "heightmap store") -> None:
+    """A store read as untrusted input, checked before zarr reads a byte of it: every
+    entry inside the folder is a plain folder or a regular file (no symbolic link,
+    whatever it points to, so that nothing outside the store is read through it; no
+    device, pipe or socket), and no metadata file is larger than
+    :data:`MAX_ROOT_METADATA_BYTES` (the root ``zarr.json``) or
+    :data:`MAX_METADATA_BYTES` (any other), so that a huge JSON file is refused before it
+    is parsed.  Chunk sizes are checked when an array is read (``_check_array``)."""
+    root = Path(path)
+    for top, dirs, files in os.walk(root, followlinks=False):
+        for n in dirs + files:
+            full = os.path.join(top, n)
+            rel = os.path.relpath(full, root)
+            try:
+                st = os.lstat(full)
+            except OSError as err:
+                raise InputError(f"{what} {str(root)!r}: {rel!r} cannot be read "
+                                 f"({err.strerror or err})") from None
+            if stat.S_ISLNK(st.st_mode):
+                raise InputError(f"{what} {str(root)!r}: {rel!r} is a symbolic link; a store's "
+                                 f"arrays, groups and files must lie inside it (copy the "
+                                 f"store with the links resolved): refused")
+            if stat.S_ISDIR(st.st_mode):
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                raise InputError(f"{what} {str(root)!r}: {rel!r} is not a regular file (a "
+                                 f"device, a pipe or a socket): refused")
+            if n in _METADATA:
+                limit = MAX_ROOT_METADATA_BYTES if top == str(root) else MAX_METADATA_BYTES
+                if st.st_size > limit:
+                    raise InputError(f"{what} {str(root)!r}: {rel!r} is {st.st_size} bytes; "
+                                     f"metadata files are at most {limit // MIB_TO_BYTES} MiB "
+                                     f"(refused before it is read)")
 
 
 class ZarrHeightMap:
@@ -237,6 +297,7 @@ class ZarrHeightMap:
             raise InputError(f"{what} not found: {str(path)!r}")
         self.path = path
         self.what = what
+        check_store_tree(path, what=what)
         for name in CHANNELS:
             self._check_declared_type(name)
         try:

@@ -36,6 +36,7 @@ from ._material import (
     uncut_chip_thickness,
 )
 from ._machines import MACHINE_PRESET_NAMES, MACHINE_PRESETS, machine_preset
+from ._program_limits import PROGRAM_LIMITS, ProgramLimits, program_limits_of
 from ._memory import BURR_BLOCK_BYTES, in_memory_bytes, tiled_bytes
 from ._part_map import part_heightmap
 from ._metrics import (merge_moments, metrics_from_moments, residual_metrics, tile_abs_dev,
@@ -44,7 +45,7 @@ from ._sculpt import sculpt_line_profile, sculpt_surface, target_line, vibration
 from ._servo import split_commands
 from ._tiled import TILE, Tile, compute_tile, plan_tiles
 
-__all__ = ["HeightMap", "simulate_turning", "path_radial_slope", "residual_metrics",
+__all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", "simulate_turning", "path_radial_slope", "residual_metrics",
            "design_grid", "apply_burrs", "burr_map", "sharp_edges", "sculpt_line_profile",
            "sculpt_surface", "target_line", "vibration_phases", "split_commands",
            "machined_sharp_edges", "Axis", "Coupling", "Machine", "FollowedPath",

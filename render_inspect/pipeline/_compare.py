@@ -40,7 +40,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
 from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  export_program, json_safe, read_surface, writer)
+                  export_program, json_safe, not_a_file, read_surface, writer)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
                          difference_noise, difference_order_check, difference_profiles,
                          difference_stats, fringe_order_check, level_map, line_profile,
@@ -526,11 +526,11 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     """
     inputs = (measured,) if measured is not None else ()
     check_output_dir(out, overwrite=overwrite, command="compare", scene=scene, inputs=inputs)
-    # a file, or a heightmap.zarr store (a folder)
-    if measured is not None and not (Path(measured).is_file() or (
-            Path(measured).suffix.lower() == ".zarr" and Path(measured).is_dir())):
-        raise InputError(f"--measured file not found: {str(measured)!r} (a height map file, "
-                         f"or a .zarr store folder)")
+    problem = None if measured is None or (Path(measured).suffix.lower() == ".zarr" and
+                                           Path(measured).is_dir()) else not_a_file(measured)
+    if problem is not None:  # missing, a pipe, a device, a folder (a store is a .zarr folder)
+        m = f"file not found: {str(measured)!r}" if problem == "not found" else f"{str(measured)!r} {problem}"
+        raise InputError(f"--measured {m} (a height map file, or a .zarr store folder)")
     if isinstance(repeat, bool) or int(repeat) != repeat or not 1 <= int(repeat) <= MAX_REPEAT:
         raise InputError(f"--repeat must be an integer from 1 to {MAX_REPEAT}, got {repeat!r}")
     repeat = int(repeat)

@@ -97,6 +97,8 @@ def check_render_limits(scene, *, kind: str = "all") -> dict:
             need[name] = check_memory(nbytes, what=what, budget=budget, drivers=drivers)
     if kind in ("diffuse", "all"):
         dcfg = scene.render.diffuse
+        # a part with tool marks is rendered spectrally (the turned-aluminium BSDF)
+        spectral = tool_marks(scene) is not None
         for view in ("macro", "micro"):
             window = None
             if view == "micro" and dcfg.window is not None:
@@ -109,7 +111,8 @@ def check_render_limits(scene, *, kind: str = "all") -> dict:
                         f"micro image would be {ny_img} pixels high (at most {MAX_FILM_SIDE}); "
                         f"widen the window or lower the resolution")
             need[f"diffuse_{view}"] = check_memory(
-                diffuse_memory(dcfg, shape, view=view, window=window, pixel=sim.pixel),
+                diffuse_memory(dcfg, shape, view=view, window=window, pixel=sim.pixel,
+                               spectral=spectral),
                 what=f"the diffuse {view} image ({dcfg.resolution} pixels wide)", budget=budget,
                 drivers=[Driver("render.diffuse.resolution", dcfg.resolution, 2, limit=(16, None))])
     return need

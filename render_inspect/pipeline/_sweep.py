@@ -52,11 +52,10 @@ from ..core.errors import InputError, RenderInspectError, SceneError
 from ..core.limits import format_bytes, memory_budget
 from ..core.units import MIB_TO_BYTES, MM_TO_NM
 from ..io import (
-    atomic_output_dir,
-    atomic_write_bytes,
+    MARKER, atomic_output_dir, atomic_write_bytes,
     atomic_write_text,
     check_output_path,
-    claim_output_dir,
+    claim_output_dir, discarding_new_folder,
     write_json,
 )
 from ..processes import check_budget, process_of
@@ -501,6 +500,7 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
             c = stack.enter_context(dask_client(
                 client=client, scheduler=scheduler, workers=workers, tasks=n_todo, wait=False,
                 memory_per_task=max(t["memory_bytes"] for t in tasks), budget=memory_budget(None)))
+        stack.enter_context(discarding_new_folder(out, (MARKER, ".lock", "sweep.toml")))
         claim_output_dir(out, command="sweep", overwrite=overwrite, resumable=_is_sweep_folder)
         with folder_lock(out):
             atomic_write_bytes(out / "sweep.toml", sweep_path.read_bytes())

@@ -11,13 +11,14 @@ from ..core.errors import InputError
 from ..design import make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
-from ..processes import findings_summary, process_of
+from ..processes import check_budget, findings_summary, process_of
 from ..report import draw_figure
-from ..toolpath import compare_with_plan, verify_blocks
+from ..toolpath import compare_with_plan, plan_memory, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
 __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
-           "check_links", "write_program_report", "log_program_summary"]
+           "check_links", "write_program_report", "log_program_summary", "nc_memory",
+           "NC_BYTES_PER_POINT"]
 
 log = logging.getLogger("render_inspect")
 
@@ -67,6 +68,26 @@ def check_links(process, cfg, surface, plan) -> dict | None:
                          what="the planned program", check_cuts=False)
 
 
+#: Bytes per point of writing an NC program, reading it back and verifying it block by
+#: block, beyond the planned path (:func:`~render_inspect.toolpath.plan_memory`):
+#: measured as the peak resident set of ``toolpath --format nc`` of the turned
+#: sinusoidal grid at 0.36 and 1.44 million points, 267 bytes per point in all
+#: (tests/test_memory_estimate.py)
+NC_BYTES_PER_POINT = 170
+
+
+def nc_memory(scene, points: int) -> int:
+    """Check the memory of writing, reading back and verifying an NC program of
+    ``points`` points (with the planned path held) against the scene's budget; returns
+    the bytes."""
+    n = int(points)
+    need = int(plan_memory(n) + n * NC_BYTES_PER_POINT)
+    return check_budget(scene.simulation, need,
+                        what=f"the NC program ({n:,} points written, read back and verified)",
+                        drivers=[], hint="plan fewer points (process.points_per_rev, "
+                                         "process.arc_length, process.workpiece_radius)")
+
+
 def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
@@ -88,6 +109,8 @@ def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
         surface = make_surface(scene.design)
         plan = plan_program(scene, surface=surface)
         links = process.program_links(cfg, surface, plan)
+        if fmt == "nc":  # before the program is written, read back and verified
+            nc_memory(scene, plan.program.points)
         written = export_program(plan.program, Path(tmp), fmt=fmt,
                                  header=process.program_header(cfg), links=links)
         facts = process.program_facts(cfg, plan)

@@ -42,6 +42,7 @@ from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, M
                         PartModel, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, material_of
+from ._program_part import design_part, machine_limits
 from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
 
@@ -382,15 +383,18 @@ class SculptProcess(Process):
         box = ("box", float(x_lines[0]) - d.pitch_x / 2, float(y_edges[0]),
                float(x_lines[-1]) + d.pitch_x / 2, float(y_edges[-1]))
         prog = plan.program
-        return PartModel(surface.height, box, stock=float(cfg.process.depth_of_cut),
-                         half_width=_half_width(cfg.tool),
-                         max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
+        return design_part(surface, box, stock=float(cfg.process.depth_of_cut),
+                           half_width=_half_width(cfg.tool),
+                           max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
 
     def program_limits(self, cfg) -> MachineLimits:
-        """The cutting speed as set is the largest feed the program may use."""
-        return MachineLimits(source="process.feed_mm_per_min (the cutting speed)",
-                             feed_mm_per_min=float(max(cfg.process.feed_mm_per_min,
-                                                       cfg.process.plunge_feed_mm_per_min)))
+        """The machine's largest feed and travel (``machine.preset``); a plunge or
+        retract enters the stock with the cutting edge and runs no faster than the
+        cutting speed ``process.feed_mm_per_min``."""
+        # sculpturing runs on the ideal machine preset only (its check_with)
+        return machine_limits("ideal",
+                              plunge_feed_mm_per_min=float(cfg.process.feed_mm_per_min),
+                              plunge_source="the cutting speed process.feed_mm_per_min")
 
     def program_facts(self, cfg, plan: Plan) -> dict:
         prog = plan.program

@@ -43,6 +43,7 @@ from ..toolpath import (
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._machine import machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
+from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
@@ -316,9 +317,9 @@ def turning_part(cfg, surface, path=None) -> PartModel:
     longest step."""
     p = cfg.process
     step = None if path is None else longest_step(path.x, path.y, path.z)
-    return PartModel(surface.height, ("disc", 0.0, 0.0, float(p.workpiece_radius)),
-                     stock=float(p.depth_of_cut), half_width=Tool.from_config(cfg.tool).half_width,
-                     max_step=step)
+    return design_part(surface, ("disc", 0.0, 0.0, float(p.workpiece_radius)),
+                       stock=float(p.depth_of_cut),
+                       half_width=Tool.from_config(cfg.tool).half_width, max_step=step)
 
 
 def turning_limits(cfg) -> MachineLimits:
@@ -336,9 +337,10 @@ def turning_limits(cfg) -> MachineLimits:
                           ("Z", "z_velocity_limit_mm_s", z_axis)):
         lims = [v for v in (ax.velocity_limit, getattr(p, key)) if v is not None]
         vel[axis] = min(lims) if lims else None
-    return MachineLimits(source=f"machine.preset {cfg.machine.preset!r} with process.spindle_rpm "
-                                f"{p.spindle_rpm:g} and the [process] velocity limits",
-                         velocity_mm_s=vel, spindle_rpm=float(p.spindle_rpm))
+    return machine_limits(cfg.machine.preset,
+                          also=f" with process.spindle_rpm {p.spindle_rpm:g} and the "
+                               f"[process] velocity limits",
+                          velocity_mm_s=vel, spindle_rpm=float(p.spindle_rpm))
 
 
 def compensation_variants(cfg) -> VariantPair:

@@ -58,9 +58,21 @@ __all__ = ["DiffuseConfig", "diffuse_scene_spec", "diffuse_mesh", "environment_m
 #: (segmentation fault) when it splits a task of >= 2^32 samples itself.  Larger requests
 #: are rendered in passes of at most this many samples and averaged.
 MAX_SAMPLES_PER_PASS = 2 ** 26
-#: Bytes per image pixel while rendering (Mitsuba's film: RGB, alpha and weight as
-#: float32; the image returned; the float64 sum of the passes)
-FILM_BYTES_PER_PIXEL = 20 + 12 + 24
+#: Bytes per image pixel while rendering the turned-aluminium BSDF (a spectral variant):
+#: Mitsuba's film and the Dr.Jit arrays of the wavefront that stay per pixel (they do not
+#: grow with the samples per pixel), the image returned and the float64 sum of the
+#: passes.  Measured as the peak resident set of a design render of the turned
+#: sinusoidal grid at 256^2, 512^2 and 1024^2 pixels (llvm spectral variant, 4-32 spp):
+#: 960-1510 bytes per pixel above a fixed part (tests/test_memory_estimate.py checks it
+#: at two sizes).
+FILM_BYTES_PER_PIXEL = 1024
+#: The same for an RGB variant (a part without tool marks, or no spectral variant):
+#: 8192 x 8192 pixels x 1 spp peaked at 4.3 GiB, 4096 x 4096 x 300 spp at 2.2 GiB
+#: (llvm_ad_rgb, docs/limits.md)
+FILM_BYTES_PER_PIXEL_RGB = 96
+#: Bytes a diffuse render holds whatever its size: Mitsuba and Dr.Jit loaded, the scene
+#: and its JIT kernels (the intercept of the same measurements: 160-300 MB)
+DIFFUSE_FIXED_BYTES = 300 * 2 ** 20
 #: Bytes per mesh cell (render_inspect's arrays and Mitsuba's copy: 2 triangles, a vertex
 #: with its normal)
 MESH_BYTES_PER_CELL = 2 * (24 + 24)
@@ -232,9 +244,11 @@ def mitsuba_seed(seed: int, index: int = 0) -> int:
     return (z ^ (z >> 31)) & 0xFFFFFFFF
 
 
-def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=None) -> int:
-    """Bytes a diffuse view needs at its peak: the film (with the passes' sum) and the
-    mesh (render_inspect's arrays and Mitsuba's copy).
+def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=None,
+                   spectral: bool = True) -> int:
+    """Bytes a diffuse view needs at its peak: Mitsuba's fixed part, the film and the
+    wavefront's per-pixel arrays (with the passes' sum) and the mesh (render_inspect's
+    arrays and Mitsuba's copy).
 
     Parameters
     ----------
@@ -245,6 +259,10 @@ def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=
     window : [x0, y0, x1, y1], optional
         The micro view's window (mm) and ``pixel`` the height map's pixel (mm): the mesh
         covers only the window.
+    spectral : bool
+        The part is rendered with the turned-aluminium BSDF (its tool marks) in a
+        spectral variant (:data:`FILM_BYTES_PER_PIXEL`); False: an RGB variant
+        (:data:`FILM_BYTES_PER_PIXEL_RGB`).
     """
     res = int(dcfg.resolution)
     ny_img = res
@@ -256,7 +274,8 @@ def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=
         ny = min(ny, int((y1 - y0) / pixel) + 3)
     stride = max(1, -(-max(ny, nx) // (2 * res)))
     cells = -(-ny // stride) * -(-nx // stride)
-    return int(res * ny_img * FILM_BYTES_PER_PIXEL + cells * MESH_BYTES_PER_CELL)
+    per_pixel = FILM_BYTES_PER_PIXEL if spectral else FILM_BYTES_PER_PIXEL_RGB
+    return int(DIFFUSE_FIXED_BYTES + res * ny_img * per_pixel + cells * MESH_BYTES_PER_CELL)
 
 
 def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",

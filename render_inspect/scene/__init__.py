@@ -406,6 +406,8 @@ def read_scene_text(path: Path) -> str:
         line = raw[:err.start].count(b"\n") + 1
         raise SceneError(f"scene file {str(path)!r} is not UTF-8 text (byte {err.start}, line "
                          f"{line}: {raw[err.start:err.start + 1]!r}); save it as UTF-8") from None
+    if text.startswith("\ufeff"):  # a byte-order mark some editors write: not part of the text
+        text = text[1:]
     if "\x00" in text:
         raise SceneError(f"scene file {str(path)!r} contains NUL bytes: it is a binary file, not "
                          f"a TOML scene")

@@ -79,6 +79,16 @@ class PartModel:
     max_step : float or None
         The longest cutting move of the planned program, mm: a longer one is not part of
         the cut (a move between cuts that does not go through the clearance plane).
+    top : float or None
+        An upper bound on the design's heights over the outline, mm (the design's true
+        highest point, :func:`render_inspect.design.max_height`); None: the highest of
+        the heights on a :data:`_TOP_SAMPLES` grid (a narrow peak between the samples is
+        missed).
+    bound : callable or None
+        ``bound(x0, y0, x1, y1) -> high``: an upper bound on the design's heights over
+        each box (arrays, mm; :func:`render_inspect.design.height_interval`), or None
+        when the design has none (a rapid is then checked against the design's heights
+        sampled densely along it).
     """
 
     height: object
@@ -86,6 +96,8 @@ class PartModel:
     stock: float = 0.0
     half_width: float = 0.0
     max_step: float | None = None
+    top: float | None = None
+    bound: object = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +116,12 @@ class MachineLimits:
         The largest speed of the C axis, rev/min.
     travel : dict
         Axis -> (lowest, highest) position, mm (C has none).
+    plunge_feed_mm_per_min : float or None
+        The largest feed of a plunge or retract the scene's physics allows (a plunge
+        enters the stock with the cutting edge: it cuts, no faster than the cutting
+        speed), whatever feed the program was written with.
+    plunge_source : str
+        Where ``plunge_feed_mm_per_min`` comes from, for messages.
     """
 
     source: str = "the machine"
@@ -111,6 +129,8 @@ class MachineLimits:
     velocity_mm_s: dict = field(default_factory=dict)
     spindle_rpm: float | None = None
     travel: dict = field(default_factory=dict)
+    plunge_feed_mm_per_min: float | None = None
+    plunge_source: str = "the cutting speed"
 
 
 def _grid(outline, n: int):
@@ -143,12 +163,15 @@ def longest_step(x, y, z, line=None) -> float:
 
 def part_top(part: PartModel, *, program_z=None) -> float:
     """The part's highest point, mm: the design's highest height over the outline
-    (sampled on a :data:`_TOP_SAMPLES` grid) or the highest programmed cutting point,
-    whichever is higher, plus the stock."""
-    x, y = _grid(part.outline, _TOP_SAMPLES)
-    with np.errstate(invalid="ignore"):
-        z = np.asarray(part.height(x, y), dtype=np.float64)
-    top = float(np.nanmax(z)) if np.isfinite(z).any() else -math.inf
+    (``part.top``, its true highest point, or else sampled on a :data:`_TOP_SAMPLES`
+    grid) or the highest programmed cutting point, whichever is higher, plus the stock."""
+    if part.top is not None and math.isfinite(part.top):
+        top = float(part.top)
+    else:
+        x, y = _grid(part.outline, _TOP_SAMPLES)
+        with np.errstate(invalid="ignore"):
+            z = np.asarray(part.height(x, y), dtype=np.float64)
+        top = float(np.nanmax(z)) if np.isfinite(z).any() else -math.inf
     if program_z is not None and np.size(program_z):
         top = max(top, float(np.nanmax(program_z)))
     if not math.isfinite(top):
@@ -351,6 +374,13 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     if i is not None:
         note(i, f"plunges and retracts run at the plunge feed "
                                f"({links.plunge_feed:g} mm/min), this one at {feed_mm_min[i]:g} mm/min")
+    pf = limits.plunge_feed_mm_per_min
+    if pf is not None:
+        i = _first(feedmove & (feed_mm_min > pf * (1 + 1e-6) + 1e-9))
+        if i is not None:
+            note(i, f"a plunge or retract at {feed_mm_min[i]:g} mm/min, over the {pf:g} mm/min "
+                    f"of {limits.plunge_source} (it enters the stock with the cutting edge; "
+                    f"process.plunge_feed_mm_per_min)")
     for a, (lo, hi_) in limits.travel.items():
         if a in blocks.axes:
             v = blocks.axes[a]
@@ -359,6 +389,8 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
                 note(i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
                                        f"of {limits.source}")
     _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
+    # 6. every rapid against the design itself, along the move
+    gap = _rapids_above_design(blocks, part, rapid, note)
     if problems:
         i, _, text = min(problems)
         _fail(what, blocks, i, text)
@@ -368,6 +400,7 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             "retracts": int((role == ROLE_RETRACT).sum()), "cuts": int((role == ROLE_CUT).sum()),
             "clearance_z_mm": zc, "part_top_mm": top, "clearance_above_part_mm": zc - top,
             "rapids_above_part_min_mm": float(rz.min() - top) if rz.size else None,
+            "rapids_above_design_min_mm": gap,
             "cut_below_design_max_nm": max(below_max, 0.0) * MM_TO_NM if check_cuts else None,
             "max_feed_mm_per_min": float(np.nanmax(feed_mm_min[fm])) if fm.any() else 0.0,
             "plunge_feed_mm_per_min": float(links.plunge_feed)}
@@ -462,3 +495,80 @@ def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, wha
         if i is not None:
             note(i, f"the {a} axis moves at {v[i]:.6g} mm/s, over the {vmax:g} mm/s "
                                    f"of {limits.source}")
+
+
+#: longest piece of a rapid checked against the design at a time, mm
+_RAPID_PIECE = 0.005
+#: pieces of all rapids checked at most (longer rapids are cut into fewer, longer pieces)
+_RAPID_PIECES = 1 << 21
+
+
+def _rapids_above_design(blocks: Blocks, part: PartModel, rapid, note) -> float | None:
+    """The least height of any rapid above the design (stock included) along its whole
+    move, mm; notes the first rapid that comes within :data:`MIN_CLEARANCE` of it.
+
+    Each rapid is cut into pieces no longer than :data:`_RAPID_PIECE`; the design under a
+    piece (its box widened by the tool's half width) is bounded by ``part.bound`` where
+    the design has one, else sampled at the piece's ends and middle.  A turning rapid
+    moves C and X together: its pieces follow the arc."""
+    idx = np.flatnonzero(rapid)
+    idx = idx[idx > 0]
+    if not idx.size:
+        return None
+    ax = blocks.axes
+    turning = blocks.dialect == "turning"
+    lengths = []
+    for i in idx:
+        if turning:
+            r = max(abs(ax["X"][i - 1]), abs(ax["X"][i]))
+            arc = abs(math.radians(ax["C"][i] - ax["C"][i - 1])) * r
+            lengths.append(abs(ax["X"][i] - ax["X"][i - 1]) + arc)
+        else:
+            lengths.append(math.hypot(ax["X"][i] - ax["X"][i - 1], ax["Y"][i] - ax["Y"][i - 1]))
+    lengths = np.nan_to_num(np.asarray(lengths, dtype=np.float64), nan=0.0)
+    piece = max(_RAPID_PIECE, float(lengths.sum()) / _RAPID_PIECES)
+    worst, worst_i = math.inf, None
+    hw = float(part.half_width)
+    for i, length in zip(idx, lengths):
+        n = int(math.ceil(length / piece)) if length > 0 else 0
+        t = np.linspace(0.0, 1.0, 2 * n + 1) if n else np.zeros(1)
+
+        def at(name, tt, i=i):
+            return ax[name][i - 1] + (ax[name][i] - ax[name][i - 1]) * tt
+        z = at("Z", t)
+        if turning:
+            c = np.radians(at("C", t))
+            xs, ys = at("X", t) * np.cos(c), at("X", t) * np.sin(c)
+        else:
+            xs, ys = at("X", t), at("Y", t)
+        lowest = np.minimum(z[:-1:2], z[2::2]) if n else z
+        if part.bound is not None and n:
+            # each piece: its ends and middle; its box widened by the tool's half width
+            # and by the piece's sagitta (a turning piece is an arc)
+            pad = hw + piece
+            px = np.stack([xs[:-1:2], xs[1::2], xs[2::2]])
+            py = np.stack([ys[:-1:2], ys[1::2], ys[2::2]])
+            inside = _inside(part.outline, px, py, hw + piece).any(axis=0)
+            if not inside.any():
+                continue
+            hi = np.asarray(part.bound(px.min(0)[inside] - pad, py.min(0)[inside] - pad,
+                                       px.max(0)[inside] + pad, py.max(0)[inside] + pad),
+                            dtype=np.float64)
+            g = lowest[inside] - (hi + part.stock)
+        else:
+            inside = _inside(part.outline, xs, ys, hw)
+            if not inside.any():
+                continue
+            try:
+                with np.errstate(invalid="ignore"):
+                    h = np.asarray(part.height(xs[inside], ys[inside]), dtype=np.float64)
+            except InputError:
+                continue
+            g = z[inside] - (np.where(np.isfinite(h), h, -np.inf) + part.stock)
+        if g.size and float(g.min()) < worst:
+            worst, worst_i = float(g.min()), int(i)
+    if worst_i is not None and worst < MIN_CLEARANCE - _ROUND:
+        note(worst_i, f"the rapid passes {worst:.6g} mm above the design (stock included) at its "
+                      f"lowest, within the {MIN_CLEARANCE} mm the clearance plane keeps: it could "
+                      f"go through the part")
+    return worst if math.isfinite(worst) else None

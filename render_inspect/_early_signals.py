@@ -1,0 +1,68 @@
+"""Signals before the command line's own handlers are in place and after they are gone.
+
+The command line (:mod:`render_inspect.cli`) stops cleanly on Ctrl-C, SIGTERM and SIGHUP
+while a command runs.  Before that, while Python imports the package and its libraries
+(numpy, numba, the command's modules: a second or more), and after it, while the process
+exits, Python's own handling applies: a traceback for Ctrl-C, an exit by the signal
+without a word for SIGTERM.  :func:`install` replaces it, for the ``render-inspect``
+program only (never for a program that imports the package), with a handler that prints
+one line (the command, what stopped it, and that nothing was written yet or that the run
+had finished) and exits with the documented code: 130 for SIGINT, 143 for SIGTERM and
+SIGHUP.
+
+Nothing is written before the command's handlers are in place (output folders are opened
+under them), so the process may end at once; stdout is flushed first.
+
+Only the standard library is imported here, so that this module runs first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+
+__all__ = ["install", "command", "finished", "is_program"]
+
+_STATE = {"prefix": "render-inspect", "finished": False}
+_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+def _handler(signum, frame):
+    what = "interrupted" if signum == signal.SIGINT else "terminated"
+    if _STATE["finished"]:
+        state = "the run had finished (its output, if any, was written completely)"
+    else:
+        state = "it was starting up: nothing was written"
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    with contextlib.suppress(OSError):
+        os.write(2, f"{_STATE['prefix']}: {what}; {state}\n".encode("utf-8", "replace"))
+    os._exit(130 if signum == signal.SIGINT else 143)
+
+
+def is_program() -> bool:
+    """Whether this process is the ``render-inspect`` program (its console script, or
+    ``python -m render_inspect.cli``, while Python locates the module and ``sys.argv[0]``
+    is ``-m``), not a program that imports the package."""
+    first = sys.argv[0] if sys.argv else ""
+    return first == "-m" or os.path.basename(first) == "render-inspect"
+
+
+def install() -> None:
+    """Put the one-line handler in place for SIGINT, SIGTERM and SIGHUP (main thread only)."""
+    for name in _SIGNALS:
+        with contextlib.suppress(ValueError, OSError, AttributeError):
+            signal.signal(getattr(signal, name), _handler)
+
+
+def command(name: str) -> None:
+    """The command being run, for the message (``render-inspect simulate``)."""
+    _STATE["prefix"] = f"render-inspect {name}"
+    _STATE["finished"] = False
+
+
+def finished() -> None:
+    """The command has returned: a signal now says that the run had finished."""
+    _STATE["finished"] = True
