@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from ._analytic import Plane, SinusoidalGrid
 from ._compound import Compound
 from ._expression import _ALIASES, _CONSTANTS, ExpressionSurface, _flatten, _literal
@@ -41,8 +42,8 @@ _MAX_LEVELS = 40
 #: grid of the dense evaluation (points along the outline's longer side)
 _DENSE = 1025
 #: relative and absolute padding of an interval bound for floating-point rounding
-_PAD_REL = 1e-12
-_PAD_ABS = 1e-12
+_PAD_REL = 1e-12  # not a unit conversion
+_PAD_ABS = 1e-12  # not a unit conversion
 
 
 class HeightBound(tuple):
@@ -363,7 +364,7 @@ def _dense_max(surface, outline):
     ny = int(math.ceil((by1 - by0) / h)) + 1
     xs = bx0 + h * np.arange(nx)
     low, slope = -math.inf, 0.0
-    rows = max(1, (1 << 20) // max(nx, 1))
+    rows = max(1, MIB_TO_BYTES // max(nx, 1))  # about a million samples a block
     for a in range(0, ny, rows):
         ys = by0 + h * np.arange(a, min(ny, a + rows))
         X, Y = np.meshgrid(xs, ys)

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.units import M_TO_MM
+from ..core.units import M_TO_MM, MIB_TO_BYTES, MM_TO_NM, MM_TO_UM
 from ._limits import check_file_values, check_x3p
 from ._registry import reader, register_reader
 
@@ -44,7 +44,7 @@ PROFILE_UNITS = {"m": 1e3, "mm": 1.0, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "nm"
 PROFILE_TEXT_SUFFIXES = (".csv", ".txt", ".tsv", ".asc", ".prf", ".xy")
 
 #: relative scatter of the position steps a trace may have and still count as uniform
-SPACING_TOLERANCE = 1e-3
+SPACING_TOLERANCE = 1e-3  # not a unit conversion
 
 _WHAT = "measured profile"
 
@@ -227,8 +227,8 @@ def _units_refusal(path, x, z, pos_u, h_u) -> str:
         pu = pos_u or u
         hu = h_u or u
         read.append(f"as {u}: a {length * PROFILE_UNITS[pu]:.4g} mm trace, step "
-                    f"{step * PROFILE_UNITS[pu] * 1e3:.4g} um, heights spanning "
-                    f"{pv * PROFILE_UNITS[hu] * 1e6:.4g} nm")
+                    f"{step * PROFILE_UNITS[pu] * MM_TO_UM:.4g} um, heights spanning "
+                    f"{pv * PROFILE_UNITS[hu] * MM_TO_NM:.4g} nm")
     stated = f"states only the {' and '.join(said)}" if said else "does not state its units"
     return (f"{path}: the file {stated}; say which with --units um|mm|nm (or "
             f"--units POSITION,HEIGHT such as um,nm). Its numbers: positions "
@@ -288,7 +288,7 @@ def _x3p_feature(path: Path) -> str | None:
     try:
         with zipfile.ZipFile(path) as zf:
             name = next((n for n in zf.namelist() if n.lower().endswith("main.xml")), None)
-            if name is None or zf.getinfo(name).file_size > 64 * 2 ** 20:
+            if name is None or zf.getinfo(name).file_size > 64 * MIB_TO_BYTES:
                 return None
             text = zf.read(name).decode("utf-8", errors="replace")
     except (zipfile.BadZipFile, OSError, ValueError, KeyError):

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
-from ..core.units import MIN_TO_S
+from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
 from ._program_scan import ScannedProgram, scan_program
 
@@ -41,7 +41,7 @@ __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_M
 #: how long a rapid takes (the spindle turns meanwhile)
 RAPID_MM_PER_MIN = 2000.0
 #: largest distance of an arc's chords from the arc (G02 / G03 are cut as chords), mm
-ARC_TOLERANCE_MM = 1e-6
+ARC_TOLERANCE_MM = 1e-6  # not a unit conversion
 #: how X is read: as written ("auto": inferred from the part's size)
 X_MODES = ("auto", "radius", "diameter")
 #: the most points an imported turning path may have once the spindle's turning is
@@ -240,7 +240,7 @@ def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, o
             raise InputError(f"{sp.path}:{line}: the arc (G0{sp.motion[r]}) has no centre: give "
                              f"{ia} / {ib} or R")
         xa, xb, u, r0, r1 = _arc_points(p0, p1, centre, cw, tol)
-        if abs(r0 - r1) > max(1e-3, 1e-3 * r0):
+        if abs(r0 - r1) > max(1e-3, 1e-3 * r0):  # not a unit conversion
             raise InputError(f"{sp.path}:{line}: the arc's end lies {abs(r0 - r1):.4g} mm off "
                              f"its circle (radius {r0:.6g} mm at the start)")
         pieces_idx.append(np.full(u.size, j))
@@ -288,8 +288,8 @@ def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
         best = min(errs, key=errs.get)
         return best, (f"X is the {best}: both readings fit the part (largest X {big:g} mm, "
                       f"part radius {r:g} mm), and Z follows the design better so (Z - design "
-                      f"varies by {errs[best] * 1e6:.4g} nm as {best}, "
-                      f"{errs['diameter' if best == 'radius' else 'radius'] * 1e6:.4g} nm "
+                      f"varies by {errs[best] * MM_TO_NM:.4g} nm as {best}, "
+                      f"{errs['diameter' if best == 'radius' else 'radius'] * MM_TO_NM:.4g} nm "
                       f"otherwise; process.program_x sets it)")
     return "radius", (f"X is the radius: the cutting moves reach X = {big:g} mm, within the "
                       f"part's radius {r:g} mm (process.program_x = 'diameter' reads it as the "
@@ -484,7 +484,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
 def _css_rpm(s, clamp, r, css, rpm):
     """The spindle speed of constant surface speed ``s`` (m/min) at radius ``r`` (mm),
     clamped; ``rpm`` where ``css`` is off."""
-    surface = np.where(np.isfinite(s), s, 0.0) * 1000.0 / (2 * math.pi)
+    surface = np.where(np.isfinite(s), s, 0.0) * M_TO_MM / (2 * math.pi)
     return np.where(css, np.minimum(clamp, surface / np.maximum(np.abs(r), 1e-9)), rpm)
 
 

@@ -19,13 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError
 from ._program_kernel import G_GROUP, GROUP_NAMES, INIT_STATE, ROW_FIELDS, scan_piece
 
 __all__ = ["ScannedProgram", "scan_program", "PIECE_BYTES", "INCH_MM"]
 
 #: bytes read and parsed at a time (the scanner's memory does not grow with the program)
-PIECE_BYTES = 1 << 20
+PIECE_BYTES = MIB_TO_BYTES
 #: one inch, mm
 INCH_MM = 25.4
 

@@ -57,6 +57,7 @@ import math
 import numpy as np
 
 from ..core.errors import InputError, check_positive
+from ..core.units import MM_TO_UM
 from ._periods import dominant_periods
 
 __all__ = ["GAUSSIAN_ALPHA", "LAMBDA_C_SERIES", "gaussian_profile_weights",
@@ -174,8 +175,8 @@ def roughness_profile(x, z, *, spacing: float, lambda_s: float | None, lambda_c:
             raise InputError(f"lambda_s ({lambda_s:g} mm) must be smaller than lambda_c "
                              f"({lambda_c:g} mm)")
         if spacing > lambda_s / 2:
-            warnings_.append(f"the sampling ({spacing * 1e3:.3g} um) is coarser than half of "
-                             f"lambda_s ({lambda_s * 1e3:.3g} um): the instrument's own lateral "
+            warnings_.append(f"the sampling ({spacing * MM_TO_UM:.3g} um) is coarser than half of "
+                             f"lambda_s ({lambda_s * MM_TO_UM:.3g} um): the instrument's own lateral "
                              f"resolution, not the lambda_s filter, sets the short-wavelength "
                              f"limit (ISO 21920-3 asks for a sampling of lambda_s / 5 or finer)")
         p = profile_gaussian_filter(z0, spacing=spacing, cutoff=lambda_s)
@@ -212,7 +213,7 @@ def rdq(r, *, spacing: float) -> float:
     r = np.asarray(r, dtype=np.float64)
     if r.size < 7:
         return float("nan")
-    d = (r[6:] - 9 * r[5:-1] + 45 * r[4:-2] - 45 * r[2:-4] + 9 * r[1:-5] - r[:-6]) / (60 * spacing)
+    d = (r[6:] - 9 * r[5:-1] + 45 * r[4:-2] - 45 * r[2:-4] + 9 * r[1:-5] - r[:-6]) / (60 * spacing)  # not a unit conversion: the 7-point stencil's 60
     d = d[np.isfinite(d)]
     return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..core.units import MM_TO_UM
 from .. import __version__
 from ..io import atomic_output_dir, check_output_dir, json_safe, read_profile
 from ..metrology import analyze_profile, parse_profile_filter
@@ -67,7 +68,7 @@ def run_analyze_profile(path, out, *, units=None, form: str = "plane", filter_sp
     metrics["command"] = "analyze"
     pm = metrics["profile"]
     title = (f"{path.name}: {m.n_measured} of {m.z.size} points measured, spacing "
-             f"{m.spacing * 1e3:.4g} um; Ra {pm['Ra_nm']:.4g} nm, Rq {pm['Rq_nm']:.4g} nm, "
+             f"{m.spacing * MM_TO_UM:.4g} um; Ra {pm['Ra_nm']:.4g} nm, Rq {pm['Rq_nm']:.4g} nm, "
              f"Rz {pm['Rz_nm']:.4g} nm (lambda_s {metrics['filter']['lambda_s_mm'] or 0:g}, "
              f"lambda_c {metrics['filter']['lambda_c_mm']:g} mm, "
              f"{metrics['filter']['chosen_by']})")

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..core.units import MIN_TO_S, MM_TO_UM
+
 __all__ = ["toolpath_summary", "characterise_summary", "render_summary", "command_summary"]
 
 
@@ -29,10 +31,10 @@ def toolpath_summary(facts: dict) -> list[tuple[str, str]]:
     if "lines" in tp:
         rows.append(("lines", _num(tp.get("lines"))))
     if tp.get("feed_per_rev_mm") is not None:
-        rows.append(("feed per revolution", _num(tp["feed_per_rev_mm"] * 1e3, "um")))
+        rows.append(("feed per revolution", _num(tp["feed_per_rev_mm"] * MM_TO_UM, "um")))
     dur = tp.get("duration_s", tp.get("cut_time_s"))
     if dur is not None:
-        rows.append(("cutting time", f"{dur / 60:.1f} min" if dur >= 120 else _num(dur, "s")))
+        rows.append(("cutting time", f"{dur / MIN_TO_S:.1f} min" if dur >= 120 else _num(dur, "s")))
     for key, label in (("chordal_error_max_nm", "chordal error, max"),
                        ("gouge_max_nm", "gouge, max")):
         if tp.get(key) is not None:

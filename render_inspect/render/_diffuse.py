@@ -20,6 +20,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
 from ..core.progress import report
+from ..core.units import MIB_TO_BYTES
 from ..mesh import disc_mesh, heightmap_mesh, window_indices
 # the engine-neutral scene (importable from here as before; _default_window for pipeline/)
 from ._diffuse_scene import (
@@ -72,7 +73,7 @@ FILM_BYTES_PER_PIXEL = 1024
 FILM_BYTES_PER_PIXEL_RGB = 96
 #: Bytes a diffuse render holds whatever its size: Mitsuba and Dr.Jit loaded, the scene
 #: and its JIT kernels (the intercept of the same measurements: 160-300 MB)
-DIFFUSE_FIXED_BYTES = 300 * 2 ** 20
+DIFFUSE_FIXED_BYTES = 300 * MIB_TO_BYTES
 #: Bytes per mesh cell (render_inspect's arrays and Mitsuba's copy: 2 triangles, a vertex
 #: with its normal)
 MESH_BYTES_PER_CELL = 2 * (24 + 24)
