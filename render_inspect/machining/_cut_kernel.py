@@ -38,12 +38,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit, prange
 
-from ..core.errors import check_range
+from ..core.errors import InputError, check_range
 from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cutting import cut_turning_mechanics, mechanics_path
-from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
-                        _polar_step, path_radial_slope)
+from ._envelope import (BLOCK, EnvelopePath, _edge_dz, _lookup_table, _nominal_spiral, _nose_arc,
+                        _polar_step, edge_table, edge_window, path_radial_slope)
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
@@ -153,14 +153,18 @@ class CutPath:
 
 
 def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_min: float = 0.0,
-                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None) -> CutPath:
+                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None,
+                edge=None) -> CutPath:
     """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
-    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`)."""
+    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`; ``edge``: the
+    measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose)."""
     theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
     Rc, hw = _nose_arc(nose_radius, half_width)
     a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
     W = mechanics_window(Rc, f, m, h_min, hw)
+    etab = edge_table(edge, Rc, hw)
+    W = edge_window(W, Rc, hw, etab)
     seg = np.empty((theta.size - 1, 4))
     seg[:, 0] = rho[:-1]
     seg[:, 1] = rho[1:] - rho[:-1]
@@ -169,7 +173,7 @@ def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_
     tab, tt0, tw = _lookup_table(theta)
     dth = (theta[-1] - theta[0]) / (theta.size - 1)
     ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
-                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W))
+                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
     return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow))
 
 
@@ -241,12 +245,16 @@ def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
 
 
 @njit(cache=True, inline="always")
-def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2):
+def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge):
     """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
-    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic)."""
+    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic; the
+    measured edge's height table ``edge`` added where given)."""
     i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
     if abs(d) <= hw:
-        return True, seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d), rj, d * sgn, i, fr
+        zj = seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d)
+        if edge.size > 0:
+            zj += _edge_dz(edge, d)
+        return True, zj, rj, d * sgn, i, fr
     return False, 0.0, 0.0, 0.0, 0, 0.0
 
 
@@ -270,23 +278,27 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
 
 @njit(cache=True, inline="always")
 def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            h_min, kappa, side_flow, st):
+            h_min, kappa, side_flow, st, edge):
     """The passes of one side in time order straight through the state; (state, count).
     A pass whose arc provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc,
-    a lower bound of the arc, less 1e-12 mm for rounding) changes nothing and skips the
-    square root."""
+    a lower bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
+    entry) changes nothing and skips the square root."""
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
     n = 0
     half_inv_rc = 0.5 / Rc
+    e_low = edge[2] if edge.size > 0 else 0.0
     for j in range(j0, j1 + 1):
         s = phi + TWO_PI * j
         i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
         if abs(d) <= hw:
             n += 1
             zt = seg[i, 2] + fr * seg[i, 3]
-            if zt + d * d * half_inv_rc - 1e-12 >= st[0] + h_min:
+            if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + h_min:
                 continue
-            st = _step(st, s, zt + Rc - math.sqrt(Rc2 - d * d), i, fr, d * sgn, h_min, kappa, side_flow)
+            zj = zt + Rc - math.sqrt(Rc2 - d * d)
+            if edge.size > 0:
+                zj += _edge_dz(edge, d)
+            st = _step(st, s, zj, i, fr, d * sgn, h_min, kappa, side_flow)
             if n >= _MAX_BUF:
                 break
     return st, n
@@ -311,14 +323,14 @@ def _window(t_first, t_last, a, cc, phi, r, sgn, W):
 
 @njit(cache=True, inline="always")
 def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            bs, bz, bi, bf, bd):
+            bs, bz, bi, bf, bd, edge):
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
     n = 0
     for j in range(j0, j1 + 1):
         if n >= bs.size:
             break
         s = phi + TWO_PI * j
-        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2)
+        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge)
         if ok:
             bs[n] = s
             bz[n] = zj
@@ -346,7 +358,7 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
 @njit(cache=True, nogil=True)
 def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
              h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0, sc0, sc1,
-             machined, pass_theta, added, stats, bufs, ibufs):
+             machined, pass_theta, added, stats, bufs, ibufs, edge):
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material."""
@@ -379,23 +391,23 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
             phi2 -= TWO_PI
         if r < Wp + hw:
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp, Rc,
-                         Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+                         Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
             n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0, Wp,
-                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             n = n1 + n2
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
                         side_flow, st)
         else:
             st, n = _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp,
-                            Rc, Rc2, hw, h_min, kappa, side_flow, st)
+                            Rc, Rc2, hw, h_min, kappa, side_flow, st, edge)
         if n == 0 and Wp < hw + dev:
             # no pass within the window (beyond the path's ends): every pass that reaches
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0,
-                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
             n2 = 0
             if r < hw + dev:
                 n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0,
-                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
                         side_flow, st)
         surf, h_cut, sw, iw, fw, dw, add, piled = st
@@ -434,7 +446,7 @@ def _buffer_size(W, dev, f):
 
 def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
               h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
-              sc1, machined, pass_theta, added, stats):
+              sc1, machined, pass_theta, added, stats, edge):
     """Rows row0 .. row0 + rows - 1, columns col0 .. col0 + cols - 1 of the whole grid
     (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
     rows = machined.shape[0]
@@ -444,7 +456,7 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
         ibufs = np.empty((2, nb), dtype=np.int64)
         _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
                  h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
-                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs)
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge)
 
 
 #: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
@@ -500,7 +512,7 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, 
     fn(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc, ep.dev, ep.f,
        ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow, grooves.ku, grooves.kv,
        grooves.ph, float(grooves.scale), fast_cos, float(origin[0]), float(origin[1]), float(pixel), int(start[0]),
-       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats)
+       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats, ep.edge)
     return stats
 
 
@@ -565,6 +577,9 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=N
 def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
     """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
     ep = cp.ep
+    if ep.edge.size:
+        raise InputError("tool.edge_profile / tool.waviness: a measured cutting edge needs a path "
+                         "that feeds towards the spindle axis; remove the edge keys for this path")
     theta = ep.theta
     rho = np.append(ep.seg[:, 0], ep.seg[-1, 0] + ep.seg[-1, 1])
     z = np.append(ep.seg[:, 2], ep.seg[-1, 2] + ep.seg[-1, 3])

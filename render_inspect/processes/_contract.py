@@ -225,6 +225,8 @@ class Envelope:
         What :meth:`Process.tiled_facts` needs of the path (the followed path), or None.
     plots : dict
         Figures of the cut known before the tiles run (file name -> figure spec).
+    edge : EdgeProfile or None
+        The measured cutting edge (``toolpath.EdgeProfile``); None: a circular nose.
     """
 
     path: object
@@ -238,6 +240,7 @@ class Envelope:
     facts: dict = field(default_factory=dict)
     followed: object = None
     plots: dict = field(default_factory=dict)
+    edge: object = None
 
 
 @dataclass(frozen=True)

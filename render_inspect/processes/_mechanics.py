@@ -117,7 +117,7 @@ def material_cut_path(path, tool, resp):
     """The followed path prepared for the cutting-mechanics kernel with the material's
     minimum chip thickness, elastic recovery and side flow."""
     return prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width,
-                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow)
+                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow, edge=tool.edge)
 
 
 def grooves_of(cfg, resp) -> Grooves:
@@ -246,7 +246,7 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
     pass_theta = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
-                                    pixel=sim.pixel, half_width=tool.half_width)
+                                    pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
     else:
         # the fast kernel of the direct model (machining.cut_turning_mechanics +
         # finish_surface), in row blocks

@@ -63,7 +63,9 @@ class TurningProcessConfig(Section):
     feed_mm_per_min: float = Field(0.5, ge=1e-6, le=1000)
     workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
     inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
-    compensation: Literal["none", "normal", "z"] = "z"
+    compensation: Literal["none", "normal", "z", "edge"] = Field(
+        "z", description="tool-radius compensation: none, normal, z (the circular nose) or edge "
+                         "(z against the measured edge of tool.edge_profile / tool.waviness; sts)")
     sampling: Literal["constant_angle", "constant_arc", "hybrid"] = "constant_angle"
     points_per_rev: int = Field(3600, ge=8, le=10_000_000, description="N, constant-angle sampling")
     arc_length: float = Field(0.005, gt=0, description="mm, constant-arc sampling step")
@@ -103,6 +105,13 @@ class TurningProcessConfig(Section):
     def check_with(self, scene) -> None:
         """Cross-checks with the rest of the scene (called by the scene's validator)."""
         rc = scene.tool.nose_radius
+        if self.compensation == "edge":
+            if getattr(self, "kind", None) != "sts":
+                raise ValueError(f"compensation = 'edge' is planned for process.kind = 'sts', received "
+                                 f"kind {getattr(self, 'kind', None)!r}; use 'z' there")
+            if not (scene.tool.edge_profile or scene.tool.waviness):
+                raise ValueError("compensation = 'edge' plans the path against the measured cutting "
+                                 "edge: set tool.edge_profile or tool.waviness")
         if self.feed_per_rev >= rc:
             raise ValueError(
                 f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
@@ -308,7 +317,7 @@ def compensation_variants(cfg) -> VariantPair:
     overcuts the slopes by about ``Rc slope^2 / 2`` (Li et al. 2018, Fig. 16)."""
     c = cfg.process.compensation
     comp = c if c != "none" else "z"
-    name = {"z": "Z-direction", "normal": "normal-direction"}[comp]
+    name = {"z": "Z-direction", "normal": "normal-direction", "edge": "measured-edge Z"}[comp]
     return VariantPair(
         Variant("compensated", f"{name} compensation", {"process.compensation": comp}),
         Variant("uncompensated", "no compensation", {"process.compensation": "none"}),
@@ -469,7 +478,8 @@ class TiledTurningProcess(TurningProcess):
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
                         texture=None if resp is None else texture_of(cfg, resp),
                         burrs=material_burr_args(cfg, resp, cut_path, tool),
-                        facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}))
+                        facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}),
+                        edge=tool.edge)
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         facts, plots = dict(env.facts), dict(env.plots)
