@@ -233,3 +233,96 @@ def test_material_kernel_and_tiles_use_the_edge():
     tile = np.empty((whole.shape[0], whole.shape[1] - 64))
     envelope_fill(sl, region[:2], 0.002, tile, start=(0, 64))
     np.testing.assert_array_equal(tile, whole[:, 64:])
+
+
+_WAVY_SCENE = """
+name = "wavy_bowl"
+[design]
+type = "sphere"
+radius = -1.0
+[tool]
+nose_radius = 0.5
+waviness = [[300, 12, 40]]
+[process]
+kind = "sts"
+spindle_rpm = 100
+feed_mm_per_min = 0.2
+workpiece_radius = 0.6
+points_per_rev = 720
+compensation = "{comp}"
+[simulation]
+region = [0.2, -0.006, 0.45, 0.006]
+pixel = 0.002
+"""
+
+
+@pytest.mark.slow
+def test_simulate_reports_the_edge_imprint_and_its_compensation(tmp_path):
+    """``simulate`` of a wavy edge: ``metrics["tool_edge"]`` and ``tool_edge.png``; planned
+    for the circular nose the form error is the predicted imprint, planned against the edge
+    it is gone."""
+    import json
+    import subprocess
+    import sys
+
+    out = {}
+    for comp in ("z", "edge"):
+        scene = tmp_path / f"{comp}.toml"
+        scene.write_text(_WAVY_SCENE.format(comp=comp))
+        r = subprocess.run([sys.executable, "-m", "render_inspect.cli", "-q", "simulate", str(scene),
+                            "--out", str(tmp_path / comp)], capture_output=True, text=True, timeout=900)
+        assert r.returncode == 0, r.stderr
+        assert (tmp_path / comp / "tool_edge.png").stat().st_size > 1000
+        m = json.loads((tmp_path / comp / "metrics.json").read_text())
+        out[comp] = m["tool_edge"]
+    z, e = out["z"], out["edge"]
+    assert z["compensation"] == "z" and e["compensation"] == "edge"
+    assert z["imprint_predicted_rms_nm"] > 150
+    assert z["form_error_rms_nm"] == pytest.approx(z["imprint_predicted_rms_nm"], rel=0.1)
+    assert e["form_error_rms_nm"] < 0.05 * z["form_error_rms_nm"]
+
+
+
+_GPU_EDGE_CHECK = '''
+import math, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_tool_edge import _Bowl, _spiral, _wavy
+from render_inspect.core.toolpath import ToolPath
+from render_inspect.machining._envelope import prepare_envelope, envelope_fill
+from render_inspect.machining._envelope_gpu import cuda_available, envelope_fill_gpu
+from render_inspect.toolpath import z_compensation
+assert cuda_available()
+th, rho = _spiral(0.06, 0.0, 0.002, 90)
+z = z_compensation(_Bowl(1.0, 1), th, rho, 0.05, max_slope=0.1, half_width=0.025)
+ep = prepare_envelope(ToolPath(th, rho, z, th), nose_radius=0.05, half_width=0.025, edge=_wavy(200.0, 12.0))
+assert ep.uniform and ep.edge.size
+region, shape = (-0.01, -0.008, 0.01, 0.009), (18, 21)
+cpu = envelope_fill(ep, region[:2], 0.001, np.empty(shape))
+gpu = envelope_fill_gpu(ep, region[:2], 0.001, np.empty(shape))
+assert np.array_equal(np.isnan(cpu), np.isnan(gpu))
+print(float(np.nanmax(np.abs(cpu - gpu))))
+'''
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("simulator", [
+    pytest.param(True, id="cuda-simulator"),
+    pytest.param(False, id="cuda-device", marks=pytest.mark.gpu),
+])
+def test_gpu_kernel_cuts_the_measured_edge(simulator):
+    """The GPU twin of the envelope kernel reads the same edge table (across the axis)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from render_inspect.machining._envelope_gpu import cuda_available
+
+    if not simulator and not cuda_available():
+        pytest.skip("no CUDA device")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1" if simulator else "0")
+    p = subprocess.run([sys.executable, "-c", _GPU_EDGE_CHECK, str(Path(__file__).parent)], env=env,
+                       capture_output=True, text=True, timeout=900)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert float(p.stdout.strip().splitlines()[-1]) < 1e-12

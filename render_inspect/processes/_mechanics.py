@@ -282,6 +282,18 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
         figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=cfg.name)
+    if "tool_wear" in facts:
+        from ._wear_facts import roughness_against_radius
+
+        facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
+            cfg, machined, design, region, sim.pixel)
+    if tool.edge is not None:
+        from ._edge_facts import edge_facts
+
+        facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
+                                                   design, region, sim.pixel, name=cfg.name)
+        if plots:
+            figs.update(edge_figs)
     return Turned(machined=machined, design=design, timing=timing, facts=facts,
                   followed=None if fp.ideal else cut_path, followed_path=fp,
                   pass_theta=pass_theta, plots=figs)
@@ -302,4 +314,8 @@ def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, object, d
                          "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
     if not fp.ideal:
         facts["following_error"] = following_error_stats(fp.errors)
+    if getattr(cfg.tool, "wear", False):  # the worn edge at each point of the path
+        from ._wear_facts import wear_path
+
+        cut_path, facts["tool_wear"] = wear_path(cfg, path, cut_path)
     return cut_path, fp, facts

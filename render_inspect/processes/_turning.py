@@ -112,6 +112,13 @@ class TurningProcessConfig(Section):
             if not (scene.tool.edge_profile or scene.tool.waviness):
                 raise ValueError("compensation = 'edge' plans the path against the measured cutting "
                                  "edge: set tool.edge_profile or tool.waviness")
+        if getattr(scene.tool, "wear", False):
+            from ..machining._wear import WEAR_RATES
+
+            if scene.material.preset not in WEAR_RATES:
+                raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
+                                 f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
+                                 f"{scene.material.preset!r}")
         if self.feed_per_rev >= rc:
             raise ValueError(
                 f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
@@ -316,8 +323,18 @@ def compensation_variants(cfg) -> VariantPair:
     (``"z"`` when the scene says ``"none"``) against none.  Without compensation the nose
     overcuts the slopes by about ``Rc slope^2 / 2`` (Li et al. 2018, Fig. 16)."""
     c = cfg.process.compensation
+    if c == "edge":
+        # the measured edge: the path planned against it against the circular nose's
+        return VariantPair(
+            Variant("compensated", "Z compensation against the measured edge", {"process.compensation": "edge"}),
+            Variant("uncompensated", "Z compensation for the circular nose", {"process.compensation": "z"}),
+            key="process.compensation",
+            about=("Tool-edge waviness compensation against none: a path planned for the circular "
+                   "nose leaves the edge's radius deviation at the contact angle, -delta(theta) along "
+                   "the normal, on the part; planned against the measured edge the contact point moves "
+                   "along the real edge and the imprint cancels."))
     comp = c if c != "none" else "z"
-    name = {"z": "Z-direction", "normal": "normal-direction", "edge": "measured-edge Z"}[comp]
+    name = {"z": "Z-direction", "normal": "normal-direction"}[comp]
     return VariantPair(
         Variant("compensated", f"{name} compensation", {"process.compensation": comp}),
         Variant("uncompensated", "no compensation", {"process.compensation": "none"}),
@@ -474,6 +491,9 @@ class TiledTurningProcess(TurningProcess):
         """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
         resp = material_of(cfg.material)
+        if tool.edge is not None:  # the edge itself (the tiles' maps give no imprint figure)
+            facts = {**facts, "tool_edge": {**tool.edge.to_dict(tool.half_angle),
+                                            "compensation": cfg.process.compensation}}
         return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
                         texture=None if resp is None else texture_of(cfg, resp),

@@ -7,7 +7,8 @@ program, data); :func:`~render_inspect.report.kinematics_png`), ``"kinematics"``
 path against a reference; :func:`~render_inspect.report.plot_kinematics`),
 ``"following_error"`` and ``"following_error_map"`` (a machine's following error;
 :mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
-:func:`~render_inspect.report.save_map_png`).
+:func:`~render_inspect.report.save_map_png`) and ``"tool_edge"`` (a measured cutting
+edge and its imprint; :func:`render_inspect.report._edge_plot.plot_tool_edge`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from ._maps import save_map_png
 __all__ = ["draw_figure", "FIGURE_KINDS"]
 
 #: the figure kinds :func:`draw_figure` draws
-FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map")
+FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map", "tool_edge")
 
 
 def draw_figure(spec: dict, png) -> Path:
@@ -44,4 +45,8 @@ def draw_figure(spec: dict, png) -> Path:
                             title=spec.get("title", ""), label=spec.get("label", ""),
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
+    if kind == "tool_edge":
+        from ._edge_plot import plot_tool_edge
+
+        return plot_tool_edge(spec, png)
     raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")

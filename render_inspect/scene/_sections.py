@@ -26,6 +26,12 @@ class ToolConfig(Section):
                           "of the nose radius along the edge angle (added to edge_profile)")
     edge_scale: float = Field(1.0, ge=0, le=100, description="factor on the edge's deviation "
                                                              "(edge_profile and waviness)")
+    wear: bool = Field(False, description="wear the edge along the cut (flank wear and edge radius "
+                                          "against the cutting distance, rates of material.preset)")
+    wear_scale: float = Field(1.0, ge=0, le=1e4, description="factor on the material's wear rates")
+    contact_duty_cycle: float = Field(1.0, gt=0, le=1, description="fraction of the time the edge is "
+                                                                   "in contact (vibration cutting < 1): "
+                                                                   "scales the chemical wear")
 
     @model_validator(mode="after")
     def _edge(self):
@@ -50,8 +56,9 @@ class ToolConfig(Section):
         return d
 
 
-#: the edge keys' defaults (left out of the written scene while they hold them)
-_EDGE_DEFAULTS = {"edge_profile": None, "waviness": None, "edge_scale": 1.0}
+#: the edge and wear keys' defaults (left out of the written scene while they hold them)
+_EDGE_DEFAULTS = {"edge_profile": None, "waviness": None, "edge_scale": 1.0, "wear": False,
+                  "wear_scale": 1.0, "contact_duty_cycle": 1.0}
 
 
 class SimulationConfig(Section):

@@ -1,0 +1,75 @@
+"""Wear of the diamond along the cut: the model's arithmetic, the worn edge along a
+facing spiral and the drift it leaves on the part."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from render_inspect.core.toolpath import ToolPath
+from render_inspect.machining import simulate_turning
+from render_inspect.machining._cut_kernel import cutting_distance
+from render_inspect.machining._wear import (MM_PER_KM, WEAR_RATES, spiral_distance_km, wear_rate,
+                                            wear_state, worn_path)
+
+NM = 1e-6
+
+
+def test_every_rate_is_sourced_or_assumed_within_its_range():
+    for name, r in WEAR_RATES.items():
+        assert r.basis in ("S", "A"), name
+        assert r.flank_range[0] <= r.flank_um_per_km <= r.flank_range[1], name
+        assert r.edge_range[0] <= r.edge_nm_per_km <= r.edge_range[1], name
+    # chemical wear of diamond by iron is the fast one
+    assert WEAR_RATES["die_steel"].chemical
+    assert WEAR_RATES["die_steel"].flank_um_per_km > 100 * WEAR_RATES["al6082"].flank_um_per_km
+
+
+def test_recession_is_the_flank_land_times_tan_clearance():
+    r = wear_rate("al6082")
+    st = wear_state(r, 2.0, clearance_deg=10.0, edge_radius_nm=40.0)
+    vb_mm = r.flank_um_per_km * 2.0 * 1e-3
+    assert st["recession_nm"] == pytest.approx(vb_mm * math.tan(math.radians(10)) / NM)
+    assert st["edge_radius_nm"] == pytest.approx(40.0 + 2.0 * r.edge_nm_per_km)
+
+
+def test_duty_cycle_scales_the_chemical_wear_only():
+    steel, al = wear_rate("die_steel"), wear_rate("al6082")
+    for rate, factor in ((steel, 0.2), (al, 1.0)):
+        cont = wear_state(rate, 1.0)
+        vib = wear_state(rate, 1.0, duty=0.2)
+        assert vib["flank_um"] == pytest.approx(factor * cont["flank_um"])
+
+
+def test_spiral_distance_is_the_path_length():
+    """pi (Rw^2 - r^2) / f against the arc length of the spiral itself."""
+    Rw, f = 2.0, 0.01
+    revs = Rw / f
+    th = np.linspace(0.0, revs * 2 * math.pi, int(revs * 720) + 1)
+    rho = Rw - f * th / (2 * math.pi)
+    s = cutting_distance(th, rho)  # mm
+    k = np.searchsorted(-rho, -0.5)
+    assert spiral_distance_km(rho[k], Rw, f) * MM_PER_KM == pytest.approx(s[k], rel=1e-3)
+
+
+def test_worn_path_leaves_the_drift_on_a_flat_part():
+    """Cut a flat part with the edge worn to each point: the surface rises from the
+    outside in by the recession at the cutting distance of each radius."""
+    rate = wear_rate("die_steel")
+    Rw, f = 0.4, 0.004
+    revs = Rw / f
+    th = np.linspace(0.0, revs * 2 * math.pi, int(revs * 180) + 1)
+    rho = Rw - f * th / (2 * math.pi)
+    path = ToolPath(th, rho, np.zeros_like(th), th)
+    worn, lift = worn_path(path, rate, workpiece_radius=Rw, feed_per_rev=f, scale=200.0)
+    region = (0.05, -0.002, 0.35, 0.002)
+    m0 = simulate_turning(path, nose_radius=0.5, half_width=0.25, region=region, pixel=0.005)
+    m1 = simulate_turning(worn, nose_radius=0.5, half_width=0.25, region=region, pixel=0.005)
+    x = 0.05 + 0.005 * np.arange(m0.shape[1])
+    pred = wear_state(rate, spiral_distance_km(x, Rw, f), scale=200.0)["recession_nm"] * NM
+    drift = (m1 - m0)[m0.shape[0] // 2]
+    assert np.ptp(pred) > 50 * NM
+    # the lift varies along the path by a fraction of a nanometre between passes
+    np.testing.assert_allclose(drift, pred, atol=0.02 * np.ptp(pred))
