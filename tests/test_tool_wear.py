@@ -73,3 +73,67 @@ def test_worn_path_leaves_the_drift_on_a_flat_part():
     assert np.ptp(pred) > 50 * NM
     # the lift varies along the path by a fraction of a nanometre between passes
     np.testing.assert_allclose(drift, pred, atol=0.02 * np.ptp(pred))
+
+
+def test_fit_can_free_the_wear_rate_and_the_waviness_amplitude():
+    """The wear rates' factor, the edge's scale and a harmonic's amplitude are numeric scene
+    keys the fit's free-key mechanism reads from the schema (no change to fit needed)."""
+    from render_inspect.fit import free_parameters, set_value
+    from render_inspect.scene import load_scene, scene_from_dict
+
+    scene = load_scene("sts_fig16_overcut", ["tool.wear=true", "tool.waviness=[[200, 10, 0]]"])
+    params = free_parameters(scene, ["tool.wear_scale", "tool.edge_scale", "tool.waviness.0.0"])
+    assert [p.key for p in params] == ["tool.wear_scale", "tool.edge_scale", "tool.waviness.0.0"]
+    assert params[0].start == 1.0 and params[0].lower == 0.0 and params[2].start == 200.0
+    d = set_value(scene.to_dict(), "tool.waviness.0.0", 350.0)
+    assert scene_from_dict(d).tool.waviness[0][0] == 350.0
+
+
+_WEAR_SCENE = """
+name = "worn_flat"
+[design]
+type = "plane"
+[tool]
+nose_radius = 0.5
+wear = true
+contact_duty_cycle = {duty}
+[process]
+kind = "sts"
+spindle_rpm = 1000
+feed_mm_per_min = 5
+workpiece_radius = 10.0
+points_per_rev = 360
+[simulation]
+region = [0.0, -0.01, 0.3, 0.01]
+pixel = 0.002
+[material]
+preset = "{material}"
+"""
+
+
+@pytest.mark.slow
+def test_simulate_reports_the_worn_edge(tmp_path):
+    """``simulate`` with ``tool.wear``: ``metrics["tool_wear"]`` (the edge at the start and
+    the end, the roughness against the radius) and ``tool_wear.png``; the contact duty cycle
+    of vibration cutting slows the chemical wear on steel, not the wear on aluminium."""
+    import json
+    import subprocess
+    import sys
+
+    got = {}
+    for material in ("die_steel", "al6082"):
+        for duty in (1.0, 0.25):
+            name = f"{material}_{duty}"
+            scene = tmp_path / f"{name}.toml"
+            scene.write_text(_WEAR_SCENE.format(duty=duty, material=material))
+            r = subprocess.run([sys.executable, "-m", "render_inspect.cli", "-q", "simulate", str(scene),
+                                "--out", str(tmp_path / name)], capture_output=True, text=True, timeout=900)
+            assert r.returncode == 0, r.stderr
+            assert (tmp_path / name / "tool_wear.png").stat().st_size > 1000
+            got[name] = json.loads((tmp_path / name / "metrics.json").read_text())["tool_wear"]
+    w = got["die_steel_1.0"]
+    assert w["part_start"]["flank_wear_um"] == 0.0
+    assert w["end"]["edge_radius_nm"] > w["start"]["edge_radius_nm"] > 50.0
+    assert len(w["roughness_against_radius"]) == 8
+    assert got["die_steel_0.25"]["end"]["flank_wear_um"] == pytest.approx(0.25 * w["end"]["flank_wear_um"])
+    assert got["al6082_0.25"]["end"]["flank_wear_um"] == pytest.approx(got["al6082_1.0"]["end"]["flank_wear_um"])

@@ -287,6 +287,10 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
 
         facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
             cfg, machined, design, region, sim.pixel)
+        if plots:
+            from ._wear_facts import wear_figure
+
+            figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
     if tool.edge is not None:
         from ._edge_facts import edge_facts
 

@@ -12,7 +12,7 @@ import numpy as np
 from ..core.units import MM_TO_NM
 from ..machining._wear import spiral_distance_km, wear_rate, wear_state, worn_path
 
-__all__ = ["wear_path", "roughness_against_radius", "WEAR_BANDS"]
+__all__ = ["wear_path", "roughness_against_radius", "wear_figure", "WEAR_BANDS"]
 
 #: radial bands of the roughness against the radius
 WEAR_BANDS = 8
@@ -48,6 +48,7 @@ def wear_path(cfg, program, cut_path):
              "contact_duty_cycle": float(cfg.tool.contact_duty_cycle),
              "start": _state(rate, cfg, float(rho.max()), feed) if rho.size else None,
              "end": _state(rate, cfg, float(rho.min()), feed) if rho.size else None,
+             "part_start": _state(rate, cfg, float(cfg.process.workpiece_radius), feed),
              "part_end": _state(rate, cfg, float(cfg.process.inner_radius), feed),
              "lift_max_nm": float(np.max(lift)) * MM_TO_NM if lift.size else 0.0}
     return worn, facts
@@ -76,3 +77,18 @@ def roughness_against_radius(cfg, machined, design, region, pixel: float, bands:
         out.append({**st, "Sa_nm": float(np.mean(np.abs(e))) * MM_TO_NM,
                     "Sq_nm": float(math.sqrt(np.mean(e * e))) * MM_TO_NM, "samples": int(m.sum())})
     return out
+
+
+def wear_figure(cfg, wear: dict) -> dict:
+    """``tool_wear.png``: the edge (radius, flank wear) over the whole part against the
+    radius, and the simulated roughness in the region's rings."""
+    rate = wear_rate(cfg.material.preset)
+    p = cfg.process
+    r = np.linspace(p.inner_radius, p.workpiece_radius, 200)
+    st = wear_state(rate, spiral_distance_km(r, p.workpiece_radius, p.feed_per_rev), **_args(cfg))
+    rings = wear.get("roughness_against_radius") or []
+    return {"kind": "tool_wear", "r_mm": r, "edge_radius_nm": st["edge_radius_nm"], "flank_um": st["flank_um"],
+            "recession_nm": st["recession_nm"],
+            "ring_r_mm": [b["radius_mm"] for b in rings], "ring_sa_nm": [b["Sa_nm"] for b in rings],
+            "title": f"{cfg.name}: the edge worn along the cut ({cfg.material.preset}, rates "
+                     f"{'assumed' if rate.basis == 'A' else 'sourced'})"}

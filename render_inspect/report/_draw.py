@@ -8,7 +8,8 @@ path against a reference; :func:`~render_inspect.report.plot_kinematics`),
 ``"following_error"`` and ``"following_error_map"`` (a machine's following error;
 :mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
 :func:`~render_inspect.report.save_map_png`) and ``"tool_edge"`` (a measured cutting
-edge and its imprint; :func:`render_inspect.report._edge_plot.plot_tool_edge`).
+edge and its imprint; :func:`render_inspect.report._edge_plot.plot_tool_edge`) and
+``"tool_wear"`` (the edge worn along the cut; ``plot_tool_wear``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from ._maps import save_map_png
 __all__ = ["draw_figure", "FIGURE_KINDS"]
 
 #: the figure kinds :func:`draw_figure` draws
-FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map", "tool_edge")
+FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map", "tool_edge", "tool_wear")
 
 
 def draw_figure(spec: dict, png) -> Path:
@@ -49,4 +50,8 @@ def draw_figure(spec: dict, png) -> Path:
         from ._edge_plot import plot_tool_edge
 
         return plot_tool_edge(spec, png)
+    if kind == "tool_wear":
+        from ._edge_plot import plot_tool_wear
+
+        return plot_tool_wear(spec, png)
     raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")

@@ -9,7 +9,7 @@ import numpy as np
 
 from ._following import _save
 
-__all__ = ["plot_tool_edge"]
+__all__ = ["plot_tool_edge", "plot_tool_wear"]
 
 
 def plot_tool_edge(spec: dict, png_path) -> Path:
@@ -41,6 +41,33 @@ def plot_tool_edge(spec: dict, png_path) -> Path:
     a2.set_xlabel("distance from the spindle axis (mm)")
     a2.set_ylabel("height, mean removed (nm)")
     a2.legend(loc="best", fontsize=8)
+    fig.suptitle(spec.get("title", ""), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, png_path)
+
+
+def plot_tool_wear(spec: dict, png_path) -> Path:
+    """Two panels: the edge radius and the flank wear land over the whole part against the
+    radius (the cut runs from the outside in); the simulated roughness (Sa of machined -
+    design in rings of the region) against the radius."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    r = np.asarray(spec["r_mm"])
+    a1.plot(r, spec["edge_radius_nm"], color="k", lw=1, label="edge radius (nm)")
+    a1.set_xlabel("distance from the spindle axis (mm); the cut runs from the outside in")
+    a1.set_ylabel("edge radius (nm)")
+    b1 = a1.twinx()
+    b1.plot(r, spec["flank_um"], color="tab:red", lw=1, label="flank wear land (um)")
+    b1.set_ylabel("flank wear land VB (um)", color="tab:red")
+    a1.invert_xaxis()
+    a2.plot(spec["ring_r_mm"], spec["ring_sa_nm"], "o-", color="tab:blue", ms=3)
+    a2.set_xlabel("distance from the spindle axis (mm)")
+    a2.set_ylabel("Sa of machined - design in rings (nm)")
+    a2.set_ylim(bottom=0)
     fig.suptitle(spec.get("title", ""), fontsize=10)
     fig.tight_layout()
     return _save(fig, png_path)
