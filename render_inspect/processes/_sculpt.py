@@ -102,6 +102,13 @@ class SculptProcessConfig(Section):
                 "process.kind = 'sculpt' needs design.type = 'lenslet_array' with cells = 'quad' "
                 f"(sharp-edged cells along the symmetry lines), received design.type = "
                 f"{getattr(d, 'type', None)!r}" + (f", cells = {d.cells!r}" if hasattr(d, "cells") else ""))
+        if getattr(scene.tool, "wear", False):
+            from ..machining._wear import WEAR_RATES
+
+            if scene.material.preset not in WEAR_RATES:
+                raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
+                                 f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
+                                 f"{scene.material.preset!r}")
 
 
 def lattice_lines(surface, *, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
@@ -222,7 +229,15 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
         edge_over = np.nanmax(design - machined_0) if np.isfinite(machined_0).any() else 0.0
     # the material's response (the vibration's contact ratio is reported: no source relates
     # it to the surface left; continuous cutting of steel is outside the model)
-    resp = material_of(cfg.material, contact=contact_ratio(vc, vib.amplitude, vib.frequency_hz))
+    eta = contact_ratio(vc, vib.amplitude, vib.frequency_hz)
+    wear_facts = None
+    if getattr(cfg.tool, "wear", False):  # the edge worn over the cut, at the vibration's duty cycle
+        from ._wear_facts import sculpt_wear
+
+        mat_cfg, wear_facts = sculpt_wear(cfg, lines, eta)
+        resp = material_of(mat_cfg, contact=eta)
+    else:
+        resp = material_of(cfg.material, contact=eta)
     material_facts = None
     if resp is not None:
         c = cut_lines_mechanics(prof_vib, xl, xg, tool_radius=R, half_width=half_width,
@@ -269,6 +284,8 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
     }
     if material_facts is not None:
         facts["material"] = material_facts
+    if wear_facts is not None:
+        facts["tool_wear"] = wear_facts
     meta = {"process": "sculpt", "seed": int(sim.seed), "compensation": "none",
             "vibration": facts["vibration"], "burrs": burr_info,
             "material": cfg.material.preset}

@@ -10,9 +10,9 @@ import math
 import numpy as np
 
 from ..core.units import MM_TO_NM
-from ..machining._wear import spiral_distance_km, wear_rate, wear_state, worn_path
+from ..machining._wear import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
 
-__all__ = ["wear_path", "roughness_against_radius", "wear_figure", "WEAR_BANDS"]
+__all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "WEAR_BANDS"]
 
 #: radial bands of the roughness against the radius
 WEAR_BANDS = 8
@@ -92,3 +92,23 @@ def wear_figure(cfg, wear: dict) -> dict:
             "ring_r_mm": [b["radius_mm"] for b in rings], "ring_sa_nm": [b["Sa_nm"] for b in rings],
             "title": f"{cfg.name}: the edge worn along the cut ({cfg.material.preset}, rates "
                      f"{'assumed' if rate.basis == 'A' else 'sourced'})"}
+
+
+def sculpt_wear(cfg, lines, duty: float):
+    """(The ``[material]`` section with the edge radius the cut wears to on average, the
+    facts ``tool_wear``) of a sculpturing cut along ``lines`` ((y, z) arrays, mm) whose edge
+    is in contact for the fraction ``duty`` of the time (the vibration's contact ratio; the
+    chemical wear of steel scales with it).  The edge grows linearly along the cut, so its
+    mean over the cut is the edge at half the cutting distance."""
+    rate = wear_rate(cfg.material.preset)
+    length_km = float(sum(abs(float(ys[-1]) - float(ys[0])) for ys, _ in lines)) / MM_PER_KM
+    args = {**_args(cfg), "duty": float(duty) * float(cfg.tool.contact_duty_cycle)}
+    end = wear_state(rate, length_km, **args)
+    mid = wear_state(rate, 0.5 * length_km, **args)
+    r_mid = float(mid["edge_radius_nm"])
+    facts = {"material": cfg.material.preset, "rates": rate.to_dict(), "wear_scale": float(cfg.tool.wear_scale),
+             "contact_duty_cycle": args["duty"], "cutting_distance_km": length_km,
+             "edge_radius_start_nm": float(cfg.material.edge_radius_nm),
+             "edge_radius_end_nm": float(end["edge_radius_nm"]), "flank_wear_end_um": float(end["flank_um"]),
+             "recession_end_nm": float(end["recession_nm"]), "edge_radius_used_nm": r_mid}
+    return cfg.material.model_copy(update={"edge_radius_nm": r_mid}), facts
