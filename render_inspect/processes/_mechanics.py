@@ -41,8 +41,10 @@ from ..machining import (
 )
 from ..toolpath import Tool, scallop_height
 from ._contract import Inputs, section
+from ._edge_facts import edge_facts
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
+from ._wear_facts import roughness_against_radius, wear_figure, wear_path
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
            "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of", "feed_scallop",
@@ -283,17 +285,11 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
         figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=cfg.name)
     if "tool_wear" in facts:
-        from ._wear_facts import roughness_against_radius
-
         facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
             cfg, machined, design, region, sim.pixel)
         if plots:
-            from ._wear_facts import wear_figure
-
             figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
     if tool.edge is not None:
-        from ._edge_facts import edge_facts
-
         facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
                                                    design, region, sim.pixel, name=cfg.name)
         if plots:
@@ -319,7 +315,5 @@ def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, object, d
     if not fp.ideal:
         facts["following_error"] = following_error_stats(fp.errors)
     if getattr(cfg.tool, "wear", False):  # the worn edge at each point of the path
-        from ._wear_facts import wear_path
-
         cut_path, facts["tool_wear"] = wear_path(cfg, path, cut_path)
     return cut_path, fp, facts

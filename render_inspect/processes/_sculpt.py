@@ -27,6 +27,7 @@ from ..core.section import Section
 from ..core.toolpath import LinearProgram
 from ..core.units import HZ_TO_KHZ, MIN_TO_S, MM_TO_UM, UM_TO_MM
 from ..machining import (
+    WEAR_RATES,
     apply_burrs,
     contact_ratio,
     cut_lines_mechanics,
@@ -43,6 +44,7 @@ from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair,
 from ._machine import MaterialConfig, material_of
 from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
+from ._wear_facts import sculpt_wear
 
 log = logging.getLogger("render_inspect")
 
@@ -103,8 +105,6 @@ class SculptProcessConfig(Section):
                 f"(sharp-edged cells along the symmetry lines), received design.type = "
                 f"{getattr(d, 'type', None)!r}" + (f", cells = {d.cells!r}" if hasattr(d, "cells") else ""))
         if getattr(scene.tool, "wear", False):
-            from ..machining._wear import WEAR_RATES
-
             if scene.material.preset not in WEAR_RATES:
                 raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
                                  f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
@@ -232,8 +232,6 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
     eta = contact_ratio(vc, vib.amplitude, vib.frequency_hz)
     wear_facts = None
     if getattr(cfg.tool, "wear", False):  # the edge worn over the cut, at the vibration's duty cycle
-        from ._wear_facts import sculpt_wear
-
         mat_cfg, wear_facts = sculpt_wear(cfg, lines, eta)
         resp = material_of(mat_cfg, contact=eta)
     else:

@@ -18,7 +18,8 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining import BURR_BLOCK_BYTES, in_memory_bytes, material_burr_facts, mechanics_facts
+from ..machining import (BURR_BLOCK_BYTES, WEAR_RATES, in_memory_bytes, material_burr_facts,
+                         mechanics_facts)
 
 #: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
 _PATH_BYTES = 40
@@ -113,8 +114,6 @@ class TurningProcessConfig(Section):
                 raise ValueError("compensation = 'edge' plans the path against the measured cutting "
                                  "edge: set tool.edge_profile or tool.waviness")
         if getattr(scene.tool, "wear", False):
-            from ..machining._wear import WEAR_RATES
-
             if scene.material.preset not in WEAR_RATES:
                 raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
                                  f"{', '.join(sorted(WEAR_RATES))}; received material.preset "

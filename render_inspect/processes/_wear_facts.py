@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ..core.units import MM_TO_NM
-from ..machining._wear import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
+from ..machining import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
 
 __all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "WEAR_BANDS"]
 

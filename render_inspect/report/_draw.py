@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._edge_plot import plot_tool_edge, plot_tool_wear
 from ._following import plot_following_error, plot_following_error_map
 from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
@@ -47,11 +48,7 @@ def draw_figure(spec: dict, png) -> Path:
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
     if kind == "tool_edge":
-        from ._edge_plot import plot_tool_edge
-
         return plot_tool_edge(spec, png)
     if kind == "tool_wear":
-        from ._edge_plot import plot_tool_wear
-
         return plot_tool_wear(spec, png)
     raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")

@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..core.errors import check_range
+from ._edge import edge_of
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,6 @@ class Tool:
 
     @classmethod
     def from_config(cls, cfg) -> "Tool":
-        from ._edge import edge_of
-
         edge = edge_of(getattr(cfg, "edge_profile", None), getattr(cfg, "waviness", None),
                        nose_radius=cfg.nose_radius, amplitude_scale=getattr(cfg, "edge_scale", 1.0))
         return cls(cfg.nose_radius, math.radians(cfg.included_angle_deg),
