@@ -326,3 +326,13 @@ def test_gpu_kernel_cuts_the_measured_edge(simulator):
                        capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stderr[-2000:]
     assert float(p.stdout.strip().splitlines()[-1]) < 1e-12
+
+
+@pytest.mark.parametrize("value, needle", [("[[-5, 10, 0]]", "amplitude"), ("[[100, 0, 0]]", "period")])
+def test_waviness_out_of_range_one_line(value, needle):
+    from render_inspect.core.errors import SceneError
+    from render_inspect.scene import load_scene
+
+    with pytest.raises(SceneError) as err:
+        load_scene("sts_fig16_overcut", [f"tool.waviness={value}"])
+    assert needle in str(err.value) and "\n" not in str(err.value)

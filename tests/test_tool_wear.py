@@ -137,3 +137,13 @@ def test_simulate_reports_the_worn_edge(tmp_path):
     assert len(w["roughness_against_radius"]) == 8
     assert got["die_steel_0.25"]["end"]["flank_wear_um"] == pytest.approx(0.25 * w["end"]["flank_wear_um"])
     assert got["al6082_0.25"]["end"]["flank_wear_um"] == pytest.approx(got["al6082_1.0"]["end"]["flank_wear_um"])
+
+
+def test_wear_needs_a_material_with_rates():
+    from render_inspect.core.errors import SceneError
+    from render_inspect.scene import load_scene
+
+    with pytest.raises(SceneError, match="tool.wear wears the edge at the rates of material.preset"):
+        load_scene("sts_fig16_overcut", ["tool.wear=true", "material.preset='ideal'"])
+    # wear keys at their defaults stay out of the written scene
+    assert "wear" not in load_scene("sts_fig16_overcut").to_dict()["tool"]
