@@ -147,3 +147,31 @@ def test_wear_needs_a_material_with_rates():
         load_scene("sts_fig16_overcut", ["tool.wear=true", "material.preset='ideal'"])
     # wear keys at their defaults stay out of the written scene
     assert "wear" not in load_scene("sts_fig16_overcut").to_dict()["tool"]
+
+
+@pytest.mark.slow
+def test_cut_kernel_takes_each_pass_its_worn_minimum_chip_thickness():
+    """A minimum chip thickness given point by point: the same everywhere cuts what the one
+    value cuts, bit for bit; growing along the path it changes the cut, and a tile from its
+    slice of the path equals the same pixels of the whole run."""
+    from render_inspect.machining import Grooves, cut_turning, prepare_cut
+
+    Rw, f = 0.3, 0.004
+    revs = Rw / f
+    th = np.linspace(0.0, revs * 2 * math.pi, int(revs * 180) + 1)
+    rho = Rw - f * th / (2 * math.pi)
+    path = ToolPath(th, rho, 1e-4 * np.sin(7 * th) * rho, th)
+    region, px = (0.02, -0.01, 0.2, 0.01), 0.002
+    args = dict(nose_radius=0.5, half_width=0.25, kappa=0.1)
+    one = cut_turning(prepare_cut(path, h_min=2e-5, **args), Grooves.none(), region=region, pixel=px)
+    same = cut_turning(prepare_cut(path, h_min=0.0, h_min_points=np.full(th.size, 2e-5), **args),
+                       Grooves.none(), region=region, pixel=px)
+    for k in ("machined", "pass_theta", "added"):
+        assert np.array_equal(one[k], same[k], equal_nan=True), k
+    grow = 2e-5 + 2e-4 * (th / th[-1])
+    cp = prepare_cut(path, h_min=0.0, h_min_points=grow, **args)
+    worn = cut_turning(cp, Grooves.none(), region=region, pixel=px)
+    assert np.nanmax(np.abs(worn["machined"] - one["machined"])) > 1e-6
+    sub = (region[0] + 40 * px, region[1], region[2], region[3])
+    tile = cut_turning(cp.slice_for(sub), Grooves.none(), region=sub, pixel=px, origin=region[:2])
+    assert np.array_equal(tile["machined"], worn["machined"][:, 40:], equal_nan=True)

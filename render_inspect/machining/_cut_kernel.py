@@ -33,7 +33,7 @@ whole-grid run bit for bit (tested).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit, prange
@@ -127,6 +127,9 @@ class CutPath:
     h_min, kappa : float
         Minimum chip thickness (mm) and elastic recovery.
     side_flow : bool
+    h_seg : (m,) float64
+        The minimum chip thickness of each segment's pass (mm; a tool wearing along the
+        path), or empty: ``h_min`` for every pass.
     """
 
     ep: EnvelopePath
@@ -134,13 +137,16 @@ class CutPath:
     h_min: float
     kappa: float
     side_flow: bool
+    h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def slice_for(self, region) -> "CutPath":
         """The passes whose nose arcs the kernel visits for pixels in ``region``
         (x0, y0, x1, y1; mm)."""
         sl = self.ep.slice_for(region)
         i0 = sl.offset - self.ep.offset
-        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]))
+        h_seg = self.h_seg if self.h_seg.size == 0 else \
+            np.ascontiguousarray(self.h_seg[i0:i0 + sl.seg.shape[0]])
+        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]), h_seg=h_seg)
 
     def reach(self, rmin: float, rmax: float) -> float:
         """Largest radial distance (mm) between a pixel at rmin..rmax from the axis and a
@@ -149,19 +155,29 @@ class CutPath:
 
     @property
     def nbytes(self) -> int:
-        return int(self.ep.nbytes + self.dist.nbytes)
+        return int(self.ep.nbytes + self.dist.nbytes + self.h_seg.nbytes)
 
 
 def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_min: float = 0.0,
                 kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None,
-                edge=None) -> CutPath:
+                edge=None, h_min_points=None) -> CutPath:
     """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
     (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`; ``edge``: the
-    measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose)."""
+    measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose;
+    ``h_min_points``: the minimum chip thickness (mm) at each point of the path, the edge
+    worn along it: each segment's pass takes its first point's, ``h_min`` then unused)."""
     theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
     Rc, hw = _nose_arc(nose_radius, half_width)
     a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
+    h_seg = np.zeros(0)
+    if h_min_points is not None:
+        hp = np.ascontiguousarray(h_min_points, dtype=np.float64)
+        if hp.shape != theta.shape or not np.all(np.isfinite(hp)) or np.any(hp < 0):
+            raise InputError(f"h_min_points must hold one finite value >= 0 per path point ({theta.size}), "
+                             f"received {hp.size} values")
+        h_seg = np.ascontiguousarray(hp[:-1])
+        h_min = float(hp.max())
     W = mechanics_window(Rc, f, m, h_min, hw)
     etab = edge_table(edge, Rc, hw)
     W = edge_window(W, Rc, hw, etab)
@@ -174,7 +190,7 @@ def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_
     dth = (theta[-1] - theta[0]) / (theta.size - 1)
     ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
                       float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
-    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow))
+    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg)
 
 
 # ------------------------------------------------------------------ the kernel
@@ -278,7 +294,7 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
 
 @njit(cache=True, inline="always")
 def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            h_min, kappa, side_flow, st, edge):
+            h_min, kappa, side_flow, st, edge, hseg):
     """The passes of one side in time order straight through the state; (state, count).
     A pass whose arc provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc,
     a lower bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
@@ -293,12 +309,13 @@ def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
         if abs(d) <= hw:
             n += 1
             zt = seg[i, 2] + fr * seg[i, 3]
-            if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + h_min:
+            hm = hseg[i] if hseg.size > 0 else h_min
+            if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + hm:
                 continue
             zj = zt + Rc - math.sqrt(Rc2 - d * d)
             if edge.size > 0:
                 zj += _edge_dz(edge, d)
-            st = _step(st, s, zj, i, fr, d * sgn, h_min, kappa, side_flow)
+            st = _step(st, s, zj, i, fr, d * sgn, hm, kappa, side_flow)
             if n >= _MAX_BUF:
                 break
     return st, n
@@ -342,15 +359,19 @@ def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
 
 
 @njit(cache=True, inline="always")
-def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st):
+def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st, hseg):
+    """The gathered passes of both sides through the state in time order (a pass's own
+    minimum chip thickness from ``hseg`` by its segment, where given)."""
     k1 = 0
     k2 = 0
     while k1 < n1 or k2 < n2:
         if k2 >= n2 or (k1 < n1 and b1s[k1] <= b2s[k2]):
-            st = _step(st, b1s[k1], b1z[k1], b1i[k1], b1f[k1], b1d[k1], h_min, kappa, side_flow)
+            st = _step(st, b1s[k1], b1z[k1], b1i[k1], b1f[k1], b1d[k1],
+                       hseg[b1i[k1]] if hseg.size > 0 else h_min, kappa, side_flow)
             k1 += 1
         else:
-            st = _step(st, b2s[k2], b2z[k2], b2i[k2], b2f[k2], b2d[k2], h_min, kappa, side_flow)
+            st = _step(st, b2s[k2], b2z[k2], b2i[k2], b2f[k2], b2d[k2],
+                       hseg[b2i[k2]] if hseg.size > 0 else h_min, kappa, side_flow)
             k2 += 1
     return st
 
@@ -358,7 +379,7 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
 @njit(cache=True, nogil=True)
 def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
              h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0, sc0, sc1,
-             machined, pass_theta, added, stats, bufs, ibufs, edge):
+             machined, pass_theta, added, stats, bufs, ibufs, edge, hseg):
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material."""
@@ -396,10 +417,10 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
                          Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             n = n1 + n2
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
-                        side_flow, st)
+                        side_flow, st, hseg)
         else:
             st, n = _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp,
-                            Rc, Rc2, hw, h_min, kappa, side_flow, st, edge)
+                            Rc, Rc2, hw, h_min, kappa, side_flow, st, edge, hseg)
         if n == 0 and Wp < hw + dev:
             # no pass within the window (beyond the path's ends): every pass that reaches
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0,
@@ -409,7 +430,7 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
                 n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0,
                              hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
-                        side_flow, st)
+                        side_flow, st, hseg)
         surf, h_cut, sw, iw, fw, dw, add, piled = st
         ix = c - col0
         counted = sc0 <= ix < sc1
@@ -446,7 +467,7 @@ def _buffer_size(W, dev, f):
 
 def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
               h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
-              sc1, machined, pass_theta, added, stats, edge):
+              sc1, machined, pass_theta, added, stats, edge, hseg):
     """Rows row0 .. row0 + rows - 1, columns col0 .. col0 + cols - 1 of the whole grid
     (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
     rows = machined.shape[0]
@@ -456,7 +477,8 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
         ibufs = np.empty((2, nb), dtype=np.int64)
         _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
                  h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
-                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge)
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge,
+                 hseg)
 
 
 #: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
@@ -512,7 +534,7 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, 
     fn(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc, ep.dev, ep.f,
        ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow, grooves.ku, grooves.kv,
        grooves.ph, float(grooves.scale), fast_cos, float(origin[0]), float(origin[1]), float(pixel), int(start[0]),
-       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats, ep.edge)
+       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats, ep.edge, cp.h_seg)
     return stats
 
 
@@ -577,6 +599,9 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=N
 def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
     """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
     ep = cp.ep
+    if cp.h_seg.size:
+        raise InputError("tool.wear with a [material]: the edge worn along the path needs a path "
+                         "that feeds towards the spindle axis")
     if ep.edge.size:
         raise InputError("tool.edge_profile / tool.waviness: a measured cutting edge needs a path "
                          "that feeds towards the spindle axis; remove the edge keys for this path")

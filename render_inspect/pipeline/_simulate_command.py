@@ -188,7 +188,8 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                                   edge=env.edge)
         else:  # the material's cutting mechanics, pixel by pixel
             ep = prepare_cut(path, nose_radius=env.nose_radius, half_width=env.half_width,
-                             h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow, edge=env.edge)
+                             h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow, edge=env.edge,
+                             h_min_points=getattr(env, "h_min_points", None))
         # the following-error map of the pass that cut each point, on a coarse grid
         stride = -(-max(shape) // _FIGURE_POINTS) if env.followed is not None else 0
         extra, _ = process.tiled_memory(cfg, plan)

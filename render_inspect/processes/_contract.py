@@ -227,6 +227,9 @@ class Envelope:
         Figures of the cut known before the tiles run (file name -> figure spec).
     edge : EdgeProfile or None
         The measured cutting edge (``toolpath.EdgeProfile``); None: a circular nose.
+    h_min_points : array or None
+        The minimum chip thickness (mm) at each point of ``path``: the edge worn along it
+        (``tool.wear``); None: the material's one value.
     """
 
     path: object
@@ -241,6 +244,7 @@ class Envelope:
     followed: object = None
     plots: dict = field(default_factory=dict)
     edge: object = None
+    h_min_points: object = None
 
 
 @dataclass(frozen=True)

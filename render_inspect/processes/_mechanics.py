@@ -44,7 +44,7 @@ from ._contract import Inputs, section
 from ._edge_facts import edge_facts
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
-from ._wear_facts import roughness_against_radius, wear_figure, wear_path
+from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
            "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of", "feed_scallop",
@@ -115,11 +115,13 @@ def pass_angle_map(path, region, pixel) -> np.ndarray:
     return np.where((s >= theta[0]) & (s <= theta[-1]), s, np.nan)
 
 
-def material_cut_path(path, tool, resp):
+def material_cut_path(path, tool, resp, h_min_points=None):
     """The followed path prepared for the cutting-mechanics kernel with the material's
-    minimum chip thickness, elastic recovery and side flow."""
+    minimum chip thickness (``h_min_points``: at each point, the edge worn along the path),
+    elastic recovery and side flow."""
     return prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width,
-                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow, edge=tool.edge)
+                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow, edge=tool.edge,
+                       h_min_points=h_min_points)
 
 
 def grooves_of(cfg, resp) -> Grooves:
@@ -252,7 +254,8 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
     else:
         # the fast kernel of the direct model (machining.cut_turning_mechanics +
         # finish_surface), in row blocks
-        c = cut_turning(material_cut_path(cut_path, tool, resp), grooves_of(cfg, resp),
+        c = cut_turning(material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp)),
+                        grooves_of(cfg, resp),
                         region=region, pixel=sim.pixel, progress=progress)
         pass_theta, machined = c["pass_theta"], c["machined"]
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],

@@ -45,6 +45,7 @@ from ._machine import machine_of, material_of
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
+from ._wear_facts import worn_h_min
 
 log = logging.getLogger("render_inspect")
 
@@ -498,7 +499,7 @@ class TiledTurningProcess(TurningProcess):
                         texture=None if resp is None else texture_of(cfg, resp),
                         burrs=material_burr_args(cfg, resp, cut_path, tool),
                         facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}),
-                        edge=tool.edge)
+                        edge=tool.edge, h_min_points=worn_h_min(cfg, cut_path, resp))
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         facts, plots = dict(env.facts), dict(env.plots)

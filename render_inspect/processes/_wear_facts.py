@@ -9,10 +9,11 @@ import math
 
 import numpy as np
 
-from ..core.units import MM_TO_NM
+from ..core.units import MM_TO_NM, NM_TO_MM
 from ..machining import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
 
-__all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "WEAR_BANDS"]
+__all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "worn_h_min",
+           "WEAR_BANDS"]
 
 #: radial bands of the roughness against the radius
 WEAR_BANDS = 8
@@ -112,3 +113,16 @@ def sculpt_wear(cfg, lines, duty: float):
              "edge_radius_end_nm": float(end["edge_radius_nm"]), "flank_wear_end_um": float(end["flank_um"]),
              "recession_end_nm": float(end["recession_nm"]), "edge_radius_used_nm": r_mid}
     return cfg.material.model_copy(update={"edge_radius_nm": r_mid}), facts
+
+
+def worn_h_min(cfg, path, resp):
+    """The minimum chip thickness (mm) at each point of ``path`` cut by the edge worn to it
+    (``tool.wear``), or None without wear or a material: the material response ``resp``'s
+    h_min (linear in the effective edge radius, r_e + the adhered layer) at the worn radius."""
+    if resp is None or not getattr(cfg.tool, "wear", False) or resp.edge_radius_eff <= 0:
+        return None
+    rate = wear_rate(cfg.material.preset)
+    L = spiral_distance_km(path.rho, cfg.process.workpiece_radius, _feed(cfg, path))
+    r_e = wear_state(rate, L, **_args(cfg))["edge_radius_nm"] * NM_TO_MM
+    layer = resp.edge_radius_eff - float(cfg.material.edge_radius_nm) * NM_TO_MM
+    return resp.h_min * (r_e + layer) / resp.edge_radius_eff
