@@ -23,6 +23,10 @@ makes it fast:
 - the cutting distance of the cutting pass comes from the pass's own segment and fraction;
   a pass whose arc provably stays h_min above the surface so far skips its square root.
 
+A measured cutting edge adds its height table to each arc as in the envelope kernel (the
+pass skip's lower bound takes the table's lowest entry), and a tool wearing along the path
+gives each pass its own minimum chip thickness (``CutPath.h_seg``, by segment).
+
 The kernel runs on rows ``row0 .. row1`` and columns ``col0 .. col1`` of the whole grid, so
 :func:`cut_fill` can be called block after block (progress, interruption) or on one tile
 with :meth:`CutPath.slice_for` (the passes that reach it).  Every pixel depends only on the

@@ -29,6 +29,12 @@ Two kernels compute this envelope:
 - the reference kernel (``simulate_turning(..., reference=True)``) is the direct
   per-pixel form, kept to check the fast one.
 
+A measured cutting edge (``toolpath.EdgeProfile``, nose radius Rc + delta(angle)) enters
+as a table of its height above the circular arc over the signed radial offset from the tool
+axis (``EnvelopePath.edge``, :func:`_edge_dz`), added to each arc's height; the pass window
+grows by sqrt(2 Rc (max g - min g)) for it.  Without an edge the table is empty and the
+arithmetic is the circle's, bit for bit.
+
 A tile of the grid needs only the passes whose nose arcs reach it:
 ``EnvelopePath.slice_for(region)`` keeps those (a contiguous run of the spiral, plus the
 innermost passes for tiles near the axis) and carries the whole path's constants, so a
