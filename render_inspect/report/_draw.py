@@ -7,24 +7,29 @@ program, data); :func:`~render_inspect.report.kinematics_png`), ``"kinematics"``
 path against a reference; :func:`~render_inspect.report.plot_kinematics`),
 ``"following_error"`` and ``"following_error_map"`` (a machine's following error;
 :mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
-:func:`~render_inspect.report.save_map_png`) and ``"tool_edge"`` (a measured cutting
-edge and its imprint; :func:`render_inspect.report._edge_plot.plot_tool_edge`) and
-``"tool_wear"`` (the edge worn along the cut; ``plot_tool_wear``).
+:func:`~render_inspect.report.save_map_png`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ._edge_plot import plot_tool_edge, plot_tool_wear
+from ._figure_kinds import registered_figures
 from ._following import plot_following_error, plot_following_error_map
 from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
 
-__all__ = ["draw_figure", "FIGURE_KINDS"]
+__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds"]
 
-#: the figure kinds :func:`draw_figure` draws
-FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map", "tool_edge", "tool_wear")
+#: the figure kinds :func:`draw_figure` draws itself (more are registered:
+#: :func:`figure_kinds`)
+FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map")
+
+
+def figure_kinds() -> tuple[str, ...]:
+    """Every figure kind :func:`draw_figure` draws: the built-in ones and those registered
+    with :func:`~render_inspect.report.register_figure`."""
+    return FIGURE_KINDS + tuple(k for k in registered_figures() if k not in FIGURE_KINDS)
 
 
 def draw_figure(spec: dict, png) -> Path:
@@ -47,8 +52,7 @@ def draw_figure(spec: dict, png) -> Path:
                             title=spec.get("title", ""), label=spec.get("label", ""),
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
-    if kind == "tool_edge":
-        return plot_tool_edge(spec, png)
-    if kind == "tool_wear":
-        return plot_tool_wear(spec, png)
-    raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")
+    draw = registered_figures().get(kind)
+    if draw is not None:
+        return draw(spec, png)
+    raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(figure_kinds())}")

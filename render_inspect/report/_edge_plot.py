@@ -1,5 +1,7 @@
 """The measured cutting edge of a turned part: its deviation along the edge angle and the
-form error it imprints (:func:`plot_tool_edge`, figure kind ``"tool_edge"``)."""
+form error it imprints (:func:`plot_tool_edge`, figure kind ``"tool_edge"``), and the edge
+worn along the cut (:func:`plot_tool_wear`, figure kind ``"tool_wear"``); both registered
+with :func:`~render_inspect.report.register_figure`."""
 
 from __future__ import annotations
 
@@ -7,11 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ._figure_kinds import register_figure
 from ._following import _save
 
 __all__ = ["plot_tool_edge", "plot_tool_wear"]
 
 
+@register_figure("tool_edge")
 def plot_tool_edge(spec: dict, png_path) -> Path:
     """Two panels: the edge's radius deviation (nm) against the angle along the edge, the
     cutting arc and the contact angles the region needs marked; the form error along one
@@ -46,6 +50,7 @@ def plot_tool_edge(spec: dict, png_path) -> Path:
     return _save(fig, png_path)
 
 
+@register_figure("tool_wear")
 def plot_tool_wear(spec: dict, png_path) -> Path:
     """Two panels: the edge radius and the flank wear land over the whole part against the
     radius (the cut runs from the outside in); the simulated roughness (Sa of machined -
