@@ -54,6 +54,9 @@ class RENDER_INSPECT_PT_main(bpy.types.Panel):
         col.prop(settings, "scene_path", text="File")
         if settings.scene_path.strip():
             col.label(text="The file is used instead of the preset", icon="INFO")
+        col.prop(settings, "program_path", text="Program")
+        if settings.program_path.strip():
+            col.label(text="The program is cut instead of the planned path", icon="INFO")
         layout.prop(settings, "output_dir")
         if settings.job_running:
             box = layout.box()

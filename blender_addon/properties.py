@@ -35,6 +35,9 @@ def overrides(settings) -> list[str]:
                 out.append(f"{item.key}={value!r}")
     if settings.compensation != "SCENE":
         out.append(f'process.compensation="{settings.compensation}"')
+    if settings.program_path.strip():
+        program = bpy.path.abspath(settings.program_path.strip())
+        out.append(f"process.program={json.dumps(program)}")
     out.extend(item.strip() for item in settings.extra_overrides.split(";") if item.strip())
     return out
 
@@ -56,6 +59,10 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
     scene_path: StringProperty(
         name="Scene file", subtype="FILE_PATH", default="", update=_callbacks.scene_changed,
         description="A render_inspect scene (TOML); used instead of the preset when set")
+    program_path: StringProperty(
+        name="Program file", subtype="FILE_PATH", default="",
+        description="A machine program (NC / G-code / C X Z point list) simulated in place of "
+                    "the planned path (process.program; the scene gives the rest)")
     output_dir: StringProperty(
         name="Output folder", subtype="DIR_PATH", default="",
         description="Where the simulation, renders, report and exports go (empty: "

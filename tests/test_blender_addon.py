@@ -55,6 +55,7 @@ def settings(addon, tmp_path):
     pipeline.remove_blender_surfaces()
     s = bpy.context.scene.render_inspect
     s.scene_path = ""
+    s.program_path = ""
     s.preset = "sts_sinusoidal_grid"
     addon.properties.load_params(s)
     s.output_dir = str(tmp_path / "out")
@@ -225,6 +226,35 @@ def test_errors_are_one_line_and_leave_nothing(settings, addon):
     assert settings.last_error.startswith("Simulate:") and "\n" not in settings.last_error.strip()
     assert addon.operators.variant_objects() == {}
     assert not Path(settings.output_dir).exists()
+
+
+def test_program_file_field(settings, addon, tmp_path):
+    """A program file beside the scene: it becomes process.program, the panel shows it, a
+    malformed one is refused with the reader's one line, and Simulate cuts the program
+    against the planned spiral (the pair a program gets)."""
+    import bpy
+
+    assert bpy.context.scene.render_inspect.bl_rna.properties["program_path"].subtype == "FILE_PATH"
+    bad = tmp_path / "bad.nc"
+    bad.write_text("G90\nG01 X0.05 Z0\nG32 X0 Z-1\n")
+    settings.program_path = str(bad)
+    assert addon.properties.overrides(settings)[-1 - len(SMALL)] == \
+        f"process.program={json.dumps(str(bad))}"
+    drawn = _draw(addon)["RENDER_INSPECT_PT_main"]
+    assert "prop program_path Program" in drawn or any("program_path" in x for x in drawn)
+    with pytest.raises(RuntimeError, match="G32"):
+        bpy.ops.render_inspect.simulate()
+    assert f"{bad}:3:" in settings.last_error and "\n" not in settings.last_error.strip()
+    good = tmp_path / "spiral.nc"
+    n = 8 * 720 + 1
+    c = np.arange(n) * 0.5
+    x = 0.2 - 0.01 * c / 360.0
+    good.write_text("".join(f"C{ci % 360:.4f} X{xi:.6f} Z0.000000\n" for ci, xi in zip(c, x)))
+    settings.program_path = str(good)
+    settings.last_error = ""
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    sim = json.loads(settings.simulation_json)
+    assert list(sim["variants"]) == ["program", "planned"]
 
 
 def test_a_failing_worker_reports_the_error(settings, addon, tmp_path):

@@ -24,6 +24,21 @@ def test_unknown_key_is_named(tmp_path):
         load_scene(p)
 
 
+@pytest.mark.parametrize("override, hint", [
+    ("simulation.pixl=0.001", "did you mean 'pixel'?"),
+    ("simulaton=0.001", "did you mean 'simulation'?"),
+    ("design.amplitud_x=0.001", "did you mean 'amplitude_x' or 'amplitude_y'?"),
+    ("machine.x.bandwith_hz=3", "did you mean 'bandwidth_hz'?"),
+    ("tool.zzz=1", "keys here: clearance_angle_deg, included_angle_deg, nose_radius, "
+                   "rake_angle_deg"),
+])
+def test_unknown_key_gets_the_key_meant(override, hint):
+    with pytest.raises(SceneError) as e:
+        load_scene(GRID, [override])
+    assert f"{override.split('=')[0]}: unknown key" in str(e.value)
+    assert str(e.value).endswith(hint)
+
+
 def test_negative_radius_names_key_range_and_value():
     with pytest.raises(SceneError) as e:
         load_scene(GRID, ["tool.nose_radius=-0.5"])

@@ -351,8 +351,8 @@ def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path
     assert res.returncode == 1 and "Traceback" not in res.stderr
     err = res.stderr
     assert "14 of 14 points are not valid scenes" in err and "nothing was run" in err
-    assert "tool.nose_radus: unknown key (not allowed here; check the spelling) " \
-           "[12 points: 0, 1, 2, 3, 4, ...]" in err
+    assert "tool.nose_radus: unknown key (not allowed here; check the spelling); did you mean " \
+           "'nose_radius'? [12 points: 0, 1, 2, 3, 4, ...]" in err
     assert "simulation.max_memory_gb" in err and "tool.nose_radius" in err and "-1.0" in err
     assert "the other points are done" not in err
     assert not (tmp_path / "out").exists()

@@ -5,7 +5,9 @@ scene command runs on."""
 from __future__ import annotations
 
 import argparse
+import json
 import logging
+from pathlib import Path
 
 log = logging.getLogger("render_inspect")
 
@@ -66,7 +68,24 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
         _add_out_args(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+    _add_program_arg(p)
     _add_verbosity(p)
+
+
+def _add_program_arg(p: argparse.ArgumentParser):
+    p.add_argument("--program", default=None, metavar="FILE",
+                   help="a machine program (NC / G-code / C X Z point list) simulated in place "
+                        "of the planned path (= --set process.program=FILE; docs/programs.md)")
+
+
+def scene_overrides(args) -> list:
+    """The ``--set`` overrides with ``--program FILE`` as ``process.program`` (an absolute
+    path) last."""
+    out = list(getattr(args, "overrides", None) or [])
+    prog = getattr(args, "program", None)
+    if prog:
+        out.append(f"process.program={json.dumps(str(Path(prog).resolve()))}")
+    return out
 
 
 def _add_out_args(p: argparse.ArgumentParser):
@@ -82,7 +101,7 @@ def scene_of(args):
     # of the module, so that `render-inspect --help` answers at once)
     from ..scene import load_scene, unit_warnings
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, scene_overrides(args))
     # values that are probably unit mistakes (a feed per revolution typed per minute, a
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):

@@ -3,7 +3,7 @@ surface."""
 
 from __future__ import annotations
 
-from ._args import _add_out_args, _add_verbosity
+from ._args import _add_out_args, _add_program_arg, _add_verbosity, scene_overrides
 
 
 def add_parsers(sub) -> None:
@@ -45,6 +45,7 @@ def add_parsers(sub) -> None:
                         "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key before fitting (TOML value syntax)")
+    _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
                                                        "of the global search")
     p.add_argument("--global", dest="global_points", type=int, default=0, metavar="N",
@@ -67,7 +68,7 @@ def _fit(args, overwrite: bool):
     from ..scene import load_scene
 
     return pipeline.run_fit(
-        args.measured, load_scene(args.scene, args.overrides), args.free, args.out,
+        args.measured, load_scene(args.scene, scene_overrides(args)), args.free, args.out,
         bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
         form=args.form, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, predict=args.predict, seed=args.seed,

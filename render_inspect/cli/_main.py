@@ -19,7 +19,7 @@ from ..core.progress import set_reporter
 from . import _analyze, _batch, _fit, _render, _simulate
 from ._args import _add_verbosity, log
 from ._progress import RichReporter, _reporter, _RichLogHandler
-from ._summary import _print_compare_summary, _print_summary
+from ._summary import ROW_SUMMARIES, _print_compare_summary, _print_summary
 
 #: the command groups, in the order ``render-inspect --help`` lists their commands
 GROUPS = (_simulate, _render, _analyze, _fit, _batch)
@@ -220,5 +220,7 @@ def main(argv=None) -> int:
     elif args.command in ("measure", "analyze") and isinstance(result, dict) \
             and not getattr(args, "quiet", False):
         _print_summary(args.command, result, args.out, dt)
+    elif args.command in ROW_SUMMARIES and not getattr(args, "quiet", False):
+        _print_summary(args.command, result if isinstance(result, dict) else {}, args.out, dt)
     log.info("%s: done in %.1f s", prefix, dt)
     return 0

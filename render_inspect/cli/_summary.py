@@ -37,16 +37,24 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
+#: commands whose summary rows pipeline.command_summary gives
+ROW_SUMMARIES = ("toolpath", "characterise", "render")
+
+
 def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
-    """``measure`` and ``analyze``: their headline numbers and where the files are."""
+    """``measure``, ``analyze`` (and :data:`ROW_SUMMARIES`): their headline numbers and
+    where the files are."""
     from rich.console import Console
     from rich.table import Table
 
     # the pipeline is imported lazily (see _run)
-    from ..pipeline import analyze_summary, measure_summary
+    from ..pipeline import analyze_summary, command_summary, measure_summary
 
-    rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
-    src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
+    if command in ROW_SUMMARIES:
+        rows, src = command_summary(command, metrics, out), out
+    else:
+        rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
+        src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
     con = Console(file=sys.stdout, highlight=False)
     t = Table(title=f"render-inspect {command}: {Path(str(src)).name} ({seconds:.0f} s)",
               title_justify="left",

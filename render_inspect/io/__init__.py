@@ -70,12 +70,18 @@ from ._toolpath import (
                       write_toolpath_npz,
 )
 from ._tables import table_csv
+from ._program import ImportedProgram, program_dialect, read_program
+from ..core.programs import register_program_reader
+from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
 from ._zarr import ZarrHeightMap, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
 from ..core.plugins import import_private_modules
+
+# the processes read [process] program files through core (they do not import io)
+register_program_reader(read_program)
 
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
@@ -98,4 +104,5 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
            "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
-           "program_axes", "MeasuredProfile", "read_profile", "is_profile_file"]
+           "program_axes", "MeasuredProfile", "read_profile", "is_profile_file",
+           "read_program", "ImportedProgram", "program_dialect", "scan_program"]

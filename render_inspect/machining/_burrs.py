@@ -62,6 +62,7 @@ from scipy import ndimage
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
+from ._burr_kernels import edge_turn_maps, gaussian_nearest
 
 __all__ = ["sharp_edges", "edge_turns", "machined_sharp_edges", "burr_map", "apply_burrs",
            "material_burrs", "material_burr_block", "material_burr_facts", "burr_halo", "burr_height_law",
@@ -151,39 +152,9 @@ def edge_turns(z, *, pixel: float, edge_angle_deg: float = 1.0, span: int = 1):
     """
     z = _check_map(z, pixel, edge_angle_deg)
     span = int(check_range("span", span, 1, None))
-    edges = np.zeros(z.shape, dtype=bool)
-    turn = np.zeros(z.shape)
-    # candidates: every local maximum of the pixel-to-pixel turn; an edge where the turn
-    # measured between the faces exceeds edge_angle_deg (a smoothed edge spreads its turn
-    # over several pixels, none of which need exceed it)
-    for axis, (m, s) in enumerate(_edge_masks(z, pixel=pixel, edge_angle_deg=0.0)):
-        if s is None or not m.any():
-            continue
-        n = s.shape[0]                                       # slopes 0..n-1, pixels 0..n
-        i = np.arange(n + 1)
-        a = np.arctan(s)
-        # slope angles at span - 1/2 and 2 span - 1/2 pixels to either side (slope k lies
-        # at k + 1/2), extrapolated linearly to the edge: curved faces keep their angle
-        c = (span - 0.5) / span
-
-        def face(k1, k2):
-            a1 = np.take(a, np.clip(k1, 0, n - 1), axis=0)
-            a2 = np.take(a, np.clip(k2, 0, n - 1), axis=0)
-            return a1 - c * (a2 - a1)
-
-        t = np.abs(face(i + span - 1, i + 2 * span - 1) - face(i - span, i - 2 * span))
-        t = np.moveaxis(np.nan_to_num(t, nan=0.0), 0, axis)
-        # the pixel-to-pixel turn must peak within the whole stencil, +-3 span pixels (one
-        # pixel per edge; no ripple beside an edge is measured across it)
-        j = np.zeros(z.shape)
-        jj = np.abs(np.diff(np.arctan(s), axis=0))
-        jm = np.moveaxis(j, axis, 0)
-        jm[1:-1] = np.nan_to_num(jj, nan=0.0)
-        peak = j >= ndimage.maximum_filter1d(j, 6 * span + 1, axis=axis, mode="nearest")
-        m = m & peak & (t > math.radians(edge_angle_deg))
-        turn = np.where(m, np.maximum(turn, t), turn)
-        edges |= m
-    return edges, turn
+    # compiled passes, threaded over rows (the same numbers as the array expressions of
+    # the docstring: _burr_kernels)
+    return edge_turn_maps(z, pixel=pixel, edge_angle_deg=edge_angle_deg, span=span)
 
 
 def burr_height_law(chip_thickness: float, coefficient: float, turn) -> np.ndarray:
@@ -292,7 +263,7 @@ def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True
         idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
         z = z[tuple(idx)]
     if smoothing > 0:
-        z = ndimage.gaussian_filter(z, smoothing / pixel, mode="nearest")
+        z = gaussian_nearest(z, smoothing / pixel)   # scipy's gaussian_filter, threaded
         b = int(math.ceil(3 * smoothing / pixel))
         bad = bad.copy()
         if border[0]:

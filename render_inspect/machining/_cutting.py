@@ -43,6 +43,7 @@ from numba import njit, prange
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM
+from ._burr_kernels import pass_jump_mask
 from ._envelope import (_lookup, _lookup_table, _nominal_spiral, _nose_arc, _pass_window,
                         path_radial_slope)
 
@@ -314,6 +315,8 @@ def machined_edges(pass_map, *, jump: float) -> np.ndarray:
     (``pass_map`` differs by more than ``jump``: pi for spindle angles, 0.5 for line
     indices).  Returns an (ny, nx) bool mask."""
     p = np.asarray(pass_map, dtype=np.float64)
+    if p.ndim == 2 and p.size:
+        return pass_jump_mask(p, jump)              # the same mask, compiled and threaded
     m = np.zeros(p.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
         dy = np.abs(np.diff(p, axis=0)) > jump

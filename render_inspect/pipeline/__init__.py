@@ -46,6 +46,7 @@ from ._render import (check_render_limits, part_heightmap, part_outline, render_
                       write_interferogram_outputs)
 from ._simulate import Simulation, design_heightmap, simulate, write_simulation
 from ._simulate_command import TILED_SAMPLES, run_simulate, run_simulate_tiled, wants_tiles
+from ._summaries import command_summary
 from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_failure, sweep_morris,
                      sweep_tasks)
 from ._toolpath import plan_program, program_formats, run_toolpath
@@ -61,7 +62,7 @@ __all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "w
            "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_analyze_profile", "PROFILE_FILES",
            "run_compare_profile", "run_compare_command", "run_demo", "DEMO_SCENE",
            "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
-           "measure_summary", "analyze_summary",
+           "measure_summary", "analyze_summary", "command_summary",
            "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",

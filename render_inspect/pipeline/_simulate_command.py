@@ -27,7 +27,7 @@ from ..processes import check_budget, process_of
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
-from ._toolpath import check_links
+from ._toolpath import check_links, log_program_summary
 
 __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
@@ -36,7 +36,7 @@ log = logging.getLogger("render_inspect")
 #: samples per second the EXR and previews are written at (the progress bar's estimate)
 _WRITE_RATE = 1e6  # not a unit conversion
 #: largest side (points) of the following-error map of a tiled cut
-_FIGURE_POINTS = 800
+_FIGURE_POINTS = 440
 #: maps of more samples than this are simulated tile by tile whatever the memory budget
 #: (when the process can): the in-memory run would hold several GiB and write a
 #: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
@@ -92,6 +92,8 @@ def run_simulate(scene, out, *, tiled: bool | None = None, workers: int | None =
         with task(f"write the {n:,}-sample height map and previews", total=1.0 + n / _WRITE_RATE,
                   timed=True):
             metrics = write_simulation(sim, Path(tmp))
+    if "program" in metrics:  # a program read from a file: what was inferred, the findings
+        log_program_summary(metrics["program"])
     r = metrics["residual"]
     log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
              time.perf_counter() - t0, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)

@@ -9,14 +9,15 @@ from pathlib import Path
 
 from ..core.errors import InputError
 from ..design import make_surface
-from ..io import (atomic_output_dir, cut_points, export_program, program_axes, program_blocks,
+from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
-from ..processes import process_of
+from ..processes import findings_summary, process_of
+from ..report import draw_figure
 from ..toolpath import compare_with_plan, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
 __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
-           "check_links"]
+           "check_links", "write_program_report", "log_program_summary"]
 
 log = logging.getLogger("render_inspect")
 
@@ -90,11 +91,42 @@ def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
         written = export_program(plan.program, Path(tmp), fmt=fmt,
                                  header=process.program_header(cfg), links=links)
         facts = process.program_facts(cfg, plan)
-        if fmt == "nc":
+        if fmt == "nc" and "program" not in facts:
             check = verify_program_file(written, process, cfg, surface, plan, links)
             if check is not None:
                 facts["program_check"] = check
+        if "program" in facts:  # a program read from a file: its figures and table too
+            write_program_report(Path(tmp), plan, facts)
         write_metrics(tmp, toolpath_metrics(scene.name, facts), name="toolpath.json")
     log.info("%s program: %s points -> %s", process.traits(cfg).name,
              f"{facts['toolpath']['points']:,}", out)
+    if "program" in facts:
+        log_program_summary(facts["program"])
     return plan.program
+
+
+def write_program_report(folder: Path, plan, facts: dict) -> None:
+    """The figures of a program read from a file (``feed_per_rev.png``,
+    ``kinematics.png``) and its feed per revolution by radius as ``feed_per_rev.csv``."""
+    for name, spec in plan.plots.items():
+        draw_figure(spec, folder / name)
+    rows = facts["program"].get("feed_per_rev", {}).get("by_radius", [])
+    if rows:
+        cols = ("r_from_mm", "r_to_mm", "points", "mean_um", "min_um", "max_um")
+        text = ",".join(cols) + "\n" + "".join(
+            ",".join(repr(r[c]) for c in cols) + "\n" for r in rows)
+        atomic_write_text(folder / "feed_per_rev.csv", text)
+
+
+def log_program_summary(info: dict) -> None:
+    """What was read and inferred, and the findings, one line each (findings as a
+    warning)."""
+    log.info("program %s (%s): %s", info.get("file"), info.get("dialect"),
+             "; ".join(info.get("inferred", {}).values()))
+    f = info.get("feed_per_rev")
+    if f:
+        log.info("feed per revolution %.4g um (median), %.4g .. %.4g um over the radius "
+                 "(feed_per_rev.png, toolpath.json program.feed_per_rev)", f["median_um"],
+                 f["min_um"], f["max_um"])
+    text = findings_summary(info)
+    (log.warning if info.get("findings") else log.info)("program findings: %s", text)

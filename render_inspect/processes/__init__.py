@@ -36,6 +36,8 @@ from ._sculpt import SculptProcessConfig, VibrationConfig, lattice_lines
 from ._settings import (RANDOM_PART_KEYS, machine_settings, material_settings, preset_settings,
                         random_parts)
 from ._servo import ServoProcessConfig
+from ._program import (feed_per_rev, feed_per_rev_table, findings_summary, fit_paraboloid,
+                       program_checks)
 from ._sts import StsProcessConfig
 from ._turning import (
     TiledTurningProcess,
@@ -63,4 +65,5 @@ __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", 
            "MaterialConfig", "BurrConfig", "VibrationConfig", "machine_of", "material_of",
            "turn", "rcse_comparison", "lattice_lines", "compensation_variants",
            "toolpath_facts", "plan_spiral", "machine_settings", "material_settings",
-           "preset_settings", "random_parts", "RANDOM_PART_KEYS"]
+           "preset_settings", "random_parts", "RANDOM_PART_KEYS", "fit_paraboloid",
+           "program_checks", "feed_per_rev", "feed_per_rev_table", "findings_summary"]

@@ -17,8 +17,9 @@ import math
 import numpy as np
 
 from ..core.units import MM_TO_NM
+from ..machining import WEAR_RATES
 
-__all__ = ["edge_facts", "edge_imprint"]
+__all__ = ["edge_facts", "edge_imprint", "check_edge_and_wear"]
 
 
 def edge_imprint(edge, design: np.ndarray, region, pixel: float) -> tuple[np.ndarray, np.ndarray]:
@@ -81,3 +82,20 @@ def edge_facts(tool, compensation: str, machined, design, region, pixel: float, 
             "compensation": compensation,
             "title": f"{name}: the measured cutting edge ({edge.source})"}
     return facts, {"tool_edge.png": spec}
+
+
+def check_edge_and_wear(kind, compensation: str, scene) -> None:
+    """The turning processes' cross-checks of the measured edge and the wear (ValueError,
+    one line): ``compensation = "edge"`` needs STS and an edge; ``tool.wear`` a material
+    with wear rates."""
+    if compensation == "edge":
+        if kind != "sts":
+            raise ValueError(f"compensation = 'edge' is planned for process.kind = 'sts', received "
+                             f"kind {kind!r}; use 'z' there")
+        if not (scene.tool.edge_profile or scene.tool.waviness):
+            raise ValueError("compensation = 'edge' plans the path against the measured cutting "
+                             "edge: set tool.edge_profile or tool.waviness")
+    if getattr(scene.tool, "wear", False) and scene.material.preset not in WEAR_RATES:
+        raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
+                         f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
+                         f"{scene.material.preset!r}")

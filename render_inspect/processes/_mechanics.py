@@ -131,6 +131,11 @@ def grooves_of(cfg, resp) -> Grooves:
                       along_length=cfg.material.groove_along_mm)
 
 
+#: largest side (points) of the following-error map: about the pixels its panel has in the
+#: figure (more are drawn at no gain, and cost time to resample and compress)
+MAP_FIGURE_POINTS = 440
+
+
 def _error_maps(fp, pass_theta, stride: int) -> tuple[np.ndarray, np.ndarray]:
     s = pass_theta[::stride, ::stride]
     ok = np.isfinite(s)
@@ -143,9 +148,9 @@ def _error_maps(fp, pass_theta, stride: int) -> tuple[np.ndarray, np.ndarray]:
 def following_error_plots(fp, pass_theta, region, pixel, *, name: str) -> dict:
     """Figure specs (``following_error.png``, ``following_error_map.png``) of a followed
     path: the errors against time, and the X and Z (slide + FTS) errors of the pass that
-    cut each point, on at most ~800 x 800 points."""
+    cut each point, on at most ~:data:`MAP_FIGURE_POINTS` points a side."""
     x0, y0 = region[0], region[1]
-    stride = max(1, int(math.ceil(max(pass_theta.shape) / 800)))
+    stride = max(1, int(math.ceil(max(pass_theta.shape) / MAP_FIGURE_POINTS)))
     ex, ez = _error_maps(fp, pass_theta, stride)
     n = fp.t.size
     keep = slice(None, None, max(1, n // 400_000))  # the envelope plot needs no more
@@ -281,8 +286,10 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
             smoothing=max(feed, 2 * sim.pixel))
     elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
+        t0 = time.perf_counter()
         machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
                                                   origin=(region[0], region[1]), **args)
+        timing["burrs"] = time.perf_counter() - t0
     if plots and not fp.ideal:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, model_serializer, model_validator
 
 from ..core.deprecation import warn_deprecated
 from ..core.errors import AccessibilityError, InputError, SceneError
@@ -26,6 +26,7 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.toolpath import LinearProgram
 from ..core.units import HZ_TO_KHZ, MIN_TO_S, MM_TO_UM, UM_TO_MM
+from ._program import imported_sculpt_plan
 from ..machining import (
     WEAR_RATES,
     apply_burrs,
@@ -81,6 +82,18 @@ class SculptProcessConfig(Section):
     plunge_feed_mm_per_min: float = Field(DEFAULT_PLUNGE_FEED, gt=0, le=100000,
                                           description="feed of the vertical plunge onto each "
                                                       "line and of the retract from it")
+    program: str | None = Field(None, min_length=1, max_length=4096,
+                                description="an X-Y-Z machine program file (path relative to "
+                                            "the scene file) simulated in place of the planned "
+                                            "lines; docs/programs.md")
+
+    @model_serializer(mode="wrap")
+    def _without_program(self, handler):
+        """``program`` is written only when set (scenes without one dump as before)."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("program") is None:
+            data.pop("program", None)
+        return data
 
     @model_validator(mode="before")
     @classmethod
@@ -305,7 +318,9 @@ class SculptProcess(Process):
     def plan(self, cfg, surface, *, region=None) -> Plan:
         """The commanded program: every target line (or, with ``region``, the lines and
         cells whose cut can reach it), without the vibration (the NC program the machine
-        gets)."""
+        gets); or the X-Y-Z program of ``process.program`` read from its file."""
+        if cfg.process.program:
+            return imported_sculpt_plan(self, cfg, surface)
         return _plan(cfg, surface, region=region)
 
     def cut(self, cfg, surface, plan: Plan) -> Cut:
@@ -331,6 +346,11 @@ class SculptProcess(Process):
                       cut_rate=CUT_RATE)
 
     def precheck(self, cfg, region=None) -> None:
+        if cfg.process.program:
+            return  # a program file's size is known once it is read
+        self._precheck(cfg, region)
+
+    def _precheck(self, cfg, region=None) -> None:
         """Check the points of the target lines (every column's line over every row of
         cells, one point per ``process.arc_length``) against the memory budget."""
         d = cfg.design
@@ -360,6 +380,13 @@ class SculptProcess(Process):
         cut_time = float(sum((ys[-1] - ys[0]) / vc for ys, _ in lines))
         return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
                                       "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
+
+    def program_links(self, cfg, surface, plan: Plan):
+        """None for a program read from a file (its own moves between the lines are part of
+        it); else the clearance plane and plunge feed of the written program."""
+        if cfg.process.program:
+            return None
+        return super().program_links(cfg, surface, plan)
 
     def program_part(self, cfg, surface, plan: Plan) -> PartModel:
         """The lenslet array the program is checked against: the design over the cells

@@ -31,6 +31,8 @@ from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import machine_of
 from ._mechanics import follow, turn
 from ._registry import register_migration, register_process, register_retired_key
+from ._program import program_path
+from ._turning import imported_facts
 from ._turning import (
     TiledTurningProcess,
     TurningProcessConfig,
@@ -230,8 +232,10 @@ class ServoProcess(TiledTurningProcess):
                                        compensation=cfg.process.compensation,
                                        half_width=tool.half_width)
         data = {"z_slow": z_slow, "z_fts": z_fts}
-        return Plan(path, {"toolpath": toolpath_facts(path, cfg.process)},
-                    {"toolpath": time.perf_counter() - t0}, data,
+        facts = {"toolpath": toolpath_facts(path, cfg.process)}
+        if program_path(cfg):  # a program read from a file: its checks and findings
+            facts["program"] = imported_facts(cfg, surface, path)
+        return Plan(path, facts, {"toolpath": time.perf_counter() - t0}, data,
                     plots=self.program_plots(cfg, path, data))
 
     def cut(self, cfg, surface, plan: Plan) -> Cut:

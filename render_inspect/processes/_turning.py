@@ -8,9 +8,10 @@ from __future__ import annotations
 import logging
 import math
 import time
+from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, model_serializer, model_validator
 
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget
@@ -18,8 +19,7 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.units import MIN_TO_S, MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..design import make_surface
-from ..machining import (BURR_BLOCK_BYTES, WEAR_RATES, in_memory_bytes, material_burr_facts,
-                         mechanics_facts)
+from ..machining import BURR_BLOCK_BYTES, in_memory_bytes, material_burr_facts, mechanics_facts
 
 #: bytes per point of the commanded tool path (theta, rho, z, t and the contact points)
 _PATH_BYTES = 40
@@ -41,7 +41,9 @@ from ..toolpath import (
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
+from ._edge_facts import check_edge_and_wear
 from ._machine import machine_of, material_of
+from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
@@ -91,6 +93,25 @@ class TurningProcessConfig(Section):
     x_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
     z_velocity_limit_mm_s: float | None = Field(None, gt=0)
     z_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
+    # the user's own program in place of the planned spiral (docs/programs.md)
+    program: str | None = Field(None, min_length=1, max_length=4096,
+                                description="a machine program file (path relative to the "
+                                            "scene file) simulated in place of the planned "
+                                            "spiral; docs/programs.md")
+    program_x: Literal["auto", "radius", "diameter"] = Field(
+        "auto", description="how the program's X is read: auto infers radius or diameter "
+                            "from process.workpiece_radius")
+
+    @model_serializer(mode="wrap")
+    def _without_program_defaults(self, handler):
+        """The program keys are written only when set (scenes without a program dump as
+        before)."""
+        data = handler(self)
+        if isinstance(data, dict) and data.get("program") is None:
+            data.pop("program", None)
+            if data.get("program_x") == "auto":
+                data.pop("program_x", None)
+        return data
 
     @model_validator(mode="after")
     def _radii(self):
@@ -107,19 +128,12 @@ class TurningProcessConfig(Section):
     def check_with(self, scene) -> None:
         """Cross-checks with the rest of the scene (called by the scene's validator)."""
         rc = scene.tool.nose_radius
-        if self.compensation == "edge":
-            if getattr(self, "kind", None) != "sts":
-                raise ValueError(f"compensation = 'edge' is planned for process.kind = 'sts', received "
-                                 f"kind {getattr(self, 'kind', None)!r}; use 'z' there")
-            if not (scene.tool.edge_profile or scene.tool.waviness):
-                raise ValueError("compensation = 'edge' plans the path against the measured cutting "
-                                 "edge: set tool.edge_profile or tool.waviness")
-        if getattr(scene.tool, "wear", False):
-            if scene.material.preset not in WEAR_RATES:
-                raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
-                                 f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
-                                 f"{scene.material.preset!r}")
-        if self.feed_per_rev >= rc:
+        check_edge_and_wear(getattr(self, "kind", None), self.compensation, scene)
+        if self.program is not None and self.kind == "rcse":
+            raise ValueError("process.program: process.kind = 'rcse' plans its own path and "
+                             "cannot take a program file; use process.kind = 'sts' (or 'fts', "
+                             "'hts') to simulate a turning program")
+        if self.feed_per_rev >= rc and self.program is None:
             raise ValueError(
                 f"process.feed_mm_per_min / process.spindle_rpm (feed per revolution) must be < "
                 f"tool.nose_radius ({rc} mm), received {self.feed_per_rev:g} mm/rev "
@@ -157,6 +171,15 @@ def plan_spiral(cfg, surface, *, region=None):
     if scallop is not None:
         path.meta["scallop_plan"] = scallop
     return path
+
+
+def imported_facts(cfg, surface, path) -> dict:
+    """``metrics["program"]`` of a program read from a file: where it came from, what was
+    inferred, and :func:`~render_inspect.processes._program.program_checks` (feed per
+    revolution by radius, chordal error, C rate, findings)."""
+    info = dict(path.meta.get("program", {}))
+    info.update(program_checks(cfg, surface, path))
+    return info
 
 
 def toolpath_facts(path, process) -> dict:
@@ -197,9 +220,12 @@ def _revolutions(cfg, design) -> float:
 
 
 def turning_points(cfg, plan=None) -> int:
-    """Points of the spiral over the simulated region (estimated before planning)."""
+    """Points of the spiral over the simulated region (estimated before planning; 0 for a
+    program read from a file, not known before it is read)."""
     if plan is not None:
         return int(plan.program.points)
+    if program_path(cfg):
+        return 0
     return int(_revolutions(cfg, cfg.design) * cfg.process.points_per_rev) + 1
 
 
@@ -223,6 +249,8 @@ def _ticks(cfg, plan=None) -> int:
     if machine.ideal:
         return 0
     if plan is None:
+        if program_path(cfg):
+            return 0
         duration = _revolutions(cfg, cfg.design) * MIN_TO_S / cfg.process.spindle_rpm
     else:
         t = plan.program.t
@@ -405,19 +433,34 @@ class TurningProcess(Process):
     inputs = TurningInputs
 
     def program(self, cfg, surface, *, region=None):
-        """The commanded turning program (:func:`plan_spiral`); a subclass that programs
-        the spiral otherwise (another time axis, other sampling) overrides this."""
+        """The commanded turning program: the scene's ``process.program`` read from its
+        file (:func:`~render_inspect.processes._program.imported_path`), else the planned
+        spiral (:func:`plan_spiral`); a subclass that programs the spiral otherwise
+        (another time axis, other sampling) overrides this."""
+        if program_path(cfg):
+            return imported_path(cfg, surface, region=region)
         return plan_spiral(cfg, surface, region=region)
 
     def plan(self, cfg, surface, *, region=None) -> Plan:
         t0 = time.perf_counter()
         path = self.program(cfg, surface, region=region)
-        return Plan(path, {"toolpath": toolpath_facts(path, cfg.process)},
-                    {"toolpath": time.perf_counter() - t0}, plots=self.program_plots(cfg, path))
+        facts = {"toolpath": toolpath_facts(path, cfg.process)}
+        if program_path(cfg):
+            facts["program"] = info = imported_facts(cfg, surface, path)
+            tp = facts["toolpath"]
+            tp["chordal_error_max_nm"] = info.get("chordal_error_max_nm", 0.0)
+            below = [f for f in info["findings"] if f["kind"] == "below_design"]
+            tp["gouge_max_nm"] = below[0]["worst_nm"] if below else 0.0
+        return Plan(path, facts, {"toolpath": time.perf_counter() - t0},
+                    plots=self.program_plots(cfg, path))
 
     def program_plots(self, cfg, path, data=None) -> dict:
-        """``kinematics.png``: the axes of the program that move."""
-        return {"kinematics.png": {"kind": "axes",
+        """``kinematics.png``: the axes of the program that move (and, for a program read
+        from a file, ``feed_per_rev.png``)."""
+        extra = {}
+        if program_path(cfg):
+            extra["feed_per_rev.png"] = feed_per_rev_figure(path, cfg.name)
+        return {**extra, "kinematics.png": {"kind": "axes",
                                    "columns": [(f"{cfg.process.kind.upper()} program", path,
                                                 data or {})],
                                    "title": f"{cfg.name}: the axes that move"}}
@@ -434,7 +477,15 @@ class TurningProcess(Process):
         return turning_traits(cfg)
 
     def precheck(self, cfg, region=None) -> None:
-        turning_precheck(cfg, region)
+        if not program_path(cfg):  # a program file's size is known once it is read
+            turning_precheck(cfg, region)
+
+    def program_links(self, cfg, surface, plan):
+        """None for a program read from a file: its own moves between the cuts are part
+        of it (and checked as findings), no links are added."""
+        if program_path(cfg):
+            return None
+        return super().program_links(cfg, surface, plan)
 
     def program_header(self, cfg) -> dict:
         return turning_header(cfg)
@@ -455,14 +506,29 @@ class TurningProcess(Process):
         tp.setdefault("revolutions", prog.revolutions)
         tp.setdefault("feed_per_rev_mm", cfg.process.feed_per_rev)
         for k, v in prog.meta.items():
-            if k != "accessibility":
+            if k not in ("accessibility", "program") and not k.startswith("_"):
                 tp.setdefault(k, v)
         if "accessibility" in prog.meta:
             facts["accessibility"] = prog.meta["accessibility"]
         return facts
 
     def variants(self, cfg) -> VariantPair:
+        if program_path(cfg):
+            return program_variants(cfg)
         return compensation_variants(cfg)
+
+
+def program_variants(cfg) -> VariantPair:
+    """The pair ``compare`` shows for a program read from a file: the program as written
+    against the spiral the process would plan from the scene."""
+    name = Path(str(cfg.process.program)).name
+    return VariantPair(
+        Variant("program", f"the program {name}", {}),
+        Variant("planned", "the planned spiral", {"process.program": None}),
+        key="process.program",
+        about=(f"The program {name} as written against the spiral planned from the scene "
+               f"(feed {cfg.process.feed_per_rev * MM_TO_UM:.4g} um/rev, compensation "
+               f"{cfg.process.compensation}): what the program cuts differently."))
 
 
 class TiledTurningProcess(TurningProcess):

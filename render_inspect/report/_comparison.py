@@ -259,6 +259,14 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
              fmt_quantity(b["filtered"].get("Sq_nm"), "nm")),
             ("measured - true rms (truth)", fmt_quantity(a["measured"].get("rms_nm"), "nm"),
              fmt_quantity(b["measured"].get("rms_nm"), "nm"))]
+    if "program" in a or "program" in b:  # a program read from a file: its findings
+        def finding(m):
+            prog = m.get("program")
+            if prog is None:
+                return "(planned)"
+            return f"{prog.get('findings_count', 0):,} points ({prog.get('file', '')})"
+        rows.append(("program findings (below the design, rapids in the part)",
+                     finding(a), finding(b)))
     meas = w.get("measured") or {}
     same = w.get("true_same_form_removed") or {}
     removed = meas.get("form_removed", "piston and tilt")

@@ -7,7 +7,8 @@ program, data); :func:`~render_inspect.report.kinematics_png`), ``"kinematics"``
 path against a reference; :func:`~render_inspect.report.plot_kinematics`),
 ``"following_error"`` and ``"following_error_map"`` (a machine's following error;
 :mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
-:func:`~render_inspect.report.save_map_png`).
+:func:`~render_inspect.report.save_map_png`) and ``"feed_per_rev"`` (the feed per
+revolution of a program against the radius).
 """
 
 from __future__ import annotations
@@ -18,12 +19,14 @@ from ._figure_kinds import registered_figures
 from ._following import plot_following_error, plot_following_error_map
 from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
+from ._program import plot_feed_per_rev
 
 __all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds"]
 
 #: the figure kinds :func:`draw_figure` draws itself (more are registered:
 #: :func:`figure_kinds`)
-FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map")
+FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map",
+                "feed_per_rev")
 
 
 def figure_kinds() -> tuple[str, ...]:
@@ -52,6 +55,9 @@ def draw_figure(spec: dict, png) -> Path:
                             title=spec.get("title", ""), label=spec.get("label", ""),
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
+    if kind == "feed_per_rev":
+        return plot_feed_per_rev(spec["radius_mm"], spec["feed_um"], png,
+                                 title=spec.get("title", ""))
     draw = registered_figures().get(kind)
     if draw is not None:
         return draw(spec, png)

@@ -10,6 +10,7 @@ from ..core.units import MM_TO_NM
 from ._figures import _plt, _to_png, line_panels, map_panels
 from ._format import fmt_number
 from ._html import HtmlReport
+from ._keys import key_unit
 
 __all__ = ["fit_figures", "fit_page", "psd_figure"]
 
@@ -86,11 +87,11 @@ def fit_page(record: dict, figs: dict) -> str:
     rows = []
     for k, p in record["parameters"].items():
         rel = p.get("relative_stderr")
-        rows.append([k, _val(p["value"]), _val(p["stderr"]),
+        rows.append([k, key_unit(k), _val(p["value"]), _val(p["stderr"]),
                      "n/a" if rel is None else f"{100 * rel:.3g} %",
                      _val(p.get("stderr_formal")), _val(p.get("stderr_random_parts")),
                      _val(p["start"]), f"{_val(p['bounds'][0])} .. {_val(p['bounds'][1])}"])
-    rep.table(rows, header=["key", "value", "stderr", "relative", "formal", "random parts",
+    rep.table(rows, header=["key", "unit", "value", "stderr", "relative", "formal", "random parts",
                             "start", "bounds"])
     n = (record.get("uncertainty") or {}).get("realisations", 0)
     rep.text("The standard error combines the formal one (from the Jacobian at the solution, "

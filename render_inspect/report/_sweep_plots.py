@@ -7,6 +7,8 @@ import io
 
 import numpy as np
 
+from ._keys import key_label as _label
+
 __all__ = ["curves_png", "heatmap_png", "sweep_plot_png"]
 
 
@@ -23,16 +25,6 @@ def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
-
-
-#: Units of sweep keys whose names do not carry one (lengths are mm).
-_UNITS = {"tool.nose_radius": "mm", "process.workpiece_radius": "mm", "simulation.pixel": "mm",
-          "process.depth_of_cut": "mm", "process.arc_length": "mm"}
-
-
-def _label(key: str) -> str:
-    unit = _UNITS.get(key)
-    return f"{key} ({unit})" if unit else key
 
 
 def curves_png(rows, *, x: str, y: str = "residual.Sq_nm", series: str | None = None,
@@ -98,7 +90,7 @@ def heatmap_png(rows, *, x: str, y: str, value: str = "residual.Sq_nm",
                 ax.text(j, i, f"{np.mean(vs):.3g}", ha="center", va="center", fontsize=7,
                         color="w" if np.ma.filled(shade, 0.0) < 0.6 else "k")
         cb = fig.colorbar(im, ax=ax)
-        cb.set_label(value)
+        cb.set_label(_label(value))
     else:
         ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
     ax.set_xlabel(_label(x))

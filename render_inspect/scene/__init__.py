@@ -169,6 +169,41 @@ def _expected(loc) -> str | None:
             f"{')' if hi_open or (hi is None and not infinite) else ']'}")
 
 
+def _model_at(loc):
+    """The schema's section (a model class) at the location ``loc`` of a validation
+    error, or None where there is none (an array, a plain value)."""
+    unions = _union_classes()
+    model, ann = Scene, None
+    for part in loc:
+        if isinstance(part, str) and part in unions and ann is not None:
+            model, ann = unions[part], None
+            continue
+        if isinstance(part, int) or model is None or part not in model.model_fields:
+            return None
+        ann, _ = unwrap_annotation(model.model_fields[part].annotation)
+        model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    return model
+
+
+def _did_you_mean(loc) -> str:
+    """", did you mean 'pixel'?" for an unknown key whose section has a key spelled
+    alike; else the section's keys when they are few; else nothing."""
+    import difflib
+
+    if not loc or not isinstance(loc[-1], str):
+        return ""
+    model = _model_at(loc[:-1])
+    if model is None:
+        return ""
+    keys = sorted(model.model_fields)
+    close = difflib.get_close_matches(loc[-1], keys, n=2, cutoff=0.6)
+    if close:
+        return "; did you mean " + " or ".join(repr(k) for k in close) + "?"
+    if len(keys) <= 12:
+        return "; keys here: " + ", ".join(keys)
+    return ""
+
+
 def _format_error(err: ValidationError, source: str) -> SceneError:
     """The errors of a validation as one line each in the scene's words
     (:func:`~render_inspect.core.messages.validation_line`): the dotted key, what it
@@ -185,6 +220,8 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
         expected = _expected(e["loc"]) if e["type"] in _NUMERIC_ERRORS else None
         key, text = validation_line(e, key=".".join(str(p) for p in loc), expected=expected,
                                     tags=sorted(design_types()))
+        if e["type"] == "extra_forbidden":
+            text += _did_you_mean(e["loc"])
         lines.append(f"{key or '(top level)'}: {text}")
     for parent, (n, inp) in short.items():
         inp = list(inp) if isinstance(inp, tuple) else inp
@@ -397,6 +434,7 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
     # relative heightmap paths are relative to the scene file
     _resolve_paths(data.get("design"), path.parent)
     _resolve_edge_path(data.get("tool"), path.parent)
+    _resolve_program(data.get("process"), path.parent)
     return scene_from_dict(data, source=str(path))
 
 
@@ -407,6 +445,15 @@ def _resolve_edge_path(tool, base: Path):
         p = Path(tool["edge_profile"])
         if not p.is_absolute():
             tool["edge_profile"] = str((base / p).resolve())
+
+
+def _resolve_program(process, base: Path):
+    """``process.program`` (a machine program file) relative to the scene file."""
+    if isinstance(process, dict) and isinstance(process.get("program"), str) \
+            and process["program"] and "\x00" not in process["program"]:
+        p = Path(process["program"]).expanduser()
+        if not p.is_absolute():
+            process["program"] = str((base / p).resolve())
 
 
 def _resolve_paths(design, base: Path):

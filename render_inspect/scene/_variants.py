@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 import tomllib
 
 from ..core.errors import InputError
@@ -79,7 +80,10 @@ def compare_pair(scene, vary: str | None = None) -> VariantPair:
         return pair
     key, (va, vb) = parse_vary(vary)
     leaf = key.split(".")[-1]
-    na, nb = _slug(f"{leaf}_{va}"), _slug(f"{leaf}_{vb}")
+    if leaf == "program":  # program files: named by their file names
+        na, nb = (_slug(f"program_{Path(str(v)).stem}") for v in (va, vb))
+    else:
+        na, nb = _slug(f"{leaf}_{va}"), _slug(f"{leaf}_{vb}")
     if na == nb:
         na, nb = na + "_a", nb + "_b"
     return VariantPair(Variant(na, f"{key} = {va}", {key: va}),

@@ -1,0 +1,531 @@
+"""Machine programs written by others, read as the machine runs them
+(:func:`read_program`): the tool path a lathe or a raster-cutting machine follows, with
+what had to be inferred said in words.
+
+Dialects (docs/programs.md):
+
+* the two this project writes (``; render_inspect generic C-X-Z turning program`` and
+  ``... X-Y-Z sculpturing program``), read with their own readers: exact to the written
+  places;
+* bare point lists, one ``C.. X.. Z..`` (any order) per line, C in degrees and wrapping
+  every revolution, no feed or spindle words (the spindle speed comes from the scene);
+* lathe G-code: X-Z moves (``G00`` .. ``G03``) while the spindle turns (C follows from
+  the spindle speed, ``S`` under ``G97`` or ``G96``), or C-X-Z moves of a slow tool servo,
+  with ``G90``/``G91``, ``G93``/``G94``/``G95`` feeds, ``G20``/``G21`` and ``G70``/``G71``
+  units, ``U``/``W`` incremental words, comments, ``%``, ``O`` and ``N`` numbers;
+* linear X-Y-Z programs of sculpturing / raster cutting.
+
+The words are read by :func:`~render_inspect.io._program_scan.scan_program` (streaming,
+vectorised).  Every block it cannot read gets one line naming the file, the line, the
+block and the word.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.toolpath import LinearProgram, ToolPath
+from ..core.units import MIN_TO_S
+from ._nc import read_nc, read_program_nc
+from ._program_scan import ScannedProgram, scan_program
+
+__all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
+           "ARC_TOLERANCE_MM", "X_MODES", "MAX_PROGRAM_POINTS"]
+
+#: speed of the rapid moves (G00), mm/min: the programs do not say it, and it only sets
+#: how long a rapid takes (the spindle turns meanwhile)
+RAPID_MM_PER_MIN = 2000.0
+#: largest distance of an arc's chords from the arc (G02 / G03 are cut as chords), mm
+ARC_TOLERANCE_MM = 1e-6
+#: how X is read: as written ("auto": inferred from the part's size)
+X_MODES = ("auto", "radius", "diameter")
+#: the most points an imported turning path may have once the spindle's turning is
+#: sampled (process.points_per_rev per revolution)
+MAX_PROGRAM_POINTS = 200_000_000
+_OWN_TURNING = "render_inspect generic C-X-Z turning program"
+_OWN_LINEAR = "render_inspect generic X-Y-Z sculpturing program"
+
+
+@dataclass
+class ImportedProgram:
+    """A program read from a file.
+
+    Attributes
+    ----------
+    path : Path
+    dialect : str
+        ``"render_inspect turning"``, ``"render_inspect linear"``, ``"point list"``,
+        ``"lathe G-code"`` (X-Z moves, the spindle turning), ``"C-X-Z G-code"`` or
+        ``"linear G-code"``.
+    program : ToolPath or LinearProgram
+        What the machine follows (arcs as chords, the spindle's turning sampled).
+    motion : (n,) int8
+        The motion of the block each point ends (0 rapid, 1 linear, 2/3 arc).
+    file_line : (n,) int64
+        The file line of the block each point belongs to.
+    inferred : dict
+        What the program does not say and where it came from: name -> one sentence.
+    facts : dict
+        Counts and modes (blocks, motion blocks, G and M codes, notes).
+    """
+
+    path: Path
+    dialect: str
+    program: object
+    motion: np.ndarray
+    file_line: np.ndarray
+    inferred: dict = field(default_factory=dict)
+    facts: dict = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        return "linear" if isinstance(self.program, LinearProgram) else "turning"
+
+
+def program_dialect(path) -> str:
+    """The dialect of ``path`` from its first line: ``"render_inspect turning"``,
+    ``"render_inspect linear"`` or ``"G-code"`` (anything else: point lists and G-code
+    are told apart once read)."""
+    with Path(path).open("rb") as fh:
+        first = fh.readline(400).decode("ascii", "replace").strip()
+    if first.startswith("; " + _OWN_TURNING):
+        return "render_inspect turning"
+    if first.startswith("; " + _OWN_LINEAR):
+        return "render_inspect linear"
+    return "G-code"
+
+
+def _check_path(path) -> Path:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"process.program: file not found: {str(path)!r}")
+    return path
+
+
+def read_program(path, *, kind: str | None = None, spindle_rpm: float = 50.0,
+                 feed_mm_per_min: float = 0.5, part_radius: float | None = None,
+                 x_mode: str = "auto", points_per_rev: int = 3600,
+                 design_height=None, rapid_mm_per_min: float = RAPID_MM_PER_MIN,
+                 spindle_source: str = "process.spindle_rpm",
+                 feed_source: str = "process.feed_mm_per_min") -> ImportedProgram:
+    """Read the machine program ``path`` (see the module docstring).
+
+    Parameters
+    ----------
+    kind : {"turning", "linear"}, optional
+        What the scene cuts; a program of the other kind is refused.
+    spindle_rpm, feed_mm_per_min : float
+        The spindle speed and feed where the program does not give them (named in
+        ``inferred`` with ``spindle_source`` / ``feed_source``).
+    part_radius : float, optional
+        The part's radius, mm: whether X is a radius or a diameter is inferred from it.
+    x_mode : {"auto", "radius", "diameter"}
+    points_per_rev : int
+        Points per revolution of the spindle where the program gives no C (an X-Z lathe
+        program): the turning is sampled this finely.
+    design_height : callable, optional
+        ``height(x, y)`` of the design: decides between radius and diameter when the
+        part's size allows both.
+    """
+    path = _check_path(path)
+    if x_mode not in X_MODES:
+        raise InputError(f"process.program_x must be one of {list(X_MODES)}, received {x_mode!r}")
+    dialect = program_dialect(path)
+    if dialect == "render_inspect turning":
+        prog = read_nc(path)
+        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8),
+                              np.full(prog.points, -1, np.int64),
+                              {"x": "X is the radius (the project's own dialect)",
+                               "time": "time from the inverse-time F words (G93)"},
+                              {"points": prog.points})
+    elif dialect == "render_inspect linear":
+        prog = read_program_nc(path)
+        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8),
+                              np.full(prog.points, -1, np.int64),
+                              {"time": "time from the F words (mm/min) along the lines"},
+                              {"points": prog.points})
+    else:
+        sp = scan_program(path)
+        if sp.count == 0:
+            raise InputError(f"{path}: no motion blocks (no X, Y, Z or C words) found")
+        if sp.written["Y"].any():
+            if sp.written["C"].any():
+                k = int(np.flatnonzero(sp.written["C"])[0])
+                raise InputError(f"{path}:{int(sp.line[k])}: a program with both Y and C words; "
+                                 f"the reader takes C-X-Z (turning) or X-Y-Z (raster) programs")
+            out = _linear(sp, feed_mm_per_min, rapid_mm_per_min, feed_source)
+        else:
+            out = _turning(sp, spindle_rpm=spindle_rpm, feed=feed_mm_per_min,
+                           part_radius=part_radius, x_mode=x_mode, ppr=points_per_rev,
+                           design_height=design_height, rapid=rapid_mm_per_min,
+                           spindle_source=spindle_source, feed_source=feed_source)
+    if kind is not None and out.kind != kind:
+        what = {"turning": "a turning (C-X-Z or X-Z) program",
+                "linear": "a linear X-Y-Z program"}
+        raise InputError(f"process.program: {path} is {what[out.kind]}, and the scene's "
+                         f"process cuts {what[kind].split(' ', 1)[1]}")
+    return out
+
+
+# ---------------------------------------------------------------------------- arcs
+def _arc_points(p0, p1, centre, clockwise: bool, tol: float):
+    """Points (excluding the start, including the end) of the arc from ``p0`` to ``p1``
+    about ``centre`` in the plane's (a, b) coordinates; chords within ``tol``."""
+    r0 = math.hypot(p0[0] - centre[0], p0[1] - centre[1])
+    r1 = math.hypot(p1[0] - centre[0], p1[1] - centre[1])
+    a0 = math.atan2(p0[1] - centre[1], p0[0] - centre[0])
+    a1 = math.atan2(p1[1] - centre[1], p1[0] - centre[0])
+    sweep = a1 - a0
+    if clockwise:
+        if sweep >= 0:
+            sweep -= 2 * math.pi
+    elif sweep <= 0:
+        sweep += 2 * math.pi
+    r = 0.5 * (r0 + r1)
+    step = 2 * math.sqrt(max(2 * r * tol - tol * tol, 1e-30)) / max(r, 1e-12)
+    n = max(1, int(math.ceil(abs(sweep) / max(step, 1e-9))))
+    u = np.arange(1, n + 1) / n
+    ang = a0 + sweep * u
+    rad = r0 + (r1 - r0) * u
+    return centre[0] + rad * np.cos(ang), centre[1] + rad * np.sin(ang), u, r0, r1
+
+
+def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, offsets,
+                 tol: float):
+    """(index of the source row per point, axes per point, arc fraction per point): the
+    rows with G02 / G03 replaced by chord points of their arcs in the plane
+    ``plane_axes`` = (a, b) (centre offsets ``offsets`` = (ia, ib) from the start, or
+    ``R``; G02 clockwise seen with a to the right and b up)."""
+    arcs = np.flatnonzero(sp.motion[rows] >= 2)
+    if arcs.size == 0:
+        return None, axes, None
+    a, b = plane_axes
+    ia, ib = offsets
+    pieces_idx, pieces = [], {k: [] for k in axes}
+    pieces_u = []
+    last = 0
+    for j in arcs.tolist():
+        if j == 0:
+            continue  # the first point: nothing to move from
+        pieces_idx.append(np.arange(last, j))
+        for k in axes:
+            pieces[k].append(axes[k][last:j])
+        pieces_u.append(np.ones(j - last))
+        r = rows[j]
+        p0 = (axes[a][j - 1], axes[b][j - 1])
+        p1 = (axes[a][j], axes[b][j])
+        oa, ob, rr = sp.arc[ia][r], sp.arc[ib][r], sp.arc["R"][r]
+        line = int(sp.line[r])
+        cw = sp.motion[r] == 2
+        if not math.isnan(rr):
+            d = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+            if d == 0 or abs(rr) < d / 2 - 1e-9:
+                raise InputError(f"{sp.path}:{line}: the arc's R {rr:g} mm cannot join points "
+                                 f"{d:g} mm apart")
+            h = math.sqrt(max(rr * rr - d * d / 4, 0.0))
+            mx, my = (p0[0] + p1[0]) / 2, (p0[1] + p1[1]) / 2
+            ux, uy = (p1[0] - p0[0]) / d, (p1[1] - p0[1]) / d
+            # the centre on the side that makes the arc the short one for R > 0
+            side = (-1 if cw else 1) * (1 if rr > 0 else -1)
+            centre = (mx - side * uy * h, my + side * ux * h)
+        elif not (math.isnan(oa) and math.isnan(ob)):
+            centre = (p0[0] + (0.0 if math.isnan(oa) else oa),
+                      p0[1] + (0.0 if math.isnan(ob) else ob))
+        else:
+            raise InputError(f"{sp.path}:{line}: the arc (G0{sp.motion[r]}) has no centre: give "
+                             f"{ia} / {ib} or R")
+        xa, xb, u, r0, r1 = _arc_points(p0, p1, centre, cw, tol)
+        if abs(r0 - r1) > max(1e-3, 1e-3 * r0):
+            raise InputError(f"{sp.path}:{line}: the arc's end lies {abs(r0 - r1):.4g} mm off "
+                             f"its circle (radius {r0:.6g} mm at the start)")
+        pieces_idx.append(np.full(u.size, j))
+        for k in axes:
+            if k == a:
+                pieces[k].append(xa)
+            elif k == b:
+                pieces[k].append(xb)
+            else:  # the other axes move linearly along the arc
+                pieces[k].append(axes[k][j - 1] + (axes[k][j] - axes[k][j - 1]) * u)
+        pieces_u.append(u)
+        last = j + 1
+    pieces_idx.append(np.arange(last, rows.size))
+    for k in axes:
+        pieces[k].append(axes[k][last:])
+    pieces_u.append(np.ones(rows.size - last))
+    return (np.concatenate(pieces_idx), {k: np.concatenate(v) for k, v in pieces.items()},
+            np.concatenate(pieces_u))
+
+
+# ---------------------------------------------------------------------------- turning
+def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
+    """("radius" or "diameter", the sentence saying why)."""
+    if x_mode != "auto":
+        return x_mode, f"X is the {x_mode}, as process.program_x says"
+    big = float(np.max(np.abs(x[cut]))) if cut.any() else float(np.max(np.abs(x)))
+    if part_radius is None:
+        return "radius", "X is read as the radius (no part size to infer it from)"
+    r = float(part_radius)
+    if big > 3 * r:
+        raise InputError(f"{sp.path}: the cutting moves reach X = {big:g} mm, beyond the part "
+                         f"(radius {r:g} mm) as a radius and as a diameter; check the program "
+                         f"or process.workpiece_radius (process.program_x sets how X is read)")
+    if big > 1.5 * r:
+        return "diameter", (f"X is the diameter: the cutting moves reach X = {big:g} mm, and "
+                            f"the part's radius is {r:g} mm (process.program_x = 'radius' "
+                            f"reads it as the radius)")
+    if big <= 0.75 * r and design_height is not None and cut.sum() >= 3:
+        sel = np.flatnonzero(cut)
+        sel = sel[:: max(1, sel.size // 2000)]
+        errs = {}
+        for mode, scale in (("radius", 1.0), ("diameter", 0.5)):
+            dz = z[sel] - design_height(x[sel] * scale, np.zeros(sel.size))
+            errs[mode] = float(np.std(dz[np.isfinite(dz)])) if np.isfinite(dz).any() else math.inf
+        best = min(errs, key=errs.get)
+        return best, (f"X is the {best}: both readings fit the part (largest X {big:g} mm, "
+                      f"part radius {r:g} mm), and Z follows the design better so (Z - design "
+                      f"varies by {errs[best] * 1e6:.4g} nm as {best}, "
+                      f"{errs['diameter' if best == 'radius' else 'radius'] * 1e6:.4g} nm "
+                      f"otherwise; process.program_x sets it)")
+    return "radius", (f"X is the radius: the cutting moves reach X = {big:g} mm, within the "
+                      f"part's radius {r:g} mm (process.program_x = 'diameter' reads it as the "
+                      f"diameter)")
+
+
+def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
+             design_height, rapid, spindle_source, feed_source) -> ImportedProgram:
+    path = sp.path
+    has_c = bool(sp.written["C"].any())
+    known = ~np.isnan(sp.axes["X"]) & ~np.isnan(sp.axes["Z"])
+    if has_c:
+        known &= ~np.isnan(sp.axes["C"])
+    if not known.any():
+        need = "X, Z and C" if has_c else "X and Z"
+        raise InputError(f"{path}: no block places the tool: {need} are never all known")
+    rows = np.flatnonzero(known)
+    rows = rows[rows >= rows[0]]
+    inferred = {}
+    x = sp.axes["X"][rows].copy()
+    z = sp.axes["Z"][rows].copy()
+    cut = sp.motion[rows] >= 1
+    mode, why = _x_mode(sp, x, cut, part_radius, x_mode, design_height, z)
+    inferred["x"] = why
+    if mode == "diameter":
+        x *= 0.5
+    axes = {"X": x, "Z": z}
+    if has_c:
+        axes["C"] = sp.axes["C"][rows].copy()
+    # arcs in the Z-X plane (G18): Z to the right, X up; I and K from the start, in radius
+    src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM)
+    blk = rows if src is None else rows[src]
+    if np.any(sp.plane[blk[sp.motion[blk] >= 2]] != 18):
+        k = int(blk[np.flatnonzero((sp.motion[blk] >= 2) & (sp.plane[blk] != 18))[0]])
+        raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
+                         f"in a turning program; select G18")
+    x, z = axes["X"], axes["Z"]
+    motion = sp.motion[blk]
+    fmode = sp.feed_mode[blk]
+    fval = sp.feed[blk]
+    has_f = bool(np.isfinite(sp.feed).any())
+    # ---- the spindle
+    css = sp.spindle_mode[blk] == 96
+    if np.isfinite(sp.spindle).any() or css.any():
+        s_prog = sp.spindle[blk]
+        clampv = np.where(np.isfinite(sp.clamp_rpm[blk]), sp.clamp_rpm[blk], float(spindle_rpm))
+        base = np.where(np.isfinite(s_prog) & ~css, s_prog, float(spindle_rpm))
+    else:  # no S anywhere: the scene's speed everywhere (views, no memory)
+        s_prog = np.broadcast_to(np.float64(math.nan), blk.shape)
+        clampv = base = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
+    if np.isfinite(s_prog).any():
+        inferred["spindle"] = "spindle speed from the program's S words"
+        if (~np.isfinite(s_prog)).any():
+            inferred["spindle"] += (f" ({spindle_source} = {spindle_rpm:g} rpm before the "
+                                    f"first S)")
+    else:
+        inferred["spindle"] = f"spindle speed {spindle_rpm:g} rpm from {spindle_source}"
+    if css.any():
+        inferred["spindle"] += (" ; constant surface speed (G96) below the clamp (G50 S, or "
+                                f"{spindle_source} where the program sets none)")
+
+    any_css = bool(css.any())
+
+    def spin(r, i):
+        """rpm of the moves ``i`` at radius ``r``."""
+        if not any_css:
+            return base[i]
+        return _css_rpm(s_prog[i], clampv[i], r, css[i], base[i])
+
+    # ---- time of each move (from the point before)
+    length = np.hypot(np.diff(x), np.diff(z))
+    if has_c:
+        c = axes["C"]
+        dc = np.diff(c)
+        neg = dc < 0
+        if neg.sum() > dc.size // 2:
+            k = int(blk[1:][np.flatnonzero(neg)[0]])
+            raise InputError(f"{path}:{int(sp.line[k])}: C decreases (the spindle turns "
+                             f"backwards, M04); the reader takes programs whose C increases")
+        dc = np.where(neg, dc - 360.0 * np.floor(dc / 360.0), dc)  # C wraps every revolution
+        c_cum = float(c[0]) + np.r_[0.0, np.cumsum(dc)]
+        if neg.any():
+            inferred["c"] = (f"C wraps at 360 deg ({int(neg.sum())} times): it is read as "
+                             f"turning on")
+    else:
+        dc = None
+    fm, fv, mo = fmode[1:], fval[1:], motion[1:]
+    rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size))
+    dt = np.full(length.size, math.nan)
+    rapid_mask = mo == 0
+    if has_f:
+        g93 = (fm == 93) & ~rapid_mask
+        g94 = (fm == 94) & ~rapid_mask
+        g95 = (fm == 95) & ~rapid_mask
+        dt[g93] = MIN_TO_S / fv[g93]
+        dt[g94] = length[g94] / fv[g94] * MIN_TO_S
+        dt[g95] = length[g95] / (fv[g95] * rp[g95]) * MIN_TO_S
+        missing = ~rapid_mask & ~np.isfinite(fv)
+        if missing.any():
+            dt[missing] = length[missing] / float(feed) * MIN_TO_S
+            inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
+        else:
+            inferred["feed"] = "feed from the program's F words"
+    else:
+        if has_c:
+            dt[~rapid_mask] = dc[~rapid_mask] / (360.0 * rp[~rapid_mask]) * MIN_TO_S
+            inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
+                                f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
+                                f"at {feed:g} mm/min from {feed_source}")
+            still = ~rapid_mask & (dc == 0)
+            dt[still] = length[still] / float(feed) * MIN_TO_S
+        else:
+            dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
+            inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
+    dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
+    if rapid_mask.any():
+        inferred["rapid"] = (f"rapids (G00) at {rapid:g} mm/min (the program does not say "
+                             f"the machine's rapid rate)")
+    if has_c:
+        # a move cannot turn C faster than the spindle allows: C sets the least time
+        dt = np.maximum(dt, dc / (360.0 * rp) * MIN_TO_S)
+    zero = ~(dt > 0)
+    keep = np.r_[True, ~zero]
+    if zero.any():  # points the tool does not leave (a repeated block)
+        bad = zero & (length > 0)
+        if bad.any():
+            k = int(blk[1:][np.flatnonzero(bad)[0]])
+            raise InputError(f"{path}:{int(sp.line[k])}: the move takes no time (F or the "
+                             f"spindle speed is 0)")
+    del length, fm, fv, mo, rp, rapid_mask
+    if zero.any():
+        sel = np.flatnonzero(keep)
+        x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
+        s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
+        if has_c:
+            c_cum = c_cum[sel]
+    else:  # every point kept (the usual case): no copies
+        dt_k = dt
+    del dt, zero, keep
+    t = np.empty(dt_k.size + 1)
+    t[0] = 0.0
+    np.cumsum(dt_k, out=t[1:])
+    if has_c:
+        theta = np.radians(c_cum)
+        del c_cum
+        dialect = "point list" if not has_f and not sp.g_codes else "C-X-Z G-code"
+    else:
+        # the spindle turns while X and Z move: C follows from the time, each move sampled
+        # at points_per_rev per revolution
+        rp_k = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size))
+        revs = rp_k * dt_k / MIN_TO_S
+        n_sub = np.maximum(1, np.ceil(revs * ppr)).astype(np.int64)
+        total = int(n_sub.sum()) + 1
+        if total > MAX_PROGRAM_POINTS:
+            raise InputError(f"{path}: sampling the spindle's {float(revs.sum()):.4g} revolutions "
+                             f"at process.points_per_rev = {ppr} gives {total:,} points (at most "
+                             f"{MAX_PROGRAM_POINTS:,}); lower process.points_per_rev")
+        seg = np.repeat(np.arange(n_sub.size), n_sub)
+        u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
+        xs = x[seg] + (x[seg + 1] - x[seg]) * u
+        zs = z[seg] + (z[seg + 1] - z[seg]) * u
+        dts = dt_k[seg] / n_sub[seg]
+        if any_css:
+            # the spindle speed at each step's middle; a feed per revolution (G95) under
+            # constant surface speed sets each step's time from it
+            xm = xs - 0.5 * (x[seg + 1] - x[seg]) / n_sub[seg]
+            rpm_s = spin(xm, seg + 1)
+            bk = blk[1:][seg]
+            g95 = (sp.feed_mode[bk] == 95) & (motion[1:][seg] > 0) & css[seg + 1]
+            if g95.any():
+                step = np.hypot(x[seg + 1] - x[seg], z[seg + 1] - z[seg]) / n_sub[seg]
+                dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
+        else:
+            rpm_s = spin(xs, seg + 1)
+        ts = np.cumsum(dts)
+        theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
+        x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
+        blk = np.r_[blk[0], blk[1:][seg]]
+        motion = np.r_[motion[0], motion[1:][seg]]
+        dialect = "lathe G-code"
+        inferred["c"] = (f"C from the spindle's turning, sampled at {ppr} points per "
+                         f"revolution (process.points_per_rev)")
+    meta = {"source": path.name, "dialect": dialect, "x_mode": mode,
+            "sampling": "program", "compensation": "as programmed"}
+    prog = ToolPath(theta, x, z, t, meta)
+    facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
+             "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
+    return ImportedProgram(path, dialect, prog, motion.astype(np.int8),
+                           sp.line[blk].astype(np.int64), inferred, facts)
+
+
+def _css_rpm(s, clamp, r, css, rpm):
+    """The spindle speed of constant surface speed ``s`` (m/min) at radius ``r`` (mm),
+    clamped; ``rpm`` where ``css`` is off."""
+    surface = np.where(np.isfinite(s), s, 0.0) * 1000.0 / (2 * math.pi)
+    return np.where(css, np.minimum(clamp, surface / np.maximum(np.abs(r), 1e-9)), rpm)
+
+
+# ---------------------------------------------------------------------------- linear
+def _linear(sp: ScannedProgram, feed, rapid, feed_source) -> ImportedProgram:
+    path = sp.path
+    known = ~np.isnan(sp.axes["X"]) & ~np.isnan(sp.axes["Y"]) & ~np.isnan(sp.axes["Z"])
+    if not known.any():
+        raise InputError(f"{path}: no block places the tool: X, Y and Z are never all known")
+    rows = np.flatnonzero(known)
+    rows = rows[rows >= rows[0]]
+    axes = {a: sp.axes[a][rows].copy() for a in "XYZ"}
+    plane = int(sp.plane[rows[np.flatnonzero(sp.motion[rows] >= 2)[0]]]) \
+        if np.any(sp.motion[rows] >= 2) else 17
+    pa = {17: (("X", "Y"), ("I", "J")), 18: (("Z", "X"), ("K", "I")),
+          19: (("Y", "Z"), ("J", "K"))}[plane]
+    src, axes, _ = _expand_arcs(sp, rows, axes, pa[0], pa[1], ARC_TOLERANCE_MM)
+    blk = rows if src is None else rows[src]
+    x, y, z = axes["X"], axes["Y"], axes["Z"]
+    motion = sp.motion[blk]
+    length = np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)
+    fm, fv, mo = sp.feed_mode[blk][1:], sp.feed[blk][1:], motion[1:]
+    inferred = {}
+    fv = np.where(np.isfinite(fv), fv, float(feed))
+    if np.isfinite(sp.feed).all():
+        inferred["feed"] = "feed from the program's F words"
+    else:
+        inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} where the program gives no F"
+    if np.any((fm == 95) & (mo > 0)):
+        k = int(blk[1:][np.flatnonzero((fm == 95) & (mo > 0))[0]])
+        raise InputError(f"{path}:{int(sp.line[k])}: feed per revolution (G95) in an X-Y-Z "
+                         f"program (no spindle turns); use G94 or G93")
+    dt = np.where(fm == 93, MIN_TO_S / fv, length / fv * MIN_TO_S)
+    dt = np.where(mo == 0, length / float(rapid) * MIN_TO_S, dt)
+    t = np.r_[0.0, np.cumsum(dt)]
+    # a line: a run of feed moves; each rapid starts the next one at its end point
+    line = np.r_[0, np.cumsum(mo == 0)].astype(np.int64)
+    _, line = np.unique(line, return_inverse=True)
+    meta = {"source": path.name, "dialect": "linear G-code", "feed_mm_per_min": float(feed)}
+    prog = LinearProgram(x, y, z, t, line.astype(np.int64), meta)
+    facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
+             "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
+    return ImportedProgram(path, "linear G-code", prog, motion.astype(np.int8),
+                           sp.line[blk].astype(np.int64), inferred, facts)

@@ -1,0 +1,286 @@
+"""The compiled inner loop of the program scanner: one pass over the bytes of a piece of
+a program (comments and spaces already removed, upper case), reading each word, running
+each block through the modal state (G groups, units, absolute / incremental positions,
+F, S, the spindle clamp) and writing one row per motion block.
+
+A block it cannot read stops the pass with an error code, the byte where it stopped and a
+detail (the letter, the G code, the group); :mod:`render_inspect.io._program_scan` turns
+that into one line naming the file, the line, the block and the word.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["scan_piece", "STATE_SIZE", "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES",
+           "LETTER_OK", "INIT_STATE"]
+
+# state vector
+_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED = range(14)
+STATE_SIZE = 14
+#: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97
+INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
+                       np.nan, np.nan, np.nan, np.nan, 0], dtype=np.float64)
+#: columns of a row (float64): line (in the piece), motion, X, Y, Z, C, I, J, K, R, F,
+#: feed mode, S, spindle mode, clamp, plane, written (bits X=1 Y=2 Z=4 C=8)
+ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
+              "S", "spindle_mode", "clamp", "plane", "written")
+_NF = len(ROW_FIELDS)
+
+GROUP_NAMES = ("motion", "distance", "feed", "units", "plane", "spindle", "radius_comp",
+               "no effect", "dwell", "home", "clamp", "refused")
+#: G code (integer 0..99) -> group index (-1: not taken)
+G_GROUP = np.full(100, -1, dtype=np.int64)
+for _g in (0, 1, 2, 3):
+    G_GROUP[_g] = 0
+for _g in (90, 91):
+    G_GROUP[_g] = 1
+for _g in (93, 94, 95):
+    G_GROUP[_g] = 2
+for _g in (20, 21, 70, 71):
+    G_GROUP[_g] = 3
+for _g in (17, 18, 19):
+    G_GROUP[_g] = 4
+for _g in (96, 97):
+    G_GROUP[_g] = 5
+G_GROUP[40] = 6
+for _g in (8, 9, 54, 55, 56, 57, 58, 59, 61, 64, 80):
+    G_GROUP[_g] = 7
+G_GROUP[4] = 8
+G_GROUP[28] = 9
+G_GROUP[50] = 10
+G_GROUP[41] = 11
+G_GROUP[42] = 11
+
+#: letters a block may hold (G and M may repeat, the others once)
+LETTER_OK = np.zeros(26, dtype=np.bool_)
+for _ch in "XYZCUVWHIJKRFSNOTPQDLGM":
+    LETTER_OK[ord(_ch) - 65] = True
+
+#: error codes
+ERRORS = {1: "bad byte", 2: "no number", 3: "number without letter", 4: "bad number",
+          5: "word not taken", 6: "twice", 7: "unknown G", 8: "refused G", 9: "same group",
+          10: "G50 axes", 11: "absolute and incremental"}
+
+_INCH = 25.4
+_POW10 = 10.0 ** np.arange(40)
+
+
+@njit(cache=True, nogil=True)
+def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, flags):
+    """Run one block through the modal state; write its row when it moves. Returns
+    (rows written so far, error code, detail)."""
+    grp_seen = np.zeros(12, dtype=np.bool_)
+    dwell = False
+    home = False
+    clamp = False
+    for k in range(ng):
+        g = gs[k]
+        gi = int(g)
+        if gi != g or gi < 0 or gi > 99 or G_GROUP[gi] < 0:
+            return nrow, 7, k
+        grp = G_GROUP[gi]
+        seen_g[gi] = True
+        if grp == 11:
+            return nrow, 8, k
+        if grp <= 6 and grp_seen[grp]:
+            return nrow, 9, grp
+        grp_seen[grp] = True
+        if grp == 0:
+            st[_MOTION] = g
+        elif grp == 1:
+            st[_DIST] = g
+        elif grp == 2:
+            st[_FEED] = g
+        elif grp == 3:
+            st[_UNITS] = g
+        elif grp == 4:
+            st[_PLANE] = g
+        elif grp == 5:
+            st[_SPINDLE] = g
+        elif grp == 8:
+            dwell = True
+        elif grp == 9:
+            home = True
+        elif grp == 10:
+            clamp = True
+    for k in range(nm):
+        m = ms[k]
+        mi = int(m)
+        if mi == m and 0 <= mi <= 99:
+            seen_m[mi] = True
+        if m == 2 or m == 30:
+            st[_ENDED] = 1.0
+    if dwell:
+        flags[0] = True
+    if home:
+        flags[1] = True
+    inch = st[_UNITS] == 20 or st[_UNITS] == 70
+    scale = _INCH if inch else 1.0
+    # X, Z, U, W letters: 23, 25, 20, 22
+    if clamp:
+        for li in (23, 25, 20, 22):
+            if have[li]:
+                return nrow, 10, li
+        if have[18]:  # S
+            st[_CLAMP] = val[18]
+    elif have[18]:
+        st[_S] = val[18]
+    if have[5]:  # F
+        st[_F] = val[5] * (1.0 if st[_FEED] == 93 else scale)
+    non_motion = dwell or home or clamp
+    written = 0
+    if not non_motion:
+        inc = st[_DIST] == 91
+        # (axis letter, incremental letter, state slot, bit, scaled)
+        for ax in range(4):
+            if ax == 0:
+                la, lu, slot, bit = 23, 20, _X, 1
+            elif ax == 1:
+                la, lu, slot, bit = 24, 21, _Y, 2
+            elif ax == 2:
+                la, lu, slot, bit = 25, 22, _Z, 4
+            else:
+                la, lu, slot, bit = 2, 7, _C, 8
+            sc = scale if ax < 3 else 1.0
+            if have[la] and have[lu]:
+                return nrow, 11, la
+            if have[la]:
+                if inc:
+                    st[slot] = st[slot] + val[la] * sc
+                else:
+                    st[slot] = val[la] * sc
+                written |= bit
+            elif have[lu]:
+                st[slot] = st[slot] + val[lu] * sc
+                written |= bit
+    if written:
+        r = rows[nrow]
+        r[0] = line
+        r[1] = st[_MOTION]
+        r[2] = st[_X]
+        r[3] = st[_Y]
+        r[4] = st[_Z]
+        r[5] = st[_C]
+        r[6] = val[8] * scale if have[8] else np.nan     # I
+        r[7] = val[9] * scale if have[9] else np.nan     # J
+        r[8] = val[10] * scale if have[10] else np.nan   # K
+        r[9] = val[17] * scale if have[17] else np.nan   # R
+        r[10] = st[_F]
+        r[11] = st[_FEED]
+        r[12] = st[_S]
+        r[13] = st[_SPINDLE]
+        r[14] = st[_CLAMP]
+        r[15] = st[_PLANE]
+        r[16] = written
+        nrow += 1
+    return nrow, 0, 0
+
+
+@njit(cache=True, nogil=True)
+def scan_piece(a, st, rows, seen_g, seen_m, seen_letter, flags):
+    """Scan the bytes ``a`` (see the module docstring) from the state ``st`` (updated in
+    place).  Returns (rows written, blocks, error code, byte position, detail, lines)."""
+    n = a.size
+    have = np.zeros(26, dtype=np.bool_)
+    val = np.zeros(26)
+    gs = np.zeros(32)
+    ms = np.zeros(32)
+    ng = 0
+    nm = 0
+    nrow = 0
+    blocks = 0
+    line = 0
+    any_word = False
+    i = 0
+    while i < n:
+        c = a[i]
+        if c == 10:
+            if any_word:
+                blocks += 1
+                nrow, err, det = _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow,
+                                            seen_g, seen_m, flags)
+                if err:
+                    return nrow, blocks, err, i - 1, det, line
+                have[:] = False
+                ng = 0
+                nm = 0
+                any_word = False
+                if st[_ENDED] != 0:
+                    return nrow, blocks, 0, i, 0, line
+            line += 1
+            i += 1
+            continue
+        if c < 65 or c > 90:
+            if (48 <= c <= 57) or c == 46 or c == 43 or c == 45:
+                return nrow, blocks, 3, i, 0, line
+            return nrow, blocks, 1, i, 0, line
+        li = c - 65
+        if not LETTER_OK[li]:
+            return nrow, blocks, 5, i, li, line
+        seen_letter[li] = True
+        wpos = i
+        i += 1
+        neg = False
+        if i < n and (a[i] == 45 or a[i] == 43):
+            neg = a[i] == 45
+            i += 1
+        mant = 0
+        frac = 0
+        nd = 0
+        ndot = 0
+        skipped = 0
+        while i < n:
+            d = a[i]
+            if 48 <= d <= 57:
+                if nd < 18:
+                    mant = mant * 10 + (d - 48)
+                    if ndot:
+                        frac += 1
+                elif not ndot:
+                    skipped += 1  # digits past 18 before the point: powers of ten
+                nd += 1
+            elif d == 46:
+                ndot += 1
+            else:
+                break
+            i += 1
+        if nd == 0:
+            if ndot == 0 and (i >= n or a[i] == 10 or (65 <= a[i] <= 90)) and i == wpos + 1:
+                return nrow, blocks, 2, wpos, li, line
+            return nrow, blocks, 4, wpos, li, line
+        if ndot > 1:
+            return nrow, blocks, 4, wpos, li, line
+        if i < n and (a[i] == 43 or a[i] == 45):
+            return nrow, blocks, 4, wpos, li, line
+        if mant < 9007199254740992:
+            v = mant / _POW10[frac]
+        else:
+            v = float(mant) / _POW10[frac]
+        if skipped:
+            v = v * _POW10[skipped]
+        if neg:
+            v = -v
+        any_word = True
+        if li == 6:  # G
+            if ng >= 32:
+                return nrow, blocks, 9, wpos, 0, line
+            gs[ng] = v
+            ng += 1
+        elif li == 12:  # M
+            if nm < 32:
+                ms[nm] = v
+                nm += 1
+        else:
+            if have[li]:
+                return nrow, blocks, 6, wpos, li, line
+            have[li] = True
+            val[li] = v
+    if any_word:
+        blocks += 1
+        nrow, err, det = _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow,
+                                    seen_g, seen_m, flags)
+        if err:
+            return nrow, blocks, err, n - 1, det, line
+    return nrow, blocks, 0, n, 0, line

@@ -1,0 +1,269 @@
+"""Compiled passes of the burr model (:mod:`._burrs`): the Gaussian smoothing of the
+machined map and the search for its sharp edges, threaded over rows.
+
+Both give the same numbers, to the last bit, as the array expressions they replace:
+
+* :func:`gaussian_nearest` is scipy.ndimage's ``gaussian_filter(z, sigma,
+  mode="nearest")`` (the same weights, truncated at int(4 sigma + 0.5) pixels; axis 0
+  then axis 1; each output accumulated as scipy's symmetric correlation does it: the
+  centre tap first, then the pairs of taps from the outermost inwards);
+* :func:`edge_turn_maps` finds the edges and their turns from the slope angles (the
+  arctangents stay numpy's, computed in row blocks on threads, so that they are the very
+  same numbers); the turn at a pixel, the local-maximum test and the peak within +-3 span
+  pixels are evaluated pixel by pixel, the peak test only where the turn exceeds the
+  threshold.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba import njit, prange
+
+__all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "slope_angles"]
+
+#: rows per block of the threaded numpy passes
+_BLOCK_ROWS = 256
+
+
+def _threads() -> int:
+    return max(1, min(8, os.cpu_count() or 1))
+
+
+def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
+    """The weights scipy's ``gaussian_filter1d`` correlates with (its own kernel,
+    reversed as it reverses it), radius int(truncate sigma + 0.5)."""
+    from scipy.ndimage import _filters
+
+    radius = int(truncate * float(sigma) + 0.5)
+    return np.ascontiguousarray(_filters._gaussian_kernel1d(float(sigma), 0, radius)[::-1],
+                                dtype=np.float64)
+
+
+@njit(parallel=True, cache=True)
+def _smooth_axis0(z, w, out):
+    ny, nx = z.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        acc = np.empty(nx)           # a row of its own: the loops below vectorise
+        zi = z[i]
+        for q in range(nx):
+            acc[q] = zi[q] * w0
+        for jj in range(-r, 0):
+            a = z[min(max(i + jj, 0), ny - 1)]
+            b = z[min(max(i - jj, 0), ny - 1)]
+            wj = w[r + jj]
+            for q in range(nx):
+                acc[q] = acc[q] + (a[q] + b[q]) * wj
+        out[i] = acc
+
+
+@njit(parallel=True, cache=True)
+def _smooth_axis1(z, w, out):
+    ny, nx = z.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        pad = np.empty(nx + 2 * r)
+        zi = z[i]
+        for q in range(nx + 2 * r):
+            pad[q] = zi[min(max(q - r, 0), nx - 1)]
+        acc = np.empty(nx)
+        for q in range(nx):
+            acc[q] = pad[q + r] * w0
+        for jj in range(-r, 0):
+            wj = w[r + jj]
+            a = pad[r + jj:r + jj + nx]
+            b = pad[r - jj:r - jj + nx]
+            for q in range(nx):
+                acc[q] = acc[q] + (a[q] + b[q]) * wj
+        out[i] = acc
+
+
+def gaussian_nearest(z, sigma: float) -> np.ndarray:
+    """``scipy.ndimage.gaussian_filter(z, sigma, mode="nearest")`` of a 2-D float64 map,
+    the same to the last bit, threaded over rows."""
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    w = gaussian_weights(sigma)
+    if z.ndim != 2 or z.size == 0 or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
+        from scipy import ndimage
+
+        return ndimage.gaussian_filter(z, sigma, mode="nearest")
+    out = np.empty_like(z)
+    _smooth_axis0(z, w, out)
+    _smooth_axis1(out, w, out)      # in place: each row is copied out before it is written
+    return out
+
+
+def slope_angles(z, pixel: float):
+    """arctan of the slopes between neighbouring pixels along each grid axis: (ny - 1,
+    nx) along y and (ny, nx - 1) along x, numpy's arctan of (z[i + 1] - z[i]) / pixel,
+    computed in row blocks on threads."""
+    ny, nx = z.shape
+    a0 = np.empty((max(ny - 1, 0), nx))
+    a1 = np.empty((ny, max(nx - 1, 0)))
+
+    def block(r0):
+        r1 = min(r0 + _BLOCK_ROWS, ny)
+        if r0 < ny - 1:
+            s = min(r1, ny - 1)
+            v = a0[r0:s]
+            np.subtract(z[r0 + 1:s + 1], z[r0:s], out=v)
+            np.divide(v, pixel, out=v)
+            np.arctan(v, out=v)
+        if nx > 1:
+            v = a1[r0:r1]
+            np.subtract(z[r0:r1, 1:], z[r0:r1, :-1], out=v)
+            np.divide(v, pixel, out=v)
+            np.arctan(v, out=v)
+
+    starts = range(0, ny, _BLOCK_ROWS)
+    if len(starts) > 1 and _threads() > 1:
+        with ThreadPoolExecutor(_threads()) as ex:
+            list(ex.map(block, starts))
+    else:
+        for r0 in starts:
+            block(r0)
+    return a0, a1
+
+
+@njit(inline="always")
+def _jturn(a, k, n_pix, q):
+    """|angle change| at pixel k along axis 0 of a (slopes k - 1 and k), 0 at the ends
+    and where NaN."""
+    if k < 1 or k > n_pix - 2:
+        return 0.0
+    v = abs(a[k, q] - a[k - 1, q])
+    if v != v:
+        return 0.0
+    return v
+
+
+@njit(inline="always")
+def _face(a, k1, k2, n, q, c):
+    a1 = a[min(max(k1, 0), n - 1), q]
+    a2 = a[min(max(k2, 0), n - 1), q]
+    return a1 - c * (a2 - a1)
+
+
+@njit(parallel=True, cache=True)
+def _turns_axis0(a, span, thr, edges, turn):
+    """Edges along axis 0 of a map of (n_pix, nx) pixels from the slope angles ``a``
+    (n_pix - 1, nx); the larger turn is kept where ``turn`` has one already."""
+    n_pix, nx = edges.shape
+    n = n_pix - 1
+    c = (span - 0.5) / span
+    reach = 3 * span
+    for p in prange(n_pix):
+        for q in range(nx):
+            j = _jturn(a, p, n_pix, q)
+            if not (j > 0.0) or j < _jturn(a, p - 1, n_pix, q) or j < _jturn(a, p + 1, n_pix, q):
+                continue                # not a local maximum of the turn: no candidate
+            t = abs(_face(a, p + span - 1, p + 2 * span - 1, n, q, c)
+                    - _face(a, p - span, p - 2 * span, n, q, c))
+            if t != t:
+                t = 0.0
+            if not (t > thr):
+                continue
+            peak = True
+            for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
+                if _jturn(a, k, n_pix, q) > j:
+                    peak = False
+                    break
+            if not peak:
+                continue
+            turn[p, q] = max(turn[p, q], t)
+            edges[p, q] = True
+
+
+@njit(inline="always")
+def _jturn1(a, i, k, n_pix):
+    if k < 1 or k > n_pix - 2:
+        return 0.0
+    v = abs(a[i, k] - a[i, k - 1])
+    if v != v:
+        return 0.0
+    return v
+
+
+@njit(inline="always")
+def _face1(a, i, k1, k2, n, c):
+    a1 = a[i, min(max(k1, 0), n - 1)]
+    a2 = a[i, min(max(k2, 0), n - 1)]
+    return a1 - c * (a2 - a1)
+
+
+@njit(parallel=True, cache=True)
+def _turns_axis1(a, span, thr, edges, turn):
+    ny, n_pix = edges.shape
+    n = n_pix - 1
+    c = (span - 0.5) / span
+    reach = 3 * span
+    for i in prange(ny):
+        for p in range(n_pix):
+            j = _jturn1(a, i, p, n_pix)
+            if not (j > 0.0) or j < _jturn1(a, i, p - 1, n_pix) or j < _jturn1(a, i, p + 1, n_pix):
+                continue
+            t = abs(_face1(a, i, p + span - 1, p + 2 * span - 1, n, c)
+                    - _face1(a, i, p - span, p - 2 * span, n, c))
+            if t != t:
+                t = 0.0
+            if not (t > thr):
+                continue
+            peak = True
+            for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
+                if _jturn1(a, i, k, n_pix) > j:
+                    peak = False
+                    break
+            if not peak:
+                continue
+            turn[i, p] = max(turn[i, p], t)
+            edges[i, p] = True
+
+
+def edge_turn_maps(z, *, pixel: float, edge_angle_deg: float, span: int):
+    """(edges, turn) of :func:`._burrs.edge_turns` for a 2-D float64 map, compiled."""
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    ny, nx = z.shape
+    edges = np.zeros(z.shape, dtype=bool)
+    turn = np.zeros(z.shape)
+    a0, a1 = slope_angles(z, pixel)
+    thr = math.radians(edge_angle_deg)
+    if ny >= 3:
+        _turns_axis0(a0, int(span), thr, edges, turn)
+    if nx >= 3:
+        _turns_axis1(a1, int(span), thr, edges, turn)
+    return edges, turn
+
+
+@njit(parallel=True, cache=True)
+def _pass_jumps(p, jump, m):
+    ny, nx = p.shape
+    for i in prange(ny):
+        for q in range(nx):
+            v = p[i, q]
+            e = False
+            if i > 0 and abs(v - p[i - 1, q]) > jump:
+                e = True
+            elif i < ny - 1 and abs(p[i + 1, q] - v) > jump:
+                e = True
+            elif q > 0 and abs(v - p[i, q - 1]) > jump:
+                e = True
+            elif q < nx - 1 and abs(p[i, q + 1] - v) > jump:
+                e = True
+            m[i, q] = e
+
+
+def pass_jump_mask(pass_map, jump: float) -> np.ndarray:
+    """Pixels next to a pixel whose value differs by more than ``jump`` along a grid axis
+    (NaN never differs): :func:`._cutting.machined_edges`, compiled and threaded."""
+    p = np.ascontiguousarray(pass_map, dtype=np.float64)
+    m = np.zeros(p.shape, dtype=bool)
+    if p.ndim == 2 and p.size:
+        _pass_jumps(p, float(jump), m)
+        return m
+    raise ValueError("pass_map must be a 2-D array")
