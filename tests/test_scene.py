@@ -29,8 +29,9 @@ def test_unknown_key_is_named(tmp_path):
     ("simulaton=0.001", "did you mean 'simulation'?"),
     ("design.amplitud_x=0.001", "did you mean 'amplitude_x' or 'amplitude_y'?"),
     ("machine.x.bandwith_hz=3", "did you mean 'bandwidth_hz'?"),
-    ("tool.zzz=1", "keys here: clearance_angle_deg, included_angle_deg, nose_radius, "
-                   "rake_angle_deg"),
+    ("tool.zzz=1", "keys here: clearance_angle_deg, contact_duty_cycle, edge_profile, "
+                   "edge_scale, included_angle_deg, nose_radius, rake_angle_deg, waviness, wear, "
+                   "wear_scale"),
 ])
 def test_unknown_key_gets_the_key_meant(override, hint):
     with pytest.raises(SceneError) as e:

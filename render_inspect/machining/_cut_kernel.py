@@ -23,6 +23,10 @@ makes it fast:
 - the cutting distance of the cutting pass comes from the pass's own segment and fraction;
   a pass whose arc provably stays h_min above the surface so far skips its square root.
 
+A measured cutting edge adds its height table to each arc as in the envelope kernel (the
+pass skip's lower bound takes the table's lowest entry), and a tool wearing along the path
+gives each pass its own minimum chip thickness (``CutPath.h_seg``, by segment).
+
 The kernel runs on rows ``row0 .. row1`` and columns ``col0 .. col1`` of the whole grid, so
 :func:`cut_fill` can be called block after block (progress, interruption) or on one tile
 with :meth:`CutPath.slice_for` (the passes that reach it).  Every pixel depends only on the
@@ -33,17 +37,18 @@ whole-grid run bit for bit (tested).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit, prange
 
-from ..core.errors import check_range
+from ..core.errors import InputError
 from ..core.progress import report
 from ..core.toolpath import ToolPath
+from ._cut_inputs import Grooves, cutting_distance, mechanics_window
 from ._cutting import cut_turning_mechanics, mechanics_path
-from ._envelope import (BLOCK, EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc,
-                        _polar_step, path_radial_slope)
+from ._envelope import (BLOCK, EnvelopePath, _edge_dz, _lookup_table, _nominal_spiral, _nose_arc,
+                        _polar_step, edge_table, edge_window, path_radial_slope)
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
@@ -66,52 +71,6 @@ _K0, _K1, _K2, _K3, _K4, _K5, _K6, _K7, _K8, _K9, _K10, _K11 = _K
 _COS_ARG_MAX = 1.5e6
 
 
-def cutting_distance(theta, rho) -> np.ndarray:
-    """Cumulative cutting distance (mm) along a turning path at its points: the arc length
-    of the tool's circle, sum 0.5 (|rho_i| + |rho_(i+1)|) (theta_(i+1) - theta_i)."""
-    th = np.asarray(theta, dtype=np.float64)
-    r = np.abs(np.asarray(rho, dtype=np.float64))
-    return np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(th))])
-
-
-def mechanics_window(nose_radius, f, slope, h_min, half_width) -> float:
-    """Radial window (mm) of the passes that can take part in a pixel's cut: the geometric
-    window 2.1 Rc m + f / 2 widened by one feed (the cusp's pass is always visited) and by
-    the ploughed band h_min 4 Rc / f."""
-    return min(half_width, 2.1 * nose_radius * slope + 1.5 * f + h_min * 4 * nose_radius / max(f, 1e-12)
-               + 1e-9)
-
-
-@dataclass(frozen=True)
-class Grooves:
-    """The random Fourier modes of :func:`~render_inspect.machining.groove_texture`
-    (the same draws from the same seed) and the scale rms sqrt(2 / modes)."""
-
-    ku: np.ndarray
-    kv: np.ndarray
-    ph: np.ndarray
-    scale: float
-
-    @classmethod
-    def of(cls, *, rms: float, seed: int, across_length: float = 0.001, along_length: float = 0.05,
-           modes: int = 128) -> "Grooves":
-        check_range("rms", rms, 0.0, 1.0)
-        check_range("across_length", across_length, 0.0, None, lo_open=True)
-        check_range("along_length", along_length, 0.0, None, lo_open=True)
-        if rms == 0:
-            z = np.zeros(0)
-            return cls(z, z, z, 0.0)
-        rng = np.random.default_rng(seed)
-        ku = rng.normal(0.0, 1.0 / across_length, size=modes)
-        kv = rng.normal(0.0, 1.0 / along_length, size=modes)
-        ph = rng.uniform(0.0, TWO_PI, size=modes)
-        return cls(ku, kv, ph, rms * math.sqrt(2.0 / modes))
-
-    @classmethod
-    def none(cls) -> "Grooves":
-        return cls.of(rms=0.0, seed=0)
-
-
 @dataclass(frozen=True)
 class CutPath:
     """A turning path prepared for the cutting-mechanics kernel (or the run of it one tile
@@ -127,6 +86,9 @@ class CutPath:
     h_min, kappa : float
         Minimum chip thickness (mm) and elastic recovery.
     side_flow : bool
+    h_seg : (m,) float64
+        The minimum chip thickness of each segment's pass (mm; a tool wearing along the
+        path), or empty: ``h_min`` for every pass.
     """
 
     ep: EnvelopePath
@@ -134,13 +96,16 @@ class CutPath:
     h_min: float
     kappa: float
     side_flow: bool
+    h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def slice_for(self, region) -> "CutPath":
         """The passes whose nose arcs the kernel visits for pixels in ``region``
         (x0, y0, x1, y1; mm)."""
         sl = self.ep.slice_for(region)
         i0 = sl.offset - self.ep.offset
-        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]))
+        h_seg = self.h_seg if self.h_seg.size == 0 else \
+            np.ascontiguousarray(self.h_seg[i0:i0 + sl.seg.shape[0]])
+        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]), h_seg=h_seg)
 
     def reach(self, rmin: float, rmax: float) -> float:
         """Largest radial distance (mm) between a pixel at rmin..rmax from the axis and a
@@ -149,18 +114,32 @@ class CutPath:
 
     @property
     def nbytes(self) -> int:
-        return int(self.ep.nbytes + self.dist.nbytes)
+        return int(self.ep.nbytes + self.dist.nbytes + self.h_seg.nbytes)
 
 
 def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_min: float = 0.0,
-                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None) -> CutPath:
+                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None,
+                edge=None, h_min_points=None) -> CutPath:
     """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
-    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`)."""
+    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`; ``edge``: the
+    measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose;
+    ``h_min_points``: the minimum chip thickness (mm) at each point of the path, the edge
+    worn along it: each segment's pass takes its first point's, ``h_min`` then unused)."""
     theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
     Rc, hw = _nose_arc(nose_radius, half_width)
     a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
+    h_seg = np.zeros(0)
+    if h_min_points is not None:
+        hp = np.ascontiguousarray(h_min_points, dtype=np.float64)
+        if hp.shape != theta.shape or not np.all(np.isfinite(hp)) or np.any(hp < 0):
+            raise InputError(f"h_min_points must hold one finite value >= 0 per path point ({theta.size}), "
+                             f"received {hp.size} values")
+        h_seg = np.ascontiguousarray(hp[:-1])
+        h_min = float(hp.max())
     W = mechanics_window(Rc, f, m, h_min, hw)
+    etab = edge_table(edge, Rc, hw)
+    W = edge_window(W, Rc, hw, etab)
     seg = np.empty((theta.size - 1, 4))
     seg[:, 0] = rho[:-1]
     seg[:, 1] = rho[1:] - rho[:-1]
@@ -169,8 +148,8 @@ def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_
     tab, tt0, tw = _lookup_table(theta)
     dth = (theta[-1] - theta[0]) / (theta.size - 1)
     ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
-                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W))
-    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow))
+                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
+    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg)
 
 
 # ------------------------------------------------------------------ the kernel
@@ -241,12 +220,16 @@ def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
 
 
 @njit(cache=True, inline="always")
-def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2):
+def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge):
     """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
-    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic)."""
+    pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic; the
+    measured edge's height table ``edge`` added where given)."""
     i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
     if abs(d) <= hw:
-        return True, seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d), rj, d * sgn, i, fr
+        zj = seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d)
+        if edge.size > 0:
+            zj += _edge_dz(edge, d)
+        return True, zj, rj, d * sgn, i, fr
     return False, 0.0, 0.0, 0.0, 0, 0.0
 
 
@@ -270,23 +253,28 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
 
 @njit(cache=True, inline="always")
 def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            h_min, kappa, side_flow, st):
+            h_min, kappa, side_flow, st, edge, hseg):
     """The passes of one side in time order straight through the state; (state, count).
     A pass whose arc provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc,
-    a lower bound of the arc, less 1e-12 mm for rounding) changes nothing and skips the
-    square root."""
+    a lower bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
+    entry) changes nothing and skips the square root."""
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
     n = 0
     half_inv_rc = 0.5 / Rc
+    e_low = edge[2] if edge.size > 0 else 0.0
     for j in range(j0, j1 + 1):
         s = phi + TWO_PI * j
         i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
         if abs(d) <= hw:
             n += 1
             zt = seg[i, 2] + fr * seg[i, 3]
-            if zt + d * d * half_inv_rc - 1e-12 >= st[0] + h_min:
+            hm = hseg[i] if hseg.size > 0 else h_min
+            if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + hm:
                 continue
-            st = _step(st, s, zt + Rc - math.sqrt(Rc2 - d * d), i, fr, d * sgn, h_min, kappa, side_flow)
+            zj = zt + Rc - math.sqrt(Rc2 - d * d)
+            if edge.size > 0:
+                zj += _edge_dz(edge, d)
+            st = _step(st, s, zj, i, fr, d * sgn, hm, kappa, side_flow)
             if n >= _MAX_BUF:
                 break
     return st, n
@@ -311,14 +299,14 @@ def _window(t_first, t_last, a, cc, phi, r, sgn, W):
 
 @njit(cache=True, inline="always")
 def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            bs, bz, bi, bf, bd):
+            bs, bz, bi, bf, bd, edge):
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
     n = 0
     for j in range(j0, j1 + 1):
         if n >= bs.size:
             break
         s = phi + TWO_PI * j
-        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2)
+        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge)
         if ok:
             bs[n] = s
             bz[n] = zj
@@ -330,15 +318,19 @@ def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
 
 
 @njit(cache=True, inline="always")
-def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st):
+def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st, hseg):
+    """The gathered passes of both sides through the state in time order (a pass's own
+    minimum chip thickness from ``hseg`` by its segment, where given)."""
     k1 = 0
     k2 = 0
     while k1 < n1 or k2 < n2:
         if k2 >= n2 or (k1 < n1 and b1s[k1] <= b2s[k2]):
-            st = _step(st, b1s[k1], b1z[k1], b1i[k1], b1f[k1], b1d[k1], h_min, kappa, side_flow)
+            st = _step(st, b1s[k1], b1z[k1], b1i[k1], b1f[k1], b1d[k1],
+                       hseg[b1i[k1]] if hseg.size > 0 else h_min, kappa, side_flow)
             k1 += 1
         else:
-            st = _step(st, b2s[k2], b2z[k2], b2i[k2], b2f[k2], b2d[k2], h_min, kappa, side_flow)
+            st = _step(st, b2s[k2], b2z[k2], b2i[k2], b2f[k2], b2d[k2],
+                       hseg[b2i[k2]] if hseg.size > 0 else h_min, kappa, side_flow)
             k2 += 1
     return st
 
@@ -346,7 +338,7 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
 @njit(cache=True, nogil=True)
 def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
              h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0, sc0, sc1,
-             machined, pass_theta, added, stats, bufs, ibufs):
+             machined, pass_theta, added, stats, bufs, ibufs, edge, hseg):
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material."""
@@ -379,25 +371,25 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
             phi2 -= TWO_PI
         if r < Wp + hw:
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp, Rc,
-                         Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+                         Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
             n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0, Wp,
-                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             n = n1 + n2
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
-                        side_flow, st)
+                        side_flow, st, hseg)
         else:
             st, n = _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp,
-                            Rc, Rc2, hw, h_min, kappa, side_flow, st)
+                            Rc, Rc2, hw, h_min, kappa, side_flow, st, edge, hseg)
         if n == 0 and Wp < hw + dev:
             # no pass within the window (beyond the path's ends): every pass that reaches
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0,
-                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d)
+                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
             n2 = 0
             if r < hw + dev:
                 n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0,
-                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d)
+                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
-                        side_flow, st)
+                        side_flow, st, hseg)
         surf, h_cut, sw, iw, fw, dw, add, piled = st
         ix = c - col0
         counted = sc0 <= ix < sc1
@@ -434,7 +426,7 @@ def _buffer_size(W, dev, f):
 
 def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
               h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
-              sc1, machined, pass_theta, added, stats):
+              sc1, machined, pass_theta, added, stats, edge, hseg):
     """Rows row0 .. row0 + rows - 1, columns col0 .. col0 + cols - 1 of the whole grid
     (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
     rows = machined.shape[0]
@@ -444,7 +436,8 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
         ibufs = np.empty((2, nb), dtype=np.int64)
         _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
                  h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
-                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs)
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge,
+                 hseg)
 
 
 #: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
@@ -500,7 +493,7 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, 
     fn(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc, ep.dev, ep.f,
        ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow, grooves.ku, grooves.kv,
        grooves.ph, float(grooves.scale), fast_cos, float(origin[0]), float(origin[1]), float(pixel), int(start[0]),
-       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats)
+       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats, ep.edge, cp.h_seg)
     return stats
 
 
@@ -565,6 +558,12 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=N
 def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
     """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
     ep = cp.ep
+    if cp.h_seg.size:
+        raise InputError("tool.wear with a [material]: the edge worn along the path needs a path "
+                         "that feeds towards the spindle axis")
+    if ep.edge.size:
+        raise InputError("tool.edge_profile / tool.waviness: a measured cutting edge needs a path "
+                         "that feeds towards the spindle axis; remove the edge keys for this path")
     theta = ep.theta
     rho = np.append(ep.seg[:, 0], ep.seg[-1, 0] + ep.seg[-1, 1])
     z = np.append(ep.seg[:, 2], ep.seg[-1, 2] + ep.seg[-1, 3])

@@ -29,6 +29,12 @@ Two kernels compute this envelope:
 - the reference kernel (``simulate_turning(..., reference=True)``) is the direct
   per-pixel form, kept to check the fast one.
 
+A measured cutting edge (``toolpath.EdgeProfile``, nose radius Rc + delta(angle)) enters
+as a table of its height above the circular arc over the signed radial offset from the tool
+axis (``EnvelopePath.edge``, :func:`_edge_dz`), added to each arc's height; the pass window
+grows by sqrt(2 Rc (max g - min g)) for it.  Without an edge the table is empty and the
+arithmetic is the circle's, bit for bit.
+
 A tile of the grid needs only the passes whose nose arcs reach it:
 ``EnvelopePath.slice_for(region)`` keeps those (a contiguous run of the spiral, plus the
 innermost passes for tiles near the axis) and carries the whole path's constants, so a
@@ -50,7 +56,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit, prange
@@ -69,6 +75,8 @@ GPU_MIN_SAMPLES = 1 << 22
 BAND_SAMPLES = 1 << 20  # not a unit conversion
 #: relative tolerance within which a path's angles count as a uniform grid
 _UNIFORM_RTOL = 1e-9  # not a unit conversion
+#: the empty edge table: the circular nose
+_NO_EDGE = np.zeros(0)
 
 
 # ------------------------------------------------------------------ the per-pixel step
@@ -97,8 +105,25 @@ def _lookup(theta, tab, tab_t0, tab_w, s):
     return i
 
 
+def _edge_dz(edge, sd):
+    """Height (mm) of a measured edge above the circular nose arc at the signed radial
+    offset ``sd`` from the tool axis: the table of ``EdgeProfile.height_table``
+    ([d0, 1 / step, lowest, g_0 ..]) linearly interpolated (0 for the empty table)."""
+    n = edge.size - 3
+    if n < 2:
+        return 0.0
+    u = (sd - edge[0]) * edge[1]
+    if u <= 0.0:
+        return edge[3]
+    if u >= n - 1:
+        return edge[n + 2]
+    k = int(u)
+    t = u - k
+    return edge[3 + k] + t * (edge[4 + k] - edge[3 + k])
+
+
 def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, icc,
-            jw, K, phi, r, sgn, Rc, Rc2, hw, best, win):
+            jw, K, phi, r, sgn, Rc, Rc2, hw, best, win, edge):
     """Lowest nose arc at (sgn r, phi) over K consecutive passes, the first being the first
     within ``jw`` revolutions of the pass whose nominal radius is sgn r: (lowest over the
     K passes, lowest over those within the window)."""
@@ -129,6 +154,8 @@ def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
                 d = abs(sr - rj)
                 if d <= hw:
                     zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
+                    if edge.size > 0:
+                        zj += _edge_dz(edge, sr - rj)
                     best = min(best, zj)
                     if k <= kmax:
                         win = min(win, zj)
@@ -145,6 +172,8 @@ def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
                 d = abs(sr - rj)
                 if d <= hw:
                     zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
+                    if edge.size > 0:
+                        zj += _edge_dz(edge, sr - rj)
                     best = min(best, zj)
                     if k <= kmax:
                         win = min(win, zj)
@@ -167,7 +196,7 @@ def _pass_count(jw):
 
 
 def _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a,
-                  icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b, jw_c, K_a, K_b, K_c, phi, r):
+                  icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b, jw_c, K_a, K_b, K_c, phi, r, edge):
     """Machined height at the pixel at radius ``r`` and polar angle ``phi`` (NaN where no
     pass reaches): the passes in the proven window on this side of the axis, on the far
     side near the axis, and every pass that reaches where the window holds none."""
@@ -176,26 +205,27 @@ def _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_
     jw = jw_b if near else jw_a
     K = K_b if near else K_a
     best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a,
-                        icc, jw, K, phi, r, 1.0, Rc, Rc2, hw, math.inf, math.inf)
+                        icc, jw, K, phi, r, 1.0, Rc, Rc2, hw, math.inf, math.inf, edge)
     phi2 = phi + math.pi
     if phi2 >= TWO_PI:
         phi2 -= TWO_PI
     if r < Wp + hw:
         best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
-                            a, icc, jw, K, phi2, r, -1.0, Rc, Rc2, hw, best, win)
+                            a, icc, jw, K, phi2, r, -1.0, Rc, Rc2, hw, best, win, edge)
     if win == math.inf and Wp < hw + dev:
         # no pass within the window (beyond the path's ends): every pass that reaches
         best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
-                            a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win)
+                            a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win, edge)
         if r < hw + dev:
             best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw, best, win)
+                                t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw, best, win, edge)
     return best if best < math.inf else math.nan
 
 
 #: the functions of the per-pixel step, in the order they call each other
-DEVICE_FUNCTIONS = ("_lookup", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
+DEVICE_FUNCTIONS = ("_lookup", "_edge_dz", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
 _lookup = njit(cache=True, inline="always")(_lookup)
+_edge_dz = njit(cache=True, inline="always")(_edge_dz)
 _passes = njit(cache=True, inline="always")(_passes)
 _pass_windows = njit(cache=True, inline="always")(_pass_windows)
 _pass_count = njit(cache=True, inline="always")(_pass_count)
@@ -245,7 +275,7 @@ def _pass_window(theta, a, cc, phi, r, sgn, W):
 
 
 @njit(cache=True, inline="always")
-def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, hw, best):
+def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, hw, best, edge):
     """Visit the passes at angle phi whose nominal radius is within W of sgn * r."""
     j0, j1 = _pass_window(theta, a, cc, phi, r, sgn, W)
     for j in range(j0, j1 + 1):
@@ -259,6 +289,8 @@ def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, 
             d = -d
         if d <= hw:
             zj = z[i] + fr * (z[i + 1] - z[i]) + Rc - math.sqrt(Rc2 - d * d)
+            if edge.size > 0:
+                zj += _edge_dz(edge, sgn * r - rj)
             if zj < best:
                 best = zj
     return best
@@ -266,7 +298,7 @@ def _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, sgn, W, Rc, Rc2, 
 
 @njit(parallel=True, cache=True)
 def _reference_kernel(theta, rho, z, tab, tab_t0, tab_w, a, cc, dev, f, x0, y0, pixel, nx, ny,
-                     Rc, hw, W, out):
+                     Rc, hw, W, out, edge):
     Rc2 = Rc * Rc
     Wd = W + dev
     for iy in prange(ny):
@@ -280,21 +312,21 @@ def _reference_kernel(theta, rho, z, tab, tab_t0, tab_w, a, cc, dev, f, x0, y0, 
             # near the axis the spiral ends: the nearest pass can be up to ~0.75 f away
             Wp = Wd + 0.5 * f if r < 2.0 * f + dev else Wd
             best = np.inf
-            best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, 1.0, Wp, Rc, Rc2, hw, best)
+            best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, 1.0, Wp, Rc, Rc2, hw, best, edge)
             if r < Wp + hw:
                 phi2 = phi + math.pi
                 if phi2 >= TWO_PI:
                     phi2 -= TWO_PI
-                best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi2, r, -1.0, Wp, Rc, Rc2, hw, best)
+                best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi2, r, -1.0, Wp, Rc, Rc2, hw, best, edge)
             if best == np.inf and Wp < hw + dev:
                 # no pass within the window (beyond the path's ends): visit every pass that reaches
-                best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, 1.0, hw + dev, Rc, Rc2, hw, best)
+                best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi, r, 1.0, hw + dev, Rc, Rc2, hw, best, edge)
                 if r < hw + dev:
                     phi2 = phi + math.pi
                     if phi2 >= TWO_PI:
                         phi2 -= TWO_PI
                     best = _arc_min(theta, rho, z, tab, tab_t0, tab_w, a, cc, phi2, r, -1.0, hw + dev, Rc, Rc2,
-                                    hw, best)
+                                    hw, best, edge)
             out[iy, ix] = best if best < np.inf else np.nan
 
 
@@ -330,7 +362,7 @@ def path_radial_slope(theta: np.ndarray, rho: np.ndarray, z: np.ndarray) -> floa
 
 # ------------------------------------------------------------------ the fast kernel (CPU)
 def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc,
-               dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out):
+               dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge):
     ny, nx = out.shape
     Rc2 = Rc * Rc
     Wd = W + dev
@@ -356,7 +388,7 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
                 xp = x
                 out[iy, ix] = _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset,
                                             n_total, t0, a, icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b,
-                                            jw_c, K_a, K_b, K_c, phi, r)
+                                            jw_c, K_a, K_b, K_c, phi, r, edge)
 
 
 #: the fast kernel on all cores (whole grids) and on one core without the GIL (tiles run
@@ -393,6 +425,9 @@ class EnvelopePath:
         (mm/rad), largest deviation from the nominal spiral (mm) and feed per revolution (mm).
     nose_radius, half_width, window : float
         Rc, the nose arc's radial half-width and the proven pass window (mm).
+    edge : float64 array
+        The measured edge's height table (``EdgeProfile.height_table``); empty: the
+        circular nose.
     """
 
     seg: np.ndarray
@@ -414,6 +449,7 @@ class EnvelopePath:
     nose_radius: float
     half_width: float
     window: float
+    edge: np.ndarray = field(default_factory=lambda: _NO_EDGE)
 
     def reach(self, rmin: float, rmax: float) -> float:
         """Largest radial distance (mm) between a pixel at rmin <= r <= rmax from the axis
@@ -452,7 +488,7 @@ class EnvelopePath:
 
     @property
     def nbytes(self) -> int:
-        return int(self.seg.nbytes + self.theta.nbytes + self.tab.nbytes)
+        return int(self.seg.nbytes + self.theta.nbytes + self.tab.nbytes + self.edge.nbytes)
 
 
 def _nose_arc(nose_radius, half_width=None):
@@ -473,8 +509,28 @@ def _nominal_spiral(theta, rho):
     return a, cc, dev, abs(cc) * TWO_PI
 
 
+def edge_window(window: float, nose_radius: float, half_width: float, edge) -> float:
+    """The pass window (mm) widened for a measured edge: an arc at distance d is at least
+    d^2 / (2 Rc) + min(g) above its tip (g the edge's height table), so the proven window
+    grows by sqrt(2 Rc (max g - min g)); unchanged for the circular nose."""
+    if edge is None or edge.size == 0:
+        return window
+    g = edge[3:]
+    return min(half_width, window + math.sqrt(2.0 * nose_radius * float(g.max() - g.min())))
+
+
+def edge_table(edge, nose_radius: float, half_width: float) -> np.ndarray:
+    """The kernels' table of ``edge`` (an ``EdgeProfile``, a ready table, or None)."""
+    if edge is None:
+        return _NO_EDGE
+    if isinstance(edge, np.ndarray):
+        return np.ascontiguousarray(edge, dtype=np.float64)
+    return edge.height_table(nose_radius, half_width)
+
+
 def prepare_envelope(path, *, nose_radius: float, half_width: float | None = None,
-                     slope_bound: float | None = None, window: float | None = None) -> EnvelopePath:
+                     slope_bound: float | None = None, window: float | None = None,
+                     edge=None) -> EnvelopePath:
     """Prepare a turning path for :func:`envelope_fill` (see :func:`simulate_turning` for
     the parameters)."""
     theta = np.ascontiguousarray(path.theta, dtype=np.float64)
@@ -488,6 +544,8 @@ def prepare_envelope(path, *, nose_radius: float, half_width: float | None = Non
     a, cc, dev, f = _nominal_spiral(theta, rho)
     m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
     W = min(hw, 2.1 * Rc * m + 0.5 * f + 1e-9) if window is None else float(window)
+    etab = edge_table(edge, Rc, hw)
+    W = edge_window(W, Rc, hw, etab)
     seg = np.empty((n - 1, 4))
     seg[:, 0] = rho[:-1]
     seg[:, 1] = rho[1:] - rho[:-1]
@@ -504,7 +562,7 @@ def prepare_envelope(path, *, nose_radius: float, half_width: float | None = Non
     else:
         tab, tt0, tw = _lookup_table(theta)
     return EnvelopePath(seg, theta, tab, tt0, tw, uniform, 1.0 / dth if dth > 0 else 0.0, nrev, 0, n,
-                        float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W))
+                        float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
 
 
 def envelope_fill(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *, start=(0, 0),
@@ -533,13 +591,14 @@ def envelope_fill(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *, st
     fill = _fill_parallel if parallel else _fill_serial
     fill(ep.seg, ep.theta, ep.tab, ep.tab_t0, ep.tab_w, ep.uniform, ep.inv, ep.nrev, ep.offset, ep.n_total,
          ep.t0, ep.a, ep.cc, ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window,
-         float(origin[0]), float(origin[1]), float(pixel), int(start[0]), int(start[1]), out)
+         float(origin[0]), float(origin[1]), float(pixel), int(start[0]), int(start[1]), out, ep.edge)
     return out
 
 
 def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
                      slope_bound: float | None = None, window: float | None = None,
-                     out: np.ndarray | None = None, reference: bool = False, device: str = "auto") -> np.ndarray:
+                     out: np.ndarray | None = None, reference: bool = False, device: str = "auto",
+                     edge=None) -> np.ndarray:
     """Machined height (mm) on the grid of ``region`` / ``pixel`` from a turning path.
 
     Parameters
@@ -567,6 +626,9 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
         "auto" runs grids of at least ``GPU_MIN_SAMPLES`` samples on a CUDA GPU when one is
         present (``_envelope_gpu``), after checking it against the CPU kernel on one block
         of the grid; "gpu" requires one.
+    edge : EdgeProfile, optional
+        The measured cutting edge (``toolpath.EdgeProfile``): the nose's height at each
+        radial offset is the edge's instead of the circle's; None: the circular nose.
 
     Returns
     -------
@@ -578,7 +640,7 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
                          f"{n_points} point(s), at least 2 are needed: the region lies off the "
                          f"turned part (process.workpiece_radius, process.inner_radius)")
     ep = prepare_envelope(path, nose_radius=nose_radius, half_width=half_width, slope_bound=slope_bound,
-                          window=window)
+                          window=window, edge=edge)
     x0, y0, x1, y1 = region
     nx = int(round((x1 - x0) / pixel)) + 1
     ny = int(round((y1 - y0) / pixel)) + 1
@@ -590,7 +652,7 @@ def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_wid
         z = np.ascontiguousarray(path.z, dtype=np.float64)
         tab, t0, w = _lookup_table(theta)
         _reference_kernel(theta, rho, z, tab, t0, w, ep.a, ep.cc, ep.dev, ep.f, float(x0), float(y0),
-                          float(pixel), nx, ny, ep.nose_radius, ep.half_width, ep.window, out)
+                          float(pixel), nx, ny, ep.nose_radius, ep.half_width, ep.window, out, ep.edge)
         return out
     if device not in ("auto", "cpu", "gpu"):
         raise ValueError(f"simulate_turning: device must be 'auto', 'cpu' or 'gpu', got {device!r}")

@@ -42,7 +42,7 @@ def cuda_available() -> bool:
 
 
 def _fill(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc, dev, f,
-          Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out):
+          Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge):
     """The GPU kernel: one thread per pixel of ``out`` (compiled by :func:`_build` in the
     namespace of the CUDA versions of the per-pixel step)."""
     iy, ix = cuda.grid(2)
@@ -63,7 +63,7 @@ def _fill(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t
         phi += TWO_PI
     out[iy, ix] = _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
                                 t0, a, icc, dev, f, Rc, Rc2, hw, Wd, jw_a, jw_b, jw_c, K_a, K_b, K_c,
-                                phi, r)
+                                phi, r, edge)
 
 
 def _build():
@@ -103,9 +103,11 @@ def envelope_fill_gpu(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *
     d_theta = cuda.to_device(np.ascontiguousarray(ep.theta))
     d_tab = cuda.to_device(np.ascontiguousarray(ep.tab))
     d_out = cuda.device_array((ny, nx), dtype=np.float64)
+    # a circular nose: a one-entry table (the step adds exactly 0.0; no empty device array)
+    d_edge = cuda.to_device(np.ascontiguousarray(ep.edge) if ep.edge.size else np.zeros(1))
     _KERNEL[blocks, threads](d_seg, d_theta, d_tab, ep.tab_t0, ep.tab_w, ep.uniform, ep.inv, ep.nrev,
                              ep.offset, ep.n_total, ep.t0, ep.a, ep.cc, ep.dev, ep.f, ep.nose_radius,
                              ep.half_width, ep.window, float(origin[0]), float(origin[1]), float(pixel),
-                             int(start[0]), int(start[1]), d_out)
+                             int(start[0]), int(start[1]), d_out, d_edge)
     d_out.copy_to_host(out)
     return out

@@ -186,10 +186,12 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                              f"the turned part (process.workpiece_radius, process.inner_radius)")
         mat = env.mechanics
         if mat is None:
-            ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width)
+            ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width,
+                                  edge=env.edge)
         else:  # the material's cutting mechanics, pixel by pixel
             ep = prepare_cut(path, nose_radius=env.nose_radius, half_width=env.half_width,
-                             h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow)
+                             h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow, edge=env.edge,
+                             h_min_points=getattr(env, "h_min_points", None))
         # the following-error map of the pass that cut each point, on a coarse grid
         stride = -(-max(shape) // _FIGURE_POINTS) if env.followed is not None else 0
         extra, _ = process.tiled_memory(cfg, plan)

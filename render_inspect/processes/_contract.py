@@ -225,6 +225,11 @@ class Envelope:
         What :meth:`Process.tiled_facts` needs of the path (the followed path), or None.
     plots : dict
         Figures of the cut known before the tiles run (file name -> figure spec).
+    edge : EdgeProfile or None
+        The measured cutting edge (``toolpath.EdgeProfile``); None: a circular nose.
+    h_min_points : array or None
+        The minimum chip thickness (mm) at each point of ``path``: the edge worn along it
+        (``tool.wear``); None: the material's one value.
     """
 
     path: object
@@ -238,6 +243,8 @@ class Envelope:
     facts: dict = field(default_factory=dict)
     followed: object = None
     plots: dict = field(default_factory=dict)
+    edge: object = None
+    h_min_points: object = None
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,10 @@ from ..machining import (
 )
 from ..toolpath import Tool, scallop_height
 from ._contract import Inputs, section
+from ._edge_facts import edge_facts
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
+from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
            "follow", "burrs_of", "Turned", "material_cut_path", "grooves_of", "feed_scallop",
@@ -113,11 +115,13 @@ def pass_angle_map(path, region, pixel) -> np.ndarray:
     return np.where((s >= theta[0]) & (s <= theta[-1]), s, np.nan)
 
 
-def material_cut_path(path, tool, resp):
+def material_cut_path(path, tool, resp, h_min_points=None):
     """The followed path prepared for the cutting-mechanics kernel with the material's
-    minimum chip thickness, elastic recovery and side flow."""
+    minimum chip thickness (``h_min_points``: at each point, the edge worn along the path),
+    elastic recovery and side flow."""
     return prepare_cut(path, nose_radius=tool.nose_radius, half_width=tool.half_width,
-                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow)
+                       h_min=resp.h_min, kappa=resp.kappa, side_flow=resp.side_flow, edge=tool.edge,
+                       h_min_points=h_min_points)
 
 
 def grooves_of(cfg, resp) -> Grooves:
@@ -251,11 +255,12 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
     pass_theta = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
-                                    pixel=sim.pixel, half_width=tool.half_width)
+                                    pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
     else:
         # the fast kernel of the direct model (machining.cut_turning_mechanics +
         # finish_surface), in row blocks
-        c = cut_turning(material_cut_path(cut_path, tool, resp), grooves_of(cfg, resp),
+        c = cut_turning(material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp)),
+                        grooves_of(cfg, resp),
                         region=region, pixel=sim.pixel, progress=progress)
         pass_theta, machined = c["pass_theta"], c["machined"]
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
@@ -289,6 +294,16 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
         figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=cfg.name)
+    if "tool_wear" in facts:
+        facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
+            cfg, machined, design, region, sim.pixel)
+        if plots:
+            figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
+    if tool.edge is not None:
+        facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
+                                                   design, region, sim.pixel, name=cfg.name)
+        if plots:
+            figs.update(edge_figs)
     return Turned(machined=machined, design=design, timing=timing, facts=facts,
                   followed=None if fp.ideal else cut_path, followed_path=fp,
                   pass_theta=pass_theta, plots=figs)
@@ -309,4 +324,6 @@ def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, object, d
                          "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
     if not fp.ideal:
         facts["following_error"] = following_error_stats(fp.errors)
+    if getattr(cfg.tool, "wear", False):  # the worn edge at each point of the path
+        cut_path, facts["tool_wear"] = wear_path(cfg, path, cut_path)
     return cut_path, fp, facts

@@ -28,6 +28,7 @@ from ..core.toolpath import LinearProgram
 from ..core.units import HZ_TO_KHZ, MIN_TO_S, MM_TO_UM, UM_TO_MM
 from ._program import imported_sculpt_plan
 from ..machining import (
+    WEAR_RATES,
     apply_burrs,
     contact_ratio,
     cut_lines_mechanics,
@@ -45,6 +46,7 @@ from ._machine import MaterialConfig, material_of
 from ._program_part import design_part, machine_limits
 from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
+from ._wear_facts import sculpt_wear
 
 log = logging.getLogger("render_inspect")
 
@@ -116,6 +118,11 @@ class SculptProcessConfig(Section):
                 "process.kind = 'sculpt' needs design.type = 'lenslet_array' with cells = 'quad' "
                 f"(sharp-edged cells along the symmetry lines), received design.type = "
                 f"{getattr(d, 'type', None)!r}" + (f", cells = {d.cells!r}" if hasattr(d, "cells") else ""))
+        if getattr(scene.tool, "wear", False):
+            if scene.material.preset not in WEAR_RATES:
+                raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
+                                 f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
+                                 f"{scene.material.preset!r}")
 
 
 def lattice_lines(surface, *, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
@@ -236,7 +243,13 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
         edge_over = np.nanmax(design - machined_0) if np.isfinite(machined_0).any() else 0.0
     # the material's response (the vibration's contact ratio is reported: no source relates
     # it to the surface left; continuous cutting of steel is outside the model)
-    resp = material_of(cfg.material, contact=contact_ratio(vc, vib.amplitude, vib.frequency_hz))
+    eta = contact_ratio(vc, vib.amplitude, vib.frequency_hz)
+    wear_facts = None
+    if getattr(cfg.tool, "wear", False):  # the edge worn over the cut, at the vibration's duty cycle
+        mat_cfg, wear_facts = sculpt_wear(cfg, lines, eta)
+        resp = material_of(mat_cfg, contact=eta)
+    else:
+        resp = material_of(cfg.material, contact=eta)
     material_facts = None
     if resp is not None:
         c = cut_lines_mechanics(prof_vib, xl, xg, tool_radius=R, half_width=half_width,
@@ -283,6 +296,8 @@ def _cut(cfg: SculptInputs, surface, plan: Plan) -> Cut:
     }
     if material_facts is not None:
         facts["material"] = material_facts
+    if wear_facts is not None:
+        facts["tool_wear"] = wear_facts
     meta = {"process": "sculpt", "seed": int(sim.seed), "compensation": "none",
             "vibration": facts["vibration"], "burrs": burr_info,
             "material": cfg.material.preset}

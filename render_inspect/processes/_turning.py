@@ -41,12 +41,14 @@ from ..toolpath import (
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
+from ._edge_facts import check_edge_and_wear
 from ._machine import machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
+from ._wear_facts import worn_h_min
 
 log = logging.getLogger("render_inspect")
 
@@ -66,7 +68,9 @@ class TurningProcessConfig(Section):
     feed_mm_per_min: float = Field(0.5, ge=1e-6, le=1000)
     workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
     inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
-    compensation: Literal["none", "normal", "z"] = "z"
+    compensation: Literal["none", "normal", "z", "edge"] = Field(
+        "z", description="tool-radius compensation: none, normal, z (the circular nose) or edge "
+                         "(z against the measured edge of tool.edge_profile / tool.waviness; sts)")
     sampling: Literal["constant_angle", "constant_arc", "hybrid"] = "constant_angle"
     points_per_rev: int = Field(3600, ge=8, le=10_000_000, description="N, constant-angle sampling")
     arc_length: float = Field(0.005, gt=0, description="mm, constant-arc sampling step")
@@ -125,6 +129,7 @@ class TurningProcessConfig(Section):
     def check_with(self, scene) -> None:
         """Cross-checks with the rest of the scene (called by the scene's validator)."""
         rc = scene.tool.nose_radius
+        check_edge_and_wear(getattr(self, "kind", None), self.compensation, scene)
         if self.program is not None and self.kind == "rcse":
             raise ValueError("process.program: process.kind = 'rcse' plans its own path and "
                              "cannot take a program file; use process.kind = 'sts' (or 'fts', "
@@ -348,6 +353,16 @@ def compensation_variants(cfg) -> VariantPair:
     (``"z"`` when the scene says ``"none"``) against none.  Without compensation the nose
     overcuts the slopes by about ``Rc slope^2 / 2`` (Li et al. 2018, Fig. 16)."""
     c = cfg.process.compensation
+    if c == "edge":
+        # the measured edge: the path planned against it against the circular nose's
+        return VariantPair(
+            Variant("compensated", "Z compensation against the measured edge", {"process.compensation": "edge"}),
+            Variant("uncompensated", "Z compensation for the circular nose", {"process.compensation": "z"}),
+            key="process.compensation",
+            about=("Tool-edge waviness compensation against none: a path planned for the circular "
+                   "nose leaves the edge's radius deviation at the contact angle, -delta(theta) along "
+                   "the normal, on the part; planned against the measured edge the contact point moves "
+                   "along the real edge and the imprint cancels."))
     comp = c if c != "none" else "z"
     name = {"z": "Z-direction", "normal": "normal-direction"}[comp]
     return VariantPair(
@@ -544,11 +559,15 @@ class TiledTurningProcess(TurningProcess):
         """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
         resp = material_of(cfg.material)
+        if tool.edge is not None:  # the edge itself (the tiles' maps give no imprint figure)
+            facts = {**facts, "tool_edge": {**tool.edge.to_dict(tool.half_angle),
+                                            "compensation": cfg.process.compensation}}
         return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
                         texture=None if resp is None else texture_of(cfg, resp),
                         burrs=material_burr_args(cfg, resp, cut_path, tool),
-                        facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}))
+                        facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}),
+                        edge=tool.edge, h_min_points=worn_h_min(cfg, cut_path, resp))
 
     def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         facts, plots = dict(env.facts), dict(env.plots)

@@ -10,6 +10,7 @@ from ._comparison import (ComparedVariant, comparison_figures, comparison_summar
                           diffuse_caption, luminance, srgb)
 from ._draw import FIGURE_KINDS, draw_figure, figure_kinds
 from ._figure_kinds import register_figure, registered_figures
+from . import _edge_plot  # noqa: F401  (registers the figure kinds tool_edge, tool_wear)
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
                        line_panels, locator_figure, lowpass_map, map_panels, png_bytes,
                        radial_profile_figure)

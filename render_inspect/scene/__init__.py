@@ -435,8 +435,18 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
     data = apply_overrides(data, overrides)
     # relative heightmap paths are relative to the scene file
     _resolve_paths(data.get("design"), path.parent)
+    _resolve_edge_path(data.get("tool"), path.parent)
     _resolve_program(data.get("process"), path.parent)
     return scene_from_dict(data, source=str(path))
+
+
+def _resolve_edge_path(tool, base: Path):
+    """``[tool] edge_profile`` relative to the scene file."""
+    if isinstance(tool, dict) and isinstance(tool.get("edge_profile"), str) \
+            and "\x00" not in tool["edge_profile"] and tool["edge_profile"].strip():
+        p = Path(tool["edge_profile"])
+        if not p.is_absolute():
+            tool["edge_profile"] = str((base / p).resolve())
 
 
 def _resolve_program(process, base: Path):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field, model_serializer, model_validator
 
 from ..core.grid import grid_shape
 from ..core.section import Region, Section
@@ -16,6 +16,49 @@ class ToolConfig(Section):
     included_angle_deg: float = Field(60.0, gt=0, le=180)
     rake_angle_deg: float = Field(0.0, ge=-45, le=45)
     clearance_angle_deg: float = Field(10.0, ge=0, le=45)
+    edge_profile: str | None = Field(
+        None, description="text file of the measured cutting edge, relative to the scene: a "
+                          "header 'angle_deg, deviation_nm' (angle along the edge against the "
+                          "deviation of the nose radius) or 'x_um, z_um' (points of the edge); "
+                          "None = a circular nose")
+    waviness: list[tuple[float, float, float]] | None = Field(
+        None, description="edge waviness as harmonics [amplitude nm, period deg, phase deg] "
+                          "of the nose radius along the edge angle (added to edge_profile)")
+    edge_scale: float = Field(1.0, ge=0, le=100, description="factor on the edge's deviation "
+                                                             "(edge_profile and waviness)")
+    wear: bool = Field(False, description="wear the edge along the cut (flank wear and edge radius "
+                                          "against the cutting distance, rates of material.preset)")
+    wear_scale: float = Field(1.0, ge=0, le=1e4, description="factor on the material's wear rates")
+    contact_duty_cycle: float = Field(1.0, gt=0, le=1, description="fraction of the time the edge is "
+                                                                   "in contact (vibration cutting < 1): "
+                                                                   "scales the chemical wear")
+
+    @model_validator(mode="after")
+    def _edge(self):
+        for k, (a, p, _) in enumerate(self.waviness or ()):
+            if not (0 <= a <= 1e4):
+                raise ValueError(f"waviness[{k}] amplitude must be in [0, 10000] nm, received {a}")
+            if not (0 < p <= 360):
+                raise ValueError(f"waviness[{k}] period must be in (0, 360] deg, received {p}")
+        if self.edge_profile is not None and ("\x00" in self.edge_profile or not self.edge_profile.strip()):
+            raise ValueError(f"edge_profile must be a file name, received {self.edge_profile!r}")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # a circular nose writes the tool as it always has (outputs that echo the scene
+        # stay the same): the edge keys appear once they are set
+        d = handler(self)
+        if isinstance(d, dict):
+            for k, default in _EDGE_DEFAULTS.items():
+                if k in d and d[k] == default:
+                    del d[k]
+        return d
+
+
+#: the edge and wear keys' defaults (left out of the written scene while they hold them)
+_EDGE_DEFAULTS = {"edge_profile": None, "waviness": None, "edge_scale": 1.0, "wear": False,
+                  "wear_scale": 1.0, "contact_duty_cycle": 1.0}
 
 
 class SimulationConfig(Section):

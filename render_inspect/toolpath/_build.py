@@ -23,7 +23,7 @@ __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count
 #: chordal-error temporaries, the kinematics), by compensation, measured with tracemalloc
 #: on paths of 0.35 to 1.1 million points of every sampling (tests/test_limits.py: 66-97
 #: with Z or no compensation, 170-193 with normal compensation).
-PLAN_BYTES_PER_POINT = {"z": 104, "none": 104, "normal": 200}
+PLAN_BYTES_PER_POINT = {"z": 104, "none": 104, "normal": 200, "edge": 104}
 #: Bytes planning holds whatever the path's length (curvature and accessibility grids).
 PLAN_FIXED_BYTES = 16 * MIB_TO_BYTES
 
@@ -230,8 +230,15 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
                                half_width=tool.half_width)
     elif comp == "normal":
         rho_tip, z_tip = normal_compensation(surface, theta, rho, tool.nose_radius)
+    elif comp == "edge":
+        if tool.edge is None:
+            raise InputError("process.compensation = 'edge' plans the path against the measured "
+                             "cutting edge: set tool.edge_profile or tool.waviness")
+        rho_tip = rho
+        z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
+                               half_width=tool.half_width, edge=tool.edge)
     else:
-        raise InputError(f"compensation must be 'none', 'normal' or 'z', received {comp!r}")
+        raise InputError(f"compensation must be 'none', 'normal', 'z' or 'edge', received {comp!r}")
 
     ce = chordal_error(surface, theta, rho, z_ccp)
     meta["chordal_error_max_mm"] = float(ce.max()) if ce.size else 0.0
@@ -240,7 +247,7 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
         meta["chordal_within_tolerance"] = bool(meta["chordal_error_max_mm"] <= chordal_tolerance * 1.0001)
 
     # gouge check: how far each programmed position would cut below the design section
-    if comp == "z":
+    if comp in ("z", "edge"):
         meta["gouge_max_mm"] = 0.0
     else:
         g = gouge_depth(surface, theta, rho_tip, z_tip, tool.nose_radius, max_slope=slope,

@@ -11,6 +11,13 @@ sinusoidal grid paper [2]_, eq. 5-8).
     z' = max_u [F(u) - (Rc - sqrt(Rc^2 - (u - rho)^2))], |u - rho| <= w.  This is the
     paper's implicit equation solved robustly (several competing contacts are handled
     because the global maximum is taken).
+``edge``: ``z`` against the measured cutting edge (``[tool] edge_profile`` / ``waviness``):
+    the nose's height at the offset u - rho is the edge's, Rc - sqrt(Rc^2 - (u - rho)^2)
+    + g(u - rho) (g from ``EdgeProfile.height_table``), so the tool is lifted until the real
+    edge touches.  Where the edge bulges (delta > 0) at the contact angle the path rises by
+    delta / cos(theta), and the form error the edge would imprint cancels: the tool-edge
+    waviness compensation of diamond turning (docs/references.md: tool waviness
+    compensation).
 
 References
 ----------
@@ -110,6 +117,23 @@ def _minus_arc(h, d, Rc, out):
 
 
 @njit(cache=True, nogil=True)
+def _minus_edge(h, d, Rc, edge, out):
+    """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d
+    (``edge``: the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
+    n = edge.size - 3
+    for i in range(h.size):
+        u = (d[i] - edge[0]) * edge[1]
+        if u <= 0.0:
+            g = edge[3]
+        elif u >= n - 1:
+            g = edge[n + 2]
+        else:
+            k = int(u)
+            g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
+        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]) + g)
+
+
+@njit(cache=True, nogil=True)
 def _final(best, gc, gd, out):
     for i in range(best.size):
         out[i] = max(best[i], max(gc[i], gd[i]))
@@ -126,7 +150,7 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
 
 def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
-                   chunk: int = 32_768) -> np.ndarray:
+                   chunk: int = 32_768, edge=None) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
@@ -141,6 +165,10 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
     samples, iterations : int
         Coarse samples of the window, then golden-section refinement of the best bracket;
         by default enough iterations to bring the height error below 1e-10 mm.
+    edge : EdgeProfile, optional
+        Compensate against the measured cutting edge instead of the circular nose (the
+        ``edge`` compensation); the window is then widened by the edge's height range and
+        sampled at 129 points at least, so that the search brackets the global contact.
 
     Returns
     -------
@@ -153,6 +181,13 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
         r = float(np.max(np.abs(rho))) + Rc
         max_slope = surface.max_slope((-r, -r, r, r))
     w = contact_window(Rc, max_slope, half_width)
+    etab = None
+    if edge is not None:
+        hw = Rc if half_width is None else min(float(half_width), Rc)
+        etab = edge if isinstance(edge, np.ndarray) else edge.height_table(Rc, hw)
+        # the edge's deviation can move the contact within the whole window: sample it finely
+        samples = max(samples, 129)
+        w = min(hw, w + math.sqrt(2.0 * Rc * float(etab[3:].max() - etab[3:].min())))
     out = np.empty_like(rho)
     offs = np.linspace(-w, w, samples)
     step = offs[1] - offs[0]
@@ -170,14 +205,20 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
         g = np.empty((m, samples))
         for k, o in enumerate(offs):
             u = rh1 + o
-            g[:, k] = surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - o * o))
+            if etab is None:
+                g[:, k] = surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - o * o))
+            else:
+                _minus_edge(surface.height(u * cs, u * sn), np.full(m, o), Rc, etab, g[:, k])
         best, lo, hi, c, d = _bracket(g, offs, step, w, _GOLD)
         del g
 
         def gfun(dd):
             _points(rh1, cs, sn, dd, X, Y)
             v = np.empty(m)
-            _minus_arc(surface.height(X, Y), dd, Rc, v)
+            if etab is None:
+                _minus_arc(surface.height(X, Y), dd, Rc, v)
+            else:
+                _minus_edge(surface.height(X, Y), dd, Rc, etab, v)
             return v
 
         gc, gd = gfun(c), gfun(d)

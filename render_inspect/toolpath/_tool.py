@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..core.errors import check_range
+from ._edge import edge_of
 
 
 @dataclass(frozen=True)
@@ -21,12 +22,15 @@ class Tool:
         +- included_angle / 2 about the tool axis.
     rake_angle, clearance_angle : float
         rad.
+    edge : EdgeProfile or None
+        The measured cutting edge (nose radius Rc + delta(angle)); None: a circular nose.
     """
 
     nose_radius: float
     included_angle: float = math.radians(60.0)
     rake_angle: float = 0.0
     clearance_angle: float = math.radians(10.0)
+    edge: object = field(default=None, compare=False)
 
     def __post_init__(self):
         check_range("tool.nose_radius", self.nose_radius, 0.0, None, lo_open=True)
@@ -35,13 +39,20 @@ class Tool:
 
     @classmethod
     def from_config(cls, cfg) -> "Tool":
+        edge = edge_of(getattr(cfg, "edge_profile", None), getattr(cfg, "waviness", None),
+                       nose_radius=cfg.nose_radius, amplitude_scale=getattr(cfg, "edge_scale", 1.0))
         return cls(cfg.nose_radius, math.radians(cfg.included_angle_deg),
-                   math.radians(cfg.rake_angle_deg), math.radians(cfg.clearance_angle_deg))
+                   math.radians(cfg.rake_angle_deg), math.radians(cfg.clearance_angle_deg), edge)
 
     @property
     def half_width(self) -> float:
         """Radial half-width of the cutting arc, Rc sin(included / 2), mm."""
         return self.nose_radius * math.sin(min(self.included_angle / 2, math.pi / 2))
+
+    @property
+    def half_angle(self) -> float:
+        """Half the angle of the edge that can cut, rad (included / 2, at most pi / 2)."""
+        return min(self.included_angle / 2, math.pi / 2)
 
 
 def pass_margin(tool: Tool, max_slope: float, feed_per_rev: float) -> float:

@@ -1,0 +1,101 @@
+"""What a measured cutting edge does to a turned part: ``metrics["tool_edge"]`` and the
+``tool_edge.png`` figure.
+
+A tool tracing a surface of slope angle theta touches it at theta on the edge, so the
+edge's deviation delta(theta) moves the cut surface by -delta(theta) along the normal,
+-delta(theta) / cos(theta) in Z (:mod:`render_inspect.toolpath._edge`).  The facts give
+that imprint predicted on the simulated region from the design's radial slope (what the
+edge does to a path planned for the circular nose) and, on the simulated surface, the
+form error along one radial section next to it: with ``process.compensation = "edge"``
+the path is planned against the edge and the imprint cancels (the compared pair of such
+a scene shows both cuts)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..core.units import MM_TO_NM
+from ..machining import WEAR_RATES
+
+__all__ = ["edge_facts", "edge_imprint", "check_edge_and_wear"]
+
+
+def edge_imprint(edge, design: np.ndarray, region, pixel: float) -> tuple[np.ndarray, np.ndarray]:
+    """(contact angle theta (rad), predicted imprint -delta(theta) / cos(theta) (mm)) on the
+    grid of ``design`` (the design heights over ``region``, spacing ``pixel``)."""
+    x0, y0 = region[0], region[1]
+    ny, nx = design.shape
+    x = x0 + pixel * np.arange(nx)
+    y = y0 + pixel * np.arange(ny)
+    xx, yy = np.meshgrid(x, y)
+    r = np.hypot(xx, yy)
+    gy, gx = (np.gradient(design, pixel) if min(ny, nx) > 1 else
+              (np.zeros_like(design), np.zeros_like(design)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = np.where(r > 0, (gx * xx + gy * yy) / np.where(r > 0, r, 1.0), 0.0)
+    theta = np.arctan(slope)
+    return theta, -edge.deviation(theta) / np.cos(theta)
+
+
+def _rms(a) -> float:
+    a = a[np.isfinite(a)]
+    return float(np.sqrt(np.mean((a - a.mean()) ** 2))) if a.size else 0.0
+
+
+def _pv(a) -> float:
+    a = a[np.isfinite(a)]
+    return float(np.ptp(a)) if a.size else 0.0
+
+
+def edge_facts(tool, compensation: str, machined, design, region, pixel: float, *,
+               name: str = "") -> tuple[dict, dict]:
+    """(``metrics["tool_edge"]``, {"tool_edge.png": figure spec}) of a turned part cut by
+    ``tool`` (whose ``edge`` is set) with the path's ``compensation``."""
+    edge = tool.edge
+    theta, imprint = edge_imprint(edge, design, region, pixel)
+    err = machined - design
+    facts = {**edge.to_dict(tool.half_angle),
+             "compensation": compensation,
+             "contact_angle_range_deg": [float(np.degrees(np.nanmin(theta))),
+                                         float(np.degrees(np.nanmax(theta)))],
+             # the imprint the edge leaves on a path planned for the circular nose
+             "imprint_predicted_pv_nm": _pv(imprint) * MM_TO_NM,
+             "imprint_predicted_rms_nm": _rms(imprint) * MM_TO_NM,
+             # the simulated surface's form error (machined - design, mean removed)
+             "form_error_pv_nm": _pv(err) * MM_TO_NM,
+             "form_error_rms_nm": _rms(err) * MM_TO_NM}
+    # one section through the region's middle row, against the distance from the axis
+    row = design.shape[0] // 2
+    x = region[0] + pixel * np.arange(design.shape[1])
+    y = region[1] + pixel * row
+    r = np.hypot(x, y)
+    e = err[row]
+    ok = np.isfinite(e)
+    spec = {"kind": "tool_edge",
+            "angle_deg": np.degrees(edge.angle), "delta_nm": edge.delta * MM_TO_NM,
+            "half_angle_deg": math.degrees(tool.half_angle),
+            "contact_deg": [facts["contact_angle_range_deg"][0], facts["contact_angle_range_deg"][1]],
+            "r_mm": r, "imprint_nm": (imprint[row] - np.nanmean(imprint[row])) * MM_TO_NM,
+            "error_nm": (e - (np.mean(e[ok]) if ok.any() else 0.0)) * MM_TO_NM,
+            "compensation": compensation,
+            "title": f"{name}: the measured cutting edge ({edge.source})"}
+    return facts, {"tool_edge.png": spec}
+
+
+def check_edge_and_wear(kind, compensation: str, scene) -> None:
+    """The turning processes' cross-checks of the measured edge and the wear (ValueError,
+    one line): ``compensation = "edge"`` needs STS and an edge; ``tool.wear`` a material
+    with wear rates."""
+    if compensation == "edge":
+        if kind != "sts":
+            raise ValueError(f"compensation = 'edge' is planned for process.kind = 'sts', received "
+                             f"kind {kind!r}; use 'z' there")
+        if not (scene.tool.edge_profile or scene.tool.waviness):
+            raise ValueError("compensation = 'edge' plans the path against the measured cutting "
+                             "edge: set tool.edge_profile or tool.waviness")
+    if getattr(scene.tool, "wear", False) and scene.material.preset not in WEAR_RATES:
+        raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "
+                         f"{', '.join(sorted(WEAR_RATES))}; received material.preset "
+                         f"{scene.material.preset!r}")
