@@ -30,6 +30,8 @@ NM_TO_UM = 1e-3
 M_TO_MM = 1e3
 #: millimetres -> metres
 MM_TO_M = 1e-3
+#: kilometres -> millimetres (cutting distances)
+KM_TO_MM = 1e6
 
 #: minutes -> seconds
 MIN_TO_S = 60.0
@@ -60,7 +62,7 @@ STANDARD_GRAVITY_MM_S2 = 9806.65
 __all__ = ["MM_TO_NM", "NM_TO_MM", "MM_TO_UM", "UM_TO_MM", "UM_TO_NM", "NM_TO_UM", "M_TO_MM",
            "MM_TO_M", "MIN_TO_S", "PER_MIN_TO_PER_S", "RPM_TO_RAD_PER_S", "RPM_TO_HZ",
            "S_TO_MS", "S_TO_US", "BYTES_TO_GIB", "GIB_TO_BYTES", "BYTES_TO_MIB",
-           "MIB_TO_BYTES", "STANDARD_GRAVITY_MM_S2"]
+           "MIB_TO_BYTES", "STANDARD_GRAVITY_MM_S2", "KM_TO_MM"]
 
 #: radians -> microradians
 RAD_TO_URAD = 1e6

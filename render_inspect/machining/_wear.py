@@ -34,13 +34,13 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
-from ..core.units import MM_TO_NM, NM_TO_MM, UM_TO_MM
+from ..core.units import KM_TO_MM, MM_TO_NM, NM_TO_MM, UM_TO_MM
 
 __all__ = ["WearRate", "WEAR_RATES", "wear_rate", "wear_state", "spiral_distance_km", "worn_path",
            "MM_PER_KM"]
 
 #: millimetres per kilometre
-MM_PER_KM = 1e6
+MM_PER_KM = KM_TO_MM
 
 
 @dataclass(frozen=True)
