@@ -15,7 +15,9 @@ Three terms, each a vector of residuals of fixed length:
   spectrum above the waviness band, refined to a small fraction of a bin by the
   power-weighted centroid of the annulus: concentric marks put their power on a ring,
   straight ones on two points of it, and either way the centroid is the frequency) and
-  the amplitudes of its first harmonics (the power in annuli around their multiples).  The
+  the amplitudes of its first harmonics (the power in annuli around their multiples; a
+  prediction's harmonics are read around its own fundamental, so the term varies with the
+  feed over the whole bounds).  The
   frequency gives the feed per revolution, the amplitudes the cusp shape (tool nose radius,
   minimum chip thickness).
 
@@ -174,15 +176,27 @@ def psd_bins(z, *, pixel, k_range, radial_bins: int, angle_bins: int, counts: bo
     kxx, kyy = np.meshgrid(kx, ky)
     kr = np.hypot(kxx, kyy)
     ang = np.mod(np.arctan2(kyy, kxx), math.pi)
-    edges = np.geomspace(k_range[0], k_range[1], radial_bins + 1)
-    ri = np.digitize(kr, edges) - 1
-    ai = np.minimum((ang / math.pi * angle_bins).astype(int), angle_bins - 1)
-    use = (ri >= 0) & (ri < radial_bins)
-    idx = ri[use] * angle_bins + ai[use]
-    n = np.bincount(idx, minlength=radial_bins * angle_bins)
-    s = np.bincount(idx, weights=p[use], minlength=radial_bins * angle_bins)
+    # each cell shares its power between the two radial bins whose centres (in log |k|)
+    # it lies between, linearly: a peak that moves (a feed that changes) moves the binned
+    # spectrum smoothly, not in steps at the bins' edges
+    lk0, lk1 = math.log(k_range[0]), math.log(k_range[1])
+    width = (lk1 - lk0) / radial_bins
+    with np.errstate(divide="ignore"):
+        pos = (np.log(np.where(kr > 0, kr, np.nan)) - lk0) / width - 0.5
+    inside = np.isfinite(pos) & (pos >= -0.5) & (pos < radial_bins - 0.5)
+    lo = np.floor(pos[inside]).astype(int)
+    frac = pos[inside] - lo
+    ai = np.minimum((ang[inside] / math.pi * angle_bins).astype(int), angle_bins - 1)
+    pw = p[inside]
+    n = np.zeros(radial_bins * angle_bins)
+    s = np.zeros(radial_bins * angle_bins)
+    for b, wt in ((lo, 1.0 - frac), (lo + 1, frac)):
+        ok = (b >= 0) & (b < radial_bins)
+        idx = b[ok] * angle_bins + ai[ok]
+        n += np.bincount(idx, weights=wt[ok], minlength=radial_bins * angle_bins)
+        s += np.bincount(idx, weights=wt[ok] * pw[ok], minlength=radial_bins * angle_bins)
     with np.errstate(divide="ignore", invalid="ignore"):
-        mean = np.where(n > 0, s / np.maximum(n, 1), np.nan)
+        mean = np.where(n > 0.5, s / np.maximum(n, 1e-300), np.nan)
     return (mean, n) if counts else mean
 
 
@@ -411,13 +425,26 @@ def predict_features(z, target: Target, values=None, *, measured: bool = False) 
     centroid = None
     amps = np.zeros(spec.harmonics)
     if target.peak is not None:
-        centroid, amps = harmonic_features(h, pixel=target.pixel, k0=target.peak,
-                                           n=spec.harmonics)
+        # the prediction's own fundamental: its harmonics are read around it, so that a
+        # prediction whose marks lie far from the measured ones (a feed far off) still has
+        # a frequency and amplitudes that move with the parameters (a gradient over the
+        # whole bounds, not only within the annulus around the measured fundamental)
+        k0 = own_peak(h, target) or target.peak
+        centroid, amps = harmonic_features(h, pixel=target.pixel, k0=k0, n=spec.harmonics)
         if target.amplitude_gain is not None and not measured:
             amps = amps * target.amplitude_gain
     wavy = waviness(z, pixel=target.pixel, cutoff=target.cutoff, form=spec.form,
                     origin=target.origin)
     return Prediction(h, wavy, psd, centroid, amps)
+
+
+def own_peak(h, target: Target):
+    """The feed marks' fundamental |k| (cycles/mm) of a map with its form removed, looked
+    for as the measured one is (:func:`make_target`); None where none stands out."""
+    ny, nx = h.shape
+    length = min(ny * target.pixel[1], nx * target.pixel[0])
+    high = h - gaussian_filter(h, pixel=target.pixel, cutoff=length / 10.0, min_weight=0.3)
+    return feed_peak(high, pixel=target.pixel, k_min=PEAK_MIN_PERIODS / length)
 
 
 def _mean_psd(maps, target: Target):
