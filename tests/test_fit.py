@@ -287,6 +287,8 @@ def _measured_file(path: Path, *, origin=(0.3, -0.05), scale=1.0) -> Path:
      "invalid scene (--predict): tool.nose_radius: must be a finite number in (0, 50]"),
     (["--free", "material.texture_nm", "--set", "material.texture_nm=0"],
      "--free material.texture_nm: the amplitude of a random part is fitted through the power"),
+    (["--free", "simulation.region.0"], "--free simulation.region.0: fit sets the simulated "
+                                        "region itself"),
 ])
 def test_bad_input_is_one_line_and_exit_1(tmp_path, capsys, args, message):
     meas = _measured_file(tmp_path / "height.exr")
