@@ -69,6 +69,7 @@ def _params(f0, r0):
                                                                         0.1 * r0)]
 
 
+@pytest.mark.slow
 def test_a_feed_started_22_percent_off_ends_at_the_truth():
     """The feed started 22 % high (a start the local solve alone does not come back from:
     it stalls on the spectrum's ripples) is captured by the start the measurement proposes
@@ -97,6 +98,7 @@ def test_a_solve_that_stops_on_a_slope_is_not_called_converged():
     assert res.status in ("converged", "not a minimum", "starts disagree", "budget")
 
 
+@pytest.mark.slow
 def test_a_product_only_determined_is_said_and_no_stderr_hides_it():
     """A forward model that sees only the product R1 R2: the information matrix is
     singular along d R1 / R1 = -d R2 / R2; the fit names that combination as undetermined,
@@ -126,7 +128,7 @@ def test_a_product_only_determined_is_said_and_no_stderr_hides_it():
 
 def test_the_summary_explains_each_misfit_term_and_the_raw_difference():
     params = _params(0.0104, 0.47)
-    res, target = _fit(params)
+    res, target = _fit(params, verify=False)
     rec = fit_record(res, target=target, spec=MisfitSpec(), provenance={},
                      maps={"rms_nm": 178.0}, waviness={"rms_nm": 0.4})
     text = "\n".join(summary_lines(rec))
@@ -232,6 +234,7 @@ def _rewrite(path, **members):
     path.write_bytes(buf.getvalue())
 
 
+@pytest.mark.slow
 def test_a_tampered_cache_entry_is_recomputed_not_trusted(tmp_path, caplog):
     """Every entry scaled x3 (its stored hash kept): each is refused with a warning and
     recomputed, and the fit's answer is that of a fresh fit."""

@@ -456,12 +456,18 @@ def _mean_psd(maps, target: Target):
                                          origin=target.origin), **kw) for z in maps], axis=0)
 
 
+def _own_harmonics(z, target: Target):
+    """(centroid, amplitudes) of a map's feed harmonics read around its own fundamental
+    (the measured one where none stands out): maps made at other values than the truth
+    (the realisations at the start) keep their harmonics."""
+    h = prepare_map(z, pixel=target.pixel, form=target.spec.form, origin=target.origin)
+    k0 = own_peak(h, target) or target.peak
+    return harmonic_features(h, pixel=target.pixel, k0=k0, n=target.spec.harmonics)
+
+
 def _mean_power(maps, target: Target):
     """The feed harmonics' power (mm^2), averaged over maps."""
-    kw = dict(pixel=target.pixel, k0=target.peak, n=target.spec.harmonics)
-    return np.mean([harmonic_features(prepare_map(z, pixel=target.pixel, form=target.spec.form,
-                                                  origin=target.origin), **kw)[1] ** 2
-                    for z in maps], axis=0)
+    return np.mean([_own_harmonics(z, target)[1] ** 2 for z in maps], axis=0)
 
 
 def noise_floor(target: Target, noisy, clean):
@@ -525,13 +531,11 @@ def _set_scatter(target: Target, noisy, clean) -> None:
         scatter["waviness_rms_nm"] = s_map * MM_TO_NM
         target.sigma_map = max(target.sigma_map, s_map)
     if target.peak is not None:
-        feats = [harmonic_features(prepare_map(z, pixel=target.pixel, form=spec.form,
-                                               origin=target.origin), pixel=target.pixel,
-                                   k0=target.peak, n=spec.harmonics) for z in noisy]
+        feats = [_own_harmonics(z, target) for z in noisy]
         k = np.array([f[0] for f in feats], dtype=np.float64)
         a = np.array([f[1] for f in feats], dtype=np.float64)
         if np.all(np.isfinite(k)) and target.centroid:
-            s_f = float(np.std(k, ddof=1) / target.centroid)
+            s_f = float(np.std(k, ddof=1) / np.mean(k))
             scatter["frequency_relative"] = s_f
             target.sigma_frequency = max(spec.sigma_frequency, s_f)
         s_a = np.std(a, axis=0, ddof=1)
