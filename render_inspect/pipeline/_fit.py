@@ -32,7 +32,8 @@ from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check
                    check_before, check_units,
                    field_extent, fit_record, fit_window, free_parameters, make_target,
                    misfit_maps, parse_bounds, parse_free, predict_features, prepare_map,
-                   radial_psd, register_field, scene_hash, set_noise_floor, set_value, solve,
+                   get_value, radial_psd, register_field, scene_hash, set_noise_floor,
+                   set_value, solve,
                    summary_lines)
 from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
 from ..io import write_exr, write_json, write_marker
@@ -127,7 +128,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     predict : list of "KEY=VALUE"
         After the fit, simulate the fitted scene with these changes into ``predict/``.
     seed : int
-        Seed of the virtual camera's noise and of the Latin hypercube.
+        Seed of the virtual camera's noise and of the Sobol design.
     global_points : int
         Points of the scrambled Sobol design over the search box (the bounds narrowed to
         half and twice the start values) evaluated before the local fit, with the start the
@@ -258,7 +259,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                       for j, i in enumerate(free_idx)]
             set_noise_floor(target, noisy, clean0, scaled=scaled)
             pred_start = predict_features(clean0, target, [p.start for p in params])
-            starts, reach = _measured_starts(scene, params, target)
+            starts, reach = _measured_starts(base, params, target)
             before = check_before(
                 target.height, pred_start.height, pixel=pixel, free_keys=keys,
                 measured_period=None if target.centroid is None else 1.0 / target.centroid,
@@ -370,15 +371,17 @@ def _evaluation_pixel(scene, period=None) -> float:
     far below what is compared."""
     px = float(scene.simulation.pixel)
     if period is None:
-        proc = scene.process
-        fpr = getattr(proc, "feed_per_rev", None)
-        period = float(fpr) if isinstance(fpr, (int, float)) and fpr > 0 else None
+        d = scene.to_dict()
+        feed, rpm = get_value(d, "process.feed_mm_per_min"), get_value(d, "process.spindle_rpm")
+        period = (float(feed) / float(rpm)
+                  if isinstance(feed, (int, float)) and isinstance(rpm, (int, float)) and rpm > 0
+                  else None)
     while period and px * SIM_SAMPLES_PER_PERIOD > period * (1.0 + 1e-9):
         px /= 2.0
     return px
 
 
-def _measured_starts(scene, params, target):
+def _measured_starts(base: dict, params, target):
     """(starts, reach): start values the measurement proposes, and the marks' periods the
     free keys' bounds reach (None when no key that sets the period is free).
 
@@ -389,10 +392,9 @@ def _measured_starts(scene, params, target):
     if target.centroid is None:
         return [], None
     period = 1.0 / target.centroid
-    proc = scene.process
     keys = {p.key: p for p in params}
-    rpm = getattr(proc, "spindle_rpm", None)
-    feed = getattr(proc, "feed_mm_per_min", None)
+    rpm = get_value(base, "process.spindle_rpm")
+    feed = get_value(base, "process.feed_mm_per_min")
     start, reach = {}, None
     if "process.feed_mm_per_min" in keys and rpm:
         p = keys["process.feed_mm_per_min"]
