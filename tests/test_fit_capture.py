@@ -294,3 +294,22 @@ def test_predict_samples_by_the_evaluations_pixel_rule():
         period = feed / scene.process.spindle_rpm
         assert px * SIM_SAMPLES_PER_PERIOD <= period * (1 + 1e-9) < 2 * px * SIM_SAMPLES_PER_PERIOD \
             or px == scene.simulation.pixel
+
+
+def test_run_fit_takes_a_surface_already_read(tmp_path):
+    """The seam for other readers: ``run_fit`` takes a measured surface object; its own
+    checks apply to it (here the unequal pixel sizes), and nothing is written."""
+    import dataclasses
+
+    from render_inspect.io import read_surface, write_measurement_exr
+    from render_inspect.pipeline import run_fit
+    from render_inspect.scene import load_scene
+
+    z, px = _cusps(0.0101, 0.514, n=64, pixel=0.00087890625)
+    path = tmp_path / "h.exr"
+    write_measurement_exr(path, z, np.ones_like(z, bool), pixel=px, origin=(0.3, -0.05),
+                          attrs={"objective": "20x", "mode": "psi"})
+    m = dataclasses.replace(read_surface(path), pixel=(px, 2 * px))
+    with pytest.raises(InputError, match=r"pixel sizes differ in x"):
+        run_fit(m, load_scene("sts_sinusoidal_grid"), ["tool.nose_radius"], tmp_path / "out")
+    assert not (tmp_path / "out").exists()

@@ -98,9 +98,12 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
 
     Parameters
     ----------
-    measured : path
+    measured : path or measured surface
         Anything ``analyze`` reads: an instrument file, or the ``height.exr`` that
-        ``measure`` writes.
+        ``measure`` writes; or a surface already read (an object with ``z`` (mm, NaN = not
+        measured), ``pixel`` (x, y mm), ``origin``, ``square`` and ``meta``, as
+        :func:`~render_inspect.io.read_surface` returns), the seam for readers of other
+        kinds of measurement.
     scene : Scene
         The cut (its ``--set`` overrides applied).
     free : list of str
@@ -143,7 +146,9 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     """
     t_all = time.perf_counter()
     out = Path(out)
-    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    surface = measured if getattr(measured, "z", None) is not None else None
+    inputs = () if surface is not None else (measured,)
+    check_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs)
     keys = parse_free(free)
     for k in keys:
         if k == "simulation.region" or k.startswith("simulation.region."):
@@ -173,13 +178,15 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     if predict:
         _predicted_scene(base, {p.key: p.start for p in params}, predict, fill)
 
-    m = read_surface(measured)
+    m = surface if surface is not None else read_surface(measured)
+    if surface is not None:
+        measured = str((m.meta or {}).get("path", "(a surface handed in)"))
     if not m.square:
         raise InputError(f"{measured}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
                          f"({m.pixel[1]:.6g} mm); the virtual instrument has square pixels: "
                          f"resample the map first")
     pixel = float(m.pixel[0])
-    file_settings = file_instrument(measured)
+    file_settings = file_instrument(measured) if surface is None else {}
     region = [float(v) for v in scene.simulation.region]
     if at == "register":
         reg = register_field(m.z, m.pixel, make_surface(scene.design), region)
@@ -317,7 +324,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     record["model_check"] = {"before": before, "after": after,
                              "measured_starts": starts}
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
-    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs) as tmp:
         tmp = Path(tmp)
         if predict:
             pred_scene = _predicted_scene(fitted, {}, predict, fill)
