@@ -124,6 +124,7 @@ def test_a_product_only_determined_is_said_and_no_stderr_hides_it():
     text = "\n".join(summary_lines(rec))
     assert "R1 = " in text and "not determined alone" in text
     assert "not determined by this measurement" in text and "dR1/R1" in text
+    assert "determined: " in text
 
 
 def test_the_summary_explains_each_misfit_term_and_the_raw_difference():

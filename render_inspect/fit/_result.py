@@ -127,9 +127,15 @@ def summary_lines(record: dict) -> list[str]:
         else:
             err = "+- n/a" if se is None else f"+- {se:.3g}"
         lines.append(f"{k} = {p['value']:.6g} {err} (start {p['start']:.6g})")
-    for d in (record.get("identifiability") or {}).get("undetermined", []):
-        lines.append(f"not determined by this measurement: {d['text']} (relative standard "
-                     f"error {d['relative_stderr']:.3g}); the other combinations are")
+    ident = record.get("identifiability") or {}
+    if ident.get("undetermined"):
+        for d in ident["undetermined"]:
+            lines.append(f"not determined by this measurement: {d['text']} (relative "
+                         f"standard error {d['relative_stderr']:.3g})")
+        for d in ident.get("directions", []):
+            if d["determined"]:
+                lines.append(f"determined: {d['text']} (relative standard error "
+                             f"{d['relative_stderr']:.3g})")
     for pair in record.get("unresolved_pairs", []):
         lines.append(f"{pair['keys'][0]} and {pair['keys'][1]} cannot be told apart "
                      f"(correlation {pair['correlation']:.3f})")

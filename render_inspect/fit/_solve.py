@@ -625,7 +625,8 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
                 shift = 0.3 * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
                 shift = np.where((ub + shift > hi) | (ub + shift < lo), -shift, shift)
                 u2 = np.clip(ub + shift, lo + inside, hi - inside)
-                s2, m2, second = _local(params, evaluator, u2, lo, hi, np.full(n, float(fd_step)),
+                # (with the difference steps the first solve refined)
+                s2, m2, second = _local(params, evaluator, u2, lo, hi, steps.copy(),
                                         xtol=xtol, ftol=ftol, max_rounds=max_rounds,
                                         budget=budget)
                 checks["second_start"] = {p.key: float(p.from_unit(v))
@@ -675,17 +676,18 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             other = second if second is not best else first
             diff = np.abs(other.values - best.values)
             gap = (other.cost - best.cost) / max(best.cost, 1e-300)
-            # the second start in the same minimum (a misfit as low): its distance is the
-            # solver's own precision
-            same = gap <= 0.01
+            # the second start in the same minimum (the same values within two standard
+            # errors or ten times the solver's tolerance, or a misfit as low): its distance
+            # is the solver's own precision
+            tol = np.maximum(2 * stderr_model, 10 * xtol * scales)
+            agree = bool(np.all(diff <= tol))
+            same = agree or gap <= 0.01
             if same:
                 stderr_solver = diff / 2.0
                 cov = cov + np.diag(stderr_solver ** 2)
         stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
         corr = _correlation(cov, stderr)
         if status == "pending":
-            agree = bool(np.all(diff <= np.maximum(2 * stderr_model,
-                                                   1e-9 * np.abs(best.values))))
             worst = int(np.argmax(diff / np.maximum(stderr_model, 1e-300)))
             if agree:
                 status, message = "converged", (
