@@ -37,7 +37,8 @@ ANGLE_TOLERANCE_DEG = 15.0
 PERIOD_SPREAD = 0.02
 #: relative spread of a profile's segment periods beyond which the feed varies along it
 PROFILE_SPREAD = 0.03
-#: measured waviness (nm) above which the scene's form must explain it
+#: waviness difference (nm rms) between measured and predicted above which the form must
+#: agree (half the larger of the two at most)
 FORM_MIN_NM = 20.0
 
 
@@ -149,16 +150,18 @@ def check_before(measured, predicted, *, pixel, free_keys, measured_period,
                         f"(or is mirrored); place it with --at X,Y or --at register")
         out["direction_difference_deg"] = worst
     wm = _rms(measured_wavy)
+    wp = _rms(predicted_wavy)
     d = measured_wavy - predicted_wavy
     wd = _rms(d)
     out["waviness_rms_nm"] = wm * MM_TO_NM
+    out["scene_waviness_rms_nm"] = wp * MM_TO_NM
     out["waviness_unexplained_nm"] = wd * MM_TO_NM
-    if wm * MM_TO_NM > FORM_MIN_NM and wd > 0.5 * wm:
+    if wd * MM_TO_NM > FORM_MIN_NM and wd > 0.5 * max(wm, wp):
         raise InputError(
-            f"this scene does not describe this measurement: its form leaves "
-            f"{wd * MM_TO_NM:.4g} nm rms of the measured {wm * MM_TO_NM:.4g} nm rms of waviness "
-            f"unexplained (the design, or the field's place on the part, differs); check the "
-            f"scene's design and --at")
+            f"this scene does not describe this measurement: the measured waviness "
+            f"({wm * MM_TO_NM:.4g} nm rms) and the scene's ({wp * MM_TO_NM:.4g} nm rms) differ by "
+            f"{wd * MM_TO_NM:.4g} nm rms (the design, or the field's place on the part, "
+            f"differs); check the scene's design and --at")
     return out
 
 
