@@ -5,7 +5,7 @@ VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.setup-stamp
 LOCK    := requirements.lock
 
-.PHONY: setup demo test test-fast bench regress regress-update system-deps clean lock lock-upgrade
+.PHONY: setup demo test test-quick test-fast bench regress regress-update system-deps clean lock lock-upgrade
 
 setup: $(STAMP)
 
@@ -44,11 +44,22 @@ lock-upgrade: setup
 demo: setup
 	$(VENV)/bin/render-inspect demo --out out/demo
 
-test: setup
-	$(VPY) -m pytest -q
+# The test tiers (docs/contributing.md): test-quick is the developer's loop (units,
+# contracts, messages, small forward models; no process started, no render, no
+# simulation over 200,000 samples: tests/conftest.py fails a light test that does any);
+# test is everything, CI's, on parallel workers (pytest-xdist from the lock).
+XDIST   ?= -n 2 --dist loadgroup
+QUICK   := not slow and not mitsuba and not blender and not browser and not gpu
 
+test: setup
+	$(VPY) -m pytest -q $(XDIST)
+
+test-quick: setup
+	$(VPY) -m pytest -q $(XDIST) -m "$(QUICK)"
+
+# Everything but the slow tests (Mitsuba, Blender and browser tests included).
 test-fast: setup
-	$(VPY) -m pytest -q -m "not slow"
+	$(VPY) -m pytest -q $(XDIST) -m "not slow"
 
 bench: setup
 	ONLY=$(ONLY) $(VPY) benchmarks/run_all.py

@@ -19,7 +19,7 @@ VARIANT_ITEMS: list = []
 
 def scene_changed(self, context):
     """``preset`` / ``scene_path`` changed: read the scene's numbers into ``params``."""
-    from .properties import load_params
+    from ._scenes import load_params
 
     load_params(self)
 

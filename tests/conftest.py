@@ -3,8 +3,10 @@ temporary folder before anything imports bpy, mitsuba, drjit or matplotlib."""
 
 from __future__ import annotations
 
+import multiprocessing.process
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -72,3 +74,92 @@ def chromium() -> str:
             return path
     pytest.fail("headless Chromium is needed for the report check: run `make setup` as root "
                 "(apt-get install chromium)")
+
+
+# ------------------------------------------------------------------------ real data
+#: The real instrument files and turned parts the tests read (../shared/realdata beside
+#: the repository; see its SOURCES.md).
+REALDATA = REPO.parent / "shared" / "realdata"
+
+
+def real_file(*parts: str) -> Path:
+    """The path of a real file under ``../shared/realdata``: the test is skipped, with the
+    reason, when the whole folder is absent (a checkout without it), and fails when the
+    folder is there but the file is not (a file the tests expect went missing)."""
+    if not REALDATA.is_dir():
+        pytest.skip(f"the real instrument files are not beside this checkout ({REALDATA} "
+                    "is absent)")
+    p = REALDATA.joinpath(*parts)
+    if not p.is_file():
+        pytest.fail(f"real instrument file missing: {p} (the tests read ../shared/realdata)")
+    return p
+
+
+# ------------------------------------------------------------------------ test tiers
+# ``make test-quick`` runs what carries none of HEAVY_MARKS; a test that does heavy work
+# must carry one.  Heavy work, found as it happens (not by timing, which depends on the
+# machine): starting a process (subprocess, fork, spawn: every CLI run in a subprocess,
+# every Dask cluster), simulating more than SMALL_MAP samples, importing or running
+# Mitsuba.
+HEAVY_MARKS = ("slow", "mitsuba", "blender", "browser", "gpu")
+SMALL_MAP = 200_000
+_CURRENT = {"light": False, "nodeid": "", "violation": None}
+
+
+def _heavy_work(what: str, *, stop: bool = False) -> None:
+    """Record heavy work in a test without a heavy mark; the test fails when it ends.  A
+    process start is only recorded (raising inside a process pool or a Dask cluster's
+    start-up would leave it waiting for its worker); ``stop`` fails the test at once."""
+    if _CURRENT["light"]:
+        _CURRENT["light"] = False  # one report per test
+        _CURRENT["violation"] = (f"{_CURRENT['nodeid']} {what}: mark it @pytest.mark.slow (or "
+                                 f"another of {', '.join(HEAVY_MARKS)}) so that `make "
+                                 "test-quick` leaves it out")
+        if stop:
+            pytest.fail(_CURRENT["violation"], pytrace=False)
+
+
+def _audit(event: str, args) -> None:
+    if _CURRENT["light"] and event in ("subprocess.Popen", "os.fork", "os.forkpty",
+                                       "os.posix_spawn", "os.spawn", "os.exec"):
+        _heavy_work(f"starts a process ({event}: {str(args)[:120]})")
+
+
+sys.addaudithook(_audit)
+
+
+@pytest.fixture(autouse=True)
+def _heavy_work_needs_a_mark(request, monkeypatch):
+    light = not any(request.node.get_closest_marker(m) for m in HEAVY_MARKS)
+    had_mitsuba = "mitsuba" in sys.modules
+    if light:
+        from render_inspect.pipeline import _simulate
+
+        real = _simulate.process_of
+
+        def process_of(scene):
+            ny, nx = scene.simulation.shape
+            if ny * nx > SMALL_MAP:
+                _heavy_work(f"simulates {ny} x {nx} = {ny * nx:,} samples (more than "
+                            f"{SMALL_MAP:,})", stop=True)
+            return real(scene)
+
+        monkeypatch.setattr(_simulate, "process_of", process_of)
+        start = multiprocessing.process.BaseProcess.start
+
+        def start_process(self):
+            _heavy_work(f"starts a process ({type(self).__name__})")
+            return start(self)
+
+        monkeypatch.setattr(multiprocessing.process.BaseProcess, "start", start_process)
+    _CURRENT.update(light=light, nodeid=request.node.nodeid, violation=None)
+    try:
+        yield
+    finally:
+        still_light, violation = _CURRENT["light"], _CURRENT["violation"]
+        _CURRENT.update(light=False, nodeid="", violation=None)
+    if violation:  # also when the code under test caught the first report
+        pytest.fail(violation, pytrace=False)
+    if still_light and not had_mitsuba and "mitsuba" in sys.modules:
+        pytest.fail(f"{request.node.nodeid} imports Mitsuba (renders): mark it "
+                    "@pytest.mark.mitsuba", pytrace=False)

@@ -5,10 +5,10 @@ is simulated."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import real_file
 from numpy.testing import assert_allclose
 
 from render_inspect.cli import main as cli_main
@@ -17,18 +17,15 @@ from render_inspect.io import read_surface, write_x3p
 from render_inspect.metrology import analyze_map
 from render_inspect.scene import load_scene
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 KEYS = {"Sa_nm", "Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "Ssk", "Sku", "Sdq", "Sdr_percent",
         "Sal_mm", "Str"}
 
 
 def _real(name):
-    p = REAL / name
-    if not p.is_file():
-        pytest.fail(f"real instrument file missing: {p} (the tests read ../shared/realdata)")
-    return p
+    return real_file(name)
 
 
+@pytest.mark.slow
 def test_analyze_non_square_x3p_writes_metrics_png_x3p(tmp_path, capsys):
     import surfalize
     from PIL import Image
@@ -66,6 +63,7 @@ def test_analyze_non_square_x3p_writes_metrics_png_x3p(tmp_path, capsys):
     assert str(out.resolve()) in cap.out.replace("\n", "")
 
 
+@pytest.mark.slow
 def test_analyze_sphere_outliers_and_filter_on_a_forward_model(tmp_path):
     px, py = 0.002, 0.003
     ny, nx = 150, 200
@@ -107,7 +105,7 @@ def test_analyze_sphere_outliers_and_filter_on_a_forward_model(tmp_path):
 ])
 def test_analyze_bad_input_one_line_exit_1_nothing_written(tmp_path, capsys, args, match):
     out = tmp_path / "bad"
-    argv = ["analyze", str(REAL / args[0]), "--out", str(out), *args[1:]]
+    argv = ["analyze", str(real_file(args[0])), "--out", str(out), *args[1:]]
     assert cli_main(argv) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0] and "Traceback" not in err[0]
@@ -207,6 +205,7 @@ def test_check_measured_accepts_the_design_and_reports_uncertainty(grid_scene, t
     assert not forced.metrics["checks"]["ok"] and forced.metrics["checks"]["refusals"]
 
 
+@pytest.mark.slow
 def test_analyze_warns_about_hole_borders_and_mostly_empty_maps(tmp_path, capsys):
     """Digital Surf sur-2: Sdq/Sdr without the gradients bordering its 117 missing points
     (as SurfaceTopography), both values in metrics.json and a warning; a map 88 %

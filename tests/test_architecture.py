@@ -44,9 +44,30 @@ PROCESS_SECTIONS = {"process", "rcse", "machine", "material", "artifacts"}
 PROCESS_KEYS = {"kind", "feed_per_rev", "workpiece_radius", "compensation", "spindle_rpm"}
 #: pipeline modules that are no stage (the kernels' warm-up of ``make setup``)
 NOT_STAGES = {"_warmup.py"}
-#: subpackages whose modules stay under MAX_LINES
-SIZED = {"pipeline", "processes", "scene", "report", "batch"}
+#: the most lines a module of the package or of the Blender add-on may have
 MAX_LINES = 600
+#: modules allowed over MAX_LINES, each with the reason
+OVERSIZED = {
+    "render_inspect/machining/_envelope.py":
+        "the per-pixel step, the fast and the reference kernel and the path preparation "
+        "share the pass window and the nominal spiral; its functions move out together "
+        "with the CPU / GPU import cycle below, once the measured tool edge's kernel "
+        "changes to them have landed",
+}
+#: import cycles allowed, each a set of modules with the reason
+CYCLES = {
+    frozenset({"render_inspect.machining._envelope", "render_inspect.machining._envelope_gpu"}):
+        "the GPU kernel compiles the CPU module's per-pixel step for the device, and the "
+        "CPU module starts the GPU kernel (imported inside the function that dispatches to "
+        "it); it goes when the per-pixel step moves into a module of its own (see "
+        "OVERSIZED)",
+    frozenset({"render_inspect.scene", "render_inspect.scene._variants"}):
+        "the package builds the Scene model from the registries, and the compared variants "
+        "are scenes made with its scene_from_dict and apply_overrides; it goes when the "
+        "model moves into a module of its own, once the changes under way to loading and "
+        "its messages have landed",
+}
+ADDON = PKG.parent / "blender_addon"
 
 
 def _unit(path: Path) -> str:
@@ -128,6 +149,7 @@ def test_engines_only_in_render_adapters_and_only_inside_functions():
     assert not offenders, offenders
 
 
+@pytest.mark.slow
 def test_help_imports_no_heavy_module():
     code = ("import sys\nfrom render_inspect.cli import build_parser\nbuild_parser()\n"
             "heavy = {'numba', 'scipy', 'mitsuba', 'drjit', 'bpy', 'matplotlib', 'OpenEXR', "
@@ -230,11 +252,103 @@ def test_metrics_json_is_written_in_one_place():
     assert not offenders, offenders
 
 
+def _sized_modules():
+    return _modules() + sorted(p for p in ADDON.rglob("*.py") if "__pycache__" not in p.parts)
+
+
 def test_modules_stay_small():
-    big = []
-    for py in _modules():
-        if _unit(py) in SIZED or py == PKG / "machining" / "_axes.py":
-            n = len(py.read_text().splitlines())
-            if n > MAX_LINES:
-                big.append(f"{py.relative_to(PKG)}: {n} lines")
+    """Every module of the package and the add-on is at most MAX_LINES long, the few
+    listed in OVERSIZED aside (which must still need it)."""
+    big, stale = [], []
+    for py in _sized_modules():
+        name = py.relative_to(PKG.parent).as_posix()
+        n = len(py.read_text().splitlines())
+        if n > MAX_LINES and name not in OVERSIZED:
+            big.append(f"{name}: {n} lines")
+        if n <= MAX_LINES and name in OVERSIZED:
+            stale.append(name)
     assert not big, big
+    assert not stale, f"no longer over {MAX_LINES} lines, drop from OVERSIZED: {stale}"
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _import_graph() -> dict:
+    """Module -> the project modules it imports (at the top or inside functions), read from
+    the AST: ``from X import y`` counts as an import of ``X.y`` where that is a module, else
+    of ``X``."""
+    files = {_module_name(p): p for p in _sized_modules()}
+    graph = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = package.split(".")[:len(package.split(".")) - node.level + 1]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                found = [f"{base}.{a.name}" if f"{base}.{a.name}" in files else base
+                         for a in node.names]
+            else:
+                continue
+            targets.update(f for f in found if f in files)
+        graph[name] = targets - {name}
+    return graph
+
+
+def _cycles(graph: dict) -> list[frozenset]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(frozenset(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycles():
+    """No two modules of the package or the add-on import each other, directly or through
+    others (imports inside functions count: they only defer the cycle), the few listed in
+    CYCLES aside (which must still be cycles)."""
+    found = _cycles(_import_graph())
+    unknown = [sorted(c) for c in found if c not in CYCLES]
+    assert not unknown, unknown
+    stale = [sorted(c) for c in CYCLES if c not in found]
+    assert not stale, f"no longer a cycle, drop from CYCLES: {stale}"
+
+
+def test_the_import_graph_sees_a_cycle():
+    """The cycle finder itself, on a graph with one cycle of three and a tail."""
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set()}
+    assert _cycles(graph) == [frozenset({"a", "b", "c"})]
+    assert _cycles({"a": {"b"}, "b": set()}) == []

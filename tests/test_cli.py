@@ -17,6 +17,7 @@ def _cli(*args):
                           capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_quiet_simulate_says_nothing(tmp_path, tiny_scene):
     p = tiny_scene
     r = _cli("simulate", p, "--out", tmp_path / "q", "-q")
@@ -28,6 +29,7 @@ def test_quiet_simulate_says_nothing(tmp_path, tiny_scene):
     assert args.quiet and not args.verbose
 
 
+@pytest.mark.slow
 def test_verbose_lists_every_step(tmp_path, tiny_scene):
     p = tiny_scene
     r = _cli("simulate", p, "--out", tmp_path / "v", "-v")
@@ -36,6 +38,7 @@ def test_verbose_lists_every_step(tmp_path, tiny_scene):
     assert "done in" in r.stderr
 
 
+@pytest.mark.slow
 def test_quiet_and_verbose_exclude_each_other(tmp_path):
     r = _cli("simulate", "sts_fig16_overcut", "--out", tmp_path / "x", "-q", "-v")
     assert r.returncode == 2 and "not allowed with" in r.stderr

@@ -187,6 +187,7 @@ def test_endpoints_that_are_not_schedulers_are_refused_in_bounded_time(tmp_path,
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_the_command_line_says_the_same_within_the_documented_time(tmp_path):
     """The documented 15 s: an endpoint that accepts and never answers ends the command
     within about 20 s, with one line and exit code 1."""

@@ -142,6 +142,7 @@ def test_the_page_has_the_four_examples():
                                   "render_inspect/processes/_css.py"]
 
 
+@pytest.mark.slow
 def test_a_new_design_type_is_one_file(package, tmp_path):
     (tmp_path / "s.toml").write_text(SADDLE_SCENE)
     r = _run(package, "simulate", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"),
@@ -151,6 +152,7 @@ def test_a_new_design_type_is_one_file(package, tmp_path):
     assert m["scene_name"] == "saddle" and m["residual"]["Sq_nm"] > 0
 
 
+@pytest.mark.slow
 def test_a_process_needs_only_its_three_hooks(package, tmp_path):
     """No compensation key, no feed, no traits: the chain asks nothing else of it."""
     scene = SADDLE_SCENE.replace('kind = "sts"', 'kind = "bare"').replace(
@@ -209,6 +211,7 @@ def test_a_new_instrument_is_one_file(package, tmp_path):
     assert r.returncode == 2 and "'stylus'" in r.stderr
 
 
+@pytest.mark.slow
 def test_a_new_file_format_is_one_file(package, tmp_path):
     (tmp_path / "s.toml").write_text(SADDLE_SCENE)
     for fmt in ("xyz", "npz"):

@@ -259,6 +259,7 @@ def test_every_shipped_turning_scene_is_tiled_at_whole_part_size(scene):
     assert wants_tiles(whole.with_overrides(["simulation.max_memory_gb=0.01"]))
 
 
+@pytest.mark.slow
 def test_simulate_tiles_the_shipped_scene_as_it_runs_in_memory(tmp_path):
     """The shipped grid (lathe, Al 6082) cut tile by tile: the same heights and the same
     facts of the machine and the material as in memory, and the following-error figures."""

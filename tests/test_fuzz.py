@@ -447,6 +447,7 @@ def _run_cli(*args, cwd):
                           capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
+@pytest.mark.slow
 def test_fuzz_command_line_end_to_end(tmp_path):
     """A few whole runs in a fresh process: exit 1, one line naming the input, no
     traceback, nothing written."""
@@ -678,6 +679,7 @@ def _hostile_frt(rng, d: Path) -> Path:
     return f
 
 
+@pytest.mark.slow
 def test_fuzz_hostile_measured_files(tmp_path, monkeypatch):
     """Hostile .npy headers and values, side-cars, Zarr stores (chunk shapes, data types,
     damaged or linked chunks, declared shapes), X3P size declarations and DTDs, FRT files:
@@ -743,6 +745,7 @@ def test_fuzz_analyze_filters_and_maps(tmp_path):
     assert 0 < refused < CASES["filters"]
 
 
+@pytest.mark.slow
 def test_fuzz_analyze_command_on_hostile_files(tmp_path, capsys, monkeypatch):
     """The analyze command on hostile files: exit 1, one line without a traceback or
     "internal error", no output folder."""
@@ -789,6 +792,7 @@ sys.exit(cli.main(sys.argv[3:]))
 """
 
 
+@pytest.mark.slow
 def test_fuzz_signals_at_every_phase_of_the_folder(tmp_path):
     """SIGINT / SIGTERM at each phase of writing an output folder (after the lock, while
     the marker is written, during the swap, during the clean-up after it): exit 130 /
@@ -817,6 +821,7 @@ def test_fuzz_signals_at_every_phase_of_the_folder(tmp_path):
         assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or ".lock" in p.name]
 
 
+@pytest.mark.slow
 def test_fuzz_commands_under_an_address_space_limit(tmp_path):
     """Commands run under ``ulimit -v`` (RLIMIT_AS): refused at the start with one line
     naming the limit, or finished; never a segmentation fault or a late MemoryError."""
@@ -898,6 +903,7 @@ def _sweep_text(rng) -> str:
     return "\n".join(lines) + "\n"
 
 
+@pytest.mark.slow
 def test_fuzz_sweep_files(tmp_path, capsys, monkeypatch):
     """Random sweep files through ``render-inspect sweep`` (the points' runs replaced by a
     stub: what is fuzzed is everything before and after them): exit 0, or 1 with one
@@ -955,6 +961,7 @@ def test_fuzz_sweep_files(tmp_path, capsys, monkeypatch):
             assert rc == 1 and err.startswith("render-inspect sweep: error:"), err
 
 
+@pytest.mark.mitsuba
 def test_fuzz_regress_inputs(tmp_path):
     """Random ``--only`` patterns, ``--set`` texts and case files through ``run_regress``
     (rendering replaced by a stub that says a case was accepted): a case is accepted or
@@ -1071,6 +1078,7 @@ def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
     ]
 
 
+@pytest.mark.slow
 def test_fuzz_every_command_refuses_bad_input_in_one_line(tmp_path):
     """Bad input to every command, in a fresh process: one line naming the input, exit 1
     (2 for a usage error), no traceback, no output folder and no temporary left."""

@@ -219,6 +219,30 @@ def _batwing(step_nm, *, na=0.4, lam=600.0, bw=120.0, p_um=0.05, n=800):
     return float(up[i]), width, m
 
 
+def test_batwing_reports_both_lobes_whatever_rounding_favours():
+    # an odd error profile about a rising edge: undershoot below, overshoot above; a
+    # one-ulp change that makes either lobe the larger one changes nothing reported
+    from render_inspect.metrology import batwing
+
+    x = np.arange(-60, 61) * 0.05
+    lobe = 30.0 * np.exp(-((np.abs(x) - 0.8) / 0.4) ** 2)
+    err = np.sign(x) * lobe
+    results = []
+    for tweak in (-1, 0, 1):
+        e = err.copy()
+        e[x > 0] = np.nextafter(e[x > 0], e[x > 0] + tweak) if tweak else e[x > 0]
+        results.append(batwing(e, x, edge=0.0, side_length=3.0, exclude=0.05))
+    for r in results:
+        assert r.low == pytest.approx(-30.0, rel=1e-3) and r.high == pytest.approx(30.0, rel=1e-3)
+        assert r.peak_to_valley == pytest.approx(60.0, rel=1e-3)
+        assert r.height == pytest.approx(results[0].height, rel=1e-12)
+        assert r.width == pytest.approx(results[0].width, rel=1e-12)
+        assert 0.8 < r.low_width == r.high_width < 1.5
+    # a falling edge swaps which terrace is upper
+    f = batwing(-err, x, edge=0.0, side_length=3.0, exclude=0.05, rising=False)
+    assert f.high == pytest.approx(30.0, rel=1e-3) and f.low == pytest.approx(-30.0, rel=1e-3)
+
+
 def test_csi_batwing_below_coherence_length_not_above():
     h60, w60, _ = _batwing(60)
     assert h60 > 10 and w60 > 0.3  # overshoot of tens of nm over about a micrometre

@@ -135,6 +135,7 @@ def _stop_once_busy(name, args, out: Path, sig: str, cwd: Path):
 
 
 @pytest.mark.parametrize("name,args,sig", COMMANDS, ids=[c[0] for c in COMMANDS])
+@pytest.mark.slow
 def test_command_stops_within_seconds(name, args, sig, inputs, tmp_path):
     args = [a.replace("{inputs}", str(inputs)) for a in args]
     out = tmp_path / "out"
@@ -202,6 +203,7 @@ sys.exit(3)
 
 
 @pytest.mark.parametrize("k", [7, 10, 25, 30, 35])
+@pytest.mark.slow
 def test_a_stop_while_mitsuba_is_imported_waits_for_the_import(k):
     """SIGTERM arriving while Mitsuba and Dr.Jit are imported (their C++ module set-up
     builds Python objects, which cannot unwind an exception raised by the handler) is

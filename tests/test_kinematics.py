@@ -94,6 +94,7 @@ def test_kinematics_bad_input():
         axis_derivatives(np.array([0.0, 1.0]), np.zeros(2))
 
 
+@pytest.mark.slow
 def test_plot_kinematics_writes_png(tmp_path):
     from PIL import Image
 

@@ -158,6 +158,7 @@ def test_sculpturing_program_is_checked_before_planning():
         plan_program(scene)
 
 
+@pytest.mark.slow
 def test_simulation_grid_refusal_names_the_pixel():
     from render_inspect.pipeline import simulate
 
@@ -298,6 +299,7 @@ def test_zarr_window_and_frame_stack_are_checked_before_reading(tmp_path, monkey
         read_frame_stack(stack)
 
 
+@pytest.mark.slow
 def test_a_map_too_big_for_the_automatic_budget_is_tiled_not_refused(tmp_path, monkeypatch):
     """With no simulation.max_memory_gb the budget is a share of the memory available: a
     scene whose map does not fit it takes the tiled path (and fits there)."""
@@ -434,6 +436,7 @@ def _under_address_limit(code: str, limit_bytes: int, *args, timeout=300):
                           text=True, timeout=timeout, preexec_fn=cap)
 
 
+@pytest.mark.slow
 def test_the_budget_follows_the_address_space_limit():
     """Under ``ulimit -v`` the budget is 80 % of the room left under the limit, and says
     so; a scene's max_memory_gb above it is capped."""
@@ -449,6 +452,7 @@ def test_the_budget_follows_the_address_space_limit():
     assert "simulation.max_memory_gb = 64, capped by the address-space limit (ulimit -v)" in lines[2]
 
 
+@pytest.mark.slow
 def test_a_capped_simulation_is_refused_at_the_start_naming_the_limit(tmp_path):
     """A grid that fits the machine but not ``ulimit -v`` is refused before any work, one
     line naming the limit and the pixel that would fit, not a late MemoryError (burrs: a
@@ -466,6 +470,7 @@ def test_a_capped_simulation_is_refused_at_the_start_naming_the_limit(tmp_path):
     assert "simulation.pixel >=" in err[0] and not out.exists()
 
 
+@pytest.mark.slow
 def test_mitsuba_is_refused_up_front_when_its_address_space_does_not_fit():
     """A Mitsuba render reserves about 0.5 to 0.7 GiB of address space beyond the process's
     (LLVM, Dr.Jit's threads; measured, see MITSUBA_ADDRESS_SPACE) and ends with a

@@ -134,6 +134,7 @@ def test_bad_machine_and_material_keys_are_named():
                                      "simulation.region=[1.0,-0.2,1.4,0.2]", "simulation.pixel=0.01"])
 
 
+@pytest.mark.slow
 def test_following_error_metrics_and_figures(tmp_path):
     s = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.3,0.3,0.45,0.45]",
                                            "simulation.pixel=0.003"])

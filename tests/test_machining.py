@@ -89,6 +89,7 @@ def test_envelope_of_a_hand_made_path_on_the_axis():
     np.testing.assert_allclose(z[0], 0.5 - np.sqrt(0.25 - (x - 0.3) ** 2), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_memory_estimate_refuses_oversized_requests():
     s = load_scene(GRID, ["simulation.region=[-5,-5,5,5]", "simulation.pixel=0.0001", "simulation.max_memory_gb=1"])
     with pytest.raises(MemoryBudgetError, match=r"GiB.*simulation.max_memory_gb.*simulation.pixel"):
@@ -102,6 +103,7 @@ def test_residual_metrics_known_values():
     assert m["Sz_nm"] == pytest.approx(2.0) and m["min_nm"] == pytest.approx(-1.0)
 
 
+@pytest.mark.slow
 def test_simulate_cli_writes_contract_files(tmp_path):
     out = tmp_path / "sim"
     cmd = [sys.executable, "-m", "render_inspect.cli", "simulate", str(GRID), "--out", str(out),
@@ -131,6 +133,7 @@ def test_simulate_cli_writes_contract_files(tmp_path):
     assert p.returncode == 1 and "tool.nose_radius" in p.stderr and not bad.exists()
 
 
+@pytest.mark.slow
 def test_help_is_fast_and_imports_no_engine():
     code = ("import sys, render_inspect.cli as c\n"
             "try:\n    c.main(['--help'])\nexcept SystemExit:\n    pass\n"

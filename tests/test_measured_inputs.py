@@ -24,6 +24,7 @@ from render_inspect.metrology._analysis import check_filter, filter_range, parse
 
 
 # ------------------------------------------------------------------ FRT rows
+@pytest.mark.slow
 def test_frt_rows_come_in_gwyddions_order(tmp_path):
     """An FRT raster whose stored rows differ (a ramp in y, a step in x, one point not
     measured) is read with the last stored row first, as Gwyddion's microprof module and
@@ -48,6 +49,7 @@ def test_frt_rows_come_in_gwyddions_order(tmp_path):
 
 
 # ------------------------------------------------------------------ empty containers
+@pytest.mark.slow
 def test_plux_without_a_height_layer_says_so(tmp_path):
     index = ("<xml><GENERAL><IMAGE_SIZE_X>4</IMAGE_SIZE_X><IMAGE_SIZE_Y>4</IMAGE_SIZE_Y>"
              "<FOV_X>1</FOV_X><FOV_Y>1</FOV_Y><DATE>2020-01-01</DATE></GENERAL></xml>")

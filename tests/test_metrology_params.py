@@ -36,6 +36,7 @@ def _smooth_surface(n=256, pixel=0.002):
     return z, pixel
 
 
+@pytest.mark.slow
 def test_areal_parameters_match_surfalize_within_1_percent():
     import surfalize
 
@@ -110,6 +111,7 @@ def test_gaussian_filter_transmission(ratio, expected):
                     + l_filter(z, pixel=pixel, nesting_index=cutoff), z, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_gaussian_filter_matches_surfalize_in_the_interior():
     import surfalize
     from surfalize.filter import GaussianFilter

@@ -251,6 +251,7 @@ def test_cli_overwrite_and_refusal(tmp_path, capsys):
     assert rc == 0 and not (out / "metrics.json").exists() and (out / "toolpath.npz").exists()
 
 
+@pytest.mark.slow
 def test_outputs_are_byte_identical_between_runs(tmp_path):
     scene = load_scene("sts_sinusoidal_grid", SMALL)
     run_simulate(scene, tmp_path / "a")
@@ -287,6 +288,7 @@ def _wait_for(pred, timeout=60.0):
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143),
                                        (signal.SIGKILL, -9)])
 @pytest.mark.parametrize("delay", [0.0, 1.5])
+@pytest.mark.slow
 def test_signals_leave_the_old_folder_and_no_partial(tmp_path, sig, code, delay):
     """An earlier run's folder survives a run interrupted at any point (the wait for the
     lock, planning, the numba kernels, writing): SIGINT and SIGTERM exit 130 / 143
@@ -315,6 +317,7 @@ def test_signals_leave_the_old_folder_and_no_partial(tmp_path, sig, code, delay)
         assert _leftovers(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_a_concurrent_cli_run_fails_clearly(tmp_path, capsys):
     out = tmp_path / "o"
     sets = sum((["--set", s] for s in SLOW), [])
@@ -362,6 +365,7 @@ def test_unexpected_errors_are_one_line_with_a_hint(capsys, monkeypatch, tmp_pat
     assert rc == 1 and "Traceback" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_marker_is_strict_json_and_lists_every_file(tmp_path):
     scene = load_scene("sts_sinusoidal_grid", SMALL)
     run_simulate(scene, tmp_path / "o")
@@ -372,6 +376,7 @@ def test_marker_is_strict_json_and_lists_every_file(tmp_path):
     assert m["written_by"] == "render_inspect" and len(m["commands"]["simulate"]["part_sha256"]) == 64
 
 
+@pytest.mark.slow
 def test_a_full_disk_while_writing_is_one_line_and_leaves_nothing(tmp_path):
     """The file-size limit makes every write beyond 64 kB fail inside the kernel (EFBIG,
     as a full disk gives ENOSPC): exit 1, one line naming --out, the old folder intact,

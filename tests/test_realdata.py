@@ -5,16 +5,15 @@ parameters that agree with SurfaceTopography and surfalize."""
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import real_file
 from numpy.testing import assert_allclose
 
 from render_inspect.io import read_surface
 from render_inspect.metrology import analyze_map, areal_parameters, remove_form, slope_parameters
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata"
 
 # file: (rows, cols, pixel_x_mm, pixel_y_mm, NaN count, reader)
 EXPECTED = {
@@ -36,10 +35,7 @@ EXPECTED = {
 
 
 def _path(name):
-    p = REAL / name
-    if not p.is_file():
-        pytest.fail(f"real instrument file missing: {p} (the tests read ../shared/realdata)")
-    return p
+    return real_file(name)
 
 
 @pytest.fixture(scope="module")

@@ -144,8 +144,13 @@ def _steps(mic, dist, *, csi_mic, fine, quick):
                         algorithm="envelope")
         err = (np.nanmean(m.height, axis=0) - h[0]) / _NM
         err -= np.nanmedian(err)
-        bh, bw = batwing(err, x, edge=x[edge] - fine / 2, side_length=3 * _UM, exclude=fine)
-        rows.append({"step_nm": st, "batwing_height_nm": bh, "batwing_width_um": bw / _UM,
+        lobes = batwing(err, x, edge=x[edge] - fine / 2, side_length=3 * _UM, exclude=fine)
+        rows.append({"step_nm": st, "batwing_pv_nm": lobes.peak_to_valley,
+                     "batwing_height_nm": lobes.height, "batwing_width_um": lobes.width / _UM,
+                     "batwing_low_side_nm": lobes.low,
+                     "batwing_low_side_width_um": lobes.low_width / _UM,
+                     "batwing_high_side_nm": lobes.high,
+                     "batwing_high_side_width_um": lobes.high_width / _UM,
                      "valid_fraction": float(m.valid.mean())})
         profiles[f"{st:g} nm"] = ((x[edge - w:edge + w] - x[edge]) / _UM, err[edge - w:edge + w])
     lam_c = csi_mic.source.wavelength_nm

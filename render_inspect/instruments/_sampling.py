@@ -92,7 +92,7 @@ class SurfaceSpectrum:
         fy = np.arange(ny) / (2 * ny * pixel)
         fx = np.arange(nx) / (2 * nx * pixel)
         f = np.hypot(fy[:, None], fx[None, :]).ravel()
-        order = np.argsort(f)[::-1]
+        order = np.argsort(-f, kind="stable")  # ties in a fixed order on every machine
         p = (coef.ravel().astype(np.float64) ** 2)[order]
         self.freq = f[order]
         # rms over the map's points of the content at or above each frequency

@@ -32,7 +32,7 @@ from ._profiles import (areal_nm, common_window, crop_window, difference_profile
 from ._params import (SLOPE_ESTIMATORS, areal_parameters, forward_slope_sums, autocorrelation, extract_section,
                       profile_parameters, section_parameters, slope_parameters,
                       spatial_parameters)
-from ._instrument import (batwing, dropout_slope, edge_width, noise_by_subtraction,
+from ._instrument import (BatwingLobes, batwing, dropout_slope, edge_width, noise_by_subtraction,
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._levelling import FORM_TERMS, level_map, measured_difference
 from ._measure import ALGORITHMS, measure_frames
@@ -67,7 +67,7 @@ __all__ = [
     "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
     "evaluate_measurement", "FORM_TERMS", "level_map", "measured_difference",
     "FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas",
-    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "slope_table",
+    "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "BatwingLobes", "slope_table",
     "dropout_slope", "noise_by_subtraction",
     "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
     "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from ..core.units import NM_TO_MM
 
 __all__ = [
     "batwing",
+    "BatwingLobes",
     "dropout_slope",
     "edge_width",
     "noise_by_subtraction",
@@ -110,9 +112,43 @@ def edge_width(profile, x, *, low: float = 0.1, high: float = 0.9) -> float:
     return float(xs[1] - xs[0])
 
 
-def batwing(error, x, *, edge: float, side_length: float, exclude: float = 0.0):
-    """Batwing of a measured step: height and width of the largest excursion of the
-    measured profile from the true one next to an edge.
+class BatwingLobes(NamedTuple):
+    """The two lobes of a batwing at a rising step, in the error's unit (positions in
+    ``x``'s unit).
+
+    A step is symmetric under a half-turn about its edge (x -> -x, z -> h - z), so the
+    error of an ideal instrument is odd about the edge: the lobe on the upper terrace and
+    the lobe on the lower one are equal and opposite, and neither is "the largest". Both
+    are reported, each with its side, and their peak-to-valley.
+    """
+
+    #: signed extreme of measured - true on the lower terrace (negative: measured too low)
+    low: float
+    #: distance from the edge to where the lower lobe falls to half its extreme
+    low_width: float
+    #: signed extreme on the upper terrace (positive: the upper corner overshoots)
+    high: float
+    #: distance from the edge to where the upper lobe falls to half its extreme
+    high_width: float
+    #: largest minus smallest error within ``side_length`` of the edge, both sides
+    peak_to_valley: float
+
+    @property
+    def height(self) -> float:
+        """The larger lobe's magnitude (unsigned, so ties between the two sides cannot
+        flip it)."""
+        return max(abs(self.low), abs(self.high))
+
+    @property
+    def width(self) -> float:
+        """The mean of the two lobes' half-widths."""
+        return 0.5 * (self.low_width + self.high_width)
+
+
+def batwing(error, x, *, edge: float, side_length: float, exclude: float = 0.0,
+            rising: bool = True) -> BatwingLobes:
+    """Batwing of a measured step: the excursion of the measured profile from the true
+    one on each side of an edge, and its peak-to-valley.
 
     Parameters
     ----------
@@ -120,40 +156,47 @@ def batwing(error, x, *, edge: float, side_length: float, exclude: float = 0.0):
         Measured minus true height along a line across the edge (its far-field median
         removed), same unit as the result.
     x : (n,) array
-        Positions; ``edge`` is where the step rises.
+        Positions; ``edge`` is where the step is.
     side_length : float
         How far from the edge to look, each side.
     exclude : float
         Samples closer than this to the edge are left out (the pixels that straddle it).
+    rising : bool
+        True when the surface is higher for ``x > edge`` (the upper terrace is on the
+        side of larger ``x``).
 
     Returns
     -------
-    height : float
-        The largest excursion (signed: positive = the measurement is too high), in
-        ``error``'s unit; 0 where there is none.
-    width : float
-        Distance from the edge to where that excursion falls to half its peak (``x``'s
-        unit).
+    BatwingLobes
+        ``low`` / ``high``: the signed extreme on the lower / upper terrace (0 where a
+        side has no sample), ``low_width`` / ``high_width``: the distance from the edge to
+        where each falls to half its extreme, ``peak_to_valley`` over both sides. The
+        result does not depend on which side's extreme is larger by a rounding error.
     """
     e = np.asarray(error, dtype=np.float64)
     xx = np.asarray(x, dtype=np.float64)
-    best = (0.0, 0.0)
+    lobes = {}
+    values = []
     for side in (+1, -1):
         sel = ((side * (xx - edge) >= exclude) & (side * (xx - edge) <= side_length)
                & np.isfinite(e))
+        upper = (side > 0) == bool(rising)
         if not sel.any():
+            lobes[upper] = (0.0, 0.0)
             continue
         dist = np.abs(xx[sel] - edge)
-        order = np.argsort(dist)
+        order = np.argsort(dist, kind="stable")
         dist, ee = dist[order], e[sel][order]
-        i = int(np.argmax(np.abs(ee)))
-        peak = ee[i]
-        if abs(peak) <= abs(best[0]):
-            continue
+        values.append(ee)
+        i = int(np.argmax(np.abs(ee)))  # first of equal magnitudes: the one nearest the edge
+        peak = float(ee[i])
         after = np.nonzero(np.abs(ee[i:]) < abs(peak) / 2)[0]
-        width = dist[i + after[0]] if after.size else dist[-1]
-        best = (float(peak), float(width))
-    return best
+        width = float(dist[i + after[0]] if after.size else dist[-1])
+        lobes[upper] = (peak, width)
+    allv = np.concatenate(values) if values else np.zeros(1)
+    return BatwingLobes(low=lobes[False][0], low_width=lobes[False][1],
+                        high=lobes[True][0], high_width=lobes[True][1],
+                        peak_to_valley=float(allv.max() - allv.min()))
 
 
 def slope_table(slope, valid, modulation, *, bin_rad: float, error=None):

@@ -101,7 +101,7 @@ def psi_noise(frames, steps_rad, mean=None, weights=None):
     if groups <= 1 or not ok.any():
         sig2 = np.full(var.shape, float(np.median(var[ok])) / corr if ok.any() else 0.0)
     else:
-        order = np.argsort(a[ok])
+        order = np.argsort(a[ok], kind="stable")  # tied intensities grouped alike everywhere
         av, vv = a[ok][order], var[ok][order]
         parts = np.array_split(np.arange(av.size), groups)
         centres = np.array([float(np.median(av[p])) for p in parts])

@@ -63,7 +63,9 @@ def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0,
             "frequency_per_mm", "period_um", "itf_optics", "itf_instrument", "itf_model",
             "itf_textbook"]))
         atomic_write_text(tmp / "step.csv", table_csv(metrics["step"]["csi"]["table"], [
-            "step_nm", "batwing_height_nm", "batwing_width_um", "valid_fraction"]))
+            "step_nm", "batwing_pv_nm", "batwing_height_nm", "batwing_width_um",
+            "batwing_low_side_nm", "batwing_low_side_width_um", "batwing_high_side_nm",
+            "batwing_high_side_width_um", "valid_fraction"]))
         atomic_write_text(tmp / "slope.csv", table_csv(
             [dict(r, series=k) for k, sl in metrics["slope"].items() for r in sl["table"]],
             ["series", "slope_deg", "pixels", "valid_fraction", "contrast", "error_rms_nm"]))

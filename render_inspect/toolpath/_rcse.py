@@ -166,7 +166,7 @@ class RingLayout:
             if n > 1 and 2 * r * math.sin(math.pi / n) < 2 * a + gap:
                 out.append(f"ring {i} (radius {r} mm): {n} elements need a radius >= "
                            f"{(2 * a + gap) / (2 * math.sin(math.pi / n)):.4g} mm")
-        order = np.argsort(self.ring_radii)
+        order = np.argsort(self.ring_radii, kind="stable")
         for i, j in zip(order[:-1], order[1:]):
             if self.ring_radii[j] - self.ring_radii[i] < 2 * a + gap:
                 out.append(f"rings {i} and {j} (radii {self.ring_radii[i]}, {self.ring_radii[j]} mm) "

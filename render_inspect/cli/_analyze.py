@@ -1,0 +1,85 @@
+"""``analyze``, ``measure`` and ``characterise``: a height map's ISO 25178-2 parameters,
+height from interferometer frames, and the virtual instrument's own characteristics."""
+
+from __future__ import annotations
+
+from ._args import _add_out_args, _add_verbosity
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("analyze", help="ISO 25178-2 parameters of one height map file (measured "
+                                       "or simulated): metrics.json, height.png, --x3p")
+    p.add_argument("file", help="height map: X3P, SUR, PLU, DAT (MetroPro), DATX, OPD, TMD, NMS, "
+                                "heightmap.exr, ...")
+    _add_out_args(p)
+    p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
+                   help="form removed first (none: the mean only)")
+    p.add_argument("--filter", default=None, metavar="S,L",
+                   help="ISO 16610-61 Gaussian nesting indices in mm, e.g. 0.0025,0.8 or ,0.8")
+    p.add_argument("--outliers", choices=["none", "sigma"], default="none",
+                   help="sigma: leave out the 3-sigma second-difference outliers (counted either way)")
+    p.add_argument("--slope", choices=["forward", "central"], default="forward",
+                   help="derivative estimator of Sdq/Sdr (forward: as SurfaceTopography and surfalize)")
+    p.add_argument("--x3p", action="store_true", help="also write the evaluated surface as height.x3p")
+    _add_verbosity(p)
+
+    p = sub.add_parser("measure", help="height from interferometer frames alone: height.exr, metrics.json")
+    p.add_argument("frames", help="interferogram.exr (frames + settings), or a TIFF / PNG stack "
+                                  "or a folder of frames with a settings JSON")
+    _add_out_args(p)
+    p.add_argument("--algorithm", default="auto",
+                   choices=["auto", "4step", "5step", "hariharan", "lsq", "envelope",
+                            "envelope+phase"],
+                   help="PSI: 4step, 5step (= hariharan), lsq; CSI: envelope, envelope+phase; "
+                        "auto: by mode and frame count")
+    p.add_argument("--settings", default=None,
+                   help="settings JSON of a TIFF / PNG stack (default: beside it)")
+    p.add_argument("--min-modulation", type=float, default=0.05, dest="min_modulation",
+                   help="pixels with lower fringe contrast are not measured (default 0.05)")
+    _add_verbosity(p)
+
+    p = sub.add_parser("characterise", help="the virtual instrument's transfer function, step "
+                                            "response, slope limit and noise (ISO 25178-600 style)")
+    p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
+    _add_out_args(p)
+    p.add_argument("--mode", choices=["psi", "csi"], default="psi")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override an instrument key of [render.interferometer], e.g. "
+                        "--set numerical_aperture=0.5 (TOML value syntax)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the camera noise")
+    p.add_argument("--quick", action="store_true", help="fewer points, smaller fields (for tests)")
+    _add_verbosity(p)
+
+
+def _analyze(args, overwrite: bool):
+    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
+    # module, so that `render-inspect --help` answers at once
+    from .. import pipeline
+
+    return pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
+                                outliers=args.outliers, slope=args.slope, x3p=args.x3p,
+                                overwrite=overwrite)
+
+
+def _measure(args, overwrite: bool):
+    # (the pipeline is imported lazily, as above)
+    from .. import pipeline
+
+    return pipeline.run_measure(args.frames, args.out, algorithm=args.algorithm,
+                                settings=args.settings, min_modulation=args.min_modulation,
+                                overwrite=overwrite)
+
+
+def _characterise(args, overwrite: bool):
+    # (the pipeline is imported lazily, as above)
+    from .. import pipeline
+    # (the scene schema imports pydantic and the registries: same reason)
+    from ..scene import instrument_config
+
+    return pipeline.run_characterise(
+        instrument_config(args.objective, args.mode, args.overrides), args.out,
+        quick=args.quick, seed=args.seed, overwrite=overwrite)
+
+
+#: command -> what runs it, ``(args, overwrite) -> result``
+RUN = {"analyze": _analyze, "measure": _measure, "characterise": _characterise}

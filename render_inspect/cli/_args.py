@@ -1,0 +1,90 @@
+"""Shared pieces of the command line: argparse ``choices`` read from a registry, the
+options several commands take (the scene, ``--out``, ``-q`` / ``-v``), and the scene a
+scene command runs on."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+log = logging.getLogger("render_inspect")
+
+
+class _Registered:
+    """argparse ``choices`` read from a registry the first time they are needed (checking
+    a value, or ``render-inspect render --help``), so that building the parser imports
+    nothing heavy."""
+
+    def __init__(self, load):
+        self._load = load
+        self._values = None
+
+    def _get(self) -> tuple:
+        if self._values is None:
+            self._values = tuple(self._load())
+        return self._values
+
+    def __contains__(self, value) -> bool:
+        return value in self._get()
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+
+def _render_kinds() -> tuple:
+    # the registered instruments (the pipeline and its registries are imported lazily:
+    # `render-inspect --help` must answer at once)
+    from ..pipeline import render_kinds
+
+    return render_kinds()
+
+
+def _program_formats() -> list:
+    # the formats the io registry writes machine programs in (imported lazily, as above)
+    from ..pipeline import program_formats
+
+    return program_formats()
+
+
+def _add_verbosity(p: argparse.ArgumentParser, *, top: bool = False):
+    default = 0 if top else argparse.SUPPRESS
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("-q", "--quiet", dest="quiet", action="store_true",
+                   default=False if top else argparse.SUPPRESS,
+                   help="only warnings and errors; no progress bars or summary")
+    g.add_argument("-v", "--verbose", dest="verbose", action="count", default=default,
+                   help="more messages (every step and its duration)")
+
+
+def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
+    p.add_argument("scene", help="scene file (TOML) or the name of a shipped scene, "
+                                 "e.g. sts_sinusoidal_grid")
+    if out:
+        _add_out_args(p)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+    _add_verbosity(p)
+
+
+def _add_out_args(p: argparse.ArgumentParser):
+    p.add_argument("--out", required=True,
+                   help="output folder: written whole when the run succeeds, untouched otherwise")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace --out even if it holds files render-inspect did not write")
+
+
+def scene_of(args):
+    """The scene a scene command runs on (``args.scene`` with the ``--set`` overrides)."""
+    # (the scene schema imports pydantic and the registries: imported here, not at the top
+    # of the module, so that `render-inspect --help` answers at once)
+    from ..scene import load_scene, unit_warnings
+
+    scene = load_scene(args.scene, args.overrides)
+    # values that are probably unit mistakes (a feed per revolution typed per minute, a
+    # pixel that aliases the feed marks): said before the run, which goes on
+    for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):
+        log.warning("warning: %s", text)
+    return scene

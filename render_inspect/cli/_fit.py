@@ -1,0 +1,81 @@
+"""``fit``: the scene's tool, feed, machine and material keys fitted to a measured
+surface."""
+
+from __future__ import annotations
+
+from ._args import _add_out_args, _add_verbosity
+
+
+def add_parsers(sub) -> None:
+    """``fit``: the scene's tool, feed, machine and material keys fitted to a measured
+    surface (its own block: the pipeline's ``run_fit`` does the work)."""
+    p = sub.add_parser("fit", help="fit free scene keys (tool, feed, machine, material) to a "
+                                   "measured surface through the virtual instrument; predict "
+                                   "the next cut: fit.json, fit.html")
+    p.add_argument("measured", help="measured height map: anything analyze reads (instrument "
+                                    "file, X3P, the height.exr that measure writes)")
+    p.add_argument("--scene", required=True, help="scene file (TOML) or shipped scene name "
+                                                  "describing the cut")
+    p.add_argument("--free", required=True, action="append", metavar="KEY[,KEY...]",
+                   help="numeric scene keys to fit, e.g. tool.nose_radius,process.feed_mm_per_min"
+                        " (array entries by index: machine.errors.axial_sync.0.1)")
+    _add_out_args(p)
+    p.add_argument("--bounds", action="extend", nargs="+", default=[], metavar="KEY=A,B",
+                   help="bounds of a free key (default: the schema's range; must lie inside it)")
+    p.add_argument("--objective", default=None,
+                   help="virtual instrument objective when the file names none (default: the "
+                        "scene's render.interferometer.objective)")
+    p.add_argument("--at", default=None, metavar="X,Y|register",
+                   help="where the measured field lies: its centre at X,Y mm, or 'register' "
+                        "(found on the design); default: the file's origin")
+    p.add_argument("--window", type=float, default=0.2, metavar="MM",
+                   help="side of the fitted square, mm (default 0.2: each evaluation simulates "
+                        "and images this much)")
+    p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
+                   help="form removed from measured and predicted maps before comparing")
+    p.add_argument("--weights", action="append", default=[], metavar="TERM=W",
+                   help="misfit term weights: map, psd, harmonics (default 1 each)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="run the evaluations on a local Dask cluster of N processes")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run the evaluations on the Dask cluster at ADDRESS")
+    p.add_argument("--predict", action="extend", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="after the fit, simulate the fitted scene with KEY=VALUE (TOML value) "
+                        "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key before fitting (TOML value syntax)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
+                                                       "of the global search")
+    p.add_argument("--global", dest="global_points", type=int, default=8, metavar="N",
+                   help="points of a seeded Sobol design over the search box (the bounds "
+                        "narrowed to half and twice the start) before the local fit "
+                        "(default 8; 0: the scene's and the measurement's starts only)")
+    p.add_argument("--max-evaluations", dest="max_evaluations", type=int, default=150,
+                   metavar="N", help="largest number of evaluations (default 150)")
+    p.add_argument("--profile-points", dest="profile_points", type=int, default=3, metavar="N",
+                   help="points either side of the solution along each parameter (misfit.png)")
+    p.add_argument("--cache", default=None, metavar="DIR",
+                   help="cached evaluations (default: OUT.cache beside --out); a fit run again "
+                        "resumes from them")
+    _add_verbosity(p)
+
+
+def _fit(args, overwrite: bool):
+    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
+    # module, so that `render-inspect --help` answers at once
+    from .. import pipeline
+    # (the scene schema imports pydantic and the registries: same reason)
+    from ..scene import load_scene
+
+    return pipeline.run_fit(
+        args.measured, load_scene(args.scene, args.overrides), args.free, args.out,
+        bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
+        form=args.form, weights=args.weights, workers=args.workers,
+        scheduler=args.scheduler, predict=args.predict, seed=args.seed,
+        global_points=args.global_points, max_evaluations=args.max_evaluations,
+        profile_points=args.profile_points, cache=args.cache, overwrite=overwrite)
+
+
+#: command -> what runs it, ``(args, overwrite) -> result``
+RUN = {"fit": _fit}

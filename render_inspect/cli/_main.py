@@ -1,0 +1,224 @@
+"""The entry point: the parser of every command group, the run with its signal handlers,
+and the one line an error or an interruption ends with (see the package docstring)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import time
+import traceback
+
+from .. import __version__
+from ..core import cancel
+from ..core.cancel import Terminated
+from ..core.errors import RenderInspectError
+from ..core.progress import set_reporter
+from . import _analyze, _batch, _fit, _render, _simulate
+from ._args import _add_verbosity, log
+from ._progress import RichReporter, _reporter, _RichLogHandler
+from ._summary import _print_compare_summary, _print_summary
+
+#: the command groups, in the order ``render-inspect --help`` lists their commands
+GROUPS = (_simulate, _render, _analyze, _fit, _batch)
+#: command -> what runs it, ``(args, overwrite) -> result``
+COMMANDS = {name: run for group in GROUPS for name, run in group.RUN.items()}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="render-inspect",
+        description="Simulate, render and inspect diamond-machined freeform optics before they are cut.")
+    ap.add_argument("--version", action="version", version=f"render-inspect {__version__}")
+    _add_verbosity(ap, top=True)
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for group in GROUPS:
+        group.add_parsers(sub)
+    return ap
+
+
+def _run(args):
+    # the pipeline imports numba, scipy and pydantic: each command imports it when it
+    # runs, not at the top of its module, so that `render-inspect --help` answers at once
+    run = COMMANDS.get(args.command)
+    if run is None:
+        return None
+    return run(args, bool(getattr(args, "overwrite", False)))
+
+
+def _on_interrupt(signum, frame):
+    # Ctrl-C: the main thread stops here, and every long computation running in blocks
+    # (kernels, tiles, worker threads) at its next check (core.cancel); inside native code
+    # that cannot unwind an exception (importing Mitsuba, loading a scene), at the end of
+    # that block (cancel.deferred)
+    cancel.request(signum)
+    if not cancel.deferring():
+        raise KeyboardInterrupt
+
+
+def _on_terminate(signum, frame):
+    cancel.request(signum)
+    if not cancel.deferring():
+        raise Terminated(signum)
+
+
+def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
+    """The interruption behind ``err``: Ctrl-C during a compiled (numba) kernel surfaces
+    as a SystemError whose cause or context is the KeyboardInterrupt."""
+    seen = set()
+    e = err
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _traceback_hint(parser) -> str:
+    opts = getattr(parser, "_option_string_actions", {})
+    if "-v" in opts or "--verbose" in opts:
+        return "run with -v for the traceback"
+    return "set RENDER_INSPECT_TRACEBACK=1 for the traceback"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split()) if "\n" not in str(text) else str(text).rstrip()
+
+
+def _setup_logging(args) -> None:
+    level = logging.INFO
+    if getattr(args, "quiet", False):
+        level = logging.WARNING
+    elif getattr(args, "verbose", 0):
+        level = logging.DEBUG
+    if not any(isinstance(h, _StderrHandler) for h in log.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        log.addHandler(handler)
+    log.setLevel(level)
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Log records on the *current* ``sys.stderr``: a handler holding the stream it was
+    made with writes into a closed file once ``sys.stderr`` has been replaced (a second
+    ``main()`` in one process under a captured or redirected stderr), which logging
+    reports as "--- Logging error ---" instead of the message."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):  # StreamHandler.__init__ / setStream set it: always stderr
+        pass
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _setup_logging(args)
+    show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
+        not in ("", "0")
+    old_signals = {}
+    cancel.clear()
+    for sig, handler in ((signal.SIGINT, _on_interrupt), (signal.SIGTERM, _on_terminate),
+                         (signal.SIGHUP, _on_terminate)):
+        try:
+            old_signals[sig] = signal.signal(sig, handler)
+        except (ValueError, OSError):  # not the main thread: leave the handlers alone
+            pass
+    prefix = f"render-inspect {args.command}"
+    t0 = time.perf_counter()
+    reporter = _reporter(args)
+    handlers = list(log.handlers)
+    if isinstance(reporter, RichReporter):
+        rich_handler = _RichLogHandler(reporter._progress.console)
+        rich_handler.setFormatter(logging.Formatter("%(message)s"))
+        log.handlers = [rich_handler]
+    t_start = time.monotonic()
+    try:
+        with reporter as rep:
+            old = set_reporter(rep)
+            try:
+                result = _run(args)
+                # a signal whose exception was swallowed (raised inside a __del__ or a
+                # callback that ignores exceptions) still ends the run as an interruption
+                cancel.check()
+            except BaseException as err:
+                if isinstance(err, (SystemExit, GeneratorExit)):
+                    raise
+                stop = _interrupt_in(err)
+                if stop is None:
+                    raise
+                raise stop from None
+            finally:
+                set_reporter(old)
+                log.handlers = handlers
+    except RenderInspectError as err:
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as stop:
+        what = "terminated" if isinstance(stop, Terminated) else "interrupted"
+        # the folder an interruption arriving after the swap leaves complete (the
+        # exception's attribute, or a folder swapped in since this run started; nothing
+        # was written when the pipeline was never imported)
+        done = getattr(stop, "render_inspect_output_complete", None)
+        if done is None and "render_inspect.pipeline" in sys.modules:
+            # (the pipeline is imported lazily, see _run; here only when it was)
+            from ..pipeline import completed_outputs
+
+            done = next(iter(completed_outputs(since=t_start)), None)
+        if args.command == "sweep":
+            state = (f"the finished points are kept in {args.out}/results.jsonl: run the same "
+                     f"command again to go on")
+        elif done:
+            state = f"the output folder {done} had been written completely"
+        else:
+            state = "the output folder was left as it was"
+        kept = getattr(stop, "render_inspect_kept", None)  # (fit: its evaluations)
+        if kept:
+            state += f"; {kept}"
+        print(f"{prefix}: {what}; {state}", file=sys.stderr)
+        return 143 if isinstance(stop, Terminated) else 130
+    except MemoryError:
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: error: ran out of memory; set simulation.max_memory_gb lower than "
+              f"the machine's free memory so that render-inspect refuses such runs at the start, "
+              f"or reduce the sizes (simulation.region / simulation.pixel, image resolution)",
+              file=sys.stderr)
+        return 1
+    except OSError as err:
+        if show_tb:
+            traceback.print_exc()
+        where = f": {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"{prefix}: error: {err.strerror or err}{where} ({_traceback_hint(parser)})",
+              file=sys.stderr)
+        return 1
+    except Exception as err:  # a bug: one line, the traceback on request
+        if show_tb:
+            traceback.print_exc()
+        print(f"{prefix}: internal error: {type(err).__name__}: {_one_line(err)[:300]} "
+              f"({_traceback_hint(parser)})", file=sys.stderr)
+        return 1
+    finally:
+        for sig, handler in old_signals.items():
+            signal.signal(sig, handler)
+        cancel.clear()
+    dt = time.perf_counter() - t0
+    if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
+            and not getattr(args, "quiet", False):
+        _print_compare_summary(result, args.out, dt)
+    elif args.command in ("measure", "analyze") and isinstance(result, dict) \
+            and not getattr(args, "quiet", False):
+        _print_summary(args.command, result, args.out, dt)
+    log.info("%s: done in %.1f s", prefix, dt)
+    return 0

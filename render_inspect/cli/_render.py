@@ -1,0 +1,47 @@
+"""``render`` and ``compare``: images of a scene's surface through the registered
+instruments, and two variants of a scene side by side."""
+
+from __future__ import annotations
+
+from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("render", help="virtual interferometer and diffuse-light images (Mitsuba 3)")
+    _add_scene_args(p)
+    p.add_argument("--surface", choices=["design", "machined"], default="machined")
+    p.add_argument("--kind", choices=_Registered(_render_kinds), default="all", metavar="KIND",
+                   help="a registered instrument, diffuse or all: %(choices)s (default all)")
+
+    p = sub.add_parser("compare", help="two variants of the scene (the process's own pair, e.g. "
+                                       "compensated vs uncompensated, or --vary): images, metrics, "
+                                       "report.html")
+    _add_scene_args(p)
+    p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
+    p.add_argument("--vary", default=None, metavar="KEY=A,B",
+                   help="compare KEY = A against KEY = B instead of the process's own pair, e.g. "
+                        "--vary process.compensation=normal,z (TOML values)")
+    p.add_argument("--force", action="store_true",
+                   help="compare the measured map even when it does not match the design "
+                        "(overlap or residual checks fail)")
+
+
+def _render(args, overwrite: bool):
+    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
+    # module, so that `render-inspect --help` answers at once
+    from .. import pipeline
+
+    return pipeline.run_render(scene_of(args), args.out, surface=args.surface, kind=args.kind,
+                               overwrite=overwrite)
+
+
+def _compare(args, overwrite: bool):
+    # (the pipeline is imported lazily, as above)
+    from .. import pipeline
+
+    return pipeline.run_compare(scene_of(args), args.out, measured=args.measured,
+                                vary=args.vary, force=args.force, overwrite=overwrite)
+
+
+#: command -> what runs it, ``(args, overwrite) -> result``
+RUN = {"render": _render, "compare": _compare}

@@ -1,0 +1,46 @@
+"""``simulate`` and ``toolpath``: a scene's machined surface, or its machine program only."""
+
+from __future__ import annotations
+
+from ._args import _add_scene_args, _program_formats, _Registered, scene_of
+
+
+def add_parsers(sub) -> None:
+    p = sub.add_parser("simulate", help="tool path + machined surface: heightmap.exr, metrics.json, preview")
+    _add_scene_args(p)
+    p.add_argument("--tiled", action="store_true",
+                   help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
+                        "the memory budget: simulation.max_memory_gb, by default 80%% of the free memory)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
+    p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
+                   help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
+
+    p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "
+                                        "any registered format)")
+    _add_scene_args(p)
+    p.add_argument("--format", choices=_Registered(_program_formats), default="npz",
+                   metavar="FORMAT", help="a registered program format: %(choices)s (default npz)")
+
+
+def _simulate(args, overwrite: bool):
+    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
+    # module, so that `render-inspect --help` answers at once
+    from .. import pipeline
+
+    return pipeline.run_simulate(scene_of(args), args.out, tiled=True if args.tiled else None,
+                                 workers=args.workers, scheduler=args.scheduler,
+                                 tile=args.tile, overwrite=overwrite)
+
+
+def _toolpath(args, overwrite: bool):
+    # (the pipeline is imported lazily, as above)
+    from .. import pipeline
+
+    return pipeline.run_toolpath(scene_of(args), args.out, fmt=args.format, overwrite=overwrite)
+
+
+#: command -> what runs it, ``(args, overwrite) -> result``
+RUN = {"simulate": _simulate, "toolpath": _toolpath}

@@ -1,0 +1,59 @@
+"""The one-screen summaries on stdout: ``compare`` and ``demo`` (the two variants'
+headline numbers and the path of ``report.html``), ``measure`` and ``analyze``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+
+def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    # the pipeline is imported lazily (see _run)
+    from ..pipeline import compare_summary
+
+    con = Console(file=sys.stdout, highlight=False)
+    rows, diff = compare_summary(metrics)
+    va, vb = (v["name"] for v in metrics["variants"])
+    scene = metrics.get("scene", {}).get("name", "")
+    t = Table(title=f"render-inspect compare: {scene} ({seconds:.0f} s)", title_justify="left",
+              show_edge=False)
+    t.add_column("")
+    t.add_column(va, justify="right")
+    t.add_column(vb, justify="right")
+    for r in rows:
+        t.add_row(*r)
+    con.print(t)
+    # lines are not wrapped: a path must stay one piece to be copied
+    if metrics.get("pair", {}).get("identical"):
+        con.print(f"The two variants are identical ({metrics['pair']['key']} has no effect here).",
+                  soft_wrap=True)
+    else:
+        for k, v in diff:
+            con.print(f"{k}: {v}", soft_wrap=True)
+    con.print(f"report: {metrics.get('report') or (out.rstrip('/') + '/report.html')}",
+              soft_wrap=True, markup=False)
+
+
+def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
+    """``measure`` and ``analyze``: their headline numbers and where the files are."""
+    from rich.console import Console
+    from rich.table import Table
+
+    # the pipeline is imported lazily (see _run)
+    from ..pipeline import analyze_summary, measure_summary
+
+    rows = measure_summary(metrics) if command == "measure" else analyze_summary(metrics)
+    src = metrics.get("source") if command == "measure" else metrics.get("input", {}).get("path")
+    con = Console(file=sys.stdout, highlight=False)
+    t = Table(title=f"render-inspect {command}: {Path(str(src)).name} ({seconds:.0f} s)",
+              title_justify="left",
+              show_edge=False, show_header=False)
+    t.add_column("")
+    t.add_column("")
+    for r in rows:
+        t.add_row(*r)
+    con.print(t)
+    con.print(f"output: {str(Path(out).resolve())}", soft_wrap=True, markup=False)

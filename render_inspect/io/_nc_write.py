@@ -1,0 +1,207 @@
+"""Writing NC programs in the two dialects (:mod:`render_inspect.io._toolpath` describes
+both): a turning :class:`ToolPath` as a C-X-Z program with inverse-time feeds, a
+sculpturing :class:`LinearProgram` as an X-Y-Z program, each with its :class:`Links`
+through the clearance plane when given."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..core.errors import InputError
+from ..core.toolpath import ROLE_RAPID, LinearProgram, Links
+from ..core.units import MIN_TO_S
+from ._atomic import atomic_write_stream
+from ._nc_dialect import (
+    CHUNK_ROWS,
+    _check_links,
+    _finite,
+    _header_lines,
+    _line_bounds,
+    _linear_link,
+    _links_header,
+    _turning_moves,
+    nc_comment_text,
+)
+
+__all__ = ["write_nc", "write_program_nc"]
+
+
+# ------------------------------------------------------------------------ turning
+def _turning_header(header: dict | None, toolpath, links) -> list[str]:
+    info = {"software_version": __version__}
+    meta = getattr(toolpath, "meta", {}) or {}
+    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm", "nose_radius"):
+        if k in meta:
+            info[k] = meta[k]
+    info.update(header or {})
+    info.update(_links_header(links))
+    lines = _header_lines("render_inspect generic C-X-Z turning program", {})
+    lines += ["; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]",
+              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]"]
+    return lines + _header_lines("", info)[1:]
+
+
+def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6,
+             links: Links | None = None) -> Path:
+    """Write ``toolpath`` as a generic C-X-Z NC program (format in
+    :mod:`render_inspect.io._toolpath`).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file (written atomically).
+    toolpath : ToolPath
+        ``t`` must be strictly increasing.
+    header : dict, optional
+        Extra ``; key: value`` header lines (e.g. ``{"scene": name, "spindle_rpm": 42}``);
+        values pass through :func:`nc_comment_text`.
+    decimals : int
+        Places for C (deg), X and Z (mm), 3..12.
+    links : Links, optional
+        The clearance plane and plunge feed: the program then approaches the first point
+        from the clearance plane and leaves the part to it (``; approach``, ``; cut``,
+        ``; exit``).  Without links every block is a cutting block.
+
+    Returns
+    -------
+    Path
+    """
+    if not (isinstance(decimals, int) and 3 <= decimals <= 12):
+        raise InputError(f"decimals must be an integer in [3, 12], received {decimals!r}")
+    _check_links(links)
+    t = np.asarray(toolpath.t, dtype=np.float64)
+    n = t.size
+    if n == 0:
+        raise InputError("cannot write an NC program of an empty tool path (0 points)")
+    dt = np.diff(t)
+    if np.any(~(dt > 0)):
+        i = int(np.flatnonzero(~(dt > 0))[0])
+        raise InputError(f"ToolPath.t must be strictly increasing to write inverse-time feeds; "
+                         f"t[{i}] = {t[i]!r} s, t[{i + 1}] = {t[i + 1]!r} s")
+    c = np.degrees(np.asarray(toolpath.theta, dtype=np.float64))
+    x = np.asarray(toolpath.rho, dtype=np.float64)
+    z = np.asarray(toolpath.z, dtype=np.float64)
+    for name, arr in (("theta", c), ("rho", x), ("z", z), ("t", t)):
+        _finite(f"ToolPath.{name}", arr)
+    hdr = {"points": n, "t0_s": repr(float(t[0]))}
+    hdr.update(header or {})
+    lines = _turning_header(hdr, toolpath, links)
+    lines.append("G90 G93")
+    f = "{:.%df}" % decimals
+    if links is not None:
+        approach, leave = _turning_moves(c, x, z, links)
+        first = 1  # the plunge leaves the tool on point 0
+    else:
+        approach, leave, first = [], [], 0
+
+    def block(k, motion, words, feed_inv=None):
+        text = f"N{k} G0{motion} " + " ".join(f"{a}{f.format(v)}" for a, v in words.items())
+        return text if feed_inv is None else text + " F%.10g" % feed_inv
+
+    def moves(fh, k, items, start):
+        rows, pos = [], dict(start)
+        for motion, _, words, feed in items:
+            inv = None
+            if motion == 1:  # inverse time of a straight move at ``feed`` mm/min
+                dist = math.sqrt(sum((float(f.format(words[a])) - float(f.format(pos[a]))) ** 2
+                                     for a in ("X", "Z") if a in words and a in pos))
+                inv = feed / max(dist, 10.0 ** -decimals)
+            rows.append(block(k, motion, words, inv))
+            pos.update(words)
+            k += 1
+        fh.write(("\n".join(rows) + "\n").encode("ascii"))
+        return k
+
+    def write(fh):
+        fh.write(("\n".join(lines) + "\n").encode("ascii"))
+        k = 1
+        if approach:
+            fh.write(b"; approach\n")
+            k = moves(fh, k, approach, {})
+            fh.write(b"; cut\n")
+        for a in range(first, n, CHUNK_ROWS):
+            b = min(a + CHUNK_ROWS, n)
+            rows = []
+            for i in range(a, b):
+                words = f"N{k} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
+                rows.append(words if i == 0 else words + " F%.10g" % (MIN_TO_S / dt[i - 1]))
+                k += 1
+            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+        if leave:
+            fh.write(b"; exit\n")
+            moves(fh, k, leave, {"C": c[-1], "X": x[-1], "Z": z[-1]})
+        fh.write(b"M30\n")
+
+    return atomic_write_stream(path, write)
+
+
+# ------------------------------------------------------------------------ sculpturing
+def write_program_nc(path, program: LinearProgram, *, header: dict | None = None,
+                     feed_mm_per_min: float | None = None, links: Links | None = None,
+                     **_) -> Path:
+    """A generic X-Y-Z program (``G90 G94 G21``, ``G01`` moves at the cutting speed
+    ``feed_mm_per_min``), a ``; line k`` comment before each target line.  With ``links``
+    the lines are joined by retract - rapid - plunge moves through the clearance plane
+    (``; approach``, ``; link``, ``; exit``); without, the tool feeds straight from one
+    line's end to the next line's start."""
+    vc = feed_mm_per_min if feed_mm_per_min is not None else program.meta.get("feed_mm_per_min")
+    if vc is None or isinstance(vc, bool) or not (vc > 0 and math.isfinite(vc)):
+        raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
+    _check_links(links)
+    info = {"software_version": __version__}
+    info.update(header or {})
+    info.update(_links_header(links))
+    lines = _header_lines("render_inspect generic X-Y-Z sculpturing program [mm, mm/min]", info)
+    lines.append("G90 G94 G21")
+    x, y, z, ln = program.x, program.y, program.z, program.line
+    for name, arr in (("x", x), ("y", y), ("z", z)):
+        _finite(f"LinearProgram.{name}", arr)
+    if program.points == 0:
+        raise InputError("cannot write an NC program of an empty sculpturing program (0 points)")
+    feed = nc_comment_text(f"{float(vc):g}")
+    bounds = _line_bounds(ln)
+
+    def row(k, motion, words, fd):
+        text = f"N{k} G0{motion} " + " ".join(f"{a}{v:.6f}" for a, v in words.items())
+        return text if fd is None else f"{text} F{nc_comment_text(f'{float(fd):g}')}"
+
+    def write(fh):
+        fh.write(("\n".join(lines) + "\n").encode("ascii"))
+        k = 1
+        prev_end = None
+        for j, (a, b) in enumerate(bounds):
+            rows = []
+            start = (float(x[a]), float(y[a]), float(z[a]))
+            if links is not None:
+                if j == 0:
+                    rows.append("; approach")
+                    items = [(0, ROLE_RAPID, {"Z": float(links.clearance_z)}, None)]
+                    items += _linear_link(None, start, links, leave=False)
+                else:
+                    rows.append("; link")
+                    items = _linear_link(prev_end, start, links)
+                for motion, _, words, fd in items:
+                    rows.append(row(k, motion, words, fd))
+                    k += 1
+                a += 1  # the plunge leaves the tool on the line's first point
+            rows.append(f"; line {int(ln[bounds[j][0]])}")
+            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+            for a0 in range(a, b, CHUNK_ROWS):
+                rows = []
+                for i in range(a0, min(a0 + CHUNK_ROWS, b)):
+                    rows.append(f"N{k} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{feed}")
+                    k += 1
+                fh.write(("\n".join(rows) + "\n").encode("ascii"))
+            prev_end = (float(x[b - 1]), float(y[b - 1]), float(z[b - 1]))
+        if links is not None:
+            s0 = bounds[0][0]
+            items = _linear_link(prev_end, (float(x[s0]), float(y[s0])), links)
+            rows = ["; exit"] + [row(k + i, m, w, fd) for i, (m, _, w, fd) in enumerate(items)]
+            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+        fh.write(b"M30\n")
+
+    return atomic_write_stream(path, write)
