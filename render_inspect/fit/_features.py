@@ -25,7 +25,7 @@ The random parts of the cut and the camera's noise are not in the predictions (t
 expected value is): their power is added to the predicted PSD as a floor, their effect on
 the harmonics as a gain, and the spread of their realisations widens the scales of the
 ``map`` and ``harmonics`` terms (:func:`set_noise_floor`) and gives the fit's second
-standard error (:func:`realisation_shifts`).
+standard error (:func:`~render_inspect.fit._uncertainty.realisation_shifts`).
 
 Each term's residuals are normalised (``d = difference / sigma``) and enter through the
 soft-L1 (pseudo-Huber) loss ``2 (sqrt(1 + d^2) - 1)`` (quadratic near 0, linear far out),
@@ -36,7 +36,7 @@ has.  The misfit is the sum over all entries.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,8 +47,7 @@ from ..metrology import gaussian_filter, remove_form
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
            "set_noise_floor",
-           "residual_vector", "soft_l1", "robust_weights", "radial_psd",
-           "realisation_shifts"]
+           "residual_vector", "soft_l1", "robust_weights", "radial_psd", "own_peak"]
 
 #: form removal the user may choose (as ``analyze``)
 FORMS = ("none", "plane", "poly2", "sphere")
@@ -544,32 +543,6 @@ def _set_scatter(target: Target, noisy, clean) -> None:
         target.sigma_amplitudes = np.maximum(np.nan_to_num(s_a), floor)
     target.scatter = scatter
     target.draws = [predict_features(z, target, measured=True) for z in noisy]
-
-
-def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
-    """(R, m): how the normalised residuals of ``pred`` change when the measured map's
-    features are replaced by those of each realisation of the random parts
-    (``target.draws``), less their mean: the spread of the residual vector that the random
-    parts alone cause (an empty array without at least two realisations)."""
-    feats = target.draws
-    if len(feats) < 2:
-        return np.zeros((0, 0))
-
-    def with_features(wavy, psd, centroid, amplitudes):
-        return replace(target, wavy=wavy, psd=psd, centroid=centroid, amplitudes=amplitudes)
-
-    def mean(values):
-        return np.mean(np.asarray(values, dtype=np.float64), axis=0)
-
-    centroids = [f.centroid for f in feats]
-    has_peak = target.peak is not None and all(c is not None and np.isfinite(c) for c in centroids)
-    mean_target = with_features(mean([f.wavy for f in feats]), mean([f.psd for f in feats]),
-                                float(np.mean(centroids)) if has_peak else target.centroid,
-                                mean([f.amplitudes for f in feats]))
-    base = residual_vector(pred, mean_target)[0]
-    return np.array([residual_vector(pred, with_features(
-        f.wavy, f.psd, f.centroid if has_peak else target.centroid, f.amplitudes))[0] - base
-        for f in feats])
 
 
 def soft_l1(d) -> np.ndarray:
