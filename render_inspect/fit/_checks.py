@@ -35,6 +35,8 @@ PERIOD_TOLERANCE = 0.03
 ANGLE_TOLERANCE_DEG = 15.0
 #: relative spread of the tiles' periods beyond which the feed varies across the field
 PERIOD_SPREAD = 0.02
+#: the misfit over its noise floor beyond which the model does not describe the measurement
+MISMATCH = 30.0
 #: relative spread of a profile's segment periods beyond which the feed varies along it
 PROFILE_SPREAD = 0.03
 #: waviness difference (nm rms) between measured and predicted above which the form must
@@ -169,7 +171,7 @@ def check_after(measured, fitted, *, pixel, goodness: dict) -> dict:
     """The verdict after the fit: ``{"describes": bool, "findings": [text], ...}``."""
     findings = []
     ratio = goodness.get("ratio")
-    if ratio is not None and ratio > 30.0:
+    if ratio is not None and ratio > MISMATCH:
         findings.append(f"the misfit is {ratio:.3g} times what the random parts and the "
                         f"camera's noise alone leave")
     mt, ft = mark_tiles(measured, pixel), mark_tiles(fitted, pixel)
