@@ -105,7 +105,9 @@ def test_analyze_sphere_outliers_and_filter_on_a_forward_model(tmp_path):
 ])
 def test_analyze_bad_input_one_line_exit_1_nothing_written(tmp_path, capsys, args, match):
     out = tmp_path / "bad"
-    argv = ["analyze", str(real_file(args[0])), "--out", str(out), *args[1:]]
+    # a file that does not exist is one of the cases: only the others are read
+    path = tmp_path / args[0] if args[0] == "nope.plu" else real_file(args[0])
+    argv = ["analyze", str(path), "--out", str(out), *args[1:]]
     assert cli_main(argv) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and match in err[0] and "Traceback" not in err[0]

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PKG = Path(__file__).resolve().parents[1] / "render_inspect"
 ENGINES = {"mitsuba", "drjit", "bpy"}
 

@@ -80,7 +80,8 @@ def compared(tmp_path_factory):
     meas = d / "measured.exr"
     write_heightmap_exr(meas, HeightMap(z, z, pixel, (x[0], x[0])))
     out = d / "out"
-    rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas)])
+    rc = cli_main(["compare", str(scene_path), "--out", str(out), "--measured", str(meas),
+                   "--repeat", "2"])
     assert rc == 0
     return out, json.loads((out / "metrics.json").read_text())
 
@@ -193,8 +194,24 @@ def test_compare_same_camera_for_both(compared):
     out, m = compared
     a = m["compensated"]["interferometer"]
     b = m["uncompensated"]["interferometer"]
-    for k in ("origin_mm", "pixel_mm", "shape", "seed", "numerical_aperture", "wavelength_nm"):
+    for k in ("origin_mm", "pixel_mm", "shape", "numerical_aperture", "wavelength_nm"):
         assert a[k] == b[k], k
+    # two measurements, two noise realisations (seeded from the scene's seed, recorded)
+    from render_inspect.metrology import measurement_seeds
+
+    assert a["seed"] != b["seed"]
+    assert [a["seed"], b["seed"]] == measurement_seeds(m["seed"], 2)
+    noise = m["difference"]["window"]["measured"]["noise"]
+    assert noise["seeds"] == {"compensated": a["seed"], "uncompensated": b["seed"]}
+    # the floor: the two measurements' own noise in quadrature
+    assert noise["floor_nm"] == pytest.approx(math.hypot(noise["a_nm"], noise["b_nm"]))
+    assert 0.1 < noise["floor_nm"] < 3.0
+    res = m["difference"]["window"]["measured"]["resolution"]
+    assert res["verdict"] in ("resolved", "not resolved")
+    # --repeat 2: the first pair and one more, with two fresh realisations
+    rep = m["difference"]["window"]["measured"]["repeat"]
+    assert rep["repeats"] == 2 and rep["seeds"][0] == [a["seed"], b["seed"]]
+    assert rep["seeds"][1] == measurement_seeds(m["seed"], 2, repeat=1)
 
 
 @pytest.mark.mitsuba
@@ -230,7 +247,7 @@ def test_report_html_is_self_contained(compared):
     assert "<script" not in html
     assert "compensated" in html and "uncompensated" in html and "measured file" in html
     for text in ("coverage of the simulated region", "overlap after registration",
-                 "standard uncertainty", "rotation about z (deg)", "outliers (second difference",
+                 "standard uncertainty", "rotation about z (deg)", "outliers (spikes",
                  "units declared in the file"):
         assert text in html, text
     assert "tiny_compare" in html
@@ -503,3 +520,50 @@ def test_exaggeration_and_scale_in_every_diffuse_image(compared):
     # the macro view is the whole turned part: a disc of the workpiece radius
     assert m["windows"]["part"] == {"shape": "disc", "center": [0.0, 0.0], "radius": 1.0}
     assert m["compensated"]["diffuse"]["macro"]["iridescence"] is True
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_report_table_states_measured_and_both_truths_and_how_formed(compared):
+    # the table of Figure 1: measured, true like with like (the truth at the camera pixels
+    # both measured with the same piston and tilt removed) and true raw, each said how
+    # it was formed; and whether the measured difference is resolved
+    from render_inspect.report._format import fmt_quantity
+
+    out, m = compared
+    html = (out / "report.html").read_text()
+    w = m["difference"]["window"]
+    for label, block in (("measured by the virtual interferometer", w["measured"]),
+                         ("true, like with like", w["true_same_form_removed"]),
+                         ("true, raw", w["true"])):
+        row = re.search(rf"<td[^>]*>{re.escape(label)}</td><td[^>]*>([^<]*)</td>", html)
+        assert row, label
+        assert row.group(1) == fmt_quantity(block["rms_nm"], "nm")
+    assert "how the number is formed" in html and "nothing removed" in html
+    assert "Is the measured difference resolved?" in html
+    assert "aligned to its truth by one piston per region" not in html
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_repeat_measures_the_difference_repeatability(tmp_path):
+    # both variants measured three times with fresh camera noise: the spread of the
+    # difference over the repeats is the two measurements' noise, which each
+    # measurement's own estimate predicts (floor = sqrt(n_a^2 + n_b^2))
+    from render_inspect.pipeline import run_compare
+
+    small = (TINY.replace("region = [-0.2, -0.2, 0.2, 0.2]", "region = [-0.1, -0.1, 0.1, 0.1]")
+             .replace("field_of_view = [-0.1, -0.1, 0.1, 0.1]",
+                      "field_of_view = [-0.05, -0.05, 0.05, 0.05]"))
+    p = tmp_path / "small.toml"
+    p.write_text(small)
+    m = run_compare(load_scene(p), tmp_path / "out", repeat=3)
+    meas = m["difference"]["window"]["measured"]
+    rep = meas["repeat"]
+    assert rep["repeats"] == 3 and len(rep["rms_nm"]) == 3 and len(rep["seeds"]) == 3
+    assert len({s for pair in rep["seeds"] for s in pair}) == 6  # six realisations
+    assert rep["rms_nm"][0] == pytest.approx(meas["rms_nm"])
+    assert rep["pixel_repeatability_nm"] == pytest.approx(meas["noise"]["floor_nm"], rel=0.25)
+    assert rep["mean_map"]["verdict"] in ("resolved", "not resolved")
+    with pytest.raises(InputError, match="--repeat must be an integer from 1 to 100"):
+        run_compare(load_scene(p), tmp_path / "bad", repeat=0)

@@ -2,7 +2,8 @@
 written into it as the one new file the page says, exactly as printed there, and the
 commands the page names run on it in a fresh interpreter (a new design type, a new
 process kind through ``simulate``, ``toolpath`` and ``compare``, a new instrument through
-``render --kind``, a new program format through ``toolpath --format``)."""
+``render --kind``, a new program format through ``toolpath --format``, a new figure kind
+through ``draw_figure``)."""
 
 from __future__ import annotations
 
@@ -135,11 +136,12 @@ def _run(package: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, cwd=cwd, env=env)
 
 
-def test_the_page_has_the_four_examples():
+def test_the_page_has_the_five_examples():
     assert sorted(examples()) == ["render_inspect/design/_saddle.py",
                                   "render_inspect/instruments/_stylus.py",
                                   "render_inspect/io/_xyz.py",
-                                  "render_inspect/processes/_css.py"]
+                                  "render_inspect/processes/_css.py",
+                                  "render_inspect/report/_histogram.py"]
 
 
 @pytest.mark.slow
@@ -221,3 +223,31 @@ def test_a_new_file_format_is_one_file(package, tmp_path):
     xyz = np.loadtxt(tmp_path / "xyz" / "toolpath.xyz")
     npz = np.load(tmp_path / "npz" / "toolpath.npz")
     assert np.allclose(xyz, np.column_stack([npz["x"], npz["y"], npz["z"]]), atol=1e-9)
+
+
+_DRAW_HISTOGRAM = """
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from render_inspect.report import draw_figure, figure_kinds
+
+values = np.random.default_rng(0).normal(0.0, 1.0, 1000)
+out = draw_figure({"kind": "histogram", "values": values, "label": "height, nm"},
+                  Path(sys.argv[1]))
+print(",".join(figure_kinds()), out.stat().st_size)
+"""
+
+
+@pytest.mark.slow
+def test_a_new_figure_kind_is_one_file(package, tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(package)
+    env.setdefault("MPLBACKEND", "Agg")
+    r = subprocess.run([sys.executable, "-c", _DRAW_HISTOGRAM, str(tmp_path / "h.png")],
+                       capture_output=True, text=True, cwd=tmp_path, env=env)
+    assert r.returncode == 0, r.stderr
+    kinds, size = r.stdout.split()
+    assert "histogram" in kinds.split(",") and "map" in kinds.split(",") and int(size) > 1000
+    assert (tmp_path / "h.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -121,7 +121,7 @@ def test_analyze_map_metrics_form_filters_and_outliers():
         zs[r, c] += 2e-3
     off = analyze_map(zs, pixel=(px, py), form="plane").metrics
     assert off["outliers"]["count"] >= 4 and not off["outliers"]["left_out"]
-    assert off["areal"]["Sz_nm"] > 1.5e3 and any("exceed" in w for w in off["warnings"])
+    assert off["areal"]["Sz_nm"] > 1.5e3 and any("are spikes" in w for w in off["warnings"])
     on = analyze_map(zs, pixel=(px, py), form="plane", outliers="sigma")
     assert on.metrics["outliers"]["left_out"] and on.metrics["outliers"]["count"] >= 4
     assert all(on.outliers[r, c] for r, c in spikes)

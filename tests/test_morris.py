@@ -128,6 +128,7 @@ integer = true
 """
 
 
+@pytest.mark.slow
 def test_morris_sweep_on_dask_follows_the_scallop(tmp_path):
     """A Morris sweep on a LocalCluster: the feed's elementary effects are the change of
     the feed scallop's Sq = f^2 / (R sqrt 720) (within the 3 % the turned grid follows it);

@@ -413,6 +413,7 @@ def test_no_space_left_is_reported_naming_out(tmp_path):
 
 
 # ------------------------------------------------------------------ the other commands
+@pytest.mark.slow
 def test_every_command_that_writes_a_folder_refuses_a_users_folder(tmp_path, capsys):
     """analyze, measure, characterise, regress and sweep check --out before any work:
     a non-empty folder render_inspect did not write is refused and left as it was."""
@@ -641,6 +642,7 @@ sys.exit(cli.main(sys.argv[2:]))
 
 
 @pytest.mark.parametrize("sig, code", [("SIGINT", 130), ("SIGTERM", 143)])
+@pytest.mark.slow
 def test_a_signal_during_the_swap_is_held_and_reported_truthfully(tmp_path, sig, code):
     """The swap is completed, then the interruption is delivered: the exit code is 130 /
     143 and the message says the folder was written (it was), never "left as it was"."""

@@ -20,6 +20,7 @@ sys.path.insert(0, str(REPO / "tools"))
 import lock  # noqa: E402  (tools/lock.py)
 
 
+@pytest.mark.slow
 def test_the_lock_holds_every_distribution_of_the_environment_and_nothing_else():
     """pip list of this environment (make setup's .venv) against the lock: the same
     distributions at the same versions; render_inspect itself is installed from the

@@ -57,6 +57,7 @@ def _instrument_sq_nm(sim):
     ("sts_sinusoidal_grid", ["simulation.region=[1.5, 1.5, 2.4, 2.4]"], 7.1, 0.3),
     ("sts_mla_2x2", [], 7.4, 0.34),
 ])
+@pytest.mark.slow
 def test_li_et_al_sq_through_the_instrument_lands_in_the_measured_band(scene, over, value, sd):
     sim = simulate(load_scene(scene, over))
     sq = _instrument_sq_nm(sim)
@@ -67,6 +68,7 @@ def test_li_et_al_sq_through_the_instrument_lands_in_the_measured_band(scene, ov
     assert sim.metrics["scallop"]["Sq_nm"] == pytest.approx(0.01 ** 2 / (0.514 * math.sqrt(720)) * 1e6)
 
 
+@pytest.mark.slow
 def test_kong_et_al_dislocations_grow_with_the_radius_and_turn_tangentially():
     """The scene's 2 x 2 lenslets (r = 0, 1.5, 1.5, 2.12 mm) with the FTS 1.3 ms late and
     the slide's own 0.11 ms: after registration on the base the lenslets sit turned by the

@@ -16,6 +16,7 @@ def _cli(*args):
 
 
 @pytest.mark.parametrize("fmt", ["npz", "csv", "nc"])
+@pytest.mark.slow
 def test_sculpt_program_export(tmp_path, fmt):
     out = tmp_path / fmt
     p = _cli("toolpath", REPO / "scenes" / "sculpt_quad_mla.toml", "--out", out, "--format", fmt)
@@ -27,6 +28,7 @@ def test_sculpt_program_export(tmp_path, fmt):
         assert rows.shape[1] == 5 and np.all(np.diff(rows[:, 0]) >= 0)  # time never runs back
 
 
+@pytest.mark.slow
 def test_sts_nc_program_parses_back(tmp_path):
     from render_inspect.io import read_nc
     from render_inspect.toolpath import ToolPath
@@ -40,6 +42,7 @@ def test_sts_nc_program_parses_back(tmp_path):
     assert np.all(np.diff(back.rho) <= 1e-6)  # inward spiral
 
 
+@pytest.mark.slow
 def test_simulate_on_a_lenslet_array_writes_the_lenslets_table(tmp_path):
     import json
 

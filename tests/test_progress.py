@@ -141,6 +141,7 @@ def test_rich_bars_show_the_measured_progress_with_an_eta():
             assert not rep._tasks[tid]["timed"]  # no longer filled by the clock
 
 
+@pytest.mark.slow
 def test_cli_stops_at_the_next_block_when_asked(tmp_path, capsys):
     """In process: a stop requested while ``simulate`` works (as the signal handler does;
     here once its temporary folder has existed for a second) ends it with 143, the

@@ -275,6 +275,7 @@ def test_existing_cluster_scheduler_and_two_workers_on_loopback(tmp_path):
                 p.wait()
 
 
+@pytest.mark.slow
 def test_scheduler_that_does_not_answer_is_one_clear_error(tmp_path):
     (tmp_path / "small.toml").write_text(SMALL)
     res = subprocess.run([str(EXE), "sweep", "small.toml", "--out", "out", "--scheduler",
@@ -331,6 +332,7 @@ def test_killed_sweep_resumes_and_ends_with_every_point_once(tmp_path):
     assert len(list((tmp_path / "out" / "points").iterdir())) == 12
 
 
+@pytest.mark.slow
 def test_a_sweep_with_an_invalid_point_is_refused_before_any_point_runs(tmp_path):
     """A misspelt key inside [grid], a value out of range, a point over its memory budget:
     the whole sweep is checked first, one message lists each complaint with its points,

@@ -232,6 +232,7 @@ print(float(np.nanmax(np.abs(cpu - gpu))))
     pytest.param(True, id="cuda-simulator"),
     pytest.param(False, id="cuda-device", marks=pytest.mark.gpu),
 ])
+@pytest.mark.slow
 def test_gpu_kernel_equals_the_cpu_kernel(simulator):
     import os
     import subprocess
@@ -262,6 +263,7 @@ WINDOW = ["--set", "simulation.region=[-0.2,-0.15,0.22,0.2]", "--set", "material
           "--set", "simulation.pixel=0.001"]
 
 
+@pytest.mark.slow
 def test_simulate_tiles_a_map_that_does_not_fit_the_budget(tmp_path):
     import json
 
@@ -290,6 +292,7 @@ def test_simulate_tiles_a_map_that_does_not_fit_the_budget(tmp_path):
     assert z.scene == attrs["scene"] and z.attrs["pixel_size_mm"] == attrs["pixel_size_mm"]
 
 
+@pytest.mark.slow
 def test_tiled_simulate_refuses_what_it_cannot_tile(tmp_path):
     p = _cli("simulate", GRID, "--out", tmp_path / "b", *WINDOW, "--tiled", "--set",
              "artifacts.burrs.height=0.0001", "--set", "artifacts.burrs.width=0.002", check=False)
@@ -315,6 +318,7 @@ def test_simulate_on_two_dask_worker_processes(tmp_path):
                           ZarrHeightMap(b / "heightmap.zarr").read("residual"), equal_nan=True)
 
 
+@pytest.mark.slow
 def test_renders_of_a_big_map_read_only_the_windows_they_need(tmp_path):
     from render_inspect.instruments import instrument_types, interferometer_geometry
     from render_inspect.pipeline import run_simulate_tiled, simulate
@@ -435,6 +439,7 @@ def test_tiles_with_the_burr_halo_equal_the_material_burrs_of_the_whole_map(burr
     assert sums["burr_added_max"] * MM_TO_UM == pytest.approx(info["max_added_um"], rel=1e-12)
 
 
+@pytest.mark.slow
 def test_simulate_tiles_the_material_burrs_as_in_memory(tmp_path):
     """The shipped HTS scene over a window with machined edges, in memory and tile by tile:
     the same burr facts and heights."""

@@ -302,11 +302,13 @@ def run_papers_li() -> dict:
     grid (1 mm at the centre, 0.9 mm off the axis) and 2 x 2 MLA simulated, the residual
     raw and through the 20x objective's transfer function (filled pupil and stopped down
     to NA 0.3), the camera pixel and a poly2 form removal; the ideal scallop the same way;
-    the transfer function at the feed's 100 and 200 cycles/mm."""
+    the transfer function at the feed's 100 and 200 cycles/mm; the spread of the instrument Sq
+    over the instrument settings the paper does not give (its uncertainty) and whether the
+    paper's band can discriminate."""
     from render_inspect.instruments import Microscope, led
 
     pc = _paper_comparison()
-    out, above, raw = {}, [], []
+    out, above, raw, lows, highs, verdicts = {}, [], [], [], [], []
     for key, (name, label) in LI_WINDOWS.items():
         spec = pc.PAPERS[name]
         sim = _sim(name, spec["windows"][label])
@@ -319,11 +321,29 @@ def run_papers_li() -> dict:
         out[f"papers.{key}.na03_sq"] = (stopped, ".2f")
         above.append(stopped - spec["value"] - spec["sd"])
         raw.append(res["raw_Sq_nm"])
+        spread = pc.settings_spread(sim, value=spec["value"], sd=spec["sd"])
+        out[f"papers.{key}.settings_range"] = _range([spread["lo_nm"], spread["hi_nm"]], ".3g")
+        out[f"papers.{key}.settings_verdict"] = spread["verdict"]
+        lows.append(spread["lo_nm"])
+        highs.append(spread["hi_nm"])
+        verdicts.append(spread["verdict"])
     out["papers.li_raw_sq_range"] = _range(raw, ".2g")
     out["papers.na03_above_band_range"] = _range(above, ".2f")
     out["papers.na03_above_band_range_short"] = _range(above, ".1f")
-    ideal = pc.compare_sim(_sim("sts_sinusoidal_grid", GRID_IDEAL))
+    out["papers.li_settings_range"] = _range([min(lows), max(highs)], ".3g")
+    out["papers.li_settings_verdict"] = ("the band cannot discriminate"
+                                         if "cannot discriminate" in verdicts
+                                         else "the band discriminates")
+    out["papers.settings_combinations"] = str(int(math.prod(
+        [len(v) for v in pc.UNSTATED_SETTINGS.values()])))
+    ideal_sim = _sim("sts_sinusoidal_grid", GRID_IDEAL)
+    ideal = pc.compare_sim(ideal_sim)
     out["papers.ideal_grid_inst_sq"] = (ideal["instrument_Sq_nm"], ".3g")
+    out["papers.ideal_grid_na03_sq"] = (
+        pc.compare_sim(ideal_sim, illumination_na=STOPPED_NA)["instrument_Sq_nm"], ".3g")
+    ideal_spread = pc.settings_spread(ideal_sim)
+    out["papers.ideal_grid_settings_range"] = _range([ideal_spread["lo_nm"],
+                                                      ideal_spread["hi_nm"]], ".3g")
     filled = Microscope(source=led(600.0, bandwidth_nm=120.0))
     stopped = Microscope(source=led(600.0, bandwidth_nm=120.0), illumination_na=STOPPED_NA)
     out["papers.itf_100"] = (float(filled.itf(100.0)), ".3f")

@@ -9,7 +9,10 @@ and reports the residual machined - design three ways:
 * ``instrument``: through the 20x interference objective's linear transfer function
   (NA 0.4, LED 600 nm / 120 nm, the illumination pupil filled or stopped down to
   ``--illumination-na``), the camera pixel's box (0.9 mm / 1024), then poly2 removed: what
-  the coherence-correlation interferometer of Li et al. (2018) would report.
+  the coherence-correlation interferometer of Li et al. (2018) would report;
+* the spread of ``instrument`` over the settings the paper does not give
+  (:data:`UNSTATED_SETTINGS`: aperture, pixel, form, S-filter), its uncertainty, and
+  whether the paper's band can discriminate at all (:func:`settings_spread`).
 
 Usage::
 
@@ -77,14 +80,31 @@ def poly_remove(r, degree=2):
     return out
 
 
-def instrument_filter(r, pixel, *, illumination_na=None):
-    """``r`` (mm) through the 20x objective's linear ITF and the camera pixel's box."""
+#: Instrument settings a paper may not give, each with the values a 20x CCI could have
+#: had (assumed plausible): the illumination aperture (filled, stopped down to NA 0.3),
+#: the camera pixel (0.9 mm on 1024 or on 512 pixels, binned), the form removed
+#: (second or third order) and an ISO 16610-61 S-filter (none, or 2.5 um).
+UNSTATED_SETTINGS = {"illumination_na": (None, 0.3),
+                     "camera_pixel_mm": (CAMERA_PIXEL_MM, 2 * CAMERA_PIXEL_MM),
+                     "form_degree": (2, 3),
+                     "s_filter_mm": (None, 0.0025)}
+#: ISO 16610-61 Gaussian: transmission exp(-pi (alpha lambda f)^2), alpha = sqrt(ln 2 / pi)
+_GAUSS_ALPHA = float(np.sqrt(np.log(2) / np.pi))
+
+
+def instrument_filter(r, pixel, *, illumination_na=None, camera_pixel_mm=CAMERA_PIXEL_MM,
+                      s_filter_mm=None):
+    """``r`` (mm) through the 20x objective's linear ITF, the camera pixel's box and, when
+    given, an ISO 16610-61 Gaussian S-filter of cut-off ``s_filter_mm``."""
     mic = Microscope(source=led(600.0, bandwidth_nm=120.0), illumination_na=illumination_na)
     rr = np.where(np.isfinite(r), r, np.nanmean(r))
     fy = np.fft.fftfreq(r.shape[0], pixel)
     fx = np.fft.fftfreq(r.shape[1], pixel)
     gx, gy = np.meshgrid(fx, fy)
-    h = mic.itf(np.hypot(gx, gy)) * np.sinc(gx * CAMERA_PIXEL_MM) * np.sinc(gy * CAMERA_PIXEL_MM)
+    f = np.hypot(gx, gy)
+    h = mic.itf(f) * np.sinc(gx * camera_pixel_mm) * np.sinc(gy * camera_pixel_mm)
+    if s_filter_mm:
+        h = h * np.exp(-np.pi * (_GAUSS_ALPHA * s_filter_mm * f) ** 2)
     return np.real(np.fft.ifft2(np.fft.fft2(rr) * h))
 
 
@@ -108,6 +128,39 @@ def compare_sim(sim, *, illumination_na=None) -> dict:
     return {"raw_Sq_nm": sq_nm(r), "raw_Sa_nm": sa_nm(r), "poly2_Sq_nm": sq_nm(p2),
             "instrument_Sq_nm": sq_nm(it), "instrument_Sa_nm": sa_nm(it),
             "scallop_Sq_nm": sim.metrics.get("scallop", {}).get("Sq_nm")}
+
+
+def settings_spread(sim, *, value=None, sd=None) -> dict:
+    """The instrument Sq of one simulation over every combination of
+    :data:`UNSTATED_SETTINGS` (the settings the paper does not give): ``lo_nm``,
+    ``hi_nm``, ``n`` and, against a paper's band ``value +- sd``, ``verdict``: "inside" or
+    "outside" (for every setting) or "cannot discriminate" (the settings move the same
+    surface across the band's edge), and ``wider_than_band`` (the spread exceeds the
+    band's width: the settings matter more than the paper's uncertainty)."""
+    import itertools
+
+    r = sim.heightmap.machined - sim.heightmap.design
+    px = sim.scene.simulation.pixel
+    keys = list(UNSTATED_SETTINGS)
+    vals = []
+    for combo in itertools.product(*(UNSTATED_SETTINGS[k] for k in keys)):
+        c = dict(zip(keys, combo))
+        it = instrument_filter(r, px, illumination_na=c["illumination_na"],
+                               camera_pixel_mm=c["camera_pixel_mm"], s_filter_mm=c["s_filter_mm"])
+        vals.append(sq_nm(poly_remove(it, c["form_degree"])))
+    out = {"lo_nm": min(vals), "hi_nm": max(vals), "n": len(vals),
+           "settings": {k: [None if v is None else float(v) for v in UNSTATED_SETTINGS[k]]
+                        for k in keys}}
+    if value is not None and sd is not None:
+        lo, hi = value - sd, value + sd
+        if out["lo_nm"] >= lo and out["hi_nm"] <= hi:
+            out["verdict"] = "inside"
+        elif out["lo_nm"] > hi or out["hi_nm"] < lo:
+            out["verdict"] = "outside"
+        else:
+            out["verdict"] = "cannot discriminate"
+        out["wider_than_band"] = bool(out["hi_nm"] - out["lo_nm"] > 2 * sd)
+    return out
 
 
 def compare(name, overrides=(), *, illumination_na=None) -> dict:

@@ -31,7 +31,7 @@ A sweep file is TOML::
     high = 100.0
 
     [run]                                 # what each point runs
-    render = "none"                       # "none" | "interferometer" | "diffuse" | "all"
+    render = "none"                       # "none", "all", "diffuse" or an instrument ("interferometer")
     measure = false                       # measure the interferogram frames (needs the interferometer)
     compare = false                       # compensated vs uncompensated, per point
     files = "metrics"                     # "metrics" | "all"
@@ -166,19 +166,34 @@ class Study(Section):
 
 
 class RunConfig(Section):
-    """``[run]``: what each point runs besides ``simulate``."""
-    render: Literal["none", "interferometer", "diffuse", "all"] = "none"
+    """``[run]``: what each point runs besides ``simulate``.  ``render`` takes what
+    ``render --kind`` takes (a registered instrument, ``diffuse`` or ``all``) or ``none``:
+    the names come from the validation context (``render_kinds``, and ``frames_kind``, the
+    instrument ``measure`` reads the frames of), which :func:`read_sweep` is given."""
+    render: str = Field("none", description="none, all, diffuse or a registered instrument")
     measure: bool = Field(False, description="measure the interferogram frames (needs the interferometer)")
     compare: bool = Field(False, description="compensated vs uncompensated for each point")
     files: Literal["metrics", "all"] = Field(
         "metrics", description="metrics: metrics.json, scene.json, residual.png; all: also "
                                "heightmap.exr, toolpath.npz and the previews")
 
+    @field_validator("render")
+    @classmethod
+    def _render(cls, v, info: ValidationInfo):
+        kinds = (info.context or {}).get("render_kinds")
+        if kinds is not None and v not in ("none", *kinds):
+            names = [repr(k) for k in ("none", *kinds)]
+            raise ValueError(f"must be one of {', '.join(names[:-1])} or {names[-1]}; "
+                             f"received {v!r}")
+        return v
+
     @model_validator(mode="after")
-    def _measure(self):
-        if self.measure and self.render not in ("interferometer", "all"):
-            raise ValueError(f"measure = true needs render = 'interferometer' or 'all', "
-                             f"received render = {self.render!r}")
+    def _measure(self, info: ValidationInfo):
+        frames = (info.context or {}).get("frames_kind")
+        if self.measure and (self.render not in (frames, "all") if frames is not None
+                             else self.render in ("none", "diffuse")):
+            raise ValueError(f"measure = true needs render = {frames or 'the frames instrument'!r}"
+                             f" or 'all', received render = {self.render!r}")
         return self
 
 
@@ -272,7 +287,7 @@ def _format_error(err: ValidationError, source: str) -> InputError:
                       + "\n".join(f"  {line}" for line in lines))
 
 
-def read_sweep(path, *, sections=None) -> SweepFile:
+def read_sweep(path, *, sections=None, render_kinds=None, frames_kind=None) -> SweepFile:
     """Read and validate a sweep file (TOML).
 
     Parameters
@@ -282,6 +297,13 @@ def read_sweep(path, *, sections=None) -> SweepFile:
     sections : sequence of str, optional
         The scene's top-level sections: keys must start with one of them (without it, only
         their dotted form is checked; the scene checks the rest when the points resolve).
+    render_kinds : sequence of str, optional
+        What ``[run] render`` may name besides ``"none"`` (what ``render --kind`` takes:
+        the registered instruments, ``"diffuse"``, ``"all"``); without it any name passes
+        here and the render checks it when the points run.
+    frames_kind : str, optional
+        The instrument whose frames ``[run] measure`` measures (``render`` must name it or
+        ``"all"``).
 
     Raises
     ------
@@ -302,7 +324,9 @@ def read_sweep(path, *, sections=None) -> SweepFile:
     except RecursionError:
         raise InputError(f"sweep file {str(path)!r} nests tables/arrays too deeply") from None
     try:
-        spec = SweepFile.model_validate(data, context={"sections": sections})
+        spec = SweepFile.model_validate(data, context={"sections": sections,
+                                                       "render_kinds": render_kinds,
+                                                       "frames_kind": frames_kind})
     except ValidationError as err:
         raise _format_error(err, str(path)) from None
     if not spec.name:

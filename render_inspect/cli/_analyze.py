@@ -8,19 +8,25 @@ from ._args import _add_out_args, _add_verbosity
 
 def add_parsers(sub) -> None:
     p = sub.add_parser("analyze", help="ISO 25178-2 parameters of one height map file (measured "
-                                       "or simulated): metrics.json, height.png, --x3p")
+                                       "or simulated): metrics.json, height.png, --x3p; ISO "
+                                       "21920-2 parameters of a profile: metrics.json, profile.png")
     p.add_argument("file", help="height map: X3P, SUR, PLU, DAT (MetroPro), DATX, OPD, TMD, NMS, "
-                                "heightmap.exr, ...")
+                                "heightmap.exr, ...; or a profile: a text export (CSV, TXT: "
+                                "position, height), a Dektak .opdx, an X3P profile (PRF)")
     _add_out_args(p)
     p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
-                   help="form removed first (none: the mean only)")
+                   help="form removed first (none: the mean only; plane: a line on a profile)")
     p.add_argument("--filter", default=None, metavar="S,L",
-                   help="ISO 16610-61 Gaussian nesting indices in mm, e.g. 0.0025,0.8 or ,0.8")
+                   help="ISO 16610-61 Gaussian nesting indices in mm, e.g. 0.0025,0.8 or ,0.8 "
+                        "(a profile: ISO 16610-21 lambda_s,lambda_c; default ISO 21920-3's choice)")
     p.add_argument("--outliers", choices=["none", "sigma"], default="none",
-                   help="sigma: leave out the 3-sigma second-difference outliers (counted either way)")
+                   help="sigma: leave out the 3-sigma spikes (counted either way)")
     p.add_argument("--slope", choices=["forward", "central"], default="forward",
                    help="derivative estimator of Sdq/Sdr (forward: as SurfaceTopography and surfalize)")
     p.add_argument("--x3p", action="store_true", help="also write the evaluated surface as height.x3p")
+    p.add_argument("--units", default=None, metavar="U",
+                   help="a profile text file's units when it does not state them: um, mm, nm or "
+                        "POSITION,HEIGHT (e.g. um,nm)")
     _add_verbosity(p)
 
     p = sub.add_parser("measure", help="height from interferometer frames alone: height.exr, metrics.json")
@@ -58,7 +64,7 @@ def _analyze(args, overwrite: bool):
 
     return pipeline.run_analyze(args.file, args.out, form=args.form, filter_spec=args.filter,
                                 outliers=args.outliers, slope=args.slope, x3p=args.x3p,
-                                overwrite=overwrite)
+                                overwrite=overwrite, units=args.units)
 
 
 def _measure(args, overwrite: bool):

@@ -17,13 +17,26 @@ def add_parsers(sub) -> None:
                                        "compensated vs uncompensated, or --vary): images, metrics, "
                                        "report.html")
     _add_scene_args(p)
-    p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare")
+    p.add_argument("--measured", default=None, help="measured height map (X3P, EXR, ...) to compare, "
+                                                    "or a profile (text export, Dektak .opdx, X3P PRF)")
     p.add_argument("--vary", default=None, metavar="KEY=A,B",
                    help="compare KEY = A against KEY = B instead of the process's own pair, e.g. "
                         "--vary process.compensation=normal,z (TOML values)")
     p.add_argument("--force", action="store_true",
                    help="compare the measured map even when it does not match the design "
                         "(overlap or residual checks fail)")
+    p.add_argument("--line", default=None, metavar="X0,Y0,X1,Y1",
+                   help="with --measured PROFILE: the line on the part, mm (default for a turned "
+                        "part: a diameter through the spindle axis)")
+    p.add_argument("--units", default=None, metavar="U",
+                   help="with --measured PROFILE: a text file's units when it does not state "
+                        "them: um, mm, nm or POSITION,HEIGHT (e.g. um,nm)")
+    p.add_argument("--filter", default=None, metavar="S,L",
+                   help="with --measured PROFILE: ISO 16610-21 Gaussian cut-offs lambda_s,lambda_c "
+                        "in mm (default: ISO 21920-3's choice for the measured profile)")
+    p.add_argument("--repeat", type=int, default=1, metavar="N",
+                   help="measure each variant N times (1..100), each with fresh camera noise, "
+                        "and report the difference's repeatability (default 1)")
 
 
 def _render(args, overwrite: bool):
@@ -39,8 +52,11 @@ def _compare(args, overwrite: bool):
     # (the pipeline is imported lazily, as above)
     from .. import pipeline
 
-    return pipeline.run_compare(scene_of(args), args.out, measured=args.measured,
-                                vary=args.vary, force=args.force, overwrite=overwrite)
+    # (a measured profile is compared along a line: pipeline.run_compare_profile)
+    return pipeline.run_compare_command(scene_of(args), args.out, measured=args.measured,
+                                        vary=args.vary, force=args.force, line=args.line,
+                                        units=args.units, filter_spec=args.filter,
+                                        repeat=args.repeat, overwrite=overwrite)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

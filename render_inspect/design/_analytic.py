@@ -37,8 +37,13 @@ class SinusoidalGrid(Surface):
                  phase_y=0.0, offset=0.0):
         self.ax, self.ay = float(amplitude_x), float(amplitude_y)
         self.kx, self.ky = TWO_PI / float(wavelength_x), TWO_PI / float(wavelength_y)
+        self.wavelength_x, self.wavelength_y = float(wavelength_x), float(wavelength_y)
         self.px, self.py = float(phase_x), float(phase_y)
         self.offset = float(offset)
+
+    def lateral_scale(self) -> float:
+        """The longer of the two wavelengths (mm)."""
+        return max(self.wavelength_x, self.wavelength_y)
 
     def height(self, x, y):
         return self.ax * np.cos(self.kx * x + self.px) + self.ay * np.cos(self.ky * y + self.py) + self.offset

@@ -50,6 +50,13 @@ class Surface(abc.ABC):
         return hxx, hxy, hyy
 
     # ---- derived quantities ---------------------------------------------------------
+    def lateral_scale(self) -> float | None:
+        """The design's own lateral scale (mm): the length over which its shape changes,
+        on which the waviness a process leaves on it lies (a sinusoid's wavelength, a
+        lenslet pitch, an element's diameter); None for a design without one (a plane, a
+        sphere, a free form).  The S/L filters of a comparison are chosen around it."""
+        return None
+
     def radial_slope(self, rho, theta) -> np.ndarray:
         """dF/drho along the radial section at angle ``theta`` (rad)."""
         c, s = np.cos(theta), np.sin(theta)

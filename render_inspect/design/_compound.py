@@ -55,6 +55,10 @@ class Compound(Surface):
         f = self.feature.hessian(x, y)
         return tuple(bi + fi for bi, fi in zip(b, f))
 
+    def lateral_scale(self) -> float | None:
+        """The feature's lateral scale (mm)."""
+        return self.feature.lateral_scale()
+
     def centers(self):
         """The feature's lenslet centres (only when the feature is a lenslet array)."""
         if not hasattr(self.feature, "centers"):

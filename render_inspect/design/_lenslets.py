@@ -152,6 +152,10 @@ class LensletArray(Surface):
         self._y_first = self.center_y - (self.rows - 1) / 2 * self.pitch_y
 
     # ---- layout -------------------------------------------------------------------------
+    def lateral_scale(self) -> float:
+        """The larger pitch (mm)."""
+        return max(self.pitch_x, self.pitch_y)
+
     def centers(self) -> list[tuple[int, int, float, float]]:
         """(row, col, x_mm, y_mm) of every lenslet; row 0 has the smallest y."""
         return [(i, j, self._x_first + j * self.pitch_x, self._y_first + i * self.pitch_y)
@@ -262,6 +266,10 @@ class LensletRings(Surface):
         self.phase = math.radians(float(phase_deg))
         self.offset = float(offset)
         self._sign = 1.0 if self.concave else -1.0
+
+    def lateral_scale(self) -> float:
+        """An element's diameter (mm)."""
+        return 2 * self.element_radius
 
     def centers(self) -> list[tuple[int, int, float, float]]:
         """(ring index, element index, x_mm, y_mm) of every element."""

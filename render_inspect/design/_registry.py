@@ -14,7 +14,7 @@ from typing import Annotated, Callable, Union
 from pydantic import Field, TypeAdapter, ValidationError
 
 from ..core.errors import SceneError
-from ..core.plugins import literal_values
+from ..core.plugins import Registry, literal_values
 
 __all__ = ["DesignType", "register_design", "design_types", "make_surface",
            "design_config_union"]
@@ -30,8 +30,7 @@ class DesignType:
     factory: Callable
 
 
-_DESIGNS: dict[str, DesignType] = {}
-_UNION = None
+_DESIGNS = Registry("design.type")
 
 
 def register_design(config, factory: Callable | None = None):
@@ -46,33 +45,30 @@ def register_design(config, factory: Callable | None = None):
         else:
             build = target
         entry = DesignType(literal_values(config, "type"), config, build)
-        for name in entry.names:
-            _DESIGNS[name] = entry
-        global _UNION
-        _UNION = None
+        _DESIGNS.add(entry.names, entry)
         return target
     return deco if factory is None else deco(factory)
 
 
 def design_types() -> dict[str, DesignType]:
     """``design.type`` name -> :class:`DesignType`."""
-    return dict(_DESIGNS)
+    return _DESIGNS.entries()
 
 
 def design_config_union():
     """The pydantic type of a ``[design]`` section: the registered schema classes,
     discriminated by ``type``."""
-    global _UNION
-    if _UNION is None:
-        configs = []
-        for entry in _DESIGNS.values():
-            if entry.config not in configs:
-                configs.append(entry.config)
-        _UNION = Annotated[Union[tuple(configs)], Field(discriminator="type")]
-        for c in configs:  # schema classes that nest a design (compound) refer to the union
-            if getattr(c, "nests_design", False) or not c.__pydantic_complete__:
-                c.model_rebuild(force=True, _types_namespace={"DesignConfig": _UNION})
-    return _UNION
+    return _DESIGNS.union(_union_of, _rebuild_nesting)
+
+
+def _union_of(configs):
+    return Annotated[Union[tuple(configs)], Field(discriminator="type")]
+
+
+def _rebuild_nesting(union, configs) -> None:
+    for c in configs:  # schema classes that nest a design (compound) refer to the union
+        if getattr(c, "nests_design", False) or not c.__pydantic_complete__:
+            c.model_rebuild(force=True, _types_namespace={"DesignConfig": union})
 
 
 def make_surface(cfg):
@@ -85,8 +81,4 @@ def make_surface(cfg):
             first = err.errors()[0]
             loc = ".".join(str(p) for p in first["loc"] if str(p) not in _DESIGNS)
             raise SceneError(f"invalid [design]: design.{loc}: {first['msg']}") from None
-    entry = _DESIGNS.get(getattr(cfg, "type", None))
-    if entry is None:
-        raise SceneError(f"design.type must be one of {sorted(_DESIGNS)}, received "
-                         f"{getattr(cfg, 'type', None)!r}")
-    return entry.factory(cfg)
+    return _DESIGNS.lookup(getattr(cfg, "type", None)).factory(cfg)

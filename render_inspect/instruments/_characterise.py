@@ -96,12 +96,15 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
             if 1 / per <= 0.5 / p:
                 row[key] = sinusoid_amplitude(prof, x, per) / amp
             else:
-                # above the camera's Nyquist frequency: the amplitude of whatever pattern
-                # comes back (the camera's alias of what the optics pass; none beyond the
-                # cut-off)
+                # above the camera's Nyquist frequency there is no transfer function: the
+                # camera cannot sample the grating.  What comes back is kept apart, as the
+                # amplitude of the aliased pattern (the camera's alias of what the optics
+                # pass; none beyond the cut-off)
                 d = prof[np.isfinite(prof)]
                 d = d - d.mean()
-                row[key] = float(math.sqrt(2 * np.mean(d * d))) / amp if d.size else None
+                row[key] = None
+                row[key.replace("itf_", "aliased_")] = (
+                    float(math.sqrt(2 * np.mean(d * d))) / amp if d.size else None)
         row["itf_model"] = float(mic.itf(f))
         row["itf_textbook"] = float(pupil_overlap(f, numerical_aperture=na, illumination_na=na_ill,
                                                   wavelength_nm=lam_nm))
@@ -112,11 +115,19 @@ def _itf(mic, dist, *, mode, pixel, fine, quick):
         if a0 >= 0.5 > a1:
             half = f0 + (a0 - 0.5) / (a0 - a1) * (f1 - f0)
             break
-    beyond = [r["itf_instrument"] for r in rows
-              if r["frequency_per_mm"] > fc and r["itf_instrument"] is not None]
+    beyond = [r["itf_instrument"] if r["itf_instrument"] is not None
+              else r.get("aliased_instrument") for r in rows if r["frequency_per_mm"] > fc]
+    beyond = [b for b in beyond if b is not None]
+    nyq = 0.5 / pixel
     return {"amplitude_nm": amp / _NM, "cutoff_per_mm": fc, "cutoff_period_um": 1 / fc / _UM,
             "beyond_cutoff_max": max(beyond) if beyond else None,
-            "half_transfer_per_mm": half, "camera_nyquist_per_mm": 0.5 / pixel,
+            "half_transfer_per_mm": half, "camera_nyquist_per_mm": nyq,
+            "instrument_transfer_up_to_per_mm": min(nyq, fc),
+            "instrument_note": (f"the transfer function at the camera pixel stops at the camera's "
+                                f"Nyquist frequency ({nyq:.4g} /mm): above it the camera cannot "
+                                f"sample a grating, and what comes back (aliased_instrument) is "
+                                f"an alias, not a transfer value")
+            if nyq < fc * max(ITF_FRACTIONS) else None,
             "fine_pixel_um": fine / _UM, "algorithm": alg, "table": rows}
 
 
@@ -161,6 +172,10 @@ def _steps(mic, dist, *, csi_mic, fine, quick):
     return out, profiles
 
 
+#: Pixels imaged around the sphere's field and cropped.
+_SPHERE_MARGIN = 8
+
+
 def _sphere(mic, dist, *, pixel, n, seed):
     # measured by coherence scanning: every pixel is seen in its own focus, so the
     # contrast and drop-out depend on the slope alone, not on defocus across the sphere
@@ -168,9 +183,13 @@ def _sphere(mic, dist, *, pixel, n, seed):
     r_edge = 0.5 * n * pixel
     radius = r_edge / math.sin(min(1.25 * alpha_lim, 1.2))
     s = min(recommended_subsamples(pixel, mic), 8)
-    h, nrm = artefacts.sphere((n, n), pixel, s, radius=radius)
+    # imaged with a margin of pixels around the field, cropped after imaging (as the
+    # renderer does): the model's field is periodic, and the sphere's steep opposite
+    # borders must not meet
+    h, nrm = artefacts.sphere((n + 2 * _SPHERE_MARGIN, n + 2 * _SPHERE_MARGIN), pixel, s,
+                              radius=radius)
     fr, m = _measure(h, nrm, pixel=pixel, s=s, mic=mic, dist=dist, mode="csi", seed=seed,
-                     algorithm="envelope")
+                     algorithm="envelope", crop=_SPHERE_MARGIN)
     x = pixel * np.arange(n)
     xc = x.mean()  # the artefact's centre (the sub-samples are centred on the pixels)
     r = np.hypot(x[None, :] - xc, x[:, None] - xc)

@@ -24,7 +24,12 @@ as in a Mirau or Linnik objective scanned along its axis) and per camera pixel::
   ``I >= 0``;
 * ``rho_R`` is the reference mirror's reflectance (unit illumination);
 * sub-samples with no surface (NaN height), facing away from every illumination
-  direction, or too steep for any reflected ray to enter the pupil, are dark (``r = 0``).
+  direction, or too steep for any reflected ray to enter the pupil, are dark (``r = 0``);
+  facets beyond the slope limit whose phase the sub-sample grid begins to lose (from a
+  quarter to half a fringe per sub-sample) fade to dark (a raised cosine in their tilt),
+  so that no sharp edge diffracts false fringes into the pupil; a surface that reaches
+  the limit gets sub-samples that carry its facets' phase with a quarter of a fringe at
+  the limit (:func:`~._microscope.recommended_subsamples`), so the fade lies beyond it.
 
 Frames are periodic over the array (FFT); ``crop`` drops a margin of pixels around the
 field, where the wrap-around would otherwise show.
@@ -212,6 +217,23 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     alpha_lim = float(alpha[np.nonzero(frac > 1e-9)[0].max()]) if (frac > 1e-9).any() else 0.0
     alpha_dark = max(alpha_lim, math.atan(math.pi / (2 * k99 * a)))
     returns = reached & (cos_t >= np.float32(math.cos(alpha_dark)))
+    # facets beyond the slope limit return no light.  Those whose phase the sub-sample
+    # grid carries (less than half a fringe of K h between sub-samples) take part as they
+    # are: the transfer function rejects them (Kirchhoff).  Where the grid begins to fail
+    # (from a quarter of a fringe per sub-sample, ``alpha_half``, to half a fringe,
+    # ``alpha_dark``) they fade out smoothly (a raised cosine in the facet's tilt) instead
+    # of ending at a sharp edge, whose diffraction would put a false ring of fringes
+    # beyond the slope limit into the pupil
+    alpha_half = max(alpha_lim, math.atan(math.pi / (4 * k99 * a)))
+    fade = None
+    if alpha_dark > alpha_half:
+        with np.errstate(invalid="ignore"):
+            t = (np.arccos(np.clip(cos_t, -1.0, 1.0)) - np.float32(alpha_half)) \
+                / np.float32(alpha_dark - alpha_half)
+        t = np.where(np.isfinite(t), t, np.float32(1.0))  # no surface: dark anyway
+        fade = np.where(t <= 0, np.float32(1.0),
+                        np.cos(np.float32(math.pi / 2) * np.clip(t, 0, 1)) ** 2).astype(np.float32)
+        del t
     # the object beam's own intensity: geometric acceptance of the facets, with the normals
     # averaged over the point-spread function (sub-resolution texture scatters, it does not
     # make dark facets)
@@ -235,6 +257,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     light = np.einsum("asbt,s,t->ab", b_sub, wy, wy)[crop:hc - crop, crop:wc - crop]
     del b_sub, acc
     amp = np.where(returns, np.float32(math.sqrt(refl)), np.float32(0.0))
+    if fade is not None:
+        amp *= fade
+        del fade
 
     # --- heights relative to a reference plane, the range of z - h the frames need
     any_ret = bool(returns.any())

@@ -2,9 +2,10 @@
 
 Geometry from Mitsuba: the chosen channel of the height map is meshed and ray-traced
 straight down (a telecentric objective) at ``s x s`` sub-sample points per camera pixel
-over the field of view plus a margin, giving each sample's height and shading normal; one
-more pass at the pixel centres gives the truth, ``height_true``, which is kept beside
-the frames for evaluation and never used to measure.
+over the field of view plus a margin, giving each sample's height and shading normal;
+the mean of each pixel's sub-samples (where a pass at the pixel centres hits the
+surface) gives the truth, ``height_true``, which is kept beside the frames for
+evaluation and never used to measure.
 
 Image from the imaging model (:mod:`._imaging`, docs/instrument.md): the Kirchhoff 3-D
 transfer function of the objective with Koehler illumination, the source spectrum,
@@ -18,6 +19,7 @@ import dataclasses
 import json
 import logging
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Literal
 
@@ -32,7 +34,7 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._modes import csi_frames, psi_frames
+from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective
 from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, content_subsamples,
@@ -41,6 +43,7 @@ from ._sources import led, monochromatic, spectrum_table
 
 __all__ = [
     "MAX_AUTO_SUBSAMPLES",
+    "pixel_truth",
     "DEFAULT_CSI_BANDWIDTH_NM",
     "DEFAULT_CSI_WAVELENGTH_NM",
     "DEFAULT_PSI_BANDWIDTH_NM",
@@ -147,7 +150,9 @@ class Interferogram(Frames):
     Attributes (beyond :class:`~render_inspect.core.Frames`)
     ----------------------------------------------------------
     height_true : (H, W) float64, mm
-        Ray-traced height at the pixel centres (NaN where the ray missed).
+        Ray-traced height averaged over each camera pixel's sub-samples, the surface as the
+        pixel integrates it (NaN where the pixel centre's ray missed); texture finer than
+        the pixel averages out instead of aliasing into the truth.
     accepted_fraction : (H, W) float32
         The object beam alone, as a fraction of a mirror's (the geometric acceptance of the
         pixel's facets).
@@ -471,6 +476,12 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     else:
         slope = _max_slope(heightmap, surface, geom["trace_window"])
         s_rec = min(recommended_subsamples(geom["pixel"], mic, max_slope=slope), MAX_AUTO_SUBSAMPLES)
+    if icfg.mode == "csi" and icfg.frames is not None:
+        # a scan that cannot reach the heights is refused before anything is traced
+        z = _window_of(heightmap, surface, geom["trace_window"])
+        if z is not None and np.isfinite(z).any():
+            check_scan_covers(float(np.nanmin(z)), float(np.nanmax(z)), mic,
+                              scan_step_nm=icfg.scan_step_nm, frames=int(icfg.frames))
     s, sampling = surface_sampling(heightmap, surface, geom, mic, s_rec=s_rec,
                                    fixed=icfg.subsamples is not None)
     h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
@@ -483,12 +494,45 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
         fr = psi_frames(h_sub, n_sub, steps=icfg.steps, step_rad=icfg.step_rad, z_ref=z_ref, **common)
     else:
         fr = csi_frames(h_sub, n_sub, scan_step_nm=icfg.scan_step_nm, frames=icfg.frames, **common)
+    h_true, unresolved = pixel_truth(h_sub, h_centre, s=s, margin=geom["margin"])
     del h_sub, n_sub
     fr.settings["model"]["surface_sampling"] = sampling
     fields = {f.name: getattr(fr, f.name) for f in dataclasses.fields(Frames)}
-    fields.update(variant=mitsuba_variant(), meta={"window_mm": geom["window"]})
+    fields.update(variant=mitsuba_variant(), meta={
+        "window_mm": geom["window"],
+        "height_true": "the mean of the ray-traced sub-samples over each camera pixel (the "
+                       "surface as the pixel integrates it; texture finer than the pixel "
+                       "averages out instead of aliasing)",
+        "height_true_unresolved_rms_nm": unresolved})
     light = np.asarray(diag["light"], dtype=np.float32) / np.float32(mic.reflectance)
-    return Interferogram(**fields, height_true=h_centre, accepted_fraction=light, surface=surface)
+    return Interferogram(**fields, height_true=h_true, accepted_fraction=light, surface=surface)
+
+
+def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
+    """The truth as the camera samples it: the mean of the ``s x s`` traced sub-samples
+    over each camera pixel (NaN where the pixel centre's ray missed), and the rms (nm) of
+    the texture finer than the pixel (the sub-samples about their pixel's plane; 0 with
+    one sub-sample).  A point sample at the pixel centre would alias that texture into
+    the truth; the mean keeps what a pixel can hold."""
+    ny, nx = h_centre.shape
+    m = int(margin) * s
+    blk = np.asarray(h_sub[m:m + ny * s, m:m + nx * s], dtype=np.float64).reshape(ny, s, nx, s)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # pixels with no sub-sample hit
+        mean = np.nanmean(blk, axis=(1, 3))
+    truth = np.where(np.isfinite(h_centre), np.where(np.isfinite(mean), mean, h_centre), np.nan)
+    unresolved = 0.0
+    if s > 1:
+        u = (np.arange(s) - (s - 1) / 2)
+        uu, vv = np.meshgrid(u, u)  # (s, s): row = y, col = x
+        a = np.stack([np.ones(s * s), uu.ravel(), vv.ravel()], 1)
+        z = blk.transpose(0, 2, 1, 3).reshape(ny * nx, s * s)
+        ok = np.all(np.isfinite(z), axis=1)
+        if ok.any():
+            coef = np.linalg.lstsq(a, z[ok].T, rcond=None)[0]
+            r = z[ok].T - a @ coef
+            unresolved = float(np.sqrt(np.mean(r * r))) * MM_TO_NM
+    return truth, unresolved
 
 
 def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = None):

@@ -205,13 +205,19 @@ def recommended_subsamples(pixel: float, microscope: Microscope, *, max_slope: f
     The larger of (a) Nyquist sampling of the highest spatial frequency the pupil passes,
     ``(NA + NA_ill) / lambda`` at the short end of the spectrum (1st percentile of the
     power), and (b) less than half a fringe of ``K h`` between sub-samples on slopes up
-    to ``max_slope`` (rad; default the largest slope that can return light).
+    to ``max_slope`` (rad; default the largest slope that can return light).  A surface
+    that reaches the slope limit (``max_slope`` None or beyond it) gets less than a
+    quarter of a fringe there: its facets beyond the limit are then carried by the grid
+    far enough to fade out gently (:func:`~._imaging.interference_intensity`), instead of
+    aliasing at the limit into false fringes.
     """
     k, w = microscope.source.sample(dk=microscope._dk_fine())
     k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
     f_cut = k_hi * (microscope.na + microscope.na_ill) / (2 * math.pi)
     s_res = math.ceil(2 * pixel * f_cut - 1e-9)
     slope_lim = 0.5 * (math.asin(microscope.na) + math.asin(microscope.na_ill))
+    steep = max_slope is None or float(max_slope) >= slope_lim
     slope = slope_lim if max_slope is None else min(float(max_slope), slope_lim)
-    s_slope = math.ceil(pixel * 2 * k_hi * math.tan(slope) / math.pi - 1e-9)
+    s_slope = math.ceil((2 if steep else 1) * pixel * 2 * k_hi * math.tan(slope) / math.pi
+                        - 1e-9)
     return int(max(1, s_res, s_slope))

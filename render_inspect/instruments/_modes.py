@@ -20,7 +20,8 @@ from ._focus import autofocus
 from ._microscope import Disturbances, Microscope
 from ._sources import led
 
-__all__ = ["MAX_CSI_FRAMES", "csi_frames", "psi_frames"]
+__all__ = ["MAX_CSI_FRAMES", "SCAN_COVER_ENVELOPES", "check_scan_covers", "csi_frames", "psi_frames",
+           "scan_needed"]
 
 #: CSI scans with more frames than this are refused.
 MAX_CSI_FRAMES = 4096
@@ -147,6 +148,45 @@ def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
                                       {"camera_exposure": cam, "focus": focus}))
 
 
+#: Coherence envelopes (the envelope's standard deviation along the scan, ``1 / sigma_k``)
+#: a scan must reach beyond the lowest and the highest height, so that each pixel's
+#: envelope peak and its samples above half maximum (1.18 of them) lie inside the scan;
+#: assumed (the default scan takes 4.5).
+SCAN_COVER_ENVELOPES = 2.5
+
+
+def scan_needed(h_min: float, h_max: float, mic: Microscope, *,
+                scan_step_nm: float | None = None) -> dict:
+    """The scan a coherence-scanning measurement of heights ``h_min`` .. ``h_max`` (mm)
+    needs: ``span_nm`` (the heights' range plus :data:`SCAN_COVER_ENVELOPES` envelopes
+    either side), ``step_nm`` and ``frames`` (at that step)."""
+    lam_eff = mic.effective_wavelength_nm()
+    step_nm = lam_eff / 8 if scan_step_nm is None else float(scan_step_nm)
+    sigma = mic.coherence_sigma()
+    env = SCAN_COVER_ENVELOPES / sigma if sigma > 0 else lam_eff * NM_TO_MM
+    span = (h_max - h_min) + 2 * env
+    return {"span_nm": span / NM_TO_MM, "heights_nm": (h_max - h_min) / NM_TO_MM,
+            "envelope_nm": env / NM_TO_MM, "step_nm": step_nm,
+            "frames": int(math.ceil(span / NM_TO_MM / step_nm)) + 1}
+
+
+def check_scan_covers(h_min: float, h_max: float, mic: Microscope, *,
+                      scan_step_nm: float | None, frames: int) -> dict:
+    """Refuse (:class:`InputError`, before any imaging) a scan of ``frames`` frames that
+    cannot cover the heights ``h_min`` .. ``h_max`` (mm): every pixel would lie outside
+    it and none be measured.  Returns :func:`scan_needed`'s numbers."""
+    need = scan_needed(h_min, h_max, mic, scan_step_nm=scan_step_nm)
+    have = (int(frames) - 1) * need["step_nm"]
+    if have + 1e-9 < need["span_nm"]:
+        raise InputError(
+            f"render.interferometer.frames = {int(frames)} at scan_step_nm = {need['step_nm']:.4g} "
+            f"scans {have:.0f} nm, but the heights in the field span {need['heights_nm']:.0f} nm and "
+            f"the coherence envelope needs {need['envelope_nm']:.0f} nm either side: the scan "
+            f"must cover at least {need['span_nm']:.0f} nm (frames >= {need['frames']}, or leave "
+            f"frames unset to scan the heights' range)")
+    return need
+
+
 def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, scan_step_nm: float | None = None,
                frames: int | None = None, scan_start: float | None = None,
@@ -197,6 +237,9 @@ def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
         if int(frames) != frames or frames < 8:
             raise InputError(f"frames must be an integer >= 8, got {frames!r}")
         n = int(frames)
+        if scan_start is None:  # centred: refuse a scan that cannot reach every height
+            check_scan_covers(float(fin.min()), float(fin.max()), mic, scan_step_nm=scan_step_nm,
+                              frames=n)
     if n > MAX_CSI_FRAMES:
         raise MemoryBudgetError(f"the CSI scan over {(hi - lo) / NM_TO_MM:.0f} nm at "
                                 f"scan_step_nm = {step / NM_TO_MM:.4g} needs {n} frames "

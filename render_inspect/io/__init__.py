@@ -3,7 +3,8 @@ output folders.  Every ``_*.py`` module of this package is imported on start, so
 file format is one new module that registers its reader or writer.
 
 Products: ``heightmap`` (``heightmap.exr``), ``measured`` (measured height maps: X3P, EXR,
-npy/npz and instrument formats), ``toolpath`` and ``program`` (machine programs: npz, csv,
+npy/npz and instrument formats), ``profile`` (measured profiles: text exports, Dektak
+``.opdx``, X3P PRF), ``toolpath`` and ``program`` (machine programs: npz, csv,
 nc), ``frames`` (``interferogram.exr``; TIFF / PNG stacks with a settings JSON),
 ``measurement`` (``height.exr``).  :func:`reader` / :func:`writer` look them up.
 """
@@ -43,6 +44,7 @@ from ._limits import (
 from ._measured import (UNIT_TO_MM, MeasuredMap, measured_formats, read_measured, read_surface,
                         reader_for)
 from ._png import png_bytes_with_text, save_png
+from ._profile import MeasuredProfile, is_profile_file, read_profile
 from ._pyramid import block_sums, coarsen, level_count, means, preview
 from ._registry import formats, reader, register_reader, register_writer, writer
 from ._stack import STACK_EXTENSIONS, read_frame_stack, write_measurement_exr
@@ -96,4 +98,4 @@ __all__ = ["atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atom
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",
            "reading_for", "per_value_bytes", "check_frames", "read_nc_blocks", "program_blocks", "cut_points",
-           "program_axes"]
+           "program_axes", "MeasuredProfile", "read_profile", "is_profile_file"]

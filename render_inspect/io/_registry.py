@@ -2,6 +2,7 @@
 
 A product names what a file holds: ``"heightmap"`` (design / machined / residual),
 ``"measured"`` (a measured height map from an instrument or exchange format),
+``"profile"`` (a measured profile: a stylus trace or an interferometer's 2-D slice),
 ``"toolpath"`` (a turning program), ``"program"`` (a sculpturing program), ``"frames"``
 (interferometer frames).  Each format module registers its functions with
 :func:`register_reader` / :func:`register_writer`; callers look them up with

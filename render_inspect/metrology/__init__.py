@@ -36,13 +36,23 @@ from ._instrument import (BatwingLobes, batwing, dropout_slope, edge_width, nois
                           pupil_overlap, sinusoid_amplitude, slope_table)
 from ._levelling import FORM_TERMS, level_map, measured_difference
 from ._measure import ALGORITHMS, measure_frames
-from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
+from ._noise import (FALSE_ALARM, csi_height_noise, csi_noise_threshold, noise_sigmas,
+                     psi_height_noise, psi_noise)
+from ._fringe_order import (AMBIGUOUS_ORDER, FAILED_FRACTION, difference_order_check,
+                            fringe_order_check, phase_residues)
+from ._resolution import (RESOLVED_RATIO, difference_noise, measurement_seeds,
+                          repeat_statistics, resolution)
 from ._phase import (PhaseResult, evaluate_measurement, height_error, height_from_phase,
                      retrieve_csi, retrieve_psi, wrapped_phase)
 from ._registration import (RIGID_KEYS, GridSurface, MovedSurface, detect_outliers,
                             register_icp, register_lsq, registration_covariance, rigid_resample,
                             rotation_matrix, template_surface)
 from ._unwrap import phase_quality, unwrap_phase
+from ._iso21920 import (LAMBDA_C_SERIES, default_cutoffs, evaluate_profile,
+                        gaussian_profile_weights, material_ratio_curve, parse_profile_filter,
+                        profile_gaussian_filter, profile_texture, rmr, roughness_profile)
+from ._periods import dominant_periods, map_periods, mirror_centre, profile_periods
+from ._profile_analysis import PROFILE_FORMS, PROFILE_KEYS, analyze_profile, profile_metrics
 
 __all__ = [
     "analyze_memory", "analyze_memory_per_point", "WINDOWED_FORMS", "analyze_bands",
@@ -67,10 +77,18 @@ __all__ = [
     "retrieve_psi", "retrieve_csi", "height_error", "measure_frames", "ALGORITHMS",
     "evaluate_measurement", "FORM_TERMS", "level_map", "measured_difference",
     "FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas",
+    "psi_height_noise", "csi_height_noise", "AMBIGUOUS_ORDER", "FAILED_FRACTION",
+    "difference_order_check", "fringe_order_check", "phase_residues", "RESOLVED_RATIO",
+    "difference_noise", "measurement_seeds", "repeat_statistics", "resolution",
     "sinusoid_amplitude", "pupil_overlap", "edge_width", "batwing", "BatwingLobes", "slope_table",
     "dropout_slope", "noise_by_subtraction",
     "mark_size", "feature_size", "waviness_choice", "render_marks", "expected_sq_mm",
     "FINEST_RENDERED_MARKS_MM", "waviness_map", "lenslet_facts", "lenslet_metrics", "msa_metrics",
     "common_window", "crop_window", "line_profile", "difference_stats", "sections",
     "profile_center", "areal_nm", "difference_profiles", "surface_slope",
+    "LAMBDA_C_SERIES", "default_cutoffs", "evaluate_profile", "gaussian_profile_weights",
+    "material_ratio_curve", "parse_profile_filter", "profile_gaussian_filter",
+    "profile_texture", "rmr", "roughness_profile",
+    "dominant_periods", "map_periods", "mirror_centre", "profile_periods",
+    "PROFILE_FORMS", "PROFILE_KEYS", "analyze_profile", "profile_metrics",
 ]

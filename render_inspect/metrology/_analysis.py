@@ -243,7 +243,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         ISO 16610-61 Gaussian nesting indices (mm): S removes shorter, L longer
         wavelengths.
     outliers : {"none", "sigma"}
-        ``sigma``: points flagged by the second-difference ``outlier_sigma``-sigma rule
+        ``sigma``: points flagged by the ``outlier_sigma``-sigma spike rule
         (:func:`detect_outliers`) are left out (not replaced) of the form fit and the
         parameters; their count and fraction are reported either way.
     slope : {"forward", "central"}
@@ -348,8 +348,8 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
                          f"across the field in at least one direction (a lay longer than the field)")
     if outliers == "none" and n_flag:
         frac = n_flag / n_measured
-        warnings_.append(f"{n_flag} points ({frac:.2%}) exceed the {outlier_sigma:g}-sigma "
-                         f"second-difference rule; they are kept (--outliers sigma leaves them out)")
+        warnings_.append(f"{n_flag} points ({frac:.2%}) are spikes by the {outlier_sigma:g}-sigma "
+                         f"rule; they are kept (--outliers sigma leaves them out)")
     if not math.isclose(px, py, rel_tol=1e-6):
         warnings_.append(f"non-square pixels ({px * MM_TO_UM:.6g} x {py * MM_TO_UM:.6g} um): slopes and "
                          f"lengths use each axis' own spacing")
@@ -372,7 +372,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
         "outliers": {"method": outliers, "sigma": float(outlier_sigma), "count": n_flag,
                      "fraction": n_flag / n_measured,
                      "left_out": outliers == "sigma",
-                     "rule": "second difference along x and y, robust sigma (1.4826 MAD)"},
+                     "rule": "spikes: a second difference beyond k robust sigma (1.4826 MAD) with both neighbours' of the opposite sign, along x and y"},
         "slope_estimator": slope,
         "spatial": {"s": acf_threshold, "decays_in_all_directions": sp["decays_in_all_directions"],
                     "fastest_direction_deg": ang["fastest_direction_rad"],

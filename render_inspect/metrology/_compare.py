@@ -211,7 +211,7 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
     """Compare a measured height map with the design (and a simulation) of a scene.
 
     Chain: unit sanity check -> outliers
-    (second difference, ``metrology.outlier_sigma``; always left out of the registration
+    (spikes, ``metrology.outlier_sigma``; always left out of the registration
     fit, left out of the parameters only with ``metrology.outliers = "sigma"``) ->
     coverage of ``region`` -> registration to the design (``metrology.registration``:
     "lsq", "icp" or "none"; free parameters ``metrology.registration_dof``) -> checks

@@ -194,26 +194,18 @@ def mark_size(marks: ToolMarks | None) -> tuple[float | None, float | None]:
 
 def feature_size(design) -> float | None:
     """The design's own lateral scale (mm): the waviness a process leaves on it is on
-    this scale (sinusoid wavelength, lenslet pitch, element diameter; a compound design's
-    feature's).  ``design``: the ``[design]`` section."""
-    sizes = []
-    for a in ("wavelength_x", "wavelength_y", "pitch_x", "pitch_y"):
-        v = getattr(design, a, None)
-        if v:
-            sizes.append(float(v))
-    er = getattr(design, "element_radius", None)
-    if er:
-        sizes.append(2 * float(er))
-    feat = getattr(design, "feature", None)
-    if not sizes and feat is not None:
-        return feature_size(feat)
-    return max(sizes) if sizes else None
+    this scale.  ``design``: the design surface, which says it
+    (:meth:`~render_inspect.design.Surface.lateral_scale`: a sinusoid's wavelength, a
+    lenslet pitch, an element's diameter, a compound design's feature's; None without
+    one)."""
+    return design.lateral_scale()
 
 
 def waviness_choice(marks: ToolMarks | None, design, metrology, *, pixel: float,
                     window_mm) -> dict:
     """The S/L filters, edge handling and form removal of a simulated map's waviness:
-    :func:`waviness_filters` from the process's marks and the design's feature size, with
+    :func:`waviness_filters` from the process's marks and the design surface's lateral
+    scale (:func:`feature_size`; ``design``: the surface), with
     the ``[metrology]`` section's choices (``s_filter``, ``l_filter``, ``filter_edges``,
     ``form_removal``, ``polynomial_degree``)."""
     period, pv = mark_size(marks)

@@ -277,7 +277,8 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
                      stages: str = "base_then_all") -> dict:
     """The characterisation of a MSA on a base of Kong et al. (2020), end to end.
 
-    1. outliers by the second-difference ``outlier_k``-sigma rule (replaced, left out of fits);
+    1. outliers by the second-difference ``outlier_k``-sigma rule of Kong et al.
+       (``rule="curvature"``) (replaced, left out of fits);
     2. least-squares 6-DOF registration on the base data (outside ``outer`` x aperture)
        when there is enough of it, then on all data (``fit`` names the free parameters;
        ``stages = "base"`` stops after the base);
@@ -310,7 +311,7 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
     z = np.asarray(z, float)
     cen = lenslet_centers(design_surface, centers)
     ap = _aperture(design_surface, aperture_radius)
-    cleaned, outl = detect_outliers(z, pixel=pixel, k=outlier_k)
+    cleaned, outl = detect_outliers(z, pixel=pixel, k=outlier_k, rule="curvature")
     use = np.isfinite(cleaned) & ~outl
     reg = None
     surf = design_surface

@@ -24,6 +24,17 @@ that the fringe model cannot explain.
   distributed per frame, so a pixel holds fringes when its envelope peak exceeds ``sigma
   sqrt(2 ln(N / p))`` (the largest of N frames).
 
+The same noise gives each pixel's height noise (one standard deviation):
+
+* **Phase shifting.**  Noise of scale ``sigma_b`` in each component of ``b e^{i phi}``
+  moves the phase by ``sigma_b / b`` rad (for ``b >> sigma_b``), the height by
+  ``lambda / (4 pi)`` times that (:func:`psi_height_noise`).
+* **Coherence scanning.**  The envelope peak, located by a least-squares Gaussian of
+  ``s`` samples' standard deviation and peak ``A`` in noise ``sigma`` per sample, moves by
+  ``sqrt(2 s / sqrt(pi)) sigma / A`` samples (the Cramer-Rao bound of a Gaussian's
+  centre); with the fringe phase refining it, by the phase noise of the demodulated sum
+  of ``n`` samples, ``sigma sqrt(n) / |sum|`` rad (:func:`csi_height_noise`).
+
 Model misfit (a miscalibrated phase shifter, vibration) adds to the residual and makes
 the estimate conservative: it raises the threshold, it never lets noise pass.
 """
@@ -34,7 +45,10 @@ import math
 
 import numpy as np
 
-__all__ = ["FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas"]
+from ..core.units import NM_TO_MM
+
+__all__ = ["FALSE_ALARM", "psi_noise", "csi_noise_threshold", "noise_sigmas",
+           "psi_height_noise", "csi_height_noise"]
 
 #: Probability that a pixel holding noise alone passes as fringes (per pixel); assumed:
 #: about one such pixel in a 1024 x 1024 field (1e-8 .. 1e-3 are plausible choices).
@@ -137,3 +151,38 @@ def csi_noise_threshold(ac, *, false_alarm: float = FALSE_ALARM):
     n = ac.shape[0]
     sigma = 1.4826 * np.median(np.abs(ac), axis=0)
     return sigma * noise_sigmas(false_alarm, n), sigma
+
+
+def psi_height_noise(sigma_b, b, *, wavelength_nm: float, valid=None):
+    """Height noise (mm, one standard deviation) of each phase-shifting pixel:
+    ``lambda / (4 pi) * sigma_b / b`` (the phase noise ``sigma_b / b`` of a modulation
+    ``b`` in component noise ``sigma_b``); NaN outside ``valid``; None without a noise
+    estimate (three frames)."""
+    if sigma_b is None:
+        return None
+    b = np.asarray(b, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ph = np.where(b > 0, np.asarray(sigma_b, np.float64) / np.where(b > 0, b, 1.0), np.nan)
+    h = ph * float(wavelength_nm) * NM_TO_MM / (4 * math.pi)
+    if valid is not None:
+        h = np.where(valid, h, np.nan)
+    return h
+
+
+def csi_height_noise(sigma, peak, *, width_samples, step_mm: float, wavelength_nm: float,
+                     refine: str = "envelope", phase_sum=None, window_samples=None):
+    """Height noise (mm, one standard deviation) of coherence-scanning pixels.
+
+    ``sigma`` (P,): each pixel's noise per frame; ``peak`` (P,): its envelope peak;
+    ``width_samples``: the envelope's Gaussian standard deviation in scan steps;
+    ``refine`` "phase" uses the demodulated sum ``phase_sum`` (P,) of
+    ``window_samples`` (P,) frames instead (the fringe phase sets the height)."""
+    sigma = np.asarray(sigma, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if refine == "phase" and phase_sum is not None:
+            n = np.maximum(np.asarray(window_samples, np.float64), 1.0)
+            dph = sigma * np.sqrt(n) / np.asarray(phase_sum, np.float64)
+            return dph * float(wavelength_nm) * NM_TO_MM / (4 * math.pi)
+        s = max(float(width_samples), 0.5)
+        dk = np.sqrt(2.0 * s / math.sqrt(math.pi)) * sigma / np.asarray(peak, np.float64)
+    return dk * float(step_mm)

@@ -42,7 +42,8 @@ from ..core.errors import InputError, check_range
 from ..core.progress import report
 from ..core.units import MM_TO_NM, NM_TO_MM
 # unwrapping (importable from here as before)
-from ._noise import FALSE_ALARM, csi_noise_threshold, noise_sigmas, psi_noise
+from ._noise import (FALSE_ALARM, csi_height_noise, csi_noise_threshold, noise_sigmas,
+                     psi_height_noise, psi_noise)
 from ._unwrap import _check_valid, _wrap, phase_quality, unwrap_phase
 
 __all__ = ["wrapped_phase", "unwrap_phase", "phase_quality", "height_from_phase",
@@ -71,6 +72,10 @@ class PhaseResult:
         Connected valid regions (0 = invalid, 1, 2, ...), each unwrapped on its own.
     meta : dict
         Algorithm, wavelength and settings (provenance).
+    height_noise : (H, W) float64, mm, or None
+        Each pixel's height noise (one standard deviation) estimated from the frames'
+        own noise (:func:`~._noise.psi_height_noise`, :func:`~._noise.csi_height_noise`);
+        None where the frames cannot tell it (three PSI frames).
     """
 
     height: np.ndarray
@@ -79,6 +84,7 @@ class PhaseResult:
     modulation: np.ndarray
     labels: np.ndarray
     meta: dict = field(default_factory=dict)
+    height_noise: np.ndarray | None = None
 
 
 # --------------------------------------------------------------------------------------
@@ -244,9 +250,12 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     steps = (np.arange(n) * np.pi / 2) if steps_rad is None else np.asarray(steps_rad, float)
     signal = np.ones(mod.shape, dtype=bool)
     noise = {"method": "not tested", "frame_noise": None, "threshold_sigmas": None}
+    sigma_b = None
     if false_alarm is not None:
         check_range("false_alarm", false_alarm, 0.0, 0.5, lo_open=True)
-        sigma_b, noise = psi_noise(f, steps, a, weights)
+    sigma_b, noise_est = psi_noise(f, steps, a, weights)
+    if false_alarm is not None:
+        noise = noise_est
         kappa = noise_sigmas(false_alarm)
         noise["threshold_sigmas"] = kappa
         noise["false_alarm"] = float(false_alarm)
@@ -256,12 +265,14 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     un, labels = unwrap_phase(phase, valid=v, quality=mod if quality == "modulation" else None)
     h = height_from_phase(un, wavelength_nm=wavelength_nm)
     alg = algorithm if algorithm != "auto" else {4: "4step", 5: "5step"}.get(n, "lsq")
+    hn = psi_height_noise(sigma_b, b, wavelength_nm=wavelength_nm, valid=v)
     meta = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
             "min_modulation": float(min_modulation),
             "unwrap": f"quality-guided flood fill ({quality})",
             "regions": int(labels.max()), "noise": noise,
             "signal_fraction": float(np.mean(signal & np.isfinite(phase)))}
-    return PhaseResult(h, v, phase, mod, labels, meta)
+    meta["noise"]["height_noise_rms_nm"] = _rms_nm(hn, v)
+    return PhaseResult(h, v, phase, mod, labels, meta, height_noise=hn)
 
 
 def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
@@ -329,6 +340,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     ok = np.zeros(npx, dtype=bool)
     signal = np.ones(npx, dtype=bool)
     sigma = np.zeros(npx)
+    hnoise = np.full(npx, np.nan)
     carrier = np.exp(-np.sign(step) * 1j * 4 * np.pi * z / lam)[:, None]
     k = np.arange(n)[:, None]
     for s0 in range(0, npx, max(int(chunk_pixels), 1)):
@@ -381,8 +393,13 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
         height[sl] = hz
         wrapped[sl] = ph
         mod[sl] = m
+        thr, sig = csi_noise_threshold(ac, false_alarm=false_alarm or FALSE_ALARM)
+        hnoise[sl] = csi_height_noise(sig, peak, width_samples=half / 2.3548,
+                                      step_mm=abs(step), wavelength_nm=wavelength_nm,
+                                      refine=refine, phase_sum=np.abs(cpx),
+                                      window_samples=np.sum(win, axis=0))
         if false_alarm is not None:
-            thr, sigma[sl] = csi_noise_threshold(ac, false_alarm=false_alarm)
+            sigma[sl] = sig
             signal[sl] = peak >= thr
         ok[sl] = interior & signal[sl] & (m >= min_modulation)
     ok = ok.reshape(hgt, wid) & v
@@ -399,7 +416,18 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
                       if false_alarm is not None else None,
                       "false_alarm": false_alarm},
             "signal_fraction": float(np.mean(signal))}
-    return PhaseResult(height, ok, wrapped.reshape(hgt, wid), mod.reshape(hgt, wid), labels, meta)
+    hn = np.where(ok, hnoise.reshape(hgt, wid), np.nan)
+    meta["noise"]["height_noise_rms_nm"] = _rms_nm(hn, ok)
+    return PhaseResult(height, ok, wrapped.reshape(hgt, wid), mod.reshape(hgt, wid), labels, meta,
+                       height_noise=hn)
+
+
+def _rms_nm(noise, valid) -> float | None:
+    """rms (nm) of a per-pixel noise map (mm) over the valid pixels; None when unknown."""
+    if noise is None:
+        return None
+    n = np.asarray(noise)[np.asarray(valid, bool) & np.isfinite(noise)]
+    return float(np.sqrt(np.mean(n * n)) * MM_TO_NM) if n.size else None
 
 
 def _label(mask) -> np.ndarray:

@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.errors import InputError
 from ._filters import pixel_xy, valid_mask
+from ._outliers import detect_outliers
 from ._params import autocorrelation
 
 __all__ = ["RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
@@ -123,58 +124,6 @@ class MovedSurface:
         q = np.array([x, y, float(self.surface.height(np.float64(x), np.float64(y)))])
         p = self._rot @ q + self.params[:3]
         return float(p[0]), float(p[1]), float(p[2])
-
-
-def detect_outliers(z, *, pixel, k: float = 3.0, mask=None, replace: bool = True,
-                    min_sigma_mm: float = 1e-7):
-    """Outliers by the second-difference ``k``-sigma rule (Kong et al. 2020, step 1).
-
-    ``f'' = (f(x - d) + f(x + d) - 2 f(x)) / d^2`` along x (``d`` = pixel_x) and along y
-    (``d`` = pixel_y; ``pixel`` is one number or (pixel_x, pixel_y), mm); a point whose
-    ``|f'' - median(f'')|`` exceeds ``k`` sigma in either direction is an outlier.  Sigma is
-    the robust estimate ``1.4826 * MAD`` of ``f''`` (the plain standard deviation is inflated
-    by the very spikes it should find), and at least ``min_sigma_mm / d^2``.  Outliers are
-    replaced by the mean of their valid, non-outlier 3 x 3 neighbours (NaN if none).
-
-    Returns
-    -------
-    cleaned : (ny, nx) array
-        ``z`` with the outliers replaced (a copy; ``z`` itself if ``replace=False``).
-    outliers : (ny, nx) bool array
-    """
-    z = np.asarray(z, dtype=np.float64)
-    pxy = pixel_xy(pixel)
-    ok = valid_mask(z, mask)
-    out = np.zeros(z.shape, dtype=bool)
-    zz = np.where(ok, z, np.nan)
-    for axis in (0, 1):
-        if z.shape[axis] < 3:
-            continue
-        f2 = np.full(z.shape, np.nan)
-        sl = [slice(None)] * 2
-        sl[axis] = slice(1, -1)
-        lo = [slice(None)] * 2
-        lo[axis] = slice(0, -2)
-        hi = [slice(None)] * 2
-        hi[axis] = slice(2, None)
-        d = pxy[1] if axis == 0 else pxy[0]
-        f2[tuple(sl)] = (zz[tuple(lo)] + zz[tuple(hi)] - 2 * zz[tuple(sl)]) / d ** 2
-        fin = np.isfinite(f2)
-        if fin.sum() < 10:
-            continue
-        med = np.median(f2[fin])
-        dev = np.abs(f2 - med)
-        sigma = max(1.4826 * np.median(dev[fin]), min_sigma_mm / d ** 2)
-        out |= fin & (dev > k * sigma)
-    if not replace:
-        return z, out
-    good = ok & ~out
-    w = ndimage.uniform_filter(good.astype(np.float64), 3, mode="constant") * 9
-    s = ndimage.uniform_filter(np.where(good, z, 0.0), 3, mode="constant") * 9
-    cleaned = z.copy()
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cleaned[out] = np.where(w[out] > 0.5, s[out] / w[out], np.nan)
-    return cleaned, out
 
 
 class GridSurface:

@@ -21,6 +21,7 @@ from ..instruments import interferogram_summary
 from ..io import completed_outputs
 from ..metrology import lenslet_metrics
 from ._analyze import ANALYZE_FILES, run_analyze
+from ._analyze_profile import PROFILE_FILES, run_analyze_profile
 from ._blender import (EXPORT_FORMATS, PANEL_METRICS, VARIANT_PROPERTY, blender_output_dir,
                        blender_presets, blender_surfaces, compare_scene, export_variant,
                        load_render_images, remove_blender_surfaces, render_variant,
@@ -32,6 +33,7 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
                        common_window, compare_pair, compare_summary, compare_variants,
                        expected_sq_mm, parse_vary, preview_render_configs, run_compare,
                        variant_scene)
+from ._compare_profile import run_compare_command, run_compare_profile
 from ._demo import DEMO_SCENE, run_demo
 from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
 from ._measure import (analyze_summary, measure_and_evaluate, measure_summary,
@@ -56,7 +58,8 @@ __all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "w
            "part_heightmap", "part_outline", "render_diffuse_views", "tool_marks",
            "run_compare", "compare_variants", "compare_pair", "compare_summary", "parse_vary",
            "variant_scene", "common_window", "preview_render_configs", "check_measured",
-           "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_demo", "DEMO_SCENE",
+           "expected_sq_mm", "run_analyze", "ANALYZE_FILES", "run_analyze_profile", "PROFILE_FILES",
+           "run_compare_profile", "run_compare_command", "run_demo", "DEMO_SCENE",
            "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
            "measure_summary", "analyze_summary",
            "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",

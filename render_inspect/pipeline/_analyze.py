@@ -21,12 +21,13 @@ from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import check_memory, format_bytes, memory_budget
 from ..core.progress import task
 from ..core.units import GIB_TO_BYTES, MM_TO_NM, MM_TO_UM
-from ..io import (ZarrHeightMap, atomic_output_dir, check_output_dir, json_safe, read_surface,
-                  write_x3p)
+from ..io import (ZarrHeightMap, atomic_output_dir, check_output_dir, is_profile_file, json_safe,
+                  read_surface, write_x3p)
 from ..metrology import (FORMS, OUTLIER_METHODS, analyze_bands, analyze_map, analyze_memory,
-                         analyze_memory_per_point, band_bytes_per_point, parse_filter,
-                         windowed_refusal)
+                         analyze_memory_per_point, band_bytes_per_point, map_periods,
+                         parse_filter, windowed_refusal)
 from ..report import save_height_png
+from ._analyze_profile import run_analyze_profile
 from ._metrics import analysis_metrics, write_metrics
 
 __all__ = ["run_analyze", "ANALYZE_FILES", "analyze_budget"]
@@ -79,7 +80,7 @@ def _title(path, m_pixel, ar, metrics, *, form, s_mm, l_mm, outliers, note="") -
 def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | None = None,
                 outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
                 x3p: bool = False, channel: str | None = None, overwrite: bool = False,
-                budget: tuple[int, str] | None = None) -> dict:
+                budget: tuple[int, str] | None = None, units: str | None = None) -> dict:
     """Analyse one height map file and write the results.
 
     Parameters
@@ -97,7 +98,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     filter_spec : "S,L" text or (S, L), optional
         ISO 16610-61 Gaussian nesting indices in mm; either may be empty / None.
     outliers : {"none", "sigma"}
-        ``sigma`` leaves the second-difference ``outlier_sigma``-sigma outliers out.
+        ``sigma`` leaves the ``outlier_sigma``-sigma spikes out.
     slope : {"forward", "central"}
         Derivative estimator of Sdq and Sdr.
     x3p : bool
@@ -108,6 +109,10 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     budget : (bytes, source), optional
         The memory budget (default :func:`analyze_budget`).  A map whose analysis does not
         fit is refused before it is read, unless it is a store analysed window by window.
+    units : str, optional
+        For a profile text file that does not state its units (``um``, ``mm``, ``nm`` or
+        ``POSITION,HEIGHT``).  A profile (:func:`~render_inspect.io.is_profile_file`) is
+        analysed by :func:`run_analyze_profile` (ISO 21920-2 parameters, profile.png).
 
     Returns
     -------
@@ -119,6 +124,15 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     """
     t0 = time.perf_counter()
     path = Path(path)
+    if is_profile_file(path):
+        if x3p:
+            raise InputError(f"--x3p writes an evaluated areal map; {path.name} is a profile")
+        return run_analyze_profile(path, out, units=units, form=form, filter_spec=filter_spec,
+                                   outliers=outliers, outlier_sigma=outlier_sigma,
+                                   overwrite=overwrite)
+    if units is not None:
+        raise InputError(f"--units is for profile text files that do not state their units; "
+                         f"{path.name} is an areal map, which states its own")
     check_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,))
     if form not in FORMS:
         raise InputError(f"--form must be one of {', '.join(FORMS)}, got {form!r}")
@@ -149,6 +163,7 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
         files["height.x3p"] = ("evaluated surface (outliers left out if asked, form removed, "
                                "filtered): ISO 25178-72, metres in the file")
     metrics = analysis_metrics(a.metrics, path=path, files=files, timing={})
+    metrics["periods"] = _map_periods(a.height, m.pixel)
     _log_warnings(metrics)
     title = _title(path, m.pixel, metrics["areal"], metrics, form=form, s_mm=s_mm, l_mm=l_mm,
                    outliers=outliers)
@@ -166,6 +181,18 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
         metrics["timing_s"] = {"read": t_read, "total": time.perf_counter() - t0}
         write_metrics(tmp, metrics)
     return json_safe(metrics)
+
+
+def _map_periods(z, pixel) -> dict | None:
+    """The dominant period of an analysed map and its harmonics (square pixels only)."""
+    if not math.isclose(pixel[0], pixel[1], rel_tol=1e-6):
+        return None
+    p = map_periods(z, pixel=pixel[0])
+    return {"dominant": {"period_mm": p.get("period_mm"),
+                         "fraction_of_variance": p.get("fraction"),
+                         "harmonics": p.get("harmonics", [])},
+            "method": "radially averaged Hann-windowed 2-D periodogram; harmonics 10x above "
+                      "the median"}
 
 
 def _log_warnings(metrics: dict) -> None:

@@ -61,7 +61,7 @@ def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0,
         tmp = Path(tmp)
         atomic_write_text(tmp / "itf.csv", table_csv(metrics["itf"]["table"], [
             "frequency_per_mm", "period_um", "itf_optics", "itf_instrument", "itf_model",
-            "itf_textbook"]))
+            "itf_textbook", "aliased_instrument"]))
         atomic_write_text(tmp / "step.csv", table_csv(metrics["step"]["csi"]["table"], [
             "step_nm", "batwing_pv_nm", "batwing_height_nm", "batwing_width_um",
             "batwing_low_side_nm", "batwing_low_side_width_um", "batwing_high_side_nm",

@@ -3,10 +3,16 @@
 The pair is the one that means something for the scene's process kind (its ``variants``
 hook: compensation on/off for turning, servo lag on/off for tool-servo turning,
 vibration on/off for sculpturing, RCSE against the conventional path), or any scene key
-with two values (``--vary key=a,b``).  For each variant (same camera, same seed):
+with two values (``--vary key=a,b``).  For each variant (same camera, its own noise):
 simulate the machined surface, image it with the instrument that records interferometer
 frames and with diffuse light, retrieve the height from the frames (what the instrument
-reports) and characterise everything.  The windows are shared: the instrument's field,
+reports) and characterise everything.  Each measurement gets its own camera-noise
+realisation (seeds spawned from the scene's seed, recorded in ``metrics.json``), as two
+real measurements would; the difference of the two measurements is given with its noise
+floor (from the two measurements' own noise estimates) and said to be resolved or not,
+and it is checked for fringe-order failures (a failed measurement is not reported as a
+measured difference).  ``repeat`` > 1 measures both variants again with fresh noise and
+reports the difference's repeatability.  The windows are shared: the instrument's field,
 the micro diffuse view and the first figure's maps all cover one common window, placed
 where the two variants differ most.  Files: both variant folders, the figures,
 ``metrics.json`` and a self-contained ``report.html`` whose first figure is the
@@ -36,8 +42,10 @@ from ..instruments import height_instrument, rendered_settings
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
                   export_program, json_safe, read_surface, writer)
 from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
-                         difference_profiles, difference_stats, level_map, line_profile,
-                         measured_difference, profile_center, sections, waviness_choice, waviness_map)
+                         difference_noise, difference_order_check, difference_profiles,
+                         difference_stats, fringe_order_check, level_map, line_profile,
+                         measure_frames, measured_difference, measurement_seeds, profile_center,
+                         repeat_statistics, resolution, sections, waviness_choice, waviness_map)
 from ..metrology import expected_sq_mm as _marks_sq_mm
 from ..processes import process_of
 from ..render import mitsuba_variant
@@ -69,6 +77,8 @@ PROFILE_ANGLES_DEG = (0.0, 30.0, 60.0, 90.0)
 COMPARE_MAX_CAMERA_PIXELS = 256
 COMPARE_MAX_DIFFUSE_RESOLUTION = 512
 COMPARE_MAX_DIFFUSE_SPP = 32
+#: Most measurements of each variant ``repeat`` asks for.
+MAX_REPEAT = 100
 _NAME_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
 
 #: the one-screen summary of a comparison (the command line prints it)
@@ -150,6 +160,8 @@ class _Variant:
     filtered: np.ndarray | None = None
     maps: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
+    noise_seed: int = 0  # the camera's temporal noise of this variant's measurement
+    fringe: dict = field(default_factory=dict)  # fringe-order check of the measurement
 
     def shown(self) -> ComparedVariant:
         """What the figures show of this variant."""
@@ -185,7 +197,9 @@ def _simulate_variant(v: _Variant, out: Path) -> None:
 
 def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_surface,
                     filters: dict, t) -> None:
-    """Image, measure and characterise one simulated variant; write its folder."""
+    """Image, measure and characterise one simulated variant; write its folder.  The
+    interferogram's camera noise uses ``v.noise_seed`` (its own realisation); the diffuse
+    views use ``seed``."""
     timing = v.timing
     d = out / v.name
     hm = v.heightmap
@@ -193,7 +207,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     entry, _ = _instrument(v.scene)
     t0 = time.perf_counter()
     t.update(f"{v.name}: interferogram")
-    ig = v.ig = entry.render(hm, icfg, surface="machined", seed=seed)
+    ig = v.ig = entry.render(hm, icfg, surface="machined", seed=v.noise_seed)
     timing["interferogram"] = time.perf_counter() - t0
     summary = write_instrument_outputs(entry.name, d, ig, scene=v.scene.to_dict())
     t.advance()
@@ -207,7 +221,10 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
                                                        csi_refine=mcfg.csi_refine,
                                                        min_modulation=mcfg.min_modulation)
     v.reported = reported
+    v.fringe = fringe_order_check(reported, fringe_order_mm=_fringe_order(ig))
     measured["instrument"] = measurement_outputs(d, ig, reported, source="interferogram.exr")
+    measured["instrument"]["noise_seed"] = int(v.noise_seed)
+    measured["instrument"]["fringe_order"] = _fringe_summary(v.fringe)
     timing["phase_retrieval"] = time.perf_counter() - t0
     t.advance()
     # the evaluation against the simulation's truth (labelled as such)
@@ -264,25 +281,95 @@ def _fringe_order(frames) -> float | None:
     return frames.lambda_eff_nm * NM_TO_MM / 2 if frames.mode == "psi" else None
 
 
-def _window_difference(a: _Variant, b: _Variant) -> dict:
-    """The two measurements' difference over the common window, formed from the
-    measurements alone (:func:`~render_inspect.metrology.measured_difference`: piston
-    and tilt removed, and piston only), and the truth at the same camera pixels with the
-    same terms removed."""
-    ig = a.ig
-    ra, rb = a.reported, b.reported
-    common = dict(pixel=ig.pixel, labels_a=ra.labels, labels_b=rb.labels,
-                  fringe_order_mm=_fringe_order(ig))
+def _fringe_summary(check: dict) -> dict:
+    """A fringe-order check's numbers (its masks left out)."""
+    return {k: x for k, x in check.items() if k not in ("unknown_order", "mask")}
+
+
+def _levelled_difference(ra, rb, *, pixel, fringe_order_mm, checks=()):
+    """The measurements' difference (piston and tilt removed), checked for fringe-order
+    failures; pixels of unknown order masked (NaN).  Returns (levelled mm, info, order)."""
+    common = dict(pixel=pixel, labels_a=ra.labels, labels_b=rb.labels,
+                  fringe_order_mm=fringe_order_mm)
     ha = np.where(ra.valid, ra.height, np.nan)
     hb = np.where(rb.valid, rb.height, np.nan)
     tilt, info = measured_difference(ha, hb, terms="piston and tilt", **common)
-    piston, pinfo = measured_difference(ha, hb, terms="piston", **common)
-    both = np.isfinite(tilt)
-    true_cam = np.where(both, a.ig.height_true - b.ig.height_true, np.nan)
+    order = difference_order_check(tilt, fringe_order_mm=fringe_order_mm, checks=checks)
+    if order["status"] == "masked":  # level again without the pixels of unknown order
+        keep = order["mask"]
+        tilt, info = measured_difference(np.where(keep, ha, np.nan), np.where(keep, hb, np.nan),
+                                         terms="piston and tilt", **common)
+    return tilt, info, order
+
+
+def _window_difference(a: _Variant, b: _Variant) -> dict:
+    """The two measurements' difference over the common window, formed from the
+    measurements alone (:func:`~render_inspect.metrology.measured_difference`: piston
+    and tilt removed, and piston only), checked for fringe-order failures (pixels of
+    unknown order masked; a failed difference flagged), with its noise floor from the two
+    measurements' own noise estimates; and the truth at the same camera pixels with the
+    same terms removed."""
+    ig = a.ig
+    ra, rb = a.reported, b.reported
+    fo = _fringe_order(ig)
+    tilt, info, order = _levelled_difference(ra, rb, pixel=ig.pixel, fringe_order_mm=fo,
+                                             checks=(a.fringe, b.fringe))
+    keep = np.isfinite(tilt)
+    common = dict(pixel=ig.pixel, labels_a=ra.labels, labels_b=rb.labels, fringe_order_mm=fo)
+    piston, pinfo = measured_difference(np.where(keep, ra.height, np.nan),
+                                        np.where(keep, rb.height, np.nan), terms="piston",
+                                        **common)
+    true_cam = np.where(keep, a.ig.height_true - b.ig.height_true, np.nan)
     true_lev, tinfo = level_map(true_cam, pixel=ig.pixel, terms="piston and tilt")
+    noise = difference_noise(ra.height_noise, rb.height_noise, valid=keep)
+    noise["seeds"] = {a.name: int(a.noise_seed), b.name: int(b.noise_seed)}
     return {"levelled": tilt * MM_TO_NM, "piston_removed": piston * MM_TO_NM,
             "true_levelled": true_lev * MM_TO_NM, "info": info, "piston_info": pinfo,
-            "true_info": tinfo}
+            "true_info": tinfo, "order": order, "noise": noise}
+
+
+def _repeat_differences(a: _Variant, b: _Variant, wdiff: dict, *, icfg, repeat: int, seed: int,
+                        t) -> dict:
+    """Measure both variants ``repeat - 1`` more times, each with fresh camera noise
+    (:func:`~render_inspect.metrology.measurement_seeds`), and the repeatability of their
+    difference (:func:`~render_inspect.metrology.repeat_statistics`)."""
+    entry, _ = _instrument(a.scene)
+    fo = _fringe_order(a.ig)
+    mcfg = a.scene.metrology
+    first = wdiff["levelled"]
+    ok0 = np.isfinite(first)
+    st0 = wdiff["order"]["status"]
+    maps, seeds, status = [first], [[int(a.noise_seed), int(b.noise_seed)]], [st0]
+    rms = [float(np.sqrt(np.mean(first[ok0] ** 2))) if ok0.any() and st0 != "failed" else None]
+    for r in range(1, int(repeat)):
+        sa, sb = measurement_seeds(seed, 2, repeat=r)
+        res = []
+        for v, s in ((a, sa), (b, sb)):
+            t.update(f"repeat {r + 1}/{repeat}: {v.name}")
+            ig = entry.render(v.heightmap, icfg, surface="machined", seed=s)
+            rr = measure_frames(ig.recorded(), algorithm=mcfg.phase_algorithm,
+                                csi_refine=mcfg.csi_refine, min_modulation=mcfg.min_modulation)
+            res.append((rr, fringe_order_check(rr, fringe_order_mm=fo)))
+        (ra, ca), (rb, cb) = res
+        d, _, order = _levelled_difference(ra, rb, pixel=a.ig.pixel, fringe_order_mm=fo,
+                                           checks=(ca, cb))
+        d = d * MM_TO_NM
+        ok = np.isfinite(d)
+        maps.append(d)
+        rms.append(float(np.sqrt(np.mean(d[ok] ** 2))) if ok.any() and order["status"] != "failed"
+                   else None)
+        seeds.append([int(sa), int(sb)])
+        status.append(order["status"])
+    stack = np.stack([np.where(np.isfinite(m), m, np.nan) for m in maps])
+    failed = [i for i, st in enumerate(status) if st == "failed"]
+    if failed:
+        stack = np.delete(stack, failed, axis=0)
+    out = repeat_statistics(stack, [x for i, x in enumerate(rms) if i not in failed])
+    out.update(seeds=seeds, status=status, failed_repeats=len(failed),
+               method="both variants measured again with fresh camera noise; the "
+                      "difference formed each time as in the first (piston and tilt "
+                      "removed); an MSA-style repeatability of the difference")
+    return out
 
 
 def check_measured(path, scene, design_surface, *, force: bool = False):
@@ -372,12 +459,26 @@ def _difference_numbers(a: _Variant, b: _Variant, diff, profile: dict, wdiff: di
     # ``true``: the simulation's machined maps (truth); ``measured``: the two measurements
     # alone, piston and tilt removed as instrument software does (said in ``measured``)
     w["true"] = {**w["true"], "source": "truth: the simulated machined maps, nothing removed"}
-    w["measured"] = {**w["measured"], "form_removed": wdiff["info"]["removed"],
-                     "source": "the two measurements alone (height.exr of each variant)",
-                     "levelling": wdiff["info"]}
-    w["measured_piston_removed"] = {**difference_stats(wdiff["piston_removed"]),
-                                    "form_removed": "piston",
-                                    "levelling": wdiff["piston_info"]}
+    order = wdiff["order"]
+    meas = {**w["measured"], "form_removed": wdiff["info"]["removed"],
+            "source": "the two measurements alone (height.exr of each variant)",
+            "levelling": wdiff["info"], "status": order["status"],
+            "fringe_order": _fringe_summary(order), "noise": wdiff["noise"]}
+    if order["status"] == "failed":
+        # a failed measurement is no measured difference: its numbers are kept apart
+        meas["unreliable"] = {k: meas.pop(k) for k in ("rms_nm", "pv_nm", "mean_nm")}
+        meas.update(rms_nm=None, pv_nm=None, mean_nm=None)
+        meas["resolution"] = resolution(None, None)
+        meas["resolution"]["verdict"] = "failed"
+    else:
+        meas["resolution"] = resolution(meas.get("rms_nm"), wdiff["noise"]["floor_nm"])
+    w["measured"] = meas
+    pist = {**difference_stats(wdiff["piston_removed"]), "form_removed": "piston",
+            "levelling": wdiff["piston_info"], "status": order["status"]}
+    if order["status"] == "failed":
+        pist["unreliable"] = {k: pist.pop(k) for k in ("rms_nm", "pv_nm", "mean_nm")}
+        pist.update(rms_nm=None, pv_nm=None, mean_nm=None)
+    w["measured_piston_removed"] = pist
     w["true_same_form_removed"] = {**difference_stats(wdiff["true_levelled"]),
                                    "form_removed": wdiff["true_info"]["removed"],
                                    "source": "truth at the camera pixels both measured"}
@@ -385,7 +486,7 @@ def _difference_numbers(a: _Variant, b: _Variant, diff, profile: dict, wdiff: di
 
 
 def run_compare(scene, out, *, measured=None, vary: str | None = None,
-                force: bool = False, overwrite: bool = False) -> dict:
+                force: bool = False, overwrite: bool = False, repeat: int = 1) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 
     Parameters
@@ -406,6 +507,10 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
         ``measured_file.checks`` and shown in the report).
     overwrite : bool
         Replace ``out`` even if render_inspect did not write it.
+    repeat : int
+        Measurements of each variant (1..100): beyond the first, both variants are
+        measured again with fresh camera noise and the difference's repeatability is
+        reported (``difference.window.measured.repeat``).
 
     Returns
     -------
@@ -426,13 +531,17 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
             Path(measured).suffix.lower() == ".zarr" and Path(measured).is_dir())):
         raise InputError(f"--measured file not found: {str(measured)!r} (a height map file, "
                          f"or a .zarr store folder)")
+    if isinstance(repeat, bool) or int(repeat) != repeat or not 1 <= int(repeat) <= MAX_REPEAT:
+        raise InputError(f"--repeat must be an integer from 1 to {MAX_REPEAT}, got {repeat!r}")
+    repeat = int(repeat)
     _check_phase_settings(scene)
     t_all = time.perf_counter()
     seed = int(scene.simulation.seed)
     design_surface = make_surface(scene.design)
     traits = _traits(scene)
     pair = compare_pair(scene, vary)
-    variants = [_Variant(v.name, v.label, variant_scene(scene, v)) for v in pair.variants]
+    variants = [_Variant(v.name, v.label, variant_scene(scene, v), noise_seed=s)
+                for v, s in zip(pair.variants, measurement_seeds(seed, len(pair.variants)))]
     for v in variants:
         if not _NAME_OK.match(v.name):
             raise InputError(f"variant name {v.name!r} must use letters, digits, '_', '-', '.'")
@@ -446,7 +555,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
     check_render_limits(scene, kind="diffuse")
     with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
                            inputs=inputs) as tmp, \
-            task("compare", total=13) as t:
+            task("compare", total=13 + 2 * (repeat - 1)) as t:
         tmp = Path(tmp)
         for v in variants:
             t.update(f"{v.name}: simulate")
@@ -472,7 +581,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                          f"in the maps and the micro view; set simulation.pixel <= "
                          f"{feed / 4 * MM_TO_UM:.3g} um to resolve them")
         x0, x1, y0, y1 = hm.extent
-        filters = waviness_choice(marks, scene.design, scene.metrology, pixel=hm.pixel,
+        filters = waviness_choice(marks, design_surface, scene.metrology, pixel=hm.pixel,
                                   window_mm=(x1 - x0, y1 - y0))
         for v in variants:
             _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed,
@@ -486,6 +595,9 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
         ig = a.ig
         window = ig.meta.get("window_mm", cw["window"])
         wdiff = _window_difference(a, b)
+        rep_stats = None
+        if repeat > 1:
+            rep_stats = _repeat_differences(a, b, wdiff, icfg=icfg, repeat=repeat, seed=seed, t=t)
         profile = difference_profiles(
             diff, hm, wdiff["levelled"], ig,
             (a.heightmap.residual * MM_TO_NM, b.heightmap.residual * MM_TO_NM),
@@ -523,9 +635,12 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                            "diffuse": {view: diffuse_summary(meta)
                                        for view, (_, meta) in a.diffuse.items()},
                            "notes": notes, "profile_angles_deg": list(PROFILE_ANGLES_DEG)}
+        dnum = _difference_numbers(a, b, diff, profile, wdiff)
+        if rep_stats is not None:
+            dnum["window"]["measured"]["repeat"] = rep_stats
         metrics = comparison_metrics(
             scene, pair=pair, variants=variants,
-            difference={**_difference_numbers(a, b, diff, profile, wdiff), "identical": identical},
+            difference={**dnum, "identical": identical},
             filters=filters, windows=windows, seed=seed, mitsuba_variant=mitsuba_variant(),
             render_settings=render_settings,
             measured_file=None if meas is None else meas["metrics"],

@@ -51,6 +51,7 @@ from ..batch import (
 from ..core.errors import InputError, RenderInspectError, SceneError
 from ..core.limits import format_bytes, memory_budget
 from ..core.units import MIB_TO_BYTES, MM_TO_NM
+from ..instruments import height_instrument
 from ..io import (
     atomic_output_dir,
     atomic_write_bytes,
@@ -65,7 +66,7 @@ from ..report import morris_png, save_map_png, sweep_plot_png
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
-from ._render import run_render
+from ._render import render_kinds, run_render
 from ._simulate import residual_title, simulate, write_simulation
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
@@ -479,7 +480,8 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     """
     t_all = time.perf_counter()
     sweep_path = Path(sweep)
-    spec = read_sweep(sweep_path, sections=scene_sections())
+    spec = read_sweep(sweep_path, sections=scene_sections(), render_kinds=render_kinds(),
+                      frames_kind=height_instrument().name)
     out = check_output_path(out, replaced=False)
     tasks, invalid, keys = sweep_tasks(spec, sweep_path, out)
     check_sweep_tasks(sweep_path, tasks, invalid)

@@ -14,10 +14,9 @@ from typing import Annotated, Callable, Union
 
 from pydantic import Discriminator, Tag
 
-from ..core.errors import SceneError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, check_memory, memory_budget
-from ..core.plugins import literal_values
+from ..core.plugins import Registry, literal_values
 from ._contract import Process
 
 __all__ = ["register_process", "process_kinds", "process_of", "process_config_union",
@@ -27,36 +26,27 @@ __all__ = ["register_process", "process_kinds", "process_of", "process_config_un
 #: the kind a scene without ``process.kind`` gets
 DEFAULT_KIND = "sts"
 
-_PROCESSES: dict[str, Process] = {}
+_PROCESSES = Registry("process.kind")
 _SECTIONS: dict[str, type] = {}
 _MIGRATIONS: list[Callable] = []
 _RETIRED: dict[str, tuple[str | None, str]] = {}
-_UNION = None
 
 
 def register_process(process: Process) -> Process:
     """Register a process kind under the names of its ``config``'s ``kind`` Literal."""
     if not isinstance(process, Process):
         raise TypeError(f"register_process takes a Process instance, received {process!r}")
-    for name in literal_values(process.config, "kind"):
-        _PROCESSES[name] = process
-    global _UNION
-    _UNION = None
-    return process
+    return _PROCESSES.add(literal_values(process.config, "kind"), process)
 
 
 def process_kinds() -> dict[str, Process]:
     """``process.kind`` name -> :class:`Process`."""
-    return dict(_PROCESSES)
+    return _PROCESSES.entries()
 
 
 def process_of(scene) -> Process:
     """The registered process of ``scene``'s ``[process]`` section."""
-    kind = scene.process.kind
-    entry = _PROCESSES.get(kind)
-    if entry is None:
-        raise SceneError(f"process.kind must be one of {sorted(_PROCESSES)}, received {kind!r}")
-    return entry
+    return _PROCESSES.lookup(scene.process.kind)
 
 
 def _discriminate(value):
@@ -68,18 +58,15 @@ def _discriminate(value):
 def process_config_union():
     """The pydantic type of a ``[process]`` section: the registered schema classes,
     chosen by ``kind`` (``"sts"`` when the key is missing)."""
-    global _UNION
-    if _UNION is None:
-        configs = []
-        for entry in _PROCESSES.values():
-            if entry.config not in configs:
-                configs.append(entry.config)
-        members = tuple(Annotated[c, Tag(c.__name__)] for c in configs)
-        _UNION = Annotated[Union[members], Discriminator(
-            _discriminate, custom_error_type="invalid_kind",
-            custom_error_message=f"kind must be one of {sorted(_PROCESSES)}",
-            custom_error_context={"discriminator": "kind"})]
-    return _UNION
+    return _PROCESSES.union(_union_of)
+
+
+def _union_of(configs):
+    members = tuple(Annotated[c, Tag(c.__name__)] for c in configs)
+    return Annotated[Union[members], Discriminator(
+        _discriminate, custom_error_type="invalid_kind",
+        custom_error_message=f"kind must be one of {sorted(_PROCESSES)}",
+        custom_error_context={"discriminator": "kind"})]
 
 
 def register_section(path: str, config: type) -> type:

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from ._comparison import (ComparedVariant, comparison_figures, comparison_summary,
                           diffuse_caption, luminance, srgb)
-from ._draw import FIGURE_KINDS, draw_figure
+from ._draw import FIGURE_KINDS, draw_figure, figure_kinds
+from ._figure_kinds import register_figure, registered_figures
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
                        line_panels, locator_figure, lowpass_map, map_panels, png_bytes,
                        radial_profile_figure)
@@ -23,8 +24,10 @@ from ._morris import morris_png
 from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
                     save_map_png)
 from ._page import build_page
+from ._profile_figs import profile_figure, profile_overlay_figure
 from ._quickplot import map_png, panels_png
 from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
+from ..core.plugins import import_private_modules
 
 __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematics",
            "kinematics_png", "image_panels", "map_panels", "png_bytes", "radial_profile_figure",
@@ -36,4 +39,9 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
-           "luminance", "fit_figures", "fit_page", "psd_figure"]
+           "luminance", "fit_figures", "fit_page", "psd_figure", "figure_kinds",
+           "register_figure", "registered_figures", "profile_figure",
+           "profile_overlay_figure"]
+
+# figure kinds added as modules of this package register themselves on import
+import_private_modules(__name__, __path__)

@@ -14,6 +14,7 @@ from ._figures import (difference_figure, image_panels, locator_figure, map_pane
 from ._format import fmt_quantity, nice_length
 
 __all__ = ["ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption",
+           "resolution_text",
            "srgb", "luminance"]
 
 
@@ -265,7 +266,50 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
               f"rms {fmt_quantity(d.get('machined_rms_nm'), 'nm')}, "
               f"PV {fmt_quantity(d.get('machined_pv_nm'), 'nm')}"),
              (f"{va} - {vb}, common window",
-              f"measured rms {fmt_quantity(meas.get('rms_nm'), 'nm')} ({removed} removed: the "
+              f"{_measured_text(meas)} ({removed} removed: the "
               f"measurements alone); truth: rms {fmt_quantity((w.get('true') or {}).get('rms_nm'), 'nm')}, "
               f"{fmt_quantity(same.get('rms_nm'), 'nm')} with the same {removed} removed")]
+    verdict = resolution_text(meas)
+    if verdict:
+        lines.append((f"{va} - {vb}, resolved?", verdict))
+    rep = meas.get("repeat")
+    if rep:
+        lines.append((f"{va} - {vb}, {rep['repeats']} repeats",
+                      f"rms {fmt_quantity(rep.get('rms_mean_nm'), 'nm')} +- "
+                      f"{fmt_quantity(rep.get('rms_std_nm'), 'nm')} (1 s.d.); per-pixel "
+                      f"repeatability {fmt_quantity(rep.get('pixel_repeatability_nm'), 'nm')}; "
+                      f"mean of the repeats {fmt_quantity(rep.get('mean_map_rms_nm'), 'nm')} rms "
+                      f"against its noise {fmt_quantity(rep.get('mean_map_floor_nm'), 'nm')}: "
+                      f"{(rep.get('mean_map') or {}).get('verdict', 'unknown')}"))
     return rows, lines
+
+
+def _measured_text(meas: dict) -> str:
+    """The measured difference's rms, or why there is none (a failed measurement)."""
+    if meas.get("status") == "failed":
+        return "measured: FAILED (fringe-order failure, no measured difference)"
+    return f"measured rms {fmt_quantity(meas.get('rms_nm'), 'nm')}"
+
+
+def resolution_text(meas: dict) -> str | None:
+    """One sentence: is the measured difference resolved above the two measurements'
+    noise, failed, or of unknown noise (None for metrics without the verdict)."""
+    res = meas.get("resolution")
+    if not res:
+        return None
+    order = meas.get("fringe_order") or {}
+    if meas.get("status") == "failed":
+        why = "; ".join(order.get("reasons") or []) or "fringe-order failure"
+        return (f"failed: {why} ({100 * order.get('unknown_fraction', 0):.3g} % of the pixels of "
+                f"unknown fringe order); not a measured difference")
+    floor = (meas.get("noise") or {}).get("floor_nm")
+    masked = ""
+    if meas.get("status") == "masked":
+        n = int(round(order.get("unknown_fraction", 0) * order.get("pixels", 0)))
+        masked = f"; {n} pixels of unknown fringe order masked"
+    if res.get("resolved") is None:
+        return f"unknown: the measurements give no noise estimate{masked}"
+    word = "resolved" if res["resolved"] else "not resolved"
+    return (f"{word}: {fmt_quantity(meas.get('rms_nm'), 'nm')} rms against a noise floor of "
+            f"{fmt_quantity(floor, 'nm')} (the two measurements' own noise; "
+            f"{fmt_quantity(res.get('above_noise_nm'), 'nm')} above it; {res['rule']}){masked}")

@@ -14,14 +14,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._figure_kinds import registered_figures
 from ._following import plot_following_error, plot_following_error_map
 from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
 
-__all__ = ["draw_figure", "FIGURE_KINDS"]
+__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds"]
 
-#: the figure kinds :func:`draw_figure` draws
+#: the figure kinds :func:`draw_figure` draws itself (more are registered:
+#: :func:`figure_kinds`)
 FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map")
+
+
+def figure_kinds() -> tuple[str, ...]:
+    """Every figure kind :func:`draw_figure` draws: the built-in ones and those registered
+    with :func:`~render_inspect.report.register_figure`."""
+    return FIGURE_KINDS + tuple(k for k in registered_figures() if k not in FIGURE_KINDS)
 
 
 def draw_figure(spec: dict, png) -> Path:
@@ -44,4 +52,7 @@ def draw_figure(spec: dict, png) -> Path:
                             title=spec.get("title", ""), label=spec.get("label", ""),
                             cmap=spec.get("cmap", "viridis"),
                             symmetric=spec.get("symmetric", False))
-    raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(FIGURE_KINDS)}")
+    draw = registered_figures().get(kind)
+    if draw is not None:
+        return draw(spec, png)
+    raise ValueError(f"unknown figure kind {kind!r}; known: {', '.join(figure_kinds())}")

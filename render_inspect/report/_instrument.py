@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ..core.units import MM_TO_UM
 from ._figures import line_panels, map_panels
+from ._profile_figs import profile_summary
 from ._format import fmt_number, fmt_quantity
 
 __all__ = ["analysis_summary", "characterise_figures", "measurement_summary"]
@@ -19,6 +20,8 @@ def characterise_figures(m, curves) -> dict:
     t = itf["table"]
     f = [r["frequency_per_mm"] for r in t]
     inst = [(r["frequency_per_mm"], r["itf_instrument"]) for r in t if r["itf_instrument"] is not None]
+    alias = [(r["frequency_per_mm"], r["aliased_instrument"]) for r in t
+             if r.get("aliased_instrument") is not None]
     obj = m["objective"]
     figs = {"itf.png": line_panels([{
         "title": f"Instrument transfer function, {obj['name']} NA {obj['numerical_aperture']:g}",
@@ -29,8 +32,11 @@ def characterise_figures(m, curves) -> dict:
                    {"x": f, "y": [r["itf_optics"] for r in t], "label": "measured, optics (fine pixel)",
                     "style": "points"},
                    {"x": [a for a, _ in inst], "y": [b for _, b in inst],
-                    "label": "measured, at the camera pixel (above its Nyquist: any alias)",
-                    "style": "points"}],
+                    "label": "measured, at the camera pixel (up to its Nyquist frequency)",
+                    "style": "points"}]
+        + ([{"x": [a for a, _ in alias], "y": [b for _, b in alias],
+             "label": "above the camera's Nyquist: aliased pattern (not a transfer value)",
+             "style": "points"}] if alias else []),
         "vlines": [(itf["cutoff_per_mm"], "cut-off"), (itf["camera_nyquist_per_mm"], "camera Nyquist")],
         "ylim": (-0.05, 1.15)}])}
     psi = m["step"]["psi_profile"]
@@ -82,7 +88,9 @@ def measurement_summary(metrics: dict) -> list[tuple[str, str]]:
 
 def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     """The headline numbers of ``analyze``'s ``metrics.json`` for a one-screen summary:
-    (quantity, text) rows."""
+    (quantity, text) rows (a profile's: :func:`profile_summary`)."""
+    if metrics.get("kind") == "profile":
+        return profile_summary(metrics)
     a = metrics.get("areal", {})
     f = metrics.get("filter", {})
     shape = metrics.get("shape") or [0, 0]
@@ -102,6 +110,9 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
                               f"{fmt_number(a.get('Sdq'))}"),
             ("outliers (3-sigma rule)", f"{out.get('count')} "
                                         + ("left out" if out.get("left_out") else "kept"))]
+    period = ((metrics.get("periods") or {}).get("dominant") or {}).get("period_mm")
+    if period:
+        rows.append(("dominant period", fmt_quantity(period * MM_TO_UM, "um")))
     return rows
 
 

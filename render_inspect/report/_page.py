@@ -13,6 +13,7 @@ import math
 from ..core.units import MM_TO_NM, MM_TO_UM
 from .. import __version__
 from ._format import fmt_number, fmt_quantity
+from ._comparison import resolution_text
 from ._html import HtmlReport
 from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
 
@@ -106,7 +107,7 @@ def _measured_section(rep, mf: dict) -> None:
             ["residual limit", fmt_quantity(_scaled(checks.get("residual_limit_mm"), 1e6), "nm")],
             ["checks", "passed" if checks.get("ok") else
              ("refused, compared with --force" if checks else "not run")],
-            [f"outliers (second difference, k = {fmt_number(out.get('sigma'))})",
+            [f"outliers (spikes, k = {fmt_number(out.get('sigma'))})",
              f"{fmt_number(out.get('count'))} ({_q(out.get('fraction') or 0.0, 'fraction')}), "
              f"left out of {' and '.join(out.get('left_out_of', [])) or 'nothing'}"]]
     rep.table(rows, header=["measured file", "value"])
@@ -181,21 +182,44 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                                     f"window ({win_txt}).")
     else:
         tw, mw = w.get("true") or {}, w.get("measured") or {}
+        same = w.get("true_same_form_removed") or {}
+        removed = mw.get("form_removed", "piston and tilt")
+        failed_note = (" The measured difference FAILED (fringe-order failures, said below): "
+                       "its panel and profile show what the unwrapping gave, not a "
+                       "measurement." if mw.get("status") == "failed" else "")
         rep.figure(figs["difference"],
                    f"Figure 1. {va} - {vb} over one common window ({win_txt}), placed where the "
                    f"two differ most. Left: where every window of this report lies (simulated "
                    f"region, interferometer field = common window, micro diffuse view; inset: "
                    f"the whole part). Middle: the true height difference of the simulated "
-                   f"surfaces, and the difference of what the virtual interferometer measures "
-                   f"(each measurement aligned to its truth by one piston per region: an "
-                   f"interferometer measures relative heights), on one colour scale. Right: "
-                   f"the profile along the dashed line, through the largest difference."
-                   + _lowpass_caption(metrics))
-        rep.table([["true (simulated)", _q(tw.get("rms_nm"), "nm"), _q(tw.get("pv_nm"), "nm"),
-                    _q(tw.get("mean_nm"), "nm")],
-                   ["measured by the virtual interferometer", _q(mw.get("rms_nm"), "nm"),
-                    _q(mw.get("pv_nm"), "nm"), _q(mw.get("mean_nm"), "nm")]],
-                  header=[f"{va} - {vb} over the common window", "rms", "PV", "mean"])
+                   f"surfaces, and the difference of what the virtual interferometer measures, "
+                   f"formed from the two measurements alone as instrument software does ({removed} "
+                   f"removed; the fringe order of separate regions taken nearest the largest "
+                   f"region's plane; pixels of unknown fringe order masked), on one colour scale. "
+                   f"Right: the profile along the dashed line, through the largest difference."
+                   + failed_note + _lowpass_caption(metrics))
+        failed = mw.get("status") == "failed"
+        floor = (mw.get("noise") or {}).get("floor_nm")
+        rep.table([["measured by the virtual interferometer",
+                    "FAILED" if failed else _q(mw.get("rms_nm"), "nm"),
+                    "" if failed else _q(mw.get("pv_nm"), "nm"),
+                    "" if failed else _q(mw.get("mean_nm"), "nm"),
+                    f"the two measurements alone, {removed} removed; noise floor "
+                    f"{_q(floor, 'nm')} (their own noise estimates, in quadrature)"],
+                   ["true, like with like", _q(same.get("rms_nm"), "nm"),
+                    _q(same.get("pv_nm"), "nm"), _q(same.get("mean_nm"), "nm"),
+                    f"the simulated heights at the camera pixels both measured, the same "
+                    f"{removed} removed: what the measured row should read"],
+                   ["true, raw", _q(tw.get("rms_nm"), "nm"), _q(tw.get("pv_nm"), "nm"),
+                    _q(tw.get("mean_nm"), "nm"),
+                    "the simulated machined maps over the window at the simulation's pixel, "
+                    "nothing removed"]],
+                  header=[f"{va} - {vb} over the common window", "rms", "PV", "mean",
+                          "how the number is formed"])
+        verdict = resolution_text(mw)
+        if verdict:
+            rep.text(f"Is the measured difference resolved? {verdict}.",
+                     cls="note" if failed or not (mw.get("resolution") or {}).get("resolved") else None)
         rep.text(f"Over the whole simulated region the true difference {va} - {vb} has an rms "
                  f"of {_q(d.get('machined_rms_nm'), 'nm')} and a PV of "
                  f"{_q(d.get('machined_pv_nm'), 'nm')}.")
@@ -270,7 +294,8 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     ic = _get(metrics, "render_settings.interferometer") or {}
     rep.section("The virtual interferometer")
     rep.figure(figs["interferogram_side_by_side"],
-               f"Zero-phase-shift frame over the common window, same camera and seed for both "
+               f"Zero-phase-shift frame over the common window, same camera for both, each "
+               f"with its own noise "
                f"({ic.get('objective')}, NA {_g(ic.get('numerical_aperture'))}, "
                f"{_g(ic.get('wavelength_nm'))} nm, "
                f"{_q((ic.get('pixel') or 0) * MM_TO_UM, 'um')} pixels).")

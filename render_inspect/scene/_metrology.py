@@ -20,7 +20,7 @@ class MetrologyConfig(Section):
         "cut", description="edges of the S/L-filtered maps: cut half the nesting index, or "
                            "extend by the mirror image (cut falls back to mirror on small windows)")
     outlier_sigma: float = Field(3.0, gt=0, le=20,
-                                 description="k of the second-difference k-sigma outlier rule")
+                                 description="k of the k-sigma spike (outlier) rule")
     outliers: Literal["none", "sigma"] = Field(
         "none", description="leave the k-sigma outliers out of the parameters of a measured map "
                             "(they are always left out of its registration and counted)")

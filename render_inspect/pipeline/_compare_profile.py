@@ -1,0 +1,349 @@
+"""``compare --measured PROFILE``: a measured profile against the same line of the
+simulated part, seen through the virtual interference microscope.
+
+Chain: the profile is read (:func:`~render_inspect.io.read_profile`); the line is
+``--line X0,Y0,X1,Y1`` (mm, on the part) or, for a turned part, a diameter along x through
+the spindle axis placed so that the measured profile's mirror centre falls on the axis;
+the scene is simulated over a thin band about the line and the band imaged by the scene's
+interferometer (``render.interferometer``, its field of view the band); the true profile
+(the simulated cut) and the simulated measurement are sampled along the line at the
+measured spacing; the measured profile is registered along the line to the simulated
+measurement (the shift with the largest correlation, weighted by the overlap's share of the
+longest overlap possible, searched within one feed period of the mirror centres' match when both profiles have one, over the whole line otherwise);
+the three get the same form removal (a parabola, the sag of the design over the line)
+and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile, or
+``--filter``), and their ISO 21920-2 parameters and periods are set side by side.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..core.errors import InputError
+from ..core.units import MM_TO_NM, MM_TO_UM
+from ..instruments import render_interferogram
+from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
+                  is_profile_file, json_safe, read_profile)
+from ..metrology import (analyze_profile, line_profile, measure_frames, mirror_centre,
+                         parse_profile_filter)
+from ..processes import process_of
+from ..report import HtmlReport, profile_figure, profile_overlay_figure
+from ..scene import scene_from_dict
+from ._compare import run_compare
+from ._metrics import write_metrics
+from ._simulate import simulate
+
+__all__ = ["run_compare_profile", "run_compare_command", "parse_line", "default_line"]
+
+log = logging.getLogger("render_inspect")
+
+#: half-width of the band simulated and imaged about the line, mm
+BAND_HALF_MM = 0.012
+#: the simulated region reaches this far beyond the imaged band, mm
+REGION_MARGIN_MM = 0.02
+
+_NAMES = (("measured", "measured profile"),
+          ("simulated_measured", "simulated, through the virtual interferometer"),
+          ("true", "simulated cut (truth)"))
+
+
+def parse_line(text) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``"X0,Y0,X1,Y1"`` (mm) -> ((x0, y0), (x1, y1))."""
+    parts = str(text).split(",") if not isinstance(text, (list, tuple)) else list(text)
+    try:
+        v = [float(p) for p in parts]
+    except ValueError:
+        v = []
+    if len(v) != 4 or not all(math.isfinite(a) for a in v):
+        raise InputError(f"--line must be X0,Y0,X1,Y1: four numbers in mm, received {text!r}")
+    if math.hypot(v[2] - v[0], v[3] - v[1]) <= 0:
+        raise InputError(f"--line must have two different end points, received {text!r}")
+    return (v[0], v[1]), (v[2], v[3])
+
+
+def default_line(scene, profile):
+    """A diameter along x through the spindle axis, as long as the measured profile, with
+    the profile's mirror centre (when it has one) on the axis; None for a scene without a
+    spindle axis.  Returns (p0, p1, how)."""
+    process = process_of(scene)
+    axis = process.traits(process.inputs_of(scene)).axis
+    if axis is None:
+        return None
+    mc = mirror_centre(profile.z, spacing=profile.spacing, x0=float(profile.x[0]))
+    length = profile.length
+    if mc["centre_mm"] is not None and mc["symmetry"] >= 0.5:
+        before = mc["centre_mm"] - float(profile.x[0])
+        how = (f"a diameter along x through the spindle axis ({axis[0]:g}, {axis[1]:g}) mm, "
+               f"the measured profile's mirror centre ({mc['centre_mm']:.4g} mm) on the axis")
+    else:
+        before = 0.0
+        how = f"a radius along +x from the spindle axis ({axis[0]:g}, {axis[1]:g}) mm"
+    p0 = (axis[0] - before, axis[1])
+    return p0, (p0[0] + length, axis[1]), how
+
+
+def _band_scene(scene, p0, p1):
+    d = scene.model_dump(mode="json")
+    x0, x1 = sorted((p0[0], p1[0]))
+    y0, y1 = sorted((p0[1], p1[1]))
+    h = BAND_HALF_MM
+    fov = [x0 - h, y0 - h, x1 + h, y1 + h]
+    m = REGION_MARGIN_MM
+    d["simulation"]["region"] = [fov[0] - m, fov[1] - m, fov[2] + m, fov[3] + m]
+    d["render"]["interferometer"]["field_of_view"] = fov
+    return scene_from_dict(d, f"{scene.name} (band about the line)"), fov
+
+
+def _filled(z):
+    ok = np.isfinite(z)
+    i = np.arange(z.size)
+    f = np.interp(i, i[ok], z[ok])
+    c = np.polyfit(i - i.mean(), f, 2)
+    return f - np.polyval(c, i - i.mean())
+
+
+def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period):
+    """The shift (mm) to add to the measured positions so that they best match the
+    simulated measurement, and the correlation there."""
+    a = _filled(z_meas)
+    b = _filled(z_sim)
+    ma = mirror_centre(z_meas, spacing=spacing, x0=float(s_meas[0]))
+    mb = mirror_centre(z_sim, spacing=spacing, x0=float(s_sim[0]))
+    n = min(a.size, b.size)
+    if (ma["symmetry"] or 0) >= 0.5 and (mb["symmetry"] or 0) >= 0.5 and period:
+        centre = mb["centre_mm"] - ma["centre_mm"]
+        reach = int(math.ceil(period / spacing))
+        lags = np.arange(int(round(centre / spacing)) - reach, int(round(centre / spacing)) + reach + 1)
+        how = "within one period of the mirror centres' match"
+    else:
+        lags = np.arange(-(n // 2), n // 2 + 1)
+        how = "over half the line either way"
+    best = (-2.0, 0, -2.0)
+    for lag in lags:
+        # measured sample i lies at simulated sample i + lag (positions from the line start)
+        k0 = int(round((s_meas[0] - s_sim[0]) / spacing)) + int(lag)
+        i0, i1 = max(0, -k0), min(a.size, b.size - k0)
+        if i1 - i0 < max(16, a.size // 3):
+            continue
+        u, v = a[i0:i1], b[i0 + k0:i1 + k0]
+        su, sv = u.std(), v.std()
+        if su == 0 or sv == 0:
+            continue
+        r = float(np.mean((u - u.mean()) * (v - v.mean())) / (su * sv))
+        # a partial overlap counts for its share of the longest one possible
+        score = r * (i1 - i0) / n
+        if score > best[2]:
+            best = (r, int(lag), score)
+    return best[1] * spacing, best[0], how
+
+
+def run_compare_profile(scene, out, *, measured, line=None, units=None, filter_spec=None,
+                        overwrite: bool = False) -> dict:
+    """Compare a measured profile with the same line of the simulated part.
+
+    Parameters
+    ----------
+    scene : Scene
+        The validated scene (its interferometer is the virtual instrument).
+    out : str or Path
+        Output folder (``metrics.json``, ``overlay.png``, ``measured_profile.png``,
+        ``report.html``), written atomically.
+    measured : str or Path
+        A profile :func:`~render_inspect.io.read_profile` reads.
+    line : "X0,Y0,X1,Y1", optional
+        The line on the part (mm); default for a turned part: :func:`default_line`.
+    units, filter_spec : optional
+        As for ``analyze`` of a profile.
+
+    Returns
+    -------
+    dict
+        The content of ``metrics.json``: ``kind`` = "profile", ``line_mm``, ``line_from``,
+        ``registration`` (``shift_mm``, ``correlation``, ``how``), ``filter``,
+        ``profiles`` (``measured``, ``simulated_measured``, ``true``: each the ISO 21920-2
+        parameters and periods of :func:`~render_inspect.metrology.analyze_profile`),
+        ``input``, ``scene``, ``seed``, ``software_version``, ``timing_s``.
+    """
+    t0 = time.perf_counter()
+    check_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
+                     inputs=(measured,))
+    s_mm, l_mm = parse_profile_filter(filter_spec)
+    prof = read_profile(measured, units=units)
+    if line is not None:
+        p0, p1 = parse_line(line)
+        how_line = "--line"
+    else:
+        d = default_line(scene, prof)
+        if d is None:
+            raise InputError(f"--line X0,Y0,X1,Y1 (mm) is needed: scene {scene.name!r} has no "
+                             f"spindle axis to draw the default radial line through")
+        p0, p1, how_line = d
+    band, fov = _band_scene(scene, p0, p1)
+    seed = int(scene.simulation.seed)
+    log.info("compare %s with %s along (%g, %g) -> (%g, %g) mm", scene.name, Path(measured).name,
+             *p0, *p1)
+    sim = simulate(band)
+    hm = sim.heightmap
+    ig = render_interferogram(hm, band.render.interferometer, seed=seed)
+    r = measure_frames(ig.recorded())
+    h_meas = np.where(r.valid, r.height, np.nan)
+    step = prof.spacing
+    s_true, z_true = line_profile(hm.machined, pixel=hm.pixel, origin=hm.origin, p0=p0, p1=p1,
+                                  step=step)
+    s_sim, z_sim = line_profile(h_meas, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1, step=step)
+    if np.isfinite(z_sim).sum() < 16:
+        raise InputError(f"the virtual instrument measured {int(np.isfinite(z_sim).sum())} points "
+                         f"along the line; check --line against the part (simulated region "
+                         f"{list(band.simulation.region)} mm)")
+    # the simulated profiles are resampled to exactly the measured spacing
+    s_pos = prof.x - prof.x[0]
+    marks = process_of(scene).traits(process_of(scene).inputs_of(scene)).marks
+    period = marks.period_mm if marks is not None else None
+    shift, corr, how_reg = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period)
+    s_reg = s_pos + shift
+    opts = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
+    res = {"measured": analyze_profile(s_reg, prof.z, spacing=step, **opts)}
+    fil = res["measured"]["metrics"]["filter"]
+    same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0, "lambda_c": fil["lambda_c_mm"]}
+    res["simulated_measured"] = analyze_profile(s_sim, z_sim, spacing=step, **same)
+    res["true"] = analyze_profile(s_true, z_true, spacing=step, **same)
+    figs = {
+        "overlay": profile_overlay_figure(
+            [{"s": res[k]["arrays"]["x"], "z": res[k]["arrays"]["primary"], "label": lab}
+             for k, lab in _NAMES],
+            title=f"along ({p0[0]:.4g}, {p0[1]:.4g}) -> ({p1[0]:.4g}, {p1[1]:.4g}) mm; measured "
+                  f"shifted {shift * MM_TO_UM:+.4g} um (correlation {corr:.3f}); parabola removed"),
+        "roughness_overlay": profile_overlay_figure(
+            [{"s": res[k]["arrays"]["x"],
+              "z": np.where(res[k]["arrays"]["evaluate"], res[k]["arrays"]["roughness"], np.nan),
+              "label": lab} for k, lab in _NAMES],
+            title=f"roughness profiles (lambda_s {same['lambda_s']:g}, lambda_c "
+                  f"{same['lambda_c']:g} mm)"),
+        "measured_profile": profile_figure(res["measured"]["arrays"], res["measured"]["metrics"],
+                                           title=f"measured: {Path(measured).name}"),
+    }
+    metrics = {
+        "command": "compare", "kind": "profile", "scene": scene.name, "seed": seed,
+        "software_version": __version__,
+        "line_mm": [list(p0), list(p1)], "line_from": how_line,
+        "registration": {"shift_mm": shift, "correlation": corr, "how": how_reg},
+        "filter": {"lambda_s_mm": same["lambda_s"] or None, "lambda_c_mm": same["lambda_c"],
+                   "chosen_by": fil["chosen_by"] + " (of the measured profile)", "form": "poly2"},
+        "band_mm": {"field_of_view": fov, "simulation_region": list(band.simulation.region)},
+        "profiles": {k: {kk: res[k]["metrics"][kk] for kk in
+                         ("profile", "periods", "evaluation_length_mm", "n_measured",
+                          "n_points", "outliers", "warnings")} for k, _ in _NAMES},
+        "input": {"path": str(measured), "reader": prof.meta.get("reader"),
+                  "units_in_file": prof.meta.get("units_in_file"),
+                  "units_from": prof.meta.get("units_from"), "n_points": prof.meta["n_points"],
+                  "n_measured": prof.n_measured, "spacing_mm": step},
+        "instrument": {"objective": band.render.interferometer.objective,
+                       "mode": band.render.interferometer.mode, "pixel_mm": float(ig.pixel)},
+        "files": {"metrics.json": "these metrics", "overlay.png": "the three profiles overlaid",
+                  "roughness_overlay.png": "their roughness profiles overlaid",
+                  "measured_profile.png": "the measured profile analysed",
+                  "report.html": "the report"},
+    }
+    with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
+                           inputs=(measured,)) as tmp:
+        tmp = Path(tmp)
+        for name, png in figs.items():
+            atomic_write_bytes(tmp / f"{name}.png", png)
+        metrics["timing_s"] = {"total": time.perf_counter() - t0}
+        write_metrics(tmp, metrics)
+        atomic_write_text(tmp / "report.html", _page(metrics, figs))
+    return json_safe(metrics)
+
+
+_ROWS = (("Ra_nm", "Ra (nm)"), ("Rq_nm", "Rq (nm)"), ("Rp_nm", "Rp (nm)"), ("Rv_nm", "Rv (nm)"),
+         ("Rz_nm", "Rz (nm)"), ("Rt_nm", "Rt (nm)"), ("Rsk", "Rsk"), ("Rku", "Rku"),
+         ("RSm_mm", "RSm (um)"), ("Rdq", "Rdq"))
+
+
+def _fmt(v, key=""):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "n/a"
+    if key == "RSm_mm":
+        v = v * MM_TO_UM
+    return f"{v:.4g}"
+
+
+def _page(metrics: dict, figs: dict) -> str:
+    p = metrics["profiles"]
+    f = metrics["filter"]
+    rep = HtmlReport(f"{metrics['scene']}: measured profile against the simulation",
+                     f"{Path(metrics['input']['path']).name} along {metrics['line_from']}; "
+                     f"lambda_s {f['lambda_s_mm'] or 0:g} mm, lambda_c {f['lambda_c_mm']:g} mm "
+                     f"({f['chosen_by']}); parabola removed from each")
+    rep.section("Profiles overlaid")
+    rep.figure(figs["overlay"], "Measured (black), simulated through the virtual "
+               "interferometer (blue) and the simulated cut itself (orange, dashed), registered "
+               "along the line; heights in nm, positions along the line in mm.")
+    rep.figure(figs["roughness_overlay"], "The same after the ISO 16610-21 filters, over each "
+               "profile's evaluation length.")
+    rep.section("Parameters side by side (ISO 21920-2)")
+    head = ["parameter"] + [lab for _, lab in _NAMES]
+    rows = [[lab] + [_fmt(p[k]["profile"].get(key), key) for k, _ in _NAMES]
+            for key, lab in _ROWS]
+    rows.append(["evaluation length (mm)"] + [_fmt(p[k]["evaluation_length_mm"]) for k, _ in _NAMES])
+    rows.append(["measured points"] + [str(p[k]["n_measured"]) for k, _ in _NAMES])
+    rows.append(["spikes (kept)"] + [str(p[k]["outliers"]["count"]) for k, _ in _NAMES])
+    rep.table(rows, header=head)
+    rep.section("Periods")
+    prow = []
+    for k, lab in _NAMES:
+        per = p[k]["periods"]
+        dom = per["dominant"]
+        ta = per.get("through_axis") or {}
+        prow.append([lab, _fmt(dom.get("period_mm") and dom["period_mm"] * MM_TO_UM),
+                     ", ".join(str(h["order"]) for h in dom.get("harmonics", [])) or "none",
+                     _fmt(ta.get("centre_mm")),
+                     _fmt((ta.get("left") or {}).get("period_mm") and
+                          ta["left"]["period_mm"] * MM_TO_UM),
+                     _fmt((ta.get("right") or {}).get("period_mm") and
+                          ta["right"]["period_mm"] * MM_TO_UM)])
+    rep.table(prow, header=["profile", "dominant period (um)", "harmonics", "mirror centre (mm)",
+                            "period left (um)", "period right (um)"])
+    rep.section("Measured profile")
+    rep.figure(figs["measured_profile"], "Primary profile and mean line, roughness profile, power "
+               "spectrum (feed period and harmonics), material ratio curve.")
+    reg = metrics["registration"]
+    notes = [f"registration: measured positions shifted by {reg['shift_mm'] * MM_TO_UM:+.4g} um "
+             f"along the line (correlation {reg['correlation']:.3f}, searched {reg['how']})",
+             f"virtual instrument: {metrics['instrument']['objective']} "
+             f"{metrics['instrument']['mode']}, pixel {metrics['instrument']['pixel_mm'] * MM_TO_UM:.4g} um",
+             f"measured file: {metrics['input']['n_measured']} of {metrics['input']['n_points']} "
+             f"points measured, spacing {metrics['input']['spacing_mm'] * MM_TO_UM:.4g} um, units "
+             f"{metrics['input']['units_in_file']} ({metrics['input']['units_from']})"]
+    for k, lab in _NAMES:
+        notes += [f"{lab}: {w}" for w in p[k]["warnings"]]
+    rep.section("Notes")
+    rep.list(notes)
+    return rep.render()
+
+
+def run_compare_command(scene, out, *, measured=None, vary=None, force: bool = False, line=None,
+                        units=None, filter_spec=None, repeat: int = 1,
+                        overwrite: bool = False) -> dict:
+    """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,
+    :func:`~render_inspect.pipeline.run_compare` otherwise (``line``, ``units`` and
+    ``filter_spec`` are then refused, naming the option)."""
+    if measured is not None and is_profile_file(measured):
+        if vary is not None or force or repeat != 1:
+            opt = "--vary" if vary is not None else "--force" if force else "--repeat"
+            raise InputError(f"{opt} is for two variants or a measured map; --measured "
+                             f"{str(measured)!r} is a profile")
+        return run_compare_profile(scene, out, measured=measured, line=line, units=units,
+                                   filter_spec=filter_spec, overwrite=overwrite)
+    for opt, v in (("--line", line), ("--units", units), ("--filter", filter_spec)):
+        if v is not None:
+            raise InputError(f"{opt} is for --measured PROFILE (a profile file); received "
+                             f"{opt} {v} with --measured {measured!r}")
+    return run_compare(scene, out, measured=measured, vary=vary, force=force,
+                       overwrite=overwrite, repeat=repeat)
