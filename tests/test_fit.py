@@ -287,6 +287,8 @@ def _measured_file(path: Path, *, origin=(0.3, -0.05), scale=1.0) -> Path:
      "invalid scene (--predict): tool.nose_radius: must be a finite number in (0, 50]"),
     (["--free", "material.texture_nm", "--set", "material.texture_nm=0"],
      "--free material.texture_nm: the amplitude of a random part is fitted through the power"),
+    (["--free", "simulation.region.0"], "--free simulation.region.0: fit sets the simulated "
+                                        "region itself"),
 ])
 def test_bad_input_is_one_line_and_exit_1(tmp_path, capsys, args, message):
     meas = _measured_file(tmp_path / "height.exr")
@@ -437,7 +439,7 @@ def test_tool_and_feed_on_the_shipped_lathe_with_its_random_parts(shipped_tool_t
     held = rec["random_parts"]["held_at_zero_in_evaluations"]
     assert {"machine.z.noise_nm", "material.texture_nm"} <= set(held)
     assert rec["measured_features"]["random_parts_scatter"]["draws"] == 6
-    assert rec["status"] == "converged" and rec["evaluations"] < 100
+    assert rec["status"] == "converged" and rec["evaluations"] < 150
 
 
 @pytest.mark.slow
@@ -490,7 +492,7 @@ def test_servo_delay_and_spindle_error_come_back_within_5_percent(tmp_path):
 @pytest.mark.slow
 def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
     """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1 (as on other
-    machines); the fit connects with --scheduler, starts from a Latin hypercube of four
+    machines); the fit connects with --scheduler, starts from a Sobol design of four
     points over the feed's bounds (--global) and finds the feed within 1 %; the worker
     processes ran the evaluations."""
     import os
@@ -540,3 +542,38 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+@pytest.mark.slow
+def test_a_grid_measurement_with_the_toric_scene_is_refused(tmp_path, capsys):
+    """The sinusoidal grid's measurement fitted with the toric micro-structure scene (same
+    feed per revolution, another design): refused before the fit with the reason, not
+    fitted to a confident nose radius."""
+    meas = _truth(tmp_path, TOOL, quiet=True)
+    rc = main(["fit", str(meas), "--scene", "hts_toric_msa", "--free", "tool.nose_radius",
+               "--out", str(tmp_path / "fit"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1, err
+    assert "this scene does not describe this measurement" in err[0], err[0]
+    assert not (tmp_path / "fit").exists()
+
+
+@pytest.mark.slow
+def test_a_feed_started_22_percent_off_is_captured_on_the_real_chain(shipped_tool_truth, tmp_path):
+    """The shipped lathe's truth (random parts on) fitted from a feed 22 % high, the case
+    that used to stall 25 % off: the feed the marks' period gives starts the solve, the
+    result is checked (probes, a second start) and the truth lies within 2 standard
+    errors of it."""
+    assert main(["fit", str(shipped_tool_truth), "--scene", "sts_sinusoidal_grid", "--free",
+                 "tool.nose_radius,process.feed_mm_per_min", "--set",
+                 "process.feed_mm_per_min=0.61", "--seed", "1", "--profile-points", "0",
+                 "--out", str(tmp_path / "fit"), "-q"]) == 0
+    rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert rec["status"] == "converged", rec["message"]
+    for key, truth in (("tool.nose_radius", 0.525), ("process.feed_mm_per_min", 0.51)):
+        p = rec["parameters"][key]
+        assert p["value"] == pytest.approx(truth, rel=0.01)
+        assert abs(p["value"] - truth) < 2 * p["stderr"], (key, p)
+    assert rec["model_check"]["after"]["describes"]
+    assert rec["model_check"]["measured_starts"][0]["process.feed_mm_per_min"] == \
+        pytest.approx(0.51, rel=0.01)

@@ -48,8 +48,10 @@ def add_parsers(sub) -> None:
     _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
                                                        "of the global search")
-    p.add_argument("--global", dest="global_points", type=int, default=0, metavar="N",
-                   help="Latin-hypercube points over the bounds before the local fit")
+    p.add_argument("--global", dest="global_points", type=int, default=8, metavar="N",
+                   help="points of a seeded Sobol design over the search box (the bounds "
+                        "narrowed to half and twice the start) before the local fit "
+                        "(default 8; 0: the scene's and the measurement's starts only)")
     p.add_argument("--max-evaluations", dest="max_evaluations", type=int, default=150,
                    metavar="N", help="largest number of evaluations (default 150)")
     p.add_argument("--profile-points", dest="profile_points", type=int, default=3, metavar="N",

@@ -12,18 +12,22 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 * :class:`Evaluator`, :func:`solve`: the bounded least-squares fit with its evaluations in
   batches on Dask, cached by the hash of each evaluation (:mod:`._solve`, :mod:`._cache`);
 * :func:`fit_window`, :func:`register_field`: where the measured field lies (:mod:`._placement`);
+* :func:`check_before`, :func:`check_after`, :func:`profile_marks`: whether the scene
+  describes the measurement at all (:mod:`._checks`);
 * :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`).
 """
 
 from ._cache import EvaluationCache, scene_hash, task_hash
 from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, noise_floor,
-                        predict_features, prepare_map, radial_psd, realisation_shifts,
-                        residual_vector, set_noise_floor, soft_l1, waviness)
+                        predict_features, prepare_map, radial_psd, residual_vector,
+                        set_noise_floor, soft_l1, waviness)
 from ._params import (FreeParameter, free_parameters, get_value, parse_bounds, parse_free,
                       schema_range, set_value)
+from ._checks import check_after, check_before, mark_tiles, profile_marks
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
-from ._result import fit_record, misfit_maps
+from ._result import fit_record, misfit_maps, summary_lines
 from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
+from ._uncertainty import identifiability, realisation_shifts, search_box
 
 __all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
            "set_value", "get_value", "MisfitSpec", "Target", "Prediction", "FORMS",
@@ -32,4 +36,5 @@ __all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "sc
            "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
            "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
            "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
-           "misfit_maps"]
+           "misfit_maps", "summary_lines", "identifiability", "search_box", "check_before", "check_after",
+           "mark_tiles", "profile_marks"]

@@ -1,15 +1,25 @@
 """Evaluations on disk, keyed by the hash of what determines them: the resolved scene (every
 key, the fitted values included), the virtual instrument, the field and the software
 version.  A fit that is run again (after an interruption, or with other options) takes the
-evaluations it has already made from here instead of simulating them again."""
+evaluations it has already made from here instead of simulating them again.
+
+An entry is trusted only when it proves itself: it carries the SHA-256 of its content (the
+map's bytes, its shape, its metadata) together with its key, the fit's context (the scene's
+and the measured window's hashes) and the software version; its size is checked before it
+is decompressed (a small file that would inflate to gigabytes is refused unread) and its
+map's shape against the fit's.  An entry that fails any check (altered, truncated, from
+another fit, of the wrong shape) is reported once, recomputed and overwritten, never used."""
 
 from __future__ import annotations
 
 import contextlib
 import hashlib
 import json
+import logging
+import math
 import os
 import shutil
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +28,14 @@ from .. import __version__
 from ..core.errors import InputError
 from ..io import atomic_write_bytes
 
-__all__ = ["EvaluationCache", "task_hash", "scene_hash"]
+__all__ = ["EvaluationCache", "task_hash", "scene_hash", "content_hash", "MAX_ENTRY_BYTES"]
+
+log = logging.getLogger("render_inspect")
+
+#: largest entry (decompressed) read when the expected map shape is not known, bytes
+MAX_ENTRY_BYTES = 256 * 2 ** 20
+#: the entry's format (its content hash's rule)
+ENTRY_FORMAT = 2
 
 
 def scene_hash(scene: dict) -> str:
@@ -34,11 +51,32 @@ def task_hash(task: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-class EvaluationCache:
-    """Predicted maps stored as ``<hash>.npz`` in ``folder`` (None: in memory only)."""
+def content_hash(key: str, height, meta_text: str, context: dict) -> str:
+    """SHA-256 (hex) of an entry: its key, the fit's ``context``, the software version,
+    the map's shape and float32 bytes, its metadata's JSON text."""
+    h = np.ascontiguousarray(np.asarray(height, dtype=np.float32))
+    d = hashlib.sha256()
+    head = json.dumps({"key": key, "context": context, "software_version": __version__,
+                       "format": ENTRY_FORMAT, "shape": list(h.shape), "dtype": "float32"},
+                      sort_keys=True, separators=(",", ":"), default=str)
+    d.update(head.encode())
+    d.update(h.tobytes())
+    d.update(meta_text.encode())
+    return d.hexdigest()
 
-    def __init__(self, folder=None):
+
+class EvaluationCache:
+    """Predicted maps stored as ``<hash>.npz`` in ``folder`` (None: in memory only).
+
+    ``context``: what else the entries must agree with (the scene's and the measured
+    window's hashes); ``shape``: the predicted maps' shape, when known (an entry of
+    another shape is refused, and the decompressed size is limited to it)."""
+
+    def __init__(self, folder=None, *, context: dict | None = None, shape=None):
         self.folder = None if folder is None else Path(folder)
+        self.context = dict(context or {})
+        self.shape = None if shape is None else tuple(int(v) for v in shape)
+        self.rejected: list = []  # (key, why) of entries refused and recomputed
         self._memory: dict = {}
         self.hits = 0
         self.written = 0          # entries this object stored on disk
@@ -98,15 +136,51 @@ class EvaluationCache:
         p = self._path(key)
         if not p.is_file():
             return None
+        why = None
         try:
-            with np.load(p, allow_pickle=False) as npz:
-                h = np.array(npz["height"], dtype=np.float64)
-                meta = json.loads(str(npz["meta"]))
-        except (OSError, ValueError, KeyError, EOFError):
-            return None  # a damaged entry is made again
+            h, meta, why = self._read(p, key)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as err:
+            why = f"unreadable ({type(err).__name__})"
+        if why is not None:
+            self.rejected.append((key, why))
+            log.warning("cache entry %s: %s; it is recomputed, not used", p.name, why)
+            return None
         self._memory[key] = (h, meta)
         self.hits += 1
         return h, meta
+
+    def _limit(self) -> int:
+        if self.shape is None:
+            return MAX_ENTRY_BYTES
+        return 4 * math.prod(self.shape) + 2 ** 20  # float32 map and its metadata
+
+    def _read(self, p: Path, key: str):
+        """(height, meta, None) or (None, None, why it is refused)."""
+        limit = self._limit()
+        if p.stat().st_size > limit:
+            return None, None, f"{p.stat().st_size} bytes on disk, more than the {limit} allowed"
+        with zipfile.ZipFile(p) as zf:
+            infos = zf.infolist()
+            total = sum(i.file_size for i in infos)
+            names = sorted(i.filename for i in infos)
+        if total > limit:
+            return None, None, (f"would decompress to {total} bytes, more than the {limit} "
+                                f"allowed")
+        if names != ["digest.npy", "height.npy", "meta.npy"]:
+            return None, None, "not an entry of this version (members " + ", ".join(names) + ")"
+        with np.load(p, allow_pickle=False) as npz:
+            raw = np.array(npz["height"])
+            meta_text = str(npz["meta"])
+            digest = str(npz["digest"])
+        if raw.dtype != np.float32 or raw.ndim != 2:
+            return None, None, f"holds a {raw.dtype} array of {raw.ndim} dimensions"
+        if self.shape is not None and raw.shape != self.shape:
+            return None, None, (f"holds a {raw.shape[0]} x {raw.shape[1]} map, the fit's "
+                                f"are {self.shape[0]} x {self.shape[1]}")
+        if digest != content_hash(key, raw, meta_text, self.context):
+            return None, None, ("its content hash does not match (altered, or made for "
+                                "another scene, measurement or software version)")
+        return raw.astype(np.float64), json.loads(meta_text), None
 
     def put(self, key: str, height, meta: dict) -> np.ndarray:
         """Store a map (as float32: what a later run reads back) and return it as read
@@ -118,7 +192,9 @@ class EvaluationCache:
         import io
 
         buf = io.BytesIO()
-        np.savez_compressed(buf, height=h, meta=np.array(json.dumps(meta, default=str)))
+        meta_text = json.dumps(meta, default=str)
+        np.savez_compressed(buf, height=h, meta=np.array(meta_text),
+                            digest=np.array(content_hash(key, h, meta_text, self.context)))
         self._create()
         existed = self._path(key).exists()
         atomic_write_bytes(self._path(key), buf.getvalue())

@@ -15,7 +15,9 @@ Three terms, each a vector of residuals of fixed length:
   spectrum above the waviness band, refined to a small fraction of a bin by the
   power-weighted centroid of the annulus: concentric marks put their power on a ring,
   straight ones on two points of it, and either way the centroid is the frequency) and
-  the amplitudes of its first harmonics (the power in annuli around their multiples).  The
+  the amplitudes of its first harmonics (the power in annuli around their multiples; a
+  prediction's harmonics are read around its own fundamental, so the term varies with the
+  feed over the whole bounds).  The
   frequency gives the feed per revolution, the amplitudes the cusp shape (tool nose radius,
   minimum chip thickness).
 
@@ -23,7 +25,7 @@ The random parts of the cut and the camera's noise are not in the predictions (t
 expected value is): their power is added to the predicted PSD as a floor, their effect on
 the harmonics as a gain, and the spread of their realisations widens the scales of the
 ``map`` and ``harmonics`` terms (:func:`set_noise_floor`) and gives the fit's second
-standard error (:func:`realisation_shifts`).
+standard error (:func:`~render_inspect.fit._uncertainty.realisation_shifts`).
 
 Each term's residuals are normalised (``d = difference / sigma``) and enter through the
 soft-L1 (pseudo-Huber) loss ``2 (sqrt(1 + d^2) - 1)`` (quadratic near 0, linear far out),
@@ -34,7 +36,7 @@ has.  The misfit is the sum over all entries.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,8 +47,7 @@ from ..metrology import gaussian_filter, remove_form
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
            "set_noise_floor",
-           "residual_vector", "soft_l1", "robust_weights", "radial_psd",
-           "realisation_shifts"]
+           "residual_vector", "soft_l1", "robust_weights", "radial_psd", "own_peak"]
 
 #: form removal the user may choose (as ``analyze``)
 FORMS = ("none", "plane", "poly2", "sphere")
@@ -174,15 +175,27 @@ def psd_bins(z, *, pixel, k_range, radial_bins: int, angle_bins: int, counts: bo
     kxx, kyy = np.meshgrid(kx, ky)
     kr = np.hypot(kxx, kyy)
     ang = np.mod(np.arctan2(kyy, kxx), math.pi)
-    edges = np.geomspace(k_range[0], k_range[1], radial_bins + 1)
-    ri = np.digitize(kr, edges) - 1
-    ai = np.minimum((ang / math.pi * angle_bins).astype(int), angle_bins - 1)
-    use = (ri >= 0) & (ri < radial_bins)
-    idx = ri[use] * angle_bins + ai[use]
-    n = np.bincount(idx, minlength=radial_bins * angle_bins)
-    s = np.bincount(idx, weights=p[use], minlength=radial_bins * angle_bins)
+    # each cell shares its power between the two radial bins whose centres (in log |k|)
+    # it lies between, linearly: a peak that moves (a feed that changes) moves the binned
+    # spectrum smoothly, not in steps at the bins' edges
+    lk0, lk1 = math.log(k_range[0]), math.log(k_range[1])
+    width = (lk1 - lk0) / radial_bins
+    with np.errstate(divide="ignore"):
+        pos = (np.log(np.where(kr > 0, kr, np.nan)) - lk0) / width - 0.5
+    inside = np.isfinite(pos) & (pos >= -0.5) & (pos < radial_bins - 0.5)
+    lo = np.floor(pos[inside]).astype(int)
+    frac = pos[inside] - lo
+    ai = np.minimum((ang[inside] / math.pi * angle_bins).astype(int), angle_bins - 1)
+    pw = p[inside]
+    n = np.zeros(radial_bins * angle_bins)
+    s = np.zeros(radial_bins * angle_bins)
+    for b, wt in ((lo, 1.0 - frac), (lo + 1, frac)):
+        ok = (b >= 0) & (b < radial_bins)
+        idx = b[ok] * angle_bins + ai[ok]
+        n += np.bincount(idx, weights=wt[ok], minlength=radial_bins * angle_bins)
+        s += np.bincount(idx, weights=wt[ok] * pw[ok], minlength=radial_bins * angle_bins)
     with np.errstate(divide="ignore", invalid="ignore"):
-        mean = np.where(n > 0, s / np.maximum(n, 1), np.nan)
+        mean = np.where(n > 0.5, s / np.maximum(n, 1e-300), np.nan)
     return (mean, n) if counts else mean
 
 
@@ -411,13 +424,26 @@ def predict_features(z, target: Target, values=None, *, measured: bool = False) 
     centroid = None
     amps = np.zeros(spec.harmonics)
     if target.peak is not None:
-        centroid, amps = harmonic_features(h, pixel=target.pixel, k0=target.peak,
-                                           n=spec.harmonics)
+        # the prediction's own fundamental: its harmonics are read around it, so that a
+        # prediction whose marks lie far from the measured ones (a feed far off) still has
+        # a frequency and amplitudes that move with the parameters (a gradient over the
+        # whole bounds, not only within the annulus around the measured fundamental)
+        k0 = own_peak(h, target) or target.peak
+        centroid, amps = harmonic_features(h, pixel=target.pixel, k0=k0, n=spec.harmonics)
         if target.amplitude_gain is not None and not measured:
             amps = amps * target.amplitude_gain
     wavy = waviness(z, pixel=target.pixel, cutoff=target.cutoff, form=spec.form,
                     origin=target.origin)
     return Prediction(h, wavy, psd, centroid, amps)
+
+
+def own_peak(h, target: Target):
+    """The feed marks' fundamental |k| (cycles/mm) of a map with its form removed, looked
+    for as the measured one is (:func:`make_target`); None where none stands out."""
+    ny, nx = h.shape
+    length = min(ny * target.pixel[1], nx * target.pixel[0])
+    high = h - gaussian_filter(h, pixel=target.pixel, cutoff=length / 10.0, min_weight=0.3)
+    return feed_peak(high, pixel=target.pixel, k_min=PEAK_MIN_PERIODS / length)
 
 
 def _mean_psd(maps, target: Target):
@@ -429,12 +455,18 @@ def _mean_psd(maps, target: Target):
                                          origin=target.origin), **kw) for z in maps], axis=0)
 
 
+def _own_harmonics(z, target: Target):
+    """(centroid, amplitudes) of a map's feed harmonics read around its own fundamental
+    (the measured one where none stands out): maps made at other values than the truth
+    (the realisations at the start) keep their harmonics."""
+    h = prepare_map(z, pixel=target.pixel, form=target.spec.form, origin=target.origin)
+    k0 = own_peak(h, target) or target.peak
+    return harmonic_features(h, pixel=target.pixel, k0=k0, n=target.spec.harmonics)
+
+
 def _mean_power(maps, target: Target):
     """The feed harmonics' power (mm^2), averaged over maps."""
-    kw = dict(pixel=target.pixel, k0=target.peak, n=target.spec.harmonics)
-    return np.mean([harmonic_features(prepare_map(z, pixel=target.pixel, form=target.spec.form,
-                                                  origin=target.origin), **kw)[1] ** 2
-                    for z in maps], axis=0)
+    return np.mean([_own_harmonics(z, target)[1] ** 2 for z in maps], axis=0)
 
 
 def noise_floor(target: Target, noisy, clean):
@@ -498,13 +530,11 @@ def _set_scatter(target: Target, noisy, clean) -> None:
         scatter["waviness_rms_nm"] = s_map * MM_TO_NM
         target.sigma_map = max(target.sigma_map, s_map)
     if target.peak is not None:
-        feats = [harmonic_features(prepare_map(z, pixel=target.pixel, form=spec.form,
-                                               origin=target.origin), pixel=target.pixel,
-                                   k0=target.peak, n=spec.harmonics) for z in noisy]
+        feats = [_own_harmonics(z, target) for z in noisy]
         k = np.array([f[0] for f in feats], dtype=np.float64)
         a = np.array([f[1] for f in feats], dtype=np.float64)
         if np.all(np.isfinite(k)) and target.centroid:
-            s_f = float(np.std(k, ddof=1) / target.centroid)
+            s_f = float(np.std(k, ddof=1) / np.mean(k))
             scatter["frequency_relative"] = s_f
             target.sigma_frequency = max(spec.sigma_frequency, s_f)
         s_a = np.std(a, axis=0, ddof=1)
@@ -513,32 +543,6 @@ def _set_scatter(target: Target, noisy, clean) -> None:
         target.sigma_amplitudes = np.maximum(np.nan_to_num(s_a), floor)
     target.scatter = scatter
     target.draws = [predict_features(z, target, measured=True) for z in noisy]
-
-
-def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
-    """(R, m): how the normalised residuals of ``pred`` change when the measured map's
-    features are replaced by those of each realisation of the random parts
-    (``target.draws``), less their mean: the spread of the residual vector that the random
-    parts alone cause (an empty array without at least two realisations)."""
-    feats = target.draws
-    if len(feats) < 2:
-        return np.zeros((0, 0))
-
-    def with_features(wavy, psd, centroid, amplitudes):
-        return replace(target, wavy=wavy, psd=psd, centroid=centroid, amplitudes=amplitudes)
-
-    def mean(values):
-        return np.mean(np.asarray(values, dtype=np.float64), axis=0)
-
-    centroids = [f.centroid for f in feats]
-    has_peak = target.peak is not None and all(c is not None and np.isfinite(c) for c in centroids)
-    mean_target = with_features(mean([f.wavy for f in feats]), mean([f.psd for f in feats]),
-                                float(np.mean(centroids)) if has_peak else target.centroid,
-                                mean([f.amplitudes for f in feats]))
-    base = residual_vector(pred, mean_target)[0]
-    return np.array([residual_vector(pred, with_features(
-        f.wavy, f.psd, f.centroid if has_peak else target.centroid, f.amplitudes))[0] - base
-        for f in feats])
 
 
 def soft_l1(d) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from .. import __version__
 from ..core.units import MM_TO_NM
 
-__all__ = ["fit_record", "misfit_maps"]
+__all__ = ["fit_record", "misfit_maps", "summary_lines"]
 
 
 def _num(v):
@@ -44,9 +44,16 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
     """
     keys = [p.key for p in result.params]
     params = {}
+    ident = result.identifiability or {}
+    hidden = set(ident.get("hidden", ()))
     for i, p in enumerate(result.params):
         real = result.stderr_realisations
-        params[p.key] = {"value": float(result.values[i]), "stderr": _num(result.stderr[i]),
+        solver = result.stderr_solver
+        # a key that only a combination determines gets no standard error of its own
+        se = None if p.key in hidden else _num(result.stderr[i])
+        params[p.key] = {"value": float(result.values[i]), "stderr": se,
+                         "determined": p.key not in hidden,
+                         "stderr_solver": _num(None if solver is None else solver[i]),
                          "stderr_formal": _num(None if result.stderr_formal is None
                                                else result.stderr_formal[i]),
                          "stderr_random_parts": _num(None if real is None else real[i]),
@@ -54,7 +61,7 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
                          "schema_range": [_num(p.schema[0]), _num(p.schema[1])],
                          "change_from_start": float(result.values[i] - p.start),
                          "relative_stderr": _num(result.stderr[i] / abs(result.values[i]))
-                         if result.values[i] != 0 else None}
+                         if result.values[i] != 0 and se is not None else None}
     corr = {a: {b: float(result.correlation[i, j]) for j, b in enumerate(keys)}
             for i, a in enumerate(keys)}
     rec = {
@@ -66,7 +73,15 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
                    "terms": result.best.terms, "start_terms": result.start.terms,
                    "waviness_rms_nm": waviness["rms_nm"], "map": maps,
                    "definition": spec.to_dict()},
-        "uncertainty": {"stderr": "sqrt(stderr_formal^2 + stderr_random_parts^2)",
+        "identifiability": ident,
+        "goodness": dict(result.goodness, birge_ratio=result.birge),
+        "checks": result.checks,
+        "uncertainty": {"stderr": "sqrt(stderr_formal^2 + birge_ratio x stderr_random_parts^2 "
+                                  "+ stderr_solver^2)",
+                        "birge_ratio": "the misfit over the misfit the random parts alone "
+                                       "leave (at least 1): the model's error",
+                        "stderr_solver": "half the distance between the two starts' results "
+                                         "when both reach the same misfit",
                         "stderr_formal": "s^2 (J^T J)^-1 of the weighted residuals at the "
                                          "solution (residuals taken as independent)",
                         "stderr_random_parts": "the spread of the solution over the "
@@ -90,3 +105,56 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
     if extra:
         rec.update(extra)
     return rec
+
+
+#: what each misfit term measures, for the summary
+TERM_WORDS = {
+    "map": "the waviness (the marks filtered out), point by point",
+    "psd": "the spectrum, bin by bin in decades",
+    "harmonics": "the marks' frequency and the amplitudes of their harmonics",
+}
+
+
+def summary_lines(record: dict) -> list[str]:
+    """The fit's summary in words: each value with its standard error (or why it has
+    none), the status and why, each misfit term against its scale, the verdict of the
+    model checks."""
+    lines = []
+    for k, p in record["parameters"].items():
+        se = p.get("stderr")
+        if se is None and not p.get("determined", True):
+            err = "(not determined alone: see the combinations below)"
+        else:
+            err = "+- n/a" if se is None else f"+- {se:.3g}"
+        lines.append(f"{k} = {p['value']:.6g} {err} (start {p['start']:.6g})")
+    ident = record.get("identifiability") or {}
+    if ident.get("undetermined"):
+        for d in ident["undetermined"]:
+            lines.append(f"not determined by this measurement: {d['text']} (relative "
+                         f"standard error {d['relative_stderr']:.3g})")
+        for d in ident.get("directions", []):
+            if d["determined"]:
+                lines.append(f"determined: {d['text']} (relative standard error "
+                             f"{d['relative_stderr']:.3g})")
+    for pair in record.get("unresolved_pairs", []):
+        lines.append(f"{pair['keys'][0]} and {pair['keys'][1]} cannot be told apart "
+                     f"(correlation {pair['correlation']:.3f})")
+    lines.append(f"status: {record['status']}: {record['message']}")
+    mf = record["misfit"]
+    for t, v in (mf.get("terms") or {}).items():
+        lines.append(f"misfit term {t} ({TERM_WORDS.get(t, t)}): {v:.3g} (1 = each entry one "
+                     f"scale off; start {mf.get('start_terms', {}).get(t, float('nan')):.3g})")
+    g = record.get("goodness") or {}
+    if g.get("ratio") is not None:
+        lines.append(f"the misfit is {g['ratio']:.3g} times what the random parts and the "
+                     f"camera's noise alone leave at the true values")
+    if record.get("misfit_rms_nm") is not None:
+        lines.append(f"height difference rms {record['misfit_rms_nm']:.3g} nm: the marks' "
+                     f"phase (where the spiral began) is not fitted, so the raw maps differ by "
+                     f"about the marks' own rms even at a perfect fit; the waviness differs by "
+                     f"{(mf.get('waviness_rms_nm') or float('nan')):.3g} nm rms")
+    mc = record.get("model_check") or {}
+    if mc.get("after"):
+        lines.append(mc["after"]["verdict"])
+    lines.append(f"{record['evaluations']} evaluations")
+    return lines

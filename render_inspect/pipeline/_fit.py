@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import functools
+import hashlib
 import json
 import logging
 import math
@@ -26,10 +27,14 @@ from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_UM
 from ..design import make_surface
-from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_units,
+
+from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_after,
+                   check_before, check_units,
                    field_extent, fit_record, fit_window, free_parameters, make_target,
                    misfit_maps, parse_bounds, parse_free, predict_features, prepare_map,
-                   radial_psd, register_field, scene_hash, set_noise_floor, set_value, solve)
+                   get_value, radial_psd, register_field, scene_hash, set_noise_floor,
+                   set_value, solve,
+                   summary_lines)
 from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
 from ..io import write_exr, write_json, write_marker
 from ..processes import RANDOM_PART_KEYS, random_parts
@@ -87,15 +92,18 @@ def _parse_at(at):
 def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = None,
             at=None, window_mm: float = 0.2, form: str = "plane", weights=None,
             workers: int | None = None, scheduler: str | None = None, predict=(),
-            seed: int = 0, global_points: int = 0, max_evaluations: int = 150,
+            seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
             profile_points: int = 3, cache=None, overwrite: bool = False) -> dict:
     """``render-inspect fit MEASURED --scene SCENE --free KEY,... --out DIR``.
 
     Parameters
     ----------
-    measured : path
+    measured : path or measured surface
         Anything ``analyze`` reads: an instrument file, or the ``height.exr`` that
-        ``measure`` writes.
+        ``measure`` writes; or a surface already read (an object with ``z`` (mm, NaN = not
+        measured), ``pixel`` (x, y mm), ``origin``, ``square`` and ``meta``, as
+        :func:`~render_inspect.io.read_surface` returns), the seam for readers of other
+        kinds of measurement.
     scene : Scene
         The cut (its ``--set`` overrides applied).
     free : list of str
@@ -123,9 +131,11 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     predict : list of "KEY=VALUE"
         After the fit, simulate the fitted scene with these changes into ``predict/``.
     seed : int
-        Seed of the virtual camera's noise and of the Latin hypercube.
+        Seed of the virtual camera's noise and of the Sobol design.
     global_points : int
-        Latin-hypercube points before the local fit (0: start from the scene's values).
+        Points of the scrambled Sobol design over the search box (the bounds narrowed to
+        half and twice the start values) evaluated before the local fit, with the start the
+        measurement proposes (0: those and the scene's values only).
     max_evaluations : int
         Largest number of forward-model evaluations of the fit.
     profile_points : int
@@ -136,8 +146,14 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     """
     t_all = time.perf_counter()
     out = Path(out)
-    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    surface = measured if getattr(measured, "z", None) is not None else None
+    inputs = () if surface is not None else (measured,)
+    check_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs)
     keys = parse_free(free)
+    for k in keys:
+        if k == "simulation.region" or k.startswith("simulation.region."):
+            raise InputError(f"--free {k}: fit sets the simulated region itself (the fit "
+                             f"window and its margin); place the field with --at instead")
     user_bounds = parse_bounds(bounds)
     spec = MisfitSpec(form=form, weights=_weights(weights))
     at = _parse_at(at)
@@ -162,13 +178,15 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     if predict:
         _predicted_scene(base, {p.key: p.start for p in params}, predict, fill)
 
-    m = read_surface(measured)
+    m = surface if surface is not None else read_surface(measured)
+    if surface is not None:
+        measured = str((m.meta or {}).get("path", "(a surface handed in)"))
     if not m.square:
         raise InputError(f"{measured}: pixel sizes differ in x ({m.pixel[0]:.6g} mm) and y "
                          f"({m.pixel[1]:.6g} mm); the virtual instrument has square pixels: "
                          f"resample the map first")
     pixel = float(m.pixel[0])
-    file_settings = file_instrument(measured)
+    file_settings = file_instrument(measured) if surface is None else {}
     region = [float(v) for v in scene.simulation.region]
     if at == "register":
         reg = register_field(m.z, m.pixel, make_surface(scene.design), region)
@@ -201,9 +219,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     # the simulation grid samples the feed marks finely enough that its aliasing of the
     # cusps (a waviness that moves with the marks' phase, hence with the feed) stays far
     # below the waviness the fit compares
-    sim_pixel = float(scene.simulation.pixel)
-    while target.centroid and sim_pixel * target.centroid * SIM_SAMPLES_PER_PERIOD > 1.0 + 1e-9:
-        sim_pixel /= 2.0
+    sim_pixel = _evaluation_pixel(scene, None if not target.centroid else 1.0 / target.centroid)
     grow = (MARGIN_PX + 2) * pixel + 2 * sim_pixel
     sim_region = [window[0] - grow, window[1] - grow, window[2] + grow, window[3] + grow]
     log.info("evaluations simulate %.4g x %.4g mm at a %.3g um pixel",
@@ -215,7 +231,11 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     start_values = {p.key: p.start for p in params}
     scene_from_dict(model.task(start_values)["scene"], "(the fit window)")
     cache_dir = Path(cache) if cache is not None else out.parent / f"{out.name}.cache"
-    store = EvaluationCache(cache_dir)
+    measured_sha = hashlib.sha256(np.ascontiguousarray(zw, dtype=np.float64).tobytes()
+                                  + json.dumps([pixel, list(w_origin)]).encode()).hexdigest()
+    store = EvaluationCache(cache_dir, context={"scene_sha256": scene_hash(base),
+                                                "measured_sha256": measured_sha},
+                            shape=zw.shape)
     try:
         with contextlib.ExitStack() as stack:
             client, cluster = None, {}
@@ -245,6 +265,14 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                        maps[draws + j * FLOOR_DRAWS:draws + (j + 1) * FLOOR_DRAWS])
                       for j, i in enumerate(free_idx)]
             set_noise_floor(target, noisy, clean0, scaled=scaled)
+            pred_start = predict_features(clean0, target, [p.start for p in params])
+            starts, reach = _measured_starts(base, params, target)
+            before = check_before(
+                target.height, pred_start.height, pixel=pixel, free_keys=keys,
+                measured_period=None if target.centroid is None else 1.0 / target.centroid,
+                predicted_period=(None if not pred_start.centroid or target.centroid is None
+                                  else 1.0 / pred_start.centroid),
+                measured_wavy=target.wavy, predicted_wavy=pred_start.wavy, reach=reach)
             if target.scatter.get("waviness_rms_nm") is not None:
                 log.info("the random parts and the camera's noise: %.3g nm rms of waviness, "
                          "harmonics %s nm, frequency %.2g (their realisations' scatter)",
@@ -255,7 +283,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
             pred0 = predict_features(first.height, target, first.values)
             log.info("first evaluation: %.1f s; misfit %.4g", first.seconds, first.cost)
             result = solve(params, evaluator, global_points=global_points, seed=seed,
-                           profile_points=profile_points)
+                           profile_points=profile_points, starts=starts)
             # the fitted values once more with a realisation of the random parts and the
             # camera's noise (for the PSD figure: what a measurement of the fit would show)
             drawn = compute_all(store, [model.draw(dict(zip(keys, result.values)), 0)],
@@ -264,6 +292,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         _after_failure(store, err)
         raise
     best = predict_features(result.best.height, target, result.best.values)
+    after = check_after(target.height, best.height, pixel=pixel, goodness=result.goodness)
     maps = misfit_maps(target.height, best.height)
     wavy = misfit_maps(target.wavy, best.wavy)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
@@ -292,18 +321,24 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                                           if not e.cached and e.meta.get("worker")})}
     record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
                         waviness=wavy)
-    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
+    record["model_check"] = {"before": before, "after": after,
+                             "measured_starts": starts}
+    record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs) as tmp:
         tmp = Path(tmp)
         if predict:
             pred_scene = _predicted_scene(fitted, {}, predict, fill)
+            pred_pixel = _evaluation_pixel(pred_scene)
             pred_scene = scene_from_dict(apply_overrides(
-                pred_scene.to_dict(), [f"simulation.region={json.dumps(window)}"]), "(predict)")
+                pred_scene.to_dict(), [f"simulation.region={json.dumps(window)}",
+                                       f"simulation.pixel={pred_pixel!r}"]), "(predict)")
             with task("fit: predict the next cut"):
                 sim = simulate(pred_scene)
             (tmp / "predict").mkdir()
             pm = write_simulation(sim, tmp / "predict")
             write_marker(tmp / "predict", command="simulate", scene=pred_scene)
             record["prediction"] = {"settings": list(predict), "folder": "predict",
+                                    "simulation_pixel_mm": pred_pixel,
                                     "residual": pm.get("residual"),
                                     "toolpath": pm.get("toolpath")}
         record["timing_s"]["total"] = time.perf_counter() - t_all
@@ -334,6 +369,56 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         write_json(tmp / "fit.json", record)
     _log_summary(record)
     return record
+
+
+def _evaluation_pixel(scene, period=None) -> float:
+    """The simulation pixel of an evaluation (and of ``--predict``): the scene's, halved
+    until the marks' period (``period`` mm, else the scene's feed per revolution) holds
+    :data:`SIM_SAMPLES_PER_PERIOD` samples, so that the grid's aliasing of the cusps stays
+    far below what is compared."""
+    px = float(scene.simulation.pixel)
+    if period is None:
+        d = scene.to_dict()
+        feed, rpm = get_value(d, "process.feed_mm_per_min"), get_value(d, "process.spindle_rpm")
+        period = (float(feed) / float(rpm)
+                  if isinstance(feed, (int, float)) and isinstance(rpm, (int, float)) and rpm > 0
+                  else None)
+    while period and px * SIM_SAMPLES_PER_PERIOD > period * (1.0 + 1e-9):
+        px /= 2.0
+    return px
+
+
+def _measured_starts(base: dict, params, target):
+    """(starts, reach): start values the measurement proposes, and the marks' periods the
+    free keys' bounds reach (None when no key that sets the period is free).
+
+    The feed per revolution is the marks' period (a turned spiral advances one period a
+    revolution): ``process.feed_mm_per_min`` = period x ``spindle_rpm`` (or the spindle
+    speed from the feed); the tool's nose radius from the fundamental's amplitude, that of
+    a parabolic cusp, a1 = f^2 / (2 pi^2 R)."""
+    if target.centroid is None:
+        return [], None
+    period = 1.0 / target.centroid
+    keys = {p.key: p for p in params}
+    rpm = get_value(base, "process.spindle_rpm")
+    feed = get_value(base, "process.feed_mm_per_min")
+    start, reach = {}, None
+    if "process.feed_mm_per_min" in keys and rpm:
+        p = keys["process.feed_mm_per_min"]
+        start[p.key] = period * float(rpm)
+        reach = (p.lower / float(rpm), p.upper / float(rpm))
+    elif "process.spindle_rpm" in keys and feed:
+        p = keys["process.spindle_rpm"]
+        start[p.key] = float(feed) / period
+        reach = (float(feed) / p.upper, float(feed) / p.lower)
+    a1 = float(target.amplitudes[0]) if len(target.amplitudes) else 0.0
+    if "tool.nose_radius" in keys and a1 > 0:
+        # the amplitude of a parabolic cusp's fundamental
+        start["tool.nose_radius"] = period ** 2 / (2 * math.pi ** 2 * a1)
+    starts = [start] if start else []
+    if "tool.nose_radius" in start and len(start) > 1:
+        starts.append({k: v for k, v in start.items() if k != "tool.nose_radius"})
+    return starts, reach
 
 
 def _after_failure(store, err) -> None:
@@ -386,13 +471,5 @@ def _file_notes() -> dict:
 
 
 def _log_summary(record: dict) -> None:
-    for k, p in record["parameters"].items():
-        se = p["stderr"]
-        log.info("%s = %.6g +- %s (start %.6g)", k, p["value"],
-                 "n/a" if se is None else f"{se:.3g}", p["start"])
-    for pair in record["unresolved_pairs"]:
-        log.info("%s and %s cannot be told apart (correlation %.3f)", *pair["keys"],
-                 pair["correlation"])
-    log.info("misfit rms %.3g nm (waviness %.3g nm) after %d evaluations",
-             record["misfit_rms_nm"] or float("nan"),
-             record["misfit"]["waviness_rms_nm"] or float("nan"), record["evaluations"])
+    for line in summary_lines(record):
+        log.info("%s", line)

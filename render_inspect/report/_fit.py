@@ -83,22 +83,36 @@ def fit_page(record: dict, figs: dict) -> str:
     rep = HtmlReport(f"render-inspect fit: {record.get('scene', '')}",
                      f"{record['measured']['path']}: {len(record['parameters'])} parameters, "
                      f"{record['evaluations']} evaluations, status {record['status']}")
+    rep.section("Status")
+    rep.text(f"{record['status']}: {record.get('message', '')}")
+    after = (record.get("model_check") or {}).get("after")
+    if after:
+        rep.text(after["verdict"] + ".")
     rep.section("Fitted parameters")
     rows = []
     for k, p in record["parameters"].items():
         rel = p.get("relative_stderr")
-        rows.append([k, key_unit(k), _val(p["value"]), _val(p["stderr"]),
+        se = _val(p["stderr"]) if p.get("determined", True) else "not determined alone"
+        rows.append([k, key_unit(k), _val(p["value"]), se,
                      "n/a" if rel is None else f"{100 * rel:.3g} %",
                      _val(p.get("stderr_formal")), _val(p.get("stderr_random_parts")),
                      _val(p["start"]), f"{_val(p['bounds'][0])} .. {_val(p['bounds'][1])}"])
     rep.table(rows, header=["key", "unit", "value", "stderr", "relative", "formal", "random parts",
                             "start", "bounds"])
     n = (record.get("uncertainty") or {}).get("realisations", 0)
-    rep.text("The standard error combines the formal one (from the Jacobian at the solution, "
-             "residuals taken as independent: a lower bound) and the spread of the solution "
-             f"over {n} realisations of the random parts and the camera's noise, each taken "
-             "as the measured map; the misfit along each parameter below shows how well each "
-             "one is pinned.")
+    q = (record.get("goodness") or {}).get("birge_ratio")
+    rep.text("The standard error combines the formal one (from the Jacobian at the solution), "
+             f"the spread of the solution over {n} realisations of the random parts and the "
+             "camera's noise, each taken as the measured map"
+             + (f", scaled by {q:.3g} (the misfit over the misfit those realisations alone "
+                "leave: the model's error)" if q and q > 1 else "")
+             + ", and half the distance between the two starts' results; the misfit along "
+               "each parameter below shows how well each one is pinned.")
+    ident = record.get("identifiability") or {}
+    if ident.get("directions") and len(record["parameters"]) > 1:
+        rep.list([f"{d['text']}: relative standard error {d['relative_stderr']:.3g} "
+                  f"({'determined' if d['determined'] else 'not determined by this measurement'})"
+                  for d in ident["directions"]])
     held = (record.get("random_parts") or {}).get("held_at_zero_in_evaluations") or {}
     if held:
         rep.text("Random parts held at 0 in the evaluations (their power enters the spectra): "

@@ -1,0 +1,183 @@
+"""Benchmark: does ``fit`` capture the truth from anywhere in its bounds, and do its standard
+errors cover the truth?
+
+Truths drawn across the bounds (seeded), each measured with its random parts (a new
+realisation per truth), each fitted from a start drawn across the bounds:
+
+* ``capture_rate``: the share of fits that end at the truth (feed within 0.5 %, nose radius
+  within 5 %) -- the issue's bar: starts anywhere inside the bounds end at the truth;
+* ``coverage_2se``: the share of (truth, key) pairs whose error is within 2 reported
+  standard errors (a calibrated 2-sigma interval covers about 95 %; the bar is 90 %);
+* ``converged_rate``, ``converged_wrong``: how often the status is ``converged``, and how
+  often a ``converged`` fit is not at the truth (must be 0);
+* ``fit_s_median``: the median wall time per fit.
+
+Two forward models:
+
+* ``analytic`` (default): exact turning cusps of feed f and nose radius R (the parabola's
+  Fourier series is what the harmonics read) plus a waviness, measured with white height
+  noise and a random low-frequency texture (the random parts), six realisations of which
+  give the noise floor as in ``fit``; 0.192 mm field at 1 um.  Cheap: 50 truths in minutes.
+* ``simulate``: the real chain (``render-inspect fit`` on the shipped sinusoidal-grid scene,
+  the lathe's and material's random parts on, a 0.2 mm field through the 20x virtual
+  interferometer); minutes per fit, so run with a few truths (``--truths 3``) and say so.
+
+Run: ``nice .venv/bin/python benchmarks/bench_fit_coverage.py [--model simulate] [--truths N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+F_BOUNDS = (0.008, 0.013)        # mm per revolution (analytic)
+R_BOUNDS = (0.3, 1.0)            # mm
+NOISE_MM = 2e-6                  # white height noise of a measurement, rms
+TEXTURE_MM = 3e-6                # random low-frequency texture, rms
+
+
+def _cusps(period, radius, *, n=192, pixel=0.001, centre=(-0.6, 0.05), amp_wave=4e-6):
+    x = (np.arange(n) - n / 2) * pixel
+    xx, yy = np.meshgrid(x, x)
+    r = np.hypot(xx - centre[0], yy - centre[1])
+    u = (r / period - np.round(r / period)) * period
+    z = radius - np.sqrt(radius ** 2 - u ** 2)
+    return z + amp_wave * np.sin(2 * math.pi * xx / 0.1), pixel
+
+
+def analytic(task):
+    v = task["values"]
+    return _cusps(v["f"], v["R"])[0], {}
+
+
+def _random_parts(shape, rng):
+    """A realisation of the random parts: white noise plus a smooth texture."""
+    from scipy.ndimage import gaussian_filter
+
+    tex = gaussian_filter(rng.normal(size=shape), 6.0)
+    tex *= TEXTURE_MM / max(float(np.std(tex)), 1e-30)
+    return rng.normal(0.0, NOISE_MM, shape) + tex
+
+
+def _measured_starts(target):
+    """The starts ``fit`` takes from the measurement: the feed from the marks' period, the
+    nose radius from the fundamental's amplitude."""
+    if target.centroid is None:
+        return []
+    f = 1.0 / target.centroid
+    a1 = float(target.amplitudes[0])
+    out = {"f": f}
+    if a1 > 0:
+        out["R"] = f * f / (2 * math.pi ** 2 * a1)
+    return [out, {"f": f}]
+
+
+def fit_analytic(truth, start, seed):
+    from render_inspect.fit import (EvaluationCache, Evaluator, FreeParameter, MisfitSpec,
+                                    make_target, set_noise_floor, solve)
+
+    rng = np.random.default_rng([seed, 1])
+    clean, px = _cusps(truth["f"], truth["R"])
+    measured = clean + _random_parts(clean.shape, rng)
+    target = make_target(measured, pixel=(px, px), origin=(0.0, 0.0), spec=MisfitSpec())
+    params = [FreeParameter("f", start["f"], 0.006, 0.016, 0.1 * start["f"]),
+              FreeParameter("R", start["R"], 0.2, 1.5, 0.1 * start["R"])]
+    clean0 = analytic({"values": start})[0]
+    draws = [clean0 + _random_parts(clean0.shape, rng) for _ in range(6)]
+    set_noise_floor(target, draws, clean0)
+    ev = Evaluator(params, target, lambda vals: {"values": vals}, analytic,
+                   EvaluationCache(None), max_evaluations=400)
+    t0 = time.perf_counter()
+    res = solve(params, ev, global_points=8, seed=seed, profile_points=0,
+                starts=_measured_starts(target))
+    return {"values": dict(zip(("f", "R"), map(float, res.values))),
+            "stderr": dict(zip(("f", "R"), map(float, res.stderr))),
+            "status": res.status, "evaluations": res.evaluations,
+            "seconds": time.perf_counter() - t0}
+
+
+SIM_KEYS = ("tool.nose_radius", "process.feed_mm_per_min")
+SIM_BOUNDS = {"tool.nose_radius": (0.35, 0.75), "process.feed_mm_per_min": (0.4, 0.6)}
+FIELD = (0.25, -0.1, 0.45, 0.1)
+
+
+def fit_simulate(truth, start, seed, folder: Path):
+    from render_inspect.pipeline import run_fit, run_measure, run_render
+    from render_inspect.scene import load_scene
+
+    x0, y0, x1, y1 = FIELD
+    m = 0.03
+    scene = load_scene("sts_sinusoidal_grid", [
+        *[f"{k}={v!r}" for k, v in truth.items()], "simulation.pixel=0.0005",
+        f"simulation.seed={seed}", f"render.interferometer.seed={seed}",
+        f"simulation.region=[{x0 - m}, {y0 - m}, {x1 + m}, {y1 + m}]",
+        f"render.interferometer.field_of_view=[{x0}, {y0}, {x1}, {y1}]"])
+    run_render(scene, folder / "render", kind="interferometer")
+    run_measure(folder / "render" / "interferogram.exr", folder / "measure")
+    t0 = time.perf_counter()
+    rec = run_fit(folder / "measure" / "height.exr",
+                  load_scene("sts_sinusoidal_grid", [f"{k}={v!r}" for k, v in start.items()]),
+                  [",".join(SIM_KEYS)], folder / "fit", seed=seed, profile_points=0,
+                  bounds=[f"{k}={a},{b}" for k, (a, b) in SIM_BOUNDS.items()],
+                  max_evaluations=200)
+    p = rec["parameters"]
+    return {"values": {k: p[k]["value"] for k in SIM_KEYS},
+            "stderr": {k: p[k]["stderr"] for k in SIM_KEYS}, "status": rec["status"],
+            "evaluations": rec["evaluations"], "seconds": time.perf_counter() - t0,
+            "verdict": rec["model_check"]["after"]["verdict"]}
+
+
+def main(truths: int = 50, model: str = "analytic", seed: int = 2026) -> dict:
+    rng = np.random.default_rng(seed)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(truths):
+            if model == "analytic":
+                truth = {"f": float(rng.uniform(*F_BOUNDS)), "R": float(rng.uniform(*R_BOUNDS))}
+                start = {"f": float(rng.uniform(*F_BOUNDS)), "R": float(rng.uniform(*R_BOUNDS))}
+                got = fit_analytic(truth, start, seed + i)
+                tol = {"f": 0.005, "R": 0.05}
+            else:
+                truth = {k: float(rng.uniform(*SIM_BOUNDS[k])) for k in SIM_KEYS}
+                start = {k: float(rng.uniform(*SIM_BOUNDS[k])) for k in SIM_KEYS}
+                got = fit_simulate(truth, start, seed + i, Path(tmp) / f"t{i}")
+                tol = {"tool.nose_radius": 0.05, "process.feed_mm_per_min": 0.005}
+            err = {k: got["values"][k] / truth[k] - 1.0 for k in truth}
+            z = {k: (abs(got["values"][k] - truth[k]) / got["stderr"][k]
+                     if got["stderr"][k] else math.inf) for k in truth}
+            rows.append({"truth": truth, "start": start, **got, "relative_error": err,
+                         "z": z, "captured": all(abs(err[k]) <= tol[k] for k in truth)})
+            print(json.dumps({"i": i, "captured": rows[-1]["captured"], "status": got["status"],
+                              "error": {k: round(v, 5) for k, v in err.items()},
+                              "z": {k: round(v, 2) for k, v in z.items()},
+                              "s": round(got["seconds"], 1)}), flush=True)
+    pairs = [v for r in rows for v in r["z"].values()]
+    conv = [r for r in rows if r["status"] == "converged"]
+    out = {"model": model, "truths": truths, "seed": seed, "cpus": os.cpu_count(),
+           "capture_rate": sum(r["captured"] for r in rows) / len(rows),
+           "coverage_2se": sum(z <= 2.0 for z in pairs) / len(pairs),
+           "coverage_1se": sum(z <= 1.0 for z in pairs) / len(pairs),
+           "converged_rate": len(conv) / len(rows),
+           "converged_wrong": sum(not r["captured"] for r in conv),
+           "fit_s_median": statistics.median(r["seconds"] for r in rows),
+           "evaluations_median": statistics.median(r["evaluations"] for r in rows)}
+    print(json.dumps(out, indent=2))
+    return out
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--model", choices=("analytic", "simulate"), default="analytic")
+    ap.add_argument("--truths", type=int, default=50)
+    ap.add_argument("--seed", type=int, default=2026)
+    a = ap.parse_args()
+    sys.exit(0 if main(a.truths, a.model, a.seed) else 1)
