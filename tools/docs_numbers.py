@@ -55,8 +55,14 @@ SPAN = re.compile(r"<!-- n:([A-Za-z0-9_.\-]+) -->(.*?)<!-- /n -->", re.S)
 
 
 def doc_files() -> list[Path]:
-    """The documents whose marked numbers this script writes."""
-    return [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+    """The documents whose marked numbers this script writes (docs/validation.md has its
+    own script, tools/validation_numbers.py, and docs/validation.json)."""
+    return [REPO / "README.md", *sorted(p for p in (REPO / "docs").glob("*.md")
+                                        if p.name not in OWN_SCRIPT)]
+
+
+#: docs whose marked numbers another script writes
+OWN_SCRIPT = {"validation.md"}
 
 
 def fmt(value, spec: str = ".3g") -> str:

@@ -1,0 +1,64 @@
+"""docs/validation.md says what docs/validation.json holds: every marked span
+(``<!-- n:KEY -->TEXT<!-- /n -->``) is the json's text (fast).  ``python
+tools/validation_numbers.py`` makes both from the published programs and measured slices.
+The band parameters the script takes are checked on a profile with a known answer."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("validation_numbers",
+                                                  REPO / "tools" / "validation_numbers.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("validation_numbers", mod)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_every_marked_number_is_the_runs():
+    tool = _tool()
+    data = tool.load()
+    assert data["numbers"], "docs/validation.json holds no number: run tools/validation_numbers.py"
+    quoted = tool._docs_numbers().spans(tool.VALIDATION_MD.read_text())
+    assert len(quoted) >= 20, "docs/validation.md marks (almost) no number"
+    bad = tool.check(data)
+    assert not bad, "\n".join(bad) + "\n(python tools/validation_numbers.py --docs rewrites them)"
+
+
+def test_validation_doc_is_not_docs_numbers():
+    """docs/validation.md's spans are the validation script's, not docs/numbers.json's."""
+    tool = _tool()
+    dn = tool._docs_numbers()
+    assert tool.VALIDATION_MD not in dn.doc_files()
+    assert not set(tool.load()["numbers"]) & set(dn.load_numbers()["numbers"])
+
+
+def test_band_parameters_of_a_sine():
+    """A sine of amplitude A and period L on both sides of an axis: Ra = 2A/pi,
+    Rq = A/sqrt(2), Rt = 2A, Rsk = 0, Rku = 1.5, RSm = L, in any band of whole periods."""
+    tool = _tool()
+    spacing, amp, period = 0.0005, 200e-6, 0.04   # mm: 0.5 um steps, 200 nm, 40 um
+    axis = 0.5
+    s = np.arange(0, 1.0 + spacing / 2, spacing)
+    r = amp * np.sin(2 * np.pi * (s - axis) / period)
+    got = tool.band_parameters(s, r, np.ones(s.size, bool), axis_mm=axis, band_um=(20.0, 420.0),
+                               spacing=spacing)
+    assert math.isclose(got["Ra_nm"], 2 * 200 / math.pi, rel_tol=2e-3)
+    assert math.isclose(got["Rq_nm"], 200 / math.sqrt(2), rel_tol=2e-3)
+    assert math.isclose(got["Rt_nm"], 400, rel_tol=1e-3)
+    assert abs(got["Rsk"]) < 1e-2
+    assert math.isclose(got["Rku"], 1.5, rel_tol=5e-3)
+    assert math.isclose(got["RSm_um"], 40.0, rel_tol=1e-3)
+    # outside the evaluation length nothing is counted
+    ev = np.abs(s - axis) < 0.1
+    few = tool.band_parameters(s, r, ev, axis_mm=axis, band_um=(150.0, 420.0), spacing=spacing)
+    assert few["n"] == 0 and few["Ra_nm"] is None
