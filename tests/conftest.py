@@ -120,8 +120,9 @@ def _heavy_work(what: str, *, stop: bool = False) -> None:
 
 
 #: processes libraries start once for themselves, whichever test comes first (matplotlib
-#: lists the system's fonts when it builds its font cache)
-_LIBRARY_PROBES = ("fc-list",)
+#: lists the system's fonts when it builds its font cache; a store library asks lscpu for the
+#: processor once)
+_LIBRARY_PROBES = ("fc-list", "lscpu")
 
 
 def _audit(event: str, args) -> None:
