@@ -152,9 +152,15 @@ def test_a_large_store_goes_window_by_window_whatever_the_budget(tmp_path, monke
     whole = run_analyze(path, tmp_path / "a", form="poly2", budget=roomy)
     assert "windowed" not in whole
     monkeypatch.setattr(_analyze, "STORE_WHOLE_MAP_BYTES", 4 * 2 ** 20)
-    monkeypatch.setattr(_analyze, "WINDOW_BYTES", 600 * 2 ** 10)  # bands of 128 rows
+    monkeypatch.setattr(_analyze, "WINDOW_BYTES", 13 * 2 ** 20)  # bands of 128 rows
     got = run_analyze(path, tmp_path / "b", form="poly2", budget=roomy)
-    assert got["windowed"]["bands"] > 1
+    assert got["windowed"]["band_rows"] == 128 and got["windowed"]["bands"] == 5
+    # a map too wide for a row of chunks in a band: bands of part of a row of chunks
+    monkeypatch.setattr(_analyze, "WINDOW_BYTES", 5 * 2 ** 20)
+    part = run_analyze(path, tmp_path / "p", form="poly2", budget=roomy)
+    assert part["windowed"]["band_rows"] == 42
+    for k in ("Sq_nm", "Sz_nm", "Sdq", "Sdr_percent"):
+        assert part["areal"][k] == pytest.approx(got["areal"][k], rel=1e-12), k
     assert got["windowed"]["whole_map_limit_bytes"] == 4 * 2 ** 20
     for k in ("Sa_nm", "Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "Ssk", "Sku", "Sdq"):
         assert got["areal"][k] == pytest.approx(whole["areal"][k], rel=1e-9), k

@@ -238,9 +238,13 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     overhead = 2 * store.chunk_bytes * max(1, -(-nx // store.chunk_shape[1]))
     cy = store.chunk_shape[0]
     rows = int((_BAND_SHARE * limit - overhead) // per_row)
-    rows = min(rows, max(int(WINDOW_BYTES // per_row), cy), ny)
+    rows = min(rows, max(int(WINDOW_BYTES // per_row), 2), ny)
     if rows >= cy:
         rows -= rows % cy  # whole chunks: each is decoded once
+    elif rows >= 2:
+        # a row of chunks is more than a band may hold (a wide map): bands of about an
+        # equal share of a row of chunks (its chunks are decoded once per band)
+        rows = max(cy // -(-cy // rows), 2)
     check_memory(max(rows, 2) * per_row + overhead, budget=budget,
                  what=f"{what} window by window (bands of {max(rows, 2)} rows of {nx} points)",
                  hint="the map's rows are too long for the budget")
