@@ -39,9 +39,8 @@ ANALYZE_FILES = ("metrics.json", "height.png", "height.x3p")
 #: share of the budget the bands of a windowed analysis may hold (the rest: the level
 #: that gives Sal and Str, the picture, what zarr decodes at once)
 _BAND_SHARE = 0.4
-#: what a band, or the coarse view that gives Sal and Str, holds at most when the budget
-#: allows more (larger bands do no less work, they only hold more; a band still spans
-#: whole chunks of the store when the budget allows)
+#: what a band holds at most when the budget allows more (larger bands do no less work,
+#: they only hold more; a band spans whole rows of the store's chunks when one fits)
 WINDOW_BYTES = GIB_TO_BYTES
 #: what the coarse view that gives Sal and Str (and the periods) may need at most
 SPATIAL_BYTES = GIB_TO_BYTES
