@@ -139,6 +139,41 @@ def test_analyze_of_a_store_over_the_budget_goes_window_by_window(tmp_path):
     assert not (tmp_path / "c").exists()
 
 
+def test_a_large_store_goes_window_by_window_whatever_the_budget(tmp_path, monkeypatch):
+    """A store whose whole-map analysis would need more than the store limit is analysed
+    window by window even with room to spare in the budget (its memory stays that of a
+    few bands), with the whole map's parameters; options that need the whole map still
+    run in memory when the budget holds them."""
+    from render_inspect.pipeline import _analyze
+
+    z = _surface(600, 700)
+    path = _store(tmp_path, z, chunk=128, levels=2)
+    roomy = (64 * GIB, "a roomy test budget")
+    whole = run_analyze(path, tmp_path / "a", form="poly2", budget=roomy)
+    assert "windowed" not in whole
+    monkeypatch.setattr(_analyze, "STORE_WHOLE_MAP_BYTES", 4 * 2 ** 20)
+    monkeypatch.setattr(_analyze, "WINDOW_BYTES", 13 * 2 ** 20)  # bands of 128 rows
+    got = run_analyze(path, tmp_path / "b", form="poly2", budget=roomy)
+    assert got["windowed"]["band_rows"] == 128 and got["windowed"]["bands"] == 5
+    # a map too wide for a row of chunks in a band: bands of part of a row of chunks
+    monkeypatch.setattr(_analyze, "WINDOW_BYTES", 5 * 2 ** 20)
+    part = run_analyze(path, tmp_path / "p", form="poly2", budget=roomy)
+    assert part["windowed"]["band_rows"] == 42
+    for k in ("Sq_nm", "Sz_nm", "Sdq", "Sdr_percent"):
+        assert part["areal"][k] == pytest.approx(got["areal"][k], rel=1e-12), k
+    assert got["windowed"]["whole_map_limit_bytes"] == 4 * 2 ** 20
+    for k in ("Sa_nm", "Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "Ssk", "Sku", "Sdq"):
+        assert got["areal"][k] == pytest.approx(whole["areal"][k], rel=1e-9), k
+    assert got["n_valid"] == whole["n_valid"]
+    # the periods come from the coarse view, which says its sampling
+    assert got["periods"]["seen_at_mm"] == pytest.approx(0.002)
+    assert got["periods"]["dominant"]["period_mm"] == pytest.approx(
+        whole["periods"]["dominant"]["period_mm"], rel=0.05)
+    # a sphere needs the whole map: done in memory, not refused, while the budget holds it
+    sph = run_analyze(path, tmp_path / "c", form="sphere", budget=roomy)
+    assert "windowed" not in sph and sph["form"]["method"] == "sphere"
+
+
 def test_sal_from_a_pyramid_level_only_when_resolved(tmp_path):
     """A lay of 60 um period seen through level 1 (2 um): Sal is given, from that level,
     and equals the whole map's within the coarser sampling; white noise at level 3 is not

@@ -250,7 +250,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
         p.update(Sdq=math.sqrt(c_g2 / c_n) if c_n else nan,
                  Sdr=100.0 * c_area / c_n if c_n else nan)
     warnings_ = [f"analysed window by window in {len(bands)} bands of {band_rows} rows (the "
-                 f"whole map does not fit the memory budget): the height parameters and slopes "
+                 f"whole map is not held in memory at once): the height parameters and slopes "
                  f"are the whole map's; outliers are not counted"]
     if n_measured < (1.0 - MOSTLY_EMPTY_FRACTION) * ny * nx:
         warnings_.append(mostly_empty_warning(1.0 - n_measured / (ny * nx)))
@@ -260,7 +260,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
     # ---- Sal and Str from the coarse view
     sp = {"Sal_mm": None, "Str": None, "decays_in_all_directions": None,
           "fastest_direction_rad": None, "slowest_direction_rad": None, "longest_decay_mm": None}
-    spatial_note = "not computed (the whole field does not fit the memory budget)"
+    spatial_note = "not computed (the whole field is not held in memory at once)"
     height = None
     if spatial is not None:
         zc, factor, note = spatial
@@ -275,7 +275,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
             if sal is not None and math.isfinite(sal) and sal < MIN_RESOLVED_PIXELS * coarse:
                 warnings_.append(
                     f"Sal and Str not given: at the {coarse * MM_TO_UM:.4g} um sampling of {note} "
-                    f"(the whole field at full resolution does not fit the memory budget) the "
+                    f"(the whole field at full resolution is not held in memory at once) the "
                     f"autocorrelation decays within {MIN_RESOLVED_PIXELS} pixels ({sal * MM_TO_UM:.3g} "
                     f"um), too short to resolve")
                 sp = {k: None for k in sp}
@@ -284,7 +284,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
                 spatial_note = note
                 warnings_.append(f"Sal and Str come from {note}: the autocorrelation of the map "
                                  f"seen at {coarse * MM_TO_UM:.4g} um sampling (the whole field at "
-                                 f"full resolution does not fit the memory budget)")
+                                 f"full resolution is not held in memory at once)")
     if sp.get("decays_in_all_directions") is False:
         warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "
                          f"across the field in at least one direction (a lay longer than the field)")

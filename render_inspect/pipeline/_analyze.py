@@ -39,10 +39,16 @@ ANALYZE_FILES = ("metrics.json", "height.png", "height.x3p")
 #: share of the budget the bands of a windowed analysis may hold (the rest: the level
 #: that gives Sal and Str, the picture, what zarr decodes at once)
 _BAND_SHARE = 0.4
-#: what a band, or the coarse view that gives Sal and Str, holds at most when the budget
-#: allows more (larger bands do no less work, they only hold more; a band still spans
-#: whole chunks of the store when the budget allows)
+#: what a band holds at most when the budget allows more (larger bands do no less work,
+#: they only hold more; a band spans whole rows of the store's chunks when one fits)
 WINDOW_BYTES = GIB_TO_BYTES
+#: what the coarse view that gives Sal and Str (and the periods) may need at most
+SPATIAL_BYTES = GIB_TO_BYTES
+#: a store whose whole-map analysis needs more than this is analysed window by window even
+#: when the memory budget would hold it whole (the whole-map analysis grows to about 9 GiB
+#: at 64 M samples; window by window a store of any size stays near 2 GiB), unless its
+#: options need the whole map (:func:`~render_inspect.metrology.windowed_refusal`)
+STORE_WHOLE_MAP_BYTES = 3 * GIB_TO_BYTES
 #: the advice about a scene key that the memory budget's text gives other commands
 _SCENE_ADVICE = ("; set simulation.max_memory_gb to choose", " or set simulation.max_memory_gb lower")
 
@@ -146,7 +152,9 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
     if _is_store(path):
         store = ZarrHeightMap(path, what="height map store")
         need = analyze_memory(store.shape, holes=True, **opts)
-        if need > budget[0]:
+        whole_only = windowed_refusal(form=form, s_filter_mm=s_mm, l_filter_mm=l_mm,
+                                      outliers=outliers, x3p=x3p)
+        if need > budget[0] or (need > STORE_WHOLE_MAP_BYTES and whole_only is None):
             return _analyze_windowed(store, path, out, need=need, budget=budget, channel=channel,
                                      x3p=x3p, overwrite=overwrite, t0=t0, **opts)
     try:
@@ -229,18 +237,23 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     overhead = 2 * store.chunk_bytes * max(1, -(-nx // store.chunk_shape[1]))
     cy = store.chunk_shape[0]
     rows = int((_BAND_SHARE * limit - overhead) // per_row)
-    rows = min(rows, max(int(WINDOW_BYTES // per_row), cy), ny)
+    rows = min(rows, max(int(WINDOW_BYTES // per_row), 2), ny)
     if rows >= cy:
         rows -= rows % cy  # whole chunks: each is decoded once
+    elif rows >= 2:
+        # a row of chunks is more than a band may hold (a wide map): bands of about an
+        # equal share of a row of chunks (its chunks are decoded once per band)
+        rows = max(cy // -(-cy // rows), 2)
     check_memory(max(rows, 2) * per_row + overhead, budget=budget,
                  what=f"{what} window by window (bands of {max(rows, 2)} rows of {nx} points)",
                  hint="the map's rows are too long for the budget")
     opts = {"form": form, "s_filter_mm": None, "l_filter_mm": None, "outliers": "none",
             "slope": slope}
-    lv = _spatial_level(store, min((1.0 - _BAND_SHARE) * limit - overhead, WINDOW_BYTES), **opts)
+    lv = _spatial_level(store, min((1.0 - _BAND_SHARE) * limit - overhead, SPATIAL_BYTES), **opts)
     log.info("%s window by window: %d bands of %d rows (the whole map would need about %s, "
-             "more than the budget of %s)", what, math.ceil(ny / rows), rows, format_bytes(need),
-             format_bytes(limit))
+             "more than %s)", what, math.ceil(ny / rows), rows, format_bytes(need),
+             f"the budget of {format_bytes(limit)}" if need > limit else
+             f"the {format_bytes(STORE_WHOLE_MAP_BYTES)} a store is analysed whole within")
     spatial = None
     if lv is not None:
         k, f = lv
@@ -269,6 +282,12 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     metrics = analysis_metrics(a.metrics, path=path, files=files, timing={})
     metrics["windowed"]["memory_whole_map_bytes"] = int(need)
     metrics["windowed"]["budget_bytes"] = int(limit)
+    metrics["windowed"]["whole_map_limit_bytes"] = int(min(limit, STORE_WHOLE_MAP_BYTES))
+    if a.height is not None:
+        f = spatial[1]
+        metrics["periods"] = _map_periods(a.height, (store.pixel * f, store.pixel * f))
+        if metrics["periods"] is not None:
+            metrics["periods"]["seen_at_mm"] = store.pixel * f
     _log_warnings(metrics)
     with atomic_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,)) as tmp:
         tmp = Path(tmp)
