@@ -106,7 +106,7 @@ def main(zip_path, out_json, work):
          render_inspect_name=render_inspect.__name__, numpy=np.__version__,
          numba_cache_dir=os.environ.get("NUMBA_CACHE_DIR", ""),
          missing=[m[0] for m in mod._deps.missing()],
-         presets=[i[0] for i in mod.properties._PRESET_ITEMS])
+         presets=[i[0] for i in mod._scenes._PRESET_ITEMS])
 
     s = bpy.context.scene.render_inspect
     rep["panels_before"] = {k: flat(v) for k, v in draw_panels(mod).items()}

@@ -95,7 +95,13 @@ def test_first_figure_is_the_difference(name, tmp_path_factory):
     assert png == (out / "difference.png").read_bytes()
     # the variants differ: non-zero in the truth and in what the instrument measures
     assert w["true"]["rms_nm"] > 0.01, (name, w)
-    assert w["measured"]["rms_nm"] > 0.01, (name, w)
+    if w["measured"].get("status") == "failed":
+        # a measurement that lost its fringe orders (these small cases image at 3 um
+        # pixels, coarser than the marks' slopes allow) is a failure, said so, never a number
+        assert w["measured"]["rms_nm"] is None and w["measured"]["fringe_order"]["reasons"]
+        assert "FAILED" in page, name
+    else:
+        assert w["measured"]["rms_nm"] > 0.01, (name, w)
     # and the figure shows it: the two difference maps are coloured, not blank
     assert _coloured_fraction(png, 0.22, 0.62) > 0.01, name
     # the common window is the interferometer's field and the micro diffuse view's

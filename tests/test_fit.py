@@ -334,6 +334,9 @@ def test_an_interrupted_fit_keeps_its_cache_and_says_so(tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(fit_module, "solve", interrupted)
+    # this test is about the stop: the model check before the solve (its own tests) is
+    # passed, so that the stop comes where the solve starts
+    monkeypatch.setattr(fit_module, "check_before", lambda *a, **k: {})
     with pytest.raises(KeyboardInterrupt) as stop:
         run_fit(meas, load_scene("sts_sinusoidal_grid"), ["tool.nose_radius"], tmp_path / "out",
                 window_mm=0.11, profile_points=0)
@@ -433,8 +436,10 @@ def test_tool_and_feed_on_the_shipped_lathe_with_its_random_parts(shipped_tool_t
     a1_scatter = mf["random_parts_scatter"]["amplitudes_nm"][0] / mf["harmonic_amplitudes_nm"][0]
     ratio = nose["stderr_random_parts"] / nose["value"] / a1_scatter
     assert 1 / 3 < ratio < 3, (nose, a1_scatter)  # six realisations: the scatter to ~30 %
-    assert nose["stderr"] == pytest.approx(math.hypot(nose["stderr_formal"],
-                                                      nose["stderr_random_parts"]), rel=1e-6)
+    # the reported standard error holds the formal one and the random parts' at least (and
+    # the model's error and the two starts' disagreement where there are any)
+    assert nose["stderr"] >= math.hypot(nose["stderr_formal"],
+                                        nose["stderr_random_parts"]) * (1 - 1e-6)
     assert abs(nose["value"] - 0.525) < 3 * nose["stderr"], nose
     held = rec["random_parts"]["held_at_zero_in_evaluations"]
     assert {"machine.z.noise_nm", "material.texture_nm"} <= set(held)

@@ -183,6 +183,7 @@ def run_filters() -> dict:
     """The S-filters ``compare`` chooses from each scene's feed marks
     (``metrology.waviness_choice``): no simulation."""
     from render_inspect.core.units import MM_TO_UM
+    from render_inspect.design import make_surface
     from render_inspect.metrology import waviness_choice
     from render_inspect.processes import process_of
     from render_inspect.scene import load_scene
@@ -194,7 +195,7 @@ def run_filters() -> dict:
         p = process_of(sc)
         marks = p.traits(p.inputs_of(sc)).marks
         x0, y0, x1, y1 = sc.simulation.region
-        f = waviness_choice(marks, sc.design, sc.metrology, pixel=sc.simulation.pixel,
+        f = waviness_choice(marks, make_surface(sc.design), sc.metrology, pixel=sc.simulation.pixel,
                             window_mm=(x1 - x0, y1 - y0))
         out[f"filters.{key}_s_um"] = (f["s_filter_mm"] * MM_TO_UM, ".3g")
         if key != "hts":

@@ -54,6 +54,9 @@ class HeightBound(tuple):
     def __new__(cls, low, high, method):
         return super().__new__(cls, (float(low), float(high), str(method)))
 
+    def __getnewargs__(self):  # pickled (to Dask's workers) as its three values
+        return tuple(self)
+
     low = property(lambda self: self[0])
     high = property(lambda self: self[1])
     method = property(lambda self: self[2])

@@ -26,6 +26,7 @@ import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError
+from ..core.units import MIB_TO_BYTES
 from ..io import atomic_write_bytes
 
 __all__ = ["EvaluationCache", "task_hash", "scene_hash", "content_hash", "MAX_ENTRY_BYTES"]
@@ -33,7 +34,7 @@ __all__ = ["EvaluationCache", "task_hash", "scene_hash", "content_hash", "MAX_EN
 log = logging.getLogger("render_inspect")
 
 #: largest entry (decompressed) read when the expected map shape is not known, bytes
-MAX_ENTRY_BYTES = 256 * 2 ** 20
+MAX_ENTRY_BYTES = 256 * MIB_TO_BYTES
 #: the entry's format (its content hash's rule)
 ENTRY_FORMAT = 2
 
@@ -152,7 +153,7 @@ class EvaluationCache:
     def _limit(self) -> int:
         if self.shape is None:
             return MAX_ENTRY_BYTES
-        return 4 * math.prod(self.shape) + 2 ** 20  # float32 map and its metadata
+        return 4 * math.prod(self.shape) + MIB_TO_BYTES  # float32 map and its metadata
 
     def _read(self, p: Path, key: str):
         """(height, meta, None) or (None, None, why it is refused)."""

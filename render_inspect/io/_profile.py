@@ -357,7 +357,9 @@ def is_profile_file(path) -> bool:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in PROFILE_TEXT_SUFFIXES:
-        return True
+        # a text grid (more than three numbers a line: an areal map another reader takes)
+        # is not a profile
+        return _text_columns(path) <= 3
     if not path.is_file():
         return False
     if suffix == ".x3p":
@@ -370,6 +372,26 @@ def is_profile_file(path) -> bool:
             return False
         return b"1D_Data" in head
     return False
+
+
+def _text_columns(path: Path, *, lines: int = 64) -> int:
+    """The number of numbers on the first line of ``path`` that holds only numbers (0 when
+    none of its first ``lines`` lines does, or it cannot be read)."""
+    try:
+        with open(path, "r", errors="replace") as fh:
+            for _, line in zip(range(lines), fh):
+                sep = r"[;\s]+" if ";" in line else r"[,\s]+"  # ";" allows decimal commas
+                words = [w.replace(",", ".") for w in re.split(sep, line.strip()) if w]
+                if not words:
+                    continue
+                try:
+                    [float(w) for w in words]
+                except ValueError:
+                    continue
+                return len(words)
+    except OSError:
+        return 0
+    return 0
 
 
 def read_profile(path: str | Path, *, units=None) -> MeasuredProfile:

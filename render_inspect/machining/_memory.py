@@ -47,9 +47,11 @@ TILE_BYTES = 48
 #: displaced-material maps, the machined-edge masks)
 CUT_TILE_BYTES = 24
 #: bytes per sample of the halo'd block of a tile whose material burrs are added tile by
-#: tile (the burr model's smoothed map, edge masks, turns, distance transform and ridge:
-#: 109 B measured with tracemalloc, and the block's machined copy and texture)
-BURR_BLOCK_BYTES = 128
+#: tile (the burr model's compiled passes smooth in place and keep the edge masks, turns
+#: and ridge: the whole simulate's traced peak fell by about 100 B a sample when they
+#: replaced the array passes (109 B measured then), so 32 B with the block's machined
+#: copy and texture)
+BURR_BLOCK_BYTES = 32
 #: further bytes per path point of the cutting mechanics' prepared path (its lookup table
 #: and cutting distance)
 CUT_PATH_BYTES = 16

@@ -202,8 +202,8 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
         floor = (mw.get("noise") or {}).get("floor_nm")
         rep.table([["measured by the virtual interferometer",
                     "FAILED" if failed else _q(mw.get("rms_nm"), "nm"),
-                    "" if failed else _q(mw.get("pv_nm"), "nm"),
-                    "" if failed else _q(mw.get("mean_nm"), "nm"),
+                    "failed (no value)" if failed else _q(mw.get("pv_nm"), "nm"),
+                    "failed (no value)" if failed else _q(mw.get("mean_nm"), "nm"),
                     f"the two measurements alone, {removed} removed; noise floor "
                     f"{_q(floor, 'nm')} (their own noise estimates, in quadrature)"],
                    ["true, like with like", _q(same.get("rms_nm"), "nm"),
