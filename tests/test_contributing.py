@@ -274,8 +274,9 @@ def test_a_new_measured_file_reader_is_one_file(package, tmp_path):
     # the plane is removed: what is left is the sine, Sq = 50 nm / sqrt(2) to within what
     # the plane fit takes of four periods
     assert abs(m["areal"]["Sq_nm"] - 50 / np.sqrt(2)) < 3, m["areal"]["Sq_nm"]
-    # a file the reader refuses: one line naming the file and what it expected
-    (tmp_path / "bad.asc").write_text("step 1\n1 2\n3 4\n")
+    # a file the reader refuses: one line naming the file and what it expected (a grid of
+    # four columns: two or three would be a profile, which the profile reader takes)
+    (tmp_path / "bad.asc").write_text("step 1\n1 2 3 4\n5 6 7 8\n")
     r = _run(package, "analyze", str(tmp_path / "bad.asc"), "--out", str(tmp_path / "b"),
              cwd=tmp_path)
     assert r.returncode == 1 and "pixel_um" in r.stderr and len(r.stderr.splitlines()) == 1
