@@ -22,7 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytestmark = [pytest.mark.blender, pytest.mark.slow]
+# One worker runs the whole file: the zip is built once (a module fixture is per worker)
+# and two builds never share the wheel cache.
+pytestmark = [pytest.mark.blender, pytest.mark.slow, pytest.mark.xdist_group("blender_extension")]
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tools"))

@@ -226,9 +226,9 @@ def manifest_for(platform: str, wheels: list[Path]) -> str:
 def stage(platform: str, wheels: list[Path]) -> Path:
     """The extension's source folder for ``platform``: the add-on, render_inspect's source
     under ``_bundled/``, the wheels, the manifest."""
-    root = STAGE / platform
-    if root.exists():
-        shutil.rmtree(root)
+    STAGE.mkdir(parents=True, exist_ok=True)
+    # a folder of its own: two builds at once never remove each other's files
+    root = Path(tempfile.mkdtemp(prefix=f"{platform}-", dir=STAGE)) / "extension"
     shutil.copytree(ADDON, root, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "wheels"))
     (root / "_bundled").mkdir()
     (root / "_bundled" / "__init__.py").write_text(
@@ -292,8 +292,11 @@ def main(argv=None) -> int:
         wheels, missing = platform_wheels(platform)
         root = stage(platform, wheels)
         z = args.output_dir / f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
-        res = subprocess.run([sys.executable, str(ext), "build", "--source-dir", str(root),
-                              "--output-filepath", str(z)], capture_output=True, text=True)
+        try:
+            res = subprocess.run([sys.executable, str(ext), "build", "--source-dir", str(root),
+                                  "--output-filepath", str(z)], capture_output=True, text=True)
+        finally:
+            shutil.rmtree(root.parent, ignore_errors=True)
         if res.returncode != 0 or not z.is_file():
             raise SystemExit(f"blender_ext.py build failed for {platform}:\n{res.stdout}\n{res.stderr}")
         check = subprocess.run([sys.executable, str(ext), "validate", str(z)],

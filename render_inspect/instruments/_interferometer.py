@@ -285,9 +285,10 @@ BYTES_PER_SUBSAMPLE = 72
 #: written channels): measured 8 B for 95 frames of 1024 x 1024 pixels
 BYTES_PER_FRAME_PIXEL = 8 + 8 + 4 + 4
 BYTES_PER_CSI_FRAME_PIXEL = 10
-#: the renderer's own working memory (Mitsuba / Dr.Jit start-up, the traced mesh's
-#: acceleration structure of a preset field): measured about 280 MiB
-RENDERER_BYTES = 256 * MIB_TO_BYTES
+#: the renderer's own working memory (Mitsuba / Dr.Jit start-up, its thread pool, the
+#: acceleration structure's fixed part): the intercept of the peak against the field's
+#: size, measured 140-150 MiB above the loaded libraries on two machines
+RENDERER_BYTES = 160 * MIB_TO_BYTES
 
 
 def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
