@@ -175,3 +175,75 @@ def test_cut_kernel_takes_each_pass_its_worn_minimum_chip_thickness():
     sub = (region[0] + 40 * px, region[1], region[2], region[3])
     tile = cut_turning(cp.slice_for(sub), Grooves.none(), region=sub, pixel=px, origin=region[:2])
     assert np.array_equal(tile["machined"], worn["machined"][:, 40:], equal_nan=True)
+
+
+# --- the cutting speed and the chemical wear (machining/_wear.py, SpeedLaw) -----------------
+
+def test_speed_factor_is_one_at_the_reference_speed_and_arrhenius_in_the_temperature():
+    """The wear per unit time in contact, g(v) v / v_ref, is exp(-(Q/R)(1/T - 1/T_ref)):
+    its logarithm against 1/T is a line of slope -Q/R (the exponential growth with the
+    temperature that Evans (1991) states for the chemical wear of diamond on iron)."""
+    from render_inspect.machining._wear import SPEED_LAW, speed_factor
+
+    law = SPEED_LAW
+    assert float(speed_factor(law.v_ref_m_min)) == pytest.approx(1.0)
+    v = np.array([1.0, 10.0, 50.0, 200.0, 600.0])
+    per_time = speed_factor(v) * v / law.v_ref_m_min
+    T = law.ambient_K + law.rise_ref_K * np.sqrt(v / law.v_ref_m_min)
+    slope = np.polyfit(1.0 / T, np.log(per_time), 1)[0]
+    assert slope == pytest.approx(-law.activation_kj_mol / 8.314462618e-3, rel=1e-9)
+    # faster cutting: hotter contact, more wear per km above the reference speed
+    assert np.all(np.diff(speed_factor(np.array([100.0, 200.0, 400.0]))) > 0)
+
+
+def test_speed_factor_rejects_a_speed_that_is_not_positive():
+    from render_inspect.core.errors import InputError
+    from render_inspect.machining._wear import speed_factor
+
+    with pytest.raises(InputError, match="cutting speed"):
+        speed_factor(0.0)
+
+
+def test_chemical_distance_on_a_spiral_is_the_speed_factor_integrated_along_the_cut():
+    """The speed-weighted distance to radius r against a direct sum of speed_factor(2 pi r' n)
+    over the spiral's own arc length; with no temperature rise it is v_ref / (n f) (Rw - r)."""
+    from dataclasses import replace
+
+    from render_inspect.machining._wear import SPEED_LAW, chemical_distance_km, speed_factor
+
+    Rw, f, n = 2.0, 0.01, 3000.0
+    revs = Rw / f
+    th = np.linspace(0.0, revs * 2 * math.pi, int(revs * 720) + 1)
+    rho = Rw - f * th / (2 * math.pi)
+    ds = np.hypot(np.diff(rho), 0.5 * (rho[1:] + rho[:-1]) * np.diff(th))  # mm
+    rm = 0.5 * (rho[1:] + rho[:-1])
+    direct = np.cumsum(speed_factor(2 * math.pi * rm * n * 1e-3) * ds) / MM_PER_KM
+    k = np.searchsorted(-rho, -0.5)
+    assert chemical_distance_km(rho[k], Rw, f, n) == pytest.approx(direct[k - 1], rel=2e-3)
+    flat = replace(SPEED_LAW, rise_ref_K=0.0)
+    want = SPEED_LAW.v_ref_m_min * 1e3 / (n * f) * (Rw - 0.5) / MM_PER_KM
+    assert chemical_distance_km(0.5, Rw, f, n, flat) == pytest.approx(want, rel=1e-9)
+
+
+def test_duty_cycle_and_speed_multiply_the_chemical_wear_only():
+    from render_inspect.machining._wear import speed_factor
+
+    steel, al = wear_rate("die_steel"), wear_rate("al6082")
+    g = float(speed_factor(20.0))
+    st = wear_state(steel, 1.0, duty=0.1, speed_m_min=20.0)
+    assert st["contact_km"] == pytest.approx(0.1 * g)
+    assert wear_state(al, 1.0, duty=0.1, speed_m_min=20.0)["contact_km"] == pytest.approx(1.0)
+
+
+def test_the_sources_are_listed_and_every_rate_stays_assumed():
+    """No source searched gives a measured rate per km on a preset: every rate and every
+    constant of the speed law is marked assumed, with its range."""
+    from render_inspect.machining._wear import SOURCES, SPEED_LAW
+
+    assert all(r.basis == "A" for r in WEAR_RATES.values())
+    assert SPEED_LAW.to_dict()["basis"] == "A"
+    lo, hi = SPEED_LAW.activation_range_kj_mol
+    assert lo <= SPEED_LAW.activation_kj_mol <= hi
+    lo, hi = SPEED_LAW.rise_range_K
+    assert lo <= SPEED_LAW.rise_ref_K <= hi
+    assert {"evans1991", "zhou2013", "zhang2022"} <= set(SOURCES)

@@ -17,12 +17,29 @@ Model (steady-state wear, the running-in of a fresh edge left out):
 - on a facing spiral of feed f per revolution from the outer radius Rw inwards, the
   cutting distance to radius r is the area turned over the feed, L = pi (Rw^2 - r^2) / f.
 
-The rates (:data:`WEAR_RATES`) are assumed, each with the range it may take: the sources
-searched for this model (docs/references.md) describe the mechanisms and say that diamond
-wears orders of magnitude faster on iron-bearing alloys than on aluminium, copper or
-electroless nickel, but give no rate this model could take as measured.  ``tool.wear_scale``
-multiplies them (a key ``fit --free`` can fit).  The speed dependence of the rates is not
-modelled (rates per cutting distance).
+Chemical wear and the cutting speed (:class:`SpeedLaw`, :func:`speed_factor`): the chemical
+wear per unit time in contact is taken as Arrhenius in the contact temperature (Evans 1991:
+the rate of the chemical reactions that wear diamond on iron grows exponentially with the
+temperature; Zhou & Zou 2013 measured the graphitised fraction of diamond rubbed on steel
+rising to 83 % for a 15 % rise in temperature), the temperature rise over ambient grows as
+the square root of the cutting speed (a fast-moving heat source), and the time in contact
+per unit cutting distance is D / v.  The rates per km hold at the reference speed v_ref;
+at the speed v they are multiplied by
+
+    g(v) = (v_ref / v) exp(-(Q / R) (1 / T(v) - 1 / T(v_ref))),  T(v) = T0 + dT_ref sqrt(v / v_ref).
+
+On a facing spiral at n rpm the speed falls with the radius (v = 2 pi r n): the distance that
+wears the edge to radius r is the integral of g(v(r')) over the cut from the outside in
+(:func:`chemical_distance_km`).  The vibration's duty cycle D still divides the time in
+contact; the contact temperature is set by the nominal cutting speed with and without the
+vibration (an upper bound: the short contacts of vibration cutting heat the edge less).
+
+The rates (:data:`WEAR_RATES`) and the speed law's constants (:data:`SPEED_LAW`) are
+assumed, each with the range it may take (:data:`SOURCES` lists what the sources searched
+for this model give): they describe the mechanisms, the temperature dependence and the
+reduction of the wear by vibration cutting, but no source at hand gives a measured rate per
+cutting distance for diamond on any of the material presets.  ``tool.wear_scale``
+multiplies them (a key ``fit --free`` can fit).
 """
 
 from __future__ import annotations
@@ -37,7 +54,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import KM_TO_MM, MM_TO_NM, NM_TO_MM, UM_TO_MM
 
 __all__ = ["WearRate", "WEAR_RATES", "wear_rate", "wear_state", "spiral_distance_km", "worn_path",
-           "MM_PER_KM"]
+           "MM_PER_KM", "SpeedLaw", "SPEED_LAW", "speed_factor", "chemical_distance_km", "SOURCES"]
 
 #: millimetres per kilometre
 MM_PER_KM = KM_TO_MM
@@ -89,6 +106,98 @@ WEAR_RATES = {
 }
 
 
+#: what the sources searched for this model give on diamond wear (docs/machine_and_material.md,
+#: "Tool wear along the cut"): none gives a rate per cutting distance on a material preset
+SOURCES = {
+    "evans1991": "C. Evans, Cryogenic diamond turning of stainless steel, CIRP Annals (1991): "
+                 "diamond wear on ferrous metals is extremely rapid, by fracture and chemical "
+                 "mechanisms; the rate of the chemical reactions grows exponentially with the "
+                 "temperature; 35 mm 400-series stainless flats turned at cryogenic temperature "
+                 "to Ra < 25 nm (no wear rate in the text read)",
+    "zhou2013": "Zhou M., Zou L., Tool wear mechanism of diamond cutting of ferrous metals in "
+                "frictional wear experiments, Optics and Precision Engineering 21(7) (2013) 1786, "
+                "doi:10.3788/OPE.20132107.1786: diamond rubbed on steel wears mainly by "
+                "graphitisation; the wear depends strongly on the force and the temperature, "
+                "less on the sliding speed; the graphitised fraction rises to 83 % with a 15 % "
+                "rise in temperature",
+    "zhang2022": "the sculpturing paper (docs/sculpturing.md), Mirrax 40 at 100 mm/min: after "
+                 "conventional sculpturing the edge shows Fe and Cr adhered and a considerable "
+                 "wear land, after 104 kHz vibration sculpturing no apparent wear or adhesion; "
+                 "the first conventional lenslet was already rough ('tool wear was not the main "
+                 "reason'); no wear land width is given",
+    "mild_steel": "The wear of diamond tools turning mild steel (abstract): the wear arises from "
+                  "the degeneration of diamond to graphite, and different diamonds wear at much "
+                  "different rates (the scatter between tools is large)",
+    "uevt_4140": "Proc. IMechE B (2020), doi:10.1177/0954405420929782, AISI 4140 hardened steel "
+                 "(the tool is not named in the abstract): ultrasonic vibration at 13 um, "
+                 "180 mm/s, 0.09 mm/rev reduced the maximum flank wear by 30.3 % (1-D) and "
+                 "54.3 % (elliptical), 39.3 % at 5 um (elliptical)",
+}
+
+
+@dataclass(frozen=True)
+class SpeedLaw:
+    """The cutting-speed dependence of the chemical wear (assumed constants, each with its
+    range): the rates hold at ``v_ref_m_min``; the contact temperature is ``ambient_K`` +
+    ``rise_ref_K`` sqrt(v / v_ref); the wear per unit time in contact is Arrhenius with the
+    activation energy ``activation_kj_mol``."""
+
+    v_ref_m_min: float = 100.0
+    rise_ref_K: float = 300.0
+    rise_range_K: tuple = (100.0, 600.0)
+    activation_kj_mol: float = 100.0
+    activation_range_kj_mol: tuple = (50.0, 200.0)
+    ambient_K: float = 293.15
+
+    def to_dict(self) -> dict:
+        return {"v_ref_m_min": self.v_ref_m_min, "rise_ref_K": self.rise_ref_K,
+                "rise_range_K": list(self.rise_range_K), "activation_kj_mol": self.activation_kj_mol,
+                "activation_range_kj_mol": list(self.activation_range_kj_mol),
+                "ambient_K": self.ambient_K, "basis": "A"}
+
+
+#: the speed law of the chemical wear (all assumed)
+SPEED_LAW = SpeedLaw()
+_R_GAS = 8.314462618e-3  # kJ / (mol K)
+
+
+def _arrhenius(v_m_min, law: SpeedLaw):
+    v = np.maximum(np.asarray(v_m_min, dtype=np.float64), 0.0)
+    T = law.ambient_K + law.rise_ref_K * np.sqrt(v / law.v_ref_m_min)
+    T_ref = law.ambient_K + law.rise_ref_K
+    return np.exp(-(law.activation_kj_mol / _R_GAS) * (1.0 / T - 1.0 / T_ref))
+
+
+def speed_factor(v_m_min, law: SpeedLaw = SPEED_LAW):
+    """The factor on the chemical wear per km at the cutting speed ``v_m_min`` (m/min)
+    against the reference speed: (v_ref / v) exp(-(Q/R) (1/T(v) - 1/T(v_ref))), the time in
+    contact per km times the Arrhenius rate at the contact temperature; 1 at v_ref."""
+    v = np.asarray(v_m_min, dtype=np.float64)
+    if np.any(~np.isfinite(v)) or np.any(v <= 0):
+        raise InputError(f"the cutting speed for the chemical wear must be > 0 m/min, received "
+                         f"{np.min(v) if v.size else v!r}")
+    return law.v_ref_m_min / v * _arrhenius(v, law)
+
+
+def chemical_distance_km(r, workpiece_radius: float, feed_per_rev: float, spindle_rpm: float,
+                         law: SpeedLaw = SPEED_LAW, samples: int = 4097):
+    """The cutting distance (km, at the reference speed) that wears the edge chemically to
+    radius r (mm) of a facing spiral from ``workpiece_radius`` inwards at ``spindle_rpm``:
+    the integral of speed_factor(2 pi r' n) over the cut, (v_ref / (n f)) times the Arrhenius
+    factor integrated over the radius (finite at the axis, where the speed vanishes)."""
+    if not spindle_rpm > 0:
+        raise InputError(f"process.spindle_rpm must be > 0 for the chemical wear, received {spindle_rpm!r}")
+    Rw = float(workpiece_radius)
+    rr = np.linspace(0.0, Rw, int(samples))
+    v = 2 * math.pi * rr * float(spindle_rpm) * 1e-3  # m/min
+    dens = law.v_ref_m_min * 1e3 / (float(spindle_rpm) * float(feed_per_rev)) * _arrhenius(v, law)
+    # cumulative from the outside in: C(r) = int_r^Rw dens dr'
+    seg = 0.5 * (dens[1:] + dens[:-1]) * np.diff(rr)
+    C = np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
+    r = np.minimum(np.abs(np.asarray(r, dtype=np.float64)), Rw)
+    return np.interp(r, rr, C) / MM_PER_KM
+
+
 def wear_rate(material: str) -> WearRate:
     """The wear rates of the material preset ``material``."""
     if material not in WEAR_RATES:
@@ -98,11 +207,24 @@ def wear_rate(material: str) -> WearRate:
 
 
 def wear_state(rate: WearRate, distance_km, *, duty: float = 1.0, scale: float = 1.0,
-               edge_radius_nm: float = 50.0, clearance_deg: float = 10.0) -> dict:
+               edge_radius_nm: float = 50.0, clearance_deg: float = 10.0, speed_m_min=None,
+               chemical_km=None, law: SpeedLaw = SPEED_LAW) -> dict:
     """The worn edge after ``distance_km`` of cutting (arrays allowed): ``contact_km`` (the
-    distance that wears it), ``flank_um``, ``edge_radius_nm``, ``recession_nm``."""
+    distance that wears it), ``flank_um``, ``edge_radius_nm``, ``recession_nm``.
+
+    Chemical wear (iron-bearing alloys) takes the duty cycle and the cutting speed: at the
+    constant speed ``speed_m_min`` the distance is multiplied by :func:`speed_factor`;
+    ``chemical_km`` gives the speed-weighted distance itself (a spiral whose speed varies,
+    :func:`chemical_distance_km`); with neither the rates hold as at the reference speed."""
     L = np.asarray(distance_km, dtype=np.float64)
-    Lc = L * (float(duty) if rate.chemical else 1.0)
+    if rate.chemical:
+        if chemical_km is not None:
+            L = np.asarray(chemical_km, dtype=np.float64)
+        elif speed_m_min is not None:
+            L = L * speed_factor(speed_m_min, law)
+        Lc = L * float(duty)
+    else:
+        Lc = L
     vb = float(scale) * rate.flank_um_per_km * Lc
     re = float(edge_radius_nm) + float(scale) * rate.edge_nm_per_km * Lc
     rec = vb * UM_TO_MM * math.tan(math.radians(clearance_deg)) * MM_TO_NM
@@ -117,11 +239,16 @@ def spiral_distance_km(r, workpiece_radius: float, feed_per_rev: float):
 
 
 def worn_path(path, rate: WearRate, *, workpiece_radius: float, feed_per_rev: float, duty: float = 1.0,
-              scale: float = 1.0, edge_radius_nm: float = 50.0, clearance_deg: float = 10.0):
+              scale: float = 1.0, edge_radius_nm: float = 50.0, clearance_deg: float = 10.0,
+              spindle_rpm=None, law: SpeedLaw = SPEED_LAW):
     """(The path the worn edge cuts: each point lifted by the recession of the edge worn
-    over the cutting distance to that point, the recession (mm) at the points)."""
+    over the cutting distance to that point, the recession (mm) at the points).  With
+    ``spindle_rpm`` the chemical wear follows the cutting speed along the spiral."""
     L = spiral_distance_km(path.rho, workpiece_radius, feed_per_rev)
-    st = wear_state(rate, L, duty=duty, scale=scale, edge_radius_nm=edge_radius_nm, clearance_deg=clearance_deg)
+    chem = (chemical_distance_km(path.rho, workpiece_radius, feed_per_rev, spindle_rpm, law)
+            if rate.chemical and spindle_rpm is not None else None)
+    st = wear_state(rate, L, duty=duty, scale=scale, edge_radius_nm=edge_radius_nm, clearance_deg=clearance_deg,
+                    chemical_km=chem, law=law)
     lift = st["recession_nm"] * NM_TO_MM
     meta = dict(getattr(path, "meta", {}) or {})
     return ToolPath(path.theta, path.rho, np.asarray(path.z) + lift, path.t, meta), lift

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..core.units import MM_TO_NM, NM_TO_MM
 from ..machining import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
+from ..machining._wear import SPEED_LAW, chemical_distance_km
 
 __all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "worn_h_min",
            "WEAR_BANDS"]
@@ -30,10 +31,27 @@ def _feed(cfg, path) -> float:
     return float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
 
 
+def _rpm(cfg):
+    """The spindle speed (rpm) the chemical wear's speed law takes, None without one."""
+    n = getattr(cfg.process, "spindle_rpm", None)
+    return float(n) if n else None
+
+
+def _at(rate, cfg, r, feed) -> dict:
+    """The worn edge at radius r of the facing spiral (the chemical wear at the cutting
+    speed along it where the spindle speed is known)."""
+    p = cfg.process
+    L = spiral_distance_km(r, p.workpiece_radius, feed)
+    n = _rpm(cfg)
+    chem = (chemical_distance_km(r, p.workpiece_radius, feed, n) if rate.chemical and n else None)
+    return L, wear_state(rate, L, chemical_km=chem, **_args(cfg))
+
+
 def _state(rate, cfg, r, feed) -> dict:
-    L = spiral_distance_km(r, cfg.process.workpiece_radius, feed)
-    st = wear_state(rate, L, **_args(cfg))
+    L, st = _at(rate, cfg, r, feed)
+    n = _rpm(cfg)
     return {"radius_mm": float(r), "cutting_distance_km": float(L), "contact_km": float(st["contact_km"]),
+            "cutting_speed_m_min": 2 * math.pi * abs(float(r)) * n * 1e-3 if n else None,
             "flank_wear_um": float(st["flank_um"]), "edge_radius_nm": float(st["edge_radius_nm"]),
             "recession_nm": float(st["recession_nm"])}
 
@@ -43,10 +61,11 @@ def wear_path(cfg, program, cut_path):
     rate = wear_rate(cfg.material.preset)
     feed = _feed(cfg, program)
     worn, lift = worn_path(cut_path, rate, workpiece_radius=cfg.process.workpiece_radius,
-                           feed_per_rev=feed, **_args(cfg))
+                           feed_per_rev=feed, spindle_rpm=_rpm(cfg), **_args(cfg))
     rho = np.abs(np.asarray(cut_path.rho))
     facts = {"material": cfg.material.preset, "rates": rate.to_dict(), "wear_scale": float(cfg.tool.wear_scale),
              "contact_duty_cycle": float(cfg.tool.contact_duty_cycle),
+             "speed_law": SPEED_LAW.to_dict() if rate.chemical and _rpm(cfg) else None,
              "start": _state(rate, cfg, float(rho.max()), feed) if rho.size else None,
              "end": _state(rate, cfg, float(rho.min()), feed) if rho.size else None,
              "part_start": _state(rate, cfg, float(cfg.process.workpiece_radius), feed),
@@ -86,7 +105,7 @@ def wear_figure(cfg, wear: dict) -> dict:
     rate = wear_rate(cfg.material.preset)
     p = cfg.process
     r = np.linspace(p.inner_radius, p.workpiece_radius, 200)
-    st = wear_state(rate, spiral_distance_km(r, p.workpiece_radius, p.feed_per_rev), **_args(cfg))
+    _, st = _at(rate, cfg, r, p.feed_per_rev)
     rings = wear.get("roughness_against_radius") or []
     return {"kind": "tool_wear", "r_mm": r, "edge_radius_nm": st["edge_radius_nm"], "flank_um": st["flank_um"],
             "recession_nm": st["recession_nm"],
@@ -103,12 +122,15 @@ def sculpt_wear(cfg, lines, duty: float):
     mean over the cut is the edge at half the cutting distance."""
     rate = wear_rate(cfg.material.preset)
     length_km = float(sum(abs(float(ys[-1]) - float(ys[0])) for ys, _ in lines)) / MM_PER_KM
-    args = {**_args(cfg), "duty": float(duty) * float(cfg.tool.contact_duty_cycle)}
+    speed = float(cfg.process.feed_mm_per_min) * 1e-3  # the nominal cutting speed, m/min
+    args = {**_args(cfg), "duty": float(duty) * float(cfg.tool.contact_duty_cycle), "speed_m_min": speed}
     end = wear_state(rate, length_km, **args)
     mid = wear_state(rate, 0.5 * length_km, **args)
     r_mid = float(mid["edge_radius_nm"])
     facts = {"material": cfg.material.preset, "rates": rate.to_dict(), "wear_scale": float(cfg.tool.wear_scale),
              "contact_duty_cycle": args["duty"], "cutting_distance_km": length_km,
+             "cutting_speed_m_min": speed, "contact_km": float(end["contact_km"]),
+             "speed_law": SPEED_LAW.to_dict() if rate.chemical else None,
              "edge_radius_start_nm": float(cfg.material.edge_radius_nm),
              "edge_radius_end_nm": float(end["edge_radius_nm"]), "flank_wear_end_um": float(end["flank_um"]),
              "recession_end_nm": float(end["recession_nm"]), "edge_radius_used_nm": r_mid}
@@ -122,7 +144,6 @@ def worn_h_min(cfg, path, resp):
     if resp is None or not getattr(cfg.tool, "wear", False) or resp.edge_radius_eff <= 0:
         return None
     rate = wear_rate(cfg.material.preset)
-    L = spiral_distance_km(path.rho, cfg.process.workpiece_radius, _feed(cfg, path))
-    r_e = wear_state(rate, L, **_args(cfg))["edge_radius_nm"] * NM_TO_MM
+    r_e = _at(rate, cfg, path.rho, _feed(cfg, path))[1]["edge_radius_nm"] * NM_TO_MM
     layer = resp.edge_radius_eff - float(cfg.material.edge_radius_nm) * NM_TO_MM
     return resp.h_min * (r_e + layer) / resp.edge_radius_eff
