@@ -480,10 +480,16 @@ def run_zhang_wear() -> dict:
     """Zhang et al. (2022) with the wear model: `sculpt_quad_mla` on 3 x 3 lenslets at p / 40
     pixels with `tool.wear = true`, the 104 kHz vibration on and off: the middle lenslet's Sa
     (degree-4 form removed), the cut's length, the edge radius the cut wears to with and
-    without the vibration, and the chemical wear rate on steel that would raise the edge
-    radius by 50 nm over that cut without vibration (against the assumed range's top)."""
+    without the vibration (the chemical wear at the paper's 100 mm/min), the largest growth
+    the assumed ranges allow (the rate range's top, the speed law's constants at their
+    extremes) and the chemical wear rate on steel that would raise the edge radius by 50 nm
+    over that cut without vibration (against the assumed range's top)."""
+    import itertools
+    from dataclasses import replace
+
     from render_inspect.core.units import MM_TO_NM
     from render_inspect.machining import WEAR_RATES
+    from render_inspect.machining._wear import SPEED_LAW, speed_factor
     from render_inspect.metrology._filters import remove_form
     from render_inspect.metrology._params import areal_parameters
 
@@ -499,14 +505,22 @@ def run_zhang_wear() -> dict:
 
     sa, w = lenslet([])
     sa0, w0 = lenslet(["artifacts.vibration.amplitude=0"])
-    need = 50.0 / w0["cutting_distance_km"]
+    steel = WEAR_RATES["die_steel"]
+    v = w0["cutting_speed_m_min"]
+    g = float(speed_factor(v))
+    g_top = max(float(speed_factor(v, replace(SPEED_LAW, rise_ref_K=dT, activation_kj_mol=Q)))
+                for dT, Q in itertools.product(SPEED_LAW.rise_range_K, SPEED_LAW.activation_range_kj_mol))
+    L = w0["cutting_distance_km"]
+    need = 50.0 / (L * g)
     return {"zhang_wear.sa_nm": (sa, ".3g"), "zhang_wear.conv_sa_nm": (sa0, ".2f"),
-            "zhang_wear.cut_mm": (w0["cutting_distance_km"] * 1e6, ".3g"),
+            "zhang_wear.cut_mm": (L * 1e6, ".3g"),
             "zhang_wear.growth_nm": f"{w['edge_radius_end_nm'] - w['edge_radius_start_nm']:.1e}",
             "zhang_wear.conv_growth_nm": f"{w0['edge_radius_end_nm'] - w0['edge_radius_start_nm']:.1e}",
+            "zhang_wear.conv_growth_top_nm": f"{steel.edge_range[1] * L * g_top:.1e}",
+            "zhang_wear.speed_factor": f"{g:.1e}", "zhang_wear.speed_factor_top": f"{g_top:.1g}",
             "zhang_wear.duty": (w["contact_duty_cycle"], ".2g"),
             "zhang_wear.rate_needed_nm_km": f"{need:.1e}",
-            "zhang_wear.rate_over_top": f"{need / WEAR_RATES['die_steel'].edge_range[1]:.0e}"}
+            "zhang_wear.rate_over_top": f"{need / steel.edge_range[1]:.0e}"}
 
 
 def run_hts() -> dict:
