@@ -512,6 +512,12 @@ def run_zhang_wear() -> dict:
                 for dT, Q in itertools.product(SPEED_LAW.rise_range_K, SPEED_LAW.activation_range_kj_mol))
     L = w0["cutting_distance_km"]
     need = 50.0 / (L * g)
+    # the paper's whole cut: 10 lines (one per column of lenslets) of 10 lenslets, four
+    # layers (5/3/2/1 um); the flank land it leaves with every rate and constant at the top
+    # of its range, without and with the vibration (the paper's SEM: a considerable land
+    # after conventional sculpturing, none apparent after vibration sculpturing)
+    L_paper = 4 * 10 * 10 * p / 1e6
+    land_top = steel.flank_range[1] * L_paper * g_top
     return {"zhang_wear.sa_nm": (sa, ".3g"), "zhang_wear.conv_sa_nm": (sa0, ".2f"),
             "zhang_wear.cut_mm": (L * 1e6, ".3g"),
             "zhang_wear.growth_nm": f"{w['edge_radius_end_nm'] - w['edge_radius_start_nm']:.1e}",
@@ -519,6 +525,9 @@ def run_zhang_wear() -> dict:
             "zhang_wear.conv_growth_top_nm": f"{steel.edge_range[1] * L * g_top:.1e}",
             "zhang_wear.speed_factor": f"{g:.1e}", "zhang_wear.speed_factor_top": f"{g_top:.1g}",
             "zhang_wear.duty": (w["contact_duty_cycle"], ".2g"),
+            "zhang_wear.paper_cut_mm": (L_paper * 1e6, ".3g"),
+            "zhang_wear.paper_land_top_um": f"{land_top:.2g}",
+            "zhang_wear.paper_land_top_vib_um": f"{land_top * w['contact_duty_cycle']:.1g}",
             "zhang_wear.rate_needed_nm_km": f"{need:.1e}",
             "zhang_wear.rate_over_top": f"{need / steel.edge_range[1]:.0e}"}
 
