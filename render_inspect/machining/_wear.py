@@ -101,8 +101,8 @@ WEAR_RATES = {
                     "abrasive wear, faster than on aluminium and copper; assumed within the range"),
     "die_steel": WearRate(50.0, (5.0, 500.0), 200.0, (20.0, 2000.0), True, "A",
                           "chemical wear by iron (Paul et al. 1996), orders of magnitude above the "
-                          "non-ferrous rates; scales with the contact duty cycle; assumed within the "
-                          "range"),
+                          "non-ferrous rates; at 100 m/min (the speed law's reference), scaled by the "
+                          "contact duty cycle and the speed law; assumed within the range"),
 }
 
 
