@@ -95,8 +95,10 @@ def program_section(rep, metrics: dict, names, figs: dict) -> bool:
             rep.list(f"{k}: {v}" for k, v in inferred.items())
         findings = prog.get("findings") or []
         if findings:
-            rep.text(f"Findings: {fmt_number(prog.get('findings_count'))} points of the program "
-                     f"(each kind with its deepest point and its first file lines).", cls="note")
+            count = prog.get("findings_count")
+            rep.text(f"Findings: {fmt_number(count)} point{'' if count == 1 else 's'} of the "
+                     f"program (each kind with its deepest point and its first file lines).",
+                     cls="note")
             rep.table(_finding_rows(findings),
                       header=["finding", "points", "deepest", "at file line", "radius",
                               "C", "first file lines"])
