@@ -144,6 +144,26 @@ _NC_PROBE = textwrap.dedent('''
                       "rss": status("VmHWM") - base}))
 ''')
 
+_TILED_SIM_PROBE = textwrap.dedent('''
+    import json, sys, tempfile
+    from pathlib import Path
+    from render_inspect.pipeline import run_simulate
+    from render_inspect.scene import load_scene
+''') + _STATUS + textwrap.dedent('''
+    half = float(sys.argv[1])
+    # the shipped scene as it is: a lathe and aluminium 6082 with its burrs
+    scene = load_scene("sts_sinusoidal_grid", [f"simulation.region={[-half, -half, half, half]}",
+                                               "simulation.pixel=0.0005",
+                                               "simulation.max_memory_gb=16"])
+    d = Path(tempfile.mkdtemp())
+    run_simulate(scene.with_overrides(["simulation.region=[-0.05,-0.05,0.05,0.05]"]), d / "warm",
+                 tiled=True, tile=64)
+    base = status("VmRSS")
+    m = run_simulate(scene, d / "o", tiled=True, tile=256)
+    print(json.dumps({"estimate": m["tiles"]["memory_estimate_bytes"],
+                      "rss": status("VmHWM") - base}))
+''')
+
 #: (what, probe, arguments of the small and the large run)
 _RUNS = {
     "diffuse": (_RENDER_PROBE, ["diffuse", "render.diffuse.resolution=256", "render.diffuse.spp=4"],
@@ -154,6 +174,8 @@ _RUNS = {
                        ["interferometer", "render.interferometer.field_of_view=[-0.2,-0.2,0.2,0.2]",
                         "render.interferometer.pixel=0.0005", "simulation.region=[-0.2,-0.2,0.2,0.2]"]),
     "nc": (_NC_PROBE, ["3600"], ["14400"]),
+    # 1001^2 and 2001^2 samples in tiles of 256 (the estimate was 2.2-3.0 x the peak)
+    "tiled_simulate": (_TILED_SIM_PROBE, ["0.25"], ["0.5"]),
 }
 
 

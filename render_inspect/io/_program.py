@@ -329,8 +329,9 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     x, z = axes["X"], axes["Z"]
     motion = sp.motion[blk]
     fmode = sp.feed_mode[blk]
-    fval = sp.feed[blk]
     has_f = bool(np.isfinite(sp.feed).any())
+    # without F words the modal feed is NaN throughout (a view: no copy per block)
+    fval = sp.feed[blk] if has_f else np.broadcast_to(np.float64(math.nan), blk.shape)
     # ---- the spindle
     css = sp.spindle_mode[blk] == 96
     if np.isfinite(sp.spindle).any() or css.any():
@@ -369,15 +370,23 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             k = int(blk[1:][np.flatnonzero(neg)[0]])
             raise InputError(f"{path}:{int(sp.line[k])}: C decreases (the spindle turns "
                              f"backwards, M04); the reader takes programs whose C increases")
-        dc = np.where(neg, dc - 360.0 * np.floor(dc / 360.0), dc)  # C wraps every revolution
-        c_cum = float(c[0]) + np.r_[0.0, np.cumsum(dc)]
+        if neg.any():  # C wraps every revolution (in place: a few blocks a revolution)
+            w = dc[neg]
+            dc[neg] = w - 360.0 * np.floor(w / 360.0)
+            del w
+        c_cum = np.empty(dc.size + 1)
+        c_cum[0] = 0.0
+        np.cumsum(dc, out=c_cum[1:])
+        c_cum += float(c[0])
+        del c, axes["C"]  # C as written: its unwrapped sum is what the path needs
         if neg.any():
             inferred["c"] = (f"C wraps at 360 deg ({int(neg.sum())} times): it is read as "
                              f"turning on")
     else:
         dc = None
     fm, fv, mo = fmode[1:], fval[1:], motion[1:]
-    rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size))
+    # one speed throughout without constant surface speed: a view of the moves' speeds
+    rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
     dt = np.full(length.size, math.nan)
     rapid_mask = mo == 0
     if has_f:
@@ -395,7 +404,12 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             inferred["feed"] = "feed from the program's F words"
     else:
         if has_c:
-            dt[~rapid_mask] = dc[~rapid_mask] / (360.0 * rp[~rapid_mask]) * MIN_TO_S
+            if not rapid_mask.any():  # every move cuts (a point list): in place
+                dt = 360.0 * rp
+                np.divide(dc, dt, out=dt)
+                dt *= MIN_TO_S
+            else:
+                dt[~rapid_mask] = dc[~rapid_mask] / (360.0 * rp[~rapid_mask]) * MIN_TO_S
             inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
                                 f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
                                 f"at {feed:g} mm/min from {feed_source}")
@@ -410,7 +424,11 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
                              f"the machine's rapid rate)")
     if has_c:
         # a move cannot turn C faster than the spindle allows: C sets the least time
-        dt = np.maximum(dt, dc / (360.0 * rp) * MIN_TO_S)
+        least = 360.0 * rp
+        np.divide(dc, least, out=least)
+        least *= MIN_TO_S
+        np.maximum(dt, least, out=dt)
+        del least
     zero = ~(dt > 0)
     keep = np.r_[True, ~zero]
     if zero.any():  # points the tool does not leave (a repeated block)
@@ -477,8 +495,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
              "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
-    return ImportedProgram(path, dialect, prog, motion.astype(np.int8),
-                           sp.line[blk].astype(np.int64), inferred, facts)
+    return ImportedProgram(path, dialect, prog, motion.astype(np.int8, copy=False),
+                           sp.line[blk].astype(np.int64, copy=False), inferred, facts)
 
 
 def _css_rpm(s, clamp, r, css, rpm):

@@ -50,7 +50,8 @@ from ..metrology import expected_sq_mm as _marks_sq_mm
 from ..processes import process_of
 from ..render import mitsuba_variant
 from ..report import (ComparedVariant, axis_motion_figure, build_page, comparison_figures,
-                      comparison_summary, display_map, save_map_png)
+                      comparison_summary, display_map, draw_figure, program_figure_name,
+                      save_map_png)
 from ..scene import compare_pair, compare_variants, parse_vary, variant_scene
 from ._budget import overcut_budget
 from ._measure import measure_and_evaluate, measurement_outputs
@@ -429,6 +430,18 @@ def _check_phase_settings(scene) -> None:
                              f"other steps")
 
 
+def _program_figures(variants, out: Path) -> dict:
+    """The feed-per-revolution figure of each variant that cuts a program read from a
+    file, drawn into its folder (``feed_per_rev.png``); returns page key -> PNG bytes."""
+    figs = {}
+    for v in variants:
+        spec = v.sim.figures.get("feed_per_rev.png")
+        if spec is not None:
+            png = draw_figure(spec, out / v.name / "feed_per_rev.png")
+            figs[program_figure_name(v.name)] = Path(png).read_bytes()
+    return figs
+
+
 def _kinematics(a: _Variant, b: _Variant):
     """The axis-motion figure of the two programs: the programs' own comparison when the
     first variant's figure is one (RCSE against the conventional path), else the axes that
@@ -625,6 +638,7 @@ def run_compare(scene, out, *, measured=None, vary: str | None = None,
                                   and feed < 4 * hm.pixel else None)
         for name, png in figs.items():
             atomic_write_bytes(tmp / f"{name}.png", png)
+        figs.update(_program_figures(variants, tmp))
         windows = {"simulation_mm": [float(x) for x in scene.simulation.region],
                    "common_mm": list(cw["window"]),
                    f"{entry.name}_mm": list(a.ig.meta.get("window_mm", cw["window"])),

@@ -5,6 +5,7 @@ the diffuse-light views, on disk."""
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -14,7 +15,8 @@ from .. import __version__
 from ..core.errors import InputError, RenderInspectError
 from ..core.grid import Grid, grid_shape
 from ..core.heightmap import HeightMap
-from ..core.limits import Driver, check_memory, memory_budget
+from ..core.limits import (Driver, address_space_limit, check_address_space, check_memory,
+                           format_bytes, memory_budget, mitsuba_address_space)
 from ..core.progress import task as progress_task
 from ..core.units import MM_TO_UM
 from ..design import make_surface
@@ -115,7 +117,24 @@ def check_render_limits(scene, *, kind: str = "all") -> dict:
                                spectral=spectral),
                 what=f"the diffuse {view} image ({dcfg.resolution} pixels wide)", budget=budget,
                 drivers=[Driver("render.diffuse.resolution", dcfg.resolution, 2, limit=(16, None))])
+    _check_render_address_space(need)
     return need
+
+
+def _check_render_address_space(need: dict) -> None:
+    """Under an address-space limit (``ulimit -v``), refuse in one line a render whose
+    largest image and the address space Mitsuba reserves when it starts do not fit
+    together in the room the limit leaves: past it Dr.Jit and Embree fail inside the
+    render (or stop), after work is done.  Nothing happens without a limit."""
+    if not need or address_space_limit() is None:
+        return
+    name, nbytes = max(need.items(), key=lambda kv: kv[1])
+    starting = "mitsuba" not in sys.modules
+    extra = mitsuba_address_space() if starting else 0
+    what = name.replace("_", " ")
+    check_address_space(nbytes + extra, what=(
+        f"the render ({what}: {format_bytes(nbytes)}"
+        + (f", and Mitsuba's own {format_bytes(extra)} when it starts)" if starting else ")")))
 
 
 def render_heightmap(scene, *, surface: str = "machined"):

@@ -24,6 +24,7 @@ from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_he
 from ..machining import (TILE, burr_halo, metrics_from_moments, plan_tiles, prepare_cut, prepare_envelope,
                          tiled_bytes)
 from ..processes import check_budget, process_of
+from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
@@ -131,6 +132,18 @@ def _tiled_check(simulation, nbytes, *, tile: int, in_flight: int, points: int, 
         hint="or run fewer tiles at once (--workers) or shrink simulation.region")
 
 
+def _may_leave_uncut(region, path, env) -> bool:
+    """Whether the path may leave pixels of ``region`` uncut (NaN: a tile's burrs are then
+    computed on a wider block, :func:`~render_inspect.machining.burr_halo` with ``nan``):
+    the region reaches radii the nose does not sweep."""
+    rho = np.abs(np.asarray(path.rho))
+    if rho.size == 0:
+        return True
+    r_in, r_out = region_radii(tuple(region), 0.0)
+    hw = float(env.half_width)
+    return bool(r_out > float(rho.max()) + hw or r_in < float(rho.min()) - hw)
+
+
 def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str | None = None,
                        tile: int = TILE, overwrite: bool = False) -> dict:
     """The tiled, out-of-core ``simulate`` (see :func:`run_simulate`): heightmap.zarr (with
@@ -198,9 +211,11 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         # with the material's burrs each tile is cut with the burr model's halo (the wider
         # one of a block with NaN pixels: the bound)
         halo = 0 if env.burrs is None else burr_halo(sim.pixel, env.burrs["smoothing"],
-                                                     env.burrs["width"], nan=True)
+                                                     env.burrs["width"],
+                                                     nan=_may_leave_uncut(sim.region, path, env))
         est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight,
-                                            material=mat is not None, burr_halo=halo) + extra,
+                                            material=mat is not None, burr_halo=halo,
+                                            shape=shape) + extra,
                            tile=tile, in_flight=in_flight, points=path.points, workers=workers,
                            scheduler=scheduler)
         levels = level_count(shape)

@@ -237,6 +237,10 @@ def turning_points(cfg, plan=None) -> int:
 #: cutting distance: 7 more)
 _BYTES_PER_TICK = 8 * 32
 _KEPT_BYTES_PER_TICK = 8 * 20
+#: what stays of the machine model while the tiles of a tiled simulation run: the followed
+#: path, its commands and errors (13 arrays; the cut's prepared path is counted with the
+#: tiles, :func:`~render_inspect.machining.tiled_bytes`)
+_TILED_KEPT_BYTES_PER_TICK = 8 * 13
 
 
 def machine_bytes(cfg, plan=None) -> int:
@@ -590,4 +594,6 @@ class TiledTurningProcess(TurningProcess):
         return facts, plots
 
     def tiled_memory(self, cfg, plan=None) -> tuple[int, int]:
-        return machine_bytes(cfg, plan), turning_points(cfg, plan)
+        # the machine model's following (machine_bytes) ends before the tiles start; what
+        # it leaves is held beside them
+        return _ticks(cfg, plan) * _TILED_KEPT_BYTES_PER_TICK, turning_points(cfg, plan)

@@ -16,6 +16,7 @@ from ._format import fmt_number, fmt_quantity
 from ._comparison import resolution_text
 from ._html import HtmlReport
 from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
+from ._program_page import program_section
 
 __all__ = ["build_page"]
 
@@ -364,6 +365,9 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
                    "Position, velocity and acceleration of the axes that move (an axis at "
                    "constant speed, such as X of a constant-feed spiral, is named but not "
                    "plotted: its acceleration would be rounding noise).")
+
+    # ---- a program read from a file: its findings and checks
+    program_section(rep, metrics, (va, vb), figs)
 
     # ---- 7. process facts
     facts = _process_facts(c, u)
