@@ -70,3 +70,48 @@ def test_writing_moves_by_files_in_order(tmp_path):
         done += a
         assert done <= total
     assert done == pytest.approx(total) and len(steps) == total == len(files) + 1  # (+ overview)
+
+
+def test_each_render_view_is_a_step_moved_by_its_passes(tmp_path, monkeypatch):
+    # the renderer itself is replaced by one that reports its passes as the Mitsuba
+    # adapter does (core.progress.report between passes): each view's own step moves
+    # forward by them while the render step advances once per view
+    from render_inspect.core.progress import report
+    from render_inspect.pipeline import _render
+    from render_inspect.scene import load_scene
+
+    def fake_views(scene, hm, cfg, *, seed, surface, views):
+        for k in range(4):
+            report(k, 4)
+        return {views[0]: (None, {})}
+
+    class Views:
+        big = False
+
+        def diffuse(self, cfg, view):
+            return None, cfg
+
+    monkeypatch.setattr(_render, "variant_info", lambda: {"mitsuba_variant": "x",
+                                                          "mitsuba_version": "0"})
+    monkeypatch.setattr(_render, "render_diffuse_views", fake_views)
+    monkeypatch.setattr(_render, "write_diffuse_outputs", lambda *a, **k: {})
+    scene = load_scene("sts_fig16_overcut", [])
+    rec = Recorder()
+    cancel.clear()
+    set_reporter(rec)
+    try:
+        _render._render_views(scene, tmp_path, Views(), surface="machined", kind="diffuse",
+                              timing={})
+    finally:
+        set_reporter(None)
+    names = [c[1] for c in rec.calls if c[0] == "start"]
+    assert names == ["render", "diffuse macro view: render passes",
+                     "diffuse micro view: render passes"], names
+    for view in ("macro", "micro"):
+        name = f"diffuse {view} view: render passes"
+        mine = [c for c in rec.calls if c[1] == name]
+        moved = [c[2] for c in mine if c[0] == "advance"]
+        assert moved == pytest.approx([0.25, 0.25, 0.25]), mine  # passes 1-3 done, in order
+        assert mine[-1] == ("finish", name)
+    outer = [c[2] for c in rec.calls if c[0] == "advance" and c[1] == "render"]
+    assert outer == [1, 1]
