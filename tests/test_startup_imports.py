@@ -70,6 +70,8 @@ def _sum_squares(a):  # pragma: no cover - numba
     (["toolpath", "sts_sinusoidal_grid", "--set", "proces.spindle_rpm=10"], "proces"),
     (["render", "sts_sinusoidal_grid", "--set", "simulation.pixel=0"], "simulation.pixel"),
     (["compare", "sts_fig16_overcut", "--set", "tool.rake_angle_deg=400"], "rake_angle_deg"),
+    (["simulate", "sts_fig16_overcut", "--program", "no_such_program.nc"], "process.program"),
+    (["analyze", "no_such_map.exr"], "measured file not found"),
 ])
 def test_a_mistake_is_answered_before_any_heavy_import(tmp_path, argv, says):
     res, err = _run(tmp_path, *argv, "--out", str(tmp_path / "o"))
