@@ -4,5 +4,12 @@ Pipeline (one direction): scene -> design -> toolpath -> machining -> mesh ->
 render -> metrology -> report.  Lengths are millimetres everywhere.
 """
 
+# the command line answers Ctrl-C with one line from its very start (before it imports
+# anything else); a program that imports the package keeps Python's own handling
+from . import _early_signals
+
+if _early_signals.is_program():
+    _early_signals.install()
+
 __version__ = "0.1.0"
 __all__ = ["__version__"]

@@ -47,11 +47,29 @@ def is_program() -> bool:
     ``python -m render_inspect.cli``, while Python locates the module and ``sys.argv[0]``
     is ``-m``), not a program that imports the package."""
     first = sys.argv[0] if sys.argv else ""
-    return first == "-m" or os.path.basename(first) == "render-inspect"
+    if first == "-m":
+        # (``python -m render_inspect.cli``, not another module of the package run so)
+        orig = list(getattr(sys, "orig_argv", ()))
+        if "-m" in orig and orig.index("-m") + 1 < len(orig):
+            return orig[orig.index("-m") + 1] in ("render_inspect.cli", "render_inspect.cli.__main__")
+        return True
+    return os.path.basename(first) == "render-inspect"
+
+
+def _command_word() -> str | None:
+    # the command named on the command line, before the parser has read it: the first
+    # word that is not an option (``render-inspect -v simulate ...``)
+    for word in sys.argv[1:]:
+        if not word.startswith("-"):
+            return word if word.isidentifier() else None
+    return None
 
 
 def install() -> None:
     """Put the one-line handler in place for SIGINT, SIGTERM and SIGHUP (main thread only)."""
+    word = _command_word()
+    if word and not _STATE["finished"]:
+        _STATE["prefix"] = f"render-inspect {word}"
     for name in _SIGNALS:
         with contextlib.suppress(ValueError, OSError, AttributeError):
             signal.signal(getattr(signal, name), _handler)

@@ -20,13 +20,14 @@ REPO = Path(__file__).resolve().parents[1]
 
 #: runs the program as ``python -m render_inspect.cli`` does, and sends itself the signal
 #: argv[1] at the argv[2]-th import after the command line's module began importing the
-#: package's core (an audit hook)
+#: package's core (an audit hook; the module counted from is $START_AT if set)
 _AT_IMPORT = """
 import os, runpy, signal, sys
 sig, k = getattr(signal, sys.argv[1]), int(sys.argv[2])
+start = os.environ.get("START_AT", "render_inspect.core")
 seen = {"n": 0, "on": False}
 def hook(event, args):
-    if event == "import" and args[0] == "render_inspect.core":
+    if event == "import" and args[0] == start:
         seen["on"] = True
     elif event == "import" and seen["on"]:
         seen["n"] += 1
@@ -69,6 +70,28 @@ def test_a_signal_during_start_up_is_one_line(tmp_path, sig, code, k):
     assert "Traceback" not in r.stderr and len(err) == 1, r.stderr[-800:]
     assert ("interrupted" if sig == "SIGINT" else "terminated") in err[0]
     assert err[0].startswith("render-inspect"), err
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if ".partial" in p.name]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("start,k", [("render_inspect", 3), ("render_inspect", 6),
+                                     ("render_inspect.core", 250), ("render_inspect.core", 600),
+                                     ("render_inspect.core", 1000), ("render_inspect.core", 1300)])
+def test_ctrl_c_at_any_moment_of_the_start_up_is_one_line(tmp_path, start, k):
+    # from the package's first statement (the 3rd import from the package's own: the
+    # handler is in place once the package's first module, standard library only, is
+    # imported) to the scene's schema being imported and checked (about the 200th-400th
+    # import after the core), the pipeline (500th-), SciPy, and numba imported when the
+    # first kernel runs (1200th-): one line, exit 130, nothing written
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-c", _AT_IMPORT, "SIGINT", str(k), "toolpath",
+                        "sts_sinusoidal_grid", "--out", str(out)], capture_output=True,
+                       text=True, timeout=300, env={**_env(), "START_AT": start}, cwd=tmp_path)
+    err = [line for line in r.stderr.strip().splitlines() if line.strip()]
+    assert r.returncode == 130, (k, r.returncode, r.stderr[-800:])
+    assert "Traceback" not in r.stderr, r.stderr[-800:]
+    assert len(err) == 1 and "interrupted" in err[0], r.stderr[-800:]
+    assert err[0].startswith("render-inspect toolpath:"), err
     assert not out.exists() and not [p for p in tmp_path.iterdir() if ".partial" in p.name]
 
 

@@ -77,13 +77,15 @@ def _measure(args, overwrite: bool):
 
 
 def _characterise(args, overwrite: bool):
-    # (the pipeline is imported lazily, as above)
-    from .. import pipeline
-    # (the scene schema imports pydantic and the registries: same reason)
+    # (the instrument is checked first, the pipeline imported after it, as above)
     from ..scene import instrument_config
 
+    config = instrument_config(args.objective, args.mode, args.overrides)
+    # (imported once the input is checked)
+    from .. import pipeline
+
     return pipeline.run_characterise(
-        instrument_config(args.objective, args.mode, args.overrides), args.out,
+        config, args.out,
         quick=args.quick, seed=args.seed, overwrite=overwrite)
 
 

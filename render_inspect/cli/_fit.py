@@ -63,14 +63,17 @@ def add_parsers(sub) -> None:
 
 
 def _fit(args, overwrite: bool):
-    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
-    # module, so that `render-inspect --help` answers at once
-    from .. import pipeline
-    # (the scene schema imports pydantic and the registries: same reason)
+    # the scene is checked first; the pipeline (numba, SciPy, the writers) is imported
+    # after it, not at the top of the module, so that `render-inspect --help` and a
+    # mistake in the scene or a key are answered at once
     from ..scene import load_scene
 
+    scene = load_scene(args.scene, scene_overrides(args))
+    # (imported once the input is checked)
+    from .. import pipeline
+
     return pipeline.run_fit(
-        args.measured, load_scene(args.scene, scene_overrides(args)), args.free, args.out,
+        args.measured, scene, args.free, args.out,
         bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
         form=args.form, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, predict=args.predict, seed=args.seed,

@@ -40,20 +40,25 @@ def add_parsers(sub) -> None:
 
 
 def _render(args, overwrite: bool):
-    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
-    # module, so that `render-inspect --help` answers at once
+    # the scene is checked first; the pipeline (numba, SciPy, the renderers) is imported
+    # after it, not at the top of the module, so that `render-inspect --help` and a
+    # mistake in the scene or a key are answered at once
+    scene = scene_of(args)
+    # (imported once the input is checked)
     from .. import pipeline
 
-    return pipeline.run_render(scene_of(args), args.out, surface=args.surface, kind=args.kind,
+    return pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind,
                                overwrite=overwrite)
 
 
 def _compare(args, overwrite: bool):
-    # (the pipeline is imported lazily, as above)
+    # (the scene first, the pipeline after it, as above)
+    scene = scene_of(args)
+    # (imported once the input is checked)
     from .. import pipeline
 
     # (a measured profile is compared along a line: pipeline.run_compare_profile)
-    return pipeline.run_compare_command(scene_of(args), args.out, measured=args.measured,
+    return pipeline.run_compare_command(scene, args.out, measured=args.measured,
                                         vary=args.vary, force=args.force, line=args.line,
                                         units=args.units, filter_spec=args.filter,
                                         repeat=args.repeat, overwrite=overwrite)

@@ -26,20 +26,25 @@ def add_parsers(sub) -> None:
 
 
 def _simulate(args, overwrite: bool):
-    # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
-    # module, so that `render-inspect --help` answers at once
+    # the scene is checked first; the pipeline (numba, SciPy, the writers) is imported
+    # after it, not at the top of the module, so that `render-inspect --help` and a
+    # mistake in the scene or a key are answered at once
+    scene = scene_of(args)
+    # (imported once the input is checked)
     from .. import pipeline
 
-    return pipeline.run_simulate(scene_of(args), args.out, tiled=True if args.tiled else None,
+    return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                  workers=args.workers, scheduler=args.scheduler,
                                  tile=args.tile, overwrite=overwrite)
 
 
 def _toolpath(args, overwrite: bool):
-    # (the pipeline is imported lazily, as above)
+    # (the scene first, the pipeline after it, as above)
+    scene = scene_of(args)
+    # (imported once the input is checked)
     from .. import pipeline
 
-    return pipeline.run_toolpath(scene_of(args), args.out, fmt=args.format, overwrite=overwrite)
+    return pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=overwrite)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -11,11 +11,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from ..core.errors import InputError
+from ..core.lazy import lazy_attr
 from ..core.units import MM_TO_NM
 from ..metrology import register_lsq, remove_form
+
+#: SciPy, imported on first use (render_inspect.core.lazy): every run imports this module
+fftconvolve = lazy_attr("scipy.signal", "fftconvolve")
 
 __all__ = ["field_extent", "centred_origin", "fit_window", "register_field", "check_units"]
 

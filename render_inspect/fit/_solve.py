@@ -33,9 +33,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..core.errors import InputError, RenderInspectError
+from ..core.lazy import lazy_attr
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
 from ._features import Target, predict_features, residual_vector, robust_weights, soft_l1
@@ -45,6 +45,9 @@ from ._uncertainty import profiles as _profiles
 from ._uncertainty import probe as _probe
 
 __all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted"]
+
+#: SciPy, imported on first use (render_inspect.core.lazy): every run imports this module
+least_squares = lazy_attr("scipy.optimize", "least_squares")
 
 log = logging.getLogger("render_inspect")
 

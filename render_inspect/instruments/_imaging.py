@@ -49,8 +49,7 @@ import math
 import os
 
 import numpy as np
-import scipy.fft as sfft
-from scipy.ndimage import gaussian_filter
+from ..core.lazy import lazy_attr, lazy_module
 
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
@@ -63,6 +62,10 @@ from ._transfer import (
     flat_moments,
     transfer_function,
 )
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+sfft = lazy_module("scipy.fft")
+gaussian_filter = lazy_attr("scipy.ndimage", "gaussian_filter")
 
 __all__ = [
     "MAX_STACK_BYTES",

@@ -11,7 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
+from ..core.lazy import lazy_attr
 
 from ..core.errors import check_range
 from ..core.units import NM_TO_MM
@@ -19,6 +19,9 @@ from ._camera import Camera
 from ._objectives import OBJECTIVES, Objective
 from ._sources import Source, monochromatic
 from ._transfer import flat_moments, linear_itf
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+gaussian_filter = lazy_attr("scipy.ndimage", "gaussian_filter")
 
 __all__ = ["Disturbances", "Microscope", "recommended_subsamples"]
 

@@ -28,10 +28,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft as sfft
+from ..core.lazy import lazy_module
 
 from ..core.units import MM_TO_NM
 from ._microscope import Microscope
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+sfft = lazy_module("scipy.fft")
 
 __all__ = ["ALIAS_TOLERANCE_NM", "SurfaceSpectrum", "alias_onset", "grid_subsamples",
            "pupil_cutoff", "content_subsamples"]

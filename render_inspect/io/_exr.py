@@ -23,7 +23,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
+from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError
 from ._atomic import _umask

@@ -11,7 +11,7 @@ that into one line naming the file, the line, the block and the word.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..core.lazy import njit  # numba, imported on first use
 
 __all__ = ["scan_piece", "STATE_SIZE", "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES",
            "LETTER_OK", "INIT_STATE"]

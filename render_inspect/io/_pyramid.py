@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from ..core.lazy import njit, prange  # numba, imported on first use
 
 
 @njit(cache=True, nogil=True)

@@ -76,7 +76,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
-from numba import njit
+from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_M, NM_TO_MM

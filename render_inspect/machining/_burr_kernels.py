@@ -21,7 +21,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit, prange
+from ..core.lazy import njit, prange  # numba, imported on first use
 
 __all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "slope_angles"]
 

@@ -58,11 +58,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
 from ._burr_kernels import edge_turn_maps, gaussian_nearest
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["sharp_edges", "edge_turns", "machined_sharp_edges", "burr_map", "apply_burrs",
            "material_burrs", "material_burr_block", "material_burr_facts", "burr_halo", "burr_height_law",

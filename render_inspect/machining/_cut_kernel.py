@@ -40,7 +40,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numba import njit, prange
+from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError
 from ..core.progress import report

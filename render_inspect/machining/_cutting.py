@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM

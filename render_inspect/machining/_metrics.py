@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM

@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError, check_range
 

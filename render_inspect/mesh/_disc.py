@@ -15,12 +15,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from .. import __version__
 from ..core.errors import InputError, MemoryBudgetError, check_positive
 from ..core.units import MIB_TO_BYTES
 from ._grid import DEFAULT_MEMORY_BUDGET_BYTES, GridMesh
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["disc_mesh"]
 

@@ -15,13 +15,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_positive, check_range
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._filters import pixel_xy, valid_mask
 from ._params import autocorrelation
 from ._registration import RIGID_KEYS, registration_covariance, rotation_matrix
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["registered_overlap", "correlation_area", "registration_checks", "kinematic_sq_mm",
            "DEFAULT_MIN_OVERLAP", "DEFAULT_MAX_RESIDUAL_RATIO", "DEFAULT_RESIDUAL_FLOOR_MM"]

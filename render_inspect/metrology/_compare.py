@@ -8,7 +8,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM
@@ -23,6 +23,9 @@ from ._registration import (
     register_lsq,
     rotation_matrix,
 )
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",
            "Comparison",

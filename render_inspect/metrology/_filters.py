@@ -30,10 +30,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core import cancel
 from ..core.errors import InputError, check_positive
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["GAUSSIAN_ALPHA", "gaussian_sigma", "gaussian_filter", "s_filter", "l_filter",
            "remove_form", "valid_mask", "pixel_xy", "fit_sphere", "EDGE_MODES",

@@ -34,9 +34,12 @@ References
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.units import MM_TO_NM
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["FAILED_FRACTION", "AMBIGUOUS_ORDER", "phase_residues", "fringe_order_check",
            "difference_order_check"]

@@ -14,10 +14,13 @@ reported, and a map with such regions says so).  Arrays in (mm), numbers out.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, RAD_TO_URAD
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["FORM_TERMS", "level_map", "measured_difference"]
 

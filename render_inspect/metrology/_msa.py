@@ -24,12 +24,15 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.optimize import least_squares
+from ..core.lazy import lazy_attr
 
 from ..core.errors import InputError, check_positive
 from ..core.units import MM_TO_UM
 from ._filters import valid_mask
 from ._registration import MovedSurface, detect_outliers, register_lsq
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+least_squares = lazy_attr("scipy.optimize", "least_squares")
 
 __all__ = ["LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",
            "characterise_msa"]

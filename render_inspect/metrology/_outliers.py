@@ -11,10 +11,13 @@ second-difference k-sigma rule (the ``curvature`` rule here).
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_positive
 from ._filters import pixel_xy, valid_mask
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["detect_outliers", "SPIKE_NEIGHBOUR_SHARE"]
 

@@ -26,11 +26,14 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy import fft as sfft
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_positive, check_range
 from ._filters import pixel_xy, valid_mask
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+sfft = lazy_module("scipy.fft")
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["areal_parameters", "slope_parameters", "forward_slope_sums", "spatial_parameters", "autocorrelation",
            "SLOPE_ESTIMATORS", "profile_parameters", "extract_section", "section_parameters"]

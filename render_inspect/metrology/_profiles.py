@@ -8,11 +8,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
+from ..core.lazy import lazy_module
 
 from ..core.errors import RenderInspectError
 from ..core.units import MM_TO_NM
 from ._params import areal_parameters, extract_section
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
 
 __all__ = ["common_window", "design_features", "crop_window", "line_profile", "difference_stats", "sections",
            "profile_center", "areal_nm", "difference_profiles", "surface_slope"]

@@ -17,15 +17,18 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy import ndimage
-from scipy.optimize import least_squares
-from scipy.signal import fftconvolve
-from scipy.spatial.transform import Rotation
+from ..core.lazy import lazy_attr, lazy_module
 
 from ..core.errors import InputError
 from ._filters import pixel_xy, valid_mask
 from ._outliers import detect_outliers
 from ._params import autocorrelation
+
+#: SciPy, imported on first use (render_inspect.core.lazy)
+ndimage = lazy_module("scipy.ndimage")
+least_squares = lazy_attr("scipy.optimize", "least_squares")
+fftconvolve = lazy_attr("scipy.signal", "fftconvolve")
+Rotation = lazy_attr("scipy.spatial.transform", "Rotation")
 
 __all__ = ["RIGID_KEYS", "rotation_matrix", "rigid_resample", "MovedSurface", "detect_outliers",
            "GridSurface", "template_surface", "register_lsq", "register_icp",

@@ -344,7 +344,9 @@ def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: d
             t0 = time.perf_counter()
             t.update(f"render: {name}")
             hm_i, cfg = views.instrument(entry, getattr(scene.render, name))
-            result = entry.render(hm_i, cfg, surface=surface, seed=seed)
+            # a step of its own, moved by the renderer's passes (core.progress.report)
+            with progress_task(f"{name}: render passes", total=1.0):
+                result = entry.render(hm_i, cfg, surface=surface, seed=seed)
             timing[name] = time.perf_counter() - t0
             res[name] = write_instrument_outputs(name, tmp, result, scene=scene_d)
             t.advance()
@@ -354,8 +356,9 @@ def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: d
                 t.update(f"render: diffuse {view} view")
                 # the tool marks' BSDF; the macro view shows the whole part
                 hm_d, dcfg = views.diffuse(scene.render.diffuse, view)
-                rgb, meta = render_diffuse_views(scene, hm_d, dcfg, seed=seed, surface=surface,
-                                                 views=(view,))[view]
+                with progress_task(f"diffuse {view} view: render passes", total=1.0):
+                    rgb, meta = render_diffuse_views(scene, hm_d, dcfg, seed=seed,
+                                                     surface=surface, views=(view,))[view]
                 timing[f"diffuse_{view}"] = time.perf_counter() - t0
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
                 t.advance()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -171,28 +172,43 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
     tw = {}
     log.info("writing heightmap.exr (%d x %d, %.0f MiB) ...", hm.shape[1], hm.shape[0],
              hm.design.size * 12 * BYTES_TO_MIB)
-    # one pass for the EXR overview and the preview (area averages)
-    overview = timed(tw, "overview", heightmap_overview, hm.design, hm.machined)
+    # the progress moves by the files written (the overview, heightmap.exr, toolpath.npz,
+    # the figures, metrics.json and scene.json), from both threads
+    n_files = 4 + (sim.toolpath is not None) + ((1 + len(sim.figures)) if preview else 0)
+    lock = threading.Lock()
+    with task(f"write the {hm.design.size:,}-sample height map and previews "
+              f"({n_files - 1} files)", total=n_files) as step:
 
-    def figures():
-        r = metrics["residual"]
-        timed(tw, "residual.png", residual_preview_png, out_dir / "residual.png", hm.machined,
-              hm.design, extent=hm.extent, mean_nm=r["mean_nm"],
-              title=residual_title(scene.name, sim.traits, r), overview=overview)
-        for name, spec in sim.figures.items():
-            timed(tw, name, draw_figure, spec, out_dir / name)
+        def written(key, fn, *args, **kwargs):
+            value = timed(tw, key, fn, *args, **kwargs)
+            with lock:
+                step.advance()
+            return value
 
-    # the figures (one thread: matplotlib's state is shared) are drawn while the height
-    # map and the program are compressed and written
-    with ThreadPoolExecutor(1) as pool:
-        drawn = pool.submit(figures) if preview else None
-        timed(tw, "heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr", hm,
-              overview=overview)
-        if sim.toolpath is not None:
-            timed(tw, "toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
-        if drawn is not None:
-            drawn.result()
-    metrics.setdefault("timing_s", {})["write"] = tw
-    write_metrics(out_dir, metrics)
-    atomic_write_text(out_dir / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+        # one pass for the EXR overview and the preview (area averages)
+        overview = written("overview", heightmap_overview, hm.design, hm.machined)
+
+        def figures():
+            r = metrics["residual"]
+            written("residual.png", residual_preview_png, out_dir / "residual.png", hm.machined,
+                    hm.design, extent=hm.extent, mean_nm=r["mean_nm"],
+                    title=residual_title(scene.name, sim.traits, r), overview=overview)
+            for name, spec in sim.figures.items():
+                written(name, draw_figure, spec, out_dir / name)
+
+        # the figures (one thread: matplotlib's state is shared) are drawn while the height
+        # map and the program are compressed and written
+        with ThreadPoolExecutor(1) as pool:
+            drawn = pool.submit(figures) if preview else None
+            written("heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr", hm,
+                    overview=overview)
+            if sim.toolpath is not None:
+                written("toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
+            if drawn is not None:
+                drawn.result()
+        metrics.setdefault("timing_s", {})["write"] = tw
+        write_metrics(out_dir, metrics)
+        step.advance()
+        atomic_write_text(out_dir / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+        step.advance()
     return metrics

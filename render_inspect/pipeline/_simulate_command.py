@@ -34,8 +34,6 @@ __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
 log = logging.getLogger("render_inspect")
 
-#: samples per second the EXR and previews are written at (the progress bar's estimate)
-_WRITE_RATE = 1e6  # not a unit conversion
 #: largest side (points) of the following-error map of a tiled cut
 _FIGURE_POINTS = 440
 #: maps of more samples than this are simulated tile by tile whatever the memory budget
@@ -87,12 +85,9 @@ def run_simulate(scene, out, *, tiled: bool | None = None, workers: int | None =
         sim = simulate(scene)
         log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
                  time.perf_counter() - t0)
-        n = sim.heightmap.design.size
         t0 = time.perf_counter()
-        # EXR (3 float32 channels, compressed) and the previews: ~1 M samples/s on the CI machine
-        with task(f"write the {n:,}-sample height map and previews", total=1.0 + n / _WRITE_RATE,
-                  timed=True):
-            metrics = write_simulation(sim, Path(tmp))
+        # (its progress: the files written)
+        metrics = write_simulation(sim, Path(tmp))
     if "program" in metrics:  # a program read from a file: what was inferred, the findings
         log_program_summary(metrics["program"])
     r = metrics["residual"]

@@ -36,7 +36,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit
+from ..core.lazy import njit  # numba, imported on first use
 
 _GOLD = (math.sqrt(5) - 1) / 2
 

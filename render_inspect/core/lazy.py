@@ -1,0 +1,163 @@
+"""Heavy libraries loaded where they are used, not when the package is imported.
+
+The command line checks a scene and its arguments before it computes anything; numba
+(about 0.4 s to import), SciPy (up to 0.8 s for ``scipy.signal`` / ``scipy.stats``) and
+the renderers would make a typing mistake wait for seconds.  The modules that define the
+scene's sections also hold the kernels, so the kernels and the SciPy functions they call
+are declared through this module:
+
+* :func:`njit` is ``numba.njit`` that imports numba and creates the dispatcher on the
+  first call (or the first use of a dispatcher attribute: ``py_func`` is there at once).
+  The compiled code is the same, and numba's on-disk cache is used as before (it is keyed
+  by the Python function's file and name).  A kernel calling another kernel, and
+  ``prange`` (from this module) inside a kernel, work as with numba's own: when the first
+  kernel of a module is made, every lazy kernel and ``prange`` among its globals is
+  replaced by numba's, in that module and in the modules of the kernels it names.
+* :func:`lazy_module` is a module that is imported on its first attribute access
+  (``ndimage = lazy_module("scipy.ndimage")``), and :func:`lazy_attr` one of its
+  attributes, loaded when first called or looked into (``Rotation``, ``least_squares``).
+
+Only the standard library is imported here.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import threading
+import types
+
+__all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher"]
+
+_LOCK = threading.RLock()
+
+
+def prange(*args):
+    """``numba.prange`` inside a kernel (replaced by it when the kernel is compiled);
+    ``range`` when the kernel's Python function is called directly."""
+    return range(*args)
+
+
+def _numba():
+    import numba
+
+    return numba
+
+
+def _realise_globals(namespace: dict, seen: set) -> None:
+    """Put numba's objects in place of the lazy ones among a module's globals (and, in
+    turn, among the globals of the modules whose kernels it names)."""
+    if id(namespace) in seen:
+        return
+    seen.add(id(namespace))
+    numba = _numba()
+    for name, value in list(namespace.items()):
+        if value is prange:
+            namespace[name] = numba.prange
+        elif isinstance(value, LazyDispatcher):
+            namespace[name] = value._realise(seen)
+
+
+class LazyDispatcher:
+    """A numba kernel made on first use (see the module notes)."""
+
+    def __init__(self, py_func, options: dict):
+        self.py_func = py_func
+        self._options = dict(options)
+        self._dispatcher = None
+        functools.update_wrapper(self, py_func)
+
+    def _realise(self, seen: set | None = None):
+        if self._dispatcher is not None:
+            return self._dispatcher
+        with _LOCK:
+            if self._dispatcher is None:
+                numba = _numba()
+                dispatcher = numba.njit(**self._options)(self.py_func)
+                # (set before the globals: a kernel naming itself ends the recursion)
+                self._dispatcher = dispatcher
+                _realise_globals(self.py_func.__globals__, set() if seen is None else seen)
+        return self._dispatcher
+
+    def __call__(self, *args, **kwargs):
+        return (self._dispatcher or self._realise())(*args, **kwargs)
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name in ("_dispatcher", "_options", "py_func"):
+            raise AttributeError(name)
+        return getattr(self._realise(), name)
+
+    def __reduce__(self):
+        return (_module_attr, (self.py_func.__module__, self.py_func.__qualname__))
+
+    def __repr__(self) -> str:
+        state = "made" if self._dispatcher is not None else "not made yet"
+        return f"<lazy numba kernel {self.py_func.__qualname__} ({state})>"
+
+
+def njit(*args, **options):
+    """``numba.njit`` made on first use: ``@njit``, ``@njit(cache=True, ...)`` or
+    ``njit(cache=True)(function)``."""
+    if len(args) == 1 and callable(args[0]) and not options:
+        return LazyDispatcher(args[0], {})
+    if args:
+        raise TypeError("njit: signatures are not supported here; pass options only")
+
+    def decorate(func):
+        return LazyDispatcher(func, options)
+
+    return decorate
+
+
+def _module_attr(module: str, qualname: str):
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+class _LazyModule(types.ModuleType):
+    def __init__(self, name: str):
+        super().__init__(name)
+        self.__dict__["_lazy_target"] = name
+
+    def __getattr__(self, attr):
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        return getattr(importlib.import_module(self.__dict__["_lazy_target"]), attr)
+
+    def __repr__(self) -> str:
+        return f"<lazy module {self.__dict__['_lazy_target']!r}>"
+
+
+def lazy_module(name: str) -> types.ModuleType:
+    """The module ``name``, imported on its first attribute access."""
+    return _LazyModule(name)
+
+
+class _LazyAttr:
+    def __init__(self, module: str, name: str):
+        self._where = (module, name)
+        self._obj = None
+
+    def _get(self):
+        if self._obj is None:
+            module, name = self._where
+            self._obj = getattr(importlib.import_module(module), name)
+        return self._obj
+
+    def __call__(self, *args, **kwargs):
+        return self._get()(*args, **kwargs)
+
+    def __getattr__(self, attr):
+        if attr.startswith("__") or attr in ("_where", "_obj"):
+            raise AttributeError(attr)
+        return getattr(self._get(), attr)
+
+    def __repr__(self) -> str:
+        return f"<lazy {self._where[0]}.{self._where[1]}>"
+
+
+def lazy_attr(module: str, name: str):
+    """``from module import name``, imported when first called or looked into."""
+    return _LazyAttr(module, name)
