@@ -44,7 +44,8 @@ from ._metrics import (merge_moments, metrics_from_moments, residual_metrics, ti
 from ._sculpt import sculpt_line_profile, sculpt_surface, target_line, vibration_phases
 from ._servo import split_commands
 from ._tiled import TILE, Tile, compute_tile, plan_tiles
-from ._wear import MM_PER_KM, WEAR_RATES, WearRate, spiral_distance_km, wear_rate, wear_state, worn_path
+from ._wear import (MM_PER_KM, SPEED_LAW, WEAR_RATES, WearRate, chemical_distance_km,
+                    spiral_distance_km, wear_rate, wear_state, worn_path)
 
 __all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", "simulate_turning", "path_radial_slope", "residual_metrics",
            "design_grid", "apply_burrs", "burr_map", "sharp_edges", "sculpt_line_profile",
@@ -65,7 +66,7 @@ __all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", 
            "material_burrs", "edge_turns", "burr_height_law", "burr_halo", "material_burr_block", "material_burr_facts",
            "BURR_WIDTH_PER_CHIP", "texture_field", "uncut_chip_thickness", "loop_lag",
            "loop_response", "force_noise_rms", "MM_PER_KM", "WEAR_RATES", "WearRate", "spiral_distance_km",
-           "wear_rate", "wear_state", "worn_path"]
+           "wear_rate", "wear_state", "worn_path", "SPEED_LAW", "chemical_distance_km"]
 
 #: the names ``material.preset`` takes ("ideal": no material response)
 MATERIAL_PRESET_NAMES = ("ideal", *MATERIAL_PRESETS)

@@ -10,8 +10,8 @@ import math
 import numpy as np
 
 from ..core.units import MM_TO_NM, NM_TO_MM
-from ..machining import MM_PER_KM, spiral_distance_km, wear_rate, wear_state, worn_path
-from ..machining._wear import SPEED_LAW, chemical_distance_km
+from ..machining import (MM_PER_KM, SPEED_LAW, chemical_distance_km, spiral_distance_km,
+                         wear_rate, wear_state, worn_path)
 
 __all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "worn_h_min",
            "WEAR_BANDS"]
