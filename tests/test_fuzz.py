@@ -1499,3 +1499,108 @@ class TestFuzzInputKinds:
         (tmp_path / "a.toml").write_bytes(b"\xef\xbb\xbf" + raw)
         assert load_scene(str(tmp_path / "a.toml")).to_dict() == \
             load_scene("sts_sinusoidal_grid").to_dict()
+
+
+# ------------------------------------------------------------------ R7: verifier limits
+CASES.update({"plunge_feeds": 8 * SCALE, "depths": 4 * SCALE, "cache_tamper": 40 * SCALE})
+
+
+class TestFuzzVerifierLimits:
+    """The verifier's limits are the machine's (its largest feed, its travel) and the
+    cut's physics (a plunge no faster than the cutting feed), never the program's own
+    values: random plunge feeds (sculpturing) and depths of cut (turning)."""
+
+    BASE = ["design.rows=3", "design.cols=3"]
+
+    def test_plunge_feeds(self, tmp_path):
+        from render_inspect.pipeline import run_toolpath
+
+        rng = _rng("plunge_feeds")
+        cutting = load_scene("sculpt_quad_mla", self.BASE).process.feed_mm_per_min
+        for i in range(CASES["plunge_feeds"]):
+            f = float(f"{10 ** rng.uniform(np.log10(cutting) + 0.01, 5):.6g}")  # schema: <= 1e5
+            scene = load_scene("sculpt_quad_mla", self.BASE + [f"process.plunge_feed_mm_per_min={f}"])
+            out = tmp_path / f"o{i}"
+            with pytest.raises(InputError) as err:
+                run_toolpath(scene, out, fmt="nc")
+            msg = str(err.value)
+            if f > 3000:
+                assert "over the 3000 mm/min machine.preset" in msg, (f, msg)
+            else:
+                assert f"over the {cutting:g} mm/min of the cutting speed" in msg, (f, msg)
+            assert "\n" not in msg and not out.exists()
+
+    def test_depths_of_cut_past_the_travel(self, tmp_path):
+        from render_inspect.pipeline import run_toolpath
+
+        rng = _rng("depths")
+        for i in range(CASES["depths"]):
+            d = float(f"{10 ** rng.uniform(np.log10(150), 9):.6g}")  # schema: <= 1e9
+            scene = load_scene("sts_sinusoidal_grid", ["process.workpiece_radius=0.05",
+                                                       f"process.depth_of_cut={d}"])
+            out = tmp_path / f"o{i}"
+            with pytest.raises(InputError, match=r"outside the travel \[-150, 150\] mm of "
+                                                 r"machine.preset 'sts_lathe'"):
+                run_toolpath(scene, out, fmt="nc")
+            assert not out.exists()
+
+
+# ------------------------------------------------------------------ R8: the fit's cache
+class TestFuzzFitCache:
+    """A resumed fit reads its cache folder as untrusted: every random alteration of an
+    entry (scaled, reshaped, truncated, inflated, another context, foreign members,
+    garbage) is refused and recomputed; an untouched entry comes back bit for bit."""
+
+    SHAPE = (24, 24)
+
+    def _write(self, path, height, meta_text, digest, extra=None):
+        members = {"height": height, "meta": np.array(meta_text), "digest": np.array(digest)}
+        members.update(extra or {})
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **members)
+        path.write_bytes(buf.getvalue())
+
+    def test_tampered_entries_are_recomputed(self, tmp_path):
+        from render_inspect.fit._cache import EvaluationCache
+
+        rng = _rng("cache_tamper")
+        ctx = {"scene": "a" * 64, "measured": "b" * 64}
+        cache = EvaluationCache(tmp_path, context=ctx, shape=self.SHAPE)
+        kinds = ["scale", "reshape", "truncate", "inflate", "context", "member", "garbage",
+                 "dtype", "none"]
+        made = {}
+        for i in range(CASES["cache_tamper"]):
+            key = f"{i:064x}"
+            h = rng.normal(size=self.SHAPE)
+            made[key] = (cache.put(key, h, {"i": i}), _pick(rng, kinds))
+        for key, (h, kind) in made.items():
+            p = cache.folder / f"{key}.npz"
+            with np.load(p) as z:
+                raw, meta, digest = np.array(z["height"]), str(z["meta"]), str(z["digest"])
+            if kind == "scale":
+                self._write(p, raw * np.float32(3), meta, digest)
+            elif kind == "reshape":
+                self._write(p, raw.reshape(self.SHAPE[0] // 2, -1), meta, digest)
+            elif kind == "truncate":
+                p.write_bytes(p.read_bytes()[: int(rng.integers(1, p.stat().st_size))])
+            elif kind == "inflate":
+                self._write(p, np.zeros((4096, 4096), np.float32), meta, digest)
+            elif kind == "context":
+                from render_inspect.fit._cache import content_hash
+                self._write(p, raw, meta, content_hash(key, raw, meta, {"scene": "c" * 64}))
+            elif kind == "member":
+                self._write(p, raw, meta, digest, {"extra": np.zeros(3)})
+            elif kind == "garbage":
+                p.write_bytes(rng.bytes(int(rng.integers(0, 5000))))
+            elif kind == "dtype":
+                self._write(p, raw.astype(np.float64), meta, digest)
+        assert {kind for _, kind in made.values()} == set(kinds)  # every alteration drawn
+        again = EvaluationCache(tmp_path, context=ctx, shape=self.SHAPE)
+        for key, (h, kind) in made.items():
+            got = again.get(key)
+            if kind == "none":
+                assert got is not None and np.array_equal(got[0], h), key
+            else:
+                assert got is None, (kind, key)
+        refused = {k for k, _ in again.rejected}
+        assert refused == {k for k, (_, kind) in made.items() if kind != "none"}
