@@ -206,3 +206,20 @@ def test_the_diffuse_estimate_refuses_the_image_that_was_killed():
     dcfg = DiffuseConfig(resolution=4096, spp=300)
     assert diffuse_memory(dcfg, (401, 401)) > 16 * 2 ** 30
     assert diffuse_memory(dcfg, (401, 401), spectral=False) < 3 * 2 ** 30
+
+
+def test_the_tiled_estimate_holds_the_following_phase():
+    """Before its tiles start, a tiled simulation follows the whole path through the
+    machine model (every servo tick at once); that phase is the process's
+    ``following_memory``, taken when it is larger than the tiles' phase."""
+    from render_inspect.processes import process_of
+    from render_inspect.processes._turning import machine_bytes
+    from render_inspect.scene import load_scene
+
+    scene = load_scene("sts_sinusoidal_grid", ["process.workpiece_radius=5"])
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    kept, _ = process.tiled_memory(cfg)
+    assert process.following_memory(cfg) == machine_bytes(cfg) > 2 * kept > 0
+    ideal = load_scene("sts_sinusoidal_grid", ["machine.preset=ideal"])
+    assert process_of(ideal).following_memory(process_of(ideal).inputs_of(ideal)) == 0

@@ -171,7 +171,9 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     # the whole program is planned in memory: its points against the budget first
     process.precheck(cfg, tuple(sim.region))
     extra, n_est = process.tiled_memory(cfg)
-    _tiled_check(sim, tiled_bytes(tile, n_est, in_flight=in_flight) + extra, tile=tile,
+    # two phases: the machine model following the whole path, then the tiles
+    _tiled_check(sim, max(tiled_bytes(tile, n_est, in_flight=in_flight) + extra,
+                          process.following_memory(cfg)), tile=tile,
                  in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
     timing = {}
     # the folder is checked and locked first; the Dask workers start while the path is
@@ -208,9 +210,10 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         halo = 0 if env.burrs is None else burr_halo(sim.pixel, env.burrs["smoothing"],
                                                      env.burrs["width"],
                                                      nan=_may_leave_uncut(sim.region, path, env))
-        est = _tiled_check(sim, tiled_bytes(tile, path.points, in_flight=in_flight,
-                                            material=mat is not None, burr_halo=halo,
-                                            shape=shape) + extra,
+        est = _tiled_check(sim, max(tiled_bytes(tile, path.points, in_flight=in_flight,
+                                                material=mat is not None, burr_halo=halo,
+                                                shape=shape) + extra,
+                                    process.following_memory(cfg, plan)),
                            tile=tile, in_flight=in_flight, points=path.points, workers=workers,
                            scheduler=scheduler)
         levels = level_count(shape)

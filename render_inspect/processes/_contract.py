@@ -390,6 +390,13 @@ class Process(ABC):
         simulation (estimated before planning when ``plan`` is None)."""
         raise NotImplementedError(self.tile_refusal(cfg))
 
+    def following_memory(self, cfg: Inputs, plan: Plan | None = None) -> int:
+        """Bytes a tiled simulation holds at its peak before the tiles start (the machine
+        model following the whole path; estimated before planning when ``plan`` is
+        None): the estimate is the larger of this and the tiles' phase.  Default 0 (a
+        process that follows nothing)."""
+        return 0
+
     def tiled_facts(self, cfg: Inputs, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
         :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every

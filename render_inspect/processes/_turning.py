@@ -597,3 +597,7 @@ class TiledTurningProcess(TurningProcess):
         # the machine model's following (machine_bytes) ends before the tiles start; what
         # it leaves is held beside them
         return _ticks(cfg, plan) * _TILED_KEPT_BYTES_PER_TICK, turning_points(cfg, plan)
+
+    def following_memory(self, cfg, plan=None) -> int:
+        # the phase before the tiles: every servo tick of the followed path at once
+        return machine_bytes(cfg, plan)
