@@ -89,9 +89,15 @@ _NO_EDGE = np.zeros(0)
 # pixel and an exact atan2.  The functions use only what both targets compile (scalars,
 # 1-D / 2-D float and int arrays, math, tuples).
 
-def _lookup(theta, tab, tab_t0, tab_w, s):
-    """Index i with theta[i] <= s <= theta[i+1] (s inside the path)."""
-    b = int((s - tab_t0) / tab_w)
+def _lookup_bin(theta, tab, b, s):
+    """Index i with theta[i] <= s <= theta[i + 1] (s inside the path), found from bin ``b``
+    of the lookup table (:func:`_lookup_table`; clamped to the table) and a walk.
+
+    The pass lookup of every kernel (the envelope's and the cutting mechanics'); each
+    caller computes the bin from the angle with its own arithmetic (:func:`_lookup`
+    divides by the bin width, the cutting kernel multiplies by its reciprocal), kept as it
+    was because the bin decides which of two segments a pass exactly on a path point
+    gets."""
     if b < 0:
         b = 0
     if b >= tab.size:
@@ -103,6 +109,12 @@ def _lookup(theta, tab, tab_t0, tab_w, s):
     while i > 0 and theta[i] > s:
         i -= 1
     return i
+
+
+def _lookup(theta, tab, tab_t0, tab_w, s):
+    """Index i with theta[i] <= s <= theta[i + 1] (s inside the path): :func:`_lookup_bin`
+    from the bin (s - tab_t0) / tab_w."""
+    return _lookup_bin(theta, tab, int((s - tab_t0) / tab_w), s)
 
 
 def _edge_dz(edge, sd):
@@ -223,7 +235,8 @@ def _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_
 
 
 #: the functions of the per-pixel step, in the order they call each other
-DEVICE_FUNCTIONS = ("_lookup", "_edge_dz", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
+DEVICE_FUNCTIONS = ("_lookup_bin", "_lookup", "_edge_dz", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
+_lookup_bin = njit(cache=True, inline="always")(_lookup_bin)
 _lookup = njit(cache=True, inline="always")(_lookup)
 _edge_dz = njit(cache=True, inline="always")(_edge_dz)
 _passes = njit(cache=True, inline="always")(_passes)
