@@ -47,8 +47,10 @@ from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cut_inputs import Grooves, cutting_distance, mechanics_window
 from ._cutting import cut_turning_mechanics, mechanics_path
-from ._envelope import (BLOCK, EnvelopePath, _edge_dz, _lookup_bin, _lookup_table, _nominal_spiral,
-                        _nose_arc, _polar_step, edge_table, edge_window, path_radial_slope)
+from ._envelope import BLOCK, _polar_step
+from ._envelope_path import (EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc, edge_table, edge_window,
+                             path_radial_slope)
+from ._envelope_step import _edge_dz, _lookup_bin
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
