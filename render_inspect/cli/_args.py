@@ -84,10 +84,11 @@ def _add_cluster_args(p: argparse.ArgumentParser, *, workers: str, scheduler: st
     """``--workers N`` (a local Dask cluster) and ``--scheduler ADDRESS`` (a running one),
     each with the command's ``help``; ``exclusive``: at most one of them."""
     g = p.add_mutually_exclusive_group() if exclusive else p
-    opts = [("--workers", dict(type=int, default=None, metavar="N", help=workers)),
-            ("--scheduler", dict(default=None, metavar="ADDRESS", help=scheduler))]
-    for flag, kw in (opts[::-1] if scheduler_first else opts):
-        g.add_argument(flag, **kw)
+    for flag in (("--scheduler", "--workers") if scheduler_first else ("--workers", "--scheduler")):
+        if flag == "--workers":
+            g.add_argument(flag, type=int, default=None, metavar="N", help=workers)
+        else:
+            g.add_argument(flag, default=None, metavar="ADDRESS", help=scheduler)
 
 
 def _add_program_arg(p: argparse.ArgumentParser):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -103,7 +104,7 @@ class Frames(GridCoordinates):
 
     @property
     def shape(self) -> tuple[int, int]:
-        return tuple(np.shape(self.frames)[1:])
+        return cast("tuple[int, int]", tuple(np.shape(self.frames)[1:]))
 
     @property
     def lambda_eff_nm(self) -> float:

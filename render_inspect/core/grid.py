@@ -4,6 +4,7 @@ camera images) and the grid a region and a pixel size define."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,16 @@ def grid_shape(region, pixel: float) -> tuple[int, int]:
 class GridCoordinates:
     """Mixin for objects with ``shape`` (ny, nx), ``pixel`` (mm) and ``origin`` (x, y of the
     centre of pixel [0, 0], mm).  Row 0 is the smallest y, column 0 the smallest x."""
+
+    if TYPE_CHECKING:  # what the class using the mixin provides (fields or properties)
+        @property
+        def shape(self) -> tuple[int, ...]: ...
+
+        @property
+        def pixel(self) -> float: ...
+
+        @property
+        def origin(self) -> tuple[float, float]: ...
 
     @property
     def x(self) -> np.ndarray:
