@@ -83,7 +83,7 @@ class Frames(GridCoordinates):
     effective_wavelength_nm: float | None = None
     settings: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         f = np.asarray(self.frames)
         if f.ndim != 3:
             raise InputError(f"frames must be an (N, H, W) array, got shape {f.shape}")

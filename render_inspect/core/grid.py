@@ -3,6 +3,7 @@ camera images) and the grid a region and a pixel size define."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -11,7 +12,7 @@ import numpy as np
 __all__ = ["GridCoordinates", "Grid", "grid_shape"]
 
 
-def grid_shape(region, pixel: float) -> tuple[int, int]:
+def grid_shape(region: Sequence[float], pixel: float) -> tuple[int, int]:
     """(ny, nx) of the grid with pixel centres at x0 + i pixel, y0 + j pixel over
     ``region`` = (x0, y0, x1, y1), mm."""
     x0, y0, x1, y1 = region
@@ -66,7 +67,7 @@ class Grid(GridCoordinates):
     shape: tuple[int, int]
 
     @classmethod
-    def from_region(cls, region, pixel: float) -> "Grid":
+    def from_region(cls, region: Sequence[float], pixel: float) -> "Grid":
         """The grid of ``region`` = (x0, y0, x1, y1) (mm) at ``pixel`` (mm), pixel centres
         from (x0, y0)."""
         return cls((float(region[0]), float(region[1])), float(pixel), grid_shape(region, pixel))
