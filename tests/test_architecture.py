@@ -50,28 +50,9 @@ NOT_STAGES = {"_warmup.py"}
 #: the most lines a module of the package or of the Blender add-on may have
 MAX_LINES = 600
 #: modules allowed over MAX_LINES, each with the reason
-OVERSIZED = {
-    "render_inspect/machining/_envelope.py":
-        "the per-pixel step, the fast and the reference kernel and the path preparation "
-        "share the pass window and the nominal spiral; its functions move out together "
-        "with the CPU / GPU import cycle below, once the measured tool edge's kernel "
-        "changes to them have landed",
-    "render_inspect/pipeline/_compare.py":
-        "grew past the limit with the measurement-honesty work while other changes to it "
-        "were under way; its measured-map and report parts move into modules of their own "
-        "once those have landed",
-    "render_inspect/report/_page.py":
-        "one line over after the profile and measurement-honesty work; the comparison "
-        "page's sections move into a module of their own with the split of "
-        "pipeline/_compare.py",
-}
+OVERSIZED: dict[str, str] = {}
 #: import cycles allowed, each a set of modules with the reason
 CYCLES = {
-    frozenset({"render_inspect.machining._envelope", "render_inspect.machining._envelope_gpu"}):
-        "the GPU kernel compiles the CPU module's per-pixel step for the device, and the "
-        "CPU module starts the GPU kernel (imported inside the function that dispatches to "
-        "it); it goes when the per-pixel step moves into a module of its own (see "
-        "OVERSIZED)",
     frozenset({"render_inspect.scene", "render_inspect.scene._variants"}):
         "the package builds the Scene model from the registries, and the compared variants "
         "are scenes made with its scene_from_dict and apply_overrides; it goes when the "

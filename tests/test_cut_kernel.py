@@ -163,6 +163,29 @@ def test_row_blocks_report_progress_and_stop_when_asked(cut_case):
                     progress=stop)
 
 
+def test_one_pass_lookup_serves_every_kernel_and_brackets_the_angle():
+    """The envelope's and the cutting kernel's pass lookup are one function; from either
+    bin arithmetic it finds the segment holding the angle, on a path with uneven steps and
+    repeated points, for angles between points and on them."""
+    from render_inspect.machining import _cut_kernel, _cutting, _envelope, _envelope_path
+    from render_inspect.machining import _envelope_step as step
+
+    assert _cut_kernel._lookup_bin is step._lookup_bin
+    assert _cutting._lookup is _envelope._lookup is step._lookup
+    assert not hasattr(_cut_kernel, "_find")
+    rng = np.random.default_rng(4)
+    steps = rng.uniform(0.0, 2e-3, 3000)
+    steps[rng.random(steps.size) < 0.05] = 0.0          # repeated angles (a dwell)
+    theta = np.concatenate([[0.3], 0.3 + np.cumsum(steps)])
+    tab, t0, w = _envelope_path._lookup_table(theta)
+    iw = 1.0 / w
+    s_all = np.concatenate([rng.uniform(theta[0], theta[-1], 4000), theta[::7]])
+    for s in s_all:
+        for i in (step._lookup(theta, tab, t0, w, s), step._lookup_bin(theta, tab, int((s - t0) * iw), s)):
+            assert 0 <= i <= theta.size - 2
+            assert theta[i] <= s <= theta[i + 1], (s, i)
+
+
 def test_the_kernels_cosine_is_numpys_to_the_last_bits():
     rng = np.random.default_rng(0)
     x = np.concatenate([rng.uniform(-1.4e6, 1.4e6, 200_000), rng.uniform(-10, 10, 200_000),

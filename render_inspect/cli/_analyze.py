@@ -3,7 +3,7 @@ height from interferometer frames, and the virtual instrument's own characterist
 
 from __future__ import annotations
 
-from ._args import _add_out_args, _add_verbosity
+from ._args import _add_out_args, _add_set_arg, _add_verbosity
 
 
 def add_parsers(sub) -> None:
@@ -49,9 +49,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
     _add_out_args(p)
     p.add_argument("--mode", choices=["psi", "csi"], default="psi")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override an instrument key of [render.interferometer], e.g. "
-                        "--set numerical_aperture=0.5 (TOML value syntax)")
+    _add_set_arg(p, help="override an instrument key of [render.interferometer], e.g. "
+                         "--set numerical_aperture=0.5 (TOML value syntax)")
     p.add_argument("--seed", type=int, default=0, help="seed of the camera noise")
     p.add_argument("--quick", action="store_true", help="fewer points, smaller fields (for tests)")
     _add_verbosity(p)

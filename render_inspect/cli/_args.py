@@ -66,10 +66,29 @@ def _add_scene_args(p: argparse.ArgumentParser, *, out=True):
                                  "e.g. sts_sinusoidal_grid")
     if out:
         _add_out_args(p)
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scene key, e.g. --set process.spindle_rpm=100 (TOML value syntax)")
+    _add_set_arg(p)
     _add_program_arg(p)
     _add_verbosity(p)
+
+
+def _add_set_arg(p: argparse.ArgumentParser, *,
+                 help: str = "override a scene key, e.g. --set process.spindle_rpm=100 (TOML value "
+                             "syntax)"):
+    """``--set KEY=VALUE`` (repeatable, into ``args.overrides``); ``help`` says what the
+    command's keys are."""
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=help)
+
+
+def _add_cluster_args(p: argparse.ArgumentParser, *, workers: str, scheduler: str,
+                      exclusive: bool = True, scheduler_first: bool = False):
+    """``--workers N`` (a local Dask cluster) and ``--scheduler ADDRESS`` (a running one),
+    each with the command's ``help``; ``exclusive``: at most one of them."""
+    g = p.add_mutually_exclusive_group() if exclusive else p
+    for flag in (("--scheduler", "--workers") if scheduler_first else ("--workers", "--scheduler")):
+        if flag == "--workers":
+            g.add_argument(flag, type=int, default=None, metavar="N", help=workers)
+        else:
+            g.add_argument(flag, default=None, metavar="ADDRESS", help=scheduler)
 
 
 def _add_program_arg(p: argparse.ArgumentParser):

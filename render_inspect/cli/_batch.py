@@ -4,7 +4,7 @@ image regression of the shipped cases) and the set-up check with the main job.""
 from __future__ import annotations
 
 from ..core.errors import RenderInspectError
-from ._args import _add_out_args, _add_verbosity
+from ._args import _add_cluster_args, _add_out_args, _add_set_arg, _add_verbosity
 
 
 def add_parsers(sub) -> None:
@@ -15,12 +15,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="write the sweep into a non-empty folder that is not a sweep's (its files "
                         "are left in place)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                       help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
-                            "(default: a LocalCluster on this machine)")
-    where.add_argument("--workers", metavar="N", type=int, default=None,
-                       help="process workers of the LocalCluster (default: the CPU count)")
+    _add_cluster_args(p, workers="process workers of the LocalCluster (default: the CPU count)",
+                      scheduler="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                                "(default: a LocalCluster on this machine)", scheduler_first=True)
     p.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
     _add_verbosity(p)
 
@@ -35,8 +32,7 @@ def add_parsers(sub) -> None:
                         "whole when the run ends, untouched otherwise")
     p.add_argument("--overwrite", action="store_true",
                    help="replace --out even if it holds files render-inspect did not write")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key in every case (what-if checks; not with --update)")
+    _add_set_arg(p, help="override a key in every case (what-if checks; not with --update)")
     _add_verbosity(p)
 
     p = sub.add_parser("demo", help="set-up check plus the main job on the shipped sinusoidal grid "

@@ -3,7 +3,8 @@ surface."""
 
 from __future__ import annotations
 
-from ._args import _add_out_args, _add_program_arg, _add_verbosity, scene_overrides
+from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
+                    scene_overrides)
 
 
 def add_parsers(sub) -> None:
@@ -35,16 +36,12 @@ def add_parsers(sub) -> None:
                    help="form removed from measured and predicted maps before comparing")
     p.add_argument("--weights", action="append", default=[], metavar="TERM=W",
                    help="misfit term weights: map, psd, harmonics (default 1 each)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="run the evaluations on a local Dask cluster of N processes")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="run the evaluations on the Dask cluster at ADDRESS")
+    _add_cluster_args(p, workers="run the evaluations on a local Dask cluster of N processes",
+                      scheduler="run the evaluations on the Dask cluster at ADDRESS")
     p.add_argument("--predict", action="extend", nargs="+", default=[], metavar="KEY=VALUE",
                    help="after the fit, simulate the fitted scene with KEY=VALUE (TOML value) "
                         "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scene key before fitting (TOML value syntax)")
+    _add_set_arg(p, help="override a scene key before fitting (TOML value syntax)")
     _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
                                                        "of the global search")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._args import _add_scene_args, _program_formats, _Registered, scene_of
+from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 
 def add_parsers(sub) -> None:
@@ -11,10 +11,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--tiled", action="store_true",
                    help="compute the map tile by tile into heightmap.zarr (automatic when it does not fit "
                         "the memory budget: simulation.max_memory_gb, by default 80%% of the free memory)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="run the tiles on a local Dask cluster of N worker processes (implies --tiled)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (implies --tiled)")
+    _add_cluster_args(p, workers="run the tiles on a local Dask cluster of N worker processes (implies --tiled)",
+                      scheduler="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 "
+                                "(implies --tiled)", exclusive=False)
     p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
                    help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
 

@@ -5,15 +5,17 @@ from __future__ import annotations
 
 import types
 import typing
+from collections.abc import Iterable
+from typing import Any
 
 __all__ = ["unwrap_annotation", "annotation_bounds"]
 
 
-def unwrap_annotation(annotation):
+def unwrap_annotation(annotation: Any) -> tuple[Any, list]:
     """(base annotation, constraint metadata) of a field's annotation: unwraps
     ``Annotated`` (collecting its constraints, pydantic's grouped ones flattened) and
     ``Optional`` (a union with None and one other type)."""
-    meta = []
+    meta: list = []
     while True:
         origin = typing.get_origin(annotation)
         args = typing.get_args(annotation)
@@ -30,7 +32,7 @@ def unwrap_annotation(annotation):
             return annotation, meta
 
 
-def annotation_bounds(meta) -> tuple[float | None, float | None, bool, bool]:
+def annotation_bounds(meta: Iterable[Any]) -> tuple[float | None, float | None, bool, bool]:
     """(lo, hi, lo_open, hi_open) of the constraints ``meta`` (None: unbounded)."""
     lo = hi = None
     lo_open = hi_open = False

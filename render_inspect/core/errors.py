@@ -4,6 +4,7 @@ value received, and says what to do."""
 from __future__ import annotations
 
 import math
+from typing import Any, Callable
 
 __all__ = ["RenderInspectError", "SceneError", "InputError", "MemoryBudgetError",
            "AccessibilityError", "check_range", "check_positive"]
@@ -29,8 +30,9 @@ class AccessibilityError(RenderInspectError):
     """The tool cannot reach (part of) the design surface."""
 
 
-def check_range(name: str, value, lo=None, hi=None, *, lo_open=False, hi_open=False,
-                exc=InputError):
+def check_range(name: str, value: Any, lo: float | None = None, hi: float | None = None, *,
+                lo_open: bool = False, hi_open: bool = False,
+                exc: Callable[[str], Exception] = InputError) -> Any:
     """Raise ``exc`` naming ``name``, the allowed range and ``value`` if outside it."""
     try:
         v = float(value)
@@ -49,5 +51,5 @@ def check_range(name: str, value, lo=None, hi=None, *, lo_open=False, hi_open=Fa
     return value
 
 
-def check_positive(name: str, value, exc=InputError):
+def check_positive(name: str, value: Any, exc: Callable[[str], Exception] = InputError) -> Any:
     return check_range(name, value, 0.0, None, lo_open=True, exc=exc)

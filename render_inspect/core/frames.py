@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -82,7 +83,7 @@ class Frames(GridCoordinates):
     effective_wavelength_nm: float | None = None
     settings: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         f = np.asarray(self.frames)
         if f.ndim != 3:
             raise InputError(f"frames must be an (N, H, W) array, got shape {f.shape}")
@@ -103,7 +104,7 @@ class Frames(GridCoordinates):
 
     @property
     def shape(self) -> tuple[int, int]:
-        return tuple(np.shape(self.frames)[1:])
+        return cast("tuple[int, int]", tuple(np.shape(self.frames)[1:]))
 
     @property
     def lambda_eff_nm(self) -> float:

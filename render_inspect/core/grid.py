@@ -3,14 +3,16 @@ camera images) and the grid a region and a pixel size define."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 __all__ = ["GridCoordinates", "Grid", "grid_shape"]
 
 
-def grid_shape(region, pixel: float) -> tuple[int, int]:
+def grid_shape(region: Sequence[float], pixel: float) -> tuple[int, int]:
     """(ny, nx) of the grid with pixel centres at x0 + i pixel, y0 + j pixel over
     ``region`` = (x0, y0, x1, y1), mm."""
     x0, y0, x1, y1 = region
@@ -22,6 +24,16 @@ def grid_shape(region, pixel: float) -> tuple[int, int]:
 class GridCoordinates:
     """Mixin for objects with ``shape`` (ny, nx), ``pixel`` (mm) and ``origin`` (x, y of the
     centre of pixel [0, 0], mm).  Row 0 is the smallest y, column 0 the smallest x."""
+
+    if TYPE_CHECKING:  # what the class using the mixin provides (fields or properties)
+        @property
+        def shape(self) -> tuple[int, ...]: ...
+
+        @property
+        def pixel(self) -> float: ...
+
+        @property
+        def origin(self) -> tuple[float, float]: ...
 
     @property
     def x(self) -> np.ndarray:
@@ -55,7 +67,7 @@ class Grid(GridCoordinates):
     shape: tuple[int, int]
 
     @classmethod
-    def from_region(cls, region, pixel: float) -> "Grid":
+    def from_region(cls, region: Sequence[float], pixel: float) -> "Grid":
         """The grid of ``region`` = (x0, y0, x1, y1) (mm) at ``pixel`` (mm), pixel centres
         from (x0, y0)."""
         return cls((float(region[0]), float(region[1])), float(pixel), grid_shape(region, pixel))

@@ -31,7 +31,7 @@ class HeightMap(GridCoordinates):
     scene: dict | None = None
     meta: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.design.shape != self.machined.shape or self.design.ndim != 2:
             raise InputError(f"design and machined must be 2-D arrays of one shape, got "
                              f"{self.design.shape} and {self.machined.shape}")
@@ -44,5 +44,5 @@ class HeightMap(GridCoordinates):
         return self.machined - self.design
 
     @property
-    def shape(self):
+    def shape(self) -> tuple[int, ...]:
         return self.design.shape

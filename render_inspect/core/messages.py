@@ -12,6 +12,8 @@ x1, y1]; received [0, 0, 1]``.  Every error type the library defines has a wordi
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
+from typing import Any
 
 __all__ = ["validation_line", "shown", "NUMERIC_ERRORS", "LIBRARY_WORDING"]
 
@@ -75,7 +77,7 @@ _WORDS = {
 _DATES = ("date", "time", "datetime", "timezone", "time_delta")
 
 
-def shown(value, limit: int = 80) -> str:
+def shown(value: Any, limit: int = 80) -> str:
     """``repr(value)`` cut to ``limit`` characters (inputs can be long or nested)."""
     try:
         text = repr(value)
@@ -84,11 +86,11 @@ def shown(value, limit: int = 80) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def _plural(n, one: str, many: str) -> str:
+def _plural(n: Any, one: str, many: str) -> str:
     return f"{n} {one if n == 1 else many}"
 
 
-def _number_words(t: str, ctx: dict, inp) -> str:
+def _number_words(t: str, ctx: dict, inp: Any) -> str:
     what = ""
     if isinstance(inp, bool):
         what = " (true/false is not a number)"
@@ -128,7 +130,7 @@ def _grammar(msg: str) -> str:
 
 
 def validation_line(e: dict, *, key: str, expected: str | None = None,
-                    tags=None) -> tuple[str, str]:
+                    tags: Sequence[str] | None = None) -> tuple[str, str]:
     """``(key, text)`` of one validation error ``e`` in the scene's words: the key it is
     about (``key``, the dotted location; a union's discriminator is added to it) and
     "must be ...; received ...".  ``expected`` is what the key accepts when the caller

@@ -8,14 +8,15 @@ from __future__ import annotations
 import importlib
 import pkgutil
 import typing
-from typing import Callable
+from collections.abc import Container, Iterable, Iterator
+from typing import Any, Callable
 
 from .errors import SceneError
 
 __all__ = ["literal_values", "import_private_modules", "Registry"]
 
 
-def literal_values(config, field: str) -> tuple:
+def literal_values(config: Any, field: str) -> tuple:
     """The values of ``config``'s ``Literal`` field ``field`` (e.g. a design's ``type``)."""
     ann = config.model_fields[field].annotation
     args = typing.get_args(ann)
@@ -24,7 +25,7 @@ def literal_values(config, field: str) -> tuple:
     return tuple(args)
 
 
-def import_private_modules(package: str, path, *, skip=()) -> list[str]:
+def import_private_modules(package: str, path: Iterable[str], *, skip: Container[str] = ()) -> list[str]:
     """Import every ``_*.py`` module of ``package`` (found on ``path``, its ``__path__``)
     except those in ``skip``, in name order; return their names."""
     names = sorted(m.name for m in pkgutil.iter_modules(path)
@@ -48,7 +49,7 @@ class Registry:
         self._entries: dict = {}
         self._union = None
 
-    def add(self, names, entry):
+    def add(self, names: Iterable[str], entry: Any) -> Any:
         """Register ``entry`` under each of ``names``; return it."""
         for name in names:
             self._entries[name] = entry
@@ -59,17 +60,17 @@ class Registry:
         """Name -> entry (a copy)."""
         return dict(self._entries)
 
-    def get(self, name):
+    def get(self, name: str) -> Any:
         """The entry of ``name``, or None."""
         return self._entries.get(name)
 
-    def __contains__(self, name) -> bool:
+    def __contains__(self, name: object) -> bool:
         return name in self._entries
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._entries)
 
-    def lookup(self, name):
+    def lookup(self, name: str) -> Any:
         """The entry of ``name``; :class:`~render_inspect.core.errors.SceneError` naming the
         registered names when there is none."""
         entry = self._entries.get(name)
@@ -86,7 +87,7 @@ class Registry:
                 configs.append(entry.config)
         return configs
 
-    def union(self, make: Callable, then: Callable | None = None):
+    def union(self, make: Callable, then: Callable | None = None) -> Any:
         """``make(configs)``, the pydantic type of the section (:meth:`configs`), made once
         after each registration; ``then(union, configs)`` runs after it is made (schema
         classes that refer to the union are rebuilt there)."""

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 import types
 import typing
-from typing import Annotated
+from collections.abc import Iterator
+from typing import Annotated, Any
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -50,7 +51,7 @@ def _not_nan(v: float) -> float:
 OrInfinity = Annotated[float, Field(allow_inf_nan=True), AfterValidator(_not_nan)]
 
 
-def _has_tuple(annotation) -> bool:
+def _has_tuple(annotation: Any) -> bool:
     origin = typing.get_origin(annotation)
     if origin is tuple or annotation is tuple:
         return True
@@ -58,7 +59,7 @@ def _has_tuple(annotation) -> bool:
                if not isinstance(a, (str, int, float)))
 
 
-def _as_tuples(annotation, value):
+def _as_tuples(annotation: Any, value: Any) -> Any:
     """``value`` with TOML / JSON arrays turned into tuples wherever ``annotation`` says
     tuple (inside lists, dicts, optionals and annotated types too); other values as they
     are (the validation that follows judges them)."""
@@ -88,7 +89,7 @@ def _as_tuples(annotation, value):
     return value
 
 
-def _bounded(field) -> tuple[bool, bool]:
+def _bounded(field: Any) -> tuple[bool, bool]:
     """(has a lower bound, has an upper bound) from the field's constraints."""
     lo = hi = False
     for m in field.metadata:
@@ -97,7 +98,7 @@ def _bounded(field) -> tuple[bool, bool]:
     return lo, hi
 
 
-def _numbers(value, name: str):
+def _numbers(value: Any, name: str) -> Iterator[tuple[str, float]]:
     """(dotted name, value) of every float inside ``value`` (tuples, lists: by index;
     dicts: by key)."""
     if isinstance(value, bool):
@@ -121,7 +122,7 @@ class Section(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _arrays_as_tuples(cls, data):
+    def _arrays_as_tuples(cls, data: Any) -> Any:
         """TOML and JSON have arrays, not tuples: accept a list where a tuple is due
         (strict mode would refuse it)."""
         if not isinstance(data, dict):
@@ -136,7 +137,7 @@ class Section(BaseModel):
                 out[key] = _as_tuples(field.annotation, v)
         return data if out is None else out
 
-    def __setattr__(self, name, value):
+    def __setattr__(self, name: str, value: Any) -> None:
         # the same on assignment (validated too: validate_assignment)
         field = type(self).model_fields.get(name)
         if isinstance(value, (list, dict)) and field is not None and _has_tuple(field.annotation):
@@ -151,7 +152,7 @@ class Section(BaseModel):
             raise SceneError(f"{type(self).__name__}.{loc}: {e['msg']}; received {shown}") from None
 
     @model_validator(mode="after")
-    def _magnitudes(self):
+    def _magnitudes(self) -> "Section":
         for name, field in type(self).model_fields.items():
             lo, hi = _bounded(field)
             if lo and hi:

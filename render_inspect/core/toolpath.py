@@ -43,7 +43,7 @@ class ToolPath:
     ccp_rho: np.ndarray | None = field(default=None, repr=False)
     ccp_z: np.ndarray | None = field(default=None, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         n = len(self.theta)
         for name in ("rho", "z", "t"):
             if len(getattr(self, name)) != n:
@@ -92,7 +92,7 @@ class LinearProgram:
     line: np.ndarray
     meta: dict = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         n = len(self.x)
         for name in ("y", "z", "t", "line"):
             if len(getattr(self, name)) != n:
@@ -139,7 +139,7 @@ class Links:
     plunge_feed: float
     part_top: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("clearance_z", "plunge_feed", "part_top"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) \

@@ -74,8 +74,8 @@ class CompoundConfig(Section):
     """Base + feature (the compound sinusoidal grid paper; Kong et al. 2020): heights add."""
     nests_design: ClassVar[bool] = True
     type: Literal["compound"]
-    base: "DesignConfig"  # noqa: F821  (the [design] union, resolved by the registry)
-    feature: "DesignConfig"  # noqa: F821
+    base: "DesignConfig"  # type: ignore[name-defined]  # noqa: F821  (the [design] union, resolved by the registry)
+    feature: "DesignConfig"  # type: ignore[name-defined]  # noqa: F821
 
 
 def _compound(cfg: CompoundConfig) -> Compound:

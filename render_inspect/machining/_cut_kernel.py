@@ -47,8 +47,10 @@ from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cut_inputs import Grooves, cutting_distance, mechanics_window
 from ._cutting import cut_turning_mechanics, mechanics_path
-from ._envelope import (BLOCK, EnvelopePath, _edge_dz, _lookup_table, _nominal_spiral, _nose_arc,
-                        _polar_step, edge_table, edge_window, path_radial_slope)
+from ._envelope import BLOCK, _polar_step
+from ._envelope_path import (EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc, edge_table, edge_window,
+                             path_radial_slope)
+from ._envelope_step import _edge_dz, _lookup_bin
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
            "mechanics_window", "load_cut_kernels", "OUT_CHANNELS", "BLOCK_SAMPLES"]
@@ -191,28 +193,11 @@ def _groove_sum_libm(ku, kv, ph, u, v):
 
 
 @njit(cache=True, inline="always")
-def _find(theta, tab, tab_t0, tab_iw, s):
-    """Index i with theta[i] <= s <= theta[i + 1] (s inside the path): the lookup table's
-    bin, then a walk (``_envelope._lookup`` with the bin width's reciprocal)."""
-    b = int((s - tab_t0) * tab_iw)
-    if b < 0:
-        b = 0
-    if b >= tab.size:
-        b = tab.size - 1
-    i = tab[b]
-    n = theta.size
-    while i < n - 2 and theta[i + 1] < s:
-        i += 1
-    while i > 0 and theta[i] > s:
-        i -= 1
-    return i
-
-
-@njit(cache=True, inline="always")
 def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
     """(segment, fraction, nominal radius, distance from the pixel at sgn r) of the pass at
-    cumulative angle s."""
-    i = _find(theta, tab, tab_t0, tab_iw, s)
+    cumulative angle s (the envelope's pass lookup from the bin (s - tab_t0) * tab_iw,
+    ``tab_iw`` the reciprocal of the table's bin width)."""
+    i = _lookup_bin(theta, tab, int((s - tab_t0) * tab_iw), s)
     dt = theta[i + 1] - theta[i]
     fr = (s - theta[i]) / dt if dt > 0 else 0.0
     rj = seg[i, 0] + fr * seg[i, 1]

@@ -44,8 +44,9 @@ from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM
 from ._burr_kernels import pass_jump_mask
-from ._envelope import (_lookup, _lookup_table, _nominal_spiral, _nose_arc, _pass_window,
-                        path_radial_slope)
+from ._envelope import _pass_window
+from ._envelope_path import _lookup_table, _nominal_spiral, _nose_arc, path_radial_slope
+from ._envelope_step import _lookup
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "mechanics_facts", "CutResult"]

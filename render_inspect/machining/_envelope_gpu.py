@@ -1,7 +1,7 @@
 """The envelope kernel on a CUDA GPU (numba.cuda), used when one is present; never required.
 
 One GPU thread per pixel runs the fast kernel's per-pixel step, the very functions the
-CPU kernel runs (``_envelope.DEVICE_FUNCTIONS``: the same proven pass window, the same
+CPU kernel runs (``_envelope_step.DEVICE_FUNCTIONS``: the same proven pass window, the same
 fixed pass count, constant-angle paths indexed by arithmetic), compiled a second time for
 the CUDA target by :func:`_build`.  Only the walk over the pixels is the GPU's own: the
 polar angle is an exact atan2 per pixel (GPUs have no use for the CPU kernel's series
@@ -21,10 +21,11 @@ import types
 
 import numpy as np
 
-from . import _envelope
+from . import _envelope_step
+from ._envelope_path import EnvelopePath
 # the CPU versions of the per-pixel step: :func:`_build` compiles _fill against their CUDA
 # versions instead
-from ._envelope import DEVICE_FUNCTIONS, TWO_PI, EnvelopePath, _pass_count, _pass_windows, _pixel_height
+from ._envelope_step import DEVICE_FUNCTIONS, TWO_PI, _pass_count, _pass_windows, _pixel_height
 
 _KERNEL = None
 #: numba.cuda, imported on first use (a module global, so the CUDA simulator can swap it)
@@ -69,17 +70,17 @@ def _fill(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t
 def _build():
     """Compile the per-pixel step and :func:`_fill` for CUDA.
 
-    Each function of ``_envelope.DEVICE_FUNCTIONS`` is rebuilt from its Python source with
+    Each function of ``_envelope_step.DEVICE_FUNCTIONS`` is rebuilt from its Python source with
     its module's names, except that the names of the step's functions resolve to their
     CUDA versions (numba reads a function's globals when it compiles it), so one source
     serves both targets."""
     global cuda
     from numba import cuda
 
-    ns = dict(vars(_envelope))
+    ns = dict(vars(_envelope_step))
     ns["cuda"] = cuda
     for name in DEVICE_FUNCTIONS:
-        py = getattr(_envelope, name).py_func
+        py = getattr(_envelope_step, name).py_func
         ns[name] = cuda.jit(device=True, inline=True)(types.FunctionType(py.__code__, ns, name))
     return cuda.jit(types.FunctionType(_fill.__code__, ns, "_fill"))
 

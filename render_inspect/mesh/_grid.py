@@ -15,6 +15,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -236,9 +237,8 @@ def _mesh_refusal(ny, nx, need, budget, given, stride) -> str:
         source = f"the mesh default, {DEFAULT_MEMORY_BUDGET_BYTES / MIB_TO_BYTES:.0f} MiB"
     else:
         source = "simulation.max_memory_gb, or 80 % of the free memory when it is not set"
-    room = address_space_room()
-    if room is not None and room <= need:
-        limit = address_space_limit()
+    room, limit = address_space_room(), address_space_limit()
+    if room is not None and limit is not None and room <= need:
         return (f"{text} (from {source}, capped by the address-space limit (ulimit -v) of "
                 f"{limit / MIB_TO_BYTES:.0f} MiB, which leaves {room / MIB_TO_BYTES:.0f} MiB): "
                 f"raise the limit (ulimit -v unlimited), or raise stride (got {stride}) or crop "
@@ -408,4 +408,4 @@ def _glb_bytes(tm, normals=None) -> bytes:
         for node in tree.get("nodes", []):
             node["extras"] = dict(extras)
 
-    return out.export(file_type="glb", tree_postprocessor=add_node_extras)
+    return cast(bytes, out.export(file_type="glb", tree_postprocessor=add_node_extras))

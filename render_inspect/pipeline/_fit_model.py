@@ -22,8 +22,8 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.progress import set_reporter
 from ..fit import set_value, task_hash
-from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, microscope_from_config,
-                           recommended_subsamples, render_interferogram)
+from ..instruments import (MAX_AUTO_SUBSAMPLES, height_instrument, microscope_from_config,
+                           recommended_subsamples)
 from ..io import read_exr
 from ..metrology import measure_frames
 from ..processes import preset_settings
@@ -43,15 +43,18 @@ FLOOR_DRAWS = 6
 # --------------------------------------------------------------------- the forward model
 def predict_measurement(task_spec: dict):
     """One evaluation: what the virtual instrument reports for the scene of ``task_spec``
-    (``scene``: a scene dictionary whose region covers the field and whose
-    ``render.interferometer`` is the instrument; ``seed``: the camera noise's seed;
+    (``scene``: a scene dictionary whose region covers the field and whose section of the
+    registered instrument that records interferometer frames
+    (:func:`~render_inspect.instruments.height_instrument`, ``render.interferometer``)
+    sets the instrument; ``seed``: the camera noise's seed;
     ``algorithm``).  Returns (height (ny, nx) mm with NaN where not measured, meta).
     Runs in this process or on a Dask worker."""
     _numba_threads_as_launched()
     scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
     sim = simulate(scene)
-    ig = render_interferogram(sim.heightmap, scene.render.interferometer,
-                              seed=int(task_spec["seed"]))
+    entry = height_instrument()
+    ig = entry.render(sim.heightmap, getattr(scene.render, entry.name), surface="machined",
+                      seed=int(task_spec["seed"]))
     r = measure_frames(ig.recorded(), algorithm=task_spec.get("algorithm", "auto"))
     h = np.where(r.valid, r.height, np.nan)
     return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
@@ -170,11 +173,13 @@ def file_instrument(path) -> dict:
 
 def instrument_settings(scene, file_settings: dict, objective: str | None, pixel: float,
                         window, z) -> tuple[dict, str]:
-    """The ``[render.interferometer]`` of the evaluations: the scene's, with the file's
+    """The instrument section of the evaluations (``[render.interferometer]``: the
+    registered instrument that records interferometer frames): the scene's, with the file's
     objective and settings (else ``objective``), the measured pixel, the fit window as
     field of view, and the sub-sampling pinned (so that it does not jump between
     evaluations).  Returns (settings, where the objective came from)."""
-    icfg = scene.render.interferometer.model_dump(mode="json")
+    entry = height_instrument()
+    icfg = getattr(scene.render, entry.name).model_dump(mode="json")
     source = "scene"
     if file_settings.get("objective"):
         icfg["objective"] = str(file_settings["objective"])
@@ -190,7 +195,7 @@ def instrument_settings(scene, file_settings: dict, objective: str | None, pixel
     icfg.update(pixel=float(pixel), field_of_view=[float(v) for v in window], margin=MARGIN_PX,
                 reference_height=None)
     try:
-        cfg = InterferometerConfig.model_validate(icfg)
+        cfg = entry.config.model_validate(icfg)
     except Exception as err:  # pydantic's error: say which setting
         raise InputError(f"the instrument settings of the measured file are not usable "
                          f"({' '.join(str(err).split())[:300]})") from None
@@ -204,7 +209,7 @@ def instrument_settings(scene, file_settings: dict, objective: str | None, pixel
         s = min(recommended_subsamples(pixel, microscope_from_config(cfg), max_slope=slope),
                 MAX_AUTO_SUBSAMPLES)
         icfg["subsamples"] = int(s)
-    return InterferometerConfig.model_validate(icfg).model_dump(mode="json"), source
+    return entry.config.model_validate(icfg).model_dump(mode="json"), source
 
 
 # ------------------------------------------------------------------ tasks
@@ -238,7 +243,7 @@ class ForwardModel:
     def task(self, values: dict) -> dict:
         """An evaluation: random parts at 0, no camera noise."""
         d = self._scene(values, random={k: 0.0 for k in self.random})
-        d.setdefault("render", {})["interferometer"] = dict(self.icfg, noise=False)
+        d.setdefault("render", {})[height_instrument().name] = dict(self.icfg, noise=False)
         return {"scene": d, "seed": int(self.seed), "algorithm": "auto"}
 
     def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
@@ -252,7 +257,7 @@ class ForwardModel:
         seeds = np.random.SeedSequence([int(self.seed), int(r)]).generate_state(2)
         d["simulation"]["seed"] = int(seeds[0] % 2**31)
         noise = only is None and bool(self.icfg.get("noise", True))
-        d.setdefault("render", {})["interferometer"] = dict(self.icfg, noise=noise)
+        d.setdefault("render", {})[height_instrument().name] = dict(self.icfg, noise=noise)
         return {"scene": d, "seed": int(seeds[1] % 2**31), "algorithm": "auto"}
 
     def has_floor(self) -> bool:

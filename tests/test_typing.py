@@ -1,0 +1,41 @@
+"""The type check: mypy, with the configuration in pyproject.toml ([tool.mypy]: the
+packages it covers and how strictly; docs/contributing.md), finds nothing."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+def test_mypy_finds_no_type_errors(tmp_path):
+    if importlib.util.find_spec("mypy") is None:
+        pytest.skip("mypy is not installed in this environment (make setup installs it from "
+                    "requirements.lock)")
+    r = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "cache")],
+                       cwd=REPO, capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
+    m = re.search(r"Success: no issues found in (\d+) source files", r.stdout)
+    assert m and int(m.group(1)) > 0, r.stdout
+
+
+@pytest.mark.slow
+def test_the_type_check_would_see_an_error(tmp_path):
+    """The same configuration reports a wrong type (the check above can fail)."""
+    if importlib.util.find_spec("mypy") is None:
+        pytest.skip("mypy is not installed in this environment (make setup installs it from "
+                    "requirements.lock)")
+    bad = tmp_path / "bad.py"
+    bad.write_text("from render_inspect.core.grid import grid_shape\n"
+                   "n: str = grid_shape((0.0, 0.0, 1.0, 1.0), 0.1)\n")
+    r = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(REPO / "pyproject.toml"),
+                        "--cache-dir", str(tmp_path / "cache"), str(bad)],
+                       cwd=REPO, capture_output=True, text=True)
+    assert r.returncode == 1 and "Incompatible types in assignment" in r.stdout, r.stdout
