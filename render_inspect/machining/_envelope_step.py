@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from ..core.lazy import njit
 
 TWO_PI = 2 * math.pi
 INV_2PI = 1.0 / TWO_PI
