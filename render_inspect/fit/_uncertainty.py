@@ -146,6 +146,9 @@ def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
     features are replaced by those of each realisation of the random parts
     (``target.draws``), less their mean: the spread of the residual vector that the random
     parts alone cause (an empty array without at least two realisations)."""
+    if getattr(target, "kind", "map") == "profile":  # a profile fit (:mod:`._profile`)
+        from ._profile import profile_realisation_shifts
+        return profile_realisation_shifts(pred, target)
     feats = target.draws
     if len(feats) < 2:
         return np.zeros((0, 0))
