@@ -16,7 +16,8 @@ through the same soft-L1 loss as the areal fit (:mod:`._features`):
   than the standard's lambda_c);
 * ``profile``: the profile itself, point by point, after the measured one is registered
   along the line to the prediction (the shift with the largest correlation within half a
-  period either way, refined to a fraction of a sample: the marks' phase, set by where the
+  period either way, refined to a fraction of a sample (the features at the nearest whole
+  one): the marks' phase, set by where the
   spiral began and where the slice was taken, is not fitted).
 
 The camera's noise (and any random part of the cut) is not in the predictions: its effect
@@ -52,7 +53,8 @@ class ProfileSpec:
     ``weights``: ``profile``, ``params``, ``harmonics`` (0 leaves a term out);
     ``harmonics``: the harmonics whose amplitudes are compared; the scales:
     ``sigma_frequency`` (relative), ``sigma_amplitude`` (of the measured fundamental),
-    ``sigma_params`` (relative, Ra and Rq; Rt twice that), ``sigma_profile_fraction`` (of
+    ``sigma_params`` (relative, Ra and Rq; Rt three times that: its extremes depend on
+    where the samples fall on the cusps' tips), ``sigma_profile_fraction`` (of
     the measured profile's rms)."""
 
     weights: dict = field(default_factory=lambda: {"profile": 1.0, "params": 1.0,
@@ -220,8 +222,9 @@ def make_profile_target(z, *, spacing: float, lag: int, spec: ProfileSpec) -> Pr
 
 def _register(p, target: ProfileTarget) -> tuple[np.ndarray, float]:
     """The part of the longer predicted profile ``p`` (window + ``lag`` samples each side)
-    that best matches the measured window: (the registered prediction, detrended, on the
-    window's samples; the shift in samples, fractional)."""
+    that best matches the measured window: (the registered prediction at the fractional
+    shift and at the nearest whole one, detrended, on the window's samples; the shift in
+    samples)."""
     m = target.z
     n = m.size
     lag = target.lag
@@ -243,11 +246,13 @@ def _register(p, target: ProfileTarget) -> tuple[np.ndarray, float]:
         a, b, c = scores[j - 1:j + 2]
         den = a - 2 * b + c
         off = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
-    start = lags[j] + off
-    pos = start + np.arange(n)
-    seg = np.interp(pos, np.arange(pf.size), pf)
-    seg = np.where(ok, seg, np.nan)
-    return _detrend(seg), float(start - lag)
+    # the profile compared point by point at the fractional shift; the features (Ra, Rt,
+    # the harmonics) at the whole one: interpolation rounds the cusps' tips, which the
+    # instrument samples as they fall
+    start = int(lags[j])
+    whole = np.where(ok, pf[start:start + n], np.nan)
+    fine = np.where(ok, np.interp(start + off + np.arange(n), np.arange(pf.size), pf), np.nan)
+    return _detrend(fine), _detrend(whole), float(start + off - lag)
 
 
 def predict_profile_features(z, target: ProfileTarget, values=None, *,
@@ -268,11 +273,13 @@ def predict_profile_features(z, target: ProfileTarget, values=None, *,
     if measured:
         win = np.where(np.isfinite(target.z), _filled(z)[lag:lag + n], np.nan)
         h, shift = _detrend(win), 0.0
+        whole = h
     else:
-        h, shift = _register(z, target)
-    # the spectrum and the parameters over the window's length of the prediction (its
-    # own phase: translation does not change them)
-    own = _detrend(z[lag:lag + n])
+        h, whole, shift = _register(z, target)
+    # the spectrum and the parameters of the registered prediction: over the window at
+    # the measured marks' phase (a window of a few periods that is not a whole number of
+    # them reads Ra, Rt and the windowed amplitudes a little differently at another phase)
+    own = whole
     k0 = profile_fundamental(own, target.spacing)
     if k0 is None:
         k0 = target.peak
@@ -303,7 +310,7 @@ def profile_residual_vector(pred: ProfilePrediction, target: ProfileTarget):
     if w.get("params", 0) > 0:
         sp = target.sigma_params
         if sp is None:
-            sp = spec.sigma_params * np.array([1.0, 1.0, 2.0])
+            sp = spec.sigma_params * np.array([1.0, 1.0, 3.0])
         with np.errstate(divide="ignore", invalid="ignore"):
             lr = np.log(np.maximum(pred.params, 1e-300) / np.maximum(target.params, 1e-300))
         add("params", lr / sp)
@@ -352,7 +359,7 @@ def set_profile_noise_floor(target: ProfileTarget, noisy, clean) -> None:
     lp = np.log(np.maximum(np.array([f.params for f in feats]), 1e-300))
     s_p = np.std(lp, axis=0, ddof=1)
     scatter["params_relative"] = [float(v) for v in s_p]
-    target.sigma_params = np.maximum(s_p, spec.sigma_params * np.array([1.0, 1.0, 2.0]))
+    target.sigma_params = np.maximum(s_p, spec.sigma_params * np.array([1.0, 1.0, 3.0]))
     target.scatter = scatter
     target.draws = feats
 

@@ -53,7 +53,8 @@ from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, pars
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, compute_all, instrument_settings,
                          predict_measurement, preset_fill, preset_value, quiet)
 
-__all__ = ["run_fit_profile", "predict_profile", "PROFILE_FIT_FILES", "profile_window"]
+__all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FIT_FILES",
+           "profile_window"]
 
 log = logging.getLogger("render_inspect")
 
@@ -91,6 +92,33 @@ def predict_profile(task_spec: dict):
     z = _sample(np.where(np.isfinite(h), h, np.nan), pixel=meta["pixel_mm"],
                 origin=meta["origin_mm"], p0=line["p0"], direction=line["direction"], s=s)
     return z[None, :], meta
+
+
+def simulate_profile(scene, p0, p1, spacing: float, *, seed: int = 0):
+    """The scene's cut along the line ``p0 -> p1`` (mm) as the virtual interferometer
+    measures it (its camera noise on, seeded), sampled every ``spacing`` mm: a thin band
+    about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
+    evaluation of a profile fit does.  Returns (positions along the line from ``p0``, mm;
+    heights, mm): a measured profile with a known answer (tests, benchmarks)."""
+    from ._fit import _evaluation_pixel
+
+    length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+    u = [(p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length]
+    count = int(math.floor(length / spacing + 1e-9)) + 1
+    h = BAND_HALF_MM
+    fov = [min(p0[0], p1[0]) - h, min(p0[1], p1[1]) - h, max(p0[0], p1[0]) + h,
+           max(p0[1], p1[1]) + h]
+    d = scene.model_dump(mode="json")
+    px = _evaluation_pixel(scene)
+    g = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * px)
+    d["simulation"]["region"] = [fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g]
+    d["simulation"]["pixel"] = px
+    d["render"]["interferometer"].update(pixel=float(spacing), field_of_view=fov,
+                                         margin=MARGIN_PX, noise=True)
+    z, _ = predict_profile({"scene": d, "seed": int(seed), "algorithm": "auto",
+                            "line": {"p0": list(p0), "direction": u, "s0": 0.0,
+                                     "step": float(spacing), "count": count}})
+    return np.arange(count) * float(spacing), z.ravel()
 
 
 @dataclass
