@@ -33,8 +33,9 @@ PROGRAMS = {"1021": "1021-spiralPath20230418T214748.nc",
             "1023": "1023-spiralPath20230418T221742.nc"}
 #: (part, window centre x mm on the radial line, window mm, free key, with the program)
 CASES = [("1021", -0.30, 0.3, "process.feed_mm_per_min", False),
+         ("1021", 0.25, 0.3, "process.feed_mm_per_min", False),
          ("1022", -0.15, 0.2, "process.feed_mm_per_min", False),
-         ("1023", -0.35, 0.2, "process.feed_mm_per_min", False),
+         ("1023", -0.33, 0.2, "process.feed_mm_per_min", False),
          ("1016", 0.30, 0.2, "process.feed_mm_per_min", False),
          ("1021", 0.0, 0.3, "process.feed_mm_per_min", False),
          ("1021", -0.30, 0.3, "tool.nose_radius", True)]
@@ -119,8 +120,9 @@ def _f(v, fmt="{:.4g}"):
 
 
 def table(data: dict) -> str:
-    head = ("| part | window (radii, mm) | marks | programmed feed (um/rev) | fitted "
-            "(um/rev, or nose radius mm) | difference | status |\n|---|---|---|---|---|---|---|")
+    head = ("| part | window (radii, mm) | marks | measured period (um) | programmed feed "
+            "(um/rev) | fitted (um/rev, or nose radius mm) | difference | status |\n"
+            "|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in data["cases"]:
         rad = ("through the axis" if r["through_axis"] else
@@ -141,8 +143,8 @@ def table(data: dict) -> str:
         prog = ("n/a" if r["programmed_feed_um"] is None else
                 f"{r['programmed_feed_um']:.4g}" + (" (by its name)" if r["part"] == "1016"
                                                      else ""))
-        lines.append(f"| {r['part']} | {rad} | {marks} | {prog} | {fitted} | {diff} | "
-                     f"{r['status']} |")
+        lines.append(f"| {r['part']} | {rad} | {marks} | {_f(r['measured_period_um'])} | "
+                     f"{prog} | {fitted} | {diff} | {r['status']} |")
     return "\n".join(lines)
 
 
