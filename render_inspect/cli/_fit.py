@@ -80,9 +80,7 @@ def _fit(args, overwrite: bool):
     # (the scene schema imports pydantic and the registries: same reason)
     from ..scene import load_scene
 
-    from ..io import is_profile_file
-
-    if is_profile_file(args.measured):
+    if pipeline.is_profile_measurement(args.measured):
         return _fit_profile(args, overwrite, pipeline, load_scene)
     for opt, v in (("--units", args.units), ("--line", args.line)):
         if v is not None:
@@ -102,18 +100,10 @@ def _fit_profile(args, overwrite: bool, pipeline, load_scene):
         if v != default:
             raise InputError(f"{opt} is for a measured map; {args.measured!r} is a profile (its "
                              f"parabola over the fitted window is removed)")
-    at = args.at
-    if at == "register":
-        raise InputError("--at register is for a measured map; for a profile --at X,Y is the "
-                         "fitted stretch's centre on the line")
-    if at is not None:
-        from ..pipeline._fit import _parse_at
-
-        at = _parse_at(at)
     return pipeline.run_fit_profile(
         args.measured, load_scene(args.scene, scene_overrides(args)), args.free, args.out,
-        units=args.units, line=args.line, bounds=args.bounds, objective=args.objective, at=at,
-        window_mm=args.window, weights=args.weights, workers=args.workers,
+        units=args.units, line=args.line, bounds=args.bounds, objective=args.objective,
+        at=args.at, window_mm=args.window, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, seed=args.seed, global_points=args.global_points,
         max_evaluations=args.max_evaluations, profile_points=args.profile_points,
         cache=args.cache, overwrite=overwrite)

@@ -412,9 +412,6 @@ def predict_features(z, target: Target, values=None, *, measured: bool = False) 
     when a random part's amplitude is fitted: its floor scales with it).  ``measured``:
     the features of a map that holds its random parts and noise (a realisation), as the
     measured map's are taken: no floor, no gain."""
-    if getattr(target, "kind", "map") == "profile":  # a profile fit (:mod:`._profile`)
-        from ._profile import predict_profile_features
-        return predict_profile_features(z, target, values, measured=measured)
     spec = target.spec
     h = prepare_map(z, pixel=target.pixel, form=spec.form, origin=target.origin)
     psd = psd_bins(h, pixel=target.pixel, k_range=target.k_range,
@@ -567,9 +564,6 @@ def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.nd
     """The normalised residuals ``d`` (fixed length for a target), each entry's term weight
     ``a`` (``sqrt(weight / n)`` of its term) and each term's share of the misfit
     ``sum a^2 soft_l1(d)``."""
-    if getattr(target, "kind", "map") == "profile":  # a profile fit (:mod:`._profile`)
-        from ._profile import profile_residual_vector
-        return profile_residual_vector(pred, target)
     spec = target.spec
     ds, As, terms = [], [], {}
     w = spec.weights

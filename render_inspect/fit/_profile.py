@@ -34,6 +34,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
+from ._features import soft_l1
 
 __all__ = ["ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
            "predict_profile_features", "profile_residual_vector", "set_profile_noise_floor",
@@ -291,8 +292,6 @@ def predict_profile_features(z, target: ProfileTarget, values=None, *,
 def profile_residual_vector(pred: ProfilePrediction, target: ProfileTarget):
     """(d, a, terms): normalised residuals, each entry's term weight, each term's share of
     the misfit (as :func:`~render_inspect.fit.residual_vector`)."""
-    from ._features import soft_l1
-
     spec = target.spec
     w = spec.weights
     ds, As, terms = [], [], {}

@@ -37,24 +37,23 @@ from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ..fit import (EvaluationCache, Evaluator, check_units, fit_record, free_parameters,
-                   get_value, parse_bounds, parse_free, scene_hash, set_value, solve,
-                   summary_lines)
-from ..fit._checks import MISMATCH
-from ..fit._profile import (PROFILE_TERMS, ProfileSpec, make_profile_target,
-                            predict_profile_features, profile_family,
-                            set_profile_noise_floor)
-from ..io import (atomic_output_dir, atomic_write_text, check_output_dir, read_profile,
-                  write_json)
-from ..processes import RANDOM_PART_KEYS, random_parts
+from ..fit import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+                   Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
+                   make_profile_target, parse_bounds, parse_free, predict_profile_features,
+                   profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
+                   summary_lines, task_hash)
+from ..io import (atomic_output_dir, atomic_write_text, check_output_dir, is_profile_file,
+                  read_profile, write_json)
+from ..processes import RANDOM_PART_KEYS, process_of, random_parts
 from ..report import HtmlReport, profile_overlay_figure
 from ..scene import scene_from_dict
+from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, compute_all, instrument_settings,
                          predict_measurement, preset_fill, preset_value, quiet)
 
 __all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FIT_FILES",
-           "profile_window"]
+           "profile_window", "is_profile_measurement"]
 
 log = logging.getLogger("render_inspect")
 
@@ -64,6 +63,11 @@ PROFILE_FIT_FILES = ("fit.json", "fit.html", "profiles.png", "scene.json")
 MIN_POINTS = 64
 #: how far ``--at X,Y`` may lie from the line, mm
 AT_TOLERANCE_MM = 1e-3
+
+
+def is_profile_measurement(path) -> bool:
+    """Whether ``fit`` reads ``path`` as a profile (else as a height map)."""
+    return is_profile_file(path)
 
 
 # --------------------------------------------------------------------- the forward model
@@ -100,8 +104,6 @@ def simulate_profile(scene, p0, p1, spacing: float, *, seed: int = 0):
     about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
     evaluation of a profile fit does.  Returns (positions along the line from ``p0``, mm;
     heights, mm): a measured profile with a known answer (tests, benchmarks)."""
-    from ._fit import _evaluation_pixel
-
     length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
     u = [(p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length]
     count = int(math.floor(length / spacing + 1e-9)) + 1
@@ -191,8 +193,6 @@ def profile_window(prof, scene, *, line=None, at=None, window_mm: float = 0.3) -
 def _axis_in_window(scene, win, period):
     """Where the line passes closest to the spindle axis, mm from the window's start, when
     it passes within a feed period of it (None otherwise, or without an axis)."""
-    from ..processes import process_of
-
     process = process_of(scene)
     axis = process.traits(process.inputs_of(scene)).axis
     if axis is None:
@@ -242,7 +242,7 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
         The line on the part the profile was taken along (its first point at X0, Y0);
         default for a turned part: the radial line through the spindle axis of
         ``compare`` (:func:`~render_inspect.pipeline._compare_profile.default_line`).
-    at : (x, y) mm, optional
+    at : (x, y) mm or "X,Y", optional
         The fitted window's centre on the line (default: the middle of the measured points).
     window_mm : float
         Length of the fitted window along the line (mm).
@@ -253,6 +253,10 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
     t_all = time.perf_counter()
     out = Path(out)
     check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    if at == "register":
+        raise InputError("--at register is for a measured map; for a profile --at X,Y is the "
+                         "fitted stretch's centre on the line")
+    at = _parse_at(at) if isinstance(at, str) else at
     keys = parse_free(free)
     for k in keys:
         if k == "simulation.region" or k.startswith("simulation.region."):
@@ -307,8 +311,6 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
            max(e[0] for e in ends) + h, max(e[1] for e in ends) + h]
     icfg, icfg_source = instrument_settings(scene, {}, objective, spacing, fov,
                                             np.vstack([zseg, zseg]))
-    from ._fit import _evaluation_pixel, _measured_starts
-
     sim_pixel = _evaluation_pixel(scene, period)
     grow = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * sim_pixel)
     sim_region = [fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow]
@@ -347,8 +349,6 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
             result = solve(params, evaluator, global_points=global_points, seed=seed,
                            profile_points=profile_points, starts=starts)
     except BaseException as err:
-        from ._fit import _after_failure
-
         _after_failure(store, err)
         raise
     best = predict_profile_features(result.best.height, target, result.best.values)
@@ -436,8 +436,6 @@ def _compute(store, tasks, client, compute):
     if client is not None:
         return compute_all(store, tasks, client, compute)
     out = []
-    from ..fit import task_hash
-
     for t in tasks:
         k = task_hash(t)
         hit = store.get(k)
@@ -456,8 +454,6 @@ def _compute(store, tasks, client, compute):
 def _check_before(target, pred, keys, reach, family) -> dict:
     """Refuse a window the scene cannot describe (marks in one and not the other, a period
     out of the free keys' reach or, with no key that sets it free, more than 3 % off)."""
-    from ..fit._checks import MARK_KEYS, PERIOD_TOLERANCE
-
     mp = None if not target.peak else 1.0 / target.peak
     pp = None if not pred.centroid else 1.0 / pred.centroid
     out = {"measured_period_um": None if mp is None else mp * MM_TO_UM,
