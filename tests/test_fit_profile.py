@@ -104,7 +104,10 @@ def test_profile_window_off_the_line_or_the_profile_is_refused(tmp_path):
                         line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.4)
     with pytest.raises(InputError, match="off the line"):
         run_fit_profile(p, _turned(), ["process.feed_mm_per_min"], tmp_path / "o",
-                        line="0.1,0,0.5,0", at=(0.2, 0.05), window_mm=0.1)
+                        line="0.1,0,0.5,0", at="0.2,0.05", window_mm=0.1)
+    with pytest.raises(InputError, match="--at register is for a measured map"):
+        run_fit_profile(p, _turned(), ["process.feed_mm_per_min"], tmp_path / "o",
+                        line="0.1,0,0.5,0", at="register")
     with pytest.raises(InputError, match="with a program"):
         from render_inspect.scene import load_scene
 

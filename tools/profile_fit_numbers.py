@@ -145,6 +145,20 @@ def table(data: dict) -> str:
                                                      else ""))
         lines.append(f"| {r['part']} | {rad} | {marks} | {_f(r['measured_period_um'])} | "
                      f"{prog} | {fitted} | {diff} | {r['status']} |")
+    feeds = [r for r in data["cases"] if r["free"] == "process.feed_mm_per_min"
+             and r.get("feed_difference") is not None]
+    one = [r for r in feeds if r["one_family"]]
+    within = [r for r in one if abs(r["feed_difference"]) <= 0.02]
+    out = [r for r in one if abs(r["feed_difference"]) > 0.02]
+    lines.append("")
+    lines.append(f"Where the window's marks are one family, the fitted feed per revolution is "
+                 f"within 2 % of the program's in {len(within)} of {len(one)} windows ("
+                 + ", ".join(f"{r['part']} {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} mm: "
+                             f"{100 * r['feed_difference']:+.1f} %" for r in within) + ")"
+                 + ("" if not out else "; not in " + ", ".join(
+                     f"{r['part']} {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} mm "
+                     f"({100 * r['feed_difference']:+.1f} %)" for r in out))
+                 + ". Where they are not, the fit says so and gives no standard error.")
     return "\n".join(lines)
 
 
