@@ -140,6 +140,8 @@ def table(data: dict) -> str:
                 fitted += " (no standard error: not a measurement)"
             diff = ("n/a" if r.get("feed_difference") is None
                     else f"{100 * r['feed_difference']:+.1f} %")
+            if not r["one_family"] and r.get("feed_difference") is not None:
+                diff = f"({diff}: not a measurement)"
         prog = ("n/a" if r["programmed_feed_um"] is None else
                 f"{r['programmed_feed_um']:.4g}" + (" (by its name)" if r["part"] == "1016"
                                                      else ""))
