@@ -495,7 +495,7 @@ def _check_after(target, best, family, goodness) -> dict:
                             f"{100 * rel:+.3g} % (the free keys cannot reach it)")
     ratio = goodness.get("ratio")
     notes = []
-    if ratio is not None and ratio > MISMATCH:
+    if ratio is not None and ratio > MISMATCH and not findings:
         notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
                      f"the cusps' shape differs from the model's; the standard errors are "
                      f"scaled by it (the model's error)")
@@ -526,6 +526,11 @@ def _feed_per_rev(base, fitted, record):
     return {"value": v, "stderr": None if rel is None else v * rel}
 
 
+#: what the profile's misfit terms measure, for the summary
+_TERM_WORDS = {"profile": "the registered profile, point by point",
+               "params": "Ra, Rq and Rt"}
+
+
 def profile_summary_lines(record: dict) -> list[str]:
     """The summary in words (:func:`~render_inspect.fit.summary_lines`, with the window's
     verdict; values without a confident standard error say why)."""
@@ -534,6 +539,8 @@ def profile_summary_lines(record: dict) -> list[str]:
     for text in summary_lines(record):
         if text.startswith("height difference rms"):
             continue
+        for term, words in _TERM_WORDS.items():
+            text = text.replace(f"misfit term {term} ({term})", f"misfit term {term} ({words})")
         key = text.split(" = ", 1)[0]
         if note and key in record["parameters"]:
             p = record["parameters"][key]
@@ -551,7 +558,9 @@ def profile_summary_lines(record: dict) -> list[str]:
                  f"({record.get('registration_shift_um', 0.0):+.3g} um)")
     for t in (record.get("model_check") or {}).get("after", {}).get("notes", []):
         lines.append(t)
-    return lines
+    # the evaluations' count last, as for a map
+    tail = [t for t in lines if t.endswith(" evaluations")]
+    return [t for t in lines if t not in tail] + tail
 
 
 def _page(record: dict, png: bytes) -> str:
