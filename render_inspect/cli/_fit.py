@@ -3,6 +3,7 @@ surface."""
 
 from __future__ import annotations
 
+from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
                     scene_overrides)
 
@@ -13,8 +14,9 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("fit", help="fit free scene keys (tool, feed, machine, material) to a "
                                    "measured surface through the virtual instrument; predict "
                                    "the next cut: fit.json, fit.html")
-    p.add_argument("measured", help="measured height map: anything analyze reads (instrument "
-                                    "file, X3P, the height.exr that measure writes)")
+    p.add_argument("measured", help="measured height map or profile: anything analyze reads "
+                                    "(instrument file, X3P, the height.exr that measure "
+                                    "writes, a profile export)")
     p.add_argument("--scene", required=True, help="scene file (TOML) or shipped scene name "
                                                   "describing the cut")
     p.add_argument("--free", required=True, action="append", metavar="KEY[,KEY...]",
@@ -31,7 +33,16 @@ def add_parsers(sub) -> None:
                         "(found on the design); default: the file's origin")
     p.add_argument("--window", type=float, default=0.2, metavar="MM",
                    help="side of the fitted square, mm (default 0.2: each evaluation simulates "
-                        "and images this much)")
+                        "and images this much); for a profile the length of the fitted "
+                        "stretch of the line")
+    p.add_argument("--units", default=None, metavar="U|POS,HEIGHT",
+                   help="a profile's units where its text file states none: um, mm, nm, or "
+                        "POSITION,HEIGHT (as analyze)")
+    p.add_argument("--line", default=None, metavar="X0,Y0,X1,Y1",
+                   help="the line on the part a profile was taken along (mm; its first point "
+                        "at X0,Y0); default for a turned part: the radial line through the "
+                        "spindle axis that compare uses. --at X,Y is then the fitted "
+                        "stretch's centre on the line")
     p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
                    help="form removed from measured and predicted maps before comparing")
     p.add_argument("--weights", action="append", default=[], metavar="TERM=W",
@@ -69,6 +80,11 @@ def _fit(args, overwrite: bool):
     # (imported once the input is checked)
     from .. import pipeline
 
+    if pipeline.is_profile_measurement(args.measured):
+        return _fit_profile(args, overwrite, pipeline, scene)
+    for opt, v in (("--units", args.units), ("--line", args.line)):
+        if v is not None:
+            raise InputError(f"{opt} is for a measured profile; {args.measured!r} is a map")
     return pipeline.run_fit(
         args.measured, scene, args.free, args.out,
         bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
@@ -76,6 +92,21 @@ def _fit(args, overwrite: bool):
         scheduler=args.scheduler, predict=args.predict, seed=args.seed,
         global_points=args.global_points, max_evaluations=args.max_evaluations,
         profile_points=args.profile_points, cache=args.cache, overwrite=overwrite)
+
+
+def _fit_profile(args, overwrite: bool, pipeline, scene):
+    """``fit`` of a measured profile: the options that are for maps only are refused."""
+    for opt, v, default in (("--predict", args.predict, []), ("--form", args.form, "plane")):
+        if v != default:
+            raise InputError(f"{opt} is for a measured map; {args.measured!r} is a profile (its "
+                             f"parabola over the fitted window is removed)")
+    return pipeline.run_fit_profile(
+        args.measured, scene, args.free, args.out,
+        units=args.units, line=args.line, bounds=args.bounds, objective=args.objective,
+        at=args.at, window_mm=args.window, weights=args.weights, workers=args.workers,
+        scheduler=args.scheduler, seed=args.seed, global_points=args.global_points,
+        max_evaluations=args.max_evaluations, profile_points=args.profile_points,
+        cache=args.cache, overwrite=overwrite)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -14,7 +14,9 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 * :func:`fit_window`, :func:`register_field`: where the measured field lies (:mod:`._placement`);
 * :func:`check_before`, :func:`check_after`, :func:`profile_marks`: whether the scene
   describes the measurement at all (:mod:`._checks`);
-* :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`).
+* :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`);
+* :class:`ProfileSpec`, :func:`make_profile_target`, :func:`profile_family`: the same
+  for a measured profile (:mod:`._profile`).
 """
 
 from ._cache import EvaluationCache, scene_hash, task_hash
@@ -23,7 +25,11 @@ from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, nois
                         set_noise_floor, soft_l1, waviness)
 from ._params import (FreeParameter, free_parameters, get_value, parse_bounds, parse_free,
                       schema_range, set_value)
-from ._checks import check_after, check_before, mark_tiles, profile_marks
+from ._checks import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, check_after, check_before,
+                      mark_tiles, profile_marks)
+from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_target,
+                       predict_profile_features, profile_family, profile_residual_vector,
+                       set_profile_noise_floor)
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
 from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
@@ -37,4 +43,7 @@ __all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "sc
            "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
            "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
            "misfit_maps", "summary_lines", "identifiability", "search_box", "check_before", "check_after",
-           "mark_tiles", "profile_marks"]
+           "mark_tiles", "profile_marks", "MARK_KEYS", "MISMATCH", "PERIOD_TOLERANCE",
+           "PROFILE_TERMS", "ProfileSpec", "ProfileTarget", "make_profile_target",
+           "predict_profile_features", "profile_family", "profile_residual_vector",
+           "set_profile_noise_floor"]

@@ -38,7 +38,9 @@ from ..core.errors import InputError, RenderInspectError
 from ..core.lazy import lazy_attr
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
-from ._features import Target, predict_features, residual_vector, robust_weights, soft_l1
+from ._dispatch import features as predict_features
+from ._dispatch import residuals as residual_vector
+from ._features import Target, robust_weights, soft_l1
 from ._uncertainty import (_correlation, _covariance, _realisation_covariance, identifiability,
                            search_box)
 from ._uncertainty import profiles as _profiles

@@ -10,7 +10,9 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.progress import task as progress_task
-from ._features import Prediction, Target, predict_features, residual_vector
+from ._dispatch import features as predict_features
+from ._features import Prediction, Target, residual_vector
+from ._profile import ProfileTarget, profile_realisation_shifts
 
 __all__ = ["identifiability", "search_box", "realisation_shifts", "UNDETERMINED_RELATIVE",
            "SINGULAR"]
@@ -146,6 +148,8 @@ def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
     features are replaced by those of each realisation of the random parts
     (``target.draws``), less their mean: the spread of the residual vector that the random
     parts alone cause (an empty array without at least two realisations)."""
+    if isinstance(target, ProfileTarget):
+        return profile_realisation_shifts(pred, target)
     feats = target.draws
     if len(feats) < 2:
         return np.zeros((0, 0))

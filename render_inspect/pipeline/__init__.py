@@ -36,6 +36,7 @@ from ._compare import (COMPARE_MAX_CAMERA_PIXELS, COMPARE_MAX_DIFFUSE_RESOLUTION
 from ._compare_profile import run_compare_command, run_compare_profile
 from ._demo import DEMO_SCENE, run_demo
 from ._fit import FIT_FILES, predict_measurement, preset_value, run_fit
+from ._fit_profile import PROFILE_FIT_FILES, is_profile_measurement, run_fit_profile
 from ._measure import (analyze_summary, measure_and_evaluate, measure_summary,
                        measurement_outputs, read_frames, run_measure)
 from ._metrics import simulation_metrics
@@ -73,4 +74,5 @@ __all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "w
            "run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps", "sweep_failure",
            "sweep_morris",
            "run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
-           "check_render_limits", "run_fit", "predict_measurement", "preset_value", "FIT_FILES"]
+           "check_render_limits", "run_fit", "predict_measurement", "preset_value", "FIT_FILES",
+           "run_fit_profile", "PROFILE_FIT_FILES", "is_profile_measurement"]

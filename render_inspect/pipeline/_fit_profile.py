@@ -1,0 +1,585 @@
+"""``fit`` on a measured profile (a stylus trace, an interferometer's 2-D slice): the
+scene's free keys fitted to a window of the profile.
+
+Each evaluation simulates the scene over a thin band about the window's stretch of the
+line (as ``compare --measured PROFILE`` does), images the band with the virtual
+interferometer at the profile's spacing, and samples the simulated measurement along the
+line at the measured positions (and a little beyond, the registration's room:
+:func:`predict_profile`).  :mod:`render_inspect.fit` compares the two with the profile's
+features (:mod:`render_inspect.fit._profile`) and does the fitting: the same candidates
+(the feed from the marks' period), local solve, checks of the minimum and standard errors
+as the areal fit.
+
+Before the fit the window's marks are checked for one periodic family (no mirror about the
+spindle axis, the same period in both halves); a window that fails is still fitted, but
+its values are reported without standard errors and the verdict says why they are not a
+measurement of the feed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import functools
+import hashlib
+import json
+import logging
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from .. import __version__
+from ..batch import call_with_threads, cluster_info, dask_client
+from ..core.errors import InputError
+from ..core.progress import task
+from ..core.units import MM_TO_NM, MM_TO_UM
+from ..fit import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+                   Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
+                   make_profile_target, parse_bounds, parse_free, predict_profile_features,
+                   profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
+                   summary_lines, task_hash)
+from ..io import (atomic_output_dir, atomic_write_text, check_output_dir, is_profile_file,
+                  read_profile, write_json)
+from ..processes import RANDOM_PART_KEYS, process_of, random_parts
+from ..report import HtmlReport, profile_overlay_figure
+from ..scene import scene_from_dict
+from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
+from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
+from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, compute_all, instrument_settings,
+                         predict_measurement, preset_fill, preset_value, quiet)
+
+__all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FIT_FILES",
+           "profile_window", "is_profile_measurement"]
+
+log = logging.getLogger("render_inspect")
+
+#: files ``fit`` writes for a profile
+PROFILE_FIT_FILES = ("fit.json", "fit.html", "profiles.png", "scene.json")
+#: the least number of measured points in the fitted window
+MIN_POINTS = 64
+#: how far ``--at X,Y`` may lie from the line, mm
+AT_TOLERANCE_MM = 1e-3
+
+
+def is_profile_measurement(path) -> bool:
+    """Whether ``fit`` reads ``path`` as a profile (else as a height map)."""
+    return is_profile_file(path)
+
+
+# --------------------------------------------------------------------- the forward model
+def _sample(h, *, pixel, origin, p0, direction, s):
+    """Bilinear samples of ``h`` at the points ``p0 + s * direction`` (mm); NaN where a
+    neighbour is not measured."""
+    x = p0[0] + direction[0] * s
+    y = p0[1] + direction[1] * s
+    col = (x - origin[0]) / pixel
+    row = (y - origin[1]) / pixel
+    vals = ndimage.map_coordinates(h, [row, col], order=1, mode="constant", cval=np.nan)
+    valid = ndimage.map_coordinates(np.isfinite(h).astype(float), [row, col], order=1,
+                                    mode="constant", cval=0.0)
+    return np.where(valid > 0.999, vals, np.nan)
+
+
+def predict_profile(task_spec: dict):
+    """One evaluation of a profile fit: :func:`~render_inspect.pipeline.predict_measurement`
+    of the band, sampled along the task's ``line`` (``p0`` mm, unit ``direction``, positions
+    ``s0 + i * step`` for ``i < count``).  Returns (a (1, count) array of heights, mm,
+    meta).  Runs in this process or on a Dask worker."""
+    line = task_spec["line"]
+    spec = {k: v for k, v in task_spec.items() if k != "line"}
+    h, meta = predict_measurement(spec)
+    s = float(line["s0"]) + float(line["step"]) * np.arange(int(line["count"]))
+    z = _sample(np.where(np.isfinite(h), h, np.nan), pixel=meta["pixel_mm"],
+                origin=meta["origin_mm"], p0=line["p0"], direction=line["direction"], s=s)
+    return z[None, :], meta
+
+
+def simulate_profile(scene, p0, p1, spacing: float, *, seed: int = 0):
+    """The scene's cut along the line ``p0 -> p1`` (mm) as the virtual interferometer
+    measures it (its camera noise on, seeded), sampled every ``spacing`` mm: a thin band
+    about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
+    evaluation of a profile fit does.  Returns (positions along the line from ``p0``, mm;
+    heights, mm): a measured profile with a known answer (tests, benchmarks)."""
+    length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+    u = [(p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length]
+    count = int(math.floor(length / spacing + 1e-9)) + 1
+    h = BAND_HALF_MM
+    fov = [min(p0[0], p1[0]) - h, min(p0[1], p1[1]) - h, max(p0[0], p1[0]) + h,
+           max(p0[1], p1[1]) + h]
+    d = scene.model_dump(mode="json")
+    px = _evaluation_pixel(scene)
+    g = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * px)
+    d["simulation"]["region"] = [fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g]
+    d["simulation"]["pixel"] = px
+    d["render"]["interferometer"].update(pixel=float(spacing), field_of_view=fov,
+                                         margin=MARGIN_PX, noise=True)
+    z, _ = predict_profile({"scene": d, "seed": int(seed), "algorithm": "auto",
+                            "line": {"p0": list(p0), "direction": u, "s0": 0.0,
+                                     "step": float(spacing), "count": count}})
+    return np.arange(count) * float(spacing), z.ravel()
+
+
+@dataclass
+class ProfileModel(ForwardModel):
+    """:class:`ForwardModel` whose tasks also name the line sampled (:func:`predict_profile`)."""
+
+    line: dict | None = None
+
+    def task(self, values: dict) -> dict:
+        return dict(super().task(values), line=self.line)
+
+    def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
+        return dict(super().draw(values, r, only=only), line=self.line)
+
+
+# ------------------------------------------------------------------------- the window
+def profile_window(prof, scene, *, line=None, at=None, window_mm: float = 0.3) -> dict:
+    """Where the fitted window lies: the line (``--line`` or the default radial line of a
+    turned part), the window's centre (``--at X,Y`` projected on the line, default the
+    middle of the measured points) and its samples.  Returns ``{"p0", "p1", "direction",
+    "line_from", "i0", "i1", "s0_mm", "centre_mm", "centre_on_part_mm"}`` (``s``: position
+    along the line from ``p0``, mm; samples ``i0:i1`` of the profile)."""
+    if line is not None:
+        p0, p1 = parse_line(line)
+        how = "--line"
+    else:
+        d = default_line(scene, prof)
+        if d is None:
+            raise InputError(f"--line X0,Y0,X1,Y1 (mm) is needed: scene {scene.name!r} has no "
+                             f"spindle axis to draw the default radial line through")
+        p0, p1, how = d
+    length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+    u = ((p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length)
+    s = prof.x - prof.x[0]
+    ok = np.isfinite(prof.z)
+    s_lo, s_hi = float(s[ok][0]), float(s[ok][-1])
+    if not (isinstance(window_mm, (int, float)) and math.isfinite(window_mm) and window_mm > 0):
+        raise InputError(f"--window must be a length > 0 (mm), received {window_mm!r}")
+    if at is None:
+        sc = 0.5 * (s_lo + s_hi)
+    else:
+        dx, dy = at[0] - p0[0], at[1] - p0[1]
+        sc = dx * u[0] + dy * u[1]
+        off = abs(-dx * u[1] + dy * u[0])
+        if off > AT_TOLERANCE_MM:
+            raise InputError(f"--at {at[0]:g},{at[1]:g} lies {off:.4g} mm off the line "
+                             f"({p0[0]:.4g}, {p0[1]:.4g}) -> ({p1[0]:.4g}, {p1[1]:.4g}) mm; "
+                             f"for a profile --at is the window's centre on the line")
+    a, b = sc - window_mm / 2, sc + window_mm / 2
+    if a < s_lo - 1e-9 or b > s_hi + 1e-9:
+        pa = (p0[0] + u[0] * s_lo, p0[1] + u[1] * s_lo)
+        pb = (p0[0] + u[0] * s_hi, p0[1] + u[1] * s_hi)
+        raise InputError(f"--window {window_mm:g} mm about the centre "
+                         f"({p0[0] + u[0] * sc:.4g}, {p0[1] + u[1] * sc:.4g}) mm reaches beyond "
+                         f"the measured profile, which runs from ({pa[0]:.4g}, {pa[1]:.4g}) to "
+                         f"({pb[0]:.4g}, {pb[1]:.4g}) mm along the line; move --at or shorten "
+                         f"--window")
+    i0 = int(np.searchsorted(s, a - 1e-9))
+    i1 = int(np.searchsorted(s, b + 1e-9))
+    n_ok = int(ok[i0:i1].sum())
+    if n_ok < MIN_POINTS:
+        raise InputError(f"--window {window_mm:g} mm holds {n_ok} measured points of the "
+                         f"profile; at least {MIN_POINTS} are needed: lengthen --window")
+    return {"p0": [float(v) for v in p0], "p1": [float(v) for v in p1],
+            "direction": [float(v) for v in u], "line_from": how, "i0": i0, "i1": i1,
+            "s0_mm": float(s[i0]), "centre_mm": float(sc),
+            "centre_on_part_mm": [p0[0] + u[0] * sc, p0[1] + u[1] * sc]}
+
+
+def _axis_in_window(scene, win, period):
+    """Where the line passes closest to the spindle axis, mm from the window's start, when
+    it passes within a feed period of it (None otherwise, or without an axis)."""
+    process = process_of(scene)
+    axis = process.traits(process.inputs_of(scene)).axis
+    if axis is None:
+        return None
+    p0, u = win["p0"], win["direction"]
+    dx, dy = axis[0] - p0[0], axis[1] - p0[1]
+    s_ax = dx * u[0] + dy * u[1]
+    if abs(-dx * u[1] + dy * u[0]) > (period or 0.0):
+        return None
+    return float(s_ax - win["s0_mm"])
+
+
+def _profile_weights(items) -> dict:
+    out = {k: 1.0 for k in PROFILE_TERMS}
+    for item in items or ():
+        for part in str(item).split(","):
+            if not part.strip():
+                continue
+            if "=" not in part:
+                raise InputError(f"--weights expects TERM=W ({', '.join(PROFILE_TERMS)} for a "
+                                 f"profile), received {part!r}")
+            k, v = part.split("=", 1)
+            try:
+                out[k.strip()] = float(v)
+            except ValueError:
+                raise InputError(f"--weights {k.strip()} must be a number >= 0, received "
+                                 f"{v!r}") from None
+    return out
+
+
+# ------------------------------------------------------------------------------ run
+def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds=(),
+                    objective: str | None = None, at=None, window_mm: float = 0.3,
+                    weights=None, workers: int | None = None, scheduler: str | None = None,
+                    seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
+                    profile_points: int = 3, cache=None, overwrite: bool = False) -> dict:
+    """``render-inspect fit PROFILE --scene SCENE --free KEY,... --out DIR``.
+
+    Parameters
+    ----------
+    measured : path
+        A profile :func:`~render_inspect.io.read_profile` reads.
+    units : str, optional
+        ``um``, ``mm``, ``nm`` or ``POSITION,HEIGHT`` for a text file that does not state
+        its units (as ``analyze``).
+    line : "X0,Y0,X1,Y1", optional
+        The line on the part the profile was taken along (its first point at X0, Y0);
+        default for a turned part: the radial line through the spindle axis of
+        ``compare`` (:func:`~render_inspect.pipeline._compare_profile.default_line`).
+    at : (x, y) mm or "X,Y", optional
+        The fitted window's centre on the line (default: the middle of the measured points).
+    window_mm : float
+        Length of the fitted window along the line (mm).
+    weights : list of "TERM=W"
+        ``profile``, ``params``, ``harmonics`` (1 each).
+    Other parameters as :func:`~render_inspect.pipeline.run_fit`.
+    """
+    t_all = time.perf_counter()
+    out = Path(out)
+    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    if at == "register":
+        raise InputError("--at register is for a measured map; for a profile --at X,Y is the "
+                         "fitted stretch's centre on the line")
+    at = _parse_at(at) if isinstance(at, str) else at
+    keys = parse_free(free)
+    for k in keys:
+        if k == "simulation.region" or k.startswith("simulation.region."):
+            raise InputError(f"--free {k}: fit sets the simulated region itself (a band about "
+                             f"the fitted window); place the window with --at instead")
+    base = scene.to_dict()
+    program = get_value(base, "process.program")
+    if program:
+        for k in keys:
+            if k in ("process.feed_mm_per_min", "process.spindle_rpm"):
+                raise InputError(f"--free {k}: with a program (process.program) the path, and "
+                                 f"with it the feed per revolution, is the program's; free the "
+                                 f"tool, machine or material keys, or fit without --program")
+    spec = ProfileSpec(weights=_profile_weights(weights))
+    for name, v, lo in (("--max-evaluations", max_evaluations, 2), ("--global", global_points, 0),
+                        ("--profile-points", profile_points, 0), ("--seed", seed, 0)):
+        if not (isinstance(v, int) and v >= lo):
+            raise InputError(f"{name} must be an integer >= {lo}, received {v!r}")
+    params = free_parameters(scene, keys, parse_bounds(bounds),
+                             defaults=lambda k: preset_value(scene, k))
+    random = random_parts(scene)
+    free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
+    if free_random:
+        raise InputError(f"--free {free_random[0]}: the amplitude of a random part is fitted "
+                         f"to areal maps only (a profile holds too little of its spectrum)")
+    fill = preset_fill(scene)
+
+    prof = read_profile(measured, units=units)
+    spacing = prof.spacing
+    win = profile_window(prof, scene, line=line, at=at, window_mm=float(window_mm))
+    zseg = prof.z[win["i0"]:win["i1"]]
+    n = zseg.size
+    target = make_profile_target(zseg, spacing=spacing, lag=0, spec=spec)
+    period = None if not target.peak else 1.0 / target.peak
+    lag = 0 if period is None else int(math.ceil(0.6 * period / spacing)) + 2
+    target.lag = lag
+    family = profile_family(target.z, spacing, axis_at_mm=_axis_in_window(scene, win, period))
+    log.info("fit window: %d points (%.4g mm) centred at (%.4g, %.4g) mm on the line; marks' "
+             "period %s", n, n * spacing, *win["centre_on_part_mm"],
+             "none" if period is None else f"{period * MM_TO_UM:.4g} um")
+    if not family["one_family"]:
+        log.warning("the marks in the window are not one periodic family: %s; the fitted "
+                    "values will not be a measurement", family["reason"])
+    # the line sampled by the evaluations: the window's samples and lag more each side
+    p0, u = win["p0"], win["direction"]
+    s_first = win["s0_mm"] - lag * spacing
+    count = n + 2 * lag
+    s_last = s_first + (count - 1) * spacing
+    ends = [(p0[0] + u[0] * s, p0[1] + u[1] * s) for s in (s_first, s_last)]
+    h = BAND_HALF_MM
+    fov = [min(e[0] for e in ends) - h, min(e[1] for e in ends) - h,
+           max(e[0] for e in ends) + h, max(e[1] for e in ends) + h]
+    icfg, icfg_source = instrument_settings(scene, {}, objective, spacing, fov,
+                                            np.vstack([zseg, zseg]))
+    sim_pixel = _evaluation_pixel(scene, period)
+    grow = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * sim_pixel)
+    sim_region = [fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow]
+    line_task = {"p0": list(p0), "direction": list(u), "s0": s_first, "step": spacing,
+                 "count": count}
+    model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random, (),
+                         line=line_task)
+    start_values = {p.key: p.start for p in params}
+    scene_from_dict(model.task(start_values)["scene"], "(the fit band)")
+    cache_dir = Path(cache) if cache is not None else out.parent / f"{out.name}.cache"
+    measured_sha = hashlib.sha256(np.ascontiguousarray(zseg, dtype=np.float64).tobytes()
+                                  + json.dumps([spacing, line_task]).encode()).hexdigest()
+    store = EvaluationCache(cache_dir, context={"scene_sha256": scene_hash(base),
+                                                "measured_sha256": measured_sha},
+                            shape=(1, count))
+    try:
+        with contextlib.ExitStack() as stack:
+            client, cluster = None, {}
+            if workers is not None or scheduler is not None:
+                client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
+                cluster = cluster_info(client)
+            compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
+                       if client is not None else predict_profile)
+            evaluator = Evaluator(params, target, model.task, compute, store, client=client,
+                                  max_evaluations=max_evaluations, quiet=quiet)
+            clean0 = _compute(store, [model.task(start_values)], client, compute)[0]
+            pred_start = predict_profile_features(clean0, target)
+            check_units(float(target.params[1]), float(pred_start.params[1]))
+            draws = FLOOR_DRAWS if model.has_floor() else 0
+            with task(f"fit: the camera's noise and the random parts ({draws} realisations)"):
+                noisy = _compute(store, [model.draw(start_values, r) for r in range(draws)],
+                                 client, compute)
+            set_profile_noise_floor(target, noisy, clean0)
+            starts, reach = _measured_starts(base, params, target)
+            before = _check_before(target, pred_start, keys, reach, family)
+            result = solve(params, evaluator, global_points=global_points, seed=seed,
+                           profile_points=profile_points, starts=starts)
+    except BaseException as err:
+        _after_failure(store, err)
+        raise
+    best = predict_profile_features(result.best.height, target, result.best.values)
+    start_pred = predict_profile_features(result.start.height, target, result.start.values)
+    after = _check_after(target, best, family, result.goodness)
+    fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
+    fitted = copy.deepcopy(base)
+    for k, v in fitted_values.items():
+        set_value(fitted, k, v, fill=fill)
+    d = best.height - target.z
+    ok = np.isfinite(d)
+    maps = {"rms_nm": float(np.sqrt(np.mean(d[ok] ** 2))) * MM_TO_NM, "points": int(ok.sum()),
+            "valid_fraction": float(ok.mean())}
+    provenance = {"seed": int(seed), "scene_sha256": scene_hash(base),
+                  "fitted_scene_sha256": scene_hash(fitted), "kind": "profile",
+                  "objective": icfg["objective"], "objective_from": icfg_source,
+                  "instrument": {k: icfg[k] for k in ("mode", "objective", "pixel",
+                                                      "subsamples", "noise")},
+                  "measured": {"path": str(measured), "reader": prof.meta.get("reader"),
+                               "format": prof.meta.get("format"),
+                               "units_in_file": prof.meta.get("units_in_file"),
+                               "units_from": prof.meta.get("units_from"),
+                               "n_points": int(prof.z.size), "n_measured": prof.n_measured,
+                               "spacing_mm": spacing},
+                  "placement": {"method": "line", **win, "window_mm": n * spacing,
+                                "points": int(n), "registration_room_samples": int(lag)},
+                  "scene": scene.name,
+                  "simulation": {"region_mm": sim_region, "pixel_mm": sim_pixel,
+                                 "band_mm": fov},
+                  "cache": str(cache_dir),
+                  "random_parts": {"held_at_zero_in_evaluations": random,
+                                   "realisations": draws},
+                  "workers": workers, "scheduler": scheduler,
+                  "cluster": ({k: cluster.get(k) for k in ("kind", "workers", "threads",
+                                                            "capped")}
+                              if client is not None else None)}
+    record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
+                        waviness={"rms_nm": None})
+    record["model_check"] = {"before": before, "after": after, "measured_starts": starts}
+    record["one_family"] = bool(family["one_family"])
+    record["registration_shift_um"] = best.shift * spacing * MM_TO_UM
+    record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
+    record["feed_per_rev_mm"] = _feed_per_rev(base, fitted, record)
+    if not family["one_family"]:
+        for p in record["parameters"].values():
+            p["stderr"] = None
+            p["relative_stderr"] = None
+            p["confident"] = False
+        if record["feed_per_rev_mm"]:
+            record["feed_per_rev_mm"]["stderr"] = None
+        record["status_note"] = ("not a measurement: the marks in the window are not one "
+                                 "periodic family (" + family["reason"] + ")")
+    else:
+        for p in record["parameters"].values():
+            p["confident"] = p.get("stderr") is not None
+    record["summary"] = profile_summary_lines(record)
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
+        tmp = Path(tmp)
+        s = prof.x[win["i0"]:win["i1"]] - prof.x[0]
+        png = profile_overlay_figure(
+            [{"s": s, "z": target.z, "label": "measured (parabola removed)"},
+             {"s": s, "z": best.height, "label": "fitted, through the virtual instrument "
+                                                 "(registered)"},
+             {"s": s, "z": start_pred.height, "label": "start"}],
+            title=f"{Path(str(measured)).name}: window centred at "
+                  f"({win['centre_on_part_mm'][0]:.4g}, {win['centre_on_part_mm'][1]:.4g}) mm")
+        (tmp / "profiles.png").write_bytes(png)
+        record["timing_s"]["total"] = time.perf_counter() - t_all
+        record["files"] = {"fit.json": "fitted values, standard errors, misfit, checks, "
+                                       "provenance",
+                           "fit.html": "the fit's page",
+                           "profiles.png": "measured, fitted and start profiles over the window",
+                           "scene.json": "the scene with the fitted values"}
+        atomic_write_text(tmp / "fit.html", _page(record, png))
+        atomic_write_text(tmp / "scene.json", json.dumps(
+            scene_from_dict(fitted, "(fitted)").to_dict(), indent=2, sort_keys=True))
+        write_json(tmp / "fit.json", record)
+    for text in record["summary"]:
+        log.info("%s", text)
+    return record
+
+
+def _compute(store, tasks, client, compute):
+    """:func:`compute_all` with the profile's forward model."""
+    if client is not None:
+        return compute_all(store, tasks, client, compute)
+    out = []
+    for t in tasks:
+        k = task_hash(t)
+        hit = store.get(k)
+        if hit is not None:
+            out.append(hit[0])
+            continue
+        try:
+            with quiet():
+                z, meta = predict_profile(t)
+        except InputError as err:
+            raise InputError(f"the forward model fails at the scene's values: {err}") from None
+        out.append(store.put(k, z, meta))
+    return out
+
+
+def _check_before(target, pred, keys, reach, family) -> dict:
+    """Refuse a window the scene cannot describe (marks in one and not the other, a period
+    out of the free keys' reach or, with no key that sets it free, more than 3 % off)."""
+    mp = None if not target.peak else 1.0 / target.peak
+    pp = None if not pred.centroid else 1.0 / pred.centroid
+    out = {"measured_period_um": None if mp is None else mp * MM_TO_UM,
+           "scene_period_um": None if pp is None else pp * MM_TO_UM,
+           "family": family}
+    if (mp is None) != (pp is None):
+        which = ("the measured profile has feed marks but the scene predicts none"
+                 if pp is None else "the scene predicts feed marks but the measured profile "
+                                    "has none")
+        raise InputError(f"this scene does not describe this measurement: {which} (a "
+                         f"different process, the wrong file or window)")
+    if mp is not None:
+        rel = pp / mp - 1.0
+        out["period_difference"] = rel
+        if reach is not None and not reach[0] <= mp <= reach[1]:
+            raise InputError(f"this scene does not describe this measurement: the marks' period "
+                             f"{mp * MM_TO_UM:.4g} um lies outside the {reach[0] * MM_TO_UM:.4g}.."
+                             f"{reach[1] * MM_TO_UM:.4g} um the free keys' bounds can reach; "
+                             f"widen --bounds or check the scene's spindle speed")
+        if (reach is None and not any(k in MARK_KEYS for k in keys)
+                and abs(rel) > PERIOD_TOLERANCE and family["one_family"]):
+            raise InputError(f"this scene does not describe this measurement: the marks' period "
+                             f"in the window is {mp * MM_TO_UM:.4g} um, the scene's "
+                             f"{pp * MM_TO_UM:.4g} um ({100 * rel:+.3g} %), and no key that sets "
+                             f"it is free (a program's path fixes it); check the window's place "
+                             f"(--at, --line) and the program")
+    return out
+
+
+def _check_after(target, best, family, goodness) -> dict:
+    findings = []
+    if not family["one_family"]:
+        findings.append(family["reason"])
+    elif target.peak and best.centroid:
+        rel = best.centroid / target.peak - 1.0
+        sf = target.sigma_frequency or target.spec.sigma_frequency
+        if abs(rel) > max(5 * sf, 0.01):
+            findings.append(f"the fitted marks' period differs from the measured one by "
+                            f"{100 * rel:+.3g} % (the free keys cannot reach it)")
+    ratio = goodness.get("ratio")
+    notes = []
+    if ratio is not None and ratio > MISMATCH and not findings:
+        notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
+                     f"the cusps' shape differs from the model's; the standard errors are "
+                     f"scaled by it (the model's error)")
+    return {"describes": not findings, "findings": findings, "notes": notes,
+            "misfit_over_noise": ratio,
+            "verdict": ("the model describes the marks of this window" if not findings else
+                        "this model does not describe this measurement: "
+                        + "; ".join(findings))}
+
+
+def _feed_per_rev(base, fitted, record):
+    """The fitted feed per revolution (mm) with its standard error, where the feed or the
+    spindle speed is fitted."""
+    pars = record["parameters"]
+    rpm = get_value(fitted, "process.spindle_rpm")
+    feed = get_value(fitted, "process.feed_mm_per_min")
+    if not (isinstance(rpm, (int, float)) and isinstance(feed, (int, float)) and rpm > 0):
+        return None
+    if "process.feed_mm_per_min" in pars:
+        se = pars["process.feed_mm_per_min"].get("stderr")
+        rel = None if se is None else se / feed
+    elif "process.spindle_rpm" in pars:
+        se = pars["process.spindle_rpm"].get("stderr")
+        rel = None if se is None else se / rpm
+    else:
+        return None
+    v = float(feed) / float(rpm)
+    return {"value": v, "stderr": None if rel is None else v * rel}
+
+
+#: what the profile's misfit terms measure, for the summary
+_TERM_WORDS = {"profile": "the registered profile, point by point",
+               "params": "Ra, Rq and Rt"}
+
+
+def profile_summary_lines(record: dict) -> list[str]:
+    """The summary in words (:func:`~render_inspect.fit.summary_lines`, with the window's
+    verdict; values without a confident standard error say why)."""
+    lines = []
+    note = record.get("status_note")
+    for text in summary_lines(record):
+        if text.startswith("height difference rms"):
+            continue
+        for term, words in _TERM_WORDS.items():
+            text = text.replace(f"misfit term {term} ({term})", f"misfit term {term} ({words})")
+        key = text.split(" = ", 1)[0]
+        if note and key in record["parameters"]:
+            p = record["parameters"][key]
+            text = f"{key} = {p['value']:.6g} ({note}; no standard error)"
+        lines.append(text)
+    fpr = record.get("feed_per_rev_mm")
+    if fpr:
+        se = fpr.get("stderr")
+        lines.insert(len(record["parameters"]),
+                     f"feed per revolution {fpr['value'] * MM_TO_UM:.5g} um"
+                     + (f" +- {se * MM_TO_UM:.2g} um" if se is not None else
+                        " (no standard error: see the verdict)"))
+    lines.append(f"profile difference rms {record['misfit_rms_nm']:.3g} nm after registering "
+                 f"the measured profile along the line "
+                 f"({record.get('registration_shift_um', 0.0):+.3g} um)")
+    for t in (record.get("model_check") or {}).get("after", {}).get("notes", []):
+        lines.append(t)
+    # the evaluations' count last, as for a map
+    tail = [t for t in lines if t.endswith(" evaluations")]
+    return [t for t in lines if t not in tail] + tail
+
+
+def _page(record: dict, png: bytes) -> str:
+    rep = HtmlReport("fit on a measured profile",
+                     f"{Path(record['measured']['path']).name}: window of "
+                     f"{record['placement']['window_mm']:.4g} mm centred at "
+                     f"({record['placement']['centre_on_part_mm'][0]:.4g}, "
+                     f"{record['placement']['centre_on_part_mm'][1]:.4g}) mm; status "
+                     f"{record['status']}")
+    rep.section("Verdict")
+    rep.list([record["model_check"]["after"]["verdict"]] + record["summary"])
+    rep.section("Profiles")
+    rep.figure(png, "Measured window (black, its parabola removed), the fitted scene through "
+               "the virtual interferometer registered along the line (blue), the start "
+               "(orange, dashed); heights in nm.")
+    rows = []
+    for k, p in record["parameters"].items():
+        rows.append([k, f"{p['value']:.6g}", "n/a" if p["stderr"] is None else
+                     f"{p['stderr']:.3g}", f"{p['start']:.6g}"])
+    rep.section("Fitted values")
+    rep.table(rows, header=["key", "value", "standard error", "start"])
+    return rep.render()
