@@ -30,11 +30,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
 from .. import __version__
 from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
+from ..core.lazy import lazy_module
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..fit import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
@@ -56,6 +56,8 @@ __all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FI
            "profile_window", "is_profile_measurement"]
 
 log = logging.getLogger("render_inspect")
+
+ndimage = lazy_module("scipy.ndimage")
 
 #: files ``fit`` writes for a profile
 PROFILE_FIT_FILES = ("fit.json", "fit.html", "profiles.png", "scene.json")
