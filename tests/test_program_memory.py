@@ -76,12 +76,14 @@ def test_program_reading_memory_follows_the_points_not_the_text(tmp_path):
     (tmp_path / "c.nc").unlink()
     assert small["points"] == wordy["points"] == n and large["points"] == 2 * n
     print("program reading memory:", json.dumps({"1M": small, "2M": large, "1M_wordy": wordy}))
-    # four times the text, the same points: the same allocations, and the resident set
-    # does not follow the text (a reader holding it would grow by the whole file)
+    # four times the text, the same points: the same allocations (traced), and the
+    # resident set does not follow the text: a reader holding it would grow by at least
+    # the whole extra file (103 MB); the allocator's own pages vary by some tens of MB
+    # between runs (measured 0 and 33 MB here), well under half of it
     extra_text = wordy["file"] - small["file"]
     assert extra_text > 3 * small["file"]
     assert abs(wordy["traced"] - small["traced"]) < 0.01 * small["traced"], (small, wordy)
-    assert wordy["rss"] - small["rss"] < 0.25 * extra_text, (small, wordy)
+    assert wordy["rss"] - small["rss"] < 0.5 * extra_text, (small, wordy)
     # twice the points: the peak grows by a few times what the reader returns (41 bytes a
     # point; measured 116 bytes a block traced, 161 resident: the scanned blocks and the
     # whole-program steps, C unwrapped, each move's time)

@@ -51,7 +51,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
-from ..core.units import KM_TO_MM, MM_TO_NM, NM_TO_MM, UM_TO_MM
+from ..core.units import KM_TO_MM, M_TO_MM, MM_TO_M, MM_TO_NM, NM_TO_MM, UM_TO_MM
 
 __all__ = ["WearRate", "WEAR_RATES", "wear_rate", "wear_state", "spiral_distance_km", "worn_path",
            "MM_PER_KM", "SpeedLaw", "SPEED_LAW", "speed_factor", "chemical_distance_km", "SOURCES"]
@@ -193,8 +193,8 @@ def chemical_distance_km(r, workpiece_radius: float, feed_per_rev: float, spindl
         raise InputError(f"process.spindle_rpm must be > 0 for the chemical wear, received {spindle_rpm!r}")
     Rw = float(workpiece_radius)
     rr = np.linspace(0.0, Rw, int(samples))
-    v = 2 * math.pi * rr * float(spindle_rpm) * 1e-3  # m/min
-    dens = law.v_ref_m_min * 1e3 / (float(spindle_rpm) * float(feed_per_rev)) * _arrhenius(v, law)
+    v = 2 * math.pi * rr * float(spindle_rpm) * MM_TO_M  # m/min
+    dens = law.v_ref_m_min * M_TO_MM / (float(spindle_rpm) * float(feed_per_rev)) * _arrhenius(v, law)
     # cumulative from the outside in: C(r) = int_r^Rw dens dr'
     seg = 0.5 * (dens[1:] + dens[:-1]) * np.diff(rr)
     C = np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])

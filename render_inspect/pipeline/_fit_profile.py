@@ -36,7 +36,7 @@ from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.lazy import lazy_module
 from ..core.progress import task
-from ..core.units import MM_TO_NM, MM_TO_UM
+from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ..fit import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
@@ -64,7 +64,7 @@ PROFILE_FIT_FILES = ("fit.json", "fit.html", "profiles.png", "scene.json")
 #: the least number of measured points in the fitted window
 MIN_POINTS = 64
 #: how far ``--at X,Y`` may lie from the line, mm
-AT_TOLERANCE_MM = 1e-3
+AT_TOLERANCE_MM = 1.0 * UM_TO_MM
 
 
 def is_profile_measurement(path) -> bool:

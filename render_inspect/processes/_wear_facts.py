@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..core.units import MM_TO_NM, NM_TO_MM
+from ..core.units import MM_TO_M, MM_TO_NM, NM_TO_MM
 from ..machining import (MM_PER_KM, SPEED_LAW, chemical_distance_km, spiral_distance_km,
                          wear_rate, wear_state, worn_path)
 
@@ -51,7 +51,7 @@ def _state(rate, cfg, r, feed) -> dict:
     L, st = _at(rate, cfg, r, feed)
     n = _rpm(cfg)
     return {"radius_mm": float(r), "cutting_distance_km": float(L), "contact_km": float(st["contact_km"]),
-            "cutting_speed_m_min": 2 * math.pi * abs(float(r)) * n * 1e-3 if n else None,
+            "cutting_speed_m_min": 2 * math.pi * abs(float(r)) * n * MM_TO_M if n else None,
             "flank_wear_um": float(st["flank_um"]), "edge_radius_nm": float(st["edge_radius_nm"]),
             "recession_nm": float(st["recession_nm"])}
 
@@ -122,7 +122,7 @@ def sculpt_wear(cfg, lines, duty: float):
     mean over the cut is the edge at half the cutting distance."""
     rate = wear_rate(cfg.material.preset)
     length_km = float(sum(abs(float(ys[-1]) - float(ys[0])) for ys, _ in lines)) / MM_PER_KM
-    speed = float(cfg.process.feed_mm_per_min) * 1e-3  # the nominal cutting speed, m/min
+    speed = float(cfg.process.feed_mm_per_min) * MM_TO_M  # the nominal cutting speed, m/min
     args = {**_args(cfg), "duty": float(duty) * float(cfg.tool.contact_duty_cycle), "speed_m_min": speed}
     end = wear_state(rate, length_km, **args)
     mid = wear_state(rate, 0.5 * length_km, **args)
