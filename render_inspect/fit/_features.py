@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.errors import InputError
+from ._weights import check_weights
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..metrology import gaussian_filter, remove_form
 
@@ -101,15 +102,7 @@ class MisfitSpec:
     def __post_init__(self):
         if self.form not in FORMS:
             raise InputError(f"--form must be one of {', '.join(FORMS)}, received {self.form!r}")
-        bad = sorted(set(self.weights) - set(TERMS))
-        if bad:
-            raise InputError(f"--weights: unknown term {bad[0]!r}; the terms are "
-                             f"{', '.join(TERMS)}")
-        for k, v in self.weights.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InputError(f"--weights {k} must be a number >= 0, received {v!r}")
-        if not any(self.weights.get(k, 0) > 0 for k in TERMS):
-            raise InputError("--weights: at least one term must have a weight > 0")
+        check_weights(self.weights, TERMS)
         if not 1 <= int(self.harmonics) <= 10:
             raise InputError(f"harmonics must be in [1, 10], received {self.harmonics!r}")
 

@@ -35,6 +35,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._features import soft_l1
+from ._weights import check_weights
 
 __all__ = ["ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
            "predict_profile_features", "profile_residual_vector", "set_profile_noise_floor",
@@ -67,15 +68,7 @@ class ProfileSpec:
     sigma_profile_fraction: float = 0.05
 
     def __post_init__(self):
-        bad = sorted(set(self.weights) - set(PROFILE_TERMS))
-        if bad:
-            raise InputError(f"--weights: unknown term {bad[0]!r} for a profile; the terms are "
-                             f"{', '.join(PROFILE_TERMS)}")
-        for k, v in self.weights.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InputError(f"--weights {k} must be a number >= 0, received {v!r}")
-        if not any(self.weights.get(k, 0) > 0 for k in PROFILE_TERMS):
-            raise InputError("--weights: at least one term must have a weight > 0")
+        check_weights(self.weights, PROFILE_TERMS, of=" for a profile")
 
     def to_dict(self) -> dict:
         return {"kind": "profile",

@@ -1,0 +1,24 @@
+"""The misfit terms' weights a user gives (``--weights TERM=W``), checked the same way
+for maps and profiles."""
+
+from __future__ import annotations
+
+import math
+
+from ..core.errors import InputError
+
+__all__ = ["check_weights"]
+
+
+def check_weights(weights: dict, terms, *, of: str = "") -> None:
+    """``--weights``: every term one of ``terms``, each a number >= 0, one at least > 0
+    (``of``: what the terms are of, in the message, e.g. " for a profile")."""
+    bad = sorted(set(weights) - set(terms))
+    if bad:
+        raise InputError(f"--weights: unknown term {bad[0]!r}{of}; the terms are "
+                         f"{', '.join(terms)}")
+    for k, v in weights.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise InputError(f"--weights {k} must be a number >= 0, received {v!r}")
+    if not any(weights.get(k, 0) > 0 for k in terms):
+        raise InputError("--weights: at least one term must have a weight > 0")
