@@ -35,7 +35,10 @@ from ._result import fit_record, misfit_maps, summary_lines
 from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
-__all__ = ["FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
+from ._weights import check_weights, parse_weights
+
+__all__ = ["check_weights", "parse_weights",
+           "FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
            "set_value", "get_value", "MisfitSpec", "Target", "Prediction", "FORMS",
            "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map",
            "radial_psd", "residual_vector", "realisation_shifts", "soft_l1", "waviness",

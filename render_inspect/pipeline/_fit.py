@@ -28,7 +28,7 @@ from ..core.progress import task
 from ..core.units import MM_TO_UM
 from ..design import make_surface
 
-from ..fit import (EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_after,
+from ..fit import (parse_weights, EvaluationCache, Evaluator, MisfitSpec, centred_origin, check_after,
                    check_before, check_units,
                    field_extent, fit_record, fit_window, free_parameters, make_target,
                    misfit_maps, parse_bounds, parse_free, predict_features, prepare_map,
@@ -57,21 +57,7 @@ SIM_SAMPLES_PER_PERIOD = 18
 
 
 def _weights(items) -> dict:
-    out = {"map": 1.0, "psd": 1.0, "harmonics": 1.0}
-    for item in items or ():
-        for part in str(item).split(","):
-            if not part.strip():
-                continue
-            if "=" not in part:
-                raise InputError(f"--weights expects TERM=W (map, psd, harmonics), received "
-                                 f"{part!r}")
-            k, v = part.split("=", 1)
-            try:
-                out[k.strip()] = float(v)
-            except ValueError:
-                raise InputError(f"--weights {k.strip()} must be a number >= 0, received "
-                                 f"{v!r}") from None
-    return out
+    return parse_weights(items, ("map", "psd", "harmonics"))
 
 
 def _parse_at(at):

@@ -37,7 +37,7 @@ from ..core.errors import InputError
 from ..core.lazy import lazy_module
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
-from ..fit import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+from ..fit import (parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
@@ -208,21 +208,7 @@ def _axis_in_window(scene, win, period):
 
 
 def _profile_weights(items) -> dict:
-    out = {k: 1.0 for k in PROFILE_TERMS}
-    for item in items or ():
-        for part in str(item).split(","):
-            if not part.strip():
-                continue
-            if "=" not in part:
-                raise InputError(f"--weights expects TERM=W ({', '.join(PROFILE_TERMS)} for a "
-                                 f"profile), received {part!r}")
-            k, v = part.split("=", 1)
-            try:
-                out[k.strip()] = float(v)
-            except ValueError:
-                raise InputError(f"--weights {k.strip()} must be a number >= 0, received "
-                                 f"{v!r}") from None
-    return out
+    return parse_weights(items, PROFILE_TERMS, of=' for a profile')
 
 
 # ------------------------------------------------------------------------------ run
