@@ -111,11 +111,12 @@ def _filled(z):
 
 def registration_period(scene, z_meas, *, spacing):
     """The period (mm) that bounds the registration's search around the mirror centres'
-    match: the scene's planned feed marks, or, where the scene plans none, the measured
-    profile's own dominant period.  None when neither is known."""
+    match: the scene's planned feed marks, or, where the scene plans none or cuts a
+    program read from a file (its feed is the program's, and may vary with the radius),
+    the measured profile's own dominant period.  None when neither is known."""
     process = process_of(scene)
     marks = process.traits(process.inputs_of(scene)).marks
-    if marks is not None and marks.period_mm:
+    if marks is not None and marks.period_mm and not getattr(scene.process, "program", None):
         return float(marks.period_mm)
     return dominant_periods(z_meas, spacing=spacing)["period_mm"]
 
@@ -142,26 +143,32 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
     simulated measurement, the correlation there and how the search was bounded.
 
     Feed marks repeat every period, so many scallops match many scallops about equally
-    well: the search is bounded to one period either side of where the mirror centres
-    match, when the measured profile has one (a trace through the spindle axis).  The
-    simulated profile's centre is the spindle axis itself where the line passes through
-    it (``axis_s``, mm from the line's start: exact, not read from the heights), else the
-    simulated heights' own mirror centre."""
+    well: the search is bounded to one period either side of where the measured mirror
+    centre (a trace through the spindle axis) meets the simulated profile's centre: its
+    heights' own mirror centre and, where the line passes through the spindle axis, the
+    axis's place on the line (``axis_s``, mm from the line's start); the best match over
+    both windows is taken."""
     a = _filled(z_meas)
     b = _filled(z_sim)
     ma = mirror_centre(z_meas, spacing=spacing, x0=float(s_meas[0]))
-    if axis_s is not None:
-        mb = {"centre_mm": float(axis_s), "symmetry": 1.0}
-        where = "the spindle axis on the line"
-    else:
-        mb = mirror_centre(z_sim, spacing=spacing, x0=float(s_sim[0]))
-        where = "the simulated profile's mirror centre"
+    mb = mirror_centre(z_sim, spacing=spacing, x0=float(s_sim[0]))
     n = min(a.size, b.size)
-    if (ma["symmetry"] or 0) >= 0.5 and (mb["symmetry"] or 0) >= 0.5 and period:
-        centre = mb["centre_mm"] - ma["centre_mm"]
+    # where the simulated profile's centre may be: its heights' mirror centre (a row of
+    # cusps is mirror-symmetric about every cusp, so it can be a period or more off) and,
+    # on a line through the spindle axis, the axis's place on the line
+    centres = []
+    if (mb["symmetry"] or 0) >= 0.5:
+        centres.append((mb["centre_mm"], "the simulated profile's mirror centre"))
+    if axis_s is not None:
+        centres.append((float(axis_s), "the spindle axis on the line"))
+    if (ma["symmetry"] or 0) >= 0.5 and centres and period:
         reach = int(math.ceil(period / spacing))
-        lags = np.arange(int(round(centre / spacing)) - reach, int(round(centre / spacing)) + reach + 1)
-        how = f"within one period of the measured mirror centre on {where}"
+        lags = np.unique(np.concatenate([
+            np.arange(int(round((c - ma["centre_mm"]) / spacing)) - reach,
+                      int(round((c - ma["centre_mm"]) / spacing)) + reach + 1)
+            for c, _ in centres]))
+        how = ("within one period of the measured mirror centre on "
+               + " or on ".join(w for _, w in centres))
     else:
         lags = np.arange(-(n // 2), n // 2 + 1)
         how = "over half the line either way"
