@@ -221,3 +221,43 @@ def test_cli_compare_profile_options_need_a_profile(tmp_path, capsys):
     assert rc == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--line is for --measured PROFILE" in err[0]
+
+
+def test_registration_is_bounded_by_the_spindle_axis_on_the_line():
+    """Turned marks repeat every feed, so correlation alone can lock onto a match whole
+    periods away: with the line through the spindle axis, the search stays within one
+    period of where the measured mirror centre meets the axis, and finds the shift there
+    (a forward-modelled pair: the same spiral's scallops, noisy, the measured trace
+    starting 0.2 mm before its mirror centre)."""
+    from render_inspect.pipeline._compare_profile import _register, axis_on_line, registration_period
+    from render_inspect.scene import load_scene
+
+    f, step, rc = 0.04, 0.5e-3, 0.2
+    rng = np.random.default_rng(3)
+
+    def scallops(s, centre):
+        r = np.abs(s - centre)
+        u = (r + 0.013) % f - f / 2  # the spiral's phase: scallops about the axis, not on it
+        return u * u / (2 * rc)
+
+    s_sim = np.arange(0, 0.8 + step / 2, step)
+    axis_s = 0.4
+    z_sim = scallops(s_sim, axis_s) + rng.normal(0, 2e-6, s_sim.size)
+    s_meas = np.arange(0, 0.6 + step / 2, step)
+    cm = 0.2 + 0.0105  # the measured mirror centre, 10.5 um off where the line put it
+    z_meas = scallops(s_meas, cm) + rng.normal(0, 2e-6, s_meas.size)
+    shift, corr, how = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f,
+                                 axis_s=axis_s)
+    assert "mirror centre" in how and "spindle axis" in how and corr > 0.9
+    assert shift == pytest.approx(axis_s - cm, abs=2 * step)
+    # without the axis the search is bounded by the heights' centre alone
+    shift, corr, how = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f)
+    assert "spindle axis" not in how and "mirror centre" in how
+
+    scene = load_scene(SCENES / "sts_sinusoidal_grid.toml", [])
+    assert axis_on_line(scene, (-0.3, 0.0), (0.3, 0.0), tolerance=0.005) == pytest.approx(0.3)
+    assert axis_on_line(scene, (-0.3, 0.01), (0.3, 0.01), tolerance=0.005) is None
+    assert axis_on_line(scene, (0.1, 0.0), (0.3, 0.0), tolerance=0.005) is None
+    # the scene's planned feed, or the measured profile's own period without one
+    assert registration_period(scene, z_meas, spacing=step) == pytest.approx(
+        scene.process.feed_mm_per_min / scene.process.spindle_rpm)

@@ -62,3 +62,22 @@ def test_band_parameters_of_a_sine():
     ev = np.abs(s - axis) < 0.1
     few = tool.band_parameters(s, r, ev, axis_mm=axis, band_um=(150.0, 420.0), spacing=spacing)
     assert few["n"] == 0 and few["Ra_nm"] is None
+
+
+def test_the_registration_stays_within_a_feed_period():
+    """compare's registration of each real slice along the line through the spindle axis
+    moves it by less than one measured feed period wherever the simulated measurement
+    matches the slice at all (correlation over 0.5: the CSI images; the example scene's
+    PSI loses fringe orders along the strip, its correlations near 0 leave nothing to
+    register by): a match whole periods away is not taken."""
+    data = _tool().load()
+    checked = 0
+    for part, rows in data["table"].items():
+        for r in rows:
+            if r["correlation"] <= 0.5:
+                continue
+            period_um = r["bands"]["measured"]["outer"]["RSm_um"]
+            assert abs(r["shift_um"]) <= 1.05 * period_um, (part, r["objective"], r["mode"],
+                                                             r["shift_um"], period_um)
+            checked += 1
+    assert checked >= 3 * 8, checked  # every CSI variant of the three parts

@@ -142,7 +142,8 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
     from render_inspect.instruments import render_interferogram
     from render_inspect.io import read_profile
     from render_inspect.metrology import analyze_profile, line_profile, measure_frames
-    from render_inspect.pipeline._compare_profile import _band_scene, _register, default_line
+    from render_inspect.pipeline._compare_profile import (_band_scene, _register, axis_on_line,
+                                                           default_line, registration_period)
     from render_inspect.pipeline._simulate import simulate
     from render_inspect.processes import process_of
     from render_inspect.scene import scene_from_dict
@@ -157,8 +158,7 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
     step = prof.spacing
     s_true, z_true = line_profile(hm.machined, pixel=hm.pixel, origin=hm.origin, p0=p0, p1=p1,
                                   step=step)
-    marks = process_of(scene).traits(process_of(scene).inputs_of(scene)).marks
-    period = marks.period_mm if marks is not None else None
+    period = registration_period(scene, prof.z, spacing=step)
     s_pos = prof.x - prof.x[0]
     out = {}
     for obj, mode in ((o, m) for o in objectives for m in modes):
@@ -171,7 +171,9 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
         h_meas = np.where(r.valid, r.height, np.nan)
         s_sim, z_sim = line_profile(h_meas, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1,
                                     step=step)
-        shift, corr, _how = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period)
+        shift, corr, _how = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
+                                      axis_s=axis_on_line(scene, p0, p1,
+                                                          tolerance=(period or step) / 2))
         # the slice stays where the default line put it (its mirror centre on the axis);
         # compare's registration along the line is recorded beside it, not applied: on these
         # periodic profiles it can lock onto a match some feed periods away

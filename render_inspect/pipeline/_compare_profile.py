@@ -30,7 +30,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM
 from ..instruments import render_interferogram
 from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
                   is_profile_file, json_safe, read_profile)
-from ..metrology import (analyze_profile, line_profile, measure_frames, mirror_centre,
+from ..metrology import (analyze_profile, dominant_periods, line_profile, measure_frames, mirror_centre,
                          parse_profile_filter)
 from ..processes import process_of
 from ..report import HtmlReport, profile_figure, profile_overlay_figure
@@ -39,7 +39,8 @@ from ._compare import run_compare
 from ._metrics import write_metrics
 from ._simulate import simulate
 
-__all__ = ["run_compare_profile", "run_compare_command", "parse_line", "default_line"]
+__all__ = ["run_compare_profile", "run_compare_command", "parse_line", "default_line",
+           "registration_period", "axis_on_line"]
 
 log = logging.getLogger("render_inspect")
 
@@ -108,19 +109,66 @@ def _filled(z):
     return f - np.polyval(c, i - i.mean())
 
 
-def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period):
+def registration_period(scene, z_meas, *, spacing):
+    """The period (mm) that bounds the registration's search around the mirror centres'
+    match: the scene's planned feed marks, or, where the scene plans none or cuts a
+    program read from a file (its feed is the program's, and may vary with the radius),
+    the measured profile's own dominant period.  None when neither is known."""
+    process = process_of(scene)
+    marks = process.traits(process.inputs_of(scene)).marks
+    if marks is not None and marks.period_mm and not getattr(scene.process, "program", None):
+        return float(marks.period_mm)
+    return dominant_periods(z_meas, spacing=spacing)["period_mm"]
+
+
+def axis_on_line(scene, p0, p1, *, tolerance):
+    """Where the spindle axis lies along the line p0 -> p1 (mm from p0), when the line
+    passes within ``tolerance`` mm of it; None otherwise (or without a spindle axis)."""
+    process = process_of(scene)
+    axis = process.traits(process.inputs_of(scene)).axis
+    if axis is None:
+        return None
+    dx, dy = p1[0] - p0[0], p1[1] - p0[1]
+    length = math.hypot(dx, dy)
+    ax, ay = axis[0] - p0[0], axis[1] - p0[1]
+    along = (ax * dx + ay * dy) / length
+    off = abs(ax * dy - ay * dx) / length
+    if off > tolerance or not 0.0 <= along <= length:
+        return None
+    return float(along)
+
+
+def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
     """The shift (mm) to add to the measured positions so that they best match the
-    simulated measurement, and the correlation there."""
+    simulated measurement, the correlation there and how the search was bounded.
+
+    Feed marks repeat every period, so many scallops match many scallops about equally
+    well: the search is bounded to one period either side of where the measured mirror
+    centre (a trace through the spindle axis) meets the simulated profile's centre: its
+    heights' own mirror centre and, where the line passes through the spindle axis, the
+    axis's place on the line (``axis_s``, mm from the line's start); the best match over
+    both windows is taken."""
     a = _filled(z_meas)
     b = _filled(z_sim)
     ma = mirror_centre(z_meas, spacing=spacing, x0=float(s_meas[0]))
     mb = mirror_centre(z_sim, spacing=spacing, x0=float(s_sim[0]))
     n = min(a.size, b.size)
-    if (ma["symmetry"] or 0) >= 0.5 and (mb["symmetry"] or 0) >= 0.5 and period:
-        centre = mb["centre_mm"] - ma["centre_mm"]
+    # where the simulated profile's centre may be: its heights' mirror centre (a row of
+    # cusps is mirror-symmetric about every cusp, so it can be a period or more off) and,
+    # on a line through the spindle axis, the axis's place on the line
+    centres = []
+    if (mb["symmetry"] or 0) >= 0.5:
+        centres.append((mb["centre_mm"], "the simulated profile's mirror centre"))
+    if axis_s is not None:
+        centres.append((float(axis_s), "the spindle axis on the line"))
+    if (ma["symmetry"] or 0) >= 0.5 and centres and period:
         reach = int(math.ceil(period / spacing))
-        lags = np.arange(int(round(centre / spacing)) - reach, int(round(centre / spacing)) + reach + 1)
-        how = "within one period of the mirror centres' match"
+        lags = np.unique(np.concatenate([
+            np.arange(int(round((c - ma["centre_mm"]) / spacing)) - reach,
+                      int(round((c - ma["centre_mm"]) / spacing)) + reach + 1)
+            for c, _ in centres]))
+        how = ("within one period of the measured mirror centre on "
+               + " or on ".join(w for _, w in centres))
     else:
         lags = np.arange(-(n // 2), n // 2 + 1)
         how = "over half the line either way"
@@ -203,9 +251,10 @@ def run_compare_profile(scene, out, *, measured, line=None, units=None, filter_s
                          f"{list(band.simulation.region)} mm)")
     # the simulated profiles are resampled to exactly the measured spacing
     s_pos = prof.x - prof.x[0]
-    marks = process_of(scene).traits(process_of(scene).inputs_of(scene)).marks
-    period = marks.period_mm if marks is not None else None
-    shift, corr, how_reg = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period)
+    period = registration_period(scene, prof.z, spacing=step)
+    axis_s = axis_on_line(scene, p0, p1, tolerance=(period or step) / 2)
+    shift, corr, how_reg = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
+                                     axis_s=axis_s)
     s_reg = s_pos + shift
     opts = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
     res = {"measured": analyze_profile(s_reg, prof.z, spacing=step, **opts)}
