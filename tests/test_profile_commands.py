@@ -258,6 +258,7 @@ def test_registration_is_bounded_by_the_spindle_axis_on_the_line():
     assert axis_on_line(scene, (-0.3, 0.0), (0.3, 0.0), tolerance=0.005) == pytest.approx(0.3)
     assert axis_on_line(scene, (-0.3, 0.01), (0.3, 0.01), tolerance=0.005) is None
     assert axis_on_line(scene, (0.1, 0.0), (0.3, 0.0), tolerance=0.005) is None
-    # the scene's planned feed, or the measured profile's own period without one
-    assert registration_period(scene, z_meas, spacing=step) == pytest.approx(
+    # the measured profile's own period; the scene's planned feed where it has none (too short)
+    assert registration_period(scene, z_meas, spacing=step) == pytest.approx(f, rel=0.05)
+    assert registration_period(scene, np.zeros(8), spacing=step) == pytest.approx(
         scene.process.feed_mm_per_min / scene.process.spindle_rpm)

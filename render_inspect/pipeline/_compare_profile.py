@@ -111,14 +111,16 @@ def _filled(z):
 
 def registration_period(scene, z_meas, *, spacing):
     """The period (mm) that bounds the registration's search around the mirror centres'
-    match: the scene's planned feed marks, or, where the scene plans none or cuts a
-    program read from a file (its feed is the program's, and may vary with the radius),
-    the measured profile's own dominant period.  None when neither is known."""
+    match: the measured profile's own dominant period (the marks it shows repeat at it,
+    whatever fed them: a program read from a file may vary its feed with the radius), or,
+    where the profile shows none, the scene's planned feed marks.  None when neither is
+    known."""
+    own = dominant_periods(z_meas, spacing=spacing)["period_mm"]
+    if own:
+        return float(own)
     process = process_of(scene)
     marks = process.traits(process.inputs_of(scene)).marks
-    if marks is not None and marks.period_mm and not getattr(scene.process, "program", None):
-        return float(marks.period_mm)
-    return dominant_periods(z_meas, spacing=spacing)["period_mm"]
+    return float(marks.period_mm) if marks is not None and marks.period_mm else None
 
 
 def axis_on_line(scene, p0, p1, *, tolerance):
