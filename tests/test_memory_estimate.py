@@ -179,6 +179,10 @@ _RUNS = {
 }
 
 
+#: estimates whose peak depends on the timing of concurrent work (checked from above)
+_ONE_SIDED = {"tiled_simulate"}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("what", list(_RUNS))
 def test_estimates_within_1_5x_of_the_peak_at_two_sizes(what, tmp_path):
@@ -193,7 +197,14 @@ def test_estimates_within_1_5x_of_the_peak_at_two_sizes(what, tmp_path):
                            cwd=tmp_path, timeout=900)
         assert p.returncode == 0, p.stderr[-800:]
         r = json.loads(p.stdout.strip().splitlines()[-1])
-        assert r["estimate"] / 1.5 <= r["rss"] <= 1.5 * r["estimate"], (what, args, r)
+        assert r["rss"] <= 1.5 * r["estimate"], (what, args, r)
+        if what in _ONE_SIDED:
+            # two tiles in flight: the peak depends on whether they overlap in time
+            # (measured 90-122 MB at 1001^2 samples against the 166 MB of two at once);
+            # the estimate is their bound, checked from above only
+            assert r["rss"] <= r["estimate"], (what, args, r)
+        else:
+            assert r["estimate"] / 1.5 <= r["rss"], (what, args, r)
         peaks.append(r["rss"])
     assert peaks[1] > peaks[0], (what, peaks)
 
