@@ -84,8 +84,7 @@ def test_store_has_named_dimensions_mm_coordinates_and_ome_multiscales(tmp_path)
 
 
 def test_xarray_opens_the_store_with_coordinates(tmp_path):
-    xr = pytest.importorskip("xarray", reason="xarray is not installed (not in the lock); the "
-                                              "store's layout is checked without it above")
+    import xarray as xr  # in the lock: a missing one fails
     z = _surface(holes=False)
     path = _store(tmp_path, z)
     ds = xr.open_zarr(path)

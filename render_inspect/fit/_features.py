@@ -48,7 +48,8 @@ from ..metrology import gaussian_filter, remove_form
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
            "set_noise_floor",
-           "residual_vector", "soft_l1", "robust_weights", "radial_psd", "own_peak"]
+           "residual_vector", "harmonic_residuals", "soft_l1", "robust_weights", "radial_psd",
+           "own_peak"]
 
 #: form removal the user may choose (as ``analyze``)
 FORMS = ("none", "plane", "poly2", "sphere")
@@ -553,6 +554,20 @@ def robust_weights(d) -> np.ndarray:
     return (1.0 + d * d) ** -0.25
 
 
+def harmonic_residuals(target, pred, spec) -> np.ndarray:
+    """The harmonic term's residuals (maps and profiles): the fundamental's relative shift
+    and each harmonic's amplitude difference, in their sigmas."""
+    sf = target.sigma_frequency or spec.sigma_frequency
+    if pred.centroid is None or not np.isfinite(pred.centroid):
+        df = 1.0 / sf
+    else:
+        df = (pred.centroid / target.centroid - 1.0) / sf
+    sa = target.sigma_amplitudes
+    if sa is None:
+        sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
+    return np.concatenate([[df], (pred.amplitudes - target.amplitudes) / sa])
+
+
 def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.ndarray, dict]:
     """The normalised residuals ``d`` (fixed length for a target), each entry's term weight
     ``a`` (``sqrt(weight / n)`` of its term) and each term's share of the misfit
@@ -575,16 +590,7 @@ def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.nd
         use = target.psd_use
         add("psd", (pred.psd[use] - target.psd[use]) / target.psd_sigma[use])
     if w.get("harmonics", 0) > 0 and target.peak is not None:
-        sf = target.sigma_frequency or spec.sigma_frequency
-        if pred.centroid is None or not np.isfinite(pred.centroid):
-            df = 1.0 / sf
-        else:
-            df = (pred.centroid / target.centroid - 1.0) / sf
-        sa = target.sigma_amplitudes
-        if sa is None:
-            sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
-        da = (pred.amplitudes - target.amplitudes) / sa
-        add("harmonics", np.concatenate([[df], da]))
+        add("harmonics", harmonic_residuals(target, pred, spec))
     if not ds:
         return np.zeros(1), np.zeros(1), terms
     return np.concatenate(ds), np.concatenate(As), terms

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ._features import soft_l1
+from ._features import harmonic_residuals, soft_l1
 from ._weights import check_weights
 
 __all__ = ["ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
@@ -307,15 +307,7 @@ def profile_residual_vector(pred: ProfilePrediction, target: ProfileTarget):
             lr = np.log(np.maximum(pred.params, 1e-300) / np.maximum(target.params, 1e-300))
         add("params", lr / sp)
     if w.get("harmonics", 0) > 0 and target.peak is not None:
-        sf = target.sigma_frequency or spec.sigma_frequency
-        if pred.centroid is None or not np.isfinite(pred.centroid):
-            df = 1.0 / sf
-        else:
-            df = (pred.centroid / target.centroid - 1.0) / sf
-        sa = target.sigma_amplitudes
-        if sa is None:
-            sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
-        add("harmonics", np.concatenate([[df], (pred.amplitudes - target.amplitudes) / sa]))
+        add("harmonics", harmonic_residuals(target, pred, spec))
     if not ds:
         return np.zeros(1), np.zeros(1), terms
     return np.concatenate(ds), np.concatenate(As), terms
