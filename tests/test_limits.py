@@ -5,6 +5,7 @@ change it, readers that check declared sizes before loading, and renderer limits
 from __future__ import annotations
 
 import io
+import os
 import re
 import struct
 import tracemalloc
@@ -549,3 +550,17 @@ def test_a_map_too_big_to_analyse_is_refused_before_it_is_read(tmp_path, monkeyp
     _, peak = _traced(lambda: pytest.raises(MemoryBudgetError, read_surface, tmp_path / "m.npy",
                                             bytes_per_value=per_point))
     assert peak < 2 ** 20
+
+
+def test_usable_cpus_follows_the_cpu_affinity():
+    """Threads are sized by the CPUs the process may run on (``taskset``, a batch
+    scheduler's CPU set), not by the machine's count."""
+    from render_inspect.core.limits import usable_cpus
+
+    cpus = os.sched_getaffinity(0)
+    assert usable_cpus() == len(cpus)
+    try:
+        os.sched_setaffinity(0, {min(cpus)})
+        assert usable_cpus() == 1
+    finally:
+        os.sched_setaffinity(0, cpus)

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import threading
 import time
 from dataclasses import dataclass, field
@@ -27,6 +26,7 @@ import numpy as np
 
 from ..core import cancel
 from ..core.errors import InputError
+from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
@@ -162,7 +162,7 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
     with Callback(posttask=posttask):
         try:
             return list(dask.compute(*tasks, scheduler="threads",
-                                     num_workers=workers or os.cpu_count() or 1))
+                                     num_workers=workers or usable_cpus()))
         except BaseException:
             # a stop (or a failed tile) ends the main thread's wait at once, but the pool's
             # threads finish the tiles they run, writing into the store: wait for them, so

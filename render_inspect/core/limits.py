@@ -23,7 +23,7 @@ __all__ = ["available_memory", "default_budget", "memory_budget", "check_memory"
            "fit_value", "format_bytes", "format_number", "AUTO_FRACTION", "Driver",
            "PIXEL_RANGE_MM", "MAX_FIELD_MM", "MAX_ABS_MM", "MOSTLY_EMPTY_FRACTION",
            "mostly_empty_warning", "address_space_limit", "address_space_used",
-           "address_space_room", "check_address_space", "mitsuba_address_space",
+           "address_space_room", "check_address_space", "mitsuba_address_space", "usable_cpus",
            "ADDRESS_SPACE_HEADROOM", "MITSUBA_ADDRESS_SPACE", "MITSUBA_ADDRESS_SPACE_PER_THREAD"]
 
 #: share of the available memory a command may use when the scene sets no budget
@@ -180,6 +180,16 @@ def memory_budget(max_memory_gb: float | None = None) -> tuple[int, str]:
                    f"(ulimit -v unlimited) or set simulation.max_memory_gb lower")
     return b, (f"{AUTO_FRACTION:.0%} of the memory available now, {format_bytes(b / AUTO_FRACTION)}; "
                f"set simulation.max_memory_gb to choose")
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on: its CPU affinity where the system reports one
+    (``taskset``, a batch scheduler's CPU set), else the machine's CPU count.  Threads
+    beyond it only share the same cores and add memory."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def mitsuba_address_space(threads: int | None = None) -> int:

@@ -101,9 +101,12 @@ def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: in
 
     Measured (tests/test_memory_estimate.py): ``simulate --tiled`` of the shipped
     sinusoidal grid (a lathe, aluminium 6082 with its burrs), 1001^2 and 2001^2 samples
-    in tiles of 256 pixels, two in flight: peak resident set 122 and 197 MB above the
-    warmed-up process, against estimates of 166 and 232 MB (with the machine model's
-    share, :meth:`~render_inspect.processes.TiledTurningProcess.tiled_memory`).  The estimate
+    in tiles of 256 pixels, one in flight (the process bound to one CPU): peak resident
+    set 111 and 178 MB above the warmed-up process, against estimates of 109 and 163 MB
+    (with the machine model's share,
+    :meth:`~render_inspect.processes.TiledTurningProcess.tiled_memory`).  With two in
+    flight the peak depends on whether the tiles overlap in time: 90-122 MB measured at
+    1001^2 samples against the 166 MB of two at once.  The estimate
     had been 353 and 451 MB (2.2-3.0 x): the burr block counted wider than the grid and
     with the halo of uncut pixels the region did not have, the machine model's
     following counted as held beside the tiles."""

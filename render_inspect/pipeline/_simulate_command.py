@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import numpy as np
 from ..batch import cluster_info, run_tiles, tile_client
 from ..core.errors import InputError
 from ..core.grid import grid_shape
-from ..core.limits import Driver, format_number, memory_budget
+from ..core.limits import Driver, format_number, memory_budget, usable_cpus
 from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
@@ -166,8 +165,10 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)
-    # a LocalCluster has at most one worker per core (batch.plan_workers)
-    in_flight = 1 if scheduler else min(workers or os.cpu_count() or 1, os.cpu_count() or 1)
+    # a LocalCluster has at most one worker per core (batch.plan_workers); threads: one
+    # per CPU this process may use
+    cpus = usable_cpus()
+    in_flight = 1 if scheduler else min(workers or cpus, cpus)
     # the whole program is planned in memory: its points against the budget first
     process.precheck(cfg, tuple(sim.region))
     extra, n_est = process.tiled_memory(cfg)
@@ -242,7 +243,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                             "scheduler": scheduler or ("LocalCluster" if workers else
                                                        "client" if client else "threads"),
                             "workers": (cluster_info(client)["workers"] if client else
-                                        os.cpu_count()),
+                                        cpus),
                             "memory_estimate_bytes": est}
         lo, hi, counts = stats.histogram
         set_store_attrs(store, residual_histogram={"lo_mm": lo, "hi_mm": hi,
