@@ -107,7 +107,8 @@ WEAR_RATES = {
 
 
 #: what the sources searched for this model give on diamond wear (docs/machine_and_material.md,
-#: "Tool wear along the cut"): none gives a rate per cutting distance on a material preset
+#: "Tool wear along the cut", lists the search): none reachable gives a rate per cutting
+#: distance, or a wear land or edge radius after a stated distance, on a material preset
 SOURCES = {
     "evans1991": "C. Evans, Cryogenic diamond turning of stainless steel, CIRP Annals (1991): "
                  "diamond wear on ferrous metals is extremely rapid, by fracture and chemical "
@@ -136,6 +137,36 @@ SOURCES = {
                  "(the tool is not named in the abstract): ultrasonic vibration at 13 um, "
                  "180 mm/s, 0.09 mm/rev reduced the maximum flank wear by 30.3 % (1-D) and "
                  "54.3 % (elliptical), 39.3 % at 5 um (elliptical)",
+    "lane2010": "B. M. Lane, M. Shi, T. A. Dow, R. Scattergood, Diamond tool wear when machining "
+                "Al6061 and 1215 steel, Wear 268 (2010) 1434-1441, doi:10.1016/j.wear.2010.02.019 "
+                "(abstract): the edge radius and the wear land were measured against the cutting "
+                "distance in orthogonal cutting of 6061 aluminium (abrasive wear) and 1215 steel "
+                "(abrasive plus chemical wear); the numbers are in the paper's figures, not in "
+                "the abstract, and the text was not reachable: the one source found that would "
+                "calibrate al6061 and the chemical rate",
+    "al_mirror1985": "Research on diamond turning of large optical metal mirrors: characteristics "
+                     "of single crystal diamond tools (1985, abstract): aluminium alloy, 2 mm and "
+                     "10 mm nose radius; the thrust force rises as the edge blunts, and the "
+                     "roughness is 'still good even after the cutting distance has reached "
+                     "900 km'; no wear width or edge radius given",
+    "al_mg_jspe": "J. JSPE 55(9), natural diamonds of five colours turning an Al-Mg alloy "
+                 "(abstract): 'the tool wear increases with cutting distance'; the wear rates of "
+                 "brown and yellow tools are 'almost same in the stationary state after some "
+                 "primary tool wear' (the steady-state linear law of this model, the running-in "
+                 "left out); no rate given",
+    "rsa905": "K. Abou-El-Hossein, O. Olufayo, Z. Mkoko, Diamond tool wear during ultra-high "
+              "precision machining of rapidly solidified aluminium RSA 905 (2013; a fine-grained "
+              "6061) at 2000 rpm and 25 um "
+              "depth (abstract): 'tool wear is absolutely low even after relatively high "
+              "cutting distances', most intensive at the middle feed; no number in the abstract",
+    "nitrided_steel": "Tool wear study in diamond turning of steels, J. Vac. Sci. Technol. B "
+                      "27(3) (2009) 1335 (abstract): nitriding the steel reduced the tool wear "
+                      "'by two to three orders of magnitudes', Ra 4.2-20 nm; a ratio against "
+                      "untreated steel, not a rate",
+    "henry2002": "S. W. Henry, Instrumentation for tool wear evaluation, MS thesis, Pennsylvania "
+                 "State University (2002): two stylus instruments that profile the edge of a "
+                 "round-nosed diamond tool before and after machining; only the title pages "
+                 "and the start of the abstract were reachable, no wear numbers",
 }
 
 
