@@ -52,13 +52,7 @@ MAX_LINES = 600
 #: modules allowed over MAX_LINES, each with the reason
 OVERSIZED: dict[str, str] = {}
 #: import cycles allowed, each a set of modules with the reason
-CYCLES = {
-    frozenset({"render_inspect.scene", "render_inspect.scene._variants"}):
-        "the package builds the Scene model from the registries, and the compared variants "
-        "are scenes made with its scene_from_dict and apply_overrides; it goes when the "
-        "model moves into a module of its own, once the changes under way to loading and "
-        "its messages have landed",
-}
+CYCLES: dict[frozenset, str] = {}
 ADDON = PKG.parent / "blender_addon"
 
 

@@ -11,7 +11,7 @@ import tomllib
 
 from ..core.errors import InputError
 from ..processes import Variant, VariantPair, process_of
-from . import apply_overrides, scene_from_dict
+from ._schema import apply_overrides, scene_from_dict
 
 __all__ = ["parse_vary", "compare_pair", "variant_scene", "compare_variants"]
 
