@@ -73,6 +73,8 @@ FEED_PER_REV_MM = 0.01
 PEER_R_FLY_NM = 60e6
 PEER_FEED_X_NM = 70e3
 PEER_STOCK_NM = 100.0
+#: the target: toolpath + simulate at least this many times the peer's samples/s
+TARGET_RATIO = 30.0
 PEER_EXAMPLE = {"width_nm": 0.334833e6, "height_nm": 0.334618e6, "r_eps_nm": 0.762e6,
                 "raster_nm": 8e3}
 
@@ -295,7 +297,11 @@ def main(peer: str | None = None) -> dict:
                 "kernel_vs_peer_example": _ratio(row["ours_kernel"]["kernel_Msamples_per_s"],
                                                  pe["surface_Msamples_per_s"]),
             }
-            print(name, "ratios", json.dumps(row["ratios"]), flush=True)
+            r = row["ratios"]
+            r["target_toolpath_simulate"] = TARGET_RATIO
+            r["target_met_matched"] = r["toolpath_simulate_vs_peer_matched"] >= TARGET_RATIO
+            r["target_met_example"] = r["toolpath_simulate_vs_peer_example"] >= TARGET_RATIO
+            print(name, "ratios", json.dumps(r), flush=True)
             res[name] = row
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
