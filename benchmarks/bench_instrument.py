@@ -9,19 +9,31 @@ Figures (printed and returned by :func:`main`):
   (the ray tracer's output, the sub-sampled heights and normals, is given);
 * ``csi_1024x256_20x``: the same surface as a 256-frame CSI stack (600 nm / 120 nm LED);
 * ``measure_*``: height from those frames (PSI 5-step + unwrapping; CSI envelope);
-* the process's peak resident memory.
+* the process's peak resident memory;
+* ``command``: the command a user runs, ``render-inspect render sts_sinusoidal_grid
+  --kind interferometer`` (the 20x preset's 1024 x 1024 camera pixels over the scene's
+  1 x 1 mm part), PSI and CSI, on the design surface and on the machined one, each a fresh
+  process: wall and CPU time of the whole command (start-up, the height map, the ray
+  tracing, the imaging model and the files) and the steps of ``render_metrics.json``
+  (``timing_s``).  ``BENCH_INSTRUMENT_COMMAND=0`` leaves these out.
 
-Targets (2-core machine): PSI < 10 s, CSI < 60 s.  Run:
-``.venv/bin/python benchmarks/bench_instrument.py`` (or ``make bench ONLY=instrument``).
+Targets (a quiet 2-core machine), command wall time: PSI 1024^2 under 5 s, CSI 1024^2
+under 30 s.  Run: ``.venv/bin/python benchmarks/bench_instrument.py`` (or
+``make bench ONLY=instrument``).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import resource
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -44,6 +56,57 @@ def _surface(n, pixel, s):
 
 def _rss_mib():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _child_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run_render_command(out: Path, mode: str, surface: str) -> dict:
+    """``render-inspect render sts_sinusoidal_grid --kind interferometer`` in a fresh
+    process (``mode`` PSI or CSI, ``surface`` design or machined): the command's wall and
+    CPU time, its steps (``timing_s``) and what it imaged."""
+    args = [sys.executable, "-m", "render_inspect.cli", "render", "sts_sinusoidal_grid",
+            "--kind", "interferometer", "--surface", surface, "--out", str(out), "--overwrite",
+            "-q", "--set", f"render.interferometer.mode={mode!r}".replace("'", '"')]
+    repo = Path(__file__).resolve().parents[1]
+    load0 = os.getloadavg()[0]
+    c0, t0 = _child_cpu(), time.perf_counter()
+    p = subprocess.run(args, capture_output=True, text=True, cwd=out.parent,
+                       env={**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", str(repo))})
+    wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
+    if p.returncode != 0:
+        raise RuntimeError(f"render failed:\n{p.stderr[-3000:]}")
+    r = json.loads((out / "render_metrics.json").read_text())["render"]
+    ig = r["interferometer"]
+    return {"mode": mode, "surface": surface, "command_wall_s": round(wall, 2),
+            "command_cpu_s": round(cpu, 2),
+            "steps_s": {k: round(v, 2) for k, v in r["timing_s"].items()},
+            "shape": ig.get("shape"), "frames": ig.get("frames"),
+            "subsamples": ig.get("subsamples"),
+            "load_average": [round(load0, 2), round(os.getloadavg()[0], 2)]}
+
+
+def command(repeats: int = 1) -> dict:
+    """:func:`run_render_command` for PSI and CSI on the design and the machined surface,
+    one process at a time, the best of ``repeats`` (by CPU time)."""
+    res = {}
+    tmp = Path(tempfile.mkdtemp(prefix="bench_instrument_"))
+    try:
+        for surface in ("design", "machined"):
+            for mode in ("psi", "csi"):
+                runs = []
+                for _ in range(max(1, repeats)):
+                    runs.append(run_render_command(tmp / "out", mode, surface))
+                    shutil.rmtree(tmp / "out", ignore_errors=True)
+                    print(json.dumps(runs[-1]), flush=True)
+                best = min(runs, key=lambda r: r["command_cpu_s"])
+                best["runs_wall_s"] = [r["command_wall_s"] for r in runs]
+                res[f"{mode}_{surface}"] = best
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return res
 
 
 def main(n: int = 1024, frames: int = 256) -> dict:
@@ -89,6 +152,8 @@ def main(n: int = 1024, frames: int = 256) -> dict:
                                  "valid_fraction": round(float(m.valid.mean()), 4)}
         del fr, m
     out["max_rss_MiB"] = round(_rss_mib(), 1)
+    if os.environ.get("BENCH_INSTRUMENT_COMMAND", "1") != "0":
+        out["command"] = command(int(os.environ.get("BENCH_REPEATS", "1")))
     print(json.dumps(out, indent=2))
     return out
 

@@ -1,5 +1,10 @@
 """Run every benchmarks/bench_*.py (their ``main()``), print the figures and write them to
-docs/benchmarks.json.  ``make bench`` runs this; ``make bench ONLY=sts`` runs one."""
+docs/benchmarks.json.  ``make bench`` runs this; ``make bench ONLY=sts`` runs one.
+
+``bench_peer.py`` compares against the open simulator PySurfSim, which is not part of this
+repository: it runs only when ``RENDER_INSPECT_PEER`` names a folder holding a copy
+(``make bench ONLY=peer RENDER_INSPECT_PEER=/path/to/copy``) and otherwise says so in one
+line and records ``{"skipped": ...}``."""
 
 from __future__ import annotations
 

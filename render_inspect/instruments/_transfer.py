@@ -295,13 +295,23 @@ def transfer_function(na: float, na_ill: float, obscuration: float, source, *, d
     du = u[1] - u[0]
     table = np.zeros((nb, n_q))
     cols = np.arange(kappa.size)
+    # G interpolated along u for each |Q| (rows), in buffers reused for every wavelength:
+    # the same products and sum as the array expression, without its fresh temporaries
+    gu = np.empty((n_q, kappa.size))
+    lo_part = np.empty((n_q, kappa.size))
     for kj, wj in zip(k, w):
         pos_u = q / kj / du
         i0 = np.floor(pos_u).astype(np.int64)
         inside = i0 < u.size - 1
         f = (pos_u - i0)[inside]
-        gu = np.zeros((n_q, kappa.size))
-        gu[inside] = G[i0[inside]] * (1 - f)[:, None] + G[i0[inside] + 1] * f[:, None]
+        m = int(np.count_nonzero(inside))  # q rises: the rows inside come first
+        i_in = i0[:m]
+        np.take(G, i_in, axis=0, out=lo_part[:m])
+        np.multiply(lo_part[:m], (1 - f)[:, None], out=lo_part[:m])
+        np.take(G, i_in + 1, axis=0, out=gu[:m])
+        np.multiply(gu[:m], f[:, None], out=gu[:m])
+        np.add(lo_part[:m], gu[:m], out=gu[:m])
+        gu[m:] = 0.0
         pos_k = (kj * kappa - K_lo) / dK
         b0 = np.clip(np.floor(pos_k).astype(np.int64), 0, nb - 2)
         t = np.clip(pos_k - b0, 0.0, 1.0)
