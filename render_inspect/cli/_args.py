@@ -44,6 +44,13 @@ def _render_kinds() -> tuple:
     return render_kinds()
 
 
+def _objective_names() -> list:
+    # the registered objective presets (the instruments are imported lazily, as above)
+    from ..instruments import objective_names
+
+    return objective_names()
+
+
 def _program_formats() -> list:
     # the formats the io registry writes machine programs in (imported lazily, as above)
     from ..pipeline import program_formats
