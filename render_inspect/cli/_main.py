@@ -120,6 +120,8 @@ class _StderrHandler(logging.StreamHandler):
 
 
 def main(argv=None) -> int:
+    """The ``render-inspect`` command: run the command line ``argv`` (default: the
+    program's arguments); return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     _setup_logging(args)

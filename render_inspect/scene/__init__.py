@@ -240,6 +240,8 @@ def _union_tags() -> set:
 
 
 def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
+    """Validate a scene given as a dictionary (the tables of a scene file); ``source`` names
+    it in the messages."""
     if not isinstance(data, dict):
         raise SceneError(f"invalid scene {source}: expected a table of sections, received "
                          f"{type(data).__name__}")
