@@ -344,4 +344,4 @@ def test_a_new_objective_is_one_file(package, tmp_path):
     r = _run(package, "fit", str(tmp_path / "nope.exr"), "--scene", "sts_sinusoidal_grid",
              "--free", "tool.nose_radius", "--objective", "40x", "--out", str(tmp_path / "f"),
              cwd=tmp_path)
-    assert r.returncode == 1 and "nope.exr" in r.stderr and "objective" not in r.stderr
+    assert r.returncode == 1 and "nope.exr" in r.stderr and "invalid choice" not in r.stderr
