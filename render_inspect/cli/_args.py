@@ -45,8 +45,9 @@ def _render_kinds() -> tuple:
 
 
 def _objective_names() -> list:
-    # the registered objective presets (the instruments are imported lazily, as above)
-    from ..instruments import objective_names
+    # the registered objective presets, which render.interferometer.objective takes (the
+    # scene is imported lazily, as above)
+    from ..scene import objective_names
 
     return objective_names()
 

@@ -32,7 +32,7 @@ from ..core.messages import NUMERIC_ERRORS, shown, validation_line
 from ..core.units import MIB_TO_BYTES
 from ..core.section import Section
 from ..design import DesignConfig, design_types
-from ..instruments import InterferometerConfig
+from ..instruments import InterferometerConfig, objective_names
 from ..processes import (BurrConfig, MachineConfig, MaterialConfig, ProcessConfig, RcseConfig,
                          StsProcessConfig, VibrationConfig, migrate_scene, process_kinds)
 from ..processes import scene_sections as registered_sections
@@ -47,7 +47,8 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
-           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings"]
+           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings",
+           "objective_names"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
