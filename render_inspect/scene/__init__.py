@@ -22,7 +22,7 @@ import tomllib
 import typing
 from importlib import resources
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
@@ -57,7 +57,8 @@ RenderConfig = render_config_class()
 def _registered() -> tuple[dict, dict]:
     """(top-level section -> class, table -> {section -> class}) of the registered
     sections (``"artifacts.burrs"`` goes into the ``artifacts`` table)."""
-    top, tables = {}, {}
+    top: dict[str, type] = {}
+    tables: dict[str, dict[str, type]] = {}
     for path, cls in registered_sections().items():
         if "." in path:
             table, name = path.split(".")
@@ -70,7 +71,8 @@ def _registered() -> tuple[dict, dict]:
 _TOP, _TABLES = _registered()
 #: tables of registered sections (``[artifacts]``: process errors added to the ideal cut)
 _TABLE_CLASSES = {
-    table: create_model(f"{table.capitalize()}Config", __base__=Section,
+    # (the schema is assembled from the registries at import: mypy cannot follow it)
+    table: create_model(f"{table.capitalize()}Config", __base__=Section,  # type: ignore[call-overload]
                         __doc__=f"``[{table}]``: " + ", ".join(f"``[{table}.{n}]``" for n in members),
                         **{n: (c, Field(default_factory=c)) for n, c in members.items()})
     for table, members in _TABLES.items()}
@@ -88,7 +90,7 @@ class _SceneBase(Section):
     tool: ToolConfig = Field(default_factory=ToolConfig)
     process: ProcessConfig = Field(default_factory=StsProcessConfig)
     simulation: SimulationConfig = Field(default_factory=SimulationConfig)
-    render: RenderConfig = Field(default_factory=RenderConfig)
+    render: RenderConfig = Field(default_factory=RenderConfig)  # type: ignore[valid-type]
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
 
     @model_validator(mode="before")
@@ -118,7 +120,7 @@ class _SceneBase(Section):
 
 #: the scene schema: the sections above, the tables of registered sections and the
 #: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
-Scene = create_model(
+Scene = create_model(  # type: ignore[call-overload]  # (assembled from the registries)
     "Scene", __base__=_SceneBase, __doc__=_SceneBase.__doc__,
     **{t: (c, Field(default_factory=c)) for t, c in _TABLE_CLASSES.items()},
     **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
@@ -137,6 +139,8 @@ def _union_classes() -> dict:
 def _expected(loc) -> str | None:
     """What a scene key accepts, e.g. "a number in (0, 20000]", from the schema."""
     unions = _union_classes()
+    model: type[BaseModel] | None
+    meta: list[Any]
     model, ann, meta = Scene, None, []
     for part in loc:
         if isinstance(part, str) and part in unions and ann is not None:
@@ -211,7 +215,8 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
     accepts, the value received.  The values missing from an array of fixed length are
     said once ("must hold 4 values")."""
     tags = _union_tags()
-    lines, short = [], {}
+    lines: list[str] = []
+    short: dict[str, tuple[int, Any]] = {}
     for e in err.errors():
         loc = tuple(p for p in e["loc"] if not (isinstance(p, str) and p in tags))
         if e["type"] == "missing" and loc and isinstance(loc[-1], int):
@@ -263,6 +268,7 @@ def _depth(data) -> int:
     """Nesting depth of dicts and lists in ``data`` (iterative: safe on any depth)."""
     deepest = 0
     stack = [(data, 1)]
+    children: Iterable[Any]
     while stack:
         node, d = stack.pop()
         if isinstance(node, dict):
@@ -353,7 +359,8 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
         items.append(item)
     data = {"design": {"type": "plane"},
             "render": {"interferometer": {"objective": objective, "mode": mode}}}
-    return scene_from_dict(apply_overrides(data, items), "(characterise)").render.interferometer
+    scene = scene_from_dict(apply_overrides(data, items), "(characterise)")
+    return scene.render.interferometer  # type: ignore[attr-defined]  # (a registered section)
 
 
 def shipped_scenes() -> dict[str, Path]:
