@@ -2,7 +2,8 @@
 --kind`` takes a newly registered instrument (and refuses it before it is registered), and
 ``fit`` images through the registered instrument that records interferometer frames,
 under that instrument's own scene section (the sweep file's ``[run] render``:
-tests/test_sweep_render_kinds.py)."""
+tests/test_sweep_render_kinds.py); the objective presets that ``characterise``, ``fit`` and
+``render.interferometer.objective`` take come from the objective registry."""
 
 from __future__ import annotations
 

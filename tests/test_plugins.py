@@ -1,5 +1,5 @@
 """The registry helper every registry of named scene variants is built on (design types,
-process kinds)."""
+process kinds, objective presets)."""
 
 from typing import Literal
 
