@@ -2,7 +2,8 @@
 written into it as the one new file the page says, exactly as printed there, and the
 commands the page names run on it in a fresh interpreter (a new design type, a new
 process kind through ``simulate``, ``toolpath`` and ``compare``, a new instrument through
-``render --kind``, a new program format through ``toolpath --format``, a new reader of
+``render --kind``, a new objective preset through the scene and ``--objective``, a new
+program format through ``toolpath --format``, a new reader of
 measured files through ``analyze``, a new figure kind through ``draw_figure``)."""
 
 from __future__ import annotations
@@ -136,8 +137,9 @@ def _run(package: Path, *args, cwd: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, cwd=cwd, env=env)
 
 
-def test_the_page_has_the_six_examples():
+def test_the_page_has_the_seven_examples():
     assert sorted(examples()) == ["render_inspect/design/_saddle.py",
+                                  "render_inspect/instruments/_objective_40x.py",
                                   "render_inspect/instruments/_stylus.py",
                                   "render_inspect/io/_asc.py",
                                   "render_inspect/io/_xyz.py",
@@ -299,3 +301,47 @@ def test_a_new_instrument_joins_every_render_run(package, tmp_path):
     assert r.returncode == 0, r.stderr
     kinds, joined = (part.split(",") for part in r.stdout.split())
     assert "stylus" in kinds and {"stylus", "interferometer"} <= set(joined)
+
+
+_NEW_OBJECTIVE = """
+import json
+
+import numpy as np
+
+from render_inspect.instruments import interferometer_geometry, microscope_from_config, objective_names
+from render_inspect.machining import HeightMap
+from render_inspect.scene import scene_from_dict
+
+scene = scene_from_dict({"design": {"type": "plane"},
+                         "render": {"interferometer": {"objective": "40x", "noise": False}}})
+cfg = scene.render.interferometer
+z = np.zeros((1001, 1001))
+geo = interferometer_geometry(HeightMap(z, z.copy(), 0.001, (0.0, 0.0)), cfg)
+print(json.dumps({"names": objective_names(), "pixel": geo["pixel"], "nx": geo["nx"],
+                  "ny": geo["ny"], "na": geo["numerical_aperture"],
+                  "slope_limit": microscope_from_config(cfg).objective.slope_limit}))
+"""
+
+
+@pytest.mark.slow
+def test_a_new_objective_is_one_file(package, tmp_path):
+    """The 40x preset of the page: a scene takes it, and imaging a 1 mm map with it gives
+    its 0.45 mm field of 1024 pixels of 0.45 mm / 1024 at NA 0.6 (slope limit asin 0.6);
+    the command line lists it among --objective's choices and takes it."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(package)
+    r = subprocess.run([sys.executable, "-c", _NEW_OBJECTIVE], capture_output=True, text=True,
+                       cwd=tmp_path, env=env)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout)
+    assert got["names"] == ["2.5x", "5x", "10x", "20x", "40x", "50x", "100x"]
+    assert got["pixel"] == pytest.approx(0.45 / 1024) and got["nx"] == got["ny"] == 1024
+    assert got["na"] == 0.6 and got["slope_limit"] == pytest.approx(np.arcsin(0.6))
+    r = _run(package, "characterise", "--objective", "nope", "--out", str(tmp_path / "c"),
+             cwd=tmp_path)
+    assert r.returncode == 2 and "'40x'" in r.stderr and "--objective" in r.stderr
+    # fit takes 40x: what it refuses next is the missing measured file
+    r = _run(package, "fit", str(tmp_path / "nope.exr"), "--scene", "sts_sinusoidal_grid",
+             "--free", "tool.nose_radius", "--objective", "40x", "--out", str(tmp_path / "f"),
+             cwd=tmp_path)
+    assert r.returncode == 1 and "nope.exr" in r.stderr and "invalid choice" not in r.stderr

@@ -1060,7 +1060,7 @@ def _every_command_cases(tmp: Path) -> list[tuple[list, str, int]]:
         (["analyze", tmp / "a_file", "--filter", "a,b"], "--filter", 1),
         (["measure", tmp / "nope.exr"], "nope.exr", 1),
         (["measure", tmp / "a_file", "--min-modulation", "5"], "a_file", 1),
-        (["characterise", "--objective", "7x"], "7x", 1),
+        (["characterise", "--objective", "7x"], "7x", 2),
         (["characterise", "--set", "numerical_aperture=3"], "numerical_aperture", 1),
         (["sweep", tmp / "bin.toml"], "bin.toml", 1),
         (["sweep", sweep], "run.render", 1),

@@ -2,7 +2,8 @@
 --kind`` takes a newly registered instrument (and refuses it before it is registered), and
 ``fit`` images through the registered instrument that records interferometer frames,
 under that instrument's own scene section (the sweep file's ``[run] render``:
-tests/test_sweep_render_kinds.py)."""
+tests/test_sweep_render_kinds.py); the objective presets that ``characterise``, ``fit`` and
+``render.interferometer.objective`` take come from the objective registry."""
 
 from __future__ import annotations
 
@@ -68,3 +69,50 @@ def test_fit_evaluations_use_the_registered_frames_instrument(monkeypatch):
     assert task["scene"]["render"] == {"probe": {"objective": "20x", "noise": False}}
     drawn = _model().draw({}, 1)
     assert drawn["scene"]["render"] == {"probe": {"objective": "20x", "noise": True}}
+
+
+# ------------------------------------------------------------------ objectives
+def _characterise_args(name):
+    return build_parser().parse_args(["characterise", "--objective", name, "--out", "x"])
+
+
+def test_a_registered_objective_is_a_choice_of_the_scene_and_the_command_line(monkeypatch, capsys):
+    """A 40x preset (NA 0.6, 0.45 mm field on 1024 pixels) registered here: characterise
+    and fit take it on the command line (and refused it before), the scene takes it, and
+    the interferometer images with its numbers; the registry is restored afterwards."""
+    from render_inspect.instruments import (OBJECTIVES, Objective, objective, objective_names,
+                                            register_objective)
+    from render_inspect.instruments import _objectives
+    from render_inspect.scene import instrument_config
+
+    with pytest.raises(SystemExit) as err:
+        _characterise_args("40x")
+    assert err.value.code == 2 and "invalid choice: '40x'" in capsys.readouterr().err
+    monkeypatch.setitem(_objectives._OBJECTIVES._entries, "40x", None)  # undone after
+    o = register_objective(Objective("40x", magnification=40.0, numerical_aperture=0.6,
+                                     pixel=0.45 / 1024, field_of_view=0.45, design="mirau"))
+    assert OBJECTIVES["40x"] is o  # the read-only view follows the registry
+    assert objective_names() == ["2.5x", "5x", "10x", "20x", "40x", "50x", "100x"]
+    assert _characterise_args("40x").objective == "40x"
+    fit = build_parser().parse_args(["fit", "m.exr", "--scene", "s", "--free", "tool.nose_radius",
+                                     "--out", "x", "--objective", "40x"])
+    assert fit.objective == "40x"
+    cfg = instrument_config("40x")
+    assert cfg.objective == "40x"
+    assert objective("40x", numerical_aperture=0.5).numerical_aperture == 0.5
+    # the preset's NA bounds the condenser's, as the built-in presets' do
+    with pytest.raises(Exception, match="illumination_na"):
+        instrument_config("40x", overrides=["illumination_na=0.65"])
+
+
+def test_an_objective_preset_is_checked_when_registered():
+    from render_inspect.errors import InputError
+    from render_inspect.instruments import OBJECTIVES, Objective, register_objective
+
+    with pytest.raises(InputError, match="numerical_aperture"):
+        register_objective(Objective("bad", 10.0, 1.2, 0.001, 1.0))
+    with pytest.raises(InputError, match="design"):
+        register_objective(Objective("bad", 10.0, 0.3, 0.001, 1.0, design="fizeau"))
+    with pytest.raises(InputError, match="must be an Objective"):
+        register_objective({"name": "bad"})
+    assert "bad" not in OBJECTIVES and "40x" not in OBJECTIVES  # (the test above undone)

@@ -1,5 +1,5 @@
 """The registry helper every registry of named scene variants is built on (design types,
-process kinds)."""
+process kinds, objective presets)."""
 
 from typing import Literal
 
@@ -57,3 +57,13 @@ def test_the_design_and_process_registries_use_it():
     from render_inspect.processes._registry import _PROCESSES
 
     assert isinstance(_DESIGNS, Registry) and isinstance(_PROCESSES, Registry)
+
+
+def test_the_view_is_read_only_and_follows_registrations():
+    reg = Registry("thing.kind")
+    view = reg.view()
+    assert dict(view) == {}
+    a = reg.add(["a"], _Entry(_A))
+    assert dict(view) == {"a": a} and view["a"] is a
+    with pytest.raises(TypeError):
+        view["b"] = a

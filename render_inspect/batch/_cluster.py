@@ -460,7 +460,7 @@ def _local_cluster(n: int, threads: int, *, memory_limit: int, wait: bool, cappe
         try:
             client.register_plugin(_plugin())
             cluster.scale(n)
-            client.expected_workers = n
+            client.expected_workers = n  # type: ignore[attr-defined]  # (read by wait_for_workers)
             _INFO[client] = {"kind": "local", "workers": n, "threads": threads,
                              "dashboard": dashboard_text(client),
                              "address": cluster.scheduler_address, "capped": list(capped),
@@ -526,7 +526,7 @@ def dask_client(*, client=None, scheduler: str | None = None, workers: int | Non
         try:
             from distributed import Client
         except ImportError:  # pragma: no cover - distributed is a dependency
-            Client = ()
+            Client = ()  # type: ignore[misc, assignment]
         if not isinstance(client, Client):
             raise InputError(f"client must be a distributed.Client, got {type(client).__name__}")
     if client is None and scheduler is None and workers is None and use_open_client:

@@ -44,6 +44,7 @@ References
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -199,7 +200,7 @@ def morris_indices(cfg: MorrisConfig, lookup) -> dict:
     r, n, k = unit.shape
     results = [[lookup(p) for p in traj] for traj in design]
     complete = sum(all(x is not None for x in traj) for traj in results)
-    out = {"factors": [f.model_dump() for f in cfg.factor], "trajectories": r,
+    out: dict[str, Any] = {"factors": [f.model_dump() for f in cfg.factor], "trajectories": r,
            "levels": cfg.levels, "delta": cfg.delta, "seed": cfg.seed, "complete": complete,
            "indices": {}, "ranking": {}}
     for name in cfg.outputs:

@@ -116,7 +116,7 @@ def folder_lock(folder):
 
 def flatten(d, prefix: str = "") -> dict:
     """Scalar leaves of nested dicts as ``{"a.b": value}`` (lists are left out)."""
-    out = {}
+    out: dict = {}
     if not isinstance(d, dict):
         return out
     for k, v in d.items():

@@ -21,6 +21,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -268,7 +269,7 @@ def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: i
     if levels > tile_levels:
         import zarr
 
-        group = zarr.open_group(store, mode="r+")
+        group: Any = zarr.open_group(store, mode="r+")  # (its members are the store's arrays)
         f0 = 1 << tile_levels
         for name in CHANNELS:
             shp = (-(-shape[0] // f0), -(-shape[1] // f0))

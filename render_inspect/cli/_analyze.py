@@ -3,7 +3,7 @@ height from interferometer frames, and the virtual instrument's own characterist
 
 from __future__ import annotations
 
-from ._args import _add_out_args, _add_set_arg, _add_verbosity
+from ._args import _add_out_args, _add_set_arg, _add_verbosity, _objective_names, _Registered
 
 
 def add_parsers(sub) -> None:
@@ -46,7 +46,9 @@ def add_parsers(sub) -> None:
 
     p = sub.add_parser("characterise", help="the virtual instrument's transfer function, step "
                                             "response, slope limit and noise (ISO 25178-600 style)")
-    p.add_argument("--objective", default="20x", help="objective preset (2.5x, 5x, 10x, 20x, 50x, 100x)")
+    p.add_argument("--objective", default="20x", choices=_Registered(_objective_names),
+                   metavar="NAME", help="objective preset, a registered one: %(choices)s "
+                                        "(default 20x)")
     _add_out_args(p)
     p.add_argument("--mode", choices=["psi", "csi"], default="psi")
     _add_set_arg(p, help="override an instrument key of [render.interferometer], e.g. "

@@ -44,6 +44,14 @@ def _render_kinds() -> tuple:
     return render_kinds()
 
 
+def _objective_names() -> list:
+    # the registered objective presets, which render.interferometer.objective takes (the
+    # scene is imported lazily, as above)
+    from ..scene import objective_names
+
+    return objective_names()
+
+
 def _program_formats() -> list:
     # the formats the io registry writes machine programs in (imported lazily, as above)
     from ..pipeline import program_formats

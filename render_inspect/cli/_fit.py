@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
-                    scene_overrides)
+                    _objective_names, _Registered, scene_overrides)
 
 
 def add_parsers(sub) -> None:
@@ -25,9 +25,11 @@ def add_parsers(sub) -> None:
     _add_out_args(p)
     p.add_argument("--bounds", action="extend", nargs="+", default=[], metavar="KEY=A,B",
                    help="bounds of a free key (default: the schema's range; must lie inside it)")
-    p.add_argument("--objective", default=None,
-                   help="virtual instrument objective when the file names none (default: the "
-                        "scene's render.interferometer.objective)")
+    p.add_argument("--objective", default=None, choices=_Registered(_objective_names),
+                   metavar="NAME",
+                   help="virtual instrument objective when the file names none, a registered "
+                        "preset: %(choices)s (default: the scene's "
+                        "render.interferometer.objective)")
     p.add_argument("--at", default=None, metavar="X,Y|register",
                    help="where the measured field lies: its centre at X,Y mm, or 'register' "
                         "(found on the design); default: the file's origin")

@@ -10,6 +10,7 @@ import signal
 import sys
 import time
 import traceback
+from typing import Any
 
 from .. import __version__, _early_signals
 from ..core import cancel
@@ -68,7 +69,7 @@ def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
     """The interruption behind ``err``: Ctrl-C during a compiled (numba) kernel surfaces
     as a SystemError whose cause or context is the KeyboardInterrupt."""
     seen = set()
-    e = err
+    e: BaseException | None = err
     while e is not None and id(e) not in seen:
         if isinstance(e, KeyboardInterrupt):
             return e
@@ -84,7 +85,7 @@ def _traceback_hint(parser) -> str:
     return "set RENDER_INSPECT_TRACEBACK=1 for the traceback"
 
 
-def _one_line(text: str) -> str:
+def _one_line(text: object) -> str:
     return " ".join(str(text).split()) if "\n" not in str(text) else str(text).rstrip()
 
 
@@ -120,12 +121,14 @@ class _StderrHandler(logging.StreamHandler):
 
 
 def main(argv=None) -> int:
+    """The ``render-inspect`` command: run the command line ``argv`` (default: the
+    program's arguments); return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     _setup_logging(args)
     show_tb = bool(getattr(args, "verbose", 0)) or os.environ.get("RENDER_INSPECT_TRACEBACK", "") \
         not in ("", "0")
-    old_signals = {}
+    old_signals: dict[signal.Signals, Any] = {}
     cancel.clear()
     _early_signals.command(args.command)
     prefix = f"render-inspect {args.command}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 
 def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
@@ -50,6 +51,7 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
     # the pipeline is imported lazily (see _run)
     from ..pipeline import analyze_summary, command_summary, measure_summary
 
+    src: Any  # where the numbers come from: the output folder, or the input file
     if command in ROW_SUMMARIES:
         rows, src = command_summary(command, metrics, out), out
     else:

@@ -52,4 +52,6 @@ def check_range(name: str, value: Any, lo: float | None = None, hi: float | None
 
 
 def check_positive(name: str, value: Any, exc: Callable[[str], Exception] = InputError) -> Any:
+    """Raise ``exc`` naming ``name`` and ``value`` unless ``value`` is a finite number > 0;
+    return ``value``."""
     return check_range(name, value, 0.0, None, lo_open=True, exc=exc)

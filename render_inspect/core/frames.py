@@ -16,6 +16,8 @@ from .units import NM_TO_MM
 
 __all__ = ["Frames", "PHASE_CONVENTION"]
 
+#: How a frame's intensity depends on the height, the phase steps and the scan positions
+#: (recorded with the frames).
 PHASE_CONVENTION = ("I_k = a + b cos(4 pi (h - z_k) / lambda_eff); PSI: z_k = z_ref - "
                     "phase_steps_rad[k] lambda_eff / (4 pi); CSI: z_k = scan_positions_mm[k]")
 

@@ -12,7 +12,7 @@ x1, y1]; received [0, 0, 1]``.  Every error type the library defines has a wordi
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 __all__ = ["validation_line", "shown", "NUMERIC_ERRORS", "LIBRARY_WORDING"]
@@ -129,7 +129,7 @@ def _grammar(msg: str) -> str:
     return msg[:1].lower() + msg[1:] if msg[:1].isupper() and not msg[:2].isupper() else msg
 
 
-def validation_line(e: dict, *, key: str, expected: str | None = None,
+def validation_line(e: Mapping[str, Any], *, key: str, expected: str | None = None,
                     tags: Sequence[str] | None = None) -> tuple[str, str]:
     """``(key, text)`` of one validation error ``e`` in the scene's words: the key it is
     about (``key``, the dotted location; a union's discriminator is added to it) and

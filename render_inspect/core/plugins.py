@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import types
 import typing
-from collections.abc import Container, Iterable, Iterator
+from collections.abc import Container, Iterable, Iterator, Mapping
 from typing import Any, Callable
 
 from .errors import SceneError
@@ -59,6 +60,10 @@ class Registry:
     def entries(self) -> dict:
         """Name -> entry (a copy)."""
         return dict(self._entries)
+
+    def view(self) -> Mapping[str, Any]:
+        """Name -> entry, read only and live: later registrations show in it."""
+        return types.MappingProxyType(self._entries)
 
     def get(self, name: str) -> Any:
         """The entry of ``name``, or None."""

@@ -39,7 +39,7 @@ from ._interferometer_outputs import (interferogram_summary, interferometer_fiel
                                       interferometer_needs, rendered_settings,
                                       write_interferogram_outputs)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
-from ._objectives import OBJECTIVES, Objective, objective
+from ._objectives import OBJECTIVES, Objective, objective, objective_names, register_objective
 from ._registry import (InstrumentType, height_instrument, instrument_types, register_instrument,
                         renderable_instruments)
 from ._sources import Source, led, monochromatic, spectrum_table
@@ -88,10 +88,12 @@ __all__ = [
     "monochromatic",
     "normals_from_heights",
     "objective",
+    "objective_names",
     "psi_frames",
     "read_interferogram_exr",
     "recommended_subsamples",
     "register_instrument",
+    "register_objective",
     "render_interferogram",
     "spectrum_table",
     "trace_heights",

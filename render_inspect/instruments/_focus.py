@@ -73,7 +73,7 @@ def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
     with np.errstate(invalid="ignore", divide="ignore"):
         tan = np.hypot(nrm[..., 0], nrm[..., 1]) / nrm[..., 2]
     k, w = mic.source.sample(dk=mic._dk_fine())
-    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
+    k_hi = float(k[min(int(np.searchsorted(np.cumsum(w), 0.99)), k.size - 1)])
     b = math.ceil(max(hc - 2 * crop, wc - 2 * crop) / AUTOFOCUS_PIXELS)
     b = max(1, min(b, min(hc, wc) // 4))  # a narrow field keeps a few rows
     while True:

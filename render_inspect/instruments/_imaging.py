@@ -214,7 +214,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         fin = np.isfinite(h)
         reached = fin & (cos_t > 0)  # NaN compares False
     k_src, w_src = mic.source.sample(dk=mic._dk_fine())
-    k99 = float(k_src[min(np.searchsorted(np.cumsum(w_src), 0.99), k_src.size - 1)])
+    k99 = float(k_src[min(int(np.searchsorted(np.cumsum(w_src), 0.99)), k_src.size - 1)])
     alpha, frac = acceptance_table(na, na_ill, obs)
     a = pixel / s
     alpha_lim = float(alpha[np.nonzero(frac > 1e-9)[0].max()]) if (frac > 1e-9).any() else 0.0

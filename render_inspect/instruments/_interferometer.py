@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.frames import Frames
@@ -36,7 +36,7 @@ from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
 from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
-from ._objectives import OBJECTIVES, objective
+from ._objectives import OBJECTIVES, objective, objective_names
 from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, content_subsamples,
                         grid_subsamples, pupil_cutoff)
 from ._sources import led, monochromatic, spectrum_table
@@ -72,13 +72,12 @@ MIN_BANDWIDTH_NM = 1e-3  # not a unit conversion
 #: Largest number of sub-samples per pixel side chosen automatically.
 MAX_AUTO_SUBSAMPLES = 6
 
-_OBJECTIVE_NAMES = Literal["2.5x", "5x", "10x", "20x", "50x", "100x"]
-
-
 class InterferometerConfig(Section):
     """``[render.interferometer]``: the virtual interference microscope."""
     mode: Literal["psi", "csi"] = "psi"
-    objective: _OBJECTIVE_NAMES = Field("20x", description="preset: magnification, NA, pixel, field")
+    objective: str = Field("20x", description="preset: magnification, NA, pixel, field; a "
+                                              "registered objective (built in: 2.5x, 5x, 10x, "
+                                              "20x, 50x, 100x)")
     wavelength_nm: float | None = Field(None, gt=200, lt=2000,
                                         description="source centre; default 550 (PSI) / 600 (CSI)")
     bandwidth_nm: float | None = Field(None, ge=0, lt=1000,
@@ -126,6 +125,15 @@ class InterferometerConfig(Section):
     reference_figure_seed: int = Field(0, ge=0)
     reference_height: Length | None = Field(None, description="PSI z_ref (focus), mm (default: "
                                                               "the instrument's autofocus)")
+
+    @field_validator("objective")
+    @classmethod
+    def _registered_objective(cls, v: str) -> str:
+        names = objective_names()
+        if v not in names:
+            shown = [repr(n) for n in names]
+            raise ValueError(f"must be one of {', '.join(shown[:-1])} or {shown[-1]}")
+        return v
 
     @model_validator(mode="after")
     def _apertures(self):

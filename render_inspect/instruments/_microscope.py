@@ -215,7 +215,7 @@ def recommended_subsamples(pixel: float, microscope: Microscope, *, max_slope: f
     aliasing at the limit into false fringes.
     """
     k, w = microscope.source.sample(dk=microscope._dk_fine())
-    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
+    k_hi = float(k[min(int(np.searchsorted(np.cumsum(w), 0.99)), k.size - 1)])
     f_cut = k_hi * (microscope.na + microscope.na_ill) / (2 * math.pi)
     s_res = math.ceil(2 * pixel * f_cut - 1e-9)
     slope_lim = 0.5 * (math.asin(microscope.na) + math.asin(microscope.na_ill))

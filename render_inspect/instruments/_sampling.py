@@ -48,7 +48,7 @@ def pupil_cutoff(microscope: Microscope) -> float:
     """``f_cut = k_hi (NA + NA_ill) / (2 pi)`` (cycles/mm), ``k_hi`` at the 99th
     percentile of the source's power (as :func:`~._microscope.recommended_subsamples`)."""
     k, w = microscope.source.sample(dk=microscope._dk_fine())
-    k_hi = float(k[min(np.searchsorted(np.cumsum(w), 0.99), k.size - 1)])
+    k_hi = float(k[min(int(np.searchsorted(np.cumsum(w), 0.99)), k.size - 1)])
     return k_hi * (microscope.na + microscope.na_ill) / (2 * math.pi)
 
 

@@ -270,7 +270,7 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
         # so the handler below says that the folder is complete
     except BaseException as exc:
         if tmp is None:  # the folder was swapped in; an interruption held back arrived after
-            exc.render_inspect_output_complete = str(target)
+            exc.render_inspect_output_complete = str(target)  # type: ignore[attr-defined]
         tmp_text = str(tmp) if tmp is not None else None
         with _signals_held():
             _undo(tmp, created, lock)

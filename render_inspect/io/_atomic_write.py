@@ -41,10 +41,12 @@ def atomic_write_stream(path: str | Path, write) -> Path:
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (a temporary file renamed into place)."""
     return atomic_write_stream(path, lambda fh: fh.write(data))
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically (a temporary file renamed into place)."""
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 

@@ -21,6 +21,7 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
@@ -52,7 +53,7 @@ def _channels(channels: dict, what: str) -> tuple[dict, tuple]:
         elif a.shape != shape:
             raise InputError(f"write_exr: {what}channel {name!r} has shape {a.shape}, expected {shape}")
         chans[name] = a
-    return chans, shape
+    return chans, cast(tuple, shape)  # (callers give at least one channel: a shape)
 
 
 def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | None = None, *,

@@ -21,6 +21,7 @@ import struct
 import zipfile
 import zlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -328,7 +329,7 @@ def check_exr(path, *, what: str, budget=None) -> tuple[int, int, int]:
     except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged files
         raise InputError(f"{what} {str(path)!r} is not a readable OpenEXR file "
                          f"({type(err).__name__}: {err})") from None
-    win = header.get("dataWindow")
+    win: Any = header.get("dataWindow")  # what the file says; checked below
     chans = header.get("channels") or []
     try:
         (x0, y0), (x1, y1) = (tuple(int(v) for v in p) for p in win)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+from typing import Any
 
 import numpy as np
 
@@ -113,7 +114,7 @@ def _linear_link(frm, to, links: Links, *, leave=True):
     """Retract from ``frm``, rapid within the clearance plane above ``to``, plunge onto it
     (``leave`` False: no retract, the tool is already in the plane)."""
     zc = float(links.clearance_z)
-    moves = []
+    moves: list[tuple[int, int, dict[str, Any], float | None]] = []
     if leave:
         moves.append((1, ROLE_RETRACT, {"X": frm[0], "Y": frm[1], "Z": zc}, links.plunge_feed))
     moves.append((0, ROLE_RAPID, {"X": to[0], "Y": to[1], "Z": zc}, None))
@@ -151,7 +152,7 @@ def program_blocks(program, links: Links | None = None, *,
     items = [] if links is None else _turning_moves(c, x, z, links)
     pre, post = (items[0], items[1]) if items else ([], [])
     first = 1 if links is not None else 0
-    cols = {"C": [], "X": [], "Z": []}
+    cols: dict[str, list] = {"C": [], "X": [], "Z": []}
     motion, role, fd = [], [], []
     pos = {"C": math.nan, "X": math.nan, "Z": math.nan}
 
@@ -187,7 +188,7 @@ def program_blocks(program, links: Links | None = None, *,
 def _linear_blocks(program: LinearProgram, links, vc) -> Blocks:
     vc = vc if vc is not None else program.meta.get("feed_mm_per_min", math.nan)
     x, y, z = (np.asarray(a, dtype=np.float64) for a in (program.x, program.y, program.z))
-    parts = {"X": [], "Y": [], "Z": []}
+    parts: dict[str, list] = {"X": [], "Y": [], "Z": []}
     motion, role, feed, line = [], [], [], []
     pos = {"X": math.nan, "Y": math.nan, "Z": math.nan}
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -158,7 +159,7 @@ def _fast_blocks(path: Path) -> Blocks | None:
     (:data:`_STRICT`), read in bulk piece by piece (memory a few times
     :data:`_PIECE_BYTES`); None for any other program."""
     meta, modes = {}, set()
-    cols = {a: [] for a in ("C", "X", "Y", "Z")}
+    cols: dict[str, list] = {a: [] for a in ("C", "X", "Y", "Z")}
     number, motion, feed, section_of, line_of, lineno = [], [], [], [], [], []
     section = None
     lines_before = 0
@@ -199,7 +200,7 @@ def _fast_blocks(path: Path) -> Blocks | None:
             kind = None if name is None else ("cut" if name.startswith("line") else name)
             section_of.append(np.full(len(vals), -1 if kind is None else _SECTIONS.index(kind),
                                       dtype=np.int8))
-            line_of.append(np.full(len(vals), int(name[5:]) if kind == "cut" and name != "cut"
+            line_of.append(np.full(len(vals), int(cast(str, name)[5:]) if kind == "cut" and name != "cut"
                                    else -1, dtype=np.int64))
         # the file line (1-based) of each block of the piece
         raw = np.frombuffer(piece.encode("ascii"), dtype=np.uint8)
@@ -236,7 +237,7 @@ def _blocks_line_by_line(path: Path) -> Blocks:
     meta: dict = {}
     cur = {a: math.nan for a in ("C", "X", "Y", "Z")}
     number, motion, role, feed, line_of, lineno_of = [], [], [], [], [], []
-    pos = {a: [] for a in cur}
+    pos: dict[str, list[float]] = {a: [] for a in cur}
     section, line_no, mode = None, -1, 1
     modes = set()
     with path.open("r", encoding="utf-8", errors="strict") as fh:
@@ -250,9 +251,9 @@ def _blocks_line_by_line(path: Path) -> Blocks:
                 elif body in _SECTIONS:
                     section, line_no = body, -1
                 elif ":" in body:
-                    k, v = body.split(":", 1)
+                    k, note = body.split(":", 1)
                     if re.fullmatch(r"[A-Za-z0-9_]+", k.strip()):
-                        meta[k.strip()] = v.strip()
+                        meta[k.strip()] = note.strip()
                 continue
             text = re.sub(r"\([^)]*\)", " ", text.split(";", 1)[0]).strip().upper()
             if not text or text == "%":  # '%' marks the start / end of a program
@@ -328,7 +329,7 @@ def cut_points(blocks: Blocks, path="program") -> np.ndarray:
     plunge before it leaves the tool on."""
     axes = _TURN_AXES if blocks.dialect == "turning" else _LINEAR_AXES
     cut = blocks.role == ROLE_CUT
-    idx = []
+    idx: list[int] = []
     i, n = 0, blocks.count
     while i < n:
         if not cut[i]:

@@ -16,11 +16,12 @@ def _stale_siblings(out: Path) -> tuple[list[Path], list[Path]]:
     it: folders named exactly as :func:`atomic_output_dir` names them."""
     parent, name = out.parent, out.name
     pat = re.compile(rf"^\.{re.escape(name)}\.(partial|backup)-\d+-[0-9a-f]{{8}}$")
-    partials, backups = [], []
+    partials: list[tuple[float, Path]] = []
+    backups: list[tuple[float, Path]] = []
     try:
         entries = list(os.scandir(parent))
     except OSError:
-        return partials, backups
+        return [], []
     for e in entries:
         m = pat.match(e.name)
         if m is None:

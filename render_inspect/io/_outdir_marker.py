@@ -9,6 +9,7 @@ import json
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 from .. import __version__
 from ..core.units import MIB_TO_BYTES
@@ -35,7 +36,7 @@ def part_hash(scene, *, legacy: bool = False) -> str | None:
     if scene is None:
         return None
     d = scene.to_dict() if hasattr(scene, "to_dict") else dict(scene)
-    part = {k: d.get(k) for k in PART_SECTIONS}
+    part: dict[str, Any] = {k: d.get(k) for k in PART_SECTIONS}
     if not legacy:
         for sec, keys in NOT_PART.items():
             if isinstance(part.get(sec), dict):

@@ -163,14 +163,16 @@ def _read_text(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     lines = text.splitlines()
     sep, dec_comma = _separator(lines)
     header: list[str] = []
-    xs, zs, labels = [], [], set()
+    xs: list[float] = []
+    zs: list[float] = []
+    labels: set[str] = set()
     first_data = None
     for i, line in enumerate(lines):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         f = _split(line, sep)
-        x = _number(f[0], dec_comma) if f else None
-        if x is None:
+        xv = _number(f[0], dec_comma) if f else None
+        if xv is None:
             if first_data is None and not xs:
                 header = f  # a header line (the last one before the data counts)
                 continue
@@ -181,9 +183,9 @@ def _read_text(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
         if len(f) < 2 or len(f) > 3:
             raise InputError(f"{path}: line {i + 1}: a profile has 2 or 3 columns (position, "
                              f"height, optional label), received {len(f)}: {line.strip()[:80]!r}")
-        z = _number(f[1], dec_comma)
-        xs.append(x)
-        zs.append(np.nan if z is None else z)
+        zv = _number(f[1], dec_comma)
+        xs.append(xv)
+        zs.append(np.nan if zv is None else zv)
         if len(f) == 3 and f[2]:
             labels.add(f[2])
     if len(xs) < 2:

@@ -121,7 +121,7 @@ def level_shape(shape, k: int) -> tuple[int, int]:
 
 def pyramid(a: np.ndarray, levels: int) -> list[np.ndarray]:
     """Area-averaged levels 1..``levels`` of ``a`` (float32 means, see the module notes)."""
-    out = []
+    out: list[np.ndarray] = []
     if levels <= 0:
         return out
     s, c = block_sums(a, 2)

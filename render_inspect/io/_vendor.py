@@ -156,7 +156,8 @@ def _read_x3p_plain(path: Path):
             raise InputError(f"{path}: X3P feature type {_text(r1, 'FeatureType')!r}; only "
                              f"surfaces (SUR) are supported")
         axes = r1.find("Axes")
-        cx, cy, cz = (axes.find(a) for a in ("CX", "CY", "CZ"))
+        # (no Axes: the AttributeError is reported as an unreadable container, _X3P_ERRORS)
+        cx, cy, cz = (axes.find(a) for a in ("CX", "CY", "CZ"))  # type: ignore[union-attr]
         if _text(cx, "AxisType") != "I" or _text(cy, "AxisType") != "I":
             raise InputError(f"{path}: X3P x/y axes must be incremental (AxisType I)")
         px = float(_text(cx, "Increment"))

@@ -35,6 +35,7 @@ import json
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -170,7 +171,7 @@ def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, l
     pixel = float(attrs.get("pixel_size_mm", 1.0))
     origin = tuple(float(v) for v in attrs.get("origin_mm", (0.0, 0.0)))
     g = zarr.open_group(str(path), mode="w-", zarr_format=3)
-    lv = []
+    lv: list[Any] = []
     for k in range(levels + 1):
         shp = level_shape((ny, nx), k)
         c = max(chunk >> k, 1) if (1 << k) <= chunk else min(max(shp), 1024)
@@ -304,8 +305,10 @@ class ZarrHeightMap:
             # each array's own metadata (what _check_declared_type read), not the copy
             # gathered in the root (consolidated metadata) that a store may also hold
             self.group = zarr.open_group(str(path), mode="r", use_consolidated=False)
-            self.attrs = dict(self.group.attrs)
-            arrays = {name: self.group[name] for name in CHANNELS if name in self.group}
+            self.attrs: dict[str, Any] = dict(self.group.attrs)
+            # the channels are arrays (the store's tree is checked above)
+            arrays: dict[str, Any] = {name: self.group[name] for name in CHANNELS
+                                      if name in self.group}
         except Exception as err:  # zarr raises its own and builtin errors on damaged stores
             raise InputError(f"{what} {str(path)!r} is not a readable Zarr store "
                              f"({type(err).__name__}: {err})") from None
@@ -454,7 +457,7 @@ class ZarrHeightMap:
             raise InputError(f"channel must be one of {list(CHANNELS)}, got {channel!r}")
         name = channel if level == 0 else f"levels/{level}/{channel}"
         try:
-            arr = self.group[name]
+            arr: Any = self.group[name]
         except KeyError:
             raise InputError(f"{self.what} {str(self.path)!r} has no array {name!r}") from None
         self._check_array(name, arr)

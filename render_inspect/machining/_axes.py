@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
@@ -479,7 +480,7 @@ class Machine:
     fts: Axis = field(default_factory=Axis)
     fts_sync: str = "position"
     fts_sync_delay_s: float = 0.0
-    errors: object = None
+    errors: ErrorMotions | None = None
     coupling: Coupling = field(default_factory=Coupling)
     sources: dict = field(default_factory=dict, compare=False)
 
@@ -528,7 +529,7 @@ class Machine:
                 d[parts[-1]].update(val)
             else:
                 d[parts[-1]] = val
-        kw = {}
+        kw: dict[str, Any] = {}
         for key, val in nested.items():
             if key in ("c", "x", "z", "fts"):
                 if isinstance(val, Axis):

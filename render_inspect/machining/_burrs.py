@@ -56,6 +56,7 @@ References
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 from ..core.lazy import lazy_module
@@ -82,7 +83,7 @@ def _edge_masks(z, *, pixel: float, edge_angle_deg: float):
     between neighbouring pixel pairs exceeds ``edge_angle_deg`` and is a local maximum
     along the axis; ``edge_angle_deg = 0``: every local maximum of the turn) and the
     slope between neighbouring pixels (s[i] between i and i + 1, along the axis)."""
-    out = []
+    out: list[tuple[np.ndarray, np.ndarray | None]] = []
     for axis in (0, 1):
         zz = np.moveaxis(z, axis, 0)
         if zz.shape[0] < 3:
@@ -180,7 +181,7 @@ def _random_field(x, y, *, correlation_length: float, seed: int) -> np.ndarray:
     return math.sqrt(2.0 / _MODES) * np.cos(arg).sum(axis=-1)
 
 
-def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: float,
+def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float | np.ndarray, width: float,
              variation: float = 0.3, seed: int = 0, edge_angle_deg: float = 1.0,
              correlation_length: float | None = None, edges=None, start=(0, 0)) -> np.ndarray:
     """Height (mm, >= 0) that burrs add on the sharp edges of ``design``.
@@ -244,7 +245,7 @@ def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float, width: f
     ex = origin[0] + pixel * (ix[near] + start[1])
     ey = origin[1] + pixel * (iy[near] + start[0])
     v = np.maximum(1.0 + variation * _random_field(ex, ey, correlation_length=ell, seed=seed), 0.0)
-    h = height[iy[near], ix[near]] if per_pixel else height
+    h = cast(np.ndarray, height)[iy[near], ix[near]] if per_pixel else height
     out[near] = h * v * np.cos(np.pi * d[near] / width) ** 2
     return out
 

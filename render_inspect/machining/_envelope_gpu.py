@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import types
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from ._envelope_step import DEVICE_FUNCTIONS, TWO_PI, _pass_count, _pass_windows
 
 _KERNEL = None
 #: numba.cuda, imported on first use (a module global, so the CUDA simulator can swap it)
-cuda = None
+cuda: Any = None
 
 
 def cuda_available() -> bool:

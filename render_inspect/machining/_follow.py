@@ -6,6 +6,7 @@ that is left."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -109,7 +110,7 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
     s_c, s_x, s_z, s_f, s_e = (int(s.generate_state(1)[0]) for s in ss.spawn(5))
     rate = machine.servo_rate_hz
     tk = servo_ticks(float(t[0]), float(t[-1]), rate)
-    kw = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
+    kw: dict[str, Any] = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
     rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
     rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
     rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)

@@ -17,6 +17,7 @@ surface is the envelope of the tool nose along the followed path.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
@@ -75,7 +76,7 @@ def split_commands(path, kind: str, *, base=None, nose_radius: float | None = No
             z_slow = base.height(rho * np.cos(theta), rho * np.sin(theta))
         else:
             check_range("nose_radius", nose_radius, 0.0, None, lo_open=True)
-            z_slow = z_compensation(base, theta, rho, nose_radius, half_width=half_width)
+            z_slow = z_compensation(base, theta, rho, cast(float, nose_radius), half_width=half_width)
     else:
         raise InputError(f"kind must be 'hts' or 'fts', received {kind!r}")
     z_slow = np.asarray(z_slow, dtype=np.float64)

@@ -34,6 +34,7 @@ module holds the pure per-tile computation.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -150,7 +151,7 @@ def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Groo
     rows = slice(tile.row - r0, tile.row - r0 + tile.rows)
     cols = slice(tile.col - c0, tile.col - c0 + tile.cols)
     edges = machined_edges(maps["pass_theta"], jump=math.pi)[rows, cols]
-    part = {"grooves_sumsq": float(st[rows, 0].sum()), "grooves_n": int(st[rows, 1].sum()),
+    part: dict[str, Any] = {"grooves_sumsq": float(st[rows, 0].sum()), "grooves_n": int(st[rows, 1].sum()),
             "added_max": float(st[rows, 2].max()) if tile.rows else -math.inf}
     part["edge_pixels"] = int(edges.sum())
     if stride > 0:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -40,15 +41,17 @@ class Analysis:
     ----------
     metrics : dict
         JSON-able (see :func:`analyze_map`).
-    height : (ny, nx) array
-        The evaluated surface (outliers left out, form removed, filtered), mm.
-    outliers : (ny, nx) bool array
-        Points flagged as outliers (all False when outliers are off).
+    height : (ny, nx) array or None
+        The evaluated surface (outliers left out, form removed, filtered), mm (None when
+        a map analysed window by window is not kept whole).
+    outliers : (ny, nx) bool array or None
+        Points flagged as outliers (all False when outliers are off; None when not
+        counted).
     """
 
     metrics: dict
-    height: np.ndarray
-    outliers: np.ndarray = field(default=None)
+    height: np.ndarray | None
+    outliers: np.ndarray | None = field(default=None)
 
 
 def parse_filter(text: str | None):
@@ -59,7 +62,7 @@ def parse_filter(text: str | None):
     if len(parts) != 2:
         raise InputError(f"--filter must be 'S,L' (nesting indices in mm, e.g. '0.0025,0.8' or "
                          f"',0.8'), received {str(text)[:80]!r}")
-    out = []
+    out: list[float | None] = []
     for name, p in zip(("S", "L"), parts):
         if p == "":
             out.append(None)
@@ -321,7 +324,7 @@ def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
     n_flag = int(flagged.sum())
     use = ok & ~flagged if outliers == "sigma" else ok
     work = np.where(use, z, np.nan)
-    form_info = {"method": form}
+    form_info: dict[str, Any] = {"method": form}
     if form == "none":
         res = work - np.nanmean(work)
     elif form in ("plane", "poly2"):

@@ -225,8 +225,10 @@ def render_marks(marks: ToolMarks | None) -> dict | None:
     if marks is None:
         return None
     if marks.pattern == "circular":
+        # circular marks are turning's feed marks: they have their period
         return {"kind": "circular", "center_mm": [float(v) for v in marks.center_mm],
-                "period_mm": float(marks.period_mm), "nose_radius_mm": marks.nose_radius_mm}
+                "period_mm": float(marks.period_mm),  # type: ignore[arg-type]
+                "nose_radius_mm": marks.nose_radius_mm}
     period = marks.period_mm
     if period is not None and period < FINEST_RENDERED_MARKS_MM:
         period = None

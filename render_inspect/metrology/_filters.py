@@ -110,7 +110,7 @@ def _cut_border(out, cutoff, pixel):
     return out
 
 
-def gaussian_filter(z, *, pixel: float, cutoff: float, mask=None, min_weight: float = 1e-3,
+def gaussian_filter(z, *, pixel: float | tuple[float, float], cutoff: float, mask=None, min_weight: float = 1e-3,
                     edges: str = "normalised"):
     """Gaussian mean surface of ``z`` (ISO 16610-61), NaN-aware.
 
@@ -184,13 +184,13 @@ def _gaussian_in_blocks(a, sigma_px, mode: str):
     return out
 
 
-def s_filter(z, *, pixel: float, nesting_index: float, mask=None, edges: str = "normalised"):
+def s_filter(z, *, pixel: float | tuple[float, float], nesting_index: float, mask=None, edges: str = "normalised"):
     """S-filter: remove wavelengths shorter than ``nesting_index`` (mm) by Gaussian
     smoothing (``edges``: see :func:`gaussian_filter`)."""
     return gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask, edges=edges)
 
 
-def l_filter(z, *, pixel: float, nesting_index: float, mask=None, edges: str = "normalised"):
+def l_filter(z, *, pixel: float | tuple[float, float], nesting_index: float, mask=None, edges: str = "normalised"):
     """L-filter: remove wavelengths longer than ``nesting_index`` (mm): ``z`` minus its
     Gaussian mean surface (``edges``: see :func:`gaussian_filter`)."""
     z = _as_map(z)

@@ -33,6 +33,8 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from ..core.lazy import lazy_module
 
@@ -118,7 +120,7 @@ def fringe_order_check(result, *, fringe_order_mm: float | None) -> dict:
     order is not measured).  Coherence scanning (absolute heights) has no order to
     check: ``fringe_order_mm`` None."""
     valid = np.asarray(result.valid, bool) & np.isfinite(result.height)
-    out = {"fringe_order_nm": None if fringe_order_mm is None else fringe_order_mm * MM_TO_NM,
+    out: dict[str, Any] = {"fringe_order_nm": None if fringe_order_mm is None else fringe_order_mm * MM_TO_NM,
            "residues": 0, "slips": 0, "slip_pixels": 0, "slip_regions": 0,
            "unknown_pixels": 0, "slip_modulation": None,
            "median_modulation": float(np.median(result.modulation[valid])) if valid.any() else None,

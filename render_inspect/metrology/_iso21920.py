@@ -247,13 +247,13 @@ def rsm(r, *, spacing: float, rz: float, section_length: float) -> tuple[float, 
             state = 1
         elif state >= 0 and v < -h:
             state = -1
-    widths = []
+    gaps: list[float] = []
     prev = math.nan
     for u in ups:
         if math.isfinite(u) and math.isfinite(prev):
-            widths.append(u - prev)
+            gaps.append(u - prev)
         prev = u
-    widths = np.asarray(widths)
+    widths = np.asarray(gaps)
     if widths.size == 0:
         return float("nan"), 0
     # width discrimination: merge elements narrower than 1 % of the section length

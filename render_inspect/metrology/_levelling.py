@@ -13,6 +13,8 @@ reported, and a map with such regions says so).  Arrays in (mm), numbers out.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from ..core.lazy import lazy_module
 
@@ -65,7 +67,7 @@ def level_map(z, *, pixel: float, labels=None, terms: str = "piston and tilt",
     z = np.asarray(z, dtype=np.float64)
     valid = np.isfinite(z)
     lab = _regions(valid, labels)
-    info = {"removed": terms, "piston_nm": None, "tilt_x_urad": None, "tilt_y_urad": None,
+    info: dict[str, Any] = {"removed": terms, "piston_nm": None, "tilt_x_urad": None, "tilt_y_urad": None,
             "regions": 0, "fringe_order_nm": None if fringe_order_mm is None
             else float(fringe_order_mm) * MM_TO_NM, "reordered": []}
     out = np.full(z.shape, np.nan)

@@ -24,6 +24,7 @@ Sal and Str come from the autocorrelation function (ISO 25178-2): see
 from __future__ import annotations
 
 import warnings
+from typing import Any
 
 import numpy as np
 from ..core.lazy import lazy_module
@@ -217,7 +218,7 @@ def areal_parameters(z, *, pixel, mask=None, slope: str = "forward",
     d = v - v.mean()
     d2 = d * d
     sq = float(np.sqrt(np.mean(d2)))
-    out = {"Sa": float(np.mean(np.abs(d))), "Sq": sq, "Sp": float(d.max()), "Sv": float(-d.min())}
+    out: dict[str, Any] = {"Sa": float(np.mean(np.abs(d))), "Sq": sq, "Sp": float(d.max()), "Sv": float(-d.min())}
     out["Sz"] = out["Sp"] + out["Sv"]
     out["Ssk"] = float(np.mean(d2 * d) / sq ** 3) if sq > 0 else 0.0
     out["Sku"] = float(np.mean(d2 * d2) / sq ** 4) if sq > 0 else 0.0
@@ -395,7 +396,7 @@ def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int
         acc_n[act] += known.sum(axis=1)
         prev[act] = vals[:, -1]
     decays = np.isfinite(lengths)
-    out = {"s": float(s), "decays_in_all_directions": bool(decays.all())}
+    out: dict[str, Any] = {"s": float(s), "decays_in_all_directions": bool(decays.all())}
     if not decays.any():
         warnings.warn(f"Sal: the autocorrelation does not fall to s = {s} within the field in "
                       f"any direction; the field is too small for the correlation length",
@@ -531,7 +532,7 @@ def section_parameters(z, *, pixel, origin=(0.0, 0.0), center=(0.0, 0.0),
     (at ``radii``, mm) of a map.  Returns ``{"radial": [...], "circumferential": [...]}``,
     each entry the :func:`profile_parameters` dict plus ``angle_rad`` / ``radius_mm``;
     sections with too few valid points are skipped and listed under ``"skipped"``."""
-    out = {"radial": [], "circumferential": [], "skipped": []}
+    out: dict[str, list] = {"radial": [], "circumferential": [], "skipped": []}
     for a in angles:
         _, v = extract_section(z, pixel=pixel, origin=origin, kind="radial", center=center,
                                angle=float(a))

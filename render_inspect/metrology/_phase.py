@@ -35,6 +35,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -266,7 +267,7 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     h = height_from_phase(un, wavelength_nm=wavelength_nm)
     alg = algorithm if algorithm != "auto" else {4: "4step", 5: "5step"}.get(n, "lsq")
     hn = psi_height_noise(sigma_b, b, wavelength_nm=wavelength_nm, valid=v)
-    meta = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
+    meta: dict[str, Any] = {"mode": "psi", "algorithm": alg, "frames": int(n), "wavelength_nm": float(wavelength_nm),
             "min_modulation": float(min_modulation),
             "unwrap": f"quality-guided flood fill ({quality})",
             "regions": int(labels.max()), "noise": noise,
@@ -405,7 +406,7 @@ def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
     ok = ok.reshape(hgt, wid) & v
     height = np.where(ok, height.reshape(hgt, wid), np.nan)
     labels = _label(ok)
-    meta = {"mode": "csi", "algorithm": f"hilbert envelope peak ({refine})", "frames": int(n),
+    meta: dict[str, Any] = {"mode": "csi", "algorithm": f"hilbert envelope peak ({refine})", "frames": int(n),
             "scan_step_mm": abs(step), "wavelength_nm": float(wavelength_nm),
             "min_modulation": float(min_modulation), "regions": int(labels.max()),
             "noise": {"method": "robust spread of each pixel's signal along the scan"

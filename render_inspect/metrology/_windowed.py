@@ -24,6 +24,7 @@ one is given, and the metrics say which.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -289,7 +290,7 @@ def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
         warnings_.append(f"Str undefined: the autocorrelation stays above s = {acf_threshold:g} "
                          f"across the field in at least one direction (a lay longer than the field)")
     areal, ang = areal_metrics(p, sp)
-    form_info = {"method": form}
+    form_info: dict[str, Any] = {"method": form}
     if form == "poly2":
         form_info["degree"] = 2
     src = {k: val for k, val in (source or {}).items() if k != "scene"}

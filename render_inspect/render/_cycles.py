@@ -17,6 +17,7 @@ import re
 import tempfile
 import time
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from pydantic import ValidationError
@@ -382,7 +383,8 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     ex = float(obj[PROP_EXAGGERATION])
     dcfg = _diffuse_config(_scene_diffuse(obj), resolution=resolution, spp=spp, exaggeration=ex)
     h = object_heights(obj)
-    hm = HeightMap(h, h, float(obj[PROP_PIXEL]), tuple(float(v) for v in obj[PROP_ORIGIN]))
+    hm = HeightMap(h, h, float(obj[PROP_PIXEL]),
+                   cast(tuple[float, float], tuple(float(v) for v in obj[PROP_ORIGIN])))
     spec = diffuse_scene_spec(hm, dcfg, view=view, surface="machined", seed=seed)
     # the object's z is exaggeration * h; the spec's mesh is offset by z_offset_mm.  The
     # camera is placed for the map's own coordinates: an object shown shifted beside

@@ -14,6 +14,7 @@ Images are returned with row 0 at the top (camera convention), linear RGB.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
@@ -353,7 +354,7 @@ def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = 
                 img = np.array(mi.render(scene, seed=mitsuba_seed(seed, k), spp=n),
                                dtype=np.float64)[..., :3]
                 acc = img * n if acc is None else acc + img * n
-            rgb = (acc / float(sum(passes))).astype(np.float32)
+            rgb = (cast(np.ndarray, acc) / float(sum(passes))).astype(np.float32)
     meta = dict(spec)
     meta.update(mitsuba_variant=variant, vertical_exaggeration=spec["exaggeration"],
                 passes=len(passes),

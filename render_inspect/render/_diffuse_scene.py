@@ -42,7 +42,7 @@ Cycles benchmark, ``render/_cycles.py``) can build the same scene:
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from pydantic import Field
@@ -299,7 +299,7 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
         in_studio = bool(dcfg.studio and marks is not None)
         t = math.radians(STUDIO_TILT_DEG if in_studio else MACRO_TILT_DEG)
         origin = [cx, cy - dist * math.sin(t), dist * math.cos(t)]
-        camera = {"type": "perspective", "fov_deg": MACRO_FOV_DEG, "origin": origin,
+        camera: dict[str, Any] = {"type": "perspective", "fov_deg": MACRO_FOV_DEG, "origin": origin,
                   "target": [cx, cy, 0.0], "up": [0.0, 1.0, 0.0], "width": res, "height": res}
         axis = _unit(np.subtract(origin, camera["target"]))
         use_lamp = bool(dcfg.lamp and marks is not None)
@@ -355,10 +355,11 @@ def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: st
                  "port_profile": PORT_PROFILES[kind], "up": [0.0, 0.0, 1.0],
                  "zenith_profile": LIGHTS[kind], "env_rows": ENV_ROWS}
     has_holes = not bool(finite.all())
-    mesh = {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
+    mesh: dict[str, Any] = {"channel": surface, "window": None if view == "macro" else [x0, y0, x1, y1],
             "max_cells": stride_cells, "skirt": view == "macro" and not has_holes,
             "prefilter": "block_mean", "kind": "grid"}
     if view == "macro" and (part or {}).get("shape") == "disc":
+        part = cast(dict, part)  # (a disc: given)
         r = float(part["radius"])
         wall = DISC_WALL * r if studio is not None else 0.0
         mesh.update(kind="disc", skirt=wall > 0, center=[float(v) for v in part["center"]],

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -123,7 +124,7 @@ def efficiency_tables(*, period: float | None, nose_radius: float | None) -> dic
     else:
         M = int(min(math.ceil(period / (WAVELENGTHS_NM[0] * NM_TO_MM)) + 1, MAX_ORDER))
         n = 1 << int(math.ceil(math.log2(max(8 * (2 * M + 1), 4096))))
-        h = arc_profile(period, nose_radius, n)
+        h = arc_profile(period, cast(float, nose_radius), n)  # (marks with a period have a nose)
         eta = np.empty((L, Q, 2 * M + 1))
         for i, lam in enumerate(WAVELENGTHS_NM):
             for j, q in enumerate(Q_NODES):

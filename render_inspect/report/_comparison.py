@@ -5,9 +5,11 @@ panels, the sections and the axis motion; and the caption written into diffuse i
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
+from ..core.heightmap import HeightMap
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._figures import (difference_figure, image_panels, locator_figure, map_panels,
                        radial_profile_figure)
@@ -42,8 +44,8 @@ class ComparedVariant:
     name: str
     label: str
     region: tuple
-    heightmap: object
-    ig: object
+    heightmap: HeightMap
+    ig: Any
     maps: dict = field(default_factory=dict)
     filtered: np.ndarray | None = None
     diffuse: dict = field(default_factory=dict)
@@ -137,7 +139,7 @@ def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, differen
         label="height difference (nm)", cmap="RdBu_r", symmetric=True,
         lines=[(line[0], line[1])])
     # --- waviness (filtered) maps, one scale, and their difference
-    fa, fb = a.filtered * MM_TO_NM, b.filtered * MM_TO_NM
+    fa, fb = cast(np.ndarray, a.filtered) * MM_TO_NM, cast(np.ndarray, b.filtered) * MM_TO_NM
     figs["filtered_side_by_side"] = map_panels(
         [(f"{names[0]}: waviness", fa), (f"{names[1]}: waviness", fb),
          (f"{names[0]} - {names[1]}", fa - fb)],

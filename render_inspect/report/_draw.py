@@ -14,6 +14,7 @@ revolution of a program against the radius).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from ._figure_kinds import registered_figures
 from ._following import plot_following_error, plot_following_error_map
@@ -37,7 +38,7 @@ def figure_kinds() -> tuple[str, ...]:
 
 def draw_figure(spec: dict, png) -> Path:
     """Draw the figure ``spec`` into the PNG file ``png`` (written atomically)."""
-    kind = spec.get("kind")
+    kind: Any = spec.get("kind")
     if kind == "axes":
         return kinematics_png(spec["columns"], png, axes=spec.get("axes"),
                               title=spec.get("title", ""))

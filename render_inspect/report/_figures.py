@@ -530,7 +530,7 @@ def annotate_rgb(rgb8: np.ndarray, *, lines=(), scale_mm: float | None = None,
     size = max(10, int(round(min(h, w) / 34)))
     font = ImageFont.load_default(size=size)
     draw = ImageDraw.Draw(img, "RGBA")
-    y = 3
+    y: float = 3
     for text in lines:
         box = draw.textbbox((4, y), text, font=font)
         draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(255, 255, 255, 190))

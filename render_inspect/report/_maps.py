@@ -139,7 +139,7 @@ def _encode(rgb8: np.ndarray) -> bytes:
     k = max(1, int(np.ceil(MIN_SIDE / max(min(h, w), 1))))
     img = Image.fromarray(rgb8)
     if k > 1:
-        img = img.resize((w * k, h * k), Image.NEAREST)
+        img = img.resize((w * k, h * k), Image.Resampling.NEAREST)
     buf = io.BytesIO()
     img.save(buf, format="PNG")
     return buf.getvalue()

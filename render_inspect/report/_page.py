@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 from ..core.units import MM_TO_UM
 from .. import __version__
@@ -284,7 +285,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     rep.table([[label, _q(c["measured"].get(k), unit), _q(u["measured"].get(k), unit)]
                for label, k, unit in mrows if k in c["measured"] or k in u["measured"]],
               header=["phase retrieval", va, vb])
-    icls = type(getattr(scene.render, "interferometer", None))
+    icls: Any = type(getattr(scene.render, "interferometer", None))
     ifields = icls.model_fields if hasattr(icls, "model_fields") else {}
     rep.table([[k, value_text(k, v, ifields.get(k)), meaning(k, ifields.get(k), v)]
                for k, v in ic.items()],

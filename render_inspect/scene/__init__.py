@@ -20,7 +20,7 @@ from ._schema import (MAX_SCENE_BYTES, MAX_SCENE_DEPTH, ArtifactsConfig, BurrCon
                       MaterialConfig, MetrologyConfig, ProcessConfig, RcseConfig, RenderConfig,
                       Scene, SceneError, SimulationConfig, ToolConfig, VibrationConfig,
                       apply_overrides, find_scene, instrument_config, load_scene, scene_from_dict,
-                      scene_sections, shipped_scenes, unit_warnings)
+                      objective_names, scene_sections, shipped_scenes, unit_warnings)
 # the compared variants of a scene (built with the functions above)
 from ._variants import compare_pair, compare_variants, parse_vary, variant_scene
 
@@ -29,4 +29,5 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
-           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings"]
+           "parse_vary", "compare_pair", "variant_scene", "compare_variants", "unit_warnings",
+           "objective_names"]

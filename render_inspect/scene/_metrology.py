@@ -26,7 +26,8 @@ class MetrologyConfig(Section):
                             "(they are always left out of its registration and counted)")
     registration: Literal["none", "lsq", "icp"] = "lsq"
     registration_dof: list[Literal["tx", "ty", "tz", "alpha", "beta", "gamma"]] = Field(
-        default_factory=lambda: ["tx", "ty", "tz", "alpha", "beta", "gamma"], min_length=1,
+        default_factory=lambda: ["tx", "ty", "tz", "alpha", "beta", "gamma"],  # type: ignore[arg-type]
+        min_length=1,
         description="rigid-body parameters the registration fits")
     registration_stages: Literal["base_then_all", "base"] = Field(
         "base_then_all", description="a microstructure on a base: register on the base, then on "

@@ -170,7 +170,7 @@ def scene_reference_markdown() -> str:
              "be overridden on the command line with `--set section.key=value` (TOML value "
              "syntax). Unknown keys are errors.", ""]
     sections: list = []
-    top = []
+    top: list[str] = []
     _table(Scene, "", top, sections)
     lines += ["## Top level", ""] + top
     for path, sub, field in sections:

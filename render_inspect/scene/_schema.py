@@ -10,7 +10,7 @@ import tomllib
 import typing
 from importlib import resources
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
@@ -20,7 +20,7 @@ from ..core.messages import NUMERIC_ERRORS, shown, validation_line
 from ..core.units import MIB_TO_BYTES
 from ..core.section import Section
 from ..design import DesignConfig, design_types
-from ..instruments import InterferometerConfig
+from ..instruments import InterferometerConfig, objective_names
 from ..processes import (BurrConfig, MachineConfig, MaterialConfig, ProcessConfig, RcseConfig,
                          StsProcessConfig, VibrationConfig, migrate_scene, process_kinds)
 from ..processes import scene_sections as registered_sections
@@ -35,7 +35,7 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
            "DesignConfig", "ToolConfig", "ProcessConfig", "SimulationConfig", "RenderConfig",
            "InterferometerConfig", "DiffuseConfig", "ArtifactsConfig", "VibrationConfig",
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
-           "unit_warnings", "MAX_SCENE_BYTES", "MAX_SCENE_DEPTH"]
+           "unit_warnings", "objective_names", "MAX_SCENE_BYTES", "MAX_SCENE_DEPTH"]
 
 #: the ``[render]`` section: registered instruments + diffuse light
 RenderConfig = render_config_class()
@@ -44,7 +44,8 @@ RenderConfig = render_config_class()
 def _registered() -> tuple[dict, dict]:
     """(top-level section -> class, table -> {section -> class}) of the registered
     sections (``"artifacts.burrs"`` goes into the ``artifacts`` table)."""
-    top, tables = {}, {}
+    top: dict[str, type] = {}
+    tables: dict[str, dict[str, type]] = {}
     for path, cls in registered_sections().items():
         if "." in path:
             table, name = path.split(".")
@@ -57,7 +58,8 @@ def _registered() -> tuple[dict, dict]:
 _TOP, _TABLES = _registered()
 #: tables of registered sections (``[artifacts]``: process errors added to the ideal cut)
 _TABLE_CLASSES = {
-    table: create_model(f"{table.capitalize()}Config", __base__=Section,
+    # (the schema is assembled from the registries at import: mypy cannot follow it)
+    table: create_model(f"{table.capitalize()}Config", __base__=Section,  # type: ignore[call-overload]
                         __doc__=f"``[{table}]``: " + ", ".join(f"``[{table}.{n}]``" for n in members),
                         **{n: (c, Field(default_factory=c)) for n, c in members.items()})
     for table, members in _TABLES.items()}
@@ -75,7 +77,7 @@ class _SceneBase(Section):
     tool: ToolConfig = Field(default_factory=ToolConfig)
     process: ProcessConfig = Field(default_factory=StsProcessConfig)
     simulation: SimulationConfig = Field(default_factory=SimulationConfig)
-    render: RenderConfig = Field(default_factory=RenderConfig)
+    render: RenderConfig = Field(default_factory=RenderConfig)  # type: ignore[valid-type]
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
 
     @model_validator(mode="before")
@@ -105,7 +107,7 @@ class _SceneBase(Section):
 
 #: the scene schema: the sections above, the tables of registered sections and the
 #: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
-Scene = create_model(
+Scene = create_model(  # type: ignore[call-overload]  # (assembled from the registries)
     "Scene", __base__=_SceneBase, __doc__=_SceneBase.__doc__,
     **{t: (c, Field(default_factory=c)) for t, c in _TABLE_CLASSES.items()},
     **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
@@ -124,6 +126,8 @@ def _union_classes() -> dict:
 def _expected(loc) -> str | None:
     """What a scene key accepts, e.g. "a number in (0, 20000]", from the schema."""
     unions = _union_classes()
+    model: type[BaseModel] | None
+    meta: list[Any]
     model, ann, meta = Scene, None, []
     for part in loc:
         if isinstance(part, str) and part in unions and ann is not None:
@@ -198,7 +202,8 @@ def _format_error(err: ValidationError, source: str) -> SceneError:
     accepts, the value received.  The values missing from an array of fixed length are
     said once ("must hold 4 values")."""
     tags = _union_tags()
-    lines, short = [], {}
+    lines: list[str] = []
+    short: dict[str, tuple[int, Any]] = {}
     for e in err.errors():
         loc = tuple(p for p in e["loc"] if not (isinstance(p, str) and p in tags))
         if e["type"] == "missing" and loc and isinstance(loc[-1], int):
@@ -228,6 +233,8 @@ def _union_tags() -> set:
 
 
 def scene_from_dict(data: dict, source: str = "(dict)") -> Scene:
+    """Validate a scene given as a dictionary (the tables of a scene file); ``source`` names
+    it in the messages."""
     if not isinstance(data, dict):
         raise SceneError(f"invalid scene {source}: expected a table of sections, received "
                          f"{type(data).__name__}")
@@ -248,6 +255,7 @@ def _depth(data) -> int:
     """Nesting depth of dicts and lists in ``data`` (iterative: safe on any depth)."""
     deepest = 0
     stack = [(data, 1)]
+    children: Iterable[Any]
     while stack:
         node, d = stack.pop()
         if isinstance(node, dict):
@@ -338,7 +346,8 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
         items.append(item)
     data = {"design": {"type": "plane"},
             "render": {"interferometer": {"objective": objective, "mode": mode}}}
-    return scene_from_dict(apply_overrides(data, items), "(characterise)").render.interferometer
+    scene = scene_from_dict(apply_overrides(data, items), "(characterise)")
+    return scene.render.interferometer  # type: ignore[attr-defined]  # (a registered section)
 
 
 def shipped_scenes() -> dict[str, Path]:

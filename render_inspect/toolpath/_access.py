@@ -20,6 +20,7 @@ References
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +47,7 @@ def check_accessibility(surface, tool, region, *, samples: int = 201) -> dict:
     f_t = -gx * s + gy * c
     f_rr = hxx * c * c + 2 * hxy * c * s + hyy * s * s
     kappa = f_rr / (1 + f_r * f_r) ** 1.5  # > 0: concave radial section
-    report = {"samples": int(samples * samples), "region": list(map(float, region))}
+    report: dict[str, Any] = {"samples": int(samples * samples), "region": list(map(float, region))}
 
     def entry(name, value, limit, bad, unit, worst_idx):
         iy, ix = np.unravel_index(worst_idx, X.shape)

@@ -169,6 +169,7 @@ def _fail(path, line, what) -> InputError:
 
 def _parse(text: str, path: str):
     """(quantities, units, rows as (line number, values))."""
+    rows: list[tuple[int, list[float]]]
     header, rows = None, []
     for ln, raw in enumerate(text.splitlines(), 1):
         s = raw.split("#", 1)[0].strip()

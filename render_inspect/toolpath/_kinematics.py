@@ -18,6 +18,7 @@ Every maximum is of the absolute value.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
@@ -212,7 +213,7 @@ def kinematics(path, *, limits=None) -> dict:
     vc = np.empty_like(t)
     _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
     series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
-    out = {
+    out: dict[str, Any] = {
         "x_velocity_max_mm_s": float(_abs_max(vx)),
         "x_acceleration_max_mm_s2": float(_abs_max(ax)),
         "x_jerk_max_mm_s3": float(_abs_max(jx)),

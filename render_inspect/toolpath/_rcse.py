@@ -47,7 +47,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -122,7 +124,8 @@ class RingLayout:
     @classmethod
     def from_config(cls, cfg) -> "RingLayout":
         """From a ``[design]`` config of type ``lenslet_rings`` (pydantic model or dict)."""
-        get = cfg.get if isinstance(cfg, dict) else (lambda k, d=None: getattr(cfg, k, d))
+        get: Callable[..., Any] = (cfg.get if isinstance(cfg, dict)
+                                   else (lambda k, d=None: getattr(cfg, k, d)))
         if get("type") != "lenslet_rings":
             raise SceneError(f"process.kind = 'rcse' needs design.type = 'lenslet_rings' "
                              f"(elements on rings), received design.type = {get('type')!r}")

@@ -30,7 +30,9 @@ part of the simulated program and never touch the part.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
@@ -91,13 +93,13 @@ class PartModel:
         sampled densely along it).
     """
 
-    height: object
+    height: Callable[..., Any]
     outline: tuple
     stock: float = 0.0
     half_width: float = 0.0
     max_step: float | None = None
     top: float | None = None
-    bound: object = None
+    bound: Callable[..., Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -269,7 +271,7 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     num = blocks.number
     if np.any(num < 1) or np.any(np.diff(num) <= 0):
         i = _first((num < 1) | np.r_[False, np.diff(num) <= 0])
-        _fail(what, blocks, i, "block numbers must be positive and increase from block to block")
+        _fail(what, blocks, cast(int, i), "block numbers must be positive and increase from block to block")
     x, y, z = _tip(blocks)
     zc = float(links.clearance_z)
     top = part_top(part, program_z=z[blocks.role == ROLE_CUT])
@@ -517,15 +519,15 @@ def _rapids_above_design(blocks: Blocks, part: PartModel, rapid, note) -> float 
         return None
     ax = blocks.axes
     turning = blocks.dialect == "turning"
-    lengths = []
+    moves: list[float] = []
     for i in idx:
         if turning:
             r = max(abs(ax["X"][i - 1]), abs(ax["X"][i]))
             arc = abs(math.radians(ax["C"][i] - ax["C"][i - 1])) * r
-            lengths.append(abs(ax["X"][i] - ax["X"][i - 1]) + arc)
+            moves.append(abs(ax["X"][i] - ax["X"][i - 1]) + arc)
         else:
-            lengths.append(math.hypot(ax["X"][i] - ax["X"][i - 1], ax["Y"][i] - ax["Y"][i - 1]))
-    lengths = np.nan_to_num(np.asarray(lengths, dtype=np.float64), nan=0.0)
+            moves.append(math.hypot(ax["X"][i] - ax["X"][i - 1], ax["Y"][i] - ax["Y"][i - 1]))
+    lengths = np.nan_to_num(np.asarray(moves, dtype=np.float64), nan=0.0)
     piece = max(_RAPID_PIECE, float(lengths.sum()) / _RAPID_PIECES)
     worst, worst_i = math.inf, None
     hw = float(part.half_width)
