@@ -32,6 +32,7 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
+from ._program_kernel import sample_moves
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -447,17 +448,17 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     else:  # every point kept (the usual case): no copies
         dt_k = dt
     del dt, zero, keep
-    t = np.empty(dt_k.size + 1)
-    t[0] = 0.0
-    np.cumsum(dt_k, out=t[1:])
     if has_c:
+        t = np.empty(dt_k.size + 1)
+        t[0] = 0.0
+        np.cumsum(dt_k, out=t[1:])
         theta = np.radians(c_cum)
         del c_cum
         dialect = "point list" if not has_f and not sp.g_codes else "C-X-Z G-code"
     else:
         # the spindle turns while X and Z move: C follows from the time, each move sampled
         # at points_per_rev per revolution
-        rp_k = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size))
+        rp_k = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
         revs = rp_k * dt_k / MIN_TO_S
         n_sub = np.maximum(1, np.ceil(revs * ppr)).astype(np.int64)
         total = int(n_sub.sum()) + 1
@@ -465,12 +466,16 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             raise InputError(f"{path}: sampling the spindle's {float(revs.sum()):.4g} revolutions "
                              f"at process.points_per_rev = {ppr} gives {total:,} points (at most "
                              f"{MAX_PROGRAM_POINTS:,}); lower process.points_per_rev")
-        seg = np.repeat(np.arange(n_sub.size), n_sub)
-        u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
-        xs = x[seg] + (x[seg + 1] - x[seg]) * u
-        zs = z[seg] + (z[seg + 1] - z[seg]) * u
-        dts = dt_k[seg] / n_sub[seg]
-        if any_css:
+        if not any_css and n_sub.min() >= 1:
+            # one spindle speed a move: every step's point, time and angle in one pass
+            x, z, t, theta, blk, motion = sample_moves(x, z, dt_k, n_sub, rp_k, blk, motion,
+                                                       total)
+        else:
+            seg = np.repeat(np.arange(n_sub.size), n_sub)
+            u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
+            xs = x[seg] + (x[seg + 1] - x[seg]) * u
+            zs = z[seg] + (z[seg + 1] - z[seg]) * u
+            dts = dt_k[seg] / n_sub[seg]
             # the spindle speed at each step's middle; a feed per revolution (G95) under
             # constant surface speed sets each step's time from it
             xm = xs - 0.5 * (x[seg + 1] - x[seg]) / n_sub[seg]
@@ -480,13 +485,11 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             if g95.any():
                 step = np.hypot(x[seg + 1] - x[seg], z[seg + 1] - z[seg]) / n_sub[seg]
                 dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
-        else:
-            rpm_s = spin(xs, seg + 1)
-        ts = np.cumsum(dts)
-        theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
-        x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
-        blk = np.r_[blk[0], blk[1:][seg]]
-        motion = np.r_[motion[0], motion[1:][seg]]
+            ts = np.cumsum(dts)
+            theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
+            x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
+            blk = np.r_[blk[0], blk[1:][seg]]
+            motion = np.r_[motion[0], motion[1:][seg]]
         dialect = "lathe G-code"
         inferred["c"] = (f"C from the spindle's turning, sampled at {ppr} points per "
                          f"revolution (process.points_per_rev)")
