@@ -32,7 +32,7 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
-from ._program_kernel import sample_moves
+from ._program_kernel import feed_times, sample_moves
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -197,12 +197,13 @@ def _arc_points(p0, p1, centre, clockwise: bool, tol: float):
 
 
 def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, offsets,
-                 tol: float):
+                 tol: float, motion=None):
     """(index of the source row per point, axes per point, arc fraction per point): the
     rows with G02 / G03 replaced by chord points of their arcs in the plane
     ``plane_axes`` = (a, b) (centre offsets ``offsets`` = (ia, ib) from the start, or
-    ``R``; G02 clockwise seen with a to the right and b up)."""
-    arcs = np.flatnonzero(sp.motion[rows] >= 2)
+    ``R``; G02 clockwise seen with a to the right and b up).  ``motion``: the rows'
+    motion, where the caller has it."""
+    arcs = np.flatnonzero((sp.motion[rows] if motion is None else motion) >= 2)
     if arcs.size == 0:
         return None, axes, None
     a, b = plane_axes
@@ -307,38 +308,54 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     if not known.any():
         need = "X, Z and C" if has_c else "X and Z"
         raise InputError(f"{path}: no block places the tool: {need} are never all known")
-    rows = np.flatnonzero(known)
-    rows = rows[rows >= rows[0]]
+    first = int(np.argmax(known))
+    # the usual program places the tool in every block from the first on: its columns are
+    # read through views (``span``), not gathered
+    whole = bool(known[first:].all())
+    rows = np.arange(first, known.size) if whole else np.flatnonzero(known)
+    span = slice(first, None) if whole else rows
+    del known
     inferred = {}
-    x = sp.axes["X"][rows].copy()
-    z = sp.axes["Z"][rows].copy()
-    cut = sp.motion[rows] >= 1
+    x = sp.axes["X"][span].copy()
+    z = sp.axes["Z"][span].copy()
+    motion = sp.motion[span]
+    cut = motion >= 1
     mode, why = _x_mode(sp, x, cut, part_radius, x_mode, design_height, z)
     inferred["x"] = why
     if mode == "diameter":
         x *= 0.5
     axes = {"X": x, "Z": z}
     if has_c:
-        axes["C"] = sp.axes["C"][rows].copy()
+        axes["C"] = sp.axes["C"][span].copy()
     # arcs in the Z-X plane (G18): Z to the right, X up; I and K from the start, in radius
-    src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM)
-    blk = rows if src is None else rows[src]
-    if np.any(sp.plane[blk[sp.motion[blk] >= 2]] != 18):
-        k = int(blk[np.flatnonzero((sp.motion[blk] >= 2) & (sp.plane[blk] != 18))[0]])
+    src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM,
+                                   motion=motion)
+    if src is None:
+        blk = rows
+    else:
+        blk = span = rows[src]
+        motion = sp.motion[blk]
+    arcs = motion >= 2
+    if arcs.any() and np.any(sp.plane[span][arcs] != 18):
+        k = int(blk[np.flatnonzero(arcs & (sp.plane[span] != 18))[0]])
         raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
                          f"in a turning program; select G18")
+    del arcs
     x, z = axes["X"], axes["Z"]
-    motion = sp.motion[blk]
-    fmode = sp.feed_mode[blk]
+    fmode = sp.feed_mode[span]
     has_f = bool(np.isfinite(sp.feed).any())
     # without F words the modal feed is NaN throughout (a view: no copy per block)
-    fval = sp.feed[blk] if has_f else np.broadcast_to(np.float64(math.nan), blk.shape)
+    fval = sp.feed[span] if has_f else np.broadcast_to(np.float64(math.nan), blk.shape)
     # ---- the spindle
-    css = sp.spindle_mode[blk] == 96
+    css = sp.spindle_mode[span] == 96
     if np.isfinite(sp.spindle).any() or css.any():
-        s_prog = sp.spindle[blk]
-        clampv = np.where(np.isfinite(sp.clamp_rpm[blk]), sp.clamp_rpm[blk], float(spindle_rpm))
+        s_prog = sp.spindle[span]
         base = np.where(np.isfinite(s_prog) & ~css, s_prog, float(spindle_rpm))
+        if css.any():
+            clampv = np.where(np.isfinite(sp.clamp_rpm[span]), sp.clamp_rpm[span],
+                              float(spindle_rpm))
+        else:  # the clamp only acts under constant surface speed
+            clampv = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
     else:  # no S anywhere: the scene's speed everywhere (views, no memory)
         s_prog = np.broadcast_to(np.float64(math.nan), blk.shape)
         clampv = base = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
@@ -388,22 +405,18 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     fm, fv, mo = fmode[1:], fval[1:], motion[1:]
     # one speed throughout without constant surface speed: a view of the moves' speeds
     rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
-    dt = np.full(length.size, math.nan)
-    rapid_mask = mo == 0
     if has_f:
-        g93 = (fm == 93) & ~rapid_mask
-        g94 = (fm == 94) & ~rapid_mask
-        g95 = (fm == 95) & ~rapid_mask
-        dt[g93] = MIN_TO_S / fv[g93]
-        dt[g94] = length[g94] / fv[g94] * MIN_TO_S
-        dt[g95] = length[g95] / (fv[g95] * rp[g95]) * MIN_TO_S
-        missing = ~rapid_mask & ~np.isfinite(fv)
-        if missing.any():
-            dt[missing] = length[missing] / float(feed) * MIN_TO_S
+        # G93 / G94 / G95 by the move, the scene's feed before the first F, rapids
+        dt, missing, any_rapid = feed_times(length, fm, fv, mo, rp, float(feed), float(rapid))
+        if missing:
             inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
         else:
             inferred["feed"] = "feed from the program's F words"
+        rapid_mask = None
     else:
+        dt = np.full(length.size, math.nan)
+        rapid_mask = mo == 0
+        any_rapid = bool(rapid_mask.any())
         if has_c:
             if not rapid_mask.any():  # every move cuts (a point list): in place
                 dt = 360.0 * rp
@@ -419,8 +432,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         else:
             dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
             inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
-    dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
-    if rapid_mask.any():
+        dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
+    if any_rapid:
         inferred["rapid"] = (f"rapids (G00) at {rapid:g} mm/min (the program does not say "
                              f"the machine's rapid rate)")
     if has_c:
@@ -431,15 +444,16 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         np.maximum(dt, least, out=dt)
         del least
     zero = ~(dt > 0)
-    keep = np.r_[True, ~zero]
-    if zero.any():  # points the tool does not leave (a repeated block)
+    any_zero = bool(zero.any())
+    if any_zero:  # points the tool does not leave (a repeated block)
         bad = zero & (length > 0)
         if bad.any():
             k = int(blk[1:][np.flatnonzero(bad)[0]])
             raise InputError(f"{path}:{int(sp.line[k])}: the move takes no time (F or the "
                              f"spindle speed is 0)")
     del length, fm, fv, mo, rp, rapid_mask
-    if zero.any():
+    if any_zero:
+        keep = np.r_[True, ~zero]
         sel = np.flatnonzero(keep)
         x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
         s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
@@ -447,7 +461,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             c_cum = c_cum[sel]
     else:  # every point kept (the usual case): no copies
         dt_k = dt
-    del dt, zero, keep
+    del dt, zero
     if has_c:
         t = np.empty(dt_k.size + 1)
         t[0] = 0.0
@@ -498,8 +512,9 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
              "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
+    line = sp.line[span] if blk is rows else sp.line[blk]
     return ImportedProgram(path, dialect, prog, motion.astype(np.int8, copy=False),
-                           sp.line[blk].astype(np.int64, copy=False), inferred, facts)
+                           line.astype(np.int64, copy=False), inferred, facts)
 
 
 def _css_rpm(s, clamp, r, css, rpm):

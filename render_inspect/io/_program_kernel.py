@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["scan_piece", "clean_piece", "sample_moves", "STATE_SIZE", "ROW_FIELDS", "ERRORS",
-           "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
+__all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "STATE_SIZE",
+           "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
 
 # state vector
 _MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED = range(14)
@@ -339,7 +339,7 @@ _TWO_PI = 2 * np.pi
 _MIN_TO_S = 60.0  # s per min (as core.units.MIN_TO_S)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
 def sample_moves(x, z, dt, n_sub, rpm, blk, motion, total):
     """The moves of an X-Z lathe program sampled while the spindle turns at ``rpm`` (one
     speed per move): move ``j`` (from point ``j`` to ``j + 1``, taking ``dt[j]`` s) in
@@ -388,3 +388,35 @@ def sample_moves(x, z, dt, n_sub, rpm, blk, motion, total):
             mo[k] = m
             k += 1
     return xo, zo, to, th, bo, mo
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
+def feed_times(length, fmode, fval, motion, rpm, feed, rapid):
+    """The time of each move of a program with F words, s: G93 (1 / F min), G94 (length
+    / F), G95 (length / (F rpm)); moves before the first F at ``feed`` mm/min, rapids at
+    ``rapid`` mm/min.  Returns (times, whether a move had no F, whether there are
+    rapids)."""
+    n = length.size
+    dt = np.empty(n)
+    missing = False
+    rapids = False
+    for i in range(n):
+        if motion[i] == 0:
+            dt[i] = length[i] / rapid * _MIN_TO_S
+            rapids = True
+            continue
+        f = fval[i]
+        if not np.isfinite(f):
+            dt[i] = length[i] / feed * _MIN_TO_S
+            missing = True
+            continue
+        m = fmode[i]
+        if m == 93:
+            dt[i] = _MIN_TO_S / f
+        elif m == 94:
+            dt[i] = length[i] / f * _MIN_TO_S
+        elif m == 95:
+            dt[i] = length[i] / (f * rpm[i]) * _MIN_TO_S
+        else:
+            dt[i] = np.nan
+    return dt, missing, rapids
