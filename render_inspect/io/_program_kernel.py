@@ -66,6 +66,15 @@ ERRORS = {1: "bad byte", 2: "no number", 3: "number without letter", 4: "bad num
 
 _INCH = 25.4
 _POW10 = 10.0 ** np.arange(40)
+#: what :func:`clean_piece` does with a byte: 0 keep, 1 drop (space, tab, CR), 2 upper
+#: case, 3 a comment '(', 4 a comment ';', 5 hand the piece to the general way
+_CLEAN = np.zeros(256, dtype=np.uint8)
+_CLEAN[[32, 9, 13]] = 1
+_CLEAN[97:123] = 2
+_CLEAN[40] = 3
+_CLEAN[59] = 4
+_CLEAN[128:] = 5
+_CLEAN[[41, 37, 58, 47]] = 5
 
 
 @njit(cache=True, nogil=True)
@@ -81,12 +90,21 @@ def clean_piece(raw, out):
     i = 0
     while i < n:
         c = raw[i]
-        if c == 32 or c == 9 or c == 13:  # space, tab, CR
+        k = _CLEAN[c]
+        if k == 0:  # kept as it is
+            out[m] = c
+            m += 1
             i += 1
             continue
-        if c > 127 or c == 37 or c == 58 or c == 47 or c == 41:  # % : / )
-            return 0, 0
-        if c == 40:  # ( .. ) on one line, no ( inside
+        if k == 1:  # space, tab, CR
+            i += 1
+            continue
+        if k == 2:  # lower case
+            out[m] = c - 32
+            m += 1
+            i += 1
+            continue
+        if k == 3:  # ( .. ) on one line, no ( inside
             j = i + 1
             while j < n:
                 d = raw[j]
@@ -97,7 +115,7 @@ def clean_piece(raw, out):
                 i = j + 1
                 continue
             return 0, 0
-        if c == 59:  # ; to the end of the line
+        if k == 4:  # ; to the end of the line
             j = i + 1
             while j < n:
                 d = raw[j]
@@ -108,11 +126,7 @@ def clean_piece(raw, out):
                 j += 1
             i = j
             continue
-        if 97 <= c <= 122:
-            c -= 32
-        out[m] = c
-        m += 1
-        i += 1
+        return 0, 0  # not ASCII, ')', '%', ':', '/'
     return m, 1
 
 

@@ -281,6 +281,7 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         sc.piece(raw, line0, newlines)
         if sc.ended:
             break
+    sc.buf = sc.rows = None  # the piece buffers are not needed past the last piece
     out = sc.out
 
     def join(parts, dt):
