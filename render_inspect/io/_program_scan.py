@@ -83,7 +83,7 @@ def _fail(path, lineno: int, block: bytes, text: str):
 
 
 def _pieces(path: Path, piece_bytes: int):
-    """(bytes ending at a line break, line number of its first line)."""
+    """(bytes ending at a line break, line number of its first line, line breaks in it)."""
     line = 1
     rest = b""
     with path.open("rb") as fh:
@@ -91,16 +91,21 @@ def _pieces(path: Path, piece_bytes: int):
             data = fh.read(piece_bytes)
             if not data:
                 break
-            data = rest + data
+            if rest:
+                data = rest + data
             cut = data.rfind(b"\n")
             if cut < 0:
                 rest = data
                 continue
-            piece, rest = data[:cut + 1], data[cut + 1:]
-            yield piece, line
-            line += piece.count(b"\n")
+            if cut + 1 == len(data):
+                piece, rest = data, b""
+            else:
+                piece, rest = data[:cut + 1], data[cut + 1:]
+            newlines = piece.count(b"\n")
+            yield piece, line, newlines
+            line += newlines
     if rest:
-        yield rest + b"\n", line
+        yield rest + b"\n", line, rest.count(b"\n") + 1
 
 
 def _header(first: bytes) -> tuple[str, dict]:
@@ -273,10 +278,9 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         raise InputError(f"program file not found: {str(path)!r}")
     sc = _Scanner(path)
     title, header, lines = "", {}, 0
-    for k, (raw, line0) in enumerate(_pieces(path, piece_bytes)):
+    for k, (raw, line0, newlines) in enumerate(_pieces(path, piece_bytes)):
         if k == 0:
             title, header = _header(raw[:1 << 16])
-        newlines = raw.count(b"\n")
         lines = line0 + newlines - 1
         sc.piece(raw, line0, newlines)
         if sc.ended:
