@@ -32,7 +32,7 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
-from ._program_kernel import feed_times, sample_moves
+from ._program_kernel import c_move_times, feed_times, sample_moves, unwrap_c
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -381,24 +381,15 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     # ---- time of each move (from the point before)
     length = np.hypot(np.diff(x), np.diff(z))
     if has_c:
-        c = axes["C"]
-        dc = np.diff(c)
-        neg = dc < 0
-        if neg.sum() > dc.size // 2:
-            k = int(blk[1:][np.flatnonzero(neg)[0]])
+        # C wraps every revolution: each step taken modulo 360 where it falls, summed
+        dc, c_cum, n_neg, first_neg = unwrap_c(axes["C"])
+        if n_neg > dc.size // 2:
+            k = int(blk[1:][first_neg])
             raise InputError(f"{path}:{int(sp.line[k])}: C decreases (the spindle turns "
                              f"backwards, M04); the reader takes programs whose C increases")
-        if neg.any():  # C wraps every revolution (in place: a few blocks a revolution)
-            w = dc[neg]
-            dc[neg] = w - 360.0 * np.floor(w / 360.0)
-            del w
-        c_cum = np.empty(dc.size + 1)
-        c_cum[0] = 0.0
-        np.cumsum(dc, out=c_cum[1:])
-        c_cum += float(c[0])
-        del c, axes["C"]  # C as written: its unwrapped sum is what the path needs
-        if neg.any():
-            inferred["c"] = (f"C wraps at 360 deg ({int(neg.sum())} times): it is read as "
+        del axes["C"]  # C as written: its unwrapped sum is what the path needs
+        if n_neg:
+            inferred["c"] = (f"C wraps at 360 deg ({n_neg} times): it is read as "
                              f"turning on")
     else:
         dc = None
@@ -412,37 +403,27 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
         else:
             inferred["feed"] = "feed from the program's F words"
-        rapid_mask = None
+        if has_c:  # a move cannot turn C faster than the spindle allows
+            dt, _ = c_move_times(dc, length, mo, rp, float(feed), float(rapid), dt)
+    elif has_c:
+        # C at the spindle speed, moves without C at the scene's feed, rapids; never
+        # faster than the spindle turns C
+        dt, any_rapid = c_move_times(dc, length, mo, rp, float(feed), float(rapid),
+                                     np.empty(0))
+        inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
+                            f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
+                            f"at {feed:g} mm/min from {feed_source}")
     else:
         dt = np.full(length.size, math.nan)
         rapid_mask = mo == 0
         any_rapid = bool(rapid_mask.any())
-        if has_c:
-            if not rapid_mask.any():  # every move cuts (a point list): in place
-                dt = 360.0 * rp
-                np.divide(dc, dt, out=dt)
-                dt *= MIN_TO_S
-            else:
-                dt[~rapid_mask] = dc[~rapid_mask] / (360.0 * rp[~rapid_mask]) * MIN_TO_S
-            inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
-                                f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
-                                f"at {feed:g} mm/min from {feed_source}")
-            still = ~rapid_mask & (dc == 0)
-            dt[still] = length[still] / float(feed) * MIN_TO_S
-        else:
-            dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
-            inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
+        dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
+        inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
         dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
+        del rapid_mask
     if any_rapid:
         inferred["rapid"] = (f"rapids (G00) at {rapid:g} mm/min (the program does not say "
                              f"the machine's rapid rate)")
-    if has_c:
-        # a move cannot turn C faster than the spindle allows: C sets the least time
-        least = 360.0 * rp
-        np.divide(dc, least, out=least)
-        least *= MIN_TO_S
-        np.maximum(dt, least, out=dt)
-        del least
     zero = ~(dt > 0)
     any_zero = bool(zero.any())
     if any_zero:  # points the tool does not leave (a repeated block)
@@ -451,7 +432,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             k = int(blk[1:][np.flatnonzero(bad)[0]])
             raise InputError(f"{path}:{int(sp.line[k])}: the move takes no time (F or the "
                              f"spindle speed is 0)")
-    del length, fm, fv, mo, rp, rapid_mask
+    del length, fm, fv, mo, rp, dc
     if any_zero:
         keep = np.r_[True, ~zero]
         sel = np.flatnonzero(keep)

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "STATE_SIZE",
+__all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
+           "c_move_times", "STATE_SIZE",
            "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
 
 # state vector
@@ -434,3 +435,56 @@ def feed_times(length, fmode, fval, motion, rpm, feed, rapid):
         else:
             dt[i] = np.nan
     return dt, missing, rapids
+
+
+@njit(cache=True, nogil=True)
+def unwrap_c(c):
+    """C as written (deg, wrapping every revolution) turned on: each move's step (a
+    negative step is a wrap, taken modulo 360) and the summed angle from ``c[0]``.
+    Returns (steps, summed angle, negative steps, index of the first)."""
+    n = c.size - 1
+    dc = np.empty(n)
+    nneg = 0
+    first = -1
+    for i in range(n):
+        d = c[i + 1] - c[i]
+        if d < 0:
+            if nneg == 0:
+                first = i
+            nneg += 1
+            d = d - 360.0 * np.floor(d / 360.0)
+        dc[i] = d
+    cum = np.empty(n + 1)
+    c0 = c[0]
+    cum[0] = 0.0 + c0
+    s = 0.0
+    for i in range(n):
+        s = dc[i] if i == 0 else s + dc[i]
+        cum[i + 1] = s + c0
+    return dc, cum, nneg, first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
+def c_move_times(dc, length, motion, rpm, feed, rapid, dt):
+    """The time of each move of a program with C words, s: ``dt`` where the program's F
+    words gave it (an empty array otherwise: C at the spindle speed ``rpm``, moves
+    without C at ``feed`` mm/min, rapids at ``rapid`` mm/min), and never less than the
+    spindle takes to turn C by ``dc`` deg.  Returns (times, whether there are rapids)."""
+    n = dc.size
+    out = np.empty(n)
+    given = dt.size == n
+    rapids = False
+    for i in range(n):
+        least = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
+        if given:
+            d = dt[i]
+        elif motion[i] == 0:
+            d = length[i] / rapid * _MIN_TO_S
+            rapids = True
+        elif dc[i] == 0:
+            d = length[i] / feed * _MIN_TO_S
+        else:
+            d = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
+        # numpy.maximum: the larger, NaN where either is NaN
+        out[i] = d if (d >= least or np.isnan(d)) else least
+    return out, rapids
