@@ -276,7 +276,8 @@ def test_scanner_fast_cleaning_matches_general_way():
     for k in range(4000):
         text = common[rng.integers(0, common.size, rng.integers(1, 60))]
         if k % 2:  # one byte of the kind handed on, somewhere
-            text = np.insert(text, rng.integers(0, text.size + 1), rare[rng.integers(0, rare.size)])
+            byte = rare[rng.integers(0, rare.size)]
+            text = np.insert(text, rng.integers(0, text.size + 1), byte)
         raw = text.tobytes() + b"\n"
         out = np.empty(len(raw), np.uint8)
         m, ok = clean_piece(np.frombuffer(raw, np.uint8), out)
