@@ -285,7 +285,8 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         sc.piece(raw, line0, newlines)
         if sc.ended:
             break
-    sc.buf = sc.rows = None  # the piece buffers are not needed past the last piece
+    # the piece buffers are not needed past the last piece
+    sc.buf, sc.rows = np.empty(0, np.uint8), np.empty((len(ROW_FIELDS), 0))
     out = sc.out
 
     def join(parts, dt):
