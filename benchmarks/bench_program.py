@@ -2,13 +2,13 @@
 
 Writes a bare C-X-Z point list of ``blocks`` blocks (the published programs' form: one
 ``C.. X.. Z..`` per line, 6 decimals, C wrapping every revolution) and a lathe G-code
-program of the same size (``N.. G01 X.. Z.. F..`` blocks with comments) into a temporary
-folder, and reads each: seconds (best of ``repeats``), M blocks/s, and the peak memory of
-the reading (tracemalloc, on a tenth of the blocks) against the bytes the path it returns
-holds (theta, rho, z, t: 32 bytes a point).  ``read_cpu_s`` is the CPU time of one read
-(on a shared machine the wall time is longer by the load).  The scanner works on pieces of
-1 MiB; the whole-program steps after it (unwrapping C, the time of each move) hold a few
-arrays of the program's length.
+program of the same size (a header with a comment, then ``N.. G01 X.. Z.. F..`` blocks)
+into a temporary folder, and reads each: seconds (best of ``repeats``), M blocks/s, and
+the peak memory of the reading (tracemalloc, on a tenth of the blocks) against the bytes
+the path it returns holds (theta, rho, z, t: 32 bytes a point).  ``read_cpu_s`` is the
+CPU time of one read (on a shared machine the wall time is longer by the load).  The
+scanner works on pieces of 1 MiB; the whole-program steps after it (unwrapping C, the
+time of each move) hold a few arrays of the program's length.
 
 ``python benchmarks/bench_program.py [BLOCKS]`` prints and returns the figures (default
 10 M blocks).

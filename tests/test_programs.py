@@ -257,6 +257,42 @@ def test_scanner_pieces_agree(tmp_path):
     assert np.array_equal(whole.feed_mode, small.feed_mode)
 
 
+def test_scanner_fast_cleaning_matches_general_way():
+    """The compiled pass that cleans a piece (upper case, spaces dropped, comments
+    removed) gives the bytes the general way (regular expressions) gives wherever it takes
+    the piece; what it hands on (``%``, ``:``, ``/``, unpaired parentheses, bytes that are
+    not ASCII) the general way reads, or names what is wrong."""
+    from render_inspect.io._program_kernel import clean_piece
+    from render_inspect.io._program_scan import _Scanner
+
+    def fail(line, text):
+        raise InputError(text)
+
+    rng = np.random.default_rng(7)
+    common = np.frombuffer(b"GXZCFNxz0123456789.-+  \t\r;()\n", np.uint8)
+    rare = np.frombuffer(b"%:/)\xc3", np.uint8)
+    sc = _Scanner(Path("random.nc"))
+    taken = handed = 0
+    for k in range(4000):
+        text = common[rng.integers(0, common.size, rng.integers(1, 60))]
+        if k % 2:  # one byte of the kind handed on, somewhere
+            byte = rare[rng.integers(0, rare.size)]
+            text = np.insert(text, rng.integers(0, text.size + 1), byte)
+        raw = text.tobytes() + b"\n"
+        out = np.empty(len(raw), np.uint8)
+        m, ok = clean_piece(np.frombuffer(raw, np.uint8), out)
+        try:
+            general = sc._text(raw, 1, fail)
+        except InputError:
+            general = None
+        if ok:
+            taken += 1
+            assert general is not None and out[:m].tobytes() == general, raw
+        else:
+            handed += 1
+    assert taken > 400 and handed > 2000, (taken, handed)
+
+
 # ---------------------------------------------------------------------------- scene
 def test_scene_key_relative_and_dump(tmp_path):
     from render_inspect.scene import load_scene

@@ -32,6 +32,7 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
+from ._program_kernel import c_move_times, feed_times, sample_moves, unwrap_c
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -196,12 +197,13 @@ def _arc_points(p0, p1, centre, clockwise: bool, tol: float):
 
 
 def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, offsets,
-                 tol: float):
+                 tol: float, motion=None):
     """(index of the source row per point, axes per point, arc fraction per point): the
     rows with G02 / G03 replaced by chord points of their arcs in the plane
     ``plane_axes`` = (a, b) (centre offsets ``offsets`` = (ia, ib) from the start, or
-    ``R``; G02 clockwise seen with a to the right and b up)."""
-    arcs = np.flatnonzero(sp.motion[rows] >= 2)
+    ``R``; G02 clockwise seen with a to the right and b up).  ``motion``: the rows'
+    motion, where the caller has it."""
+    arcs = np.flatnonzero((sp.motion[rows] if motion is None else motion) >= 2)
     if arcs.size == 0:
         return None, axes, None
     a, b = plane_axes
@@ -306,38 +308,54 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     if not known.any():
         need = "X, Z and C" if has_c else "X and Z"
         raise InputError(f"{path}: no block places the tool: {need} are never all known")
-    rows = np.flatnonzero(known)
-    rows = rows[rows >= rows[0]]
+    first = int(np.argmax(known))
+    # the usual program places the tool in every block from the first on: its columns are
+    # read through views (``span``), not gathered
+    whole = bool(known[first:].all())
+    rows = np.arange(first, known.size) if whole else np.flatnonzero(known)
+    span = slice(first, None) if whole else rows
+    del known
     inferred = {}
-    x = sp.axes["X"][rows].copy()
-    z = sp.axes["Z"][rows].copy()
-    cut = sp.motion[rows] >= 1
+    x = sp.axes["X"][span].copy()
+    z = sp.axes["Z"][span].copy()
+    motion = sp.motion[span]
+    cut = motion >= 1
     mode, why = _x_mode(sp, x, cut, part_radius, x_mode, design_height, z)
     inferred["x"] = why
     if mode == "diameter":
         x *= 0.5
     axes = {"X": x, "Z": z}
     if has_c:
-        axes["C"] = sp.axes["C"][rows].copy()
+        axes["C"] = sp.axes["C"][span].copy()
     # arcs in the Z-X plane (G18): Z to the right, X up; I and K from the start, in radius
-    src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM)
-    blk = rows if src is None else rows[src]
-    if np.any(sp.plane[blk[sp.motion[blk] >= 2]] != 18):
-        k = int(blk[np.flatnonzero((sp.motion[blk] >= 2) & (sp.plane[blk] != 18))[0]])
+    src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM,
+                                   motion=motion)
+    if src is None:
+        blk = rows
+    else:
+        blk = span = rows[src]
+        motion = sp.motion[blk]
+    arcs = motion >= 2
+    if arcs.any() and np.any(sp.plane[span][arcs] != 18):
+        k = int(blk[np.flatnonzero(arcs & (sp.plane[span] != 18))[0]])
         raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
                          f"in a turning program; select G18")
+    del arcs
     x, z = axes["X"], axes["Z"]
-    motion = sp.motion[blk]
-    fmode = sp.feed_mode[blk]
+    fmode = sp.feed_mode[span]
     has_f = bool(np.isfinite(sp.feed).any())
     # without F words the modal feed is NaN throughout (a view: no copy per block)
-    fval = sp.feed[blk] if has_f else np.broadcast_to(np.float64(math.nan), blk.shape)
+    fval = sp.feed[span] if has_f else np.broadcast_to(np.float64(math.nan), blk.shape)
     # ---- the spindle
-    css = sp.spindle_mode[blk] == 96
+    css = sp.spindle_mode[span] == 96
     if np.isfinite(sp.spindle).any() or css.any():
-        s_prog = sp.spindle[blk]
-        clampv = np.where(np.isfinite(sp.clamp_rpm[blk]), sp.clamp_rpm[blk], float(spindle_rpm))
+        s_prog = sp.spindle[span]
         base = np.where(np.isfinite(s_prog) & ~css, s_prog, float(spindle_rpm))
+        if css.any():
+            clampv = np.where(np.isfinite(sp.clamp_rpm[span]), sp.clamp_rpm[span],
+                              float(spindle_rpm))
+        else:  # the clamp only acts under constant surface speed
+            clampv = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
     else:  # no S anywhere: the scene's speed everywhere (views, no memory)
         s_prog = np.broadcast_to(np.float64(math.nan), blk.shape)
         clampv = base = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
@@ -363,82 +381,60 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     # ---- time of each move (from the point before)
     length = np.hypot(np.diff(x), np.diff(z))
     if has_c:
-        c = axes["C"]
-        dc = np.diff(c)
-        neg = dc < 0
-        if neg.sum() > dc.size // 2:
-            k = int(blk[1:][np.flatnonzero(neg)[0]])
+        # C wraps every revolution: each step taken modulo 360 where it falls, summed
+        dc, c_cum, n_neg, first_neg = unwrap_c(axes["C"])
+        if n_neg > dc.size // 2:
+            k = int(blk[1:][first_neg])
             raise InputError(f"{path}:{int(sp.line[k])}: C decreases (the spindle turns "
                              f"backwards, M04); the reader takes programs whose C increases")
-        if neg.any():  # C wraps every revolution (in place: a few blocks a revolution)
-            w = dc[neg]
-            dc[neg] = w - 360.0 * np.floor(w / 360.0)
-            del w
-        c_cum = np.empty(dc.size + 1)
-        c_cum[0] = 0.0
-        np.cumsum(dc, out=c_cum[1:])
-        c_cum += float(c[0])
-        del c, axes["C"]  # C as written: its unwrapped sum is what the path needs
-        if neg.any():
-            inferred["c"] = (f"C wraps at 360 deg ({int(neg.sum())} times): it is read as "
+        del axes["C"]  # C as written: its unwrapped sum is what the path needs
+        if n_neg:
+            inferred["c"] = (f"C wraps at 360 deg ({n_neg} times): it is read as "
                              f"turning on")
     else:
         dc = None
     fm, fv, mo = fmode[1:], fval[1:], motion[1:]
     # one speed throughout without constant surface speed: a view of the moves' speeds
     rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
-    dt = np.full(length.size, math.nan)
-    rapid_mask = mo == 0
     if has_f:
-        g93 = (fm == 93) & ~rapid_mask
-        g94 = (fm == 94) & ~rapid_mask
-        g95 = (fm == 95) & ~rapid_mask
-        dt[g93] = MIN_TO_S / fv[g93]
-        dt[g94] = length[g94] / fv[g94] * MIN_TO_S
-        dt[g95] = length[g95] / (fv[g95] * rp[g95]) * MIN_TO_S
-        missing = ~rapid_mask & ~np.isfinite(fv)
-        if missing.any():
-            dt[missing] = length[missing] / float(feed) * MIN_TO_S
+        # G93 / G94 / G95 by the move, the scene's feed before the first F, rapids
+        dt, missing, any_rapid = feed_times(length, fm, fv, mo, rp, float(feed), float(rapid))
+        if missing:
             inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
         else:
             inferred["feed"] = "feed from the program's F words"
+        if has_c:  # a move cannot turn C faster than the spindle allows
+            dt, _ = c_move_times(dc, length, mo, rp, float(feed), float(rapid), dt)
+    elif has_c:
+        # C at the spindle speed, moves without C at the scene's feed, rapids; never
+        # faster than the spindle turns C
+        dt, any_rapid = c_move_times(dc, length, mo, rp, float(feed), float(rapid),
+                                     np.empty(0))
+        inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
+                            f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
+                            f"at {feed:g} mm/min from {feed_source}")
     else:
-        if has_c:
-            if not rapid_mask.any():  # every move cuts (a point list): in place
-                dt = 360.0 * rp
-                np.divide(dc, dt, out=dt)
-                dt *= MIN_TO_S
-            else:
-                dt[~rapid_mask] = dc[~rapid_mask] / (360.0 * rp[~rapid_mask]) * MIN_TO_S
-            inferred["time"] = (f"no F words: time from C and the spindle speed (C turns at "
-                                f"{spindle_rpm:g} rpm from {spindle_source}); moves without C "
-                                f"at {feed:g} mm/min from {feed_source}")
-            still = ~rapid_mask & (dc == 0)
-            dt[still] = length[still] / float(feed) * MIN_TO_S
-        else:
-            dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
-            inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
-    dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
-    if rapid_mask.any():
+        dt = np.full(length.size, math.nan)
+        rapid_mask = mo == 0
+        any_rapid = bool(rapid_mask.any())
+        dt[~rapid_mask] = length[~rapid_mask] / float(feed) * MIN_TO_S
+        inferred["feed"] = f"no F words: feed {feed:g} mm/min from {feed_source}"
+        dt[rapid_mask] = length[rapid_mask] / float(rapid) * MIN_TO_S
+        del rapid_mask
+    if any_rapid:
         inferred["rapid"] = (f"rapids (G00) at {rapid:g} mm/min (the program does not say "
                              f"the machine's rapid rate)")
-    if has_c:
-        # a move cannot turn C faster than the spindle allows: C sets the least time
-        least = 360.0 * rp
-        np.divide(dc, least, out=least)
-        least *= MIN_TO_S
-        np.maximum(dt, least, out=dt)
-        del least
     zero = ~(dt > 0)
-    keep = np.r_[True, ~zero]
-    if zero.any():  # points the tool does not leave (a repeated block)
+    any_zero = bool(zero.any())
+    if any_zero:  # points the tool does not leave (a repeated block)
         bad = zero & (length > 0)
         if bad.any():
             k = int(blk[1:][np.flatnonzero(bad)[0]])
             raise InputError(f"{path}:{int(sp.line[k])}: the move takes no time (F or the "
                              f"spindle speed is 0)")
-    del length, fm, fv, mo, rp, rapid_mask
-    if zero.any():
+    del length, fm, fv, mo, rp, dc
+    if any_zero:
+        keep = np.r_[True, ~zero]
         sel = np.flatnonzero(keep)
         x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
         s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
@@ -446,18 +442,18 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             c_cum = c_cum[sel]
     else:  # every point kept (the usual case): no copies
         dt_k = dt
-    del dt, zero, keep
-    t = np.empty(dt_k.size + 1)
-    t[0] = 0.0
-    np.cumsum(dt_k, out=t[1:])
+    del dt, zero
     if has_c:
+        t = np.empty(dt_k.size + 1)
+        t[0] = 0.0
+        np.cumsum(dt_k, out=t[1:])
         theta = np.radians(c_cum)
         del c_cum
         dialect = "point list" if not has_f and not sp.g_codes else "C-X-Z G-code"
     else:
         # the spindle turns while X and Z move: C follows from the time, each move sampled
         # at points_per_rev per revolution
-        rp_k = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size))
+        rp_k = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
         revs = rp_k * dt_k / MIN_TO_S
         n_sub = np.maximum(1, np.ceil(revs * ppr)).astype(np.int64)
         total = int(n_sub.sum()) + 1
@@ -465,12 +461,16 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             raise InputError(f"{path}: sampling the spindle's {float(revs.sum()):.4g} revolutions "
                              f"at process.points_per_rev = {ppr} gives {total:,} points (at most "
                              f"{MAX_PROGRAM_POINTS:,}); lower process.points_per_rev")
-        seg = np.repeat(np.arange(n_sub.size), n_sub)
-        u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
-        xs = x[seg] + (x[seg + 1] - x[seg]) * u
-        zs = z[seg] + (z[seg + 1] - z[seg]) * u
-        dts = dt_k[seg] / n_sub[seg]
-        if any_css:
+        if not any_css and n_sub.min() >= 1:
+            # one spindle speed a move: every step's point, time and angle in one pass
+            x, z, t, theta, blk, motion = sample_moves(x, z, dt_k, n_sub, rp_k, blk, motion,
+                                                       total)
+        else:
+            seg = np.repeat(np.arange(n_sub.size), n_sub)
+            u = (np.arange(seg.size) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub) + 1) / n_sub[seg]
+            xs = x[seg] + (x[seg + 1] - x[seg]) * u
+            zs = z[seg] + (z[seg + 1] - z[seg]) * u
+            dts = dt_k[seg] / n_sub[seg]
             # the spindle speed at each step's middle; a feed per revolution (G95) under
             # constant surface speed sets each step's time from it
             xm = xs - 0.5 * (x[seg + 1] - x[seg]) / n_sub[seg]
@@ -480,13 +480,11 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             if g95.any():
                 step = np.hypot(x[seg + 1] - x[seg], z[seg + 1] - z[seg]) / n_sub[seg]
                 dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
-        else:
-            rpm_s = spin(xs, seg + 1)
-        ts = np.cumsum(dts)
-        theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
-        x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
-        blk = np.r_[blk[0], blk[1:][seg]]
-        motion = np.r_[motion[0], motion[1:][seg]]
+            ts = np.cumsum(dts)
+            theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
+            x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
+            blk = np.r_[blk[0], blk[1:][seg]]
+            motion = np.r_[motion[0], motion[1:][seg]]
         dialect = "lathe G-code"
         inferred["c"] = (f"C from the spindle's turning, sampled at {ppr} points per "
                          f"revolution (process.points_per_rev)")
@@ -495,8 +493,9 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
              "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
+    line = sp.line[span] if blk is rows else sp.line[blk]
     return ImportedProgram(path, dialect, prog, motion.astype(np.int8, copy=False),
-                           sp.line[blk].astype(np.int64, copy=False), inferred, facts)
+                           line.astype(np.int64, copy=False), inferred, facts)
 
 
 def _css_rpm(s, clamp, r, css, rpm):

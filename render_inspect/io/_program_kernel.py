@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["scan_piece", "STATE_SIZE", "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES",
-           "LETTER_OK", "INIT_STATE"]
+__all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
+           "c_move_times", "STATE_SIZE",
+           "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
 
 # state vector
 _MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED = range(14)
@@ -22,8 +23,9 @@ STATE_SIZE = 14
 #: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97
 INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
                        np.nan, np.nan, np.nan, np.nan, 0], dtype=np.float64)
-#: columns of a row (float64): line (in the piece), motion, X, Y, Z, C, I, J, K, R, F,
-#: feed mode, S, spindle mode, clamp, plane, written (bits X=1 Y=2 Z=4 C=8)
+#: columns of a row (float64; ``rows[k, i]`` is column k of row i): line (in the piece),
+#: motion, X, Y, Z, C, I, J, K, R, F, feed mode, S, spindle mode, clamp, plane, written
+#: (bits X=1 Y=2 Z=4 C=8)
 ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
               "S", "spindle_mode", "clamp", "plane", "written")
 _NF = len(ROW_FIELDS)
@@ -65,13 +67,75 @@ ERRORS = {1: "bad byte", 2: "no number", 3: "number without letter", 4: "bad num
 
 _INCH = 25.4
 _POW10 = 10.0 ** np.arange(40)
+#: what :func:`clean_piece` does with a byte: 0 keep, 1 drop (space, tab, CR), 2 upper
+#: case, 3 a comment '(', 4 a comment ';', 5 hand the piece to the general way
+_CLEAN = np.zeros(256, dtype=np.uint8)
+_CLEAN[[32, 9, 13]] = 1
+_CLEAN[97:123] = 2
+_CLEAN[40] = 3
+_CLEAN[59] = 4
+_CLEAN[128:] = 5
+_CLEAN[[41, 37, 58, 47]] = 5
+
+
+@njit(cache=True, nogil=True)
+def clean_piece(raw, out):
+    """The bytes ``raw`` of a piece as the scanner reads them, written to ``out``: upper
+    case, ``( )`` comments (closed on their line) and ``;`` comments removed, spaces,
+    tabs and carriage returns dropped.  Returns (bytes written, 1), or (0, 0) where the
+    piece holds anything else to handle (a byte that is not ASCII, a ``(`` or ``)``
+    without its pair, a ``;`` comment holding one, ``%``, ``:``, ``/``): the caller then
+    reads the piece the general way, which also names what is wrong."""
+    n = raw.size
+    m = 0
+    i = 0
+    while i < n:
+        c = raw[i]
+        k = _CLEAN[c]
+        if k == 0:  # kept as it is
+            out[m] = c
+            m += 1
+            i += 1
+            continue
+        if k == 1:  # space, tab, CR
+            i += 1
+            continue
+        if k == 2:  # lower case
+            out[m] = c - 32
+            m += 1
+            i += 1
+            continue
+        if k == 3:  # ( .. ) on one line, no ( inside
+            j = i + 1
+            while j < n:
+                d = raw[j]
+                if d == 40 or d == 41 or d == 10 or d > 127:
+                    break
+                j += 1
+            if j < n and raw[j] == 41:
+                i = j + 1
+                continue
+            return 0, 0
+        if k == 4:  # ; to the end of the line
+            j = i + 1
+            while j < n:
+                d = raw[j]
+                if d == 10:
+                    break
+                if d == 40 or d == 41 or d > 127:
+                    return 0, 0
+                j += 1
+            i = j
+            continue
+        return 0, 0  # not ASCII, ')', '%', ':', '/'
+    return m, 1
 
 
 @njit(cache=True, nogil=True)
 def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, flags):
     """Run one block through the modal state; write its row when it moves. Returns
     (rows written so far, error code, detail)."""
-    grp_seen = np.zeros(12, dtype=np.bool_)
+    grp_seen = 0  # bit k: a G code of group k in this block
     dwell = False
     home = False
     clamp = False
@@ -84,9 +148,9 @@ def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, 
         seen_g[gi] = True
         if grp == 11:
             return nrow, 8, k
-        if grp <= 6 and grp_seen[grp]:
+        if grp <= 6 and (grp_seen >> grp) & 1:
             return nrow, 9, grp
-        grp_seen[grp] = True
+        grp_seen |= 1 << grp
         if grp == 0:
             st[_MOTION] = g
         elif grp == 1:
@@ -156,24 +220,24 @@ def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, 
                 st[slot] = st[slot] + val[lu] * sc
                 written |= bit
     if written:
-        r = rows[nrow]
-        r[0] = line
-        r[1] = st[_MOTION]
-        r[2] = st[_X]
-        r[3] = st[_Y]
-        r[4] = st[_Z]
-        r[5] = st[_C]
-        r[6] = val[8] * scale if have[8] else np.nan     # I
-        r[7] = val[9] * scale if have[9] else np.nan     # J
-        r[8] = val[10] * scale if have[10] else np.nan   # K
-        r[9] = val[17] * scale if have[17] else np.nan   # R
-        r[10] = st[_F]
-        r[11] = st[_FEED]
-        r[12] = st[_S]
-        r[13] = st[_SPINDLE]
-        r[14] = st[_CLAMP]
-        r[15] = st[_PLANE]
-        r[16] = written
+        r = nrow
+        rows[0, r] = line
+        rows[1, r] = st[_MOTION]
+        rows[2, r] = st[_X]
+        rows[3, r] = st[_Y]
+        rows[4, r] = st[_Z]
+        rows[5, r] = st[_C]
+        rows[6, r] = val[8] * scale if have[8] else np.nan     # I
+        rows[7, r] = val[9] * scale if have[9] else np.nan     # J
+        rows[8, r] = val[10] * scale if have[10] else np.nan   # K
+        rows[9, r] = val[17] * scale if have[17] else np.nan   # R
+        rows[10, r] = st[_F]
+        rows[11, r] = st[_FEED]
+        rows[12, r] = st[_S]
+        rows[13, r] = st[_SPINDLE]
+        rows[14, r] = st[_CLAMP]
+        rows[15, r] = st[_PLANE]
+        rows[16, r] = written
         nrow += 1
     return nrow, 0, 0
 
@@ -284,3 +348,143 @@ def scan_piece(a, st, rows, seen_g, seen_m, seen_letter, flags):
         if err:
             return nrow, blocks, err, n - 1, det, line
     return nrow, blocks, 0, n, 0, line
+
+
+_TWO_PI = 2 * np.pi
+_MIN_TO_S = 60.0  # s per min (as core.units.MIN_TO_S)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
+def sample_moves(x, z, dt, n_sub, rpm, blk, motion, total):
+    """The moves of an X-Z lathe program sampled while the spindle turns at ``rpm`` (one
+    speed per move): move ``j`` (from point ``j`` to ``j + 1``, taking ``dt[j]`` s) in
+    ``n_sub[j]`` equal steps.  Returns (x, z, t, theta, block, motion) of the ``total``
+    points, the first point and then each step's end; theta and t are summed step by step
+    from 0 (as ``numpy.cumsum`` does)."""
+    xo = np.empty(total)
+    zo = np.empty(total)
+    to = np.empty(total)
+    th = np.empty(total)
+    bo = np.empty(total, dtype=blk.dtype)
+    mo = np.empty(total, dtype=motion.dtype)
+    xo[0] = x[0]
+    zo[0] = z[0]
+    to[0] = 0.0
+    th[0] = 0.0
+    bo[0] = blk[0]
+    mo[0] = motion[0]
+    k = 1
+    ts = 0.0
+    ang = 0.0
+    for j in range(n_sub.size):
+        n = n_sub[j]
+        nf = float(n)
+        x0 = x[j]
+        dx = x[j + 1] - x[j]
+        z0 = z[j]
+        dz = z[j + 1] - z[j]
+        d = dt[j] / nf
+        w = _TWO_PI * rpm[j] / _MIN_TO_S * d
+        b = blk[j + 1]
+        m = motion[j + 1]
+        for q in range(1, n + 1):
+            u = float(q) / nf
+            xo[k] = x0 + dx * u
+            zo[k] = z0 + dz * u
+            if k == 1:
+                ts = d
+                ang = w
+            else:
+                ts = ts + d
+                ang = ang + w
+            to[k] = ts
+            th[k] = ang
+            bo[k] = b
+            mo[k] = m
+            k += 1
+    return xo, zo, to, th, bo, mo
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
+def feed_times(length, fmode, fval, motion, rpm, feed, rapid):
+    """The time of each move of a program with F words, s: G93 (1 / F min), G94 (length
+    / F), G95 (length / (F rpm)); moves before the first F at ``feed`` mm/min, rapids at
+    ``rapid`` mm/min.  Returns (times, whether a move had no F, whether there are
+    rapids)."""
+    n = length.size
+    dt = np.empty(n)
+    missing = False
+    rapids = False
+    for i in range(n):
+        if motion[i] == 0:
+            dt[i] = length[i] / rapid * _MIN_TO_S
+            rapids = True
+            continue
+        f = fval[i]
+        if not np.isfinite(f):
+            dt[i] = length[i] / feed * _MIN_TO_S
+            missing = True
+            continue
+        m = fmode[i]
+        if m == 93:
+            dt[i] = _MIN_TO_S / f
+        elif m == 94:
+            dt[i] = length[i] / f * _MIN_TO_S
+        elif m == 95:
+            dt[i] = length[i] / (f * rpm[i]) * _MIN_TO_S
+        else:
+            dt[i] = np.nan
+    return dt, missing, rapids
+
+
+@njit(cache=True, nogil=True)
+def unwrap_c(c):
+    """C as written (deg, wrapping every revolution) turned on: each move's step (a
+    negative step is a wrap, taken modulo 360) and the summed angle from ``c[0]``.
+    Returns (steps, summed angle, negative steps, index of the first)."""
+    n = c.size - 1
+    dc = np.empty(n)
+    nneg = 0
+    first = -1
+    for i in range(n):
+        d = c[i + 1] - c[i]
+        if d < 0:
+            if nneg == 0:
+                first = i
+            nneg += 1
+            d = d - 360.0 * np.floor(d / 360.0)
+        dc[i] = d
+    cum = np.empty(n + 1)
+    c0 = c[0]
+    cum[0] = 0.0 + c0
+    s = 0.0
+    for i in range(n):
+        s = dc[i] if i == 0 else s + dc[i]
+        cum[i + 1] = s + c0
+    return dc, cum, nneg, first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
+def c_move_times(dc, length, motion, rpm, feed, rapid, dt):
+    """The time of each move of a program with C words, s: ``dt`` where the program's F
+    words gave it (an empty array otherwise: C at the spindle speed ``rpm``, moves
+    without C at ``feed`` mm/min, rapids at ``rapid`` mm/min), and never less than the
+    spindle takes to turn C by ``dc`` deg.  Returns (times, whether there are rapids)."""
+    n = dc.size
+    out = np.empty(n)
+    given = dt.size == n
+    rapids = False
+    for i in range(n):
+        least = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
+        if given:
+            d = dt[i]
+        elif motion[i] == 0:
+            d = length[i] / rapid * _MIN_TO_S
+            rapids = True
+        elif dc[i] == 0:
+            d = length[i] / feed * _MIN_TO_S
+        else:
+            d = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
+        # numpy.maximum: the larger, NaN where either is NaN
+        out[i] = d if (d >= least or np.isnan(d)) else least
+    return out, rapids

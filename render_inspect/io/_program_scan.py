@@ -21,7 +21,8 @@ import numpy as np
 
 from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError
-from ._program_kernel import G_GROUP, GROUP_NAMES, INIT_STATE, ROW_FIELDS, scan_piece
+from ._program_kernel import (G_GROUP, GROUP_NAMES, INIT_STATE, ROW_FIELDS, clean_piece,
+                              scan_piece)
 
 __all__ = ["ScannedProgram", "scan_program", "PIECE_BYTES", "INCH_MM"]
 
@@ -82,7 +83,7 @@ def _fail(path, lineno: int, block: bytes, text: str):
 
 
 def _pieces(path: Path, piece_bytes: int):
-    """(bytes ending at a line break, line number of its first line)."""
+    """(bytes ending at a line break, line number of its first line, line breaks in it)."""
     line = 1
     rest = b""
     with path.open("rb") as fh:
@@ -90,16 +91,21 @@ def _pieces(path: Path, piece_bytes: int):
             data = fh.read(piece_bytes)
             if not data:
                 break
-            data = rest + data
+            if rest:
+                data = rest + data
             cut = data.rfind(b"\n")
             if cut < 0:
                 rest = data
                 continue
-            piece, rest = data[:cut + 1], data[cut + 1:]
-            yield piece, line
-            line += piece.count(b"\n")
+            if cut + 1 == len(data):
+                piece, rest = data, b""
+            else:
+                piece, rest = data[:cut + 1], data[cut + 1:]
+            newlines = piece.count(b"\n")
+            yield piece, line, newlines
+            line += newlines
     if rest:
-        yield rest + b"\n", line
+        yield rest + b"\n", line, rest.count(b"\n") + 1
 
 
 def _header(first: bytes) -> tuple[str, dict]:
@@ -134,17 +140,20 @@ class _Scanner:
         self.seen_letter = np.zeros(26, dtype=np.bool_)
         self.flags = np.zeros(2, dtype=np.bool_)   # dwell, return home
         self.out = []
+        self.buf = np.empty(0, np.uint8)                    # a piece's cleaned bytes
+        self.rows = np.empty((len(ROW_FIELDS), 0))          # a piece's rows (reused)
         self.notes = []
         self.blocks = 0
         self.ended = False
 
     # ------------------------------------------------------------------ one piece
-    def piece(self, raw: bytes, line0: int) -> None:
-        path = self.path
-
-        def fail(pos_line: int, text: str):
-            _fail(path, line0 + pos_line, raw.split(b"\n")[pos_line], text)
-
+    def _text(self, raw: bytes, line0: int, fail) -> bytes:
+        """The bytes of the piece ``raw`` as :func:`scan_piece` reads them, the general
+        way (comments of every form, ``%``, ``:`` and ``/`` at a line's start; one line
+        for anything else)."""
+        if np.any(np.frombuffer(raw, np.uint8) > 127):
+            i = int(np.flatnonzero(np.frombuffer(raw, np.uint8) > 127)[0])
+            fail(raw.count(b"\n", 0, i), "a byte that is not ASCII text (is this an NC program?)")
         up = raw.upper()
         if b"(" in up or b")" in up:
             up = _PAREN.sub(b"", up)
@@ -165,33 +174,53 @@ class _Scanner:
             if len(up) != n0 and "block delete" not in " ".join(self.notes):
                 self.notes.append("blocks marked '/' (block delete) are run, as with the "
                                   "block-delete switch off")
-        s = up.translate(None, b" \t\r")
-        a = np.frombuffer(s, dtype=np.uint8)
-        rows = np.empty((s.count(b"\n") + 1, len(ROW_FIELDS)))
+        return up.translate(None, b" \t\r")
+
+    def piece(self, raw: bytes, line0: int, newlines: int) -> None:
+        """Scan the piece ``raw`` (whole lines, ``newlines`` of them, the first is file
+        line ``line0``)."""
+        path = self.path
+
+        def fail(pos_line: int, text: str):
+            _fail(path, line0 + pos_line, raw.split(b"\n")[pos_line], text)
+
+        if self.buf.size < len(raw):
+            self.buf = np.empty(len(raw), np.uint8)
+        # the usual piece (words, spaces, closed comments) cleaned by the compiled pass
+        m, ok = clean_piece(np.frombuffer(raw, np.uint8), self.buf)
+        if ok:
+            a = self.buf[:m]
+        else:
+            a = np.frombuffer(self._text(raw, line0, fail), dtype=np.uint8)
+        if self.rows.shape[1] < newlines + 1:
+            self.rows = np.empty((len(ROW_FIELDS), newlines + 1))
+        rows = self.rows
         nrow, blocks, err, at, detail, line = scan_piece(
             a, self.state, rows, self.seen_g, self.seen_m, self.seen_letter, self.flags)
         self.blocks += int(blocks)
         if err:
-            self._error(err, s, int(at), int(detail), int(line), fail)
+            self._error(err, a.tobytes(), int(at), int(detail), int(line), fail)
         if self.state[13]:
             self.ended = True
         if nrow:
-            r = rows[:nrow]
+            r = rows[:, :nrow]
 
             def kept(k):  # a column nothing in this piece sets is not stored
-                v = r[:, k].copy()
-                return None if np.isnan(v).all() else v
-            w = r[:, 16].astype(np.int8)
+                v = r[k]
+                return None if np.isnan(v).all() else v.copy()
+            w = r[16].astype(np.int8)
+            line_no = r[0].astype(np.int64)
+            line_no += line0
             self.out.append({
                 "n": int(nrow),
-                "line": r[:, 0].astype(np.int64) + line0,
-                "motion": r[:, 1].astype(np.int8),
+                "line": line_no,
+                "motion": r[1].astype(np.int8),
                 "axes": {ax: kept(2 + k) for k, ax in enumerate("XYZC")},
                 "written": {ax: (w & (1 << k)) != 0 for k, ax in enumerate("XYZC")},
                 "arc": {ax: kept(6 + k) for k, ax in enumerate("IJKR")},
-                "feed": kept(10), "feed_mode": r[:, 11].astype(np.int16),
-                "spindle": kept(12), "spindle_mode": r[:, 13].astype(np.int16),
-                "clamp": kept(14), "plane": r[:, 15].astype(np.int16)})
+                "feed": kept(10), "feed_mode": r[11].astype(np.int16),
+                "spindle": kept(12), "spindle_mode": r[13].astype(np.int16),
+                "clamp": kept(14), "plane": r[15].astype(np.int16)})
 
     def _error(self, err, s, at, detail, line, fail):
         """One line for the error ``err`` of :func:`scan_piece` (see its module)."""
@@ -249,17 +278,15 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
         raise InputError(f"program file not found: {str(path)!r}")
     sc = _Scanner(path)
     title, header, lines = "", {}, 0
-    for k, (raw, line0) in enumerate(_pieces(path, piece_bytes)):
+    for k, (raw, line0, newlines) in enumerate(_pieces(path, piece_bytes)):
         if k == 0:
             title, header = _header(raw[:1 << 16])
-        if np.any(np.frombuffer(raw, np.uint8) > 127):
-            i = int(np.flatnonzero(np.frombuffer(raw, np.uint8) > 127)[0])
-            _fail(path, line0 + raw.count(b"\n", 0, i), raw.split(b"\n")[raw.count(b"\n", 0, i)],
-                  "a byte that is not ASCII text (is this an NC program?)")
-        lines = line0 + raw.count(b"\n") - 1
-        sc.piece(raw, line0)
+        lines = line0 + newlines - 1
+        sc.piece(raw, line0, newlines)
         if sc.ended:
             break
+    # the piece buffers are not needed past the last piece
+    sc.buf, sc.rows = np.empty(0, np.uint8), np.empty((len(ROW_FIELDS), 0))
     out = sc.out
 
     def join(parts, dt):
