@@ -215,6 +215,21 @@ def test_malformed_one_line(tmp_path, text, line, word):
     assert "in block '" in msg or "G95" in msg
 
 
+@pytest.mark.parametrize("text", [
+    "G71 G90 G94\nG01 X1.0 Z0.0 F0\nG01 X0.5 Z0.0\n",          # a feed of 0 mm/min
+    "G71 G90 G93\nG01 X1.0 Z0.0 F0\nG01 X0.5 Z0.0\n",          # inverse time 0
+    "G71 G90 G95 S0\nG01 X1.0 Z0.0 F0.01\nG01 X0.5 Z0.0\n",    # per revolution, S0
+])
+def test_a_feed_of_zero_is_one_line(tmp_path, text):
+    """A move at a feed of 0 never ends: one line naming the file and the block's line,
+    not an error from the sampling of an endless move."""
+    p = _write(tmp_path, "f0.nc", text)
+    with pytest.raises(InputError) as err:
+        read_program(p, part_radius=2.0)
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{p}:3: ") and "the feed in force is 0" in msg
+
+
 def test_malformed_own_dialect(tmp_path):
     from render_inspect.core.toolpath import ToolPath
     n = 50

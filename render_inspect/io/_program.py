@@ -208,7 +208,8 @@ def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, o
         return None, axes, None
     a, b = plane_axes
     ia, ib = offsets
-    pieces_idx, pieces = [], {k: [] for k in axes}
+    pieces_idx: list = []
+    pieces: dict[str, list] = {k: [] for k in axes}
     pieces_u = []
     last = 0
     for j in arcs.tolist():
@@ -424,6 +425,12 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     if any_rapid:
         inferred["rapid"] = (f"rapids (G00) at {rapid:g} mm/min (the program does not say "
                              f"the machine's rapid rate)")
+    endless = np.isinf(dt)
+    if endless.any():  # F0 (or G95 with the spindle at S0): the move never ends
+        k = int(blk[1:][np.flatnonzero(endless)[0]])
+        raise InputError(f"{path}:{int(sp.line[k])}: the move never ends: the feed in force "
+                         f"is 0 (F must be > 0, or the spindle speed > 0 under G95)")
+    del endless
     zero = ~(dt > 0)
     any_zero = bool(zero.any())
     if any_zero:  # points the tool does not leave (a repeated block)

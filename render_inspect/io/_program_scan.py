@@ -139,10 +139,10 @@ class _Scanner:
         self.seen_m = np.zeros(100, dtype=np.bool_)
         self.seen_letter = np.zeros(26, dtype=np.bool_)
         self.flags = np.zeros(2, dtype=np.bool_)   # dwell, return home
-        self.out = []
+        self.out: list[dict] = []
         self.buf = np.empty(0, np.uint8)                    # a piece's cleaned bytes
         self.rows = np.empty((len(ROW_FIELDS), 0))          # a piece's rows (reused)
-        self.notes = []
+        self.notes: list[str] = []
         self.blocks = 0
         self.ended = False
 
@@ -277,7 +277,8 @@ def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
     if not path.is_file():
         raise InputError(f"program file not found: {str(path)!r}")
     sc = _Scanner(path)
-    title, header, lines = "", {}, 0
+    header: dict = {}
+    title, lines = "", 0
     for k, (raw, line0, newlines) in enumerate(_pieces(path, piece_bytes)):
         if k == 0:
             title, header = _header(raw[:1 << 16])
