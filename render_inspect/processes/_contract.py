@@ -41,13 +41,16 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
-from typing import ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from ..core.marks import ToolMarks
-from ..core.toolpath import Links
+from ..core.toolpath import LinearProgram, Links, ToolPath
 from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, PartModel, plan_links
+
+if TYPE_CHECKING:
+    from ..machining import MaterialResponse
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
            "section"]
@@ -79,9 +82,11 @@ class Inputs:
     """
 
     name: str
-    process: object
-    tool: object
-    simulation: object
+    # (the scene's sections: schema classes assembled from the registries at import, which
+    # mypy cannot follow)
+    process: Any
+    tool: Any
+    simulation: Any
 
     @classmethod
     def of(cls, scene) -> "Inputs":
@@ -117,7 +122,7 @@ class Plan:
         Figures of the program: file name -> figure spec (:mod:`render_inspect.report`).
     """
 
-    program: object
+    program: ToolPath | LinearProgram
     facts: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     data: dict = field(default_factory=dict)
@@ -149,7 +154,7 @@ class Cut:
     facts: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
-    followed: object = None
+    followed: ToolPath | None = None
     plots: dict = field(default_factory=dict)
 
 
@@ -232,11 +237,11 @@ class Envelope:
         (``tool.wear``); None: the material's one value.
     """
 
-    path: object
+    path: ToolPath
     nose_radius: float
     half_width: float
     meta: dict = field(default_factory=dict)
-    mechanics: object = None
+    mechanics: MaterialResponse | None = None
     grooves: object = None
     texture: object = None
     burrs: dict | None = None

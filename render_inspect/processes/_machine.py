@@ -12,7 +12,7 @@ machining units (mm, rad) here.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
@@ -84,7 +84,8 @@ class CouplingConfig(Section):
 
 class MachineConfig(Section):
     """The turning machine: a preset and what to change in it."""
-    preset: Literal[MACHINE_PRESET_NAMES] = Field(
+    # (the presets' names, read from the presets at import: mypy cannot follow them)
+    preset: Literal[MACHINE_PRESET_NAMES] = Field(  # type: ignore[valid-type]
         "ideal", description="ideal = the commanded path; sts_lathe; fts (sts_lathe + a piezo FTS)")
     servo_rate_hz: float | None = Field(None, gt=0, le=1e7, description="interpolation / servo rate")
     interpolation: Literal["pvt", "linear"] | None = None
@@ -113,7 +114,8 @@ _MATERIAL_PROPS = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction",
 
 class MaterialConfig(Section):
     """The workpiece material and its response to the cut."""
-    preset: Literal[MATERIAL_PRESET_NAMES] = Field(
+    # (the presets' names, read from the presets at import: mypy cannot follow them)
+    preset: Literal[MATERIAL_PRESET_NAMES] = Field(  # type: ignore[valid-type]
         "ideal", description="ideal = geometric cut (no material response)")
     edge_radius_nm: float = Field(50.0, ge=0, le=1e4, description="cutting-edge radius of the tool")
     side_flow: bool = Field(True, description="ploughed material flows onto the cusps")
@@ -186,7 +188,7 @@ def _spindle_axis(cfg) -> dict:
 
 
 def _errors(cfg) -> dict:
-    d = {}
+    d: dict[str, Any] = {}
     for k, v in cfg.model_dump(exclude_none=True).items():
         if k in ("radial_sync", "axial_sync", "tilt_sync"):   # nm (urad for tilt), deg
             scale = URAD_TO_RAD if k == "tilt_sync" else NM_TO_MM

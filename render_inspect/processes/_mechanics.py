@@ -16,6 +16,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -25,6 +26,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
     BURR_WIDTH_PER_CHIP,
+    FollowedPath,
     Grooves,
     apply_burrs,
     cut_turning,
@@ -73,7 +75,7 @@ class TurningInputs(Inputs):
     ``[design]`` (the planner's reach, the memory estimate), the ``[machine]`` and
     ``[material]`` and ``[artifacts.burrs]``."""
 
-    design: object
+    design: Any  # (the [design] union, assembled from the registries)
     machine: MachineConfig
     material: MaterialConfig
     burrs: BurrConfig = section("artifacts.burrs")
@@ -309,7 +311,7 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
                   pass_theta=pass_theta, plots=figs)
 
 
-def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, object, dict]:
+def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, FollowedPath, dict]:
     """The program ``path`` followed by the ``[machine]`` (its axes, error motions; seeded
     by ``simulation.seed``): (the path the tool follows, the FollowedPath, the facts
     ``machine`` and ``following_error``).  On an ideal machine the path is ``path``

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -71,8 +72,8 @@ def imported_path(cfg, surface, *, region=None) -> ToolPath:
             meta["program"]["points_kept_for_region"] = int(path.points)
     out = ToolPath(path.theta, path.rho, path.z, path.t, meta)
     # the file line and motion (0 rapid, 1 linear, 2/3 arc) of the block of each point
-    out.program_lines = lines
-    out.program_motion = motion
+    out.program_lines = lines  # type: ignore[attr-defined]  # (read back with getattr)
+    out.program_motion = motion  # type: ignore[attr-defined]
     return out
 
 
@@ -168,7 +169,7 @@ def program_checks(cfg, surface, path: ToolPath) -> dict:
         lines = np.full(rho.size, -1, np.int64)
     if motion is None:
         motion = np.ones(rho.size, np.int8)
-    out = {}
+    out: dict[str, Any] = {}
     table = feed_per_rev_table(path)
     _, f = feed_per_rev(path)
     if f.size:
@@ -252,7 +253,7 @@ def fit_paraboloid(paths, *, nose_radius: float = 0.0) -> dict:
         raise InputError(f"a paraboloid needs at least 3 program points, received {r.size}")
     a = np.c_[np.ones_like(r), r * r]
     comp = np.zeros_like(r)
-    coef = None
+    coef: Any = None  # (the least-squares coefficients: the loop runs at least once)
     for _ in range(20 if nose_radius > 0 else 1):
         coef, *_ = np.linalg.lstsq(a, z - comp, rcond=None)
         new = nose_radius * (np.sqrt(1 + (2 * coef[1] * r) ** 2) - 1) if nose_radius > 0 else comp

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from pydantic import Field
@@ -34,7 +34,7 @@ from ..toolpath import (
     z_compensation,
 )
 from ._contract import Cut, Plan, Traits, Variant, VariantPair
-from ._mechanics import TurningInputs, follow, turn
+from ._mechanics import Turned, TurningInputs, follow, turn
 from ._registry import register_process, register_section
 from ._turning import TiledTurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
@@ -89,7 +89,9 @@ class RcseProcessConfig(TurningProcessConfig):
 class RcseInputs(TurningInputs):
     """A turning process's sections and ``[rcse]``."""
 
-    rcse: RcseConfig
+    # (burrs above has no default either: section() is a field without one, which mypy
+    # takes for a default)
+    rcse: RcseConfig  # type: ignore[misc]
 
 
 def _program(cfg, surface, *, region, ccps=None) -> ToolPath:
@@ -130,7 +132,7 @@ def _plan(cfg, surface, *, region=None) -> Plan:
 
 def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
                     conventional_machined: bool = False,
-                    conventional_program: bool = False) -> tuple[dict, tuple]:
+                    conventional_program: bool = False) -> tuple:
     """Compare the RCSE path with the conventional one over the same spiral samples.
 
     Parameters
@@ -177,7 +179,7 @@ def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
     kr = kinematics(ccp_path)
     kc = kinematics(conv_path)
     e = conv["profile_error"]
-    out = {
+    out: dict[str, Any] = {
         "rcse": {**{k: kr[k] for k in _KIN_KEYS},
                  "profile_error_max_nm": float(np.max(np.abs(err_rcse)) * MM_TO_NM),
                  "profile_error_rms_nm": float(np.sqrt(np.mean(err_rcse ** 2)) * MM_TO_NM)},
@@ -198,8 +200,10 @@ def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
                                          plots=conventional_machined)
     if machined is not None and st.simulate_conventional:
         out["rcse"]["residual"] = _short(residual_metrics(machined, design))
-        out["conventional"]["residual"] = _short(residual_metrics(conv_cut["machined"], design))
-        fe = conv_cut["facts"].get("following_error")
+        # (cut above under the same condition)
+        out["conventional"]["residual"] = _short(
+            residual_metrics(cast(Turned, conv_cut)["machined"], design))
+        fe = cast(Turned, conv_cut)["facts"].get("following_error")
         if fe is not None:
             out["conventional"]["following_error"] = fe
     if conventional_machined:
@@ -258,13 +262,14 @@ def element_spread(cfg, surface) -> dict:
     st = cfg.rcse
     layout = RingLayout.from_config(cfg.design)
     rows = []
-    fe = {"rcse": [], "conventional": []}
+    fe: dict[str, list[dict]] = {"rcse": [], "conventional": []}
     for ring, elem, win in element_windows(layout, st.spread_elements, st.spread_window):
         sub = cfg.replace(simulation=cfg.simulation.model_copy(update={"region": tuple(win)}))
         plan_w = _plan(sub, surface, region=win)
         rc = turn(sub, surface, plan_w.program, plots=False)
-        path = plan_w.program
-        conv = conventional_ccps(surface, path.theta, path.ccp_rho, grid_spacing=st.grid_spacing,
+        path = cast(ToolPath, plan_w.program)  # (the RCSE path, with its CCP radii)
+        conv = conventional_ccps(surface, path.theta, cast(np.ndarray, path.ccp_rho),
+                                 grid_spacing=st.grid_spacing,
                                  interpolation=st.interpolation, snap_to_rows=st.snap_to_rows)
         conv_path = ToolPath(path.theta, conv["rho"], conv["z"], path.t, {})
         cc = _machine_conventional(sub, surface, conv_path, conv["model"], design=rc["design"])

@@ -13,7 +13,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from pydantic import Field, model_serializer, model_validator
@@ -144,7 +144,7 @@ class SculptInputs(Inputs):
     array of ``[design]``, ``[material]``, ``[artifacts.vibration]`` and
     ``[artifacts.burrs]``."""
 
-    design: object
+    design: Any  # (the [design] union, assembled from the registries)
     material: MaterialConfig
     vibration: VibrationConfig = section("artifacts.vibration")
     burrs: BurrConfig = section("artifacts.burrs")
@@ -397,7 +397,7 @@ class SculptProcess(Process):
         x_lines, y_edges = lattice_lines(surface, pitch_y=d.pitch_y)
         box = ("box", float(x_lines[0]) - d.pitch_x / 2, float(y_edges[0]),
                float(x_lines[-1]) + d.pitch_x / 2, float(y_edges[-1]))
-        prog = plan.program
+        prog = cast(LinearProgram, plan.program)  # (an X-Y-Z program)
         return design_part(surface, box, stock=float(cfg.process.depth_of_cut),
                            half_width=_half_width(cfg.tool),
                            max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
@@ -412,7 +412,7 @@ class SculptProcess(Process):
                               plunge_source="the cutting speed process.feed_mm_per_min")
 
     def program_facts(self, cfg, plan: Plan) -> dict:
-        prog = plan.program
+        prog = cast(LinearProgram, plan.program)  # (an X-Y-Z program)
         facts = dict(plan.facts)
         tp = facts.setdefault("toolpath", {})
         tp.setdefault("points", prog.points)

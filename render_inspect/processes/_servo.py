@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 
 from ..core.deprecation import warn_deprecated
 from ..core.errors import SceneError
+from ..core.toolpath import ToolPath
 from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
 from ..machining import loop_lag, loop_response, split_commands
 from ..toolpath import Tool
@@ -92,7 +93,7 @@ def _retired_servo_keys(data: dict) -> dict:
                          f"had {', '.join(RETIRED_SERVO_KEYS)}; use [machine.fts] and [machine.z])")
     data = dict(data)
     data["artifacts"] = {k: v for k, v in art.items() if k != "servo"}
-    process = data.get("process") if isinstance(data.get("process"), dict) else {}
+    process = cast(dict, data.get("process")) if isinstance(data.get("process"), dict) else {}
     if process.get("kind") not in ("fts", "hts"):
         for key in servo:
             warn_deprecated(f"artifacts.servo.{key}", RETIRED_SERVO_KEYS[key],
@@ -178,7 +179,7 @@ def _servo_facts(cfg, plan: Plan, fp) -> tuple[dict, dict]:
     ``fp`` of the plan: the servos' settings, their lags (:func:`servo_lags`) and strokes,
     their following errors."""
     kind = cfg.process.kind
-    path = plan.program
+    path = cast(ToolPath, plan.program)  # (a turning program)
     z_slow, z_fts = plan.data["z_slow"], plan.data["z_fts"]
     omega = 2 * math.pi * cfg.process.spindle_rpm / MIN_TO_S
     r_max = float(np.max(path.rho)) if path.points else 0.0

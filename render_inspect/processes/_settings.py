@@ -6,6 +6,7 @@ the amplitudes of the cut's seeded random parts."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from ..core.units import MM_TO_NM, RAD_TO_URAD
 from ..machining import material_preset
@@ -47,8 +48,9 @@ def machine_settings(cfg) -> dict:
     for k in ("x", "z", "fts"):
         out[k] = _axis(m[k], spindle=False)
     e = m["errors"] or {}
-    errs = {k: [[int(n), a * MM_TO_NM, math.degrees(p)] for n, a, p in e.get(k, ())]
-            for k in ("radial_sync", "axial_sync")}
+    errs: dict[str, Any] = {
+        k: [[int(n), a * MM_TO_NM, math.degrees(p)] for n, a, p in e.get(k, ())]
+        for k in ("radial_sync", "axial_sync")}
     errs["tilt_sync"] = [[int(n), a * RAD_TO_URAD, math.degrees(p)]
                          for n, a, p in e.get("tilt_sync", ())]
     for key, name in (("radial_async_nm", "radial_async_rms"),
@@ -85,9 +87,9 @@ def random_parts(scene) -> dict:
     """The amplitudes (scene key -> value, scene units) of the scene's seeded random parts
     (:data:`RANDOM_PART_KEYS`) that are not zero, presets included."""
     settings = preset_settings(scene)
-    out = {}
+    out: dict[str, float] = {}
     for key in RANDOM_PART_KEYS:
-        node = settings
+        node: Any = settings
         for part in key.split("."):
             node = node.get(part) if isinstance(node, dict) else None
         if isinstance(node, (int, float)) and node > 0:

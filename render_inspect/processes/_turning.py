@@ -9,13 +9,14 @@ import logging
 import math
 import time
 from pathlib import Path
-from typing import Literal
+from typing import ClassVar, Literal, cast
 
 from pydantic import Field, model_serializer, model_validator
 
 from ..core.limits import Driver, format_number, memory_budget
 from ..core.marks import ToolMarks
 from ..core.section import Section
+from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..machining import material_burr_facts, mechanics_facts
 
@@ -127,7 +128,8 @@ class TurningProcessConfig(Section):
         """Cross-checks with the rest of the scene (called by the scene's validator)."""
         rc = scene.tool.nose_radius
         check_edge_and_wear(getattr(self, "kind", None), self.compensation, scene)
-        if self.program is not None and self.kind == "rcse":
+        # (kind: declared by each kind's subclass)
+        if self.program is not None and self.kind == "rcse":  # type: ignore[attr-defined]
             raise ValueError("process.program: process.kind = 'rcse' plans its own path and "
                              "cannot take a program file; use process.kind = 'sts' (or 'fts', "
                              "'hts') to simulate a turning program")
@@ -354,7 +356,7 @@ class TurningProcess(Process):
     machine and material (:func:`~render_inspect.processes._mechanics.turn`).  Subclasses
     set ``config`` and change what differs."""
 
-    inputs = TurningInputs
+    inputs: ClassVar[type[TurningInputs]] = TurningInputs
 
     def program(self, cfg, surface, *, region=None):
         """The commanded turning program: the scene's ``process.program`` read from its
@@ -423,7 +425,7 @@ class TurningProcess(Process):
     def program_facts(self, cfg, plan: Plan) -> dict:
         """``toolpath.json``: the plan's facts with the path's own (points, revolutions,
         feed, the planner's records) and its accessibility check."""
-        prog = plan.program
+        prog = cast(ToolPath, plan.program)  # (a turning program)
         facts = dict(plan.facts)
         tp = facts.setdefault("toolpath", {})
         tp.setdefault("points", prog.points)

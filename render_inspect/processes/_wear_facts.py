@@ -37,7 +37,7 @@ def _rpm(cfg):
     return float(n) if n else None
 
 
-def _at(rate, cfg, r, feed) -> dict:
+def _at(rate, cfg, r, feed) -> tuple[float | np.ndarray, dict]:
     """The worn edge at radius r of the facing spiral (the chemical wear at the cutting
     speed along it where the spindle speed is known)."""
     p = cfg.process

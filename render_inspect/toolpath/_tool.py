@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..core.errors import check_range
-from ._edge import edge_of
+from ._edge import EdgeProfile, edge_of
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ class Tool:
     included_angle: float = math.radians(60.0)
     rake_angle: float = 0.0
     clearance_angle: float = math.radians(10.0)
-    edge: object = field(default=None, compare=False)
+    edge: EdgeProfile | None = field(default=None, compare=False)
 
     def __post_init__(self):
         check_range("tool.nose_radius", self.nose_radius, 0.0, None, lo_open=True)
