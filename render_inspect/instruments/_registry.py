@@ -29,7 +29,10 @@ An instrument without ``render`` is a settings section only.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
+
+if TYPE_CHECKING:
+    from ..core.section import Section
 
 __all__ = ["InstrumentType", "instrument_types", "register_instrument", "renderable_instruments",
            "height_instrument"]
@@ -41,7 +44,7 @@ class InstrumentType:
     hooks (see the module docstring)."""
 
     name: str
-    config: type
+    config: type[Section]
     render: Callable | None = None
     write: Callable | None = None
     field: Callable | None = None
@@ -52,7 +55,7 @@ class InstrumentType:
 _INSTRUMENTS: dict[str, InstrumentType] = {}
 
 
-def register_instrument(name: str, config: type, *, render: Callable | None = None,
+def register_instrument(name: str, config: type[Section], *, render: Callable | None = None,
                         write: Callable | None = None, field: Callable | None = None,
                         memory: Callable | None = None, frames: bool = False) -> InstrumentType:
     """Register an instrument whose settings are the scene section ``[render.<name>]``

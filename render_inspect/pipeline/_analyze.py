@@ -15,6 +15,9 @@ import logging
 import math
 import time
 from pathlib import Path
+from typing import cast
+
+import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError, MemoryBudgetError
@@ -177,8 +180,9 @@ def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | No
                    outliers=outliers)
     with atomic_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,)) as tmp:
         tmp = Path(tmp)
-        save_height_png(tmp / "height.png", a.height * MM_TO_NM, extent=m.extent, title=title,
-                        label="height (nm)")
+        # (analyze_map keeps the evaluated height)
+        save_height_png(tmp / "height.png", cast(np.ndarray, a.height) * MM_TO_NM, extent=m.extent,
+                        title=title, label="height (nm)")
         if x3p:
             comment = json.dumps({"render_inspect": __version__, "command": "analyze",
                                   "source": str(path.name), "form": form,
@@ -284,7 +288,7 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     metrics["windowed"]["budget_bytes"] = int(limit)
     metrics["windowed"]["whole_map_limit_bytes"] = int(min(limit, STORE_WHOLE_MAP_BYTES))
     if a.height is not None:
-        f = spatial[1]
+        f = cast(tuple, spatial)[1]  # (a height is kept only from the spatial level)
         metrics["periods"] = _map_periods(a.height, (store.pixel * f, store.pixel * f))
         if metrics["periods"] is not None:
             metrics["periods"]["seen_at_mm"] = store.pixel * f
@@ -292,7 +296,7 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     with atomic_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,)) as tmp:
         tmp = Path(tmp)
         if a.height is not None:
-            f = spatial[1]
+            f = cast(tuple, spatial)[1]
             p = store.pixel
             ox, oy = store.origin
             extent = (ox - p / 2, ox + p * (nx - 0.5), oy - p / 2, oy + p * (ny - 0.5))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import importlib.util
 import json
 from pathlib import Path
+from typing import Any
 
 from ..core.errors import InputError, check_positive
 from ..instruments import height_instrument
@@ -131,8 +132,9 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
     scene = load_scene(scene_path, list(overrides))
     out = Path(out)
     pair = compare_pair(scene)
-    result = {"scene_name": scene.name, "out": str(out.resolve()), "surface": surface,
-              "pair": {"key": pair.key, "about": pair.about}, "variants": {}}
+    result: dict[str, Any] = {"scene_name": scene.name, "out": str(out.resolve()),
+                              "surface": surface,
+                              "pair": {"key": pair.key, "about": pair.about}, "variants": {}}
     first = None
     # the variant folders are replaced; what else the add-on wrote there (compare/,
     # export/) is kept
@@ -157,7 +159,8 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
                 "shape": list(sim.heightmap.shape), "pixel_mm": float(sim.heightmap.pixel)}
         progress(0.97, "writing")
     if exaggeration is None:
-        exaggeration = scene.render.diffuse.exaggeration
+        # (render.diffuse: a registered section)
+        exaggeration = scene.render.diffuse.exaggeration  # type: ignore[attr-defined]
     if exaggeration is None:
         exaggeration = auto_exaggeration(first, surface)
     result["exaggeration"] = float(exaggeration)
@@ -265,8 +268,9 @@ def render_variant(heightmap, *, variant: str, surface: str = "machined",
     finally:
         if made:
             remove_object(RENDER_SOURCE)
-    result = {"variant": variant, "cycles_png": str(res["png"]), "cycles_exr": str(res["exr"]),
-              "cycles_time_s": float(res["time_s"]), "notes": []}
+    result: dict[str, Any] = {"variant": variant, "cycles_png": str(res["png"]),
+                              "cycles_exr": str(res["exr"]),
+                              "cycles_time_s": float(res["time_s"]), "notes": []}
     if interferogram:
         if importlib.util.find_spec("mitsuba") is None:
             result["notes"].append("no interferogram: Mitsuba is not available on this platform")
@@ -276,7 +280,8 @@ def render_variant(heightmap, *, variant: str, surface: str = "machined",
                 raise InputError(f"{path}: the height map records no scene; simulate again")
             sc = scene_from_dict(hm.scene)  # the variant's scene, as simulated
             entry = height_instrument()
-            ig = entry.render(hm, getattr(sc.render, entry.name),
+            # (the height instrument has a render hook: height_instrument() picks one that does)
+            ig = entry.render(hm, getattr(sc.render, entry.name),  # type: ignore[misc]
                               surface="design" if surface == "design" else "machined",
                               seed=int(sc.simulation.seed))
             with atomic_output_dir(out, merge=True, command="interferometer", scene=sc,
@@ -433,7 +438,8 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
         hm = result.heightmap
         write_heightmap_exr(tmp / "heightmap.exr", hm)
     if exaggeration is None:
-        exaggeration = scene.render.diffuse.exaggeration
+        # (render.diffuse: a registered section)
+        exaggeration = scene.render.diffuse.exaggeration  # type: ignore[attr-defined]
     if exaggeration is None:  # the renderer's automatic choice for this height map
         exaggeration = auto_exaggeration(hm, surface)
     exaggeration = float(exaggeration)

@@ -14,6 +14,7 @@ grooves are a new draw of the same statistics on the smaller grid.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,7 @@ def overcut_budget(scene, hm, *, pixels: int = BUDGET_WINDOW_PIXELS) -> dict | N
     n = max(8, min(int(pixels), min(res.shape) - 3))
     window = _window(hm, at, n)
     names = list(contributions)
-    out = {"at_mm": list(at), "window_mm": window, "min_nm": deepest,
+    out: dict[str, Any] = {"at_mm": list(at), "window_mm": window, "min_nm": deepest,
            "labels": {k: contributions[k]["label"] for k in names}, "alone_nm": {}}
     with task("why the deepest cut", total=len(names) + 1) as t:
         off_all = {}

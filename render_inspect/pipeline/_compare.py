@@ -31,6 +31,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -144,12 +145,13 @@ def preview_render_configs(scene, heightmap, *, window=None):
 class _Variant:
     name: str
     label: str
-    scene: object
-    heightmap: object = None
-    ig: object = None
-    reported: object = None  # what the instrument reports (height.exr)
-    phase: object = None  # the same, aligned to the truth (evaluation only)
-    sim: object = None
+    # (filled step by step: None until the step that sets it has run)
+    scene: Any  # a Scene (assembled from the registries)
+    heightmap: Any = None  # HeightMap
+    ig: Any = None  # Interferogram
+    reported: Any = None  # what the instrument reports (height.exr)
+    phase: Any = None  # the same, aligned to the truth (evaluation only)
+    sim: Any = None  # Simulation
     diffuse: dict = field(default_factory=dict)  # view -> (rgb, meta)
     timing: dict = field(default_factory=dict)
     filtered: np.ndarray | None = None

@@ -279,12 +279,12 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
         raise
     best = predict_features(result.best.height, target, result.best.values)
     after = check_after(target.height, best.height, pixel=pixel, goodness=result.goodness)
-    maps = misfit_maps(target.height, best.height)
+    misfit = misfit_maps(target.height, best.height)
     wavy = misfit_maps(target.wavy, best.wavy)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
     fitted = copy.deepcopy(base)
-    for k, v in fitted_values.items():
-        set_value(fitted, k, v, fill=fill)
+    for k, value in fitted_values.items():
+        set_value(fitted, k, value, fill=fill)
     provenance = {"seed": int(seed), "scene_sha256": scene_hash(base),
                   "fitted_scene_sha256": scene_hash(fitted),
                   "objective": icfg["objective"], "objective_from": icfg_source,
@@ -305,7 +305,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
                               if client is not None else None),
                   "evaluated_by": sorted({e.meta["worker"] for e in result.history
                                           if not e.cached and e.meta.get("worker")})}
-    record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=maps,
+    record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=misfit,
                         waviness=wavy)
     record["model_check"] = {"before": before, "after": after,
                              "measured_starts": starts}
@@ -419,8 +419,9 @@ def _after_failure(store, err) -> None:
         store.discard()
     elif store.written and isinstance(stop, KeyboardInterrupt):
         # said in the command line's one line about the stop
-        stop.render_inspect_kept = (f"the {store.written} evaluations made are kept in "
-                                   f"{store.folder}: the same command resumes from them")
+        stop.render_inspect_kept = (  # type: ignore[attr-defined]  # (read with getattr)
+            f"the {store.written} evaluations made are kept in "
+            f"{store.folder}: the same command resumes from them")
     elif store.written:
         log.warning("fit stopped: the %d evaluations made are kept in %s; the same command "
                     "resumes from them (deleting the folder is safe)", store.written,

@@ -16,14 +16,15 @@ import os
 import socket
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import set_reporter
 from ..fit import set_value, task_hash
-from ..instruments import (MAX_AUTO_SUBSAMPLES, height_instrument, microscope_from_config,
-                           recommended_subsamples)
+from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
+                           microscope_from_config, recommended_subsamples)
 from ..io import read_exr
 from ..metrology import measure_frames
 from ..processes import preset_settings
@@ -53,8 +54,9 @@ def predict_measurement(task_spec: dict):
     scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
     sim = simulate(scene)
     entry = height_instrument()
-    ig = entry.render(sim.heightmap, getattr(scene.render, entry.name), surface="machined",
-                      seed=int(task_spec["seed"]))
+    # (the height instrument has a render hook: height_instrument() picks one that does)
+    ig = entry.render(sim.heightmap, getattr(scene.render, entry.name),  # type: ignore[misc]
+                      surface="machined", seed=int(task_spec["seed"]))
     r = measure_frames(ig.recorded(), algorithm=task_spec.get("algorithm", "auto"))
     h = np.where(r.valid, r.height, np.nan)
     return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
@@ -90,7 +92,7 @@ def compute_all(store, tasks, client, compute=None) -> list:
     compute = predict_measurement if compute is None else compute
     keys = [task_hash(t) for t in tasks]
     out = [None] * len(tasks)
-    todo = {}
+    todo: dict[str, list[int]] = {}
     for i, k in enumerate(keys):
         hit = store.get(k)
         if hit is not None:
@@ -195,7 +197,8 @@ def instrument_settings(scene, file_settings: dict, objective: str | None, pixel
     icfg.update(pixel=float(pixel), field_of_view=[float(v) for v in window], margin=MARGIN_PX,
                 reference_height=None)
     try:
-        cfg = entry.config.model_validate(icfg)
+        # (the height instrument's settings)
+        cfg = cast(InterferometerConfig, entry.config.model_validate(icfg))
     except Exception as err:  # pydantic's error: say which setting
         raise InputError(f"the instrument settings of the measured file are not usable "
                          f"({' '.join(str(err).split())[:300]})") from None

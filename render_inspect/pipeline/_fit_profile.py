@@ -28,6 +28,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -322,8 +323,9 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
                 cluster = cluster_info(client)
             compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
                        if client is not None else predict_profile)
-            evaluator = Evaluator(params, target, model.task, compute, store, client=client,
-                                  max_evaluations=max_evaluations, quiet=quiet)
+            # (a profile target answers what the evaluator asks of a target)
+            evaluator = Evaluator(params, target, model.task, compute, store,  # type: ignore[arg-type]
+                                  client=client, max_evaluations=max_evaluations, quiet=quiet)
             clean0 = _compute(store, [model.task(start_values)], client, compute)[0]
             pred_start = predict_profile_features(clean0, target)
             check_units(float(target.params[1]), float(pred_start.params[1]))
@@ -344,8 +346,8 @@ def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds
     after = _check_after(target, best, family, result.goodness)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
     fitted = copy.deepcopy(base)
-    for k, v in fitted_values.items():
-        set_value(fitted, k, v, fill=fill)
+    for k, value in fitted_values.items():
+        set_value(fitted, k, value, fill=fill)
     d = best.height - target.z
     ok = np.isfinite(d)
     maps = {"rms_nm": float(np.sqrt(np.mean(d[ok] ** 2))) * MM_TO_NM, "points": int(ok.sum()),
@@ -465,9 +467,9 @@ def _check_before(target, pred, keys, reach, family) -> dict:
                 and abs(rel) > PERIOD_TOLERANCE and family["one_family"]):
             raise InputError(f"this scene does not describe this measurement: the marks' period "
                              f"in the window is {mp * MM_TO_UM:.4g} um, the scene's "
-                             f"{pp * MM_TO_UM:.4g} um ({100 * rel:+.3g} %), and no key that sets "
-                             f"it is free (a program's path fixes it); check the window's place "
-                             f"(--at, --line) and the program")
+                             f"{cast(float, pp) * MM_TO_UM:.4g} um ({100 * rel:+.3g} %), "
+                             f"and no key that sets it is free (a program's path fixes it); "
+                             f"check the window's place (--at, --line) and the program")
     return out
 
 

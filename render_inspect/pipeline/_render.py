@@ -8,6 +8,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -154,7 +155,9 @@ def render_heightmap(scene, *, surface: str = "machined"):
 def write_instrument_outputs(name: str, out: Path, result, *, scene: dict | None = None) -> dict:
     """Write the files of an instrument's result (its ``write`` hook) and draw its
     figures into ``out``; return its summary."""
-    summary, figures = renderable_instruments()[name].write(Path(out), result, scene=scene)
+    # (a renderable instrument has both hooks: the registry checks it)
+    summary, figures = renderable_instruments()[name].write(  # type: ignore[misc]
+        Path(out), result, scene=scene)
     for file, spec in figures.items():
         draw_figure(spec, Path(out) / file)
     return summary
@@ -174,8 +177,8 @@ def _srgb8(rgb: np.ndarray) -> np.ndarray:
 
 def _scale_bar(meta: dict, width_px: int) -> tuple[float, float]:
     """The scale bar of the image (:func:`~render_inspect.report.scale_bar_length`): (mm, pixels)."""
-    sc = meta.get("scale") or {}
-    mm_px = sc.get("mm_per_px") or sc.get("mm_per_px_at_target")
+    sc: dict = meta.get("scale") or {}
+    mm_px = cast(float, sc.get("mm_per_px") or sc.get("mm_per_px_at_target"))  # (one is recorded)
     mm = scale_bar_length(width_px * mm_px)
     return mm, mm / mm_px
 
@@ -185,8 +188,8 @@ def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) 
     ``mitsuba_variant``, ``mm_per_px``) and ``<name>.png`` (sRGB 8-bit with the vertical
     exaggeration and a scale bar written into the picture; the same facts as PNG text)."""
     out = Path(out)
-    sc = meta.get("scale") or {}
-    mm_px = sc.get("mm_per_px") or sc.get("mm_per_px_at_target")
+    sc: dict = meta.get("scale") or {}
+    mm_px = cast(float, sc.get("mm_per_px") or sc.get("mm_per_px_at_target"))  # (one is recorded)
     attrs = {"vertical_exaggeration": float(meta["vertical_exaggeration"]),
              "mitsuba_variant": meta["mitsuba_variant"], "view": meta["view"],
              "spp": int(meta["spp"]), "seed": int(meta["seed"]), "units": "mm",
@@ -316,7 +319,7 @@ def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=No
             else None
         if store is not None:
             # the store simulate wrote here for this part: its windows, not a new simulation
-            views = BigMapViews(store)
+            views: BigMapViews | WholeMapViews = BigMapViews(store)
         elif heightmap is None and surface == "machined" and wants_tiles(scene):
             # a map too large for memory: windows and area-averaged levels of its store
             views = BigMapViews(*big_map_store(scene, out))
@@ -328,7 +331,7 @@ def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=No
         return _render_views(scene, tmp, views, surface=surface, kind=kind, timing=timing)
     finally:
         if views.big:
-            views.close()
+            cast(BigMapViews, views).close()
 
 
 def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:

@@ -13,6 +13,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
@@ -61,7 +62,7 @@ class Simulation:
         The ``metrics.json`` content (:func:`~render_inspect.pipeline.simulation_metrics`).
     """
 
-    scene: object
+    scene: Any  # a Scene (assembled from the registries)
     surface: object
     heightmap: HeightMap
     plan: Plan
@@ -169,7 +170,7 @@ def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
     (``timing_s.write`` holds the seconds per file)."""
     out_dir = Path(out_dir)
     scene, hm, metrics = sim.scene, sim.heightmap, sim.metrics
-    tw = {}
+    tw: dict[str, float] = {}
     log.info("writing heightmap.exr (%d x %d, %.0f MiB) ...", hm.shape[1], hm.shape[0],
              hm.design.size * 12 * BYTES_TO_MIB)
     # the progress moves by the files written (the overview, heightmap.exr, toolpath.npz,

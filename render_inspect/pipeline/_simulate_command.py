@@ -20,8 +20,8 @@ from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
                   export_program, grid_attrs, level_count, set_store_attrs)
-from ..machining import (TILE, burr_halo, metrics_from_moments, plan_tiles, prepare_cut, prepare_envelope,
-                         tiled_bytes)
+from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_moments, plan_tiles,
+                         prepare_cut, prepare_envelope, tiled_bytes)
 from ..processes import check_budget, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
@@ -196,6 +196,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
                              f"{path.points} point(s), at least 2 are needed: the region lies off "
                              f"the turned part (process.workpiece_radius, process.inner_radius)")
         mat = env.mechanics
+        ep: EnvelopePath | CutPath
         if mat is None:
             ep = prepare_envelope(path, nose_radius=env.nose_radius, half_width=env.half_width,
                                   edge=env.edge)
@@ -249,7 +250,7 @@ def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str
         set_store_attrs(store, residual_histogram={"lo_mm": lo, "hi_mm": hi,
                                                    "counts": counts.tolist()})
         z = ZarrHeightMap(store)
-        tw = {}
+        tw: dict[str, float] = {}
         if traits.saves_program:
             timed(tw, "toolpath.npz", export_program, plan.program, tmp, fmt="npz")
         k = z.level_for(512)

@@ -20,6 +20,7 @@ import time
 import traceback
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from .. import __version__
 from ..batch import (
@@ -367,9 +368,9 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
     failed = sum(r["status"] == "failed" for r in mine)
     total = len(tasks)
     draw = plots
-    plots = spec.plot or default_plots(spec)
+    specs = spec.plot or default_plots(spec)
     names = []
-    for i, p in enumerate(plots if draw else []):
+    for i, p in enumerate(specs if draw else []):
         name = p.name or f"plot_{i:02d}_{p.kind}"
         atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, plot_rows(mine, p)))
         names.append(f"{name}.png")
@@ -510,9 +511,9 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
             todo = [t for t in tasks if pending(t, records)]
             total = len(tasks)
             skipped = total - len(todo)
-            info = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
-                    "scheduler": scheduler, "workers": None, "dashboard": None, "ran": 0,
-                    "skipped": skipped, "recovered": recovered}
+            info: dict[str, Any] = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
+                                    "scheduler": scheduler, "workers": None, "dashboard": None,
+                                    "ran": 0, "skipped": skipped, "recovered": recovered}
             log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
                      len(todo), skipped)
             stopped = False

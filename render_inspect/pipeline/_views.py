@@ -20,6 +20,7 @@ import logging
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -45,7 +46,7 @@ class WholeMapViews:
 
     def __init__(self, hm: HeightMap):
         self.hm = hm
-        self.facts = {}
+        self.facts: dict[str, Any] = {}
 
     def instrument(self, entry, cfg):
         return self.hm, cfg
@@ -69,7 +70,7 @@ class BigMapViews:
         self.store = ZarrHeightMap(store)
         self.grid = _Grid(self.store.shape, self.store.pixel, self.store.origin)
         self.cleanup = cleanup
-        self.facts = {"store_shape": list(self.store.shape), "read": {}}
+        self.facts: dict[str, Any] = {"store_shape": list(self.store.shape), "read": {}}
 
     def _window(self, region, name: str) -> HeightMap:
         p = self.store.pixel
