@@ -82,3 +82,33 @@ def test_json_numbers_from_the_real_files():
             r0, r1 = c["radii_mm"]
             assert tool.program_feed(c["part"], r0, r1) * 1e3 == pytest.approx(
                 c["programmed_feed_um"], rel=1e-9)
+
+
+def test_fit_page_shows_the_checks_of_the_json():
+    """The checks under the table (the programmed step weighted as the fit reads the window,
+    the marks' period on the line's other arm) are the json's."""
+    tool = _tool()
+    data = _data()
+    assert data.get("checks"), "docs/fit_profiles.json has no checks (tool --checks)"
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.CHECKS_BEGIN), text.index(tool.CHECKS_END)
+    assert text[i + len(tool.CHECKS_BEGIN):j].strip() == tool.checks_table(data["checks"]).strip()
+
+
+def test_checks_from_the_real_files():
+    """The checks recomputed from the slices and programs equal the json's; the weighted
+    step equals the plain one where the program's step is constant, and stays within 1 %
+    of it in these windows."""
+    real_file("turned", "1023-WLI-2D.csv")
+    tool = _tool()
+    data = _data()
+    again = tool.arm_checks(data)
+    assert len(again) == len(data["checks"])
+    for new, old in zip(again, data["checks"]):
+        for k, v in old.items():
+            if isinstance(v, float):
+                assert new[k] == pytest.approx(v, rel=1e-9), (old["part"], k)
+            else:
+                assert new[k] == v, (old["part"], k)
+        assert abs(new["programmed_feed_weighted_um"] / new["programmed_feed_um"] - 1) < 0.01
+    assert tool.program_feed_weighted("1016", 0.2, 0.4) == tool.FEED_1016
