@@ -112,3 +112,24 @@ def test_checks_from_the_real_files():
                 assert new[k] == v, (old["part"], k)
         assert abs(new["programmed_feed_weighted_um"] / new["programmed_feed_um"] - 1) < 0.01
     assert tool.program_feed_weighted("1016", 0.2, 0.4) == tool.FEED_1016
+
+
+def test_fit_page_shows_the_scan_and_it_is_what_the_files_give():
+    """The windows moved along both arms of the scanned slice: the page's table is the
+    json's, and the json's numbers are what the slice and its program give."""
+    tool = _tool()
+    data = _data()
+    scan = data["scan"]
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.SCAN_BEGIN), text.index(tool.SCAN_END)
+    assert text[i + len(tool.SCAN_BEGIN):j].strip() == tool.scan_table(scan["part"],
+                                                                       scan["rows"]).strip()
+    real_file("turned", f"{scan['part']}-WLI-2D.csv")
+    again = tool.period_scan(scan["part"], scan["window_mm"])
+    assert [r["radii_mm"] for r in again] == [r["radii_mm"] for r in scan["rows"]]
+    for new, old in zip(again, scan["rows"]):
+        for arm in ("minus", "plus"):
+            if old[arm] is None:
+                assert new[arm] is None, (new["radii_mm"], arm)
+            else:
+                assert new[arm] == pytest.approx(old[arm], abs=1e-9), (new["radii_mm"], arm)

@@ -138,6 +138,56 @@ def arm_checks(data: dict) -> list:
     return rows
 
 
+def curvature_factor() -> float:
+    """1 + R_n / R_s of the example scene: the marks' spacing along the radius over the tool
+    centre's feed per revolution on its concave paraboloid (docs/fit.md)."""
+    d = tomllib.loads(SCENE.read_text())
+    return 1.0 + d["tool"]["nose_radius"] / abs(d["design"]["radius_x"])
+
+
+def period_scan(part: str, window_mm: float, *, step_mm: float = 0.02,
+                radii=(0.09, 0.43)) -> list:
+    """Windows of ``window_mm`` moved along both arms of a slice, no fit: the marks' period
+    (the fit's estimator) over the program's weighted step times :func:`curvature_factor`,
+    less 1 (the excess a fit of the window would show, near enough)."""
+    from render_inspect.core.errors import InputError
+    from render_inspect.fit._profile import ProfileSpec, make_profile_target
+    from render_inspect.io import read_profile
+    from render_inspect.pipeline._fit_profile import profile_window
+
+    prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
+    scene = _scene(part, False, "process.feed_mm_per_min")
+    k = curvature_factor()
+    rows = []
+    for r0 in np.arange(radii[0], radii[1] - window_mm + 1e-9, step_mm):
+        r0 = round(float(r0), 4)
+        r1 = round(r0 + window_mm, 4)
+        row = {"radii_mm": [r0, r1]}
+        ref = program_feed_weighted(part, r0, r1) * 1e3
+        for arm, sign in (("minus", -1.0), ("plus", 1.0)):
+            try:
+                win = profile_window(prof, scene, at=(sign * (r0 + r1) / 2, 0.0),
+                                     window_mm=window_mm)
+            except InputError:
+                row[arm] = None
+                continue
+            t = make_profile_target(prof.z[win["i0"]:win["i1"]], spacing=prof.spacing,
+                                    lag=0, spec=ProfileSpec())
+            row[arm] = 1e3 / t.peak / (ref * k) - 1.0
+        rows.append(row)
+    return rows
+
+
+def scan_table(part: str, rows: list) -> str:
+    def pc(v):
+        return "n/a" if v is None else f"{100 * v:+.1f} %"
+
+    return "\n".join([f"| {part}: radii (mm) | arm at negative positions | arm at positive "
+                       f"positions |", "|---|---|---|"]
+                      + [f"| {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | {pc(r['minus'])} "
+                         f"| {pc(r['plus'])} |" for r in rows])
+
+
 def checks_table(rows: list) -> str:
     lines = ["| part | radii (mm) | programmed (um/rev): over the radii / weighted as the fit "
              "reads | fitted (um/rev) | difference against the weighted step | period, "
@@ -259,6 +309,9 @@ def table(data: dict) -> str:
 
 BEGIN, END = "<!-- profile-fit-table -->", "<!-- /profile-fit-table -->"
 CHECKS_BEGIN, CHECKS_END = "<!-- profile-fit-checks -->", "<!-- /profile-fit-checks -->"
+SCAN_BEGIN, SCAN_END = "<!-- profile-fit-scan -->", "<!-- /profile-fit-scan -->"
+#: the slice whose windows are scanned along both arms, and the window's length (mm)
+SCAN = ("1023", 0.2)
 
 
 def _replace(text: str, begin: str, end: str, body: str) -> str:
@@ -272,6 +325,9 @@ def write_docs(data: dict) -> None:
         text = _replace(p.read_text(), BEGIN, END, table(data))
         if data.get("checks") and CHECKS_BEGIN in text:
             text = _replace(text, CHECKS_BEGIN, CHECKS_END, checks_table(data["checks"]))
+        if data.get("scan") and SCAN_BEGIN in text:
+            text = _replace(text, SCAN_BEGIN, SCAN_END,
+                            scan_table(data["scan"]["part"], data["scan"]["rows"]))
         p.write_text(text)
 
 
@@ -288,6 +344,9 @@ def main(argv=None) -> int:
             return 1
         data = json.loads(JSON.read_text()) if a.checks else run(Path(a.out))
         data["checks"] = arm_checks(data)
+        data["scan"] = {"part": SCAN[0], "window_mm": SCAN[1],
+                        "curvature_factor": curvature_factor(),
+                        "rows": period_scan(*SCAN)}
         JSON.write_text(json.dumps(data, indent=1) + "\n")
     write_docs(json.loads(JSON.read_text()))
     return 0
