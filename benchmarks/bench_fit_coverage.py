@@ -138,7 +138,7 @@ def fit_simulate(truth, start, seed, folder: Path, *, field_mm: float = 0.2,
     t_all = time.perf_counter()
     scene = load_scene("sts_sinusoidal_grid", [
         *[f"{k}={v!r}" for k, v in truth.items()], "simulation.pixel=0.0005",
-        f"simulation.seed={seed}", f"render.interferometer.seed={seed}",
+        f"simulation.seed={seed}",  # also the seed of the camera's noise in render
         f"simulation.region=[{x0 - m}, {y0 - m}, {x1 + m}, {y1 + m}]",
         f"render.interferometer.field_of_view=[{x0}, {y0}, {x1}, {y1}]"])
     run_render(scene, folder / "render", kind="interferometer")
