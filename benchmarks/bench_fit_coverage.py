@@ -50,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
+from render_inspect.core.errors import InputError
+
 F_BOUNDS = (0.008, 0.013)        # mm per revolution (analytic)
 R_BOUNDS = (0.3, 1.0)            # mm
 NOISE_MM = 2e-6                  # white height noise of a measurement, rms
@@ -180,6 +182,13 @@ def summarise(rows: list, settings: dict) -> dict:
                                    for k in keys},
            "coverage_1se_by_key": {k: sum(r["z"][k] <= 1.0 for r in rows) / len(rows)
                                    for k in keys},
+           # the rms of error / standard error: 1 for calibrated errors, above 1 where
+           # they are too small
+           "z_rms_by_key": {k: math.sqrt(statistics.fmean(
+               [r["z"][k] ** 2 for r in rows if math.isfinite(r["z"][k])] or [math.nan]))
+               for k in keys},
+           "relative_error_mean_by_key": {k: statistics.fmean(r["relative_error"][k]
+                                                              for r in rows) for k in keys},
            "no_stderr": sum(r["stderr"][k] is None for r in rows for k in keys),
            "statuses": statuses,
            "converged_rate": len(conv) / len(rows),
@@ -229,7 +238,7 @@ def figure(rows: list, path: Path) -> None:
 
 def main(truths: int = 50, model: str = "analytic", seed: int = 2026, *,
          field_mm: float = 0.2, pixel_mm: float | None = None, rows_path=None,
-         stop_after_s: float | None = None, figure_path=None) -> dict:
+         stop_after_s: float | None = None, figure_path=None, first: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     rows = []
     settings = {"model": model, "truths": truths, "seed": seed, "cpus": os.cpu_count(),
@@ -242,6 +251,9 @@ def main(truths: int = 50, model: str = "analytic", seed: int = 2026, *,
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(truths):
+            if i < first:  # a run continued: the draws of the truths done before
+                rng.uniform(size=4)
+                continue
             if stop_after_s is not None and time.perf_counter() - t_start > stop_after_s:
                 print(json.dumps({"stopped": f"after {i} truths: --stop-after-s "
                                              f"{stop_after_s:g} reached"}), flush=True)
@@ -254,8 +266,15 @@ def main(truths: int = 50, model: str = "analytic", seed: int = 2026, *,
             else:
                 truth = {k: float(rng.uniform(*SIM_BOUNDS[k])) for k in SIM_KEYS}
                 start = {k: float(rng.uniform(*SIM_BOUNDS[k])) for k in SIM_KEYS}
-                got = fit_simulate(truth, start, seed + i, Path(tmp) / f"t{i}",
-                                   field_mm=field_mm, pixel_mm=pixel_mm)
+                t0 = time.perf_counter()
+                try:
+                    got = fit_simulate(truth, start, seed + i, Path(tmp) / f"t{i}",
+                                       field_mm=field_mm, pixel_mm=pixel_mm)
+                except InputError as e:  # refused: counted, with no value
+                    got = {"values": {k: math.nan for k in SIM_KEYS},
+                           "stderr": {k: None for k in SIM_KEYS}, "status": "refused",
+                           "reason": str(e), "evaluations": 0,
+                           "seconds": time.perf_counter() - t0}
                 tol = {"tool.nose_radius": 0.05, "process.feed_mm_per_min": 0.005}
             err = {k: got["values"][k] / truth[k] - 1.0 for k in truth}
             z = {k: (abs(got["values"][k] - truth[k]) / got["stderr"][k]
@@ -297,6 +316,8 @@ if __name__ == "__main__":
     ap.add_argument("--stop-after-s", type=float, default=None,
                     help="start no new truth after this many seconds")
     ap.add_argument("--figure", default=None, help="write the coverage figure (PNG)")
+    ap.add_argument("--first", type=int, default=0,
+                    help="continue a run: start at this truth (the same draws as a whole run)")
     ap.add_argument("--summarise", default=None,
                     help="print the figures of a --rows file (and draw --figure) and stop")
     a = ap.parse_args()
@@ -309,4 +330,4 @@ if __name__ == "__main__":
         sys.exit(0 if rows else 1)
     sys.exit(0 if main(a.truths, a.model, a.seed, field_mm=a.field_mm, pixel_mm=a.pixel_mm,
                        rows_path=a.rows, stop_after_s=a.stop_after_s,
-                       figure_path=a.figure) else 1)
+                       figure_path=a.figure, first=a.first) else 1)
