@@ -314,3 +314,17 @@ def test_run_fit_takes_a_surface_already_read(tmp_path):
     with pytest.raises(InputError, match=r"pixel sizes differ in x"):
         run_fit(m, load_scene("sts_sinusoidal_grid"), ["tool.nose_radius"], tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_period_just_beyond_the_bounds_reach_is_fitted_not_refused():
+    """A truth at a bound reads a period a few tenths of a per cent beyond what the bounds
+    reach (the period is measured): it is fitted; a period 5 % beyond is refused."""
+    z, px = _cusps(0.0104, 0.47, amp_wave=4e-6)
+    t, _ = _features(z, px, pred=z)
+    period = 1 / t.centroid
+    free = ["process.feed_mm_per_min"]
+    ok = _before(z, z, px, free=free, reach=(0.5 * period, period / 1.003))
+    assert ok["measured_period_um"] == pytest.approx(period * 1e3)
+    _before(z, z, px, free=free, reach=(period * 1.003, 2 * period))
+    with pytest.raises(InputError, match="outside the .* the free keys' bounds can reach"):
+        _before(z, z, px, free=free, reach=(0.5 * period, period / 1.05))

@@ -82,3 +82,54 @@ def test_json_numbers_from_the_real_files():
             r0, r1 = c["radii_mm"]
             assert tool.program_feed(c["part"], r0, r1) * 1e3 == pytest.approx(
                 c["programmed_feed_um"], rel=1e-9)
+
+
+def test_fit_page_shows_the_checks_of_the_json():
+    """The checks under the table (the programmed step weighted as the fit reads the window,
+    the marks' period on the line's other arm) are the json's."""
+    tool = _tool()
+    data = _data()
+    assert data.get("checks"), "docs/fit_profiles.json has no checks (tool --checks)"
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.CHECKS_BEGIN), text.index(tool.CHECKS_END)
+    assert text[i + len(tool.CHECKS_BEGIN):j].strip() == tool.checks_table(data["checks"]).strip()
+
+
+def test_checks_from_the_real_files():
+    """The checks recomputed from the slices and programs equal the json's; the weighted
+    step equals the plain one where the program's step is constant, and stays within 1 %
+    of it in these windows."""
+    real_file("turned", "1023-WLI-2D.csv")
+    tool = _tool()
+    data = _data()
+    again = tool.arm_checks(data)
+    assert len(again) == len(data["checks"])
+    for new, old in zip(again, data["checks"]):
+        for k, v in old.items():
+            if isinstance(v, float):
+                assert new[k] == pytest.approx(v, rel=1e-9), (old["part"], k)
+            else:
+                assert new[k] == v, (old["part"], k)
+        assert abs(new["programmed_feed_weighted_um"] / new["programmed_feed_um"] - 1) < 0.01
+    assert tool.program_feed_weighted("1016", 0.2, 0.4) == tool.FEED_1016
+
+
+def test_fit_page_shows_the_scan_and_it_is_what_the_files_give():
+    """The windows moved along both arms of the scanned slice: the page's table is the
+    json's, and the json's numbers are what the slice and its program give."""
+    tool = _tool()
+    data = _data()
+    scan = data["scan"]
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.SCAN_BEGIN), text.index(tool.SCAN_END)
+    assert text[i + len(tool.SCAN_BEGIN):j].strip() == tool.scan_table(scan["part"],
+                                                                       scan["rows"]).strip()
+    real_file("turned", f"{scan['part']}-WLI-2D.csv")
+    again = tool.period_scan(scan["part"], scan["window_mm"])
+    assert [r["radii_mm"] for r in again] == [r["radii_mm"] for r in scan["rows"]]
+    for new, old in zip(again, scan["rows"]):
+        for arm in ("minus", "plus"):
+            if old[arm] is None:
+                assert new[arm] is None, (new["radii_mm"], arm)
+            else:
+                assert new[arm] == pytest.approx(old[arm], abs=1e-9), (new["radii_mm"], arm)

@@ -6,6 +6,9 @@ radii, and the nose radius fitted with the program's own path.
                                                  # and the tables in docs/fit.md and
                                                  # docs/validation.md
     python tools/profile_fit_numbers.py --docs   # rewrite the tables from the json alone
+    python tools/profile_fit_numbers.py --checks # the checks of the feed's reference and
+                                                 # of the line's other arm (no fits; json
+                                                 # and the table in docs/fit.md)
 
 Each case is what ``render-inspect fit SLICE --units um --scene S --free KEY --at X,0
 --window W`` runs, S being docs/examples/turned/scene.toml with the white-light virtual
@@ -49,6 +52,14 @@ def program_feed(part: str, r0: float, r1: float):
     distance over the revolutions the C axis turns between them."""
     if part not in PROGRAMS:
         return FEED_1016
+    x, rev = _program_revolutions(part)
+    ra, rb = np.interp([r0, r1], x, rev)
+    return float((r1 - r0) / abs(ra - rb))
+
+
+def _program_revolutions(part: str):
+    """(X, revolutions turned since the program's start) of the program's points, sorted
+    by X."""
     xs, cs = [], []
     for line in open(REAL / PROGRAMS[part]):
         d = dict(re.findall(r"([CX])(-?[\d.]+)", line))
@@ -61,8 +72,140 @@ def program_feed(part: str, r0: float, r1: float):
     dc = np.where(dc < -180, dc + 360, np.where(dc > 180, dc - 360, dc))
     rev = np.concatenate([[0.0], np.cumsum(np.abs(dc))]) / 360.0
     order = np.argsort(x)
-    ra, rb = np.interp([r0, r1], x[order], rev[order])
-    return float((r1 - r0) / abs(ra - rb))
+    return x[order], rev[order]
+
+
+def program_feed_weighted(part: str, r0: float, r1: float) -> float:
+    """The program's X step per revolution (mm) between radii r0 < r1, weighted as the
+    fit's frequency feature weights the window: the marks' local frequency (revolutions per
+    mm of radius) averaged under the Hann window the spectrum is read through, inverted.
+    Equal to :func:`program_feed` where the step is constant; where it varies, the window's
+    centre counts more than its ends."""
+    if part not in PROGRAMS:
+        return FEED_1016
+    x, rev = _program_revolutions(part)
+    r = np.linspace(r0, r1, 2001)
+    n = np.interp(r, x, rev)
+    w = np.hanning(r.size)
+    return float(np.sum(w) / np.sum(w * np.abs(np.gradient(n, r))))
+
+
+def arm_checks(data: dict) -> list:
+    """For each one-family feed window of the table, without a fit: the programmed step
+    weighted as the fit sees it, and the marks' period (the fit's own estimator,
+    :func:`~render_inspect.fit._profile.make_profile_target`) in the same radii on the
+    line's other arm (the slice is a diameter: the same radii, the same program, the other
+    side of the axis)."""
+    from render_inspect.core.errors import InputError
+    from render_inspect.fit._profile import ProfileSpec, make_profile_target, profile_family
+    from render_inspect.io import read_profile
+    from render_inspect.pipeline._fit_profile import _axis_in_window, profile_window
+
+    rows = []
+    for c in data["cases"]:
+        if (c["free"] != "process.feed_mm_per_min" or not c["one_family"]
+                or c.get("feed_difference") is None):
+            continue
+        r0, r1 = c["radii_mm"]
+        prof = read_profile(REAL / f"{c['part']}-WLI-2D.csv", units="um")
+        scene = _scene(c["part"], False, c["free"])
+        arms = {}
+        for name, xc in (("fitted", c["centre_mm"]), ("other", -c["centre_mm"])):
+            try:
+                win = profile_window(prof, scene, at=(xc, 0.0), window_mm=c["window_mm"])
+            except InputError:  # the measured profile does not reach these radii there
+                arms[name] = {"centre_mm": xc, "period_um": None, "one_family": None}
+                continue
+            t = make_profile_target(prof.z[win["i0"]:win["i1"]], spacing=prof.spacing,
+                                    lag=0, spec=ProfileSpec())
+            fam = profile_family(t.z, prof.spacing,
+                                 axis_at_mm=_axis_in_window(scene, win, 1.0 / t.peak))
+            arms[name] = {"centre_mm": xc, "period_um": 1e3 / t.peak,
+                          "one_family": bool(fam["one_family"])}
+        weighted = program_feed_weighted(c["part"], r0, r1) * 1e3
+        rows.append({"part": c["part"], "radii_mm": [r0, r1], "window_mm": c["window_mm"],
+                     "programmed_feed_um": c["programmed_feed_um"],
+                     "programmed_feed_weighted_um": weighted,
+                     "fitted_feed_um": c["fitted_feed_um"],
+                     "difference_weighted": c["fitted_feed_um"] / weighted - 1.0,
+                     "period_fitted_arm_um": arms["fitted"]["period_um"],
+                     "period_other_arm_um": arms["other"]["period_um"],
+                     "other_arm_one_family": arms["other"]["one_family"],
+                     "other_centre_mm": arms["other"]["centre_mm"],
+                     "arms_ratio": (None if arms["other"]["period_um"] is None else
+                                    arms["other"]["period_um"] / arms["fitted"]["period_um"]
+                                    - 1.0)})
+    return rows
+
+
+def curvature_factor() -> float:
+    """1 + R_n / R_s of the example scene: the marks' spacing along the radius over the tool
+    centre's feed per revolution on its concave paraboloid (docs/fit.md)."""
+    d = tomllib.loads(SCENE.read_text())
+    return 1.0 + d["tool"]["nose_radius"] / abs(d["design"]["radius_x"])
+
+
+def period_scan(part: str, window_mm: float, *, step_mm: float = 0.02,
+                radii=(0.09, 0.43)) -> list:
+    """Windows of ``window_mm`` moved along both arms of a slice, no fit: the marks' period
+    (the fit's estimator) over the program's weighted step times :func:`curvature_factor`,
+    less 1 (the excess a fit of the window would show, near enough)."""
+    from render_inspect.core.errors import InputError
+    from render_inspect.fit._profile import ProfileSpec, make_profile_target
+    from render_inspect.io import read_profile
+    from render_inspect.pipeline._fit_profile import profile_window
+
+    prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
+    scene = _scene(part, False, "process.feed_mm_per_min")
+    k = curvature_factor()
+    rows = []
+    for r0 in np.arange(radii[0], radii[1] - window_mm + 1e-9, step_mm):
+        r0 = round(float(r0), 4)
+        r1 = round(r0 + window_mm, 4)
+        row = {"radii_mm": [r0, r1]}
+        ref = program_feed_weighted(part, r0, r1) * 1e3
+        for arm, sign in (("minus", -1.0), ("plus", 1.0)):
+            try:
+                win = profile_window(prof, scene, at=(sign * (r0 + r1) / 2, 0.0),
+                                     window_mm=window_mm)
+            except InputError:
+                row[arm] = None
+                continue
+            t = make_profile_target(prof.z[win["i0"]:win["i1"]], spacing=prof.spacing,
+                                    lag=0, spec=ProfileSpec())
+            row[arm] = 1e3 / t.peak / (ref * k) - 1.0
+        rows.append(row)
+    return rows
+
+
+def scan_table(part: str, rows: list) -> str:
+    def pc(v):
+        return "n/a" if v is None else f"{100 * v:+.1f} %"
+
+    return "\n".join([f"| {part}: radii (mm) | arm at negative positions | arm at positive "
+                       f"positions |", "|---|---|---|"]
+                      + [f"| {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | {pc(r['minus'])} "
+                         f"| {pc(r['plus'])} |" for r in rows])
+
+
+def checks_table(rows: list) -> str:
+    lines = ["| part | radii (mm) | programmed (um/rev): over the radii / weighted as the fit "
+             "reads | fitted (um/rev) | difference against the weighted step | period, "
+             "fitted arm (um) | period, other arm (um) | arms differ by |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        prog = ("10 (by its name)" if r["part"] == "1016" else
+                f"{r['programmed_feed_um']:.4g} / {r['programmed_feed_weighted_um']:.4g}")
+        if r["period_other_arm_um"] is None:
+            other, ratio = "n/a (the slice does not reach these radii)", "n/a"
+        else:
+            other = f"{r['period_other_arm_um']:.4g}" + ("" if r["other_arm_one_family"]
+                                                          else " (not one family)")
+            ratio = f"{100 * r['arms_ratio']:+.1f} %"
+        lines.append(f"| {r['part']} | {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | {prog} "
+                     f"| {r['fitted_feed_um']:.4g} | {100 * r['difference_weighted']:+.1f} % "
+                     f"| {r['period_fitted_arm_um']:.4g} | {other} | {ratio} |")
+    return "\n".join(lines)
 
 
 def _scene(part: str, program: bool, free: str):
@@ -165,26 +308,45 @@ def table(data: dict) -> str:
 
 
 BEGIN, END = "<!-- profile-fit-table -->", "<!-- /profile-fit-table -->"
+CHECKS_BEGIN, CHECKS_END = "<!-- profile-fit-checks -->", "<!-- /profile-fit-checks -->"
+SCAN_BEGIN, SCAN_END = "<!-- profile-fit-scan -->", "<!-- /profile-fit-scan -->"
+#: the slice whose windows are scanned along both arms, and the window's length (mm)
+SCAN = ("1023", 0.2)
+
+
+def _replace(text: str, begin: str, end: str, body: str) -> str:
+    i, j = text.index(begin), text.index(end)
+    return text[:i + len(begin)] + "\n" + body + "\n" + text[j:]
 
 
 def write_docs(data: dict) -> None:
     for page in ("fit.md", "validation.md"):
         p = REPO / "docs" / page
-        text = p.read_text()
-        i, j = text.index(BEGIN), text.index(END)
-        p.write_text(text[:i + len(BEGIN)] + "\n" + table(data) + "\n" + text[j:])
+        text = _replace(p.read_text(), BEGIN, END, table(data))
+        if data.get("checks") and CHECKS_BEGIN in text:
+            text = _replace(text, CHECKS_BEGIN, CHECKS_END, checks_table(data["checks"]))
+        if data.get("scan") and SCAN_BEGIN in text:
+            text = _replace(text, SCAN_BEGIN, SCAN_END,
+                            scan_table(data["scan"]["part"], data["scan"]["rows"]))
+        p.write_text(text)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--docs", action="store_true", help="rewrite the tables from the json")
+    ap.add_argument("--checks", action="store_true",
+                    help="recompute the checks (no fits) into the json, and the tables")
     ap.add_argument("--out", default="out/profile_fits", help="the fits' output folders")
     a = ap.parse_args(argv)
     if not a.docs:
         if not REAL.is_dir():
             print(f"{REAL} is absent", file=sys.stderr)
             return 1
-        data = run(Path(a.out))
+        data = json.loads(JSON.read_text()) if a.checks else run(Path(a.out))
+        data["checks"] = arm_checks(data)
+        data["scan"] = {"part": SCAN[0], "window_mm": SCAN[1],
+                        "curvature_factor": curvature_factor(),
+                        "rows": period_scan(*SCAN)}
         JSON.write_text(json.dumps(data, indent=1) + "\n")
     write_docs(json.loads(JSON.read_text()))
     return 0

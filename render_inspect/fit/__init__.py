@@ -26,7 +26,7 @@ from ._features import (FORMS, MisfitSpec, Prediction, Target, make_target, nois
 from ._params import (FreeParameter, free_parameters, get_value, parse_bounds, parse_free,
                       schema_range, set_value)
 from ._checks import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, check_after, check_before,
-                      mark_tiles, profile_marks)
+                      mark_tiles, profile_marks, within_reach)
 from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_target,
                        predict_profile_features, profile_family, profile_residual_vector,
                        set_profile_noise_floor)
@@ -49,4 +49,4 @@ __all__ = ["check_weights", "parse_weights",
            "mark_tiles", "profile_marks", "MARK_KEYS", "MISMATCH", "PERIOD_TOLERANCE",
            "PROFILE_TERMS", "ProfileSpec", "ProfileTarget", "make_profile_target",
            "predict_profile_features", "profile_family", "profile_residual_vector",
-           "set_profile_noise_floor"]
+           "set_profile_noise_floor", "within_reach"]

@@ -25,12 +25,17 @@ from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._features import PEAK_MIN_PERIODS, feed_peak
 
-__all__ = ["mark_tiles", "check_before", "check_after", "profile_marks", "MARK_KEYS"]
+__all__ = ["mark_tiles", "check_before", "check_after", "profile_marks", "MARK_KEYS",
+           "within_reach"]
 
 #: scene keys that set the marks' period (a fit that frees one may move it)
 MARK_KEYS = ("process.feed_mm_per_min", "process.spindle_rpm")
 #: relative period difference beyond which the marks are not the scene's (no feed key free)
 PERIOD_TOLERANCE = 0.03
+#: relative distance by which the measured period may lie beyond what the free keys' bounds
+#: reach and still be fitted: the period read from a window of ten or more marks is uncertain
+#: by a few tenths of a per cent, so a truth at a bound can read just beyond it
+REACH_TOLERANCE = 0.01
 #: degrees by which the marks' direction may differ between measured and predicted
 ANGLE_TOLERANCE_DEG = 15.0
 #: relative spread of the tiles' periods beyond which the feed varies across the field
@@ -94,6 +99,13 @@ def _rms(z) -> float:
     return float(np.sqrt(np.mean(z[ok] ** 2))) if ok.any() else 0.0
 
 
+def within_reach(period: float, reach) -> bool:
+    """Whether a measured period lies within the periods ``reach`` = (lower, upper) the
+    free keys' bounds reach, or at most :data:`REACH_TOLERANCE` beyond them."""
+    return (reach[0] * (1.0 - REACH_TOLERANCE) <= period
+            <= reach[1] * (1.0 + REACH_TOLERANCE))
+
+
 def check_before(measured, predicted, *, pixel, free_keys, measured_period,
                  predicted_period, measured_wavy, predicted_wavy, reach=None) -> dict:
     """Refuse (:class:`InputError`, one line with the reason) a measurement the scene does
@@ -124,7 +136,7 @@ def check_before(measured, predicted, *, pixel, free_keys, measured_period,
         rel = predicted_period / measured_period - 1.0
         out["period_difference"] = rel
         if reach is not None:
-            if not reach[0] <= measured_period <= reach[1]:
+            if not within_reach(measured_period, reach):
                 raise InputError(
                     f"this scene does not describe this measurement: the marks' period "
                     f"{measured_period * MM_TO_UM:.4g} um lies outside the "

@@ -38,7 +38,7 @@ from ..core.errors import InputError
 from ..core.lazy import lazy_module
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
-from ..fit import (parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+from ..fit import (within_reach, parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
@@ -458,7 +458,7 @@ def _check_before(target, pred, keys, reach, family) -> dict:
     if mp is not None:
         rel = pp / mp - 1.0
         out["period_difference"] = rel
-        if reach is not None and not reach[0] <= mp <= reach[1]:
+        if reach is not None and not within_reach(mp, reach):
             raise InputError(f"this scene does not describe this measurement: the marks' period "
                              f"{mp * MM_TO_UM:.4g} um lies outside the {reach[0] * MM_TO_UM:.4g}.."
                              f"{reach[1] * MM_TO_UM:.4g} um the free keys' bounds can reach; "
