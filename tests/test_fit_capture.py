@@ -328,3 +328,34 @@ def test_a_period_just_beyond_the_bounds_reach_is_fitted_not_refused():
     _before(z, z, px, free=free, reach=(period * 1.003, 2 * period))
     with pytest.raises(InputError, match="outside the .* the free keys' bounds can reach"):
         _before(z, z, px, free=free, reach=(0.5 * period, period / 1.05))
+
+
+def two_valleys(task):
+    """A forward model with a second, worse minimum 2.8 % above the true feed (module
+    level): above 1.015 times the truth the marks' period is read 2.8 % short and the
+    waviness is off, so a start there ends in a minimum of its own."""
+    v = dict(task["values"])
+    w = 4e-6
+    if v["f"] > 1.015 * TRUTH["f"]:
+        v["f"] = v["f"] - 0.028 * TRUTH["f"]
+        w = 7e-6
+    return _cusps(v["f"], v["R"], amp_wave=w)[0], {}
+
+
+def test_a_second_start_in_another_minimum_gets_a_third_for_the_solver_term():
+    """The second start (3 % away, the feed up) falls into the other minimum, which does not
+    measure the solver's precision: a third start from the opposite side is solved, ends at
+    the truth, and its distance is the solver's term of the standard errors."""
+    params = _params(0.0104, 0.47)
+    z, px = _cusps(TRUTH["f"], TRUTH["R"], amp_wave=4e-6)
+    target = make_target(z, pixel=(px, px), origin=(0.0, 0.0), spec=MisfitSpec())
+    ev = Evaluator(params, target, lambda vals: {"values": vals}, two_valleys,
+                   EvaluationCache(None), max_evaluations=400)
+    res = solve(params, ev, profile_points=0)
+    assert res.checks["second_result"]["f"] > 1.015 * TRUTH["f"], res.checks
+    assert res.checks["second_misfit"] > 1.01 * res.checks["first_misfit"], res.checks
+    assert "third_start" in res.checks and res.checks["third_start"]["f"] < TRUTH["f"]
+    assert res.checks["third_result"]["f"] == pytest.approx(TRUTH["f"], rel=2e-3)
+    assert res.status == "converged", res.message
+    assert res.stderr_solver is not None and np.all(np.isfinite(res.stderr_solver))
+    assert res.values[0] == pytest.approx(TRUTH["f"], rel=2e-3)
