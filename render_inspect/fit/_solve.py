@@ -493,26 +493,6 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
                                            for p, v in zip(params, second.values)}
                 checks["second_misfit"] = float(second.cost)
                 checks["first_misfit"] = float(first.cost)
-                # a second start that fell into another minimum does not measure the
-                # solver's precision: a third from the opposite side
-                best = evaluator.best
-                other = second if second is not best else first
-                far = np.abs(other.values - best.values) > np.maximum(
-                    2 * sig_phys, 10 * xtol * np.array([p.scale for p in params]))
-                if far.any() and (other.cost - best.cost) > 0.01 * max(best.cost, 1e-300):
-                    u3 = np.clip(ub - shift, lo + inside, hi - inside)
-                    s3, m3, third = _local(params, evaluator, u3, lo, hi, steps.copy(),
-                                           xtol=xtol, ftol=ftol, max_rounds=max_rounds,
-                                           budget=budget)
-                    checks["third_start"] = {p.key: float(p.from_unit(v))
-                                             for p, v in zip(params, u3)}
-                    checks["third_result"] = {p.key: float(v)
-                                              for p, v in zip(params, third.values)}
-                    checks["third_misfit"] = float(third.cost)
-                    best = evaluator.best
-                    # the start that ended nearer the best's misfit stands for the solver
-                    if best is third or (best is not second and third.cost < second.cost):
-                        second = third
                 best = evaluator.best
                 if lower:
                     status = "not a minimum"
@@ -585,8 +565,7 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             else:
                 status, message = "converged", (
                     f"a minimum: the misfit is higher on both sides along every parameter; "
-                    f"{'a second and a third start' if 'third_start' in checks else 'a second start'} "
-                    f"fell into another minimum {100 * gap:.2g} % higher "
+                    f"a second start fell into another minimum {100 * gap:.2g} % higher "
                     f"({params[worst].key} = {other.values[worst]:.6g}), so the standard "
                     f"errors leave out the solver's own precision")
         elif status in ("local minimum", "stopped") and second is None:
