@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
+from ..core.units import MIN_TO_S as _MIN_TO_S  # s per min
 
 __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
            "c_move_times", "STATE_SIZE",
@@ -351,7 +352,6 @@ def scan_piece(a, st, rows, seen_g, seen_m, seen_letter, flags):
 
 
 _TWO_PI = 2 * np.pi
-_MIN_TO_S = 60.0  # s per min (as core.units.MIN_TO_S)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
