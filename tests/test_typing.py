@@ -37,8 +37,15 @@ def test_the_type_check_would_see_an_error(tmp_path):
     _require_mypy()
     bad = tmp_path / "bad.py"
     bad.write_text("from render_inspect.core.grid import grid_shape\n"
-                   "n: str = grid_shape((0.0, 0.0, 1.0, 1.0), 0.1)\n")
+                   "from render_inspect.scene import Scene\n"
+                   "n: str = grid_shape((0.0, 0.0, 1.0, 1.0), 0.1)\n"
+                   "def rpm(scene: Scene) -> float:\n"
+                   "    return scene.machine.servo_rate_hzz + scene.tool.nose_radius\n")
     r = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(REPO / "pyproject.toml"),
                         "--cache-dir", str(tmp_path / "cache"), str(bad)],
                        cwd=REPO, capture_output=True, text=True)
     assert r.returncode == 1 and "Incompatible types in assignment" in r.stdout, r.stdout
+    # a scene key misspelt where a function takes the typed Scene (the registered
+    # [machine] section included), and only that one
+    assert '"MachineConfig" has no attribute "servo_rate_hzz"' in r.stdout, r.stdout
+    assert "Found 2 errors" in r.stdout, r.stdout

@@ -8,6 +8,8 @@ so adding a file ``_mytype.py`` is all a new design type needs (docs/contributin
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Union
+
 from ..core.plugins import import_private_modules
 from ._analytic import (
     Biconic,
@@ -43,13 +45,22 @@ from ._registry import (
 # variants added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_base", "_registry"))
 
-#: the pydantic type of a scene's [design] section
-DesignConfig = design_config_union()
+#: the schema classes of the design types, as a type checker knows a ``[design]`` section
+#: (the registry's, listed: a design type added to the registry is added here too)
+DesignSection = Union[SinusoidalGridConfig, PlaneConfig, SphereConfig, ToricConfig, BiconicConfig,
+                      CompoundConfig, ExpressionConfig, HeightMapConfig, LensletArrayConfig,
+                      LensletRingsConfig]
+
+if TYPE_CHECKING:
+    DesignConfig = DesignSection
+else:
+    #: the pydantic type of a scene's [design] section
+    DesignConfig = design_config_union()
 
 __all__ = ["Surface", "SinusoidalGrid", "Plane", "Sphere", "Toric", "Biconic", "Compound",
            "LensletArray", "LensletRings", "ExpressionSurface", "HeightMapSurface",
            "make_surface", "register_design", "design_types", "design_config_union",
-           "DesignType", "DesignConfig", "SinusoidalGridConfig", "PlaneConfig", "SphereConfig",
+           "DesignType", "DesignConfig", "DesignSection", "SinusoidalGridConfig", "PlaneConfig", "SphereConfig",
            "ToricConfig", "BiconicConfig", "CompoundConfig", "ExpressionConfig",
            "HeightMapConfig", "LensletArrayConfig", "LensletRingsConfig",
            "HeightBound", "height_interval", "max_height"]

@@ -159,8 +159,7 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
                 "shape": list(sim.heightmap.shape), "pixel_mm": float(sim.heightmap.pixel)}
         progress(0.97, "writing")
     if exaggeration is None:
-        # (render.diffuse: a registered section)
-        exaggeration = scene.render.diffuse.exaggeration  # type: ignore[attr-defined]
+        exaggeration = scene.render.diffuse.exaggeration
     if exaggeration is None:
         exaggeration = auto_exaggeration(first, surface)
     result["exaggeration"] = float(exaggeration)
@@ -438,8 +437,7 @@ def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = 
         hm = result.heightmap
         write_heightmap_exr(tmp / "heightmap.exr", hm)
     if exaggeration is None:
-        # (render.diffuse: a registered section)
-        exaggeration = scene.render.diffuse.exaggeration  # type: ignore[attr-defined]
+        exaggeration = scene.render.diffuse.exaggeration
     if exaggeration is None:  # the renderer's automatic choice for this height map
         exaggeration = auto_exaggeration(hm, surface)
     exaggeration = float(exaggeration)

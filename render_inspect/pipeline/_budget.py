@@ -14,7 +14,7 @@ grooves are a new draw of the same statistics on the smaller grid.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from ..core.units import MM_TO_NM
 from ..processes import Variant, process_of
 from ..scene import variant_scene
 from ._simulate import simulate
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["overcut_budget", "BUDGET_WINDOW_PIXELS", "BUDGET_MIN_OVERCUT_NM"]
 
@@ -41,13 +44,13 @@ def _window(hm, at, pixels: int) -> list[float]:
     return [float(x0), float(y0), float(x0 + side), float(y0 + side)]
 
 
-def _deepest(scene, values: dict, window) -> float:
+def _deepest(scene: Scene, values: dict, window) -> float:
     sc = variant_scene(scene, Variant("budget", "budget", {**values, "simulation.region": window}))
     r = simulate(sc).heightmap.residual
     return float(np.nanmin(r)) * MM_TO_NM if np.isfinite(r).any() else math.nan
 
 
-def overcut_budget(scene, hm, *, pixels: int = BUDGET_WINDOW_PIXELS) -> dict | None:
+def overcut_budget(scene: Scene, hm, *, pixels: int = BUDGET_WINDOW_PIXELS) -> dict | None:
     """The deepest point of ``hm`` below the design, split into its contributions.
 
     Parameters

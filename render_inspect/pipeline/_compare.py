@@ -31,7 +31,7 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,6 +61,9 @@ from ._render import (check_render_limits, part_outline, render_diffuse_views,
                       write_diffuse_outputs, write_instrument_outputs)
 from ._simulate import simulate
 
+if TYPE_CHECKING:
+    from ..scene import Scene
+
 __all__ = ["run_compare", "check_measured", "expected_sq_mm", "compare_variants", "compare_pair",
            "compare_summary", "variant_scene", "parse_vary", "preview_render_configs",
            "common_window", "VARIANTS", "PROFILE_ANGLES_DEG",
@@ -87,7 +90,7 @@ _NAME_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
 compare_summary = comparison_summary
 
 
-def preview_render_configs(scene, heightmap, *, window=None):
+def preview_render_configs(scene: Scene, heightmap, *, window=None):
     """Instrument and diffuse settings for compare: the scene's, over the common ``window``
     (mm) when given, with the sizes the scene does not set capped
     (:data:`COMPARE_MAX_CAMERA_PIXELS`, :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`,
@@ -124,7 +127,7 @@ def preview_render_configs(scene, heightmap, *, window=None):
                 notes.append(f"{entry.name} pixel {g['pixel'] * MM_TO_UM:.3g} um -> "
                              f"{pix * MM_TO_UM:.3g} um ({COMPARE_MAX_CAMERA_PIXELS} camera pixels "
                              f"across the field; set render.{entry.name}.pixel to choose)")
-    upd = {}
+    upd: dict[str, Any] = {}
     dset = dcfg.model_fields_set
     if "resolution" not in dset and dcfg.resolution > COMPARE_MAX_DIFFUSE_RESOLUTION:
         upd["resolution"] = COMPARE_MAX_DIFFUSE_RESOLUTION
@@ -166,12 +169,12 @@ class _Variant:
                                self.heightmap, self.ig, self.maps, self.filtered, self.diffuse)
 
 
-def _traits(scene):
+def _traits(scene: Scene):
     process = process_of(scene)
     return process.traits(process.inputs_of(scene))
 
 
-def expected_sq_mm(scene) -> float | None:
+def expected_sq_mm(scene: Scene) -> float | None:
     """The Sq the scene's process should leave on its own (mm): the ideal turned profile
     ``f^2 / (12 sqrt(5) R)`` of its feed marks (:func:`render_inspect.metrology.expected_sq_mm`
     of the marks its traits state); None for processes without a feed scallop."""
@@ -272,7 +275,7 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     v.metrics.update(m)
 
 
-def check_measured(path, scene, design_surface, *, force: bool = False):
+def check_measured(path, scene: Scene, design_surface, *, force: bool = False):
     """Read a measured file and check, before any simulation, that it is a map of this
     design: registered overlap with ``simulation.region`` at least ``metrology.min_overlap``
     of the smaller area, registration residual not far above the process's roughness
@@ -290,7 +293,7 @@ def check_measured(path, scene, design_surface, *, force: bool = False):
     return m, comp
 
 
-def _measured_column(m, scene, design_surface, sim_hm, seed) -> dict:
+def _measured_column(m, scene: Scene, design_surface, sim_hm, seed) -> dict:
     simulated = sim_hm if np.allclose(m.pixel, sim_hm.pixel, rtol=1e-6) else None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -313,7 +316,7 @@ def _measured_column(m, scene, design_surface, sim_hm, seed) -> dict:
             "extent": m.extent}
 
 
-def _check_phase_settings(scene) -> None:
+def _check_phase_settings(scene: Scene) -> None:
     """Refuse, before any work, a PSI algorithm that cannot use the frames rendered."""
     _, ic = _instrument(scene)
     alg = scene.metrology.phase_algorithm
@@ -357,7 +360,7 @@ def _kinematics(a: _Variant, b: _Variant):
     return axis_motion_figure(cols, title="Axis motion of the programs (the axes that move)")
 
 
-def run_compare(scene, out, *, measured=None, vary: str | None = None,
+def run_compare(scene: Scene, out, *, measured=None, vary: str | None = None,
                 force: bool = False, overwrite: bool = False, repeat: int = 1) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 

@@ -5,6 +5,8 @@ camera pixels, and, with ``repeat``, its repeatability over fresh camera noise."
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..core.units import MM_TO_NM, NM_TO_MM
@@ -13,8 +15,11 @@ from ..metrology import (difference_noise, difference_order_check, difference_st
                          level_map, measure_frames, measured_difference, measurement_seeds,
                          repeat_statistics, resolution)
 
+if TYPE_CHECKING:
+    from ..scene import Scene
 
-def _instrument(scene):
+
+def _instrument(scene: Scene):
     """The instrument compare measures through and its section of the scene."""
     entry = height_instrument()
     return entry, getattr(scene.render, entry.name)

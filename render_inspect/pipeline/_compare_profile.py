@@ -17,6 +17,8 @@ and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import logging
 import math
 import time
@@ -38,6 +40,9 @@ from ..scene import scene_from_dict
 from ._compare import run_compare
 from ._metrics import write_metrics
 from ._simulate import simulate
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["run_compare_profile", "run_compare_command", "parse_line", "default_line",
            "registration_period", "axis_on_line"]
@@ -68,7 +73,7 @@ def parse_line(text) -> tuple[tuple[float, float], tuple[float, float]]:
     return (v[0], v[1]), (v[2], v[3])
 
 
-def default_line(scene, profile):
+def default_line(scene: Scene, profile):
     """A diameter along x through the spindle axis, as long as the measured profile, with
     the profile's mirror centre (when it has one) on the axis; None for a scene without a
     spindle axis.  Returns (p0, p1, how)."""
@@ -89,7 +94,7 @@ def default_line(scene, profile):
     return p0, (p0[0] + length, axis[1]), how
 
 
-def _band_scene(scene, p0, p1):
+def _band_scene(scene: Scene, p0, p1):
     d = scene.model_dump(mode="json")
     x0, x1 = sorted((p0[0], p1[0]))
     y0, y1 = sorted((p0[1], p1[1]))
@@ -109,7 +114,7 @@ def _filled(z):
     return f - np.polyval(c, i - i.mean())
 
 
-def registration_period(scene, z_meas, *, spacing):
+def registration_period(scene: Scene, z_meas, *, spacing):
     """The period (mm) that bounds the registration's search around the mirror centres'
     match: the measured profile's own dominant period (the marks it shows repeat at it,
     whatever fed them: a program read from a file may vary its feed with the radius), or,
@@ -123,7 +128,7 @@ def registration_period(scene, z_meas, *, spacing):
     return float(marks.period_mm) if marks is not None and marks.period_mm else None
 
 
-def axis_on_line(scene, p0, p1, *, tolerance):
+def axis_on_line(scene: Scene, p0, p1, *, tolerance):
     """Where the spindle axis lies along the line p0 -> p1 (mm from p0), when the line
     passes within ``tolerance`` mm of it; None otherwise (or without a spindle axis)."""
     process = process_of(scene)
@@ -193,7 +198,7 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
     return best[1] * spacing, best[0], how
 
 
-def run_compare_profile(scene, out, *, measured, line=None, units=None, filter_spec=None,
+def run_compare_profile(scene: Scene, out, *, measured, line=None, units=None, filter_spec=None,
                         overwrite: bool = False) -> dict:
     """Compare a measured profile with the same line of the simulated part.
 
@@ -379,7 +384,7 @@ def _page(metrics: dict, figs: dict) -> str:
     return rep.render()
 
 
-def run_compare_command(scene, out, *, measured=None, vary=None, force: bool = False, line=None,
+def run_compare_command(scene: Scene, out, *, measured=None, vary=None, force: bool = False, line=None,
                         units=None, filter_spec=None, repeat: int = 1,
                         overwrite: bool = False) -> dict:
     """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,

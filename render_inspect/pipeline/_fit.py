@@ -9,6 +9,8 @@ fit window -> the virtual interference microscope with the measured file's setti
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import contextlib
 import copy
 import functools
@@ -45,6 +47,9 @@ from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, file_instrument,
                          preset_value, quiet)
 from ._simulate import simulate, write_simulation
 
+if TYPE_CHECKING:
+    from ..scene import Scene
+
 __all__ = ["run_fit", "predict_measurement", "FIT_FILES", "preset_value"]
 
 log = logging.getLogger("render_inspect")
@@ -75,7 +80,7 @@ def _parse_at(at):
 
 
 # ------------------------------------------------------------------------- run_fit
-def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = None,
+def run_fit(measured, scene: Scene, free, out, *, bounds=(), objective: str | None = None,
             at=None, window_mm: float = 0.2, form: str = "plane", weights=None,
             workers: int | None = None, scheduler: str | None = None, predict=(),
             seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
@@ -357,7 +362,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     return record
 
 
-def _evaluation_pixel(scene, period=None) -> float:
+def _evaluation_pixel(scene: Scene, period=None) -> float:
     """The simulation pixel of an evaluation (and of ``--predict``): the scene's, halved
     until the marks' period (``period`` mm, else the scene's feed per revolution) holds
     :data:`SIM_SAMPLES_PER_PERIOD` samples, so that the grid's aliasing of the cusps stays

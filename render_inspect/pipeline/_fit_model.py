@@ -16,7 +16,7 @@ import os
 import socket
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from ..metrology import measure_frames
 from ..processes import preset_settings
 from ..scene import scene_from_dict
 from ._simulate import simulate
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["predict_measurement", "preset_value", "preset_fill", "ForwardModel",
            "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS"]
@@ -119,7 +122,7 @@ def compute_all(store, tasks, client, compute=None) -> list:
 
 
 # ------------------------------------------------------------------ preset values
-def preset_value(scene, key: str):
+def preset_value(scene: Scene, key: str):
     """The value of a machine or material key the scene leaves to its preset (scene
     units), or None."""
     parts = key.split(".")
@@ -138,7 +141,7 @@ def preset_value(scene, key: str):
     return node
 
 
-def preset_fill(scene):
+def preset_fill(scene: Scene):
     """``fill(prefix)``: the preset's array for an array key the scene leaves unset."""
     def fill(prefix: str):
         v = preset_value(scene, prefix)
@@ -173,7 +176,7 @@ def file_instrument(path) -> dict:
     return out
 
 
-def instrument_settings(scene, file_settings: dict, objective: str | None, pixel: float,
+def instrument_settings(scene: Scene, file_settings: dict, objective: str | None, pixel: float,
                         window, z) -> tuple[dict, str]:
     """The instrument section of the evaluations (``[render.interferometer]``: the
     registered instrument that records interferometer frames): the scene's, with the file's

@@ -28,7 +28,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -52,6 +52,9 @@ from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, compute_all, instrument_settings,
                          predict_measurement, preset_fill, preset_value, quiet)
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FIT_FILES",
            "profile_window", "is_profile_measurement"]
@@ -101,7 +104,7 @@ def predict_profile(task_spec: dict):
     return z[None, :], meta
 
 
-def simulate_profile(scene, p0, p1, spacing: float, *, seed: int = 0):
+def simulate_profile(scene: Scene, p0, p1, spacing: float, *, seed: int = 0):
     """The scene's cut along the line ``p0 -> p1`` (mm) as the virtual interferometer
     measures it (its camera noise on, seeded), sampled every ``spacing`` mm: a thin band
     about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
@@ -140,7 +143,7 @@ class ProfileModel(ForwardModel):
 
 
 # ------------------------------------------------------------------------- the window
-def profile_window(prof, scene, *, line=None, at=None, window_mm: float = 0.3) -> dict:
+def profile_window(prof, scene: Scene, *, line=None, at=None, window_mm: float = 0.3) -> dict:
     """Where the fitted window lies: the line (``--line`` or the default radial line of a
     turned part), the window's centre (``--at X,Y`` projected on the line, default the
     middle of the measured points) and its samples.  Returns ``{"p0", "p1", "direction",
@@ -193,7 +196,7 @@ def profile_window(prof, scene, *, line=None, at=None, window_mm: float = 0.3) -
             "centre_on_part_mm": [p0[0] + u[0] * sc, p0[1] + u[1] * sc]}
 
 
-def _axis_in_window(scene, win, period):
+def _axis_in_window(scene: Scene, win, period):
     """Where the line passes closest to the spindle axis, mm from the window's start, when
     it passes within a feed period of it (None otherwise, or without an axis)."""
     process = process_of(scene)
@@ -213,7 +216,7 @@ def _profile_weights(items) -> dict:
 
 
 # ------------------------------------------------------------------------------ run
-def run_fit_profile(measured, scene, free, out, *, units=None, line=None, bounds=(),
+def run_fit_profile(measured, scene: Scene, free, out, *, units=None, line=None, bounds=(),
                     objective: str | None = None, at=None, window_mm: float = 0.3,
                     weights=None, workers: int | None = None, scheduler: str | None = None,
                     seed: int = 0, global_points: int = 8, max_evaluations: int = 150,

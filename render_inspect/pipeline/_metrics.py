@@ -10,11 +10,16 @@ analysis's and an instrument characterisation's; the ``toolpath`` command's
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from pathlib import Path
 
 from .. import __version__
 from ..io import write_json
 from ..machining import residual_metrics
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["simulation_metrics", "tiled_metrics", "variant_metrics", "comparison_metrics",
            "toolpath_metrics", "measurement_metrics", "analysis_metrics",
@@ -54,7 +59,7 @@ def _program_facts(m: dict, plan) -> None:
     m.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
 
 
-def simulation_metrics(scene, sim) -> dict:
+def simulation_metrics(scene: Scene, sim) -> dict:
     """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
     ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
     ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
@@ -73,7 +78,7 @@ def simulation_metrics(scene, sim) -> dict:
     return m
 
 
-def tiled_metrics(scene, plan, traits, residual: dict, shape, origin, timing: dict,
+def tiled_metrics(scene: Scene, plan, traits, residual: dict, shape, origin, timing: dict,
                   facts: dict | None = None) -> dict:
     """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
     ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)
@@ -100,14 +105,14 @@ def variant_metrics(sim_metrics: dict, *, name: str, label: str, measured: dict,
     return m
 
 
-def comparison_metrics(scene, *, pair, variants, difference: dict, filters: dict,
+def comparison_metrics(scene: Scene, *, pair, variants, difference: dict, filters: dict,
                        windows: dict, seed: int, mitsuba_variant: str, render_settings: dict,
                        measured_file: dict | None, total_s: float, report: str) -> dict:
     """``compare``'s ``metrics.json``: the pair, both variants' metrics (under their names),
     the difference, the filters, the windows, the render settings and the measured file's
     comparison."""
     a, b = variants
-    metrics = {
+    metrics: dict[str, Any] = {
         "variants": [{"name": v.name, "label": v.label, "values": pv.values}
                      for v, pv in zip(variants, pair.variants)],
         "pair": {"key": pair.key, "about": pair.about, "identical": difference["identical"]},

@@ -28,7 +28,7 @@ import tomllib
 from datetime import datetime, timezone
 from importlib import resources
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -58,6 +58,9 @@ from ..report import rgb_png
 from ..scene import find_scene, load_scene, scene_sections
 from ._render import part_heightmap, render_diffuse_views
 from ._simulate import simulate
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["run_regress", "case_images", "regression_cases_dir", "IMAGE_SETTINGS",
            "REFERENCE_SEED0", "SEED_STRIDE"]
@@ -139,7 +142,7 @@ def _case_scene(case, path: Path, overrides=()):
         raise SceneError(f"regression case {case.name}: {err}") from None
 
 
-def case_images(scene, images, *, seeds) -> dict:
+def case_images(scene: Scene, images, *, seeds) -> dict:
     """Render the images of one case.
 
     Parameters

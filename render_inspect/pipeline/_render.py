@@ -8,7 +8,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from ._metrics import write_metrics
 from ._simulate import design_heightmap, simulate
 from ._simulate_command import wants_tiles
 from ._views import BigMapViews, WholeMapViews, big_map_store, existing_store
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["run_render", "render_heightmap", "write_diffuse_outputs",
            "write_instrument_outputs", "write_interferogram_outputs",
@@ -61,7 +64,7 @@ def _instruments(kind: str) -> dict:
     return {kind: entries[kind]} if kind in entries else {}
 
 
-def _design_slope(scene):
+def _design_slope(scene: Scene):
     """``slope(window)``: the design's largest slope over a window (rad), or None when
     the design cannot be sampled there."""
     def slope(window):
@@ -72,7 +75,7 @@ def _design_slope(scene):
     return slope
 
 
-def check_render_limits(scene, *, kind: str = "all") -> dict:
+def check_render_limits(scene: Scene, *, kind: str = "all") -> dict:
     """Check, before anything is simulated or rendered, that the images a scene asks for
     are within what the renderers can do and within the memory budget.
 
@@ -138,7 +141,7 @@ def _check_render_address_space(need: dict) -> None:
         + (f", and Mitsuba's own {format_bytes(extra)} when it starts)" if starting else ")")))
 
 
-def render_heightmap(scene, *, surface: str = "machined"):
+def render_heightmap(scene: Scene, *, surface: str = "machined"):
     """The HeightMap a render of ``scene`` uses.
 
     ``machined``: :func:`~render_inspect.pipeline.simulate`'s height map; ``design``: the
@@ -210,19 +213,19 @@ def write_diffuse_outputs(out: Path, rgb: np.ndarray, meta: dict, *, name: str) 
         "shape": [int(rgb.shape[0]), int(rgb.shape[1])]}
 
 
-def _traits(scene):
+def _traits(scene: Scene):
     process = process_of(scene)
     return process.traits(process.inputs_of(scene))
 
 
-def tool_marks(scene) -> dict | None:
+def tool_marks(scene: Scene) -> dict | None:
     """The tool marks the diffuse renderer needs (:func:`~render_inspect.render.render_diffuse`
     ``marks``), from the marks the scene's process says it leaves
     (:func:`~render_inspect.metrology.render_marks`)."""
     return render_marks(_traits(scene).marks)
 
 
-def part_outline(scene) -> dict:
+def part_outline(scene: Scene) -> dict:
     """The part as the macro view shows it: the process's own outline (turning: ``{"shape":
     "disc", "center", "radius"}``, the workpiece), else ``{"shape": "rect", "rect"}`` (the
     simulated region)."""
@@ -232,7 +235,7 @@ def part_outline(scene) -> dict:
     return {"shape": "rect", "rect": [float(v) for v in scene.simulation.region]}
 
 
-def part_heightmap(scene, hm, *, cells: int = 1024, surface: str = "machined") -> HeightMap:
+def part_heightmap(scene: Scene, hm, *, cells: int = 1024, surface: str = "machined") -> HeightMap:
     """The whole part for the macro view: the design over the part (:func:`part_outline`,
     ``cells`` samples across; NaN outside a turned disc) with the simulated residual
     (area-averaged onto that grid) added inside the simulated region
@@ -245,7 +248,7 @@ def part_heightmap(scene, hm, *, cells: int = 1024, surface: str = "machined") -
                      cells=cells, layer=surface)
 
 
-def render_diffuse_views(scene, hm, dcfg, *, seed: int, surface: str = "machined",
+def render_diffuse_views(scene: Scene, hm, dcfg, *, seed: int, surface: str = "machined",
                          views=("micro", "macro"), part_hm=None) -> dict:
     """The diffuse images of a simulated part: ``micro`` (``dcfg.window`` of ``hm``,
     straight down) and ``macro`` (the whole part, :func:`part_heightmap`), both with the
@@ -266,7 +269,7 @@ def render_diffuse_views(scene, hm, dcfg, *, seed: int, surface: str = "machined
     return out
 
 
-def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None,
+def run_render(scene: Scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None,
                overwrite: bool = False) -> dict:
     """Render ``scene`` into the folder ``out`` (written atomically).
 
@@ -311,7 +314,7 @@ def run_render(scene, out, *, surface: str = "machined", kind: str = "all", heig
         return _render_into(scene, out, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
 
 
-def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
+def _render_into(scene: Scene, out, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
     timing = {}
     t0 = time.perf_counter()
     with progress_task(f"{surface} height map"):
@@ -334,7 +337,7 @@ def _render_into(scene, out, tmp: Path, *, surface: str, kind: str, heightmap=No
             cast(BigMapViews, views).close()
 
 
-def _render_views(scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:
+def _render_views(scene: Scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
     info = variant_info()

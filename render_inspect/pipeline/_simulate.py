@@ -13,7 +13,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
@@ -26,6 +26,9 @@ from ..processes import Cut, Plan, Traits, check_budget, process_of
 from ..report import draw_figure, residual_preview_png
 from ._metrics import simulation_metrics, write_metrics
 from ._toolpath import check_links
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "residual_title",
            "timed"]
@@ -90,7 +93,7 @@ class Simulation:
         return {**self.plan.plots, **self.cut.plots}
 
 
-def simulate(scene, *, surface=None) -> Simulation:
+def simulate(scene: Scene, *, surface=None) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process plans its program for the region, the memory needed is checked
@@ -140,7 +143,7 @@ def simulate(scene, *, surface=None) -> Simulation:
     return result
 
 
-def design_heightmap(scene) -> HeightMap:
+def design_heightmap(scene: Scene) -> HeightMap:
     """The design sampled on the simulation grid (no machining): ``machined`` = ``design``."""
     sim = scene.simulation
     region = tuple(sim.region)

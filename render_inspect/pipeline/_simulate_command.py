@@ -5,6 +5,8 @@ Zarr store (:func:`render_inspect.batch.run_tiles`), the metrics reduced across 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import json
 import logging
 import time
@@ -29,6 +31,9 @@ from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
 from ._toolpath import check_links, log_program_summary
 
+if TYPE_CHECKING:
+    from ..scene import Scene
+
 __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
 log = logging.getLogger("render_inspect")
@@ -42,7 +47,7 @@ _FIGURE_POINTS = 440
 TILED_SAMPLES = 1 << 25  # not a unit conversion
 
 
-def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
+def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None = None,
                 scheduler: str | None = None) -> bool:
     """Whether ``simulate`` takes the tiled path: when asked (``tiled``, ``workers`` or
     ``scheduler``), or when the process can be simulated tile by tile and the map has more
@@ -63,7 +68,7 @@ def wants_tiles(scene, *, tiled: bool | None = None, workers: int | None = None,
         process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 
-def run_simulate(scene, out, *, tiled: bool | None = None, workers: int | None = None,
+def run_simulate(scene: Scene, out, *, tiled: bool | None = None, workers: int | None = None,
                  scheduler: str | None = None, tile: int = TILE, overwrite: bool = False) -> dict:
     """``render-inspect simulate``: heightmap.exr (or heightmap.zarr for maps simulated
     tile by tile), metrics.json, toolpath.npz, residual.png, kinematics.png.
@@ -138,7 +143,7 @@ def _may_leave_uncut(region, path, env) -> bool:
     return bool(r_out > float(rho.max()) + hw or r_in < float(rho.min()) - hw)
 
 
-def run_simulate_tiled(scene, out, *, workers: int | None = None, scheduler: str | None = None,
+def run_simulate_tiled(scene: Scene, out, *, workers: int | None = None, scheduler: str | None = None,
                        tile: int = TILE, overwrite: bool = False) -> dict:
     """The tiled, out-of-core ``simulate`` (see :func:`run_simulate`): heightmap.zarr (with
     an area-averaged pyramid), metrics.json, scene.json, toolpath.npz, residual.png and

@@ -60,7 +60,7 @@ from ..io import (
     write_json,
 )
 from ..processes import check_budget, process_of
-from ..scene import find_scene, load_scene, scene_from_dict, scene_sections
+from ..scene import Scene, find_scene, load_scene, scene_from_dict, scene_sections
 from ..report import morris_png, save_map_png, sweep_plot_png
 from ._compare import run_compare
 from ._measure import measure_and_evaluate
@@ -125,7 +125,7 @@ def _base_scene(spec, sweep_path: Path) -> Path:
     return base
 
 
-def _point_memory(scene, run: dict) -> int:
+def _point_memory(scene: Scene, run: dict) -> int:
     """Bytes one point holds at its peak: the process's estimate, checked against the
     memory budget (a point that cannot fit is not valid), and the renders it runs."""
     process = process_of(scene)
@@ -226,13 +226,13 @@ def check_sweep_tasks(sweep_path, tasks: list, invalid: list) -> None:
                      f"nothing was run:\n" + "\n".join(shown))
 
 
-def _unit_of(scene, key: str) -> str:
+def _unit_of(scene: Scene, key: str) -> str:
     """The unit of a scene key whose name does not say it ("" when it has none or its
     name ends in it): the first word of its description when that is a unit."""
     parts = key.split(".")
     if _UNIT_SUFFIX.search(parts[-1]):
         return ""
-    node = scene
+    node: Any = scene
     for part in parts[:-1]:
         node = getattr(node, part, None)
         if node is None:
@@ -244,7 +244,7 @@ def _unit_of(scene, key: str) -> str:
     return first if first in _UNITS else ""
 
 
-def column_names(scene, keys) -> dict:
+def column_names(scene: Scene | None, keys) -> dict:
     """``results.csv`` column of each scene key: the key with its unit added when its
     name does not say it (``tool.nose_radius`` -> ``tool.nose_radius_mm``; a key whose
     name ends in its unit, such as ``process.feed_mm_per_min``, and a key without a
@@ -267,7 +267,7 @@ def _residual_png(sim, path: Path) -> None:
                  title=residual_title(scene.name, sim.traits, r))
 
 
-def _point_outputs(scene, folder: Path, run: dict) -> dict:
+def _point_outputs(scene: Scene, folder: Path, run: dict) -> dict:
     sim = simulate(scene)
     if run["files"] == "all":
         sim_metrics = write_simulation(sim, folder)

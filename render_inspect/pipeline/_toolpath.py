@@ -4,6 +4,8 @@ the design and the machine before the folder is put in place."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import logging
 from pathlib import Path
 
@@ -16,6 +18,9 @@ from ..report import draw_figure
 from ..toolpath import compare_with_plan, plan_memory, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
+if TYPE_CHECKING:
+    from ..scene import Scene
+
 __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
            "check_links", "write_program_report", "log_program_summary", "nc_memory",
            "NC_BYTES_PER_POINT"]
@@ -23,7 +28,7 @@ __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_fi
 log = logging.getLogger("render_inspect")
 
 
-def plan_program(scene, *, surface=None):
+def plan_program(scene: Scene, *, surface=None):
     """The :class:`~render_inspect.processes.Plan` of the scene's whole program (or of
     the region its process plans for the ``toolpath`` command)."""
     process = process_of(scene)
@@ -76,7 +81,7 @@ def check_links(process, cfg, surface, plan) -> dict | None:
 NC_BYTES_PER_POINT = 170
 
 
-def nc_memory(scene, points: int) -> int:
+def nc_memory(scene: Scene, points: int) -> int:
     """Check the memory of writing, reading back and verifying an NC program of
     ``points`` points (with the planned path held) against the scene's budget; returns
     the bytes."""
@@ -88,7 +93,7 @@ def nc_memory(scene, points: int) -> int:
                                          "process.arc_length, process.workpiece_radius)")
 
 
-def run_toolpath(scene, out, *, fmt: str = "npz", overwrite: bool = False):
+def run_toolpath(scene: Scene, out, *, fmt: str = "npz", overwrite: bool = False):
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program

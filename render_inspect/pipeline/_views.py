@@ -20,7 +20,7 @@ import logging
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from ..core.heightmap import HeightMap
 from ..io import ZarrHeightMap
 from ..render import default_window
 from ._simulate_command import run_simulate_tiled
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 __all__ = ["WholeMapViews", "BigMapViews", "big_map_store", "existing_store"]
 
@@ -120,7 +123,7 @@ def _same_scene(a: dict, b: dict) -> bool:
     return a == b
 
 
-def existing_store(scene, out) -> Path | None:
+def existing_store(scene: Scene, out) -> Path | None:
     """``out/heightmap.zarr`` when ``simulate`` wrote it there for the same part (the
     scene's keys equal, the memory budget and the render settings aside), else None."""
     existing = Path(out) / "heightmap.zarr"
@@ -133,7 +136,7 @@ def existing_store(scene, out) -> Path | None:
     return existing
 
 
-def big_map_store(scene, out) -> tuple[Path, Path | None]:
+def big_map_store(scene: Scene, out) -> tuple[Path, Path | None]:
     """The store of ``scene``'s machined map: ``out/heightmap.zarr`` when ``simulate``
     wrote it there for the same part, else a tiled simulation into a temporary folder
     (returned second, to be removed after use)."""

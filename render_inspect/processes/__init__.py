@@ -13,6 +13,8 @@ is one new file.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Union
+
 from ..core.plugins import import_private_modules
 from ._contract import Cut, Envelope, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
@@ -52,12 +54,19 @@ from ._turning import (
 import_private_modules(__name__, __path__,
                        skip=("_contract", "_registry", "_turning", "_mechanics", "_machine"))
 
-#: the pydantic type of a scene's [process] section
-ProcessConfig = process_config_union()
+#: the schema classes of the process kinds, as a type checker knows a ``[process]`` section
+#: (the registry's, listed: a process kind added to the registry is added here too)
+ProcessSection = Union[StsProcessConfig, ServoProcessConfig, SculptProcessConfig, RcseProcessConfig]
+
+if TYPE_CHECKING:
+    ProcessConfig = ProcessSection
+else:
+    #: the pydantic type of a scene's [process] section
+    ProcessConfig = process_config_union()
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
            "section", "register_process", "process_kinds", "process_of", "process_config_union",
-           "check_budget", "DEFAULT_KIND", "ProcessConfig", "register_section", "scene_sections",
+           "check_budget", "DEFAULT_KIND", "ProcessConfig", "ProcessSection", "register_section", "scene_sections",
            "register_migration", "migrate_scene", "register_retired_key", "retired_keys",
            "TurningProcessConfig", "TurningProcess",
            "TiledTurningProcess", "TurningInputs", "StsProcessConfig", "ServoProcessConfig",

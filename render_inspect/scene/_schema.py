@@ -10,7 +10,7 @@ import tomllib
 import typing
 from importlib import resources
 from pathlib import Path
-from typing import Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable
 
 from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
 
@@ -28,6 +28,7 @@ from ..render import DiffuseConfig
 from ._metrology import MetrologyConfig
 from ._render import render_config_class
 from ._sections import SimulationConfig, ToolConfig
+from ._types import RegisteredSections
 from ._units import unit_errors, unit_warnings
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneError",
@@ -37,8 +38,12 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
            "BurrConfig", "MetrologyConfig", "RcseConfig", "MachineConfig", "MaterialConfig",
            "unit_warnings", "objective_names", "MAX_SCENE_BYTES", "MAX_SCENE_DEPTH"]
 
-#: the ``[render]`` section: registered instruments + diffuse light
-RenderConfig = render_config_class()
+if TYPE_CHECKING:
+    # what a type checker sees of the sections assembled from the registries (_types.py)
+    from ._types import ArtifactsConfig, RenderConfig
+else:
+    #: the ``[render]`` section: registered instruments + diffuse light
+    RenderConfig = render_config_class()
 
 
 def _registered() -> tuple[dict, dict]:
@@ -63,8 +68,9 @@ _TABLE_CLASSES = {
                         __doc__=f"``[{table}]``: " + ", ".join(f"``[{table}.{n}]``" for n in members),
                         **{n: (c, Field(default_factory=c)) for n, c in members.items()})
     for table, members in _TABLES.items()}
-#: the ``[artifacts]`` table (burrs, vibration, ...)
-ArtifactsConfig = _TABLE_CLASSES.get("artifacts")
+if not TYPE_CHECKING:
+    #: the ``[artifacts]`` table (burrs, vibration, ...)
+    ArtifactsConfig = _TABLE_CLASSES.get("artifacts")
 
 
 class _SceneBase(Section):
@@ -77,7 +83,7 @@ class _SceneBase(Section):
     tool: ToolConfig = Field(default_factory=ToolConfig)
     process: ProcessConfig = Field(default_factory=StsProcessConfig)
     simulation: SimulationConfig = Field(default_factory=SimulationConfig)
-    render: RenderConfig = Field(default_factory=RenderConfig)  # type: ignore[valid-type]
+    render: RenderConfig = Field(default_factory=RenderConfig)
     metrology: MetrologyConfig = Field(default_factory=MetrologyConfig)
 
     @model_validator(mode="before")
@@ -105,12 +111,16 @@ class _SceneBase(Section):
         return scene_from_dict(apply_overrides(self.to_dict(), overrides))
 
 
-#: the scene schema: the sections above, the tables of registered sections and the
-#: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
-Scene = create_model(  # type: ignore[call-overload]  # (assembled from the registries)
-    "Scene", __base__=_SceneBase, __doc__=_SceneBase.__doc__,
-    **{t: (c, Field(default_factory=c)) for t, c in _TABLE_CLASSES.items()},
-    **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
+if TYPE_CHECKING:
+    class Scene(_SceneBase, RegisteredSections):
+        """A validated scene: the sections of the schema and the registered ones."""
+else:
+    #: the scene schema: the sections above, the tables of registered sections and the
+    #: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
+    Scene = create_model(
+        "Scene", __base__=_SceneBase, __doc__=_SceneBase.__doc__,
+        **{t: (c, Field(default_factory=c)) for t, c in _TABLE_CLASSES.items()},
+        **{n: (c, Field(default_factory=c)) for n, c in _TOP.items()})
 
 
 _shown = shown
@@ -347,7 +357,7 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
     data = {"design": {"type": "plane"},
             "render": {"interferometer": {"objective": objective, "mode": mode}}}
     scene = scene_from_dict(apply_overrides(data, items), "(characterise)")
-    return scene.render.interferometer  # type: ignore[attr-defined]  # (a registered section)
+    return scene.render.interferometer
 
 
 def shipped_scenes() -> dict[str, Path]:

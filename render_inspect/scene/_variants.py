@@ -4,6 +4,8 @@ variant's keys set."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import json
 import re
 from pathlib import Path
@@ -12,6 +14,9 @@ import tomllib
 from ..core.errors import InputError
 from ..processes import Variant, VariantPair, process_of
 from ._schema import apply_overrides, scene_from_dict
+
+if TYPE_CHECKING:
+    from ._schema import Scene
 
 __all__ = ["parse_vary", "compare_pair", "variant_scene", "compare_variants"]
 
@@ -68,7 +73,7 @@ def _slug(text: str) -> str:
     return s[:60] or "value"
 
 
-def compare_pair(scene, vary: str | None = None) -> VariantPair:
+def compare_pair(scene: Scene, vary: str | None = None) -> VariantPair:
     """The pair ``compare`` shows: the process kind's own (its ``variants`` hook), or the
     two values of one key (``vary = "key=a,b"``)."""
     if vary is None:
@@ -91,7 +96,7 @@ def compare_pair(scene, vary: str | None = None) -> VariantPair:
                        about=f"The scene with {key} = {va} against {key} = {vb}.")
 
 
-def variant_scene(scene, variant: Variant):
+def variant_scene(scene: Scene, variant: Variant):
     """``scene`` with the variant's values set (dotted keys; ``None`` clears a key)."""
     if not variant.values:
         return scene
@@ -128,7 +133,7 @@ def _toml_str(s: str) -> str:
     return "'" + s.replace("'", "") + "'"
 
 
-def compare_variants(scene, vary: str | None = None) -> tuple:
+def compare_variants(scene: Scene, vary: str | None = None) -> tuple:
     """The two scenes ``compare`` puts side by side (:func:`compare_pair`); everything
     but the varied keys (camera, seed, region) is the same."""
     pair = compare_pair(scene, vary)
