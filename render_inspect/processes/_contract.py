@@ -9,8 +9,10 @@ declares
 * ``inputs``: an :class:`Inputs` dataclass whose fields are the scene sections its hooks
   read (``process``, ``tool`` and ``simulation`` always; a turning process adds
   ``machine``, ``material`` and ``burrs``, a sculpturing process ``vibration`` and
-  ``design``).  The pipeline fills it from the scene (:meth:`Process.inputs_of`); the
-  hooks see nothing else of the scene;
+  ``design``), each field typed with the section's schema class (or, for ``[tool]``
+  and ``[simulation]``, whose classes belong to the scene, the :class:`ToolSection`
+  and :class:`SimulationSection` protocols they satisfy).  The pipeline fills it from
+  the scene (:meth:`Process.inputs_of`); the hooks see nothing else of the scene;
 
 and implements the hooks
 
@@ -41,11 +43,12 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
 from ..core.marks import ToolMarks
+from ..core.section import Region
 from ..core.toolpath import LinearProgram, Links, ToolPath
 from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, PartModel, plan_links
 
@@ -53,13 +56,50 @@ if TYPE_CHECKING:
     from ..machining import MaterialResponse
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
-           "section"]
+           "section", "ToolSection", "SimulationSection"]
 
 
 def section(path: str, **kw):
     """A field of an :class:`Inputs` subclass filled from the scene section ``path``
     (dotted, e.g. ``"artifacts.burrs"``) instead of the section named like the field."""
     return field(metadata={"section": path}, **kw)
+
+
+class ToolSection(Protocol):
+    """What a process reads of ``[tool]`` (the scene's ``ToolConfig``, which a type
+    checker confirms satisfies this): the nose, the angles, the measured edge and the
+    wear keys.  Lengths in mm."""
+
+    nose_radius: float
+    included_angle_deg: float
+    rake_angle_deg: float
+    clearance_angle_deg: float
+    edge_profile: str | None
+    waviness: list[tuple[float, float, float]] | None
+    edge_scale: float
+    wear: bool
+    wear_scale: float
+    contact_duty_cycle: float
+
+
+class SimulationSection(Protocol):
+    """What a process reads of ``[simulation]`` (the scene's ``SimulationConfig``): the
+    grid (``region`` and ``pixel``, mm; ``shape``), the seed and the memory budget."""
+
+    region: Region
+    pixel: float
+    seed: int
+    max_memory_gb: float | None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) of the grid."""
+        ...
+
+    def model_copy(self, *, update: dict[str, Any] | None = None,
+                   deep: bool = False) -> SimulationSection:
+        """A copy with some keys replaced (another ``region``)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -74,19 +114,18 @@ class Inputs:
     name : str
         The scene's name (titles, program headers).
     process : Section
-        ``[process]``.
-    tool : Section
+        ``[process]``: the process kind's ``config`` class (a subclass narrows the type).
+    tool : ToolSection
         ``[tool]``.
-    simulation : Section
+    simulation : SimulationSection
         ``[simulation]`` (grid, seed, memory budget).
     """
 
     name: str
-    # (the scene's sections: schema classes assembled from the registries at import, which
-    # mypy cannot follow)
+    # (any kind's [process]; each kind's subclass names its own schema class)
     process: Any
-    tool: Any
-    simulation: Any
+    tool: ToolSection
+    simulation: SimulationSection
 
     @classmethod
     def of(cls, scene) -> "Inputs":

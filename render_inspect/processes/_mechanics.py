@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
+from ..design import DesignConfig
 from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
@@ -75,7 +76,7 @@ class TurningInputs(Inputs):
     ``[design]`` (the planner's reach, the memory estimate), the ``[machine]`` and
     ``[material]`` and ``[artifacts.burrs]``."""
 
-    design: Any  # (the [design] union, assembled from the registries)
+    design: DesignConfig
     machine: MachineConfig
     material: MaterialConfig
     burrs: BurrConfig = section("artifacts.burrs")

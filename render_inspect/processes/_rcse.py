@@ -89,6 +89,7 @@ class RcseProcessConfig(TurningProcessConfig):
 class RcseInputs(TurningInputs):
     """A turning process's sections and ``[rcse]``."""
 
+    process: RcseProcessConfig
     # (burrs above has no default either: section() is a field without one, which mypy
     # takes for a default)
     rcse: RcseConfig  # type: ignore[misc]

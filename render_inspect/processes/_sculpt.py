@@ -18,6 +18,7 @@ from typing import Any, Literal, cast
 import numpy as np
 from pydantic import Field, model_serializer, model_validator
 
+from ..design import LensletArrayConfig
 from ..core.deprecation import warn_deprecated
 from ..core.errors import AccessibilityError, InputError, SceneError
 from ..core.grid import grid_shape
@@ -144,7 +145,9 @@ class SculptInputs(Inputs):
     array of ``[design]``, ``[material]``, ``[artifacts.vibration]`` and
     ``[artifacts.burrs]``."""
 
-    design: Any  # (the [design] union, assembled from the registries)
+    process: SculptProcessConfig
+    # (a quad lenslet array: the scene is refused otherwise, SculptProcessConfig.check_with)
+    design: LensletArrayConfig
     material: MaterialConfig
     vibration: VibrationConfig = section("artifacts.vibration")
     burrs: BurrConfig = section("artifacts.burrs")

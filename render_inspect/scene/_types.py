@@ -18,8 +18,9 @@ from ..core.section import Section
 from ..design import DesignSection
 from ..instruments import InterferometerConfig
 from ..processes import (BurrConfig, MachineConfig, MaterialConfig, ProcessSection, RcseConfig,
-                         VibrationConfig)
+                         SimulationSection, ToolSection, VibrationConfig)
 from ..render import DiffuseConfig
+from ._sections import SimulationConfig, ToolConfig
 
 __all__ = ["DesignSection", "ProcessSection", "RenderSections", "ArtifactsSections",
            "RegisteredSections"]
@@ -46,6 +47,13 @@ if TYPE_CHECKING:
 
     class ArtifactsConfig(Section, ArtifactsSections):
         """``[artifacts]``: process errors added to the ideal cut."""
+
+
+    def _process_inputs_conform(tool: ToolConfig, simulation: SimulationConfig
+                                ) -> tuple[ToolSection, SimulationSection]:
+        """(checked, never run) the scene's [tool] and [simulation] are what a process's
+        inputs declare (:class:`~render_inspect.processes.Inputs`)."""
+        return tool, simulation
 
 
 class RegisteredSections:
