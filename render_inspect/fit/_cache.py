@@ -21,6 +21,7 @@ import os
 import shutil
 import zipfile
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -82,7 +83,7 @@ class EvaluationCache:
         self.hits = 0
         self.written = 0          # entries this object stored on disk
         self._mine: list = []     # their keys (those not on disk before)
-        self._made = None         # the folders this object created (the deepest last)
+        self._made: list[Path] | None = None  # the folders this object created (the deepest last)
         if self.folder is not None:
             if self.folder.exists() and not self.folder.is_dir():
                 raise InputError(f"--cache {str(self.folder)!r}: not a folder")
@@ -100,12 +101,12 @@ class EvaluationCache:
         if self._made is not None:
             return
         made = []
-        p = self.folder
+        p = folder = cast(Path, self.folder)  # (entries are written only with a folder)
         while not p.exists():
             made.append(p)
             p = p.parent
         try:
-            self.folder.mkdir(parents=True, exist_ok=True)
+            folder.mkdir(parents=True, exist_ok=True)
         except OSError as err:
             raise InputError(f"--cache {str(self.folder)!r}: cannot create the folder "
                              f"({err.strerror or err})") from None
@@ -125,7 +126,7 @@ class EvaluationCache:
         self._made, self._mine, self.written = None, [], 0
 
     def _path(self, key: str) -> Path:
-        return self.folder / f"{key}.npz"
+        return cast(Path, self.folder) / f"{key}.npz"
 
     def get(self, key: str):
         """(height, meta) or None."""

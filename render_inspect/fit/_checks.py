@@ -227,7 +227,7 @@ def profile_marks(z, pixel, *, segments: int = 4, mirror: bool = True) -> dict:
     x = np.arange(z.size)
     ok = np.isfinite(z)
     zf = np.interp(x, x[ok], z[ok]) if ok.sum() > 16 else np.zeros_like(z)
-    mirror = _mirror_point(zf) if mirror else None
+    mirror_at = _mirror_point(zf) if mirror else None
     periods = []
     bounds = np.linspace(0, z.size, segments + 1).astype(int)
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -235,13 +235,13 @@ def profile_marks(z, pixel, *, segments: int = 4, mirror: bool = True) -> dict:
     good = [p for p in periods if p is not None]
     spread = (max(good) - min(good)) / float(np.mean(good)) if len(good) >= 2 else None
     reasons = []
-    if mirror is not None:
-        reasons.append(f"the profile is mirrored about {mirror * pixel:.4g} mm (a line "
+    if mirror_at is not None:
+        reasons.append(f"the profile is mirrored about {mirror_at * pixel:.4g} mm (a line "
                        f"through the spindle axis)")
     if spread is not None and spread > PROFILE_SPREAD:
         reasons.append(f"the period varies from {min(good) * MM_TO_UM:.4g} to "
                        f"{max(good) * MM_TO_UM:.4g} um along it")
-    return {"periods_mm": periods, "spread": spread, "mirror_at": mirror,
+    return {"periods_mm": periods, "spread": spread, "mirror_at": mirror_at,
             "one_family": not reasons, "reason": "; ".join(reasons)}
 
 

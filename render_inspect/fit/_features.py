@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
@@ -443,7 +444,7 @@ def own_peak(h, target: Target):
 def _mean_psd(maps, target: Target):
     """The PSD per bin (mm^4) of maps, averaged over them."""
     spec = target.spec
-    kw = dict(pixel=target.pixel, k_range=target.k_range, radial_bins=spec.psd_radial_bins,
+    kw: dict[str, Any] = dict(pixel=target.pixel, k_range=target.k_range, radial_bins=spec.psd_radial_bins,
               angle_bins=spec.psd_angle_bins)
     return np.mean([psd_bins(prepare_map(z, pixel=target.pixel, form=spec.form,
                                          origin=target.origin), **kw) for z in maps], axis=0)
@@ -454,7 +455,7 @@ def _own_harmonics(z, target: Target):
     (the measured one where none stands out): maps made at other values than the truth
     (the realisations at the start) keep their harmonics."""
     h = prepare_map(z, pixel=target.pixel, form=target.spec.form, origin=target.origin)
-    k0 = own_peak(h, target) or target.peak
+    k0 = cast(float, own_peak(h, target) or target.peak)  # (called where target.peak is set)
     return harmonic_features(h, pixel=target.pixel, k0=k0, n=target.spec.harmonics)
 
 
@@ -518,7 +519,7 @@ def _set_scatter(target: Target, noisy, clean) -> None:
                                      form=spec.form, origin=target.origin)[r, c] - w0
                             for z in noisy])
     diffs = diffs[np.isfinite(diffs)]
-    scatter = {"draws": len(noisy)}
+    scatter: dict[str, Any] = {"draws": len(noisy)}
     if diffs.size:
         s_map = float(np.sqrt(np.mean(diffs ** 2)))
         scatter["waviness_rms_nm"] = s_map * MM_TO_NM

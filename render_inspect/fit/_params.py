@@ -286,7 +286,7 @@ def set_value(data: dict, key: str, value, *, fill=None) -> dict:
     way is taken from ``fill(prefix_key)`` (the preset's array, which the scene leaves
     unset)."""
     parts = _split(key)
-    node = data
+    node: typing.Any = data
     for i, part in enumerate(parts[:-1]):
         nxt_is_index = isinstance(parts[i + 1], int)
         if isinstance(part, int):

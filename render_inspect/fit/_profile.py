@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -214,7 +215,7 @@ def make_profile_target(z, *, spacing: float, lag: int, spec: ProfileSpec) -> Pr
     return ProfileTarget(d, float(spacing), spec, int(lag), k0, k0, amps, prm, sigma)
 
 
-def _register(p, target: ProfileTarget) -> tuple[np.ndarray, float]:
+def _register(p, target: ProfileTarget) -> tuple[np.ndarray, np.ndarray, float]:
     """The part of the longer predicted profile ``p`` (window + ``lag`` samples each side)
     that best matches the measured window: (the registered prediction at the fractional
     shift and at the nearest whole one, detrended, on the window's samples; the shift in
@@ -228,7 +229,7 @@ def _register(p, target: ProfileTarget) -> tuple[np.ndarray, float]:
     period = (1.0 / target.centroid / target.spacing) if target.centroid else lag
     reach = int(min(lag, max(1, math.ceil(0.6 * period))))
     lags = np.arange(lag - reach, lag + reach + 1)
-    scores = []
+    scores: Any = []
     for s in lags:
         seg = pf[s:s + n]
         seg = seg - np.polyval(np.polyfit(np.arange(n), seg, 2), np.arange(n))
@@ -324,7 +325,7 @@ def set_profile_noise_floor(target: ProfileTarget, noisy, clean) -> None:
     feats = [predict_profile_features(z, target, measured=True) for z in noisy]
     diffs = np.concatenate([f.height - c.height for f in feats])
     diffs = diffs[np.isfinite(diffs)]
-    scatter = {"draws": len(noisy)}
+    scatter: dict[str, Any] = {"draws": len(noisy)}
     if diffs.size:
         s = float(np.sqrt(np.mean(diffs ** 2)))
         scatter["profile_rms_nm"] = s * MM_TO_NM

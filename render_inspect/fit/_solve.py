@@ -112,7 +112,8 @@ class Evaluator:
         self.quiet = quiet
         self.seen: dict = {}          # key -> Evaluation
         self.history: list = []       # Evaluations in the order made
-        self.best: Evaluation | None = None
+        # (None until the first evaluation, which every solve makes before reading it)
+        self.best: Evaluation = None  # type: ignore[assignment]
         self.step = None              # progress task
         self.seconds = 0.0            # forward-model seconds (not cached)
 
@@ -277,7 +278,7 @@ def _jacobian(ev: Evaluator, u, lo, hi, steps, sw):
     must rise above the forward model's noise (the simulation grid's aliasing of the marks,
     the random parts of the machine)."""
     base = ev.evaluate_units([u])[0]
-    cols = [None] * u.size
+    cols: list = [None] * u.size
     todo = list(range(u.size))
     for _ in range(3):
         pts, used = [], []
