@@ -31,16 +31,26 @@ def test_mypy_finds_no_type_errors(tmp_path):
     assert m and int(m.group(1)) > 0, r.stdout
 
 
+def _typed_scene_example() -> str:
+    """The example of docs/contributing.md's "The typed scene"."""
+    text = (REPO / "docs" / "contributing.md").read_text()
+    m = re.search(r"#### The typed scene\n.*?```python\n(.*?)```", text, re.S)
+    assert m, "docs/contributing.md: the typed scene's example is missing"
+    return m.group(1)
+
+
 @pytest.mark.slow
 def test_the_type_check_would_see_an_error(tmp_path):
-    """The same configuration reports a wrong type (the check above can fail)."""
+    """The same configuration reports a wrong type (the check above can fail), and the
+    typed scene's example of docs/contributing.md passes it."""
     _require_mypy()
     bad = tmp_path / "bad.py"
     bad.write_text("from render_inspect.core.grid import grid_shape\n"
                    "from render_inspect.scene import Scene\n"
                    "n: str = grid_shape((0.0, 0.0, 1.0, 1.0), 0.1)\n"
                    "def rpm(scene: Scene) -> float:\n"
-                   "    return scene.machine.servo_rate_hzz + scene.tool.nose_radius\n")
+                   "    return scene.machine.servo_rate_hzz + scene.tool.nose_radius\n"
+                   + _typed_scene_example())
     r = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(REPO / "pyproject.toml"),
                         "--cache-dir", str(tmp_path / "cache"), str(bad)],
                        cwd=REPO, capture_output=True, text=True)
