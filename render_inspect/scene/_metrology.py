@@ -52,7 +52,7 @@ class MetrologyConfig(Section):
                                   description="pixels with lower fringe contrast are not measured")
 
     @model_validator(mode="after")
-    def _filters_nest(self):
+    def _filters_nest(self) -> MetrologyConfig:
         if self.s_filter is not None and self.l_filter is not None and not self.l_filter > self.s_filter:
             raise ValueError(f"metrology.l_filter must be > metrology.s_filter ({self.s_filter} mm), "
                              f"received {self.l_filter} mm")

@@ -10,6 +10,7 @@ import typing
 
 import annotated_types as at
 from pydantic import BaseModel
+from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from ..processes import retired_keys
@@ -18,7 +19,7 @@ from . import Scene
 __all__ = ["scene_reference_markdown"]
 
 
-def _type_name(ann) -> str:
+def _type_name(ann: typing.Any) -> str:
     origin = typing.get_origin(ann)
     args = typing.get_args(ann)
     if origin is typing.Literal:
@@ -43,7 +44,7 @@ def _type_name(ann) -> str:
     return str(ann).replace("typing.", "")
 
 
-def _range(field) -> str:
+def _range(field: FieldInfo) -> str:
     lo = hi = ""
     for m in field.metadata:
         if isinstance(m, at.Gt):
@@ -61,7 +62,7 @@ def _range(field) -> str:
     return ", ".join(x for x in (lo, hi) if x)
 
 
-def _default(field) -> str:
+def _default(field: FieldInfo) -> str:
     if field.default is not PydanticUndefined:
         d = field.default
         if d is None:
@@ -75,7 +76,7 @@ def _default(field) -> str:
         return repr(d)
     if field.default_factory is not None:
         try:
-            d = field.default_factory()
+            d = field.default_factory()  # type: ignore[call-arg]  # (a section's class: no arguments)
         except TypeError:
             return "(section)"
         if isinstance(d, BaseModel):
@@ -84,11 +85,11 @@ def _default(field) -> str:
     return "**required**"
 
 
-def _is_model(ann) -> bool:
+def _is_model(ann: typing.Any) -> bool:
     return isinstance(ann, type) and issubclass(ann, BaseModel)
 
 
-def _union_members(ann) -> list:
+def _union_members(ann: typing.Any) -> list:
     while typing.get_origin(ann) is typing.Annotated:
         ann = typing.get_args(ann)[0]
     out = []
@@ -100,7 +101,7 @@ def _union_members(ann) -> list:
     return out
 
 
-def _table(model, prefix: str, lines: list, sections: list) -> None:
+def _table(model: type[BaseModel], prefix: str, lines: list, sections: list) -> None:
     rows = []
     for name, field in model.model_fields.items():
         ann = field.annotation
@@ -117,14 +118,14 @@ def _table(model, prefix: str, lines: list, sections: list) -> None:
         lines += ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|", *rows, ""]
 
 
-def _doc(model) -> str:
+def _doc(model: type[BaseModel]) -> str:
     d = (model.__doc__ or "").strip()
     if not d or d.startswith("!!!") or "A base class for creating Pydantic models" in d:
         return ""
     return " ".join(d.split()) + "\n"
 
 
-def _section(path: str, model, lines: list) -> None:
+def _section(path: str, model: type[BaseModel], lines: list) -> None:
     sections: list = []
     lines.append(f"## `[{path}]`\n")
     doc = _doc(model)

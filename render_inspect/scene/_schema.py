@@ -88,12 +88,12 @@ class _SceneBase(Section):
 
     @model_validator(mode="before")
     @classmethod
-    def _retired_keys(cls, data):
+    def _retired_keys(cls, data: Any) -> Any:
         """Rewrite retired keys into their successors (the process modules' migrations)."""
         return migrate_scene(data) if isinstance(data, dict) else data
 
     @model_validator(mode="after")
-    def _cross_checks(self):
+    def _cross_checks(self) -> _SceneBase:
         check = getattr(self.process, "check_with", None)
         if check is not None:
             check(self)  # the process kind's checks against the design and the tool
@@ -133,7 +133,7 @@ def _union_classes() -> dict:
     return out
 
 
-def _expected(loc) -> str | None:
+def _expected(loc: tuple[int | str, ...]) -> str | None:
     """What a scene key accepts, e.g. "a number in (0, 20000]", from the schema."""
     unions = _union_classes()
     model: type[BaseModel] | None
@@ -171,11 +171,12 @@ def _expected(loc) -> str | None:
             f"{')' if hi_open or (hi is None and not infinite) else ']'}")
 
 
-def _model_at(loc):
+def _model_at(loc: tuple[int | str, ...]) -> type[BaseModel] | None:
     """The schema's section (a model class) at the location ``loc`` of a validation
     error, or None where there is none (an array, a plain value)."""
     unions = _union_classes()
-    model, ann = Scene, None
+    model: type[BaseModel] | None = Scene
+    ann = None
     for part in loc:
         if isinstance(part, str) and part in unions and ann is not None:
             model, ann = unions[part], None
@@ -187,7 +188,7 @@ def _model_at(loc):
     return model
 
 
-def _did_you_mean(loc) -> str:
+def _did_you_mean(loc: tuple[int | str, ...]) -> str:
     """", did you mean 'pixel'?" for an unknown key whose section has a key spelled
     alike; else the section's keys when they are few; else nothing."""
     import difflib
@@ -261,7 +262,7 @@ MAX_SCENE_BYTES = 4 * MIB_TO_BYTES
 MAX_SCENE_DEPTH = 32
 
 
-def _depth(data) -> int:
+def _depth(data: object) -> int:
     """Nesting depth of dicts and lists in ``data`` (iterative: safe on any depth)."""
     deepest = 0
     stack = [(data, 1)]
@@ -281,7 +282,7 @@ def _depth(data) -> int:
     return deepest
 
 
-def _check_depth(data, what: str) -> None:
+def _check_depth(data: object, what: str) -> None:
     if _depth(data) > MAX_SCENE_DEPTH:
         raise SceneError(f"{what} nests tables/arrays deeper than {MAX_SCENE_DEPTH} levels; "
                          f"a scene needs at most a few")
@@ -296,7 +297,7 @@ def _check_text(key: str, text: str) -> None:
                          f"{_shown(text)}")
 
 
-def _parse_value(text: str, key: str = "value"):
+def _parse_value(text: str, key: str = "value") -> Any:
     """A ``--set`` value: one TOML value (a bare word is taken as a string)."""
     _check_text(key, text)
     try:
@@ -368,7 +369,7 @@ def shipped_scenes() -> dict[str, Path]:
             if p.name.endswith(".toml")}
 
 
-def find_scene(name_or_path) -> Path:
+def find_scene(name_or_path: str | Path) -> Path:
     """A scene file: ``name_or_path`` itself when it is a file, else the shipped scene of
     that name (``sts_sinusoidal_grid`` or ``sts_sinusoidal_grid.toml``)."""
     text = str(name_or_path)
@@ -447,7 +448,7 @@ def load_scene(path: str | Path, overrides: Iterable[str] | None = None) -> Scen
     return scene_from_dict(data, source=str(path))
 
 
-def _resolve_edge_path(tool, base: Path):
+def _resolve_edge_path(tool: object, base: Path) -> None:
     """``[tool] edge_profile`` relative to the scene file."""
     if isinstance(tool, dict) and isinstance(tool.get("edge_profile"), str) \
             and "\x00" not in tool["edge_profile"] and tool["edge_profile"].strip():
@@ -456,7 +457,7 @@ def _resolve_edge_path(tool, base: Path):
             tool["edge_profile"] = str((base / p).resolve())
 
 
-def _resolve_program(process, base: Path):
+def _resolve_program(process: object, base: Path) -> None:
     """``process.program`` (a machine program file) relative to the scene file."""
     if isinstance(process, dict) and isinstance(process.get("program"), str) \
             and process["program"] and "\x00" not in process["program"]:
@@ -465,7 +466,7 @@ def _resolve_program(process, base: Path):
             process["program"] = str((base / p).resolve())
 
 
-def _resolve_paths(design, base: Path):
+def _resolve_paths(design: object, base: Path) -> None:
     if not isinstance(design, dict):
         return
     if design.get("type") == "heightmap" and isinstance(design.get("path"), str) \

@@ -34,7 +34,7 @@ class ToolConfig(Section):
                                                                    "scales the chemical wear")
 
     @model_validator(mode="after")
-    def _edge(self):
+    def _edge(self) -> ToolConfig:
         for k, (a, p, _) in enumerate(self.waviness or ()):
             if not (0 <= a <= 1e4):
                 raise ValueError(f"waviness[{k}] amplitude must be in [0, 10000] nm, received {a}")
@@ -71,7 +71,7 @@ class SimulationConfig(Section):
                                           "80 % of the memory available when the command starts")
 
     @model_validator(mode="after")
-    def _region(self):
+    def _region(self) -> SimulationConfig:
         x0, y0, x1, y1 = self.region
         if not (x1 > x0 and y1 > y0):
             raise ValueError(f"region must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0, received {list(self.region)}")

@@ -4,12 +4,11 @@ variant's keys set."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import json
 import re
 from pathlib import Path
 import tomllib
+from typing import TYPE_CHECKING, Any, Iterable
 
 from ..core.errors import InputError
 from ..processes import Variant, VariantPair, process_of
@@ -96,7 +95,7 @@ def compare_pair(scene: Scene, vary: str | None = None) -> VariantPair:
                        about=f"The scene with {key} = {va} against {key} = {vb}.")
 
 
-def variant_scene(scene: Scene, variant: Variant):
+def variant_scene(scene: Scene, variant: Variant) -> Scene:
     """``scene`` with the variant's values set (dotted keys; ``None`` clears a key)."""
     if not variant.values:
         return scene
@@ -115,7 +114,7 @@ def variant_scene(scene: Scene, variant: Variant):
     return scene_from_dict(data, source=f"(variant {variant.name})")
 
 
-def _set_values(data: dict, pairs) -> dict:
+def _set_values(data: dict, pairs: Iterable[tuple[str, Any]]) -> dict:
     overrides = []
     for key, value in pairs:
         if isinstance(value, str):
