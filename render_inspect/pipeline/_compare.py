@@ -149,7 +149,7 @@ class _Variant:
     name: str
     label: str
     # (filled step by step: None until the step that sets it has run)
-    scene: Any  # a Scene (assembled from the registries)
+    scene: Scene
     heightmap: Any = None  # HeightMap
     ig: Any = None  # Interferogram
     reported: Any = None  # what the instrument reports (height.exr)

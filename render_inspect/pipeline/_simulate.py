@@ -13,7 +13,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
@@ -65,7 +65,7 @@ class Simulation:
         The ``metrics.json`` content (:func:`~render_inspect.pipeline.simulation_metrics`).
     """
 
-    scene: Any  # a Scene (assembled from the registries)
+    scene: Scene
     surface: object
     heightmap: HeightMap
     plan: Plan
