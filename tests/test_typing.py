@@ -48,14 +48,19 @@ def test_the_type_check_would_see_an_error(tmp_path):
     bad.write_text("from render_inspect.core.grid import grid_shape\n"
                    "from render_inspect.scene import Scene\n"
                    "n: str = grid_shape((0.0, 0.0, 1.0, 1.0), 0.1)\n"
+                   "from render_inspect.processes import TurningInputs\n"
                    "def rpm(scene: Scene) -> float:\n"
                    "    return scene.machine.servo_rate_hzz + scene.tool.nose_radius\n"
+                   "def nose(cfg: TurningInputs) -> float:\n"
+                   "    return cfg.tool.nose_radiuss\n"
                    + _typed_scene_example())
     r = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(REPO / "pyproject.toml"),
                         "--cache-dir", str(tmp_path / "cache"), str(bad)],
                        cwd=REPO, capture_output=True, text=True)
     assert r.returncode == 1 and "Incompatible types in assignment" in r.stdout, r.stdout
     # a scene key misspelt where a function takes the typed Scene (the registered
-    # [machine] section included), and only that one
+    # [machine] section included)
     assert '"MachineConfig" has no attribute "servo_rate_hzz"' in r.stdout, r.stdout
-    assert "Found 2 errors" in r.stdout, r.stdout
+    # a key of a process's typed inputs misspelt
+    assert '"ToolSection" has no attribute "nose_radiuss"' in r.stdout, r.stdout
+    assert "Found 3 errors" in r.stdout, r.stdout

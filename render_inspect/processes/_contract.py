@@ -12,7 +12,9 @@ declares
   ``design``), each field typed with the section's schema class (or, for ``[tool]``
   and ``[simulation]``, whose classes belong to the scene, the :class:`ToolSection`
   and :class:`SimulationSection` protocols they satisfy).  The pipeline fills it from
-  the scene (:meth:`Process.inputs_of`); the hooks see nothing else of the scene;
+  the scene (:meth:`Process.inputs_of`); the hooks see nothing else of the scene.
+  :class:`Process` is generic in it (``class SculptProcess(Process[SculptInputs])``), so
+  the hooks' ``cfg`` is typed as the kind's own inputs;
 
 and implements the hooks
 
@@ -43,7 +45,7 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, TypeVar, cast
 
 import numpy as np
 
@@ -336,73 +338,81 @@ class VariantPair:
         return (self.a, self.b)
 
 
-class Process(ABC):
+#: the inputs class of a process kind (:attr:`Process.inputs`)
+InputsT = TypeVar("InputsT", bound=Inputs)
+
+
+class Process(ABC, Generic[InputsT]):
     """A process kind (see the module docstring).  Register an instance with
-    :func:`~render_inspect.processes.register_process`."""
+    :func:`~render_inspect.processes.register_process`.
+
+    The class is generic in its inputs: ``class SculptProcess(Process[SculptInputs])``
+    with ``inputs = SculptInputs`` types every hook's ``cfg`` as ``SculptInputs``, so a
+    type checker sees each key a hook reads."""
 
     #: the ``[process]`` schema class; its ``kind`` Literal names the kinds
     config: ClassVar[type]
     #: the scene sections the hooks read
     inputs: ClassVar[type[Inputs]] = Inputs
 
-    def inputs_of(self, scene) -> Inputs:
+    def inputs_of(self, scene: Any) -> InputsT:
         """The hooks' view of ``scene``: the sections :attr:`inputs` declares."""
-        return self.inputs.of(scene)
+        return cast(InputsT, self.inputs.of(scene))
 
     # ---------------------------------------------------------------- required hooks
     @abstractmethod
-    def plan(self, cfg: Inputs, surface, *, region=None) -> Plan:
+    def plan(self, cfg: InputsT, surface, *, region=None) -> Plan:
         """The machine program (whole part, or what reaches ``region``) and its facts."""
 
     @abstractmethod
-    def cut(self, cfg: Inputs, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: InputsT, surface, plan: Plan) -> Cut:
         """The machined and design heights on ``cfg.simulation``'s grid."""
 
     @abstractmethod
-    def estimate_memory(self, cfg: Inputs, plan: Plan | None = None) -> int:
+    def estimate_memory(self, cfg: InputsT, plan: Plan | None = None) -> int:
         """Bytes the simulation holds at its peak."""
 
-    def traits(self, cfg: Inputs) -> Traits:
+    def traits(self, cfg: InputsT) -> Traits:
         """What the chain needs to know of this process (default: its name only)."""
         return Traits(name=cfg.process.kind)
 
     # ---------------------------------------------------------------- optional hooks
-    def precheck(self, cfg: Inputs, region=None) -> None:
+    def precheck(self, cfg: InputsT, region=None) -> None:
         """Check the sizes the process's own keys drive against the memory budget before
         anything is planned (:func:`~render_inspect.processes.check_budget`)."""
 
-    def program_region(self, cfg: Inputs):
+    def program_region(self, cfg: InputsT):
         """The region the ``toolpath`` command plans (None: the whole part)."""
         return None
 
-    def program_header(self, cfg: Inputs) -> dict:
+    def program_header(self, cfg: InputsT) -> dict:
         """NC header lines of the program."""
         return {}
 
-    def program_facts(self, cfg: Inputs, plan: Plan) -> dict:
+    def program_facts(self, cfg: InputsT, plan: Plan) -> dict:
         """``toolpath.json`` of the ``toolpath`` command: the plan's facts, with the
         program's point count at least."""
         facts = dict(plan.facts)
         facts.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
         return facts
 
-    def program_plan(self, cfg: Inputs, surface, program) -> Plan:
+    def program_plan(self, cfg: InputsT, surface, program) -> Plan:
         """The plan of a program read back from a file (``toolpath.nc``, ...), for
         :meth:`cut` to simulate it again; default: the program and nothing else."""
         return Plan(program)
 
-    def program_part(self, cfg: Inputs, surface, plan: Plan) -> PartModel | None:
+    def program_part(self, cfg: InputsT, surface, plan: Plan) -> PartModel | None:
         """The part the written program is checked against (design heights, outline,
         stock, the tool's half width); None: the program is written without links and
         not checked."""
         return None
 
-    def program_limits(self, cfg: Inputs) -> MachineLimits:
+    def program_limits(self, cfg: InputsT) -> MachineLimits:
         """What the machine allows the program (feeds, axis velocities, spindle speed,
         travel); default: no limits."""
         return MachineLimits(source="the machine")
 
-    def program_links(self, cfg: Inputs, surface, plan: Plan) -> Links | None:
+    def program_links(self, cfg: InputsT, surface, plan: Plan) -> Links | None:
         """The clearance plane and plunge feed of the moves between the cuts: the part's
         highest point (:meth:`program_part`) plus ``process.clearance``, the feed
         ``process.plunge_feed_mm_per_min``.  None when :meth:`program_part` is None."""
@@ -414,34 +424,34 @@ class Process(ABC):
                           plunge_feed=getattr(p, "plunge_feed_mm_per_min", DEFAULT_PLUNGE_FEED),
                           program_z=plan.program.z)
 
-    def variants(self, cfg: Inputs) -> VariantPair | None:
+    def variants(self, cfg: InputsT) -> VariantPair | None:
         """The pair ``compare`` puts side by side (None: only ``--vary``)."""
         return None
 
-    def tile_refusal(self, cfg: Inputs) -> str | None:
+    def tile_refusal(self, cfg: InputsT) -> str | None:
         """Why the scene cannot be simulated tile by tile (None: it can, through
         :meth:`envelope` and :meth:`tiled_memory`)."""
         return (f"process.kind = {cfg.process.kind!r} has no tiled simulation (its surface "
                 f"is not the envelope of one tool path); shrink simulation.region or raise "
                 f"simulation.max_memory_gb to simulate it in memory")
 
-    def envelope(self, cfg: Inputs, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: InputsT, surface, plan: Plan) -> Envelope:
         """The path whose nose envelope is the machined surface (tiled simulation)."""
         raise NotImplementedError(self.tile_refusal(cfg))
 
-    def tiled_memory(self, cfg: Inputs, plan: Plan | None = None) -> tuple[int, int]:
+    def tiled_memory(self, cfg: InputsT, plan: Plan | None = None) -> tuple[int, int]:
         """(bytes the process holds besides the tiles, points of its program) of a tiled
         simulation (estimated before planning when ``plan`` is None)."""
         raise NotImplementedError(self.tile_refusal(cfg))
 
-    def following_memory(self, cfg: Inputs, plan: Plan | None = None) -> int:
+    def following_memory(self, cfg: InputsT, plan: Plan | None = None) -> int:
         """Bytes a tiled simulation holds at its peak before the tiles start (the machine
         model following the whole path; estimated before planning when ``plan`` is
         None): the estimate is the larger of this and the tiles' phase.  Default 0 (a
         process that follows nothing)."""
         return 0
 
-    def tiled_facts(self, cfg: Inputs, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
+    def tiled_facts(self, cfg: InputsT, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
         :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every
         ``stride``-th row and column); default: ``env.facts`` and ``env.plots``."""

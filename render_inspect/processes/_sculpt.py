@@ -313,13 +313,13 @@ PLAN_BYTES_PER_POINT = 96
 CUT_RATE = 5e5
 
 
-class SculptProcess(Process):
+class SculptProcess(Process[SculptInputs]):
     """Sculpturing: one target line per column of cells, the edge swept along it."""
 
     config = SculptProcessConfig
     inputs = SculptInputs
 
-    def plan(self, cfg, surface, *, region=None) -> Plan:
+    def plan(self, cfg: SculptInputs, surface, *, region=None) -> Plan:
         """The commanded program: every target line (or, with ``region``, the lines and
         cells whose cut can reach it), without the vibration (the NC program the machine
         gets); or the X-Y-Z program of ``process.program`` read from its file."""
@@ -327,16 +327,16 @@ class SculptProcess(Process):
             return imported_sculpt_plan(self, cfg, surface)
         return _plan(cfg, surface, region=region)
 
-    def cut(self, cfg, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: SculptInputs, surface, plan: Plan) -> Cut:
         return _cut(cfg, surface, plan)
 
-    def estimate_memory(self, cfg, plan=None) -> int:
+    def estimate_memory(self, cfg: SculptInputs, plan=None) -> int:
         """Bytes at the peak: eight float64 maps of the grid (design, two cuts, profiles
         and temporaries)."""
         ny, nx = grid_shape(cfg.simulation.region, cfg.simulation.pixel)
         return 8 * 8 * ny * nx
 
-    def traits(self, cfg) -> Traits:
+    def traits(self, cfg: SculptInputs) -> Traits:
         """Straight marks along the cut, one per vibration cycle (cutting speed / vibration
         frequency; none without vibration); the simulated region is the part."""
         vib = cfg.vibration
@@ -349,12 +349,12 @@ class SculptProcess(Process):
                                       direction=(0.0, 1.0)),
                       cut_rate=CUT_RATE)
 
-    def precheck(self, cfg, region=None) -> None:
+    def precheck(self, cfg: SculptInputs, region=None) -> None:
         if cfg.process.program:
             return  # a program file's size is known once it is read
         self._precheck(cfg, region)
 
-    def _precheck(self, cfg, region=None) -> None:
+    def _precheck(self, cfg: SculptInputs, region=None) -> None:
         """Check the points of the target lines (every column's line over every row of
         cells, one point per ``process.arc_length``) against the memory budget."""
         d = cfg.design
@@ -364,13 +364,13 @@ class SculptProcess(Process):
                      f"({format_number(n)} points on {d.cols} lines)",
                      drivers=[Driver("process.arc_length", step, -1, "mm")])
 
-    def program_header(self, cfg) -> dict:
+    def program_header(self, cfg: SculptInputs) -> dict:
         vib = cfg.vibration
         return {"scene": cfg.name, "process": "sculpt",
                 "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
                 "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
 
-    def program_plan(self, cfg, surface, program) -> Plan:
+    def program_plan(self, cfg: SculptInputs, surface, program) -> Plan:
         """The plan of a sculpturing program read back from its file: its target lines
         (points grouped by ``line``) as the cut takes them."""
         _, y_edges = lattice_lines(surface, pitch_y=cfg.design.pitch_y)
@@ -385,14 +385,14 @@ class SculptProcess(Process):
         return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
                                       "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
 
-    def program_links(self, cfg, surface, plan: Plan):
+    def program_links(self, cfg: SculptInputs, surface, plan: Plan):
         """None for a program read from a file (its own moves between the lines are part of
         it); else the clearance plane and plunge feed of the written program."""
         if cfg.process.program:
             return None
         return super().program_links(cfg, surface, plan)
 
-    def program_part(self, cfg, surface, plan: Plan) -> PartModel:
+    def program_part(self, cfg: SculptInputs, surface, plan: Plan) -> PartModel:
         """The lenslet array the program is checked against: the design over the cells
         (between the outer target lines' cell edges and the first and last row's edges),
         the depth of cut as stock."""
@@ -405,7 +405,7 @@ class SculptProcess(Process):
                            half_width=_half_width(cfg.tool),
                            max_step=longest_step(prog.x, prog.y, prog.z, prog.line))
 
-    def program_limits(self, cfg) -> MachineLimits:
+    def program_limits(self, cfg: SculptInputs) -> MachineLimits:
         """The machine's largest feed and travel (``machine.preset``); a plunge or
         retract enters the stock with the cutting edge and runs no faster than the
         cutting speed ``process.feed_mm_per_min``."""
@@ -414,7 +414,7 @@ class SculptProcess(Process):
                               plunge_feed_mm_per_min=float(cfg.process.feed_mm_per_min),
                               plunge_source="the cutting speed process.feed_mm_per_min")
 
-    def program_facts(self, cfg, plan: Plan) -> dict:
+    def program_facts(self, cfg: SculptInputs, plan: Plan) -> dict:
         prog = cast(LinearProgram, plan.program)  # (an X-Y-Z program)
         facts = dict(plan.facts)
         tp = facts.setdefault("toolpath", {})
@@ -424,7 +424,7 @@ class SculptProcess(Process):
         tp.setdefault("cut_time_s", prog.duration_s)
         return facts
 
-    def variants(self, cfg) -> VariantPair:
+    def variants(self, cfg: SculptInputs) -> VariantPair:
         """The ultrasonic vibration on against off, or, without vibration, the tool edge
         radius as set against half of it (sculpturing has no nose-radius compensation)."""
         vib = cfg.vibration

@@ -30,7 +30,7 @@ from ..machining import loop_lag, loop_response, split_commands
 from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import machine_of
-from ._mechanics import follow, turn
+from ._mechanics import TurningInputs, follow, turn
 from ._registry import register_migration, register_process, register_retired_key
 from ._program import program_path
 from ._turning import imported_facts
@@ -213,13 +213,13 @@ class ServoProcess(TiledTurningProcess):
 
     config = ServoProcessConfig
 
-    def plan(self, cfg, surface, *, region=None) -> Plan:
+    def plan(self, cfg: TurningInputs, surface, *, region=None) -> Plan:
         t0 = time.perf_counter()
         plan = self.program_plan(cfg, surface, self.program(cfg, surface, region=region))
         plan.timing["toolpath"] = time.perf_counter() - t0
         return plan
 
-    def program_plan(self, cfg, surface, path) -> Plan:
+    def program_plan(self, cfg: TurningInputs, surface, path) -> Plan:
         """The plan of a program (planned, or read back from its file): its Z commands
         split between the slow slide and the fast tool servo."""
         kind = cfg.process.kind
@@ -239,7 +239,7 @@ class ServoProcess(TiledTurningProcess):
         return Plan(path, facts, {"toolpath": time.perf_counter() - t0}, data,
                     plots=self.program_plots(cfg, path, data))
 
-    def cut(self, cfg, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
         kind = cfg.process.kind
         t = turn(cfg, surface, plan.program, z_fts=plan.data["z_fts"])
         servo_m, servo_meta = _servo_facts(cfg, plan, t["followed_path"])
@@ -250,15 +250,15 @@ class ServoProcess(TiledTurningProcess):
         return Cut(t["machined"], t["design"], facts, t["timing"], meta, followed=t["followed"],
                    plots=t["plots"])
 
-    def follow_program(self, cfg, plan: Plan):
+    def follow_program(self, cfg: TurningInputs, plan: Plan):
         return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
 
-    def envelope(self, cfg, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: TurningInputs, surface, plan: Plan) -> Envelope:
         cut_path, fp, facts = self.follow_program(cfg, plan)
         servo_m, servo_meta = _servo_facts(cfg, plan, fp)
         return self.envelope_of(cfg, cut_path, fp, {"servo": servo_m, **facts}, meta=servo_meta)
 
-    def variants(self, cfg) -> VariantPair:
+    def variants(self, cfg: TurningInputs) -> VariantPair:
         """The servos as the machine has them (``[machine.z]``, ``[machine.fts]``: the lag
         that rotates every feature by ``omega tau`` and shifts it by ``r omega tau``,
         Kong et al. 2020's spiral dislocations) against ideal servos that follow their
@@ -295,10 +295,10 @@ class ServoProcess(TiledTurningProcess):
                    f"omega tau about the spindle axis and shifts it by r omega tau along the "
                    f"circumference (the spiral dislocations of Kong et al. 2020)."))
 
-    def program_region(self, cfg):
+    def program_region(self, cfg: TurningInputs):
         return tuple(cfg.simulation.region)
 
-    def traits(self, cfg) -> Traits:
+    def traits(self, cfg: TurningInputs) -> Traits:
         return turning_traits(cfg, cut_rate=CUT_RATE)
 
 

@@ -351,14 +351,14 @@ def _meta(cfg, **extra) -> dict:
             "material": cfg.material.preset, **extra}
 
 
-class TurningProcess(Process):
+class TurningProcess(Process[TurningInputs]):
     """A turning process: the compensated spiral (:func:`plan_spiral`) cut through the
     machine and material (:func:`~render_inspect.processes._mechanics.turn`).  Subclasses
     set ``config`` and change what differs."""
 
     inputs: ClassVar[type[TurningInputs]] = TurningInputs
 
-    def program(self, cfg, surface, *, region=None):
+    def program(self, cfg: TurningInputs, surface, *, region=None):
         """The commanded turning program: the scene's ``process.program`` read from its
         file (:func:`~render_inspect.processes._program.imported_path`), else the planned
         spiral (:func:`plan_spiral`); a subclass that programs the spiral otherwise
@@ -367,7 +367,7 @@ class TurningProcess(Process):
             return imported_path(cfg, surface, region=region)
         return plan_spiral(cfg, surface, region=region)
 
-    def plan(self, cfg, surface, *, region=None) -> Plan:
+    def plan(self, cfg: TurningInputs, surface, *, region=None) -> Plan:
         t0 = time.perf_counter()
         path = self.program(cfg, surface, region=region)
         facts = {"toolpath": toolpath_facts(path, cfg.process)}
@@ -380,7 +380,7 @@ class TurningProcess(Process):
         return Plan(path, facts, {"toolpath": time.perf_counter() - t0},
                     plots=self.program_plots(cfg, path))
 
-    def program_plots(self, cfg, path, data=None) -> dict:
+    def program_plots(self, cfg: TurningInputs, path, data=None) -> dict:
         """``kinematics.png``: the axes of the program that move (and, for a program read
         from a file, ``feed_per_rev.png``)."""
         extra = {}
@@ -391,38 +391,38 @@ class TurningProcess(Process):
                                                 data or {})],
                                    "title": f"{cfg.name}: the axes that move"}}
 
-    def cut(self, cfg, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
         t = turn(cfg, surface, plan.program)
         return Cut(t["machined"], t["design"], t["facts"], t["timing"], _meta(cfg),
                    followed=t["followed"], plots=t["plots"])
 
-    def estimate_memory(self, cfg, plan=None) -> int:
+    def estimate_memory(self, cfg: TurningInputs, plan=None) -> int:
         return turning_memory(cfg, plan)
 
-    def traits(self, cfg) -> Traits:
+    def traits(self, cfg: TurningInputs) -> Traits:
         return turning_traits(cfg)
 
-    def precheck(self, cfg, region=None) -> None:
+    def precheck(self, cfg: TurningInputs, region=None) -> None:
         if not program_path(cfg):  # a program file's size is known once it is read
             turning_precheck(cfg, region)
 
-    def program_links(self, cfg, surface, plan):
+    def program_links(self, cfg: TurningInputs, surface, plan):
         """None for a program read from a file: its own moves between the cuts are part
         of it (and checked as findings), no links are added."""
         if program_path(cfg):
             return None
         return super().program_links(cfg, surface, plan)
 
-    def program_header(self, cfg) -> dict:
+    def program_header(self, cfg: TurningInputs) -> dict:
         return turning_header(cfg)
 
-    def program_part(self, cfg, surface, plan) -> PartModel:
+    def program_part(self, cfg: TurningInputs, surface, plan) -> PartModel:
         return turning_part(cfg, surface, plan.program)
 
-    def program_limits(self, cfg) -> MachineLimits:
+    def program_limits(self, cfg: TurningInputs) -> MachineLimits:
         return turning_limits(cfg)
 
-    def program_facts(self, cfg, plan: Plan) -> dict:
+    def program_facts(self, cfg: TurningInputs, plan: Plan) -> dict:
         """``toolpath.json``: the plan's facts with the path's own (points, revolutions,
         feed, the planner's records) and its accessibility check."""
         prog = cast(ToolPath, plan.program)  # (a turning program)
@@ -438,7 +438,7 @@ class TurningProcess(Process):
             facts["accessibility"] = prog.meta["accessibility"]
         return facts
 
-    def variants(self, cfg) -> VariantPair:
+    def variants(self, cfg: TurningInputs) -> VariantPair:
         if program_path(cfg):
             return program_variants(cfg)
         return compensation_variants(cfg)
@@ -464,22 +464,22 @@ class TiledTurningProcess(TurningProcess):
     tile.  Burrs of a given height (``[artifacts.burrs] height``) are not added tile by
     tile."""
 
-    def tile_refusal(self, cfg) -> str | None:
+    def tile_refusal(self, cfg: TurningInputs) -> str | None:
         if cfg.burrs.height > 0:
             return (f"the tiled simulation adds the material's burrs, not ridges of a given "
                     f"height: artifacts.burrs.height must be 0 for maps simulated tile by tile, "
                     f"received {cfg.burrs.height}")
         return None
 
-    def follow_program(self, cfg, plan: Plan):
+    def follow_program(self, cfg: TurningInputs, plan: Plan):
         """:func:`~render_inspect.processes._mechanics.follow` of the plan's program (a
         process that splits the program between axes passes its share here)."""
         return follow(cfg, plan.program)
 
-    def envelope(self, cfg, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: TurningInputs, surface, plan: Plan) -> Envelope:
         return self.envelope_of(cfg, *self.follow_program(cfg, plan))
 
-    def envelope_of(self, cfg, cut_path, fp, facts, *, plots=None, meta=None) -> Envelope:
+    def envelope_of(self, cfg: TurningInputs, cut_path, fp, facts, *, plots=None, meta=None) -> Envelope:
         """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
         resp = material_of(cfg.material)
@@ -493,7 +493,7 @@ class TiledTurningProcess(TurningProcess):
                         facts=facts, followed=None if fp.ideal else fp, plots=dict(plots or {}),
                         edge=tool.edge, h_min_points=worn_h_min(cfg, cut_path, resp))
 
-    def tiled_facts(self, cfg, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
+    def tiled_facts(self, cfg: TurningInputs, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         facts, plots = dict(env.facts), dict(env.plots)
         if env.mechanics is not None:
             info = mechanics_facts(env.mechanics, grooves_sumsq=cut["grooves_sumsq"],
@@ -513,11 +513,11 @@ class TiledTurningProcess(TurningProcess):
                                                sim.pixel * stride, name=cfg.name))
         return facts, plots
 
-    def tiled_memory(self, cfg, plan=None) -> tuple[int, int]:
+    def tiled_memory(self, cfg: TurningInputs, plan=None) -> tuple[int, int]:
         # the machine model's following (machine_bytes) ends before the tiles start; what
         # it leaves is held beside them
         return _ticks(cfg, plan) * _TILED_KEPT_BYTES_PER_TICK, turning_points(cfg, plan)
 
-    def following_memory(self, cfg, plan=None) -> int:
+    def following_memory(self, cfg: TurningInputs, plan=None) -> int:
         # the phase before the tiles: every servo tick of the followed path at once
         return machine_bytes(cfg, plan)
