@@ -46,14 +46,15 @@ References
 from __future__ import annotations
 
 import math
-import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import lazy_attr, lazy_module
 
 from ..core.errors import InputError, MemoryBudgetError, check_range
+from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold
+from ._kernels import filter_fold, frames_from_field
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -147,7 +148,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     kz_tolerance : float
         Accuracy of the axial binning (:func:`axial_step`), rad.
     workers : int, optional
-        FFT threads (default all CPUs).
+        FFT threads (default the usable CPUs, :func:`~render_inspect.core.limits.usable_cpus`).
     return_field : bool
         Also return the complex interference term ``X`` (``info["field"]``, (N, H', W')
         complex64), e.g. to check the model against a direct summation.
@@ -201,7 +202,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         if reference_figure.shape != (ho, wo):
             raise InputError(f"reference_figure must have the output shape {(ho, wo)}, got "
                              f"{reference_figure.shape}")
-    workers = workers or os.cpu_count() or 1
+    workers = workers or usable_cpus()
     na, na_ill, obs = mic.na, mic.na_ill, mic.obscuration
 
     # --- which sub-samples reflect: reached, facing the objective, and not a facet that
@@ -246,7 +247,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
     del nn, cos_t
     if sig > 0.3:
-        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
+        # the three components at once (SciPy's filter lets go of the interpreter)
+        with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
+            unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
     cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
     tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
@@ -337,10 +340,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         x = coef @ cstack[:, p0:p0 + chunk]
         if xfield is not None:
             xfield[:, p0:p0 + chunk] = x
-        mag2 = np.max(x.real ** 2 + x.imag ** 2, axis=0)
-        bg = np.maximum(lightf[p0:p0 + chunk], mag2) + np.float32(rho_r)
-        out[:, p0:p0 + chunk] = bg[None, :] + two_sr * x.real
-    np.maximum(out, 0.0, out=out)
+        # max(B, max_f |X_f|^2) + rho_R + 2 sqrt(rho_R) Re X_f, floored at 0, in one pass
+        frames_from_field(x, lightf[p0:p0 + chunk], np.float32(rho_r), two_sr,
+                          out[:, p0:p0 + chunk])
     info = {"effective_wavelength_nm": 4 * math.pi / k_eff / NM_TO_MM,
             "coherence_sigma_per_mm": sigma_k, "axial_bins": int(nb),
             "axial_step_per_mm": float(dK), "light": light.astype(np.float32),
