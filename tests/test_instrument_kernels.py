@@ -1,6 +1,8 @@
-"""The compiled passes of the imaging model and the camera give, bit for bit, what the
-array expressions they replace give (the frames from the interference term; the camera's
-electrons, noise, offset, full well and quantisation), with the same random stream."""
+"""The imaging model's compiled pass gives, bit for bit, what the array expressions it
+replaces give (the frames from the interference term); the camera, its deviates drawn
+into one buffer, gives the frames of its array expressions with the same random stream;
+the model's field updated over blocks of rows in threads and transformed in place gives
+the frames of one pass."""
 
 from __future__ import annotations
 
@@ -108,3 +110,25 @@ def test_the_deviates_drawn_into_a_buffer_are_the_stream_drawn_fresh():
         fresh = a.standard_normal(size=buf.shape, dtype=np.float32)
         b.standard_normal(dtype=np.float32, out=buf)
         assert _same(buf, fresh)
+
+
+def test_the_field_updated_in_threads_gives_the_frames_of_one_thread():
+    from render_inspect.instruments import Microscope, interference_intensity, led
+    from render_inspect.instruments._imaging import _exp_i, _row_blocks
+
+    n, s, pixel = 40, 3, 0.000879
+    y, x = (np.mgrid[0:n * s, 0:n * s] + 0.5) * pixel / s
+    h = 4e-4 * np.cos(2 * np.pi * x / 0.02) * np.cos(2 * np.pi * y / 0.015) + 2e-5 * x / pixel
+    mic = Microscope(source=led(600.0, bandwidth_nm=120.0))
+    z = np.linspace(-1.2e-3, 1.2e-3, 23)
+    runs = [interference_intensity(h, pixel=pixel, subsamples=s, microscope=mic, z_positions=z,
+                                   crop=2, workers=w) for w in (1, 3)]
+    assert runs[0][1]["axial_bins"] > 16  # the field is computed afresh at least once
+    assert _same(runs[0][0], runs[1][0])
+    # the phase factor by blocks of rows is the phase factor of one pass
+    phase = (np.float32(21000.0) * h.astype(np.float32))
+    whole = _exp_i(phase)
+    parts = np.empty_like(whole)
+    for r in _row_blocks(phase.shape[0], 3):
+        _exp_i(phase[r], out=parts[r])
+    assert _same(parts, whole)

@@ -26,7 +26,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..core.errors import InputError, check_range
-from ._kernels import adc_frame, electrons
 
 __all__ = ["POISSON_EXACT_BELOW", "Camera", "expose"]
 
@@ -154,24 +153,18 @@ def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0
     e_per_adu = cam.full_well_e / cam.levels
     rng = np.random.default_rng(int(seed))
     scale = np.float32(g) * gain_map
-    e = np.empty(shape, dtype=np.float32)
-    z = np.empty(shape, dtype=np.float32)
+    z = np.empty(shape, dtype=np.float32)  # the normal deviates of one frame, drawn into it
     for f in range(inten.shape[0]):
+        e = inten[f].astype(np.float32) * scale
         if not cam.noise:
-            e = inten[f].astype(np.float32) * scale
             out[f] = np.minimum(e, cam.full_well_e) / np.float32(cam.full_well_e)
             sat |= e >= cam.full_well_e
             continue
-        frame = np.ascontiguousarray(inten[f], dtype=np.float32)
-        n_low = electrons(frame, scale, e, POISSON_EXACT_BELOW)  # e = max(g I (1 + prnu), 0)
-        # the same draws of the same stream as rng.standard_normal(size=shape, dtype=float32)
-        rng.standard_normal(dtype=np.float32, out=z)
-        if n_low == 0:  # all in the Gaussian limit: noise, offset, full well, ADC in one pass
-            adc_frame(e, z, cam.read_noise_e, offset_map, cam.full_well_e, e_per_adu,
-                      cam.levels, sat, out[f])
-            continue
+        np.maximum(e, 0.0, out=e)
         low = e < POISSON_EXACT_BELOW
-        noisy = e + z * np.sqrt(e + np.float32(cam.read_noise_e) ** 2)
+        # (the same draws of the same stream as standard_normal(size=shape, dtype=float32))
+        noisy = e + rng.standard_normal(dtype=np.float32, out=z) * np.sqrt(
+            e + np.float32(cam.read_noise_e) ** 2)
         if low.any():
             # exact Poisson where counts are small (plus the read noise)
             noisy[low] = (rng.poisson(e[low]).astype(np.float32)

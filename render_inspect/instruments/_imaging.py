@@ -101,11 +101,29 @@ def normals_from_heights(heights: np.ndarray, spacing: float) -> np.ndarray:
     return n.astype(np.float32)
 
 
-def _exp_i(phase: np.ndarray) -> np.ndarray:
-    out = np.empty(phase.shape, dtype=np.complex64)
+def _exp_i(phase: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    if out is None:
+        out = np.empty(phase.shape, dtype=np.complex64)
     out.real = np.cos(phase)
     out.imag = np.sin(phase)
     return out
+
+
+def _row_blocks(rows: int, workers: int) -> list[slice]:
+    """``rows`` split into about ``2 workers`` blocks of whole rows."""
+    n = max(1, min(rows, 2 * int(workers)))
+    edges = [rows * i // n for i in range(n + 1)]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def _by_rows(pool, blocks, fn) -> None:
+    """``fn(rows)`` for every block of rows, in ``pool``'s threads (in turn without one)."""
+    if pool is None:
+        for r in blocks:
+            fn(r)
+    else:
+        for f in [pool.submit(fn, r) for r in blocks]:
+            f.result()
 
 
 def _box_weights(s: int, fill_factor: float) -> np.ndarray:
@@ -306,18 +324,34 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     cstack = np.empty((nb, ho * wo), dtype=np.complex64)
     kb = tf.K[active]
     coarse = np.empty((hc, wc), dtype=np.complex64)
-    step = _exp_i(np.float32(tf.dK) * dh32) if nb > 1 else None
-    cur = None
+    # the field's element-wise updates run over blocks of rows in threads (NumPy lets go
+    # of the interpreter; each element is computed as in one pass)
+    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    blocks = _row_blocks(hs, workers)
+    step = cur = None
+    specbuf = np.empty((hs, ws), dtype=np.complex64) if nb else None
+    if nb > 1:
+        step = np.empty((hs, ws), dtype=np.complex64)
+        _by_rows(pool, blocks, lambda r: _exp_i(np.float32(tf.dK) * dh32[r], out=step[r]))
     for j, b in enumerate(active):
         Kb = float(tf.K[b])
         if cur is None or j % 16 == 0 or b != active[j - 1] + 1:
-            cur = _exp_i(np.float32(Kb) * dh32)
-            cur *= amp  # amp is real: it survives the recursion below
+            if cur is None:
+                cur = np.empty((hs, ws), dtype=np.complex64)
+
+            def restart(r, kb32=np.float32(Kb)):
+                _exp_i(kb32 * dh32[r], out=cur[r])
+                cur[r] *= amp[r]  # amp is real: it survives the recursion below
+
+            _by_rows(pool, blocks, restart)
         else:
-            cur *= step
+            _by_rows(pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
         qb = float(tf.support[b]) * (1 + 1e-6)
         cols = np.nonzero(np.abs(qx) <= qb)[0]
-        spec = sfft.fft2(cur, workers=workers)
+        # the FFT in place in a buffer kept for all bins (the same transform; a fresh
+        # 3072^2 array for each bin costs the system its pages again)
+        _by_rows(pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
+        spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
                     inv_dq, s, coarse)
         del spec
@@ -326,7 +360,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         if reference_figure is not None:
             img *= _exp_i((-Kb * reference_figure).astype(np.float32))
         cstack[j] = img.ravel()
-    del cur, step
+    del cur, step, specbuf
+    if pool is not None:
+        pool.shutdown()
 
     # --- frames: X_f = sum_b coef[f, b] C_b, coef = <exp(-i K_b (z - zbar))> over the exposure
     coef = np.exp(-1j * kb[None, None, :] * zrel[:, :, None]).mean(axis=1).astype(np.complex64)

@@ -1,4 +1,4 @@
-"""Compiled inner loops of the imaging model and the camera (numba, built on first use)."""
+"""Compiled inner loops of the imaging model (numba, built on first use)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["adc_frame", "electrons", "filter_fold", "frames_from_field"]
+__all__ = ["filter_fold", "frames_from_field"]
 
 _KERNEL = None
 
@@ -110,58 +110,4 @@ def frames_from_field(x, light, rho_r, two_sr, out):
     out : (N, M) float32 (written)
     """
     _frames_kernel(x, light, np.float32(rho_r), np.float32(two_sr), out)
-    return out
-
-
-# -------------------------------------------------------------------- camera frames
-@njit(parallel=True, cache=True)
-def _electrons_kernel(inten, scale, e, low_below):
-    h, w = e.shape
-    low = 0
-    for r in prange(h):
-        n = 0
-        for c in range(w):
-            v = inten[r, c] * scale[r, c]
-            if v < 0:
-                v = np.float32(0.0)
-            e[r, c] = v
-            if v < low_below:
-                n += 1
-        low += n
-    return low
-
-
-@njit(parallel=True, cache=True)
-def _adc_kernel(e, z, read2, offset, full_well, e_per_adu, levels, sat, out):
-    h, w = e.shape
-    for r in prange(h):
-        for c in range(w):
-            ev = e[r, c]
-            v = ev + z[r, c] * np.sqrt(ev + read2)
-            v = v + offset[r, c]
-            if v >= full_well:
-                sat[r, c] = True
-            if v < 0:
-                v = np.float32(0.0)
-            elif v > full_well:
-                v = full_well
-            out[r, c] = np.rint(v / e_per_adu) / levels
-
-
-def electrons(inten, scale, e, low_below):
-    """``e = max(inten * scale, 0)`` (float32, in place) and the number of pixels below
-    ``low_below`` electrons, in one pass threaded over rows."""
-    return int(_electrons_kernel(inten, scale, e, np.float32(low_below)))
-
-
-def adc_frame(e, z, read_noise_e, offset, full_well, e_per_adu, levels, sat, out):
-    """One noisy frame where every count is in the Gaussian limit: the electrons ``e`` plus
-    the deviates ``z`` times ``sqrt(e + read_noise_e^2)``, the fixed offset, the full well
-    (``sat`` set where reached; clipped), quantised: the float32 operations of the array
-    expressions in :func:`~._camera.expose`, threaded over rows."""
-    # (float32 ** 2 is a float64 scalar: squared as numpy does, then float32 as the
-    # array expression's operand)
-    read2 = np.float32(np.float32(read_noise_e) ** 2)
-    _adc_kernel(e, z, read2, offset, np.float32(full_well),
-                np.float32(e_per_adu), np.float32(levels), sat, out)
     return out
