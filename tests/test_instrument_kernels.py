@@ -132,3 +132,23 @@ def test_the_field_updated_in_threads_gives_the_frames_of_one_thread():
     for r in _row_blocks(phase.shape[0], 3):
         _exp_i(phase[r], out=parts[r])
     assert _same(parts, whole)
+
+
+def test_the_truths_mean_is_nanmean_without_a_warning():
+    import warnings
+
+    from render_inspect.instruments._interferometer import _nanmean_quiet
+
+    rng = np.random.default_rng(4)
+    h = rng.normal(0, 1e-3, (120, 135))
+    h[rng.uniform(size=h.shape) < 0.3] = np.nan
+    h[:6, :6] = np.nan  # pixels with no sub-sample
+    blk = h[3:3 + 38 * 3, 3:3 + 43 * 3].reshape(38, 3, 43, 3)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        expect = np.nanmean(blk, axis=(1, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = _nanmean_quiet(blk, (1, 3))
+    assert np.isnan(got).any()
+    assert _same(got, expect)
