@@ -326,31 +326,30 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     coarse = np.empty((hc, wc), dtype=np.complex64)
     # the field's element-wise updates run over blocks of rows in threads (NumPy lets go
     # of the interpreter; each element is computed as in one pass)
-    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    rows_pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
     blocks = _row_blocks(hs, workers)
-    step = cur = None
-    specbuf = np.empty((hs, ws), dtype=np.complex64) if nb else None
+    grid = (hs, ws) if nb else (0, 0)
+    cur = np.empty(grid, dtype=np.complex64)
+    specbuf = np.empty(grid, dtype=np.complex64)
+    step = np.empty(grid if nb > 1 else (0, 0), dtype=np.complex64)
     if nb > 1:
-        step = np.empty((hs, ws), dtype=np.complex64)
-        _by_rows(pool, blocks, lambda r: _exp_i(np.float32(tf.dK) * dh32[r], out=step[r]))
+        _by_rows(rows_pool, blocks, lambda r: _exp_i(np.float32(tf.dK) * dh32[r], out=step[r]))
     for j, b in enumerate(active):
         Kb = float(tf.K[b])
-        if cur is None or j % 16 == 0 or b != active[j - 1] + 1:
-            if cur is None:
-                cur = np.empty((hs, ws), dtype=np.complex64)
+        if j % 16 == 0 or b != active[j - 1] + 1:
 
             def restart(r, kb32=np.float32(Kb)):
                 _exp_i(kb32 * dh32[r], out=cur[r])
                 cur[r] *= amp[r]  # amp is real: it survives the recursion below
 
-            _by_rows(pool, blocks, restart)
+            _by_rows(rows_pool, blocks, restart)
         else:
-            _by_rows(pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
+            _by_rows(rows_pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
         qb = float(tf.support[b]) * (1 + 1e-6)
         cols = np.nonzero(np.abs(qx) <= qb)[0]
         # the FFT in place in a buffer kept for all bins (the same transform; a fresh
         # 3072^2 array for each bin costs the system its pages again)
-        _by_rows(pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
+        _by_rows(rows_pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
         spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
                     inv_dq, s, coarse)
@@ -361,8 +360,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
             img *= _exp_i((-Kb * reference_figure).astype(np.float32))
         cstack[j] = img.ravel()
     del cur, step, specbuf
-    if pool is not None:
-        pool.shutdown()
+    if rows_pool is not None:
+        rows_pool.shutdown()
 
     # --- frames: X_f = sum_b coef[f, b] C_b, coef = <exp(-i K_b (z - zbar))> over the exposure
     coef = np.exp(-1j * kb[None, None, :] * zrel[:, :, None]).mean(axis=1).astype(np.complex64)
