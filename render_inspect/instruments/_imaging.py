@@ -166,7 +166,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     kz_tolerance : float
         Accuracy of the axial binning (:func:`axial_step`), rad.
     workers : int, optional
-        FFT threads (default the usable CPUs, :func:`~render_inspect.core.limits.usable_cpus`).
+        Threads of the FFTs and of the field's element-wise updates (default the usable
+        CPUs, :func:`~render_inspect.core.limits.usable_cpus`); the result is the same
+        for any number.
     return_field : bool
         Also return the complex interference term ``X`` (``info["field"]``, (N, H', W')
         complex64), e.g. to check the model against a direct summation.
