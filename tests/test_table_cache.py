@@ -130,6 +130,9 @@ def test_other_arguments_or_versions_are_other_entries():
     assert k != tc.table_key("t", {"na": 0.4, "source": {"wavelength_nm": 551.0}}, __file__)
     assert k != tc.table_key("u", {"na": 0.4, "source": {"wavelength_nm": 550.0}}, __file__)
     assert k == tc.table_key("t", {"source": {"wavelength_nm": 550.0}, "na": 0.4}, __file__)
+    # the code that builds it: another module's text is another entry
+    assert k != tc.table_key("t", {"na": 0.4, "source": {"wavelength_nm": 550.0}},
+                             (__file__, tc.__file__))
 
 
 def test_an_unwritable_cache_folder_leaves_the_cache_off(tmp_path, monkeypatch):

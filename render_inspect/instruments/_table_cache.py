@@ -11,7 +11,8 @@ asks for the same arguments reads it back instead, as numba keeps its compiled k
   off (every process builds its tables), and an unwritable folder leaves it off quietly;
 * an entry is named by a SHA-256 of the table's name, its arguments written exactly
   (floats as their hexadecimal form), the package's version and the source text of the
-  module that builds the tables, so a change to any of them builds afresh;
+  modules whose code builds it (the tables' and, for the transfer function, the
+  source's sampling), so a change to any of them builds afresh;
 * an entry is written to a temporary file in the folder and renamed into place (two
   processes building the same table leave one whole file), and holds a SHA-256 of its
   arrays: an entry that cannot be read, or whose arrays do not match it (a damaged or
@@ -78,11 +79,12 @@ def _source_sha(module_file: str) -> str:
     return sha
 
 
-def table_key(name: str, args: dict, module_file: str) -> str:
+def table_key(name: str, args: dict, module_file: str | tuple[str, ...]) -> str:
     """The entry's name: a SHA-256 of ``name``, ``args``, the package's version and the
-    text of ``module_file`` (the module that builds the table)."""
+    text of ``module_file`` (the module, or modules, whose code builds the table)."""
+    files = (module_file,) if isinstance(module_file, str) else tuple(module_file)
     text = json.dumps({"table": name, "args": _exact(args), "version": __version__,
-                       "module": _source_sha(module_file), "format": _FORMAT},
+                       "module": [_source_sha(f) for f in files], "format": _FORMAT},
                       sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -130,7 +132,7 @@ def _store(folder: Path, path: Path, key: str, arrays: dict) -> None:
                 pass
 
 
-def cached_arrays(name: str, args: dict, module_file: str, build) -> dict:
+def cached_arrays(name: str, args: dict, module_file: str | tuple[str, ...], build) -> dict:
     """The arrays ``build()`` returns (a dict of numpy arrays) for the table ``name`` with
     arguments ``args``, read from the cache when an entry for them is there and whole,
     else built and written to it."""

@@ -53,6 +53,7 @@ import numpy as np
 
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.units import MM_TO_NM
+from . import _sources
 from ._table_cache import cached_arrays
 
 __all__ = [
@@ -307,7 +308,7 @@ def transfer_function(na: float, na_ill: float, obscuration: float, source, *, d
                        "table_nm": [float(v) for v in source.table_nm],
                        "table_weight": [float(v) for v in source.table_weight]},
             "dK": float(dK), "n_q": int(n_q)}
-    t = cached_arrays("transfer_function", args, __file__,
+    t = cached_arrays("transfer_function", args, (__file__, _sources.__file__),
                       lambda: _transfer_arrays(na, na_ill, obscuration, source, dK=dK, n_q=n_q))
     return TransferFunction(K=t["K"], table=t["table"], dq=float(t["dq"]),
                             q_max=float(t["q_max"]), k_eff=float(t["k_eff"]),
