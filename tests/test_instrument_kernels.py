@@ -152,3 +152,32 @@ def test_the_truths_mean_is_nanmean_without_a_warning():
         got = _nanmean_quiet(blk, (1, 3))
     assert np.isnan(got).any()
     assert _same(got, expect)
+
+
+def test_the_filter_with_the_radial_index_of_all_bins_is_the_filter_of_each_bin():
+    import math
+
+    from render_inspect.instruments._kernels import filter_fold, radial_index
+
+    n, s = 96, 3
+    a = 0.000879 / s
+    rng = np.random.default_rng(8)
+    spec = (rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n))).astype(np.complex64)
+    q = 2 * math.pi * np.fft.fftfreq(n, d=a)
+    q2 = (q ** 2).astype(np.float32)
+    sep = (np.sinc(q * 1e-4) * np.exp(1j * q * 2e-4)).astype(np.complex64)
+    qmax = np.abs(q).max()
+    index = None
+    for frac in (0.95, 0.5):  # two bins, one radial index
+        qb = frac * qmax
+        table = rng.uniform(0, 1, 257).astype(np.float32)
+        table[::7] = 0.0
+        inv_dq = np.float32(256 / (0.8 * qmax))  # frequencies beyond the table too
+        if index is None:
+            index = radial_index(q2, q2, inv_dq, table.size)
+            assert (index == table.size).any()
+        cols = np.nonzero(np.abs(q) <= qb)[0]
+        args = (spec, np.abs(q) <= qb, q2, sep, cols, cols % (n // s), q2, sep, table, inv_dq, s)
+        plain = filter_fold(*args, np.empty((n // s, n // s), np.complex64))
+        indexed = filter_fold(*args, np.empty((n // s, n // s), np.complex64), index=index)
+        assert _same(plain, indexed)

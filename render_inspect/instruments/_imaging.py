@@ -54,7 +54,7 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold, frames_from_field
+from ._kernels import filter_fold, frames_from_field, radial_index
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -336,6 +336,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     step = np.empty(grid if nb > 1 else (0, 0), dtype=np.complex64)
     if nb > 1:
         _by_rows(rows_pool, blocks, lambda r: _exp_i(np.float32(tf.dK) * dh32[r], out=step[r]))
+    # each fine frequency's radial sample of the table, the same for every bin
+    ridx = radial_index(qy2, qx2, inv_dq, tf.table.shape[1]) if nb else None
     for j, b in enumerate(active):
         Kb = float(tf.K[b])
         if j % 16 == 0 or b != active[j - 1] + 1:
@@ -354,14 +356,14 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         _by_rows(rows_pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
         spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
-                    inv_dq, s, coarse)
+                    inv_dq, s, coarse, index=ridx)
         del spec
         img = sfft.ifft2(coarse, workers=workers, overwrite_x=True)
         img = img[crop:hc - crop, crop:wc - crop] * np.float32(1.0 / (s * s))
         if reference_figure is not None:
             img *= _exp_i((-Kb * reference_figure).astype(np.float32))
         cstack[j] = img.ravel()
-    del cur, step, specbuf
+    del cur, step, specbuf, ridx
     if rows_pool is not None:
         rows_pool.shutdown()
 
