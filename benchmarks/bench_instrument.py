@@ -15,7 +15,9 @@ Figures (printed and returned by :func:`main`):
   1 x 1 mm part), PSI and CSI, on the design surface and on the machined one, each a fresh
   process: wall and CPU time of the whole command (start-up, the height map, the ray
   tracing, the imaging model and the files) and the steps of ``render_metrics.json``
-  (``timing_s``).  ``BENCH_INSTRUMENT_COMMAND=0`` leaves these out.
+  (``timing_s``), once with the imaging model's tables built in the process (a first
+  run) and with them read from the user's cache.  ``BENCH_INSTRUMENT_COMMAND=0`` leaves
+  these out.
 
 Targets (a quiet 2-core machine), command wall time: PSI 1024^2 under 5 s, CSI 1024^2
 under 30 s.  Run: ``.venv/bin/python benchmarks/bench_instrument.py`` (or
@@ -63,18 +65,22 @@ def _child_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def run_render_command(out: Path, mode: str, surface: str) -> dict:
+def run_render_command(out: Path, mode: str, surface: str, *, tables: str = "cache") -> dict:
     """``render-inspect render sts_sinusoidal_grid --kind interferometer`` in a fresh
     process (``mode`` PSI or CSI, ``surface`` design or machined): the command's wall and
-    CPU time, its steps (``timing_s``) and what it imaged."""
+    CPU time, its steps (``timing_s``) and what it imaged.  ``tables="built"`` turns the
+    imaging model's table cache off (the process builds its tables, as a first run
+    does); ``"cache"`` uses the user's cache folder."""
     args = [sys.executable, "-m", "render_inspect.cli", "render", "sts_sinusoidal_grid",
             "--kind", "interferometer", "--surface", surface, "--out", str(out), "--overwrite",
             "-q", "--set", f"render.interferometer.mode={mode!r}".replace("'", '"')]
     repo = Path(__file__).resolve().parents[1]
     load0 = os.getloadavg()[0]
     c0, t0 = _child_cpu(), time.perf_counter()
-    p = subprocess.run(args, capture_output=True, text=True, cwd=out.parent,
-                       env={**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", str(repo))})
+    env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", str(repo))}
+    if tables == "built":
+        env["RENDER_INSPECT_TABLE_CACHE"] = "off"
+    p = subprocess.run(args, capture_output=True, text=True, cwd=out.parent, env=env)
     wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
     if p.returncode != 0:
         raise RuntimeError(f"render failed:\n{p.stderr[-3000:]}")
@@ -84,23 +90,31 @@ def run_render_command(out: Path, mode: str, surface: str) -> dict:
             "command_cpu_s": round(cpu, 2),
             "steps_s": {k: round(v, 2) for k, v in r["timing_s"].items()},
             "shape": ig.get("shape"), "frames": ig.get("frames"),
-            "subsamples": ig.get("subsamples"),
+            "subsamples": ig.get("subsamples"), "tables": tables,
             "load_average": [round(load0, 2), round(os.getloadavg()[0], 2)]}
 
 
 def command(repeats: int = 1) -> dict:
     """:func:`run_render_command` for PSI and CSI on the design and the machined surface,
-    one process at a time, the best of ``repeats`` (by CPU time)."""
+    one process at a time: once with the tables built in the process (``*_tables_built``,
+    a first run) and the best of ``repeats`` (by CPU time) with the tables read from the
+    cache (after one run that fills it)."""
     res = {}
     tmp = Path(tempfile.mkdtemp(prefix="bench_instrument_"))
     try:
         for surface in ("design", "machined"):
             for mode in ("psi", "csi"):
+                built = run_render_command(tmp / "out", mode, surface, tables="built")
+                shutil.rmtree(tmp / "out", ignore_errors=True)
+                print(json.dumps(built), flush=True)
+                res[f"{mode}_{surface}_tables_built"] = built
                 runs = []
-                for _ in range(max(1, repeats)):
-                    runs.append(run_render_command(tmp / "out", mode, surface))
+                for k in range(max(1, repeats) + 1):
+                    r = run_render_command(tmp / "out", mode, surface)
                     shutil.rmtree(tmp / "out", ignore_errors=True)
-                    print(json.dumps(runs[-1]), flush=True)
+                    print(json.dumps(r), flush=True)
+                    if k:  # (the first fills the cache when it lacks these tables)
+                        runs.append(r)
                 best = min(runs, key=lambda r: r["command_cpu_s"])
                 best["runs_wall_s"] = [r["command_wall_s"] for r in runs]
                 res[f"{mode}_{surface}"] = best

@@ -153,6 +153,7 @@ def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0
     e_per_adu = cam.full_well_e / cam.levels
     rng = np.random.default_rng(int(seed))
     scale = np.float32(g) * gain_map
+    z = np.empty(shape, dtype=np.float32)  # the normal deviates of one frame, drawn into it
     for f in range(inten.shape[0]):
         e = inten[f].astype(np.float32) * scale
         if not cam.noise:
@@ -161,7 +162,8 @@ def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0
             continue
         np.maximum(e, 0.0, out=e)
         low = e < POISSON_EXACT_BELOW
-        noisy = e + rng.standard_normal(size=shape, dtype=np.float32) * np.sqrt(
+        # (the same draws of the same stream as standard_normal(size=shape, dtype=float32))
+        noisy = e + rng.standard_normal(dtype=np.float32, out=z) * np.sqrt(
             e + np.float32(cam.read_noise_e) ** 2)
         if low.any():
             # exact Poisson where counts are small (plus the read noise)

@@ -46,14 +46,15 @@ References
 from __future__ import annotations
 
 import math
-import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import lazy_attr, lazy_module
 
 from ..core.errors import InputError, MemoryBudgetError, check_range
+from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold
+from ._kernels import filter_fold, frames_from_field, radial_index
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -100,11 +101,29 @@ def normals_from_heights(heights: np.ndarray, spacing: float) -> np.ndarray:
     return n.astype(np.float32)
 
 
-def _exp_i(phase: np.ndarray) -> np.ndarray:
-    out = np.empty(phase.shape, dtype=np.complex64)
+def _exp_i(phase: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    if out is None:
+        out = np.empty(phase.shape, dtype=np.complex64)
     out.real = np.cos(phase)
     out.imag = np.sin(phase)
     return out
+
+
+def _row_blocks(rows: int, workers: int) -> list[slice]:
+    """``rows`` split into about ``2 workers`` blocks of whole rows."""
+    n = max(1, min(rows, 2 * int(workers)))
+    edges = [rows * i // n for i in range(n + 1)]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def _by_rows(pool, blocks, fn) -> None:
+    """``fn(rows)`` for every block of rows, in ``pool``'s threads (in turn without one)."""
+    if pool is None:
+        for r in blocks:
+            fn(r)
+    else:
+        for f in [pool.submit(fn, r) for r in blocks]:
+            f.result()
 
 
 def _box_weights(s: int, fill_factor: float) -> np.ndarray:
@@ -147,7 +166,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     kz_tolerance : float
         Accuracy of the axial binning (:func:`axial_step`), rad.
     workers : int, optional
-        FFT threads (default all CPUs).
+        Threads of the FFTs and of the field's element-wise updates (default the usable
+        CPUs, :func:`~render_inspect.core.limits.usable_cpus`); the result is the same
+        for any number.
     return_field : bool
         Also return the complex interference term ``X`` (``info["field"]``, (N, H', W')
         complex64), e.g. to check the model against a direct summation.
@@ -201,7 +222,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         if reference_figure.shape != (ho, wo):
             raise InputError(f"reference_figure must have the output shape {(ho, wo)}, got "
                              f"{reference_figure.shape}")
-    workers = workers or os.cpu_count() or 1
+    workers = workers or usable_cpus()
     na, na_ill, obs = mic.na, mic.na_ill, mic.obscuration
 
     # --- which sub-samples reflect: reached, facing the objective, and not a facet that
@@ -246,7 +267,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
     del nn, cos_t
     if sig > 0.3:
-        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
+        # the three components at once (SciPy's filter lets go of the interpreter)
+        with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
+            unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
     cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
     tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
@@ -303,27 +326,46 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     cstack = np.empty((nb, ho * wo), dtype=np.complex64)
     kb = tf.K[active]
     coarse = np.empty((hc, wc), dtype=np.complex64)
-    step = _exp_i(np.float32(tf.dK) * dh32) if nb > 1 else None
-    cur = None
+    # the field's element-wise updates run over blocks of rows in threads (NumPy lets go
+    # of the interpreter; each element is computed as in one pass)
+    rows_pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    blocks = _row_blocks(hs, workers)
+    grid = (hs, ws) if nb else (0, 0)
+    cur = np.empty(grid, dtype=np.complex64)
+    specbuf = np.empty(grid, dtype=np.complex64)
+    step = np.empty(grid if nb > 1 else (0, 0), dtype=np.complex64)
+    if nb > 1:
+        _by_rows(rows_pool, blocks, lambda r: _exp_i(np.float32(tf.dK) * dh32[r], out=step[r]))
+    # each fine frequency's radial sample of the table, the same for every bin
+    ridx = radial_index(qy2, qx2, inv_dq, tf.table.shape[1]) if nb else None
     for j, b in enumerate(active):
         Kb = float(tf.K[b])
-        if cur is None or j % 16 == 0 or b != active[j - 1] + 1:
-            cur = _exp_i(np.float32(Kb) * dh32)
-            cur *= amp  # amp is real: it survives the recursion below
+        if j % 16 == 0 or b != active[j - 1] + 1:
+
+            def restart(r, kb32=np.float32(Kb)):
+                _exp_i(kb32 * dh32[r], out=cur[r])
+                cur[r] *= amp[r]  # amp is real: it survives the recursion below
+
+            _by_rows(rows_pool, blocks, restart)
         else:
-            cur *= step
+            _by_rows(rows_pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
         qb = float(tf.support[b]) * (1 + 1e-6)
         cols = np.nonzero(np.abs(qx) <= qb)[0]
-        spec = sfft.fft2(cur, workers=workers)
+        # the FFT in place in a buffer kept for all bins (the same transform; a fresh
+        # 3072^2 array for each bin costs the system its pages again)
+        _by_rows(rows_pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
+        spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
-                    inv_dq, s, coarse)
+                    inv_dq, s, coarse, index=ridx)
         del spec
         img = sfft.ifft2(coarse, workers=workers, overwrite_x=True)
         img = img[crop:hc - crop, crop:wc - crop] * np.float32(1.0 / (s * s))
         if reference_figure is not None:
             img *= _exp_i((-Kb * reference_figure).astype(np.float32))
         cstack[j] = img.ravel()
-    del cur, step
+    del cur, step, specbuf, ridx
+    if rows_pool is not None:
+        rows_pool.shutdown()
 
     # --- frames: X_f = sum_b coef[f, b] C_b, coef = <exp(-i K_b (z - zbar))> over the exposure
     coef = np.exp(-1j * kb[None, None, :] * zrel[:, :, None]).mean(axis=1).astype(np.complex64)
@@ -337,10 +379,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         x = coef @ cstack[:, p0:p0 + chunk]
         if xfield is not None:
             xfield[:, p0:p0 + chunk] = x
-        mag2 = np.max(x.real ** 2 + x.imag ** 2, axis=0)
-        bg = np.maximum(lightf[p0:p0 + chunk], mag2) + np.float32(rho_r)
-        out[:, p0:p0 + chunk] = bg[None, :] + two_sr * x.real
-    np.maximum(out, 0.0, out=out)
+        # max(B, max_f |X_f|^2) + rho_R + 2 sqrt(rho_R) Re X_f, floored at 0, in one pass
+        frames_from_field(x, lightf[p0:p0 + chunk], np.float32(rho_r), two_sr,
+                          out[:, p0:p0 + chunk])
     info = {"effective_wavelength_nm": 4 * math.pi / k_eff / NM_TO_MM,
             "coherence_sigma_per_mm": sigma_k, "axial_bins": int(nb),
             "axial_step_per_mm": float(dK), "light": light.astype(np.float32),

@@ -19,7 +19,7 @@ import dataclasses
 import json
 import logging
 import math
-import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -497,13 +497,18 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     diag: dict = {}
     common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,
                   "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}
-    if icfg.mode == "psi":
-        # the focus: the user's, or the one the instrument finds on its own fringes
-        z_ref = None if icfg.reference_height is None else float(icfg.reference_height)
-        fr = psi_frames(h_sub, n_sub, steps=icfg.steps, step_rad=icfg.step_rad, z_ref=z_ref, **common)
-    else:
-        fr = csi_frames(h_sub, n_sub, scan_step_nm=icfg.scan_step_nm, frames=icfg.frames, **common)
-    h_true, unresolved = pixel_truth(h_sub, h_centre, s=s, margin=geom["margin"])
+    # the truth (from the traced heights alone) is made in a thread beside the frames
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        truth = pool.submit(pixel_truth, h_sub, h_centre, s=s, margin=geom["margin"])
+        if icfg.mode == "psi":
+            # the focus: the user's, or the one the instrument finds on its own fringes
+            z_ref = None if icfg.reference_height is None else float(icfg.reference_height)
+            fr = psi_frames(h_sub, n_sub, steps=icfg.steps, step_rad=icfg.step_rad, z_ref=z_ref,
+                            **common)
+        else:
+            fr = csi_frames(h_sub, n_sub, scan_step_nm=icfg.scan_step_nm, frames=icfg.frames,
+                            **common)
+        h_true, unresolved = truth.result()
     del h_sub, n_sub
     fr.settings["model"]["surface_sampling"] = sampling
     fields = {f.name: getattr(fr, f.name) for f in dataclasses.fields(Frames)}
@@ -517,6 +522,19 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     return Interferogram(**fields, height_true=h_true, accepted_fraction=light, surface=surface)
 
 
+def _nanmean_quiet(a, axis):
+    """``np.nanmean(a, axis)`` by NumPy's own steps (the NaNs set to 0, summed, divided by
+    the count: the same sums and quotient), NaN without a warning where a mean has no
+    value; ``warnings.catch_warnings``, which would silence it, is not safe in a thread."""
+    arr = np.array(a, copy=True)
+    mask = np.isnan(arr)
+    np.copyto(arr, 0, where=mask)
+    cnt = np.sum(~mask, axis=axis, dtype=np.intp)
+    tot = np.sum(arr, axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.true_divide(tot, cnt, out=tot, casting="unsafe")
+
+
 def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
     """The truth as the camera samples it: the mean of the ``s x s`` traced sub-samples
     over each camera pixel (NaN where the pixel centre's ray missed), and the rms (nm) of
@@ -526,9 +544,7 @@ def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
     ny, nx = h_centre.shape
     m = int(margin) * s
     blk = np.asarray(h_sub[m:m + ny * s, m:m + nx * s], dtype=np.float64).reshape(ny, s, nx, s)
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # pixels with no sub-sample hit
-        mean = np.nanmean(blk, axis=(1, 3))
+    mean = _nanmean_quiet(blk, (1, 3))
     truth = np.where(np.isfinite(h_centre), np.where(np.isfinite(mean), mean, h_centre), np.nan)
     unresolved = 0.0
     if s > 1:

@@ -1,8 +1,14 @@
-"""Compiled inner loop of the imaging model (numba, built on first use)."""
+"""Compiled inner loops of the imaging model (numba, built on first use)."""
 
 from __future__ import annotations
 
-__all__ = ["filter_fold"]
+import math
+
+import numpy as np
+
+from ..core.lazy import njit, prange  # numba, imported on first use
+
+__all__ = ["filter_fold", "frames_from_field", "radial_index"]
 
 _KERNEL = None
 
@@ -39,7 +45,50 @@ def _build():
     return kernel
 
 
-def filter_fold(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, s_fold, out):
+@njit(parallel=True, cache=True)
+def _radial_index_kernel(qy2, qx2, inv_dq, nq, out):
+    for r in prange(qy2.shape[0]):
+        y2 = qy2[r]
+        for c in range(qx2.shape[0]):
+            i = int(math.sqrt(y2 + qx2[c]) * inv_dq + 0.5)
+            out[r, c] = i if i < nq else nq
+
+
+@njit(parallel=True, cache=True)
+def _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table, s_fold, out):
+    hc, wc = out.shape
+    nq = table.shape[0]
+    for rc in prange(hc):
+        for c in range(wc):
+            out[rc, c] = 0
+        for k in range(s_fold):
+            r = rc + k * hc
+            if not row_ok[r]:
+                continue
+            sy = sepy[r]
+            for j in range(cols.shape[0]):
+                c = cols[j]
+                i = index[r, c]
+                if i >= nq:
+                    continue
+                t = table[i]
+                if t == 0.0:
+                    continue
+                out[rc, ccols[j]] += spec[r, c] * (sy * sepx[c] * t)
+    return out
+
+
+def radial_index(qy2, qx2, inv_dq, nq):
+    """The transfer function's radial sample of every fine frequency, ``round(|Q| inv_dq)``
+    (at most ``nq``: beyond the table), computed as :func:`filter_fold` computes it, once
+    for all axial bins (int16, or int32 for tables longer than int16 holds)."""
+    out = np.empty((qy2.shape[0], qx2.shape[0]), dtype=np.int16 if nq < 32767 else np.int32)
+    _radial_index_kernel(qy2, qx2, np.float32(inv_dq), int(nq), out)
+    return out
+
+
+def filter_fold(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, s_fold, out,
+                index=None):
     """Multiply a fine-grid spectrum by the transfer function of one axial bin and by the
     pixel-box/centring factors, and fold it onto the camera grid.
 
@@ -61,8 +110,55 @@ def filter_fold(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, 
         Sub-samples per pixel (fine rows folding onto one camera row).
     out : (H, W) complex64
         Camera-grid spectrum (overwritten).
+    index : (Hs, Ws) int array, optional
+        :func:`radial_index` of ``qy2``, ``qx2``, ``inv_dq`` and the table's length: the
+        same result without the square root of every frequency in every bin.
     """
+    if index is not None:
+        return _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table,
+                                    s_fold, out)
     global _KERNEL
     if _KERNEL is None:
         _KERNEL = _build()
     return _KERNEL(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, s_fold, out)
+
+
+# ------------------------------------------------------------ frames from the field
+@njit(parallel=True, cache=True)
+def _frames_kernel(x, light, rho_r, two_sr, out):
+    nfr, m = x.shape
+    for p in prange(m):
+        v = x[0, p]
+        mag = v.real * v.real + v.imag * v.imag
+        for f in range(1, nfr):
+            v = x[f, p]
+            a = v.real * v.real + v.imag * v.imag
+            if a > mag or a != a:  # (np.max: a NaN wins)
+                mag = a
+        lp = light[p]
+        if lp != lp or mag != mag:  # (np.maximum: a NaN wins)
+            bg = lp + mag
+        else:
+            bg = lp if lp >= mag else mag
+        bg = bg + rho_r
+        for f in range(nfr):
+            o = bg + two_sr * x[f, p].real
+            out[f, p] = o if (o >= 0 or o != o) else np.float32(0.0)
+
+
+def frames_from_field(x, light, rho_r, two_sr, out):
+    """The frames' intensities from the interference term of a block of pixels:
+    ``out[f] = max(light, max_f |x_f|^2) + rho_r + two_sr Re x_f``, floored at 0, in
+    float32 with the operations (and their rounding) of the array expressions
+    ``np.maximum(light, np.max(x.real**2 + x.imag**2, axis=0)) + rho_r + two_sr * x.real``
+    then ``np.maximum(out, 0)``, in one pass threaded over the pixels.
+
+    Parameters
+    ----------
+    x : (N, M) complex64
+    light : (M,) float32
+    rho_r, two_sr : float32
+    out : (N, M) float32 (written)
+    """
+    _frames_kernel(x, light, np.float32(rho_r), np.float32(two_sr), out)
+    return out

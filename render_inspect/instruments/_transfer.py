@@ -53,6 +53,8 @@ import numpy as np
 
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.units import MM_TO_NM
+from . import _sources
+from ._table_cache import cached_arrays
 
 __all__ = [
     "MAX_AXIAL_BINS",
@@ -116,7 +118,17 @@ def unit_transfer_table(na: float, na_ill: float, obscuration: float = 0.0, *,
         Axial grid (``sqrt(1 - na_ill^2) + sqrt(1 - na^2) .. 2``, one node of margin).
     G : (n_u, n_kappa) float64
         Mass per kappa node (linear deposit); ``G[0].sum() = 1`` when ``na_ill <= na``.
+
+    Kept on disk between processes (:mod:`._table_cache`).
     """
+    args = {"na": float(na), "na_ill": float(na_ill), "obscuration": float(obscuration),
+            "n_u": int(n_u), "n_kappa": int(n_kappa), "n_grid": int(n_grid)}
+    t = cached_arrays("unit_transfer_table", args, __file__,
+                      lambda: dict(zip(("u", "kappa", "G"), _unit_transfer_table(**args))))
+    return t["u"], t["kappa"], t["G"]
+
+
+def _unit_transfer_table(*, na, na_ill, obscuration, n_u, n_kappa, n_grid):
     obs_na = obscuration * na
     pts, a, norm, c = _illumination_points(float(na_ill), float(obs_na), int(n_grid))
     u = np.linspace(0.0, na + na_ill, n_u)
@@ -162,7 +174,17 @@ def acceptance_table(na: float, na_ill: float, obscuration: float = 0.0, *, n_al
     -------
     alpha : (n_alpha,) float64, facet tilt 0 .. pi/2, rad
     fraction : (n_alpha,) float64, 0..1
+
+    Kept on disk between processes (:mod:`._table_cache`).
     """
+    args = {"na": float(na), "na_ill": float(na_ill), "obscuration": float(obscuration),
+            "n_alpha": int(n_alpha), "n_grid": int(n_grid)}
+    t = cached_arrays("acceptance_table", args, __file__,
+                      lambda: dict(zip(("alpha", "fraction"), _acceptance_table(**args))))
+    return t["alpha"], t["fraction"]
+
+
+def _acceptance_table(*, na, na_ill, obscuration, n_alpha, n_grid):
     obs_na = obscuration * na
     pts, a, norm, c = _illumination_points(float(na_ill), float(obs_na), int(n_grid))
     if c == 0.0:
@@ -277,7 +299,24 @@ def transfer_function(na: float, na_ill: float, obscuration: float, source, *, d
     Returns
     -------
     TransferFunction
+
+    Kept on disk between processes (:mod:`._table_cache`).
     """
+    args = {"na": float(na), "na_ill": float(na_ill), "obscuration": float(obscuration),
+            "source": {"kind": source.kind, "wavelength_nm": float(source.wavelength_nm),
+                       "bandwidth_nm": float(source.bandwidth_nm),
+                       "table_nm": [float(v) for v in source.table_nm],
+                       "table_weight": [float(v) for v in source.table_weight]},
+            "dK": float(dK), "n_q": int(n_q)}
+    t = cached_arrays("transfer_function", args, (__file__, _sources.__file__),
+                      lambda: _transfer_arrays(na, na_ill, obscuration, source, dK=dK, n_q=n_q))
+    return TransferFunction(K=t["K"], table=t["table"], dq=float(t["dq"]),
+                            q_max=float(t["q_max"]), k_eff=float(t["k_eff"]),
+                            sigma_k=float(t["sigma_k"]), dK=float(t["dK"]),
+                            support=t["support"])
+
+
+def _transfer_arrays(na, na_ill, obscuration, source, *, dK, n_q) -> dict:
     u, kappa, G = unit_transfer_table(float(na), float(na_ill), float(obscuration))
     k, w = source.sample(dk=dK / 4)
     k_eff, sigma_k = flat_moments(na, na_ill, obscuration, k, w)
@@ -322,8 +361,9 @@ def transfer_function(na: float, na_ill: float, obscuration: float, source, *, d
     nz = table > 1e-12 * max(table.max(), 1e-300)  # not a unit conversion: a relative floor
     support = np.where(nz.any(axis=1), q[np.where(nz, np.arange(n_q)[None, :], 0).max(axis=1)], -1.0)
     table[~nz] = 0.0
-    return TransferFunction(K=K, table=table.astype(np.float32), dq=float(dq), q_max=q_max,
-                            k_eff=k_eff, sigma_k=sigma_k, dK=float(dK), support=support)
+    return {"K": K, "table": table.astype(np.float32), "dq": np.float64(dq),
+            "q_max": np.float64(q_max), "k_eff": np.float64(k_eff),
+            "sigma_k": np.float64(sigma_k), "dK": np.float64(dK), "support": support}
 
 
 def linear_itf(na: float, na_ill: float, obscuration: float, source, frequency) -> np.ndarray:

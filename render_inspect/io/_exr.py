@@ -12,14 +12,19 @@ MIPMAP_LEVELS files (it writes level 0 only and leaves the file unreadable), hen
 two-part layout; readers that know only single-part files read part 0, the full map.
 Compression is a choice of speed against size, measured on a 16 M-sample height map
 (float32, 3 channels, one core): none 0.15 s / 192 MB, zstd 1.2 s / 51 MB, zip 2.1 s /
-117 MB, piz 5 s / 147 MB.
+117 MB, piz 5 s / 147 MB.  A file is compressed by OpenEXR's own threads, one per usable
+CPU, while it is written (:func:`compression_threads`): each block of lines or tile is
+compressed alone and written in its place, so the file's bytes are those one thread
+writes.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import threading
 from pathlib import Path
 from typing import cast
 
@@ -27,6 +32,7 @@ import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError
+from ..core.limits import usable_cpus
 from ._atomic import _umask
 from ._limits import check_exr
 from ._pyramid import heightmap_block_sums, level_count, means
@@ -39,6 +45,35 @@ _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrde
 #: compression names accepted by :func:`write_exr`
 COMPRESSIONS = {"none": "NO_COMPRESSION", "rle": "RLE_COMPRESSION", "zips": "ZIPS_COMPRESSION",
                 "zip": "ZIP_COMPRESSION", "piz": "PIZ_COMPRESSION", "zstd": "ZSTD_COMPRESSION"}
+
+_POOL_LOCK = threading.Lock()
+_POOL_USERS = 0
+
+
+@contextlib.contextmanager
+def compression_threads():
+    """OpenEXR's process-wide thread pool holds one thread per usable CPU
+    (:func:`~render_inspect.core.limits.usable_cpus`) while files are written in this
+    block, and none after the last writer leaves it (no idle threads are left behind for
+    a later ``fork`` to lose)."""
+    import OpenEXR
+
+    global _POOL_USERS
+    n = usable_cpus()
+    if n <= 1:
+        yield
+        return
+    with _POOL_LOCK:
+        if _POOL_USERS == 0:
+            OpenEXR.set_global_thread_count(n)
+        _POOL_USERS += 1
+    try:
+        yield
+    finally:
+        with _POOL_LOCK:
+            _POOL_USERS -= 1
+            if _POOL_USERS == 0:
+                OpenEXR.set_global_thread_count(0)
 
 
 def _channels(channels: dict, what: str) -> tuple[dict, tuple]:
@@ -124,10 +159,11 @@ def write_exr(path: str | Path, channels: dict[str, np.ndarray], attrs: dict | N
                        "overview_factor": float(overview_factor or 0),
                        "render_inspect_attrs_json": json.dumps({"overview_factor": int(overview_factor or 0)})}
             parts = [OpenEXR.Part(dict(header), dict(chans), "heightmap"), OpenEXR.Part(oheader, dict(ov), "overview")]
-            with write_errors(path), OpenEXR.File(parts) as f:
+            with write_errors(path), compression_threads(), OpenEXR.File(parts) as f:
                 f.write(str(tmp))
         else:
-            with write_errors(path), OpenEXR.File(dict(header), dict(chans)) as f:
+            with write_errors(path), compression_threads(), \
+                    OpenEXR.File(dict(header), dict(chans)) as f:
                 f.write(str(tmp))
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
