@@ -27,6 +27,7 @@ covariance's eigenvectors (:func:`identifiability`); pairs whose correlation exc
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -46,7 +47,8 @@ from ._uncertainty import (_correlation, _covariance, _realisation_covariance, i
 from ._uncertainty import profiles as _profiles
 from ._uncertainty import probe as _probe
 
-__all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted"]
+__all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted",
+           "run_local"]
 
 #: SciPy, imported on first use (render_inspect.core.lazy): every run imports this module
 least_squares = lazy_attr("scipy.optimize", "least_squares")
@@ -98,10 +100,14 @@ class Evaluator:
     quiet : callable, optional
         Context manager wrapped around each evaluation run in this process (the pipeline
         silences the forward model's own progress bars with it).
+    threads : int
+        Evaluations of one batch run at once in this process (threads; without a
+        ``client``).  ``compute`` must then be safe to run in several threads at once, and
+        give each task the same result as when run alone.
     """
 
     def __init__(self, params, target: Target, make_task, compute, cache: EvaluationCache, *,
-                 client=None, max_evaluations: int = 150, quiet=None):
+                 client=None, max_evaluations: int = 150, quiet=None, threads: int = 1):
         self.params = params
         self.target = target
         self.make_task = make_task
@@ -110,6 +116,7 @@ class Evaluator:
         self.client = client
         self.max_evaluations = int(max_evaluations)
         self.quiet = quiet
+        self.threads = max(1, int(threads))
         self.seen: dict = {}          # key -> Evaluation
         self.history: list = []       # Evaluations in the order made
         self.best: Evaluation | None = None
@@ -150,18 +157,11 @@ class Evaluator:
     def _run(self, todo: dict) -> None:
         items = list(todo.items())
         if self.client is None:
-            for k, (x, t) in items:
-                t0 = time.perf_counter()
-                try:
-                    if self.quiet is not None:
-                        with self.quiet():
-                            h, meta = self.compute(t)
-                    else:
-                        h, meta = self.compute(t)
-                    err = None
-                except RenderInspectError as e:
-                    h, meta, err = None, {}, str(e)
-                self._finish(x, k, h, meta, time.perf_counter() - t0, err)
+            tasks = [t for _, (_, t) in items]
+            with self.quiet() if self.quiet is not None else contextlib.nullcontext():
+                for (h, meta, dt, err), (k, (x, _)) in zip(
+                        run_local(self.compute, tasks, self.threads), items):
+                    self._finish(x, k, h, meta, dt, err)
             return
         from distributed import as_completed
 
@@ -217,6 +217,40 @@ class Evaluator:
 
     def _text(self, x) -> str:
         return ", ".join(f"{p.key}={v:.6g}" for p, v in zip(self.params, x))
+
+
+def run_local(compute, tasks, threads: int = 1, *, catch: bool = True):
+    """``(height, meta, seconds, error text or None)`` of each task in order, computed in
+    this process: one after the other, or ``threads`` at once (a thread pool; each result
+    is handed on, in the tasks' order, as soon as it and those before it are done).
+    ``catch``: a :class:`~render_inspect.core.errors.RenderInspectError` becomes the error
+    text (else it is raised, as every other exception is).
+
+    Running two evaluations at once keeps both cores of a small machine busy through the
+    forward model's single-threaded stages (the ray tracer's acceleration structure, the
+    machine's following, NumPy); each evaluation's result is the one it gives alone."""
+    run = _timed_compute if catch else _timed_raise
+    threads = min(max(1, int(threads)), len(tasks))
+    if threads <= 1:
+        for t in tasks:
+            yield run(compute, t)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fit-evaluation") as pool:
+        futures = [pool.submit(run, compute, t) for t in tasks]
+        try:
+            for fut in futures:
+                yield fut.result()
+        finally:
+            for fut in futures:  # (an error or a stop: the tasks not started are dropped)
+                fut.cancel()
+
+
+def _timed_raise(compute, task):
+    t0 = time.perf_counter()
+    h, meta = compute(task)
+    return h, meta, time.perf_counter() - t0, None
 
 
 def _timed_compute(compute, task):

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import set_reporter
-from ..fit import set_value, task_hash
+from ..fit import run_local, set_value, task_hash
 from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
                            microscope_from_config, recommended_subsamples)
 from ..io import read_exr
@@ -32,13 +32,18 @@ from ..scene import scene_from_dict
 from ._simulate import simulate
 
 __all__ = ["predict_measurement", "preset_value", "preset_fill", "ForwardModel",
-           "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS"]
+           "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS",
+           "LOCAL_THREADS"]
 
 #: pixels traced around the fit window by the virtual instrument (cropped after imaging)
 MARGIN_PX = 8
 #: realisations of the random parts (and the camera's noise) whose power is averaged into
 #: the predictions' spectra
 FLOOR_DRAWS = 6
+#: evaluations of a batch run at once in this process (threads) when no Dask cluster is
+#: used: a second one keeps the second core busy through the forward model's
+#: single-threaded stages; each evaluation gives the result it gives alone
+LOCAL_THREADS = min(2, os.cpu_count() or 1)
 
 
 # --------------------------------------------------------------------- the forward model
@@ -101,11 +106,12 @@ def compute_all(store, tasks, client, compute=None) -> list:
             todo.setdefault(k, []).append(i)
     try:
         if client is None:
-            for k, idx in todo.items():
-                with quiet():
-                    h, meta = predict_measurement(tasks[idx[0]])
-                for i in idx:
-                    out[i] = store.put(k, h, meta)
+            with quiet():
+                runs = run_local(predict_measurement, [tasks[idx[0]] for idx in todo.values()],
+                                 LOCAL_THREADS, catch=False)
+                for (h, meta, _, _), (k, idx) in zip(runs, todo.items()):
+                    for i in idx:
+                        out[i] = store.put(k, h, meta)
         elif todo:
             futures = {k: client.submit(compute, tasks[idx[0]], pure=False)
                        for k, idx in todo.items()}
