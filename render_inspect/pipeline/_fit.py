@@ -40,9 +40,9 @@ from ..io import write_exr, write_json, write_marker
 from ..processes import RANDOM_PART_KEYS, random_parts
 from ..report import fit_figures, fit_page
 from ..scene import apply_overrides, scene_from_dict
-from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, file_instrument,
-                         compute_all, instrument_settings, predict_measurement, preset_fill,
-                         preset_value, quiet)
+from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
+                         file_instrument, instrument_settings, passive_omp_wait,
+                         predict_measurement, preset_fill, preset_value, quiet)
 from ._simulate import simulate, write_simulation
 
 __all__ = ["run_fit", "predict_measurement", "FIT_FILES", "preset_value"]
@@ -131,6 +131,7 @@ def run_fit(measured, scene, free, out, *, bounds=(), objective: str | None = No
     overwrite : bool
     """
     t_all = time.perf_counter()
+    passive_omp_wait()
     out = Path(out)
     surface = measured if getattr(measured, "z", None) is not None else None
     inputs = () if surface is not None else (measured,)

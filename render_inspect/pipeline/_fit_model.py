@@ -33,7 +33,7 @@ from ._simulate import simulate
 
 __all__ = ["predict_measurement", "preset_value", "preset_fill", "ForwardModel",
            "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS",
-           "LOCAL_THREADS"]
+           "LOCAL_THREADS", "passive_omp_wait"]
 
 #: pixels traced around the fit window by the virtual instrument (cropped after imaging)
 MARGIN_PX = 8
@@ -55,6 +55,7 @@ def predict_measurement(task_spec: dict):
     sets the instrument; ``seed``: the camera noise's seed;
     ``algorithm``).  Returns (height (ny, nx) mm with NaN where not measured, meta).
     Runs in this process or on a Dask worker."""
+    passive_omp_wait()
     _numba_threads_as_launched()
     scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
     sim = simulate(scene)
@@ -67,6 +68,17 @@ def predict_measurement(task_spec: dict):
     return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
                "shape": list(h.shape), "residual_sq_nm": sim.metrics["residual"]["Sq_nm"],
                "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def passive_omp_wait() -> None:
+    """Let the threads of numba's parallel kernels sleep rather than spin while they wait
+    for work (``OMP_WAIT_POLICY=PASSIVE``, unless the environment sets it).  An evaluation
+    launches some fifty short parallel kernels; between them OpenMP's threads spin by
+    default, burning the core that the other evaluation running at once (or another
+    process) needs: measured 1.22 CPU-s per evaluation spinning against 0.95 passive, the
+    same maps bit for bit.  Read by the OpenMP runtime when it starts (the process's first
+    parallel kernel); no effect after."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 def _numba_threads_as_launched() -> None:
