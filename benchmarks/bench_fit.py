@@ -99,6 +99,9 @@ def _stage_timer(seconds: dict):
 
 
 def main() -> dict:
+    # the threads of numba's kernels wait asleep, as in the fit command (which sets this
+    # before its first kernel; here the truth's render runs kernels first)
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from render_inspect.batch import dask_client
     from render_inspect.pipeline import predict_measurement, preset_value, run_fit
     from render_inspect.pipeline._fit_model import LOCAL_THREADS
