@@ -32,8 +32,8 @@ from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_t
                        set_profile_noise_floor)
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
-from ._solve import (UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, run_local,
-                     solve)
+from ._local import run_local
+from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
 from ._weights import check_weights, parse_weights

@@ -35,20 +35,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.errors import InputError, RenderInspectError
+from ..core.errors import InputError
 from ..core.lazy import lazy_attr
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
 from ._dispatch import features as predict_features
 from ._dispatch import residuals as residual_vector
 from ._features import Target, robust_weights, soft_l1
+from ._local import _timed_compute, run_local
 from ._uncertainty import (_correlation, _covariance, _realisation_covariance, identifiability,
                            search_box)
 from ._uncertainty import profiles as _profiles
 from ._uncertainty import probe as _probe
 
-__all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted",
-           "run_local"]
+__all__ = ["Evaluation", "Evaluator", "FitResult", "solve", "UNRESOLVED", "BudgetExhausted"]
 
 #: SciPy, imported on first use (render_inspect.core.lazy): every run imports this module
 least_squares = lazy_attr("scipy.optimize", "least_squares")
@@ -217,50 +217,6 @@ class Evaluator:
 
     def _text(self, x) -> str:
         return ", ".join(f"{p.key}={v:.6g}" for p, v in zip(self.params, x))
-
-
-def run_local(compute, tasks, threads: int = 1, *, catch: bool = True):
-    """``(height, meta, seconds, error text or None)`` of each task in order, computed in
-    this process: one after the other, or ``threads`` at once (a thread pool; each result
-    is handed on, in the tasks' order, as soon as it and those before it are done).
-    ``catch``: a :class:`~render_inspect.core.errors.RenderInspectError` becomes the error
-    text (else it is raised, as every other exception is).
-
-    Running two evaluations at once keeps both cores of a small machine busy through the
-    forward model's single-threaded stages (the ray tracer's acceleration structure, the
-    machine's following, NumPy); each evaluation's result is the one it gives alone."""
-    run = _timed_compute if catch else _timed_raise
-    threads = min(max(1, int(threads)), len(tasks))
-    if threads <= 1:
-        for t in tasks:
-            yield run(compute, t)
-        return
-    from concurrent.futures import ThreadPoolExecutor
-
-    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fit-evaluation") as pool:
-        futures = [pool.submit(run, compute, t) for t in tasks]
-        try:
-            for fut in futures:
-                yield fut.result()
-        finally:
-            for fut in futures:  # (an error or a stop: the tasks not started are dropped)
-                fut.cancel()
-
-
-def _timed_raise(compute, task):
-    t0 = time.perf_counter()
-    h, meta = compute(task)
-    return h, meta, time.perf_counter() - t0, None
-
-
-def _timed_compute(compute, task):
-    """Run on a worker: (height, meta, seconds, error text or None)."""
-    t0 = time.perf_counter()
-    try:
-        h, meta = compute(task)
-        return h, meta, time.perf_counter() - t0, None
-    except RenderInspectError as e:
-        return None, {}, time.perf_counter() - t0, str(e)
 
 
 @dataclass
