@@ -21,6 +21,7 @@ from typing import cast
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.limits import usable_cpus
 from ..core.progress import set_reporter
 from ..fit import run_local, set_value, task_hash
 from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
@@ -43,7 +44,7 @@ FLOOR_DRAWS = 6
 #: evaluations of a batch run at once in this process (threads) when no Dask cluster is
 #: used: a second one keeps the second core busy through the forward model's
 #: single-threaded stages; each evaluation gives the result it gives alone
-LOCAL_THREADS = min(2, os.cpu_count() or 1)
+LOCAL_THREADS = min(2, usable_cpus())
 
 
 # --------------------------------------------------------------------- the forward model
