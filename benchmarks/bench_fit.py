@@ -13,6 +13,10 @@ Figures (printed and returned by :func:`main`):
   camera pixels at 3 x 3 sub-samples, measure), median of 5 in this process;
 * ``evaluations_per_s``: its inverse; ``dask_evaluations_per_s``: a batch of 8 evaluations
   on a LocalCluster of 2 workers (after the workers' start);
+* ``scene_reuse``: the ray tracer's scene of an evaluation's mesh loaded afresh
+  (``load_s``) against another evaluation's scene with the vertices replaced
+  (``update_s``: the acceleration structure is rebuilt either way), and whether they
+  trace the same heights;
 * ``fit_s``, ``fit_cpu_s``, ``fit_evaluations``: the two-parameter fit in this process
   (the evaluations of a batch two at once, ``fit_threads``; its six realisations of the
   random parts included), its wall and CPU seconds (all threads), its result, error and
@@ -98,6 +102,63 @@ def _stage_timer(seconds: dict):
             setattr(mod, attr, fn)
 
 
+def _scene_update(spec: dict) -> dict:
+    """The ray tracer's scene of an evaluation's mesh loaded afresh against the scene of
+    another evaluation's mesh with its vertices and normals replaced (``params.update()``):
+    seconds of each (median of 3) and whether the traced heights agree bit for bit."""
+    import copy
+
+    import numpy as np
+
+    from render_inspect.mesh import heightmap_mesh
+    from render_inspect.pipeline._simulate import simulate
+    from render_inspect.render._scene_dicts import load_scene_dict, mitsuba_mesh
+    from render_inspect.render._variant import import_mitsuba, single_thread
+    from render_inspect.scene import scene_from_dict
+
+    mi, dr, _ = import_mitsuba()
+    meshes = []
+    for feed in (0.5, 0.51):
+        d = copy.deepcopy(spec["scene"])
+        d["process"]["feed_mm_per_min"] = feed
+        hm = simulate(scene_from_dict(d, "(bench)")).heightmap
+        meshes.append(heightmap_mesh(hm, channel="machined", exaggeration=1.0, margin=2,
+                                     normals=True))
+
+    def trace(scene, gm):
+        lo, hi = gm.vertices.min(axis=0), gm.vertices.max(axis=0)
+        xs = np.linspace(lo[0], hi[0], 700, dtype=np.float32) + np.float32(1.23e-5)
+        ys = np.linspace(lo[1], hi[1], 700, dtype=np.float32) + np.float32(2.71e-5)
+        o = mi.Point3f(mi.Float(np.tile(xs, ys.size)), mi.Float(np.repeat(ys, xs.size)),
+                       float(hi[2]) + 1.0)
+        si = scene.ray_intersect(mi.Ray3f(o, mi.Vector3f(0, 0, -1)))
+        dr.eval(si.p.z)
+        return np.array(si.p.z)
+
+    load, update, same = [], [], True
+    scene = load_scene_dict({"type": "scene", "part": mitsuba_mesh(meshes[0])})
+    params = mi.traverse(scene)
+    for i in (1, 0, 1):
+        gm = meshes[i]
+        m = mitsuba_mesh(gm)
+        t0 = time.perf_counter()
+        fresh = load_scene_dict({"type": "scene", "part": m})
+        load.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        with single_thread():
+            tf = type(params["part.vertex_positions"])
+            params["part.vertex_positions"] = tf(np.ascontiguousarray(gm.vertices,
+                                                                      dtype=np.float32).ravel())
+            params["part.vertex_normals"] = tf(np.ascontiguousarray(gm.normals,
+                                                                    dtype=np.float32).ravel())
+            params.update()
+        update.append(time.perf_counter() - t0)
+        same = same and np.array_equal(trace(fresh, gm), trace(scene, gm), equal_nan=True)
+    return {"triangles": int(meshes[0].n_faces),
+            "load_s": round(statistics.median(load), 3),
+            "update_s": round(statistics.median(update), 3), "same_heights": bool(same)}
+
+
 def main() -> dict:
     # the threads of numba's kernels wait asleep, as in the fit command (which sets this
     # before its first kernel; here the truth's render runs kernels first)
@@ -163,6 +224,7 @@ def main() -> dict:
             "imaging": med["frames"] - med["autofocus"], "measure": med["measure"]}
         out["evaluation_stages_s"] = {k: round(v, 3) for k, v in out["evaluation_stages_s"].items()}
         out["evaluations_per_s"] = round(1 / statistics.median(times), 3)
+        out["scene_reuse"] = _scene_update(spec)
         with dask_client(workers=2) as client:
             client.gather(client.map(predict_measurement, [spec, spec], pure=False))  # warm
             t0 = time.perf_counter()
