@@ -52,28 +52,3 @@ def test_an_error_outside_the_models_own_is_raised_and_the_rest_dropped():
     assert len(started) < 8  # the tasks not started when it failed never ran
     with pytest.raises(InputError):  # catch=False: the model's own error is raised too
         list(run_local(_model, [{"seed": 4}, {"seed": 5}], 2, catch=False))
-
-
-@pytest.mark.slow
-def test_meshes_traced_from_two_threads_match_those_traced_alone():
-    """The acceleration structure is built with one Dr.Jit thread (bitwise repeatable):
-    two threads tracing at once still get, bit for bit, what each gets alone."""
-    from render_inspect.mesh import grid_mesh
-    from render_inspect.render import trace_grids
-
-    px = 5e-4
-    y, x = np.mgrid[0:160, 0:160] * px
-    meshes = [grid_mesh(1e-4 * np.sin(40 * x + k) * np.cos(30 * y) + 2e-5 * k, pixel=px)
-              for k in range(4)]
-    grids = [{"x0": 0.003, "y0": 0.004, "width_mm": 0.07, "nx": 300, "ny": 300}]
-
-    def trace(gm):
-        (z, n), = trace_grids(gm, grids, z_top=1.0, shift=(1.23e-6, 2.71e-6),
-                              full_normals=True)
-        return z, n
-
-    alone = [trace(gm) for gm in meshes]
-    together = [(r[0], r[1]) for r in run_local(trace, meshes, 2)]
-    for (za, na), (zb, nb) in zip(alone, together):
-        assert np.isfinite(za).all()
-        assert np.array_equal(za, zb) and np.array_equal(na, nb)

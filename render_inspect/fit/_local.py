@@ -19,7 +19,9 @@ def run_local(compute, tasks, threads: int = 1, *, catch: bool = True):
 
     Running two evaluations at once keeps both cores of a small machine busy through the
     forward model's single-threaded stages (the ray tracer's acceleration structure, the
-    machine's following, NumPy); each evaluation's result is the one it gives alone."""
+    machine's following, NumPy); each evaluation's result is the one it gives alone.  The
+    fit's forward model runs one at a time
+    (:data:`~render_inspect.pipeline._fit_model.LOCAL_THREADS`)."""
     run = _timed_compute if catch else _timed_raise
     threads = min(max(1, int(threads)), len(tasks))
     if threads <= 1:

@@ -21,7 +21,6 @@ from typing import cast
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.limits import usable_cpus
 from ..core.progress import set_reporter
 from ..fit import run_local, set_value, task_hash
 from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
@@ -42,9 +41,11 @@ MARGIN_PX = 8
 #: the predictions' spectra
 FLOOR_DRAWS = 6
 #: evaluations of a batch run at once in this process (threads) when no Dask cluster is
-#: used: a second one keeps the second core busy through the forward model's
-#: single-threaded stages; each evaluation gives the result it gives alone
-LOCAL_THREADS = min(2, usable_cpus())
+#: used.  One: two at once (each giving the map it gives alone, and keeping a second core
+#: busy through the other's single-threaded stages) ended a fit in a segmentation fault
+#: inside the ray tracer's kernel once in five fits, although the ray tracer is used by
+#: one thread at a time (:data:`~render_inspect.render._variant.MITSUBA_LOCK`)
+LOCAL_THREADS = 1
 
 
 # --------------------------------------------------------------------- the forward model
