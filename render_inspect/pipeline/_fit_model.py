@@ -43,8 +43,8 @@ FLOOR_DRAWS = 6
 #: evaluations of a batch run at once in this process (threads) when no Dask cluster is
 #: used.  One: two at once (each giving the map it gives alone, and keeping a second core
 #: busy through the other's single-threaded stages) ended a fit in a segmentation fault
-#: inside the ray tracer's kernel once in five fits, although the ray tracer is used by
-#: one thread at a time (:data:`~render_inspect.render._variant.MITSUBA_LOCK`)
+#: inside the ray tracer's kernel once in five fits, although a lock let one thread at a
+#: time build and trace Mitsuba's scenes
 LOCAL_THREADS = 1
 
 
@@ -76,9 +76,9 @@ def passive_omp_wait() -> None:
     """Let the threads of numba's parallel kernels sleep rather than spin while they wait
     for work (``OMP_WAIT_POLICY=PASSIVE``, unless the environment sets it).  An evaluation
     launches some fifty short parallel kernels; between them OpenMP's threads spin by
-    default, burning the core that the other evaluation running at once (or another
-    process) needs: measured 1.22 CPU-s per evaluation spinning against 0.95 passive, the
-    same maps bit for bit.  Read by the OpenMP runtime when it starts (the process's first
+    default, burning a core that the evaluation's own single-threaded stages or another
+    process need: measured 1.05-1.22 CPU-s per evaluation spinning against 0.85-0.95
+    passive, the same maps bit for bit.  Read by the OpenMP runtime when it starts (the process's first
     parallel kernel); no effect after."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 

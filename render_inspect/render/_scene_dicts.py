@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core import cancel
 from ..core.progress import report
-from ._variant import MITSUBA_LOCK, import_mitsuba, single_thread
+from ._variant import import_mitsuba, single_thread
 
 __all__ = ["mitsuba_mesh", "ortho_sensor", "perspective_sensor", "load_scene_dict",
            "render_aov_grid", "render_aov_grids", "trace_grids"]
@@ -104,13 +104,7 @@ def render_aov_grid(gm, *, x0: float, y0: float, width_mm: float, nx: int, ny: i
 
 def render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
     """:func:`render_aov_grid` for several grids (dicts of ``x0, y0, width_mm, nx, ny``)
-    with one scene load (one BVH build), one orthographic sensor per grid (one thread at a
-    time: :data:`~._variant.MITSUBA_LOCK`)."""
-    with MITSUBA_LOCK:
-        return _render_aov_grids(gm, grids, z_top=z_top)
-
-
-def _render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
+    with one scene load (one BVH build), one orthographic sensor per grid."""
     mi, _, _ = import_mitsuba()
     d = {"type": "scene",
          "integrator": {"type": "aov", "aovs": "pp:position,nn:sh_normal,gn:geo_normal"},
@@ -161,15 +155,7 @@ def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0),
         ``nz`` (ny, nx) float32, z component of the shading normal (0 on a miss), or with
         ``full_normals`` the unit shading normal (ny, nx, 3) float32 ((0, 0, 0) on a
         miss).  Row 0 is the smallest y.
-
-    One thread traces at a time (:data:`~._variant.MITSUBA_LOCK`); others meanwhile run
-    their own work outside Mitsuba.
     """
-    with MITSUBA_LOCK:
-        return _trace_grids(gm, grids, z_top=z_top, shift=shift, full_normals=full_normals)
-
-
-def _trace_grids(gm, grids, *, z_top, shift, full_normals):
     mi, dr, variant = import_mitsuba()
     dx, dy = float(shift[0]), float(shift[1])
     if variant.startswith("scalar"):

@@ -19,7 +19,6 @@ import contextlib
 import os
 import shutil
 import sys
-import threading
 import warnings
 from pathlib import Path
 
@@ -28,7 +27,7 @@ from ..core.errors import InputError, RenderInspectError
 from ..core.limits import check_address_space, mitsuba_address_space
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
-           "spectral_variant", "MITSUBA_LOCK"]
+           "spectral_variant"]
 
 _LLVM_CANDIDATES = (
     "/usr/lib/x86_64-linux-gnu/libLLVM-19.so.1",
@@ -40,10 +39,6 @@ _LLVM_CANDIDATES = (
 )
 
 _STATE: dict = {"variant": None, "message": None, "override": None}
-#: held while a thread builds a scene in :func:`single_thread` or traces rays through one
-#: (:func:`~render_inspect.render.trace_grids`): Dr.Jit's thread count is global, so a
-#: scene built while another thread changes it would not be repeatable
-MITSUBA_LOCK = threading.RLock()
 
 
 def _point_at_llvm() -> str | None:
@@ -217,10 +212,9 @@ def single_thread():
     if not variant.startswith("llvm"):
         yield
         return
-    with MITSUBA_LOCK:
-        old = dr.thread_count()
-        dr.set_thread_count(1)
-        try:
-            yield
-        finally:
-            dr.set_thread_count(old)
+    old = dr.thread_count()
+    dr.set_thread_count(1)
+    try:
+        yield
+    finally:
+        dr.set_thread_count(old)
