@@ -32,6 +32,7 @@ from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_t
                        set_profile_noise_floor)
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
+from ._local import run_local
 from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
@@ -43,7 +44,7 @@ __all__ = ["check_weights", "parse_weights",
            "make_target", "noise_floor", "set_noise_floor", "predict_features", "prepare_map",
            "radial_psd", "residual_vector", "realisation_shifts", "soft_l1", "waviness",
            "EvaluationCache", "task_hash", "scene_hash", "Evaluation", "Evaluator",
-           "FitResult", "solve", "UNRESOLVED", "BudgetExhausted", "field_extent",
+           "FitResult", "solve", "run_local", "UNRESOLVED", "BudgetExhausted", "field_extent",
            "centred_origin", "fit_window", "register_field", "check_units", "fit_record",
            "misfit_maps", "summary_lines", "identifiability", "search_box", "check_before", "check_after",
            "mark_tiles", "profile_marks", "MARK_KEYS", "MISMATCH", "PERIOD_TOLERANCE",

@@ -27,6 +27,7 @@ covariance's eigenvectors (:func:`identifiability`); pairs whose correlation exc
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -34,13 +35,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.errors import InputError, RenderInspectError
+from ..core.errors import InputError
 from ..core.lazy import lazy_attr
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
 from ._dispatch import features as predict_features
 from ._dispatch import residuals as residual_vector
 from ._features import Target, robust_weights, soft_l1
+from ._local import _timed_compute, run_local
 from ._uncertainty import (_correlation, _covariance, _realisation_covariance, identifiability,
                            search_box)
 from ._uncertainty import profiles as _profiles
@@ -98,10 +100,14 @@ class Evaluator:
     quiet : callable, optional
         Context manager wrapped around each evaluation run in this process (the pipeline
         silences the forward model's own progress bars with it).
+    threads : int
+        Evaluations of one batch run at once in this process (threads; without a
+        ``client``).  ``compute`` must then be safe to run in several threads at once, and
+        give each task the same result as when run alone.
     """
 
     def __init__(self, params, target: Target, make_task, compute, cache: EvaluationCache, *,
-                 client=None, max_evaluations: int = 150, quiet=None):
+                 client=None, max_evaluations: int = 150, quiet=None, threads: int = 1):
         self.params = params
         self.target = target
         self.make_task = make_task
@@ -110,6 +116,7 @@ class Evaluator:
         self.client = client
         self.max_evaluations = int(max_evaluations)
         self.quiet = quiet
+        self.threads = max(1, int(threads))
         self.seen: dict = {}          # key -> Evaluation
         self.history: list = []       # Evaluations in the order made
         # (None until the first evaluation, which every solve makes before reading it)
@@ -151,18 +158,11 @@ class Evaluator:
     def _run(self, todo: dict) -> None:
         items = list(todo.items())
         if self.client is None:
-            for k, (x, t) in items:
-                t0 = time.perf_counter()
-                try:
-                    if self.quiet is not None:
-                        with self.quiet():
-                            h, meta = self.compute(t)
-                    else:
-                        h, meta = self.compute(t)
-                    err = None
-                except RenderInspectError as e:
-                    h, meta, err = None, {}, str(e)
-                self._finish(x, k, h, meta, time.perf_counter() - t0, err)
+            tasks = [t for _, (_, t) in items]
+            with self.quiet() if self.quiet is not None else contextlib.nullcontext():
+                for (h, meta, dt, err), (k, (x, _)) in zip(
+                        run_local(self.compute, tasks, self.threads), items):
+                    self._finish(x, k, h, meta, dt, err)
             return
         from distributed import as_completed
 
@@ -218,16 +218,6 @@ class Evaluator:
 
     def _text(self, x) -> str:
         return ", ".join(f"{p.key}={v:.6g}" for p, v in zip(self.params, x))
-
-
-def _timed_compute(compute, task):
-    """Run on a worker: (height, meta, seconds, error text or None)."""
-    t0 = time.perf_counter()
-    try:
-        h, meta = compute(task)
-        return h, meta, time.perf_counter() - t0, None
-    except RenderInspectError as e:
-        return None, {}, time.perf_counter() - t0, str(e)
 
 
 @dataclass

@@ -42,9 +42,9 @@ from ..io import write_exr, write_json, write_marker
 from ..processes import RANDOM_PART_KEYS, random_parts
 from ..report import fit_figures, fit_page
 from ..scene import apply_overrides, scene_from_dict
-from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, file_instrument,
-                         compute_all, instrument_settings, predict_measurement, preset_fill,
-                         preset_value, quiet)
+from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
+                         file_instrument, instrument_settings, passive_omp_wait,
+                         predict_measurement, preset_fill, preset_value, quiet)
 from ._simulate import simulate, write_simulation
 
 if TYPE_CHECKING:
@@ -136,6 +136,7 @@ def run_fit(measured, scene: Scene, free, out, *, bounds=(), objective: str | No
     overwrite : bool
     """
     t_all = time.perf_counter()
+    passive_omp_wait()
     out = Path(out)
     surface = measured if getattr(measured, "z", None) is not None else None
     inputs = () if surface is not None else (measured,)
@@ -239,7 +240,8 @@ def run_fit(measured, scene: Scene, free, out, *, bounds=(), objective: str | No
                                          predict_measurement)
                        if client is not None else predict_measurement)
             evaluator = Evaluator(params, target, model.task, compute, store,
-                                  client=client, max_evaluations=max_evaluations, quiet=quiet)
+                                  client=client, max_evaluations=max_evaluations, quiet=quiet,
+                                  threads=LOCAL_THREADS)
             clean0 = compute_all(store, [model.task(start_values)], client, compute)[0]
             check_units(_rms(target.height), _rms(prepare_map(clean0, pixel=target.pixel,
                                                               form=spec.form, origin=w_origin)))

@@ -1,0 +1,54 @@
+"""Evaluations run several at once in this process: the same results, in the same order,
+as one at a time (the fit's values must not depend on how its evaluations were run)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from render_inspect.core.errors import InputError
+from render_inspect.fit import run_local
+
+
+def _model(task):
+    """A forward model that takes a while and whose result depends on its task only."""
+    rng = np.random.default_rng(task["seed"])
+    time.sleep(0.05 * (3 - task["seed"] % 3))  # the later tasks finish first
+    if task["seed"] == 4:
+        raise InputError("tool.nose_radius must be > 0 mm, received -1")
+    return rng.normal(size=(16, 16)), {"seed": task["seed"], "thread": threading.get_ident()}
+
+
+def test_tasks_run_at_once_come_back_in_order_with_the_results_of_one_at_a_time():
+    tasks = [{"seed": s} for s in range(6)]
+    alone = list(run_local(_model, tasks, 1))
+    together = list(run_local(_model, tasks, 2))
+    assert len(together) == len(alone) == 6
+    for a, b in zip(alone, together):
+        assert a[3] == b[3]  # the same error text (or None)
+        if a[3] is None:
+            assert np.array_equal(a[0], b[0]) and a[1]["seed"] == b[1]["seed"]
+    assert together[4][0] is None and "nose_radius" in together[4][3]
+    # two threads did the work
+    assert len({r[1]["thread"] for r in together if r[3] is None}) == 2
+
+
+def test_an_error_outside_the_models_own_is_raised_and_the_rest_dropped():
+    started = []
+
+    def model(task):
+        started.append(task["seed"])
+        if task["seed"] == 1:
+            raise ValueError("a bug")
+        time.sleep(0.05)
+        return np.zeros(2), {}
+
+    with pytest.raises(ValueError, match="a bug"):
+        list(run_local(model, [{"seed": s} for s in range(8)], 2))
+    time.sleep(0.2)
+    assert len(started) < 8  # the tasks not started when it failed never ran
+    with pytest.raises(InputError):  # catch=False: the model's own error is raised too
+        list(run_local(_model, [{"seed": 4}, {"seed": 5}], 2, catch=False))
