@@ -95,6 +95,33 @@ def real_file(*parts: str) -> Path:
     return p
 
 
+# ------------------------------------------------------------------------ worker groups
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config, items):
+    """``--dist loadgroup`` sends the tests of one ``xdist_group`` to one worker (so that a
+    module fixture, such as the Blender extension's build, is made once per run).  The
+    scheduler reads the group from the test's id, ``...::test[param]@group``, which
+    pytest-xdist writes into ``item._nodeid``; pytest 9.2 keeps the id in ``item._id``
+    instead and ignores ``_nodeid``, so every group was split across the workers.  Add the
+    suffix where pytest-xdist could not (tests/test_workers.py checks it on a small
+    suite)."""
+    if not getattr(config.option, "loadgroup", False):  # set on the workers of -n N
+        return
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:  # pytest before 9.2: pytest-xdist's own suffix works
+        return
+    for item in items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        if not groups or item.nodeid.rfind("@") > item.nodeid.rfind("]"):
+            continue
+        old = item._id
+        new = NodeId(path=old.path, names=old.names, params=old.params)
+        object.__setattr__(new, "_str_cache", f"{item.nodeid}@{'_'.join(groups)}")
+        item._id = new
+
+
 # ------------------------------------------------------------------------ test tiers
 # ``make test-quick`` runs what carries none of HEAVY_MARKS; a test that does heavy work
 # must carry one.  Heavy work, found as it happens (not by timing, which depends on the
