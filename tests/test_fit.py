@@ -367,12 +367,8 @@ def _truth(folder: Path, settings, *, quiet: bool) -> Path:
     return folder / "measure" / "height.exr"
 
 
-# The truths several tests fit are cut and measured once per run: the tests that share one
-# run on one worker (a module fixture is made once per worker).
-SHIPPED_TOOL = pytest.mark.xdist_group("fit_shipped_tool_truth")
-QUIET_TOOL = pytest.mark.xdist_group("fit_quiet_tool_truth")
-
-
+# The truths several tests fit are module fixtures: cut and measured once per run (the
+# tests that share one run on one worker, tests/conftest.py).
 @pytest.fixture(scope="module")
 def shipped_tool_truth(tmp_path_factory):
     """Nose radius 0.525 mm and feed 0.51 mm/min cut on the shipped lathe and material,
@@ -387,7 +383,6 @@ def quiet_tool_truth(tmp_path_factory):
 
 
 @pytest.mark.slow
-@QUIET_TOOL
 def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, tmp_path):
     """Nose radius 0.525 mm and feed 0.51 mm/min (the shipped scene: 0.514, 0.5), the
     random parts set to 0 in truth and model, fitted through the command line from the
@@ -426,7 +421,6 @@ def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, 
 
 
 @pytest.mark.slow
-@SHIPPED_TOOL
 def test_tool_and_feed_on_the_shipped_lathe_with_its_random_parts(shipped_tool_truth, tmp_path):
     """The same cut on the shipped lathe and material with their random parts (slide and
     spindle noise, asynchronous spindle motion, the material's texture) in the truth and in
@@ -508,7 +502,6 @@ def test_servo_delay_and_spindle_error_come_back_within_5_percent(tmp_path):
 
 
 @pytest.mark.slow
-@SHIPPED_TOOL
 def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
     """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1 (as on other
     machines); the fit connects with --scheduler, starts from a Sobol design of four
@@ -564,7 +557,6 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
 
 
 @pytest.mark.slow
-@QUIET_TOOL
 def test_a_grid_measurement_with_the_toric_scene_is_refused(quiet_tool_truth, tmp_path, capsys):
     """The sinusoidal grid's measurement fitted with the toric micro-structure scene (same
     feed per revolution, another design): refused before the fit with the reason, not
@@ -578,7 +570,6 @@ def test_a_grid_measurement_with_the_toric_scene_is_refused(quiet_tool_truth, tm
 
 
 @pytest.mark.slow
-@SHIPPED_TOOL
 def test_a_feed_started_22_percent_off_is_captured_on_the_real_chain(shipped_tool_truth, tmp_path):
     """The shipped lathe's truth (random parts on) fitted from a feed 22 % high, the case
     that used to stall 25 % off: the feed the marks' period gives starts the solve, the
