@@ -140,6 +140,12 @@ def _write_groups_into_ids(config, items) -> None:
         item._id = new
 
 
+def pytest_configure(config):
+    # pytest-xdist's mark, known also where pytest-xdist is not loaded (-p no:xdist)
+    config.addinivalue_line("markers", "xdist_group(name): the tests of one group run on one "
+                            "worker under --dist loadgroup")
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_collection_modifyitems(config, items):
     """The tests of one ``xdist_group`` run on one worker under ``--dist loadgroup`` (``make
