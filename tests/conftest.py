@@ -95,6 +95,68 @@ def real_file(*parts: str) -> Path:
     return p
 
 
+# ------------------------------------------------------------------------ worker groups
+#: fixture scopes that outlive a test: a test module's fixture of these scopes is made once
+#: per worker that runs a test of it
+_SHARED_SCOPES = ("module", "package", "session")
+
+
+def _group_by_shared_fixtures(items) -> None:
+    """A test that uses a module fixture of its own file (a simulated scene, a measured
+    truth, a build) and names no ``xdist_group`` joins the group of that fixture, so that
+    ``--dist loadgroup`` runs all its users on one worker and the fixture is made once per
+    run, not once per worker."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None or item.get_closest_marker("xdist_group"):
+            continue
+        module = item.nodeid.split("::")[0]
+        shared = sorted(name for name in item.fixturenames
+                        for fd in info.name2fixturedefs.get(name, ())[-1:]
+                        if fd.scope in _SHARED_SCOPES and fd.baseid == module)
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(f"{Path(module).stem}.{'+'.join(shared)}"))
+
+
+def _write_groups_into_ids(config, items) -> None:
+    """The scheduler of ``--dist loadgroup`` reads a test's group from its id,
+    ``...::test[param]@group``, which pytest-xdist writes into ``item._nodeid``; pytest 9.2
+    keeps the id in ``item._id`` and ignores ``_nodeid``, so every group was split across
+    the workers.  Write the suffix where pytest-xdist could not."""
+    if not getattr(config.option, "loadgroup", False):  # set on the workers of -n N
+        return
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:  # pytest before 9.2: pytest-xdist's own suffix works
+        return
+    for item in items:
+        groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                         for m in item.iter_markers("xdist_group")})
+        if not groups or item.nodeid.rfind("@") > item.nodeid.rfind("]"):
+            continue
+        old = item._id
+        new = NodeId(path=old.path, names=old.names, params=old.params)
+        object.__setattr__(new, "_str_cache", f"{item.nodeid}@{'_'.join(groups)}")
+        item._id = new
+
+
+def pytest_configure(config):
+    # pytest-xdist's mark, known also where pytest-xdist is not loaded (-p no:xdist)
+    config.addinivalue_line("markers", "xdist_group(name): the tests of one group run on one "
+                            "worker under --dist loadgroup")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collection_modifyitems(config, items):
+    """The tests of one ``xdist_group`` run on one worker under ``--dist loadgroup`` (``make
+    test``): the groups the files name, and one per module fixture (tests/test_workers.py
+    checks both on a small suite)."""
+    _group_by_shared_fixtures(items)
+    result = yield
+    _write_groups_into_ids(config, items)
+    return result
+
+
 # ------------------------------------------------------------------------ test tiers
 # ``make test-quick`` runs what carries none of HEAVY_MARKS; a test that does heavy work
 # must carry one.  Heavy work, found as it happens (not by timing, which depends on the

@@ -32,7 +32,11 @@ RENDER = ["render.interferometer.pixel=0.003", "render.diffuse.resolution=64",
 
 pytestmark = [pytest.mark.mitsuba, pytest.mark.slow]
 
+#: each scene's comparison, run once per process (:func:`_compare`); the three tests of a
+#: scene run on one worker, so it is run once per run
 _CACHE: dict = {}
+NAMES = [pytest.param(n, marks=pytest.mark.xdist_group(f"compare_reports.{n}"))
+         for n in sorted(SMALL)]
 
 
 def test_every_shipped_scene_is_covered():
@@ -83,7 +87,7 @@ def _coloured_fraction(png: bytes, x_from: float, x_to: float) -> float:
     return float((np.abs(band[..., 0] - band[..., 2]) > 60).mean())
 
 
-@pytest.mark.parametrize("name", sorted(SMALL))
+@pytest.mark.parametrize("name", NAMES)
 def test_first_figure_is_the_difference(name, tmp_path_factory):
     out, m = _compare(name, tmp_path_factory)
     page = (out / "report.html").read_text()
@@ -111,7 +115,7 @@ def test_first_figure_is_the_difference(name, tmp_path_factory):
     assert ifov[0] >= win[0] - 1e-9 and ifov[2] <= win[2] + 1e-9
 
 
-@pytest.mark.parametrize("name", sorted(SMALL))
+@pytest.mark.parametrize("name", NAMES)
 def test_tables_state_what_the_figures_state(name, tmp_path_factory):
     out, m = _compare(name, tmp_path_factory)
     page = (out / "report.html").read_text()
@@ -153,7 +157,7 @@ def test_identical_variants_are_said_so(tmp_path, tiny_scene):
 
 
 @pytest.mark.browser
-@pytest.mark.parametrize("name", sorted(SMALL))
+@pytest.mark.parametrize("name", NAMES)
 def test_report_renders_in_chromium(name, tmp_path_factory, tmp_path, chromium):
     from PIL import Image
 

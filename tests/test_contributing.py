@@ -120,9 +120,12 @@ def examples() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def package(tmp_path_factory) -> Path:
-    """A copy of the package with every example of the page added as its own file."""
+    """A copy of the package with every example of the page added as its own file.  Its
+    ``__pycache__`` folders come along with the sources' times (``copy2``): numba's cache of
+    the package's own kernels, and Python's, hold for the copy as for the checkout, so the
+    commands compile only what the examples add."""
     root = tmp_path_factory.mktemp("contributing")
-    shutil.copytree(PKG, root / "render_inspect", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(PKG, root / "render_inspect", copy_function=shutil.copy2)
     for rel, code in {**examples(), "render_inspect/processes/_bare.py": BARE_PROCESS}.items():
         target = root / rel
         assert not target.exists(), f"{rel}: the example must be a new file"

@@ -367,6 +367,8 @@ def _truth(folder: Path, settings, *, quiet: bool) -> Path:
     return folder / "measure" / "height.exr"
 
 
+# The truths several tests fit are module fixtures: cut and measured once per run (the
+# tests that share one run on one worker, tests/conftest.py).
 @pytest.fixture(scope="module")
 def shipped_tool_truth(tmp_path_factory):
     """Nose radius 0.525 mm and feed 0.51 mm/min cut on the shipped lathe and material,
@@ -374,14 +376,19 @@ def shipped_tool_truth(tmp_path_factory):
     return _truth(tmp_path_factory.mktemp("shipped_tool"), TOOL, quiet=False)
 
 
+@pytest.fixture(scope="module")
+def quiet_tool_truth(tmp_path_factory):
+    """The same cut with the random parts set to 0."""
+    return _truth(tmp_path_factory.mktemp("quiet_tool"), TOOL, quiet=True)
+
+
 @pytest.mark.slow
-def test_tool_nose_radius_and_feed_come_back_within_1_percent(tmp_path):
+def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, tmp_path):
     """Nose radius 0.525 mm and feed 0.51 mm/min (the shipped scene: 0.514, 0.5), the
     random parts set to 0 in truth and model, fitted through the command line from the
     shipped values; the next cut at another feed is predicted; run again, the fit comes
     from its cache."""
-    meas = _truth(tmp_path, TOOL, quiet=True)
-    args = ["fit", str(meas), "--scene", "sts_sinusoidal_grid", "--free",
+    args = ["fit", str(quiet_tool_truth), "--scene", "sts_sinusoidal_grid", "--free",
             "tool.nose_radius,process.feed_mm_per_min", "--seed", "1", "--profile-points", "1",
             "--predict", "process.feed_mm_per_min=0.4", "--cache", str(tmp_path / "cache"),
             *[f"--set={s}" for s in QUIET]]
@@ -550,12 +557,11 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
 
 
 @pytest.mark.slow
-def test_a_grid_measurement_with_the_toric_scene_is_refused(tmp_path, capsys):
+def test_a_grid_measurement_with_the_toric_scene_is_refused(quiet_tool_truth, tmp_path, capsys):
     """The sinusoidal grid's measurement fitted with the toric micro-structure scene (same
     feed per revolution, another design): refused before the fit with the reason, not
     fitted to a confident nose radius."""
-    meas = _truth(tmp_path, TOOL, quiet=True)
-    rc = main(["fit", str(meas), "--scene", "hts_toric_msa", "--free", "tool.nose_radius",
+    rc = main(["fit", str(quiet_tool_truth), "--scene", "hts_toric_msa", "--free", "tool.nose_radius",
                "--out", str(tmp_path / "fit"), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and len(err) == 1, err

@@ -134,10 +134,21 @@ def _stop_once_busy(name, args, out: Path, sig: str, cwd: Path):
     return proc.returncode, latency, err
 
 
-@pytest.mark.parametrize("name,args,sig", COMMANDS, ids=[c[0] for c in COMMANDS])
+def _needs_inputs(args) -> bool:
+    return any("{inputs}" in a for a in args)
+
+
+#: the commands that read the inputs run on one worker, which makes them once
+_PARAMS = [pytest.param(*c, id=c[0], marks=[pytest.mark.xdist_group("interrupts_inputs")]
+                        if _needs_inputs(c[1]) else []) for c in COMMANDS]
+
+
+@pytest.mark.parametrize("name,args,sig", _PARAMS)
 @pytest.mark.slow
-def test_command_stops_within_seconds(name, args, sig, inputs, tmp_path):
-    args = [a.replace("{inputs}", str(inputs)) for a in args]
+def test_command_stops_within_seconds(name, args, sig, request, tmp_path):
+    if _needs_inputs(args):
+        inputs = request.getfixturevalue("inputs")
+        args = [a.replace("{inputs}", str(inputs)) for a in args]
     out = tmp_path / "out"
     if name != "sweep":  # an earlier run's folder, which must stay as it was
         with atomic_output_dir(out, command=args[0]) as tmp:
