@@ -17,9 +17,11 @@ when the misfit probed either side of the result along every parameter is higher
 second local solve from a start far from the first agrees with it.
 
 Uncertainty: the formal covariance ``s^2 (J^T J)^-1`` at the solution (``s^2`` the residual
-variance per degree of freedom), plus the spread of the solution over realisations of the
-random parts scaled by the Birge ratio (the misfit over the misfit those realisations
-alone leave, when above 1: the model's error), plus half the two starts' disagreement.
+variance per degree of freedom; ``J`` by central differences across the misfit's
+fine-scale steps, :func:`_smoothed`), plus the spread of the solution over realisations of
+the random parts scaled by the Birge ratio (the misfit over the misfit those realisations
+alone leave, when above 1: the model's error), plus the distance to the minimum of the
+misfit smoothed over the difference steps, plus half the two starts' disagreement.
 Combinations of parameters the measurement does not determine are found from the
 covariance's eigenvectors (:func:`identifiability`); pairs whose correlation exceeds
 :data:`UNRESOLVED` are named too.
