@@ -28,7 +28,8 @@ Two forward models:
   figures then say how many truths they hold.
 
 ``--only 12,36`` reruns those truths alone (with the draws of a whole run).
-``--rows FILE`` appends each truth's full result as a JSON line as soon as it is done (a
+``--rows FILE`` appends each truth's full result (with the standard errors' parts,
+``stderr_parts``, and the Birge ratio) as a JSON line as soon as it is done (a
 run stopped half-way keeps what it did); ``--summarise FILE`` prints the figures of such a
 file again; ``--figure PNG`` draws each (truth, key) pair's error in standard errors and
 its relative error (a generated figure: not kept in the repository).
