@@ -315,7 +315,7 @@ def _smoothed(evaluator: Evaluator, u, lo, hi, spans, sw):
     predicted marks' frequency moves the cells of the fundamental's annulus and the bin of
     its peak change by whole cells, and the misfit jumps by more than itself over a few
     hundredths of a per cent of the feed.  The solver stops beside such a step, and a
-    forward difference of the solver's (refined) step taken across it is a slope tens of
+    forward difference of the solver's (refined) step taken across it is a slope several
     times steeper than the trend along which the measurement's noise moves the minimum:
     the formal standard error comes out far too small.
 
