@@ -27,7 +27,9 @@ Two forward models:
   Minutes per fit: ``--stop-after-s`` starts no new truth after that many seconds, and the
   figures then say how many truths they hold.
 
-``--rows FILE`` appends each truth's full result as a JSON line as soon as it is done (a
+``--only 12,36`` reruns those truths alone (with the draws of a whole run).
+``--rows FILE`` appends each truth's full result (with the standard errors' parts,
+``stderr_parts``, and the Birge ratio) as a JSON line as soon as it is done (a
 run stopped half-way keeps what it did); ``--summarise FILE`` prints the figures of such a
 file again; ``--figure PNG`` draws each (truth, key) pair's error in standard errors and
 its relative error (a generated figure: not kept in the repository).
@@ -156,8 +158,11 @@ def fit_simulate(truth, start, seed, folder: Path, *, field_mm: float = 0.2,
                   bounds=[f"{k}={a},{b}" for k, (a, b) in SIM_BOUNDS.items()],
                   max_evaluations=200)
     p = rec["parameters"]
+    parts = ("stderr_formal", "stderr_random_parts", "stderr_steps", "stderr_solver")
     return {"values": {k: p[k]["value"] for k in SIM_KEYS},
             "stderr": {k: p[k]["stderr"] for k in SIM_KEYS}, "status": rec["status"],
+            "stderr_parts": {k: {part: p[k].get(part) for part in parts} for k in SIM_KEYS},
+            "birge_ratio": rec["goodness"].get("birge_ratio"),
             "evaluations": rec["evaluations"], "seconds": time.perf_counter() - t0,
             "seconds_with_measurement": time.perf_counter() - t_all,
             "verdict": rec["model_check"]["after"]["verdict"],
@@ -238,7 +243,8 @@ def figure(rows: list, path: Path) -> None:
 
 def main(truths: int = 50, model: str = "analytic", seed: int = 2026, *,
          field_mm: float = 0.2, pixel_mm: float | None = None, rows_path=None,
-         stop_after_s: float | None = None, figure_path=None, first: int = 0) -> dict:
+         stop_after_s: float | None = None, figure_path=None, first: int = 0,
+         only=None) -> dict:
     rng = np.random.default_rng(seed)
     rows = []
     settings = {"model": model, "truths": truths, "seed": seed, "cpus": os.cpu_count(),
@@ -251,7 +257,8 @@ def main(truths: int = 50, model: str = "analytic", seed: int = 2026, *,
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(truths):
-            if i < first:  # a run continued: the draws of the truths done before
+            if i < first or (only is not None and i not in only):
+                # a run continued, or a few truths rerun: the draws of the truths before
                 rng.uniform(size=4)
                 continue
             if stop_after_s is not None and time.perf_counter() - t_start > stop_after_s:
@@ -318,6 +325,9 @@ if __name__ == "__main__":
     ap.add_argument("--figure", default=None, help="write the coverage figure (PNG)")
     ap.add_argument("--first", type=int, default=0,
                     help="continue a run: start at this truth (the same draws as a whole run)")
+    ap.add_argument("--only", default=None,
+                    help="rerun only these truths (comma-separated indices; the same draws "
+                         "as a whole run)")
     ap.add_argument("--summarise", default=None,
                     help="print the figures of a --rows file (and draw --figure) and stop")
     a = ap.parse_args()
@@ -330,4 +340,6 @@ if __name__ == "__main__":
         sys.exit(0 if rows else 1)
     sys.exit(0 if main(a.truths, a.model, a.seed, field_mm=a.field_mm, pixel_mm=a.pixel_mm,
                        rows_path=a.rows, stop_after_s=a.stop_after_s,
-                       figure_path=a.figure, first=a.first) else 1)
+                       figure_path=a.figure, first=a.first,
+                       only=None if a.only is None else
+                       {int(v) for v in a.only.split(",") if v.strip()}) else 1)

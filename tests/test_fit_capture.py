@@ -358,3 +358,92 @@ def test_a_second_start_in_another_minimum_says_the_solver_term_is_missing():
     assert res.stderr_solver is None
     assert "leave out the solver's own precision" in res.message, res.message
     assert res.values[0] == pytest.approx(TRUTH["f"], rel=2e-3)
+
+
+#: the stepped forward model's staircase: a step of 0.16 % of the feed every 0.2 %
+STEP_PERIOD, STEP_JUMP = 2e-3, 1.6e-3
+
+
+def stepped(task):
+    """A forward model whose feed has fine-scale steps (module level), as the real chain's
+    has (the spectrum's discrete frequency cells): the marks are cut at the feed plus a
+    sawtooth that climbs 0.16 % every 0.2 % of the feed, so the misfit along the feed is a
+    staircase on a slope and the solver stops beside a step."""
+    v = task["values"]
+    x = v["f"] / (STEP_PERIOD * TRUTH["f"])
+    f = v["f"] + STEP_JUMP * TRUTH["f"] * (0.5 - (x - math.floor(x)))
+    return _cusps(f, v["R"], amp_wave=4e-6)[0], {}
+
+
+def _random_parts(shape, rng):
+    """A measurement's random parts: 2 nm of white noise and 3 nm of smooth texture."""
+    from scipy.ndimage import gaussian_filter
+
+    tex = gaussian_filter(rng.normal(size=shape), 6.0)
+    tex *= 3e-6 / float(np.std(tex))
+    return rng.normal(0.0, 2e-6, shape) + tex
+
+
+def _stepped_fit(seed, model):
+    """A truth within 1 % of TRUTH's feed measured with its random parts (``seed``), its
+    noise floor from six realisations, fitted from 1 % above; (result, truth, the feed's
+    standard error from a forward-difference Jacobian of the solver's refined step)."""
+    from render_inspect.fit import _solve as S
+    from render_inspect.fit import set_noise_floor
+    from render_inspect.fit._uncertainty import _covariance
+
+    rng = np.random.default_rng([seed, 7])
+    truth = {"f": TRUTH["f"] * (1 + rng.uniform(-0.01, 0.01)), "R": 0.47}
+    clean, px = _cusps(truth["f"], truth["R"], amp_wave=4e-6)
+    target = make_target(clean + _random_parts(clean.shape, rng), pixel=(px, px),
+                         origin=(0.0, 0.0), spec=MisfitSpec())
+    start = {"f": truth["f"] * 1.01, "R": 0.5}
+    params = [FreeParameter("f", start["f"], 0.006, 0.016, 0.1 * start["f"]),
+              FreeParameter("R", start["R"], 0.2, 1.5, 0.1 * start["R"])]
+    clean0 = model({"values": start})[0]
+    set_noise_floor(target, [clean0 + _random_parts(clean0.shape, rng) for _ in range(6)],
+                    clean0)
+    ev = Evaluator(params, target, lambda vals: {"values": vals}, model,
+                   EvaluationCache(None), max_evaluations=400)
+    res = solve(params, ev, profile_points=0)
+    lo, hi = S._unit_bounds(params)
+    sw = S.robust_weights(res.best.d)
+    jf = S._jacobian(ev, S._units(params, res.best.values), lo, hi, np.full(2, 0.1), sw)
+    _, se_forward, _ = _covariance(jf, sw * res.best.a * res.best.d,
+                                   np.array([p.scale for p in params]))
+    return res, truth, float(se_forward[0])
+
+
+@pytest.mark.slow
+def test_a_feed_with_fine_steps_in_its_misfit_gets_a_standard_error_that_covers_it():
+    """The stepped forward model, four truths with their random parts: the solver stops
+    beside a step, where a forward difference of its refined step (0.01 % of the feed) is
+    a slope across the step, and the feed's standard error from it misses the truth by
+    more than 2 of them in at least one of the four.  The fit's standard error (central
+    differences over 1 % either side, whichever span is the less steep, plus the distance
+    to the minimum of the misfit smoothed over them) covers the truth within 2 in all."""
+    z_fit, z_forward = [], []
+    for seed in range(4):
+        res, truth, se_forward = _stepped_fit(seed, stepped)
+        err = abs(res.values[0] - truth["f"])
+        assert res.stderr_steps is not None
+        z_fit.append(err / res.stderr[0])
+        z_forward.append(err / se_forward)
+        assert abs(res.values[1] / truth["R"] - 1) < 0.02, res.values
+    assert max(z_fit) <= 2.0, (z_fit, z_forward)
+    assert max(z_forward) > 2.0, (z_fit, z_forward)  # the check does tell a too small one
+
+
+def test_a_smooth_misfit_keeps_its_standard_error():
+    """The smooth forward model: the central differences give the forward differences'
+    standard error (within 10 %) and the distance to the smoothed misfit's minimum is a
+    small part of it, so the standard error is not inflated where the misfit has no
+    steps."""
+    def smooth(task):
+        return _cusps(task["values"]["f"], task["values"]["R"], amp_wave=4e-6)[0], {}
+
+    res, truth, se_forward = _stepped_fit(0, smooth)
+    assert res.stderr_formal[0] == pytest.approx(se_forward, rel=0.1)
+    assert res.stderr_steps[0] < 0.1 * res.stderr_formal[0], res.stderr_steps
+    assert res.stderr[0] < 1.3 * math.hypot(se_forward, res.stderr_realisations[0])
+    assert abs(res.values[0] - truth["f"]) < 2 * res.stderr[0]

@@ -57,6 +57,8 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
                          "stderr_formal": _num(None if result.stderr_formal is None
                                                else result.stderr_formal[i]),
                          "stderr_random_parts": _num(None if real is None else real[i]),
+                         "stderr_steps": _num(None if result.stderr_steps is None
+                                              else result.stderr_steps[i]),
                          "start": float(p.start), "bounds": [float(p.lower), float(p.upper)],
                          "schema_range": [_num(p.schema[0]), _num(p.schema[1])],
                          "change_from_start": float(result.values[i] - p.start),
@@ -77,13 +79,17 @@ def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: 
         "goodness": dict(result.goodness, birge_ratio=result.birge),
         "checks": result.checks,
         "uncertainty": {"stderr": "sqrt(stderr_formal^2 + birge_ratio x stderr_random_parts^2 "
-                                  "+ stderr_solver^2)",
+                                  "+ stderr_steps^2 + stderr_solver^2)",
+                        "stderr_steps": "the distance from the result to the minimum of the "
+                                        "misfit smoothed over the difference steps (the "
+                                        "misfit's fine-scale steps)",
                         "birge_ratio": "the misfit over the misfit the random parts alone "
                                        "leave (at least 1): the model's error",
                         "stderr_solver": "half the distance between the two starts' results "
                                          "when both reach the same misfit",
                         "stderr_formal": "s^2 (J^T J)^-1 of the weighted residuals at the "
-                                         "solution (residuals taken as independent)",
+                                         "solution (residuals taken as independent; J by "
+                                         "central differences)",
                         "stderr_random_parts": "the spread of the solution over the "
                                                "realisations of the random parts and the "
                                                "camera's noise, each taken as the measured "

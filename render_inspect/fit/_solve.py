@@ -17,9 +17,11 @@ when the misfit probed either side of the result along every parameter is higher
 second local solve from a start far from the first agrees with it.
 
 Uncertainty: the formal covariance ``s^2 (J^T J)^-1`` at the solution (``s^2`` the residual
-variance per degree of freedom), plus the spread of the solution over realisations of the
-random parts scaled by the Birge ratio (the misfit over the misfit those realisations
-alone leave, when above 1: the model's error), plus half the two starts' disagreement.
+variance per degree of freedom; ``J`` by central differences across the misfit's
+fine-scale steps, :func:`_smoothed`), plus the spread of the solution over realisations of
+the random parts scaled by the Birge ratio (the misfit over the misfit those realisations
+alone leave, when above 1: the model's error), plus the distance to the minimum of the
+misfit smoothed over the difference steps, plus half the two starts' disagreement.
 Combinations of parameters the measurement does not determine are found from the
 covariance's eigenvectors (:func:`identifiability`); pairs whose correlation exceeds
 :data:`UNRESOLVED` are named too.
@@ -249,6 +251,7 @@ class FitResult:
     goodness: dict = field(default_factory=dict)   # the misfit against the noise floor
     stderr_solver: np.ndarray | None = None       # the two starts' disagreement
     birge: float = 1.0                            # the model-error scale of the random parts
+    stderr_steps: np.ndarray | None = None        # to the smoothed misfit's minimum
 
 
 def _unit_bounds(params):
@@ -292,6 +295,66 @@ def _jacobian(ev: Evaluator, u, lo, hi, steps, sw):
         if not todo:
             break
     return np.column_stack(cols)
+
+
+def _smoothed(evaluator: Evaluator, u, lo, hi, spans, sw):
+    """The Jacobian the covariance is taken from, and the minimum of the misfit smoothed
+    over the difference spans.
+
+    The misfit of a sharply determined parameter can have fine-scale steps: the feed's
+    harmonic features are read from the spectrum's discrete frequency cells, so that as the
+    predicted marks' frequency moves the cells of the fundamental's annulus and the bin of
+    its peak change by whole cells, and the misfit jumps by more than itself over a few
+    hundredths of a per cent of the feed.  The solver stops beside such a step, and a
+    forward difference of the solver's (refined) step taken across it is a slope several
+    times steeper than the trend along which the measurement's noise moves the minimum:
+    the formal standard error comes out far too small.
+
+    Each column is therefore a central difference, over each of ``spans[i]`` (scaled
+    units) either side, of which the one that changes the residuals least is kept (on a
+    smooth misfit they agree; a span across a step is the steeper).  The weighted
+    residuals at those 2n points, averaged, are the residual of the misfit smoothed over
+    the spans (a smooth residual's mean over +-h is its value at the centre, to second
+    order); the Gauss-Newton step from that mean, ``-pinv(J) mean``, is how far the
+    smoothed misfit's minimum lies from the reported one: the fine-scale steps' share of
+    the error, which no second start measures.
+
+    Returns (J (m, n) or None where a parameter has no central pair inside the bounds or
+    an evaluation failed, the step in scaled units or None, the spans used)."""
+    n = u.size
+    pts, where = [], []
+    for i in range(n):
+        for h in sorted({float(v) for v in spans[i]}):
+            if u[i] - h < lo[i] or u[i] + h > hi[i] or h <= 0:
+                continue
+            for sgn in (1.0, -1.0):
+                v = u.copy()
+                v[i] += sgn * h
+                pts.append(evaluator._values(v))
+                where.append((i, h, sgn))
+    evs = evaluator.evaluate(pts, budget=False) if pts else []
+    found: dict = {}
+    for (i, h, sgn), e in zip(where, evs):
+        found.setdefault((i, h), {})[sgn] = e
+    cols, means, used = [], [], []
+    for i in range(n):
+        best = None
+        for (k, h), pair in found.items():
+            if k != i or len(pair) != 2 or any(e.error is not None for e in pair.values()):
+                continue
+            rp = sw * pair[1.0].a * pair[1.0].d
+            rm = sw * pair[-1.0].a * pair[-1.0].d
+            col = (rp - rm) / (2 * h)
+            if best is None or float(col @ col) < float(best[0] @ best[0]):
+                best = (col, rp, rm, h)
+        if best is None:
+            return None, None, None
+        cols.append(best[0])
+        means += [best[1], best[2]]
+        used.append(best[3])
+    j = np.column_stack(cols)
+    step = -(np.linalg.pinv(j) @ np.mean(means, axis=0))
+    return j, step, np.array(used)
 
 
 def _local(params, evaluator, u0, lo, hi, steps, *, xtol, ftol, max_rounds, budget):
@@ -505,6 +568,15 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             evaluator.max_evaluations += 3 * n + 1  # the uncertainty needs its Jacobian
             j = _jacobian(evaluator, u_best, lo, hi, steps, sw)
         scales = np.array([p.scale for p in params])
+        # the covariance from central differences over the solver's step and over fd_step,
+        # whichever is the less steep (across the misfit's fine-scale steps), and the
+        # distance to the minimum of the misfit smoothed over them (_smoothed)
+        j_smooth, steps_u, spans = _smoothed(
+            evaluator, u_best, lo, hi, [(steps[i], float(fd_step)) for i in range(n)], sw)
+        stderr_steps = None
+        if j_smooth is not None:
+            j = j_smooth
+            stderr_steps = np.abs(steps_u) * scales
         cov, stderr, corr = _covariance(j, sw * best.a * best.d, scales)
         stderr_formal, stderr_real = stderr, None
         cov_real, floor_ss = _realisation_covariance(j, sw * best.a, best, evaluator.target,
@@ -517,6 +589,8 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             stderr_real = np.sqrt(np.maximum(np.diag(cov_real), 0.0))
             cov = cov + birge * cov_real
             goodness["ratio"] = rss / max(floor_ss, 1e-300)
+        if stderr_steps is not None:
+            cov = cov + np.diag(stderr_steps ** 2)
         # the second start's disagreement is the solver's own uncertainty
         stderr_model = np.sqrt(np.maximum(np.diag(cov), 0.0))
         stderr_solver = None
@@ -558,7 +632,10 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
                     f"a minimum: the misfit is higher on both sides along every parameter; "
                     f"a second start fell into another minimum {100 * gap:.2g} % higher "
                     f"({params[worst].key} = {other.values[worst]:.6g}), so the standard "
-                    f"errors leave out the solver's own precision")
+                    f"errors leave out the solver's own precision"
+                    + ("" if stderr_steps is None else
+                       " (they take in the distance to the minimum of the misfit smoothed "
+                       "over the difference steps)"))
         elif status in ("local minimum", "stopped") and second is None:
             status, message = "unverified", f"{message}; the minimum was not checked"
     evaluator.step = None
@@ -575,4 +652,4 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
                      unresolved, time.perf_counter() - t_all, evaluator.seconds,
                      list(evaluator.history), stderr_formal, stderr_real,
                      len(evaluator.target.draws), checks, ident, goodness, stderr_solver,
-                     birge)
+                     birge, stderr_steps)

@@ -106,7 +106,8 @@ def fit_page(record: dict, figs: dict) -> str:
              "camera's noise, each taken as the measured map"
              + (f", scaled by {q:.3g} (the misfit over the misfit those realisations alone "
                 "leave: the model's error)" if q and q > 1 else "")
-             + ", and half the distance between the two starts' results; the misfit along "
+             + ", the distance to the minimum of the misfit smoothed over the difference "
+               "steps, and half the distance between the two starts' results; the misfit along "
                "each parameter below shows how well each one is pinned.")
     ident = record.get("identifiability") or {}
     if ident.get("directions") and len(record["parameters"]) > 1:
