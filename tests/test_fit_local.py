@@ -3,6 +3,7 @@ as one at a time (the fit's values must not depend on how its evaluations were r
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -52,3 +53,19 @@ def test_an_error_outside_the_models_own_is_raised_and_the_rest_dropped():
     assert len(started) < 8  # the tasks not started when it failed never ran
     with pytest.raises(InputError):  # catch=False: the model's own error is raised too
         list(run_local(_model, [{"seed": 4}, {"seed": 5}], 2, catch=False))
+
+
+def test_a_local_evaluation_leaves_numba_num_threads_unset(monkeypatch):
+    """An evaluation in the user's own process leaves NUMBA_NUM_THREADS as it found it
+    (unset), so a LocalCluster started from that process later does not inherit it; where a
+    worker has the variable, it is made to agree with numba's running count."""
+    import numba
+
+    from render_inspect.pipeline import _fit_model
+
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    _fit_model._numba_threads_as_launched()
+    assert "NUMBA_NUM_THREADS" not in os.environ
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "999")
+    _fit_model._numba_threads_as_launched()
+    assert os.environ["NUMBA_NUM_THREADS"] == str(numba.config.NUMBA_NUM_THREADS)

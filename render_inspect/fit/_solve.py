@@ -41,6 +41,7 @@ from ..core.errors import InputError
 from ..core.lazy import lazy_attr
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
+from ._differences import _jacobian, _smoothed
 from ._dispatch import features as predict_features
 from ._dispatch import residuals as residual_vector
 from ._features import Target, robust_weights, soft_l1
@@ -260,103 +261,6 @@ def _unit_bounds(params):
     return lo, hi
 
 
-def _jacobian(ev: Evaluator, u, lo, hi, steps, sw):
-    """Forward-difference Jacobian in scaled units; the columns' points run as one batch.
-
-    ``steps`` (per parameter, scaled units; updated in place and kept from one Jacobian to
-    the next): a column whose step changes the residual vector by more than the misfit
-    itself (and more than 1) is taken again with a step ten times smaller (at most twice).
-    A sharply determined parameter (the feed, fixed by the marks' frequency to a small
-    fraction of a per cent) needs a smaller step than a weakly determined one, whose effect
-    must rise above the forward model's noise (the simulation grid's aliasing of the marks,
-    the random parts of the machine)."""
-    base = ev.evaluate_units([u])[0]
-    cols: list = [None] * u.size
-    todo = list(range(u.size))
-    for _ in range(3):
-        pts, used = [], []
-        for i in todo:
-            s = steps[i] if u[i] + steps[i] <= hi[i] else -steps[i]
-            if u[i] + s < lo[i]:
-                s = (hi[i] - u[i]) if hi[i] - u[i] > u[i] - lo[i] else (lo[i] - u[i])
-            v = u.copy()
-            v[i] += s
-            pts.append(v)
-            used.append(s)
-        evs = ev.evaluate_units(pts)
-        again = []
-        for i, s, e in zip(todo, used, evs):
-            cols[i] = sw * (e.a * e.d - base.a * base.d) / s
-            change = e.a * e.d - base.a * base.d
-            if e.error is None and float(change @ change) > max(base.cost, 1.0):
-                again.append(i)
-                steps[i] = steps[i] / 10.0
-        todo = again
-        if not todo:
-            break
-    return np.column_stack(cols)
-
-
-def _smoothed(evaluator: Evaluator, u, lo, hi, spans, sw):
-    """The Jacobian the covariance is taken from, and the minimum of the misfit smoothed
-    over the difference spans.
-
-    The misfit of a sharply determined parameter can have fine-scale steps: the feed's
-    harmonic features are read from the spectrum's discrete frequency cells, so that as the
-    predicted marks' frequency moves the cells of the fundamental's annulus and the bin of
-    its peak change by whole cells, and the misfit jumps by more than itself over a few
-    hundredths of a per cent of the feed.  The solver stops beside such a step, and a
-    forward difference of the solver's (refined) step taken across it is a slope several
-    times steeper than the trend along which the measurement's noise moves the minimum:
-    the formal standard error comes out far too small.
-
-    Each column is therefore a central difference, over each of ``spans[i]`` (scaled
-    units) either side, of which the one that changes the residuals least is kept (on a
-    smooth misfit they agree; a span across a step is the steeper).  The weighted
-    residuals at those 2n points, averaged, are the residual of the misfit smoothed over
-    the spans (a smooth residual's mean over +-h is its value at the centre, to second
-    order); the Gauss-Newton step from that mean, ``-pinv(J) mean``, is how far the
-    smoothed misfit's minimum lies from the reported one: the fine-scale steps' share of
-    the error, which no second start measures.
-
-    Returns (J (m, n) or None where a parameter has no central pair inside the bounds or
-    an evaluation failed, the step in scaled units or None, the spans used)."""
-    n = u.size
-    pts, where = [], []
-    for i in range(n):
-        for h in sorted({float(v) for v in spans[i]}):
-            if u[i] - h < lo[i] or u[i] + h > hi[i] or h <= 0:
-                continue
-            for sgn in (1.0, -1.0):
-                v = u.copy()
-                v[i] += sgn * h
-                pts.append(evaluator._values(v))
-                where.append((i, h, sgn))
-    evs = evaluator.evaluate(pts, budget=False) if pts else []
-    found: dict = {}
-    for (i, h, sgn), e in zip(where, evs):
-        found.setdefault((i, h), {})[sgn] = e
-    cols, means, used = [], [], []
-    for i in range(n):
-        best = None
-        for (k, h), pair in found.items():
-            if k != i or len(pair) != 2 or any(e.error is not None for e in pair.values()):
-                continue
-            rp = sw * pair[1.0].a * pair[1.0].d
-            rm = sw * pair[-1.0].a * pair[-1.0].d
-            col = (rp - rm) / (2 * h)
-            if best is None or float(col @ col) < float(best[0] @ best[0]):
-                best = (col, rp, rm, h)
-        if best is None:
-            return None, None, None
-        cols.append(best[0])
-        means += [best[1], best[2]]
-        used.append(best[3])
-    j = np.column_stack(cols)
-    step = -(np.linalg.pinv(j) @ np.mean(means, axis=0))
-    return j, step, np.array(used)
-
-
 def _local(params, evaluator, u0, lo, hi, steps, *, xtol, ftol, max_rounds, budget):
     """The local solve from ``u0`` (scaled units): iteratively re-weighted trust-region
     rounds.  Returns (status, message, rounds, best evaluation of this solve)."""
@@ -574,6 +478,7 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
         j_smooth, steps_u, spans = _smoothed(
             evaluator, u_best, lo, hi, [(steps[i], float(fd_step)) for i in range(n)], sw)
         stderr_steps = None
+        j_local = j  # one step per key: which combinations the measurement leaves free
         if j_smooth is not None:
             j = j_smooth
             stderr_steps = np.abs(steps_u) * scales
@@ -590,7 +495,11 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
             cov = cov + birge * cov_real
             goodness["ratio"] = rss / max(floor_ss, 1e-300)
         if stderr_steps is not None:
-            cov = cov + np.diag(stderr_steps ** 2)
+            # one displacement, along the combinations the measurement determines: its
+            # outer product (the keys' standard errors take its square, their correlations
+            # its direction)
+            shift = steps_u * scales
+            cov = cov + np.outer(shift, shift)
         # the second start's disagreement is the solver's own uncertainty
         stderr_model = np.sqrt(np.maximum(np.diag(cov), 0.0))
         stderr_solver = None
@@ -639,8 +548,11 @@ def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0
         elif status in ("local minimum", "stopped") and second is None:
             status, message = "unverified", f"{message}; the minimum was not checked"
     evaluator.step = None
+    # a combination left free shows as a singular information matrix in the Jacobian of
+    # the solver's own steps; the smoothed columns, each over the span that suits its key,
+    # would blur an exact null direction into a merely weak one
     ident = identifiability(params, best.values, cov,
-                            (j / scales[None, :]).T @ (j / scales[None, :]))
+                            (j_local / scales[None, :]).T @ (j_local / scales[None, :]))
     profiles = {}
     if profile_points:
         profiles = _profiles(params, evaluator, best, stderr, profile_points)

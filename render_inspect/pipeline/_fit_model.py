@@ -91,7 +91,12 @@ def _numba_threads_as_launched() -> None:
     with.  A Dask worker may get the variable from its nanny after numba has read it; a
     kernel compiled there (the first call of one not yet in the cache) re-reads the
     environment and refuses a count that differs from the running pool's.  (Harmless where
-    the cluster sets the variable before numba starts.)"""
+    the cluster sets the variable before numba starts.)  Where the variable is not set,
+    numba's re-read gives its default, the count it runs with, and the environment is left
+    alone: set in the user's own process, it would pass on to every LocalCluster started
+    from it later."""
+    if "NUMBA_NUM_THREADS" not in os.environ:
+        return
     import numba
 
     os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
