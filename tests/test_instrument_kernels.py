@@ -181,3 +181,36 @@ def test_the_filter_with_the_radial_index_of_all_bins_is_the_filter_of_each_bin(
         plain = filter_fold(*args, np.empty((n // s, n // s), np.complex64))
         indexed = filter_fold(*args, np.empty((n // s, n // s), np.complex64), index=index)
         assert _same(plain, indexed)
+
+
+def test_the_imaging_model_called_from_another_thread_runs_serially_with_the_same_frames():
+    """Called from a thread other than the process's main one (a Dask worker runs its tasks
+    in one), the imaging model starts no threads of its own (threads started there ended a
+    LocalCluster's workers in segmentation faults) and gives the same frames."""
+    import threading
+
+    from render_inspect.instruments import Microscope, interference_intensity, led
+    from render_inspect.instruments import _imaging
+
+    n, s, pixel = 30, 3, 0.000879
+    y, x = (np.mgrid[0:n * s, 0:n * s] + 0.5) * pixel / s
+    h = 4e-4 * np.cos(2 * np.pi * x / 0.02) * np.cos(2 * np.pi * y / 0.015)
+    mic = Microscope(source=led(600.0, bandwidth_nm=120.0))
+    z = np.linspace(-1.2e-3, 1.2e-3, 9)
+
+    def run():
+        return interference_intensity(h, pixel=pixel, subsamples=s, microscope=mic,
+                                      z_positions=z, crop=2)[0]
+
+    here = run()
+    got: dict = {}
+
+    def in_thread():
+        got["allowed"] = _imaging._threads_allowed()
+        got["frames"] = run()
+
+    t = threading.Thread(target=in_thread)
+    t.start()
+    t.join()
+    assert _imaging._threads_allowed() and got["allowed"] is False
+    assert _same(here, got["frames"])

@@ -46,6 +46,7 @@ References
 from __future__ import annotations
 
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -107,6 +108,15 @@ def _exp_i(phase: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     out.real = np.cos(phase)
     out.imag = np.sin(phase)
     return out
+
+
+def _threads_allowed() -> bool:
+    """Whether the imaging model may start threads of its own: only in a process's main
+    thread.  Called from another thread (a Dask worker runs its tasks in one), the steps
+    run one after the other, with the same results: threads started there, beside the
+    worker's own and the compiled kernels' thread pools, ended the worker processes of a
+    LocalCluster in segmentation faults."""
+    return threading.current_thread() is threading.main_thread()
 
 
 def _row_blocks(rows: int, workers: int) -> list[slice]:
@@ -222,7 +232,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
         if reference_figure.shape != (ho, wo):
             raise InputError(f"reference_figure must have the output shape {(ho, wo)}, got "
                              f"{reference_figure.shape}")
-    workers = workers or usable_cpus()
+    threaded = _threads_allowed()
+    workers = (workers or usable_cpus()) if threaded else 1
     na, na_ill, obs = mic.na, mic.na_ill, mic.obscuration
 
     # --- which sub-samples reflect: reached, facing the objective, and not a facet that
@@ -266,10 +277,12 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     with np.errstate(invalid="ignore", divide="ignore"):
         unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
     del nn, cos_t
-    if sig > 0.3:
+    if sig > 0.3 and threaded:
         # the three components at once (SciPy's filter lets go of the interpreter)
         with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
             unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
+    elif sig > 0.3:
+        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
     cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
     tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))

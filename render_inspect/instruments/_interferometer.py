@@ -19,7 +19,7 @@ import dataclasses
 import json
 import logging
 import math
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -34,6 +34,7 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
+from ._imaging import _threads_allowed
 from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective, objective_names
@@ -61,6 +62,25 @@ __all__ = [
 ]
 
 log = logging.getLogger("render_inspect")
+
+
+class _Serial:
+    """An executor that runs what it is given at once, in the calling thread (where the
+    imaging model starts no threads of its own)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args, **kwargs) -> Future:
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except Exception as e:  # delivered by result(), as a thread's would be
+            fut.set_exception(e)
+        return fut
 
 #: Default sources (nm): PSI a filtered green LED; CSI a white LED.
 DEFAULT_PSI_WAVELENGTH_NM = 550.0
@@ -498,7 +518,8 @@ def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", see
     common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,
                   "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}
     # the truth (from the traced heights alone) is made in a thread beside the frames
-    with ThreadPoolExecutor(max_workers=1) as pool:
+    # (in a process's main thread; elsewhere after them: _imaging._threads_allowed)
+    with ThreadPoolExecutor(max_workers=1) if _threads_allowed() else _Serial() as pool:
         truth = pool.submit(pixel_truth, h_sub, h_centre, s=s, margin=geom["margin"])
         if icfg.mode == "psi":
             # the focus: the user's, or the one the instrument finds on its own fringes
