@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import lazy_attr, lazy_module
@@ -117,6 +117,25 @@ def _threads_allowed() -> bool:
     worker's own and the compiled kernels' thread pools, ended the worker processes of a
     LocalCluster in segmentation faults."""
     return threading.current_thread() is threading.main_thread()
+
+
+class _Serial:
+    """An executor that runs what it is given at once, in the calling thread (where the
+    imaging model starts no threads of its own)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args, **kwargs) -> Future:
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except Exception as e:  # delivered by result(), as a thread's would be
+            fut.set_exception(e)
+        return fut
 
 
 def _row_blocks(rows: int, workers: int) -> list[slice]:

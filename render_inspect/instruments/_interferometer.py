@@ -19,7 +19,7 @@ import dataclasses
 import json
 import logging
 import math
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -34,7 +34,7 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
-from ._imaging import _threads_allowed
+from ._imaging import _Serial, _threads_allowed
 from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective, objective_names
@@ -62,25 +62,6 @@ __all__ = [
 ]
 
 log = logging.getLogger("render_inspect")
-
-
-class _Serial:
-    """An executor that runs what it is given at once, in the calling thread (where the
-    imaging model starts no threads of its own)."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def submit(self, fn, *args, **kwargs) -> Future:
-        fut: Future = Future()
-        try:
-            fut.set_result(fn(*args, **kwargs))
-        except Exception as e:  # delivered by result(), as a thread's would be
-            fut.set_exception(e)
-        return fut
 
 #: Default sources (nm): PSI a filtered green LED; CSI a white LED.
 DEFAULT_PSI_WAVELENGTH_NM = 550.0

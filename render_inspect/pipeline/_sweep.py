@@ -510,12 +510,12 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
             recovered = _recover(out, tasks, records, results)
             todo = [t for t in tasks if pending(t, records)]
             total = len(tasks)
-            skipped = total - len(todo)
+            skipped = total - len(todo) - recovered  # ran + skipped + recovered = total
             info: dict[str, Any] = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
                                     "scheduler": scheduler, "workers": None, "dashboard": None,
                                     "ran": 0, "skipped": skipped, "recovered": recovered}
             log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
-                     len(todo), skipped)
+                     len(todo), total - len(todo))
             stopped = False
             try:
                 if todo and c is not None:
