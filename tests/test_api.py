@@ -249,3 +249,25 @@ def f():
     assert public("instruments._registry", "register_instrument") == (
         "instruments", "register_instrument")
     assert _missing({("pipeline", "no_such_name")}) == ["render_inspect.pipeline.no_such_name"]
+
+
+#: the line of a section that names its exported but internal names
+_INTERNAL = re.compile(r"^Internal \(exported, may change\): (.*)$", re.M)
+
+
+@pytest.mark.parametrize("module", sorted(listed()))
+def test_the_page_names_every_exported_name(module):
+    """What a subpackage exports (its ``__all__``) is exactly what its section names: the
+    table (public) and the line of internal names; nothing exported goes unmentioned and
+    nothing is mentioned that is no longer exported."""
+    text = DOC.read_text()
+    heads = list(_SECTION.finditer(text))
+    i = next(k for k, h in enumerate(heads) if h.group(1) == module)
+    body = text[heads[i].end():heads[i + 1].start() if i + 1 < len(heads) else len(text)]
+    internal = _INTERNAL.search(body)
+    named = {n for n in _ROW.findall(body) if "." not in n}
+    if internal:
+        named |= set(re.findall(r"`([\w.]+)`", internal.group(1)))
+    exported = set(importlib.import_module(f"{PKG}.{module}").__all__)
+    assert sorted(exported - named) == [], f"render_inspect.{module}: exported, not on the page"
+    assert sorted(named - exported) == [], f"render_inspect.{module}: on the page, not exported"

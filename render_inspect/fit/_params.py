@@ -14,9 +14,12 @@ from __future__ import annotations
 import math
 import re
 import typing
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from ..core.annotations import annotation_bounds, unwrap_annotation
 from ..core.errors import InputError
@@ -117,12 +120,14 @@ def parse_bounds(items) -> dict:
 
 
 # ------------------------------------------------------------------------ the schema
-def _is_model(obj) -> bool:
+def _is_model(obj: object) -> bool:
     return hasattr(type(obj), "model_fields") and not isinstance(obj, type)
 
 
-def _walk(scene, parts, key):
+def _walk(scene: BaseModel, parts: list, key: str) -> tuple[Any, list, Any]:
     """(annotation, constraints, value) of the key in the validated ``scene``."""
+    node: Any
+    meta: list
     node, ann, meta = scene, None, []
     for i, part in enumerate(parts):
         where = ".".join(str(p) for p in parts[:i]) or "the scene"
@@ -164,7 +169,8 @@ def _walk(scene, parts, key):
     return ann, meta, node
 
 
-def schema_range(scene, key: str):
+def schema_range(scene: BaseModel, key: str
+                 ) -> tuple[float | None, float | None, bool, bool, Any]:
     """(lower, upper, lower_open, upper_open, value) of a numeric key; None = no bound
     (the scene then allows +-1e9).  Raises :class:`InputError` for keys that are not
     real numbers."""
@@ -200,8 +206,8 @@ def _range_text(lo, hi, lo_open, hi_open) -> str:
             f"{'inf' if hi is None else f'{hi:g}'}{')' if hi_open or hi is None else ']'}")
 
 
-def free_parameters(scene, keys, bounds: dict | None = None, *,
-                    defaults=None) -> list[FreeParameter]:
+def free_parameters(scene: BaseModel, keys: Sequence[str], bounds: dict | None = None, *,
+                    defaults: Callable[[str], Any] | None = None) -> list[FreeParameter]:
     """The free parameters of a fit, checked against the schema.
 
     Parameters
@@ -249,10 +255,10 @@ def free_parameters(scene, keys, bounds: dict | None = None, *,
             a = lo if lo is not None else -_MAX_MAGNITUDE
             b = hi if hi is not None else _MAX_MAGNITUDE
         width = b - a
-        if lo_open and a == lo:
+        if lo_open and lo is not None and a == lo:
             a = lo + max(_OPEN_MARGIN * max(abs(value), width if math.isfinite(width) else 1.0),
                          1e-300)
-        if hi_open and b == hi:
+        if hi_open and hi is not None and b == hi:
             b = hi - _OPEN_MARGIN * max(abs(value), width if math.isfinite(width) else 1.0)
         if not a <= value <= b:
             raise InputError(f"--free {key}: the scene's value {value:g} lies outside the fit's "

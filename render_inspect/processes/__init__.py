@@ -16,9 +16,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Union
 
 from ..core.plugins import import_private_modules
-from ._contract import (Cut, Envelope, Inputs, Plan, Process, SimulationSection, ToolSection, Traits,
+from ._contract import (Cut, Envelope, Inputs, Plan, Process, SceneSections, SimulationSection, ToolSection, Traits,
                         Variant, VariantPair, section)
-from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
+from ._machine import MachineConfig, MaterialConfig, ProcessScene, machine_of, material_of
 from ._mechanics import BurrConfig, TurningInputs, turn
 from ._rcse import RcseConfig, RcseProcessConfig, rcse_comparison
 from ._registry import (
@@ -66,7 +66,7 @@ else:
     ProcessConfig = process_config_union()
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
-           "section", "ToolSection", "SimulationSection", "register_process", "process_kinds", "process_of", "process_config_union",
+           "section", "ToolSection", "SimulationSection", "SceneSections", "ProcessScene", "register_process", "process_kinds", "process_of", "process_config_union",
            "check_budget", "DEFAULT_KIND", "ProcessConfig", "ProcessSection", "register_section", "scene_sections",
            "register_migration", "migrate_scene", "register_retired_key", "retired_keys",
            "TurningProcessConfig", "TurningProcess",

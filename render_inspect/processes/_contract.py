@@ -55,10 +55,11 @@ from ..core.toolpath import LinearProgram, Links, ToolPath
 from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, PartModel, plan_links
 
 if TYPE_CHECKING:
+    from ..design import DesignSection
     from ..machining import MaterialResponse
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
-           "section", "ToolSection", "SimulationSection"]
+           "section", "ToolSection", "SimulationSection", "SceneSections"]
 
 
 def section(path: str, **kw):
@@ -104,6 +105,37 @@ class SimulationSection(Protocol):
         ...
 
 
+class _KindSection(Protocol):
+    """A ``[process]`` section, as far as the registry reads it: its ``kind``."""
+
+    @property
+    def kind(self) -> str:
+        ...
+
+
+class SceneSections(Protocol):
+    """What the processes read of a validated scene (the scene's ``Scene``, which a type
+    checker confirms satisfies this where the pipeline passes one): ``[design]``,
+    ``[tool]``, ``[simulation]`` and the ``kind`` of ``[process]``; :meth:`Inputs.of`
+    takes the further sections an :class:`Inputs` subclass declares by name."""
+
+    @property
+    def design(self) -> DesignSection:
+        ...
+
+    @property
+    def tool(self) -> ToolSection:
+        ...
+
+    @property
+    def simulation(self) -> SimulationSection:
+        ...
+
+    @property
+    def process(self) -> _KindSection:
+        ...
+
+
 @dataclass(frozen=True)
 class Inputs:
     """The scene sections a process's hooks read.
@@ -130,11 +162,11 @@ class Inputs:
     simulation: SimulationSection
 
     @classmethod
-    def of(cls, scene) -> "Inputs":
+    def of(cls, scene: SceneSections) -> "Inputs":
         """The sections of ``scene`` this class declares."""
         values = {}
         for f in fields(cls):
-            node = scene
+            node: Any = scene
             for part in f.metadata.get("section", f.name).split("."):
                 node = getattr(node, part)
             values[f.name] = node
@@ -355,7 +387,7 @@ class Process(ABC, Generic[InputsT]):
     #: the scene sections the hooks read
     inputs: ClassVar[type[Inputs]] = Inputs
 
-    def inputs_of(self, scene: Any) -> InputsT:
+    def inputs_of(self, scene: SceneSections) -> InputsT:
         """The hooks' view of ``scene``: the sections :attr:`inputs` declares."""
         return cast(InputsT, self.inputs.of(scene))
 

@@ -13,11 +13,15 @@ a scene shows both cuts)."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..core.units import MM_TO_NM
 from ..machining import WEAR_RATES
+
+if TYPE_CHECKING:
+    from ._machine import ProcessScene
 
 __all__ = ["edge_facts", "edge_imprint", "check_edge_and_wear"]
 
@@ -84,7 +88,7 @@ def edge_facts(tool, compensation: str, machined, design, region, pixel: float, 
     return facts, {"tool_edge.png": spec}
 
 
-def check_edge_and_wear(kind, compensation: str, scene) -> None:
+def check_edge_and_wear(kind: str | None, compensation: str, scene: ProcessScene) -> None:
     """The turning processes' cross-checks of the measured edge and the wear (ValueError,
     one line): ``compensation = "edge"`` needs STS and an edge; ``tool.wear`` a material
     with wear rates."""

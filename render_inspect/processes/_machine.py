@@ -12,7 +12,7 @@ machining units (mm, rad) here.
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 from pydantic import Field, model_validator
 
@@ -26,10 +26,11 @@ from ..machining import (
     material_preset,
     material_response,
 )
+from ._contract import SceneSections
 from ._registry import register_section
 
 __all__ = ["MachineConfig", "MaterialConfig", "LinearAxisConfig", "SpindleAxisConfig",
-           "ErrorMotionsConfig", "CouplingConfig", "machine_of", "material_of"]
+           "ErrorMotionsConfig", "CouplingConfig", "machine_of", "material_of", "ProcessScene"]
 
 
 class LinearAxisConfig(Section):
@@ -202,6 +203,20 @@ def _errors(cfg) -> dict:
         else:
             d[k] = v
     return d
+
+
+class ProcessScene(SceneSections, Protocol):
+    """What a turning or sculpturing process's checks and settings read of a validated
+    scene: the sections of :class:`~render_inspect.processes.SceneSections`, and
+    ``[machine]`` and ``[material]``."""
+
+    @property
+    def machine(self) -> MachineConfig:
+        ...
+
+    @property
+    def material(self) -> MaterialConfig:
+        ...
 
 
 def machine_of(cfg: "MachineConfig"):

@@ -35,6 +35,7 @@ from ..toolpath import (
 )
 from ._contract import Cut, Plan, Traits, Variant, VariantPair
 from ._mechanics import Turned, TurningInputs, follow, turn
+from ._machine import ProcessScene
 from ._registry import register_process, register_section
 from ._turning import TiledTurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
@@ -78,7 +79,7 @@ class RcseProcessConfig(TurningProcessConfig):
     """``[process]`` of turning along an RCSE path (needs a ``lenslet_rings`` design)."""
     kind: Literal["rcse"]
 
-    def check_with(self, scene) -> None:
+    def check_with(self, scene: ProcessScene) -> None:
         super().check_with(scene)
         if scene.design.type != "lenslet_rings":
             raise ValueError("process.kind = 'rcse' needs design.type = 'lenslet_rings' (elements on "

@@ -17,7 +17,7 @@ from pydantic import Discriminator, Tag
 from ..core.grid import grid_shape
 from ..core.limits import Driver, check_memory, memory_budget
 from ..core.plugins import Registry, literal_values
-from ._contract import Process
+from ._contract import Process, SceneSections
 
 __all__ = ["register_process", "process_kinds", "process_of", "process_config_union",
            "check_budget", "DEFAULT_KIND", "register_section", "scene_sections",
@@ -44,7 +44,7 @@ def process_kinds() -> dict[str, Process]:
     return _PROCESSES.entries()
 
 
-def process_of(scene) -> Process:
+def process_of(scene: SceneSections) -> Process:
     """The registered process of ``scene``'s ``[process]`` section."""
     return _PROCESSES.lookup(scene.process.kind)
 

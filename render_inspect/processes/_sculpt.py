@@ -43,7 +43,7 @@ from ..machining import (
 from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
                         PartModel, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
-from ._machine import MaterialConfig, material_of
+from ._machine import MaterialConfig, ProcessScene, material_of
 from ._program_part import design_part, machine_limits
 from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
@@ -108,7 +108,7 @@ class SculptProcessConfig(Section):
             data = {k: v for k, v in data.items() if k != "compensation"}
         return data
 
-    def check_with(self, scene) -> None:
+    def check_with(self, scene: ProcessScene) -> None:
         if scene.machine.preset != "ideal":
             raise ValueError(
                 "machine.preset must be 'ideal' for process.kind = 'sculpt' (the machine model "

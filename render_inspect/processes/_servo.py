@@ -29,7 +29,7 @@ from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
 from ..machining import loop_lag, loop_response, split_commands
 from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
-from ._machine import machine_of
+from ._machine import ProcessScene, machine_of
 from ._mechanics import TurningInputs, follow, turn
 from ._registry import register_migration, register_process, register_retired_key
 from ._program import program_path
@@ -54,7 +54,7 @@ class ServoProcessConfig(TurningProcessConfig):
     FTS)."""
     kind: Literal["fts", "hts"]
 
-    def check_with(self, scene) -> None:
+    def check_with(self, scene: ProcessScene) -> None:
         super().check_with(scene)
         if self.kind == "hts" and scene.design.type != "compound":
             raise ValueError(

@@ -10,7 +10,7 @@ from typing import Any
 
 from ..core.units import MM_TO_NM, RAD_TO_URAD
 from ..machining import material_preset
-from ._machine import machine_of
+from ._machine import ProcessScene, machine_of
 
 __all__ = ["machine_settings", "material_settings", "preset_settings", "random_parts",
            "RANDOM_PART_KEYS"]
@@ -77,13 +77,13 @@ def material_settings(cfg) -> dict:
             "groove_across_um": cfg.groove_across_um, "groove_along_mm": cfg.groove_along_mm}
 
 
-def preset_settings(scene) -> dict:
+def preset_settings(scene: ProcessScene) -> dict:
     """``{"machine": machine_settings, "material": material_settings}`` of a scene."""
     return {"machine": machine_settings(scene.machine),
             "material": material_settings(scene.material)}
 
 
-def random_parts(scene) -> dict:
+def random_parts(scene: ProcessScene) -> dict:
     """The amplitudes (scene key -> value, scene units) of the scene's seeded random parts
     (:data:`RANDOM_PART_KEYS`) that are not zero, presets included."""
     settings = preset_settings(scene)

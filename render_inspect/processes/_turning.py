@@ -38,7 +38,7 @@ from ..toolpath import (
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._edge_facts import check_edge_and_wear
-from ._machine import machine_of, material_of
+from ._machine import ProcessScene, machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
@@ -124,7 +124,7 @@ class TurningProcessConfig(Section):
         """mm per revolution, f / S."""
         return self.feed_mm_per_min / self.spindle_rpm
 
-    def check_with(self, scene) -> None:
+    def check_with(self, scene: ProcessScene) -> None:
         """Cross-checks with the rest of the scene (called by the scene's validator)."""
         rc = scene.tool.nose_radius
         check_edge_and_wear(getattr(self, "kind", None), self.compensation, scene)

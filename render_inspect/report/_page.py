@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, Protocol
 
 from ..core.units import MM_TO_UM
 from .. import __version__
@@ -22,7 +23,39 @@ from ._page_text import (_diffuse_value, _g, _get, _lowpass_caption, _macro_ligh
 from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
 from ._program_page import program_section
 
-__all__ = ["build_page"]
+__all__ = ["build_page", "ReportedScene"]
+
+
+class _DesignType(Protocol):
+    @property
+    def type(self) -> str:
+        ...
+
+
+class ReportedScene(Protocol):
+    """What the comparison page reads of a validated scene (the scene's ``Scene``, which a
+    type checker confirms satisfies this where the pipeline passes one): its name, its
+    description, the design's type, the ``[render]`` section, each section by name and the
+    whole scene as a dictionary."""
+
+    @property
+    def name(self) -> str:
+        ...
+
+    @property
+    def description(self) -> str:
+        ...
+
+    @property
+    def design(self) -> _DesignType:
+        ...
+
+    @property
+    def render(self) -> object:
+        ...
+
+    def to_dict(self) -> dict:
+        ...
 
 
 #: (label, key, unit) of the summary table
@@ -107,7 +140,7 @@ def _measured_section(rep, mf: dict) -> None:
     rep.table([[k, _value_text(k, v)] for k, v in src.items()], header=["source", "value"])
 
 
-def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
+def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterable[str] = ()) -> str:
     """HTML text of report.html.
 
     Parameters
@@ -375,7 +408,7 @@ def build_page(scene, metrics: dict, figs: dict, *, notes=()) -> str:
     return rep.render()
 
 
-def _parameters(rep, scene, metrics: dict) -> None:
+def _parameters(rep: HtmlReport, scene: ReportedScene, metrics: dict) -> None:
     """The scene's sections, each key with its value and unit (or why it has none), the
     keys the comparison varies per variant; the machine and the material as simulated."""
     sd = scene.to_dict()

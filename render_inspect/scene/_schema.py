@@ -41,6 +41,7 @@ __all__ = ["Scene", "load_scene", "scene_from_dict", "apply_overrides", "SceneEr
 if TYPE_CHECKING:
     # what a type checker sees of the sections assembled from the registries (_types.py)
     from ._types import ArtifactsConfig, RenderConfig
+    from ..processes import ProcessScene
 else:
     #: the ``[render]`` section: registered instruments + diffuse light
     RenderConfig = render_config_class()
@@ -114,6 +115,11 @@ class _SceneBase(Section):
 if TYPE_CHECKING:
     class Scene(_SceneBase, RegisteredSections):
         """A validated scene: the sections of the schema and the registered ones."""
+
+    def _processes_read_a_scene(scene: Scene) -> ProcessScene:
+        """(checked, never run) a scene is what the processes' checks, inputs and settings
+        read (:class:`~render_inspect.processes.ProcessScene`)."""
+        return scene
 else:
     #: the scene schema: the sections above, the tables of registered sections and the
     #: registered top-level sections (``[rcse]``, ``[machine]``, ``[material]``, ...)
