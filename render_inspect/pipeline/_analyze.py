@@ -86,7 +86,8 @@ def _title(path, m_pixel, ar, metrics, *, form, s_mm, l_mm, outliers, note="") -
             f"{m_pixel[0] * MM_TO_UM:.4g} x {m_pixel[1] * MM_TO_UM:.4g} um")
 
 
-def run_analyze(path, out, *, form: str = "plane", filter_spec: str | tuple | None = None,
+def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
+                filter_spec: str | tuple | None = None,
                 outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
                 x3p: bool = False, channel: str | None = None, overwrite: bool = False,
                 budget: tuple[int, str] | None = None, units: str | None = None) -> dict:

@@ -20,7 +20,8 @@ __all__ = ["run_analyze_profile", "PROFILE_FILES"]
 PROFILE_FILES = ("metrics.json", "profile.png")
 
 
-def run_analyze_profile(path, out, *, units=None, form: str = "plane", filter_spec=None,
+def run_analyze_profile(path: str | Path, out: str | Path, *, units: str | None = None,
+                        form: str = "plane", filter_spec: str | tuple | None = None,
                         outliers: str = "none", outlier_sigma: float = 3.0,
                         overwrite: bool = False) -> dict:
     """Analyse one profile file and write ``metrics.json`` and ``profile.png``.

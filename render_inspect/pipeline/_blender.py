@@ -14,6 +14,7 @@ cross a process boundary unchanged.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 import importlib.util
 import json
 from pathlib import Path
@@ -89,8 +90,10 @@ def blender_output_dir(scene_name: str) -> Path:
     return default_output_dir(scene_name)
 
 
-def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined",
-                      exaggeration: float | None = None, progress=None) -> dict:
+def simulate_variants(scene_path: str | Path, *, overrides: Iterable[str] = (), out: str | Path,
+                      surface: str = "machined",
+                      exaggeration: float | None = None,
+                      progress: Callable[[float, str], None] | None = None) -> dict:
     """Simulate the two variants ``render-inspect compare`` puts side by side (the
     process's own pair, :func:`compare_pair`: ``compensated`` and ``uncompensated`` for
     turning, ``servo_lag`` / ``ideal_servo``, ``vibration_on`` / ``vibration_off``,
@@ -167,7 +170,7 @@ def simulate_variants(scene_path, *, overrides=(), out, surface: str = "machined
     return result
 
 
-def surfaces_into_blender(result: dict, *, collection=None) -> dict:
+def surfaces_into_blender(result: dict, *, collection: Any = None) -> dict:
     """The meshes of a :func:`simulate_variants` result, side by side in Blender.
 
     Earlier ones are removed first.  Each is named ``render_inspect_<variant>_x<exaggeration>``
@@ -206,7 +209,7 @@ def surfaces_into_blender(result: dict, *, collection=None) -> dict:
     return made
 
 
-def blender_surfaces(objects=None) -> dict:
+def blender_surfaces(objects: Iterable[Any] | None = None) -> dict:
     """{variant: object} of the meshes :func:`surfaces_into_blender` made, among
     ``objects`` (default: every object of the Blender file)."""
     if objects is None:
@@ -219,7 +222,7 @@ def remove_blender_surfaces() -> None:
         remove_object(obj.name)
 
 
-def surface_info(obj) -> dict:
+def surface_info(obj: Any) -> dict:
     """What :func:`render_variant` and :func:`export_variant` need of a mesh made by
     :func:`surfaces_into_blender`: ``variant``, ``heightmap``, ``surface``,
     ``exaggeration``."""
@@ -229,10 +232,10 @@ def surface_info(obj) -> dict:
             "surface": str(obj[PROP_SURFACE]), "exaggeration": float(obj[PROP_EXAGGERATION])}
 
 
-def render_variant(heightmap, *, variant: str, surface: str = "machined",
+def render_variant(heightmap: str | Path, *, variant: str, surface: str = "machined",
                    exaggeration: float, view: str = "macro", resolution: int = 256,
-                   samples: int = 64, seed: int = 0, out, interferogram: bool = True,
-                   progress=None) -> dict:
+                   samples: int = 64, seed: int = 0, out: str | Path, interferogram: bool = True,
+                   progress: Callable[[float, str], None] | None = None) -> dict:
     """Cycles render of one simulated surface under its scene's diffuse light, and the
     interferogram of its scene's instrument (``[render.interferometer]``; needs Mitsuba).
 
@@ -314,7 +317,8 @@ def _metric(d, path):
     return d if isinstance(d, (int, float)) else None
 
 
-def compare_scene(scene_path, *, overrides=(), out, progress=None) -> dict:
+def compare_scene(scene_path: str | Path, *, overrides: Iterable[str] = (), out: str | Path,
+                  progress: Callable[[float, str], None] | None = None) -> dict:
     """``render-inspect compare`` (:func:`run_compare`) into ``out``, with the metrics a
     panel shows.
 
@@ -345,8 +349,9 @@ def compare_scene(scene_path, *, overrides=(), out, progress=None) -> dict:
             "rows": rows, "difference_rms_nm": metrics.get("difference", {}).get("machined_rms_nm")}
 
 
-def export_variant(heightmap, *, variant: str, surface: str = "machined",
-                   exaggeration: float, formats=EXPORT_FORMATS, out, progress=None) -> dict:
+def export_variant(heightmap: str | Path, *, variant: str, surface: str = "machined",
+                   exaggeration: float, formats: Iterable[str] = EXPORT_FORMATS, out: str | Path,
+                   progress: Callable[[float, str], None] | None = None) -> dict:
     """One simulated surface as files, into ``out``: ``heightmap.exr`` (design, machined,
     residual, mm), ``<variant>_<surface>.ply`` (mesh, mm, +Z up),
     ``<variant>_<surface>.glb`` (glTF: m, +Y up; exaggeration in the extras) and
@@ -395,8 +400,9 @@ def export_variant(heightmap, *, variant: str, surface: str = "machined",
     return {"out": str(out.resolve()), "files": files}
 
 
-def simulate_into_blender(scene_path, *, overrides=(), out=None, surface: str = "machined",
-                          exaggeration: float | None = None, collection=None) -> dict:
+def simulate_into_blender(scene_path: str | Path, *, overrides: Iterable[str] = (),
+                          out: str | Path | None = None, surface: str = "machined",
+                          exaggeration: float | None = None, collection: Any = None) -> dict:
     """Load a scene file, simulate the machined surface and load it as a mesh object.
 
     Parameters

@@ -13,6 +13,7 @@ grooves are a new draw of the same statistics on the smaller grid.
 
 from __future__ import annotations
 
+from ..core.heightmap import HeightMap
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -50,7 +51,8 @@ def _deepest(scene: Scene, values: dict, window) -> float:
     return float(np.nanmin(r)) * MM_TO_NM if np.isfinite(r).any() else math.nan
 
 
-def overcut_budget(scene: Scene, hm, *, pixels: int = BUDGET_WINDOW_PIXELS) -> dict | None:
+def overcut_budget(scene: Scene, hm: HeightMap, *,
+                   pixels: int = BUDGET_WINDOW_PIXELS) -> dict | None:
     """The deepest point of ``hm`` below the design, split into its contributions.
 
     Parameters

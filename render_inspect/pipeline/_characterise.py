@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..instruments import InterferometerConfig
 from ..instruments import characterise_instrument as _characterise
 from ..io import atomic_output_dir, atomic_write_bytes, atomic_write_text, table_csv
 from ..report import characterise_figures
@@ -15,7 +16,8 @@ from ._metrics import characterisation_metrics, write_metrics
 __all__ = ["characterise_instrument", "run_characterise"]
 
 
-def characterise_instrument(icfg, *, quick: bool = False, seed: int = 0) -> tuple[dict, dict]:
+def characterise_instrument(icfg: InterferometerConfig, *, quick: bool = False,
+                            seed: int = 0) -> tuple[dict, dict]:
     """Characterise the instrument of ``[render.interferometer]``
     (:func:`render_inspect.instruments.characterise_instrument`) and draw its figures.
 
@@ -30,7 +32,8 @@ def characterise_instrument(icfg, *, quick: bool = False, seed: int = 0) -> tupl
     return metrics, characterise_figures(metrics, curves)
 
 
-def run_characterise(icfg, out, *, quick: bool = False, seed: int = 0,
+def run_characterise(icfg: InterferometerConfig, out: str | Path, *, quick: bool = False,
+                     seed: int = 0,
                      overwrite: bool = False) -> dict:
     """``render-inspect characterise --objective NAME --out DIR``.
 

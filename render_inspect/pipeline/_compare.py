@@ -360,7 +360,8 @@ def _kinematics(a: _Variant, b: _Variant):
     return axis_motion_figure(cols, title="Axis motion of the programs (the axes that move)")
 
 
-def run_compare(scene: Scene, out, *, measured=None, vary: str | None = None,
+def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = None,
+                vary: str | None = None,
                 force: bool = False, overwrite: bool = False, repeat: int = 1) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 

@@ -59,7 +59,7 @@ _NAMES = (("measured", "measured profile"),
           ("true", "simulated cut (truth)"))
 
 
-def parse_line(text) -> tuple[tuple[float, float], tuple[float, float]]:
+def parse_line(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
     """``"X0,Y0,X1,Y1"`` (mm) -> ((x0, y0), (x1, y1))."""
     parts = str(text).split(",") if not isinstance(text, (list, tuple)) else list(text)
     try:
@@ -198,7 +198,9 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
     return best[1] * spacing, best[0], how
 
 
-def run_compare_profile(scene: Scene, out, *, measured, line=None, units=None, filter_spec=None,
+def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
+                        line: str | None = None, units: str | None = None,
+                        filter_spec: str | tuple | None = None,
                         overwrite: bool = False) -> dict:
     """Compare a measured profile with the same line of the simulated part.
 
@@ -384,8 +386,10 @@ def _page(metrics: dict, figs: dict) -> str:
     return rep.render()
 
 
-def run_compare_command(scene: Scene, out, *, measured=None, vary=None, force: bool = False, line=None,
-                        units=None, filter_spec=None, repeat: int = 1,
+def run_compare_command(scene: Scene, out: str | Path, *, measured: str | Path | None = None,
+                        vary: str | None = None, force: bool = False, line: str | None = None,
+                        units: str | None = None, filter_spec: str | tuple | None = None,
+                        repeat: int = 1,
                         overwrite: bool = False) -> dict:
     """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,
     :func:`~render_inspect.pipeline.run_compare` otherwise (``line``, ``units`` and

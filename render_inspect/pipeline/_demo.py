@@ -17,7 +17,7 @@ log = logging.getLogger("render_inspect")
 DEMO_SCENE = "sts_sinusoidal_grid"
 
 
-def run_demo(out, *, quick: bool = False, overwrite: bool = False) -> dict:
+def run_demo(out: str | Path, *, quick: bool = False, overwrite: bool = False) -> dict:
     """``render-inspect demo``: :func:`~render_inspect.pipeline.run_compare` on the
     shipped grid of Li et al. 2018 (``quick``: a 0.5 mm window at 2 um, for tests)."""
     out = Path(out)

@@ -178,7 +178,7 @@ def preset_fill(scene: Scene):
 _INSTRUMENT_ATTRS = ("objective", "mode", "wavelength_nm", "bandwidth_nm", "numerical_aperture")
 
 
-def file_instrument(path) -> dict:
+def file_instrument(path: str | Path) -> dict:
     """The instrument settings a ``height.exr`` (written by ``measure``) names in its
     header; {} for other files."""
     if Path(path).suffix.lower() != ".exr":

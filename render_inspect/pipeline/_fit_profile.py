@@ -71,7 +71,7 @@ MIN_POINTS = 64
 AT_TOLERANCE_MM = 1.0 * UM_TO_MM
 
 
-def is_profile_measurement(path) -> bool:
+def is_profile_measurement(path: str | Path) -> bool:
     """Whether ``fit`` reads ``path`` as a profile (else as a height map)."""
     return is_profile_file(path)
 

@@ -116,7 +116,8 @@ def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
     return metrics
 
 
-def run_measure(path, out, *, algorithm: str = "auto", settings=None,
+def run_measure(path: str | Path, out: str | Path, *, algorithm: str = "auto",
+                settings: str | Path | None = None,
                 min_modulation: float = 0.05, overwrite: bool = False) -> dict:
     """``render-inspect measure FRAMES --out DIR``: height from frames and settings alone.
 

@@ -30,7 +30,7 @@ __all__ = ["simulation_metrics", "tiled_metrics", "variant_metrics", "comparison
 METRICS_FILE = "metrics.json"
 
 
-def write_metrics(folder, doc: dict, name: str = METRICS_FILE) -> Path:
+def write_metrics(folder: str | Path, doc: dict, name: str = METRICS_FILE) -> Path:
     """Write the metrics document ``doc`` as ``folder/metrics.json`` (strict JSON, keys
     sorted, atomically)."""
     return write_json(Path(folder) / name, doc)
@@ -140,13 +140,13 @@ def toolpath_metrics(scene_name: str, facts: dict) -> dict:
     return {"software_version": __version__, "scene_name": scene_name, **facts}
 
 
-def measurement_metrics(source, measure: dict, timing: dict) -> dict:
+def measurement_metrics(source: str | Path, measure: dict, timing: dict) -> dict:
     """``measure``'s ``metrics.json``."""
     return {"software_version": __version__, "source": str(source), "measure": measure,
             "timing_s": dict(timing)}
 
 
-def analysis_metrics(analysis: dict, *, path, files: dict, timing: dict) -> dict:
+def analysis_metrics(analysis: dict, *, path: str | Path, files: dict, timing: dict) -> dict:
     """``analyze``'s ``metrics.json``: the analysis's metrics with where the map came
     from (``input``), the files written, the version and the timing."""
     metrics = dict(analysis)

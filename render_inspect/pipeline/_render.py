@@ -141,7 +141,7 @@ def _check_render_address_space(need: dict) -> None:
         + (f", and Mitsuba's own {format_bytes(extra)} when it starts)" if starting else ")")))
 
 
-def render_heightmap(scene: Scene, *, surface: str = "machined"):
+def render_heightmap(scene: Scene, *, surface: str = "machined") -> HeightMap:
     """The HeightMap a render of ``scene`` uses.
 
     ``machined``: :func:`~render_inspect.pipeline.simulate`'s height map; ``design``: the
@@ -235,7 +235,8 @@ def part_outline(scene: Scene) -> dict:
     return {"shape": "rect", "rect": [float(v) for v in scene.simulation.region]}
 
 
-def part_heightmap(scene: Scene, hm, *, cells: int = 1024, surface: str = "machined") -> HeightMap:
+def part_heightmap(scene: Scene, hm: HeightMap, *, cells: int = 1024,
+                   surface: str = "machined") -> HeightMap:
     """The whole part for the macro view: the design over the part (:func:`part_outline`,
     ``cells`` samples across; NaN outside a turned disc) with the simulated residual
     (area-averaged onto that grid) added inside the simulated region
@@ -269,7 +270,8 @@ def render_diffuse_views(scene: Scene, hm, dcfg, *, seed: int, surface: str = "m
     return out
 
 
-def run_render(scene: Scene, out, *, surface: str = "machined", kind: str = "all", heightmap=None,
+def run_render(scene: Scene, out: str | Path, *, surface: str = "machined", kind: str = "all",
+               heightmap: HeightMap | None = None,
                overwrite: bool = False) -> dict:
     """Render ``scene`` into the folder ``out`` (written atomically).
 

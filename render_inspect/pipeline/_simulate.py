@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
+from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import BYTES_TO_MIB
 from ..design import make_surface
 from ..io import atomic_write_text, export_program, heightmap_overview, writer
@@ -77,12 +78,12 @@ class Simulation:
     msa: dict | None = None
 
     @property
-    def program(self):
+    def program(self) -> ToolPath | LinearProgram:
         """The commanded machine program (ToolPath or LinearProgram)."""
         return self.plan.program
 
     @property
-    def toolpath(self):
+    def toolpath(self) -> ToolPath | LinearProgram | None:
         """The program ``simulate`` saves as ``toolpath.npz`` (the turning tool path), or
         None for a process that saves none (sculpturing)."""
         return self.plan.program if self.traits.saves_program else None
@@ -166,7 +167,7 @@ def timed(timing: dict, key: str, fn, *args, **kw):
     return out
 
 
-def write_simulation(sim: Simulation, out_dir, *, preview: bool = True) -> dict:
+def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = True) -> dict:
     """Write heightmap.exr, metrics.json, scene.json, toolpath.npz (the processes that save
     their program) and the figures (residual.png and the plan's and cut's own:
     kinematics.png, following_error.png, ...) into ``out_dir``; return the metrics

@@ -68,7 +68,8 @@ def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None 
         process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 
-def run_simulate(scene: Scene, out, *, tiled: bool | None = None, workers: int | None = None,
+def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
+                 workers: int | None = None,
                  scheduler: str | None = None, tile: int = TILE, overwrite: bool = False) -> dict:
     """``render-inspect simulate``: heightmap.exr (or heightmap.zarr for maps simulated
     tile by tile), metrics.json, toolpath.npz, residual.png, kinematics.png.
@@ -143,7 +144,8 @@ def _may_leave_uncut(region, path, env) -> bool:
     return bool(r_out > float(rho.max()) + hw or r_in < float(rho.min()) - hw)
 
 
-def run_simulate_tiled(scene: Scene, out, *, workers: int | None = None, scheduler: str | None = None,
+def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = None,
+                       scheduler: str | None = None,
                        tile: int = TILE, overwrite: bool = False) -> dict:
     """The tiled, out-of-core ``simulate`` (see :func:`run_simulate`): heightmap.zarr (with
     an area-averaged pyramid), metrics.json, scene.json, toolpath.npz, residual.png and

@@ -92,7 +92,7 @@ def render_summary(result: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def command_summary(command: str, result, out) -> list[tuple[str, str]]:
+def command_summary(command: str, result: object, out: str | Path) -> list[tuple[str, str]]:
     """The rows of ``command``'s summary (``toolpath`` reads its toolpath.json)."""
     if command == "toolpath":
         p = Path(out) / "toolpath.json"

@@ -9,6 +9,7 @@ client process (the one that calls :func:`run_sweep`) is the only writer of
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 import contextlib
 import json
 import logging
@@ -96,7 +97,7 @@ def shipped_sweeps() -> dict[str, Path]:
             if p.name.endswith(".toml")}
 
 
-def find_sweep(name_or_path) -> Path:
+def find_sweep(name_or_path: str | Path) -> Path:
     """A sweep file: ``name_or_path`` itself when it is a file, else the shipped sweep of
     that name (``fig15_small`` or ``fig15_small.toml``)."""
     path = Path(name_or_path)
@@ -196,7 +197,7 @@ def _error_lines(text: str) -> list[str]:
     return [re.sub(r"^invalid scene .*?: ", "", ln) for ln in lines] or [str(text)]
 
 
-def check_sweep_tasks(sweep_path, tasks: list, invalid: list) -> None:
+def check_sweep_tasks(sweep_path: str | Path, tasks: list, invalid: list) -> None:
     """Refuse a sweep with any point that is not a valid scene (or does not fit the
     memory budget) before anything runs: one message with each distinct complaint and
     the points it concerns."""
@@ -244,7 +245,7 @@ def _unit_of(scene: Scene, key: str) -> str:
     return first if first in _UNITS else ""
 
 
-def column_names(scene: Scene | None, keys) -> dict:
+def column_names(scene: Scene | None, keys: Iterable[str]) -> dict:
     """``results.csv`` column of each scene key: the key with its unit added when its
     name does not say it (``tool.nose_radius`` -> ``tool.nose_radius_mm``; a key whose
     name ends in its unit, such as ``process.feed_mm_per_min``, and a key without a
@@ -435,8 +436,9 @@ def _is_sweep_folder(folder: Path) -> bool:
     return (folder / "results.jsonl").is_file() or (folder / "sweep.toml").is_file()
 
 
-def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None = None,
-              client=None, retry_failed: bool = False, progress: bool | None = None,
+def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = None,
+              workers: int | None = None,
+              client: Any = None, retry_failed: bool = False, progress: bool | None = None,
               overwrite: bool = False) -> dict:
     """``render-inspect sweep``: run every point of a sweep file on Dask.
 
@@ -537,7 +539,7 @@ def run_sweep(sweep, out, *, scheduler: str | None = None, workers: int | None =
     return info
 
 
-def sweep_failure(info: dict, out) -> str | None:
+def sweep_failure(info: dict, out: str | Path) -> str | None:
     """The command line's message for a sweep with failed points (None when none
     failed): how many failed, how many are done and how many did not run."""
     if not info.get("failed"):

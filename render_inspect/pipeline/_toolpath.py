@@ -10,10 +10,11 @@ import logging
 from pathlib import Path
 
 from ..core.errors import InputError
+from ..core.toolpath import LinearProgram, ToolPath
 from ..design import make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
-from ..processes import check_budget, findings_summary, process_of
+from ..processes import Plan, check_budget, findings_summary, process_of
 from ..report import draw_figure
 from ..toolpath import compare_with_plan, plan_memory, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
@@ -93,7 +94,8 @@ def nc_memory(scene: Scene, points: int) -> int:
                                          "process.arc_length, process.workpiece_radius)")
 
 
-def run_toolpath(scene: Scene, out, *, fmt: str = "npz", overwrite: bool = False):
+def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
+                 overwrite: bool = False) -> ToolPath | LinearProgram:
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program
@@ -133,7 +135,7 @@ def run_toolpath(scene: Scene, out, *, fmt: str = "npz", overwrite: bool = False
     return plan.program
 
 
-def write_program_report(folder: Path, plan, facts: dict) -> None:
+def write_program_report(folder: Path, plan: Plan, facts: dict) -> None:
     """The figures of a program read from a file (``feed_per_rev.png``,
     ``kinematics.png``) and its feed per revolution by radius as ``feed_per_rev.csv``."""
     for name, spec in plan.plots.items():
