@@ -25,6 +25,8 @@ windows, profiles, sections), the one metrics builder and the report.
 
 from __future__ import annotations
 
+from ..core.heightmap import HeightMap
+from collections.abc import Sequence
 import logging
 import re
 import time
@@ -90,7 +92,8 @@ _NAME_OK = re.compile(r"^[A-Za-z0-9_.-]+$")
 compare_summary = comparison_summary
 
 
-def preview_render_configs(scene: Scene, heightmap, *, window=None):
+def preview_render_configs(scene: Scene, heightmap: HeightMap, *,
+                           window: Sequence[float] | None = None):
     """Instrument and diffuse settings for compare: the scene's, over the common ``window``
     (mm) when given, with the sizes the scene does not set capped
     (:data:`COMPARE_MAX_CAMERA_PIXELS`, :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`,

@@ -17,6 +17,7 @@ and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import logging
@@ -114,7 +115,7 @@ def _filled(z):
     return f - np.polyval(c, i - i.mean())
 
 
-def registration_period(scene: Scene, z_meas, *, spacing):
+def registration_period(scene: Scene, z_meas: np.ndarray, *, spacing: float) -> float | None:
     """The period (mm) that bounds the registration's search around the mirror centres'
     match: the measured profile's own dominant period (the marks it shows repeat at it,
     whatever fed them: a program read from a file may vary its feed with the radius), or,
@@ -128,7 +129,8 @@ def registration_period(scene: Scene, z_meas, *, spacing):
     return float(marks.period_mm) if marks is not None and marks.period_mm else None
 
 
-def axis_on_line(scene: Scene, p0, p1, *, tolerance):
+def axis_on_line(scene: Scene, p0: Sequence[float], p1: Sequence[float], *,
+                 tolerance: float) -> float | None:
     """Where the spindle axis lies along the line p0 -> p1 (mm from p0), when the line
     passes within ``tolerance`` mm of it; None otherwise (or without a spindle axis)."""
     process = process_of(scene)

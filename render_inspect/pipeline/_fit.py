@@ -80,7 +80,8 @@ def _parse_at(at):
 
 
 # ------------------------------------------------------------------------- run_fit
-def run_fit(measured, scene: Scene, free, out, *, bounds=(), objective: str | None = None,
+def run_fit(measured, scene: Scene, free, out: str | Path, *, bounds=(),
+            objective: str | None = None,
             at=None, window_mm: float = 0.2, form: str = "plane", weights=None,
             workers: int | None = None, scheduler: str | None = None, predict=(),
             seed: int = 0, global_points: int = 8, max_evaluations: int = 150,

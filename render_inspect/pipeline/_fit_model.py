@@ -8,6 +8,8 @@ it (:func:`predict_measurement` runs in this process or on a Dask worker)."""
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Callable, Iterator, Sequence
 import contextlib
 import copy
 import json
@@ -103,7 +105,7 @@ def _numba_threads_as_launched() -> None:
 
 
 @contextlib.contextmanager
-def quiet():
+def quiet() -> Iterator[None]:
     """The forward model's own progress bars are not shown during a fit."""
     old = set_reporter(None)
     try:
@@ -112,7 +114,8 @@ def quiet():
         set_reporter(old)
 
 
-def compute_all(store, tasks, client, compute=None) -> list:
+def compute_all(store, tasks: Sequence[dict], client: Any,
+                compute: Callable[[dict], Any] | None = None) -> list:
     """Forward-model runs through the evaluation cache (in this process, or as one batch
     on Dask, each task run by ``compute``, default :func:`predict_measurement`): the
     predicted maps, in order."""
@@ -147,7 +150,7 @@ def compute_all(store, tasks, client, compute=None) -> list:
 
 
 # ------------------------------------------------------------------ preset values
-def preset_value(scene: Scene, key: str):
+def preset_value(scene: Scene, key: str) -> Any:
     """The value of a machine or material key the scene leaves to its preset (scene
     units), or None."""
     parts = key.split(".")

@@ -216,7 +216,8 @@ def _profile_weights(items) -> dict:
 
 
 # ------------------------------------------------------------------------------ run
-def run_fit_profile(measured, scene: Scene, free, out, *, units=None, line=None, bounds=(),
+def run_fit_profile(measured, scene: Scene, free, out: str | Path, *, units: str | None = None,
+                    line: str | None = None, bounds=(),
                     objective: str | None = None, at=None, window_mm: float = 0.3,
                     weights=None, workers: int | None = None, scheduler: str | None = None,
                     seed: int = 0, global_points: int = 8, max_evaluations: int = 150,

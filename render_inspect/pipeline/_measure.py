@@ -164,7 +164,7 @@ def run_measure(path: str | Path, out: str | Path, *, algorithm: str = "auto",
     return metrics
 
 
-def measure_and_evaluate(path, *, algorithm: str = "auto", csi_refine: str = "envelope",
+def measure_and_evaluate(path: str | Path, *, algorithm: str = "auto", csi_refine: str = "envelope",
                          min_modulation: float = 0.05):
     """Measure the frames of ``interferogram.exr`` (frames and settings only), then evaluate
     the measurement against its ``height_true`` channel; add ``height_measured`` (mm,

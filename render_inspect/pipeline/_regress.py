@@ -19,6 +19,7 @@ records the software version and the Mitsuba variant.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 import fnmatch
 import logging
 import platform
@@ -142,7 +143,7 @@ def _case_scene(case, path: Path, overrides=()):
         raise SceneError(f"regression case {case.name}: {err}") from None
 
 
-def case_images(scene: Scene, images, *, seeds) -> dict:
+def case_images(scene: Scene, images: Sequence[str], *, seeds: Sequence[int]) -> dict:
     """Render the images of one case.
 
     Parameters
@@ -334,8 +335,9 @@ def _compare(case, name, im, ref, settings, n_test) -> tuple[dict, dict]:
     return row, cmp
 
 
-def run_regress(*, update: bool = False, only=None, out=None, cases=None, references=None,
-                overrides=(), overwrite: bool = False) -> dict:
+def run_regress(*, update: bool = False, only: str | None = None, out: str | Path | None = None,
+                cases: str | Path | None = None, references: str | Path | None = None,
+                overrides: Iterable[str] = (), overwrite: bool = False) -> dict:
     """``render-inspect regress``: render every regression case and compare it with its
     reference (or, with ``update``, make the references anew).
 

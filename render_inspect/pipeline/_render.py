@@ -4,6 +4,7 @@ the diffuse-light views, on disk."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import json
 import sys
 import time
@@ -26,7 +27,7 @@ from ..io import atomic_output_dir, atomic_write_bytes, png_bytes_with_text, wri
 from ..machining import part_heightmap as _part_map
 from ..metrology import render_marks, surface_slope
 from ..processes import process_of
-from ..render import MAX_FILM_SIDE, diffuse_memory, render_diffuse, variant_info
+from ..render import MAX_FILM_SIDE, DiffuseConfig, diffuse_memory, render_diffuse, variant_info
 from ..report import annotate_rgb, diffuse_caption, draw_figure, scale_bar_length
 from ._metrics import write_metrics
 from ._simulate import design_heightmap, simulate
@@ -249,8 +250,10 @@ def part_heightmap(scene: Scene, hm: HeightMap, *, cells: int = 1024,
                      cells=cells, layer=surface)
 
 
-def render_diffuse_views(scene: Scene, hm, dcfg, *, seed: int, surface: str = "machined",
-                         views=("micro", "macro"), part_hm=None) -> dict:
+def render_diffuse_views(scene: Scene, hm: HeightMap, dcfg: DiffuseConfig, *, seed: int,
+                         surface: str = "machined",
+                         views: Sequence[str] = ("micro", "macro"),
+                         part_hm: HeightMap | None = None) -> dict:
     """The diffuse images of a simulated part: ``micro`` (``dcfg.window`` of ``hm``,
     straight down) and ``macro`` (the whole part, :func:`part_heightmap`), both with the
     scene's tool marks, their meshes within the scene's memory budget.  Returns view ->

@@ -6,6 +6,8 @@ metrics builder, and the writers and figures of the outputs."""
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Callable
 import json
 import logging
 import threading
@@ -19,7 +21,7 @@ from ..core.heightmap import HeightMap
 from ..core.progress import task
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import BYTES_TO_MIB
-from ..design import make_surface
+from ..design import Surface, make_surface
 from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
@@ -94,7 +96,7 @@ class Simulation:
         return {**self.plan.plots, **self.cut.plots}
 
 
-def simulate(scene: Scene, *, surface=None) -> Simulation:
+def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process plans its program for the region, the memory needed is checked
@@ -159,7 +161,7 @@ def residual_title(name: str, traits: Traits, r: dict) -> str:
             f"Sq {r['Sq_nm']:.2f} nm, Sz {r['Sz_nm']:.1f} nm, min {r['min_nm']:.1f} nm")
 
 
-def timed(timing: dict, key: str, fn, *args, **kw):
+def timed(timing: dict, key: str, fn: Callable[..., Any], *args: Any, **kw: Any) -> Any:
     """``fn(*args, **kw)``, its seconds recorded as ``timing[key]``."""
     t0 = time.perf_counter()
     out = fn(*args, **kw)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
-from ..design import make_surface
+from ..design import Surface, make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
 from ..processes import Plan, check_budget, findings_summary, process_of
@@ -29,7 +29,7 @@ __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_fi
 log = logging.getLogger("render_inspect")
 
 
-def plan_program(scene: Scene, *, surface=None):
+def plan_program(scene: Scene, *, surface: Surface | None = None) -> Plan:
     """The :class:`~render_inspect.processes.Plan` of the scene's whole program (or of
     the region its process plans for the ``toolpath`` command)."""
     process = process_of(scene)

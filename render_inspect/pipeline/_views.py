@@ -110,7 +110,7 @@ class BigMapViews:
         window = list(dcfg.window) if dcfg.window is not None else default_window(self.grid)
         return self._window(window, f"diffuse_{view}"), dcfg.model_copy(update={"window": tuple(window)})
 
-    def close(self):
+    def close(self) -> None:
         if self.cleanup is not None:
             shutil.rmtree(self.cleanup, ignore_errors=True)
 
@@ -123,7 +123,7 @@ def _same_scene(a: dict, b: dict) -> bool:
     return a == b
 
 
-def existing_store(scene: Scene, out) -> Path | None:
+def existing_store(scene: Scene, out: str | Path) -> Path | None:
     """``out/heightmap.zarr`` when ``simulate`` wrote it there for the same part (the
     scene's keys equal, the memory budget and the render settings aside), else None."""
     existing = Path(out) / "heightmap.zarr"
@@ -136,7 +136,7 @@ def existing_store(scene: Scene, out) -> Path | None:
     return existing
 
 
-def big_map_store(scene: Scene, out) -> tuple[Path, Path | None]:
+def big_map_store(scene: Scene, out: str | Path) -> tuple[Path, Path | None]:
     """The store of ``scene``'s machined map: ``out/heightmap.zarr`` when ``simulate``
     wrote it there for the same part, else a tiled simulation into a temporary folder
     (returned second, to be removed after use)."""
