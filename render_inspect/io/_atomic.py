@@ -42,6 +42,8 @@ The pieces are modules of their own: :mod:`._atomic_write` (files), :mod:`._outd
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Callable, Iterable, Iterator
 import contextlib
 import errno
 import json
@@ -153,9 +155,9 @@ def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: tuple | 
     return ("merge" if merge else "replace"), marker
 
 
-def check_output_dir(out, *, overwrite: bool = False, merge: bool = False,
-                     command: str = "output", scene=None, option: str = "--out",
-                     inputs=()) -> Path:
+def check_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool = False,
+                     command: str = "output", scene: Any = None, option: str = "--out",
+                     inputs: Iterable[str | Path | None] = ()) -> Path:
     """The checks :func:`atomic_output_dir` makes before its block runs (the path, and an
     existing folder's content against ``overwrite`` / ``merge`` / ``inputs``), without
     locking or writing anything: for a command that reads its input before it opens its
@@ -176,7 +178,8 @@ _OUTPUT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG, errno.EI
 
 @contextlib.contextmanager
 def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool = False,
-                      command: str = "output", scene=None, option: str = "--out", inputs=()):
+                      command: str = "output", scene: Any = None, option: str = "--out",
+                      inputs: Iterable[str | Path | None] = ()) -> Iterator[Path]:
     """Yield a fresh temporary folder; when the block ends without an exception it
     becomes ``out``, whole, in one swap (see the module docstring).
 
@@ -296,8 +299,9 @@ def _inside(exc: OSError, tmp: str | None, target: Path) -> bool:
     return any(f == r or f.startswith(r + os.sep) for r in roots)
 
 
-def claim_output_dir(out, *, command: str, overwrite: bool = False, option: str = "--out",
-                     resumable=None) -> Path:
+def claim_output_dir(out: str | Path, *, command: str, overwrite: bool = False,
+                     option: str = "--out",
+                     resumable: Callable[[Path], bool] | None = None) -> Path:
     """Check a folder that a command fills in place over many runs (``sweep``: its
     finished points are kept and the run goes on where it stopped), before any work.
 

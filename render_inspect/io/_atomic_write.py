@@ -3,6 +3,8 @@ place (a failed or interrupted write leaves the old file or none); strict JSON."
 
 from __future__ import annotations
 
+from typing import Any, IO
+from collections.abc import Callable
 import contextlib
 import json
 import math
@@ -22,7 +24,7 @@ def _umask() -> int:
     return m
 
 
-def atomic_write_stream(path: str | Path, write) -> Path:
+def atomic_write_stream(path: str | Path, write: Callable[[IO[bytes]], Any]) -> Path:
     """Write a file by calling ``write(fh)`` on a binary temporary file in the same folder,
     then rename it into place (the caller streams large content in pieces)."""
     path = Path(path)
@@ -50,7 +52,7 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def json_safe(obj):
+def json_safe(obj: Any) -> Any:
     """``obj`` with numpy scalars/arrays turned into Python values, paths into text and
     non-finite floats into None, so it is strict JSON (no NaN or Infinity)."""
     if isinstance(obj, dict):
@@ -68,7 +70,7 @@ def json_safe(obj):
     return obj
 
 
-def write_json(path: str | Path, obj) -> Path:
+def write_json(path: str | Path, obj: Any) -> Path:
     """Write ``obj`` as strict JSON (:func:`json_safe`), indented, keys sorted, atomically."""
     text = json.dumps(json_safe(obj), indent=2, sort_keys=True, allow_nan=False)
     return atomic_write_text(path, text + "\n")

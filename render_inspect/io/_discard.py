@@ -4,6 +4,7 @@ folder behind, only the folder as it was before."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 import contextlib
 import os
 import shutil
@@ -12,7 +13,7 @@ from pathlib import Path
 __all__ = ["discard_unused", "discarding_new_folder"]
 
 
-def discard_unused(folder, scaffolding=()) -> bool:
+def discard_unused(folder: Path, scaffolding: Iterable[str] = ()) -> bool:
     """Remove ``folder`` when it holds nothing but ``scaffolding`` (names of the files a
     run writes before its work: its marker, a lock, a copy of its input) and empty
     files; returns whether it was removed.  A folder with any other entry is left."""
@@ -36,7 +37,7 @@ def discard_unused(folder, scaffolding=()) -> bool:
 
 
 @contextlib.contextmanager
-def discarding_new_folder(folder, scaffolding=()):
+def discarding_new_folder(folder: Path, scaffolding: Iterable[str] = ()) -> Iterator[None]:
     """Within the block, ``folder`` is made and filled; if it did not exist before and
     the block fails, it is removed again unless it holds more than ``scaffolding`` and
     empty files (:func:`discard_unused`)."""

@@ -20,13 +20,14 @@ writes.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import contextlib
 import json
 import math
 import os
 import threading
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
@@ -51,7 +52,7 @@ _POOL_USERS = 0
 
 
 @contextlib.contextmanager
-def compression_threads():
+def compression_threads() -> Iterator[None]:
     """OpenEXR's process-wide thread pool holds one thread per usable CPU
     (:func:`~render_inspect.core.limits.usable_cpus`) while files are written in this
     block, and none after the last writer leaves it (no idle threads are left behind for
@@ -216,7 +217,8 @@ def _positive_number(v) -> bool:
     return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and v > 0
 
 
-def exr_placement(attrs: dict, *, what: str, path, pair: bool = False):
+def exr_placement(attrs: dict, *, what: str, path: str | Path,
+                  pair: bool = False) -> tuple[Any, tuple[float, float]]:
     """(pixel, (x, y)) from the ``pixel_size_mm`` and ``origin_mm`` header attributes,
     checked: a finite pixel > 0 and two finite numbers (mm); else :class:`InputError`.
     With ``pair`` the pixel may also be ``[x, y]`` and comes back as (pixel_x, pixel_y)."""
@@ -240,7 +242,8 @@ def exr_placement(attrs: dict, *, what: str, path, pair: bool = False):
     return p, (float(o[0]), float(o[1]))
 
 
-def read_exr(path: str | Path, *, what: str = "EXR file", budget=None
+def read_exr(path: str | Path, *, what: str = "EXR file",
+             budget: int | tuple[int, str] | None = None
              ) -> tuple[dict[str, np.ndarray], dict]:
     """Return (channels, attrs).  Numbers come back exact (from the JSON text);
     JSON-text attributes are decoded.

@@ -8,6 +8,7 @@ the frames and are returned separately by the reader."""
 
 from __future__ import annotations
 
+from typing import Any
 import json
 from pathlib import Path
 
@@ -26,8 +27,8 @@ FRAME_CHANNELS = ("intensity", "valid")
 
 
 @register_writer("frames", ".exr")
-def write_frames_exr(path, frames: Frames, *, extra_channels: dict | None = None,
-                     attrs: dict | None = None, **_) -> Path:
+def write_frames_exr(path: str | Path, frames: Frames, *, extra_channels: dict | None = None,
+                     attrs: dict | None = None, **_: Any) -> Path:
     """Write ``frames`` (and ``extra_channels``: name -> (H, W) array) to an EXR, atomically.
 
     ``attrs`` adds header attributes (e.g. ``scene`` as JSON text)."""
@@ -46,7 +47,7 @@ def write_frames_exr(path, frames: Frames, *, extra_channels: dict | None = None
     return write_exr(path, ch, header)
 
 
-def read_frames_exr(path) -> tuple[Frames, dict, dict]:
+def read_frames_exr(path: str | Path) -> tuple[Frames, dict, dict]:
     """Read frames written by :func:`write_frames_exr` (or by an instrument exporter using
     the same channels and header).
 

@@ -34,7 +34,7 @@ __all__ = ["frt_bytes", "reader_keeps_stored_order", "FRT_INVALID"]
 FRT_INVALID = 1
 
 
-def frt_bytes(counts, *, pixel_m: float = 1e-6, zscale_m: float = 1e-9) -> bytes:
+def frt_bytes(counts: np.ndarray, *, pixel_m: float = 1e-6, zscale_m: float = 1e-9) -> bytes:
     """An FRT file (version 1.00) holding ``counts`` (rows as stored, uint16 or int32)
     as its topography, ``pixel_m`` the sampling (m) and ``zscale_m`` metres per count."""
     counts = np.asarray(counts)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import json
 from pathlib import Path
 
@@ -17,7 +18,8 @@ from ._registry import register_writer
 __all__ = ["write_heightmap_exr", "read_heightmap_exr", "heightmap_attrs", "grid_attrs"]
 
 
-def grid_attrs(pixel: float, origin, scene: dict | None, meta: dict | None) -> dict:
+def grid_attrs(pixel: float, origin: Sequence[float], scene: dict | None,
+               meta: dict | None) -> dict:
     """Header attributes of a height map on a grid (``heightmap.exr``, ``heightmap.zarr``)."""
     return {"pixel_size_mm": float(pixel),
             "origin_mm": [float(origin[0]), float(origin[1])],

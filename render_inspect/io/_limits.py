@@ -12,6 +12,7 @@ the automatic budget of :func:`~render_inspect.core.limits.memory_budget`).
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 import ast
 import contextlib
 import contextvars
@@ -57,7 +58,7 @@ _AFTER: contextvars.ContextVar = contextvars.ContextVar("render_inspect_after_re
 
 
 @contextlib.contextmanager
-def reading_for(bytes_per_value: float, purpose: str):
+def reading_for(bytes_per_value: float, purpose: str) -> Iterator[None]:
     """Within the block, the readers' size checks count ``bytes_per_value`` bytes per
     declared value (when more than :data:`READ_BYTES_PER_VALUE`): the peak of what the
     caller does with the map once read, e.g. ``analyze``'s parameters, so that a map too
@@ -142,7 +143,8 @@ def _npy_header(fh, what: str, name: str) -> tuple[tuple, np.dtype, bool, int]:
     return shape, dtype, fortran, 8 + (2 if major == 1 else 4) + size
 
 
-def check_values(path, *, what: str, desc: str, count: float, budget=None,
+def check_values(path: str | Path, *, what: str, desc: str, count: float,
+                 budget: int | tuple[int, str] | None = None,
                  extra_bytes: float = 0) -> None:
     """Refuse a file that declares ``count`` height values (``desc`` says how, e.g. "a
     4096 x 4096 grid") when reading them would not fit the budget
@@ -150,7 +152,8 @@ def check_values(path, *, what: str, desc: str, count: float, budget=None,
     _refuse_size(what, path, desc, float(count) * per_value_bytes() + float(extra_bytes), budget)
 
 
-def check_file_values(path, *, what: str, bytes_per_value: int, budget=None) -> int:
+def check_file_values(path: str | Path, *, what: str, bytes_per_value: int,
+                      budget: int | tuple[int, str] | None = None) -> int:
     """For a reader that loads a whole uncompressed file at once: refuse it when the
     values the file can hold (its size / ``bytes_per_value``) would not fit the budget.
     Returns the file's size in bytes."""
@@ -162,7 +165,8 @@ def check_file_values(path, *, what: str, bytes_per_value: int, budget=None) -> 
     return size
 
 
-def check_real_array(dtype, shape, *, what: str, name: str, ndim: int | None = 2) -> None:
+def check_real_array(dtype: np.dtype, shape: tuple[int, ...], *, what: str, name: str,
+                     ndim: int | None = 2) -> None:
     """Refuse arrays that are not real numbers (complex, text, records) or not ``ndim``-D."""
     dtype = np.dtype(dtype)
     if dtype.kind == "c":
@@ -174,7 +178,8 @@ def check_real_array(dtype, shape, *, what: str, name: str, ndim: int | None = 2
         raise InputError(f"{what} {name!r} must be a {ndim}-D array, got shape {tuple(shape)}")
 
 
-def check_npy(path, *, what: str, budget=None, ndim: int | None = 2) -> tuple[tuple, np.dtype]:
+def check_npy(path: str | Path, *, what: str, budget: int | tuple[int, str] | None = None,
+              ndim: int | None = 2) -> tuple[tuple, np.dtype]:
     """Check a ``.npy`` file before loading: a NumPy header, a real-number dtype (no
     pickles, no complex), ``ndim`` dimensions, a file long enough for what the header
     declares, and a size within the budget.  Returns (shape, dtype)."""
@@ -195,7 +200,8 @@ def check_npy(path, *, what: str, budget=None, ndim: int | None = 2) -> tuple[tu
     return shape, dtype
 
 
-def check_zip(path, *, what: str, budget=None, max_members: int = MAX_ZIP_MEMBERS,
+def check_zip(path: str | Path, *, what: str, budget: int | tuple[int, str] | None = None,
+              max_members: int = MAX_ZIP_MEMBERS,
               kind: str = "zip archive") -> list[zipfile.ZipInfo]:
     """Check a zip archive (npz, X3P) before reading members: a readable central
     directory, at most ``max_members`` members, a declared uncompressed total within the
@@ -218,7 +224,8 @@ def check_zip(path, *, what: str, budget=None, max_members: int = MAX_ZIP_MEMBER
     return infos
 
 
-def check_npz(path, *, what: str, budget=None, names=None) -> dict[str, tuple]:
+def check_npz(path: str | Path, *, what: str, budget: int | tuple[int, str] | None = None,
+              names: Iterable[str] | None = None) -> dict[str, tuple]:
     """Check a ``.npz`` archive before loading: :func:`check_zip`, then the header of each
     ``.npy`` member (``names``: only those) as :func:`check_npy` does (no pickles, sizes
     within the budget).  Returns ``{name: (shape, dtype)}``."""
@@ -287,7 +294,8 @@ def _x3p_sizes(text: bytes, what: str, path) -> tuple[int, int, int]:
     return sizes[0], sizes[1], sizes[2]
 
 
-def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
+def check_x3p(path: str | Path, *, what: str,
+              budget: int | tuple[int, str] | None = None) -> tuple[int, int, int]:
     """Check an X3P file before reading: :func:`check_zip`, then the grid size its
     ``main.xml`` declares (SizeX x SizeY x SizeZ, read as XML: :func:`_x3p_sizes`) within
     the budget.  Returns the sizes (0 where not declared)."""
@@ -311,7 +319,8 @@ def check_x3p(path, *, what: str, budget=None) -> tuple[int, int, int]:
     return sx, sy, sz
 
 
-def check_exr(path, *, what: str, budget=None) -> tuple[int, int, int]:
+def check_exr(path: str | Path, *, what: str,
+              budget: int | tuple[int, str] | None = None) -> tuple[int, int, int]:
     """Check an OpenEXR file before reading the pixels: a readable header and a data
     window whose channels fit the budget.  Returns (height, width, channels)."""
     import OpenEXR
@@ -345,7 +354,8 @@ def check_exr(path, *, what: str, budget=None) -> tuple[int, int, int]:
     return h, w, n
 
 
-def check_frames(frames, valid=None, *, what: str, path) -> np.ndarray:
+def check_frames(frames: np.ndarray, valid: np.ndarray | None = None, *, what: str,
+                 path: str | Path) -> np.ndarray:
     """Check an interferogram's frames (``(n, ny, nx)``) before a measurement: a pixel is
     usable when it is ``valid`` and every frame holds a finite intensity there.  Returns
     that mask; refuses (one line naming ``what`` and the file) a stack in which no pixel
@@ -372,7 +382,7 @@ def check_frames(frames, valid=None, *, what: str, path) -> np.ndarray:
     return usable
 
 
-def read_json_file(path, *, what: str, max_bytes: int = MAX_JSON_BYTES) -> dict:
+def read_json_file(path: str | Path, *, what: str, max_bytes: int = MAX_JSON_BYTES) -> dict:
     """Read a small JSON object (a side-car file): at most ``max_bytes``, UTF-8, strict
     JSON (no NaN), an object at the top.  Malformed content is an :class:`InputError`."""
     path = _file(path, what)

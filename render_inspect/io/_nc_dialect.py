@@ -34,7 +34,7 @@ _TURN_AXES = ("C", "X", "Z")
 _LINEAR_AXES = ("X", "Y", "Z")
 
 
-def nc_comment_text(value) -> str:
+def nc_comment_text(value: object) -> str:
     """``value`` as text safe inside a ``;`` comment of an NC program: printable ASCII only
     (every other character, line breaks and carriage returns included, becomes a space),
     ``;`` -> ``,`` and ``(``/``)`` -> ``[``/``]`` (comment delimiters of common dialects),

@@ -36,7 +36,7 @@ _SECTION_LINE = re.compile(r"^; (approach|cut|link|exit|line \d+)$", re.M)
 _PREAMBLE = {"G90 G93": {90.0, 93.0}, "G90 G94 G21": {90.0, 94.0, 21.0}, "M30": set()}
 
 
-def read_nc_blocks(path) -> Blocks:
+def read_nc_blocks(path: str | Path) -> Blocks:
     """Every motion block of an NC program in either dialect, as written: block number,
     ``G00`` / ``G01``, the role its section gives it (``; approach``, ``; cut``,
     ``; line k``, ``; link``, ``; exit``; without sections ``G00`` is a rapid and ``G01``
@@ -323,7 +323,7 @@ def _cut_start(blocks: Blocks, i0: int, path, axes) -> int:
     return j
 
 
-def cut_points(blocks: Blocks, path="program") -> np.ndarray:
+def cut_points(blocks: Blocks, path: str | Path = "program") -> np.ndarray:
     """Indices of the blocks whose ends are the cutting points, in order: each run of
     cutting blocks (a ``; cut`` section, a ``; line k``), starting with the point the
     plunge before it leaves the tool on."""
@@ -344,7 +344,7 @@ def cut_points(blocks: Blocks, path="program") -> np.ndarray:
     return np.asarray(idx, dtype=np.int64)
 
 
-def read_nc(path):
+def read_nc(path: str | Path) -> ToolPath:
     """Parse a turning program written by :func:`write_nc` (or any program in that dialect)
     back into a :class:`ToolPath` (theta from C, rho = X, z = Z, t from ``t0_s`` and the
     inverse-time ``F`` words): the cutting blocks, starting where the approach leaves the
@@ -377,7 +377,7 @@ def read_nc(path):
                     t, meta)
 
 
-def read_program_nc(path) -> LinearProgram:
+def read_program_nc(path: str | Path) -> LinearProgram:
     """Parse an X-Y-Z program written by :func:`write_program_nc` back into a
     :class:`LinearProgram`: the cutting blocks of each ``; line k`` (a line starts where
     the plunge before it leaves the tool), ``t`` from the path length along the lines at

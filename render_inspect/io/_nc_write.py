@@ -5,6 +5,8 @@ through the clearance plane when given."""
 
 from __future__ import annotations
 
+from typing import Any
+from ..core.toolpath import ToolPath
 import math
 from pathlib import Path
 
@@ -45,7 +47,7 @@ def _turning_header(header: dict | None, toolpath, links) -> list[str]:
     return lines + _header_lines("", info)[1:]
 
 
-def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6,
+def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None, decimals: int = 6,
              links: Links | None = None) -> Path:
     """Write ``toolpath`` as a generic C-X-Z NC program (format in
     :mod:`render_inspect.io._toolpath`).
@@ -140,9 +142,9 @@ def write_nc(path, toolpath, *, header: dict | None = None, decimals: int = 6,
 
 
 # ------------------------------------------------------------------------ sculpturing
-def write_program_nc(path, program: LinearProgram, *, header: dict | None = None,
+def write_program_nc(path: str | Path, program: LinearProgram, *, header: dict | None = None,
                      feed_mm_per_min: float | None = None, links: Links | None = None,
-                     **_) -> Path:
+                     **_: Any) -> Path:
     """A generic X-Y-Z program (``G90 G94 G21``, ``G01`` moves at the cutting speed
     ``feed_mm_per_min``), a ``; line k`` comment before each target line.  With ``links``
     the lines are joined by retract - rapid - plunge moves through the clearance plane

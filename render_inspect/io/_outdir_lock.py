@@ -71,7 +71,7 @@ def _signals_held():
 
 
 
-def open_lock_file(path, *, option: str = "--out", out_text: str | None = None) -> int:
+def open_lock_file(path: str | Path, *, option: str = "--out", out_text: str | None = None) -> int:
     """Open (creating it) the lock file ``path`` for ``flock`` and return the descriptor,
     without following a symbolic link and without blocking on a pipe: a link, a hard
     link to another file, a device or pipe, or a file holding more than a process id

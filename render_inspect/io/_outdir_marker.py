@@ -29,7 +29,7 @@ NOT_PART = {"simulation": ("max_memory_gb",)}
 
 
 # ------------------------------------------------------------------------ marker
-def part_hash(scene, *, legacy: bool = False) -> str | None:
+def part_hash(scene: Any, *, legacy: bool = False) -> str | None:
     """SHA-256 of the scene keys that shape the part (:data:`PART_SECTIONS`, less
     :data:`NOT_PART`: the memory a run may use is no property of the part).  ``legacy``:
     the hash as folders written before that distinction recorded it."""
@@ -169,7 +169,7 @@ def _foreign(folder: Path, marker: dict, depth: int = 0) -> list[str]:
     return out
 
 
-def write_marker(folder: str | Path, *, command: str, scene=None) -> None:
+def write_marker(folder: str | Path, *, command: str, scene: Any = None) -> None:
     """Mark ``folder`` (being built) as ``command``'s output: its files and the scene's
     hashes go into :data:`MARKER`.  For a sub-folder that later commands address on their
     own (the add-on's variant folders); :func:`atomic_output_dir` marks the folders it

@@ -40,7 +40,7 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
-def check_output_path(out, *, option: str = "--out", replaced: bool = True) -> Path:
+def check_output_path(out: str | Path, *, option: str = "--out", replaced: bool = True) -> Path:
     """Check an output folder before any work and return it as an absolute path
     (symbolic links resolved).
 

@@ -85,7 +85,7 @@ class MeasuredProfile:
         return float(self.x[-1] - self.x[0])
 
 
-def parse_units(units, *, option: str = "--units") -> tuple[str, str] | None:
+def parse_units(units: str | None, *, option: str = "--units") -> tuple[str, str] | None:
     """``units`` as (position unit, height unit): None, one unit for both (``"um"``), or
     two (``"mm,nm"`` / ``("mm", "nm")``)."""
     if units is None:
@@ -353,7 +353,7 @@ def _x3p_reader(path, *, units=None, **_):
     return _read_x3p_profile(Path(path), units)
 
 
-def is_profile_file(path) -> bool:
+def is_profile_file(path: str | Path) -> bool:
     """True when ``path`` holds a profile rather than an areal map: a text export, a
     Dektak ``.opdx`` whose data are 1-D, or an X3P whose feature type is ``PRF``."""
     path = Path(path)
@@ -396,7 +396,7 @@ def _text_columns(path: Path, *, lines: int = 64) -> int:
     return 0
 
 
-def read_profile(path: str | Path, *, units=None) -> MeasuredProfile:
+def read_profile(path: str | Path, *, units: str | None = None) -> MeasuredProfile:
     """Read a measured profile.
 
     Parameters

@@ -137,6 +137,7 @@ def read_program(path, *, kind: str | None = None, spindle_rpm: float = 50.0,
     if x_mode not in X_MODES:
         raise InputError(f"process.program_x must be one of {list(X_MODES)}, received {x_mode!r}")
     dialect = program_dialect(path)
+    prog: ToolPath | LinearProgram
     if dialect == "render_inspect turning":
         prog = read_nc(path)
         out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8),

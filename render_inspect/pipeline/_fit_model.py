@@ -8,7 +8,6 @@ it (:func:`predict_measurement` runs in this process or on a Dask worker)."""
 
 from __future__ import annotations
 
-from typing import Any
 from collections.abc import Callable, Iterator, Sequence
 import contextlib
 import copy
@@ -18,7 +17,7 @@ import os
 import socket
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 

@@ -6,7 +6,6 @@ metrics builder, and the writers and figures of the outputs."""
 
 from __future__ import annotations
 
-from typing import Any
 from collections.abc import Callable
 import json
 import logging
@@ -15,7 +14,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
