@@ -6,6 +6,7 @@ ISO 16610-61 S- and L-filters -> Sa, Sq, Sz, Sp, Sv, Ssk, Sku, Sdq, Sdr, Sal, St
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -83,7 +84,7 @@ def parse_filter(text: str | None):
     return s_mm, l_mm
 
 
-def filter_range(pixel, shape) -> tuple[float, float]:
+def filter_range(pixel: float | tuple[float, float], shape: tuple[int, ...]) -> tuple[float, float]:
     """(shortest, longest) nesting index in mm a filter may have on a map of ``shape``
     (rows, columns) with ``pixel`` (mm, one number or (x, y)): two of the larger pixel,
     and the smaller side of the field."""
@@ -92,7 +93,8 @@ def filter_range(pixel, shape) -> tuple[float, float]:
     return 2.0 * max(px, py), min(px * nx, py * ny)
 
 
-def check_filter(s_mm, l_mm, *, pixel, shape, option: str = "--filter") -> None:
+def check_filter(s_mm: float | None, l_mm: float | None, *, pixel: float | tuple[float, float],
+                 shape: tuple[int, ...], option: str = "--filter") -> None:
     """Refuse S- and L-filter nesting indices (mm) that this map cannot carry: shorter
     than two pixels or longer than the field's smaller side (:func:`filter_range`), with
     one line naming ``option``, the unit, the allowed range and the value, and, when the
@@ -158,7 +160,8 @@ def _step_peak(form: str, outliers: str) -> float:
     return max(peaks)
 
 
-def analyze_memory(shape, *, form: str = "plane", s_filter_mm=None, l_filter_mm=None,
+def analyze_memory(shape: tuple[int, ...], *, form: str = "plane",
+                   s_filter_mm: float | None = None, l_filter_mm: float | None = None,
                    outliers: str = "none", slope: str = "forward", holes: bool = True) -> float:
     """Bytes at the peak of ``analyze`` on a map of ``shape`` (rows, columns) with these
     options (:data:`ANALYZE_BYTES_PER_POINT`): the map, the analysis and the figures;
@@ -170,7 +173,8 @@ def analyze_memory(shape, *, form: str = "plane", s_filter_mm=None, l_filter_mm=
     return max(spatial, _step_peak(form, outliers) * n) + _ANALYZE_FIXED
 
 
-def analyze_memory_per_point(*, form: str = "plane", s_filter_mm=None, l_filter_mm=None,
+def analyze_memory_per_point(*, form: str = "plane", s_filter_mm: float | None = None,
+                             l_filter_mm: float | None = None,
                              outliers: str = "none", slope: str = "forward",
                              holes: bool = True) -> float:
     """:func:`analyze_memory` per map point before the map's shape is known (the padded
@@ -223,10 +227,12 @@ def _nan_to_none(v):
     return v
 
 
-def analyze_map(z, *, pixel=None, origin=(0.0, 0.0), form: str = "plane",
+def analyze_map(z: Any, *, pixel: float | tuple[float, float] | None = None,
+                origin: Sequence[float] = (0.0, 0.0), form: str = "plane",
                 s_filter_mm: float | None = None, l_filter_mm: float | None = None,
                 outliers: str = "none", outlier_sigma: float = 3.0, slope: str = "forward",
-                acf_threshold: float = 0.2, source: dict | None = None, budget=None,
+                acf_threshold: float = 0.2, source: dict | None = None,
+                budget: int | tuple[int, str] | None = None,
                 filter_option: str = "--filter") -> Analysis:
     """ISO 25178-2 parameters of one height map, with everything said about how.
 

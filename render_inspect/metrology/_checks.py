@@ -101,7 +101,8 @@ def registered_overlap(z, *, pixel, origin=(0.0, 0.0), region, registration=None
             "overlap_area_mm2": over, "measured_area_mm2": meas, "region_area_mm2": reg_area}
 
 
-def correlation_area(z, *, pixel, mask=None) -> float:
+def correlation_area(z: np.ndarray, *, pixel: float | tuple[float, float],
+                     mask: np.ndarray | None = None) -> float:
     """Area (mm^2) of the positive central lobe of the autocorrelation of ``z``:
     ``sum(ACF) px py`` over the connected region around zero lag where ACF > 0.  The
     number of independent values in a map of area ``A`` is about ``A`` / this."""

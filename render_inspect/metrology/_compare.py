@@ -3,6 +3,7 @@ with a scene's design and simulation through the same chain."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -86,7 +87,8 @@ def characterise_map(z, *, pixel, origin=(0.0, 0.0), form_removal: str = "plane"
     return out
 
 
-def coverage(z, *, pixel, origin, region) -> float:
+def coverage(z: np.ndarray, *, pixel: float | tuple[float, float], origin: Sequence[float],
+             region: Sequence[float]) -> float:
     """Fraction of the area of ``region`` = (x0, y0, x1, y1) (mm) covered by the cells
     (pixel_x x pixel_y, centred on the points) of the map's valid points; ``pixel`` one
     number or (pixel_x, pixel_y), mm."""

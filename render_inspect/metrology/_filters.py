@@ -27,7 +27,9 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
+from typing import cast
 
 import numpy as np
 from ..core.lazy import lazy_module
@@ -49,7 +51,7 @@ EDGE_MODES = ("normalised", "mirror", "cut")
 GAUSSIAN_ALPHA = math.sqrt(math.log(2.0) / math.pi)
 
 
-def valid_mask(z, mask=None, *, name: str = "z") -> np.ndarray:
+def valid_mask(z: np.ndarray, mask: np.ndarray | None = None, *, name: str = "z") -> np.ndarray:
     """Boolean array: finite values of ``z`` that are also ``True`` in ``mask``."""
     z = np.asarray(z)
     ok = np.isfinite(z)
@@ -61,11 +63,11 @@ def valid_mask(z, mask=None, *, name: str = "z") -> np.ndarray:
     return ok
 
 
-def pixel_xy(pixel, name: str = "pixel") -> tuple[float, float]:
+def pixel_xy(pixel: float | tuple[float, float], name: str = "pixel") -> tuple[float, float]:
     """``(pixel_x, pixel_y)`` (mm) from one number (square pixels) or a pair; both > 0."""
     if np.ndim(pixel) == 0:
         check_positive(name, pixel)
-        return float(pixel), float(pixel)
+        return float(cast(float, pixel)), float(cast(float, pixel))  # (one number: np.ndim 0)
     p = tuple(np.asarray(pixel, dtype=np.float64).ravel())
     if len(p) != 2:
         raise InputError(f"{name} must be one number or (pixel_x, pixel_y) in mm, got {pixel!r}")
@@ -217,7 +219,9 @@ def _sag(kappa, rho2):
     return np.where(arg >= 0, kappa * rho2 / (1.0 + np.sqrt(np.maximum(arg, 0.0))), np.nan)
 
 
-def fit_sphere(z, *, pixel, origin=(0.0, 0.0), mask=None, max_points: int = 200_000,
+def fit_sphere(z: np.ndarray, *, pixel: float | tuple[float, float],
+               origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
+               max_points: int = 200_000,
                seed: int = 0) -> dict:
     """Least-squares sphere (vertical distances) through a height map.
 

@@ -60,7 +60,7 @@ def _wrap(a):
     return a - 2 * np.pi * np.round(a / (2 * np.pi))
 
 
-def phase_residues(wrapped, valid) -> np.ndarray:
+def phase_residues(wrapped: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Residues of a wrapped phase (rad): (H-1, W-1) int, the sum of the wrapped
     differences around each 2 x 2 loop of valid pixels over 2 pi (0 elsewhere)."""
     p = np.where(valid, np.asarray(wrapped, np.float64), np.nan)

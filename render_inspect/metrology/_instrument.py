@@ -28,7 +28,7 @@ __all__ = [
 ]
 
 
-def sinusoid_amplitude(profile, x, period: float) -> float:
+def sinusoid_amplitude(profile: np.ndarray, x: np.ndarray, period: float) -> float:
     """Amplitude of the sinusoid of ``period`` in ``profile`` (least squares with an
     offset; NaN samples left out).
 
@@ -47,7 +47,7 @@ def sinusoid_amplitude(profile, x, period: float) -> float:
     return float(math.hypot(c[0], c[1]))
 
 
-def pupil_overlap(frequency, *, numerical_aperture: float, illumination_na: float,
+def pupil_overlap(frequency: np.ndarray, *, numerical_aperture: float, illumination_na: float,
                   wavelength_nm: float) -> np.ndarray:
     """The textbook transfer of the interference term for Koehler illumination: the area
     of the illumination disc (radius ``NA_ill / lambda``) inside the pupil (radius
@@ -81,7 +81,7 @@ def pupil_overlap(frequency, *, numerical_aperture: float, illumination_na: floa
     return out
 
 
-def edge_width(profile, x, *, low: float = 0.1, high: float = 0.9) -> float:
+def edge_width(profile: np.ndarray, x: np.ndarray, *, low: float = 0.1, high: float = 0.9) -> float:
     """Lateral distance between the ``low`` and ``high`` fractions of a rising edge's
     height (10 % to 90 % by default), by linear interpolation.
 
@@ -145,7 +145,8 @@ class BatwingLobes(NamedTuple):
         return 0.5 * (self.low_width + self.high_width)
 
 
-def batwing(error, x, *, edge: float, side_length: float, exclude: float = 0.0,
+def batwing(error: np.ndarray, x: np.ndarray, *, edge: float, side_length: float,
+            exclude: float = 0.0,
             rising: bool = True) -> BatwingLobes:
     """Batwing of a measured step: the excursion of the measured profile from the true
     one on each side of an edge, and its peak-to-valley.
@@ -246,7 +247,7 @@ def dropout_slope(rows, *, fraction: float = 0.5) -> float:
     return float("nan")
 
 
-def noise_by_subtraction(first, second) -> float:
+def noise_by_subtraction(first: np.ndarray, second: np.ndarray) -> float:
     """Measurement noise by the subtraction method (ISO 25178-604): the rms of the
     difference of two measurements of one surface, after removing its mean, over
     ``sqrt(2)``; NaN samples left out."""

@@ -94,7 +94,7 @@ def gaussian_profile_weights(spacing: float, cutoff: float) -> np.ndarray:
     return w / w.sum()
 
 
-def profile_gaussian_filter(z, *, spacing: float, cutoff: float) -> np.ndarray:
+def profile_gaussian_filter(z: np.ndarray, *, spacing: float, cutoff: float) -> np.ndarray:
     """Gaussian mean line (low-pass) of a profile, NaN = not measured.
 
     The weights are renormalised over the measured points inside the support, so gaps
@@ -154,7 +154,8 @@ def _remove_form(x, z, form: str):
     return z - np.polyval(c, x - xm)
 
 
-def roughness_profile(x, z, *, spacing: float, lambda_s: float | None, lambda_c: float,
+def roughness_profile(x: np.ndarray, z: np.ndarray, *, spacing: float, lambda_s: float | None,
+                      lambda_c: float,
                       form: str = "line") -> dict:
     """The primary, waviness and roughness profiles and the evaluation region.
 
@@ -208,7 +209,7 @@ def roughness_profile(x, z, *, spacing: float, lambda_s: float | None, lambda_c:
             "evaluation_length_mm": float(le), "warnings": warnings_}
 
 
-def rdq(r, *, spacing: float) -> float:
+def rdq(r: np.ndarray, *, spacing: float) -> float:
     """Root mean square slope of ``r`` (seven-point derivative; NaN-free stretches only)."""
     r = np.asarray(r, dtype=np.float64)
     if r.size < 7:
@@ -218,7 +219,7 @@ def rdq(r, *, spacing: float) -> float:
     return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
 
 
-def rsm(r, *, spacing: float, rz: float, section_length: float) -> tuple[float, int]:
+def rsm(r: np.ndarray, *, spacing: float, rz: float, section_length: float) -> tuple[float, int]:
     """Mean width of the profile elements (mm) and their number.
 
     A profile element is a peak (the profile above the mean line) and the valley that
@@ -268,7 +269,7 @@ def rsm(r, *, spacing: float, rz: float, section_length: float) -> tuple[float, 
     return float(np.mean(merged)), len(merged)
 
 
-def material_ratio_curve(r, *, n: int = 101) -> tuple[np.ndarray, np.ndarray]:
+def material_ratio_curve(r: np.ndarray, *, n: int = 101) -> tuple[np.ndarray, np.ndarray]:
     """The material ratio curve: heights ``c`` (from the highest peak down to the deepest
     valley, n levels) and the fraction of the profile at or above each (0..1)."""
     v = np.sort(np.asarray(r, dtype=np.float64)[np.isfinite(r)])[::-1]
@@ -277,7 +278,7 @@ def material_ratio_curve(r, *, n: int = 101) -> tuple[np.ndarray, np.ndarray]:
     return c, frac
 
 
-def rmr(r, c_depth: float) -> float:
+def rmr(r: np.ndarray, c_depth: float) -> float:
     """Rmr(c): the fraction (0..1) of the profile at or above the level ``c_depth`` below
     its highest peak."""
     v = np.asarray(r, dtype=np.float64)
@@ -285,7 +286,7 @@ def rmr(r, c_depth: float) -> float:
     return float(np.count_nonzero(v >= v.max() - c_depth) / v.size)
 
 
-def profile_texture(r, *, spacing: float, n_sections: int = 5) -> dict:
+def profile_texture(r: np.ndarray, *, spacing: float, n_sections: int = 5) -> dict:
     """ISO 21920-2 parameters of a roughness profile ``r`` (its evaluation length, mm):
     see the module docstring.  Gaps (NaN) are left out of the sums; sections split the
     points evenly."""
@@ -317,7 +318,8 @@ def profile_texture(r, *, spacing: float, n_sections: int = 5) -> dict:
             "n_sections": n_sections, "n_points": int(ok.sum())}
 
 
-def default_cutoffs(x, z, *, spacing: float, form: str = "line", periodic: bool | None = None,
+def default_cutoffs(x: np.ndarray, z: np.ndarray, *, spacing: float, form: str = "line",
+                    periodic: bool | None = None,
                     max_iter: int = 5) -> dict:
     """``lambda_c`` (and ``lambda_s``) by ISO 21920-3: from RSm for a periodic profile,
     from Ra otherwise, iterated until the parameter measured with the chosen cut-off
@@ -377,7 +379,7 @@ def _fits(length: float, spacing: float, lc: float) -> float:
     return max(ok)
 
 
-def evaluate_profile(x, z, *, spacing: float, lambda_s: float | None = None,
+def evaluate_profile(x: np.ndarray, z: np.ndarray, *, spacing: float, lambda_s: float | None = None,
                      lambda_c: float | None = None, form: str = "line") -> dict:
     """Filter a profile and take its ISO 21920-2 parameters.
 

@@ -110,7 +110,8 @@ def forward_slope_sums(z, ok, pixel, corners: tuple[int, int], *, holes: bool):
     return g2_sum, g2_n, area_sum, area_n
 
 
-def slope_parameters(z, *, pixel, mask=None, slope: str = "forward",
+def slope_parameters(z: np.ndarray, *, pixel: float | tuple[float, float],
+                     mask: np.ndarray | None = None, slope: str = "forward",
                      hole_border: str = "exclude") -> dict:
     """Sdq (root mean square gradient) and Sdr (developed interfacial area ratio, %).
 
@@ -179,7 +180,8 @@ def slope_parameters(z, *, pixel, mask=None, slope: str = "forward",
     raise InputError(f"slope must be one of {SLOPE_ESTIMATORS}, got {slope!r}")
 
 
-def areal_parameters(z, *, pixel, mask=None, slope: str = "forward",
+def areal_parameters(z: np.ndarray, *, pixel: float | tuple[float, float],
+                     mask: np.ndarray | None = None, slope: str = "forward",
                      hole_border: str = "exclude") -> dict:
     """ISO 25178-2 areal parameters of a height map.
 
@@ -309,7 +311,8 @@ def autocorrelation(z, *, mask=None):
     return _acf(z, mask)
 
 
-def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int = 360,
+def spatial_parameters(z: np.ndarray, *, pixel: float | tuple[float, float],
+                       mask: np.ndarray | None = None, s: float = 0.2, n_directions: int = 360,
                        min_pairs_fraction: float = 0.05) -> dict:
     """Autocorrelation length Sal and texture aspect ratio Str (ISO 25178-2).
 
@@ -422,7 +425,7 @@ def spatial_parameters(z, *, pixel, mask=None, s: float = 0.2, n_directions: int
     return out
 
 
-def profile_parameters(profile, *, spacing: float, n_sampling: int = 5) -> dict:
+def profile_parameters(profile: np.ndarray, *, spacing: float, n_sampling: int = 5) -> dict:
     """Profile parameters Ra, Rq, Rz, Rp, Rv, Rt (ISO 21920-2 / ISO 4287).
 
     Parameters

@@ -92,7 +92,7 @@ def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
             "above_median": float(power[k] / floor) if floor > 0 else float("inf")}
 
 
-def dominant_periods(z, *, spacing: float) -> dict:
+def dominant_periods(z: np.ndarray, *, spacing: float) -> dict:
     """The dominant period of a profile (heights any unit, ``spacing`` mm) and its
     harmonics: ``period_mm`` (None when the trace is too short), ``frequency_per_mm``,
     ``harmonics`` (``order``, ``period_mm``, ``relative_power``), ``fraction`` (share of the
@@ -105,7 +105,7 @@ def dominant_periods(z, *, spacing: float) -> dict:
     return _peaks(freq, power, spacing=spacing, n_total=f.size)
 
 
-def map_periods(z, *, pixel: float) -> dict:
+def map_periods(z: np.ndarray, *, pixel: float) -> dict:
     """:func:`dominant_periods` of a map (``pixel`` mm, square) from its radially averaged
     2-D periodogram."""
     check_positive("pixel", pixel)
@@ -171,7 +171,7 @@ def _mirror_search(f, ok, twices, min_arm):
     return best
 
 
-def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
+def mirror_centre(z: np.ndarray, *, spacing: float, x0: float = 0.0) -> dict:
     """Where a profile is most nearly mirror-symmetric: ``centre_mm`` (position, with
     ``x0`` the position of the first point), ``symmetry`` (the correlation coefficient of
     the two arms, -1..1) and ``arm_mm`` (the length compared on each side).  A profile of
@@ -201,7 +201,7 @@ def mirror_centre(z, *, spacing: float, x0: float = 0.0) -> dict:
             "arm_mm": float(best[2] * spacing)}
 
 
-def profile_periods(x, z, *, spacing: float) -> dict:
+def profile_periods(x: np.ndarray, z: np.ndarray, *, spacing: float) -> dict:
     """The periods a profile report shows: ``whole`` (:func:`dominant_periods`) and, when
     the profile is mirror-symmetric about a point (:data:`MIRROR_MIN`; a trace through the
     spindle axis of a turned part), ``through_axis`` = {``centre_mm``, ``symmetry``,

@@ -199,7 +199,7 @@ def profile_center(grid, axis=None):
     return ((x0 + x1) / 2, (y0 + y1) / 2)
 
 
-def areal_nm(z, pixel) -> dict:
+def areal_nm(z: np.ndarray, pixel: float | tuple[float, float]) -> dict:
     """Sa, Sq, Sp, Sv, Sz (nm) of a map in mm (None when it has fewer than two values)."""
     ok = np.isfinite(z)
     if ok.sum() < 2:

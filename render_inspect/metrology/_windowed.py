@@ -54,7 +54,8 @@ def band_bytes_per_point(form: str) -> float:
     return 8.0 * _BAND_VALUES.get(form, 18)
 
 
-def windowed_refusal(*, form: str, s_filter_mm=None, l_filter_mm=None, outliers: str = "none",
+def windowed_refusal(*, form: str, s_filter_mm: float | None = None,
+                     l_filter_mm: float | None = None, outliers: str = "none",
                      x3p: bool = False) -> str | None:
     """What among these options needs the whole map in memory at once (None: nothing)."""
     why = []
