@@ -55,7 +55,7 @@ class Analysis:
     outliers: np.ndarray | None = field(default=None)
 
 
-def parse_filter(text: str | None):
+def parse_filter(text: str | None) -> tuple[float | None, float | None]:
     """``"S,L"`` (mm; either may be empty or 0 for none) -> ``(s_mm, l_mm)``."""
     if text is None or str(text).strip() == "":
         return None, None

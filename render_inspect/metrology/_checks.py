@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -48,8 +49,10 @@ def kinematic_sq_mm(feed_per_rev_mm: float, nose_radius_mm: float) -> float:
     return float(feed_per_rev_mm) ** 2 / (12.0 * math.sqrt(5.0) * float(nose_radius_mm))
 
 
-def registered_overlap(z, *, pixel, origin=(0.0, 0.0), region, registration=None,
-                       mask=None) -> dict:
+def registered_overlap(z: np.ndarray, *, pixel: float | tuple[float, float],
+                       origin: Sequence[float] = (0.0, 0.0), region: Sequence[float],
+                       registration: dict | None = None,
+                       mask: np.ndarray | None = None) -> dict:
     """Overlap of a measured map with a design region after registration.
 
     Each valid measured point ``p`` is taken into the design frame, ``q = R^T (p - t)``
@@ -115,8 +118,11 @@ def correlation_area(z: np.ndarray, *, pixel: float | tuple[float, float],
     return float(np.sum(acf[lobe]) * px * py)
 
 
-def registration_checks(z, design, registration: dict, *, pixel, origin=(0.0, 0.0), region,
-                        expected_sq_mm: float | None, residual=None, mask=None,
+def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *,
+                        pixel: float | tuple[float, float], origin: Sequence[float] = (0.0, 0.0),
+                        region: Sequence[float],
+                        expected_sq_mm: float | None, residual: np.ndarray | None = None,
+                        mask: np.ndarray | None = None,
                         min_overlap: float = DEFAULT_MIN_OVERLAP,
                         max_residual_ratio: float = DEFAULT_MAX_RESIDUAL_RATIO,
                         residual_floor_mm: float = DEFAULT_RESIDUAL_FLOOR_MM,

@@ -111,7 +111,8 @@ def _pixel_text(p) -> str:
     return f"{px:g}" if px == py else f"{px:g} x {py:g}"
 
 
-def check_same_pixel(pixel_a, pixel_b, *, name_a: str = "measured",
+def check_same_pixel(pixel_a: float | tuple[float, float], pixel_b: float | tuple[float, float], *,
+                     name_a: str = "measured",
                      name_b: str = "simulated", rtol: float = 1e-6) -> None:
     """Raise :class:`InputError` naming both pixel sizes (x and y) when they differ."""
     a, b = pixel_xy(pixel_a), pixel_xy(pixel_b)
@@ -121,7 +122,9 @@ def check_same_pixel(pixel_a, pixel_b, *, name_a: str = "measured",
                          f"simulation.pixel = {a[0]:g}")
 
 
-def resample_map(z, *, pixel, origin, target_pixel, target_origin, target_shape):
+def resample_map(z: np.ndarray, *, pixel: float | tuple[float, float], origin: Sequence[float],
+                 target_pixel: float | tuple[float, float], target_origin: Sequence[float],
+                 target_shape: tuple[int, ...]) -> np.ndarray:
     """Bilinear resampling of a map onto another grid (pixels: one number or (x, y), mm);
     NaN outside and next to missing points."""
     tx, ty = pixel_xy(target_pixel, "target_pixel")
@@ -132,7 +135,8 @@ def resample_map(z, *, pixel, origin, target_pixel, target_origin, target_shape)
     return sample_map(z, xx, yy, pixel=pixel, origin=origin)
 
 
-def sample_map(z, xx, yy, *, pixel, origin):
+def sample_map(z: np.ndarray, xx: np.ndarray, yy: np.ndarray, *,
+               pixel: float | tuple[float, float], origin: Sequence[float]) -> np.ndarray:
     """Bilinear look-up of a map at points (``xx``, ``yy``) (mm); NaN outside the map and
     next to missing points."""
     px, py = pixel_xy(pixel)

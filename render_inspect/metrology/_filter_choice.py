@@ -33,6 +33,7 @@ process or design kind it is.  The same marks set the diffuse renderer's texture
 
 from __future__ import annotations
 
+import numpy as np
 import math
 
 from ..core.errors import InputError, check_positive
@@ -245,7 +246,7 @@ def expected_sq_mm(marks: ToolMarks | None) -> float | None:
     return kinematic_sq_mm(float(marks.period_mm), float(marks.nose_radius_mm))
 
 
-def waviness_map(residual, pixel: float, choice: dict):
+def waviness_map(residual: np.ndarray, pixel: float, choice: dict) -> np.ndarray:
     """The waviness of a residual map (mm): the form of ``choice`` removed, then its S-
     and L-filters (:func:`waviness_choice`) with its edge handling."""
     r, _ = remove_form(residual, pixel=pixel, method=choice["form_removal"],

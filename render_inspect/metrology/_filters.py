@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 import math
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from ..core.lazy import lazy_module
@@ -90,7 +90,7 @@ def gaussian_sigma(cutoff: float) -> float:
     return GAUSSIAN_ALPHA * float(cutoff) / math.sqrt(2.0 * math.pi)
 
 
-def gaussian_transmission(wavelength, cutoff):
+def gaussian_transmission(wavelength: float | np.ndarray, cutoff: float) -> Any:
     """Amplitude transmission of the ISO 16610-61 Gaussian mean-line filter for a sinusoid
     of ``wavelength`` (same unit as ``cutoff``): ``exp(-pi (alpha cutoff / wavelength)^2)``
     (0.5 at the cut-off).  The S-filter passes this fraction, the L-filter one minus it."""
@@ -112,8 +112,9 @@ def _cut_border(out, cutoff, pixel):
     return out
 
 
-def gaussian_filter(z, *, pixel: float | tuple[float, float], cutoff: float, mask=None, min_weight: float = 1e-3,
-                    edges: str = "normalised"):
+def gaussian_filter(z: np.ndarray, *, pixel: float | tuple[float, float], cutoff: float,
+                    mask: np.ndarray | None = None, min_weight: float = 1e-3,
+                    edges: str = "normalised") -> np.ndarray:
     """Gaussian mean surface of ``z`` (ISO 16610-61), NaN-aware.
 
     Parameters
@@ -186,13 +187,15 @@ def _gaussian_in_blocks(a, sigma_px, mode: str):
     return out
 
 
-def s_filter(z, *, pixel: float | tuple[float, float], nesting_index: float, mask=None, edges: str = "normalised"):
+def s_filter(z: np.ndarray, *, pixel: float | tuple[float, float], nesting_index: float,
+             mask: np.ndarray | None = None, edges: str = "normalised") -> np.ndarray:
     """S-filter: remove wavelengths shorter than ``nesting_index`` (mm) by Gaussian
     smoothing (``edges``: see :func:`gaussian_filter`)."""
     return gaussian_filter(z, pixel=pixel, cutoff=nesting_index, mask=mask, edges=edges)
 
 
-def l_filter(z, *, pixel: float | tuple[float, float], nesting_index: float, mask=None, edges: str = "normalised"):
+def l_filter(z: np.ndarray, *, pixel: float | tuple[float, float], nesting_index: float,
+             mask: np.ndarray | None = None, edges: str = "normalised") -> np.ndarray:
     """L-filter: remove wavelengths longer than ``nesting_index`` (mm): ``z`` minus its
     Gaussian mean surface (``edges``: see :func:`gaussian_filter`)."""
     z = _as_map(z)

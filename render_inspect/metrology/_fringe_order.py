@@ -33,12 +33,16 @@ References
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from ..core.lazy import lazy_module
 
 from ..core.units import MM_TO_NM
+
+if TYPE_CHECKING:
+    from ._phase import PhaseResult
 
 #: SciPy, imported on first use (render_inspect.core.lazy)
 ndimage = lazy_module("scipy.ndimage")
@@ -108,7 +112,7 @@ def _cut_off(ok, jump):
     return unknown
 
 
-def fringe_order_check(result, *, fringe_order_mm: float | None) -> dict:
+def fringe_order_check(result: PhaseResult, *, fringe_order_mm: float | None) -> dict:
     """Fringe-order failures of one measurement (a :class:`~._phase.PhaseResult`), from
     the measurement alone.
 
@@ -144,8 +148,9 @@ def fringe_order_check(result, *, fringe_order_mm: float | None) -> dict:
     return out
 
 
-def difference_order_check(levelled, *, fringe_order_mm: float | None, checks=(),
-                           labels=None) -> dict:
+def difference_order_check(levelled: np.ndarray, *, fringe_order_mm: float | None,
+                           checks: Sequence[dict] = (),
+                           labels: np.ndarray | None = None) -> dict:
     """Fringe-order check of a levelled difference of two measurements (mm, NaN = not
     measured in both): ``jumps``, ``jump_pixels``, ``ambiguous_regions`` and their
     ``ambiguous_pixels``, the pixels of the two measurements' slipped regions

@@ -7,6 +7,7 @@ Lengths in mm; ``_nm`` / ``_um`` in a key name say where another unit is used.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import itertools
 import math
 from typing import NamedTuple
@@ -200,7 +201,8 @@ def batwing(error: np.ndarray, x: np.ndarray, *, edge: float, side_length: float
                         peak_to_valley=float(allv.max() - allv.min()))
 
 
-def slope_table(slope, valid, modulation, *, bin_rad: float, error=None):
+def slope_table(slope: np.ndarray, valid: np.ndarray, modulation: np.ndarray, *, bin_rad: float,
+                error: np.ndarray | None = None) -> list[dict]:
     """Valid fraction and median contrast of pixels binned by their surface slope.
 
     Parameters
@@ -237,7 +239,7 @@ def slope_table(slope, valid, modulation, *, bin_rad: float, error=None):
     return rows
 
 
-def dropout_slope(rows, *, fraction: float = 0.5) -> float:
+def dropout_slope(rows: Sequence[dict], *, fraction: float = 0.5) -> float:
     """The slope (deg) at which the valid fraction of :func:`slope_table` first falls below
     ``fraction`` (linear interpolation between bins; NaN if it never does)."""
     for r0, r1 in itertools.pairwise(rows):

@@ -116,7 +116,8 @@ def profile_gaussian_filter(z: np.ndarray, *, spacing: float, cutoff: float) -> 
     return out
 
 
-def parse_profile_filter(text, *, option: str = "--filter"):
+def parse_profile_filter(text: str | tuple | None, *, option: str = "--filter"
+                         ) -> tuple[float | None, float | None]:
     """``"S,L"`` (mm; either may be empty for the default) -> (lambda_s, lambda_c)."""
     if text is None:
         return None, None

@@ -38,8 +38,9 @@ def _regions(valid, labels):
     return lab
 
 
-def level_map(z, *, pixel: float, labels=None, terms: str = "piston and tilt",
-              fringe_order_mm: float | None = None):
+def level_map(z: np.ndarray, *, pixel: float, labels: np.ndarray | None = None,
+              terms: str = "piston and tilt",
+              fringe_order_mm: float | None = None) -> tuple[np.ndarray, dict]:
     """Remove the piston (and tilt) of a map fitted over its largest region.
 
     Parameters
@@ -104,8 +105,10 @@ def level_map(z, *, pixel: float, labels=None, terms: str = "piston and tilt",
     return out, info
 
 
-def measured_difference(a, b, *, pixel: float, labels_a=None, labels_b=None,
-                        terms: str = "piston and tilt", fringe_order_mm: float | None = None):
+def measured_difference(a: np.ndarray, b: np.ndarray, *, pixel: float,
+                        labels_a: np.ndarray | None = None, labels_b: np.ndarray | None = None,
+                        terms: str = "piston and tilt",
+                        fringe_order_mm: float | None = None) -> tuple[np.ndarray, dict]:
     """The difference of two measurements on one camera grid, as instrument software
     forms it: ``a - b`` where both were measured, with its piston (and tilt) removed
     (:func:`level_map`; the regions are those where both maps' regions overlap).

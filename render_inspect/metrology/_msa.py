@@ -21,6 +21,8 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import warnings
 
 import numpy as np
@@ -56,7 +58,8 @@ def _unpack(data, which, pixel, origin):
     return np.asarray(data, float), float(pixel), tuple(origin or (0.0, 0.0))
 
 
-def lenslet_centers(design, centers=None) -> list[tuple[int, int, float, float]]:
+def lenslet_centers(design: Any,
+                    centers: Sequence[Sequence[float]] | None = None) -> list[tuple[int, int, float, float]]:
     """Designed lenslet centres as ``(row, col, x_mm, y_mm)``: ``centers`` if given, else
     ``design.centers()`` (the :class:`~render_inspect.design.LensletArray` interface)."""
     if centers is None:

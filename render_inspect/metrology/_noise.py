@@ -72,7 +72,9 @@ def _chi2_median_ratio(dof: int) -> float:
     return float(chi2.ppf(0.5, dof) / dof)
 
 
-def psi_noise(frames, steps_rad, mean=None, weights=None):
+def psi_noise(frames: np.ndarray, steps_rad: np.ndarray, mean: np.ndarray | None = None,
+              weights: tuple[np.ndarray, np.ndarray] | None = None
+              ) -> tuple[np.ndarray | None, dict]:
     """Noise of phase-shifting frames, from the frames alone.
 
     Parameters
@@ -132,7 +134,8 @@ def psi_noise(frames, steps_rad, mean=None, weights=None):
     return sigma_b.reshape(f.shape[1:]), info
 
 
-def csi_noise_threshold(ac, *, false_alarm: float = FALSE_ALARM):
+def csi_noise_threshold(ac: np.ndarray, *, false_alarm: float = FALSE_ALARM
+                        ) -> tuple[np.ndarray, np.ndarray]:
     """Envelope peak a coherence-scanning pixel needs to hold fringes.
 
     Parameters
@@ -153,7 +156,8 @@ def csi_noise_threshold(ac, *, false_alarm: float = FALSE_ALARM):
     return sigma * noise_sigmas(false_alarm, n), sigma
 
 
-def psi_height_noise(sigma_b, b, *, wavelength_nm: float, valid=None):
+def psi_height_noise(sigma_b: np.ndarray | None, b: np.ndarray, *, wavelength_nm: float,
+                     valid: np.ndarray | None = None) -> np.ndarray | None:
     """Height noise (mm, one standard deviation) of each phase-shifting pixel:
     ``lambda / (4 pi) * sigma_b / b`` (the phase noise ``sigma_b / b`` of a modulation
     ``b`` in component noise ``sigma_b``); NaN outside ``valid``; None without a noise
@@ -169,8 +173,10 @@ def psi_height_noise(sigma_b, b, *, wavelength_nm: float, valid=None):
     return h
 
 
-def csi_height_noise(sigma, peak, *, width_samples, step_mm: float, wavelength_nm: float,
-                     refine: str = "envelope", phase_sum=None, window_samples=None):
+def csi_height_noise(sigma: np.ndarray, peak: np.ndarray, *, width_samples: float | np.ndarray,
+                     step_mm: float, wavelength_nm: float,
+                     refine: str = "envelope", phase_sum: np.ndarray | None = None,
+                     window_samples: np.ndarray | None = None) -> np.ndarray:
     """Height noise (mm, one standard deviation) of coherence-scanning pixels.
 
     ``sigma`` (P,): each pixel's noise per frame; ``peak`` (P,): its envelope peak;

@@ -23,6 +23,7 @@ Sal and Str come from the autocorrelation function (ISO 25178-2): see
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 import warnings
 from typing import Any
 
@@ -293,7 +294,7 @@ def _acf(z, mask=None, *, keep_pairs: bool = True):
     return acf, cnt
 
 
-def autocorrelation(z, *, mask=None):
+def autocorrelation(z: np.ndarray, *, mask: np.ndarray | None = None) -> np.ndarray:
     """Areal autocorrelation function of the mean-removed heights.
 
     ``f(tx, ty) = sum z(x, y) z(x + tx, y + ty) / N(tx, ty)`` over the pairs of valid points
@@ -529,8 +530,10 @@ def extract_section(z, *, pixel, origin=(0.0, 0.0), kind: str = "radial",
     return s, vals
 
 
-def section_parameters(z, *, pixel, origin=(0.0, 0.0), center=(0.0, 0.0),
-                       angles=(0.0,), radii=(), n_sampling: int = 5) -> dict:
+def section_parameters(z: np.ndarray, *, pixel: float | tuple[float, float],
+                       origin: Sequence[float] = (0.0, 0.0), center: Sequence[float] = (0.0, 0.0),
+                       angles: Iterable[float] = (0.0,), radii: Iterable[float] = (),
+                       n_sampling: int = 5) -> dict:
     """Ra, Rq, Rz on radial sections (at ``angles``, rad) and circumferential sections
     (at ``radii``, mm) of a map.  Returns ``{"radial": [...], "circumferential": [...]}``,
     each entry the :func:`profile_parameters` dict plus ``angle_rad`` / ``radius_mm``;

@@ -194,7 +194,7 @@ def _phase_terms(frames, *, steps_rad=None, algorithm: str = "auto"):
     return phase, b, a, weights
 
 
-def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
+def height_from_phase(unwrapped: np.ndarray, *, wavelength_nm: float) -> np.ndarray:
     """Height (mm) from the unwrapped phase: ``h = phi lambda / (4 pi)`` (double pass,
     OPD = 2 h at normal incidence)."""
     check_range("wavelength_nm", wavelength_nm, 100, 2000)
@@ -204,8 +204,9 @@ def height_from_phase(unwrapped, *, wavelength_nm: float) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------
 # the two measurement modes
-def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str = "auto",
-                 valid=None, min_modulation: float = 0.05,
+def retrieve_psi(frames: np.ndarray, *, wavelength_nm: float, steps_rad: np.ndarray | None = None,
+                 algorithm: str = "auto",
+                 valid: np.ndarray | None = None, min_modulation: float = 0.05,
                  quality: str = "modulation",
                  false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
     """Height from phase-shifting frames: wrapped phase, 2-D unwrapping, height.
@@ -250,7 +251,7 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     n = f.shape[0]
     steps = (np.arange(n) * np.pi / 2) if steps_rad is None else np.asarray(steps_rad, float)
     signal = np.ones(mod.shape, dtype=bool)
-    noise = {"method": "not tested", "frame_noise": None, "threshold_sigmas": None}
+    noise: dict[str, Any] = {"method": "not tested", "frame_noise": None, "threshold_sigmas": None}
     sigma_b = None
     if false_alarm is not None:
         check_range("false_alarm", false_alarm, 0.0, 0.5, lo_open=True)
@@ -276,7 +277,8 @@ def retrieve_psi(frames, *, wavelength_nm: float, steps_rad=None, algorithm: str
     return PhaseResult(h, v, phase, mod, labels, meta, height_noise=hn)
 
 
-def retrieve_csi(frames, scan_positions, *, wavelength_nm: float, valid=None,
+def retrieve_csi(frames: np.ndarray, scan_positions: np.ndarray, *, wavelength_nm: float,
+                 valid: np.ndarray | None = None,
                  refine: str = "envelope", min_modulation: float = 0.05,
                  chunk_pixels: int = 65536,
                  false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
@@ -500,7 +502,8 @@ def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mea
 
 # --------------------------------------------------------------------------------------
 # measuring frames (no truth), then evaluating against a truth
-def evaluate_measurement(result: PhaseResult, truth, *, piston: str = "mean"):
+def evaluate_measurement(result: PhaseResult, truth: np.ndarray, *,
+                         piston: str = "mean") -> tuple[PhaseResult, dict]:
     """Compare a measurement with the true height (an evaluation step, apart from
     measuring): the measured map is aligned to the truth by one constant per connected
     region (:func:`height_error`), since an interferometer measures relative height.

@@ -43,7 +43,8 @@ def profile_metrics(params: dict) -> dict:
     return out
 
 
-def analyze_profile(x, z, *, spacing: float, form: str = "line", lambda_s=None, lambda_c=None,
+def analyze_profile(x: np.ndarray, z: np.ndarray, *, spacing: float, form: str = "line",
+                    lambda_s: float | None = None, lambda_c: float | None = None,
                     outliers: str = "none", outlier_sigma: float = 3.0) -> dict:
     """Analyse one profile.
 

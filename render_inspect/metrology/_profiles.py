@@ -5,6 +5,8 @@ spindle axis (or lines through a centre), and the statistics of a difference.  A
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -129,7 +131,8 @@ def crop_window(z, grid, window):
     return z[i0:i1, j0:j1], ext
 
 
-def line_profile(z, *, pixel, origin, p0, p1, step):
+def line_profile(z: np.ndarray, *, pixel: float, origin: Sequence[float], p0: Sequence[float],
+                 p1: Sequence[float], step: float) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear samples of ``z`` along the segment p0 -> p1 (mm): (s, values)."""
     length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
     n = max(2, int(length / step) + 1)
@@ -146,7 +149,7 @@ def line_profile(z, *, pixel, origin, p0, p1, step):
     return s, vals
 
 
-def difference_stats(d) -> dict:
+def difference_stats(d: np.ndarray) -> dict:
     """rms, PV and mean (nm) of the finite values of a difference map (nm)."""
     d = np.asarray(d, dtype=np.float64)
     d = d[np.isfinite(d)]
@@ -190,7 +193,7 @@ def _one_section(z, *, pixel, origin, center, angle, through):
     return s - half, v
 
 
-def profile_center(grid, axis=None):
+def profile_center(grid: Any, axis: Sequence[float] | None = None) -> tuple[float, float]:
     """Where sections of a map start: the spindle ``axis`` (x, y) of a turned part when it
     lies in the map, else the map's centre."""
     x0, x1, y0, y1 = grid.extent
@@ -265,7 +268,7 @@ def difference_profiles(true_diff, grid, measured_diff, measured_grid, residuals
             "measured": pm, "metrics": metrics}
 
 
-def surface_slope(surface, window, n: int = 257) -> float | None:
+def surface_slope(surface: Any, window: Sequence[float], n: int = 257) -> float | None:
     """Largest slope (rad, the 99.9th percentile) of ``surface`` over ``window`` = (x0, y0,
     x1, y1) (mm) from n x n samples; None when the surface cannot be sampled there."""
     x0, y0, x1, y1 = (float(v) for v in window)

@@ -19,6 +19,7 @@ measures the spread directly instead of estimating it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -44,7 +45,8 @@ def measurement_seeds(seed: int, count: int, *, repeat: int = 0) -> list[int]:
     return out
 
 
-def difference_noise(noise_a, noise_b, valid=None) -> dict:
+def difference_noise(noise_a: np.ndarray | None, noise_b: np.ndarray | None,
+                     valid: np.ndarray | None = None) -> dict:
     """Noise floor of ``a - b`` from the two measurements' own per-pixel height noise
     (mm): ``{"floor_nm", "a_nm", "b_nm", "pixels"}`` (rms over the pixels both measured
     and ``valid``); floors are None when a measurement gives no noise estimate."""
@@ -83,7 +85,7 @@ def resolution(rms_nm, floor_nm) -> dict:
             "ratio": ratio, "rule": rule}
 
 
-def repeat_statistics(differences_nm, rms_nm) -> dict:
+def repeat_statistics(differences_nm: np.ndarray, rms_nm: Sequence[float | None]) -> dict:
     """Repeatability of a difference over ``N`` repeated measurement pairs (an MSA-style
     study): ``differences_nm`` (N, ny, nx) levelled difference maps (nm, NaN = not
     measured), ``rms_nm`` their rms values.

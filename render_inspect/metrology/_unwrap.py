@@ -33,7 +33,7 @@ def _wrap(a):
     return a - 2 * np.pi * np.round(a / (2 * np.pi))
 
 
-def phase_quality(phase, *, valid=None) -> np.ndarray:
+def phase_quality(phase: np.ndarray, *, valid: np.ndarray | None = None) -> np.ndarray:
     """Reliability of each pixel for unwrapping: ``1 / (1 + D)`` with D the root sum of
     squares of the wrapped second differences (horizontal, vertical, both diagonals;
     Herraez et al. 2002).  Pixels next to invalid ones or the border get lower quality;
@@ -73,7 +73,8 @@ def _build_kernel():
 _KERNEL = None
 
 
-def unwrap_phase(phase, *, valid=None, quality=None):
+def unwrap_phase(phase: np.ndarray, *, valid: np.ndarray | None = None,
+                 quality: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unwrap a 2-D wrapped phase inside a mask (quality-guided flood fill).
 
     Starting from the most reliable pixel of each connected valid region (4-connected),

@@ -23,6 +23,7 @@ one is given, and the metrics say which.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 import math
 from typing import Any
 
@@ -75,7 +76,8 @@ def _uv(n: int) -> np.ndarray:
     return np.linspace(-1.0, 1.0, n) if n > 1 else np.zeros(1)
 
 
-def form_on_grid(coef, shape, rows: slice, *, factor: int = 1, form: str = "plane") -> np.ndarray:
+def form_on_grid(coef: np.ndarray, shape: tuple[int, ...], rows: slice, *, factor: int = 1,
+                 form: str = "plane") -> np.ndarray:
     """The fitted form (Legendre coefficients of the full map of ``shape``) on rows
     ``rows`` of the map, or of a level of ``factor`` whose pixel centres sit at the
     centres of ``factor`` x ``factor`` blocks."""
@@ -99,10 +101,12 @@ def _bands(ny: int, rows: int):
         yield r0, min(r0 + rows, ny)
 
 
-def analyze_bands(read, shape, *, pixel, origin=(0.0, 0.0), form: str = "plane",
-                  slope: str = "forward", band_rows: int = 1024, spatial=None,
+def analyze_bands(read: Callable[[int, int], np.ndarray], shape: tuple[int, ...], *,
+                  pixel: float | tuple[float, float], origin: Sequence[float] = (0.0, 0.0),
+                  form: str = "plane",
+                  slope: str = "forward", band_rows: int = 1024, spatial: tuple[np.ndarray, int, str] | None = None,
                   acf_threshold: float = 0.2, source: dict | None = None,
-                  progress=None) -> Analysis:
+                  progress: Callable[[int, int], None] | None = None) -> Analysis:
     """The parameters of :func:`~render_inspect.metrology.analyze_map` (without filters,
     sphere or outliers: :func:`windowed_refusal`) of a map read in bands of rows.
 

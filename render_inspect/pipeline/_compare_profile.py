@@ -18,7 +18,7 @@ and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import logging
 import math
@@ -267,7 +267,7 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
     shift, corr, how_reg = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
                                      axis_s=axis_s)
     s_reg = s_pos + shift
-    opts = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
+    opts: dict[str, Any] = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
     res = {"measured": analyze_profile(s_reg, prof.z, spacing=step, **opts)}
     fil = res["measured"]["metrics"]["filter"]
     same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0, "lambda_c": fil["lambda_c_mm"]}
