@@ -4,6 +4,7 @@ panels, the sections and the axis motion; and the caption written into diffuse i
 
 from __future__ import annotations
 
+from ..core.toolpath import ToolPath
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -59,9 +60,11 @@ def diffuse_caption(meta: dict) -> list[str]:
     return [first, f"{meta['view']} view, {light}"]
 
 
-def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas, *, difference: dict,
+def comparison_figures(a: ComparedVariant, b: ComparedVariant, meas: dict | None, *,
+                       difference: dict,
                        window: dict, part: dict, identical: bool, sections: dict,
-                       radial: bool, kinematics, lowpass_mm: float | None = None) -> dict:
+                       radial: bool, kinematics: bytes | None,
+                       lowpass_mm: float | None = None) -> dict:
     """All top-level PNGs of a comparison (name -> bytes).
 
     Parameters
@@ -234,13 +237,13 @@ def _locator(a: ComparedVariant, part: dict, window: dict, ig) -> dict:
     return loc
 
 
-def srgb(rgb):
+def srgb(rgb: np.ndarray) -> np.ndarray:
     """Linear RGB -> sRGB (0..1)."""
     a = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
     return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)
 
 
-def luminance(rgb):
+def luminance(rgb: np.ndarray) -> np.ndarray:
     """Linear luminance (Rec. 709 weights) of linear RGB."""
     return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
 

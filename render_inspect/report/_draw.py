@@ -36,7 +36,7 @@ def figure_kinds() -> tuple[str, ...]:
     return FIGURE_KINDS + tuple(k for k in registered_figures() if k not in FIGURE_KINDS)
 
 
-def draw_figure(spec: dict, png) -> Path:
+def draw_figure(spec: dict, png: str | Path) -> Path:
     """Draw the figure ``spec`` into the PNG file ``png`` (written atomically)."""
     kind: Any = spec.get("kind")
     if kind == "axes":

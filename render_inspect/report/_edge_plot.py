@@ -16,7 +16,7 @@ __all__ = ["plot_tool_edge", "plot_tool_wear"]
 
 
 @register_figure("tool_edge")
-def plot_tool_edge(spec: dict, png_path) -> Path:
+def plot_tool_edge(spec: dict, png_path: str | Path) -> Path:
     """Two panels: the edge's radius deviation (nm) against the angle along the edge, the
     cutting arc and the contact angles the region needs marked; the form error along one
     radial section of the simulated surface against the imprint the edge predicts on a
@@ -51,7 +51,7 @@ def plot_tool_edge(spec: dict, png_path) -> Path:
 
 
 @register_figure("tool_wear")
-def plot_tool_wear(spec: dict, png_path) -> Path:
+def plot_tool_wear(spec: dict, png_path: str | Path) -> Path:
     """Two panels: the edge radius and the flank wear land over the whole part against the
     radius (the cut runs from the outside in); the simulated roughness (Sa of machined -
     design in rings of the region) against the radius."""

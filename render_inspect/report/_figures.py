@@ -15,6 +15,8 @@ Conventions of every figure:
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import io
 import math
 
@@ -50,7 +52,7 @@ def _to_png(fig) -> bytes:
     return buf.getvalue()
 
 
-def png_bytes(image) -> bytes:
+def png_bytes(image: np.ndarray) -> bytes:
     """8-bit PNG of a float image in [0, 1] (H x W or H x W x 3), row 0 at the top."""
     from PIL import Image
 
@@ -60,7 +62,7 @@ def png_bytes(image) -> bytes:
     return buf.getvalue()
 
 
-def block_mean(z, factor: int) -> np.ndarray:
+def block_mean(z: np.ndarray, factor: int) -> np.ndarray:
     """NaN-aware area average over ``factor x factor`` blocks (the last partial blocks
     averaged over what they hold).
 
@@ -91,7 +93,7 @@ def block_mean(z, factor: int) -> np.ndarray:
         return np.where(n > 0, s / np.maximum(n, 1), np.nan)
 
 
-def display_map(z, max_px: int = DISPLAY_PIXELS) -> np.ndarray:
+def display_map(z: np.ndarray, max_px: int = DISPLAY_PIXELS) -> np.ndarray:
     """``z`` area-averaged (:func:`block_mean`) so that its longer side is at most
     ``max_px`` samples (unchanged when it already is)."""
     z = np.asarray(z, dtype=np.float64)
@@ -162,10 +164,13 @@ def _extend(data, vmin, vmax) -> str:
     return {(True, True): "both", (True, False): "min", (False, True): "max"}.get((lo, hi), "neither")
 
 
-def map_panels(panels, *, extent=None, label: str = "", cmap: str = "viridis",
+def map_panels(panels: Sequence[tuple[str, np.ndarray | None]], *,
+               extent: Any = None, label: str = "",
+               cmap: str = "viridis",
                symmetric: bool = False, shared: bool = True, suptitle: str = "",
-               percentile: float | None = 0.5, panel_size=(4.6, 3.9), dpi: int = 100,
-               max_px: int = DISPLAY_PIXELS, lines=None) -> bytes:
+               percentile: float | None = 0.5, panel_size: tuple[float, float] = (4.6, 3.9),
+               dpi: int = 100,
+               max_px: int = DISPLAY_PIXELS, lines: Any = None) -> bytes:
     """Side-by-side false-colour maps, each with a colour bar and a scale bar.
 
     Parameters
@@ -328,7 +333,7 @@ def locator_figure(locator: dict, *, dpi: int = 100) -> bytes:
     return _to_png(fig)
 
 
-def lowpass_map(z, pixel: float, cutoff_mm: float) -> np.ndarray:
+def lowpass_map(z: np.ndarray, pixel: float, cutoff_mm: float) -> np.ndarray:
     """``z`` through the ISO 16610-61 Gaussian low-pass of nesting index ``cutoff_mm``
     (50 % transmission at that wavelength), NaN-aware (normalised convolution: NaN stays
     NaN).  Detail the map cannot hold (marks finer than a few pixels, which alias into
@@ -452,7 +457,7 @@ def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_
     return _to_png(fig)
 
 
-def radial_profile_figure(sections, *, dpi: int = 100, radial: bool = True) -> bytes:
+def radial_profile_figure(sections: Any, *, dpi: int = 100, radial: bool = True) -> bytes:
     """Sections like Li et al. (2018), Fig. 16 (b, c): per variant (column), the design and
     machined heights along sections at a few angles (top, um), machined minus design
     along them (middle, nm) and, where given, the filtered residual (bottom, nm: the
@@ -507,7 +512,7 @@ def radial_profile_figure(sections, *, dpi: int = 100, radial: bool = True) -> b
     return _to_png(fig)
 
 
-def annotate_rgb(rgb8: np.ndarray, *, lines=(), scale_mm: float | None = None,
+def annotate_rgb(rgb8: np.ndarray, *, lines: Sequence[str] = (), scale_mm: float | None = None,
                  scale_px: float | None = None) -> np.ndarray:
     """Write text lines (top left) and a scale bar (bottom right) into an 8-bit image.
 
@@ -551,7 +556,7 @@ def annotate_rgb(rgb8: np.ndarray, *, lines=(), scale_mm: float | None = None,
     return np.asarray(img.convert("RGB"))
 
 
-def line_panels(panels, *, suptitle: str = "", dpi: int = 90) -> bytes:
+def line_panels(panels: Sequence[dict], *, suptitle: str = "", dpi: int = 90) -> bytes:
     """Line plots side by side (instrument characterisation curves).
 
     Parameters

@@ -3,6 +3,7 @@ mapped onto the part (the error of the pass that cut each point)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import io
 from pathlib import Path
 
@@ -23,7 +24,8 @@ def _save(fig, png_path) -> Path:
     return atomic_write_bytes(png_path, buf.getvalue())
 
 
-def plot_following_error(t, errors: dict, png_path, *, title: str | None = None,
+def plot_following_error(t: np.ndarray, errors: dict, png_path: str | Path, *,
+                         title: str | None = None,
                          stats: dict | None = None) -> Path:
     """Following error (command - followed) of each axis against time.
 
@@ -77,7 +79,8 @@ def plot_following_error(t, errors: dict, png_path, *, title: str | None = None,
     return _save(fig, png_path)
 
 
-def plot_following_error_map(x_nm, z_nm, extent, png_path, *, title: str | None = None) -> Path:
+def plot_following_error_map(x_nm: np.ndarray, z_nm: np.ndarray, extent: Sequence[float],
+                             png_path: str | Path, *, title: str | None = None) -> Path:
     """The X and Z following errors (nm) of the pass that cut each point of the part.
 
     Parameters

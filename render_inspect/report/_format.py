@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 __all__ = ["fmt_number", "fmt_quantity", "nice_length", "scale_bar_length", "SCALE_BAR_FRACTION"]
 
 
-def fmt_number(v, *, sig: int = 3, resolution: float | None = None) -> str:
+def fmt_number(v: Any, *, sig: int = 3, resolution: float | None = None) -> str:
     """A number with ``sig`` significant figures (at most), without exponent notation
     between 1e-4 and 1e6; magnitudes below ``resolution`` are written ``0`` (a value
     of -2.7e-4 nm where the computation resolves 0.01 nm is zero, not a measurement).
@@ -53,7 +54,7 @@ _RESOLUTION = {"nm": 0.01, "um": 1e-4, "mm": 1e-7, "urad": 0.01, "mrad": 1e-5, "
 _PROMOTE = {"nm": ("um", 1e-3), "um": ("mm", 1e-3)}
 
 
-def fmt_quantity(v, unit: str = "", *, sig: int = 3) -> str:
+def fmt_quantity(v: Any, unit: str = "", *, sig: int = 3) -> str:
     """``fmt_number`` with the unit appended and the unit's display resolution (0.01 nm,
     0.1 nm-equivalent in um, ...); lengths of 10,000 nm or um and more are written in the
     next unit."""

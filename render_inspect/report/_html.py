@@ -3,6 +3,7 @@ scripts and no external links, so the file can be mailed or archived on its own.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 import base64
 import html
 import json
@@ -44,7 +45,8 @@ def _fmt(v) -> str:
     return html.escape(str(v))
 
 
-def table_html(rows, *, header=None, key_first: bool = True) -> str:
+def table_html(rows: Iterable[Sequence[object]], *, header: Sequence[str] | None = None,
+               key_first: bool = True) -> str:
     """An HTML table.  ``rows``: list of lists (first cell is the row key when
     ``key_first``); ``header``: column titles."""
     out = ["<table>"]
@@ -87,10 +89,11 @@ class HtmlReport:
                           f'src="{data_uri(png)}"><figcaption>{html.escape(caption)}'
                           f"</figcaption></figure>")
 
-    def table(self, rows, *, header=None) -> None:
+    def table(self, rows: Iterable[Sequence[object]], *,
+              header: Sequence[str] | None = None) -> None:
         self.parts.append(table_html(rows, header=header))
 
-    def list(self, items) -> None:
+    def list(self, items: Iterable[object]) -> None:
         self.parts.append("<ul>" + "".join(f"<li>{html.escape(str(i))}</li>" for i in items)
                           + "</ul>")
 

@@ -12,7 +12,7 @@ from ._format import fmt_number, fmt_quantity
 __all__ = ["analysis_summary", "characterise_figures", "measurement_summary"]
 
 
-def characterise_figures(m, curves) -> dict:
+def characterise_figures(m: dict, curves: dict) -> dict:
     """The PNGs of an instrument characterisation (``itf.png``, ``step.png``, ``slope.png``,
     ``flat_noise.png``) from its metrics and curves (name -> bytes)."""
     profiles, diff = curves["step_profiles"], curves["flat_difference"]

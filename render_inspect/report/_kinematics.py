@@ -4,6 +4,8 @@ study's Figs. 8-9), position, velocity and acceleration against time, one column
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from ..core.toolpath import ToolPath
 import io
 import math
 from pathlib import Path
@@ -35,7 +37,7 @@ def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
     return xm, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
 
 
-def turning_axes(path, data: dict | None = None) -> dict:
+def turning_axes(path: ToolPath, data: dict | None = None) -> dict:
     """The machine axes of a turning path: ``X`` (radius, mm) and ``Z`` (tool tip, mm);
     with the servo split of a tool-servo program (``data`` holding ``z_slow`` and
     ``z_fts``, mm): ``Z`` = the slow slide's command and ``FTS`` = the fast tool servo's
@@ -51,7 +53,7 @@ def turning_axes(path, data: dict | None = None) -> dict:
     return axes
 
 
-def moving_axes(t, axes: dict) -> list[str]:
+def moving_axes(t: np.ndarray, axes: dict) -> list[str]:
     """The axes whose speed changes (more than :data:`CONSTANT_SPEED_TOL` of their top
     speed): an axis at rest or at constant speed (X of a constant-feed spiral) has
     nothing to show but rounding noise in its acceleration."""
@@ -90,7 +92,9 @@ def _motion_series(columns, axes=None):
     return series, names
 
 
-def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int = 100) -> bytes:
+def axis_motion_figure(columns: Sequence[tuple[str, ToolPath, dict]], *,
+                       axes: Sequence[str] | None = None, title: str | None = None,
+                       dpi: int = 100) -> bytes:
     """PNG bytes: position, velocity and acceleration against time of the axes that move
     (:func:`moving_axes`), one column per path.
 
@@ -148,7 +152,8 @@ def axis_motion_figure(columns, *, axes=None, title: str | None = None, dpi: int
     return buf.getvalue()
 
 
-def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventional"),
+def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath | None = None,
+                    labels: Sequence[str] = ("RCSE", "conventional"),
                     title: str | None = None) -> Path:
     """Plot X against C and the X velocity and acceleration against time (the RCSE
     study's Figs. 8-9), one column per path.
@@ -205,7 +210,8 @@ def plot_kinematics(path, png_path, *, reference=None, labels=("RCSE", "conventi
     return atomic_write_bytes(png_path, buf.getvalue())
 
 
-def kinematics_png(columns, png_path, *, axes=None, title: str = "") -> Path:
+def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str | Path, *,
+                   axes: Sequence[str] | None = None, title: str = "") -> Path:
     """kinematics.png: the content of :func:`axis_motion_figure` (position, velocity and
     acceleration against time of the axes that move, per path) drawn with Pillow as
     stacked panels (``render_inspect.io._quickplot``: tens of milliseconds, where a

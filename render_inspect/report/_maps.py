@@ -7,6 +7,7 @@ regression summary's)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import io
 from pathlib import Path
 
@@ -23,7 +24,8 @@ __all__ = ["save_map_png", "save_height_png", "residual_png", "residual_preview_
            "image_png", "rgb_png"]
 
 
-def save_map_png(path: str | Path, data: np.ndarray, *, extent=None, title: str = "",
+def save_map_png(path: str | Path, data: np.ndarray, *, extent: Sequence[float] | None = None,
+                 title: str = "",
                  label: str = "", cmap: str = "viridis", symmetric: bool = False) -> Path:
     """False-colour map with a colour bar and a scale bar, written atomically: one panel
     of :func:`~render_inspect.report.map_panels` over the whole range of the values.
@@ -43,7 +45,8 @@ def _nice_length(width_mm: float) -> tuple[float, str]:
     return v, length_label(v)
 
 
-def save_height_png(path: str | Path, height_nm: np.ndarray, *, extent, title: str = "",
+def save_height_png(path: str | Path, height_nm: np.ndarray, *,
+                    extent: tuple[float, float, float, float], title: str = "",
                     label: str = "height (nm)", cmap: str = "viridis",
                     percentile: float = 0.1) -> Path:
     """Height map with a colour bar, a scale bar and axes in mm.
@@ -103,7 +106,8 @@ def save_height_png(path: str | Path, height_nm: np.ndarray, *, extent, title: s
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def residual_preview_png(png, machined, design, *, extent, mean_nm: float, title: str,
+def residual_preview_png(png: str | Path, machined: np.ndarray, design: np.ndarray, *,
+                         extent: Sequence[float], mean_nm: float, title: str,
                          overview: dict | None = None, side: int = 512) -> Path:
     """residual.png: machined - design less its mean (nm) as area averages of at most
     ``side`` pixels a side (no aliasing of the feed marks; :func:`render_inspect.io.preview`),
@@ -119,7 +123,8 @@ def residual_preview_png(png, machined, design, *, extent, mean_nm: float, title
     return residual_png(png, img, factor, extent=extent, mean_nm=mean_nm, title=title)
 
 
-def residual_png(png, img, factor: int, *, extent, mean_nm: float, title: str) -> Path:
+def residual_png(png: str | Path, img: np.ndarray, factor: int, *, extent: Sequence[float],
+                 mean_nm: float, title: str) -> Path:
     """residual.png from an area-averaged residual image (mm) of ``factor`` x ``factor``
     pixel means."""
     img = (np.asarray(img, dtype=np.float32) - np.float32(mean_nm * NM_TO_MM)) * np.float32(MM_TO_NM)
@@ -145,7 +150,8 @@ def _encode(rgb8: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def image_png(data, *, cmap: str = "viridis", vmin=None, vmax=None, symmetric: bool = False,
+def image_png(data: np.ndarray, *, cmap: str = "viridis", vmin: float | None = None,
+              vmax: float | None = None, symmetric: bool = False,
               flip_rows: bool = True) -> tuple[bytes, float, float]:
     """A 2-D array as a false-colour PNG, one pixel per value (NaN grey; no axes: an image
     to hold next to its reference); returns (png, vmin, vmax).
@@ -173,7 +179,7 @@ def image_png(data, *, cmap: str = "viridis", vmin=None, vmax=None, symmetric: b
     return _encode(rgb8), float(vmin), float(vmax)
 
 
-def rgb_png(rgb) -> bytes:
+def rgb_png(rgb: np.ndarray) -> bytes:
     """Linear RGB (H, W, 3), row 0 at the top, as an sRGB PNG."""
     a = np.clip(np.nan_to_num(np.asarray(rgb, dtype=np.float64)), 0, 1)
     a = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)

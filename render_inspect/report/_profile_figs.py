@@ -5,6 +5,7 @@ true profiles along one line."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
@@ -113,7 +114,7 @@ def profile_figure(arrays: dict, metrics: dict, *, title: str = "", dpi: int = 9
     return _to_png(fig)
 
 
-def profile_overlay_figure(series, *, title: str = "", dpi: int = 90) -> bytes:
+def profile_overlay_figure(series: Sequence[dict], *, title: str = "", dpi: int = 90) -> bytes:
     """Profiles along one line overlaid: ``series`` = list of dict(``s`` (mm), ``z`` (mm),
     ``label``)."""
     plt = _plt()

@@ -12,7 +12,8 @@ from ._following import _save
 __all__ = ["plot_feed_per_rev"]
 
 
-def plot_feed_per_rev(radius_mm, feed_um, png_path, *, title: str = "") -> Path:
+def plot_feed_per_rev(radius_mm: np.ndarray, feed_um: np.ndarray, png_path: str | Path, *,
+                      title: str = "") -> Path:
     """The feed per revolution (um: how far the radius moves over the revolution that
     starts at each point) against the radius (mm), one dot per point."""
     import matplotlib

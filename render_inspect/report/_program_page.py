@@ -10,7 +10,9 @@ figure from the variant's ``feed_per_rev.png``; a planned program has no such se
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from ._format import fmt_number, fmt_quantity
+from ._html import HtmlReport
 
 __all__ = ["program_section", "program_figure_name", "has_program"]
 
@@ -27,7 +29,7 @@ def program_figure_name(variant: str) -> str:
     return f"feed_per_rev_{variant}"
 
 
-def has_program(metrics: dict, names) -> bool:
+def has_program(metrics: dict, names: Iterable[str]) -> bool:
     """Whether any of the variants ``names`` cut a program read from a file."""
     return any(isinstance((metrics.get(n) or {}).get("program"), dict) for n in names)
 
@@ -71,7 +73,7 @@ def _band_rows(prog: dict) -> list[list]:
             for b in (prog.get("feed_per_rev") or {}).get("by_radius", [])]
 
 
-def program_section(rep, metrics: dict, names, figs: dict) -> bool:
+def program_section(rep: HtmlReport, metrics: dict, names: Iterable[str], figs: dict) -> bool:
     """Add the section "Machine program read from a file" to the page ``rep``
     (:class:`~render_inspect.report.HtmlReport`) for each variant of ``names`` whose
     metrics hold ``program``; ``figs`` maps :func:`program_figure_name` to its PNG bytes.

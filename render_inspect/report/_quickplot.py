@@ -14,6 +14,7 @@ ramp for one-sided data.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import io
 import math
 from pathlib import Path
@@ -78,8 +79,10 @@ def _png(img) -> bytes:
     return buf.getvalue()
 
 
-def map_png(path: str | Path, data: np.ndarray, *, extent, title: str = "", label: str = "",
-            cmap: str = "RdBu_r", symmetric: bool = False, vmin=None, vmax=None, size: int = 420) -> Path:
+def map_png(path: str | Path, data: np.ndarray, *, extent: Sequence[float], title: str = "",
+            label: str = "",
+            cmap: str = "RdBu_r", symmetric: bool = False, vmin: float | None = None,
+            vmax: float | None = None, size: int = 420) -> Path:
     """False-colour map with axes in mm and a colour bar, written atomically.
 
     Parameters

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import io
 
 import numpy as np
@@ -27,7 +29,8 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def curves_png(rows, *, x: str, y: str = "residual.Sq_nm", series: str | None = None,
+def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_nm",
+               series: str | None = None,
                study: str | None = None, title: str = "", log: bool = False) -> bytes:
     """``y`` (a metric, dotted path into metrics.json) against the sweep key ``x``, one curve
     per value of the key ``series``, from ``rows`` of (x, [series,] y)
@@ -59,7 +62,7 @@ def curves_png(rows, *, x: str, y: str = "residual.Sq_nm", series: str | None = 
     return _png(fig)
 
 
-def heatmap_png(rows, *, x: str, y: str, value: str = "residual.Sq_nm",
+def heatmap_png(rows: Sequence[Sequence[Any]], *, x: str, y: str, value: str = "residual.Sq_nm",
                 study: str | None = None, title: str = "", log: bool = False) -> bytes:
     """``value`` (a metric) over the plane of the sweep keys ``x`` and ``y``, from ``rows``
     of (x, y, value): cells on the grid of the values met, each annotated with its value
@@ -101,7 +104,7 @@ def heatmap_png(rows, *, x: str, y: str, value: str = "residual.Sq_nm",
     return _png(fig)
 
 
-def sweep_plot_png(plot, rows) -> bytes:
+def sweep_plot_png(plot: Any, rows: Sequence[Sequence[Any]]) -> bytes:
     """The PNG of one ``[[plot]]`` entry of a sweep file (``plot``: its ``kind``, ``x``,
     ``y``, ``series``, ``value``, ``study``, ``title``, ``log``) from its ``rows``."""
     if plot.kind == "curves":
