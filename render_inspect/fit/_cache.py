@@ -53,7 +53,7 @@ def task_hash(task: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def content_hash(key: str, height, meta_text: str, context: dict) -> str:
+def content_hash(key: str, height: np.ndarray, meta_text: str, context: dict) -> str:
     """SHA-256 (hex) of an entry: its key, the fit's ``context``, the software version,
     the map's shape and float32 bytes, its metadata's JSON text."""
     h = np.ascontiguousarray(np.asarray(height, dtype=np.float32))
@@ -128,7 +128,7 @@ class EvaluationCache:
     def _path(self, key: str) -> Path:
         return cast(Path, self.folder) / f"{key}.npz"
 
-    def get(self, key: str):
+    def get(self, key: str) -> tuple[np.ndarray, dict] | None:
         """(height, meta) or None."""
         if key in self._memory:
             self.hits += 1
@@ -184,7 +184,7 @@ class EvaluationCache:
                                 "another scene, measurement or software version)")
         return raw.astype(np.float64), json.loads(meta_text), None
 
-    def put(self, key: str, height, meta: dict) -> np.ndarray:
+    def put(self, key: str, height: np.ndarray, meta: dict) -> np.ndarray:
         """Store a map (as float32: what a later run reads back) and return it as read
         back, so that a fit run afresh and a fit resumed see the same numbers."""
         h = np.asarray(height, dtype=np.float32)

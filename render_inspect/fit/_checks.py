@@ -17,6 +17,7 @@ Arrays in, findings out: the pipeline hands in the maps (form removed) and the p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -75,7 +76,7 @@ def _tile_peak(z, pixel):
     return 1.0 / k, ang, float(p.flat[i])
 
 
-def mark_tiles(z, pixel, tiles: int = 2) -> list:
+def mark_tiles(z: np.ndarray, pixel: float, tiles: int = 2) -> list:
     """The marks in ``tiles`` x ``tiles`` parts of a map (form removed): per tile (row, col,
     period mm or None, direction deg or None)."""
     z = np.asarray(z, dtype=np.float64)
@@ -99,7 +100,7 @@ def _rms(z) -> float:
     return float(np.sqrt(np.mean(z[ok] ** 2))) if ok.any() else 0.0
 
 
-def within_reach(period: float, reach) -> bool:
+def within_reach(period: float, reach: Sequence[float]) -> bool:
     """Whether a measured period lies within the periods ``reach`` = (lower, upper) the
     free keys' bounds reach, or at most :data:`REACH_TOLERANCE` beyond them."""
     return (reach[0] * (1.0 - REACH_TOLERANCE) <= period
@@ -179,7 +180,8 @@ def check_before(measured, predicted, *, pixel, free_keys, measured_period,
     return out
 
 
-def check_after(measured, fitted, *, pixel, goodness: dict) -> dict:
+def check_after(measured: np.ndarray, fitted: np.ndarray, *, pixel: float,
+                goodness: dict) -> dict:
     """The verdict after the fit: ``{"describes": bool, "findings": [text], ...}``."""
     findings = []
     ratio = goodness.get("ratio")
@@ -213,7 +215,8 @@ def check_after(measured, fitted, *, pixel, goodness: dict) -> dict:
                         + "; ".join(findings))}
 
 
-def profile_marks(z, pixel, *, segments: int = 4, mirror: bool = True) -> dict:
+def profile_marks(z: np.ndarray, pixel: float, *, segments: int = 4,
+                  mirror: bool = True) -> dict:
     """The marks of a measured profile (a slice across turning marks; heights mm, NaN =
     not measured): the period in each of ``segments`` parts and whether the profile is
     mirrored about a point (a diameter through the spindle axis: the marks on the two

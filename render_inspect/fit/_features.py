@@ -35,6 +35,7 @@ has.  The misfit is the sum over all entries.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -122,7 +123,8 @@ class MisfitSpec:
 
 
 # ------------------------------------------------------------------------ maps
-def prepare_map(z, *, pixel, form: str, origin=(0.0, 0.0)) -> np.ndarray:
+def prepare_map(z: np.ndarray, *, pixel: Sequence[float], form: str,
+                origin: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
     """``z`` (mm, NaN = not measured) with its form removed (``none``: its mean)."""
     z = np.asarray(z, dtype=np.float64)
     ok = np.isfinite(z)
@@ -200,7 +202,8 @@ def _log10(p) -> np.ndarray:
         return np.log10(np.where(p > 0, p, np.nan))
 
 
-def radial_psd(z, *, pixel, bins: int = 40):
+def radial_psd(z: np.ndarray, *, pixel: Sequence[float],
+               bins: int = 40) -> tuple[np.ndarray, np.ndarray]:
     """(k, PSD): the isotropic (radially averaged) areal PSD on log-spaced bins, for
     figures; k in cycles/mm, PSD in nm^2 mm^2."""
     p, kx, ky = _periodogram(z, pixel)
@@ -241,7 +244,8 @@ def _ring(p, kr, cell, k0: float, half: float):
     return power, centroid
 
 
-def feed_peak(z, *, pixel, k_min: float, ring: float = 0.1):
+def feed_peak(z: np.ndarray, *, pixel: Sequence[float], k_min: float,
+              ring: float = 0.1) -> float | None:
     """The feed marks' fundamental |k| (cycles/mm): the strongest annulus of the spectrum
     above ``k_min``, refined by the power-weighted centroid of the annulus of relative
     half-width ``ring`` around it (robust to curved marks: the power of concentric marks
@@ -271,7 +275,8 @@ def feed_peak(z, *, pixel, k_min: float, ring: float = 0.1):
     return centroid if np.isfinite(centroid) else None
 
 
-def harmonic_features(z, *, pixel, k0: float, n: int, ring: float = 0.1):
+def harmonic_features(z: np.ndarray, *, pixel: Sequence[float], k0: float, n: int,
+                      ring: float = 0.1) -> tuple[float | None, np.ndarray]:
     """(fundamental centroid |k|, amplitudes (mm) of harmonics 1..n): the spectrum's
     power in fixed annuli around m ``k0`` (half-width ``ring`` m ``k0``, at most k0 / 2.5)
     less the flanks' floor; a sinusoid of amplitude A carries A^2 / 2."""
@@ -286,8 +291,8 @@ def harmonic_features(z, *, pixel, k0: float, n: int, ring: float = 0.1):
     return first, np.array(amps)
 
 
-def waviness(z, *, pixel, cutoff: float | None, form: str = "plane",
-             origin=(0.0, 0.0)) -> np.ndarray:
+def waviness(z: np.ndarray, *, pixel: tuple[float, float], cutoff: float | None, form: str = "plane",
+             origin: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
     """The map smoothed by the Gaussian filter of ``cutoff`` (mm), with the border of half
     a cut-off left out (there the filter would be one-sided and the feed marks' phase would
     leak in), then its form removed (after the filter: a plane fitted through the marks
@@ -339,7 +344,8 @@ class Target:
                 "random_parts_scatter": self.scatter}
 
 
-def make_target(z, *, pixel, origin, spec: MisfitSpec) -> Target:
+def make_target(z: np.ndarray, *, pixel: Sequence[float], origin: Sequence[float],
+                spec: MisfitSpec) -> Target:
     """The measured map's features (see the module docstring)."""
     pixel = (float(pixel[0]), float(pixel[1]))
     h = prepare_map(z, pixel=pixel, form=spec.form, origin=origin)
@@ -432,7 +438,7 @@ def predict_features(z, target: Target, values=None, *, measured: bool = False) 
     return Prediction(h, wavy, psd, centroid, amps)
 
 
-def own_peak(h, target: Target):
+def own_peak(h: np.ndarray, target: Target) -> float | None:
     """The feed marks' fundamental |k| (cycles/mm) of a map with its form removed, looked
     for as the measured one is (:func:`make_target`); None where none stands out."""
     ny, nx = h.shape
@@ -540,14 +546,14 @@ def _set_scatter(target: Target, noisy, clean) -> None:
     target.draws = [predict_features(z, target, measured=True) for z in noisy]
 
 
-def soft_l1(d) -> np.ndarray:
+def soft_l1(d: np.ndarray) -> np.ndarray:
     """The soft-L1 (pseudo-Huber) loss of normalised residuals: 2 (sqrt(1 + d^2) - 1)
     (d^2 near 0, 2 |d| far out)."""
     d = np.asarray(d, dtype=np.float64)
     return 2.0 * (np.sqrt(1.0 + d * d) - 1.0)
 
 
-def robust_weights(d) -> np.ndarray:
+def robust_weights(d: np.ndarray) -> np.ndarray:
     """Square roots of the iteratively re-weighted least-squares weights of the soft-L1
     loss at ``d``: (1 + d^2)^(-1/4) (a least-squares fit of ``sqrt(w) d`` with these held
     has the soft-L1 fit as its fixed point)."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import re
 import typing
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -79,7 +79,7 @@ def _split(key: str) -> list:
     return [int(p) if p.isdigit() else p for p in parts]
 
 
-def parse_free(items) -> list[str]:
+def parse_free(items: Iterable[str]) -> list[str]:
     """``--free KEY[,KEY...]`` (one or several options) -> keys, in order, no duplicates."""
     keys = []
     for item in items if isinstance(items, (list, tuple)) else [items]:
@@ -96,7 +96,7 @@ def parse_free(items) -> list[str]:
     return keys
 
 
-def parse_bounds(items) -> dict:
+def parse_bounds(items: Iterable[str]) -> dict:
     """``--bounds KEY=A,B`` (repeatable) -> {key: (A, B)}."""
     out = {}
     for item in items or ():
@@ -272,7 +272,7 @@ def free_parameters(scene: BaseModel, keys: Sequence[str], bounds: dict | None =
 
 
 # ------------------------------------------------------------------- scene dictionaries
-def get_value(data: dict, key: str):
+def get_value(data: dict, key: str) -> Any:
     """The value at ``key`` in a scene dictionary (None where missing)."""
     node = data
     for part in _split(key):
@@ -287,7 +287,7 @@ def get_value(data: dict, key: str):
     return node
 
 
-def set_value(data: dict, key: str, value, *, fill=None) -> dict:
+def set_value(data: dict, key: str, value: Any, *, fill: Any = None) -> dict:
     """Set ``key`` in a scene dictionary (in place; returns it).  A missing array along the
     way is taken from ``fill(prefix_key)`` (the preset's array, which the scene leaves
     unset)."""

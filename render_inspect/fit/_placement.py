@@ -8,6 +8,7 @@ the scene's region gives the translation, refined by the least-squares rigid reg
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -26,7 +27,7 @@ __all__ = ["field_extent", "centred_origin", "fit_window", "register_field", "ch
 MIN_WINDOW_PX = 32
 
 
-def field_extent(shape, pixel, origin) -> tuple:
+def field_extent(shape: tuple[int, ...], pixel: Sequence[float], origin: Sequence[float]) -> tuple:
     """(x0, y0, x1, y1): the pixel edges of a map, mm."""
     ny, nx = shape
     px, py = pixel
@@ -34,7 +35,8 @@ def field_extent(shape, pixel, origin) -> tuple:
             origin[1] + py * (ny - 0.5))
 
 
-def centred_origin(shape, pixel, centre) -> tuple:
+def centred_origin(shape: tuple[int, ...], pixel: Sequence[float],
+                   centre: Sequence[float]) -> tuple:
     """The origin (pixel [0, 0]'s centre) that puts the field's centre at ``centre``."""
     ny, nx = shape
     px, py = pixel
@@ -45,7 +47,8 @@ def _fmt(box) -> str:
     return f"x {box[0]:.4g}..{box[2]:.4g}, y {box[1]:.4g}..{box[3]:.4g} mm"
 
 
-def fit_window(z, pixel, origin, region, size_mm: float, *, how: str = "") -> tuple:
+def fit_window(z: np.ndarray, pixel: Sequence[float], origin: Sequence[float],
+               region: Sequence[float], size_mm: float, *, how: str = "") -> tuple:
     """(rows, cols) slices of the fit window: the central square of at most ``size_mm``
     inside the overlap of the measured field and the scene's ``region``, moved onto the
     densest valid part of that overlap when its centre is not measured."""

@@ -99,7 +99,7 @@ def _filled(d):
     return np.interp(i, i[ok], d[ok])
 
 
-def profile_fundamental(d, spacing: float):
+def profile_fundamental(d: np.ndarray, spacing: float) -> float | None:
     """The marks' fundamental frequency (cycles/mm) of a detrended profile ``d``: the
     strongest peak above :data:`PROFILE_MIN_PERIODS` cycles per window of the Hann-windowed,
     zero-padded spectrum, refined by a parabola through the log power at its top; None
@@ -202,7 +202,8 @@ class ProfilePrediction:
     shift: float = 0.0
 
 
-def make_profile_target(z, *, spacing: float, lag: int, spec: ProfileSpec) -> ProfileTarget:
+def make_profile_target(z: np.ndarray, *, spacing: float, lag: int,
+                        spec: ProfileSpec) -> ProfileTarget:
     """The features of the measured window ``z`` (mm)."""
     d = _detrend(z)
     k0 = profile_fundamental(d, spacing)
@@ -283,7 +284,8 @@ def predict_profile_features(z, target: ProfileTarget, values=None, *,
     return ProfilePrediction(h, z, k0, amps, _params(own), shift)
 
 
-def profile_residual_vector(pred: ProfilePrediction, target: ProfileTarget):
+def profile_residual_vector(pred: ProfilePrediction,
+                            target: ProfileTarget) -> tuple[np.ndarray, np.ndarray, dict]:
     """(d, a, terms): normalised residuals, each entry's term weight, each term's share of
     the misfit (as :func:`~render_inspect.fit.residual_vector`)."""
     spec = target.spec
@@ -374,7 +376,7 @@ def profile_realisation_shifts(pred: ProfilePrediction, target: ProfileTarget) -
                      for f in feats])
 
 
-def period_text(k) -> str:
+def period_text(k: float | None) -> str:
     return "none" if not k else f"{1.0 / k * MM_TO_UM:.4g} um"
 
 
@@ -384,7 +386,7 @@ def period_text(k) -> str:
 HALVES_SPREAD = 0.05
 
 
-def profile_family(d, spacing: float, *, axis_at_mm=None) -> dict:
+def profile_family(d: np.ndarray, spacing: float, *, axis_at_mm: float | None = None) -> dict:
     """Whether a detrended profile ``d`` (mm) carries one periodic family of marks: the
     period of each half of it (:func:`profile_fundamental`) and whether the window holds
     the line's closest point to the spindle axis (``axis_at_mm``, from the window's start;

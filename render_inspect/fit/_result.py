@@ -20,7 +20,7 @@ def _num(v):
     return v if math.isfinite(v) else None
 
 
-def misfit_maps(measured, predicted) -> dict:
+def misfit_maps(measured: np.ndarray, predicted: np.ndarray) -> dict:
     """rms (nm) of predicted - measured where both are valid, and the share of valid points."""
     d = np.asarray(predicted, dtype=np.float64) - np.asarray(measured, dtype=np.float64)
     ok = np.isfinite(d)

@@ -5,12 +5,14 @@ box; the probes either side of a result and the misfit profiles through it."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
 
 from ..core.progress import task as progress_task
 from ._dispatch import features as predict_features
+from ._params import FreeParameter
 from ._features import Prediction, Target, residual_vector
 from ._profile import ProfileTarget, profile_realisation_shifts
 
@@ -18,7 +20,8 @@ __all__ = ["identifiability", "search_box", "realisation_shifts", "UNDETERMINED_
            "SINGULAR"]
 
 
-def search_box(params, search: dict | None = None):
+def search_box(params: Sequence[FreeParameter],
+               search: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(lower, upper) in physical units of the global phase: ``search[key]`` where given,
     else the fit's bounds narrowed to the start value / 2 .. x 2 (a schema's range, such as
     a nose radius of (0, 50] mm, is no place to search: most of it cannot be cut), or to

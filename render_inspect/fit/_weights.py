@@ -3,6 +3,7 @@ for maps and profiles."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 import math
 
 from ..core.errors import InputError
@@ -10,7 +11,7 @@ from ..core.errors import InputError
 __all__ = ["check_weights", "parse_weights"]
 
 
-def check_weights(weights: dict, terms, *, of: str = "") -> None:
+def check_weights(weights: dict, terms: Iterable[str], *, of: str = "") -> None:
     """``--weights``: every term one of ``terms``, each a number >= 0, one at least > 0
     (``of``: what the terms are of, in the message, e.g. " for a profile")."""
     bad = sorted(set(weights) - set(terms))
@@ -24,7 +25,7 @@ def check_weights(weights: dict, terms, *, of: str = "") -> None:
         raise InputError("--weights: at least one term must have a weight > 0")
 
 
-def parse_weights(items, terms, *, of: str = "") -> dict:
+def parse_weights(items: Iterable[str] | None, terms: Iterable[str], *, of: str = "") -> dict:
     """``--weights TERM=W[,TERM=W...]`` (given once or more) -> {term: weight}, every term
     of ``terms`` 1 unless given (checked by :func:`check_weights` when the misfit is made)."""
     out = {k: 1.0 for k in terms}
