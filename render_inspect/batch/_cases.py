@@ -21,6 +21,7 @@ the count of finite passes (``<channel>.mean``, ``.var``, ``.n``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import json
 import tomllib
 from pathlib import Path
@@ -67,7 +68,7 @@ class RegressCase(Section):
         return self
 
 
-def read_case(path, *, sections=None) -> RegressCase:
+def read_case(path: str | Path, *, sections: Sequence[str] | None = None) -> RegressCase:
     """Read and validate a case file; its ``name`` is the file's stem."""
     path = Path(path)
     try:
@@ -88,7 +89,7 @@ def read_case(path, *, sections=None) -> RegressCase:
     return case
 
 
-def list_cases(folder) -> dict[str, Path]:
+def list_cases(folder: Path) -> dict[str, Path]:
     """Case files in ``folder``: name -> path, sorted by name."""
     folder = Path(folder)
     return {p.stem: p for p in sorted(folder.glob("*.toml"))}
@@ -105,7 +106,7 @@ def _channels(prefix_names, arr) -> dict:
     return {n: np.asarray(a, dtype=np.float32) for n, a in zip(prefix_names, arr)}
 
 
-def write_reference(folder, case: str, images: dict, meta: dict) -> Path:
+def write_reference(folder: str | Path, case: str, images: dict, meta: dict) -> Path:
     """Write ``folder/<case>/`` anew (built beside it, then swapped in).
 
     Parameters
@@ -139,7 +140,7 @@ def write_reference(folder, case: str, images: dict, meta: dict) -> Path:
     return dst
 
 
-def read_reference(folder, case: str) -> dict | None:
+def read_reference(folder: str | Path, case: str) -> dict | None:
     """``reference.json`` of a case plus its arrays (``images[name]["value"]`` or
     ``["mean"]``, ``["var"]``, ``["n"]``, each (C, H, W)); None when there is none."""
     d = Path(folder) / case

@@ -35,6 +35,8 @@ command does).
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Callable, Iterator
 import contextlib
 import importlib.metadata
 import logging
@@ -79,7 +81,7 @@ _QUIET_LOGGERS = ("distributed", "tornado", "asyncio", "bokeh")
 _INFO: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def check_workers_option(workers) -> int | None:
+def check_workers_option(workers: Any) -> int | None:
     """``--workers N``: None or an integer in [1, MAX_WORKERS]."""
     if workers is None:
         return None
@@ -146,7 +148,7 @@ def _has_bokeh() -> bool:
     return True
 
 
-def dashboard_text(client) -> str:
+def dashboard_text(client: Any) -> str:
     """The dashboard's address, or why there is none."""
     if not _has_bokeh():
         return "not available (install bokeh for the Dask dashboard: pip install 'render_inspect[dashboard]')"
@@ -157,7 +159,7 @@ def dashboard_text(client) -> str:
     return link or "not available"
 
 
-def cluster_info(client) -> dict:
+def cluster_info(client: Any) -> dict:
     """What :func:`dask_client` knows of ``client``: ``kind`` ("local", "scheduler",
     "client"), ``workers`` (started or found), ``threads`` (numba threads per task, None
     when the cluster's own), ``dashboard``, ``address``, ``capped`` (why fewer workers
@@ -169,7 +171,8 @@ def cluster_info(client) -> dict:
                                    "dashboard": None, "address": None, "capped": []}))
 
 
-def call_with_threads(threads: int | None, fn, *args, **kwargs):
+def call_with_threads(threads: int | None, fn: Callable[..., Any], *args: Any,
+                      **kwargs: Any) -> Any:
     """``fn(*args, **kwargs)`` with numba's thread count set to ``threads`` for this task
     (at most the threads numba started with; unchanged when None)."""
     if threads:
@@ -240,7 +243,7 @@ def _scheduler_address(scheduler) -> str:
     return address if "://" in address else f"tcp://{address}"
 
 
-def check_scheduler(scheduler) -> str:
+def check_scheduler(scheduler: str) -> str:
     """The address of ``--scheduler`` (``tcp://`` added when no scheme is given), after
     checking, within :data:`CONNECT_TIMEOUT_S` and without reading more than a handshake,
     that a Dask scheduler answers there (TCP addresses; others are checked on connecting).
@@ -286,7 +289,7 @@ def _connect(address: str):
     raise err
 
 
-def wait_for_workers(client, *, label: str, n: int | None = None,
+def wait_for_workers(client: Any, *, label: str, n: int | None = None,
                      timeout: float | None = None, hint: str | None = None) -> int:
     """Wait until the cluster has ``n`` workers (default: at least one); returns how many
     it has.  A cluster that has none after ``timeout`` (:data:`WORKER_WAIT_S`) is an
@@ -318,7 +321,7 @@ def _check_versions(client, label: str) -> None:
                          f"extras), {len(bad)} of {len(versions)} workers differ")
 
 
-def open_client():
+def open_client() -> Any:
     """The ``distributed.Client`` open in this process (a notebook's), or None."""
     try:
         from distributed import default_client
@@ -480,10 +483,11 @@ def _local_cluster(n: int, threads: int, *, memory_limit: int, wait: bool, cappe
 
 
 @contextlib.contextmanager
-def dask_client(*, client=None, scheduler: str | None = None, workers: int | None = None,
+def dask_client(*, client: Any = None, scheduler: str | None = None, workers: int | None = None,
                 tasks: int | None = None, memory_per_task: float | None = None,
-                wait: bool = True, use_open_client: bool = True, budget=None,
-                label: str | None = None):
+                wait: bool = True, use_open_client: bool = True,
+                budget: tuple[int, str] | None = None,
+                label: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for batch work (see the module notes for which one).
 
     Parameters

@@ -3,6 +3,8 @@ once, and a cluster whose start was interrupted is forgotten quietly."""
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Iterable
 import contextlib
 import logging
 import os
@@ -17,7 +19,7 @@ def local_clusters() -> list:
     return list(getattr(SpecCluster, "_instances", ()))
 
 
-def abandon(clusters) -> None:
+def abandon(clusters: Iterable[Any]) -> None:
     """Clusters whose start was interrupted: end their workers and forget them, so
     that nothing tries to close a half-started cluster at exit (which prints tracebacks);
     the messages of their unfinished start are not shown."""
@@ -31,7 +33,7 @@ def abandon(clusters) -> None:
             SpecCluster._instances.discard(cluster)
 
 
-def end_local_workers(cluster) -> None:
+def end_local_workers(cluster: Any) -> None:
     """The run was stopped (Ctrl-C, SIGTERM): end the LocalCluster's worker
     processes at once instead of waiting seconds for the points they are running (a
     point's folder is written whole or not at all; the next run into the sweep's folder

@@ -52,7 +52,8 @@ def sidak_threshold(alpha: float, n_tests: int) -> float:
     return float(-np.expm1(np.log1p(-alpha) / n_tests))
 
 
-def compare_deterministic(test, ref, *, atol: float, rtol: float = 0.0) -> dict:
+def compare_deterministic(test: np.ndarray, ref: np.ndarray, *, atol: float,
+                          rtol: float = 0.0) -> dict:
     """Per-pixel comparison of a deterministic image with its reference.
 
     A pixel passes when both are NaN, or both are finite and
@@ -90,7 +91,7 @@ def compare_deterministic(test, ref, *, atol: float, rtol: float = 0.0) -> dict:
             "rtol": float(rtol), "diff": diff, "fail_mask": bad}
 
 
-def pass_statistics(passes) -> dict:
+def pass_statistics(passes: np.ndarray) -> dict:
     """Mean, sample variance (``ddof = 1``) and count of the finite values of
     ``passes`` (shape ``(P, ...)``) along the first axis; mean and variance are NaN
     where fewer than 1 / 2 passes are finite."""
@@ -191,7 +192,7 @@ def image_t_test(test: dict, ref: dict, *, n_test: int, n_ref: int,
             "reject": reject, "dof_median": float(np.median(dof[pos])) if pos.any() else None}
 
 
-def flip_mean(test_rgb, ref_rgb) -> float | None:
+def flip_mean(test_rgb: np.ndarray, ref_rgb: np.ndarray) -> float | None:
     """Mean FLIP (LDR, sRGB-encoded, 67 pixels per degree) between two linear RGB images,
     or None when flip-evaluator is not installed.  Reported beside the statistical test
     as a perceptual measure of the difference; the test decides."""

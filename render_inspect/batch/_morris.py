@@ -43,6 +43,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 import math
 from typing import Any
 
@@ -79,7 +80,7 @@ class MorrisFactor(Section):
                              f"received {self.key!r}")
         return self
 
-    def value(self, u: float):
+    def value(self, u: float) -> int | float:
         """The factor's value at ``u`` in [0, 1]."""
         if self.log:
             v = math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low)))
@@ -152,7 +153,7 @@ def morris_unit_design(k: int, r: int, levels: int = 4, seed: int = 0) -> np.nda
     return np.round(out, 12)
 
 
-def morris_design(factors, unit: np.ndarray) -> list[list[dict]]:
+def morris_design(factors: Sequence[MorrisFactor], unit: np.ndarray) -> list[list[dict]]:
     """The unit design's points as ``{factor.key: value}`` dicts (trajectory by
     trajectory)."""
     return [[{f.key: f.value(float(u)) for f, u in zip(factors, point)} for point in traj]
@@ -178,7 +179,7 @@ def _match(value) -> float:
     return float(f"{float(value):.{_DIGITS}g}")
 
 
-def morris_indices(cfg: MorrisConfig, lookup) -> dict:
+def morris_indices(cfg: MorrisConfig, lookup: Callable[[dict], Any]) -> dict:
     """mu, mu*, sigma of every factor for every output of ``cfg``.
 
     Parameters

@@ -4,9 +4,10 @@ points (:func:`plot_rows`), and the plots a sweep file without ``[[plot]]`` gets
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from ._morris import MORRIS_STUDY
 from ._results import flatten
-from ._sweepfile import PlotConfig
+from ._sweepfile import PlotConfig, SweepFile
 
 __all__ = ["plot_rows", "default_plots"]
 
@@ -28,7 +29,7 @@ def _rows(records, keys, metric, study=None):
     return rows
 
 
-def plot_rows(records, plot: PlotConfig) -> list[tuple]:
+def plot_rows(records: Iterable[dict], plot: PlotConfig) -> list[tuple]:
     """The rows one ``[[plot]]`` entry draws: (x, metric) or (x, series, metric) for
     ``curves``, (x, y, value) for ``heatmap``."""
     if plot.kind == "curves":
@@ -36,7 +37,7 @@ def plot_rows(records, plot: PlotConfig) -> list[tuple]:
     return _rows(records, [plot.x, plot.y], plot.value, plot.study)
 
 
-def default_plots(spec) -> list[PlotConfig]:
+def default_plots(spec: SweepFile) -> list[PlotConfig]:
     """Plots for a sweep file without ``[[plot]]``: per study, ``residual.Sq_nm`` against
     each varied key (a curve per value of the next key) and a heat map for every pair of
     varied keys (a ``[morris]`` design gets its indices' plots instead)."""

@@ -9,6 +9,8 @@ compacted (:meth:`ResultsLog.rewrite`, an atomic replace).
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Iterable, Iterator, Sequence
 import contextlib
 import csv
 import fcntl
@@ -76,7 +78,7 @@ class ResultsLog:
         finally:
             os.close(fd)
 
-    def rewrite(self, records) -> None:
+    def rewrite(self, records: Iterable[dict]) -> None:
         """Replace the file atomically with ``records`` (one line each)."""
         text = "".join(json.dumps(json_safe(r), sort_keys=True, allow_nan=False) + "\n"
                        for r in records)
@@ -84,7 +86,7 @@ class ResultsLog:
 
 
 @contextlib.contextmanager
-def folder_lock(folder):
+def folder_lock(folder: str | Path) -> Iterator[None]:
     """Hold an exclusive lock on ``folder/.lock`` (two sweeps must not write one folder).
 
     The lock file is opened as every output folder's lock is
@@ -114,7 +116,7 @@ def folder_lock(folder):
         os.close(fd)
 
 
-def flatten(d, prefix: str = "") -> dict:
+def flatten(d: dict, prefix: str = "") -> dict:
     """Scalar leaves of nested dicts as ``{"a.b": value}`` (lists are left out)."""
     out: dict = {}
     if not isinstance(d, dict):
@@ -135,7 +137,7 @@ def flatten(d, prefix: str = "") -> dict:
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r", "\n")
 
 
-def csv_safe(v):
+def csv_safe(v: Any) -> Any:
     """A CSV cell that a spreadsheet shows as text: text starting with ``= + - @``, a tab
     or a line break is prefixed with an apostrophe (numbers are written as numbers)."""
     if isinstance(v, str) and v.startswith(_FORMULA_START):
@@ -155,7 +157,8 @@ def _cell(v):
     return csv_safe(v)
 
 
-def csv_text(records, param_keys, *, columns: dict | None = None) -> str:
+def csv_text(records: Iterable[dict], param_keys: Sequence[str], *,
+             columns: dict | None = None) -> str:
     """``results.csv``: one row per record: ``id``, ``status``, the scene keys
     (``param_keys``, named by ``columns``: key -> column name, the key itself by default),
     ``studies``, ``folder``, ``seconds``, ``error``, then every scalar metric
@@ -199,7 +202,7 @@ def _escape_start(m) -> str:
     return m.group(1) + "\\" + mark
 
 
-def md_text(v, *, block: bool = False) -> str:
+def md_text(v: Any, *, block: bool = False) -> str:
     """``v`` as literal Markdown text: the characters that would format it escaped and,
     unless ``block``, line breaks turned into spaces (a value cannot start a heading or
     break a table); a ``block`` keeps its lines, each escaped, its start too."""
@@ -222,7 +225,8 @@ def _fmt(v) -> str:
     return md_text(json.dumps(v) if isinstance(v, (list, tuple, dict)) else v)
 
 
-def summary_table(records, param_keys, *, metrics=SUMMARY_METRICS) -> str:
+def summary_table(records: Iterable[dict], param_keys: Sequence[str], *,
+                  metrics: Sequence[str] = SUMMARY_METRICS) -> str:
     """A Markdown table: one row per point (sweep keys, status, the chosen metrics,
     seconds, the error's first line)."""
     records = list(records)

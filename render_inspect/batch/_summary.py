@@ -4,6 +4,7 @@ by :func:`render_inspect.report.image_png`)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import contextlib
 import html
 import os
@@ -16,7 +17,7 @@ from ..io import atomic_write_text
 
 __all__ = ["write_summary_html", "RegressionFailed", "replaced_dir"]
 
-def write_summary_html(path, results: list, meta: dict) -> Path:
+def write_summary_html(path: str | Path, results: list, meta: dict) -> Path:
     """The HTML summary: one row per image (case, image, test, numbers, result) and, for
     every image that failed, its PNGs side by side (paths relative to the page).
 
@@ -68,7 +69,7 @@ class RegressionFailed(RenderInspectError):
 
 
 @contextlib.contextmanager
-def replaced_dir(out):
+def replaced_dir(out: str | Path) -> Iterator[Path]:
     """Yield a new folder beside ``out``; on success it replaces ``out`` whole (old files
     do not linger); on an exception it is removed and ``out`` is left as it was."""
     out = Path(out).resolve()

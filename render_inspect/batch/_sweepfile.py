@@ -48,6 +48,7 @@ its grid / zip / single point, applied to the base scene exactly as ``--set`` wo
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import hashlib
 import itertools
 import json
@@ -287,7 +288,9 @@ def _format_error(err: ValidationError, source: str) -> InputError:
                       + "\n".join(f"  {line}" for line in lines))
 
 
-def read_sweep(path, *, sections=None, render_kinds=None, frames_kind=None) -> SweepFile:
+def read_sweep(path: str | Path, *, sections: Sequence[str] | None = None,
+               render_kinds: Sequence[str] | None = None,
+               frames_kind: str | None = None) -> SweepFile:
     """Read and validate a sweep file (TOML).
 
     Parameters
@@ -391,7 +394,7 @@ def fixed_keys(spec: SweepFile) -> list[str]:
     return [k for k in spec.set if k not in varied]
 
 
-def toml_value(value) -> str:
+def toml_value(value: object) -> str:
     """``value`` as TOML value text (what ``--set KEY=VALUE`` takes)."""
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -420,7 +423,7 @@ def point_id(payload: dict) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
-def dotted_get(data: dict, key: str, default=None):
+def dotted_get(data: dict, key: str, default: Any = None) -> Any:
     """``data["a"]["b"]`` for ``key = "a.b"`` (``default`` when a part is missing)."""
     node = data
     for part in key.split("."):

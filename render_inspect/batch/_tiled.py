@@ -16,6 +16,7 @@ store themselves, so the store must be on a file system they share with the call
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import contextlib
 import math
 import threading
@@ -321,7 +322,8 @@ def _load_kernels() -> bool:
 
 
 @contextlib.contextmanager
-def tile_client(*, workers: int | None = None, scheduler: str | None = None, client=None):
+def tile_client(*, workers: int | None = None, scheduler: str | None = None,
+                client: Any = None) -> Iterator[Any]:
     """The Dask client tiles run on (:func:`render_inspect.batch.dask_client`): ``client``
     when given; the cluster whose scheduler listens at ``scheduler``; a ``LocalCluster`` of
     ``workers`` single-threaded processes; the client open in this process (a notebook's);
