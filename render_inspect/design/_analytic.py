@@ -13,6 +13,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
@@ -45,7 +46,7 @@ class SinusoidalGrid(Surface):
         """The longer of the two wavelengths (mm)."""
         return max(self.wavelength_x, self.wavelength_y)
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         return self.ax * np.cos(self.kx * x + self.px) + self.ay * np.cos(self.ky * y + self.py) + self.offset
 
     def gradient(self, x, y):
@@ -53,13 +54,14 @@ class SinusoidalGrid(Surface):
         gy = -self.ay * self.ky * np.sin(self.ky * y + self.py)
         return np.broadcast_arrays(gx, gy)
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         hxx = -self.ax * self.kx ** 2 * np.cos(self.kx * x + self.px)
         hyy = -self.ay * self.ky ** 2 * np.cos(self.ky * y + self.py)
         hxx, hyy = np.broadcast_arrays(hxx, hyy)
         return hxx, np.zeros_like(hxx), hyy
 
-    def max_slope(self, region=None, pixel=None):
+    def max_slope(self, region: Sequence[float] | None = None, pixel: float | None = None) -> float:
         return float(np.hypot(self.ax * self.kx, self.ay * self.ky))
 
 
@@ -69,19 +71,21 @@ class Plane(Surface):
     def __init__(self, slope_x=0.0, slope_y=0.0, offset=0.0):
         self.sx, self.sy, self.offset = float(slope_x), float(slope_y), float(offset)
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         return self.sx * np.asarray(x, dtype=np.float64) + self.sy * np.asarray(y, dtype=np.float64) + self.offset
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         shape = np.broadcast(np.asarray(x), np.asarray(y)).shape
         return np.full(shape, self.sx), np.full(shape, self.sy)
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         shape = np.broadcast(np.asarray(x), np.asarray(y)).shape
         z = np.zeros(shape)
         return z, z.copy(), z.copy()
 
-    def max_slope(self, region=None, pixel=None):
+    def max_slope(self, region: Sequence[float] | None = None, pixel: float | None = None) -> float:
         return float(np.hypot(self.sx, self.sy))
 
 
@@ -121,7 +125,7 @@ class Biconic(Surface):
                              "number); shrink simulation.region or increase the radius")
         return u, v, num, np.sqrt(arg)
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         _, _, num, s = self._parts(x, y)
         return -num / (1 + s) + self.offset
 
@@ -137,13 +141,15 @@ class Biconic(Surface):
         su, sv = -ax * u * inv_s, -ay * v * inv_s
         return u, v, num, s, d, ax, ay, nu, nv, su, sv, inv_s
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         _, _, num, _, d, _, _, nu, nv, su, sv, _ = self._derivs(x, y)
         gx = -(nu * d - num * su) / d ** 2
         gy = -(nv * d - num * sv) / d ** 2
         return gx, gy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         u, v, num, s, d, ax, ay, nu, nv, su, sv, inv_s = self._derivs(x, y)
         # second derivatives of s = sqrt(arg): s_uu = -ax/s - su^2/s, s_uv = -su sv / s
         suu = (-ax - su * su) * inv_s
@@ -178,17 +184,19 @@ class Sphere(Biconic):
                              "shrink simulation.region or process.workpiece_radius")
         return u, v, r2, np.sqrt(R * R - r2)
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         _, _, r2, w = self._uvw(x, y)
         sag = r2 / (abs(self.radius) + w)
         return self._sgn * sag + self.offset
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         u, v, _, w = self._uvw(x, y)
         w = np.maximum(w, 1e-300)
         return self._sgn * u / w, self._sgn * v / w
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         u, v, _, w = self._uvw(x, y)
         w = np.maximum(w, 1e-300)
         w3 = w ** 3
@@ -234,7 +242,7 @@ class Toric(Surface):
         q = np.sqrt(rr * rr - y * y)
         return x, y, qx, sx, rr, q
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         x, y, qx, sx, rr, q = self._parts(x, y)
         sy = y * y / (rr + q)
         return -(self._sx * sx + self._sy * sy) + self.offset

@@ -5,6 +5,7 @@ Every length is in mm.  Arrays broadcast like numpy ufuncs.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import abc
 
 import numpy as np
@@ -23,10 +24,11 @@ class Surface(abc.ABC):
     kind: str = "surface"
 
     @abc.abstractmethod
-    def height(self, x, y) -> np.ndarray:
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         """F(x, y) in mm; ``x`` and ``y`` (mm) broadcast like numpy ufuncs."""
 
-    def gradient(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """(dz/dx, dz/dy)."""
         h = self.fd_step
         x = np.asarray(x, dtype=np.float64)
@@ -35,7 +37,8 @@ class Surface(abc.ABC):
         gy = (self.height(x, y + h) - self.height(x, y - h)) / (2 * h)
         return gx, gy
 
-    def hessian(self, x, y) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(d2z/dx2, d2z/dxdy, d2z/dy2)."""
         h = max(self.fd_step, 1e-3)
         x = np.asarray(x, dtype=np.float64)
@@ -57,17 +60,18 @@ class Surface(abc.ABC):
         sphere, a free form).  The S/L filters of a comparison are chosen around it."""
         return None
 
-    def radial_slope(self, rho, theta) -> np.ndarray:
+    def radial_slope(self, rho: np.ndarray | float, theta: np.ndarray | float) -> np.ndarray:
         """dF/drho along the radial section at angle ``theta`` (rad)."""
         c, s = np.cos(theta), np.sin(theta)
         gx, gy = self.gradient(rho * c, rho * s)
         return gx * c + gy * s
 
-    def radial_profile(self, rho, theta) -> np.ndarray:
+    def radial_profile(self, rho: np.ndarray | float, theta: np.ndarray | float) -> np.ndarray:
         """F along the radial section at angle ``theta``."""
         return self.height(rho * np.cos(theta), rho * np.sin(theta))
 
-    def section_curvature(self, x, y, direction) -> np.ndarray:
+    def section_curvature(self, x: np.ndarray | float, y: np.ndarray | float,
+                          direction: np.ndarray | float) -> np.ndarray:
         """Signed curvature (1/mm) of the section through (x, y) along the unit direction
         angle ``direction`` (rad): F_uu / (1 + F_u^2)^1.5; > 0 where the section is concave
         (bowl-like, the tool nose must fit inside)."""
@@ -78,7 +82,8 @@ class Surface(abc.ABC):
         fuu = hxx * c * c + 2 * hxy * c * s + hyy * s * s
         return fuu / (1 + fu * fu) ** 1.5
 
-    def curvature(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+    def curvature(self, x: np.ndarray | float,
+                  y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """(mean, Gaussian) curvature of the graph surface, 1/mm and 1/mm^2."""
         gx, gy = self.gradient(x, y)
         hxx, hxy, hyy = self.hessian(x, y)
@@ -87,7 +92,7 @@ class Surface(abc.ABC):
         mean = ((1 + gx * gx) * hyy - 2 * gx * gy * hxy + (1 + gy * gy) * hxx) / (2 * w ** 1.5)
         return mean, gauss
 
-    def max_slope(self, region, pixel: float | None = None) -> float:
+    def max_slope(self, region: Sequence[float], pixel: float | None = None) -> float:
         """Largest |grad F| over ``region`` = (x0, y0, x1, y1), sampled on 257 rows of up to
         1025 points (finer along x when ``pixel`` is small)."""
         x0, y0, x1, y1 = region
@@ -97,7 +102,8 @@ class Surface(abc.ABC):
         gx, gy = self.gradient(xs[None, :], ys[:, None])
         return float(np.nanmax(np.hypot(gx, gy)))
 
-    def sample(self, region, pixel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sample(self, region: Sequence[float],
+               pixel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Heights on the grid of ``region``/``pixel`` (row 0 = smallest y): (x, y, z)."""
         x0, y0, x1, y1 = region
         nx = int(round((x1 - x0) / pixel)) + 1

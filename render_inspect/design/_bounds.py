@@ -22,6 +22,8 @@ second holds when no feature is narrower than the grid and steeper than its samp
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import ast
 import math
 
@@ -29,6 +31,7 @@ import numpy as np
 
 from ..core.units import MIB_TO_BYTES
 from ._analytic import Plane, SinusoidalGrid
+from ._base import Surface
 from ._compound import Compound
 from ._expression import _ALIASES, _CONSTANTS, ExpressionSurface, _flatten, _literal
 
@@ -401,7 +404,8 @@ def _grown(outline, d):
     return ("box", x0 - d, y0 - d, x1 + d, y1 + d)
 
 
-def max_height(surface, outline, *, tolerance: float = 1e-6) -> HeightBound | None:
+def max_height(surface: Surface, outline: Sequence[Any], *,
+               tolerance: float = 1e-6) -> HeightBound | None:
     """A :class:`HeightBound` on the heights of ``surface`` over ``outline``
     (``("disc", cx, cy, r)`` or ``("box", x0, y0, x1, y1)``, mm): by branch and bound on
     the design's interval bound where it has one (to ``tolerance`` mm), by a dense

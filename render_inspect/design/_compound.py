@@ -12,6 +12,7 @@ References
 
 from __future__ import annotations
 
+import numpy as np
 from typing import ClassVar, Literal
 
 from ..core.errors import InputError
@@ -42,15 +43,17 @@ class Compound(Surface):
                 raise InputError(f"design.{name} must be a Surface, received {type(s).__name__}")
         self.base, self.feature = base, feature
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         return self.base.height(x, y) + self.feature.height(x, y)
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         bx, by = self.base.gradient(x, y)
         fx, fy = self.feature.gradient(x, y)
         return bx + fx, by + fy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         b = self.base.hessian(x, y)
         f = self.feature.hessian(x, y)
         return tuple(bi + fi for bi, fi in zip(b, f))
@@ -59,7 +62,7 @@ class Compound(Surface):
         """The feature's lateral scale (mm)."""
         return self.feature.lateral_scale()
 
-    def centers(self):
+    def centers(self) -> list[tuple[int, int, float, float]]:
         """The feature's lenslet centres (only when the feature is a lenslet array)."""
         if not hasattr(self.feature, "centers"):
             raise InputError(f"design.feature ({type(self.feature).__name__}) has no lenslet centres")

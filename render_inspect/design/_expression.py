@@ -455,14 +455,16 @@ class ExpressionSurface(Surface):
                              "simulation.region")
         return parts
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         return self._run(x, y, 0)[0]
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         _, gx, gy = self._run(x, y, 1)
         return gx, gy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         _, _, _, hxx, hxy, hyy = self._run(x, y, 2)
         return hxx, hxy, hyy
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from pathlib import Path
 from typing import Literal
@@ -178,19 +179,21 @@ class HeightMapSurface(Surface):
             return (z11 - z10 - z01 + z00) / (h * h)
         return np.zeros(x.shape)      # d2/dx2 and d2/dy2 of a bilinear patch
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         x, y = self._check(x, y)
         return self._ev(x, y, 0, 0)
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         x, y = self._check(x, y)
         return self._ev(x, y, 1, 0), self._ev(x, y, 0, 1)
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         x, y = self._check(x, y)
         return self._ev(x, y, 2, 0), self._ev(x, y, 1, 1), self._ev(x, y, 0, 2)
 
-    def max_slope(self, region, pixel=None) -> float:
+    def max_slope(self, region: Sequence[float], pixel: float | None = None) -> float:
         """Largest |grad F| over ``region`` clipped to the map."""
         x0, y0, x1, y1 = region
         bx0, by0, bx1, by1 = self.bounds

@@ -22,6 +22,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from typing import Literal
 
@@ -36,7 +37,7 @@ from ._registry import register_design
 __all__ = ["LensletArray", "LensletRings", "sphere_sag", "lens_radius_from_sag"]
 
 
-def sphere_sag(s2, radius: float):
+def sphere_sag(s2: np.ndarray | float, radius: float) -> np.ndarray:
     """Sag (mm) of a sphere of radius ``radius`` at squared distance ``s2`` (mm^2)."""
     return s2 / (radius + np.sqrt(radius * radius - s2))
 
@@ -185,7 +186,7 @@ class LensletArray(Surface):
         return dx, dy, inside
 
     # ---- Surface ------------------------------------------------------------------------
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         dx, dy, inside = self._local(x, y)
         R = self.lens_radius
         if self.cells == "round":
@@ -196,17 +197,19 @@ class LensletArray(Surface):
                        self.chord_height)
         return self.offset + self._sign * sag
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         dx, dy, inside = self._local(x, y)
         gx, gy, *_ = _cap_derivs(dx, dy, inside, self.lens_radius, self._sign)
         return gx, gy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         dx, dy, inside = self._local(x, y)
         _, _, hxx, hxy, hyy = _cap_derivs(dx, dy, inside, self.lens_radius, self._sign)
         return hxx, hxy, hyy
 
-    def max_slope(self, region=None, pixel=None) -> float:
+    def max_slope(self, region: Sequence[float] | None = None, pixel: float | None = None) -> float:
         """Largest |grad F| inside the lenslets (at the aperture edge or the cell corner)."""
         s2 = (self.aperture_radius ** 2 if self.cells == "round"
               else (self.pitch_x ** 2 + self.pitch_y ** 2) / 4)
@@ -309,23 +312,25 @@ class LensletRings(Surface):
                 best_dy = np.where(better, dy, best_dy)
         return best_dx, best_dy, best_s2 < a2
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         dx, dy, inside = self._nearest(x, y)
         s2 = np.where(inside, dx * dx + dy * dy, 0.0)
         depth = np.where(inside, self.depth - sphere_sag(s2, self.lens_radius), 0.0)
         return self.offset - self._sign * depth
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         dx, dy, inside = self._nearest(x, y)
         gx, gy, *_ = _cap_derivs(dx, dy, inside, self.lens_radius, self._sign)
         return gx, gy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         dx, dy, inside = self._nearest(x, y)
         _, _, hxx, hxy, hyy = _cap_derivs(dx, dy, inside, self.lens_radius, self._sign)
         return hxx, hxy, hyy
 
-    def max_slope(self, region=None, pixel=None) -> float:
+    def max_slope(self, region: Sequence[float] | None = None, pixel: float | None = None) -> float:
         a2 = self.element_radius ** 2
         return float(math.sqrt(a2 / (self.lens_radius ** 2 - a2)))
 
