@@ -3,10 +3,11 @@ height from interferometer frames, and the virtual instrument's own characterist
 
 from __future__ import annotations
 
+from typing import Any
 from ._args import _add_out_args, _add_set_arg, _add_verbosity, _objective_names, _Registered
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: Any) -> None:
     p = sub.add_parser("analyze", help="ISO 25178-2 parameters of one height map file (measured "
                                        "or simulated): metrics.json, height.png, --x3p; ISO "
                                        "21920-2 parameters of a profile: metrics.json, profile.png")

@@ -105,7 +105,7 @@ def _add_program_arg(p: argparse.ArgumentParser):
                         "of the planned path (= --set process.program=FILE; docs/programs.md)")
 
 
-def scene_overrides(args) -> list:
+def scene_overrides(args: argparse.Namespace) -> list:
     """The ``--set`` overrides with ``--program FILE`` as ``process.program`` (an absolute
     path) last."""
     out = list(getattr(args, "overrides", None) or [])

@@ -3,11 +3,12 @@ image regression of the shipped cases) and the set-up check with the main job.""
 
 from __future__ import annotations
 
+from typing import Any
 from ..core.errors import RenderInspectError
 from ._args import _add_cluster_args, _add_out_args, _add_set_arg, _add_verbosity
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: Any) -> None:
     p = sub.add_parser("sweep", help="parameter sweep on Dask: results.jsonl, results.csv, summary, plots "
                                      "(resumable)")
     p.add_argument("sweep", help="sweep file (TOML) or the name of a shipped sweep, e.g. fig15_small")

@@ -3,12 +3,13 @@ surface."""
 
 from __future__ import annotations
 
+from typing import Any
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
                     _objective_names, _Registered, scene_overrides)
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: Any) -> None:
     """``fit``: the scene's tool, feed, machine and material keys fitted to a measured
     surface (its own block: the pipeline's ``run_fit`` does the work)."""
     p = sub.add_parser("fit", help="fit free scene keys (tool, feed, machine, material) to a "

@@ -3,6 +3,7 @@ and the one line an error or an interruption ends with (see the package docstrin
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import argparse
 import logging
 import os
@@ -120,7 +121,7 @@ class _StderrHandler(logging.StreamHandler):
         pass
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """The ``render-inspect`` command: run the command line ``argv`` (default: the
     program's arguments); return the exit code."""
     parser = build_parser()

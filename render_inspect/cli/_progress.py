@@ -8,6 +8,7 @@ import math
 import sys
 import threading
 import time
+from typing import Any
 
 from ._args import log
 
@@ -49,23 +50,23 @@ class RichReporter:
         self._progress.stop()
         return False
 
-    def start(self, description, total, timed=False):
+    def start(self, description: str, total: float | None, timed: bool = False) -> Any:
         with self._lock:
             tid = self._progress.add_task(description, total=total, visible=False)
             self._tasks[tid] = {"start": time.monotonic(), "total": total, "timed": timed}
         return tid
 
-    def advance(self, handle, amount):
+    def advance(self, handle: Any, amount: float) -> None:
         with self._lock:
             if handle in self._tasks and not self._tasks[handle]["timed"]:
                 self._progress.advance(handle, amount)
 
-    def update(self, handle, description):
+    def update(self, handle: Any, description: str) -> None:
         with self._lock:
             if handle in self._tasks:
                 self._progress.update(handle, description=description)
 
-    def progress(self, handle, completed):
+    def progress(self, handle: Any, completed: float) -> None:
         """A step estimated by time reports its measured progress: shown from now on by
         it (the bar and the ETA start again from this point)."""
         with self._lock:
@@ -77,7 +78,7 @@ class RichReporter:
             elif info is not None:
                 self._progress.update(handle, completed=completed)
 
-    def finish(self, handle):
+    def finish(self, handle: Any) -> None:
         with self._lock:
             info = self._tasks.pop(handle, None)
             if info is not None:
@@ -119,21 +120,21 @@ class LogReporter:
     def __exit__(self, *exc):
         return False
 
-    def start(self, description, total, timed=False):
+    def start(self, description: str, total: float | None, timed: bool = False) -> Any:
         h = object()
         self._t[h] = (description, time.monotonic())
         return h
 
-    def advance(self, handle, amount):
+    def advance(self, handle: Any, amount: float) -> None:
         pass
 
-    def update(self, handle, description):
+    def update(self, handle: Any, description: str) -> None:
         # a step of a multi-step task ended: log it, time the next one
         if handle in self._t:
             self._log(*self._t[handle])
             self._t[handle] = (description, time.monotonic())
 
-    def finish(self, handle):
+    def finish(self, handle: Any) -> None:
         if handle in self._t:
             self._log(*self._t.pop(handle))
 

@@ -3,10 +3,11 @@ instruments, and two variants of a scene side by side."""
 
 from __future__ import annotations
 
+from typing import Any
 from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: Any) -> None:
     p = sub.add_parser("render", help="virtual interferometer and diffuse-light images (Mitsuba 3)")
     _add_scene_args(p)
     p.add_argument("--surface", choices=["design", "machined"], default="machined")

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 
-def add_parsers(sub) -> None:
+def add_parsers(sub: Any) -> None:
     p = sub.add_parser("simulate", help="tool path + machined surface: heightmap.exr, metrics.json, preview")
     _add_scene_args(p)
     p.add_argument("--tiled", action="store_true",

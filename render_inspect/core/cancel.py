@@ -15,6 +15,7 @@ within about one block of the signal (exit 130 / 143, the output folder as it wa
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import contextlib
 import signal
 import threading
@@ -58,7 +59,7 @@ def check() -> None:
     raise Terminated(signum)
 
 
-def blocks(total: int, size: int):
+def blocks(total: int, size: int) -> Iterator[tuple[int, int]]:
     """``(start, stop)`` ranges of at most ``size`` covering ``range(total)``, with a
     :func:`check` before each."""
     size = max(int(size), 1)
@@ -68,7 +69,7 @@ def blocks(total: int, size: int):
 
 
 @contextlib.contextmanager
-def deferred():
+def deferred() -> Iterator[None]:
     """Run the block without being interrupted part-way: a stop asked for meanwhile is only
     recorded, and raised when the block ends (the command line's handlers ask
     :func:`deferring` before raising).

@@ -12,6 +12,8 @@ the value of that parameter that would fit (:func:`fit_value`).
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Iterable
 import math
 import os
 from pathlib import Path
@@ -202,7 +204,7 @@ def mitsuba_address_space(threads: int | None = None) -> int:
     return MITSUBA_ADDRESS_SPACE + MITSUBA_ADDRESS_SPACE_PER_THREAD * max(int(threads), 1)
 
 
-def check_address_space(nbytes, *, what: str) -> None:
+def check_address_space(nbytes: float, *, what: str) -> None:
     """Refuse, with one line naming the limit, work that would reserve ``nbytes`` more
     address space than the address-space limit (``ulimit -v``) leaves: for libraries that
     crash rather than fail cleanly when a reservation is refused (Mitsuba's LLVM JIT ends
@@ -221,7 +223,7 @@ def check_address_space(nbytes, *, what: str) -> None:
             f"(ulimit -v unlimited)")
 
 
-def format_number(v) -> str:
+def format_number(v: Any) -> str:
     """A number in at most 3 significant digits (``1.2e+14``, ``3600``, ``0.0025``)."""
     try:
         f = float(v)
@@ -236,7 +238,7 @@ def format_number(v) -> str:
     return f"{f:.3g}"
 
 
-def format_bytes(n) -> str:
+def format_bytes(n: Any) -> str:
     """Bytes as MiB, GiB or TiB with 3 significant digits (huge figures in powers of ten,
     never hundreds of digits)."""
     try:
@@ -304,8 +306,8 @@ class Driver:
         return f"{self.key} {rel} {format_number(target)}{unit} (now {format_number(v)}{unit})"
 
 
-def check_memory(nbytes, *, what: str, budget: tuple[int, str] | int | None = None,
-                 drivers=(), hint: str | None = None) -> int:
+def check_memory(nbytes: float, *, what: str, budget: tuple[int, str] | int | None = None,
+                 drivers: Iterable[Any] = (), hint: str | None = None) -> int:
     """Raise :class:`MemoryBudgetError` when ``nbytes`` exceeds the budget.
 
     Parameters

@@ -17,6 +17,8 @@ total)`` between their blocks: the innermost running step's bar moves to that fr
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Iterator
 import contextlib
 import logging
 import threading
@@ -87,7 +89,7 @@ class Task:
 
 
 @contextlib.contextmanager
-def task(description: str, total: float | None = None, *, timed: bool = False):
+def task(description: str, total: float | None = None, *, timed: bool = False) -> Iterator[Task]:
     """Mark a step of the work (a context manager yielding a :class:`Task`).
 
     Parameters
@@ -125,7 +127,7 @@ def report(done: float, total: float) -> None:
     cancel.check()
 
 
-def set_reporter(reporter):
+def set_reporter(reporter: Any) -> Any:
     """Install ``reporter`` (an object with ``start(description, total, timed) -> handle``,
     ``advance(handle, amount)``, ``update(handle, description)`` and
     ``finish(handle)``; optionally ``progress(handle, completed)``, which shows a step
@@ -136,6 +138,6 @@ def set_reporter(reporter):
     return old
 
 
-def get_reporter():
+def get_reporter() -> Any:
     """The installed reporter, or None."""
     return _STATE["reporter"]

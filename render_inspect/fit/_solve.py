@@ -39,6 +39,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.lazy import lazy_attr
+from ..core.progress import Task
 from ..core.progress import task as progress_task
 from ._cache import EvaluationCache, task_hash
 from ._differences import _jacobian, _smoothed
@@ -124,7 +125,7 @@ class Evaluator:
         self.history: list = []       # Evaluations in the order made
         # (None until the first evaluation, which every solve makes before reading it)
         self.best: Evaluation = None  # type: ignore[assignment]
-        self.step = None              # progress task
+        self.step: Task | None = None  # progress task
         self.seconds = 0.0            # forward-model seconds (not cached)
 
     @property

@@ -12,6 +12,7 @@ fan of triangles: no seam and no staircase at the spindle axis.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -47,7 +48,8 @@ def _ring_faces(inner: np.ndarray, outer: np.ndarray) -> np.ndarray:
     return np.concatenate([np.stack([inner, outer, o1], 1), np.stack([inner, o1, i1], 1)])
 
 
-def disc_mesh(z, *, pixel: float, origin, center, radius: float, exaggeration: float = 1.0,
+def disc_mesh(z: np.ndarray, *, pixel: float, origin: Sequence[float], center: Sequence[float],
+              radius: float, exaggeration: float = 1.0,
               z_offset: float | None = None, rings: int = 256, sectors: int = 1024,
               chamfer: float = 0.0, wall: float = 0.0, normals: bool = True,
               memory_budget: int | None = None, channel: str = "") -> GridMesh:

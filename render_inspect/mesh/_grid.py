@@ -11,11 +11,13 @@ Memory: 12 bytes per vertex + 24 bytes per triangle (+12 per vertex for normals)
 
 from __future__ import annotations
 
+from ..core.heightmap import HeightMap
+from collections.abc import Sequence
 import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -80,7 +82,7 @@ class GridMesh:
         return mesh
 
 
-def decimation_stride(shape, max_cells: int) -> int:
+def decimation_stride(shape: tuple[int, ...], max_cells: int) -> int:
     """Smallest integer stride so that the longer side has at most ``max_cells`` cells."""
     check_positive("max_cells", max_cells)
     n = max(int(shape[0]), int(shape[1])) - 1
@@ -123,7 +125,8 @@ def _grid_normals(z: np.ndarray, pixel: float) -> np.ndarray:
     return n.reshape(-1, 3)
 
 
-def grid_mesh(z, *, pixel: float, origin=(0.0, 0.0), exaggeration: float = 1.0,
+def grid_mesh(z: np.ndarray, *, pixel: float, origin: Sequence[float] = (0.0, 0.0),
+              exaggeration: float = 1.0,
               z_offset: float | None = None, stride: int = 1, normals: bool = True,
               skirt: bool = False, base_depth: float | None = None,
               memory_budget: int | None = None, channel: str = "") -> GridMesh:
@@ -277,8 +280,9 @@ def _add_skirt(vertices, faces, nrm, ny, nx, base_z):
     return new_v, new_f, nrm
 
 
-def heightmap_mesh(heightmap, *, channel: str = "machined", exaggeration: float = 1.0,
-                   window=None, margin: int = 1, z_offset: float | None = None,
+def heightmap_mesh(heightmap: HeightMap, *, channel: str = "machined", exaggeration: float = 1.0,
+                   window: Sequence[float] | None = None, margin: int = 1,
+                   z_offset: float | None = None,
                    stride: int = 1, max_cells: int | None = None, normals: bool = True,
                    skirt: bool = False, base_depth: float | None = None,
                    memory_budget: int | None = None) -> GridMesh:
@@ -314,7 +318,8 @@ def heightmap_mesh(heightmap, *, channel: str = "machined", exaggeration: float 
     return gm
 
 
-def window_indices(heightmap, window, *, margin: int = 1):
+def window_indices(heightmap: HeightMap, window: Sequence[float], *,
+                   margin: int = 1) -> tuple[int, int, int, int]:
     """Row/column slice bounds ``(i0, i1, j0, j1)`` of the pixels covering ``window``."""
     try:
         x0, y0, x1, y1 = (float(w) for w in window)
@@ -336,13 +341,13 @@ def window_indices(heightmap, window, *, margin: int = 1):
     return i0, i1, j0, j1
 
 
-def heightmap_to_trimesh(heightmap, **kwargs):
+def heightmap_to_trimesh(heightmap: HeightMap, **kwargs: Any) -> Any:
     """:func:`heightmap_mesh` as a :class:`trimesh.Trimesh` (metadata carries the
     vertical exaggeration and provenance)."""
     return heightmap_mesh(heightmap, **kwargs).to_trimesh()
 
 
-def export_mesh(mesh, path: str | Path) -> Path:
+def export_mesh(mesh: GridMesh, path: str | Path) -> Path:
     """Write a mesh (``GridMesh`` or ``trimesh.Trimesh``) as PLY, OBJ, GLB or STL (chosen by
     the extension), atomically.
 
@@ -386,7 +391,7 @@ def export_mesh(mesh, path: str | Path) -> Path:
 GLTF_ROTATION = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
-def gltf_from_project(points) -> np.ndarray:
+def gltf_from_project(points: np.ndarray) -> np.ndarray:
     """(n, 3) points in the project's frame (mm, +Z up) -> glTF's (m, +Y up):
     ``(x, y, z) -> (x, z, -y) / 1000``."""
     return np.asarray(points, dtype=np.float64) @ GLTF_ROTATION.T * MM_TO_M

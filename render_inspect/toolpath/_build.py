@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import time
 
@@ -58,7 +59,8 @@ def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius:
     return (n, n_angle) if parts else n + n_angle
 
 
-def plan_memory(n_points, *, sampling: str = "constant_angle", compensation: str = "z") -> float:
+def plan_memory(n_points: int, *, sampling: str = "constant_angle",
+                compensation: str = "z") -> float:
     """Bytes :func:`plan_turning` (and the kinematics after it) holds at its peak for a
     path of ``n_points`` points, or of (arc-length points, constant-angle points)
     (:func:`turning_point_count` with ``parts=True``)."""
@@ -66,7 +68,7 @@ def plan_memory(n_points, *, sampling: str = "constant_angle", compensation: str
     return PLAN_FIXED_BYTES + n * PLAN_BYTES_PER_POINT.get(compensation, PLAN_BYTES_PER_POINT["normal"])
 
 
-def region_radii(region, margin: float) -> tuple[float, float]:
+def region_radii(region: Sequence[float], margin: float) -> tuple[float, float]:
     """Smallest and largest distance (mm) from the spindle axis to ``region``, widened by
     ``margin`` (clamped at 0)."""
     x0, y0, x1, y1 = region

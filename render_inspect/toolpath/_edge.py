@@ -22,6 +22,7 @@ the tabulated difference, linearly interpolated.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import functools
 import math
 import os
@@ -71,12 +72,13 @@ class EdgeProfile:
     source: str = ""
     fitted_radius: float | None = None
 
-    def deviation(self, theta) -> np.ndarray:
+    def deviation(self, theta: np.ndarray | float) -> np.ndarray:
         """delta(theta), mm."""
         return np.interp(np.asarray(theta, dtype=np.float64), self.angle, self.delta)
 
     @classmethod
-    def from_harmonics(cls, harmonics, *, span_deg: float = 180.0, samples: int = 7201) -> "EdgeProfile":
+    def from_harmonics(cls, harmonics: Sequence[Sequence[float]], *, span_deg: float = 180.0,
+                       samples: int = 7201) -> "EdgeProfile":
         """delta(theta) = sum_k a_k cos(2 pi theta / P_k + phi_k) from (a_k nm, P_k degrees,
         phi_k degrees) triples."""
         th = np.linspace(-math.radians(span_deg), math.radians(span_deg), samples)
@@ -231,7 +233,7 @@ def _fit_circle(x, z):
     return xc, zc, R
 
 
-def read_edge_file(path, *, nose_radius: float | None = None) -> EdgeProfile:
+def read_edge_file(path: str | Path, *, nose_radius: float | None = None) -> EdgeProfile:
     """Read a tool-edge measurement: a text table (comma, semicolon, tab or space
     separated; ``#`` starts a comment) whose first line names the two columns with units.
 
@@ -300,7 +302,8 @@ def _cached(path: str, mtime: float, size: int, nose_radius: float | None) -> Ed
     return read_edge_file(path, nose_radius=nose_radius)
 
 
-def edge_of(edge_profile: str | None, waviness, *, nose_radius: float | None = None,
+def edge_of(edge_profile: str | None, waviness: Sequence[Sequence[float]] | None, *,
+            nose_radius: float | None = None,
             amplitude_scale: float = 1.0) -> EdgeProfile | None:
     """The edge a ``[tool]`` section describes (``edge_profile`` file, ``waviness``
     harmonics, both summed), or None for a circular nose.  ``amplitude_scale`` multiplies

@@ -17,6 +17,7 @@ Every maximum is of the absolute value.
 
 from __future__ import annotations
 
+from ..core.toolpath import ToolPath
 import math
 from typing import Any
 
@@ -131,7 +132,7 @@ def _reversals(v, eps):
     return n
 
 
-def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def axis_derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Velocity, acceleration and jerk of the samples ``q(t)`` on a non-uniform time axis.
 
     Parameters
@@ -159,7 +160,7 @@ def axis_derivatives(t, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return v, a, j
 
 
-def limits_from_process(process_cfg) -> dict:
+def limits_from_process(process_cfg: Any) -> dict:
     """The machine limits of a ``[process]`` section (or dict) that are set, by scene key."""
     out = {}
     for key in LIMIT_KEYS:
@@ -174,7 +175,7 @@ def _at(path, i: int) -> str:
             f"C = {math.degrees(path.theta[i]):.2f} deg")
 
 
-def kinematics(path, *, limits=None) -> dict:
+def kinematics(path: ToolPath, *, limits: dict | None = None) -> dict:
     """Axis kinematics of a tool path and warnings where it exceeds the machine limits.
 
     Parameters

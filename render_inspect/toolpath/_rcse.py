@@ -151,7 +151,7 @@ class RingLayout:
         """Largest distance of any element point from the centre, mm."""
         return max(self.ring_radii) + self.element_radius
 
-    def element_height(self, s2) -> np.ndarray:
+    def element_height(self, s2: np.ndarray) -> np.ndarray:
         """Height (mm) at squared local distance ``s2`` (mm^2) from an element centre;
         ``offset`` outside the element."""
         s2 = np.asarray(s2, dtype=np.float64)
@@ -176,7 +176,7 @@ class RingLayout:
                            f"are closer than 2 * element_radius = {2 * a} mm")
         return out
 
-    def height(self, x, y) -> np.ndarray:
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Reference evaluation of the layout at Cartesian (x, y) (mm), by the nearest
         element of each ring (no spiral needed); used by the conventional method."""
         x = np.asarray(x, dtype=np.float64)
@@ -384,7 +384,7 @@ class PointCloudModel:
         self.z = np.ascontiguousarray(z, dtype=np.float64)
         self._coef = ndimage.spline_filter(self.z, order=3) if self.order == 3 else self.z
 
-    def height(self, x, y) -> np.ndarray:
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         from scipy import ndimage
 
         x = np.asarray(x, dtype=np.float64)

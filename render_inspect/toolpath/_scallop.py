@@ -35,6 +35,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 import math
 
 import numpy as np
@@ -54,7 +55,8 @@ def _check_k(k, r):
     return k
 
 
-def scallop_height(feed, nose_radius: float, curvature=0.0) -> np.ndarray:
+def scallop_height(feed: np.ndarray | float, nose_radius: float,
+                   curvature: np.ndarray | float = 0.0) -> np.ndarray:
     """Residual height H (mm) between passes ``feed`` mm apart.
 
     Parameters
@@ -79,7 +81,8 @@ def scallop_height(feed, nose_radius: float, curvature=0.0) -> np.ndarray:
     return 2 * (r - s) / (1 + k * s + np.sqrt((1 + k * r) ** 2 - k * k * u))
 
 
-def feed_for_scallop(height, nose_radius: float, curvature=0.0) -> np.ndarray:
+def feed_for_scallop(height: np.ndarray | float, nose_radius: float,
+                     curvature: np.ndarray | float = 0.0) -> np.ndarray:
     """Largest distance f (mm) between tool centres that leaves the residual ``height``
     (mm, 0 <= H < r) on a section of signed ``curvature`` (1/mm): eq. 12 of the compound
     sinusoidal grid paper."""
@@ -93,7 +96,8 @@ def feed_for_scallop(height, nose_radius: float, curvature=0.0) -> np.ndarray:
     return 2 * np.sqrt(np.maximum(r * r - c * c, 0.0))
 
 
-def max_feed_for_scallop(height: float, nose_radius: float, curvatures=(0.0,)) -> float:
+def max_feed_for_scallop(height: float, nose_radius: float,
+                         curvatures: Iterable[float] = (0.0,)) -> float:
     """f <= min over ``curvatures`` of :func:`feed_for_scallop` (the compound sinusoidal
     grid paper, eq. 13), mm."""
     k = np.atleast_1d(np.asarray(curvatures, dtype=np.float64))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from typing import Any
 import math
 from dataclasses import dataclass, field
 
@@ -38,7 +39,7 @@ class Tool:
         check_range("tool.clearance_angle", self.clearance_angle, 0.0, math.pi / 2)
 
     @classmethod
-    def from_config(cls, cfg) -> "Tool":
+    def from_config(cls, cfg: Any) -> "Tool":
         edge = edge_of(getattr(cfg, "edge_profile", None), getattr(cfg, "waviness", None),
                        nose_radius=cfg.nose_radius, amplitude_scale=getattr(cfg, "edge_scale", 1.0))
         return cls(cfg.nose_radius, math.radians(cfg.included_angle_deg),

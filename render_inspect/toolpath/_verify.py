@@ -151,7 +151,8 @@ def _grid(outline, n: int):
                      f"received {outline!r}")
 
 
-def longest_step(x, y, z, line=None) -> float:
+def longest_step(x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                 line: np.ndarray | None = None) -> float:
     """The longest straight move between consecutive points of a planned program (within
     each line when ``line`` is given), mm."""
     x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
@@ -163,7 +164,7 @@ def longest_step(x, y, z, line=None) -> float:
     return float(step.max()) if step.size else 0.0
 
 
-def part_top(part: PartModel, *, program_z=None) -> float:
+def part_top(part: PartModel, *, program_z: np.ndarray | None = None) -> float:
     """The part's highest point, mm: the design's highest height over the outline
     (``part.top``, its true highest point, or else sampled on a :data:`_TOP_SAMPLES`
     grid) or the highest programmed cutting point, whichever is higher, plus the stock."""
@@ -183,7 +184,7 @@ def part_top(part: PartModel, *, program_z=None) -> float:
 
 
 def plan_links(part: PartModel, *, clearance: float = DEFAULT_CLEARANCE,
-               plunge_feed: float = DEFAULT_PLUNGE_FEED, program_z=None,
+               plunge_feed: float = DEFAULT_PLUNGE_FEED, program_z: np.ndarray | None = None,
                keys: tuple[str, str] = ("process.clearance", "process.plunge_feed_mm_per_min")
                ) -> Links:
     """The :class:`Links` of a program: the clearance plane ``clearance`` mm above the
@@ -408,7 +409,8 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             "plunge_feed_mm_per_min": float(links.plunge_feed)}
 
 
-def compare_with_plan(blocks: Blocks, points, planned: dict, *, what: str = "toolpath.nc",
+def compare_with_plan(blocks: Blocks, points: np.ndarray, planned: dict, *,
+                      what: str = "toolpath.nc",
                       tolerance: float = _ROUND) -> dict:
     """Check that the cutting points of a written program (the blocks ``points``, in
     order) are the planned program's (``planned``: axis -> array, C in deg), each axis to
