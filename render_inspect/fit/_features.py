@@ -202,8 +202,7 @@ def _log10(p) -> np.ndarray:
         return np.log10(np.where(p > 0, p, np.nan))
 
 
-def radial_psd(z: np.ndarray, *, pixel: Sequence[float],
-               bins: int = 40) -> tuple[np.ndarray, np.ndarray]:
+def radial_psd(z: np.ndarray, *, pixel: Sequence[float], bins: int = 40) -> tuple[np.ndarray, np.ndarray]:
     """(k, PSD): the isotropic (radially averaged) areal PSD on log-spaced bins, for
     figures; k in cycles/mm, PSD in nm^2 mm^2."""
     p, kx, ky = _periodogram(z, pixel)
@@ -244,8 +243,7 @@ def _ring(p, kr, cell, k0: float, half: float):
     return power, centroid
 
 
-def feed_peak(z: np.ndarray, *, pixel: Sequence[float], k_min: float,
-              ring: float = 0.1) -> float | None:
+def feed_peak(z: np.ndarray, *, pixel: Sequence[float], k_min: float, ring: float = 0.1) -> float | None:
     """The feed marks' fundamental |k| (cycles/mm): the strongest annulus of the spectrum
     above ``k_min``, refined by the power-weighted centroid of the annulus of relative
     half-width ``ring`` around it (robust to curved marks: the power of concentric marks
@@ -344,8 +342,7 @@ class Target:
                 "random_parts_scatter": self.scatter}
 
 
-def make_target(z: np.ndarray, *, pixel: Sequence[float], origin: Sequence[float],
-                spec: MisfitSpec) -> Target:
+def make_target(z: np.ndarray, *, pixel: Sequence[float], origin: Sequence[float], spec: MisfitSpec) -> Target:
     """The measured map's features (see the module docstring)."""
     pixel = (float(pixel[0]), float(pixel[1]))
     h = prepare_map(z, pixel=pixel, form=spec.form, origin=origin)

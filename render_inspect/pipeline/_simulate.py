@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 
 from ..core.heightmap import HeightMap
 from ..core.progress import task
-from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import BYTES_TO_MIB
 from ..design import Surface, make_surface
 from ..io import atomic_write_text, export_program, heightmap_overview, writer
@@ -79,12 +78,12 @@ class Simulation:
     msa: dict | None = None
 
     @property
-    def program(self) -> ToolPath | LinearProgram:
+    def program(self):
         """The commanded machine program (ToolPath or LinearProgram)."""
         return self.plan.program
 
     @property
-    def toolpath(self) -> ToolPath | LinearProgram | None:
+    def toolpath(self):
         """The program ``simulate`` saves as ``toolpath.npz`` (the turning tool path), or
         None for a process that saves none (sculpturing)."""
         return self.plan.program if self.traits.saves_program else None

@@ -9,7 +9,6 @@ client process (the one that calls :func:`run_sweep`) is the only writer of
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 import contextlib
 import json
 import logging
@@ -245,7 +244,7 @@ def _unit_of(scene: Scene, key: str) -> str:
     return first if first in _UNITS else ""
 
 
-def column_names(scene: Scene | None, keys: Iterable[str]) -> dict:
+def column_names(scene: Scene | None, keys: list[str]) -> dict:
     """``results.csv`` column of each scene key: the key with its unit added when its
     name does not say it (``tool.nose_radius`` -> ``tool.nose_radius_mm``; a key whose
     name ends in its unit, such as ``process.feed_mm_per_min``, and a key without a
@@ -437,9 +436,8 @@ def _is_sweep_folder(folder: Path) -> bool:
 
 
 def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = None,
-              workers: int | None = None,
-              client: Any = None, retry_failed: bool = False, progress: bool | None = None,
-              overwrite: bool = False) -> dict:
+              workers: int | None = None, client: Any = None, retry_failed: bool = False,
+              progress: bool | None = None, overwrite: bool = False) -> dict:
     """``render-inspect sweep``: run every point of a sweep file on Dask.
 
     The whole sweep is checked before the first point runs: the file, its names, the

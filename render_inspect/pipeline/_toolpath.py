@@ -10,7 +10,6 @@ import logging
 from pathlib import Path
 
 from ..core.errors import InputError
-from ..core.toolpath import LinearProgram, ToolPath
 from ..design import Surface, make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
@@ -94,8 +93,7 @@ def nc_memory(scene: Scene, points: int) -> int:
                                          "process.arc_length, process.workpiece_radius)")
 
 
-def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
-                 overwrite: bool = False) -> ToolPath | LinearProgram:
+def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz", overwrite: bool = False):
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program
