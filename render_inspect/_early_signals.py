@@ -29,7 +29,7 @@ _STATE = {"prefix": "render-inspect", "finished": False}
 _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 
 
-def _handler(signum, frame):
+def _handler(signum: int, frame: object) -> None:
     what = "interrupted" if signum == signal.SIGINT else "terminated"
     if _STATE["finished"]:
         state = "the run had finished (its output, if any, was written completely)"

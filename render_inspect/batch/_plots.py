@@ -5,6 +5,7 @@ points (:func:`plot_rows`), and the plots a sweep file without ``[[plot]]`` gets
 from __future__ import annotations
 
 from collections.abc import Iterable
+
 from ._morris import MORRIS_STUDY
 from ._results import flatten
 from ._sweepfile import PlotConfig, SweepFile

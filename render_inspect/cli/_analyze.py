@@ -4,6 +4,7 @@ height from interferometer frames, and the virtual instrument's own characterist
 from __future__ import annotations
 
 from typing import Any
+
 from ._args import _add_out_args, _add_set_arg, _add_verbosity, _objective_names, _Registered
 
 

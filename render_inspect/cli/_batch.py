@@ -4,6 +4,7 @@ image regression of the shipped cases) and the set-up check with the main job.""
 from __future__ import annotations
 
 from typing import Any
+
 from ..core.errors import RenderInspectError
 from ._args import _add_cluster_args, _add_out_args, _add_set_arg, _add_verbosity
 

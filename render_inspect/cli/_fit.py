@@ -4,6 +4,7 @@ surface."""
 from __future__ import annotations
 
 from typing import Any
+
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
                     _objective_names, _Registered, scene_overrides)

@@ -4,6 +4,7 @@ instruments, and two variants of a scene side by side."""
 from __future__ import annotations
 
 from typing import Any
+
 from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
 
 

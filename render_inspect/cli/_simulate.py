@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from typing import Any
+
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 

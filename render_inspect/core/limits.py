@@ -283,7 +283,8 @@ class Driver:
         The schema's range; advice outside it is not given.
     """
 
-    def __init__(self, key: str, value, exponent: float, unit: str = "", *, limit=None):
+    def __init__(self, key: str, value: Any, exponent: float, unit: str = "", *,
+                 limit: tuple[float | None, float | None] | None = None):
         self.key, self.value, self.exponent, self.unit = key, value, exponent, unit
         self.limit = limit
 

@@ -7,7 +7,8 @@ do not reach into the file layer, call :func:`read_program_file`.
 
 from __future__ import annotations
 
-from typing import Callable
+from pathlib import Path
+from typing import Any, Callable
 
 from .errors import InputError
 
@@ -22,7 +23,7 @@ def register_program_reader(fn: Callable) -> Callable:
     return fn
 
 
-def read_program_file(path, **options):
+def read_program_file(path: str | Path, **options: Any) -> Any:
     """The machine program ``path`` read by the registered reader (see the module
     docstring)."""
     if not _READER:

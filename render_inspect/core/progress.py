@@ -37,7 +37,7 @@ _LOCK = threading.Lock()
 class Task:
     """A running step: :meth:`advance` it, or :meth:`update` its description."""
 
-    def __init__(self, description: str, total: float | None, reporter, timed: bool = False):
+    def __init__(self, description: str, total: float | None, reporter: Any, timed: bool = False):
         self.description = description
         self.total = total
         self.timed = timed

@@ -113,5 +113,5 @@ class Surface(abc.ABC):
         z = self.height(x[None, :], y[:, None])
         return x, y, np.broadcast_to(z, (ny, nx)).copy()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"{type(self).__name__}()"

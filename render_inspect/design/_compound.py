@@ -68,7 +68,7 @@ class Compound(Surface):
             raise InputError(f"design.feature ({type(self.feature).__name__}) has no lenslet centres")
         return self.feature.centers()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"Compound(base={self.base!r}, feature={self.feature!r})"
 
 

@@ -117,7 +117,7 @@ __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "js
 
 def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: tuple | None,
                       command: str, option: str, out_text: str,
-                      inputs=()) -> tuple[str, dict | None]:
+                      inputs: Iterable[str | Path | None] = ()) -> tuple[str, dict | None]:
     """How to treat an existing ``out``: ("new" | "replace" | "merge", its marker)."""
     if not out.exists():
         return "new", None

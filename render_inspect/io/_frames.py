@@ -73,7 +73,7 @@ def read_frames_exr(path: str | Path) -> tuple[Frames, dict, dict]:
                          f"the frames need ({type(err).__name__}: {err})") from None
 
 
-def _frames_from(path, ch: dict, a: dict):
+def _frames_from(path: str | Path, ch: dict, a: dict) -> tuple[Frames, dict, dict]:
     names = sorted(k for k in ch if k.startswith("frame_"))
     stack = np.stack([ch[k] for k in names]) if names else ch["intensity"][None]
     valid = ch["valid"] > 0.5 if "valid" in ch else np.ones(stack.shape[1:], dtype=bool)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Sequence
 import json
 from pathlib import Path
@@ -35,7 +36,8 @@ def heightmap_attrs(hm: HeightMap) -> dict:
 
 
 @register_writer("heightmap", ".exr")
-def write_heightmap_exr(path: str | Path, hm: HeightMap, *, overview: dict | None = None, **_) -> Path:
+def write_heightmap_exr(path: str | Path, hm: HeightMap, *, overview: dict | None = None,
+                        **_: Any) -> Path:
     """Write float32 channels ``design``, ``machined``, ``residual`` (mm; the residual formed
     in float64, then rounded) and the header of :func:`heightmap_attrs`, tiled, with an
     area-averaged overview part for maps larger than 1024 pixels a side (atomic; see

@@ -6,7 +6,6 @@ through the clearance plane when given."""
 from __future__ import annotations
 
 from typing import Any
-from ..core.toolpath import ToolPath
 import math
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from ._nc_dialect import (
     _turning_moves,
     nc_comment_text,
 )
+from ..core.toolpath import ToolPath
 
 __all__ = ["write_nc", "write_program_nc"]
 

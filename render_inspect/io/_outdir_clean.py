@@ -3,6 +3,8 @@ folders, backups) put back or removed, and what a failed run made undone."""
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import contextlib
 import os
 import re
@@ -61,7 +63,7 @@ def _clean_stale(out: Path) -> list[str]:
     return done
 
 
-def _undo(tmp, created, lock) -> None:
+def _undo(tmp: str | Path | None, created: Sequence[Path], lock: Any) -> None:
     """Remove the temporary folder, release the lock, and remove the parents this run
     made (innermost first) if they are still empty."""
     if tmp is not None:

@@ -76,7 +76,7 @@ def _swap_in(new: Path, out: Path, backup: Path) -> None:
     _rmtree(backup)
 
 
-def _link_file(src, dst) -> None:
+def _link_file(src: str | Path, dst: str | Path) -> None:
     try:
         os.link(src, dst)
     except OSError:

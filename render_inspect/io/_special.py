@@ -4,13 +4,14 @@ not a file; each is refused with one line saying which, not "not found"."""
 
 from __future__ import annotations
 
+from pathlib import Path
 import os
 import stat
 
 __all__ = ["not_a_file"]
 
 
-def not_a_file(path) -> str | None:
+def not_a_file(path: str | Path) -> str | None:
     """None when ``path`` is a regular file (through links); else what it is, as the end
     of a sentence: ``"not found"``, ``"is a named pipe (FIFO), not a regular file"``,
     ``"is a device, not a regular file"``, ``"is a socket, not a regular file"``, ``"is a

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 __all__ = ["table_csv"]
 
 
-def table_csv(rows, keys) -> str:
+def table_csv(rows: Iterable[dict], keys: Sequence[str]) -> str:
     """CSV text of ``rows`` (dicts) in the columns ``keys``: numbers with 6 significant
     digits, text as it is, an empty cell where a row lacks the key or holds None."""
     lines = [",".join(keys)]

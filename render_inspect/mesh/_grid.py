@@ -11,7 +11,6 @@ Memory: 12 bytes per vertex + 24 bytes per triangle (+12 per vertex for normals)
 
 from __future__ import annotations
 
-from ..core.heightmap import HeightMap
 from collections.abc import Sequence
 import json
 import math
@@ -26,6 +25,7 @@ from ..core.errors import InputError, MemoryBudgetError, check_positive
 from ..core.limits import address_space_limit, address_space_room
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES, MM_TO_M
 from ..io import atomic_write_bytes
+from ..core.heightmap import HeightMap
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "gltf_from_project", "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]

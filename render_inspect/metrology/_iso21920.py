@@ -141,7 +141,7 @@ def parse_profile_filter(text: str | tuple | None, *, option: str = "--filter"
     return s, l_
 
 
-def _remove_form(x, z, form: str):
+def _remove_form(x: np.ndarray, z: np.ndarray, form: str) -> np.ndarray:
     if form not in _FORMS:
         raise InputError(f"form must be one of {_FORMS}, received {form!r}")
     if form == "none":

@@ -30,7 +30,7 @@ __all__ = ["FORM_TERMS", "level_map", "measured_difference"]
 FORM_TERMS = ("piston", "piston and tilt")
 
 
-def _regions(valid, labels):
+def _regions(valid: np.ndarray, labels: np.ndarray | None) -> np.ndarray:
     if labels is None:
         lab, _ = ndimage.label(valid)
     else:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.frames import Frames
 from ._noise import FALSE_ALARM
 from ._phase import PhaseResult, retrieve_csi, retrieve_psi
 
@@ -25,7 +26,7 @@ ALGORITHMS = {"psi": ("auto", "4step", "5step", "hariharan", "lsq"),
               "csi": ("auto", "envelope", "envelope+phase")}
 
 
-def measure_frames(frames, *, algorithm: str = "auto", csi_refine: str | None = None,
+def measure_frames(frames: Frames, *, algorithm: str = "auto", csi_refine: str | None = None,
                    min_modulation: float = 0.05, unwrap_quality: str = "modulation",
                    false_alarm: float | None = FALSE_ALARM) -> PhaseResult:
     """What the instrument reports: height from its frames and settings alone.

@@ -19,6 +19,7 @@ measures the spread directly instead of estimating it.
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Sequence
 import math
 
@@ -68,7 +69,7 @@ def difference_noise(noise_a: np.ndarray | None, noise_b: np.ndarray | None,
                       "quadrature, rms over the pixels both measured"}
 
 
-def resolution(rms_nm, floor_nm) -> dict:
+def resolution(rms_nm: Any, floor_nm: Any) -> dict:
     """Is a difference of rms ``rms_nm`` resolved above a noise floor ``floor_nm``?
 
     Returns ``{"resolved": bool or None, "verdict": "resolved" / "not resolved" /

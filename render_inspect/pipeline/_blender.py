@@ -309,7 +309,7 @@ def load_render_images(result: dict) -> list[str]:
     return names
 
 
-def _metric(d, path):
+def _metric(d: Any, path: Iterable[str]) -> int | float | None:
     for k in path:
         if not isinstance(d, dict) or k not in d:
             return None

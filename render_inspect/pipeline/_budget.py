@@ -13,7 +13,6 @@ grooves are a new draw of the same statistics on the smaller grid.
 
 from __future__ import annotations
 
-from ..core.heightmap import HeightMap
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +23,7 @@ from ..core.units import MM_TO_NM
 from ..processes import Variant, process_of
 from ..scene import variant_scene
 from ._simulate import simulate
+from ..core.heightmap import HeightMap
 
 if TYPE_CHECKING:
     from ..scene import Scene

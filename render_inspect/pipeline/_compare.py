@@ -25,7 +25,6 @@ windows, profiles, sections), the one metrics builder and the report.
 
 from __future__ import annotations
 
-from ..core.heightmap import HeightMap
 from collections.abc import Sequence
 import logging
 import re
@@ -62,6 +61,7 @@ from ._metrics import (comparison_metrics, diffuse_summary, variant_metrics, wri
 from ._render import (check_render_limits, part_outline, render_diffuse_views,
                       write_diffuse_outputs, write_instrument_outputs)
 from ._simulate import simulate
+from ..core.heightmap import HeightMap
 
 if TYPE_CHECKING:
     from ..scene import Scene

@@ -11,7 +11,7 @@ from ..core.units import MIN_TO_S, MM_TO_UM
 __all__ = ["toolpath_summary", "characterise_summary", "render_summary", "command_summary"]
 
 
-def _num(v, unit: str = "", fmt: str = ".4g") -> str:
+def _num(v: object, unit: str = "", fmt: str = ".4g") -> str:
     if v is None:
         return "n/a"
     if isinstance(v, bool):

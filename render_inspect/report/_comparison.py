@@ -4,7 +4,6 @@ panels, the sections and the axis motion; and the caption written into diffuse i
 
 from __future__ import annotations
 
-from ..core.toolpath import ToolPath
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -15,6 +14,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM
 from ._figures import (difference_figure, image_panels, locator_figure, map_panels,
                        radial_profile_figure)
 from ._format import fmt_quantity, nice_length
+from ..core.toolpath import ToolPath
 
 __all__ = ["ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption",
            "resolution_text",

@@ -3,6 +3,7 @@ mapped onto the part (the error of the pass that cut each point)."""
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Sequence
 import io
 from pathlib import Path
@@ -15,7 +16,7 @@ from ._kinematics import _envelope
 __all__ = ["plot_following_error", "plot_following_error_map"]
 
 
-def _save(fig, png_path) -> Path:
+def _save(fig: Any, png_path: str | Path) -> Path:
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()

@@ -35,7 +35,7 @@ def data_uri(png: bytes, mime: str = "image/png") -> str:
     return f"data:{mime};base64," + base64.b64encode(png).decode("ascii")
 
 
-def _fmt(v) -> str:
+def _fmt(v: object) -> str:
     if v is None or isinstance(v, (bool, int, float)):
         return html.escape(fmt_number(v, sig=4))
     if isinstance(v, (list, tuple)):

@@ -116,5 +116,5 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def _percent(v) -> str:
+def _percent(v: float | None) -> str:
     return "n/a" if v is None else f"{100 * float(v):.1f} %"

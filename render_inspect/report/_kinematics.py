@@ -5,7 +5,6 @@ study's Figs. 8-9), position, velocity and acceleration against time, one column
 from __future__ import annotations
 
 from collections.abc import Sequence
-from ..core.toolpath import ToolPath
 import io
 import math
 from pathlib import Path
@@ -16,6 +15,7 @@ from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
 from ._quickplot import panels_png
 from ..toolpath import axis_derivatives
+from ..core.toolpath import ToolPath
 
 __all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
            "turning_axes"]

@@ -78,7 +78,7 @@ _FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "n
                 ("Sku", "Sku", ""), ("Sdq", "Sdq", ""), ("Sdr", "Sdr_percent", "%")]
 
 
-def _measured_section(rep, mf: dict) -> None:
+def _measured_section(rep: HtmlReport, mf: dict) -> None:
     """The measured file: checks, coverage, registration with its uncertainty, outliers,
     warnings, parameters, source (lengths in mm or um, heights in nm, angles in deg)."""
     rep.section("Measured file")

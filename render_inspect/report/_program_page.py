@@ -11,6 +11,7 @@ figure from the variant's ``feed_per_rev.png``; a planned program has no such se
 from __future__ import annotations
 
 from collections.abc import Iterable
+
 from ._format import fmt_number, fmt_quantity
 from ._html import HtmlReport
 
@@ -34,7 +35,7 @@ def has_program(metrics: dict, names: Iterable[str]) -> bool:
     return any(isinstance((metrics.get(n) or {}).get("program"), dict) for n in names)
 
 
-def _finding_rows(findings) -> list[list]:
+def _finding_rows(findings: Iterable[dict]) -> list[list]:
     rows = []
     for f in findings:
         rows.append([f.get("what", f.get("kind", "")), fmt_number(f.get("points")),

@@ -17,7 +17,6 @@ Every maximum is of the absolute value.
 
 from __future__ import annotations
 
-from ..core.toolpath import ToolPath
 import math
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError
+from ..core.toolpath import ToolPath
 
 __all__ = ["axis_derivatives", "kinematics", "limits_from_process", "LIMIT_KEYS"]
 

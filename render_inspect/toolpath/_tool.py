@@ -33,7 +33,7 @@ class Tool:
     clearance_angle: float = math.radians(10.0)
     edge: EdgeProfile | None = field(default=None, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_range("tool.nose_radius", self.nose_radius, 0.0, None, lo_open=True)
         check_range("tool.included_angle", self.included_angle, 0.0, math.pi, lo_open=True)
         check_range("tool.clearance_angle", self.clearance_angle, 0.0, math.pi / 2)
