@@ -42,6 +42,7 @@ of a program read back from its file, to simulate it again).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
@@ -55,14 +56,14 @@ from ..core.toolpath import LinearProgram, Links, ToolPath
 from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, PartModel, plan_links
 
 if TYPE_CHECKING:
-    from ..design import DesignSection
+    from ..design import DesignSection, Surface
     from ..machining import MaterialResponse
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
            "section", "ToolSection", "SimulationSection", "SceneSections"]
 
 
-def section(path: str, **kw):
+def section(path: str, **kw: Any) -> Any:
     """A field of an :class:`Inputs` subclass filled from the scene section ``path``
     (dotted, e.g. ``"artifacts.burrs"``) instead of the section named like the field."""
     return field(metadata={"section": path}, **kw)
@@ -172,7 +173,7 @@ class Inputs:
             values[f.name] = node
         return cls(**values)
 
-    def replace(self, **sections) -> "Inputs":
+    def replace(self, **sections: Any) -> "Inputs":
         """A copy with some sections replaced (e.g. another ``simulation`` region)."""
         return dataclasses.replace(self, **sections)
 
@@ -393,11 +394,12 @@ class Process(ABC, Generic[InputsT]):
 
     # ---------------------------------------------------------------- required hooks
     @abstractmethod
-    def plan(self, cfg: InputsT, surface, *, region=None) -> Plan:
+    def plan(self, cfg: InputsT, surface: Surface, *,
+             region: Sequence[float] | None = None) -> Plan:
         """The machine program (whole part, or what reaches ``region``) and its facts."""
 
     @abstractmethod
-    def cut(self, cfg: InputsT, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: InputsT, surface: Surface, plan: Plan) -> Cut:
         """The machined and design heights on ``cfg.simulation``'s grid."""
 
     @abstractmethod
@@ -409,11 +411,11 @@ class Process(ABC, Generic[InputsT]):
         return Traits(name=cfg.process.kind)
 
     # ---------------------------------------------------------------- optional hooks
-    def precheck(self, cfg: InputsT, region=None) -> None:
+    def precheck(self, cfg: InputsT, region: Sequence[float] | None = None) -> None:
         """Check the sizes the process's own keys drive against the memory budget before
         anything is planned (:func:`~render_inspect.processes.check_budget`)."""
 
-    def program_region(self, cfg: InputsT):
+    def program_region(self, cfg: InputsT) -> tuple[float, ...] | None:
         """The region the ``toolpath`` command plans (None: the whole part)."""
         return None
 
@@ -428,12 +430,13 @@ class Process(ABC, Generic[InputsT]):
         facts.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
         return facts
 
-    def program_plan(self, cfg: InputsT, surface, program) -> Plan:
+    def program_plan(self, cfg: InputsT, surface: Surface,
+                     program: ToolPath | LinearProgram) -> Plan:
         """The plan of a program read back from a file (``toolpath.nc``, ...), for
         :meth:`cut` to simulate it again; default: the program and nothing else."""
         return Plan(program)
 
-    def program_part(self, cfg: InputsT, surface, plan: Plan) -> PartModel | None:
+    def program_part(self, cfg: InputsT, surface: Surface, plan: Plan) -> PartModel | None:
         """The part the written program is checked against (design heights, outline,
         stock, the tool's half width); None: the program is written without links and
         not checked."""
@@ -444,7 +447,7 @@ class Process(ABC, Generic[InputsT]):
         travel); default: no limits."""
         return MachineLimits(source="the machine")
 
-    def program_links(self, cfg: InputsT, surface, plan: Plan) -> Links | None:
+    def program_links(self, cfg: InputsT, surface: Surface, plan: Plan) -> Links | None:
         """The clearance plane and plunge feed of the moves between the cuts: the part's
         highest point (:meth:`program_part`) plus ``process.clearance``, the feed
         ``process.plunge_feed_mm_per_min``.  None when :meth:`program_part` is None."""
@@ -467,7 +470,7 @@ class Process(ABC, Generic[InputsT]):
                 f"is not the envelope of one tool path); shrink simulation.region or raise "
                 f"simulation.max_memory_gb to simulate it in memory")
 
-    def envelope(self, cfg: InputsT, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: InputsT, surface: Surface, plan: Plan) -> Envelope:
         """The path whose nose envelope is the machined surface (tiled simulation)."""
         raise NotImplementedError(self.tile_refusal(cfg))
 
