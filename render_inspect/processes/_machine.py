@@ -22,6 +22,7 @@ from ..core.units import NM_TO_MM, URAD_TO_RAD
 from ..machining import (
     MACHINE_PRESET_NAMES,
     MATERIAL_PRESET_NAMES,
+    MaterialResponse,
     machine_preset,
     material_preset,
     material_response,
@@ -243,7 +244,7 @@ def machine_of(cfg: "MachineConfig"):
         raise SceneError(f"machine (preset {cfg.preset!r}): {err}") from None
 
 
-def material_of(cfg: "MaterialConfig", *, contact=1.0):
+def material_of(cfg: "MaterialConfig", *, contact: float = 1.0) -> MaterialResponse | None:
     """The :class:`~render_inspect.machining.MaterialResponse` of a ``[material]`` section
     at the contact ratio ``contact`` (1 = continuous cutting), or None for
     ``preset = "ideal"``."""

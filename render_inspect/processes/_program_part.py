@@ -8,14 +8,16 @@ travel (:func:`~render_inspect.machining.program_limits_of`)."""
 
 from __future__ import annotations
 
-from ..design import height_interval, max_height
+from typing import Any
+
+from ..design import Surface, height_interval, max_height
 from ..machining import program_limits_of
 from ..toolpath import MachineLimits, PartModel
 
 __all__ = ["design_part", "machine_limits"]
 
 
-def design_part(surface, outline, **kw) -> PartModel:
+def design_part(surface: Surface, outline: tuple, **kw: Any) -> PartModel:
     """A :class:`PartModel` of ``surface`` over ``outline`` with the design's true
     highest point (``top``) and, where the design has one, its interval bound."""
     b = max_height(surface, outline)
@@ -27,7 +29,7 @@ def design_part(surface, outline, **kw) -> PartModel:
                      **kw)
 
 
-def machine_limits(preset: str, *, also: str = "", **kw) -> MachineLimits:
+def machine_limits(preset: str, *, also: str = "", **kw: Any) -> MachineLimits:
     """The :class:`MachineLimits` of ``machine.preset`` (its largest feed and travel)
     with ``kw`` (velocities, spindle speed, the plunge feed the physics allows); ``also``
     names further sources for messages."""

@@ -10,6 +10,7 @@ conventional path is built for the comparison and which path cuts the simulated 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import time
 from dataclasses import dataclass
@@ -33,7 +34,8 @@ from ..toolpath import (
     region_radii,
     z_compensation,
 )
-from ._contract import Cut, Plan, Traits, Variant, VariantPair
+from ..design import Surface
+from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._mechanics import Turned, TurningInputs, follow, turn
 from ._machine import ProcessScene
 from ._registry import register_process, register_section
@@ -377,18 +379,19 @@ class RcseProcess(TiledTurningProcess):
     config = RcseProcessConfig
     inputs = RcseInputs
 
-    def plan(self, cfg, surface, *, region=None) -> Plan:
+    def plan(self, cfg: TurningInputs, surface: Surface, *,
+             region: Sequence[float] | None = None) -> Plan:
         plan = _plan(cfg, surface, region=region)
         plan.plots = self.program_plots(cfg, plan.program)
         return plan
 
-    def cut(self, cfg, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Cut:
         return _cut(cfg, surface, plan)
 
-    def envelope(self, cfg, surface, plan: Plan):
+    def envelope(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Envelope:
         return _tiled_envelope(self, cfg, surface, plan)
 
-    def traits(self, cfg) -> Traits:
+    def traits(self, cfg: TurningInputs) -> Traits:
         return turning_traits(cfg, cut_rate=CUT_RATE)
 
     def variants(self, cfg) -> VariantPair:

@@ -10,14 +10,15 @@ what is registered, so a new process kind and its sections are one new module.
 
 from __future__ import annotations
 
-from typing import Annotated, Callable, Union
+from collections.abc import Iterable
+from typing import Annotated, Any, Callable, Union
 
 from pydantic import Discriminator, Tag
 
 from ..core.grid import grid_shape
 from ..core.limits import Driver, check_memory, memory_budget
 from ..core.plugins import Registry, literal_values
-from ._contract import Process, SceneSections
+from ._contract import Process, SceneSections, SimulationSection
 
 __all__ = ["register_process", "process_kinds", "process_of", "process_config_union",
            "check_budget", "DEFAULT_KIND", "register_section", "scene_sections",
@@ -111,7 +112,8 @@ def migrate_scene(data: dict) -> dict:
     return data
 
 
-def check_budget(simulation, nbytes, *, what: str | None = None, drivers=None,
+def check_budget(simulation: SimulationSection, nbytes: float, *, what: str | None = None,
+                 drivers: Iterable[Any] | None = None,
                  hint: str | None = None) -> int:
     """Raise :class:`~render_inspect.core.MemoryBudgetError` when ``nbytes`` exceeds the
     memory budget of the ``[simulation]`` section ``simulation``

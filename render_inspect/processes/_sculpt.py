@@ -9,6 +9,7 @@ and their geometry are described in :mod:`render_inspect.machining._sculpt`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import logging
 import math
 import time
@@ -18,14 +19,14 @@ from typing import Any, Literal, cast
 import numpy as np
 from pydantic import Field, model_serializer, model_validator
 
-from ..design import LensletArrayConfig
+from ..design import LensletArrayConfig, Surface
 from ..core.deprecation import warn_deprecated
 from ..core.errors import AccessibilityError, InputError, SceneError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number
 from ..core.marks import ToolMarks
 from ..core.section import Section
-from ..core.toolpath import LinearProgram
+from ..core.toolpath import LinearProgram, Links
 from ..core.units import HZ_TO_KHZ, MIN_TO_S, MM_TO_UM, UM_TO_MM
 from ._program import imported_sculpt_plan
 from ..machining import (
@@ -126,7 +127,7 @@ class SculptProcessConfig(Section):
                                  f"{scene.material.preset!r}")
 
 
-def lattice_lines(surface, *, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
+def lattice_lines(surface: Surface, *, pitch_y: float) -> tuple[np.ndarray, np.ndarray]:
     """Target-line positions x_k (the columns' symmetry lines) and the cell edges along y
     of a quadrilateral lenslet array: (x_lines, y_edges), mm."""
     if not hasattr(surface, "centers"):
@@ -319,7 +320,8 @@ class SculptProcess(Process[SculptInputs]):
     config = SculptProcessConfig
     inputs = SculptInputs
 
-    def plan(self, cfg: SculptInputs, surface, *, region=None) -> Plan:
+    def plan(self, cfg: SculptInputs, surface: Surface, *,
+             region: Sequence[float] | None = None) -> Plan:
         """The commanded program: every target line (or, with ``region``, the lines and
         cells whose cut can reach it), without the vibration (the NC program the machine
         gets); or the X-Y-Z program of ``process.program`` read from its file."""
@@ -327,10 +329,10 @@ class SculptProcess(Process[SculptInputs]):
             return imported_sculpt_plan(self, cfg, surface)
         return _plan(cfg, surface, region=region)
 
-    def cut(self, cfg: SculptInputs, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: SculptInputs, surface: Surface, plan: Plan) -> Cut:
         return _cut(cfg, surface, plan)
 
-    def estimate_memory(self, cfg: SculptInputs, plan=None) -> int:
+    def estimate_memory(self, cfg: SculptInputs, plan: Plan | None = None) -> int:
         """Bytes at the peak: eight float64 maps of the grid (design, two cuts, profiles
         and temporaries)."""
         ny, nx = grid_shape(cfg.simulation.region, cfg.simulation.pixel)
@@ -349,7 +351,7 @@ class SculptProcess(Process[SculptInputs]):
                                       direction=(0.0, 1.0)),
                       cut_rate=CUT_RATE)
 
-    def precheck(self, cfg: SculptInputs, region=None) -> None:
+    def precheck(self, cfg: SculptInputs, region: Sequence[float] | None = None) -> None:
         if cfg.process.program:
             return  # a program file's size is known once it is read
         self._precheck(cfg, region)
@@ -385,14 +387,14 @@ class SculptProcess(Process[SculptInputs]):
         return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
                                       "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
 
-    def program_links(self, cfg: SculptInputs, surface, plan: Plan):
+    def program_links(self, cfg: SculptInputs, surface: Surface, plan: Plan) -> Links | None:
         """None for a program read from a file (its own moves between the lines are part of
         it); else the clearance plane and plunge feed of the written program."""
         if cfg.process.program:
             return None
         return super().program_links(cfg, surface, plan)
 
-    def program_part(self, cfg: SculptInputs, surface, plan: Plan) -> PartModel:
+    def program_part(self, cfg: SculptInputs, surface: Surface, plan: Plan) -> PartModel:
         """The lenslet array the program is checked against: the design over the cells
         (between the outer target lines' cell edges and the first and last row's edges),
         the depth of cut as stock."""

@@ -16,6 +16,7 @@ are accepted with a warning and become the same keys of ``[machine.fts]`` and
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import time
 from typing import Literal, cast
@@ -24,7 +25,8 @@ import numpy as np
 
 from ..core.deprecation import warn_deprecated
 from ..core.errors import SceneError
-from ..core.toolpath import ToolPath
+from ..core.toolpath import LinearProgram, ToolPath
+from ..design import Surface
 from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
 from ..machining import loop_lag, loop_response, split_commands
 from ..toolpath import Tool
@@ -213,13 +215,15 @@ class ServoProcess(TiledTurningProcess):
 
     config = ServoProcessConfig
 
-    def plan(self, cfg: TurningInputs, surface, *, region=None) -> Plan:
+    def plan(self, cfg: TurningInputs, surface: Surface, *,
+             region: Sequence[float] | None = None) -> Plan:
         t0 = time.perf_counter()
         plan = self.program_plan(cfg, surface, self.program(cfg, surface, region=region))
         plan.timing["toolpath"] = time.perf_counter() - t0
         return plan
 
-    def program_plan(self, cfg: TurningInputs, surface, path) -> Plan:
+    def program_plan(self, cfg: TurningInputs, surface: Surface,
+                     path: ToolPath | LinearProgram) -> Plan:
         """The plan of a program (planned, or read back from its file): its Z commands
         split between the slow slide and the fast tool servo."""
         kind = cfg.process.kind
@@ -239,7 +243,7 @@ class ServoProcess(TiledTurningProcess):
         return Plan(path, facts, {"toolpath": time.perf_counter() - t0}, data,
                     plots=self.program_plots(cfg, path, data))
 
-    def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Cut:
         kind = cfg.process.kind
         t = turn(cfg, surface, plan.program, z_fts=plan.data["z_fts"])
         servo_m, servo_meta = _servo_facts(cfg, plan, t["followed_path"])
@@ -253,7 +257,7 @@ class ServoProcess(TiledTurningProcess):
     def follow_program(self, cfg: TurningInputs, plan: Plan):
         return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
 
-    def envelope(self, cfg: TurningInputs, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Envelope:
         cut_path, fp, facts = self.follow_program(cfg, plan)
         servo_m, servo_meta = _servo_facts(cfg, plan, fp)
         return self.envelope_of(cfg, cut_path, fp, {"servo": servo_m, **facts}, meta=servo_meta)
@@ -295,7 +299,7 @@ class ServoProcess(TiledTurningProcess):
                    f"omega tau about the spindle axis and shifts it by r omega tau along the "
                    f"circumference (the spiral dislocations of Kong et al. 2020)."))
 
-    def program_region(self, cfg: TurningInputs):
+    def program_region(self, cfg: TurningInputs) -> tuple[float, ...]:
         return tuple(cfg.simulation.region)
 
     def traits(self, cfg: TurningInputs) -> Traits:

@@ -10,7 +10,7 @@ from typing import Any
 
 from ..core.units import MM_TO_NM, RAD_TO_URAD
 from ..machining import material_preset
-from ._machine import ProcessScene, machine_of
+from ._machine import MachineConfig, MaterialConfig, ProcessScene, machine_of
 
 __all__ = ["machine_settings", "material_settings", "preset_settings", "random_parts",
            "RANDOM_PART_KEYS"]
@@ -38,7 +38,7 @@ def _axis(a: dict, *, spindle: bool) -> dict:
     return d
 
 
-def machine_settings(cfg) -> dict:
+def machine_settings(cfg: MachineConfig) -> dict:
     """The machine of a ``[machine]`` section (its preset with the section's changes) as
     the section's keys in its units: ``{"servo_rate_hz": ..., "x": {"noise_nm": ...},
     "errors": {"axial_sync": [[2, 3.0, 40.1], ...], ...}, ...}``."""
@@ -66,7 +66,7 @@ def machine_settings(cfg) -> dict:
     return out
 
 
-def material_settings(cfg) -> dict:
+def material_settings(cfg: MaterialConfig) -> dict:
     """The material of a ``[material]`` section (its preset with the section's changes) as
     the section's keys; ``{}`` for ``preset = "ideal"``."""
     if cfg.preset == "ideal":

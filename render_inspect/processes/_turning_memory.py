@@ -10,7 +10,9 @@ from ..core.units import MIN_TO_S
 from ..design import make_surface
 from ..machining import BURR_BLOCK_BYTES, in_memory_bytes
 from ..toolpath import Tool, pass_margin, region_radii
+from ._contract import Plan
 from ._machine import machine_of
+from ._mechanics import TurningInputs
 from ._program import program_path
 
 __all__ = ["turning_points", "machine_bytes", "turning_memory"]
@@ -32,7 +34,7 @@ def _revolutions(cfg, design) -> float:
     return max(min(r_out, p.workpiece_radius) - r_in, 0.0) / f
 
 
-def turning_points(cfg, plan=None) -> int:
+def turning_points(cfg: TurningInputs, plan: Plan | None = None) -> int:
     """Points of the spiral over the simulated region (estimated before planning; 0 for a
     program read from a file, not known before it is read)."""
     if plan is not None:
@@ -55,7 +57,7 @@ _KEPT_BYTES_PER_TICK = 8 * 20
 _TILED_KEPT_BYTES_PER_TICK = 8 * 13
 
 
-def machine_bytes(cfg, plan=None) -> int:
+def machine_bytes(cfg: TurningInputs, plan: Plan | None = None) -> int:
     """Bytes the ``[machine]`` model holds while following the path (0 on the ideal
     machine)."""
     return _ticks(cfg, plan) * _BYTES_PER_TICK
@@ -75,7 +77,7 @@ def _ticks(cfg, plan=None) -> int:
     return int(duration * machine.servo_rate_hz)
 
 
-def turning_memory(cfg, plan=None) -> int:
+def turning_memory(cfg: TurningInputs, plan: Plan | None = None) -> int:
     """Bytes an in-memory turning simulation and the writing of its outputs hold at their
     peak (:mod:`render_inspect.machining._memory`: the height arrays, the float32 channels
     of heightmap.exr, the design evaluation's temporaries and the tool path); on a
