@@ -21,6 +21,7 @@ squared), and the units the file itself declares (``meta["units_in_file"]``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import warnings
 import zipfile
@@ -373,8 +374,11 @@ def _library_version(name: str) -> str:
         return name
 
 
-def read_surface(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                 units: str | None = None, region=None, bytes_per_value: float | None = None,
+def read_surface(path: str | Path, *, channel: str | None = None,
+                 pixel: float | Sequence[float] | None = None,
+                 origin: Sequence[float] | None = None,
+                 units: str | None = None, region: Sequence[float] | None = None,
+                 bytes_per_value: float | None = None,
                  purpose: str = "analyse") -> MeasuredMap:
     """Read a measured (or exported) height map.
 
@@ -488,8 +492,11 @@ def _check_plausible(path, z, pixel, origin, meta) -> None:
                                  f"or its marker of points not measured was not understood")
 
 
-def read_measured(path: str | Path, *, channel: str | None = None, pixel=None, origin=None,
-                  units: str | None = None, region=None):
+def read_measured(path: str | Path, *, channel: str | None = None,
+                  pixel: float | Sequence[float] | None = None,
+                  origin: Sequence[float] | None = None,
+                  units: str | None = None,
+                  region: Sequence[float] | None = None) -> tuple[np.ndarray, float, tuple[float, float], dict]:
     """Read a height map with square pixels as ``(z_mm, pixel_mm, origin_mm, meta)``.
 
     The tuple form of :func:`read_surface` for callers that need one pixel size: a map

@@ -22,6 +22,7 @@ from ..core.toolpath import (
     Links,
 )
 from ..core.units import MIN_TO_S
+from ..core.toolpath import ToolPath
 
 __all__ = ["nc_comment_text", "program_axes", "program_blocks", "CHUNK_ROWS"]
 
@@ -124,7 +125,7 @@ def _linear_link(frm, to, links: Links, *, leave=True):
 
 
 
-def program_axes(program) -> dict:
+def program_axes(program: ToolPath | LinearProgram) -> dict:
     """The axes an NC program of ``program`` carries, as written: C (deg), X, Z of a
     turning :class:`ToolPath`, or X, Y, Z of a sculpturing :class:`LinearProgram`."""
     if isinstance(program, LinearProgram):
@@ -135,7 +136,7 @@ def program_axes(program) -> dict:
 
 
 # ------------------------------------------------------------------------ in memory
-def program_blocks(program, links: Links | None = None, *,
+def program_blocks(program: ToolPath | LinearProgram, links: Links | None = None, *,
                    feed_mm_per_min: float | None = None) -> Blocks:
     """The blocks :func:`write_nc` / :func:`write_program_nc` write for ``program``
     (without rounding to the written places, without block numbers' gaps): what the

@@ -22,6 +22,7 @@ block and the word.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,7 +89,7 @@ class ImportedProgram:
         return "linear" if isinstance(self.program, LinearProgram) else "turning"
 
 
-def program_dialect(path) -> str:
+def program_dialect(path: str | Path) -> str:
     """The dialect of ``path`` from its first line: ``"render_inspect turning"``,
     ``"render_inspect linear"`` or ``"G-code"`` (anything else: point lists and G-code
     are told apart once read)."""
@@ -108,10 +109,11 @@ def _check_path(path) -> Path:
     return path
 
 
-def read_program(path, *, kind: str | None = None, spindle_rpm: float = 50.0,
+def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: float = 50.0,
                  feed_mm_per_min: float = 0.5, part_radius: float | None = None,
                  x_mode: str = "auto", points_per_rev: int = 3600,
-                 design_height=None, rapid_mm_per_min: float = RAPID_MM_PER_MIN,
+                 design_height: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+                 rapid_mm_per_min: float = RAPID_MM_PER_MIN,
                  spindle_source: str = "process.spindle_rpm",
                  feed_source: str = "process.feed_mm_per_min") -> ImportedProgram:
     """Read the machine program ``path`` (see the module docstring).

@@ -268,7 +268,7 @@ class _Scanner:
         fail(line, "cannot read the block")
 
 
-def scan_program(path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
+def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
     """Read every block of the NC program ``path`` (see the module docstring).
 
     Raises :class:`InputError` naming the file, the line, the block and the word of the

@@ -15,6 +15,7 @@ of the whole map, and level k + 1 is the 2 x 2 sum of level k's sums and counts.
 
 from __future__ import annotations
 
+from typing import Any
 import math
 
 import numpy as np
@@ -100,21 +101,21 @@ def block_sums_of_sums(s: np.ndarray, factor: int) -> np.ndarray:
     return s.reshape(s.shape[0] // factor, factor, s.shape[1] // factor, factor).sum(axis=(1, 3))
 
 
-def means(sums: np.ndarray, counts: np.ndarray, dtype=np.float32) -> np.ndarray:
+def means(sums: np.ndarray, counts: np.ndarray, dtype: Any = np.float32) -> np.ndarray:
     """Block means (NaN where a block has no finite sample), without float64 temporaries."""
     out = np.full(sums.shape, np.nan, dtype=dtype)
     np.divide(sums, counts, out=out, where=counts > 0, casting="unsafe")
     return out
 
 
-def level_count(shape, *, smallest: int = 256) -> int:
+def level_count(shape: tuple[int, ...], *, smallest: int = 256) -> int:
     """Number of levels (factors 2, 4, ...) until the larger side is at most ``smallest``
     pixels (0 if the map is already that small)."""
     n = max(shape)
     return max(0, math.ceil(math.log2(n / smallest))) if n > smallest else 0
 
 
-def level_shape(shape, k: int) -> tuple[int, int]:
+def level_shape(shape: tuple[int, ...], k: int) -> tuple[int, int]:
     f = 2 ** k
     return (-(-shape[0] // f), -(-shape[1] // f))
 

@@ -27,7 +27,7 @@ def _norm(ext: str) -> str:
     return ext if ext.startswith(".") else "." + ext
 
 
-def register_reader(product: str, *extensions: str):
+def register_reader(product: str, *extensions: str) -> Callable[[Callable], Callable]:
     """Decorator: register ``fn(path, **options)`` as the reader of ``product`` files."""
     def deco(fn):
         for e in extensions:
@@ -36,7 +36,7 @@ def register_reader(product: str, *extensions: str):
     return deco
 
 
-def register_writer(product: str, *extensions: str):
+def register_writer(product: str, *extensions: str) -> Callable[[Callable], Callable]:
     """Decorator: register ``fn(path, obj, **options)`` as the writer of ``product`` files."""
     def deco(fn):
         for e in extensions:
@@ -51,7 +51,7 @@ def formats(product: str, *, kind: str = "read") -> list[str]:
     return sorted(e for p, e in table if p == product)
 
 
-def reader(product: str, path) -> Callable:
+def reader(product: str, path: str | Path) -> Callable:
     """The reader registered for ``path``'s extension (InputError naming the known ones)."""
     ext = Path(path).suffix.lower()
     fn = _READERS.get((product, ext))

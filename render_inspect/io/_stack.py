@@ -22,6 +22,8 @@ smallest y, as everywhere in the package.
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import json
 import math
 import struct
@@ -99,7 +101,7 @@ def _full_scale(images, given):
 
 
 @register_reader("frames", *STACK_EXTENSIONS)
-def read_frame_stack(path, settings=None, **_) -> Frames:
+def read_frame_stack(path: str | Path, settings: Any = None, **_: Any) -> Frames:
     """Read a frame stack and its settings into :class:`~render_inspect.core.Frames`.
 
     Parameters
@@ -204,8 +206,9 @@ def _stack_frames(path: Path, s: dict) -> Frames:
 
 
 @register_writer("measurement", ".exr")
-def write_measurement_exr(path, height, valid, *, pixel: float, origin, attrs: dict | None = None,
-                          modulation=None, **_) -> Path:
+def write_measurement_exr(path: str | Path, height: np.ndarray, valid: np.ndarray, *, pixel: float,
+                          origin: Sequence[float], attrs: dict | None = None,
+                          modulation: np.ndarray | None = None, **_: Any) -> Path:
     """Write ``height.exr``: channels ``height`` (mm, NaN where not measured), ``valid``
     (0/1) and optionally ``modulation``; header ``pixel_size_mm``, ``origin_mm``,
     ``units`` = "mm", ``software_version`` and ``attrs`` (the instrument settings, the

@@ -62,6 +62,7 @@ a comment in a dialect that uses parentheses; scene text never reaches the CSV f
 
 from __future__ import annotations
 
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -97,7 +98,7 @@ def _write_rows(fh, columns, header: str, fmt) -> None:
         fh.write(("\n".join(row % r for r in data) + "\n").encode("ascii"))
 
 
-def write_csv(path, toolpath) -> Path:
+def write_csv(path: str | Path, toolpath: ToolPath) -> Path:
     """Write ``toolpath`` as CSV with header ``t_s,c_deg,x_mm,z_mm,theta_rad,rho_mm,y_mm``
     (atomic; full double precision; written in pieces).  Returns the Path."""
     th = np.asarray(toolpath.theta, dtype=np.float64)
@@ -110,7 +111,7 @@ def write_csv(path, toolpath) -> Path:
                                                               "%.17g"))
 
 
-def read_csv(path):
+def read_csv(path: str | Path) -> ToolPath:
     """Read a CSV written by :func:`write_csv` back into a :class:`ToolPath`."""
     path = Path(path)
     if not path.is_file():
@@ -139,14 +140,14 @@ def _savez(fh, **arrays) -> None:
 
 
 @register_writer("toolpath", ".npz")
-def write_toolpath_npz(path, toolpath: ToolPath, **_) -> Path:
+def write_toolpath_npz(path: str | Path, toolpath: ToolPath, **_: Any) -> Path:
     """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
     return atomic_write_stream(path, lambda fh: _savez(
         fh, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y, z=toolpath.z,
         t=toolpath.t))
 
 
-def read_toolpath_npz(path) -> ToolPath:
+def read_toolpath_npz(path: str | Path) -> ToolPath:
     """Read a ``toolpath.npz`` written by :func:`write_toolpath_npz`."""
     path = Path(path)
     if not path.is_file():
@@ -164,14 +165,14 @@ register_writer("toolpath", ".nc")(
 
 # ---------------------------------------------------------------- sculpturing programs
 @register_writer("program", ".npz")
-def write_program_npz(path, program: LinearProgram, **_) -> Path:
+def write_program_npz(path: str | Path, program: LinearProgram, **_: Any) -> Path:
     """Write a sculpturing program as ``toolpath.npz``: arrays x, y, z, t, line."""
     return atomic_write_stream(path, lambda fh: _savez(
         fh, x=program.x, y=program.y, z=program.z, t=program.t, line=program.line))
 
 
 @register_writer("program", ".csv")
-def write_program_csv(path, program: LinearProgram, **_) -> Path:
+def write_program_csv(path: str | Path, program: LinearProgram, **_: Any) -> Path:
     """One row per point, header ``t_s,x_mm,y_mm,z_mm,line``."""
     cols = [lambda s: program.t[s], lambda s: program.x[s], lambda s: program.y[s],
             lambda s: program.z[s], lambda s: program.line[s]]
@@ -189,8 +190,9 @@ def program_formats() -> list[str]:
     return sorted(e.lstrip(".") for e in exts)
 
 
-def export_program(program, out_dir, *, fmt: str = "npz", header: dict | None = None,
-                   **options) -> Path:
+def export_program(program: ToolPath | LinearProgram, out_dir: str | Path, *, fmt: str = "npz",
+                   header: dict | None = None,
+                   **options: Any) -> Path:
     """Write a turning :class:`ToolPath` or a sculpturing :class:`LinearProgram` into
     ``out_dir`` as ``toolpath.<fmt>`` (atomically) with the writer registered for it.
 

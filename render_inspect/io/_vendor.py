@@ -32,7 +32,7 @@ __all__ = ["read_tmd", "read_nms", "read_x3p_plain"]
 _TMD_MAGIC = b"Binary TrueMap Data File v2.0\r\n\x00"
 
 
-def read_tmd(path):
+def read_tmd(path: str | Path) -> tuple[np.ndarray, tuple[float, float], tuple[float, float], dict]:
     """TrueMap / GelSight ``.tmd``: float32 heights (mm), ``lengthx`` / ``lengthy`` (mm) over
     ``cols`` / ``rows`` pixels, ``offsetx`` / ``offsety`` (mm)."""
     path = Path(path)
@@ -80,7 +80,7 @@ def read_tmd(path):
 _NMS_HEADER = 3468
 
 
-def read_nms(path):
+def read_nms(path: str | Path) -> tuple[np.ndarray, tuple[float, float], tuple[float, float], dict]:
     """NanoFocus ``.nms`` height image (see the module docstring for the layout)."""
     path = Path(path)
     buf = path.read_bytes()

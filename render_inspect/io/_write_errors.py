@@ -10,6 +10,8 @@ write error: one line naming the file and the cause.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from pathlib import Path
 import contextlib
 import errno
 import os
@@ -22,7 +24,7 @@ WRITE_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.EROFS,
                 errno.ELOOP, errno.EMFILE, errno.ENFILE, errno.ENOMEM)
 
 
-def as_os_error(err: BaseException, path) -> OSError | None:
+def as_os_error(err: BaseException, path: str | Path) -> OSError | None:
     """The :class:`OSError` behind ``err`` (an OSError as it is, with ``path`` as its file
     when it names none; a library's error whose text ends in a system error's), or None."""
     if isinstance(err, OSError):
@@ -37,7 +39,7 @@ def as_os_error(err: BaseException, path) -> OSError | None:
 
 
 @contextlib.contextmanager
-def write_errors(path):
+def write_errors(path: str | Path) -> Iterator[None]:
     """Within the block, a library's write error that stands for a system error is raised
     as that :class:`OSError` naming ``path`` (the file being written)."""
     try:

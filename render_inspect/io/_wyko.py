@@ -27,7 +27,7 @@ _HEIGHT_BLOCKS = {"RAW_DATA", "RAW DATA", "OPD", "Raw"}
 _ENTRY = 24
 
 
-def invalid_points(path) -> np.ndarray | None:
+def invalid_points(path: str | Path) -> np.ndarray | None:
     """Boolean map of the points a 16-bit Wyko OPD file marks as not measured, in
     SurfaceTopography's layout of the heights (``[x, y]``, y from the last row of the
     file), or None when the heights are not 16-bit integers (4-byte floats mark invalid
@@ -60,7 +60,7 @@ def invalid_points(path) -> np.ndarray | None:
     return None
 
 
-def mask_invalid(path, z: np.ndarray) -> np.ndarray:
+def mask_invalid(path: str | Path, z: np.ndarray) -> np.ndarray:
     """``z`` (rows = y, columns = x, as render_inspect's readers return heights) with the
     points the OPD file marks as not measured set to NaN."""
     mask = invalid_points(path)

@@ -68,7 +68,8 @@ def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | N
     return atomic_write_bytes(path, buf.getvalue())
 
 
-def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
+def read_x3p(path: str | Path, *, what: str = "X3P file",
+             budget: int | tuple[int, str] | None = None):
     """Read an X3P surface with square pixels (:func:`read_x3p_xy` for any pixels).
 
     The archive and the grid size its ``main.xml`` declares are checked first
@@ -92,7 +93,8 @@ def read_x3p(path: str | Path, *, what: str = "X3P file", budget=None):
     return z, px, origin, meta
 
 
-def read_x3p_xy(path: str | Path, *, what: str = "X3P file", budget=None):
+def read_x3p_xy(path: str | Path, *, what: str = "X3P file",
+                budget: int | tuple[int, str] | None = None):
     """Read an X3P surface keeping both sampling distances.
 
     The archive and the grid size its ``main.xml`` declares are checked first

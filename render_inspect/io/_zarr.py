@@ -30,6 +30,7 @@ zstd-1 0.58 s / 75 MB and zstd-1 0.87 s / 113 MB; reading one channel back takes
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import functools
 import json
 import os
@@ -96,7 +97,8 @@ def level_coordinates(n: int, origin: float, pixel: float, factor: int) -> np.nd
         return origin + ((factor - 1) / 2.0 + np.arange(int(n), dtype=np.float64) * factor) * pixel
 
 
-def ome_multiscales(shape, pixel: float, origin, levels: int) -> dict:
+def ome_multiscales(shape: tuple[int, ...], pixel: float, origin: Sequence[float],
+                    levels: int) -> dict:
     """The OME-NGFF (0.5) ``ome`` group attribute of a store: one multiscale image per
     channel, its datasets the full-resolution array and the pyramid levels, each with
     its ``scale`` (the level's pixel, mm) and ``translation`` (its pixel [0, 0]'s centre,
@@ -228,7 +230,7 @@ def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndar
 
 
 @_whole
-def set_store_attrs(path: str | Path, **attrs) -> None:
+def set_store_attrs(path: str | Path, **attrs: Any) -> None:
     """Add (or replace) group attributes of a store."""
     import zarr
 
@@ -243,7 +245,7 @@ MAX_ROOT_METADATA_BYTES = 16 * MIB_TO_BYTES
 MAX_METADATA_BYTES = MIB_TO_BYTES
 
 
-def check_store_tree(path, *, what: str = "heightmap store") -> None:
+def check_store_tree(path: str | Path, *, what: str = "heightmap store") -> None:
     """A store read as untrusted input, checked before zarr reads a byte of it: every
     entry inside the folder is a plain folder or a regular file (no symbolic link,
     whatever it points to, so that nothing outside the store is read through it; no
@@ -343,7 +345,7 @@ class ZarrHeightMap:
     def levels(self) -> list[dict]:
         return list(self.attrs.get("levels", []))
 
-    def index_window(self, region) -> tuple[slice, slice]:
+    def index_window(self, region: Sequence[float]) -> tuple[slice, slice]:
         """Rows and columns of the pixels whose centres lie in ``region`` (x0, y0, x1, y1; mm)."""
         x0, y0, x1, y1 = region
         ox, oy = self.origin
@@ -510,7 +512,8 @@ class ZarrHeightMap:
                 return i
         return best if max(self.shape) > max_side else 0
 
-    def window(self, region=None) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    def window(self,
+               region: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
         """(design, machined, origin) of the pixels in ``region`` (whole map if None):
         float64 arrays and the (x, y) centre of their pixel [0, 0], mm."""
         rows, cols = self.index_window(region) if region is not None else (slice(0, self.shape[0]),
