@@ -3,6 +3,7 @@ with a scene's design and simulation through the same chain."""
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Sequence
 import math
 import warnings
@@ -41,9 +42,12 @@ def _cfg_get(cfg, key, default):
     return getattr(cfg, key, default)
 
 
-def characterise_map(z, *, pixel, origin=(0.0, 0.0), form_removal: str = "plane",
-                     polynomial_degree: int = 2, design=None, s_filter_mm: float | None = None,
-                     l_filter_mm: float | None = None, mask=None, slope: str = "forward",
+def characterise_map(z: np.ndarray, *, pixel: float | tuple[float, float],
+                     origin: Sequence[float] = (0.0, 0.0), form_removal: str = "plane",
+                     polynomial_degree: int = 2, design: Any = None,
+                     s_filter_mm: float | None = None,
+                     l_filter_mm: float | None = None, mask: np.ndarray | None = None,
+                     slope: str = "forward",
                      filter_edges: str = "normalised") -> dict:
     """Form removal, S- and L-filtering, then areal parameters (heights in nm).
 

@@ -33,6 +33,7 @@ process or design kind it is.  The same marks set the diffuse renderer's texture
 
 from __future__ import annotations
 
+from typing import Any
 import numpy as np
 import math
 
@@ -193,7 +194,7 @@ def mark_size(marks: ToolMarks | None) -> tuple[float | None, float | None]:
     return marks.period_mm, marks.pv_mm
 
 
-def feature_size(design) -> float | None:
+def feature_size(design: Any) -> float | None:
     """The design's own lateral scale (mm): the waviness a process leaves on it is on
     this scale.  ``design``: the design surface, which says it
     (:meth:`~render_inspect.design.Surface.lateral_scale`: a sinusoid's wavelength, a

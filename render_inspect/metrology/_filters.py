@@ -63,7 +63,7 @@ def valid_mask(z: np.ndarray, mask: np.ndarray | None = None, *, name: str = "z"
     return ok
 
 
-def pixel_xy(pixel: float | tuple[float, float], name: str = "pixel") -> tuple[float, float]:
+def pixel_xy(pixel: float | Sequence[float], name: str = "pixel") -> tuple[float, float]:
     """``(pixel_x, pixel_y)`` (mm) from one number (square pixels) or a pair; both > 0."""
     if np.ndim(pixel) == 0:
         check_positive(name, pixel)
@@ -299,8 +299,10 @@ def fit_sphere(z: np.ndarray, *, pixel: float | tuple[float, float],
             "rms_mm": float(np.sqrt(np.nanmean(res ** 2))), "form": form}
 
 
-def remove_form(z, *, pixel, method: str = "plane", degree: int = 2, design=None,
-                origin=(0.0, 0.0), mask=None):
+def remove_form(z: np.ndarray, *, pixel: float | Sequence[float], method: str = "plane",
+                degree: int = 2, design: Any = None,
+                origin: Sequence[float] = (0.0, 0.0),
+                mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Remove the form of a height map.
 
     Parameters

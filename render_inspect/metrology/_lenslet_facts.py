@@ -5,11 +5,13 @@ is made of is read from the design surface itself (its ``centers``, ``base``,
 
 from __future__ import annotations
 
+from typing import Any
 import warnings
 
 import numpy as np
 
 from ._msa import characterise_msa, lenslet_table
+from ..core.heightmap import HeightMap
 
 __all__ = ["lenslet_metrics", "msa_metrics", "lenslet_facts"]
 
@@ -21,7 +23,7 @@ def _base_grid(base, heightmap) -> np.ndarray:
     return np.asarray(base.height(x[None, :], y[:, None]), dtype=np.float64)
 
 
-def lenslet_metrics(surface, heightmap) -> list | None:
+def lenslet_metrics(surface: Any, heightmap: HeightMap) -> list | None:
     """The ``lenslets`` table (fitted centres, dislocations, form errors) of a lenslet
     design, or None when the design has no lenslets.
 
@@ -45,7 +47,8 @@ def lenslet_metrics(surface, heightmap) -> list | None:
     return None
 
 
-def msa_metrics(surface, heightmap, metrology=None) -> tuple[list, dict] | None:
+def msa_metrics(surface: Any, heightmap: HeightMap,
+                metrology: Any = None) -> tuple[list, dict] | None:
     """Kong et al. 2020's characterisation of a lenslet array on a base (a compound design
     whose feature is the array): outliers, 6-DOF registration of the design to the
     machined map (base first, then all data), separation, per-lenslet fits against the
@@ -71,7 +74,8 @@ def msa_metrics(surface, heightmap, metrology=None) -> tuple[list, dict] | None:
     return res["lenslets"], msa
 
 
-def lenslet_facts(surface, heightmap, metrology) -> tuple[list | None, dict | None]:
+def lenslet_facts(surface: Any, heightmap: HeightMap,
+                  metrology: Any) -> tuple[list | None, dict | None]:
     """(``lenslets``, ``msa``) of a simulated map: the registered characterisation of an
     array on a base when ``metrology.registration`` asks for one, else the plain table."""
     if metrology.registration != "none":

@@ -467,9 +467,12 @@ def profile_parameters(profile: np.ndarray, *, spacing: float, n_sampling: int =
             "n_points": int(p.size)}
 
 
-def extract_section(z, *, pixel, origin=(0.0, 0.0), kind: str = "radial",
-                    center=(0.0, 0.0), angle: float = 0.0, radius: float | None = None,
-                    r_min: float = 0.0, r_max: float | None = None, step: float | None = None):
+def extract_section(z: np.ndarray, *, pixel: float | tuple[float, float],
+                    origin: Sequence[float] = (0.0, 0.0), kind: str = "radial",
+                    center: Sequence[float] = (0.0, 0.0), angle: float = 0.0,
+                    radius: float | None = None,
+                    r_min: float = 0.0, r_max: float | None = None,
+                    step: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Extract a radial or circumferential section from a height map (bilinear).
 
     Parameters

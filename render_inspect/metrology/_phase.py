@@ -105,7 +105,8 @@ def _check_frames(frames, *, min_frames=3) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------
 # PSI: wrapped phase
-def wrapped_phase(frames, *, steps_rad=None, algorithm: str = "auto"):
+def wrapped_phase(frames: np.ndarray, *, steps_rad: np.ndarray | None = None,
+                  algorithm: str = "auto") -> tuple[np.ndarray, np.ndarray]:
     """Wrapped phase of the zero-shift frame from phase-shifted frames.
 
     Parameters
@@ -442,7 +443,8 @@ def _label(mask) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------
 # error against the truth
-def height_error(measured, truth, *, valid=None, labels=None, piston: str = "mean"):
+def height_error(measured: np.ndarray, truth: np.ndarray, *, valid: np.ndarray | None = None,
+                 labels: np.ndarray | None = None, piston: str = "mean") -> tuple[np.ndarray, dict]:
     """Error of a measured height map against the true one, over the valid pixels.
 
     An interferometer measures relative height: before comparing, the measured map is

@@ -28,7 +28,7 @@ __all__ = ["common_window", "design_features", "crop_window", "line_profile", "d
 FEATURE_CURVATURE_RATIO = 5.0
 
 
-def design_features(design, pixel: float) -> np.ndarray | None:
+def design_features(design: Any, pixel: float) -> np.ndarray | None:
     """Where a design has features of its own against a smooth base (lenslets on a toric
     base, elements on a plane): a 0/1 map on the design's grid, or None when the design
     is alike everywhere (a sinusoid, lenslets tiling the whole map).

@@ -14,6 +14,8 @@ References
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import warnings
 
 import numpy as np
@@ -63,7 +65,8 @@ def _grid(shape, pixel, origin):
     return np.meshgrid(x, y)
 
 
-def rigid_resample(surface, params, x, y, *, iterations: int = 30) -> np.ndarray:
+def rigid_resample(surface: Any, params: dict | Sequence[float], x: np.ndarray, y: np.ndarray, *,
+                   iterations: int = 30) -> np.ndarray:
     """Heights at (``x``, ``y``) of ``surface`` moved by the rigid transform ``params``.
 
     This is the forward model of a (virtual) measurement of a misaligned part: solves
@@ -107,10 +110,11 @@ class MovedSurface:
         self.params = _vec(params)
         self._rot = rotation_matrix(*self.params[3:])
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return rigid_resample(self.surface, self.params, x, y)
 
-    def gradient(self, x, y, h: float = 1e-4):
+    def gradient(self, x: np.ndarray, y: np.ndarray,
+                 h: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
         return ((self.height(np.asarray(x) + h, y) - self.height(np.asarray(x) - h, y)) / (2 * h),
                 (self.height(x, np.asarray(y) + h) - self.height(x, np.asarray(y) - h)) / (2 * h))
 
@@ -151,19 +155,20 @@ class GridSurface:
         self._spl = RectBivariateSpline(y, x, z, kx=3, ky=3)
         self._bounds = (x[0], x[-1], y[0], y[-1])
 
-    def height(self, x, y):
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         h = self._spl.ev(y, x)
         x0, x1, y0, y1 = self._bounds
         out = (x < x0) | (x > x1) | (y < y0) | (y > y1)
         return np.where(out, np.nan, h)
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         return self._spl.ev(y, x, dy=1), self._spl.ev(y, x, dx=1)
 
 
-def template_surface(design, *, region, pixel, oversample: int = 10) -> GridSurface:
+def template_surface(design: Any, *, region: Sequence[float], pixel: float | tuple[float, float],
+                     oversample: int = 10) -> GridSurface:
     """Sample ``design`` (a Surface) on ``region`` = (x0, y0, x1, y1) at ``pixel / oversample``
     in x and y (Kong et al. 2020: the template is at least 10 x denser than the
     measurement)."""
@@ -206,8 +211,11 @@ def _result(v, rms, n, method, **extra):
     return d
 
 
-def register_lsq(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
-                 fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), max_points: int = 200_000,
+def register_lsq(z: np.ndarray, design: Any, *, pixel: float | tuple[float, float],
+                 origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
+                 init: dict | Sequence[float] | None = None,
+                 fit: Sequence[str] = ("tx", "ty", "tz", "alpha", "beta", "gamma"),
+                 max_points: int = 200_000,
                  seed: int = 0) -> dict:
     """Least-squares 6-DOF rigid registration of a measured map to a design (Kong et al.
     2020, step 3).
@@ -350,8 +358,10 @@ def _formal_sigma(j, fun) -> np.ndarray:
     return np.sqrt(np.maximum(np.diag(s2 * _normal_inverse(j)), 0.0))
 
 
-def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), mask=None,
-                            residual=None, max_points: int = 250_000) -> dict:
+def registration_covariance(z: np.ndarray, design: Any, reg: dict, *,
+                            pixel: float | tuple[float, float],
+                            origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
+                            residual: np.ndarray | None = None, max_points: int = 250_000) -> dict:
     """Standard uncertainties of a registration (an LSQ or ICP result).
 
     With independent residuals the covariance of the fitted parameters is the formal
@@ -445,7 +455,9 @@ def registration_covariance(z, design, reg: dict, *, pixel, origin=(0.0, 0.0), m
             "method": method, "n_points": int(n), "stride": stride}
 
 
-def register_icp(z, design, *, pixel, origin=(0.0, 0.0), mask=None, init=None,
+def register_icp(z: np.ndarray, design: Any, *, pixel: float | tuple[float, float],
+                 origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
+                 init: dict | Sequence[float] | None = None,
                  oversample: int = 10, max_iter: int = 50, tol: float = 1e-10,
                  max_points: int = 100_000, seed: int = 0) -> dict:
     """Point-to-plane ICP registration of a measured map to a dense design template.
