@@ -8,6 +8,10 @@ import argparse
 import json
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 log = logging.getLogger("render_inspect")
 
@@ -122,7 +126,7 @@ def _add_out_args(p: argparse.ArgumentParser):
                    help="replace --out even if it holds files render-inspect did not write")
 
 
-def scene_of(args):
+def scene_of(args: argparse.Namespace) -> Scene:
     """The scene a scene command runs on (``args.scene`` with the ``--set`` overrides)."""
     # (the scene schema imports pydantic and the registries: imported here, not at the top
     # of the module, so that `render-inspect --help` answers at once)

@@ -9,6 +9,7 @@ the schema says it is.
 
 from __future__ import annotations
 
+from typing import Any
 import json
 import math
 import re
@@ -53,7 +54,7 @@ def _is_length(annotation) -> bool:
     return any(_is_length(a) for a in typing.get_args(annotation))
 
 
-def key_unit(key: str, field=None) -> str:
+def key_unit(key: str, field: Any = None) -> str:
     """The unit of scene key ``key`` ("" for a ratio, a count or a text): from the end of its
     name, from the start of its schema description, or "mm" for a position or height."""
     for suffix, unit in _SUFFIX_UNITS:
@@ -101,7 +102,7 @@ def _none_reason(key: str, field, preset: str | None) -> str:
     return "not set (not used)"
 
 
-def value_text(key: str, v, field=None, *, preset: str | None = None) -> str:
+def value_text(key: str, v: Any, field: Any = None, *, preset: str | None = None) -> str:
     """One value with its unit; a reason instead of an empty value."""
     unit = key_unit(key, field)
     if v is None:
@@ -142,7 +143,7 @@ _KIND_OF_UNIT = {"nm": "a length", "um": "a length", "mm": "a length",
                  "%": "a fraction"}
 
 
-def meaning(key: str, field, value) -> str:
+def meaning(key: str, field: Any, value: Any) -> str:
     """The schema's description of the key, else what kind of quantity it is."""
     desc = (getattr(field, "description", None) or "").strip()
     unit = key_unit(key, field)
@@ -162,7 +163,7 @@ def meaning(key: str, field, value) -> str:
     return "a list" if isinstance(value, (list, tuple)) else "not described by the schema"
 
 
-def section_rows(name: str, section, values: dict, *, varied: dict | None = None,
+def section_rows(name: str, section: Any, values: dict, *, varied: dict | None = None,
                  prefix: str = "", preset: str | None = None) -> list[tuple[str, list[list[str]]]]:
     """Tables of one scene section: ``[(title, rows)]``, one table for the section's own
     keys and one per nested section (``[machine.z]``).  Rows: key, value with unit (or

@@ -10,6 +10,7 @@ that may be meant (the command line prints them before the run)."""
 from __future__ import annotations
 
 from ..core.units import MM_TO_UM, UM_TO_MM
+from ..processes import SceneSections
 
 __all__ = ["unit_errors", "unit_warnings", "part_extent", "SMALLEST_FEED_PER_REV_MM",
            "MARK_PIXELS_ALIAS", "MARK_PIXELS_RESOLVE"]
@@ -52,7 +53,7 @@ def _overlaps(a, b) -> bool:
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
-def unit_errors(scene) -> list[str]:
+def unit_errors(scene: SceneSections) -> list[str]:
     """Unit mistakes that cannot be meant, as messages naming the key: a
     ``simulation.region`` more than :data:`_REGION_FACTOR` times the part and
     :data:`_REGION_MM` mm across (or than a metre when the part's size is not known) that,
@@ -76,7 +77,7 @@ def unit_errors(scene) -> list[str]:
     return out
 
 
-def unit_warnings(scene, *, sampling: bool = True) -> list[str]:
+def unit_warnings(scene: SceneSections, *, sampling: bool = True) -> list[str]:
     """Values that are probably unit mistakes, or that undo the simulation, as messages:
 
     * a turning feed per revolution (``process.feed_mm_per_min / process.spindle_rpm``)
@@ -116,7 +117,7 @@ def unit_warnings(scene, *, sampling: bool = True) -> list[str]:
     return out
 
 
-def _mark_period(scene) -> float | None:
+def _mark_period(scene: SceneSections) -> float | None:
     """The period of the feed marks a turning process leaves (its feed per revolution),
     mm, or None (no turning feed, or one the scallop bound plans)."""
     p = scene.process
