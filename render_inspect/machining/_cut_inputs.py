@@ -16,7 +16,7 @@ __all__ = ["Grooves", "cutting_distance", "mechanics_window"]
 TWO_PI = 2 * math.pi
 
 
-def cutting_distance(theta, rho) -> np.ndarray:
+def cutting_distance(theta: np.ndarray, rho: np.ndarray) -> np.ndarray:
     """Cumulative cutting distance (mm) along a turning path at its points: the arc length
     of the tool's circle, sum 0.5 (|rho_i| + |rho_(i+1)|) (theta_(i+1) - theta_i)."""
     th = np.asarray(theta, dtype=np.float64)
@@ -24,7 +24,8 @@ def cutting_distance(theta, rho) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(th))])
 
 
-def mechanics_window(nose_radius, f, slope, h_min, half_width) -> float:
+def mechanics_window(nose_radius: float, f: float, slope: float, h_min: float,
+                     half_width: float) -> float:
     """Radial window (mm) of the passes that can take part in a pixel's cut: the geometric
     window 2.1 Rc m + f / 2 widened by one feed (the cusp's pass is always visited) and by
     the ploughed band h_min 4 Rc / f."""

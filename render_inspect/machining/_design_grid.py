@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import os
 from concurrent.futures import ThreadPoolExecutor
 
@@ -13,7 +15,8 @@ from ..core.progress import report
 __all__ = ["design_grid"]
 
 
-def design_grid(surface, region, pixel, *, rows_per_chunk: int = 128, out=None) -> np.ndarray:
+def design_grid(surface: Any, region: Sequence[float], pixel: float, *, rows_per_chunk: int = 128,
+                out: np.ndarray | None = None) -> np.ndarray:
     """Design heights (mm) on the grid of ``region`` = (x0, y0, x1, y1) at ``pixel`` (mm),
     row 0 = smallest y, evaluated in row chunks (bounded temporaries) on a thread per
     core (numpy releases the GIL).  ``out`` (ny, nx) float64 is written in place."""

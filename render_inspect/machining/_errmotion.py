@@ -150,7 +150,8 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndar
     return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1) - s0
 
 
-def error_motion_offsets(t, theta, rho, errors: ErrorMotions, *, seed: int = 0) -> dict:
+def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, errors: ErrorMotions,
+                         *, seed: int = 0) -> dict:
     """Tool-relative-to-part displacements (mm) at the ticks: ``x``, ``y``, ``z``.
 
     Parameters
@@ -187,7 +188,9 @@ def error_motion_offsets(t, theta, rho, errors: ErrorMotions, *, seed: int = 0) 
     return {"x": ex, "y": ey, "z": ez}
 
 
-def apply_error_motions(t, theta, rho, z, errors: ErrorMotions, *, seed: int = 0):
+def apply_error_motions(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndarray,
+                        errors: ErrorMotions, *,
+                        seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tool position relative to the part after the error motions.
 
     The tool, at (X, 0) in the machine frame, is displaced by (e_x, e_y, e_z); in the

@@ -17,7 +17,7 @@ from ..core.errors import InputError
 __all__ = ["check_program", "pvt_velocities", "pvt_command", "linear_command"]
 
 
-def check_program(t, q) -> tuple[np.ndarray, np.ndarray]:
+def check_program(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=np.float64)
     q = np.asarray(q, dtype=np.float64)
     if t.ndim != 1 or t.shape != q.shape or t.size < 2:
@@ -34,7 +34,7 @@ def check_program(t, q) -> tuple[np.ndarray, np.ndarray]:
     return t, q
 
 
-def pvt_velocities(t, q) -> np.ndarray:
+def pvt_velocities(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Velocity at each program point: slope of the parabola through it and its
     neighbours (second-order, uneven steps), one-sided (the segment slope) at the ends.
 
@@ -62,7 +62,8 @@ def _segments(t, tk):
     return np.clip(i, 0, t.size - 2)
 
 
-def pvt_command(t, q, tk, *, velocities=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pvt_command(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
+                velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration of the PVT (cubic Hermite) command at ``tk``.
 
     Parameters
@@ -95,7 +96,8 @@ def pvt_command(t, q, tk, *, velocities=None) -> tuple[np.ndarray, np.ndarray, n
     return pos, vel, acc
 
 
-def linear_command(t, q, tk) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def linear_command(t: np.ndarray, q: np.ndarray,
+                   tk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration at ``tk`` of straight-line (G01) moves.
 
     The velocity is the segment's slope (at a point exactly on a program point, the mean

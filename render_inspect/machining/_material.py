@@ -347,7 +347,8 @@ def contact_ratio(cutting_speed: float, amplitude: float = 0.0, frequency_hz: fl
     return float(np.mean(fresh[2 * n:]))
 
 
-def texture_field(x, y, *, rms: float, correlation_length: float, seed: int) -> np.ndarray:
+def texture_field(x: np.ndarray, y: np.ndarray, *, rms: float, correlation_length: float,
+                  seed: int) -> np.ndarray:
     """The part's texture on the grid ``x`` (nx,) by ``y`` (ny,) (mm): a unit-variance
     Gaussian random field of the position with covariance exp(-r^2 / (2 l^2)) (random
     Fourier modes from ``seed``), times ``rms``.  It depends on the position only: the same

@@ -65,7 +65,8 @@ PREVIEW_BYTES = 4 * MIB_TO_BYTES
 OVERVIEW_SIDE = 1024
 
 
-def in_memory_bytes(shape, path_points: int, *, threads: int | None = None, cut_sample_bytes: int = 0,
+def in_memory_bytes(shape: tuple[int, ...], path_points: int, *, threads: int | None = None,
+                    cut_sample_bytes: int = 0,
                     cut_bytes: int = 0) -> int:
     """Peak bytes of an in-memory simulation of a (ny, nx) map from a path of
     ``path_points`` points, including writing its outputs (see the module notes).
@@ -89,7 +90,8 @@ def in_memory_bytes(shape, path_points: int, *, threads: int | None = None, cut_
 
 
 def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: int | None = None,
-                material: bool = False, burr_halo: int = 0, shape=None) -> int:
+                material: bool = False, burr_halo: int = 0,
+                shape: tuple[int, ...] | None = None) -> int:
     """Peak bytes of a tiled simulation with ``in_flight`` tiles of side ``tile`` computed
     at once in this process (the caller's share when the tiles run on other machines):
     the largest of planning the path, running the tiles (the path, its prepared segments

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
@@ -11,7 +12,7 @@ from ..core.errors import InputError
 from ..core.units import MM_TO_NM
 
 
-def residual_metrics(residual, design=None) -> dict:
+def residual_metrics(residual: Any, design: np.ndarray | None = None) -> dict:
     """``Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm`` of machined - design with the mean removed,
     and ``min_nm``: the signed minimum before the mean is removed (negative = overcut).
 
@@ -86,7 +87,7 @@ def _stats(machined, design):
     return n, mean, sa / n, math.sqrt(m2 / n), lo, hi
 
 
-def tile_moments(machined, design) -> tuple:
+def tile_moments(machined: np.ndarray, design: np.ndarray) -> tuple:
     """Pass-1 partial statistics of one tile: (n, mean, M2, min, max) of machined - design
     (mm, NaNs skipped).  Merge with :func:`merge_moments`."""
     m = np.ascontiguousarray(machined, dtype=np.float64)
@@ -127,7 +128,8 @@ def _abs_dev_hist(residual, mean, lo, hi, counts):
     return n, sa
 
 
-def tile_abs_dev(residual, mean: float, lo: float, hi: float, bins: int = 1024) -> tuple:
+def tile_abs_dev(residual: np.ndarray, mean: float, lo: float, hi: float,
+                 bins: int = 1024) -> tuple:
     """Pass-2 partials of one tile: (n, sum |r - mean|, histogram counts over [lo, hi] in
     ``bins`` equal bins) of a residual tile (mm, NaNs skipped)."""
     counts = np.zeros(bins, dtype=np.int64)

@@ -4,6 +4,8 @@ where it was simulated."""
 
 from __future__ import annotations
 
+from typing import Any
+from collections.abc import Sequence
 import numpy as np
 
 from ..core.errors import InputError
@@ -13,7 +15,8 @@ from ._design_grid import design_grid
 __all__ = ["part_heightmap"]
 
 
-def part_heightmap(surface, hm: HeightMap, outline: dict, *, region, cells: int = 1024,
+def part_heightmap(surface: Any, hm: HeightMap, outline: dict, *, region: Sequence[float],
+                   cells: int = 1024,
                    layer: str = "machined") -> HeightMap:
     """The whole part: the design ``surface`` over a disc ``outline`` (``{"shape": "disc",
     "center", "radius"}``; ``cells`` samples across; NaN outside the disc) with the

@@ -34,6 +34,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -167,7 +168,8 @@ def vibration_phases(cutting_speed: float, amplitude: float, frequency_hz: float
     return np.unique(np.mod(np.array(ph), 2 * math.pi))
 
 
-def sculpt_line_profile(ys, zs, y_grid, *, cutting_speed: float, amplitude: float = 0.0,
+def sculpt_line_profile(ys: np.ndarray, zs: np.ndarray, y_grid: np.ndarray, *,
+                        cutting_speed: float, amplitude: float = 0.0,
                         frequency_hz: float = 0.0, samples_per_period: int = 16,
                         t_start: float = 0.0) -> np.ndarray:
     """Lowest tool-tip height reached above each y of ``y_grid`` along one target line.
@@ -216,7 +218,8 @@ def sculpt_line_profile(ys, zs, y_grid, *, cutting_speed: float, amplitude: floa
     return out
 
 
-def sculpt_surface(profiles, x_lines, x_grid, *, tool_radius: float,
+def sculpt_surface(profiles: Sequence[np.ndarray] | np.ndarray, x_lines: np.ndarray,
+                   x_grid: np.ndarray, *, tool_radius: float,
                    half_width: float | None = None) -> np.ndarray:
     """Machined heights from the per-line profiles: the envelope over lines of the round
     edge, min_k [profile_k(y) + R - sqrt(R^2 - (x - x_k)^2)], |x - x_k| <= half_width.

@@ -44,6 +44,7 @@ multiplies them (a key ``fit --free`` can fit).
 
 from __future__ import annotations
 
+from typing import Any
 import math
 from dataclasses import dataclass
 
@@ -214,8 +215,9 @@ def speed_factor(v_m_min, law: SpeedLaw = SPEED_LAW):
     return law.v_ref_m_min / v * _arrhenius(v, law)
 
 
-def chemical_distance_km(r, workpiece_radius: float, feed_per_rev: float, spindle_rpm: float,
-                         law: SpeedLaw = SPEED_LAW, samples: int = 4097):
+def chemical_distance_km(r: np.ndarray | float, workpiece_radius: float, feed_per_rev: float,
+                         spindle_rpm: float,
+                         law: SpeedLaw = SPEED_LAW, samples: int = 4097) -> Any:
     """The cutting distance (km, at the reference speed) that wears the edge chemically to
     radius r (mm) of a facing spiral from ``workpiece_radius`` inwards at ``spindle_rpm``:
     the integral of speed_factor(2 pi r' n) over the cut, (v_ref / (n f)) times the Arrhenius
@@ -266,7 +268,7 @@ def wear_state(rate: WearRate, distance_km, *, duty: float = 1.0, scale: float =
     return {"contact_km": Lc, "flank_um": vb, "edge_radius_nm": re, "recession_nm": rec}
 
 
-def spiral_distance_km(r, workpiece_radius: float, feed_per_rev: float):
+def spiral_distance_km(r: np.ndarray | float, workpiece_radius: float, feed_per_rev: float) -> Any:
     """Cutting distance (km) of a facing spiral from ``workpiece_radius`` in to radius r
     (mm): the area turned over the feed, pi (Rw^2 - r^2) / f."""
     r = np.minimum(np.abs(np.asarray(r, dtype=np.float64)), workpiece_radius)
