@@ -19,10 +19,13 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from typing import Any
 
 import numpy as np
+
+from ._tool import Tool
 
 
 def _grid(region, n):
@@ -32,7 +35,8 @@ def _grid(region, n):
     return np.meshgrid(x, y)
 
 
-def check_accessibility(surface, tool, region, *, samples: int = 201) -> dict:
+def check_accessibility(surface: Any, tool: Tool, region: Sequence[float], *,
+                        samples: int = 201) -> dict:
     """Report where and by how much ``tool`` cannot reach ``surface`` over ``region``.
 
     Returns a dict: ``ok`` (bool) and, for each check (``nose_radius``, ``included_angle``,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Sequence
 import math
 import time
@@ -79,7 +80,7 @@ def region_radii(region: Sequence[float], margin: float) -> tuple[float, float]:
     return max(rmin - margin, 0.0), rmax + margin
 
 
-def max_curvature(surface, region, n: int = 129) -> float:
+def max_curvature(surface: Any, region: Sequence[float], n: int = 129) -> float:
     """Largest |principal curvature| (1/mm) sampled over ``region``."""
     x0, y0, x1, y1 = region
     X, Y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
@@ -89,13 +90,13 @@ def max_curvature(surface, region, n: int = 129) -> float:
     return float(np.nanmax(np.maximum(np.abs(tr + disc), np.abs(tr - disc))))
 
 
-def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: float,
+def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_rev: float,
                  spindle_rpm: float, compensation: str = "z", sampling: str = "constant_angle",
                  points_per_rev: int = 3600, arc_length: float = 0.005,
                  switch_radius: float = 1.0, inner_radius: float = 0.0,
-                 chordal_tolerance: float | None = None, region=None,
+                 chordal_tolerance: float | None = None, region: Sequence[float] | None = None,
                  check_access: bool = True, allow_gouge: bool = False,
-                 memory_budget=None) -> ToolPath:
+                 memory_budget: int | tuple[int, str] | None = None) -> ToolPath:
     """The inward spiral turning path over ``surface`` with its tool-radius compensation.
 
     Parameters

@@ -31,12 +31,14 @@ References
 
 from __future__ import annotations
 
+from typing import Any
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
+from ._edge import EdgeProfile
 
 _GOLD = (math.sqrt(5) - 1) / 2
 
@@ -148,9 +150,10 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
     return min(w, nose_radius)
 
 
-def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float | None = None,
+def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius: float, *,
+                   max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
-                   chunk: int = 32_768, edge=None) -> np.ndarray:
+                   chunk: int = 32_768, edge: EdgeProfile | None = None) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
@@ -238,7 +241,8 @@ def z_compensation(surface, theta, rho, nose_radius: float, *, max_slope: float 
     return out
 
 
-def normal_compensation(surface, theta, rho, nose_radius: float) -> tuple[np.ndarray, np.ndarray]:
+def normal_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray,
+                        nose_radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Normal-direction compensation (the compound sinusoidal grid paper, eq. 5-8; in a
     turning set-up the same as Li et al. 2018, eq. 6).
 
@@ -264,7 +268,9 @@ def normal_compensation(surface, theta, rho, nose_radius: float) -> tuple[np.nda
     return rho_c, zc - Rc
 
 
-def gouge_depth(surface, theta, rho_tip, z_tip, nose_radius, *, max_slope=None, half_width=None):
+def gouge_depth(surface: Any, theta: np.ndarray, rho_tip: np.ndarray, z_tip: np.ndarray,
+                nose_radius: float, *, max_slope: float | None = None,
+                half_width: float | None = None) -> np.ndarray:
     """How far (mm, >= 0) each programmed tool position cuts below the design section:
     the Z lift it would need to touch without gouging minus the lift it has."""
     need = z_compensation(surface, theta, rho_tip, nose_radius, max_slope=max_slope,

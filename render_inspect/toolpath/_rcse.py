@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -56,6 +56,7 @@ import numpy as np
 from ..core.errors import InputError, SceneError, check_range
 from ..core.toolpath import ToolPath
 from ..core.units import MIN_TO_S
+from ._tool import Tool
 from ._build import region_radii
 from ._compensation import normal_compensation, z_compensation
 from ._spiral import chordal_error
@@ -122,7 +123,7 @@ class RingLayout:
 
     # -- construction -------------------------------------------------------------------
     @classmethod
-    def from_config(cls, cfg) -> "RingLayout":
+    def from_config(cls, cfg: Any) -> "RingLayout":
         """From a ``[design]`` config of type ``lenslet_rings`` (pydantic model or dict)."""
         get: Callable[..., Any] = (cfg.get if isinstance(cfg, dict)
                                    else (lambda k, d=None: getattr(cfg, k, d)))
@@ -396,7 +397,7 @@ class PointCloudModel:
         return out.reshape(x.shape)
 
 
-def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spacing: float,
+def conventional_ccps(surface: Any, theta: np.ndarray, rho: np.ndarray, *, grid_spacing: float,
                       interpolation: str = "linear", snap_to_rows: bool = True,
                       profile_error: bool = True) -> dict:
     """The conventional tool path: model the design on a rectangular grid, then take the
@@ -474,10 +475,11 @@ def conventional_ccps(surface, theta: np.ndarray, rho: np.ndarray, *, grid_spaci
 # ---------------------------------------------------------------------------------------
 # CCPs -> ToolPath
 # ---------------------------------------------------------------------------------------
-def rcse_toolpath(layout: RingLayout, tool, *, workpiece_radius: float, pitch: float,
+def rcse_toolpath(layout: RingLayout, tool: Tool, *, workpiece_radius: float, pitch: float,
                   points_per_rev: int, spindle_rpm: float, inner_radius: float = 0.0,
-                  compensation: str = "z", region=None, ccps: RcseCcps | None = None,
-                  surface=None) -> ToolPath:
+                  compensation: str = "z", region: Sequence[float] | None = None,
+                  ccps: RcseCcps | None = None,
+                  surface: Any = None) -> ToolPath:
     """The RCSE tool path: CCPs on the spiral, then tool-radius compensation.
 
     Parameters

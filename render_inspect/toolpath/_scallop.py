@@ -35,6 +35,7 @@ References
 
 from __future__ import annotations
 
+from typing import Any
 from collections.abc import Iterable
 import math
 
@@ -106,7 +107,7 @@ def max_feed_for_scallop(height: float, nose_radius: float,
     return float(np.min(feed_for_scallop(height, nose_radius, k)))
 
 
-def plan_feed(surface, *, nose_radius: float, scallop_bound: float, r_outer: float,
+def plan_feed(surface: Any, *, nose_radius: float, scallop_bound: float, r_outer: float,
               r_inner: float = 0.0, n_radii: int = 64, n_angles: int = 72,
               spindle_rpm: float | None = None) -> dict:
     """The largest feed per revolution keeping the scallop within ``scallop_bound``

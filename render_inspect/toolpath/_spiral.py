@@ -18,6 +18,7 @@ References
 
 from __future__ import annotations
 
+from typing import Any
 import math
 
 import numpy as np
@@ -126,7 +127,8 @@ def chordal_step_for(tolerance: float, radius_of_curvature: float) -> float:
     return math.sqrt(max(8 * R * h - 4 * h * h, 0.0))
 
 
-def chordal_error(surface, theta: np.ndarray, rho: np.ndarray, z_ccp: np.ndarray) -> np.ndarray:
+def chordal_error(surface: Any, theta: np.ndarray, rho: np.ndarray,
+                  z_ccp: np.ndarray) -> np.ndarray:
     """Linearisation error at each segment's midpoint: |F(mid) - (z_i + z_{i+1}) / 2|, mm.
 
     The axes interpolate linearly in (C, X, Z), so the mid-point lies on the spiral at the
