@@ -12,6 +12,7 @@ is reported always (``metrics["scallop"]``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import logging
 import math
 import time
@@ -29,6 +30,7 @@ from ..machining import (
     BURR_WIDTH_PER_CHIP,
     FollowedPath,
     Grooves,
+    MaterialResponse,
     apply_burrs,
     cut_turning,
     design_grid,
@@ -96,7 +98,7 @@ class Turned(dict):
     ``pass_theta`` (map of the cutting pass's spindle angle, or None)."""
 
 
-def pass_angle_map(path, region, pixel) -> np.ndarray:
+def pass_angle_map(path: ToolPath, region: Sequence[float], pixel: float) -> np.ndarray:
     """Cumulative spindle angle (rad) of the pass that cuts each pixel, on the nominal
     spiral of ``path`` (the revolution nearest to the pixel's radius at its angle)."""
     theta = np.asarray(path.theta, dtype=np.float64)
@@ -127,7 +129,7 @@ def material_cut_path(path, tool, resp, h_min_points=None):
                        h_min_points=h_min_points)
 
 
-def grooves_of(cfg, resp) -> Grooves:
+def grooves_of(cfg: TurningInputs, resp: MaterialResponse) -> Grooves:
     """The grooves of the material's cutting edge (seeded by ``simulation.seed`` + 1)."""
     return Grooves.of(rms=resp.groove_rms, seed=int(cfg.simulation.seed) + 1,
                       across_length=cfg.material.groove_across_um * UM_TO_MM,
@@ -182,13 +184,14 @@ def feed_scallop(feed: float, nose_radius: float) -> dict:
             "Sq_nm": f * f / (r * math.sqrt(720.0)) * MM_TO_NM}
 
 
-def texture_of(cfg, resp) -> tuple[float, float, int]:
+def texture_of(cfg: TurningInputs, resp: MaterialResponse) -> tuple[float, float, int]:
     """The part's texture of the material response ``resp``: (rms, correlation length,
     seed), mm (seeded by ``simulation.seed`` + 2)."""
     return float(resp.texture_rms), float(resp.texture_length), int(cfg.simulation.seed) + 2
 
 
-def add_texture(machined, resp, region, pixel, seed: int):
+def add_texture(machined: np.ndarray, resp: MaterialResponse, region: Sequence[float],
+                pixel: float, seed: int) -> tuple[np.ndarray, float]:
     """``machined`` with the part's texture (:func:`~render_inspect.machining.texture_field`
     of the grid's positions, from ``seed``) added where it is finite; the texture's
     measured rms (nm)."""
