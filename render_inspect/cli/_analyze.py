@@ -3,6 +3,7 @@ height from interferometer frames, and the virtual instrument's own characterist
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 from ._args import _add_out_args, _add_set_arg, _add_verbosity, _objective_names, _Registered
@@ -60,7 +61,7 @@ def add_parsers(sub: Any) -> None:
     _add_verbosity(p)
 
 
-def _analyze(args, overwrite: bool):
+def _analyze(args: argparse.Namespace, overwrite: bool) -> dict:
     # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
     # module, so that `render-inspect --help` answers at once
     from .. import pipeline
@@ -70,7 +71,7 @@ def _analyze(args, overwrite: bool):
                                 overwrite=overwrite, units=args.units)
 
 
-def _measure(args, overwrite: bool):
+def _measure(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the pipeline is imported lazily, as above)
     from .. import pipeline
 
@@ -79,7 +80,7 @@ def _measure(args, overwrite: bool):
                                 overwrite=overwrite)
 
 
-def _characterise(args, overwrite: bool):
+def _characterise(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the instrument is checked first, the pipeline imported after it, as above)
     from ..scene import instrument_config
 

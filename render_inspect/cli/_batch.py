@@ -3,6 +3,7 @@ image regression of the shipped cases) and the set-up check with the main job.""
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 from ..core.errors import RenderInspectError
@@ -44,7 +45,7 @@ def add_parsers(sub: Any) -> None:
     _add_verbosity(p)
 
 
-def _sweep(args, overwrite: bool):
+def _sweep(args: argparse.Namespace, overwrite: bool) -> dict:
     # the pipeline imports numba, scipy and pydantic: imported here, not at the top of the
     # module, so that `render-inspect --help` answers at once
     from .. import pipeline
@@ -58,7 +59,7 @@ def _sweep(args, overwrite: bool):
     return info
 
 
-def _regress(args, overwrite: bool):
+def _regress(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the pipeline is imported lazily, as above)
     from .. import pipeline
 
@@ -66,7 +67,7 @@ def _regress(args, overwrite: bool):
                                 overrides=args.overrides, overwrite=overwrite)
 
 
-def _demo(args, overwrite: bool):
+def _demo(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the pipeline is imported lazily, as above)
     from .. import pipeline
 

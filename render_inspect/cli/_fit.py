@@ -3,11 +3,15 @@ surface."""
 
 from __future__ import annotations
 
-from typing import Any
+import argparse
+from typing import TYPE_CHECKING, Any
 
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
                     _objective_names, _Registered, scene_overrides)
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 
 def add_parsers(sub: Any) -> None:
@@ -74,7 +78,7 @@ def add_parsers(sub: Any) -> None:
     _add_verbosity(p)
 
 
-def _fit(args, overwrite: bool):
+def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
     # the scene is checked first; the pipeline (numba, SciPy, the writers) is imported
     # after it, not at the top of the module, so that `render-inspect --help` and a
     # mistake in the scene or a key are answered at once
@@ -98,7 +102,7 @@ def _fit(args, overwrite: bool):
         profile_points=args.profile_points, cache=args.cache, overwrite=overwrite)
 
 
-def _fit_profile(args, overwrite: bool, pipeline, scene):
+def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene: Scene) -> dict:
     """``fit`` of a measured profile: the options that are for maps only are refused."""
     for opt, v, default in (("--predict", args.predict, []), ("--form", args.form, "plane")):
         if v != default:

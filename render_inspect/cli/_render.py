@@ -3,6 +3,7 @@ instruments, and two variants of a scene side by side."""
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
@@ -41,7 +42,7 @@ def add_parsers(sub: Any) -> None:
                         "and report the difference's repeatability (default 1)")
 
 
-def _render(args, overwrite: bool):
+def _render(args: argparse.Namespace, overwrite: bool) -> dict:
     # the scene is checked first; the pipeline (numba, SciPy, the renderers) is imported
     # after it, not at the top of the module, so that `render-inspect --help` and a
     # mistake in the scene or a key are answered at once
@@ -53,7 +54,7 @@ def _render(args, overwrite: bool):
                                overwrite=overwrite)
 
 
-def _compare(args, overwrite: bool):
+def _compare(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the scene first, the pipeline after it, as above)
     scene = scene_of(args)
     # (imported once the input is checked)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
@@ -26,7 +27,7 @@ def add_parsers(sub: Any) -> None:
                    metavar="FORMAT", help="a registered program format: %(choices)s (default npz)")
 
 
-def _simulate(args, overwrite: bool):
+def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
     # the scene is checked first; the pipeline (numba, SciPy, the writers) is imported
     # after it, not at the top of the module, so that `render-inspect --help` and a
     # mistake in the scene or a key are answered at once
@@ -39,7 +40,7 @@ def _simulate(args, overwrite: bool):
                                  tile=args.tile, overwrite=overwrite)
 
 
-def _toolpath(args, overwrite: bool):
+def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
     # (the scene first, the pipeline after it, as above)
     scene = scene_of(args)
     # (imported once the input is checked)
