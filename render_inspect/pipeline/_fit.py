@@ -9,7 +9,8 @@ fit window -> the virtual interference microscope with the measured file's setti
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import contextlib
 import copy
@@ -80,12 +81,15 @@ def _parse_at(at):
 
 
 # ------------------------------------------------------------------------- run_fit
-def run_fit(measured, scene: Scene, free, out: str | Path, *, bounds=(),
+def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *,
+            bounds: Iterable[str] = (),
             objective: str | None = None,
-            at=None, window_mm: float = 0.2, form: str = "plane", weights=None,
-            workers: int | None = None, scheduler: str | None = None, predict=(),
+            at: Any = None, window_mm: float = 0.2, form: str = "plane",
+            weights: Iterable[str] | None = None,
+            workers: int | None = None, scheduler: str | None = None, predict: Iterable[str] = (),
             seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
-            profile_points: int = 3, cache=None, overwrite: bool = False) -> dict:
+            profile_points: int = 3, cache: str | Path | None = None,
+            overwrite: bool = False) -> dict:
     """``render-inspect fit MEASURED --scene SCENE --free KEY,... --out DIR``.
 
     Parameters

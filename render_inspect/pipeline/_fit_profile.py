@@ -18,6 +18,7 @@ measurement of the feed.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 import contextlib
 import copy
 import functools
@@ -216,12 +217,16 @@ def _profile_weights(items) -> dict:
 
 
 # ------------------------------------------------------------------------------ run
-def run_fit_profile(measured, scene: Scene, free, out: str | Path, *, units: str | None = None,
-                    line: str | None = None, bounds=(),
-                    objective: str | None = None, at=None, window_mm: float = 0.3,
-                    weights=None, workers: int | None = None, scheduler: str | None = None,
+def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out: str | Path, *,
+                    units: str | None = None,
+                    line: str | None = None, bounds: Iterable[str] = (),
+                    objective: str | None = None, at: str | Sequence[float] | None = None,
+                    window_mm: float = 0.3,
+                    weights: Iterable[str] | None = None, workers: int | None = None,
+                    scheduler: str | None = None,
                     seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
-                    profile_points: int = 3, cache=None, overwrite: bool = False) -> dict:
+                    profile_points: int = 3, cache: str | Path | None = None,
+                    overwrite: bool = False) -> dict:
     """``render-inspect fit PROFILE --scene SCENE --free KEY,... --out DIR``.
 
     Parameters

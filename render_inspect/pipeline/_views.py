@@ -28,7 +28,7 @@ from ..core.errors import InputError
 from ..core.grid import GridCoordinates
 from ..core.heightmap import HeightMap
 from ..io import ZarrHeightMap
-from ..render import default_window
+from ..render import DiffuseConfig, default_window
 from ._simulate_command import run_simulate_tiled
 
 if TYPE_CHECKING:
@@ -54,7 +54,7 @@ class WholeMapViews:
     def instrument(self, entry, cfg):
         return self.hm, cfg
 
-    def diffuse(self, dcfg, view: str):
+    def diffuse(self, dcfg: DiffuseConfig, view: str):
         return self.hm, dcfg
 
 
