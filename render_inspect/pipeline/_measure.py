@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.frames import Frames
 from ..core.units import MM_TO_NM
 from ..io import (
     STACK_EXTENSIONS,
@@ -23,6 +24,7 @@ from ..io import (
     write_measurement_exr,
 )
 from ..metrology import (
+    PhaseResult,
     areal_parameters,
     evaluate_measurement,
     measure_frames,
@@ -39,7 +41,8 @@ measure_summary = measurement_summary
 analyze_summary = analysis_summary
 
 
-def read_frames(path, *, settings=None):
+def read_frames(path: str | Path, *,
+                settings: str | Path | dict | None = None) -> tuple[Frames, list[str]]:
     """Frames and settings from ``interferogram.exr`` (or any EXR with the frames
     channels and header) or a TIFF / PNG stack with a settings JSON.
 
@@ -71,7 +74,8 @@ def _usable(frames, path):
     return frames
 
 
-def measurement_outputs(out: Path, frames, result, *, source: str = "") -> dict:
+def measurement_outputs(out: Path, frames: Frames, result: PhaseResult, *,
+                        source: str = "") -> dict:
     """Write ``height.exr`` (``height`` mm, NaN where not measured; ``valid``;
     ``modulation``; the instrument settings in the header) and ``height.png`` (the
     height minus its best-fit plane, nm) into ``out``; return the measurement's metrics."""
@@ -165,7 +169,7 @@ def run_measure(path: str | Path, out: str | Path, *, algorithm: str = "auto",
 
 
 def measure_and_evaluate(path: str | Path, *, algorithm: str = "auto", csi_refine: str = "envelope",
-                         min_modulation: float = 0.05):
+                         min_modulation: float = 0.05) -> tuple[PhaseResult, PhaseResult, dict]:
     """Measure the frames of ``interferogram.exr`` (frames and settings only), then evaluate
     the measurement against its ``height_true`` channel; add ``height_measured`` (mm,
     aligned to the truth by one constant per connected region, NaN where not measured)
