@@ -85,7 +85,8 @@ from ._errmotion import ErrorMotions
 from ._interpolate import check_program, linear_command, pvt_command
 
 __all__ = ["Axis", "Coupling", "Machine", "AxisResponse", "follow_axis", "second_order_sos",
-           "servo_ticks", "loop_lag", "loop_response", "force_noise_rms"]
+           "servo_ticks", "loop_lag", "loop_response", "force_noise_rms", "settle_time",
+           "SETTLE_DECAY"]
 
 _MAX_TICKS = 60_000_000
 TWO_PI = 2.0 * math.pi
@@ -246,6 +247,29 @@ def loop_response(axis: Axis, frequency_hz) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         lag = np.where(w > 0, -np.angle(t) / w, 0.0)
     return np.abs(t), lag + float(axis.delay_s)
+
+
+#: the factor by which a loop's start-up transient has decayed after :func:`settle_time`
+#: (2^-60: far below the rounding of any position the loop reaches)
+SETTLE_DECAY = 2.0 ** -60
+
+
+def settle_time(axis: Axis, decay: float = SETTLE_DECAY) -> float:
+    """Seconds after which a difference in the state of ``axis``'s loop (a different
+    command or start before that time) has decayed by ``decay`` (plus its output delay).
+
+    The loop is linear while the drive is within its limits: the difference between two
+    runs obeys e'' + 2 zeta wn e' + wn^2 e = 0, whose slowest mode decays as
+    exp(-sigma t), sigma = zeta wn (zeta < 1) or wn (zeta - sqrt(zeta^2 - 1)); the
+    discretisation over a tick is exact (its eigenvalues are exp(-sigma dt)).  The
+    margin takes ln(1 / decay) + 5 time constants (the 5 cover the transient's
+    polynomial and oscillation prefactors).  0 for an ideal axis."""
+    t = float(axis.delay_s)
+    if axis.bandwidth_hz is None:
+        return t
+    wn, z = TWO_PI * float(axis.bandwidth_hz), float(axis.damping)
+    sigma = z * wn if z < 1 else wn * (z - math.sqrt(z * z - 1.0))
+    return t + (math.log(1.0 / decay) + 5.0) / sigma
 
 
 def force_noise_rms(force_psd_n2_hz: float, mass_kg: float, bandwidth_hz: float,

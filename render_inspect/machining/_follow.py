@@ -12,11 +12,12 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
-from ._axes import Machine, follow_axis, servo_ticks
+from ._axes import Machine, follow_axis, servo_ticks, settle_time
 from ._errmotion import apply_error_motions
 from ._interpolate import check_program, linear_command, pvt_command
 
-__all__ = ["FollowedPath", "follow_turning", "following_error_stats"]
+__all__ = ["FollowedPath", "follow_turning", "following_error_stats", "window_margins",
+           "mask_outside_sector"]
 
 
 @dataclass
@@ -63,6 +64,35 @@ def following_error_stats(errors: dict) -> dict:
         out[f"{k}_rms_{unit}"] = float(np.sqrt(np.mean(e * e)) * scale) if e.size else 0.0
         out[f"{k}_max_{unit}"] = float(np.max(np.abs(e)) * scale) if e.size else 0.0
     return out
+
+
+def window_margins(machine: Machine) -> tuple[float, float]:
+    """(lead_s, lag_s): how long before and after the part of a program that cuts a window
+    ``machine`` must be given the program's every point for the followed path there to be
+    the same, to rounding, as with the whole program.
+
+    A windowed plan keeps every point only in the angular sector that reaches the window
+    and a few points per revolution between the sectors (the tool-tip Z differs there;
+    C and X, straight in time along the spiral, are the same lines).  What the Z slide
+    and the fast tool servo are commanded between the sectors reaches the window through
+    their loops' state only: a transient that :func:`settle_time` lets decay by
+    :data:`~render_inspect.machining._axes.SETTLE_DECAY`.  The servo ticks, the seeded
+    disturbances and error motions (drawn per tick over the whole program) and the C and
+    X axes (and with them the reaction-force coupling) are those of the whole program.
+    A stroke played late (``fts_sync_delay_s`` > 0) needs that much more before, an
+    early one after; and two servo ticks after the sector for the interpolation."""
+    lead = max((settle_time(ax) for ax in (machine.z, machine.fts)), default=0.0)
+    tau = float(machine.fts_sync_delay_s)
+    return lead + max(tau, 0.0), max(-tau, 0.0) + 2.0 / float(machine.servo_rate_hz)
+
+
+def mask_outside_sector(theta, errors: dict, sector_rad) -> dict:
+    """``errors`` with NaN at the ticks whose commanded angle ``theta`` (rad, cumulative)
+    lies outside the angular sector ``sector_rad`` (a0, a1): the following errors of a
+    windowed plan are those of the passes over the window."""
+    a0, a1 = float(sector_rad[0]), float(sector_rad[1])
+    out = np.mod(np.asarray(theta, dtype=np.float64) - a0, 2 * np.pi) > (a1 - a0)
+    return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
 
 
 def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int = 0,

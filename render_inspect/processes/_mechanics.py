@@ -28,6 +28,7 @@ from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
     BURR_WIDTH_PER_CHIP,
     FollowedPath,
+    mask_outside_sector,
     Grooves,
     apply_burrs,
     cut_turning,
@@ -323,6 +324,11 @@ def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, FollowedP
                         seed=int(cfg.simulation.seed))
     cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
                                               {**path.meta, "followed": machine.name})
+    sector = path.meta.get("sectors", {}).get("sector_rad")
+    if sector is not None and not fp.ideal:
+        # a windowed plan: the errors of the passes over the window (between the sectors
+        # the program is sparse and the loops settle)
+        fp.errors = mask_outside_sector(fp.commanded["theta"], fp.errors, sector)
     facts = {"machine": {"preset": cfg.machine.preset, "ideal": fp.ideal,
                          "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
     if not fp.ideal:

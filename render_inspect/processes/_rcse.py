@@ -33,7 +33,7 @@ from ..toolpath import (
     region_radii,
     z_compensation,
 )
-from ._contract import Cut, Plan, Traits, Variant, VariantPair
+from ._contract import Cut, Plan, Process, Traits, Variant, VariantPair
 from ._mechanics import Turned, TurningInputs, follow, turn
 from ._registry import register_process, register_section
 from ._turning import TiledTurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
@@ -375,6 +375,8 @@ class RcseProcess(TiledTurningProcess):
 
     config = RcseProcessConfig
     inputs = RcseInputs
+
+    plan_window = Process.plan_window  # its own path: planned for the region as before
 
     def plan(self, cfg, surface, *, region=None) -> Plan:
         plan = _plan(cfg, surface, region=region)
