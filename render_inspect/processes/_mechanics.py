@@ -28,7 +28,6 @@ from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
     BURR_WIDTH_PER_CHIP,
     FollowedPath,
-    mask_outside_sector,
     Grooves,
     apply_burrs,
     cut_turning,
@@ -36,6 +35,7 @@ from ..machining import (
     follow_turning,
     following_error_stats,
     machined_edges,
+    mask_outside_sector,
     material_burrs,
     mechanics_facts,
     prepare_cut,
