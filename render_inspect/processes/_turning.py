@@ -203,6 +203,8 @@ def toolpath_facts(path, process) -> dict:
         d["chordal_within_tolerance"] = m["chordal_within_tolerance"]
     if "scallop_plan" in m:
         d["scallop_plan"] = m["scallop_plan"]
+    if "sectors" in m:  # a window planned in sectors (plan_turning's ``sectors``)
+        d["sectors"] = m["sectors"]
     if "accessibility" in m:
         d["accessible"] = m["accessibility"]["ok"]
         d["accessibility"] = m["accessibility"]
