@@ -138,6 +138,9 @@ def test_a_window_cut_from_its_sectors_is_the_window_cut_from_whole_revolutions(
     # the same servo ticks, fewer planned points
     mw, ms = whole.metrics, sec.metrics
     assert mw["machine"]["ticks"] == ms["machine"]["ticks"]
+    # the Z slide (and the FTS) followed over the sectors' ticks only
+    assert "ticks_in_sectors" not in mw["machine"]
+    assert ms["machine"]["ticks_in_sectors"] < 0.6 * ms["machine"]["ticks"]
     assert ms["toolpath"]["points"] < 0.5 * mw["toolpath"]["points"]
     assert ms["residual"]["Sq_nm"] == pytest.approx(mw["residual"]["Sq_nm"], rel=1e-12)
     fe = ms["following_error"]
@@ -172,3 +175,26 @@ def test_a_program_to_write_out_keeps_whole_revolutions():
         switch_radius=scene.process.switch_radius, inner_radius=scene.process.inner_radius,
         chordal_tolerance=scene.process.chordal_tolerance,
         region=(0.55, 0.55, 0.8, 0.8), check_access=False).points
+
+
+def test_an_axis_followed_over_runs_is_the_axis_followed_over_every_tick_after_the_lead():
+    """follow_axis with ``runs``: inside each run, after settle_time, the followed path of
+    the whole program to rounding (the same disturbance draw); outside, the program."""
+    rate = 5000.0
+    t = np.linspace(0.0, 3.0, 3001)
+    q = 1e-3 * np.sin(2 * np.pi * 3.1 * t) + 0.01 * t
+    ax = machine_preset("sts_lathe").z
+    whole = follow_axis(t, q, ax, rate_hz=rate, seed=9)
+    runs = np.array([[1000, 3000], [6000, 9000], [12000, 15001]])
+    part = follow_axis(t, q, ax, rate_hz=rate, seed=9, runs=runs)
+    assert np.array_equal(part.t, whole.t)
+    lead = int(math.ceil(settle_time(ax) * rate))
+    for a, b in runs:
+        d = np.abs(part.followed[a + lead:b] - whole.followed[a + lead:b])
+        assert d.max() < 1e-18
+        assert np.abs(part.followed[a:a + 20] - whole.followed[a:a + 20]).max() > 1e-9
+    out = np.ones(part.t.size, dtype=bool)
+    for a, b in runs:
+        out[a:b] = False
+    assert np.array_equal(part.followed[out], np.interp(part.t[out], t, q))
+    assert np.all(part.error[out] == 0)

@@ -96,7 +96,7 @@ def mask_outside_sector(theta, errors: dict, sector_rad) -> dict:
 
 
 def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int = 0,
-                   fts_theta=None) -> FollowedPath:
+                   fts_theta=None, sector=None) -> FollowedPath:
     """The path a turning program is cut along on ``machine``.
 
     Parameters
@@ -115,6 +115,12 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         The spindle angle each FTS stroke belongs to (default ``theta``), for
         position synchronisation.  ``machine.fts_sync_delay_s`` shifts the stroke in time
         against the spindle (late > 0).
+    sector : (a0, span), rad, optional
+        A program planned in full only over this sector of each revolution (from the
+        angle a0 over ``span``, the settle lead included; :func:`window_margins`): the Z
+        slide and the FTS are followed over the ticks in it only (elsewhere they are
+        their program, with no error); the spindle, X, the coupling and the error motions
+        over every tick, as the disturbances are drawn.
 
     Returns
     -------
@@ -143,6 +149,13 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
     kw: dict[str, Any] = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
     rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
     rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
+    mask = None
+    if sector is not None:
+        # the program's angle at each tick (C is omega t along the spiral)
+        th_k = np.interp(tk, t, theta)
+        mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
+        kw["runs"] = edges.reshape(-1, 2)
     rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)
     if z_fts is None:
         zf_cmd = np.zeros_like(tk)
@@ -160,6 +173,8 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
             t_equiv = tk - tau
         if machine.fts_sync == "position" or tau != 0:
             t_equiv = np.clip(t_equiv, t[0], t[-1])
+            if mask is not None:
+                t_equiv = t_equiv[mask]
             cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)

@@ -119,7 +119,8 @@ def sector_plan(theta: np.ndarray, region, margin: float, *, lead_rad: float,
     keep[0] = keep[-1] = True
     if keep.sum() > 0.75 * keep.size:
         return None, {}
-    return keep, {"sector_rad": [float(ang[0]), float(ang[1])], "points_kept": int(keep.sum())}
+    return keep, {"sector_rad": [float(ang[0]), float(ang[1])], "full_rad": [a0, span],
+                  "points_kept": int(keep.sum())}
 
 
 def max_curvature(surface, region, n: int = 129) -> float:
