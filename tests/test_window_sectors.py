@@ -198,3 +198,18 @@ def test_an_axis_followed_over_runs_is_the_axis_followed_over_every_tick_after_t
         out[a:b] = False
     assert np.array_equal(part.followed[out], np.interp(part.t[out], t, q))
     assert np.all(part.error[out] == 0)
+
+
+def test_the_kinematics_of_a_windowed_program_are_those_of_its_sectors():
+    """The joins between the sectors and the sparse points between them are not the
+    program's motion: the Z jerk and acceleration of the sectors' own points stay within
+    those of whole revolutions."""
+    from render_inspect.processes._turning import toolpath_facts
+
+    scene = load_scene("sts_fig16_overcut", ["simulation.region=[1.0,1.0,1.25,1.25]"])
+    whole, sec = _plans("sts_fig16_overcut", [], (1.0, 1.0, 1.25, 1.25))
+    kw, ks = (toolpath_facts(p.program, scene.process) for p in (whole, sec))
+    for k in ("z_jerk_max_mm_s3", "z_acceleration_max_mm_s2", "z_velocity_max_mm_s",
+              "x_velocity_max_mm_s", "c_velocity_max_rad_s"):
+        assert 0 < ks[k] <= kw[k] * (1 + 1e-9), k
+    assert ks["sectors"]["points_kept"] == sec.program.points

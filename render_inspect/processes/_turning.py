@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import ClassVar, Literal, cast
 
+import numpy as np
 from pydantic import Field, model_serializer, model_validator
 
 from ..core.limits import Driver, format_number, memory_budget
@@ -209,7 +210,11 @@ def toolpath_facts(path, process) -> dict:
         d["accessible"] = m["accessibility"]["ok"]
         d["accessibility"] = m["accessibility"]
     if path.points >= 3:
-        d.update(kinematics(path, limits=limits_from_process(process)))
+        valid = None
+        if "sectors" in m:  # the sectors' own points, not the joins between them
+            a0, span = m["sectors"]["full_rad"]
+            valid = np.mod(np.asarray(path.theta) - a0, 2 * np.pi) <= span
+        d.update(kinematics(path, limits=limits_from_process(process), valid=valid))
     return d
 
 
