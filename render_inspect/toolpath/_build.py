@@ -178,8 +178,8 @@ def plan_turning(surface, tool: Tool, *, workpiece_radius: float, feed_per_rev: 
         With ``region``: plan each revolution in full only over the angular sector that
         reaches the region (widened by the tool's footprint, ``lead_s`` seconds of spindle
         turn before it and ``lag_s`` after it, and a few points each side for the
-        interpolation); elsewhere keep one point in :data:`SECTOR_FILL_PER_REV` per
-        revolution, so the program stays one continuous spiral in time
+        interpolation); elsewhere keep :data:`SECTOR_FILL_PER_REV` points a revolution,
+        so that the program stays one continuous spiral in time
         (:func:`sector_plan`).  Every point kept is the whole-revolution plan's point, bit
         for bit.  None: whole revolutions.
 
