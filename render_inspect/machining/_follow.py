@@ -119,8 +119,8 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         A program planned in full only over this sector of each revolution (from the
         angle a0 over ``span``, the settle lead included; :func:`window_margins`): the Z
         slide and the FTS are followed over the ticks in it only (elsewhere they are
-        their program, with no error); the spindle, X, the coupling and the error motions
-        over every tick, as the disturbances are drawn.
+        their program, with no error), and the error motions are added there only (drawn
+        and scaled over every tick); the spindle, X and the coupling over every tick.
 
     Returns
     -------
@@ -193,5 +193,6 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         z_f = z_f + dz
         theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), NM_TO_MM))
     if machine.errors is not None and not machine.errors.none:
-        theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e)
+        theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e,
+                                                  mask=mask)
     return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)
