@@ -239,3 +239,17 @@ def test_the_compiled_pvt_command_is_the_array_formula_bit_for_bit():
                ((12 * s - 6) * q0 + (6 * s - 4) * m0 + (-12 * s + 6) * q1 + (6 * s - 2) * m1) / (h * h))
         for a, b in zip(pvt_command(t, q, tk), ref):
             assert np.array_equal(a, b)
+
+
+@pytest.mark.slow
+def test_the_tiled_simulation_of_a_window_cuts_its_sectors_as_in_memory(tmp_path):
+    from render_inspect.io import ZarrHeightMap
+    from render_inspect.pipeline import run_simulate_tiled
+
+    scene = load_scene("sts_fig16_overcut", ["simulation.region=[1.0,1.0,1.3,1.3]",
+                                             "simulation.pixel=0.001", "process.workpiece_radius=2.0"])
+    run_simulate_tiled(scene, tmp_path / "t", tile=128)
+    sim = simulate(scene)
+    assert "sectors" in sim.plan.program.meta
+    z = ZarrHeightMap(tmp_path / "t" / "heightmap.zarr").read("machined")
+    assert np.array_equal(z, sim.heightmap.machined.astype(np.float32), equal_nan=True)
