@@ -5,8 +5,9 @@ part's texture, burrs and residual statistics.  Scene-level processes are in :mo
 
 from ..core.heightmap import HeightMap
 from ._axes import (Axis, Coupling, Machine, follow_axis, force_noise_rms, loop_lag, loop_response,
-                    second_order_sos)
-from ._follow import FollowedPath, follow_turning, following_error_stats
+                    second_order_sos, settle_time)
+from ._follow import (FollowedPath, follow_turning, following_error_stats, mask_outside_sector,
+                      window_margins)
 from ._interpolate import linear_command, pvt_command
 from ._burrs import (BURR_WIDTH_PER_CHIP, apply_burrs, burr_halo, burr_height_law, burr_map, edge_turns,
                      machined_sharp_edges, material_burr_block, material_burr_facts, material_burrs,
@@ -52,7 +53,8 @@ __all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", 
            "sculpt_surface", "target_line", "vibration_phases", "split_commands",
            "machined_sharp_edges", "Axis", "Coupling", "Machine", "FollowedPath",
            "MACHINE_PRESETS", "MACHINE_PRESET_NAMES", "machine_preset", "follow_axis",
-           "follow_turning", "following_error_stats", "pvt_command", "linear_command",
+           "follow_turning", "following_error_stats", "window_margins", "mask_outside_sector",
+           "settle_time", "pvt_command", "linear_command",
            "second_order_sos", "EnvelopePath", "prepare_envelope", "load_kernels",
            "in_memory_bytes", "tiled_bytes", "BURR_BLOCK_BYTES", "merge_moments", "metrics_from_moments",
            "tile_abs_dev", "tile_moments", "TILE", "Tile", "compute_tile", "plan_tiles",

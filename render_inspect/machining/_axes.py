@@ -85,7 +85,8 @@ from ._errmotion import ErrorMotions
 from ._interpolate import check_program, linear_command, pvt_command
 
 __all__ = ["Axis", "Coupling", "Machine", "AxisResponse", "follow_axis", "second_order_sos",
-           "servo_ticks", "loop_lag", "loop_response", "force_noise_rms"]
+           "servo_ticks", "loop_lag", "loop_response", "force_noise_rms", "settle_time",
+           "SETTLE_DECAY"]
 
 _MAX_TICKS = 60_000_000
 TWO_PI = 2.0 * math.pi
@@ -248,6 +249,29 @@ def loop_response(axis: Axis, frequency_hz) -> tuple[np.ndarray, np.ndarray]:
     return np.abs(t), lag + float(axis.delay_s)
 
 
+#: the factor by which a loop's start-up transient has decayed after :func:`settle_time`
+#: (2^-60: far below the rounding of any position the loop reaches)
+SETTLE_DECAY = 2.0 ** -60
+
+
+def settle_time(axis: Axis, decay: float = SETTLE_DECAY) -> float:
+    """Seconds after which a difference in the state of ``axis``'s loop (a different
+    command or start before that time) has decayed by ``decay`` (plus its output delay).
+
+    The loop is linear while the drive is within its limits: the difference between two
+    runs obeys e'' + 2 zeta wn e' + wn^2 e = 0, whose slowest mode decays as
+    exp(-sigma t), sigma = zeta wn (zeta < 1) or wn (zeta - sqrt(zeta^2 - 1)); the
+    discretisation over a tick is exact (its eigenvalues are exp(-sigma dt)).  The
+    margin takes ln(1 / decay) + 5 time constants (the 5 cover the transient's
+    polynomial and oscillation prefactors).  0 for an ideal axis."""
+    t = float(axis.delay_s)
+    if axis.bandwidth_hz is None:
+        return t
+    wn, z = TWO_PI * float(axis.bandwidth_hz), float(axis.damping)
+    sigma = z * wn if z < 1 else wn * (z - math.sqrt(z * z - 1.0))
+    return t + (math.log(1.0 / decay) + 5.0) / sigma
+
+
 def force_noise_rms(force_psd_n2_hz: float, mass_kg: float, bandwidth_hz: float,
                     damping: float) -> float:
     """Rms following error (m) of a loop wn, zeta on a mass ``mass_kg`` driven by white force
@@ -360,7 +384,7 @@ def servo_ticks(t0: float, t1: float, rate_hz: float) -> np.ndarray:
 
 
 def follow_axis(t, q, axis: Axis, *, rate_hz: float, interpolation: str = "pvt",
-                seed: int = 0, ticks=None, command=None) -> AxisResponse:
+                seed: int = 0, ticks=None, command=None, runs=None) -> AxisResponse:
     """Follow one axis's program through its interpolator and servo.
 
     Parameters
@@ -376,7 +400,13 @@ def follow_axis(t, q, axis: Axis, *, rate_hz: float, interpolation: str = "pvt",
     ticks : (m,) array, optional
         Tick times (default :func:`servo_ticks` over the program).
     command : (q_c, v_c, a_c), optional
-        A command already evaluated at ``ticks`` (e.g. a position-synchronised one).
+        A command already evaluated at ``ticks`` (e.g. a position-synchronised one); with
+        ``runs``, at the runs' ticks only.
+    runs : (k, 2) int array, optional
+        Follow only these runs of ticks [start, stop) (each started as the program's
+        first tick is, the disturbance the same draw as over all ticks); elsewhere the
+        axis is its program, linearly interpolated, with no error.  For the part of a
+        program that a window needs, after a lead of :func:`settle_time`.
 
     Returns
     -------
@@ -386,55 +416,84 @@ def follow_axis(t, q, axis: Axis, *, rate_hz: float, interpolation: str = "pvt",
     if ticks is None:
         ticks = servo_ticks(float(t[0]), float(t[-1]), rate_hz)
     tk = np.asarray(ticks, dtype=np.float64)
-    linear = interpolation == "linear"
+    if interpolation not in ("pvt", "linear"):
+        raise InputError(f"interpolation must be 'pvt' or 'linear', received {interpolation!r}")
+    mask = None
+    if runs is not None:
+        mask = np.zeros(tk.size, dtype=bool)
+        for a, b in np.asarray(runs, dtype=np.int64).reshape(-1, 2):
+            mask[a:b] = True
+    tr = tk if mask is None else tk[mask]
     if command is None:
-        if interpolation == "pvt":
-            command = pvt_command(t, q, tk)
-        elif interpolation == "linear":
-            command = linear_command(t, q, tk)
-        else:
-            raise InputError(f"interpolation must be 'pvt' or 'linear', received {interpolation!r}")
+        command = (pvt_command if interpolation == "pvt" else linear_command)(t, q, tr)
     qc, vc, ac = (np.ascontiguousarray(a, dtype=np.float64) for a in command)
     if axis.bandwidth_hz is None:
         followed = qc.copy()
     else:
-        dt = 1.0 / float(rate_hz)
-        wn = TWO_PI * float(axis.bandwidth_hz)
-        zeta = float(axis.damping)
-        phi, gam = _discrete_loop(wn, zeta, dt)
+        phi, gam = _discrete_loop(TWO_PI * float(axis.bandwidth_hz), float(axis.damping),
+                                  1.0 / float(rate_hz))
         if axis.noise_rms > 0:
             sd = _noise_scale(phi, gam, float(axis.noise_rms))
-            dist = np.random.default_rng(seed).normal(0.0, sd, size=qc.size)
+            dist = np.random.default_rng(seed).normal(0.0, sd, size=tk.size)
         else:
-            dist = np.zeros(qc.size)
-        ka, kv = float(axis.acceleration_ff), float(axis.velocity_ff)
-        # start in the steady state of the mean velocity over the first 1 / fn (a ramp's
-        # lag), so the statistics hold no start-up transient
-        n0 = max(1, min(qc.size - 1, int(rate_hz / float(axis.bandwidth_hz))))
-        v0 = (qc[n0] - qc[0]) / (tk[n0] - tk[0]) if qc.size > 1 else 0.0
-        f0 = 2 * zeta * wn * (1.0 - kv) * v0
-        err = np.empty(qc.size)
-        amax = 1e300 if axis.acceleration_limit is None else float(axis.acceleration_limit)
-        vmax = 1e300 if axis.velocity_limit is None else float(axis.velocity_limit)
-        v_step = np.diff(qc) / dt
-        if linear:
-            # straight moves: constant velocity inside each step, steps at the ticks
-            a_step = np.zeros_like(v_step)
-            jump = np.concatenate([[0.0], np.diff(v_step)])
-            ff = np.clip(ka * jump / dt, -amax, amax)
-            v_start = v_end = v_step
+            dist = np.zeros(tk.size)
+        if mask is None:
+            followed = qc - _run_errors(qc, vc, tk, dist, axis, phi, gam, rate_hz, interpolation)
         else:
-            a_step = np.diff(vc) / dt
-            jump = np.zeros_like(v_step)
-            ff = np.clip(ka * a_step, -amax, amax)
-            v_start, v_end = vc[:-1], vc[1:]
-        _track(qc, v_step, a_step, jump, ff, np.ascontiguousarray(v_start),
-               np.ascontiguousarray(v_end), dist, phi, gam, wn, zeta, kv, amax, vmax, dt,
-               f0 / (wn * wn), 0.0, err)
-        followed = qc - err
+            followed = np.empty_like(qc)
+            dist = dist[mask]
+            # the runs in the compressed arrays: where the tick index jumps
+            cut = np.flatnonzero(np.diff(np.flatnonzero(mask)) > 1) + 1
+            for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [qc.size]])):
+                sl = slice(int(a), int(b))
+                followed[sl] = qc[sl] - _run_errors(qc[sl], vc[sl], tr[sl], dist[sl], axis, phi,
+                                                    gam, rate_hz, interpolation)
+    if mask is not None:  # back onto every tick: the program itself outside the runs
+        full = [np.interp(tk, t, q), np.zeros(tk.size), np.zeros(tk.size), None]
+        for k, a in enumerate((qc, vc, ac)):
+            full[k][mask] = a
+        full[3] = full[0].copy()
+        full[3][mask] = followed
+        qc, vc, ac, followed = full
     if axis.delay_s > 0:
         followed = np.interp(tk - axis.delay_s, tk, followed)
     return AxisResponse(tk, qc, followed, vc, ac)
+
+
+def _run_errors(qc, vc, tk, dist, axis: Axis, phi, gam, rate_hz: float,
+                interpolation: str) -> np.ndarray:
+    """Following error at the ticks ``tk`` of one run of the loop, started in the steady
+    state of the mean velocity over its first 1 / fn."""
+    if qc.size < 2:
+        return np.zeros(qc.size)
+    dt = 1.0 / float(rate_hz)
+    wn = TWO_PI * float(axis.bandwidth_hz)
+    zeta = float(axis.damping)
+    ka, kv = float(axis.acceleration_ff), float(axis.velocity_ff)
+    # start in the steady state of the mean velocity over the first 1 / fn (a ramp's
+    # lag), so the statistics hold no start-up transient
+    n0 = max(1, min(qc.size - 1, int(rate_hz / float(axis.bandwidth_hz))))
+    v0 = (qc[n0] - qc[0]) / (tk[n0] - tk[0]) if qc.size > 1 else 0.0
+    f0 = 2 * zeta * wn * (1.0 - kv) * v0
+    err = np.empty(qc.size)
+    amax = 1e300 if axis.acceleration_limit is None else float(axis.acceleration_limit)
+    vmax = 1e300 if axis.velocity_limit is None else float(axis.velocity_limit)
+    v_step = np.diff(qc) / dt
+    if interpolation == "linear":
+        # straight moves: constant velocity inside each step, steps at the ticks
+        a_step = np.zeros_like(v_step)
+        jump = np.concatenate([[0.0], np.diff(v_step)])
+        ff = np.clip(ka * jump / dt, -amax, amax)
+        v_start = v_end = v_step
+    else:
+        a_step = np.diff(vc) / dt
+        jump = np.zeros_like(v_step)
+        ff = np.clip(ka * a_step, -amax, amax)
+        v_start, v_end = vc[:-1], vc[1:]
+    _track(qc, v_step, a_step, jump, ff, np.ascontiguousarray(v_start),
+           np.ascontiguousarray(v_end), np.ascontiguousarray(dist), phi, gam, wn, zeta, kv,
+           amax, vmax, dt, f0 / (wn * wn), 0.0, err)
+    return err
 
 
 # ---------------------------------------------------------------------------------------

@@ -128,12 +128,13 @@ def _band_noise(n: int, rate_hz: float, bandwidth_hz: float, rms: float, rng) ->
     return y * (rms / s) if s > 0 else y
 
 
-def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndarray:
+def _straightness(x, rms: float, length: float, rng, modes: int = 64, *, at=None) -> np.ndarray:
     """Smooth random profile of the position x (mm), unit-variance Gaussian covariance of
     correlation length ``length``, times ``rms``: positional, so the same seed gives the
-    same slide on any path."""
+    same slide on any path.  ``at``: evaluate it there only (the table over ``x``'s
+    range, as for all of ``x``)."""
     if rms == 0:
-        return np.zeros_like(x)
+        return np.zeros_like(x if at is None else at)
     k = rng.normal(0.0, 1.0 / length, size=modes)
     ph = rng.uniform(0.0, TWO_PI, size=modes)
     x = np.asarray(x, dtype=np.float64)
@@ -146,12 +147,14 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64) -> np.ndar
     if n < x.size:
         xs = np.linspace(lo, hi, max(n, 2))
         prof = rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(xs, k) + ph).sum(axis=-1)
-        return np.interp(x, xs, prof) - s0
+        return np.interp(x if at is None else at, xs, prof) - s0
+    if at is not None:  # (rows of the outer product are independent: the same numbers)
+        x = np.asarray(at, dtype=np.float64)
     return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1) - s0
 
 
 def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, errors: ErrorMotions,
-                         *, seed: int = 0) -> dict:
+                         *, seed: int = 0, mask: np.ndarray | None = None) -> dict:
     """Tool-relative-to-part displacements (mm) at the ticks: ``x``, ``y``, ``z``.
 
     Parameters
@@ -159,6 +162,10 @@ def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, erro
     t : (m,) s (uniform ticks);  theta : (m,) spindle angle C, rad;  rho : (m,) X, mm
     errors : ErrorMotions
     seed : int
+    mask : (m,) bool array, optional
+        The ticks the offsets are wanted at (the rest come back 0).  The asynchronous
+        noise is drawn and scaled over every tick and the straightness tabulated over
+        the whole range of ``rho``, so the offsets at these ticks are those of all ticks.
 
     Returns
     -------
@@ -170,38 +177,50 @@ def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, erro
     n = t.size
     rate = 1.0 / float(t[1] - t[0]) if n > 1 else 1.0
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(3)]
-    ex = np.zeros(n)
-    ey = np.zeros(n)
-    ez = np.zeros(n)
+    sel = slice(None) if mask is None else np.asarray(mask, dtype=bool)
+    tt, th, rr = t[sel], theta[sel], rho[sel]
+    m = tt.size
+    ex = np.zeros(m)
+    ey = np.zeros(m)
+    ez = np.zeros(m)
     for h, a, p in errors.radial_sync:
-        ex += a * np.cos(h * theta + p)
+        ex += a * np.cos(h * th + p)
     for h, a, p in errors.axial_sync:
-        ez += a * np.cos(h * theta + p)
+        ez += a * np.cos(h * th + p)
     for h, a, p in errors.tilt_sync:
-        ez += rho * a * np.cos(h * theta + p)
-    ex += _band_noise(n, rate, errors.async_bandwidth_hz, errors.radial_async_rms, rngs[0])
-    ez += _band_noise(n, rate, errors.async_bandwidth_hz, errors.axial_async_rms, rngs[1])
-    ez += _straightness(rho, errors.x_straightness_rms, errors.x_straightness_length, rngs[2])
+        ez += rr * a * np.cos(h * th + p)
+    ex += _band_noise(n, rate, errors.async_bandwidth_hz, errors.radial_async_rms, rngs[0])[sel]
+    ez += _band_noise(n, rate, errors.async_bandwidth_hz, errors.axial_async_rms, rngs[1])[sel]
+    ez += _straightness(rho, errors.x_straightness_rms, errors.x_straightness_length, rngs[2],
+                        at=None if mask is None else rr)
     for f, a, d, p in errors.vibration:
-        v = a * np.sin(TWO_PI * f * t + p)
+        v = a * np.sin(TWO_PI * f * tt + p)
         {"x": ex, "y": ey, "z": ez}[d][:] += v
-    return {"x": ex, "y": ey, "z": ez}
+    if mask is None:
+        return {"x": ex, "y": ey, "z": ez}
+    out = {}
+    for k, v in (("x", ex), ("y", ey), ("z", ez)):
+        full = np.zeros(n)
+        full[sel] = v
+        out[k] = full
+    return out
 
 
 def apply_error_motions(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndarray,
-                        errors: ErrorMotions, *,
-                        seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                        errors: ErrorMotions, *, seed: int = 0,
+                        mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tool position relative to the part after the error motions.
 
     The tool, at (X, 0) in the machine frame, is displaced by (e_x, e_y, e_z); in the
     part's polar frame it is then at radius sqrt((X + e_x)^2 + e_y^2) and angle
-    C + atan2(e_y, X + e_x) (kept non-decreasing), height z + e_z.
+    C + atan2(e_y, X + e_x) (kept non-decreasing), height z + e_z.  ``mask``: the ticks
+    that need them (:func:`error_motion_offsets`); elsewhere the path is unchanged.
 
     Returns
     -------
     theta, rho, z : (m,) float64 arrays
     """
-    off = error_motion_offsets(t, theta, rho, errors, seed=seed)
+    off = error_motion_offsets(t, theta, rho, errors, seed=seed, mask=mask)
     xr = np.asarray(rho, dtype=np.float64) + off["x"]
     rho2 = np.hypot(xr, off["y"])
     th2 = np.asarray(theta, dtype=np.float64) + np.arctan2(off["y"], xr)

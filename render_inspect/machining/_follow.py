@@ -12,11 +12,12 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
-from ._axes import Machine, follow_axis, servo_ticks
+from ._axes import Machine, follow_axis, servo_ticks, settle_time
 from ._errmotion import apply_error_motions
 from ._interpolate import check_program, linear_command, pvt_command
 
-__all__ = ["FollowedPath", "follow_turning", "following_error_stats"]
+__all__ = ["FollowedPath", "follow_turning", "following_error_stats", "window_margins",
+           "mask_outside_sector"]
 
 
 @dataclass
@@ -65,8 +66,37 @@ def following_error_stats(errors: dict) -> dict:
     return out
 
 
+def window_margins(machine: Machine) -> tuple[float, float]:
+    """(lead_s, lag_s): how long before and after the part of a program that cuts a window
+    ``machine`` must be given the program's every point for the followed path there to be
+    the same, to rounding, as with the whole program.
+
+    A windowed plan keeps every point only in the angular sector that reaches the window
+    and a few points per revolution between the sectors (the tool-tip Z differs there;
+    C and X, straight in time along the spiral, are the same lines).  What the Z slide
+    and the fast tool servo are commanded between the sectors reaches the window through
+    their loops' state only: a transient that :func:`settle_time` lets decay by
+    :data:`~render_inspect.machining._axes.SETTLE_DECAY`.  The servo ticks, the seeded
+    disturbances and error motions (drawn per tick over the whole program) and the C and
+    X axes (and with them the reaction-force coupling) are those of the whole program.
+    A stroke played late (``fts_sync_delay_s`` > 0) needs that much more before, an
+    early one after; and two servo ticks after the sector for the interpolation."""
+    lead = max((settle_time(ax) for ax in (machine.z, machine.fts)), default=0.0)
+    tau = float(machine.fts_sync_delay_s)
+    return lead + max(tau, 0.0), max(-tau, 0.0) + 2.0 / float(machine.servo_rate_hz)
+
+
+def mask_outside_sector(theta, errors: dict, sector_rad) -> dict:
+    """``errors`` with NaN at the ticks whose commanded angle ``theta`` (rad, cumulative)
+    lies outside the angular sector ``sector_rad`` (a0, a1): the following errors of a
+    windowed plan are those of the passes over the window."""
+    a0, a1 = float(sector_rad[0]), float(sector_rad[1])
+    out = np.mod(np.asarray(theta, dtype=np.float64) - a0, 2 * np.pi) > (a1 - a0)
+    return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
+
+
 def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int = 0,
-                   fts_theta=None) -> FollowedPath:
+                   fts_theta=None, sector=None) -> FollowedPath:
     """The path a turning program is cut along on ``machine``.
 
     Parameters
@@ -85,6 +115,12 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         The spindle angle each FTS stroke belongs to (default ``theta``), for
         position synchronisation.  ``machine.fts_sync_delay_s`` shifts the stroke in time
         against the spindle (late > 0).
+    sector : (a0, span), rad, optional
+        A program planned in full only over this sector of each revolution (from the
+        angle a0 over ``span``, the settle lead included; :func:`window_margins`): the Z
+        slide and the FTS are followed over the ticks in it only (elsewhere they are
+        their program, with no error), and the error motions are added there only (drawn
+        and scaled over every tick); the spindle, X and the coupling over every tick.
 
     Returns
     -------
@@ -113,6 +149,13 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
     kw: dict[str, Any] = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
     rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
     rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
+    mask = None
+    if sector is not None:
+        # the program's angle at each tick (C is omega t along the spiral)
+        th_k = np.interp(tk, t, theta)
+        mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
+        kw["runs"] = edges.reshape(-1, 2)
     rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)
     if z_fts is None:
         zf_cmd = np.zeros_like(tk)
@@ -130,6 +173,8 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
             t_equiv = tk - tau
         if machine.fts_sync == "position" or tau != 0:
             t_equiv = np.clip(t_equiv, t[0], t[-1])
+            if mask is not None:
+                t_equiv = t_equiv[mask]
             cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)
@@ -148,5 +193,6 @@ def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int 
         z_f = z_f + dz
         theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), NM_TO_MM))
     if machine.errors is not None and not machine.errors.none:
-        theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e)
+        theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e,
+                                                  mask=mask)
     return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)

@@ -113,7 +113,7 @@ def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
     check_budget(sim, process.estimate_memory(cfg))
     t0 = time.perf_counter()
     with task(f"{traits.name}: plan the tool path"):
-        plan = process.plan(cfg, surface, region=region)
+        plan = process.plan_window(cfg, surface, region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
     # the program's moves between its cuts are simulated too: they never touch

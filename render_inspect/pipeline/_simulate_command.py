@@ -189,7 +189,7 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
     with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp, \
             tile_client(workers=workers, scheduler=scheduler) as client:
         t0 = time.perf_counter()
-        plan = process.plan(cfg, surface, region=tuple(sim.region))
+        plan = process.plan_window(cfg, surface, tuple(sim.region))
         timing.update(plan.timing)
         timing["toolpath"] = time.perf_counter() - t0
         # the moves between the cuts never touch the part (metrics toolpath.links)

@@ -37,6 +37,7 @@ from ..machining import (
     follow_turning,
     following_error_stats,
     machined_edges,
+    mask_outside_sector,
     material_burrs,
     mechanics_facts,
     prepare_cut,
@@ -322,12 +323,23 @@ def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, FollowedP
     itself.  A tiled simulation follows the whole program once and cuts each tile from
     the run of the followed path that reaches it."""
     machine = machine_of(cfg.machine)
+    sectors = path.meta.get("sectors", {})
     fp = follow_turning(path.t, path.theta, path.rho, path.z, machine, z_fts=z_fts,
-                        seed=int(cfg.simulation.seed))
+                        seed=int(cfg.simulation.seed), sector=sectors.get("full_rad"))
     cut_path = path if fp.ideal else ToolPath(fp.theta, fp.rho, fp.z, fp.t,
                                               {**path.meta, "followed": machine.name})
+    sector = sectors.get("sector_rad")
+    if sector is not None and not fp.ideal:
+        # a windowed plan: the errors of the passes over the window (between the sectors
+        # the program is sparse and the loops settle)
+        fp.errors = mask_outside_sector(fp.commanded["theta"], fp.errors, sector)
     facts = {"machine": {"preset": cfg.machine.preset, "ideal": fp.ideal,
                          "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
+    if sectors.get("full_rad") is not None and not fp.ideal:
+        # the ticks the Z slide and the FTS were followed over (the rest: between sectors)
+        a0, span = sectors["full_rad"]
+        facts["machine"]["ticks_in_sectors"] = int(np.count_nonzero(
+            np.mod(np.interp(fp.t, path.t, path.theta) - a0, 2 * np.pi) <= span))
     if not fp.ideal:
         facts["following_error"] = following_error_stats(fp.errors)
     if getattr(cfg.tool, "wear", False):  # the worn edge at each point of the path

@@ -35,7 +35,7 @@ from ..toolpath import (
     z_compensation,
 )
 from ..design import Surface
-from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
+from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._mechanics import Turned, TurningInputs, follow, turn
 from ._machine import ProcessScene
 from ._registry import register_process, register_section
@@ -378,6 +378,8 @@ class RcseProcess(TiledTurningProcess):
 
     config = RcseProcessConfig
     inputs = RcseInputs
+
+    plan_window = Process.plan_window  # its own path: planned for the region as before
 
     def plan(self, cfg: TurningInputs, surface: Surface, *,
              region: Sequence[float] | None = None) -> Plan:

@@ -132,6 +132,9 @@ def _retired_servo_keys(data: dict) -> dict:
 
 def _error_stats(err) -> dict:
     err = np.asarray(err)
+    err = err[np.isfinite(err)]  # (a windowed plan's errors: the window's sectors only)
+    if not err.size:
+        return {"rms_um": 0.0, "max_um": 0.0}
     return {"rms_um": float(np.sqrt(np.mean(err * err)) * MM_TO_UM),
             "max_um": float(np.max(np.abs(err)) * MM_TO_UM)}
 
@@ -216,9 +219,12 @@ class ServoProcess(TiledTurningProcess):
     config = ServoProcessConfig
 
     def plan(self, cfg: TurningInputs, surface: Surface, *,
-             region: Sequence[float] | None = None) -> Plan:
+             region: Sequence[float] | None = None, sectors: bool = False) -> Plan:
         t0 = time.perf_counter()
-        plan = self.program_plan(cfg, surface, self.program(cfg, surface, region=region))
+        # the fts split takes the mean over whole revolutions: it needs them all
+        sectors = sectors and cfg.process.kind == "hts"
+        plan = self.program_plan(cfg, surface, self.program(cfg, surface, region=region,
+                                                            sectors=sectors))
         plan.timing["toolpath"] = time.perf_counter() - t0
         return plan
 

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 from typing import ClassVar, Literal, cast
 
+import numpy as np
 from pydantic import Field, model_serializer, model_validator
 
 from ..core.limits import Driver, format_number, memory_budget
@@ -18,7 +19,7 @@ from ..core.marks import ToolMarks
 from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
-from ..machining import material_burr_facts, mechanics_facts
+from ..machining import material_burr_facts, mechanics_facts, window_margins
 
 from ..toolpath import (
     DEFAULT_CLEARANCE,
@@ -141,15 +142,19 @@ class TurningProcessConfig(Section):
 
 
 
-def plan_spiral(cfg, surface, *, region=None):
+def plan_spiral(cfg, surface, *, region=None, sectors: bool = False):
     """The compensated spiral program of a turning process (:func:`plan_turning` with the
     ``[process]`` keys of ``cfg``).  With ``process.scallop_bound_nm`` the feed per
     revolution is the largest whose scallop stays within the bound on every radial section
     the path cuts (:func:`~render_inspect.toolpath.plan_feed`, the residual-height
     formulas of the compound sinusoidal grid study, eqs. 9-13), recorded in
-    ``path.meta["scallop_plan"]``."""
+    ``path.meta["scallop_plan"]``.  ``sectors`` (with ``region``): plan each revolution in
+    full only over the sector that reaches the region, with the lead the ``[machine]``
+    needs before it (:func:`~render_inspect.machining.window_margins`): what a simulation
+    of the region cuts, at the cost of the region (not a program to write out)."""
     p = cfg.process
     tool = Tool.from_config(cfg.tool)
+    margins = window_margins(machine_of(cfg.machine)) if sectors and region is not None else None
     feed, scallop = p.feed_per_rev, None
     if p.scallop_bound_nm is not None:
         r_in, r_out = (p.inner_radius, p.workpiece_radius) if region is None else \
@@ -167,7 +172,8 @@ def plan_spiral(cfg, surface, *, region=None):
                         switch_radius=p.switch_radius, inner_radius=p.inner_radius,
                         chordal_tolerance=p.chordal_tolerance, region=region,
                         allow_gouge=p.allow_gouge,
-                        memory_budget=memory_budget(cfg.simulation.max_memory_gb))
+                        memory_budget=memory_budget(cfg.simulation.max_memory_gb),
+                        sectors=margins)
     if scallop is not None:
         path.meta["scallop_plan"] = scallop
     return path
@@ -198,11 +204,17 @@ def toolpath_facts(path, process) -> dict:
         d["chordal_within_tolerance"] = m["chordal_within_tolerance"]
     if "scallop_plan" in m:
         d["scallop_plan"] = m["scallop_plan"]
+    if "sectors" in m:  # a window planned in sectors (plan_turning's ``sectors``)
+        d["sectors"] = m["sectors"]
     if "accessibility" in m:
         d["accessible"] = m["accessibility"]["ok"]
         d["accessibility"] = m["accessibility"]
     if path.points >= 3:
-        d.update(kinematics(path, limits=limits_from_process(process)))
+        valid = None
+        if "sectors" in m:  # the sectors' own points, not the joins between them
+            a0, span = m["sectors"]["full_rad"]
+            valid = np.mod(np.asarray(path.theta) - a0, 2 * np.pi) <= span
+        d.update(kinematics(path, limits=limits_from_process(process), valid=valid))
     return d
 
 
@@ -358,18 +370,18 @@ class TurningProcess(Process[TurningInputs]):
 
     inputs: ClassVar[type[TurningInputs]] = TurningInputs
 
-    def program(self, cfg: TurningInputs, surface, *, region=None):
+    def program(self, cfg: TurningInputs, surface, *, region=None, sectors: bool = False):
         """The commanded turning program: the scene's ``process.program`` read from its
         file (:func:`~render_inspect.processes._program.imported_path`), else the planned
         spiral (:func:`plan_spiral`); a subclass that programs the spiral otherwise
         (another time axis, other sampling) overrides this."""
         if program_path(cfg):
             return imported_path(cfg, surface, region=region)
-        return plan_spiral(cfg, surface, region=region)
+        return plan_spiral(cfg, surface, region=region, sectors=sectors)
 
-    def plan(self, cfg: TurningInputs, surface, *, region=None) -> Plan:
+    def plan(self, cfg: TurningInputs, surface, *, region=None, sectors: bool = False) -> Plan:
         t0 = time.perf_counter()
-        path = self.program(cfg, surface, region=region)
+        path = self.program(cfg, surface, region=region, sectors=sectors)
         facts = {"toolpath": toolpath_facts(path, cfg.process)}
         if program_path(cfg):
             facts["program"] = info = imported_facts(cfg, surface, path)
@@ -390,6 +402,11 @@ class TurningProcess(Process[TurningInputs]):
                                    "columns": [(f"{cfg.process.kind.upper()} program", path,
                                                 data or {})],
                                    "title": f"{cfg.name}: the axes that move"}}
+
+    def plan_window(self, cfg: TurningInputs, surface, region) -> Plan:
+        """The spiral planned in full only over the sectors that reach ``region``
+        (:func:`plan_spiral` with ``sectors``)."""
+        return self.plan(cfg, surface, region=region, sectors=True)
 
     def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
         t = turn(cfg, surface, plan.program)

@@ -9,6 +9,7 @@ from ._build import (
     max_curvature,
     plan_memory,
     plan_turning,
+    sector_plan,
     region_radii,
     turning_point_count,
 )
@@ -39,7 +40,7 @@ from ._verify import (CUT_TOLERANCE, DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN
 __all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "EdgeProfile", "edge_of", "read_edge_file", "spiral_ccps", "chordal_error",
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
-           "plan_turning", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
+           "plan_turning", "sector_plan", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
            "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
            "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",

@@ -19,7 +19,8 @@ from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
 from ._tool import Tool, pass_margin
 
 __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count",
-           "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES"]
+           "plan_memory", "PLAN_BYTES_PER_POINT", "PLAN_FIXED_BYTES", "sector_angles",
+           "sector_plan", "SECTOR_FILL_PER_REV"]
 
 #: Bytes per tool-path point at the peak of planning (the path arrays, compensation and
 #: chordal-error temporaries, the kinematics), by compensation, measured with tracemalloc
@@ -80,6 +81,51 @@ def region_radii(region: Sequence[float], margin: float) -> tuple[float, float]:
     return max(rmin - margin, 0.0), rmax + margin
 
 
+#: points per revolution kept outside the sectors of a windowed plan (:func:`sector_plan`)
+SECTOR_FILL_PER_REV = 64
+
+
+def sector_angles(region, margin: float) -> tuple[float, float] | None:
+    """The polar angles (rad, a0 <= a1 < a0 + pi) that ``region`` widened by ``margin`` (mm)
+    spans seen from the spindle axis; None when the widened region holds the axis (every
+    angle reaches it)."""
+    x0, y0, x1, y1 = region
+    x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
+    if x0 <= 0 <= x1 and y0 <= 0 <= y1:
+        return None
+    c = math.atan2(0.5 * (y0 + y1), 0.5 * (x0 + x1))
+    d = [math.remainder(math.atan2(y, x) - c, TWO_PI) for x in (x0, x1) for y in (y0, y1)]
+    return c + min(d), c + max(d)
+
+
+def sector_plan(theta: np.ndarray, region, margin: float, *, lead_rad: float,
+                lag_rad: float, fill_per_rev: int = SECTOR_FILL_PER_REV):
+    """Which points of a whole-revolution spiral (cumulative angles ``theta``) a plan of
+    ``region`` keeps: every point whose angle lies in the sector the region (widened by
+    ``margin``) spans, from ``lead_rad`` before it to ``lag_rad`` after it and four of the
+    largest angular steps more on each side; elsewhere the first point at or after each
+    multiple of 2 pi / ``fill_per_rev``; the first and the last point.  Returns (mask,
+    facts), or (None, facts) when the sectors would keep more than 3/4 of the points (or
+    the region holds the axis): then whole revolutions are planned."""
+    ang = sector_angles(region, margin)
+    if ang is None or theta.size < 8:
+        return None, {}
+    step = float(np.max(np.diff(theta)))
+    a0 = ang[0] - lead_rad - 4 * step
+    span = (ang[1] - ang[0]) + lead_rad + lag_rad + 8 * step
+    if span >= 0.75 * TWO_PI:
+        return None, {}
+    keep = np.mod(theta - a0, TWO_PI) <= span
+    grid = np.arange(math.ceil(theta[0] * fill_per_rev / TWO_PI),
+                     math.floor(theta[-1] * fill_per_rev / TWO_PI) + 1) * (TWO_PI / fill_per_rev)
+    keep[np.minimum(np.searchsorted(theta, grid), theta.size - 1)] = True
+    keep[0] = keep[-1] = True
+    if keep.sum() > 0.75 * keep.size:
+        return None, {}
+    return keep, {"sector_rad": [float(ang[0]), float(ang[1])], "full_rad": [a0, span],
+                  "points_kept": int(keep.sum())}
+
+
 def max_curvature(surface: Any, region: Sequence[float], n: int = 129) -> float:
     """Largest |principal curvature| (1/mm) sampled over ``region``."""
     x0, y0, x1, y1 = region
@@ -96,7 +142,8 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
                  switch_radius: float = 1.0, inner_radius: float = 0.0,
                  chordal_tolerance: float | None = None, region: Sequence[float] | None = None,
                  check_access: bool = True, allow_gouge: bool = False,
-                 memory_budget: int | tuple[int, str] | None = None) -> ToolPath:
+                 memory_budget: int | tuple[int, str] | None = None,
+                 sectors: tuple[float, float] | None = None) -> ToolPath:
     """The inward spiral turning path over ``surface`` with its tool-radius compensation.
 
     Parameters
@@ -131,6 +178,14 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
         against it before any array is allocated, after ``chordal_tolerance`` has set the
         sampling (:func:`~render_inspect.core.limits.check_memory`; default: the automatic
         budget).  The error names the parameter to change and how far.
+    sectors : (lead_s, lag_s), optional
+        With ``region``: plan each revolution in full only over the angular sector that
+        reaches the region (widened by the tool's footprint, ``lead_s`` seconds of spindle
+        turn before it and ``lag_s`` after it, and a few points each side for the
+        interpolation); elsewhere keep :data:`SECTOR_FILL_PER_REV` points a revolution,
+        so that the program stays one continuous spiral in time
+        (:func:`sector_plan`).  Every point kept is the whole-revolution plan's point, bit
+        for bit.  None: whole revolutions.
 
     Returns
     -------
@@ -221,6 +276,21 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
         idx = np.flatnonzero(keep)
         theta, rho = theta[idx[0]:idx[-1] + 1], rho[idx[0]:idx[-1] + 1]
 
+    full = None
+    # the normal compensation moves X off the spiral: the sparse points between the
+    # sectors would change the X command, which the machine follows
+    if sectors is not None and region is not None and compensation != "normal":
+        omega = TWO_PI * spindle_rpm / MIN_TO_S
+        keep, info = sector_plan(theta, area, margin, lead_rad=float(sectors[0]) * omega,
+                                 lag_rad=float(sectors[1]) * omega)
+        if keep is not None:
+            idx = np.flatnonzero(keep)
+            full = np.zeros(idx.size, dtype=bool)
+            full[:-1] = np.diff(idx) == 1
+            theta, rho = theta[idx], rho[idx]
+            meta["sectors"] = {**info, "lead_s": float(sectors[0]), "lag_s": float(sectors[1]),
+                               "points_whole_revolutions": int(keep.size)}
+
     x, y = rho * np.cos(theta), rho * np.sin(theta)
     z_ccp = surface.height(x, y)
     meta["max_slope"] = slope
@@ -244,6 +314,8 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
         raise InputError(f"compensation must be 'none', 'normal', 'z' or 'edge', received {comp!r}")
 
     ce = chordal_error(surface, theta, rho, z_ccp)
+    if full is not None:  # the sectors' own segments (not the chords that join them)
+        ce = ce[full[:-1]]
     meta["chordal_error_max_mm"] = float(ce.max()) if ce.size else 0.0
     if chordal_tolerance is not None:
         meta["chordal_tolerance_mm"] = chordal_tolerance

@@ -175,7 +175,8 @@ def _at(path, i: int) -> str:
             f"C = {math.degrees(path.theta[i]):.2f} deg")
 
 
-def kinematics(path: ToolPath, *, limits: dict | None = None) -> dict:
+def kinematics(path: ToolPath, *, limits: dict | None = None,
+               valid: np.ndarray | None = None) -> dict:
     """Axis kinematics of a tool path and warnings where it exceeds the machine limits.
 
     Parameters
@@ -185,6 +186,10 @@ def kinematics(path: ToolPath, *, limits: dict | None = None) -> dict:
     limits : dict or ProcessConfig, optional
         ``x_velocity_limit_mm_s``, ``x_acceleration_limit_mm_s2``, ``z_velocity_limit_mm_s``,
         ``z_acceleration_limit_mm_s2`` (None or absent: not checked).
+    valid : (n,) bool array, optional
+        The points whose derivatives count (a window's program planned in sectors: the
+        points of the sectors, whose neighbours two either side are the program's own;
+        not the joins to the sparse points between them).  Default: all.
 
     Returns
     -------
@@ -213,6 +218,14 @@ def kinematics(path: ToolPath, *, limits: dict | None = None) -> dict:
     vz, az, jz = axis_derivatives(t, path.z)
     vc = np.empty_like(t)
     _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
+    ok = None
+    if valid is not None:
+        ok = np.asarray(valid, dtype=bool).copy()
+        for k in (1, 2):  # the stencils of the derivatives (jerk: two either side)
+            ok[k:] &= ok[:-k].copy()
+            ok[:-k] &= ok[k:].copy()
+        for arr in (vx, ax, jx, vz, az, jz, vc):
+            arr[~ok] = 0.0
     series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
     out: dict[str, Any] = {
         "x_velocity_max_mm_s": float(_abs_max(vx)),
@@ -222,7 +235,7 @@ def kinematics(path: ToolPath, *, limits: dict | None = None) -> dict:
         "z_acceleration_max_mm_s2": float(_abs_max(az)),
         "z_jerk_max_mm_s3": float(_abs_max(jz)),
         "c_velocity_max_rad_s": float(_abs_max(vc)),
-        "x_velocity_mean_mm_s": float(np.mean(np.abs(vx))),
+        "x_velocity_mean_mm_s": float(np.mean(np.abs(vx if ok is None else vx[ok]))),
         "x_reversals": int(_reversals(vx, 1e-12)),
         "duration_s": float(t[-1] - t[0]),
         "limits": dict(lim),
