@@ -55,7 +55,7 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold, frames_from_field, radial_index
+from ._kernels import filter_fold, frames_from_field, radial_index, smoothed_cosine
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -162,6 +162,21 @@ def _box_weights(s: int, fill_factor: float) -> np.ndarray:
     edges = np.arange(s + 1) / s - 0.5
     w = np.clip(np.minimum(edges[1:], half) - np.maximum(edges[:-1], -half), 0.0, None)
     return w / w.sum()
+
+
+#: Tilt (rad) by which every facet must stay below the fade's start for the fade to be
+#: left out (far above the float32 arccosine's error of a few 1e-8 rad).
+_FADE_MARGIN_RAD = 1e-3
+
+
+def _below_tilt(cos_t: np.ndarray, alpha: float) -> bool:
+    """Whether every facet with a cosine (NaN: no surface) tilts less than ``alpha`` by
+    :data:`_FADE_MARGIN_RAD`: the fade is then 1 on every facet that returns light (its
+    ``t`` is negative) and multiplying by it changes nothing, so it need not be made."""
+    if alpha <= _FADE_MARGIN_RAD or cos_t.size == 0:
+        return False
+    lo = float(np.fmin.reduce(cos_t, axis=None))
+    return math.isfinite(lo) and lo >= math.cos(alpha - _FADE_MARGIN_RAD)
 
 
 # ------------------------------------------------------------------------- the model
@@ -277,10 +292,11 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # (from a quarter of a fringe per sub-sample, ``alpha_half``, to half a fringe,
     # ``alpha_dark``) they fade out smoothly (a raised cosine in the facet's tilt) instead
     # of ending at a sharp edge, whose diffraction would put a false ring of fringes
-    # beyond the slope limit into the pupil
+    # beyond the slope limit into the pupil.  (Where every facet tilts less than
+    # ``alpha_half`` the fade is 1 wherever light returns, and is not made.)
     alpha_half = max(alpha_lim, math.atan(math.pi / (4 * k99 * a)))
     fade = None
-    if alpha_dark > alpha_half:
+    if alpha_dark > alpha_half and not _below_tilt(cos_t, alpha_half):
         with np.errstate(invalid="ignore"):
             t = (np.arccos(np.clip(cos_t, -1.0, 1.0)) - np.float32(alpha_half)) \
                 / np.float32(alpha_dark - alpha_half)
@@ -296,13 +312,17 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     with np.errstate(invalid="ignore", divide="ignore"):
         unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
     del nn, cos_t
-    if sig > 0.3 and threaded:
-        # the three components at once (SciPy's filter lets go of the interpreter)
-        with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
-            unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
-    elif sig > 0.3:
-        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
-    cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
+    # the smoothing (SciPy's Gaussian filter, wrapped) and the cosine of the smoothed
+    # facets in two compiled passes, the same numbers (_kernels.smoothed_cosine)
+    cos_s = smoothed_cosine(*unit, sig) if sig > 0.3 else None
+    if cos_s is None:
+        if sig > 0.3 and threaded:
+            # the three components at once (SciPy's filter lets go of the interpreter)
+            with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
+                unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
+        elif sig > 0.3:
+            unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
+        cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
     tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
     acc = np.take(frac.astype(np.float32),

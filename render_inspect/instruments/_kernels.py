@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["filter_fold", "frames_from_field", "radial_index"]
+__all__ = ["filter_fold", "frames_from_field", "gaussian_weights", "radial_index", "smoothed_cosine"]
 
 _KERNEL = None
 
@@ -161,4 +161,84 @@ def frames_from_field(x, light, rho_r, two_sr, out):
     out : (N, M) float32 (written)
     """
     _frames_kernel(x, light, np.float32(rho_r), np.float32(two_sr), out)
+    return out
+
+
+# ------------------------------------------- the facets' cosine after the PSF smoothing
+def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
+    """The weights SciPy's ``gaussian_filter1d`` correlates with (its own kernel, reversed
+    as it reverses it), radius ``int(truncate sigma + 0.5)``."""
+    from scipy.ndimage import _filters
+
+    radius = int(truncate * float(sigma) + 0.5)
+    return np.ascontiguousarray(_filters._gaussian_kernel1d(float(sigma), 0, radius)[::-1],
+                                dtype=np.float64)
+
+
+@njit(parallel=True, cache=True)
+def _wrap_axis0(u, w, out):
+    ny, nx = u.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        acc = np.empty(nx)
+        ui = u[i]
+        for q in range(nx):
+            acc[q] = np.float64(ui[q]) * w0
+        for jj in range(-r, 0):
+            a = u[(i + jj) % ny]
+            b = u[(i - jj) % ny]
+            wj = w[r + jj]
+            for q in range(nx):
+                acc[q] = acc[q] + (np.float64(a[q]) + np.float64(b[q])) * wj
+        for q in range(nx):
+            out[i, q] = np.float32(acc[q])
+
+
+@njit(parallel=True, cache=True)
+def _wrap_axis1_cosine(u0, u1, u2, w, out):
+    ny, nx = u0.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        pad = np.empty(nx + 2 * r)
+        acc = np.empty(nx)
+        sm = np.empty((3, nx), dtype=np.float32)
+        for k in range(3):
+            ui = u0[i] if k == 0 else (u1[i] if k == 1 else u2[i])
+            for q in range(nx + 2 * r):
+                pad[q] = np.float64(ui[(q - r) % nx])
+            for q in range(nx):
+                acc[q] = pad[q + r] * w0
+            for jj in range(-r, 0):
+                wj = w[r + jj]
+                for q in range(nx):
+                    acc[q] = acc[q] + (pad[q + r + jj] + pad[q + r - jj]) * wj
+            for q in range(nx):
+                sm[k, q] = np.float32(acc[q])
+        tiny = np.float32(1e-12)
+        for q in range(nx):
+            a, b, c = sm[0, q], sm[1, q], sm[2, q]
+            n = np.float32(math.sqrt(a * a + b * b + c * c))
+            out[i, q] = c / (n if n >= tiny else tiny)
+
+
+def smoothed_cosine(u0, u1, u2, sigma: float):
+    """The cosine of the smoothed facets' tilt: the three components of the unit normal
+    (float32, 0 where no light returns) each smoothed by SciPy's
+    ``gaussian_filter(u, sigma, mode="wrap")`` (axis 0, then axis 1, each pass rounded to
+    float32), then ``u2 / max(sqrt(u0^2 + u1^2 + u2^2), 1e-12)`` in float32: the same
+    numbers, to the last bit, as those array expressions, in two compiled passes threaded
+    over rows.  Returns None where the weights are not symmetric or the filter is longer
+    than the field (the caller then uses SciPy)."""
+    w = gaussian_weights(sigma)
+    r = (w.size - 1) // 2
+    ny, nx = u0.shape
+    if r >= min(ny, nx) or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
+        return None
+    t0, t1, t2 = (np.empty((ny, nx), dtype=np.float32) for _ in range(3))
+    for u, t in ((u0, t0), (u1, t1), (u2, t2)):
+        _wrap_axis0(np.ascontiguousarray(u, dtype=np.float32), w, t)
+    out = np.empty((ny, nx), dtype=np.float32)
+    _wrap_axis1_cosine(t0, t1, t2, w, out)
     return out
