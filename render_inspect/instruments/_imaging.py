@@ -55,7 +55,7 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold, frames_from_field, radial_index, smoothed_cosine
+from ._kernels import facets, filter_fold, frames_from_field, radial_index, smoothed_cosine
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -273,12 +273,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # --- which sub-samples reflect: reached, facing the objective, and not a facet that
     # is both too steep to return any light (geometric optics) and too steep for the
     # sub-sample grid to carry its phase (it would alias into the pupil)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        nz = nrm[..., 2]
-        nn = np.sqrt(nrm[..., 0] ** 2 + nrm[..., 1] ** 2 + nz ** 2)
-        cos_t = nz / nn
-        fin = np.isfinite(h)
-        reached = fin & (cos_t > 0)  # NaN compares False
+    # (the facets' cosine and unit normal, in one compiled pass: _kernels.facets)
+    cos_t, fin, reached, unit = facets(nrm, h)  # reached: NaN compares False
     k_src, w_src = mic.source.sample(dk=mic._dk_fine())
     k99 = float(k_src[min(int(np.searchsorted(np.cumsum(w_src), 0.99)), k_src.size - 1)])
     alpha, frac = acceptance_table(na, na_ill, obs)
@@ -309,9 +305,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # make dark facets)
     lam_c = 2 * math.pi / float(np.sum(k_src * w_src))
     sig = lam_c / (4 * (na + na_ill)) / a
-    with np.errstate(invalid="ignore", divide="ignore"):
-        unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
-    del nn, cos_t
+    del cos_t
     # the smoothing (SciPy's Gaussian filter, wrapped) and the cosine of the smoothed
     # facets in two compiled passes, the same numbers (_kernels.smoothed_cosine)
     cos_s = smoothed_cosine(*unit, sig) if sig > 0.3 else None

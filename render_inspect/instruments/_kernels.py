@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["filter_fold", "frames_from_field", "gaussian_weights", "radial_index", "smoothed_cosine"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "radial_index", "smoothed_cosine"]
 
 _KERNEL = None
 
@@ -242,3 +242,49 @@ def smoothed_cosine(u0, u1, u2, sigma: float):
     out = np.empty((ny, nx), dtype=np.float32)
     _wrap_axis1_cosine(t0, t1, t2, w, out)
     return out
+
+
+# ------------------------------------------------------------- the facets' orientation
+@njit(parallel=True, cache=True, error_model="numpy")
+def _facets_kernel(nrm, h, cos_t, fin, reached, u0, u1, u2):
+    ny, nx = h.shape
+    zero = np.float32(0.0)
+    for i in prange(ny):
+        for j in range(nx):
+            a = nrm[i, j, 0]
+            b = nrm[i, j, 1]
+            c = nrm[i, j, 2]
+            nn = np.float32(math.sqrt(a * a + b * b + c * c))
+            ct = c / nn
+            f = math.isfinite(h[i, j])
+            r = f and ct > 0
+            cos_t[i, j] = ct
+            fin[i, j] = f
+            reached[i, j] = r
+            u0[i, j] = a / nn if r else zero
+            u1[i, j] = b / nn if r else zero
+            u2[i, j] = c / nn if r else zero
+
+
+def facets(nrm, h):
+    """The facets' orientation from the traced normals (float32, any length) and heights
+    (float64, NaN: no surface), in one compiled pass threaded over rows, the same numbers
+    as the float32 array expressions ``nn = sqrt(n_x^2 + n_y^2 + n_z^2)``,
+    ``cos_t = n_z / nn``, ``reached = isfinite(h) & (cos_t > 0)`` and the unit normal
+    ``n / nn`` where reached (0 elsewhere).
+
+    Returns
+    -------
+    cos_t : (H, W) float32
+    fin, reached : (H, W) bool
+    unit : list of three (H, W) float32
+    """
+    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
+    h = np.ascontiguousarray(h, dtype=np.float64)
+    shape = h.shape
+    cos_t = np.empty(shape, dtype=np.float32)
+    fin = np.empty(shape, dtype=bool)
+    reached = np.empty(shape, dtype=bool)
+    unit = [np.empty(shape, dtype=np.float32) for _ in range(3)]
+    _facets_kernel(nrm, h, cos_t, fin, reached, *unit)
+    return cos_t, fin, reached, unit
