@@ -161,3 +161,27 @@ def test_the_autofocus_height_range_is_the_finite_heights_range():
     assert _finite_range(h) == (float(fin.min()), float(fin.max()))
     with pytest.raises(InputError, match="all NaN"):
         _finite_range(np.full((3, 3), np.nan))
+
+
+@pytest.mark.parametrize("s", [1, 2, 3, 4, 7])
+def test_the_pixel_means_are_the_truths_nanmean(s):
+    from render_inspect.instruments._interferometer import _nanmean_quiet
+    from render_inspect.instruments._kernels import pixel_means
+
+    rng = np.random.default_rng(s)
+    ny, nx, margin = 13, 21, 2
+    shape = ((ny + 2 * margin) * s, (nx + 2 * margin) * s)
+    h = rng.standard_normal(shape) * 10.0 ** rng.integers(-6, 3, shape)
+    h[rng.random(shape) > 0.7] = np.nan
+    m = margin * s
+    h[m:m + s, m:m + s] = np.nan  # a pixel with no sub-sample
+    h[m + s:m + 2 * s, m:m + s] = -0.0
+    expect = _nanmean_quiet(h[m:m + ny * s, m:m + nx * s].reshape(ny, s, nx, s), (1, 3))
+    got = pixel_means(h, s, m, (ny, nx))
+    assert _same(got, expect) and np.isnan(got[0, 0])
+
+
+def test_the_pixel_means_leave_longer_pixels_to_numpy():
+    from render_inspect.instruments._kernels import pixel_means
+
+    assert pixel_means(np.zeros((16, 16)), 8, 0, (2, 2)) is None

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "radial_index", "smoothed_cosine"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine"]
 
 _KERNEL = None
 
@@ -288,3 +288,42 @@ def facets(nrm, h):
     unit = [np.empty(shape, dtype=np.float32) for _ in range(3)]
     _facets_kernel(nrm, h, cos_t, fin, reached, *unit)
     return cos_t, fin, reached, unit
+
+
+# ------------------------------------------------------------- the truth's pixel means
+#: Most sub-samples per pixel side whose means :func:`pixel_means` computes (NumPy sums
+#: the rows of longer pixels pairwise, in eight partial sums).
+PIXEL_MEANS_MAX_S = 7
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _pixel_means_kernel(h, s, m, out):
+    ny, nx = out.shape
+    for i in prange(ny):
+        for j in range(nx):
+            tot = 0.0
+            cnt = 0
+            for a in range(s):
+                row = 0.0
+                for b in range(s):
+                    v = h[m + i * s + a, m + j * s + b]
+                    if v != v:
+                        v = 0.0
+                    else:
+                        cnt += 1
+                    row = row + v
+                tot = tot + row
+            out[i, j] = tot / cnt  # (no sample: 0 / 0, NaN)
+
+
+def pixel_means(h_sub, s: int, margin: int, shape):
+    """The mean of each camera pixel's ``s x s`` sub-samples of ``h_sub`` (float64, NaN:
+    none; the pixels start ``margin`` sub-samples in), NaN where none has a value: the
+    numbers of ``nanmean`` of the ``(ny, s, nx, s)`` blocks over axes 1 and 3 as NumPy
+    sums them (each row of a pixel in order, then the rows in order), in one compiled
+    pass threaded over rows.  Returns None for ``s`` above :data:`PIXEL_MEANS_MAX_S`."""
+    if int(s) > PIXEL_MEANS_MAX_S or int(s) < 1 or h_sub.dtype != np.float64:
+        return None
+    out = np.empty(shape, dtype=np.float64)
+    _pixel_means_kernel(h_sub, int(s), int(margin), out)
+    return out
