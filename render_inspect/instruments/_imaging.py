@@ -336,8 +336,14 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # --- heights relative to a reference plane, the range of z - h the frames need
     any_ret = bool(returns.any())
     zbar = float(np.mean(h[returns])) if any_ret else (float(np.mean(h[fin])) if fin.any() else 0.0)
-    dh32 = np.where(returns, h - zbar, 0.0).astype(np.float32)
-    hmin, hmax = (float(dh32[returns].min()), float(dh32[returns].max())) if any_ret else (0.0, 0.0)
+    dh32 = (h - zbar).astype(np.float32)
+    dh32[~returns] = 0.0
+    if any_ret:
+        ret32 = dh32[returns]
+        hmin, hmax = float(ret32.min()), float(ret32.max())
+        del ret32
+    else:
+        hmin, hmax = 0.0, 0.0
     zrel = zpos - zbar
     zeta = max(abs(float(zrel.max()) - hmin), abs(float(zrel.min()) - hmax))
     if reference_figure is not None:

@@ -384,7 +384,7 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
              {"x0": wx0, "y0": wy0, "width_mm": wx1 - wx0, "nx": nx, "ny": ny}]
     traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy), full_normals=True)
     z_sub, n_sub = traced[0]
-    h_sub = z_sub.astype(np.float64) + z_off
+    h_sub = np.add(z_sub, z_off, dtype=np.float64)  # (float64(z) + z_off, in one pass)
     # a sample outside the height map's own span is not part of the surface
     xs = x0 + (np.arange((nx + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
     ys = y0 + (np.arange((ny + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
@@ -560,8 +560,11 @@ def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
         z = blk.transpose(0, 2, 1, 3).reshape(ny * nx, s * s)
         ok = np.all(np.isfinite(z), axis=1)
         if ok.any():
-            coef = np.linalg.lstsq(a, z[ok].T, rcond=None)[0]
-            r = z[ok].T - a @ coef
+            # (the pixels with all their sub-samples, gathered once: every pixel of a
+            # field the surface fills, as the gathered copy lays them out)
+            zt = (np.ascontiguousarray(z) if ok.all() else z[ok]).T
+            coef = np.linalg.lstsq(a, zt, rcond=None)[0]
+            r = zt - a @ coef
             unresolved = float(np.sqrt(np.mean(r * r))) * MM_TO_NM
     return truth, unresolved
 
