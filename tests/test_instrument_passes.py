@@ -185,3 +185,37 @@ def test_the_pixel_means_leave_longer_pixels_to_numpy():
     from render_inspect.instruments._kernels import pixel_means
 
     assert pixel_means(np.zeros((16, 16)), 8, 0, (2, 2)) is None
+
+
+def test_the_fft_into_a_buffer_is_scipys_fft2():
+    import scipy.fft as sfft
+
+    rng = np.random.default_rng(5)
+    x = (rng.standard_normal((48, 39)) + 1j * rng.standard_normal((48, 39))).astype(np.complex64)
+    keep = x.copy()
+    out = np.empty_like(x)
+    got = _imaging._fft2_into(x, out, 2)
+    assert got is out and _same(x, keep)  # written into the buffer, the input kept
+    assert _same(got, sfft.fft2(keep.copy(), workers=2, overwrite_x=True))
+    # without SciPy's module: a copy transformed in place, the same numbers
+    out2 = np.empty_like(x)
+    orig = _imaging._pocketfft
+    try:
+        _imaging._pocketfft = lambda: None
+        assert _same(_imaging._fft2_into(x, out2, 1), got)
+    finally:
+        _imaging._pocketfft = orig
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (7, 1), (40, 53)])
+def test_the_under_sampling_count_is_the_array_expressions(shape):
+    from render_inspect.instruments._kernels import steps_over
+
+    rng = np.random.default_rng(shape[0])
+    dh = (rng.standard_normal(shape) * rng.choice([1e-6, 1e-3], shape)).astype(np.float32)
+    ret = rng.random(shape) > 0.2
+    lim = np.float32(1e-4)
+    expect = (np.count_nonzero((np.abs(np.diff(dh, axis=1)) > lim) & ret[:, 1:] & ret[:, :-1])
+              + np.count_nonzero((np.abs(np.diff(dh, axis=0)) > lim) & ret[1:, :] & ret[:-1, :]))
+    assert steps_over(dh, ret, lim) == expect
+    assert steps_over(dh, ret, np.float32(np.inf)) == 0

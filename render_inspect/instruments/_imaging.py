@@ -55,7 +55,7 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import facets, filter_fold, frames_from_field, radial_index, smoothed_cosine
+from ._kernels import facets, filter_fold, frames_from_field, radial_index, smoothed_cosine, steps_over
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -357,8 +357,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # undersampling diagnostic: phase step to the next sub-sample at the largest K
     k_top = float(tf.K[np.nonzero(tf.support >= 0)[0].max()]) if (tf.support >= 0).any() else 0.0
     lim = np.float32(math.pi / k_top) if k_top > 0 else np.float32(np.inf)
-    under = (np.count_nonzero((np.abs(np.diff(dh32, axis=1)) > lim) & returns[:, 1:] & returns[:, :-1])
-             + np.count_nonzero((np.abs(np.diff(dh32, axis=0)) > lim) & returns[1:, :] & returns[:-1, :]))
+    # (pairs of returning neighbours along rows and columns, in one compiled pass)
+    under = steps_over(dh32, returns, lim)
     under_frac = under / max(2 * int(returns.sum()), 1)
 
     # --- frequency grids (fine).  Only frequencies inside each axial bin's support (a
@@ -403,10 +403,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
             _by_rows(rows_pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
         qb = float(tf.support[b]) * (1 + 1e-6)
         cols = np.nonzero(np.abs(qx) <= qb)[0]
-        # the FFT in place in a buffer kept for all bins (the same transform; a fresh
-        # 3072^2 array for each bin costs the system its pages again)
-        _by_rows(rows_pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
-        spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
+        # the FFT into a buffer kept for all bins (the same transform; a fresh 3072^2
+        # array for each bin costs the system its pages again)
+        spec = _fft2_into(cur, specbuf, workers, rows_pool, blocks)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
                     inv_dq, s, coarse, index=ridx)
         del spec
@@ -441,6 +440,29 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     if xfield is not None:
         info["field"] = xfield.reshape(nfr, ho, wo)
     return out.reshape(nfr, ho, wo), info
+
+
+def _pocketfft():
+    """SciPy's own pocketfft module (what ``scipy.fft.fft2`` calls), or None."""
+    try:
+        from scipy.fft._pocketfft import pypocketfft
+    except ImportError:  # (another SciPy's layout)
+        return None
+    return pypocketfft if hasattr(pypocketfft, "c2c") else None
+
+
+def _fft2_into(x, out, workers, pool=None, blocks=()):
+    """``scipy.fft.fft2(x)`` written into ``out`` (complex64, x's shape), ``x`` left as
+    it is: SciPy's own transform (``fft2`` hands pocketfft's ``c2c`` the same axes, the
+    same normalisation and an output array), read from ``x`` instead of from a copy of
+    it; a copy and ``fft2`` in place where that module is not found."""
+    pfft = _pocketfft()
+    if (pfft is not None and x.dtype == np.complex64 and out.dtype == np.complex64
+            and x.shape == out.shape and x.ndim == 2 and x.flags.c_contiguous
+            and out.flags.c_contiguous):
+        return pfft.c2c(x, (0, 1), True, 0, out, int(workers))
+    _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
+    return sfft.fft2(out, workers=workers, overwrite_x=True)
 
 
 _TF_CACHE: dict = {}

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine", "steps_over"]
 
 _KERNEL = None
 
@@ -327,3 +327,30 @@ def pixel_means(h_sub, s: int, margin: int, shape):
     out = np.empty(shape, dtype=np.float64)
     _pixel_means_kernel(h_sub, int(s), int(margin), out)
     return out
+
+
+# --------------------------------------------------------- the under-sampling count
+@njit(parallel=True, cache=True)
+def _steps_over_kernel(dh, ret, lim, rows):
+    ny, nx = dh.shape
+    for i in prange(ny):
+        c = 0
+        for j in range(nx):
+            if not ret[i, j]:
+                continue
+            v = dh[i, j]
+            if j + 1 < nx and ret[i, j + 1] and abs(dh[i, j + 1] - v) > lim:
+                c += 1
+            if i + 1 < ny and ret[i + 1, j] and abs(dh[i + 1, j] - v) > lim:
+                c += 1
+        rows[i] = c
+
+
+def steps_over(dh32, returns, lim) -> int:
+    """How many pairs of neighbouring returning sub-samples (along rows and along
+    columns) differ by more than ``lim`` (float32, as ``np.abs(np.diff(dh32)) > lim``
+    compares), counted in one compiled pass threaded over rows."""
+    rows = np.zeros(np.shape(dh32)[0], dtype=np.int64)
+    _steps_over_kernel(np.ascontiguousarray(dh32, dtype=np.float32),
+                       np.ascontiguousarray(returns, dtype=np.bool_), np.float32(lim), rows)
+    return int(rows.sum())
