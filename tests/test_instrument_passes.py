@@ -219,3 +219,29 @@ def test_the_under_sampling_count_is_the_array_expressions(shape):
               + np.count_nonzero((np.abs(np.diff(dh, axis=0)) > lim) & ret[1:, :] & ret[:-1, :]))
     assert steps_over(dh, ret, lim) == expect
     assert steps_over(dh, ret, np.float32(np.inf)) == 0
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("fov", [(0.009, 0.009, 0.089, 0.089), (0.03, 0.03, 0.07, 0.07)])
+def test_the_traced_sub_samples_outside_the_map_are_nan(fov):
+    """Near the map's edge the margin's sub-samples beyond its span are NaN, inside it they
+    are heights; a field whose margin stays inside has none marked."""
+    from render_inspect.instruments._interferometer import interferometer_geometry, trace_heights
+    from render_inspect.machining import HeightMap
+    from render_inspect.scene import InterferometerConfig
+
+    n, q = 101, 0.001
+    c = np.arange(n) * q
+    xx, yy = np.meshgrid(c, c)
+    design = 2e-4 * np.sin(2 * np.pi * xx / 0.07) * np.cos(2 * np.pi * yy / 0.05)
+    hm = HeightMap(design, design.copy(), q, (0.0, 0.0))
+    cfg = InterferometerConfig(pixel=2 * q, field_of_view=fov, subsamples=2, noise=False)
+    geom = interferometer_geometry(hm, cfg)
+    h_sub, _, _ = trace_heights(hm, geom, surface="design", subsamples=2)
+    x0, y0, x1, _ = geom["trace_window"]
+    m = h_sub.shape[1]
+    xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+    ys = y0 + (np.arange(h_sub.shape[0]) + 0.5) * (x1 - x0) / m
+    outside = (xs[None, :] < 0) | (xs[None, :] > c[-1]) | (ys[:, None] < 0) | (ys[:, None] > c[-1])
+    assert outside.any() == (fov[0] < 0.02)
+    assert np.isnan(h_sub[outside]).all() and np.isfinite(h_sub[~outside]).all()

@@ -388,9 +388,10 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
     # a sample outside the height map's own span is not part of the surface
     xs = x0 + (np.arange((nx + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
     ys = y0 + (np.arange((ny + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
-    outside = ((xs[None, :] < heightmap.x[0]) | (xs[None, :] > heightmap.x[-1])
-               | (ys[:, None] < heightmap.y[0]) | (ys[:, None] > heightmap.y[-1]))
-    h_sub[outside] = np.nan
+    out_x = (xs < heightmap.x[0]) | (xs > heightmap.x[-1])
+    out_y = (ys < heightmap.y[0]) | (ys > heightmap.y[-1])
+    if out_x.any() or out_y.any():  # (a field inside the map has none)
+        h_sub[out_y[:, None] | out_x[None, :]] = np.nan
     h_centre = traced[1][0].astype(np.float64) + z_off
     return h_sub, n_sub, h_centre
 
