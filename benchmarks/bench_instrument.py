@@ -13,8 +13,9 @@ Figures (printed and returned by :func:`main`):
 * ``command``: the command a user runs, ``render-inspect render sts_sinusoidal_grid
   --kind interferometer`` (the 20x preset's 1024 x 1024 camera pixels over the scene's
   1 x 1 mm part), PSI and CSI, on the design surface and on the machined one, each a fresh
-  process: wall and CPU time of the whole command (start-up, the height map, the ray
-  tracing, the imaging model and the files) and the steps of ``render_metrics.json``
+  process: wall and CPU time of the whole command, with the system's part of the CPU time
+  (start-up, the height map, the ray tracing, the imaging model and the files) and the
+  steps of ``render_metrics.json``
   (``timing_s``), once with the imaging model's tables built in the process (a first
   run) and with them read from the user's cache.  ``BENCH_INSTRUMENT_COMMAND=0`` leaves
   these out.
@@ -65,6 +66,10 @@ def _child_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def _child_sys() -> float:
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime
+
+
 def run_render_command(out: Path, mode: str, surface: str, *, tables: str = "cache") -> dict:
     """``render-inspect render sts_sinusoidal_grid --kind interferometer`` in a fresh
     process (``mode`` PSI or CSI, ``surface`` design or machined): the command's wall and
@@ -76,18 +81,18 @@ def run_render_command(out: Path, mode: str, surface: str, *, tables: str = "cac
             "-q", "--set", f"render.interferometer.mode={mode!r}".replace("'", '"')]
     repo = Path(__file__).resolve().parents[1]
     load0 = os.getloadavg()[0]
-    c0, t0 = _child_cpu(), time.perf_counter()
+    c0, s0, t0 = _child_cpu(), _child_sys(), time.perf_counter()
     env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", str(repo))}
     if tables == "built":
         env["RENDER_INSPECT_TABLE_CACHE"] = "off"
     p = subprocess.run(args, capture_output=True, text=True, cwd=out.parent, env=env)
-    wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
+    wall, cpu, sys_s = time.perf_counter() - t0, _child_cpu() - c0, _child_sys() - s0
     if p.returncode != 0:
         raise RuntimeError(f"render failed:\n{p.stderr[-3000:]}")
     r = json.loads((out / "render_metrics.json").read_text())["render"]
     ig = r["interferometer"]
     return {"mode": mode, "surface": surface, "command_wall_s": round(wall, 2),
-            "command_cpu_s": round(cpu, 2),
+            "command_cpu_s": round(cpu, 2), "command_system_s": round(sys_s, 2),
             "steps_s": {k: round(v, 2) for k, v in r["timing_s"].items()},
             "shape": ig.get("shape"), "frames": ig.get("frames"),
             "subsamples": ig.get("subsamples"), "tables": tables,

@@ -41,6 +41,18 @@ AUTOFOCUS_PIXELS = 48
 AUTOFOCUS_STEPS = 400
 
 
+def _finite_range(h: np.ndarray) -> tuple[float, float]:
+    """The smallest and largest finite height (NaN: no surface), without a copy of them."""
+    lo = float(np.fmin.reduce(h, axis=None)) if h.size else math.nan
+    hi = float(np.fmax.reduce(h, axis=None)) if h.size else math.nan
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        fin = h[np.isfinite(h)]  # (an infinite height, or none at all)
+        if fin.size == 0:
+            raise InputError("heights are all NaN: no surface in the field")
+        lo, hi = float(fin.min()), float(fin.max())
+    return lo, hi
+
+
 def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
               microscope: Microscope | None = None, crop: int = 0) -> tuple[float, dict]:
     """The scanner position of best focus, from the fringe contrast on a coarse scan.
@@ -64,14 +76,10 @@ def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
     mic = Microscope() if microscope is None else microscope
     h = np.asarray(heights, dtype=np.float64)
     s = int(subsamples)
-    fin = h[np.isfinite(h)]
-    if fin.size == 0:
-        raise InputError("heights are all NaN: no surface in the field")
+    h_lo, h_hi = _finite_range(h)
     hc, wc = h.shape[0] // s, h.shape[1] // s
     crop = int(crop)
     nrm = normals_from_heights(h, pixel / s) if normals is None else np.asarray(normals)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tan = np.hypot(nrm[..., 0], nrm[..., 1]) / nrm[..., 2]
     k, w = mic.source.sample(dk=mic._dk_fine())
     k_hi = float(k[min(int(np.searchsorted(np.cumsum(w), 0.99)), k.size - 1)])
     b = math.ceil(max(hc - 2 * crop, wc - 2 * crop) / AUTOFOCUS_PIXELS)
@@ -85,7 +93,9 @@ def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
         off = (b - 1) // 2
         hsub = h[:hb * b * s, :wb * b * s][off::b, off::b]
         nsub = nrm[:hb * b * s, :wb * b * s][off::b, off::b]
-        tsub = tan[:hb * b * s, :wb * b * s][off::b, off::b]
+        # (the facets' slopes of these sub-samples alone: each is its own element's)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tsub = np.hypot(nsub[..., 0], nsub[..., 1]) / nsub[..., 2]
         steep = ~(tsub <= math.pi / (2 * k_hi * b * pixel / s))
         fin_b = np.isfinite(hsub)
         if b == 1 or (fin_b & ~steep).sum() >= 0.5 * fin_b.sum():
@@ -96,7 +106,7 @@ def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
     cb = min(math.ceil(crop / b), (min(hb, wb) - 1) // 2)
     sigma = mic.coherence_sigma()
     env = 1.0 / sigma if sigma > 0 else 10 * mic.effective_wavelength_nm() * NM_TO_MM
-    lo, hi = float(fin.min()) - 2 * env, float(fin.max()) + 2 * env
+    lo, hi = h_lo - 2 * env, h_hi + 2 * env
     step = max(0.5 * env, (hi - lo) / (AUTOFOCUS_STEPS - 1))
     n = int(math.floor((hi - lo) / step)) + 1
     z = lo + step * np.arange(n)

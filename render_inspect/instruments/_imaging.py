@@ -55,7 +55,7 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import filter_fold, frames_from_field, radial_index
+from ._kernels import facets, filter_fold, frames_from_field, radial_index, smoothed_cosine, steps_over
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -164,6 +164,21 @@ def _box_weights(s: int, fill_factor: float) -> np.ndarray:
     return w / w.sum()
 
 
+#: Tilt (rad) by which every facet must stay below the fade's start for the fade to be
+#: left out (far above the float32 arccosine's error of a few 1e-8 rad).
+_FADE_MARGIN_RAD = 1e-3
+
+
+def _below_tilt(cos_t: np.ndarray, alpha: float) -> bool:
+    """Whether every facet with a cosine (NaN: no surface) tilts less than ``alpha`` by
+    :data:`_FADE_MARGIN_RAD`: the fade is then 1 on every facet that returns light (its
+    ``t`` is negative) and multiplying by it changes nothing, so it need not be made."""
+    if alpha <= _FADE_MARGIN_RAD or cos_t.size == 0:
+        return False
+    lo = float(np.fmin.reduce(cos_t, axis=None))
+    return math.isfinite(lo) and lo >= math.cos(alpha - _FADE_MARGIN_RAD)
+
+
 # ------------------------------------------------------------------------- the model
 def interference_intensity(heights, normals=None, *, pixel: float, subsamples: int = 1,
                            microscope: Microscope | None = None, z_positions,
@@ -258,12 +273,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # --- which sub-samples reflect: reached, facing the objective, and not a facet that
     # is both too steep to return any light (geometric optics) and too steep for the
     # sub-sample grid to carry its phase (it would alias into the pupil)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        nz = nrm[..., 2]
-        nn = np.sqrt(nrm[..., 0] ** 2 + nrm[..., 1] ** 2 + nz ** 2)
-        cos_t = nz / nn
-        fin = np.isfinite(h)
-        reached = fin & (cos_t > 0)  # NaN compares False
+    # (the facets' cosine and unit normal, in one compiled pass: _kernels.facets)
+    cos_t, fin, reached, unit = facets(nrm, h)  # reached: NaN compares False
     k_src, w_src = mic.source.sample(dk=mic._dk_fine())
     k99 = float(k_src[min(int(np.searchsorted(np.cumsum(w_src), 0.99)), k_src.size - 1)])
     alpha, frac = acceptance_table(na, na_ill, obs)
@@ -277,10 +288,11 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # (from a quarter of a fringe per sub-sample, ``alpha_half``, to half a fringe,
     # ``alpha_dark``) they fade out smoothly (a raised cosine in the facet's tilt) instead
     # of ending at a sharp edge, whose diffraction would put a false ring of fringes
-    # beyond the slope limit into the pupil
+    # beyond the slope limit into the pupil.  (Where every facet tilts less than
+    # ``alpha_half`` the fade is 1 wherever light returns, and is not made.)
     alpha_half = max(alpha_lim, math.atan(math.pi / (4 * k99 * a)))
     fade = None
-    if alpha_dark > alpha_half:
+    if alpha_dark > alpha_half and not _below_tilt(cos_t, alpha_half):
         with np.errstate(invalid="ignore"):
             t = (np.arccos(np.clip(cos_t, -1.0, 1.0)) - np.float32(alpha_half)) \
                 / np.float32(alpha_dark - alpha_half)
@@ -293,16 +305,18 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # make dark facets)
     lam_c = 2 * math.pi / float(np.sum(k_src * w_src))
     sig = lam_c / (4 * (na + na_ill)) / a
-    with np.errstate(invalid="ignore", divide="ignore"):
-        unit = [np.where(reached, nrm[..., i] / nn, 0.0).astype(np.float32) for i in range(3)]
-    del nn, cos_t
-    if sig > 0.3 and threaded:
-        # the three components at once (SciPy's filter lets go of the interpreter)
-        with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
-            unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
-    elif sig > 0.3:
-        unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
-    cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
+    del cos_t
+    # the smoothing (SciPy's Gaussian filter, wrapped) and the cosine of the smoothed
+    # facets in two compiled passes, the same numbers (_kernels.smoothed_cosine)
+    cos_s = smoothed_cosine(*unit, sig) if sig > 0.3 else None
+    if cos_s is None:
+        if sig > 0.3 and threaded:
+            # the three components at once (SciPy's filter lets go of the interpreter)
+            with ThreadPoolExecutor(max_workers=min(3, usable_cpus())) as pool:
+                unit = list(pool.map(lambda u: gaussian_filter(u, sig, mode="wrap"), unit))
+        elif sig > 0.3:
+            unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
+        cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
     tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
     acc = np.take(frac.astype(np.float32),
@@ -322,8 +336,14 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # --- heights relative to a reference plane, the range of z - h the frames need
     any_ret = bool(returns.any())
     zbar = float(np.mean(h[returns])) if any_ret else (float(np.mean(h[fin])) if fin.any() else 0.0)
-    dh32 = np.where(returns, h - zbar, 0.0).astype(np.float32)
-    hmin, hmax = (float(dh32[returns].min()), float(dh32[returns].max())) if any_ret else (0.0, 0.0)
+    dh32 = (h - zbar).astype(np.float32)
+    dh32[~returns] = 0.0
+    if any_ret:
+        ret32 = dh32[returns]
+        hmin, hmax = float(ret32.min()), float(ret32.max())
+        del ret32
+    else:
+        hmin, hmax = 0.0, 0.0
     zrel = zpos - zbar
     zeta = max(abs(float(zrel.max()) - hmin), abs(float(zrel.min()) - hmax))
     if reference_figure is not None:
@@ -337,8 +357,8 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     # undersampling diagnostic: phase step to the next sub-sample at the largest K
     k_top = float(tf.K[np.nonzero(tf.support >= 0)[0].max()]) if (tf.support >= 0).any() else 0.0
     lim = np.float32(math.pi / k_top) if k_top > 0 else np.float32(np.inf)
-    under = (np.count_nonzero((np.abs(np.diff(dh32, axis=1)) > lim) & returns[:, 1:] & returns[:, :-1])
-             + np.count_nonzero((np.abs(np.diff(dh32, axis=0)) > lim) & returns[1:, :] & returns[:-1, :]))
+    # (pairs of returning neighbours along rows and columns, in one compiled pass)
+    under = steps_over(dh32, returns, lim)
     under_frac = under / max(2 * int(returns.sum()), 1)
 
     # --- frequency grids (fine).  Only frequencies inside each axial bin's support (a
@@ -383,10 +403,9 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
             _by_rows(rows_pool, blocks, lambda r: np.multiply(cur[r], step[r], out=cur[r]))
         qb = float(tf.support[b]) * (1 + 1e-6)
         cols = np.nonzero(np.abs(qx) <= qb)[0]
-        # the FFT in place in a buffer kept for all bins (the same transform; a fresh
-        # 3072^2 array for each bin costs the system its pages again)
-        _by_rows(rows_pool, blocks, lambda r: np.copyto(specbuf[r], cur[r]))
-        spec = sfft.fft2(specbuf, workers=workers, overwrite_x=True)
+        # the FFT into a buffer kept for all bins (the same transform; a fresh 3072^2
+        # array for each bin costs the system its pages again)
+        spec = _fft2_into(cur, specbuf, workers, rows_pool, blocks)
         filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
                     inv_dq, s, coarse, index=ridx)
         del spec
@@ -421,6 +440,29 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     if xfield is not None:
         info["field"] = xfield.reshape(nfr, ho, wo)
     return out.reshape(nfr, ho, wo), info
+
+
+def _pocketfft():
+    """SciPy's own pocketfft module (what ``scipy.fft.fft2`` calls), or None."""
+    try:
+        from scipy.fft._pocketfft import pypocketfft
+    except ImportError:  # (another SciPy's layout)
+        return None
+    return pypocketfft if hasattr(pypocketfft, "c2c") else None
+
+
+def _fft2_into(x, out, workers, pool=None, blocks=()):
+    """``scipy.fft.fft2(x)`` written into ``out`` (complex64, x's shape), ``x`` left as
+    it is: SciPy's own transform (``fft2`` hands pocketfft's ``c2c`` the same axes, the
+    same normalisation and an output array), read from ``x`` instead of from a copy of
+    it; a copy and ``fft2`` in place where that module is not found."""
+    pfft = _pocketfft()
+    if (pfft is not None and x.dtype == np.complex64 and out.dtype == np.complex64
+            and x.shape == out.shape and x.ndim == 2 and x.flags.c_contiguous
+            and out.flags.c_contiguous):
+        return pfft.c2c(x, (0, 1), True, 0, out, int(workers))
+    _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
+    return sfft.fft2(out, workers=workers, overwrite_x=True)
 
 
 _TF_CACHE: dict = {}

@@ -35,6 +35,7 @@ from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
 from ._imaging import _Serial, _threads_allowed
+from ._kernels import pixel_means
 from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective, objective_names
@@ -383,13 +384,14 @@ def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsample
              {"x0": wx0, "y0": wy0, "width_mm": wx1 - wx0, "nx": nx, "ny": ny}]
     traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy), full_normals=True)
     z_sub, n_sub = traced[0]
-    h_sub = z_sub.astype(np.float64) + z_off
+    h_sub = np.add(z_sub, z_off, dtype=np.float64)  # (float64(z) + z_off, in one pass)
     # a sample outside the height map's own span is not part of the surface
     xs = x0 + (np.arange((nx + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
     ys = y0 + (np.arange((ny + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
-    outside = ((xs[None, :] < heightmap.x[0]) | (xs[None, :] > heightmap.x[-1])
-               | (ys[:, None] < heightmap.y[0]) | (ys[:, None] > heightmap.y[-1]))
-    h_sub[outside] = np.nan
+    out_x = (xs < heightmap.x[0]) | (xs > heightmap.x[-1])
+    out_y = (ys < heightmap.y[0]) | (ys > heightmap.y[-1])
+    if out_x.any() or out_y.any():  # (a field inside the map has none)
+        h_sub[out_y[:, None] | out_x[None, :]] = np.nan
     h_centre = traced[1][0].astype(np.float64) + z_off
     return h_sub, n_sub, h_centre
 
@@ -546,7 +548,10 @@ def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
     ny, nx = h_centre.shape
     m = int(margin) * s
     blk = np.asarray(h_sub[m:m + ny * s, m:m + nx * s], dtype=np.float64).reshape(ny, s, nx, s)
-    mean = _nanmean_quiet(blk, (1, 3))
+    # (the means in one compiled pass, the numbers of _nanmean_quiet: _kernels.pixel_means)
+    mean = pixel_means(np.asarray(h_sub), s, m, (ny, nx))
+    if mean is None:
+        mean = _nanmean_quiet(blk, (1, 3))
     truth = np.where(np.isfinite(h_centre), np.where(np.isfinite(mean), mean, h_centre), np.nan)
     unresolved = 0.0
     if s > 1:
@@ -556,8 +561,11 @@ def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
         z = blk.transpose(0, 2, 1, 3).reshape(ny * nx, s * s)
         ok = np.all(np.isfinite(z), axis=1)
         if ok.any():
-            coef = np.linalg.lstsq(a, z[ok].T, rcond=None)[0]
-            r = z[ok].T - a @ coef
+            # (the pixels with all their sub-samples, gathered once: every pixel of a
+            # field the surface fills, as the gathered copy lays them out)
+            zt = (np.ascontiguousarray(z) if ok.all() else z[ok]).T
+            coef = np.linalg.lstsq(a, zt, rcond=None)[0]
+            r = zt - a @ coef
             unresolved = float(np.sqrt(np.mean(r * r))) * MM_TO_NM
     return truth, unresolved
 

@@ -5,6 +5,7 @@ with its summary."""
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from ._interferometer import (
     render_interferogram,
     write_interferogram_exr,
 )
+from ._imaging import _Serial, _threads_allowed
 from ._modes import LIGHT_FRACTION
 from ._registry import register_instrument
 
@@ -54,17 +56,27 @@ def write_interferogram_outputs(out, ig, *, scene: dict | None = None) -> tuple[
     the summary and no figures (the true height stays in ``heightmap.exr``: an
     instrument's outputs show what it records)."""
     out = Path(out)
-    write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
+    # the fringe image is encoded in a thread while the EXR is written (in a process's
+    # main thread; elsewhere one after the other: _imaging._threads_allowed)
+    with ThreadPoolExecutor(max_workers=1) if _threads_allowed() else _Serial() as pool:
+        png = pool.submit(_fringe_png, ig)
+        write_interferogram_exr(out / "interferogram.exr", ig, scene=scene)
+        data = png.result()
+    atomic_write_bytes(out / "interferogram_fringes.png", data)
+    return interferogram_summary(ig), {}
+
+
+def _fringe_png(ig) -> bytes:
+    """The bytes of ``interferogram_fringes.png``: the intensity frame, row 0 = smallest
+    y drawn at the bottom, grey in RGB."""
     g = np.clip(ig.intensity, 0, 1)[::-1]
     rgb = np.repeat(g[..., None], 3, axis=2)
-    atomic_write_bytes(out / "interferogram_fringes.png",
-                       png_bytes_with_text((rgb * 255 + 0.5).astype(np.uint8),
-                                           {"mitsuba_variant": ig.variant, "mode": ig.mode,
-                                            "wavelength_nm": ig.wavelength_nm,
-                                            "numerical_aperture": ig.numerical_aperture,
-                                            "pixel_size_mm": ig.pixel, "seed": ig.seed,
-                                            "software_version": __version__}))
-    return interferogram_summary(ig), {}
+    return png_bytes_with_text((rgb * 255 + 0.5).astype(np.uint8),
+                               {"mitsuba_variant": ig.variant, "mode": ig.mode,
+                                "wavelength_nm": ig.wavelength_nm,
+                                "numerical_aperture": ig.numerical_aperture,
+                                "pixel_size_mm": ig.pixel, "seed": ig.seed,
+                                "software_version": __version__})
 
 
 def rendered_settings(ig, icfg) -> dict:

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
 
-__all__ = ["filter_fold", "frames_from_field", "radial_index"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine", "steps_over"]
 
 _KERNEL = None
 
@@ -162,3 +162,195 @@ def frames_from_field(x, light, rho_r, two_sr, out):
     """
     _frames_kernel(x, light, np.float32(rho_r), np.float32(two_sr), out)
     return out
+
+
+# ------------------------------------------- the facets' cosine after the PSF smoothing
+def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
+    """The weights SciPy's ``gaussian_filter1d`` correlates with (its own kernel, reversed
+    as it reverses it), radius ``int(truncate sigma + 0.5)``."""
+    from scipy.ndimage import _filters
+
+    radius = int(truncate * float(sigma) + 0.5)
+    return np.ascontiguousarray(_filters._gaussian_kernel1d(float(sigma), 0, radius)[::-1],
+                                dtype=np.float64)
+
+
+@njit(parallel=True, cache=True)
+def _wrap_axis0(u, w, out):
+    ny, nx = u.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        acc = np.empty(nx)
+        ui = u[i]
+        for q in range(nx):
+            acc[q] = np.float64(ui[q]) * w0
+        for jj in range(-r, 0):
+            a = u[(i + jj) % ny]
+            b = u[(i - jj) % ny]
+            wj = w[r + jj]
+            for q in range(nx):
+                acc[q] = acc[q] + (np.float64(a[q]) + np.float64(b[q])) * wj
+        for q in range(nx):
+            out[i, q] = np.float32(acc[q])
+
+
+@njit(parallel=True, cache=True)
+def _wrap_axis1_cosine(u0, u1, u2, w, out):
+    ny, nx = u0.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    for i in prange(ny):
+        pad = np.empty(nx + 2 * r)
+        acc = np.empty(nx)
+        sm = np.empty((3, nx), dtype=np.float32)
+        for k in range(3):
+            ui = u0[i] if k == 0 else (u1[i] if k == 1 else u2[i])
+            for q in range(nx + 2 * r):
+                pad[q] = np.float64(ui[(q - r) % nx])
+            for q in range(nx):
+                acc[q] = pad[q + r] * w0
+            for jj in range(-r, 0):
+                wj = w[r + jj]
+                for q in range(nx):
+                    acc[q] = acc[q] + (pad[q + r + jj] + pad[q + r - jj]) * wj
+            for q in range(nx):
+                sm[k, q] = np.float32(acc[q])
+        tiny = np.float32(1e-12)
+        for q in range(nx):
+            a, b, c = sm[0, q], sm[1, q], sm[2, q]
+            n = np.float32(math.sqrt(a * a + b * b + c * c))
+            out[i, q] = c / (n if n >= tiny else tiny)
+
+
+def smoothed_cosine(u0, u1, u2, sigma: float):
+    """The cosine of the smoothed facets' tilt: the three components of the unit normal
+    (float32, 0 where no light returns) each smoothed by SciPy's
+    ``gaussian_filter(u, sigma, mode="wrap")`` (axis 0, then axis 1, each pass rounded to
+    float32), then ``u2 / max(sqrt(u0^2 + u1^2 + u2^2), 1e-12)`` in float32: the same
+    numbers, to the last bit, as those array expressions, in two compiled passes threaded
+    over rows.  Returns None where the weights are not symmetric or the filter is longer
+    than the field (the caller then uses SciPy)."""
+    w = gaussian_weights(sigma)
+    r = (w.size - 1) // 2
+    ny, nx = u0.shape
+    if r >= min(ny, nx) or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
+        return None
+    t0, t1, t2 = (np.empty((ny, nx), dtype=np.float32) for _ in range(3))
+    for u, t in ((u0, t0), (u1, t1), (u2, t2)):
+        _wrap_axis0(np.ascontiguousarray(u, dtype=np.float32), w, t)
+    out = np.empty((ny, nx), dtype=np.float32)
+    _wrap_axis1_cosine(t0, t1, t2, w, out)
+    return out
+
+
+# ------------------------------------------------------------- the facets' orientation
+@njit(parallel=True, cache=True, error_model="numpy")
+def _facets_kernel(nrm, h, cos_t, fin, reached, u0, u1, u2):
+    ny, nx = h.shape
+    zero = np.float32(0.0)
+    for i in prange(ny):
+        for j in range(nx):
+            a = nrm[i, j, 0]
+            b = nrm[i, j, 1]
+            c = nrm[i, j, 2]
+            nn = np.float32(math.sqrt(a * a + b * b + c * c))
+            ct = c / nn
+            f = math.isfinite(h[i, j])
+            r = f and ct > 0
+            cos_t[i, j] = ct
+            fin[i, j] = f
+            reached[i, j] = r
+            u0[i, j] = a / nn if r else zero
+            u1[i, j] = b / nn if r else zero
+            u2[i, j] = c / nn if r else zero
+
+
+def facets(nrm, h):
+    """The facets' orientation from the traced normals (float32, any length) and heights
+    (float64, NaN: no surface), in one compiled pass threaded over rows, the same numbers
+    as the float32 array expressions ``nn = sqrt(n_x^2 + n_y^2 + n_z^2)``,
+    ``cos_t = n_z / nn``, ``reached = isfinite(h) & (cos_t > 0)`` and the unit normal
+    ``n / nn`` where reached (0 elsewhere).
+
+    Returns
+    -------
+    cos_t : (H, W) float32
+    fin, reached : (H, W) bool
+    unit : list of three (H, W) float32
+    """
+    nrm = np.ascontiguousarray(nrm, dtype=np.float32)
+    h = np.ascontiguousarray(h, dtype=np.float64)
+    shape = h.shape
+    cos_t = np.empty(shape, dtype=np.float32)
+    fin = np.empty(shape, dtype=bool)
+    reached = np.empty(shape, dtype=bool)
+    unit = [np.empty(shape, dtype=np.float32) for _ in range(3)]
+    _facets_kernel(nrm, h, cos_t, fin, reached, *unit)
+    return cos_t, fin, reached, unit
+
+
+# ------------------------------------------------------------- the truth's pixel means
+#: Most sub-samples per pixel side whose means :func:`pixel_means` computes (NumPy sums
+#: the rows of longer pixels pairwise, in eight partial sums).
+PIXEL_MEANS_MAX_S = 7
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _pixel_means_kernel(h, s, m, out):
+    ny, nx = out.shape
+    for i in prange(ny):
+        for j in range(nx):
+            tot = 0.0
+            cnt = 0
+            for a in range(s):
+                row = 0.0
+                for b in range(s):
+                    v = h[m + i * s + a, m + j * s + b]
+                    if v != v:
+                        v = 0.0
+                    else:
+                        cnt += 1
+                    row = row + v
+                tot = tot + row
+            out[i, j] = tot / cnt  # (no sample: 0 / 0, NaN)
+
+
+def pixel_means(h_sub, s: int, margin: int, shape):
+    """The mean of each camera pixel's ``s x s`` sub-samples of ``h_sub`` (float64, NaN:
+    none; the pixels start ``margin`` sub-samples in), NaN where none has a value: the
+    numbers of ``nanmean`` of the ``(ny, s, nx, s)`` blocks over axes 1 and 3 as NumPy
+    sums them (each row of a pixel in order, then the rows in order), in one compiled
+    pass threaded over rows.  Returns None for ``s`` above :data:`PIXEL_MEANS_MAX_S`."""
+    if int(s) > PIXEL_MEANS_MAX_S or int(s) < 1 or h_sub.dtype != np.float64:
+        return None
+    out = np.empty(shape, dtype=np.float64)
+    _pixel_means_kernel(h_sub, int(s), int(margin), out)
+    return out
+
+
+# --------------------------------------------------------- the under-sampling count
+@njit(parallel=True, cache=True)
+def _steps_over_kernel(dh, ret, lim, rows):
+    ny, nx = dh.shape
+    for i in prange(ny):
+        c = 0
+        for j in range(nx):
+            if not ret[i, j]:
+                continue
+            v = dh[i, j]
+            if j + 1 < nx and ret[i, j + 1] and abs(dh[i, j + 1] - v) > lim:
+                c += 1
+            if i + 1 < ny and ret[i + 1, j] and abs(dh[i + 1, j] - v) > lim:
+                c += 1
+        rows[i] = c
+
+
+def steps_over(dh32, returns, lim) -> int:
+    """How many pairs of neighbouring returning sub-samples (along rows and along
+    columns) differ by more than ``lim`` (float32, as ``np.abs(np.diff(dh32)) > lim``
+    compares), counted in one compiled pass threaded over rows."""
+    rows = np.zeros(np.shape(dh32)[0], dtype=np.int64)
+    _steps_over_kernel(np.ascontiguousarray(dh32, dtype=np.float32),
+                       np.ascontiguousarray(returns, dtype=np.bool_), np.float32(lim), rows)
+    return int(rows.sum())

@@ -187,7 +187,9 @@ def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0),
             comps = [dr.select(hit, c, 0.0) for c in (si.sh_frame.n.x, si.sh_frame.n.y,
                                                        si.sh_frame.n.z)]
             dr.eval(z, *comps)
-            n_out = np.stack([np.array(c, dtype=np.float32).reshape(ny, nx) for c in comps], axis=-1)
+            n_out = np.empty((ny, nx, 3), dtype=np.float32)  # (filled in place: no stack)
+            for i, c in enumerate(comps):
+                n_out[..., i] = np.asarray(c, dtype=np.float32).reshape(ny, nx)
         else:
             nz = dr.select(hit, si.sh_frame.n.z, 0.0)
             dr.eval(z, nz)
