@@ -308,7 +308,7 @@ def interference_intensity(heights, normals=None, *, pixel: float, subsamples: i
     del cos_t
     # the smoothing (SciPy's Gaussian filter, wrapped) and the cosine of the smoothed
     # facets in two compiled passes, the same numbers (_kernels.smoothed_cosine)
-    cos_s = smoothed_cosine(*unit, sig) if sig > 0.3 else None
+    cos_s = smoothed_cosine(unit[0], unit[1], unit[2], sig) if sig > 0.3 else None
     if cos_s is None:
         if sig > 0.3 and threaded:
             # the three components at once (SciPy's filter lets go of the interpreter)

@@ -223,7 +223,8 @@ def _wrap_axis1_cosine(u0, u1, u2, w, out):
             out[i, q] = c / (n if n >= tiny else tiny)
 
 
-def smoothed_cosine(u0, u1, u2, sigma: float):
+def smoothed_cosine(u0: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                    sigma: float) -> np.ndarray | None:
     """The cosine of the smoothed facets' tilt: the three components of the unit normal
     (float32, 0 where no light returns) each smoothed by SciPy's
     ``gaussian_filter(u, sigma, mode="wrap")`` (axis 0, then axis 1, each pass rounded to
@@ -266,7 +267,8 @@ def _facets_kernel(nrm, h, cos_t, fin, reached, u0, u1, u2):
             u2[i, j] = c / nn if r else zero
 
 
-def facets(nrm, h):
+def facets(nrm: np.ndarray, h: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
     """The facets' orientation from the traced normals (float32, any length) and heights
     (float64, NaN: no surface), in one compiled pass threaded over rows, the same numbers
     as the float32 array expressions ``nn = sqrt(n_x^2 + n_y^2 + n_z^2)``,
@@ -316,7 +318,8 @@ def _pixel_means_kernel(h, s, m, out):
             out[i, j] = tot / cnt  # (no sample: 0 / 0, NaN)
 
 
-def pixel_means(h_sub, s: int, margin: int, shape):
+def pixel_means(h_sub: np.ndarray, s: int, margin: int,
+                shape: tuple[int, int]) -> np.ndarray | None:
     """The mean of each camera pixel's ``s x s`` sub-samples of ``h_sub`` (float64, NaN:
     none; the pixels start ``margin`` sub-samples in), NaN where none has a value: the
     numbers of ``nanmean`` of the ``(ny, s, nx, s)`` blocks over axes 1 and 3 as NumPy
@@ -346,7 +349,7 @@ def _steps_over_kernel(dh, ret, lim, rows):
         rows[i] = c
 
 
-def steps_over(dh32, returns, lim) -> int:
+def steps_over(dh32: np.ndarray, returns: np.ndarray, lim: float | np.floating) -> int:
     """How many pairs of neighbouring returning sub-samples (along rows and along
     columns) differ by more than ``lim`` (float32, as ``np.abs(np.diff(dh32)) > lim``
     compares), counted in one compiled pass threaded over rows."""

@@ -4,8 +4,9 @@ dynamics (the one servo model), error motions, the material's response to the cu
 part's texture, burrs and residual statistics.  Scene-level processes are in :mod:`render_inspect.processes`."""
 
 from ..core.heightmap import HeightMap
-from ._axes import (Axis, Coupling, Machine, follow_axis, force_noise_rms, loop_lag, loop_response,
+from ._axes import (Axis, Coupling, follow_axis, force_noise_rms, loop_lag, loop_response,
                     second_order_sos, settle_time)
+from ._machine import Machine
 from ._follow import (FollowedPath, follow_turning, following_error_stats, mask_outside_sector,
                       window_margins)
 from ._interpolate import linear_command, pvt_command

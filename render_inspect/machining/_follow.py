@@ -6,13 +6,15 @@ that is left."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
-from ._axes import Machine, follow_axis, servo_ticks, settle_time
+from ._axes import follow_axis, servo_ticks, settle_time
+from ._machine import Machine
 from ._errmotion import apply_error_motions
 from ._interpolate import check_program, linear_command, pvt_command
 
@@ -86,7 +88,8 @@ def window_margins(machine: Machine) -> tuple[float, float]:
     return lead + max(tau, 0.0), max(-tau, 0.0) + 2.0 / float(machine.servo_rate_hz)
 
 
-def mask_outside_sector(theta, errors: dict, sector_rad) -> dict:
+def mask_outside_sector(theta: np.ndarray, errors: dict,
+                        sector_rad: Sequence[float]) -> dict:
     """``errors`` with NaN at the ticks whose commanded angle ``theta`` (rad, cumulative)
     lies outside the angular sector ``sector_rad`` (a0, a1): the following errors of a
     windowed plan are those of the passes over the window."""

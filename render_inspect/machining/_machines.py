@@ -40,7 +40,8 @@ from dataclasses import replace
 
 from ..core.errors import InputError
 from ..core.units import M_TO_MM, NM_TO_MM, STANDARD_GRAVITY_MM_S2, UM_TO_MM
-from ._axes import Axis, Coupling, Machine, force_noise_rms
+from ._axes import Axis, Coupling, force_noise_rms
+from ._machine import Machine
 from ._errmotion import ErrorMotions
 
 __all__ = ["MACHINE_PRESETS", "MACHINE_PRESET_NAMES", "machine_preset"]

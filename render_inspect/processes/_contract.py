@@ -398,7 +398,7 @@ class Process(ABC, Generic[InputsT]):
              region: Sequence[float] | None = None) -> Plan:
         """The machine program (whole part, or what reaches ``region``) and its facts."""
 
-    def plan_window(self, cfg: InputsT, surface, region) -> Plan:
+    def plan_window(self, cfg: InputsT, surface: Surface, region: Sequence[float]) -> Plan:
         """The program a simulation of ``region`` cuts, planned at the cost of the region
         (default: :meth:`plan` of the region; a turning process plans only the sectors of
         its revolutions that reach it).  Not a program to write out."""

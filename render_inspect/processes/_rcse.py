@@ -382,7 +382,8 @@ class RcseProcess(TiledTurningProcess):
     plan_window = Process.plan_window  # its own path: planned for the region as before
 
     def plan(self, cfg: TurningInputs, surface: Surface, *,
-             region: Sequence[float] | None = None) -> Plan:
+             region: Sequence[float] | None = None, sectors: bool = False) -> Plan:
+        # ``sectors`` is not used: this process plans its region as before (plan_window)
         plan = _plan(cfg, surface, region=region)
         plan.plots = self.program_plots(cfg, plan.program)
         return plan

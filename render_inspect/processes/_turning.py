@@ -9,7 +9,8 @@ import logging
 import math
 import time
 from pathlib import Path
-from typing import ClassVar, Literal, cast
+from collections.abc import Sequence
+from typing import Any, ClassVar, Literal, cast
 
 import numpy as np
 from pydantic import Field, model_serializer, model_validator
@@ -403,7 +404,7 @@ class TurningProcess(Process[TurningInputs]):
                                                 data or {})],
                                    "title": f"{cfg.name}: the axes that move"}}
 
-    def plan_window(self, cfg: TurningInputs, surface, region) -> Plan:
+    def plan_window(self, cfg: TurningInputs, surface: Any, region: Sequence[float]) -> Plan:
         """The spiral planned in full only over the sectors that reach ``region``
         (:func:`plan_spiral` with ``sectors``)."""
         return self.plan(cfg, surface, region=region, sectors=True)

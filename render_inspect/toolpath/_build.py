@@ -85,7 +85,7 @@ def region_radii(region: Sequence[float], margin: float) -> tuple[float, float]:
 SECTOR_FILL_PER_REV = 64
 
 
-def sector_angles(region, margin: float) -> tuple[float, float] | None:
+def sector_angles(region: Sequence[float], margin: float) -> tuple[float, float] | None:
     """The polar angles (rad, a0 <= a1 < a0 + pi) that ``region`` widened by ``margin`` (mm)
     spans seen from the spindle axis; None when the widened region holds the axis (every
     angle reaches it)."""
@@ -98,8 +98,9 @@ def sector_angles(region, margin: float) -> tuple[float, float] | None:
     return c + min(d), c + max(d)
 
 
-def sector_plan(theta: np.ndarray, region, margin: float, *, lead_rad: float,
-                lag_rad: float, fill_per_rev: int = SECTOR_FILL_PER_REV):
+def sector_plan(theta: np.ndarray, region: Sequence[float], margin: float, *, lead_rad: float,
+                lag_rad: float, fill_per_rev: int = SECTOR_FILL_PER_REV
+                ) -> tuple[np.ndarray | None, dict]:
     """Which points of a whole-revolution spiral (cumulative angles ``theta``) a plan of
     ``region`` keeps: every point whose angle lies in the sector the region (widened by
     ``margin``) spans, from ``lead_rad`` before it to ``lag_rad`` after it and four of the
@@ -281,15 +282,15 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
     # sectors would change the X command, which the machine follows
     if sectors is not None and region is not None and compensation != "normal":
         omega = TWO_PI * spindle_rpm / MIN_TO_S
-        keep, info = sector_plan(theta, area, margin, lead_rad=float(sectors[0]) * omega,
+        kept, info = sector_plan(theta, area, margin, lead_rad=float(sectors[0]) * omega,
                                  lag_rad=float(sectors[1]) * omega)
-        if keep is not None:
-            idx = np.flatnonzero(keep)
+        if kept is not None:
+            idx = np.flatnonzero(kept)
             full = np.zeros(idx.size, dtype=bool)
             full[:-1] = np.diff(idx) == 1
             theta, rho = theta[idx], rho[idx]
             meta["sectors"] = {**info, "lead_s": float(sectors[0]), "lag_s": float(sectors[1]),
-                               "points_whole_revolutions": int(keep.size)}
+                               "points_whole_revolutions": int(kept.size)}
 
     x, y = rho * np.cos(theta), rho * np.sin(theta)
     z_ccp = surface.height(x, y)
