@@ -43,23 +43,36 @@ def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
                                 dtype=np.float64)
 
 
+#: columns per block of the smoothing along axis 0: the 2 r + 1 rows of a block stay in
+#: the core's cache (161 rows of 512 columns, 660 kB, for the 20-pixel sigma of a 0.5 um grid)
+_SMOOTH_COLUMNS = 512
+
+
 @njit(parallel=True, cache=True)
-def _smooth_axis0(z, w, out):
+def _smooth_axis0(z, w, out, cw):
+    """Axis 0 of the smoothing into ``out`` (not ``z``), in blocks of ``cw`` columns:
+    each thread takes a run of blocks and walks down the rows of each, so that the rows a
+    window needs are still in the cache from the row before."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    for i in prange(ny):
-        acc = np.empty(nx)           # a row of its own: the loops below vectorise
-        zi = z[i]
-        for q in range(nx):
+    nc = (nx + cw - 1) // cw
+    for t in prange(ny * nc):
+        c = t // ny
+        i = t - c * ny
+        q0 = c * cw
+        m = min(q0 + cw, nx) - q0
+        acc = np.empty(m)            # a block of its own: the loops below vectorise
+        zi = z[i, q0:q0 + m]
+        for q in range(m):
             acc[q] = zi[q] * w0
         for jj in range(-r, 0):
-            a = z[min(max(i + jj, 0), ny - 1)]
-            b = z[min(max(i - jj, 0), ny - 1)]
+            a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
+            b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
             wj = w[r + jj]
-            for q in range(nx):
+            for q in range(m):
                 acc[q] = acc[q] + (a[q] + b[q]) * wj
-        out[i] = acc
+        out[i, q0:q0 + m] = acc
 
 
 @njit(parallel=True, cache=True)
@@ -94,7 +107,7 @@ def gaussian_nearest(z, sigma: float) -> np.ndarray:
 
         return ndimage.gaussian_filter(z, sigma, mode="nearest")
     out = np.empty_like(z)
-    _smooth_axis0(z, w, out)
+    _smooth_axis0(z, w, out, _SMOOTH_COLUMNS)
     _smooth_axis1(out, w, out)      # in place: each row is copied out before it is written
     return out
 
