@@ -29,6 +29,7 @@ from ..machining import (
     BURR_WIDTH_PER_CHIP,
     FollowedPath,
     Grooves,
+    add_texture_field,
     apply_burrs,
     cut_turning,
     design_grid,
@@ -39,7 +40,6 @@ from ..machining import (
     mechanics_facts,
     prepare_cut,
     simulate_turning,
-    texture_field,
     uncut_chip_thickness,
 )
 from ..toolpath import Tool, scallop_height
@@ -194,11 +194,10 @@ def add_texture(machined, resp, region, pixel, seed: int):
     measured rms (nm)."""
     x0, y0, x1, y1 = region
     ny, nx = machined.shape
-    tex = texture_field(x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
-                        rms=resp.texture_rms, correlation_length=resp.texture_length, seed=seed)
-    ok = np.isfinite(machined)
-    out = np.where(ok, machined + tex, machined)
-    return out, (float(np.sqrt(np.mean(tex[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0)
+    out, rms = add_texture_field(machined, x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
+                                 rms=resp.texture_rms, correlation_length=resp.texture_length,
+                                 seed=seed)
+    return out, rms * MM_TO_NM
 
 
 def material_burr_args(cfg, resp, path, tool) -> dict | None:
