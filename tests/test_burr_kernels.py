@@ -130,3 +130,17 @@ def test_machined_edges_match_the_array_definition(shape):
     ref[:, 1:] |= dx
     ref[:, :-1] |= dx
     assert np.array_equal(machined_edges(p, jump=math.pi), ref)
+
+
+def test_material_burrs_in_place_give_the_same_map():
+    """``overwrite``: the burrs added into the caller's array, the same numbers as on a copy."""
+    from render_inspect.machining import material_burrs
+
+    z = _maps()["ridge"]
+    kw = dict(pixel=0.001, chip_thickness=1e-4, coefficient=1.0, smoothing=0.002, width=3e-4,
+              edge_angle_deg=0.3, seed=3)
+    ref, info = material_burrs(z, z, **kw)
+    assert info["edge_pixels"] > 0 and not np.array_equal(ref, z)
+    mine = z.copy()
+    got, info2 = material_burrs(mine, z, overwrite=True, **kw)
+    assert got is mine and np.array_equal(got, ref) and info2 == info

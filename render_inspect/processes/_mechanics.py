@@ -289,8 +289,10 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             smoothing=max(feed, 2 * sim.pixel))
     elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
         t0 = time.perf_counter()
+        # (machined is this cut's own array: the burrs are added in place)
         machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
-                                                  origin=(region[0], region[1]), **args)
+                                                  origin=(region[0], region[1]),
+                                                  overwrite=True, **args)
         timing["burrs"] = time.perf_counter() - t0
     if plots and not fp.ideal:
         if pass_theta is None:
