@@ -298,6 +298,13 @@ def main(peer: str | None = None) -> dict:
                                                           pm["process_Msamples_per_s"]),
                 "command_cpu_vs_peer_matched_process_cpu": _ratio(
                     ours["command_Msamples_per_cpu_s"], pm["process_Msamples_per_cpu_s"]),
+                # CPU seconds, which a loaded machine inflates much less than wall time: our
+                # whole command (start-up and writing included) against the peer's surface
+                # alone, a lower bound of the toolpath + simulate ratio
+                "command_cpu_vs_peer_matched_surface_cpu": _ratio(
+                    ours["command_Msamples_per_cpu_s"], pm["surface_Msamples_per_cpu_s"]),
+                "command_cpu_vs_peer_example_surface_cpu": _ratio(
+                    ours["command_Msamples_per_cpu_s"], pe["surface_Msamples_per_cpu_s"]),
                 "kernel_vs_peer_matched": _ratio(row["ours_kernel"]["kernel_Msamples_per_s"],
                                                  pm["surface_Msamples_per_s"]),
                 "kernel_1thread_vs_peer_matched": _ratio(
