@@ -112,12 +112,13 @@ def plot_following_error(t, errors: dict, png_path, *, title: str | None = None,
             if r is not None:
                 ax.set_title(f"rms {r:.3g} {unit}, max {m:.3g} {unit}", fontsize=8, loc="right")
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(title or "following error (command - followed)")
+    suptitle = title or "following error (command - followed)"
+    fig.suptitle(suptitle)
     # the margins from the labels' own sizes (fonts 10, titles 8, suptitle 12 points)
     lab_h = _text_size(fig, "X (nm)", 10)[1]
     y_w = max(_widest(fig, ax.yaxis, 10)[0] for ax in axes[:, 0])
     x_w, x_h = _widest(fig, axes[-1, 0].xaxis, 10)
-    sup_h = _text_size(fig, fig._suptitle.get_text(), 12)[1]
+    sup_h = _text_size(fig, suptitle, 12)[1]
     ttl_h = _text_size(fig, "rms 1 nm", 8)[1] + _PAD if stats else 0.0
     _fixed_layout(fig, left=_EDGE + lab_h + _PAD + y_w + _TICK,
                   right=_EDGE + x_w / 2, top=2 * _EDGE + sup_h + _PAD + ttl_h,
