@@ -3,8 +3,8 @@ docs/benchmarks.json.  ``make bench`` runs this; ``make bench ONLY=sts`` runs on
 
 ``bench_peer.py`` compares against the open simulator PySurfSim, which is not part of this
 repository: it runs only when ``RENDER_INSPECT_PEER`` names a folder holding a copy
-(``make bench ONLY=peer RENDER_INSPECT_PEER=/path/to/copy``) and otherwise says so in one
-line and records ``{"skipped": ...}``."""
+(``make bench ONLY=peer RENDER_INSPECT_PEER=/path/to/copy``); otherwise it says in one
+line where to get one, measures this project's side only and records ``skipped_peer``."""
 
 from __future__ import annotations
 

@@ -83,6 +83,25 @@ def test_gaussian_matches_scipy_bit_for_bit(sigma):
     assert np.array_equal(K.gaussian_nearest(thin, sigma), ndimage.gaussian_filter(thin, sigma, mode="nearest"))
 
 
+@pytest.mark.parametrize("cw", [1, 5, 64, 512, 4096])
+def test_gaussian_column_blocks_match_scipy_bit_for_bit(cw):
+    """The smoothing along axis 0 in blocks of columns (a last partial block, a block
+    wider than the map) gives scipy's numbers."""
+    rng = np.random.default_rng(11)
+    z = np.cumsum(rng.normal(size=(41, 1100)), axis=1) * 1e-4
+    sigma = 3.2
+    w = K.gaussian_weights(sigma)
+    out = np.empty_like(z)
+    K._smooth_axis0(z, w, out, cw)
+    assert np.array_equal(out, ndimage.gaussian_filter1d(z, sigma, axis=0, mode="nearest"))
+    K._smooth_axis1(z, w, out, cw)
+    assert np.array_equal(out, ndimage.gaussian_filter1d(z, sigma, axis=1, mode="nearest"))
+    inplace = z.copy()
+    K._smooth_axis1(inplace, w, inplace, cw)
+    assert np.array_equal(inplace, out)
+    assert np.array_equal(K.gaussian_nearest(z, sigma), ndimage.gaussian_filter(z, sigma, mode="nearest"))
+
+
 def test_material_burrs_keep_their_numbers():
     z = _maps()["holes"]
     r = material_burr_block(z, pixel=0.001, chip_thickness=1e-4, coefficient=1.0, smoothing=0.002,
@@ -116,3 +135,17 @@ def test_machined_edges_match_the_array_definition(shape):
     ref[:, 1:] |= dx
     ref[:, :-1] |= dx
     assert np.array_equal(machined_edges(p, jump=math.pi), ref)
+
+
+def test_material_burrs_in_place_give_the_same_map():
+    """``overwrite``: the burrs added into the caller's array, the same numbers as on a copy."""
+    from render_inspect.machining import material_burrs
+
+    z = _maps()["ridge"]
+    kw = dict(pixel=0.001, chip_thickness=1e-4, coefficient=1.0, smoothing=0.002, width=3e-4,
+              edge_angle_deg=0.3, seed=3)
+    ref, info = material_burrs(z, z, **kw)
+    assert info["edge_pixels"] > 0 and not np.array_equal(ref, z)
+    mine = z.copy()
+    got, info2 = material_burrs(mine, z, overwrite=True, **kw)
+    assert got is mine and np.array_equal(got, ref) and info2 == info

@@ -30,6 +30,7 @@ from ._material import (
     MATERIAL_PRESETS,
     Material,
     MaterialResponse,
+    add_texture_field,
     contact_ratio,
     material_preset,
     material_response,
@@ -67,7 +68,7 @@ __all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", 
            "machined_edges", "mechanics_facts", "CutPath", "Grooves", "cut_fill", "cut_turning",
            "cutting_distance", "load_cut_kernels", "prepare_cut",
            "material_burrs", "edge_turns", "burr_height_law", "burr_halo", "material_burr_block", "material_burr_facts",
-           "BURR_WIDTH_PER_CHIP", "texture_field", "uncut_chip_thickness", "loop_lag",
+           "BURR_WIDTH_PER_CHIP", "texture_field", "add_texture_field", "uncut_chip_thickness", "loop_lag",
            "loop_response", "force_noise_rms", "MM_PER_KM", "WEAR_RATES", "WearRate", "spiral_distance_km",
            "wear_rate", "wear_state", "worn_path", "SPEED_LAW", "chemical_distance_km"]
 

@@ -43,27 +43,44 @@ def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
                                 dtype=np.float64)
 
 
+#: columns per block of the smoothing: along axis 0 the 2 r + 1 rows of a block stay in the
+#: core's cache (161 rows of 512 columns, 660 kB, for the 20-pixel sigma of a 0.5 um grid);
+#: along axis 1 a block's accumulators and its stretch of the row stay in the first level
+_SMOOTH_COLUMNS = 512
+
+
 @njit(parallel=True, cache=True)
-def _smooth_axis0(z, w, out):
+def _smooth_axis0(z, w, out, cw):
+    """Axis 0 of the smoothing into ``out`` (not ``z``), in blocks of ``cw`` columns:
+    each thread takes a run of blocks and walks down the rows of each, so that the rows a
+    window needs are still in the cache from the row before."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    for i in prange(ny):
-        acc = np.empty(nx)           # a row of its own: the loops below vectorise
-        zi = z[i]
-        for q in range(nx):
+    nc = (nx + cw - 1) // cw
+    for t in prange(ny * nc):
+        c = t // ny
+        i = t - c * ny
+        q0 = c * cw
+        m = min(q0 + cw, nx) - q0
+        acc = np.empty(m)            # a block of its own: the loops below vectorise
+        zi = z[i, q0:q0 + m]
+        for q in range(m):
             acc[q] = zi[q] * w0
         for jj in range(-r, 0):
-            a = z[min(max(i + jj, 0), ny - 1)]
-            b = z[min(max(i - jj, 0), ny - 1)]
+            a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
+            b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
             wj = w[r + jj]
-            for q in range(nx):
+            for q in range(m):
                 acc[q] = acc[q] + (a[q] + b[q]) * wj
-        out[i] = acc
+        out[i, q0:q0 + m] = acc
 
 
 @njit(parallel=True, cache=True)
-def _smooth_axis1(z, w, out):
+def _smooth_axis1(z, w, out, cw):
+    """Axis 1 of the smoothing (``out`` may be ``z``: each row is copied out, padded,
+    before it is written), in blocks of ``cw`` columns so that a block's accumulators
+    and the padded row around it stay in the core's first-level cache."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
@@ -72,16 +89,21 @@ def _smooth_axis1(z, w, out):
         zi = z[i]
         for q in range(nx + 2 * r):
             pad[q] = zi[min(max(q - r, 0), nx - 1)]
-        acc = np.empty(nx)
-        for q in range(nx):
-            acc[q] = pad[q + r] * w0
-        for jj in range(-r, 0):
-            wj = w[r + jj]
-            a = pad[r + jj:r + jj + nx]
-            b = pad[r - jj:r - jj + nx]
-            for q in range(nx):
-                acc[q] = acc[q] + (a[q] + b[q]) * wj
-        out[i] = acc
+        acc = np.empty(cw)
+        for q0 in range(0, nx, cw):
+            m = min(cw, nx - q0)
+            c = pad[q0 + r:q0 + r + m]
+            for q in range(m):
+                acc[q] = c[q] * w0
+            for jj in range(-r, 0):
+                wj = w[r + jj]
+                a = pad[q0 + r + jj:q0 + r + jj + m]
+                b = pad[q0 + r - jj:q0 + r - jj + m]
+                for q in range(m):
+                    acc[q] = acc[q] + (a[q] + b[q]) * wj
+            o = out[i, q0:q0 + m]
+            for q in range(m):
+                o[q] = acc[q]
 
 
 def gaussian_nearest(z, sigma: float) -> np.ndarray:
@@ -94,8 +116,8 @@ def gaussian_nearest(z, sigma: float) -> np.ndarray:
 
         return ndimage.gaussian_filter(z, sigma, mode="nearest")
     out = np.empty_like(z)
-    _smooth_axis0(z, w, out)
-    _smooth_axis1(out, w, out)      # in place: each row is copied out before it is written
+    _smooth_axis0(z, w, out, _SMOOTH_COLUMNS)
+    _smooth_axis1(out, w, out, _SMOOTH_COLUMNS)   # in place: each row is copied out first
     return out
 
 

@@ -337,7 +337,7 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
 def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_thickness: float,
                    coefficient: float, variation: float = 0.3, seed: int = 0,
                    edge_angle_deg: float = 1.0, smoothing: float = 0.0,
-                   width: float | None = None):
+                   width: float | None = None, overwrite: bool = False):
     """Add the burrs of the material model (module docstring) on the sharp edges of the
     machined surface.
 
@@ -358,10 +358,13 @@ def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_th
         feed marks).
     width : float, optional
         mm; default :data:`BURR_WIDTH_PER_CHIP` x ``chip_thickness``.
+    overwrite : bool
+        Add the burrs into ``machined`` itself when it is a float64 array (the caller no
+        longer needs the map without them): no copy of the map is made.
 
     Returns
     -------
-    machined : (ny, nx) float64, mm (a new array; NaN stays NaN)
+    machined : (ny, nx) float64, mm (a new array unless ``overwrite``; NaN stays NaN)
     info : dict
         ``model``, ``chip_thickness_um``, ``coefficient``, ``width_um``, ``edge_pixels``,
         ``turn_max_deg`` (largest turn at an edge), ``height_max_um`` (the law's largest
@@ -369,7 +372,8 @@ def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_th
     """
     check_range("chip_thickness", chip_thickness, 0.0, 1.0)
     w = BURR_WIDTH_PER_CHIP * chip_thickness if width is None else float(width)
-    machined = np.array(machined, dtype=np.float64, copy=True)
+    machined = (np.asarray(machined, dtype=np.float64) if overwrite
+                else np.array(machined, dtype=np.float64, copy=True))
     info = material_burr_facts(chip_thickness=chip_thickness, coefficient=coefficient,
                                variation=variation, seed=seed, edge_angle_deg=edge_angle_deg,
                                smoothing=smoothing, width=w)

@@ -31,6 +31,7 @@ from ..machining import (
     FollowedPath,
     Grooves,
     MaterialResponse,
+    add_texture_field,
     apply_burrs,
     cut_turning,
     design_grid,
@@ -42,7 +43,6 @@ from ..machining import (
     mechanics_facts,
     prepare_cut,
     simulate_turning,
-    texture_field,
     uncut_chip_thickness,
 )
 from ..toolpath import Tool, scallop_height
@@ -198,11 +198,10 @@ def add_texture(machined: np.ndarray, resp: MaterialResponse, region: Sequence[f
     measured rms (nm)."""
     x0, y0, x1, y1 = region
     ny, nx = machined.shape
-    tex = texture_field(x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
-                        rms=resp.texture_rms, correlation_length=resp.texture_length, seed=seed)
-    ok = np.isfinite(machined)
-    out = np.where(ok, machined + tex, machined)
-    return out, (float(np.sqrt(np.mean(tex[ok] ** 2)) * MM_TO_NM) if ok.any() else 0.0)
+    out, rms = add_texture_field(machined, x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
+                                 rms=resp.texture_rms, correlation_length=resp.texture_length,
+                                 seed=seed)
+    return out, rms * MM_TO_NM
 
 
 def material_burr_args(cfg, resp, path, tool) -> dict | None:
@@ -294,8 +293,10 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
             smoothing=max(feed, 2 * sim.pixel))
     elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
         t0 = time.perf_counter()
+        # (machined is this cut's own array: the burrs are added in place)
         machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
-                                                  origin=(region[0], region[1]), **args)
+                                                  origin=(region[0], region[1]),
+                                                  overwrite=True, **args)
         timing["burrs"] = time.perf_counter() - t0
     if plots and not fp.ideal:
         if pass_theta is None:

@@ -1,0 +1,68 @@
+"""The part's texture added in one compiled pass gives the numbers of the array
+expressions it replaced, to the last bit (the heights and the measured rms go into
+heightmap.exr and metrics.json, which are compared bit for bit across changes)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from render_inspect.machining import add_texture_field, texture_field
+
+
+def _reference(machined, x, y, *, rms, correlation_length, seed):
+    """The texture added as numpy array expressions (its definition)."""
+    rng = np.random.default_rng(seed)
+    k = rng.normal(0.0, 1.0 / correlation_length, size=(128, 2))
+    ph = rng.uniform(0.0, 2 * math.pi, size=128)
+    ax = np.multiply.outer(k[:, 0], x) + ph[:, None]
+    ay = np.multiply.outer(y, k[:, 1])
+    f = np.cos(ay) @ np.cos(ax) - np.sin(ay) @ np.sin(ax)
+    tex = f * (rms * math.sqrt(2.0 / 128)) if rms else np.zeros(f.shape)
+    ok = np.isfinite(machined)
+    out = np.where(ok, machined + tex, machined)
+    return out, (float(np.sqrt(np.mean(tex[ok] ** 2))) if ok.any() else 0.0)
+
+
+def _maps():
+    rng = np.random.default_rng(2)
+    y, x = np.mgrid[0:203, 0:317] * 0.001
+    z = 0.002 * np.sin(x / 0.05) * np.cos(y / 0.07) + rng.normal(scale=1e-6, size=x.shape)
+    holes = z.copy()
+    holes[::7, ::3] = np.nan
+    holes[5] = np.inf
+    holes[:, 11] = -np.inf
+    signed_zero = np.zeros((9, 13))
+    signed_zero[::2] = -0.0
+    return {"finite": z, "holes": holes, "all_nan": np.full((4, 6), np.nan),
+            "one_row": z[:1], "one_column": z[:, :1], "zeros": signed_zero}
+
+
+@pytest.mark.parametrize("name", list(_maps()))
+@pytest.mark.parametrize("rms", [0.0, 3e-6])
+def test_texture_pass_matches_the_array_expressions_bit_for_bit(name, rms):
+    m = _maps()[name]
+    ny, nx = m.shape
+    x = -0.3 + 0.001 * np.arange(nx)
+    y = 0.25 + 0.001 * np.arange(ny)
+    ref, ref_rms = _reference(m, x, y, rms=rms, correlation_length=0.03, seed=7)
+    got, got_rms = add_texture_field(m, x, y, rms=rms, correlation_length=0.03, seed=7)
+    assert got.dtype == np.float64 and got.shape == m.shape
+    assert np.array_equal(got.view(np.int64), ref.view(np.int64))   # NaN, -0.0 included
+    assert got_rms == ref_rms
+    assert got is not m and (name == "all_nan" or not np.array_equal(got, m) or rms == 0)
+
+
+def test_texture_field_keeps_its_numbers():
+    x = np.linspace(0.0, 0.4, 57)
+    y = np.linspace(-0.1, 0.2, 31)
+    ref, _ = _reference(np.zeros((31, 57)), x, y, rms=2e-6, correlation_length=0.05, seed=3)
+    assert np.array_equal(texture_field(x, y, rms=2e-6, correlation_length=0.05, seed=3) + 0.0, ref)
+
+
+def test_texture_pass_checks_the_grid():
+    from render_inspect.core.errors import InputError
+
+    with pytest.raises(InputError, match="grid's shape"):
+        add_texture_field(np.zeros((3, 4)), np.arange(5.0), np.arange(3.0), rms=1e-6,
+                          correlation_length=0.03, seed=0)
