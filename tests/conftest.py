@@ -142,8 +142,8 @@ def _write_groups_into_ids(config, items) -> None:
 
 def _heavy_work_first(config, items) -> None:
     """Under ``--dist loadgroup`` the scheduler hands out its work units (a group, or one
-    test) groups first, largest first, then the single tests in the order they are
-    collected; a worker takes the next unit when it is nearly idle.  A minutes-long single
+    test) by their number of tests, most first (so the groups, then the single tests in
+    the order they are collected); a worker takes the next unit when it is nearly idle.  A minutes-long single
     test collected late (the files run in alphabetical order) leaves the other worker idle
     at the end of the run, so the single tests that carry a heavy mark are collected first
     and the light ones fill the workers' last minutes.  The tests of a group keep their
