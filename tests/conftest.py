@@ -143,12 +143,12 @@ def _write_groups_into_ids(config, items) -> None:
 def _heavy_work_first(config, items) -> None:
     """Under ``--dist loadgroup`` the scheduler hands out its work units (a group, or one
     test) by their number of tests, most first (so the groups, then the single tests in
-    the order they are collected); a worker takes the next unit when it is nearly idle.  A minutes-long single
-    test collected late (the files run in alphabetical order) leaves the other worker idle
-    at the end of the run, so the single tests that carry a heavy mark are collected first
-    and the light ones fill the workers' last minutes.  The tests of a group keep their
-    order (a module fixture's parameters stay together).  Only on the workers of ``-n N``:
-    a run in one process keeps the order of the files."""
+    the order they are collected); a worker takes the next unit when it is nearly idle.
+    A minutes-long single test collected late (the files run in alphabetical order) leaves
+    the other worker idle at the end of the run, so the single tests that carry a heavy
+    mark are collected first and the light ones fill the workers' last minutes.  The tests
+    of a group keep their order (a module fixture's parameters stay together).  Only on
+    the workers of ``-n N``: a run in one process keeps the order of the files."""
     if not getattr(config.option, "loadgroup", False):
         return
 
