@@ -44,7 +44,7 @@ FIELD = (0.25, -0.1, 0.45, 0.1)
 #: the fit window (mm) of the two tests whose fit of the feed marks has no random parts'
 #: scatter to average down (the tool with the random parts set to 0; the feed alone, fixed
 #: by the marks' period): half the field's area, still 13 feed periods; the values come
-#: back well within the tests' 1 % (0.02-0.2 % off, measured)
+#: back well within the tests' 1 % (0.01-0.2 % off, measured)
 SMALL_WINDOW = 0.14
 
 
