@@ -140,6 +140,27 @@ def _write_groups_into_ids(config, items) -> None:
         item._id = new
 
 
+def _heavy_work_first(config, items) -> None:
+    """Under ``--dist loadgroup`` the scheduler hands out its work units (a group, or one
+    test) by their number of tests, most first (so the groups, then the single tests in
+    the order they are collected); a worker takes the next unit when it is nearly idle.
+    A minutes-long single test collected late (the files run in alphabetical order) leaves
+    the other worker idle at the end of the run, so the single tests that carry a heavy
+    mark are collected first and the light ones fill the workers' last minutes.  The tests
+    of a group keep their order (a module fixture's parameters stay together).  Only on
+    the workers of ``-n N``: a run in one process keeps the order of the files."""
+    if not getattr(config.option, "loadgroup", False):
+        return
+
+    def heavy_single(item) -> bool:
+        return (item.get_closest_marker("xdist_group") is None
+                and any(item.get_closest_marker(m) for m in HEAVY_MARKS))
+
+    first = [i for i in items if heavy_single(i)]
+    if first:
+        items[:] = first + [i for i in items if not heavy_single(i)]
+
+
 def pytest_configure(config):
     # pytest-xdist's mark, known also where pytest-xdist is not loaded (-p no:xdist)
     config.addinivalue_line("markers", "xdist_group(name): the tests of one group run on one "
@@ -153,6 +174,7 @@ def pytest_collection_modifyitems(config, items):
     checks both on a small suite)."""
     _group_by_shared_fixtures(items)
     result = yield
+    _heavy_work_first(config, items)
     _write_groups_into_ids(config, items)
     return result
 

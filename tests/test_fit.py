@@ -41,6 +41,11 @@ QUIET = ["machine.x.noise_nm=0", "machine.z.noise_nm=0", "machine.c.noise_urad=0
          "material.texture_nm=0"]
 #: the fitted field: 0.2 mm centred 0.35 mm from the spindle axis
 FIELD = (0.25, -0.1, 0.45, 0.1)
+#: the fit window (mm) of the two tests whose fit of the feed marks has no random parts'
+#: scatter to average down (the tool with the random parts set to 0; the feed alone, fixed
+#: by the marks' period): half the field's area, still 13 feed periods; the values come
+#: back well within the tests' 1 % (0.01-0.2 % off, measured)
+SMALL_WINDOW = 0.14
 
 
 # ------------------------------------------------------------------ parameters
@@ -391,7 +396,7 @@ def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, 
     args = ["fit", str(quiet_tool_truth), "--scene", "sts_sinusoidal_grid", "--free",
             "tool.nose_radius,process.feed_mm_per_min", "--seed", "1", "--profile-points", "1",
             "--predict", "process.feed_mm_per_min=0.4", "--cache", str(tmp_path / "cache"),
-            *[f"--set={s}" for s in QUIET]]
+            "--window", str(SMALL_WINDOW), *[f"--set={s}" for s in QUIET]]
     assert main([*args, "--out", str(tmp_path / "fit")]) == 0
     rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
     p = rec["parameters"]
@@ -537,8 +542,8 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
         assert main(["fit", str(shipped_tool_truth), "--scene", "sts_sinusoidal_grid",
                      "--free", "process.feed_mm_per_min", "--bounds",
                      "process.feed_mm_per_min=0.45,0.55", "--global", "4", "--scheduler",
-                     address, "--seed", "2", "--profile-points", "0", "--out",
-                     str(tmp_path / "fit"), "-q"]) == 0
+                     address, "--seed", "2", "--profile-points", "0", "--window",
+                     str(SMALL_WINDOW), "--out", str(tmp_path / "fit"), "-q"]) == 0
         rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
         assert rec["parameters"]["process.feed_mm_per_min"]["value"] == \
             pytest.approx(0.51, rel=0.01)

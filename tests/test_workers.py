@@ -93,3 +93,31 @@ def test_a_group_runs_on_one_worker_and_its_module_fixture_is_made_once(tmp_path
     assert len({w for _, _, w in shared}) == 1, lines
     used = [n for kind, n, _ in shared if kind == "used"]
     assert len(used) == 4 and all(n.endswith("@test_shared.built") for n in used), used
+
+
+def test_heavy_single_tests_are_handed_out_first():
+    """On the workers of ``--dist loadgroup`` the single tests that carry a heavy mark are
+    collected before the light ones (each keeping its order), the tests of a group keep
+    theirs; a run in one process keeps the files' order."""
+    from types import SimpleNamespace
+
+    from conftest import _heavy_work_first
+
+    class Item:
+        def __init__(self, name, *marks):
+            self.name, self.marks = name, marks
+
+        def get_closest_marker(self, mark):
+            return SimpleNamespace(name=mark) if mark in self.marks else None
+
+    items = [Item("light"), Item("slow", "slow"), Item("grouped slow", "slow", "xdist_group"),
+             Item("grouped light", "xdist_group"), Item("blender", "blender"),
+             Item("light too")]
+    got = list(items)
+    _heavy_work_first(SimpleNamespace(option=SimpleNamespace(loadgroup=True)), got)
+    assert [i.name for i in got] == ["slow", "blender", "light", "grouped slow",
+                                     "grouped light", "light too"]
+    for option in (SimpleNamespace(loadgroup=False), SimpleNamespace()):
+        got = list(items)
+        _heavy_work_first(SimpleNamespace(option=option), got)
+        assert got == items
