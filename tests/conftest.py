@@ -244,7 +244,7 @@ def _heavy_work_needs_a_mark(request, monkeypatch):
 # compilations are left out (a fresh checkout compiles the kernels in whichever test needs
 # them first), and so is a traced run (coverage, a debugger), which is slower by its nature.
 #: RENDER_INSPECT_QUICK_CPU_S changes the limit; 0 turns the check off
-QUICK_CPU_S = float(os.environ.get("RENDER_INSPECT_QUICK_CPU_S", "5"))
+QUICK_CPU_S = float(os.environ.get("RENDER_INSPECT_QUICK_CPU_S", "6"))
 _COMPILED = {"cpu_s": 0.0}
 _PHASE_CPU = pytest.StashKey[dict]()
 
