@@ -46,7 +46,8 @@ demo: setup
 
 # The test tiers (docs/contributing.md): test-quick is the developer's loop (units,
 # contracts, messages, small forward models; no process started, no render, no
-# simulation over 200,000 samples: tests/conftest.py fails a light test that does any);
+# simulation over 200,000 samples, no test over 6 s of CPU: tests/conftest.py fails a light
+# test that does any);
 # test is everything, CI's, on parallel workers (pytest-xdist from the lock).
 XDIST   ?= -n 2 --dist loadgroup
 QUICK   := not slow and not mitsuba and not blender and not browser and not gpu

@@ -8,6 +8,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 _HOME = Path(tempfile.mkdtemp(prefix="render_inspect_test_home_"))
@@ -256,3 +257,79 @@ def _heavy_work_needs_a_mark(request, monkeypatch):
     if still_light and not had_mitsuba and "mitsuba" in sys.modules:
         pytest.fail(f"{request.node.nodeid} imports Mitsuba (renders): mark it "
                     "@pytest.mark.mitsuba", pytrace=False)
+
+
+# ------------------------------------------------------------------------ quick tier's CPU
+# A test without a heavy mark must also be quick: more than QUICK_CPU_S seconds of CPU in
+# its set-up or in its call fails it, with the mark to add.  CPU time of the whole process
+# (all its threads), not wall time, so that a loaded machine does not fail a test; numba's
+# compilations are left out (a fresh checkout compiles the kernels in whichever test needs
+# them first), and so is a traced run (coverage, a debugger), which is slower by its nature.
+#: RENDER_INSPECT_QUICK_CPU_S changes the limit; 0 turns the check off
+QUICK_CPU_S = float(os.environ.get("RENDER_INSPECT_QUICK_CPU_S", "6"))
+_COMPILED = {"cpu_s": 0.0}
+_PHASE_CPU = pytest.StashKey[dict]()
+
+
+def _count_numba_compilations() -> None:
+    """Add the CPU time of numba's compilations (outermost ones) to ``_COMPILED``."""
+    try:
+        from numba.core import event
+    except ImportError:
+        return
+
+    class Compilations(event.Listener):
+        depth, start = 0, 0.0
+
+        def on_start(self, ev):
+            if self.depth == 0:
+                self.start = time.process_time()
+            self.depth += 1
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0:
+                _COMPILED["cpu_s"] += time.process_time() - self.start
+
+    event.register("numba:compile", Compilations())
+
+
+_count_numba_compilations()
+
+
+def _cpu_of_phase(item, when):
+    start, compiled = time.process_time(), _COMPILED["cpu_s"]
+    try:
+        return (yield)
+    finally:
+        item.stash.setdefault(_PHASE_CPU, {})[when] = (
+            time.process_time() - start - (_COMPILED["cpu_s"] - compiled))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item):
+    return (yield from _cpu_of_phase(item, "setup"))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    return (yield from _cpu_of_phase(item, "call"))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if (call.when != "call" or not report.passed or QUICK_CPU_S <= 0
+            or sys.gettrace() is not None
+            or any(item.get_closest_marker(m) for m in HEAVY_MARKS)):
+        return report
+    spent = item.stash.get(_PHASE_CPU, {})
+    over = [f"{spent[w]:.1f} s of CPU in its {w}" for w in ("setup", "call")
+            if spent.get(w, 0.0) > QUICK_CPU_S]
+    if over:
+        report.outcome = "failed"
+        report.longrepr = (f"{item.nodeid} took {' and '.join(over)} (more than "
+                           f"{QUICK_CPU_S:g} s): mark it @pytest.mark.slow (or another of "
+                           f"{', '.join(HEAVY_MARKS)}) so that `make test-quick` leaves it "
+                           "out, or make it cheaper")
+    return report

@@ -165,8 +165,9 @@ def _virtual_measurement(scene_path, tmp_path, *, scale=1.0):
 
 
 @pytest.mark.parametrize("which,reason", [
-    ("ski", "registration residual RMS"),
-    ("x3p-2", "overlaps 0.0% of the smaller"),
+    # the real files' registrations take several seconds each
+    pytest.param("ski", "registration residual RMS", marks=pytest.mark.slow),
+    pytest.param("x3p-2", "overlaps 0.0% of the smaller", marks=pytest.mark.slow),
     ("small", "lateral registration is undetermined"),
 ])
 def test_compare_refuses_a_mismatch_before_simulating(grid_scene, tmp_path, capsys, which, reason):
@@ -183,6 +184,7 @@ def test_compare_refuses_a_mismatch_before_simulating(grid_scene, tmp_path, caps
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_check_measured_accepts_the_design_and_reports_uncertainty(grid_scene, tmp_path):
     from render_inspect.design import make_surface
     from render_inspect.pipeline import check_measured, expected_sq_mm

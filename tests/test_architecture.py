@@ -3,6 +3,7 @@ which subpackage may import which, read from the AST of every module, imports in
 functions included, so a layer cannot be crossed unnoticed."""
 
 import ast
+import functools
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,8 @@ from pathlib import Path
 import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "render_inspect"
+#: one worker runs the checks, so each module is parsed once per run (see _tree)
+pytestmark = pytest.mark.xdist_group("architecture")
 ENGINES = {"mitsuba", "drjit", "bpy"}
 
 #: subpackage -> the subpackages it may import (besides itself and the package root's
@@ -61,11 +64,24 @@ def _unit(path: Path) -> str:
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
 
 
-def _project_imports(path: Path):
+@functools.lru_cache(maxsize=None)
+def _tree(path: Path) -> ast.Module:
+    """The module's syntax tree, parsed once per run: the checks below each walk every
+    module, and parsing them is most of their time."""
+    return ast.parse(path.read_text())
+
+
+@functools.lru_cache(maxsize=None)
+def _project_imports(path: Path) -> tuple:
+    """(target unit, line, inside a function, top-level name) for every import."""
+    return tuple(_scan_imports(path))
+
+
+def _scan_imports(path: Path):
     """(target unit, line, inside a function) for every import of a project module."""
     rel = path.relative_to(PKG)
     pkg_parts = ["render_inspect", *rel.parts[:-1]]
-    tree = ast.parse(path.read_text())
+    tree = _tree(path)
     funcs = [n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]
     inner = {id(n) for f in funcs for n in ast.walk(f) if n is not f}
     for node in ast.walk(tree):
@@ -146,9 +162,9 @@ def test_help_imports_no_heavy_module():
 
 def _private_target(path: Path, node) -> str | None:
     """The ``render_inspect.<pkg>._module`` an import reaches, if any."""
-    rel = path.relative_to(PKG)
     if isinstance(node, ast.ImportFrom):
         if node.level:
+            rel = path.relative_to(PKG)
             base = ["render_inspect", *rel.parts[:-1]][:len(rel.parts) - node.level + 1]
             mods = [".".join(base + ([node.module] if node.module else []))]
             if not node.module:
@@ -171,7 +187,7 @@ def test_no_module_reaches_into_another_subpackages_private_modules():
     """Subpackages meet through what their ``__init__`` exports."""
     offenders = []
     for py in _modules():
-        for node in ast.walk(ast.parse(py.read_text())):
+        for node in ast.walk(_tree(py)):
             target = _private_target(py, node)
             if target:
                 offenders.append(f"{py.relative_to(PKG)}:{node.lineno} imports {target}")
@@ -186,7 +202,7 @@ def test_the_pipeline_asks_a_process_nothing_but_its_hooks():
     for py in sorted((PKG / "pipeline").glob("*.py")):
         if py.name in NOT_STAGES:
             continue
-        for node in ast.walk(ast.parse(py.read_text())):
+        for node in ast.walk(_tree(py)):
             where = f"{py.name}:{getattr(node, 'lineno', 0)}"
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
                 if node.func.id == "hasattr":
@@ -216,7 +232,7 @@ def test_only_report_draws():
         for target, line, _, top in _project_imports(py):
             if top in DRAWING:
                 offenders.append(f"{py.relative_to(PKG)}:{line} imports {top}")
-        for node in ast.walk(ast.parse(py.read_text())):
+        for node in ast.walk(_tree(py)):
             if isinstance(node, ast.ImportFrom) and node.module == "PIL" and any(
                     a.name in ("ImageDraw", "ImageFont") for a in node.names):
                 offenders.append(f"{py.relative_to(PKG)}:{node.lineno} draws with PIL")
@@ -229,7 +245,7 @@ def test_metrics_json_is_written_in_one_place():
     for py in _modules():
         if py == PKG / "pipeline" / "_metrics.py":
             continue
-        for node in ast.walk(ast.parse(py.read_text())):
+        for node in ast.walk(_tree(py)):
             if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) \
                     in ("write_json", "atomic_write_text"):
                 for sub in ast.walk(node):
@@ -274,7 +290,7 @@ def _import_graph() -> dict:
     for name, path in files.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
         targets = set()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.Import):
                 found = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):

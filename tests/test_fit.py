@@ -150,6 +150,7 @@ def _synthetic(task):
     return z, {}
 
 
+@pytest.mark.slow
 def test_solver_recovers_an_analytic_model_and_resumes_from_its_cache(tmp_path):
     from render_inspect.fit import FreeParameter
 

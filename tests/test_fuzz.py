@@ -1205,6 +1205,7 @@ def _mutate_program(lines: list[str], kind: str, rng) -> list[str] | None:
     return out
 
 
+@pytest.mark.slow
 def test_fuzz_written_programs_are_verified_and_unsafe_ones_refused(tmp_path):
     """The NC program of every shipped scene is written, read back and verified (the
     toolpath command refuses to write one that fails); seeded unsafe changes of those

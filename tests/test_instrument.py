@@ -251,6 +251,7 @@ def test_csi_batwing_below_coherence_length_not_above():
     assert m.valid.mean() > 0.95
 
 
+@pytest.mark.slow
 def test_batwing_trends_follow_wavelength_and_na():
     # Zhang et al. 2024: narrower at shorter wavelength, wider at lower NA
     _, w600, _ = _batwing(60, lam=600.0, bw=120.0)
@@ -276,6 +277,7 @@ def test_psi_step_shows_2pi_ambiguity_csi_recovers_it():
 
 
 # ------------------------------------------------------------------ slopes, sphere, pixel
+@pytest.mark.slow
 def test_tilted_plane_contrast_fades_to_zero_at_asin_na():
     na, p = 0.4, 0.05 * UM
     mic = _mic(na, source=monochromatic(550.0, bandwidth_nm=10.0))

@@ -86,6 +86,7 @@ def test_dark_pixels_are_not_measured_whatever_the_file_says():
     assert loose.valid[:, 52:92].mean() > 0.5
 
 
+@pytest.mark.slow
 def test_csi_sphere_noise_beyond_the_slope_limit_is_not_measured():
     # a CSI sphere whose slopes reach 1.25 asin(NA): beyond asin(NA) no light returns, the
     # envelope there is noise.  Sampled finely enough that the steep facets cannot fold

@@ -112,6 +112,7 @@ def test_the_deviates_drawn_into_a_buffer_are_the_stream_drawn_fresh():
         assert _same(buf, fresh)
 
 
+@pytest.mark.slow
 def test_the_field_updated_in_threads_gives_the_frames_of_one_thread():
     from render_inspect.instruments import Microscope, interference_intensity, led
     from render_inspect.instruments._imaging import _exp_i, _row_blocks

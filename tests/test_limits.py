@@ -107,6 +107,7 @@ def test_toolpath_estimate_is_within_a_factor_of_the_measured_peak(over):
     assert peak / FACTOR <= est <= peak * FACTOR, (est, peak)
 
 
+@pytest.mark.slow
 def test_writers_stream_the_program(tmp_path):
     """NC and CSV writers hold a chunk of text, not the whole program: the writers' peak
     does not grow when the program doubles, and stays below the size of the text."""

@@ -153,6 +153,7 @@ def test_following_error_metrics_and_figures(tmp_path):
     assert_allclose(again.heightmap.machined, sim.heightmap.machined, rtol=0, atol=0)
 
 
+@pytest.mark.slow
 def test_seed004_rcse_against_the_conventional_path_on_the_sts_lathe():
     """With the STS lathe preset the grid-interpolated path's reciprocating X has at least
     ten times RCSE's following error, and RCSE lowers Sa and its spread over elements."""

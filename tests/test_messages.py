@@ -176,6 +176,7 @@ def test_force_compares_a_map_in_another_height_unit(tmp_path):
     assert any("compared anyway (--force)" in str(w.message) for w in caught)
 
 
+@pytest.mark.slow
 def test_compare_measured_takes_a_zarr_store(tmp_path, capsys):
     """``--measured heightmap.zarr`` (a folder) is a height map, not "file not found"."""
     from render_inspect.design import make_surface

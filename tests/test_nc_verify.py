@@ -91,7 +91,8 @@ def test_written_program_has_links_and_is_the_plan(kind, written):
         assert np.max(np.abs(b.axes[a][idx] - v)) <= 5.0001e-7, a
 
 
-@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k == "rcse" else k
+                                  for k in KINDS])  # (RCSE's two cuts take seconds)
 def test_program_read_back_simulates_as_planned(kind, written):
     """Parse the written program and cut it again: the surface equals the planned
     program's to the written places (1 nm in X and Z, 1e-6 deg in C)."""
