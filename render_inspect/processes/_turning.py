@@ -150,7 +150,7 @@ def plan_spiral(cfg, surface, *, region=None, sectors: bool = False):
     the path cuts (:func:`~render_inspect.toolpath.plan_feed`, the residual-height
     formulas of the compound sinusoidal grid study, eqs. 9-13), recorded in
     ``path.meta["scallop_plan"]``.  ``sectors`` (with ``region``): plan each revolution in
-    full only over the sector that reaches the region, with the lead the ``[machine]``
+    full only over the sector that reaches the region, with the settle lead the ``[machine]``
     needs before it (:func:`~render_inspect.machining.window_margins`): what a simulation
     of the region cuts, at the cost of the region (not a program to write out)."""
     p = cfg.process
@@ -382,7 +382,8 @@ class TurningProcess(Process[TurningInputs]):
 
     def plan(self, cfg: TurningInputs, surface, *, region=None, sectors: bool = False) -> Plan:
         t0 = time.perf_counter()
-        path = self.program(cfg, surface, region=region, sectors=sectors)
+        path = (self.program(cfg, surface, region=region, sectors=True) if sectors
+                else self.program(cfg, surface, region=region))
         facts = {"toolpath": toolpath_facts(path, cfg.process)}
         if program_path(cfg):
             facts["program"] = info = imported_facts(cfg, surface, path)
@@ -406,7 +407,11 @@ class TurningProcess(Process[TurningInputs]):
 
     def plan_window(self, cfg: TurningInputs, surface: Any, region: Sequence[float]) -> Plan:
         """The spiral planned in full only over the sectors that reach ``region``
-        (:func:`plan_spiral` with ``sectors``)."""
+        (:func:`plan_spiral` with ``sectors``).  A subclass that programs the spiral
+        otherwise (its own :meth:`program`: another time axis, other sampling) plans
+        whole revolutions: the sectors hold only for the spiral as planned here."""
+        if type(self).program is not TurningProcess.program:
+            return self.plan(cfg, surface, region=region)
         return self.plan(cfg, surface, region=region, sectors=True)
 
     def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
