@@ -11,6 +11,7 @@ and never hit).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -19,7 +20,8 @@ from ..core.errors import InputError, check_range
 __all__ = ["flat", "sinusoid", "sphere", "step", "subsample_grid", "tilted_plane"]
 
 
-def subsample_grid(shape, pixel: float, subsamples: int = 1, origin=(0.0, 0.0)):
+def subsample_grid(shape: Sequence[int], pixel: float, subsamples: int = 1,
+                   origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Coordinates of the sub-sample centres.
 
     Returns
@@ -38,21 +40,23 @@ def subsample_grid(shape, pixel: float, subsamples: int = 1, origin=(0.0, 0.0)):
     return x, y
 
 
-def _normals(gx, gy):
+def _normals(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
     n = np.stack(np.broadcast_arrays(-gx, -gy, np.ones_like(gx + gy)), axis=-1).astype(np.float64)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     return n.astype(np.float32)
 
 
-def flat(shape, pixel, subsamples=1, *, height=0.0, origin=(0.0, 0.0)):
+def flat(shape: Sequence[int], pixel: float, subsamples: int = 1, *, height: float = 0.0,
+         origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """A flat at ``height`` (mm)."""
     x, y = subsample_grid(shape, pixel, subsamples, origin)
     h = np.full((y.size, x.size), float(height))
     return h, _normals(np.zeros_like(h), np.zeros_like(h))
 
 
-def tilted_plane(shape, pixel, subsamples=1, *, angle: float, azimuth: float = 0.0,
-                 origin=(0.0, 0.0)):
+def tilted_plane(shape: Sequence[int], pixel: float, subsamples: int = 1, *, angle: float,
+                 azimuth: float = 0.0,
+                 origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """A plane tilted by ``angle`` (rad) about the field centre, rising along ``azimuth``
     (rad from +x)."""
     check_range("angle", angle, 0, math.pi / 2, hi_open=True)
@@ -64,8 +68,9 @@ def tilted_plane(shape, pixel, subsamples=1, *, angle: float, azimuth: float = 0
     return h, _normals(np.full_like(h, gx), np.full_like(h, gy))
 
 
-def sinusoid(shape, pixel, subsamples=1, *, period: float, amplitude: float, phase: float = 0.0,
-             origin=(0.0, 0.0)):
+def sinusoid(shape: Sequence[int], pixel: float, subsamples: int = 1, *, period: float,
+             amplitude: float, phase: float = 0.0,
+             origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """``h = amplitude cos(2 pi x / period + phase)`` (mm), lines along y."""
     check_range("period", period, 0, None, lo_open=True)
     x, y = subsample_grid(shape, pixel, subsamples, origin)
@@ -75,8 +80,9 @@ def sinusoid(shape, pixel, subsamples=1, *, period: float, amplitude: float, pha
     return h, _normals(g, np.zeros_like(h))
 
 
-def step(shape, pixel, subsamples=1, *, height: float, x0: float | None = None,
-         x1: float | None = None, origin=(0.0, 0.0)):
+def step(shape: Sequence[int], pixel: float, subsamples: int = 1, *, height: float,
+         x0: float | None = None, x1: float | None = None,
+         origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """A rectangular step: ``height`` (mm) for ``x0 <= x < x1``, 0 elsewhere.
 
     The default is the middle half of the field, so a periodic field holds one period of
@@ -91,7 +97,9 @@ def step(shape, pixel, subsamples=1, *, height: float, x0: float | None = None,
     return h, _normals(np.zeros_like(h), np.zeros_like(h))
 
 
-def sphere(shape, pixel, subsamples=1, *, radius: float, centre=None, origin=(0.0, 0.0)):
+def sphere(shape: Sequence[int], pixel: float, subsamples: int = 1, *, radius: float,
+           centre: Sequence[float] | None = None,
+           origin: Sequence[float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """A spherical cap of ``radius`` (mm; > 0 convex, < 0 concave), apex height 0 at
     ``centre`` (default the field centre); NaN beyond the sphere's equator."""
     if radius == 0 or not math.isfinite(radius):

@@ -108,7 +108,7 @@ def _fixed_patterns(camera: Camera, shape):
 
 
 def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0,
-           inplace: bool = False):
+           inplace: bool = False) -> tuple[np.ndarray, dict]:
     """Turn model intensities into camera frames.
 
     Parameters

@@ -41,7 +41,8 @@ from . import _artefacts as artefacts
 from ._microscope import Microscope, recommended_subsamples
 from ._modes import csi_frames, psi_frames
 from ._sampling import pupil_cutoff
-from ._interferometer import disturbances_from_config, microscope_from_config
+from ._interferometer import (InterferometerConfig, disturbances_from_config,
+                              microscope_from_config)
 from ._objectives import OBJECTIVES
 
 __all__ = ["characterise_instrument", "BATWING_STEPS_NM", "ITF_FRACTIONS"]
@@ -222,7 +223,7 @@ def _flat(mic, dist, *, mode, pixel, n, seed):
             "seeds": [seed, seed + 1]}, (a.height - b.height) / _NM
 
 
-def characterise_instrument(icfg, *, quick: bool = False, seed: int = 0) -> tuple[dict, dict]:
+def characterise_instrument(icfg: InterferometerConfig, *, quick: bool = False, seed: int = 0) -> tuple[dict, dict]:
     """Characterise the instrument of ``[render.interferometer]``.
 
     Returns

@@ -53,7 +53,7 @@ def _finite_range(h: np.ndarray) -> tuple[float, float]:
     return lo, hi
 
 
-def autofocus(heights, normals=None, *, pixel: float, subsamples: int = 1,
+def autofocus(heights: np.ndarray, normals: np.ndarray | None = None, *, pixel: float, subsamples: int = 1,
               microscope: Microscope | None = None, crop: int = 0) -> tuple[float, dict]:
     """The scanner position of best focus, from the fringe contrast on a coarse scan.
 

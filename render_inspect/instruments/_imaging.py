@@ -180,10 +180,12 @@ def _below_tilt(cos_t: np.ndarray, alpha: float) -> bool:
 
 
 # ------------------------------------------------------------------------- the model
-def interference_intensity(heights, normals=None, *, pixel: float, subsamples: int = 1,
-                           microscope: Microscope | None = None, z_positions,
-                           crop: int = 0, reference_figure=None, kz_tolerance: float = 0.5,
-                           workers: int | None = None, return_field: bool = False):
+def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = None, *,
+                           pixel: float, subsamples: int = 1,
+                           microscope: Microscope | None = None, z_positions: np.ndarray,
+                           crop: int = 0, reference_figure: np.ndarray | None = None,
+                           kz_tolerance: float = 0.5, workers: int | None = None,
+                           return_field: bool = False) -> tuple[np.ndarray, dict]:
     """Noise-free intensities of the interference microscope (the imaging model).
 
     Parameters

@@ -19,6 +19,7 @@ import dataclasses
 import json
 import logging
 import math
+from pathlib import Path
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
@@ -27,7 +28,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import InputError, MemoryBudgetError
-from ..core.frames import Frames
+from ..core import Frames, GridCoordinates, HeightMap
 from ..core.section import Length, Region, Section
 from ..core.units import MIB_TO_BYTES, MM_TO_NM
 from ..io import read_frames_exr, write_frames_exr
@@ -227,7 +228,7 @@ def disturbances_from_config(icfg: InterferometerConfig) -> Disturbances:
 
 
 # ---------------------------------------------------------------------------- geometry
-def interferometer_geometry(heightmap, icfg) -> dict:
+def interferometer_geometry(heightmap: GridCoordinates, icfg: InterferometerConfig) -> dict:
     """Resolve the objective preset and overrides into plain numbers.
 
     Returns a dict with ``objective``, ``numerical_aperture``, ``pixel`` (mm), ``nx``,
@@ -301,7 +302,7 @@ BYTES_PER_CSI_FRAME_PIXEL = 10
 RENDERER_BYTES = 160 * MIB_TO_BYTES
 
 
-def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
+def interferometer_memory(geom: dict, icfg: InterferometerConfig, *, mesh_cells: int = 0,
                           max_slope: float | None = None, grid_pixel: float | None = None) -> int:
     """Bytes the interferometer needs at its peak for the geometry ``geom``
     (:func:`interferometer_geometry`): the sub-sample rays over the field and its margin
@@ -340,7 +341,8 @@ def interferometer_memory(geom: dict, icfg, *, mesh_cells: int = 0,
                + frames * nx * ny * per_frame + mesh_cells * 2 * 48)
 
 
-def trace_heights(heightmap, geom: dict, *, surface: str = "machined", subsamples: int = 2):
+def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined",
+                  subsamples: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray-trace the mesh of one height-map channel through the objective.
 
     Rays that pass exactly through a mesh edge or vertex can slip between the two
@@ -420,7 +422,7 @@ def _window_of(heightmap, surface: str, window):
     return np.asarray(getattr(heightmap, surface)[iy[0]:iy[-1] + 1, ix[0]:ix[-1] + 1])
 
 
-def surface_sampling(heightmap, surface: str, geom: dict, mic, *, s_rec: int,
+def surface_sampling(heightmap: HeightMap, surface: str, geom: dict, mic: Microscope, *, s_rec: int,
                      fixed: bool = False) -> tuple[int, dict]:
     """Sub-samples per pixel side for ``heightmap``'s ``surface`` channel over the traced
     window (:mod:`._sampling`): at least ``s_rec`` (the pupil and the slopes'), more where
@@ -456,7 +458,8 @@ def surface_sampling(heightmap, surface: str, geom: dict, mic, *, s_rec: int,
 
 
 # -------------------------------------------------------------------------- top level
-def render_interferogram(heightmap, icfg=None, *, surface: str = "machined", seed: int = 0) -> Interferogram:
+def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None = None, *,
+                         surface: str = "machined", seed: int = 0) -> Interferogram:
     """Render the virtual interference microscope over a height map.
 
     Parameters
@@ -539,7 +542,8 @@ def _nanmean_quiet(a, axis):
         return np.true_divide(tot, cnt, out=tot, casting="unsafe")
 
 
-def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
+def pixel_truth(h_sub: np.ndarray, h_centre: np.ndarray, *, s: int,
+                margin: int) -> tuple[np.ndarray, float]:
     """The truth as the camera samples it: the mean of the ``s x s`` traced sub-samples
     over each camera pixel (NaN where the pixel centre's ray missed), and the rms (nm) of
     the texture finer than the pixel (the sub-samples about their pixel's plane; 0 with
@@ -570,7 +574,8 @@ def pixel_truth(h_sub, h_centre, *, s: int, margin: int):
     return truth, unresolved
 
 
-def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = None):
+def write_interferogram_exr(path: str | Path, ig: Interferogram, *,
+                            scene: dict | None = None) -> Path:
     """Write ``interferogram.exr``: the frames and settings
     (:func:`~render_inspect.io.write_frames_exr`) plus the truth channels ``height_true``
     (mm, NaN where missed) and ``accepted_fraction``, and ``scene`` (JSON) in the header."""
@@ -582,7 +587,7 @@ def write_interferogram_exr(path, ig: Interferogram, *, scene: dict | None = Non
                                    "surface": ig.surface})
 
 
-def read_interferogram_exr(path) -> Interferogram:
+def read_interferogram_exr(path: str | Path) -> Interferogram:
     """Read an ``interferogram.exr`` written by :func:`write_interferogram_exr`."""
     frames, extra, attrs = read_frames_exr(path)
     if "height_true" not in extra:

@@ -5,15 +5,19 @@ with its summary."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .. import __version__
+from ..core import GridCoordinates
 from ..core.limits import Driver
 from ..io import atomic_write_bytes, png_bytes_with_text
 from ._interferometer import (
+    Interferogram,
     InterferometerConfig,
     interferometer_geometry,
     interferometer_memory,
@@ -28,7 +32,7 @@ __all__ = ["write_interferogram_outputs", "interferogram_summary", "interferomet
            "interferometer_field", "rendered_settings"]
 
 
-def interferogram_summary(ig) -> dict:
+def interferogram_summary(ig: Interferogram) -> dict:
     """What ``render_metrics.json`` and ``compare``'s metrics say of an interferogram.
     ``valid_fraction`` is the simulation's estimate of where light returns (the object
     beam alone at least 5 % of a mirror's: truth, not what the instrument measures);
@@ -50,7 +54,7 @@ def interferogram_summary(ig) -> dict:
             "surface": ig.surface, "mitsuba_variant": ig.variant}
 
 
-def write_interferogram_outputs(out, ig, *, scene: dict | None = None) -> tuple[dict, dict]:
+def write_interferogram_outputs(out: str | Path, ig: Interferogram, *, scene: dict | None = None) -> tuple[dict, dict]:
     """Write ``interferogram.exr`` and ``interferogram_fringes.png`` (the intensity frame as
     the camera records it, row 0 = smallest y drawn at the bottom) into ``out``; return
     the summary and no figures (the true height stays in ``heightmap.exr``: an
@@ -79,7 +83,7 @@ def _fringe_png(ig) -> bytes:
                                 "software_version": __version__})
 
 
-def rendered_settings(ig, icfg) -> dict:
+def rendered_settings(ig: Interferogram, icfg: InterferometerConfig) -> dict:
     """The interferometer settings as rendered: the scene's keys with the preset values
     resolved (wavelength, NA, pixel, field of view)."""
     d = icfg.model_dump(mode="json")
@@ -97,7 +101,7 @@ def rendered_settings(ig, icfg) -> dict:
     return d
 
 
-def interferometer_field(grid, icfg) -> dict:
+def interferometer_field(grid: GridCoordinates, icfg: InterferometerConfig) -> dict:
     """The field the interferometer images on ``grid`` (:func:`interferometer_geometry`),
     with ``settings``: ``icfg`` fixed on that field (the same image from a crop of the
     map)."""
@@ -107,7 +111,8 @@ def interferometer_field(grid, icfg) -> dict:
             "settings": icfg.model_copy(update={"field_of_view": window})}
 
 
-def interferometer_needs(grid, icfg, *, slope=None) -> tuple[int, str, list]:
+def interferometer_needs(grid: GridCoordinates, icfg: InterferometerConfig, *,
+                         slope: Callable[[Any], float] | None = None) -> tuple[int, str, list]:
     """(bytes, what, drivers) of the interferometer over ``grid`` (a height map's grid):
     the rays, frames and mesh of its field (:func:`interferometer_memory`); ``slope`` is
     called with the traced window to get the design's largest slope (rad) when the

@@ -78,7 +78,8 @@ def _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table, s_
     return out
 
 
-def radial_index(qy2, qx2, inv_dq, nq):
+def radial_index(qy2: np.ndarray, qx2: np.ndarray, inv_dq: float | np.floating,
+                 nq: int) -> np.ndarray:
     """The transfer function's radial sample of every fine frequency, ``round(|Q| inv_dq)``
     (at most ``nq``: beyond the table), computed as :func:`filter_fold` computes it, once
     for all axial bins (int16, or int32 for tables longer than int16 holds)."""
@@ -87,8 +88,10 @@ def radial_index(qy2, qx2, inv_dq, nq):
     return out
 
 
-def filter_fold(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, s_fold, out,
-                index=None):
+def filter_fold(spec: np.ndarray, row_ok: np.ndarray, qy2: np.ndarray, sepy: np.ndarray,
+                cols: np.ndarray, ccols: np.ndarray, qx2: np.ndarray, sepx: np.ndarray,
+                table: np.ndarray, inv_dq: float | np.floating, s_fold: int, out: np.ndarray,
+                index: np.ndarray | None = None) -> np.ndarray:
     """Multiply a fine-grid spectrum by the transfer function of one axial bin and by the
     pixel-box/centring factors, and fold it onto the camera grid.
 
@@ -146,7 +149,8 @@ def _frames_kernel(x, light, rho_r, two_sr, out):
             out[f, p] = o if (o >= 0 or o != o) else np.float32(0.0)
 
 
-def frames_from_field(x, light, rho_r, two_sr, out):
+def frames_from_field(x: np.ndarray, light: np.ndarray, rho_r: float | np.floating,
+                      two_sr: float | np.floating, out: np.ndarray) -> np.ndarray:
     """The frames' intensities from the interference term of a block of pixels:
     ``out[f] = max(light, max_f |x_f|^2) + rho_r + two_sr Re x_f``, floored at 0, in
     float32 with the operations (and their rounding) of the array expressions

@@ -8,9 +8,11 @@ mirror's figure), with the sampling the imaging model needs
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 from ..core.lazy import lazy_attr
 
 from ..core.errors import check_range
@@ -79,7 +81,7 @@ class Microscope:
         k_eff, _ = flat_moments(self.na, self.na_ill, self.obscuration, k, w)
         return 4 * math.pi / k_eff / NM_TO_MM
 
-    def itf(self, frequency) -> np.ndarray:
+    def itf(self, frequency: ArrayLike) -> np.ndarray:
         """Instrument transfer function in the linear regime (:func:`linear_itf`) at
         ``frequency`` (cycles/mm), without the camera pixel's box filter."""
         return linear_itf(self.na, self.na_ill, self.obscuration, self.source, frequency)
@@ -157,7 +159,7 @@ class Disturbances:
     def describe(self) -> dict:
         return asdict(self)
 
-    def reference_figure(self, shape, pixel: float) -> np.ndarray | None:
+    def reference_figure(self, shape: Sequence[int], pixel: float) -> np.ndarray | None:
         """The reference mirror's figure error on the camera grid, mm (None if off)."""
         if self.reference_figure_rms_nm <= 0:
             return None
@@ -170,7 +172,7 @@ class Disturbances:
         return w * (self.reference_figure_rms_nm * NM_TO_MM / rms) if rms > 0 else np.zeros(shape)
 
     def positions(self, nominal_mm: np.ndarray, *, seed: int, origin_mm: float | None = None,
-                  scale: bool = True):
+                  scale: bool = True) -> np.ndarray:
         """Actual scanner positions during each frame's exposure, mm.
 
         Parameters

@@ -7,6 +7,7 @@ intensities (:mod:`._imaging`) exposed on the camera, returned as
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -83,11 +84,11 @@ def _exposed_frames(h, normals, mic, dist, zact, *, pixel, subsamples, crop, kz_
     return frames, info, cam
 
 
-def psi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
+def psi_frames(heights: np.ndarray, normals: np.ndarray | None = None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, steps: int = 5,
                step_rad: float = math.pi / 2, z_ref: float | None = None,
                disturbances: Disturbances | None = None, seed: int = 0,
-               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               origin: Sequence[float] = (0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
                diagnostics: dict | None = None) -> Frames:
     """Phase-shifting (PSI) frames of a surface.
 
@@ -187,11 +188,11 @@ def check_scan_covers(h_min: float, h_max: float, mic: Microscope, *,
     return need
 
 
-def csi_frames(heights, normals=None, *, pixel: float, subsamples: int = 1,
+def csi_frames(heights: np.ndarray, normals: np.ndarray | None = None, *, pixel: float, subsamples: int = 1,
                microscope: Microscope | None = None, scan_step_nm: float | None = None,
                frames: int | None = None, scan_start: float | None = None,
                disturbances: Disturbances | None = None, seed: int = 0,
-               origin=(0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
+               origin: Sequence[float] = (0.0, 0.0), crop: int = 0, kz_tolerance: float = 0.5,
                diagnostics: dict | None = None) -> Frames:
     """Coherence-scanning (CSI) frames: the scanner moves focus and zero path difference
     through the surface, one frame per step.

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 from ..core.errors import InputError, check_range
 from ..core.plugins import Registry
@@ -109,7 +110,7 @@ def objective_names() -> list[str]:
     return sorted(OBJECTIVES, key=lambda n: (OBJECTIVES[n].magnification, n))
 
 
-def objective(name: str = "20x", **overrides) -> Objective:
+def objective(name: str = "20x", **overrides: Any) -> Objective:
     """An objective preset with optional overrides.
 
     Parameters

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.errors import InputError, check_range
 from ..core.units import NM_TO_MM
@@ -76,7 +77,7 @@ class Source:
             hi = self.wavelength_nm + _GAUSS_SPAN_FWHM * self.bandwidth_nm
         return 2 * math.pi / (hi * NM_TO_MM), 2 * math.pi / (lo * NM_TO_MM)
 
-    def density_per_wavelength(self, wavelength_nm) -> np.ndarray:
+    def density_per_wavelength(self, wavelength_nm: ArrayLike) -> np.ndarray:
         """Relative power per unit wavelength (unnormalised) at ``wavelength_nm``."""
         lam = np.asarray(wavelength_nm, dtype=np.float64)
         if self.kind == "table":
@@ -150,7 +151,7 @@ def led(wavelength_nm: float = 600.0, *, bandwidth_nm: float = 120.0) -> Source:
     return Source("led", float(wavelength_nm), float(bandwidth_nm))
 
 
-def spectrum_table(wavelength_nm, weight) -> Source:
+def spectrum_table(wavelength_nm: ArrayLike, weight: ArrayLike) -> Source:
     """A tabulated spectrum (e.g. an LED's datasheet curve).
 
     Parameters

@@ -28,6 +28,7 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -132,7 +133,8 @@ def _store(folder: Path, path: Path, key: str, arrays: dict) -> None:
                 pass
 
 
-def cached_arrays(name: str, args: dict, module_file: str | tuple[str, ...], build) -> dict:
+def cached_arrays(name: str, args: dict, module_file: str | tuple[str, ...],
+                  build: Callable[[], dict]) -> dict:
     """The arrays ``build()`` returns (a dict of numpy arrays) for the table ``name`` with
     arguments ``args``, read from the cache when an entry for them is there and whole,
     else built and written to it."""

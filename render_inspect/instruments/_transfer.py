@@ -50,6 +50,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.units import MM_TO_NM
@@ -95,7 +96,8 @@ def _illumination_points(na_ill: float, obscuration_na: float, n_grid: int):
 
 @lru_cache(maxsize=32)
 def unit_transfer_table(na: float, na_ill: float, obscuration: float = 0.0, *,
-                        n_u: int = 385, n_kappa: int = 512, n_grid: int = 112):
+                        n_u: int = 385, n_kappa: int = 512,
+                        n_grid: int = 112) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The transfer function for unit wavenumber, ``G(u, kappa)``.
 
     ``u = |Q| / k`` and ``kappa = K / k``; for wavenumber ``k``,
@@ -164,7 +166,7 @@ def _unit_transfer_table(*, na, na_ill, obscuration, n_u, n_kappa, n_grid):
 
 @lru_cache(maxsize=32)
 def acceptance_table(na: float, na_ill: float, obscuration: float = 0.0, *, n_alpha: int = 2049,
-                     n_grid: int = 112):
+                     n_grid: int = 112) -> tuple[np.ndarray, np.ndarray]:
     """Fraction of the illumination that a tilted mirror facet reflects into the pupil.
 
     Geometric optics (specular reflection of each illumination direction about the
@@ -209,7 +211,8 @@ def _acceptance_table(*, na, na_ill, obscuration, n_alpha, n_grid):
     return alpha, frac
 
 
-def flat_moments(na: float, na_ill: float, obscuration: float, k: np.ndarray, weight: np.ndarray):
+def flat_moments(na: float, na_ill: float, obscuration: float, k: np.ndarray,
+                 weight: np.ndarray) -> tuple[float, float]:
     """Mean and rms width of the axial frequency ``K`` for a flat mirror (``Q = 0``).
 
     Returns
@@ -283,7 +286,7 @@ class TransferFunction:
         return 4 * math.pi / self.k_eff * MM_TO_NM
 
 
-def transfer_function(na: float, na_ill: float, obscuration: float, source, *, dK: float,
+def transfer_function(na: float, na_ill: float, obscuration: float, source: _sources.Source, *, dK: float,
                       n_q: int = _N_Q) -> TransferFunction:
     """Tabulate the transfer function on axial bins of spacing ``dK``.
 
@@ -366,7 +369,8 @@ def _transfer_arrays(na, na_ill, obscuration, source, *, dK, n_q) -> dict:
             "sigma_k": np.float64(sigma_k), "dK": np.float64(dK), "support": support}
 
 
-def linear_itf(na: float, na_ill: float, obscuration: float, source, frequency) -> np.ndarray:
+def linear_itf(na: float, na_ill: float, obscuration: float, source: _sources.Source,
+               frequency: ArrayLike) -> np.ndarray:
     """Instrument transfer function of the linear (small-height) regime.
 
     A height sinusoid of small amplitude ``a`` (``K a << 1``) at spatial frequency ``f``
