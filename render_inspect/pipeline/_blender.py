@@ -138,7 +138,7 @@ def simulate_variants(scene_path: str | Path, *, overrides: Iterable[str] = (), 
     result: dict[str, Any] = {"scene_name": scene.name, "out": str(out.resolve()),
                               "surface": surface,
                               "pair": {"key": pair.key, "about": pair.about}, "variants": {}}
-    first = None
+    first: Any = None  # (the first variant's HeightMap)
     # the variant folders are replaced; what else the add-on wrote there (compare/,
     # export/) is kept
     with atomic_output_dir(out, merge=True, command="blender simulate",

@@ -17,7 +17,8 @@ import re
 import tempfile
 import time
 from pathlib import Path
-from typing import cast
+from collections.abc import Callable, Sequence
+from typing import Any, cast
 
 import numpy as np
 from pydantic import ValidationError
@@ -26,6 +27,7 @@ from .. import __version__
 from ..core.errors import InputError, SceneError, check_positive, check_range
 from ..core.heightmap import HeightMap
 from ..io import atomic_output_dir, save_png, write_exr
+from ..mesh import GridMesh
 from ._cycles_scene import (  # the scene (importable from here as before)
     ALUMINIUM_ETA,
     ALUMINIUM_K,
@@ -100,9 +102,9 @@ def _grid_mesh_arrays(heights: np.ndarray, *, pixel: float, origin, exaggeration
     return verts.reshape(-1, 3).astype(np.float32), quads[keep].reshape(-1, 4).astype(np.int32)
 
 
-def heightmap_object(heights: np.ndarray, *, pixel: float, origin=(0.0, 0.0),
-                     exaggeration: float = 1.0, name: str = OBJECT_NAME, collection=None,
-                     surface: str = "machined", metadata: dict | None = None):
+def heightmap_object(heights: np.ndarray, *, pixel: float, origin: Sequence[float] = (0.0, 0.0),
+                     exaggeration: float = 1.0, name: str = OBJECT_NAME, collection: Any = None,
+                     surface: str = "machined", metadata: dict | None = None) -> Any:
     """Build (or replace) a Blender mesh object from a height grid.
 
     Parameters
@@ -166,8 +168,8 @@ def heightmap_object(heights: np.ndarray, *, pixel: float, origin=(0.0, 0.0),
     return obj
 
 
-def surface_object(heightmap, *, surface: str = "machined", exaggeration: float = 1.0,
-                   name: str = OBJECT_NAME, collection=None):
+def surface_object(heightmap: HeightMap, *, surface: str = "machined", exaggeration: float = 1.0,
+                   name: str = OBJECT_NAME, collection: Any = None) -> Any:
     """:func:`heightmap_object` for a :class:`~render_inspect.machining.HeightMap`.
 
     ``surface`` picks the layer: "machined", "design" or "residual" (machined - design).
@@ -195,7 +197,7 @@ def remove_object(name: str) -> None:
             bpy.data.meshes.remove(mesh)
 
 
-def object_heights(obj) -> np.ndarray:
+def object_heights(obj: Any) -> np.ndarray:
     """The (ny, nx) z values of a mesh made by :func:`heightmap_object`, divided by its
     exaggeration (mm)."""
     ny, nx = (int(v) for v in obj[PROP_SHAPE])
@@ -208,8 +210,8 @@ def object_heights(obj) -> np.ndarray:
 # rendering (the scene: :mod:`._cycles_scene`)
 
 
-def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
-                threads: int | None = None, progress=None) -> tuple[np.ndarray, float]:
+def render_spec(obj: Any, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
+                threads: int | None = None, progress: Callable[[int, int], Any] | None = None) -> tuple[np.ndarray, float]:
     """Render a mesh object in the scene ``spec`` describes (:func:`diffuse_scene_spec`).
 
     Parameters
@@ -252,7 +254,8 @@ def render_spec(obj, spec: dict, *, seed: int = 0, z_shift: float = 0.0,
     return _render(bpy, scene, progress)
 
 
-def gridmesh_object(gm, *, name: str = "render_inspect_part", collection=None):
+def gridmesh_object(gm: GridMesh, *, name: str = "render_inspect_part",
+                    collection: Any = None) -> Any:
     """A Blender mesh object from a :class:`~render_inspect.mesh.GridMesh` (triangles,
     float32 vertices; its vertex normals become custom normals), via ``foreach_set``."""
     bpy = _bpy()
@@ -291,7 +294,7 @@ def _diffuse_config(dcfg, **overrides):
         raise SceneError("invalid render settings:\n  " + "\n  ".join(lines)) from None
 
 
-def render_cycles(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+def render_cycles(heightmap: HeightMap, dcfg: DiffuseConfig | None = None, *, view: str = "macro", surface: str = "machined",
                   seed: int = 0, threads: int | None = None) -> tuple[np.ndarray, dict]:
     """Cycles counterpart of :func:`render_inspect.render.render_diffuse`: the same scene
     (:func:`~render_inspect.render.diffuse_scene_spec`: the same mesh, camera, light,
@@ -343,9 +346,11 @@ def _scene_diffuse(obj) -> dict:
         return {}
 
 
-def render_object(obj, *, view: str = "macro", out=None, resolution: int | None = None,
+def render_object(obj: Any, *, view: str = "macro", out: str | Path | None = None,
+                  resolution: int | None = None,
                   spp: int | None = None, seed: int = 0, threads: int | None = None,
-                  load_image: bool = False, progress=None) -> dict:
+                  load_image: bool = False,
+                  progress: Callable[[int, int], Any] | None = None) -> dict:
     """Cycles render of a surface mesh made by :func:`heightmap_object` (the add-on's
     Render) under the diffuse light of the scene it was simulated from.
 
@@ -396,7 +401,7 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
                                    threads=threads, progress=progress)
     finally:
         obj.location = where
-    result = {"image": rgb, "time_s": seconds, "spec": spec, "seed": int(seed)}
+    result: dict[str, Any] = {"image": rgb, "time_s": seconds, "spec": spec, "seed": int(seed)}
     if out is not None:
         result.update(_write_outputs(rgb, out, spec=spec, seed=seed))
         if load_image:  # the argument hides the module's function of the same name
@@ -404,7 +409,7 @@ def render_object(obj, *, view: str = "macro", out=None, resolution: int | None 
     return result
 
 
-def load_image(path, name: str | None = None):
+def load_image(path: str | Path, name: str | None = None) -> Any:
     """Load (or reload) an image file into ``bpy.data.images``, named ``name``."""
     bpy = _bpy()
     img = bpy.data.images.load(str(path), check_existing=True)
@@ -422,7 +427,7 @@ def blend_objects() -> list:
     return list(_bpy().data.objects)
 
 
-def surface_material():
+def surface_material() -> Any:
     """The aluminium material of the renders (for the meshes on screen too)."""
     return _aluminium_material(_bpy(), {"material": "Al", "alpha": 0.0})
 

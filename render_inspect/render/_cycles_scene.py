@@ -15,8 +15,10 @@ import re
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.errors import InputError
 from ..io import read_exr
@@ -59,7 +61,7 @@ def _render_scene(bpy):
     return bpy.data.scenes.new(RENDER_SCENE_NAME)
 
 
-def fresnel_conductor(cos_theta, eta, k) -> np.ndarray:
+def fresnel_conductor(cos_theta: ArrayLike, eta: ArrayLike, k: ArrayLike) -> np.ndarray:
     """Unpolarised Fresnel reflectance of a conductor of complex index ``eta + i k``.
 
     Parameters
@@ -88,7 +90,8 @@ def fresnel_conductor(cos_theta, eta, k) -> np.ndarray:
 F82_COS = 1.0 / 7.0
 
 
-def f82_tint_colours(eta=ALUMINIUM_ETA, k=ALUMINIUM_K) -> tuple[tuple, tuple]:
+def f82_tint_colours(eta: ArrayLike = ALUMINIUM_ETA,
+                     k: ArrayLike = ALUMINIUM_K) -> tuple[tuple, tuple]:
     """Base colour (F0) and specular tint of the Principled BSDF's metallic F82-tint model
     that reproduce a conductor's Fresnel reflectance at normal incidence and at 81.8 deg.
 
@@ -103,7 +106,7 @@ def f82_tint_colours(eta=ALUMINIUM_ETA, k=ALUMINIUM_K) -> tuple[tuple, tuple]:
     return tuple(float(v) for v in f0), tuple(float(v) for v in tint)
 
 
-def material_model(bpy) -> str:
+def material_model(bpy: Any) -> str:
     """Which aluminium shader this Blender has: ``"metallic_bsdf"`` (Blender 4.3 and later:
     the Metallic BSDF with physical-conductor Fresnel, exact) or ``"principled_f82"``
     (Blender 4.2: the Principled BSDF's metallic F82-tint approximation)."""

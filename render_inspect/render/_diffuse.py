@@ -14,6 +14,7 @@ Images are returned with row 0 at the top (camera convention), linear RGB.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import cast
 
 import numpy as np
@@ -22,7 +23,7 @@ from ..core.errors import InputError
 from ..core.heightmap import HeightMap
 from ..core.progress import report
 from ..core.units import MIB_TO_BYTES
-from ..mesh import disc_mesh, heightmap_mesh, window_indices
+from ..mesh import GridMesh, disc_mesh, heightmap_mesh, window_indices
 # the engine-neutral scene (importable from here as before; _default_window for pipeline/)
 from ._diffuse_scene import (
     AL_REFLECTANCE_RGB,
@@ -100,7 +101,8 @@ def _block_heightmap(heightmap, window, factor: int, channel: str) -> HeightMap:
     return HeightMap(zb, zb, p * f, origin)
 
 
-def diffuse_mesh(heightmap, spec: dict, *, memory_budget: int | None = None):
+def diffuse_mesh(heightmap: HeightMap, spec: dict, *,
+                 memory_budget: int | None = None) -> tuple[GridMesh, int]:
     """The mesh of a diffuse scene spec (:func:`diffuse_scene_spec`): the spec's channel,
     window and exaggeration, area-averaged (block means) when the map has more than
     ``mesh.max_cells`` samples across; ``memory_budget``: bytes the mesh may take (default:
@@ -246,7 +248,8 @@ def mitsuba_seed(seed: int, index: int = 0) -> int:
     return (z ^ (z >> 31)) & 0xFFFFFFFF
 
 
-def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=None,
+def diffuse_memory(dcfg: DiffuseConfig, grid_shape: Sequence[int], *, view: str = "macro",
+                   window: Sequence[float] | None = None, pixel: float | None = None,
                    spectral: bool = True) -> int:
     """Bytes a diffuse view needs at its peak: Mitsuba's fixed part, the film and the
     wavefront's per-pixel arrays (with the passes' sum) and the mesh (render_inspect's
@@ -280,7 +283,7 @@ def diffuse_memory(dcfg, grid_shape, *, view: str = "macro", window=None, pixel=
     return int(DIFFUSE_FIXED_BYTES + res * ny_img * per_pixel + cells * MESH_BYTES_PER_CELL)
 
 
-def render_diffuse(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+def render_diffuse(heightmap: HeightMap, dcfg: DiffuseConfig | None = None, *, view: str = "macro", surface: str = "machined",
                    seed: int = 0, marks: dict | None = None, part: dict | None = None,
                    memory_budget: int | None = None) -> tuple[np.ndarray, dict]:
     """Path-trace the part (aluminium) under the diffuse dome or ring light.

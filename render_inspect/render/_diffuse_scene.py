@@ -42,13 +42,16 @@ Cycles benchmark, ``render/_cycles.py``) can build the same scene:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import Field
 
 from .. import __version__
 from ..core.errors import InputError
+from ..core.heightmap import HeightMap
 from ..core.section import Region, Section
 from ..mesh import window_indices
 from ._studio import LAMP_RADIUS_DEG, brightfield_profile, studio_light
@@ -151,7 +154,7 @@ def _profile(table, angle_deg) -> np.ndarray:
     return np.interp(angle_deg, tab[:, 0], tab[:, 1])
 
 
-def light_profile(theta, light: str = "dome") -> np.ndarray:
+def light_profile(theta: ArrayLike, light: str = "dome") -> np.ndarray:
     """Radiance of ``light`` at zenith angle(s) ``theta`` (rad) for a camera looking
     straight down (port axis +z)."""
     if light not in LIGHTS:
@@ -159,9 +162,10 @@ def light_profile(theta, light: str = "dome") -> np.ndarray:
     return _profile(LIGHTS[light], np.degrees(theta))
 
 
-def environment_map(light: str = "dome", *, height: int = ENV_ROWS, axis=(0.0, 0.0, 1.0),
+def environment_map(light: str = "dome", *, height: int = ENV_ROWS,
+                    axis: Sequence[float] = (0.0, 0.0, 1.0),
                     radiance: float = 1.0, zenith_falloff: float = 0.0,
-                    profile=None) -> np.ndarray:
+                    profile: Sequence[Sequence[float]] | None = None) -> np.ndarray:
     """The light as a lat-long image, (height, 2*(height-1), 3) float32, row 0 = zenith (+z).
 
     Row ``r`` is the zenith angle ``theta = r / (height - 1) * pi`` (rows 0 and height-1 are
@@ -218,7 +222,7 @@ def _check_marks(marks) -> dict | None:
     return dict(marks)
 
 
-def diffuse_scene_spec(heightmap, dcfg=None, *, view: str = "macro", surface: str = "machined",
+def diffuse_scene_spec(heightmap: HeightMap, dcfg: DiffuseConfig | None = None, *, view: str = "macro", surface: str = "machined",
                        seed: int = 0, marks: dict | None = None, part: dict | None = None) -> dict:
     """All parameters of a diffuse-light image as plain numbers (JSON-able).
 
@@ -422,7 +426,8 @@ AUTO_SLOPE_RAD = 0.2
 MACRO_AUTO_SLOPE_RAD = 0.3
 
 
-def auto_exaggeration(heightmap, surface="machined", window=None, *,
+def auto_exaggeration(heightmap: HeightMap, surface: str = "machined",
+                      window: Sequence[float] | None = None, *,
                       slope: float = AUTO_SLOPE_RAD) -> float:
     """Vertical exaggeration that makes the steepest 1 % of the (exaggerated) slopes about
     ``slope`` (rad; :data:`AUTO_SLOPE_RAD` in the micro view, :data:`MACRO_AUTO_SLOPE_RAD`

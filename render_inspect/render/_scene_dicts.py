@@ -6,17 +6,21 @@ with row 0 at the smallest y (the height-map convention), column 0 at the smalle
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from ..core import cancel
 from ..core.progress import report
+from ..mesh import GridMesh
 from ._variant import import_mitsuba, single_thread
 
 __all__ = ["mitsuba_mesh", "ortho_sensor", "perspective_sensor", "load_scene_dict",
            "render_aov_grid", "render_aov_grids", "trace_grids"]
 
 
-def mitsuba_mesh(gm, *, name: str = "part", bsdf: dict | None = None):
+def mitsuba_mesh(gm: GridMesh, *, name: str = "part", bsdf: dict | None = None) -> Any:
     """A ``mi.Mesh`` from a :class:`~render_inspect.mesh.GridMesh` (no file round trip).
 
     Parameters
@@ -66,7 +70,8 @@ def ortho_sensor(*, x0: float, y0: float, width_mm: float, nx: int, ny: int, z_t
             "sampler": {"type": "stratified", "sample_count": int(spp), "jitter": bool(jitter)}}
 
 
-def perspective_sensor(*, origin, target, up, fov_deg: float, nx: int, ny: int, spp: int) -> dict:
+def perspective_sensor(*, origin: Sequence[float], target: Sequence[float], up: Sequence[float],
+                       fov_deg: float, nx: int, ny: int, spp: int) -> dict:
     """Pinhole camera (horizontal field of view ``fov_deg``), box filter, independent sampler."""
     mi, _, _ = import_mitsuba()
     return {"type": "perspective", "fov": float(fov_deg), "fov_axis": "x",
@@ -79,14 +84,14 @@ def perspective_sensor(*, origin, target, up, fov_deg: float, nx: int, ny: int, 
             "sampler": {"type": "independent", "sample_count": int(spp)}}
 
 
-def load_scene_dict(d: dict):
+def load_scene_dict(d: dict) -> Any:
     """``mi.load_dict`` with one Dr.Jit thread, so the BVH (and the image) is repeatable."""
     mi, _, _ = import_mitsuba()
     with single_thread(), cancel.deferred():  # (see mitsuba_mesh)
         return mi.load_dict(d)
 
 
-def render_aov_grid(gm, *, x0: float, y0: float, width_mm: float, nx: int, ny: int,
+def render_aov_grid(gm: GridMesh, *, x0: float, y0: float, width_mm: float, nx: int, ny: int,
                     z_top: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray-trace the mesh straight down at the centres of an ``ny x nx`` grid of cells
     (cell size ``width_mm / nx``; the grid's lower-left corner at ``(x0, y0)``).
@@ -102,7 +107,7 @@ def render_aov_grid(gm, *, x0: float, y0: float, width_mm: float, nx: int, ny: i
                             z_top=z_top)[0]
 
 
-def render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
+def render_aov_grids(gm: GridMesh, grids: list[dict], *, z_top: float) -> list[tuple]:
     """:func:`render_aov_grid` for several grids (dicts of ``x0, y0, width_mm, nx, ny``)
     with one scene load (one BVH build), one orthographic sensor per grid."""
     mi, _, _ = import_mitsuba()
@@ -122,7 +127,8 @@ def render_aov_grids(gm, grids: list[dict], *, z_top: float) -> list[tuple]:
     return out
 
 
-def trace_grids(gm, grids: list[dict], *, z_top: float, shift=(0.0, 0.0),
+def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
+                shift: Sequence[float] = (0.0, 0.0),
                 full_normals: bool = False) -> list[tuple]:
     """Ray-trace the mesh straight down near the cell centres of several grids (one BVH
     build) and return the height at the centres.

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["brightfield_profile", "studio_light", "studio_environment", "cap_overlap",
            "STUDIO_ROOM", "SOFTBOX_RADIANCE", "LAMP_RADIUS_DEG"]
@@ -50,7 +51,7 @@ LAMP_RADIUS_DEG = 1.0
 PROFILE_KNOTS = 32
 
 
-def cap_overlap(a: float, b: float, d) -> np.ndarray:
+def cap_overlap(a: float, b: float, d: ArrayLike) -> np.ndarray:
     """Fraction of a disc of angular radius ``a`` centred ``d`` away from the centre of a
     disc of radius ``b`` that lies inside it (flat-angle approximation, rad)."""
     d = np.abs(np.asarray(d, dtype=np.float64))
@@ -88,7 +89,8 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def studio_light(camera_origin, target, *, lamp_direction=None,
+def studio_light(camera_origin: ArrayLike, target: ArrayLike, *,
+                 lamp_direction: ArrayLike | None = None,
                  lamp_radiance: float | None = None) -> dict:
     """The studio of the macro view as plain numbers: the room; a softbox placed where the
     part's mirror image of it faces the camera (behind the part, a little above the

@@ -40,10 +40,12 @@ lobe is stretched across the marks.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.errors import InputError
 from ..core.units import NM_TO_MM
@@ -66,7 +68,7 @@ _TABLES: dict = {}
 _REGISTERED: set = set()
 
 
-def grating_efficiencies(profile_mm, *, period: float, wavelength_nm: float, q: float = 1.0,
+def grating_efficiencies(profile_mm: ArrayLike, *, period: float, wavelength_nm: float, q: float = 1.0,
                          orders: int) -> np.ndarray:
     """Diffraction efficiencies of a reflection grating in the thin-element (Kirchhoff)
     approximation.
@@ -141,7 +143,7 @@ def efficiency_tables(*, period: float | None, nose_radius: float | None) -> dic
             "zero_order_efficiency_550nm": float(eta[i550, -1, M])}
 
 
-def aluminium_nk(wavelengths_nm=WAVELENGTHS_NM) -> tuple[np.ndarray, np.ndarray]:
+def aluminium_nk(wavelengths_nm: np.ndarray | Sequence[float] = WAVELENGTHS_NM) -> tuple[np.ndarray, np.ndarray]:
     """Complex refractive index (n, k) of aluminium at ``wavelengths_nm``, from the
     spectral data Mitsuba ships (``mitsuba/data/ior/Al.eta.spd``, ``Al.k.spd``)."""
     mi, _, _ = import_mitsuba()
@@ -153,7 +155,7 @@ def aluminium_nk(wavelengths_nm=WAVELENGTHS_NM) -> tuple[np.ndarray, np.ndarray]
     return out[0], out[1]
 
 
-def register_turned_bsdf(mi, dr) -> str:
+def register_turned_bsdf(mi: Any, dr: Any) -> str:
     """Register the ``turned_al`` BSDF plugin for the current (spectral) variant; return
     its plugin name."""
     variant = mi.variant()

@@ -20,7 +20,9 @@ import os
 import shutil
 import sys
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from ..core import cancel
 from ..core.errors import InputError, RenderInspectError
@@ -145,7 +147,7 @@ def _choose_variant() -> str:
     return "scalar_rgb"
 
 
-def import_mitsuba():
+def import_mitsuba() -> tuple[Any, Any, str]:
     """Return ``(mi, dr, variant)`` with the chosen variant set (inside
     :func:`spectral_variant`: its spectral counterpart)."""
     variant = _STATE["override"] or mitsuba_variant()
@@ -159,7 +161,7 @@ def import_mitsuba():
 
 
 @contextlib.contextmanager
-def spectral_variant():
+def spectral_variant() -> Iterator[str | None]:
     """Run the block with the spectral counterpart of the chosen variant
     (``llvm_ad_rgb`` -> ``llvm_ad_spectral``, ``cuda_ad_rgb`` -> ``cuda_ad_spectral``);
     yields its name, or None (and changes nothing) when the chosen variant is
@@ -201,7 +203,7 @@ def variant_info() -> dict:
 
 
 @contextlib.contextmanager
-def single_thread():
+def single_thread() -> Iterator[None]:
     """Run the block with one Dr.Jit worker thread (restored afterwards).
 
     On the LLVM variant, building the BVH of a large mesh with several threads gives
