@@ -73,10 +73,12 @@ the axis unit.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError, check_range
@@ -193,7 +195,7 @@ class Coupling:
     def to_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
-    def deflection(self, t, x_followed) -> tuple[np.ndarray, np.ndarray]:
+    def deflection(self, t: np.ndarray, x_followed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(dz, dy) in mm at the uniform ticks ``t`` for the followed X position (mm)."""
         from scipy import signal
 
@@ -233,7 +235,7 @@ def loop_lag(axis: Axis) -> float:
     return lag
 
 
-def loop_response(axis: Axis, frequency_hz) -> tuple[np.ndarray, np.ndarray]:
+def loop_response(axis: Axis, frequency_hz: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Amplitude ratio |T| and time lag -arg(T) / w (s, delay included) of ``axis`` at
     ``frequency_hz`` (> 0): what a sinusoidal command of that frequency comes out as."""
     f = np.asarray(frequency_hz, dtype=np.float64)
@@ -383,8 +385,10 @@ def servo_ticks(t0: float, t1: float, rate_hz: float) -> np.ndarray:
     return t0 + np.arange(max(n, 2)) / rate_hz
 
 
-def follow_axis(t, q, axis: Axis, *, rate_hz: float, interpolation: str = "pvt",
-                seed: int = 0, ticks=None, command=None, runs=None) -> AxisResponse:
+def follow_axis(t: np.ndarray, q: np.ndarray, axis: Axis, *, rate_hz: float,
+                interpolation: str = "pvt", seed: int = 0, ticks: ArrayLike | None = None,
+                command: Sequence[np.ndarray] | None = None,
+                runs: np.ndarray | None = None) -> AxisResponse:
     """Follow one axis's program through its interpolator and servo.
 
     Parameters

@@ -106,7 +106,7 @@ def _smooth_axis1(z, w, out, cw):
                 o[q] = acc[q]
 
 
-def gaussian_nearest(z, sigma: float) -> np.ndarray:
+def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
     """``scipy.ndimage.gaussian_filter(z, sigma, mode="nearest")`` of a 2-D float64 map,
     the same to the last bit, threaded over rows."""
     z = np.ascontiguousarray(z, dtype=np.float64)
@@ -121,7 +121,7 @@ def gaussian_nearest(z, sigma: float) -> np.ndarray:
     return out
 
 
-def slope_angles(z, pixel: float):
+def slope_angles(z: np.ndarray, pixel: float) -> tuple[np.ndarray, np.ndarray]:
     """arctan of the slopes between neighbouring pixels along each grid axis: (ny - 1,
     nx) along y and (ny, nx - 1) along x, numpy's arctan of (z[i + 1] - z[i]) / pixel,
     computed in row blocks on threads."""
@@ -247,7 +247,8 @@ def _turns_axis1(a, span, thr, edges, turn):
             edges[i, p] = True
 
 
-def edge_turn_maps(z, *, pixel: float, edge_angle_deg: float, span: int):
+def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
+                   span: int) -> tuple[np.ndarray, np.ndarray]:
     """(edges, turn) of :func:`._burrs.edge_turns` for a 2-D float64 map, compiled."""
     z = np.ascontiguousarray(z, dtype=np.float64)
     ny, nx = z.shape
@@ -280,7 +281,7 @@ def _pass_jumps(p, jump, m):
             m[i, q] = e
 
 
-def pass_jump_mask(pass_map, jump: float) -> np.ndarray:
+def pass_jump_mask(pass_map: np.ndarray, jump: float) -> np.ndarray:
     """Pixels next to a pixel whose value differs by more than ``jump`` along a grid axis
     (NaN never differs): :func:`._cutting.machined_edges`, compiled and threaded."""
     p = np.ascontiguousarray(pass_map, dtype=np.float64)

@@ -56,9 +56,11 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_range
@@ -109,7 +111,7 @@ def _check_map(z, pixel, edge_angle_deg):
     return z
 
 
-def sharp_edges(design, *, pixel: float, edge_angle_deg: float = 1.0) -> np.ndarray:
+def sharp_edges(design: np.ndarray, *, pixel: float, edge_angle_deg: float = 1.0) -> np.ndarray:
     """Pixels on sharp edges of ``design`` (where the slope jumps).
 
     Parameters
@@ -132,7 +134,8 @@ def sharp_edges(design, *, pixel: float, edge_angle_deg: float = 1.0) -> np.ndar
     return mask
 
 
-def edge_turns(z, *, pixel: float, edge_angle_deg: float = 1.0, span: int = 1):
+def edge_turns(z: np.ndarray, *, pixel: float, edge_angle_deg: float = 1.0,
+               span: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Sharp edges of ``z`` and the angle by which the surface turns at each: a local
     maximum of the pixel-to-pixel turn where the difference of the two faces' slope angles
     at the edge exceeds ``edge_angle_deg``, that difference across it (the
@@ -161,7 +164,7 @@ def edge_turns(z, *, pixel: float, edge_angle_deg: float = 1.0, span: int = 1):
     return edge_turn_maps(z, pixel=pixel, edge_angle_deg=edge_angle_deg, span=span)
 
 
-def burr_height_law(chip_thickness: float, coefficient: float, turn) -> np.ndarray:
+def burr_height_law(chip_thickness: float, coefficient: float, turn: ArrayLike) -> np.ndarray:
     """h_b = coefficient * chip_thickness * clip(turn / (pi / 2), 0, 1) (module docstring):
     the burr on an edge where the surface turns by ``turn`` (rad; the exit angle is pi -
     turn), for an uncut chip thickness ``chip_thickness`` (mm) and the material's burr
@@ -181,9 +184,11 @@ def _random_field(x, y, *, correlation_length: float, seed: int) -> np.ndarray:
     return math.sqrt(2.0 / _MODES) * np.cos(arg).sum(axis=-1)
 
 
-def burr_map(design, *, pixel: float, origin=(0.0, 0.0), height: float | np.ndarray, width: float,
+def burr_map(design: np.ndarray, *, pixel: float, origin: Sequence[float] = (0.0, 0.0),
+             height: float | np.ndarray, width: float,
              variation: float = 0.3, seed: int = 0, edge_angle_deg: float = 1.0,
-             correlation_length: float | None = None, edges=None, start=(0, 0)) -> np.ndarray:
+             correlation_length: float | None = None, edges: np.ndarray | None = None,
+             start: Sequence[int] = (0, 0)) -> np.ndarray:
     """Height (mm, >= 0) that burrs add on the sharp edges of ``design``.
 
     Parameters
@@ -281,7 +286,7 @@ def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True
     return z, bad
 
 
-def machined_sharp_edges(machined, *, pixel: float, smoothing: float = 0.0,
+def machined_sharp_edges(machined: np.ndarray, *, pixel: float, smoothing: float = 0.0,
                          edge_angle_deg: float = 1.0) -> np.ndarray:
     """Sharp edges of the *machined* surface: :func:`sharp_edges` of the map smoothed by
     a Gaussian of standard deviation ``smoothing`` (mm; 0 = none), which removes the feed
@@ -294,10 +299,12 @@ def machined_sharp_edges(machined, *, pixel: float, smoothing: float = 0.0,
     return sharp_edges(z, pixel=pixel, edge_angle_deg=edge_angle_deg) & ~bad
 
 
-def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: float,
+def apply_burrs(machined: np.ndarray, design: np.ndarray, *, pixel: float,
+                origin: Sequence[float] = (0.0, 0.0), height: float,
                 width: float, variation: float = 0.3, edge_angle_deg: float = 1.0,
                 correlation_length: float | None = None, seed: int = 0,
-                edges_from: str = "design", smoothing: float = 0.0):
+                edges_from: str = "design",
+                smoothing: float = 0.0) -> tuple[np.ndarray, dict]:
     """Add burrs (:func:`burr_map`, same parameters) to ``machined``.
 
     ``edges_from``: ``"design"`` puts them on the design's sharp edges, ``"machined"`` on
@@ -334,10 +341,12 @@ def apply_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), height: fl
     return machined, info
 
 
-def material_burrs(machined, design, *, pixel: float, origin=(0.0, 0.0), chip_thickness: float,
+def material_burrs(machined: np.ndarray, design: np.ndarray, *, pixel: float,
+                   origin: Sequence[float] = (0.0, 0.0), chip_thickness: float,
                    coefficient: float, variation: float = 0.3, seed: int = 0,
                    edge_angle_deg: float = 1.0, smoothing: float = 0.0,
-                   width: float | None = None, overwrite: bool = False):
+                   width: float | None = None,
+                   overwrite: bool = False) -> tuple[np.ndarray, dict]:
     """Add the burrs of the material model (module docstring) on the sharp edges of the
     machined surface.
 
@@ -412,10 +421,13 @@ def material_burr_facts(*, chip_thickness: float, coefficient: float, variation:
             "max_added_um": float(added_max * MM_TO_UM)}
 
 
-def material_burr_block(machined, *, pixel: float, origin=(0.0, 0.0), chip_thickness: float,
+def material_burr_block(machined: np.ndarray, *, pixel: float,
+                        origin: Sequence[float] = (0.0, 0.0), chip_thickness: float,
                         coefficient: float, variation: float = 0.3, seed: int = 0,
                         edge_angle_deg: float = 1.0, smoothing: float = 0.0, width: float,
-                        border=(True, True, True, True), start=(0, 0)):
+                        border: Sequence[bool] = (True, True, True, True),
+                        start: Sequence[int] = (0, 0)
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The burrs of :func:`material_burrs` on ``machined`` (a whole grid, or a block of
     it): (added height, edges, turn at the edges (rad), the law's height at the edges),
     maps of the block (mm), or None where there are none.  A block of a grid: ``start`` =

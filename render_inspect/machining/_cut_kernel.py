@@ -37,7 +37,9 @@ whole-grid run bit for bit (tested).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
@@ -100,7 +102,7 @@ class CutPath:
     side_flow: bool
     h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
-    def slice_for(self, region) -> "CutPath":
+    def slice_for(self, region: Sequence[float]) -> "CutPath":
         """The passes whose nose arcs the kernel visits for pixels in ``region``
         (x0, y0, x1, y1; mm)."""
         sl = self.ep.slice_for(region)
@@ -119,9 +121,11 @@ class CutPath:
         return int(self.ep.nbytes + self.dist.nbytes + self.h_seg.nbytes)
 
 
-def prepare_cut(path, *, nose_radius: float, half_width: float | None = None, h_min: float = 0.0,
+def prepare_cut(path: ToolPath, *, nose_radius: float, half_width: float | None = None,
+                h_min: float = 0.0,
                 kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None,
-                edge=None, h_min_points=None) -> CutPath:
+                edge: Any = None,
+                h_min_points: np.ndarray | None = None) -> CutPath:
     """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
     (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`; ``edge``: the
     measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose;
@@ -432,8 +436,9 @@ _cut_parallel = njit(parallel=True, cache=True)(_cut_rows)
 _cut_serial = njit(nogil=True, cache=True)(_cut_rows)
 
 
-def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, start=(0, 0),
-             parallel: bool = True, stat_cols=None) -> np.ndarray:
+def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: float, out: dict, *,
+             start: Sequence[int] = (0, 0), parallel: bool = True,
+             stat_cols: Sequence[int] | None = None) -> np.ndarray:
     """The machined surface with the cutting mechanics and the grooves (mm), the cumulative
     spindle angle of each pixel's cutting pass (rad) and the material ploughed back or
     piled up by side flow (mm), written into ``out`` in place; NaN (0 added) where no pass
@@ -488,7 +493,9 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin, pixel: float, out: dict, *, 
 BLOCK_SAMPLES = 1 << 20  # not a unit conversion
 
 
-def cut_turning(cp: CutPath, grooves: Grooves, *, region, pixel: float, origin=None, progress=None,
+def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel: float,
+                origin: Sequence[float] | None = None,
+                progress: Callable[[int, int], Any] | None = None,
                 block_samples: int = BLOCK_SAMPLES, parallel: bool = True) -> dict:
     """The machined surface of ``region`` (x0, y0, x1, y1; mm) with the cutting mechanics
     and grooves, computed in row blocks.

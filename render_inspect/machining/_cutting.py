@@ -37,16 +37,22 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError, check_range
+from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM
 from ._burr_kernels import pass_jump_mask
 from ._envelope import _pass_window
 from ._envelope_path import _lookup_table, _nominal_spiral, _nose_arc, path_radial_slope
 from ._envelope_step import _lookup
+
+if TYPE_CHECKING:
+    from ._material import MaterialResponse
 
 __all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
            "mechanics_facts", "CutResult"]
@@ -169,7 +175,8 @@ class CutResult(dict):
     towards larger radius), ``added`` (ploughed recovery + side flow, mm)."""
 
 
-def mechanics_path(path, *, h_min: float, kappa: float):
+def mechanics_path(path: ToolPath, *, h_min: float,
+                   kappa: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(theta, rho, z) of a turning path as contiguous float64 arrays, after checking the
     cutting mechanics' ``h_min`` and ``kappa`` and that the path has at least 2 points."""
     check_range("h_min", h_min, 0.0, 1e-2)
@@ -182,7 +189,8 @@ def mechanics_path(path, *, h_min: float, kappa: float):
     return theta, rho, z
 
 
-def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
+def cut_turning_mechanics(path: ToolPath, *, nose_radius: float, region: Sequence[float],
+                          pixel: float, half_width: float | None = None,
                 h_min: float = 0.0, kappa: float = 0.0, side_flow: bool = True,
                 slope_bound: float | None = None) -> CutResult:
     """Turning envelope with the minimum-chip-thickness mechanics (module docstring).
@@ -223,7 +231,8 @@ def cut_turning_mechanics(path, *, nose_radius: float, region, pixel: float, hal
     return CutResult(out)
 
 
-def cut_lines_mechanics(profiles, x_lines, x_grid, *, tool_radius: float, half_width: float | None = None,
+def cut_lines_mechanics(profiles: Sequence[np.ndarray] | np.ndarray, x_lines: np.ndarray,
+                        x_grid: np.ndarray, *, tool_radius: float, half_width: float | None = None,
               h_min: float = 0.0, kappa: float = 0.0, side_flow: bool = True) -> CutResult:
     """Sculpturing envelope over target lines in cutting order with the same mechanics.
 
@@ -283,7 +292,8 @@ def cut_lines_mechanics(profiles, x_lines, x_grid, *, tool_radius: float, half_w
                       "edge_pos": x_grid[None, :] - px, "added": added})
 
 
-def groove_texture(edge_pos, along, *, rms: float, seed: int, across_length: float = 0.001,
+def groove_texture(edge_pos: np.ndarray, along: np.ndarray, *, rms: float, seed: int,
+                   across_length: float = 0.001,
                    along_length: float = 0.05, modes: int = 128) -> np.ndarray:
     """Grooves the edge ploughs along the cut: a Gaussian-covariance random field of the
     position on the edge (``edge_pos``, mm) and of the cutting distance (``along``, mm)
@@ -311,7 +321,7 @@ def groove_texture(edge_pos, along, *, rms: float, seed: int, across_length: flo
     return out * (rms * math.sqrt(2.0 / modes))
 
 
-def machined_edges(pass_map, *, jump: float) -> np.ndarray:
+def machined_edges(pass_map: np.ndarray, *, jump: float) -> np.ndarray:
     """Pixels on a machined edge: where a neighbouring pixel was cut by another pass
     (``pass_map`` differs by more than ``jump``: pi for spindle angles, 0.5 for line
     indices).  Returns an (ny, nx) bool mask."""
@@ -329,7 +339,8 @@ def machined_edges(pass_map, *, jump: float) -> np.ndarray:
     return m
 
 
-def finish_surface(cut: CutResult, response, *, along, seed: int, across_length: float = 0.001,
+def finish_surface(cut: CutResult, response: MaterialResponse, *, along: np.ndarray, seed: int,
+                   across_length: float = 0.001,
                    along_length: float = 0.05) -> tuple[np.ndarray, dict]:
     """The machined surface with the material's grooves added where a pass cut.
 
@@ -371,7 +382,8 @@ def finish_surface(cut: CutResult, response, *, along, seed: int, across_length:
     return m, info
 
 
-def mechanics_facts(response, *, grooves_sumsq: float, grooves_n: int, added_max: float,
+def mechanics_facts(response: MaterialResponse, *, grooves_sumsq: float, grooves_n: int,
+                    added_max: float,
                     edge_pixels: int) -> dict:
     """The material facts of a cut (``metrics["material"]`` besides the response's own):
     ``groove_rms_nm`` (requested), ``grooves_rms_nm`` (added, measured: from the sum of

@@ -55,13 +55,16 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 import warnings
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 
 from ..core.errors import InputError
 from ..core.progress import report
+from ..core.toolpath import ToolPath
 # the path preparation (EnvelopePath, prepare_envelope and path_radial_slope are this
 # module's names too) and the per-pixel step
 from ._envelope_path import EnvelopePath, _lookup_table, path_radial_slope, prepare_envelope  # noqa: F401
@@ -211,7 +214,8 @@ _fill_parallel = njit(parallel=True, cache=True)(_fill_impl)
 _fill_serial = njit(nogil=True, cache=True)(_fill_impl)
 
 
-def envelope_fill(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *, start=(0, 0),
+def envelope_fill(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
+                  start: Sequence[int] = (0, 0),
                   parallel: bool = True) -> np.ndarray:
     """Machined heights (mm) written into ``out`` in place; NaN where no pass reaches.
 
@@ -241,10 +245,11 @@ def envelope_fill(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *, st
     return out
 
 
-def simulate_turning(path, *, nose_radius: float, region, pixel: float, half_width: float | None = None,
+def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[float], pixel: float,
+                     half_width: float | None = None,
                      slope_bound: float | None = None, window: float | None = None,
                      out: np.ndarray | None = None, reference: bool = False, device: str = "auto",
-                     edge=None) -> np.ndarray:
+                     edge: Any = None) -> np.ndarray:
     """Machined height (mm) on the grid of ``region`` / ``pixel`` from a turning path.
 
     Parameters

@@ -17,6 +17,7 @@ Without a GPU the kernel can be checked in numba's CUDA simulator
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 import types
 from typing import Any
 
@@ -91,7 +92,8 @@ def gpu_supports(ep: EnvelopePath) -> bool:
     return bool(ep.uniform and ep.cc > 0)
 
 
-def envelope_fill_gpu(ep: EnvelopePath, origin, pixel: float, out: np.ndarray, *, start=(0, 0)) -> np.ndarray:
+def envelope_fill_gpu(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
+                      start: Sequence[int] = (0, 0)) -> np.ndarray:
     """:func:`render_inspect.machining._envelope.envelope_fill` on the GPU (same arguments)."""
     global _KERNEL
     if not gpu_supports(ep):

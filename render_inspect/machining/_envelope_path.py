@@ -7,10 +7,13 @@ proven pass window (widened for a measured edge) and the run of passes one tile 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
+from ..core.toolpath import ToolPath
 from ._envelope_step import TWO_PI
 
 #: relative tolerance within which a path's angles count as a uniform grid
@@ -113,7 +116,7 @@ class EnvelopePath:
             return Wp + 2.0 * self.f
         return max(Wp, self.half_width + self.dev) + 2.0 * self.f
 
-    def slice_for(self, region) -> "EnvelopePath":
+    def slice_for(self, region: Sequence[float]) -> "EnvelopePath":
         """The passes whose nose arcs can reach ``region`` (x0, y0, x1, y1; mm)."""
         x0, y0, x1, y1 = region
         rmax = max(math.hypot(x, y) for x in (x0, x1) for y in (y0, y1))
@@ -161,7 +164,8 @@ def _nominal_spiral(theta, rho):
     return a, cc, dev, abs(cc) * TWO_PI
 
 
-def edge_window(window: float, nose_radius: float, half_width: float, edge) -> float:
+def edge_window(window: float, nose_radius: float, half_width: float,
+                edge: np.ndarray | None) -> float:
     """The pass window (mm) widened for a measured edge: an arc at distance d is at least
     d^2 / (2 Rc) + min(g) above its tip (g the edge's height table), so the proven window
     grows by sqrt(2 Rc (max g - min g)); unchanged for the circular nose."""
@@ -171,7 +175,7 @@ def edge_window(window: float, nose_radius: float, half_width: float, edge) -> f
     return min(half_width, window + math.sqrt(2.0 * nose_radius * float(g.max() - g.min())))
 
 
-def edge_table(edge, nose_radius: float, half_width: float) -> np.ndarray:
+def edge_table(edge: Any, nose_radius: float, half_width: float) -> np.ndarray:
     """The kernels' table of ``edge`` (an ``EdgeProfile``, a ready table, or None)."""
     if edge is None:
         return _NO_EDGE
@@ -180,9 +184,9 @@ def edge_table(edge, nose_radius: float, half_width: float) -> np.ndarray:
     return edge.height_table(nose_radius, half_width)
 
 
-def prepare_envelope(path, *, nose_radius: float, half_width: float | None = None,
+def prepare_envelope(path: ToolPath, *, nose_radius: float, half_width: float | None = None,
                      slope_bound: float | None = None, window: float | None = None,
-                     edge=None) -> EnvelopePath:
+                     edge: Any = None) -> EnvelopePath:
     """Prepare a turning path for :func:`envelope_fill` (see :func:`simulate_turning` for
     the parameters)."""
     theta = np.ascontiguousarray(path.theta, dtype=np.float64)

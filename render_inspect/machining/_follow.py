@@ -98,8 +98,10 @@ def mask_outside_sector(theta: np.ndarray, errors: dict,
     return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
 
 
-def follow_turning(t, theta, rho, z, machine: Machine, *, z_fts=None, seed: int = 0,
-                   fts_theta=None, sector=None) -> FollowedPath:
+def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndarray,
+                   machine: Machine, *, z_fts: np.ndarray | None = None, seed: int = 0,
+                   fts_theta: np.ndarray | None = None,
+                   sector: Sequence[float] | None = None) -> FollowedPath:
     """The path a turning program is cut along on ``machine``.
 
     Parameters

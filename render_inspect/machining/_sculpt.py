@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 import math
+from typing import Any
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
@@ -130,7 +131,8 @@ def _sweep_line(ys, zs, t_start, vc, amp, freq, phases, y0, dy, out):  # pragma:
             t_vib = (p + phases[jph] / two_pi) / freq
 
 
-def target_line(surface, x_line: float, edges, *, step: float):
+def target_line(surface: Any, x_line: float, edges: np.ndarray, *,
+                step: float) -> tuple[np.ndarray, np.ndarray]:
     """Target line (Zhang et al. 2022, eq. 2): the design along x = ``x_line``, sampled every
     ``step`` mm inside each segment between consecutive ``edges`` (mm, increasing), with a
     sample on every edge (segment cutting keeps the sharp edges).

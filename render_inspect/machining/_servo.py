@@ -17,11 +17,12 @@ surface is the envelope of the tool nose along the followed path.
 from __future__ import annotations
 
 import math
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ..core.toolpath import ToolPath
 from ..toolpath import z_compensation
 
 __all__ = ["split_commands"]
@@ -38,8 +39,9 @@ def _revolution_mean(theta, z):
     return np.where(width > 0, mean, z)
 
 
-def split_commands(path, kind: str, *, base=None, nose_radius: float | None = None,
-                   compensation: str = "z", half_width: float | None = None):
+def split_commands(path: ToolPath, kind: str, *, base: Any = None,
+                   nose_radius: float | None = None, compensation: str = "z",
+                   half_width: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Split a turning program into the slow slide's and the FTS's commands.
 
     Parameters

@@ -33,6 +33,7 @@ module holds the pure per-tile computation.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,14 +62,14 @@ class Tile:
     rows: int
     cols: int
 
-    def region(self, origin, pixel) -> tuple[float, float, float, float]:
+    def region(self, origin: Sequence[float], pixel: float) -> tuple[float, float, float, float]:
         """(x0, y0, x1, y1) of the tile's pixel centres, mm."""
         x0 = origin[0] + self.col * pixel
         y0 = origin[1] + self.row * pixel
         return (x0, y0, x0 + (self.cols - 1) * pixel, y0 + (self.rows - 1) * pixel)
 
 
-def plan_tiles(shape, tile: int = TILE) -> list[Tile]:
+def plan_tiles(shape: Sequence[int], tile: int = TILE) -> list[Tile]:
     """Square tiles of side ``tile`` (a multiple of 64) covering a (ny, nx) grid."""
     if tile <= 0 or tile % BLOCK:
         raise InputError(f"tile must be a positive multiple of {BLOCK} pixels, got {tile}")
@@ -77,7 +78,8 @@ def plan_tiles(shape, tile: int = TILE) -> list[Tile]:
             for r in range(0, ny, tile) for c in range(0, nx, tile)]
 
 
-def design_tile(surface, origin, pixel: float, tile: Tile, *, rows_per_chunk: int = 128) -> np.ndarray:
+def design_tile(surface: Any, origin: Sequence[float], pixel: float, tile: Tile, *,
+                rows_per_chunk: int = 128) -> np.ndarray:
     """Design heights (mm, float64) of the tile's pixels, in row chunks (bounded temporaries)."""
     x = origin[0] + pixel * (tile.col + np.arange(tile.cols))
     out = np.empty((tile.rows, tile.cols))
@@ -93,8 +95,10 @@ def design_tile(surface, origin, pixel: float, tile: Tile, *, rows_per_chunk: in
 HALO = 1
 
 
-def compute_tile(ep, surface, origin, pixel: float, tile: Tile, *, grooves: Grooves | None = None,
-                 shape=None, stride: int = 0, texture=None,
+def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[float], pixel: float,
+                 tile: Tile, *, grooves: Grooves | None = None,
+                 shape: Sequence[int] | None = None, stride: int = 0,
+                 texture: tuple[float, float, int] | None = None,
                  burrs: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(design, machined, partials) of one tile, float64 (mm).
 

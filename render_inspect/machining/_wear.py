@@ -204,7 +204,7 @@ def _arrhenius(v_m_min, law: SpeedLaw):
     return np.exp(-(law.activation_kj_mol / _R_GAS) * (1.0 / T - 1.0 / T_ref))
 
 
-def speed_factor(v_m_min, law: SpeedLaw = SPEED_LAW):
+def speed_factor(v_m_min: np.ndarray | float, law: SpeedLaw = SPEED_LAW) -> np.ndarray | float:
     """The factor on the chemical wear per km at the cutting speed ``v_m_min`` (m/min)
     against the reference speed: (v_ref / v) exp(-(Q/R) (1/T(v) - 1/T(v_ref))), the time in
     contact per km times the Arrhenius rate at the contact temperature; 1 at v_ref."""
@@ -243,9 +243,11 @@ def wear_rate(material: str) -> WearRate:
     return WEAR_RATES[material]
 
 
-def wear_state(rate: WearRate, distance_km, *, duty: float = 1.0, scale: float = 1.0,
-               edge_radius_nm: float = 50.0, clearance_deg: float = 10.0, speed_m_min=None,
-               chemical_km=None, law: SpeedLaw = SPEED_LAW) -> dict:
+def wear_state(rate: WearRate, distance_km: np.ndarray | float, *, duty: float = 1.0,
+               scale: float = 1.0,
+               edge_radius_nm: float = 50.0, clearance_deg: float = 10.0,
+               speed_m_min: np.ndarray | float | None = None,
+               chemical_km: np.ndarray | float | None = None, law: SpeedLaw = SPEED_LAW) -> dict:
     """The worn edge after ``distance_km`` of cutting (arrays allowed): ``contact_km`` (the
     distance that wears it), ``flank_um``, ``edge_radius_nm``, ``recession_nm``.
 
@@ -275,9 +277,11 @@ def spiral_distance_km(r: np.ndarray | float, workpiece_radius: float, feed_per_
     return math.pi * (workpiece_radius ** 2 - r ** 2) / float(feed_per_rev) / MM_PER_KM
 
 
-def worn_path(path, rate: WearRate, *, workpiece_radius: float, feed_per_rev: float, duty: float = 1.0,
+def worn_path(path: ToolPath, rate: WearRate, *, workpiece_radius: float, feed_per_rev: float,
+              duty: float = 1.0,
               scale: float = 1.0, edge_radius_nm: float = 50.0, clearance_deg: float = 10.0,
-              spindle_rpm=None, law: SpeedLaw = SPEED_LAW):
+              spindle_rpm: float | None = None,
+              law: SpeedLaw = SPEED_LAW) -> tuple[ToolPath, np.ndarray]:
     """(The path the worn edge cuts: each point lifted by the recession of the edge worn
     over the cutting distance to that point, the recession (mm) at the points).  With
     ``spindle_rpm`` the chemical wear follows the cutting speed along the spiral."""

@@ -238,7 +238,8 @@ class ServoProcess(TiledTurningProcess):
             raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
         t0 = time.perf_counter()
         tool = Tool.from_config(cfg.tool)
-        z_slow, z_fts = split_commands(path, kind, base=base if kind == "hts" else None,
+        z_slow, z_fts = split_commands(cast(ToolPath, path), kind,
+                                       base=base if kind == "hts" else None,
                                        nose_radius=tool.nose_radius,
                                        compensation=cfg.process.compensation,
                                        half_width=tool.half_width)
