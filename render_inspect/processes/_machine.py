@@ -22,6 +22,7 @@ from ..core.units import NM_TO_MM, URAD_TO_RAD
 from ..machining import (
     MACHINE_PRESET_NAMES,
     MATERIAL_PRESET_NAMES,
+    Machine,
     MaterialResponse,
     machine_preset,
     material_preset,
@@ -220,7 +221,7 @@ class ProcessScene(SceneSections, Protocol):
         ...
 
 
-def machine_of(cfg: "MachineConfig"):
+def machine_of(cfg: "MachineConfig") -> Machine:
     """The :class:`~render_inspect.machining.Machine` of a ``[machine]`` section."""
     ov = {k: getattr(cfg, k) for k in ("servo_rate_hz", "interpolation", "fts_sync",
                                        "fts_sync_delay_s")

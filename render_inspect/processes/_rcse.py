@@ -385,7 +385,7 @@ class RcseProcess(TiledTurningProcess):
              region: Sequence[float] | None = None, sectors: bool = False) -> Plan:
         # ``sectors`` is not used: this process plans its region as before (plan_window)
         plan = _plan(cfg, surface, region=region)
-        plan.plots = self.program_plots(cfg, plan.program)
+        plan.plots = self.program_plots(cfg, cast(ToolPath, plan.program))
         return plan
 
     def cut(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Cut:

@@ -56,7 +56,7 @@ def _discriminate(value):
     return entry.config.__name__ if entry is not None else None
 
 
-def process_config_union():
+def process_config_union() -> Any:
     """The pydantic type of a ``[process]`` section: the registered schema classes,
     chosen by ``kind`` (``"sts"`` when the key is missing)."""
     return _PROCESSES.union(_union_of)

@@ -28,7 +28,7 @@ from ..core.errors import SceneError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..design import Surface
 from ..core.units import MIN_TO_S, MM_TO_UM, S_TO_MS
-from ..machining import loop_lag, loop_response, split_commands
+from ..machining import FollowedPath, Machine, loop_lag, loop_response, split_commands
 from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import ProcessScene, machine_of
@@ -154,7 +154,8 @@ def _stroke_frequency(z_fts, t) -> float | None:
     return float(k / (tu[-1] - tu[0]))
 
 
-def servo_lags(machine, *, omega: float, r_max: float, z_fts=None, t=None) -> dict:
+def servo_lags(machine: Machine, *, omega: float, r_max: float, z_fts: np.ndarray | None = None,
+               t: np.ndarray | None = None) -> dict:
     """The lags of a tool-servo machine (``metrics["servo"]``): ``effective_lag_s``, the FTS
     stroke's lag behind the spindle angle it belongs to at low frequency (its loop's group
     delay 2 zeta (1 - kv) / wn, its output delay and ``fts_sync_delay_s``; with full velocity
@@ -232,14 +233,14 @@ class ServoProcess(TiledTurningProcess):
                      path: ToolPath | LinearProgram) -> Plan:
         """The plan of a program (planned, or read back from its file): its Z commands
         split between the slow slide and the fast tool servo."""
+        path = cast(ToolPath, path)  # (a turning program)
         kind = cfg.process.kind
         base = getattr(surface, "base", None)
         if kind == "hts" and base is None:
             raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
         t0 = time.perf_counter()
         tool = Tool.from_config(cfg.tool)
-        z_slow, z_fts = split_commands(cast(ToolPath, path), kind,
-                                       base=base if kind == "hts" else None,
+        z_slow, z_fts = split_commands(path, kind, base=base if kind == "hts" else None,
                                        nose_radius=tool.nose_radius,
                                        compensation=cfg.process.compensation,
                                        half_width=tool.half_width)
@@ -261,7 +262,8 @@ class ServoProcess(TiledTurningProcess):
         return Cut(t["machined"], t["design"], facts, t["timing"], meta, followed=t["followed"],
                    plots=t["plots"])
 
-    def follow_program(self, cfg: TurningInputs, plan: Plan):
+    def follow_program(self, cfg: TurningInputs,
+                       plan: Plan) -> tuple[ToolPath, FollowedPath, dict]:
         return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
 
     def envelope(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Envelope:
@@ -290,9 +292,9 @@ class ServoProcess(TiledTurningProcess):
         if machine.fts_sync_delay_s != 0:
             parts.append(f"FTS {machine.fts_sync_delay_s * S_TO_MS:+.3g} ms against the spindle")
         ideal = {"machine.fts_sync_delay_s": 0.0}
-        for ax in ("fts", "z"):
-            ideal.update({f"machine.{ax}.bandwidth_hz": math.inf, f"machine.{ax}.delay_s": 0.0,
-                          f"machine.{ax}.noise_nm": 0.0})
+        for key in ("fts", "z"):
+            ideal.update({f"machine.{key}.bandwidth_hz": math.inf, f"machine.{key}.delay_s": 0.0,
+                          f"machine.{key}.noise_nm": 0.0})
         preset = cfg.machine.preset
         return VariantPair(
             Variant("servo_lag", f"servos of the {preset} machine (" + "; ".join(parts) + ")", {}),

@@ -18,9 +18,9 @@ from pydantic import Field, model_serializer, model_validator
 from ..core.limits import Driver, format_number, memory_budget
 from ..core.marks import ToolMarks
 from ..core.section import Section
-from ..core.toolpath import ToolPath
+from ..core.toolpath import Links, ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
-from ..machining import material_burr_facts, mechanics_facts, window_margins
+from ..machining import FollowedPath, material_burr_facts, mechanics_facts, window_margins
 
 from ..toolpath import (
     DEFAULT_CLEARANCE,
@@ -143,7 +143,8 @@ class TurningProcessConfig(Section):
 
 
 
-def plan_spiral(cfg, surface, *, region=None, sectors: bool = False):
+def plan_spiral(cfg: TurningInputs, surface: Any, *, region: Sequence[float] | None = None,
+                sectors: bool = False) -> ToolPath:
     """The compensated spiral program of a turning process (:func:`plan_turning` with the
     ``[process]`` keys of ``cfg``).  With ``process.scallop_bound_nm`` the feed per
     revolution is the largest whose scallop stays within the bound on every radial section
@@ -180,7 +181,7 @@ def plan_spiral(cfg, surface, *, region=None, sectors: bool = False):
     return path
 
 
-def imported_facts(cfg, surface, path) -> dict:
+def imported_facts(cfg: TurningInputs, surface: Any, path: ToolPath) -> dict:
     """``metrics["program"]`` of a program read from a file: where it came from, what was
     inferred, and :func:`~render_inspect.processes._program.program_checks` (feed per
     revolution by radius, chordal error, C rate, findings)."""
@@ -189,7 +190,7 @@ def imported_facts(cfg, surface, path) -> dict:
     return info
 
 
-def toolpath_facts(path, process) -> dict:
+def toolpath_facts(path: ToolPath, process: Any) -> dict:
     """``metrics["toolpath"]``: points, revolutions, sampling, chordal error, gouge depth,
     accessibility, cut time, and the axis kinematics against the limits of the
     ``[process]`` section ``process``."""
@@ -219,7 +220,7 @@ def toolpath_facts(path, process) -> dict:
     return d
 
 
-def turning_precheck(cfg, region=None) -> None:
+def turning_precheck(cfg: TurningInputs, region: Sequence[float] | None = None) -> None:
     """Check the points of the spiral program (``region``: the part of it that reaches
     that window; None: the whole part) against the memory budget before planning; the
     error names ``process.points_per_rev`` / ``arc_length`` / the feed.  (The planner
@@ -245,7 +246,7 @@ def turning_precheck(cfg, region=None) -> None:
                  hint="or shrink simulation.region / process.workpiece_radius")
 
 
-def turning_header(cfg) -> dict:
+def turning_header(cfg: TurningInputs) -> dict:
     """NC header lines of a turning program."""
     p = cfg.process
     return {"scene": cfg.name, "process": p.kind, "spindle_rpm": p.spindle_rpm,
@@ -253,7 +254,7 @@ def turning_header(cfg) -> dict:
             "nose_radius": cfg.tool.nose_radius}
 
 
-def turning_part(cfg, surface, path=None) -> PartModel:
+def turning_part(cfg: TurningInputs, surface: Any, path: ToolPath | None = None) -> PartModel:
     """The turned part a program is checked against: the design over the disc of
     ``process.workpiece_radius``, the depth of cut as stock, the planned ``path``'s
     longest step."""
@@ -264,7 +265,7 @@ def turning_part(cfg, surface, path=None) -> PartModel:
                        half_width=Tool.from_config(cfg.tool).half_width, max_step=step)
 
 
-def turning_limits(cfg) -> MachineLimits:
+def turning_limits(cfg: TurningInputs) -> MachineLimits:
     """What the lathe allows a turning program: the slides' velocity limits (the
     ``[machine]`` preset's, or ``process.x_velocity_limit_mm_s`` /
     ``z_velocity_limit_mm_s`` when lower) and the spindle speed ``process.spindle_rpm``
@@ -285,7 +286,7 @@ def turning_limits(cfg) -> MachineLimits:
                           velocity_mm_s=vel, spindle_rpm=float(p.spindle_rpm))
 
 
-def compensation_variants(cfg) -> VariantPair:
+def compensation_variants(cfg: TurningInputs) -> VariantPair:
     """The pair ``compare`` puts side by side for turning: the tool-radius compensation
     (``"z"`` when the scene says ``"none"``) against none.  Without compensation the nose
     overcuts the slopes by about ``Rc slope^2 / 2`` (Li et al. 2018, Fig. 16)."""
@@ -330,7 +331,7 @@ def _ideal_values(section, name: str) -> dict:
     return {f"{name}.preset": "ideal", **_cleared(section, name)}
 
 
-def turning_contributions(cfg) -> dict:
+def turning_contributions(cfg: TurningInputs) -> dict:
     """The lathe and the material, when not ideal, and the scene values that turn each off
     (:attr:`Traits.contributions`)."""
     out = {}
@@ -343,7 +344,7 @@ def turning_contributions(cfg) -> dict:
     return out
 
 
-def turning_traits(cfg, *, cut_rate: float = CUT_RATE) -> Traits:
+def turning_traits(cfg: TurningInputs, *, cut_rate: float = CUT_RATE) -> Traits:
     """A turned part: circular feed marks of the nose radius about the spindle axis, the
     disc of the workpiece, the program saved as ``toolpath.npz``, the lathe and the
     material as contributions beyond the commanded geometry."""
@@ -371,7 +372,8 @@ class TurningProcess(Process[TurningInputs]):
 
     inputs: ClassVar[type[TurningInputs]] = TurningInputs
 
-    def program(self, cfg: TurningInputs, surface, *, region=None, sectors: bool = False):
+    def program(self, cfg: TurningInputs, surface: Any, *, region: Sequence[float] | None = None,
+                sectors: bool = False) -> ToolPath:
         """The commanded turning program: the scene's ``process.program`` read from its
         file (:func:`~render_inspect.processes._program.imported_path`), else the planned
         spiral (:func:`plan_spiral`); a subclass that programs the spiral otherwise
@@ -380,7 +382,8 @@ class TurningProcess(Process[TurningInputs]):
             return imported_path(cfg, surface, region=region)
         return plan_spiral(cfg, surface, region=region, sectors=sectors)
 
-    def plan(self, cfg: TurningInputs, surface, *, region=None, sectors: bool = False) -> Plan:
+    def plan(self, cfg: TurningInputs, surface: Any, *, region: Sequence[float] | None = None,
+             sectors: bool = False) -> Plan:
         t0 = time.perf_counter()
         path = (self.program(cfg, surface, region=region, sectors=True) if sectors
                 else self.program(cfg, surface, region=region))
@@ -394,7 +397,7 @@ class TurningProcess(Process[TurningInputs]):
         return Plan(path, facts, {"toolpath": time.perf_counter() - t0},
                     plots=self.program_plots(cfg, path))
 
-    def program_plots(self, cfg: TurningInputs, path, data=None) -> dict:
+    def program_plots(self, cfg: TurningInputs, path: ToolPath, data: dict | None = None) -> dict:
         """``kinematics.png``: the axes of the program that move (and, for a program read
         from a file, ``feed_per_rev.png``)."""
         extra = {}
@@ -414,22 +417,22 @@ class TurningProcess(Process[TurningInputs]):
             return self.plan(cfg, surface, region=region)
         return self.plan(cfg, surface, region=region, sectors=True)
 
-    def cut(self, cfg: TurningInputs, surface, plan: Plan) -> Cut:
+    def cut(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Cut:
         t = turn(cfg, surface, plan.program)
         return Cut(t["machined"], t["design"], t["facts"], t["timing"], _meta(cfg),
                    followed=t["followed"], plots=t["plots"])
 
-    def estimate_memory(self, cfg: TurningInputs, plan=None) -> int:
+    def estimate_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> int:
         return turning_memory(cfg, plan)
 
     def traits(self, cfg: TurningInputs) -> Traits:
         return turning_traits(cfg)
 
-    def precheck(self, cfg: TurningInputs, region=None) -> None:
+    def precheck(self, cfg: TurningInputs, region: Sequence[float] | None = None) -> None:
         if not program_path(cfg):  # a program file's size is known once it is read
             turning_precheck(cfg, region)
 
-    def program_links(self, cfg: TurningInputs, surface, plan):
+    def program_links(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Links | None:
         """None for a program read from a file: its own moves between the cuts are part
         of it (and checked as findings), no links are added."""
         if program_path(cfg):
@@ -439,8 +442,8 @@ class TurningProcess(Process[TurningInputs]):
     def program_header(self, cfg: TurningInputs) -> dict:
         return turning_header(cfg)
 
-    def program_part(self, cfg: TurningInputs, surface, plan) -> PartModel:
-        return turning_part(cfg, surface, plan.program)
+    def program_part(self, cfg: TurningInputs, surface: Any, plan: Plan) -> PartModel:
+        return turning_part(cfg, surface, cast(ToolPath, plan.program))
 
     def program_limits(self, cfg: TurningInputs) -> MachineLimits:
         return turning_limits(cfg)
@@ -467,7 +470,7 @@ class TurningProcess(Process[TurningInputs]):
         return compensation_variants(cfg)
 
 
-def program_variants(cfg) -> VariantPair:
+def program_variants(cfg: TurningInputs) -> VariantPair:
     """The pair ``compare`` shows for a program read from a file: the program as written
     against the spiral the process would plan from the scene."""
     name = Path(str(cfg.process.program)).name
@@ -494,15 +497,17 @@ class TiledTurningProcess(TurningProcess):
                     f"received {cfg.burrs.height}")
         return None
 
-    def follow_program(self, cfg: TurningInputs, plan: Plan):
+    def follow_program(self, cfg: TurningInputs,
+                       plan: Plan) -> tuple[ToolPath, FollowedPath, dict]:
         """:func:`~render_inspect.processes._mechanics.follow` of the plan's program (a
         process that splits the program between axes passes its share here)."""
         return follow(cfg, plan.program)
 
-    def envelope(self, cfg: TurningInputs, surface, plan: Plan) -> Envelope:
+    def envelope(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Envelope:
         return self.envelope_of(cfg, *self.follow_program(cfg, plan))
 
-    def envelope_of(self, cfg: TurningInputs, cut_path, fp, facts, *, plots=None, meta=None) -> Envelope:
+    def envelope_of(self, cfg: TurningInputs, cut_path: ToolPath, fp: FollowedPath, facts: dict, *,
+                    plots: dict | None = None, meta: dict | None = None) -> Envelope:
         """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
         resp = material_of(cfg.material)
@@ -536,11 +541,11 @@ class TiledTurningProcess(TurningProcess):
                                                sim.pixel * stride, name=cfg.name))
         return facts, plots
 
-    def tiled_memory(self, cfg: TurningInputs, plan=None) -> tuple[int, int]:
+    def tiled_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> tuple[int, int]:
         # the machine model's following (machine_bytes) ends before the tiles start; what
         # it leaves is held beside them
         return _ticks(cfg, plan) * _TILED_KEPT_BYTES_PER_TICK, turning_points(cfg, plan)
 
-    def following_memory(self, cfg: TurningInputs, plan=None) -> int:
+    def following_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> int:
         # the phase before the tiles: every servo tick of the followed path at once
         return machine_bytes(cfg, plan)
