@@ -13,7 +13,8 @@ a scene shows both cuts)."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,12 +22,14 @@ from ..core.units import MM_TO_NM
 from ..machining import WEAR_RATES
 
 if TYPE_CHECKING:
+    from ..toolpath import EdgeProfile
     from ._machine import ProcessScene
 
 __all__ = ["edge_facts", "edge_imprint", "check_edge_and_wear"]
 
 
-def edge_imprint(edge, design: np.ndarray, region, pixel: float) -> tuple[np.ndarray, np.ndarray]:
+def edge_imprint(edge: EdgeProfile, design: np.ndarray, region: Sequence[float],
+                 pixel: float) -> tuple[np.ndarray, np.ndarray]:
     """(contact angle theta (rad), predicted imprint -delta(theta) / cos(theta) (mm)) on the
     grid of ``design`` (the design heights over ``region``, spacing ``pixel``)."""
     x0, y0 = region[0], region[1]
@@ -53,7 +56,8 @@ def _pv(a) -> float:
     return float(np.ptp(a)) if a.size else 0.0
 
 
-def edge_facts(tool, compensation: str, machined, design, region, pixel: float, *,
+def edge_facts(tool: Any, compensation: str, machined: np.ndarray, design: np.ndarray,
+               region: Sequence[float], pixel: float, *,
                name: str = "") -> tuple[dict, dict]:
     """(``metrics["tool_edge"]``, {"tool_edge.png": figure spec}) of a turned part cut by
     ``tool`` (whose ``edge`` is set) with the path's ``compensation``."""

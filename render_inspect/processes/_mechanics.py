@@ -12,7 +12,7 @@ is reported always (``metrics["scallop"]``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import logging
 import math
 import time
@@ -28,6 +28,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
 from ..machining import (
     BURR_WIDTH_PER_CHIP,
+    CutPath,
     FollowedPath,
     Grooves,
     MaterialResponse,
@@ -121,7 +122,8 @@ def pass_angle_map(path: ToolPath, region: Sequence[float], pixel: float) -> np.
     return np.where((s >= theta[0]) & (s <= theta[-1]), s, np.nan)
 
 
-def material_cut_path(path, tool, resp, h_min_points=None):
+def material_cut_path(path: ToolPath, tool: Tool, resp: MaterialResponse,
+                      h_min_points: np.ndarray | None = None) -> CutPath:
     """The followed path prepared for the cutting-mechanics kernel with the material's
     minimum chip thickness (``h_min_points``: at each point, the edge worn along the path),
     elastic recovery and side flow."""
@@ -151,7 +153,8 @@ def _error_maps(fp, pass_theta, stride: int) -> tuple[np.ndarray, np.ndarray]:
     return ex, ez
 
 
-def following_error_plots(fp, pass_theta, region, pixel, *, name: str) -> dict:
+def following_error_plots(fp: Any, pass_theta: np.ndarray, region: Sequence[float],
+                          pixel: float, *, name: str) -> dict:
     """Figure specs (``following_error.png``, ``following_error_map.png``) of a followed
     path: the errors against time, and the X and Z (slide + FTS) errors of the pass that
     cut each point, on at most ~:data:`MAP_FIGURE_POINTS` points a side."""
@@ -204,7 +207,8 @@ def add_texture(machined: np.ndarray, resp: MaterialResponse, region: Sequence[f
     return out, rms * MM_TO_NM
 
 
-def material_burr_args(cfg, resp, path, tool) -> dict | None:
+def material_burr_args(cfg: TurningInputs, resp: MaterialResponse | None, path: ToolPath,
+                       tool: Tool) -> dict | None:
     """The material's burrs of a turning cut (:func:`~render_inspect.machining.material_burrs`'
     keyword arguments but the grid's: the uncut chip thickness of the finishing cut at the
     feed of ``path`` (its ``feed_per_rev_mm``, else ``process.feed_per_rev``), the
@@ -221,8 +225,10 @@ def material_burr_args(cfg, resp, path, tool) -> dict | None:
             "smoothing": max(feed, 2 * sim.pixel), "width": BURR_WIDTH_PER_CHIP * h_u}
 
 
-def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, region=None,
-         plots: bool = True, design=None, progress=None) -> Turned:
+def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | None = None,
+         burrs: bool = True, region: Sequence[float] | None = None, plots: bool = True,
+         design: np.ndarray | None = None,
+         progress: Callable[[int, int], Any] | None = None) -> Turned:
     """Cut a turning program through the machine and material of ``cfg``.
 
     Parameters
@@ -317,7 +323,8 @@ def turn(cfg: TurningInputs, surface, path, *, z_fts=None, burrs: bool = True, r
                   pass_theta=pass_theta, plots=figs)
 
 
-def follow(cfg: TurningInputs, path, *, z_fts=None) -> tuple[ToolPath, FollowedPath, dict]:
+def follow(cfg: TurningInputs, path: Any, *,
+           z_fts: np.ndarray | None = None) -> tuple[ToolPath, FollowedPath, dict]:
     """The program ``path`` followed by the ``[machine]`` (its axes, error motions; seeded
     by ``simulation.seed``): (the path the tool follows, the FollowedPath, the facts
     ``machine`` and ``following_error``).  On an ideal machine the path is ``path``

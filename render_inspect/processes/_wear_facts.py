@@ -6,12 +6,15 @@ radius (:mod:`render_inspect.machining._wear`)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
+from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_M, MM_TO_NM, NM_TO_MM
-from ..machining import (MM_PER_KM, SPEED_LAW, chemical_distance_km, spiral_distance_km,
-                         wear_rate, wear_state, worn_path)
+from ..machining import (MM_PER_KM, SPEED_LAW, MaterialResponse, chemical_distance_km,
+                         spiral_distance_km, wear_rate, wear_state, worn_path)
 
 __all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "worn_h_min",
            "WEAR_BANDS"]
@@ -56,7 +59,7 @@ def _state(rate, cfg, r, feed) -> dict:
             "recession_nm": float(st["recession_nm"])}
 
 
-def wear_path(cfg, program, cut_path):
+def wear_path(cfg: Any, program: ToolPath, cut_path: ToolPath) -> tuple[ToolPath, dict]:
     """(The followed path ``cut_path`` cut by the worn edge, ``metrics["tool_wear"]``)."""
     rate = wear_rate(cfg.material.preset)
     feed = _feed(cfg, program)
@@ -74,7 +77,9 @@ def wear_path(cfg, program, cut_path):
     return worn, facts
 
 
-def roughness_against_radius(cfg, machined, design, region, pixel: float, bands: int = WEAR_BANDS) -> list:
+def roughness_against_radius(cfg: Any, machined: np.ndarray, design: np.ndarray,
+                             region: Sequence[float], pixel: float,
+                             bands: int = WEAR_BANDS) -> list:
     """Sa and Sq (nm, mean removed) of machined - design in ``bands`` rings of the region,
     each with the worn edge at its middle radius."""
     rate = wear_rate(cfg.material.preset)
@@ -99,7 +104,7 @@ def roughness_against_radius(cfg, machined, design, region, pixel: float, bands:
     return out
 
 
-def wear_figure(cfg, wear: dict) -> dict:
+def wear_figure(cfg: Any, wear: dict) -> dict:
     """``tool_wear.png``: the edge (radius, flank wear) over the whole part against the
     radius, and the simulated roughness in the region's rings."""
     rate = wear_rate(cfg.material.preset)
@@ -114,7 +119,8 @@ def wear_figure(cfg, wear: dict) -> dict:
                      f"{'assumed' if rate.basis == 'A' else 'sourced'})"}
 
 
-def sculpt_wear(cfg, lines, duty: float):
+def sculpt_wear(cfg: Any, lines: Sequence[tuple[np.ndarray, np.ndarray]],
+                duty: float) -> tuple[Any, dict]:
     """(The ``[material]`` section with the edge radius the cut wears to on average, the
     facts ``tool_wear``) of a sculpturing cut along ``lines`` ((y, z) arrays, mm) whose edge
     is in contact for the fraction ``duty`` of the time (the vibration's contact ratio; the
@@ -137,7 +143,8 @@ def sculpt_wear(cfg, lines, duty: float):
     return cfg.material.model_copy(update={"edge_radius_nm": r_mid}), facts
 
 
-def worn_h_min(cfg, path, resp):
+def worn_h_min(cfg: Any, path: ToolPath,
+               resp: MaterialResponse | None) -> np.ndarray | None:
     """The minimum chip thickness (mm) at each point of ``path`` cut by the edge worn to it
     (``tool.wear``), or None without wear or a material: the material response ``resp``'s
     h_min (linear in the effective edge radius, r_e + the adhered layer) at the worn radius."""
