@@ -13,8 +13,9 @@ the moves through the part or below the design as findings.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +25,9 @@ from ..core.units import MM_TO_NM, MM_TO_UM, MIN_TO_S
 from ..core.programs import read_program_file
 from ..core.toolpath import LinearProgram
 from ..toolpath import Tool, region_radii
+
+if TYPE_CHECKING:
+    from ._contract import Plan
 
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
            "feed_per_rev", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
@@ -39,12 +43,12 @@ _CHECK_POINTS = 2_000_000
 _EXAMPLES = 5
 
 
-def program_path(cfg) -> str | None:
+def program_path(cfg: Any) -> str | None:
     """The scene's ``process.program`` (None: the process plans its own)."""
     return getattr(cfg.process, "program", None)
 
 
-def imported_path(cfg, surface, *, region=None) -> ToolPath:
+def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = None) -> ToolPath:
     """The turning program of ``process.program`` as the lathe runs it
     (:func:`~render_inspect.io.read_program` with the scene's ``process.spindle_rpm``,
     ``process.feed_mm_per_min``, ``process.workpiece_radius``, ``process.program_x`` and
@@ -94,7 +98,7 @@ def _reaching(path: ToolPath, region, half_width: float):
     return slice(max(lo - 1, 0), min(hi + 2, path.points))
 
 
-def imported_linear(cfg):
+def imported_linear(cfg: Any) -> tuple[LinearProgram, Any]:
     """The X-Y-Z program of ``process.program`` (feed from ``process.feed_mm_per_min``
     where it gives none)."""
     p = cfg.process
@@ -152,7 +156,7 @@ def _sample(n: int) -> np.ndarray:
     return np.arange(n) if n <= _CHECK_POINTS else np.linspace(0, n - 1, _CHECK_POINTS).astype(np.int64)
 
 
-def program_checks(cfg, surface, path: ToolPath) -> dict:
+def program_checks(cfg: Any, surface: Any, path: ToolPath) -> dict:
     """What a CAM user checks of an imported turning program: ``feed_per_rev`` (table by
     radius; median, least and largest), ``chordal_error_max_nm`` (the chords' midpoints
     against the design, beyond the end points' own offsets), ``c_rate_max_rpm``, and
@@ -238,7 +242,7 @@ def findings_summary(checks: dict) -> str:
                      f"line {f['worst_line']}, radius {f['worst_radius_mm']:.4g} mm)" for f in fs)
 
 
-def fit_paraboloid(paths, *, nose_radius: float = 0.0) -> dict:
+def fit_paraboloid(paths: Sequence[ToolPath], *, nose_radius: float = 0.0) -> dict:
     """The paraboloid ``z = offset - r^2 / (2 R)`` (``design.type = "paraboloid"`` with
     ``radius_x = radius_y = R``) that fits the Z of turning programs best (least squares
     over every point of ``paths``, ToolPaths).  With ``nose_radius`` > 0 the programs' Z is
@@ -268,7 +272,7 @@ def fit_paraboloid(paths, *, nose_radius: float = 0.0) -> dict:
             "max_nm": float(np.max(np.abs(res)) * MM_TO_NM), "points": int(r.size)}
 
 
-def imported_sculpt_plan(process, cfg, surface):
+def imported_sculpt_plan(process: Any, cfg: Any, surface: Any) -> Plan:
     """The plan of the X-Y-Z program of ``process.program`` for the sculpturing cut: its
     lines (runs of feed moves; each rapid starts the next) must each keep X constant and
     move along Y (the cut sweeps the edge along Y); of consecutive points over the same

@@ -134,7 +134,8 @@ def _plan(cfg, surface, *, region=None) -> Plan:
     return Plan(path, {"toolpath": toolpath_facts(path, p), "rcse": rcse}, timing)
 
 
-def rcse_comparison(cfg, path, surface, *, machined=None, design=None,
+def rcse_comparison(cfg: Any, path: Any, surface: Any, *,
+                    machined: np.ndarray | None = None, design: np.ndarray | None = None,
                     conventional_machined: bool = False,
                     conventional_program: bool = False) -> tuple:
     """Compare the RCSE path with the conventional one over the same spiral samples.
@@ -240,7 +241,7 @@ def _machine_conventional(cfg, surface, conv_path, model, *, region=None, design
                 plots=plots, design=design)
 
 
-def element_windows(layout, n: int, side: float) -> list:
+def element_windows(layout: Any, n: int, side: float) -> list:
     """``n`` square fields of side ``side`` (mm) centred on elements spread over the rings
     (ring after ring; the k-th field's angle steps by the golden ratio of a turn):
     [(ring, element, (x0, y0, x1, y1)), ...]."""
@@ -259,7 +260,7 @@ def element_windows(layout, n: int, side: float) -> list:
     return out
 
 
-def element_spread(cfg, surface) -> dict:
+def element_spread(cfg: Any, surface: Any) -> dict:
     """Sa of both paths on ``rcse.spread_elements`` element fields, their mean and
     standard deviation, and how much lower RCSE's are (the RCSE study's Table 2: 60.6 %
     and 91.7 %)."""
@@ -397,7 +398,7 @@ class RcseProcess(TiledTurningProcess):
     def traits(self, cfg: TurningInputs) -> Traits:
         return turning_traits(cfg, cut_rate=CUT_RATE)
 
-    def variants(self, cfg) -> VariantPair:
+    def variants(self, cfg: Any) -> VariantPair:
         """The surface cut along the RCSE path against the one cut along the conventional
         grid-interpolated path."""
         st = cfg.rcse

@@ -372,7 +372,8 @@ class SculptProcess(Process[SculptInputs]):
                 "cutting_speed_mm_per_min": cfg.process.feed_mm_per_min,
                 "vibration_not_programmed": f"{vib.frequency_hz} Hz, {vib.amplitude} mm"}
 
-    def program_plan(self, cfg: SculptInputs, surface, program) -> Plan:
+    def program_plan(self, cfg: SculptInputs, surface: Any,
+                     program: Any) -> Plan:
         """The plan of a sculpturing program read back from its file: its target lines
         (points grouped by ``line``) as the cut takes them."""
         _, y_edges = lattice_lines(surface, pitch_y=cfg.design.pitch_y)
