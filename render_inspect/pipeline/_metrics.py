@@ -10,6 +10,7 @@ analysis's and an instrument characterisation's; the ``toolpath`` command's
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from pathlib import Path
@@ -19,7 +20,9 @@ from ..io import write_json
 from ..machining import residual_metrics
 
 if TYPE_CHECKING:
+    from ..processes import Plan, Traits, VariantPair
     from ..scene import Scene
+    from ._simulate import Simulation
 
 __all__ = ["simulation_metrics", "tiled_metrics", "variant_metrics", "comparison_metrics",
            "toolpath_metrics", "measurement_metrics", "analysis_metrics",
@@ -59,7 +62,7 @@ def _program_facts(m: dict, plan) -> None:
     m.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
 
 
-def simulation_metrics(scene: Scene, sim) -> dict:
+def simulation_metrics(scene: Scene, sim: Simulation) -> dict:
     """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
     ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
     ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
@@ -78,7 +81,8 @@ def simulation_metrics(scene: Scene, sim) -> dict:
     return m
 
 
-def tiled_metrics(scene: Scene, plan, traits, residual: dict, shape, origin, timing: dict,
+def tiled_metrics(scene: Scene, plan: Plan, traits: Traits, residual: dict, shape: Sequence[int],
+                  origin: Sequence[float], timing: dict,
                   facts: dict | None = None) -> dict:
     """``metrics.json`` of a tiled simulation: the keys of :func:`simulation_metrics`, with
     ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)
@@ -105,7 +109,8 @@ def variant_metrics(sim_metrics: dict, *, name: str, label: str, measured: dict,
     return m
 
 
-def comparison_metrics(scene: Scene, *, pair, variants, difference: dict, filters: dict,
+def comparison_metrics(scene: Scene, *, pair: VariantPair, variants: Sequence[Any],
+                       difference: dict, filters: dict,
                        windows: dict, seed: int, mitsuba_variant: str, render_settings: dict,
                        measured_file: dict | None, total_s: float, report: str) -> dict:
     """``compare``'s ``metrics.json``: the pair, both variants' metrics (under their names),

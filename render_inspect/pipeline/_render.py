@@ -9,7 +9,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -156,7 +156,8 @@ def render_heightmap(scene: Scene, *, surface: str = "machined") -> HeightMap:
     return design_heightmap(scene)
 
 
-def write_instrument_outputs(name: str, out: Path, result, *, scene: dict | None = None) -> dict:
+def write_instrument_outputs(name: str, out: Path, result: Any, *,
+                             scene: dict | None = None) -> dict:
     """Write the files of an instrument's result (its ``write`` hook) and draw its
     figures into ``out``; return its summary."""
     # (a renderable instrument has both hooks: the registry checks it)
@@ -167,7 +168,7 @@ def write_instrument_outputs(name: str, out: Path, result, *, scene: dict | None
     return summary
 
 
-def write_interferogram_outputs(out: Path, ig, *, scene: dict | None = None) -> dict:
+def write_interferogram_outputs(out: Path, ig: Any, *, scene: dict | None = None) -> dict:
     """The files and figures of the instrument that records interferometer frames
     (``interferogram.exr``, ``interferogram_fringes.png``); return its summary."""
     return write_instrument_outputs(height_instrument().name, out, ig, scene=scene)

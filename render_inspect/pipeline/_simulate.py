@@ -78,12 +78,12 @@ class Simulation:
     msa: dict | None = None
 
     @property
-    def program(self):
+    def program(self) -> Any:
         """The commanded machine program (ToolPath or LinearProgram)."""
         return self.plan.program
 
     @property
-    def toolpath(self):
+    def toolpath(self) -> Any:
         """The program ``simulate`` saves as ``toolpath.npz`` (the turning tool path), or
         None for a process that saves none (sculpturing)."""
         return self.plan.program if self.traits.saves_program else None

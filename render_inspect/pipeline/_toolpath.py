@@ -4,7 +4,7 @@ the design and the machine before the folder is put in place."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import logging
 from pathlib import Path
@@ -13,7 +13,7 @@ from ..core.errors import InputError
 from ..design import Surface, make_surface
 from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
-from ..processes import Plan, check_budget, findings_summary, process_of
+from ..processes import Plan, Process, check_budget, findings_summary, process_of
 from ..report import draw_figure
 from ..toolpath import compare_with_plan, plan_memory, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
@@ -39,7 +39,8 @@ def plan_program(scene: Scene, *, surface: Surface | None = None) -> Plan:
     return process.plan(cfg, surface, region=region)
 
 
-def verify_program_file(path, process, cfg, surface, plan, links) -> dict | None:
+def verify_program_file(path: Path, process: Process, cfg: Any, surface: Surface, plan: Plan,
+                        links: Any) -> dict | None:
     """Read the NC program ``path`` back and check every block of it against the part,
     the design and the machine (:func:`~render_inspect.toolpath.verify_blocks`); returns
     the check's facts, None for a process that states no part to check against.  The
@@ -58,7 +59,7 @@ def verify_program_file(path, process, cfg, surface, plan, links) -> dict | None
     return facts
 
 
-def check_links(process, cfg, surface, plan) -> dict | None:
+def check_links(process: Any, cfg: Any, surface: Surface, plan: Plan) -> dict | None:
     """The moves between the cuts of the planned program (approach, links, exit: the
     blocks :func:`~render_inspect.io.program_blocks` gives) checked against the part and
     the machine: the rapids stay in the clearance plane, plunges and retracts are
@@ -93,7 +94,8 @@ def nc_memory(scene: Scene, points: int) -> int:
                                          "process.arc_length, process.workpiece_radius)")
 
 
-def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz", overwrite: bool = False):
+def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
+                 overwrite: bool = False) -> Any:
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program

@@ -51,10 +51,10 @@ class WholeMapViews:
         self.hm = hm
         self.facts: dict[str, Any] = {}
 
-    def instrument(self, entry, cfg):
+    def instrument(self, entry: Any, cfg: Any) -> tuple[HeightMap, Any]:
         return self.hm, cfg
 
-    def diffuse(self, dcfg: DiffuseConfig, view: str):
+    def diffuse(self, dcfg: DiffuseConfig, view: str) -> tuple[HeightMap, DiffuseConfig]:
         return self.hm, dcfg
 
 
@@ -95,7 +95,7 @@ class BigMapViews:
         self.facts["read"][name] = {"shape": list(design.shape), "level": k, "factor": f}
         return HeightMap(design, machined, p * f, origin, self.store.scene or None, self.store.meta)
 
-    def instrument(self, entry, cfg):
+    def instrument(self, entry: Any, cfg: Any) -> tuple[HeightMap, Any]:
         if entry.field is None:
             raise InputError(f"render.{entry.name}: the instrument states no field, so a map "
                              f"too large for memory cannot be read in part for it; shrink "
@@ -104,7 +104,7 @@ class BigMapViews:
         window = [float(v) for v in field["window"]]
         return self._window(window, entry.name), field.get("settings", cfg)
 
-    def diffuse(self, dcfg, view: str):
+    def diffuse(self, dcfg: DiffuseConfig, view: str) -> tuple[HeightMap, DiffuseConfig]:
         if view == "macro":
             return self._level(2 * int(dcfg.resolution), "diffuse_macro"), dcfg
         window = list(dcfg.window) if dcfg.window is not None else default_window(self.grid)
