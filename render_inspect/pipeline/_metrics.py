@@ -22,7 +22,6 @@ from ..machining import residual_metrics
 if TYPE_CHECKING:
     from ..processes import Plan, Traits, VariantPair
     from ..scene import Scene
-    from ._simulate import Simulation
 
 __all__ = ["simulation_metrics", "tiled_metrics", "variant_metrics", "comparison_metrics",
            "toolpath_metrics", "measurement_metrics", "analysis_metrics",
@@ -62,7 +61,7 @@ def _program_facts(m: dict, plan) -> None:
     m.setdefault("toolpath", {}).setdefault("points", int(plan.program.points))
 
 
-def simulation_metrics(scene: Scene, sim: Simulation) -> dict:
+def simulation_metrics(scene: Scene, sim: Any) -> dict:
     """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
     ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
     ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
