@@ -4,13 +4,16 @@ threads (:func:`run_local`)."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 from ..core.errors import RenderInspectError
 
 __all__ = ["run_local"]
 
 
-def run_local(compute, tasks, threads: int = 1, *, catch: bool = True):
+def run_local(compute: Callable[[Any], Any], tasks: Sequence[Any], threads: int = 1, *,
+              catch: bool = True) -> Iterator[tuple]:
     """``(height, meta, seconds, error text or None)`` of each task in order, computed in
     this process: one after the other, or ``threads`` at once (a thread pool; each result
     is handed on, in the tasks' order, as soon as it and those before it are done).

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 import math
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +89,8 @@ def fit_window(z: np.ndarray, pixel: Sequence[float], origin: Sequence[float],
     return slice(r0 + i, r0 + i + n), slice(c0 + j, c0 + j + n)
 
 
-def register_field(z, pixel, design, region, *, max_side: int = 512) -> dict:
+def register_field(z: np.ndarray, pixel: Sequence[float], design: Any, region: Sequence[float], *,
+                   max_side: int = 512) -> dict:
     """Find where a measured map lies on the design inside ``region`` (mm).
 
     Both the map and the design (sampled over the region at the map's pixel) lose their

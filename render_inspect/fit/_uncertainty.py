@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -91,7 +92,8 @@ UNDETERMINED_RELATIVE = 0.1
 SINGULAR = 1e-10
 
 
-def identifiability(params, values, cov, info=None) -> dict:
+def identifiability(params: Sequence[FreeParameter], values: Sequence[float] | np.ndarray,
+                    cov: np.ndarray, info: Any = None) -> dict:
     """Which combinations of the parameters the measurement determines: the eigenvectors
     of the covariance in relative units (each parameter divided by its value, or by its
     scale where the value is 0) and the standard error along each.  A direction whose
@@ -176,7 +178,8 @@ def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
 
 
 
-def probe(params, evaluator, best, sigma_units, lo, hi, fd_step):
+def probe(params: Sequence[FreeParameter], evaluator: Any, best: Any, sigma_units: np.ndarray,
+          lo: np.ndarray, hi: np.ndarray, fd_step: float) -> tuple[list, int]:
     """The misfit either side of ``best`` along each parameter (2 standard errors, between
     half a difference step and five): (lower evaluations found, probes made)."""
     u = np.array([p.to_unit(v) for p, v in zip(params, best.values)])
@@ -195,7 +198,8 @@ def probe(params, evaluator, best, sigma_units, lo, hi, fd_step):
     return lower, len(pts)
 
 
-def profiles(params, evaluator, best, stderr, k):
+def profiles(params: Sequence[FreeParameter], evaluator: Any, best: Any, stderr: np.ndarray,
+             k: int) -> dict:
     """The misfit along each parameter through the solution (the others held)."""
     pts, where = [], []
     for i, p in enumerate(params):
@@ -209,7 +213,8 @@ def profiles(params, evaluator, best, stderr, k):
             xx[i] = v
             pts.append(xx)
             where.append((p.key, float(v)))
-    out = {p.key: {"values": [], "misfit": [], "terms": []} for p in params}
+    out: dict[str, dict[str, list]] = {p.key: {"values": [], "misfit": [], "terms": []}
+                                       for p in params}
     with progress_task(f"fit: misfit along each parameter ({len(pts)} points)",
                        total=len(pts)) as st:
         evaluator.step = st
