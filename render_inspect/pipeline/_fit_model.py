@@ -168,9 +168,9 @@ def preset_value(scene: Scene, key: str) -> Any:
     return node
 
 
-def preset_fill(scene: Scene):
+def preset_fill(scene: Scene) -> Callable[[str], Any]:
     """``fill(prefix)``: the preset's array for an array key the scene leaves unset."""
-    def fill(prefix: str):
+    def fill(prefix: str) -> Any:
         v = preset_value(scene, prefix)
         return copy.deepcopy(v) if isinstance(v, list) else None
     return fill

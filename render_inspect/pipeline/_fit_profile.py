@@ -105,7 +105,8 @@ def predict_profile(task_spec: dict):
     return z[None, :], meta
 
 
-def simulate_profile(scene: Scene, p0, p1, spacing: float, *, seed: int = 0):
+def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spacing: float, *,
+                     seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The scene's cut along the line ``p0 -> p1`` (mm) as the virtual interferometer
     measures it (its camera noise on, seeded), sampled every ``spacing`` mm: a thin band
     about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
