@@ -10,6 +10,8 @@ second-difference k-sigma rule (the ``curvature`` rule here).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from ..core.lazy import lazy_module
 
@@ -27,8 +29,10 @@ __all__ = ["detect_outliers", "SPIKE_NEIGHBOUR_SHARE"]
 SPIKE_NEIGHBOUR_SHARE = 0.25
 
 
-def detect_outliers(z, *, pixel, k: float = 3.0, mask=None, replace: bool = True,
-                    min_sigma_mm: float = 1e-7, rule: str = "spike"):
+def detect_outliers(z: np.ndarray, *, pixel: Any, k: float = 3.0,
+                    mask: np.ndarray | None = None, replace: bool = True,
+                    min_sigma_mm: float = 1e-7,
+                    rule: str = "spike") -> tuple[np.ndarray, np.ndarray]:
     """Outliers of a measured map or profile: spikes, not curvature.
 
     ``rule="spike"`` (the default): a single point raised (or dropped) by ``h`` adds

@@ -61,7 +61,8 @@ _WRAP = False
 _SLOPE_ROWS = 256
 
 
-def forward_slope_sums(z, ok, pixel, corners: tuple[int, int], *, holes: bool):
+def forward_slope_sums(z: np.ndarray, ok: np.ndarray, pixel: Sequence[float],
+                       corners: tuple[int, int], *, holes: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The sums behind the forward estimator's Sdq and Sdr over the grid corners of rows
     ``corners[0]`` .. ``corners[1] - 1`` of ``z`` (each corner's cell reaches one row and
     column further; the border rule looks two rows further, and rows beyond ``z`` count

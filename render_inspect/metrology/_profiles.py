@@ -117,7 +117,8 @@ def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None,
             "peak": (float(peak[0]), float(peak[1]))}
 
 
-def crop_window(z, grid, window):
+def crop_window(z: np.ndarray, grid: Any,
+                window: Sequence[float]) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """``z`` (on ``grid``'s pixels: ``pixel``, ``origin``) inside ``window`` = (x0, y0, x1,
     y1) (mm), and its pixel-edge extent (x0, x1, y0, y1)."""
     x0, y0, x1, y1 = window

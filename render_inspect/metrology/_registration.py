@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 from ..core.lazy import lazy_attr, lazy_module
 
 from ..core.errors import InputError
@@ -118,7 +119,8 @@ class MovedSurface:
         return ((self.height(np.asarray(x) + h, y) - self.height(np.asarray(x) - h, y)) / (2 * h),
                 (self.height(x, np.asarray(y) + h) - self.height(x, np.asarray(y) - h)) / (2 * h))
 
-    def to_design(self, x, y, z):
+    def to_design(self, x: ArrayLike, y: ArrayLike,
+                  z: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Design-frame coordinates ``R^T (p - t)`` of measured-frame points: (u, v, w)."""
         r, t = self._rot, self.params[:3]
         px, py, pz = np.asarray(x) - t[0], np.asarray(y) - t[1], np.asarray(z) - t[2]
@@ -126,7 +128,7 @@ class MovedSurface:
                 r[0, 1] * px + r[1, 1] * py + r[2, 1] * pz,
                 r[0, 2] * px + r[1, 2] * py + r[2, 2] * pz)
 
-    def move_point(self, x, y):
+    def move_point(self, x: float, y: float) -> tuple[float, float, float]:
         """Where the design point above (``x``, ``y``) lies after the move: (x', y', z')."""
         q = np.array([x, y, float(self.surface.height(np.float64(x), np.float64(y)))])
         p = self._rot @ q + self.params[:3]
