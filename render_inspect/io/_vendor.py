@@ -124,7 +124,8 @@ _X3P_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, ElementTree
                NotImplementedError, RuntimeError)
 
 
-def read_x3p_plain(path):
+def read_x3p_plain(path: str | Path
+                   ) -> tuple[np.ndarray, tuple[float, float], tuple[float, float], dict]:
     """An X3P container whose ``main.xml`` has no namespace (and may sit in a sub-folder of
     the archive): regular-grid surfaces (``FeatureType`` SUR, axes I/I/A) in metres.  A
     damaged container, ``main.xml`` or point file is an :class:`InputError`."""

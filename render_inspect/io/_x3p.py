@@ -69,7 +69,8 @@ def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | N
 
 
 def read_x3p(path: str | Path, *, what: str = "X3P file",
-             budget: int | tuple[int, str] | None = None):
+             budget: int | tuple[int, str] | None = None
+             ) -> tuple[np.ndarray, float, tuple[float, float], dict]:
     """Read an X3P surface with square pixels (:func:`read_x3p_xy` for any pixels).
 
     The archive and the grid size its ``main.xml`` declares are checked first
@@ -94,7 +95,8 @@ def read_x3p(path: str | Path, *, what: str = "X3P file",
 
 
 def read_x3p_xy(path: str | Path, *, what: str = "X3P file",
-                budget: int | tuple[int, str] | None = None):
+                budget: int | tuple[int, str] | None = None
+                ) -> tuple[np.ndarray, tuple[float, float], tuple[float, float], dict]:
     """Read an X3P surface keeping both sampling distances.
 
     The archive and the grid size its ``main.xml`` declares are checked first

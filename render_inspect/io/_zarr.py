@@ -55,7 +55,7 @@ MAX_CHUNK_BYTES = GIB_TO_BYTES
 _METADATA = {"zarr.json", ".zarray", ".zattrs", ".zgroup", ".zmetadata"}
 
 
-def codec():
+def codec() -> Any:
     """The compressor of every array in the store (see the module notes)."""
     from zarr.codecs import BloscCodec
 
@@ -146,7 +146,8 @@ def _whole(fn):
 
 
 @_whole
-def create_heightmap_zarr(path: str | Path, shape, *, chunk: int, attrs: dict, levels: int = 0):
+def create_heightmap_zarr(path: str | Path, shape: Sequence[int], *, chunk: int, attrs: dict,
+                          levels: int = 0) -> Any:
     """Create an empty store (arrays filled with NaN) and return its zarr group.
 
     Every level (the full resolution and each pyramid level) holds the arrays of
@@ -471,7 +472,7 @@ class ZarrHeightMap:
             raise InputError(f"{self.what} {str(self.path)!r}: array {name!r} cannot be read "
                              f"(a damaged chunk: {type(err).__name__}: {str(err)[:120]})") from None
 
-    def dask(self, channel: str, *, level: int = 0):
+    def dask(self, channel: str, *, level: int = 0) -> Any:
         """``channel`` (at pyramid ``level``) as a ``dask.array`` in the store's chunks:
         nothing is read until a window of it is computed (:meth:`rows` reads one, turning
         a damaged chunk into an :class:`InputError`)."""
