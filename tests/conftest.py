@@ -166,6 +166,17 @@ def pytest_configure(config):
     # pytest-xdist's mark, known also where pytest-xdist is not loaded (-p no:xdist)
     config.addinivalue_line("markers", "xdist_group(name): the tests of one group run on one "
                             "worker under --dist loadgroup")
+    _import_libraries_that_start_processes()
+
+
+def _import_libraries_that_start_processes() -> None:
+    """Import, before any test, the measured-file library whose own import starts processes
+    (its version from ``git describe``, ``platform``'s ``uname -p``): otherwise the process
+    rule below would pin them on whichever test of a run first reads a measured file."""
+    try:
+        import SurfaceTopography.IO  # noqa: F401
+    except ImportError:  # an environment without it: the readers' tests say so
+        pass
 
 
 @pytest.hookimpl(wrapper=True)
