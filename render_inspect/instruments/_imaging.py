@@ -166,7 +166,7 @@ def _box_weights(s: int, fill_factor: float) -> np.ndarray:
 
 #: Tilt (rad) by which every facet must stay below the fade's start for the fade to be
 #: left out (far above the float32 arccosine's error of a few 1e-8 rad).
-_FADE_MARGIN_RAD = 1e-3
+_FADE_MARGIN_RAD = 1e-3  # not a unit conversion: 1 mrad
 
 
 def _below_tilt(cos_t: np.ndarray, alpha: float) -> bool:

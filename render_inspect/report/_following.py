@@ -35,7 +35,7 @@ def _text_size(fig: Any, text: str, size: float | str) -> tuple[float, float]:
 def _tick_labels(axis: Any) -> list[str]:
     """The labels of the major ticks ``axis`` will draw in its current view."""
     lo, hi = sorted(axis.get_view_interval())
-    slack = 1e-9 * (hi - lo)
+    slack = 1e-9 * (hi - lo)  # not a unit conversion: a relative slack
     locs = [v for v in axis.get_major_locator()() if lo - slack <= v <= hi + slack]
     return list(axis.get_major_formatter().format_ticks(locs))
 
