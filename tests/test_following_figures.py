@@ -1,10 +1,10 @@
 """The following-error figures are laid out with fixed margins (no tight_layout): every
 label, tick label and title stays inside the figure and no axes overlaps another."""
 
+import matplotlib
 import numpy as np
 import pytest
 
-matplotlib = pytest.importorskip("matplotlib")
 matplotlib.use("Agg")
 
 from render_inspect.report import _following as F  # noqa: E402

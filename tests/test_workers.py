@@ -66,7 +66,7 @@ def test_other(n):
 
 @pytest.mark.slow
 def test_a_group_runs_on_one_worker_and_its_module_fixture_is_made_once(tmp_path):
-    pytest.importorskip("xdist")
+    import xdist  # noqa: F401  (the test extra's pytest-xdist: make test runs on it)
     suite = tmp_path / "suite"
     suite.mkdir()
     shutil.copy(REPO / "tests" / "conftest.py", suite / "conftest.py")

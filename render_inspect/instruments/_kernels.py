@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.smoothing import gaussian_weights
 
 __all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine", "steps_over"]
 
@@ -169,16 +170,6 @@ def frames_from_field(x: np.ndarray, light: np.ndarray, rho_r: float | np.floati
 
 
 # ------------------------------------------- the facets' cosine after the PSF smoothing
-def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
-    """The weights SciPy's ``gaussian_filter1d`` correlates with (its own kernel, reversed
-    as it reverses it), radius ``int(truncate sigma + 0.5)``."""
-    from scipy.ndimage import _filters
-
-    radius = int(truncate * float(sigma) + 0.5)
-    return np.ascontiguousarray(_filters._gaussian_kernel1d(float(sigma), 0, radius)[::-1],
-                                dtype=np.float64)
-
-
 @njit(parallel=True, cache=True)
 def _wrap_axis0(u, w, out):
     ny, nx = u.shape

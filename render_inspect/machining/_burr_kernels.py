@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.smoothing import gaussian_weights
 
 __all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "slope_angles"]
 
@@ -31,16 +32,6 @@ _BLOCK_ROWS = 256
 
 def _threads() -> int:
     return max(1, min(8, os.cpu_count() or 1))
-
-
-def gaussian_weights(sigma: float, truncate: float = 4.0) -> np.ndarray:
-    """The weights scipy's ``gaussian_filter1d`` correlates with (its own kernel,
-    reversed as it reverses it), radius int(truncate sigma + 0.5)."""
-    from scipy.ndimage import _filters
-
-    radius = int(truncate * float(sigma) + 0.5)
-    return np.ascontiguousarray(_filters._gaussian_kernel1d(float(sigma), 0, radius)[::-1],
-                                dtype=np.float64)
 
 
 #: columns per block of the smoothing: along axis 0 the 2 r + 1 rows of a block stay in the
