@@ -60,6 +60,18 @@ def _on_interrupt(signum, frame):
         raise KeyboardInterrupt
 
 
+def _quiet_unraisable(default: Any) -> Any:
+    """``sys.unraisablehook`` that leaves out the interruption our own signal handlers
+    raise where Python cannot pass it on (inside a ``__del__``, a weakref callback): the
+    request is recorded (core.cancel), so the run still ends as interrupted, in one line;
+    anything else goes to ``default``."""
+    def hook(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, (KeyboardInterrupt, Terminated)):
+            return
+        default(unraisable)
+    return hook
+
+
 def _on_terminate(signum, frame):
     cancel.request(signum)
     if not cancel.deferring():
@@ -150,6 +162,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 old_signals[sig] = signal.signal(sig, handler)
             except (ValueError, OSError):  # not the main thread: leave the handlers alone
                 pass
+        if old_signals:
+            old_unraisable = sys.unraisablehook
+            sys.unraisablehook = _quiet_unraisable(old_unraisable)
         with reporter as rep:
             old = set_reporter(rep)
             try:
@@ -220,6 +235,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _early_signals.finished()
         for sig, handler in old_signals.items():
             signal.signal(sig, handler)
+        if old_signals:
+            sys.unraisablehook = old_unraisable
         cancel.clear()
     dt = time.perf_counter() - t0
     if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
