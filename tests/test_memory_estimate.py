@@ -26,13 +26,18 @@ _PROBE = textwrap.dedent('''
             if line.startswith(key):
                 return int(line.split()[1]) * 1024
 
+    def base_rss():  # the warm-up's freed heap back to the system first (see _STATUS)
+        import ctypes
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+        return status("VmRSS")
+
     half, pixel, scene_file = float(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
     scene = load_scene(scene_file, [f"simulation.region={[-half, -half, half, half]}",
                                     f"simulation.pixel={pixel}", "simulation.max_memory_gb=16"])
     out = Path(tempfile.mkdtemp())
     # load every library and compiled kernel first: the baseline is what they hold
     run_simulate(scene.with_overrides(["simulation.region=[-0.01,-0.01,0.01,0.01]"]), out / "warm")
-    base = status("VmRSS")
+    base = base_rss()
     tracemalloc.start()
     m = run_simulate(scene, out / "run")
     _, peak = tracemalloc.get_traced_memory()
@@ -69,6 +74,11 @@ _TILED_PROBE = textwrap.dedent('''
             if line.startswith(key):
                 return int(line.split()[1]) * 1024
 
+    def base_rss():  # the warm-up's freed heap back to the system first (see _STATUS)
+        import ctypes
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+        return status("VmRSS")
+
     half, scene_file = float(sys.argv[1]), sys.argv[2]
     scene = load_scene(scene_file, [f"simulation.region={[-half, -half, half, half]}",
                                     "simulation.pixel=0.0005", "material.preset='ideal'",
@@ -76,7 +86,7 @@ _TILED_PROBE = textwrap.dedent('''
     out = Path(tempfile.mkdtemp())
     run_simulate(scene.with_overrides(["simulation.region=[-0.05,-0.05,0.05,0.05]"]), out / "warm",
                  tiled=True, tile=64)
-    base = status("VmRSS")
+    base = base_rss()
     tracemalloc.start()
     m = run_simulate(scene, out / "run", tiled=True, tile=512)
     _, peak = tracemalloc.get_traced_memory()
@@ -104,10 +114,19 @@ def test_tiled_memory_is_bounded_by_the_tiles_not_the_map(tmp_path):
 #: the peak of a command's own work: the resident set's high-water mark above what the
 #: process held before it (libraries loaded), against the estimate its budget check uses
 _STATUS = '''
+import ctypes
+
 def status(key):
     for line in open("/proc/self/status"):
         if line.startswith(key):
             return int(line.split()[1]) * 1024
+
+def base_rss():
+    # the heap the warm-up run freed goes back to the system first: left resident, the
+    # measured run reuses it without raising the high-water mark, and its peak reads low
+    # by however much the allocator happened to keep (70-110 MB on the same tiled run)
+    ctypes.CDLL("libc.so.6").malloc_trim(0)
+    return status("VmRSS")
 '''
 
 _RENDER_PROBE = textwrap.dedent('''
@@ -120,7 +139,7 @@ _RENDER_PROBE = textwrap.dedent('''
     scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.1,-0.1,0.1,0.1]",
                                                "simulation.max_memory_gb=16", *sets])
     need = check_render_limits(scene, kind=kind)
-    base = status("VmRSS")
+    base = base_rss()
     run_render(scene, Path(tempfile.mkdtemp()) / "o", surface="design", kind=kind)
     print(json.dumps({"estimate": max(need.values()), "rss": status("VmHWM") - base}))
 ''')
@@ -138,7 +157,7 @@ _NC_PROBE = textwrap.dedent('''
                                                "simulation.max_memory_gb=16"])
     d = Path(tempfile.mkdtemp())
     run_toolpath(scene.with_overrides(["process.workpiece_radius=0.05"]), d / "warm", fmt="nc")
-    base = status("VmRSS")
+    base = base_rss()
     prog = run_toolpath(scene, d / "o", fmt="nc")
     print(json.dumps({"estimate": nc_memory(scene, prog.points),
                       "rss": status("VmHWM") - base}))
@@ -160,7 +179,7 @@ _TILED_SIM_PROBE = textwrap.dedent('''
     d = Path(tempfile.mkdtemp())
     run_simulate(scene.with_overrides(["simulation.region=[-0.05,-0.05,0.05,0.05]"]), d / "warm",
                  tiled=True, tile=64)
-    base = status("VmRSS")
+    base = base_rss()
     m = run_simulate(scene, d / "o", tiled=True, tile=256)
     assert m["tiles"]["workers"] == 1, m["tiles"]
     print(json.dumps({"estimate": m["tiles"]["memory_estimate_bytes"],
