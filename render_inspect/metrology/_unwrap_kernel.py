@@ -9,6 +9,7 @@ time).  Imported on first use: numba loads with it.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 __all__ = ["flood"]
@@ -55,7 +56,13 @@ def _heap_pop(hq, hi, hs, n):
 
 
 @njit(cache=True)
-def flood(phase, valid, quality, order):
+def flood(phase: npt.NDArray[np.float64], valid: npt.NDArray[np.bool_],
+          quality: npt.NDArray[np.float64], order: npt.NDArray[np.int64]
+          ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32]]:
+    """The wrapped ``phase`` (rad) unwrapped inside ``valid`` from the seeds ``order``
+    (flat indices, most reliable first), each step to the neighbour of highest
+    ``quality``: (unwrapped phase, NaN outside; label of each pixel's connected region,
+    0 = invalid)."""
     h, w = phase.shape
     npx = h * w
     out = np.full(npx, np.nan)

@@ -351,8 +351,11 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     except BaseException as err:
         _after_failure(store, err)
         raise
-    best = predict_profile_features(result.best.height, target, result.best.values)
-    start_pred = predict_profile_features(result.start.height, target, result.start.values)
+    # (an evaluation's profile: None only where the forward model failed)
+    best = predict_profile_features(cast(np.ndarray, result.best.height), target,
+                                    result.best.values)
+    start_pred = predict_profile_features(cast(np.ndarray, result.start.height), target,
+                                          result.start.values)
     after = _check_after(target, best, family, result.goodness)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
     fitted = copy.deepcopy(base)
