@@ -19,13 +19,16 @@ import socket
 import time
 import traceback
 from importlib import resources
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .. import __version__
 from ..batch import (
     Progress,
+    MorrisConfig,
     ResultsLog,
+    SweepFile,
     call_with_threads,
     check_scheduler,
     check_workers_option,
@@ -136,7 +139,8 @@ def _point_memory(scene: Scene, run: dict) -> int:
     return int(need) + (RENDER_BYTES if run.get("render", "none") != "none" else 0)
 
 
-def sweep_tasks(spec, sweep_path, out) -> tuple[list[dict], list[dict], list[str]]:
+def sweep_tasks(spec: SweepFile, sweep_path: str | Path, out: str | Path
+                ) -> tuple[list[dict], list[dict], list[str]]:
     """Resolve every point of ``spec`` into a task for :func:`run_point`.
 
     The base scene is read first (a scene that is not one is an error naming the sweep
@@ -401,10 +405,11 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
     return info
 
 
-def sweep_morris(spec, records) -> dict:
+def sweep_morris(spec: SweepFile, records: Iterable[dict]) -> dict:
     """The Morris indices of a sweep's ``[morris]`` design from its finished records
     (:func:`~render_inspect.batch.morris_indices`; ``morris.json``)."""
-    keys = [f.key for f in spec.morris.factor]
+    morris = cast(MorrisConfig, spec.morris)  # (a sweep with a [morris] design)
+    keys = [f.key for f in morris.factor]
     found = {}
     for r in records:
         if r.get("status") != "done":
@@ -413,7 +418,7 @@ def sweep_morris(spec, records) -> dict:
         if any(p.get(k) is None for k in keys):
             continue
         found[point_key({k: p[k] for k in keys})] = flatten(r.get("metrics") or {})
-    return morris_indices(spec.morris, lambda point: found.get(point_key(point)))
+    return morris_indices(morris, lambda point: found.get(point_key(point)))
 
 
 def morris_table(morris: dict) -> list[str]:
