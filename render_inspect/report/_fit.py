@@ -34,8 +34,9 @@ def psd_figure(curves: dict, *, title: str = "", dpi: int = 100) -> bytes:
     return _to_png(fig)
 
 
-def fit_figures(record: dict, *, measured, fitted, start, measured_wavy, fitted_wavy, extent,
-                psd: dict) -> dict:
+def fit_figures(record: dict, *, measured: np.ndarray, fitted: np.ndarray, start: np.ndarray,
+                measured_wavy: np.ndarray, fitted_wavy: np.ndarray,
+                extent: tuple[float, float, float, float], psd: dict) -> dict:
     """``maps.png``, ``residual.png``, ``psd.png``, ``misfit.png`` as PNG bytes; maps in
     mm (form removed), ``extent`` = (x0, x1, y0, y1) of the pixel edges."""
     nm = MM_TO_NM
