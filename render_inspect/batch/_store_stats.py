@@ -17,7 +17,7 @@ from ._cluster import call_with_threads, cluster_info
 __all__ = ["stored_abs_dev"]
 
 
-def _block_abs_dev(block, mean: float, lo: float, hi: float, bins: int) -> np.ndarray:
+def _block_abs_dev(block: np.ndarray, mean: float, lo: float, hi: float, bins: int) -> np.ndarray:
     """(n, sum |r - mean|, counts...) of one chunk, as a (1, 1, bins + 2) array."""
     n, s, counts = tile_abs_dev(block, mean, lo, hi, bins)
     out = np.empty((1, 1, bins + 2))

@@ -77,11 +77,11 @@ def design_config_union() -> Any:
     return _DESIGNS.union(_union_of, _rebuild_nesting)
 
 
-def _union_of(configs):
+def _union_of(configs: list[type[Section]]) -> Any:  # (a type form made at run time)
     return Annotated[Union[tuple(configs)], Field(discriminator="type")]
 
 
-def _rebuild_nesting(union, configs) -> None:
+def _rebuild_nesting(union: Any, configs: list[type[Section]]) -> None:
     for c in configs:  # schema classes that nest a design (compound) refer to the union
         if getattr(c, "nests_design", False) or not c.__pydantic_complete__:
             c.model_rebuild(force=True, _types_namespace={"DesignConfig": union})

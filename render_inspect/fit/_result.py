@@ -4,6 +4,7 @@ where everything came from."""
 from __future__ import annotations
 
 import math
+from typing import SupportsFloat
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from ._solve import FitResult
 __all__ = ["fit_record", "misfit_maps", "summary_lines"]
 
 
-def _num(v):
+def _num(v: SupportsFloat | None) -> float | None:
     if v is None:
         return None
     v = float(v)

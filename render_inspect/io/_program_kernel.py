@@ -141,7 +141,11 @@ def clean_piece(raw: npt.NDArray[np.uint8], out: npt.NDArray[np.uint8]) -> tuple
 
 
 @njit(cache=True, nogil=True)
-def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, flags):
+def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
+               val: npt.NDArray[np.float64], gs: npt.NDArray[np.float64], ng: int,
+               ms: npt.NDArray[np.float64], nm: int, line: int, rows: npt.NDArray[np.float64],
+               nrow: int, seen_g: npt.NDArray[np.bool_], seen_m: npt.NDArray[np.bool_],
+               flags: npt.NDArray[np.bool_]) -> tuple[int, int, int]:
     """Run one block through the modal state; write its row when it moves. Returns
     (rows written so far, error code, detail)."""
     grp_seen = 0  # bit k: a G code of group k in this block

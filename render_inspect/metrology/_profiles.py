@@ -167,7 +167,7 @@ def sections(z: np.ndarray, design: np.ndarray | None, *, pixel: float, origin: 
     angles ``angles_deg`` through ``center``: radial from it (``through`` False, a turned
     part's spindle axis) or a line through it: [{angle_deg, s, machined, design,
     filtered}, ...] (sections with fewer than two valid points are left out)."""
-    def sec(m, ang):
+    def sec(m: np.ndarray, ang: float) -> np.ndarray:
         return _one_section(m, pixel=pixel, origin=origin, center=center, angle=ang,
                             through=through)[1]
 
@@ -182,7 +182,9 @@ def sections(z: np.ndarray, design: np.ndarray | None, *, pixel: float, origin: 
     return out
 
 
-def _one_section(z, *, pixel, origin, center, angle, through):
+def _one_section(z: np.ndarray, *, pixel: float, origin: Sequence[float],
+                 center: Sequence[float], angle: float,
+                 through: bool) -> tuple[np.ndarray, np.ndarray]:
     if not through:
         return extract_section(z, pixel=pixel, origin=origin, kind="radial", center=center,
                                angle=np.radians(angle))

@@ -16,7 +16,8 @@ __all__ = ["flood"]
 
 
 @njit(cache=True)
-def _heap_push(hq, hi, hs, n, q, i, s):
+def _heap_push(hq: npt.NDArray[np.float64], hi: npt.NDArray[np.int64], hs: npt.NDArray[np.int64],
+               n: int, q: float, i: int, s: int) -> int:
     hq[n] = q
     hi[n] = i
     hs[n] = s
@@ -33,7 +34,8 @@ def _heap_push(hq, hi, hs, n, q, i, s):
 
 
 @njit(cache=True)
-def _heap_pop(hq, hi, hs, n):
+def _heap_pop(hq: npt.NDArray[np.float64], hi: npt.NDArray[np.int64], hs: npt.NDArray[np.int64],
+              n: int) -> tuple[int, int, int]:
     i, s = hi[0], hs[0]
     n -= 1
     hq[0], hi[0], hs[0] = hq[n], hi[n], hs[n]

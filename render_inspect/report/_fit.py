@@ -3,6 +3,7 @@ maps, the areal PSD of both, the misfit along each parameter, and ``fit.html``."
 
 from __future__ import annotations
 
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ def fit_figures(record: dict, *, measured: np.ndarray, fitted: np.ndarray, start
     return figs
 
 
-def _val(v) -> str:
+def _val(v: Any) -> str:  # (as fmt_number takes it)
     return "n/a" if v is None else fmt_number(v, sig=5)
 
 

@@ -9,6 +9,7 @@ that may be meant (the command line prints them before the run)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol, cast
 
 from ..core.units import MM_TO_UM, UM_TO_MM
@@ -61,7 +62,7 @@ def part_extent(scene: SceneSections) -> tuple[float, float, float, float] | Non
     return None
 
 
-def _overlaps(a, b) -> bool:
+def _overlaps(a: Sequence[float], b: Sequence[float]) -> bool:
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
