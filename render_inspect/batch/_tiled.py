@@ -32,8 +32,8 @@ from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
-from ..machining import (TILE, CutPath, EnvelopePath, Grooves, Tile, compute_tile, load_cut_kernels, load_kernels,
-                         merge_moments, plan_tiles, tile_moments)
+from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
+                         Grooves, merge_moments, plan_tiles, tile_moments)
 
 __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 

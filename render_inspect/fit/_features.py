@@ -38,7 +38,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol, cast, overload
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -46,6 +46,7 @@ from ..core.errors import InputError
 from ._weights import check_weights
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..metrology import gaussian_filter, remove_form
+from ._harmonics import harmonic_residuals
 
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
@@ -165,19 +166,15 @@ def _periodogram(z, pixel):
 
 
 @overload
-def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float],
-             radial_bins: int, angle_bins: int, counts: Literal[False] = False) -> np.ndarray: ...
-
-
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: Literal[False] = False) -> np.ndarray: ...
 @overload
-def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float],
-             radial_bins: int, angle_bins: int, counts: Literal[True]
-             ) -> tuple[np.ndarray, np.ndarray]: ...
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
 
 
-def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float],
-             radial_bins: int, angle_bins: int, counts: bool = False
-             ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The mean areal PSD (mm^4) in bins of log |k| (``k_range`` = (k_min, k_max),
     cycles/mm) and of direction (0-180 degrees); NaN for empty bins.  With ``counts``
     also the number of frequency cells in each bin."""
@@ -431,7 +428,6 @@ def predict_features(z: np.ndarray, target: Target, values: Sequence[float] | np
     if target.psd_floor is not None and not measured:
         psd = psd + target.psd_floor
     for i, v0, floor in (() if measured else target.psd_scaled):
-        # (values: given where a random part's amplitude is fitted)
         psd = psd + floor * (float(cast("Sequence[float]", values)[i]) / v0) ** 2
     psd = _log10(psd)
     centroid = None
@@ -496,10 +492,9 @@ def noise_floor(target: Target, noisy: np.ndarray | Sequence[np.ndarray],
     return np.where(np.isfinite(a - b), np.maximum(a - b, 0.0), 0.0), b
 
 
-def set_noise_floor(target: Target, noisy: np.ndarray | Sequence[np.ndarray], clean: np.ndarray,
-                    *, above: float = 3.0,
-                    scaled: Iterable[tuple[int, float, np.ndarray | Sequence[np.ndarray]]] = ()
-                    ) -> None:
+def set_noise_floor(target: Target, noisy: np.ndarray | Sequence[np.ndarray], clean: np.ndarray, *,
+                    above: float = 3.0,
+                    scaled: Iterable[tuple[int, float, np.ndarray | Sequence[np.ndarray]]] = ()) -> None:
     """Give ``target`` the random parts' floor (:func:`noise_floor`) and leave out of the
     ``psd`` term the bins where the clean prediction is below ``above`` times the floor:
     there the spectrum is the camera's noise and the random parts' (whose realisation is
@@ -575,53 +570,6 @@ def robust_weights(d: np.ndarray) -> np.ndarray:
     has the soft-L1 fit as its fixed point)."""
     d = np.asarray(d, dtype=np.float64)
     return (1.0 + d * d) ** -0.25
-
-
-class _HarmonicTarget(Protocol):
-    """What the harmonic term reads of a target (a map's :class:`Target` or a profile's)."""
-
-    @property
-    def centroid(self) -> float | None: ...
-    @property
-    def amplitudes(self) -> np.ndarray: ...
-    @property
-    def sigma_frequency(self) -> float | None: ...
-    @property
-    def sigma_amplitudes(self) -> np.ndarray | None: ...
-
-
-class _HarmonicPrediction(Protocol):
-    """What the harmonic term reads of a prediction (a map's or a profile's)."""
-
-    @property
-    def centroid(self) -> float | None: ...
-    @property
-    def amplitudes(self) -> np.ndarray: ...
-
-
-class _HarmonicSpec(Protocol):
-    """The harmonic term's scales of a :class:`MisfitSpec` (or a profile's spec)."""
-
-    @property
-    def sigma_frequency(self) -> float: ...
-    @property
-    def sigma_amplitude(self) -> float: ...
-
-
-def harmonic_residuals(target: _HarmonicTarget, pred: _HarmonicPrediction,
-                       spec: _HarmonicSpec) -> np.ndarray:
-    """The harmonic term's residuals (maps and profiles): the fundamental's relative shift
-    and each harmonic's amplitude difference, in their sigmas."""
-    sf = target.sigma_frequency or spec.sigma_frequency
-    if pred.centroid is None or not np.isfinite(pred.centroid):
-        df = 1.0 / sf
-    else:
-        # (the term is used where the target has marks: its centroid is set)
-        df = (pred.centroid / cast(float, target.centroid) - 1.0) / sf
-    sa: np.ndarray | float | None = target.sigma_amplitudes
-    if sa is None:
-        sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
-    return np.concatenate([[df], (pred.amplitudes - target.amplitudes) / sa])
 
 
 def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.ndarray, dict]:

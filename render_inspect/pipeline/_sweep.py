@@ -19,14 +19,12 @@ import socket
 import time
 import traceback
 from importlib import resources
-from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from .. import __version__
 from ..batch import (
     Progress,
-    MorrisConfig,
     ResultsLog,
     SweepFile,
     call_with_threads,
@@ -40,13 +38,10 @@ from ..batch import (
     dotted_get,
     expand_points,
     fixed_keys,
-    flatten,
     folder_lock,
     md_text,
-    morris_indices,
     plot_rows,
     point_id,
-    point_key,
     read_sweep,
     summary_table,
     sweep_keys,
@@ -70,6 +65,7 @@ from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
+from ._sweep_morris import morris_table, sweep_morris
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
            "column_names", "check_sweep_tasks", "sweep_failure", "sweep_morris"]
@@ -403,35 +399,6 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
                       + ("\n" + "\n".join(morris_lines) + "\n" if morris_lines else ""))
     write_json(out / "sweep.json", info)
     return info
-
-
-def sweep_morris(spec: SweepFile, records: Iterable[dict]) -> dict:
-    """The Morris indices of a sweep's ``[morris]`` design from its finished records
-    (:func:`~render_inspect.batch.morris_indices`; ``morris.json``)."""
-    morris = cast(MorrisConfig, spec.morris)  # (a sweep with a [morris] design)
-    keys = [f.key for f in morris.factor]
-    found = {}
-    for r in records:
-        if r.get("status") != "done":
-            continue
-        p = r.get("params") or {}
-        if any(p.get(k) is None for k in keys):
-            continue
-        found[point_key({k: p[k] for k in keys})] = flatten(r.get("metrics") or {})
-    return morris_indices(morris, lambda point: found.get(point_key(point)))
-
-
-def morris_table(morris: dict) -> list[str]:
-    """Markdown lines of the Morris indices (``summary.md``)."""
-    lines = [f"## Morris elementary effects ({morris['complete']} of {morris['trajectories']} "
-             f"trajectories complete, {morris['levels']} levels)", ""]
-    for name, ind in morris["indices"].items():
-        lines += [f"### {name}", "", "| factor | mu* | mu | sigma |", "|---|---|---|---|"]
-        fmt = (lambda v: "-" if v is None else f"{v:.4g}")
-        for key, v in sorted(ind.items(), key=lambda kv: -(kv[1]["mu_star"] or 0.0)):
-            lines.append(f"| {key} | {fmt(v['mu_star'])} | {fmt(v['mu'])} | {fmt(v['sigma'])} |")
-        lines.append("")
-    return lines
 
 
 def _is_sweep_folder(folder: Path) -> bool:
