@@ -166,7 +166,8 @@ class _Simulated(Protocol):
 
 
 # (``design_surface: Any``: a design's Surface, which this layer does not import; in the
-# functions below too)
+# functions below too; ``metrology: Any``: the scene's ``[metrology]`` section, a model of
+# the scene layer, or a dict)
 def lenslet_table(data: HeightMap | _Simulated | tuple[np.ndarray, float, Sequence[float]] | np.ndarray,
                   design_surface: Any, *, which: str = "machined", pixel: float | None = None,
                   origin: Sequence[float] | None = None,
