@@ -6,7 +6,10 @@ from __future__ import annotations
 import functools
 import math
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from ..machining import tile_abs_dev
 from ._cluster import call_with_threads, cluster_info
@@ -14,7 +17,7 @@ from ._cluster import call_with_threads, cluster_info
 __all__ = ["stored_abs_dev"]
 
 
-def _block_abs_dev(block, mean: float, lo: float, hi: float, bins: int) -> np.ndarray:
+def _block_abs_dev(block: np.ndarray, mean: float, lo: float, hi: float, bins: int) -> np.ndarray:
     """(n, sum |r - mean|, counts...) of one chunk, as a (1, 1, bins + 2) array."""
     n, s, counts = tile_abs_dev(block, mean, lo, hi, bins)
     out = np.empty((1, 1, bins + 2))
@@ -25,11 +28,13 @@ def _block_abs_dev(block, mean: float, lo: float, hi: float, bins: int) -> np.nd
 
 
 def stored_abs_dev(store: str, mean: float, lo: float, hi: float, bins: int, *,
-                   client=None, workers: int | None = None, channel: str = "residual") -> tuple:
+                   client: Any = None, workers: int | None = None, channel: str = "residual"
+                   ) -> tuple[int, float, npt.NDArray[np.int64]]:
     """(n, sum |r - mean|, histogram counts over [lo, hi] in ``bins`` bins) of the stored
     ``channel``, chunk by chunk through ``dask.array`` (``map_blocks`` of
     :func:`render_inspect.machining.tile_abs_dev`), on ``client`` or on threads; the
-    chunks' sums are added exactly on the caller's side (``math.fsum``)."""
+    chunks' sums are added exactly on the caller's side (``math.fsum``).  (``client``: a
+    ``distributed.Client``, an optional dependency imported where it is used.)"""
     import dask
     import dask.array as da
     import zarr

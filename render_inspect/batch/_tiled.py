@@ -16,7 +16,7 @@ store themselves, so the store must be on a file system they share with the call
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 import contextlib
 import math
 import threading
@@ -33,7 +33,7 @@ from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
-                         merge_moments, plan_tiles, tile_moments)
+                         Grooves, merge_moments, plan_tiles, tile_moments)
 
 __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 
@@ -62,8 +62,12 @@ def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) 
     return coarse
 
 
-def tile_task(ep, surface, origin, pixel: float, grooves, shape, stride: int, texture, burrs, tile: Tile,
-              store: str, levels: int, tile_levels: int) -> dict:
+# (``surface: Any``: a design's Surface, which this layer does not import; ``client: Any``:
+# a ``distributed.Client``, an optional dependency imported where it is used)
+def tile_task(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[float], pixel: float,
+              grooves: Grooves | None, shape: Sequence[int], stride: int,
+              texture: tuple[float, float, int] | None, burrs: dict[str, Any] | None, tile: Tile,
+              store: str, levels: int, tile_levels: int) -> dict[str, Any]:
     """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
     return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
     import zarr
@@ -203,9 +207,12 @@ class _Running:
             return self._cond.wait_for(lambda: self._n == 0, timeout=timeout)
 
 
-def run_tiles(ep, surface, *, origin, pixel: float, shape, store: str, levels: int,
-              tile: int = TILE, client=None, workers: int | None = None, progress=None,
-              bins: int = BINS, grooves=None, stride: int = 0, texture=None, burrs=None) -> TiledStats:
+def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[float], pixel: float,
+              shape: Sequence[int], store: str, levels: int, tile: int = TILE, client: Any = None,
+              workers: int | None = None, progress: Callable[[int, int, float], object] | None = None,
+              bins: int = BINS, grooves: Grooves | None = None, stride: int = 0,
+              texture: tuple[float, float, int] | None = None,
+              burrs: dict[str, Any] | None = None) -> TiledStats:
     """Compute the machined surface of ``ep`` over the grid tile by tile into ``store``.
 
     Parameters

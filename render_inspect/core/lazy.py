@@ -26,25 +26,30 @@ import functools
 import importlib
 import threading
 import types
+from collections.abc import Callable
+from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher"]
 
 _LOCK = threading.RLock()
 
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
-def prange(*args):
+
+def prange(*args: int) -> range:
     """``numba.prange`` inside a kernel (replaced by it when the kernel is compiled);
     ``range`` when the kernel's Python function is called directly."""
     return range(*args)
 
 
-def _numba():
+def _numba() -> Any:  # the numba module (imported here, on first use)
     import numba
 
     return numba
 
 
-def _realise_globals(namespace: dict, seen: set) -> None:
+def _realise_globals(namespace: dict[str, Any], seen: set[int]) -> None:
     """Put numba's objects in place of the lazy ones among a module's globals (and, in
     turn, among the globals of the modules whose kernels it names)."""
     if id(namespace) in seen:
@@ -58,16 +63,18 @@ def _realise_globals(namespace: dict, seen: set) -> None:
             namespace[name] = value._realise(seen)
 
 
-class LazyDispatcher:
-    """A numba kernel made on first use (see the module notes)."""
+class LazyDispatcher(Generic[_P, _R]):
+    """A numba kernel made on first use (see the module notes).  Called as the Python
+    function it wraps (the same parameters and return)."""
 
-    def __init__(self, py_func, options: dict):
+    def __init__(self, py_func: Callable[_P, _R], options: dict[str, Any]) -> None:
         self.py_func = py_func
         self._options = dict(options)
-        self._dispatcher = None
+        # numba's Dispatcher once made (Any: numba is not imported by this module)
+        self._dispatcher: Any = None
         functools.update_wrapper(self, py_func)
 
-    def _realise(self, seen: set | None = None):
+    def _realise(self, seen: set[int] | None = None) -> Any:
         if self._dispatcher is not None:
             return self._dispatcher
         with _LOCK:
@@ -79,15 +86,15 @@ class LazyDispatcher:
                 _realise_globals(self.py_func.__globals__, set() if seen is None else seen)
         return self._dispatcher
 
-    def __call__(self, *args, **kwargs):
+    def __call__(self, *args: _P.args, **kwargs: _P.kwargs) -> _R:
         return (self._dispatcher or self._realise())(*args, **kwargs)
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:  # an attribute of numba's Dispatcher
         if name.startswith("__") or name in ("_dispatcher", "_options", "py_func"):
             raise AttributeError(name)
         return getattr(self._realise(), name)
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable[[str, str], object], tuple[str, str]]:
         return (_module_attr, (self.py_func.__module__, self.py_func.__qualname__))
 
     def __repr__(self) -> str:
@@ -95,33 +102,42 @@ class LazyDispatcher:
         return f"<lazy numba kernel {self.py_func.__qualname__} ({state})>"
 
 
-def njit(*args, **options):
+@overload
+def njit(func: Callable[_P, _R], /) -> LazyDispatcher[_P, _R]: ...
+
+
+@overload
+def njit(**options: Any) -> Callable[[Callable[_P, _R]], LazyDispatcher[_P, _R]]: ...
+
+
+def njit(*args: Callable[_P, _R], **options: Any
+         ) -> LazyDispatcher[_P, _R] | Callable[[Callable[_P, _R]], LazyDispatcher[_P, _R]]:
     """``numba.njit`` made on first use: ``@njit``, ``@njit(cache=True, ...)`` or
-    ``njit(cache=True)(function)``."""
+    ``njit(cache=True)(function)``.  The kernel keeps the Python function's signature."""
     if len(args) == 1 and callable(args[0]) and not options:
         return LazyDispatcher(args[0], {})
     if args:
         raise TypeError("njit: signatures are not supported here; pass options only")
 
-    def decorate(func):
+    def decorate(func: Callable[_P, _R]) -> LazyDispatcher[_P, _R]:
         return LazyDispatcher(func, options)
 
     return decorate
 
 
-def _module_attr(module: str, qualname: str):
-    obj = importlib.import_module(module)
+def _module_attr(module: str, qualname: str) -> object:
+    obj: object = importlib.import_module(module)
     for part in qualname.split("."):
         obj = getattr(obj, part)
     return obj
 
 
 class _LazyModule(types.ModuleType):
-    def __init__(self, name: str):
+    def __init__(self, name: str) -> None:
         super().__init__(name)
         self.__dict__["_lazy_target"] = name
 
-    def __getattr__(self, attr):
+    def __getattr__(self, attr: str) -> Any:  # an attribute of the module imported
         if attr.startswith("__"):
             raise AttributeError(attr)
         return getattr(importlib.import_module(self.__dict__["_lazy_target"]), attr)
@@ -136,20 +152,20 @@ def lazy_module(name: str) -> types.ModuleType:
 
 
 class _LazyAttr:
-    def __init__(self, module: str, name: str):
+    def __init__(self, module: str, name: str) -> None:
         self._where = (module, name)
-        self._obj = None
+        self._obj: Any = None
 
-    def _get(self):
+    def _get(self) -> Any:
         if self._obj is None:
             module, name = self._where
             self._obj = getattr(importlib.import_module(module), name)
         return self._obj
 
-    def __call__(self, *args, **kwargs):
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
         return self._get()(*args, **kwargs)
 
-    def __getattr__(self, attr):
+    def __getattr__(self, attr: str) -> Any:
         if attr.startswith("__") or attr in ("_where", "_obj"):
             raise AttributeError(attr)
         return getattr(self._get(), attr)
@@ -158,6 +174,9 @@ class _LazyAttr:
         return f"<lazy {self._where[0]}.{self._where[1]}>"
 
 
-def lazy_attr(module: str, name: str):
+def lazy_attr(module: str, name: str) -> Any:
     """``from module import name``, imported when first called or looked into."""
+    # Any: the stand-in for whatever ``module`` holds under ``name`` (a function, a
+    # class); its type cannot be named here without importing the module, which is what
+    # this function avoids
     return _LazyAttr(module, name)

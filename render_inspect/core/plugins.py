@@ -75,7 +75,7 @@ class Registry:
     def __iter__(self) -> Iterator[str]:
         return iter(self._entries)
 
-    def lookup(self, name: str) -> Any:
+    def lookup(self, name: str | None) -> Any:
         """The entry of ``name``; :class:`~render_inspect.core.errors.SceneError` naming the
         registered names when there is none."""
         entry = self._entries.get(name)

@@ -49,10 +49,12 @@ class SinusoidalGrid(Surface):
     def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
         return self.ax * np.cos(self.kx * x + self.px) + self.ay * np.cos(self.ky * y + self.py) + self.offset
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         gx = -self.ax * self.kx * np.sin(self.kx * x + self.px)
         gy = -self.ay * self.ky * np.sin(self.ky * y + self.py)
-        return np.broadcast_arrays(gx, gy)
+        gx, gy = np.broadcast_arrays(gx, gy)
+        return gx, gy
 
     def hessian(self, x: np.ndarray | float,
                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -247,7 +249,8 @@ class Toric(Surface):
         sy = y * y / (rr + q)
         return -(self._sx * sx + self._sy * sy) + self.offset
 
-    def gradient(self, x, y):
+    def gradient(self, x: np.ndarray | float,
+                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         x, y, qx, sx, rr, q = self._parts(x, y)
         sig = self._sx * self._sy
         sx_x = x / qx
@@ -256,9 +259,11 @@ class Toric(Surface):
         sy_y = y / q
         gx = -(self._sx * sx_x + self._sy * sy_x)
         gy = -self._sy * sy_y
-        return np.broadcast_arrays(gx, gy)
+        gx, gy = np.broadcast_arrays(gx, gy)
+        return gx, gy
 
-    def hessian(self, x, y):
+    def hessian(self, x: np.ndarray | float,
+                y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         x, y, qx, sx, rr, q = self._parts(x, y)
         sig = self._sx * self._sy
         Rx = abs(self.rx)
@@ -273,7 +278,8 @@ class Toric(Surface):
         hxx = -(self._sx * sx_xx + self._sy * sy_xx)
         hxy = -self._sy * sy_xy
         hyy = -self._sy * sy_yy
-        return tuple(np.broadcast_arrays(hxx, hxy, hyy))
+        hxx, hxy, hyy = np.broadcast_arrays(hxx, hxy, hyy)
+        return hxx, hxy, hyy
 
 
 # ------------------------------------------------------------------ scene schema

@@ -28,6 +28,7 @@ import ast
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.units import MIB_TO_BYTES
 from ._analytic import Plane, SinusoidalGrid
@@ -248,7 +249,8 @@ def _expression_interval(surface, x, y):
         return ev(surface._tree)
 
 
-def height_interval(surface, x0, y0, x1, y1):
+def height_interval(surface: Surface, x0: npt.ArrayLike, y0: npt.ArrayLike, x1: npt.ArrayLike,
+                    y1: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray] | None:
     """(low, high): bounds on the heights of ``surface`` over each box [x0, x1] x [y0,
     y1] (arrays, mm), or None when the design has no analytic bound."""
     x0, y0, x1, y1 = (np.asarray(v, dtype=np.float64) for v in (x0, y0, x1, y1))

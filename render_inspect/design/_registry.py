@@ -9,12 +9,14 @@ Each design module registers its own types with :func:`register_design`; the sce
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Callable, Union
+from typing import Annotated, Any, Callable, TypeVar, Union, overload
 
 from pydantic import Field, TypeAdapter, ValidationError
 
 from ..core.errors import SceneError
 from ..core.plugins import Registry, literal_values
+from ..core.section import Section
+from ._base import Surface
 
 __all__ = ["DesignType", "register_design", "design_types", "make_surface",
            "design_config_union"]
@@ -32,15 +34,27 @@ class DesignType:
 
 _DESIGNS = Registry("design.type")
 
+#: a Surface class or a function ``factory(config) -> Surface`` (returned as it is)
+_F = TypeVar("_F", bound=Callable[..., Surface])
 
-def register_design(config, factory: Callable | None = None):
+
+@overload
+def register_design(config: type[Section], factory: None = None) -> Callable[[_F], _F]: ...
+
+
+@overload
+def register_design(config: type[Section], factory: _F) -> _F: ...
+
+
+def register_design(config: type[Section], factory: _F | None = None) -> _F | Callable[[_F], _F]:
     """Register a design schema class (a :class:`~render_inspect.core.Section` whose
     ``type`` field is a ``Literal`` of names) with ``factory(config) -> Surface``.
     Usable as a decorator on the Surface class, which then is the factory, called with
     the config's fields as keyword arguments."""
-    def deco(target):
+    def deco(target: _F) -> _F:
+        build: Callable[..., Surface]
         if isinstance(target, type):
-            def build(cfg, cls=target):
+            def build(cfg: Section, cls: type[Surface] = target) -> Surface:
                 return cls(**cfg.model_dump(exclude={"type"}))
         else:
             build = target
@@ -55,23 +69,25 @@ def design_types() -> dict[str, DesignType]:
     return _DESIGNS.entries()
 
 
-def design_config_union():
+def design_config_union() -> Any:
     """The pydantic type of a ``[design]`` section: the registered schema classes,
     discriminated by ``type``."""
+    # Any: a type form made at run time (``Annotated[Union[...], Field(...)]``), which
+    # has no static type (the checker sees ``render_inspect.design.DesignSection``)
     return _DESIGNS.union(_union_of, _rebuild_nesting)
 
 
-def _union_of(configs):
+def _union_of(configs: list[type[Section]]) -> Any:  # (a type form made at run time)
     return Annotated[Union[tuple(configs)], Field(discriminator="type")]
 
 
-def _rebuild_nesting(union, configs) -> None:
+def _rebuild_nesting(union: Any, configs: list[type[Section]]) -> None:
     for c in configs:  # schema classes that nest a design (compound) refer to the union
         if getattr(c, "nests_design", False) or not c.__pydantic_complete__:
             c.model_rebuild(force=True, _types_namespace={"DesignConfig": union})
 
 
-def make_surface(cfg):
+def make_surface(cfg: Section | dict[str, Any]) -> Surface:
     """Build the :class:`~render_inspect.design.Surface` a ``[design]`` section (schema
     object or dict) describes."""
     if isinstance(cfg, dict):

@@ -107,8 +107,10 @@ def within_reach(period: float, reach: Sequence[float]) -> bool:
             <= reach[1] * (1.0 + REACH_TOLERANCE))
 
 
-def check_before(measured, predicted, *, pixel, free_keys, measured_period,
-                 predicted_period, measured_wavy, predicted_wavy, reach=None) -> dict:
+def check_before(measured: np.ndarray, predicted: np.ndarray, *, pixel: float,
+                 free_keys: Sequence[str], measured_period: float | None,
+                 predicted_period: float | None, measured_wavy: np.ndarray,
+                 predicted_wavy: np.ndarray, reach: Sequence[float] | None = None) -> dict:
     """Refuse (:class:`InputError`, one line with the reason) a measurement the scene does
     not describe; return what was checked.
 
@@ -133,7 +135,7 @@ def check_before(measured, predicted, *, pixel, free_keys, measured_period,
             "the scene predicts feed marks but the measured map has none"
         raise InputError(f"this scene does not describe this measurement: {which} (a "
                          f"different process, or the wrong file)")
-    if measured_period is not None:
+    if measured_period is not None and predicted_period is not None:  # (both or neither)
         rel = predicted_period / measured_period - 1.0
         out["period_difference"] = rel
         if reach is not None:

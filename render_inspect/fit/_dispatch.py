@@ -3,14 +3,23 @@ measurement: an areal map (:mod:`._features`) or a profile (:mod:`._profile`).""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import cast
+
+import numpy as np
+
+from ._features import Prediction, Target
 from ._features import predict_features as _map_features
 from ._features import residual_vector as _map_residuals
-from ._profile import ProfileTarget, predict_profile_features, profile_residual_vector
+from ._profile import (ProfilePrediction, ProfileTarget, predict_profile_features,
+                       profile_residual_vector)
 
 __all__ = ["features", "residuals"]
 
 
-def features(z, target, values=None, *, measured: bool = False):
+def features(z: np.ndarray, target: Target | ProfileTarget,
+             values: Sequence[float] | np.ndarray | None = None, *,
+             measured: bool = False) -> Prediction | ProfilePrediction:
     """:func:`~._features.predict_features` or, for a profile's target,
     :func:`~._profile.predict_profile_features`."""
     if isinstance(target, ProfileTarget):
@@ -18,9 +27,11 @@ def features(z, target, values=None, *, measured: bool = False):
     return _map_features(z, target, values, measured=measured)
 
 
-def residuals(pred, target):
+def residuals(pred: Prediction | ProfilePrediction, target: Target | ProfileTarget
+              ) -> tuple[np.ndarray, np.ndarray, dict]:
     """:func:`~._features.residual_vector` or, for a profile's target,
-    :func:`~._profile.profile_residual_vector`."""
+    :func:`~._profile.profile_residual_vector` (``pred``: a prediction of the target's
+    own kind, from :func:`features`)."""
     if isinstance(target, ProfileTarget):
-        return profile_residual_vector(pred, target)
-    return _map_residuals(pred, target)
+        return profile_residual_vector(cast(ProfilePrediction, pred), target)
+    return _map_residuals(cast(Prediction, pred), target)

@@ -35,10 +35,10 @@ has.  The misfit is the sum over all entries.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 import math
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -46,6 +46,7 @@ from ..core.errors import InputError
 from ._weights import check_weights
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..metrology import gaussian_filter, remove_form
+from ._harmonics import harmonic_residuals
 
 __all__ = ["MisfitSpec", "Target", "Prediction", "FORMS", "prepare_map", "psd_bins",
            "feed_peak", "harmonic_features", "make_target", "predict_features", "noise_floor",
@@ -164,7 +165,16 @@ def _periodogram(z, pixel):
     return p, kx, ky
 
 
-def psd_bins(z, *, pixel, k_range, radial_bins: int, angle_bins: int, counts: bool = False):
+@overload
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: Literal[False] = False) -> np.ndarray: ...
+@overload
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def psd_bins(z: np.ndarray, *, pixel: Sequence[float], k_range: Sequence[float], radial_bins: int,
+             angle_bins: int, counts: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """The mean areal PSD (mm^4) in bins of log |k| (``k_range`` = (k_min, k_max),
     cycles/mm) and of direction (0-180 degrees); NaN for empty bins.  With ``counts``
     also the number of frequency cells in each bin."""
@@ -405,7 +415,8 @@ class Prediction:
     amplitudes: np.ndarray
 
 
-def predict_features(z, target: Target, values=None, *, measured: bool = False) -> Prediction:
+def predict_features(z: np.ndarray, target: Target, values: Sequence[float] | np.ndarray | None = None,
+                     *, measured: bool = False) -> Prediction:
     """The features of a predicted map ``z`` (mm) made at parameter ``values`` (needed
     when a random part's amplitude is fitted: its floor scales with it).  ``measured``:
     the features of a map that holds its random parts and noise (a realisation), as the
@@ -417,7 +428,7 @@ def predict_features(z, target: Target, values=None, *, measured: bool = False) 
     if target.psd_floor is not None and not measured:
         psd = psd + target.psd_floor
     for i, v0, floor in (() if measured else target.psd_scaled):
-        psd = psd + floor * (float(values[i]) / v0) ** 2
+        psd = psd + floor * (float(cast("Sequence[float]", values)[i]) / v0) ** 2
     psd = _log10(psd)
     centroid = None
     amps = np.zeros(spec.harmonics)
@@ -467,20 +478,23 @@ def _mean_power(maps, target: Target):
     return np.mean([_own_harmonics(z, target)[1] ** 2 for z in maps], axis=0)
 
 
-def noise_floor(target: Target, noisy, clean):
+def noise_floor(target: Target, noisy: np.ndarray | Sequence[np.ndarray],
+                clean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(floor, clean PSD): the power per PSD bin (mm^4) that the random parts add: the PSD
     of predictions with them (``noisy``: one map or several realisations, averaged) less
     that of the same prediction without them (``clean``), and the clean prediction's own
     PSD per bin.  The evaluations predict without the random parts (their expected value)
     and add this floor to their spectra: the random parts are independent of the surface,
     so powers add."""
-    noisy = [noisy] if np.ndim(noisy) == 2 else list(noisy)
+    noisy = [cast(np.ndarray, noisy)] if np.ndim(noisy) == 2 else list(noisy)
     a = _mean_psd(noisy, target)
     b = _mean_psd([clean], target)
     return np.where(np.isfinite(a - b), np.maximum(a - b, 0.0), 0.0), b
 
 
-def set_noise_floor(target: Target, noisy, clean, *, above: float = 3.0, scaled=()) -> None:
+def set_noise_floor(target: Target, noisy: np.ndarray | Sequence[np.ndarray], clean: np.ndarray, *,
+                    above: float = 3.0,
+                    scaled: Iterable[tuple[int, float, np.ndarray | Sequence[np.ndarray]]] = ()) -> None:
     """Give ``target`` the random parts' floor (:func:`noise_floor`) and leave out of the
     ``psd`` term the bins where the clean prediction is below ``above`` times the floor:
     there the spectrum is the camera's noise and the random parts' (whose realisation is
@@ -498,7 +512,7 @@ def set_noise_floor(target: Target, noisy, clean, *, above: float = 3.0, scaled=
                          for i, v0, maps in scaled]
     # the noise also lowers the measured harmonics (fringe-locked errors of the phase
     # steps): the clean predictions' amplitudes are scaled by the same ratio
-    noisy = [noisy] if np.ndim(noisy) == 2 else list(noisy)
+    noisy = [cast(np.ndarray, noisy)] if np.ndim(noisy) == 2 else list(noisy)
     if target.peak is not None:
         p_noisy = _mean_power(noisy, target)
         p_clean = _mean_power([clean], target)
@@ -556,20 +570,6 @@ def robust_weights(d: np.ndarray) -> np.ndarray:
     has the soft-L1 fit as its fixed point)."""
     d = np.asarray(d, dtype=np.float64)
     return (1.0 + d * d) ** -0.25
-
-
-def harmonic_residuals(target, pred, spec) -> np.ndarray:
-    """The harmonic term's residuals (maps and profiles): the fundamental's relative shift
-    and each harmonic's amplitude difference, in their sigmas."""
-    sf = target.sigma_frequency or spec.sigma_frequency
-    if pred.centroid is None or not np.isfinite(pred.centroid):
-        df = 1.0 / sf
-    else:
-        df = (pred.centroid / target.centroid - 1.0) / sf
-    sa = target.sigma_amplitudes
-    if sa is None:
-        sa = spec.sigma_amplitude * max(float(target.amplitudes[0]), 1e-12)
-    return np.concatenate([[df], (pred.amplitudes - target.amplitudes) / sa])
 
 
 def residual_vector(pred: Prediction, target: Target) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -27,6 +27,7 @@ standard error (:func:`set_profile_noise_floor`, :func:`profile_realisation_shif
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -251,7 +252,8 @@ def _register(p, target: ProfileTarget) -> tuple[np.ndarray, np.ndarray, float]:
     return _detrend(fine), _detrend(whole), float(start + off - lag)
 
 
-def predict_profile_features(z, target: ProfileTarget, values=None, *,
+def predict_profile_features(z: np.ndarray, target: ProfileTarget,
+                             values: Sequence[float] | np.ndarray | None = None, *,
                              measured: bool = False) -> ProfilePrediction:
     """The features of a predicted profile ``z`` (mm; the window and ``target.lag``
     samples either side; a (1, n) array is accepted).  ``measured``: a realisation taken
@@ -316,7 +318,8 @@ def profile_residual_vector(pred: ProfilePrediction,
     return np.concatenate(ds), np.concatenate(As), terms
 
 
-def set_profile_noise_floor(target: ProfileTarget, noisy, clean) -> None:
+def set_profile_noise_floor(target: ProfileTarget, noisy: Sequence[np.ndarray],
+                            clean: np.ndarray) -> None:
     """Widen the terms' scales to what realisations ``noisy`` of the camera's noise (and
     the random parts) differ by from the ``clean`` prediction, and keep the realisations'
     features (``target.draws``) for the random parts' standard error."""

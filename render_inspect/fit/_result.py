@@ -4,16 +4,20 @@ where everything came from."""
 from __future__ import annotations
 
 import math
+from typing import SupportsFloat
 
 import numpy as np
 
 from .. import __version__
 from ..core.units import MM_TO_NM
+from ._features import MisfitSpec, Target
+from ._profile import ProfileSpec, ProfileTarget
+from ._solve import FitResult
 
 __all__ = ["fit_record", "misfit_maps", "summary_lines"]
 
 
-def _num(v):
+def _num(v: SupportsFloat | None) -> float | None:
     if v is None:
         return None
     v = float(v)
@@ -28,7 +32,8 @@ def misfit_maps(measured: np.ndarray, predicted: np.ndarray) -> dict:
     return {"rms_nm": rms, "points": int(ok.sum()), "valid_fraction": float(ok.mean())}
 
 
-def fit_record(result, *, target, spec, provenance: dict, maps: dict, waviness: dict,
+def fit_record(result: FitResult, *, target: Target | ProfileTarget,
+               spec: MisfitSpec | ProfileSpec, provenance: dict, maps: dict, waviness: dict,
                extra: dict | None = None) -> dict:
     """The content of ``fit.json``.
 

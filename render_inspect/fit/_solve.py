@@ -33,6 +33,7 @@ import contextlib
 import logging
 import math
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,6 +48,7 @@ from ._dispatch import features as predict_features
 from ._dispatch import residuals as residual_vector
 from ._features import Target, robust_weights, soft_l1
 from ._local import _timed_compute, run_local
+from ._params import FreeParameter
 from ._uncertainty import (_correlation, _covariance, _realisation_covariance, identifiability,
                            search_box)
 from ._uncertainty import profiles as _profiles
@@ -135,10 +137,11 @@ class Evaluator:
     def _values(self, u) -> np.ndarray:
         return np.array([p.from_unit(float(v)) for p, v in zip(self.params, u)])
 
-    def evaluate_units(self, us) -> list[Evaluation]:
+    def evaluate_units(self, us: Iterable[Sequence[float] | np.ndarray]) -> list[Evaluation]:
         return self.evaluate([self._values(u) for u in us])
 
-    def evaluate(self, xs, *, budget: bool = True) -> list[Evaluation]:
+    def evaluate(self, xs: Sequence[Sequence[float] | np.ndarray], *,
+                 budget: bool = True) -> list[Evaluation]:
         tasks, keys = [], []
         for x in xs:
             t = self.make_task({p.key: float(v) for p, v in zip(self.params, x)})
@@ -194,7 +197,7 @@ class Evaluator:
                 pred = predict_features(h, self.target, x)
                 d, a, terms = residual_vector(pred, self.target)
             except InputError as e:  # a predicted map with too few valid points
-                error, d, a, terms = str(e), None, None, {}
+                error, terms = str(e), {}  # (d and a: a failed evaluation's, below)
         if error is not None:
             a = self._weights()
             d = np.full(a.size, FAILED_RESIDUAL)
@@ -311,10 +314,11 @@ def _units(params, values):
     return np.array([p.to_unit(v) for p, v in zip(params, values)])
 
 
-def solve(params, evaluator: Evaluator, *, global_points: int = 0, seed: int = 0,
-          fd_step: float = 0.1, xtol: float = 1e-3, ftol: float = 1e-3,
-          profile_points: int = 5, max_rounds: int = 8, starts=(), search=None,
-          verify: bool = True) -> FitResult:
+def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: int = 0,
+          seed: int = 0, fd_step: float = 0.1, xtol: float = 1e-3, ftol: float = 1e-3,
+          profile_points: int = 5, max_rounds: int = 8,
+          starts: Sequence[dict[str, float]] = (),
+          search: dict[str, Sequence[float]] | None = None, verify: bool = True) -> FitResult:
     """Fit ``params`` (list of FreeParameter) with ``evaluator``.
 
     The fit runs in four steps: the candidates (the scene's values, the ``starts`` the

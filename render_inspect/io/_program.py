@@ -407,9 +407,9 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
         else:
             inferred["feed"] = "feed from the program's F words"
-        if has_c:  # a move cannot turn C faster than the spindle allows
+        if dc is not None:  # (has_c) a move cannot turn C faster than the spindle allows
             dt, _ = c_move_times(dc, length, mo, rp, float(feed), float(rapid), dt)
-    elif has_c:
+    elif dc is not None:  # (has_c)
         # C at the spindle speed, moves without C at the scene's feed, rapids; never
         # faster than the spindle turns C
         dt, any_rapid = c_move_times(dc, length, mo, rp, float(feed), float(rapid),

@@ -10,7 +10,11 @@ that into one line naming the file, the line, the block and the word.
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import numpy as np
+import numpy.typing as npt
+
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.units import MIN_TO_S as _MIN_TO_S  # s per min
 
@@ -30,6 +34,10 @@ INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
 ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
               "S", "spindle_mode", "clamp", "plane", "written")
 _NF = len(ROW_FIELDS)
+
+#: the dtypes :func:`sample_moves` keeps (a program's block index, its motion codes)
+_B = TypeVar("_B", bound=np.generic)
+_M = TypeVar("_M", bound=np.generic)
 
 GROUP_NAMES = ("motion", "distance", "feed", "units", "plane", "spindle", "radius_comp",
                "no effect", "dwell", "home", "clamp", "refused")
@@ -80,7 +88,7 @@ _CLEAN[[41, 37, 58, 47]] = 5
 
 
 @njit(cache=True, nogil=True)
-def clean_piece(raw, out):
+def clean_piece(raw: npt.NDArray[np.uint8], out: npt.NDArray[np.uint8]) -> tuple[int, int]:
     """The bytes ``raw`` of a piece as the scanner reads them, written to ``out``: upper
     case, ``( )`` comments (closed on their line) and ``;`` comments removed, spaces,
     tabs and carriage returns dropped.  Returns (bytes written, 1), or (0, 0) where the
@@ -133,7 +141,11 @@ def clean_piece(raw, out):
 
 
 @njit(cache=True, nogil=True)
-def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, flags):
+def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
+               val: npt.NDArray[np.float64], gs: npt.NDArray[np.float64], ng: int,
+               ms: npt.NDArray[np.float64], nm: int, line: int, rows: npt.NDArray[np.float64],
+               nrow: int, seen_g: npt.NDArray[np.bool_], seen_m: npt.NDArray[np.bool_],
+               flags: npt.NDArray[np.bool_]) -> tuple[int, int, int]:
     """Run one block through the modal state; write its row when it moves. Returns
     (rows written so far, error code, detail)."""
     grp_seen = 0  # bit k: a G code of group k in this block
@@ -244,7 +256,10 @@ def _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow, seen_g, seen_m, 
 
 
 @njit(cache=True, nogil=True)
-def scan_piece(a, st, rows, seen_g, seen_m, seen_letter, flags):
+def scan_piece(a: npt.NDArray[np.uint8], st: npt.NDArray[np.float64], rows: npt.NDArray[np.float64],
+               seen_g: npt.NDArray[np.bool_], seen_m: npt.NDArray[np.bool_],
+               seen_letter: npt.NDArray[np.bool_], flags: npt.NDArray[np.bool_]
+               ) -> tuple[int, int, int, int, int, int]:
     """Scan the bytes ``a`` (see the module docstring) from the state ``st`` (updated in
     place).  Returns (rows written, blocks, error code, byte position, detail, lines)."""
     n = a.size
@@ -355,7 +370,11 @@ _TWO_PI = 2 * np.pi
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
-def sample_moves(x, z, dt, n_sub, rpm, blk, motion, total):
+def sample_moves(x: npt.NDArray[np.float64], z: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
+                 n_sub: npt.NDArray[np.int64], rpm: npt.NDArray[np.float64], blk: npt.NDArray[_B],
+                 motion: npt.NDArray[_M], total: int
+                 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64],
+                            npt.NDArray[np.float64], npt.NDArray[_B], npt.NDArray[_M]]:
     """The moves of an X-Z lathe program sampled while the spindle turns at ``rpm`` (one
     speed per move): move ``j`` (from point ``j`` to ``j + 1``, taking ``dt[j]`` s) in
     ``n_sub[j]`` equal steps.  Returns (x, z, t, theta, block, motion) of the ``total``
@@ -406,7 +425,10 @@ def sample_moves(x, z, dt, n_sub, rpm, blk, motion, total):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
-def feed_times(length, fmode, fval, motion, rpm, feed, rapid):
+def feed_times(length: npt.NDArray[np.float64], fmode: npt.NDArray[np.int16],
+               fval: npt.NDArray[np.float64], motion: npt.NDArray[np.int8],
+               rpm: npt.NDArray[np.float64], feed: float, rapid: float
+               ) -> tuple[npt.NDArray[np.float64], bool, bool]:
     """The time of each move of a program with F words, s: G93 (1 / F min), G94 (length
     / F), G95 (length / (F rpm)); moves before the first F at ``feed`` mm/min, rapids at
     ``rapid`` mm/min.  Returns (times, whether a move had no F, whether there are
@@ -438,7 +460,8 @@ def feed_times(length, fmode, fval, motion, rpm, feed, rapid):
 
 
 @njit(cache=True, nogil=True)
-def unwrap_c(c):
+def unwrap_c(c: npt.NDArray[np.float64]
+             ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], int, int]:
     """C as written (deg, wrapping every revolution) turned on: each move's step (a
     negative step is a wrap, taken modulo 360) and the summed angle from ``c[0]``.
     Returns (steps, summed angle, negative steps, index of the first)."""
@@ -465,7 +488,10 @@ def unwrap_c(c):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
-def c_move_times(dc, length, motion, rpm, feed, rapid, dt):
+def c_move_times(dc: npt.NDArray[np.float64], length: npt.NDArray[np.float64],
+                 motion: npt.NDArray[np.int8], rpm: npt.NDArray[np.float64], feed: float,
+                 rapid: float, dt: npt.NDArray[np.float64]
+                 ) -> tuple[npt.NDArray[np.float64], bool]:
     """The time of each move of a program with C words, s: ``dt`` where the program's F
     words gave it (an empty array otherwise: C at the spindle speed ``rpm``, moves
     without C at ``feed`` mm/min, rapids at ``rapid`` mm/min), and never less than the

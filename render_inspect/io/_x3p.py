@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import io
 from datetime import datetime, timezone
+from collections.abc import Sequence
 from pathlib import Path
+from typing import cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core.units import MM_TO_M, M_TO_MM
 from .. import __version__
@@ -26,7 +29,8 @@ __all__ = ["write_x3p", "read_x3p", "read_x3p_xy"]
 _FIXED_DATE = datetime(2000, 1, 1, tzinfo=timezone.utc)
 
 
-def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | None = None,
+def write_x3p(path: str | Path, z: npt.ArrayLike, *, pixel: float | Sequence[float],
+              origin: Sequence[float] = (0.0, 0.0), comment: str | None = None,
               date: datetime | None = None) -> Path:
     """Write a height map (mm) to an X3P file, atomically.
 
@@ -51,7 +55,9 @@ def write_x3p(path: str | Path, z, *, pixel, origin=(0.0, 0.0), comment: str | N
     z = np.asarray(z, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 1:
         raise InputError(f"write_x3p: z must be a 2-D height map, got shape {z.shape}")
-    px, py = (pixel, pixel) if np.ndim(pixel) == 0 else tuple(pixel)
+    # (one number, or the x and y spacings)
+    px, py = ((cast(float, pixel), cast(float, pixel)) if np.ndim(pixel) == 0
+              else tuple(cast("Sequence[float]", pixel)))
     check_positive("pixel_x", px)
     check_positive("pixel_y", py)
     if np.isinf(z).any():

@@ -16,7 +16,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from ..core.limits import address_space_limit, address_space_room
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES, MM_TO_M
 from ..io import atomic_write_bytes
 from ..core.heightmap import HeightMap
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["GridMesh", "grid_mesh", "heightmap_mesh", "heightmap_to_trimesh", "export_mesh",
            "gltf_from_project", "decimation_stride", "MESH_FORMATS", "DEFAULT_MEMORY_BUDGET_BYTES"]
@@ -69,11 +72,11 @@ class GridMesh:
         return int(self.vertices.nbytes + self.faces.nbytes
                    + (self.normals.nbytes if self.normals is not None else 0))
 
-    def to_trimesh(self):
+    def to_trimesh(self) -> trimesh.Trimesh:
         """Return a :class:`trimesh.Trimesh` (float64 vertices) carrying ``metadata``."""
         import trimesh
 
-        kw = {}
+        kw: dict[str, Any] = {}
         if self.normals is not None and not self.metadata.get("skirt"):
             kw["vertex_normals"] = self.normals.astype(np.float64)
         mesh = trimesh.Trimesh(vertices=self.vertices.astype(np.float64),
@@ -366,21 +369,22 @@ def export_mesh(mesh: GridMesh, path: str | Path) -> Path:
     fmt = MESH_FORMATS[ext]
     meta_text = json.dumps(tm.metadata, sort_keys=True, default=str)
     if fmt == "ply":
-        data = tm.export(file_type="ply", encoding="binary")
+        data = cast(bytes, tm.export(file_type="ply", encoding="binary"))
         # add the metadata as a header comment line after "format ..."
         head, sep, rest = data.partition(b"end_header\n")
         lines = head.split(b"\n")
         lines.insert(2, b"comment render_inspect " + meta_text.encode())
         data = b"\n".join(lines) + sep + rest
     elif fmt == "obj":
-        text = tm.export(file_type="obj", include_normals=tm.metadata.get("skirt") is False)
+        text = cast(str, tm.export(file_type="obj",
+                                   include_normals=tm.metadata.get("skirt") is False))
         data = ("# render_inspect " + meta_text + "\n" + text).encode()
     elif fmt == "glb":
         smooth = isinstance(mesh, GridMesh) and mesh.normals is not None and \
             not mesh.metadata.get("skirt")
         data = _glb_bytes(tm, mesh.normals if smooth else None)
     else:
-        data = tm.export(file_type="stl")
+        data = cast(bytes, tm.export(file_type="stl"))
     if isinstance(data, str):
         data = data.encode()
     return atomic_write_bytes(path, data)

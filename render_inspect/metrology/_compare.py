@@ -3,7 +3,7 @@ with a scene's design and simulation through the same chain."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast
 from collections.abc import Sequence
 import math
 import warnings
@@ -13,6 +13,7 @@ import numpy as np
 from ..core.lazy import lazy_module
 
 from ..core.errors import InputError
+from ..core.heightmap import HeightMap
 from ..core.units import MM_TO_NM
 from ._checks import registration_checks
 from ._filters import l_filter, pixel_xy, remove_form, s_filter
@@ -218,7 +219,22 @@ class Comparison:
     origin: tuple = (0.0, 0.0)
 
 
-def compare_measured(measured, design_surface, *, metrology=None, simulated=None, region=None,
+class _MeasuredGrid(Protocol):
+    """A measured map (as :class:`render_inspect.io.MeasuredMap`): heights (mm) and grid."""
+
+    @property
+    def z(self) -> np.ndarray: ...
+    @property
+    def pixel(self) -> float | tuple[float, float]: ...
+    @property
+    def origin(self) -> Sequence[float]: ...
+
+
+# (``design_surface: Any``: a design's Surface, which this layer does not import;
+# ``metrology: Any``: the scene's ``[metrology]`` section, a model of the scene layer, or a dict)
+def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
+                     metrology: Any = None, simulated: HeightMap | None = None,
+                     region: Sequence[float] | None = None,
                      seed: int = 0, resample_simulated: bool = False,
                      expected_sq_mm: float | None = None, force: bool = False) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
@@ -269,7 +285,8 @@ def compare_measured(measured, design_surface, *, metrology=None, simulated=None
         the comparison (unless ``force``).
     """
     if hasattr(measured, "z") and hasattr(measured, "pixel"):
-        z, pixel, origin = measured.z, measured.pixel, measured.origin
+        grid_map = cast(_MeasuredGrid, measured)
+        z, pixel, origin = grid_map.z, grid_map.pixel, grid_map.origin
         source = dict(getattr(measured, "meta", {}) or {})
     elif isinstance(measured, tuple) and len(measured) in (3, 4):
         z, pixel, origin = measured[:3]

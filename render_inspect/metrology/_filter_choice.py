@@ -33,7 +33,7 @@ process or design kind it is.  The same marks set the diffuse renderer's texture
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 import numpy as np
 import math
 
@@ -203,8 +203,23 @@ def feature_size(design: Any) -> float | None:
     return design.lateral_scale()
 
 
-def waviness_choice(marks: ToolMarks | None, design, metrology, *, pixel: float,
-                    window_mm) -> dict:
+class _WavinessSettings(Protocol):
+    """What :func:`waviness_choice` reads of a scene's ``[metrology]`` section."""
+
+    @property
+    def s_filter(self) -> float | None: ...
+    @property
+    def l_filter(self) -> float | None: ...
+    @property
+    def filter_edges(self) -> str: ...
+    @property
+    def form_removal(self) -> str: ...
+    @property
+    def polynomial_degree(self) -> int: ...
+
+
+def waviness_choice(marks: ToolMarks | None, design: Any, metrology: _WavinessSettings, *,
+                    pixel: float, window_mm: tuple[float, float]) -> dict:
     """The S/L filters, edge handling and form removal of a simulated map's waviness:
     :func:`waviness_filters` from the process's marks and the design surface's lateral
     scale (:func:`feature_size`; ``design``: the surface), with

@@ -21,12 +21,14 @@ References
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 from collections.abc import Sequence
 import warnings
 
 import numpy as np
+import numpy.typing as npt
 from ..core.lazy import lazy_attr
+from ..core.heightmap import HeightMap
 
 from ..core.errors import InputError, check_positive
 from ..core.units import MM_TO_UM
@@ -97,8 +99,10 @@ def _aperture(design, aperture_radius):
     return float(aperture_radius)
 
 
-def separate_msa(shape, centers, *, pixel: float, origin=(0.0, 0.0), aperture_radius: float,
-                 inner: float = 0.95, outer: float = 1.05):
+def separate_msa(shape: tuple[int, ...], centers: Sequence[Sequence[float]], *, pixel: float,
+                 origin: Sequence[float] = (0.0, 0.0), aperture_radius: float,
+                 inner: float = 0.95, outer: float = 1.05
+                 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.int64]]:
     """Masks separating MSA data from base data (Kong et al. 2020, step 4).
 
     Returns
@@ -154,9 +158,22 @@ def _lenslet_model(design, px, py):
     return m - np.asarray(feat.height(u, v), float), feat, u, v
 
 
-def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float | None = None,
-                  origin=None, centers=None, aperture_radius: float | None = None,
-                  inner: float = 0.95, mask=None, min_points: int = 12,
+class _Simulated(Protocol):
+    """A simulation's result (what :func:`lenslet_table` reads of it: its height map)."""
+
+    @property
+    def heightmap(self) -> HeightMap: ...
+
+
+# (``design_surface: Any``: a design's Surface, which this layer does not import; in the
+# functions below too; ``metrology: Any``: the scene's ``[metrology]`` section, a model of
+# the scene layer, or a dict)
+def lenslet_table(data: HeightMap | _Simulated | tuple[np.ndarray, float, Sequence[float]] | np.ndarray,
+                  design_surface: Any, *, which: str = "machined", pixel: float | None = None,
+                  origin: Sequence[float] | None = None,
+                  centers: Sequence[Sequence[float]] | None = None,
+                  aperture_radius: float | None = None, inner: float = 0.95,
+                  mask: np.ndarray | None = None, min_points: int = 12,
                   min_fraction: float = 0.8) -> list[dict]:
     """Per-lenslet centres, dislocations and form errors.
 
@@ -250,9 +267,11 @@ def lenslet_table(data, design_surface, *, which: str = "machined", pixel: float
     return table
 
 
-def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), centers=None,
-                    aperture_radius: float | None = None, outer: float = 1.05, mask=None,
-                    has_base: bool | None = None) -> dict | None:
+def base_form_error(z: np.ndarray, design_surface: Any, *, pixel: float,
+                    origin: Sequence[float] = (0.0, 0.0),
+                    centers: Sequence[Sequence[float]] | None = None,
+                    aperture_radius: float | None = None, outer: float = 1.05,
+                    mask: np.ndarray | None = None, has_base: bool | None = None) -> dict | None:
     """Form error of the base: measured minus design outside ``outer`` x aperture of every
     lenslet, mean removed.  Returns ``{Sa_um, Sq_um, PV_um, n_points}``, or None where no
     base data is left (lenslets that fill the area, as the MLA of Zhang et al. 2022: a
@@ -276,11 +295,13 @@ def base_form_error(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cente
     return {**_stats_um(d[sel]), "n_points": int(sel.sum())}
 
 
-def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), centers=None,
+def characterise_msa(z: np.ndarray, design_surface: Any, *, pixel: float,
+                     origin: Sequence[float] = (0.0, 0.0),
+                     centers: Sequence[Sequence[float]] | None = None,
                      aperture_radius: float | None = None, inner: float = 0.95,
                      outer: float = 1.05, outlier_k: float = 3.0, register: bool = True,
-                     fit=("tx", "ty", "tz", "alpha", "beta", "gamma"), metrology=None,
-                     stages: str = "base_then_all") -> dict:
+                     fit: Sequence[str] = ("tx", "ty", "tz", "alpha", "beta", "gamma"),
+                     metrology: Any = None, stages: str = "base_then_all") -> dict:
     """The characterisation of a MSA on a base of Kong et al. (2020), end to end.
 
     1. outliers by the second-difference ``outlier_k``-sigma rule of Kong et al.
@@ -322,12 +343,13 @@ def characterise_msa(z, design_surface, *, pixel: float, origin=(0.0, 0.0), cent
     reg = None
     surf = design_surface
     if register:
-        _, base, _ = separate_msa(z.shape, cen, pixel=pixel, origin=origin, aperture_radius=ap,
-                                  inner=inner, outer=outer)
+        _, base_data, _ = separate_msa(z.shape, cen, pixel=pixel, origin=origin,
+                                       aperture_radius=ap, inner=inner, outer=outer)
         init = None
-        if _attr(design_surface, "cells", "round") != "quad" and (base & use).sum() > 0.1 * use.sum():
+        if (_attr(design_surface, "cells", "round") != "quad"
+                and (base_data & use).sum() > 0.1 * use.sum()):
             init = register_lsq(cleaned, design_surface, pixel=pixel, origin=origin,
-                                mask=base & use, fit=fit)
+                                mask=base_data & use, fit=fit)
         if stages == "base" and init is not None:
             reg = dict(init)
         else:

@@ -5,7 +5,7 @@ spindle axis (or lines through a centre), and the statistics of a difference.  A
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 from collections.abc import Sequence
 import math
 
@@ -49,8 +49,8 @@ def design_features(design: Any, pixel: float) -> np.ndarray | None:
     return ndimage.binary_opening(mask, iterations=1).astype(np.float64)
 
 
-def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None,
-                  design=None) -> dict:
+def common_window(diff: np.ndarray, *, pixel: float, origin: Sequence[float], size_mm: float,
+                  fixed: Sequence[float] | None = None, design: np.ndarray | None = None) -> dict:
     """The window every close-up of the report shows: ``fixed`` (mm) if given, else a
     square of ``size_mm`` placed where the two variants differ most (the largest mean
     ``|diff|`` over the window, inside the map), or the map's centre when they do not
@@ -96,7 +96,7 @@ def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None,
             if not inner.any():
                 inner[:] = True
             i, j = np.unravel_index(np.argmax(np.where(inner, mean, -1)), mean.shape)
-            cx, cy = x_lo + j * pixel, y_lo + i * pixel
+            cx, cy = float(x_lo + j * pixel), float(y_lo + i * pixel)
         else:
             cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
         x0 = min(max(cx - side / 2, x_lo), x_hi - side)
@@ -110,7 +110,7 @@ def common_window(diff, *, pixel: float, origin, size_mm: float, fixed=None,
     if sub.size and sub.max() > 0:
         sm = ndimage.gaussian_filter(sub, sigma=max(1.0, min(sub.shape) / 16), mode="nearest")
         i, j = np.unravel_index(np.argmax(sm), sm.shape)
-        peak = (x_lo + (j0 + j) * pixel, y_lo + (i0 + i) * pixel)
+        peak = (float(x_lo + (j0 + j) * pixel), float(y_lo + (i0 + i) * pixel))
     else:
         peak = ((x0 + x1) / 2, (y0 + y1) / 2)
     return {"window": (float(x0), float(y0), float(x1), float(y1)),
@@ -160,12 +160,14 @@ def difference_stats(d: np.ndarray) -> dict:
             "mean_nm": float(d.mean())}
 
 
-def sections(z, design, *, pixel, origin, center, angles_deg, filtered=None, through=False):
+def sections(z: np.ndarray, design: np.ndarray | None, *, pixel: float, origin: Sequence[float],
+             center: Sequence[float], angles_deg: Sequence[float],
+             filtered: np.ndarray | None = None, through: bool = False) -> list[dict]:
     """Profiles of ``z`` (and of ``design``, ``filtered`` on the same grid) at the section
     angles ``angles_deg`` through ``center``: radial from it (``through`` False, a turned
     part's spindle axis) or a line through it: [{angle_deg, s, machined, design,
     filtered}, ...] (sections with fewer than two valid points are left out)."""
-    def sec(m, ang):
+    def sec(m: np.ndarray, ang: float) -> np.ndarray:
         return _one_section(m, pixel=pixel, origin=origin, center=center, angle=ang,
                             through=through)[1]
 
@@ -180,7 +182,9 @@ def sections(z, design, *, pixel, origin, center, angles_deg, filtered=None, thr
     return out
 
 
-def _one_section(z, *, pixel, origin, center, angle, through):
+def _one_section(z: np.ndarray, *, pixel: float, origin: Sequence[float],
+                 center: Sequence[float], angle: float,
+                 through: bool) -> tuple[np.ndarray, np.ndarray]:
     if not through:
         return extract_section(z, pixel=pixel, origin=origin, kind="radial", center=center,
                                angle=np.radians(angle))
@@ -212,8 +216,18 @@ def areal_nm(z: np.ndarray, pixel: float | tuple[float, float]) -> dict:
     return {f"{k}_nm": p[k] * MM_TO_NM for k in ("Sa", "Sq", "Sp", "Sv", "Sz")}
 
 
-def difference_profiles(true_diff, grid, measured_diff, measured_grid, residuals, *, window,
-                        peak) -> dict:
+class _PixelGrid(Protocol):
+    """A map's grid: its pixel (mm) and the centre of pixel [0, 0] (mm)."""
+
+    @property
+    def pixel(self) -> float: ...
+    @property
+    def origin(self) -> Sequence[float]: ...
+
+
+def difference_profiles(true_diff: np.ndarray, grid: _PixelGrid, measured_diff: np.ndarray,
+                        measured_grid: _PixelGrid, residuals: tuple[np.ndarray, np.ndarray], *,
+                        window: Sequence[float], peak: Sequence[float]) -> dict:
     """The difference of two maps over a common window, and its profile through the
     largest difference.
 

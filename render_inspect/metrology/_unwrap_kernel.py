@@ -9,13 +9,15 @@ time).  Imported on first use: numba loads with it.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 __all__ = ["flood"]
 
 
 @njit(cache=True)
-def _heap_push(hq, hi, hs, n, q, i, s):
+def _heap_push(hq: npt.NDArray[np.float64], hi: npt.NDArray[np.int64], hs: npt.NDArray[np.int64],
+               n: int, q: float, i: int, s: int) -> int:
     hq[n] = q
     hi[n] = i
     hs[n] = s
@@ -32,7 +34,8 @@ def _heap_push(hq, hi, hs, n, q, i, s):
 
 
 @njit(cache=True)
-def _heap_pop(hq, hi, hs, n):
+def _heap_pop(hq: npt.NDArray[np.float64], hi: npt.NDArray[np.int64], hs: npt.NDArray[np.int64],
+              n: int) -> tuple[int, int, int]:
     i, s = hi[0], hs[0]
     n -= 1
     hq[0], hi[0], hs[0] = hq[n], hi[n], hs[n]
@@ -55,7 +58,13 @@ def _heap_pop(hq, hi, hs, n):
 
 
 @njit(cache=True)
-def flood(phase, valid, quality, order):
+def flood(phase: npt.NDArray[np.float64], valid: npt.NDArray[np.bool_],
+          quality: npt.NDArray[np.float64], order: npt.NDArray[np.int64]
+          ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32]]:
+    """The wrapped ``phase`` (rad) unwrapped inside ``valid`` from the seeds ``order``
+    (flat indices, most reliable first), each step to the neighbour of highest
+    ``quality``: (unwrapped phase, NaN outside; label of each pixel's connected region,
+    0 = invalid)."""
     h, w = phase.shape
     npx = h * w
     out = np.full(npx, np.nan)

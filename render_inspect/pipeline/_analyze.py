@@ -189,7 +189,7 @@ def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
                                   "source": str(path.name), "form": form,
                                   "filter_mm": [s_mm, l_mm], "outliers": outliers,
                                   "units": "x, y, z in metres (ISO 25178-72)"})
-            write_x3p(tmp / "height.x3p", a.height, pixel=m.pixel, origin=m.origin,
+            write_x3p(tmp / "height.x3p", cast(np.ndarray, a.height), pixel=m.pixel, origin=m.origin,
                       comment=comment)
         metrics["timing_s"] = {"read": t_read, "total": time.perf_counter() - t0}
         write_metrics(tmp, metrics)

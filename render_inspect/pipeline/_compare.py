@@ -39,16 +39,16 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ..design import make_surface
-from ..instruments import rendered_settings
-from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  export_program, json_safe, not_a_file, read_surface, writer)
-from ..metrology import (areal_nm, characterise_map, common_window, compare_measured,
+from ..design import Surface, make_surface
+from ..instruments import InterferometerConfig, rendered_settings
+from ..io import (MeasuredMap, atomic_output_dir, atomic_write_bytes, atomic_write_text,
+                  check_output_dir, export_program, json_safe, not_a_file, read_surface, writer)
+from ..metrology import (Comparison, areal_nm, characterise_map, common_window, compare_measured,
                          difference_profiles, fringe_order_check, level_map, line_profile,
                          measurement_seeds, profile_center, sections, waviness_choice, waviness_map)
 from ..metrology import expected_sq_mm as _marks_sq_mm
 from ..processes import process_of
-from ..render import mitsuba_variant
+from ..render import DiffuseConfig, mitsuba_variant
 from ..report import (ComparedVariant, axis_motion_figure, build_page, comparison_figures,
                       comparison_summary, display_map, draw_figure, program_figure_name,
                       save_map_png)
@@ -93,7 +93,8 @@ compare_summary = comparison_summary
 
 
 def preview_render_configs(scene: Scene, heightmap: HeightMap, *,
-                           window: Sequence[float] | None = None):
+                           window: Sequence[float] | None = None
+                           ) -> tuple[InterferometerConfig, DiffuseConfig, list[str]]:
     """Instrument and diffuse settings for compare: the scene's, over the common ``window``
     (mm) when given, with the sizes the scene does not set capped
     (:data:`COMPARE_MAX_CAMERA_PIXELS`, :data:`COMPARE_MAX_DIFFUSE_RESOLUTION`,
@@ -278,7 +279,8 @@ def _render_variant(v: _Variant, out: Path, *, icfg, dcfg, seed: int, design_sur
     v.metrics.update(m)
 
 
-def check_measured(path, scene: Scene, design_surface, *, force: bool = False):
+def check_measured(path: str | Path, scene: Scene, design_surface: Surface, *,
+                   force: bool = False) -> tuple[MeasuredMap, Comparison]:
     """Read a measured file and check, before any simulation, that it is a map of this
     design: registered overlap with ``simulation.region`` at least ``metrology.min_overlap``
     of the smaller area, registration residual not far above the process's roughness

@@ -31,8 +31,8 @@ from .. import __version__
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..instruments import render_interferogram
-from ..io import (atomic_output_dir, atomic_write_bytes, atomic_write_text, check_output_dir,
-                  is_profile_file, json_safe, read_profile)
+from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_bytes, atomic_write_text,
+                  check_output_dir, is_profile_file, json_safe, read_profile)
 from ..metrology import (analyze_profile, dominant_periods, line_profile, measure_frames, mirror_centre,
                          parse_profile_filter)
 from ..processes import process_of
@@ -74,7 +74,8 @@ def parse_line(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
     return (v[0], v[1]), (v[2], v[3])
 
 
-def default_line(scene: Scene, profile):
+def default_line(scene: Scene, profile: MeasuredProfile
+                 ) -> tuple[tuple[float, float], tuple[float, float], str] | None:
     """A diameter along x through the spindle axis, as long as the measured profile, with
     the profile's mirror centre (when it has one) on the axis; None for a scene without a
     spindle axis.  Returns (p0, p1, how)."""

@@ -10,7 +10,7 @@ fit window -> the virtual interference microscope with the measured file's setti
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import contextlib
 import copy
@@ -278,7 +278,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                          ", ".join(f"{a:.3g}" for a in target.scatter.get("amplitudes_nm", [])),
                          target.scatter.get("frequency_relative", float("nan")))
             first = evaluator.evaluate([[p.start for p in params]])[0]
-            pred0 = predict_features(first.height, target, first.values)
+            # (an evaluation's map: None only where the forward model failed)
+            pred0 = predict_features(cast(np.ndarray, first.height), target, first.values)
             log.info("first evaluation: %.1f s; misfit %.4g", first.seconds, first.cost)
             result = solve(params, evaluator, global_points=global_points, seed=seed,
                            profile_points=profile_points, starts=starts)
@@ -289,7 +290,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     except BaseException as err:
         _after_failure(store, err)
         raise
-    best = predict_features(result.best.height, target, result.best.values)
+    best = predict_features(cast(np.ndarray, result.best.height), target, result.best.values)
     after = check_after(target.height, best.height, pixel=pixel, goodness=result.goodness)
     misfit = misfit_maps(target.height, best.height)
     wavy = misfit_maps(target.wavy, best.wavy)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import set_reporter
-from ..fit import run_local, set_value, task_hash
+from ..fit import EvaluationCache, run_local, set_value, task_hash
 from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
                            microscope_from_config, recommended_subsamples)
 from ..io import read_exr
@@ -53,7 +53,7 @@ LOCAL_THREADS = 1
 
 
 # --------------------------------------------------------------------- the forward model
-def predict_measurement(task_spec: dict):
+def predict_measurement(task_spec: dict) -> tuple[np.ndarray, dict]:
     """One evaluation: what the virtual instrument reports for the scene of ``task_spec``
     (``scene``: a scene dictionary whose region covers the field and whose section of the
     registered instrument that records interferometer frames
@@ -113,14 +113,14 @@ def quiet() -> Iterator[None]:
         set_reporter(old)
 
 
-def compute_all(store, tasks: Sequence[dict], client: Any,
+def compute_all(store: EvaluationCache, tasks: Sequence[dict], client: Any,
                 compute: Callable[[dict], Any] | None = None) -> list:
     """Forward-model runs through the evaluation cache (in this process, or as one batch
     on Dask, each task run by ``compute``, default :func:`predict_measurement`): the
     predicted maps, in order."""
     compute = predict_measurement if compute is None else compute
     keys = [task_hash(t) for t in tasks]
-    out = [None] * len(tasks)
+    out: list[np.ndarray | None] = [None] * len(tasks)
     todo: dict[str, list[int]] = {}
     for i, k in enumerate(keys):
         hit = store.get(k)
@@ -204,7 +204,7 @@ def file_instrument(path: str | Path) -> dict:
 
 
 def instrument_settings(scene: Scene, file_settings: dict, objective: str | None, pixel: float,
-                        window, z) -> tuple[dict, str]:
+                        window: Sequence[float], z: np.ndarray) -> tuple[dict, str]:
     """The instrument section of the evaluations (``[render.interferometer]``: the
     registered instrument that records interferometer frames): the scene's, with the file's
     objective and settings (else ``objective``), the measured pixel, the fit window as

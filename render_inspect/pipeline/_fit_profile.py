@@ -44,8 +44,8 @@ from ..fit import (within_reach, parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLE
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
                    summary_lines, task_hash)
-from ..io import (atomic_output_dir, atomic_write_text, check_output_dir, is_profile_file,
-                  read_profile, write_json)
+from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_text, check_output_dir,
+                  is_profile_file, read_profile, write_json)
 from ..processes import RANDOM_PART_KEYS, process_of, random_parts
 from ..report import HtmlReport, profile_overlay_figure
 from ..scene import scene_from_dict
@@ -91,7 +91,7 @@ def _sample(h, *, pixel, origin, p0, direction, s):
     return np.where(valid > 0.999, vals, np.nan)
 
 
-def predict_profile(task_spec: dict):
+def predict_profile(task_spec: dict) -> tuple[np.ndarray, dict]:
     """One evaluation of a profile fit: :func:`~render_inspect.pipeline.predict_measurement`
     of the band, sampled along the task's ``line`` (``p0`` mm, unit ``direction``, positions
     ``s0 + i * step`` for ``i < count``).  Returns (a (1, count) array of heights, mm,
@@ -145,7 +145,8 @@ class ProfileModel(ForwardModel):
 
 
 # ------------------------------------------------------------------------- the window
-def profile_window(prof, scene: Scene, *, line=None, at=None, window_mm: float = 0.3) -> dict:
+def profile_window(prof: MeasuredProfile, scene: Scene, *, line: str | None = None,
+                   at: Sequence[float] | None = None, window_mm: float = 0.3) -> dict:
     """Where the fitted window lies: the line (``--line`` or the default radial line of a
     turned part), the window's centre (``--at X,Y`` projected on the line, default the
     middle of the measured points) and its samples.  Returns ``{"p0", "p1", "direction",
@@ -351,8 +352,11 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     except BaseException as err:
         _after_failure(store, err)
         raise
-    best = predict_profile_features(result.best.height, target, result.best.values)
-    start_pred = predict_profile_features(result.start.height, target, result.start.values)
+    # (an evaluation's profile: None only where the forward model failed)
+    best = predict_profile_features(cast(np.ndarray, result.best.height), target,
+                                    result.best.values)
+    start_pred = predict_profile_features(cast(np.ndarray, result.start.height), target,
+                                          result.start.values)
     after = _check_after(target, best, family, result.goodness)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
     fitted = copy.deepcopy(base)

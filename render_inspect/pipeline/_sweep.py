@@ -26,6 +26,7 @@ from .. import __version__
 from ..batch import (
     Progress,
     ResultsLog,
+    SweepFile,
     call_with_threads,
     check_scheduler,
     check_workers_option,
@@ -37,13 +38,10 @@ from ..batch import (
     dotted_get,
     expand_points,
     fixed_keys,
-    flatten,
     folder_lock,
     md_text,
-    morris_indices,
     plot_rows,
     point_id,
-    point_key,
     read_sweep,
     summary_table,
     sweep_keys,
@@ -67,6 +65,7 @@ from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
+from ._sweep_morris import morris_table, sweep_morris
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
            "column_names", "check_sweep_tasks", "sweep_failure", "sweep_morris"]
@@ -136,7 +135,8 @@ def _point_memory(scene: Scene, run: dict) -> int:
     return int(need) + (RENDER_BYTES if run.get("render", "none") != "none" else 0)
 
 
-def sweep_tasks(spec, sweep_path, out) -> tuple[list[dict], list[dict], list[str]]:
+def sweep_tasks(spec: SweepFile, sweep_path: str | Path, out: str | Path
+                ) -> tuple[list[dict], list[dict], list[str]]:
     """Resolve every point of ``spec`` into a task for :func:`run_point`.
 
     The base scene is read first (a scene that is not one is an error naming the sweep
@@ -399,34 +399,6 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
                       + ("\n" + "\n".join(morris_lines) + "\n" if morris_lines else ""))
     write_json(out / "sweep.json", info)
     return info
-
-
-def sweep_morris(spec, records) -> dict:
-    """The Morris indices of a sweep's ``[morris]`` design from its finished records
-    (:func:`~render_inspect.batch.morris_indices`; ``morris.json``)."""
-    keys = [f.key for f in spec.morris.factor]
-    found = {}
-    for r in records:
-        if r.get("status") != "done":
-            continue
-        p = r.get("params") or {}
-        if any(p.get(k) is None for k in keys):
-            continue
-        found[point_key({k: p[k] for k in keys})] = flatten(r.get("metrics") or {})
-    return morris_indices(spec.morris, lambda point: found.get(point_key(point)))
-
-
-def morris_table(morris: dict) -> list[str]:
-    """Markdown lines of the Morris indices (``summary.md``)."""
-    lines = [f"## Morris elementary effects ({morris['complete']} of {morris['trajectories']} "
-             f"trajectories complete, {morris['levels']} levels)", ""]
-    for name, ind in morris["indices"].items():
-        lines += [f"### {name}", "", "| factor | mu* | mu | sigma |", "|---|---|---|---|"]
-        fmt = (lambda v: "-" if v is None else f"{v:.4g}")
-        for key, v in sorted(ind.items(), key=lambda kv: -(kv[1]["mu_star"] or 0.0)):
-            lines.append(f"| {key} | {fmt(v['mu_star'])} | {fmt(v['mu'])} | {fmt(v['sigma'])} |")
-        lines.append("")
-    return lines
 
 
 def _is_sweep_folder(folder: Path) -> bool:

@@ -57,7 +57,7 @@ from ..toolpath import DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MachineLimits, Pa
 
 if TYPE_CHECKING:
     from ..design import DesignSection, Surface
-    from ..machining import MaterialResponse
+    from ..machining import Grooves, MaterialResponse
 
 __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", "VariantPair",
            "section", "ToolSection", "SimulationSection", "SceneSections"]
@@ -316,8 +316,8 @@ class Envelope:
     half_width: float
     meta: dict = field(default_factory=dict)
     mechanics: MaterialResponse | None = None
-    grooves: object = None
-    texture: object = None
+    grooves: Grooves | None = None
+    texture: tuple[float, float, int] | None = None
     burrs: dict | None = None
     facts: dict = field(default_factory=dict)
     followed: object = None

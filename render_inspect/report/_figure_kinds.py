@@ -9,20 +9,24 @@ it by returning a spec of that kind.
 
 from __future__ import annotations
 
-from typing import Callable
+from pathlib import Path
+from typing import Callable, TypeVar
 
 __all__ = ["register_figure", "registered_figures"]
 
 _DRAWERS: dict[str, Callable] = {}
 
+#: a drawer ``draw(spec, png) -> Path`` (returned as it is)
+_Draw = TypeVar("_Draw", bound=Callable[..., Path])
 
-def register_figure(kind: str):
+
+def register_figure(kind: str) -> Callable[[_Draw], _Draw]:
     """Decorator: register ``draw(spec, png) -> Path`` as the drawer of the figure specs
     whose ``kind`` is ``kind`` (registering a kind again replaces its drawer)."""
     if not isinstance(kind, str) or not kind.isidentifier():
         raise ValueError(f"figure kind must be an identifier, received {kind!r}")
 
-    def deco(draw: Callable) -> Callable:
+    def deco(draw: _Draw) -> _Draw:
         _DRAWERS[kind] = draw
         return draw
     return deco

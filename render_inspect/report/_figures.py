@@ -227,9 +227,15 @@ def map_panels(panels: Sequence[tuple[str, np.ndarray | None]], *,
     return _to_png(fig)
 
 
-def image_panels(panels, *, extent=None, suptitle: str = "", gray_label: str = "",
-                 axis_labels: bool = True, panel_size=(4.6, 3.9), dpi: int = 100,
-                 scale_mm=None, notes=None) -> bytes:
+#: (x0, x1, y0, y1) of an image's pixel edges, mm
+_Extent = tuple[float, float, float, float]
+
+
+def image_panels(panels: Sequence[tuple[str, np.ndarray | None]], *,
+                 extent: _Extent | list[_Extent | None] | None = None, suptitle: str = "",
+                 gray_label: str = "", axis_labels: bool = True, panel_size: tuple[float, float] = (4.6, 3.9),
+                 dpi: int = 100, scale_mm: tuple[float, float] | list[tuple[float, float]] | None = None,
+                 notes: Sequence[str | None] | None = None) -> bytes:
     """Side-by-side rendered images (grey intensity 0..1 or RGB 0..1), row 0 = smallest y
     (drawn at the bottom).
 
@@ -351,9 +357,10 @@ def lowpass_map(z: np.ndarray, pixel: float, cutoff_mm: float) -> np.ndarray:
         return np.where(ok & (den > 1e-6), num / den, np.nan)
 
 
-def difference_figure(*, names, locator: dict, true_diff, true_extent, measured_diff,
-                      measured_extent, profile: dict, title: str = "", dpi: int = 100,
-                      panel_labels=("true (simulated)", "measured by the virtual instrument"),
+def difference_figure(*, names: Sequence[str], locator: dict, true_diff: np.ndarray | None,
+                      true_extent: _Extent, measured_diff: np.ndarray | None,
+                      measured_extent: _Extent, profile: dict, title: str = "", dpi: int = 100,
+                      panel_labels: Sequence[str] = ("true (simulated)", "measured by the virtual instrument"),
                       lowpass_mm: float | None = None) -> bytes:
     """The report's first figure: what differs between the two variants.
 

@@ -3,6 +3,7 @@ maps, the areal PSD of both, the misfit along each parameter, and ``fit.html``."
 
 from __future__ import annotations
 
+from typing import Any
 
 import numpy as np
 
@@ -34,8 +35,9 @@ def psd_figure(curves: dict, *, title: str = "", dpi: int = 100) -> bytes:
     return _to_png(fig)
 
 
-def fit_figures(record: dict, *, measured, fitted, start, measured_wavy, fitted_wavy, extent,
-                psd: dict) -> dict:
+def fit_figures(record: dict, *, measured: np.ndarray, fitted: np.ndarray, start: np.ndarray,
+                measured_wavy: np.ndarray, fitted_wavy: np.ndarray,
+                extent: tuple[float, float, float, float], psd: dict) -> dict:
     """``maps.png``, ``residual.png``, ``psd.png``, ``misfit.png`` as PNG bytes; maps in
     mm (form removed), ``extent`` = (x0, x1, y0, y1) of the pixel edges."""
     nm = MM_TO_NM
@@ -74,7 +76,7 @@ def fit_figures(record: dict, *, measured, fitted, start, measured_wavy, fitted_
     return figs
 
 
-def _val(v) -> str:
+def _val(v: Any) -> str:  # (as fmt_number takes it)
     return "n/a" if v is None else fmt_number(v, sig=5)
 
 

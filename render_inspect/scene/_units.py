@@ -9,6 +9,9 @@ that may be meant (the command line prints them before the run)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Protocol, cast
+
 from ..core.units import MM_TO_UM, UM_TO_MM
 from ..processes import SceneSections
 
@@ -34,7 +37,16 @@ def _fmt(v: float) -> str:
     return f"{v:.6g}"
 
 
-def part_extent(scene) -> tuple[float, float, float, float] | None:
+class _Cells(Protocol):
+    """A design of cells (a lenslet array): their count and pitch (mm)."""
+
+    rows: int
+    cols: int
+    pitch_x: float
+    pitch_y: float
+
+
+def part_extent(scene: SceneSections) -> tuple[float, float, float, float] | None:
     """The part's bounding box ``(x0, y0, x1, y1)``, mm: the workpiece disc of a turning
     process (``process.workpiece_radius``), the cells of a lenslet array; None when the
     scene does not say."""
@@ -44,12 +56,13 @@ def part_extent(scene) -> tuple[float, float, float, float] | None:
     d = scene.design
     if all(hasattr(d, k) for k in ("rows", "cols", "pitch_x", "pitch_y")):
         cx, cy = float(getattr(d, "center_x", 0.0)), float(getattr(d, "center_y", 0.0))
-        hx, hy = d.cols * d.pitch_x / 2, d.rows * d.pitch_y / 2
+        cells = cast(_Cells, d)
+        hx, hy = cells.cols * cells.pitch_x / 2, cells.rows * cells.pitch_y / 2
         return (cx - hx, cy - hy, cx + hx, cy + hy)
     return None
 
 
-def _overlaps(a, b) -> bool:
+def _overlaps(a: Sequence[float], b: Sequence[float]) -> bool:
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 

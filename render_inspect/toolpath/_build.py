@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal, overload
 from collections.abc import Sequence
 import math
 import time
@@ -31,10 +31,25 @@ PLAN_BYTES_PER_POINT = {"z": 104, "none": 104, "normal": 200, "edge": 104}
 PLAN_FIXED_BYTES = 16 * MIB_TO_BYTES
 
 
+@overload
 def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
                         r_in: float, r_out: float, inner_radius: float = 0.0,
                         points_per_rev: int = 3600, arc_length: float = 0.005,
-                        switch_radius: float = 1.0, parts: bool = False):
+                        switch_radius: float = 1.0, parts: Literal[False] = False) -> float: ...
+
+
+@overload
+def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
+                        r_in: float, r_out: float, inner_radius: float = 0.0,
+                        points_per_rev: int = 3600, arc_length: float = 0.005,
+                        switch_radius: float = 1.0, parts: Literal[True]) -> tuple[float, float]: ...
+
+
+def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius: float,
+                        r_in: float, r_out: float, inner_radius: float = 0.0,
+                        points_per_rev: int = 3600, arc_length: float = 0.005,
+                        switch_radius: float = 1.0, parts: bool = False
+                        ) -> float | tuple[float, float]:
     """Number of spiral points :func:`plan_turning` allocates (a float: it may be far
     beyond any array), computed from the parameters alone.
 
@@ -61,7 +76,7 @@ def turning_point_count(*, sampling: str, feed_per_rev: float, workpiece_radius:
     return (n, n_angle) if parts else n + n_angle
 
 
-def plan_memory(n_points: int, *, sampling: str = "constant_angle",
+def plan_memory(n_points: float | tuple[float, float], *, sampling: str = "constant_angle",
                 compensation: str = "z") -> float:
     """Bytes :func:`plan_turning` (and the kinematics after it) holds at its peak for a
     path of ``n_points`` points, or of (arc-length points, constant-angle points)
