@@ -215,3 +215,59 @@ def test_the_imaging_model_called_from_another_thread_runs_serially_with_the_sam
     t.join()
     assert _imaging._threads_allowed() and got["allowed"] is False
     assert _same(here, got["frames"])
+
+
+_PRELOAD_CHECK = r"""
+import json
+import numpy as np
+from render_inspect.instruments import Microscope, monochromatic, psi_frames
+from render_inspect.instruments import _kernels
+from render_inspect.instruments._interferometer import pixel_truth
+
+def signatures():
+    out = {}
+    for name, v in vars(_kernels).items():
+        d = getattr(v, "_dispatcher", None) or (v if hasattr(v, "signatures") else None)
+        if d is not None and getattr(d, "signatures", None):
+            out[name] = sorted(str(s) for s in d.signatures)
+    return out
+
+_kernels.preload()
+loaded = signatures()
+n, s, pixel = 32, 3, 0.000879
+y, x = (np.mgrid[0:n * s, 0:n * s] + 0.5) * pixel / s
+h = 4e-4 * np.cos(2 * np.pi * x / 0.02) * np.cos(2 * np.pi * y / 0.015)
+nrm = np.stack([np.zeros_like(h), np.zeros_like(h), np.ones_like(h)], -1).astype(np.float32)
+psi_frames(h, nrm, pixel=pixel, subsamples=s, microscope=Microscope(source=monochromatic(550.0)),
+           crop=2)
+pixel_truth(h, h[::s, ::s][2:-2, 2:-2], s=s, margin=2)
+print(json.dumps({"loaded": loaded, "after": signatures()}))
+"""
+
+
+@pytest.mark.slow
+def test_the_preload_loads_the_kernels_the_frames_use_with_their_argument_types():
+    """The interferometer loads its compiled passes in a thread while the ray tracer works
+    (:func:`~render_inspect.instruments._kernels.preload`): in a fresh process, every
+    pass the PSI frames and the truth then call was loaded by it for the same argument
+    types (a type it missed would be loaded or compiled again at the frames' first call,
+    and a type it added would be work for nothing)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(repo)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])}
+    p = subprocess.run([sys.executable, "-c", _PRELOAD_CHECK], capture_output=True, text=True,
+                       env=env, cwd=repo, timeout=600)
+    assert p.returncode == 0, p.stderr[-3000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    assert set(got["loaded"]) >= {"_facets_kernel", "_wrap_axis0", "_wrap_axis1_cosine",
+                                  "_steps_over_kernel", "_pixel_means_kernel",
+                                  "_radial_index_kernel", "_filter_fold_indexed",
+                                  "_frames_kernel"}
+    assert got["after"] == got["loaded"]
+    assert all(len(v) == 1 for v in got["loaded"].values())

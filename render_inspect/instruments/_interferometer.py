@@ -19,6 +19,7 @@ import dataclasses
 import json
 import logging
 import math
+import threading
 from pathlib import Path
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -36,7 +37,8 @@ from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera
 from ._imaging import _Serial, _threads_allowed
-from ._kernels import pixel_means
+from ._kernels import pixel_means, preload
+from ._transfer import acceptance_table
 from ._modes import check_scan_covers, csi_frames, psi_frames
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective, objective_names
@@ -457,6 +459,23 @@ def surface_sampling(heightmap: HeightMap, surface: str, geom: dict, mic: Micros
     return s, info
 
 
+def _start_preload(mic: Microscope) -> threading.Thread:
+    """Start a thread that loads what the imaging model of ``mic`` uses after the ray
+    tracing (:func:`~._kernels.preload`, the facets' acceptance table).  A failure there
+    is left to the model's own call of the same code, which reports it."""
+
+    def run():
+        try:
+            preload()
+            acceptance_table(mic.na, mic.na_ill, mic.obscuration)
+        except Exception:  # (the model's own call raises it again, where it is reported)
+            pass
+
+    t = threading.Thread(target=run, name="render_inspect-preload", daemon=True)
+    t.start()
+    return t
+
+
 # -------------------------------------------------------------------------- top level
 def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None = None, *,
                          surface: str = "machined", seed: int = 0) -> Interferogram:
@@ -499,7 +518,15 @@ def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None
                               scan_step_nm=icfg.scan_step_nm, frames=int(icfg.frames))
     s, sampling = surface_sampling(heightmap, surface, geom, mic, s_rec=s_rec,
                                    fixed=icfg.subsamples is not None)
-    h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
+    # the compiled passes and the libraries the frames use next are loaded in a thread
+    # while the ray tracer builds its tree and traces (it lets go of the interpreter);
+    # only in a process's main thread, as the model's other threads
+    loading = _start_preload(mic) if _threads_allowed() else None
+    try:
+        h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
+    finally:
+        if loading is not None:
+            loading.join()
     diag: dict = {}
     common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,
                   "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}

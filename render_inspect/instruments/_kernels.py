@@ -9,7 +9,8 @@ import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.smoothing import gaussian_weights
 
-__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "radial_index", "smoothed_cosine", "steps_over"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "preload",
+           "radial_index", "smoothed_cosine", "steps_over"]
 
 _KERNEL = None
 
@@ -352,3 +353,39 @@ def steps_over(dh32: np.ndarray, returns: np.ndarray, lim: float | np.floating) 
     _steps_over_kernel(np.ascontiguousarray(dh32, dtype=np.float32),
                        np.ascontiguousarray(returns, dtype=np.bool_), np.float32(lim), rows)
     return int(rows.sum())
+
+
+# ------------------------------------------------------------ loading them beforehand
+def preload() -> None:
+    """Load the compiled passes above (from numba's cache, or compiled where it lacks
+    them) for the argument types the imaging model calls them with, by calling each on a
+    few elements, and import the libraries the model and its files use next (SciPy's
+    FFTs and filters, Pillow's PNG writer, OpenEXR).  Nothing is kept but the loaded
+    code: the results of later calls are the same with or without it.  The
+    interferometer runs it in a thread while the ray tracer builds its tree (which lets
+    go of the interpreter), so that the first load (numba's own start, about 1 CPU-s)
+    does not wait until the frames ask for it."""
+    import scipy.fft  # noqa: F401  (the frames' FFTs)
+    from PIL import Image  # noqa: F401  (the fringe image)
+    from PIL.PngImagePlugin import PngInfo  # noqa: F401
+    import OpenEXR  # noqa: F401  (interferogram.exr)
+
+    n = 16
+    f32 = np.zeros((n, n), dtype=np.float32)
+    nrm = np.zeros((n, n, 3), dtype=np.float32)
+    nrm[..., 2] = 1.0
+    h = np.zeros((n, n), dtype=np.float64)
+    cos_t, _, reached, unit = facets(nrm, h)
+    smoothed_cosine(unit[0], unit[1], unit[2], 1.0)
+    steps_over(f32, reached, np.float32(1.0))
+    pixel_means(h, 2, 0, (n // 2, n // 2))
+    q2 = np.zeros(n, dtype=np.float32)
+    index = radial_index(q2, q2, np.float32(1.0), 4)
+    spec = np.zeros((n, n), dtype=np.complex64)
+    sep = np.ones(n, dtype=np.complex64)
+    cols = np.arange(n, dtype=np.int64)
+    filter_fold(spec, np.ones(n, dtype=bool), q2, sep, cols, cols % (n // 2), q2, sep,
+                np.ones(4, dtype=np.float32), np.float32(1.0), 2,
+                np.empty((n // 2, n // 2), dtype=np.complex64), index=index)
+    frames_from_field(np.zeros((2, n), dtype=np.complex64), np.zeros(n, dtype=np.float32),
+                      np.float32(1.0), np.float32(1.0), np.empty((2, n), dtype=np.float32))
