@@ -840,4 +840,21 @@ def _page(record: dict, png: bytes) -> str:
                      f"{p['stderr']:.3g}", f"{p['start']:.6g}"])
     rep.section("Fitted values")
     rep.table(rows, header=["key", "value", "standard error", "start"])
+    arms = record.get("arms") or {}
+    if arms.get("parameters"):
+        rep.section("Both arms of the diameter")
+        rows = [[a["arm"], "-".join(f"{r:.4g}" for r in a["radii_mm"]),
+                 "n/a" if a["measured_period_um"] is None else f"{a['measured_period_um']:.4g}",
+                 "n/a" if a["fitted_period_um"] is None else f"{a['fitted_period_um']:.4g}"]
+                for a in arms["arms"]]
+        rep.table(rows, header=["arm", "radii (mm)", "measured period (um)",
+                                "fitted period (um)"])
+        rows = [[k, f"{c['window_arm']['value']:.6g} +- {c['window_arm']['stderr']:.2g}",
+                 f"{c['other_arm']['value']:.6g} +- {c['other_arm']['stderr']:.2g}",
+                 f"{c['difference_over_stderr']:.2g}", f"{c['stderr_fit']:.2g}",
+                 f"{c['u_arms']:.2g}", f"{c['stderr']:.2g}"]
+                for k, c in arms["parameters"].items()]
+        rep.table(rows, header=["key", "the window's arm alone", "the other arm alone",
+                                "difference / its standard error", "fit's standard error",
+                                "from the arms", "combined"])
     return rep.render()
