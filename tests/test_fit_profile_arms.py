@@ -99,12 +99,12 @@ def test_both_arms_recover_the_feed_and_report_a_scale_error_on_one_arm(tmp_path
     from render_inspect.pipeline import run_fit_profile
     from render_inspect.pipeline._fit_profile import simulate_profile
 
-    s, z = simulate_profile(_turned(feed=3.6), (-0.4, 0.0), (0.4, 0.0), SPACING, seed=5)
-    z = _stretch_arm(s, z, axis_s=0.4, scale=1.02, side=-1)
+    s, z = simulate_profile(_turned(feed=3.6), (-0.36, 0.0), (0.36, 0.0), SPACING, seed=5)
+    z = _stretch_arm(s, z, axis_s=0.36, scale=1.02, side=-1)
     p = tmp_path / "diameter.csv"
     _write_profile(p, s, z)
     key = "process.feed_mm_per_min"
-    rec = run_fit_profile(p, _turned(), [key], tmp_path / "fit", line="-0.4,0,0.4,0",
+    rec = run_fit_profile(p, _turned(), [key], tmp_path / "fit", line="-0.36,0,0.36,0",
                           at=(0.25, 0.0), window_mm=0.2, global_points=0,
                           max_evaluations=30, profile_points=0, cache=tmp_path / "cache")
     arms = rec["arms"]
@@ -124,7 +124,7 @@ def test_both_arms_recover_the_feed_and_report_a_scale_error_on_one_arm(tmp_path
     assert any("the arms disagree" in line for line in rec["summary"]), rec["summary"]
     assert rec["model_check"]["after"]["describes"], rec["model_check"]["after"]
     # one arm: the window's own marks, without the other arm's scale
-    one = run_fit_profile(p, _turned(), [key], tmp_path / "one", line="-0.4,0,0.4,0",
+    one = run_fit_profile(p, _turned(), [key], tmp_path / "one", line="-0.36,0,0.36,0",
                           at=(0.25, 0.0), window_mm=0.2, global_points=0,
                           max_evaluations=30, profile_points=0, cache=tmp_path / "cache1",
                           arms="one")

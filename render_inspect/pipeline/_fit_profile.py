@@ -209,7 +209,9 @@ def other_arm_window(prof, scene: Scene, win: dict, period: float | None) -> tup
     i0 = int(np.argmin(np.abs(s - start)))
     i1 = i0 + n
     ok = np.isfinite(prof.z)
-    if abs(s[i0] - start) > spacing or i1 > s.size or int(ok[i0:i1].sum()) < MIN_POINTS:
+    s_lo, s_hi = float(s[ok][0]), float(s[ok][-1])
+    if (abs(s[i0] - start) > spacing or i1 > s.size or s[i0] < s_lo - 1e-9
+            or s[i1 - 1] > s_hi + 1e-9 or int(ok[i0:i1].sum()) < MIN_POINTS):
         r0 = abs(win["s0_mm"] - s_ax)
         r1 = abs(s_end - s_ax)
         return None, (f"the measured profile does not reach radii {min(r0, r1):.4g}-"
@@ -713,6 +715,15 @@ def _arms_record(two, arms, result, target, base, fitted, win, prof) -> dict:
             "fitted_period_um": None if not p.centroid else 1.0 / p.centroid * MM_TO_UM,
             "registration_shift_um": p.shift * spacing * MM_TO_UM,
             "misfit_terms": terms})
+    words = {"window": "the window's arm", "other": "the other arm"}
+    for a in out["arms"]:
+        mp, fp = a["measured_period_um"], a["fitted_period_um"]
+        out["summary"].append(
+            f"{words[a['arm']]} (radii {a['radii_mm'][0]:.3g}-{a['radii_mm'][1]:.3g} mm): marks' "
+            f"period measured {'none' if mp is None else f'{mp:.4g} um'}, fitted "
+            f"{'none' if fp is None else f'{fp:.4g} um'}"
+            + ("" if mp is None or fp is None else f" ({100 * (fp / mp - 1):+.2g} %)")
+            + f", misfit {sum(a['misfit_terms'].values()):.3g}")
     est = two.get("estimates") or {}
     if "error" in est or not est:
         out["estimates_error"] = est.get("error", "not computed")
