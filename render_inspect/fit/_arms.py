@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ._features import robust_weights
+from ._features import robust_weights, soft_l1
 from ._profile import (ProfilePrediction, ProfileTarget, predict_profile_features,
                        profile_realisation_shifts, profile_residual_vector,
                        set_profile_noise_floor)
@@ -172,74 +172,123 @@ def _arm_vectors(height, target: ArmsTarget, x) -> list:
     return out
 
 
-def arm_estimates(params, evaluator: Any, values, stderr, *, rel_step: float = 0.005) -> dict:
+def _arm_costs(height, target: ArmsTarget, x) -> list:
+    """Each arm's misfit (its share of the joint soft-L1 misfit) at a predicted array."""
+    pred = arms_features(height, target, x)
+    out = []
+    for p, t in zip(pred.arms, target.arms):
+        d, a, _ = profile_residual_vector(p, t)
+        out.append(float(np.sum(a * a * soft_l1(d))))
+    return out
+
+
+def _parabola_min(xs, ys) -> float:
+    """The minimum of the parabola through the lowest sampled point and its neighbours
+    (the lowest point itself where the three do not bend upwards)."""
+    k = int(np.argmin(ys))
+    k = min(max(k, 1), len(xs) - 2)
+    x3, y3 = np.asarray(xs[k - 1:k + 2]), np.asarray(ys[k - 1:k + 2])
+    c = np.polyfit(x3 - x3[1], y3, 2)
+    if c[0] <= 0:
+        return float(xs[int(np.argmin(ys))])
+    return float(np.clip(x3[1] - c[1] / (2 * c[0]), x3[0], x3[2]))
+
+
+def arm_estimates(params, evaluator: Any, values, stderr, *, rel_step: float = 0.01,
+                  reach: int = 2, extend: int = 3) -> dict:
     """Each arm's own estimate of the free keys, from the joint fit at ``values``.
 
-    The joint misfit is the sum of the arms' misfits; each arm's residuals (weighted by
-    their terms and by the soft-L1 loss's re-weighting at the joint solution, as the joint
-    fit's covariance is) are linearised about the joint solution by central differences
-    (steps of ``rel_step`` of each value, inside the bounds), and a Gauss-Newton step on
-    that arm alone, repeated once from where it lands, gives the arm's estimate: where the
-    fit of that arm alone would end.  Each arm's standard error is the joint one scaled by
-    the share of the information that arm holds: ``stderr_i * sqrt(inv(F_arm)_ii /
-    inv(F)_ii)`` with ``F = J^T J`` of the arm's (``F_arm``) and of both arms' (``F``)
-    columns.  Costs 2 evaluations per free key and one per arm."""
+    The joint misfit is the sum of the arms' misfits.  Along each free key (the others
+    held at the joint solution), the misfit is sampled at steps of ``rel_step`` of the
+    value, ``reach`` steps either side (and up to ``extend`` more outwards while an arm's
+    lowest point is at the end of the scan); one evaluation gives both arms' misfits.  Each
+    arm's own estimate is the minimum of the parabola through its lowest sample and their
+    neighbours: where a fit of that arm alone ends (for one free key; with several, each
+    key's minimum with the others held).
+
+    Each arm's standard error is the joint one scaled by the share of the information that
+    arm holds: ``stderr_i * sqrt(inv(F_arm)_ii / inv(F)_ii)`` with ``F = J^T J`` of the
+    arm's (``F_arm``) and of both arms' (``F``) residuals, weighted as the joint fit's
+    covariance weights them (the soft-L1 loss's re-weighting at the solution), J by central
+    differences over one step.  Costs ``2 reach`` evaluations per free key, and more where
+    an arm's minimum lies beyond them."""
     target: ArmsTarget = evaluator.target
     x0 = np.asarray(values, dtype=np.float64)
     n = x0.size
+    m = len(target.arms)
     hs = np.array([max(rel_step * abs(v), 1e-6 * p.scale) for p, v in zip(params, x0)])
-    pts = [x0.copy()]
-    for i, p in enumerate(params):
-        for s in (-1.0, 1.0):
+    best = evaluator.evaluate([x0.copy()], budget=False)[0]
+    if best.error is not None:
+        return {"error": f"the evaluation at the solution failed: {best.error}"}
+    base = _arm_vectors(best.height, target, best.values)
+    est = np.tile(x0, (m, 1))
+    infos = [np.zeros((n, n)) for _ in range(m)]
+    js = [np.zeros((base[k][0].size, n)) for k in range(m)]
+    scans = []
+
+    def at(i, steps):
+        pts = []
+        for st in steps:
             x = x0.copy()
-            x[i] = min(max(x0[i] + s * hs[i], p.lower), p.upper)
+            x[i] = min(max(x0[i] + st * hs[i], params[i].lower), params[i].upper)
             pts.append(x)
-    evs = evaluator.evaluate(pts, budget=False)
-    if any(e.error is not None for e in evs):
-        bad = next(e.error for e in evs if e.error is not None)
-        return {"error": f"an evaluation about the solution failed: {bad}"}
-    vecs = [_arm_vectors(e.height, target, e.values) for e in evs]
-    arms = []
-    infos = []
-    js = []
-    for k in range(len(target.arms)):
-        sw = vecs[0][k][1]
-        r0 = sw * vecs[0][k][0]
-        j = np.empty((r0.size, n))
-        for i in range(n):
-            lo_x, hi_x = pts[1 + 2 * i][i], pts[2 + 2 * i][i]
-            j[:, i] = sw * (vecs[2 + 2 * i][k][0] - vecs[1 + 2 * i][k][0]) / (hi_x - lo_x)
-        js.append(j)
-        infos.append(j.T @ j)
-        step = -np.linalg.lstsq(j, r0, rcond=None)[0]
-        arms.append(x0 + step)
-    # once more from where each arm's step lands (the registered profile is not linear in
-    # the feed over a few per cent)
-    land = [np.clip(x, [p.lower for p in params], [p.upper for p in params]) for x in arms]
-    evs2 = evaluator.evaluate(land, budget=False)
-    for k, e in enumerate(evs2):
-        if e.error is not None:
-            continue
-        vec, _ = _arm_vectors(e.height, target, e.values)[k]
-        sw = vecs[0][k][1]
-        arms[k] = land[k] - np.linalg.lstsq(js[k], sw * vec, rcond=None)[0]
+        return pts, evaluator.evaluate(pts, budget=False)
+
+    for i in range(n):
+        steps = [st for st in range(-reach, reach + 1) if st != 0]
+        pts, evs = at(i, steps)
+        bad = [e.error for e in evs if e.error is not None]
+        if bad:
+            return {"error": f"an evaluation about the solution failed: {bad[0]}"}
+        sample = {0: (x0[i], _arm_costs(best.height, target, best.values))}
+        for st, x, e in zip(steps, pts, evs):
+            sample[st] = (x[i], _arm_costs(e.height, target, e.values))
+        # the arms' residuals one step either side: the information each holds
+        lo, hi = evs[steps.index(-1)], evs[steps.index(1)]
+        v_lo = _arm_vectors(lo.height, target, lo.values)
+        v_hi = _arm_vectors(hi.height, target, hi.values)
+        dx = pts[steps.index(1)][i] - pts[steps.index(-1)][i]
+        for k in range(m):
+            js[k][:, i] = base[k][1] * (v_hi[k][0] - v_lo[k][0]) / dx
+        # outwards while an arm's lowest sample is at an end of the scan
+        for _ in range(extend):
+            ends = set()
+            for k in range(m):
+                low = min(sample, key=lambda st: sample[st][1][k])
+                if low == min(sample) or low == max(sample):
+                    ends.add(low)
+            new = sorted({st + (1 if st > 0 else -1) for st in ends} - set(sample))
+            if not new:
+                break
+            p2, e2 = at(i, new)
+            for st, x, e in zip(new, p2, e2):
+                if e.error is None:
+                    sample[st] = (x[i], _arm_costs(e.height, target, e.values))
+            if all(e.error is not None for e in e2):
+                break
+        order = sorted(sample)
+        scans.append({"key": params[i].key, "values": [float(sample[st][0]) for st in order],
+                      "misfit": [[float(sample[st][1][k]) for st in order]
+                                 for k in range(m)]})
+        for k in range(m):
+            est[k, i] = _parabola_min([sample[st][0] for st in order],
+                                      [sample[st][1][k] for st in order])
+    for k in range(m):
+        infos[k] = js[k].T @ js[k]
     f_all = sum(infos)
     se = np.asarray(stderr, dtype=np.float64)
-    try:
-        inv_all = np.diag(np.linalg.pinv(f_all))
-        out_arms = []
-        for k, f in enumerate(infos):
-            inv_k = np.diag(np.linalg.pinv(f))
-            ratio = np.sqrt(np.where(inv_all > 0, inv_k / np.where(inv_all > 0, inv_all, 1.0),
-                                     np.nan))
-            out_arms.append({"values": [float(v) for v in arms[k]],
-                             "stderr": [float(v) for v in se * ratio],
-                             "information_share": [float(f[i, i] / f_all[i, i])
-                                                   if f_all[i, i] > 0 else None
-                                                   for i in range(n)]})
-    except np.linalg.LinAlgError as err:
-        return {"error": f"the arms' information matrix: {err}"}
-    return {"arms": out_arms, "steps": [float(h) for h in hs]}
+    inv_all = np.diag(np.linalg.pinv(f_all))
+    out_arms = []
+    for k, f in enumerate(infos):
+        inv_k = np.diag(np.linalg.pinv(f))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.sqrt(np.where(inv_all > 0, inv_k / inv_all, np.nan))
+        out_arms.append({"values": [float(v) for v in est[k]],
+                         "stderr": [float(v) for v in se * ratio],
+                         "information_share": [float(f[i, i] / f_all[i, i])
+                                               if f_all[i, i] > 0 else None
+                                               for i in range(n)]})
+    return {"arms": out_arms, "steps": [float(h) for h in hs], "scans": scans}
 
 
 def combine_arms(value: float, stderr: float, a: float, sa: float, b: float,

@@ -744,6 +744,7 @@ def _arms_record(two, arms, result, target, base, fitted, win, prof) -> dict:
         out["summary"].append(arms_text(p.key, comb, ea["values"][i], eb["values"][i],
                                         unit=unit, name=name))
     out["steps"] = est.get("steps")
+    out["scans"] = est.get("scans")
     return out
 
 
