@@ -49,6 +49,9 @@ CASES = [("1021", -0.30, 0.3, "process.feed_mm_per_min", False),
          ("1016", 0.30, 0.2, "process.feed_mm_per_min", False),
          ("1021", 0.0, 0.3, "process.feed_mm_per_min", False),
          ("1021", -0.30, 0.3, "tool.nose_radius", True)]
+#: the evaluations a fit may take: of one arm, of both arms (each of whose evaluations
+#: simulates two stretches; a fit that converges stops before)
+MAX_EVALUATIONS = {"one": 40, "both": 60}
 #: feed per revolution of 1016 by its program's name ("x0.01"), mm
 FEED_1016 = 0.01
 RPM = 100.0
@@ -300,11 +303,13 @@ def fit_case(out_root: Path, part, xc, w, free, program, *, arms=None) -> dict:
     from render_inspect.pipeline import run_fit_profile
 
     scene = _scene(part, program, free)
+    how = "one" if arms == "one" or not arms_available(part, xc, w, free, program)[0] else "both"
     out = out_root / (f"{part}_{xc:+.2f}_{free.split('.')[-1]}"
                       + ("" if arms is None else f"_{arms}"))
     rec = run_fit_profile(REAL / f"{part}-WLI-2D.csv", scene, [free], out, units="um",
                           at=(xc, 0.0), window_mm=w, global_points=0,
-                          max_evaluations=40, profile_points=0, overwrite=True,
+                          max_evaluations=MAX_EVALUATIONS[how], profile_points=0,
+                          overwrite=True,
                           cache=out_root / "cache" / out.name, arms=arms)
     r0, r1 = sorted((abs(xc) - w / 2, abs(xc) + w / 2))
     par = rec["parameters"][free]
@@ -326,6 +331,7 @@ def fit_case(out_root: Path, part, xc, w, free, program, *, arms=None) -> dict:
            "evaluations": rec["evaluations"]}
     if row["fitted_feed_um"] and row["programmed_feed_um"]:
         row["feed_difference"] = row["fitted_feed_um"] / row["programmed_feed_um"] - 1.0
+    row["max_evaluations"] = MAX_EVALUATIONS[how]
     arms_rec = rec.get("arms") or {}
     row["arms"] = arms_rec.get("fitted", "one")
     row["arms_why"] = arms_rec.get("why")
