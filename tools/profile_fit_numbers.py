@@ -383,13 +383,14 @@ def one_arm_cell(r: dict) -> str:
     were used)."""
     o = r.get("one_arm")
     if r.get("arms") != "both" or not o:
-        return "(as fitted)"
+        return "(a fit of one arm)"
     if o.get("fitted_feed_um") is None:
         return "n/a"
     text = _f(o["fitted_feed_um"]) + ("" if o.get("fitted_feed_stderr_um") is None else
                                        f" +- {o['fitted_feed_stderr_um']:.2g}")
     if o.get("feed_difference") is not None:
-        text += f" ({100 * o['feed_difference']:+.1f} %)"
+        text += f" ({100 * o['feed_difference']:+.1f} %" + ("" if r["one_family"] else
+                                                             ": not a measurement") + ")"
     return text
 
 
