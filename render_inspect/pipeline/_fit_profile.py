@@ -327,7 +327,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     arms : "one" or "both", optional
         ``both``: the window's radii on both arms of a diameter through the spindle axis
         are fitted together, each arm's own estimate and their disagreement reported and
-        the disagreement folded into the standard errors (:func:`_fit_arms`); ``one``:
+        the disagreement folded into the standard errors (:func:`_arms_record`); ``one``:
         the window's arm only.  Default: both where the line crosses the axis and the
         profile reaches the window's radii on the other arm, else one.
     Other parameters as :func:`~render_inspect.pipeline.run_fit`.
@@ -407,6 +407,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     # the same radii on the line's other arm (a diameter through the spindle axis)
     two = _two_arms(prof, scene, win, period, arms, target, spec, lag, count, sim_pixel,
                     icfg, model)
+    one_arm_why = "--arms one" if two is None else two.get("why")
+    if two is not None and two.get("one"):
+        two = None
     fit_target = target if two is None else two["target"]
     if two is not None and not two["family"]["one_family"]:
         family = dict(family, one_family=False, reason="; ".join(
@@ -502,7 +505,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     record["one_family"] = bool(family["one_family"])
     record["registration_shift_um"] = best.shift * spacing * MM_TO_UM
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
-    record["arms"] = _arms_record(two, arms, result, fit_target, base, fitted, win, prof)
+    record["arms"] = _arms_record(two, one_arm_why, result, fit_target, fitted, win, prof)
     fold_arms(record)
     record["feed_per_rev_mm"] = _feed_per_rev(base, fitted, record)
     if not family["one_family"]:
@@ -685,13 +688,13 @@ def _check_after_arms(target: ArmsTarget, pred, families, goodness) -> dict:
                                              "measurement: " + "; ".join(findings))}
 
 
-def _arms_record(two, arms, result, target, base, fitted, win, prof) -> dict:
+def _arms_record(two, one_arm_why, result, target, fitted, win, prof) -> dict:
     """``fit.json``'s ``arms``: which arms were fitted (and why one), each arm's stretch,
     measured and fitted periods, misfit and own estimate, and their disagreement; the
     disagreement is folded into the parameters' standard errors here
     (:func:`~render_inspect.fit.combine_arms`)."""
-    if two is None or two.get("one"):
-        return {"fitted": "one", "why": "--arms one" if two is None else two["why"]}
+    if two is None:
+        return {"fitted": "one", "why": one_arm_why}
     pars = result.params
     pred = fit_features(result.best.height, target)
     spacing = prof.spacing
