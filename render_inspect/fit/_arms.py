@@ -6,9 +6,9 @@ the same radii on the other arm: each evaluation predicts both stretches (each s
 its own place on the part), each arm is registered and compared with its own measured
 stretch (:mod:`._profile`), and the misfit is the sum of the two arms' misfits.
 
-After the fit, each arm's own estimate follows from the joint fit's Jacobian split by arm
-(:func:`arm_estimates`), and their disagreement enters the standard errors as a measurement
-term (:func:`combine_arms`).
+After the fit, each arm's own estimate is the minimum of that arm's misfit scanned along
+each free key about the joint solution (:func:`arm_estimates`), and the arms' disagreement
+enters the standard errors as a measurement term (:func:`combine_arms`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ._features import robust_weights, soft_l1
-from ._profile import (ProfilePrediction, ProfileTarget, predict_profile_features,
+from ._profile import (ProfilePrediction, ProfileSpec, ProfileTarget, predict_profile_features,
                        profile_realisation_shifts, profile_residual_vector,
                        set_profile_noise_floor)
 
@@ -60,7 +60,7 @@ class ArmsTarget:
         return self.first.spacing
 
     @property
-    def spec(self):
+    def spec(self) -> ProfileSpec:
         return self.first.spec
 
     @property
@@ -68,11 +68,11 @@ class ArmsTarget:
         return self.first.draws
 
     @property
-    def peak(self):
+    def peak(self) -> float | None:
         return self.first.peak
 
     @property
-    def centroid(self):
+    def centroid(self) -> float | None:
         """The marks' mean frequency over the arms (cycles/mm; what the measurement proposes
         as the start of the feed), None where an arm has no marks."""
         ks = [a.centroid for a in self.arms]
@@ -105,19 +105,19 @@ class ArmsPrediction:
         return self.arms[0]
 
     @property
-    def height(self):
+    def height(self) -> np.ndarray:
         return self.first.height
 
     @property
-    def centroid(self):
+    def centroid(self) -> float | None:
         return self.first.centroid
 
     @property
-    def params(self):
+    def params(self) -> np.ndarray:
         return self.first.params
 
     @property
-    def shift(self):
+    def shift(self) -> float:
         return self.first.shift
 
 
@@ -126,16 +126,19 @@ def _rows(z, target: ArmsTarget) -> np.ndarray:
     return z.reshape(len(target.arms), -1)
 
 
-def arms_features(z, target: ArmsTarget, values=None, *, measured: bool = False) -> ArmsPrediction:
+def arms_features(z: np.ndarray, target: ArmsTarget, values: Any = None, *,
+                  measured: bool = False) -> ArmsPrediction:
     """Each arm's features of a predicted (arms, points) array ``z``."""
     return ArmsPrediction([predict_profile_features(row, t, values, measured=measured)
                            for row, t in zip(_rows(z, target), target.arms)])
 
 
-def arms_residuals(pred: ArmsPrediction, target: ArmsTarget):
+def arms_residuals(pred: ArmsPrediction,
+                   target: ArmsTarget) -> tuple[np.ndarray, np.ndarray, dict]:
     """The arms' residual vectors one after the other; each term's share summed over the
     arms (the joint misfit is the sum of the arms' misfits)."""
-    ds, As, terms = [], [], {}
+    ds, As = [], []
+    terms: dict[str, float] = {}
     for p, t in zip(pred.arms, target.arms):
         d, a, tm = profile_residual_vector(p, t)
         ds.append(d)
@@ -153,7 +156,7 @@ def arms_realisation_shifts(pred: ArmsPrediction, target: ArmsTarget) -> np.ndar
     return np.concatenate(parts, axis=1)
 
 
-def set_arms_noise_floor(target: ArmsTarget, noisy, clean) -> None:
+def set_arms_noise_floor(target: ArmsTarget, noisy: list, clean: np.ndarray) -> None:
     """:func:`~._profile.set_profile_noise_floor` of each arm (its rows of the
     realisations)."""
     rows = [_rows(z, target) for z in noisy]
@@ -194,8 +197,8 @@ def _parabola_min(xs, ys) -> float:
     return float(np.clip(x3[1] - c[1] / (2 * c[0]), x3[0], x3[2]))
 
 
-def arm_estimates(params, evaluator: Any, values, stderr, *, rel_step: float = 0.01,
-                  reach: int = 2, extend: int = 3) -> dict:
+def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.ndarray, *,
+                  rel_step: float = 0.01, reach: int = 2, extend: int = 3) -> dict:
     """Each arm's own estimate of the free keys, from the joint fit at ``values``.
 
     The joint misfit is the sum of the arms' misfits.  Along each free key (the others
@@ -275,7 +278,7 @@ def arm_estimates(params, evaluator: Any, values, stderr, *, rel_step: float = 0
                                       [sample[st][1][k] for st in order])
     for k in range(m):
         infos[k] = js[k].T @ js[k]
-    f_all = sum(infos)
+    f_all = np.sum(infos, axis=0)
     se = np.asarray(stderr, dtype=np.float64)
     inv_all = np.diag(np.linalg.pinv(f_all))
     out_arms = []

@@ -58,6 +58,7 @@ from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, ForwardModel, compute_all, inst
                          predict_measurement, preset_fill, preset_value, quiet)
 
 if TYPE_CHECKING:
+    from ..io._profile import MeasuredProfile
     from ..scene import Scene
 
 __all__ = ["run_fit_profile", "predict_profile", "simulate_profile", "PROFILE_FIT_FILES",
@@ -183,7 +184,8 @@ def _band(win_p0, u, s_first: float, count: int, spacing: float, sim_pixel: floa
                          "step": spacing, "count": count}
 
 
-def other_arm_window(prof, scene: Scene, win: dict, period: float | None) -> tuple:
+def other_arm_window(prof: MeasuredProfile, scene: Scene, win: dict,
+                     period: float | None) -> tuple[dict | None, str]:
     """The same radii as the window on the line's other arm: the stretch mirrored about the
     line's closest point to the spindle axis (the line's geometry, as for the window that
     holds the axis).  Returns (``{"i0", "i1", "s0_mm", "axis_s_mm", "centre_on_part_mm"}``,
@@ -444,7 +446,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             if two is None:
                 set_profile_noise_floor(target, noisy, clean0)
             else:
-                set_arms_noise_floor(fit_target, noisy, clean0)
+                set_arms_noise_floor(cast(ArmsTarget, fit_target), noisy, clean0)
             starts, reach = _measured_starts(base, params, fit_target)
             before = _check_before(target, pred_start, keys, reach, family)
             result = solve(params, evaluator, global_points=global_points, seed=seed,
@@ -456,14 +458,17 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     except BaseException as err:
         _after_failure(store, err)
         raise
-    best = predict_profile_features(np.atleast_2d(result.best.height)[0], target,
+    best = predict_profile_features(np.atleast_2d(cast(np.ndarray, result.best.height))[0],
+                                    target,
                                     result.best.values)
-    start_pred = predict_profile_features(np.atleast_2d(result.start.height)[0], target,
+    start_pred = predict_profile_features(np.atleast_2d(cast(np.ndarray, result.start.height))[0],
+                                          target,
                                           result.start.values)
     if two is None:
         after = _check_after(target, best, family, result.goodness)
     else:
-        after = _check_after_arms(fit_target, fit_features(result.best.height, fit_target),
+        arms_target = cast(ArmsTarget, fit_target)
+        after = _check_after_arms(arms_target, fit_features(result.best.height, arms_target),
                                   [family, two["family"]], result.goodness)
     fitted_values = {p.key: float(v) for p, v in zip(params, result.values)}
     fitted = copy.deepcopy(base)
@@ -471,8 +476,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
         set_value(fitted, k, value, fill=fill)
     d = best.height - target.z
     if two is not None:
+        arms_target = cast(ArmsTarget, fit_target)
         d = np.concatenate([p.height - t.z for p, t in zip(
-            fit_features(result.best.height, fit_target).arms, fit_target.arms)])
+            fit_features(result.best.height, arms_target).arms, arms_target.arms)])
     ok = np.isfinite(d)
     maps = {"rms_nm": float(np.sqrt(np.mean(d[ok] ** 2))) * MM_TO_NM, "points": int(ok.sum()),
             "valid_fraction": float(ok.mean())}
