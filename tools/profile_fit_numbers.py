@@ -15,7 +15,10 @@ radii, and the nose radius fitted with the program's own path.
 
 Each window is fitted on both arms of the slice where the slice reaches its radii on the
 other side of the axis (``--arms`` left to its default), and on the window's arm alone
-(``--arms one``): the table shows both.
+(``--arms one``): the table shows both.  ``--one-arm-from-json`` takes the one-arm fit from
+the json's previous row of the case (a fit of one arm, the same one ``--arms one`` runs)
+instead of running it again.  The fits' caches lie under ``--out``: a run again reuses
+them.
 
 Each case is what ``render-inspect fit SLICE --units um --scene S --free KEY --at X,0
 --window W`` runs, S being docs/examples/turned/scene.toml with the white-light virtual
