@@ -133,3 +133,30 @@ def test_fit_page_shows_the_scan_and_it_is_what_the_files_give():
                 assert new[arm] is None, (new["radii_mm"], arm)
             else:
                 assert new[arm] == pytest.approx(old[arm], abs=1e-9), (new["radii_mm"], arm)
+
+
+def test_fit_page_shows_the_arms_of_the_json_and_their_uncertainty():
+    """The windows fitted on both arms of the slice: the page's table is the json's; each
+    keeps its one-arm fit beside it; the standard error is the fit's and the arms' term in
+    quadrature, the arms' term the excess of their difference over its standard error."""
+    import math
+
+    tool = _tool()
+    data = _data()
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.ARMS_BEGIN), text.index(tool.ARMS_END)
+    assert text[i + len(tool.ARMS_BEGIN):j].strip() == tool.arms_table(data).strip()
+    both = [c for c in data["cases"] if c.get("arms") == "both"]
+    assert both, "no window of the json is fitted on both arms"
+    for c in both:
+        a = c["arms_detail"]
+        assert c["one_arm"]["fitted_feed_um"] is not None, c["part"]
+        if a.get("window_arm") is None or a["stderr"] is None:
+            continue
+        d = a["window_arm"] - a["other_arm"]
+        u_d = math.hypot(a["window_arm_stderr"], a["other_arm_stderr"])
+        assert a["u_arms"] == pytest.approx(math.sqrt(max(0.0, d * d - u_d * u_d)) / 2,
+                                            rel=1e-6, abs=1e-12)
+        assert a["stderr"] == pytest.approx(math.hypot(a["stderr_fit"], a["u_arms"]), rel=1e-6)
+        assert c["fitted_feed_stderr_um"] == pytest.approx(a["stderr"], rel=1e-6)
+        assert a["disagree"] == (abs(d) > 2 * u_d)

@@ -9,6 +9,16 @@ radii, and the nose radius fitted with the program's own path.
     python tools/profile_fit_numbers.py --checks # the checks of the feed's reference and
                                                  # of the line's other arm (no fits; json
                                                  # and the table in docs/fit.md)
+    python tools/profile_fit_numbers.py --only 1023:-0.33,1016:0.30
+                                                 # run those cases again, keep the others
+                                                 # from the json
+
+Each window is fitted on both arms of the slice where the slice reaches its radii on the
+other side of the axis (``--arms`` left to its default), and on the window's arm alone
+(``--arms one``): the table shows both.  ``--one-arm-from-json`` takes the one-arm fit from
+the json's previous row of the case (a fit of one arm, the same one ``--arms one`` runs)
+instead of running it again.  The fits' caches lie under ``--out``: a run again reuses
+them.
 
 Each case is what ``render-inspect fit SLICE --units um --scene S --free KEY --at X,0
 --window W`` runs, S being docs/examples/turned/scene.toml with the white-light virtual
@@ -42,6 +52,9 @@ CASES = [("1021", -0.30, 0.3, "process.feed_mm_per_min", False),
          ("1016", 0.30, 0.2, "process.feed_mm_per_min", False),
          ("1021", 0.0, 0.3, "process.feed_mm_per_min", False),
          ("1021", -0.30, 0.3, "tool.nose_radius", True)]
+#: the evaluations a fit may take: of one arm, of both arms (each of whose evaluations
+#: simulates two stretches; a fit that converges stops before)
+MAX_EVALUATIONS = {"one": 40, "both": 60}
 #: feed per revolution of 1016 by its program's name ("x0.01"), mm
 FEED_1016 = 0.01
 RPM = 100.0
@@ -221,51 +234,199 @@ def _scene(part: str, program: bool, free: str):
     return scene_from_dict(d, f"turned {part}")
 
 
-def run(out_root: Path) -> dict:
-    from render_inspect.pipeline import run_fit_profile
+def _case_key(text: str) -> str:
+    part, xc = text.split(":")
+    return f"{part}:{float(xc):+.2f}"
 
+
+def case_id(part: str, xc: float, free: str) -> str:
+    return f"{part}:{xc:+.2f}:{free}"
+
+
+#: the fields of a one-arm row kept as ``one_arm`` of its both-arms row
+ONE_ARM_FIELDS = ("fitted_feed_um", "fitted_feed_stderr_um", "feed_difference", "value",
+                  "stderr", "status", "evaluations", "misfit_over_noise")
+
+
+def arms_available(part, xc, w, free, program):
+    """Whether ``fit`` fits the window on both arms by default (no fit): (bool, why not)."""
+    from render_inspect.fit._profile import ProfileSpec, make_profile_target
+    from render_inspect.io import read_profile
+    from render_inspect.pipeline._fit_profile import other_arm_window, profile_window
+
+    prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
+    scene = _scene(part, program, free)
+    win = profile_window(prof, scene, at=(xc, 0.0), window_mm=w)
+    t = make_profile_target(prof.z[win["i0"]:win["i1"]], spacing=prof.spacing, lag=0,
+                            spec=ProfileSpec())
+    other, why = other_arm_window(prof, scene, win, None if not t.peak else 1.0 / t.peak)
+    return other is not None, why
+
+
+def run(out_root: Path, *, only=None, old=None, one_arm_from_json: bool = False) -> dict:
+    """Fit the cases (those ``only`` names, ``PART:CENTRE``; the others kept from ``old``,
+    the json's previous rows).  A window fitted on both arms is fitted on its own arm too
+    (``--arms one``), or, with ``one_arm_from_json``, that fit is taken from ``old``'s row
+    of the case where it was a one-arm fit (the same fit: ``--arms one`` runs what a
+    profile fit ran before both arms were used)."""
+    old_rows = {case_id(r["part"], r["centre_mm"], r["free"]): r
+                for r in (old or {}).get("cases", [])}
     rows = []
     for part, xc, w, free, program in CASES:
-        scene = _scene(part, program, free)
-        out = out_root / f"{part}_{xc:+.2f}_{free.split('.')[-1]}"
-        rec = run_fit_profile(REAL / f"{part}-WLI-2D.csv", scene, [free], out, units="um",
-                              at=(xc, 0.0), window_mm=w, global_points=0,
-                              max_evaluations=40, profile_points=0, overwrite=True,
-                              cache=out_root / "cache" / out.name)
-        r0, r1 = sorted((abs(xc) - w / 2, abs(xc) + w / 2))
-        par = rec["parameters"][free]
-        fpr = rec.get("feed_per_rev_mm") or {}
-        fam = rec["model_check"]["before"]["family"]
-        row = {"part": part, "centre_mm": xc, "window_mm": w, "radii_mm": [r0, r1],
-               "free": free, "program": program,
-               "through_axis": r0 < 0,
-               "programmed_feed_um": (None if r0 < 0 else program_feed(part, r0, r1) * 1e3),
-               "measured_period_um": rec["model_check"]["before"]["measured_period_um"],
-               "halves_period_um": [None if p is None else p * 1e3
-                                    for p in fam["periods_mm"]],
-               "one_family": rec["one_family"], "reason": fam["reason"],
-               "status": rec["status"], "value": par["value"], "stderr": par["stderr"],
-               "fitted_feed_um": None if not fpr else fpr["value"] * 1e3,
-               "fitted_feed_stderr_um": (None if not fpr or fpr.get("stderr") is None
-                                         else fpr["stderr"] * 1e3),
-               "misfit_over_noise": rec["model_check"]["after"]["misfit_over_noise"],
-               "evaluations": rec["evaluations"]}
-        if row["fitted_feed_um"] and row["programmed_feed_um"]:
-            row["feed_difference"] = row["fitted_feed_um"] / row["programmed_feed_um"] - 1.0
+        cid = case_id(part, xc, free)
+        prev = old_rows.get(cid)
+        if only is not None and f"{part}:{xc:+.2f}" not in only and prev is not None:
+            if "arms" not in prev:
+                both, why = arms_available(part, xc, w, free, program)
+                if both:
+                    print(f"{cid}: the json's row is a one-arm fit, the default now fits both "
+                          f"arms: run it again (--only)", file=sys.stderr)
+                prev = dict(prev, arms="one", arms_why=why or "a fit of one arm")
+            rows.append(prev)
+            continue
+        row = fit_case(out_root, part, xc, w, free, program)
+        if row.get("arms") == "both":
+            if (one_arm_from_json and prev is not None and prev.get("arms", "one") == "one"):
+                row["one_arm"] = {k: prev.get(k) for k in ONE_ARM_FIELDS}
+                row["one_arm"]["from"] = "the json's previous row (a fit of one arm)"
+            elif one_arm_from_json and prev is not None and prev.get("one_arm"):
+                row["one_arm"] = prev["one_arm"]
+            else:
+                one = fit_case(out_root, part, xc, w, free, program, arms="one")
+                row["one_arm"] = {k: one.get(k) for k in ONE_ARM_FIELDS}
         rows.append(row)
         print(json.dumps(row), flush=True)
     return {"cases": rows, "nominal_nose_radius_mm": 0.2,
             "command": "python tools/profile_fit_numbers.py"}
 
 
+def fit_case(out_root: Path, part, xc, w, free, program, *, arms=None) -> dict:
+    """One case's fit (``arms``: None for the default, both arms where available) and its
+    row of the json."""
+    from render_inspect.pipeline import run_fit_profile
+
+    scene = _scene(part, program, free)
+    how = "one" if arms == "one" or not arms_available(part, xc, w, free, program)[0] else "both"
+    out = out_root / (f"{part}_{xc:+.2f}_{free.split('.')[-1]}"
+                      + ("" if arms is None else f"_{arms}"))
+    rec = run_fit_profile(REAL / f"{part}-WLI-2D.csv", scene, [free], out, units="um",
+                          at=(xc, 0.0), window_mm=w, global_points=0,
+                          max_evaluations=MAX_EVALUATIONS[how], profile_points=0,
+                          overwrite=True,
+                          cache=out_root / "cache" / out.name, arms=arms)
+    r0, r1 = sorted((abs(xc) - w / 2, abs(xc) + w / 2))
+    par = rec["parameters"][free]
+    fpr = rec.get("feed_per_rev_mm") or {}
+    fam = rec["model_check"]["before"]["family"]
+    row = {"part": part, "centre_mm": xc, "window_mm": w, "radii_mm": [r0, r1],
+           "free": free, "program": program,
+           "through_axis": r0 < 0,
+           "programmed_feed_um": (None if r0 < 0 else program_feed(part, r0, r1) * 1e3),
+           "measured_period_um": rec["model_check"]["before"]["measured_period_um"],
+           "halves_period_um": [None if p is None else p * 1e3
+                                for p in fam["periods_mm"]],
+           "one_family": rec["one_family"], "reason": fam["reason"],
+           "status": rec["status"], "value": par["value"], "stderr": par["stderr"],
+           "fitted_feed_um": None if not fpr else fpr["value"] * 1e3,
+           "fitted_feed_stderr_um": (None if not fpr or fpr.get("stderr") is None
+                                     else fpr["stderr"] * 1e3),
+           "misfit_over_noise": rec["model_check"]["after"]["misfit_over_noise"],
+           "evaluations": rec["evaluations"]}
+    if row["fitted_feed_um"] and row["programmed_feed_um"]:
+        row["feed_difference"] = row["fitted_feed_um"] / row["programmed_feed_um"] - 1.0
+    row["max_evaluations"] = MAX_EVALUATIONS[how]
+    arms_rec = rec.get("arms") or {}
+    row["arms"] = arms_rec.get("fitted", "one")
+    row["arms_why"] = arms_rec.get("why")
+    if row["arms"] == "both":
+        row["arms_detail"] = arms_detail(arms_rec, free, rec)
+    return row
+
+
+def arms_detail(arms_rec: dict, free: str, rec: dict) -> dict:
+    """The json's account of a both-arms fit: each arm's stretch, periods and own estimate
+    (um/rev for the feed), their disagreement and the standard error's parts."""
+    k = 1e3 / RPM if free == "process.feed_mm_per_min" else 1.0
+    par = arms_rec.get("parameters", {}).get(free)
+    out = {"arms": [{"arm": a["arm"], "radii_mm": a["radii_mm"],
+                     "centre_mm": a["centre_on_part_mm"][0],
+                     "measured_period_um": a["measured_period_um"],
+                     "fitted_period_um": a["fitted_period_um"],
+                     "misfit": sum(a["misfit_terms"].values())} for a in arms_rec["arms"]],
+           "unit": "um/rev" if free == "process.feed_mm_per_min" else "mm",
+           "error": arms_rec.get("estimates_error")}
+    if par is not None:
+        p = rec["parameters"][free]
+        out.update({"window_arm": par["window_arm"]["value"] * k,
+                    "window_arm_stderr": par["window_arm"]["stderr"] * k,
+                    "other_arm": par["other_arm"]["value"] * k,
+                    "other_arm_stderr": par["other_arm"]["stderr"] * k,
+                    "difference_relative": par["difference_relative"],
+                    "difference_over_stderr": par["difference_over_stderr"],
+                    "disagree": par["disagree"],
+                    "u_arms": par["u_arms"] * k,
+                    "stderr_fit": par["stderr_fit"] * k,
+                    "stderr": None if p.get("stderr") is None else p["stderr"] * k})
+    return out
+
+
 def _f(v, fmt="{:.4g}"):
     return "n/a" if v is None else fmt.format(v)
 
 
+def arms_cell(r: dict) -> str:
+    if r.get("arms") == "both":
+        return "both"
+    why = r.get("arms_why")
+    return "one" + ("" if not why else f" ({why})")
+
+
+def one_arm_cell(r: dict) -> str:
+    """The single-arm fit of a window fitted on both arms (the same fit as before both arms
+    were used)."""
+    o = r.get("one_arm")
+    if r.get("arms") != "both" or not o:
+        return "(a fit of one arm)"
+    if o.get("fitted_feed_um") is None:
+        return "n/a"
+    text = _f(o["fitted_feed_um"]) + ("" if o.get("fitted_feed_stderr_um") is None else
+                                       f" +- {o['fitted_feed_stderr_um']:.2g}")
+    if o.get("feed_difference") is not None:
+        text += f" ({100 * o['feed_difference']:+.1f} %" + ("" if r["one_family"] else
+                                                             ": not a measurement") + ")"
+    return text
+
+
+def arms_table(data: dict) -> str:
+    """Each window fitted on both arms: the arms' periods, each arm's own estimate, their
+    disagreement and the standard error's parts."""
+    lines = ["| part | radii (mm) | period: window's arm / other arm (um) | window's arm's own "
+             "estimate (um/rev) | other arm's own estimate (um/rev) | arms differ by | in "
+             "standard errors of the difference | fit's standard error (um/rev) | from the "
+             "arms (um/rev) | combined (um/rev) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in data["cases"]:
+        a = r.get("arms_detail")
+        if r.get("arms") != "both" or not a or a.get("window_arm") is None:
+            continue
+        w, o = a["arms"]
+        lines.append(
+            f"| {r['part']} | {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | "
+            f"{_f(w['measured_period_um'])} / {_f(o['measured_period_um'])} | "
+            f"{a['window_arm']:.4g} +- {a['window_arm_stderr']:.2g} | "
+            f"{a['other_arm']:.4g} +- {a['other_arm_stderr']:.2g} | "
+            f"{100 * a['difference_relative']:+.1f} % | {a['difference_over_stderr']:.2g}"
+            + (" (disagree)" if a["disagree"] else "") + f" | {a['stderr_fit']:.2g} | "
+            f"{a['u_arms']:.2g} | " + ("n/a" if a["stderr"] is None else f"{a['stderr']:.2g}")
+            + " |")
+    return "\n".join(lines)
+
+
 def table(data: dict) -> str:
     head = ("| part | window (radii, mm) | marks | measured period (um) | programmed feed "
-            "(um/rev) | fitted (um/rev, or nose radius mm) | difference | status |\n"
-            "|---|---|---|---|---|---|---|---|")
+            "(um/rev) | arms fitted | fitted (um/rev, or nose radius mm) | difference | "
+            "the window's arm alone (um/rev) | status |\n"
+            "|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in data["cases"]:
         rad = ("through the axis" if r["through_axis"] else
@@ -289,7 +450,8 @@ def table(data: dict) -> str:
                 f"{r['programmed_feed_um']:.4g}" + (" (by its name)" if r["part"] == "1016"
                                                      else ""))
         lines.append(f"| {r['part']} | {rad} | {marks} | {_f(r['measured_period_um'])} | "
-                     f"{prog} | {fitted} | {diff} | {r['status']} |")
+                     f"{prog} | {arms_cell(r)} | {fitted} | {diff} | {one_arm_cell(r)} | "
+                     f"{r['status']} |")
     feeds = [r for r in data["cases"] if r["free"] == "process.feed_mm_per_min"
              and r.get("feed_difference") is not None]
     one = [r for r in feeds if r["one_family"]]
@@ -308,6 +470,7 @@ def table(data: dict) -> str:
 
 
 BEGIN, END = "<!-- profile-fit-table -->", "<!-- /profile-fit-table -->"
+ARMS_BEGIN, ARMS_END = "<!-- profile-fit-arms -->", "<!-- /profile-fit-arms -->"
 CHECKS_BEGIN, CHECKS_END = "<!-- profile-fit-checks -->", "<!-- /profile-fit-checks -->"
 SCAN_BEGIN, SCAN_END = "<!-- profile-fit-scan -->", "<!-- /profile-fit-scan -->"
 #: the slice whose windows are scanned along both arms, and the window's length (mm)
@@ -323,6 +486,8 @@ def write_docs(data: dict) -> None:
     for page in ("fit.md", "validation.md"):
         p = REPO / "docs" / page
         text = _replace(p.read_text(), BEGIN, END, table(data))
+        if ARMS_BEGIN in text:
+            text = _replace(text, ARMS_BEGIN, ARMS_END, arms_table(data))
         if data.get("checks") and CHECKS_BEGIN in text:
             text = _replace(text, CHECKS_BEGIN, CHECKS_END, checks_table(data["checks"]))
         if data.get("scan") and SCAN_BEGIN in text:
@@ -337,12 +502,20 @@ def main(argv=None) -> int:
     ap.add_argument("--checks", action="store_true",
                     help="recompute the checks (no fits) into the json, and the tables")
     ap.add_argument("--out", default="out/profile_fits", help="the fits' output folders")
+    ap.add_argument("--only", default=None, metavar="PART:CENTRE,...",
+                    help="fit these cases again (e.g. 1023:-0.33), keep the others' rows")
+    ap.add_argument("--one-arm-from-json", action="store_true",
+                    help="for a window fitted on both arms, take its one-arm fit from the "
+                         "json's previous row of the case instead of fitting it again")
     a = ap.parse_args(argv)
     if not a.docs:
         if not REAL.is_dir():
             print(f"{REAL} is absent", file=sys.stderr)
             return 1
-        data = json.loads(JSON.read_text()) if a.checks else run(Path(a.out))
+        only = None if a.only is None else {_case_key(v) for v in a.only.split(",")}
+        old = json.loads(JSON.read_text()) if JSON.is_file() else None
+        data = old if a.checks else run(Path(a.out), only=only, old=old,
+                                             one_arm_from_json=a.one_arm_from_json)
         data["checks"] = arm_checks(data)
         data["scan"] = {"part": SCAN[0], "window_mm": SCAN[1],
                         "curvature_factor": curvature_factor(),

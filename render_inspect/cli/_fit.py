@@ -51,6 +51,13 @@ def add_parsers(sub: Any) -> None:
                         "at X0,Y0); default for a turned part: the radial line through the "
                         "spindle axis that compare uses. --at X,Y is then the fitted "
                         "stretch's centre on the line")
+    p.add_argument("--arms", choices=["one", "both"], default=None,
+                   help="a profile along a diameter through the spindle axis: fit the "
+                        "window's radii on both arms of the line together ('both', the "
+                        "default where the profile reaches them on the other side of the "
+                        "axis; each arm's estimate and their disagreement reported and "
+                        "folded into the standard errors) or on the window's arm only "
+                        "('one')")
     p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
                    help="form removed from measured and predicted maps before comparing")
     p.add_argument("--weights", action="append", default=[], metavar="TERM=W",
@@ -90,7 +97,7 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
 
     if pipeline.is_profile_measurement(args.measured):
         return _fit_profile(args, overwrite, pipeline, scene)
-    for opt, v in (("--units", args.units), ("--line", args.line)):
+    for opt, v in (("--units", args.units), ("--line", args.line), ("--arms", args.arms)):
         if v is not None:
             raise InputError(f"{opt} is for a measured profile; {args.measured!r} is a map")
     return pipeline.run_fit(
@@ -114,7 +121,7 @@ def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene
         at=args.at, window_mm=args.window, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, seed=args.seed, global_points=args.global_points,
         max_evaluations=args.max_evaluations, profile_points=args.profile_points,
-        cache=args.cache, overwrite=overwrite)
+        cache=args.cache, overwrite=overwrite, arms=args.arms)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

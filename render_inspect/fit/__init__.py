@@ -16,7 +16,8 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
   describes the measurement at all (:mod:`._checks`);
 * :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`);
 * :class:`ProfileSpec`, :func:`make_profile_target`, :func:`profile_family`: the same
-  for a measured profile (:mod:`._profile`).
+  for a measured profile (:mod:`._profile`), and both arms of a diameter slice together
+  (:class:`ArmsTarget`, :func:`arm_estimates`, :func:`combine_arms`: :mod:`._arms`).
 """
 
 from ._cache import EvaluationCache, scene_hash, task_hash
@@ -30,6 +31,8 @@ from ._checks import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, check_after, check_
 from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_target,
                        predict_profile_features, profile_family, profile_residual_vector,
                        set_profile_noise_floor)
+from ._arms import (ARMS_CHOICES, ArmsTarget, arm_estimates, arms_text, combine_arms,
+                    set_arms_noise_floor)
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
 from ._local import run_local
@@ -50,4 +53,5 @@ __all__ = ["check_weights", "parse_weights",
            "mark_tiles", "profile_marks", "MARK_KEYS", "MISMATCH", "PERIOD_TOLERANCE",
            "PROFILE_TERMS", "ProfileSpec", "ProfileTarget", "make_profile_target",
            "predict_profile_features", "profile_family", "profile_residual_vector",
-           "set_profile_noise_floor", "within_reach"]
+           "set_profile_noise_floor", "within_reach", "ARMS_CHOICES", "ArmsTarget",
+           "arm_estimates", "arms_text", "combine_arms", "set_arms_noise_floor"]

@@ -16,6 +16,7 @@ from ._dispatch import features as predict_features
 from ._params import FreeParameter
 from ._features import Prediction, Target, residual_vector
 from ._profile import ProfileTarget, profile_realisation_shifts
+from ._arms import ArmsTarget, arms_realisation_shifts
 
 __all__ = ["identifiability", "search_box", "realisation_shifts", "UNDETERMINED_RELATIVE",
            "SINGULAR"]
@@ -153,6 +154,8 @@ def realisation_shifts(pred: Prediction, target: Target) -> np.ndarray:
     features are replaced by those of each realisation of the random parts
     (``target.draws``), less their mean: the spread of the residual vector that the random
     parts alone cause (an empty array without at least two realisations)."""
+    if isinstance(target, ArmsTarget):
+        return arms_realisation_shifts(pred, target)
     if isinstance(target, ProfileTarget):
         return profile_realisation_shifts(pred, target)
     feats = target.draws
