@@ -43,7 +43,8 @@ def test_combine_arms_adds_only_the_excess_of_the_disagreement():
 
 
 def test_other_arm_is_the_window_mirrored_about_the_axis():
-    from render_inspect.pipeline._fit_profile import other_arm_window, profile_window
+    from render_inspect.pipeline._fit_profile import profile_window
+    from render_inspect.pipeline._fit_profile_arms import other_arm_window
 
     scene = _turned()
     x = -0.4 + np.arange(921) * SPACING  # -0.4 .. 0.4 mm

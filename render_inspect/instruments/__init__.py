@@ -27,13 +27,13 @@ from ._interferometer import (
     InterferometerConfig,
     disturbances_from_config,
     interferometer_geometry,
-    interferometer_memory,
     microscope_from_config,
     read_interferogram_exr,
     render_interferogram,
     trace_heights,
     write_interferogram_exr,
 )
+from ._interferometer_memory import interferometer_memory
 from ._characterise import characterise_instrument
 from ._interferometer_outputs import (interferogram_summary, interferometer_field,
                                       interferometer_needs, rendered_settings,

@@ -20,11 +20,11 @@ from ._interferometer import (
     Interferogram,
     InterferometerConfig,
     interferometer_geometry,
-    interferometer_memory,
     render_interferogram,
     write_interferogram_exr,
 )
 from ._imaging import _Serial, _threads_allowed
+from ._interferometer_memory import interferometer_memory
 from ._modes import LIGHT_FRACTION
 from ._registry import register_instrument
 

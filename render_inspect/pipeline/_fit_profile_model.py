@@ -1,0 +1,98 @@
+"""The forward model of a profile fit: the scene's cut over a thin band about a stretch of
+the measured line, imaged by the virtual interferometer at the profile's spacing and
+sampled along the line (:func:`predict_profile`), in one process or on a Dask worker."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..core.lazy import lazy_module
+from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
+from ._fit import _evaluation_pixel
+from ._fit_model import MARGIN_PX, ForwardModel, predict_measurement
+
+if TYPE_CHECKING:
+    from ..scene import Scene
+
+__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS"]
+
+ndimage = lazy_module("scipy.ndimage")
+
+#: the least number of measured points in the fitted window
+MIN_POINTS = 64
+
+
+# --------------------------------------------------------------------- the forward model
+def _sample(h, *, pixel, origin, p0, direction, s):
+    """Bilinear samples of ``h`` at the points ``p0 + s * direction`` (mm); NaN where a
+    neighbour is not measured."""
+    x = p0[0] + direction[0] * s
+    y = p0[1] + direction[1] * s
+    col = (x - origin[0]) / pixel
+    row = (y - origin[1]) / pixel
+    vals = ndimage.map_coordinates(h, [row, col], order=1, mode="constant", cval=np.nan)
+    valid = ndimage.map_coordinates(np.isfinite(h).astype(float), [row, col], order=1,
+                                    mode="constant", cval=0.0)
+    return np.where(valid > 0.999, vals, np.nan)
+
+
+def predict_profile(task_spec: dict) -> tuple[np.ndarray, dict]:
+    """One evaluation of a profile fit: :func:`~render_inspect.pipeline.predict_measurement`
+    of the band, sampled along the task's ``line`` (``p0`` mm, unit ``direction``, positions
+    ``s0 + i * step`` for ``i < count``).  Returns (a (1, count) array of heights, mm,
+    meta).  A task of both arms of a diameter (``{"arms": [task, task]}``) returns the
+    arms' rows, (2, count).  Runs in this process or on a Dask worker."""
+    if "arms" in task_spec:
+        zs, metas = zip(*(predict_profile(t) for t in task_spec["arms"]))
+        return np.vstack(zs), dict(metas[0], arms=len(zs))
+    line = task_spec["line"]
+    spec = {k: v for k, v in task_spec.items() if k != "line"}
+    h, meta = predict_measurement(spec)
+    s = float(line["s0"]) + float(line["step"]) * np.arange(int(line["count"]))
+    z = _sample(np.where(np.isfinite(h), h, np.nan), pixel=meta["pixel_mm"],
+                origin=meta["origin_mm"], p0=line["p0"], direction=line["direction"], s=s)
+    return z[None, :], meta
+
+
+def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spacing: float, *,
+                     seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's cut along the line ``p0 -> p1`` (mm) as the virtual interferometer
+    measures it (its camera noise on, seeded), sampled every ``spacing`` mm: a thin band
+    about the line simulated at the evaluations' pixel and imaged at ``spacing``, as an
+    evaluation of a profile fit does.  Returns (positions along the line from ``p0``, mm;
+    heights, mm): a measured profile with a known answer (tests, benchmarks)."""
+    length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
+    u = [(p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length]
+    count = int(math.floor(length / spacing + 1e-9)) + 1
+    h = BAND_HALF_MM
+    fov = [min(p0[0], p1[0]) - h, min(p0[1], p1[1]) - h, max(p0[0], p1[0]) + h,
+           max(p0[1], p1[1]) + h]
+    d = scene.model_dump(mode="json")
+    px = _evaluation_pixel(scene)
+    g = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * px)
+    d["simulation"]["region"] = [fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g]
+    d["simulation"]["pixel"] = px
+    d["render"]["interferometer"].update(pixel=float(spacing), field_of_view=fov,
+                                         margin=MARGIN_PX, noise=True)
+    z, _ = predict_profile({"scene": d, "seed": int(seed), "algorithm": "auto",
+                            "line": {"p0": list(p0), "direction": u, "s0": 0.0,
+                                     "step": float(spacing), "count": count}})
+    return np.arange(count) * float(spacing), z.ravel()
+
+
+@dataclass
+class ProfileModel(ForwardModel):
+    """:class:`ForwardModel` whose tasks also name the line sampled (:func:`predict_profile`)."""
+
+    line: dict | None = None
+
+    def task(self, values: dict) -> dict:
+        return dict(super().task(values), line=self.line)
+
+    def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
+        return dict(super().draw(values, r, only=only), line=self.line)
