@@ -36,13 +36,14 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._features import harmonic_residuals, soft_l1
+from ._profile_psd import predicted_bands, profile_band_power, psd_residuals
 from ._weights import check_weights
 
 __all__ = ["ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
            "predict_profile_features", "profile_residual_vector", "set_profile_noise_floor",
            "profile_realisation_shifts", "profile_fundamental", "PROFILE_TERMS"]
 
-PROFILE_TERMS = ("profile", "params", "harmonics")
+PROFILE_TERMS = ("profile", "params", "harmonics", "psd")
 #: the marks are looked for above this many cycles per window
 PROFILE_MIN_PERIODS = 3.0
 #: zero padding of the spectrum that locates the fundamental
@@ -61,7 +62,7 @@ class ProfileSpec:
     the measured profile's rms)."""
 
     weights: dict = field(default_factory=lambda: {"profile": 1.0, "params": 1.0,
-                                                   "harmonics": 1.0})
+                                                   "harmonics": 1.0, "psd": 1.0})
     harmonics: int = 3
     sigma_frequency: float = 2e-3
     sigma_amplitude: float = 0.01
@@ -168,6 +169,16 @@ class ProfileTarget:
     scatter: dict = field(default_factory=dict)
     draws: list = field(default_factory=list)
     kind: str = "profile"
+    # the ``psd`` term (a fitted random part's amplitude; :mod:`._profile_psd`): band
+    # edges (cycles/mm), the measured bands (mm^3), which are used, the floor, the fitted
+    # parts' power at their start (index, start, bands), the Gamma bias and scatter (ln)
+    psd_edges: np.ndarray | None = None
+    psd: np.ndarray | None = None
+    psd_use: np.ndarray | None = None
+    psd_floor: np.ndarray | None = None
+    psd_scaled: list = field(default_factory=list)
+    psd_bias: np.ndarray | None = None
+    psd_sigma: np.ndarray | None = None
 
     @property
     def height(self) -> np.ndarray:
@@ -200,6 +211,7 @@ class ProfilePrediction:
     amplitudes: np.ndarray
     params: np.ndarray
     shift: float = 0.0
+    psd: np.ndarray | None = None
 
 
 def make_profile_target(z: np.ndarray, *, spacing: float, lag: int,
@@ -281,7 +293,12 @@ def predict_profile_features(z, target: ProfileTarget, values=None, *,
         k0 = target.peak
     amps = (_harmonics(own, target.spacing, k0, spec.harmonics) if k0 is not None
             else np.zeros(spec.harmonics))
-    return ProfilePrediction(h, z, k0, amps, _params(own), shift)
+    psd = None
+    if target.psd_edges is not None:
+        psd = profile_band_power(target, own, k0)
+        if not measured:
+            psd = predicted_bands(psd, target, values)
+    return ProfilePrediction(h, z, k0, amps, _params(own), shift, psd)
 
 
 def profile_residual_vector(pred: ProfilePrediction,
@@ -311,6 +328,9 @@ def profile_residual_vector(pred: ProfilePrediction,
         add("params", lr / sp)
     if w.get("harmonics", 0) > 0 and target.peak is not None:
         add("harmonics", harmonic_residuals(target, pred, spec))
+    if (w.get("psd", 0) > 0 and target.psd_use is not None and pred.psd is not None
+            and target.psd_use.any()):
+        add("psd", psd_residuals(pred, target))
     if not ds:
         return np.zeros(1), np.zeros(1), terms
     return np.concatenate(ds), np.concatenate(As), terms
@@ -360,19 +380,24 @@ def profile_realisation_shifts(pred: ProfilePrediction, target: ProfileTarget) -
         return np.zeros((0, 0))
     has_peak = target.peak is not None and all(f.centroid is not None for f in feats)
 
-    def as_target(z, centroid, amplitudes, params):
+    def as_target(z, centroid, amplitudes, params, psd=None):
         return replace(target, z=z, centroid=centroid if has_peak else target.centroid,
-                       amplitudes=amplitudes, params=params)
+                       amplitudes=amplitudes, params=params,
+                       psd=target.psd if psd is None else psd)
 
+    with_psd = target.psd is not None and all(f.psd is not None for f in feats)
+    # (the bands' geometric mean: its logarithm is a single band's expected one)
     mean = as_target(np.mean([f.height for f in feats], axis=0),
                      float(np.mean([f.centroid for f in feats])) if has_peak else None,
                      np.mean([f.amplitudes for f in feats], axis=0),
                      np.exp(np.mean([np.log(np.maximum(f.params, 1e-300)) for f in feats],
-                                    axis=0)))
+                                    axis=0)),
+                     np.exp(np.mean([np.log(np.maximum(f.psd, 1e-300)) for f in feats],
+                                    axis=0)) if with_psd else None)
     # the prediction registered once (against the measured window), compared with each
     base = profile_residual_vector(pred, mean)[0]
-    return np.array([profile_residual_vector(pred, as_target(f.height, f.centroid,
-                                                             f.amplitudes, f.params))[0] - base
+    return np.array([profile_residual_vector(pred, as_target(
+        f.height, f.centroid, f.amplitudes, f.params, f.psd if with_psd else None))[0] - base
                      for f in feats])
 
 

@@ -278,9 +278,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                              defaults=lambda k: preset_value(scene, k))
     random = random_parts(scene)
     free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
-    if free_random:
-        raise InputError(f"--free {free_random[0]}: the amplitude of a random part is fitted "
-                         f"to areal maps only (a profile holds too little of its spectrum)")
+    _check_free_random(free_random, random)
     fill = preset_fill(scene)
 
     prof = read_profile(measured, units=units)
@@ -315,8 +313,8 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     sim_region = [fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow]
     line_task = {"p0": list(p0), "direction": list(u), "s0": s_first, "step": spacing,
                  "count": count}
-    model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random, (),
-                         line=line_task)
+    model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random,
+                         free_random, line=line_task)
     start_values = {p.key: p.start for p in params}
     scene_from_dict(model.task(start_values)["scene"], "(the fit band)")
     cache_dir = Path(cache) if cache is not None else out.parent / f"{out.name}.cache"
@@ -343,6 +341,10 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             with task(f"fit: the camera's noise and the random parts ({draws} realisations)"):
                 noisy = _compute(store, [model.draw(start_values, r) for r in range(draws)],
                                  client, compute)
+            psd_info = None
+            if free_random:
+                noisy, psd_info = _random_part_power(model, params, start_values, target,
+                                                     clean0, noisy, store, client, compute)
             set_profile_noise_floor(target, noisy, clean0)
             starts, reach = _measured_starts(base, params, target)
             before = _check_before(target, pred_start, keys, reach, family)
@@ -380,7 +382,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                                  "band_mm": fov},
                   "cache": str(cache_dir),
                   "random_parts": {"held_at_zero_in_evaluations": random,
-                                   "realisations": draws},
+                                   "realisations": draws,
+                                   "fitted_through_their_power": list(free_random),
+                                   "psd_bands": psd_info},
                   "workers": workers, "scheduler": scheduler,
                   "cluster": ({k: cluster.get(k) for k in ("kind", "workers", "threads",
                                                             "capped")}
@@ -404,6 +408,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     else:
         for p in record["parameters"].values():
             p["confident"] = p.get("stderr") is not None
+    _random_part_verdicts(record, free_random)
     record["summary"] = profile_summary_lines(record)
     with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
         tmp = Path(tmp)
@@ -429,6 +434,91 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     for text in record["summary"]:
         log.info("%s", text)
     return record
+
+
+# ------------------------------------------------------------- fitted random parts
+#: a fitted random part whose realisations at the start value hold less than this share of
+#: the expected power in every band of the profile's spectrum is not seen by the profile
+SEEN_SHARE = 0.02
+
+
+def _check_free_random(free_random, random) -> None:
+    """A random part's amplitude is fitted through the power it adds to the profile's
+    spectrum, scaled from its start value: a start of 0 is refused."""
+    for k in free_random:
+        if k not in random:
+            raise InputError(f"--free {k}: the amplitude of a random part is fitted through the "
+                             f"power it adds to the profile's spectrum, scaled from its start "
+                             f"value, which is 0 here; start it above 0 with --set {k}=VALUE")
+
+
+def _random_part_power(model, params, start_values, target, clean0, noisy, store, client,
+                       compute):
+    """The ``psd`` term of the fitted random parts (:mod:`render_inspect.fit._profile_psd`):
+    six realisations of each part alone at its start value give the power it adds to the
+    profile's bands; refused, naming the key, when a part adds almost none (the profile
+    does not see it).  Returns (full realisations: ``noisy`` with each fitted part's
+    realisation added, for the terms' scales and the random parts' standard error; what
+    ``fit.json`` records of the bands)."""
+    from ..fit._profile_psd import set_profile_psd
+
+    free_random = model.free_random
+    with task(f"fit: the power of the fitted random parts ({FLOOR_DRAWS} realisations each)"):
+        runs = [model.draw(start_values, r, only=k) for k in free_random
+                for r in range(FLOOR_DRAWS)]
+        alone = _compute(store, runs, client, compute)
+    index = {p.key: i for i, p in enumerate(params)}
+    scaled = [(index[k], start_values[k], alone[j * FLOOR_DRAWS:(j + 1) * FLOOR_DRAWS])
+              for j, k in enumerate(free_random)]
+    info = set_profile_psd(target, clean0, noisy, scaled, draws=FLOOR_DRAWS)
+    for k in free_random:
+        share = info["seen"].get(index[k], 0.0)
+        if share < SEEN_SHARE:
+            raise InputError(
+                f"--free {k}: this profile does not see that random part: its realisations "
+                f"at {start_values[k]:g} add at most {100 * share:.2g} % of the power in any "
+                f"band of the profile's spectrum (a part that moves the tool along the "
+                f"cut or along the line leaves a rotationally symmetric surface almost "
+                f"unchanged there); fit it on an areal map, or hold it with --set")
+    if not info["bands"]:
+        raise InputError(f"--free {free_random[0]}: no band of the profile's spectrum is left "
+                         f"to the random parts (the marks' own power fills them all)")
+    # full realisations: the fixed parts and the camera's noise (``noisy``) and each fitted
+    # part at its start (independent of them: their effects add)
+    c = np.asarray(clean0, dtype=np.float64)
+    base = [np.asarray(z, dtype=np.float64) for z in noisy] or [c] * FLOOR_DRAWS
+    full = []
+    for r, z in enumerate(base):
+        z = z.copy()
+        for j in range(len(free_random)):
+            z = z + (np.asarray(alone[j * FLOOR_DRAWS + r], dtype=np.float64) - c)
+        full.append(z)
+    info["seen"] = {params[i].key: v for i, v in info["seen"].items()}
+    return full, info
+
+
+def _random_part_verdicts(record: dict, free_random) -> None:
+    """A fitted random amplitude within two standard errors of 0 is not determined by the
+    profile (below the noise floor of its bands): its value is given as an upper limit,
+    without a standard error."""
+    for k in free_random:
+        p = record["parameters"].get(k)
+        if p is None:
+            continue
+        se = p.get("stderr")
+        if se is not None and p["value"] - 2 * se > 0:
+            continue
+        limit = None if se is None else p["value"] + 2 * se
+        p["upper_limit_2se"] = limit
+        p["stderr_hidden"] = se
+        p["stderr"] = None
+        p["relative_stderr"] = None
+        p["confident"] = False
+        p["not_determined"] = (
+            "not determined by this profile: its power stays within the noise of the "
+            "spectrum's bands (the camera's noise and the other random parts)"
+            + ("" if limit is None else f"; at most {limit:.3g} (the value plus two "
+                                        f"standard errors)"))
 
 
 def _compute(store, tasks, client, compute):
@@ -545,6 +635,8 @@ def profile_summary_lines(record: dict) -> list[str]:
         if note and key in record["parameters"]:
             p = record["parameters"][key]
             text = f"{key} = {p['value']:.6g} ({note}; no standard error)"
+        elif key in record["parameters"] and record["parameters"][key].get("not_determined"):
+            text = f"{key}: {record['parameters'][key]['not_determined']}"
         lines.append(text)
     fpr = record.get("feed_per_rev_mm")
     if fpr:
