@@ -104,6 +104,31 @@ def test_psd_bands_recover_a_step_noise_amplitude():
     assert 0.6 < ratio < 1.6, (ratio, found, widths)
 
 
+def test_amplitude_scan_tells_a_measured_amplitude_from_one_below_the_floor():
+    """The ``psd`` term's chi-square along the amplitude: 6 nm of offsets per period stand
+    clear of 0 (their chi-square at 0 is far above the least); 0.3 nm under 2 nm of white
+    noise does not, and the upper limit lies between."""
+    from render_inspect.fit._profile_psd import amplitude_scan
+
+    rng = np.random.default_rng(5)
+    lag, n = 30, 345
+    m = n + 2 * lag
+    clean = _cusps(m)
+    spec = ProfileSpec()
+    scans = {}
+    for truth in (6.0, 0.3):
+        meas = clean + _steps(m, truth * 1e-6, rng) + rng.normal(0, 2e-6, m)
+        t = make_profile_target(meas[lag:lag + n], spacing=SPACING, lag=lag, spec=spec)
+        noisy = [clean + rng.normal(0, 2e-6, m) for _ in range(6)]
+        alone = [clean + _steps(m, 3e-6, rng) for _ in range(6)]
+        set_profile_psd(t, clean, noisy, [(0, 3.0, alone)], draws=6)
+        pred = predict_profile_features(clean, t, [3.0])
+        scans[truth] = amplitude_scan(pred, t, [3.0], 0)
+    assert scans[6.0]["chi2_at_zero_rise"] > 4.0, scans
+    assert scans[0.3]["chi2_at_zero_rise"] < 4.0, scans
+    assert 0.3 < scans[0.3]["upper_2se"] < 6.0, scans
+
+
 # ---------------------------------------------------------------------- refusals
 def test_a_random_part_started_at_zero_is_refused(tmp_path):
     from render_inspect.pipeline import run_fit_profile

@@ -200,3 +200,29 @@ def psd_residuals(pred, target) -> np.ndarray:
         lr = (np.log(np.maximum(target.psd[use], 1e-300))
               - np.log(np.maximum(pred.psd[use], 1e-300)) - target.psd_bias[use])
     return lr / target.psd_sigma[use]
+
+
+def amplitude_scan(pred, target, values, index: int, *, points: int = 400) -> dict:
+    """The ``psd`` term's chi-square (sum of squared residuals) along the amplitude of the
+    fitted random part ``index``, the other values held at ``values``: the amplitude only
+    scales the power the term adds, so the scan needs no evaluation.  Returns ``{"best":
+    the amplitude of least chi-square, "upper_2se": where it has risen by 4 above it,
+    "chi2_at_zero_rise": its rise at amplitude 0}`` (None where out of the scan's range,
+    up to 20 times the start or the value)."""
+    vals = np.array(values, dtype=np.float64)
+    start = next(v0 for i, v0, _ in target.psd_scaled if i == index)
+    raw = pred.psd - predicted_bands(np.zeros_like(pred.psd), target, vals)
+    top = 20.0 * max(start, float(vals[index]))
+    grid = np.linspace(0.0, top, points + 1)
+    chi2 = []
+    for v in grid:
+        vals[index] = v
+        p = type("P", (), {"psd": predicted_bands(raw, target, vals)})
+        d = psd_residuals(p, target)
+        chi2.append(float(np.sum(d * d)))
+    chi2 = np.array(chi2)
+    j = int(np.argmin(chi2))
+    above = np.flatnonzero((grid > grid[j]) & (chi2 >= chi2[j] + 4.0))
+    return {"best": float(grid[j]),
+            "upper_2se": None if not above.size else float(grid[above[0]]),
+            "chi2_at_zero_rise": float(chi2[0] - chi2[j])}

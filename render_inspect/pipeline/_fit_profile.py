@@ -408,7 +408,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     else:
         for p in record["parameters"].values():
             p["confident"] = p.get("stderr") is not None
-    _random_part_verdicts(record, free_random)
+    _random_part_verdicts(record, free_random, target, best)
     record["summary"] = profile_summary_lines(record)
     with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
         tmp = Path(tmp)
@@ -497,18 +497,30 @@ def _random_part_power(model, params, start_values, target, clean0, noisy, store
     return full, info
 
 
-def _random_part_verdicts(record: dict, free_random) -> None:
-    """A fitted random amplitude within two standard errors of 0 is not determined by the
-    profile (below the noise floor of its bands): its value is given as an upper limit,
-    without a standard error."""
+def _random_part_verdicts(record: dict, free_random, target=None, best=None) -> None:
+    """A fitted random amplitude the profile does not tell from 0 (the ``psd`` term's
+    chi-square at 0 less than 4 above its least, or the value within two standard errors
+    of 0) is not determined by the profile (below the noise floor of its bands): it is
+    given as an upper limit (where that chi-square has risen by 4), without a standard
+    error."""
+    from ..fit._profile_psd import amplitude_scan
+
+    keys = list(record["parameters"])
     for k in free_random:
         p = record["parameters"].get(k)
         if p is None:
             continue
         se = p.get("stderr")
-        if se is not None and p["value"] - 2 * se > 0:
+        scan = None
+        if target is not None and best is not None and best.psd is not None:
+            values = [record["parameters"][q]["value"] for q in keys]
+            scan = amplitude_scan(best, target, values, keys.index(k))
+            p["psd_scan"] = scan
+        at_zero = scan is not None and scan["chi2_at_zero_rise"] < 4.0
+        if se is not None and p["value"] - 2 * se > 0 and not at_zero:
             continue
-        limit = None if se is None else p["value"] + 2 * se
+        limit = scan["upper_2se"] if scan is not None else (
+            None if se is None else p["value"] + 2 * se)
         p["upper_limit_2se"] = limit
         p["stderr_hidden"] = se
         p["stderr"] = None
@@ -517,8 +529,8 @@ def _random_part_verdicts(record: dict, free_random) -> None:
         p["not_determined"] = (
             "not determined by this profile: its power stays within the noise of the "
             "spectrum's bands (the camera's noise and the other random parts)"
-            + ("" if limit is None else f"; at most {limit:.3g} (the value plus two "
-                                        f"standard errors)"))
+            + ("" if limit is None else f"; at most {limit:.3g} (where the spectrum's "
+                                        f"misfit has risen by 4, two standard errors)"))
 
 
 def _compute(store, tasks, client, compute):
