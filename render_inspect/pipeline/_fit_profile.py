@@ -330,7 +330,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                 client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
                 cluster = cluster_info(client)
             compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
-                       if client is not None else predict_profile)
+                       if client is not None else _SameSimulation(predict_profile))
             # (a profile target answers what the evaluator asks of a target)
             evaluator = Evaluator(params, target, model.task, compute, store,  # type: ignore[arg-type]
                                   client=client, max_evaluations=max_evaluations, quiet=quiet)
@@ -437,6 +437,22 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
 
 
 # ------------------------------------------------------------- fitted random parts
+class _SameSimulation:
+    """The forward model run once per simulation: tasks that differ only in the fitted
+    random parts' amplitudes (``fitted_random``: held at 0 in the simulation, they scale
+    the power the features add) share one."""
+
+    def __init__(self, compute):
+        self.compute = compute
+        self.memo: dict = {}
+
+    def __call__(self, t: dict):
+        key = task_hash({k: v for k, v in t.items() if k != "fitted_random"})
+        if key not in self.memo:
+            self.memo[key] = self.compute(t)
+        return self.memo[key]
+
+
 #: a fitted random part whose realisations at the start value hold less than this share of
 #: the expected power in every band of the profile's spectrum is not seen by the profile
 SEEN_SHARE = 0.02
