@@ -129,6 +129,22 @@ def test_amplitude_scan_tells_a_measured_amplitude_from_one_below_the_floor():
     assert 0.3 < scans[0.3]["upper_2se"] < 6.0, scans
 
 
+def test_a_fitted_random_amplitude_is_part_of_the_evaluations_key():
+    """The simulation holds the random parts at 0, but the features scale the fitted part's
+    power with its amplitude: two amplitudes are two evaluations (one would otherwise be
+    taken for the other, and the amplitude would never move from its start)."""
+    from render_inspect.fit import task_hash
+    from render_inspect.pipeline._fit_model import ForwardModel
+
+    base = _turned(z_noise_nm=2.5).to_dict()
+    model = ForwardModel(base, None, [0.2, -0.01, 0.3, 0.01], 0.001,
+                         {"objective": "20x", "noise": True}, 3,
+                         {"machine.z.noise_nm": 2.5}, ("machine.z.noise_nm",))
+    a, b = (model.task({"machine.z.noise_nm": v}) for v in (2.5, 3.0))
+    assert a["scene"] == b["scene"] and a["scene"]["machine"]["z"]["noise_nm"] == 0.0
+    assert task_hash(a) != task_hash(b)
+
+
 # ---------------------------------------------------------------------- refusals
 def test_a_random_part_started_at_zero_is_refused(tmp_path):
     from render_inspect.pipeline import run_fit_profile
