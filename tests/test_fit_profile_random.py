@@ -14,7 +14,7 @@ import pytest
 from render_inspect.core.errors import InputError
 from render_inspect.fit._profile import (ProfileSpec, make_profile_target,
                                          predict_profile_features, profile_residual_vector)
-from render_inspect.fit._profile_psd import effective_cells, set_profile_psd
+from render_inspect.fit._profile_psd import effective_cells, predicted_bands, set_profile_psd
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "docs" / "examples" / "turned" / "scene.toml"
@@ -75,19 +75,22 @@ def test_psd_bands_recover_a_step_noise_amplitude():
     clean = _cusps(m)
     cam = 2e-6
     spec = ProfileSpec(weights={"profile": 0.0, "params": 0.0, "harmonics": 0.0, "psd": 1.0})
-    grid = np.linspace(0.5, 12.0, 47)
+    grid = np.linspace(0.5, 12.0, 231)
     found, widths = [], []
-    for trial in range(16):
+    for trial in range(24):
         meas = clean + _steps(m, 5e-6, rng) + rng.normal(0, cam, m)
         t = make_profile_target(meas[lag:lag + n], spacing=SPACING, lag=lag, spec=spec)
         noisy = [clean + rng.normal(0, cam, m) for _ in range(6)]
         alone = [clean + _steps(m, 2.5e-6, rng) for _ in range(6)]
         set_profile_psd(t, clean, noisy, [(0, 2.5, alone)], draws=6)
         assert t.psd_use.sum() >= 4
+        # the clean prediction's bands once; the amplitude only scales the power added
+        pred = predict_profile_features(clean, t, [2.5])
+        raw = pred.psd - predicted_bands(np.zeros_like(pred.psd), t, [2.5])
         cost = []
         for v in grid:
-            p = predict_profile_features(clean, t, [v])
-            d, a, terms = profile_residual_vector(p, t)
+            pred.psd = predicted_bands(raw, t, [v])
+            d, a, terms = profile_residual_vector(pred, t)
             cost.append(float(np.sum(d * d)))
         cost = np.array(cost)
         i = int(np.argmin(cost))
@@ -185,13 +188,16 @@ def test_fit_profile_recovers_the_z_noise_and_the_feed(tmp_path):
         assert abs(par["value"] - v) <= 2 * par["stderr"], (k, par)
     noise = rec["parameters"]["machine.z.noise_nm"]
     assert noise["stderr"] < 0.5 * noise["value"], noise
+    assert noise["confident"] and noise["psd_scan"]["chi2_at_zero_rise"] > 4.0, noise
+    assert not any("not determined" in line for line in rec["summary"]), rec["summary"]
     assert "psd" in rec["misfit"]["terms"]
 
 
 @pytest.mark.slow
 def test_fit_profile_says_a_z_noise_below_the_floor_is_not_determined(tmp_path):
     """The same cut with 0.3 nm of Z noise, below what the camera's noise leaves in the
-    profile's bands, fitted from 3 nm: no confident number, an upper limit instead."""
+    profile's bands, fitted from 3 nm: no confident number, an upper limit instead (its
+    spectrum's misfit at 0 within 4 of its least)."""
     from render_inspect.pipeline import run_fit_profile
     from render_inspect.pipeline._fit_profile import simulate_profile
 
@@ -206,5 +212,7 @@ def test_fit_profile_says_a_z_noise_below_the_floor_is_not_determined(tmp_path):
     par = rec["parameters"]["machine.z.noise_nm"]
     print(par)
     assert par["stderr"] is None and not par["confident"], par
-    assert par["upper_limit_2se"] is not None and par["upper_limit_2se"] < 3.0, par
+    # eight periods hold eight values of the noise: the limit is wide, but above the truth
+    assert par["upper_limit_2se"] is not None and 0.3 <= par["upper_limit_2se"] < 10.0, par
+    assert par["psd_scan"]["chi2_at_zero_rise"] < 4.0, par
     assert any("not determined by this profile" in line for line in rec["summary"])

@@ -203,7 +203,8 @@ def psd_residuals(pred, target) -> np.ndarray:
 
 
 def amplitude_scan(pred, target, values, index: int, *, points: int = 400) -> dict:
-    """The ``psd`` term's chi-square (sum of squared residuals) along the amplitude of the
+    """The ``psd`` term's chi-square (the sum of its residuals' soft-L1 loss, d^2 near 0)
+    along the amplitude of the
     fitted random part ``index``, the other values held at ``values``: the amplitude only
     scales the power the term adds, so the scan needs no evaluation.  Returns ``{"best":
     the amplitude of least chi-square, "upper_2se": where it has risen by 4 above it,
@@ -219,7 +220,8 @@ def amplitude_scan(pred, target, values, index: int, *, points: int = 400) -> di
         vals[index] = v
         p = type("P", (), {"psd": predicted_bands(raw, target, vals)})
         d = psd_residuals(p, target)
-        chi2.append(float(np.sum(d * d)))
+        # the fit's own loss (soft-L1: d^2 near 0), so that the scan's least is the fit's
+        chi2.append(float(np.sum(2.0 * (np.sqrt(1.0 + d * d) - 1.0))))
     chi2 = np.array(chi2)
     j = int(np.argmin(chi2))
     above = np.flatnonzero((grid > grid[j]) & (chi2 >= chi2[j] + 4.0))

@@ -534,6 +534,16 @@ def _random_part_verdicts(record: dict, free_random, target=None, best=None) -> 
             p["psd_scan"] = scan
         at_zero = scan is not None and scan["chi2_at_zero_rise"] < 4.0
         if se is not None and p["value"] - 2 * se > 0 and not at_zero:
+            # determined: its power stands clear of 0, however wide its relative error (a
+            # random amplitude is read from a few periods' worth of values)
+            ident = record.get("identifiability") or {}
+            for d in ident.get("directions", []):
+                if set(d.get("weights", {})) == {k} and not d["determined"]:
+                    d["determined"] = True
+                    d["why"] = "a random part's amplitude, clear of 0 in the profile's spectrum"
+            if ident.get("undetermined"):
+                ident["undetermined"] = [d for d in ident["undetermined"]
+                                         if set(d.get("weights", {})) != {k}]
             continue
         limit = scan["upper_2se"] if scan is not None else (
             None if se is None else p["value"] + 2 * se)
@@ -647,6 +657,9 @@ def _feed_per_rev(base, fitted, record):
 #: what the profile's misfit terms measure, for the summary
 _TERM_WORDS = {"profile": "the registered profile, point by point",
                "params": "Ra, Rq and Rt"}
+#: the ``psd`` term of a profile in words (the areal fit's words name a map's spectrum)
+_PSD_WORDS = ("the non-periodic spectrum's bands against the clean prediction's plus the "
+              "random parts' power")
 
 
 def profile_summary_lines(record: dict) -> list[str]:
@@ -659,6 +672,8 @@ def profile_summary_lines(record: dict) -> list[str]:
             continue
         for term, words in _TERM_WORDS.items():
             text = text.replace(f"misfit term {term} ({term})", f"misfit term {term} ({words})")
+        if text.startswith("misfit term psd ("):
+            text = f"misfit term psd ({_PSD_WORDS})" + text.split(")", 1)[1]
         key = text.split(" = ", 1)[0]
         if note and key in record["parameters"]:
             p = record["parameters"][key]
