@@ -20,6 +20,10 @@ through the same soft-L1 loss as the areal fit (:mod:`._features`):
   one): the marks' phase, set by where the
   spiral began and where the slice was taken, is not fitted).
 
+With a random part's amplitude free, a fourth term, ``psd``, compares the profile's
+non-periodic spectrum with the prediction's plus the random parts' power
+(:mod:`._profile_psd`).
+
 The camera's noise (and any random part of the cut) is not in the predictions: its effect
 is measured on a few realisations, which widen the terms' scales and give the random parts'
 standard error (:func:`set_profile_noise_floor`, :func:`profile_realisation_shifts`).
