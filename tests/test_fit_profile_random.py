@@ -216,3 +216,26 @@ def test_fit_profile_says_a_z_noise_below_the_floor_is_not_determined(tmp_path):
     assert par["upper_limit_2se"] is not None and 0.3 <= par["upper_limit_2se"] < 10.0, par
     assert par["psd_scan"]["chi2_at_zero_rise"] < 4.0, par
     assert any("not determined by this profile" in line for line in rec["summary"])
+
+
+@pytest.mark.slow
+def test_fit_profile_refuses_a_random_part_the_line_does_not_see(tmp_path):
+    """The spindle's angle noise moves the tool along the cut: on the rotationally
+    symmetric part the radial line does not see it, and freeing it is refused in one line
+    naming the key."""
+    from render_inspect.pipeline import run_fit_profile
+    from render_inspect.pipeline._fit_profile import simulate_profile
+    from render_inspect.scene import scene_from_dict
+
+    s, z = simulate_profile(_turned(feed=3.6), (0.1, 0.0), (0.5, 0.0), SPACING, seed=5)
+    p = tmp_path / "slice.csv"
+    _write_profile(p, s, z)
+    d = _turned(feed=3.6).to_dict()
+    d["machine"]["c"] = {"bandwidth_hz": 60.0, "noise_urad": 5.0}
+    scene = scene_from_dict(d, "turned (spindle angle noise)")
+    with pytest.raises(InputError, match="--free machine.c.noise_urad: this profile does not "
+                                         "see that random part"):
+        run_fit_profile(p, scene, ["machine.c.noise_urad"], tmp_path / "fit",
+                        line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.3, global_points=0,
+                        max_evaluations=20, profile_points=0, cache=tmp_path / "cache")
+    assert not (tmp_path / "fit").exists()
