@@ -493,9 +493,9 @@ def _random_part_power(model, params, start_values, target, clean0, noisy, store
             raise InputError(
                 f"--free {k}: this profile does not see that random part: its realisations "
                 f"at {start_values[k]:g} add at most {100 * share:.2g} % of the power in any "
-                f"band of the profile's spectrum (a part that moves the tool along the "
-                f"cut or along the line leaves a rotationally symmetric surface almost "
-                f"unchanged there); fit it on an areal map, or hold it with --set")
+                f"band of the profile's spectrum (a part that moves the tool only along the "
+                f"cut leaves a rotationally symmetric surface unchanged); hold it with "
+                f"--set, or fit it on an areal map")
     if not info["bands"]:
         raise InputError(f"--free {free_random[0]}: no band of the profile's spectrum is left "
                          f"to the random parts (the marks' own power fills them all)")
