@@ -41,7 +41,8 @@ import math
 import numpy as np
 
 __all__ = ["PSD_BANDS", "band_edges", "psd_bands", "effective_cells", "set_profile_psd",
-           "psd_residuals", "profile_band_power"]
+           "psd_residuals", "band_residuals", "profile_band_power", "amplitude_scan",
+           "predicted_bands", "nonperiodic"]
 
 #: bands of log spatial frequency of the ``psd`` term
 PSD_BANDS = 12
@@ -193,20 +194,25 @@ def predicted_bands(pred_bands: np.ndarray, target, values=None) -> np.ndarray:
 
 
 def psd_residuals(pred, target) -> np.ndarray:
-    """The ``psd`` term's residuals: ln(measured band) - ln(predicted band) less the
-    Gamma mean's bias, over its scatter, for the bands in use."""
+    """The ``psd`` term's residuals of a prediction (its ``psd``: the predicted bands)."""
+    return band_residuals(pred.psd, target)
+
+
+def band_residuals(bands: np.ndarray, target) -> np.ndarray:
+    """ln(measured band) - ln(predicted ``bands``) less the Gamma mean's bias, over its
+    scatter, for the bands in use."""
     use = target.psd_use
     with np.errstate(divide="ignore", invalid="ignore"):
         lr = (np.log(np.maximum(target.psd[use], 1e-300))
-              - np.log(np.maximum(pred.psd[use], 1e-300)) - target.psd_bias[use])
+              - np.log(np.maximum(bands[use], 1e-300)) - target.psd_bias[use])
     return lr / target.psd_sigma[use]
 
 
 def amplitude_scan(pred, target, values, index: int, *, points: int = 400) -> dict:
     """The ``psd`` term's chi-square (the sum of its residuals' soft-L1 loss, d^2 near 0)
-    along the amplitude of the
-    fitted random part ``index``, the other values held at ``values``: the amplitude only
-    scales the power the term adds, so the scan needs no evaluation.  Returns ``{"best":
+    along the amplitude of the fitted random part ``index``, the other values held at
+    ``values``: the amplitude only scales the power the term adds, so the scan needs no
+    evaluation.  Returns ``{"best":
     the amplitude of least chi-square, "upper_2se": where it has risen by 4 above it,
     "chi2_at_zero_rise": its rise at amplitude 0}`` (None where out of the scan's range,
     up to 20 times the start or the value)."""
@@ -215,14 +221,13 @@ def amplitude_scan(pred, target, values, index: int, *, points: int = 400) -> di
     raw = pred.psd - predicted_bands(np.zeros_like(pred.psd), target, vals)
     top = 20.0 * max(start, float(vals[index]))
     grid = np.linspace(0.0, top, points + 1)
-    chi2 = []
+    loss = []
     for v in grid:
         vals[index] = v
-        p = type("P", (), {"psd": predicted_bands(raw, target, vals)})
-        d = psd_residuals(p, target)
+        d = band_residuals(predicted_bands(raw, target, vals), target)
         # the fit's own loss (soft-L1: d^2 near 0), so that the scan's least is the fit's
-        chi2.append(float(np.sum(2.0 * (np.sqrt(1.0 + d * d) - 1.0))))
-    chi2 = np.array(chi2)
+        loss.append(float(np.sum(2.0 * (np.sqrt(1.0 + d * d) - 1.0))))
+    chi2 = np.array(loss)
     j = int(np.argmin(chi2))
     above = np.flatnonzero((grid > grid[j]) & (chi2 >= chi2[j] + 4.0))
     return {"best": float(grid[j]),
