@@ -20,7 +20,14 @@ Figures (printed and returned by :func:`main`):
 * ``simulate_profile_s``: making the measured profile (the same chain with the noise on,
   over the whole 0.4 mm line).
 
-Run: ``nice .venv/bin/python benchmarks/bench_fit_profile.py`` (or ``make bench ONLY=fit_profile``).
+With ``--random``, the known answer of ``tests/test_fit_profile_random.py`` instead: the
+same cut with a 100 Hz Z servo loop and 5 nm rms of Z following-error noise, fitted from
+39.6 um/rev and 2.5 nm (``process.feed_mm_per_min`` and ``machine.z.noise_nm`` free, the
+amplitude through the profile's ``psd`` bands): ``fit_s``, its evaluations, status, values,
+errors and standard errors, and the bands used.
+
+Run: ``nice .venv/bin/python benchmarks/bench_fit_profile.py [--random]`` (or ``make bench
+ONLY=fit_profile``).
 """
 
 from __future__ import annotations
@@ -124,5 +131,51 @@ def main() -> dict:
     return out
 
 
+RANDOM_TRUTH = {"process.feed_mm_per_min": 3.6, "machine.z.noise_nm": 5.0}
+
+
+def _with_z_noise(feed: float, z_noise_nm: float):
+    """:func:`_turned` (0.2 mm nose) with a 100 Hz Z servo loop and Z following-error noise
+    (nm rms)."""
+    from render_inspect.scene import scene_from_dict
+
+    d = _turned(feed=feed).to_dict()
+    d["machine"]["z"] = {"bandwidth_hz": 100.0, "noise_nm": z_noise_nm}
+    return scene_from_dict(d, "turned (planned spiral, Z noise)")
+
+
+def main_random() -> dict:
+    """The fit of a random part's amplitude and the feed on a profile (``--random``)."""
+    from render_inspect.pipeline import _fit_profile, run_fit_profile
+
+    out = {"cpus": os.cpu_count(), "load_average": round(os.getloadavg()[0], 2)}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        s, z = _fit_profile.simulate_profile(_with_z_noise(3.6, 5.0), (0.1, 0.0), (0.5, 0.0),
+                                             SPACING_MM, seed=7)
+        p = tmp / "simulated.csv"
+        _write_profile(p, s, z)
+        t0 = time.perf_counter()
+        c0 = time.process_time()
+        rec = run_fit_profile(p, _with_z_noise(3.96, 2.5), [",".join(RANDOM_TRUTH)],
+                              tmp / "fit", line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.3,
+                              global_points=0, max_evaluations=60, profile_points=0,
+                              cache=tmp / "cache")
+        out["fit_s"] = round(time.perf_counter() - t0, 1)
+        out["fit_cpu_s"] = round(time.process_time() - c0, 1)
+        out["fit_status"] = rec["status"]
+        out["fit_evaluations"] = rec["evaluations"]
+        out["psd_bands"] = rec["random_parts"]["psd_bands"]["bands"]
+        for k, v in RANDOM_TRUTH.items():
+            par = rec["parameters"][k]
+            out[f"fit_{k}"] = par["value"]
+            out[f"fit_{k}_error_percent"] = round(100 * (par["value"] - v) / v, 4)
+            out[f"fit_{k}_stderr_percent"] = (None if par["stderr"] is None
+                                              else round(100 * par["stderr"] / v, 4))
+    out["load_average_after"] = round(os.getloadavg()[0], 2)
+    print(json.dumps(out, indent=2))
+    return out
+
+
 if __name__ == "__main__":
-    sys.exit(0 if main() else 1)
+    sys.exit(0 if (main_random() if "--random" in sys.argv[1:] else main()) else 1)

@@ -61,7 +61,8 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--form", choices=["none", "plane", "poly2", "sphere"], default="plane",
                    help="form removed from measured and predicted maps before comparing")
     p.add_argument("--weights", action="append", default=[], metavar="TERM=W",
-                   help="misfit term weights: map, psd, harmonics (default 1 each)")
+                   help="misfit term weights: map, psd, harmonics (default 1 each); for a "
+                        "profile: profile, params, harmonics, psd")
     _add_cluster_args(p, workers="run the evaluations on a local Dask cluster of N processes",
                       scheduler="run the evaluations on the Dask cluster at ADDRESS")
     p.add_argument("--predict", action="extend", nargs="+", default=[], metavar="KEY=VALUE",

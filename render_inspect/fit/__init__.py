@@ -30,9 +30,10 @@ from ._checks import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, check_after, check_
                       mark_tiles, profile_marks, within_reach)
 from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_target,
                        predict_profile_features, profile_family, profile_residual_vector,
-                       set_profile_noise_floor)
+                       set_profile_noise_floor, set_profile_psd)
 from ._arms import (ARMS_CHOICES, ArmsPrediction, ArmsTarget, arm_estimates, arms_features,
                     arms_text, combine_arms, set_arms_noise_floor)
+from ._profile_psd import amplitude_scan
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
 from ._local import run_local
@@ -55,4 +56,4 @@ __all__ = ["check_weights", "parse_weights",
            "predict_profile_features", "profile_family", "profile_residual_vector",
            "set_profile_noise_floor", "within_reach", "ARMS_CHOICES", "ArmsTarget",
            "arm_estimates", "arms_text", "combine_arms", "set_arms_noise_floor",
-           "ArmsPrediction", "arms_features"]
+           "ArmsPrediction", "arms_features", "amplitude_scan", "set_profile_psd"]

@@ -20,6 +20,10 @@ through the same soft-L1 loss as the areal fit (:mod:`._features`):
   one): the marks' phase, set by where the
   spiral began and where the slice was taken, is not fitted).
 
+With a random part's amplitude free, a fourth term, ``psd``, compares the profile's
+non-periodic spectrum with the prediction's plus the random parts' power
+(:mod:`._profile_psd`).
+
 The camera's noise (and any random part of the cut) is not in the predictions: its effect
 is measured on a few realisations, which widen the terms' scales and give the random parts'
 standard error (:func:`set_profile_noise_floor`, :func:`profile_realisation_shifts`).
@@ -37,13 +41,15 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._features import harmonic_residuals, soft_l1
+from ._profile_psd import (CLEAN_ABOVE, band_edges, effective_cells, predicted_bands,
+                           profile_band_power, psd_bands, psd_residuals)
 from ._weights import check_weights
 
-__all__ = ["ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
+__all__ = ["set_profile_psd", "ProfileSpec", "ProfileTarget", "ProfilePrediction", "make_profile_target",
            "predict_profile_features", "profile_residual_vector", "set_profile_noise_floor",
            "profile_realisation_shifts", "profile_fundamental", "PROFILE_TERMS"]
 
-PROFILE_TERMS = ("profile", "params", "harmonics")
+PROFILE_TERMS = ("profile", "params", "harmonics", "psd")
 #: the marks are looked for above this many cycles per window
 PROFILE_MIN_PERIODS = 3.0
 #: zero padding of the spectrum that locates the fundamental
@@ -62,7 +68,7 @@ class ProfileSpec:
     the measured profile's rms)."""
 
     weights: dict = field(default_factory=lambda: {"profile": 1.0, "params": 1.0,
-                                                   "harmonics": 1.0})
+                                                   "harmonics": 1.0, "psd": 1.0})
     harmonics: int = 3
     sigma_frequency: float = 2e-3
     sigma_amplitude: float = 0.01
@@ -169,6 +175,16 @@ class ProfileTarget:
     scatter: dict = field(default_factory=dict)
     draws: list = field(default_factory=list)
     kind: str = "profile"
+    # the ``psd`` term (a fitted random part's amplitude; :mod:`._profile_psd`): band
+    # edges (cycles/mm), the measured bands (mm^3), which are used, the floor, the fitted
+    # parts' power at their start (index, start, bands), the Gamma bias and scatter (ln)
+    psd_edges: np.ndarray | None = None
+    psd: np.ndarray | None = None
+    psd_use: np.ndarray | None = None
+    psd_floor: np.ndarray | None = None
+    psd_scaled: list = field(default_factory=list)
+    psd_bias: np.ndarray | None = None
+    psd_sigma: np.ndarray | None = None
 
     @property
     def height(self) -> np.ndarray:
@@ -201,6 +217,7 @@ class ProfilePrediction:
     amplitudes: np.ndarray
     params: np.ndarray
     shift: float = 0.0
+    psd: np.ndarray | None = None
 
 
 def make_profile_target(z: np.ndarray, *, spacing: float, lag: int,
@@ -283,7 +300,12 @@ def predict_profile_features(z: np.ndarray, target: ProfileTarget,
         k0 = target.peak
     amps = (_harmonics(own, target.spacing, k0, spec.harmonics) if k0 is not None
             else np.zeros(spec.harmonics))
-    return ProfilePrediction(h, z, k0, amps, _params(own), shift)
+    psd = None
+    if target.psd_edges is not None:
+        psd = profile_band_power(target, own, k0)
+        if not measured:
+            psd = predicted_bands(psd, target, values)
+    return ProfilePrediction(h, z, k0, amps, _params(own), shift, psd)
 
 
 def profile_residual_vector(pred: ProfilePrediction,
@@ -313,6 +335,9 @@ def profile_residual_vector(pred: ProfilePrediction,
         add("params", lr / sp)
     if w.get("harmonics", 0) > 0 and target.peak is not None:
         add("harmonics", harmonic_residuals(target, pred, spec))
+    if (w.get("psd", 0) > 0 and target.psd_use is not None and pred.psd is not None
+            and target.psd_use.any()):
+        add("psd", psd_residuals(pred, target))
     if not ds:
         return np.zeros(1), np.zeros(1), terms
     return np.concatenate(ds), np.concatenate(As), terms
@@ -363,19 +388,24 @@ def profile_realisation_shifts(pred: ProfilePrediction, target: ProfileTarget) -
         return np.zeros((0, 0))
     has_peak = target.peak is not None and all(f.centroid is not None for f in feats)
 
-    def as_target(z, centroid, amplitudes, params):
+    def as_target(z, centroid, amplitudes, params, psd=None):
         return replace(target, z=z, centroid=centroid if has_peak else target.centroid,
-                       amplitudes=amplitudes, params=params)
+                       amplitudes=amplitudes, params=params,
+                       psd=target.psd if psd is None else psd)
 
+    with_psd = target.psd is not None and all(f.psd is not None for f in feats)
+    # (the bands' geometric mean: its logarithm is a single band's expected one)
     mean = as_target(np.mean([f.height for f in feats], axis=0),
                      float(np.mean([f.centroid for f in feats])) if has_peak else None,
                      np.mean([f.amplitudes for f in feats], axis=0),
                      np.exp(np.mean([np.log(np.maximum(f.params, 1e-300)) for f in feats],
-                                    axis=0)))
+                                    axis=0)),
+                     np.exp(np.mean([np.log(np.maximum(f.psd, 1e-300)) for f in feats],
+                                    axis=0)) if with_psd else None)
     # the prediction registered once (against the measured window), compared with each
     base = profile_residual_vector(pred, mean)[0]
-    return np.array([profile_residual_vector(pred, as_target(f.height, f.centroid,
-                                                             f.amplitudes, f.params))[0] - base
+    return np.array([profile_residual_vector(pred, as_target(
+        f.height, f.centroid, f.amplitudes, f.params, f.psd if with_psd else None))[0] - base
                      for f in feats])
 
 
@@ -420,3 +450,66 @@ def profile_family(d: np.ndarray, spacing: float, *, axis_at_mm: float | None = 
     return {"periods_mm": periods, "spread": spread,
             "mirror_at_mm": None if mirror is None else float(mirror),
             "one_family": not reasons, "reason": "; ".join(reasons)}
+
+
+def set_profile_psd(target: ProfileTarget, clean: np.ndarray, noisy: Sequence[np.ndarray],
+                    scaled: Sequence[tuple[int, float, Sequence[np.ndarray]]] = (), *,
+                    draws: int = 1) -> dict:
+    """Give the profile ``target`` its ``psd`` term: the measured bands, the floor (the
+    mean bands of ``noisy``, realisations with the fixed random parts and the camera's
+    noise (profiles, mm, as the evaluations return them), less the ``clean`` prediction's),
+    and for each fitted random part ``(index, start, [its realisations alone])`` the power
+    it adds at its start value.  Bands without cells, and bands where the clean
+    prediction's non-periodic power exceeds :data:`CLEAN_ABOVE` times the random parts'
+    expected power, are left out.  Returns what was set, for ``fit.json`` (with each fitted
+    part's share of the expected power in the bands used: ``seen``)."""
+    from scipy.special import digamma, polygamma
+
+    def bands(z: np.ndarray) -> np.ndarray:
+        psd = predict_profile_features(z, target, measured=True).psd
+        assert psd is not None  # the target's band edges are set above
+        return psd
+
+    n = target.z.size
+    target.psd_edges = band_edges(n, target.spacing)
+    target.psd, cells = psd_bands(target.z, target.spacing, target.peak, target.psd_edges)
+    c = bands(clean)
+    floor = np.zeros_like(c)
+    if len(noisy):
+        floor = np.maximum(np.nanmean([bands(z) for z in noisy], axis=0) - c, 0.0)
+    target.psd_floor = np.nan_to_num(floor)
+    target.psd_scaled = []
+    expected = target.psd_floor.copy()
+    for i, v0, maps in scaled:
+        g = np.nan_to_num(np.maximum(np.nanmean([bands(z) for z in maps], axis=0) - c, 0.0))
+        target.psd_scaled.append((int(i), float(v0), g))
+        expected = expected + g
+    m_eff = np.array([effective_cells(int(m)) for m in cells])
+    use = (cells > 0) & np.isfinite(target.psd) & (target.psd > 0) & np.isfinite(c)
+    use &= ~(c > CLEAN_ABOVE * expected)
+    target.psd_use = use
+    safe = np.maximum(m_eff, 1e-9)
+    target.psd_bias = np.where(cells > 0, digamma(safe) - np.log(safe), 0.0)
+    # the floor and the parts' power are themselves means over a few realisations: their
+    # scatter widens the scale
+    sig2 = polygamma(1, safe) * (1.0 + 1.0 / max(int(draws), 1))
+    total = np.where(use, np.nan_to_num(c) + expected, 0.0)
+    seen, share = {}, np.zeros_like(total)
+    for i, v0, g in target.psd_scaled:
+        part = np.where(use, g / np.maximum(total, 1e-300), 0.0)
+        seen[int(i)] = float(np.max(part))
+        share = share + part
+    # a part drawn along the cut's time (or its distance) is sampled once a revolution
+    # along the line: the window holds one independent value per period, not one per
+    # periodogram cell, and its bands are aliases of those few values.  The cells its
+    # power fills are worth at most (periods - 3) / 2 (the parabola removed), so their
+    # scale widens by the ratio
+    worth = float(np.sum(np.where(use, m_eff * share, 0.0)))
+    periods = n * target.spacing * target.peak if target.peak else math.inf
+    line_cells = max((periods - 3.0) / 2.0, 1.0)
+    inflation = max(1.0, worth / line_cells) if np.isfinite(line_cells) else 1.0
+    target.psd_sigma = np.where(cells > 0, np.sqrt(sig2 * inflation), np.inf)
+    return {"bands": int(use.sum()), "edges_per_mm": [float(v) for v in target.psd_edges],
+            "cells": [int(m) for m in cells], "used": [bool(u) for u in use],
+            "seen": seen, "periods_in_window": periods,
+            "scale_widened_by": math.sqrt(inflation)}

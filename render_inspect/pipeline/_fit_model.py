@@ -277,7 +277,13 @@ class ForwardModel:
         """An evaluation: random parts at 0, no camera noise."""
         d = self._scene(values, random={k: 0.0 for k in self.random})
         d.setdefault("render", {})[height_instrument().name] = dict(self.icfg, noise=False)
-        return {"scene": d, "seed": int(self.seed), "algorithm": "auto"}
+        t = {"scene": d, "seed": int(self.seed), "algorithm": "auto"}
+        if self.free_random:
+            # a fitted random part's amplitude does not enter the simulation (held at 0)
+            # but does enter the features (its power): it is part of the evaluation's key,
+            # else a step in it alone would return the evaluation it was taken from
+            t["fitted_random"] = {k: float(values[k]) for k in self.free_random}
+        return t
 
     def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
         """Realisation ``r`` at ``values``: the random parts as set (free ones at 0) and

@@ -42,7 +42,7 @@ from ..fit import (within_reach, parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLE
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
-                   summary_lines, task_hash)
+                   summary_lines)
 from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_text, check_output_dir,
                   is_profile_file, read_profile, write_json)
 from ..processes import RANDOM_PART_KEYS, process_of, random_parts
@@ -50,10 +50,13 @@ from ..report import HtmlReport, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
-from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, compute_all, instrument_settings, preset_fill,
+from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
                          preset_value, quiet)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
+from ._fit_profile_model import compute_profiles as _compute
+from ._fit_profile_random import (_SameSimulation, _check_free_random, _random_part_power,
+                                  _random_part_verdicts)
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -217,9 +220,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                              defaults=lambda k: preset_value(scene, k))
     random = random_parts(scene)
     free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
-    if free_random:
-        raise InputError(f"--free {free_random[0]}: the amplitude of a random part is fitted "
-                         f"to areal maps only (a profile holds too little of its spectrum)")
+    _check_free_random(free_random, random)
     fill = preset_fill(scene)
 
     prof = read_profile(measured, units=units)
@@ -254,13 +255,20 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     sim_region = [fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow]
     line_task = {"p0": list(p0), "direction": list(u), "s0": s_first, "step": spacing,
                  "count": count}
-    model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random, (),
-                         line=line_task)
+    model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random,
+                         free_random, line=line_task)
     start_values = {p.key: p.start for p in params}
     scene_from_dict(model.task(start_values)["scene"], "(the fit band)")
     # the same radii on the line's other arm (a diameter through the spindle axis)
     two = _two_arms(prof, scene, win, period, arms, target, spec, lag, count, sim_pixel,
                     icfg, model)
+    if free_random and two is not None and not two.get("one"):
+        # the random part's power is compared on one line's spectrum (fit/_profile_psd.py)
+        if arms == "both":
+            raise InputError(f"--arms both: --free {free_random[0]} (a random part's amplitude) "
+                             f"is fitted on one arm of the line only; use --arms one")
+        two = {"why": f"a random part's amplitude ({free_random[0]}) is fitted on one arm",
+               "one": True}
     one_arm_why = "--arms one" if two is None else two.get("why")
     if two is not None and two.get("one"):
         two = None
@@ -284,7 +292,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                 client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
                 cluster = cluster_info(client)
             compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
-                       if client is not None else predict_profile)
+                       if client is not None else _SameSimulation(predict_profile))
             # (a profile target answers what the evaluator asks of a target)
             evaluator = Evaluator(params, fit_target, fit_model.task, compute, store,  # type: ignore[arg-type]
                                   client=client, max_evaluations=max_evaluations, quiet=quiet)
@@ -295,6 +303,10 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             with task(f"fit: the camera's noise and the random parts ({draws} realisations)"):
                 noisy = _compute(store, [fit_model.draw(start_values, r) for r in range(draws)],
                                  client, compute)
+            psd_info = None
+            if free_random:
+                noisy, psd_info = _random_part_power(model, params, start_values, target,
+                                                     clean0, noisy, store, client, compute)
             if two is None:
                 set_profile_noise_floor(target, noisy, clean0)
             else:
@@ -353,7 +365,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                                  "band_mm": fov},
                   "cache": str(cache_dir),
                   "random_parts": {"held_at_zero_in_evaluations": random,
-                                   "realisations": draws},
+                                   "realisations": draws,
+                                   "fitted_through_their_power": list(free_random),
+                                   "psd_bands": psd_info},
                   "workers": workers, "scheduler": scheduler,
                   "cluster": ({k: cluster.get(k) for k in ("kind", "workers", "threads",
                                                             "capped")}
@@ -379,6 +393,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     else:
         for p in record["parameters"].values():
             p["confident"] = p.get("stderr") is not None
+    _random_part_verdicts(record, free_random, target, best)
     record["summary"] = profile_summary_lines(record)
     with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
         tmp = Path(tmp)
@@ -404,26 +419,6 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     for text in record["summary"]:
         log.info("%s", text)
     return record
-
-
-def _compute(store, tasks, client, compute):
-    """:func:`compute_all` with the profile's forward model."""
-    if client is not None:
-        return compute_all(store, tasks, client, compute)
-    out = []
-    for t in tasks:
-        k = task_hash(t)
-        hit = store.get(k)
-        if hit is not None:
-            out.append(hit[0])
-            continue
-        try:
-            with quiet():
-                z, meta = predict_profile(t)
-        except InputError as err:
-            raise InputError(f"the forward model fails at the scene's values: {err}") from None
-        out.append(store.put(k, z, meta))
-    return out
 
 
 def _check_before(target, pred, keys, reach, family) -> dict:
@@ -504,6 +499,9 @@ def _feed_per_rev(base, fitted, record):
 #: what the profile's misfit terms measure, for the summary
 _TERM_WORDS = {"profile": "the registered profile, point by point",
                "params": "Ra, Rq and Rt"}
+#: the ``psd`` term of a profile in words (the areal fit's words name a map's spectrum)
+_PSD_WORDS = ("the non-periodic spectrum's bands against the clean prediction's plus the "
+              "random parts' power")
 
 
 def profile_summary_lines(record: dict) -> list[str]:
@@ -516,10 +514,14 @@ def profile_summary_lines(record: dict) -> list[str]:
             continue
         for term, words in _TERM_WORDS.items():
             text = text.replace(f"misfit term {term} ({term})", f"misfit term {term} ({words})")
+        if text.startswith("misfit term psd ("):
+            text = f"misfit term psd ({_PSD_WORDS})" + text.split(")", 1)[1]
         key = text.split(" = ", 1)[0]
         if note and key in record["parameters"]:
             p = record["parameters"][key]
             text = f"{key} = {p['value']:.6g} ({note}; no standard error)"
+        elif key in record["parameters"] and record["parameters"][key].get("not_determined"):
+            text = f"{key}: {record['parameters'][key]['not_determined']}"
         lines.append(text)
     fpr = record.get("feed_per_rev_mm")
     if fpr:

@@ -5,21 +5,23 @@ sampled along the line (:func:`predict_profile`), in one process or on a Dask wo
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..core.errors import InputError
 from ..core.lazy import lazy_module
+from ..fit import task_hash
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
 from ._fit import _evaluation_pixel
-from ._fit_model import MARGIN_PX, ForwardModel, predict_measurement
+from ._fit_model import MARGIN_PX, ForwardModel, compute_all, predict_measurement, quiet
 
 if TYPE_CHECKING:
     from ..scene import Scene
 
-__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS"]
+__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS", "compute_profiles"]
 
 ndimage = lazy_module("scipy.ndimage")
 
@@ -96,3 +98,24 @@ class ProfileModel(ForwardModel):
 
     def draw(self, values: dict, r: int, *, only: str | None = None) -> dict:
         return dict(super().draw(values, r, only=only), line=self.line)
+
+
+def compute_profiles(store: Any, tasks: Sequence[dict], client: Any,
+                     compute: Callable[[dict], Any]) -> list[np.ndarray]:
+    """:func:`compute_all` with the profile's forward model."""
+    if client is not None:
+        return compute_all(store, tasks, client, compute)
+    out = []
+    for t in tasks:
+        k = task_hash(t)
+        hit = store.get(k)
+        if hit is not None:
+            out.append(hit[0])
+            continue
+        try:
+            with quiet():
+                z, meta = predict_profile(t)
+        except InputError as err:
+            raise InputError(f"the forward model fails at the scene's values: {err}") from None
+        out.append(store.put(k, z, meta))
+    return out
