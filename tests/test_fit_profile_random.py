@@ -138,7 +138,7 @@ def test_a_fitted_random_amplitude_is_part_of_the_evaluations_key():
     power with its amplitude: two amplitudes are two evaluations (one would otherwise be
     taken for the other, and the amplitude would never move from its start)."""
     from render_inspect.fit import task_hash
-    from render_inspect.pipeline._fit_model import ForwardModel
+    from render_inspect.pipeline._fit_model import ForwardModel, SameSimulation
 
     base = _turned(z_noise_nm=2.5).to_dict()
     model = ForwardModel(base, None, [0.2, -0.01, 0.3, 0.01], 0.001,
@@ -147,6 +147,12 @@ def test_a_fitted_random_amplitude_is_part_of_the_evaluations_key():
     a, b = (model.task({"machine.z.noise_nm": v}) for v in (2.5, 3.0))
     assert a["scene"] == b["scene"] and a["scene"]["machine"]["z"]["noise_nm"] == 0.0
     assert task_hash(a) != task_hash(b)
+    # ... and one simulation: the map's and the profile's fits run their forward model
+    # through SameSimulation, which runs tasks that differ only in that amplitude once
+    calls: list = []
+    same = SameSimulation(lambda t: calls.append(t) or len(calls))
+    assert same(a) == same(b) == 1 and len(calls) == 1
+    assert same(model.task({"machine.z.noise_nm": 2.5, "process.feed_mm_per_min": 3.0})) == 2
 
 
 # ---------------------------------------------------------------------- refusals

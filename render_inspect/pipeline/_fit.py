@@ -45,7 +45,7 @@ from ..report import fit_figures, fit_page
 from ..scene import apply_overrides, scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
                          file_instrument, instrument_settings, passive_omp_wait,
-                         predict_measurement, preset_fill, preset_value, quiet)
+                         predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
 from ._simulate import simulate, write_simulation
 
 if TYPE_CHECKING:
@@ -243,7 +243,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
             # worker has; the cluster's own count elsewhere)
             compute = (functools.partial(call_with_threads, cluster["threads"],
                                          predict_measurement)
-                       if client is not None else predict_measurement)
+                       if client is not None else SameSimulation(predict_measurement))
             evaluator = Evaluator(params, target, model.task, compute, store,
                                   client=client, max_evaluations=max_evaluations, quiet=quiet,
                                   threads=LOCAL_THREADS)

@@ -35,7 +35,7 @@ from ._simulate import simulate
 if TYPE_CHECKING:
     from ..scene import Scene
 
-__all__ = ["predict_measurement", "preset_value", "preset_fill", "ForwardModel",
+__all__ = ["SameSimulation", "predict_measurement", "preset_value", "preset_fill", "ForwardModel",
            "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS",
            "LOCAL_THREADS", "passive_omp_wait"]
 
@@ -302,3 +302,19 @@ class ForwardModel:
     def has_floor(self) -> bool:
         fixed = any(k not in self.free_random for k in self.random)
         return fixed or bool(self.icfg.get("noise", True))
+
+
+class SameSimulation:
+    """The forward model run once per simulation: tasks that differ only in the fitted
+    random parts' amplitudes (``fitted_random``: held at 0 in the simulation, they scale
+    the power the features add) share one."""
+
+    def __init__(self, compute: Callable[[dict], Any]) -> None:
+        self.compute = compute
+        self.memo: dict = {}
+
+    def __call__(self, t: dict) -> Any:
+        key = task_hash({k: v for k, v in t.items() if k != "fitted_random"})
+        if key not in self.memo:
+            self.memo[key] = self.compute(t)
+        return self.memo[key]

@@ -51,12 +51,11 @@ from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
-                         preset_value, quiet)
+                         preset_value, quiet, SameSimulation)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
 from ._fit_profile_model import compute_profiles as _compute
-from ._fit_profile_random import (_SameSimulation, _check_free_random, _random_part_power,
-                                  _random_part_verdicts)
+from ._fit_profile_random import _check_free_random, _random_part_power, _random_part_verdicts
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -292,7 +291,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                 client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
                 cluster = cluster_info(client)
             compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
-                       if client is not None else _SameSimulation(predict_profile))
+                       if client is not None else SameSimulation(predict_profile))
             # (a profile target answers what the evaluator asks of a target)
             evaluator = Evaluator(params, fit_target, fit_model.task, compute, store,  # type: ignore[arg-type]
                                   client=client, max_evaluations=max_evaluations, quiet=quiet)

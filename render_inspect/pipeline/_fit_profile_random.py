@@ -9,27 +9,11 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import task
-from ..fit import amplitude_scan, set_profile_psd, task_hash
+from ..fit import amplitude_scan, set_profile_psd
 from ._fit_model import FLOOR_DRAWS
 from ._fit_profile_model import compute_profiles
 
 __all__ = ["SEEN_SHARE"]
-
-
-class _SameSimulation:
-    """The forward model run once per simulation: tasks that differ only in the fitted
-    random parts' amplitudes (``fitted_random``: held at 0 in the simulation, they scale
-    the power the features add) share one."""
-
-    def __init__(self, compute):
-        self.compute = compute
-        self.memo: dict = {}
-
-    def __call__(self, t: dict):
-        key = task_hash({k: v for k, v in t.items() if k != "fitted_random"})
-        if key not in self.memo:
-            self.memo[key] = self.compute(t)
-        return self.memo[key]
 
 
 #: a fitted random part whose realisations at the start value hold less than this share of
