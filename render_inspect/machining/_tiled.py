@@ -43,7 +43,7 @@ import math
 
 from ..core.errors import InputError
 from ._burrs import BURR_WIDTH_PER_CHIP, burr_halo, material_burr_block
-from ._cut_kernel import OUT_CHANNELS, CutPath, Grooves, cut_fill
+from ._cut_kernel import CutPath, Grooves, cut_fill
 from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
 from ._material import texture_field
@@ -99,7 +99,8 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
                  tile: Tile, *, grooves: Grooves | None = None,
                  shape: Sequence[int] | None = None, stride: int = 0,
                  texture: tuple[float, float, int] | None = None,
-                 burrs: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+                 burrs: dict | None = None,
+                 carry: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(design, machined, partials) of one tile, float64 (mm).
 
     ``ep`` is an ``EnvelopePath`` (the geometric envelope: machined equals the same pixels
@@ -127,7 +128,11 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     are cropped to the tile (equal to the whole grid's bit for bit).  Partials
     ``burr_edge_pixels``, ``burr_turn_max`` (rad), ``burr_height_max`` and
     ``burr_added_max`` (mm): summed and maximised over the tiles they give the facts of
-    :func:`~render_inspect.machining.material_burrs`."""
+    :func:`~render_inspect.machining.material_burrs`.
+
+    ``carry`` (a cut only): a dict kept between the tiles of one column of the grid,
+    computed top to bottom: the rows of the halo'd block that a tile shares with the one
+    above it are not cut again (the results are the same; the dict holds one block)."""
     design = design_tile(surface, origin, pixel, tile)
     if isinstance(ep, EnvelopePath):
         if burrs is not None:
@@ -146,11 +151,11 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
         halo = max(HALO, burr_halo(pixel, burrs["smoothing"], burrs["width"]))
     else:
         halo = HALO
-    maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx))
+    maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx), carry)
     if burrs is not None and big.rows * big.cols < ny * nx and not np.isfinite(maps["machined"]).all():
         # NaN pixels are filled from their nearest valid pixel: a wider halo
         halo = max(HALO, burr_halo(pixel, burrs["smoothing"], burrs["width"], nan=True))
-        maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx))
+        maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx), carry)
     r0, c0 = big.row, big.col
     rows = slice(tile.row - r0, tile.row - r0 + tile.rows)
     cols = slice(tile.col - c0, tile.col - c0 + tile.cols)
@@ -197,15 +202,40 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     return design, machined, part
 
 
-def _cut_block(ep: CutPath, grooves, origin, pixel: float, tile: Tile, halo: int, shape):
-    """The cut's maps and row statistics on the tile and a halo of ``halo`` pixels inside
-    the grid of ``shape``, and that block (a Tile)."""
+def _cut_block(ep: CutPath, grooves, origin, pixel: float, tile: Tile, halo: int, shape,
+               carry: dict | None = None):
+    """The cut's maps (``machined`` and ``pass_theta``) and row statistics on the tile and
+    a halo of ``halo`` pixels inside the grid of ``shape``, and that block (a Tile).
+
+    ``carry`` (a dict the caller keeps between the tiles of a column, top to bottom): the
+    rows of the previous block that this one shares (same columns) are taken from it
+    instead of being cut again, and this block is left in it for the next tile.  Each
+    pixel (and each row's sums) depends only on the path and its position, so the block
+    equals one cut whole bit for bit."""
     ny, nx = shape
     r0, c0 = max(tile.row - halo, 0), max(tile.col - halo, 0)
     r1, c1 = min(tile.row + tile.rows + halo, ny), min(tile.col + tile.cols + halo, nx)
     big = Tile(r0, c0, r1 - r0, c1 - c0)
-    sl = ep.slice_for(big.region(origin, pixel))
-    maps = {k: np.empty((big.rows, big.cols)) for k in OUT_CHANNELS}
-    st = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel, maps,
-                  start=(r0, c0), parallel=False, stat_cols=(tile.col - c0, tile.col - c0 + tile.cols))
+    stat_cols = (tile.col - c0, tile.col - c0 + tile.cols)
+    key = (c0, c1, stat_cols)
+    prev = carry.get("block") if carry is not None else None
+    maps = {k: np.empty((big.rows, big.cols)) for k in ("machined", "pass_theta")}
+    st = np.empty((big.rows, 3))
+    # the rows [a, r1) are cut; rows [r0, a) come from the previous block
+    a = r0
+    if prev is not None and prev[0] == key and prev[1] <= r0 < prev[2] <= r1:
+        _, p0, p1, pmaps, pst = prev
+        a = p1
+        for k in maps:
+            maps[k][:a - r0] = pmaps[k][r0 - p0:]
+        st[:a - r0] = pst[r0 - p0:]
+    if a < r1:
+        new = Tile(a, c0, r1 - a, c1 - c0)
+        sl = ep.slice_for(new.region(origin, pixel))
+        out = {k: maps[k][a - r0:] for k in maps}
+        out["added"] = np.empty((new.rows, new.cols))
+        st[a - r0:] = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel,
+                               out, start=(a, c0), parallel=False, stat_cols=stat_cols)
+    if carry is not None:
+        carry["block"] = (key, r0, r1, maps, st)
     return maps, st, big
