@@ -207,35 +207,59 @@ def _cut_block(ep: CutPath, grooves, origin, pixel: float, tile: Tile, halo: int
     """The cut's maps (``machined`` and ``pass_theta``) and row statistics on the tile and
     a halo of ``halo`` pixels inside the grid of ``shape``, and that block (a Tile).
 
-    ``carry`` (a dict the caller keeps between the tiles of a column, top to bottom): the
-    rows of the previous block that this one shares (same columns) are taken from it
-    instead of being cut again, and this block is left in it for the next tile.  Each
-    pixel (and each row's sums) depends only on the path and its position, so the block
-    equals one cut whole bit for bit."""
+    ``carry`` (a dict the caller keeps between calls: the tiles of a column top to
+    bottom, and the wider halo of a tile with NaN pixels): the pixels this block shares
+    with the previous one are taken from it instead of being cut again, and this block is
+    left in it for the next call.  Each pixel depends only on the path and its position,
+    and a row's sums only on the tile's pixels of that row (cut in one call), so the
+    block equals one cut whole bit for bit."""
     ny, nx = shape
     r0, c0 = max(tile.row - halo, 0), max(tile.col - halo, 0)
     r1, c1 = min(tile.row + tile.rows + halo, ny), min(tile.col + tile.cols + halo, nx)
     big = Tile(r0, c0, r1 - r0, c1 - c0)
-    stat_cols = (tile.col - c0, tile.col - c0 + tile.cols)
-    key = (c0, c1, stat_cols)
-    prev = carry.get("block") if carry is not None else None
+    key = (tile.col, tile.cols)   # the columns a row's sums cover
     maps = {k: np.empty((big.rows, big.cols)) for k in ("machined", "pass_theta")}
     st = np.empty((big.rows, 3))
-    # the rows [a, r1) are cut; rows [r0, a) come from the previous block
-    a = r0
-    if prev is not None and prev[0] == key and prev[1] <= r0 < prev[2] <= r1:
-        _, p0, p1, pmaps, pst = prev
-        a = p1
+    gr = grooves if grooves is not None else Grooves.none()
+
+    def cut(a: int, b: int, ca: int, cb: int, into_stats: bool) -> None:
+        """Cut rows [a, b) x columns [ca, cb) (grid indices) into the block."""
+        if a >= b or ca >= cb:
+            return
+        part = Tile(a, ca, b - a, cb - ca)
+        sl = ep.slice_for(part.region(origin, pixel))
+        whole = ca == c0 and cb == c1
+        out = ({k: maps[k][a - r0:b - r0] for k in maps} if whole
+               else {k: np.empty((part.rows, part.cols)) for k in maps})
+        out["added"] = np.empty((part.rows, part.cols))
+        sc = (tile.col - ca, tile.col - ca + tile.cols) if into_stats else (0, 0)
+        s = cut_fill(sl, gr, origin, pixel, out, start=(a, ca), parallel=False, stat_cols=sc)
+        if not whole:
+            for k in maps:
+                maps[k][a - r0:b - r0, ca - c0:cb - c0] = out[k]
+        if into_stats:
+            st[a - r0:b - r0] = s
+
+    prev = carry.get("block") if carry is not None else None
+    o0 = o1 = r0
+    if prev is not None:
+        pkey, p0, p1, pc0, pc1, pmaps, pst = prev
+        o0, o1 = max(r0, p0), min(r1, p1)
+        oc0, oc1 = max(c0, pc0), min(c1, pc1)
+        # reused: the rows the two blocks share, where the tile's columns (its row sums)
+        # lie inside the shared columns
+        if not (pkey == key and o0 < o1 and oc0 <= tile.col and tile.col + tile.cols <= oc1):
+            o0 = o1 = r0
+    if o0 < o1:
         for k in maps:
-            maps[k][:a - r0] = pmaps[k][r0 - p0:]
-        st[:a - r0] = pst[r0 - p0:]
-    if a < r1:
-        new = Tile(a, c0, r1 - a, c1 - c0)
-        sl = ep.slice_for(new.region(origin, pixel))
-        out = {k: maps[k][a - r0:] for k in maps}
-        out["added"] = np.empty((new.rows, new.cols))
-        st[a - r0:] = cut_fill(sl, grooves if grooves is not None else Grooves.none(), origin, pixel,
-                               out, start=(a, c0), parallel=False, stat_cols=stat_cols)
+            maps[k][o0 - r0:o1 - r0, oc0 - c0:oc1 - c0] = pmaps[k][o0 - p0:o1 - p0, oc0 - pc0:oc1 - pc0]
+        st[o0 - r0:o1 - r0] = pst[o0 - p0:o1 - p0]
+        cut(r0, o0, c0, c1, True)
+        cut(o1, r1, c0, c1, True)
+        cut(o0, o1, c0, oc0, False)
+        cut(o0, o1, oc1, c1, False)
+    else:
+        cut(r0, r1, c0, c1, True)
     if carry is not None:
-        carry["block"] = (key, r0, r1, maps, st)
+        carry["block"] = (key, r0, r1, c0, c1, maps, st)
     return maps, st, big
