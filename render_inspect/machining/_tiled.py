@@ -176,7 +176,9 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     del maps
     if texture is not None and texture[0] > 0:
         r_a, c_a = (r0, c0) if burrs is not None else (tile.row, tile.col)
-        tex = _texture_block(origin, pixel, (r_a, c_a), machined.shape, texture, carry)
+        x = origin[0] + pixel * np.arange(c_a, c_a + machined.shape[1])
+        y = origin[1] + pixel * np.arange(r_a, r_a + machined.shape[0])
+        tex = texture_field(x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
         ok = np.isfinite(machined)
         machined[ok] += tex[ok]
         tt, ot = tex[at], ok[at]
@@ -198,27 +200,6 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
             part["burr_height_max"] = float(heights.max())
             part["burr_added_max"] = float(np.nanmax(b))
     return design, machined, part
-
-
-def _texture_block(origin, pixel: float, start, shape, texture, carry: dict | None) -> np.ndarray:
-    """The texture (:func:`~._material.texture_field`) on the block of ``shape`` at grid
-    index ``start``; with ``carry``, the rows it shares with the previous block (same
-    columns) are taken from it (a field of the position: the same values) and the block
-    is left in it."""
-    (r_a, c_a), (rows, cols) = start, shape
-    x = origin[0] + pixel * np.arange(c_a, c_a + cols)
-    prev = carry.get("texture") if carry is not None else None
-    tex = np.empty((rows, cols))
-    a = r_a
-    if prev is not None and prev[0] == (c_a, cols) and prev[1] <= r_a < prev[2] <= r_a + rows:
-        a = prev[2]
-        tex[:a - r_a] = prev[3][r_a - prev[1]:]
-    if a < r_a + rows:
-        y = origin[1] + pixel * np.arange(a, r_a + rows)
-        tex[a - r_a:] = texture_field(x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
-    if carry is not None:
-        carry["texture"] = ((c_a, cols), r_a, r_a + rows, tex)
-    return tex
 
 
 def _cut_block(ep: CutPath, grooves, origin, pixel: float, tile: Tile, halo: int, shape,
