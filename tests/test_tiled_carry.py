@@ -34,6 +34,12 @@ def toric():
     return dict(env=env, cp=cp, surface=surface, pixel=pixel, origin=region[:2], shape=shape)
 
 
+def _alone(c, tiles, kw) -> dict:
+    """Each tile cut on its own, all first (so that the carried runs do not reuse the
+    freed memory of the same block just cut alone)."""
+    return {t: compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, **kw)[1:] for t in tiles}
+
+
 def _same(a, b):
     assert a.keys() == b.keys()
     for k in a:
@@ -61,25 +67,28 @@ def test_a_column_of_tiles_with_a_carry_equals_each_tile_alone(toric, halo_px, t
     tiles = plan_tiles(c["shape"], 64)
     runs = column_runs(tiles, 1)
     assert sum(len(r) for r in runs) == len(tiles) and all(len({t.col for t in r}) == 1 for r in runs)
+    ref = _alone(c, tiles, kw)
     for run in runs:
         carry: dict = {}
         for t in run:
-            d0, m0, p0 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, **kw)
-            d1, m1, p1 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, carry=carry, **kw)
-            assert np.array_equal(d0, d1, equal_nan=True)
+            m0, p0 = ref[t]
+            _, m1, p1 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, carry=carry, **kw)
             assert np.array_equal(m0, m1, equal_nan=True), t
             _same(p0, p1)
 
 
-def test_a_carried_block_of_another_column_gives_the_same_tile(toric):
-    """The carry left by a tile of another column (or out of order) gives the same tile."""
+def test_tiles_cut_bottom_to_top_or_across_columns_with_a_carry_equal_each_tile_alone(toric):
+    """A carry left by the tile below (rows above the shared ones cut) or by a tile of
+    another column (not reused) gives the same tile."""
     c = toric
     env = c["env"]
     kw = dict(grooves=env.grooves, shape=c["shape"], burrs=_burrs(env, 30, c["pixel"]))
     tiles = plan_tiles(c["shape"], 64)
+    ref = _alone(c, tiles, kw)
+    order = [t for run in column_runs(tiles, 1) for t in reversed(run)] + tiles
     carry: dict = {}
-    for t in reversed(tiles):   # bottom to top, across the columns
-        _, m0, p0 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, **kw)
+    for t in order:
+        m0, p0 = ref[t]
         _, m1, p1 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, carry=carry, **kw)
         assert np.array_equal(m0, m1, equal_nan=True), t
         _same(p0, p1)
@@ -95,3 +104,43 @@ def test_column_runs_split_the_columns_into_enough_runs():
         assert [t.row for t in r] == sorted(t.row for t in r)
     assert len(column_runs(tiles, 1)) == 3
     assert column_runs([Tile(0, 0, 64, 64)], 8) == [[Tile(0, 0, 64, 64)]]
+
+
+@pytest.fixture(scope="module")
+def rim():
+    """The shipped sinusoidal grid at 2 um over a window across the workpiece's rim: the
+    tiles there have uncut (NaN) pixels and are cut again with the burr model's wider
+    halo."""
+    from render_inspect.processes import process_of
+    from render_inspect.processes._mechanics import material_cut_path
+    from render_inspect.toolpath import Tool
+
+    region = (4.7, -0.2, 5.7, 0.2)
+    scene = load_scene(SCENE.parent / "sts_sinusoidal_grid.toml",
+                       [f"simulation.region={list(region)}", "simulation.pixel=0.002"])
+    proc = process_of(scene)
+    cfg = proc.inputs_of(scene)
+    surface = make_surface(scene.design)
+    env = proc.envelope(cfg, surface, proc.plan(cfg, surface, region=region))
+    cp = material_cut_path(env.path, Tool.from_config(cfg.tool), env.mechanics)
+    pixel = cfg.simulation.pixel
+    return dict(env=env, cp=cp, surface=surface, pixel=pixel, origin=region[:2],
+                shape=grid_shape(region, pixel))
+
+
+def test_the_wider_halo_of_tiles_with_uncut_pixels_reuses_the_narrower_block(rim):
+    c = rim
+    env = c["env"]
+    kw = dict(grooves=env.grooves, shape=c["shape"], burrs=env.burrs, texture=env.texture)
+    tiles = plan_tiles(c["shape"], 64)
+    nan_tiles = 0
+    ref = _alone(c, tiles, kw)
+    for run in column_runs(tiles, 1):
+        carry: dict = {}
+        for t in run:
+            m0, p0 = ref[t]
+            _, m1, p1 = compute_tile(c["cp"], c["surface"], c["origin"], c["pixel"], t, carry=carry, **kw)
+            nan_tiles += bool(np.isnan(m0).any())
+            assert np.array_equal(m0, m1, equal_nan=True), t
+            _same(p0, p1)
+    assert nan_tiles > 0
