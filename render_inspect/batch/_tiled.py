@@ -103,7 +103,7 @@ def column_runs(tiles: list[Tile], tasks: int) -> list[list[Tile]]:
     for t in tiles:
         cols.setdefault(t.col, []).append(t)
     split = max(1, -(-int(tasks) // max(len(cols), 1)))
-    runs = []
+    runs: list[list[Tile]] = []
     for col in cols.values():
         col.sort(key=lambda t: t.row)
         n = min(split, len(col))
