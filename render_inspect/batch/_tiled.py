@@ -2,6 +2,7 @@
 tile into a chunked Zarr store, its statistics reduced exactly across tiles.
 
 Each tile task (``tile_task``) computes one tile (:func:`render_inspect.machining.compute_tile`),
+or a run of tiles of one column top to bottom that share the rows of their halo'd blocks,
 reduces its residual to (n, mean, M2, min, max), writes design, machined and residual
 (float32) into the store's chunks of the tile and the tile's part of every pyramid level
 (block sums, exact across tiles), and returns only the small partials.  A second,
@@ -66,26 +67,54 @@ def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) 
 # a ``distributed.Client``, an optional dependency imported where it is used)
 def tile_task(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[float], pixel: float,
               grooves: Grooves | None, shape: Sequence[int], stride: int,
-              texture: tuple[float, float, int] | None, burrs: dict[str, Any] | None, tile: Tile,
-              store: str, levels: int, tile_levels: int) -> dict[str, Any]:
-    """Compute one tile (``ep``: an EnvelopePath or a CutPath) and write it into ``store``;
-    return its partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`)."""
+              texture: tuple[float, float, int] | None, burrs: dict[str, Any] | None,
+              tiles: Tile | Sequence[Tile], store: str, levels: int,
+              tile_levels: int) -> list[dict[str, Any]]:
+    """Compute the tiles ``tiles`` (a Tile, or a run of tiles of one column, top to bottom;
+    ``ep``: an EnvelopePath or a CutPath) and write them into ``store``; return their
+    partial statistics (and the material's, :func:`~render_inspect.machining.compute_tile`),
+    one dict per tile.  The tiles of a run share the rows of their halo'd blocks that
+    overlap (cut once, not once per tile)."""
     import zarr
 
-    cancel.check()  # a tile not started when the run is stopped is not started
-
-    design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
-                                         stride=stride, texture=texture, burrs=burrs)
-    moments = tile_moments(machined, design)
-    residual = np.subtract(machined, design).astype(np.float32)
-    machined32 = machined.astype(np.float32)
-    del machined
-    design32 = design.astype(np.float32)
-    del design
+    if isinstance(tiles, Tile):
+        tiles = [tiles]
     group = zarr.open_group(store, mode="r+")
-    coarse = _write_tile(group, tile, {"design": design32, "machined": machined32, "residual": residual},
-                         levels, tile_levels)
-    return {"tile": tile, "moments": moments, "coarse": coarse, "cut": cut}
+    carry: dict = {}
+    out = []
+    for tile in tiles:
+        cancel.check()  # a tile not started when the run is stopped is not started
+        design, machined, cut = compute_tile(ep, surface, origin, pixel, tile, grooves=grooves, shape=shape,
+                                             stride=stride, texture=texture, burrs=burrs,
+                                             carry=carry if isinstance(ep, CutPath) else None)
+        moments = tile_moments(machined, design)
+        residual = np.subtract(machined, design).astype(np.float32)
+        machined32 = machined.astype(np.float32)
+        del machined
+        design32 = design.astype(np.float32)
+        del design
+        coarse = _write_tile(group, tile, {"design": design32, "machined": machined32, "residual": residual},
+                             levels, tile_levels)
+        del design32, machined32, residual
+        out.append({"tile": tile, "moments": moments, "coarse": coarse, "cut": cut})
+    return out
+
+
+def column_runs(tiles: list[Tile], tasks: int) -> list[list[Tile]]:
+    """The tiles grouped into runs of consecutive tiles of one column (top to bottom), each
+    column split into as few runs as give at least ``tasks`` runs in all (a run shares the
+    cut rows of its tiles' halos)."""
+    cols: dict[int, list[Tile]] = {}
+    for t in tiles:
+        cols.setdefault(t.col, []).append(t)
+    split = max(1, -(-int(tasks) // max(len(cols), 1)))
+    runs: list[list[Tile]] = []
+    for col in cols.values():
+        col.sort(key=lambda t: t.row)
+        n = min(split, len(col))
+        size = -(-len(col) // n)
+        runs.extend(col[i:i + size] for i in range(0, len(col), size))
+    return runs
 
 
 @dataclass
@@ -118,17 +147,19 @@ class _Counter:
     def __init__(self, total: int, progress, t0: float):
         self.total, self.progress, self.t0, self.done = total, progress, t0, 0
 
-    def step(self):
-        self.done += 1
+    def step(self, n: int = 1):
+        self.done += n
         if self.progress is not None:
             self.progress(self.done, self.total, time.perf_counter() - self.t0)
 
 
 def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int | None = None,
-         progress=None) -> list:
-    """fn(*shared, *args) for each args in ``arg_lists`` on Dask; results in order."""
+         progress=None, total: int | None = None) -> list:
+    """fn(*shared, *args) for each args in ``arg_lists`` on Dask; results in order.
+    ``progress`` counts ``total`` items (default: the calls; a call that returns a list
+    counts its items)."""
     t0 = time.perf_counter()
-    counter = _Counter(len(arg_lists), progress, t0)
+    counter = _Counter(total if total is not None else len(arg_lists), progress, t0)
     if client is not None:
         from distributed import as_completed
 
@@ -143,8 +174,8 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
         out = [None] * len(futures)
         try:
             for fut in as_completed(futures, loop=client.loop):
-                out[index[fut.key]] = fut.result()
-                counter.step()
+                out[index[fut.key]] = r = fut.result()
+                counter.step(len(r) if isinstance(r, list) else 1)
                 fut.release()
         except BaseException:
             # stopped: no tile not yet started starts (running ones cannot be stopped)
@@ -163,7 +194,7 @@ def _run(fn, arg_lists: list[tuple], shared: tuple, *, client=None, workers: int
 
     def posttask(key, result, dsk, state, worker_id):
         if key in keys:
-            counter.step()
+            counter.step(len(result) if isinstance(result, list) else 1)
 
     with Callback(posttask=posttask):
         try:
@@ -257,9 +288,20 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
         raise InputError(f"tile must be a power of two for a pyramid, got {tile}")
     timing = {}
     t0 = time.perf_counter()
-    parts = _run(tile_task, [(t, store, levels, tile_levels) for t in tiles],
-                 (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
-                 client=client, workers=workers, progress=progress)
+    if burrs is not None and isinstance(ep, CutPath):
+        # the burr model's halo is wide: the tiles of a column share the cut rows of their
+        # blocks, in runs (at least two per worker; per tile where the cluster's size is unknown)
+        n_workers = (workers or usable_cpus()) if client is None else cluster_info(client)["workers"]
+        runs = column_runs(tiles, 2 * n_workers) if n_workers else [[t] for t in tiles]
+    else:
+        runs = [[t] for t in tiles]
+    done = {(p["tile"].row, p["tile"].col): p
+            for r in _run(tile_task, [(r, store, levels, tile_levels) for r in runs],
+                          (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
+                          client=client, workers=workers, progress=progress, total=len(tiles))
+            for p in r}
+    # in the tiles' order: the moments are merged in it (the same sums whatever the runs)
+    parts = [done[(t.row, t.col)] for t in tiles]
     timing["tiles"] = time.perf_counter() - t0
     moments = (0, 0.0, 0.0, math.inf, -math.inf)
     for p in parts:

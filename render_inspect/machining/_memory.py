@@ -52,6 +52,9 @@ CUT_TILE_BYTES = 24
 #: replaced the array passes (109 B measured then), so 32 B with the block's machined
 #: copy and texture)
 BURR_BLOCK_BYTES = 32
+#: bytes per sample of the block a tile task keeps for the next tile of its column (the
+#: cut's machined and pass-angle maps, reused where the blocks overlap)
+CARRY_BYTES = 16
 #: further bytes per path point of the cutting mechanics' prepared path (its lookup table
 #: and cutting distance)
 CUT_PATH_BYTES = 16
@@ -119,7 +122,7 @@ def tiled_bytes(tile: int, path_points: int, *, in_flight: int, slice_points: in
         side = tile + 2 * int(burr_halo)
         block = side * side if shape is None else min(side, int(shape[0])) * min(side, int(shape[1]))
         block = max(block, tile * tile)
-        per_tile += (block - tile * tile) * (CUT_TILE_BYTES + 8) + block * BURR_BLOCK_BYTES
+        per_tile += (block - tile * tile) * (CUT_TILE_BYTES + 8) + block * (BURR_BLOCK_BYTES + CARRY_BYTES)
     n = int(path_points)
     sl = n if slice_points is None else int(slice_points)
     phases = (n * PLAN_BYTES,
