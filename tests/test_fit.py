@@ -594,3 +594,28 @@ def test_a_feed_started_22_percent_off_is_captured_on_the_real_chain(shipped_too
     assert rec["model_check"]["after"]["describes"]
     assert rec["model_check"]["measured_starts"][0]["process.feed_mm_per_min"] == \
         pytest.approx(0.51, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_random_amplitude_moves_from_its_start_to_the_truth(tmp_path):
+    """The Z slide's noise amplitude fitted alone on a map cut with 5 nm of it (the other
+    random parts off), from a start of 2 nm: the evaluations hold it at 0 and its power
+    enters the spectrum scaled by (value / start)^2, so a step along it is a new evaluation
+    of the same simulation.  (When the step shared the start's evaluation, the fit ended at
+    its start, 2 nm, `converged` after one evaluation and without a standard error.)"""
+    quiet = [k for k in QUIET if not k.startswith("machine.z.")]
+    x0, y0, x1, y1 = FIELD
+    m = 0.03
+    scene = load_scene("sts_sinusoidal_grid", [
+        *quiet, "machine.z.noise_nm=5.0", "simulation.pixel=0.0005",
+        f"simulation.region=[{x0 - m}, {y0 - m}, {x1 + m}, {y1 + m}]",
+        f"render.interferometer.field_of_view=[{x0}, {y0}, {x1}, {y1}]"])
+    run_render(scene, tmp_path / "render", kind="interferometer")
+    run_measure(tmp_path / "render" / "interferogram.exr", tmp_path / "measure")
+    meas = tmp_path / "measure" / "height.exr"
+    rec = run_fit(meas, load_scene("sts_sinusoidal_grid", [*quiet, "machine.z.noise_nm=2.0"]),
+                  ["machine.z.noise_nm"], tmp_path / "fit")
+    p = rec["parameters"]["machine.z.noise_nm"]
+    assert rec["evaluations"] > 5, rec["evaluations"]
+    assert p["value"] != 2.0 and p["stderr"] is not None and p["stderr"] > 0, p
+    assert abs(p["value"] - 5.0) < 2 * p["stderr"], p
