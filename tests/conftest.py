@@ -18,6 +18,11 @@ for _var in ("HOME", "XDG_CACHE_HOME", "BLENDER_USER_RESOURCES", "MPLCONFIGDIR")
     os.environ[_var] = str(_HOME / _var.lower())
     Path(os.environ[_var]).mkdir(parents=True, exist_ok=True)
 os.environ.setdefault("MPLBACKEND", "Agg")
+# numba's parallel kernels run on OpenMP threads, and GNU OpenMP's idle threads spin for a
+# while after each parallel loop before they sleep.  Under `make test` two workers share the
+# cores, so a spinning thread burns the CPU the other worker's test needs: here they sleep
+# at once (set before numba loads OpenMP; it changes how threads wait, not what they compute).
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import pytest  # noqa: E402
 
