@@ -33,6 +33,8 @@ ARMS_CHOICES = ("one", "both")
 #: the arms "disagree" when their estimates differ by more than this many of the
 #: difference's standard uncertainty (from the arms' own standard errors)
 ARMS_DISAGREE = 2.0
+#: the least step of an arm's scan, as a fraction of the key's scale (a key at 0)
+MIN_STEP_OF_SCALE = 1e-6  # not a unit conversion
 
 
 @dataclass
@@ -219,7 +221,7 @@ def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.n
     x0 = np.asarray(values, dtype=np.float64)
     n = x0.size
     m = len(target.arms)
-    hs = np.array([max(rel_step * abs(v), 1e-6 * p.scale) for p, v in zip(params, x0)])
+    hs = np.array([max(rel_step * abs(v), MIN_STEP_OF_SCALE * p.scale) for p, v in zip(params, x0)])
     best = evaluator.evaluate([x0.copy()], budget=False)[0]
     if best.error is not None:
         return {"error": f"the evaluation at the solution failed: {best.error}"}
