@@ -604,15 +604,7 @@ def test_a_random_amplitude_moves_from_its_start_to_the_truth(tmp_path):
     of the same simulation.  (When the step shared the start's evaluation, the fit ended at
     its start, 2 nm, `converged` after one evaluation and without a standard error.)"""
     quiet = [k for k in QUIET if not k.startswith("machine.z.")]
-    x0, y0, x1, y1 = FIELD
-    m = 0.03
-    scene = load_scene("sts_sinusoidal_grid", [
-        *quiet, "machine.z.noise_nm=5.0", "simulation.pixel=0.0005",
-        f"simulation.region=[{x0 - m}, {y0 - m}, {x1 + m}, {y1 + m}]",
-        f"render.interferometer.field_of_view=[{x0}, {y0}, {x1}, {y1}]"])
-    run_render(scene, tmp_path / "render", kind="interferometer")
-    run_measure(tmp_path / "render" / "interferogram.exr", tmp_path / "measure")
-    meas = tmp_path / "measure" / "height.exr"
+    meas = _truth(tmp_path, [*quiet, "machine.z.noise_nm=5.0"], quiet=False)
     rec = run_fit(meas, load_scene("sts_sinusoidal_grid", [*quiet, "machine.z.noise_nm=2.0"]),
                   ["machine.z.noise_nm"], tmp_path / "fit")
     p = rec["parameters"]["machine.z.noise_nm"]

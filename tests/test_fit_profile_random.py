@@ -5,6 +5,7 @@ profile does not see."""
 
 from __future__ import annotations
 
+import sys
 import tomllib
 from pathlib import Path
 
@@ -16,6 +17,9 @@ from render_inspect.fit._profile import (ProfileSpec, make_profile_target,
                                          predict_profile_features, profile_residual_vector)
 from render_inspect.fit import set_profile_psd
 from render_inspect.fit._profile_psd import effective_cells, predicted_bands
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_fit_profile import _write_profile  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "docs" / "examples" / "turned" / "scene.toml"
@@ -37,11 +41,6 @@ def _turned(feed=3.96, nose=0.2, z_noise_nm=0.0):
     return scene_from_dict(d, "turned (planned spiral, Z noise)")
 
 
-def _write_profile(path, s_mm, z_mm):
-    lines = ["x (um), height (um)"]
-    lines += [f"{s * 1e3:.6f}, " + ("" if not np.isfinite(z) else f"{z * 1e3:.7f}")
-              for s, z in zip(s_mm, z_mm)]
-    path.write_text("\n".join(lines) + "\n")
 
 
 # ----------------------------------------------------------------------- the feature

@@ -16,22 +16,26 @@ from render_inspect.scene import load_scene
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "hts_toric_msa.toml"
 
 
-@pytest.fixture(scope="module")
-def toric():
+def _case(scene_file, region, sets=()):
+    """The cut path, envelope and grid of ``scene_file`` over ``region`` (mm)."""
     from render_inspect.processes import process_of
     from render_inspect.processes._mechanics import material_cut_path
     from render_inspect.toolpath import Tool
 
-    region = (0.1, 0.1, 0.6, 0.5)
-    scene = load_scene(SCENE, [f"simulation.region={list(region)}"])
+    scene = load_scene(scene_file, [f"simulation.region={list(region)}", *sets])
     proc = process_of(scene)
     cfg = proc.inputs_of(scene)
     surface = make_surface(scene.design)
     env = proc.envelope(cfg, surface, proc.plan(cfg, surface, region=region))
     cp = material_cut_path(env.path, Tool.from_config(cfg.tool), env.mechanics)
     pixel = cfg.simulation.pixel
-    shape = grid_shape(region, pixel)
-    return dict(env=env, cp=cp, surface=surface, pixel=pixel, origin=region[:2], shape=shape)
+    return dict(env=env, cp=cp, surface=surface, pixel=pixel, origin=region[:2],
+                shape=grid_shape(region, pixel))
+
+
+@pytest.fixture(scope="module")
+def toric():
+    return _case(SCENE, (0.1, 0.1, 0.6, 0.5))
 
 
 def _alone(c, tiles, kw) -> dict:
@@ -111,21 +115,8 @@ def rim():
     """The shipped sinusoidal grid at 2 um over a window across the workpiece's rim: the
     tiles there have uncut (NaN) pixels and are cut again with the burr model's wider
     halo."""
-    from render_inspect.processes import process_of
-    from render_inspect.processes._mechanics import material_cut_path
-    from render_inspect.toolpath import Tool
-
-    region = (4.7, -0.2, 5.7, 0.2)
-    scene = load_scene(SCENE.parent / "sts_sinusoidal_grid.toml",
-                       [f"simulation.region={list(region)}", "simulation.pixel=0.002"])
-    proc = process_of(scene)
-    cfg = proc.inputs_of(scene)
-    surface = make_surface(scene.design)
-    env = proc.envelope(cfg, surface, proc.plan(cfg, surface, region=region))
-    cp = material_cut_path(env.path, Tool.from_config(cfg.tool), env.mechanics)
-    pixel = cfg.simulation.pixel
-    return dict(env=env, cp=cp, surface=surface, pixel=pixel, origin=region[:2],
-                shape=grid_shape(region, pixel))
+    return _case(SCENE.parent / "sts_sinusoidal_grid.toml", (4.7, -0.2, 5.7, 0.2),
+                 ["simulation.pixel=0.002"])
 
 
 def test_the_wider_halo_of_tiles_with_uncut_pixels_reuses_the_narrower_block(rim):

@@ -38,7 +38,7 @@ from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ..fit import ARMS_CHOICES, ArmsTarget, arm_estimates, arms_features, set_arms_noise_floor
-from ..fit import (within_reach, parse_weights, MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+from ..fit import (within_reach, parse_weights, MARK_KEYS, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
@@ -54,6 +54,7 @@ from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fil
                          preset_value, quiet, SameSimulation)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
+from ._fit_profile_model import after_verdict
 from ._fit_profile_model import compute_profiles as _compute
 from ._fit_profile_random import _check_free_random, _random_part_power, _random_part_verdicts
 
@@ -462,17 +463,7 @@ def _check_after(target, best, family, goodness) -> dict:
         if abs(rel) > max(5 * sf, 0.01):
             findings.append(f"the fitted marks' period differs from the measured one by "
                             f"{100 * rel:+.3g} % (the free keys cannot reach it)")
-    ratio = goodness.get("ratio")
-    notes = []
-    if ratio is not None and ratio > MISMATCH and not findings:
-        notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
-                     f"the cusps' shape differs from the model's; the standard errors are "
-                     f"scaled by it (the model's error)")
-    return {"describes": not findings, "findings": findings, "notes": notes,
-            "misfit_over_noise": ratio,
-            "verdict": ("the model describes the marks of this window" if not findings else
-                        "this model does not describe this measurement: "
-                        + "; ".join(findings))}
+    return after_verdict(findings, goodness, "the model describes the marks of this window")
 
 
 def _feed_per_rev(base, fitted, record):

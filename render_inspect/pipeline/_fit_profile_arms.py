@@ -15,12 +15,12 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import MM_TO_UM
-from ..fit import (MISMATCH, ArmsTarget, arms_features, arms_text, combine_arms, get_value,
+from ..fit import (ArmsTarget, arms_features, arms_text, combine_arms, get_value,
                    make_profile_target, profile_family, profile_residual_vector)
 from ..processes import process_of
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
 from ._fit_model import MARGIN_PX
-from ._fit_profile_model import MIN_POINTS, ProfileModel
+from ._fit_profile_model import MIN_POINTS, ProfileModel, after_verdict
 
 if TYPE_CHECKING:
     from ..io import MeasuredProfile
@@ -155,17 +155,8 @@ def _check_after_arms(target: ArmsTarget, pred, families, goodness) -> dict:
         if abs(rel) > max(5 * sf, 0.01):
             findings.append(f"the fitted marks' period differs from the arms' mean measured "
                             f"one by {100 * rel:+.3g} % (the free keys cannot reach it)")
-    ratio = goodness.get("ratio")
-    notes = []
-    if ratio is not None and ratio > MISMATCH and not findings:
-        notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
-                     f"the cusps' shape differs from the model's; the standard errors are "
-                     f"scaled by it (the model's error)")
-    return {"describes": not findings, "findings": findings, "notes": notes,
-            "misfit_over_noise": ratio,
-            "verdict": ("the model describes the marks of this window on both arms"
-                        if not findings else "this model does not describe this "
-                                             "measurement: " + "; ".join(findings))}
+    return after_verdict(findings, goodness,
+                         "the model describes the marks of this window on both arms")
 
 
 def _arms_record(two, one_arm_why, result, target, fitted, win, prof) -> dict:

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.lazy import lazy_module
-from ..fit import task_hash
+from ..fit import MISMATCH, task_hash
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
 from ._fit import _evaluation_pixel
 from ._fit_model import MARGIN_PX, ForwardModel, compute_all, predict_measurement, quiet
@@ -21,7 +21,8 @@ from ._fit_model import MARGIN_PX, ForwardModel, compute_all, predict_measuremen
 if TYPE_CHECKING:
     from ..scene import Scene
 
-__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS", "compute_profiles"]
+__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS", "compute_profiles",
+           "after_verdict"]
 
 ndimage = lazy_module("scipy.ndimage")
 
@@ -119,3 +120,19 @@ def compute_profiles(store: Any, tasks: Sequence[dict], client: Any,
             raise InputError(f"the forward model fails at the scene's values: {err}") from None
         out.append(store.put(k, z, meta))
     return out
+
+
+def after_verdict(findings: list[str], goodness: dict, described: str) -> dict:
+    """The check after a profile fit from its ``findings`` (empty: the model describes the
+    window, ``described`` says what) and the misfit against the camera's noise floor
+    (``goodness["ratio"]``: a model error said in words where over :data:`MISMATCH`)."""
+    ratio = goodness.get("ratio")
+    notes = []
+    if ratio is not None and ratio > MISMATCH and not findings:
+        notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
+                     f"the cusps' shape differs from the model's; the standard errors are "
+                     f"scaled by it (the model's error)")
+    return {"describes": not findings, "findings": findings, "notes": notes,
+            "misfit_over_noise": ratio,
+            "verdict": (described if not findings else "this model does not describe this "
+                                                       "measurement: " + "; ".join(findings))}
