@@ -24,7 +24,7 @@ from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
-from ..report import draw_figure, residual_preview_png
+from ..report import draw_figure, preload_drawing, residual_preview_png
 from ._metrics import simulation_metrics, write_metrics
 from ._toolpath import check_links
 
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from ..scene import Scene
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "residual_title",
-           "timed"]
+           "timed", "preload_figures"]
 
 log = logging.getLogger("render_inspect")
 
@@ -165,6 +165,24 @@ def timed(timing: dict, key: str, fn: Callable[..., Any], *args: Any, **kw: Any)
     out = fn(*args, **kw)
     timing[key] = round(time.perf_counter() - t0, 4)
     return out
+
+
+def preload_figures() -> threading.Thread:
+    """Start a thread that imports what the figures are drawn with
+    (:func:`~render_inspect.report.preload_drawing`): the ``simulate`` command starts it before it
+    computes, so that the import overlaps the computation instead of delaying the
+    figures at the end.  A failure there is left to the drawing, which imports the same
+    and reports it."""
+
+    def run() -> None:
+        try:
+            preload_drawing()
+        except Exception:  # (the figures' own import raises it again, where it is reported)
+            pass
+
+    t = threading.Thread(target=run, name="render_inspect-figures-preload", daemon=True)
+    t.start()
+    return t
 
 
 def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = True) -> dict:
