@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from ..scene import Scene
 
 __all__ = ["Simulation", "simulate", "design_heightmap", "write_simulation", "residual_title",
-           "timed", "preload_figures"]
+           "timed"]
 
 log = logging.getLogger("render_inspect")
 
@@ -94,13 +94,17 @@ class Simulation:
         return {**self.plan.plots, **self.cut.plots}
 
 
-def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
+def simulate(scene: Scene, *, surface: Surface | None = None,
+             preload_figures: bool = False) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process plans its program for the region, the memory needed is checked
     against the memory budget (``simulation.max_memory_gb``, or a share of the memory
     available) before and after planning, and the process cuts the surface; the metrics
     are built once (:func:`~render_inspect.pipeline.simulation_metrics`).
+    ``preload_figures``: once the program is planned (its inputs read and checked),
+    import the figures' library in a thread while the surface is cut
+    (:func:`~render_inspect.report.preload_drawing`), for a caller that draws them next.
     """
     t_all = time.perf_counter()
     process = process_of(scene)
@@ -116,6 +120,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
         plan = process.plan_window(cfg, surface, region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
+    if preload_figures:
+        _preload_figures()
     # the program's moves between its cuts are simulated too: they never touch
     # the part (metrics toolpath.links; an error naming the block otherwise)
     links = check_links(process, cfg, surface, plan)
@@ -167,12 +173,11 @@ def timed(timing: dict, key: str, fn: Callable[..., Any], *args: Any, **kw: Any)
     return out
 
 
-def preload_figures() -> threading.Thread:
+def _preload_figures() -> threading.Thread:
     """Start a thread that imports what the figures are drawn with
-    (:func:`~render_inspect.report.preload_drawing`): the ``simulate`` command starts it before it
-    computes, so that the import overlaps the computation instead of delaying the
-    figures at the end.  A failure there is left to the drawing, which imports the same
-    and reports it."""
+    (:func:`~render_inspect.report.preload_drawing`), so that the import overlaps the
+    computation instead of delaying the figures at the end.  A failure there is left to
+    the drawing, which imports the same and reports it."""
 
     def run() -> None:
         try:

@@ -28,7 +28,7 @@ from ..processes import check_budget, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
 from ._metrics import tiled_metrics, write_metrics
-from ._simulate import preload_figures, residual_title, simulate, timed, write_simulation
+from ._simulate import residual_title, simulate, timed, write_simulation
 from ._toolpath import check_links, log_program_summary
 
 if TYPE_CHECKING:
@@ -86,10 +86,9 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
         return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
                                   overwrite=overwrite)
     with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
-        # the figures' library is imported in a thread while the part is simulated
-        preload_figures()
         t0 = time.perf_counter()
-        sim = simulate(scene)
+        # (the figures' library is imported in a thread while the part is cut)
+        sim = simulate(scene, preload_figures=True)
         log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
                  time.perf_counter() - t0)
         t0 = time.perf_counter()
