@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..batch import cluster_info, run_tiles, tile_client
 from ..core.errors import InputError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget, usable_cpus
@@ -156,6 +155,9 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
     store too: Dask workers on other machines need a file system they share with this
     one) and swapped in whole when complete (``overwrite``: see
     :func:`~render_inspect.io.atomic_output_dir`)."""
+    # (the tiles' machinery, imported here: an in-memory simulation does not need it)
+    from ..batch import cluster_info, run_tiles, tile_client
+
     t_all = time.perf_counter()
     process = process_of(scene)
     cfg = process.inputs_of(scene)
