@@ -84,6 +84,7 @@ from ..core.lazy import njit  # numba, imported on first use
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_M, NM_TO_MM
 from ._errmotion import ErrorMotions
+from ._iir import bilinear_sos, sosfilt
 from ._interpolate import check_program, linear_command, pvt_command
 
 __all__ = ["Axis", "Coupling", "Machine", "AxisResponse", "follow_axis", "second_order_sos",
@@ -197,8 +198,6 @@ class Coupling:
 
     def deflection(self, t: np.ndarray, x_followed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(dz, dy) in mm at the uniform ticks ``t`` for the followed X position (mm)."""
-        from scipy import signal
-
         t = np.asarray(t, dtype=np.float64)
         x = np.asarray(x_followed, dtype=np.float64)
         if self.none or t.size < 3:
@@ -208,21 +207,19 @@ class Coupling:
         a[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]) / (dt * dt)           # mm/s^2
         force = self.mass_kg * a * MM_TO_M                               # N
         sos = second_order_sos(self.mode_hz, self.mode_damping, dt)
-        shaped = signal.sosfilt(sos, force)
+        shaped = sosfilt(sos, force)
         return (shaped * self.z_compliance_nm_per_n * NM_TO_MM,
                 shaped * self.y_compliance_nm_per_n * NM_TO_MM)
 
 
 def second_order_sos(fn: float, zeta: float, dt: float) -> np.ndarray:
     """Unit-gain second-order low-pass at fn (bilinear transform, pre-warped so the
-    digital filter has its natural frequency exactly at fn) as second-order sections."""
-    from scipy import signal
-
+    digital filter has its natural frequency exactly at fn) as second-order sections
+    (SciPy's ``bilinear_zpk`` and ``zpk2sos``, to the last bit: :mod:`._iir`)."""
     fs = 1.0 / dt
     wn = TWO_PI * fn
     wa = 2 * fs * math.tan(min(wn / (2 * fs), 0.5 * math.pi * 0.999))
-    z, p, k = signal.bilinear_zpk([], np.roots([1.0, 2 * zeta * wa, wa * wa]), wa * wa, fs)
-    return signal.zpk2sos(z, p, np.real(k))
+    return bilinear_sos(np.roots([1.0, 2 * zeta * wa, wa * wa]), wa * wa, fs)
 
 
 def loop_lag(axis: Axis) -> float:

@@ -34,6 +34,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ..core.errors import InputError, check_range
+from ._iir import butter2_sos, sosfilt
 
 __all__ = ["ErrorMotions", "apply_error_motions", "error_motion_offsets"]
 
@@ -114,14 +115,12 @@ class ErrorMotions:
 
 
 def _band_noise(n: int, rate_hz: float, bandwidth_hz: float, rms: float, rng) -> np.ndarray:
-    from scipy import signal
-
     if rms == 0 or n == 0:
         return np.zeros(n)
     w = rng.normal(size=n)
     wc = min(bandwidth_hz / (0.5 * rate_hz), 0.99)
-    sos = signal.butter(2, wc, output="sos")
-    y = signal.sosfilt(sos, w)
+    sos = butter2_sos(wc)    # (scipy.signal.butter and sosfilt, to the last bit)
+    y = sosfilt(sos, w)
     # drop the filter's start-up by scaling on the settled part
     settle = min(n // 2, int(5 * rate_hz / bandwidth_hz) + 1)
     s = np.std(y[settle:]) if n - settle > 10 else np.std(y)

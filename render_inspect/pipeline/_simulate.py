@@ -24,7 +24,7 @@ from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
-from ..report import draw_figure, residual_preview_png
+from ..report import draw_figure, preload_drawing, residual_preview_png
 from ._metrics import simulation_metrics, write_metrics
 from ._toolpath import check_links
 
@@ -94,13 +94,17 @@ class Simulation:
         return {**self.plan.plots, **self.cut.plots}
 
 
-def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
+def simulate(scene: Scene, *, surface: Surface | None = None,
+             preload_figures: bool = False) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process plans its program for the region, the memory needed is checked
     against the memory budget (``simulation.max_memory_gb``, or a share of the memory
     available) before and after planning, and the process cuts the surface; the metrics
     are built once (:func:`~render_inspect.pipeline.simulation_metrics`).
+    ``preload_figures``: once the program is planned (its inputs read and checked),
+    import the figures' library in a thread while the surface is cut
+    (:func:`~render_inspect.report.preload_drawing`), for a caller that draws them next.
     """
     t_all = time.perf_counter()
     process = process_of(scene)
@@ -116,6 +120,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None) -> Simulation:
         plan = process.plan_window(cfg, surface, region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
+    if preload_figures:
+        _preload_figures()
     # the program's moves between its cuts are simulated too: they never touch
     # the part (metrics toolpath.links; an error naming the block otherwise)
     links = check_links(process, cfg, surface, plan)
@@ -165,6 +171,23 @@ def timed(timing: dict, key: str, fn: Callable[..., Any], *args: Any, **kw: Any)
     out = fn(*args, **kw)
     timing[key] = round(time.perf_counter() - t0, 4)
     return out
+
+
+def _preload_figures() -> threading.Thread:
+    """Start a thread that imports what the figures are drawn with
+    (:func:`~render_inspect.report.preload_drawing`), so that the import overlaps the
+    computation instead of delaying the figures at the end.  A failure there is left to
+    the drawing, which imports the same and reports it."""
+
+    def run() -> None:
+        try:
+            preload_drawing()
+        except Exception:  # (the figures' own import raises it again, where it is reported)
+            pass
+
+    t = threading.Thread(target=run, name="render_inspect-figures-preload", daemon=True)
+    t.start()
+    return t
 
 
 def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = True) -> dict:

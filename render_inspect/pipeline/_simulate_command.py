@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..batch import cluster_info, run_tiles, tile_client
 from ..core.errors import InputError
 from ..core.grid import grid_shape
 from ..core.limits import Driver, format_number, memory_budget, usable_cpus
@@ -87,7 +86,8 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
                                   overwrite=overwrite)
     with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
         t0 = time.perf_counter()
-        sim = simulate(scene)
+        # (the figures' library is imported in a thread while the part is cut)
+        sim = simulate(scene, preload_figures=True)
         log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
                  time.perf_counter() - t0)
         t0 = time.perf_counter()
@@ -155,6 +155,9 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
     store too: Dask workers on other machines need a file system they share with this
     one) and swapped in whole when complete (``overwrite``: see
     :func:`~render_inspect.io.atomic_output_dir`)."""
+    # (the tiles' machinery, imported here: an in-memory simulation does not need it)
+    from ..batch import cluster_info, run_tiles, tile_client
+
     t_all = time.perf_counter()
     process = process_of(scene)
     cfg = process.inputs_of(scene)

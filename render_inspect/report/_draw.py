@@ -22,7 +22,7 @@ from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
 from ._program import plot_feed_per_rev
 
-__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds"]
+__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds", "preload_drawing"]
 
 #: the figure kinds :func:`draw_figure` draws itself (more are registered:
 #: :func:`figure_kinds`)
@@ -34,6 +34,17 @@ def figure_kinds() -> tuple[str, ...]:
     """Every figure kind :func:`draw_figure` draws: the built-in ones and those registered
     with :func:`~render_inspect.report.register_figure`."""
     return FIGURE_KINDS + tuple(k for k in registered_figures() if k not in FIGURE_KINDS)
+
+
+def preload_drawing() -> None:
+    """Import what drawing a figure needs (matplotlib with its Agg backend, pyplot and the
+    font list: about 0.35 s), so that a command can do it in a thread while it computes
+    what the figures show.  Drawing does the same imports itself when they are not done."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot  # noqa: F401
+    from matplotlib.font_manager import fontManager  # noqa: F401  (reads the font list)
 
 
 def draw_figure(spec: dict, png: str | Path) -> Path:
