@@ -74,3 +74,5 @@ def _compare(args: argparse.Namespace, overwrite: bool) -> dict:
 
 #: command -> what runs it, ``(args, overwrite) -> result``
 RUN = {"render": _render, "compare": _compare}
+#: commands whose process ends as soon as their files are written (``_main.EXIT_AT_ONCE``)
+EXIT_AT_ONCE = ("render",)
