@@ -267,6 +267,7 @@ def test_the_preload_loads_the_kernels_the_frames_use_with_their_argument_types(
     got = json.loads(p.stdout.strip().splitlines()[-1])
     assert set(got["loaded"]) >= {"_facets_kernel", "_wrap_axis0", "_wrap_axis1_cosine",
                                   "_steps_over_kernel", "_pixel_means_kernel",
+                                  "_heights_about_kernel",
                                   "_radial_index_kernel", "_filter_fold_indexed",
                                   "_frames_kernel"}
     assert got["after"] == got["loaded"]
