@@ -36,7 +36,7 @@ from ..core.units import MM_TO_NM
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
-from ._camera import Camera
+from ._camera import Camera, make_fixed_patterns
 from ._imaging import _Serial, _threads_allowed
 from ._kernels import pixel_means, preload
 from ._transfer import acceptance_table
@@ -409,15 +409,17 @@ def surface_sampling(heightmap: HeightMap, surface: str, geom: dict, mic: Micros
     return s, info
 
 
-def _preload_thread(mic: Microscope) -> threading.Thread:
+def _preload_thread(mic: Microscope, shape: tuple[int, int]) -> threading.Thread:
     """A thread (not started) that loads what the imaging model of ``mic`` uses after the
-    ray tracing (:func:`~._kernels.preload`, the facets' acceptance table).  A failure
-    there is left to the model's own call of the same code, which reports it."""
+    ray tracing (:func:`~._kernels.preload`, the facets' acceptance table) and makes the
+    camera's fixed patterns over its ``shape`` pixels.  A failure there is left to the
+    model's own call of the same code, which reports it."""
 
     def run():
         try:
             preload()
             acceptance_table(mic.na, mic.na_ill, mic.obscuration)
+            make_fixed_patterns(mic.camera, shape)
         except Exception:  # (the model's own call raises it again, where it is reported)
             pass
 
@@ -470,7 +472,7 @@ def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None
     # while the ray tracer builds its tree and traces (it lets go of the interpreter),
     # started once the mesh is made (whose array work would otherwise share the
     # interpreter with it); only in a process's main thread, as the model's other threads
-    loading = _preload_thread(mic) if _threads_allowed() else None
+    loading = _preload_thread(mic, (geom["ny"], geom["nx"])) if _threads_allowed() else None
     try:
         h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s,
                                                meshed=None if loading is None else loading.start)
