@@ -290,8 +290,8 @@ def interferometer_geometry(heightmap: GridCoordinates, icfg: InterferometerConf
 
 
 def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined",
-                  subsamples: int = 2,
-                  meshed: Callable[[], object] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  subsamples: int = 2, meshed: Callable[[], object] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray-trace the mesh of one height-map channel through the objective.
 
     Rays that pass exactly through a mesh edge or vertex can slip between the two
