@@ -102,6 +102,30 @@ def test_the_camera_equals_the_array_expressions(exposure, dark):
     assert got2 is inplace and _same(got2, expect)
 
 
+def test_the_fixed_patterns_made_ahead_give_the_frames_made_without():
+    """The interferometer makes the camera's fixed patterns while the ray tracer works
+    (:func:`~render_inspect.instruments._camera.make_fixed_patterns`): the exposure that
+    takes them gives the frames it gives when it makes them itself, and takes them once;
+    patterns made for another shape or camera are not used."""
+    from render_inspect.instruments import _camera
+
+    rng = np.random.default_rng(4)
+    inten = (rng.random((3, 9, 11)) * 2).astype(np.float32)
+    cam = Camera(prnu=0.01, dsnu_e=3.0)
+    expect, _ = expose(inten, cam, seed=5)
+    _camera.make_fixed_patterns(cam, (9, 11))
+    got, _ = expose(inten, cam, seed=5)
+    assert _same(got, expect) and not _camera._MADE
+    _camera.make_fixed_patterns(Camera(prnu=0.02), (9, 11))  # another camera's: left alone
+    got, _ = expose(inten, cam, seed=5)
+    assert _same(got, expect) and _camera._MADE
+    _camera.make_fixed_patterns(cam, (9, 12))  # another shape's
+    got, _ = expose(inten, cam, seed=5)
+    assert _same(got, expect)
+    _camera.make_fixed_patterns(Camera(noise=False), (9, 11))  # no noise: none kept
+    assert not _camera._MADE
+
+
 def test_the_deviates_drawn_into_a_buffer_are_the_stream_drawn_fresh():
     a = np.random.default_rng(9)
     b = np.random.default_rng(9)
@@ -267,6 +291,7 @@ def test_the_preload_loads_the_kernels_the_frames_use_with_their_argument_types(
     got = json.loads(p.stdout.strip().splitlines()[-1])
     assert set(got["loaded"]) >= {"_facets_kernel", "_wrap_axis0", "_wrap_axis1_cosine",
                                   "_steps_over_kernel", "_pixel_means_kernel",
+                                  "_heights_about_kernel",
                                   "_radial_index_kernel", "_filter_fold_indexed",
                                   "_frames_kernel"}
     assert got["after"] == got["loaded"]

@@ -221,6 +221,28 @@ def test_the_under_sampling_count_is_the_array_expressions(shape):
     assert steps_over(dh, ret, np.float32(np.inf)) == 0
 
 
+@pytest.mark.parametrize("shape,none_return", [((1, 1), False), ((40, 53), False),
+                                              ((40, 53), True), ((0, 5), False)])
+def test_the_heights_about_the_plane_are_the_array_expressions(shape, none_return):
+    from render_inspect.instruments._kernels import heights_about
+
+    rng = np.random.default_rng(sum(shape))
+    h = 0.3 + rng.standard_normal(shape) * 1e-4  # mm, about a plane 0.3 mm up
+    ret = (rng.random(shape) > 0.3) & (not none_return)
+    h[~ret & (rng.random(shape) > 0.5)] = np.nan  # a missed ray (the others: dark facets)
+    if ret.size:
+        ret.flat[0] = not none_return
+        h.flat[0] = 0.3
+    zbar = float(np.mean(h[ret])) if ret.any() else 0.25
+    expect = (h - zbar).astype(np.float32)
+    expect[~ret] = 0.0
+    lo, hi = ((float(expect[ret].min()), float(expect[ret].max())) if ret.any()
+              else (0.0, 0.0))
+    got, a, b = heights_about(h, ret, zbar)
+    assert _same(got, expect)
+    assert (a, b) == (lo, hi)
+
+
 @pytest.mark.mitsuba
 @pytest.mark.parametrize("fov", [(0.009, 0.009, 0.089, 0.089), (0.03, 0.03, 0.07, 0.07)])
 def test_the_traced_sub_samples_outside_the_map_are_nan(fov):

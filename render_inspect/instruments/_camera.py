@@ -27,7 +27,7 @@ import numpy as np
 
 from ..core.errors import InputError, check_range
 
-__all__ = ["POISSON_EXACT_BELOW", "Camera", "expose"]
+__all__ = ["POISSON_EXACT_BELOW", "Camera", "expose", "make_fixed_patterns"]
 
 #: Expected electron counts below this draw exact Poisson shot noise.
 POISSON_EXACT_BELOW = 100.0
@@ -95,6 +95,22 @@ class Camera:
         return asdict(self)
 
 
+#: the fixed patterns made ahead of an exposure (:func:`make_fixed_patterns`), taken by it
+_MADE: dict = {}
+
+
+def make_fixed_patterns(camera: Camera, shape: tuple[int, int]) -> None:
+    """Make the fixed patterns of ``camera`` over ``shape`` pixels ahead of the exposure
+    that takes them (:func:`expose`, once; the same arrays it would make itself): the
+    interferometer makes them in a thread while the ray tracer works.  One set is kept
+    at a time."""
+    key = (camera, tuple(int(v) for v in shape))
+    made = _fixed_patterns(camera, key[1]) if camera.noise else None
+    _MADE.clear()
+    if made is not None:
+        _MADE[key] = made
+
+
 def _fixed_patterns(camera: Camera, shape):
     rng = np.random.default_rng([int(camera.fixed_pattern_seed), 0x46504E])  # "FPN"
     gain = np.ones(shape, dtype=np.float32)
@@ -139,7 +155,8 @@ def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0
         raise InputError(f"intensity must be an (N, H, W) stack, got shape {inten.shape}")
     shape = inten.shape[1:]
     if cam.noise:
-        gain_map, offset_map = _fixed_patterns(cam, shape)
+        made = _MADE.pop((cam, tuple(shape)), None)
+        gain_map, offset_map = made if made is not None else _fixed_patterns(cam, shape)
     else:
         gain_map, offset_map = np.ones(shape, np.float32), np.zeros(shape, np.float32)
     peak = float(np.max(np.max(inten, axis=0) * gain_map)) if inten.size else 0.0

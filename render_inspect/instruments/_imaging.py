@@ -55,7 +55,8 @@ from ..core.lazy import lazy_attr, lazy_module
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
-from ._kernels import facets, filter_fold, frames_from_field, radial_index, smoothed_cosine, steps_over
+from ._kernels import (facets, filter_fold, frames_from_field, heights_about, radial_index,
+                       smoothed_cosine, steps_over)
 # the instrument's description (importable from here as before)
 from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._transfer import (
@@ -338,14 +339,9 @@ def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = Non
     # --- heights relative to a reference plane, the range of z - h the frames need
     any_ret = bool(returns.any())
     zbar = float(np.mean(h[returns])) if any_ret else (float(np.mean(h[fin])) if fin.any() else 0.0)
-    dh32 = (h - zbar).astype(np.float32)
-    dh32[~returns] = 0.0
-    if any_ret:
-        ret32 = dh32[returns]
-        hmin, hmax = float(ret32.min()), float(ret32.max())
-        del ret32
-    else:
-        hmin, hmax = 0.0, 0.0
+    # (the heights about it, 0 where no light returns, and their range where it returns,
+    # in one compiled pass: _kernels.heights_about)
+    dh32, hmin, hmax = heights_about(h, returns, zbar)
     zrel = zpos - zbar
     zeta = max(abs(float(zrel.max()) - hmin), abs(float(zrel.min()) - hmax))
     if reference_figure is not None:

@@ -21,6 +21,7 @@ import logging
 import math
 import threading
 from pathlib import Path
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
@@ -35,7 +36,7 @@ from ..core.units import MM_TO_NM
 from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
-from ._camera import Camera
+from ._camera import Camera, make_fixed_patterns
 from ._imaging import _Serial, _threads_allowed
 from ._kernels import pixel_means, preload
 from ._transfer import acceptance_table
@@ -289,7 +290,8 @@ def interferometer_geometry(heightmap: GridCoordinates, icfg: InterferometerConf
 
 
 def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined",
-                  subsamples: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  subsamples: int = 2, meshed: Callable[[], object] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray-trace the mesh of one height-map channel through the objective.
 
     Rays that pass exactly through a mesh edge or vertex can slip between the two
@@ -301,7 +303,8 @@ def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined"
 
     The sub-samples cover ``geom["trace_window"]`` (the field plus ``geom["margin"]``
     pixels each side; outside the height map the rays miss: NaN); the pixel centres cover
-    the field only.
+    the field only.  ``meshed``, when given, is called once the mesh is made, before the
+    ray tracer builds its tree.
 
     Returns
     -------
@@ -320,6 +323,8 @@ def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined"
     gm = heightmap_mesh(heightmap, channel=surface, exaggeration=1.0, window=[cx0, cy0, cx1, cy1],
                         margin=2, normals=True)
     z_off = gm.metadata["z_offset_mm"]
+    if meshed is not None:  # (called once the mesh is made, before the ray tracer's tree)
+        meshed()
     z_top = float(gm.vertices[:, 2].max()) + max(1.0, 10 * geom["pixel"])
     fine = min(heightmap.pixel, geom["pixel"] / s)
     coord = max(abs(x0), abs(x1), abs(y0), abs(y1), 1e-3)
@@ -404,21 +409,21 @@ def surface_sampling(heightmap: HeightMap, surface: str, geom: dict, mic: Micros
     return s, info
 
 
-def _start_preload(mic: Microscope) -> threading.Thread:
-    """Start a thread that loads what the imaging model of ``mic`` uses after the ray
-    tracing (:func:`~._kernels.preload`, the facets' acceptance table).  A failure there
-    is left to the model's own call of the same code, which reports it."""
+def _preload_thread(mic: Microscope, shape: tuple[int, int]) -> threading.Thread:
+    """A thread (not started) that loads what the imaging model of ``mic`` uses after the
+    ray tracing (:func:`~._kernels.preload`, the facets' acceptance table) and makes the
+    camera's fixed patterns over its ``shape`` pixels.  A failure there is left to the
+    model's own call of the same code, which reports it."""
 
     def run():
         try:
             preload()
             acceptance_table(mic.na, mic.na_ill, mic.obscuration)
+            make_fixed_patterns(mic.camera, shape)
         except Exception:  # (the model's own call raises it again, where it is reported)
             pass
 
-    t = threading.Thread(target=run, name="render_inspect-preload", daemon=True)
-    t.start()
-    return t
+    return threading.Thread(target=run, name="render_inspect-preload", daemon=True)
 
 
 # -------------------------------------------------------------------------- top level
@@ -464,13 +469,15 @@ def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None
     s, sampling = surface_sampling(heightmap, surface, geom, mic, s_rec=s_rec,
                                    fixed=icfg.subsamples is not None)
     # the compiled passes and the libraries the frames use next are loaded in a thread
-    # while the ray tracer builds its tree and traces (it lets go of the interpreter);
-    # only in a process's main thread, as the model's other threads
-    loading = _start_preload(mic) if _threads_allowed() else None
+    # while the ray tracer builds its tree and traces (it lets go of the interpreter),
+    # started once the mesh is made (whose array work would otherwise share the
+    # interpreter with it); only in a process's main thread, as the model's other threads
+    loading = _preload_thread(mic, (geom["ny"], geom["nx"])) if _threads_allowed() else None
     try:
-        h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s)
+        h_sub, n_sub, h_centre = trace_heights(heightmap, geom, surface=surface, subsamples=s,
+                                               meshed=None if loading is None else loading.start)
     finally:
-        if loading is not None:
+        if loading is not None and loading.ident is not None:  # (started)
             loading.join()
     diag: dict = {}
     common = {"pixel": geom["pixel"], "subsamples": s, "microscope": mic, "disturbances": dist,

@@ -9,8 +9,8 @@ import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.smoothing import gaussian_weights
 
-__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "pixel_means", "preload",
-           "radial_index", "smoothed_cosine", "steps_over"]
+__all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "heights_about",
+           "pixel_means", "preload", "radial_index", "smoothed_cosine", "steps_over"]
 
 _KERNEL = None
 
@@ -355,6 +355,44 @@ def steps_over(dh32: np.ndarray, returns: np.ndarray, lim: float | np.floating) 
     return int(rows.sum())
 
 
+# ------------------------------------------- the heights about the reference plane
+@njit(parallel=True, cache=True)
+def _heights_about_kernel(h, ret, zbar, out, lo, hi):
+    ny, nx = h.shape
+    for i in prange(ny):
+        a = np.float32(np.inf)
+        b = np.float32(-np.inf)
+        for j in range(nx):
+            if ret[i, j]:
+                v = np.float32(h[i, j] - zbar)
+                out[i, j] = v
+                a = min(a, v)
+                b = max(b, v)
+            else:
+                out[i, j] = 0
+        lo[i] = a
+        hi[i] = b
+
+
+def heights_about(h: np.ndarray, returns: np.ndarray,
+                  zbar: float) -> tuple[np.ndarray, float, float]:
+    """The heights ``h`` (mm) about the plane ``zbar`` in float32 where ``returns`` (0
+    elsewhere), and the least and largest of the returning ones (0 and 0 where none
+    returns), in one compiled pass threaded over rows: the numbers of
+    ``(h - zbar).astype(np.float32)`` with ``[~returns] = 0`` and the ``min()`` and
+    ``max()`` of its returning elements, without their temporaries."""
+    h64 = np.ascontiguousarray(h, dtype=np.float64)
+    out = np.empty(h64.shape, dtype=np.float32)
+    lo = np.empty(h64.shape[0], dtype=np.float32)
+    hi = np.empty(h64.shape[0], dtype=np.float32)
+    _heights_about_kernel(h64, np.ascontiguousarray(returns, dtype=np.bool_), float(zbar),
+                          out, lo, hi)
+    a, b = (float(lo.min()), float(hi.max())) if lo.size else (math.inf, -math.inf)
+    if a > b:  # (no returning sub-sample)
+        return out, 0.0, 0.0
+    return out, a, b
+
+
 # ------------------------------------------------------------ loading them beforehand
 def preload() -> None:
     """Load the compiled passes above (from numba's cache, or compiled where it lacks
@@ -378,6 +416,7 @@ def preload() -> None:
     cos_t, _, reached, unit = facets(nrm, h)
     smoothed_cosine(unit[0], unit[1], unit[2], 1.0)
     steps_over(f32, reached, np.float32(1.0))
+    heights_about(h, reached, 0.0)
     pixel_means(h, 2, 0, (n // 2, n // 2))
     q2 = np.zeros(n, dtype=np.float32)
     index = radial_index(q2, q2, np.float32(1.0), 4)
