@@ -30,6 +30,7 @@ import numpy as np
 
 from ..core import cancel
 from ..core.errors import InputError
+from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
@@ -245,18 +246,20 @@ class _Running:
 #: kept instead of given back (every tile allocates its block's arrays afresh: given back,
 #: each page faults again when the next tile touches it), the heap grown by 64 MiB at a time
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
-_KEPT_HEAP = ((_M_MMAP_THRESHOLD, 1 << 30), (_M_TRIM_THRESHOLD, (1 << 31) - 1), (_M_TOP_PAD, 64 << 20))
+_KEPT_HEAP = ((_M_MMAP_THRESHOLD, GIB_TO_BYTES), (_M_TRIM_THRESHOLD, 2 * GIB_TO_BYTES - 1),
+              (_M_TOP_PAD, 64 * MIB_TO_BYTES))
 #: after the run: glibc's defaults for the top pad, and the thresholds its dynamic rule
 #: reaches with arrays of 32 MiB (the trim threshold twice the mmap threshold)
-_HEAP_AFTER = ((_M_TOP_PAD, 128 << 10), (_M_TRIM_THRESHOLD, 64 << 20), (_M_MMAP_THRESHOLD, 32 << 20))
+_HEAP_AFTER = ((_M_TOP_PAD, MIB_TO_BYTES // 8), (_M_TRIM_THRESHOLD, 64 * MIB_TO_BYTES),
+               (_M_MMAP_THRESHOLD, 32 * MIB_TO_BYTES))
 
 
 @contextlib.contextmanager
 def _kept_heap() -> Iterator[bool]:
     """While the tiles of this process run (the threaded scheduler): glibc's allocator
     keeps the memory the tiles free for the next tiles (:data:`_KEPT_HEAP`), then gives it
-    back (``malloc_trim``).  The resident set stays at the tiles' high-water mark, which
-    :func:`~render_inspect.machining.tiled_bytes` counts; other C libraries: nothing
+    back (``malloc_trim``).  The resident set stays at the tiles' high-water mark (measured:
+    the peak of a whole part did not rise, docs/benchmarks.md); other C libraries: nothing
     changes.  Yields whether the settings were made."""
     try:
         libc = ctypes.CDLL("libc.so.6")

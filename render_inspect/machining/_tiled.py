@@ -183,23 +183,21 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     blk = (slice(None), slice(None)) if burrs is not None else (rows, cols)
     at = (rows, cols) if burrs is not None else (slice(None), slice(None))
     src = maps["machined"][blk]
-    machined: np.ndarray | None = None
-    if texture is not None and texture[0] > 0:
-        if np.isfinite(src).any():
-            r_a, c_a = (r0, c0) if burrs is not None else (tile.row, tile.col)
-            src = np.ascontiguousarray(src)
-            x = origin[0] + pixel * np.arange(c_a, c_a + src.shape[1])
-            y = origin[1] + pixel * np.arange(r_a, r_a + src.shape[0])
-            # texture_field added where the map is finite, in one compiled pass (the same
-            # numbers as numpy's): the texture's squares left there
-            machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1],
-                                    seed=texture[2])
-            ot = np.isfinite(machined[at])
-            part["texture_sumsq"], part["texture_n"] = float(np.sum(sq[at][ot])), int(ot.sum())
-            del sq, ot
-        else:   # no pixel to add it to (a block beyond the workpiece's rim)
+    if texture is not None and texture[0] > 0 and np.isfinite(src).any():
+        r_a, c_a = (r0, c0) if burrs is not None else (tile.row, tile.col)
+        src = np.ascontiguousarray(src)
+        x = origin[0] + pixel * np.arange(c_a, c_a + src.shape[1])
+        y = origin[1] + pixel * np.arange(r_a, r_a + src.shape[0])
+        # texture_field added where the map is finite, in one compiled pass (the same
+        # numbers as numpy's): the texture's squares left there
+        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
+        ot = np.isfinite(machined[at])
+        part["texture_sumsq"], part["texture_n"] = float(np.sum(sq[at][ot])), int(ot.sum())
+        del sq, ot
+    else:
+        if texture is not None and texture[0] > 0:
+            # no pixel to add it to (a block beyond the workpiece's rim): the sums are 0
             part["texture_sumsq"], part["texture_n"] = 0.0, 0
-    if machined is None:
         machined = src.copy()
     del maps, src
     if burrs is not None:
