@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 import contextlib
+import ctypes
 import math
 import threading
 import time
@@ -29,6 +30,7 @@ import numpy as np
 
 from ..core import cancel
 from ..core.errors import InputError
+from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
@@ -238,6 +240,42 @@ class _Running:
             return self._cond.wait_for(lambda: self._n == 0, timeout=timeout)
 
 
+#: glibc's mallopt parameters (malloc.h) and what the tiles' run sets them to: arrays up
+#: to 1 GiB from the heap (glibc's dynamic threshold stops at 32 MiB, below the 36 MB
+#: arrays of a 1024-pixel tile's block with the wider halo of uncut pixels), freed memory
+#: kept instead of given back (every tile allocates its block's arrays afresh: given back,
+#: each page faults again when the next tile touches it), the heap grown by 64 MiB at a time
+_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
+_KEPT_HEAP = ((_M_MMAP_THRESHOLD, GIB_TO_BYTES), (_M_TRIM_THRESHOLD, 2 * GIB_TO_BYTES - 1),
+              (_M_TOP_PAD, 64 * MIB_TO_BYTES))
+#: after the run: glibc's defaults for the top pad, and the thresholds its dynamic rule
+#: reaches with arrays of 32 MiB (the trim threshold twice the mmap threshold)
+_HEAP_AFTER = ((_M_TOP_PAD, MIB_TO_BYTES // 8), (_M_TRIM_THRESHOLD, 64 * MIB_TO_BYTES),
+               (_M_MMAP_THRESHOLD, 32 * MIB_TO_BYTES))
+
+
+@contextlib.contextmanager
+def _kept_heap() -> Iterator[bool]:
+    """While the tiles of this process run (the threaded scheduler): glibc's allocator
+    keeps the memory the tiles free for the next tiles (:data:`_KEPT_HEAP`), then gives it
+    back (``malloc_trim``).  The resident set stays at the tiles' high-water mark (measured:
+    the peak of a whole part did not rise, docs/benchmarks.md); other C libraries: nothing
+    changes.  Yields whether the settings were made."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        mallopt, trim = libc.mallopt, libc.malloc_trim
+    except (OSError, AttributeError):
+        yield False
+        return
+    ok = all(mallopt(p, v) == 1 for p, v in _KEPT_HEAP)
+    try:
+        yield ok
+    finally:
+        for p, v in _HEAP_AFTER:
+            mallopt(p, v)
+        trim(0)
+
+
 def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[float], pixel: float,
               shape: Sequence[int], store: str, levels: int, tile: int = TILE, client: Any = None,
               workers: int | None = None, progress: Callable[[int, int, float], object] | None = None,
@@ -295,11 +333,12 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
         runs = column_runs(tiles, 2 * n_workers) if n_workers else [[t] for t in tiles]
     else:
         runs = [[t] for t in tiles]
-    done = {(p["tile"].row, p["tile"].col): p
-            for r in _run(tile_task, [(r, store, levels, tile_levels) for r in runs],
-                          (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
-                          client=client, workers=workers, progress=progress, total=len(tiles))
-            for p in r}
+    with _kept_heap() if client is None else contextlib.nullcontext(False):
+        done = {(p["tile"].row, p["tile"].col): p
+                for r in _run(tile_task, [(r, store, levels, tile_levels) for r in runs],
+                              (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
+                              client=client, workers=workers, progress=progress, total=len(tiles))
+                for p in r}
     # in the tiles' order: the moments are merged in it (the same sums whatever the runs)
     parts = [done[(t.row, t.col)] for t in tiles]
     timing["tiles"] = time.perf_counter() - t0

@@ -24,7 +24,7 @@ import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.smoothing import gaussian_weights
 
-__all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "slope_angles"]
+__all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "edge_turn_window", "gaussian_nearest_cross", "slope_angles"]
 
 #: rows per block of the threaded numpy passes
 _BLOCK_ROWS = 256
@@ -109,6 +109,100 @@ def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
     out = np.empty_like(z)
     _smooth_axis0(z, w, out, _SMOOTH_COLUMNS)
     _smooth_axis1(out, w, out, _SMOOTH_COLUMNS)   # in place: each row is copied out first
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _smooth_axis0_window(z, w, out, cw, r0, r1, c0, c1):
+    """:func:`_smooth_axis0` on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
+    of ``out`` only (the rows of ``z`` clamped at its ends, as there)."""
+    ny, nx = z.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    nr = r1 - r0
+    nc = (c1 - c0 + cw - 1) // cw
+    for t in prange(nr * nc):
+        c = t // nr
+        i = r0 + t - c * nr
+        q0 = c0 + c * cw
+        m = min(q0 + cw, c1) - q0
+        acc = np.empty(m)
+        zi = z[i, q0:q0 + m]
+        for q in range(m):
+            acc[q] = zi[q] * w0
+        for jj in range(-r, 0):
+            a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
+            b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
+            wj = w[r + jj]
+            for q in range(m):
+                acc[q] = acc[q] + (a[q] + b[q]) * wj
+        out[i, q0:q0 + m] = acc
+
+
+@njit(parallel=True, cache=True)
+def _smooth_axis1_window(z, w, out, cw, r0, r1, c0, c1):
+    """:func:`_smooth_axis1` on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
+    of ``out`` only (the columns of ``z`` clamped at its ends, as there; ``out`` is not
+    ``z``)."""
+    ny, nx = z.shape
+    r = (w.size - 1) // 2
+    w0 = w[r]
+    n = c1 - c0
+    for i in prange(r0, r1):
+        pad = np.empty(n + 2 * r)
+        zi = z[i]
+        for q in range(n + 2 * r):
+            pad[q] = zi[min(max(c0 + q - r, 0), nx - 1)]
+        acc = np.empty(cw)
+        for q0 in range(0, n, cw):
+            m = min(cw, n - q0)
+            c = pad[q0 + r:q0 + r + m]
+            for q in range(m):
+                acc[q] = c[q] * w0
+            for jj in range(-r, 0):
+                wj = w[r + jj]
+                a = pad[q0 + r + jj:q0 + r + jj + m]
+                b = pad[q0 + r - jj:q0 + r - jj + m]
+                for q in range(m):
+                    acc[q] = acc[q] + (a[q] + b[q]) * wj
+            o = out[i, c0 + q0:c0 + q0 + m]
+            for q in range(m):
+                o[q] = acc[q]
+
+
+def gaussian_nearest_cross(z: np.ndarray, sigma: float, window: tuple[int, int, int, int],
+                           reach: int) -> np.ndarray | None:
+    """:func:`gaussian_nearest` of ``z`` where :func:`edge_turn_window` reads it for the
+    pixels ``window`` = (first row, end row, first column, end column): the window's
+    columns on its rows widened by ``reach``, and its rows on its columns widened by
+    ``reach`` (a cross); the same numbers there to the last bit, other pixels undefined.
+    None where the compiled passes do not apply (then smooth the whole map)."""
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    w = gaussian_weights(sigma)
+    if z.ndim != 2 or z.size == 0 or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
+        return None
+    ny, nx = z.shape
+    r = (w.size - 1) // 2
+    r0, r1, c0, c1 = (int(v) for v in window)
+    if r1 <= r0 or c1 <= c0:
+        return np.empty_like(z)
+    va, vb = max(r0 - reach, 0), min(r1 + reach, ny)      # the cross's rows on the window's columns
+    ha, hb = max(c0 - reach, 0), min(c1 + reach, nx)      # its columns on the window's rows
+    tmp = np.empty_like(z)
+    # axis 0 where axis 1 reads it: the cross widened by the Gaussian's reach along the rows
+    ka, kb = max(c0 - r, 0), min(c1 + r, nx)
+    _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, va, vb, ka, kb)
+    la, lb = max(ha - r, 0), min(hb + r, nx)
+    if la < ka:
+        _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, la, ka)
+    if kb < lb:
+        _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, kb, lb)
+    out = np.empty_like(z)
+    _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, va, vb, c0, c1)
+    if ha < c0:
+        _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, ha, c0)
+    if c1 < hb:
+        _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, c1, hb)
     return out
 
 
@@ -251,6 +345,68 @@ def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
         _turns_axis0(a0, int(span), thr, edges, turn)
     if nx >= 3:
         _turns_axis1(a1, int(span), thr, edges, turn)
+    return edges, turn
+
+
+def _axis_angles(z: np.ndarray, pixel: float, axis: int) -> np.ndarray:
+    """arctan of the slopes along one grid axis of ``z``: the very numbers of
+    :func:`slope_angles` (the same numpy operations, element by element), in row blocks
+    on threads."""
+    ny, nx = z.shape
+    a = np.empty((ny - 1, nx) if axis == 0 else (ny, nx - 1))
+
+    def block(r0):
+        r1 = min(r0 + _BLOCK_ROWS, a.shape[0])
+        v = a[r0:r1]
+        if axis == 0:
+            np.subtract(z[r0 + 1:r1 + 1], z[r0:r1], out=v)
+        else:
+            np.subtract(z[r0:r1, 1:], z[r0:r1, :-1], out=v)
+        np.divide(v, pixel, out=v)
+        np.arctan(v, out=v)
+
+    starts = range(0, a.shape[0], _BLOCK_ROWS)
+    if len(starts) > 1 and _threads() > 1:
+        with ThreadPoolExecutor(_threads()) as ex:
+            list(ex.map(block, starts))
+    else:
+        for r0 in starts:
+            block(r0)
+    return a
+
+
+def edge_turn_window(z: np.ndarray, window: tuple[int, int, int, int], *, pixel: float,
+                     edge_angle_deg: float, span: int) -> tuple[np.ndarray, np.ndarray]:
+    """(edges, turn) of :func:`edge_turn_maps` on the pixels ``window`` = (first row, end
+    row, first column, end column) of ``z`` only, the same numbers to the last bit.  A
+    pixel's tests along an axis read the slopes at most 3 ``span`` + 1 pixels away along
+    that axis, so the slopes are taken only on the window's rows widened by that along
+    axis 0 and on its columns widened by it along axis 1 (the kernels clamp at the ends of
+    what they are given as at the map's, which lie beyond that reach or are the map's)."""
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    ny, nx = z.shape
+    r0, r1, c0, c1 = (int(v) for v in window)
+    edges = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    turn = np.zeros((r1 - r0, c1 - c0))
+    if r1 <= r0 or c1 <= c0:
+        return edges, turn
+    thr = math.radians(edge_angle_deg)
+    reach = 3 * int(span) + 1
+    if ny >= 3:
+        a, b = max(r0 - reach, 0), min(r1 + reach, ny)
+        e = np.zeros((b - a, c1 - c0), dtype=bool)
+        t = np.zeros((b - a, c1 - c0))
+        _turns_axis0(_axis_angles(z[a:b, c0:c1], pixel, 0), int(span), thr, e, t)
+        edges |= e[r0 - a:r1 - a]
+        turn[...] = t[r0 - a:r1 - a]
+    if nx >= 3:
+        a, b = max(c0 - reach, 0), min(c1 + reach, nx)
+        e = np.zeros((r1 - r0, b - a), dtype=bool)
+        t = np.zeros((r1 - r0, b - a))
+        _turns_axis1(_axis_angles(z[r0:r1, a:b], pixel, 1), int(span), thr, e, t)
+        edges |= e[:, c0 - a:c1 - a]
+        # the kernel keeps the larger of the two axes' turns (both >= 0, 0 off the edges)
+        np.maximum(turn, t[:, c0 - a:c1 - a], out=turn)
     return edges, turn
 
 

@@ -65,7 +65,7 @@ from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
-from ._burr_kernels import edge_turn_maps, gaussian_nearest
+from ._burr_kernels import edge_turn_maps, edge_turn_window, gaussian_nearest, gaussian_nearest_cross
 
 #: SciPy, imported on first use (render_inspect.core.lazy)
 ndimage = lazy_module("scipy.ndimage")
@@ -255,14 +255,15 @@ def burr_map(design: np.ndarray, *, pixel: float, origin: Sequence[float] = (0.0
     return out
 
 
-def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True, True)):
+def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True, True), cross=None):
     """The map with NaN pixels filled from their nearest valid neighbour and smoothed by a
     Gaussian of standard deviation ``smoothing`` (mm), and the mask of pixels where no
     edge is looked for: NaN pixels and, when smoothed, the band of 3 standard deviations
     along the grid's border, where the smoothing bends the map (None for the map when all
     pixels are NaN).  ``border``: which sides of the map (first rows, last rows, first
     columns, last columns) are the grid's border (a block of a grid has the band only
-    there)."""
+    there).  ``cross`` = (window, reach): the smoothed map only where
+    :func:`~._burr_kernels.edge_turn_window` reads it for that window (undefined elsewhere)."""
     check_range("smoothing", smoothing, 0.0, None)
     z = np.asarray(machined, dtype=np.float64)
     bad = ~np.isfinite(z)
@@ -272,7 +273,9 @@ def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True
         idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
         z = z[tuple(idx)]
     if smoothing > 0:
-        z = gaussian_nearest(z, smoothing / pixel)   # scipy's gaussian_filter, threaded
+        zc = None if cross is None else gaussian_nearest_cross(z, smoothing / pixel, *cross)
+        # scipy's gaussian_filter, threaded (on the cross only where that is what is read)
+        z = gaussian_nearest(z, smoothing / pixel) if zc is None else zc
         b = int(math.ceil(3 * smoothing / pixel))
         bad = bad.copy()
         if border[0]:
@@ -426,7 +429,8 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
                         coefficient: float, variation: float = 0.3, seed: int = 0,
                         edge_angle_deg: float = 1.0, smoothing: float = 0.0, width: float,
                         border: Sequence[bool] = (True, True, True, True),
-                        start: Sequence[int] = (0, 0)
+                        start: Sequence[int] = (0, 0),
+                        inner: Sequence[int] | None = None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The burrs of :func:`material_burrs` on ``machined`` (a whole grid, or a block of
     it): (added height, edges, turn at the edges (rad), the law's height at the edges),
@@ -434,12 +438,32 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
     its grid index (row, column) of pixel [0, 0] (``origin`` stays the grid's) and
     ``border`` = which of its sides (first rows, last rows, first columns, last columns)
     are the grid's; on the pixels farther than :func:`burr_halo` from the block's other
-    sides the result equals the whole grid's bit for bit."""
+    sides the result equals the whole grid's bit for bit.
+
+    ``inner`` = (first row, end row, first column, end column) of the block: the maps of
+    those pixels only (the tile of a halo'd block), the same numbers as the block's maps
+    there.  The edges are then looked for only within the ridge's half width of them
+    (the edges whose burrs reach them), each from the smoothed map along its row and
+    column (:func:`~._burr_kernels.edge_turn_window`), and the ridges are laid on that
+    window; None where no edge lies in it."""
     w = float(width)
-    z, bad = _smoothed(machined, pixel, smoothing, border)
+    span = _span(pixel, smoothing)
+    window = None
+    if inner is not None:
+        # the edges whose ridges reach the inner pixels: within the ridge's half width
+        ny, nx = np.shape(machined)
+        a0, a1, b0, b1 = (int(v) for v in inner)
+        rw = int(math.ceil(w / (2 * pixel)))
+        window = (max(a0 - rw, 0), min(a1 + rw, ny), max(b0 - rw, 0), min(b1 + rw, nx))
+    z, bad = _smoothed(machined, pixel, smoothing, border,
+                       cross=None if window is None else (window, 3 * span + 1))
     if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:
         return None
-    span = _span(pixel, smoothing)
+    if window is not None:
+        return _burr_window(machined, z, bad, cast(Sequence[int], inner), window, pixel=pixel,
+                            origin=origin, chip_thickness=chip_thickness, coefficient=coefficient,
+                            variation=variation, seed=seed, edge_angle_deg=edge_angle_deg,
+                            width=w, span=span, start=start)
     edges, turn = edge_turns(z, pixel=pixel, edge_angle_deg=edge_angle_deg, span=span)
     edges &= ~bad
     if not edges.any():
@@ -449,6 +473,29 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
                  variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges,
                  start=start)
     return b, edges, turn, heights
+
+
+def _burr_window(machined, z, bad, inner: Sequence[int], window: Sequence[int], *, pixel: float,
+                 origin: Sequence[float], chip_thickness: float, coefficient: float, variation: float,
+                 seed: int, edge_angle_deg: float, width: float, span: int, start: Sequence[int]):
+    """:func:`material_burr_block`'s maps on the pixels ``inner`` of the block from its
+    smoothed map ``z`` and excluded pixels ``bad``: the edges on ``window``, the pixels
+    within the ridge's half width of them (a ridge reaches a pixel less than width / 2
+    from its edge: all of them lie in the window), and the ridges laid on that window."""
+    a0, a1, b0, b1 = (int(v) for v in inner)
+    r0, r1, c0, c1 = (int(v) for v in window)
+    check_range("edge_angle_deg", edge_angle_deg, 0.0, 90.0, lo_open=True, hi_open=True)
+    edges, turn = edge_turn_window(z, (r0, r1, c0, c1), pixel=pixel,
+                                   edge_angle_deg=edge_angle_deg, span=span)
+    edges &= ~bad[r0:r1, c0:c1]
+    if not edges.any():
+        return None
+    heights = np.where(edges, burr_height_law(chip_thickness, coefficient, turn), 0.0)
+    b = burr_map(machined[r0:r1, c0:c1], pixel=pixel, origin=origin, height=heights, width=width,
+                 variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges,
+                 start=(int(start[0]) + r0, int(start[1]) + c0))
+    at = (slice(a0 - r0, a1 - r0), slice(b0 - c0, b1 - c0))
+    return b[at], edges[at], turn[at], heights[at]
 
 
 def _span(pixel: float, smoothing: float) -> int:

@@ -405,6 +405,20 @@ def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows):
         finite_rows[i] = n
 
 
+def textured(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
+             correlation_length: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(``machined`` with :func:`texture_field` added where it is finite, the texture's
+    square there (other pixels: undefined)), new (ny, nx) arrays; ``machined`` a
+    C-contiguous float64 map and ``rms`` > 0.  The same numbers, to the last bit, as
+    ``np.where(ok, machined + tex, machined)`` and ``tex ** 2`` with numpy."""
+    check_range("rms", rms, 0.0, 1.0)
+    check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
+    out, sq = _texture_products(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64),
+                                correlation_length, seed)
+    _add_texture_rows(machined, out, sq, _texture_scale(rms), np.empty(machined.shape[0], dtype=np.int64))
+    return out, sq
+
+
 def add_texture_field(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
                       correlation_length: float, seed: int) -> tuple[np.ndarray, float]:
     """``machined`` (ny, nx) with :func:`texture_field` on the grid ``x`` by ``y`` added

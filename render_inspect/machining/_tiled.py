@@ -20,8 +20,10 @@ lies inside the grid: each pixel of the kernel depends only on the path and its 
 position (the path's reach is in the slice of passes, :meth:`CutPath.slice_for`), and
 the machined edges (a pixel whose neighbour was cut by another pass) need the neighbours
 of the tile's border pixels.  With the material's burrs the halo is the burr model's reach
-(:func:`~._burrs.burr_halo`: the smoothing, the edge's turn, the ridge's half width) and
-the texture and burrs are computed on the halo'd block and cropped to the tile.  The tile
+(:func:`~._burrs.burr_halo`: the smoothing, the edge's turn, the ridge's half width): the
+texture is added on the halo'd block, which is smoothed where the edge search reads it,
+and the edges and ridges are found only on the tile and the ridge's half width around it
+(``material_burr_block(..., inner=)``: the same numbers as on the whole block).  The tile
 also returns the partial sums of the material's facts (the grooves' squares, the largest
 displaced material, the edge pixels, the burrs' edge pixels and maxima) and, for the
 following-error map, its pixels on a stride of the whole grid.  The burr model's halo is
@@ -50,7 +52,7 @@ from ._burrs import BURR_WIDTH_PER_CHIP, burr_halo, material_burr_block
 from ._cut_kernel import CutPath, Grooves, cut_fill
 from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
-from ._material import texture_field
+from ._material import textured
 
 #: default tile side (pixels): a power of two (pyramid levels stay inside a tile) and a
 #: multiple of the kernel's block (tiles equal the whole-grid run bit for bit)
@@ -163,7 +165,11 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     r0, c0 = big.row, big.col
     rows = slice(tile.row - r0, tile.row - r0 + tile.rows)
     cols = slice(tile.col - c0, tile.col - c0 + tile.cols)
-    edges = machined_edges(maps["pass_theta"], jump=math.pi)[rows, cols]
+    # the machined edges of the tile: its pixels and their neighbours within the block
+    e0, e1 = max(rows.start - 1, 0), min(rows.stop + 1, big.rows)
+    f0, f1 = max(cols.start - 1, 0), min(cols.stop + 1, big.cols)
+    edges = machined_edges(maps["pass_theta"][e0:e1, f0:f1],
+                           jump=math.pi)[rows.start - e0:rows.stop - e0, cols.start - f0:cols.stop - f0]
     part: dict[str, Any] = {"grooves_sumsq": float(st[rows, 0].sum()), "grooves_n": int(st[rows, 1].sum()),
             "added_max": float(st[rows, 2].max()) if tile.rows else -math.inf}
     part["edge_pixels"] = int(edges.sum())
@@ -176,26 +182,33 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     # the texture and the burrs on the block that the burrs need (the tile alone without)
     blk = (slice(None), slice(None)) if burrs is not None else (rows, cols)
     at = (rows, cols) if burrs is not None else (slice(None), slice(None))
-    machined = maps["machined"][blk].copy()
-    del maps
-    if texture is not None and texture[0] > 0:
+    src = maps["machined"][blk]
+    if texture is not None and texture[0] > 0 and np.isfinite(src).any():
         r_a, c_a = (r0, c0) if burrs is not None else (tile.row, tile.col)
-        x = origin[0] + pixel * np.arange(c_a, c_a + machined.shape[1])
-        y = origin[1] + pixel * np.arange(r_a, r_a + machined.shape[0])
-        tex = texture_field(x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
-        ok = np.isfinite(machined)
-        machined[ok] += tex[ok]
-        tt, ot = tex[at], ok[at]
-        part["texture_sumsq"], part["texture_n"] = float(np.sum(tt[ot] ** 2)), int(ot.sum())
-        del tex, ok
+        src = np.ascontiguousarray(src)
+        x = origin[0] + pixel * np.arange(c_a, c_a + src.shape[1])
+        y = origin[1] + pixel * np.arange(r_a, r_a + src.shape[0])
+        # texture_field added where the map is finite, in one compiled pass (the same
+        # numbers as numpy's): the texture's squares left there
+        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
+        ot = np.isfinite(machined[at])
+        part["texture_sumsq"], part["texture_n"] = float(np.sum(sq[at][ot])), int(ot.sum())
+        del sq, ot
+    else:
+        if texture is not None and texture[0] > 0:
+            # no pixel to add it to (a block beyond the workpiece's rim): the sums are 0
+            part["texture_sumsq"], part["texture_n"] = 0.0, 0
+        machined = src.copy()
+    del maps, src
     if burrs is not None:
         part.update(burr_edge_pixels=0, burr_turn_max=0.0, burr_height_max=0.0, burr_added_max=0.0)
+        # the burrs of the tile's pixels only (the block is what they need)
         r = material_burr_block(machined, pixel=pixel, origin=origin, **burrs,
                                 border=(r0 == 0, big.row + big.rows == ny, c0 == 0, big.col + big.cols == nx),
-                                start=(r0, c0))
+                                start=(r0, c0), inner=(rows.start, rows.stop, cols.start, cols.stop))
         machined = machined[at].copy()
         if r is not None:
-            b, e, turn, heights = (a[at] for a in r)
+            b, e, turn, heights = r
             del r
             machined += b
             part["burr_edge_pixels"] = int(e.sum())
