@@ -105,6 +105,17 @@ def test_the_traced_program_is_compiled_once_and_traces_the_same_heights():
         np.testing.assert_allclose(got[1][0], expect, atol=5e-8)
 
 
+def test_a_design_file_that_changes_makes_another_key(tmp_path):
+    """A design section's files are part of its key: rewritten, the design is built again."""
+    p = tmp_path / "design.npy"
+    p.write_bytes(b"one")
+    d = {"type": "heightmap", "path": str(p), "channel": "design", "more": [str(tmp_path)]}
+    first = _fit_model._file_stamps(d)
+    assert len(first) == 1 and first[0][0] == str(p)  # (the folder is not a file)
+    p.write_bytes(b"three")
+    assert _fit_model._file_stamps(d) != first
+
+
 def test_evaluations_share_the_design_and_predict_the_same_surface(monkeypatch):
     """Scenes that differ in a process key share one design object (its highest point over
     the part found once, for the check of the program's links); the cut is the one a

@@ -15,6 +15,7 @@ import json
 import math
 import os
 import socket
+import stat
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,13 +94,7 @@ def design_surface(scene: Scene) -> Surface:
     key makes a new one per evaluation); a design read from a file is built again when
     the file changes."""
     d = scene.design.model_dump(mode="json")
-    path = d.get("path")
-    stamp = None
-    if isinstance(path, str):
-        with contextlib.suppress(OSError):
-            st = Path(path).stat()
-            stamp = [st.st_mtime_ns, st.st_size]
-    key = json.dumps([d, stamp], sort_keys=True, default=str)
+    key = json.dumps([d, _file_stamps(d)], sort_keys=True, default=str)
     with _DESIGNS_LOCK:
         surface = _DESIGNS.pop(key, None)
     if surface is None:
@@ -109,6 +104,20 @@ def design_surface(scene: Scene) -> Surface:
         while len(_DESIGNS) > KEPT_DESIGNS:
             _DESIGNS.pop(next(iter(_DESIGNS)))
     return surface
+
+
+def _file_stamps(node: Any) -> list:
+    """(name, modification time, size) of each file a design section names."""
+    if isinstance(node, dict):
+        return [s for v in node.values() for s in _file_stamps(v)]
+    if isinstance(node, list):
+        return [s for v in node for s in _file_stamps(v)]
+    if isinstance(node, str) and node:
+        with contextlib.suppress(OSError, ValueError):
+            st = Path(node).stat()
+            if stat.S_ISREG(st.st_mode):
+                return [[node, st.st_mtime_ns, st.st_size]]
+    return []
 
 
 def passive_omp_wait() -> None:
