@@ -15,6 +15,8 @@ import json
 import math
 import os
 import socket
+import stat
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -23,6 +25,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import set_reporter
+from ..design import Surface, make_surface
 from ..fit import EvaluationCache, run_local, set_value, task_hash
 from ..instruments import (MAX_AUTO_SUBSAMPLES, InterferometerConfig, height_instrument,
                            microscope_from_config, recommended_subsamples)
@@ -37,7 +40,7 @@ if TYPE_CHECKING:
 
 __all__ = ["SameSimulation", "predict_measurement", "preset_value", "preset_fill", "ForwardModel",
            "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS",
-           "LOCAL_THREADS", "passive_omp_wait"]
+           "LOCAL_THREADS", "passive_omp_wait", "design_surface", "KEPT_DESIGNS"]
 
 #: pixels traced around the fit window by the virtual instrument (cropped after imaging)
 MARGIN_PX = 8
@@ -50,6 +53,10 @@ FLOOR_DRAWS = 6
 #: inside the ray tracer's kernel once in five fits, although a lock let one thread at a
 #: time build and trace Mitsuba's scenes
 LOCAL_THREADS = 1
+#: designs kept per process for the evaluations (:func:`design_surface`)
+KEPT_DESIGNS = 4
+_DESIGNS: dict[str, Surface] = {}
+_DESIGNS_LOCK = threading.Lock()
 
 
 # --------------------------------------------------------------------- the forward model
@@ -64,7 +71,7 @@ def predict_measurement(task_spec: dict) -> tuple[np.ndarray, dict]:
     passive_omp_wait()
     _numba_threads_as_launched()
     scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
-    sim = simulate(scene)
+    sim = simulate(scene, surface=design_surface(scene))
     entry = height_instrument()
     # (the height instrument has a render hook: height_instrument() picks one that does)
     ig = entry.render(sim.heightmap, getattr(scene.render, entry.name),  # type: ignore[misc]
@@ -74,6 +81,43 @@ def predict_measurement(task_spec: dict) -> tuple[np.ndarray, dict]:
     return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
                "shape": list(h.shape), "residual_sq_nm": sim.metrics["residual"]["Sq_nm"],
                "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def design_surface(scene: Scene) -> Surface:
+    """The design of ``scene`` (:func:`~render_inspect.design.make_surface`), built once per
+    process for the evaluations that share it.  The design does not change between a
+    fit's evaluations, and what is worked out from it alone is kept on the surface: the
+    check that the program's moves between cuts clear the part finds the part's highest
+    point once, not once per evaluation (for a design without an interval bound, a dense
+    evaluation over the whole part: a third of a profile fit's evaluation).  The same
+    numbers either way.  The last :data:`KEPT_DESIGNS` designs are kept (a fit of a design
+    key makes a new one per evaluation); a design read from a file is built again when
+    the file changes."""
+    d = scene.design.model_dump(mode="json")
+    key = json.dumps([d, _file_stamps(d)], sort_keys=True, default=str)
+    with _DESIGNS_LOCK:
+        surface = _DESIGNS.pop(key, None)
+    if surface is None:
+        surface = make_surface(scene.design)
+    with _DESIGNS_LOCK:
+        _DESIGNS[key] = surface  # (the most recent last)
+        while len(_DESIGNS) > KEPT_DESIGNS:
+            _DESIGNS.pop(next(iter(_DESIGNS)))
+    return surface
+
+
+def _file_stamps(node: Any) -> list:
+    """(name, modification time, size) of each file a design section names."""
+    if isinstance(node, dict):
+        return [s for v in node.values() for s in _file_stamps(v)]
+    if isinstance(node, list):
+        return [s for v in node for s in _file_stamps(v)]
+    if isinstance(node, str) and node:
+        with contextlib.suppress(OSError, ValueError):
+            st = Path(node).stat()
+            if stat.S_ISREG(st.st_mode):
+                return [[node, st.st_mtime_ns, st.st_size]]
+    return []
 
 
 def passive_omp_wait() -> None:

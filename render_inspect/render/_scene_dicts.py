@@ -177,17 +177,22 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
                         np.ascontiguousarray(n_out, dtype=np.float32)))
         return out
     scene = load_scene_dict({"type": "scene", "part": mitsuba_mesh(gm)})
+    # the numbers that change from call to call (the rays' start height, the shift) enter
+    # the traced program as values it reads, not as constants written into it: the
+    # program is then the same for every mesh and compiled once per process, not once per
+    # call (the same float32 numbers either way, the same heights bit for bit)
+    z_start, sx, sy = (dr.opaque(mi.Float, v) for v in (float(z_top), dx, dy))
     out = []
     for g in grids:
         nx, ny = int(g["nx"]), int(g["ny"])
         cell = float(g["width_mm"]) / nx
         xs = (float(g["x0"]) + dx + (np.arange(nx) + 0.5) * cell).astype(np.float32)
         ys = (float(g["y0"]) + dy + (np.arange(ny) + 0.5) * cell).astype(np.float32)
-        o = mi.Point3f(mi.Float(np.tile(xs, ny)), mi.Float(np.repeat(ys, nx)), float(z_top))
+        o = mi.Point3f(mi.Float(np.tile(xs, ny)), mi.Float(np.repeat(ys, nx)), z_start)
         ray = mi.Ray3f(o, mi.Vector3f(0.0, 0.0, -1.0))
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
         hit = si.is_valid() & (si.n.z > 1e-6)
-        z = si.p.z + (si.n.x * dx + si.n.y * dy) / dr.select(hit, si.n.z, 1.0)
+        z = si.p.z + (si.n.x * sx + si.n.y * sy) / dr.select(hit, si.n.z, 1.0)
         z = dr.select(hit, z, dr.nan)
         if full_normals:
             comps = [dr.select(hit, c, 0.0) for c in (si.sh_frame.n.x, si.sh_frame.n.y,
