@@ -21,10 +21,19 @@ def _require_mypy() -> None:
         "mypy is not installed: run make setup (it installs requirements.lock)")
 
 
+@pytest.fixture(scope="module")
+def mypy_cache(tmp_path_factory) -> Path:
+    """One mypy cache for this file's two runs (same configuration): the second checks
+    only its own file and reads the package's analysis from the first (a module fixture is
+    per worker: the two tests run on one, in the order written)."""
+    return tmp_path_factory.mktemp("mypy") / "cache"
+
+
 @pytest.mark.slow
-def test_mypy_finds_no_type_errors(tmp_path):
+@pytest.mark.xdist_group("typing_mypy")
+def test_mypy_finds_no_type_errors(mypy_cache):
     _require_mypy()
-    r = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "cache")],
+    r = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(mypy_cache)],
                        cwd=REPO, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
     m = re.search(r"Success: no issues found in (\d+) source files", r.stdout)
@@ -40,7 +49,8 @@ def _typed_scene_example() -> str:
 
 
 @pytest.mark.slow
-def test_the_type_check_would_see_an_error(tmp_path):
+@pytest.mark.xdist_group("typing_mypy")
+def test_the_type_check_would_see_an_error(tmp_path, mypy_cache):
     """The same configuration reports a wrong type (the check above can fail), and the
     typed scene's example of docs/contributing.md passes it."""
     _require_mypy()
@@ -57,7 +67,7 @@ def test_the_type_check_would_see_an_error(tmp_path):
                    "steps, summed, negative, first = unwrap_c([0.0, 90.0])\n"
                    + _typed_scene_example())
     r = subprocess.run([sys.executable, "-m", "mypy", "--config-file", str(REPO / "pyproject.toml"),
-                        "--cache-dir", str(tmp_path / "cache"), str(bad)],
+                        "--cache-dir", str(mypy_cache), str(bad)],
                        cwd=REPO, capture_output=True, text=True)
     assert r.returncode == 1 and "Incompatible types in assignment" in r.stdout, r.stdout
     # a scene key misspelt where a function takes the typed Scene (the registered

@@ -77,6 +77,10 @@ GPU_MIN_SAMPLES = 1 << 22
 #: samples of one band of rows of the CPU kernel (a fraction of a second): the progress
 #: is reported, and a stop asked by a signal honoured, between bands
 BAND_SAMPLES = 1 << 20  # not a unit conversion
+#: grids of at most this many samples (two blocks, milliseconds of work) run on the
+#: calling thread: the thread pool and the parallel kernel's first compile would cost more
+#: than they save (the same code: the same heights bit for bit)
+SERIAL_MAX_SAMPLES = 2 * BLOCK * BLOCK
 
 
 # ------------------------------------------------------------------ the reference kernel
@@ -208,10 +212,19 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
                                             jw_c, K_a, K_b, K_c, phi, r, edge)
 
 
+def _fill_impl_serial(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc,
+                      dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge):
+    """:func:`_fill_impl`'s code under a name of its own: numba's cache names a kernel
+    after its function (name and line), so the serial and the parallel kernel made from
+    one function would share one cache entry and each load the other's code."""
+
+
+_fill_impl_serial.__code__ = _fill_impl.__code__.replace(co_name="_fill_impl_serial")
+
 #: the fast kernel on all cores (whole grids) and on one core without the GIL (tiles run
-#: side by side by a scheduler)
+#: side by side by a scheduler; grids of at most SERIAL_MAX_SAMPLES)
 _fill_parallel = njit(parallel=True, cache=True)(_fill_impl)
-_fill_serial = njit(nogil=True, cache=True)(_fill_impl)
+_fill_serial = njit(nogil=True, cache=True)(_fill_impl_serial)
 
 
 def envelope_fill(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
@@ -327,7 +340,8 @@ def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[flo
     rows = BLOCK * max(1, BAND_SAMPLES // max(BLOCK * nx, 1))
     for r0 in range(0, ny, rows):
         r1 = min(r0 + rows, ny)
-        envelope_fill(ep, (x0, y0), pixel, out[r0:r1], start=(r0, 0))
+        envelope_fill(ep, (x0, y0), pixel, out[r0:r1], start=(r0, 0),
+                      parallel=out.size > SERIAL_MAX_SAMPLES)
         report(r1, ny)
     return out
 

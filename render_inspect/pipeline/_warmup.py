@@ -52,6 +52,10 @@ def warm_up() -> float:
         path = _spiral(uniform)
         m = simulate_turning(path, nose_radius=0.1, half_width=0.05, region=region, pixel=0.002)
         simulate_turning(path, nose_radius=0.1, half_width=0.05, region=region, pixel=0.002, reference=True)
+    # a grid of more than two blocks (101 x 101): the parallel kernel (the 21 x 21 grids
+    # above run the serial one, as small grids do)
+    simulate_turning(_spiral(True), nose_radius=0.1, half_width=0.05, region=(-0.1, -0.1, 0.1, 0.1),
+                     pixel=0.002)
     load_cut_kernels()
     d = np.zeros_like(m)
     residual_metrics(m, d)
