@@ -42,6 +42,8 @@ def add_parsers(sub: Any) -> None:
                                         "(Li et al. 2018)")
     _add_out_args(p)
     p.add_argument("--quick", action="store_true", help="smaller images (for tests)")
+    _add_set_arg(p, help="override a key of the demo's scene, e.g. --set render.diffuse.spp=4 "
+                         "(applied after --quick's window)")
     _add_verbosity(p)
 
 
@@ -71,7 +73,8 @@ def _demo(args: argparse.Namespace, overwrite: bool) -> dict:
     # (the pipeline is imported lazily, as above)
     from .. import pipeline
 
-    return pipeline.run_demo(args.out, quick=args.quick, overwrite=overwrite)
+    return pipeline.run_demo(args.out, quick=args.quick, overwrite=overwrite,
+                             overrides=args.overrides)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -4,6 +4,7 @@ whole chain into a report."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
 
 from ..scene import load_scene, shipped_scenes
@@ -17,11 +18,13 @@ log = logging.getLogger("render_inspect")
 DEMO_SCENE = "sts_sinusoidal_grid"
 
 
-def run_demo(out: str | Path, *, quick: bool = False, overwrite: bool = False) -> dict:
+def run_demo(out: str | Path, *, quick: bool = False, overwrite: bool = False,
+             overrides: Sequence[str] = ()) -> dict:
     """``render-inspect demo``: :func:`~render_inspect.pipeline.run_compare` on the
-    shipped grid of Li et al. 2018 (``quick``: a 0.5 mm window at 2 um, for tests)."""
+    shipped grid of Li et al. 2018 (``quick``: a 0.5 mm window at 2 um, for tests;
+    ``overrides``: ``KEY=VALUE`` strings as ``--set`` takes them, applied after ``quick``'s)."""
     out = Path(out)
-    overrides = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
-    scene = load_scene(DEMO_SCENE, overrides)
+    window = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
+    scene = load_scene(DEMO_SCENE, [*window, *overrides])
     log.info("demo: scene %s -> %s", shipped_scenes()[DEMO_SCENE].name, out)
     return run_compare(scene, out, overwrite=overwrite)
