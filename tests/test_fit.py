@@ -44,7 +44,8 @@ FIELD = (0.25, -0.1, 0.45, 0.1)
 #: the fit window (mm) of the two tests whose fit of the feed marks has no random parts'
 #: scatter to average down (the tool with the random parts set to 0; the feed alone, fixed
 #: by the marks' period): half the field's area, still 13 feed periods; the values come
-#: back well within the tests' 1 % (0.01-0.2 % off, measured)
+#: back well within the tests' 1 % (0.01-0.2 % off, measured); the toric scene's refusal
+#: reads its mismatch on it as plainly
 SMALL_WINDOW = 0.14
 
 
@@ -566,9 +567,10 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
 def test_a_grid_measurement_with_the_toric_scene_is_refused(quiet_tool_truth, tmp_path, capsys):
     """The sinusoidal grid's measurement fitted with the toric micro-structure scene (same
     feed per revolution, another design): refused before the fit with the reason, not
-    fitted to a confident nose radius."""
+    fitted to a confident nose radius.  (On the smaller window the waviness differs as
+    plainly: 4.4 nm rms measured, 28 nm the toric scene's.)"""
     rc = main(["fit", str(quiet_tool_truth), "--scene", "hts_toric_msa", "--free", "tool.nose_radius",
-               "--out", str(tmp_path / "fit"), "-q"])
+               "--window", str(SMALL_WINDOW), "--out", str(tmp_path / "fit"), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and len(err) == 1, err
     assert "this scene does not describe this measurement" in err[0], err[0]

@@ -144,8 +144,10 @@ def test_fit_profile_recovers_feed_and_nose_radius(tmp_path):
                             seed=7)
     p = tmp_path / "simulated.csv"
     _write_profile(p, s, z)
+    # a window of 0.15 mm (4 periods) holds both keys: recovered 0.01-0.13 % off, within
+    # 0.7 of their standard errors (measured on the profiles of seeds 7 and 11)
     rec = run_fit_profile(p, _turned(), ["process.feed_mm_per_min,tool.nose_radius"],
-                          tmp_path / "fit", line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.3,
+                          tmp_path / "fit", line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.15,
                           global_points=0, max_evaluations=60, profile_points=0,
                           cache=tmp_path / "cache")
     assert rec["one_family"] and rec["model_check"]["after"]["describes"], rec["model_check"]
