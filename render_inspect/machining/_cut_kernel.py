@@ -429,11 +429,22 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
                  hseg)
 
 
+def _cut_rows_serial(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw,
+                     W, h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0,
+                     col0, sc0, sc1, machined, pass_theta, added, stats, edge, hseg):
+    """:func:`_cut_rows`'s code under a name of its own: numba's cache names a kernel after
+    its function (name and line), so the serial and the parallel kernel made from one
+    function would share one cache entry, and whichever was compiled first would be loaded
+    for both (the whole grid cut on one thread, or every tile on all of them)."""
+
+
+_cut_rows_serial.__code__ = _cut_rows.__code__.replace(co_name="_cut_rows_serial")
+
 #: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
 #: side by a scheduler)
 _buffer_size = njit(cache=True)(_buffer_size)
 _cut_parallel = njit(parallel=True, cache=True)(_cut_rows)
-_cut_serial = njit(nogil=True, cache=True)(_cut_rows)
+_cut_serial = njit(nogil=True, cache=True)(_cut_rows_serial)
 
 
 def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: float, out: dict, *,

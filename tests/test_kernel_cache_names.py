@@ -1,0 +1,56 @@
+"""numba's on-disk cache names a kernel after its Python function (module, qualified name,
+first line) and keys the entries by the argument types only, not by the compile options.
+Two kernels made from one function with different options (a parallel one for whole grids
+and a serial, GIL-free one for tiles) would share one cache entry: whichever was compiled
+first would be loaded for the other too.  Every cached kernel of the package therefore has a
+cache name of its own."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections import defaultdict
+
+import render_inspect
+from render_inspect.core.lazy import LazyDispatcher
+
+#: modules that need a GPU or Blender to import
+SKIP = ("render_inspect.blender_addon",)
+
+
+def _kernels() -> list[tuple[str, LazyDispatcher]]:
+    found = []
+    for info in pkgutil.walk_packages(render_inspect.__path__, "render_inspect."):
+        if info.name.startswith(SKIP) or info.name.endswith("__main__"):
+            continue
+        try:
+            mod = importlib.import_module(info.name)
+        except ImportError:  # (an optional dependency: its kernels cannot be used either)
+            continue
+        for name, value in vars(mod).items():
+            if isinstance(value, LazyDispatcher) and value._options.get("cache"):
+                found.append((f"{info.name}.{name}", value))
+    return found
+
+
+def test_every_cached_kernel_has_a_cache_name_of_its_own():
+    by_name: dict[tuple, dict[str, dict]] = defaultdict(dict)
+    for where, k in _kernels():
+        f = k.py_func
+        key = (f.__module__, f.__qualname__, f.__code__.co_firstlineno)
+        by_name[key][where] = k._options
+    shared = {key: kernels for key, kernels in by_name.items()
+              if len({repr(sorted((k, sorted(v) if isinstance(v, (set, frozenset)) else v)
+                                for k, v in o.items())) for o in kernels.values()}) > 1}
+    assert not shared, f"kernels with different options share a numba cache entry: {shared}"
+    assert len(by_name) > 20  # (the package's kernels were found)
+
+
+def test_the_serial_and_parallel_cut_and_envelope_kernels_are_apart():
+    from render_inspect.machining import _cut_kernel, _envelope
+
+    for par, ser in ((_cut_kernel._cut_parallel, _cut_kernel._cut_serial),
+                     (_envelope._fill_parallel, _envelope._fill_serial)):
+        assert par.py_func.__qualname__ != ser.py_func.__qualname__
+        assert par.py_func.__code__.co_code == ser.py_func.__code__.co_code  # the same code
+        assert par._options.get("parallel") and not ser._options.get("parallel")
