@@ -18,7 +18,19 @@ from render_inspect.core.lazy import LazyDispatcher
 SKIP = ("render_inspect.blender_addon",)
 
 
-def _kernels() -> list[tuple[str, LazyDispatcher]]:
+def _options(kernel) -> dict | None:
+    """The compile options of a cached kernel (a lazy one, or numba's dispatcher that it
+    became once a kernel of its module ran: the module's names are then numba's own), None
+    for anything else."""
+    if isinstance(kernel, LazyDispatcher):
+        return kernel._options if kernel._options.get("cache") else None
+    if hasattr(kernel, "targetoptions") and hasattr(kernel, "py_func"):
+        cached = type(getattr(kernel, "_cache", None)).__name__ != "NullCache"
+        return dict(kernel.targetoptions, cache=True) if cached else None
+    return None
+
+
+def _kernels() -> list[tuple[str, object]]:
     found = []
     for info in pkgutil.walk_packages(render_inspect.__path__, "render_inspect."):
         if info.name.startswith(SKIP) or info.name.endswith("__main__"):
@@ -28,7 +40,7 @@ def _kernels() -> list[tuple[str, LazyDispatcher]]:
         except ImportError:  # (an optional dependency: its kernels cannot be used either)
             continue
         for name, value in vars(mod).items():
-            if isinstance(value, LazyDispatcher) and value._options.get("cache"):
+            if _options(value) is not None:
                 found.append((f"{info.name}.{name}", value))
     return found
 
@@ -38,7 +50,7 @@ def test_every_cached_kernel_has_a_cache_name_of_its_own():
     for where, k in _kernels():
         f = k.py_func
         key = (f.__module__, f.__qualname__, f.__code__.co_firstlineno)
-        by_name[key][where] = k._options
+        by_name[key][where] = {o: v for o, v in _options(k).items() if o in ("parallel", "nogil")}
     shared = {key: kernels for key, kernels in by_name.items()
               if len({repr(sorted((k, sorted(v) if isinstance(v, (set, frozenset)) else v)
                                 for k, v in o.items())) for o in kernels.values()}) > 1}
@@ -53,4 +65,4 @@ def test_the_serial_and_parallel_cut_and_envelope_kernels_are_apart():
                      (_envelope._fill_parallel, _envelope._fill_serial)):
         assert par.py_func.__qualname__ != ser.py_func.__qualname__
         assert par.py_func.__code__.co_code == ser.py_func.__code__.co_code  # the same code
-        assert par._options.get("parallel") and not ser._options.get("parallel")
+        assert _options(par).get("parallel") and not _options(ser).get("parallel")
