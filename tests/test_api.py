@@ -271,3 +271,14 @@ def test_the_page_names_every_exported_name(module):
     exported = set(importlib.import_module(f"{PKG}.{module}").__all__)
     assert sorted(exported - named) == [], f"render_inspect.{module}: exported, not on the page"
     assert sorted(named - exported) == [], f"render_inspect.{module}: on the page, not exported"
+
+
+def test_the_pipeline_names_where_each_of_its_exports_lives():
+    """``render_inspect.pipeline`` imports a stage's module when one of its names is first
+    used: the table of where each name lives covers exactly what it exports, and each name
+    resolves."""
+    from render_inspect import pipeline
+
+    assert set(pipeline._WHERE) == set(pipeline.__all__)
+    for name in pipeline.__all__:
+        assert getattr(pipeline, name) is not None

@@ -9,11 +9,10 @@ import math
 
 import numpy as np
 import pytest
+from scipy import signal  # (a dependency of the package: the reference the filters match)
 
 from render_inspect.machining import second_order_sos
 from render_inspect.machining._iir import bilinear_sos, butter2_sos, sosfilt
-
-signal = pytest.importorskip("scipy.signal")
 
 
 def _bits(a) -> bytes:

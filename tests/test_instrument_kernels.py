@@ -105,25 +105,30 @@ def test_the_camera_equals_the_array_expressions(exposure, dark):
 def test_the_fixed_patterns_made_ahead_give_the_frames_made_without():
     """The interferometer makes the camera's fixed patterns while the ray tracer works
     (:func:`~render_inspect.instruments._camera.make_fixed_patterns`): the exposure that
-    takes them gives the frames it gives when it makes them itself, and takes them once;
-    patterns made for another shape or camera are not used."""
+    follows takes the kept set and gives the frames it gives when it makes them itself;
+    patterns made for another shape or camera are not used, and the kept ones cannot be
+    written to."""
     from render_inspect.instruments import _camera
 
     rng = np.random.default_rng(4)
     inten = (rng.random((3, 9, 11)) * 2).astype(np.float32)
     cam = Camera(prnu=0.01, dsnu_e=3.0)
+    _camera._fixed_patterns.cache_clear()
     expect, _ = expose(inten, cam, seed=5)
+    _camera._fixed_patterns.cache_clear()
     _camera.make_fixed_patterns(cam, (9, 11))
+    hits = _camera._fixed_patterns.cache_info().hits
     got, _ = expose(inten, cam, seed=5)
-    assert _same(got, expect) and not _camera._MADE
-    _camera.make_fixed_patterns(Camera(prnu=0.02), (9, 11))  # another camera's: left alone
-    got, _ = expose(inten, cam, seed=5)
-    assert _same(got, expect) and _camera._MADE
-    _camera.make_fixed_patterns(cam, (9, 12))  # another shape's
-    got, _ = expose(inten, cam, seed=5)
-    assert _same(got, expect)
-    _camera.make_fixed_patterns(Camera(noise=False), (9, 11))  # no noise: none kept
-    assert not _camera._MADE
+    assert _same(got, expect) and _camera._fixed_patterns.cache_info().hits == hits + 1
+    for other, shape in ((Camera(prnu=0.02), (9, 11)), (cam, (9, 12))):  # another camera's, shape's
+        _camera.make_fixed_patterns(other, shape)
+        got, _ = expose(inten, cam, seed=5)
+        assert _same(got, expect)
+    gain, offset = _camera._fixed_patterns(cam, (9, 11))
+    assert not gain.flags.writeable and not offset.flags.writeable
+    _camera._fixed_patterns.cache_clear()
+    _camera.make_fixed_patterns(Camera(noise=False), (9, 11))  # no noise: nothing made
+    assert _camera._fixed_patterns.cache_info().currsize == 0
 
 
 def test_the_deviates_drawn_into_a_buffer_are_the_stream_drawn_fresh():

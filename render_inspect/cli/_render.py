@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import argparse
 import gc
-import os
 from typing import Any
 
+from ..core.lazy import passive_omp_wait
 from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
 
 
@@ -57,11 +57,9 @@ def _render(args: argparse.Namespace, overwrite: bool) -> dict:
     # CPU-second over the libraries the render loads next)
     gc.freeze()
     # the threads of numba's parallel passes wait asleep between them instead of spinning
-    # (unless the environment says otherwise; read when the first of them starts, which
-    # no step before this one runs): a spinning thread holds the second core that the
-    # render's own threads (the truth, the FFTs' second worker) need meanwhile, about
-    # 0.3 CPU-s of the PSI command's; the same images bit for bit
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    # (no step before this one starts them): a spinning thread holds the second core that
+    # the render's own threads (the truth, the FFTs' second worker) need meanwhile
+    passive_omp_wait()
     return pipeline.run_render(scene, args.out, surface=args.surface, kind=args.kind,
                                overwrite=overwrite)
 

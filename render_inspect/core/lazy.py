@@ -24,14 +24,26 @@ from __future__ import annotations
 
 import functools
 import importlib
+import os
 import threading
 import types
 from collections.abc import Callable
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
-__all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher"]
+__all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait"]
 
 _LOCK = threading.RLock()
+
+
+def passive_omp_wait() -> None:
+    """Let the threads of numba's parallel kernels sleep rather than spin while they wait
+    for work (``OMP_WAIT_POLICY=PASSIVE``, unless the environment sets it).  Between short
+    parallel kernels OpenMP's threads spin by default, burning a core that the process's
+    own single-threaded stages or another process need (measured: a fit evaluation
+    1.05-1.22 CPU-s spinning against 0.85-0.95 passive; the PSI render 0.3-0.4 CPU-s
+    less), with the same numbers bit for bit.  Read by the OpenMP runtime when it starts
+    (the process's first parallel kernel); no effect after."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 _P = ParamSpec("_P")
 _R = TypeVar("_R")

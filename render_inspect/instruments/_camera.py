@@ -21,6 +21,7 @@ expected counts of 100 electrons and more its Gaussian limit ``N(e, e)`` is draw
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -95,23 +96,19 @@ class Camera:
         return asdict(self)
 
 
-#: the fixed patterns made ahead of an exposure (:func:`make_fixed_patterns`), taken by it
-_MADE: dict = {}
-
-
 def make_fixed_patterns(camera: Camera, shape: tuple[int, int]) -> None:
-    """Make the fixed patterns of ``camera`` over ``shape`` pixels ahead of the exposure
-    that takes them (:func:`expose`, once; the same arrays it would make itself): the
-    interferometer makes them in a thread while the ray tracer works.  One set is kept
-    at a time."""
-    key = (camera, tuple(int(v) for v in shape))
-    made = _fixed_patterns(camera, key[1]) if camera.noise else None
-    _MADE.clear()
-    if made is not None:
-        _MADE[key] = made
+    """Make the fixed patterns of ``camera`` over ``shape`` pixels ahead of an exposure
+    (the interferometer makes them in a thread while the ray tracer works): the exposure
+    then takes the ones kept (:func:`_fixed_patterns` keeps the last set made)."""
+    if camera.noise:
+        _fixed_patterns(camera, tuple(int(v) for v in shape))
 
 
-def _fixed_patterns(camera: Camera, shape):
+@functools.lru_cache(maxsize=1)
+def _fixed_patterns(camera: Camera, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's gain (PRNU) and offset (DSNU) maps over ``shape`` pixels, from its
+    ``fixed_pattern_seed``: the same arrays for the same camera and shape, so the last set
+    is kept (read-only) for the exposures that follow."""
     rng = np.random.default_rng([int(camera.fixed_pattern_seed), 0x46504E])  # "FPN"
     gain = np.ones(shape, dtype=np.float32)
     offset = np.zeros(shape, dtype=np.float32)
@@ -120,6 +117,7 @@ def _fixed_patterns(camera: Camera, shape):
         np.maximum(gain, 0.0, out=gain)
     if camera.dsnu_e > 0:
         offset = rng.normal(0.0, camera.dsnu_e, size=shape).astype(np.float32)
+    gain.flags.writeable = offset.flags.writeable = False
     return gain, offset
 
 
@@ -155,8 +153,7 @@ def expose(intensity: np.ndarray, camera: Camera | None = None, *, seed: int = 0
         raise InputError(f"intensity must be an (N, H, W) stack, got shape {inten.shape}")
     shape = inten.shape[1:]
     if cam.noise:
-        made = _MADE.pop((cam, tuple(shape)), None)
-        gain_map, offset_map = made if made is not None else _fixed_patterns(cam, shape)
+        gain_map, offset_map = _fixed_patterns(cam, tuple(int(v) for v in shape))
     else:
         gain_map, offset_map = np.ones(shape, np.float32), np.zeros(shape, np.float32)
     peak = float(np.max(np.max(inten, axis=0) * gain_map)) if inten.size else 0.0

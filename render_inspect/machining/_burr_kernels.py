@@ -40,20 +40,38 @@ def _threads() -> int:
 _SMOOTH_COLUMNS = 512
 
 
+def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
+    """``scipy.ndimage.gaussian_filter(z, sigma, mode="nearest")`` of a 2-D float64 map,
+    the same to the last bit, threaded over rows."""
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    w = gaussian_weights(sigma)
+    if z.ndim != 2 or z.size == 0 or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
+        from scipy import ndimage
+
+        return ndimage.gaussian_filter(z, sigma, mode="nearest")
+    ny, nx = z.shape
+    out = np.empty_like(z)
+    _smooth_axis0(z, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)
+    _smooth_axis1(out, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)  # in place: each row is copied out first
+    return out
+
+
 @njit(parallel=True, cache=True)
-def _smooth_axis0(z, w, out, cw):
-    """Axis 0 of the smoothing into ``out`` (not ``z``), in blocks of ``cw`` columns:
-    each thread takes a run of blocks and walks down the rows of each, so that the rows a
-    window needs are still in the cache from the row before."""
+def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1):
+    """Axis 0 of the smoothing into ``out`` (not ``z``) on its rows ``r0 .. r1 - 1`` and
+    columns ``c0 .. c1 - 1`` (the rows of ``z`` clamped at its ends), in blocks of ``cw``
+    columns: each thread takes a run of blocks and walks down the rows of each, so that the
+    rows a window needs are still in the cache from the row before."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    nc = (nx + cw - 1) // cw
-    for t in prange(ny * nc):
-        c = t // ny
-        i = t - c * ny
-        q0 = c * cw
-        m = min(q0 + cw, nx) - q0
+    nr = r1 - r0
+    nc = (c1 - c0 + cw - 1) // cw
+    for t in prange(nr * nc):
+        c = t // nr
+        i = r0 + t - c * nr
+        q0 = c0 + c * cw
+        m = min(q0 + cw, c1) - q0
         acc = np.empty(m)            # a block of its own: the loops below vectorise
         zi = z[i, q0:q0 + m]
         for q in range(m):
@@ -68,82 +86,12 @@ def _smooth_axis0(z, w, out, cw):
 
 
 @njit(parallel=True, cache=True)
-def _smooth_axis1(z, w, out, cw):
-    """Axis 1 of the smoothing (``out`` may be ``z``: each row is copied out, padded,
-    before it is written), in blocks of ``cw`` columns so that a block's accumulators
-    and the padded row around it stay in the core's first-level cache."""
-    ny, nx = z.shape
-    r = (w.size - 1) // 2
-    w0 = w[r]
-    for i in prange(ny):
-        pad = np.empty(nx + 2 * r)
-        zi = z[i]
-        for q in range(nx + 2 * r):
-            pad[q] = zi[min(max(q - r, 0), nx - 1)]
-        acc = np.empty(cw)
-        for q0 in range(0, nx, cw):
-            m = min(cw, nx - q0)
-            c = pad[q0 + r:q0 + r + m]
-            for q in range(m):
-                acc[q] = c[q] * w0
-            for jj in range(-r, 0):
-                wj = w[r + jj]
-                a = pad[q0 + r + jj:q0 + r + jj + m]
-                b = pad[q0 + r - jj:q0 + r - jj + m]
-                for q in range(m):
-                    acc[q] = acc[q] + (a[q] + b[q]) * wj
-            o = out[i, q0:q0 + m]
-            for q in range(m):
-                o[q] = acc[q]
-
-
-def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
-    """``scipy.ndimage.gaussian_filter(z, sigma, mode="nearest")`` of a 2-D float64 map,
-    the same to the last bit, threaded over rows."""
-    z = np.ascontiguousarray(z, dtype=np.float64)
-    w = gaussian_weights(sigma)
-    if z.ndim != 2 or z.size == 0 or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
-        from scipy import ndimage
-
-        return ndimage.gaussian_filter(z, sigma, mode="nearest")
-    out = np.empty_like(z)
-    _smooth_axis0(z, w, out, _SMOOTH_COLUMNS)
-    _smooth_axis1(out, w, out, _SMOOTH_COLUMNS)   # in place: each row is copied out first
-    return out
-
-
-@njit(parallel=True, cache=True)
-def _smooth_axis0_window(z, w, out, cw, r0, r1, c0, c1):
-    """:func:`_smooth_axis0` on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
-    of ``out`` only (the rows of ``z`` clamped at its ends, as there)."""
-    ny, nx = z.shape
-    r = (w.size - 1) // 2
-    w0 = w[r]
-    nr = r1 - r0
-    nc = (c1 - c0 + cw - 1) // cw
-    for t in prange(nr * nc):
-        c = t // nr
-        i = r0 + t - c * nr
-        q0 = c0 + c * cw
-        m = min(q0 + cw, c1) - q0
-        acc = np.empty(m)
-        zi = z[i, q0:q0 + m]
-        for q in range(m):
-            acc[q] = zi[q] * w0
-        for jj in range(-r, 0):
-            a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
-            b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
-            wj = w[r + jj]
-            for q in range(m):
-                acc[q] = acc[q] + (a[q] + b[q]) * wj
-        out[i, q0:q0 + m] = acc
-
-
-@njit(parallel=True, cache=True)
-def _smooth_axis1_window(z, w, out, cw, r0, r1, c0, c1):
-    """:func:`_smooth_axis1` on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
-    of ``out`` only (the columns of ``z`` clamped at its ends, as there; ``out`` is not
-    ``z``)."""
+def _smooth_axis1(z, w, out, cw, r0, r1, c0, c1):
+    """Axis 1 of the smoothing on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
+    of ``out`` (the columns of ``z`` clamped at its ends), in blocks of ``cw`` columns so
+    that a block's accumulators and the padded row around it stay in the core's
+    first-level cache.  ``out`` may be ``z`` in a call over whole rows (each row is copied
+    out, padded, before it is written), not across calls over parts of the same rows."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
@@ -191,18 +139,18 @@ def gaussian_nearest_cross(z: np.ndarray, sigma: float, window: tuple[int, int, 
     tmp = np.empty_like(z)
     # axis 0 where axis 1 reads it: the cross widened by the Gaussian's reach along the rows
     ka, kb = max(c0 - r, 0), min(c1 + r, nx)
-    _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, va, vb, ka, kb)
+    _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, va, vb, ka, kb)
     la, lb = max(ha - r, 0), min(hb + r, nx)
     if la < ka:
-        _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, la, ka)
+        _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, la, ka)
     if kb < lb:
-        _smooth_axis0_window(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, kb, lb)
+        _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, kb, lb)
     out = np.empty_like(z)
-    _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, va, vb, c0, c1)
+    _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, va, vb, c0, c1)
     if ha < c0:
-        _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, ha, c0)
+        _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, ha, c0)
     if c1 < hb:
-        _smooth_axis1_window(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, c1, hb)
+        _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, c1, hb)
     return out
 
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.lazy import passive_omp_wait
 from ..core.progress import set_reporter
 from ..design import Surface, make_surface
 from ..fit import EvaluationCache, run_local, set_value, task_hash
@@ -118,17 +119,6 @@ def _file_stamps(node: Any) -> list:
             if stat.S_ISREG(st.st_mode):
                 return [[node, st.st_mtime_ns, st.st_size]]
     return []
-
-
-def passive_omp_wait() -> None:
-    """Let the threads of numba's parallel kernels sleep rather than spin while they wait
-    for work (``OMP_WAIT_POLICY=PASSIVE``, unless the environment sets it).  An evaluation
-    launches some fifty short parallel kernels; between them OpenMP's threads spin by
-    default, burning a core that the evaluation's own single-threaded stages or another
-    process need: measured 1.05-1.22 CPU-s per evaluation spinning against 0.85-0.95
-    passive, the same maps bit for bit.  Read by the OpenMP runtime when it starts (the process's first
-    parallel kernel); no effect after."""
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 def _numba_threads_as_launched() -> None:
