@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .. import _early_signals
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 
@@ -35,9 +36,12 @@ def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
     # (imported once the input is checked)
     from .. import pipeline
 
+    # the figures are drawn by a second process beside the computation when this process
+    # is the program's own (not a program that called main())
     return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                  workers=args.workers, scheduler=args.scheduler,
-                                 tile=args.tile, overwrite=overwrite)
+                                 tile=args.tile, overwrite=overwrite,
+                                 figure_process=_early_signals.is_program())
 
 
 def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:

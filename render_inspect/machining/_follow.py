@@ -5,6 +5,7 @@ that is left."""
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from collections.abc import Sequence
 from typing import Any
@@ -152,16 +153,24 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     rate = machine.servo_rate_hz
     tk = servo_ticks(float(t[0]), float(t[-1]), rate)
     kw: dict[str, Any] = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
-    rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
-    rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
     mask = None
+    kw_z = dict(kw)
     if sector is not None:
         # the program's angle at each tick (C is omega t along the spiral)
         th_k = np.interp(tk, t, theta)
         mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
-        kw["runs"] = edges.reshape(-1, 2)
-    rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)
+        kw_z["runs"] = edges.reshape(-1, 2)
+    # the three axes are independent (each its own program and its own noise stream):
+    # followed side by side, in threads (their interpolation, noise and servo loops
+    # leave the interpreter free)
+    with ThreadPoolExecutor(3, thread_name_prefix="render_inspect-axes") as pool:
+        fc = pool.submit(follow_axis, t, theta, machine.c, seed=s_c, **kw)
+        fx = pool.submit(follow_axis, t, rho, machine.x, seed=s_x, **kw)
+        fz = pool.submit(follow_axis, t, zs_prog, machine.z, seed=s_z, **kw_z)
+        rc, rx, rz = fc.result(), fx.result(), fz.result()
+    if sector is not None:
+        kw = kw_z
     if z_fts is None:
         zf_cmd = np.zeros_like(tk)
         zf = zf_cmd
