@@ -55,3 +55,6 @@ def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
 
 #: command -> what runs it, ``(args, overwrite) -> result``
 RUN = {"simulate": _simulate, "toolpath": _toolpath}
+#: commands whose process ends as soon as their files are written (``_main.EXIT_AT_ONCE``:
+#: the interpreter's teardown of numba's compiler and the libraries loaded is skipped)
+EXIT_AT_ONCE = ("simulate", "toolpath")

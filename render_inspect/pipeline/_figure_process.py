@@ -18,22 +18,30 @@ drawn in a thread of the command's process as before.
 
 from __future__ import annotations
 
+import logging
 import os
 import pickle
+import select
 import queue
 import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ..core.units import MIB_TO_BYTES
+from ..report import draw_figure, preload_drawing, residual_png
+
 __all__ = ["FigureProcess"]
 
-def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
-    from ..report import draw_figure, residual_png
+#: seconds without a finished figure after which the child is taken for stuck: it is
+#: ended and its figures are drawn by the parent
+STALL_S = 300.0
 
+def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
     if kind == "figure":
         draw_figure(*args, **kwargs)
     elif kind == "residual":
@@ -50,6 +58,10 @@ def _child(jobs_fd: int, results_fd: int) -> None:
         if sig is not None:
             signal.signal(sig, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    # nothing of the child's reaches the terminal: the parent's handlers (and the locks
+    # another of its threads may have held at the fork) are not the child's to use
+    logging.disable(logging.CRITICAL)
+    warnings.simplefilter("ignore")
     results = os.fdopen(results_fd, "wb", buffering=0)
     inbox: queue.Queue = queue.Queue()
 
@@ -65,8 +77,6 @@ def _child(jobs_fd: int, results_fd: int) -> None:
 
     threading.Thread(target=read, daemon=True).start()
     try:
-        from ..report import preload_drawing
-
         preload_drawing()
     except Exception:  # (drawing imports the same and reports what fails there)
         pass
@@ -107,7 +117,7 @@ class FigureProcess:
     @classmethod
     def start(cls) -> FigureProcess | None:
         """Fork the child, or None where that is not possible (not Linux, no fork)."""
-        if not sys.platform.startswith("linux") or not hasattr(os, "fork"):
+        if not sys.platform.startswith("linux"):
             return None
         try:
             jobs_r, jobs_w = os.pipe()
@@ -169,6 +179,8 @@ class FigureProcess:
         error: BaseException | None = None
         fd = self._results_fd
         while fd is not None and len(finished) < len(self._sent):
+            if not select.select([fd], [], [], STALL_S)[0]:
+                break  # (stuck: ended below, its figures drawn here)
             head = _read_exact(fd, 8)
             if head is None:
                 break
@@ -185,6 +197,8 @@ class FigureProcess:
                 done(name)
         if error is not None:
             raise error
+        if len(finished) < len(self._sent):
+            self.close()
         for job, (name, kind, args, kwargs) in self._sent.items():
             if job not in finished:  # the child ended before drawing it: drawn here
                 t0 = time.perf_counter()
@@ -219,7 +233,7 @@ def _read_exact(fd: int, n: int) -> bytes | None:
     """``n`` bytes from ``fd``, or None at the end of the stream."""
     parts = []
     while n > 0:
-        chunk = os.read(fd, min(n, 1 << 20))
+        chunk = os.read(fd, min(n, MIB_TO_BYTES))
         if not chunk:
             return None
         parts.append(chunk)
