@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 from typing import Any
 
 from .. import _early_signals
@@ -36,6 +37,9 @@ def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
     # (imported once the input is checked)
     from .. import pipeline
 
+    # the objects made so far (the modules, the scene's schema) live as long as the
+    # process: the collector leaves them out of its passes over what numba loads next
+    gc.freeze()
     # the figures are drawn by a second process beside the computation when this process
     # is the program's own (not a program that called main())
     return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
