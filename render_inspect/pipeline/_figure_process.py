@@ -13,7 +13,7 @@ parent closes its end of the pipe or ends itself, and never runs the parent's cl
 (it leaves with ``os._exit``).  A figure that fails in the child raises its error in the
 parent; a child that ended unexpectedly leaves its figures to the parent, which draws
 them itself.  Linux only (``fork``); elsewhere, or when the fork fails, the figures are
-drawn in a thread of the command's process as before.
+drawn in a thread of the command's process.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from __future__ import annotations
 import logging
 import os
 import pickle
-import select
 import queue
+import select
 import signal
 import sys
 import threading
@@ -40,6 +40,7 @@ __all__ = ["FigureProcess"]
 #: seconds without a finished figure after which the child is taken for stuck: it is
 #: ended and its figures are drawn by the parent
 STALL_S = 300.0
+
 
 def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
     if kind == "figure":

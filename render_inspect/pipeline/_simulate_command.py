@@ -84,9 +84,10 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
     when it is complete (:func:`~render_inspect.io.atomic_output_dir`; ``overwrite``
     allows replacing a folder render_inspect did not write).
 
-    ``figure_process``: draw the figures in a child process forked now, beside the
-    computation (Linux; for the ``render-inspect`` program, whose process is its own: see
-    :mod:`render_inspect.pipeline._figure_process`); else in a thread of this process."""
+    ``figure_process``: draw the figures in a second process forked when the command
+    starts, beside the computation (Linux; for the ``render-inspect`` program, whose
+    process is its own: docs/performance.md, "Writing outputs"); else in a thread of this
+    process."""
     if wants_tiles(scene, tiled=tiled, workers=workers, scheduler=scheduler):
         return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
                                   overwrite=overwrite)
