@@ -237,10 +237,15 @@ def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = Tr
                 written(name, draw_figure, spec, out_dir / name)
 
         def files():
-            written("heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr", hm,
-                    overview=overview)
-            if sim.toolpath is not None:
-                written("toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
+            # the program (uncompressed: its file writes leave the interpreter free) beside
+            # the height map
+            with ThreadPoolExecutor(1) as pool:
+                npz = None if sim.toolpath is None else pool.submit(
+                    written, "toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
+                written("heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr",
+                        hm, overview=overview)
+                if npz is not None:
+                    npz.result()
 
         if drawer is not None and preview:
             # residual.png by the figure process too (the other figures were sent to it as
