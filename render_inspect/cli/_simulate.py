@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import gc
 from typing import Any
 
+from .. import _early_signals
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 
@@ -35,9 +37,15 @@ def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
     # (imported once the input is checked)
     from .. import pipeline
 
+    # the objects made so far (the modules, the scene's schema) live as long as the
+    # process: the collector leaves them out of its passes over what numba loads next
+    gc.freeze()
+    # the figures are drawn by a second process beside the computation when this process
+    # is the program's own (not a program that called main())
     return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,
                                  workers=args.workers, scheduler=args.scheduler,
-                                 tile=args.tile, overwrite=overwrite)
+                                 tile=args.tile, overwrite=overwrite,
+                                 figure_process=_early_signals.is_program())
 
 
 def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
@@ -51,3 +59,6 @@ def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
 
 #: command -> what runs it, ``(args, overwrite) -> result``
 RUN = {"simulate": _simulate, "toolpath": _toolpath}
+#: commands whose process ends as soon as their files are written (``_main.EXIT_AT_ONCE``:
+#: the interpreter's teardown of numba's compiler and the libraries loaded is skipped)
+EXIT_AT_ONCE = ("simulate", "toolpath")

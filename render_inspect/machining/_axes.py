@@ -318,7 +318,7 @@ def _discrete_loop(wn: float, zeta: float, dt: float):
     return np.ascontiguousarray(em[:2, :2]), np.ascontiguousarray(em[:2, 2])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _track(pos, v_step, a_step, jump, ff_step, v_start, v_end, dist, phi, gam, wn, zeta, kv,
            amax, vmax, dt, e0, de0, out):
     """Following error at each tick of the loop described in the module docstring.

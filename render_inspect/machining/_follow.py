@@ -5,6 +5,7 @@ that is left."""
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from collections.abc import Sequence
 from typing import Any
@@ -98,6 +99,30 @@ def mask_outside_sector(theta: np.ndarray, errors: dict,
     return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
 
 
+def _side_by_side(*axes: tuple) -> list:
+    """:func:`follow_axis` of each ``(t, q, axis, seed, kwargs)`` in a thread of its own;
+    the responses in order (an axis's error raised here).  The threads are daemons: an
+    interruption of the waiting thread ends the command without waiting for them."""
+    out: list[Any] = [None] * len(axes)
+    errors: list[BaseException] = []
+
+    def run(i: int, t: np.ndarray, q: np.ndarray, axis: Any, seed: int, kw: dict) -> None:
+        try:
+            out[i] = follow_axis(t, q, axis, seed=seed, **kw)
+        except BaseException as err:  # (raised in the waiting thread)
+            errors.append(err)
+
+    threads = [threading.Thread(target=run, args=(i, *a), daemon=True,
+                                name="render_inspect-axis") for i, a in enumerate(axes)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    if errors:
+        raise errors[0]
+    return out
+
+
 def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndarray,
                    machine: Machine, *, z_fts: np.ndarray | None = None, seed: int = 0,
                    fts_theta: np.ndarray | None = None,
@@ -152,16 +177,20 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     rate = machine.servo_rate_hz
     tk = servo_ticks(float(t[0]), float(t[-1]), rate)
     kw: dict[str, Any] = {"rate_hz": rate, "interpolation": machine.interpolation, "ticks": tk}
-    rc = follow_axis(t, theta, machine.c, seed=s_c, **kw)
-    rx = follow_axis(t, rho, machine.x, seed=s_x, **kw)
     mask = None
+    kw_z = dict(kw)
     if sector is not None:
         # the program's angle at each tick (C is omega t along the spiral)
         th_k = np.interp(tk, t, theta)
         mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
-        kw["runs"] = edges.reshape(-1, 2)
-    rz = follow_axis(t, zs_prog, machine.z, seed=s_z, **kw)
+        kw_z["runs"] = edges.reshape(-1, 2)
+    # the three axes are independent (each its own program and its own noise stream):
+    # followed side by side, in threads (their interpolation, noise and servo loops
+    # leave the interpreter free)
+    rc, rx, rz = _side_by_side((t, theta, machine.c, s_c, kw), (t, rho, machine.x, s_x, kw),
+                               (t, zs_prog, machine.z, s_z, kw_z))
+    kw = kw_z
     if z_fts is None:
         zf_cmd = np.zeros_like(tk)
         zf = zf_cmd

@@ -24,7 +24,8 @@ from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
-from ..report import draw_figure, preload_drawing, residual_preview_png
+from ..report import draw_figure, preload_drawing, residual_preview_image, residual_preview_png
+from ._figure_process import FigureProcess
 from ._metrics import simulation_metrics, write_metrics
 from ._toolpath import check_links
 
@@ -95,7 +96,8 @@ class Simulation:
 
 
 def simulate(scene: Scene, *, surface: Surface | None = None,
-             preload_figures: bool = False) -> Simulation:
+             preload_figures: bool = False,
+             figures: Callable[[dict], None] | None = None) -> Simulation:
     """Simulate the machined surface of ``scene`` over ``scene.simulation.region``.
 
     The scene's process plans its program for the region, the memory needed is checked
@@ -105,6 +107,9 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     ``preload_figures``: once the program is planned (its inputs read and checked),
     import the figures' library in a thread while the surface is cut
     (:func:`~render_inspect.report.preload_drawing`), for a caller that draws them next.
+    ``figures``: called with the plan's figures (file name -> spec) once the program is
+    planned and with the cut's once the surface is cut, for a caller that draws them
+    while the rest is computed (the command's figure process).
     """
     t_all = time.perf_counter()
     process = process_of(scene)
@@ -122,6 +127,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     timing["toolpath"] = time.perf_counter() - t0
     if preload_figures:
         _preload_figures()
+    if figures is not None and plan.plots:
+        figures(dict(plan.plots))
     # the program's moves between its cuts are simulated too: they never touch
     # the part (metrics toolpath.links; an error naming the block otherwise)
     links = check_links(process, cfg, surface, plan)
@@ -135,6 +142,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
         cut = process.cut(cfg, surface, plan)
     timing.update(cut.timing)
     timing["simulate"] = time.perf_counter() - t0
+    if figures is not None and cut.plots:
+        figures(dict(cut.plots))
     hm = HeightMap(cut.design, cut.machined, sim.pixel, (float(region[0]), float(region[1])),
                    scene.to_dict(), dict(cut.meta))
     t0 = time.perf_counter()
@@ -190,11 +199,14 @@ def _preload_figures() -> threading.Thread:
     return t
 
 
-def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = True) -> dict:
+def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = True,
+                     drawer: FigureProcess | None = None) -> dict:
     """Write heightmap.exr, metrics.json, scene.json, toolpath.npz (the processes that save
     their program) and the figures (residual.png and the plan's and cut's own:
     kinematics.png, following_error.png, ...) into ``out_dir``; return the metrics
-    (``timing_s.write`` holds the seconds per file)."""
+    (``timing_s.write`` holds the seconds per file).  ``drawer``: the figure process
+    that was sent the plan's and the cut's figures (:func:`simulate`'s ``figures``); it
+    draws residual.png too, and is waited for here."""
     out_dir = Path(out_dir)
     scene, hm, metrics = sim.scene, sim.heightmap, sim.metrics
     tw: dict[str, float] = {}
@@ -224,16 +236,40 @@ def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = Tr
             for name, spec in sim.figures.items():
                 written(name, draw_figure, spec, out_dir / name)
 
-        # the figures (one thread: matplotlib's state is shared) are drawn while the height
-        # map and the program are compressed and written
-        with ThreadPoolExecutor(1) as pool:
-            drawn = pool.submit(figures) if preview else None
-            written("heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr", hm,
-                    overview=overview)
-            if sim.toolpath is not None:
-                written("toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
-            if drawn is not None:
-                drawn.result()
+        def files():
+            # the program (uncompressed: its file writes leave the interpreter free) beside
+            # the height map
+            with ThreadPoolExecutor(1) as pool:
+                npz = None if sim.toolpath is None else pool.submit(
+                    written, "toolpath.npz", export_program, sim.toolpath, out_dir, fmt="npz")
+                written("heightmap.exr", writer("heightmap", ".exr"), out_dir / "heightmap.exr",
+                        hm, overview=overview)
+                if npz is not None:
+                    npz.result()
+
+        if drawer is not None and preview:
+            # residual.png by the figure process too (the other figures were sent to it as
+            # they were made), while the height map and the program are written here
+            r = metrics["residual"]
+            img, factor = residual_preview_image(hm.machined, hm.design, overview=overview)
+            drawer.residual("residual.png", out_dir / "residual.png", img, factor,
+                            extent=hm.extent, mean_nm=r["mean_nm"],
+                            title=residual_title(scene.name, sim.traits, r))
+            files()
+
+            def done(name: str) -> None:
+                with lock:
+                    step.advance()
+
+            tw.update(drawer.results(done))
+        else:
+            # the figures (one thread: matplotlib's state is shared) are drawn while the
+            # height map and the program are compressed and written
+            with ThreadPoolExecutor(1) as pool:
+                drawn = pool.submit(figures) if preview else None
+                files()
+                if drawn is not None:
+                    drawn.result()
         metrics.setdefault("timing_s", {})["write"] = tw
         write_metrics(out_dir, metrics)
         step.advance()

@@ -26,6 +26,7 @@ from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_mo
 from ..processes import check_budget, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
+from ._figure_process import FigureProcess
 from ._metrics import tiled_metrics, write_metrics
 from ._simulate import residual_title, simulate, timed, write_simulation
 from ._toolpath import check_links, log_program_summary
@@ -69,7 +70,8 @@ def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None 
 
 def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
                  workers: int | None = None,
-                 scheduler: str | None = None, tile: int = TILE, overwrite: bool = False) -> dict:
+                 scheduler: str | None = None, tile: int = TILE, overwrite: bool = False,
+                 figure_process: bool = False) -> dict:
     """``render-inspect simulate``: heightmap.exr (or heightmap.zarr for maps simulated
     tile by tile), metrics.json, toolpath.npz, residual.png, kinematics.png.
 
@@ -80,25 +82,55 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
 
     ``out`` is checked and locked before the simulation starts and replaced as a whole
     when it is complete (:func:`~render_inspect.io.atomic_output_dir`; ``overwrite``
-    allows replacing a folder render_inspect did not write)."""
+    allows replacing a folder render_inspect did not write).
+
+    ``figure_process``: draw the figures in a second process forked when the command
+    starts, beside the computation (Linux; for the ``render-inspect`` program, whose
+    process is its own: docs/performance.md, "Writing outputs"); else in a thread of this
+    process."""
     if wants_tiles(scene, tiled=tiled, workers=workers, scheduler=scheduler):
         return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
                                   overwrite=overwrite)
-    with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
-        t0 = time.perf_counter()
-        # (the figures' library is imported in a thread while the part is cut)
-        sim = simulate(scene, preload_figures=True)
-        log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
-                 time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        # (its progress: the files written)
-        metrics = write_simulation(sim, Path(tmp))
+    # (forked before the output folder is locked, and before any thread of numba's starts)
+    drawer = FigureProcess.start() if figure_process else None
+    try:
+        with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
+            try:
+                metrics, t_write = _simulate_into(scene, Path(tmp), drawer)
+            finally:  # (before the folder is swapped in or removed)
+                if drawer is not None:
+                    drawer.close()
+    finally:
+        if drawer is not None:
+            drawer.close()
     if "program" in metrics:  # a program read from a file: what was inferred, the findings
         log_program_summary(metrics["program"])
     r = metrics["residual"]
     log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
-             time.perf_counter() - t0, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)
+             t_write, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)
     return metrics
+
+
+def _simulate_into(scene: Scene, tmp: Path, drawer: FigureProcess | None) -> tuple[dict, float]:
+    """The in-memory simulation written into ``tmp``; the figures by ``drawer`` when given
+    (each sent as soon as it is made), else in a thread.  Returns the metrics and the
+    seconds the writing took."""
+    t0 = time.perf_counter()
+    if drawer is None:
+        # (the figures' library is imported in a thread while the part is cut)
+        sim = simulate(scene, preload_figures=True)
+    else:
+        def send(plots: dict) -> None:
+            for name, spec in plots.items():
+                drawer.draw(name, spec, tmp / name)
+
+        sim = simulate(scene, figures=send)
+    log.info("simulated %s samples in %.2f s", f"{sim.heightmap.design.size:,}",
+             time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    # (its progress: the files written)
+    metrics = write_simulation(sim, tmp, drawer=drawer)
+    return metrics, time.perf_counter() - t0
 
 
 def _progress(label: str, step=None):

@@ -22,8 +22,8 @@ from ._instrument import analysis_summary, characterise_figures, measurement_sum
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
                           turning_axes)
 from ._morris import morris_png
-from ._maps import (image_png, residual_png, residual_preview_png, rgb_png, save_height_png,
-                    save_map_png)
+from ._maps import (image_png, residual_png, residual_preview_image, residual_preview_png, rgb_png,
+                    save_height_png, save_map_png)
 from ._page import build_page
 from ._program_page import program_figure_name, program_section
 from ._profile_figs import profile_figure, profile_overlay_figure
@@ -37,7 +37,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "annotate_rgb", "block_mean", "display_map", "lowpass_map", "difference_figure", "fmt_number",
            "fmt_quantity", "nice_length", "scale_bar_length", "locator_figure", "axis_motion_figure", "moving_axes",
            "turning_axes", "draw_figure", "preload_drawing", "FIGURE_KINDS", "save_map_png", "save_height_png",
-           "residual_png", "residual_preview_png", "image_png", "rgb_png", "map_png",
+           "residual_png", "residual_preview_image", "residual_preview_png", "image_png", "rgb_png", "map_png",
            "panels_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",

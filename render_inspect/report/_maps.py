@@ -112,15 +112,22 @@ def residual_preview_png(png: str | Path, machined: np.ndarray, design: np.ndarr
     """residual.png: machined - design less its mean (nm) as area averages of at most
     ``side`` pixels a side (no aliasing of the feed marks; :func:`render_inspect.io.preview`),
     from the EXR overview's block sums when given (no second pass over the map)."""
+    img, factor = residual_preview_image(machined, design, overview=overview, side=side)
+    return residual_png(png, img, factor, extent=extent, mean_nm=mean_nm, title=title)
+
+
+def residual_preview_image(machined: np.ndarray, design: np.ndarray, *,
+                           overview: dict | None = None,
+                           side: int = 512) -> tuple[np.ndarray, int]:
+    """The image :func:`residual_preview_png` draws: machined - design (mm) as means of
+    ``factor`` x ``factor`` pixels, at most ``side`` a side; returns (image, factor)."""
     if overview is not None and overview["residual"] is not None:
         factor, (s, c) = overview["factor"], overview["residual"]
         while max(s.shape) > side:
             s, c = coarsen(s, c, 2)
             factor *= 2
-        img = means(s, c)
-    else:
-        img, factor = area_preview(machined, side, minus=design)
-    return residual_png(png, img, factor, extent=extent, mean_nm=mean_nm, title=title)
+        return means(s, c), factor
+    return area_preview(machined, side, minus=design)
 
 
 def residual_png(png: str | Path, img: np.ndarray, factor: int, *, extent: Sequence[float],

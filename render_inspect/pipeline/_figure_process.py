@@ -1,0 +1,242 @@
+"""The figures of a ``simulate`` command drawn by a second process beside the computation.
+
+Drawing a figure is Python work that holds the interpreter (matplotlib: about 0.35 CPU-s
+to import, 0.1-0.3 CPU-s a figure), so a thread of the same process draws it only when
+the computation leaves the interpreter free.  A child process, forked when the command
+starts (a copy of the process as it is then: the package already imported, no thread of
+numba's yet), imports matplotlib and draws each figure as soon as its data is sent, on
+the other core, while the parent plans, follows, cuts and writes.  The figures are the
+same files, byte for byte: the same functions draw them from the same data.
+
+The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends when the
+parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
+(it leaves with ``os._exit``).  A figure that fails in the child raises its error in the
+parent; a child that ended unexpectedly leaves its figures to the parent, which draws
+them itself.  Linux only (``fork``); elsewhere, or when the fork fails, the figures are
+drawn in a thread of the command's process.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import queue
+import select
+import signal
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..core.units import MIB_TO_BYTES
+from ..report import draw_figure, preload_drawing, residual_png
+
+__all__ = ["FigureProcess"]
+
+#: seconds without a finished figure after which the child is taken for stuck: it is
+#: ended and its figures are drawn by the parent
+STALL_S = 300.0
+
+
+def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
+    if kind == "figure":
+        draw_figure(*args, **kwargs)
+    elif kind == "residual":
+        residual_png(*args, **kwargs)
+    else:  # (never: the parent sends only these)
+        raise ValueError(f"unknown figure job {kind!r}")
+
+
+def _child(jobs_fd: int, results_fd: int) -> None:
+    """The child's life: import the drawing library, then draw each job as it arrives and
+    report it (name, seconds, error or None) until the parent closes the pipe."""
+    for name in ("SIGINT", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None:
+            signal.signal(sig, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    # nothing of the child's reaches the terminal: the parent's handlers (and the locks
+    # another of its threads may have held at the fork) are not the child's to use
+    logging.disable(logging.CRITICAL)
+    warnings.simplefilter("ignore")
+    results = os.fdopen(results_fd, "wb", buffering=0)
+    inbox: queue.Queue = queue.Queue()
+
+    def read() -> None:  # jobs are read as they come, so that the parent never waits
+        with os.fdopen(jobs_fd, "rb") as jobs:
+            while True:
+                try:
+                    job = pickle.load(jobs)
+                except (EOFError, OSError, pickle.UnpicklingError):
+                    inbox.put(None)
+                    return
+                inbox.put(job)
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        preload_drawing()
+    except Exception:  # (drawing imports the same and reports what fails there)
+        pass
+    while True:
+        job = inbox.get()
+        if job is None:
+            return
+        key, kind, args, kwargs = job
+        t0 = time.perf_counter()
+        error: BaseException | None = None
+        try:
+            _run_job(kind, args, kwargs)
+        except Exception as err:  # reported in the parent
+            error = err
+        try:
+            blob = pickle.dumps((key, round(time.perf_counter() - t0, 4), error))
+        except Exception:  # an error that does not pickle: its type and text
+            blob = pickle.dumps((key, 0.0, RuntimeError(f"{type(error).__name__}: {error}")))
+        results.write(len(blob).to_bytes(8, "little") + blob)
+
+
+class FigureProcess:
+    """A forked child that draws figures (see the module notes).  ``draw`` and
+    ``residual`` send a job; ``results`` waits for them all and returns the seconds each
+    took (name -> s); ``close`` ends the child."""
+
+    def __init__(self, pid: int, jobs_fd: int, results_fd: int) -> None:
+        self.pid: int | None = pid
+        self._results_fd: int | None = results_fd
+        # job id -> (file name, kind, args, kwargs)
+        self._sent: dict[int, tuple[str, str, tuple, dict]] = {}
+        self._outbox: queue.Queue = queue.Queue()
+        # a writer thread: a large job does not wait for the child to read it
+        self._writer = threading.Thread(target=self._write, args=(jobs_fd,), daemon=True,
+                                        name="render_inspect-figures-send")
+        self._writer.start()
+
+    @classmethod
+    def start(cls) -> FigureProcess | None:
+        """Fork the child, or None where that is not possible (not Linux, no fork)."""
+        if not sys.platform.startswith("linux"):
+            return None
+        try:
+            jobs_r, jobs_w = os.pipe()
+            res_r, res_w = os.pipe()
+        except OSError:
+            return None
+        try:
+            pid = os.fork()
+        except OSError:
+            for fd in (jobs_r, jobs_w, res_r, res_w):
+                os.close(fd)
+            return None
+        if pid == 0:  # the child: draw, then leave without the parent's clean-up
+            code = 0
+            try:
+                os.close(jobs_w)
+                os.close(res_r)
+                _child(jobs_r, res_w)
+            except BaseException:
+                code = 1
+            finally:
+                os._exit(code)
+        os.close(jobs_r)
+        os.close(res_w)
+        return cls(pid, jobs_w, res_r)
+
+    def _write(self, fd: int) -> None:
+        with os.fdopen(fd, "wb") as pipe:
+            while True:
+                blob = self._outbox.get()
+                if blob is None:
+                    return
+                try:
+                    pipe.write(blob)
+                    pipe.flush()
+                except OSError:  # the child is gone: its figures are drawn by the parent
+                    return
+
+    def _send(self, name: str, kind: str, args: tuple, kwargs: dict) -> None:
+        job = len(self._sent)
+        self._sent[job] = (name, kind, args, kwargs)
+        self._outbox.put(pickle.dumps((job, kind, args, kwargs), protocol=5))
+
+    def draw(self, name: str, spec: dict, png: str | Path) -> None:
+        """Draw the figure ``spec`` into ``png`` (:func:`~render_inspect.report.draw_figure`)."""
+        self._send(name, "figure", (spec, Path(png)), {})
+
+    def residual(self, name: str, png: str | Path, img: Any, factor: int, **kwargs: Any) -> None:
+        """residual.png from its area-averaged image (:func:`~render_inspect.report.residual_png`)."""
+        self._send(name, "residual", (Path(png), img, factor), kwargs)
+
+    def results(self, done: Callable[[str], None] | None = None) -> dict:
+        """Wait for every job sent; return name -> seconds.  ``done(name)`` is called as
+        each figure is finished.  A figure that failed raises its error; the figures of a
+        child that ended unexpectedly are drawn here."""
+        self._outbox.put(None)
+        times: dict[str, float] = {}
+        finished: set[int] = set()
+        error: BaseException | None = None
+        fd = self._results_fd
+        while fd is not None and len(finished) < len(self._sent):
+            if not select.select([fd], [], [], STALL_S)[0]:
+                break  # (stuck: ended below, its figures drawn here)
+            head = _read_exact(fd, 8)
+            if head is None:
+                break
+            blob = _read_exact(fd, int.from_bytes(head, "little"))
+            if blob is None:
+                break
+            job, seconds, err = pickle.loads(blob)
+            finished.add(job)
+            name = self._sent[job][0]
+            times[name] = seconds
+            if err is not None and error is None:
+                error = err
+            if done is not None:
+                done(name)
+        if error is not None:
+            raise error
+        if len(finished) < len(self._sent):
+            self.close()
+        for job, (name, kind, args, kwargs) in self._sent.items():
+            if job not in finished:  # the child ended before drawing it: drawn here
+                t0 = time.perf_counter()
+                _run_job(kind, args, kwargs)
+                times[name] = round(time.perf_counter() - t0, 4)
+                if done is not None:
+                    done(name)
+        return times
+
+    def close(self) -> None:
+        """End the child (at once, if it is still drawing) and collect it."""
+        if self.pid is None:
+            return
+        self._outbox.put(None)
+        pid, self.pid = self.pid, None
+        try:
+            done, _ = os.waitpid(pid, os.WNOHANG)
+            if done == 0:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+        except (ChildProcessError, ProcessLookupError):
+            pass
+        if self._results_fd is not None:
+            try:
+                os.close(self._results_fd)
+            except OSError:
+                pass
+            self._results_fd = None
+
+
+def _read_exact(fd: int, n: int) -> bytes | None:
+    """``n`` bytes from ``fd``, or None at the end of the stream."""
+    parts = []
+    while n > 0:
+        chunk = os.read(fd, min(n, MIB_TO_BYTES))
+        if not chunk:
+            return None
+        parts.append(chunk)
+        n -= len(chunk)
+    return b"".join(parts)
