@@ -59,29 +59,39 @@ def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
 def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1):
     """Axis 0 of the smoothing into ``out`` (not ``z``) on its rows ``r0 .. r1 - 1`` and
     columns ``c0 .. c1 - 1`` (the rows of ``z`` clamped at its ends), in blocks of ``cw``
-    columns: each thread takes a run of blocks and walks down the rows of each, so that the
-    rows a window needs are still in the cache from the row before."""
+    columns: each thread takes a run of blocks and walks down the rows of each, two output
+    rows at a time (the rows a tap of the second reads are those the next tap of the first
+    reads: still in the first-level cache), so that the rows a window needs are still in
+    the cache from the rows before."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    nr = r1 - r0
+    nr = (r1 - r0 + 1) // 2
     nc = (c1 - c0 + cw - 1) // cw
     for t in prange(nr * nc):
         c = t // nr
-        i = r0 + t - c * nr
+        i = r0 + 2 * (t - c * nr)
         q0 = c0 + c * cw
         m = min(q0 + cw, c1) - q0
-        acc = np.empty(m)            # a block of its own: the loops below vectorise
+        acc = np.empty(m)            # blocks of their own: the loops below vectorise
+        acc2 = np.empty(m)
         zi = z[i, q0:q0 + m]
+        zi2 = z[min(i + 1, ny - 1), q0:q0 + m]
         for q in range(m):
             acc[q] = zi[q] * w0
+            acc2[q] = zi2[q] * w0
         for jj in range(-r, 0):
             a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
             b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
+            a2 = z[min(max(i + 1 + jj, 0), ny - 1), q0:q0 + m]
+            b2 = z[min(max(i + 1 - jj, 0), ny - 1), q0:q0 + m]
             wj = w[r + jj]
             for q in range(m):
                 acc[q] = acc[q] + (a[q] + b[q]) * wj
+                acc2[q] = acc2[q] + (a2[q] + b2[q]) * wj
         out[i, q0:q0 + m] = acc
+        if i + 1 < r1:
+            out[i + 1, q0:q0 + m] = acc2
 
 
 @njit(parallel=True, cache=True)
