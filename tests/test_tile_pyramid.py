@@ -50,3 +50,22 @@ def test_coarsen2_equals_numpy_on_many_shapes():
         c = rng.integers(0, 5, size=shape)
         got, ref = coarsen2(s, c), coarsen(s, c, 2)
         assert got[0].tobytes() == ref[0].tobytes() and np.array_equal(got[1], ref[1]), shape
+
+
+def test_the_path_lookup_table_equals_numpys_search():
+    """The angle -> segment table of a path (each tile's slice makes one) by a merge: the
+    same indices as numpy's sorted search, repeated angles and unsorted input included."""
+    from render_inspect.machining._envelope_path import _lookup_table
+
+    rng = np.random.default_rng(2)
+    for theta in (np.cumsum(rng.uniform(0, 0.01, 5000)), np.repeat(np.linspace(0, 30, 700), 3),
+                  np.linspace(-4.0, 90.0, 20001), np.array([1.0, 1.0]), np.array([0.0, 2.0, 1.0, 3.0]),
+                  np.array([0.0, np.nan, 1.0])):
+        n = theta.size
+        span = theta[-1] - theta[0]
+        nb = int(min(max(n, 16), 4_000_000))
+        w = span / nb if span > 0 else 1.0
+        edges = theta[0] + w * np.arange(nb)
+        ref = np.clip(np.searchsorted(theta, edges, side="right") - 1, 0, max(n - 2, 0)).astype(np.int64)
+        tab, t0, tw = _lookup_table(theta)
+        assert tab.dtype == ref.dtype and np.array_equal(tab, ref) and t0 == theta[0] and tw == w
