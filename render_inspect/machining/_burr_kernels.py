@@ -356,17 +356,23 @@ def _edges1(a, n_pix, iis, ps, p0, span, thr, edges, turn):
         edges[i, p - p0] = True
 
 
+@njit(cache=True, nogil=True)
+def _mark_cells(along, across, reach, n_along, cell, need):
+    for x in range(along.size):
+        m = across[x] // cell
+        for i in range(max(along[x] - reach - 1, 0) // cell, min(along[x] + reach, n_along - 1) // cell + 1):
+            need[i, m] = True
+
+
 def _cells(along: np.ndarray, across: np.ndarray, reach: int, n_along: int,
            n_across: int) -> list[tuple[int, int, int, int]]:
     """Cells (first, end along; first, end across) of a slope array holding the slopes
     ``k - reach - 1 .. k + reach`` along the axis of every candidate (k, m) = (``along``,
     ``across``): runs of :data:`_CELL`-sided cells across the axis."""
     na, nb = -(-n_along // _CELL), -(-n_across // _CELL)
-    mark = np.zeros((na + 1, nb), dtype=np.int64)
-    m = across // _CELL
-    np.add.at(mark, (np.maximum(along - reach - 1, 0) // _CELL, m), 1)
-    np.add.at(mark, (np.minimum(along + reach, n_along - 1) // _CELL + 1, m), -1)
-    need = np.cumsum(mark, axis=0)[:na] > 0
+    need = np.zeros((na, nb), dtype=np.bool_)
+    _mark_cells(np.ascontiguousarray(along, dtype=np.int64), np.ascontiguousarray(across, dtype=np.int64),
+                int(reach), int(n_along), _CELL, need)
     out = []
     for i in np.flatnonzero(need.any(axis=1)):
         row = np.concatenate(([False], need[i], [False]))
