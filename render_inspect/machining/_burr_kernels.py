@@ -421,6 +421,7 @@ def _axis_edges(z: np.ndarray, axis: int, rows: tuple[int, int], cols: tuple[int
     taken only around the pixels whose turn may exceed ``thr`` (:func:`_candidate`); the
     tests are those of the whole map there."""
     (ra, rb), (ca, cb), (p0, p1) = rows, cols, pix
+    pixel, span = float(pixel), int(span)
     cand = np.empty((p1 - p0, cb - ca) if axis == 0 else (rb - ra, p1 - p0), dtype=np.bool_)
     count = np.empty(cand.shape[0], dtype=np.int64)
     (_candidates0 if axis == 0 else _candidates1)(z, ra, rb, ca, cb, p0, p1, span, *_bound_limit(thr, pixel),
@@ -449,11 +450,10 @@ def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
     edges = np.zeros(z.shape, dtype=bool)
     turn = np.zeros(z.shape)
     thr = math.radians(edge_angle_deg)
-    kw = dict(pixel=float(pixel), span=int(span), thr=thr, edges=edges, turn=turn)
     if ny >= 3:
-        _axis_edges(z, 0, (0, ny), (0, nx), (0, ny), **kw)
+        _axis_edges(z, 0, (0, ny), (0, nx), (0, ny), pixel=pixel, span=span, thr=thr, edges=edges, turn=turn)
     if nx >= 3:
-        _axis_edges(z, 1, (0, ny), (0, nx), (0, nx), **kw)
+        _axis_edges(z, 1, (0, ny), (0, nx), (0, nx), pixel=pixel, span=span, thr=thr, edges=edges, turn=turn)
     return edges, turn
 
 
@@ -474,14 +474,15 @@ def edge_turn_window(z: np.ndarray, window: tuple[int, int, int, int], *, pixel:
         return edges, turn
     thr = math.radians(edge_angle_deg)
     reach = 3 * int(span) + 1
-    kw = dict(pixel=float(pixel), span=int(span), thr=thr, edges=edges, turn=turn)
     if ny >= 3:
         a, b = max(r0 - reach, 0), min(r1 + reach, ny)
-        _axis_edges(z, 0, (a, b), (c0, c1), (r0 - a, r1 - a), **kw)
+        _axis_edges(z, 0, (a, b), (c0, c1), (r0 - a, r1 - a), pixel=pixel, span=span, thr=thr,
+                    edges=edges, turn=turn)
     if nx >= 3:
         # (the larger of the two axes' turns kept: both >= 0, 0 off the edges)
         a, b = max(c0 - reach, 0), min(c1 + reach, nx)
-        _axis_edges(z, 1, (r0, r1), (a, b), (c0 - a, c1 - a), **kw)
+        _axis_edges(z, 1, (r0, r1), (a, b), (c0 - a, c1 - a), pixel=pixel, span=span, thr=thr,
+                    edges=edges, turn=turn)
     return edges, turn
 
 
