@@ -89,3 +89,36 @@ def test_the_smoothing_on_the_cross_equals_the_whole_map_there(window, sigma):
     cols = slice(max(c0 - reach, 0), min(c1 + reach, nx))
     assert np.array_equal(got[rows, c0:c1], whole[rows, c0:c1])
     assert np.array_equal(got[r0:r1, cols], whole[r0:r1, cols])
+
+
+def test_burr_ridges_on_the_edges_box_equal_the_whole_map():
+    """The ridges are laid from the nearest edges found on the edges' bounding box: the
+    same numbers as with the distance transform of the whole map (its definition)."""
+    from scipy import ndimage
+
+    from render_inspect.machining import burr_map
+
+    rng = np.random.default_rng(7)
+    for trial in range(12):
+        ny, nx = (int(v) for v in rng.integers(20, 120, size=2))
+        edges = np.zeros((ny, nx), dtype=bool)
+        k = int(rng.integers(1, 40))
+        r = rng.integers(int(ny * 0.2), int(ny * 0.8) + 1, size=k)
+        c = rng.integers(0, nx, size=k) if trial % 3 else np.full(k, nx // 2)
+        edges[r, c] = True
+        edges[r[0], :] = trial % 4 == 0          # a whole line of edges: ties to break
+        heights = np.where(edges, rng.uniform(1e-4, 2e-4, size=(ny, nx)), 0.0)
+        pixel, width, start, origin = 0.001, 0.0073, (3, 5), (-0.2, 0.1)
+        got = burr_map(np.zeros((ny, nx)), pixel=pixel, origin=origin, height=heights, width=width,
+                       variation=0.3, seed=trial, edges=edges, start=start)
+        # the definition: the transform of the whole map
+        dist, (iy, ix) = ndimage.distance_transform_edt(~edges, return_indices=True)
+        d = dist * pixel
+        near = d < width / 2
+        ref = np.zeros((ny, nx))
+        from render_inspect.machining._burrs import _random_field
+        ex = origin[0] + pixel * (ix[near] + start[1])
+        ey = origin[1] + pixel * (iy[near] + start[0])
+        v = np.maximum(1.0 + 0.3 * _random_field(ex, ey, correlation_length=4 * width, seed=trial), 0.0)
+        ref[near] = heights[iy[near], ix[near]] * v * np.cos(np.pi * d[near] / width) ** 2
+        assert got.tobytes() == ref.tobytes(), trial

@@ -33,6 +33,7 @@ from ..core.errors import InputError
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
+from ._tile_pyramid import block_means, coarsen2, tile_float32
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import block_sums, coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
@@ -45,21 +46,24 @@ BINS = 1024
 CHANNELS = ("design", "machined", "residual")
 
 
-def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int) -> dict:
+def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int,
+                level1: dict | None = None) -> dict:
     """Write the tile into the store (full resolution and pyramid levels <= tile_levels);
-    return the block sums and counts at level ``tile_levels`` if coarser levels follow."""
+    return the block sums and counts at level ``tile_levels`` if coarser levels follow.
+    ``level1``: the arrays' level-1 (sums, counts) when already taken
+    (:func:`~._tile_pyramid.tile_float32`)."""
     r0, c0 = tile.row, tile.col
     coarse = {}
     for name, a in arrays.items():
         group[name][r0:r0 + tile.rows, c0:c0 + tile.cols] = a
         if levels == 0:
             continue
-        s, c = block_sums(a, 2)
+        s, c = level1[name] if level1 is not None else block_sums(a, 2)
         for k in range(1, tile_levels + 1):
             if k > 1:
-                s, c = coarsen(s, c, 2)
+                s, c = coarsen2(s, c)
             f = 1 << k
-            group[f"levels/{k}/{name}"][r0 // f:r0 // f + s.shape[0], c0 // f:c0 // f + s.shape[1]] = means(s, c)
+            group[f"levels/{k}/{name}"][r0 // f:r0 // f + s.shape[0], c0 // f:c0 // f + s.shape[1]] = block_means(s, c)
         if levels > tile_levels:
             coarse[name] = (s, c)
     return coarse
@@ -90,14 +94,12 @@ def tile_task(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[float],
                                              stride=stride, texture=texture, burrs=burrs,
                                              carry=carry if isinstance(ep, CutPath) else None)
         moments = tile_moments(machined, design)
-        residual = np.subtract(machined, design).astype(np.float32)
-        machined32 = machined.astype(np.float32)
-        del machined
-        design32 = design.astype(np.float32)
-        del design
-        coarse = _write_tile(group, tile, {"design": design32, "machined": machined32, "residual": residual},
-                             levels, tile_levels)
-        del design32, machined32, residual
+        # float32 design, machined and residual (formed in float64) and their level-1
+        # block sums, in one compiled pass
+        maps, level1 = tile_float32(design, machined)
+        del machined, design
+        coarse = _write_tile(group, tile, maps, levels, tile_levels, level1)
+        del maps, level1
         out.append({"tile": tile, "moments": moments, "coarse": coarse, "cut": cut})
     return out
 

@@ -7,11 +7,14 @@ Both give the same numbers, to the last bit, as the array expressions they repla
   mode="nearest")`` (the same weights, truncated at int(4 sigma + 0.5) pixels; axis 0
   then axis 1; each output accumulated as scipy's symmetric correlation does it: the
   centre tap first, then the pairs of taps from the outermost inwards);
-* :func:`edge_turn_maps` finds the edges and their turns from the slope angles (the
-  arctangents stay numpy's, computed in row blocks on threads, so that they are the very
-  same numbers); the turn at a pixel, the local-maximum test and the peak within +-3 span
-  pixels are evaluated pixel by pixel, the peak test only where the turn exceeds the
-  threshold.
+* :func:`edge_turn_maps` finds the edges and their turns from the slope angles.  A
+  compiled pass first bounds each pixel's turn by its slopes alone (arctan is
+  1-Lipschitz: the turn between the faces is at most (1 + c)|s_h1 - s_l1| + c|s_h2 - s_l2|);
+  where that bound is below the threshold (by far more than any rounding) the pixel is no
+  edge.  Only around the remaining candidates are the slope angles taken, with numpy's
+  arctan (so that they are the very same numbers: the C library's arctangent differs in
+  the last bit), in cells on threads; the turn at a candidate, the local-maximum test and
+  the peak within +-3 span pixels are then evaluated as over the whole map.
 """
 
 from __future__ import annotations
@@ -24,11 +27,7 @@ import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.smoothing import gaussian_weights
 
-__all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "edge_turn_window", "gaussian_nearest_cross", "slope_angles"]
-
-#: rows per block of the threaded numpy passes
-_BLOCK_ROWS = 256
-
+__all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "edge_turn_window", "gaussian_nearest_cross"]
 
 def _threads() -> int:
     return max(1, min(8, os.cpu_count() or 1))
@@ -60,29 +59,39 @@ def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
 def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1):
     """Axis 0 of the smoothing into ``out`` (not ``z``) on its rows ``r0 .. r1 - 1`` and
     columns ``c0 .. c1 - 1`` (the rows of ``z`` clamped at its ends), in blocks of ``cw``
-    columns: each thread takes a run of blocks and walks down the rows of each, so that the
-    rows a window needs are still in the cache from the row before."""
+    columns: each thread takes a run of blocks and walks down the rows of each, two output
+    rows at a time (the rows a tap of the second reads are those the next tap of the first
+    reads: still in the first-level cache), so that the rows a window needs are still in
+    the cache from the rows before."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    nr = r1 - r0
+    nr = (r1 - r0 + 1) // 2
     nc = (c1 - c0 + cw - 1) // cw
     for t in prange(nr * nc):
         c = t // nr
-        i = r0 + t - c * nr
+        i = r0 + 2 * (t - c * nr)
         q0 = c0 + c * cw
         m = min(q0 + cw, c1) - q0
-        acc = np.empty(m)            # a block of its own: the loops below vectorise
+        acc = np.empty(m)            # blocks of their own: the loops below vectorise
+        acc2 = np.empty(m)
         zi = z[i, q0:q0 + m]
+        zi2 = z[min(i + 1, ny - 1), q0:q0 + m]
         for q in range(m):
             acc[q] = zi[q] * w0
+            acc2[q] = zi2[q] * w0
         for jj in range(-r, 0):
             a = z[min(max(i + jj, 0), ny - 1), q0:q0 + m]
             b = z[min(max(i - jj, 0), ny - 1), q0:q0 + m]
+            a2 = z[min(max(i + 1 + jj, 0), ny - 1), q0:q0 + m]
+            b2 = z[min(max(i + 1 - jj, 0), ny - 1), q0:q0 + m]
             wj = w[r + jj]
             for q in range(m):
                 acc[q] = acc[q] + (a[q] + b[q]) * wj
+                acc2[q] = acc2[q] + (a2[q] + b2[q]) * wj
         out[i, q0:q0 + m] = acc
+        if i + 1 < r1:
+            out[i + 1, q0:q0 + m] = acc2
 
 
 @njit(parallel=True, cache=True)
@@ -154,36 +163,100 @@ def gaussian_nearest_cross(z: np.ndarray, sigma: float, window: tuple[int, int, 
     return out
 
 
-def slope_angles(z: np.ndarray, pixel: float) -> tuple[np.ndarray, np.ndarray]:
-    """arctan of the slopes between neighbouring pixels along each grid axis: (ny - 1,
-    nx) along y and (ny, nx - 1) along x, numpy's arctan of (z[i + 1] - z[i]) / pixel,
-    computed in row blocks on threads."""
-    ny, nx = z.shape
-    a0 = np.empty((max(ny - 1, 0), nx))
-    a1 = np.empty((ny, max(nx - 1, 0)))
+#: the slope angles are taken (numpy's arctan) in cells of this many pixels along and
+#: across the axis, only in the cells that a candidate edge's tests read
+_CELL = 128
 
-    def block(r0):
-        r1 = min(r0 + _BLOCK_ROWS, ny)
-        if r0 < ny - 1:
-            s = min(r1, ny - 1)
-            v = a0[r0:s]
-            np.subtract(z[r0 + 1:s + 1], z[r0:s], out=v)
-            np.divide(v, pixel, out=v)
-            np.arctan(v, out=v)
-        if nx > 1:
-            v = a1[r0:r1]
-            np.subtract(z[r0:r1, 1:], z[r0:r1, :-1], out=v)
-            np.divide(v, pixel, out=v)
-            np.arctan(v, out=v)
+#: a pixel is no candidate edge where the bound on its turn stays below the threshold by
+#: more than this (relative, and absolute in rad, and relative to the height steps the
+#: slopes are made of): far more than the rounding of the slopes, of the arctangents and
+#: of the faces' differences (a few 1e-16 rad)
+_BOUND_REL, _BOUND_ABS = 1e-9, 1e-12
 
-    starts = range(0, ny, _BLOCK_ROWS)
-    if len(starts) > 1 and _threads() > 1:
-        with ThreadPoolExecutor(_threads()) as ex:
-            list(ex.map(block, starts))
-    else:
-        for r0 in starts:
-            block(r0)
-    return a0, a1
+
+def _bound_limit(thr: float, pixel: float) -> tuple[float, float]:
+    """(limit, absolute margin) of :func:`_candidate` for the threshold ``thr`` (rad), in
+    height steps (mm) of a pixel ``pixel``."""
+    return thr * pixel * (1.0 - _BOUND_REL), _BOUND_ABS * pixel
+
+
+@njit(inline="always")
+def _candidate(dh1, dh2, dl1, dl2, c, lim, eps):
+    """Whether a pixel may be an edge, from the height steps d = z[k + 1] - z[k] of its
+    faces' slopes s = d / pixel: its turn |(1 + c)(a_h1 - a_l1) - c (a_h2 - a_l2)| (a =
+    arctan s) is at most (1 + c)|s_h1 - s_l1| + c |s_h2 - s_l2| (arctan is 1-Lipschitz),
+    here times the pixel, with margins for every rounding; NaN: a candidate."""
+    g = (1.0 + c) * abs(dh1 - dl1) + c * abs(dh2 - dl2)
+    m = abs(dh1) + abs(dh2) + abs(dl1) + abs(dl2)
+    return not (g + _BOUND_ABS * m + eps < lim)
+
+
+@njit(parallel=True, cache=True)
+def _candidates0(z, ra, rb, ca, cb, p0, p1, span, lim, eps, cand, count):
+    """Axis 0 of the map z[ra:rb, ca:cb] (its rows clamped at its ends): ``cand[p - p0,
+    q]`` whether pixel (p, q) of it (p0 <= p < p1) may be an edge (:func:`_candidate`),
+    ``count[p - p0]`` the candidates of row p."""
+    n_pix = rb - ra
+    n = n_pix - 1
+    c = (span - 0.5) / span
+    for p in prange(p0, p1):
+        k = 0
+        row = cand[p - p0]
+        if p >= 1 and p <= n_pix - 2:
+            h1 = ra + min(max(p + span - 1, 0), n - 1)
+            h2 = ra + min(max(p + 2 * span - 1, 0), n - 1)
+            l1 = ra + min(max(p - span, 0), n - 1)
+            l2 = ra + min(max(p - 2 * span, 0), n - 1)
+            zh1, zh1n, zh2, zh2n = z[h1, ca:cb], z[h1 + 1, ca:cb], z[h2, ca:cb], z[h2 + 1, ca:cb]
+            zl1, zl1n, zl2, zl2n = z[l1, ca:cb], z[l1 + 1, ca:cb], z[l2, ca:cb], z[l2 + 1, ca:cb]
+            for q in range(cb - ca):
+                f = _candidate(zh1n[q] - zh1[q], zh2n[q] - zh2[q], zl1n[q] - zl1[q], zl2n[q] - zl2[q],
+                               c, lim, eps)
+                row[q] = f
+                k += f
+        else:
+            row[:] = False
+        count[p - p0] = k
+
+
+@njit(parallel=True, cache=True)
+def _candidates1(z, r0, r1, ca, cb, p0, p1, span, lim, eps, cand, count):
+    """Axis 1 of the map z[r0:r1, ca:cb] (its columns clamped at its ends): ``cand[i,
+    p - p0]`` whether pixel (i, p) of it (p0 <= p < p1) may be an edge, ``count[i]``."""
+    n_pix = cb - ca
+    n = n_pix - 1
+    c = (span - 0.5) / span
+    lo, hi = max(p0, 1), min(p1, n_pix - 1)
+    # [e1, e2): the pixels whose four slopes lie inside the map (no clamping)
+    e1 = min(max(lo, 2 * span), hi)
+    e2 = min(max(e1, n - 2 * span + 1), hi)
+    for i in prange(r1 - r0):
+        zi = z[r0 + i]
+        d = np.empty(n)
+        for k in range(n):
+            d[k] = zi[ca + k + 1] - zi[ca + k]
+        row = cand[i]
+        row[:] = False
+        k = 0
+        m = e2 - e1
+        dh1, dh2 = d[e1 + span - 1:e1 + span - 1 + m], d[e1 + 2 * span - 1:e1 + 2 * span - 1 + m]
+        dl1, dl2 = d[e1 - span:e1 - span + m], d[e1 - 2 * span:e1 - 2 * span + m]
+        out = row[e1 - p0:e1 - p0 + m]
+        for q in range(m):      # (slices of their own: the loop vectorises)
+            f = _candidate(dh1[q], dh2[q], dl1[q], dl2[q], c, lim, eps)
+            out[q] = f
+            k += f
+        for p in range(lo, e1):
+            f = _candidate(d[min(max(p + span - 1, 0), n - 1)], d[min(max(p + 2 * span - 1, 0), n - 1)],
+                           d[min(max(p - span, 0), n - 1)], d[min(max(p - 2 * span, 0), n - 1)], c, lim, eps)
+            row[p - p0] = f
+            k += f
+        for p in range(e2, hi):
+            f = _candidate(d[min(max(p + span - 1, 0), n - 1)], d[min(max(p + 2 * span - 1, 0), n - 1)],
+                           d[min(max(p - span, 0), n - 1)], d[min(max(p - 2 * span, 0), n - 1)], c, lim, eps)
+            row[p - p0] = f
+            k += f
+        count[i] = k
 
 
 @njit(inline="always")
@@ -206,33 +279,35 @@ def _face(a, k1, k2, n, q, c):
 
 
 @njit(parallel=True, cache=True)
-def _turns_axis0(a, span, thr, edges, turn):
-    """Edges along axis 0 of a map of (n_pix, nx) pixels from the slope angles ``a``
-    (n_pix - 1, nx); the larger turn is kept where ``turn`` has one already."""
-    n_pix, nx = edges.shape
+def _edges0(a, n_pix, ps, qs, p0, span, thr, edges, turn):
+    """The edge tests along axis 0 of the candidates (``ps``, ``qs``) of a map of
+    ``n_pix`` rows from its slope angles ``a`` (n_pix - 1 rows; read within 3 span + 1
+    rows of each candidate); the larger turn is kept where ``turn`` has one already
+    (``edges`` and ``turn`` hold the rows from ``p0``)."""
     n = n_pix - 1
     c = (span - 0.5) / span
     reach = 3 * span
-    for p in prange(n_pix):
-        for q in range(nx):
-            j = _jturn(a, p, n_pix, q)
-            if not (j > 0.0) or j < _jturn(a, p - 1, n_pix, q) or j < _jturn(a, p + 1, n_pix, q):
-                continue                # not a local maximum of the turn: no candidate
-            t = abs(_face(a, p + span - 1, p + 2 * span - 1, n, q, c)
-                    - _face(a, p - span, p - 2 * span, n, q, c))
-            if t != t:
-                t = 0.0
-            if not (t > thr):
-                continue
-            peak = True
-            for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
-                if _jturn(a, k, n_pix, q) > j:
-                    peak = False
-                    break
-            if not peak:
-                continue
-            turn[p, q] = max(turn[p, q], t)
-            edges[p, q] = True
+    for x in prange(ps.size):
+        p = ps[x]
+        q = qs[x]
+        j = _jturn(a, p, n_pix, q)
+        if not (j > 0.0) or j < _jturn(a, p - 1, n_pix, q) or j < _jturn(a, p + 1, n_pix, q):
+            continue                # not a local maximum of the turn: no edge
+        t = abs(_face(a, p + span - 1, p + 2 * span - 1, n, q, c)
+                - _face(a, p - span, p - 2 * span, n, q, c))
+        if t != t:
+            t = 0.0
+        if not (t > thr):
+            continue
+        peak = True
+        for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
+            if _jturn(a, k, n_pix, q) > j:
+                peak = False
+                break
+        if not peak:
+            continue
+        turn[p - p0, q] = max(turn[p - p0, q], t)
+        edges[p - p0, q] = True
 
 
 @njit(inline="always")
@@ -253,31 +328,118 @@ def _face1(a, i, k1, k2, n, c):
 
 
 @njit(parallel=True, cache=True)
-def _turns_axis1(a, span, thr, edges, turn):
-    ny, n_pix = edges.shape
+def _edges1(a, n_pix, iis, ps, p0, span, thr, edges, turn):
+    """:func:`_edges0` along axis 1: candidates (``iis``, ``ps``), ``a`` (rows, n_pix - 1)."""
     n = n_pix - 1
     c = (span - 0.5) / span
     reach = 3 * span
-    for i in prange(ny):
-        for p in range(n_pix):
-            j = _jturn1(a, i, p, n_pix)
-            if not (j > 0.0) or j < _jturn1(a, i, p - 1, n_pix) or j < _jturn1(a, i, p + 1, n_pix):
-                continue
-            t = abs(_face1(a, i, p + span - 1, p + 2 * span - 1, n, c)
-                    - _face1(a, i, p - span, p - 2 * span, n, c))
-            if t != t:
-                t = 0.0
-            if not (t > thr):
-                continue
-            peak = True
-            for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
-                if _jturn1(a, i, k, n_pix) > j:
-                    peak = False
-                    break
-            if not peak:
-                continue
-            turn[i, p] = max(turn[i, p], t)
-            edges[i, p] = True
+    for x in prange(ps.size):
+        i = iis[x]
+        p = ps[x]
+        j = _jturn1(a, i, p, n_pix)
+        if not (j > 0.0) or j < _jturn1(a, i, p - 1, n_pix) or j < _jturn1(a, i, p + 1, n_pix):
+            continue
+        t = abs(_face1(a, i, p + span - 1, p + 2 * span - 1, n, c)
+                - _face1(a, i, p - span, p - 2 * span, n, c))
+        if t != t:
+            t = 0.0
+        if not (t > thr):
+            continue
+        peak = True
+        for k in range(max(0, p - reach), min(n_pix - 1, p + reach) + 1):
+            if _jturn1(a, i, k, n_pix) > j:
+                peak = False
+                break
+        if not peak:
+            continue
+        turn[i, p - p0] = max(turn[i, p - p0], t)
+        edges[i, p - p0] = True
+
+
+@njit(cache=True, nogil=True)
+def _mark_cells(along, across, reach, n_along, cell, need):
+    for x in range(along.size):
+        m = across[x] // cell
+        for i in range(max(along[x] - reach - 1, 0) // cell, min(along[x] + reach, n_along - 1) // cell + 1):
+            need[i, m] = True
+
+
+def _cells(along: np.ndarray, across: np.ndarray, reach: int, n_along: int,
+           n_across: int) -> list[tuple[int, int, int, int]]:
+    """Cells (first, end along; first, end across) of a slope array holding the slopes
+    ``k - reach - 1 .. k + reach`` along the axis of every candidate (k, m) = (``along``,
+    ``across``): runs of :data:`_CELL`-sided cells across the axis."""
+    na, nb = -(-n_along // _CELL), -(-n_across // _CELL)
+    need = np.zeros((na, nb), dtype=np.bool_)
+    _mark_cells(np.ascontiguousarray(along, dtype=np.int64), np.ascontiguousarray(across, dtype=np.int64),
+                int(reach), int(n_along), _CELL, need)
+    out = []
+    for i in np.flatnonzero(need.any(axis=1)):
+        row = np.concatenate(([False], need[i], [False]))
+        d = np.flatnonzero(row[1:] != row[:-1])
+        for j0, j1 in zip(d[::2], d[1::2]):
+            out.append((int(i) * _CELL, min((int(i) + 1) * _CELL, n_along),
+                        int(j0) * _CELL, min(int(j1) * _CELL, n_across)))
+    return out
+
+
+def _angles(z: np.ndarray, axis: int, rows: tuple[int, int], cols: tuple[int, int],
+            cells: list[tuple[int, int, int, int]], pixel: float) -> np.ndarray:
+    """The slope angles of the map z[rows, cols] along ``axis`` on the ``cells`` of
+    :func:`_cells` (elsewhere undefined): numpy's arctan of (z[i + 1] - z[i]) / pixel, the
+    same numbers as over the whole map, computed on threads."""
+    ra, rb = rows
+    ca, cb = cols
+    a = np.empty((rb - ra - 1, cb - ca) if axis == 0 else (rb - ra, cb - ca - 1))
+
+    def cell(c):
+        k0, k1, m0, m1 = c
+        if axis == 0:
+            v = a[k0:k1, m0:m1]
+            np.subtract(z[ra + k0 + 1:ra + k1 + 1, ca + m0:ca + m1], z[ra + k0:ra + k1, ca + m0:ca + m1], out=v)
+        else:
+            v = a[m0:m1, k0:k1]
+            np.subtract(z[ra + m0:ra + m1, ca + k0 + 1:ca + k1 + 1], z[ra + m0:ra + m1, ca + k0:ca + k1], out=v)
+        np.divide(v, pixel, out=v)
+        np.arctan(v, out=v)
+
+    if len(cells) > 4 and _threads() > 1:
+        with ThreadPoolExecutor(_threads()) as ex:
+            list(ex.map(cell, cells))
+    else:
+        for c in cells:
+            cell(c)
+    return a
+
+
+def _axis_edges(z: np.ndarray, axis: int, rows: tuple[int, int], cols: tuple[int, int],
+                pix: tuple[int, int], *, pixel: float, span: int, thr: float,
+                edges: np.ndarray, turn: np.ndarray) -> None:
+    """The edges along ``axis`` of the map z[rows, cols] (clamped at its ends along the
+    axis) on its pixels ``pix`` (first, end) along the axis, into ``edges`` and ``turn``
+    (those pixels by the map's other axis; the larger turn kept).  The slope angles are
+    taken only around the pixels whose turn may exceed ``thr`` (:func:`_candidate`); the
+    tests are those of the whole map there."""
+    (ra, rb), (ca, cb), (p0, p1) = rows, cols, pix
+    pixel, span = float(pixel), int(span)
+    cand = np.empty((p1 - p0, cb - ca) if axis == 0 else (rb - ra, p1 - p0), dtype=np.bool_)
+    count = np.empty(cand.shape[0], dtype=np.int64)
+    (_candidates0 if axis == 0 else _candidates1)(z, ra, rb, ca, cb, p0, p1, span, *_bound_limit(thr, pixel),
+                                                  cand, count)
+    lines = np.flatnonzero(count)
+    if lines.size == 0:
+        return
+    li, other = np.nonzero(cand[lines])
+    li = lines[li]
+    n_pix = rb - ra if axis == 0 else cb - ca
+    along = li + p0 if axis == 0 else other + p0          # the candidates' pixels along the axis
+    across = other if axis == 0 else li
+    a = _angles(z, axis, rows, cols, _cells(along, across, 3 * span, n_pix - 1, cand.shape[1 - axis]),
+                pixel)
+    if axis == 0:
+        _edges0(a, n_pix, along, across, p0, span, thr, edges, turn)
+    else:
+        _edges1(a, n_pix, across, along, p0, span, thr, edges, turn)
 
 
 def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
@@ -287,40 +449,12 @@ def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
     ny, nx = z.shape
     edges = np.zeros(z.shape, dtype=bool)
     turn = np.zeros(z.shape)
-    a0, a1 = slope_angles(z, pixel)
     thr = math.radians(edge_angle_deg)
     if ny >= 3:
-        _turns_axis0(a0, int(span), thr, edges, turn)
+        _axis_edges(z, 0, (0, ny), (0, nx), (0, ny), pixel=pixel, span=span, thr=thr, edges=edges, turn=turn)
     if nx >= 3:
-        _turns_axis1(a1, int(span), thr, edges, turn)
+        _axis_edges(z, 1, (0, ny), (0, nx), (0, nx), pixel=pixel, span=span, thr=thr, edges=edges, turn=turn)
     return edges, turn
-
-
-def _axis_angles(z: np.ndarray, pixel: float, axis: int) -> np.ndarray:
-    """arctan of the slopes along one grid axis of ``z``: the very numbers of
-    :func:`slope_angles` (the same numpy operations, element by element), in row blocks
-    on threads."""
-    ny, nx = z.shape
-    a = np.empty((ny - 1, nx) if axis == 0 else (ny, nx - 1))
-
-    def block(r0):
-        r1 = min(r0 + _BLOCK_ROWS, a.shape[0])
-        v = a[r0:r1]
-        if axis == 0:
-            np.subtract(z[r0 + 1:r1 + 1], z[r0:r1], out=v)
-        else:
-            np.subtract(z[r0:r1, 1:], z[r0:r1, :-1], out=v)
-        np.divide(v, pixel, out=v)
-        np.arctan(v, out=v)
-
-    starts = range(0, a.shape[0], _BLOCK_ROWS)
-    if len(starts) > 1 and _threads() > 1:
-        with ThreadPoolExecutor(_threads()) as ex:
-            list(ex.map(block, starts))
-    else:
-        for r0 in starts:
-            block(r0)
-    return a
 
 
 def edge_turn_window(z: np.ndarray, window: tuple[int, int, int, int], *, pixel: float,
@@ -334,27 +468,21 @@ def edge_turn_window(z: np.ndarray, window: tuple[int, int, int, int], *, pixel:
     z = np.ascontiguousarray(z, dtype=np.float64)
     ny, nx = z.shape
     r0, r1, c0, c1 = (int(v) for v in window)
-    edges = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    turn = np.zeros((r1 - r0, c1 - c0))
+    edges = np.zeros((max(r1 - r0, 0), max(c1 - c0, 0)), dtype=bool)
+    turn = np.zeros(edges.shape)
     if r1 <= r0 or c1 <= c0:
         return edges, turn
     thr = math.radians(edge_angle_deg)
     reach = 3 * int(span) + 1
     if ny >= 3:
         a, b = max(r0 - reach, 0), min(r1 + reach, ny)
-        e = np.zeros((b - a, c1 - c0), dtype=bool)
-        t = np.zeros((b - a, c1 - c0))
-        _turns_axis0(_axis_angles(z[a:b, c0:c1], pixel, 0), int(span), thr, e, t)
-        edges |= e[r0 - a:r1 - a]
-        turn[...] = t[r0 - a:r1 - a]
+        _axis_edges(z, 0, (a, b), (c0, c1), (r0 - a, r1 - a), pixel=pixel, span=span, thr=thr,
+                    edges=edges, turn=turn)
     if nx >= 3:
+        # (the larger of the two axes' turns kept: both >= 0, 0 off the edges)
         a, b = max(c0 - reach, 0), min(c1 + reach, nx)
-        e = np.zeros((r1 - r0, b - a), dtype=bool)
-        t = np.zeros((r1 - r0, b - a))
-        _turns_axis1(_axis_angles(z[r0:r1, a:b], pixel, 1), int(span), thr, e, t)
-        edges |= e[:, c0 - a:c1 - a]
-        # the kernel keeps the larger of the two axes' turns (both >= 0, 0 off the edges)
-        np.maximum(turn, t[:, c0 - a:c1 - a], out=turn)
+        _axis_edges(z, 1, (r0, r1), (a, b), (c0 - a, c1 - a), pixel=pixel, span=span, thr=thr,
+                    edges=edges, turn=turn)
     return edges, turn
 
 

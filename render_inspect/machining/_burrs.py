@@ -240,19 +240,34 @@ def burr_map(design: np.ndarray, *, pixel: float, origin: Sequence[float] = (0.0
         raise InputError(f"edges must have the design's shape {design.shape}, received {mask.shape}")
     if not mask.any():
         return out
-    dist, (iy, ix) = ndimage.distance_transform_edt(~mask, return_indices=True)
+    # a ridge reaches less than width / 2 from its edge: the nearest edges are found on the
+    # edges' bounding box widened by that (the same as on the whole map: scipy's transform
+    # passes over the pixels without an edge, and no edge lies outside the box)
+    r0, r1, c0, c1 = _edge_box(mask, int(math.ceil(width / (2 * pixel))) + 1)
+    dist, (iy, ix) = ndimage.distance_transform_edt(~mask[r0:r1, c0:c1], return_indices=True)
     d = dist * pixel
     near = d < width / 2
     if not near.any():
         return out
     ell = correlation_length if correlation_length is not None else 4.0 * width
     check_range("burrs.correlation_length", ell, 0.0, None, lo_open=True)
-    ex = origin[0] + pixel * (ix[near] + start[1])
-    ey = origin[1] + pixel * (iy[near] + start[0])
+    iy_n, ix_n = iy[near] + r0, ix[near] + c0
+    ex = origin[0] + pixel * (ix_n + start[1])
+    ey = origin[1] + pixel * (iy_n + start[0])
     v = np.maximum(1.0 + variation * _random_field(ex, ey, correlation_length=ell, seed=seed), 0.0)
-    h = cast(np.ndarray, height)[iy[near], ix[near]] if per_pixel else height
-    out[near] = h * v * np.cos(np.pi * d[near] / width) ** 2
+    h = cast(np.ndarray, height)[iy_n, ix_n] if per_pixel else height
+    out[r0:r1, c0:c1][near] = h * v * np.cos(np.pi * d[near] / width) ** 2
     return out
+
+
+def _edge_box(mask: np.ndarray, margin: int) -> tuple[int, int, int, int]:
+    """(first row, end row, first column, end column) of the True pixels of ``mask`` (some
+    are) widened by ``margin`` pixels, inside the map."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    ny, nx = mask.shape
+    return (max(int(rows[0]) - margin, 0), min(int(rows[-1]) + margin + 1, ny),
+            max(int(cols[0]) - margin, 0), min(int(cols[-1]) + margin + 1, nx))
 
 
 def _smoothed(machined, pixel: float, smoothing: float, border=(True, True, True, True), cross=None):

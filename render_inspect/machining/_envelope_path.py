@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.lazy import njit  # numba, imported on first use
 from ..core.toolpath import ToolPath
 from ._envelope_step import TWO_PI
 
@@ -22,13 +23,38 @@ _UNIFORM_RTOL = 1e-9  # not a unit conversion
 _NO_EDGE = np.zeros(0)
 
 
+@njit(cache=True, nogil=True)
+def _right_counts(theta, edges, out):
+    """out[k] = how many of ``theta`` are <= edges[k] (numpy's ``searchsorted(theta, edges,
+    side="right")``) by one merge of the two sorted arrays; False (out undefined) where
+    either is not nondecreasing."""
+    n = theta.size
+    for j in range(1, n):
+        if not theta[j] >= theta[j - 1]:
+            return False
+    for k in range(1, edges.size):
+        if not edges[k] >= edges[k - 1]:
+            return False
+    j = 0
+    for k in range(edges.size):
+        e = edges[k]
+        while j < n and theta[j] <= e:
+            j += 1
+        out[k] = j
+    return True
+
+
 def _lookup_table(theta: np.ndarray):
     n = theta.size
     span = theta[-1] - theta[0]
     nb = int(min(max(n, 16), 4_000_000))
     w = span / nb if span > 0 else 1.0
     edges = theta[0] + w * np.arange(nb)
-    tab = np.clip(np.searchsorted(theta, edges, side="right") - 1, 0, max(n - 2, 0)).astype(np.int64)
+    # (a merge of the sorted angles and bin edges: the tiles' slices each make a table)
+    right = np.empty(nb, dtype=np.intp)
+    if not _right_counts(np.ascontiguousarray(theta, dtype=np.float64), edges, right):
+        right = np.searchsorted(theta, edges, side="right")
+    tab = np.clip(right - 1, 0, max(n - 2, 0)).astype(np.int64)
     return tab, float(theta[0]), float(w)
 
 
