@@ -147,13 +147,12 @@ def _efficiency_tables(period: float | None, nose_radius: float | None) -> dict:
     cdf = cdf / norm[..., None]
     i550 = int(np.argmin(np.abs(WAVELENGTHS_NM - 550.0)))
     first = float(eta[i550, -1, M + 1]) if M > 0 else 0.0
-    out = {"eta": eta.astype(np.float32), "cdf": cdf.astype(np.float32),
-           "norm": norm.astype(np.float32), "orders": M, "period_mm": period,
-           "first_order_efficiency_550nm": first,
-           "zero_order_efficiency_550nm": float(eta[i550, -1, M])}
-    for key in ("eta", "cdf", "norm"):
-        out[key].flags.writeable = False
-    return out
+    arrays = {"eta": eta.astype(np.float32), "cdf": cdf.astype(np.float32),
+              "norm": norm.astype(np.float32)}
+    for a in arrays.values():
+        a.flags.writeable = False
+    return {**arrays, "orders": M, "period_mm": period, "first_order_efficiency_550nm": first,
+            "zero_order_efficiency_550nm": float(eta[i550, -1, M])}
 
 
 def aluminium_nk(wavelengths_nm: np.ndarray | Sequence[float] = WAVELENGTHS_NM) -> tuple[np.ndarray, np.ndarray]:
