@@ -189,7 +189,7 @@ def spectral_variant() -> Iterator[str | None]:
 def _set_variant_quietly(mi, variant: str) -> None:
     """``mi.set_variant`` without Dr.Jit's hint about ``@dr.syntax``: every switch makes
     Mitsuba decorate its own Python integrators again, and after 1000 decorations Dr.Jit
-    warns about code in loops (a hint for user code; here it is one switch per render)."""
+    warns about code in loops (a hint for user code; here they are the package's own switches)."""
     with warnings.catch_warnings(), cancel.deferred():  # (see mitsuba_variant)
         warnings.filterwarnings("ignore", message="The AST-transforming decorator",
                                 category=RuntimeWarning)
