@@ -1147,11 +1147,12 @@ def test_fuzz_blender_tasks_refuse_bad_parameters_cleanly(tmp_path):
 # ------------------------------------------------------------------ R: written programs
 def _shipped_program_scenes():
     """Every shipped scene with its program kept small: the turning programs sampled at
-    360 points per revolution (the same part, links and limits)."""
+    120 points per revolution (the same part, links and limits; a third of the blocks to
+    read back and verify for every change)."""
     out = {}
     for name in shipped_scenes():
         scene = load_scene(name)
-        sets = ["process.points_per_rev=360"] if hasattr(scene.process, "points_per_rev") else []
+        sets = ["process.points_per_rev=120"] if hasattr(scene.process, "points_per_rev") else []
         if scene.process.kind == "sculpt":
             sets = ["process.arc_length=0.01"]
         out[name] = load_scene(name, sets)
@@ -1162,8 +1163,9 @@ _UNSAFE = ["rapid_low", "plunge_sideways", "cut_below", "feed_high", "no_retract
            "plunge_fast"]
 
 
-def _mutate_program(lines: list[str], kind: str, rng) -> list[str] | None:
-    """One unsafe change of a written program (None when the program has no block for it)."""
+def _program_sites(lines: list[str]) -> tuple[list[int], list[int], list[int]]:
+    """The blocks of a written program an unsafe change can hit: its rapids, its feeds
+    outside the cut (approach, link, exit) and its cutting blocks with a feed."""
     blocks = [i for i, ln in enumerate(lines) if ln.startswith("N")]
     sec, where = None, {}
     for i, ln in enumerate(lines):
@@ -1174,6 +1176,13 @@ def _mutate_program(lines: list[str], kind: str, rng) -> list[str] | None:
     rapids = [i for i in blocks[1:] if " G00 " in lines[i] and "X" in lines[i]]
     feeds = [i for i in blocks if " G01 " in lines[i] and where[i] in ("approach", "link", "exit")]
     cuts = [i for i in blocks if where[i] in ("cut", "line") and " F" in lines[i]]
+    return rapids, feeds, cuts
+
+
+def _mutate_program(lines: list[str], kind: str, rng, sites=None) -> list[str] | None:
+    """One unsafe change of a written program (None when the program has no block for it);
+    ``sites``: :func:`_program_sites` of ``lines``, when already known."""
+    rapids, feeds, cuts = sites if sites is not None else _program_sites(lines)
     out = list(lines)
 
     def sub(i, word, fn):
@@ -1231,9 +1240,10 @@ def test_fuzz_written_programs_are_verified_and_unsafe_ones_refused(tmp_path):
         part, limits = process.program_part(cfg, surface, plan), process.program_limits(cfg)
         links = process.program_links(cfg, surface, plan)
         lines = (folder / "toolpath.nc").read_text().splitlines()
+        sites = _program_sites(lines)
         for k in range(CASES["programs"]):
             kind = _UNSAFE[k % len(_UNSAFE)]
-            bad = _mutate_program(lines, kind, rng)
+            bad = _mutate_program(lines, kind, rng, sites)
             if bad is None:
                 continue
             f = tmp_path / "mutated.nc"

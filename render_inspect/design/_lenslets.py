@@ -295,21 +295,27 @@ class LensletRings(Surface):
         rho = np.hypot(x, y)
         phi = np.arctan2(y, x)
         for r, c in zip(self.ring_radii, self.counts):
-            near = np.abs(rho - r) < self.element_radius
-            if not np.any(near):
+            # only the points near the ring (a ring's band holds a few of them)
+            near = np.flatnonzero(np.abs(rho - r) < self.element_radius)
+            if near.size == 0:
                 continue
+            xn, yn = x.ravel()[near], y.ravel()[near]
+            bs2, bdx, bdy = (b.reshape(-1)[near] for b in (best_s2, best_dx, best_dy))
             step = 2 * np.pi / c
-            n0 = np.rint((phi - self.phase) / step)
+            n0 = np.rint((phi.ravel()[near] - self.phase) / step)
             # neighbours too: elements on a tight ring may overlap
             for dn in ((0,) if c == 1 else (-1, 0, 1)):
                 t = self.phase + (n0 + dn) * step
-                dx = x - r * np.cos(t)
-                dy = y - r * np.sin(t)
+                dx = xn - r * np.cos(t)
+                dy = yn - r * np.sin(t)
                 s2 = dx * dx + dy * dy
-                better = near & (s2 < best_s2)
-                best_s2 = np.where(better, s2, best_s2)
-                best_dx = np.where(better, dx, best_dx)
-                best_dy = np.where(better, dy, best_dy)
+                better = s2 < bs2
+                bs2 = np.where(better, s2, bs2)
+                bdx = np.where(better, dx, bdx)
+                bdy = np.where(better, dy, bdy)
+            best_s2.reshape(-1)[near] = bs2
+            best_dx.reshape(-1)[near] = bdx
+            best_dy.reshape(-1)[near] = bdy
         return best_dx, best_dy, best_s2 < a2
 
     def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:

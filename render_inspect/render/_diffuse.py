@@ -13,6 +13,7 @@ Images are returned with row 0 at the top (camera convention), linear RGB.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from typing import cast
@@ -200,7 +201,7 @@ def _mitsuba_scene(gm, spec, bsdf):
         sensor["sampler"] = {"type": "independent", "sample_count": int(spec["spp"])}
     lt = spec["light"]
     if lt["type"] == "studio":
-        env = studio_environment(lt, height=int(lt.get("env_rows", ENV_ROWS)))
+        env = _studio_environment(lt, height=int(lt.get("env_rows", ENV_ROWS)))
     else:
         env = environment_map(lt["type"], height=int(lt.get("env_rows", ENV_ROWS)),
                               axis=lt["axis"], radiance=lt["radiance"],
@@ -220,6 +221,25 @@ def _mitsuba_scene(gm, spec, bsdf):
         d["lamp"] = {"type": "directional", "direction": list(lamp["direction"]),
                      "irradiance": float(lamp["irradiance"])}
     return d
+
+
+#: the last studio image made: (its light as JSON, its rows) -> the image
+_STUDIO_LAST: dict = {}
+
+
+def _studio_environment(light: dict, *, height: int) -> np.ndarray:
+    """:func:`studio_environment`, made once for the passes of an image (the same light
+    every pass; 0.16 s of CPU each time at 721 rows); a copy of it each call."""
+    try:
+        key = (json.dumps(light, sort_keys=True), int(height))
+    except (TypeError, ValueError):  # not plain JSON: made anew
+        return studio_environment(light, height=height)
+    env = _STUDIO_LAST.get(key)
+    if env is None:
+        env = studio_environment(light, height=height)
+        _STUDIO_LAST.clear()
+        _STUDIO_LAST[key] = env
+    return env.copy()
 
 
 def render_passes(width: int, height: int, spp: int) -> list[int]:

@@ -39,6 +39,7 @@ lobe is stretched across the marks.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -118,7 +119,16 @@ def efficiency_tables(*, period: float | None, nose_radius: float | None) -> dic
     -------
     dict with ``eta``, ``cdf`` ((L, Q, 2M + 1) float32), ``norm`` ((L, Q) float32),
     ``orders`` (M), ``period_mm``, ``first_order_efficiency_550nm`` (normal incidence).
+    The arrays are read-only: the tables of the last few (period, nose radius) pairs are
+    kept, so that the passes of one image (the same marks, every pass a render) compute
+    them once.
     """
+    return dict(_efficiency_tables(None if period is None else float(period),
+                                   None if nose_radius is None else float(nose_radius)))
+
+
+@functools.lru_cache(maxsize=8)
+def _efficiency_tables(period: float | None, nose_radius: float | None) -> dict:
     L, Q = WAVELENGTHS_NM.size, Q_NODES.size
     if period is None:
         eta = np.ones((L, Q, 1))
@@ -137,9 +147,11 @@ def efficiency_tables(*, period: float | None, nose_radius: float | None) -> dic
     cdf = cdf / norm[..., None]
     i550 = int(np.argmin(np.abs(WAVELENGTHS_NM - 550.0)))
     first = float(eta[i550, -1, M + 1]) if M > 0 else 0.0
-    return {"eta": eta.astype(np.float32), "cdf": cdf.astype(np.float32),
-            "norm": norm.astype(np.float32), "orders": M, "period_mm": period,
-            "first_order_efficiency_550nm": first,
+    arrays = {"eta": eta.astype(np.float32), "cdf": cdf.astype(np.float32),
+              "norm": norm.astype(np.float32)}
+    for a in arrays.values():
+        a.flags.writeable = False
+    return {**arrays, "orders": M, "period_mm": period, "first_order_efficiency_550nm": first,
             "zero_order_efficiency_550nm": float(eta[i550, -1, M])}
 
 
