@@ -517,12 +517,14 @@ def test_servo_delay_and_spindle_error_come_back_within_5_percent(tmp_path):
     # the two are correlated (both tilt the surface across the field) but told apart
     r = rec["correlation"]["machine.z.delay_s"]["machine.errors.axial_sync.0.1"]
     assert -0.95 < r < 0
-    # the shipped random parts on: the field cannot tell, and the fit reports it
+    # the shipped random parts on: the field cannot tell, and the fit reports it (four
+    # Sobol points: the best of them starts the same solve as eight, 40 evaluations, not 44)
     shipped = _truth(tmp_path / "shipped", MACHINE, quiet=False)
     assert main(["fit", str(shipped), "--scene", "sts_sinusoidal_grid", "--free",
                  "machine.z.delay_s,machine.errors.axial_sync.0.1", "--bounds",
                  "machine.z.delay_s=0,0.005", "machine.errors.axial_sync.0.1=0,20", "--seed",
-                 "1", "--profile-points", "0", "--out", str(tmp_path / "fit2"), "-q"]) == 0
+                 "1", "--global", "4", "--profile-points", "0", "--out", str(tmp_path / "fit2"),
+                 "-q"]) == 0
     p = json.loads((tmp_path / "fit2" / "fit.json").read_text())["parameters"]
     assert p["machine.z.delay_s"]["stderr"] > 0.0021
     assert p["machine.errors.axial_sync.0.1"]["stderr"] > 4.5
