@@ -41,14 +41,14 @@ QUIET = ["machine.x.noise_nm=0", "machine.z.noise_nm=0", "machine.c.noise_urad=0
          "material.texture_nm=0"]
 #: the fitted field: 0.2 mm centred 0.35 mm from the spindle axis
 FIELD = (0.25, -0.1, 0.45, 0.1)
-#: the fit window (mm) of the feed fitted alone (fixed by the marks' period): half the
-#: field's area, still 13 feed periods; the feed comes back well within the test's 1 %
-#: (0.01 % off, measured); the toric scene's refusal reads its mismatch on it as plainly
+#: the fit window (mm) of the toric scene's refusal: half the field's area, 13 feed periods
 SMALL_WINDOW = 0.14
-#: the fit window (mm) of the nose radius and feed with the random parts set to 0: 11 feed
-#: periods (the waviness comparison needs 10); both come back well within the test's 1 %
-#: (0.006 % and 0.14 % off, the truth within one standard error, measured) in 73
-#: evaluations (117 on SMALL_WINDOW)
+#: the fit window (mm) of the two tests whose fit of the feed marks has no random parts'
+#: scatter to average down (the tool with the random parts set to 0; the feed alone, fixed
+#: by the marks' period): 11 feed periods (the waviness comparison needs 10); the values
+#: come back well within the tests' 1 % (measured: nose radius 0.14 % and feed 0.006 % off,
+#: the truth within one standard error, in 73 evaluations, 117 on SMALL_WINDOW; the feed
+#: alone 0.013 % off)
 TOOL_WINDOW = 0.11
 
 
@@ -568,7 +568,7 @@ def test_scheduler_and_global_search(shipped_tool_truth, tmp_path):
                      "--free", "process.feed_mm_per_min", "--bounds",
                      "process.feed_mm_per_min=0.45,0.55", "--global", "4", "--scheduler",
                      address, "--seed", "2", "--profile-points", "0", "--window",
-                     str(SMALL_WINDOW), "--out", str(tmp_path / "fit"), "-q"]) == 0
+                     str(TOOL_WINDOW), "--out", str(tmp_path / "fit"), "-q"]) == 0
         rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
         assert rec["parameters"]["process.feed_mm_per_min"]["value"] == \
             pytest.approx(0.51, rel=0.01)
