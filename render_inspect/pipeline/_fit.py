@@ -250,6 +250,17 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
             clean0 = compute_all(store, [model.task(start_values)], client, compute)[0]
             check_units(_rms(target.height), _rms(prepare_map(clean0, pixel=target.pixel,
                                                               form=spec.form, origin=w_origin)))
+            # the scene checked against the measurement before the realisations of its
+            # random parts are made (the check reads the map, its marks and its waviness,
+            # none of which their power changes): a refusal costs one evaluation
+            pred_start = predict_features(clean0, target, [p.start for p in params])
+            starts, reach = _measured_starts(base, params, target)
+            before = check_before(
+                target.height, pred_start.height, pixel=pixel, free_keys=keys,
+                measured_period=None if target.centroid is None else 1.0 / target.centroid,
+                predicted_period=(None if not pred_start.centroid or target.centroid is None
+                                  else 1.0 / pred_start.centroid),
+                measured_wavy=target.wavy, predicted_wavy=pred_start.wavy, reach=reach)
             draws = FLOOR_DRAWS if model.has_floor() else 0
             with task(f"fit: the power of the random parts and the camera's noise "
                       f"({draws} realisations)"):
@@ -263,14 +274,6 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                        maps[draws + j * FLOOR_DRAWS:draws + (j + 1) * FLOOR_DRAWS])
                       for j, i in enumerate(free_idx)]
             set_noise_floor(target, noisy, clean0, scaled=scaled)
-            pred_start = predict_features(clean0, target, [p.start for p in params])
-            starts, reach = _measured_starts(base, params, target)
-            before = check_before(
-                target.height, pred_start.height, pixel=pixel, free_keys=keys,
-                measured_period=None if target.centroid is None else 1.0 / target.centroid,
-                predicted_period=(None if not pred_start.centroid or target.centroid is None
-                                  else 1.0 / pred_start.centroid),
-                measured_wavy=target.wavy, predicted_wavy=pred_start.wavy, reach=reach)
             if target.scatter.get("waviness_rms_nm") is not None:
                 log.info("the random parts and the camera's noise: %.3g nm rms of waviness, "
                          "harmonics %s nm, frequency %.2g (their realisations' scatter)",
