@@ -10,6 +10,7 @@ import logging
 import os
 import signal
 import sys
+import threading
 import time
 import traceback
 from typing import Any, NoReturn
@@ -68,6 +69,32 @@ def _exit_at_once(code: int) -> NoReturn:
         except (OSError, ValueError):  # (a closed or broken stream: nothing to keep)
             pass
     os._exit(code)
+
+
+def _end_stopped(code: int) -> NoReturn:
+    """End the program after a stop, once its line is printed: the threads that are not
+    daemons are waited for as at any exit (a worker finishing the file it writes), then
+    the process ends with ``code`` without the interpreter's teardown
+    (:func:`_exit_at_once`).  The teardown stops the daemon threads still at work (the
+    figures' library being imported, matplotlib's font list being built, a progress
+    display) where they next take the interpreter's lock, which inside native code (a C++
+    extension's set-up, a callback from a C library) may abort (SIGABRT) or crash the
+    process instead of letting it end with ``code``.  A further stop meanwhile ends the
+    process at once, with the same code."""
+    def again(signum: int, frame: Any) -> None:
+        os._exit(code)
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            signal.signal(sig, again)
+        except (ValueError, OSError):  # (not the main thread)
+            pass
+    # (what the interpreter's exit does first: join the threads that are not daemons,
+    # after telling idle thread pools to end)
+    shutdown = getattr(threading, "_shutdown", None)
+    if callable(shutdown):
+        shutdown()
+    _exit_at_once(code)
 
 
 def _on_interrupt(signum, frame):
@@ -229,7 +256,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if kept:
             state += f"; {kept}"
         print(f"{prefix}: {what}; {state}", file=sys.stderr)
-        return 143 if isinstance(stop, Terminated) else 130
+        code = 143 if isinstance(stop, Terminated) else 130
+        if argv is None:  # the program: ends here (see _end_stopped)
+            _end_stopped(code)
+        return code
     except MemoryError:
         if show_tb:
             traceback.print_exc()
