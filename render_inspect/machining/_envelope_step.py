@@ -74,6 +74,31 @@ def _edge_dz(edge, sd):
     return edge[3 + k] + t * (edge[4 + k] - edge[3 + k])
 
 
+def _passes_lookup(seg, theta, tab, tab_t0, tab_w, j0, kmax, K, phi, sr, Rc, Rc2, hw, best, win,
+                   edge):
+    """:func:`_passes` on a path of varying angle steps: each pass's segment by the lookup
+    table (compiled once, called by the step's copies of :func:`_passes`)."""
+    nseg = seg.shape[0]
+    t_first = theta[0]
+    t_last = theta[nseg]
+    for k in range(K):
+        s = phi + TWO_PI * (j0 + k)
+        if s >= t_first and s <= t_last:
+            ii = _lookup(theta, tab, tab_t0, tab_w, s)
+            dt = theta[ii + 1] - theta[ii]
+            fr = (s - theta[ii]) / dt if dt > 0 else 0.0
+            rj = seg[ii, 0] + fr * seg[ii, 1]
+            d = abs(sr - rj)
+            if d <= hw:
+                zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
+                if edge.size > 0:
+                    zj += _edge_dz(edge, sr - rj)
+                best = min(best, zj)
+                if k <= kmax:
+                    win = min(win, zj)
+    return best, win
+
+
 def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, icc,
             jw, K, phi, r, sgn, Rc, Rc2, hw, best, win, edge):
     """Lowest nose arc at (sgn r, phi) over K consecutive passes, the first being the first
@@ -112,24 +137,21 @@ def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
                     if k <= kmax:
                         win = min(win, zj)
     else:
-        t_first = theta[0]
-        t_last = theta[nseg]
-        for k in range(K):
-            s = phi + TWO_PI * (j0 + k)
-            if s >= t_first and s <= t_last:
-                ii = _lookup(theta, tab, tab_t0, tab_w, s)
-                dt = theta[ii + 1] - theta[ii]
-                fr = (s - theta[ii]) / dt if dt > 0 else 0.0
-                rj = seg[ii, 0] + fr * seg[ii, 1]
-                d = abs(sr - rj)
-                if d <= hw:
-                    zj = seg[ii, 2] + fr * seg[ii, 3] + Rc - math.sqrt(Rc2 - d * d)
-                    if edge.size > 0:
-                        zj += _edge_dz(edge, sr - rj)
-                    best = min(best, zj)
-                    if k <= kmax:
-                        win = min(win, zj)
+        best, win = _passes_lookup(seg, theta, tab, tab_t0, tab_w, j0, kmax, K, phi, sr, Rc, Rc2, hw,
+                                   best, win, edge)
     return best, win
+
+
+def _passes_call(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, icc,
+                 jw, K, phi, r, sgn, Rc, Rc2, hw, best, win, edge):
+    """:func:`_passes`'s code under a name of its own, compiled as a function that the
+    per-pixel step calls rather than copies into itself: for the rare pixels that no pass
+    of the window reaches (beyond the path's ends), so that the step's compiled body holds
+    two copies of the pass loop, not four (the kernels' first compile takes a fraction of
+    the time; the arithmetic is the same, so are the heights, bit for bit)."""
+
+
+_passes_call.__code__ = _passes.__code__.replace(co_name="_passes_call")
 
 
 def _pass_windows(cc, Wd, f, hw, dev):
@@ -166,20 +188,22 @@ def _pixel_height(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_
                             a, icc, jw, K, phi2, r, -1.0, Rc, Rc2, hw, best, win, edge)
     if win == math.inf and Wp < hw + dev:
         # no pass within the window (beyond the path's ends): every pass that reaches
-        best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
-                            a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win, edge)
+        best, win = _passes_call(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0,
+                                 a, icc, jw_c, K_c, phi, r, 1.0, Rc, Rc2, hw, best, win, edge)
         if r < hw + dev:
-            best, win = _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
-                                t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw, best, win, edge)
+            best, win = _passes_call(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
+                                     t0, a, icc, jw_c, K_c, phi2, r, -1.0, Rc, Rc2, hw, best, win, edge)
     return best if best < math.inf else math.nan
 
 
 #: the functions of the per-pixel step, in the order they call each other
-DEVICE_FUNCTIONS = ("_lookup_bin", "_lookup", "_edge_dz", "_passes", "_pass_windows", "_pass_count", "_pixel_height")
+DEVICE_FUNCTIONS = ("_lookup_bin", "_lookup", "_edge_dz", "_passes_lookup", "_passes", "_passes_call", "_pass_windows", "_pass_count", "_pixel_height")
 _lookup_bin = njit(cache=True, inline="always")(_lookup_bin)
 _lookup = njit(cache=True, inline="always")(_lookup)
 _edge_dz = njit(cache=True, inline="always")(_edge_dz)
+_passes_lookup = njit(cache=True, nogil=True)(_passes_lookup)
 _passes = njit(cache=True, inline="always")(_passes)
+_passes_call = njit(cache=True, nogil=True)(_passes_call)
 _pass_windows = njit(cache=True, inline="always")(_pass_windows)
 _pass_count = njit(cache=True, inline="always")(_pass_count)
 _pixel_height = njit(cache=True, inline="always")(_pixel_height)
