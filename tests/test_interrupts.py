@@ -47,11 +47,13 @@ def inputs(tmp_path_factory):
     fr = csi_frames(h + 2e-3, nrm, pixel=p, origin=(0.0, 0.0),
                     microscope=Microscope(objective=objective("20x"), source=led()))
     write_frames_exr(d / "frames.exr", fr)
-    # a measured height map (as measure writes it) for fit: turning marks of 10 um
+    # a measured height map (as measure writes it) for fit: turning marks of 10 um about
+    # the part's axis, seen where the field lies (origin: the lower left pixel), so that
+    # the fit passes its checks of the measurement and works until it is stopped
     from render_inspect.io import write_measurement_exr
 
     n, px = 128, 0.00087890625
-    x = (np.arange(n) - n / 2) * px
+    x = np.arange(n) * px
     r = np.hypot(x[None, :] + 0.3, x[:, None] - 0.05)
     u = (r / 0.0101 - np.round(r / 0.0101)) * 0.0101
     z = 0.514 - np.sqrt(0.514 ** 2 - u ** 2) + 1e-5 * np.arange(n)[None, :]

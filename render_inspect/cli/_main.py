@@ -84,7 +84,10 @@ def _end_stopped(code: int) -> NoReturn:
     def again(signum: int, frame: Any) -> None:
         os._exit(code)
 
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):  # (no SIGHUP on Windows)
+        sig = getattr(signal, name, None)
+        if sig is None:
+            continue
         try:
             signal.signal(sig, again)
         except (ValueError, OSError):  # (not the main thread)
