@@ -5,7 +5,6 @@ that is left."""
 
 from __future__ import annotations
 
-import ctypes
 import threading
 from dataclasses import dataclass
 from collections.abc import Sequence
@@ -125,21 +124,9 @@ def _side_by_side(*axes: tuple) -> list:
         th.start()
     for th in threads:
         th.join()
-    _release_thread_heaps()
     if errors:
         raise errors[0]
     return out
-
-
-def _release_thread_heaps() -> None:
-    """Give back to the system what the axes' threads freed.  glibc's allocator serves
-    each thread from a heap of its own (an arena) and keeps what is freed there; the
-    tiles of a part cut afterwards would stack on it (the resident set of a tiled
-    simulation of 4 M samples rose by 80 MB).  Other C libraries: nothing is done."""
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
 
 
 def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndarray,
