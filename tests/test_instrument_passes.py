@@ -66,11 +66,22 @@ def test_the_smoothed_cosine_equals_scipys_filter_and_the_array_expressions(shap
     expect = sm[2] / np.maximum(np.sqrt(sm[0] ** 2 + sm[1] ** 2 + sm[2] ** 2), 1e-12)
     got = smoothed_cosine(*unit, sigma)
     assert _same(got, expect)
+    # the components' own arrays holding the passes: the same cosine, written into them
+    copies = [u.copy() for u in unit]
+    got = smoothed_cosine(*copies, sigma, overwrite=True)
+    assert _same(got, expect) and any(got is c for c in copies)
+    # arrays that share memory are not written over
+    u = unit[0].copy()
+    got = smoothed_cosine(u, u, u, sigma, overwrite=True)
+    assert _same(u, unit[0]) and not any(got is c for c in (u,))
 
 
 def test_the_smoothed_cosine_leaves_a_filter_longer_than_the_field_to_scipy():
     u = np.ones((4, 30), dtype=np.float32)
     assert smoothed_cosine(u, u, u, 1.3) is None  # radius 5 >= 4 rows
+    v = [np.ones((4, 30), dtype=np.float32) for _ in range(3)]
+    assert smoothed_cosine(*v, 1.3, overwrite=True) is None
+    assert all(np.all(a == 1) for a in v)  # (left as they were)
 
 
 def _fade_by_array_expressions(cos_t, alpha_half, alpha_dark):
@@ -143,7 +154,7 @@ def test_the_model_gives_the_frames_of_its_array_expressions(monkeypatch, amplit
         return cos_t, fin, reached, unit
 
     monkeypatch.setattr(_imaging, "facets", old_facets)
-    monkeypatch.setattr(_imaging, "smoothed_cosine", lambda *a: None)  # SciPy's filter
+    monkeypatch.setattr(_imaging, "smoothed_cosine", lambda *a, **k: None)  # SciPy's filter
     monkeypatch.setattr(_imaging, "_below_tilt", lambda *a: False)  # the fade always made
     old = run()
     assert _same(new[0], old[0]) and _same(new[1], old[1])
@@ -205,6 +216,25 @@ def test_the_fft_into_a_buffer_is_scipys_fft2():
         assert _same(_imaging._fft2_into(x, out2, 1), got)
     finally:
         _imaging._pocketfft = orig
+
+
+@pytest.mark.parametrize("shape, workers", [((48, 39), 2), ((3120 // 8, 3120 // 8), 2),
+                                            ((61, 64), 1)])
+def test_the_fft_of_the_wanted_rows_alone_is_scipys_fft2_there(shape, workers):
+    import scipy.fft as sfft
+
+    rng = np.random.default_rng(shape[0])
+    x = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)).astype(np.complex64)
+    full = sfft.fft2(x.copy(), workers=workers, overwrite_x=True)
+    qy = np.fft.fftfreq(shape[0])
+    # a band about 0 (the two ends of the rows), a single row, all rows, and no row
+    for rows in (np.abs(qy) <= 0.3, np.arange(shape[0]) == 3, np.ones(shape[0], bool),
+                 np.zeros(shape[0], bool)):
+        out = np.empty_like(x)
+        got = _imaging._fft2_into(x, out, workers, rows=rows)
+        assert got is out and _same(got[rows], full[rows])
+    assert [(r.start, r.stop) for r in _imaging._runs(np.array([1, 1, 0, 0, 1, 0, 1], bool))] \
+        == [(0, 2), (4, 5), (6, 7)]
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 9), (7, 1), (40, 53)])

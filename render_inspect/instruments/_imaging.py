@@ -311,7 +311,8 @@ def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = Non
     del cos_t
     # the smoothing (SciPy's Gaussian filter, wrapped) and the cosine of the smoothed
     # facets in two compiled passes, the same numbers (_kernels.smoothed_cosine)
-    cos_s = smoothed_cosine(unit[0], unit[1], unit[2], sig) if sig > 0.3 else None
+    # (the unit normal's arrays, not used after it, hold its passes: overwrite)
+    cos_s = smoothed_cosine(unit[0], unit[1], unit[2], sig, overwrite=True) if sig > 0.3 else None
     if cos_s is None:
         if sig > 0.3 and threaded:
             # the three components at once (SciPy's filter lets go of the interpreter)
@@ -321,14 +322,20 @@ def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = Non
             unit = [gaussian_filter(u, sig, mode="wrap") for u in unit]
         cos_s = unit[2] / np.maximum(np.sqrt(unit[0] ** 2 + unit[1] ** 2 + unit[2] ** 2), 1e-12)
     del unit
-    tilt = np.arccos(np.clip(cos_s, -1.0, 1.0))
-    acc = np.take(frac.astype(np.float32),
-                  np.rint(tilt * np.float32((alpha.size - 1) / alpha[-1])).astype(np.int32))
-    del tilt, cos_s
-    acc[~returns] = 0.0
+    # the tilt, its index into the table and the object beam over the sub-samples, each
+    # step written over the last one's array (the same float32 operations; a fresh array
+    # of the sub-sample grid for each costs the system its pages)
+    tilt = np.arccos(np.clip(cos_s, -1.0, 1.0, out=cos_s), out=cos_s)
+    del cos_s
+    tilt = np.rint(np.multiply(tilt, np.float32((alpha.size - 1) / alpha[-1]), out=tilt), out=tilt)
+    acc = np.take(frac.astype(np.float32), tilt.astype(np.int32))
+    del tilt
+    # (0 where no light returns: the table's fractions are finite and >= 0, so the product
+    # with False is +0 as the assignment of 0 was)
+    acc *= returns
     refl = float(mic.reflectance)
     wy = _box_weights(s, mic.camera.fill_factor)
-    b_sub = (np.float32(refl) * acc).reshape(hc, s, wc, s)
+    b_sub = np.multiply(acc, np.float32(refl), out=acc).reshape(hc, s, wc, s)
     light = np.einsum("asbt,s,t->ab", b_sub, wy, wy)[crop:hc - crop, crop:wc - crop]
     del b_sub, acc
     amp = np.where(returns, np.float32(math.sqrt(refl)), np.float32(0.0))
@@ -403,8 +410,9 @@ def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = Non
         cols = np.nonzero(np.abs(qx) <= qb)[0]
         # the FFT into a buffer kept for all bins (the same transform; a fresh 3072^2
         # array for each bin costs the system its pages again)
-        spec = _fft2_into(cur, specbuf, workers, rows_pool, blocks)
-        filter_fold(spec, np.abs(qy) <= qb, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
+        row_ok = np.abs(qy) <= qb
+        spec = _fft2_into(cur, specbuf, workers, rows_pool, blocks, rows=row_ok)
+        filter_fold(spec, row_ok, qy2, sepy, cols, cols % wc, qx2, sepx, tf.table[b],
                     inv_dq, s, coarse, index=ridx)
         del spec
         img = sfft.ifft2(coarse, workers=workers, overwrite_x=True)
@@ -449,16 +457,34 @@ def _pocketfft():
     return pypocketfft if hasattr(pypocketfft, "c2c") else None
 
 
-def _fft2_into(x, out, workers, pool=None, blocks=()):
+def _runs(mask: np.ndarray) -> list[slice]:
+    """The runs of True in a 1-D boolean array, as slices."""
+    m = np.concatenate(([False], np.asarray(mask, dtype=bool), [False]))
+    edges = np.flatnonzero(m[1:] != m[:-1])
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _fft2_into(x, out, workers, pool=None, blocks=(), rows=None):
     """``scipy.fft.fft2(x)`` written into ``out`` (complex64, x's shape), ``x`` left as
     it is: SciPy's own transform (``fft2`` hands pocketfft's ``c2c`` the same axes, the
     same normalisation and an output array), read from ``x`` instead of from a copy of
-    it; a copy and ``fft2`` in place where that module is not found."""
+    it; a copy and ``fft2`` in place where that module is not found.
+
+    ``rows`` (boolean, one per row of the result), when given: only those rows of the
+    result are wanted.  pocketfft transforms the axes in turn, the columns (axis 0) first
+    and then each row of their result in place, each row on its own; the rows' pass is
+    then made over the wanted rows alone (the wanted rows hold the same numbers; the
+    others hold the columns' pass only)."""
     pfft = _pocketfft()
     if (pfft is not None and x.dtype == np.complex64 and out.dtype == np.complex64
             and x.shape == out.shape and x.ndim == 2 and x.flags.c_contiguous
             and out.flags.c_contiguous):
-        return pfft.c2c(x, (0, 1), True, 0, out, int(workers))
+        if rows is None or bool(np.all(rows)):
+            return pfft.c2c(x, (0, 1), True, 0, out, int(workers))
+        pfft.c2c(x, (0,), True, 0, out, int(workers))
+        for r in _runs(rows):
+            pfft.c2c(out[r], (1,), True, 0, out[r], int(workers))
+        return out
     _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
     return sfft.fft2(out, workers=workers, overwrite_x=True)
 

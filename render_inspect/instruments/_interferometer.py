@@ -548,8 +548,11 @@ def pixel_truth(h_sub: np.ndarray, h_centre: np.ndarray, *, s: int,
             # field the surface fills, as the gathered copy lays them out)
             zt = (np.ascontiguousarray(z) if ok.all() else z[ok]).T
             coef = np.linalg.lstsq(a, zt, rcond=None)[0]
-            r = zt - a @ coef
-            unresolved = float(np.sqrt(np.mean(r * r))) * MM_TO_NM
+            # (the residuals and their squares written over the plane's values: the same
+            # numbers without two more arrays of all the sub-samples)
+            r = a @ coef
+            r = np.subtract(zt, r, out=r)
+            unresolved = float(np.sqrt(np.mean(np.multiply(r, r, out=r)))) * MM_TO_NM
     return truth, unresolved
 
 

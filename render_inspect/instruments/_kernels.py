@@ -220,25 +220,46 @@ def _wrap_axis1_cosine(u0, u1, u2, w, out):
 
 
 def smoothed_cosine(u0: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-                    sigma: float) -> np.ndarray | None:
+                    sigma: float, *, overwrite: bool = False) -> np.ndarray | None:
     """The cosine of the smoothed facets' tilt: the three components of the unit normal
     (float32, 0 where no light returns) each smoothed by SciPy's
     ``gaussian_filter(u, sigma, mode="wrap")`` (axis 0, then axis 1, each pass rounded to
     float32), then ``u2 / max(sqrt(u0^2 + u1^2 + u2^2), 1e-12)`` in float32: the same
     numbers, to the last bit, as those array expressions, in two compiled passes threaded
     over rows.  Returns None where the weights are not symmetric or the filter is longer
-    than the field (the caller then uses SciPy)."""
+    than the field (the caller then uses SciPy).  ``overwrite``: the components' own
+    arrays (three distinct C-ordered float32 arrays) may hold the passes' intermediate
+    results and the cosine (the same numbers, two fewer arrays of the field's size); they
+    are left as they were when None is returned."""
     w = gaussian_weights(sigma)
     r = (w.size - 1) // 2
     ny, nx = u0.shape
     if r >= min(ny, nx) or not np.all(np.abs(w - w[::-1]) <= np.finfo(float).eps):
         return None
+    if overwrite and _distinct_float32(u0, u1, u2):
+        # each component is read once, by the first pass, and its array then takes the
+        # next component's pass (the first into a fresh array), the last one the cosine
+        t0 = np.empty((ny, nx), dtype=np.float32)
+        _wrap_axis0(u0, w, t0)
+        _wrap_axis0(u1, w, u0)
+        _wrap_axis0(u2, w, u1)
+        _wrap_axis1_cosine(t0, u0, u1, w, u2)
+        return u2
     t0, t1, t2 = (np.empty((ny, nx), dtype=np.float32) for _ in range(3))
     for u, t in ((u0, t0), (u1, t1), (u2, t2)):
         _wrap_axis0(np.ascontiguousarray(u, dtype=np.float32), w, t)
     out = np.empty((ny, nx), dtype=np.float32)
     _wrap_axis1_cosine(t0, t1, t2, w, out)
     return out
+
+
+def _distinct_float32(*arrays: np.ndarray) -> bool:
+    """Whether the arrays are C-ordered float32 arrays of one shape, writeable, sharing no
+    memory."""
+    if not all(isinstance(a, np.ndarray) and a.dtype == np.float32 and a.flags.c_contiguous
+               and a.flags.writeable and a.shape == arrays[0].shape for a in arrays):
+        return False
+    return not any(np.shares_memory(a, b) for i, a in enumerate(arrays) for b in arrays[i + 1:])
 
 
 # ------------------------------------------------------------- the facets' orientation

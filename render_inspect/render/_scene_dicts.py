@@ -205,5 +205,6 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
             nz = dr.select(hit, si.sh_frame.n.z, 0.0)
             dr.eval(z, nz)
             n_out = np.array(nz, dtype=np.float32).reshape(ny, nx)
-        out.append((np.array(z, dtype=np.float32).reshape(ny, nx), n_out))
+        # (the heights read where Dr.Jit holds them, float32 already: NumPy's view, no copy)
+        out.append((np.asarray(z, dtype=np.float32).reshape(ny, nx), n_out))
     return out
