@@ -297,3 +297,31 @@ def test_the_traced_sub_samples_outside_the_map_are_nan(fov):
     outside = (xs[None, :] < 0) | (xs[None, :] > c[-1]) | (ys[:, None] < 0) | (ys[:, None] > c[-1])
     assert outside.any() == (fov[0] < 0.02)
     assert np.isnan(h_sub[outside]).all() and np.isfinite(h_sub[~outside]).all()
+
+
+@pytest.mark.mitsuba
+def test_the_traced_arrays_copied_in_threads_are_those_of_one_thread():
+    """In a process's main thread the traced normals and the heights' float64 pass are
+    made over blocks of rows in two threads; called from another thread, in one: the
+    same arrays bit for bit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from render_inspect.instruments._interferometer import interferometer_geometry, trace_heights
+    from render_inspect.machining import HeightMap
+    from render_inspect.scene import InterferometerConfig
+
+    n, q = 101, 0.001
+    c = np.arange(n) * q
+    xx, yy = np.meshgrid(c, c)
+    design = 2e-4 * np.sin(2 * np.pi * xx / 0.07) * np.cos(2 * np.pi * yy / 0.05)
+    hm = HeightMap(design, design.copy(), q, (0.0, 0.0))
+    cfg = InterferometerConfig(pixel=2 * q, field_of_view=(0.02, 0.02, 0.08, 0.08),
+                               subsamples=3, noise=False)
+    geom = interferometer_geometry(hm, cfg)
+    main = trace_heights(hm, geom, surface="design", subsamples=3)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        other = pool.submit(trace_heights, hm, geom, surface="design", subsamples=3).result()
+    for a, b in zip(main, other):
+        assert _same(a, b)
+    assert np.isfinite(main[0]).all() and main[1].shape == main[0].shape + (3,)
+    assert np.allclose(np.linalg.norm(main[1], axis=-1), 1, atol=1e-5)  # unit normals

@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import InputError, MemoryBudgetError
+from ..core.limits import usable_cpus
 from ..core import Frames, GridCoordinates, HeightMap
 from ..core.section import Length, Region, Section
 from ..core.units import MM_TO_NM
@@ -37,7 +38,7 @@ from ..io import read_frames_exr, write_frames_exr
 from ..mesh import heightmap_mesh
 from ..render import mitsuba_variant, trace_grids
 from ._camera import Camera, make_fixed_patterns
-from ._imaging import _Serial, _threads_allowed
+from ._imaging import _by_rows, _row_blocks, _Serial, _threads_allowed
 from ._kernels import pixel_means, preload
 from ._transfer import acceptance_table
 from ._modes import check_scan_covers, csi_frames, psi_frames
@@ -336,9 +337,20 @@ def trace_heights(heightmap: HeightMap, geom: dict, *, surface: str = "machined"
     wx0, wy0, wx1, _ = geom["window"]
     grids = [{"x0": x0, "y0": y0, "width_mm": x1 - x0, "nx": (nx + 2 * m) * s, "ny": (ny + 2 * m) * s},
              {"x0": wx0, "y0": wy0, "width_mm": wx1 - wx0, "nx": nx, "ny": ny}]
-    traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy), full_normals=True)
+    # (the copies of the traced normals and the heights' float64 pass over blocks of rows
+    # in threads, in a process's main thread: the same arrays)
+    workers = min(2, usable_cpus()) if _threads_allowed() else 1
+    traced = trace_grids(gm, grids, z_top=z_top, shift=(dx, dy), full_normals=True,
+                         workers=workers)
     z_sub, n_sub = traced[0]
-    h_sub = np.add(z_sub, z_off, dtype=np.float64)  # (float64(z) + z_off, in one pass)
+    h_sub = np.empty(z_sub.shape, dtype=np.float64)  # (float64(z) + z_off, in one pass)
+    pool = ThreadPoolExecutor(max_workers=workers) if workers > 1 else None
+    try:
+        _by_rows(pool, _row_blocks(z_sub.shape[0], workers),
+                 lambda r: np.add(z_sub[r], z_off, out=h_sub[r], dtype=np.float64))
+    finally:
+        if pool is not None:
+            pool.shutdown()
     # a sample outside the height map's own span is not part of the surface
     xs = x0 + (np.arange((nx + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)
     ys = y0 + (np.arange((ny + 2 * m) * s) + 0.5) * (x1 - x0) / ((nx + 2 * m) * s)

@@ -6,7 +6,8 @@ with row 0 at the smallest y (the height-map convention), column 0 at the smalle
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -129,7 +130,7 @@ def render_aov_grids(gm: GridMesh, grids: list[dict], *, z_top: float) -> list[t
 
 def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
                 shift: Sequence[float] = (0.0, 0.0),
-                full_normals: bool = False) -> list[tuple]:
+                full_normals: bool = False, workers: int = 1) -> list[tuple]:
     """Ray-trace the mesh straight down near the cell centres of several grids (one BVH
     build) and return the height at the centres.
 
@@ -153,6 +154,9 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
         Ray offset from the cell centres, mm.
     full_normals : bool
         Return the whole shading normal instead of its z component.
+    workers : int
+        Threads that copy the normals' components side by side, over blocks of rows
+        (the same array for any number).
 
     Returns
     -------
@@ -199,8 +203,13 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
                                                        si.sh_frame.n.z)]
             dr.eval(z, *comps)
             n_out = np.empty((ny, nx, 3), dtype=np.float32)  # (filled in place: no stack)
-            for i, c in enumerate(comps):
-                n_out[..., i] = np.asarray(c, dtype=np.float32).reshape(ny, nx)
+            planes = [np.asarray(c, dtype=np.float32).reshape(ny, nx) for c in comps]
+
+            def fill(r: slice, n_out: np.ndarray = n_out, planes: list = planes) -> None:
+                for i, c in enumerate(planes):
+                    n_out[r, :, i] = c[r]
+
+            _by_row_blocks(fill, ny, workers)
         else:
             nz = dr.select(hit, si.sh_frame.n.z, 0.0)
             dr.eval(z, nz)
@@ -208,3 +217,17 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
         # (the heights read where Dr.Jit holds them, float32 already: NumPy's view, no copy)
         out.append((np.asarray(z, dtype=np.float32).reshape(ny, nx), n_out))
     return out
+
+
+def _by_row_blocks(fn: Callable[[slice], object], rows: int, workers: int) -> None:
+    """``fn(block)`` for ``rows`` rows split into ``workers`` blocks of whole rows, each
+    block in a thread of its own (NumPy's copies and element-wise passes let go of the
+    interpreter); all the rows at once in the calling thread with one worker."""
+    n = max(1, min(int(workers), rows))
+    if n == 1:
+        fn(slice(0, rows))
+        return
+    edges = [rows * i // n for i in range(n + 1)]
+    with ThreadPoolExecutor(max_workers=n) as pool:
+        for f in [pool.submit(fn, slice(a, b)) for a, b in zip(edges[:-1], edges[1:])]:
+            f.result()
