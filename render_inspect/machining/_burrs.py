@@ -56,7 +56,7 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import cast
 
 import numpy as np
@@ -448,7 +448,7 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
                         border: Sequence[bool] = (True, True, True, True),
                         start: Sequence[int] = (0, 0),
                         inner: Sequence[int] | None = None,
-                        reference: np.ndarray | None = None
+                        reference: np.ndarray | Callable[[], np.ndarray] | None = None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The burrs of :func:`material_burrs` on ``machined`` (a whole grid, or a block of
     it): (added height, edges, turn at the edges (rad), the law's height at the edges),
@@ -464,8 +464,9 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
     (the edges whose burrs reach them), each from the smoothed map along its row and
     column (:func:`~._burr_kernels.edge_turn_window`), and the ridges are laid on that
     window; None where no edge lies in it.  ``reference`` (with ``inner``): a map of the
-    block close to ``machined`` (its design), with which a window where no pixel can be
-    an edge is shown to be one before the block is smoothed
+    block close to ``machined`` (its design), or a function that makes it (then it is
+    let go before the block is smoothed), with which a window where no pixel can be an
+    edge is shown to be one before the block is smoothed
     (:func:`~._burr_bound.no_edge_possible`: None, as the search would find)."""
     w = float(width)
     span = _span(pixel, smoothing)
@@ -476,11 +477,13 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
         a0, a1, b0, b1 = (int(v) for v in inner)
         rw = int(math.ceil(w / (2 * pixel)))
         window = (max(a0 - rw, 0), min(a1 + rw, ny), max(b0 - rw, 0), min(b1 + rw, nx))
-        if reference is not None and smoothing > 0 and _no_edge(machined, reference, window, pixel=pixel,
-                                                                smoothing=smoothing, span=span,
-                                                                edge_angle_deg=edge_angle_deg):
-            return None
-    reference = None        # (not needed further: its memory is free before the smoothing)
+        if reference is not None and smoothing > 0:
+            ref = reference() if callable(reference) else reference
+            proved = _no_edge(machined, ref, window, pixel=pixel, smoothing=smoothing, span=span,
+                              edge_angle_deg=edge_angle_deg)
+            del ref
+            if proved:
+                return None
     z, bad = _smoothed(machined, pixel, smoothing, border,
                        cross=None if window is None else (window, 3 * span + 1))
     if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:

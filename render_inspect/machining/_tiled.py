@@ -43,6 +43,7 @@ module holds the pure per-tile computation.
 from __future__ import annotations
 
 from collections.abc import Sequence
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -209,11 +210,11 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
         # the burrs of the tile's pixels only (the block is what they need)
         border = (r0 == 0, big.row + big.rows == ny, c0 == 0, big.col + big.cols == nx)
         # the design on a block inside the grid with every pixel cut: the map with which the
-        # burr model shows a tile without edges to be one before smoothing the block (passed
-        # without a name here: the model lets it go before it smooths)
+        # burr model shows a tile without edges to be one before smoothing the block (made
+        # there, and let go before it smooths)
         r = material_burr_block(machined, pixel=pixel, origin=origin, **burrs, border=border,
                                 start=(r0, c0), inner=(rows.start, rows.stop, cols.start, cols.stop),
-                                reference=design_tile(surface, origin, pixel, big)
+                                reference=functools.partial(design_tile, surface, origin, pixel, big)
                                 if halo == narrow and not any(border) else None)
         machined = machined[at].copy()
         if r is not None:
