@@ -195,7 +195,8 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
         y = origin[1] + pixel * np.arange(r_a, r_a + src.shape[0])
         # texture_field added where the map is finite, in one compiled pass (the same
         # numbers as numpy's): the texture's squares left there
-        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
+        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2],
+                                cache=carry)
         ot = np.isfinite(machined[at])
         part["texture_sumsq"], part["texture_n"] = float(np.sum(sq[at][ot])), int(ot.sum())
         del sq, ot
