@@ -66,3 +66,21 @@ def test_texture_pass_checks_the_grid():
     with pytest.raises(InputError, match="grid's shape"):
         add_texture_field(np.zeros((3, 4)), np.arange(5.0), np.arange(3.0), rms=1e-6,
                           correlation_length=0.03, seed=0)
+
+
+def test_textured_with_the_factors_kept_along_x_equals_it_without():
+    """``textured(..., cache=)`` (the tiles of a column share their columns): the same
+    bits as the definition, on rows that follow each other, and after the columns change."""
+    from render_inspect.machining._material import textured
+
+    z = _maps()["holes"]
+    x = 0.3 + 0.001 * np.arange(z.shape[1])
+    cache: dict = {}
+    for rows, xs in ((slice(0, 90), x), (slice(60, 203), x), (slice(10, 50), x + 0.001), (slice(0, 203), x)):
+        m = np.ascontiguousarray(z[rows])
+        y = -0.1 + 0.001 * np.arange(rows.start, rows.stop)
+        got, sq = textured(m, xs, y, rms=1e-6, correlation_length=0.03, seed=5, cache=cache)
+        want, _ = _reference(m, xs, y, rms=1e-6, correlation_length=0.03, seed=5)
+        assert got.tobytes() == want.tobytes()
+        assert np.array_equal(cache["texture_x"][1], xs)
+    assert textured(m, x, y, rms=1e-6, correlation_length=0.03, seed=5)[0].tobytes() == got.tobytes()

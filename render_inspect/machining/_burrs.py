@@ -56,7 +56,7 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import cast
 
 import numpy as np
@@ -65,7 +65,9 @@ from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
-from ._burr_kernels import edge_turn_maps, edge_turn_window, gaussian_nearest, gaussian_nearest_cross
+from ._burr_bound import no_edge_possible
+from ._burr_kernels import (_BOUND_ABS, _bound_limit, edge_turn_maps, edge_turn_window, gaussian_nearest,
+                            gaussian_nearest_cross, gaussian_weights)
 
 #: SciPy, imported on first use (render_inspect.core.lazy)
 ndimage = lazy_module("scipy.ndimage")
@@ -445,7 +447,8 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
                         edge_angle_deg: float = 1.0, smoothing: float = 0.0, width: float,
                         border: Sequence[bool] = (True, True, True, True),
                         start: Sequence[int] = (0, 0),
-                        inner: Sequence[int] | None = None
+                        inner: Sequence[int] | None = None,
+                        reference: np.ndarray | Callable[[], np.ndarray] | None = None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The burrs of :func:`material_burrs` on ``machined`` (a whole grid, or a block of
     it): (added height, edges, turn at the edges (rad), the law's height at the edges),
@@ -460,7 +463,11 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
     there.  The edges are then looked for only within the ridge's half width of them
     (the edges whose burrs reach them), each from the smoothed map along its row and
     column (:func:`~._burr_kernels.edge_turn_window`), and the ridges are laid on that
-    window; None where no edge lies in it."""
+    window; None where no edge lies in it.  ``reference`` (with ``inner``): a map of the
+    block close to ``machined`` (its design), or a function that makes it (then it is
+    let go before the block is smoothed), with which a window where no pixel can be an
+    edge is shown to be one before the block is smoothed
+    (:func:`~._burr_bound.no_edge_possible`: None, as the search would find)."""
     w = float(width)
     span = _span(pixel, smoothing)
     window = None
@@ -470,6 +477,13 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
         a0, a1, b0, b1 = (int(v) for v in inner)
         rw = int(math.ceil(w / (2 * pixel)))
         window = (max(a0 - rw, 0), min(a1 + rw, ny), max(b0 - rw, 0), min(b1 + rw, nx))
+        if reference is not None and smoothing > 0:
+            ref = reference() if callable(reference) else reference
+            proved = _no_edge(machined, ref, window, pixel=pixel, smoothing=smoothing, span=span,
+                              edge_angle_deg=edge_angle_deg)
+            del ref
+            if proved:
+                return None
     z, bad = _smoothed(machined, pixel, smoothing, border,
                        cross=None if window is None else (window, 3 * span + 1))
     if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:
@@ -488,6 +502,17 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
                  variation=variation, seed=seed, edge_angle_deg=edge_angle_deg, edges=edges,
                  start=start)
     return b, edges, turn, heights
+
+
+def _no_edge(machined, reference, window, *, pixel: float, smoothing: float, span: int,
+             edge_angle_deg: float) -> bool:
+    """Whether no pixel of ``window`` can be an edge of the block smoothed by ``smoothing``
+    (:func:`~._burr_bound.no_edge_possible` with the edge search's own bound)."""
+    check_range("edge_angle_deg", edge_angle_deg, 0.0, 90.0, lo_open=True, hi_open=True)
+    thr = math.radians(edge_angle_deg)
+    lim, eps = _bound_limit(thr, pixel)
+    return no_edge_possible(machined, reference, gaussian_weights(smoothing / pixel), window, pixel=pixel,
+                            edge_angle_deg=edge_angle_deg, span=span, lim=lim, eps=eps, rel=_BOUND_ABS)
 
 
 def _burr_window(machined, z, bad, inner: Sequence[int], window: Sequence[int], *, pixel: float,

@@ -373,16 +373,24 @@ def _texture_scale(rms: float) -> float:
     return rms * math.sqrt(2.0 / _TEXTURE_MODES)
 
 
-def _texture_products(x, y, correlation_length: float, seed: int):
+def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | None = None):
     """The two (ny, nx) matrix products whose difference is the unit field of
     :func:`texture_field`: cos(kx x + ky y + p) = cos(kx x + p) cos(ky y) - sin(kx x +
-    p) sin(ky y), summed over the modes."""
+    p) sin(ky y), summed over the modes.  ``cache``: a dict that keeps the modes' cosines
+    and sines along ``x`` for the next call with the same ``x`` (the tiles of a column)."""
     rng = np.random.default_rng(seed)
     k = rng.normal(0.0, 1.0 / correlation_length, size=(_TEXTURE_MODES, 2))
     ph = rng.uniform(0.0, 2 * math.pi, size=_TEXTURE_MODES)
-    ax = np.multiply.outer(k[:, 0], x) + ph[:, None]
+    kept = cache.get("texture_x") if cache is not None else None
+    if kept is not None and kept[0] == (correlation_length, seed) and np.array_equal(kept[1], x):
+        cx, sx = kept[2], kept[3]
+    else:
+        ax = np.multiply.outer(k[:, 0], x) + ph[:, None]
+        cx, sx = np.cos(ax), np.sin(ax)
+        if cache is not None:
+            cache["texture_x"] = ((correlation_length, seed), np.array(x, copy=True), cx, sx)
     ay = np.multiply.outer(y, k[:, 1])
-    return np.cos(ay) @ np.cos(ax), np.sin(ay) @ np.sin(ax)
+    return np.cos(ay) @ cx, np.sin(ay) @ sx
 
 
 @njit(parallel=True, cache=True)
@@ -406,15 +414,18 @@ def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows):
 
 
 def textured(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
-             correlation_length: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+             correlation_length: float, seed: int,
+             cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(``machined`` with :func:`texture_field` added where it is finite, the texture's
     square there (other pixels: undefined)), new (ny, nx) arrays; ``machined`` a
     C-contiguous float64 map and ``rms`` > 0.  The same numbers, to the last bit, as
-    ``np.where(ok, machined + tex, machined)`` and ``tex ** 2`` with numpy."""
+    ``np.where(ok, machined + tex, machined)`` and ``tex ** 2`` with numpy.  ``cache``: a
+    dict kept between calls on the same columns ``x`` (the field's factors along x are
+    taken from it: the same numbers)."""
     check_range("rms", rms, 0.0, 1.0)
     check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
     out, sq = _texture_products(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64),
-                                correlation_length, seed)
+                                correlation_length, seed, cache)
     _add_texture_rows(machined, out, sq, _texture_scale(rms), np.empty(machined.shape[0], dtype=np.int64))
     return out, sq
 

@@ -23,7 +23,10 @@ of the tile's border pixels.  With the material's burrs the halo is the burr mod
 (:func:`~._burrs.burr_halo`: the smoothing, the edge's turn, the ridge's half width): the
 texture is added on the halo'd block, which is smoothed where the edge search reads it,
 and the edges and ridges are found only on the tile and the ridge's half width around it
-(``material_burr_block(..., inner=)``: the same numbers as on the whole block).  The tile
+(``material_burr_block(..., inner=)``: the same numbers as on the whole block); on a block
+inside the grid with every pixel cut, the design on the block lets the model show first
+that no pixel of the tile's window can be an edge, without smoothing the block
+(:func:`~._burr_bound.no_edge_possible`: no burrs, as the search would find).  The tile
 also returns the partial sums of the material's facts (the grooves' squares, the largest
 displaced material, the edge pixels, the burrs' edge pixels and maxima) and, for the
 following-error map, its pixels on a stride of the whole grid.  The burr model's halo is
@@ -40,6 +43,7 @@ module holds the pure per-tile computation.
 from __future__ import annotations
 
 from collections.abc import Sequence
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -157,6 +161,7 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
         halo = max(HALO, burr_halo(pixel, burrs["smoothing"], burrs["width"]))
     else:
         halo = HALO
+    narrow = halo
     maps, st, big = _cut_block(ep, grooves, origin, pixel, tile, halo, (ny, nx), carry)
     if burrs is not None and big.rows * big.cols < ny * nx and not np.isfinite(maps["machined"]).all():
         # NaN pixels are filled from their nearest valid pixel: a wider halo
@@ -190,7 +195,8 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
         y = origin[1] + pixel * np.arange(r_a, r_a + src.shape[0])
         # texture_field added where the map is finite, in one compiled pass (the same
         # numbers as numpy's): the texture's squares left there
-        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2])
+        machined, sq = textured(src, x, y, rms=texture[0], correlation_length=texture[1], seed=texture[2],
+                                cache=carry)
         ot = np.isfinite(machined[at])
         part["texture_sumsq"], part["texture_n"] = float(np.sum(sq[at][ot])), int(ot.sum())
         del sq, ot
@@ -203,9 +209,14 @@ def compute_tile(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[floa
     if burrs is not None:
         part.update(burr_edge_pixels=0, burr_turn_max=0.0, burr_height_max=0.0, burr_added_max=0.0)
         # the burrs of the tile's pixels only (the block is what they need)
-        r = material_burr_block(machined, pixel=pixel, origin=origin, **burrs,
-                                border=(r0 == 0, big.row + big.rows == ny, c0 == 0, big.col + big.cols == nx),
-                                start=(r0, c0), inner=(rows.start, rows.stop, cols.start, cols.stop))
+        border = (r0 == 0, big.row + big.rows == ny, c0 == 0, big.col + big.cols == nx)
+        # the design on a block inside the grid with every pixel cut: the map with which the
+        # burr model shows a tile without edges to be one before smoothing the block (made
+        # there, and let go before it smooths)
+        r = material_burr_block(machined, pixel=pixel, origin=origin, **burrs, border=border,
+                                start=(r0, c0), inner=(rows.start, rows.stop, cols.start, cols.stop),
+                                reference=functools.partial(design_tile, surface, origin, pixel, big)
+                                if halo == narrow and not any(border) else None)
         machined = machined[at].copy()
         if r is not None:
             b, e, turn, heights = r

@@ -27,8 +27,8 @@ from ..batch import run_tiles
 from ..core.toolpath import ToolPath
 from ..io import (block_sums, create_heightmap_zarr, grid_attrs, heightmap_channels,
                   heightmap_overview, preview)
-from ..machining import (edge_turns, load_cut_kernels, prepare_envelope, residual_metrics,
-                         simulate_turning, tile_abs_dev, tile_moments)
+from ..machining import (edge_turns, load_cut_kernels, material_burr_block, prepare_envelope,
+                         residual_metrics, simulate_turning, tile_abs_dev, tile_moments)
 
 
 class _Flat:
@@ -70,6 +70,10 @@ def warm_up() -> float:
     # the burr model's edge tests (they run only where a map has candidate edges: a kink)
     y, x = np.mgrid[0:40, 0:40] * 0.002
     edge_turns(0.1 * np.abs(x - 0.04) + 0.1 * np.abs(y - 0.04), pixel=0.002, span=2)
+    # and the proof of no edge on a tile's window, from the design on its block
+    zb = 0.002 * (x ** 2 + y ** 2)
+    material_burr_block(zb, pixel=0.002, chip_thickness=1e-3, coefficient=1.0, smoothing=0.002, width=0.003,
+                        border=(False, False, False, False), inner=(18, 22, 18, 22), reference=zb)
     ep = prepare_envelope(_spiral(True), nose_radius=0.1, half_width=0.05)
     with tempfile.TemporaryDirectory() as tmp:
         store = str(Path(tmp) / "w.zarr")
