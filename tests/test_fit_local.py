@@ -69,3 +69,47 @@ def test_a_local_evaluation_leaves_numba_num_threads_unset(monkeypatch):
     monkeypatch.setenv("NUMBA_NUM_THREADS", "999")
     _fit_model._numba_threads_as_launched()
     assert os.environ["NUMBA_NUM_THREADS"] == str(numba.config.NUMBA_NUM_THREADS)
+
+
+#: a worker's evaluation in miniature: arrays of 1 MiB made and freed, counting the pages
+#: the process faults in, plainly and through ``on_worker``
+_FAULTS = """
+import json, resource
+import numpy as np
+from render_inspect.pipeline._fit_model import on_worker
+
+def arrays(task):
+    for _ in range(task["n"]):
+        a = np.ones(1 << 17)  # 1 MiB: over glibc's mmap threshold of 128 KiB
+        del a
+    return task["n"]
+
+def faults(run):
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    assert run() == 200
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+
+print(json.dumps({"plain": faults(lambda: arrays({"n": 200})),
+                  "on_worker": faults(lambda: on_worker(None, arrays, {"n": 200})),
+                  "plain_after": faults(lambda: arrays({"n": 200}))}))
+"""
+
+
+@pytest.mark.slow
+def test_an_evaluation_on_a_worker_keeps_its_arrays_on_the_heap(tmp_path):
+    """A Dask nanny starts its workers with ``MALLOC_TRIM_THRESHOLD_`` set, which pins
+    glibc's mmap threshold: every array over 128 KiB is mapped afresh and its pages fault
+    in again (256 faults per MiB).  ``on_worker`` keeps them on the heap while the
+    evaluation runs (a few faults in all), and the worker's own setting holds again after
+    it (the arrays after it fault in as before)."""
+    import json
+    import subprocess
+    import sys
+
+    env = {**os.environ, "MALLOC_TRIM_THRESHOLD_": "65536"}
+    out = subprocess.run([sys.executable, "-c", _FAULTS], env=env, capture_output=True,
+                         text=True, timeout=300, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    n = json.loads(out.stdout.strip().splitlines()[-1])
+    assert n["plain"] > 200 * 200 and n["plain_after"] > 200 * 200, n  # each array maps afresh
+    assert n["on_worker"] < 2000, n  # the heap reused
