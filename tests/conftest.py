@@ -3,6 +3,7 @@ temporary folder before anything imports bpy, mitsuba, drjit or matplotlib."""
 
 from __future__ import annotations
 
+import atexit
 import multiprocessing.process
 import os
 import shutil
@@ -18,6 +19,15 @@ for _var in ("HOME", "XDG_CACHE_HOME", "BLENDER_USER_RESOURCES", "MPLCONFIGDIR")
     os.environ[_var] = str(_HOME / _var.lower())
     Path(os.environ[_var]).mkdir(parents=True, exist_ok=True)
 os.environ.setdefault("MPLBACKEND", "Agg")
+# Dr.Jit's compiled kernels: one folder for the whole run, shared by the workers of `-n N`
+# (each inherits the first process's environment) and the commands the tests start, so a
+# renderer's kernel is compiled once per run, not once per worker.  Dr.Jit writes a kernel
+# to a file of its own and links it in under its hash, so processes can share the folder.
+_DRJIT_CACHE = os.environ.get("RENDER_INSPECT_TEST_DRJIT_CACHE") or str(_HOME / "drjit")
+os.environ["RENDER_INSPECT_TEST_DRJIT_CACHE"] = os.environ["DRJIT_CACHE_DIR"] = _DRJIT_CACHE
+Path(_DRJIT_CACHE).mkdir(parents=True, exist_ok=True)
+# the temporary HOME goes when the process that made it ends (the workers end first)
+atexit.register(shutil.rmtree, _HOME, ignore_errors=True)
 # numba's parallel kernels run on OpenMP threads, and GNU OpenMP's idle threads spin for a
 # while after each parallel loop before they sleep.  Under `make test` two workers share the
 # cores, so a spinning thread burns the CPU the other worker's test needs: here they sleep

@@ -72,11 +72,11 @@ def test_a_local_evaluation_leaves_numba_num_threads_unset(monkeypatch):
 
 
 #: a worker's evaluation in miniature: arrays of 1 MiB made and freed, counting the pages
-#: the process faults in, plainly and through ``on_worker``
+#: the process faults in, plainly and through ``call_with_threads``
 _FAULTS = """
 import json, resource
 import numpy as np
-from render_inspect.pipeline._fit_model import on_worker
+from render_inspect.batch import call_with_threads
 
 def arrays(task):
     for _ in range(task["n"]):
@@ -90,17 +90,18 @@ def faults(run):
     return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
 
 print(json.dumps({"plain": faults(lambda: arrays({"n": 200})),
-                  "on_worker": faults(lambda: on_worker(None, arrays, {"n": 200})),
+                  "on_worker": faults(lambda: call_with_threads(None, arrays, {"n": 200})),
                   "plain_after": faults(lambda: arrays({"n": 200}))}))
 """
 
 
 @pytest.mark.slow
-def test_an_evaluation_on_a_worker_keeps_its_arrays_on_the_heap(tmp_path):
+def test_a_task_on_a_worker_keeps_its_arrays_on_the_heap(tmp_path):
     """A Dask nanny starts its workers with ``MALLOC_TRIM_THRESHOLD_`` set, which pins
     glibc's mmap threshold: every array over 128 KiB is mapped afresh and its pages fault
-    in again (256 faults per MiB).  ``on_worker`` keeps them on the heap while the
-    evaluation runs (a few faults in all), and the worker's own setting holds again after
+    in again (256 faults per MiB).  ``call_with_threads`` (every task the package runs
+    on a worker: a fit's evaluation, a sweep's case, a tile) keeps them on the heap while
+    it runs (a few faults in all), and the worker's own setting holds again after
     it (the arrays after it fault in as before)."""
     import json
     import subprocess

@@ -54,6 +54,7 @@ from ..core.errors import InputError
 from ..core.limits import format_bytes, memory_budget
 from ..core.units import MIB_TO_BYTES
 from ._cluster_stop import abandon, end_local_workers, local_clusters
+from ._worker_heap import heap_kept
 
 __all__ = ["dask_client", "check_workers_option", "dashboard_text", "MAX_WORKERS",
            "plan_workers", "cluster_info", "call_with_threads", "wait_for_workers",
@@ -174,12 +175,14 @@ def cluster_info(client: Any) -> dict:
 def call_with_threads(threads: int | None, fn: Callable[..., Any], *args: Any,
                       **kwargs: Any) -> Any:
     """``fn(*args, **kwargs)`` with numba's thread count set to ``threads`` for this task
-    (at most the threads numba started with; unchanged when None)."""
+    (at most the threads numba started with; unchanged when None), and on a Dask worker its
+    arrays kept on the heap while it runs (:func:`heap_kept`)."""
     if threads:
         import numba
 
         numba.set_num_threads(max(1, min(int(threads), int(numba.config.NUMBA_NUM_THREADS))))
-    return fn(*args, **kwargs)
+    with heap_kept():
+        return fn(*args, **kwargs)
 
 
 # ------------------------------------------------------------------ existing clusters

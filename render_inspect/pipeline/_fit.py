@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..batch import cluster_info, dask_client
+from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_UM
@@ -44,7 +44,7 @@ from ..processes import RANDOM_PART_KEYS, random_parts
 from ..report import fit_figures, fit_page
 from ..scene import apply_overrides, scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
-                         file_instrument, instrument_settings, on_worker, passive_omp_wait,
+                         file_instrument, instrument_settings, passive_omp_wait,
                          predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
 from ._simulate import simulate, write_simulation
 
@@ -241,8 +241,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                 cluster = cluster_info(client)
             # on a cluster each evaluation sets its numba threads (the cores a LocalCluster's
             # worker has; the cluster's own count elsewhere) and keeps its arrays on the heap
-            # (on_worker)
-            compute = (functools.partial(on_worker, cluster["threads"],
+            # (call_with_threads)
+            compute = (functools.partial(call_with_threads, cluster["threads"],
                                          predict_measurement)
                        if client is not None else SameSimulation(predict_measurement))
             evaluator = Evaluator(params, target, model.task, compute, store,

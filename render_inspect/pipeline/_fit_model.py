@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 import contextlib
 import copy
-import ctypes
 import json
 import math
 import os
@@ -43,7 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = ["SameSimulation", "predict_measurement", "preset_value", "preset_fill", "ForwardModel",
            "file_instrument", "instrument_settings", "quiet", "compute_all", "FLOOR_DRAWS",
-           "LOCAL_THREADS", "passive_omp_wait", "design_surface", "KEPT_DESIGNS", "on_worker"]
+           "LOCAL_THREADS", "passive_omp_wait", "design_surface", "KEPT_DESIGNS"]
 
 #: pixels traced around the fit window by the virtual instrument (cropped after imaging)
 MARGIN_PX = 8
@@ -84,48 +83,6 @@ def predict_measurement(task_spec: dict) -> tuple[np.ndarray, dict]:
     return h, {"origin_mm": [float(v) for v in ig.origin], "pixel_mm": float(ig.pixel),
                "shape": list(h.shape), "residual_sq_nm": sim.metrics["residual"]["Sq_nm"],
                "worker": f"{socket.gethostname()}:{os.getpid()}"}
-
-
-#: glibc's mallopt parameters (malloc.h)
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-#: the thresholds an evaluation on a worker runs with: arrays up to 32 MiB from the heap,
-#: freed memory kept up to 64 MiB (where glibc's own dynamic rule ends)
-_EVALUATION_HEAP = ((_M_MMAP_THRESHOLD, 32 << 20), (_M_TRIM_THRESHOLD, 64 << 20))
-#: glibc's mmap threshold where the environment sets none (128 KiB)
-_GLIBC_MMAP_THRESHOLD = 128 << 10
-
-
-def on_worker(threads: int | None, fn: Callable[[dict], Any], task_spec: dict) -> Any:
-    """``fn(task_spec)`` (an evaluation) on a Dask worker: numba's threads set as
-    :func:`~render_inspect.batch.call_with_threads` sets them, and the heap kept while it
-    runs where the worker was started to give freed memory back at once.
-
-    A Dask nanny starts its workers (a LocalCluster's, ``--workers``) with
-    ``MALLOC_TRIM_THRESHOLD_`` in their environment, and a threshold set that way also
-    fixes glibc's mmap threshold at 128 KiB: every array over it is mapped afresh and
-    faults its pages in again, which made an evaluation of a map fit take 1.6 times the
-    CPU it takes in one process (the time spent in the system).  For the evaluation the
-    arrays come from the heap (as glibc's own rule has them in a process started without
-    the variable); after it, the worker's thresholds are set back to what its environment
-    says and the freed memory is given back (``malloc_trim``).  The same numbers either
-    way; a worker without the variable, or another C library, is left as it is."""
-    env = os.environ.get("MALLOC_TRIM_THRESHOLD_")
-    libc = None
-    if env is not None:
-        with contextlib.suppress(OSError, AttributeError, ValueError):
-            after = ((_M_TRIM_THRESHOLD, int(env)),
-                     (_M_MMAP_THRESHOLD, int(os.environ.get("MALLOC_MMAP_THRESHOLD_",
-                                                            _GLIBC_MMAP_THRESHOLD))))
-            libc = ctypes.CDLL("libc.so.6")
-            for p, v in _EVALUATION_HEAP:
-                libc.mallopt(p, v)
-    try:
-        return call_with_threads(threads, fn, task_spec)
-    finally:
-        if libc is not None:
-            for p, v in after:
-                libc.mallopt(p, v)
-            libc.malloc_trim(0)
 
 
 def design_surface(scene: Scene) -> Surface:

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from .. import __version__
-from ..batch import cluster_info, dask_client
+from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
@@ -50,7 +50,7 @@ from ..report import HtmlReport, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
-from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, on_worker, preset_fill,
+from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
                          preset_value, quiet, SameSimulation)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
@@ -291,7 +291,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             if workers is not None or scheduler is not None:
                 client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
                 cluster = cluster_info(client)
-            compute = (functools.partial(on_worker, cluster["threads"], predict_profile)
+            compute = (functools.partial(call_with_threads, cluster["threads"], predict_profile)
                        if client is not None else SameSimulation(predict_profile))
             # (a profile target answers what the evaluator asks of a target)
             evaluator = Evaluator(params, fit_target, fit_model.task, compute, store,  # type: ignore[arg-type]
