@@ -10,6 +10,7 @@ the bound leaves room for a loaded machine (the target is about 2 s)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -42,10 +43,15 @@ def inputs(tmp_path_factory):
 
     p = 0.5e-3
     # large enough that measure works for several seconds after reading them on a quiet
-    # machine (1000 x 1000 took 6.4 s in all)
-    h, nrm = artefacts.sinusoid((1400, 1400), p, period=0.05, amplitude=2e-5)
+    # machine (1000 x 1000 took 6.4 s in all): 1400 x 1400 pixels, the scan of a 200-row
+    # strip repeated along y (the lines run along y: the same surface, the camera noise of
+    # the strip repeated; rendering the whole field took 8 s of CPU)
+    h, nrm = artefacts.sinusoid((200, 1400), p, period=0.05, amplitude=2e-5)
     fr = csi_frames(h + 2e-3, nrm, pixel=p, origin=(0.0, 0.0),
                     microscope=Microscope(objective=objective("20x"), source=led()))
+    fr = dataclasses.replace(fr, frames=np.tile(fr.frames, (1, 7, 1)),
+                             valid=np.tile(fr.valid, (7, 1)))
+    assert fr.frames.shape[1:] == (1400, 1400)
     write_frames_exr(d / "frames.exr", fr)
     # a measured height map (as measure writes it) for fit: turning marks of 10 um about
     # the part's axis, seen where the field lies (origin: the lower left pixel), so that

@@ -32,7 +32,10 @@ __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
 #: a block as the writers write it (the fast reader's form; anything else is read line by line)
 _STRICT = re.compile(r"^N(\d+) G0([01])(?: C(-?\d+\.\d+))?(?: X(-?\d+\.\d+))?"
                      r"(?: Y(-?\d+\.\d+))?(?: Z(-?\d+\.\d+))?(?: F([0-9][0-9.eE+-]*))?$", re.M)
-_SECTION_LINE = re.compile(r"^; (approach|cut|link|exit|line \d+)$", re.M)
+# (the "; " first and the line start behind it: the search skips to each "; " at once,
+# where "^; " would be tried at every character of a long program)
+_SECTION_LINE = re.compile(r"; (?<=^; )(approach|cut|link|exit|line \d+)$", re.M)
+_HEADER_LINE = re.compile(r"; (?<=^; )([A-Za-z0-9_]+):(.*)$", re.M)
 _PREAMBLE = {"G90 G93": {90.0, 93.0}, "G90 G94 G21": {90.0, 94.0, 21.0}, "M30": set()}
 
 
@@ -65,17 +68,58 @@ def _ffill(vals: np.ndarray, start: float) -> np.ndarray:
 
 _NUM = r"-?\d+\.\d+"
 _FEED = r"[0-9][0-9.eE+-]*"
+#: an F word without an exponent (read as the other numbers are, :func:`_plain_numbers`)
+_PLAIN_FEED = r"\d+(?:\.\d+)?"
+
+
+#: the powers of ten that binary64 holds exactly
+_EXACT_POW10 = np.array([float(10 ** k) for k in range(23)])
+
+
+def _plain_numbers(text: str) -> np.ndarray | None:
+    """The numbers of ``text``: plain decimals (``-?\\d+`` or ``-?\\d+\\.\\d+``, as
+    :func:`_uniform` has checked) apart by spaces and line breaks, each exactly as
+    :func:`float` reads it; None when one has more than 15 digits.  The digits are read as
+    integers and divided by the power of ten of their decimals: both exact in binary64, so
+    the one rounding of the division is the correctly rounded value of the decimal, as a
+    decimal-to-binary conversion gives it (many times faster than reading them as floats)."""
+    raw = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
+    edge = np.diff((raw > 32).view(np.int8), prepend=np.int8(0), append=np.int8(0))
+    starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1)
+    pos = np.flatnonzero(raw == 46)
+    tok = np.searchsorted(starts, pos, side="right") - 1
+    decimals = np.zeros(starts.size, dtype=np.intp)
+    decimals[tok] = ends[tok] - pos - 1
+    neg = raw[starts] == 45
+    if starts.size and np.max(ends - starts - neg - (decimals > 0)) > 15:  # beyond 2**53
+        return None
+    mant = np.fromstring(text.replace(".", ""), dtype=np.int64, sep=" ")
+    if mant.size != starts.size:
+        return None
+    vals = np.abs(mant) / _EXACT_POW10[decimals]
+    vals[neg] = -vals[neg]  # exact, and -0.0 where a negative zero is written
+    return vals
 
 
 def _uniform(region: str, words: str):
     """(n, k) values of a run of blocks that all carry exactly ``words`` (e.g. ``"CXZF"``)
     in the writers' form, or None: checked with one regular expression over the run, the
     numbers parsed in bulk."""
-    pat = r"N\d+ G0[01]" + "".join(f" {w}{_FEED if w == 'F' else _NUM}" for w in words)
-    if re.fullmatch(rf"(?:{pat}\n)*", region) is None:
-        return None
+    def pattern(feed: str) -> str:
+        blk = r"N\d+ G0[01]" + "".join(f" {w}{feed if w == 'F' else _NUM}" for w in words)
+        # possessive: a block ends at its line break, so the repetition has one way to match
+        return rf"(?:{blk}\n)*+"
+
     table = str.maketrans({c: " " for c in "NG" + words})
-    vals = np.fromstring(region.translate(table), sep=" ")
+    if re.fullmatch(pattern(_PLAIN_FEED), region) is not None:
+        text = region.translate(table)
+        vals = _plain_numbers(text)
+        if vals is None:  # a number of more than 15 digits
+            vals = np.fromstring(text, sep=" ")
+    elif "F" in words and re.fullmatch(pattern(_FEED), region) is not None:
+        vals = np.fromstring(region.translate(table), sep=" ")  # an F word with an exponent
+    else:
+        return None
     k = 2 + len(words)
     if vals.size % k:
         return None
@@ -164,7 +208,7 @@ def _fast_blocks(path: Path) -> Blocks | None:
     section = None
     lines_before = 0
     for piece in _pieces(path):
-        for k, v in re.findall(r"^; ([A-Za-z0-9_]+):(.*)$", piece, flags=re.M):
+        for k, v in _HEADER_LINE.findall(piece):
             meta[k] = v.strip()
         parts = _SECTION_LINE.split(piece)
         for name, chunk in [(section, parts[0])] + list(zip(parts[1::2], parts[2::2])):
