@@ -61,28 +61,29 @@ def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
         return
     runs = min(n, _RUNS_PER_THREAD * threads)
     ends = [n * k // runs for k in range(runs + 1)]
-    state = {"next": 0, "left": runs, "error": None}
     lock = threading.Lock()
     done = threading.Event()
+    taken = [0]           # runs handed out
+    left = [runs]         # runs not finished
+    errors: list[BaseException] = []
 
     def work() -> None:
         while True:
             with lock:
-                k = state["next"]
+                k = taken[0]
                 if k >= runs:
                     return
-                state["next"] = k + 1
+                taken[0] = k + 1
             try:
-                if state["error"] is None:
+                if not errors:
                     kernel(*args, ends[k], ends[k + 1])
             except BaseException as exc:  # (raised again in the calling thread)
                 with lock:
-                    if state["error"] is None:
-                        state["error"] = exc
+                    errors.append(exc)
             finally:
                 with lock:
-                    state["left"] -= 1
-                    if state["left"] == 0:
+                    left[0] -= 1
+                    if left[0] == 0:
                         done.set()
 
     pool = _pool(threads - 1)
@@ -92,5 +93,5 @@ def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
     # never on a helper still queued behind other work)
     work()
     done.wait()
-    if state["error"] is not None:
-        raise state["error"]
+    if errors:
+        raise errors[0]

@@ -74,8 +74,7 @@ _K = tuple((-1) ** n / math.factorial(2 * n) for n in range(12))
 _K0, _K1, _K2, _K3, _K4, _K5, _K6, _K7, _K8, _K9, _K10, _K11 = _K
 #: largest |argument| the two-part reduction keeps exact (k pi/2 with k < 2^20)
 _COS_ARG_MAX = 1.5e6
-#: a pixel's state before its first pass (see :func:`_step`; a global, so that the state has
-#: one type throughout the kernel rather than literal types at first)
+#: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
 _STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
 
 
@@ -334,9 +333,7 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material.  ``pv``: the
-    path's numbers (tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa)
-    in one tuple (a call of more than 30 arguments is made through a list in Python's
-    bytecode, which numba compiles slowly: seconds in a parallel loop)."""
+    path's numbers in one tuple (a call of over 30 arguments compiles slowly in numba)."""
     tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa = pv
     cols = machined.size
     Rc2 = Rc * Rc
@@ -435,9 +432,8 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
                  pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge, hseg)
 
 
-#: one kernel, without the GIL: on one core (tiles run side by side by a scheduler), or on
-#: runs of rows on threads (whole grids, row blocks: :func:`~render_inspect.core.threads.over_rows`,
-#: compiled in a third of the CPU time of numba's parallel loop, with the same numbers)
+#: one kernel without the GIL: on one core (tiles side by side), or on runs of rows on threads
+#: (whole grids: :func:`~render_inspect.core.threads.over_rows`; numba's parallel loop took 3 x the compile)
 _buffer_size = njit(cache=True)(_buffer_size)
 _cut_serial = njit(nogil=True, cache=True)(_cut_rows)
 
