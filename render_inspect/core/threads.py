@@ -8,7 +8,10 @@ the imaging model's and the burr model's passes).  A kernel whose loop is over i
 rows (each row writes only its own results) is therefore compiled serially with
 ``nogil=True`` and a first and an end row, and :func:`over_rows` runs it on runs of rows on
 threads, as many as numba's parallel kernels would use (``numba.get_num_threads()`` of the
-calling thread).  Each row's numbers are those of the same loop run in one piece.
+calling thread).  Each row's numbers are those of the same loop run in one piece.  Called
+from a thread other than the process's main one (a Dask worker runs its tasks in one), it
+runs every row in the calling thread and starts none: threads started there, beside the
+worker's own, ended a LocalCluster's worker processes in segmentation faults.
 
 Only the standard library is imported here (numba when :func:`over_rows` first runs).
 """
@@ -54,7 +57,7 @@ def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
     all are done, raising the first error a run raised.  The kernel must release the GIL
     (``nogil=True``) and each row must write only its own results."""
     n = int(n)
-    threads = min(_threads(), n)
+    threads = min(_threads(), n) if threading.current_thread() is threading.main_thread() else 1
     if threads <= 1:
         if n > 0:
             kernel(*args, 0, n)

@@ -245,10 +245,10 @@ def smoothed_cosine(u0: np.ndarray, u1: np.ndarray, u2: np.ndarray,
         # each component is read once, by the first pass, and its array then takes the
         # next component's pass (the first into a fresh array), the last one the cosine
         t0 = np.empty((ny, nx), dtype=np.float32)
-        _wrap_axis0(u0, w, t0)
-        _wrap_axis0(u1, w, u0)
-        _wrap_axis0(u2, w, u1)
-        _wrap_axis1_cosine(t0, u0, u1, w, u2)
+        over_rows(_wrap_axis0, ny, u0, w, t0)
+        over_rows(_wrap_axis0, ny, u1, w, u0)
+        over_rows(_wrap_axis0, ny, u2, w, u1)
+        over_rows(_wrap_axis1_cosine, ny, t0, u0, u1, w, u2)
         return u2
     t0, t1, t2 = (np.empty((ny, nx), dtype=np.float32) for _ in range(3))
     for u, t in ((u0, t0), (u1, t1), (u2, t2)):
