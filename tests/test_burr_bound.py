@@ -44,11 +44,11 @@ def _candidates(z, angle):
     n = 0
     cand = np.empty((r1 - r0, nx), dtype=np.bool_)
     count = np.empty(r1 - r0, dtype=np.int64)
-    _candidates0(zs, 0, ny, 0, nx, r0, r1, SPAN, lim, eps, cand, count)
+    _candidates0(zs, 0, ny, 0, nx, r0, r1, SPAN, lim, eps, cand, count, 0, cand.shape[0])
     n += int(cand[:, c0:c1].sum())
     cand = np.empty((r1 - r0, c1 - c0), dtype=np.bool_)
     count = np.empty(r1 - r0, dtype=np.int64)
-    _candidates1(zs, r0, r1, 0, nx, c0, c1, SPAN, lim, eps, cand, count)
+    _candidates1(zs, r0, r1, 0, nx, c0, c1, SPAN, lim, eps, cand, count, 0, cand.shape[0])
     return n + int(cand.sum())
 
 

@@ -58,11 +58,12 @@ def test_every_cached_kernel_has_a_cache_name_of_its_own():
     assert len(by_name) > 20  # (the package's kernels were found)
 
 
-def test_the_serial_and_parallel_cut_and_envelope_kernels_are_apart():
+def test_the_cut_and_envelope_kernels_are_one_serial_kernel_each():
+    """Whole grids run the tiles' serial kernel on threads: no parallel twin shares (or
+    needs) a cache entry of its own."""
     from render_inspect.machining import _cut_kernel, _envelope
 
-    for par, ser in ((_cut_kernel._cut_parallel, _cut_kernel._cut_serial),
-                     (_envelope._fill_parallel, _envelope._fill_serial)):
-        assert par.py_func.__qualname__ != ser.py_func.__qualname__
-        assert par.py_func.__code__.co_code == ser.py_func.__code__.co_code  # the same code
-        assert _options(par).get("parallel") and not _options(ser).get("parallel")
+    for module, name in ((_cut_kernel, "_cut_parallel"), (_envelope, "_fill_parallel")):
+        assert not hasattr(module, name)
+    for kernel in (_cut_kernel._cut_serial, _envelope._fill_serial):
+        assert _options(kernel)["nogil"] and not _options(kernel).get("parallel")

@@ -1,4 +1,8 @@
-"""Compiled inner loops of the imaging model (numba, built on first use)."""
+"""Compiled inner loops of the imaging model (numba, built on first use).
+
+Each loop over rows is a serial kernel that releases the GIL, given a first and an end
+row, run on threads by :func:`~render_inspect.core.threads.over_rows` (compiled in a
+fraction of the time numba's ``parallel=True`` takes, with the same numbers)."""
 
 from __future__ import annotations
 
@@ -6,7 +10,8 @@ import math
 
 import numpy as np
 
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 from ..core.smoothing import gaussian_weights
 
 __all__ = ["facets", "filter_fold", "frames_from_field", "gaussian_weights", "heights_about",
@@ -47,20 +52,20 @@ def _build():
     return kernel
 
 
-@njit(parallel=True, cache=True)
-def _radial_index_kernel(qy2, qx2, inv_dq, nq, out):
-    for r in prange(qy2.shape[0]):
+@njit(cache=True, nogil=True)
+def _radial_index_kernel(qy2, qx2, inv_dq, nq, out, r0, r1):
+    for r in range(r0, r1):
         y2 = qy2[r]
         for c in range(qx2.shape[0]):
             i = int(math.sqrt(y2 + qx2[c]) * inv_dq + 0.5)
             out[r, c] = i if i < nq else nq
 
 
-@njit(parallel=True, cache=True)
-def _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table, s_fold, out):
+@njit(cache=True, nogil=True)
+def _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table, s_fold, out, r0, r1):
     hc, wc = out.shape
     nq = table.shape[0]
-    for rc in prange(hc):
+    for rc in range(r0, r1):
         for c in range(wc):
             out[rc, c] = 0
         for k in range(s_fold):
@@ -77,7 +82,6 @@ def _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table, s_
                 if t == 0.0:
                     continue
                 out[rc, ccols[j]] += spec[r, c] * (sy * sepx[c] * t)
-    return out
 
 
 def radial_index(qy2: np.ndarray, qx2: np.ndarray, inv_dq: float | np.floating,
@@ -86,7 +90,7 @@ def radial_index(qy2: np.ndarray, qx2: np.ndarray, inv_dq: float | np.floating,
     (at most ``nq``: beyond the table), computed as :func:`filter_fold` computes it, once
     for all axial bins (int16, or int32 for tables longer than int16 holds)."""
     out = np.empty((qy2.shape[0], qx2.shape[0]), dtype=np.int16 if nq < 32767 else np.int32)
-    _radial_index_kernel(qy2, qx2, np.float32(inv_dq), int(nq), out)
+    over_rows(_radial_index_kernel, qy2.shape[0], qy2, qx2, np.float32(inv_dq), int(nq), out)
     return out
 
 
@@ -120,8 +124,9 @@ def filter_fold(spec: np.ndarray, row_ok: np.ndarray, qy2: np.ndarray, sepy: np.
         same result without the square root of every frequency in every bin.
     """
     if index is not None:
-        return _filter_fold_indexed(spec, row_ok, index, sepy, cols, ccols, sepx, table,
-                                    s_fold, out)
+        over_rows(_filter_fold_indexed, out.shape[0], spec, row_ok, index, sepy, cols, ccols, sepx,
+                  table, s_fold, out)
+        return out
     global _KERNEL
     if _KERNEL is None:
         _KERNEL = _build()
@@ -129,10 +134,10 @@ def filter_fold(spec: np.ndarray, row_ok: np.ndarray, qy2: np.ndarray, sepy: np.
 
 
 # ------------------------------------------------------------ frames from the field
-@njit(parallel=True, cache=True)
-def _frames_kernel(x, light, rho_r, two_sr, out):
+@njit(cache=True, nogil=True)
+def _frames_kernel(x, light, rho_r, two_sr, out, p0, p1):
     nfr, m = x.shape
-    for p in prange(m):
+    for p in range(p0, p1):
         v = x[0, p]
         mag = v.real * v.real + v.imag * v.imag
         for f in range(1, nfr):
@@ -166,17 +171,17 @@ def frames_from_field(x: np.ndarray, light: np.ndarray, rho_r: float | np.floati
     rho_r, two_sr : float32
     out : (N, M) float32 (written)
     """
-    _frames_kernel(x, light, np.float32(rho_r), np.float32(two_sr), out)
+    over_rows(_frames_kernel, x.shape[1], x, light, np.float32(rho_r), np.float32(two_sr), out)
     return out
 
 
 # ------------------------------------------- the facets' cosine after the PSF smoothing
-@njit(parallel=True, cache=True)
-def _wrap_axis0(u, w, out):
+@njit(cache=True, nogil=True)
+def _wrap_axis0(u, w, out, i0, i1):
     ny, nx = u.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    for i in prange(ny):
+    for i in range(i0, i1):
         acc = np.empty(nx)
         ui = u[i]
         for q in range(nx):
@@ -191,12 +196,12 @@ def _wrap_axis0(u, w, out):
             out[i, q] = np.float32(acc[q])
 
 
-@njit(parallel=True, cache=True)
-def _wrap_axis1_cosine(u0, u1, u2, w, out):
+@njit(cache=True, nogil=True)
+def _wrap_axis1_cosine(u0, u1, u2, w, out, i0, i1):
     ny, nx = u0.shape
     r = (w.size - 1) // 2
     w0 = w[r]
-    for i in prange(ny):
+    for i in range(i0, i1):
         pad = np.empty(nx + 2 * r)
         acc = np.empty(nx)
         sm = np.empty((3, nx), dtype=np.float32)
@@ -240,16 +245,16 @@ def smoothed_cosine(u0: np.ndarray, u1: np.ndarray, u2: np.ndarray,
         # each component is read once, by the first pass, and its array then takes the
         # next component's pass (the first into a fresh array), the last one the cosine
         t0 = np.empty((ny, nx), dtype=np.float32)
-        _wrap_axis0(u0, w, t0)
-        _wrap_axis0(u1, w, u0)
-        _wrap_axis0(u2, w, u1)
-        _wrap_axis1_cosine(t0, u0, u1, w, u2)
+        over_rows(_wrap_axis0, ny, u0, w, t0)
+        over_rows(_wrap_axis0, ny, u1, w, u0)
+        over_rows(_wrap_axis0, ny, u2, w, u1)
+        over_rows(_wrap_axis1_cosine, ny, t0, u0, u1, w, u2)
         return u2
     t0, t1, t2 = (np.empty((ny, nx), dtype=np.float32) for _ in range(3))
     for u, t in ((u0, t0), (u1, t1), (u2, t2)):
-        _wrap_axis0(np.ascontiguousarray(u, dtype=np.float32), w, t)
+        over_rows(_wrap_axis0, ny, np.ascontiguousarray(u, dtype=np.float32), w, t)
     out = np.empty((ny, nx), dtype=np.float32)
-    _wrap_axis1_cosine(t0, t1, t2, w, out)
+    over_rows(_wrap_axis1_cosine, ny, t0, t1, t2, w, out)
     return out
 
 
@@ -263,11 +268,11 @@ def _distinct_float32(*arrays: np.ndarray) -> bool:
 
 
 # ------------------------------------------------------------- the facets' orientation
-@njit(parallel=True, cache=True, error_model="numpy")
-def _facets_kernel(nrm, h, cos_t, fin, reached, u0, u1, u2):
+@njit(cache=True, nogil=True, error_model="numpy")
+def _facets_kernel(nrm, h, cos_t, fin, reached, u0, u1, u2, i0, i1):
     ny, nx = h.shape
     zero = np.float32(0.0)
-    for i in prange(ny):
+    for i in range(i0, i1):
         for j in range(nx):
             a = nrm[i, j, 0]
             b = nrm[i, j, 1]
@@ -305,7 +310,7 @@ def facets(nrm: np.ndarray, h: np.ndarray
     fin = np.empty(shape, dtype=bool)
     reached = np.empty(shape, dtype=bool)
     unit = [np.empty(shape, dtype=np.float32) for _ in range(3)]
-    _facets_kernel(nrm, h, cos_t, fin, reached, *unit)
+    over_rows(_facets_kernel, shape[0], nrm, h, cos_t, fin, reached, *unit)
     return cos_t, fin, reached, unit
 
 
@@ -315,10 +320,10 @@ def facets(nrm: np.ndarray, h: np.ndarray
 PIXEL_MEANS_MAX_S = 7
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _pixel_means_kernel(h, s, m, out):
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pixel_means_kernel(h, s, m, out, i0, i1):
     ny, nx = out.shape
-    for i in prange(ny):
+    for i in range(i0, i1):
         for j in range(nx):
             tot = 0.0
             cnt = 0
@@ -345,15 +350,15 @@ def pixel_means(h_sub: np.ndarray, s: int, margin: int,
     if int(s) > PIXEL_MEANS_MAX_S or int(s) < 1 or h_sub.dtype != np.float64:
         return None
     out = np.empty(shape, dtype=np.float64)
-    _pixel_means_kernel(h_sub, int(s), int(margin), out)
+    over_rows(_pixel_means_kernel, out.shape[0], h_sub, int(s), int(margin), out)
     return out
 
 
 # --------------------------------------------------------- the under-sampling count
-@njit(parallel=True, cache=True)
-def _steps_over_kernel(dh, ret, lim, rows):
+@njit(cache=True, nogil=True)
+def _steps_over_kernel(dh, ret, lim, rows, i0, i1):
     ny, nx = dh.shape
-    for i in prange(ny):
+    for i in range(i0, i1):
         c = 0
         for j in range(nx):
             if not ret[i, j]:
@@ -371,16 +376,16 @@ def steps_over(dh32: np.ndarray, returns: np.ndarray, lim: float | np.floating) 
     columns) differ by more than ``lim`` (float32, as ``np.abs(np.diff(dh32)) > lim``
     compares), counted in one compiled pass threaded over rows."""
     rows = np.zeros(np.shape(dh32)[0], dtype=np.int64)
-    _steps_over_kernel(np.ascontiguousarray(dh32, dtype=np.float32),
-                       np.ascontiguousarray(returns, dtype=np.bool_), np.float32(lim), rows)
+    over_rows(_steps_over_kernel, rows.size, np.ascontiguousarray(dh32, dtype=np.float32),
+              np.ascontiguousarray(returns, dtype=np.bool_), np.float32(lim), rows)
     return int(rows.sum())
 
 
 # ------------------------------------------- the heights about the reference plane
-@njit(parallel=True, cache=True)
-def _heights_about_kernel(h, ret, zbar, out, lo, hi):
+@njit(cache=True, nogil=True)
+def _heights_about_kernel(h, ret, zbar, out, lo, hi, i0, i1):
     ny, nx = h.shape
-    for i in prange(ny):
+    for i in range(i0, i1):
         a = np.float32(np.inf)
         b = np.float32(-np.inf)
         for j in range(nx):
@@ -406,8 +411,8 @@ def heights_about(h: np.ndarray, returns: np.ndarray,
     out = np.empty(h64.shape, dtype=np.float32)
     lo = np.empty(h64.shape[0], dtype=np.float32)
     hi = np.empty(h64.shape[0], dtype=np.float32)
-    _heights_about_kernel(h64, np.ascontiguousarray(returns, dtype=np.bool_), float(zbar),
-                          out, lo, hi)
+    over_rows(_heights_about_kernel, h64.shape[0], h64, np.ascontiguousarray(returns, dtype=np.bool_),
+              float(zbar), out, lo, hi)
     a, b = (float(lo.min()), float(hi.max())) if lo.size else (math.inf, -math.inf)
     if a > b:  # (no returning sub-sample)
         return out, 0.0, 0.0

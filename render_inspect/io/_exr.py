@@ -30,7 +30,8 @@ from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 
 from ..core.errors import InputError
 from ..core.limits import usable_cpus
@@ -300,9 +301,9 @@ HEIGHTMAP_COMPRESSION = "none"
 OVERVIEW_SIDE = 1024
 
 
-@njit(parallel=True, cache=True)
-def _to_float32(design, machined, d32, m32, r32):
-    for i in prange(design.shape[0]):
+@njit(cache=True, nogil=True)
+def _to_float32(design, machined, d32, m32, r32, i0, i1):
+    for i in range(i0, i1):
         for j in range(design.shape[1]):
             d = design[i, j]
             m = machined[i, j]
@@ -315,8 +316,8 @@ def heightmap_channels(design: np.ndarray, machined: np.ndarray) -> dict[str, np
     """float32 ``design``, ``machined`` and ``residual`` (machined - design formed in
     float64, then rounded) in one pass: no float64 temporary of the map."""
     out = {k: np.empty(design.shape, dtype=np.float32) for k in ("design", "machined", "residual")}
-    _to_float32(np.ascontiguousarray(design, dtype=np.float64), np.ascontiguousarray(machined, dtype=np.float64),
-                out["design"], out["machined"], out["residual"])
+    over_rows(_to_float32, design.shape[0], np.ascontiguousarray(design, dtype=np.float64),
+              np.ascontiguousarray(machined, dtype=np.float64), out["design"], out["machined"], out["residual"])
     return out
 
 

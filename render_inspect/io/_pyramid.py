@@ -19,7 +19,8 @@ from typing import Any
 import math
 
 import numpy as np
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 
 
 @njit(cache=True, nogil=True)
@@ -40,11 +41,10 @@ def _block_sums(a, b, has_b, f, sums, counts):
 _ZERO = np.zeros((1, 1))
 
 
-@njit(parallel=True, cache=True)
-def _block_sums3(design, machined, f, sums, counts):
+@njit(cache=True, nogil=True)
+def _block_sums3(design, machined, f, sums, counts, b0, b1):
     ny, nx = design.shape
-    nby = sums.shape[1]
-    for bi in prange(nby):
+    for bi in range(b0, b1):
         for i in range(bi * f, min(bi * f + f, ny)):
             for j in range(nx):
                 bj = j // f
@@ -64,11 +64,12 @@ def _block_sums3(design, machined, f, sums, counts):
 
 def heightmap_block_sums(design: np.ndarray, machined: np.ndarray, factor: int) -> dict:
     """Block sums (float64) and counts (int32) of ``design``, ``machined`` and ``residual``
-    (machined - design, formed in float64) in one parallel pass: {name: (sums, counts)}."""
+    (machined - design, formed in float64) in one pass threaded over rows of blocks: {name:
+    (sums, counts)}."""
     shape = (-(-design.shape[0] // factor), -(-design.shape[1] // factor))
     sums = np.zeros((3, *shape))
     counts = np.zeros((3, *shape), dtype=np.int32)
-    _block_sums3(np.asarray(design), np.asarray(machined), int(factor), sums, counts)
+    over_rows(_block_sums3, shape[0], np.asarray(design), np.asarray(machined), int(factor), sums, counts)
     return {name: (sums[k], counts[k]) for k, name in enumerate(("design", "machined", "residual"))}
 
 

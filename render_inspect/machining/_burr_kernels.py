@@ -24,7 +24,8 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 from ..core.smoothing import gaussian_weights
 
 __all__ = ["gaussian_nearest", "gaussian_weights", "edge_turn_maps", "edge_turn_window", "gaussian_nearest_cross"]
@@ -50,25 +51,40 @@ def gaussian_nearest(z: np.ndarray, sigma: float) -> np.ndarray:
         return ndimage.gaussian_filter(z, sigma, mode="nearest")
     ny, nx = z.shape
     out = np.empty_like(z)
-    _smooth_axis0(z, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)
-    _smooth_axis1(out, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)  # in place: each row is copied out first
+    smooth_axis0(z, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)
+    smooth_axis1(out, w, out, _SMOOTH_COLUMNS, 0, ny, 0, nx)  # in place: each row is copied out first
     return out
 
 
-@njit(parallel=True, cache=True)
-def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1):
+def smooth_axis0(z: np.ndarray, w: np.ndarray, out: np.ndarray, cw: int, r0: int, r1: int, c0: int,
+                 c1: int) -> None:
+    """:func:`_smooth_axis0` on threads (its blocks of two rows by ``cw`` columns)."""
+    nr = (r1 - r0 + 1) // 2
+    nc = (c1 - c0 + cw - 1) // cw
+    over_rows(_smooth_axis0, max(nr, 0) * max(nc, 0), z, w, out, cw, r0, r1, c0, c1)
+
+
+def smooth_axis1(z: np.ndarray, w: np.ndarray, out: np.ndarray, cw: int, r0: int, r1: int, c0: int,
+                 c1: int) -> None:
+    """:func:`_smooth_axis1` on threads (its rows)."""
+    over_rows(_smooth_axis1, max(r1 - r0, 0), z, w, out, cw, r0, r1, c0, c1)
+
+
+@njit(cache=True, nogil=True)
+def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1, t0, t1):
     """Axis 0 of the smoothing into ``out`` (not ``z``) on its rows ``r0 .. r1 - 1`` and
     columns ``c0 .. c1 - 1`` (the rows of ``z`` clamped at its ends), in blocks of ``cw``
     columns: each thread takes a run of blocks and walks down the rows of each, two output
     rows at a time (the rows a tap of the second reads are those the next tap of the first
     reads: still in the first-level cache), so that the rows a window needs are still in
-    the cache from the rows before."""
+    the cache from the rows before.  Blocks ``t0 .. t1 - 1`` of those (:func:`smooth_axis0`
+    runs them on threads)."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
     nr = (r1 - r0 + 1) // 2
     nc = (c1 - c0 + cw - 1) // cw
-    for t in prange(nr * nc):
+    for t in range(t0, t1):
         c = t // nr
         i = r0 + 2 * (t - c * nr)
         q0 = c0 + c * cw
@@ -89,23 +105,30 @@ def _smooth_axis0(z, w, out, cw, r0, r1, c0, c1):
             for q in range(m):
                 acc[q] = acc[q] + (a[q] + b[q]) * wj
                 acc2[q] = acc2[q] + (a2[q] + b2[q]) * wj
-        out[i, q0:q0 + m] = acc
+        # (element by element: a slice assignment compiles numba's shape-mismatch message,
+        # over a CPU-second)
+        o = out[i, q0:q0 + m]
+        for q in range(m):
+            o[q] = acc[q]
         if i + 1 < r1:
-            out[i + 1, q0:q0 + m] = acc2
+            o = out[i + 1, q0:q0 + m]
+            for q in range(m):
+                o[q] = acc2[q]
 
 
-@njit(parallel=True, cache=True)
-def _smooth_axis1(z, w, out, cw, r0, r1, c0, c1):
+@njit(cache=True, nogil=True)
+def _smooth_axis1(z, w, out, cw, r0, r1, c0, c1, k0, k1):
     """Axis 1 of the smoothing on the rows ``r0 .. r1 - 1`` and columns ``c0 .. c1 - 1``
     of ``out`` (the columns of ``z`` clamped at its ends), in blocks of ``cw`` columns so
     that a block's accumulators and the padded row around it stay in the core's
     first-level cache.  ``out`` may be ``z`` in a call over whole rows (each row is copied
-    out, padded, before it is written), not across calls over parts of the same rows."""
+    out, padded, before it is written), not across calls over parts of the same rows.
+    Rows ``r0 + k0 .. r0 + k1 - 1`` of those (:func:`smooth_axis1` runs them on threads)."""
     ny, nx = z.shape
     r = (w.size - 1) // 2
     w0 = w[r]
     n = c1 - c0
-    for i in prange(r0, r1):
+    for i in range(r0 + k0, r0 + k1):
         pad = np.empty(n + 2 * r)
         zi = z[i]
         for q in range(n + 2 * r):
@@ -148,18 +171,18 @@ def gaussian_nearest_cross(z: np.ndarray, sigma: float, window: tuple[int, int, 
     tmp = np.empty_like(z)
     # axis 0 where axis 1 reads it: the cross widened by the Gaussian's reach along the rows
     ka, kb = max(c0 - r, 0), min(c1 + r, nx)
-    _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, va, vb, ka, kb)
+    smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, va, vb, ka, kb)
     la, lb = max(ha - r, 0), min(hb + r, nx)
     if la < ka:
-        _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, la, ka)
+        smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, la, ka)
     if kb < lb:
-        _smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, kb, lb)
+        smooth_axis0(z, w, tmp, _SMOOTH_COLUMNS, r0, r1, kb, lb)
     out = np.empty_like(z)
-    _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, va, vb, c0, c1)
+    smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, va, vb, c0, c1)
     if ha < c0:
-        _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, ha, c0)
+        smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, ha, c0)
     if c1 < hb:
-        _smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, c1, hb)
+        smooth_axis1(tmp, w, out, _SMOOTH_COLUMNS, r0, r1, c1, hb)
     return out
 
 
@@ -191,15 +214,15 @@ def _candidate(dh1, dh2, dl1, dl2, c, lim, eps):
     return not (g + _BOUND_ABS * m + eps < lim)
 
 
-@njit(parallel=True, cache=True)
-def _candidates0(z, ra, rb, ca, cb, p0, p1, span, lim, eps, cand, count):
+@njit(cache=True, nogil=True)
+def _candidates0(z, ra, rb, ca, cb, p0, p1, span, lim, eps, cand, count, k0, k1):
     """Axis 0 of the map z[ra:rb, ca:cb] (its rows clamped at its ends): ``cand[p - p0,
     q]`` whether pixel (p, q) of it (p0 <= p < p1) may be an edge (:func:`_candidate`),
-    ``count[p - p0]`` the candidates of row p."""
+    ``count[p - p0]`` the candidates of row p; rows p0 + k0 .. p0 + k1 - 1 of those."""
     n_pix = rb - ra
     n = n_pix - 1
     c = (span - 0.5) / span
-    for p in prange(p0, p1):
+    for p in range(p0 + k0, p0 + k1):
         k = 0
         row = cand[p - p0]
         if p >= 1 and p <= n_pix - 2:
@@ -219,10 +242,11 @@ def _candidates0(z, ra, rb, ca, cb, p0, p1, span, lim, eps, cand, count):
         count[p - p0] = k
 
 
-@njit(parallel=True, cache=True)
-def _candidates1(z, r0, r1, ca, cb, p0, p1, span, lim, eps, cand, count):
+@njit(cache=True, nogil=True)
+def _candidates1(z, r0, r1, ca, cb, p0, p1, span, lim, eps, cand, count, k0, k1):
     """Axis 1 of the map z[r0:r1, ca:cb] (its columns clamped at its ends): ``cand[i,
-    p - p0]`` whether pixel (i, p) of it (p0 <= p < p1) may be an edge, ``count[i]``."""
+    p - p0]`` whether pixel (i, p) of it (p0 <= p < p1) may be an edge, ``count[i]``; rows
+    i = k0 .. k1 - 1."""
     n_pix = cb - ca
     n = n_pix - 1
     c = (span - 0.5) / span
@@ -230,7 +254,7 @@ def _candidates1(z, r0, r1, ca, cb, p0, p1, span, lim, eps, cand, count):
     # [e1, e2): the pixels whose four slopes lie inside the map (no clamping)
     e1 = min(max(lo, 2 * span), hi)
     e2 = min(max(e1, n - 2 * span + 1), hi)
-    for i in prange(r1 - r0):
+    for i in range(k0, k1):
         zi = z[r0 + i]
         d = np.empty(n)
         for k in range(n):
@@ -278,16 +302,17 @@ def _face(a, k1, k2, n, q, c):
     return a1 - c * (a2 - a1)
 
 
-@njit(parallel=True, cache=True)
-def _edges0(a, n_pix, ps, qs, p0, span, thr, edges, turn):
+@njit(cache=True, nogil=True)
+def _edges0(a, n_pix, ps, qs, p0, span, thr, edges, turn, x0, x1):
     """The edge tests along axis 0 of the candidates (``ps``, ``qs``) of a map of
     ``n_pix`` rows from its slope angles ``a`` (n_pix - 1 rows; read within 3 span + 1
     rows of each candidate); the larger turn is kept where ``turn`` has one already
-    (``edges`` and ``turn`` hold the rows from ``p0``)."""
+    (``edges`` and ``turn`` hold the rows from ``p0``); candidates x0 .. x1 - 1 (each
+    writes only its own pixel)."""
     n = n_pix - 1
     c = (span - 0.5) / span
     reach = 3 * span
-    for x in prange(ps.size):
+    for x in range(x0, x1):
         p = ps[x]
         q = qs[x]
         j = _jturn(a, p, n_pix, q)
@@ -327,13 +352,13 @@ def _face1(a, i, k1, k2, n, c):
     return a1 - c * (a2 - a1)
 
 
-@njit(parallel=True, cache=True)
-def _edges1(a, n_pix, iis, ps, p0, span, thr, edges, turn):
+@njit(cache=True, nogil=True)
+def _edges1(a, n_pix, iis, ps, p0, span, thr, edges, turn, x0, x1):
     """:func:`_edges0` along axis 1: candidates (``iis``, ``ps``), ``a`` (rows, n_pix - 1)."""
     n = n_pix - 1
     c = (span - 0.5) / span
     reach = 3 * span
-    for x in prange(ps.size):
+    for x in range(x0, x1):
         i = iis[x]
         p = ps[x]
         j = _jturn1(a, i, p, n_pix)
@@ -424,8 +449,8 @@ def _axis_edges(z: np.ndarray, axis: int, rows: tuple[int, int], cols: tuple[int
     pixel, span = float(pixel), int(span)
     cand = np.empty((p1 - p0, cb - ca) if axis == 0 else (rb - ra, p1 - p0), dtype=np.bool_)
     count = np.empty(cand.shape[0], dtype=np.int64)
-    (_candidates0 if axis == 0 else _candidates1)(z, ra, rb, ca, cb, p0, p1, span, *_bound_limit(thr, pixel),
-                                                  cand, count)
+    over_rows(_candidates0 if axis == 0 else _candidates1, cand.shape[0], z, ra, rb, ca, cb, p0, p1, span,
+              *_bound_limit(thr, pixel), cand, count)
     lines = np.flatnonzero(count)
     if lines.size == 0:
         return
@@ -437,9 +462,9 @@ def _axis_edges(z: np.ndarray, axis: int, rows: tuple[int, int], cols: tuple[int
     a = _angles(z, axis, rows, cols, _cells(along, across, 3 * span, n_pix - 1, cand.shape[1 - axis]),
                 pixel)
     if axis == 0:
-        _edges0(a, n_pix, along, across, p0, span, thr, edges, turn)
+        over_rows(_edges0, along.size, a, n_pix, along, across, p0, span, thr, edges, turn)
     else:
-        _edges1(a, n_pix, across, along, p0, span, thr, edges, turn)
+        over_rows(_edges1, along.size, a, n_pix, across, along, p0, span, thr, edges, turn)
 
 
 def edge_turn_maps(z: np.ndarray, *, pixel: float, edge_angle_deg: float,
@@ -486,10 +511,10 @@ def edge_turn_window(z: np.ndarray, window: tuple[int, int, int, int], *, pixel:
     return edges, turn
 
 
-@njit(parallel=True, cache=True)
-def _pass_jumps(p, jump, m):
+@njit(cache=True, nogil=True)
+def _pass_jumps(p, jump, m, i0, i1):
     ny, nx = p.shape
-    for i in prange(ny):
+    for i in range(i0, i1):
         for q in range(nx):
             v = p[i, q]
             e = False
@@ -510,6 +535,6 @@ def pass_jump_mask(pass_map: np.ndarray, jump: float) -> np.ndarray:
     p = np.ascontiguousarray(pass_map, dtype=np.float64)
     m = np.zeros(p.shape, dtype=bool)
     if p.ndim == 2 and p.size:
-        _pass_jumps(p, float(jump), m)
+        over_rows(_pass_jumps, p.shape[0], p, float(jump), m)
         return m
     raise ValueError("pass_map must be a 2-D array")

@@ -42,7 +42,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 
 from ..core.errors import InputError
 from ..core.progress import report
@@ -73,6 +74,8 @@ _K = tuple((-1) ** n / math.factorial(2 * n) for n in range(12))
 _K0, _K1, _K2, _K3, _K4, _K5, _K6, _K7, _K8, _K9, _K10, _K11 = _K
 #: largest |argument| the two-part reduction keeps exact (k pi/2 with k < 2^20)
 _COS_ARG_MAX = 1.5e6
+#: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
+_STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
 
 
 @dataclass(frozen=True)
@@ -196,7 +199,7 @@ def _groove_sum_libm(ku, kv, ph, u, v):
     return g
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
     """(segment, fraction, nominal radius, distance from the pixel at sgn r) of the pass at
     cumulative angle s (the envelope's pass lookup from the bin (s - tab_t0) * tab_iw,
@@ -208,7 +211,7 @@ def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
     return i, fr, rj, sgn * r - rj
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge):
     """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
     pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic; the
@@ -222,7 +225,7 @@ def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge):
     return False, 0.0, 0.0, 0.0, 0, 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
     """One pass through the state (surface, chip, pass angle, segment, fraction, edge
     position, added, piled) of the direct model."""
@@ -240,7 +243,7 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
     return st
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
             h_min, kappa, side_flow, st, edge, hseg):
     """The passes of one side in time order straight through the state; (state, count).
@@ -269,7 +272,7 @@ def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
     return st, n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _window(t_first, t_last, a, cc, phi, r, sgn, W):
     """First and last pass j whose nominal radius is within W of sgn r (the direct kernel's
     ``_pass_window`` on the whole path's ends)."""
@@ -286,7 +289,7 @@ def _window(t_first, t_last, a, cc, phi, r, sgn, W):
     return math.ceil((s_lo - phi) * INV_2PI), math.floor((s_hi - phi) * INV_2PI)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
             bs, bz, bi, bf, bd, edge):
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
@@ -306,7 +309,7 @@ def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
     return n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True)
 def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st, hseg):
     """The gathered passes of both sides through the state in time order (a pass's own
     minimum chip thickness from ``hseg`` by its segment, where given)."""
@@ -325,12 +328,13 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
 
 
 @njit(cache=True, nogil=True)
-def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
-             h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0, sc0, sc1,
-             machined, pass_theta, added, stats, bufs, ibufs, edge, hseg):
+def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0,
+             sc0, sc1, machined, pass_theta, added, stats, bufs, ibufs, edge, hseg):
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
-    squared grooves, the pixels that got grooves, the largest added material."""
+    squared grooves, the pixels that got grooves, the largest added material.  ``pv``: the
+    path's numbers in one tuple (a call of over 30 arguments compiles slowly in numba)."""
+    tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa = pv
     cols = machined.size
     Rc2 = Rc * Rc
     Wd = W + dev
@@ -354,7 +358,7 @@ def _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev,
             continue
         r = math.sqrt(x * x + y * y)
         Wp = Wd + (0.5 * f if r < 2.0 * f + dev else 0.0)
-        st = (np.inf, np.nan, np.nan, -1, 0.0, np.nan, 0.0, False)
+        st = _STATE0
         phi2 = phi + math.pi
         if phi2 >= TWO_PI:
             phi2 -= TWO_PI
@@ -420,31 +424,18 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
     (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
     rows = machined.shape[0]
     nb = _buffer_size(W, dev, f)
-    for k in prange(rows):
+    pv = (tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa)
+    for k in range(rows):
         bufs = np.empty((8, nb))
         ibufs = np.empty((2, nb), dtype=np.int64)
-        _cut_row(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
-                 h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
-                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge,
-                 hseg)
+        _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge, hseg)
 
 
-def _cut_rows_serial(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw,
-                     W, h_min, kappa, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0,
-                     col0, sc0, sc1, machined, pass_theta, added, stats, edge, hseg):
-    """:func:`_cut_rows`'s code under a name of its own: numba's cache names a kernel after
-    its function (name and line), so the serial and the parallel kernel made from one
-    function would share one cache entry, and whichever was compiled first would be loaded
-    for both (the whole grid cut on one thread, or every tile on all of them)."""
-
-
-_cut_rows_serial.__code__ = _cut_rows.__code__.replace(co_name="_cut_rows_serial")
-
-#: on all cores (whole grids, row blocks) and on one core without the GIL (tiles run side by
-#: side by a scheduler)
+#: one kernel without the GIL: on one core (tiles side by side), or on runs of rows on threads
+#: (whole grids: :func:`~render_inspect.core.threads.over_rows`; numba's parallel loop took 3 x the compile)
 _buffer_size = njit(cache=True)(_buffer_size)
-_cut_parallel = njit(parallel=True, cache=True)(_cut_rows)
-_cut_serial = njit(nogil=True, cache=True)(_cut_rows_serial)
+_cut_serial = njit(nogil=True, cache=True)(_cut_rows)
 
 
 def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: float, out: dict, *,
@@ -471,7 +462,8 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
         Index of ``out[...][0, 0]`` in the whole grid (any: each pixel depends only on its
         position).
     parallel : bool
-        All cores (numba threads) over the rows; False: the calling thread, without the GIL.
+        Runs of rows on threads, as many as numba's parallel kernels use; False: the
+        calling thread, without the GIL.
     stat_cols : (first, stop), optional
         The columns of ``out`` the returned sums cover (default: all).
 
@@ -490,11 +482,19 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
     gr = grooves
     fast_cos = bool(gr.ku.size == 0 or np.max(np.abs(gr.ku)) * (ep.half_width + 1.0)
                     + np.max(np.abs(gr.kv)) * float(np.max(np.abs(cp.dist))) + TWO_PI < _COS_ARG_MAX)
-    fn = _cut_parallel if parallel else _cut_serial
-    fn(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc, ep.dev, ep.f,
-       ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow, grooves.ku, grooves.kv,
-       grooves.ph, float(grooves.scale), fast_cos, float(origin[0]), float(origin[1]), float(pixel), int(start[0]),
-       int(start[1]), sc0, sc1, m, out["pass_theta"], out["added"], stats, ep.edge, cp.h_seg)
+    pt, add = out["pass_theta"], out["added"]
+
+    def run(r0: int, r1: int) -> None:
+        _cut_serial(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc,
+                    ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow,
+                    grooves.ku, grooves.kv, grooves.ph, float(grooves.scale), fast_cos, float(origin[0]),
+                    float(origin[1]), float(pixel), int(start[0]) + r0, int(start[1]), sc0, sc1, m[r0:r1],
+                    pt[r0:r1], add[r0:r1], stats[r0:r1], ep.edge, cp.h_seg)
+
+    if parallel:
+        over_rows(run, rows)
+    else:
+        run(0, rows)
     return stats
 
 
@@ -589,8 +589,8 @@ def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
 
 
 def load_cut_kernels() -> None:
-    """Compile (or load from numba's cache) the kernel for both targets: one call each on a
-    2 x 2 grid of a three-revolution spiral."""
+    """Compile (or load from numba's cache) the kernel: one call on a 2 x 2 grid of a
+    three-revolution spiral (on one thread and on threads: the same kernel)."""
     theta = np.linspace(0.0, 6 * math.pi, 97)
     path = ToolPath(theta, 0.05 - 0.01 * theta / TWO_PI, np.zeros(theta.size), theta)
     cp = prepare_cut(path, nose_radius=0.1, half_width=0.05, h_min=1e-5, kappa=0.05)

@@ -61,6 +61,7 @@ from typing import Any
 
 import numpy as np
 from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.threads import over_rows
 
 from ..core.errors import InputError
 from ..core.progress import report
@@ -183,7 +184,8 @@ def _reference_kernel(theta, rho, z, tab, tab_t0, tab_w, a, cc, dev, f, x0, y0, 
 
 # ------------------------------------------------------------------ the fast kernel (CPU)
 def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc,
-               dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge):
+               dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge, b0, b1):
+    """The BLOCK x BLOCK blocks b0 .. b1 - 1 of ``out`` (row by row of blocks)."""
     ny, nx = out.shape
     Rc2 = Rc * Rc
     Wd = W + dev
@@ -193,7 +195,7 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
     K_c = _pass_count(jw_c)
     bx = (nx + BLOCK - 1) // BLOCK
     by = (ny + BLOCK - 1) // BLOCK
-    for b in prange(bx * by):
+    for b in range(b0, b1):
         iy0 = (b // bx) * BLOCK
         ix0 = (b % bx) * BLOCK
         ix1 = min(ix0 + BLOCK, nx)
@@ -212,19 +214,11 @@ def _fill_impl(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_tot
                                             jw_c, K_a, K_b, K_c, phi, r, edge)
 
 
-def _fill_impl_serial(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total, t0, a, cc,
-                      dev, f, Rc, hw, W, x0, y0, pixel, iy_off, ix_off, out, edge):
-    """:func:`_fill_impl`'s code under a name of its own: numba's cache names a kernel
-    after its function (name and line), so the serial and the parallel kernel made from
-    one function would share one cache entry and each load the other's code."""
-
-
-_fill_impl_serial.__code__ = _fill_impl.__code__.replace(co_name="_fill_impl_serial")
-
-#: the fast kernel on all cores (whole grids) and on one core without the GIL (tiles run
-#: side by side by a scheduler; grids of at most SERIAL_MAX_SAMPLES)
-_fill_parallel = njit(parallel=True, cache=True)(_fill_impl)
-_fill_serial = njit(nogil=True, cache=True)(_fill_impl_serial)
+#: the fast kernel, without the GIL: on one core (tiles run side by side by a scheduler;
+#: grids of at most SERIAL_MAX_SAMPLES), or on runs of blocks on threads (whole grids:
+#: :func:`~render_inspect.core.threads.over_rows`; numba's parallel loop of the same code
+#: took 4-5 CPU-s more to compile, for the same heights)
+_fill_serial = njit(nogil=True, cache=True)(_fill_impl)
 
 
 def envelope_fill(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
@@ -246,15 +240,20 @@ def envelope_fill(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: 
         Index of ``out[0, 0]`` in the whole grid.  When both are multiples of ``BLOCK``
         the tile equals the same pixels of a whole-grid run bit for bit.
     parallel : bool
-        All cores (numba threads); False runs on the calling thread without the GIL (for
-        tiles that a scheduler runs side by side).
+        Runs of blocks on threads, as many as numba's parallel kernels use; False runs on
+        the calling thread without the GIL (for tiles that a scheduler runs side by side).
     """
     if ep.cc <= 0:
         raise ValueError("envelope_fill: the path must feed towards the axis (use simulate_turning)")
-    fill = _fill_parallel if parallel else _fill_serial
-    fill(ep.seg, ep.theta, ep.tab, ep.tab_t0, ep.tab_w, ep.uniform, ep.inv, ep.nrev, ep.offset, ep.n_total,
-         ep.t0, ep.a, ep.cc, ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window,
-         float(origin[0]), float(origin[1]), float(pixel), int(start[0]), int(start[1]), out, ep.edge)
+    args = (ep.seg, ep.theta, ep.tab, ep.tab_t0, ep.tab_w, ep.uniform, ep.inv, ep.nrev, ep.offset, ep.n_total,
+            ep.t0, ep.a, ep.cc, ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window,
+            float(origin[0]), float(origin[1]), float(pixel), int(start[0]), int(start[1]), out, ep.edge)
+    ny, nx = out.shape
+    blocks = -(-ny // BLOCK) * -(-nx // BLOCK)
+    if parallel:
+        over_rows(_fill_serial, blocks, *args)
+    else:
+        _fill_serial(*args, 0, blocks)
     return out
 
 

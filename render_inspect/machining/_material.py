@@ -96,7 +96,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..core.errors import InputError, check_range
-from ..core.lazy import njit, prange  # numba, imported on first use
+from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM, UM_TO_MM
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
@@ -393,13 +394,13 @@ def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | 
     return np.cos(ay) @ cx, np.sin(ay) @ sx
 
 
-@njit(parallel=True, cache=True)
-def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows):
+@njit(cache=True, nogil=True)
+def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows, i0, i1):
     """In place: ``cos_part`` becomes the map with the texture added where it is finite
     (unchanged elsewhere), ``sin_part`` the texture's square there; the finite pixels of
-    each row counted."""
+    each row counted (rows i0 .. i1 - 1)."""
     ny, nx = m.shape
-    for i in prange(ny):
+    for i in range(i0, i1):
         n = 0
         for j in range(nx):
             t = (cos_part[i, j] - sin_part[i, j]) * scale
@@ -426,7 +427,8 @@ def textured(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
     check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
     out, sq = _texture_products(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64),
                                 correlation_length, seed, cache)
-    _add_texture_rows(machined, out, sq, _texture_scale(rms), np.empty(machined.shape[0], dtype=np.int64))
+    over_rows(_add_texture_rows, machined.shape[0], machined, out, sq, _texture_scale(rms),
+              np.empty(machined.shape[0], dtype=np.int64))
     return out, sq
 
 
@@ -451,7 +453,7 @@ def add_texture_field(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms
                          f"received {m.shape}")
     out, sq = _texture_products(x, y, correlation_length, seed)
     rows = np.empty(m.shape[0], dtype=np.int64)
-    _add_texture_rows(m, out, sq, _texture_scale(rms), rows)
+    over_rows(_add_texture_rows, m.shape[0], m, out, sq, _texture_scale(rms), rows)
     n_ok = int(rows.sum())
     if n_ok == 0:
         return out, 0.0

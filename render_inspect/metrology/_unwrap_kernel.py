@@ -84,7 +84,7 @@ def flood(phase: npt.NDArray[np.float64], valid: npt.NDArray[np.bool_],
         label += 1
         out[seed] = ph[seed]
         labels[seed] = label
-        n = 0
+        n = np.int64(0)  # (not the literal 0: one compilation of the heap's functions, not two)
         cur = seed
         while True:
             r, c = cur // w, cur % w

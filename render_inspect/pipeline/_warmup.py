@@ -53,8 +53,8 @@ def warm_up() -> float:
     # compiled when first used rather than here: 10 CPU-s of the warm-up)
     for uniform in (True, False):
         m = simulate_turning(_spiral(uniform), nose_radius=0.1, half_width=0.05, region=region, pixel=0.002)
-    # a grid of more than two blocks (101 x 101): the parallel kernel (the 21 x 21 grids
-    # above run the serial one, as small grids do)
+    # a grid of more than two blocks (101 x 101): the same kernel on threads (the 21 x 21
+    # grids above run it on the calling thread, as small grids do)
     simulate_turning(_spiral(True), nose_radius=0.1, half_width=0.05, region=(-0.1, -0.1, 0.1, 0.1),
                      pixel=0.002)
     load_cut_kernels()
