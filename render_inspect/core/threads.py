@@ -9,8 +9,8 @@ rows (each row writes only its own results) is therefore compiled serially with
 ``nogil=True`` and a first and an end row, and :func:`over_rows` runs it on runs of rows on
 threads, as many as numba's parallel kernels would use (``numba.get_num_threads()`` of the
 calling thread).  Each row's numbers are those of the same loop run in one piece.  Called
-from a thread other than the process's main one (a Dask worker runs its tasks in one), it
-runs every row in the calling thread and starts none: threads started there, beside the
+from a thread other than the process's main one or those the package starts from it (a Dask
+worker runs its tasks in one), it runs every row in the calling thread and starts none: threads started there, beside the
 worker's own, ended a LocalCluster's worker processes in segmentation faults.
 
 Only the standard library is imported here (numba when :func:`over_rows` first runs).
@@ -29,6 +29,9 @@ __all__ = ["over_rows"]
 #: runs of rows per thread: later runs go to whichever thread is free first
 _RUNS_PER_THREAD = 4
 
+#: the name of the row threads
+_ROWS = "render_inspect-rows"
+
 _LOCK = threading.Lock()
 # the threads that help the calling one, made on first use (again in a forked child)
 _POOL: ThreadPoolExecutor | None = None
@@ -46,9 +49,19 @@ def _pool(helpers: int) -> ThreadPoolExecutor:
     global _POOL, _POOL_PID, _POOL_SIZE
     with _LOCK:
         if _POOL is None or _POOL_PID != os.getpid() or _POOL_SIZE < helpers:
-            _POOL = ThreadPoolExecutor(helpers, thread_name_prefix="render_inspect-rows")
+            _POOL = ThreadPoolExecutor(helpers, thread_name_prefix=_ROWS)
             _POOL_PID, _POOL_SIZE = os.getpid(), helpers
         return _POOL
+
+
+def _may_start_threads() -> bool:
+    """In a process's main thread, or in a thread the package started from one (named
+    ``render_inspect-...``, such as the interferometer's truth beside its frames; not the
+    row threads themselves)."""
+    current = threading.current_thread()
+    if current is threading.main_thread():
+        return True
+    return current.name.startswith("render_inspect-") and not current.name.startswith(_ROWS)
 
 
 def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
@@ -57,7 +70,7 @@ def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
     all are done, raising the first error a run raised.  The kernel must release the GIL
     (``nogil=True``) and each row must write only its own results."""
     n = int(n)
-    threads = min(_threads(), n) if threading.current_thread() is threading.main_thread() else 1
+    threads = min(_threads(), n) if _may_start_threads() else 1
     if threads <= 1:
         if n > 0:
             kernel(*args, 0, n)

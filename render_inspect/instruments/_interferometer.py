@@ -496,7 +496,8 @@ def render_interferogram(heightmap: HeightMap, icfg: InterferometerConfig | None
                   "seed": int(seed), "origin": geom["origin"], "crop": geom["margin"], "diagnostics": diag}
     # the truth (from the traced heights alone) is made in a thread beside the frames
     # (in a process's main thread; elsewhere after them: _imaging._threads_allowed)
-    with ThreadPoolExecutor(max_workers=1) if _threads_allowed() else _Serial() as pool:
+    with (ThreadPoolExecutor(max_workers=1, thread_name_prefix="render_inspect-truth")
+          if _threads_allowed() else _Serial()) as pool:
         truth = pool.submit(pixel_truth, h_sub, h_centre, s=s, margin=geom["margin"])
         if icfg.mode == "psi":
             # the focus: the user's, or the one the instrument finds on its own fringes
