@@ -24,6 +24,11 @@ from render_inspect.toolpath import Tool, ToolPath
 from render_inspect.toolpath._compensation import _GOLD, contact_window, z_compensation
 from render_inspect.toolpath._kinematics import axis_derivatives
 
+# The direct (reference) cut and envelope models are compiled on their first call, 15 CPU-s
+# each from an empty cache: the files that call them run on one worker under `make test`,
+# so each is compiled once per run (the two workers compiled them side by side before).
+pytestmark = pytest.mark.xdist_group("direct_models")
+
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 GRID = SCENES / "sts_sinusoidal_grid.toml"
 #: the equality the fast kernel keeps with the direct model, relative to the map's heights

@@ -16,6 +16,11 @@ from render_inspect.pipeline import simulate as simulate_scene
 from render_inspect.scene import load_scene
 from render_inspect.toolpath import ToolPath
 
+# The direct (reference) cut and envelope models are compiled on their first call, 15 CPU-s
+# each from an empty cache: the files that call them run on one worker under `make test`,
+# so each is compiled once per run (the two workers compiled them side by side before).
+pytestmark = pytest.mark.xdist_group("direct_models")
+
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "scenes" / "sts_sinusoidal_grid.toml"
 FIG16 = REPO / "scenes" / "sts_fig16_overcut.toml"

@@ -21,6 +21,11 @@ from render_inspect.machining._material import (MATERIAL_PRESETS, contact_ratio,
 from render_inspect.machining._sculpt import sculpt_surface
 from render_inspect.toolpath import ToolPath
 
+# The direct (reference) cut and envelope models are compiled on their first call, 15 CPU-s
+# each from an empty cache: the files that call them run on one worker under `make test`,
+# so each is compiled once per run (the two workers compiled them side by side before).
+pytestmark = pytest.mark.xdist_group("direct_models")
+
 
 # ---- the material model ---------------------------------------------------------------
 def test_min_chip_thickness_of_son_et_al():
