@@ -8,10 +8,11 @@ the imaging model's and the burr model's passes).  A kernel whose loop is over i
 rows (each row writes only its own results) is therefore compiled serially with
 ``nogil=True`` and a first and an end row, and :func:`over_rows` runs it on runs of rows on
 threads, as many as numba's parallel kernels would use (``numba.get_num_threads()`` of the
-calling thread).  Each row's numbers are those of the same loop run in one piece.  Called
-from a thread other than the process's main one or those the package starts from it (a Dask
-worker runs its tasks in one), it runs every row in the calling thread and starts none: threads started there, beside the
-worker's own, ended a LocalCluster's worker processes in segmentation faults.
+calling thread).  Each row's numbers are those of the same loop run in one piece.  The
+threads run compiled code only, without the interpreter's lock and without numba's own
+threading layer, so they may be started from any thread, a Dask worker's task among them
+(numba's workqueue layer must not be entered from two threads at once; these threads
+never enter it).  A row thread does not start more.
 
 Only the standard library is imported here (numba when :func:`over_rows` first runs).
 """
@@ -55,13 +56,10 @@ def _pool(helpers: int) -> ThreadPoolExecutor:
 
 
 def _may_start_threads() -> bool:
-    """In a process's main thread, or in a thread the package started from one (named
-    ``render_inspect-...``, such as the interferometer's truth beside its frames; not the
-    row threads themselves)."""
-    current = threading.current_thread()
-    if current is threading.main_thread():
-        return True
-    return current.name.startswith("render_inspect-") and not current.name.startswith(_ROWS)
+    """Anywhere but in the row threads themselves (a kernel that runs rows does not start
+    more).  In a Dask worker's task the task has set numba's thread count to its share of
+    the cores, as numba's parallel loops used it."""
+    return not threading.current_thread().name.startswith(_ROWS)
 
 
 def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
