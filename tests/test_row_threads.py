@@ -1,5 +1,6 @@
-"""Where a compiled row loop may start threads: in any thread (a process's main one, one the
-package starts, a Dask worker's task thread), but not in the row threads themselves."""
+"""Where a compiled row loop may start threads: a process's main thread, the threads the
+package starts from it, a Dask worker's task thread; not a pool's threads that run tiles
+side by side, nor the row threads themselves."""
 
 from __future__ import annotations
 
@@ -40,8 +41,9 @@ def test_rows_cover_each_row_once_on_threads_where_allowed():
     for name in ("render_inspect-truth", "Dask-Default-Threads"):
         runs, _ = _in_thread(name, 37)
         assert len(runs) > 1, name
-    runs, names = _in_thread("render_inspect-rows", 37)  # a row thread starts no more
-    assert runs == [(0, 37)] and len(names) == 1
+    for name in ("render_inspect-rows", "ThreadPoolExecutor"):  # row threads, tile pools
+        runs, names = _in_thread(name, 37)
+        assert runs == [(0, 37)] and len(names) == 1, name
 
 
 def test_a_failing_run_raises_in_the_calling_thread():

@@ -10,9 +10,8 @@ rows (each row writes only its own results) is therefore compiled serially with
 threads, as many as numba's parallel kernels would use (``numba.get_num_threads()`` of the
 calling thread).  Each row's numbers are those of the same loop run in one piece.  The
 threads run compiled code only, without the interpreter's lock and without numba's own
-threading layer, so they may be started from any thread, a Dask worker's task among them
-(numba's workqueue layer must not be entered from two threads at once; these threads
-never enter it).  A row thread does not start more.
+threading layer.  They are started where numba's parallel loops would have used the cores
+(:func:`_may_start_threads`); elsewhere the rows run in the calling thread.
 
 Only the standard library is imported here (numba when :func:`over_rows` first runs).
 """
@@ -56,10 +55,16 @@ def _pool(helpers: int) -> ThreadPoolExecutor:
 
 
 def _may_start_threads() -> bool:
-    """Anywhere but in the row threads themselves (a kernel that runs rows does not start
-    more).  In a Dask worker's task the task has set numba's thread count to its share of
-    the cores, as numba's parallel loops used it."""
-    return not threading.current_thread().name.startswith(_ROWS)
+    """In a process's main thread, in a thread the package started from one (named
+    ``render_inspect-...``, such as the interferometer's truth beside its frames; not the
+    row threads themselves), and in a Dask worker's task thread (the task has set numba's
+    thread count to its share of the cores, as numba's parallel loops used it).  Not in
+    other threads: the threads of a pool that runs tiles side by side already keep the
+    cores busy, and row threads of their own only add temporaries held at once."""
+    current = threading.current_thread()
+    if current is threading.main_thread() or "Dask-Default-Threads" in current.name:
+        return True
+    return current.name.startswith("render_inspect-") and not current.name.startswith(_ROWS)
 
 
 def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
