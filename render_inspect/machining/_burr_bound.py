@@ -75,6 +75,26 @@ def _reference_stats(z, d):
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _line_max(u, w, v, k0, k1, span, c, best):
+    """One line of the sampled bound: ``u`` (the line smoothed across it, 2 r more entries
+    than ``v``) smoothed along it into ``v`` by w, then the larger of ``best`` and the
+    largest (1 + c)|D1| + c|D2| at the entries k0 .. k1 - 1 of ``v`` (inf where NaN)."""
+    r = (w.size - 1) // 2
+    for i in range(v.size):
+        acc = 0.0
+        for t in range(2 * r + 1):
+            acc += w[t] * u[i + t]
+        v[i] = acc
+    for k in range(k0, k1):
+        d1 = (v[k + span] - v[k + span - 1]) - (v[k - span + 1] - v[k - span])
+        d2 = (v[k + 2 * span] - v[k + 2 * span - 1]) - (v[k - 2 * span + 1] - v[k - 2 * span])
+        g = (1.0 + c) * abs(d1) + c * abs(d2)
+        if not (g <= best):
+            best = g if g == g else np.inf
+    return best
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _sampled_max(z, w, r0, r1, qs, span, c):
     """max over p in [r0, r1) and the columns ``qs`` of (1 + c)|D1| + c|D2| along axis 0
     of z smoothed by w along both axes (no clamping: the caller checks the reach), D1 and
@@ -95,20 +115,8 @@ def _sampled_max(z, w, r0, r1, qs, span, c):
             u[s, i] = acc
     v = np.empty(n)
     best = 0.0
-    for s in range(ns):
-        us = u[s]
-        for i in range(n):              # then along axis 0
-            acc = 0.0
-            for t in range(2 * r + 1):
-                acc += w[t] * us[i + t]
-            v[i] = acc
-        for p in range(r0, r1):
-            k = p - a
-            d1 = (v[k + span] - v[k + span - 1]) - (v[k - span + 1] - v[k - span])
-            d2 = (v[k + 2 * span] - v[k + 2 * span - 1]) - (v[k - 2 * span + 1] - v[k - 2 * span])
-            g = (1.0 + c) * abs(d1) + c * abs(d2)
-            if not (g <= best):
-                best = g if g == g else np.inf
+    for s in range(ns):                 # then along axis 0
+        best = _line_max(u[s], w, v, r0 - a, r1 - a, span, c, best)
     return best
 
 
@@ -130,18 +138,7 @@ def _sampled_max_rows(z, w, c0, c1, ps, span, c):
             wt = w[t]
             for j in range(n + 2 * r):
                 u[j] += wt * row[j]
-        for i in range(n):              # then along axis 1
-            acc = 0.0
-            for t in range(2 * r + 1):
-                acc += w[t] * u[i + t]
-            v[i] = acc
-        for q in range(c0, c1):
-            k = q - a
-            d1 = (v[k + span] - v[k + span - 1]) - (v[k - span + 1] - v[k - span])
-            d2 = (v[k + 2 * span] - v[k + 2 * span - 1]) - (v[k - 2 * span + 1] - v[k - 2 * span])
-            g = (1.0 + c) * abs(d1) + c * abs(d2)
-            if not (g <= best):
-                best = g if g == g else np.inf
+        best = _line_max(u, w, v, c0 - a, c1 - a, span, c, best)  # then along axis 1
     return best
 
 
