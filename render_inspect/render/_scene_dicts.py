@@ -128,16 +128,16 @@ def render_aov_grids(gm: GridMesh, grids: list[dict], *, z_top: float) -> list[t
     return out
 
 
-def _aligned(a: np.ndarray) -> np.ndarray:
-    """``a`` in a 64-byte aligned buffer.  Dr.Jit reads a NumPy array in place and writes
-    its alignment into the traced program (an aligned or an unaligned vector load): arrays
-    that NumPy placed at other addresses would otherwise make other programs, each compiled
-    anew, where one compiled program serves every call."""
-    buf = np.empty(a.size + 64 // a.itemsize, dtype=a.dtype)
-    start = (-buf.ctypes.data % 64) // a.itemsize
-    out = buf[start:start + a.size]
-    out[...] = a.ravel()
-    return out
+def _aligned(shape: tuple[int, int]) -> np.ndarray:
+    """An empty float32 array of ``shape`` in a 64-byte aligned buffer.  Dr.Jit reads a
+    NumPy array in place and writes its alignment into the traced program (an aligned or
+    an unaligned vector load): arrays that NumPy placed at other addresses would otherwise
+    make other programs, each compiled anew, where one compiled program serves every
+    call."""
+    n = shape[0] * shape[1]
+    buf = np.empty(n + 16, dtype=np.float32)
+    start = (-buf.ctypes.data % 64) // 4
+    return buf[start:start + n].reshape(shape)
 
 
 def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
@@ -204,8 +204,10 @@ def trace_grids(gm: GridMesh, grids: list[dict], *, z_top: float,
         cell = float(g["width_mm"]) / nx
         xs = (float(g["x0"]) + dx + (np.arange(nx) + 0.5) * cell).astype(np.float32)
         ys = (float(g["y0"]) + dy + (np.arange(ny) + 0.5) * cell).astype(np.float32)
-        o = mi.Point3f(mi.Float(_aligned(np.tile(xs, ny))), mi.Float(_aligned(np.repeat(ys, nx))),
-                       z_start)
+        ox, oy = _aligned((ny, nx)), _aligned((ny, nx))
+        ox[:] = xs               # (np.tile(xs, ny))
+        oy[:] = ys[:, None]      # (np.repeat(ys, nx))
+        o = mi.Point3f(mi.Float(ox.ravel()), mi.Float(oy.ravel()), z_start)
         ray = mi.Ray3f(o, mi.Vector3f(0.0, 0.0, -1.0))
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
         hit = si.is_valid() & (si.n.z > 1e-6)
