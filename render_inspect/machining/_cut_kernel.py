@@ -10,8 +10,8 @@ height, the cutting pass and the displaced material are those of the direct mode
 makes it fast:
 
 - no pass buffers away from the axis: the passes of one side are already in time order and
-  go straight through the state machine (near the axis both sides are gathered and merged
-  by time, as in the direct kernel);
+  go straight through the state machine (where the far side's passes reach the window
+  too, both sides are gathered and merged by time, as in the direct kernel);
 - the polar angle advances along a row with the series of the angle difference (one exact
   ``atan2`` at each 64-pixel block of the whole grid, as the envelope kernel does), so a
   tile or a row block gets the very angles of a whole-grid run;
@@ -338,6 +338,7 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     cols = machined.size
     Rc2 = Rc * Rc
     Wd = W + dev
+    rho_end = a - cc * (t_last - t_first)
     grooves = ku.size > 0
     b1s, b1z, b1f, b1d = bufs[0], bufs[1], bufs[2], bufs[3]
     b2s, b2z, b2f, b2d = bufs[4], bufs[5], bufs[6], bufs[7]
@@ -362,7 +363,9 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
         phi2 = phi + math.pi
         if phi2 >= TWO_PI:
             phi2 -= TWO_PI
-        if r < Wp + hw:
+        # the far side's passes reach the window only where r <= Wp - the nominal spiral's
+        # radius at the path's end (1e-9 mm more for rounding): else this side's alone
+        if r < Wp + hw and r <= Wp - rho_end + 1e-9:
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp, Rc,
                          Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
             n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0, Wp,
@@ -407,9 +410,7 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
             machined[ix] = np.nan
             pass_theta[ix] = np.nan
             added[ix] = 0.0
-    stats[0] = g2
-    stats[1] = ng
-    stats[2] = amax
+    stats[0], stats[1], stats[2] = g2, ng, amax
 
 
 def _buffer_size(W, dev, f):
