@@ -5,7 +5,6 @@ study's Figs. 8-9), position, velocity and acceleration against time, one column
 from __future__ import annotations
 
 from collections.abc import Sequence
-import io
 import math
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
 from ._quickplot import panels_png
+from ._savefig import figure_png
 from ..toolpath import axis_derivatives
 from ..core.toolpath import ToolPath
 
@@ -145,11 +145,7 @@ def axis_motion_figure(columns: Sequence[tuple[str, ToolPath, dict]], *,
         grid[0, col].set_title(head, fontsize=9)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, dpi=dpi, tight_layout=True)
 
 
 def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath | None = None,
@@ -203,11 +199,7 @@ def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath
                                f"max |aX| {np.max(np.abs(ax)):.3g} mm/s$^2$", fontsize=9)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(png_path, buf.getvalue())
+    return atomic_write_bytes(png_path, figure_png(fig, dpi=110, tight_layout=True))
 
 
 def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str | Path, *,
