@@ -2,9 +2,10 @@
 
 Two things make a save of the report's figures slow, and both are repeated work:
 
-* a figure with a layout engine (constrained layout) is drawn twice by ``savefig``: once
-  with nothing rendered, only to run the layout, then for real.  :func:`lay_out_once`
-  runs the layout itself and fixes its result, so the figure is drawn once;
+* a figure with a layout engine (constrained layout, or the engine that does nothing
+  which ``tight_layout`` leaves behind) is drawn twice by ``savefig``: once with nothing
+  rendered, only to run the layout, then for real.  :func:`lay_out_once` runs the
+  layout itself and fixes its result, so the figure is drawn once;
 * laying a figure out measures every axes' tick labels, and each measurement asks the
   axis for its ticks again (the tick labels, the axis label, each spine: about five
   times per axis per pass), running its tick locator and formatter each time.
@@ -27,9 +28,13 @@ def lay_out_once(fig: Any) -> None:
     """Run ``fig``'s layout engine (constrained layout) now and then fix the result: the
     figure is saved as it would have been, but ``savefig`` no longer draws it a first
     time (every artist, with nothing rendered) only to lay it out."""
+    import matplotlib
+
     engine = fig.get_layout_engine()
     if engine is None or not fig.axes:
         return
+    if matplotlib.rcParams["figure.autolayout"] or matplotlib.rcParams["figure.constrained_layout.use"]:
+        return  # a figure without an engine gets one again: savefig lays it out as before
     try:
         engine.execute(fig)
     except ValueError:  # as a draw does: the layout is left as it is
