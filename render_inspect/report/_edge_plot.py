@@ -46,8 +46,7 @@ def plot_tool_edge(spec: dict, png_path: str | Path) -> Path:
     a2.set_ylabel("height, mean removed (nm)")
     a2.legend(loc="best", fontsize=8)
     fig.suptitle(spec.get("title", ""), fontsize=10)
-    fig.tight_layout()
-    return _save(fig, png_path)
+    return _save(fig, png_path, tight_layout=True)
 
 
 @register_figure("tool_wear")
@@ -74,5 +73,4 @@ def plot_tool_wear(spec: dict, png_path: str | Path) -> Path:
     a2.set_ylabel("Sa of machined - design in rings (nm)")
     a2.set_ylim(bottom=0)
     fig.suptitle(spec.get("title", ""), fontsize=10)
-    fig.tight_layout()
-    return _save(fig, png_path)
+    return _save(fig, png_path, tight_layout=True)

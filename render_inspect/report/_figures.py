@@ -24,6 +24,7 @@ import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._format import fmt_quantity, scale_bar_length
+from ._savefig import figure_png
 
 __all__ = ["map_panels", "image_panels", "radial_profile_figure", "png_bytes", "line_panels",
            "block_mean", "display_map", "difference_figure", "locator_figure", "annotate_rgb",
@@ -44,12 +45,9 @@ def _plt():
     return plt
 
 
-def _to_png(fig) -> bytes:
-    plt = _plt()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=fig.dpi)
-    plt.close(fig)
-    return buf.getvalue()
+def _to_png(fig, *, tight_layout: bool = False) -> bytes:
+    _plt()
+    return figure_png(fig, dpi=fig.dpi, tight_layout=tight_layout)
 
 
 def png_bytes(image: np.ndarray) -> bytes:
@@ -515,8 +513,7 @@ def radial_profile_figure(sections: Any, *, dpi: int = 100, radial: bool = True)
         bot.set_xlabel(xl)
         bot.axhline(0, color="k", lw=0.5)
         top.legend(fontsize=8, loc="best")
-    fig.tight_layout()
-    return _to_png(fig)
+    return _to_png(fig, tight_layout=True)
 
 
 def annotate_rgb(rgb8: np.ndarray, *, lines: Sequence[str] = (), scale_mm: float | None = None,
@@ -596,5 +593,4 @@ def line_panels(panels: Sequence[dict], *, suptitle: str = "", dpi: int = 90) ->
             ax.legend(fontsize=8, loc="best")
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
-    fig.tight_layout()
-    return _to_png(fig)
+    return _to_png(fig, tight_layout=True)

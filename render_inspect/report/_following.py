@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from typing import Any
 from collections.abc import Sequence
-import io
 from pathlib import Path
 
 import numpy as np
 
 from ..io import atomic_write_bytes
 from ._kinematics import _envelope
+from ._savefig import figure_png
 
 __all__ = ["plot_following_error", "plot_following_error_map"]
 
@@ -56,13 +56,9 @@ def _fixed_layout(fig: Any, *, left: float, right: float, top: float, bottom: fl
                         hspace=row_gap / axes_h if rows > 1 else None, wspace=wspace)
 
 
-def _save(fig: Any, png_path: str | Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(png_path, buf.getvalue())
+def _save(fig: Any, png_path: str | Path, *, tight_layout: bool = False) -> Path:
+    """Write ``fig`` at 110 dpi (after ``fig.tight_layout()`` when ``tight_layout``)."""
+    return atomic_write_bytes(png_path, figure_png(fig, dpi=110, tight_layout=tight_layout))
 
 
 def plot_following_error(t: np.ndarray, errors: dict, png_path: str | Path, *,

@@ -5,7 +5,6 @@ study's Figs. 8-9), position, velocity and acceleration against time, one column
 from __future__ import annotations
 
 from collections.abc import Sequence
-import io
 import math
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
 from ._quickplot import panels_png
+from ._savefig import figure_png
 from ..toolpath import axis_derivatives
 from ..core.toolpath import ToolPath
 
@@ -53,16 +53,19 @@ def turning_axes(path: ToolPath, data: dict | None = None) -> dict:
     return axes
 
 
-def moving_axes(t: np.ndarray, axes: dict) -> list[str]:
+def moving_axes(t: np.ndarray, axes: dict, derivatives: dict | None = None) -> list[str]:
     """The axes whose speed changes (more than :data:`CONSTANT_SPEED_TOL` of their top
     speed): an axis at rest or at constant speed (X of a constant-feed spiral) has
-    nothing to show but rounding noise in its acceleration."""
+    nothing to show but rounding noise in its acceleration.  ``derivatives``, a dict,
+    receives the :func:`~render_inspect.toolpath.axis_derivatives` taken (axis -> (v, a, j))."""
     out = []
     for name, q in axes.items():
         q = np.asarray(q, dtype=np.float64)
         if q.size < 3 or not np.ptp(q) > 0:
             continue
-        v, _, _ = axis_derivatives(t, q)
+        v, a, j = axis_derivatives(t, q)
+        if derivatives is not None:
+            derivatives[name] = (v, a, j)
         top = float(np.max(np.abs(v)))
         if top > 0 and float(np.ptp(v)) > CONSTANT_SPEED_TOL * top:
             out.append(name)
@@ -73,16 +76,16 @@ _UNITS = {"X": ("mm", 1.0), "Z": ("um", MM_TO_UM), "FTS": ("um", MM_TO_UM)}
 
 
 def _motion_series(columns, axes=None):
-    """``[(label, t, {axis: position})]`` of ``columns`` and the axes to plot: ``axes``,
-    or every axis that moves in any column (Z when none does)."""
+    """``[(label, t, {axis: position}, {axis: derivatives taken})]`` of ``columns`` and the
+    axes to plot: ``axes``, or every axis that moves in any column (Z when none does)."""
     series = []
     for label, path, data in columns:
         t = np.asarray(path.t, dtype=np.float64)
-        series.append((label, t, turning_axes(path, data)))
+        series.append((label, t, turning_axes(path, data), {}))
     if axes is None:
         names = []
-        for _, t, ax in series:
-            for n in moving_axes(t, ax):
+        for _, t, ax, taken in series:
+            for n in moving_axes(t, ax, taken):
                 if n not in names:
                     names.append(n)
         if not names:
@@ -114,7 +117,7 @@ def axis_motion_figure(columns: Sequence[tuple[str, ToolPath, dict]], *,
     rows = [(n, q) for n in names for q in ("position", "velocity", "acceleration")]
     fig, grid = plt.subplots(len(rows), len(series), figsize=(5.4 * len(series), 1.9 * len(rows)),
                              dpi=dpi, squeeze=False, sharey="row")
-    for col, (label, t, ax_data) in enumerate(series):
+    for col, (label, t, ax_data, taken) in enumerate(series):
         still = [n for n in ax_data if n not in names] if axes is None else []
         for r, (name, qty) in enumerate(rows):
             axx = grid[r, col]
@@ -123,7 +126,7 @@ def axis_motion_figure(columns: Sequence[tuple[str, ToolPath, dict]], *,
             if q is None:
                 axx.set_axis_off()
                 continue
-            v, a, _ = axis_derivatives(t, q)
+            v, a, _ = taken[name] if name in taken else axis_derivatives(t, q)
             y = {"position": q, "velocity": v, "acceleration": a}[qty] * scale
             ylab = {"position": f"{name} ({unit})", "velocity": f"{name} velocity ({unit}/s)",
                     "acceleration": f"{name} acceleration ({unit}/s$^2$)"}[qty]
@@ -145,11 +148,7 @@ def axis_motion_figure(columns: Sequence[tuple[str, ToolPath, dict]], *,
         grid[0, col].set_title(head, fontsize=9)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, dpi=dpi, tight_layout=True)
 
 
 def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath | None = None,
@@ -203,11 +202,7 @@ def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath
                                f"max |aX| {np.max(np.abs(ax)):.3g} mm/s$^2$", fontsize=9)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(png_path, buf.getvalue())
+    return atomic_write_bytes(png_path, figure_png(fig, dpi=110, tight_layout=True))
 
 
 def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str | Path, *,
@@ -232,7 +227,7 @@ def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str 
     """
     series, names = _motion_series(columns, axes)
     panels = []
-    for label, t, ax_data in series:
+    for label, t, ax_data, taken in series:
         still = [n for n in ax_data if n not in names] if axes is None else []
         head = label + (" (" + ", ".join(still) + " at constant speed: not plotted)" if still else "")
         first = True
@@ -241,7 +236,7 @@ def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str 
             if q is None:
                 continue
             unit, scale = _UNITS.get(name, ("mm", 1.0))
-            v, a, _ = axis_derivatives(t, q)
+            v, a, _ = taken[name] if name in taken else axis_derivatives(t, q)
             for qty, y, u in (("position", q, unit), ("velocity", v, f"{unit}/s"),
                               ("acceleration", a, f"{unit}/s^2")):
                 y = np.asarray(y, dtype=np.float64) * scale

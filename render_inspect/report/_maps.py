@@ -19,6 +19,7 @@ from ..io import preview as area_preview
 from ._figures import length_label, map_panels
 from ._format import scale_bar_length
 from ._quickplot import map_png
+from ._savefig import figure_png
 
 __all__ = ["save_map_png", "save_height_png", "residual_png", "residual_preview_png",
            "image_png", "rgb_png"]
@@ -99,11 +100,7 @@ def save_height_png(path: str | Path, height_nm: np.ndarray, *,
         ax.add_artist(bar)
     cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
     cb.set_label(label)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
+    return atomic_write_bytes(path, figure_png(fig, tight_layout=True))
 
 
 def residual_preview_png(png: str | Path, machined: np.ndarray, design: np.ndarray, *,

@@ -4,9 +4,10 @@ Cariboni & Saltelli 2007), next to the factors ranked by mu*."""
 
 from __future__ import annotations
 
-import io
 
 import numpy as np
+
+from ._savefig import figure_png
 
 __all__ = ["morris_png"]
 
@@ -64,7 +65,4 @@ def morris_png(morris: dict, output: str, *, title: str = "") -> bytes:
     n = morris.get("complete", 0)
     fig.suptitle((title or f"Morris elementary effects: {output}")
                  + f"  ({n} trajectories, {morris.get('levels')} levels)", fontsize=10)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+    return figure_png(fig, tight_layout=True, close=False)

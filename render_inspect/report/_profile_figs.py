@@ -110,8 +110,7 @@ def profile_figure(arrays: dict, metrics: dict, *, title: str = "", dpi: int = 9
     ax.set_title("material ratio curve", fontsize=10)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    return _to_png(fig)
+    return _to_png(fig, tight_layout=True)
 
 
 def profile_overlay_figure(series: Sequence[dict], *, title: str = "", dpi: int = 90) -> bytes:
@@ -129,5 +128,4 @@ def profile_overlay_figure(series: Sequence[dict], *, title: str = "", dpi: int 
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    return _to_png(fig)
+    return _to_png(fig, tight_layout=True)

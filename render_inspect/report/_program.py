@@ -33,5 +33,4 @@ def plot_feed_per_rev(radius_mm: np.ndarray, feed_um: np.ndarray, png_path: str 
         pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi) * 0.05, 1e-3)
         ax.set_ylim(lo - pad, hi + pad)
     ax.set_title(title or "feed per revolution against the radius")
-    fig.tight_layout()
-    return _save(fig, png_path)
+    return _save(fig, png_path, tight_layout=True)

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from typing import Any
 from collections.abc import Sequence
-import io
 
 import numpy as np
 
 from ._keys import key_label as _label
+from ._savefig import figure_png
 
 __all__ = ["curves_png", "heatmap_png", "sweep_plot_png"]
 
@@ -23,10 +23,8 @@ def _figure(figsize=(6.0, 4.4)):
     return fig
 
 
-def _png(fig) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+def _png(fig, *, tight_layout: bool = False) -> bytes:
+    return figure_png(fig, tight_layout=tight_layout, close=False)
 
 
 def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_nm",
@@ -58,8 +56,7 @@ def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_n
     ax.set_title(title or f"{y} vs {x}" + (f" (study {study})" if study else ""), fontsize=10)
     if not rows:
         ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
-    fig.tight_layout()
-    return _png(fig)
+    return _png(fig, tight_layout=True)
 
 
 def heatmap_png(rows: Sequence[Sequence[Any]], *, x: str, y: str, value: str = "residual.Sq_nm",
@@ -100,8 +97,7 @@ def heatmap_png(rows: Sequence[Sequence[Any]], *, x: str, y: str, value: str = "
     ax.set_ylabel(_label(y))
     ax.set_title(title or f"{value} over {x} and {y}" + (f" (study {study})" if study else ""),
                  fontsize=10)
-    fig.tight_layout()
-    return _png(fig)
+    return _png(fig, tight_layout=True)
 
 
 def sweep_plot_png(plot: Any, rows: Sequence[Sequence[Any]]) -> bytes:
