@@ -17,11 +17,22 @@ Two things make a save of the report's figures slow, and both are repeated work:
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 from collections.abc import Iterator
 from typing import Any
 
 __all__ = ["figure_png", "lay_out_once", "quick_ticks"]
+
+
+@functools.cache
+def _root_arg() -> bool:
+    """Whether this matplotlib's ``get_figure`` takes ``root`` (3.10 on)."""
+    import inspect
+
+    from matplotlib.artist import Artist
+
+    return "root" in inspect.signature(Artist.get_figure).parameters
 
 
 def lay_out_once(fig: Any) -> None:
@@ -47,7 +58,7 @@ def _axis_state(axis: Any) -> tuple:
     place in the figure (pixels), the figure's dpi, and its tickers (with the view and
     place of the axis each locator and formatter reads, which for a shared axis may be
     another one)."""
-    fig = axis.get_figure(root=True)
+    fig = axis.axes.get_figure(root=True) if _root_arg() else axis.axes.figure
     parts: list = [tuple(axis.get_view_interval()), axis.axes.transAxes.get_matrix().tobytes(),
                    fig.dpi]
     for ticker in (axis.major, axis.minor):
@@ -102,7 +113,10 @@ def _remember_ticks(axis: Any, owners: dict) -> None:
 def quick_ticks(fig: Any) -> Iterator[None]:
     """While inside: the axes of ``fig`` compute their ticks once per state
     (see the module notes); on leaving they are as before."""
-    axes = [axis for ax in fig.get_axes() for axis in ax._axis_map.values()]
+    axes = [axis for ax in fig.get_axes() for axis in getattr(ax, "_axis_map", {}).values()]
+    if not all(hasattr(axis, "_update_ticks") and hasattr(axis, "_get_ticklabel_bboxes")
+               for axis in axes):
+        axes = []  # a matplotlib without these methods: a plain save
     owners: dict = {}
     for axis in axes:
         _remember_ticks(axis, owners)
