@@ -80,3 +80,52 @@ def test_a_child_that_ended_leaves_its_figures_to_the_parent(tmp_path):
     for name, spec in _specs().items():
         draw_figure(spec, tmp_path / f"ref_{name}")
         assert (tmp_path / name).read_bytes() == (tmp_path / f"ref_{name}").read_bytes()
+
+
+#: in a fresh process (numba not yet imported, the kernels not yet made): a figure kind
+#: that records what the child had loaded when its first job arrived
+_PROBE = """
+import json, sys
+from pathlib import Path
+from render_inspect.core.lazy import LazyDispatcher
+from render_inspect.pipeline._figure_process import FigureProcess
+from render_inspect.report import register_figure
+
+@register_figure("probe_loaded")
+def probe(spec, png):
+    from render_inspect.toolpath import _kinematics
+    Path(png).write_text(json.dumps({
+        "matplotlib.pyplot": "matplotlib.pyplot" in sys.modules,
+        "numba": "numba" in sys.modules,
+        "kernels": [not isinstance(getattr(_kinematics, k), LazyDispatcher)
+                    for k in ("_gradient", "_second")]}))
+    return Path(png)
+
+assert "numba" not in sys.modules and "matplotlib" not in sys.modules
+drawer = FigureProcess.start()
+try:
+    drawer.draw("probe", {"kind": "probe_loaded"}, Path(sys.argv[1]))
+    drawer.results()
+finally:
+    drawer.close()
+print(json.dumps({"parent_numba": "numba" in sys.modules}))
+"""
+
+
+def test_the_child_loads_the_figures_library_and_kernels_before_its_first_figure(tmp_path):
+    # (the axis-motion figure's derivatives are compiled kernels: loaded while the parent
+    # still plans, not when that figure is drawn)
+    import json
+    import subprocess
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(repo) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               MPLBACKEND="Agg")
+    out = tmp_path / "probe.json"
+    r = subprocess.run([sys.executable, "-c", _PROBE, str(out)], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == {"parent_numba": False}
+    assert json.loads(out.read_text()) == {"matplotlib.pyplot": True, "numba": True,
+                                           "kernels": [True, True]}

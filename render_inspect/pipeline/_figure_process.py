@@ -8,6 +8,9 @@ numba's yet), imports matplotlib and draws each figure as soon as its data is se
 the other core, while the parent plans, follows, cuts and writes.  The figures are the
 same files, byte for byte: the same functions draw them from the same data.
 
+The child imports matplotlib and loads the compiled kernels the figures compute with
+while the parent plans the program, before the first figure arrives.
+
 The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends when the
 parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
 (it leaves with ``os._exit``).  A figure that fails in the child raises its error in the
@@ -32,8 +35,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..core.units import MIB_TO_BYTES
 from ..report import draw_figure, preload_drawing, residual_png
+from ..toolpath import axis_derivatives
 
 __all__ = ["FigureProcess"]
 
@@ -49,6 +55,14 @@ def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
         residual_png(*args, **kwargs)
     else:  # (never: the parent sends only these)
         raise ValueError(f"unknown figure job {kind!r}")
+
+
+def _warm_kernels() -> None:
+    """Load the compiled kernels the figures compute with (the axes' velocity and
+    acceleration of the axis-motion figure: numba and its cached kernels, about 0.4 CPU-s
+    in a fresh child), on three points, while the child waits for its first figure."""
+    t = np.arange(3, dtype=np.float64)
+    axis_derivatives(t, t * t)
 
 
 def _child(jobs_fd: int, results_fd: int) -> None:
@@ -77,10 +91,13 @@ def _child(jobs_fd: int, results_fd: int) -> None:
                 inbox.put(job)
 
     threading.Thread(target=read, daemon=True).start()
-    try:
-        preload_drawing()
-    except Exception:  # (drawing imports the same and reports what fails there)
-        pass
+    # what the figures need, loaded before the first of them arrives (the parent is
+    # still planning the program)
+    for preload in (preload_drawing, _warm_kernels):
+        try:
+            preload()
+        except Exception:  # (drawing loads the same and reports what fails there)
+            pass
     while True:
         job = inbox.get()
         if job is None:
