@@ -8,8 +8,11 @@ numba's yet), imports matplotlib and draws each figure as soon as its data is se
 the other core, while the parent plans, follows, cuts and writes.  The figures are the
 same files, byte for byte: the same functions draw them from the same data.
 
-The child imports matplotlib and loads the compiled kernels the figures compute with
-while the parent plans the program, before the first figure arrives.
+The compiled kernels the figures compute with (the axis-motion figure's derivatives) are
+loaded before the fork: numba's start (about 0.4 CPU-s: its import and its compiler's
+set-up) is needed by the parent's planning next anyway, and the child gets it with its
+copy instead of doing it again.  The child imports matplotlib while the parent plans,
+before the first figure arrives.
 
 The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends when the
 parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
@@ -60,7 +63,7 @@ def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
 def _warm_kernels() -> None:
     """Load the compiled kernels the figures compute with (the axes' velocity and
     acceleration of the axis-motion figure: numba and its cached kernels, about 0.4 CPU-s
-    in a fresh child), on three points, while the child waits for its first figure."""
+    in a fresh process), on three points."""
     t = np.arange(3, dtype=np.float64)
     axis_derivatives(t, t * t)
 
@@ -92,7 +95,8 @@ def _child(jobs_fd: int, results_fd: int) -> None:
 
     threading.Thread(target=read, daemon=True).start()
     # what the figures need, loaded before the first of them arrives (the parent is
-    # still planning the program)
+    # still planning the program); the kernels came loaded with the fork (unless that
+    # failed in the parent)
     for preload in (preload_drawing, _warm_kernels):
         try:
             preload()
@@ -137,6 +141,11 @@ class FigureProcess:
         """Fork the child, or None where that is not possible (not Linux, no fork)."""
         if not sys.platform.startswith("linux"):
             return None
+        # the figures' kernels, loaded here for both processes (see the module notes)
+        try:
+            _warm_kernels()
+        except Exception:  # (the child tries again; drawing reports what fails there)
+            pass
         try:
             jobs_r, jobs_w = os.pipe()
             res_r, res_w = os.pipe()
