@@ -162,3 +162,49 @@ def test_a_command_imports_only_what_it_uses(tmp_path, argv, needs, never):
     imported = set(json.loads(r.stdout.strip().splitlines()[-1]))
     assert needs <= imported, sorted(needs - imported)
     assert not imported & never, sorted(imported & never)
+
+
+#: the program's start: the collector paused while the command line's modules are
+#: imported, on again once a command runs (here one that ends on a mistake)
+_COLLECTOR = """
+import gc, json, sys
+sys.argv = ["render-inspect"]
+n = [0]
+gc.callbacks.append(lambda phase, info: phase == "start" and n.__setitem__(0, n[0] + 1))
+import render_inspect
+before = n[0]
+import render_inspect.cli as cli
+state = {"paused": not gc.isenabled(), "collections": n[0] - before}
+state["rc"] = cli.main(["simulate", "no_such_scene_file.toml", "--out", "o"])
+state["on_after"] = gc.isenabled()
+print(json.dumps(state))
+"""
+
+
+@pytest.mark.slow
+def test_the_programs_start_up_pauses_the_collector_until_the_command_runs(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", _COLLECTOR], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=tmp_path)
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == {
+        "paused": True, "collections": 0, "rc": 1, "on_after": True}, r.stderr[-800:]
+
+
+def test_a_paused_collector_is_put_back_as_it_was():
+    import gc
+
+    from render_inspect.cli._args import collector_paused
+
+    was = gc.isenabled()
+    try:
+        for start in (True, False):
+            (gc.enable if start else gc.disable)()
+            with collector_paused():
+                assert not gc.isenabled()
+            assert gc.isenabled() is start
+            with pytest.raises(KeyError):  # (also when the block fails)
+                with collector_paused():
+                    raise KeyError("x")
+            assert gc.isenabled() is start
+    finally:
+        (gc.enable if was else gc.disable)()

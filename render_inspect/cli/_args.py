@@ -5,15 +5,32 @@ scene command runs on."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import gc
 import json
 import logging
 from pathlib import Path
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..scene import Scene
 
 log = logging.getLogger("render_inspect")
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """Run the block (loading the scene: the schema and the registries' modules imported)
+    with the collector paused, then leave what it made out of the collector's later passes
+    (``gc.freeze``) and put the collector back as it was."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if was:
+            gc.enable()
 
 
 class _Registered:
@@ -128,11 +145,14 @@ def _add_out_args(p: argparse.ArgumentParser):
 
 def scene_of(args: argparse.Namespace) -> Scene:
     """The scene a scene command runs on (``args.scene`` with the ``--set`` overrides)."""
-    # (the scene schema imports pydantic and the registries: imported here, not at the top
-    # of the module, so that `render-inspect --help` answers at once)
-    from ..scene import load_scene, unit_warnings
+    # (the collector is paused meanwhile: the schema's modules and classes live as long as
+    # the process)
+    with collector_paused():
+        # (the scene schema imports pydantic and the registries: imported here, not at the
+        # top of the module, so that `render-inspect --help` answers at once)
+        from ..scene import load_scene, unit_warnings
 
-    scene = load_scene(args.scene, scene_overrides(args))
+        scene = load_scene(args.scene, scene_overrides(args))
     # values that are probably unit mistakes (a feed per revolution typed per minute, a
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):

@@ -29,6 +29,7 @@ drawn in a thread of the command's process.
 
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import pickle
@@ -223,11 +224,20 @@ class FigureProcess:
         """Fork the child, or None where that is not possible (not Linux, no fork)."""
         if not sys.platform.startswith("linux"):
             return None
-        # the figures' kernels, loaded here for both processes (see the module notes)
+        # the figures' kernels, loaded here for both processes (see the module notes), with
+        # the collector paused (numba's start makes some sixty thousand lasting objects and
+        # almost no garbage); what is made so far is left out of the collector's passes
+        # before the fork, so that the child's collections never copy the pages it shares
+        was = gc.isenabled()
+        gc.disable()
         try:
             _warm_kernels()
         except Exception:  # (the child tries again; drawing reports what fails there)
             pass
+        finally:
+            gc.freeze()
+            if was:
+                gc.enable()
         try:
             jobs_r, jobs_w = os.pipe()
             res_r, res_w = os.pipe()
