@@ -193,7 +193,7 @@ def test_the_programs_start_up_pauses_the_collector_until_the_command_runs(tmp_p
 def test_a_paused_collector_is_put_back_as_it_was():
     import gc
 
-    from render_inspect.cli._args import collector_paused
+    from render_inspect.core.lazy import collector_paused
 
     was = gc.isenabled()
     try:
@@ -207,4 +207,34 @@ def test_a_paused_collector_is_put_back_as_it_was():
                     raise KeyError("x")
             assert gc.isenabled() is start
     finally:
+        (gc.enable if was else gc.disable)()
+
+
+def test_the_collector_stays_paused_until_the_last_block_of_any_thread_ends():
+    import gc
+    import threading
+
+    from render_inspect.core.lazy import collector_paused
+
+    was = gc.isenabled()
+    gc.enable()
+    inside, leave = threading.Event(), threading.Event()
+
+    def other():
+        with collector_paused():
+            inside.set()
+            leave.wait(30)
+
+    t = threading.Thread(target=other)
+    try:
+        with collector_paused():
+            t.start()
+            inside.wait(30)
+        assert not gc.isenabled()  # (the other thread's block still runs)
+        leave.set()
+        t.join()
+        assert gc.isenabled()
+    finally:
+        leave.set()
+        t.join()
         (gc.enable if was else gc.disable)()

@@ -5,33 +5,17 @@ scene command runs on."""
 from __future__ import annotations
 
 import argparse
-import contextlib
-import gc
 import json
 import logging
 from pathlib import Path
-from collections.abc import Iterator
 from typing import TYPE_CHECKING
+
+from ..core.lazy import collector_paused
 
 if TYPE_CHECKING:
     from ..scene import Scene
 
 log = logging.getLogger("render_inspect")
-
-@contextlib.contextmanager
-def collector_paused() -> Iterator[None]:
-    """Run the block (loading the scene: the schema and the registries' modules imported)
-    with the collector paused, then leave what it made out of the collector's later passes
-    (``gc.freeze``) and put the collector back as it was."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.freeze()
-        if was:
-            gc.enable()
-
 
 class _Registered:
     """argparse ``choices`` read from a registry the first time they are needed (checking

@@ -29,7 +29,6 @@ drawn in a thread of the command's process.
 
 from __future__ import annotations
 
-import gc
 import logging
 import os
 import pickle
@@ -46,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.lazy import collector_paused
 from ..core.limits import usable_cpus
 from ..core.units import MIB_TO_BYTES
 from ..report import draw_figure, preload_drawing, residual_png
@@ -228,16 +228,11 @@ class FigureProcess:
         # the collector paused (numba's start makes some sixty thousand lasting objects and
         # almost no garbage); what is made so far is left out of the collector's passes
         # before the fork, so that the child's collections never copy the pages it shares
-        was = gc.isenabled()
-        gc.disable()
-        try:
-            _warm_kernels()
-        except Exception:  # (the child tries again; drawing reports what fails there)
-            pass
-        finally:
-            gc.freeze()
-            if was:
-                gc.enable()
+        with collector_paused():
+            try:
+                _warm_kernels()
+            except Exception:  # (the child tries again; drawing reports what fails there)
+                pass
         try:
             jobs_r, jobs_w = os.pipe()
             res_r, res_w = os.pipe()

@@ -27,6 +27,7 @@ from typing import Any
 
 from ..core import cancel
 from ..core.errors import InputError, RenderInspectError
+from ..core.lazy import collector_paused
 from ..core.limits import check_address_space, mitsuba_address_space
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
@@ -137,7 +138,9 @@ def start_mitsuba() -> threading.Thread | None:
 
     def run() -> None:
         try:
-            mitsuba_variant()
+            # (the collector paused: Mitsuba's modules live as long as the process)
+            with collector_paused():
+                mitsuba_variant()
         except Exception:  # (the render's own call chooses again and raises it there)
             pass
 
