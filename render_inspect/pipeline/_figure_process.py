@@ -29,6 +29,7 @@ drawn in a thread of the command's process.
 
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import pickle
@@ -173,11 +174,18 @@ def _child(jobs_fd: int, results_fd: int) -> None:
     # what the figures need, loaded before the first of them arrives (the parent is
     # still planning the program); the kernels came loaded with the fork (unless that
     # failed in the parent)
+    # (with the collector paused: matplotlib's modules live as long as the child; the
+    # child's own switch, not collector_paused, whose lock was the parent's at the fork)
+    was_on = gc.isenabled()
+    gc.disable()
     for preload in (preload_drawing, _warm_kernels):
         try:
             preload()
         except Exception:  # (drawing loads the same and reports what fails there)
             pass
+    gc.freeze()
+    if was_on:
+        gc.enable()
     at_once = min(DRAWERS, usable_cpus())
     drawing: set[int] = set()
     while True:
