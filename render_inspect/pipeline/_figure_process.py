@@ -23,8 +23,8 @@ The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends 
 parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
 (it leaves with ``os._exit``); its copies end with it.  A figure that fails in the child
 raises its error in the parent; a child that ended unexpectedly leaves its figures to the
-parent, which draws them itself.  Linux only (``fork``); elsewhere, or when the fork fails, the figures are
-drawn in a thread of the command's process.
+parent, which draws them itself.  Linux only (``fork``); elsewhere, or when the fork
+fails, the figures are drawn in a thread of the command's process.
 """
 
 from __future__ import annotations
@@ -79,6 +79,11 @@ def _warm_kernels() -> None:
     axis_derivatives(t, t * t)
 
 
+#: the largest report written in one piece (POSIX: writes of at most PIPE_BUF bytes into
+#: a pipe are not interleaved with others')
+_REPORT_MAX = getattr(select, "PIPE_BUF", 512)
+
+
 def _result(key: int, seconds: float, error: BaseException | None) -> bytes:
     """A job's report as the parent reads it: its length (8 bytes), then (key, seconds,
     error) pickled; at most ``select.PIPE_BUF`` bytes, so that the reports of drawers
@@ -91,11 +96,6 @@ def _result(key: int, seconds: float, error: BaseException | None) -> bytes:
         text = f"{type(error).__name__}: {error}"[:1000]
         blob = pickle.dumps((key, seconds, RuntimeError(text)))
     return len(blob).to_bytes(8, "little") + blob
-
-
-#: the largest report written in one piece (POSIX: writes of at most PIPE_BUF bytes into
-#: a pipe are not interleaved with others')
-_REPORT_MAX = getattr(select, "PIPE_BUF", 512)
 
 
 def _draw(job: tuple, results_fd: int) -> None:
@@ -172,10 +172,9 @@ def _child(jobs_fd: int, results_fd: int) -> None:
 
     threading.Thread(target=read, daemon=True).start()
     # what the figures need, loaded before the first of them arrives (the parent is
-    # still planning the program); the kernels came loaded with the fork (unless that
-    # failed in the parent)
-    # (with the collector paused: matplotlib's modules live as long as the child; the
-    # child's own switch, not collector_paused, whose lock was the parent's at the fork)
+    # still planning the program; the kernels came loaded with the fork, unless that
+    # failed in the parent), with the collector paused: matplotlib's modules live as long
+    # as the child (its own switch, not collector_paused, whose lock was the parent's)
     was_on = gc.isenabled()
     gc.disable()
     for preload in (preload_drawing, _warm_kernels):
