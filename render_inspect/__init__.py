@@ -10,6 +10,8 @@ from . import _early_signals
 
 if _early_signals.is_program():
     _early_signals.install()
+    # (the program's imports, until its command runs: see _early_signals.pause_collector)
+    _early_signals.pause_collector()
 
 __version__ = "0.1.0"
 __all__ = ["__version__"]

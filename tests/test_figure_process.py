@@ -1,16 +1,20 @@
 """The figures of ``simulate`` drawn by a forked child process: the same files, byte for
-byte, as drawn in the process itself; a figure's error raised in the parent; a child that
-ends early leaves its figures to the parent."""
+byte, as drawn in the process itself; figures that arrive together drawn at once; a
+figure's error raised in the parent; a child that ends early leaves its figures to the
+parent, and one the parent ends leaves no figure being drawn."""
 
 import os
 import signal
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from render_inspect.core.limits import usable_cpus
 from render_inspect.pipeline._figure_process import FigureProcess
-from render_inspect.report import draw_figure, residual_png
+from render_inspect.report import draw_figure, register_figure, residual_png
 
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork: Linux only")]
@@ -66,6 +70,56 @@ def test_a_figures_error_is_raised_in_the_parent(tmp_path):
         drawer.close()
 
 
+@register_figure("slow_probe")
+def _slow_probe(spec, png):
+    # (a figure that takes a while: says it started, then, a second later, that it ended)
+    Path(spec["started"]).write_text(str(os.getpid()))
+    time.sleep(1.0)
+    Path(png).write_text("drawn")
+    return Path(png)
+
+
+def _wait_for(path, seconds=60.0):
+    t0 = time.monotonic()
+    while not path.exists():
+        assert time.monotonic() - t0 < seconds, f"{path} never appeared"
+        time.sleep(0.02)
+
+
+def test_figures_that_arrive_together_are_drawn_at_once(tmp_path):
+    # (by two copies of the child: the second starts before the first has ended)
+    if usable_cpus() < 2:
+        pytest.skip("one usable core: the child draws one figure after the other")
+    drawer = FigureProcess.start()
+    assert drawer is not None
+    try:
+        for k in (1, 2):
+            drawer.draw(f"f{k}.png", {"kind": "slow_probe", "started": str(tmp_path / f"s{k}")},
+                        tmp_path / f"f{k}.png")
+        _wait_for(tmp_path / "s2")
+        assert not (tmp_path / "f1.png").exists()
+        pids = {(tmp_path / f"s{k}").read_text() for k in (1, 2)}
+        assert len(pids) == 2 and str(drawer.pid) not in pids
+        assert sorted(drawer.results()) == ["f1.png", "f2.png"]
+    finally:
+        drawer.close()
+
+
+def test_closing_the_child_ends_the_figures_it_is_drawing(tmp_path):
+    # (a command that stops ends its figure process at once: no copy goes on to write
+    # into the output folder)
+    drawer = FigureProcess.start()
+    assert drawer is not None
+    try:
+        drawer.draw("f.png", {"kind": "slow_probe", "started": str(tmp_path / "s")},
+                    tmp_path / "f.png")
+        _wait_for(tmp_path / "s")
+    finally:
+        drawer.close()
+    time.sleep(2.0)
+    assert not (tmp_path / "f.png").exists()
+
+
 def test_a_child_that_ended_leaves_its_figures_to_the_parent(tmp_path):
     drawer = FigureProcess.start()
     assert drawer is not None
@@ -80,3 +134,53 @@ def test_a_child_that_ended_leaves_its_figures_to_the_parent(tmp_path):
     for name, spec in _specs().items():
         draw_figure(spec, tmp_path / f"ref_{name}")
         assert (tmp_path / name).read_bytes() == (tmp_path / f"ref_{name}").read_bytes()
+
+
+#: in a fresh process (numba not yet imported, the kernels not yet made): a figure kind
+#: that records what the child had loaded when its first job arrived
+_PROBE = """
+import json, sys
+from pathlib import Path
+from render_inspect.core.lazy import LazyDispatcher
+from render_inspect.pipeline._figure_process import FigureProcess
+from render_inspect.report import register_figure
+
+@register_figure("probe_loaded")
+def probe(spec, png):
+    from render_inspect.toolpath import _kinematics
+    Path(png).write_text(json.dumps({
+        "matplotlib.pyplot": "matplotlib.pyplot" in sys.modules,
+        "numba": "numba" in sys.modules,
+        "kernels": [not isinstance(getattr(_kinematics, k), LazyDispatcher)
+                    for k in ("_gradient", "_second")]}))
+    return Path(png)
+
+assert "numba" not in sys.modules and "matplotlib" not in sys.modules
+drawer = FigureProcess.start()
+try:
+    drawer.draw("probe", {"kind": "probe_loaded"}, Path(sys.argv[1]))
+    drawer.results()
+finally:
+    drawer.close()
+from render_inspect.toolpath import _kinematics
+print(json.dumps({"parent_kernels": [not isinstance(getattr(_kinematics, k), LazyDispatcher)
+                                     for k in ("_gradient", "_second")]}))
+"""
+
+
+def test_the_child_loads_the_figures_library_and_kernels_before_its_first_figure(tmp_path):
+    # (the axis-motion figure's derivatives are compiled kernels: loaded before the fork,
+    # which the parent's planning needs too, not when that figure is drawn)
+    import json
+    import subprocess
+
+    repo = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(repo) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               MPLBACKEND="Agg")
+    out = tmp_path / "probe.json"
+    r = subprocess.run([sys.executable, "-c", _PROBE, str(out)], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == {"parent_kernels": [True, True]}
+    assert json.loads(out.read_text()) == {"matplotlib.pyplot": True, "numba": True,
+                                           "kernels": [True, True]}

@@ -122,3 +122,119 @@ def test_lazy_scipy_names_are_scipys():
     assert np.array_equal(nd.uniform_filter(x, 3), ndimage.uniform_filter(x, 3))
     rot = lazy_attr("scipy.spatial.transform", "Rotation")
     assert np.allclose(rot.from_euler("xyz", [0, 0, 0]).as_matrix(), np.eye(3))
+
+
+#: runs the ``render-inspect`` program (``sys.argv[0]`` its name, so that the simulate
+#: command draws its figures in its second process) on argv[1:], and prints the heavy
+#: modules its own process imported (at exit: the program ends without the interpreter's
+#: teardown, after what is registered to run at exit)
+_PROGRAM = """
+import atexit, json, sys
+heavy = %r
+atexit.register(lambda: print(json.dumps(sorted(m for m in heavy if m in sys.modules)),
+                              flush=True))
+sys.argv = ["render-inspect", *sys.argv[1:]]
+from render_inspect.cli import main
+sys.exit(main())
+""" % (HEAVY + ("PIL",),)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("argv,needs,never", [
+    # the figures are drawn by the second process: the command's own imports no drawing
+    # library, no renderer, no cluster or chunked store (an in-memory map)
+    (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-0.2,-0.2,0.2,0.2]"],
+     {"numba", "OpenEXR"}, {"matplotlib", "PIL", "mitsuba", "drjit", "dask", "distributed",
+                            "zarr", "trimesh", "bpy"}),
+    # the interferometer writes its frames and a fringe image (Pillow): no matplotlib, no
+    # cluster, no chunked store, no mesh library, no Blender
+    (["render", "sts_sinusoidal_grid", "--kind", "interferometer", "--surface", "design",
+      "--set", "render.interferometer.objective='50x'"],
+     {"mitsuba", "drjit", "numba", "OpenEXR", "PIL"},
+     {"matplotlib", "dask", "distributed", "zarr", "trimesh", "bpy"}),
+], ids=["simulate", "render-interferometer"])
+def test_a_command_imports_only_what_it_uses(tmp_path, argv, needs, never):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               MPLBACKEND="Agg")
+    r = subprocess.run([sys.executable, "-c", _PROGRAM, "-q", *argv, "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-800:]
+    imported = set(json.loads(r.stdout.strip().splitlines()[-1]))
+    assert needs <= imported, sorted(needs - imported)
+    assert not imported & never, sorted(imported & never)
+
+
+#: the program's start: the collector paused while the command line's modules are
+#: imported, on again once a command runs (here one that ends on a mistake)
+_COLLECTOR = """
+import gc, json, sys
+sys.argv = ["render-inspect"]
+n = [0]
+gc.callbacks.append(lambda phase, info: phase == "start" and n.__setitem__(0, n[0] + 1))
+import render_inspect
+before = n[0]
+import render_inspect.cli as cli
+state = {"paused": not gc.isenabled(), "collections": n[0] - before}
+state["rc"] = cli.main(["simulate", "no_such_scene_file.toml", "--out", "o"])
+state["on_after"] = gc.isenabled()
+print(json.dumps(state))
+"""
+
+
+@pytest.mark.slow
+def test_the_programs_start_up_pauses_the_collector_until_the_command_runs(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", _COLLECTOR], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=tmp_path)
+    assert json.loads(r.stdout.strip().splitlines()[-1]) == {
+        "paused": True, "collections": 0, "rc": 1, "on_after": True}, r.stderr[-800:]
+
+
+def test_a_paused_collector_is_put_back_as_it_was():
+    import gc
+
+    from render_inspect.core.lazy import collector_paused
+
+    was = gc.isenabled()
+    try:
+        for start in (True, False):
+            (gc.enable if start else gc.disable)()
+            with collector_paused():
+                assert not gc.isenabled()
+            assert gc.isenabled() is start
+            with pytest.raises(KeyError):  # (also when the block fails)
+                with collector_paused():
+                    raise KeyError("x")
+            assert gc.isenabled() is start
+    finally:
+        (gc.enable if was else gc.disable)()
+
+
+def test_the_collector_stays_paused_until_the_last_block_of_any_thread_ends():
+    import gc
+    import threading
+
+    from render_inspect.core.lazy import collector_paused
+
+    was = gc.isenabled()
+    gc.enable()
+    inside, leave = threading.Event(), threading.Event()
+
+    def other():
+        with collector_paused():
+            inside.set()
+            leave.wait(30)
+
+    t = threading.Thread(target=other)
+    try:
+        with collector_paused():
+            t.start()
+            inside.wait(30)
+        assert not gc.isenabled()  # (the other thread's block still runs)
+        leave.set()
+        t.join()
+        assert gc.isenabled()
+    finally:
+        leave.set()
+        t.join()
+        (gc.enable if was else gc.disable)()

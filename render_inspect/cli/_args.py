@@ -10,11 +10,12 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..core.lazy import collector_paused
+
 if TYPE_CHECKING:
     from ..scene import Scene
 
 log = logging.getLogger("render_inspect")
-
 
 class _Registered:
     """argparse ``choices`` read from a registry the first time they are needed (checking
@@ -128,11 +129,14 @@ def _add_out_args(p: argparse.ArgumentParser):
 
 def scene_of(args: argparse.Namespace) -> Scene:
     """The scene a scene command runs on (``args.scene`` with the ``--set`` overrides)."""
-    # (the scene schema imports pydantic and the registries: imported here, not at the top
-    # of the module, so that `render-inspect --help` answers at once)
-    from ..scene import load_scene, unit_warnings
+    # (the collector is paused meanwhile: the schema's modules and classes live as long as
+    # the process)
+    with collector_paused():
+        # (the scene schema imports pydantic and the registries: imported here, not at the
+        # top of the module, so that `render-inspect --help` answers at once)
+        from ..scene import load_scene, unit_warnings
 
-    scene = load_scene(args.scene, scene_overrides(args))
+        scene = load_scene(args.scene, scene_overrides(args))
     # values that are probably unit mistakes (a feed per revolution typed per minute, a
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):

@@ -53,6 +53,8 @@ def _run(args):
     # the pipeline imports numba, scipy and pydantic: each command imports it when it
     # runs, not at the top of its module, so that `render-inspect --help` answers at once
     run = COMMANDS.get(args.command)
+    # (the program's start-up paused the collector: it collects again from here)
+    _early_signals.resume_collector()
     if run is None:
         return None
     return run(args, bool(getattr(args, "overwrite", False)))

@@ -22,17 +22,47 @@ Only the standard library is imported here.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import gc
 import importlib
 import os
 import threading
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
-__all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait"]
+__all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
+           "collector_paused"]
 
 _LOCK = threading.RLock()
+#: blocks running with the collector paused (collector_paused), and whether it was on
+#: before the first of them
+_PAUSES = {"count": 0, "was_on": False}
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """Run the block with Python's cyclic garbage collector paused: for blocks that import
+    libraries or load the scene's schema, which make tens of thousands of objects that live
+    as long as the process and almost no garbage, and over which the collector's passes
+    (young and full) cost tenths of a CPU-second for nothing.  When the last such block
+    (of any thread) ends, what was made is left out of the collector's later passes
+    (``gc.freeze``) and the collector is put back as it was before the first."""
+    with _LOCK:
+        if _PAUSES["count"] == 0:
+            _PAUSES["was_on"] = gc.isenabled()
+            gc.disable()
+        _PAUSES["count"] += 1
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _PAUSES["count"] -= 1
+            if _PAUSES["count"] == 0:
+                gc.freeze()
+                if _PAUSES["was_on"]:
+                    gc.enable()
 
 
 def passive_omp_wait() -> None:

@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..core.errors import InputError, MemoryBudgetError
+from ..core.lazy import collector_paused
 from ..core.limits import usable_cpus
 from ..core import Frames, GridCoordinates, HeightMap
 from ..core.section import Length, Region, Section
@@ -429,7 +430,10 @@ def _preload_thread(mic: Microscope, shape: tuple[int, int]) -> threading.Thread
 
     def run():
         try:
-            preload()
+            # (the collector paused while numba and SciPy are imported: their modules
+            # live as long as the process)
+            with collector_paused():
+                preload()
             acceptance_table(mic.na, mic.na_ill, mic.obscuration)
             make_fixed_patterns(mic.camera, shape)
         except Exception:  # (the model's own call raises it again, where it is reported)

@@ -8,16 +8,28 @@ numba's yet), imports matplotlib and draws each figure as soon as its data is se
 the other core, while the parent plans, follows, cuts and writes.  The figures are the
 same files, byte for byte: the same functions draw them from the same data.
 
+The compiled kernels the figures compute with (the axis-motion figure's derivatives) are
+loaded before the fork: numba's start (about 0.4 CPU-s: its import and its compiler's
+set-up) is needed by the parent's planning next anyway, and the child gets it with its
+copy instead of doing it again.  The child imports matplotlib while the parent plans,
+before the first figure arrives.
+
+Figures that arrive together (the cut's, then ``residual.png`` while the parent writes its
+files) are drawn at once, each by a copy of the child forked for it (matplotlib already
+loaded: the copy costs milliseconds), up to :data:`DRAWERS` at a time and one per usable
+core; on one usable core the child draws them one after the other.
+
 The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends when the
 parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
-(it leaves with ``os._exit``).  A figure that fails in the child raises its error in the
-parent; a child that ended unexpectedly leaves its figures to the parent, which draws
-them itself.  Linux only (``fork``); elsewhere, or when the fork fails, the figures are
-drawn in a thread of the command's process.
+(it leaves with ``os._exit``); its copies end with it.  A figure that fails in the child
+raises its error in the parent; a child that ended unexpectedly leaves its figures to the
+parent, which draws them itself.  Linux only (``fork``); elsewhere, or when the fork
+fails, the figures are drawn in a thread of the command's process.
 """
 
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import pickle
@@ -32,14 +44,22 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from ..core.lazy import collector_paused
+from ..core.limits import usable_cpus
 from ..core.units import MIB_TO_BYTES
 from ..report import draw_figure, preload_drawing, residual_png
+from ..toolpath import axis_derivatives
 
 __all__ = ["FigureProcess"]
 
 #: seconds without a finished figure after which the child is taken for stuck: it is
 #: ended and its figures are drawn by the parent
 STALL_S = 300.0
+#: figures drawn at once at most (by copies of the child, one per figure; at most one per
+#: usable core)
+DRAWERS = 2
 
 
 def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
@@ -51,9 +71,84 @@ def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
         raise ValueError(f"unknown figure job {kind!r}")
 
 
+def _warm_kernels() -> None:
+    """Load the compiled kernels the figures compute with (the axes' velocity and
+    acceleration of the axis-motion figure: numba and its cached kernels, about 0.4 CPU-s
+    in a fresh process), on three points."""
+    t = np.arange(3, dtype=np.float64)
+    axis_derivatives(t, t * t)
+
+
+#: the largest report written in one piece (POSIX: writes of at most PIPE_BUF bytes into
+#: a pipe are not interleaved with others')
+_REPORT_MAX = getattr(select, "PIPE_BUF", 512)
+
+
+def _result(key: int, seconds: float, error: BaseException | None) -> bytes:
+    """A job's report as the parent reads it: its length (8 bytes), then (key, seconds,
+    error) pickled; at most ``select.PIPE_BUF`` bytes, so that the reports of drawers
+    writing into the one pipe at once are never interleaved (a long error is cut)."""
+    try:
+        blob = pickle.dumps((key, seconds, error))
+    except Exception:  # an error that does not pickle: its type and text
+        blob = b""
+    if not blob or len(blob) + 8 > _REPORT_MAX:
+        text = f"{type(error).__name__}: {error}"[:1000]
+        blob = pickle.dumps((key, seconds, RuntimeError(text)))
+    return len(blob).to_bytes(8, "little") + blob
+
+
+def _draw(job: tuple, results_fd: int) -> None:
+    """Draw ``job`` and write its report."""
+    key, kind, args, kwargs = job
+    t0 = time.perf_counter()
+    error: BaseException | None = None
+    try:
+        _run_job(kind, args, kwargs)
+    except Exception as err:  # reported in the parent
+        error = err
+    os.write(results_fd, _result(key, round(time.perf_counter() - t0, 4), error))
+
+
+def _fork_drawer(job: tuple, results_fd: int) -> int | None:
+    """A copy of the child (matplotlib loaded) that draws ``job``, reports it and ends; its
+    pid, or None when the fork fails (the child then draws it itself)."""
+    me = os.getpid()
+    try:
+        pid = os.fork()
+    except OSError:
+        return None
+    if pid == 0:
+        code = 0
+        try:
+            _end_with(me)
+            _draw(job, results_fd)
+        except BaseException:
+            code = 1
+        finally:
+            os._exit(code)
+    return pid
+
+
+def _end_with(parent: int) -> None:
+    """End this process when ``parent`` ends (Linux: the parent-death signal), so that a
+    child the command ends at once (:meth:`FigureProcess.close`) leaves no copy writing."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except Exception:  # (then it ends when its figure is drawn)
+        return
+    if os.getppid() != parent:  # (the parent ended before the signal was asked for)
+        os._exit(1)
+
+
 def _child(jobs_fd: int, results_fd: int) -> None:
-    """The child's life: import the drawing library, then draw each job as it arrives and
-    report it (name, seconds, error or None) until the parent closes the pipe."""
+    """The child's life: import the drawing library, then draw the jobs as they arrive
+    and report each (name, seconds, error or None) until the parent closes the pipe.  Up
+    to :data:`DRAWERS` jobs are drawn at once, each by a copy of the child forked for it
+    (the figures of a cut arrive together while the command writes its files), or one
+    after the other by the child itself on a single usable core."""
     for name in ("SIGINT", "SIGHUP"):
         sig = getattr(signal, name, None)
         if sig is not None:
@@ -63,7 +158,6 @@ def _child(jobs_fd: int, results_fd: int) -> None:
     # another of its threads may have held at the fork) are not the child's to use
     logging.disable(logging.CRITICAL)
     warnings.simplefilter("ignore")
-    results = os.fdopen(results_fd, "wb", buffering=0)
     inbox: queue.Queue = queue.Queue()
 
     def read() -> None:  # jobs are read as they come, so that the parent never waits
@@ -77,26 +171,43 @@ def _child(jobs_fd: int, results_fd: int) -> None:
                 inbox.put(job)
 
     threading.Thread(target=read, daemon=True).start()
-    try:
-        preload_drawing()
-    except Exception:  # (drawing imports the same and reports what fails there)
-        pass
+    # what the figures need, loaded before the first of them arrives (the parent is
+    # still planning the program; the kernels came loaded with the fork, unless that
+    # failed in the parent), with the collector paused: matplotlib's modules live as long
+    # as the child (its own switch, not collector_paused, whose lock was the parent's)
+    was_on = gc.isenabled()
+    gc.disable()
+    for preload in (preload_drawing, _warm_kernels):
+        try:
+            preload()
+        except Exception:  # (drawing loads the same and reports what fails there)
+            pass
+    gc.freeze()
+    if was_on:
+        gc.enable()
+    at_once = min(DRAWERS, usable_cpus())
+    drawing: set[int] = set()
     while True:
         job = inbox.get()
         if job is None:
-            return
-        key, kind, args, kwargs = job
-        t0 = time.perf_counter()
-        error: BaseException | None = None
-        try:
-            _run_job(kind, args, kwargs)
-        except Exception as err:  # reported in the parent
-            error = err
-        try:
-            blob = pickle.dumps((key, round(time.perf_counter() - t0, 4), error))
-        except Exception:  # an error that does not pickle: its type and text
-            blob = pickle.dumps((key, 0.0, RuntimeError(f"{type(error).__name__}: {error}")))
-        results.write(len(blob).to_bytes(8, "little") + blob)
+            break
+        while len(drawing) >= at_once:
+            _wait_drawer(drawing)
+        pid = _fork_drawer(job, results_fd) if at_once > 1 else None
+        if pid is None:
+            _draw(job, results_fd)
+        else:
+            drawing.add(pid)
+    while drawing:
+        _wait_drawer(drawing)
+
+
+def _wait_drawer(drawing: set[int]) -> None:
+    """Wait for one of the child's drawers (pids ``drawing``) to end and take it out."""
+    try:
+        drawing.discard(os.wait()[0])
+    except ChildProcessError:  # (none is left)
+        drawing.clear()
 
 
 class FigureProcess:
@@ -120,6 +231,15 @@ class FigureProcess:
         """Fork the child, or None where that is not possible (not Linux, no fork)."""
         if not sys.platform.startswith("linux"):
             return None
+        # the figures' kernels, loaded here for both processes (see the module notes), with
+        # the collector paused (numba's start makes some sixty thousand lasting objects and
+        # almost no garbage); what is made so far is left out of the collector's passes
+        # before the fork, so that the child's collections never copy the pages it shares
+        with collector_paused():
+            try:
+                _warm_kernels()
+            except Exception:  # (the child tries again; drawing reports what fails there)
+                pass
         try:
             jobs_r, jobs_w = os.pipe()
             res_r, res_w = os.pipe()

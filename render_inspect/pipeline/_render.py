@@ -27,7 +27,8 @@ from ..io import atomic_output_dir, atomic_write_bytes, png_bytes_with_text, wri
 from ..machining import part_heightmap as _part_map
 from ..metrology import render_marks, surface_slope
 from ..processes import process_of
-from ..render import MAX_FILM_SIDE, DiffuseConfig, diffuse_memory, render_diffuse, variant_info
+from ..render import (MAX_FILM_SIDE, DiffuseConfig, diffuse_memory, render_diffuse, start_mitsuba,
+                      variant_info)
 from ..report import annotate_rgb, diffuse_caption, draw_figure, scale_bar_length
 from ._metrics import write_metrics
 from ._simulate import design_heightmap, simulate
@@ -317,7 +318,15 @@ def run_render(scene: Scene, out: str | Path, *, surface: str = "machined", kind
     check_render_limits(scene, kind=kind)
     with atomic_output_dir(out, overwrite=overwrite, merge=True, command="render",
                            scene=scene) as tmp:
-        return _render_into(scene, out, Path(tmp), surface=surface, kind=kind, heightmap=heightmap)
+        # Mitsuba starts in a thread while the height map and what the instruments trace
+        # are prepared; it is waited for where it is first used, and before leaving here
+        starting = start_mitsuba()
+        try:
+            return _render_into(scene, out, Path(tmp), surface=surface, kind=kind,
+                                heightmap=heightmap)
+        finally:
+            if starting is not None:
+                starting.join()
 
 
 def _render_into(scene: Scene, out, tmp: Path, *, surface: str, kind: str, heightmap=None) -> dict:
@@ -346,9 +355,10 @@ def _render_into(scene: Scene, out, tmp: Path, *, surface: str, kind: str, heigh
 def _render_views(scene: Scene, tmp: Path, views, *, surface: str, kind: str, timing: dict) -> dict:
     seed = int(scene.simulation.seed)
     scene_d = scene.to_dict()
-    info = variant_info()
-    res = {"mitsuba_variant": info["mitsuba_variant"], "mitsuba_version": info["mitsuba_version"],
-           "surface": surface, "kind": kind, "seed": seed, "software_version": __version__}
+    # (the renderer's provenance is filled in once the images are made: Mitsuba may still
+    # be starting in a thread, which the renders wait for where they first need it)
+    res: dict[str, Any] = {"mitsuba_variant": None, "mitsuba_version": None, "surface": surface,
+                           "kind": kind, "seed": seed, "software_version": __version__}
     instruments = _instruments(kind)
     n_steps = len(instruments) + 2 * (kind in ("diffuse", "all"))
     with progress_task("render", total=n_steps) as t:
@@ -374,6 +384,8 @@ def _render_views(scene: Scene, tmp: Path, views, *, surface: str, kind: str, ti
                 timing[f"diffuse_{view}"] = time.perf_counter() - t0
                 res[f"diffuse_{view}"] = write_diffuse_outputs(tmp, rgb, meta, name=f"diffuse_{view}")
                 t.advance()
+    info = variant_info()
+    res.update(mitsuba_variant=info["mitsuba_variant"], mitsuba_version=info["mitsuba_version"])
     res["timing_s"] = timing
     if views.big:
         res["big_map"] = views.facts

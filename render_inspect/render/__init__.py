@@ -60,12 +60,13 @@ from ._variant import (
                       mitsuba_variant,
                       single_thread,
                       spectral_variant,
+                      start_mitsuba,
                       variant_info,
 )
 
 __all__ = ["render_diffuse", "diffuse_scene_spec", "environment_map", "light_profile",
            "auto_exaggeration", "DiffuseConfig", "LIGHTS", "AL_REFLECTANCE_RGB",
-           "trace_grids", "load_scene_dict", "mitsuba_variant", "variant_info",
+           "trace_grids", "load_scene_dict", "mitsuba_variant", "variant_info", "start_mitsuba",
            "single_thread", "import_mitsuba", "render_cycles", "render_object",
            "render_spec", "surface_object", "heightmap_object", "gridmesh_object",
            "object_heights", "remove_object", "default_output_dir", "load_image", "blend_objects",

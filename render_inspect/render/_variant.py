@@ -19,6 +19,7 @@ import contextlib
 import os
 import shutil
 import sys
+import threading
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,10 +27,11 @@ from typing import Any
 
 from ..core import cancel
 from ..core.errors import InputError, RenderInspectError
+from ..core.lazy import collector_paused
 from ..core.limits import check_address_space, mitsuba_address_space
 
 __all__ = ["mitsuba_variant", "import_mitsuba", "single_thread", "variant_info",
-           "spectral_variant"]
+           "spectral_variant", "start_mitsuba"]
 
 _LLVM_CANDIDATES = (
     "/usr/lib/x86_64-linux-gnu/libLLVM-19.so.1",
@@ -41,6 +43,8 @@ _LLVM_CANDIDATES = (
 )
 
 _STATE: dict = {"variant": None, "message": None, "override": None}
+#: held while the variant is chosen: a thread asking meanwhile waits for that choice
+_CHOOSING = threading.Lock()
 
 
 def _point_at_llvm() -> str | None:
@@ -103,16 +107,46 @@ def mitsuba_variant() -> str:
     """
     if _STATE["variant"] is not None:
         return _STATE["variant"]
-    _point_at_llvm()
-    if "mitsuba" not in sys.modules:
-        # Mitsuba's LLVM JIT ends with a segmentation fault when its reservations are
-        # refused: refuse the render first under an address-space limit it cannot meet
-        check_address_space(mitsuba_address_space(), what="a Mitsuba render")
-    # importing Mitsuba and trying its variants are not interrupted part-way: an
-    # exception raised by a signal's handler inside their C++ set-up (which builds Python
-    # objects) aborts the process; a stop asked for meanwhile is raised right after
-    with cancel.deferred():
-        return _choose_variant()
+    with _CHOOSING:  # (once: a second thread waits for the first one's choice)
+        if _STATE["variant"] is not None:
+            return _STATE["variant"]
+        _point_at_llvm()
+        if "mitsuba" not in sys.modules:
+            # Mitsuba's LLVM JIT ends with a segmentation fault when its reservations are
+            # refused: refuse the render first under an address-space limit it cannot meet
+            check_address_space(mitsuba_address_space(), what="a Mitsuba render")
+        # importing Mitsuba and trying its variants are not interrupted part-way: an
+        # exception raised by a signal's handler inside their C++ set-up (which builds
+        # Python objects) aborts the process; a stop asked for meanwhile is raised right
+        # after
+        with cancel.deferred():
+            return _choose_variant()
+
+
+def start_mitsuba() -> threading.Thread | None:
+    """Choose the variant (:func:`mitsuba_variant`: Mitsuba and Dr.Jit imported, the
+    variant's test render) in a thread, started, so that a render does it while it
+    prepares what it traces (a few tenths of a second, much of it in the libraries' native
+    set-up, which leaves the interpreter free); the render's own call then waits for that
+    choice.  None, and nothing started, when the variant is already chosen or when called
+    from a thread other than the process's main thread (a Dask worker's task: no threads
+    of the package's own there).  A failure in the thread is left to the render's own
+    call, which raises it.  Join the thread before the process ends (its native set-up
+    must not be cut off by the interpreter's teardown)."""
+    if _STATE["variant"] is not None or threading.current_thread() is not threading.main_thread():
+        return None
+
+    def run() -> None:
+        try:
+            # (the collector paused: Mitsuba's modules live as long as the process)
+            with collector_paused():
+                mitsuba_variant()
+        except Exception:  # (the render's own call chooses again and raises it there)
+            pass
+
+    thread = threading.Thread(target=run, name="render_inspect-mitsuba", daemon=True)
+    thread.start()
+    return thread
 
 
 def _choose_variant() -> str:
