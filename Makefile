@@ -25,11 +25,14 @@ system-deps:
 # .venv holds exactly the lock (made anew when the lock changes): every distribution at
 # its locked version, each file checked against the lock's hashes, wheels only; then
 # render_inspect itself, editable, built with the locked setuptools.
+# Its bytecode is written at once (an environment with PYTHONDONTWRITEBYTECODE set would
+# otherwise compile the package's sources again in every command it runs).
 $(STAMP): $(LOCK) pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	$(PY) -m venv --clear $(VENV)
 	$(VPY) -m pip install -q --require-hashes --no-deps --only-binary=:all: -r $(LOCK)
 	$(VPY) -m pip install -q --no-deps --no-build-isolation -e .
+	$(VPY) -m compileall -q render_inspect
 	$(VPY) -m render_inspect.pipeline._warmup
 	@touch $(STAMP)
 
