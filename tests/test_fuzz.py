@@ -798,7 +798,9 @@ def test_fuzz_signals_at_every_phase_of_the_folder(tmp_path):
     the marker is written, during the swap, during the clean-up after it): exit 130 /
     143, and the message matches what happened to the folder."""
     rng = _rng("signals")
-    scene_args = ["toolpath", "sts_sinusoidal_grid", "-q"]
+    # the program kept small (120 points per revolution): the signals come while the
+    # folder is written, after the program is made, whatever its size
+    scene_args = ["toolpath", "sts_sinusoidal_grid", "--set", "process.points_per_rev=120", "-q"]
     phases = ["_restore_backup", "_write_marker", "_swap_in", "_clean_stale"]
     for i in range(CASES["signals"]):
         phase = phases[i % len(phases)]

@@ -649,8 +649,11 @@ def test_a_signal_during_the_swap_is_held_and_reported_truthfully(tmp_path, sig,
     out = tmp_path / "o"
     run_simulate(load_scene("sts_sinusoidal_grid", SMALL), out)
     old = read_marker(out)
+    # the program kept small (120 points per revolution): the signal comes during the swap,
+    # after the program is made, whatever its size
     r = subprocess.run([sys.executable, "-c", _SWAP_SIGNAL, sig, "toolpath", "sts_sinusoidal_grid",
-                        "--out", str(out), "-q"], capture_output=True, text=True, timeout=300)
+                        "--set", "process.points_per_rev=120", "--out", str(out), "-q"],
+                       capture_output=True, text=True, timeout=300)
     assert r.returncode == code, r.stderr
     assert "Traceback" not in r.stderr and "left as it was" not in r.stderr
     assert f"the output folder {out} had been written completely" in r.stderr

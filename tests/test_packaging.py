@@ -73,18 +73,23 @@ def _env() -> dict:
 def test_wheel_installs_into_a_fresh_venv_and_runs_the_demo(tmp_path):
     env = _env()
     dist = tmp_path / "dist"
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(dist),
-                    str(REPO)], check=True, env=env, cwd=tmp_path, capture_output=True)
+    # built with the lock's setuptools, as `make setup` installs the checkout (no isolated
+    # build environment fetched and installed first)
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
+                    "-w", str(dist), str(REPO)], check=True, env=env, cwd=tmp_path,
+                   capture_output=True)
     wheel = next(dist.glob("render_inspect-*.whl"))
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, env=env)
+    # a bare environment: the lock's pip installs into it from outside (--python), rather
+    # than a copy of the pip bundled with Python installed into it first
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, env=env)
     py = venv / "bin" / "python"
     # the tested versions (the lock, without its hashes) as constraints: pip's cache serves them.
     # --no-compile: Python compiles what the commands import when they import it (pip would
     # compile every module of every distribution first, a third of the install's time)
     (tmp_path / "constraints.txt").write_text(lock.constraints())
-    subprocess.run([str(py), "-m", "pip", "install", "-q", "--no-compile", "--constraint",
-                    str(tmp_path / "constraints.txt"), f"{wheel}[render]"],
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "-q", "--no-compile",
+                    "--constraint", str(tmp_path / "constraints.txt"), f"{wheel}[render]"],
                    check=True, env=env, cwd=tmp_path, capture_output=True)
     exe = venv / "bin" / "render-inspect"
     where = subprocess.run([str(py), "-c", "import render_inspect; print(render_inspect.__file__)"],

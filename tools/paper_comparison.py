@@ -65,15 +65,33 @@ PAPERS = {
 }
 
 
-def poly_remove(r, degree=2):
-    """``r`` minus its least-squares polynomial of ``degree`` in x and y (NaN kept)."""
-    ny, nx = r.shape
+def _design_matrix(shape, degree, ok):
+    """The columns x^i y^j (i + j <= ``degree``) at the points ``ok`` of a map of ``shape``."""
+    ny, nx = shape
     y, x = np.mgrid[0:ny, 0:nx]
     x = (x - nx / 2) / nx
     y = (y - ny / 2) / ny
     cols = [x ** i * y ** j for i in range(degree + 1) for j in range(degree + 1 - i)]
+    return np.stack([c[ok] for c in cols], 1)
+
+
+#: the design matrices of the last map size without NaN, by (shape, degree): the spread
+#: over the instrument settings removes the form of one map size many times over
+_FULL_DESIGN: dict = {}
+
+
+def poly_remove(r, degree=2):
+    """``r`` minus its least-squares polynomial of ``degree`` in x and y (NaN kept)."""
     ok = np.isfinite(r)
-    a = np.stack([c[ok] for c in cols], 1)
+    if ok.all():
+        key = (r.shape, degree)
+        if key not in _FULL_DESIGN:
+            if any(shape != r.shape for shape, _ in _FULL_DESIGN):
+                _FULL_DESIGN.clear()  # one map size at a time: a 1000 x 1000 map's are 128 MB
+            _FULL_DESIGN[key] = _design_matrix(r.shape, degree, ok)
+        a = _FULL_DESIGN[key]
+    else:
+        a = _design_matrix(r.shape, degree, ok)
     coef, *_ = np.linalg.lstsq(a, r[ok], rcond=None)
     out = np.full_like(r, np.nan)
     out[ok] = r[ok] - a @ coef
@@ -143,11 +161,14 @@ def settings_spread(sim, *, value=None, sd=None) -> dict:
     px = sim.scene.simulation.pixel
     keys = list(UNSTATED_SETTINGS)
     vals = []
+    filtered: dict = {}  # the form degree does not change the filtered map: one per filter
     for combo in itertools.product(*(UNSTATED_SETTINGS[k] for k in keys)):
         c = dict(zip(keys, combo))
-        it = instrument_filter(r, px, illumination_na=c["illumination_na"],
-                               camera_pixel_mm=c["camera_pixel_mm"], s_filter_mm=c["s_filter_mm"])
-        vals.append(sq_nm(poly_remove(it, c["form_degree"])))
+        f = (c["illumination_na"], c["camera_pixel_mm"], c["s_filter_mm"])
+        if f not in filtered:
+            filtered[f] = instrument_filter(r, px, illumination_na=f[0], camera_pixel_mm=f[1],
+                                            s_filter_mm=f[2])
+        vals.append(sq_nm(poly_remove(filtered[f], c["form_degree"])))
     out = {"lo_nm": min(vals), "hi_nm": max(vals), "n": len(vals),
            "settings": {k: [None if v is None else float(v) for v in UNSTATED_SETTINGS[k]]
                         for k in keys}}

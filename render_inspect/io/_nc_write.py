@@ -125,12 +125,19 @@ def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None
             fh.write(b"; approach\n")
             k = moves(fh, k, approach, {})
             fh.write(b"; cut\n")
+        fmt = f.format
         for a in range(first, n, CHUNK_ROWS):
             b = min(a + CHUNK_ROWS, n)
+            # the chunk's values as Python floats (the same numbers, formatted the same,
+            # without a NumPy scalar made for each); lo: the first point whose block has a
+            # feed, the inverse time of the move ending there
+            lo = max(a, 1)
+            cs, xs, zs = c[a:b].tolist(), x[a:b].tolist(), z[a:b].tolist()
+            inv = (MIN_TO_S / dt[lo - 1:b - 1]).tolist()
             rows = []
-            for i in range(a, b):
-                words = f"N{k} G01 C{f.format(c[i])} X{f.format(x[i])} Z{f.format(z[i])}"
-                rows.append(words if i == 0 else words + " F%.10g" % (MIN_TO_S / dt[i - 1]))
+            for j in range(b - a):
+                words = f"N{k} G01 C{fmt(cs[j])} X{fmt(xs[j])} Z{fmt(zs[j])}"
+                rows.append(words if a + j == 0 else words + " F%.10g" % inv[a + j - lo])
                 k += 1
             fh.write(("\n".join(rows) + "\n").encode("ascii"))
         if leave:
@@ -194,8 +201,9 @@ def write_program_nc(path: str | Path, program: LinearProgram, *, header: dict |
             fh.write(("\n".join(rows) + "\n").encode("ascii"))
             for a0 in range(a, b, CHUNK_ROWS):
                 rows = []
-                for i in range(a0, min(a0 + CHUNK_ROWS, b)):
-                    rows.append(f"N{k} G01 X{x[i]:.6f} Y{y[i]:.6f} Z{z[i]:.6f} F{feed}")
+                b0 = min(a0 + CHUNK_ROWS, b)  # Python floats: the same text, no NumPy scalars
+                for xi, yi, zi in zip(x[a0:b0].tolist(), y[a0:b0].tolist(), z[a0:b0].tolist()):
+                    rows.append(f"N{k} G01 X{xi:.6f} Y{yi:.6f} Z{zi:.6f} F{feed}")
                     k += 1
                 fh.write(("\n".join(rows) + "\n").encode("ascii"))
             prev_end = (float(x[b - 1]), float(y[b - 1]), float(z[b - 1]))
