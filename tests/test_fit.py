@@ -486,10 +486,7 @@ def test_servo_delay_and_spindle_error_come_back_within_5_percent(tmp_path):
     """A Z-axis delay of 2.1 ms (the lathe preset has none) and a 2-per-revolution axial
     spindle error of 4.5 nm (preset: 3 nm), the random parts set to 0, fitted from the
     preset's values with the evaluations on a Dask LocalCluster of two workers (a script,
-    as users run it).  Then the same cut with the shipped random parts: in a 0.2 mm field
-    they print about 0.8 nm rms of waviness, more than the delay and the spindle error
-    leave after the plane is removed, and the fit says so (standard errors larger than
-    the values)."""
+    as users run it).  (The same cut with the shipped random parts on: the next test.)"""
     meas = _truth(tmp_path, MACHINE, quiet=True)
     sets = ", ".join(repr(s) for s in QUIET)
     script = tmp_path / "fit_machine.py"
@@ -517,8 +514,16 @@ def test_servo_delay_and_spindle_error_come_back_within_5_percent(tmp_path):
     # the two are correlated (both tilt the surface across the field) but told apart
     r = rec["correlation"]["machine.z.delay_s"]["machine.errors.axial_sync.0.1"]
     assert -0.95 < r < 0
-    # the shipped random parts on: the field cannot tell, and the fit reports it (four
-    # Sobol points: the best of them starts the same solve as eight, 40 evaluations, not 44)
+
+
+@pytest.mark.slow
+def test_servo_delay_and_spindle_error_under_the_random_parts_are_reported_undetermined(
+        tmp_path):
+    """The delay and spindle error of the test above cut with the shipped random parts on:
+    in a 0.2 mm field they print about 0.8 nm rms of waviness, more than the delay and the
+    spindle error leave after the plane is removed; the field cannot tell, and the fit
+    says so (standard errors larger than the values).  (Four Sobol points: the best of
+    them starts the same solve as eight, 40 evaluations, not 44.)"""
     shipped = _truth(tmp_path / "shipped", MACHINE, quiet=False)
     assert main(["fit", str(shipped), "--scene", "sts_sinusoidal_grid", "--free",
                  "machine.z.delay_s,machine.errors.axial_sync.0.1", "--bounds",
