@@ -210,6 +210,21 @@ def test_a_paused_collector_is_put_back_as_it_was():
         (gc.enable if was else gc.disable)()
 
 
+def test_a_host_that_embeds_the_package_keeps_its_objects_collectable():
+    """Outside the program (Blender, a script, a Dask worker) nothing is frozen: frozen
+    objects are never collected, and a host's own objects must still end (Blender 4.5
+    hangs at exit when its objects' cleanup never runs)."""
+    import gc
+
+    from render_inspect.core.lazy import collector_paused
+
+    before = gc.get_freeze_count()
+    with collector_paused():
+        made = [[i] for i in range(1000)]
+    assert gc.get_freeze_count() == before, "the block froze the host's objects"
+    del made
+
+
 def test_the_collector_stays_paused_until_the_last_block_of_any_thread_ends():
     import gc
     import threading

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("render_inspect")
 
+
 class _Registered:
     """argparse ``choices`` read from a registry the first time they are needed (checking
     a value, or ``render-inspect render --help``), so that building the parser imports

@@ -47,8 +47,11 @@ def collector_paused() -> Iterator[None]:
     libraries or load the scene's schema, which make tens of thousands of objects that live
     as long as the process and almost no garbage, and over which the collector's passes
     (young and full) cost tenths of a CPU-second for nothing.  When the last such block
-    (of any thread) ends, what was made is left out of the collector's later passes
-    (``gc.freeze``) and the collector is put back as it was before the first."""
+    (of any thread) ends, the collector is put back as it was before the first; in the
+    ``render-inspect`` program, what was made is also left out of the collector's later
+    passes (``gc.freeze``).  Not elsewhere: frozen objects are never collected, so a host
+    that embeds the package (Blender, a user's script, a Dask worker) would keep its own
+    objects past their end (Blender 4.5 then hangs at exit, its objects' cleanup never run)."""
     with _LOCK:
         if _PAUSES["count"] == 0:
             _PAUSES["was_on"] = gc.isenabled()
@@ -60,7 +63,10 @@ def collector_paused() -> Iterator[None]:
         with _LOCK:
             _PAUSES["count"] -= 1
             if _PAUSES["count"] == 0:
-                gc.freeze()
+                from .._early_signals import is_program
+
+                if is_program():
+                    gc.freeze()
                 if _PAUSES["was_on"]:
                     gc.enable()
 
