@@ -18,6 +18,7 @@ from typing import Any, NoReturn
 from .. import __version__, _early_signals
 from ..core import cancel
 from ..core.cancel import Terminated
+from ..core.lazy import freeze_after_pauses
 from ..core.errors import RenderInspectError
 from ..core.progress import set_reporter
 from . import _analyze, _batch, _fit, _render, _simulate
@@ -55,6 +56,8 @@ def _run(args):
     run = COMMANDS.get(args.command)
     # (the program's start-up paused the collector: it collects again from here)
     _early_signals.resume_collector()
+    if _early_signals.is_program():
+        freeze_after_pauses()
     if run is None:
         return None
     return run(args, bool(getattr(args, "overwrite", False)))

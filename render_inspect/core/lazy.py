@@ -33,12 +33,12 @@ from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
-           "collector_paused"]
+           "collector_paused", "freeze_after_pauses"]
 
 _LOCK = threading.RLock()
 #: blocks running with the collector paused (collector_paused), and whether it was on
 #: before the first of them
-_PAUSES = {"count": 0, "was_on": False}
+_PAUSES = {"count": 0, "was_on": False, "freeze": False}
 
 
 @contextlib.contextmanager
@@ -48,7 +48,7 @@ def collector_paused() -> Iterator[None]:
     as long as the process and almost no garbage, and over which the collector's passes
     (young and full) cost tenths of a CPU-second for nothing.  When the last such block
     (of any thread) ends, the collector is put back as it was before the first; in the
-    ``render-inspect`` program, what was made is also left out of the collector's later
+    ``render-inspect`` program (:func:`freeze_after_pauses`), what was made is also left out of the collector's later
     passes (``gc.freeze``).  Not elsewhere: frozen objects are never collected, so a host
     that embeds the package (Blender, a user's script, a Dask worker) would keep its own
     objects past their end (Blender 4.5 then hangs at exit, its objects' cleanup never run)."""
@@ -63,12 +63,17 @@ def collector_paused() -> Iterator[None]:
         with _LOCK:
             _PAUSES["count"] -= 1
             if _PAUSES["count"] == 0:
-                from .._early_signals import is_program
-
-                if is_program():
+                if _PAUSES["freeze"]:
                     gc.freeze()
                 if _PAUSES["was_on"]:
                     gc.enable()
+
+
+def freeze_after_pauses() -> None:
+    """From now on, what the blocks of :func:`collector_paused` made is left out of the
+    collector's later passes (``gc.freeze``) when the last of them ends: for the
+    ``render-inspect`` program only, whose objects from its start live as long as it."""
+    _PAUSES["freeze"] = True
 
 
 def passive_omp_wait() -> None:
