@@ -4,10 +4,9 @@ instruments, and two variants of a scene side by side."""
 from __future__ import annotations
 
 import argparse
-import gc
 from typing import Any
 
-from ..core.lazy import passive_omp_wait
+from ..core.lazy import freeze_lasting, passive_omp_wait
 from ._args import _add_scene_args, _Registered, _render_kinds, scene_of
 
 
@@ -55,7 +54,7 @@ def _render(args: argparse.Namespace, overwrite: bool) -> dict:
     # the objects made so far (the modules, the scene's schema) live as long as the
     # process: the collector leaves them out of its later passes (a few tenths of a
     # CPU-second over the libraries the render loads next)
-    gc.freeze()
+    freeze_lasting()
     # the threads of numba's parallel passes wait asleep between them instead of spinning
     # (no step before this one starts them): a spinning thread holds the second core that
     # the render's own threads (the truth, the FFTs' second worker) need meanwhile

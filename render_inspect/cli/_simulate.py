@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import gc
 from typing import Any
 
 from .. import _early_signals
+from ..core.lazy import freeze_lasting
 from ._args import _add_cluster_args, _add_scene_args, _program_formats, _Registered, scene_of
 
 
@@ -39,7 +39,7 @@ def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
 
     # the objects made so far (the modules, the scene's schema) live as long as the
     # process: the collector leaves them out of its passes over what numba loads next
-    gc.freeze()
+    freeze_lasting()
     # the figures are drawn by a second process beside the computation when this process
     # is the program's own (not a program that called main())
     return pipeline.run_simulate(scene, args.out, tiled=True if args.tiled else None,

@@ -33,7 +33,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
-           "collector_paused", "freeze_after_pauses"]
+           "collector_paused", "freeze_after_pauses", "freeze_lasting"]
 
 _LOCK = threading.RLock()
 #: blocks running with the collector paused (collector_paused), and whether it was on
@@ -63,8 +63,7 @@ def collector_paused() -> Iterator[None]:
         with _LOCK:
             _PAUSES["count"] -= 1
             if _PAUSES["count"] == 0:
-                if _PAUSES["freeze"]:
-                    gc.freeze()
+                freeze_lasting()
                 if _PAUSES["was_on"]:
                     gc.enable()
 
@@ -74,6 +73,15 @@ def freeze_after_pauses() -> None:
     collector's later passes (``gc.freeze``) when the last of them ends: for the
     ``render-inspect`` program only, whose objects from its start live as long as it."""
     _PAUSES["freeze"] = True
+
+
+def freeze_lasting() -> None:
+    """Leave the objects made so far out of the collector's later passes (``gc.freeze``):
+    in the ``render-inspect`` program (:func:`freeze_after_pauses`), whose modules and
+    scene live as long as it; elsewhere nothing (a host's frozen objects would never be
+    collected)."""
+    if _PAUSES["freeze"]:
+        gc.freeze()
 
 
 def passive_omp_wait() -> None:
