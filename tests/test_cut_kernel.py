@@ -287,6 +287,32 @@ def test_every_shipped_turning_scene_is_tiled_at_whole_part_size(scene):
     assert wants_tiles(whole.with_overrides(["simulation.max_memory_gb=0.01"]))
 
 
+def test_a_process_without_a_tiled_simulation_refuses_in_one_line(tmp_path, capsys, monkeypatch):
+    """The sculpting process has no tiled simulation: its steps refuse with the user's
+    line (an InputError naming process.kind), and ``simulate --tiled`` exits 1 with it."""
+    from render_inspect.cli import main
+    from render_inspect.core.errors import InputError
+
+    s = load_scene(SCENES / "sculpt_quad_mla.toml")
+    proc = process_of(s)
+    cfg = proc.inputs_of(s)
+    refusal = proc.tile_refusal(cfg)
+    assert "process.kind = 'sculpt' has no tiled simulation" in refusal
+    with pytest.raises(InputError, match="has no tiled simulation"):
+        proc.tiled_memory(cfg)
+    with pytest.raises(InputError, match="has no tiled simulation"):
+        proc.envelope(cfg, None, None)
+    assert main(["simulate", str(SCENES / "sculpt_quad_mla.toml"), "--tiled",
+                 "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "has no tiled simulation" in err[0], err
+    assert not (tmp_path / "out").exists()
+    # a process that says it tiles but lacks a step: its author is told what to add
+    monkeypatch.setattr(type(proc), "tile_refusal", lambda self, cfg: None)
+    with pytest.raises(TypeError, match=r"must define tiled_memory\(\)"):
+        proc.tiled_memory(cfg)
+
+
 @pytest.mark.slow
 def test_simulate_tiles_the_shipped_scene_as_it_runs_in_memory(tmp_path):
     """The shipped grid (lathe, Al 6082) cut tile by tile: the same heights and the same

@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, TypeVar, cas
 
 import numpy as np
 
+from ..core.errors import InputError
 from ..core.marks import ToolMarks
 from ..core.section import Region
 from ..core.toolpath import LinearProgram, Links, ToolPath
@@ -477,13 +478,25 @@ class Process(ABC, Generic[InputsT]):
                 f"simulation.max_memory_gb to simulate it in memory")
 
     def envelope(self, cfg: InputsT, surface: Surface, plan: Plan) -> Envelope:
-        """The path whose nose envelope is the machined surface (tiled simulation)."""
-        raise NotImplementedError(self.tile_refusal(cfg))
+        """The path whose nose envelope is the machined surface (tiled simulation).  A
+        process without one refuses with its :meth:`tile_refusal`."""
+        raise self._no_tiling(cfg, "envelope")
 
     def tiled_memory(self, cfg: InputsT, plan: Plan | None = None) -> tuple[int, int]:
         """(bytes the process holds besides the tiles, points of its program) of a tiled
-        simulation (estimated before planning when ``plan`` is None)."""
-        raise NotImplementedError(self.tile_refusal(cfg))
+        simulation (estimated before planning when ``plan`` is None).  A process without a
+        tiled simulation refuses with its :meth:`tile_refusal`."""
+        raise self._no_tiling(cfg, "tiled_memory")
+
+    def _no_tiling(self, cfg: InputsT, method: str) -> Exception:
+        """The error of a tiled simulation's step the process does not have: the user's
+        one line (:meth:`tile_refusal`), or, for a process that says it tiles but lacks
+        the step, what the process's author must add."""
+        refusal = self.tile_refusal(cfg)
+        if refusal is None:
+            return TypeError(f"{type(self).__name__}: tile_refusal() allows a tiled "
+                             f"simulation, so the process must define {method}()")
+        return InputError(refusal)
 
     def following_memory(self, cfg: InputsT, plan: Plan | None = None) -> int:
         """Bytes a tiled simulation holds at its peak before the tiles start (the machine
