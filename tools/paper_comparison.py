@@ -26,6 +26,7 @@ docs/machine_and_material.md quotes from the same functions (``compare_sim``).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -75,23 +76,18 @@ def _design_matrix(shape, degree, ok):
     return np.stack([c[ok] for c in cols], 1)
 
 
-#: the design matrices of the last map size without NaN, by (shape, degree): the spread
-#: over the instrument settings removes the form of one map size many times over
-_FULL_DESIGN: dict = {}
+@functools.lru_cache(maxsize=2)
+def _full_design(shape, degree):
+    """The design matrix of a map of ``shape`` without NaN: the spread over the instrument
+    settings removes the form of one map size, at degrees 2 and 3, many times over (kept
+    for two at a time: a 1000 x 1000 map's are 48-80 MB)."""
+    return _design_matrix(shape, degree, np.ones(shape, bool))
 
 
 def poly_remove(r, degree=2):
     """``r`` minus its least-squares polynomial of ``degree`` in x and y (NaN kept)."""
     ok = np.isfinite(r)
-    if ok.all():
-        key = (r.shape, degree)
-        if key not in _FULL_DESIGN:
-            if any(shape != r.shape for shape, _ in _FULL_DESIGN):
-                _FULL_DESIGN.clear()  # one map size at a time: a 1000 x 1000 map's are 128 MB
-            _FULL_DESIGN[key] = _design_matrix(r.shape, degree, ok)
-        a = _FULL_DESIGN[key]
-    else:
-        a = _design_matrix(r.shape, degree, ok)
+    a = _full_design(r.shape, degree) if ok.all() else _design_matrix(r.shape, degree, ok)
     coef, *_ = np.linalg.lstsq(a, r[ok], rcond=None)
     out = np.full_like(r, np.nan)
     out[ok] = r[ok] - a @ coef
