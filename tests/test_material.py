@@ -13,7 +13,7 @@ from scipy.optimize import brentq
 
 from render_inspect.errors import InputError
 from render_inspect.machining import simulate_turning
-from render_inspect.machining._cutting import (cut_lines_mechanics, cut_turning_mechanics, finish_surface,
+from render_inspect.machining._cutting import (cut_lines_mechanics, cut_turning_mechanics,
                                                groove_texture, machined_edges)
 from render_inspect.machining._material import (MATERIAL_PRESETS, contact_ratio,
                                                 elastic_recovery, material_preset,

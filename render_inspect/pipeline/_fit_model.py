@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from ..batch import call_with_threads
 from ..core.errors import InputError
 from ..core.lazy import passive_omp_wait
 from ..core.progress import set_reporter
