@@ -65,7 +65,7 @@ from ..core.lazy import lazy_module
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_UM
-from ._burr_bound import no_edge_possible
+from ._burr_bound import SAMPLE, no_edge_possible
 from ._burr_kernels import (_BOUND_ABS, _bound_limit, edge_turn_maps, edge_turn_window, gaussian_nearest,
                             gaussian_nearest_cross, gaussian_weights)
 
@@ -409,9 +409,11 @@ def material_burrs(machined: np.ndarray, design: np.ndarray, *, pixel: float,
     if np.shape(design) != machined.shape:
         raise InputError(f"design must have the machined map's shape {machined.shape}, "
                          f"received {np.shape(design)}")
+    # (the design: the map with which a map without edges is shown to be one cheaply)
     r = material_burr_block(machined, pixel=pixel, origin=origin, chip_thickness=chip_thickness,
                             coefficient=coefficient, variation=variation, seed=seed,
-                            edge_angle_deg=edge_angle_deg, smoothing=smoothing, width=w)
+                            edge_angle_deg=edge_angle_deg, smoothing=smoothing, width=w,
+                            reference=design)
     if r is None:
         return machined, info
     b, edges, turn, heights = r
@@ -463,11 +465,12 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
     there.  The edges are then looked for only within the ridge's half width of them
     (the edges whose burrs reach them), each from the smoothed map along its row and
     column (:func:`~._burr_kernels.edge_turn_window`), and the ridges are laid on that
-    window; None where no edge lies in it.  ``reference`` (with ``inner``): a map of the
-    block close to ``machined`` (its design), or a function that makes it (then it is
-    let go before the block is smoothed), with which a window where no pixel can be an
-    edge is shown to be one before the block is smoothed
-    (:func:`~._burr_bound.no_edge_possible`: None, as the search would find)."""
+    window; None where no edge lies in it.  ``reference``: a map of the block close to
+    ``machined`` (its design), or a function that makes it (then it is let go before the
+    block is smoothed), with which a window where no pixel can be an edge is shown to be
+    one before the block is smoothed (:func:`~._burr_bound.no_edge_possible`: None, as
+    the search would find); without ``inner``, the whole block (read to its ends, clamped
+    as the search reads it)."""
     w = float(width)
     span = _span(pixel, smoothing)
     window = None
@@ -484,6 +487,19 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
             del ref
             if proved:
                 return None
+    elif reference is not None and smoothing > 0 and np.ndim(machined) == 2 and 0 < edge_angle_deg < 90 \
+            and chip_thickness and coefficient and w:
+        # the whole block, read to its ends as the search reads it; the pixels of the
+        # band along the grid's border (no edge is looked for there) left out
+        ny, nx = np.shape(machined)
+        band = int(math.ceil(3 * smoothing / pixel))
+        edge = [band if f else 0 for f in border]
+        ref = reference() if callable(reference) else reference
+        proved = _no_edge(machined, ref, (edge[0], ny - edge[1], edge[2], nx - edge[3]), pixel=pixel,
+                          smoothing=smoothing, span=span, edge_angle_deg=edge_angle_deg, ends=True)
+        del ref
+        if proved:
+            return None
     z, bad = _smoothed(machined, pixel, smoothing, border,
                        cross=None if window is None else (window, 3 * span + 1))
     if z is None or chip_thickness == 0 or coefficient == 0 or w == 0:
@@ -505,14 +521,19 @@ def material_burr_block(machined: np.ndarray, *, pixel: float,
 
 
 def _no_edge(machined, reference, window, *, pixel: float, smoothing: float, span: int,
-             edge_angle_deg: float) -> bool:
+             edge_angle_deg: float, ends: bool = False) -> bool:
     """Whether no pixel of ``window`` can be an edge of the block smoothed by ``smoothing``
-    (:func:`~._burr_bound.no_edge_possible` with the edge search's own bound)."""
+    (:func:`~._burr_bound.no_edge_possible` with the edge search's own bound; ``ends``:
+    the block is the whole map smoothed, read to its ends, the allowance between the
+    sampled lines chosen from the margin)."""
     check_range("edge_angle_deg", edge_angle_deg, 0.0, 90.0, lo_open=True, hi_open=True)
+    if np.shape(reference) != np.shape(machined):
+        return False
     thr = math.radians(edge_angle_deg)
     lim, eps = _bound_limit(thr, pixel)
     return no_edge_possible(machined, reference, gaussian_weights(smoothing / pixel), window, pixel=pixel,
-                            edge_angle_deg=edge_angle_deg, span=span, lim=lim, eps=eps, rel=_BOUND_ABS)
+                            edge_angle_deg=edge_angle_deg, span=span, lim=lim, eps=eps, rel=_BOUND_ABS,
+                            sample=None if ends else SAMPLE, ends=ends)
 
 
 def _burr_window(machined, z, bad, inner: Sequence[int], window: Sequence[int], *, pixel: float,
