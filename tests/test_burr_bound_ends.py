@@ -70,16 +70,20 @@ def _proof(z, ref, angle, window, sample=None):
 def test_the_whole_map_proof_holds_only_where_there_is_no_candidate():
     """Kinks along either axis from the middle of the map to just inside the band along
     its border (where the smoothing and the tests are clamped: the pixels the proof of a
-    tile cannot read), from far below to above the threshold's turn, and dimples near the
-    corners, against the design and against the form with them, with and without the
+    tile cannot read), from far below to above the threshold's turn, and dimples near a
+    corner and between the sampled lines (they hold candidates no sampled line reads:
+    only the slack between the lines refuses them), against the design and against the form with them, with and without the
     band: wherever the proof holds, no pixel is even a candidate; it holds on smooth maps
     and on kinks near the ends well below the threshold, and is refused elsewhere."""
     proved, refused, near_end = 0, 0, 0
     cases = [(k, at, axis, 0.0) for k in (0.0, 2e-3, 6e-3, 2e-2, 0.1) for axis in (0, 1)
              for at in (0.075, NEAR, (SHAPE[axis] - 16) * PIX)]
-    cases += [(0.0, 0.0, 1, h) for h in (1e-6, 3e-5, 1e-3)]
+    # dimples near a corner, and half way between lines 64 apart (near the ends too)
+    cases += [(0.0, 0.0, 1, (h, where)) for h in (1e-6, 3e-5, 1e-4, 1e-3)
+              for where in ((0.016, 0.135), (0.0445, 0.0445), (0.1085, 0.0205), (0.0205, 0.1085))]
     for kink, at, axis, dimple in cases:
-        z, design, form = _part(kink, at, axis, dimple=dimple, dimple_at=(0.016, 0.135))
+        depth, where = dimple if dimple else (0.0, (0.0, 0.0))
+        z, design, form = _part(kink, at, axis, dimple=depth, dimple_at=where)
         for border in ((True, True, True, True), (False, True, False, True)):
             window = _window(border)
             for angle in (0.5, 1.0):
@@ -87,7 +91,7 @@ def test_the_whole_map_proof_holds_only_where_there_is_no_candidate():
                 for ref in (design, form):
                     for sample in (None, 8):
                         if _proof(z, ref, angle, window, sample):
-                            assert n == 0, (kink, at, axis, dimple, border, angle, sample)
+                            assert n == 0, (kink, at, axis, depth, where, border, angle, sample)
                             proved += 1
                             far = min(at / PIX, SHAPE[axis] - at / PIX)
                             near_end += kink > 0 and far < REACH
