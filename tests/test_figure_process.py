@@ -184,3 +184,28 @@ def test_the_child_loads_the_figures_library_and_kernels_before_its_first_figure
     assert json.loads(r.stdout.strip().splitlines()[-1]) == {"parent_kernels": [True, True]}
     assert json.loads(out.read_text()) == {"matplotlib.pyplot": True, "numba": True,
                                            "kernels": [True, True]}
+
+
+def test_the_following_error_figures_are_handed_over_before_the_cut_ends(monkeypatch):
+    """The command's figure process is sent the following error against time once the
+    machine has followed the program, and its map once the passes are known, each
+    before the cut's end, and every figure exactly once."""
+    from render_inspect.pipeline import simulate
+    from render_inspect.processes import _mechanics
+    from render_inspect.scene import load_scene
+
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.2, 0.2, 0.3, 0.3]"])
+    events: list = []
+    turn = _mechanics.turn
+
+    def traced_turn(*args, **kwargs):
+        out = turn(*args, **kwargs)
+        events.append("cut ends")
+        return out
+
+    monkeypatch.setattr("render_inspect.processes._turning.turn", traced_turn)
+    sim = simulate(scene, figures=lambda plots: events.append(sorted(plots)))
+    assert events.index(["following_error.png"]) < events.index(["following_error_map.png"]) \
+        < events.index("cut ends"), events
+    sent = [name for e in events if e != "cut ends" for name in e]
+    assert sorted(sent) == sorted(sim.figures) and len(set(sent)) == len(sent), events
