@@ -10,6 +10,10 @@ from . import _early_signals
 
 if _early_signals.is_program():
     _early_signals.install()
+    # (the process's own settings, before numpy loads: see _process_settings)
+    from . import _process_settings
+
+    _process_settings.apply()
     # (the program's imports, until its command runs: see _early_signals.pause_collector)
     _early_signals.pause_collector()
 

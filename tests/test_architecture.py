@@ -36,8 +36,10 @@ ALLOWED = {
                  "instruments", "metrology", "processes", "scene", "report", "batch", "fit"},
     "errors": {"core"},
     "cli": {"core", "scene", "pipeline", "_early_signals"},
-    "__init__": {"_early_signals"},  # (the program's one-line Ctrl-C from its first statement)
+    # (the program's one-line Ctrl-C from its first statement; its process settings)
+    "__init__": {"_early_signals", "_process_settings"},
     "_early_signals": set(),
+    "_process_settings": set(),
     "__main__": {"cli"},
 }
 #: subpackages that may import the rendering engines (inside functions only)

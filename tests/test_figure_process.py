@@ -136,51 +136,93 @@ def test_a_child_that_ended_leaves_its_figures_to_the_parent(tmp_path):
         assert (tmp_path / name).read_bytes() == (tmp_path / f"ref_{name}").read_bytes()
 
 
-#: in a fresh process (numba not yet imported, the kernels not yet made): a figure kind
-#: that records what the child had loaded when its first job arrived
+#: in a fresh process (numba not yet imported, the kernels not yet made): figure kinds
+#: that record what the child had loaded when the job arrived, and after drawing the
+#: axis-motion figure of a planned program (also drawn in this process)
 _PROBE = """
 import json, sys
 from pathlib import Path
 from render_inspect.core.lazy import LazyDispatcher
+from render_inspect.design import make_surface
 from render_inspect.pipeline._figure_process import FigureProcess
-from render_inspect.report import register_figure
+from render_inspect.processes import process_of
+from render_inspect.report import draw_figure, register_figure
+from render_inspect.scene import load_scene
+
+def loaded():
+    return {"matplotlib.pyplot": "matplotlib.pyplot" in sys.modules, "numba": "numba" in sys.modules}
 
 @register_figure("probe_loaded")
 def probe(spec, png):
-    from render_inspect.toolpath import _kinematics
-    Path(png).write_text(json.dumps({
-        "matplotlib.pyplot": "matplotlib.pyplot" in sys.modules,
-        "numba": "numba" in sys.modules,
-        "kernels": [not isinstance(getattr(_kinematics, k), LazyDispatcher)
-                    for k in ("_gradient", "_second")]}))
+    Path(png).write_text(json.dumps(loaded()))
     return Path(png)
 
+@register_figure("probe_kinematics")
+def probe_kinematics(spec, png):
+    draw_figure(spec["figure"], Path(png).with_suffix(".png"))
+    Path(png).write_text(json.dumps(loaded()))
+    return Path(png)
+
+out = Path(sys.argv[1])
 assert "numba" not in sys.modules and "matplotlib" not in sys.modules
 drawer = FigureProcess.start()
 try:
-    drawer.draw("probe", {"kind": "probe_loaded"}, Path(sys.argv[1]))
+    drawer.draw("first", {"kind": "probe_loaded"}, out / "first.json")
+    from render_inspect.toolpath import _kinematics
+    parent = [not isinstance(getattr(_kinematics, k), LazyDispatcher) for k in ("_gradient", "_second")]
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.2, 0.2, 0.3, 0.3]"])
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    plan = process.plan_window(cfg, make_surface(scene.design), tuple(scene.simulation.region))
+    spec = plan.plots["kinematics.png"]
+    drawer.draw("kinematics", {"kind": "probe_kinematics", "figure": spec}, out / "child.json")
     drawer.results()
 finally:
     drawer.close()
-from render_inspect.toolpath import _kinematics
-print(json.dumps({"parent_kernels": [not isinstance(getattr(_kinematics, k), LazyDispatcher)
-                                     for k in ("_gradient", "_second")]}))
+draw_figure(spec, out / "here.png")
+print(json.dumps({"parent_kernels": parent}))
 """
 
 
-def test_the_child_loads_the_figures_library_and_kernels_before_its_first_figure(tmp_path):
-    # (the axis-motion figure's derivatives are compiled kernels: loaded before the fork,
-    # which the parent's planning needs too, not when that figure is drawn)
+def test_the_child_draws_without_numba_and_the_parent_starts_it(tmp_path):
+    # (the child imports matplotlib while the parent starts numba; the axis-motion figure
+    # is drawn from the derivatives the plan took, the same bytes as drawn here)
     import json
     import subprocess
 
     repo = Path(__file__).resolve().parents[1]
     env = dict(os.environ, PYTHONPATH=str(repo) + os.pathsep + os.environ.get("PYTHONPATH", ""),
                MPLBACKEND="Agg")
-    out = tmp_path / "probe.json"
-    r = subprocess.run([sys.executable, "-c", _PROBE, str(out)], capture_output=True, text=True,
-                       timeout=300, env=env, cwd=tmp_path)
+    r = subprocess.run([sys.executable, "-c", _PROBE, str(tmp_path)], capture_output=True,
+                       text=True, timeout=300, env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout.strip().splitlines()[-1]) == {"parent_kernels": [True, True]}
-    assert json.loads(out.read_text()) == {"matplotlib.pyplot": True, "numba": True,
-                                           "kernels": [True, True]}
+    for probe in ("first", "child"):
+        assert json.loads((tmp_path / f"{probe}.json").read_text()) == {
+            "matplotlib.pyplot": True, "numba": False}, probe
+    assert (tmp_path / "child.png").read_bytes() == (tmp_path / "here.png").read_bytes()
+
+
+def test_the_following_error_figures_are_handed_over_before_the_cut_ends(monkeypatch):
+    """The command's figure process is sent the following error against time once the
+    machine has followed the program, and its map once the passes are known, each
+    before the cut's end, and every figure exactly once."""
+    from render_inspect.pipeline import simulate
+    from render_inspect.processes import _mechanics
+    from render_inspect.scene import load_scene
+
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.2, 0.2, 0.3, 0.3]"])
+    events: list = []
+    turn = _mechanics.turn
+
+    def traced_turn(*args, **kwargs):
+        out = turn(*args, **kwargs)
+        events.append("cut ends")
+        return out
+
+    monkeypatch.setattr("render_inspect.processes._turning.turn", traced_turn)
+    sim = simulate(scene, figures=lambda plots: events.append(sorted(plots)))
+    assert events.index(["following_error.png"]) < events.index(["following_error_map.png"]) \
+        < events.index("cut ends"), events
+    sent = [name for e in events if e != "cut ends" for name in e]
+    assert sorted(sent) == sorted(sim.figures) and len(set(sent)) == len(sent), events

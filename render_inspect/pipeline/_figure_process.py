@@ -8,11 +8,11 @@ numba's yet), imports matplotlib and draws each figure as soon as its data is se
 the other core, while the parent plans, follows, cuts and writes.  The figures are the
 same files, byte for byte: the same functions draw them from the same data.
 
-The compiled kernels the figures compute with (the axis-motion figure's derivatives) are
-loaded before the fork: numba's start (about 0.4 CPU-s: its import and its compiler's
-set-up) is needed by the parent's planning next anyway, and the child gets it with its
-copy instead of doing it again.  The child imports matplotlib while the parent plans,
-before the first figure arrives.
+The child is forked before numba starts, and imports matplotlib while the parent starts
+numba (about 0.3 CPU-s: its import and its compiler's set-up) and plans: the two starts
+run side by side on two cores.  The figures need no compiled kernel of their own: the
+axis-motion figure is drawn from the derivatives the plan took (a figure that needs a
+kernel all the same starts numba in the child when it is drawn).
 
 Figures that arrive together (the cut's, then ``residual.png`` while the parent writes its
 files) are drawn at once, each by a copy of the child forked for it (matplotlib already
@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.lazy import collector_paused
+from ..core.lazy import collector_paused, freeze_lasting
 from ..core.limits import usable_cpus
 from ..core.units import MIB_TO_BYTES
 from ..report import draw_figure, preload_drawing, residual_png
@@ -172,16 +172,15 @@ def _child(jobs_fd: int, results_fd: int) -> None:
 
     threading.Thread(target=read, daemon=True).start()
     # what the figures need, loaded before the first of them arrives (the parent is
-    # still planning the program; the kernels came loaded with the fork, unless that
-    # failed in the parent), with the collector paused: matplotlib's modules live as long
-    # as the child (its own switch, not collector_paused, whose lock was the parent's)
+    # starting numba and planning the program meanwhile), with the collector paused:
+    # matplotlib's modules live as long as the child (its own switch, not
+    # collector_paused, whose lock was the parent's)
     was_on = gc.isenabled()
     gc.disable()
-    for preload in (preload_drawing, _warm_kernels):
-        try:
-            preload()
-        except Exception:  # (drawing loads the same and reports what fails there)
-            pass
+    try:
+        preload_drawing()
+    except Exception:  # (drawing loads the same and reports what fails there)
+        pass
     gc.freeze()
     if was_on:
         gc.enable()
@@ -231,15 +230,10 @@ class FigureProcess:
         """Fork the child, or None where that is not possible (not Linux, no fork)."""
         if not sys.platform.startswith("linux"):
             return None
-        # the figures' kernels, loaded here for both processes (see the module notes), with
-        # the collector paused (numba's start makes some sixty thousand lasting objects and
-        # almost no garbage); what is made so far is left out of the collector's passes
-        # before the fork, so that the child's collections never copy the pages it shares
-        with collector_paused():
-            try:
-                _warm_kernels()
-            except Exception:  # (the child tries again; drawing reports what fails there)
-                pass
+        # forked before numba starts (see the module notes); what is made so far is left out
+        # of the collector's passes before the fork, so that the child's collections never
+        # copy the pages it shares
+        freeze_lasting()
         try:
             jobs_r, jobs_w = os.pipe()
             res_r, res_w = os.pipe()
@@ -263,6 +257,14 @@ class FigureProcess:
                 os._exit(code)
         os.close(jobs_r)
         os.close(res_w)
+        # numba's start, which the planning needs next, while the child imports matplotlib
+        # (with the collector paused: numba's start makes some sixty thousand lasting
+        # objects and almost no garbage)
+        with collector_paused():
+            try:
+                _warm_kernels()
+            except Exception:  # (the kernels' first use reports what fails there)
+                pass
         return cls(pid, jobs_w, res_r)
 
     def _write(self, fd: int) -> None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..core.handoff import receiving
 from ..core.heightmap import HeightMap
 from ..core.progress import task
 from ..core.units import BYTES_TO_MIB
@@ -112,6 +113,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     while the rest is computed (the command's figure process).
     """
     t_all = time.perf_counter()
+    if figures is not None:
+        figures = _each_once(figures)
     process = process_of(scene)
     cfg = process.inputs_of(scene)
     traits = process.traits(cfg)
@@ -138,7 +141,8 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     t0 = time.perf_counter()
     ny, nx = sim.shape
     with task(f"{traits.name}: cut {ny * nx:,} samples",
-              total=max(0.5, ny * nx / traits.cut_rate), timed=True):
+              total=max(0.5, ny * nx / traits.cut_rate), timed=True), receiving(figures):
+        # (a figure ready before the cut ends is passed to ``figures`` at once)
         cut = process.cut(cfg, surface, plan)
     timing.update(cut.timing)
     timing["simulate"] = time.perf_counter() - t0
@@ -157,6 +161,20 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     timing["total"] = time.perf_counter() - t_all
     result.metrics["timing_s"] = dict(timing)
     return result
+
+
+def _each_once(figures: Callable[[dict], None]) -> Callable[[dict], None]:
+    """``figures``, called with each file name once (a figure handed over during the cut
+    is among the cut's plots again at its end)."""
+    given: set[str] = set()
+
+    def once(plots: dict) -> None:
+        new = {name: spec for name, spec in plots.items() if name not in given}
+        given.update(new)
+        if new:
+            figures(new)
+
+    return once
 
 
 def design_heightmap(scene: Scene) -> HeightMap:

@@ -23,6 +23,7 @@ import numpy as np
 from pydantic import Field
 
 from ..design import DesignConfig
+from ..core.handoff import hand_over
 from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
@@ -158,17 +159,30 @@ def following_error_plots(fp: Any, pass_theta: np.ndarray, region: Sequence[floa
     """Figure specs (``following_error.png``, ``following_error_map.png``) of a followed
     path: the errors against time, and the X and Z (slide + FTS) errors of the pass that
     cut each point, on at most ~:data:`MAP_FIGURE_POINTS` points a side."""
-    x0, y0 = region[0], region[1]
-    stride = max(1, int(math.ceil(max(pass_theta.shape) / MAP_FIGURE_POINTS)))
-    ex, ez = _error_maps(fp, pass_theta, stride)
+    return {**following_error_series_plot(fp, name=name),
+            **following_error_map_plot(fp, pass_theta, region, pixel, name=name)}
+
+
+def following_error_series_plot(fp: Any, *, name: str) -> dict:
+    """The spec of ``following_error.png``: each axis' error against time (at most about
+    400,000 ticks: the envelope plot needs no more)."""
     n = fp.t.size
-    keep = slice(None, None, max(1, n // 400_000))  # the envelope plot needs no more
+    keep = slice(None, None, max(1, n // 400_000))
     stats = following_error_stats(fp.errors)
     return {"following_error.png": {"kind": "following_error", "t": fp.t[keep],
                                     "errors": {k: v[keep] for k, v in fp.errors.items()},
                                     "stats": stats,
-                                    "title": f"{name}: following error (command - followed)"},
-            "following_error_map.png": {"kind": "following_error_map", "x_nm": ex, "z_nm": ez,
+                                    "title": f"{name}: following error (command - followed)"}}
+
+
+def following_error_map_plot(fp: Any, pass_theta: np.ndarray, region: Sequence[float],
+                             pixel: float, *, name: str) -> dict:
+    """The spec of ``following_error_map.png``: the X and Z errors of the pass that cut
+    each point (``pass_theta``), on at most ~:data:`MAP_FIGURE_POINTS` points a side."""
+    x0, y0 = region[0], region[1]
+    stride = max(1, int(math.ceil(max(pass_theta.shape) / MAP_FIGURE_POINTS)))
+    ex, ez = _error_maps(fp, pass_theta, stride)
+    return {"following_error_map.png": {"kind": "following_error_map", "x_nm": ex, "z_nm": ez,
                                         "extent": (x0, x0 + pixel * stride * (ex.shape[1] - 1),
                                                    y0, y0 + pixel * stride * (ex.shape[0] - 1)),
                                         "title": f"{name}: following error of the pass that cut "
@@ -262,6 +276,13 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
     t0 = time.perf_counter()
     cut_path, fp, facts = follow(cfg, path, z_fts=z_fts)
     timing["machine"] = time.perf_counter() - t0
+    # the following-error figures are handed over as soon as each can be made (the time
+    # series now, the map once the passes' angles are known), to be drawn while the part
+    # is cut (core.handoff); they stay in the cut's plots too
+    error_figures = plots and not fp.ideal
+    if error_figures:
+        figs.update(following_error_series_plot(fp, name=cfg.name))
+        hand_over(figs)
     t0 = time.perf_counter()
     resp = material_of(cfg.material)
     pass_theta = None
@@ -275,6 +296,10 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
                         grooves_of(cfg, resp),
                         region=region, pixel=sim.pixel, progress=progress)
         pass_theta, machined = c["pass_theta"], c["machined"]
+        if error_figures:
+            error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name)
+            figs.update(error_map)
+            hand_over(error_map)
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
                                added_max=c["added_max"],
                                edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
@@ -304,10 +329,10 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
                                                   origin=(region[0], region[1]),
                                                   overwrite=True, **args)
         timing["burrs"] = time.perf_counter() - t0
-    if plots and not fp.ideal:
+    if error_figures and "following_error_map.png" not in figs:
         if pass_theta is None:
             pass_theta = pass_angle_map(cut_path, region, sim.pixel)
-        figs = following_error_plots(fp, pass_theta, region, sim.pixel, name=cfg.name)
+        figs.update(following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name))
     if "tool_wear" in facts:
         facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
             cfg, machined, design, region, sim.pixel)

@@ -29,6 +29,7 @@ from ..toolpath import (
     MachineLimits,
     PartModel,
     Tool,
+    axes_derivatives,
     kinematics,
     longest_step,
     limits_from_process,
@@ -36,6 +37,7 @@ from ..toolpath import (
     plan_memory,
     plan_turning,
     region_radii,
+    turning_axes,
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
@@ -403,9 +405,14 @@ class TurningProcess(Process[TurningInputs]):
         extra = {}
         if program_path(cfg):
             extra["feed_per_rev.png"] = feed_per_rev_figure(path, cfg.name)
+        # the axes' derivatives taken here, where the compiled kernels are loaded (the
+        # figure is drawn from them by the command's figure process, which need not start
+        # numba for it)
+        data = dict(data or {})
+        data["derivatives"] = axes_derivatives(path.t, turning_axes(path, data))
         return {**extra, "kinematics.png": {"kind": "axes",
                                    "columns": [(f"{cfg.process.kind.upper()} program", path,
-                                                data or {})],
+                                                data)],
                                    "title": f"{cfg.name}: the axes that move"}}
 
     def plan_window(self, cfg: TurningInputs, surface: Any, region: Sequence[float]) -> Plan:

@@ -14,7 +14,7 @@ from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
 from ._quickplot import panels_png
 from ._savefig import figure_png
-from ..toolpath import axis_derivatives
+from ..toolpath import axis_derivatives, turning_axes
 from ..core.toolpath import ToolPath
 
 __all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
@@ -37,35 +37,23 @@ def _envelope(x: np.ndarray, y: np.ndarray, bins: int = 1500):
     return xm, np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts)
 
 
-def turning_axes(path: ToolPath, data: dict | None = None) -> dict:
-    """The machine axes of a turning path: ``X`` (radius, mm) and ``Z`` (tool tip, mm);
-    with the servo split of a tool-servo program (``data`` holding ``z_slow`` and
-    ``z_fts``, mm): ``Z`` = the slow slide's command and ``FTS`` = the fast tool servo's
-    stroke instead."""
-    axes = {"X": np.asarray(path.rho, dtype=np.float64)}
-    data = data or {}
-    zs, zf = data.get("z_slow"), data.get("z_fts")
-    if zs is not None and zf is not None and np.size(zs) == np.size(path.rho):
-        axes["Z"] = np.asarray(zs, dtype=np.float64)
-        axes["FTS"] = np.asarray(zf, dtype=np.float64)
-    else:
-        axes["Z"] = np.asarray(path.z, dtype=np.float64)
-    return axes
-
-
 def moving_axes(t: np.ndarray, axes: dict, derivatives: dict | None = None) -> list[str]:
     """The axes whose speed changes (more than :data:`CONSTANT_SPEED_TOL` of their top
     speed): an axis at rest or at constant speed (X of a constant-feed spiral) has
     nothing to show but rounding noise in its acceleration.  ``derivatives``, a dict,
-    receives the :func:`~render_inspect.toolpath.axis_derivatives` taken (axis -> (v, a, j))."""
+    receives the :func:`~render_inspect.toolpath.axis_derivatives` taken (axis -> (v, a, j));
+    an axis' derivatives already in it are used as they are."""
     out = []
     for name, q in axes.items():
         q = np.asarray(q, dtype=np.float64)
         if q.size < 3 or not np.ptp(q) > 0:
             continue
-        v, a, j = axis_derivatives(t, q)
-        if derivatives is not None:
-            derivatives[name] = (v, a, j)
+        if derivatives is not None and name in derivatives:
+            v = derivatives[name][0]
+        else:
+            v, a, j = axis_derivatives(t, q)
+            if derivatives is not None:
+                derivatives[name] = (v, a, j)
         top = float(np.max(np.abs(v)))
         if top > 0 and float(np.ptp(v)) > CONSTANT_SPEED_TOL * top:
             out.append(name)
@@ -81,7 +69,8 @@ def _motion_series(columns, axes=None):
     series = []
     for label, path, data in columns:
         t = np.asarray(path.t, dtype=np.float64)
-        series.append((label, t, turning_axes(path, data), {}))
+        # (the derivatives the plan took already, when its data holds them)
+        series.append((label, t, turning_axes(path, data), dict((data or {}).get("derivatives") or {})))
     if axes is None:
         names = []
         for _, t, ax, taken in series:

@@ -19,7 +19,8 @@ from ._compensation import (
                     normal_compensation,
                     z_compensation,
 )
-from ._kinematics import LIMIT_KEYS, axis_derivatives, kinematics, limits_from_process
+from ._kinematics import (LIMIT_KEYS, axes_derivatives, axis_derivatives, kinematics,
+                          limits_from_process, turning_axes)
 from ._rcse import (
                     PointCloudModel,
                     RcseCcps,
@@ -41,7 +42,7 @@ __all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "EdgeProfile", "e
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
            "plan_turning", "sector_plan", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
-           "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives",
+           "PLAN_BYTES_PER_POINT", "kinematics", "axis_derivatives", "axes_derivatives", "turning_axes",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
            "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",
            "scallop_height", "feed_for_scallop", "max_feed_for_scallop", "plan_feed",

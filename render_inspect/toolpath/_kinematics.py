@@ -26,7 +26,8 @@ from ..core.lazy import njit  # numba, imported on first use
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
 
-__all__ = ["axis_derivatives", "kinematics", "limits_from_process", "LIMIT_KEYS"]
+__all__ = ["axis_derivatives", "kinematics", "limits_from_process", "LIMIT_KEYS", "turning_axes",
+           "axes_derivatives"]
 
 #: scene key (``[process]``) -> (axis, derivative order, label, unit)
 LIMIT_KEYS = {
@@ -158,6 +159,34 @@ def axis_derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarr
     _second(t, q, a)
     _gradient(t, a, 1, j)
     return v, a, j
+
+
+def turning_axes(path: ToolPath, data: dict | None = None) -> dict:
+    """The machine axes of a turning path: ``X`` (radius, mm) and ``Z`` (tool tip, mm);
+    with the servo split of a tool-servo program (``data`` holding ``z_slow`` and
+    ``z_fts``, mm): ``Z`` = the slow slide's command and ``FTS`` = the fast tool servo's
+    stroke instead."""
+    axes = {"X": np.asarray(path.rho, dtype=np.float64)}
+    data = data or {}
+    zs, zf = data.get("z_slow"), data.get("z_fts")
+    if zs is not None and zf is not None and np.size(zs) == np.size(path.rho):
+        axes["Z"] = np.asarray(zs, dtype=np.float64)
+        axes["FTS"] = np.asarray(zf, dtype=np.float64)
+    else:
+        axes["Z"] = np.asarray(path.z, dtype=np.float64)
+    return axes
+
+
+def axes_derivatives(t: np.ndarray, axes: dict) -> dict:
+    """:func:`axis_derivatives` (v, a, j) of each axis of ``axes`` (name -> positions at
+    the times ``t``) that moves (at least 3 points, not all equal)."""
+    t = np.asarray(t, dtype=np.float64)
+    out = {}
+    for name, q in axes.items():
+        q = np.asarray(q, dtype=np.float64)
+        if q.size >= 3 and np.ptp(q) > 0:
+            out[name] = axis_derivatives(t, q)
+    return out
 
 
 def limits_from_process(process_cfg: Any) -> dict:
