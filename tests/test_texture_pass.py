@@ -84,3 +84,30 @@ def test_textured_with_the_factors_kept_along_x_equals_it_without():
         assert got.tobytes() == want.tobytes()
         assert np.array_equal(cache["texture_x"][1], xs)
     assert textured(m, x, y, rms=1e-6, correlation_length=0.03, seed=5)[0].tobytes() == got.tobytes()
+
+
+@pytest.mark.parametrize("name", ["finite", "holes", "all_nan", "one_row", "zeros"])
+def test_texture_added_in_place_with_given_buffers_keeps_the_numbers(name):
+    """``overwrite=True`` (the map itself becomes the textured map) and ``buffers`` (maps
+    the products are computed in, full of earlier numbers): the same bits and rms as the
+    definition; the map returned is the one given; a buffer of another shape, or one that
+    shares memory with the map, is not written."""
+    m0 = _maps()[name]
+    ny, nx = m0.shape
+    x = -0.3 + 0.001 * np.arange(nx)
+    y = 0.25 + 0.001 * np.arange(ny)
+    ref, ref_rms = _reference(m0, x, y, rms=3e-6, correlation_length=0.03, seed=7)
+    m = m0.copy()
+    bufs = (np.full(m.shape, 5.0), np.full(m.shape, -7.0))
+    got, got_rms = add_texture_field(m, x, y, rms=3e-6, correlation_length=0.03, seed=7,
+                                     overwrite=True, buffers=bufs)
+    assert got is m
+    assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+    assert got_rms == ref_rms
+    assert not np.array_equal(bufs[0], np.full(m.shape, 5.0))         # computed in
+    wrong = np.full((ny + 1, nx), 3.0)
+    m = m0.copy()
+    got, got_rms = add_texture_field(m, x, y, rms=3e-6, correlation_length=0.03, seed=7,
+                                     overwrite=True, buffers=(wrong, m[::-1]))
+    assert np.array_equal(got.view(np.int64), ref.view(np.int64)) and got_rms == ref_rms
+    assert (wrong == 3.0).all()

@@ -374,11 +374,14 @@ def _texture_scale(rms: float) -> float:
     return rms * math.sqrt(2.0 / _TEXTURE_MODES)
 
 
-def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | None = None):
+def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | None = None,
+                      out: tuple = (None, None)):
     """The two (ny, nx) matrix products whose difference is the unit field of
     :func:`texture_field`: cos(kx x + ky y + p) = cos(kx x + p) cos(ky y) - sin(kx x +
     p) sin(ky y), summed over the modes.  ``cache``: a dict that keeps the modes' cosines
-    and sines along ``x`` for the next call with the same ``x`` (the tiles of a column)."""
+    and sines along ``x`` for the next call with the same ``x`` (the tiles of a column).
+    ``out``: two arrays (or None) the products are written into (the same numbers: one
+    product each, the whole map at once)."""
     rng = np.random.default_rng(seed)
     k = rng.normal(0.0, 1.0 / correlation_length, size=(_TEXTURE_MODES, 2))
     ph = rng.uniform(0.0, 2 * math.pi, size=_TEXTURE_MODES)
@@ -391,14 +394,14 @@ def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | 
         if cache is not None:
             cache["texture_x"] = ((correlation_length, seed), np.array(x, copy=True), cx, sx)
     ay = np.multiply.outer(y, k[:, 1])
-    return np.cos(ay) @ cx, np.sin(ay) @ sx
+    return np.matmul(np.cos(ay), cx, out=out[0]), np.matmul(np.sin(ay), sx, out=out[1])
 
 
 @njit(cache=True, nogil=True)
-def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows, i0, i1):
-    """In place: ``cos_part`` becomes the map with the texture added where it is finite
-    (unchanged elsewhere), ``sin_part`` the texture's square there; the finite pixels of
-    each row counted (rows i0 .. i1 - 1)."""
+def _add_texture_rows(m, cos_part, sin_part, scale, res, finite_rows, i0, i1):
+    """In place: ``res`` (``cos_part`` or ``m`` itself) becomes the map with the texture
+    added where it is finite (unchanged elsewhere), ``sin_part`` the texture's square
+    there and NaN elsewhere; the finite pixels of each row counted (rows i0 .. i1 - 1)."""
     ny, nx = m.shape
     for i in range(i0, i1):
         n = 0
@@ -406,11 +409,12 @@ def _add_texture_rows(m, cos_part, sin_part, scale, finite_rows, i0, i1):
             t = (cos_part[i, j] - sin_part[i, j]) * scale
             v = m[i, j]
             if math.isfinite(v):
-                cos_part[i, j] = v + t
+                res[i, j] = v + t
                 sin_part[i, j] = t * t
                 n += 1
             else:
-                cos_part[i, j] = v
+                res[i, j] = v
+                sin_part[i, j] = math.nan
         finite_rows[i] = n
 
 
@@ -427,17 +431,25 @@ def textured(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
     check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
     out, sq = _texture_products(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64),
                                 correlation_length, seed, cache)
-    over_rows(_add_texture_rows, machined.shape[0], machined, out, sq, _texture_scale(rms),
+    over_rows(_add_texture_rows, machined.shape[0], machined, out, sq, _texture_scale(rms), out,
               np.empty(machined.shape[0], dtype=np.int64))
     return out, sq
 
 
 def add_texture_field(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
-                      correlation_length: float, seed: int) -> tuple[np.ndarray, float]:
+                      correlation_length: float, seed: int, overwrite: bool = False,
+                      buffers: tuple = ()) -> tuple[np.ndarray, float]:
     """``machined`` (ny, nx) with :func:`texture_field` on the grid ``x`` by ``y`` added
     where it is finite (a new array; NaN and infinite pixels unchanged), and the added
     texture's root mean square over those pixels (mm; 0 when there are none).  The same
-    numbers, to the last bit, as adding the field with numpy; one pass over the map."""
+    numbers, to the last bit, as adding the field with numpy; one pass over the map.
+
+    ``overwrite``: the texture is added into ``machined`` itself (when it is a
+    C-contiguous float64 array) and that array is returned.  ``buffers``: up to two
+    (ny, nx) arrays whose content the caller no longer needs; the field's two factors are
+    computed into them instead of into new arrays (one that is not C-contiguous float64
+    of the map's shape, or that shares memory with ``machined``, is not used).  Either
+    saves the memory of a map and the time of touching it first."""
     m = np.ascontiguousarray(machined, dtype=np.float64)
     if rms == 0 or m.ndim != 2 or m.size == 0:
         tex = texture_field(x, y, rms=rms, correlation_length=correlation_length, seed=seed)
@@ -451,15 +463,28 @@ def add_texture_field(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms
     if m.shape != (y.size, x.size):
         raise InputError(f"machined must have the grid's shape {(y.size, x.size)}, "
                          f"received {m.shape}")
-    out, sq = _texture_products(x, y, correlation_length, seed)
+    free: list = []
+    for b in buffers:
+        if len(free) < 2 and _usable_buffer(b, m) and not any(np.may_share_memory(b, f) for f in free):
+            free.append(b)
+    free += [None] * (2 - len(free))
+    cos_part, sq = _texture_products(x, y, correlation_length, seed, out=(free[0], free[1]))
+    out = m if overwrite and m.flags.writeable and m is machined else cos_part
     rows = np.empty(m.shape[0], dtype=np.int64)
-    over_rows(_add_texture_rows, m.shape[0], m, out, sq, _texture_scale(rms), rows)
+    over_rows(_add_texture_rows, m.shape[0], m, cos_part, sq, _texture_scale(rms), out, rows)
     n_ok = int(rows.sum())
     if n_ok == 0:
         return out, 0.0
-    # the mean of the squares as numpy takes it over the finite pixels in order
-    squares = sq.ravel() if n_ok == m.size else sq[np.isfinite(m)]
+    # the mean of the squares as numpy takes it over the finite pixels in order (the
+    # squares are NaN where the map is not finite)
+    squares = sq.ravel() if n_ok == m.size else sq[np.isfinite(sq)]
     return out, float(np.sqrt(np.mean(squares)))
+
+
+def _usable_buffer(b, m: np.ndarray) -> bool:
+    """Whether ``b`` can take one of the texture's factors for the map ``m``."""
+    return (isinstance(b, np.ndarray) and b.shape == m.shape and b.dtype == np.float64
+            and b.flags.c_contiguous and b.flags.writeable and not np.may_share_memory(b, m))
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ import numpy as np
 from pydantic import Field
 
 from ..design import DesignConfig
+from ..core.grid import grid_shape
 from ..core.handoff import hand_over
 from ..core.section import Section
 from ..core.toolpath import ToolPath
@@ -98,7 +99,8 @@ def burrs_of(burrs: BurrConfig, seed: int) -> dict:
 class Turned(dict):
     """``machined``, ``design`` (maps, mm), ``timing``, ``facts`` (metrics entries),
     ``followed`` (ToolPath or None), ``followed_path`` (FollowedPath or None),
-    ``pass_theta`` (map of the cutting pass's spindle angle, or None)."""
+    ``pass_theta`` (map of the cutting pass's spindle angle, or None: the material's cut
+    computes in its memory once the figures have it)."""
 
 
 def pass_angle_map(path: ToolPath, region: Sequence[float], pixel: float) -> np.ndarray:
@@ -209,15 +211,18 @@ def texture_of(cfg: TurningInputs, resp: MaterialResponse) -> tuple[float, float
 
 
 def add_texture(machined: np.ndarray, resp: MaterialResponse, region: Sequence[float],
-                pixel: float, seed: int) -> tuple[np.ndarray, float]:
+                pixel: float, seed: int, *, overwrite: bool = False,
+                buffers: tuple = ()) -> tuple[np.ndarray, float]:
     """``machined`` with the part's texture (:func:`~render_inspect.machining.texture_field`
     of the grid's positions, from ``seed``) added where it is finite; the texture's
-    measured rms (nm)."""
+    measured rms (nm).  ``overwrite``, ``buffers``: as
+    :func:`~render_inspect.machining.add_texture_field` (added into ``machined``; maps
+    whose content is no longer needed, to compute in)."""
     x0, y0, x1, y1 = region
     ny, nx = machined.shape
     out, rms = add_texture_field(machined, x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
                                  rms=resp.texture_rms, correlation_length=resp.texture_length,
-                                 seed=seed)
+                                 seed=seed, overwrite=overwrite, buffers=buffers)
     return out, rms * MM_TO_NM
 
 
@@ -285,7 +290,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         hand_over(figs)
     t0 = time.perf_counter()
     resp = material_of(cfg.material)
-    pass_theta = None
+    pass_theta = design_out = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
                                     pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
@@ -295,7 +300,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         c = cut_turning(material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp)),
                         grooves_of(cfg, resp),
                         region=region, pixel=sim.pixel, progress=progress)
-        pass_theta, machined = c["pass_theta"], c["machined"]
+        pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added")
         if error_figures:
             error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name)
             figs.update(error_map)
@@ -303,15 +308,26 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
                                added_max=c["added_max"],
                                edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
-        machined, info["texture_measured_rms_nm"] = add_texture(machined, resp, region,
-                                                                sim.pixel, texture_of(cfg, resp)[2])
+        # pass_theta (its figure made) and the added material's map are not needed
+        # further: the texture's two factors are computed in them, the texture is added
+        # into the cut's own map, and the design is sampled into the added material's map
+        # (memory already touched, not three new maps)
+        machined, info["texture_measured_rms_nm"] = add_texture(
+            machined, resp, region, sim.pixel, texture_of(cfg, resp)[2], overwrite=True,
+            buffers=(added, pass_theta))
+        pass_theta = None
+        if added.shape == grid_shape(region, sim.pixel) and added.dtype == np.float64 \
+                and added.flags.c_contiguous and not np.may_share_memory(added, machined):
+            design_out = added
+        del c, added
         facts["material"] = {**resp.to_dict(), **info}
         if resp.validity:
             log.warning("%s", resp.validity)
     timing["envelope"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if design is None:
-        design = design_grid(surface, region, sim.pixel)
+        design = design_grid(surface, region, sim.pixel, out=design_out)
+    del design_out
     timing["design"] = time.perf_counter() - t0
     feed = float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
     facts["scallop"] = feed_scallop(feed, tool.nose_radius)
