@@ -45,8 +45,9 @@ def _handler(signum: int, frame: object) -> None:
 
 def is_program() -> bool:
     """Whether this process is the ``render-inspect`` program (its console script, or
-    ``python -m render_inspect.cli``, while Python locates the module and ``sys.argv[0]``
-    is ``-m``), not a program that imports the package."""
+    ``python -m render_inspect.cli``: while Python locates the module, ``sys.argv[0]`` is
+    ``-m``, and then the path of its ``__main__.py``), not a program that imports the
+    package."""
     first = sys.argv[0] if sys.argv else ""
     if first == "-m":
         # (``python -m render_inspect.cli``, not another module of the package run so)
@@ -54,7 +55,16 @@ def is_program() -> bool:
         if "-m" in orig and orig.index("-m") + 1 < len(orig):
             return orig[orig.index("-m") + 1] in ("render_inspect.cli", "render_inspect.cli.__main__")
         return True
-    return os.path.basename(first) == "render-inspect"
+    if os.path.basename(first) == "render-inspect":
+        return True
+    # (``python -m render_inspect.cli`` once it runs: ``sys.argv[0]`` is then the path of
+    # the command line's ``__main__.py``)
+    return bool(first) and os.path.realpath(first) == _CLI_MAIN
+
+
+#: the command line's ``__main__.py`` (``python -m render_inspect.cli`` runs it)
+_CLI_MAIN = os.path.realpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "cli",
+                                          "__main__.py"))
 
 
 def pause_collector() -> None:

@@ -59,3 +59,17 @@ def test_the_program_sets_its_process_and_a_host_keeps_its_own(tmp_path):
 @pytest.mark.slow
 def test_a_users_openblas_timeout_is_kept(tmp_path):
     assert _probe(tmp_path, "program", OPENBLAS_THREAD_TIMEOUT="20")["timeout"] == "20"
+
+
+@pytest.mark.parametrize("argv0,program", [
+    ("/usr/local/bin/render-inspect", True),
+    (str(REPO / "render_inspect" / "cli" / "__main__.py"), True),  # python -m, once it runs
+    ("-c", False),
+    ("/somewhere/else/cli/__main__.py", False),
+    ("", False),
+])
+def test_the_program_is_known_by_its_script_or_module(monkeypatch, argv0, program):
+    from render_inspect import _early_signals
+
+    monkeypatch.setattr(sys, "argv", [argv0, "simulate"])
+    assert _early_signals.is_program() is program
