@@ -109,7 +109,9 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     import the figures' library in a thread while the surface is cut
     (:func:`~render_inspect.report.preload_drawing`), for a caller that draws them next.
     ``figures``: called with the plan's figures (file name -> spec) once the program is
-    planned and with the cut's once the surface is cut, for a caller that draws them
+    planned, with each of the cut's as soon as the cut has made it (the following error
+    once the machine has followed the program: :mod:`~render_inspect.core.handoff`) and
+    with the rest once the surface is cut, each figure once, for a caller that draws them
     while the rest is computed (the command's figure process).
     """
     t_all = time.perf_counter()
