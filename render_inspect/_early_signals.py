@@ -48,6 +48,8 @@ def is_program() -> bool:
     ``python -m render_inspect.cli``: while Python locates the module, ``sys.argv[0]`` is
     ``-m``, and then the path of its ``__main__.py``), not a program that imports the
     package."""
+    if _multiprocessing_child():
+        return False
     first = sys.argv[0] if sys.argv else ""
     if first == "-m":
         # (``python -m render_inspect.cli``, not another module of the package run so)
@@ -60,6 +62,17 @@ def is_program() -> bool:
     # (``python -m render_inspect.cli`` once it runs: ``sys.argv[0]`` is then the path of
     # the command line's ``__main__.py``)
     return bool(first) and os.path.realpath(first) == _CLI_MAIN
+
+
+def _multiprocessing_child() -> bool:
+    """Whether this process is a worker that ``multiprocessing`` started by spawning a new
+    interpreter or from its fork server (a Dask worker of ``--workers N``): it is handed
+    the program's ``sys.argv`` but is not the program."""
+    orig = list(getattr(sys, "orig_argv", ()))
+    if "--multiprocessing-fork" in orig:
+        return True
+    return "-c" in orig and orig.index("-c") + 1 < len(orig) \
+        and "multiprocessing" in orig[orig.index("-c") + 1]
 
 
 #: the command line's ``__main__.py`` (``python -m render_inspect.cli`` runs it)

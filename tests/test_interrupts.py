@@ -72,7 +72,8 @@ def inputs(tmp_path_factory):
 COMMANDS = [
     ("simulate", ["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
                   "--set", "material.preset='ideal'"], "SIGINT"),
-    ("simulate-material", ["simulate", "sts_sinusoidal_grid"], "SIGTERM"),
+    ("simulate-material", ["simulate", "sts_sinusoidal_grid", "--set", "simulation.pixel=0.00025"],
+     "SIGTERM"),
     ("simulate-tiled", ["simulate", "sts_sinusoidal_grid", "--tiled", "--set",
                         "material.preset='ideal'", "--set", "simulation.region=[-1.5,-1.5,1.5,1.5]"],
      "SIGTERM"),
@@ -83,7 +84,7 @@ COMMANDS = [
     ("measure", ["measure", "{inputs}/frames.exr"], "SIGINT"),
     ("characterise", ["characterise", "--objective", "20x"], "SIGTERM"),
     ("sweep", ["sweep", "fig15_small"], "SIGINT"),
-    ("regress", ["regress", "--only", "fig16_overcut_z,hts_toric_z"], "SIGTERM"),
+    ("regress", ["regress", "--only", "fig16_overcut_z,hts_toric_z,fts_toric_z,mla_2x2_z"], "SIGTERM"),
     ("demo", ["demo", "--quick"], "SIGINT"),
     ("fit", ["fit", "{inputs}/height.exr", "--scene", "sts_sinusoidal_grid", "--free",
              "tool.nose_radius", "--window", "0.11"], "SIGTERM"),

@@ -5,6 +5,7 @@ path's real size."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -113,7 +114,14 @@ def test_tiled_memory_is_bounded_by_the_tiles_not_the_map(tmp_path):
     r = json.loads(p.stdout.strip().splitlines()[-1])
     assert r["samples"] == 3001 ** 2
     assert r["traced"] <= 1.5 * r["estimate"], r
-    assert r["rss"] <= 1.5 * r["estimate"], r
+    # the resident set also holds freed tile blocks that the allocator keeps for the next
+    # tiles in each thread's arena (glibc raises its mmap threshold to the blocks freed, so
+    # they are reused, not returned): up to about a tile's blocks per tile in flight, which
+    # varies with the machine's state (the same run: 147-157 MB resident, 99 MB traced);
+    # still far below the ~250 MB of the whole map in memory
+    slack = os.cpu_count() * 16 * 2**20
+    assert r["rss"] <= 1.5 * r["estimate"] + slack, r
+    assert r["rss"] < 28 * r["samples"], r
     assert r["estimate"] < 28 * r["samples"] / 2, r     # well below the in-memory need
 
 

@@ -73,3 +73,17 @@ def test_the_program_is_known_by_its_script_or_module(monkeypatch, argv0, progra
 
     monkeypatch.setattr(sys, "argv", [argv0, "simulate"])
     assert _early_signals.is_program() is program
+
+
+def test_a_multiprocessing_worker_of_the_program_is_not_the_program(monkeypatch):
+    # (a spawned worker is handed the program's sys.argv)
+    from render_inspect import _early_signals
+
+    monkeypatch.setattr(sys, "argv", ["/usr/local/bin/render-inspect"])
+    monkeypatch.setattr(sys, "orig_argv", [sys.executable, "-c", "from multiprocessing.spawn import "
+                                           "spawn_main; spawn_main(tracker_fd=5, pipe_handle=7)",
+                                           "--multiprocessing-fork"], raising=False)
+    assert _early_signals.is_program() is False
+    monkeypatch.setattr(sys, "orig_argv", [sys.executable, "/usr/local/bin/render-inspect", "sweep"],
+                        raising=False)
+    assert _early_signals.is_program() is True

@@ -56,6 +56,10 @@ _KEPT_BYTES_PER_TICK = 8 * 20
 #: the edge search no longer makes (it takes them in cells around candidate edges only:
 #: the traced peak fell by 15 B a sample, 81 to 66 B measured between 1 and 9 M samples)
 _BURR_MAP_BYTES = BURR_BLOCK_BYTES - 16
+#: bytes per sample the texture's two factors (float64 maps) took before they were
+#: computed in the cut's own maps (measured on the shipped grid scene, 1 to 9 M samples:
+#: the estimate was 1.5-1.8 x the traced peak with them, 1.2-1.4 x without)
+_TEXTURE_IN_PLACE_BYTES = 16
 #: what stays of the machine model while the tiles of a tiled simulation run: the followed
 #: path, its commands and errors (13 arrays; the cut's prepared path is counted with the
 #: tiles, :func:`~render_inspect.machining.tiled_bytes`)
@@ -96,8 +100,12 @@ def turning_memory(cfg: TurningInputs, plan: Plan | None = None) -> int:
     material = cfg.material.preset != "ideal"
     # material: pass angle, displaced material, edge masks, and then the part's texture
     # and the burr model's temporaries (smoothed map, edge masks, turns, distance transform
-    # and ridge) while the cut maps are held; a machine alone: the pass-angle map
-    per_sample = ((8 * 2 + 4 + _BURR_MAP_BYTES) if material else (8 * 2 if ticks else 0))
+    # and ridge) while the cut maps are held, less the texture's two factors, which are
+    # computed in the pass-angle and displaced-material maps once those are done with
+    # (no maps of their own: the traced peak fell by about that); a machine alone: the
+    # pass-angle map
+    per_sample = ((8 * 2 + 4 + _BURR_MAP_BYTES - _TEXTURE_IN_PLACE_BYTES) if material
+                  else (8 * 2 if ticks else 0))
     cutting = in_memory_bytes(shape, points, cut_sample_bytes=per_sample,
                               cut_bytes=ticks * _KEPT_BYTES_PER_TICK)
     following = ticks * _BYTES_PER_TICK + points * 2 * _PATH_BYTES
