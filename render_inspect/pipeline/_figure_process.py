@@ -72,9 +72,9 @@ def _run_job(kind: str, args: tuple, kwargs: dict) -> None:
 
 
 def _warm_kernels() -> None:
-    """Load the compiled kernels the figures compute with (the axes' velocity and
-    acceleration of the axis-motion figure: numba and its cached kernels, about 0.4 CPU-s
-    in a fresh process), on three points."""
+    """Start numba in the command's process (its import and its compiler's set-up, about
+    0.3 CPU-s in a fresh process) and load the kernels of the axes' derivatives, which
+    the plan takes first, on three points."""
     t = np.arange(3, dtype=np.float64)
     axis_derivatives(t, t * t)
 
