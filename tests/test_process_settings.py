@@ -25,8 +25,11 @@ if sys.argv[1] == "program":
 import render_inspect
 import ctypes
 import numpy as np
-# pages counted one by one (no transparent huge pages in this process)
+# pages counted one by one (no transparent huge pages in this process, and numpy asks
+# for none)
 ctypes.CDLL(None).prctl(41, 1, 0, 0, 0)  # PR_SET_THP_DISABLE
+_mu = getattr(np, "_core", None) or np.core
+_mu.multiarray._set_madvise_hugepage(False)
 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 for mib in range(1, 25):
     a = np.empty(mib * 1024 * 1024 // 8)
