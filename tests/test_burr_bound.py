@@ -103,6 +103,19 @@ def test_the_proof_refuses_what_it_cannot_read():
     assert not no_edge_possible(z, np.zeros_like(z), w, WINDOW, **kw)
 
 
+def same_with_reference(z, design, **kw):
+    """material_burr_block of ``z`` without a reference; with ``design`` as its reference
+    (the map, or a function that makes it) the same maps, or None, are asserted."""
+    want = material_burr_block(z, **kw)
+    for ref in (design, lambda: design):
+        got = material_burr_block(z, reference=ref, **kw)
+        if want is None:
+            assert got is None
+        else:
+            assert got is not None and all(np.array_equal(a, b) for a, b in zip(got, want))
+    return want
+
+
 @pytest.mark.parametrize("kink", [0.0, 2e-3, 0.3])
 def test_the_burr_model_with_the_design_equals_it_without(kink):
     """material_burr_block with ``reference`` (the design, or a function that makes it):
@@ -111,13 +124,7 @@ def test_the_burr_model_with_the_design_equals_it_without(kink):
     kw = dict(pixel=PIX, origin=(-0.3, 0.2), chip_thickness=0.002, coefficient=1.0, variation=0.3,
               seed=3, edge_angle_deg=1.0, smoothing=SMOOTH, width=0.006,
               border=(False, False, False, False), start=(100, 200), inner=(63, 137, 67, 167))
-    want = material_burr_block(z, **kw)
-    for ref in (design, lambda: design):      # the map, or a function that makes it
-        got = material_burr_block(z, reference=ref, **kw)
-        if want is None:
-            assert got is None
-        else:
-            assert got is not None and all(np.array_equal(a, b) for a, b in zip(got, want))
+    want = same_with_reference(z, design, **kw)
     if kink == 0.3:
         assert want is not None and want[1].any()      # a sharp edge: burrs to find
     if kink == 0.0:

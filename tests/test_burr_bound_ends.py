@@ -10,10 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from render_inspect.machining import material_burr_block, material_burrs
+from render_inspect.machining import material_burrs
 from render_inspect.machining._burr_bound import no_edge_possible
 from render_inspect.machining._burr_kernels import (_BOUND_ABS, _bound_limit, _candidates0, _candidates1,
                                                     gaussian_nearest, gaussian_weights)
+from test_burr_bound import same_with_reference
 
 PIX = 0.001
 SMOOTH = 0.004                      # 4-pixel sigma: taps reach 16 pixels
@@ -130,13 +131,7 @@ def test_the_whole_map_burrs_with_the_design_equal_them_without(kink, at, axis, 
     z, design, _ = _part(kink, at, axis)
     kw = dict(pixel=PIX, origin=(-0.3, 0.2), chip_thickness=0.002, coefficient=1.0, variation=0.3,
               seed=3, edge_angle_deg=1.0, smoothing=SMOOTH, width=0.006)
-    want = material_burr_block(z, border=border, **kw)
-    for ref in (design, lambda: design):
-        got = material_burr_block(z, reference=ref, border=border, **kw)
-        if want is None:
-            assert got is None
-        else:
-            assert got is not None and all(np.array_equal(a, b) for a, b in zip(got, want))
+    want = same_with_reference(z, design, border=border, **kw)
     if kink == 0.3:
         assert want is not None and want[1].any()       # a sharp edge: burrs to find
     if kink == 0.0:

@@ -14,7 +14,7 @@ from ..core.units import MM_TO_UM
 from ..io import atomic_write_bytes
 from ._quickplot import panels_png
 from ._savefig import figure_png
-from ..toolpath import axis_derivatives, turning_axes
+from ..toolpath import axes_derivatives, axis_derivatives, turning_axes
 from ..core.toolpath import ToolPath
 
 __all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
@@ -43,17 +43,14 @@ def moving_axes(t: np.ndarray, axes: dict, derivatives: dict | None = None) -> l
     nothing to show but rounding noise in its acceleration.  ``derivatives``, a dict,
     receives the :func:`~render_inspect.toolpath.axis_derivatives` taken (axis -> (v, a, j));
     an axis' derivatives already in it are used as they are."""
+    taken = derivatives if derivatives is not None else {}
+    # (the axes that move at all: at least 3 points, not all equal)
+    taken.update(axes_derivatives(t, {n: q for n, q in axes.items() if n not in taken}))
     out = []
-    for name, q in axes.items():
-        q = np.asarray(q, dtype=np.float64)
-        if q.size < 3 or not np.ptp(q) > 0:
+    for name in axes:
+        if name not in taken:
             continue
-        if derivatives is not None and name in derivatives:
-            v = derivatives[name][0]
-        else:
-            v, a, j = axis_derivatives(t, q)
-            if derivatives is not None:
-                derivatives[name] = (v, a, j)
+        v = taken[name][0]
         top = float(np.max(np.abs(v)))
         if top > 0 and float(np.ptp(v)) > CONSTANT_SPEED_TOL * top:
             out.append(name)
