@@ -1,7 +1,7 @@
 """Saving a figure with one draw and its ticks computed once per state
 (:func:`render_inspect.report._savefig.figure_png`) writes the bytes a plain ``savefig``
-writes: constrained layout with colour bars, rows of shared axes, logarithmic axes,
-``tight_layout``."""
+writes with the same compression level (the image of savefig's default level): constrained
+layout with colour bars, rows of shared axes, logarithmic axes, ``tight_layout``."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import io
 import numpy as np
 import pytest
 
-from render_inspect.report._savefig import figure_png, quick_ticks
+from render_inspect.report._savefig import PNG_COMPRESS_LEVEL, figure_png, quick_ticks
 
 
 def _plt():
@@ -60,11 +60,23 @@ def test_the_bytes_are_those_of_a_plain_savefig(make, tight):
     if tight:
         fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    fig.savefig(buf, format="png", pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+    plt.close(fig)
+    fig = make(plt)
+    if tight:
+        fig.tight_layout()
+    default = io.BytesIO()
+    fig.savefig(default, format="png")
     plt.close(fig)
     png = figure_png(make(plt), tight_layout=tight)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     assert png == buf.getvalue()
+    # savefig's own compression level gives other bytes but the same image
+    from PIL import Image
+
+    assert png != default.getvalue()
+    ours, theirs = (np.asarray(Image.open(io.BytesIO(b))) for b in (png, default.getvalue()))
+    assert ours.shape == theirs.shape and np.array_equal(ours, theirs)
 
 
 def test_the_axes_are_left_as_they_were():

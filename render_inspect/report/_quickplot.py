@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import atomic_write_bytes
+from ._savefig import PNG_COMPRESS_LEVEL
 
 __all__ = ["map_png", "panels_png", "CMAPS"]
 
@@ -75,7 +76,7 @@ def _font(size: int):
 
 def _png(img) -> bytes:
     buf = io.BytesIO()
-    img.save(buf, format="PNG", compress_level=3)
+    img.save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
     return buf.getvalue()
 
 

@@ -1,4 +1,4 @@
-"""Saving a matplotlib figure as PNG bytes with less work, the same bytes.
+"""Saving a matplotlib figure as PNG bytes with less work, the bytes ``savefig`` writes.
 
 Two things make a save of the report's figures slow, and both are repeated work:
 
@@ -12,6 +12,9 @@ Two things make a save of the report's figures slow, and both are repeated work:
   :func:`figure_png` remembers an axis' last ticks while nothing they depend on has
   changed (the view limits, the axes' place on the figure, the locators and
   formatters), on the figure's own axes only and only while it is being saved.
+
+The PNG is compressed at zlib level :data:`PNG_COMPRESS_LEVEL` (3), which costs about half
+of savefig's default level 6 for files a few per cent larger: the same pixels.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import io
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["figure_png", "lay_out_once", "quick_ticks"]
+__all__ = ["figure_png", "lay_out_once", "quick_ticks", "PNG_COMPRESS_LEVEL"]
 
 
 @functools.cache
@@ -128,11 +131,17 @@ def quick_ticks(fig: Any) -> Iterator[None]:
             axis.__dict__.pop("_get_ticklabel_bboxes", None)
 
 
+#: zlib level of the figures' PNG files: the quick plots' level; about half the time of
+#: savefig's default (6) for files 1-8 % larger, the same pixels
+PNG_COMPRESS_LEVEL = 3
+
+
 def figure_png(fig: Any, *, dpi: float | None = None, tight_layout: bool = False,
                close: bool = True) -> bytes:
-    """PNG bytes of ``fig`` as ``fig.savefig(buf, format="png", dpi=dpi)`` writes them
-    (``dpi=None``: savefig's default), after ``fig.tight_layout()`` when
-    ``tight_layout``; the figure is closed (``plt.close``) when ``close``."""
+    """PNG bytes of ``fig`` as ``fig.savefig(buf, format="png", dpi=dpi,
+    pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})`` writes them (``dpi=None``:
+    savefig's default), after ``fig.tight_layout()`` when ``tight_layout``; the figure
+    is closed (``plt.close``) when ``close``."""
     buf = io.BytesIO()
     try:
         with quick_ticks(fig):
@@ -140,7 +149,7 @@ def figure_png(fig: Any, *, dpi: float | None = None, tight_layout: bool = False
                 fig.tight_layout()
             lay_out_once(fig)
             kw = {} if dpi is None else {"dpi": dpi}
-            fig.savefig(buf, format="png", **kw)
+            fig.savefig(buf, format="png", pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}, **kw)
     finally:
         if close:
             import matplotlib.pyplot as plt
