@@ -235,8 +235,13 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
                  "z_slow": rz.command, "z_fts": zf_cmd}
     if not machine.coupling.none:
         dz, dy = machine.coupling.deflection(tk, rx.followed)
-        z_f = z_f + dz
-        theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), NM_TO_MM))
+        z_f += dz
+        # theta_f + dy / max(|rho_f|, 1 nm), in dy's array
+        r = np.abs(rho_f)
+        np.maximum(r, NM_TO_MM, out=r)
+        dy /= r
+        dy += theta_f
+        theta_f = np.maximum.accumulate(dy, out=dy)
     if machine.errors is not None and not machine.errors.none:
         theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e,
                                                   mask=mask)

@@ -15,7 +15,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["check_program", "pvt_velocities", "pvt_command", "linear_command"]
+__all__ = ["check_program", "pvt_velocities", "pvt_command", "pvt_checked", "linear_command"]
 
 
 def check_program(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -24,10 +24,9 @@ def check_program(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     if t.ndim != 1 or t.shape != q.shape or t.size < 2:
         raise InputError(f"t and q must be 1-D arrays of one length >= 2, received {t.shape} "
                          f"and {q.shape}")
-    dt = np.diff(t)
-    bad = np.flatnonzero(~(dt > 0))
-    if bad.size:
-        i = int(bad[0])
+    ok = np.diff(t) > 0
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
         raise InputError(f"program times must increase strictly; t[{i}] = {t[i]!r} s, "
                          f"t[{i + 1}] = {t[i + 1]!r} s")
     if not np.all(np.isfinite(q)):
@@ -81,23 +80,50 @@ def pvt_command(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
     q_c, v_c, a_c : (m,) float64 arrays
     """
     t, q = check_program(t, q)
-    v = pvt_velocities(t, q) if velocities is None else np.asarray(velocities, dtype=np.float64)
+    return pvt_checked(t, q, tk, velocities=velocities)
+
+
+def pvt_checked(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
+                velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`pvt_command` of a program that :func:`check_program` has passed (float64
+    arrays ``t``, ``q``): the point velocities, each tick's segment and the Hermite
+    segment in one compiled pass."""
+    fill = velocities is None
+    v = np.empty(t.size) if fill else np.ascontiguousarray(velocities, dtype=np.float64)
     tk = np.ascontiguousarray(tk, dtype=np.float64)
-    i = _segments(t, tk)
     pos, vel, acc = np.empty(tk.size), np.empty(tk.size), np.empty(tk.size)
-    _hermite(t, q, np.ascontiguousarray(v), tk, i, pos, vel, acc)
+    _hermite(np.ascontiguousarray(t), np.ascontiguousarray(q), v, fill, tk, pos, vel, acc)
     return pos, vel, acc
 
 
 @njit(cache=True, nogil=True)
-def _hermite(t, q, v, tk, i, pos, vel, acc):
-    """The cubic Hermite segment i[k] at each tick tk[k]: position, velocity and
+def _hermite(t, q, v, fill, tk, pos, vel, acc):
+    """The PVT command at each tick tk[k]: with ``fill``, first the point velocities
+    ``v`` (:func:`pvt_velocities`); then the tick's segment (:func:`_segments`, walked
+    forward along increasing ticks) and its cubic Hermite position, velocity and
     acceleration (one pass, the arithmetic of the array expressions it replaced, in
     their order: the same numbers to the bit)."""
+    n = t.size
+    if fill:
+        v[0] = (q[1] - q[0]) / (t[1] - t[0])
+        v[n - 1] = (q[n - 1] - q[n - 2]) / (t[n - 1] - t[n - 2])
+        for j in range(1, n - 1):
+            h1 = t[j] - t[j - 1]
+            h2 = t[j + 1] - t[j]
+            v[j] = (h2 * ((q[j] - q[j - 1]) / h1) + h1 * ((q[j + 1] - q[j]) / h2)) / (h1 + h2)
+    c = 0  # the number of program times <= the tick
     for k in range(tk.size):
-        j = i[k]
+        x = tk[k]
+        if x != x:
+            j = n - 2  # (a NaN sorts after every time)
+        else:
+            if c > 0 and t[c - 1] > x:  # (a tick before the last one)
+                c = np.searchsorted(t, x, side="right")
+            while c < n and t[c] <= x:
+                c += 1
+            j = min(max(c - 1, 0), n - 2)
         h = t[j + 1] - t[j]
-        s = (tk[k] - t[j]) / h
+        s = (x - t[j]) / h
         q0 = q[j]
         q1 = q[j + 1]
         m0 = v[j] * h
