@@ -17,7 +17,7 @@ from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
 from ._axes import follow_axis, servo_ticks, settle_time
 from ._machine import Machine
 from ._errmotion import apply_error_motions
-from ._interpolate import check_program, linear_command, pvt_command
+from ._interpolate import check_program, linear_command, pvt_checked
 
 __all__ = ["FollowedPath", "follow_turning", "following_error_stats", "window_margins",
            "mask_outside_sector"]
@@ -40,6 +40,10 @@ class FollowedPath:
     ideal : bool
         True when the program was returned unchanged (ideal machine).
     machine : Machine
+    sector_ticks : int or None
+        For a program planned in full over a sector of each revolution (``sector`` of
+        :func:`follow_turning`): the ticks in the sector, over which the Z slide and the
+        fast tool servo were followed; None otherwise.
     """
 
     t: np.ndarray
@@ -50,6 +54,7 @@ class FollowedPath:
     errors: dict
     ideal: bool
     machine: Machine
+    sector_ticks: int | None = None
 
     def following_error(self) -> dict:
         """:func:`following_error_stats` of this path."""
@@ -62,8 +67,10 @@ def following_error_stats(errors: dict) -> dict:
     out = {}
     for k, unit, scale in (("x", "nm", MM_TO_NM), ("z", "nm", MM_TO_NM), ("c", "urad", RAD_TO_URAD),
                            ("fts", "nm", MM_TO_NM)):
-        e = np.asarray(errors.get(k, np.zeros(1)), dtype=np.float64)
-        e = e[np.isfinite(e)]
+        e = np.asarray(errors.get(k, np.zeros(1)), dtype=np.float64).ravel()
+        finite = np.isfinite(e)
+        if not finite.all():  # (no copy when every value counts)
+            e = e[finite]
         out[f"{k}_rms_{unit}"] = float(np.sqrt(np.mean(e * e)) * scale) if e.size else 0.0
         out[f"{k}_max_{unit}"] = float(np.max(np.abs(e)) * scale) if e.size else 0.0
     return out
@@ -191,17 +198,26 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
         mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
         kw_z["runs"] = edges.reshape(-1, 2)
+    kws = [dict(kw), dict(kw), dict(kw_z)]
+    if machine.interpolation == "pvt":
+        # C, X and (over every tick) Z are programmed at the same times: their commands
+        # in one pass (each tick's segment and Hermite basis found once)
+        shared = [theta, rho] if sector is not None else [theta, rho, zs_prog]
+        qc, vc, ac = pvt_checked(t, np.stack(shared), tk)
+        for i in range(len(shared)):
+            kws[i]["command"] = (qc[i], vc[i], ac[i])
     # the three axes are independent (each its own program and its own noise stream):
-    # followed side by side, in threads (their interpolation, noise and servo loops
-    # leave the interpreter free), where their temporaries side by side are small; one
-    # after another on longer programs (a whole part), whose memory they would triple
-    axes = ((t, theta, machine.c, s_c, kw), (t, rho, machine.x, s_x, kw),
-            (t, zs_prog, machine.z, s_z, kw_z))
+    # followed side by side, in threads (their noise and servo loops leave the
+    # interpreter free), where their temporaries side by side are small; one after
+    # another on longer programs (a whole part), whose memory they would triple
+    axes = ((t, theta, machine.c, s_c, kws[0]), (t, rho, machine.x, s_x, kws[1]),
+            (t, zs_prog, machine.z, s_z, kws[2]))
     if tk.size <= SIDE_BY_SIDE_TICKS:
         rc, rx, rz = _side_by_side(*axes)
     else:
         rc, rx, rz = (follow_axis(a, q, ax, seed=sd, **k) for a, q, ax, sd, k in axes)
     kw = kw_z
+    theta_f = np.maximum.accumulate(rc.followed)
     if z_fts is None:
         zf_cmd = np.zeros_like(tk)
         zf = zf_cmd
@@ -210,7 +226,7 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
         if machine.fts_sync == "position":
             # the FTS evaluates its stroke table at the measured spindle angle
             th_ref = theta if fts_theta is None else np.asarray(fts_theta, dtype=np.float64)
-            th_meas = np.maximum.accumulate(rc.followed)
+            th_meas = theta_f
             # time at which the program meant that angle (tau earlier when the stroke comes
             # late), then the PVT stroke there
             t_equiv = np.interp(th_meas, th_ref, t) - tau
@@ -220,13 +236,12 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
             t_equiv = np.clip(t_equiv, t[0], t[-1])
             if mask is not None:
                 t_equiv = t_equiv[mask]
-            cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
+            cmd = pvt_checked(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)
         else:
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, **kw)
         zf_cmd, zf = rf.command, rf.followed
-    theta_f = np.maximum.accumulate(rc.followed)
     rho_f = rx.followed
     z_f = rz.followed + zf
     errors = {"c": rc.error, "x": rx.error, "z": rz.error,
@@ -245,4 +260,5 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     if machine.errors is not None and not machine.errors.none:
         theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e,
                                                   mask=mask)
-    return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)
+    return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine,
+                        None if mask is None else int(np.count_nonzero(mask)))

@@ -87,30 +87,40 @@ def pvt_checked(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
                 velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`pvt_command` of a program that :func:`check_program` has passed (float64
     arrays ``t``, ``q``): the point velocities, each tick's segment and the Hermite
-    segment in one compiled pass."""
+    segment in one compiled pass.  ``q`` (and ``velocities``) may be (k, n): k axes
+    programmed at the same times, their commands (k, m) rows (each row the numbers of
+    its axis alone: the segment and the Hermite basis at a tick are shared)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    rows = q.reshape(-1, q.shape[-1])
     fill = velocities is None
-    v = np.empty(t.size) if fill else np.ascontiguousarray(velocities, dtype=np.float64)
+    v = np.empty(rows.shape) if fill else \
+        np.ascontiguousarray(velocities, dtype=np.float64).reshape(rows.shape)
     tk = np.ascontiguousarray(tk, dtype=np.float64)
-    pos, vel, acc = np.empty(tk.size), np.empty(tk.size), np.empty(tk.size)
-    _hermite(np.ascontiguousarray(t), np.ascontiguousarray(q), v, fill, tk, pos, vel, acc)
+    pos, vel, acc = (np.empty((rows.shape[0], tk.size)) for _ in range(3))
+    _hermite(np.ascontiguousarray(t), rows, v, fill, tk, pos, vel, acc)
+    if q.ndim == 1:
+        return pos[0], vel[0], acc[0]
     return pos, vel, acc
 
 
 @njit(cache=True, nogil=True)
 def _hermite(t, q, v, fill, tk, pos, vel, acc):
-    """The PVT command at each tick tk[k]: with ``fill``, first the point velocities
-    ``v`` (:func:`pvt_velocities`); then the tick's segment (:func:`_segments`, walked
-    forward along increasing ticks) and its cubic Hermite position, velocity and
-    acceleration (one pass, the arithmetic of the array expressions it replaced, in
-    their order: the same numbers to the bit)."""
+    """The PVT command of each axis (row of ``q``) at each tick tk[k]: with ``fill``,
+    first the point velocities ``v`` (:func:`pvt_velocities`); then the tick's segment
+    (:func:`_segments`, walked forward along increasing ticks) and its cubic Hermite
+    position, velocity and acceleration (one pass, the arithmetic of the array
+    expressions it replaced, in their order: the same numbers to the bit)."""
     n = t.size
+    na = q.shape[0]
     if fill:
-        v[0] = (q[1] - q[0]) / (t[1] - t[0])
-        v[n - 1] = (q[n - 1] - q[n - 2]) / (t[n - 1] - t[n - 2])
-        for j in range(1, n - 1):
-            h1 = t[j] - t[j - 1]
-            h2 = t[j + 1] - t[j]
-            v[j] = (h2 * ((q[j] - q[j - 1]) / h1) + h1 * ((q[j + 1] - q[j]) / h2)) / (h1 + h2)
+        for r in range(na):
+            v[r, 0] = (q[r, 1] - q[r, 0]) / (t[1] - t[0])
+            v[r, n - 1] = (q[r, n - 1] - q[r, n - 2]) / (t[n - 1] - t[n - 2])
+            for j in range(1, n - 1):
+                h1 = t[j] - t[j - 1]
+                h2 = t[j + 1] - t[j]
+                v[r, j] = (h2 * ((q[r, j] - q[r, j - 1]) / h1)
+                           + h1 * ((q[r, j + 1] - q[r, j]) / h2)) / (h1 + h2)
     c = 0  # the number of program times <= the tick
     for k in range(tk.size):
         x = tk[k]
@@ -123,19 +133,31 @@ def _hermite(t, q, v, fill, tk, pos, vel, acc):
                 c += 1
             j = min(max(c - 1, 0), n - 2)
         h = t[j + 1] - t[j]
+        hh = h * h
         s = (x - t[j]) / h
-        q0 = q[j]
-        q1 = q[j + 1]
-        m0 = v[j] * h
-        m1 = v[j + 1] * h
         s2 = s * s
         s3 = s2 * s
-        pos[k] = ((2 * s3 - 3 * s2 + 1) * q0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * q1
-                  + (s3 - s2) * m1)
-        vel[k] = ((6 * s2 - 6 * s) * q0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * q1
-                  + (3 * s2 - 2 * s) * m1) / h
-        acc[k] = ((12 * s - 6) * q0 + (6 * s - 4) * m0 + (-12 * s + 6) * q1
-                  + (6 * s - 2) * m1) / (h * h)
+        # the Hermite basis and its derivatives (each the expression of the formula)
+        p0 = 2 * s3 - 3 * s2 + 1
+        p1 = s3 - 2 * s2 + s
+        p2 = -2 * s3 + 3 * s2
+        p3 = s3 - s2
+        d0 = 6 * s2 - 6 * s
+        d1 = 3 * s2 - 4 * s + 1
+        d2 = -6 * s2 + 6 * s
+        d3 = 3 * s2 - 2 * s
+        a0 = 12 * s - 6
+        a1 = 6 * s - 4
+        a2 = -12 * s + 6
+        a3 = 6 * s - 2
+        for r in range(na):
+            q0 = q[r, j]
+            q1 = q[r, j + 1]
+            m0 = v[r, j] * h
+            m1 = v[r, j + 1] * h
+            pos[r, k] = p0 * q0 + p1 * m0 + p2 * q1 + p3 * m1
+            vel[r, k] = (d0 * q0 + d1 * m0 + d2 * q1 + d3 * m1) / h
+            acc[r, k] = (a0 * q0 + a1 * m0 + a2 * q1 + a3 * m1) / hh
 
 
 def linear_command(t: np.ndarray, q: np.ndarray,
