@@ -203,9 +203,10 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
         # C, X and (over every tick) Z are programmed at the same times: their commands
         # in one pass (each tick's segment and Hermite basis found once)
         shared = [theta, rho] if sector is not None else [theta, rho, zs_prog]
-        qc, vc, ac = pvt_checked(t, np.stack(shared), tk)
+        cq, cv, ca = pvt_checked(t, np.stack(shared), tk)
         for i in range(len(shared)):
-            kws[i]["command"] = (qc[i], vc[i], ac[i])
+            kws[i]["command"] = (cq[i], cv[i], ca[i])
+        del cq, cv, ca
     # the three axes are independent (each its own program and its own noise stream):
     # followed side by side, in threads (their noise and servo loops leave the
     # interpreter free), where their temporaries side by side are small; one after
@@ -216,6 +217,7 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
         rc, rx, rz = _side_by_side(*axes)
     else:
         rc, rx, rz = (follow_axis(a, q, ax, seed=sd, **k) for a, q, ax, sd, k in axes)
+    del axes, kws
     kw = kw_z
     theta_f = np.maximum.accumulate(rc.followed)
     if z_fts is None:
@@ -239,17 +241,22 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
             cmd = pvt_checked(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)
+            del cmd, t_equiv
         else:
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, **kw)
         zf_cmd, zf = rf.command, rf.followed
+        del rf  # (its velocity and acceleration are not kept)
     rho_f = rx.followed
     z_f = rz.followed + zf
     errors = {"c": rc.error, "x": rx.error, "z": rz.error,
               "fts": (zf_cmd - zf) if z_fts is not None else np.zeros_like(tk)}
     commanded = {"theta": rc.command, "rho": rx.command, "z": rz.command + zf_cmd,
                  "z_slow": rz.command, "z_fts": zf_cmd}
+    # (the axes' command velocities and accelerations are not kept: their memory is free
+    # for the error motions)
+    del rc, rx, rz, zf
     if not machine.coupling.none:
-        dz, dy = machine.coupling.deflection(tk, rx.followed)
+        dz, dy = machine.coupling.deflection(tk, rho_f)
         z_f += dz
         # theta_f + dy / max(|rho_f|, 1 nm), in dy's array
         r = np.abs(rho_f)
