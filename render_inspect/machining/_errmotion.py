@@ -238,8 +238,17 @@ def apply_error_motions(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np
     # (in the offsets' own arrays: the sums are those of rho + e_x, theta + atan2, z + e_z)
     xr = off["x"]
     xr += np.asarray(rho, dtype=np.float64)
-    rho2 = np.hypot(xr, off["y"])
-    th2 = np.arctan2(off["y"], xr, out=off["y"])
+    if not any(d == "y" for _, _, d, _ in errors.vibration) and np.isfinite(xr).all():
+        # no displacement along Y (e_y = +0 at every tick): hypot(x, +0) = |x| and
+        # atan2(+0, x) = +0 (x >= +0) or +pi (x <= -0) exactly (C99 Annex F), for finite x
+        rho2 = np.abs(xr)
+        th2 = off["y"]
+        behind = np.signbit(xr)
+        if behind.any():
+            th2[behind] = np.pi
+    else:
+        rho2 = np.hypot(xr, off["y"])
+        th2 = np.arctan2(off["y"], xr, out=off["y"])
     th2 += np.asarray(theta, dtype=np.float64)
     np.maximum.accumulate(th2, out=th2)
     z2 = off["z"]

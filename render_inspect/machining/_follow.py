@@ -102,7 +102,8 @@ def mask_outside_sector(theta: np.ndarray, errors: dict,
     lies outside the angular sector ``sector_rad`` (a0, a1): the following errors of a
     windowed plan are those of the passes over the window."""
     a0, a1 = float(sector_rad[0]), float(sector_rad[1])
-    out = np.mod(np.asarray(theta, dtype=np.float64) - a0, 2 * np.pi) > (a1 - a0)
+    d = np.asarray(theta, dtype=np.float64) - a0
+    out = np.mod(d, 2 * np.pi, out=d) > (a1 - a0)
     return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
 
 

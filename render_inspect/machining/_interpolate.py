@@ -114,13 +114,18 @@ def _hermite(t, q, v, fill, tk, pos, vel, acc):
     na = q.shape[0]
     if fill:
         for r in range(na):
-            v[r, 0] = (q[r, 1] - q[r, 0]) / (t[1] - t[0])
-            v[r, n - 1] = (q[r, n - 1] - q[r, n - 2]) / (t[n - 1] - t[n - 2])
+            # (each segment's step and slope computed once: a point's right-hand ones
+            # are the next point's left-hand ones, the same numbers)
+            h1 = t[1] - t[0]
+            sl = (q[r, 1] - q[r, 0]) / h1
+            v[r, 0] = sl
             for j in range(1, n - 1):
-                h1 = t[j] - t[j - 1]
                 h2 = t[j + 1] - t[j]
-                v[r, j] = (h2 * ((q[r, j] - q[r, j - 1]) / h1)
-                           + h1 * ((q[r, j + 1] - q[r, j]) / h2)) / (h1 + h2)
+                sr = (q[r, j + 1] - q[r, j]) / h2
+                v[r, j] = (h2 * sl + h1 * sr) / (h1 + h2)
+                h1 = h2
+                sl = sr
+            v[r, n - 1] = sl
     c = 0  # the number of program times <= the tick
     for k in range(tk.size):
         x = tk[k]
