@@ -205,7 +205,8 @@ class Coupling:
         dt = float(t[1] - t[0])
         # (in place, the operations of (x[2:] - 2 x[1:-1] + x[:-2]) / dt^2 * m and of the
         # products below, in their order)
-        a = np.zeros_like(x)
+        a = np.empty_like(x)
+        a[0] = a[-1] = 0.0
         mid = a[1:-1]
         np.multiply(2, x[1:-1], out=mid)
         np.subtract(x[2:], mid, out=mid)

@@ -177,7 +177,7 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     if rho.shape != t.shape or z.shape != t.shape:
         raise InputError(f"theta, rho, z and t must have one length, received {theta.shape}, "
                          f"{rho.shape}, {z.shape}, {t.shape}")
-    zf_prog = np.zeros_like(z) if z_fts is None else np.asarray(z_fts, dtype=np.float64)
+    zf_prog = np.zeros(z.shape) if z_fts is None else np.asarray(z_fts, dtype=np.float64)
     if zf_prog.shape != z.shape:
         raise InputError(f"z_fts must have the path's length {z.size}, received {zf_prog.shape}")
     zs_prog = z - zf_prog
@@ -222,8 +222,8 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     kw = kw_z
     theta_f = np.maximum.accumulate(rc.followed)
     if z_fts is None:
-        zf_cmd = np.zeros_like(tk)
-        zf = zf_cmd
+        zf_cmd = np.zeros(tk.size)
+        zf: np.ndarray | float = 0.0  # (the FTS's share: +0 at every tick, as a scalar)
     else:
         tau = float(machine.fts_sync_delay_s)
         if machine.fts_sync == "position":
@@ -250,8 +250,9 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     rho_f = rx.followed
     z_f = rz.followed + zf
     errors = {"c": rc.error, "x": rx.error, "z": rz.error,
-              "fts": (zf_cmd - zf) if z_fts is not None else np.zeros_like(tk)}
-    commanded = {"theta": rc.command, "rho": rx.command, "z": rz.command + zf_cmd,
+              "fts": (zf_cmd - zf) if z_fts is not None else np.zeros(tk.size)}
+    commanded = {"theta": rc.command, "rho": rx.command,
+                 "z": rz.command + (zf_cmd if z_fts is not None else 0.0),
                  "z_slow": rz.command, "z_fts": zf_cmd}
     # (the axes' command velocities and accelerations are not kept: their memory is free
     # for the error motions)
