@@ -119,3 +119,30 @@ def test_error_motion_input_is_checked():
     with pytest.raises(InputError, match="unknown machine.errors setting"):
         ErrorMotions().with_overrides({"radial": 1})
     assert ErrorMotions().none and not ErrorMotions(axial_async_rms=1e-6).none
+
+
+def test_error_motions_move_the_tool_by_hypot_and_atan2_to_the_bit():
+    """The tool's radius and angle after the error motions are hypot(X + e_x, e_y) and
+    C + atan2(e_y, X + e_x) (non-decreasing) bit for bit, with and without a displacement
+    along Y, on a path whose X crosses the spindle axis (negative radii, -0)."""
+    from render_inspect.machining._errmotion import apply_error_motions
+
+    t = np.arange(4000) / 5000.0
+    theta = 2 * np.pi * 20 * t
+    rho = np.linspace(0.002, -0.002, t.size)
+    rho[1000] = -0.0
+    z = 1e-3 * np.sin(theta)
+    base = dict(radial_sync=((2, 5e-6, 0.3),), radial_async_rms=1e-6, axial_sync=((3, 2e-6, 2.0),),
+                x_straightness_rms=5e-5, vibration=((40.0, 1e-6, "z"),))
+    for vib in ((), ((130.0, 2e-6, "y", 0.2),)):
+        errors = ErrorMotions(**{**base, "vibration": base["vibration"] + vib})
+        for mask in (None, np.arange(t.size) % 3 != 0):
+            th2, rho2, z2 = apply_error_motions(t, theta, rho, z, errors, seed=4, mask=mask)
+            off = error_motion_offsets(t, theta, rho, errors, seed=4, mask=mask)
+            xr = rho + off["x"]
+            assert (np.any(off["y"] != 0)) == bool(vib)
+            assert np.any(np.signbit(xr)) and np.any(~np.signbit(xr))
+            assert np.array_equal(rho2.view(np.uint64), np.hypot(xr, off["y"]).view(np.uint64))
+            ref = np.maximum.accumulate(theta + np.arctan2(off["y"], xr))
+            assert np.array_equal(th2.view(np.uint64), ref.view(np.uint64))
+            assert np.array_equal(z2, z + off["z"])

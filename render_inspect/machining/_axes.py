@@ -85,7 +85,7 @@ from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_M, NM_TO_MM
 from ._errmotion import ErrorMotions
 from ._iir import bilinear_sos, sosfilt
-from ._interpolate import check_program, linear_command, pvt_command
+from ._interpolate import check_program, linear_command, pvt_checked
 
 __all__ = ["Axis", "Coupling", "Machine", "AxisResponse", "follow_axis", "second_order_sos",
            "servo_ticks", "loop_lag", "loop_response", "force_noise_rms", "settle_time",
@@ -203,13 +203,24 @@ class Coupling:
         if self.none or t.size < 3:
             return np.zeros_like(t), np.zeros_like(t)
         dt = float(t[1] - t[0])
-        a = np.zeros_like(x)
-        a[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]) / (dt * dt)           # mm/s^2
-        force = self.mass_kg * a * MM_TO_M                               # N
+        # (in place, the operations of (x[2:] - 2 x[1:-1] + x[:-2]) / dt^2 * m and of the
+        # products below, in their order)
+        a = np.empty_like(x)
+        a[0] = a[-1] = 0.0
+        mid = a[1:-1]
+        np.multiply(2, x[1:-1], out=mid)
+        np.subtract(x[2:], mid, out=mid)
+        mid += x[:-2]
+        mid /= dt * dt                                                   # mm/s^2
+        a *= self.mass_kg
+        a *= MM_TO_M                                                     # N
         sos = second_order_sos(self.mode_hz, self.mode_damping, dt)
-        shaped = sosfilt(sos, force)
-        return (shaped * self.z_compliance_nm_per_n * NM_TO_MM,
-                shaped * self.y_compliance_nm_per_n * NM_TO_MM)
+        shaped = sosfilt(sos, a, overwrite_x=True)
+        dz = shaped * self.z_compliance_nm_per_n
+        dz *= NM_TO_MM
+        shaped *= self.y_compliance_nm_per_n
+        shaped *= NM_TO_MM
+        return dz, shaped
 
 
 def second_order_sos(fn: float, zeta: float, dt: float) -> np.ndarray:
@@ -319,47 +330,65 @@ def _discrete_loop(wn: float, zeta: float, dt: float):
 
 
 @njit(cache=True, nogil=True)
-def _track(pos, v_step, a_step, jump, ff_step, v_start, v_end, dist, phi, gam, wn, zeta, kv,
-           amax, vmax, dt, e0, de0, out):
-    """Following error at each tick of the loop described in the module docstring.
+def _track(qc, vc, dist, linear, phi, gam, wn, zeta, ka, kv, amax, vmax, dt, e0, de0, out):
+    """Followed position ``qc - e`` at each tick of the loop described in the module
+    docstring (e the following error).
 
-    Step k (tick k to k + 1): the command's velocity jumps by ``jump[k]`` at the tick
-    (straight moves), then moves with mean velocity ``v_step[k]`` and mean acceleration
-    ``a_step[k]``; the drive feeds forward ``ff_step[k]`` (already clipped to its limit).
-    ``v_start`` / ``v_end`` are the command's velocities just after tick k and just before
-    tick k + 1."""
+    Step k (tick k to k + 1): the command's velocity jumps by ``jump`` at the tick
+    (straight moves, ``linear``: the change of the step's mean velocity), then moves with
+    mean velocity ``v`` (the step's chord) and mean acceleration ``a`` (the change of the
+    command's velocity ``vc`` over the step; none for straight moves); the drive feeds
+    forward ``ka`` times the acceleration (the velocity step over the tick for straight
+    moves), clipped to its limit.  ``v_start`` / ``v_end`` are the command's velocities
+    just after tick k and just before tick k + 1."""
     e = e0
     de = de0
     c1 = 2.0 * zeta * wn
-    n = pos.size
-    out[0] = e
+    n = qc.size
+    out[0] = qc[0] - e
+    v_prev = 0.0
     for k in range(n - 1):
-        de += jump[k]
-        v = v_step[k]
-        a = a_step[k]
-        ff = ff_step[k]
+        v = (qc[k + 1] - qc[k]) / dt
+        if linear:
+            jump = v - v_prev if k > 0 else 0.0
+            a = 0.0
+            ff = ka * jump / dt
+            v_start = v
+            v_end = v
+        else:
+            jump = 0.0
+            a = (vc[k + 1] - vc[k]) / dt
+            ff = ka * a
+            v_start = vc[k]
+            v_end = vc[k + 1]
+        v_prev = v
+        if ff < -amax:
+            ff = -amax
+        elif ff > amax:
+            ff = amax
+        de += jump
         u = ff + wn * wn * e + c1 * (kv * v - v + de)
         if abs(u) > amax:
             # saturated: the axis itself moves at the limit (integrated in its own
             # coordinates)
             us = (amax if u > 0 else -amax) + dist[k]
-            x = pos[k] - e
-            xd = v_start[k] - de
+            x = qc[k] - e
+            xd = v_start - de
             x = x + xd * dt + 0.5 * us * dt * dt
             xd = xd + us * dt
-            e = pos[k + 1] - x
-            de = v_end[k] - xd
+            e = qc[k + 1] - x
+            de = v_end - xd
         else:
             f = a - ff + c1 * (1.0 - kv) * v - dist[k]
             e1 = phi[0, 0] * e + phi[0, 1] * de + gam[0] * f
             de = phi[1, 0] * e + phi[1, 1] * de + gam[1] * f
             e = e1
-        w = v_end[k] - de
+        w = v_end - de
         if w > vmax:
-            de = v_end[k] - vmax
+            de = v_end - vmax
         elif w < -vmax:
-            de = v_end[k] + vmax
-        out[k + 1] = e
+            de = v_end + vmax
+        out[k + 1] = qc[k + 1] - e
 
 
 def _noise_scale(phi, gam, target_rms: float) -> float:
@@ -379,7 +408,10 @@ def servo_ticks(t0: float, t1: float, rate_hz: float) -> np.ndarray:
         raise InputError(f"the program lasts {t1 - t0:.4g} s: {n} servo ticks at {rate_hz:g} Hz "
                          f"(> {_MAX_TICKS}); shorten the path (simulation.region) or lower "
                          "machine.servo_rate_hz")
-    return t0 + np.arange(max(n, 2)) / rate_hz
+    tk = np.arange(max(n, 2), dtype=np.float64)
+    tk /= rate_hz
+    tk += t0
+    return tk
 
 
 def follow_axis(t: np.ndarray, q: np.ndarray, axis: Axis, *, rate_hz: float,
@@ -426,7 +458,7 @@ def follow_axis(t: np.ndarray, q: np.ndarray, axis: Axis, *, rate_hz: float,
             mask[a:b] = True
     tr = tk if mask is None else tk[mask]
     if command is None:
-        command = (pvt_command if interpolation == "pvt" else linear_command)(t, q, tr)
+        command = (pvt_checked if interpolation == "pvt" else linear_command)(t, q, tr)
     qc, vc, ac = (np.ascontiguousarray(a, dtype=np.float64) for a in command)
     if axis.bandwidth_hz is None:
         followed = qc.copy()
@@ -438,17 +470,17 @@ def follow_axis(t: np.ndarray, q: np.ndarray, axis: Axis, *, rate_hz: float,
             dist = np.random.default_rng(seed).normal(0.0, sd, size=tk.size)
         else:
             dist = np.zeros(tk.size)
+        followed = np.empty_like(qc)
         if mask is None:
-            followed = qc - _run_errors(qc, vc, tk, dist, axis, phi, gam, rate_hz, interpolation)
+            _run_followed(qc, vc, tk, dist, axis, phi, gam, rate_hz, interpolation, followed)
         else:
-            followed = np.empty_like(qc)
             dist = dist[mask]
             # the runs in the compressed arrays: where the tick index jumps
             cut = np.flatnonzero(np.diff(np.flatnonzero(mask)) > 1) + 1
             for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [qc.size]])):
                 sl = slice(int(a), int(b))
-                followed[sl] = qc[sl] - _run_errors(qc[sl], vc[sl], tr[sl], dist[sl], axis, phi,
-                                                    gam, rate_hz, interpolation)
+                _run_followed(qc[sl], vc[sl], tr[sl], dist[sl], axis, phi, gam, rate_hz,
+                              interpolation, followed[sl])
     if mask is not None:  # back onto every tick: the program itself outside the runs
         q_all = np.interp(tk, t, q)
         v_all, a_all = np.zeros(tk.size), np.zeros(tk.size)
@@ -462,12 +494,14 @@ def follow_axis(t: np.ndarray, q: np.ndarray, axis: Axis, *, rate_hz: float,
     return AxisResponse(tk, qc, followed, vc, ac)
 
 
-def _run_errors(qc, vc, tk, dist, axis: Axis, phi, gam, rate_hz: float,
-                interpolation: str) -> np.ndarray:
-    """Following error at the ticks ``tk`` of one run of the loop, started in the steady
-    state of the mean velocity over its first 1 / fn."""
+def _run_followed(qc, vc, tk, dist, axis: Axis, phi, gam, rate_hz: float,
+                  interpolation: str, out: np.ndarray) -> None:
+    """Followed position (``qc`` less the following error) at the ticks ``tk`` of one run
+    of the loop into ``out``, started in the steady state of the mean velocity over its
+    first 1 / fn."""
     if qc.size < 2:
-        return np.zeros(qc.size)
+        np.subtract(qc, np.zeros(qc.size), out=out)
+        return
     assert axis.bandwidth_hz is not None  # an ideal axis has no loop to run
     dt = 1.0 / float(rate_hz)
     wn = TWO_PI * float(axis.bandwidth_hz)
@@ -478,22 +512,8 @@ def _run_errors(qc, vc, tk, dist, axis: Axis, phi, gam, rate_hz: float,
     n0 = max(1, min(qc.size - 1, int(rate_hz / float(axis.bandwidth_hz))))
     v0 = (qc[n0] - qc[0]) / (tk[n0] - tk[0]) if qc.size > 1 else 0.0
     f0 = 2 * zeta * wn * (1.0 - kv) * v0
-    err = np.empty(qc.size)
     amax = 1e300 if axis.acceleration_limit is None else float(axis.acceleration_limit)
     vmax = 1e300 if axis.velocity_limit is None else float(axis.velocity_limit)
-    v_step = np.diff(qc) / dt
-    if interpolation == "linear":
-        # straight moves: constant velocity inside each step, steps at the ticks
-        a_step = np.zeros_like(v_step)
-        jump = np.concatenate([[0.0], np.diff(v_step)])
-        ff = np.clip(ka * jump / dt, -amax, amax)
-        v_start = v_end = v_step
-    else:
-        a_step = np.diff(vc) / dt
-        jump = np.zeros_like(v_step)
-        ff = np.clip(ka * a_step, -amax, amax)
-        v_start, v_end = vc[:-1], vc[1:]
-    _track(qc, v_step, a_step, jump, ff, np.ascontiguousarray(v_start),
-           np.ascontiguousarray(v_end), np.ascontiguousarray(dist), phi, gam, wn, zeta, kv,
-           amax, vmax, dt, f0 / (wn * wn), 0.0, err)
-    return err
+    _track(np.ascontiguousarray(qc), np.ascontiguousarray(vc), np.ascontiguousarray(dist),
+           interpolation == "linear", phi, gam, wn, zeta, ka, kv, amax, vmax, dt,
+           float(f0 / (wn * wn)), 0.0, out)

@@ -120,11 +120,13 @@ def _band_noise(n: int, rate_hz: float, bandwidth_hz: float, rms: float, rng) ->
     w = rng.normal(size=n)
     wc = min(bandwidth_hz / (0.5 * rate_hz), 0.99)
     sos = butter2_sos(wc)    # (scipy.signal.butter and sosfilt, to the last bit)
-    y = sosfilt(sos, w)
+    y = sosfilt(sos, w, overwrite_x=True)
     # drop the filter's start-up by scaling on the settled part
     settle = min(n // 2, int(5 * rate_hz / bandwidth_hz) + 1)
     s = np.std(y[settle:]) if n - settle > 10 else np.std(y)
-    return y * (rms / s) if s > 0 else y
+    if s > 0:
+        y *= rms / s
+    return y
 
 
 def _straightness(x, rms: float, length: float, rng, modes: int = 64, *, at=None) -> np.ndarray:
@@ -146,7 +148,9 @@ def _straightness(x, rms: float, length: float, rng, modes: int = 64, *, at=None
     if n < x.size:
         xs = np.linspace(lo, hi, max(n, 2))
         prof = rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(xs, k) + ph).sum(axis=-1)
-        return np.interp(x if at is None else at, xs, prof) - s0
+        out = np.interp(x if at is None else at, xs, prof)
+        out -= s0
+        return out
     if at is not None:  # (rows of the outer product are independent: the same numbers)
         x = np.asarray(at, dtype=np.float64)
     return rms * math.sqrt(2.0 / modes) * np.cos(np.multiply.outer(x, k) + ph).sum(axis=-1) - s0
@@ -182,19 +186,30 @@ def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, erro
     ex = np.zeros(m)
     ey = np.zeros(m)
     ez = np.zeros(m)
-    for h, a, p in errors.radial_sync:
-        ex += a * np.cos(h * th + p)
-    for h, a, p in errors.axial_sync:
-        ez += a * np.cos(h * th + p)
-    for h, a, p in errors.tilt_sync:
-        ez += rr * a * np.cos(h * th + p)
+    # each term is made in one buffer, in place (the same operations, in the same order,
+    # as ``a * np.cos(h * th + p)``)
+    term = np.empty(m)
+    for target, terms, scale in ((ex, errors.radial_sync, None), (ez, errors.axial_sync, None),
+                                 (ez, errors.tilt_sync, rr)):
+        for h, a, p in terms:
+            np.multiply(h, th, out=term)
+            term += p
+            np.cos(term, out=term)
+            if scale is None:
+                term *= a
+            else:  # rr * a * cos(...)
+                term *= scale * a
+            target += term
     ex += _band_noise(n, rate, errors.async_bandwidth_hz, errors.radial_async_rms, rngs[0])[sel]
     ez += _band_noise(n, rate, errors.async_bandwidth_hz, errors.axial_async_rms, rngs[1])[sel]
     ez += _straightness(rho, errors.x_straightness_rms, errors.x_straightness_length, rngs[2],
                         at=None if mask is None else rr)
-    for f, a, d, p in errors.vibration:
-        v = a * np.sin(TWO_PI * f * tt + p)
-        {"x": ex, "y": ey, "z": ez}[d][:] += v
+    for f, a, d, p in errors.vibration:  # a * sin(2 pi f t + p)
+        np.multiply(TWO_PI * f, tt, out=term)
+        term += p
+        np.sin(term, out=term)
+        term *= a
+        {"x": ex, "y": ey, "z": ez}[d][:] += term
     if mask is None:
         return {"x": ex, "y": ey, "z": ez}
     out = {}
@@ -220,8 +235,22 @@ def apply_error_motions(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np
     theta, rho, z : (m,) float64 arrays
     """
     off = error_motion_offsets(t, theta, rho, errors, seed=seed, mask=mask)
-    xr = np.asarray(rho, dtype=np.float64) + off["x"]
-    rho2 = np.hypot(xr, off["y"])
-    th2 = np.asarray(theta, dtype=np.float64) + np.arctan2(off["y"], xr)
-    th2 = np.maximum.accumulate(th2)
-    return th2, rho2, np.asarray(z, dtype=np.float64) + off["z"]
+    # (in the offsets' own arrays: the sums are those of rho + e_x, theta + atan2, z + e_z)
+    xr = off["x"]
+    xr += np.asarray(rho, dtype=np.float64)
+    if not any(d == "y" for _, _, d, _ in errors.vibration) and np.isfinite(xr).all():
+        # no displacement along Y (e_y = +0 at every tick): hypot(x, +0) = |x| and
+        # atan2(+0, x) = +0 (x >= +0) or +pi (x <= -0) exactly (C99 Annex F), for finite x
+        rho2 = np.abs(xr)
+        th2 = off["y"]
+        behind = np.signbit(xr)
+        if behind.any():
+            th2[behind] = np.pi
+    else:
+        rho2 = np.hypot(xr, off["y"])
+        th2 = np.arctan2(off["y"], xr, out=off["y"])
+    th2 += np.asarray(theta, dtype=np.float64)
+    np.maximum.accumulate(th2, out=th2)
+    z2 = off["z"]
+    z2 += np.asarray(z, dtype=np.float64)
+    return th2, rho2, z2

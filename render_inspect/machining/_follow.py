@@ -17,7 +17,7 @@ from ..core.units import MM_TO_NM, NM_TO_MM, RAD_TO_URAD
 from ._axes import follow_axis, servo_ticks, settle_time
 from ._machine import Machine
 from ._errmotion import apply_error_motions
-from ._interpolate import check_program, linear_command, pvt_command
+from ._interpolate import check_program, linear_command, pvt_checked
 
 __all__ = ["FollowedPath", "follow_turning", "following_error_stats", "window_margins",
            "mask_outside_sector"]
@@ -40,6 +40,10 @@ class FollowedPath:
     ideal : bool
         True when the program was returned unchanged (ideal machine).
     machine : Machine
+    sector_ticks : int or None
+        For a program planned in full over a sector of each revolution (``sector`` of
+        :func:`follow_turning`): the ticks in the sector, over which the Z slide and the
+        fast tool servo were followed; None otherwise.
     """
 
     t: np.ndarray
@@ -50,6 +54,7 @@ class FollowedPath:
     errors: dict
     ideal: bool
     machine: Machine
+    sector_ticks: int | None = None
 
     def following_error(self) -> dict:
         """:func:`following_error_stats` of this path."""
@@ -62,8 +67,10 @@ def following_error_stats(errors: dict) -> dict:
     out = {}
     for k, unit, scale in (("x", "nm", MM_TO_NM), ("z", "nm", MM_TO_NM), ("c", "urad", RAD_TO_URAD),
                            ("fts", "nm", MM_TO_NM)):
-        e = np.asarray(errors.get(k, np.zeros(1)), dtype=np.float64)
-        e = e[np.isfinite(e)]
+        e = np.asarray(errors.get(k, np.zeros(1)), dtype=np.float64).ravel()
+        finite = np.isfinite(e)
+        if not finite.all():  # (no copy when every value counts)
+            e = e[finite]
         out[f"{k}_rms_{unit}"] = float(np.sqrt(np.mean(e * e)) * scale) if e.size else 0.0
         out[f"{k}_max_{unit}"] = float(np.max(np.abs(e)) * scale) if e.size else 0.0
     return out
@@ -95,7 +102,8 @@ def mask_outside_sector(theta: np.ndarray, errors: dict,
     lies outside the angular sector ``sector_rad`` (a0, a1): the following errors of a
     windowed plan are those of the passes over the window."""
     a0, a1 = float(sector_rad[0]), float(sector_rad[1])
-    out = np.mod(np.asarray(theta, dtype=np.float64) - a0, 2 * np.pi) > (a1 - a0)
+    d = np.asarray(theta, dtype=np.float64) - a0
+    out = np.mod(d, 2 * np.pi, out=d) > (a1 - a0)
     return {k: np.where(out, np.nan, np.asarray(v, dtype=np.float64)) for k, v in errors.items()}
 
 
@@ -169,7 +177,7 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
     if rho.shape != t.shape or z.shape != t.shape:
         raise InputError(f"theta, rho, z and t must have one length, received {theta.shape}, "
                          f"{rho.shape}, {z.shape}, {t.shape}")
-    zf_prog = np.zeros_like(z) if z_fts is None else np.asarray(z_fts, dtype=np.float64)
+    zf_prog = np.zeros(z.shape) if z_fts is None else np.asarray(z_fts, dtype=np.float64)
     if zf_prog.shape != z.shape:
         raise InputError(f"z_fts must have the path's length {z.size}, received {zf_prog.shape}")
     zs_prog = z - zf_prog
@@ -191,26 +199,37 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
         mask = np.mod(th_k - float(sector[0]), 2 * np.pi) <= float(sector[1])
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.view(np.int8), [0]])))
         kw_z["runs"] = edges.reshape(-1, 2)
+    kws = [dict(kw), dict(kw), dict(kw_z)]
+    if machine.interpolation == "pvt":
+        # C, X and (over every tick) Z are programmed at the same times: their commands
+        # in one pass (each tick's segment and Hermite basis found once)
+        shared = [theta, rho] if sector is not None else [theta, rho, zs_prog]
+        cq, cv, ca = pvt_checked(t, np.stack(shared), tk)
+        for i in range(len(shared)):
+            kws[i]["command"] = (cq[i], cv[i], ca[i])
+        del cq, cv, ca
     # the three axes are independent (each its own program and its own noise stream):
-    # followed side by side, in threads (their interpolation, noise and servo loops
-    # leave the interpreter free), where their temporaries side by side are small; one
-    # after another on longer programs (a whole part), whose memory they would triple
-    axes = ((t, theta, machine.c, s_c, kw), (t, rho, machine.x, s_x, kw),
-            (t, zs_prog, machine.z, s_z, kw_z))
+    # followed side by side, in threads (their noise and servo loops leave the
+    # interpreter free), where their temporaries side by side are small; one after
+    # another on longer programs (a whole part), whose memory they would triple
+    axes = ((t, theta, machine.c, s_c, kws[0]), (t, rho, machine.x, s_x, kws[1]),
+            (t, zs_prog, machine.z, s_z, kws[2]))
     if tk.size <= SIDE_BY_SIDE_TICKS:
         rc, rx, rz = _side_by_side(*axes)
     else:
         rc, rx, rz = (follow_axis(a, q, ax, seed=sd, **k) for a, q, ax, sd, k in axes)
+    del axes, kws
     kw = kw_z
+    theta_f = np.maximum.accumulate(rc.followed)
     if z_fts is None:
-        zf_cmd = np.zeros_like(tk)
-        zf = zf_cmd
+        zf_cmd = np.zeros(tk.size)
+        zf: np.ndarray | float = 0.0  # (the FTS's share: +0 at every tick, as a scalar)
     else:
         tau = float(machine.fts_sync_delay_s)
         if machine.fts_sync == "position":
             # the FTS evaluates its stroke table at the measured spindle angle
             th_ref = theta if fts_theta is None else np.asarray(fts_theta, dtype=np.float64)
-            th_meas = np.maximum.accumulate(rc.followed)
+            th_meas = theta_f
             # time at which the program meant that angle (tau earlier when the stroke comes
             # late), then the PVT stroke there
             t_equiv = np.interp(th_meas, th_ref, t) - tau
@@ -220,24 +239,35 @@ def follow_turning(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, z: np.ndar
             t_equiv = np.clip(t_equiv, t[0], t[-1])
             if mask is not None:
                 t_equiv = t_equiv[mask]
-            cmd = pvt_command(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
+            cmd = pvt_checked(t, zf_prog, t_equiv) if machine.interpolation == "pvt" else \
                 linear_command(t, zf_prog, t_equiv)
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, command=cmd, **kw)
+            del cmd, t_equiv
         else:
             rf = follow_axis(t, zf_prog, machine.fts, seed=s_f, **kw)
         zf_cmd, zf = rf.command, rf.followed
-    theta_f = np.maximum.accumulate(rc.followed)
+        del rf  # (its velocity and acceleration are not kept)
     rho_f = rx.followed
     z_f = rz.followed + zf
     errors = {"c": rc.error, "x": rx.error, "z": rz.error,
-              "fts": (zf_cmd - zf) if z_fts is not None else np.zeros_like(tk)}
-    commanded = {"theta": rc.command, "rho": rx.command, "z": rz.command + zf_cmd,
+              "fts": (zf_cmd - zf) if z_fts is not None else np.zeros(tk.size)}
+    commanded = {"theta": rc.command, "rho": rx.command,
+                 "z": rz.command + (zf_cmd if z_fts is not None else 0.0),
                  "z_slow": rz.command, "z_fts": zf_cmd}
+    # (the axes' command velocities and accelerations are not kept: their memory is free
+    # for the error motions)
+    del rc, rx, rz, zf
     if not machine.coupling.none:
-        dz, dy = machine.coupling.deflection(tk, rx.followed)
-        z_f = z_f + dz
-        theta_f = np.maximum.accumulate(theta_f + dy / np.maximum(np.abs(rho_f), NM_TO_MM))
+        dz, dy = machine.coupling.deflection(tk, rho_f)
+        z_f += dz
+        # theta_f + dy / max(|rho_f|, 1 nm), in dy's array
+        r = np.abs(rho_f)
+        np.maximum(r, NM_TO_MM, out=r)
+        dy /= r
+        dy += theta_f
+        theta_f = np.maximum.accumulate(dy, out=dy)
     if machine.errors is not None and not machine.errors.none:
         theta_f, rho_f, z_f = apply_error_motions(tk, theta_f, rho_f, z_f, machine.errors, seed=s_e,
                                                   mask=mask)
-    return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine)
+    return FollowedPath(tk, theta_f, rho_f, z_f, commanded, errors, False, machine,
+                        None if mask is None else int(np.count_nonzero(mask)))

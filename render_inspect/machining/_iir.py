@@ -190,13 +190,15 @@ def _sosfilt_kernel(sos, x):  # pragma: no cover - numba
         x[n] = x_cur
 
 
-def sosfilt(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
+def sosfilt(sos: np.ndarray, x: np.ndarray, *, overwrite_x: bool = False) -> np.ndarray:
     """``scipy.signal.sosfilt(sos, x)`` of a 1-D real signal from rest: the filtered
-    copy of ``x`` (float64)."""
+    copy of ``x`` (float64).  ``overwrite_x``: filter ``x`` itself when it is a
+    contiguous float64 array (returned), a copy otherwise."""
     sos = np.ascontiguousarray(np.atleast_2d(sos), dtype=np.float64)
     if sos.ndim != 2 or sos.shape[1] != 6 or not (sos[:, 3] == 1).all():
         raise ValueError("second-order sections are (n, 6) with sos[:, 3] == 1")
-    y = np.array(x, dtype=np.float64, order="C")
+    y = np.asarray(x, dtype=np.float64, order="C") if overwrite_x else \
+        np.array(x, dtype=np.float64, order="C")
     if y.ndim != 1:
         raise ValueError("a 1-D signal is expected")
     if y.size:

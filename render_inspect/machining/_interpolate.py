@@ -15,7 +15,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["check_program", "pvt_velocities", "pvt_command", "linear_command"]
+__all__ = ["check_program", "pvt_velocities", "pvt_command", "pvt_checked", "linear_command"]
 
 
 def check_program(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -24,10 +24,9 @@ def check_program(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     if t.ndim != 1 or t.shape != q.shape or t.size < 2:
         raise InputError(f"t and q must be 1-D arrays of one length >= 2, received {t.shape} "
                          f"and {q.shape}")
-    dt = np.diff(t)
-    bad = np.flatnonzero(~(dt > 0))
-    if bad.size:
-        i = int(bad[0])
+    ok = t[1:] > t[:-1]  # (diff > 0, without the differences)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
         raise InputError(f"program times must increase strictly; t[{i}] = {t[i]!r} s, "
                          f"t[{i + 1}] = {t[i + 1]!r} s")
     if not np.all(np.isfinite(q)):
@@ -81,35 +80,89 @@ def pvt_command(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
     q_c, v_c, a_c : (m,) float64 arrays
     """
     t, q = check_program(t, q)
-    v = pvt_velocities(t, q) if velocities is None else np.asarray(velocities, dtype=np.float64)
+    return pvt_checked(t, q, tk, velocities=velocities)
+
+
+def pvt_checked(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
+                velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`pvt_command` of a program that :func:`check_program` has passed (float64
+    arrays ``t``, ``q``): the point velocities, each tick's segment and the Hermite
+    segment in one compiled pass.  ``q`` (and ``velocities``) may be (k, n): k axes
+    programmed at the same times, their commands (k, m) rows (each row the numbers of
+    its axis alone: the segment and the Hermite basis at a tick are shared)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    rows = q.reshape(-1, q.shape[-1])
+    fill = velocities is None
+    v = np.empty(rows.shape) if fill else \
+        np.ascontiguousarray(velocities, dtype=np.float64).reshape(rows.shape)
     tk = np.ascontiguousarray(tk, dtype=np.float64)
-    i = _segments(t, tk)
-    pos, vel, acc = np.empty(tk.size), np.empty(tk.size), np.empty(tk.size)
-    _hermite(t, q, np.ascontiguousarray(v), tk, i, pos, vel, acc)
+    pos, vel, acc = (np.empty((rows.shape[0], tk.size)) for _ in range(3))
+    _hermite(np.ascontiguousarray(t), rows, v, fill, tk, pos, vel, acc)
+    if q.ndim == 1:
+        return pos[0], vel[0], acc[0]
     return pos, vel, acc
 
 
 @njit(cache=True, nogil=True)
-def _hermite(t, q, v, tk, i, pos, vel, acc):
-    """The cubic Hermite segment i[k] at each tick tk[k]: position, velocity and
-    acceleration (one pass, the arithmetic of the array expressions it replaced, in
-    their order: the same numbers to the bit)."""
+def _hermite(t, q, v, fill, tk, pos, vel, acc):
+    """The PVT command of each axis (row of ``q``) at each tick tk[k]: with ``fill``,
+    first the point velocities ``v`` (:func:`pvt_velocities`); then the tick's segment
+    (:func:`_segments`, walked forward along increasing ticks) and its cubic Hermite
+    position, velocity and acceleration (one pass, the arithmetic of the array
+    expressions it replaced, in their order: the same numbers to the bit)."""
+    n = t.size
+    na = q.shape[0]
+    if fill:
+        for r in range(na):
+            # (each segment's step and slope computed once: a point's right-hand ones
+            # are the next point's left-hand ones, the same numbers)
+            h1 = t[1] - t[0]
+            sl = (q[r, 1] - q[r, 0]) / h1
+            v[r, 0] = sl
+            for j in range(1, n - 1):
+                h2 = t[j + 1] - t[j]
+                sr = (q[r, j + 1] - q[r, j]) / h2
+                v[r, j] = (h2 * sl + h1 * sr) / (h1 + h2)
+                h1 = h2
+                sl = sr
+            v[r, n - 1] = sl
+    c = 0  # the number of program times <= the tick
     for k in range(tk.size):
-        j = i[k]
+        x = tk[k]
+        if x != x:
+            j = n - 2  # (a NaN sorts after every time)
+        else:
+            if c > 0 and t[c - 1] > x:  # (a tick before the last one)
+                c = np.searchsorted(t, x, side="right")
+            while c < n and t[c] <= x:
+                c += 1
+            j = min(max(c - 1, 0), n - 2)
         h = t[j + 1] - t[j]
-        s = (tk[k] - t[j]) / h
-        q0 = q[j]
-        q1 = q[j + 1]
-        m0 = v[j] * h
-        m1 = v[j + 1] * h
+        hh = h * h
+        s = (x - t[j]) / h
         s2 = s * s
         s3 = s2 * s
-        pos[k] = ((2 * s3 - 3 * s2 + 1) * q0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * q1
-                  + (s3 - s2) * m1)
-        vel[k] = ((6 * s2 - 6 * s) * q0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * q1
-                  + (3 * s2 - 2 * s) * m1) / h
-        acc[k] = ((12 * s - 6) * q0 + (6 * s - 4) * m0 + (-12 * s + 6) * q1
-                  + (6 * s - 2) * m1) / (h * h)
+        # the Hermite basis and its derivatives (each the expression of the formula)
+        p0 = 2 * s3 - 3 * s2 + 1
+        p1 = s3 - 2 * s2 + s
+        p2 = -2 * s3 + 3 * s2
+        p3 = s3 - s2
+        d0 = 6 * s2 - 6 * s
+        d1 = 3 * s2 - 4 * s + 1
+        d2 = -6 * s2 + 6 * s
+        d3 = 3 * s2 - 2 * s
+        a0 = 12 * s - 6
+        a1 = 6 * s - 4
+        a2 = -12 * s + 6
+        a3 = 6 * s - 2
+        for r in range(na):
+            q0 = q[r, j]
+            q1 = q[r, j + 1]
+            m0 = v[r, j] * h
+            m1 = v[r, j + 1] * h
+            pos[r, k] = p0 * q0 + p1 * m0 + p2 * q1 + p3 * m1
+            vel[r, k] = (d0 * q0 + d1 * m0 + d2 * q1 + d3 * m1) / h
+            acc[r, k] = (a0 * q0 + a1 * m0 + a2 * q1 + a3 * m1) / hh
 
 
 def linear_command(t: np.ndarray, q: np.ndarray,

@@ -386,9 +386,7 @@ def follow(cfg: TurningInputs, path: Any, *,
                          "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
     if sectors.get("full_rad") is not None and not fp.ideal:
         # the ticks the Z slide and the FTS were followed over (the rest: between sectors)
-        a0, span = sectors["full_rad"]
-        facts["machine"]["ticks_in_sectors"] = int(np.count_nonzero(
-            np.mod(np.interp(fp.t, path.t, path.theta) - a0, 2 * np.pi) <= span))
+        facts["machine"]["ticks_in_sectors"] = fp.sector_ticks
     if not fp.ideal:
         facts["following_error"] = following_error_stats(fp.errors)
     if getattr(cfg.tool, "wear", False):  # the worn edge at each point of the path
