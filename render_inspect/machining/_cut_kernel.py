@@ -151,13 +151,13 @@ def _segment_walk(theta, tab, tab_t0, tab_iw, s, j, seen, k):
         lo = max(i - _WALK, 0)
         hi = min(i + _WALK, theta.size - 2)
         while True:
-            t0 = theta[i]
+            t0 = theta[np.uint64(i)]
             if s <= t0:
                 if s == t0 or i <= lo:
                     break
                 i -= 1
             else:
-                t1 = theta[i + 1]
+                t1 = theta[np.uint64(i) + _U1]
                 if s < t1:
                     seen[k + 1] = i
                     return i
