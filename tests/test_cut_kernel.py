@@ -191,6 +191,38 @@ def test_one_pass_lookup_serves_every_kernel_and_brackets_the_angle():
             assert theta[i] <= s <= theta[i + 1], (s, i)
 
 
+def test_the_segment_remembered_from_the_previous_pixel_is_the_tables():
+    """The cutting kernel looks for a pass's segment first where the same pass was at the
+    previous pixel: it finds the table lookup's segment (the same index, which decides a
+    pass on a path point) for angles that move a little or far, between points, on them,
+    on repeated points and beyond the path's ends, for passes that share a slot."""
+    from render_inspect.machining import _cut_kernel, _envelope_path
+    from render_inspect.machining._envelope_step import _lookup_bin
+
+    rng = np.random.default_rng(5)
+    steps = rng.uniform(0.0, 2e-3, 3000)
+    steps[rng.random(steps.size) < 0.05] = 0.0          # repeated angles (a dwell)
+    theta = np.concatenate([[0.3], 0.3 + np.cumsum(steps)])
+    tab, t0, w = _envelope_path._lookup_table(theta)
+    iw = 1.0 / w
+    seen = np.full(2 * _cut_kernel._SEEN, _cut_kernel._NO_PASS, dtype=np.int64)
+    span = theta[-1] - theta[0]
+    moves = np.where(rng.random(20_000) < 0.02, rng.uniform(-0.3, 0.3, 20_000),
+                     rng.normal(0.0, 1.5e-3, 20_000))
+    s_walk = theta[0] + np.mod(0.5 * span + np.cumsum(moves), span)
+    on_points = rng.random(s_walk.size) < 0.2
+    s_walk[on_points] = theta[rng.integers(0, theta.size, on_points.sum())]
+    s_walk[::997] = theta[-1] + 1e-9
+    s_walk[::1009] = theta[0] - 1e-9
+    passes = rng.choice([-3, 0, 1, 2, 61, 64, 65], s_walk.size)   # 1 and 65, 0 and 64 share a slot
+    found = 0
+    for s, j in zip(s_walk, passes):
+        i = _cut_kernel._segment(theta, tab, t0, iw, s, j, seen)
+        assert i == _lookup_bin(theta, tab, int((s - t0) * iw), s), (s, j)
+        found += seen[2 * (j % _cut_kernel._SEEN)] == j
+    assert found == s_walk.size
+
+
 def test_the_kernels_cosine_is_numpys_to_the_last_bits():
     """Within 3e-16 of numpy's cosine, over the reduction's whole range: random arguments,
     multiples of pi / 2 (k odd and even, r = +-pi / 2 where cos r is 0) and the arguments

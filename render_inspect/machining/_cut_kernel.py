@@ -21,7 +21,12 @@ makes it fast:
   from k's parity: each cosine within 3e-16 of numpy's, the 128 modes' sum within 2^-52
   sum |cos| of numpy's, tested), instead of 128 passes over whole-map arrays;
 - the cutting distance of the cutting pass comes from the pass's own segment and fraction;
-  a pass whose arc provably stays h_min above the surface so far skips its square root.
+  a pass whose arc provably stays h_min above the surface so far skips its square root;
+- each pass's segment is looked for first where the same pass was at the previous pixel
+  (a segment that holds the pass's angle strictly inside is the only one that can hold
+  it, so the table's bin and walk, which decide a pass on a path point, are only needed
+  where that fails: about 1 pass in 100), and the pass loop is written in the row loop (no
+  call and no reference counting per pixel) with unsigned indices (no wrap-around).
 
 A measured cutting edge adds its height table to each arc as in the envelope kernel (the
 pass skip's lower bound takes the table's lowest entry), and a tool wearing along the path
@@ -38,7 +43,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -49,10 +53,9 @@ from ..core.errors import InputError
 from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cut_inputs import Grooves, cutting_distance, mechanics_window
-from ._cutting import cut_turning_mechanics, mechanics_path
+from ._cut_path import CutPath, prepare_cut
+from ._cutting import cut_turning_mechanics
 from ._envelope import BLOCK, _polar_step
-from ._envelope_path import (EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc, edge_table, edge_window,
-                             path_radial_slope)
 from ._envelope_step import _edge_dz, _lookup_bin
 
 __all__ = ["CutPath", "Grooves", "prepare_cut", "cut_fill", "cut_turning", "cutting_distance",
@@ -77,89 +80,13 @@ _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8 = (
 _COS_ARG_MAX = 1.5e6
 #: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
 _STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
-
-
-@dataclass(frozen=True)
-class CutPath:
-    """A turning path prepared for the cutting-mechanics kernel (or the run of it one tile
-    needs, :meth:`slice_for`).
-
-    Attributes
-    ----------
-    ep : EnvelopePath
-        Segments, angles, the lookup table (always built) and the whole path's constants;
-        ``ep.window`` is the mechanics window (:func:`mechanics_window`).
-    dist : (m + 1,) float64
-        Cutting distance at the segment ends (mm, counted from the whole path's start).
-    h_min, kappa : float
-        Minimum chip thickness (mm) and elastic recovery.
-    side_flow : bool
-    h_seg : (m,) float64
-        The minimum chip thickness of each segment's pass (mm; a tool wearing along the
-        path), or empty: ``h_min`` for every pass.
-    """
-
-    ep: EnvelopePath
-    dist: np.ndarray
-    h_min: float
-    kappa: float
-    side_flow: bool
-    h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    def slice_for(self, region: Sequence[float]) -> "CutPath":
-        """The passes whose nose arcs the kernel visits for pixels in ``region``
-        (x0, y0, x1, y1; mm)."""
-        sl = self.ep.slice_for(region)
-        i0 = sl.offset - self.ep.offset
-        h_seg = self.h_seg if self.h_seg.size == 0 else \
-            np.ascontiguousarray(self.h_seg[i0:i0 + sl.seg.shape[0]])
-        return replace(self, ep=sl, dist=np.ascontiguousarray(self.dist[i0:i0 + sl.theta.size]), h_seg=h_seg)
-
-    def reach(self, rmin: float, rmax: float) -> float:
-        """Largest radial distance (mm) between a pixel at rmin..rmax from the axis and a
-        pass the kernel may visit there."""
-        return self.ep.reach(rmin, rmax)
-
-    @property
-    def nbytes(self) -> int:
-        return int(self.ep.nbytes + self.dist.nbytes + self.h_seg.nbytes)
-
-
-def prepare_cut(path: ToolPath, *, nose_radius: float, half_width: float | None = None,
-                h_min: float = 0.0,
-                kappa: float = 0.0, side_flow: bool = True, slope_bound: float | None = None,
-                edge: Any = None,
-                h_min_points: np.ndarray | None = None) -> CutPath:
-    """Prepare a turning path (``theta``, ``rho``, ``z``, mm and rad) for :func:`cut_fill`
-    (parameters as :func:`~render_inspect.machining.cut_turning_mechanics`; ``edge``: the
-    measured cutting edge, ``toolpath.EdgeProfile``, None for the circular nose;
-    ``h_min_points``: the minimum chip thickness (mm) at each point of the path, the edge
-    worn along it: each segment's pass takes its first point's, ``h_min`` then unused)."""
-    theta, rho, z = mechanics_path(path, h_min=h_min, kappa=kappa)
-    Rc, hw = _nose_arc(nose_radius, half_width)
-    a, cc, dev, f = _nominal_spiral(theta, rho)
-    m = path_radial_slope(theta, rho, z) if slope_bound is None else float(slope_bound)
-    h_seg = np.zeros(0)
-    if h_min_points is not None:
-        hp = np.ascontiguousarray(h_min_points, dtype=np.float64)
-        if hp.shape != theta.shape or not np.all(np.isfinite(hp)) or np.any(hp < 0):
-            raise InputError(f"h_min_points must hold one finite value >= 0 per path point ({theta.size}), "
-                             f"received {hp.size} values")
-        h_seg = np.ascontiguousarray(hp[:-1])
-        h_min = float(hp.max())
-    W = mechanics_window(Rc, f, m, h_min, hw)
-    etab = edge_table(edge, Rc, hw)
-    W = edge_window(W, Rc, hw, etab)
-    seg = np.empty((theta.size - 1, 4))
-    seg[:, 0] = rho[:-1]
-    seg[:, 1] = rho[1:] - rho[:-1]
-    seg[:, 2] = z[:-1]
-    seg[:, 3] = z[1:] - z[:-1]
-    tab, tt0, tw = _lookup_table(theta)
-    dth = (theta[-1] - theta[0]) / (theta.size - 1)
-    ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
-                      float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
-    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg)
+#: passes whose segments a pixel remembers for the next pixel (a power of 2: slot j % _SEEN),
+#: the steps walked from a remembered segment, and the pass of a slot that holds none
+_SEEN = 64
+_WALK = 4
+_NO_PASS = -(1 << 62)
+#: unsigned indices (no negative-index wrap-around in the pixel loop)
+_U1, _U2, _U3, _U4 = np.uint64(1), np.uint64(2), np.uint64(3), np.uint64(4)
 
 
 # ------------------------------------------------------------------ the kernel
@@ -201,33 +128,81 @@ def _groove_sum_libm(ku, kv, ph, u, v):
     return g
 
 
-@njit(cache=True, nogil=True)
-def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r):
-    """(segment, fraction, nominal radius, distance from the pixel at sgn r) of the pass at
-    cumulative angle s (the envelope's pass lookup from the bin (s - tab_t0) * tab_iw,
-    ``tab_iw`` the reciprocal of the table's bin width)."""
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _segment(theta, tab, tab_t0, tab_iw, s, j, seen):
+    """:func:`_lookup_bin`'s segment of the pass at cumulative angle s (pass j): first the
+    segment pass j had at the previous pixel (``seen``: pass and segment in slots
+    2 (j % _SEEN), 2 (j % _SEEN) + 1, one array per side of the axis).  A segment that holds
+    s strictly inside is the only one that can hold it, so only a pass on a path point (or
+    beyond the path's ends, or away from the segment remembered) takes the table."""
+    k = 2 * (j & (_SEEN - 1))
+    if seen[k] == j:
+        i = seen[k + 1]
+        u = np.uint64(i)
+        if theta[u] < s < theta[u + _U1]:
+            return i
+    return _segment_walk(theta, tab, tab_t0, tab_iw, s, j, seen, k)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _segment_walk(theta, tab, tab_t0, tab_iw, s, j, seen, k):
+    """:func:`_segment` past the remembered segment: a walk of at most _WALK segments from
+    it to one that holds s strictly inside, else the table's bin and walk."""
+    if seen[k] == j:
+        i = seen[k + 1]
+        lo = max(i - _WALK, 0)
+        hi = min(i + _WALK, theta.size - 2)
+        while True:
+            t0 = theta[np.uint64(i)]
+            if s <= t0:
+                if s == t0 or i <= lo:
+                    break
+                i -= 1
+            else:
+                t1 = theta[np.uint64(i) + _U1]
+                if s < t1:
+                    seen[k + 1] = i
+                    return i
+                if s == t1 or i >= hi:
+                    break
+                i += 1
     i = _lookup_bin(theta, tab, int((s - tab_t0) * tab_iw), s)
-    dt = theta[i + 1] - theta[i]
-    fr = (s - theta[i]) / dt if dt > 0 else 0.0
-    rj = seg[i, 0] + fr * seg[i, 1]
-    return i, fr, rj, sgn * r - rj
+    seen[k] = j
+    seen[k + 1] = i
+    return i
 
 
-@njit(cache=True, nogil=True)
-def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge):
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, j, seen):
+    """(segment, fraction, nominal radius, distance from the pixel at sgn r, tool tip height)
+    of pass j at cumulative angle s (``seg``: each segment's rho, d rho, z, d z in turn; the
+    envelope's pass lookup from the bin (s - tab_t0) * tab_iw, ``tab_iw`` the reciprocal of
+    the table's bin width: :func:`_segment`)."""
+    i = _segment(theta, tab, tab_t0, tab_iw, s, j, seen)
+    u = np.uint64(i)
+    t0 = theta[u]
+    dt = theta[u + _U1] - t0
+    fr = (s - t0) / dt if dt > 0 else 0.0
+    q = u * _U4
+    rj = seg[q] + fr * seg[q + _U1]
+    return i, fr, rj, sgn * r - rj, seg[q + _U2] + fr * seg[q + _U3]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge, j, seen):
     """(in reach, arc height, tool radius, signed edge position, segment, fraction) of the
     pass at cumulative angle s for the pixel at sgn r (the direct kernel's arithmetic; the
     measured edge's height table ``edge`` added where given)."""
-    i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
+    i, fr, rj, d, zt = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, j, seen)
     if abs(d) <= hw:
-        zj = seg[i, 2] + fr * seg[i, 3] + Rc - math.sqrt(Rc2 - d * d)
+        zj = zt + Rc - math.sqrt(Rc2 - d * d)
         if edge.size > 0:
             zj += _edge_dz(edge, d)
         return True, zj, rj, d * sgn, i, fr
     return False, 0.0, 0.0, 0.0, 0, 0.0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
     """One pass through the state (surface, chip, pass angle, segment, fraction, edge
     position, added, piled) of the direct model."""
@@ -245,36 +220,7 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
     return st
 
 
-@njit(cache=True, nogil=True)
-def _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            h_min, kappa, side_flow, st, edge, hseg):
-    """The passes of one side in time order straight through the state; (state, count).
-    A pass whose arc provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc,
-    a lower bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
-    entry) changes nothing and skips the square root."""
-    j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
-    n = 0
-    half_inv_rc = 0.5 / Rc
-    e_low = edge[2] if edge.size > 0 else 0.0
-    for j in range(j0, j1 + 1):
-        s = phi + TWO_PI * j
-        i, fr, rj, d = _locate(theta, tab, tab_t0, tab_iw, seg, s, sgn, r)
-        if abs(d) <= hw:
-            n += 1
-            zt = seg[i, 2] + fr * seg[i, 3]
-            hm = hseg[i] if hseg.size > 0 else h_min
-            if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + hm:
-                continue
-            zj = zt + Rc - math.sqrt(Rc2 - d * d)
-            if edge.size > 0:
-                zj += _edge_dz(edge, d)
-            st = _step(st, s, zj, i, fr, d * sgn, hm, kappa, side_flow)
-            if n >= _MAX_BUF:
-                break
-    return st, n
-
-
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _window(t_first, t_last, a, cc, phi, r, sgn, W):
     """First and last pass j whose nominal radius is within W of sgn r (the direct kernel's
     ``_pass_window`` on the whole path's ends)."""
@@ -291,16 +237,16 @@ def _window(t_first, t_last, a, cc, phi, r, sgn, W):
     return math.ceil((s_lo - phi) * INV_2PI), math.floor((s_hi - phi) * INV_2PI)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
-            bs, bz, bi, bf, bd, edge):
+            bs, bz, bi, bf, bd, edge, seen):
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
     n = 0
     for j in range(j0, j1 + 1):
         if n >= bs.size:
             break
         s = phi + TWO_PI * j
-        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge)
+        ok, zj, rj, dj, ij, frj = _pass_at(theta, tab, tab_t0, tab_iw, seg, s, sgn, r, hw, Rc, Rc2, edge, j, seen)
         if ok:
             bs[n] = s
             bz[n] = zj
@@ -311,7 +257,7 @@ def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn
     return n
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa, side_flow, st, hseg):
     """The gathered passes of both sides through the state in time order (a pass's own
     minimum chip thickness from ``hseg`` by its segment, where given)."""
@@ -329,9 +275,9 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
     return st
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos, x0, y, pixel, col0,
-             sc0, sc1, machined, pass_theta, added, stats, bufs, ibufs, edge, hseg):
+             sc0, sc1, machined, pass_theta, added, stats, bufs, ibufs, edge, hseg, seen):
     """One row (height y) of the whole grid, columns col0 .. col0 + cols - 1, into the
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material.  ``pv``: the
@@ -339,12 +285,15 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa = pv
     cols = machined.size
     Rc2 = Rc * Rc
+    half_inv_rc = 0.5 / Rc
+    e_low = edge[2] if edge.size > 0 else 0.0
     Wd = W + dev
     rho_end = a - cc * (t_last - t_first)
     grooves = ku.size > 0
     b1s, b1z, b1f, b1d = bufs[0], bufs[1], bufs[2], bufs[3]
     b2s, b2z, b2f, b2d = bufs[4], bufs[5], bufs[6], bufs[7]
     b1i, b2i = ibufs[0], ibufs[1]
+    seen1, seen2 = seen[0], seen[1]
     c_first = (col0 // BLOCK) * BLOCK
     g2 = 0.0
     ng = 0.0
@@ -368,23 +317,41 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
         # radius at the path's end (1e-9 mm more for rounding): else this side's alone
         if r < Wp + hw and r <= Wp - rho_end + 1e-9:
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp, Rc,
-                         Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
+                         Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge, seen1)
             n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0, Wp,
-                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
+                         Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge, seen2)
             n = n1 + n2
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
                         side_flow, st, hseg)
         else:
-            st, n = _stream(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0, Wp,
-                            Rc, Rc2, hw, h_min, kappa, side_flow, st, edge, hseg)
+            # this side's passes in time order straight through the state: a pass whose arc
+            # provably stays h_min above the surface so far (its tip plus d^2 / 2 Rc, a lower
+            # bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
+            # entry) changes nothing and skips the square root
+            j0, j1 = _window(t_first, t_last, a, cc, phi, r, 1.0, Wp)
+            n = 0
+            for j in range(j0, j1 + 1):
+                s = phi + TWO_PI * j
+                i, fr, rj, d, zt = _locate(theta, tab, tab_t0, tab_iw, seg, s, 1.0, r, j, seen1)
+                if abs(d) <= hw:
+                    n += 1
+                    hm = hseg[i] if hseg.size > 0 else h_min
+                    if zt + d * d * half_inv_rc - 1e-12 + e_low >= st[0] + hm:
+                        continue
+                    zj = zt + Rc - math.sqrt(Rc2 - d * d)
+                    if edge.size > 0:
+                        zj += _edge_dz(edge, d)
+                    st = _step(st, s, zj, i, fr, d, hm, kappa, side_flow)
+                    if n >= _MAX_BUF:
+                        break
         if n == 0 and Wp < hw + dev:
             # no pass within the window (beyond the path's ends): every pass that reaches
             n1 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, 1.0,
-                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge)
+                         hw + dev, Rc, Rc2, hw, b1s, b1z, b1i, b1f, b1d, edge, seen1)
             n2 = 0
             if r < hw + dev:
                 n2 = _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi2, r, -1.0,
-                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge)
+                             hw + dev, Rc, Rc2, hw, b2s, b2z, b2i, b2f, b2d, edge, seen2)
             st = _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kappa,
                         side_flow, st, hseg)
         surf, h_cut, sw, iw, fw, dw, add, piled = st
@@ -426,17 +393,21 @@ def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev
     rows = machined.shape[0]
     nb = _buffer_size(W, dev, f)
     pv = (tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa)
+    bufs = np.empty((8, nb))
+    ibufs = np.empty((2, nb), dtype=np.int64)
+    # each side's passes' segments at the previous pixel: [pass, segment] (none yet)
+    seen = np.zeros((2, 2 * _SEEN), dtype=np.int64)
+    seen[:, 0::2] = _NO_PASS
     for k in range(rows):
-        bufs = np.empty((8, nb))
-        ibufs = np.empty((2, nb), dtype=np.int64)
         _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0 + (row0 + k) * pixel,
-                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge, hseg)
+                 pixel, col0, sc0, sc1, machined[k], pass_theta[k], added[k], stats[k], bufs, ibufs, edge, hseg,
+                 seen)
 
 
 #: one kernel without the GIL: on one core (tiles side by side), or on runs of rows on threads
 #: (whole grids: :func:`~render_inspect.core.threads.over_rows`; numba's parallel loop took 3 x the compile)
 _buffer_size = njit(cache=True)(_buffer_size)
-_cut_serial = njit(nogil=True, cache=True)(_cut_rows)
+_cut_serial = njit(nogil=True, cache=True, error_model="numpy")(_cut_rows)
 
 
 def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: float, out: dict, *,
@@ -486,7 +457,7 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
     pt, add = out["pass_theta"], out["added"]
 
     def run(r0: int, r1: int) -> None:
-        _cut_serial(ep.seg, ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc,
+        _cut_serial(ep.seg.reshape(-1), ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc,
                     ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, cp.side_flow,
                     grooves.ku, grooves.kv, grooves.ph, float(grooves.scale), fast_cos, float(origin[0]),
                     float(origin[1]), float(pixel), int(start[0]) + r0, int(start[1]), sc0, sc1, m[r0:r1],
