@@ -316,7 +316,7 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
     elif comp == "z":
         rho_tip = rho
         z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
-                               half_width=tool.half_width)
+                               half_width=tool.half_width, ccp_height=z_ccp)
     elif comp == "normal":
         rho_tip, z_tip = normal_compensation(surface, theta, rho, tool.nose_radius)
     elif comp == "edge":
@@ -325,7 +325,7 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
                              "cutting edge: set tool.edge_profile or tool.waviness")
         rho_tip = rho
         z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
-                               half_width=tool.half_width, edge=tool.edge)
+                               half_width=tool.half_width, edge=tool.edge, ccp_height=z_ccp)
     else:
         raise InputError(f"compensation must be 'none', 'normal', 'z' or 'edge', received {comp!r}")
 

@@ -46,99 +46,113 @@ _GOLD = (math.sqrt(5) - 1) / 2
 # The golden-section search of z_compensation, written as loops over the points: the same
 # operations, in the same order, as the array form it replaced (a value of numpy.where
 # here is the branch taken), so the tool path is the same to the last bit.  The surface
-# itself is evaluated by its own (numpy) code between the steps.
-@njit(cache=True, nogil=True)
-def _bracket(g, offs, step, w, G):
-    """From the coarse samples g (n, samples) at offsets ``offs``: the best value and the
-    golden-section bracket (lo, hi) around it and its two inner points (c, d)."""
-    n = g.shape[0]
-    best = np.empty(n)
-    lo = np.empty(n)
-    hi = np.empty(n)
-    c = np.empty(n)
-    d = np.empty(n)
-    for i in range(n):
-        k = 0
-        for j in range(1, g.shape[1]):
-            if g[i, j] > g[i, k]:
-                k = j
-        best[i] = g[i, k]
-        lo[i] = max(offs[k] - step, -w)
-        hi[i] = min(offs[k] + step, w)
-        c[i] = hi[i] - G * (hi[i] - lo[i])
-        d[i] = lo[i] + G * (hi[i] - lo[i])
-    return best, lo, hi, c, d
+# itself is evaluated by its own (numpy) code between the stages of the search: one
+# kernel takes the heights of the points of one stage and gives the points of the next
+# (one compiled kernel to load, no temporary arrays between the stages).
+
+#: columns of the search's state (``_search``'s ``st``): the best coarse sample, the bracket
+#: (lo, hi), its inner points (c, d) and their values (gc, gd), the point evaluated next
+#: and which half was kept (1: the maximum lies in [lo, d])
+_BEST, _LO, _HI, _C, _D, _GC, _GD, _X, _LEFT = range(9)
 
 
 @njit(cache=True, nogil=True)
-def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
-    """One step of the search in place: keep the better half, and the point ``x`` to
-    evaluate next (``left``: the maximum lies in [lo, d])."""
-    for i in range(gc.size):
-        lf = gc[i] > gd[i]
-        left[i] = lf
-        if lf:
-            hi[i] = d[i]
-            cn = hi[i] - G * (hi[i] - lo[i])
-            dn = c[i]
-            x[i] = cn
-        else:
-            lo[i] = c[i]
-            cn = d[i]
-            dn = lo[i] + G * (hi[i] - lo[i])
-            x[i] = dn
-        c[i] = cn
-        d[i] = dn
+def _less_nose(h, d, Rc, edge):
+    """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d; with an
+    ``edge`` (the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated),
+    less the measured edge, h - (Rc - sqrt(Rc^2 - d^2) + g(d))."""
+    if edge.size == 0:
+        return h - (Rc - np.sqrt(Rc * Rc - d * d))
+    n = edge.size - 3
+    u = (d - edge[0]) * edge[1]
+    if u <= 0.0:
+        g = edge[3]
+    elif u >= n - 1:
+        g = edge[n + 2]
+    else:
+        k = int(u)
+        g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
+    return h - (Rc - np.sqrt(Rc * Rc - d * d) + g)
 
 
 @njit(cache=True, nogil=True)
-def _golden_take(left, g_eval, gc, gd):
-    for i in range(gc.size):
-        if left[i]:
-            gd[i] = gc[i]
-            gc[i] = g_eval[i]
-        else:
-            gc[i] = gd[i]
-            gd[i] = g_eval[i]
-
-
-@njit(cache=True, nogil=True)
-def _points(rho, cs, sn, d, X, Y):
-    """The points u (cos, sin) at u = rho + d along each radial section."""
-    for i in range(rho.size):
-        u = rho[i] + d[i]
+def _search(stage, h, rho, cs, sn, offs, step, w, G, Rc, edge, iterations, g, st, X, Y, out):
+    """Stage ``stage`` of the search of one chunk of points: ``h`` holds the design's
+    heights at the points (X, Y) the stage before gave (none at stage 0); the points of
+    the next stage are written into X, Y.  Stages 0 .. S - 1 sample the window at the
+    coarse offsets ``offs`` (S of them; columns of ``g``), stage S brackets the best sample
+    and asks for its inner point c, S + 1 for d, and each stage after that takes the
+    value of the point it asked for and moves the bracket (golden section), ``iterations``
+    times; the last writes the result into ``out`` and returns True."""
+    ns = offs.size
+    m = rho.size
+    if stage <= ns:
+        if stage > 0:  # the coarse sample at offset offs[stage - 1]
+            o = offs[stage - 1]
+            for i in range(m):
+                g[i, stage - 1] = _less_nose(h[i], o, Rc, edge)
+        if stage < ns:
+            o = offs[stage]
+            for i in range(m):
+                u = rho[i] + o
+                X[i] = u * cs[i]
+                Y[i] = u * sn[i]
+            return False
+        # the best coarse sample, the golden-section bracket around it and its inner points
+        for i in range(m):
+            k = 0
+            for j in range(1, ns):
+                if g[i, j] > g[i, k]:
+                    k = j
+            st[i, _BEST] = g[i, k]
+            lo = max(offs[k] - step, -w)
+            hi = min(offs[k] + step, w)
+            st[i, _LO] = lo
+            st[i, _HI] = hi
+            st[i, _C] = hi - G * (hi - lo)
+            st[i, _D] = lo + G * (hi - lo)
+            st[i, _X] = st[i, _C]
+    elif stage == ns + 1:
+        for i in range(m):
+            st[i, _GC] = _less_nose(h[i], st[i, _C], Rc, edge)
+            st[i, _X] = st[i, _D]
+    else:
+        k = stage - ns - 2  # the iterations done
+        for i in range(m):
+            v = _less_nose(h[i], st[i, _X], Rc, edge)
+            if k == 0:
+                st[i, _GD] = v
+            elif st[i, _LEFT] != 0.0:
+                st[i, _GD] = st[i, _GC]
+                st[i, _GC] = v
+            else:
+                st[i, _GC] = st[i, _GD]
+                st[i, _GD] = v
+            if k == iterations:
+                out[i] = max(st[i, _BEST], max(st[i, _GC], st[i, _GD]))
+                continue
+            # one step: keep the better half, and the point to evaluate next
+            lo, hi, c, d = st[i, _LO], st[i, _HI], st[i, _C], st[i, _D]
+            if st[i, _GC] > st[i, _GD]:
+                st[i, _LEFT] = 1.0
+                hi = d
+                cn = hi - G * (hi - lo)
+                dn = c
+                st[i, _X] = cn
+            else:
+                st[i, _LEFT] = 0.0
+                lo = c
+                cn = d
+                dn = lo + G * (hi - lo)
+                st[i, _X] = dn
+            st[i, _LO], st[i, _HI], st[i, _C], st[i, _D] = lo, hi, cn, dn
+        if k == iterations:
+            return True
+    for i in range(m):
+        u = rho[i] + st[i, _X]
         X[i] = u * cs[i]
         Y[i] = u * sn[i]
-
-
-@njit(cache=True, nogil=True)
-def _minus_arc(h, d, Rc, out):
-    """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d."""
-    for i in range(h.size):
-        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]))
-
-
-@njit(cache=True, nogil=True)
-def _minus_edge(h, d, Rc, edge, out):
-    """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d
-    (``edge``: the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
-    n = edge.size - 3
-    for i in range(h.size):
-        u = (d[i] - edge[0]) * edge[1]
-        if u <= 0.0:
-            g = edge[3]
-        elif u >= n - 1:
-            g = edge[n + 2]
-        else:
-            k = int(u)
-            g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
-        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]) + g)
-
-
-@njit(cache=True, nogil=True)
-def _final(best, gc, gd, out):
-    for i in range(best.size):
-        out[i] = max(best[i], max(gc[i], gd[i]))
+    return False
 
 
 def contact_window(nose_radius: float, max_slope: float, half_width: float | None = None) -> float:
@@ -153,7 +167,8 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
 def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius: float, *,
                    max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
-                   chunk: int = 32_768, edge: EdgeProfile | None = None) -> np.ndarray:
+                   chunk: int = 32_768, edge: EdgeProfile | None = None,
+                   ccp_height: np.ndarray | None = None) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
@@ -172,6 +187,10 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         Compensate against the measured cutting edge instead of the circular nose (the
         ``edge`` compensation); the window is then widened by the edge's height range and
         sampled at 129 points at least, so that the search brackets the global contact.
+    ccp_height : (n,) array, optional
+        The design's heights at the points themselves (rho cos theta, rho sin theta),
+        where the caller has them: the search's sample at offset 0 takes them instead of
+        evaluating the design there again.
 
     Returns
     -------
@@ -199,6 +218,16 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         du = math.sqrt(2e-10 * Rc)
         iterations = max(4, int(math.ceil(math.log(du / (2 * step)) / math.log(_GOLD))))
 
+    etab = np.zeros(0) if etab is None else np.ascontiguousarray(etab, dtype=np.float64)
+    # the design's heights at the points themselves, where the caller has them: the
+    # coarse sample at offset 0 is those points (u = rho + 0 = rho), bit for bit
+    z0 = None
+    if ccp_height is not None and not np.signbit(rho).any():
+        z0 = np.ascontiguousarray(ccp_height, dtype=np.float64)
+        if z0.shape != rho.shape:
+            raise ValueError(f"ccp_height has {z0.shape} points, rho {rho.shape}")
+    at_zero = [k for k in range(samples) if offs[k] == 0.0] if z0 is not None else []
+
     def run(a):
         th1 = theta[a:a + chunk]
         rh1 = rho[a:a + chunk]
@@ -206,31 +235,14 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         m = rh1.size
         X, Y = np.empty(m), np.empty(m)
         g = np.empty((m, samples))
-        for k, o in enumerate(offs):
-            u = rh1 + o
-            if etab is None:
-                g[:, k] = surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - o * o))
-            else:
-                _minus_edge(surface.height(u * cs, u * sn), np.full(m, o), Rc, etab, g[:, k])
-        best, lo, hi, c, d = _bracket(g, offs, step, w, _GOLD)
-        del g
-
-        def gfun(dd):
-            _points(rh1, cs, sn, dd, X, Y)
-            v = np.empty(m)
-            if etab is None:
-                _minus_arc(surface.height(X, Y), dd, Rc, v)
-            else:
-                _minus_edge(surface.height(X, Y), dd, Rc, etab, v)
-            return v
-
-        gc, gd = gfun(c), gfun(d)
-        left = np.empty(m, dtype=np.bool_)
-        x = np.empty(m)
-        for _ in range(iterations):
-            _golden_step(gc, gd, lo, hi, c, d, _GOLD, left, x)
-            _golden_take(left, gfun(x), gc, gd)
-        _final(best, gc, gd, out[a:a + chunk])
+        st = np.empty((m, 9))
+        o1 = out[a:a + chunk]
+        h = X  # (no heights before the first stage)
+        stage = 0
+        while not _search(stage, h, rh1, cs, sn, offs, step, w, _GOLD, Rc, etab, iterations,
+                          g, st, X, Y, o1):
+            h = z0[a:a + chunk] if stage in at_zero else surface.height(X, Y)
+            stage += 1
 
     starts = list(range(0, rho.size, chunk))
     if len(starts) == 1:
