@@ -47,22 +47,93 @@ _GOLD = (math.sqrt(5) - 1) / 2
 # operations, in the same order, as the array form it replaced (a value of numpy.where
 # here is the branch taken), so the tool path is the same to the last bit.  The surface
 # itself is evaluated by its own (numpy) code between the stages of the search: one
-# kernel takes the heights of the points of one stage and gives the points of the next
-# (one compiled kernel to load, no temporary arrays between the stages).
+# kernel (:func:`_search`) takes the heights of the points of one stage and gives the
+# points of the next, so that one compiled kernel is loaded on the first plan and no
+# temporary arrays are made between the stages.
 
-#: columns of the search's state (``_search``'s ``st``): the best coarse sample, the bracket
-#: (lo, hi), its inner points (c, d) and their values (gc, gd), the point evaluated next
-#: and which half was kept (1: the maximum lies in [lo, d])
-_BEST, _LO, _HI, _C, _D, _GC, _GD, _X, _LEFT = range(9)
+#: rows of the search's state (``_search``'s ``st``): the best coarse sample, the bracket
+#: (lo, hi), its inner points (c, d), their values (gc, gd), the point evaluated next and
+#: the value there
+_BEST, _LO, _HI, _C, _D, _GC, _GD, _X, _V = range(9)
 
 
 @njit(cache=True, nogil=True)
-def _less_nose(h, d, Rc, edge):
-    """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d; with an
-    ``edge`` (the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated),
-    less the measured edge, h - (Rc - sqrt(Rc^2 - d^2) + g(d))."""
-    if edge.size == 0:
-        return h - (Rc - np.sqrt(Rc * Rc - d * d))
+def _bracket(g, offs, step, w, G, best, lo, hi, c, d):
+    """From the coarse samples g (samples, n) at offsets ``offs``: the best value and the
+    golden-section bracket (lo, hi) around it and its two inner points (c, d)."""
+    for i in range(best.size):
+        k = 0
+        for j in range(1, g.shape[0]):
+            if g[j, i] > g[k, i]:
+                k = j
+        best[i] = g[k, i]
+        lo[i] = max(offs[k] - step, -w)
+        hi[i] = min(offs[k] + step, w)
+        c[i] = hi[i] - G * (hi[i] - lo[i])
+        d[i] = lo[i] + G * (hi[i] - lo[i])
+
+
+@njit(cache=True, nogil=True)
+def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
+    """One step of the search in place: keep the better half, and the point ``x`` to
+    evaluate next (``left``: the maximum lies in [lo, d])."""
+    for i in range(gc.size):
+        lf = gc[i] > gd[i]
+        left[i] = lf
+        if lf:
+            hi[i] = d[i]
+            cn = hi[i] - G * (hi[i] - lo[i])
+            dn = c[i]
+            x[i] = cn
+        else:
+            lo[i] = c[i]
+            cn = d[i]
+            dn = lo[i] + G * (hi[i] - lo[i])
+            x[i] = dn
+        c[i] = cn
+        d[i] = dn
+
+
+@njit(cache=True, nogil=True)
+def _golden_take(left, g_eval, gc, gd):
+    for i in range(gc.size):
+        if left[i]:
+            gd[i] = gc[i]
+            gc[i] = g_eval[i]
+        else:
+            gc[i] = gd[i]
+            gd[i] = g_eval[i]
+
+
+@njit(cache=True, nogil=True)
+def _points(rho, cs, sn, d, X, Y):
+    """The points u (cos, sin) at u = rho + d along each radial section."""
+    for i in range(rho.size):
+        u = rho[i] + d[i]
+        X[i] = u * cs[i]
+        Y[i] = u * sn[i]
+
+
+@njit(cache=True, nogil=True)
+def _offset_points(rho, cs, sn, o, X, Y):
+    """The points u (cos, sin) at u = rho + o along each radial section."""
+    for i in range(rho.size):
+        u = rho[i] + o
+        X[i] = u * cs[i]
+        Y[i] = u * sn[i]
+
+
+@njit(cache=True, nogil=True)
+def _minus_arc(h, d, Rc, out):
+    """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d."""
+    for i in range(h.size):
+        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]))
+
+
+@njit(cache=True, nogil=True)
+def _edge_height(d, Rc, edge):
+    """Rc - sqrt(Rc^2 - d^2) + g(d): the measured edge's height at offset d (``edge``:
+    the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
     n = edge.size - 3
     u = (d - edge[0]) * edge[1]
     if u <= 0.0:
@@ -72,86 +143,74 @@ def _less_nose(h, d, Rc, edge):
     else:
         k = int(u)
         g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
-    return h - (Rc - np.sqrt(Rc * Rc - d * d) + g)
+    return Rc - np.sqrt(Rc * Rc - d * d) + g
 
 
 @njit(cache=True, nogil=True)
-def _search(stage, h, rho, cs, sn, offs, step, w, G, Rc, edge, iterations, g, st, X, Y, out):
+def _minus_edge(h, d, Rc, edge, out):
+    """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d."""
+    for i in range(h.size):
+        out[i] = h[i] - _edge_height(d[i], Rc, edge)
+
+
+@njit(cache=True, nogil=True)
+def _minus_nose(h, d, Rc, edge, out):
+    """The design less the nose (``edge`` empty: the circular arc; else the measured
+    edge) at the offsets d."""
+    if edge.size == 0:
+        _minus_arc(h, d, Rc, out)
+    else:
+        _minus_edge(h, d, Rc, edge, out)
+
+
+@njit(cache=True, nogil=True)
+def _minus_offset(h, o, Rc, edge, out):
+    """The design less the nose at the one offset o: h - (Rc - sqrt(Rc^2 - o^2)) (or
+    the measured edge's height there)."""
+    q = Rc - np.sqrt(Rc * Rc - o * o) if edge.size == 0 else _edge_height(o, Rc, edge)
+    for i in range(h.size):
+        out[i] = h[i] - q
+
+
+@njit(cache=True, nogil=True)
+def _search(stage, h, rho, cs, sn, offs, step, w, G, Rc, edge, iterations, g, st, left,
+            X, Y, out):
     """Stage ``stage`` of the search of one chunk of points: ``h`` holds the design's
     heights at the points (X, Y) the stage before gave (none at stage 0); the points of
     the next stage are written into X, Y.  Stages 0 .. S - 1 sample the window at the
-    coarse offsets ``offs`` (S of them; columns of ``g``), stage S brackets the best sample
+    coarse offsets ``offs`` (S of them; rows of ``g``), stage S brackets the best sample
     and asks for its inner point c, S + 1 for d, and each stage after that takes the
     value of the point it asked for and moves the bracket (golden section), ``iterations``
     times; the last writes the result into ``out`` and returns True."""
     ns = offs.size
     m = rho.size
-    if stage <= ns:
-        if stage > 0:  # the coarse sample at offset offs[stage - 1]
-            o = offs[stage - 1]
-            for i in range(m):
-                g[i, stage - 1] = _less_nose(h[i], o, Rc, edge)
-        if stage < ns:
-            o = offs[stage]
-            for i in range(m):
-                u = rho[i] + o
-                X[i] = u * cs[i]
-                Y[i] = u * sn[i]
-            return False
-        # the best coarse sample, the golden-section bracket around it and its inner points
-        for i in range(m):
-            k = 0
-            for j in range(1, ns):
-                if g[i, j] > g[i, k]:
-                    k = j
-            st[i, _BEST] = g[i, k]
-            lo = max(offs[k] - step, -w)
-            hi = min(offs[k] + step, w)
-            st[i, _LO] = lo
-            st[i, _HI] = hi
-            st[i, _C] = hi - G * (hi - lo)
-            st[i, _D] = lo + G * (hi - lo)
-            st[i, _X] = st[i, _C]
-    elif stage == ns + 1:
-        for i in range(m):
-            st[i, _GC] = _less_nose(h[i], st[i, _C], Rc, edge)
-            st[i, _X] = st[i, _D]
+    best, lo, hi, c, d = st[_BEST, :m], st[_LO, :m], st[_HI, :m], st[_C, :m], st[_D, :m]
+    gc, gd, x, v = st[_GC, :m], st[_GD, :m], st[_X, :m], st[_V, :m]
+    if stage > 0 and stage <= ns:  # the coarse sample at offset offs[stage - 1]
+        _minus_offset(h, offs[stage - 1], Rc, edge, g[stage - 1, :m])
+    if stage < ns:
+        _offset_points(rho, cs, sn, offs[stage], X, Y)
+        return False
+    if stage == ns:
+        _bracket(g, offs, step, w, G, best, lo, hi, c, d)
+        _points(rho, cs, sn, c, X, Y)
+        return False
+    if stage == ns + 1:
+        _minus_nose(h, c, Rc, edge, gc)
+        _points(rho, cs, sn, d, X, Y)
+        return False
+    k = stage - ns - 2  # the steps done
+    if k == 0:
+        _minus_nose(h, d, Rc, edge, gd)
     else:
-        k = stage - ns - 2  # the iterations done
+        _minus_nose(h, x, Rc, edge, v)
+        _golden_take(left, v, gc, gd)
+    if k == iterations:
         for i in range(m):
-            v = _less_nose(h[i], st[i, _X], Rc, edge)
-            if k == 0:
-                st[i, _GD] = v
-            elif st[i, _LEFT] != 0.0:
-                st[i, _GD] = st[i, _GC]
-                st[i, _GC] = v
-            else:
-                st[i, _GC] = st[i, _GD]
-                st[i, _GD] = v
-            if k == iterations:
-                out[i] = max(st[i, _BEST], max(st[i, _GC], st[i, _GD]))
-                continue
-            # one step: keep the better half, and the point to evaluate next
-            lo, hi, c, d = st[i, _LO], st[i, _HI], st[i, _C], st[i, _D]
-            if st[i, _GC] > st[i, _GD]:
-                st[i, _LEFT] = 1.0
-                hi = d
-                cn = hi - G * (hi - lo)
-                dn = c
-                st[i, _X] = cn
-            else:
-                st[i, _LEFT] = 0.0
-                lo = c
-                cn = d
-                dn = lo + G * (hi - lo)
-                st[i, _X] = dn
-            st[i, _LO], st[i, _HI], st[i, _C], st[i, _D] = lo, hi, cn, dn
-        if k == iterations:
-            return True
-    for i in range(m):
-        u = rho[i] + st[i, _X]
-        X[i] = u * cs[i]
-        Y[i] = u * sn[i]
+            out[i] = max(best[i], max(gc[i], gd[i]))
+        return True
+    _golden_step(gc, gd, lo, hi, c, d, G, left, x)
+    _points(rho, cs, sn, x, X, Y)
     return False
 
 
@@ -228,28 +287,39 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
             raise ValueError(f"ccp_height has {z0.shape} points, rho {rho.shape}")
     at_zero = [k for k in range(samples) if offs[k] == 0.0] if z0 is not None else []
 
-    def run(a):
-        th1 = theta[a:a + chunk]
-        rh1 = rho[a:a + chunk]
-        cs, sn = np.cos(th1), np.sin(th1)
-        m = rh1.size
-        X, Y = np.empty(m), np.empty(m)
-        g = np.empty((m, samples))
-        st = np.empty((m, 9))
-        o1 = out[a:a + chunk]
-        h = X  # (no heights before the first stage)
-        stage = 0
-        while not _search(stage, h, rh1, cs, sn, offs, step, w, _GOLD, Rc, etab, iterations,
-                          g, st, X, Y, o1):
-            h = z0[a:a + chunk] if stage in at_zero else surface.height(X, Y)
-            stage += 1
-
     starts = list(range(0, rho.size, chunk))
-    if len(starts) == 1:
+    workers = max(1, min(len(starts), os.cpu_count() or 1))
+
+    def run(first):
+        # one thread's chunks, one after the other, in arrays made once (what the
+        # processor has just written stays in its caches, the memory is not mapped anew)
+        size = min(chunk, rho.size)
+        cs_, sn_, X_, Y_ = (np.empty(size) for _ in range(4))
+        # (rows a little longer than the chunk: rows whose starts lie a power of two
+        # apart would share the processor's cache sets)
+        g = np.empty((samples, size + 8))
+        st = np.empty((9, size + 8))
+        left_ = np.empty(size, dtype=np.bool_)
+        for a in starts[first::workers]:
+            th1 = theta[a:a + chunk]
+            rh1 = rho[a:a + chunk]
+            m = rh1.size
+            cs, sn, X, Y, left = cs_[:m], sn_[:m], X_[:m], Y_[:m], left_[:m]
+            np.cos(th1, out=cs)
+            np.sin(th1, out=sn)
+            o1 = out[a:a + chunk]
+            h = X  # (no heights before the first stage)
+            stage = 0
+            while not _search(stage, h, rh1, cs, sn, offs, step, w, _GOLD, Rc, etab,
+                              iterations, g, st, left, X, Y, o1):
+                h = z0[a:a + chunk] if stage in at_zero else surface.height(X, Y)
+                stage += 1
+
+    if workers == 1:
         run(0)
     else:  # numpy and the loops above release the GIL: one thread per core
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-            list(ex.map(run, starts))
+        with ThreadPoolExecutor(max_workers=workers) as ex:
+            list(ex.map(run, range(workers)))
     return out
 
 
