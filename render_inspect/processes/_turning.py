@@ -439,12 +439,13 @@ class TurningProcess(Process[TurningInputs]):
         if not program_path(cfg):  # a program file's size is known once it is read
             turning_precheck(cfg, region)
 
-    def program_links(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Links | None:
+    def program_links_part(self, cfg: TurningInputs, surface: Any,
+                           plan: Plan) -> tuple[Links, PartModel] | None:
         """None for a program read from a file: its own moves between the cuts are part
         of it (and checked as findings), no links are added."""
         if program_path(cfg):
             return None
-        return super().program_links(cfg, surface, plan)
+        return super().program_links_part(cfg, surface, plan)
 
     def program_header(self, cfg: TurningInputs) -> dict:
         return turning_header(cfg)
