@@ -227,7 +227,8 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
                    max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
                    chunk: int = 32_768, edge: EdgeProfile | None = None,
-                   ccp_height: np.ndarray | None = None) -> np.ndarray:
+                   ccp_height: np.ndarray | None = None,
+                   cos_sin: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
@@ -250,6 +251,8 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         The design's heights at the points themselves (rho cos theta, rho sin theta),
         where the caller has them: the search's sample at offset 0 takes them instead of
         evaluating the design there again.
+    cos_sin : ((n,) array, (n,) array), optional
+        cos theta and sin theta, where the caller has them.
 
     Returns
     -------
@@ -286,6 +289,11 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         if z0.shape != rho.shape:
             raise ValueError(f"ccp_height has {z0.shape} points, rho {rho.shape}")
     at_zero = [k for k in range(samples) if offs[k] == 0.0] if z0 is not None else []
+    trig = None
+    if cos_sin is not None:
+        trig = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in cos_sin)
+        if any(a.shape != rho.shape for a in trig):
+            raise ValueError(f"cos_sin has {[a.shape for a in trig]} points, rho {rho.shape}")
 
     starts = list(range(0, rho.size, chunk))
     workers = max(1, min(len(starts), os.cpu_count() or 1))
@@ -294,7 +302,8 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         # one thread's chunks, one after the other, in arrays made once (what the
         # processor has just written stays in its caches, the memory is not mapped anew)
         size = min(chunk, rho.size)
-        cs_, sn_, X_, Y_ = (np.empty(size) for _ in range(4))
+        X_, Y_ = np.empty(size), np.empty(size)
+        cs_, sn_ = (np.empty(size if trig is None else 0) for _ in range(2))
         # (rows a little longer than the chunk: rows whose starts lie a power of two
         # apart would share the processor's cache sets)
         g = np.empty((samples, size + 8))
@@ -304,9 +313,13 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
             th1 = theta[a:a + chunk]
             rh1 = rho[a:a + chunk]
             m = rh1.size
-            cs, sn, X, Y, left = cs_[:m], sn_[:m], X_[:m], Y_[:m], left_[:m]
-            np.cos(th1, out=cs)
-            np.sin(th1, out=sn)
+            X, Y, left = X_[:m], Y_[:m], left_[:m]
+            if trig is None:
+                cs, sn = cs_[:m], sn_[:m]
+                np.cos(th1, out=cs)
+                np.sin(th1, out=sn)
+            else:
+                cs, sn = trig[0][a:a + chunk], trig[1][a:a + chunk]
             o1 = out[a:a + chunk]
             h = X  # (no heights before the first stage)
             stage = 0
