@@ -49,7 +49,8 @@ _GOLD = (math.sqrt(5) - 1) / 2
 # itself is evaluated by its own (numpy) code between the stages of the search: one
 # kernel (:func:`_search`) takes the heights of the points of one stage and gives the
 # points of the next, so that one compiled kernel is loaded on the first plan and no
-# temporary arrays are made between the stages.
+# temporary arrays are made between the stages (the loops it calls are put inside it
+# when it is compiled: one function, not one for each loop, to load).
 
 #: rows of the search's state (``_search``'s ``st``): the best coarse sample, the bracket
 #: (lo, hi), its inner points (c, d), their values (gc, gd), the point evaluated next and
@@ -57,7 +58,7 @@ _GOLD = (math.sqrt(5) - 1) / 2
 _BEST, _LO, _HI, _C, _D, _GC, _GD, _X, _V = range(9)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _bracket(g, offs, step, w, G, best, lo, hi, c, d):
     """From the coarse samples g (samples, n) at offsets ``offs``: the best value and the
     golden-section bracket (lo, hi) around it and its two inner points (c, d)."""
@@ -73,7 +74,7 @@ def _bracket(g, offs, step, w, G, best, lo, hi, c, d):
         d[i] = lo[i] + G * (hi[i] - lo[i])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
     """One step of the search in place: keep the better half, and the point ``x`` to
     evaluate next (``left``: the maximum lies in [lo, d])."""
@@ -94,7 +95,7 @@ def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
         d[i] = dn
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _golden_take(left, g_eval, gc, gd):
     for i in range(gc.size):
         if left[i]:
@@ -105,7 +106,7 @@ def _golden_take(left, g_eval, gc, gd):
             gd[i] = g_eval[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _points(rho, cs, sn, d, X, Y):
     """The points u (cos, sin) at u = rho + d along each radial section."""
     for i in range(rho.size):
@@ -114,7 +115,7 @@ def _points(rho, cs, sn, d, X, Y):
         Y[i] = u * sn[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _offset_points(rho, cs, sn, o, X, Y):
     """The points u (cos, sin) at u = rho + o along each radial section."""
     for i in range(rho.size):
@@ -123,14 +124,14 @@ def _offset_points(rho, cs, sn, o, X, Y):
         Y[i] = u * sn[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _minus_arc(h, d, Rc, out):
     """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d."""
     for i in range(h.size):
         out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _edge_height(d, Rc, edge):
     """Rc - sqrt(Rc^2 - d^2) + g(d): the measured edge's height at offset d (``edge``:
     the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
@@ -146,28 +147,31 @@ def _edge_height(d, Rc, edge):
     return Rc - np.sqrt(Rc * Rc - d * d) + g
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _minus_edge(h, d, Rc, edge, out):
     """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d."""
     for i in range(h.size):
         out[i] = h[i] - _edge_height(d[i], Rc, edge)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _minus_nose(h, d, Rc, edge, out):
-    """The design less the nose (``edge`` empty: the circular arc; else the measured
+    """The design less the nose (``edge`` None: the circular arc; else the measured
     edge) at the offsets d."""
-    if edge.size == 0:
+    if edge is None:
         _minus_arc(h, d, Rc, out)
     else:
         _minus_edge(h, d, Rc, edge, out)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _minus_offset(h, o, Rc, edge, out):
     """The design less the nose at the one offset o: h - (Rc - sqrt(Rc^2 - o^2)) (or
     the measured edge's height there)."""
-    q = Rc - np.sqrt(Rc * Rc - o * o) if edge.size == 0 else _edge_height(o, Rc, edge)
+    if edge is None:
+        q = Rc - np.sqrt(Rc * Rc - o * o)
+    else:
+        q = _edge_height(o, Rc, edge)
     for i in range(h.size):
         out[i] = h[i] - q
 
@@ -280,7 +284,8 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         du = math.sqrt(2e-10 * Rc)
         iterations = max(4, int(math.ceil(math.log(du / (2 * step)) / math.log(_GOLD))))
 
-    etab = np.zeros(0) if etab is None else np.ascontiguousarray(etab, dtype=np.float64)
+    # (None: the circular nose; the kernel compiled for it has no code of the edge's)
+    etab = None if etab is None else np.ascontiguousarray(etab, dtype=np.float64)
     # the design's heights at the points themselves, where the caller has them: the
     # coarse sample at offset 0 is those points (u = rho + 0 = rho), bit for bit
     z0 = None
