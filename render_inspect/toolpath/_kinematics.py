@@ -205,7 +205,7 @@ def _at(path, i: int) -> str:
 
 
 def kinematics(path: ToolPath, *, limits: dict | None = None,
-               valid: np.ndarray | None = None) -> dict:
+               valid: np.ndarray | None = None, derivatives: dict | None = None) -> dict:
     """Axis kinematics of a tool path and warnings where it exceeds the machine limits.
 
     Parameters
@@ -219,6 +219,10 @@ def kinematics(path: ToolPath, *, limits: dict | None = None,
         The points whose derivatives count (a window's program planned in sectors: the
         points of the sectors, whose neighbours two either side are the program's own;
         not the joins to the sparse points between them).  Default: all.
+    derivatives : dict, optional
+        The (v, a, j) of ``X`` (``path.rho``) and ``Z`` (``path.z``) at the times
+        ``path.t``, where the caller has them (:func:`axes_derivatives` of
+        :func:`turning_axes`); an axis missing is computed here.  They are not changed.
 
     Returns
     -------
@@ -243,12 +247,18 @@ def kinematics(path: ToolPath, *, limits: dict | None = None,
         if not v > 0:
             raise InputError(f"{k} must be > 0, received {v}")
     t = np.asarray(path.t, dtype=np.float64)
-    vx, ax, jx = axis_derivatives(t, path.rho)
-    vz, az, jz = axis_derivatives(t, path.z)
+    given = derivatives or {}
+    vx, ax, jx = given["X"] if "X" in given else axis_derivatives(t, path.rho)
+    vz, az, jz = given["Z"] if "Z" in given else axis_derivatives(t, path.z)
     vc = np.empty_like(t)
     _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
     ok = None
     if valid is not None:
+        # (the caller's arrays are left as they are)
+        if "X" in given:
+            vx, ax, jx = vx.copy(), ax.copy(), jx.copy()
+        if "Z" in given:
+            vz, az, jz = vz.copy(), az.copy(), jz.copy()
         ok = np.asarray(valid, dtype=bool).copy()
         for k in (1, 2):  # the stencils of the derivatives (jerk: two either side)
             ok[k:] &= ok[:-k].copy()
