@@ -40,7 +40,7 @@ from ..core.errors import InputError
 from ..core.toolpath import (ROLE_CUT, ROLE_NAMES, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT, Blocks,
                              Links)
 from ..core.units import MIN_TO_S, MM_TO_NM
-from ._verify_scan import scan_blocks, turning_speeds
+from ._verify_scan import scan_blocks
 
 __all__ = ["PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks", "longest_step",
            "compare_with_plan",
@@ -297,8 +297,12 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     if i is not None:
         _fail(what, blocks, i + 1, f"the block moves before every axis has a position "
                                    f"({', '.join(blocks.axes)})")
-    # the checks of the moves, in one pass over the blocks
-    scan = scan_blocks(blocks, x, y, z, zc, _ROUND, part.max_step)
+    # the checks of the moves (and a turning program's speeds), in one pass over the blocks
+    scan = scan_blocks(blocks, x, y, z, zc, _ROUND, part.max_step, to_s=MIN_TO_S,
+                       rpm_max=None if limits.spindle_rpm is None else
+                       limits.spindle_rpm * (1 + 1e-6),
+                       v_max={a: v * (1 + 1e-6) for a, v in limits.velocity_mm_s.items()
+                              if v is not None})
 
     def zs(i):  # where block i starts (its Z)
         return z[i - 1] if i > 0 else z[0]
@@ -387,7 +391,10 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             if i is not None:
                 note(i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
                                        f"of {limits.source}")
-    _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
+    if blocks.dialect == "turning":
+        _turning_velocities(blocks, limits, scan["speeds"], note)
+    else:
+        _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
     # 6. every rapid against the design itself, along the move
     gap = _rapids_above_design(blocks, part, rapid, note)
     if problems:
@@ -464,9 +471,6 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
 
 def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str, note):
     n = blocks.count
-    if blocks.dialect == "turning":
-        _turning_velocities(blocks, limits, note)
-        return
     fm = np.r_[False, blocks.motion[1:] == 1]
     length = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
     dt = np.full(n, np.nan)
@@ -485,16 +489,12 @@ def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, wha
                                    f"of {limits.source}")
 
 
-def _turning_velocities(blocks: Blocks, limits: MachineLimits, note):
+def _turning_velocities(blocks: Blocks, limits: MachineLimits, first: dict, note):
     """The spindle speed and the X and Z velocities of a turning program (inverse-time
-    feeds: a block lasts 1/F min) against ``limits``; each axis's move is less the
-    rounding of the written places at either end."""
+    feeds: a block lasts 1/F min) against ``limits``: ``first``, where each first
+    exceeds its limit (:func:`~render_inspect.toolpath._verify_scan.scan_blocks`); each
+    axis's move is less the rounding of the written places at either end."""
     ax = blocks.axes
-    rpm_max = limits.spindle_rpm
-    v_max = {a: v * (1 + 1e-6) for a, v in limits.velocity_mm_s.items()
-             if v is not None and a in ("X", "Z")}
-    first = turning_speeds(blocks, _ROUND, MIN_TO_S,
-                           None if rpm_max is None else rpm_max * (1 + 1e-6), v_max)
 
     def move(a, i):
         return np.maximum(np.abs(ax[a][i] - ax[a][i - 1]) - 2 * _ROUND, 0.0)
