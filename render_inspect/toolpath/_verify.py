@@ -37,8 +37,7 @@ from typing import Any, cast
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.toolpath import (ROLE_CUT, ROLE_NAMES, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT, Blocks,
-                             Links)
+from ..core.toolpath import ROLE_CUT, ROLE_NAMES, ROLE_RAPID, Blocks, Links
 from ..core.units import MIN_TO_S, MM_TO_NM
 from ._verify_scan import scan_blocks
 
@@ -440,10 +439,10 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
     """Feed of each ``G01`` block along the tool tip's straight move, mm/min (NaN for
     rapids); refuses a feed block without a positive ``F``."""
     n = blocks.count
-    f = blocks.feed.copy()
-    feed = np.full(n, np.nan)
     fm = blocks.motion == 1
     if blocks.dialect == "linear":
+        f = blocks.feed.copy()
+        feed = np.full(n, np.nan)
         last = np.nan
         for i in np.flatnonzero(~np.isnan(f) | fm):  # F is modal in G94
             if np.isnan(f[i]):
@@ -455,6 +454,7 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
             _fail(what, blocks, i, f"a feed move needs F > 0 mm/min, received {f[i]!r}")
         feed[fm] = f[fm]
         return feed
+    f = blocks.feed
     bad = fm & ~(f > 0)
     i = _first(bad[1:])
     if i is not None:
@@ -466,7 +466,7 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
     dist[:1] = 0.0
     np.hypot(np.diff(ax["X"]), np.diff(ax["Z"]), out=dist[1:])
     dist *= f
-    return np.where(fm, dist, feed)
+    return np.where(fm, dist, np.nan)
 
 
 def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str, note):
