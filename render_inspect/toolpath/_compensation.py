@@ -34,6 +34,7 @@ from __future__ import annotations
 from typing import Any
 import math
 import os
+import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -302,10 +303,21 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
 
     starts = list(range(0, rho.size, chunk))
     workers = max(1, min(len(starts), os.cpu_count() or 1))
+    todo: queue.SimpleQueue[int] = queue.SimpleQueue()
+    for a in starts:
+        todo.put(a)
 
-    def run(first):
-        # one thread's chunks, one after the other, in arrays made once (what the
-        # processor has just written stays in its caches, the memory is not mapped anew)
+    def chunks():  # the chunks not yet taken by a thread, in order
+        while True:
+            try:
+                yield todo.get_nowait()
+            except queue.Empty:
+                return
+
+    def run(_):
+        # the chunks this thread takes, one after the other, in arrays made once (what
+        # the processor has just written stays in its caches, the memory is not mapped
+        # anew); a thread that gets less of the processor takes fewer
         size = min(chunk, rho.size)
         X_, Y_ = np.empty(size), np.empty(size)
         cs_, sn_ = (np.empty(size if trig is None else 0) for _ in range(2))
@@ -314,7 +326,7 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         g = np.empty((samples, size + 8))
         st = np.empty((9, size + 8))
         left_ = np.empty(size, dtype=np.bool_)
-        for a in starts[first::workers]:
+        for a in chunks():
             th1 = theta[a:a + chunk]
             rh1 = rho[a:a + chunk]
             m = rh1.size
