@@ -1,8 +1,9 @@
 """One pass over the blocks of a program for :func:`~render_inspect.toolpath.verify_blocks`:
 where each of its checks of the moves first fails (rapids in the clearance plane,
-vertical plunges and retracts that reach it, the longest cutting move), which blocks are
-points of the cut, and the counts and the lowest rapid its facts give.  The same
-comparisons of the same numbers as the array form it replaced, block by block."""
+vertical plunges and retracts that reach it, the longest cutting move; a turning
+program's spindle speed and X and Z velocities), which blocks are points of the cut, and
+the counts and the lowest rapid its facts give.  The same comparisons of the same
+numbers as the array form it replaced, block by block."""
 
 from __future__ import annotations
 
