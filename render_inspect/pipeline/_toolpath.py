@@ -40,13 +40,15 @@ def plan_program(scene: Scene, *, surface: Surface | None = None) -> Plan:
 
 
 def verify_program_file(path: Path, process: Process, cfg: Any, surface: Surface, plan: Plan,
-                        links: Any) -> dict | None:
+                        links: Any, *, part: Any = None) -> dict | None:
     """Read the NC program ``path`` back and check every block of it against the part,
     the design and the machine (:func:`~render_inspect.toolpath.verify_blocks`); returns
     the check's facts, None for a process that states no part to check against.  The
     cutting points must be the planned program's (``plan``) to the written places.  A
-    failure is an :class:`InputError` naming the block number."""
-    part = process.program_part(cfg, surface, plan)
+    failure is an :class:`InputError` naming the block number.  ``part``: the process's
+    :meth:`~render_inspect.processes.Process.program_part`, when the caller has it."""
+    if part is None:
+        part = process.program_part(cfg, surface, plan)
     if part is None or links is None:
         log.warning("%s: the program is not verified (its process states no part to check "
                     "it against)", Path(path).name)
@@ -65,10 +67,10 @@ def check_links(process: Any, cfg: Any, surface: Surface, plan: Plan) -> dict | 
     the machine: the rapids stay in the clearance plane, plunges and retracts are
     vertical, no link touches the part.  Returns the facts (``metrics.json``
     ``toolpath.links``), None for a process without a part to check against."""
-    links = process.program_links(cfg, surface, plan)
-    if links is None:
+    both = process.program_links_part(cfg, surface, plan)
+    if both is None:
         return None
-    part = process.program_part(cfg, surface, plan)
+    links, part = both
     blocks = program_blocks(plan.program, links)
     return verify_blocks(blocks, part, process.program_limits(cfg), links,
                          what="the planned program", check_cuts=False)
@@ -115,14 +117,15 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     with atomic_output_dir(out, overwrite=overwrite, command="toolpath", scene=scene) as tmp:
         surface = make_surface(scene.design)
         plan = plan_program(scene, surface=surface)
-        links = process.program_links(cfg, surface, plan)
+        both = process.program_links_part(cfg, surface, plan)
+        links, part = (None, None) if both is None else both
         if fmt == "nc":  # before the program is written, read back and verified
             nc_memory(scene, plan.program.points)
         written = export_program(plan.program, Path(tmp), fmt=fmt,
                                  header=process.program_header(cfg), links=links)
         facts = process.program_facts(cfg, plan)
         if fmt == "nc" and "program" not in facts:
-            check = verify_program_file(written, process, cfg, surface, plan, links)
+            check = verify_program_file(written, process, cfg, surface, plan, links, part=part)
             if check is not None:
                 facts["program_check"] = check
         if "program" in facts:  # a program read from a file: its figures and table too

@@ -463,13 +463,22 @@ class Process(ABC, Generic[InputsT]):
         """The clearance plane and plunge feed of the moves between the cuts: the part's
         highest point (:meth:`program_part`) plus ``process.clearance``, the feed
         ``process.plunge_feed_mm_per_min``.  None when :meth:`program_part` is None."""
+        both = self.program_links_part(cfg, surface, plan)
+        return None if both is None else both[0]
+
+    def program_links_part(self, cfg: InputsT, surface: Surface,
+                           plan: Plan) -> tuple[Links, PartModel] | None:
+        """:meth:`program_links` and the :meth:`program_part` they were set from, made
+        once (for a caller that checks the links against the part); None when the program
+        has no links.  A process whose program has no links in some case (a program read
+        from a file) overrides this, and :meth:`program_links` follows."""
         part = self.program_part(cfg, surface, plan)
         if part is None:
             return None
         p = cfg.process
         return plan_links(part, clearance=getattr(p, "clearance", DEFAULT_CLEARANCE),
                           plunge_feed=getattr(p, "plunge_feed_mm_per_min", DEFAULT_PLUNGE_FEED),
-                          program_z=plan.program.z)
+                          program_z=plan.program.z), part
 
     def variants(self, cfg: InputsT) -> VariantPair | None:
         """The pair ``compare`` puts side by side (None: only ``--vary``)."""

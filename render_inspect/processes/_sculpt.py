@@ -389,12 +389,14 @@ class SculptProcess(Process[SculptInputs]):
         return Plan(program, {}, {}, {"lines": lines, "x_lines": np.asarray(x_lines),
                                       "y_line_start": float(y_edges[0]), "cut_time_s": cut_time})
 
-    def program_links(self, cfg: SculptInputs, surface: Surface, plan: Plan) -> Links | None:
+    def program_links_part(self, cfg: SculptInputs, surface: Surface,
+                           plan: Plan) -> tuple[Links, PartModel] | None:
         """None for a program read from a file (its own moves between the lines are part of
-        it); else the clearance plane and plunge feed of the written program."""
+        it); else the clearance plane and plunge feed of the written program, and the
+        part."""
         if cfg.process.program:
             return None
-        return super().program_links(cfg, surface, plan)
+        return super().program_links_part(cfg, surface, plan)
 
     def program_part(self, cfg: SculptInputs, surface: Surface, plan: Plan) -> PartModel:
         """The lenslet array the program is checked against: the design over the cells

@@ -192,10 +192,11 @@ def imported_facts(cfg: TurningInputs, surface: Any, path: ToolPath) -> dict:
     return info
 
 
-def toolpath_facts(path: ToolPath, process: Any) -> dict:
+def toolpath_facts(path: ToolPath, process: Any, *, derivatives: dict | None = None) -> dict:
     """``metrics["toolpath"]``: points, revolutions, sampling, chordal error, gouge depth,
     accessibility, cut time, and the axis kinematics against the limits of the
-    ``[process]`` section ``process``."""
+    ``[process]`` section ``process`` (``derivatives``: the X and Z axes' where the caller
+    has them, :func:`~render_inspect.toolpath.kinematics`)."""
     m = path.meta
     d = {"points": int(path.points), "revolutions": path.revolutions,
          "feed_per_rev_mm": m.get("feed_per_rev_mm"), "sampling": m.get("sampling"),
@@ -218,7 +219,8 @@ def toolpath_facts(path: ToolPath, process: Any) -> dict:
         if "sectors" in m:  # the sectors' own points, not the joins between them
             a0, span = m["sectors"]["full_rad"]
             valid = np.mod(np.asarray(path.theta) - a0, 2 * np.pi) <= span
-        d.update(kinematics(path, limits=limits_from_process(process), valid=valid))
+        d.update(kinematics(path, limits=limits_from_process(process), valid=valid,
+                            derivatives=derivatives))
     return d
 
 
@@ -402,7 +404,9 @@ class TurningProcess(Process[TurningInputs]):
         t0 = time.perf_counter()
         path = (self.program(cfg, surface, region=region, sectors=True) if sectors
                 else self.program(cfg, surface, region=region))
-        facts = {"toolpath": toolpath_facts(path, cfg.process)}
+        # the X and Z axes' derivatives, for the kinematics and for their figure
+        derivatives = axes_derivatives(path.t, turning_axes(path))
+        facts = {"toolpath": toolpath_facts(path, cfg.process, derivatives=derivatives)}
         if program_path(cfg):
             facts["program"] = info = imported_facts(cfg, surface, path)
             tp = facts["toolpath"]
@@ -410,11 +414,14 @@ class TurningProcess(Process[TurningInputs]):
             below = [f for f in info["findings"] if f["kind"] == "below_design"]
             tp["gouge_max_nm"] = below[0]["worst_nm"] if below else 0.0
         return Plan(path, facts, {"toolpath": time.perf_counter() - t0},
-                    plots=self.program_plots(cfg, path))
+                    plots=self.program_plots(cfg, path, derivatives=derivatives))
 
-    def program_plots(self, cfg: TurningInputs, path: ToolPath, data: dict | None = None) -> dict:
+    def program_plots(self, cfg: TurningInputs, path: ToolPath, data: dict | None = None, *,
+                      derivatives: dict | None = None) -> dict:
         """``kinematics.png``: the axes of the program that move (and, for a program read
-        from a file, ``feed_per_rev.png``)."""
+        from a file, ``feed_per_rev.png``).  ``derivatives``: those of the axes
+        (:func:`~render_inspect.toolpath.turning_axes` of ``path`` and ``data``) where the
+        caller has them."""
         extra = {}
         if program_path(cfg):
             extra["feed_per_rev.png"] = feed_per_rev_figure(path, cfg.name)
@@ -422,7 +429,8 @@ class TurningProcess(Process[TurningInputs]):
         # figure is drawn from them by the command's figure process, which need not start
         # numba for it)
         data = dict(data or {})
-        data["derivatives"] = axes_derivatives(path.t, turning_axes(path, data))
+        data["derivatives"] = (derivatives if derivatives is not None
+                               else axes_derivatives(path.t, turning_axes(path, data)))
         return {**extra, "kinematics.png": {"kind": "axes",
                                    "columns": [(f"{cfg.process.kind.upper()} program", path,
                                                 data)],
@@ -452,12 +460,13 @@ class TurningProcess(Process[TurningInputs]):
         if not program_path(cfg):  # a program file's size is known once it is read
             turning_precheck(cfg, region)
 
-    def program_links(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Links | None:
+    def program_links_part(self, cfg: TurningInputs, surface: Any,
+                           plan: Plan) -> tuple[Links, PartModel] | None:
         """None for a program read from a file: its own moves between the cuts are part
         of it (and checked as findings), no links are added."""
         if program_path(cfg):
             return None
-        return super().program_links(cfg, surface, plan)
+        return super().program_links_part(cfg, surface, plan)
 
     def program_header(self, cfg: TurningInputs) -> dict:
         return turning_header(cfg)

@@ -15,7 +15,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import MIB_TO_BYTES, MIN_TO_S
 from ._access import check_accessibility, describe_accessibility
 from ._compensation import gouge_depth, normal_compensation, z_compensation
-from ._spiral import TWO_PI, chordal_error, chordal_step_for, spiral_ccps
+from ._spiral import TWO_PI, chordal_error, chordal_step_for, heights_along, spiral_ccps
 from ._tool import Tool, pass_margin
 
 __all__ = ["plan_turning", "region_radii", "max_curvature", "turning_point_count",
@@ -307,8 +307,8 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
             meta["sectors"] = {**info, "lead_s": float(sectors[0]), "lag_s": float(sectors[1]),
                                "points_whole_revolutions": int(kept.size)}
 
-    x, y = rho * np.cos(theta), rho * np.sin(theta)
-    z_ccp = surface.height(x, y)
+    cs, sn = np.cos(theta), np.sin(theta)
+    z_ccp = heights_along(surface, rho, cs, sn)
     meta["max_slope"] = slope
     comp = compensation
     if comp == "none":
@@ -316,7 +316,8 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
     elif comp == "z":
         rho_tip = rho
         z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
-                               half_width=tool.half_width)
+                               half_width=tool.half_width, ccp_height=z_ccp,
+                               cos_sin=(cs, sn))
     elif comp == "normal":
         rho_tip, z_tip = normal_compensation(surface, theta, rho, tool.nose_radius)
     elif comp == "edge":
@@ -325,7 +326,8 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
                              "cutting edge: set tool.edge_profile or tool.waviness")
         rho_tip = rho
         z_tip = z_compensation(surface, theta, rho, tool.nose_radius, max_slope=slope,
-                               half_width=tool.half_width, edge=tool.edge)
+                               half_width=tool.half_width, edge=tool.edge, ccp_height=z_ccp,
+                               cos_sin=(cs, sn))
     else:
         raise InputError(f"compensation must be 'none', 'normal', 'z' or 'edge', received {comp!r}")
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 from typing import Any
 import math
 import os
+import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -46,31 +47,35 @@ _GOLD = (math.sqrt(5) - 1) / 2
 # The golden-section search of z_compensation, written as loops over the points: the same
 # operations, in the same order, as the array form it replaced (a value of numpy.where
 # here is the branch taken), so the tool path is the same to the last bit.  The surface
-# itself is evaluated by its own (numpy) code between the steps.
-@njit(cache=True, nogil=True)
-def _bracket(g, offs, step, w, G):
-    """From the coarse samples g (n, samples) at offsets ``offs``: the best value and the
+# itself is evaluated by its own (numpy) code between the stages of the search: one
+# kernel (:func:`_search`) takes the heights of the points of one stage and gives the
+# points of the next, so that one compiled kernel is loaded on the first plan and no
+# temporary arrays are made between the stages (the loops it calls are put inside it
+# when it is compiled: one function, not one for each loop, to load).
+
+#: rows of the search's state (``_search``'s ``st``): the best coarse sample, the bracket
+#: (lo, hi), its inner points (c, d), their values (gc, gd), the point evaluated next and
+#: the value there
+_BEST, _LO, _HI, _C, _D, _GC, _GD, _X, _V = range(9)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bracket(g, offs, step, w, G, best, lo, hi, c, d):
+    """From the coarse samples g (samples, n) at offsets ``offs``: the best value and the
     golden-section bracket (lo, hi) around it and its two inner points (c, d)."""
-    n = g.shape[0]
-    best = np.empty(n)
-    lo = np.empty(n)
-    hi = np.empty(n)
-    c = np.empty(n)
-    d = np.empty(n)
-    for i in range(n):
+    for i in range(best.size):
         k = 0
-        for j in range(1, g.shape[1]):
-            if g[i, j] > g[i, k]:
+        for j in range(1, g.shape[0]):
+            if g[j, i] > g[k, i]:
                 k = j
-        best[i] = g[i, k]
+        best[i] = g[k, i]
         lo[i] = max(offs[k] - step, -w)
         hi[i] = min(offs[k] + step, w)
         c[i] = hi[i] - G * (hi[i] - lo[i])
         d[i] = lo[i] + G * (hi[i] - lo[i])
-    return best, lo, hi, c, d
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
     """One step of the search in place: keep the better half, and the point ``x`` to
     evaluate next (``left``: the maximum lies in [lo, d])."""
@@ -91,7 +96,7 @@ def _golden_step(gc, gd, lo, hi, c, d, G, left, x):
         d[i] = dn
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _golden_take(left, g_eval, gc, gd):
     for i in range(gc.size):
         if left[i]:
@@ -102,7 +107,7 @@ def _golden_take(left, g_eval, gc, gd):
             gd[i] = g_eval[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _points(rho, cs, sn, d, X, Y):
     """The points u (cos, sin) at u = rho + d along each radial section."""
     for i in range(rho.size):
@@ -111,34 +116,107 @@ def _points(rho, cs, sn, d, X, Y):
         Y[i] = u * sn[i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
+def _offset_points(rho, cs, sn, o, X, Y):
+    """The points u (cos, sin) at u = rho + o along each radial section."""
+    for i in range(rho.size):
+        u = rho[i] + o
+        X[i] = u * cs[i]
+        Y[i] = u * sn[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _minus_arc(h, d, Rc, out):
     """h - (Rc - sqrt(Rc^2 - d^2)): the design less the nose arc at offset d."""
     for i in range(h.size):
         out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]))
 
 
-@njit(cache=True, nogil=True)
-def _minus_edge(h, d, Rc, edge, out):
-    """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d
-    (``edge``: the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
+@njit(cache=True, nogil=True, inline="always")
+def _edge_height(d, Rc, edge):
+    """Rc - sqrt(Rc^2 - d^2) + g(d): the measured edge's height at offset d (``edge``:
+    the height table [d0, 1 / step, lowest, g_0 ..], linearly interpolated)."""
     n = edge.size - 3
+    u = (d - edge[0]) * edge[1]
+    if u <= 0.0:
+        g = edge[3]
+    elif u >= n - 1:
+        g = edge[n + 2]
+    else:
+        k = int(u)
+        g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
+    return Rc - np.sqrt(Rc * Rc - d * d) + g
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _minus_edge(h, d, Rc, edge, out):
+    """h - (Rc - sqrt(Rc^2 - d^2) + g(d)): the design less the measured edge at offset d."""
     for i in range(h.size):
-        u = (d[i] - edge[0]) * edge[1]
-        if u <= 0.0:
-            g = edge[3]
-        elif u >= n - 1:
-            g = edge[n + 2]
-        else:
-            k = int(u)
-            g = edge[3 + k] + (u - k) * (edge[4 + k] - edge[3 + k])
-        out[i] = h[i] - (Rc - np.sqrt(Rc * Rc - d[i] * d[i]) + g)
+        out[i] = h[i] - _edge_height(d[i], Rc, edge)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _minus_nose(h, d, Rc, edge, out):
+    """The design less the nose (``edge`` None: the circular arc; else the measured
+    edge) at the offsets d."""
+    if edge is None:
+        _minus_arc(h, d, Rc, out)
+    else:
+        _minus_edge(h, d, Rc, edge, out)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _minus_offset(h, o, Rc, edge, out):
+    """The design less the nose at the one offset o: h - (Rc - sqrt(Rc^2 - o^2)) (or
+    the measured edge's height there)."""
+    if edge is None:
+        q = Rc - np.sqrt(Rc * Rc - o * o)
+    else:
+        q = _edge_height(o, Rc, edge)
+    for i in range(h.size):
+        out[i] = h[i] - q
 
 
 @njit(cache=True, nogil=True)
-def _final(best, gc, gd, out):
-    for i in range(best.size):
-        out[i] = max(best[i], max(gc[i], gd[i]))
+def _search(stage, h, rho, cs, sn, offs, step, w, G, Rc, edge, iterations, g, st, left,
+            X, Y, out):
+    """Stage ``stage`` of the search of one chunk of points: ``h`` holds the design's
+    heights at the points (X, Y) the stage before gave (none at stage 0); the points of
+    the next stage are written into X, Y.  Stages 0 .. S - 1 sample the window at the
+    coarse offsets ``offs`` (S of them; rows of ``g``), stage S brackets the best sample
+    and asks for its inner point c, S + 1 for d, and each stage after that takes the
+    value of the point it asked for and moves the bracket (golden section), ``iterations``
+    times; the last writes the result into ``out`` and returns True."""
+    ns = offs.size
+    m = rho.size
+    best, lo, hi, c, d = st[_BEST, :m], st[_LO, :m], st[_HI, :m], st[_C, :m], st[_D, :m]
+    gc, gd, x, v = st[_GC, :m], st[_GD, :m], st[_X, :m], st[_V, :m]
+    if stage > 0 and stage <= ns:  # the coarse sample at offset offs[stage - 1]
+        _minus_offset(h, offs[stage - 1], Rc, edge, g[stage - 1, :m])
+    if stage < ns:
+        _offset_points(rho, cs, sn, offs[stage], X, Y)
+        return False
+    if stage == ns:
+        _bracket(g, offs, step, w, G, best, lo, hi, c, d)
+        _points(rho, cs, sn, c, X, Y)
+        return False
+    if stage == ns + 1:
+        _minus_nose(h, c, Rc, edge, gc)
+        _points(rho, cs, sn, d, X, Y)
+        return False
+    k = stage - ns - 2  # the steps done
+    if k == 0:
+        _minus_nose(h, d, Rc, edge, gd)
+    else:
+        _minus_nose(h, x, Rc, edge, v)
+        _golden_take(left, v, gc, gd)
+    if k == iterations:
+        for i in range(m):
+            out[i] = max(best[i], max(gc[i], gd[i]))
+        return True
+    _golden_step(gc, gd, lo, hi, c, d, G, left, x)
+    _points(rho, cs, sn, x, X, Y)
+    return False
 
 
 def contact_window(nose_radius: float, max_slope: float, half_width: float | None = None) -> float:
@@ -153,7 +231,9 @@ def contact_window(nose_radius: float, max_slope: float, half_width: float | Non
 def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius: float, *,
                    max_slope: float | None = None,
                    half_width: float | None = None, samples: int = 9, iterations: int | None = None,
-                   chunk: int = 32_768, edge: EdgeProfile | None = None) -> np.ndarray:
+                   chunk: int = 32_768, edge: EdgeProfile | None = None,
+                   ccp_height: np.ndarray | None = None,
+                   cos_sin: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Tool-tip Z for Z-direction compensation (Li et al. 2018, eq. 7-8), mm.
 
     Parameters
@@ -172,6 +252,12 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         Compensate against the measured cutting edge instead of the circular nose (the
         ``edge`` compensation); the window is then widened by the edge's height range and
         sampled at 129 points at least, so that the search brackets the global contact.
+    ccp_height : (n,) array, optional
+        The design's heights at the points themselves (rho cos theta, rho sin theta),
+        where the caller has them: the search's sample at offset 0 takes them instead of
+        evaluating the design there again.
+    cos_sin : ((n,) array, (n,) array), optional
+        cos theta and sin theta, where the caller has them.
 
     Returns
     -------
@@ -199,45 +285,71 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         du = math.sqrt(2e-10 * Rc)
         iterations = max(4, int(math.ceil(math.log(du / (2 * step)) / math.log(_GOLD))))
 
-    def run(a):
-        th1 = theta[a:a + chunk]
-        rh1 = rho[a:a + chunk]
-        cs, sn = np.cos(th1), np.sin(th1)
-        m = rh1.size
-        X, Y = np.empty(m), np.empty(m)
-        g = np.empty((m, samples))
-        for k, o in enumerate(offs):
-            u = rh1 + o
-            if etab is None:
-                g[:, k] = surface.height(u * cs, u * sn) - (Rc - np.sqrt(Rc * Rc - o * o))
-            else:
-                _minus_edge(surface.height(u * cs, u * sn), np.full(m, o), Rc, etab, g[:, k])
-        best, lo, hi, c, d = _bracket(g, offs, step, w, _GOLD)
-        del g
-
-        def gfun(dd):
-            _points(rh1, cs, sn, dd, X, Y)
-            v = np.empty(m)
-            if etab is None:
-                _minus_arc(surface.height(X, Y), dd, Rc, v)
-            else:
-                _minus_edge(surface.height(X, Y), dd, Rc, etab, v)
-            return v
-
-        gc, gd = gfun(c), gfun(d)
-        left = np.empty(m, dtype=np.bool_)
-        x = np.empty(m)
-        for _ in range(iterations):
-            _golden_step(gc, gd, lo, hi, c, d, _GOLD, left, x)
-            _golden_take(left, gfun(x), gc, gd)
-        _final(best, gc, gd, out[a:a + chunk])
+    # (None: the circular nose; the kernel compiled for it has no code of the edge's)
+    etab = None if etab is None else np.ascontiguousarray(etab, dtype=np.float64)
+    # the design's heights at the points themselves, where the caller has them: the
+    # coarse sample at offset 0 is those points (u = rho + 0 = rho), bit for bit
+    z0 = None
+    if ccp_height is not None and not np.signbit(rho).any():
+        z0 = np.ascontiguousarray(ccp_height, dtype=np.float64)
+        if z0.shape != rho.shape:
+            raise ValueError(f"ccp_height has {z0.shape} points, rho {rho.shape}")
+    at_zero = [k for k in range(samples) if offs[k] == 0.0] if z0 is not None else []
+    trig = None
+    if cos_sin is not None:
+        trig = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in cos_sin)
+        if any(a.shape != rho.shape for a in trig):
+            raise ValueError(f"cos_sin has {[a.shape for a in trig]} points, rho {rho.shape}")
 
     starts = list(range(0, rho.size, chunk))
-    if len(starts) == 1:
+    workers = max(1, min(len(starts), os.cpu_count() or 1))
+    todo: queue.SimpleQueue[int] = queue.SimpleQueue()
+    for a in starts:
+        todo.put(a)
+
+    def chunks():  # the chunks not yet taken by a thread, in order
+        while True:
+            try:
+                yield todo.get_nowait()
+            except queue.Empty:
+                return
+
+    def run(_):
+        # the chunks this thread takes, one after the other, in arrays made once (what
+        # the processor has just written stays in its caches, the memory is not mapped
+        # anew); a thread that gets less of the processor takes fewer
+        size = min(chunk, rho.size)
+        X_, Y_ = np.empty(size), np.empty(size)
+        cs_, sn_ = (np.empty(size if trig is None else 0) for _ in range(2))
+        # (rows a little longer than the chunk: rows whose starts lie a power of two
+        # apart would share the processor's cache sets)
+        g = np.empty((samples, size + 8))
+        st = np.empty((9, size + 8))
+        left_ = np.empty(size, dtype=np.bool_)
+        for a in chunks():
+            th1 = theta[a:a + chunk]
+            rh1 = rho[a:a + chunk]
+            m = rh1.size
+            X, Y, left = X_[:m], Y_[:m], left_[:m]
+            if trig is None:
+                cs, sn = cs_[:m], sn_[:m]
+                np.cos(th1, out=cs)
+                np.sin(th1, out=sn)
+            else:
+                cs, sn = trig[0][a:a + chunk], trig[1][a:a + chunk]
+            o1 = out[a:a + chunk]
+            h = X  # (no heights before the first stage)
+            stage = 0
+            while not _search(stage, h, rh1, cs, sn, offs, step, w, _GOLD, Rc, etab,
+                              iterations, g, st, left, X, Y, o1):
+                h = z0[a:a + chunk] if stage in at_zero else surface.height(X, Y)
+                stage += 1
+
+    if workers == 1:
         run(0)
     else:  # numpy and the loops above release the GIL: one thread per core
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-            list(ex.map(run, starts))
+        with ThreadPoolExecutor(max_workers=workers) as ex:
+            list(ex.map(run, range(workers)))
     return out
 
 

@@ -106,7 +106,7 @@ def _second(t, q, a):
     a[n - 1] = a[n - 2]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _abs_max(a):
     """max |a_i| (NaN if any is NaN, as numpy's)."""
     m = 0.0
@@ -119,7 +119,7 @@ def _abs_max(a):
     return m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _reversals(v, eps):
     """Sign changes of v among its values with |v| > eps."""
     n = 0
@@ -131,6 +131,20 @@ def _reversals(v, eps):
                 n += 1
             last = sg
     return n
+
+
+@njit(cache=True, nogil=True)
+def _maxima(vx, ax, jx, vz, az, jz, vc, eps, out):
+    """The largest |value| of each of the seven series (into ``out``, in this order);
+    returns the sign changes of ``vx`` among its values with |v| > ``eps``."""
+    out[0] = _abs_max(vx)
+    out[1] = _abs_max(ax)
+    out[2] = _abs_max(jx)
+    out[3] = _abs_max(vz)
+    out[4] = _abs_max(az)
+    out[5] = _abs_max(jz)
+    out[6] = _abs_max(vc)
+    return _reversals(vx, eps)
 
 
 def axis_derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -205,7 +219,7 @@ def _at(path, i: int) -> str:
 
 
 def kinematics(path: ToolPath, *, limits: dict | None = None,
-               valid: np.ndarray | None = None) -> dict:
+               valid: np.ndarray | None = None, derivatives: dict | None = None) -> dict:
     """Axis kinematics of a tool path and warnings where it exceeds the machine limits.
 
     Parameters
@@ -219,6 +233,10 @@ def kinematics(path: ToolPath, *, limits: dict | None = None,
         The points whose derivatives count (a window's program planned in sectors: the
         points of the sectors, whose neighbours two either side are the program's own;
         not the joins to the sparse points between them).  Default: all.
+    derivatives : dict, optional
+        The (v, a, j) of ``X`` (``path.rho``) and ``Z`` (``path.z``) at the times
+        ``path.t``, where the caller has them (:func:`axes_derivatives` of
+        :func:`turning_axes`); an axis missing is computed here.  They are not changed.
 
     Returns
     -------
@@ -243,12 +261,18 @@ def kinematics(path: ToolPath, *, limits: dict | None = None,
         if not v > 0:
             raise InputError(f"{k} must be > 0, received {v}")
     t = np.asarray(path.t, dtype=np.float64)
-    vx, ax, jx = axis_derivatives(t, path.rho)
-    vz, az, jz = axis_derivatives(t, path.z)
+    given = derivatives or {}
+    vx, ax, jx = given["X"] if "X" in given else axis_derivatives(t, path.rho)
+    vz, az, jz = given["Z"] if "Z" in given else axis_derivatives(t, path.z)
     vc = np.empty_like(t)
     _gradient(t, np.ascontiguousarray(path.theta, dtype=np.float64), 2, vc)
     ok = None
     if valid is not None:
+        # (the caller's arrays are left as they are)
+        if "X" in given:
+            vx, ax, jx = vx.copy(), ax.copy(), jx.copy()
+        if "Z" in given:
+            vz, az, jz = vz.copy(), az.copy(), jz.copy()
         ok = np.asarray(valid, dtype=bool).copy()
         for k in (1, 2):  # the stencils of the derivatives (jerk: two either side)
             ok[k:] &= ok[:-k].copy()
@@ -256,16 +280,18 @@ def kinematics(path: ToolPath, *, limits: dict | None = None,
         for arr in (vx, ax, jx, vz, az, jz, vc):
             arr[~ok] = 0.0
     series = {("x", 1): vx, ("x", 2): ax, ("z", 1): vz, ("z", 2): az}
+    top = np.empty(7)
+    reversals = _maxima(vx, ax, jx, vz, az, jz, vc, 1e-12, top)
     out: dict[str, Any] = {
-        "x_velocity_max_mm_s": float(_abs_max(vx)),
-        "x_acceleration_max_mm_s2": float(_abs_max(ax)),
-        "x_jerk_max_mm_s3": float(_abs_max(jx)),
-        "z_velocity_max_mm_s": float(_abs_max(vz)),
-        "z_acceleration_max_mm_s2": float(_abs_max(az)),
-        "z_jerk_max_mm_s3": float(_abs_max(jz)),
-        "c_velocity_max_rad_s": float(_abs_max(vc)),
+        "x_velocity_max_mm_s": float(top[0]),
+        "x_acceleration_max_mm_s2": float(top[1]),
+        "x_jerk_max_mm_s3": float(top[2]),
+        "z_velocity_max_mm_s": float(top[3]),
+        "z_acceleration_max_mm_s2": float(top[4]),
+        "z_jerk_max_mm_s3": float(top[5]),
+        "c_velocity_max_rad_s": float(top[6]),
         "x_velocity_mean_mm_s": float(np.mean(np.abs(vx if ok is None else vx[ok]))),
-        "x_reversals": int(_reversals(vx, 1e-12)),
+        "x_reversals": int(reversals),
         "duration_s": float(t[-1] - t[0]),
         "limits": dict(lim),
         "limits_exceeded": {},

@@ -27,7 +27,8 @@ from ..core.errors import InputError, check_range
 
 TWO_PI = 2 * math.pi
 
-__all__ = ["spiral_ccps", "chordal_step_for", "chordal_error", "SAMPLINGS", "TWO_PI"]
+__all__ = ["spiral_ccps", "chordal_step_for", "chordal_error", "heights_along", "SAMPLINGS",
+           "TWO_PI", "BLOCK"]
 
 
 def _arc_theta(r_start: float, c: float, s: np.ndarray) -> np.ndarray:
@@ -127,12 +128,59 @@ def chordal_step_for(tolerance: float, radius_of_curvature: float) -> float:
     return math.sqrt(max(8 * R * h - 4 * h * h, 0.0))
 
 
+#: points of a path evaluated at a time: the arrays of one block and the design's own
+#: temporaries stay in the processor's cache (the values do not depend on it)
+BLOCK = 16384
+
+
+def _float64(h: Any, n: int) -> bool:
+    return isinstance(h, np.ndarray) and h.dtype == np.float64 and h.shape == (n,)
+
+
+def heights_along(surface: Any, rho: np.ndarray, cs: np.ndarray, sn: np.ndarray) -> np.ndarray:
+    """The design's heights at the points (rho cos, rho sin) of a path (``cs``, ``sn``:
+    the cosines and sines of its angles), :data:`BLOCK` points at a time: the same
+    numbers as ``surface.height(rho * cs, rho * sn)``, and the design's own error for
+    the whole path where it fails."""
+    n = rho.size
+    if n <= BLOCK:
+        return surface.height(rho * cs, rho * sn)
+    out = np.empty(n)
+    try:
+        for a in range(0, n, BLOCK):
+            b = min(a + BLOCK, n)
+            h = surface.height(rho[a:b] * cs[a:b], rho[a:b] * sn[a:b])
+            if not _float64(h, b - a):  # (a design of other heights: as it gives them)
+                return surface.height(rho * cs, rho * sn)
+            out[a:b] = h
+    except InputError:
+        surface.height(rho * cs, rho * sn)  # (its message tells of the whole path)
+        raise
+    return out
+
+
 def chordal_error(surface: Any, theta: np.ndarray, rho: np.ndarray,
                   z_ccp: np.ndarray) -> np.ndarray:
     """Linearisation error at each segment's midpoint: |F(mid) - (z_i + z_{i+1}) / 2|, mm.
 
     The axes interpolate linearly in (C, X, Z), so the mid-point lies on the spiral at the
-    mean angle and radius."""
+    mean angle and radius.  (Evaluated :data:`BLOCK` segments at a time.)"""
+    n = theta.size - 1
+    if n > BLOCK:
+        out = np.empty(n)
+        try:
+            for a in range(0, n, BLOCK):
+                b = min(a + BLOCK, n)
+                tm = 0.5 * (theta[a + 1:b + 1] + theta[a:b])
+                rm = 0.5 * (rho[a + 1:b + 1] + rho[a:b])
+                zm = surface.height(rm * np.cos(tm), rm * np.sin(tm))
+                if not _float64(zm, b - a):
+                    break
+                out[a:b] = np.abs(zm - 0.5 * (z_ccp[a + 1:b + 1] + z_ccp[a:b]))
+            else:
+                return out
+        except InputError:
+            pass  # (the error again, over the whole path, below)
     tm = 0.5 * (theta[1:] + theta[:-1])
     rm = 0.5 * (rho[1:] + rho[:-1])
     zm = surface.height(rm * np.cos(tm), rm * np.sin(tm))

@@ -37,9 +37,9 @@ from typing import Any, cast
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.toolpath import (ROLE_CUT, ROLE_NAMES, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT, Blocks,
-                             Links)
+from ..core.toolpath import ROLE_CUT, ROLE_NAMES, ROLE_RAPID, Blocks, Links
 from ..core.units import MIN_TO_S, MM_TO_NM
+from ._verify_scan import scan_blocks
 
 __all__ = ["PartModel", "MachineLimits", "plan_links", "part_top", "verify_blocks", "longest_step",
            "compare_with_plan",
@@ -296,7 +296,16 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     if i is not None:
         _fail(what, blocks, i + 1, f"the block moves before every axis has a position "
                                    f"({', '.join(blocks.axes)})")
-    zs = np.r_[z[0], z[:-1]]
+    # the checks of the moves (and a turning program's speeds), in one pass over the blocks
+    scan = scan_blocks(blocks, x, y, z, zc, _ROUND, part.max_step, to_s=MIN_TO_S,
+                       rpm_max=None if limits.spindle_rpm is None else
+                       limits.spindle_rpm * (1 + 1e-6),
+                       v_max={a: v * (1 + 1e-6) for a, v in limits.velocity_mm_s.items()
+                              if v is not None})
+
+    def zs(i):  # where block i starts (its Z)
+        return z[i - 1] if i > 0 else z[0]
+
     # every check notes the first block it refuses; the earliest block is reported
     problems: list[tuple[int, int, str]] = []
 
@@ -304,34 +313,25 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
         problems.append((int(i), len(problems), text))
 
     # 2. rapids stay in the clearance plane
-    low = rapid & ((z < zc - _ROUND) | (zs < zc - _ROUND))
-    i = _first(low)
+    i = scan["low"]
     if i is not None:
-        note(i, f"a rapid from Z {zs[i]:.6f} to Z {z[i]:.6f} mm leaves the "
+        note(i, f"a rapid from Z {zs(i):.6f} to Z {z[i]:.6f} mm leaves the "
                                f"clearance plane Z {zc:.6f} mm (the part's top is at {top:.6f} mm)")
     # 3. plunges and retracts: vertical, between the plane and the cut
     feedmove = ~rapid & (role != ROLE_CUT)
-    moved = np.zeros(n, dtype=bool)
-    for a in others:
-        v = blocks.axes[a]
-        moved[1:] |= np.abs(np.diff(v)) > _ROUND / 2
-    i = _first(feedmove & moved)
+    i = scan["sideways"]
     if i is not None:
         note(i, "a plunge or retract must be vertical (only Z moves): a feed move "
                                "outside the cut that also moves sideways could cut through the part")
-    hi = np.maximum(z, zs)
-    i = _first(feedmove & (hi < zc - _ROUND))
+    i = scan["short"]
     if i is not None:
         note(i, f"a plunge or retract must reach the clearance plane Z {zc:.6f} mm, "
-                               f"its top is at Z {hi[i]:.6f} mm")
-    i = _first(((role == ROLE_PLUNGE) & (z > zs)) | ((role == ROLE_RETRACT) & (z < zs)))
+                               f"its top is at Z {np.maximum(z[i], zs(i)):.6f} mm")
+    i = scan["direction"]
     if i is not None:
         note(i, "a plunge must move down and a retract up")
     # the lower ends of plunges and retracts are points of the cut: checked with the cut
-    lower = np.zeros(n, dtype=bool)
-    lower |= feedmove & (z <= zs)                       # a plunge's end
-    lower[:-1] |= feedmove[1:] & (z[1:] >= zs[1:])      # the point a retract leaves
-    cutpt = ((role == ROLE_CUT) | lower) & np.isfinite(x) & np.isfinite(y)
+    cutpt = scan["cutpt"]
     # 4. cutting blocks: inside the outline, on or above the design
     i = _first(cutpt & ~_inside(part.outline, x, y, part.half_width))
     if i is not None:
@@ -357,13 +357,12 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
                                        f"most {cut_tolerance * MM_TO_NM:.0f} nm allowed)")
             if sel.size:
                 below_max = max(below_max, float(np.max(d)))
-    if part.max_step is not None:
-        step = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
-        i = _first((role == ROLE_CUT) & (step > part.max_step + 4 * _ROUND))
-        if i is not None:
-            note(i, f"a cutting move of {step[i]:.6g} mm, longer than the "
-                                   f"program's longest planned step ({part.max_step:.6g} mm): a "
-                                   f"move between cuts must retract to the clearance plane")
+    i = scan["step"]
+    if i is not None:
+        step = np.sqrt((x[i] - x[i - 1]) ** 2 + (y[i] - y[i - 1]) ** 2 + (z[i] - z[i - 1]) ** 2)
+        note(i, f"a cutting move of {step:.6g} mm, longer than the program's longest planned "
+                f"step ({part.max_step:.6g} mm): a move between cuts must retract to the "
+                f"clearance plane")
     # 5. feeds and limits
     feed_mm_min = _feeds(blocks, x, y, z, what)
     f = blocks.feed
@@ -391,18 +390,20 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
             if i is not None:
                 note(i, f"{a} {v[i]:.6f} mm outside the travel [{lo:g}, {hi_:g}] mm "
                                        f"of {limits.source}")
-    _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
+    if blocks.dialect == "turning":
+        _turning_velocities(blocks, limits, scan["speeds"], note)
+    else:
+        _velocities(blocks, x, y, z, feed_mm_min, limits, what, note)
     # 6. every rapid against the design itself, along the move
     gap = _rapids_above_design(blocks, part, rapid, note)
     if problems:
         i, _, text = min(problems)
         _fail(what, blocks, i, text)
-    rz = np.minimum(z, zs)[rapid & (np.arange(n) > 0)]
-    return {"blocks": int(n), "rapids": int(rapid.sum()),
-            "plunges": int((role == ROLE_PLUNGE).sum()),
-            "retracts": int((role == ROLE_RETRACT).sum()), "cuts": int((role == ROLE_CUT).sum()),
+    rz = scan["rapid_lowest"]
+    return {"blocks": int(n), "rapids": scan["rapids"], "plunges": scan["plunges"],
+            "retracts": scan["retracts"], "cuts": scan["cuts"],
             "clearance_z_mm": zc, "part_top_mm": top, "clearance_above_part_mm": zc - top,
-            "rapids_above_part_min_mm": float(rz.min() - top) if rz.size else None,
+            "rapids_above_part_min_mm": float(rz - top) if rz is not None else None,
             "rapids_above_design_min_mm": gap,
             "cut_below_design_max_nm": max(below_max, 0.0) * MM_TO_NM if check_cuts else None,
             "max_feed_mm_per_min": float(np.nanmax(feed_mm_min[fm])) if fm.any() else 0.0,
@@ -438,10 +439,10 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
     """Feed of each ``G01`` block along the tool tip's straight move, mm/min (NaN for
     rapids); refuses a feed block without a positive ``F``."""
     n = blocks.count
-    f = blocks.feed.copy()
-    feed = np.full(n, np.nan)
     fm = blocks.motion == 1
     if blocks.dialect == "linear":
+        f = blocks.feed.copy()
+        feed = np.full(n, np.nan)
         last = np.nan
         for i in np.flatnonzero(~np.isnan(f) | fm):  # F is modal in G94
             if np.isnan(f[i]):
@@ -453,6 +454,7 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
             _fail(what, blocks, i, f"a feed move needs F > 0 mm/min, received {f[i]!r}")
         feed[fm] = f[fm]
         return feed
+    f = blocks.feed
     bad = fm & ~(f > 0)
     i = _first(bad[1:])
     if i is not None:
@@ -460,36 +462,22 @@ def _feeds(blocks: Blocks, x, y, z, what: str) -> np.ndarray:
                                    f"{f[i + 1]!r}")
     # length of the axes' move (X, Z; C is a rotation) over its duration 1/F min
     ax = blocks.axes
-    dist = np.r_[0.0, np.hypot(np.diff(ax["X"]), np.diff(ax["Z"]))]
-    feed[fm] = dist[fm] * f[fm]
-    return feed
+    dist = np.empty(n)
+    dist[:1] = 0.0
+    np.hypot(np.diff(ax["X"]), np.diff(ax["Z"]), out=dist[1:])
+    dist *= f
+    return np.where(fm, dist, np.nan)
 
 
 def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, what: str, note):
     n = blocks.count
     fm = np.r_[False, blocks.motion[1:] == 1]
-    if blocks.dialect == "turning":
-        dt = np.full(n, np.nan)
-        dt[fm] = MIN_TO_S / blocks.feed[fm]  # s
-        if limits.spindle_rpm is not None:
-            rpm = np.zeros(n)
-            # (less the rounding of the written places at either end of the move)
-            dc = np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes["C"])]) - 2 * _ROUND, 0.0)
-            turns = np.radians(dc) / (2 * math.pi)
-            rpm[fm] = turns[fm] / dt[fm] * MIN_TO_S
-            i = _first(rpm > limits.spindle_rpm * (1 + 1e-6))
-            if i is not None:
-                note(i, f"the C axis turns at {rpm[i]:.6g} rev/min, over the "
-                                       f"{limits.spindle_rpm:g} rev/min of {limits.source}")
-        moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
-                 for a in ("X", "Z")}
-    else:
-        length = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
-        dt = np.full(n, np.nan)
-        ok = fm & (length > 0)
-        dt[ok] = length[ok] / (feed_mm_min[ok] / MIN_TO_S)
-        moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
-                 for a in ("X", "Y", "Z")}
+    length = np.r_[0.0, np.sqrt(np.diff(x) ** 2 + np.diff(y) ** 2 + np.diff(z) ** 2)]
+    dt = np.full(n, np.nan)
+    ok = fm & (length > 0)
+    dt[ok] = length[ok] / (feed_mm_min[ok] / MIN_TO_S)
+    moves = {a: np.maximum(np.abs(np.r_[0.0, np.diff(blocks.axes[a])]) - 2 * _ROUND, 0.0)
+             for a in ("X", "Y", "Z")}
     for a, vmax in limits.velocity_mm_s.items():
         if vmax is None or a not in moves:
             continue
@@ -499,6 +487,29 @@ def _velocities(blocks: Blocks, x, y, z, feed_mm_min, limits: MachineLimits, wha
         if i is not None:
             note(i, f"the {a} axis moves at {v[i]:.6g} mm/s, over the {vmax:g} mm/s "
                                    f"of {limits.source}")
+
+
+def _turning_velocities(blocks: Blocks, limits: MachineLimits, first: dict, note):
+    """The spindle speed and the X and Z velocities of a turning program (inverse-time
+    feeds: a block lasts 1/F min) against ``limits``: ``first``, where each first
+    exceeds its limit (:func:`~render_inspect.toolpath._verify_scan.scan_blocks`); each
+    axis's move is less the rounding of the written places at either end."""
+    ax = blocks.axes
+
+    def move(a, i):
+        return np.maximum(np.abs(ax[a][i] - ax[a][i - 1]) - 2 * _ROUND, 0.0)
+
+    i = first["C"]
+    if i is not None:
+        rpm = np.radians(move("C", i)) / (2 * math.pi) / (MIN_TO_S / blocks.feed[i]) * MIN_TO_S
+        note(i, f"the C axis turns at {rpm:.6g} rev/min, over the "
+                f"{limits.spindle_rpm:g} rev/min of {limits.source}")
+    for a, vmax in limits.velocity_mm_s.items():
+        i = first.get(a) if vmax is not None else None
+        if i is not None:
+            v = move(a, i) / (MIN_TO_S / blocks.feed[i])
+            note(i, f"the {a} axis moves at {v:.6g} mm/s, over the {vmax:g} mm/s "
+                    f"of {limits.source}")
 
 
 #: longest piece of a rapid checked against the design at a time, mm
