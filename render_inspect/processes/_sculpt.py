@@ -319,7 +319,8 @@ class SculptProcess(Process[SculptInputs]):
 
     config = SculptProcessConfig
     inputs = SculptInputs
-    kernels = ("render_inspect.machining._sculpt:_sweep_line", *MATERIAL_KERNELS)
+    kernels = ("render_inspect.toolpath._verify_scan:_scan", "render_inspect.machining._sculpt:_sweep_line",
+               *MATERIAL_KERNELS)
 
     def plan(self, cfg: SculptInputs, surface: Surface, *,
              region: Sequence[float] | None = None) -> Plan:

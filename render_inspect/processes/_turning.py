@@ -377,12 +377,10 @@ class TurningProcess(Process[TurningInputs]):
     inputs: ClassVar[type[TurningInputs]] = TurningInputs
     kernels: ClassVar[tuple[str, ...]] = tuple(
         f"render_inspect.{name}" for name in (
-            # planning: the axes' derivatives, Z compensation, the kinematic checks
+            # planning: the axes' derivatives, Z compensation, the kinematic checks, then
+            # the program's moves between its cuts checked
             "toolpath._kinematics:_gradient", "toolpath._kinematics:_second",
-            "toolpath._compensation:_bracket", "toolpath._compensation:_points",
-            "toolpath._compensation:_minus_arc", "toolpath._compensation:_golden_step",
-            "toolpath._compensation:_golden_take", "toolpath._compensation:_final",
-            "toolpath._kinematics:_abs_max", "toolpath._kinematics:_reversals",
+            "toolpath._compensation:_search", "toolpath._kinematics:_maxima", "toolpath._verify_scan:_scan",
             # the machine's following
             "machining._interpolate:_hermite", "machining._axes:_track", "machining._iir:_sosfilt_kernel",
             # the material's cut (its texture and burrs: MATERIAL_KERNELS)
