@@ -1,64 +1,61 @@
-"""The following-error figures are laid out with fixed margins (no tight_layout): every
-label, tick label and title stays inside the figure and no axes overlaps another."""
+"""The following-error figures, drawn with Pillow: one panel per axis that moves, with its
+statistics; a single tick's spike stays visible after the per-bin envelope; the map's
+colours follow the sign of each error, grey where nothing was cut."""
 
-import matplotlib
+import io
+
 import numpy as np
 import pytest
+from PIL import Image
 
-matplotlib.use("Agg")
-
-from render_inspect.report import _following as F  # noqa: E402
-
-
-def _boxes_after_save(monkeypatch, tmp_path, draw):
-    import matplotlib.pyplot as plt
-
-    kept = {}
-
-    def save(fig, png_path):
-        fig.canvas.draw()
-        r = fig.canvas.get_renderer()
-        kept["fig"] = fig.bbox
-        kept["drawn"] = fig.get_tightbbox(r).transformed(fig.dpi_scale_trans)  # all that is drawn
-        kept["axes"] = [ax.get_tightbbox(r) for ax in fig.axes]
-        plt.close(fig)
-        return png_path
-
-    monkeypatch.setattr(F, "_save", save)
-    draw(tmp_path / "f.png")
-    return kept
+from render_inspect.report import _following as F
 
 
-def _inside(box, outer, tol=1.0):
-    return (box.x0 >= outer.x0 - tol and box.y0 >= outer.y0 - tol and box.x1 <= outer.x1 + tol
-            and box.y1 <= outer.y1 + tol)
+def _image(path):
+    return np.asarray(Image.open(io.BytesIO(path.read_bytes())).convert("RGB")).astype(int)
+
+
+def _series(n=400_000, axes=("x", "z", "fts", "c"), seed=0):
+    t = np.linspace(0.0, 600.0, n)
+    rng = np.random.default_rng(seed)
+    return t, {k: rng.normal(scale=1e-5 if k == "c" else 3e-6, size=t.size) for k in axes}
 
 
 @pytest.mark.parametrize("axes", [("x",), ("x", "z"), ("x", "z", "c"), ("x", "z", "fts", "c")])
-def test_following_error_figure_fits(monkeypatch, tmp_path, axes):
-    t = np.linspace(0.0, 600.0, 20001)
-    rng = np.random.default_rng(0)
-    errors = {k: rng.normal(scale=1e-5 if k == "c" else 3e-6, size=t.size) * 1e3 for k in axes}
-    stats = {}
-    for k in axes:
-        unit = "urad" if k == "c" else "nm"
-        stats[f"{k}_rms_{unit}"], stats[f"{k}_max_{unit}"] = -123.456, -12345.6
-    kept = _boxes_after_save(monkeypatch, tmp_path, lambda p: F.plot_following_error(
-        t, errors, p, title="a scene's long name: following error (command - followed)", stats=stats))
-    assert _inside(kept["drawn"], kept["fig"])
-    boxes = kept["axes"]
-    assert len(boxes) == len(axes)
-    for upper, lower in zip(boxes, boxes[1:]):      # rows top to bottom, no overlap
-        assert lower.y1 <= upper.y0 + 1.0
+def test_one_panel_per_axis_that_moves(tmp_path, axes):
+    t, errors = _series(axes=("x", "z", "fts", "c"))
+    height = {}
+    for n, names in ((1, ("x",)), (2, ("x", "z"))):
+        png = F.plot_following_error(t, {k: errors[k] for k in names}, tmp_path / f"{n}.png")
+        height[n] = _image(png).shape[0]
+    per_panel = height[2] - height[1]
+    assert per_panel > 100
+    given = {k: errors[k] for k in axes}
+    given["fts"] = np.zeros_like(t)  # an axis that does not move is left out
+    png = F.plot_following_error(t, given, tmp_path / "given.png")
+    rows = len([k for k in axes if k != "fts"])
+    assert _image(png).shape[0] == height[1] + (rows - 1) * per_panel
 
 
-@pytest.mark.parametrize("title", [None, "a scene: following error of the pass that cut each point"])
-def test_following_error_map_fits(monkeypatch, tmp_path, title):
-    rng = np.random.default_rng(1)
-    x = -1500.0 * np.abs(rng.normal(size=(101, 151)))
-    z = rng.normal(scale=8.0, size=(101, 151))
-    kept = _boxes_after_save(monkeypatch, tmp_path, lambda p: F.plot_following_error_map(
-        x, z, (-12.5, 12.5, -10.0, 10.0), p, title=title))
-    assert _inside(kept["drawn"], kept["fig"])
-    a, b, bar_a, bar_b = kept["axes"]                # the two maps, then their colorbars
-    assert a.x1 <= bar_a.x0 + 1.0 and bar_a.x1 <= b.x0 + 1.0 and b.x1 <= bar_b.x0 + 1.0
+def test_the_statistics_are_written_and_a_single_tick_spike_is_drawn(tmp_path):
+    t, errors = _series(axes=("x",))
+    stats = {"x_rms_nm": 3.0, "x_max_nm": 12.0}
+    quiet = F.plot_following_error(t, errors, tmp_path / "quiet.png", stats=stats)
+    spiky = dict(errors)
+    spiky["x"] = errors["x"].copy()
+    spiky["x"][123_457] = 40 * np.max(np.abs(errors["x"]))  # one tick of 400,000
+    spike = F.plot_following_error(t, spiky, tmp_path / "spike.png", stats=stats)
+    other = F.plot_following_error(t, errors, tmp_path / "other.png",
+                                   stats={"x_rms_nm": 3.5, "x_max_nm": 12.0})
+    a, b, c = _image(quiet), _image(spike), _image(other)
+    assert a.shape == b.shape == c.shape
+    assert not np.array_equal(a, c)  # the statistics are in the figure
+    # the spike, one tick of 400,000, is drawn (the envelope keeps it): a thin line, many
+    # rows of the panel high, where the curve's colour is in a few columns only
+    curve = (31, 90, 160)
+
+    def thin_rows(img):
+        per_row = np.all(img == curve, axis=2).sum(axis=1)
+        return int(np.count_nonzero((per_row >= 1) & (per_row <= 4)))
+
+    assert thin_rows(b) > 60 and thin_rows(b) > 4 * thin_rows(a)

@@ -1,23 +1,26 @@
 """The figures of a ``simulate`` command drawn by a second process beside the computation.
 
-Drawing a figure is Python work that holds the interpreter (matplotlib: about 0.35 CPU-s
-to import, 0.1-0.3 CPU-s a figure), so a thread of the same process draws it only when
-the computation leaves the interpreter free.  A child process, forked when the command
-starts (a copy of the process as it is then: the package already imported, no thread of
-numba's yet), imports matplotlib and draws each figure as soon as its data is sent, on
-the other core, while the parent plans, follows, cuts and writes.  The figures are the
-same files, byte for byte: the same functions draw them from the same data.
+Drawing a figure is Python work that holds the interpreter (a few tens of milliseconds
+for the figures drawn with Pillow: the axes' motion, the following error and its map,
+``residual.png``; matplotlib's, such as the tool-wear figure, about 0.35 CPU-s to import
+and 0.1-0.3 CPU-s a figure), so a thread of the same process draws it only when the
+computation leaves the interpreter free.  A child process, forked when the command starts
+(a copy of the process as it is then: the package already imported, no thread of numba's
+yet), draws each figure as soon as its data is sent, on the other core, while the parent
+plans, follows, cuts and writes.  The figures are the same files, byte for byte: the same
+functions draw them from the same data.
 
-The child is forked before numba starts, and imports matplotlib while the parent starts
-numba (about 0.3 CPU-s: its import and its compiler's set-up) and plans: the two starts
-run side by side on two cores.  The figures need no compiled kernel of their own: the
-axis-motion figure is drawn from the derivatives the plan took (a figure that needs a
+The child is forked before numba starts (about 0.3 CPU-s: its import and its compiler's
+set-up, which the parent needs next to plan), and imports matplotlib only when the first
+figure that needs it arrives: a scene whose figures are all drawn with Pillow leaves the
+second core to the parent's threads.  The figures need no compiled kernel of their own:
+the axis-motion figure is drawn from the derivatives the plan took (a figure that needs a
 kernel all the same starts numba in the child when it is drawn).
 
 Figures that arrive together (the cut's, then ``residual.png`` while the parent writes its
-files) are drawn at once, each by a copy of the child forked for it (matplotlib already
-loaded: the copy costs milliseconds), up to :data:`DRAWERS` at a time and one per usable
-core; on one usable core the child draws them one after the other.
+files) are drawn at once, each by a copy of the child forked for it (the copy costs
+milliseconds, and shares matplotlib once the child has it), up to :data:`DRAWERS` at a
+time and one per usable core; on one usable core the child draws them one after the other.
 
 The child only draws: it ignores Ctrl-C and hang-ups (the parent decides), ends when the
 parent closes its end of the pipe or ends itself, and never runs the parent's clean-up
@@ -49,7 +52,7 @@ import numpy as np
 from ..core.lazy import collector_paused, freeze_lasting
 from ..core.limits import usable_cpus
 from ..core.units import MIB_TO_BYTES
-from ..report import draw_figure, preload_drawing, residual_png
+from ..report import draw_figure, preload_drawing, residual_png, uses_matplotlib
 from ..toolpath import axis_derivatives
 
 __all__ = ["FigureProcess"]
@@ -98,6 +101,13 @@ def _result(key: int, seconds: float, error: BaseException | None) -> bytes:
     return len(blob).to_bytes(8, "little") + blob
 
 
+def _uses_matplotlib(job: tuple) -> bool:
+    """Whether drawing ``job`` imports matplotlib (``residual.png`` and the figures
+    :func:`~render_inspect.report.uses_matplotlib` names are drawn with Pillow)."""
+    _, kind, args, _ = job
+    return kind == "figure" and uses_matplotlib(args[0])
+
+
 def _draw(job: tuple, results_fd: int) -> None:
     """Draw ``job`` and write its report."""
     key, kind, args, kwargs = job
@@ -144,8 +154,9 @@ def _end_with(parent: int) -> None:
 
 
 def _child(jobs_fd: int, results_fd: int) -> None:
-    """The child's life: import the drawing library, then draw the jobs as they arrive
-    and report each (name, seconds, error or None) until the parent closes the pipe.  Up
+    """The child's life: draw the jobs as they arrive and report each (name, seconds,
+    error or None) until the parent closes the pipe; matplotlib is imported when the
+    first figure that needs it arrives.  Up
     to :data:`DRAWERS` jobs are drawn at once, each by a copy of the child forked for it
     (the figures of a cut arrive together while the command writes its files), or one
     after the other by the child itself on a single usable core."""
@@ -171,25 +182,28 @@ def _child(jobs_fd: int, results_fd: int) -> None:
                 inbox.put(job)
 
     threading.Thread(target=read, daemon=True).start()
-    # what the figures need, loaded before the first of them arrives (the parent is
-    # starting numba and planning the program meanwhile), with the collector paused:
-    # matplotlib's modules live as long as the child (its own switch, not
-    # collector_paused, whose lock was the parent's)
-    was_on = gc.isenabled()
-    gc.disable()
-    try:
-        preload_drawing()
-    except Exception:  # (drawing loads the same and reports what fails there)
-        pass
-    gc.freeze()
-    if was_on:
-        gc.enable()
     at_once = min(DRAWERS, usable_cpus())
     drawing: set[int] = set()
+    loaded = False
     while True:
         job = inbox.get()
         if job is None:
             break
+        if not loaded and _uses_matplotlib(job):
+            # matplotlib, imported once here for the figures that need it (the copies
+            # forked below share it), with the collector paused: its modules live as
+            # long as the child (its own switch, not collector_paused, whose lock was
+            # the parent's)
+            loaded = True
+            was_on = gc.isenabled()
+            gc.disable()
+            try:
+                preload_drawing()
+            except Exception:  # (drawing loads the same and reports what fails there)
+                pass
+            gc.freeze()
+            if was_on:
+                gc.enable()
         while len(drawing) >= at_once:
             _wait_drawer(drawing)
         pid = _fork_drawer(job, results_fd) if at_once > 1 else None

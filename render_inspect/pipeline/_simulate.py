@@ -25,7 +25,7 @@ from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
 from ..processes import Cut, Plan, Traits, check_budget, process_of
-from ..report import draw_figure, preload_drawing, residual_preview_image, residual_preview_png
+from ..report import draw_figure, preload_drawing, residual_preview_image, residual_preview_png, uses_matplotlib
 from ._figure_process import FigureProcess
 from ._metrics import simulation_metrics, write_metrics
 from ._toolpath import check_links
@@ -106,8 +106,9 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
     available) before and after planning, and the process cuts the surface; the metrics
     are built once (:func:`~render_inspect.pipeline.simulation_metrics`).
     ``preload_figures``: once the program is planned (its inputs read and checked),
-    import the figures' library in a thread while the surface is cut
-    (:func:`~render_inspect.report.preload_drawing`), for a caller that draws them next.
+    import matplotlib in a thread while the surface is cut
+    (:func:`~render_inspect.report.preload_drawing`) when a figure of the plan is drawn
+    with it, for a caller that draws them next.
     ``figures``: called with the plan's figures (file name -> spec) once the program is
     planned, with each of the cut's as soon as the cut has made it (the following error
     once the machine has followed the program: :mod:`~render_inspect.core.handoff`) and
@@ -130,7 +131,7 @@ def simulate(scene: Scene, *, surface: Surface | None = None,
         plan = process.plan_window(cfg, surface, region)
     timing = dict(plan.timing)
     timing["toolpath"] = time.perf_counter() - t0
-    if preload_figures:
+    if preload_figures and any(uses_matplotlib(spec) for spec in plan.plots.values()):
         _preload_figures()
     if figures is not None and plan.plots:
         figures(dict(plan.plots))

@@ -22,7 +22,7 @@ from ._kinematics import kinematics_png, plot_kinematics
 from ._maps import save_map_png
 from ._program import plot_feed_per_rev
 
-__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds", "preload_drawing"]
+__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds", "preload_drawing", "uses_matplotlib"]
 
 #: the figure kinds :func:`draw_figure` draws itself (more are registered:
 #: :func:`figure_kinds`)
@@ -34,6 +34,16 @@ def figure_kinds() -> tuple[str, ...]:
     """Every figure kind :func:`draw_figure` draws: the built-in ones and those registered
     with :func:`~render_inspect.report.register_figure`."""
     return FIGURE_KINDS + tuple(k for k in registered_figures() if k not in FIGURE_KINDS)
+
+
+#: the figure kinds :func:`draw_figure` draws with Pillow alone (no matplotlib to import)
+PILLOW_KINDS = ("axes", "following_error", "following_error_map")
+
+
+def uses_matplotlib(spec: dict) -> bool:
+    """Whether drawing the figure ``spec`` imports matplotlib (a registered kind is taken
+    to: it may)."""
+    return spec.get("kind") not in PILLOW_KINDS
 
 
 def preload_drawing() -> None:
