@@ -29,11 +29,11 @@ import importlib
 import os
 import threading
 import types
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
-           "collector_paused", "freeze_after_pauses", "freeze_lasting", "preload_cached"]
+           "collector_paused", "freeze_after_pauses", "freeze_lasting"]
 
 _LOCK = threading.RLock()
 #: blocks running with the collector paused (collector_paused), and whether it was on
@@ -241,54 +241,3 @@ def lazy_attr(module: str, name: str) -> Any:
     # class); its type cannot be named here without importing the module, which is what
     # this function avoids
     return _LazyAttr(module, name)
-
-
-def _cached_signatures(dispatcher: Any) -> list:
-    """The signatures whose machine code numba's on-disk cache holds for ``dispatcher``,
-    for this machine and this source (none where the cache is off, stale or unreadable)."""
-    cache: Any = getattr(dispatcher, "_cache", None)
-    cache_file = getattr(cache, "_cache_file", None)
-    if cache is None or cache_file is None:
-        return []
-    index = cache_file._load_index()  # {(signature, machine and source key): data file}
-    codegen = dispatcher.targetctx.codegen()
-    folder = os.path.dirname(cache_file._index_path)
-    return [key[0] for key, name in index.items()
-            if cache._index_key(key[0], codegen) == key and os.path.exists(os.path.join(folder, name))]
-
-
-def _kernel(name: str) -> Any:
-    """The numba dispatcher of the kernel ``"package.module:attribute"``."""
-    module, _, attr = name.partition(":")
-    obj = getattr(importlib.import_module(module), attr)
-    return obj._realise() if isinstance(obj, LazyDispatcher) else obj
-
-
-def preload_cached(names: Iterable[str]) -> threading.Thread:
-    """Load, in a background thread, the machine code numba's on-disk cache holds for the
-    kernels ``names`` (``"package.module:attribute"``, in the order a command first calls
-    them), so that the command's first call of each finds it loaded.
-
-    Loading a kernel from the cache costs a few milliseconds of CPU (reading its index and
-    object code, linking it), about half of it in LLVM without the interpreter's lock;
-    a command that calls twenty kernels for the first time one after the other waits for
-    each in turn.  Only signatures already in the cache (for this machine and this source)
-    are loaded: nothing is compiled here, and a kernel that is not cached, or whose
-    loading fails, is left to its first call as before.  The loading takes numba's
-    compiler lock, so a command's first call of a kernel the thread is loading waits for
-    it rather than loading it twice.  For a process that will not fork afterwards (a
-    child forked while the thread holds numba's lock could not compile)."""
-    kernels = list(names)
-
-    def load() -> None:
-        for name in kernels:
-            try:
-                dispatcher = _kernel(name)
-                for sig in _cached_signatures(dispatcher):
-                    dispatcher.compile(sig)
-            except Exception:  # (left to the kernel's first call, which reports any error)
-                continue
-
-    thread = threading.Thread(target=load, name="render_inspect-kernels", daemon=True)
-    thread.start()
-    return thread

@@ -16,7 +16,6 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.grid import grid_shape
-from ..core.lazy import preload_cached
 from ..core.limits import Driver, format_number, memory_budget, usable_cpus
 from ..core.progress import task
 from ..design import make_surface
@@ -69,11 +68,6 @@ def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None 
         process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 
-#: the numba kernels writing a simulation calls (its metrics, the preview pyramid, the EXR)
-WRITE_KERNELS = ("render_inspect.machining._metrics:_stats", "render_inspect.io._pyramid:_block_sums",
-                 "render_inspect.io._exr:_to_float32")
-
-
 def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
                  workers: int | None = None,
                  scheduler: str | None = None, tile: int = TILE, overwrite: bool = False,
@@ -99,10 +93,6 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
                                   overwrite=overwrite)
     # (forked before the output folder is locked, and before any thread of numba's starts)
     drawer = FigureProcess.start() if figure_process else None
-    if drawer is not None:
-        # the program's own process (it forks nothing more): the kernels the cut and the
-        # writing call, loaded from numba's cache while the program is planned
-        preload_cached((*process_of(scene).kernels, *WRITE_KERNELS))
     try:
         with atomic_output_dir(out, overwrite=overwrite, command="simulate", scene=scene) as tmp:
             try:

@@ -388,11 +388,6 @@ class Process(ABC, Generic[InputsT]):
     config: ClassVar[type]
     #: the scene sections the hooks read
     inputs: ClassVar[type[Inputs]] = Inputs
-    #: the numba kernels its plan and cut call (``"package.module:attribute"``, in the order
-    #: of their first call), whose cached machine code the ``simulate`` command loads in
-    #: the background while it plans (:func:`~render_inspect.core.lazy.preload_cached`);
-    #: a kernel left out is loaded at its first call, as any other
-    kernels: ClassVar[tuple[str, ...]] = ()
 
     def inputs_of(self, scene: SceneSections) -> InputsT:
         """The hooks' view of ``scene``: the sections :attr:`inputs` declares."""

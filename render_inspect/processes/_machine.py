@@ -110,15 +110,6 @@ class MachineConfig(Section):
         return self.model_dump(exclude_none=True, exclude={"preset"}, exclude_defaults=False)
 
 
-#: the numba kernels of a material's texture and burrs, in the order of their first call
-#: (:attr:`~render_inspect.processes.Process.kernels`): the burr model's proof of no edge,
-#: then its edge search where the map has candidate edges
-MATERIAL_KERNELS = tuple(f"render_inspect.machining.{name}" for name in (
-    "_burr_kernels:_pass_jumps", "_material:_add_texture_rows", "_burr_bound:_reference_rows",
-    "_burr_bound:_sampled_max", "_burr_bound:_sampled_max_rows", "_burr_kernels:_candidates0",
-    "_burr_kernels:_candidates1", "_burr_kernels:_edges0", "_burr_kernels:_edges1",
-    "_burr_kernels:_mark_cells", "_burr_kernels:_smooth_axis0", "_burr_kernels:_smooth_axis1"))
-
 _MATERIAL_PROPS = ("youngs_modulus_gpa", "poisson", "hardness_gpa", "friction",
                    "elongation_percent", "burr_coefficient", "texture_nm", "texture_length_um",
                    "adhesion_layer_nm", "adhesion_roughness_nm")

@@ -44,7 +44,7 @@ from ..machining import (
 from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
                         PartModel, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
-from ._machine import MATERIAL_KERNELS, MaterialConfig, ProcessScene, material_of
+from ._machine import MaterialConfig, ProcessScene, material_of
 from ._program_part import design_part, machine_limits
 from ._mechanics import BurrConfig, add_texture, burrs_of
 from ._registry import check_budget, register_process, register_retired_key, register_section
@@ -319,8 +319,6 @@ class SculptProcess(Process[SculptInputs]):
 
     config = SculptProcessConfig
     inputs = SculptInputs
-    kernels = ("render_inspect.toolpath._verify_scan:_scan", "render_inspect.machining._sculpt:_sweep_line",
-               *MATERIAL_KERNELS)
 
     def plan(self, cfg: SculptInputs, surface: Surface, *,
              region: Sequence[float] | None = None) -> Plan:

@@ -42,7 +42,7 @@ from ..toolpath import (
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._edge_facts import check_edge_and_wear
-from ._machine import MATERIAL_KERNELS, ProcessScene, machine_of, material_of
+from ._machine import ProcessScene, machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
@@ -375,17 +375,6 @@ class TurningProcess(Process[TurningInputs]):
     set ``config`` and change what differs."""
 
     inputs: ClassVar[type[TurningInputs]] = TurningInputs
-    kernels: ClassVar[tuple[str, ...]] = tuple(
-        f"render_inspect.{name}" for name in (
-            # planning: the axes' derivatives, Z compensation, the kinematic checks, then
-            # the program's moves between its cuts checked
-            "toolpath._kinematics:_gradient", "toolpath._kinematics:_second",
-            "toolpath._compensation:_search", "toolpath._kinematics:_maxima", "toolpath._verify_scan:_scan",
-            # the machine's following
-            "machining._interpolate:_hermite", "machining._axes:_track", "machining._iir:_sosfilt_kernel",
-            # the material's cut (its texture and burrs: MATERIAL_KERNELS)
-            "machining._envelope_path:_right_counts", "machining._cut_kernel:_cut_serial")
-    ) + MATERIAL_KERNELS
 
     def program(self, cfg: TurningInputs, surface: Any, *, region: Sequence[float] | None = None,
                 sectors: bool = False) -> ToolPath:
