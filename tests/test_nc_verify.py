@@ -198,6 +198,34 @@ def test_simulate_checks_the_links():
     assert sim.metrics["toolpath"]["links"]["clearance_above_part_mm"] >= 0.1 - 2e-6
 
 
+def test_a_process_stating_its_own_links_has_them_checked():
+    """A process kind that overrides ``program_links`` alone (a plug-in's own clearance)
+    has those links checked by ``simulate``, against its ``program_part``."""
+    from dataclasses import replace
+
+    from render_inspect.pipeline._toolpath import check_links, links_and_part
+
+    scene = _scene("sts")
+    process = process_of(scene)
+    cfg = process.inputs_of(scene)
+    surface = make_surface(scene.design)
+    plan = plan_program(scene, surface=surface)
+    base_links, part = process.program_links_part(cfg, surface, plan)
+    higher = replace(base_links, clearance_z=base_links.clearance_z + 0.4)
+
+    class OwnLinks(type(process)):
+        def program_links(self, cfg, surface, plan):
+            return higher
+
+    own = OwnLinks()
+    links, own_part = links_and_part(own, cfg, surface, plan)
+    assert links is higher and own_part.stock == part.stock
+    assert links_and_part(process, cfg, surface, plan)[0] == base_links
+    checked = check_links(own, cfg, surface, plan)
+    assert checked["clearance_above_part_mm"] == pytest.approx(
+        simulate(scene).metrics["toolpath"]["links"]["clearance_above_part_mm"] + 0.4, abs=1e-6)
+
+
 def test_clearance_key_is_validated_and_used(tmp_path):
     with pytest.raises(SceneError, match=r"process\.clearance.*0\.01"):
         load_scene("sts_sinusoidal_grid", ["process.clearance=0.001"])

@@ -61,13 +61,25 @@ def verify_program_file(path: Path, process: Process, cfg: Any, surface: Surface
     return facts
 
 
+def links_and_part(process: Any, cfg: Any, surface: Surface, plan: Plan) -> tuple | None:
+    """The links of the planned program and the part they are checked against
+    (:meth:`~render_inspect.processes.Process.program_links_part`: the part made once),
+    or None.  A process that states its links by overriding ``program_links`` alone has
+    those, with its ``program_part``."""
+    own = getattr(type(process), "program_links", None)
+    if own is not None and own is not Process.program_links:
+        links = process.program_links(cfg, surface, plan)
+        return None if links is None else (links, process.program_part(cfg, surface, plan))
+    return process.program_links_part(cfg, surface, plan)
+
+
 def check_links(process: Any, cfg: Any, surface: Surface, plan: Plan) -> dict | None:
     """The moves between the cuts of the planned program (approach, links, exit: the
     blocks :func:`~render_inspect.io.program_blocks` gives) checked against the part and
     the machine: the rapids stay in the clearance plane, plunges and retracts are
     vertical, no link touches the part.  Returns the facts (``metrics.json``
     ``toolpath.links``), None for a process without a part to check against."""
-    both = process.program_links_part(cfg, surface, plan)
+    both = links_and_part(process, cfg, surface, plan)
     if both is None:
         return None
     links, part = both
@@ -117,7 +129,7 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     with atomic_output_dir(out, overwrite=overwrite, command="toolpath", scene=scene) as tmp:
         surface = make_surface(scene.design)
         plan = plan_program(scene, surface=surface)
-        both = process.program_links_part(cfg, surface, plan)
+        both = links_and_part(process, cfg, surface, plan)
         links, part = (None, None) if both is None else both
         if fmt == "nc":  # before the program is written, read back and verified
             nc_memory(scene, plan.program.points)
