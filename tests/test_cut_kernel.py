@@ -168,21 +168,29 @@ def test_row_blocks_report_progress_and_stop_when_asked(cut_case):
                     progress=stop)
 
 
+def _dwell_path(rng):
+    """Angles of 3000 uneven steps, about 5 % of them repeated points (a dwell), and their
+    lookup table (table, first angle, bin width)."""
+    from render_inspect.machining import _envelope_path
+
+    steps = rng.uniform(0.0, 2e-3, 3000)
+    steps[rng.random(steps.size) < 0.05] = 0.0          # repeated angles (a dwell)
+    theta = np.concatenate([[0.3], 0.3 + np.cumsum(steps)])
+    return (theta, *_envelope_path._lookup_table(theta))
+
+
 def test_one_pass_lookup_serves_every_kernel_and_brackets_the_angle():
     """The envelope's and the cutting kernel's pass lookup are one function; from either
     bin arithmetic it finds the segment holding the angle, on a path with uneven steps and
     repeated points, for angles between points and on them."""
-    from render_inspect.machining import _cut_kernel, _cutting, _envelope, _envelope_path
+    from render_inspect.machining import _cut_kernel, _cutting, _envelope
     from render_inspect.machining import _envelope_step as step
 
     assert _cut_kernel._lookup_bin is step._lookup_bin
     assert _cutting._lookup is _envelope._lookup is step._lookup
     assert not hasattr(_cut_kernel, "_find")
     rng = np.random.default_rng(4)
-    steps = rng.uniform(0.0, 2e-3, 3000)
-    steps[rng.random(steps.size) < 0.05] = 0.0          # repeated angles (a dwell)
-    theta = np.concatenate([[0.3], 0.3 + np.cumsum(steps)])
-    tab, t0, w = _envelope_path._lookup_table(theta)
+    theta, tab, t0, w = _dwell_path(rng)
     iw = 1.0 / w
     s_all = np.concatenate([rng.uniform(theta[0], theta[-1], 4000), theta[::7]])
     for s in s_all:
@@ -196,14 +204,11 @@ def test_the_segment_remembered_from_the_previous_pixel_is_the_tables():
     previous pixel: it finds the table lookup's segment (the same index, which decides a
     pass on a path point) for angles that move a little or far, between points, on them,
     on repeated points and beyond the path's ends, for passes that share a slot."""
-    from render_inspect.machining import _cut_kernel, _envelope_path
+    from render_inspect.machining import _cut_kernel
     from render_inspect.machining._envelope_step import _lookup_bin
 
     rng = np.random.default_rng(5)
-    steps = rng.uniform(0.0, 2e-3, 3000)
-    steps[rng.random(steps.size) < 0.05] = 0.0          # repeated angles (a dwell)
-    theta = np.concatenate([[0.3], 0.3 + np.cumsum(steps)])
-    tab, t0, w = _envelope_path._lookup_table(theta)
+    theta, tab, t0, w = _dwell_path(rng)
     iw = 1.0 / w
     seen = np.full(2 * _cut_kernel._SEEN, _cut_kernel._NO_PASS, dtype=np.int64)
     span = theta[-1] - theta[0]

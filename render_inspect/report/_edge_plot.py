@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._figure_kinds import register_figure
-from ._following import _save
+from ._savefig import save_png
 
 __all__ = ["plot_tool_edge", "plot_tool_wear"]
 
@@ -46,7 +46,7 @@ def plot_tool_edge(spec: dict, png_path: str | Path) -> Path:
     a2.set_ylabel("height, mean removed (nm)")
     a2.legend(loc="best", fontsize=8)
     fig.suptitle(spec.get("title", ""), fontsize=10)
-    return _save(fig, png_path, tight_layout=True)
+    return save_png(fig, png_path, tight_layout=True)
 
 
 @register_figure("tool_wear")
@@ -73,4 +73,4 @@ def plot_tool_wear(spec: dict, png_path: str | Path) -> Path:
     a2.set_ylabel("Sa of machined - design in rings (nm)")
     a2.set_ylim(bottom=0)
     fig.suptitle(spec.get("title", ""), fontsize=10)
-    return _save(fig, png_path, tight_layout=True)
+    return save_png(fig, png_path, tight_layout=True)

@@ -5,24 +5,15 @@ figure and its import about 0.35 s)."""
 
 from __future__ import annotations
 
-from typing import Any
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_bytes
 from ._kinematics import _envelope
 from ._quickplot import maps_png, panels_png
-from ._savefig import figure_png
 
 __all__ = ["plot_following_error", "plot_following_error_map"]
-
-
-def _save(fig: Any, png_path: str | Path, *, tight_layout: bool = False) -> Path:
-    """Write the matplotlib figure ``fig`` at 110 dpi (after ``fig.tight_layout()`` when
-    ``tight_layout``)."""
-    return atomic_write_bytes(png_path, figure_png(fig, dpi=110, tight_layout=tight_layout))
 
 
 def plot_following_error(t: np.ndarray, errors: dict, png_path: str | Path, *,

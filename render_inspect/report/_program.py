@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._following import _save
+from ._savefig import save_png
 
 __all__ = ["plot_feed_per_rev"]
 
@@ -33,4 +33,4 @@ def plot_feed_per_rev(radius_mm: np.ndarray, feed_um: np.ndarray, png_path: str 
         pad = 0.05 * (hi - lo) if hi > lo else max(abs(hi) * 0.05, 1e-3)
         ax.set_ylim(lo - pad, hi + pad)
     ax.set_title(title or "feed per revolution against the radius")
-    return _save(fig, png_path, tight_layout=True)
+    return save_png(fig, png_path, tight_layout=True)

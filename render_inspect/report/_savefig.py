@@ -23,9 +23,12 @@ import contextlib
 import functools
 import io
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
-__all__ = ["figure_png", "lay_out_once", "quick_ticks", "PNG_COMPRESS_LEVEL"]
+from ..io import atomic_write_bytes
+
+__all__ = ["figure_png", "save_png", "lay_out_once", "quick_ticks", "PNG_COMPRESS_LEVEL"]
 
 
 @functools.cache
@@ -156,3 +159,9 @@ def figure_png(fig: Any, *, dpi: float | None = None, tight_layout: bool = False
 
             plt.close(fig)
     return buf.getvalue()
+
+
+def save_png(fig: Any, png_path: str | Path, *, tight_layout: bool = False) -> Path:
+    """Write ``fig`` at 110 dpi into ``png_path`` atomically (:func:`figure_png`; after
+    ``fig.tight_layout()`` when ``tight_layout``); the figure is closed."""
+    return atomic_write_bytes(png_path, figure_png(fig, dpi=110, tight_layout=tight_layout))

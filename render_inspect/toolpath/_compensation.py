@@ -33,12 +33,12 @@ from __future__ import annotations
 
 from typing import Any
 import math
-import os
 import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
+from ..core.limits import usable_cpus
 from ._edge import EdgeProfile
 
 _GOLD = (math.sqrt(5) - 1) / 2
@@ -302,7 +302,7 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
             raise ValueError(f"cos_sin has {[a.shape for a in trig]} points, rho {rho.shape}")
 
     starts = list(range(0, rho.size, chunk))
-    workers = max(1, min(len(starts), os.cpu_count() or 1))
+    workers = max(1, min(len(starts), usable_cpus()))
     todo: queue.SimpleQueue[int] = queue.SimpleQueue()
     for a in starts:
         todo.put(a)
