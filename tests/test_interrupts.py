@@ -16,6 +16,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -112,10 +113,24 @@ def _working(name: str, out: Path, t0: float) -> bool:
 
 
 def _stop_once_busy(name, args, out: Path, sig: str, cwd: Path):
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-m", "render_inspect.cli", *args, "--out", str(out),
-                             "-q"], cwd=cwd, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    # (PYTHONFAULTHANDLER: a command that hangs is ended with SIGABRT, which prints every
+    # thread's stack into the failure.  Its errors go to a temporary file, not a pipe: a
+    # pipe that nobody reads while the command works would block its writes once full)
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               PYTHONFAULTHANDLER="1")
+    err_file = tempfile.TemporaryFile("w+")
+    with err_file, open(os.devnull, "w") as so:
+        proc = subprocess.Popen([sys.executable, "-m", "render_inspect.cli", *args, "--out", str(out),
+                                 "-q"], cwd=cwd, env=env, stdout=so, stderr=err_file, text=True)
+        return _stopped(proc, name, args, out, sig, err_file)
+
+
+def _stopped(proc, name, args, out: Path, sig: str, err_file):
+    """:func:`_stop_once_busy` once the command runs, its errors written into ``err_file``."""
+    def err_text() -> str:
+        err_file.seek(0)
+        return err_file.read()
+
     t0 = time.monotonic()
     busy_since = None
     while proc.poll() is None and time.monotonic() - t0 < 400:
@@ -127,20 +142,23 @@ def _stop_once_busy(name, args, out: Path, sig: str, cwd: Path):
         time.sleep(0.05)
     if proc.poll() is not None or not _working(name, out, t0):
         proc.wait()
-        _, err = proc.communicate()
         pytest.fail(f"{args[0]} finished its work before it was stopped (rc {proc.returncode}): "
-                    f"{err[-500:]}; give it more to do")
+                    f"{err_text()[-500:]}; give it more to do")
     ts = time.monotonic()
     proc.send_signal(getattr(signal, sig))
     try:
         proc.wait(timeout=120)
     except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-        pytest.fail(f"{args[0]} did not stop within 120 s of {sig}")
+        proc.send_signal(signal.SIGABRT)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        pytest.fail(f"{args[0]} did not stop within 120 s of {sig}; its threads then:\n"
+                    f"{err_text()[-6000:]}")
     latency = time.monotonic() - ts
-    _, err = proc.communicate()
-    return proc.returncode, latency, err
+    return proc.returncode, latency, err_text()
 
 
 def _needs_inputs(args) -> bool:
