@@ -1,7 +1,8 @@
 """The ``render-inspect`` program's own process settings (render_inspect._process_settings):
 made in the program, never in a program that imports the package; OpenBLAS's thread
-timeout as the user set it when they did; and large temporary arrays reuse freed memory
-(the page faults of a growing temporary, measured)."""
+timeout and numpy's huge-page switch as the user set them when they did; large temporary
+arrays reuse freed memory (the page faults of a growing temporary, measured); numpy asks
+for no huge pages (the page faults of a fresh large array, measured)."""
 
 from __future__ import annotations
 
@@ -16,8 +17,9 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 #: imports the package as the program (``argv[0]`` "render-inspect") or as a host, then
-#: prints the settings seen and the minor page faults of arrays of 1 to 24 MiB, each
-#: allocated, filled and freed in turn (4 KiB pages)
+#: prints the settings seen, the minor page faults of a fresh 64 MiB array filled (the
+#: system's choice of pages), and those of arrays of 1 to 24 MiB, each allocated, filled
+#: and freed in turn (4 KiB pages)
 _PROBE = r"""
 import json, os, resource, sys
 if sys.argv[1] == "program":
@@ -25,10 +27,16 @@ if sys.argv[1] == "program":
 import render_inspect
 import ctypes
 import numpy as np
+_mu = getattr(np, "_core", None) or np.core
+hugepage = bool(_mu.multiarray._get_madvise_hugepage())
+big = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+a = np.empty(64 * 1024 * 1024 // 8)
+a.fill(1.0)
+del a
+big = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - big
 # pages counted one by one (no transparent huge pages in this process, and numpy asks
 # for none)
 ctypes.CDLL(None).prctl(41, 1, 0, 0, 0)  # PR_SET_THP_DISABLE
-_mu = getattr(np, "_core", None) or np.core
 _mu.multiarray._set_madvise_hugepage(False)
 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 for mib in range(1, 25):
@@ -36,12 +44,14 @@ for mib in range(1, 25):
     a.fill(1.0)
     del a
 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
-print(json.dumps({"timeout": os.environ.get("OPENBLAS_THREAD_TIMEOUT"), "faults": faults}))
+print(json.dumps({"timeout": os.environ.get("OPENBLAS_THREAD_TIMEOUT"), "faults": faults,
+                  "hugepage": hugepage, "big_faults": big}))
 """
 
 
 def _probe(tmp_path, mode, **env):
-    e = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    e = {k: v for k, v in os.environ.items()
+         if k not in ("OPENBLAS_THREAD_TIMEOUT", "NUMPY_MADVISE_HUGEPAGE")}
     e.update(env, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     r = subprocess.run([sys.executable, "-c", _PROBE, mode], capture_output=True, text=True,
                        check=True, env=e, cwd=tmp_path, timeout=120)
@@ -57,11 +67,26 @@ def test_the_program_sets_its_process_and_a_host_keeps_its_own(tmp_path):
     # 300 MiB of temporaries: fresh pages each time in a host (glibc raises its threshold
     # only past blocks already freed), the heap's own freed pages in the program
     assert host["faults"] > 4 * program["faults"], (program, host)
+    # numpy's request for huge pages: off in the program, numpy's default in a host
+    assert program["hugepage"] is False and host["hugepage"] is True
+    # so the program's fresh 64 MiB array takes ordinary 4 KiB pages, one fault each (where
+    # the system itself gives every large mapping huge pages, it does so whatever numpy asks)
+    if "[always]" not in _thp_mode():
+        assert program["big_faults"] >= 0.9 * 64 * 256, program
+
+
+def _thp_mode() -> str:
+    try:
+        return Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text()
+    except OSError:  # (no transparent huge pages: ordinary pages)
+        return ""
 
 
 @pytest.mark.slow
-def test_a_users_openblas_timeout_is_kept(tmp_path):
-    assert _probe(tmp_path, "program", OPENBLAS_THREAD_TIMEOUT="20")["timeout"] == "20"
+def test_a_users_own_settings_are_kept(tmp_path):
+    seen = _probe(tmp_path, "program", OPENBLAS_THREAD_TIMEOUT="20", NUMPY_MADVISE_HUGEPAGE="1")
+    assert seen["timeout"] == "20"
+    assert seen["hugepage"] is True
 
 
 @pytest.mark.parametrize("argv0,program", [
