@@ -72,7 +72,7 @@ def inputs(tmp_path_factory):
 # (name, arguments, signal); the output folder is added as --out
 COMMANDS = [
     ("simulate", ["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-1,-1,1,1]",
-                  "--set", "material.preset='ideal'"], "SIGINT"),
+                  "--set", "material.preset='ideal'", "--set", "simulation.pixel=0.0004"], "SIGINT"),
     ("simulate-material", ["simulate", "sts_sinusoidal_grid", "--set", "simulation.pixel=0.00025"],
      "SIGTERM"),
     ("simulate-tiled", ["simulate", "sts_sinusoidal_grid", "--tiled", "--set",
