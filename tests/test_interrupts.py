@@ -252,3 +252,48 @@ def test_a_stop_while_mitsuba_is_imported_waits_for_the_import(k):
     assert "signal during the import of" in r.stdout, (r.returncode, r.stdout, r.stderr[-800:])
     assert r.returncode == 143 and "stopped after the import" in r.stdout, \
         (r.returncode, r.stdout, r.stderr[-800:])
+
+
+#: a stop while llvmlite holds its lock on the LLVM library, taken for every call into it
+#: (numba loading a kernel from its cache): the signal is sent from a callback that
+#: llvmlite runs once it holds the lock, as numba's own callbacks run there; afterwards
+#: another thread calls into LLVM, as a row thread loading its kernel does
+_STOP_IN_LLVM_LOCK = """
+import os, signal, sys, threading
+import llvmlite.binding as llvm
+from llvmlite.binding import ffi
+import numba  # (its callbacks on the lock, as in a run)
+from render_inspect.cli import _main
+from render_inspect.core import cancel
+from render_inspect.core.cancel import Terminated
+
+signal.signal(signal.SIGTERM, _main._on_terminate)
+sent = []
+def taken():
+    if not sent:
+        sent.append(1)
+        os.kill(os.getpid(), signal.SIGTERM)
+ffi.register_lock_callback(taken, lambda: None)
+try:
+    llvm.get_process_triple()
+    cancel.check()
+except Terminated:
+    print("stopped", flush=True)
+other = threading.Thread(target=llvm.get_process_triple, daemon=True)
+other.start()
+other.join(20)
+print("the lock is held" if other.is_alive() else "the lock is free", flush=True)
+"""
+
+
+@pytest.mark.slow
+def test_a_stop_while_llvm_is_locked_leaves_the_lock_free():
+    """SIGTERM arriving while llvmlite takes its lock (numba's callbacks run there) is
+    raised at the next check, not inside the lock's steps: raised there it left the lock
+    held for ever, and the next thread that called into LLVM (a row thread loading its
+    kernel) waited for ever, and the stopped program with it."""
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", _STOP_IN_LLVM_LOCK], capture_output=True,
+                       text=True, env=env, timeout=120)
+    assert r.returncode == 0 and r.stdout.split("\n")[:2] == ["stopped", "the lock is free"], \
+        (r.returncode, r.stdout, r.stderr[-800:])

@@ -109,9 +109,10 @@ def _on_interrupt(signum, frame):
     # Ctrl-C: the main thread stops here, and every long computation running in blocks
     # (kernels, tiles, worker threads) at its next check (core.cancel); inside native code
     # that cannot unwind an exception (importing Mitsuba, loading a scene), at the end of
-    # that block (cancel.deferred)
+    # that block (cancel.deferred); inside a library's steps of taking or giving back a
+    # lock, which would stay held, at the next check
     cancel.request(signum)
-    if not cancel.deferring():
+    if not cancel.deferring(frame):
         raise KeyboardInterrupt
 
 
@@ -129,7 +130,7 @@ def _quiet_unraisable(default: Any) -> Any:
 
 def _on_terminate(signum, frame):
     cancel.request(signum)
-    if not cancel.deferring():
+    if not cancel.deferring(frame):
         raise Terminated(signum)
 
 

@@ -19,6 +19,7 @@ from collections.abc import Iterator
 import contextlib
 import signal
 import threading
+from types import FrameType
 
 __all__ = ["Terminated", "request", "requested", "clear", "check", "blocks", "deferred",
            "deferring"]
@@ -92,7 +93,35 @@ def deferred() -> Iterator[None]:
         check()
 
 
-def deferring() -> bool:
-    """Whether the main thread is inside a :func:`deferred` block (a signal's handler
-    then only records the stop, see :func:`request`)."""
-    return _STATE["deferred"] > 0
+#: where libraries take or give back a lock of their own in Python code (the end of the
+#: file's path -> the functions): llvmlite's lock on the LLVM library, taken for every call
+#: into it (numba loading a kernel from its cache, freeing compiled code), which runs
+#: numba's callbacks after taking the lock and before giving it back; numba's compiler
+#: lock.  An exception raised there by a signal's handler leaves the lock held for ever,
+#: and the next thread that needs it (a row thread loading its kernel) waits for ever.
+_LOCK_STEPS = {
+    "llvmlite/binding/ffi.py": ("__enter__", "__exit__"),
+    "numba/core/compiler_lock.py": ("acquire", "release", "__enter__", "__exit__"),
+}
+_LOCK_STEP_NAMES = frozenset(n for names in _LOCK_STEPS.values() for n in names)
+
+
+def _in_lock_step(frame: FrameType | None) -> bool:
+    """Whether ``frame`` or a frame that called it is one of :data:`_LOCK_STEPS`."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name in _LOCK_STEP_NAMES:
+            path = code.co_filename.replace("\\", "/")
+            if any(path.endswith(end) and code.co_name in names
+                   for end, names in _LOCK_STEPS.items()):
+                return True
+        frame = frame.f_back
+    return False
+
+
+def deferring(frame: FrameType | None = None) -> bool:
+    """Whether a signal's handler should only record the stop (see :func:`request`): the
+    main thread is inside a :func:`deferred` block (the stop is raised when it ends), or
+    ``frame``, the code the signal interrupted, is a library taking or giving back a lock
+    of its own (:data:`_LOCK_STEPS`; the stop is raised by the next :func:`check`)."""
+    return _STATE["deferred"] > 0 or _in_lock_step(frame)

@@ -24,6 +24,8 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from . import cancel
+
 __all__ = ["over_rows"]
 
 #: runs of rows per thread: later runs go to whichever thread is free first
@@ -106,8 +108,13 @@ def over_rows(kernel: Callable[..., Any], n: int, *args: Any) -> None:
                         done.set()
 
     pool = _pool(threads - 1)
-    for _ in range(threads - 1):
-        pool.submit(work)
+    # (a stop is raised after the runs are handed out, not inside ``submit``: there it
+    # could come while the pool starts a thread, before the pool has recorded it, and the
+    # program's exit, which tells the pools' recorded threads to end and then waits for
+    # every thread, would wait for that one for ever)
+    with cancel.deferred():
+        for _ in range(threads - 1):
+            pool.submit(work)
     # (the calling thread takes runs too, so that it waits only on runs already started:
     # never on a helper still queued behind other work)
     work()

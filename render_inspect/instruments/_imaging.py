@@ -52,6 +52,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import numpy as np
 from ..core.lazy import lazy_attr, lazy_module
 
+from ..core import cancel
 from ..core.errors import InputError, MemoryBudgetError, check_range
 from ..core.limits import usable_cpus
 from ..core.units import GIB_TO_BYTES, NM_TO_MM
@@ -152,7 +153,10 @@ def _by_rows(pool, blocks, fn) -> None:
         for r in blocks:
             fn(r)
     else:
-        for f in [pool.submit(fn, r) for r in blocks]:
+        # (handed out before a stop is raised: see core.threads.over_rows)
+        with cancel.deferred():
+            futures = [pool.submit(fn, r) for r in blocks]
+        for f in futures:
             f.result()
 
 
