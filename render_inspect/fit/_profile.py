@@ -476,12 +476,12 @@ def set_profile_psd(target: ProfileTarget, clean: np.ndarray, noisy: Sequence[np
     c = bands(clean)
     floor = np.zeros_like(c)
     if len(noisy):
-        floor = np.maximum(np.nanmean([bands(z) for z in noisy], axis=0) - c, 0.0)
+        floor = np.maximum(_band_mean([bands(z) for z in noisy]) - c, 0.0)
     target.psd_floor = np.nan_to_num(floor)
     target.psd_scaled = []
     expected = target.psd_floor.copy()
     for i, v0, maps in scaled:
-        g = np.nan_to_num(np.maximum(np.nanmean([bands(z) for z in maps], axis=0) - c, 0.0))
+        g = np.nan_to_num(np.maximum(_band_mean([bands(z) for z in maps]) - c, 0.0))
         target.psd_scaled.append((int(i), float(v0), g))
         expected = expected + g
     m_eff = np.array([effective_cells(int(m)) for m in cells])
@@ -513,3 +513,14 @@ def set_profile_psd(target: ProfileTarget, clean: np.ndarray, noisy: Sequence[np
             "cells": [int(m) for m in cells], "used": [bool(u) for u in use],
             "seen": seen, "periods_in_window": periods,
             "scale_widened_by": math.sqrt(inflation)}
+
+
+def _band_mean(rows: list) -> np.ndarray:
+    """Each band's mean over the simulated profiles where it is not NaN, NaN where it is
+    NaN in all (``np.nanmean``'s numbers, without its warning for such a band)."""
+    a = np.asarray(rows, dtype=np.float64)
+    seen = ~np.isnan(a)
+    count = seen.sum(axis=0)
+    total = np.where(seen, a, 0.0).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / count, np.nan)
