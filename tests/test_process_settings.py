@@ -22,7 +22,9 @@ REPO = Path(__file__).resolve().parents[1]
 #: and freed in turn (4 KiB pages)
 _PROBE = r"""
 import json, os, resource, sys
-if sys.argv[1] == "program":
+if sys.argv[1] == "program-numpy-first":  # (a start-up hook loaded numpy before the package)
+    import numpy
+if sys.argv[1].startswith("program"):
     sys.argv[0] = "render-inspect"
 import render_inspect
 import ctypes
@@ -80,6 +82,14 @@ def _thp_mode() -> str:
         return Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text()
     except OSError:  # (no transparent huge pages: ordinary pages)
         return ""
+
+
+@pytest.mark.slow
+def test_numpy_loaded_before_the_program_asks_for_no_huge_pages_either(tmp_path):
+    seen = _probe(tmp_path, "program-numpy-first")
+    assert seen["hugepage"] is False
+    if "[always]" not in _thp_mode():
+        assert seen["big_faults"] >= 0.9 * 64 * 256, seen
 
 
 @pytest.mark.slow
