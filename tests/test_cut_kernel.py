@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from render_inspect.core import trig
 from render_inspect.design import make_surface
 from render_inspect.machining import (Grooves, cut_turning, cut_turning_mechanics, cutting_distance,
                                       finish_surface, follow_turning, machined_edges, plan_tiles,
@@ -279,7 +280,7 @@ def _z_compensation_arrays(surface, theta, rho, Rc, *, max_slope, half_width, sa
     offs = np.linspace(-w, w, samples)
     step = offs[1] - offs[0]
     iterations = max(4, int(math.ceil(math.log(math.sqrt(2e-10 * Rc) / (2 * step)) / math.log(_GOLD))))
-    cs, sn = np.cos(theta), np.sin(theta)
+    cs, sn = trig.cos_sin(theta)  # (the angles' cosines as the package takes them)
 
     def gfun(d):
         u = rho + d
