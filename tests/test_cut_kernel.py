@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from render_inspect.core import trig
 from render_inspect.design import make_surface
 from render_inspect.machining import (Grooves, cut_turning, cut_turning_mechanics, cutting_distance,
                                       finish_surface, follow_turning, machined_edges, plan_tiles,
                                       prepare_cut)
+from render_inspect.machining import _envelope_path
 from render_inspect.machining._cut_kernel import _COS_ARG_MAX, _cos, _groove_sum
 from render_inspect.machining._material import MaterialResponse
 from render_inspect.machining import compute_tile
@@ -186,8 +188,9 @@ def test_one_pass_lookup_serves_every_kernel_and_brackets_the_angle():
     from render_inspect.machining import _cut_kernel, _cutting, _envelope
     from render_inspect.machining import _envelope_step as step
 
-    assert _cut_kernel._lookup_bin is step._lookup_bin
-    assert _cutting._lookup is _envelope._lookup is step._lookup
+    # (one Python function; lazy or already made by numba, whichever ran first)
+    assert _cut_kernel._lookup_bin.py_func is step._lookup_bin.py_func
+    assert _cutting._lookup.py_func is _envelope._lookup.py_func is step._lookup.py_func
     assert not hasattr(_cut_kernel, "_find")
     rng = np.random.default_rng(4)
     theta, tab, t0, w = _dwell_path(rng)
@@ -279,7 +282,7 @@ def _z_compensation_arrays(surface, theta, rho, Rc, *, max_slope, half_width, sa
     offs = np.linspace(-w, w, samples)
     step = offs[1] - offs[0]
     iterations = max(4, int(math.ceil(math.log(math.sqrt(2e-10 * Rc) / (2 * step)) / math.log(_GOLD))))
-    cs, sn = np.cos(theta), np.sin(theta)
+    cs, sn = trig.cos_sin(theta)  # (the angles' cosines as the package takes them)
 
     def gfun(d):
         u = rho + d
@@ -405,3 +408,45 @@ def test_simulate_tiles_the_shipped_scene_as_it_runs_in_memory(tmp_path):
                           equal_nan=True)
     names = {f.name for f in (tmp_path / "tiled").iterdir()}
     assert {"following_error.png", "following_error_map.png", "kinematics.png"} <= names
+
+
+def _radial_slope_arrays(theta, rho, z):
+    """:func:`path_radial_slope` as numpy array expressions (its definition)."""
+    k = np.searchsorted(theta, theta + _envelope_path.TWO_PI)
+    ok = k < theta.size
+    i = np.flatnonzero(ok)
+    k = k[ok]
+    k0 = np.maximum(k - 1, 0)
+    dt = theta[k] - theta[k0]
+    fr = np.where(dt > 0, (theta[i] + _envelope_path.TWO_PI - theta[k0]) / np.where(dt > 0, dt, 1), 0.0)
+    dr = np.abs(rho[k0] + fr * (rho[k] - rho[k0]) - rho[i])
+    dz = np.abs(z[k0] + fr * (z[k] - z[k0]) - z[i])
+    good = dr > 0
+    return float(np.max(dz[good] / dr[good])) if good.any() else 0.0
+
+
+def test_the_paths_radial_slope_in_one_merge_equals_the_array_form():
+    # uneven steps, repeated angles (dwells), a NaN height, a path that ends inside its
+    # first revolution's reach: the merge gives the array form's value to the last bit
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        n = int(rng.integers(3, 600))
+        theta = np.sort(rng.uniform(0.0, rng.uniform(1.0, 80.0), n))
+        if trial % 3 == 0:
+            theta = np.round(theta, 1)
+        rho = rng.normal(size=n)
+        z = rng.normal(size=n)
+        if trial % 17 == 0:
+            z[rng.integers(n)] = np.nan
+        with np.errstate(invalid="ignore"):
+            got = _envelope_path.path_radial_slope(theta, rho, z)
+            want = _radial_slope_arrays(theta, rho, z) if theta[-1] - theta[0] > _envelope_path.TWO_PI else 0.0
+        assert got == want or (np.isnan(got) and np.isnan(want)), trial
+    # the planned path of the shipped grid scene, followed by its lathe
+    path, _ = _followed((0.2, 0.2, 0.3, 0.3), 0.001)
+    th, rh, zz = (np.asarray(a, dtype=np.float64) for a in (path.theta, path.rho, path.z))
+    assert _envelope_path.path_radial_slope(th, rh, zz) == _radial_slope_arrays(th, rh, zz) > 0
+    # angles that go back (not a turning path's): the array form itself
+    back = np.array([0.0, 3.0, 2.0, 9.0, 12.0, 20.0])
+    vals = rng.normal(size=(2, back.size))
+    assert _envelope_path.path_radial_slope(back, *vals) == _radial_slope_arrays(back, *vals)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from render_inspect.core.limits import usable_cpus
+from render_inspect.core.toolpath import ToolPath
 from render_inspect.pipeline._figure_process import FigureProcess
 from render_inspect.report import draw_figure, register_figure, residual_png
 
@@ -28,7 +29,10 @@ def _specs():
           "stats": {"x_rms_nm": 3.0, "x_max_nm": 9.0, "z_rms_nm": 2.0, "z_max_nm": 7.0}}
     mp = {"kind": "map", "data": rng.normal(size=(40, 60)), "extent": (0.0, 0.6, 0.0, 0.4),
           "title": "a map", "label": "nm"}
-    return {"following_error.png": fe, "map.png": mp}
+    theta = np.linspace(0.0, 40 * np.pi, 20_001)
+    path = ToolPath(theta, 0.5 - 0.01 * theta / (2 * np.pi), 2e-3 * np.cos(3 * theta), theta / 5.0)
+    ax = {"kind": "axes", "columns": [("STS program", path, {})], "title": "the axes that move"}
+    return {"following_error.png": fe, "map.png": mp, "kinematics.png": ax}
 
 
 def _residual_args():
@@ -54,7 +58,7 @@ def test_the_child_draws_the_same_files(tmp_path):
         times = drawer.results(seen.append)
     finally:
         drawer.close()
-    assert sorted(times) == sorted(seen) == ["following_error.png", "map.png", "residual.png"]
+    assert sorted(times) == sorted(seen) == ["following_error.png", "kinematics.png", "map.png", "residual.png"]
     for name in times:
         assert (here / name).read_bytes() == (there / name).read_bytes(), name
 
@@ -130,7 +134,7 @@ def test_a_child_that_ended_leaves_its_figures_to_the_parent(tmp_path):
         times = drawer.results()
     finally:
         drawer.close()
-    assert sorted(times) == ["following_error.png", "map.png"]
+    assert sorted(times) == ["following_error.png", "kinematics.png", "map.png"]
     for name, spec in _specs().items():
         draw_figure(spec, tmp_path / f"ref_{name}")
         assert (tmp_path / name).read_bytes() == (tmp_path / f"ref_{name}").read_bytes()

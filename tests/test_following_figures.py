@@ -59,3 +59,28 @@ def test_the_statistics_are_written_and_a_single_tick_spike_is_drawn(tmp_path):
         return int(np.count_nonzero((per_row >= 1) & (per_row <= 4)))
 
     assert thin_rows(b) > 60 and thin_rows(b) > 4 * thin_rows(a)
+
+
+def test_the_figures_sent_to_another_process_are_their_panels(tmp_path):
+    # what the command's figure process receives: the panels drawn, not the series (the
+    # same PNG bytes from a small fraction of the data)
+    import pickle
+
+    from render_inspect.core.toolpath import ToolPath
+    from render_inspect.report import draw_figure, drawn_data
+
+    t, errors = _series(axes=("x", "z"))
+    theta = np.linspace(0.0, 400 * np.pi, 400_001)
+    path = ToolPath(theta, 2.0 - 0.01 * theta / (2 * np.pi), 2e-3 * np.cos(3 * theta), theta / 5.0)
+    specs = {"fe": {"kind": "following_error", "t": t, "errors": errors,
+                    "stats": {"x_rms_nm": 3.0, "x_max_nm": 9.0}},
+             "axes": {"kind": "axes", "columns": [("STS program", path, {})], "title": "axes"}}
+    for name, spec in specs.items():
+        small = drawn_data(spec)
+        assert small["kind"] == "panels"
+        assert len(pickle.dumps(small, protocol=5)) < len(pickle.dumps(spec, protocol=5)) / 20
+        a = draw_figure(spec, tmp_path / f"{name}_spec.png").read_bytes()
+        b = draw_figure(small, tmp_path / f"{name}_panels.png").read_bytes()
+        assert a == b, name
+    other = {"kind": "map", "data": np.zeros((3, 4))}
+    assert drawn_data(other) is other

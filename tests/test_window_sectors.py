@@ -241,6 +241,27 @@ def test_the_compiled_pvt_command_is_the_array_formula_bit_for_bit():
             assert np.array_equal(a, b)
 
 
+def test_the_pvt_command_on_threads_is_the_one_pass_to_the_bit():
+    """A long program's ticks are interpolated in runs on threads: each tick's numbers
+    are those of one pass over all ticks (ticks out of order and NaN ticks included)."""
+    from render_inspect.machining._interpolate import (THREADED_TICKS, _hermite, _pvt_velocities,
+                                                       pvt_checked)
+
+    rng = np.random.default_rng(8)
+    t = np.cumsum(rng.uniform(1e-4, 1e-2, 5000))
+    q = np.stack([rng.normal(size=t.size), np.cumsum(rng.normal(size=t.size))])
+    tk = np.sort(rng.uniform(t[0] - 0.01, t[-1] + 0.01, 3 * THREADED_TICKS))
+    tk[1000:1040] = tk[1000:1040][::-1]     # a stretch of ticks going back
+    tk[::997] = np.nan
+    got = pvt_checked(t, q, tk)
+    v = np.empty(q.shape)
+    _pvt_velocities(t, q, v)
+    want = tuple(np.empty((2, tk.size)) for _ in range(3))
+    _hermite(t, q, v, tk, *want, 0, tk.size)
+    for a, b in zip(got, want):
+        assert np.array_equal(a, b, equal_nan=True)
+
+
 @pytest.mark.slow
 def test_the_tiled_simulation_of_a_window_cuts_its_sectors_as_in_memory(tmp_path):
     from render_inspect.io import ZarrHeightMap

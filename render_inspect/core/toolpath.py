@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import trig
 from .errors import InputError
 
 __all__ = ["ToolPath", "LinearProgram", "Links", "Blocks", "ROLE_CUT", "ROLE_RAPID",
@@ -53,11 +54,11 @@ class ToolPath:
 
     @property
     def x(self) -> np.ndarray:
-        return self.rho * np.cos(self.theta)
+        return self.rho * trig.cos(self.theta)
 
     @property
     def y(self) -> np.ndarray:
-        return self.rho * np.sin(self.theta)
+        return self.rho * trig.sin(self.theta)
 
     @property
     def points(self) -> int:

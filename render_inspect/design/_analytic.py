@@ -19,6 +19,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from ..core import trig
 from ..core.errors import InputError
 from ..core.section import Length, Phase, Section
 from ._base import Surface
@@ -47,19 +48,19 @@ class SinusoidalGrid(Surface):
         return max(self.wavelength_x, self.wavelength_y)
 
     def height(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
-        return self.ax * np.cos(self.kx * x + self.px) + self.ay * np.cos(self.ky * y + self.py) + self.offset
+        return self.ax * trig.cos(self.kx * x + self.px) + self.ay * trig.cos(self.ky * y + self.py) + self.offset
 
     def gradient(self, x: np.ndarray | float,
                  y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-        gx = -self.ax * self.kx * np.sin(self.kx * x + self.px)
-        gy = -self.ay * self.ky * np.sin(self.ky * y + self.py)
+        gx = -self.ax * self.kx * trig.sin(self.kx * x + self.px)
+        gy = -self.ay * self.ky * trig.sin(self.ky * y + self.py)
         gx, gy = np.broadcast_arrays(gx, gy)
         return gx, gy
 
     def hessian(self, x: np.ndarray | float,
                 y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        hxx = -self.ax * self.kx ** 2 * np.cos(self.kx * x + self.px)
-        hyy = -self.ay * self.ky ** 2 * np.cos(self.ky * y + self.py)
+        hxx = -self.ax * self.kx ** 2 * trig.cos(self.kx * x + self.px)
+        hyy = -self.ay * self.ky ** 2 * trig.cos(self.ky * y + self.py)
         hxx, hyy = np.broadcast_arrays(hxx, hyy)
         return hxx, np.zeros_like(hxx), hyy
 

@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
+# (the largest |argument| the two-part reduction keeps exact: ARG_MAX)
+from ..core.trig import ARG_MAX as _COS_ARG_MAX, INV_PI as _INVPI, PI_1 as _PI_1, PI_1T as _PI_1T, ROUND as _ROUND
 from ..core.threads import over_rows
 
 from ..core.errors import InputError
@@ -67,17 +69,13 @@ INV_2PI = 1.0 / TWO_PI
 OUT_CHANNELS = ("machined", "pass_theta", "added")
 #: passes a pixel may gather on one side of the axis (the direct kernel's cap)
 _MAX_BUF = 1_000_000  # not a unit conversion
-#: pi split in two (the first part with 33 significant bits: k pi_1 is exact for k < 2^20),
-#: 1/pi, 1.5 * 2^52 (added to x / pi it rounds it to the integer k; the sum's last bit is k's
-#: parity) and the minimax polynomial 1 + C_1 r^2 + ... + C_8 r^16 of cos r on |r| <= pi / 2
-#: (Remez, the coefficients rounded to doubles one by one: |error| < 4.3e-18)
-_PI_1, _PI_1T = 3.14159265346825122833e+00, 1.21542010130123844986e-10
-_INVPI, _ROUND = 3.18309886183790671538e-01, 6755399441055744.0
+#: the minimax polynomial 1 + C_1 r^2 + ... + C_8 r^16 of cos r on |r| <= pi / 2 (Remez, the
+#: coefficients rounded to doubles one by one: |error| < 4.3e-18); the argument reduced with
+#: pi in two parts (:mod:`render_inspect.core.trig`: k pi_1 exact for k < 2^20), 1 / pi and
+#: 1.5 * 2^52 (added to x / pi it rounds it to the integer k; the sum's last bit is k's parity)
 _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8 = (
     -0.49999999999999983, 0.04166666666666443, -0.0013888888888787315, 2.4801587279375502e-05,
     -2.7557316542206754e-07, 2.0876568452752614e-09, -1.1463054989391418e-11, 4.610433736698955e-14)
-#: largest |argument| the two-part reduction keeps exact (k pi/2 with k < 2^20)
-_COS_ARG_MAX = 1.5e6
 #: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
 _STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
 #: passes whose segments a pixel remembers for the next pixel (a power of 2: slot j % _SEEN),

@@ -58,10 +58,47 @@ def _lookup_table(theta: np.ndarray):
     return tab, float(theta[0]), float(w)
 
 
+@njit(cache=True, nogil=True)
+def _radial_slope(theta, rho, z):
+    """(True, :func:`path_radial_slope`) by one merge of the angles with the angles one
+    revolution later, the array form's operations in its order; (False, 0) where
+    ``theta`` is not nondecreasing."""
+    n = theta.size
+    for j in range(1, n):
+        if not theta[j] >= theta[j - 1]:
+            return False, 0.0
+    best = -np.inf
+    good = False
+    k = 0
+    for i in range(n):
+        key = theta[i] + TWO_PI
+        while k < n and theta[k] < key:  # (numpy's searchsorted, side "left")
+            k += 1
+        if k >= n:
+            break
+        k0 = max(k - 1, 0)
+        dt = theta[k] - theta[k0]
+        fr = (theta[i] + TWO_PI - theta[k0]) / dt if dt > 0 else 0.0
+        r2 = rho[k0] + fr * (rho[k] - rho[k0])
+        z2 = z[k0] + fr * (z[k] - z[k0])
+        dr = abs(r2 - rho[i])
+        if dr > 0:
+            v = abs(z2 - z[i]) / dr
+            if not good or v > best or v != v:
+                best = v
+                good = True
+                if v != v:  # (NaN, as numpy's max gives it)
+                    return True, v
+    return True, (best if good else 0.0)
+
+
 def path_radial_slope(theta: np.ndarray, rho: np.ndarray, z: np.ndarray) -> float:
     """Largest |dz/drho| between a point and the point one revolution later (mm/mm)."""
     if theta.size < 3 or theta[-1] - theta[0] <= TWO_PI:
         return 0.0
+    ok, m = _radial_slope(*(np.ascontiguousarray(a, dtype=np.float64) for a in (theta, rho, z)))
+    if ok:
+        return float(m)
     k = np.searchsorted(theta, theta + TWO_PI)
     ok = k < theta.size
     i = np.flatnonzero(ok)

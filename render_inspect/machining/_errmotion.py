@@ -33,6 +33,7 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from ..core import trig
 from ..core.errors import InputError, check_range
 from ._iir import butter2_sos, sosfilt
 
@@ -194,7 +195,7 @@ def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, erro
         for h, a, p in terms:
             np.multiply(h, th, out=term)
             term += p
-            np.cos(term, out=term)
+            trig.cos(term, out=term)
             if scale is None:
                 term *= a
             else:  # rr * a * cos(...)
@@ -207,7 +208,7 @@ def error_motion_offsets(t: np.ndarray, theta: np.ndarray, rho: np.ndarray, erro
     for f, a, d, p in errors.vibration:  # a * sin(2 pi f t + p)
         np.multiply(TWO_PI * f, tt, out=term)
         term += p
-        np.sin(term, out=term)
+        trig.sin(term, out=term)
         term *= a
         {"x": ex, "y": ey, "z": ez}[d][:] += term
     if mask is None:

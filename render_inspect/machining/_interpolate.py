@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.lazy import njit  # numba, imported on first use
+from ..core.threads import over_rows
 
 __all__ = ["check_program", "pvt_velocities", "pvt_command", "pvt_checked", "linear_command"]
 
@@ -83,6 +84,11 @@ def pvt_command(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
     return pvt_checked(t, q, tk, velocities=velocities)
 
 
+#: ticks from which the PVT command is computed on threads (fewer: on the calling thread,
+#: where handing out the runs would cost more than it saves)
+THREADED_TICKS = 65_536
+
+
 def pvt_checked(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
                 velocities: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`pvt_command` of a program that :func:`check_program` has passed (float64
@@ -97,37 +103,53 @@ def pvt_checked(t: np.ndarray, q: np.ndarray, tk: np.ndarray, *,
         np.ascontiguousarray(velocities, dtype=np.float64).reshape(rows.shape)
     tk = np.ascontiguousarray(tk, dtype=np.float64)
     pos, vel, acc = (np.empty((rows.shape[0], tk.size)) for _ in range(3))
-    _hermite(np.ascontiguousarray(t), rows, v, fill, tk, pos, vel, acc)
+    t = np.ascontiguousarray(t)
+    if fill:
+        _pvt_velocities(t, rows, v)
+    # long programs: the ticks in runs on threads (each tick's numbers depend on the tick
+    # alone: the same numbers whatever the runs)
+    if tk.size >= THREADED_TICKS:
+        over_rows(_hermite, tk.size, t, rows, v, tk, pos, vel, acc)
+    else:
+        _hermite(t, rows, v, tk, pos, vel, acc, 0, tk.size)
     if q.ndim == 1:
         return pos[0], vel[0], acc[0]
     return pos, vel, acc
 
 
 @njit(cache=True, nogil=True)
-def _hermite(t, q, v, fill, tk, pos, vel, acc):
-    """The PVT command of each axis (row of ``q``) at each tick tk[k]: with ``fill``,
-    first the point velocities ``v`` (:func:`pvt_velocities`); then the tick's segment
-    (:func:`_segments`, walked forward along increasing ticks) and its cubic Hermite
-    position, velocity and acceleration (one pass, the arithmetic of the array
-    expressions it replaced, in their order: the same numbers to the bit)."""
+def _pvt_velocities(t, q, v):
+    """The point velocities ``v`` of each axis (row of ``q``): :func:`pvt_velocities`'
+    arithmetic, in its order."""
+    n = t.size
+    for r in range(q.shape[0]):
+        # (each segment's step and slope computed once: a point's right-hand ones are the
+        # next point's left-hand ones, the same numbers)
+        h1 = t[1] - t[0]
+        sl = (q[r, 1] - q[r, 0]) / h1
+        v[r, 0] = sl
+        for j in range(1, n - 1):
+            h2 = t[j + 1] - t[j]
+            sr = (q[r, j + 1] - q[r, j]) / h2
+            v[r, j] = (h2 * sl + h1 * sr) / (h1 + h2)
+            h1 = h2
+            sl = sr
+        v[r, n - 1] = sl
+
+
+@njit(cache=True, nogil=True)
+def _hermite(t, q, v, tk, pos, vel, acc, k0, k1):
+    """The PVT command of each axis (row of ``q``, point velocities ``v``) at the ticks
+    tk[k0:k1]: the tick's segment (:func:`_segments`, walked forward along increasing
+    ticks from the first tick's, found by a binary search) and its cubic Hermite
+    position, velocity and acceleration (the arithmetic of the array expressions it
+    replaced, in their order: the same numbers to the bit, whatever the runs)."""
     n = t.size
     na = q.shape[0]
-    if fill:
-        for r in range(na):
-            # (each segment's step and slope computed once: a point's right-hand ones
-            # are the next point's left-hand ones, the same numbers)
-            h1 = t[1] - t[0]
-            sl = (q[r, 1] - q[r, 0]) / h1
-            v[r, 0] = sl
-            for j in range(1, n - 1):
-                h2 = t[j + 1] - t[j]
-                sr = (q[r, j + 1] - q[r, j]) / h2
-                v[r, j] = (h2 * sl + h1 * sr) / (h1 + h2)
-                h1 = h2
-                sl = sr
-            v[r, n - 1] = sl
     c = 0  # the number of program times <= the tick
-    for k in range(tk.size):
+    if k1 > k0 and tk[k0] == tk[k0]:
+        c = np.searchsorted(t, tk[k0], side="right")
+    for k in range(k0, k1):
         x = tk[k]
         if x != x:
             j = n - 2  # (a NaN sorts after every time)

@@ -52,7 +52,7 @@ import numpy as np
 from ..core.lazy import collector_paused, freeze_lasting
 from ..core.limits import usable_cpus
 from ..core.units import MIB_TO_BYTES
-from ..report import draw_figure, preload_drawing, residual_png, uses_matplotlib
+from ..report import draw_figure, drawn_data, preload_drawing, residual_png, uses_matplotlib
 from ..toolpath import axis_derivatives
 
 __all__ = ["FigureProcess"]
@@ -300,7 +300,8 @@ class FigureProcess:
 
     def draw(self, name: str, spec: dict, png: str | Path) -> None:
         """Draw the figure ``spec`` into ``png`` (:func:`~render_inspect.report.draw_figure`)."""
-        self._send(name, "figure", (spec, Path(png)), {})
+        # (reduced here to what is drawn: the axes' figure is sent as its panels)
+        self._send(name, "figure", (drawn_data(spec), Path(png)), {})
 
     def residual(self, name: str, png: str | Path, img: Any, factor: int, **kwargs: Any) -> None:
         """residual.png from its area-averaged image (:func:`~render_inspect.report.residual_png`)."""

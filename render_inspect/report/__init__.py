@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ._comparison import (ComparedVariant, comparison_figures, comparison_summary,
                           diffuse_caption, luminance, srgb)
-from ._draw import FIGURE_KINDS, draw_figure, figure_kinds, preload_drawing, uses_matplotlib
+from ._draw import FIGURE_KINDS, draw_figure, drawn_data, figure_kinds, preload_drawing, uses_matplotlib
 from ._figure_kinds import register_figure, registered_figures
 from . import _edge_plot  # noqa: F401  (registers the figure kinds tool_edge, tool_wear)
 from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
@@ -36,7 +36,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "line_panels", "plot_following_error", "plot_following_error_map",
            "annotate_rgb", "block_mean", "display_map", "lowpass_map", "difference_figure", "fmt_number",
            "fmt_quantity", "nice_length", "scale_bar_length", "locator_figure", "axis_motion_figure", "moving_axes",
-           "turning_axes", "draw_figure", "preload_drawing", "uses_matplotlib", "FIGURE_KINDS", "save_map_png", "save_height_png",
+           "turning_axes", "draw_figure", "drawn_data", "preload_drawing", "uses_matplotlib", "FIGURE_KINDS", "save_map_png", "save_height_png",
            "residual_png", "residual_preview_image", "residual_preview_png", "image_png", "rgb_png", "map_png",
            "panels_png", "maps_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",

@@ -3,7 +3,8 @@ outputs) say what to draw as a *figure spec*, a dict whose ``kind`` names the fi
 and :func:`draw_figure` draws it into a PNG file.
 
 Kinds: ``"axes"`` (the axes of machine programs that move, ``columns`` of (label,
-program, data); :func:`~render_inspect.report.kinematics_png`), ``"kinematics"`` (X of a
+program, data); :func:`~render_inspect.report.kinematics_png`), ``"panels"`` (that
+figure's or the following error's panels, reduced to what is drawn: :func:`drawn_data`), ``"kinematics"`` (X of a
 path against a reference; :func:`~render_inspect.report.plot_kinematics`),
 ``"following_error"`` and ``"following_error_map"`` (a machine's following error;
 :mod:`render_inspect.report._following`) and ``"map"`` (one false-colour map;
@@ -17,16 +18,18 @@ from pathlib import Path
 from typing import Any
 
 from ._figure_kinds import registered_figures
-from ._following import plot_following_error, plot_following_error_map
-from ._kinematics import kinematics_png, plot_kinematics
+from ._following import (FOLLOWING_ERROR_PANEL_HEIGHT, FOLLOWING_ERROR_TITLE, following_error_panels,
+                         plot_following_error, plot_following_error_map)
+from ._kinematics import kinematics_panels, kinematics_png, plot_kinematics
 from ._maps import save_map_png
 from ._program import plot_feed_per_rev
+from ._quickplot import panels_png
 
-__all__ = ["draw_figure", "FIGURE_KINDS", "figure_kinds", "preload_drawing", "uses_matplotlib"]
+__all__ = ["draw_figure", "drawn_data", "FIGURE_KINDS", "figure_kinds", "preload_drawing", "uses_matplotlib"]
 
 #: the figure kinds :func:`draw_figure` draws itself (more are registered:
 #: :func:`figure_kinds`)
-FIGURE_KINDS = ("axes", "kinematics", "following_error", "following_error_map", "map",
+FIGURE_KINDS = ("axes", "panels", "kinematics", "following_error", "following_error_map", "map",
                 "feed_per_rev")
 
 
@@ -37,7 +40,7 @@ def figure_kinds() -> tuple[str, ...]:
 
 
 #: the figure kinds :func:`draw_figure` draws with Pillow alone (no matplotlib to import)
-PILLOW_KINDS = ("axes", "following_error", "following_error_map")
+PILLOW_KINDS = ("axes", "panels", "following_error", "following_error_map")
 
 
 def uses_matplotlib(spec: dict) -> bool:
@@ -57,12 +60,31 @@ def preload_drawing() -> None:
     from matplotlib.font_manager import fontManager  # noqa: F401  (reads the font list)
 
 
+def drawn_data(spec: dict) -> dict:
+    """``spec`` with its data reduced to what the drawing reads, for a figure drawn by
+    another process (the same PNG, fewer bytes to copy there): an ``"axes"`` figure becomes
+    its ``"panels"`` (per-bin envelopes of the axes' motion: a hundred kilobytes instead of
+    the programs and their derivatives, 45 MB for a 2 x 2 mm window of the shipped grid
+    scene), and so does a ``"following_error"`` figure (17 MB there); other kinds are
+    returned as they are."""
+    if spec.get("kind") == "axes":
+        return {"kind": "panels", "panels": kinematics_panels(spec["columns"], spec.get("axes")),
+                "title": spec.get("title", "")}
+    if spec.get("kind") == "following_error":
+        return {"kind": "panels", "panels": following_error_panels(spec["t"], spec["errors"], spec.get("stats")),
+                "title": spec.get("title") or FOLLOWING_ERROR_TITLE, "height": FOLLOWING_ERROR_PANEL_HEIGHT}
+    return spec
+
+
 def draw_figure(spec: dict, png: str | Path) -> Path:
     """Draw the figure ``spec`` into the PNG file ``png`` (written atomically)."""
     kind: Any = spec.get("kind")
     if kind == "axes":
         return kinematics_png(spec["columns"], png, axes=spec.get("axes"),
                               title=spec.get("title", ""))
+    if kind == "panels":
+        return panels_png(png, spec["panels"], title=spec.get("title", ""), **(
+            {"height": spec["height"]} if "height" in spec else {}))
     if kind == "kinematics":
         return plot_kinematics(spec["path"], png, reference=spec.get("reference"),
                                labels=spec.get("labels", ("", "")), title=spec.get("title"))

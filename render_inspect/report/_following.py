@@ -39,6 +39,18 @@ def plot_following_error(t: np.ndarray, errors: dict, png_path: str | Path, *,
     Path.  Curves are per-bin min/max envelopes (1500 bins), so single-tick spikes stay
     visible.
     """
+    return panels_png(png_path, following_error_panels(t, errors, stats),
+                      title=title or FOLLOWING_ERROR_TITLE, height=FOLLOWING_ERROR_PANEL_HEIGHT)
+
+
+#: the title of :func:`plot_following_error` when none is given, and its panels' height (px)
+FOLLOWING_ERROR_TITLE = "following error (command - followed)"
+FOLLOWING_ERROR_PANEL_HEIGHT = 150
+
+
+def following_error_panels(t: np.ndarray, errors: dict, stats: dict | None = None) -> list[dict]:
+    """The panels :func:`plot_following_error` draws: per axis, its error against time as
+    per-bin envelopes (1500 bins), with its labels."""
     t = np.asarray(t, dtype=np.float64)
     rows = [(k, lab, scale) for k, lab, scale in
             (("x", "X (nm)", 1e6), ("z", "Z slide (nm)", 1e6), ("fts", "FTS (nm)", 1e6),
@@ -57,8 +69,7 @@ def plot_following_error(t: np.ndarray, errors: dict, png_path: str | Path, *,
             if r is not None:
                 note = f"rms {r:.3g} {unit}, max {m:.3g} {unit}"
         panels.append({"x": xm, "lo": lo, "hi": hi, "xlabel": "time (s)", "ylabel": lab, "title": note})
-    return panels_png(png_path, panels, title=title or "following error (command - followed)",
-                      height=150)
+    return panels
 
 
 def plot_following_error_map(x_nm: np.ndarray, z_nm: np.ndarray, extent: Sequence[float],

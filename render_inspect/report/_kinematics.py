@@ -17,7 +17,7 @@ from ._savefig import figure_png
 from ..toolpath import axes_derivatives, axis_derivatives, turning_axes
 from ..core.toolpath import ToolPath
 
-__all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "moving_axes",
+__all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "kinematics_panels", "moving_axes",
            "turning_axes"]
 
 #: an axis whose velocity varies by less than this fraction of its largest speed moves
@@ -195,7 +195,7 @@ def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str 
                    axes: Sequence[str] | None = None, title: str = "") -> Path:
     """kinematics.png: the content of :func:`axis_motion_figure` (position, velocity and
     acceleration against time of the axes that move, per path) drawn with Pillow as
-    stacked panels (``render_inspect.io._quickplot``: tens of milliseconds, where a
+    stacked panels (``render_inspect.report._quickplot``: tens of milliseconds, where a
     matplotlib figure takes about a second with its import).
 
     The derivatives are taken on the whole path (decimating first would smooth away the
@@ -211,6 +211,16 @@ def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str 
     axes : sequence of str, optional
         Only these axes; default every axis that moves in any path.
     """
+    return panels_png(png_path, kinematics_panels(columns, axes), title=title)
+
+
+def kinematics_panels(columns: Sequence[tuple[str, ToolPath, dict]],
+                      axes: Sequence[str] | None = None) -> list[dict]:
+    """The panels :func:`kinematics_png` draws (as the Pillow drawing's ``panels_png`` takes
+    them): per axis that moves and per path, its position, velocity
+    and acceleration as per-bin envelopes over time, with their labels.  A few hundred
+    kilobytes, where the paths and their derivatives are tens of megabytes: what is sent to
+    a process that draws the figure."""
     series, names = _motion_series(columns, axes)
     panels = []
     for label, t, ax_data, taken in series:
@@ -232,4 +242,4 @@ def kinematics_png(columns: Sequence[tuple[str, ToolPath, dict]], png_path: str 
                 panels.append({"x": xm, "lo": lo, "hi": hi, "xlabel": "time (s)", "ylabel": ylab,
                                "title": "; ".join(x for x in ((head if first else ""), note) if x)})
                 first = False
-    return panels_png(png_path, panels, title=title)
+    return panels

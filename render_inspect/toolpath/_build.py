@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from ..core import trig
 from ..core.errors import AccessibilityError, InputError
 from ..core.limits import Driver, check_memory, format_number
 from ..core.toolpath import ToolPath
@@ -307,7 +308,7 @@ def plan_turning(surface: Any, tool: Tool, *, workpiece_radius: float, feed_per_
             meta["sectors"] = {**info, "lead_s": float(sectors[0]), "lag_s": float(sectors[1]),
                                "points_whole_revolutions": int(kept.size)}
 
-    cs, sn = np.cos(theta), np.sin(theta)
+    cs, sn = trig.cos_sin(theta)
     z_ccp = heights_along(surface, rho, cs, sn)
     meta["max_slope"] = slope
     comp = compensation

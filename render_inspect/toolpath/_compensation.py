@@ -37,6 +37,7 @@ import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from ..core import trig
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.limits import usable_cpus
 from ._edge import EdgeProfile
@@ -295,11 +296,11 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         if z0.shape != rho.shape:
             raise ValueError(f"ccp_height has {z0.shape} points, rho {rho.shape}")
     at_zero = [k for k in range(samples) if offs[k] == 0.0] if z0 is not None else []
-    trig = None
+    cs_sn = None
     if cos_sin is not None:
-        trig = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in cos_sin)
-        if any(a.shape != rho.shape for a in trig):
-            raise ValueError(f"cos_sin has {[a.shape for a in trig]} points, rho {rho.shape}")
+        cs_sn = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in cos_sin)
+        if any(a.shape != rho.shape for a in cs_sn):
+            raise ValueError(f"cos_sin has {[a.shape for a in cs_sn]} points, rho {rho.shape}")
 
     starts = list(range(0, rho.size, chunk))
     workers = max(1, min(len(starts), usable_cpus()))
@@ -320,7 +321,7 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
         # anew); a thread that gets less of the processor takes fewer
         size = min(chunk, rho.size)
         X_, Y_ = np.empty(size), np.empty(size)
-        cs_, sn_ = (np.empty(size if trig is None else 0) for _ in range(2))
+        cs_, sn_ = (np.empty(size if cs_sn is None else 0) for _ in range(2))
         # (rows a little longer than the chunk: rows whose starts lie a power of two
         # apart would share the processor's cache sets)
         g = np.empty((samples, size + 8))
@@ -331,12 +332,12 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
             rh1 = rho[a:a + chunk]
             m = rh1.size
             X, Y, left = X_[:m], Y_[:m], left_[:m]
-            if trig is None:
+            if cs_sn is None:
                 cs, sn = cs_[:m], sn_[:m]
-                np.cos(th1, out=cs)
-                np.sin(th1, out=sn)
+                trig.cos(th1, out=cs)
+                trig.sin(th1, out=sn)
             else:
-                cs, sn = trig[0][a:a + chunk], trig[1][a:a + chunk]
+                cs, sn = cs_sn[0][a:a + chunk], cs_sn[1][a:a + chunk]
             o1 = out[a:a + chunk]
             h = X  # (no heights before the first stage)
             stage = 0
@@ -363,7 +364,7 @@ def normal_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray,
     the tip is Rc below the centre."""
     theta = np.asarray(theta, dtype=np.float64)
     rho = np.asarray(rho, dtype=np.float64)
-    c, s = np.cos(theta), np.sin(theta)
+    c, s = trig.cos_sin(theta)
     x, y = rho * c, rho * s
     fx, fy = surface.gradient(x, y)
     nc = np.stack([-fx, -fy, np.ones_like(fx)])

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from ..core import trig
 from ..core.errors import InputError, check_range
 
 TWO_PI = 2 * math.pi
@@ -173,7 +174,8 @@ def chordal_error(surface: Any, theta: np.ndarray, rho: np.ndarray,
                 b = min(a + BLOCK, n)
                 tm = 0.5 * (theta[a + 1:b + 1] + theta[a:b])
                 rm = 0.5 * (rho[a + 1:b + 1] + rho[a:b])
-                zm = surface.height(rm * np.cos(tm), rm * np.sin(tm))
+                cs, sn = trig.cos_sin(tm)
+                zm = surface.height(rm * cs, rm * sn)
                 if not _float64(zm, b - a):
                     break
                 out[a:b] = np.abs(zm - 0.5 * (z_ccp[a + 1:b + 1] + z_ccp[a:b]))
@@ -183,5 +185,6 @@ def chordal_error(surface: Any, theta: np.ndarray, rho: np.ndarray,
             pass  # (the error again, over the whole path, below)
     tm = 0.5 * (theta[1:] + theta[:-1])
     rm = 0.5 * (rho[1:] + rho[:-1])
-    zm = surface.height(rm * np.cos(tm), rm * np.sin(tm))
+    cs, sn = trig.cos_sin(tm)
+    zm = surface.height(rm * cs, rm * sn)
     return np.abs(zm - 0.5 * (z_ccp[1:] + z_ccp[:-1]))

@@ -36,6 +36,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from ..core import trig
 from ..core.errors import InputError
 from ..core.toolpath import ROLE_CUT, ROLE_NAMES, ROLE_RAPID, Blocks, Links
 from ..core.units import MIN_TO_S, MM_TO_NM
@@ -217,7 +218,8 @@ def _tip(blocks: Blocks):
     ax = blocks.axes
     if blocks.dialect == "turning":
         c = np.radians(ax["C"])
-        return ax["X"] * np.cos(c), ax["X"] * np.sin(c), ax["Z"]
+        cs, sn = trig.cos_sin(c)
+        return ax["X"] * cs, ax["X"] * sn, ax["Z"]
     return ax["X"], ax["Y"], ax["Z"]
 
 
