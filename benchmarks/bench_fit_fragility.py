@@ -26,8 +26,10 @@ Run: ``.venv/bin/python benchmarks/bench_fit_fragility.py`` (about 200 CPU-s).
 
 from __future__ import annotations
 
+import atexit
 import json
 import resource
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -62,6 +64,7 @@ def main() -> dict:
     from render_inspect.pipeline import _fit as pipeline_fit
 
     work = Path(tempfile.mkdtemp(prefix="bench_fit_fragility_"))
+    atexit.register(shutil.rmtree, work, ignore_errors=True)  # (its fits: tens of MB)
     truth = T._truth(work / "truth", T.TOOL, quiet=True)
     put = _cache.EvaluationCache.put
     solve = pipeline_fit.solve

@@ -23,7 +23,9 @@ _PROBE = textwrap.dedent('''
     from render_inspect.scene import load_scene
 ''') + "{status}" + textwrap.dedent('''
     pixel, scene_file, halves = float(sys.argv[1]), sys.argv[2], json.loads(sys.argv[3])
-    out = Path(tempfile.mkdtemp())
+    # (the outputs in the test's own folder, the probe's working directory: pytest removes
+    # it with its older runs; the system's temporary folder would keep them for good)
+    out = Path(tempfile.mkdtemp(dir="."))
     # load every library and compiled kernel first: the baseline is what they hold
     warm = load_scene(scene_file, ["simulation.region=[-0.01,-0.01,0.01,0.01]",
                                    f"simulation.pixel={pixel}", "simulation.max_memory_gb=16"])
@@ -91,7 +93,7 @@ _TILED_PROBE = textwrap.dedent('''
     scene = load_scene(scene_file, [f"simulation.region={[-half, -half, half, half]}",
                                     "simulation.pixel=0.0005", "material.preset='ideal'",
                                     "machine.preset='ideal'"])
-    out = Path(tempfile.mkdtemp())
+    out = Path(tempfile.mkdtemp(dir="."))
     run_simulate(scene.with_overrides(["simulation.region=[-0.05,-0.05,0.05,0.05]"]), out / "warm",
                  tiled=True, tile=64)
     base = base_rss()
@@ -159,7 +161,7 @@ _RENDER_PROBE = textwrap.dedent('''
                                                "simulation.max_memory_gb=16", *sets])
     need = check_render_limits(scene, kind=kind)
     base = base_rss()
-    run_render(scene, Path(tempfile.mkdtemp()) / "o", surface="design", kind=kind)
+    run_render(scene, Path(tempfile.mkdtemp(dir=".")) / "o", surface="design", kind=kind)
     print(json.dumps({"estimate": max(need.values()), "rss": status("VmHWM") - base}))
 ''')
 
@@ -170,7 +172,7 @@ _NC_PROBE = textwrap.dedent('''
     from render_inspect.pipeline._toolpath import nc_memory
     from render_inspect.scene import load_scene
 ''') + _STATUS + textwrap.dedent('''
-    d = Path(tempfile.mkdtemp())
+    d = Path(tempfile.mkdtemp(dir="."))
     for k, (ppr,) in enumerate(json.loads(sys.argv[1])):  # each run measured from its start
         scene = load_scene("sts_sinusoidal_grid", ["process.workpiece_radius=1.0",
                                                    f"process.points_per_rev={ppr}",
@@ -192,7 +194,7 @@ _TILED_SIM_PROBE = textwrap.dedent('''
     from render_inspect.pipeline import run_simulate
     from render_inspect.scene import load_scene
 ''') + _STATUS + textwrap.dedent('''
-    d = Path(tempfile.mkdtemp())
+    d = Path(tempfile.mkdtemp(dir="."))
     for k, (half,) in enumerate(json.loads(sys.argv[1])):  # each run measured from its start
         # the shipped scene as it is: a lathe and aluminium 6082 with its burrs
         scene = load_scene("sts_sinusoidal_grid", [f"simulation.region={[-half, -half, half, half]}",
