@@ -450,3 +450,92 @@ def test_the_paths_radial_slope_in_one_merge_equals_the_array_form():
     back = np.array([0.0, 3.0, 2.0, 9.0, 12.0, 20.0])
     vals = rng.normal(size=(2, back.size))
     assert _envelope_path.path_radial_slope(back, *vals) == _radial_slope_arrays(back, *vals)
+
+
+def test_the_paths_revolution_step_is_the_largest_change_at_any_angle():
+    # uneven steps, many revolutions or barely more than one: the value is the largest
+    # |z(s + 2 pi) - z(s)| over every angle (z linear between points), sampled densely
+    # with the points and the points one revolution back among the samples
+    rng = np.random.default_rng(12)
+    two_pi = _envelope_path.TWO_PI
+    for trial in range(200):
+        n = int(rng.integers(3, 400))
+        theta = np.cumsum(rng.uniform(0.01, 1.0, n)) * rng.uniform(0.2, 3.0)
+        z = rng.normal(size=n) * 10.0 ** rng.uniform(-6, 0)
+        got = _envelope_path.path_revolution_step(theta, z)
+        if theta[-1] - theta[0] <= two_pi:
+            assert got == 0.0, trial
+            continue
+        lo, hi = theta[0], theta[-1] - two_pi
+        s = np.concatenate([theta, theta - two_pi, np.linspace(lo, hi, 20 * n)])
+        s = s[(s >= lo) & (s <= hi)]
+        want = np.max(np.abs(np.interp(s + two_pi, theta, z) - np.interp(s, theta, z)))
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-18 * np.abs(z).max()), trial
+    # angles that repeat or go back, a height that is not finite: no bound (inf)
+    # heights that fall 3 um a revolution: 3 um
+    th = np.linspace(0.0, 30.0, 50)
+    assert _envelope_path.path_revolution_step(th, -0.003 * th / two_pi) == pytest.approx(0.003, rel=1e-12)
+    z = np.sin(th)
+    for bad_th, bad_z in ((np.r_[th[:10], th[9], th[10:]], np.r_[z[:10], z[9], z[10:]]),
+                          (th[::-1].copy(), z), (th, np.r_[z[:-1], np.nan])):
+        assert _envelope_path.path_revolution_step(bad_th, bad_z) == math.inf
+
+
+@pytest.mark.parametrize("variant", ["plain", "across the axis", "worn", "edge", "no side flow", "NaN heights"])
+def test_the_kernels_pass_proofs_change_no_pixel(variant):
+    # the kernel skips passes it proves change nothing, from the path's largest change of
+    # height per revolution (z_rev): on the shipped grid's program followed by its lathe
+    # every map equals, bit for bit, the kernel that looks up every pass of the window
+    # (z_rev unknown)
+    from dataclasses import replace
+
+    from render_inspect.toolpath import EdgeProfile
+
+    region = (-0.03, -0.02, 0.03, 0.02) if variant == "across the axis" else (0.31, -0.05, 0.37, -0.01)
+    pixel = 0.0005
+    path, tool = _followed(region, pixel)
+    if variant == "NaN heights":
+        z = np.array(path.z, dtype=np.float64)
+        z[z.size // 3] = np.nan
+        path = ToolPath(path.theta, path.rho, z, path.t)
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, h_min=H_MIN, kappa=KAPPA)
+    if variant == "worn":
+        th = np.asarray(path.theta)
+        kw["h_min_points"] = H_MIN * (1.0 + 3.0 * (th - th[0]) / (th[-1] - th[0]))
+    if variant == "edge":
+        kw["edge"] = EdgeProfile.from_harmonics([(40.0, 25.0, 10.0)])
+    if variant == "no side flow":
+        kw["side_flow"] = False
+    cp = prepare_cut(path, **kw)
+    if variant == "NaN heights":
+        assert cp.z_rev == math.inf
+        return
+    assert 0 < cp.z_rev < 1e-3
+    grooves = Grooves.of(rms=GROOVE_RMS, seed=3)
+    proved = cut_turning(cp, grooves, region=region, pixel=pixel)
+    every = cut_turning(replace(cp, z_rev=math.inf), grooves, region=region, pixel=pixel)
+    for k in ("machined", "pass_theta", "added"):
+        assert np.array_equal(proved[k], every[k], equal_nan=True), k
+    assert proved["grooves_sumsq"] == every["grooves_sumsq"] and proved["added_max"] == every["added_max"]
+
+
+@pytest.mark.parametrize("amplitude", [2e-5, 5e-5, 2e-4])
+def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude):
+    # heights that swing +-A with 2.5 waves a revolution: at one angle the next revolution
+    # is 2 A away (z_rev = 2 A, the largest any path of this size can have), so passes
+    # further out can cut; the proofs keep every pixel, and half that z_rev changes pixels
+    # (the proofs skip passes here, and no more than they may)
+    from dataclasses import replace
+
+    f, r0 = 0.005, 0.4
+    th = np.linspace(0.0, r0 / f * 2 * math.pi, int(r0 / f * 720) + 1)
+    path = ToolPath(th, r0 - f * th / (2 * math.pi), amplitude * np.cos(2.5 * th), th)
+    region, pixel = (0.1, -0.02, 0.16, 0.02), 0.0005
+    cp = prepare_cut(path, nose_radius=0.5, half_width=0.25, h_min=1e-5, kappa=0.05)
+    assert cp.z_rev == pytest.approx(2 * amplitude, rel=1e-6)
+    every = cut_turning(replace(cp, z_rev=math.inf), Grooves.none(), region=region, pixel=pixel)
+    proved = cut_turning(cp, Grooves.none(), region=region, pixel=pixel)
+    for k in ("machined", "pass_theta", "added"):
+        assert np.array_equal(proved[k], every[k], equal_nan=True), k
+    wrong = cut_turning(replace(cp, z_rev=cp.z_rev / 2), Grooves.none(), region=region, pixel=pixel)
+    assert np.sum(wrong["machined"] != every["machined"]) > 100

@@ -4,6 +4,7 @@ constants, for the whole path or the run of it one tile needs."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -15,7 +16,7 @@ from ..core.toolpath import ToolPath
 from ._cut_inputs import cutting_distance, mechanics_window
 from ._cutting import mechanics_path
 from ._envelope_path import (EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc, edge_table, edge_window,
-                             path_radial_slope)
+                             path_radial_slope, path_revolution_step)
 
 __all__ = ["CutPath", "prepare_cut"]
 
@@ -38,6 +39,10 @@ class CutPath:
     h_seg : (m,) float64
         The minimum chip thickness of each segment's pass (mm; a tool wearing along the
         path), or empty: ``h_min`` for every pass.
+    z_rev : float
+        The whole path's largest change of the tip's height from one revolution to the
+        next at one angle (mm; :func:`path_revolution_step`); inf: unknown (the kernel
+        then visits every pass of the window).
     """
 
     ep: EnvelopePath
@@ -46,6 +51,7 @@ class CutPath:
     kappa: float
     side_flow: bool
     h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    z_rev: float = math.inf
 
     def slice_for(self, region: Sequence[float]) -> "CutPath":
         """The passes whose nose arcs the kernel visits for pixels in ``region``
@@ -100,4 +106,5 @@ def prepare_cut(path: ToolPath, *, nose_radius: float, half_width: float | None 
     dth = (theta[-1] - theta[0]) / (theta.size - 1)
     ep = EnvelopePath(seg, theta, tab, tt0, tw, False, 1.0 / dth if dth > 0 else 0.0, 0, 0, theta.size,
                       float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
-    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg)
+    return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg,
+                   path_revolution_step(theta, z))

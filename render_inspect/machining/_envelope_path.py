@@ -92,6 +92,56 @@ def _radial_slope(theta, rho, z):
     return True, (best if good else 0.0)
 
 
+@njit(cache=True, nogil=True)
+def _revolution_step(theta, z):
+    """Largest |z(s + 2 pi) - z(s)| over the angles s of the path (z linear in the angle
+    between points: the largest lies at a point or one revolution before one); inf where
+    the angles do not strictly increase or a height is not finite, 0 for a path of one
+    revolution or less."""
+    n = theta.size
+    for j in range(n):
+        if not math.isfinite(z[j]) or not math.isfinite(theta[j]):
+            return math.inf
+        if j > 0 and not theta[j] > theta[j - 1]:
+            return math.inf
+    if n < 2 or theta[n - 1] - theta[0] <= TWO_PI:
+        return 0.0
+    best = 0.0
+    # at each point s = theta[i]: the height one revolution later, interpolated
+    k = 0
+    for i in range(n):
+        key = theta[i] + TWO_PI
+        if key > theta[n - 1]:
+            break
+        while theta[k + 1] < key:
+            k += 1
+        fr = (key - theta[k]) / (theta[k + 1] - theta[k])
+        v = abs(z[k] + fr * (z[k + 1] - z[k]) - z[i])
+        if v > best:
+            best = v
+    # one revolution before each point: the height there, interpolated
+    k = 0
+    for i in range(n):
+        key = theta[i] - TWO_PI
+        if key < theta[0]:
+            continue
+        while theta[k + 1] < key:
+            k += 1
+        fr = (key - theta[k]) / (theta[k + 1] - theta[k])
+        v = abs(z[i] - (z[k] + fr * (z[k + 1] - z[k])))
+        if v > best:
+            best = v
+    return best
+
+
+def path_revolution_step(theta: np.ndarray, z: np.ndarray) -> float:
+    """Largest change of the tool tip's height from one revolution to the next at the same
+    angle (mm; :func:`_revolution_step`): bounds how far apart in height two passes a
+    given number of revolutions apart can be at any pixel."""
+    return float(_revolution_step(np.ascontiguousarray(theta, dtype=np.float64),
+                                  np.ascontiguousarray(z, dtype=np.float64)))
+
+
 def path_radial_slope(theta: np.ndarray, rho: np.ndarray, z: np.ndarray) -> float:
     """Largest |dz/drho| between a point and the point one revolution later (mm/mm)."""
     if theta.size < 3 or theta[-1] - theta[0] <= TWO_PI:
