@@ -57,15 +57,13 @@ from typing import Any
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 # (the largest |argument| the two-part reduction keeps exact: ARG_MAX)
-from ..core.trig import ARG_MAX as _COS_ARG_MAX, INV_PI as _INVPI, PI_1 as _PI_1, PI_1T as _PI_1T, ROUND as _ROUND
+from ._cut_grooves import _COS_ARG_MAX, _cos, _groove_sum, _groove_sum_libm  # noqa: F401 (_cos: tests)
 from ..core.threads import over_rows
 
-from ..core.errors import InputError
 from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cut_inputs import Grooves, cutting_distance, mechanics_window
-from ._cut_path import CutPath, prepare_cut
-from ._cutting import cut_turning_mechanics
+from ._cut_path import CutPath, _cut_direct, prepare_cut
 from ._envelope import BLOCK, _polar_step
 from ._envelope_step import _edge_dz, _lookup_bin
 
@@ -78,13 +76,6 @@ INV_2PI = 1.0 / TWO_PI
 OUT_CHANNELS = ("machined", "pass_theta", "added")
 #: passes a pixel may gather on one side of the axis (the direct kernel's cap)
 _MAX_BUF = 1_000_000  # not a unit conversion
-#: the minimax polynomial 1 + C_1 r^2 + ... + C_8 r^16 of cos r on |r| <= pi / 2 (Remez, the
-#: coefficients rounded to doubles one by one: |error| < 4.3e-18); the argument reduced with
-#: pi in two parts (:mod:`render_inspect.core.trig`: k pi_1 exact for k < 2^20), 1 / pi and
-#: 1.5 * 2^52 (added to x / pi it rounds it to the integer k; the sum's last bit is k's parity)
-_C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8 = (
-    -0.49999999999999983, 0.04166666666666443, -0.0013888888888787315, 2.4801587279375502e-05,
-    -2.7557316542206754e-07, 2.0876568452752614e-09, -1.1463054989391418e-11, 4.610433736698955e-14)
 #: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
 _STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
 #: passes whose segments a pixel remembers for the next pixel (a power of 2: slot j % _SEEN),
@@ -97,44 +88,6 @@ _U1, _U2, _U3, _U4 = np.uint64(1), np.uint64(2), np.uint64(3), np.uint64(4)
 
 
 # ------------------------------------------------------------------ the kernel
-@njit(cache=True, nogil=True, fastmath={"contract"})
-def _cos(x):
-    """cos(x) for |x| < _COS_ARG_MAX: x = k pi + r (Cody-Waite), cos r by the minimax
-    polynomial, its sign flipped where k is odd; branch-free, so a loop over modes vectorises."""
-    t = x * _INVPI + _ROUND
-    k = t - _ROUND
-    r = (x - k * _PI_1) - k * _PI_1T
-    z = r * r
-    c = 1.0 + z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * (_C6 + z * (_C7 + z * _C8)))))))
-    odd = np.float64(t).view(np.int64) << 63
-    return np.int64(np.float64(c).view(np.int64) ^ odd).view(np.float64)
-
-
-@njit(cache=True, nogil=True)
-def _groove_arg(ku, kv, ph, i, u, v):
-    """Mode i's argument ku_i u + kv_i v + ph_i, rounded as numpy rounds it."""
-    return ku[i] * u + kv[i] * v + ph[i]
-
-
-@njit(cache=True, nogil=True, fastmath={"reassoc"})
-def _groove_sum(ku, kv, ph, u, v):
-    """sum_i cos(ku_i u + kv_i v + ph_i) in one SIMD pass: three kernels with their own flags,
-    which LLVM inlines keeping each instruction's (the arguments rounded as numpy rounds
-    them, the cosine with fused multiply-adds, the terms summed in any order)."""
-    g = 0.0
-    for i in range(ku.size):
-        g += _cos(_groove_arg(ku, kv, ph, i, u, v))
-    return g
-
-
-@njit(cache=True)
-def _groove_sum_libm(ku, kv, ph, u, v):
-    g = 0.0
-    for i in range(ku.size):
-        g += math.cos(ku[i] * u + kv[i] * v + ph[i])
-    return g
-
-
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
 def _segment(theta, tab, tab_t0, tab_iw, s, j, seen):
     """:func:`_lookup_bin`'s segment of the pass at cumulative angle s (pass j): first the
@@ -555,7 +508,8 @@ BLOCK_SAMPLES = 1 << 20  # not a unit conversion
 def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel: float,
                 origin: Sequence[float] | None = None,
                 progress: Callable[[int, int], Any] | None = None,
-                block_samples: int = BLOCK_SAMPLES, parallel: bool = True) -> dict:
+                block_samples: int = BLOCK_SAMPLES, parallel: bool = True,
+                out: Sequence[np.ndarray] | None = None) -> dict:
     """The machined surface of ``region`` (x0, y0, x1, y1; mm) with the cutting mechanics
     and grooves, computed in row blocks.
 
@@ -576,6 +530,9 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
         Samples per row block (at least one row).
     parallel : bool
         All cores within each block; False: the calling thread.
+    out : sequence of three arrays, optional
+        The maps to write, in the order of :data:`OUT_CHANNELS` (C-contiguous (ny, nx)
+        float64 arrays, any contents), returned in the result; default: new arrays.
 
     Returns
     -------
@@ -593,7 +550,17 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
         start = (int(round((y0 - origin[1]) / pixel)), int(round((x0 - origin[0]) / pixel)))
     if cp.ep.cc <= 0:
         return _cut_direct(cp, grooves, region=region, pixel=pixel)
-    maps = {k: np.empty((ny, nx)) for k in OUT_CHANNELS}
+    if out is None:
+        maps = {k: np.empty((ny, nx)) for k in OUT_CHANNELS}
+    else:
+        if len(out) != len(OUT_CHANNELS):
+            raise ValueError(f"cut_turning: out must hold {len(OUT_CHANNELS)} maps {OUT_CHANNELS}, got {len(out)}")
+        maps = dict(zip(OUT_CHANNELS, out))
+        for k, v in maps.items():
+            if not (isinstance(v, np.ndarray) and v.shape == (ny, nx) and v.dtype == np.float64
+                    and v.flags.c_contiguous and v.flags.writeable):
+                raise ValueError(f"cut_turning: the {k} map of out must be a writeable C-contiguous float64 array of "
+                                 f"shape {(ny, nx)}")
     step = max(1, int(block_samples) // max(nx, 1))
     stats = np.empty((ny, 3))
     for r0 in range(0, ny, step):
@@ -604,36 +571,6 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
         (report if progress is None else progress)(r1, ny)
     return {**maps, "grooves_sumsq": float(stats[:, 0].sum()), "grooves_n": int(stats[:, 1].sum()),
             "added_max": float(stats[:, 2].max()) if ny else -math.inf}
-
-
-def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
-    """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
-    ep = cp.ep
-    if cp.h_seg.size:
-        raise InputError("tool.wear with a [material]: the edge worn along the path needs a path "
-                         "that feeds towards the spindle axis")
-    if ep.edge.size:
-        raise InputError("tool.edge_profile / tool.waviness: a measured cutting edge needs a path "
-                         "that feeds towards the spindle axis; remove the edge keys for this path")
-    theta = ep.theta
-    rho = np.append(ep.seg[:, 0], ep.seg[-1, 0] + ep.seg[-1, 1])
-    z = np.append(ep.seg[:, 2], ep.seg[-1, 2] + ep.seg[-1, 3])
-    c = cut_turning_mechanics(ToolPath(theta, rho, z, theta), nose_radius=ep.nose_radius, region=region,
-                              pixel=pixel, half_width=ep.half_width, h_min=cp.h_min, kappa=cp.kappa,
-                              side_flow=cp.side_flow)
-    m = c["machined"]
-    ok = np.isfinite(m) & np.isfinite(c["edge_pos"])
-    along = np.interp(np.where(ok, c["pass_theta"], theta[0]), theta, cp.dist)
-    g = np.zeros(m.shape)
-    for i in range(grooves.ku.size):
-        g += np.cos(grooves.ku[i] * c["edge_pos"] + grooves.kv[i] * along + grooves.ph[i])
-    g = np.where(ok, g * grooves.scale, 0.0)
-    m = np.where(ok, m + g, m)
-    added = c["added"]
-    return {"machined": m, "pass_theta": c["pass_theta"], "added": added,
-            "grooves_sumsq": float(np.sum(g * g)) if grooves.ku.size else 0.0,
-            "grooves_n": int(ok.sum()) if grooves.ku.size else 0,
-            "added_max": float(np.max(added[ok])) if ok.any() else -math.inf}
 
 
 def load_cut_kernels() -> None:

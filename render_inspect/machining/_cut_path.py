@@ -1,6 +1,7 @@
 """The turning path prepared for the cutting-mechanics kernel (:mod:`._cut_kernel`): its
 segments, the lookup table of their angles, the cutting distance and the material's
-constants, for the whole path or the run of it one tile needs."""
+constants, for the whole path or the run of it one tile needs; and the cut by the direct
+model for a path the kernel does not take (one that does not feed towards the axis)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.toolpath import ToolPath
-from ._cut_inputs import cutting_distance, mechanics_window
-from ._cutting import mechanics_path
+from ._cut_inputs import Grooves, cutting_distance, mechanics_window
+from ._cutting import cut_turning_mechanics, mechanics_path
 from ._envelope_path import (EnvelopePath, _lookup_table, _nominal_spiral, _nose_arc, edge_table, edge_window,
                              path_radial_slope, path_revolution_step)
 
@@ -108,3 +109,33 @@ def prepare_cut(path: ToolPath, *, nose_radius: float, half_width: float | None 
                       float(theta[0]), float(theta[-1]), a, float(cc), dev, f, Rc, hw, float(W), etab)
     return CutPath(ep, cutting_distance(theta, rho), float(h_min), float(kappa), bool(side_flow), h_seg,
                    path_revolution_step(theta, z))
+
+
+def _cut_direct(cp: CutPath, grooves: Grooves, *, region, pixel: float) -> dict:
+    """:func:`cut_turning` by the direct model (a path that does not feed towards the axis)."""
+    ep = cp.ep
+    if cp.h_seg.size:
+        raise InputError("tool.wear with a [material]: the edge worn along the path needs a path "
+                         "that feeds towards the spindle axis")
+    if ep.edge.size:
+        raise InputError("tool.edge_profile / tool.waviness: a measured cutting edge needs a path "
+                         "that feeds towards the spindle axis; remove the edge keys for this path")
+    theta = ep.theta
+    rho = np.append(ep.seg[:, 0], ep.seg[-1, 0] + ep.seg[-1, 1])
+    z = np.append(ep.seg[:, 2], ep.seg[-1, 2] + ep.seg[-1, 3])
+    c = cut_turning_mechanics(ToolPath(theta, rho, z, theta), nose_radius=ep.nose_radius, region=region,
+                              pixel=pixel, half_width=ep.half_width, h_min=cp.h_min, kappa=cp.kappa,
+                              side_flow=cp.side_flow)
+    m = c["machined"]
+    ok = np.isfinite(m) & np.isfinite(c["edge_pos"])
+    along = np.interp(np.where(ok, c["pass_theta"], theta[0]), theta, cp.dist)
+    g = np.zeros(m.shape)
+    for i in range(grooves.ku.size):
+        g += np.cos(grooves.ku[i] * c["edge_pos"] + grooves.kv[i] * along + grooves.ph[i])
+    g = np.where(ok, g * grooves.scale, 0.0)
+    m = np.where(ok, m + g, m)
+    added = c["added"]
+    return {"machined": m, "pass_theta": c["pass_theta"], "added": added,
+            "grooves_sumsq": float(np.sum(g * g)) if grooves.ku.size else 0.0,
+            "grooves_n": int(ok.sum()) if grooves.ku.size else 0,
+            "added_max": float(np.max(added[ok])) if ok.any() else -math.inf}

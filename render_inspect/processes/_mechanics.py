@@ -25,6 +25,7 @@ from pydantic import Field
 from ..design import DesignConfig
 from ..core.grid import grid_shape
 from ..core.handoff import hand_over
+from ..core.pages import Prefaulted
 from ..core.section import Section
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, UM_TO_MM
@@ -278,6 +279,10 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
     region = tuple(sim.region) if region is None else tuple(region)
     tool = Tool.from_config(cfg.tool)
     timing, figs = {}, {}
+    resp = material_of(cfg.material)
+    # the cut's three maps get their memory from the system on a spare core while the
+    # machine follows the program (core.pages)
+    maps = Prefaulted(grid_shape(region, sim.pixel), 3) if resp is not None else None
     t0 = time.perf_counter()
     cut_path, fp, facts = follow(cfg, path, z_fts=z_fts)
     timing["machine"] = time.perf_counter() - t0
@@ -289,7 +294,6 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         figs.update(following_error_series_plot(fp, name=cfg.name))
         hand_over(figs)
     t0 = time.perf_counter()
-    resp = material_of(cfg.material)
     pass_theta = design_out = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
@@ -299,7 +303,9 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         # finish_surface), in row blocks
         c = cut_turning(material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp)),
                         grooves_of(cfg, resp),
-                        region=region, pixel=sim.pixel, progress=progress)
+                        region=region, pixel=sim.pixel, progress=progress,
+                        out=maps.take() if maps is not None else None)
+        maps = None
         pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added")
         if error_figures:
             error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name)
