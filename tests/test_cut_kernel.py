@@ -539,3 +539,24 @@ def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude):
         assert np.array_equal(proved[k], every[k], equal_nan=True), k
     wrong = cut_turning(replace(cp, z_rev=cp.z_rev / 2), Grooves.none(), region=region, pixel=pixel)
     assert np.sum(wrong["machined"] != every["machined"]) > 100
+
+
+def test_the_pass_window_by_multiplications_is_the_windows():
+    # the pass numbers of the window's ends, formed with 1 / cc, are those of the division
+    # (random spirals up to 1e5 rad; ends placed on a whole pass and 1e-12 of one beside it)
+    from render_inspect.machining._cut_kernel import _window, _window_near
+
+    rng = np.random.default_rng(21)
+    for trial in range(20000):
+        cc = 10.0 ** rng.uniform(-5, -1)
+        t_first = rng.uniform(-10.0, 10.0)
+        t_last = t_first + 10.0 ** rng.uniform(0, 5)
+        a = cc * (t_last - t_first) * rng.uniform(0.5, 1.0)
+        r = rng.uniform(0.0, a)
+        W = 10.0 ** rng.uniform(-4, -1)
+        phi = rng.uniform(0.0, 2 * math.pi)
+        if trial % 3 == 1:  # the window's outer end on a whole pass (and beside it)
+            s_lo = t_first + (a - (r + W)) / cc
+            phi = s_lo - 2 * math.pi * math.floor((s_lo - t_first) / (2 * math.pi)) + rng.choice([0.0, 1e-12, -1e-12])
+        want = _window(t_first, t_last, a, cc, phi, r, 1.0, W)
+        assert _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, r, W) == want, trial
