@@ -452,32 +452,45 @@ def test_the_paths_radial_slope_in_one_merge_equals_the_array_form():
     assert _envelope_path.path_radial_slope(back, *vals) == _radial_slope_arrays(back, *vals)
 
 
+def _heights_at_brute(theta, z, s):
+    """Every height the path has at angle s: its points' there, else the interpolation."""
+    at = z[theta == s]
+    return at if at.size else np.array([np.interp(s, theta, z)])
+
+
 def test_the_paths_revolution_step_is_the_largest_change_at_any_angle():
-    # uneven steps, many revolutions or barely more than one: the value is the largest
-    # |z(s + 2 pi) - z(s)| over every angle (z linear between points), sampled densely
-    # with the points and the points one revolution back among the samples
+    # uneven steps, many revolutions or barely more than one, dwells (repeated angles, the
+    # path then has several heights at one angle): the value is the largest
+    # |z(s + 2 pi) - z(s)| over every angle and every height there (z linear between
+    # points), found by brute force at the points, one revolution from them and between
     rng = np.random.default_rng(12)
     two_pi = _envelope_path.TWO_PI
     for trial in range(200):
-        n = int(rng.integers(3, 400))
+        n = int(rng.integers(3, 300))
         theta = np.cumsum(rng.uniform(0.01, 1.0, n)) * rng.uniform(0.2, 3.0)
-        z = rng.normal(size=n) * 10.0 ** rng.uniform(-6, 0)
+        if trial % 4 == 0:  # dwells: some angles repeated
+            theta = np.sort(np.concatenate([theta, rng.choice(theta, size=max(1, n // 10))]))
+        z = rng.normal(size=theta.size) * 10.0 ** rng.uniform(-6, 0)
         got = _envelope_path.path_revolution_step(theta, z)
         if theta[-1] - theta[0] <= two_pi:
             assert got == 0.0, trial
             continue
         lo, hi = theta[0], theta[-1] - two_pi
-        s = np.concatenate([theta, theta - two_pi, np.linspace(lo, hi, 20 * n)])
-        s = s[(s >= lo) & (s <= hi)]
-        want = np.max(np.abs(np.interp(s + two_pi, theta, z) - np.interp(s, theta, z)))
+        s = np.concatenate([theta, theta - two_pi, np.linspace(lo, hi, 10 * theta.size)])
+        s = np.unique(s[(s >= lo) & (s <= hi)])
+        want = max(np.max(np.abs(np.subtract.outer(_heights_at_brute(theta, z, v + two_pi),
+                                                   _heights_at_brute(theta, z, v)))) for v in s)
         assert got == pytest.approx(want, rel=1e-12, abs=1e-18 * np.abs(z).max()), trial
-    # angles that repeat or go back, a height that is not finite: no bound (inf)
     # heights that fall 3 um a revolution: 3 um
     th = np.linspace(0.0, 30.0, 50)
     assert _envelope_path.path_revolution_step(th, -0.003 * th / two_pi) == pytest.approx(0.003, rel=1e-12)
+    # a dwell that drops 1 um at one angle: the revolution before it sees both heights
+    th2 = np.r_[th[:20], th[19], th[20:]]
+    z2 = np.r_[np.zeros(20), -0.001 * np.ones(th.size - 19)]
+    assert _envelope_path.path_revolution_step(th2, z2) == pytest.approx(0.001, rel=1e-12)
+    # angles that go back, a height that is not finite: no bound (inf)
     z = np.sin(th)
-    for bad_th, bad_z in ((np.r_[th[:10], th[9], th[10:]], np.r_[z[:10], z[9], z[10:]]),
-                          (th[::-1].copy(), z), (th, np.r_[z[:-1], np.nan])):
+    for bad_th, bad_z in ((th[::-1].copy(), z), (th, np.r_[z[:-1], np.nan])):
         assert _envelope_path.path_revolution_step(bad_th, bad_z) == math.inf
 
 
@@ -519,20 +532,26 @@ def test_the_kernels_pass_proofs_change_no_pixel(variant):
     assert proved["grooves_sumsq"] == every["grooves_sumsq"] and proved["added_max"] == every["added_max"]
 
 
-@pytest.mark.parametrize("amplitude", [2e-5, 5e-5, 2e-4])
-def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude):
+@pytest.mark.parametrize("amplitude, dwells", [(2e-5, False), (5e-5, False), (2e-4, False), (5e-5, True)])
+def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude, dwells):
     # heights that swing +-A with 2.5 waves a revolution: at one angle the next revolution
-    # is 2 A away (z_rev = 2 A, the largest any path of this size can have), so passes
-    # further out can cut; the proofs keep every pixel, and half that z_rev changes pixels
-    # (the proofs skip passes here, and no more than they may)
+    # is 2 A away (z_rev = 2 A), so passes further out can cut; the proofs keep every
+    # pixel, and half that z_rev changes pixels (the proofs skip passes here, and no more
+    # than they may).  With dwells: every 97th point repeated 0.5 A higher
     from dataclasses import replace
 
     f, r0 = 0.005, 0.4
     th = np.linspace(0.0, r0 / f * 2 * math.pi, int(r0 / f * 720) + 1)
-    path = ToolPath(th, r0 - f * th / (2 * math.pi), amplitude * np.cos(2.5 * th), th)
+    z = amplitude * np.cos(2.5 * th)
+    rho = r0 - f * th / (2 * math.pi)
+    if dwells:
+        at = np.arange(5, th.size - 5, 97)
+        th, rho = np.insert(th, at, th[at]), np.insert(rho, at, rho[at])
+        z = np.insert(z, at, z[at] + 0.5 * amplitude)
+    path = ToolPath(th, rho, z, th)
     region, pixel = (0.1, -0.02, 0.16, 0.02), 0.0005
     cp = prepare_cut(path, nose_radius=0.5, half_width=0.25, h_min=1e-5, kappa=0.05)
-    assert cp.z_rev == pytest.approx(2 * amplitude, rel=1e-6)
+    assert cp.z_rev == pytest.approx(2 * amplitude, rel=1e-6) or (dwells and 2 * amplitude < cp.z_rev < 3 * amplitude)
     every = cut_turning(replace(cp, z_rev=math.inf), Grooves.none(), region=region, pixel=pixel)
     proved = cut_turning(cp, Grooves.none(), region=region, pixel=pixel)
     for k in ("machined", "pass_theta", "added"):

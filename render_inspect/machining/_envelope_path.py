@@ -92,45 +92,59 @@ def _radial_slope(theta, rho, z):
     return True, (best if good else 0.0)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _heights_at(theta, z, m0, key):
+    """(lowest, highest) height of the path at angle ``key`` (theta[m0] the first angle >=
+    key): every point's at that angle where the path has points there (a dwell has
+    several), else the height interpolated between its neighbours."""
+    if theta[m0] == key:
+        lo = hi = z[m0]
+        m = m0 + 1
+        while m < theta.size and theta[m] == key:
+            lo = min(lo, z[m])
+            hi = max(hi, z[m])
+            m += 1
+        return lo, hi
+    fr = (key - theta[m0 - 1]) / (theta[m0] - theta[m0 - 1])
+    v = z[m0 - 1] + fr * (z[m0] - z[m0 - 1])
+    return v, v
+
+
 @njit(cache=True, nogil=True)
 def _revolution_step(theta, z):
-    """Largest |z(s + 2 pi) - z(s)| over the angles s of the path (z linear in the angle
-    between points: the largest lies at a point or one revolution before one); inf where
-    the angles do not strictly increase or a height is not finite, 0 for a path of one
-    revolution or less."""
+    """Largest |z(s + 2 pi) - z(s)| over the angles s of the path and every height the
+    path has there (z linear in the angle between points; the largest lies at a point or
+    one revolution before one); inf where the angles go back or a height is not finite, 0
+    for a path of one revolution or less."""
     n = theta.size
     for j in range(n):
         if not math.isfinite(z[j]) or not math.isfinite(theta[j]):
             return math.inf
-        if j > 0 and not theta[j] > theta[j - 1]:
+        if j > 0 and not theta[j] >= theta[j - 1]:
             return math.inf
     if n < 2 or theta[n - 1] - theta[0] <= TWO_PI:
         return 0.0
     best = 0.0
-    # at each point s = theta[i]: the height one revolution later, interpolated
-    k = 0
+    # at each point s = theta[i]: the heights one revolution later
+    m0 = 0
     for i in range(n):
         key = theta[i] + TWO_PI
         if key > theta[n - 1]:
             break
-        while theta[k + 1] < key:
-            k += 1
-        fr = (key - theta[k]) / (theta[k + 1] - theta[k])
-        v = abs(z[k] + fr * (z[k + 1] - z[k]) - z[i])
-        if v > best:
-            best = v
-    # one revolution before each point: the height there, interpolated
-    k = 0
+        while theta[m0] < key:
+            m0 += 1
+        lo, hi = _heights_at(theta, z, m0, key)
+        best = max(best, abs(hi - z[i]), abs(lo - z[i]))
+    # one revolution before each point: the heights there
+    m0 = 0
     for i in range(n):
         key = theta[i] - TWO_PI
         if key < theta[0]:
             continue
-        while theta[k + 1] < key:
-            k += 1
-        fr = (key - theta[k]) / (theta[k + 1] - theta[k])
-        v = abs(z[i] - (z[k] + fr * (z[k + 1] - z[k])))
-        if v > best:
-            best = v
+        while theta[m0] < key:
+            m0 += 1
+        lo, hi = _heights_at(theta, z, m0, key)
+        best = max(best, abs(z[i] - hi), abs(z[i] - lo))
     return best
 
 
