@@ -41,7 +41,7 @@ def _spare_core() -> bool:
 class Prefaulted:
     """``count`` new arrays of ``shape`` and ``dtype`` whose pages a background thread
     writes once (for arrays of at least :data:`MIN_BYTES` on a machine with a spare
-    core; otherwise plain ``numpy.empty`` arrays).
+    core; otherwise plain ``numpy.empty`` arrays, made when they are taken).
 
     Parameters
     ----------
@@ -51,9 +51,12 @@ class Prefaulted:
     """
 
     def __init__(self, shape: Sequence[int], count: int, dtype=np.float64) -> None:
-        self.arrays = [np.empty(tuple(shape), dtype=dtype) for _ in range(int(count))]
+        self._shape, self._count, self._dtype = tuple(int(n) for n in shape), int(count), np.dtype(dtype)
+        self.arrays: list[np.ndarray] = []
         self._thread: threading.Thread | None = None
-        if self.arrays and self.arrays[0].nbytes >= MIN_BYTES and _spare_core():
+        nbytes = int(np.prod(self._shape)) * self._dtype.itemsize
+        if self._count > 0 and nbytes >= MIN_BYTES and _spare_core():
+            self.arrays = [np.empty(self._shape, dtype=self._dtype) for _ in range(self._count)]
             self._thread = threading.Thread(target=self._touch, name="render_inspect-pages", daemon=True)
             self._thread.start()
 
@@ -63,9 +66,13 @@ class Prefaulted:
             flat[::max(1, _PAGE // a.itemsize)] = 0
 
     def take(self) -> list[np.ndarray]:
-        """The arrays, once their pages are written (waits for the thread)."""
+        """The arrays, once their pages are written (waits for the thread); arrays not
+        written ahead are made now.  Once: a second call returns []."""
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        elif self._count and not self.arrays:
+            self.arrays = [np.empty(self._shape, dtype=self._dtype) for _ in range(self._count)]
+        self._count = 0
         arrays, self.arrays = self.arrays, []
         return arrays
