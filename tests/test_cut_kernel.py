@@ -458,10 +458,10 @@ def _heights_at_brute(theta, z, s):
     return at if at.size else np.array([np.interp(s, theta, z)])
 
 
-def test_the_paths_revolution_step_is_the_largest_change_at_any_angle():
+def test_the_paths_revolution_step_is_the_least_and_largest_change_at_any_angle():
     # uneven steps, many revolutions or barely more than one, dwells (repeated angles, the
-    # path then has several heights at one angle): the value is the largest
-    # |z(s + 2 pi) - z(s)| over every angle and every height there (z linear between
+    # path then has several heights at one angle): the values are the least and the
+    # largest z(s + 2 pi) - z(s) over every angle and every height there (z linear between
     # points), found by brute force at the points, one revolution from them and between
     rng = np.random.default_rng(12)
     two_pi = _envelope_path.TWO_PI
@@ -471,33 +471,37 @@ def test_the_paths_revolution_step_is_the_largest_change_at_any_angle():
         if trial % 4 == 0:  # dwells: some angles repeated
             theta = np.sort(np.concatenate([theta, rng.choice(theta, size=max(1, n // 10))]))
         z = rng.normal(size=theta.size) * 10.0 ** rng.uniform(-6, 0)
+        if trial % 5 == 1:  # heights that fall by about a step each revolution
+            z = z * 0.1 - 0.5 * theta * np.abs(z).max()
         got = _envelope_path.path_revolution_step(theta, z)
         if theta[-1] - theta[0] <= two_pi:
-            assert got == 0.0, trial
+            assert got == (0.0, 0.0), trial
             continue
         lo, hi = theta[0], theta[-1] - two_pi
         s = np.concatenate([theta, theta - two_pi, np.linspace(lo, hi, 10 * theta.size)])
         s = np.unique(s[(s >= lo) & (s <= hi)])
-        want = max(np.max(np.abs(np.subtract.outer(_heights_at_brute(theta, z, v + two_pi),
-                                                   _heights_at_brute(theta, z, v)))) for v in s)
-        assert got == pytest.approx(want, rel=1e-12, abs=1e-18 * np.abs(z).max()), trial
-    # heights that fall 3 um a revolution: 3 um
+        diffs = [np.subtract.outer(_heights_at_brute(theta, z, v + two_pi), _heights_at_brute(theta, z, v))
+                 for v in s]
+        want = (min(d.min() for d in diffs), max(d.max() for d in diffs))
+        tol = 1e-12 * np.abs(z).max()
+        assert abs(got[0] - want[0]) <= tol and abs(got[1] - want[1]) <= tol, trial
+    # heights that fall 3 um a revolution: -3 um both
     th = np.linspace(0.0, 30.0, 50)
-    assert _envelope_path.path_revolution_step(th, -0.003 * th / two_pi) == pytest.approx(0.003, rel=1e-12)
+    assert _envelope_path.path_revolution_step(th, -0.003 * th / two_pi) == pytest.approx((-0.003, -0.003), rel=1e-12)
     # a dwell that drops 1 um at one angle: the revolution before it sees both heights
     th2 = np.r_[th[:20], th[19], th[20:]]
     z2 = np.r_[np.zeros(20), -0.001 * np.ones(th.size - 19)]
-    assert _envelope_path.path_revolution_step(th2, z2) == pytest.approx(0.001, rel=1e-12)
-    # angles that go back, a height that is not finite: no bound (inf)
+    assert _envelope_path.path_revolution_step(th2, z2) == pytest.approx((-0.001, 0.0), abs=1e-15)
+    # angles that go back, a height that is not finite: unknown
     z = np.sin(th)
     for bad_th, bad_z in ((th[::-1].copy(), z), (th, np.r_[z[:-1], np.nan])):
-        assert _envelope_path.path_revolution_step(bad_th, bad_z) == math.inf
+        assert _envelope_path.path_revolution_step(bad_th, bad_z) == (-math.inf, math.inf)
 
 
 @pytest.mark.parametrize("variant", ["plain", "across the axis", "worn", "edge", "no side flow", "NaN heights"])
 def test_the_kernels_pass_proofs_change_no_pixel(variant):
-    # the kernel skips passes it proves change nothing, from the path's largest change of
-    # height per revolution (z_rev): on the shipped grid's program followed by its lathe
+    # the kernel skips passes it proves change nothing, from the path's least and largest
+    # change of height per revolution (z_rev): on the shipped grid's program followed by its lathe
     # every map equals, bit for bit, the kernel that looks up every pass of the window
     # (z_rev unknown)
     from dataclasses import replace
@@ -521,12 +525,12 @@ def test_the_kernels_pass_proofs_change_no_pixel(variant):
         kw["side_flow"] = False
     cp = prepare_cut(path, **kw)
     if variant == "NaN heights":
-        assert cp.z_rev == math.inf
+        assert cp.z_rev == (-math.inf, math.inf)
         return
-    assert 0 < cp.z_rev < 1e-3
+    assert -1e-3 < cp.z_rev[0] <= cp.z_rev[1] < 1e-3 and cp.z_rev[1] > 0
     grooves = Grooves.of(rms=GROOVE_RMS, seed=3)
     proved = cut_turning(cp, grooves, region=region, pixel=pixel)
-    every = cut_turning(replace(cp, z_rev=math.inf), grooves, region=region, pixel=pixel)
+    every = cut_turning(replace(cp, z_rev=(-math.inf, math.inf)), grooves, region=region, pixel=pixel)
     for k in ("machined", "pass_theta", "added"):
         assert np.array_equal(proved[k], every[k], equal_nan=True), k
     assert proved["grooves_sumsq"] == every["grooves_sumsq"] and proved["added_max"] == every["added_max"]
@@ -535,9 +539,9 @@ def test_the_kernels_pass_proofs_change_no_pixel(variant):
 @pytest.mark.parametrize("amplitude, dwells", [(2e-5, False), (5e-5, False), (2e-4, False), (5e-5, True)])
 def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude, dwells):
     # heights that swing +-A with 2.5 waves a revolution: at one angle the next revolution
-    # is 2 A away (z_rev = 2 A), so passes further out can cut; the proofs keep every
-    # pixel, and half that z_rev changes pixels (the proofs skip passes here, and no more
-    # than they may).  With dwells: every 97th point repeated 0.5 A higher
+    # is 2 A away (z_rev = +-2 A), so passes further out can cut; the proofs keep every
+    # pixel, and half those changes pixels (the proofs skip passes here, and no more than
+    # they may).  With dwells: every 97th point repeated 0.5 A higher
     from dataclasses import replace
 
     f, r0 = 0.005, 0.4
@@ -551,12 +555,14 @@ def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude, dwel
     path = ToolPath(th, rho, z, th)
     region, pixel = (0.1, -0.02, 0.16, 0.02), 0.0005
     cp = prepare_cut(path, nose_radius=0.5, half_width=0.25, h_min=1e-5, kappa=0.05)
-    assert cp.z_rev == pytest.approx(2 * amplitude, rel=1e-6) or (dwells and 2 * amplitude < cp.z_rev < 3 * amplitude)
-    every = cut_turning(replace(cp, z_rev=math.inf), Grooves.none(), region=region, pixel=pixel)
+    lo, hi = cp.z_rev
+    assert (lo, hi) == pytest.approx((-2 * amplitude, 2 * amplitude), rel=1e-6) or \
+        (dwells and -3 * amplitude < lo <= -2 * amplitude and 2 * amplitude <= hi < 3 * amplitude)
+    every = cut_turning(replace(cp, z_rev=(-math.inf, math.inf)), Grooves.none(), region=region, pixel=pixel)
     proved = cut_turning(cp, Grooves.none(), region=region, pixel=pixel)
     for k in ("machined", "pass_theta", "added"):
         assert np.array_equal(proved[k], every[k], equal_nan=True), k
-    wrong = cut_turning(replace(cp, z_rev=cp.z_rev / 2), Grooves.none(), region=region, pixel=pixel)
+    wrong = cut_turning(replace(cp, z_rev=(lo / 2, hi / 2)), Grooves.none(), region=region, pixel=pixel)
     assert np.sum(wrong["machined"] != every["machined"]) > 100
 
 

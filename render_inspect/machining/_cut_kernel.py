@@ -23,13 +23,13 @@ makes it fast:
 - the cutting distance of the cutting pass comes from the pass's own segment and fraction;
   a pass whose arc provably stays h_min above the surface so far skips its square root;
 - passes that provably change nothing are not looked up at all (away from the axis): the
-  path's largest change of the tip's height from one revolution to the next at one angle
-  (``CutPath.z_rev``) bounds every pass's arc from one pass looked up and the nominal
-  spiral, so the passes before the last one outside the pixel are skipped where each lies
+  path's least and largest change of the tip's height from one revolution to the next at
+  one angle (``CutPath.z_rev``) bound every pass's arc from one pass looked up and the
+  nominal spiral, so the passes before the last one outside the pixel are skipped where each lies
   h_min above that pass's arc (that pass then cuts whatever they left, and the state
   after it is the same), and the passes after the cut where each lies h_min above the
   surface (from one such pass on, the bound only grows).  The maps are those of visiting
-  every pass (tested; half the true z_rev is tested to change pixels); the window's end
+  every pass (tested; half the true change is tested to change pixels); the window's end
   passes come from products with 1 / cc (the division decides within 1e-6 of a whole
   pass).  The shipped grid's 16 M-pixel cut takes about a quarter less CPU time;
 - each pass's segment is looked for first where the same pass was at the previous pixel
@@ -256,21 +256,22 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
 
 
 @njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _head_covered(j0, k, phi, r, t_first, a, cc, dev, f, Rc, half_inv_rc, e_low, z_rev, ztk, zk, h_max):
+def _head_covered(j0, k, phi, r, t_first, a, cc, dev, f, Rc, half_inv_rc, e_low, rise, ztk, zk, h_max):
     """True where every pass j0 .. k - 1 provably lies at least ``h_max`` above pass k's arc
     ``zk`` at this pixel, so pass k cuts whatever they left (the surface is never below
-    the lowest arc passed): a pass j revolutions before k has its tip within j ``z_rev``
-    of pass k's tip ``ztk`` and lies at least its nominal radius' distance less ``dev``
-    from the pixel.  The bound grows with each earlier pass once its distance dn holds
-    dn f >= z_rev Rc, so the walk stops there."""
+    the lowest arc passed): the tip of a pass j revolutions before k is at least pass k's
+    tip ``ztk`` less j ``rise`` (the most the tip rises in a revolution), and the pass lies
+    at least its nominal radius' distance less ``dev`` from the pixel.  The bound grows
+    with each earlier pass once its distance dn holds dn f >= rise Rc: the walk stops
+    there."""
     target = zk + h_max
     for j in range(k - 1, j0 - 1, -1):
         dn = (a - cc * (phi + TWO_PI * j - t_first)) - r - dev - 1e-12
         if not dn > 0.0:
             return False
-        if not ztk - (k - j) * z_rev + dn * dn * half_inv_rc + e_low - 1e-12 >= target:
+        if not ztk - (k - j) * rise + dn * dn * half_inv_rc + e_low - 1e-12 >= target:
             return False
-        if dn * f >= z_rev * Rc:
+        if dn * f >= rise * Rc:
             return True
     return True
 
@@ -282,7 +283,7 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     row's maps; into ``stats``: over the row's columns sc0 .. sc1 - 1, the sum of the
     squared grooves, the pixels that got grooves, the largest added material.  ``pv``: the
     path's numbers in one tuple (a call of over 30 arguments compiles slowly in numba)."""
-    tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa, z_rev, h_max = pv
+    tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa, rise, fall, h_max = pv
     cols = machined.size
     Rc2 = Rc * Rc
     half_inv_rc = 0.5 / Rc
@@ -301,6 +302,11 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     amax = -np.inf
     phi = 0.0
     xp = 0.0
+    # the head's candidate that held last (0: the last pass outside the pixel, 1: the one
+    # before it), and the pixels to wait before trying again where neither held
+    head_off = 0
+    head_wait = 0
+    proven = rise < np.inf and fall < np.inf
     for c in range(c_first, col0 + cols):
         x = x0 + c * pixel
         # polar angle: exact at each block of the whole grid, the series step after it
@@ -330,35 +336,41 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
             # bound of the arc, less 1e-12 mm for rounding and the measured edge's lowest
             # entry) changes nothing and skips the square root
             #
-            # Two proofs skip passes without looking them up (``z_rev``: the most the tip's
-            # height changes from one revolution to the next at one angle; a pass's
-            # distance from the pixel is at least its nominal radius' less ``dev``):
+            # Two proofs skip passes without looking them up (``rise``, ``fall``: the most
+            # the tip's height rises and falls from one revolution to the next at one
+            # angle; a pass's distance from the pixel is at least its nominal radius' less
+            # ``dev``):
             # - the head: the passes before the last one outside the pixel (jc, or the one
             #   before it) are not visited where each provably lies h_max above that pass's
             #   arc (:func:`_head_covered`): it then cuts whatever they left, its state the
-            #   same (the chip thickness is not kept);
+            #   same (the chip thickness is not kept).  The candidate that held last is
+            #   tried first; where neither holds, the next 8 pixels do not try;
             # - the tail: a pass inside the pixel whose bound from the last pass looked up
             #   (jl, tip ztl) lies h_max above the surface changes nothing, nor does any
-            #   later one once the bound grows with each pass (dn f >= z_rev Rc).
+            #   later one once the bound grows with each pass (dn f >= fall Rc).
             j0, j1 = _window_near(t_first, t_last, a, cc, inv_cc, phi, r, Wp)
             n = 0
             jl = j0
             ztl = 0.0
             jstart = j0
-            proofs = j1 - j0 + 1 < _MAX_BUF and z_rev < np.inf
-            if proofs:
-                jc = min(math.floor((t_first + (a - r) * inv_cc - phi) * INV_2PI), j1)
-                for _ in range(2):
+            proofs = proven and j1 - j0 + 1 < _MAX_BUF
+            if proofs and head_wait > 0:
+                head_wait -= 1
+            elif proofs:
+                jc0 = min(math.floor((t_first + (a - r) * inv_cc - phi) * INV_2PI), j1)
+                for t in range(2):
+                    jc = jc0 - ((head_off + t) & 1)
                     if jc <= j0:
-                        break
+                        continue
                     s = phi + TWO_PI * jc
                     i, fr, rj, d, zt = _locate(theta, tab, tab_t0, tab_iw, seg, s, 1.0, r, jc, seen1)
                     if not abs(d) <= hw:
-                        break
+                        continue
                     zj = zt + Rc - math.sqrt(Rc2 - d * d)
                     if edge.size > 0:
                         zj += _edge_dz(edge, d)
-                    if _head_covered(j0, jc, phi, r, t_first, a, cc, dev, f, Rc, half_inv_rc, e_low, z_rev,
+                    head_wait = 8
+                    if _head_covered(j0, jc, phi, r, t_first, a, cc, dev, f, Rc, half_inv_rc, e_low, rise,
                                      zt, zj, h_max):
                         hm = hseg[i] if hseg.size > 0 else h_min
                         st = _step(st, s, zj, i, fr, d, hm, kappa, side_flow)
@@ -366,15 +378,16 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
                         jl = jc
                         ztl = zt
                         jstart = jc + 1
+                        head_off = jc0 - jc
+                        head_wait = 0
                         break
-                    jc -= 1
             for j in range(jstart, j1 + 1):
                 s = phi + TWO_PI * j
                 if proofs and n > 0:
                     dn = r - (a - cc * (s - t_first)) - dev - 1e-12
-                    if dn > 0.0 and (ztl - (j - jl) * z_rev + dn * dn * half_inv_rc + e_low - 1e-12
+                    if dn > 0.0 and (ztl - (j - jl) * fall + dn * dn * half_inv_rc + e_low - 1e-12
                                      >= st[0] + h_max):
-                        if dn * f >= z_rev * Rc:
+                        if dn * f >= fall * Rc:
                             break
                         continue
                 i, fr, rj, d, zt = _locate(theta, tab, tab_t0, tab_iw, seg, s, 1.0, r, j, seen1)
@@ -433,13 +446,13 @@ def _buffer_size(W, dev, f):
 
 
 def _cut_rows(seg, theta, tab, tab_t0, tab_iw, dist, t_first, t_last, a, cc, dev, f, Rc, hw, W,
-              h_min, kappa, z_rev, h_max, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
+              h_min, kappa, rise, fall, h_max, side_flow, ku, kv, ph, gscale, fast_cos, x0, y0, pixel, row0, col0, sc0,
               sc1, machined, pass_theta, added, stats, edge, hseg):
     """Rows row0 .. row0 + rows - 1, columns col0 .. col0 + cols - 1 of the whole grid
     (origin (x0, y0)) into the (rows, cols) maps; per row into ``stats[row]``."""
     rows = machined.shape[0]
     nb = _buffer_size(W, dev, f)
-    pv = (tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa, z_rev, h_max)
+    pv = (tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa, rise, fall, h_max)
     bufs = np.empty((8, nb))
     ibufs = np.empty((2, nb), dtype=np.int64)
     # each side's passes' segments at the previous pixel: [pass, segment] (none yet)
@@ -502,12 +515,15 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
     fast_cos = bool(gr.ku.size == 0 or np.max(np.abs(gr.ku)) * (ep.half_width + 1.0)
                     + np.max(np.abs(gr.kv)) * float(np.max(np.abs(cp.dist))) + TWO_PI < _COS_ARG_MAX)
     pt, add = out["pass_theta"], out["added"]
-    z_rev = float(cp.z_rev) * (1.0 + 1e-9) + 1e-12 if math.isfinite(cp.z_rev) else math.inf
+    # the most the tip rises and falls in a revolution, widened for rounding (inf: unknown)
+    lo, hi = (float(v) for v in cp.z_rev)
+    rise = hi + abs(hi) * 1e-9 + 1e-12 if math.isfinite(lo) and math.isfinite(hi) else math.inf
+    fall = -lo + abs(lo) * 1e-9 + 1e-12 if math.isfinite(lo) and math.isfinite(hi) else math.inf
     h_max = max(cp.h_min, float(cp.h_seg.max()) if cp.h_seg.size else 0.0)
 
     def run(r0: int, r1: int) -> None:
         _cut_serial(ep.seg.reshape(-1), ep.theta, ep.tab, ep.tab_t0, 1.0 / ep.tab_w, cp.dist, ep.t0, ep.t_end, ep.a, ep.cc,
-                    ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, z_rev, h_max,
+                    ep.dev, ep.f, ep.nose_radius, ep.half_width, ep.window, cp.h_min, cp.kappa, rise, fall, h_max,
                     cp.side_flow,
                     grooves.ku, grooves.kv, grooves.ph, float(grooves.scale), fast_cos, float(origin[0]),
                     float(origin[1]), float(pixel), int(start[0]) + r0, int(start[1]), sc0, sc1, m[r0:r1],

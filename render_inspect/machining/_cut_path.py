@@ -40,10 +40,10 @@ class CutPath:
     h_seg : (m,) float64
         The minimum chip thickness of each segment's pass (mm; a tool wearing along the
         path), or empty: ``h_min`` for every pass.
-    z_rev : float
-        The whole path's largest change of the tip's height from one revolution to the
-        next at one angle (mm; :func:`path_revolution_step`); inf: unknown (the kernel
-        then visits every pass of the window).
+    z_rev : (float, float)
+        The whole path's least and largest change of the tip's height from one
+        revolution to the next at one angle (mm, signed; :func:`path_revolution_step`);
+        (-inf, inf): unknown (the kernel then visits every pass of the window).
     """
 
     ep: EnvelopePath
@@ -52,7 +52,7 @@ class CutPath:
     kappa: float
     side_flow: bool
     h_seg: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    z_rev: float = math.inf
+    z_rev: tuple[float, float] = (-math.inf, math.inf)
 
     def slice_for(self, region: Sequence[float]) -> "CutPath":
         """The passes whose nose arcs the kernel visits for pixels in ``region``

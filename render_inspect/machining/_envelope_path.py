@@ -112,19 +112,20 @@ def _heights_at(theta, z, m0, key):
 
 @njit(cache=True, nogil=True)
 def _revolution_step(theta, z):
-    """Largest |z(s + 2 pi) - z(s)| over the angles s of the path and every height the
-    path has there (z linear in the angle between points; the largest lies at a point or
-    one revolution before one); inf where the angles go back or a height is not finite, 0
-    for a path of one revolution or less."""
+    """(least, largest) z(s + 2 pi) - z(s) over the angles s of the path and every height
+    the path has there (z linear in the angle between points; the extremes lie at a point
+    or one revolution before one); (-inf, inf) where the angles go back or a height is not
+    finite, (0, 0) for a path of one revolution or less."""
     n = theta.size
     for j in range(n):
         if not math.isfinite(z[j]) or not math.isfinite(theta[j]):
-            return math.inf
+            return -math.inf, math.inf
         if j > 0 and not theta[j] >= theta[j - 1]:
-            return math.inf
+            return -math.inf, math.inf
     if n < 2 or theta[n - 1] - theta[0] <= TWO_PI:
-        return 0.0
-    best = 0.0
+        return 0.0, 0.0
+    least = math.inf
+    most = -math.inf
     # at each point s = theta[i]: the heights one revolution later
     m0 = 0
     for i in range(n):
@@ -134,7 +135,8 @@ def _revolution_step(theta, z):
         while theta[m0] < key:
             m0 += 1
         lo, hi = _heights_at(theta, z, m0, key)
-        best = max(best, abs(hi - z[i]), abs(lo - z[i]))
+        least = min(least, lo - z[i])
+        most = max(most, hi - z[i])
     # one revolution before each point: the heights there
     m0 = 0
     for i in range(n):
@@ -144,16 +146,19 @@ def _revolution_step(theta, z):
         while theta[m0] < key:
             m0 += 1
         lo, hi = _heights_at(theta, z, m0, key)
-        best = max(best, abs(z[i] - hi), abs(z[i] - lo))
-    return best
+        least = min(least, z[i] - hi)
+        most = max(most, z[i] - lo)
+    return least, most
 
 
-def path_revolution_step(theta: np.ndarray, z: np.ndarray) -> float:
-    """Largest change of the tool tip's height from one revolution to the next at the same
-    angle (mm; :func:`_revolution_step`): bounds how far apart in height two passes a
-    given number of revolutions apart can be at any pixel."""
-    return float(_revolution_step(np.ascontiguousarray(theta, dtype=np.float64),
-                                  np.ascontiguousarray(z, dtype=np.float64)))
+def path_revolution_step(theta: np.ndarray, z: np.ndarray) -> tuple[float, float]:
+    """The least and the largest change of the tool tip's height from one revolution to
+    the next at the same angle (mm, signed: later minus earlier; :func:`_revolution_step`):
+    they bound how far apart in height two passes a given number of revolutions apart can
+    be at any pixel.  (-inf, inf) where unknown."""
+    lo, hi = _revolution_step(np.ascontiguousarray(theta, dtype=np.float64),
+                              np.ascontiguousarray(z, dtype=np.float64))
+    return float(lo), float(hi)
 
 
 def path_radial_slope(theta: np.ndarray, rho: np.ndarray, z: np.ndarray) -> float:
