@@ -65,6 +65,7 @@ from ..core.progress import report
 from ..core.toolpath import ToolPath
 from ._cut_inputs import Grooves, cutting_distance, mechanics_window
 from ._cut_path import CutPath, _cut_direct, prepare_cut
+from ._cut_window import _head_covered, _window, _window_near
 from ._envelope import BLOCK, _polar_step
 from ._envelope_step import _edge_dz, _lookup_bin
 
@@ -77,6 +78,8 @@ INV_2PI = 1.0 / TWO_PI
 OUT_CHANNELS = ("machined", "pass_theta", "added")
 #: passes a pixel may gather on one side of the axis (the direct kernel's cap)
 _MAX_BUF = 1_000_000  # not a unit conversion
+#: the relative widening of the path's height change per revolution for rounding
+_WIDEN = 1e-9  # not a unit conversion
 #: a pixel's state before its first pass (:func:`_step`; a global: one type, not literals)
 _STATE0 = (math.inf, math.nan, math.nan, -1, 0.0, math.nan, 0.0, False)
 #: passes whose segments a pixel remembers for the next pixel (a power of 2: slot j % _SEEN),
@@ -182,42 +185,6 @@ def _step(st, sj, zj, ij, frj, dj, h_min, kappa, side_flow):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _window(t_first, t_last, a, cc, phi, r, sgn, W):
-    """First and last pass j whose nominal radius is within W of sgn r (the direct kernel's
-    ``_pass_window`` on the whole path's ends)."""
-    if cc > 0:
-        s_lo = t_first + (a - (r * sgn + W)) / cc
-        s_hi = t_first + (a - (r * sgn - W)) / cc
-    else:
-        s_lo = t_first
-        s_hi = t_last
-    if s_lo < t_first:
-        s_lo = t_first
-    if s_hi > t_last:
-        s_hi = t_last
-    return math.ceil((s_lo - phi) * INV_2PI), math.floor((s_hi - phi) * INV_2PI)
-
-
-@njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _window_near(t_first, t_last, a, cc, inv_cc, phi, r, W):
-    """:func:`_window` (sgn 1) by multiplications with 1 / cc: the two ends' pass numbers
-    differ from :func:`_window`'s by rounding (below 1e-10 of a pass up to angles of 1e6
-    rad), so they round to the same passes unless within 1e-6 of a whole pass, where
-    :func:`_window` itself decides."""
-    s_lo = t_first + (a - (r + W)) * inv_cc
-    s_hi = t_first + (a - (r - W)) * inv_cc
-    if s_lo < t_first:
-        s_lo = t_first
-    if s_hi > t_last:
-        s_hi = t_last
-    u0 = (s_lo - phi) * INV_2PI
-    u1 = (s_hi - phi) * INV_2PI
-    if abs(u0 - round(u0)) > 1e-6 and abs(u1 - round(u1)) > 1e-6 and abs(u0) < 1e9 and abs(u1) < 1e9:
-        return math.ceil(u0), math.floor(u1)
-    return _window(t_first, t_last, a, cc, phi, r, 1.0, W)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _gather(theta, tab, tab_t0, tab_iw, seg, t_first, t_last, a, cc, phi, r, sgn, W, Rc, Rc2, hw,
             bs, bz, bi, bf, bd, edge, seen):
     j0, j1 = _window(t_first, t_last, a, cc, phi, r, sgn, W)
@@ -253,27 +220,6 @@ def _merge(n1, n2, b1s, b1z, b1i, b1f, b1d, b2s, b2z, b2i, b2f, b2d, h_min, kapp
                        hseg[b2i[k2]] if hseg.size > 0 else h_min, kappa, side_flow)
             k2 += 1
     return st
-
-
-@njit(cache=True, nogil=True, inline="always", error_model="numpy")
-def _head_covered(j0, k, phi, r, t_first, a, cc, dev, f, Rc, half_inv_rc, e_low, rise, ztk, zk, h_max):
-    """True where every pass j0 .. k - 1 provably lies at least ``h_max`` above pass k's arc
-    ``zk`` at this pixel, so pass k cuts whatever they left (the surface is never below
-    the lowest arc passed): the tip of a pass j revolutions before k is at least pass k's
-    tip ``ztk`` less j ``rise`` (the most the tip rises in a revolution), and the pass lies
-    at least its nominal radius' distance less ``dev`` from the pixel.  The bound grows
-    with each earlier pass once its distance dn holds dn f >= rise Rc: the walk stops
-    there."""
-    target = zk + h_max
-    for j in range(k - 1, j0 - 1, -1):
-        dn = (a - cc * (phi + TWO_PI * j - t_first)) - r - dev - 1e-12
-        if not dn > 0.0:
-            return False
-        if not ztk - (k - j) * rise + dn * dn * half_inv_rc + e_low - 1e-12 >= target:
-            return False
-        if dn * f >= rise * Rc:
-            return True
-    return True
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -517,8 +463,9 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
     pt, add = out["pass_theta"], out["added"]
     # the most the tip rises and falls in a revolution, widened for rounding (inf: unknown)
     lo, hi = (float(v) for v in cp.z_rev)
-    rise = hi + abs(hi) * 1e-9 + 1e-12 if math.isfinite(lo) and math.isfinite(hi) else math.inf
-    fall = -lo + abs(lo) * 1e-9 + 1e-12 if math.isfinite(lo) and math.isfinite(hi) else math.inf
+    known = math.isfinite(lo) and math.isfinite(hi)
+    rise = hi + abs(hi) * _WIDEN + 1e-12 if known else math.inf
+    fall = -lo + abs(lo) * _WIDEN + 1e-12 if known else math.inf
     h_max = max(cp.h_min, float(cp.h_seg.max()) if cp.h_seg.size else 0.0)
 
     def run(r0: int, r1: int) -> None:
