@@ -17,7 +17,7 @@ from render_inspect.machining import (Grooves, cut_turning, cut_turning_mechanic
                                       finish_surface, follow_turning, machined_edges, plan_tiles,
                                       prepare_cut)
 from render_inspect.machining import _envelope_path
-from render_inspect.machining._cut_kernel import _COS_ARG_MAX, _cos, _groove_sum
+from render_inspect.machining._cut_grooves import _COS_ARG_MAX, _cos, _groove_sum
 from render_inspect.machining._material import MaterialResponse
 from render_inspect.machining import compute_tile
 from render_inspect.processes import machine_of, plan_spiral, process_of
@@ -569,7 +569,7 @@ def test_the_pass_proofs_hold_where_heights_flip_each_revolution(amplitude, dwel
 def test_the_pass_window_by_multiplications_is_the_windows():
     # the pass numbers of the window's ends, formed with 1 / cc, are those of the division
     # (random spirals up to 1e5 rad; ends placed on a whole pass and 1e-12 of one beside it)
-    from render_inspect.machining._cut_kernel import _window, _window_near
+    from render_inspect.machining._cut_window import _window, _window_near
 
     rng = np.random.default_rng(21)
     for trial in range(20000):

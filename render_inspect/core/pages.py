@@ -16,11 +16,12 @@ process already has), and only where the process may use more than one core.
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Sequence
 
 import numpy as np
+
+from .limits import usable_cpus
 
 __all__ = ["Prefaulted", "MIN_BYTES"]
 
@@ -29,13 +30,6 @@ __all__ = ["Prefaulted", "MIN_BYTES"]
 MIN_BYTES = 32 * 1024 * 1024
 #: bytes between the values written (the system's page)
 _PAGE = 4096
-
-
-def _spare_core() -> bool:
-    try:
-        return len(os.sched_getaffinity(0)) > 1
-    except AttributeError:  # (not Linux)
-        return (os.cpu_count() or 1) > 1
 
 
 class Prefaulted:
@@ -55,7 +49,7 @@ class Prefaulted:
         self.arrays: list[np.ndarray] = []
         self._thread: threading.Thread | None = None
         nbytes = int(np.prod(self._shape)) * self._dtype.itemsize
-        if self._count > 0 and nbytes >= MIN_BYTES and _spare_core():
+        if self._count > 0 and nbytes >= MIN_BYTES and usable_cpus() > 1:
             self.arrays = [np.empty(self._shape, dtype=self._dtype) for _ in range(self._count)]
             self._thread = threading.Thread(target=self._touch, name="render_inspect-pages", daemon=True)
             self._thread.start()

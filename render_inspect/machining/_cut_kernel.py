@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 # (the largest |argument| the two-part reduction keeps exact: ARG_MAX)
-from ._cut_grooves import _COS_ARG_MAX, _cos, _groove_sum, _groove_sum_libm  # noqa: F401 (_cos: tests)
+from ._cut_grooves import _COS_ARG_MAX, _groove_sum, _groove_sum_libm
 from ..core.threads import over_rows
 
 from ..core.progress import report
