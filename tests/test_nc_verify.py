@@ -14,7 +14,7 @@ import re
 import numpy as np
 import pytest
 
-from render_inspect.core.toolpath import ROLE_CUT, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT
+from render_inspect.core.toolpath import ROLE_CUT, ROLE_PLUNGE, ROLE_RAPID, ROLE_RETRACT, Blocks
 from render_inspect.design import make_surface
 from render_inspect.errors import InputError, SceneError
 from render_inspect.io import (cut_points, program_axes, read_nc, read_nc_blocks,
@@ -365,3 +365,51 @@ def test_a_failed_verification_writes_nothing(tmp_path, monkeypatch):
         run_toolpath(scene, tmp_path / "o", fmt="nc")
     assert not (tmp_path / "o").exists()
     assert not [p for p in tmp_path.iterdir() if ".partial" in p.name]
+
+
+def _cut_points_walked(b: Blocks) -> np.ndarray:
+    """The cutting points found block by block: each run of cutting blocks with one line
+    label, from the point the block before it leaves the tool on when that one does not
+    cut (a plunge), else from its own first block."""
+    idx: list[int] = []
+    i, n = 0, b.count
+    while i < n:
+        if b.role[i] != ROLE_CUT:
+            i += 1
+            continue
+        j = i
+        while j < n and b.role[j] == ROLE_CUT and b.line[j] == b.line[i]:
+            j += 1
+        idx.extend(range(i - 1 if i > 0 and b.role[i - 1] != ROLE_CUT else i, j))
+        i = j
+    return np.asarray(idx, dtype=np.int64)
+
+
+@pytest.mark.parametrize("dialect", ["turning", "linear"])
+def test_cut_points_are_the_runs_walked_block_by_block(dialect):
+    """The cutting points taken from the runs of cutting blocks at once equal those found
+    walking the program block by block, on random programs: roles in runs, line labels
+    that change inside a run of cutting blocks, a program that starts or ends cutting, one
+    that never cuts."""
+    rng = np.random.default_rng(3)
+    axes = ("C", "X", "Z") if dialect == "turning" else ("X", "Y", "Z")
+    roles = np.array([ROLE_CUT, ROLE_RAPID, ROLE_PLUNGE, ROLE_RETRACT], dtype=np.int8)
+    for case in range(300):
+        n = int(rng.integers(0, 60))
+        role = roles[np.repeat(rng.integers(0, 4, size=n), rng.integers(1, 6, size=n))][:n]
+        if case % 7 == 0:
+            role[:] = ROLE_RAPID
+        line = np.where(role == ROLE_CUT, np.cumsum(rng.random(role.size) < 0.1), -1).astype(np.int64)
+        m = role.size
+        b = Blocks(dialect, np.arange(1, m + 1, dtype=np.int64), np.ones(m, dtype=np.int8), role,
+                   {a: rng.random(m) for a in axes}, np.full(m, 10.0), line,
+                   {"_file_line": np.arange(1, m + 1, dtype=np.int64)})
+        got, want = cut_points(b), _cut_points_walked(b)
+        assert got.dtype == np.int64 and np.array_equal(got, want), case
+    # a run whose first point lacks a word is named by its file line, the first such run
+    b = Blocks(dialect, np.arange(1, 5, dtype=np.int64), np.ones(4, dtype=np.int8),
+               np.array([ROLE_RAPID, ROLE_CUT, ROLE_CUT, ROLE_CUT], dtype=np.int8),
+               {a: np.array([np.nan, 1.0, 2.0, 3.0]) for a in axes}, np.full(4, 10.0),
+               np.array([-1, 0, 0, 0]), {"_file_line": np.array([7, 8, 9, 10])})
+    with pytest.raises(InputError, match=rf"^prog:7: first motion block lacks the {axes[0]} word"):
+        cut_points(b, "prog")

@@ -24,6 +24,7 @@ from ..core.toolpath import (
 )
 from ..core.units import MIN_TO_S
 from ._nc_dialect import _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD
+from ._nc_scan import FORM_OK, scan_uniform
 
 __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
 
@@ -110,6 +111,11 @@ def _uniform(region: str, words: str):
         # possessive: a block ends at its line break, so the repetition has one way to match
         return rf"(?:{blk}\n)*+"
 
+    # the writers' plain form, checked and read in one compiled pass; anything else (an F
+    # with an exponent, a number of more than 15 digits, another form) as below
+    status, read = scan_uniform(region, words)
+    if status == FORM_OK:
+        return read
     table = str.maketrans({c: " " for c in "NG" + words})
     if re.fullmatch(pattern(_PLAIN_FEED), region) is not None:
         text = region.translate(table)
@@ -250,7 +256,7 @@ def _fast_blocks(path: Path) -> Blocks | None:
         raw = np.frombuffer(piece.encode("ascii"), dtype=np.uint8)
         newlines = np.flatnonzero(raw == 10)
         starts = np.flatnonzero(raw == ord("N"))
-        starts = starts[(starts == 0) | np.isin(starts - 1, newlines)]
+        starts = starts[(starts == 0) | (raw[starts - 1] == 10)]  # (an N that starts a line)
         lineno.append(lines_before + np.searchsorted(newlines, starts) + 1)
         lines_before += newlines.size
     if not number:
@@ -372,20 +378,18 @@ def cut_points(blocks: Blocks, path: str | Path = "program") -> np.ndarray:
     cutting blocks (a ``; cut`` section, a ``; line k``), starting with the point the
     plunge before it leaves the tool on."""
     axes = _TURN_AXES if blocks.dialect == "turning" else _LINEAR_AXES
-    cut = blocks.role == ROLE_CUT
-    idx: list[int] = []
-    i, n = 0, blocks.count
-    while i < n:
-        if not cut[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and cut[j] and blocks.line[j] == blocks.line[i]:
-            j += 1
-        s = _cut_start(blocks, i, path, axes)
-        idx.extend(range(s, j) if s != i else range(i, j))
-        i = j
-    return np.asarray(idx, dtype=np.int64)
+    cut = np.asarray(blocks.role) == ROLE_CUT
+    if not cut.any():
+        return np.zeros(0, dtype=np.int64)
+    # the runs: a cutting block after a block that does not cut, or with another line
+    # label than the block before it, starts one; one ends before the next block that does
+    # not cut or starts another (the runs in order, each [start, end))
+    line = np.asarray(blocks.line)
+    other = np.r_[True, line[1:] != line[:-1]]
+    starts = np.flatnonzero(cut & (other | ~np.r_[False, cut[:-1]]))
+    ends = np.flatnonzero(np.r_[cut[:-1] & (~cut[1:] | other[1:]), cut[-1:]]) + 1
+    return np.concatenate([np.arange(_cut_start(blocks, int(i), path, axes), int(j), dtype=np.int64)
+                           for i, j in zip(starts, ends)])
 
 
 def read_nc(path: str | Path) -> ToolPath:
@@ -400,9 +404,10 @@ def read_nc(path: str | Path) -> ToolPath:
         raise InputError(f"{path}: no motion blocks (C/X/Z words) found")
     idx = cut_points(b, path)
     lines = b.meta["_file_line"]
-    for i in idx[1:]:
-        if math.isnan(b.feed[i]):
-            raise InputError(f"{path}:{int(lines[i])}: motion block without an F (inverse-time) word")
+    missing = np.flatnonzero(np.isnan(b.feed[idx[1:]]))
+    if missing.size:
+        raise InputError(f"{path}:{int(lines[idx[1 + missing[0]]])}: motion block without an F "
+                         f"(inverse-time) word")
     if idx.size > 1 and 93.0 not in b.meta["_modes"]:
         raise InputError(f"{path}: the program must select inverse-time feed (G93) to carry time")
     f = b.feed[idx[1:]]
