@@ -1,9 +1,10 @@
 """Benchmark: reading machine programs written by others (:func:`render_inspect.io.read_program`).
 
 Writes a bare C-X-Z point list of ``blocks`` blocks (the published programs' form: one
-``C.. X.. Z..`` per line, 6 decimals, C wrapping every revolution) and a lathe G-code
+``C.. X.. Z..`` per line, 6 decimals, C wrapping every revolution), a lathe G-code
 program of the same size (a header with a comment, then ``N.. G01 X.. Z.. F..`` blocks)
-into a temporary folder, and reads each: seconds (best of ``repeats``), M blocks/s, and
+and the project's own C-X-Z program of the same spiral (:func:`render_inspect.io.write_nc`,
+its writing timed: ``write_s``) into a temporary folder, and reads each: seconds (best of ``repeats``), M blocks/s, and
 the peak memory of the reading (tracemalloc, on a tenth of the blocks) against the bytes
 the path it returns holds (theta, rho, z, t: 32 bytes a point).  ``read_cpu_s`` is the
 CPU time of one read (on a shared machine the wall time is longer by the load).  The
@@ -62,6 +63,25 @@ def write_gcode(path: Path, n: int) -> Path:
     return path
 
 
+def write_own(path: Path, n: int) -> Path:
+    """The project's own C-X-Z program of ``n`` cutting blocks (``write_nc``: 6 decimals,
+    inverse-time feeds), the same spiral with C cumulative; the writing is timed."""
+    from render_inspect.core.toolpath import ToolPath
+    from render_inspect.io import write_nc
+
+    k = np.arange(n, dtype=np.float64)
+    rho = 50.0 - 50.0 * k / n
+    path_ = ToolPath(np.radians(k * 0.5), rho, rho * rho / 200.0, k * 1e-3)
+    t0 = time.perf_counter()
+    write_nc(path, path_)
+    _WRITE_S[path.name] = time.perf_counter() - t0
+    return path
+
+
+#: seconds each own program took to write (file name -> s)
+_WRITE_S: dict = {}
+
+
 def _read(path, **kw):
     from render_inspect.io import read_program
     return read_program(path, part_radius=50.0, **kw)
@@ -82,7 +102,8 @@ def main(blocks: int = 10_000_000, repeats: int = 1) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench_program_") as tmp:
         tmp = Path(tmp)
         cases = {"point_list": (write_point_list, {"spindle_rpm": 100.0}),
-                 "lathe_gcode": (write_gcode, {"points_per_rev": 1})}
+                 "lathe_gcode": (write_gcode, {"points_per_rev": 1}),
+                 "own_program": (write_own, {})}
         for name, (writer, kw) in cases.items():
             path = writer(tmp / f"{name}.nc", blocks)
             size = path.stat().st_size
@@ -100,6 +121,8 @@ def main(blocks: int = 10_000_000, repeats: int = 1) -> dict:
                          "peak_MB_at_tenth": round(peak / 1e6, 1),
                          "path_MB_at_tenth": round(held / 1e6, 1),
                          "peak_bytes_per_block": round(peak / n_small, 1)}
+            if path.name in _WRITE_S:  # the project's own program: its writing too
+                res[name]["write_s"] = round(_WRITE_S[path.name], 2)
             print(name, json.dumps(res[name]), flush=True)
             path.unlink()
     res["load_average_at_end"] = os.getloadavg()

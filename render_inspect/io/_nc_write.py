@@ -16,6 +16,7 @@ from ..core.errors import InputError
 from ..core.toolpath import ROLE_RAPID, LinearProgram, Links
 from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
+from ._nc_format import format_turning_rows
 from ._nc_dialect import (
     CHUNK_ROWS,
     _check_links,
@@ -125,21 +126,16 @@ def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None
             fh.write(b"; approach\n")
             k = moves(fh, k, approach, {})
             fh.write(b"; cut\n")
-        fmt = f.format
         for a in range(first, n, CHUNK_ROWS):
             b = min(a + CHUNK_ROWS, n)
-            # the chunk's values as Python floats (the same numbers, formatted the same,
-            # without a NumPy scalar made for each); lo: the first point whose block has a
-            # feed, the inverse time of the move ending there
+            # lo: the first point whose block has a feed, the inverse time of the move
+            # ending there; the blocks written by a compiled loop, the text Python's
+            # formatting gives (io._nc_format)
             lo = max(a, 1)
-            cs, xs, zs = c[a:b].tolist(), x[a:b].tolist(), z[a:b].tolist()
-            inv = (MIN_TO_S / dt[lo - 1:b - 1]).tolist()
-            rows = []
-            for j in range(b - a):
-                words = f"N{k} G01 C{fmt(cs[j])} X{fmt(xs[j])} Z{fmt(zs[j])}"
-                rows.append(words if a + j == 0 else words + " F%.10g" % inv[a + j - lo])
-                k += 1
-            fh.write(("\n".join(rows) + "\n").encode("ascii"))
+            inv = np.empty(b - a)
+            inv[lo - a:] = MIN_TO_S / dt[lo - 1:b - 1]
+            fh.write(format_turning_rows(k, c[a:b], x[a:b], z[a:b], inv, lo - a, decimals))
+            k += b - a
         if leave:
             fh.write(b"; exit\n")
             moves(fh, k, leave, {"C": c[-1], "X": x[-1], "Z": z[-1]})

@@ -6,7 +6,8 @@ in its cache (``cache=True``: the ``__pycache__`` folders beside the sources, or
 user cache folder where those are read-only).  Later processes, Dask workers included,
 load the code instead of compiling it.
 
-Besides the turning kernels and the tiled path, it cuts both variants of every shipped
+Besides the turning kernels, the NC program's compiled writer and reader (a small program
+written and read back) and the tiled path, it cuts both variants of every shipped
 scene in a window of 40 x 40 points (so the machine, servo, material and sculpturing
 kernels those scenes use are compiled with the types the commands use) and runs the
 comparison of the demo's scene on a small window (the interferometer's and the phase
@@ -26,7 +27,7 @@ import numpy as np
 from ..batch import run_tiles
 from ..core.toolpath import ToolPath
 from ..io import (block_sums, create_heightmap_zarr, grid_attrs, heightmap_channels,
-                  heightmap_overview, preview)
+                  heightmap_overview, preview, read_nc, write_nc)
 from ..machining import (edge_turns, load_cut_kernels, material_burr_block, prepare_envelope,
                          residual_metrics, simulate_turning, tile_abs_dev, tile_moments)
 
@@ -76,6 +77,9 @@ def warm_up() -> float:
                         border=(False, False, False, False), inner=(18, 22, 18, 22), reference=zb)
     ep = prepare_envelope(_spiral(True), nose_radius=0.1, half_width=0.05)
     with tempfile.TemporaryDirectory() as tmp:
+        # the NC program's compiled writer and reader (a program written and read back)
+        write_nc(Path(tmp) / "p.nc", _spiral(True))
+        read_nc(Path(tmp) / "p.nc")
         store = str(Path(tmp) / "w.zarr")
         shape = m.shape
         # (two levels: a tile's coarser levels are compiled loops too)
