@@ -413,3 +413,19 @@ def test_cut_points_are_the_runs_walked_block_by_block(dialect):
                np.array([-1, 0, 0, 0]), {"_file_line": np.array([7, 8, 9, 10])})
     with pytest.raises(InputError, match=rf"^prog:7: first motion block lacks the {axes[0]} word"):
         cut_points(b, "prog")
+
+
+def test_modal_feed_of_a_linear_program_is_the_last_written():
+    """An X-Y-Z program's F is modal: each block without one takes the last written before
+    it (none before the first), as a block-by-block walk carries it."""
+    rng = np.random.default_rng(5)
+    from render_inspect.io._nc_parse import _ffill
+    for _ in range(200):
+        feed = rng.random(int(rng.integers(0, 40))) * 100
+        feed[rng.random(feed.size) < 0.6] = np.nan
+        walked, last = feed.copy(), math.nan
+        for i in range(feed.size):
+            if math.isnan(walked[i]):
+                walked[i] = last
+            last = walked[i]
+        assert np.array_equal(_ffill(feed, math.nan), walked, equal_nan=True)

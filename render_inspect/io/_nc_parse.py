@@ -438,12 +438,7 @@ def read_program_nc(path: str | Path) -> LinearProgram:
     if b.count == 0 or b.dialect != "linear" or not np.any(b.role == ROLE_CUT):
         raise InputError(f"{path}: no motion blocks (X/Y/Z words) found")
     lines = b.meta["_file_line"]
-    fmod = b.feed.copy()
-    last = math.nan
-    for i in range(b.count):  # F is modal
-        if math.isnan(fmod[i]):
-            fmod[i] = last
-        last = fmod[i]
+    fmod = _ffill(b.feed, math.nan)  # F is modal
     idx = cut_points(b, path)
     # a line's label: that of its cutting blocks (the plunge's end point takes the next one's)
     lab = b.line[np.minimum(idx + (b.role[idx] != ROLE_CUT), b.count - 1)]
