@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render_inspect.io._nc_format import format_turning_rows
+from render_inspect.io._nc_format import format_linear_rows, format_turning_rows
 
 
 def _python(k0, c, x, z, feed, f_from, decimals) -> bytes:
@@ -88,3 +88,16 @@ def test_known_ties_and_edges():
 
 def test_no_blocks():
     assert format_turning_rows(1, *(np.zeros(0) for _ in range(4)), 0, 6) == b""
+
+
+def test_linear_blocks_are_pythons_bytes():
+    """An X-Y-Z program's blocks (six places, the feed's text given): Python's bytes, the
+    values it hands to Python included."""
+    rng = np.random.default_rng(1)
+    n = 20_000
+    x = _random_values(rng, n, 6) * np.where(rng.random(n) < 0.05, 1e7, 1.0)
+    y, z = _random_values(rng, n, 6), _random_values(rng, n, 6)
+    for feed in ("500", "0.5", "1e+06"):
+        want = "".join(f"N{7 + j} G01 X{xi:.6f} Y{yi:.6f} Z{zi:.6f} F{feed}\n"
+                       for j, (xi, yi, zi) in enumerate(zip(x.tolist(), y.tolist(), z.tolist())))
+        assert format_linear_rows(7, x, y, z, feed) == want.encode("ascii")

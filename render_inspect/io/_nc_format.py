@@ -1,5 +1,6 @@
-"""The cutting blocks of a turning program written by a compiled loop, in the very text
-Python's formatting gives (``N12 G01 C1.500000 X2.250000 Z-0.001000 F97.08643605``).
+"""The cutting blocks of an NC program written by a compiled loop, in the very text
+Python's formatting gives (``N12 G01 C1.500000 X2.250000 Z-0.001000 F97.08643605``, or an
+X-Y-Z program's ``N12 G01 X1.500000 Y2.250000 Z-0.001000 F500``).
 
 Python writes a float with ``{:.6f}`` and ``%.10g`` correctly rounded: the decimal nearest
 the float's exact binary value, a tie to the even digit.  The loop does the same with
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..core.lazy import njit  # numba, imported on first use
 
-__all__ = ["format_turning_rows", "ROW_BYTES_MAX"]
+__all__ = ["format_turning_rows", "format_linear_rows", "ROW_BYTES_MAX"]
 
 #: the most bytes one block takes (its number, three coordinates, the feed, a line break)
 ROW_BYTES_MAX = 200
@@ -122,30 +123,32 @@ def _put_g10(out, o, v):
 
 
 @njit(cache=True, nogil=True)
-def _rows(k0, c, x, z, feed, f_from, decimals, out, todo):
-    """Blocks ``N<k0 + j> G01 C.. X.. Z..`` (`` F..`` from row f_from on) into out; a block
-    it leaves to Python is noted in todo (its row and the byte where it belongs) and takes
-    no bytes.  Returns (bytes written, blocks noted)."""
+def _rows(k0, axes, letters, feed, f_from, suffix, decimals, out, todo):
+    """Blocks ``N<k0 + j> G01 <letters[0]>.. <letters[1]>.. <letters[2]>..`` (``axes``:
+    (3, n)) into out, each followed by ``suffix`` where it is given, else by `` F..``
+    (``feed``) from row f_from on; a block it leaves to Python is noted in todo (its row
+    and the byte where it belongs) and takes no bytes.  Returns (bytes written, blocks
+    noted)."""
     m = _POW10[decimals]
     o = 0
     n_todo = 0
-    for j in range(c.size):
+    for j in range(axes.shape[1]):
         o0 = o
         out[o] = 78  # N
         o = _put_int(out, o + 1, k0 + j)
-        for ch in (_SPACE, 71, 48, 49, _SPACE, 67):  # " G01 C"
+        for ch in (_SPACE, 71, 48, 49):  # " G01"
             out[o] = ch
             o += 1
-        o = _put_fixed(out, o, c[j], decimals, m)
-        if o >= 0:
-            out[o] = _SPACE
-            out[o + 1] = 88  # X
-            o = _put_fixed(out, o + 2, x[j], decimals, m)
-        if o >= 0:
-            out[o] = _SPACE
-            out[o + 1] = 90  # Z
-            o = _put_fixed(out, o + 2, z[j], decimals, m)
-        if o >= 0 and j >= f_from:
+        for w in range(3):
+            if o >= 0:
+                out[o] = _SPACE
+                out[o + 1] = letters[w]
+                o = _put_fixed(out, o + 2, axes[w, j], decimals, m)
+        if o >= 0 and suffix.size > 0:
+            for ch in suffix:
+                out[o] = ch
+                o += 1
+        elif o >= 0 and j >= f_from:
             out[o] = _SPACE
             out[o + 1] = 70  # F
             o = _put_g10(out, o + 2, feed[j])
@@ -160,25 +163,40 @@ def _rows(k0, c, x, z, feed, f_from, decimals, out, todo):
     return o, n_todo
 
 
-def format_turning_rows(k0: int, c: np.ndarray, x: np.ndarray, z: np.ndarray, feed: np.ndarray,
-                        f_from: int, decimals: int) -> bytes:
-    """The cutting blocks ``N<k0 + j> G01 C<c> X<x> Z<z> F<feed>`` (j = 0 .., C, X and Z
-    with ``decimals`` places, F as ``%.10g``; no F before row ``f_from``), one per line, the
-    bytes Python's formatting writes."""
-    c, x, z, feed = (np.ascontiguousarray(a, dtype=np.float64) for a in (c, x, z, feed))
-    out = np.empty(ROW_BYTES_MAX * c.size + 1, dtype=np.uint8)
-    todo = np.empty(2 * c.size, dtype=np.int64)
-    n, n_todo = _rows(k0, c, x, z, feed, f_from, decimals, out, todo)
+def _blocks(k0: int, axes: tuple, letters: str, feed: np.ndarray, f_from: int, suffix: str,
+            decimals: int) -> bytes:
+    a = np.ascontiguousarray(np.stack(axes), dtype=np.float64)
+    feed = np.ascontiguousarray(feed, dtype=np.float64)
+    out = np.empty((ROW_BYTES_MAX + len(suffix)) * a.shape[1] + 1, dtype=np.uint8)
+    todo = np.empty(2 * a.shape[1], dtype=np.int64)
+    n, n_todo = _rows(k0, a, np.frombuffer(letters.encode("ascii"), dtype=np.uint8), feed, f_from,
+                      np.frombuffer(suffix.encode("ascii"), dtype=np.uint8), decimals, out, todo)
     if n_todo == 0:
         return out[:n].tobytes()
     fmt = ("{:.%df}" % decimals).format
     parts = []
     at = 0
     for j, o in todo[:2 * n_todo].reshape(-1, 2).tolist():
-        text = f"N{k0 + j} G01 C{fmt(float(c[j]))} X{fmt(float(x[j]))} Z{fmt(float(z[j]))}"
-        if j >= f_from:
+        text = f"N{k0 + j} G01" + "".join(f" {w}{fmt(float(a[i, j]))}" for i, w in enumerate(letters))
+        if suffix:
+            text += suffix
+        elif j >= f_from:
             text += " F%.10g" % float(feed[j])
         parts += [out[at:o].tobytes(), (text + "\n").encode("ascii")]
         at = o
     parts.append(out[at:n].tobytes())
     return b"".join(parts)
+
+
+def format_turning_rows(k0: int, c: np.ndarray, x: np.ndarray, z: np.ndarray, feed: np.ndarray,
+                        f_from: int, decimals: int) -> bytes:
+    """The cutting blocks ``N<k0 + j> G01 C<c> X<x> Z<z> F<feed>`` (j = 0 .., C, X and Z
+    with ``decimals`` places, F as ``%.10g``; no F before row ``f_from``), one per line, the
+    bytes Python's formatting writes."""
+    return _blocks(k0, (c, x, z), "CXZ", feed, f_from, "", decimals)
+
+
+def format_linear_rows(k0: int, x: np.ndarray, y: np.ndarray, z: np.ndarray, feed_text: str) -> bytes:
+    """The blocks ``N<k0 + j> G01 X<x> Y<y> Z<z> F<feed_text>`` of an X-Y-Z program (six
+    places), one per line, the bytes Python's ``{:.6f}`` writes."""
+    return _blocks(k0, (x, y, z), "XYZ", np.zeros(0), 0, f" F{feed_text}", 6)

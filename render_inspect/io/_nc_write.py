@@ -16,7 +16,7 @@ from ..core.errors import InputError
 from ..core.toolpath import ROLE_RAPID, LinearProgram, Links
 from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
-from ._nc_format import format_turning_rows
+from ._nc_format import format_linear_rows, format_turning_rows
 from ._nc_dialect import (
     CHUNK_ROWS,
     _check_links,
@@ -196,12 +196,10 @@ def write_program_nc(path: str | Path, program: LinearProgram, *, header: dict |
             rows.append(f"; line {int(ln[bounds[j][0]])}")
             fh.write(("\n".join(rows) + "\n").encode("ascii"))
             for a0 in range(a, b, CHUNK_ROWS):
-                rows = []
-                b0 = min(a0 + CHUNK_ROWS, b)  # Python floats: the same text, no NumPy scalars
-                for xi, yi, zi in zip(x[a0:b0].tolist(), y[a0:b0].tolist(), z[a0:b0].tolist()):
-                    rows.append(f"N{k} G01 X{xi:.6f} Y{yi:.6f} Z{zi:.6f} F{feed}")
-                    k += 1
-                fh.write(("\n".join(rows) + "\n").encode("ascii"))
+                # (a compiled loop, the text Python's formatting gives: io._nc_format)
+                b0 = min(a0 + CHUNK_ROWS, b)
+                fh.write(format_linear_rows(k, x[a0:b0], y[a0:b0], z[a0:b0], feed))
+                k += b0 - a0
             prev_end = (float(x[b - 1]), float(y[b - 1]), float(z[b - 1]))
         if links is not None:
             s0 = bounds[0][0]
