@@ -1,11 +1,12 @@
-"""Benchmark: reading machine programs written by others (:func:`render_inspect.io.read_program`).
+"""Benchmark: reading machine programs (:func:`render_inspect.io.read_program`): written by
+others, and the project's own.
 
 Writes a bare C-X-Z point list of ``blocks`` blocks (the published programs' form: one
 ``C.. X.. Z..`` per line, 6 decimals, C wrapping every revolution), a lathe G-code
 program of the same size (a header with a comment, then ``N.. G01 X.. Z.. F..`` blocks)
 and the project's own C-X-Z program of the same spiral (:func:`render_inspect.io.write_nc`,
-its writing timed: ``write_s``) into a temporary folder, and reads each: seconds (best of ``repeats``), M blocks/s, and
-the peak memory of the reading (tracemalloc, on a tenth of the blocks) against the bytes
+its writing timed: ``write_s``) into a temporary folder, and reads each: seconds (best of
+``repeats``), M blocks/s, and the peak memory of the reading (tracemalloc, on a tenth of the blocks) against the bytes
 the path it returns holds (theta, rho, z, t: 32 bytes a point).  ``read_cpu_s`` is the
 CPU time of one read (on a shared machine the wall time is longer by the load).  The
 scanner works on pieces of 1 MiB; the whole-program steps after it (unwrapping C, the
@@ -65,21 +66,13 @@ def write_gcode(path: Path, n: int) -> Path:
 
 def write_own(path: Path, n: int) -> Path:
     """The project's own C-X-Z program of ``n`` cutting blocks (``write_nc``: 6 decimals,
-    inverse-time feeds), the same spiral with C cumulative; the writing is timed."""
+    inverse-time feeds), the same spiral with C cumulative."""
     from render_inspect.core.toolpath import ToolPath
     from render_inspect.io import write_nc
 
     k = np.arange(n, dtype=np.float64)
     rho = 50.0 - 50.0 * k / n
-    path_ = ToolPath(np.radians(k * 0.5), rho, rho * rho / 200.0, k * 1e-3)
-    t0 = time.perf_counter()
-    write_nc(path, path_)
-    _WRITE_S[path.name] = time.perf_counter() - t0
-    return path
-
-
-#: seconds each own program took to write (file name -> s)
-_WRITE_S: dict = {}
+    return write_nc(path, ToolPath(np.radians(k * 0.5), rho, rho * rho / 200.0, k * 1e-3))
 
 
 def _read(path, **kw):
@@ -105,7 +98,9 @@ def main(blocks: int = 10_000_000, repeats: int = 1) -> dict:
                  "lathe_gcode": (write_gcode, {"points_per_rev": 1}),
                  "own_program": (write_own, {})}
         for name, (writer, kw) in cases.items():
+            t0 = time.perf_counter()
             path = writer(tmp / f"{name}.nc", blocks)
+            write_s = time.perf_counter() - t0
             size = path.stat().st_size
             best, imp = best_of(lambda: _read(path, **kw), repeats)
             c0 = time.process_time()
@@ -121,8 +116,8 @@ def main(blocks: int = 10_000_000, repeats: int = 1) -> dict:
                          "peak_MB_at_tenth": round(peak / 1e6, 1),
                          "path_MB_at_tenth": round(held / 1e6, 1),
                          "peak_bytes_per_block": round(peak / n_small, 1)}
-            if path.name in _WRITE_S:  # the project's own program: its writing too
-                res[name]["write_s"] = round(_WRITE_S[path.name], 2)
+            if writer is write_own:  # the project's own writer (the others are this script's)
+                res[name]["write_s"] = round(write_s, 2)
             print(name, json.dumps(res[name]), flush=True)
             path.unlink()
     res["load_average_at_end"] = os.getloadavg()

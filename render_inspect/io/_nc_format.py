@@ -22,6 +22,8 @@ import math
 import numpy as np
 
 from ..core.lazy import njit  # numba, imported on first use
+# (the powers of ten that binary64 holds exactly)
+from ._nc_scan import _EXACT_POW10 as _POW10
 
 __all__ = ["format_turning_rows", "format_linear_rows", "ROW_BYTES_MAX"]
 
@@ -29,8 +31,6 @@ __all__ = ["format_turning_rows", "format_linear_rows", "ROW_BYTES_MAX"]
 ROW_BYTES_MAX = 200
 #: the exactness limit of the scaled product (see the module notes)
 _SCALED_MAX = float(2 ** 52)  # not a unit conversion
-#: the powers of ten that binary64 holds exactly
-_POW10 = np.array([float(10 ** k) for k in range(23)])
 _I10 = np.array([10 ** k for k in range(19)], dtype=np.int64)
 _SPLIT = 134217729.0  # 2**27 + 1 (Veltkamp's split)
 _ZERO, _MINUS, _DOT, _SPACE, _LF = (ord(c) for c in "0-. \n")
@@ -57,15 +57,22 @@ def _round_scaled(a, m):
 
 
 @njit(cache=True, nogil=True)
+def _put_digits(out, o, v, n):
+    """The last n decimal digits of v >= 0 (leading zeros written) at out[o:]; returns the
+    next position."""
+    for i in range(n - 1, -1, -1):
+        out[o + i] = _ZERO + v % 10
+        v //= 10
+    return o + n
+
+
+@njit(cache=True, nogil=True)
 def _put_int(out, o, v):
     """The decimal digits of v >= 0 at out[o:]; returns the next position."""
     n = 1
     while n < 19 and v >= _I10[n]:
         n += 1
-    for i in range(n - 1, -1, -1):
-        out[o + i] = _ZERO + v % 10
-        v //= 10
-    return o + n
+    return _put_digits(out, o, v, n)
 
 
 @njit(cache=True, nogil=True)
@@ -82,12 +89,7 @@ def _put_fixed(out, o, v, decimals, m):
     scale = _I10[decimals]
     o = _put_int(out, o, q // scale)
     out[o] = _DOT
-    o += 1
-    frac = q % scale
-    for i in range(decimals - 1, -1, -1):
-        out[o + i] = _ZERO + frac % 10
-        frac //= 10
-    return o + decimals
+    return _put_digits(out, o + 1, q % scale, decimals)
 
 
 @njit(cache=True, nogil=True)
@@ -115,11 +117,7 @@ def _put_g10(out, o, v):
         frac //= 10
         keep -= 1
     out[o] = _DOT
-    o += 1
-    for i in range(keep - 1, -1, -1):
-        out[o + i] = _ZERO + frac % 10
-        frac //= 10
-    return o + keep
+    return _put_digits(out, o + 1, frac, keep)
 
 
 @njit(cache=True, nogil=True)

@@ -24,7 +24,7 @@ from ..core.toolpath import (
 )
 from ..core.units import MIN_TO_S
 from ._nc_dialect import _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD
-from ._nc_scan import FORM_OK, scan_uniform
+from ._nc_scan import FORM_LONG, FORM_OK, scan_uniform
 
 __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
 
@@ -68,64 +68,28 @@ def _ffill(vals: np.ndarray, start: float) -> np.ndarray:
 
 
 _NUM = r"-?\d+\.\d+"
+#: an F word as the writers' form takes it (with an exponent too)
 _FEED = r"[0-9][0-9.eE+-]*"
-#: an F word without an exponent (read as the other numbers are, :func:`_plain_numbers`)
-_PLAIN_FEED = r"\d+(?:\.\d+)?"
-
-
-#: the powers of ten that binary64 holds exactly
-_EXACT_POW10 = np.array([float(10 ** k) for k in range(23)])
-
-
-def _plain_numbers(text: str) -> np.ndarray | None:
-    """The numbers of ``text``: plain decimals (``-?\\d+`` or ``-?\\d+\\.\\d+``, as
-    :func:`_uniform` has checked) apart by spaces and line breaks, each exactly as
-    :func:`float` reads it; None when one has more than 15 digits.  The digits are read as
-    integers and divided by the power of ten of their decimals: both exact in binary64, so
-    the one rounding of the division is the correctly rounded value of the decimal, as a
-    decimal-to-binary conversion gives it (many times faster than reading them as floats)."""
-    raw = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
-    edge = np.diff((raw > 32).view(np.int8), prepend=np.int8(0), append=np.int8(0))
-    starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1)
-    pos = np.flatnonzero(raw == 46)
-    tok = np.searchsorted(starts, pos, side="right") - 1
-    decimals = np.zeros(starts.size, dtype=np.intp)
-    decimals[tok] = ends[tok] - pos - 1
-    neg = raw[starts] == 45
-    if starts.size and np.max(ends - starts - neg - (decimals > 0)) > 15:  # beyond 2**53
-        return None
-    mant = np.fromstring(text.replace(".", ""), dtype=np.int64, sep=" ")
-    if mant.size != starts.size:
-        return None
-    vals = np.abs(mant) / _EXACT_POW10[decimals]
-    vals[neg] = -vals[neg]  # exact, and -0.0 where a negative zero is written
-    return vals
 
 
 def _uniform(region: str, words: str):
     """(n, k) values of a run of blocks that all carry exactly ``words`` (e.g. ``"CXZF"``)
-    in the writers' form, or None: checked with one regular expression over the run, the
-    numbers parsed in bulk."""
-    def pattern(feed: str) -> str:
-        blk = r"N\d+ G0[01]" + "".join(f" {w}{feed if w == 'F' else _NUM}" for w in words)
-        # possessive: a block ends at its line break, so the repetition has one way to match
-        return rf"(?:{blk}\n)*+"
-
-    # the writers' plain form, checked and read in one compiled pass; anything else (an F
-    # with an exponent, a number of more than 15 digits, another form) as below
+    in the writers' form, or None.  The plain form (no exponent, up to 15 digits a number)
+    is checked and read in one compiled pass (:func:`~render_inspect.io._nc_scan.scan_uniform`);
+    a run with a longer number, or with F words that have exponents, is checked with one
+    regular expression and its numbers read as :func:`float` reads them."""
     status, read = scan_uniform(region, words)
     if status == FORM_OK:
         return read
+    if status != FORM_LONG:  # not the plain form: the writers' form with F exponents, or not
+        if "F" not in words:
+            return None
+        blk = r"N\d+ G0[01]" + "".join(f" {w}{_FEED if w == 'F' else _NUM}" for w in words)
+        # possessive: a block ends at its line break, so the repetition has one way to match
+        if re.fullmatch(rf"(?:{blk}\n)*+", region) is None:
+            return None
     table = str.maketrans({c: " " for c in "NG" + words})
-    if re.fullmatch(pattern(_PLAIN_FEED), region) is not None:
-        text = region.translate(table)
-        vals = _plain_numbers(text)
-        if vals is None:  # a number of more than 15 digits
-            vals = np.fromstring(text, sep=" ")
-    elif "F" in words and re.fullmatch(pattern(_FEED), region) is not None:
-        vals = np.fromstring(region.translate(table), sep=" ")  # an F word with an exponent
-    else:
-        return None
+    vals = np.fromstring(region.translate(table), sep=" ")
     k = 2 + len(words)
     if vals.size % k:
         return None
