@@ -3,14 +3,14 @@ Z-0.001 F97.5``, the words in a fixed order): one pass over the bytes that check
 line and reads its numbers, in place of a regular expression over the run and numpy's
 passes over its characters.
 
-It takes only what the writers' regular expression takes with plain numbers (block
-number and motion digits, ``-?\\d+\\.\\d+`` for the axes, ``\\d+(\\.\\d+)?`` for ``F``,
-one space before each word, a line break after the last) and reads each number as
-:mod:`render_inspect.io._nc_parse` does: its digits as an integer, divided by the power of
-ten of its decimals (both exact in binary64 for up to 15 digits, so the one rounding of the
-division gives the correctly rounded value), ``-0.0`` where a negative zero is written.
-Anything else it leaves to the general reader: a run with another form, an ``F`` with an
-exponent, a number of more than 15 digits.
+It takes only the writers' form with plain numbers (block number and motion digits,
+``-?\\d+\\.\\d+`` for the axes, ``\\d+(\\.\\d+)?`` for ``F``, one space before each
+word, a line break after the last) and reads each number as :func:`float` does: its digits
+as an integer, divided by the power of ten of its decimals (both exact in binary64 for up
+to 15 digits, so the one rounding of the division gives the correctly rounded value),
+``-0.0`` where a negative zero is written.  Anything else it leaves to the general reader
+(:mod:`render_inspect.io._nc_parse`): a run with another form, an ``F`` with an exponent,
+a number of more than 15 digits.
 """
 
 from __future__ import annotations
