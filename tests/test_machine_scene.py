@@ -153,6 +153,28 @@ def test_following_error_metrics_and_figures(tmp_path):
     assert_allclose(again.heightmap.machined, sim.heightmap.machined, rtol=0, atol=0)
 
 
+def test_the_geometric_cuts_error_map_is_drawn_from_the_whole_maps_points():
+    """The geometric cut (no material) computes the cutting pass's angle only on the
+    points the following-error map draws: the very numbers of the whole map's points."""
+    from render_inspect.design import make_surface
+    from render_inspect.processes import plan_spiral
+    from render_inspect.processes._mechanics import following_error_map_plot, pass_angle_map, turn
+
+    region, pixel = [0.3, 0.3, 0.75, 0.62], 0.001      # 451 x 321 pixels: every 2nd drawn
+    s = load_scene("sts_sinusoidal_grid", [f"simulation.region={region}", f"simulation.pixel={pixel}",
+                                           "material.preset='ideal'"])
+    surface = make_surface(s.design)
+    t = turn(s, surface, plan_spiral(s, surface, region=region), burrs=False)
+    got = t["plots"]["following_error_map.png"]
+    whole = pass_angle_map(t["followed"], region, pixel)
+    want = following_error_map_plot(t["followed_path"], whole, region, pixel,
+                                    name=s.name)["following_error_map.png"]
+    assert got["x_nm"].shape == (161, 226) and np.isfinite(got["x_nm"]).all()
+    for k in ("x_nm", "z_nm"):
+        assert np.array_equal(got[k], want[k], equal_nan=True), k
+    assert got["extent"] == want["extent"] and got["title"] == want["title"]
+
+
 @pytest.mark.slow
 def test_seed004_rcse_against_the_conventional_path_on_the_sts_lathe():
     """With the STS lathe preset the grid-interpolated path's reciprocating X has at least

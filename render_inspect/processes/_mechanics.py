@@ -99,21 +99,23 @@ def burrs_of(burrs: BurrConfig, seed: int) -> dict:
 
 class Turned(dict):
     """``machined``, ``design`` (maps, mm), ``timing``, ``facts`` (metrics entries),
-    ``followed`` (ToolPath or None), ``followed_path`` (FollowedPath or None),
-    ``pass_theta`` (map of the cutting pass's spindle angle, or None: the material's cut
-    computes in its memory once the figures have it)."""
+    ``followed`` (ToolPath or None), ``followed_path`` (FollowedPath or None), ``plots``
+    (figure specs)."""
 
 
-def pass_angle_map(path: ToolPath, region: Sequence[float], pixel: float) -> np.ndarray:
+def pass_angle_map(path: ToolPath, region: Sequence[float], pixel: float, *,
+                   stride: int = 1) -> np.ndarray:
     """Cumulative spindle angle (rad) of the pass that cuts each pixel, on the nominal
-    spiral of ``path`` (the revolution nearest to the pixel's radius at its angle)."""
+    spiral of ``path`` (the revolution nearest to the pixel's radius at its angle).
+    ``stride``: every ``stride``-th row and column of the grid only (the same numbers as
+    the whole map's ``[::stride, ::stride]``)."""
     theta = np.asarray(path.theta, dtype=np.float64)
     rho = np.asarray(path.rho, dtype=np.float64)
     x0, y0, x1, y1 = region
     nx = int(round((x1 - x0) / pixel)) + 1
     ny = int(round((y1 - y0) / pixel)) + 1
-    x = x0 + pixel * np.arange(nx)
-    y = y0 + pixel * np.arange(ny)
+    x = x0 + pixel * np.arange(nx)[::stride]
+    y = y0 + pixel * np.arange(ny)[::stride]
     xx, yy = np.meshgrid(x, y)
     r = np.hypot(xx, yy)
     phi = np.mod(np.arctan2(yy, xx), TWO_PI)
@@ -178,12 +180,18 @@ def following_error_series_plot(fp: Any, *, name: str) -> dict:
                                     "title": f"{name}: following error (command - followed)"}}
 
 
+def map_figure_stride(shape: Sequence[int]) -> int:
+    """The stride of rows and columns ``following_error_map.png`` draws of a map of
+    ``shape``: at most ~:data:`MAP_FIGURE_POINTS` points a side."""
+    return max(1, int(math.ceil(max(shape) / MAP_FIGURE_POINTS)))
+
+
 def following_error_map_plot(fp: Any, pass_theta: np.ndarray, region: Sequence[float],
                              pixel: float, *, name: str) -> dict:
     """The spec of ``following_error_map.png``: the X and Z errors of the pass that cut
     each point (``pass_theta``), on at most ~:data:`MAP_FIGURE_POINTS` points a side."""
     x0, y0 = region[0], region[1]
-    stride = max(1, int(math.ceil(max(pass_theta.shape) / MAP_FIGURE_POINTS)))
+    stride = map_figure_stride(pass_theta.shape)
     ex, ez = _error_maps(fp, pass_theta, stride)
     return {"following_error_map.png": {"kind": "following_error_map", "x_nm": ex, "z_nm": ez,
                                         "extent": (x0, x0 + pixel * stride * (ex.shape[1] - 1),
@@ -294,10 +302,19 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         figs.update(following_error_series_plot(fp, name=cfg.name))
         hand_over(figs)
     t0 = time.perf_counter()
-    pass_theta = design_out = None
+    design_out = None
     if resp is None:
         machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
                                     pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
+        if error_figures:
+            # the passes' angles on the figure's points only (the same numbers as those
+            # points of the whole map, which nothing else needs), drawn meanwhile
+            stride = map_figure_stride(grid_shape(region, sim.pixel))
+            error_map = following_error_map_plot(
+                fp, pass_angle_map(cut_path, region, sim.pixel, stride=stride), region,
+                sim.pixel * stride, name=cfg.name)
+            figs.update(error_map)
+            hand_over(error_map)
     else:
         # the fast kernel of the direct model (machining.cut_turning_mechanics +
         # finish_surface), in row blocks
@@ -351,10 +368,6 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
                                                   origin=(region[0], region[1]),
                                                   overwrite=True, **args)
         timing["burrs"] = time.perf_counter() - t0
-    if error_figures and "following_error_map.png" not in figs:
-        if pass_theta is None:
-            pass_theta = pass_angle_map(cut_path, region, sim.pixel)
-        figs.update(following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name))
     if "tool_wear" in facts:
         facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
             cfg, machined, design, region, sim.pixel)
@@ -366,8 +379,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         if plots:
             figs.update(edge_figs)
     return Turned(machined=machined, design=design, timing=timing, facts=facts,
-                  followed=None if fp.ideal else cut_path, followed_path=fp,
-                  pass_theta=pass_theta, plots=figs)
+                  followed=None if fp.ideal else cut_path, followed_path=fp, plots=figs)
 
 
 def follow(cfg: TurningInputs, path: Any, *,
