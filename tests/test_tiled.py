@@ -17,7 +17,7 @@ from render_inspect.io._heightmap import grid_attrs
 from render_inspect.io._pyramid import block_sums, level_count, means, preview, pyramid
 from render_inspect.io._zarr import ZarrHeightMap, create_heightmap_zarr, write_heightmap_zarr
 from render_inspect.machining import residual_metrics, simulate_turning
-from render_inspect.machining._envelope import prepare_envelope
+from render_inspect.machining._envelope import envelope_fill, prepare_envelope
 from render_inspect.batch import run_tiles
 from render_inspect.machining import design_grid, metrics_from_moments, plan_tiles
 from render_inspect.processes import plan_spiral
@@ -247,6 +247,99 @@ def test_gpu_kernel_equals_the_cpu_kernel(simulator):
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     assert float(p.stdout.strip().splitlines()[-1]) < KERNEL_ATOL_MM
+
+
+def _gpu_case():
+    region, pixel = (0.31, -0.2, 0.45, -0.08), 0.001      # off axis, constant-angle
+    _, _, path, tool = _case(region, pixel)
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=pixel)
+    return path, kw, simulate_turning(path, device="cpu", **kw)
+
+
+@pytest.fixture
+def fake_gpu(monkeypatch):
+    """A CUDA device that is present, with the GPU kernel replaced by ``calls["kernel"]``
+    (its calls counted), and the process's memory of a failed GPU cleared."""
+    from render_inspect.machining import _envelope, _envelope_gpu
+
+    calls = {"kernel": None, "n": 0, "asked": 0}
+
+    def kernel(ep, origin, pixel, out, **kw):
+        calls["n"] += 1
+        return calls["kernel"](ep, origin, pixel, out)
+
+    def available():
+        calls["asked"] += 1
+        return True
+
+    monkeypatch.setattr(_envelope_gpu, "cuda_available", available)
+    monkeypatch.setattr(_envelope_gpu, "envelope_fill_gpu", kernel)
+    monkeypatch.setattr(_envelope, "GPU_MIN_SAMPLES", 100)
+    monkeypatch.setattr(_envelope, "_GPU_FAILED", None)
+    return calls
+
+
+def test_a_failing_gpu_stack_falls_back_to_the_cpu_once_and_says_why(fake_gpu, caplog):
+    # what a CUDA stack whose numba.cuda does not match its NumPy raises when it compiles
+    def broken(ep, origin, pixel, out):
+        raise AttributeError("module 'numpy' has no attribute 'row_stack'")
+
+    fake_gpu["kernel"] = broken
+    path, kw, cpu = _gpu_case()
+    with caplog.at_level("WARNING", logger="render_inspect"):
+        first = simulate_turning(path, **kw)
+        second = simulate_turning(path, **kw)
+    assert np.array_equal(first, cpu, equal_nan=True) and np.array_equal(second, cpu, equal_nan=True)
+    said = [r.getMessage() for r in caplog.records if "GPU" in r.getMessage()]
+    assert said == ["the GPU envelope kernel failed (AttributeError: module 'numpy' has no attribute "
+                    "'row_stack'); the CPU kernel runs instead"]
+    assert fake_gpu["n"] == 1                         # not tried again in the same process
+    with pytest.raises(AttributeError, match="row_stack"):
+        simulate_turning(path, device="gpu", **kw)    # asked for by name: the error itself
+
+
+def test_a_gpu_that_disagrees_with_the_cpu_is_not_used(fake_gpu, caplog):
+    def off(ep, origin, pixel, out):
+        envelope_fill(ep, origin, pixel, out)
+        out += 1e-6                                    # 1 nm off
+        return out
+
+    fake_gpu["kernel"] = off
+    path, kw, cpu = _gpu_case()
+    with caplog.at_level("WARNING", logger="render_inspect"):
+        got = simulate_turning(path, **kw)
+    assert np.array_equal(got, cpu, equal_nan=True) and fake_gpu["n"] == 1
+    assert any("disagrees with the CPU kernel" in r.getMessage() for r in caplog.records)
+
+
+def test_a_gpu_that_disagrees_only_at_the_axis_is_not_used(fake_gpu, caplog):
+    # the spindle axis' pixel is where the height depends on the pixel's radial section:
+    # a GPU that rounds its position otherwise is off there alone (13.6 nm once, on a device)
+    region, pixel = (-0.15, -0.15, 0.15, 0.15), 0.001          # the axis in block (128, 128)
+    _, _, path, tool = _case(region, pixel)
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=pixel)
+    cpu = simulate_turning(path, device="cpu", **kw)
+
+    def off_at_the_axis(ep, origin, pixel, out):
+        envelope_fill(ep, origin, pixel, out)
+        out[150, 150] += 1.36e-5
+        return out
+
+    fake_gpu["kernel"] = off_at_the_axis
+    with caplog.at_level("WARNING", logger="render_inspect"):
+        got = simulate_turning(path, **kw)
+    assert np.array_equal(got, cpu, equal_nan=True) and fake_gpu["n"] == 1
+    assert any("disagrees with the CPU kernel" in r.getMessage() for r in caplog.records)
+
+
+def test_the_gpu_is_not_asked_for_a_path_it_does_not_handle(fake_gpu):
+    region = (-0.05, -0.04, 0.06, 0.05)
+    _, _, path, tool = _case(region, 0.001, ("process.sampling='constant_arc'",))
+    kw = dict(nose_radius=tool.nose_radius, half_width=tool.half_width, region=region, pixel=0.001)
+    assert np.array_equal(simulate_turning(path, **kw), simulate_turning(path, device="cpu", **kw),
+                          equal_nan=True)
+    # asking whether a device is there starts CUDA's driver: not done for this path
+    assert fake_gpu["asked"] == 0 and fake_gpu["n"] == 0
 
 
 def _cli(*args, check=True):

@@ -54,9 +54,9 @@ References
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
-import warnings
 from typing import Any
 
 import numpy as np
@@ -71,10 +71,14 @@ from ..core.toolpath import ToolPath
 from ._envelope_path import EnvelopePath, _lookup_table, path_radial_slope, prepare_envelope  # noqa: F401
 from ._envelope_step import TWO_PI, _edge_dz, _lookup, _pass_count, _pass_windows, _pixel_height
 
+log = logging.getLogger("render_inspect")
+
 #: side (pixels) of the square blocks the fast kernel works through
 BLOCK = 64
-#: grids at least this large go to a CUDA GPU when one is present (simulate_turning)
-GPU_MIN_SAMPLES = 1 << 22
+#: grids at least this large go to a CUDA GPU when one is present (simulate_turning): below
+#: it, starting CUDA and loading the compiled kernel cost more than the GPU saves (about
+#: 1 s a process, measured; docs/performance.md)
+GPU_MIN_SAMPLES = 1 << 27
 #: samples of one band of rows of the CPU kernel (a fraction of a second): the progress
 #: is reported, and a stop asked by a signal honoured, between bands
 BAND_SAMPLES = 1 << 20  # not a unit conversion
@@ -257,6 +261,52 @@ def envelope_fill(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: 
     return out
 
 
+#: why the GPU kernel failed in this process ("auto" then stays on the CPU), or None
+_GPU_FAILED: str | None = None
+
+
+def _on_gpu(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
+            required: bool) -> bool:
+    """``out`` filled by the GPU kernel and checked against the CPU kernel on one block;
+    False (the caller fills it on the CPU) where the path is not one the GPU kernel
+    handles, no CUDA device is present, the GPU's stack fails (said once, with why) or the
+    check disagrees (said).  ``required``: a missing device or a failing stack raises."""
+    global _GPU_FAILED
+    # the GPU module builds on this one (a top-level import would be circular)
+    from ._envelope_gpu import cuda_available, envelope_fill_gpu, gpu_supports
+
+    # the cheap test first: asking for a device starts CUDA's driver
+    if not (gpu_supports(ep) and cuda_available()):
+        if required:
+            raise ValueError("simulate_turning: device='gpu' needs a CUDA device and a constant-angle path")
+        return False
+    try:
+        envelope_fill_gpu(ep, origin, pixel, out)
+    except Exception as e:  # the optional GPU stack (driver, toolkit, numba.cuda) broken
+        if required:
+            raise
+        _GPU_FAILED = f"{type(e).__name__}: {e}"
+        log.warning("the GPU envelope kernel failed (%s); the CPU kernel runs instead", _GPU_FAILED)
+        return False
+    # checked on the CPU on the first block and on the block that holds the spindle axis
+    # (where the height depends on the pixel's radial section, so a rounding of its
+    # position shows)
+    ny, nx = out.shape
+    axis = (int(round(-origin[1] / pixel)), int(round(-origin[0] / pixel)))
+    corners = {(0, 0)} | ({(axis[0] // BLOCK * BLOCK, axis[1] // BLOCK * BLOCK)}
+                          if 0 <= axis[0] < ny and 0 <= axis[1] < nx else set())
+    agree = True
+    for i0, j0 in sorted(corners):
+        got = out[i0:i0 + BLOCK, j0:j0 + BLOCK]
+        probe = envelope_fill(ep, origin, pixel, np.empty(got.shape), start=(i0, j0), parallel=False)
+        agree &= bool(np.array_equal(np.isnan(probe), np.isnan(got))
+                      and np.nanmax(np.abs(probe - got), initial=0.0) < 1e-9)
+    if agree:
+        return True
+    log.warning("the GPU envelope kernel disagrees with the CPU kernel; the CPU kernel runs instead")
+    return False
+
+
 def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[float], pixel: float,
                      half_width: float | None = None,
                      slope_bound: float | None = None, window: float | None = None,
@@ -288,7 +338,9 @@ def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[flo
     device : "auto", "cpu" or "gpu"
         "auto" runs grids of at least ``GPU_MIN_SAMPLES`` samples on a CUDA GPU when one is
         present (``_envelope_gpu``), after checking it against the CPU kernel on one block
-        of the grid; "gpu" requires one.
+        of the grid (the CPU's result where they disagree, with a warning); a GPU stack that
+        fails (driver, toolkit, numba.cuda) is said once in a warning and the process stays
+        on the CPU.  "gpu" requires a device and a working stack.
     edge : EdgeProfile, optional
         The measured cutting edge (``toolpath.EdgeProfile``): the nose's height at each
         radial offset is the edge's instead of the circle's; None: the circular nose.
@@ -319,21 +371,9 @@ def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[flo
         return out
     if device not in ("auto", "cpu", "gpu"):
         raise ValueError(f"simulate_turning: device must be 'auto', 'cpu' or 'gpu', got {device!r}")
-    if device == "gpu" or (device == "auto" and out.size >= GPU_MIN_SAMPLES):
-        # the GPU module builds on this one (a top-level import would be circular)
-        from ._envelope_gpu import cuda_available, envelope_fill_gpu, gpu_supports
-
-        if cuda_available() and gpu_supports(ep):
-            envelope_fill_gpu(ep, (x0, y0), pixel, out)
-            probe = np.empty((min(BLOCK, ny), min(BLOCK, nx)))
-            envelope_fill(ep, (x0, y0), pixel, probe, parallel=False)
-            if np.array_equal(np.isnan(probe), np.isnan(out[:probe.shape[0], :probe.shape[1]])) and \
-                    np.nanmax(np.abs(probe - out[:probe.shape[0], :probe.shape[1]]), initial=0.0) < 1e-9:
-                return out
-            warnings.warn("the GPU envelope kernel disagrees with the CPU kernel; using the CPU", RuntimeWarning,
-                          stacklevel=2)
-        elif device == "gpu":
-            raise ValueError("simulate_turning: device='gpu' needs a CUDA device and a constant-angle path")
+    if device == "gpu" or (device == "auto" and out.size >= GPU_MIN_SAMPLES and _GPU_FAILED is None):
+        if _on_gpu(ep, (x0, y0), pixel, out, required=device == "gpu"):
+            return out
     # in bands of rows (whole blocks: each band equals the same rows of one whole-grid
     # call bit for bit), reporting the progress and stopping when asked between bands
     rows = BLOCK * max(1, BAND_SAMPLES // max(BLOCK * nx, 1))

@@ -105,8 +105,9 @@ def _passes(seg, theta, tab, tab_t0, tab_w, uniform, inv, nrev, offset, n_total,
     within ``jw`` revolutions of the pass whose nominal radius is sgn r: (lowest over the
     K passes, lowest over those within the window)."""
     jc = (t0 + (a - r * sgn) * icc - phi) * INV_2PI
-    j0 = math.ceil(jc - jw)
-    kmax = math.floor(jc + jw) - j0
+    # (int(): numba.cuda's floor and ceil of a float are floats, the CPU target's ints)
+    j0 = int(math.ceil(jc - jw))
+    kmax = int(math.floor(jc + jw)) - j0
     sr = sgn * r
     nseg = seg.shape[0]
     if uniform:
