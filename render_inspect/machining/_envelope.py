@@ -267,10 +267,11 @@ _GPU_FAILED: str | None = None
 
 def _on_gpu(ep: EnvelopePath, origin: Sequence[float], pixel: float, out: np.ndarray, *,
             required: bool) -> bool:
-    """``out`` filled by the GPU kernel and checked against the CPU kernel on one block;
-    False (the caller fills it on the CPU) where the path is not one the GPU kernel
-    handles, no CUDA device is present, the GPU's stack fails (said once, with why) or the
-    check disagrees (said).  ``required``: a missing device or a failing stack raises."""
+    """``out`` filled by the GPU kernel and checked against the CPU kernel on the first
+    block and on the block that holds the spindle axis; False (the caller fills it on the
+    CPU) where the path is not one the GPU kernel handles, no CUDA device is present, the
+    GPU's stack fails (said once, with why) or the check disagrees (said).  ``required``:
+    a missing device or a failing stack raises."""
     global _GPU_FAILED
     # the GPU module builds on this one (a top-level import would be circular)
     from ._envelope_gpu import cuda_available, envelope_fill_gpu, gpu_supports
@@ -337,8 +338,9 @@ def simulate_turning(path: ToolPath, *, nose_radius: float, region: Sequence[flo
         Use the direct per-pixel kernel (slower; the fast kernel is checked against it).
     device : "auto", "cpu" or "gpu"
         "auto" runs grids of at least ``GPU_MIN_SAMPLES`` samples on a CUDA GPU when one is
-        present (``_envelope_gpu``), after checking it against the CPU kernel on one block
-        of the grid (the CPU's result where they disagree, with a warning); a GPU stack that
+        present (``_envelope_gpu``), after checking it against the CPU kernel on the
+        grid's first block and on the block that holds the spindle axis (the CPU's result
+        where they disagree, with a warning); a GPU stack that
         fails (driver, toolkit, numba.cuda) is said once in a warning and the process stays
         on the CPU.  "gpu" requires a device and a working stack.
     edge : EdgeProfile, optional
