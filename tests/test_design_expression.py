@@ -128,7 +128,7 @@ def test_nesting_is_measured_by_depth_not_by_terms():
     rng = np.random.default_rng(3)
     powers = [(i, j) for i in range(11) for j in range(11) if i + j <= 10]
     coef = rng.uniform(-1e-3, 1e-3, len(powers))
-    expr = " + ".join(f"{c!r}*x**{i}*y**{j}" for c, (i, j) in zip(coef, powers))
+    expr = " + ".join(f"{float(c)!r}*x**{i}*y**{j}" for c, (i, j) in zip(coef, powers))
     e = ExpressionSurface(expr)
     x = rng.uniform(-1, 1, 50)
     y = rng.uniform(-1, 1, 50)

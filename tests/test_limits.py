@@ -289,7 +289,7 @@ def test_zarr_window_and_frame_stack_are_checked_before_reading(tmp_path, monkey
     stack = tmp_path / "frames"
     stack.mkdir()
     for i in range(4):
-        Image.fromarray(np.full((300, 400), 100 * i, dtype=np.uint8)).save(stack / f"f{i}.png")
+        Image.fromarray(np.full((300, 400), 60 * i, dtype=np.uint8)).save(stack / f"f{i}.png")
     (stack / "settings.json").write_text('{"mode": "psi", "pixel_size_mm": 0.001, '
                                          '"wavelength_nm": 550}')
     assert read_frame_stack(stack).frames.shape == (4, 300, 400)

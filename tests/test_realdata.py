@@ -126,8 +126,11 @@ def test_readers_agree_with_independent_readers(maps):
         ok = np.isfinite(sur.z)
         assert_allclose(sur.z[ok], z_st[ok], rtol=1e-12)
         # SurfaceTopography 1.18.2 turns the 117 non-measured points into heights (one
-        # value below the valid range): surfalize's NaN are right
-        assert np.unique(z_st[~ok]).size == 1 and z_st[~ok][0] < np.nanmin(sur.z)
+        # value below the valid range), later versions leave them out as surfalize and we
+        # do: NaN are right
+        bad = z_st[~ok]
+        assert (~ok).sum() == 117
+        assert np.isnan(bad).all() or (np.unique(bad).size == 1 and bad[0] < np.nanmin(sur.z))
         # surfalize 0.19.2 on MetroPro ignores phase_res = 1 (32768 counts per fringe): 8 x
         s = surfalize.Surface.load(str(_path("zygo_metropro-1.dat")))
         assert_allclose(_sq(np.asarray(s.data) * 1e-3) / _sq(maps["zygo_metropro-1.dat"].z), 8.0,

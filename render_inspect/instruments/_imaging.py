@@ -453,12 +453,16 @@ def interference_intensity(heights: np.ndarray, normals: np.ndarray | None = Non
 
 
 def _pocketfft():
-    """SciPy's own pocketfft module (what ``scipy.fft.fft2`` calls), or None."""
+    """SciPy's own FFT module (what ``scipy.fft.fft2`` calls: pocketfft in SciPy 1.15,
+    ducc in 1.18, with the same ``c2c``), or None."""
     try:
-        from scipy.fft._pocketfft import pypocketfft
-    except ImportError:  # (another SciPy's layout)
-        return None
-    return pypocketfft if hasattr(pypocketfft, "c2c") else None
+        from scipy.fft._duccfft import pyduccfft as module
+    except ImportError:
+        try:
+            from scipy.fft._pocketfft import pypocketfft as module
+        except ImportError:  # (another SciPy's layout)
+            return None
+    return module if hasattr(module, "c2c") else None
 
 
 def _runs(mask: np.ndarray) -> list[slice]:
@@ -472,7 +476,8 @@ def _fft2_into(x, out, workers, pool=None, blocks=(), rows=None):
     """``scipy.fft.fft2(x)`` written into ``out`` (complex64, x's shape), ``x`` left as
     it is: SciPy's own transform (``fft2`` hands pocketfft's ``c2c`` the same axes, the
     same normalisation and an output array), read from ``x`` instead of from a copy of
-    it; a copy and ``fft2`` in place where that module is not found.
+    it (with SciPy's ducc module, which rounds otherwise out of place, from the copy in
+    ``out``, in place); a copy and ``fft2`` in place where neither module is found.
 
     ``rows`` (boolean, one per row of the result), when given: only those rows of the
     result are wanted.  pocketfft transforms the axes in turn, the columns (axis 0) first
@@ -483,9 +488,15 @@ def _fft2_into(x, out, workers, pool=None, blocks=(), rows=None):
     if (pfft is not None and x.dtype == np.complex64 and out.dtype == np.complex64
             and x.shape == out.shape and x.ndim == 2 and x.flags.c_contiguous
             and out.flags.c_contiguous):
+        src = x
+        if "ducc" in pfft.__name__:
+            # ducc's transform from one array into another rounds otherwise than in place
+            # (as ``fft2`` transforms its copy): the copy, then in place
+            _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
+            src = out
         if rows is None or bool(np.all(rows)):
-            return pfft.c2c(x, (0, 1), True, 0, out, int(workers))
-        pfft.c2c(x, (0,), True, 0, out, int(workers))
+            return pfft.c2c(src, (0, 1), True, 0, out, int(workers))
+        pfft.c2c(src, (0,), True, 0, out, int(workers))
         for r in _runs(rows):
             pfft.c2c(out[r], (1,), True, 0, out[r], int(workers))
         return out

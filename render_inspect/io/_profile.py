@@ -26,6 +26,7 @@ import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -241,6 +242,18 @@ def _units_refusal(path, x, z, pos_u, h_u) -> str:
 
 # -- Dektak .opdx and X3P profiles ---------------------------------------------------------
 
+def _opdx_extent(rd: Any, t: Any) -> float | None:
+    """The Extent (first to last point, in the topography's unit) of the profile channel
+    that ``rd.topography()`` read (the first), from the file's manifest; None where the
+    file states none in that unit."""
+    try:
+        name = rd.manifest["/MetaData/1D_Channels/Height"][0]
+        extent = rd.manifest[f"/1D_Data/{name}/Extent"]
+        return float(extent.value) if extent.symbol == t.unit else None
+    except (KeyError, IndexError, AttributeError, TypeError, ValueError):
+        return None
+
+
 def _read_opdx(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     import SurfaceTopography.IO as stio
 
@@ -272,9 +285,14 @@ def _read_opdx(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     h = h.filled(np.nan) if np.ma.isMaskedArray(h) else np.asarray(h, dtype=np.float64)
     n = h.size
     # the file's Extent runs from the first to the last point (its ScanResolution and
-    # the instrument's own text export give Extent / (n - 1)); SurfaceTopography's
-    # pixel_size divides it by n
-    x = np.arange(n, dtype=np.float64) * (float(t.physical_sizes[0]) / (n - 1)) * scale
+    # the instrument's own text export give Extent / (n - 1)); read from the file's own
+    # entry, since SurfaceTopography's physical size is the Extent in 1.18.2 and
+    # Extent n / (n - 1) in 1.27.1 (in the topography's unit either way)
+    extent = _opdx_extent(rd, t)
+    if extent is None or not extent > 0 or n < 2:
+        raise InputError(f"{path}: the profile states no Extent in its unit {t.unit!r} over "
+                         f"at least 2 points: its point spacing is not known")
+    x = np.arange(n, dtype=np.float64) * (extent / (n - 1)) * scale
     info = t.info or {}
     return x, np.asarray(h, dtype=np.float64) * scale, {
         "format": "opdx", "reader": _version("SurfaceTopography"),
