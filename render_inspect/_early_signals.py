@@ -13,13 +13,12 @@ SIGHUP.
 Nothing is written before the command's handlers are in place (output folders are opened
 under them), so the process may end at once; stdout is flushed first.
 
-Only the standard library is imported here, so that this module runs first.
+Only the standard library is imported here, so that this module runs first, and as
+little of it as can be before :func:`install` (each module loaded before it is a moment
+when Ctrl-C would still give a traceback): ``os`` and ``sys``, loaded with the
+interpreter, and ``signal``; ``gc`` once the collector is paused, after the handler.
 """
 
-from __future__ import annotations
-
-import contextlib
-import gc
 import os
 import signal
 import sys
@@ -36,10 +35,14 @@ def _handler(signum: int, frame: object) -> None:
         state = "the run had finished (its output, if any, was written completely)"
     else:
         state = "it was starting up: nothing was written"
-    with contextlib.suppress(Exception):
+    try:
         sys.stdout.flush()
-    with contextlib.suppress(OSError):
+    except Exception:  # (a closed or broken stdout: the line below is what matters)
+        pass
+    try:
         os.write(2, f"{_STATE['prefix']}: {what}; {state}\n".encode("utf-8", "replace"))
+    except OSError:
+        pass
     os._exit(130 if signum == signal.SIGINT else 143)
 
 
@@ -86,6 +89,8 @@ def pause_collector() -> None:
     the process and almost no garbage (a few hundred objects), and the collector's passes
     over them, young and full, cost tenths of a CPU-second for nothing.
     :func:`resume_collector` turns it back on; a collector that was off is left so."""
+    import gc
+
     if gc.isenabled() and not _STATE.get("collector_paused"):
         gc.disable()
         _STATE["collector_paused"] = True
@@ -94,6 +99,8 @@ def pause_collector() -> None:
 def resume_collector() -> None:
     """Turn the collector back on if :func:`pause_collector` paused it, the objects made so
     far left out of its passes (``gc.freeze``)."""
+    import gc
+
     if _STATE.get("collector_paused"):
         _STATE["collector_paused"] = False
         gc.freeze()
@@ -115,8 +122,10 @@ def install() -> None:
     if word and not _STATE["finished"]:
         _STATE["prefix"] = f"render-inspect {word}"
     for name in _SIGNALS:
-        with contextlib.suppress(ValueError, OSError, AttributeError):
+        try:
             signal.signal(getattr(signal, name), _handler)
+        except (ValueError, OSError, AttributeError):  # not the main thread; no such signal
+            pass
 
 
 def command(name: str) -> None:
