@@ -348,6 +348,26 @@ def test_interrupt_inside_a_compiled_kernel_is_an_interruption(capsys, monkeypat
     assert rc == 130 and "interrupted" in err and "SystemError" not in err
 
 
+@pytest.mark.parametrize("signum, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                                (signal.SIGTERM, 143, "terminated")])
+def test_an_error_native_code_makes_of_a_stop_is_the_stop(capsys, monkeypatch, tmp_path, signum,
+                                                          code, word):
+    """A signal's exception raised inside native code that calls back into Python can come
+    out as that code's own error, the interruption dropped (matplotlib's C++ transforms:
+    "Invalid affine transformation matrix"): once a stop was asked for, it is the stop."""
+    from render_inspect import pipeline
+    from render_inspect.core import cancel
+
+    def drawing(*a, **k):
+        cancel.request(signum)          # what the command line's handler records first
+        raise ValueError("Invalid affine transformation matrix")
+
+    monkeypatch.setattr(pipeline, "run_simulate", drawing)
+    rc, err = _main(capsys, "simulate", "sts_sinusoidal_grid", "--out", tmp_path / "o")
+    assert rc == code and word in err and "ValueError" not in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
 def test_unexpected_errors_are_one_line_with_a_hint(capsys, monkeypatch, tmp_path):
     from render_inspect import pipeline
 

@@ -147,6 +147,18 @@ def _interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
+def _asked_to_stop() -> KeyboardInterrupt | None:
+    """The interruption a signal asked for (core.cancel), if one did: native code that
+    calls back into Python can turn the exception our handler raised there into one of its
+    own and drop it (matplotlib's transforms: "Invalid affine transformation matrix"), so
+    an error escaping after a stop was asked for is that stop."""
+    try:
+        cancel.check()
+    except KeyboardInterrupt as stop:
+        return stop
+    return None
+
+
 def _traceback_hint(parser) -> str:
     opts = getattr(parser, "_option_string_actions", {})
     if "-v" in opts or "--verbose" in opts:
@@ -232,6 +244,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if isinstance(err, (SystemExit, GeneratorExit)):
                     raise
                 stop = _interrupt_in(err)
+                if stop is None:
+                    stop = _asked_to_stop()
                 if stop is None:
                     raise
                 raise stop from None
