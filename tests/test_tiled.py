@@ -224,7 +224,16 @@ ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_w
 cpu = envelope_fill(ep, region[:2], pixel, np.empty((23, 24)))
 gpu = envelope_fill_gpu(ep, region[:2], pixel, np.empty((23, 24)))
 assert np.array_equal(np.isnan(cpu), np.isnan(gpu))
-print(float(np.nanmax(np.abs(cpu - gpu))))
+worst = float(np.nanmax(np.abs(cpu - gpu)))
+# the shipped grid's 2 x 2 mm window at 0.5 um, the block that holds its axis pixel
+# (2000, 2000), whose position -1 + 2000 * 0.0005 a fused multiply-add would not round to 0
+region, pixel = (-1.0, -1.0, 1.0, 1.0), 0.0005
+_, _, path, tool = _case(region, pixel)
+ep = prepare_envelope(path, nose_radius=tool.nose_radius, half_width=tool.half_width)
+cpu = envelope_fill(ep, region[:2], pixel, np.empty((64, 64)), start=(1984, 1984))
+gpu = envelope_fill_gpu(ep, region[:2], pixel, np.empty((64, 64)), start=(1984, 1984))
+assert np.array_equal(np.isnan(cpu), np.isnan(gpu))
+print(max(worst, float(np.nanmax(np.abs(cpu - gpu)))))
 '''
 
 
