@@ -484,24 +484,24 @@ def _fft2_into(x, out, workers, pool=None, blocks=(), rows=None):
     and then each row of their result in place, each row on its own; the rows' pass is
     then made over the wanted rows alone (the wanted rows hold the same numbers; the
     others hold the columns' pass only)."""
+    def copy_in():
+        _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
+        return out
+
     pfft = _pocketfft()
     if (pfft is not None and x.dtype == np.complex64 and out.dtype == np.complex64
             and x.shape == out.shape and x.ndim == 2 and x.flags.c_contiguous
             and out.flags.c_contiguous):
-        src = x
-        if "ducc" in pfft.__name__:
-            # ducc's transform from one array into another rounds otherwise than in place
-            # (as ``fft2`` transforms its copy): the copy, then in place
-            _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
-            src = out
+        # ducc's transform from one array into another rounds otherwise than in place (as
+        # ``fft2`` transforms its copy): the copy, then in place
+        src = copy_in() if "ducc" in pfft.__name__ else x
         if rows is None or bool(np.all(rows)):
             return pfft.c2c(src, (0, 1), True, 0, out, int(workers))
         pfft.c2c(src, (0,), True, 0, out, int(workers))
         for r in _runs(rows):
             pfft.c2c(out[r], (1,), True, 0, out[r], int(workers))
         return out
-    _by_rows(pool, blocks or [slice(0, x.shape[0])], lambda r: np.copyto(out[r], x[r]))
-    return sfft.fft2(out, workers=workers, overwrite_x=True)
+    return sfft.fft2(copy_in(), workers=workers, overwrite_x=True)
 
 
 _TF_CACHE: dict = {}

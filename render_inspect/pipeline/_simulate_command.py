@@ -23,7 +23,7 @@ from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_he
                   export_program, grid_attrs, level_count, set_store_attrs)
 from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_moments, plan_tiles,
                          prepare_cut, prepare_envelope, tiled_bytes)
-from ..processes import check_budget, process_of
+from ..processes import check_budget, map_figure_stride, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
 from ._figure_process import FigureProcess
@@ -38,8 +38,6 @@ __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
 log = logging.getLogger("render_inspect")
 
-#: largest side (points) of the following-error map of a tiled cut
-_FIGURE_POINTS = 440
 #: maps of more samples than this are simulated tile by tile whatever the memory budget
 #: (when the process can): the in-memory run would hold several GiB and write a
 #: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
@@ -247,7 +245,7 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
                              h_min=mat.h_min, kappa=mat.kappa, side_flow=mat.side_flow, edge=env.edge,
                              h_min_points=getattr(env, "h_min_points", None))
         # the following-error map of the pass that cut each point, on a coarse grid
-        stride = -(-max(shape) // _FIGURE_POINTS) if env.followed is not None else 0
+        stride = map_figure_stride(shape) if env.followed is not None else 0
         extra, _ = process.tiled_memory(cfg, plan)
         # with the material's burrs each tile is cut with the burr model's halo (the wider
         # one of a block with NaN pixels: the bound)

@@ -19,7 +19,7 @@ from ..core.plugins import import_private_modules
 from ._contract import (Cut, Envelope, Inputs, Plan, Process, SceneSections, SimulationSection, ToolSection, Traits,
                         Variant, VariantPair, section)
 from ._machine import MachineConfig, MaterialConfig, ProcessScene, machine_of, material_of
-from ._mechanics import BurrConfig, TurningInputs, turn
+from ._mechanics import BurrConfig, TurningInputs, map_figure_stride, turn
 from ._rcse import RcseConfig, RcseProcessConfig, rcse_comparison
 from ._registry import (
     DEFAULT_KIND,
@@ -73,7 +73,7 @@ __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", 
            "TiledTurningProcess", "TurningInputs", "StsProcessConfig", "ServoProcessConfig",
            "SculptProcessConfig", "RcseProcessConfig", "RcseConfig", "MachineConfig",
            "MaterialConfig", "BurrConfig", "VibrationConfig", "machine_of", "material_of",
-           "turn", "rcse_comparison", "lattice_lines", "compensation_variants",
+           "turn", "map_figure_stride", "rcse_comparison", "lattice_lines", "compensation_variants",
            "toolpath_facts", "plan_spiral", "machine_settings", "material_settings",
            "preset_settings", "random_parts", "RANDOM_PART_KEYS", "fit_paraboloid",
            "program_checks", "feed_per_rev", "feed_per_rev_table", "findings_summary"]
