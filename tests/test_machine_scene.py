@@ -148,6 +148,20 @@ def test_following_error_metrics_and_figures(tmp_path):
         assert (tmp_path / f).stat().st_size > 1000
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["following_error"]["x_max_nm"] == pytest.approx(fe["x_max_nm"])
+    # the machine as it ran, in the model's units (settings) and as [machine] keys in the
+    # scene's units (scene_settings): the same machine, and one a scene takes back
+    ran, keys = m["machine"]["settings"], m["machine"]["scene_settings"]
+    assert keys["c"]["noise_urad"] == pytest.approx(ran["c"]["noise_rms"] * 1e6)
+    assert keys["x"]["noise_nm"] == pytest.approx(ran["x"]["noise_rms"] * 1e6)
+    assert keys["errors"]["axial_async_nm"] == pytest.approx(ran["errors"]["axial_async_rms"] * 1e6)
+    for (n, a_nm, p_deg), (n0, a_mm, p_rad) in zip(keys["errors"]["axial_sync"], ran["errors"]["axial_sync"]):
+        assert (n, a_nm, p_deg) == (n0, pytest.approx(a_mm * 1e6), pytest.approx(math.degrees(p_rad)))
+    assert ran["errors"]["axial_sync"]
+    back = load_scene("sts_sinusoidal_grid", ["simulation.region=[0.3,0.3,0.45,0.45]",
+                                              f"machine.errors.axial_sync={keys['errors']['axial_sync']}",
+                                              f"machine.c.noise_urad={keys['c']['noise_urad']}"])
+    assert_allclose(machine_of(back.machine).to_dict()["errors"]["axial_sync"],
+                    ran["errors"]["axial_sync"], rtol=1e-12)
     # same scene, same seed: the same surface
     again = simulate(s)
     assert_allclose(again.heightmap.machined, sim.heightmap.machined, rtol=0, atol=0)

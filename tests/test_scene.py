@@ -87,6 +87,37 @@ def test_missing_file():
         load_scene("/nonexistent/scene.toml")
 
 
+@pytest.mark.parametrize("override, words", [
+    # an end that :g would round is shown with every digit (6.28319 would call 6.283186
+    # out of a range that seems to hold it)
+    ("render.interferometer.step_rad=6.283186", "in (0, 6.283185307179586); received 6.283186"),
+    # the cap on a number without a stated end keeps the end the key does state
+    ("process.inner_radius=2e9", "process.inner_radius: must be within [0, 1e+09], received"),
+    ("process.inner_radius=-1", "process.inner_radius: must be a finite number in [0, 1e+09]"),
+    # the items of an array are checked when the scene is read, each named
+    ("machine.errors.radial_sync=[[0, 5.0, 0.0]]", "machine.errors.radial_sync.0.0: must be an integer in [1, 100000]"),
+    ("machine.errors.axial_sync=[[2, 2e6, 0.0]]", "machine.errors.axial_sync.0.1: must be a finite number in [0, 1e+06]"),
+    ("machine.errors.vibration=[[0.0, 1.0, 'x', 0.0]]", "machine.errors.vibration.0.0: must be a finite number in (0, 1e+07]"),
+    ("render.interferometer.spectrum=[[550, -1]]", "render.interferometer.spectrum.0.1: must be a finite number in [0, 1e+09]"),
+    ("render.interferometer.spectrum=[[550, 1], [540, 1]]", "render.interferometer.spectrum: must have strictly increasing wavelengths, received [550.0, 540.0]"),
+    ("render.interferometer.spectrum=[[550, 0], [560, 0]]", "render.interferometer.spectrum: must have weights >= 0, not all zero"),
+    ("render.interferometer.field_of_view=[0.04, 0.04, -0.04, -0.04]",
+     "render.interferometer.field_of_view: must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0"),
+    # a check of the section itself names its key once
+    ("render.interferometer.illumination_na=0.95", "render.interferometer.illumination_na: must be <= the objective's NA"),
+    ("design={type='lenslet_rings', ring_radii=[-1.0, 0.5], counts=[1, 4], element_radius=0.1, depth=0.01}",
+     "design.ring_radii.0: must be a finite number in [0, 10000]; received -1.0"),
+    ("design={type='lenslet_rings', ring_radii=[0.0, 0.5], counts=[1, 0], element_radius=0.1, depth=0.01}",
+     "design.counts.1: must be an integer in [1, inf); received 0"),
+])
+def test_a_value_out_of_range_is_refused_when_the_scene_is_read(override, words):
+    with pytest.raises(SceneError) as e:
+        load_scene(GRID, [override])
+    msg = str(e.value)
+    assert words in msg, msg
+    assert "render.interferometer.render.interferometer" not in msg
+
+
 def test_scene_key_reference_is_current():
     """docs/scene_keys.md is generated from the schema; regenerate it with
     ``python -m render_inspect.scene.reference > docs/scene_keys.md``."""
@@ -96,6 +127,12 @@ def test_scene_key_reference_is_current():
     assert doc == scene_reference_markdown()
     for key in ("spindle_rpm", "nose_radius", "wavelength_nm", "amplitude_x", "region"):
         assert f"`{key}`" in doc
+    # the allowed column gives the loader's limits: the cap on an open end, the items' own
+    # range, every digit of an end that :g would round
+    assert "| `inner_radius` | number | 0.0 | >= 0, <= 1e+09 |" in doc
+    assert "| [number, number, number, number] | [-1.0, -1.0, 1.0, 1.0] | each >= -10000, <= 10000 |" in doc
+    assert "> 0, < 6.283185307179586 | PSI phase step" in doc
+    assert "at least 1 item, at most 10000 items, each >= 0, <= 10000 | mm, ring radii" in doc
 
 
 def test_shipped_scenes_are_found_by_name():

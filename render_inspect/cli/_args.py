@@ -128,6 +128,18 @@ def _add_out_args(p: argparse.ArgumentParser):
                    help="replace --out even if it holds files render-inspect did not write")
 
 
+def refuse_scene_in_out(args: argparse.Namespace) -> None:
+    """Refuse an output folder that holds the scene file (it would be deleted with the
+    folder; the files the scene reads are checked when the folder is opened)."""
+    if getattr(args, "out", None):
+        # (imported once the scene is read: a mistake in it is answered first)
+        from .. import pipeline
+        # (the schema, imported on first use as in scene_of)
+        from ..scene import find_scene
+
+        pipeline.refuse_inputs_inside(args.out, [find_scene(args.scene)])
+
+
 def scene_of(args: argparse.Namespace) -> Scene:
     """The scene a scene command runs on (``args.scene`` with the ``--set`` overrides)."""
     # (the collector is paused meanwhile: the schema's modules and classes live as long as
@@ -138,6 +150,7 @@ def scene_of(args: argparse.Namespace) -> Scene:
         from ..scene import load_scene, unit_warnings
 
         scene = load_scene(args.scene, scene_overrides(args))
+        refuse_scene_in_out(args)
     # values that are probably unit mistakes (a feed per revolution typed per minute, a
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):

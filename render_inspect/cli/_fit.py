@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
-                    _objective_names, _Registered, scene_overrides)
+                    _objective_names, _Registered, refuse_scene_in_out, scene_overrides)
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -93,6 +93,7 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
     from ..scene import load_scene
 
     scene = load_scene(args.scene, scene_overrides(args))
+    refuse_scene_in_out(args)
     # (imported once the input is checked)
     from .. import pipeline
 

@@ -15,7 +15,7 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["validation_line", "shown", "NUMERIC_ERRORS", "LIBRARY_WORDING"]
+__all__ = ["validation_line", "shown", "bound_text", "NUMERIC_ERRORS", "LIBRARY_WORDING"]
 
 #: error types about a number (the allowed range comes from the schema when it is known)
 NUMERIC_ERRORS = frozenset({
@@ -84,6 +84,17 @@ def shown(value: Any, limit: int = 80) -> str:
     except RecursionError:
         text = f"<{type(value).__name__} nested too deeply to show>"
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def bound_text(value: float) -> str:
+    """A range's end as a message shows it: short (``1e+09``, ``20000``) where that is the
+    very number, else every digit it needs (``6.283185307179586``, not ``6.28319``, which
+    would call a value just below the end out of range)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    v = float(value)
+    short = f"{v:g}"
+    return short if float(short) == v else repr(v)
 
 
 def _plural(n: Any, one: str, many: str) -> str:
@@ -181,6 +192,17 @@ def validation_line(e: Mapping[str, Any], *, key: str, expected: str | None = No
         received = t not in ("missing", "missing_argument", "missing_keyword_only_argument",
                              "missing_positional_only_argument", "missing_sentinel_error",
                              "default_factory_not_called", "extra_forbidden")
+    elif "discriminator" in ctx and isinstance(inp, dict):
+        # a registry's own union ("kind must be one of [...]"): the key is the
+        # discriminator, and the value received is its value
+        disc = str(ctx["discriminator"]).strip("'\"")
+        key = f"{key}.{disc}" if key else disc
+        text = _grammar(msg)
+        text = text[len(disc) + 1:] if text.startswith(disc + " ") else text
+        if disc in inp:
+            inp = inp[disc]
+        else:
+            text, received = f"is required ({text})", False
     elif t.startswith(_DATES):
         text = "must be a date or time (ISO 8601) in the allowed range"
     else:

@@ -23,6 +23,7 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .errors import SceneError
+from .messages import bound_text
 
 __all__ = ["Section", "Length", "Region", "Phase", "OrInfinity", "MAX_LENGTH_MM",
            "MAX_MAGNITUDE"]
@@ -89,12 +90,18 @@ def _as_tuples(annotation: Any, value: Any) -> Any:
     return value
 
 
-def _bounded(field: Any) -> tuple[bool, bool]:
-    """(has a lower bound, has an upper bound) from the field's constraints."""
-    lo = hi = False
+def _bounds(field: Any) -> tuple[str | None, str | None]:
+    """The field's own ends as a range shows them (``"[0"``, ``"1)"``; None: no end)."""
+    lo = hi = None
     for m in field.metadata:
-        lo |= getattr(m, "gt", None) is not None or getattr(m, "ge", None) is not None
-        hi |= getattr(m, "lt", None) is not None or getattr(m, "le", None) is not None
+        if getattr(m, "gt", None) is not None:
+            lo = f"({bound_text(m.gt)}"
+        elif getattr(m, "ge", None) is not None:
+            lo = f"[{bound_text(m.ge)}"
+        if getattr(m, "lt", None) is not None:
+            hi = f"{bound_text(m.lt)})"
+        elif getattr(m, "le", None) is not None:
+            hi = f"{bound_text(m.le)}]"
     return lo, hi
 
 
@@ -154,12 +161,12 @@ class Section(BaseModel):
     @model_validator(mode="after")
     def _magnitudes(self) -> "Section":
         for name, field in type(self).model_fields.items():
-            lo, hi = _bounded(field)
+            lo, hi = _bounds(field)
             if lo and hi:
                 continue
             for where, v in _numbers(getattr(self, name, None), name):
                 if math.isfinite(v) and ((not hi and v > MAX_MAGNITUDE)
                                          or (not lo and v < -MAX_MAGNITUDE)):
-                    raise ValueError(f"{where} must be within [-{MAX_MAGNITUDE:g}, "
-                                     f"{MAX_MAGNITUDE:g}], received {v!r}")
+                    raise ValueError(f"{where} must be within {lo or f'[-{MAX_MAGNITUDE:g}'}, "
+                                     f"{hi or f'{MAX_MAGNITUDE:g}]'}, received {v!r}")
         return self

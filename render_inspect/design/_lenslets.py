@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -417,8 +417,10 @@ MAX_RING_ELEMENTS = 1_000_000  # not a unit conversion
 class LensletRingsConfig(Section):
     """Lenslets (spherical elements) on concentric rings (the RCSE paper, 2024)."""
     type: Literal["lenslet_rings"]
-    ring_radii: list[Length] = Field(..., min_length=1, max_length=10_000, description="mm, ring radii")
-    counts: list[int] = Field(..., min_length=1, max_length=10_000, description="elements per ring")
+    ring_radii: list[Annotated[float, Field(ge=0, le=MAX_LENGTH_MM)]] = Field(
+        ..., min_length=1, max_length=10_000, description="mm, ring radii")
+    counts: list[Annotated[int, Field(ge=1)]] = Field(..., min_length=1, max_length=10_000,
+                                                       description="elements per ring")
     element_radius: float = Field(..., gt=0, description="mm, plane (aperture) radius of an element")
     depth: float = Field(..., gt=0, description="mm, sag of an element")
     concave: bool = True
@@ -430,10 +432,6 @@ class LensletRingsConfig(Section):
         if len(self.ring_radii) != len(self.counts):
             raise ValueError(f"ring_radii and counts must have the same length, received "
                              f"{len(self.ring_radii)} and {len(self.counts)}")
-        if any(r < 0 for r in self.ring_radii):
-            raise ValueError(f"ring_radii must be >= 0, received {self.ring_radii}")
-        if any(c < 1 for c in self.counts):
-            raise ValueError(f"counts must be >= 1, received {self.counts}")
         if self.depth >= self.element_radius:
             raise ValueError(f"depth must be < element_radius ({self.element_radius}), received {self.depth}")
         if any(c > MAX_RING_ELEMENTS for c in self.counts) or sum(self.counts) > MAX_RING_ELEMENTS:

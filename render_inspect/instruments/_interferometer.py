@@ -24,7 +24,7 @@ from pathlib import Path
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -47,7 +47,7 @@ from ._microscope import Disturbances, Microscope, recommended_subsamples
 from ._objectives import OBJECTIVES, objective, objective_names
 from ._sampling import (ALIAS_TOLERANCE_NM, SurfaceSpectrum, alias_onset, content_subsamples,
                         grid_subsamples, pupil_cutoff)
-from ._sources import led, monochromatic, spectrum_table
+from ._sources import led, monochromatic, spectrum_problem, spectrum_table
 
 __all__ = [
     "MAX_AUTO_SUBSAMPLES",
@@ -89,8 +89,8 @@ class InterferometerConfig(Section):
                                         description="source centre; default 550 (PSI) / 600 (CSI)")
     bandwidth_nm: float | None = Field(None, ge=0, lt=1000,
                                        description="source FWHM; default 10 (PSI) / 120 (CSI); 0 = a line")
-    spectrum: list[tuple[float, float]] | None = Field(
-        None, description="measured source spectrum [[wavelength_nm, weight], ...] (replaces "
+    spectrum: list[tuple[Annotated[float, Field(ge=200, le=2000)], Annotated[float, Field(ge=0)]]] | None = Field(
+        None, min_length=1, description="measured source spectrum [[wavelength_nm, weight], ...] (replaces "
                           "wavelength_nm / bandwidth_nm)")
     numerical_aperture: float | None = Field(None, gt=0, le=0.95, description="overrides the preset")
     illumination_na: float | None = Field(None, ge=0, le=0.95,
@@ -144,13 +144,19 @@ class InterferometerConfig(Section):
 
     @model_validator(mode="after")
     def _apertures(self):
+        if self.spectrum is not None and (why := spectrum_problem(*zip(*self.spectrum))):
+            raise ValueError(f"spectrum {why}")
+        fov = self.field_of_view
+        if fov is not None and not (fov[2] > fov[0] and fov[3] > fov[1]):
+            raise ValueError(f"field_of_view must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0 "
+                             f"(mm), received {list(fov)}")
         if self.bandwidth_nm is not None and 0 < self.bandwidth_nm < MIN_BANDWIDTH_NM:
-            raise ValueError(f"render.interferometer.bandwidth_nm must be 0 (a line) or >= "
+            raise ValueError(f"bandwidth_nm must be 0 (a line) or >= "
                              f"{MIN_BANDWIDTH_NM:g} nm, received {self.bandwidth_nm!r}")
         na = (self.numerical_aperture if self.numerical_aperture is not None
               else OBJECTIVES[self.objective].numerical_aperture)
         if self.illumination_na is not None and self.illumination_na > na:
-            raise ValueError(f"render.interferometer.illumination_na must be <= the objective's NA "
+            raise ValueError(f"illumination_na must be <= the objective's NA "
                              f"({na:g}), received {self.illumination_na:g}")
         return self
 
@@ -196,11 +202,7 @@ def microscope_from_config(icfg: InterferometerConfig) -> Microscope:
                     pixel=icfg.pixel, central_obscuration=icfg.central_obscuration)
     csi = icfg.mode == "csi"
     if icfg.spectrum is not None:
-        if len(icfg.spectrum) < 1:
-            raise InputError("render.interferometer.spectrum must list at least one "
-                             "[wavelength_nm, weight] pair")
-        lam, w = zip(*icfg.spectrum)
-        source = spectrum_table(lam, w)
+        source = spectrum_table(*zip(*icfg.spectrum))
     else:
         wl = icfg.wavelength_nm or (DEFAULT_CSI_WAVELENGTH_NM if csi else DEFAULT_PSI_WAVELENGTH_NM)
         bw = icfg.bandwidth_nm

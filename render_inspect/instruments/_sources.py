@@ -151,6 +151,20 @@ def led(wavelength_nm: float = 600.0, *, bandwidth_nm: float = 120.0) -> Source:
     return Source("led", float(wavelength_nm), float(bandwidth_nm))
 
 
+def spectrum_problem(wavelength_nm: ArrayLike, weight: ArrayLike) -> str | None:
+    """What is wrong with a tabulated spectrum (the same number of wavelengths and weights,
+    at least one), in words ("must have weights >= 0 ..."), or None."""
+    lam = np.asarray(wavelength_nm, dtype=np.float64).ravel()
+    w = np.asarray(weight, dtype=np.float64).ravel()
+    if not (np.all(np.isfinite(lam)) and lam.min() >= 200 and lam.max() <= 2000):
+        return f"must have wavelengths in [200, 2000] nm, received {lam.min():g} .. {lam.max():g}"
+    if lam.size > 1 and not np.all(np.diff(lam) > 0):
+        return f"must have strictly increasing wavelengths, received {lam.tolist()}"
+    if not (np.all(np.isfinite(w)) and w.min() >= 0 and w.max() > 0):
+        return f"must have weights >= 0, not all zero, received {w.tolist()}"
+    return None
+
+
 def spectrum_table(wavelength_nm: ArrayLike, weight: ArrayLike) -> Source:
     """A tabulated spectrum (e.g. an LED's datasheet curve).
 
@@ -167,13 +181,9 @@ def spectrum_table(wavelength_nm: ArrayLike, weight: ArrayLike) -> Source:
     if lam.shape != w.shape or lam.size < 1:
         raise InputError(f"spectrum table: wavelength_nm and weight must be 1-D arrays of one "
                          f"length >= 1, got {lam.shape} and {w.shape}")
-    if not (np.all(np.isfinite(lam)) and lam.min() >= 200 and lam.max() <= 2000):
-        raise InputError(f"spectrum table: wavelength_nm must lie in [200, 2000] nm, got "
-                         f"{lam.min():g} .. {lam.max():g}")
-    if lam.size > 1 and not np.all(np.diff(lam) > 0):
-        raise InputError("spectrum table: wavelength_nm must be strictly increasing")
-    if not (np.all(np.isfinite(w)) and w.min() >= 0 and w.max() > 0):
-        raise InputError("spectrum table: weight must be >= 0 and not all zero")
+    why = spectrum_problem(lam, w)
+    if why is not None:
+        raise InputError(f"spectrum table {why}")
     if lam.size == 1:
         return monochromatic(float(lam[0]))
     src = Source("table", 0.0, 0.0, tuple(lam.tolist()), tuple(w.tolist()))

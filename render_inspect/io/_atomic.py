@@ -91,11 +91,13 @@ from ._outdir_names import (
     _TEMP_FILE,
     _check_inputs,
     _check_link,
+    scene_files,
     _listing,
     _name_max,
     _own_temporary,
     _shown,
     check_output_path,
+    refuse_inputs_inside,
 )
 from ._outdir_swap import (
     _AT_FDCWD,
@@ -112,7 +114,7 @@ from ._outdir_swap import (
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "json_safe",
            "write_json", "atomic_output_dir", "check_output_path", "read_marker", "MARKER",
            "part_hash", "write_marker", "claim_output_dir", "check_output_dir",
-           "completed_outputs", "MARKER_VERSION", "open_lock_file"]
+           "completed_outputs", "MARKER_VERSION", "open_lock_file", "refuse_inputs_inside"]
 
 
 def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: tuple | None,
@@ -166,6 +168,7 @@ def check_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool = 
     out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
     target = check_output_path(out, option=option)
     _check_link(out_text, overwrite, option)
+    inputs = (*inputs, *scene_files(scene))
     _inspect_existing(target, overwrite=overwrite, merge=merge, part=_part_hashes(scene),
                       command=command, option=option, out_text=out_text, inputs=inputs)
     return target
@@ -202,7 +205,8 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
         The option named in error messages.
     inputs : sequence of paths
         The command's input files: an ``out`` that holds one is refused (it would be
-        deleted with the folder), even with ``overwrite``.
+        deleted with the folder), even with ``overwrite``; the files ``scene`` reads (its
+        height map design, measured tool edge, machine program) are inputs too.
 
     ``overwrite`` does not follow a symbolic link: an ``out`` that is a link is refused
     with it (give the folder itself).  On an exception (an interruption included) before
@@ -216,6 +220,9 @@ def atomic_output_dir(out: str | Path, *, overwrite: bool = False, merge: bool =
     out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
     target = check_output_path(out, option=option)
     _check_link(out_text, overwrite, option)
+    # (the files the scene reads too: a program or a height map in the folder would go
+    # with it)
+    inputs = (*inputs, *scene_files(scene))
     created = []
     p = target.parent
     while not p.exists():

@@ -37,6 +37,7 @@ from ..core.errors import InputError
 from ..core.limits import usable_cpus
 from ._atomic import _umask
 from ._limits import check_exr
+from ._native import library_messages
 from ._pyramid import heightmap_block_sums, level_count, means
 from ._write_errors import write_errors
 
@@ -191,7 +192,7 @@ def read_exr_overview(path: str | Path) -> tuple[dict[str, np.ndarray], int] | N
         # the overview is a reduced copy: never larger than the full map
         if (x1 - x0 + 1) * (y1 - y0 + 1) > h * w:
             raise InputError(f"EXR file {str(path)!r}: its overview part is larger than the map")
-        with OpenEXR.File(str(path), separate_channels=True) as f:
+        with library_messages(), OpenEXR.File(str(path), separate_channels=True) as f:
             p = f.parts[1]
             chans = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
                      for name, ch in p.channels.items()}
@@ -258,14 +259,15 @@ def read_exr(path: str | Path, *, what: str = "EXR file",
     if not path.is_file():
         raise InputError(f"{what}: EXR file not found: {str(path)!r}")
     check_exr(path, what=what, budget=budget)
+    held = None
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
+        with library_messages() as held, OpenEXR.File(str(path), separate_channels=True) as f:
             header = dict(f.header())
             channels = {name: np.array(ch.pixels, dtype=np.float32, copy=True)
                         for name, ch in f.channels().items()}
     except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged data
         raise InputError(f"{what} {str(path)!r} cannot be read: damaged or truncated EXR "
-                         f"({type(err).__name__}: {err})") from None
+                         f"({type(err).__name__}: {err}{held.summary() if held else ''})") from None
     exact = {}
     if "render_inspect_attrs_json" in header:
         try:

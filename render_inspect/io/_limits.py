@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ._native import library_messages
 from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError, MemoryBudgetError
 from ..core.limits import format_bytes, format_number, memory_budget
@@ -326,18 +327,19 @@ def check_exr(path: str | Path, *, what: str,
     import OpenEXR
 
     path = _file(path, what)
+    held = None
     try:
         with open(path, "rb") as fh:
             if fh.read(4) != b"\x76\x2f\x31\x01":
                 raise InputError(f"{what} {str(path)!r} is not an OpenEXR file (no EXR magic "
                                  f"number; an empty, truncated or other file)")
-        with OpenEXR.File(str(path), header_only=True) as f:
+        with library_messages() as held, OpenEXR.File(str(path), header_only=True) as f:
             header = dict(f.header())
     except InputError:
         raise
     except Exception as err:  # OpenEXR raises RuntimeError/ValueError/OSError on damaged files
         raise InputError(f"{what} {str(path)!r} is not a readable OpenEXR file "
-                         f"({type(err).__name__}: {err})") from None
+                         f"({type(err).__name__}: {err}{held.summary() if held else ''})") from None
     win: Any = header.get("dataWindow")  # what the file says; checked below
     chans = header.get("channels") or []
     try:

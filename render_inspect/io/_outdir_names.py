@@ -5,6 +5,8 @@ temporary names beside it, told apart from the user's files."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
 import os
 import re
 import stat
@@ -155,6 +157,40 @@ def _check_link(out_text: str, overwrite: bool, option: str) -> None:
         raise InputError(f"{option} {_shown(out_text)} is a symbolic link to "
                          f"{os.path.realpath(full)!r}; --overwrite does not replace the folder a "
                          f"link points to: give that folder itself as {option}, or remove the link")
+
+
+#: scene keys whose text value names a file the command reads (a height map design, its
+#: compound's parts, the measured tool edge, a machine program)
+_SCENE_FILE_KEYS = ("path", "edge_profile", "program")
+
+
+def scene_files(scene: Any) -> list[str]:
+    """The files a scene reads (the values of :data:`_SCENE_FILE_KEYS` anywhere in it), for
+    the check that an output folder holds none of them."""
+    if scene is None:
+        return []
+    d = scene.to_dict() if hasattr(scene, "to_dict") else scene
+    found: list[str] = []
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                if k in _SCENE_FILE_KEYS and isinstance(v, str) and v:
+                    found.append(v)
+                else:
+                    walk(v)
+
+    walk(d)
+    return found
+
+
+def refuse_inputs_inside(out: str | Path, inputs: Iterable[Any], option: str = "--out") -> None:
+    """Refuse ``out`` when it holds one of ``inputs`` (an existing folder that would be
+    replaced with the input in it); nothing is checked or made otherwise."""
+    out_text = os.fspath(out) if isinstance(out, (str, os.PathLike)) else str(out)
+    target = check_output_path(out, option=option)
+    if target.exists():
+        _check_inputs(target, inputs, option, out_text)
 
 
 def _check_inputs(target: Path, inputs, option: str, out_text: str) -> None:

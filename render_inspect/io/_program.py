@@ -33,6 +33,7 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc import read_nc, read_program_nc
+from ._special import not_a_file
 from ._program_kernel import c_move_times, feed_times, sample_moves, unwrap_c
 from ._program_scan import ScannedProgram, scan_program
 
@@ -104,8 +105,10 @@ def program_dialect(path: str | Path) -> str:
 
 def _check_path(path) -> Path:
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"process.program: file not found: {str(path)!r}")
+    why = not_a_file(path)
+    if why is not None:
+        raise InputError(f"process.program: {str(path)!r} {why}" if why != "not found"
+                         else f"process.program: file not found: {str(path)!r}")
     return path
 
 

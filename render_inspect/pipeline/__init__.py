@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ..instruments import interferogram_summary
-    from ..io import completed_outputs
+    from ..io import completed_outputs, refuse_inputs_inside
     from ..metrology import lenslet_metrics
     from ._analyze import ANALYZE_FILES, run_analyze
     from ._analyze_profile import PROFILE_FILES, run_analyze_profile
@@ -63,7 +63,7 @@ if TYPE_CHECKING:
 #: does not import the fit, the renderers' stages or the batch commands' own modules)
 _LAZY = {
     '..instruments': ('interferogram_summary',),
-    '..io': ('completed_outputs',),
+    '..io': ('completed_outputs', 'refuse_inputs_inside'),
     '..metrology': ('lenslet_metrics',),
     '._analyze': ('ANALYZE_FILES', 'run_analyze'),
     '._analyze_profile': ('PROFILE_FILES', 'run_analyze_profile'),
@@ -99,7 +99,7 @@ _LAZY = {
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
-__all__ = ["completed_outputs", "Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
+__all__ = ["completed_outputs", "refuse_inputs_inside", "Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
            "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES",
            "plan_program", "run_toolpath", "program_formats", "run_render", "render_heightmap", "render_kinds",
            "write_interferogram_outputs", "write_instrument_outputs", "write_diffuse_outputs",

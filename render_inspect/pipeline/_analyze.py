@@ -140,7 +140,8 @@ def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
         return run_analyze_profile(path, out, units=units, form=form, filter_spec=filter_spec,
                                    outliers=outliers, outlier_sigma=outlier_sigma,
                                    overwrite=overwrite)
-    if units is not None:
+    if units is not None and path.exists():
+        # (a file that is not there is named as such by the reader below)
         raise InputError(f"--units is for profile text files that do not state their units; "
                          f"{path.name} is an areal map, which states its own")
     check_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,))

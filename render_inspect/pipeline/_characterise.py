@@ -35,7 +35,9 @@ def characterise_instrument(icfg: InterferometerConfig, *, quick: bool = False,
 def run_characterise(icfg: InterferometerConfig, out: str | Path, *, quick: bool = False,
                      seed: int = 0,
                      overwrite: bool = False) -> dict:
-    """``render-inspect characterise --objective NAME --out DIR``.
+    """``render-inspect characterise``: the instrument ``icfg`` (an
+    :class:`~render_inspect.scene.InterferometerConfig`, e.g.
+    ``InterferometerConfig(objective="20x")``) characterised into ``out``.
 
     Parameters
     ----------

@@ -145,7 +145,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     out = Path(out)
     surface = measured if getattr(measured, "z", None) is not None else None
     inputs = () if surface is not None else (measured,)
-    check_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs)
+    check_output_dir(out, overwrite=overwrite, command="fit", scene=scene, inputs=inputs)
     keys = parse_free(free)
     for k in keys:
         if k == "simulation.region" or k.startswith("simulation.region."):
@@ -327,7 +327,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     record["model_check"] = {"before": before, "after": after,
                              "measured_starts": starts}
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
-    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=inputs) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", scene=scene, inputs=inputs) as tmp:
         tmp = Path(tmp)
         if predict:
             pred_scene = _predicted_scene(fitted, {}, predict, fill)

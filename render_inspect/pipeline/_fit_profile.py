@@ -191,7 +191,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     """
     t_all = time.perf_counter()
     out = Path(out)
-    check_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,))
+    check_output_dir(out, overwrite=overwrite, command="fit", scene=scene, inputs=(measured,))
     if at == "register":
         raise InputError("--at register is for a measured map; for a profile --at X,Y is the "
                          "fitted stretch's centre on the line")
@@ -395,7 +395,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             p["confident"] = p.get("stderr") is not None
     _random_part_verdicts(record, free_random, target, best)
     record["summary"] = profile_summary_lines(record)
-    with atomic_output_dir(out, overwrite=overwrite, command="fit", inputs=(measured,)) as tmp:
+    with atomic_output_dir(out, overwrite=overwrite, command="fit", scene=scene, inputs=(measured,)) as tmp:
         tmp = Path(tmp)
         s = prof.x[win["i0"]:win["i1"]] - prof.x[0]
         png = profile_overlay_figure(

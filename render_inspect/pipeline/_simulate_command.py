@@ -5,7 +5,7 @@ Zarr store (:func:`render_inspect.batch.run_tiles`), the metrics reduced across 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import json
 import logging
@@ -66,6 +66,15 @@ def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None 
         process.estimate_memory(cfg) > memory_budget(scene.simulation.max_memory_gb)[0]
 
 
+def _check_tile(tile: Any) -> None:
+    # at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
+    # chunk may hold, and the store could not be read back
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
+            and tile % 64 == 0):
+        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 16384] (a larger tile "
+                         f"makes zarr chunks over 1 GiB), received {tile!r}")
+
+
 def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
                  workers: int | None = None,
                  scheduler: str | None = None, tile: int = TILE, overwrite: bool = False,
@@ -86,6 +95,8 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
     starts, beside the computation (Linux; for the ``render-inspect`` program, whose
     process is its own: docs/performance.md, "Writing outputs"); else in a thread of this
     process."""
+    # (checked whichever path the map takes: a bad value is never passed over in silence)
+    _check_tile(tile)
     if wants_tiles(scene, tiled=tiled, workers=workers, scheduler=scheduler):
         return run_simulate_tiled(scene, out, workers=workers, scheduler=scheduler, tile=tile,
                                   overwrite=overwrite)
@@ -196,12 +207,7 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         raise InputError(refusal)
     traits = process.traits(cfg)
     sim = scene.simulation
-    # at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
-    # chunk may hold, and the store could not be read back
-    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
-            and tile % 64 == 0):
-        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 16384] (a larger tile "
-                         f"makes zarr chunks over 1 GiB), received {tile!r}")
+    _check_tile(tile)
     shape = grid_shape(sim.region, sim.pixel)
     origin = (float(sim.region[0]), float(sim.region[1]))
     surface = make_surface(scene.design)

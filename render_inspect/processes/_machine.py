@@ -12,7 +12,7 @@ machining units (mm, rad) here.
 from __future__ import annotations
 
 import math
-from typing import Any, Literal, Protocol
+from typing import Annotated, Any, Literal, Protocol
 
 from pydantic import Field, model_validator
 
@@ -59,20 +59,29 @@ class SpindleAxisConfig(Section):
     delay_s: float | None = Field(None, ge=0, le=10)
 
 
+#: a synchronous error motion's harmonic (once per turn = 1) and amplitude (nm, or urad
+#: for tilt: at most 1 mm or 1 rad, the model's own limits)
+Harmonic = Annotated[int, Field(ge=1, le=100_000)]
+SyncAmplitude = Annotated[float, Field(ge=0, le=1e6)]
+#: one synchronous error motion [harmonic, amplitude, phase_deg]
+SyncTerm = tuple[Harmonic, SyncAmplitude, float]
+
+
 class ErrorMotionsConfig(Section):
     """Spindle and slide error motions and tool-part vibration (tool relative to part)."""
-    radial_sync: list[tuple[int, float, float]] | None = Field(
+    radial_sync: list[SyncTerm] | None = Field(
         None, description="[[harmonic, amplitude_nm, phase_deg], ...] radial (X) synchronous")
     radial_async_nm: float | None = Field(None, ge=0, le=1e5, description="rms, radial asynchronous")
-    axial_sync: list[tuple[int, float, float]] | None = Field(
+    axial_sync: list[SyncTerm] | None = Field(
         None, description="[[harmonic, amplitude_nm, phase_deg], ...] axial (Z) synchronous")
     axial_async_nm: float | None = Field(None, ge=0, le=1e5, description="rms, axial asynchronous")
-    tilt_sync: list[tuple[int, float, float]] | None = Field(
+    tilt_sync: list[SyncTerm] | None = Field(
         None, description="[[harmonic, amplitude_urad, phase_deg], ...] tilt synchronous")
     async_bandwidth_hz: float | None = Field(None, gt=0, description="bandwidth of the asynchronous noise")
     x_straightness_nm: float | None = Field(None, ge=0, le=1e5, description="rms of the X slide's Z deviation")
     x_straightness_length: float | None = Field(None, gt=0, description="mm, its correlation length")
-    vibration: list[tuple[float, float, Literal["x", "y", "z"], float]] | None = Field(
+    vibration: list[tuple[Annotated[float, Field(gt=0, le=1e7)], SyncAmplitude,
+                          Literal["x", "y", "z"], float]] | None = Field(
         None, description="[[frequency_hz, amplitude_nm, direction, phase_deg], ...]")
 
 

@@ -54,6 +54,7 @@ from ._contract import Inputs, section
 from ._edge_facts import edge_facts
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._registry import register_section
+from ._settings import machine_settings
 from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
@@ -400,8 +401,11 @@ def follow(cfg: TurningInputs, path: Any, *,
         # a windowed plan: the errors of the passes over the window (between the sectors
         # the program is sparse and the loops settle)
         fp.errors = mask_outside_sector(fp.commanded["theta"], fp.errors, sector)
+    # (settings: the machining model's units, mm, rad and s; scene_settings: the
+    # [machine] keys and units, its preset's values filled in)
     facts = {"machine": {"preset": cfg.machine.preset, "ideal": fp.ideal,
-                         "settings": machine.to_dict(), "ticks": int(fp.t.size)}}
+                         "settings": machine.to_dict(), "scene_settings": machine_settings(cfg.machine),
+                         "ticks": int(fp.t.size)}}
     if sectors.get("full_rad") is not None and not fp.ideal:
         # the ticks the Z slide and the FTS were followed over (the rest: between sectors)
         facts["machine"]["ticks_in_sectors"] = fp.sector_ticks

@@ -71,8 +71,9 @@ class TurningProcessConfig(Section):
     workpiece_radius: float = Field(5.0, gt=0, le=500, description="mm, outer radius Rw of the spiral")
     inner_radius: float = Field(0.0, ge=0, description="mm, the spiral stops here")
     compensation: Literal["none", "normal", "z", "edge"] = Field(
-        "z", description="tool-radius compensation: none, normal, z (the circular nose) or edge "
-                         "(z against the measured edge of tool.edge_profile / tool.waviness; sts)")
+        "z", description="tool-radius compensation: none, normal, z (the circular nose) or, for "
+                         "kind = \"sts\" only, edge (z against the measured edge of "
+                         "tool.edge_profile / tool.waviness)")
     sampling: Literal["constant_angle", "constant_arc", "hybrid"] = "constant_angle"
     points_per_rev: int = Field(3600, ge=8, le=10_000_000, description="N, constant-angle sampling")
     arc_length: float = Field(0.005, gt=0, description="mm, constant-arc sampling step")

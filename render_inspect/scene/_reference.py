@@ -13,6 +13,9 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
+from ..core.annotations import annotation_bounds, unwrap_annotation
+from ..core.messages import bound_text
+from ..core.section import MAX_MAGNITUDE
 from ..processes import retired_keys
 from . import Scene
 
@@ -44,22 +47,49 @@ def _type_name(ann: typing.Any) -> str:
     return str(ann).replace("typing.", "")
 
 
+def _ends(ann: typing.Any, meta: list, capped: bool) -> str:
+    """A number's allowed range in words (">= 0, <= 1"); ``capped``: a float's open side
+    carries the schema's cap on numbers that state no range (+-MAX_MAGNITUDE)."""
+    if ann not in (int, float):
+        return ""
+    lo, hi, lo_open, hi_open = annotation_bounds(meta)
+    infinite = any(getattr(m, "allow_inf_nan", None) for m in meta)
+    if capped and ann is float:
+        if lo is None:
+            lo, lo_open = -MAX_MAGNITUDE, False
+        if hi is None:
+            hi, hi_open = MAX_MAGNITUDE, False
+    ends = []
+    if lo is not None:
+        ends.append(f"{'>' if lo_open else '>='} {bound_text(lo)}")
+    if hi is not None:
+        ends.append(f"{'<' if hi_open else '<='} {bound_text(hi)}")
+    text = ", ".join(ends)
+    return f"{text} (or inf)" if infinite and text else text
+
+
 def _range(field: FieldInfo) -> str:
-    lo = hi = ""
-    for m in field.metadata:
-        if isinstance(m, at.Gt):
-            lo = f"> {m.gt:g}"
-        elif isinstance(m, at.Ge):
-            lo = f">= {m.ge:g}"
-        elif isinstance(m, at.Lt):
-            hi = f"< {m.lt:g}"
-        elif isinstance(m, at.Le):
-            hi = f"<= {m.le:g}"
-        elif isinstance(m, at.MinLen):
-            lo = f"at least {m.min_length} items" if lo == "" else lo
+    """The allowed column: the number's range (with the cap the loader puts on an open
+    side, :data:`~render_inspect.core.section.MAX_MAGNITUDE`), an array's length and its
+    items' range."""
+    ann, meta = unwrap_annotation(field.annotation)
+    meta = list(field.metadata) + meta
+    lo_set, hi_set = (any(getattr(m, a, None) is not None for m in field.metadata for a in pair)
+                      for pair in (("gt", "ge"), ("lt", "le")))
+    capped = not (lo_set and hi_set)
+    parts = [_ends(ann, meta, capped)]
+    what = ("character", "characters") if ann is str else ("item", "items")
+    for m in meta:
+        if isinstance(m, at.MinLen):
+            parts.append(f"at least {m.min_length} {what[m.min_length != 1]}")
         elif isinstance(m, at.MaxLen):
-            hi = f"at most {m.max_length}" if hi == "" else hi
-    return ", ".join(x for x in (lo, hi) if x)
+            parts.append(f"at most {m.max_length} {what[m.max_length != 1]}")
+    if typing.get_origin(ann) in (list, tuple):
+        items = {_ends(*unwrap_annotation(a), capped) for a in typing.get_args(ann)
+                 if a is not Ellipsis}
+        if len(items) == 1 and (each := items.pop()):
+            parts.append(f"each {each}")
+    return ", ".join(p for p in parts if p)
 
 
 def _default(field: FieldInfo) -> str:
@@ -169,7 +199,10 @@ def scene_reference_markdown() -> str:
              "validates against (`python -m render_inspect.scene.reference`). Lengths are in "
              "mm; other units are in the key's name (`_deg`, `_nm`, `_hz`, `_s`). Any key can "
              "be overridden on the command line with `--set section.key=value` (TOML value "
-             "syntax). Unknown keys are errors.", ""]
+             "syntax). Unknown keys are errors. The allowed column gives the loader's limits; a "
+             "number whose key states no end of its own is held within +-1e9 all the same "
+             "(shown), positions and heights within +-10000 mm. Some keys are also checked "
+             "against each other (the table's meaning says which); the error names them.", ""]
     sections: list = []
     top: list[str] = []
     _table(Scene, "", top, sections)

@@ -16,9 +16,9 @@ from pydantic import BaseModel, Field, ValidationError, create_model, model_vali
 
 from ..core.annotations import annotation_bounds, unwrap_annotation
 from ..core.errors import SceneError
-from ..core.messages import NUMERIC_ERRORS, shown, validation_line
+from ..core.messages import NUMERIC_ERRORS, bound_text, shown, validation_line
 from ..core.units import MIB_TO_BYTES
-from ..core.section import Section
+from ..core.section import MAX_MAGNITUDE, Section
 from ..design import DesignConfig, design_types
 from ..instruments import InterferometerConfig, objective_names
 from ..processes import (BurrConfig, MachineConfig, MaterialConfig, ProcessConfig, RcseConfig,
@@ -169,10 +169,16 @@ def _expected(loc: tuple[int | str, ...]) -> str | None:
     lo, hi, lo_open, hi_open = annotation_bounds(meta)
     infinite = any(getattr(m, "allow_inf_nan", None) for m in meta)  # OrInfinity
     kind = "an integer" if ann is int else "a number" if infinite else "a finite number"
+    if ann is float:
+        # (the cap every number field has where its key states no end: core.section)
+        if lo is None:
+            lo, lo_open = -MAX_MAGNITUDE, False
+        if hi is None and not infinite:
+            hi, hi_open = MAX_MAGNITUDE, False
     if lo is None and hi is None:
         return kind
-    lo_s = "-inf" if lo is None else f"{lo:g}"
-    hi_s = "inf" if hi is None else f"{hi:g}"
+    lo_s = "-inf" if lo is None else bound_text(lo)
+    hi_s = "inf" if hi is None else bound_text(hi)
     return (f"{kind} in {'(' if lo_open or lo is None else '['}{lo_s}, {hi_s}"
             f"{')' if hi_open or (hi is None and not infinite) else ']'}")
 
@@ -377,7 +383,8 @@ def shipped_scenes() -> dict[str, Path]:
 
 def find_scene(name_or_path: str | Path) -> Path:
     """A scene file: ``name_or_path`` itself when it is a file, else the shipped scene of
-    that name (``sts_sinusoidal_grid`` or ``sts_sinusoidal_grid.toml``)."""
+    that name (``sts_sinusoidal_grid`` or ``sts_sinusoidal_grid.toml``; a folder of that
+    name in the working folder does not hide it)."""
     text = str(name_or_path)
     if not text.strip():
         raise SceneError("scene: give a scene file (.toml) or the name of a shipped scene, "
@@ -390,7 +397,9 @@ def find_scene(name_or_path: str | Path) -> Path:
             return path
         shipped = shipped_scenes()
         key = path.name[:-5] if path.name.endswith(".toml") else path.name
-        if path.parent == Path(".") and key in shipped and not path.exists():
+        # (a folder of that name, an output folder named after the scene, is not a scene:
+        # the bare name still means the shipped scene)
+        if path.parent == Path(".") and key in shipped:
             return shipped[key]
         if path.is_dir():
             raise SceneError(f"scene: {text!r} is a folder; give a scene file (.toml) or the "

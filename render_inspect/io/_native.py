@@ -1,0 +1,78 @@
+"""What a library's C code prints on its own while it reads a file, held back.
+
+OpenEXR's C core reports a damaged file on the process's standard error itself (``file.exr:
+(EXR_ERR_BAD_CHUNK_LEADER) Corrupt tile ...``) before the Python binding raises its own
+error, so a damaged file would give a user two lines, one of them the library's.
+:func:`library_messages` sends what is written to the standard error's file descriptor
+meanwhile (and to the standard output's, where the binding prints its warnings) to
+temporary files: the reader puts the library's text into its own one-line
+error, and when the read succeeds the text is written out as it came (a line another thread
+printed meanwhile, such as a progress bar's, is delayed, not lost).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
+
+__all__ = ["library_messages"]
+
+#: at most this much of the library's text is put into an error line
+_SHOWN = 300
+
+
+class Held:
+    """The text held back (:attr:`text`, set when the block ends)."""
+
+    text = ""
+
+    def summary(self) -> str:
+        """The held text as the end of one line, each distinct line once: "; the library:
+        ..." (empty when none)."""
+        lines = list(dict.fromkeys(" ".join(ln.split()) for ln in self.text.splitlines()))
+        t = " / ".join(ln for ln in lines if ln)
+        if not t:
+            return ""
+        return f"; the library: {t if len(t) <= _SHOWN else t[:_SHOWN - 3] + '...'}"
+
+
+@contextlib.contextmanager
+def library_messages() -> Iterator[Held]:
+    """Hold back what is written to file descriptors 1 and 2 in the block (see the module
+    docstring; OpenEXR's binding prints its warnings on the standard output); the yielded
+    object's ``text`` holds both once the block ends.  On an exception the text is not
+    written out (the caller's error says it); otherwise it is, each to its own stream."""
+    held = Held()
+    streams = ((1, sys.stdout), (2, sys.stderr))
+    saved: list[int] = []
+    try:
+        for fd, stream in streams:
+            stream.flush()
+            saved.append(os.dup(fd))
+    except (OSError, ValueError, AttributeError):  # no such stream to redirect
+        for s in saved:
+            os.close(s)
+        yield held
+        return
+    ok = False
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        tmps = (out, err)
+        try:
+            for (fd, _), tmp in zip(streams, tmps):
+                os.dup2(tmp.fileno(), fd)
+            yield held
+            ok = True
+        finally:
+            texts = []
+            for (fd, stream), tmp, s in zip(streams, tmps, saved):
+                os.dup2(s, fd)
+                os.close(s)
+                tmp.seek(0)
+                texts.append(tmp.read().decode("utf-8", "replace"))
+                if ok and texts[-1]:
+                    stream.write(texts[-1])
+                    stream.flush()
+            held.text = "".join(texts)
