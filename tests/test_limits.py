@@ -565,3 +565,35 @@ def test_usable_cpus_follows_the_cpu_affinity():
         assert usable_cpus() == 1
     finally:
         os.sched_setaffinity(0, cpus)
+
+
+def test_the_tiled_refusal_names_a_tile_that_fits_or_what_holds_the_memory():
+    """The advice is worked out with the estimate itself: the largest --tile (a multiple of
+    64) that fits; where none does because the burr model's halo holds the memory, the
+    pixel and the burrs are named, not --tile."""
+    from render_inspect.core.errors import MemoryBudgetError
+    from render_inspect.pipeline._simulate_command import _tiled_check
+    from render_inspect.scene import load_scene
+
+    sim = load_scene("sts_sinusoidal_grid", ["simulation.max_memory_gb=1"]).simulation
+    gib = 1 << 30
+
+    def plain(t, k):  # a fixed part and the tiles' share
+        return int(0.2 * gib + k * t * t * 1500)
+
+    with pytest.raises(MemoryBudgetError) as e:
+        _tiled_check(sim, plain, tile=1024, in_flight=2, points=10, workers=None, scheduler=None)
+    fit = int(str(e.value).split("--tile ")[1].split(" ")[0])
+    assert fit % 64 == 0 and plain(fit, 2) <= gib < plain(fit + 64, 2), str(e.value)
+    assert _tiled_check(sim, plain, tile=fit, in_flight=2, points=10, workers=None,
+                        scheduler=None) == plain(fit, 2)
+
+    def halo(t, k):  # a block of 26 000 pixels around each tile: no tile fits
+        return k * (t + 2 * 26_000) ** 2 * 100
+
+    with pytest.raises(MemoryBudgetError) as e:
+        _tiled_check(sim, halo, tile=1024, in_flight=2, points=10, workers=None, scheduler=None,
+                     halo=26_000)
+    msg = str(e.value)
+    assert "--tile" not in msg.split("would need")[1] and "simulation.pixel" in msg \
+        and "material.burrs = false" in msg, msg

@@ -254,3 +254,45 @@ def test_log_lines_go_to_the_stderr_of_the_moment(capsys):
     err = capsys.readouterr().err
     assert "warning: process.feed_mm_per_min = 0.01 (100 % too slow)" in err
     assert "Logging error" not in err
+
+
+def test_a_registry_kind_names_its_key_and_the_value_received():
+    from render_inspect.errors import SceneError
+    from render_inspect.scene import load_scene
+
+    for value, shown in (("'STS'", "'STS'"), ("1", "1")):
+        with pytest.raises(SceneError) as e:
+            load_scene("sts_sinusoidal_grid", [f"process.kind={value}"])
+        assert "process.kind: must be one of ['fts', 'hts', 'rcse', 'sculpt', 'sts']; received " \
+            + shown in str(e.value), str(e.value)
+
+
+def test_a_damaged_exr_is_one_line_with_the_librarys_words(tmp_path, capfd):
+    """OpenEXR's C core and binding print their own lines on a damaged file: held back and
+    put into the one error line (a whole file's reading prints nothing extra)."""
+    import numpy as np
+
+    from render_inspect.errors import InputError
+    from render_inspect.io import read_exr, write_exr
+
+    good = tmp_path / "good.exr"
+    write_exr(good, {"z": np.arange(256 * 256, dtype=np.float32).reshape(256, 256)}, tile=64)
+    read_exr(good)
+    assert capfd.readouterr() == ("", "")
+    bad = tmp_path / "bad.exr"
+    data = good.read_bytes()
+    bad.write_bytes(data[:len(data) // 2])
+    with pytest.raises(InputError) as e:
+        read_exr(bad)
+    out, err = capfd.readouterr()
+    assert (out, err) == ("", ""), (out, err)
+    assert "damaged or truncated EXR" in str(e.value) and "the library:" in str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_a_program_that_is_a_folder_is_named_as_one(tmp_path):
+    from render_inspect.errors import InputError
+    from render_inspect.io import read_program
+
+    with pytest.raises(InputError, match=r"process.program: '.*' is a folder, not a file"):
+        read_program(tmp_path)

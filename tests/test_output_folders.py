@@ -21,7 +21,8 @@ from render_inspect import cli
 from render_inspect.errors import InputError
 from render_inspect.io import MARKER, atomic_output_dir, check_output_path, read_marker
 from render_inspect.pipeline import run_simulate
-from render_inspect.scene import load_scene
+from render_inspect.io._outdir_names import scene_files
+from render_inspect.scene import find_scene, load_scene
 
 SMALL = ["simulation.region=[-0.05,-0.05,0.05,0.05]", "simulation.pixel=0.005",
          "process.workpiece_radius=0.6"]
@@ -679,3 +680,52 @@ def test_a_signal_during_the_swap_is_held_and_reported_truthfully(tmp_path, sig,
     assert f"the output folder {out} had been written completely" in r.stderr
     assert read_marker(out) != old and (out / "toolpath.npz").exists()
     assert _leftovers(tmp_path) == []
+
+
+# ------------------------------------------------------------------ inputs in the folder
+def test_the_scene_and_the_files_it_reads_are_never_deleted_with_the_folder(tmp_path, capsys,
+                                                                            monkeypatch):
+    """The scene file, a program given with --program, a height map design and a measured
+    tool edge inside --out: refused in one line (exit 1), even with --overwrite, the file
+    kept; the same from the Python API."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "o"
+    rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", out, "--format", "nc",
+                    *(a for s in SMALL for a in ("--set", s)))
+    assert rc == 0 and (out / "toolpath.nc").is_file()
+    program = (out / "toolpath.nc").read_bytes()
+    scene_text = find_scene("sts_sinusoidal_grid").read_text()
+    (out / "my.toml").write_text(scene_text)
+    sets = [a for s in SMALL for a in ("--set", s)]
+    for argv in (["simulate", out / "my.toml", "--out", out, "--overwrite", *sets],
+                 ["toolpath", out / "my.toml", "--out", out, "--overwrite", *sets],
+                 ["fit", tmp_path / "m.csv", "--scene", out / "my.toml", "--free", "tool.nose_radius",
+                  "--out", out, "--overwrite"],
+                 # (no --overwrite needed to lose it: the folder is render_inspect's own)
+                 ["simulate", "sts_sinusoidal_grid", "--program", out / "toolpath.nc", "--out", out,
+                  *sets]):
+        rc, err = _main(capsys, *argv)
+        assert rc == 1 and "holds the input" in err and len(err.strip().splitlines()) == 1, err
+    assert (out / "toolpath.nc").read_bytes() == program and (out / "my.toml").read_text() == scene_text
+    # the files a scene reads, through the API: a height map design, a measured edge
+    for key, value in (("design", {"type": "heightmap", "path": str(out / "toolpath.nc")}),
+                       ("tool.edge_profile", str(out / "toolpath.nc"))):
+        scene = load_scene("sts_sinusoidal_grid", SMALL)
+        d = scene.to_dict()
+        if key == "design":
+            d["design"] = value
+        else:
+            d["tool"]["edge_profile"] = value
+        assert str(out / "toolpath.nc") in scene_files(d)
+        with pytest.raises(InputError, match="holds the input"):
+            with atomic_output_dir(out, overwrite=True, scene=d):
+                pass
+    assert (out / "toolpath.nc").read_bytes() == program
+
+
+def test_a_folder_named_after_a_shipped_scene_does_not_hide_it(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sts_sinusoidal_grid").mkdir()
+    rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", tmp_path / "t",
+                    *(a for s in SMALL for a in ("--set", s)))
+    assert rc == 0, err

@@ -246,12 +246,14 @@ def test_registration_is_bounded_by_the_spindle_axis_on_the_line():
     s_meas = np.arange(0, 0.6 + step / 2, step)
     cm = 0.2 + 0.0105  # the measured mirror centre, 10.5 um off where the line put it
     z_meas = scallops(s_meas, cm) + rng.normal(0, 2e-6, s_meas.size)
-    shift, corr, how = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f,
-                                 axis_s=axis_s)
+    shift, corr, how, null = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f,
+                                       axis_s=axis_s)
     assert "mirror centre" in how and "spindle axis" in how and corr > 0.9
+    # (the correlation an unrelated profile of the same spectrum reaches in that search)
+    assert null is not None and -1.0 <= null <= 1.0
     assert shift == pytest.approx(axis_s - cm, abs=2 * step)
     # without the axis the search is bounded by the heights' centre alone
-    shift, corr, how = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f)
+    shift, corr, how, _ = _register(s_meas, z_meas, s_sim, z_sim, spacing=step, period=f)
     assert "spindle axis" not in how and "mirror centre" in how
 
     scene = load_scene(SCENES / "sts_sinusoidal_grid.toml", [])

@@ -144,3 +144,14 @@ def test_shipped_scenes_are_found_by_name():
     assert load_scene("sts_fig16_overcut.toml").name == "sts_fig16_overcut"
     with pytest.raises(SceneError, match="shipped scene"):
         find_scene("no_such_scene")
+
+
+def test_a_table_given_with_set_changes_its_keys_and_keeps_the_others():
+    s = load_scene(GRID, ["tool.nose_radius=0.3", "tool={included_angle_deg=60}"])
+    assert (s.tool.nose_radius, s.tool.included_angle_deg) == (0.3, 60.0)
+    base = load_scene(GRID)
+    s = load_scene(GRID, ["machine={x={bandwidth_hz=40.0}}"])
+    assert s.machine.x.bandwidth_hz == 40.0 and s.machine.preset == base.machine.preset
+    # another type or kind: the section is replaced (the old type's keys do not apply)
+    s = load_scene(GRID, ["design={type='sphere', radius=20.0}"])
+    assert s.design.type == "sphere" and s.design.radius == 20.0

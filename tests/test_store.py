@@ -247,3 +247,16 @@ def test_render_reads_the_store_simulate_wrote_whatever_the_budget(tmp_path):
     with pytest.raises(InputError, match="of a different part"):
         run_render(load_scene("sts_sinusoidal_grid", over + ["tool.nose_radius=0.4"]), out,
                    kind="interferometer")
+
+
+def test_a_store_that_lost_chunks_since_it_was_written_is_refused(tmp_path):
+    """zarr reads a missing chunk as empty (NaN): a store cut short would pass for a map
+    with unmeasured points.  The chunk files are counted when the store is written and
+    again when it is read."""
+    path = _store(tmp_path, np.random.default_rng(1).normal(size=(128, 128)) * 1e-6, chunk=32)
+    assert ZarrHeightMap(path).shape == (128, 128)
+    chunk = next(p for p in sorted((path / "machined" / "c").rglob("*")) if p.is_file())
+    chunk.unlink()
+    with pytest.raises(InputError, match=r"array 'machined' holds 15 chunk files, 16 when the "
+                                         r"store was written: chunks are missing"):
+        ZarrHeightMap(path)

@@ -54,7 +54,7 @@ CASES = [("1021", -0.30, 0.3, "process.feed_mm_per_min", False),
          ("1021", -0.30, 0.3, "tool.nose_radius", True)]
 #: the evaluations a fit may take: of one arm, of both arms (each of whose evaluations
 #: simulates two stretches; a fit that converges stops before)
-MAX_EVALUATIONS = {"one": 40, "both": 60}
+MAX_EVALUATIONS = {"one": 45, "both": 70}
 #: feed per revolution of 1016 by its program's name ("x0.01"), mm
 FEED_1016 = 0.01
 RPM = 100.0
@@ -252,7 +252,8 @@ def arms_available(part, xc, w, free, program):
     """Whether ``fit`` fits the window on both arms by default (no fit): (bool, why not)."""
     from render_inspect.fit._profile import ProfileSpec, make_profile_target
     from render_inspect.io import read_profile
-    from render_inspect.pipeline._fit_profile import other_arm_window, profile_window
+    from render_inspect.pipeline._fit_profile import profile_window
+    from render_inspect.pipeline._fit_profile_arms import other_arm_window
 
     prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
     scene = _scene(part, program, free)
@@ -410,6 +411,16 @@ def arms_table(data: dict) -> str:
         if r.get("arms") != "both" or not a or a.get("window_arm") is None:
             continue
         w, o = a["arms"]
+        if not r["one_family"]:
+            # not a measurement: the arms' own values and their difference, no standard
+            # error of any kind
+            na = "n/a (not a measurement)"
+            lines.append(
+                f"| {r['part']} | {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | "
+                f"{_f(w['measured_period_um'])} / {_f(o['measured_period_um'])} | "
+                f"{a['window_arm']:.4g} | {a['other_arm']:.4g} | "
+                f"{100 * a['difference_relative']:+.1f} % | {na} | {na} | {na} | {na} |")
+            continue
         lines.append(
             f"| {r['part']} | {r['radii_mm'][0]:.2f}-{r['radii_mm'][1]:.2f} | "
             f"{_f(w['measured_period_um'])} / {_f(o['measured_period_um'])} | "

@@ -77,7 +77,12 @@ def add_parsers(sub: Any) -> None:
                         "narrowed to half and twice the start) before the local fit "
                         "(default 8; 0: the scene's and the measurement's starts only)")
     p.add_argument("--max-evaluations", dest="max_evaluations", type=int, default=150,
-                   metavar="N", help="largest number of evaluations (default 150)")
+                   metavar="N", help="largest number of evaluations of the scene at trial values, "
+                        "a hard limit: the search, the standard errors' differences (5 per "
+                        "free key are kept for them), the misfit profiles and, on both arms, "
+                        "each arm's own estimate all count; the realisations of the camera's "
+                        "noise at the scene's values, made once before the fit, do not "
+                        "(default 150)")
     p.add_argument("--profile-points", dest="profile_points", type=int, default=3, metavar="N",
                    help="points either side of the solution along each parameter (misfit.png)")
     p.add_argument("--cache", default=None, metavar="DIR",

@@ -21,9 +21,10 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
     scene = metrics.get("scene", {}).get("name", "")
     t = Table(title=f"render-inspect compare: {scene} ({seconds:.0f} s)", title_justify="left",
               show_edge=False)
-    t.add_column("")
-    t.add_column(va, justify="right")
-    t.add_column(vb, justify="right")
+    # long names (a program file's) fold onto a second line rather than being cut short
+    t.add_column("", overflow="fold")
+    t.add_column(va, justify="right", overflow="fold")
+    t.add_column(vb, justify="right", overflow="fold")
     for r in rows:
         t.add_row(*r)
     con.print(t)
@@ -38,8 +39,35 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
               soft_wrap=True, markup=False)
 
 
-#: commands whose summary rows pipeline.command_summary gives
-ROW_SUMMARIES = ("toolpath", "characterise", "render")
+def _print_profile_compare_summary(metrics: dict, out: str, seconds: float) -> None:
+    """``compare --measured PROFILE``: the three profiles' parameters side by side, the
+    registration, the warnings and the path of report.html."""
+    from rich.console import Console
+    from rich.table import Table
+
+    # the pipeline is imported lazily (see _run)
+    from ..pipeline import PROFILE_COLUMNS, profile_compare_summary
+
+    con = Console(file=sys.stdout, highlight=False)
+    rows, lines = profile_compare_summary(metrics)
+    name = Path(str((metrics.get("input") or {}).get("path", ""))).name
+    t = Table(title=f"render-inspect compare: {name} against {metrics.get('scene', '')} "
+                    f"({seconds:.0f} s)", title_justify="left", show_edge=False)
+    t.add_column("", overflow="fold")
+    for _, head in PROFILE_COLUMNS:
+        t.add_column(head, justify="right", overflow="fold")
+    for r in rows:
+        t.add_row(*r)
+    con.print(t)
+    for line in lines:
+        con.print(line, soft_wrap=True, markup=False)
+    con.print(f"report: {str((Path(out) / 'report.html').resolve())}", soft_wrap=True,
+              markup=False)
+
+
+#: commands whose summary rows pipeline.command_summary gives (compare: only
+#: ``compare --measured PROFILE`` comes here, the other compares have "variants")
+ROW_SUMMARIES = ("toolpath", "characterise", "render", "compare")
 
 
 def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
@@ -51,6 +79,10 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
     # the pipeline is imported lazily (see _run)
     from ..pipeline import analyze_summary, command_summary, measure_summary
 
+    if command == "compare":
+        if metrics.get("kind") == "profile":
+            _print_profile_compare_summary(metrics, out, seconds)
+        return
     src: Any  # where the numbers come from: the output folder, or the input file
     if command in ROW_SUMMARIES:
         rows, src = command_summary(command, metrics, out), out

@@ -10,7 +10,8 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 * :class:`MisfitSpec`, :func:`make_target`, :func:`residual_vector`: the robust misfit with
   its spectral terms (:mod:`._features`);
 * :class:`Evaluator`, :func:`solve`: the bounded least-squares fit with its evaluations in
-  batches on Dask, cached by the hash of each evaluation (:mod:`._solve`, :mod:`._cache`);
+  batches on Dask, cached by the hash of each evaluation (:mod:`._solve`, :mod:`._evaluator`,
+  :mod:`._cache`), all within ``--max-evaluations`` (:mod:`._budget`);
 * :func:`fit_window`, :func:`register_field`: where the measured field lies (:mod:`._placement`);
 * :func:`check_before`, :func:`check_after`, :func:`profile_marks`: whether the scene
   describes the measurement at all (:mod:`._checks`);
@@ -37,7 +38,9 @@ from ._profile_psd import amplitude_scan
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
 from ._local import run_local
-from ._solve import UNRESOLVED, BudgetExhausted, Evaluation, Evaluator, FitResult, solve
+from ._budget import BudgetExhausted
+from ._evaluator import Evaluation, Evaluator
+from ._solve import UNRESOLVED, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
 from ._weights import check_weights, parse_weights

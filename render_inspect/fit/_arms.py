@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ._budget import BudgetExhausted
 from ._features import robust_weights, soft_l1
 from ._profile import (ProfilePrediction, ProfileSpec, ProfileTarget, predict_profile_features,
                        profile_realisation_shifts, profile_residual_vector,
@@ -216,7 +217,8 @@ def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.n
     arm's (``F_arm``) and of both arms' (``F``) residuals, weighted as the joint fit's
     covariance weights them (the soft-L1 loss's re-weighting at the solution), J by central
     differences over one step.  Costs ``2 reach`` evaluations per free key, and more where
-    an arm's minimum lies beyond them."""
+    an arm's minimum lies beyond them; all within ``evaluator.max_evaluations`` (an error
+    where it is reached first)."""
     target: ArmsTarget = evaluator.target
     x0 = np.asarray(values, dtype=np.float64)
     n = x0.size
@@ -239,9 +241,15 @@ def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.n
             pts.append(x)
         return pts, evaluator.evaluate(pts, budget=False)
 
+    cap = getattr(evaluator, "max_evaluations", None)
+    over = {"error": f"--max-evaluations {cap} was reached before each arm's own minimum "
+                     f"was found", "budget": True}
     for i in range(n):
         steps = [st for st in range(-reach, reach + 1) if st != 0]
-        pts, evs = at(i, steps)
+        try:
+            pts, evs = at(i, steps)
+        except BudgetExhausted:
+            return over
         bad = [e.error for e in evs if e.error is not None]
         if bad:
             return {"error": f"an evaluation about the solution failed: {bad[0]}"}
@@ -265,7 +273,10 @@ def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.n
             new = sorted({st + (1 if st > 0 else -1) for st in ends} - set(sample))
             if not new:
                 break
-            p2, e2 = at(i, new)
+            try:
+                p2, e2 = at(i, new)
+            except BudgetExhausted:
+                return over
             for st, x, e in zip(new, p2, e2):
                 if e.error is None:
                     sample[st] = (x[i], _arm_costs(e.height, target, e.values))
@@ -318,10 +329,16 @@ def combine_arms(value: float, stderr: float, a: float, sa: float, b: float,
 
 
 def arms_text(key: str, comb: dict, a: float, b: float, *, unit: float = 1.0,
-              name: str = "") -> str:
-    """The arms' disagreement in words for the summary."""
+              name: str = "", stderr: bool = True) -> str:
+    """The arms' disagreement in words for the summary (``stderr`` False: the fit gives no
+    standard error, its marks not being a measurement, and none is printed)."""
     rel = comb["difference_relative"]
     what = name or key
+    if not stderr:
+        return (f"{what}: the window's arm {a * unit:.5g}, the other arm {b * unit:.5g} "
+                f"(they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}; no "
+                f"standard error: the marks are not one periodic family, the values are "
+                f"not a measurement)")
     text = (f"{what}: the window's arm {a * unit:.5g}, the other arm {b * unit:.5g} "
             f"(they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}, "
             f"{comb['difference_over_stderr']:.2g} times the difference's standard error)")

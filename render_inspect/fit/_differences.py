@@ -1,14 +1,17 @@
 """The fit's finite differences: the Jacobian the local solve refines its steps with
 (:func:`_jacobian`) and the smoothed central differences its standard errors are taken
-from (:func:`_smoothed`).  ``ev`` / ``evaluator``: the fit's
-:class:`~render_inspect.fit._solve.Evaluator`."""
+from (:func:`_smoothed`), both within what the search left of ``--max-evaluations``
+(:func:`stderr_differences`).  ``ev`` / ``evaluator``: the fit's
+:class:`~render_inspect.fit.Evaluator`."""
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from ._budget import BudgetExhausted
 from ._uncertainty import SINGULAR
 
 
@@ -110,3 +113,28 @@ def _smoothed(evaluator, u, lo, hi, spans, sw):
     # the information matrix) has no minimum to move to
     step = -(np.linalg.pinv(j, rcond=math.sqrt(SINGULAR)) @ np.mean(means, axis=0))
     return j, step, np.array(used)
+
+
+def stderr_differences(evaluator: Any, u: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                       steps: np.ndarray, fd_step: float, sw: np.ndarray
+                       ) -> tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
+    """The differences the standard errors are taken from at the result ``u`` (scaled
+    units), out of what the search left of ``--max-evaluations`` (never past it): the
+    forward-difference Jacobian over the solver's ``steps`` (:func:`_jacobian`), and the
+    central differences over the solver's step and over ``fd_step``, whichever is the less
+    steep, with the step to the minimum of the misfit smoothed over them
+    (:func:`_smoothed`).
+
+    Returns (the Jacobian, or None where the budget left too few evaluations for the
+    differences; (the smoothed Jacobian, its step in scaled units), or None where a key has
+    no central pair inside the bounds, an evaluation failed or the budget ran out)."""
+    try:
+        j = _jacobian(evaluator, u, lo, hi, steps, sw)
+    except BudgetExhausted:
+        return None, None
+    try:
+        j_smooth, step, _ = _smoothed(evaluator, u, lo, hi,
+                                      [(steps[i], float(fd_step)) for i in range(u.size)], sw)
+    except BudgetExhausted:
+        return None, None
+    return j, (None if j_smooth is None or step is None else (j_smooth, step))

@@ -101,6 +101,13 @@ def fit_record(result: FitResult, *, target: Target | ProfileTarget,
                                                "map (linearised)",
                         "realisations": int(result.realisations)},
         "evaluations": int(result.evaluations),
+        "evaluations_budget": dict(
+            result.budget, counted=("every evaluation of the scene at trial values: the "
+                                    "search's, the standard errors' differences, the misfit "
+                                    "profiles' and (a profile on both arms) each arm's own "
+                                    "estimate's; not the realisations of the camera's noise "
+                                    "and the random parts at the scene's values that set the "
+                                    "noise floor before the fit (random_parts.realisations)")),
         "cache_hits": int(result.cache_hits),
         "status": result.status,
         "message": result.message,

@@ -29,25 +29,22 @@ covariance's eigenvectors (:func:`identifiability`); pairs whose correlation exc
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.errors import InputError
 from ..core.lazy import lazy_attr
-from ..core.progress import Task
 from ..core.progress import task as progress_task
-from ._cache import EvaluationCache, task_hash
-from ._differences import _jacobian, _smoothed
-from ._dispatch import features as predict_features
-from ._dispatch import residuals as residual_vector
-from ._features import Target, robust_weights, soft_l1
-from ._local import _timed_compute, run_local
+from ._budget import (BudgetExhausted, budget_message, candidates_error, no_stderr_message,
+                      uncertainty_reserve, without_standard_errors)
+from ._differences import _jacobian, stderr_differences
+from ._evaluator import Evaluation, Evaluator
+from ._features import robust_weights
 from ._params import FreeParameter
 from ._uncertainty import (_correlation, _covariance, _realisation_covariance, identifiability,
                            search_box)
@@ -63,168 +60,6 @@ log = logging.getLogger("render_inspect")
 
 #: |correlation| above which two parameters are reported as not told apart
 UNRESOLVED = 0.95
-#: residual entries of an evaluation the forward model refused (a value it cannot cut)
-FAILED_RESIDUAL = 1e3  # not a unit conversion
-
-
-class BudgetExhausted(Exception):
-    """The fit reached its largest number of evaluations."""
-
-
-@dataclass
-class Evaluation:
-    """One run of the forward model at parameter ``values``."""
-
-    values: np.ndarray
-    key: str
-    height: np.ndarray | None
-    d: np.ndarray               # normalised residuals
-    a: np.ndarray               # each entry's term weight
-    cost: float                 # sum a^2 soft_l1(d)
-    terms: dict
-    seconds: float
-    cached: bool
-    meta: dict = field(default_factory=dict)
-    error: str | None = None
-
-
-class Evaluator:
-    """Evaluate parameter vectors: a task per vector (``make_task(values) -> dict``), the
-    predicted map by ``compute(task) -> (height, meta)`` (in this process, or on a Dask
-    ``client``), the cache, the features and the residual vector.
-
-    Parameters
-    ----------
-    params : list of FreeParameter
-    target : Target
-    make_task, compute : callables
-        ``compute`` must be a module-level function (it is sent to Dask workers).
-    cache : EvaluationCache
-    client : distributed.Client, optional
-    max_evaluations : int
-        Distinct evaluations allowed (cached ones count).
-    quiet : callable, optional
-        Context manager wrapped around each evaluation run in this process (the pipeline
-        silences the forward model's own progress bars with it).
-    threads : int
-        Evaluations of one batch run at once in this process (threads; without a
-        ``client``).  ``compute`` must then be safe to run in several threads at once, and
-        give each task the same result as when run alone.
-    """
-
-    def __init__(self, params, target: Target, make_task, compute, cache: EvaluationCache, *,
-                 client=None, max_evaluations: int = 150, quiet=None, threads: int = 1):
-        self.params = params
-        self.target = target
-        self.make_task = make_task
-        self.compute = compute
-        self.cache = cache
-        self.client = client
-        self.max_evaluations = int(max_evaluations)
-        self.quiet = quiet
-        self.threads = max(1, int(threads))
-        self.seen: dict = {}          # key -> Evaluation
-        self.history: list = []       # Evaluations in the order made
-        # (None until the first evaluation, which every solve makes before reading it)
-        self.best: Evaluation = None  # type: ignore[assignment]
-        self.step: Task | None = None  # progress task
-        self.seconds = 0.0            # forward-model seconds (not cached)
-
-    @property
-    def count(self) -> int:
-        return len(self.seen)
-
-    def _values(self, u) -> np.ndarray:
-        return np.array([p.from_unit(float(v)) for p, v in zip(self.params, u)])
-
-    def evaluate_units(self, us: Iterable[Sequence[float] | np.ndarray]) -> list[Evaluation]:
-        return self.evaluate([self._values(u) for u in us])
-
-    def evaluate(self, xs: Sequence[Sequence[float] | np.ndarray], *,
-                 budget: bool = True) -> list[Evaluation]:
-        tasks, keys = [], []
-        for x in xs:
-            t = self.make_task({p.key: float(v) for p, v in zip(self.params, x)})
-            tasks.append(t)
-            keys.append(task_hash(t))
-        todo = {}
-        for x, t, k in zip(xs, tasks, keys):
-            if k in self.seen or k in todo:
-                continue
-            hit = self.cache.get(k)
-            if hit is not None:
-                self._record(x, k, hit[0], hit[1], 0.0, cached=True)
-                continue
-            todo[k] = (x, t)
-        if todo and budget and self.count + len(todo) > self.max_evaluations:
-            raise BudgetExhausted()
-        if todo:
-            self._run(todo)
-        return [self.seen[k] for k in keys]
-
-    def _run(self, todo: dict) -> None:
-        items = list(todo.items())
-        if self.client is None:
-            tasks = [t for _, (_, t) in items]
-            with self.quiet() if self.quiet is not None else contextlib.nullcontext():
-                for (h, meta, dt, err), (k, (x, _)) in zip(
-                        run_local(self.compute, tasks, self.threads), items):
-                    self._finish(x, k, h, meta, dt, err)
-            return
-        from distributed import as_completed
-
-        futures = {}
-        for k, (x, t) in items:
-            fut = self.client.submit(_timed_compute, self.compute, t,
-                                     key=f"render-inspect-fit-{k[:16]}", pure=False)
-            futures[fut] = (k, x)
-        # the client need not be this process's default one (the batch helpers make theirs
-        # with set_as_default=False): the futures are awaited on its own event loop
-        for fut in as_completed(list(futures), loop=self.client.loop):
-            k, x = futures[fut]
-            h, meta, dt, err = fut.result()
-            self._finish(x, k, h, meta, dt, err)
-
-    def _finish(self, x, k, h, meta, dt, err) -> None:
-        self.seconds += dt
-        if err is None:
-            h = self.cache.put(k, h, meta)
-        self._record(x, k, h, meta, dt, cached=False, error=err)
-
-    def _record(self, x, k, h, meta, dt, *, cached: bool, error: str | None = None) -> None:
-        if error is None:
-            try:
-                pred = predict_features(h, self.target, x)
-                d, a, terms = residual_vector(pred, self.target)
-            except InputError as e:  # a predicted map with too few valid points
-                error, terms = str(e), {}  # (d and a: a failed evaluation's, below)
-        if error is not None:
-            a = self._weights()
-            d = np.full(a.size, FAILED_RESIDUAL)
-            terms = {}
-            log.warning("the forward model failed at %s: %s", self._text(x), error)
-        cost = float(np.sum(a * a * soft_l1(d)))
-        ev = Evaluation(np.asarray(x, dtype=np.float64), k, h, d, a, cost, terms, dt,
-                        cached, dict(meta or {}), error)
-        self.seen[k] = ev
-        self.history.append(ev)
-        if self.step is not None:
-            self.step.advance(1)
-        if error is None and (self.best is None or ev.cost < self.best.cost):
-            self.best = ev
-            log.info("evaluation %d: misfit %.5g (best so far) %s%s", self.count, ev.cost,
-                     self._text(x), " [cached]" if cached else "")
-        else:
-            log.debug("evaluation %d: misfit %.5g %s", self.count, ev.cost, self._text(x))
-
-    def _weights(self) -> np.ndarray:
-        for ev in self.history:
-            if ev.error is None:
-                return ev.a
-        return np.ones(1)
-
-    def _text(self, x) -> str:
-        return ", ".join(f"{p.key}={v:.6g}" for p, v in zip(self.params, x))
 
 
 @dataclass
@@ -257,6 +92,7 @@ class FitResult:
     stderr_solver: np.ndarray | None = None       # the two starts' disagreement
     birge: float = 1.0                            # the model-error scale of the random parts
     stderr_steps: np.ndarray | None = None        # to the smoothed misfit's minimum
+    budget: dict = field(default_factory=dict)    # --max-evaluations: the search's share
 
 
 def _unit_bounds(params):
@@ -304,8 +140,7 @@ def _local(params, evaluator, u0, lo, hi, steps, *, xtol, ftol, max_rounds, budg
             log.info("trust-region round %d gained %.3g of the misfit; starting again from "
                      "the best point", rounds, gain)
     except BudgetExhausted:
-        status, message = "budget", (f"stopped after {evaluator.count} evaluations "
-                                     f"(--max-evaluations); the best point is reported")
+        status, message = "budget", budget_message(evaluator)
     return status, f"{message} ({rounds} trust-region round{'s' if rounds > 1 else ''})", \
         mine["best"]
 
@@ -318,7 +153,8 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
           seed: int = 0, fd_step: float = 0.1, xtol: float = 1e-3, ftol: float = 1e-3,
           profile_points: int = 5, max_rounds: int = 8,
           starts: Sequence[dict[str, float]] = (),
-          search: dict[str, Sequence[float]] | None = None, verify: bool = True) -> FitResult:
+          search: dict[str, Sequence[float]] | None = None, verify: bool = True,
+          reserve: int = 0) -> FitResult:
     """Fit ``params`` (list of FreeParameter) with ``evaluator``.
 
     The fit runs in four steps: the candidates (the scene's values, the ``starts`` the
@@ -352,6 +188,16 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
         The global phase's box (default: :func:`search_box`).
     verify : bool
         Probe the minimum and solve again from a second start (``converged`` needs both).
+    reserve : int
+        Evaluations the caller makes after the solve (each arm's own estimate), kept out of
+        the search as the standard errors' are (:func:`uncertainty_reserve`).
+
+    ``evaluator.max_evaluations`` is a hard limit on all the evaluations: the search (the
+    start, the candidates, the local solves and their checks) may make
+    ``max_evaluations - uncertainty_reserve(...)`` of them (at least two), the rest is kept
+    for the standard errors, the misfit profiles and ``reserve``.  Where the standard
+    errors' differences do not fit in what is left, the standard errors are not given
+    (NaN) and the status is ``budget``.
 
     The result's ``status``: ``converged`` (a minimum: no probe lower and the second start
     agreeing), ``not a minimum`` (a probe found a lower misfit), ``starts disagree``
@@ -364,6 +210,9 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
     lo, hi = _unit_bounds(params)
     inside = 1e-6 * np.maximum(hi - lo, 1e-12)  # not a unit conversion
     budget = evaluator.max_evaluations
+    kept = uncertainty_reserve(n, profile_points=profile_points, extra=reserve)
+    evaluator.limit = max(min(2, budget), budget - kept)
+    search_limit = evaluator.limit
     checks: dict = {}
     with progress_task(f"fit: up to {budget} evaluations", total=budget) as step:
         evaluator.step = step
@@ -396,9 +245,7 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
                 try:
                     cand_evs = evaluator.evaluate_units(cands)
                 except BudgetExhausted:
-                    raise InputError(f"--max-evaluations {evaluator.max_evaluations} is "
-                                     f"smaller than the {len(cands) + 1} start candidates: "
-                                     f"raise it or lower --global") from None
+                    raise candidates_error(evaluator, len(cands) + 1, kept) from None
         pool = [(start.cost, u_start, "scene")] + [
             (e.cost if e.error is None else math.inf, c, k)
             for e, c, k in zip(cand_evs, cands, kinds)]
@@ -466,26 +313,30 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
                     status = "pending"
             except BudgetExhausted:
                 status = "budget"
-                message = (f"stopped after {evaluator.count} evaluations (--max-evaluations) "
-                           f"while checking the minimum; the best point is reported")
+                message = budget_message(evaluator).replace(
+                    "; the best point", " while checking the minimum; the best point")
         best = evaluator.best
         u_best = _units(params, best.values)
         sw = robust_weights(best.d)
-        try:
-            j = _jacobian(evaluator, u_best, lo, hi, steps, sw)
-        except BudgetExhausted:
-            evaluator.max_evaluations += 3 * n + 1  # the uncertainty needs its Jacobian
-            j = _jacobian(evaluator, u_best, lo, hi, steps, sw)
         scales = np.array([p.scale for p in params])
+        # the differences of the standard errors come out of what the search left of
+        # --max-evaluations (never past it)
+        evaluator.limit = evaluator.max_evaluations
         # the covariance from central differences over the solver's step and over fd_step,
         # whichever is the less steep (across the misfit's fine-scale steps), and the
         # distance to the minimum of the misfit smoothed over them (_smoothed)
-        j_smooth, steps_u, spans = _smoothed(
-            evaluator, u_best, lo, hi, [(steps[i], float(fd_step)) for i in range(n)], sw)
+        j_found, smooth = stderr_differences(evaluator, u_best, lo, hi, steps, fd_step, sw)
+        no_stderr = j_found is None
+        if no_stderr:
+            # --max-evaluations left too few evaluations for the differences: no
+            # standard errors (NaN), and the status says why
+            status, message = "budget", no_stderr_message(evaluator)
+        # (without differences a stand-in: the numbers below are dropped)
+        j = np.ones((best.d.size, n)) if j_found is None else j_found
         stderr_steps = None
         j_local = j  # one step per key: which combinations the measurement leaves free
-        if j_smooth is not None:
-            j = j_smooth
+        if smooth is not None:
+            j, steps_u = smooth
             stderr_steps = np.abs(steps_u) * scales
         cov, stderr, corr = _covariance(j, sw * best.a * best.d, scales)
         stderr_formal, stderr_real = stderr, None
@@ -558,9 +409,16 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
     # would blur an exact null direction into a merely weak one
     ident = identifiability(params, best.values, cov,
                             (j_local / scales[None, :]).T @ (j_local / scales[None, :]))
+    if no_stderr:
+        cov, stderr, corr, ident = without_standard_errors(n, ident)
+        stderr_formal, stderr_real, stderr_solver, stderr_steps = stderr, None, None, None
     profiles = {}
     if profile_points:
-        profiles = _profiles(params, evaluator, best, stderr, profile_points)
+        try:
+            profiles = _profiles(params, evaluator, best, stderr, profile_points)
+        except BudgetExhausted:
+            log.warning("the misfit profiles were not computed: --max-evaluations %d was "
+                        "reached", evaluator.max_evaluations)
     unresolved = [[params[a].key, params[b].key, float(corr[a, b])]
                   for a in range(n) for b in range(a + 1, n) if abs(corr[a, b]) > UNRESOLVED]
     checks["status_reason"] = message
@@ -569,4 +427,6 @@ def solve(params: list[FreeParameter], evaluator: Evaluator, *, global_points: i
                      unresolved, time.perf_counter() - t_all, evaluator.seconds,
                      list(evaluator.history), stderr_formal, stderr_real,
                      len(evaluator.target.draws), checks, ident, goodness, stderr_solver,
-                     birge, stderr_steps)
+                     birge, stderr_steps,
+                     {"max_evaluations": int(budget), "search": int(search_limit),
+                      "kept_for_standard_errors": int(budget - search_limit)})

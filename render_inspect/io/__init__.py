@@ -78,7 +78,7 @@ from ..core.programs import register_program_reader
 from ._program_scan import scan_program
 from ._vendor import read_nms, read_tmd, read_x3p_plain
 from ._x3p import read_x3p, read_x3p_xy, write_x3p
-from ._zarr import ZarrHeightMap, check_store_tree, create_heightmap_zarr, set_store_attrs
+from ._zarr import ZarrHeightMap, check_store_tree, chunk_files, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
 from ..core.plugins import import_private_modules
@@ -102,7 +102,7 @@ __all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_outp
            "write_program_npz", "CSV_COLUMNS", "PROGRAM_CSV_COLUMNS", "check_exr", "check_npy",
            "check_npz", "check_real_array", "check_x3p", "check_zip", "read_json_file",
            "exr_placement", "block_sums", "coarsen", "level_count", "means", "preview",
-           "ZarrHeightMap", "check_store_tree", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
+           "ZarrHeightMap", "check_store_tree", "chunk_files", "create_heightmap_zarr", "set_store_attrs", "heightmap_overview", "heightmap_channels",
            "grid_attrs", "table_csv",
            "read_x3p_xy", "MeasuredMap", "UNIT_TO_MM", "read_surface", "reader_for", "read_tmd",
            "read_nms", "read_x3p_plain", "completed_outputs", "open_lock_file", "MARKER_VERSION",

@@ -13,6 +13,7 @@ printed meanwhile, such as a progress bar's, is delayed, not lost).
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import sys
 import tempfile
@@ -39,12 +40,24 @@ class Held:
         return f"; the library: {t if len(t) <= _SHOWN else t[:_SHOWN - 3] + '...'}"
 
 
+def _flush_c_streams() -> None:
+    """Flush the C library's own buffers (a library's C++ stream writes through them, and
+    on a pipe they hold its text until a later flush, after the descriptors are back)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):  # no C library to ask (not POSIX)
+        pass
+
+
 @contextlib.contextmanager
 def library_messages() -> Iterator[Held]:
-    """Hold back what is written to file descriptors 1 and 2 in the block (see the module
-    docstring; OpenEXR's binding prints its warnings on the standard output); the yielded
-    object's ``text`` holds both once the block ends.  On an exception the text is not
-    written out (the caller's error says it); otherwise it is, each to its own stream."""
+    """Hold back what is written to file descriptors 1 and 2 in the block, and to Python's
+    ``sys.stdout`` / ``sys.stderr`` (OpenEXR's binding prints its warnings through
+    Python's standard output; see the module docstring); the yielded object's ``text``
+    holds it all once the block ends.  On an exception the text is not written out (the
+    caller's error says it); otherwise it is, each to its own stream."""
     held = Held()
     streams = ((1, sys.stdout), (2, sys.stderr))
     saved: list[int] = []
@@ -58,21 +71,26 @@ def library_messages() -> Iterator[Held]:
         yield held
         return
     ok = False
+    py = (io.StringIO(), io.StringIO())
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         tmps = (out, err)
         try:
             for (fd, _), tmp in zip(streams, tmps):
                 os.dup2(tmp.fileno(), fd)
+            sys.stdout, sys.stderr = py
             yield held
             ok = True
         finally:
+            sys.stdout, sys.stderr = streams[0][1], streams[1][1]
+            _flush_c_streams()
             texts = []
-            for (fd, stream), tmp, s in zip(streams, tmps, saved):
+            for (fd, stream), tmp, s, mine in zip(streams, tmps, saved, py):
                 os.dup2(s, fd)
                 os.close(s)
                 tmp.seek(0)
-                texts.append(tmp.read().decode("utf-8", "replace"))
-                if ok and texts[-1]:
-                    stream.write(texts[-1])
+                text = mine.getvalue() + tmp.read().decode("utf-8", "replace")
+                texts.append(text)
+                if ok and text:
+                    stream.write(text)
                     stream.flush()
             held.text = "".join(texts)

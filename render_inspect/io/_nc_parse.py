@@ -362,6 +362,11 @@ def read_nc(path: str | Path) -> ToolPath:
     inverse-time ``F`` words): the cutting blocks, starting where the approach leaves the
     tool.  Header ``; key: value`` lines become ``meta``.  Raises :class:`InputError`
     naming the line of malformed blocks."""
+    return read_nc_lines(path)[0]
+
+
+def read_nc_lines(path: str | Path) -> tuple[ToolPath, np.ndarray]:
+    """:func:`read_nc`, and the file line (1-based) of each point's block."""
     path = Path(path)
     b = read_nc_blocks(path)
     if b.count == 0 or "C" not in b.axes or not np.any(b.role == ROLE_CUT):
@@ -386,8 +391,8 @@ def read_nc(path: str | Path) -> ToolPath:
     t = t0 + np.concatenate([[0.0], np.cumsum(MIN_TO_S / f)])
     if "points" in meta and str(meta["points"]).isdigit() and int(meta["points"]) != idx.size:
         raise InputError(f"{path}: header says {meta['points']} points, the program has {idx.size}")
-    return ToolPath(np.radians(b.axes["C"][idx]), b.axes["X"][idx].copy(), b.axes["Z"][idx].copy(),
-                    t, meta)
+    return (ToolPath(np.radians(b.axes["C"][idx]), b.axes["X"][idx].copy(), b.axes["Z"][idx].copy(),
+                     t, meta), lines[idx].astype(np.int64))
 
 
 def read_program_nc(path: str | Path) -> LinearProgram:
@@ -397,6 +402,11 @@ def read_program_nc(path: str | Path) -> LinearProgram:
     the ``F`` feed, mm/min (lines end to end, as planned: the moves between them take no
     time).  Header ``; key: value`` lines become ``meta``.  Raises :class:`InputError`
     naming the line of malformed blocks."""
+    return read_program_nc_lines(path)[0]
+
+
+def read_program_nc_lines(path: str | Path) -> tuple[LinearProgram, np.ndarray]:
+    """:func:`read_program_nc`, and the file line (1-based) of each point's block."""
     path = Path(path)
     b = read_nc_blocks(path)
     if b.count == 0 or b.dialect != "linear" or not np.any(b.role == ROLE_CUT):
@@ -422,4 +432,4 @@ def read_program_nc(path: str | Path) -> LinearProgram:
     meta = {k: v for k, v in b.meta.items() if not k.startswith("_")}
     if "points" in meta and str(meta["points"]).isdigit() and int(meta["points"]) != x.size:
         raise InputError(f"{path}: header says {meta['points']} points, the program has {x.size}")
-    return LinearProgram(x, y, z, t, line, meta)
+    return LinearProgram(x, y, z, t, line, meta), lines[idx].astype(np.int64)

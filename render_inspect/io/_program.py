@@ -32,7 +32,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
-from ._nc import read_nc, read_program_nc
+from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
 from ._program_kernel import c_move_times, feed_times, sample_moves, unwrap_c
 from ._program_scan import ScannedProgram, scan_program
@@ -144,16 +144,14 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
     dialect = program_dialect(path)
     prog: ToolPath | LinearProgram
     if dialect == "render_inspect turning":
-        prog = read_nc(path)
-        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8),
-                              np.full(prog.points, -1, np.int64),
+        prog, file_line = read_nc_lines(path)
+        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8), file_line,
                               {"x": "X is the radius (the project's own dialect)",
                                "time": "time from the inverse-time F words (G93)"},
                               {"points": prog.points})
     elif dialect == "render_inspect linear":
-        prog = read_program_nc(path)
-        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8),
-                              np.full(prog.points, -1, np.int64),
+        prog, file_line = read_program_nc_lines(path)
+        out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8), file_line,
                               {"time": "time from the F words (mm/min) along the lines"},
                               {"points": prog.points})
     else:

@@ -227,7 +227,23 @@ def write_heightmap_zarr(path: str | Path, design: np.ndarray, machined: np.ndar
             for k in range(2, levels + 1):
                 s, c = coarsen(s, c, 2)
                 g[f"levels/{k}/{name}"][...] = means(s, c)
+    set_store_attrs(path, chunk_files=chunk_files(path))
     return Path(path)
+
+
+def chunk_files(path: str | Path) -> dict[str, int]:
+    """How many chunk files each array of a store holds (the array's folder relative to the
+    store -> count).  Recorded as the attribute ``chunk_files`` when a store is complete, so
+    that one that has lost chunks since (a copy cut short) is refused when it is read: zarr
+    itself reads a missing chunk as empty (NaN), which would pass for unmeasured points."""
+    root = Path(path)
+    out: dict[str, int] = {}
+    for top, _dirs, files in os.walk(root, followlinks=False):
+        parts = Path(os.path.relpath(top, root)).parts
+        if "c" in parts and files:
+            arr = "/".join(parts[:parts.index("c")])
+            out[arr] = out.get(arr, 0) + len(files)
+    return out
 
 
 @_whole
@@ -336,6 +352,17 @@ class ZarrHeightMap:
         self._checked: dict[str, int] = {}
         self.chunk_bytes = max(self._check_array(name, a) for name, a in arrays.items())
         self.chunk_shape = tuple(int(c) for c in arrays["machined"].chunks)
+        written = self.attrs.get("chunk_files")
+        if isinstance(written, dict):
+            now = chunk_files(path)
+            lost = {a: (now.get(a, 0), n) for a, n in written.items()
+                    if isinstance(n, int) and now.get(a, 0) < n}
+            if lost:
+                a, (n_now, n) = next(iter(sorted(lost.items())))
+                raise InputError(f"{what} {str(path)!r}: array {a!r} holds {n_now} chunk files, "
+                                 f"{n} when the store was written: chunks are missing (a copy "
+                                 f"cut short?), and would be read as unmeasured points; refused"
+                                 + (f" ({len(lost)} arrays)" if len(lost) > 1 else ""))
         try:
             self.scene = json.loads(self.attrs.get("scene") or "{}")
             self.meta = json.loads(self.attrs.get("meta") or "{}")

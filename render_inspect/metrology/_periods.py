@@ -3,10 +3,14 @@ period with its harmonics and, for a profile through the spindle axis of a turne
 where the centre is and the period on each side of it.
 
 The profile (gaps filled by linear interpolation, a parabola removed) is multiplied by a
-Hann window and its periodogram taken; the fundamental is the strongest spectral line
-between 4 samples and a quarter of the trace (so that at least four periods are seen),
+Hann window and its periodogram taken; the fundamental is the strongest peak (a line
+higher than the one below it and not lower than the one above) strictly inside the range
+from 4 samples to a quarter of the trace (so that at least four periods are seen),
 refined by a parabola through the logarithm of the three bins about it (the Hann window's
-main lobe is close to a Gaussian, for which that is exact).  Harmonics are the lines at
+main lobe is close to a Gaussian, for which that is exact; about a peak the vertex lies
+within half a bin).  A spectrum that rises to an end of the range has no period there:
+form left over rises to the longest period searched, and ``note`` says so (with no period
+at all when the range holds no peak).  Harmonics are the lines at
 k times the fundamental (k = 2 .. 6, each looked for within two bins) that rise ten times
 above the spectrum's median.  ``fraction`` is the share of the variance in the
 fundamental and its harmonics (two bins either side of each, the Hann main lobe).
@@ -17,7 +21,9 @@ directions), so marks of any direction (arcs of a turned part) count alike.
 The centre of a profile through the spindle axis is where the profile is most nearly
 mirror-symmetric: the correlation coefficient of ``z(c + t)`` with ``z(c - t)`` over the
 longer of the two arms that both sides cover (at least a fifth of the trace), found on a
-half-sample grid.
+half-sample grid.  Mirror symmetry alone does not make a trace through the axis (a long
+even bow is mirror-symmetric about its vertex): the two arms must also show the same
+feed-mark period (:func:`arms_agree`).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import math
 import numpy as np
 
 from ..core.errors import InputError, check_positive
+from ..core.units import MM_TO_UM
 
 __all__ = ["dominant_periods", "map_periods", "mirror_centre", "profile_periods"]
 
@@ -35,6 +42,11 @@ HARMONIC_ABOVE_MEDIAN = 10.0
 
 #: a profile counts as through the spindle axis when its mirror correlation is at least this
 MIRROR_MIN = 0.5
+
+#: the two arms of a trace through the spindle axis show the same period to this share
+#: (of their frequencies) or one line of the shorter arm's periodogram, whichever is wider
+ARMS_REL_TOL = 0.1
+
 
 
 def _filled(z) -> np.ndarray:
@@ -48,18 +60,56 @@ def _filled(z) -> np.ndarray:
     return f - np.polyval(c, i - i.mean())
 
 
-def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
-    """Fundamental and harmonics from a one-sided spectrum ``power`` at ``freq`` (1/mm)."""
+def _search_range(freq, power, *, spacing, n_total):
+    """The bins searched for the fundamental (between 4 samples and a quarter of the
+    trace) and the peaks among them: bins strictly inside the range that are local
+    maxima (higher than the bin below, not lower than the bin above)."""
     fmin = 1.0 / (n_total * spacing / 4.0)
     fmax = 1.0 / (4.0 * spacing)
-    band = (freq >= fmin) & (freq <= fmax)
-    if band.sum() < 3:
-        return {"period_mm": None, "harmonics": [], "fraction": 0.0}
-    ib = np.flatnonzero(band)
-    k = int(ib[np.argmax(power[ib])])
+    ib = np.flatnonzero((freq >= fmin) & (freq <= fmax))
+    peaks = np.array([i for i in ib[1:-1]
+                      if power[i] > power[i - 1] and power[i] >= power[i + 1]], dtype=int)
+    return ib, peaks
+
+
+def _range_note(freq, power, ib) -> tuple[str | None, str | None]:
+    """Why the largest line of the search range is not a period, when it is not: it lies
+    at an end of the range, which the spectrum rises to (the end of the search, not a
+    feed mark): ("longest" or "shortest", the words), or (None, None)."""
+    j = int(ib[np.argmax(power[ib])])
+    if j == ib[0]:
+        return "longest", (f"the spectrum rises to the longest period searched "
+                           f"({1.0 / freq[j] * MM_TO_UM:.4g} um, a quarter of the length): form "
+                           f"or waviness left over")
+    if j == ib[-1]:
+        return "shortest", (f"the spectrum rises to the shortest period searched "
+                            f"({1.0 / freq[j] * MM_TO_UM:.4g} um, 4 samples): noise or marks "
+                            f"finer than the sampling")
+    return None, None
+
+
+def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
+    """Fundamental and harmonics from a one-sided spectrum ``power`` at ``freq`` (1/mm):
+    the strongest peak strictly inside the search range (none when the range holds no
+    peak; ``note`` says why, or that the spectrum is larger still at an end of the
+    range)."""
+    ib, peaks = _search_range(freq, power, spacing=spacing, n_total=n_total)
+    rng = {"shortest_mm": 4.0 * spacing, "longest_mm": n_total * spacing / 4.0}
+    if ib.size < 3:
+        return {"period_mm": None, "harmonics": [], "fraction": 0.0, "search_mm": rng,
+                "rises_to": None, "note": "too few points to look for a period"}
+    rises_to, note = _range_note(freq, power, ib)
+    if not peaks.size:
+        return {"period_mm": None, "harmonics": [], "fraction": 0.0, "search_mm": rng,
+                "rises_to": rises_to,
+                "note": note or "the spectrum has no peak between 4 samples and a quarter of "
+                                "the length"}
+    k = int(peaks[np.argmax(power[peaks])])
     df = float(freq[1] - freq[0])
     off = 0.0
-    if 0 < k < power.size - 1 and min(power[k - 1:k + 2]) > 0:
+    if min(power[k - 1:k + 2]) > 0:
+        # a parabola through the log of the three bins about a local maximum: its vertex
+        # lies within half a bin of it
         la, lb, lc = np.log(power[k - 1:k + 2])
         den = la - 2 * lb + lc
         off = 0.5 * (la - lc) / den if den < 0 else 0.0
@@ -89,14 +139,19 @@ def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
             used += share(jj)
     return {"period_mm": float(1.0 / f0), "frequency_per_mm": f0,
             "harmonics": harmonics, "fraction": float(min(1.0, used / total)) if total > 0 else 0.0,
-            "above_median": float(power[k] / floor) if floor > 0 else float("inf")}
+            "above_median": float(power[k] / floor) if floor > 0 else float("inf"),
+            "search_mm": rng, "rises_to": rises_to, "note": note}
 
 
 def dominant_periods(z: np.ndarray, *, spacing: float) -> dict:
     """The dominant period of a profile (heights any unit, ``spacing`` mm) and its
     harmonics: ``period_mm`` (None when the trace is too short), ``frequency_per_mm``,
     ``harmonics`` (``order``, ``period_mm``, ``relative_power``), ``fraction`` (share of the
-    variance in them), ``above_median`` (the line's height over the spectrum's median)."""
+    variance in them), ``above_median`` (the line's height over the spectrum's median),
+    ``search_mm`` (``shortest_mm``, ``longest_mm``: the range searched), ``rises_to``
+    ("longest" or "shortest" when the spectrum is largest at that end of the range, else
+    None) and ``note`` (why there is no period, or that the spectrum rises to an end of
+    the range; None when neither)."""
     check_positive("spacing", spacing)
     f = _filled(z)
     w = np.hanning(f.size)
@@ -201,22 +256,61 @@ def mirror_centre(z: np.ndarray, *, spacing: float, x0: float = 0.0) -> dict:
             "arm_mm": float(best[2] * spacing)}
 
 
+def arms_agree(left: dict, right: dict) -> tuple[bool, str]:
+    """Whether the two arms of a profile about its mirror centre show the same feed-mark
+    period, as a trace through a turned part's spindle axis does (each arm crosses the
+    same radii): (agree, why).  ``left`` and ``right`` are :func:`dominant_periods` with
+    ``length_mm``.  They agree when their frequencies differ by no more than
+    :data:`ARMS_REL_TOL` of their mean or one line of the shorter arm's periodogram
+    (1 / its length), whichever is wider: the spectrum resolves no finer, and a feed
+    that varies a little with the radius, or a trace a little off the axis, moves the
+    period by a few per cent."""
+    pl, pr = left.get("period_mm"), right.get("period_mm")
+    if not pl or not pr:
+        side = "left" if not pl else "right"
+        return False, f"the {side} arm shows no period"
+    fl, fr = 1.0 / pl, 1.0 / pr
+    tol = max(ARMS_REL_TOL * 0.5 * (fl + fr),
+              1.0 / min(left.get("length_mm", math.inf), right.get("length_mm", math.inf)))
+    if abs(fl - fr) <= tol:
+        return True, ""
+    return False, (f"the arms' periods differ ({pl * MM_TO_UM:.4g} um left, {pr * MM_TO_UM:.4g} um "
+                   f"right), more than a trace through the spindle axis allows")
+
+
 def profile_periods(x: np.ndarray, z: np.ndarray, *, spacing: float) -> dict:
-    """The periods a profile report shows: ``whole`` (:func:`dominant_periods`) and, when
-    the profile is mirror-symmetric about a point (:data:`MIRROR_MIN`; a trace through the
-    spindle axis of a turned part), ``through_axis`` = {``centre_mm``, ``symmetry``,
-    ``left``, ``right``}: the period on each side of the centre."""
+    """The periods a profile report shows: ``whole`` (:func:`dominant_periods`),
+    ``mirror`` (:func:`mirror_centre` with ``through_axis`` True or False and, when False,
+    ``why``) and, when the profile is a trace through the spindle axis of a turned part,
+    ``through_axis`` = {``centre_mm``, ``symmetry``, ``left``, ``right``}: the period on
+    each side of the centre.  Through the axis means mirror-symmetric about a point
+    (:data:`MIRROR_MIN`) with the same period on both arms (:func:`arms_agree`)."""
     x = np.asarray(x, dtype=np.float64)
     z = np.asarray(z, dtype=np.float64)
     out = {"whole": dominant_periods(z, spacing=spacing)}
-    mc = mirror_centre(z, spacing=spacing, x0=float(x[0]))
+    mc = dict(mirror_centre(z, spacing=spacing, x0=float(x[0])))
     out["mirror"] = mc
-    if mc["centre_mm"] is not None and mc["symmetry"] >= MIRROR_MIN:
-        side = {}
-        for name, sel in (("left", x < mc["centre_mm"]), ("right", x > mc["centre_mm"])):
-            zz = z[sel]
-            if np.isfinite(zz).sum() >= 16:
-                side[name] = dominant_periods(zz, spacing=spacing)
-                side[name]["length_mm"] = float(sel.sum() * spacing)
-        out["through_axis"] = {"centre_mm": mc["centre_mm"], "symmetry": mc["symmetry"], **side}
+    mc["through_axis"] = False
+    if mc["centre_mm"] is None:
+        mc["why"] = "the trace is too short to look for a mirror centre"
+        return out
+    if mc["symmetry"] < MIRROR_MIN:
+        mc["why"] = (f"not mirror-symmetric (best correlation {mc['symmetry']:.3g} at "
+                     f"{mc['centre_mm']:.4g} mm, under {MIRROR_MIN:g})")
+        return out
+    side = {}
+    for name, sel in (("left", x < mc["centre_mm"]), ("right", x > mc["centre_mm"])):
+        zz = z[sel]
+        if np.isfinite(zz).sum() >= 16:
+            side[name] = dominant_periods(zz, spacing=spacing)
+            side[name]["length_mm"] = float(sel.sum() * spacing)
+        else:
+            side[name] = {"period_mm": None, "length_mm": float(sel.sum() * spacing)}
+    agree, why = arms_agree(side["left"], side["right"])
+    if not agree:
+        mc["why"] = (f"mirror-symmetric about {mc['centre_mm']:.4g} mm (correlation "
+                     f"{mc['symmetry']:.3g}) but {why}")
+        return out
+    mc["through_axis"] = True
+    out["through_axis"] = {"centre_mm": mc["centre_mm"], "symmetry": mc["symmetry"], **side}
     return out

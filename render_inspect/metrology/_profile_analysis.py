@@ -122,13 +122,26 @@ def analyze_profile(x: np.ndarray, z: np.ndarray, *, spacing: float, form: str =
 
 def _periods_metrics(per: dict) -> dict:
     def one(d):
-        return {"period_mm": d.get("period_mm"), "fraction_of_variance": d.get("fraction"),
-                "harmonics": [{"order": h["order"], "period_mm": h["period_mm"],
-                               "relative_power": h["relative_power"]}
-                              for h in d.get("harmonics", [])]}
+        out = {"period_mm": d.get("period_mm"), "fraction_of_variance": d.get("fraction"),
+               "harmonics": [{"order": h["order"], "period_mm": h["period_mm"],
+                              "relative_power": h["relative_power"]}
+                             for h in d.get("harmonics", [])]}
+        if d.get("note"):
+            out["note"] = d["note"]
+        return out
 
-    out = {"dominant": one(per["whole"]),
-           "method": "Hann-windowed periodogram; harmonics 10x above the median"}
+    whole = per["whole"]
+    out = {"dominant": one(whole),
+           "method": "Hann-windowed periodogram, the strongest peak (a local maximum) between "
+                     "4 samples and a quarter of the trace; harmonics 10x above the median"}
+    if whole.get("search_mm"):
+        out["search_mm"] = dict(whole["search_mm"])
+    mc = per.get("mirror")
+    if mc is not None:
+        out["mirror"] = {"centre_mm": mc.get("centre_mm"), "symmetry": mc.get("symmetry"),
+                         "through_axis": bool(mc.get("through_axis"))}
+        if mc.get("why"):
+            out["mirror"]["why_not_through_axis"] = mc["why"]
     ta = per.get("through_axis")
     if ta:
         out["through_axis"] = {"centre_mm": ta["centre_mm"], "symmetry": ta["symmetry"],

@@ -53,7 +53,7 @@ if TYPE_CHECKING:
                           write_interferogram_outputs)
     from ._simulate import Simulation, design_heightmap, simulate, write_simulation
     from ._simulate_command import TILED_SAMPLES, run_simulate, run_simulate_tiled, wants_tiles
-    from ._summaries import command_summary
+    from ._summaries import PROFILE_COLUMNS, command_summary, profile_compare_summary
     from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_failure, sweep_morris,
                          sweep_tasks)
     from ._toolpath import plan_program, program_formats, run_toolpath
@@ -92,7 +92,7 @@ _LAZY = {
                  'write_interferogram_outputs'),
     '._simulate': ('Simulation', 'design_heightmap', 'simulate', 'write_simulation'),
     '._simulate_command': ('TILED_SAMPLES', 'run_simulate', 'run_simulate_tiled', 'wants_tiles'),
-    '._summaries': ('command_summary',),
+    '._summaries': ('PROFILE_COLUMNS', 'command_summary', 'profile_compare_summary'),
     '._sweep': ('find_sweep', 'run_point', 'run_sweep', 'shipped_sweeps', 'sweep_failure',
                 'sweep_morris', 'sweep_tasks'),
     '._toolpath': ('plan_program', 'program_formats', 'run_toolpath'),
@@ -111,6 +111,7 @@ __all__ = ["completed_outputs", "refuse_inputs_inside", "Simulation", "simulate"
            "run_compare_profile", "run_compare_command", "run_demo", "DEMO_SCENE",
            "measure_and_evaluate", "run_measure", "read_frames", "measurement_outputs",
            "measure_summary", "analyze_summary", "command_summary",
+           "profile_compare_summary", "PROFILE_COLUMNS",
            "run_characterise", "characterise_instrument", "simulation_metrics", "lenslet_metrics",
            "simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "remove_blender_surfaces", "surface_info", "render_variant",

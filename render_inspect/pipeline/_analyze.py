@@ -143,7 +143,7 @@ def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
     if units is not None and path.exists():
         # (a file that is not there is named as such by the reader below)
         raise InputError(f"--units is for profile text files that do not state their units; "
-                         f"{path.name} is an areal map, which states its own")
+                         f"{path.name} is an instrument file, which states its own")
     check_output_dir(out, overwrite=overwrite, command="analyze", inputs=(path,))
     if form not in FORMS:
         raise InputError(f"--form must be one of {', '.join(FORMS)}, got {form!r}")
@@ -176,7 +176,7 @@ def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
         files["height.x3p"] = ("evaluated surface (outliers left out if asked, form removed, "
                                "filtered): ISO 25178-72, metres in the file")
     metrics = analysis_metrics(a.metrics, path=path, files=files, timing={})
-    metrics["periods"] = _map_periods(a.height, m.pixel)
+    metrics["periods"] = _map_periods(a.height, m.pixel, form)
     _log_warnings(metrics)
     title = _title(path, m.pixel, metrics["areal"], metrics, form=form, s_mm=s_mm, l_mm=l_mm,
                    outliers=outliers)
@@ -197,16 +197,26 @@ def run_analyze(path: str | Path, out: str | Path, *, form: str = "plane",
     return json_safe(metrics)
 
 
-def _map_periods(z, pixel) -> dict | None:
-    """The dominant period of an analysed map and its harmonics (square pixels only)."""
+def _map_periods(z, pixel, form) -> dict | None:
+    """The dominant period of an analysed map and its harmonics (square pixels only); a
+    spectrum that rises to the longest period searched after a plane is removed asks for
+    ``--form poly2``."""
     if not math.isclose(pixel[0], pixel[1], rel_tol=1e-6):
         return None
     p = map_periods(z, pixel=pixel[0])
-    return {"dominant": {"period_mm": p.get("period_mm"),
-                         "fraction_of_variance": p.get("fraction"),
-                         "harmonics": p.get("harmonics", [])},
-            "method": "radially averaged Hann-windowed 2-D periodogram; harmonics 10x above "
-                      "the median"}
+    dom = {"period_mm": p.get("period_mm"), "fraction_of_variance": p.get("fraction"),
+           "harmonics": p.get("harmonics", [])}
+    if p.get("note"):
+        dom["note"] = p["note"]
+        if p.get("rises_to") == "longest" and form in ("none", "plane"):
+            dom["note"] += "; try --form poly2"
+    out = {"dominant": dom,
+           "method": "radially averaged Hann-windowed 2-D periodogram, the strongest peak (a "
+                     "local maximum) between 4 pixels and a quarter of the map's side; "
+                     "harmonics 10x above the median"}
+    if p.get("search_mm"):
+        out["search_mm"] = dict(p["search_mm"])
+    return out
 
 
 def _log_warnings(metrics: dict) -> None:
@@ -291,7 +301,7 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
     metrics["windowed"]["whole_map_limit_bytes"] = int(min(limit, STORE_WHOLE_MAP_BYTES))
     if a.height is not None:
         f = cast(tuple, spatial)[1]  # (a height is kept only from the spatial level)
-        metrics["periods"] = _map_periods(a.height, (store.pixel * f, store.pixel * f))
+        metrics["periods"] = _map_periods(a.height, (store.pixel * f, store.pixel * f), form)
         if metrics["periods"] is not None:
             metrics["periods"]["seen_at_mm"] = store.pixel * f
     _log_warnings(metrics)

@@ -26,6 +26,7 @@ windows, profiles, sections), the one metrics builder and the report.
 from __future__ import annotations
 
 from collections.abc import Sequence
+import dataclasses
 import logging
 import re
 import time
@@ -38,7 +39,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.progress import task
-from ..core.units import MM_TO_NM, MM_TO_UM
+from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ..design import Surface, make_surface
 from ..instruments import InterferometerConfig, rendered_settings
 from ..io import (MeasuredMap, atomic_output_dir, atomic_write_bytes, atomic_write_text,
@@ -62,6 +63,7 @@ from ._render import (check_render_limits, part_outline, render_diffuse_views,
                       write_diffuse_outputs, write_instrument_outputs)
 from ._simulate import simulate
 from ..core.heightmap import HeightMap
+from ..toolpath import region_radii
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -183,6 +185,29 @@ def expected_sq_mm(scene: Scene) -> float | None:
     ``f^2 / (12 sqrt(5) R)`` of its feed marks (:func:`render_inspect.metrology.expected_sq_mm`
     of the marks its traits state); None for processes without a feed scallop."""
     return _marks_sq_mm(_traits(scene).marks)
+
+
+def _program_feeds(variants: Sequence[_Variant]) -> dict[str, float]:
+    """Each variant's feed per revolution (mm) where its program is read from a file: the
+    program's median at the radii the simulated region spans, which the process states
+    (``metrics["program"]["feed_per_rev_region_um"]``, the feed its scallop is computed
+    for; a program may change its feed with the radius); planned paths state none."""
+    feeds = {}
+    for v in variants:
+        prog = (v.sim.metrics or {}).get("program") if v.sim is not None else None
+        f = prog.get("feed_per_rev_region_um") if isinstance(prog, dict) else None
+        if isinstance(f, (int, float)) and f > 0:
+            feeds[v.name] = float(f) * UM_TO_MM
+    return feeds
+
+
+def _marks_of_programs(marks, feeds: dict[str, float]):
+    """The marks the filters are chosen for: with programs read from files, feed marks at
+    the coarsest of the programs' feeds over the simulated region (one filter for both
+    variants that removes the marks of each), else the scene's planned marks."""
+    if marks is None or not marks.scallop or not feeds:
+        return marks
+    return dataclasses.replace(marks, period_mm=max(feeds.values()))
 
 
 def _simulate_variant(v: _Variant, out: Path) -> None:
@@ -453,7 +478,8 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
         cw = common_window(diff, pixel=hm.pixel, origin=hm.origin, size_mm=size, fixed=fixed,
                            design=hm.design)
         icfg, dcfg, notes = preview_render_configs(scene, hm, window=cw["window"])
-        marks = traits.marks
+        prog_feeds = _program_feeds(variants)
+        marks = _marks_of_programs(traits.marks, prog_feeds)
         feed = marks.period_mm if marks is not None and marks.scallop else None
         if feed is not None and feed < 4 * hm.pixel:
             notes.append(f"the simulation samples the {feed * MM_TO_UM:.3g} um feed marks with "
@@ -464,6 +490,14 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
         x0, x1, y0, y1 = hm.extent
         filters = waviness_choice(marks, design_surface, scene.metrology, pixel=hm.pixel,
                                   window_mm=(x1 - x0, y1 - y0))
+        if marks is not traits.marks:
+            each = ", ".join(f"{k} {f * MM_TO_UM:.3g} um" for k, f in prog_feeds.items())
+            r_in, r_out = region_radii(scene.simulation.region, 0.0)
+            filters["mark_period_from"] = (
+                f"the median feed per revolution of the program read from a file at the radii "
+                f"the simulated region spans ({r_in:.3g} .. {r_out:.3g} mm; the coarser where "
+                f"the variants differ): " + each)
+            filters["reasons"].insert(0, f"mark period: {filters['mark_period_from']}")
         for v in variants:
             _render_variant(v, tmp, icfg=icfg, dcfg=dcfg, seed=seed,
                             design_surface=design_surface, filters=filters, t=t)

@@ -148,7 +148,22 @@ def axis_on_line(scene: Scene, p0: Sequence[float], p1: Sequence[float], *,
     return float(along)
 
 
-def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
+#: phase-randomised surrogates of the measured profile the registration's correlation is
+#: set against (19: the best of them is the 95 % level of an unrelated profile)
+NULL_SURROGATES = 19
+#: a point of the virtual measurement departs from the cut it measured when it is off by
+#: more than this many of the instrument's own noise (one standard deviation; a Gaussian
+#: excursion this large has a chance of 6e-7 per point)
+DEPARTURE_NOISE_FACTOR = 5.0
+#: ... and by more than this fraction of the effective wavelength: half a fringe order
+#: (a lost fringe order puts a point off by lambda_eff / 2, a whole order)
+DEPARTURE_WAVELENGTH_FRACTION = 0.25
+#: the virtual measurement failed when at least this many points depart (a single point
+#: may be a sample interpolated at the edge of a dropout)
+DEPARTURE_MIN_POINTS = 2
+
+
+def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None, seed=0):
     """The shift (mm) to add to the measured positions so that they best match the
     simulated measurement, the correlation there and how the search was bounded.
 
@@ -182,10 +197,20 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
     else:
         lags = np.arange(-(n // 2), n // 2 + 1)
         how = "over half the line either way"
+    k_start = int(round((s_meas[0] - s_sim[0]) / spacing))
+    r, lag = _best_lag(a, b, lags, k_start)
+    null = _null_correlation(a, b, lags, k_start, seed=seed)
+    return lag * spacing, r, how, null
+
+
+def _best_lag(a, b, lags, k_start):
+    """(correlation, lag) of the best-scoring lag: the correlation weighted by the
+    overlap's share of the longest overlap possible."""
+    n = min(a.size, b.size)
     best = (-2.0, 0, -2.0)
     for lag in lags:
         # measured sample i lies at simulated sample i + lag (positions from the line start)
-        k0 = int(round((s_meas[0] - s_sim[0]) / spacing)) + int(lag)
+        k0 = k_start + int(lag)
         i0, i1 = max(0, -k0), min(a.size, b.size - k0)
         if i1 - i0 < max(16, a.size // 3):
             continue
@@ -198,7 +223,97 @@ def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None):
         score = r * (i1 - i0) / n
         if score > best[2]:
             best = (r, int(lag), score)
-    return best[1] * spacing, best[0], how
+    return best[0], best[1]
+
+
+def _null_correlation(a, b, lags, k_start, *, seed=0, n=NULL_SURROGATES) -> float | None:
+    """The correlation the same search reaches with profiles unrelated to the simulation:
+    the best of ``n`` phase-randomised surrogates of the measured profile (the same power
+    spectrum, so the same feed marks and roughness, with random phases), searched over
+    the same lags.  A registration whose correlation does not beat it has found nothing
+    a profile of the same spectrum would not find by chance."""
+    if a.size < 16:
+        return None
+    rng = np.random.default_rng(seed)
+    spec = np.fft.rfft(a - a.mean())
+    best = []
+    for _ in range(n):
+        ph = rng.uniform(0, 2 * np.pi, spec.size)
+        ph[0] = 0.0
+        if a.size % 2 == 0:
+            ph[-1] = 0.0
+        sur = np.fft.irfft(np.abs(spec) * np.exp(1j * ph), n=a.size)
+        best.append(_best_lag(sur, b, lags, k_start)[0])
+    return float(max(best)) if best else None
+
+
+def _measurement_check(z_sim, z_true, noise, *, lambda_eff_nm, mode, rt_sim, rt_true) -> dict:
+    """Does the virtual measurement along the line follow the cut it measured?  Points of
+    the simulated measurement (its median offset removed: an interferometer's heights are
+    relative) depart from the cut when they are off by more than both
+    :data:`DEPARTURE_NOISE_FACTOR` times the instrument's own noise (the median, along the
+    line, of each pixel's noise estimated from its frames) and
+    :data:`DEPARTURE_WAVELENGTH_FRACTION` of the effective wavelength (half a fringe
+    order); :data:`DEPARTURE_MIN_POINTS` or more such points: ``status`` "failed"."""
+    d = (np.asarray(z_sim) - np.asarray(z_true)) * MM_TO_NM
+    ok = np.isfinite(d)
+    out: dict[str, Any] = {"status": "ok", "points": int(ok.sum()), "mode": mode,
+                           "lambda_eff_nm": lambda_eff_nm, "Rt_nm": rt_sim, "Rt_cut_nm": rt_true}
+    nz = np.asarray(noise, float)[ok] * MM_TO_NM if noise is not None else np.zeros(0)
+    nz = nz[np.isfinite(nz)]
+    sigma = float(np.median(nz)) if nz.size else None
+    out["noise_nm"] = sigma
+    if not ok.any():
+        out.update(status="unknown", rms_departure_nm=None, threshold_nm=None, departing=0,
+                   departing_fraction=0.0)
+        return out
+    d = d[ok] - np.median(d[ok])
+    thr = max(DEPARTURE_WAVELENGTH_FRACTION * lambda_eff_nm,
+              DEPARTURE_NOISE_FACTOR * (sigma or 0.0))
+    far = int(np.count_nonzero(np.abs(d) > thr))
+    out.update(rms_departure_nm=float(np.sqrt(np.mean(d ** 2))), threshold_nm=float(thr),
+               departing=far, departing_fraction=far / d.size,
+               rule=f"a point departs when it is off the cut by more than "
+                    f"{DEPARTURE_NOISE_FACTOR:g} x the instrument's noise and more than half a "
+                    f"fringe order (lambda_eff / 4 = {lambda_eff_nm / 4:.4g} nm); failed "
+                    f"with {DEPARTURE_MIN_POINTS} or more such points")
+    if far >= DEPARTURE_MIN_POINTS:
+        out["status"] = "failed"
+    return out
+
+
+def _measurement_warning(chk: dict) -> str | None:
+    """The one-line warning of a failed virtual measurement (None when it followed the
+    cut)."""
+    if chk.get("status") != "failed":
+        return None
+    noise = "" if chk.get("noise_nm") is None else \
+        f" against the instrument's noise of {chk['noise_nm']:.2g} nm"
+    other = ("coherence scanning (CSI: render.interferometer.mode = \"csi\") follows slopes "
+             "phase shifting cannot, and is how the real parts were measured (a white-light "
+             "interferometer)" if chk.get("mode") == "psi" else
+             "check render.interferometer (objective, mode) against the part's slopes")
+    return (f"the virtual measurement ({str(chk.get('mode')).upper()}) does not follow the cut "
+            f"it measured: {chk['departing']} of {chk['points']} points "
+            f"({100 * chk['departing_fraction']:.3g} %) are off by more than "
+            f"{chk['threshold_nm']:.3g} nm (rms departure {chk['rms_departure_nm']:.4g} nm"
+            f"{noise}; Rt {_fmt(chk.get('Rt_nm'))} nm against the cut's "
+            f"{_fmt(chk.get('Rt_cut_nm'))} nm): lost fringe orders or dropouts, so its column is "
+            f"not what the instrument would report of this part; {other}")
+
+
+def _registration_warning(reg: dict) -> str | None:
+    """The one-line warning of a registration no better than chance (None otherwise)."""
+    if reg.get("reliable", True):
+        return None
+    why = (f"its correlation {reg['correlation']:.3f} is no better than the "
+           f"{reg['null_correlation']:.3f} a profile of the same spectrum unrelated to the "
+           f"simulation reaches in the same search" if not reg.get("beats_chance", True) else
+           f"it aligns the measured profile to a virtual measurement that does not follow the "
+           f"cut (correlation {reg['correlation']:.3f})")
+    return (f"the registration is not reliable: {why}; the profiles overlaid "
+            f"are not aligned point for point (compare their parameters and periods, which "
+            f"do not depend on the registration, not their shapes)")
 
 
 def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
@@ -265,8 +380,8 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
     s_pos = prof.x - prof.x[0]
     period = registration_period(scene, prof.z, spacing=step)
     axis_s = axis_on_line(scene, p0, p1, tolerance=(period or step) / 2)
-    shift, corr, how_reg = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
-                                     axis_s=axis_s)
+    shift, corr, how_reg, null = _register(s_pos, prof.z, s_sim, z_sim, spacing=step,
+                                           period=period, axis_s=axis_s, seed=seed)
     s_reg = s_pos + shift
     opts: dict[str, Any] = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
     res = {"measured": analyze_profile(s_reg, prof.z, spacing=step, **opts)}
@@ -274,12 +389,32 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
     same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0, "lambda_c": fil["lambda_c_mm"]}
     res["simulated_measured"] = analyze_profile(s_sim, z_sim, spacing=step, **same)
     res["true"] = analyze_profile(s_true, z_true, spacing=step, **same)
+    noise_line = None
+    if r.height_noise is not None:
+        _, noise_line = line_profile(np.where(r.valid, r.height_noise, np.nan), pixel=ig.pixel,
+                                     origin=ig.origin, p0=p0, p1=p1, step=step)
+    check = _measurement_check(z_sim, z_true, noise_line, lambda_eff_nm=float(ig.lambda_eff_nm),
+                               mode=band.render.interferometer.mode,
+                               rt_sim=res["simulated_measured"]["metrics"]["profile"].get("Rt_nm"),
+                               rt_true=res["true"]["metrics"]["profile"].get("Rt_nm"))
+    reg = {"shift_mm": shift, "correlation": corr, "how": how_reg, "null_correlation": null,
+           "beats_chance": null is None or corr > null,
+           # a registration to a measurement that does not follow the cut aligns to its
+           # failures, whatever its correlation
+           "reliable": (null is None or corr > null) and check["status"] != "failed",
+           "rule": f"reliable when the correlation beats the best of {NULL_SURROGATES} "
+                   f"phase-randomised surrogates of the measured profile searched the same "
+                   f"way (the 95 % level of an unrelated profile of the same spectrum)"}
+    warns = [w for w in (_measurement_warning(check), _registration_warning(reg)) if w]
+    for w in warns:
+        log.warning("%s", w)
     figs = {
         "overlay": profile_overlay_figure(
             [{"s": res[k]["arrays"]["x"], "z": res[k]["arrays"]["primary"], "label": lab}
              for k, lab in _NAMES],
             title=f"along ({p0[0]:.4g}, {p0[1]:.4g}) -> ({p1[0]:.4g}, {p1[1]:.4g}) mm; measured "
-                  f"shifted {shift * MM_TO_UM:+.4g} um (correlation {corr:.3f}); parabola removed"),
+                  f"shifted {shift * MM_TO_UM:+.4g} um (correlation {corr:.3f}"
+                  f"{'' if reg['reliable'] else ': not reliable'}); parabola removed"),
         "roughness_overlay": profile_overlay_figure(
             [{"s": res[k]["arrays"]["x"],
               "z": np.where(res[k]["arrays"]["evaluate"], res[k]["arrays"]["roughness"], np.nan),
@@ -293,7 +428,7 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
         "command": "compare", "kind": "profile", "scene": scene.name, "seed": seed,
         "software_version": __version__,
         "line_mm": [list(p0), list(p1)], "line_from": how_line,
-        "registration": {"shift_mm": shift, "correlation": corr, "how": how_reg},
+        "registration": reg, "virtual_measurement": check, "warnings": warns,
         "filter": {"lambda_s_mm": same["lambda_s"] or None, "lambda_c_mm": same["lambda_c"],
                    "chosen_by": fil["chosen_by"] + " (of the measured profile)", "form": "poly2"},
         "band_mm": {"field_of_view": fov, "simulation_region": list(band.simulation.region)},
@@ -342,6 +477,9 @@ def _page(metrics: dict, figs: dict) -> str:
                      f"{Path(metrics['input']['path']).name} along {metrics['line_from']}; "
                      f"lambda_s {f['lambda_s_mm'] or 0:g} mm, lambda_c {f['lambda_c_mm']:g} mm "
                      f"({f['chosen_by']}); parabola removed from each")
+    if metrics.get("warnings"):
+        rep.section("Warnings")
+        rep.list(metrics["warnings"])
     rep.section("Profiles overlaid")
     rep.figure(figs["overlay"], "Measured (black), simulated through the virtual "
                "interferometer (blue) and the simulated cut itself (orange, dashed), registered "
@@ -375,8 +513,18 @@ def _page(metrics: dict, figs: dict) -> str:
     rep.figure(figs["measured_profile"], "Primary profile and mean line, roughness profile, power "
                "spectrum (feed period and harmonics), material ratio curve.")
     reg = metrics["registration"]
+    chk = metrics.get("virtual_measurement") or {}
+    null = reg.get("null_correlation")
     notes = [f"registration: measured positions shifted by {reg['shift_mm'] * MM_TO_UM:+.4g} um "
-             f"along the line (correlation {reg['correlation']:.3f}, searched {reg['how']})",
+             f"along the line (correlation {reg['correlation']:.3f}, searched {reg['how']}); "
+             + ("" if null is None else
+                f"{'reliable' if reg.get('reliable') else 'NOT reliable'}: an unrelated profile "
+                f"of the same spectrum reaches {null:.3f} ({reg.get('rule')})"),
+             f"virtual measurement against the cut it measured: "
+             f"{'FAILED' if chk.get('status') == 'failed' else chk.get('status', 'n/a')}; rms "
+             f"departure {_fmt(chk.get('rms_departure_nm'))} nm, instrument noise "
+             f"{_fmt(chk.get('noise_nm'))} nm, {chk.get('departing', 0)} points off by more "
+             f"than {_fmt(chk.get('threshold_nm'))} nm ({chk.get('rule', '')})",
              f"virtual instrument: {metrics['instrument']['objective']} "
              f"{metrics['instrument']['mode']}, pixel {metrics['instrument']['pixel_mm'] * MM_TO_UM:.4g} um",
              f"measured file: {metrics['input']['n_measured']} of {metrics['input']['n_points']} "

@@ -38,7 +38,7 @@ from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ..fit import ARMS_CHOICES, ArmsTarget, arm_estimates, arms_features, set_arms_noise_floor
-from ..fit import (within_reach, parse_weights, MARK_KEYS, PERIOD_TOLERANCE, PROFILE_TERMS, EvaluationCache,
+from ..fit import (parse_weights, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
                    profile_family, scene_hash, set_profile_noise_floor, set_value, solve,
@@ -53,8 +53,8 @@ from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, pars
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
                          preset_value, quiet, SameSimulation)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
+from ._fit_profile_checks import _check_after, _check_before, _cut_period
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
-from ._fit_profile_model import after_verdict
 from ._fit_profile_model import compute_profiles as _compute
 from ._fit_profile_random import _check_free_random, _random_part_power, _random_part_verdicts
 
@@ -151,6 +151,12 @@ def _profile_weights(items) -> dict:
     return parse_weights(items, PROFILE_TERMS, of=' for a profile')
 
 
+#: evaluations per free key kept out of the search of a fit on both arms for each arm's own
+#: estimate (:func:`~render_inspect.fit.arm_estimates`: two steps either side and one more
+#: each way where an arm's minimum lies beyond them)
+ARMS_RESERVE = 6
+
+
 # ------------------------------------------------------------------------------ run
 def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out: str | Path, *,
                     units: str | None = None,
@@ -210,7 +216,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             if k in ("process.feed_mm_per_min", "process.spindle_rpm"):
                 raise InputError(f"--free {k}: with a program (process.program) the path, and "
                                  f"with it the feed per revolution, is the program's; free the "
-                                 f"tool, machine or material keys, or fit without --program")
+                                 f"tool, machine or material keys, or fit a planned spiral "
+                                 f"with a scene without process.program (a copy of the scene "
+                                 f"without its program line), received a program: {program}")
     spec = ProfileSpec(weights=_profile_weights(weights))
     for name, v, lo in (("--max-evaluations", max_evaluations, 2), ("--global", global_points, 0),
                         ("--profile-points", profile_points, 0), ("--seed", seed, 0)):
@@ -312,9 +320,14 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             else:
                 set_arms_noise_floor(cast(ArmsTarget, fit_target), noisy, clean0)
             starts, reach = _measured_starts(base, params, fit_target)
-            before = _check_before(target, pred_start, keys, reach, family)
+            before = _check_before(target, pred_start, keys, reach, family,
+                                   cut_period=lambda: _cut_period(model, start_values, target,
+                                                                  lag, n, spacing, spec),
+                                   mode=str(icfg.get("mode")))
+            # each arm's own estimate (after the solve) within --max-evaluations too
             result = solve(params, evaluator, global_points=global_points, seed=seed,
-                           profile_points=profile_points, starts=starts)
+                           profile_points=profile_points, starts=starts,
+                           reserve=0 if two is None else ARMS_RESERVE * len(params))
             if two is not None:
                 with task("fit: each arm's own estimate"):
                     two["estimates"] = arm_estimates(params, evaluator, result.values,
@@ -378,18 +391,37 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     record["one_family"] = bool(family["one_family"])
     record["registration_shift_um"] = best.shift * spacing * MM_TO_UM
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
-    record["arms"] = _arms_record(two, one_arm_why, result, fit_target, fitted, win, prof)
+    # every evaluation counted, each arm's own estimate's too (all within --max-evaluations)
+    record["evaluations"] = int(evaluator.count)
+    record["evaluations_budget"]["made"] = int(evaluator.count)
+    record["arms"] = _arms_record(two, one_arm_why, result, fit_target, fitted, win, prof,
+                                  measurement=bool(family["one_family"]))
     fold_arms(record)
-    record["feed_per_rev_mm"] = _feed_per_rev(base, fitted, record)
-    if not family["one_family"]:
+    if (record["arms"].get("fitted") == "both" and record["arms"].get("estimates_error")
+            and family["one_family"]):
+        # the arms' disagreement belongs in the standard error: without it, none
         for p in record["parameters"].values():
             p["stderr"] = None
+            p["relative_stderr"] = None
+        record["status_note"] = ("each arm's own estimate, whose disagreement the standard "
+                                 "error includes, failed ("
+                                 + record["arms"]["estimates_error"] + ")")
+        if record["arms"].get("budget"):
+            record["status"] = "budget"
+    record["feed_per_rev_mm"] = _feed_per_rev(base, fitted, record)
+    if not family["one_family"] or record.get("status_note"):
+        for p in record["parameters"].values():
+            p["stderr"] = None
+            for k in ("stderr_fit", "stderr_arms"):
+                if k in p:
+                    p[k] = None
             p["relative_stderr"] = None
             p["confident"] = False
         if record["feed_per_rev_mm"]:
             record["feed_per_rev_mm"]["stderr"] = None
-        record["status_note"] = ("not a measurement: the marks in the window are not one "
-                                 "periodic family (" + family["reason"] + ")")
+        record["status_note"] = record.get("status_note") or (
+            "not a measurement: the marks in the window are not one periodic family ("
+            + family["reason"] + ")")
     else:
         for p in record["parameters"].values():
             p["confident"] = p.get("stderr") is not None
@@ -419,51 +451,6 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     for text in record["summary"]:
         log.info("%s", text)
     return record
-
-
-def _check_before(target, pred, keys, reach, family) -> dict:
-    """Refuse a window the scene cannot describe (marks in one and not the other, a period
-    out of the free keys' reach or, with no key that sets it free, more than 3 % off)."""
-    mp = None if not target.peak else 1.0 / target.peak
-    pp = None if not pred.centroid else 1.0 / pred.centroid
-    out = {"measured_period_um": None if mp is None else mp * MM_TO_UM,
-           "scene_period_um": None if pp is None else pp * MM_TO_UM,
-           "family": family}
-    if (mp is None) != (pp is None):
-        which = ("the measured profile has feed marks but the scene predicts none"
-                 if pp is None else "the scene predicts feed marks but the measured profile "
-                                    "has none")
-        raise InputError(f"this scene does not describe this measurement: {which} (a "
-                         f"different process, the wrong file or window)")
-    if mp is not None:
-        rel = pp / mp - 1.0
-        out["period_difference"] = rel
-        if reach is not None and not within_reach(mp, reach):
-            raise InputError(f"this scene does not describe this measurement: the marks' period "
-                             f"{mp * MM_TO_UM:.4g} um lies outside the {reach[0] * MM_TO_UM:.4g}.."
-                             f"{reach[1] * MM_TO_UM:.4g} um the free keys' bounds can reach; "
-                             f"widen --bounds or check the scene's spindle speed")
-        if (reach is None and not any(k in MARK_KEYS for k in keys)
-                and abs(rel) > PERIOD_TOLERANCE and family["one_family"]):
-            raise InputError(f"this scene does not describe this measurement: the marks' period "
-                             f"in the window is {mp * MM_TO_UM:.4g} um, the scene's "
-                             f"{cast(float, pp) * MM_TO_UM:.4g} um ({100 * rel:+.3g} %), "
-                             f"and no key that sets it is free (a program's path fixes it); "
-                             f"check the window's place (--at, --line) and the program")
-    return out
-
-
-def _check_after(target, best, family, goodness) -> dict:
-    findings = []
-    if not family["one_family"]:
-        findings.append(family["reason"])
-    elif target.peak and best.centroid:
-        rel = best.centroid / target.peak - 1.0
-        sf = target.sigma_frequency or target.spec.sigma_frequency
-        if abs(rel) > max(5 * sf, 0.01):
-            findings.append(f"the fitted marks' period differs from the measured one by "
-                            f"{100 * rel:+.3g} % (the free keys cannot reach it)")
-    return after_verdict(findings, goodness, "the model describes the marks of this window")
 
 
 def _feed_per_rev(base, fitted, record):

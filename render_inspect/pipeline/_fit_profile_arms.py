@@ -159,7 +159,8 @@ def _check_after_arms(target: ArmsTarget, pred, families, goodness) -> dict:
                          "the model describes the marks of this window on both arms")
 
 
-def _arms_record(two, one_arm_why, result, target, fitted, win, prof) -> dict:
+def _arms_record(two, one_arm_why, result, target, fitted, win, prof, *,
+                 measurement: bool = True) -> dict:
     """``fit.json``'s ``arms``: which arms were fitted (and why one), each arm's stretch,
     measured and fitted periods, misfit and own estimate, and their disagreement; the
     disagreement is folded into the parameters' standard errors here
@@ -201,6 +202,7 @@ def _arms_record(two, one_arm_why, result, target, fitted, win, prof) -> dict:
     est = two.get("estimates") or {}
     if "error" in est or not est:
         out["estimates_error"] = est.get("error", "not computed")
+        out["budget"] = bool(est.get("budget"))
         out["summary"].append(f"both arms fitted together; each arm's own estimate failed: "
                               f"{out['estimates_error']}")
         return out
@@ -216,7 +218,7 @@ def _arms_record(two, one_arm_why, result, target, fitted, win, prof) -> dict:
         if p.key == "process.feed_mm_per_min" and isinstance(rpm, (int, float)) and rpm > 0:
             unit, name = MM_TO_UM / float(rpm), f"{p.key} as the feed per revolution (um)"
         out["summary"].append(arms_text(p.key, comb, ea["values"][i], eb["values"][i],
-                                        unit=unit, name=name))
+                                        unit=unit, name=name, stderr=measurement))
     out["steps"] = est.get("steps")
     out["scans"] = est.get("scans")
     return out

@@ -14,15 +14,18 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.lazy import lazy_module
 from ..fit import MISMATCH, task_hash
+from ..scene import scene_from_dict
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
 from ._fit import _evaluation_pixel
-from ._fit_model import MARGIN_PX, ForwardModel, compute_all, predict_measurement, quiet
+from ._fit_model import (MARGIN_PX, ForwardModel, compute_all, design_surface,
+                         predict_measurement, quiet)
+from ._simulate import simulate
 
 if TYPE_CHECKING:
     from ..scene import Scene
 
-__all__ = ["predict_profile", "simulate_profile", "ProfileModel", "MIN_POINTS", "compute_profiles",
-           "after_verdict"]
+__all__ = ["predict_profile", "simulated_cut", "simulate_profile", "ProfileModel", "MIN_POINTS",
+           "compute_profiles", "after_verdict"]
 
 ndimage = lazy_module("scipy.ndimage")
 
@@ -60,6 +63,21 @@ def predict_profile(task_spec: dict) -> tuple[np.ndarray, dict]:
     z = _sample(np.where(np.isfinite(h), h, np.nan), pixel=meta["pixel_mm"],
                 origin=meta["origin_mm"], p0=line["p0"], direction=line["direction"], s=s)
     return z[None, :], meta
+
+
+def simulated_cut(task_spec: dict) -> np.ndarray:
+    """The scene's cut itself (the simulated machined surface, no instrument) of a profile
+    evaluation's task, sampled along its ``line`` as :func:`predict_profile` samples the
+    virtual measurement (mm; NaN off the simulated band): what the virtual instrument was
+    given to measure."""
+    line = task_spec["line"]
+    scene = scene_from_dict(task_spec["scene"], "(fit evaluation)")
+    with quiet():
+        sim = simulate(scene, surface=design_surface(scene))
+    hm = sim.heightmap
+    s = float(line["s0"]) + float(line["step"]) * np.arange(int(line["count"]))
+    return _sample(np.asarray(hm.machined, dtype=np.float64), pixel=float(hm.pixel),
+                   origin=hm.origin, p0=line["p0"], direction=line["direction"], s=s)
 
 
 def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spacing: float, *,

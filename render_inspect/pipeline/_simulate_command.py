@@ -5,6 +5,7 @@ Zarr store (:func:`render_inspect.batch.run_tiles`), the metrics reduced across 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import json
@@ -16,11 +17,11 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.grid import grid_shape
-from ..core.limits import Driver, format_number, memory_budget, usable_cpus
+from ..core.limits import format_number, memory_budget, usable_cpus
 from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
-                  export_program, grid_attrs, level_count, set_store_attrs)
+                  export_program, grid_attrs, level_count, set_store_attrs, chunk_files)
 from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_moments, plan_tiles,
                          prepare_cut, prepare_envelope, tiled_bytes)
 from ..processes import check_budget, map_figure_stride, process_of
@@ -113,7 +114,7 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
         if drawer is not None:
             drawer.close()
     if "program" in metrics:  # a program read from a file: what was inferred, the findings
-        log_program_summary(metrics["program"])
+        log_program_summary(metrics["program"], "metrics.json")
     r = metrics["residual"]
     log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
              t_write, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)
@@ -160,17 +161,46 @@ def _progress(label: str, step=None):
     return report
 
 
-def _tiled_check(simulation, nbytes, *, tile: int, in_flight: int, points: int, workers,
-                 scheduler) -> int:
-    """The memory of a tiled simulation against the budget; the message names ``--tile``
-    (memory grows as its square) and the tiles in flight."""
+class _Advice:
+    """A fix already worked out (:class:`~render_inspect.core.limits.Driver`'s part)."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def advice(self, nbytes: float, budget: float) -> str:
+        return self.text
+
+
+def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, in_flight: int,
+                 points: int, workers, scheduler, halo: int = 0) -> int:
+    """The memory of a tiled simulation (``bytes_at(tile, in_flight)``: its bytes with tiles
+    of that side, that many at once) against the budget.  The message names the largest ``--tile`` (a multiple of 64)
+    that fits, worked out with ``bytes_at`` itself; where none does, what holds the memory:
+    the burr model's ``halo`` of pixels around each tile (it grows as 1 / pixel), or the
+    path."""
     where = ("on the cluster's workers" if scheduler else
              f"{in_flight} at once" + ("" if workers else " (one per core)"))
-    return check_budget(
-        simulation, nbytes, what=f"the tiled simulation (tiles of {tile} x {tile} pixels, "
-                                 f"{where}; {format_number(points)} path points)",
-        drivers=[Driver("--tile", tile, 2, "pixels", limit=(64, None))],
-        hint="or run fewer tiles at once (--workers) or shrink simulation.region")
+    nbytes = bytes_at(tile, in_flight)
+    budget = memory_budget(simulation.max_memory_gb)[0]
+    drivers: list = []
+    what = (f"the tiled simulation (tiles of {tile} x {tile} pixels, {where}; "
+            f"{format_number(points)} path points")
+    if halo:
+        what += f"; the burr model reads {halo} pixels around each tile"
+    what += ")"
+    hints = []
+    if nbytes > budget:
+        fits = next((t for t in range(tile - 64, 63, -64) if bytes_at(t, in_flight) <= budget), None)
+        if fits is not None:
+            drivers.append(_Advice(f"--tile {fits} (now {tile})"))
+        elif halo > tile // 2:
+            hints.append(f"the burrs are smoothed over max(feed, 2 pixels), {halo} pixels at "
+                         f"simulation.pixel {simulation.pixel:g} mm: a coarser simulation.pixel, "
+                         f"or material.burrs = false")
+        if in_flight > 1 and not scheduler and bytes_at(tile, 1) <= budget:
+            hints.append("run one tile at a time (--workers 1)")
+    hint = "; ".join(hints) if hints else None
+    return check_budget(simulation, nbytes, what=what, drivers=drivers, hint=hint)
 
 
 def _may_leave_uncut(region, path, env) -> bool:
@@ -219,9 +249,9 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
     process.precheck(cfg, tuple(sim.region))
     extra, n_est = process.tiled_memory(cfg)
     # two phases: the machine model following the whole path, then the tiles
-    _tiled_check(sim, max(tiled_bytes(tile, n_est, in_flight=in_flight) + extra,
-                          process.following_memory(cfg)), tile=tile,
-                 in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
+    following = process.following_memory(cfg)
+    _tiled_check(sim, lambda t, k: max(tiled_bytes(t, n_est, in_flight=k) + extra, following),
+                 tile=tile, in_flight=in_flight, points=n_est, workers=workers, scheduler=scheduler)
     timing = {}
     # the folder is checked and locked first; the Dask workers start while the path is
     # planned, and are shut down before the folder is swapped in
@@ -258,12 +288,12 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         halo = 0 if env.burrs is None else burr_halo(sim.pixel, env.burrs["smoothing"],
                                                      env.burrs["width"],
                                                      nan=_may_leave_uncut(sim.region, path, env))
-        est = _tiled_check(sim, max(tiled_bytes(tile, path.points, in_flight=in_flight,
-                                                material=mat is not None, burr_halo=halo,
-                                                shape=shape) + extra,
-                                    process.following_memory(cfg, plan)),
+        following = process.following_memory(cfg, plan)
+        est = _tiled_check(sim, lambda t, k: max(tiled_bytes(t, path.points, in_flight=k,
+                                                             material=mat is not None, burr_halo=halo,
+                                                             shape=shape) + extra, following),
                            tile=tile, in_flight=in_flight, points=path.points, workers=workers,
-                           scheduler=scheduler)
+                           scheduler=scheduler, halo=halo)
         levels = level_count(shape)
         n_tiles = len(plan_tiles(shape, tile))
         log.info("simulating %s samples in %d tiles of %d x %d pixels (%s) ...",
@@ -294,7 +324,8 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
                             "memory_estimate_bytes": est}
         lo, hi, counts = stats.histogram
         set_store_attrs(store, residual_histogram={"lo_mm": lo, "hi_mm": hi,
-                                                   "counts": counts.tolist()})
+                                                   "counts": counts.tolist()},
+                        chunk_files=chunk_files(store))
         z = ZarrHeightMap(store)
         tw: dict[str, float] = {}
         if traits.saves_program:

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from ..core.units import MIN_TO_S, MM_TO_UM
 
-__all__ = ["toolpath_summary", "characterise_summary", "render_summary", "command_summary"]
+__all__ = ["toolpath_summary", "characterise_summary", "render_summary", "command_summary",
+           "profile_compare_summary", "PROFILE_COLUMNS"]
 
 
 def _num(v: object, unit: str = "", fmt: str = ".4g") -> str:
@@ -90,6 +91,45 @@ def render_summary(result: dict) -> list[tuple[str, str]]:
             facts.append(f"{timing[name]:.1f} s")
         rows.append((name.replace("_", " "), ", ".join(facts) or "written"))
     return rows
+
+
+#: the profile compare's columns: metrics key, heading
+PROFILE_COLUMNS = (("measured", "measured"), ("simulated_measured", "simulated measurement"),
+                   ("true", "simulated cut"))
+
+
+def profile_compare_summary(metrics: dict) -> tuple[list[tuple[str, ...]], list[str]]:
+    """The headline numbers of ``compare --measured PROFILE``: rows (quantity, measured,
+    simulated measurement, simulated cut) and lines (the registration, the filters, and
+    the warnings: a virtual measurement that does not follow the cut, a registration no
+    better than chance)."""
+    p = metrics.get("profiles") or {}
+    rows: list[tuple[str, ...]] = []
+    for key, label, unit, scale in (("Ra_nm", "Ra", "nm", 1.0), ("Rq_nm", "Rq", "nm", 1.0),
+                                    ("Rt_nm", "Rt", "nm", 1.0), ("Rku", "Rku", "", 1.0),
+                                    ("RSm_mm", "RSm", "um", MM_TO_UM)):
+        vals = [((p.get(k) or {}).get("profile") or {}).get(key) for k, _ in PROFILE_COLUMNS]
+        rows.append((label, *(_num(None if v is None else v * scale, unit) for v in vals)))
+    per = []
+    for k, _ in PROFILE_COLUMNS:
+        dom = (((p.get(k) or {}).get("periods") or {}).get("dominant") or {}).get("period_mm")
+        per.append(_num(None if dom is None else dom * MM_TO_UM, "um"))
+    rows.append(("dominant period", *per))
+    reg = metrics.get("registration") or {}
+    f = metrics.get("filter") or {}
+    lines = []
+    if reg:
+        null = reg.get("null_correlation")
+        lines.append(f"registration: shifted {_num((reg.get('shift_mm') or 0) * MM_TO_UM, 'um')}, "
+                     f"correlation {_num(reg.get('correlation'), fmt='.3f')}"
+                     + ("" if null is None else
+                        f" ({'reliable' if reg.get('reliable') else 'not reliable'}: an "
+                        f"unrelated profile reaches {_num(null, fmt='.3f')})"))
+    if f:
+        lines.append(f"filters: lambda_s {_num(f.get('lambda_s_mm') or 0)} mm, lambda_c "
+                     f"{_num(f.get('lambda_c_mm'))} mm; parabola removed from each")
+    lines += [f"WARNING: {w}" for w in metrics.get("warnings") or []]
+    return rows, lines
 
 
 def command_summary(command: str, result: object, out: str | Path) -> list[tuple[str, str]]:

@@ -163,15 +163,15 @@ def write_program_report(folder: Path, plan: Plan, facts: dict) -> None:
         atomic_write_text(folder / "feed_per_rev.csv", text)
 
 
-def log_program_summary(info: dict) -> None:
+def log_program_summary(info: dict, facts_file: str = "toolpath.json") -> None:
     """What was read and inferred, and the findings, one line each (findings as a
-    warning)."""
+    warning); ``facts_file``: the file of the command that holds ``program``."""
     log.info("program %s (%s): %s", info.get("file"), info.get("dialect"),
              "; ".join(info.get("inferred", {}).values()))
     f = info.get("feed_per_rev")
     if f:
         log.info("feed per revolution %.4g um (median), %.4g .. %.4g um over the radius "
-                 "(feed_per_rev.png, toolpath.json program.feed_per_rev)", f["median_um"],
-                 f["min_um"], f["max_um"])
+                 "(feed_per_rev.png, %s program.feed_per_rev)", f["median_um"],
+                 f["min_um"], f["max_um"], facts_file)
     text = findings_summary(info)
     (log.warning if info.get("findings") else log.info)("program findings: %s", text)

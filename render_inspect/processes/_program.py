@@ -53,7 +53,9 @@ def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = No
     (:func:`~render_inspect.io.read_program` with the scene's ``process.spindle_rpm``,
     ``process.feed_mm_per_min``, ``process.workpiece_radius``, ``process.program_x`` and
     ``process.points_per_rev``), cut to the points that can reach ``region``; its
-    ``meta["program"]`` holds the dialect and what was inferred."""
+    ``meta["program"]`` holds the dialect and what was inferred, ``meta["feed_per_rev_mm"]``
+    the program's median feed per revolution at the radii ``region`` spans (over the whole
+    program without a region)."""
     p = cfg.process
     imp = read_program_file(p.program, kind="turning", spindle_rpm=float(p.spindle_rpm),
                        feed_mm_per_min=float(p.feed_mm_per_min),
@@ -63,9 +65,17 @@ def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = No
     meta = dict(path.meta)
     meta["program"] = {"file": Path(imp.path).name, "dialect": imp.dialect,
                        "inferred": dict(imp.inferred), **imp.facts}
-    fpr = feed_per_rev(path)
-    if fpr[1].size:
-        meta["feed_per_rev_mm"] = float(np.median(fpr[1]))
+    r, f = feed_per_rev(path)
+    if f.size:
+        meta["feed_per_rev_mm"] = float(np.median(f))
+        if region is not None:
+            # the feed that cut the region (the scallop, the burrs' smoothing): the median
+            # at the radii the region spans (a program may change its feed with the radius)
+            r_in, r_out = region_radii(tuple(region), 0.0)
+            sel = (np.abs(r) >= r_in) & (np.abs(r) <= r_out) & (f > 0)
+            if sel.any():
+                meta["feed_per_rev_mm"] = float(np.median(f[sel]))
+                meta["program"]["feed_per_rev_region_um"] = meta["feed_per_rev_mm"] * MM_TO_UM
     meta["time_s"] = float(path.t[-1] - path.t[0]) if path.points else 0.0
     lines, motion = imp.file_line, imp.motion
     if region is not None and path.points > 2:

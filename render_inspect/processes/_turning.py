@@ -252,11 +252,15 @@ def turning_precheck(cfg: TurningInputs, region: Sequence[float] | None = None) 
 
 
 def turning_header(cfg: TurningInputs) -> dict:
-    """NC header lines of a turning program."""
+    """NC header lines of a turning program (of a program read from a file: its name, not
+    the scene's feed and compensation, which it does not follow)."""
     p = cfg.process
-    return {"scene": cfg.name, "process": p.kind, "spindle_rpm": p.spindle_rpm,
-            "feed_per_rev_mm": p.feed_per_rev, "compensation": p.compensation,
-            "nose_radius": cfg.tool.nose_radius}
+    head = {"scene": cfg.name, "process": p.kind, "spindle_rpm": p.spindle_rpm}
+    if program_path(cfg):
+        head["program"] = Path(str(p.program)).name
+    else:
+        head.update({"feed_per_rev_mm": p.feed_per_rev, "compensation": p.compensation})
+    return {**head, "nose_radius": cfg.tool.nose_radius}
 
 
 def turning_part(cfg: TurningInputs, surface: Any, path: ToolPath | None = None) -> PartModel:
@@ -473,7 +477,8 @@ class TurningProcess(Process[TurningInputs]):
         tp = facts.setdefault("toolpath", {})
         tp.setdefault("points", prog.points)
         tp.setdefault("revolutions", prog.revolutions)
-        tp.setdefault("feed_per_rev_mm", cfg.process.feed_per_rev)
+        # (a program read from a file: its own median feed, in its meta)
+        tp.setdefault("feed_per_rev_mm", prog.meta.get("feed_per_rev_mm", cfg.process.feed_per_rev))
         for k, v in prog.meta.items():
             if k not in ("accessibility", "program") and not k.startswith("_"):
                 tp.setdefault(k, v)

@@ -255,7 +255,9 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
     a, b = metrics[va], metrics[vb]
     d = metrics["difference"]
     w = d.get("window", {})
-    rows = [("variant", a["variant"]["label"], b["variant"]["label"]),
+    vrows = _variant_rows(metrics["variants"], (a["variant"]["label"], b["variant"]["label"]))
+    shown = {x for r in vrows for x in r[1:]}
+    rows = vrows + [
             ("residual Sq", fmt_quantity(a["residual"]["Sq_nm"], "nm"),
              fmt_quantity(b["residual"]["Sq_nm"], "nm")),
             ("residual min (< 0: overcut)", fmt_quantity(a["residual"]["min_nm"], "nm"),
@@ -269,7 +271,9 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
             prog = m.get("program")
             if prog is None:
                 return "(planned)"
-            return f"{prog.get('findings_count', 0):,} points ({prog.get('file', '')})"
+            n = f"{prog.get('findings_count', 0):,} points"
+            # a file the variants' rows above name already is not repeated
+            return n if prog.get("file", "") in shown else f"{n} ({prog.get('file', '')})"
         rows.append(("program findings (below the design, rapids in the part)",
                      finding(a), finding(b)))
     meas = w.get("measured") or {}
@@ -295,6 +299,28 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
                       f"against its noise {fmt_quantity(rep.get('mean_map_floor_nm'), 'nm')}: "
                       f"{(rep.get('mean_map') or {}).get('verdict', 'unknown')}"))
     return rows, lines
+
+
+def _short_value(v: object) -> str:
+    """A varied value as the summary shows it: a file by its name (the folder both share
+    says nothing about what differs)."""
+    text = str(v)
+    if isinstance(v, str) and ("/" in text or "\\" in text):
+        return text.replace("\\", "/").rstrip("/").rsplit("/", 1)[-1]
+    return text
+
+
+def _variant_rows(variants: list, labels: tuple[str, str] | None = None
+                  ) -> list[tuple[str, str, str]]:
+    """The rows that say what differs between the two variants: one per varied key with
+    its two values (files by their names), or the variants' ``labels`` (default: their
+    own) for a process's own pair."""
+    va, vb = variants[0].get("values") or {}, variants[1].get("values") or {}
+    keys = [k for k in va if k in vb and va[k] != vb[k]]
+    if not keys:
+        la, lb = labels or (variants[0].get("label", ""), variants[1].get("label", ""))
+        return [("variant", la, lb)]
+    return [(k, _short_value(va[k]), _short_value(vb[k])) for k in keys]
 
 
 def _measured_text(meas: dict) -> str:

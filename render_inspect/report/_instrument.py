@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ..core.units import MM_TO_UM
 from ._figures import line_panels, map_panels
-from ._profile_figs import profile_summary
+from ._profile_figs import period_text, profile_summary
 from ._format import fmt_number, fmt_quantity
 
 __all__ = ["analysis_summary", "characterise_figures", "measurement_summary"]
@@ -110,9 +110,9 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
                               f"{fmt_number(a.get('Sdq'))}"),
             ("outliers (3-sigma rule)", f"{out.get('count')} "
                                         + ("left out" if out.get("left_out") else "kept"))]
-    period = ((metrics.get("periods") or {}).get("dominant") or {}).get("period_mm")
-    if period:
-        rows.append(("dominant period", fmt_quantity(period * MM_TO_UM, "um")))
+    dom = (metrics.get("periods") or {}).get("dominant")
+    if dom and (dom.get("period_mm") or dom.get("note")):
+        rows.append(("dominant period", period_text(dom)))
     return rows
 
 

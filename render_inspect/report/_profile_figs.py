@@ -6,13 +6,35 @@ true profiles along one line."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+import textwrap
+from typing import Any
+
 import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._figures import _plt, _to_png
 from ._format import fmt_number, fmt_quantity
 
-__all__ = ["profile_figure", "profile_overlay_figure", "profile_summary"]
+__all__ = ["period_text", "profile_figure", "profile_overlay_figure", "profile_summary"]
+
+
+def _um(period_mm: float | None) -> str:
+    return "none" if not period_mm else f"{period_mm * MM_TO_UM:.4g} um"
+
+
+def period_text(dom: dict | None) -> str:
+    """A dominant period (``metrics.json``'s ``periods.dominant``) for a summary: the
+    period and the share of the variance it holds, or none, with why where the spectrum
+    says (it rises to an end of the range searched)."""
+    dom = dom or {}
+    p, note = dom.get("period_mm"), dom.get("note")
+    if not p:
+        return "none" + (f": {note}" if note else "")
+    frac = dom.get("fraction_of_variance")
+    text = fmt_quantity(p * MM_TO_UM, "um")
+    if frac is not None:
+        text += f" ({100 * frac:.3g} % of the variance)"
+    return text + (f"; {note}" if note else "")
 
 
 def profile_summary(metrics: dict) -> list[tuple[str, str]]:
@@ -21,7 +43,6 @@ def profile_summary(metrics: dict) -> list[tuple[str, str]]:
     p = metrics.get("profile", {})
     f = metrics.get("filter", {})
     per = metrics.get("periods") or {}
-    dom = (per.get("dominant") or {}).get("period_mm")
     ta = per.get("through_axis")
     out = metrics.get("outliers", {})
     rows = [("profile", f"{metrics.get('n_measured')} of {metrics.get('n_points')} points "
@@ -35,11 +56,13 @@ def profile_summary(metrics: dict) -> list[tuple[str, str]]:
                               f"{fmt_number(p.get('Rdq'))}"),
             ("RSm", fmt_quantity((p.get("RSm_mm") or 0) * MM_TO_UM, "um") if p.get("RSm_mm")
              else "n/a"),
-            ("dominant period", fmt_quantity(dom * MM_TO_UM, "um") if dom else "none")]
+            ("dominant period", period_text(per.get("dominant")))]
     if ta:
         rows.append(("through the axis", f"centre {ta['centre_mm']:.4g} mm; period left "
-                     f"{(ta.get('left') or {}).get('period_mm', 0) * MM_TO_UM:.4g} um, right "
-                     f"{(ta.get('right') or {}).get('period_mm', 0) * MM_TO_UM:.4g} um"))
+                     f"{_um((ta.get('left') or {}).get('period_mm'))}, right "
+                     f"{_um((ta.get('right') or {}).get('period_mm'))}"))
+    elif (per.get("mirror") or {}).get("why_not_through_axis"):
+        rows.append(("through the axis", "no: " + per["mirror"]["why_not_through_axis"]))
     rows.append(("spikes", f"{out.get('count')} " + ("left out" if out.get("left_out") else "kept")))
     return rows
 
@@ -96,6 +119,10 @@ def profile_figure(arrays: dict, metrics: dict, *, title: str = "", dpi: int = 9
         for h in dom["harmonics"][:4]:
             ax.axvline(h["period_mm"], color="tab:red", lw=0.6, ls=":")
         ax.legend(fontsize=7)
+    if dom.get("note"):
+        ax.text(0.02, 0.02, textwrap.fill(("no period: " if not dom.get("period_mm") else "")
+                                          + dom["note"], width=48),
+                transform=ax.transAxes, fontsize=6.5, va="bottom", ha="left", color="0.25")
     ax.set_xlabel("period (mm)")
     ax.set_ylabel("power (relative)")
     ax.grid(alpha=0.3, which="both")
@@ -109,8 +136,23 @@ def profile_figure(arrays: dict, metrics: dict, *, title: str = "", dpi: int = 9
     ax.grid(alpha=0.3)
     ax.set_title("material ratio curve", fontsize=10)
     if title:
-        fig.suptitle(title, fontsize=10)
+        fit_suptitle(fig, title, fontsize=10)
     return _to_png(fig, tight_layout=True)
+
+
+def fit_suptitle(fig: Any, title: str, *, fontsize: float = 10, margin: float = 0.96) -> Any:
+    """``fig.suptitle(title)`` wrapped at word boundaries onto as many lines as it takes
+    to fit ``margin`` of the figure's width (as drawn); returns the title's Text."""
+    text = fig.suptitle(title, fontsize=fontsize)
+    renderer = fig.canvas.get_renderer()
+    room = margin * fig.bbox.width
+    width = text.get_window_extent(renderer).width
+    chars = len(title)
+    while width > room and chars > 20:
+        chars = max(20, int(chars * room / width) - 1)
+        text.set_text(textwrap.fill(title, width=chars, break_long_words=False))
+        width = text.get_window_extent(renderer).width
+    return text
 
 
 def profile_overlay_figure(series: Sequence[dict], *, title: str = "", dpi: int = 90) -> bytes:

@@ -328,7 +328,8 @@ def _parse_value(text: str, key: str = "value") -> Any:
 
 
 def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
-    """Return a copy of ``data`` with ``section.key=value`` overrides (TOML values) applied."""
+    """Return a copy of ``data`` with ``section.key=value`` overrides (TOML values) applied
+    (a table merged into the table it names: :func:`_merged`)."""
     _check_depth(data, "the scene")
     data = copy.deepcopy(data)
     if isinstance(overrides, str):
@@ -352,8 +353,27 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
             if not isinstance(nxt, dict):
                 raise SceneError(f"--set {key}: {p!r} is a value, not a section")
             node = nxt
-        node[parts[-1]] = _parse_value(text.strip(), key)
+        node[parts[-1]] = _merged(node.get(parts[-1]), _parse_value(text.strip(), key))
     return data
+
+
+#: the keys that choose a table's kind (``design.type``, ``process.kind``)
+_CHOOSERS = ("type", "kind")
+
+
+def _merged(old: Any, new: Any) -> Any:
+    """The value a ``--set`` leaves: a table given for a table is merged into it, key by
+    key (``--set 'tool={included_angle_deg=60}'`` changes that key and keeps the others,
+    those set by earlier options too), unless it chooses another ``type`` or ``kind``,
+    whose keys differ: then it replaces the table; any other value replaces the old one."""
+    if not (isinstance(old, dict) and isinstance(new, dict)):
+        return new
+    if any(k in new and k in old and new[k] != old[k] for k in _CHOOSERS):
+        return new
+    out = dict(old)
+    for k, v in new.items():
+        out[k] = _merged(old.get(k), v)
+    return out
 
 
 def instrument_config(objective: str = "20x", mode: str = "psi",

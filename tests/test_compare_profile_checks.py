@@ -1,0 +1,157 @@
+"""``compare --measured PROFILE``'s checks and summaries, and the turned compare's feed from
+a program read from a file: known answers built with forward models."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from render_inspect.core.marks import ToolMarks
+from render_inspect.core.toolpath import ToolPath
+from render_inspect.pipeline import _compare as cmp
+from render_inspect.pipeline import _compare_profile as cp
+from render_inspect.pipeline._summaries import profile_compare_summary
+from render_inspect.report._comparison import _variant_rows
+
+SPACING = 0.001  # mm
+LAMBDA_EFF = 573.6  # nm
+
+
+def _scallops(n=900, period=0.04, r=0.2):
+    """A turned profile: arcs of the nose radius every feed period (mm)."""
+    s = np.arange(n) * SPACING
+    u = (s % period) - period / 2
+    return s, r - np.sqrt(r * r - u * u)
+
+
+def test_virtual_measurement_with_a_lost_fringe_order_is_failed():
+    s, cut = _scallops()
+    rng = np.random.default_rng(1)
+    sigma_mm = 0.8e-6
+    noise = np.full(s.size, sigma_mm)
+    good = cut + rng.normal(0, sigma_mm, s.size)
+    ok = cp._measurement_check(good, cut, noise, lambda_eff_nm=LAMBDA_EFF, mode="psi",
+                               rt_sim=1.0, rt_true=1.0)
+    assert ok["status"] == "ok" and ok["departing"] == 0
+    assert abs(ok["noise_nm"] - 0.8) < 1e-9
+    # a region 50 points long lost one fringe order (lambda_eff / 2)
+    bad = good.copy()
+    bad[300:350] += LAMBDA_EFF / 2 * 1e-6
+    chk = cp._measurement_check(bad, cut, noise, lambda_eff_nm=LAMBDA_EFF, mode="psi",
+                                rt_sim=1.0, rt_true=1.0)
+    assert chk["status"] == "failed" and chk["departing"] == 50
+    assert chk["threshold_nm"] == LAMBDA_EFF / 4
+    w = cp._measurement_warning(chk)
+    assert "render.interferometer.mode" in w and "CSI" in w
+
+
+def test_noisy_instrument_threshold_follows_its_noise():
+    s, cut = _scallops()
+    rng = np.random.default_rng(2)
+    sigma_mm = 40e-6  # 40 nm: 5 sigma = 200 nm > lambda_eff / 4
+    meas = cut + rng.normal(0, sigma_mm, s.size)
+    chk = cp._measurement_check(meas, cut, np.full(s.size, sigma_mm), lambda_eff_nm=LAMBDA_EFF,
+                                mode="csi", rt_sim=1.0, rt_true=1.0)
+    assert chk["threshold_nm"] == 200.0
+    assert chk["status"] == "ok"
+
+
+def test_registration_recovers_a_shift_and_refuses_an_unrelated_profile():
+    rng = np.random.default_rng(3)
+    n = 1000
+    # a simulated measurement with features beyond the marks (a random waviness)
+    sim = np.convolve(rng.normal(0, 1, n + 40), np.ones(20) / 20, "valid")[:n] * 1e-4
+    s = np.arange(n) * SPACING
+    shift = 37
+    meas = sim[shift:shift + 700] + rng.normal(0, 2e-6, 700)
+    s_meas = np.arange(700) * SPACING
+    got, r, _, null = cp._register(s_meas, meas, s, sim, spacing=SPACING, period=None)
+    assert round(got / SPACING) == shift
+    assert null is not None and r > null
+    other = np.convolve(rng.normal(0, 1, 740), np.ones(20) / 20, "valid")[:700] * 1e-4
+    _, r2, _, null2 = cp._register(s_meas, other, s, sim, spacing=SPACING, period=None)
+    assert r2 <= null2
+    reg = {"correlation": r2, "null_correlation": null2, "beats_chance": False,
+           "reliable": False}
+    assert "not reliable" in cp._registration_warning(reg)
+
+
+def test_profile_compare_summary_shows_numbers_and_warnings():
+    prof = {"profile": {"Ra_nm": 10.0, "Rq_nm": 12.0, "Rt_nm": 50.0, "Rku": 3.0,
+                        "RSm_mm": 0.04},
+            "periods": {"dominant": {"period_mm": 0.04}}}
+    m = {"kind": "profile", "profiles": {"measured": prof, "simulated_measured": prof,
+                                         "true": prof},
+         "registration": {"shift_mm": 0.001, "correlation": 0.1, "null_correlation": 0.3,
+                          "reliable": False},
+         "filter": {"lambda_s_mm": 0.0025, "lambda_c_mm": 0.08},
+         "warnings": ["the registration is not reliable"]}
+    rows, lines = profile_compare_summary(m)
+    assert rows[0] == ("Ra", "10 nm", "10 nm", "10 nm")
+    assert ("dominant period", "40 um", "40 um", "40 um") in rows
+    assert any(x.startswith("WARNING: the registration") for x in lines)
+
+
+def test_cli_prints_the_profile_compare_summary(capsys, tmp_path):
+    from render_inspect.cli._summary import ROW_SUMMARIES, _print_summary
+
+    assert "compare" in ROW_SUMMARIES
+    m = {"kind": "profile", "scene": "s", "input": {"path": "/x/1021-WLI-2D.csv"},
+         "profiles": {}, "registration": {}, "filter": {}, "warnings": ["it failed"]}
+    _print_summary("compare", m, str(tmp_path), 1.0)
+    text = capsys.readouterr().out
+    assert "1021-WLI-2D.csv" in text and "WARNING: it failed" in text
+    assert f"report: {tmp_path.resolve() / 'report.html'}" in text
+
+
+def test_variant_rows_name_the_files_not_their_folder():
+    variants = [{"name": "a", "label": "process.program = /long/common/folder/1022-x.nc",
+                 "values": {"process.program": "/long/common/folder/1022-x.nc"}},
+                {"name": "b", "label": "process.program = /long/common/folder/1023-y.nc",
+                 "values": {"process.program": "/long/common/folder/1023-y.nc"}}]
+    assert _variant_rows(variants) == [("process.program", "1022-x.nc", "1023-y.nc")]
+
+
+def _spiral(feed_inner, feed_outer, r_change, r_max=1.0, per_rev=400):
+    """A spiral inwards whose feed per revolution is ``feed_outer`` beyond ``r_change`` and
+    ``feed_inner`` inside it (mm)."""
+    theta, rho, r, th = [], [], r_max, 0.0
+    while r > 0:
+        f = feed_outer if r > r_change else feed_inner
+        theta.append(th)
+        rho.append(r)
+        th += 2 * np.pi / per_rev
+        r -= f / per_rev
+    theta, rho = np.array(theta), np.array(rho)
+    return ToolPath(theta, rho, np.zeros_like(rho), theta.copy(), {})
+
+
+def test_program_feed_over_the_region_sets_scallop_and_filter(tmp_path):
+    """A program whose feed changes with the radius: the simulated region's scallop is the
+    feed at the region's own radii (the process states it), and compare's filters follow
+    it; a planned path states none."""
+    import json
+
+    from render_inspect.io import write_nc
+    from render_inspect.pipeline import simulate
+    from render_inspect.scene import load_scene
+
+    nc = write_nc(tmp_path / "p.nc", _spiral(0.02, 0.04, 0.3))
+    scene = load_scene("sts_sinusoidal_grid", [
+        "design={type='plane'}", "tool.nose_radius=0.2", "machine.preset='ideal'",
+        "material.preset='ideal'", "simulation.region=[-0.1,-0.05,0.1,0.05]",
+        "simulation.pixel=0.005", "process.workpiece_radius=1.0",
+        f"process.program={json.dumps(str(nc))}"])
+    metrics = simulate(scene).metrics
+    assert abs(metrics["program"]["feed_per_rev_region_um"] - 20.0) < 1e-3
+    assert abs(metrics["scallop"]["feed_per_rev_mm"] - 0.02) < 1e-6
+    # scallop height of a 20 um feed with a 0.2 mm nose: f^2 / 8R = 250 nm
+    assert abs(metrics["scallop"]["height_nm"] - 250.0) < 1.0
+    v = SimpleNamespace(name="prog", sim=SimpleNamespace(metrics=metrics))
+    p = SimpleNamespace(name="planned", sim=SimpleNamespace(metrics={"scallop": {}}))
+    feeds = cmp._program_feeds([v, p])
+    assert set(feeds) == {"prog"} and abs(feeds["prog"] - 0.02) < 1e-9
+    marks = ToolMarks(pattern="circular", period_mm=0.0396, nose_radius_mm=0.2, scallop=True)
+    assert cmp._marks_of_programs(marks, feeds).period_mm == feeds["prog"]
+    assert cmp._marks_of_programs(marks, {}) is marks
