@@ -40,8 +40,19 @@ def test_virtual_measurement_with_a_lost_fringe_order_is_failed():
     bad[300:350] += LAMBDA_EFF / 2 * 1e-6
     chk = cp._measurement_check(bad, cut, noise, lambda_eff_nm=LAMBDA_EFF, mode="psi",
                                 rt_sim=1.0, rt_true=1.0)
-    assert chk["status"] == "failed" and chk["departing"] == 50
+    assert chk["status"] == "failed" and chk["departing"] == 50 and chk["longest_run"] == 50
     assert chk["threshold_nm"] == LAMBDA_EFF / 4
+    # two lone points off (a dropout's edges) and a tilt (the instrument's levelling): not
+    # a failed measurement; three in a row are
+    lone = good + np.linspace(0, 400e-6, good.size)
+    lone[[100, 500]] += LAMBDA_EFF / 2 * 1e-6
+    ok2 = cp._measurement_check(lone, cut, noise, lambda_eff_nm=LAMBDA_EFF, mode="psi",
+                                rt_sim=1.0, rt_true=1.0)
+    assert ok2["status"] == "ok" and ok2["departing"] == 2 and ok2["longest_run"] == 1
+    lone[[501, 502]] += LAMBDA_EFF / 2 * 1e-6
+    three = cp._measurement_check(lone, cut, noise, lambda_eff_nm=LAMBDA_EFF, mode="psi",
+                                  rt_sim=1.0, rt_true=1.0)
+    assert three["status"] == "failed" and three["longest_run"] == 3
     w = cp._measurement_warning(chk)
     assert "render.interferometer.mode" in w and "CSI" in w
 

@@ -296,3 +296,33 @@ def test_a_program_that_is_a_folder_is_named_as_one(tmp_path):
 
     with pytest.raises(InputError, match=r"process.program: '.*' is a folder, not a file"):
         read_program(tmp_path)
+
+
+def test_held_library_messages_leave_the_streams_as_they_were_across_threads():
+    """A read in a second thread while one holds the streams runs with them as they are;
+    when both end, stdout and stderr (the objects and the descriptors) are the process's
+    own again (two redirections that overlap without nesting cannot be undone in order)."""
+    import os
+    import sys
+    import threading
+
+    from render_inspect.io._native import library_messages
+
+    before = (sys.stdout, sys.stderr, os.readlink("/proc/self/fd/1"),
+              os.readlink("/proc/self/fd/2"))
+    entered, release = threading.Event(), threading.Event()
+
+    def first():
+        with library_messages():
+            entered.set()
+            release.wait(10)
+
+    t = threading.Thread(target=first)
+    t.start()
+    entered.wait(10)
+    with library_messages() as held:  # begins after the other and ends after it
+        release.set()
+        t.join(10)
+    assert held.text == ""
+    assert (sys.stdout, sys.stderr, os.readlink("/proc/self/fd/1"),
+            os.readlink("/proc/self/fd/2")) == before

@@ -717,6 +717,8 @@ def test_the_scene_and_the_files_it_reads_are_never_deleted_with_the_folder(tmp_
         else:
             d["tool"]["edge_profile"] = value
         assert str(out / "toolpath.nc") in scene_files(d)
+        # (keys that only share a name, such as rcse.path = "rcse", are not files)
+        assert scene_files(load_scene("rcse_circular_array")) == []
         with pytest.raises(InputError, match="holds the input"):
             with atomic_output_dir(out, overwrite=True, scene=d):
                 pass

@@ -237,3 +237,12 @@ def test_real_turned_slices_stay_through_the_axis(name, centre_mm):
     ta = out["through_axis"]
     assert ta["centre_mm"] == pytest.approx(centre_mm, abs=0.002)
     assert ta["left"]["period_mm"] == pytest.approx(ta["right"]["period_mm"], rel=0.05)
+
+
+@pytest.mark.parametrize("period_mm", [1.0, 0.95, 0.004])
+def test_a_trace_of_four_periods_or_of_four_samples_a_period_is_found(period_mm):
+    """The range's end bins are peaks when the spectrum falls beyond them: a trace of
+    exactly four periods, or marks of four samples, are periods, not the range's end."""
+    x = np.arange(4000) * 0.001
+    r = dominant_periods(np.sin(2 * np.pi * x / period_mm), spacing=0.001)
+    assert r["period_mm"] == pytest.approx(period_mm, rel=0.01) and r["note"] is None

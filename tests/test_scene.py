@@ -155,3 +155,9 @@ def test_a_table_given_with_set_changes_its_keys_and_keeps_the_others():
     # another type or kind: the section is replaced (the old type's keys do not apply)
     s = load_scene(GRID, ["design={type='sphere', radius=20.0}"])
     assert s.design.type == "sphere" and s.design.radius == 20.0
+    # another preset too: the scene's 1.3 ms FTS delay belongs to its own machine
+    hts = load_scene("hts_toric_msa")
+    assert hts.machine.fts_sync_delay_s
+    assert load_scene("hts_toric_msa", ["machine={preset='ideal'}"]).machine.fts_sync_delay_s is None
+    # an empty table clears the section
+    assert load_scene("hts_toric_msa", ["machine={}"]).machine.fts_sync_delay_s is None

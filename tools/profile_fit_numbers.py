@@ -54,7 +54,7 @@ CASES = [("1021", -0.30, 0.3, "process.feed_mm_per_min", False),
          ("1021", -0.30, 0.3, "tool.nose_radius", True)]
 #: the evaluations a fit may take: of one arm, of both arms (each of whose evaluations
 #: simulates two stretches; a fit that converges stops before)
-MAX_EVALUATIONS = {"one": 45, "both": 70}
+MAX_EVALUATIONS = {"one": 45, "both": 74}
 #: feed per revolution of 1016 by its program's name ("x0.01"), mm
 FEED_1016 = 0.01
 RPM = 100.0

@@ -32,8 +32,8 @@ from ._checks import (MARK_KEYS, MISMATCH, PERIOD_TOLERANCE, check_after, check_
 from ._profile import (PROFILE_TERMS, ProfileSpec, ProfileTarget, make_profile_target,
                        predict_profile_features, profile_family, profile_residual_vector,
                        set_profile_noise_floor, set_profile_psd)
-from ._arms import (ARMS_CHOICES, ArmsPrediction, ArmsTarget, arm_estimates, arms_features,
-                    arms_text, combine_arms, set_arms_noise_floor)
+from ._arms import (ARMS_CHOICES, ArmsPrediction, ArmsTarget, arm_estimates, arm_evaluations,
+                    arms_features, arms_text, combine_arms, set_arms_noise_floor)
 from ._profile_psd import amplitude_scan
 from ._placement import centred_origin, check_units, field_extent, fit_window, register_field
 from ._result import fit_record, misfit_maps, summary_lines
@@ -58,5 +58,5 @@ __all__ = ["check_weights", "parse_weights",
            "PROFILE_TERMS", "ProfileSpec", "ProfileTarget", "make_profile_target",
            "predict_profile_features", "profile_family", "profile_residual_vector",
            "set_profile_noise_floor", "within_reach", "ARMS_CHOICES", "ArmsTarget",
-           "arm_estimates", "arms_text", "combine_arms", "set_arms_noise_floor",
+           "arm_estimates", "arm_evaluations", "arms_text", "combine_arms", "set_arms_noise_floor",
            "ArmsPrediction", "arms_features", "amplitude_scan", "set_profile_psd"]

@@ -200,8 +200,20 @@ def _parabola_min(xs, ys) -> float:
     return float(np.clip(x3[1] - c[1] / (2 * c[0]), x3[0], x3[2]))
 
 
+#: :func:`arm_estimates`' scan: steps either side of the solution, and rounds of one step
+#: more outwards on either side while an arm's lowest point is at the scan's end
+ARM_REACH, ARM_EXTEND = 2, 3
+
+
+def arm_evaluations(n_keys: int, *, reach: int = ARM_REACH, extend: int = ARM_EXTEND) -> int:
+    """The most evaluations :func:`arm_estimates` makes for ``n_keys`` free keys:
+    ``2 (reach + extend)`` each (the scan either side, and each round's step either
+    side)."""
+    return 2 * (int(reach) + int(extend)) * int(n_keys)
+
+
 def arm_estimates(params: list, evaluator: Any, values: np.ndarray, stderr: np.ndarray, *,
-                  rel_step: float = 0.01, reach: int = 2, extend: int = 3) -> dict:
+                  rel_step: float = 0.01, reach: int = ARM_REACH, extend: int = ARM_EXTEND) -> dict:
     """Each arm's own estimate of the free keys, from the joint fit at ``values``.
 
     The joint misfit is the sum of the arms' misfits.  Along each free key (the others

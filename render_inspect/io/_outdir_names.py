@@ -159,28 +159,28 @@ def _check_link(out_text: str, overwrite: bool, option: str) -> None:
                          f"link points to: give that folder itself as {option}, or remove the link")
 
 
-#: scene keys whose text value names a file the command reads (a height map design, its
-#: compound's parts, the measured tool edge, a machine program)
-_SCENE_FILE_KEYS = ("path", "edge_profile", "program")
-
-
 def scene_files(scene: Any) -> list[str]:
-    """The files a scene reads (the values of :data:`_SCENE_FILE_KEYS` anywhere in it), for
-    the check that an output folder holds none of them."""
+    """The files a scene reads: a height map design's ``path`` (a compound design's
+    ``base`` and ``feature`` too), ``tool.edge_profile`` and ``process.program``, for the
+    check that an output folder holds none of them."""
     if scene is None:
         return []
     d = scene.to_dict() if hasattr(scene, "to_dict") else scene
     found: list[str] = []
 
-    def walk(node: Any) -> None:
+    def design(node: Any) -> None:
         if isinstance(node, dict):
-            for k, v in node.items():
-                if k in _SCENE_FILE_KEYS and isinstance(v, str) and v:
-                    found.append(v)
-                else:
-                    walk(v)
+            if isinstance(node.get("path"), str) and node["path"]:
+                found.append(node["path"])
+            for part in ("base", "feature"):
+                design(node.get(part))
 
-    walk(d)
+    if isinstance(d, dict):
+        design(d.get("design"))
+        for section, key in (("tool", "edge_profile"), ("process", "program")):
+            value = (d.get(section) or {}).get(key) if isinstance(d.get(section), dict) else None
+            if isinstance(value, str) and value:
+                found.append(value)
     return found
 
 

@@ -62,21 +62,24 @@ def _filled(z) -> np.ndarray:
 
 def _search_range(freq, power, *, spacing, n_total):
     """The bins searched for the fundamental (between 4 samples and a quarter of the
-    trace) and the peaks among them: bins strictly inside the range that are local
-    maxima (higher than the bin below, not lower than the bin above)."""
+    trace) and the peaks among them: local maxima of the spectrum (higher than the bin
+    below, not lower than the bin above, those beyond the range's ends included: a trace
+    of exactly four periods has its peak on the range's end bin)."""
     fmin = 1.0 / (n_total * spacing / 4.0)
     fmax = 1.0 / (4.0 * spacing)
     ib = np.flatnonzero((freq >= fmin) & (freq <= fmax))
-    peaks = np.array([i for i in ib[1:-1]
-                      if power[i] > power[i - 1] and power[i] >= power[i + 1]], dtype=int)
+    peaks = np.array([i for i in ib if 0 < i < power.size - 1
+                      and power[i] > power[i - 1] and power[i] >= power[i + 1]], dtype=int)
     return ib, peaks
 
 
-def _range_note(freq, power, ib) -> tuple[str | None, str | None]:
+def _range_note(freq, power, ib, peaks) -> tuple[str | None, str | None]:
     """Why the largest line of the search range is not a period, when it is not: it lies
-    at an end of the range, which the spectrum rises to (the end of the search, not a
-    feed mark): ("longest" or "shortest", the words), or (None, None)."""
+    at an end of the range and the spectrum rises on beyond it (the end of the search, not
+    a feed mark): ("longest" or "shortest", the words), or (None, None)."""
     j = int(ib[np.argmax(power[ib])])
+    if j in peaks:
+        return None, None
     if j == ib[0]:
         return "longest", (f"the spectrum rises to the longest period searched "
                            f"({1.0 / freq[j] * MM_TO_UM:.4g} um, a quarter of the length): form "
@@ -98,7 +101,7 @@ def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
     if ib.size < 3:
         return {"period_mm": None, "harmonics": [], "fraction": 0.0, "search_mm": rng,
                 "rises_to": None, "note": "too few points to look for a period"}
-    rises_to, note = _range_note(freq, power, ib)
+    rises_to, note = _range_note(freq, power, ib, peaks)
     if not peaks.size:
         return {"period_mm": None, "harmonics": [], "fraction": 0.0, "search_mm": rng,
                 "rises_to": rises_to,
@@ -262,9 +265,10 @@ def arms_agree(left: dict, right: dict) -> tuple[bool, str]:
     same radii): (agree, why).  ``left`` and ``right`` are :func:`dominant_periods` with
     ``length_mm``.  They agree when their frequencies differ by no more than
     :data:`ARMS_REL_TOL` of their mean or one line of the shorter arm's periodogram
-    (1 / its length), whichever is wider: the spectrum resolves no finer, and a feed
-    that varies a little with the radius, or a trace a little off the axis, moves the
-    period by a few per cent."""
+    (1 / its length), whichever is wider: the spectrum resolves no finer, and the
+    allowance (not derived from a model) admits arms of unequal length, the longer of which
+    also crosses radii where a program that changes its feed with the radius cuts another
+    period."""
     pl, pr = left.get("period_mm"), right.get("period_mm")
     if not pl or not pr:
         side = "left" if not pl else "right"

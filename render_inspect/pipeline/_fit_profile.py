@@ -37,7 +37,8 @@ from ..batch import call_with_threads, cluster_info, dask_client
 from ..core.errors import InputError
 from ..core.progress import task
 from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
-from ..fit import ARMS_CHOICES, ArmsTarget, arm_estimates, arms_features, set_arms_noise_floor
+from ..fit import (ARMS_CHOICES, ArmsTarget, arm_estimates, arm_evaluations, arms_features,
+                   set_arms_noise_floor)
 from ..fit import (parse_weights, PROFILE_TERMS, EvaluationCache,
                    Evaluator, ProfileSpec, check_units, fit_record, free_parameters, get_value,
                    make_profile_target, parse_bounds, parse_free, predict_profile_features,
@@ -149,12 +150,6 @@ def _axis_in_window(scene: Scene, win, period):
 
 def _profile_weights(items) -> dict:
     return parse_weights(items, PROFILE_TERMS, of=' for a profile')
-
-
-#: evaluations per free key kept out of the search of a fit on both arms for each arm's own
-#: estimate (:func:`~render_inspect.fit.arm_estimates`: two steps either side and one more
-#: each way where an arm's minimum lies beyond them)
-ARMS_RESERVE = 6
 
 
 # ------------------------------------------------------------------------------ run
@@ -327,7 +322,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
             # each arm's own estimate (after the solve) within --max-evaluations too
             result = solve(params, evaluator, global_points=global_points, seed=seed,
                            profile_points=profile_points, starts=starts,
-                           reserve=0 if two is None else ARMS_RESERVE * len(params))
+                           reserve=0 if two is None else arm_evaluations(len(params)))
             if two is not None:
                 with task("fit: each arm's own estimate"):
                     two["estimates"] = arm_estimates(params, evaluator, result.values,

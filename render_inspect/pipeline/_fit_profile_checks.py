@@ -34,13 +34,17 @@ def _instrument_check(mp, pp, cut_period, mode) -> None:
     cp = cut_period() if cut_period is not None else None
     if cp is None or abs(pp / cp - 1.0) <= PERIOD_TOLERANCE:
         return
-    lost = " (phase shifting loses the fringe orders on its slopes)" if mode == "psi" else ""
+    psi = mode == "psi"
+    lost = " (phase shifting loses the fringe orders on its slopes)" if psi else ""
+    fix = ("measure as the part was measured, e.g. a white-light instrument: --set "
+           "'render.interferometer.mode=\"csi\"'" if psi else
+           "check the instrument's [render.interferometer] settings (objective, pixel, "
+           "field of view) against the instrument that measured the part")
     raise InputError(
         f"render.interferometer.mode: the virtual instrument ({mode!r}) does not follow the "
         f"scene's own cut{lost}: it measures the marks' period as {pp * MM_TO_UM:.4g} um where "
         f"the simulated cut's is {cp * MM_TO_UM:.4g} um ({100 * (pp / cp - 1):+.3g} %; the "
-        f"measured {mp * MM_TO_UM:.4g} um); measure as the part was measured, e.g. a "
-        f"white-light instrument: --set 'render.interferometer.mode=\"csi\"'")
+        f"measured {mp * MM_TO_UM:.4g} um); {fix}")
 
 
 def _check_before(target, pred, keys, reach, family, *, cut_period=None,

@@ -199,6 +199,8 @@ def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, 
                          f"or material.burrs = false")
         if in_flight > 1 and not scheduler and bytes_at(tile, 1) <= budget:
             hints.append("run one tile at a time (--workers 1)")
+        # (the path planned and followed is that of the passes that reach the region)
+        hints.append("or shrink simulation.region")
     hint = "; ".join(hints) if hints else None
     return check_budget(simulation, nbytes, what=what, drivers=drivers, hint=hint)
 

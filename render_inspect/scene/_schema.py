@@ -357,16 +357,18 @@ def apply_overrides(data: dict, overrides: Iterable[str] | None) -> dict:
     return data
 
 
-#: the keys that choose a table's kind (``design.type``, ``process.kind``)
-_CHOOSERS = ("type", "kind")
+#: the keys that choose what a table is (``design.type``, ``process.kind``, a machine's or
+#: a material's ``preset``): a table naming another one replaces the old one
+_CHOOSERS = ("type", "kind", "preset")
 
 
 def _merged(old: Any, new: Any) -> Any:
     """The value a ``--set`` leaves: a table given for a table is merged into it, key by
     key (``--set 'tool={included_angle_deg=60}'`` changes that key and keeps the others,
-    those set by earlier options too), unless it chooses another ``type`` or ``kind``,
-    whose keys differ: then it replaces the table; any other value replaces the old one."""
-    if not (isinstance(old, dict) and isinstance(new, dict)):
+    those set by earlier options too), unless it chooses another ``type``, ``kind`` or
+    ``preset`` (the old table's keys belong to the old one) or is empty (``{}`` clears the
+    table): then it replaces the table; any other value replaces the old one."""
+    if not (isinstance(old, dict) and isinstance(new, dict)) or not new:
         return new
     if any(k in new and k in old and new[k] != old[k] for k in _CHOOSERS):
         return new
