@@ -568,8 +568,8 @@ def test_usable_cpus_follows_the_cpu_affinity():
 
 
 def test_the_tiled_refusal_names_a_tile_that_fits_or_what_holds_the_memory():
-    """The advice is worked out with the estimate itself: the largest --tile (a multiple of
-    64) that fits; where none does because the burr model's halo holds the memory, the
+    """The advice is worked out with the estimate itself: the largest --tile (a power of
+    two, as --tile takes) that fits; where none does because the burr model's halo holds the memory, the
     pixel and the burrs are named, not --tile."""
     from render_inspect.core.errors import MemoryBudgetError
     from render_inspect.pipeline._simulate_command import _tiled_check
@@ -584,7 +584,7 @@ def test_the_tiled_refusal_names_a_tile_that_fits_or_what_holds_the_memory():
     with pytest.raises(MemoryBudgetError) as e:
         _tiled_check(sim, plain, tile=1024, in_flight=2, points=10, workers=None, scheduler=None)
     fit = int(str(e.value).split("--tile ")[1].split(" ")[0])
-    assert fit % 64 == 0 and plain(fit, 2) <= gib < plain(fit + 64, 2), str(e.value)
+    assert fit & (fit - 1) == 0 and plain(fit, 2) <= gib < plain(2 * fit, 2), str(e.value)
     assert _tiled_check(sim, plain, tile=fit, in_flight=2, points=10, workers=None,
                         scheduler=None) == plain(fit, 2)
 

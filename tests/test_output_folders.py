@@ -725,6 +725,24 @@ def test_the_scene_and_the_files_it_reads_are_never_deleted_with_the_folder(tmp_
     assert (out / "toolpath.nc").read_bytes() == program
 
 
+def test_a_file_given_with_vary_is_an_input_too(tmp_path, monkeypatch):
+    """compare --vary process.program=A,B with A inside --out: refused, A kept."""
+    from render_inspect.io import write_nc
+    from render_inspect.pipeline import plan_program, run_compare
+
+    monkeypatch.chdir(tmp_path)
+    scene = load_scene("sts_sinusoidal_grid", SMALL)
+    out = tmp_path / "o"
+    out.mkdir()
+    prog = write_nc(out / "p.nc", plan_program(scene).program)
+    other = write_nc(tmp_path / "q.nc", plan_program(scene).program)
+    kept = prog.read_bytes()
+    with pytest.raises(InputError, match=r"holds the input .*p\.nc"):
+        run_compare(scene, out, overwrite=True,
+                    vary=f"process.program={json.dumps(str(prog))},{json.dumps(str(other))}")
+    assert prog.read_bytes() == kept
+
+
 def test_a_folder_named_after_a_shipped_scene_does_not_hide_it(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "sts_sinusoidal_grid").mkdir()

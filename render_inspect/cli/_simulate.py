@@ -20,7 +20,7 @@ def add_parsers(sub: Any) -> None:
                       scheduler="run the tiles on the Dask cluster at ADDRESS, e.g. tcp://host:8786 "
                                 "(implies --tiled)", exclusive=False)
     p.add_argument("--tile", type=int, default=1024, metavar="PIXELS",
-                   help="tile side in pixels, a multiple of 64 in [64, 16384] (default 1024)")
+                   help="tile side in pixels, a power of two from 64 to 16384 (default 1024)")
 
     p = sub.add_parser("toolpath", help="the machine program only: toolpath.npz (or csv / nc / "
                                         "any registered format)")

@@ -24,6 +24,7 @@ from ._atomic import (
                       open_lock_file,
                       read_marker,
                       refuse_inputs_inside,
+                      scene_files,
                       write_json,
                       write_marker,
 )
@@ -90,7 +91,7 @@ register_program_reader(read_program)
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
 
 __all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
-           "check_output_path", "check_output_dir", "refuse_inputs_inside", "claim_output_dir", "read_marker", "write_marker", "MARKER",
+           "check_output_path", "check_output_dir", "refuse_inputs_inside", "scene_files", "claim_output_dir", "read_marker", "write_marker", "MARKER",
            "write_json", "json_safe", "open_lock_file",
            "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",
            "read_measured", "measured_formats", "read_frames_exr", "write_frames_exr",

@@ -91,13 +91,13 @@ from ._outdir_names import (
     _TEMP_FILE,
     _check_inputs,
     _check_link,
-    scene_files,
     _listing,
     _name_max,
     _own_temporary,
     _shown,
     check_output_path,
     refuse_inputs_inside,
+    scene_files,
 )
 from ._outdir_swap import (
     _AT_FDCWD,
@@ -114,7 +114,7 @@ from ._outdir_swap import (
 __all__ = ["atomic_write_bytes", "atomic_write_text", "atomic_write_stream", "json_safe",
            "write_json", "atomic_output_dir", "check_output_path", "read_marker", "MARKER",
            "part_hash", "write_marker", "claim_output_dir", "check_output_dir",
-           "completed_outputs", "MARKER_VERSION", "open_lock_file", "refuse_inputs_inside"]
+           "completed_outputs", "MARKER_VERSION", "open_lock_file", "refuse_inputs_inside", "scene_files"]
 
 
 def _inspect_existing(out: Path, *, overwrite: bool, merge: bool, part: tuple | None,

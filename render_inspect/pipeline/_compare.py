@@ -43,7 +43,8 @@ from ..core.units import MM_TO_NM, MM_TO_UM, UM_TO_MM
 from ..design import Surface, make_surface
 from ..instruments import InterferometerConfig, rendered_settings
 from ..io import (MeasuredMap, atomic_output_dir, atomic_write_bytes, atomic_write_text,
-                  check_output_dir, export_program, json_safe, not_a_file, read_surface, writer)
+                  check_output_dir, export_program, json_safe, not_a_file, read_surface,
+                  scene_files, writer)
 from ..metrology import (Comparison, areal_nm, characterise_map, common_window, compare_measured,
                          difference_profiles, fringe_order_check, level_map, line_profile,
                          measurement_seeds, profile_center, sections, waviness_choice, waviness_map)
@@ -451,6 +452,8 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
     for v in variants:
         if not _NAME_OK.match(v.name):
             raise InputError(f"variant name {v.name!r} must use letters, digits, '_', '-', '.'")
+    # the files a variant reads (a program or a height map given with --vary) are inputs too
+    inputs = (*inputs, *(f for v in variants for f in scene_files(v.scene)))
     meas_map = None
     if measured is not None:  # read and check the file before any simulation
         meas_map, _ = check_measured(measured, scene, design_surface, force=force)

@@ -150,6 +150,8 @@ def after_verdict(findings: list[str], goodness: dict, described: str) -> dict:
         notes.append(f"the misfit is {ratio:.3g} times what the camera's noise alone leaves: "
                      f"the cusps' shape differs from the model's; the standard errors are "
                      f"scaled by it (the model's error)")
+        # (the marks' period is described, their shape is not: said so in the verdict too)
+        described = f"{described} in period, not in shape (misfit {ratio:.3g} x the noise)"
     return {"describes": not findings, "findings": findings, "notes": notes,
             "misfit_over_noise": ratio,
             "verdict": (described if not findings else "this model does not describe this "

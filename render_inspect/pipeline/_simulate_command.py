@@ -68,12 +68,17 @@ def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None 
 
 
 def _check_tile(tile: Any) -> None:
-    # at most 16384: a float32 chunk of a larger tile is over the 1 GiB a zarr
-    # chunk may hold, and the store could not be read back
-    if not (isinstance(tile, int) and not isinstance(tile, bool) and 64 <= tile <= 16384
-            and tile % 64 == 0):
-        raise InputError(f"--tile must be a multiple of 64 pixels in [64, 16384] (a larger tile "
-                         f"makes zarr chunks over 1 GiB), received {tile!r}")
+    # a power of two: the store's pyramid halves the tiles level by level; at most 16384:
+    # a float32 chunk of a larger tile is over the 1 GiB a zarr chunk may hold, and the
+    # store could not be read back
+    if not (isinstance(tile, int) and not isinstance(tile, bool) and tile in _TILES):
+        raise InputError(f"--tile must be a power of two from 64 to 16384 pixels (the "
+                         f"store's pyramid halves the tiles; a larger tile makes zarr chunks "
+                         f"over 1 GiB), received {tile!r}")
+
+
+#: the tile sides --tile accepts
+_TILES = tuple(64 << k for k in range(9))
 
 
 def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
@@ -174,8 +179,8 @@ class _Advice:
 def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, in_flight: int,
                  points: int, workers, scheduler, halo: int = 0) -> int:
     """The memory of a tiled simulation (``bytes_at(tile, in_flight)``: its bytes with tiles
-    of that side, that many at once) against the budget.  The message names the largest ``--tile`` (a multiple of 64)
-    that fits, worked out with ``bytes_at`` itself; where none does, what holds the memory:
+    of that side, that many at once) against the budget.  The message names the largest
+    ``--tile`` (a power of two) that fits, worked out with ``bytes_at`` itself; where none does, what holds the memory:
     the burr model's ``halo`` of pixels around each tile (it grows as 1 / pixel), or the
     path."""
     where = ("on the cluster's workers" if scheduler else
@@ -190,7 +195,8 @@ def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, 
     what += ")"
     hints = []
     if nbytes > budget:
-        fits = next((t for t in range(tile - 64, 63, -64) if bytes_at(t, in_flight) <= budget), None)
+        fits = next((t for t in reversed(_TILES) if t < tile and bytes_at(t, in_flight) <= budget),
+                    None)
         if fits is not None:
             drivers.append(_Advice(f"--tile {fits} (now {tile})"))
         elif halo > tile // 2:
