@@ -189,3 +189,31 @@ def test_characterise_reports_transfer_step_slope_and_noise(tmp_path):
         assert (out / name).is_file()
     head = (out / "itf.csv").read_text().splitlines()[0]
     assert head.startswith("frequency_per_mm,period_um,itf_optics")
+
+
+@pytest.mark.parametrize("settings, words", [
+    ({"mode": "psi", "pixel_size_um": 1.0, "pixel_size_mm": 0.5, "wavelength_nm": 550},
+     "both pixel_size_mm (0.5) and pixel_size_um (1.0): give one"),
+    ({"mode": "psi", "pixel_size_um": 1.0, "wavelength_nm": 550, "wavelenght_nm": 600},
+     "unknown key 'wavelenght_nm'; did you mean 'wavelength_nm'?"),
+    ({"mode": "psi", "pixel_size_um": 1.0, "wavelength_nm": "550"},
+     "wavelength_nm must be a number, received '550'"),
+    ({"mode": "psi", "pixel_size_um": 1.0, "wavelength_nm": 550, "effective_wavelength_nm": 1e308},
+     "effective_wavelength_nm must be in [200, 4000]"),
+    ({"mode": "psi", "pixel_size_um": -1.0, "wavelength_nm": 550},
+     "pixel_size_um must be > 0, received -1.0"),
+])
+def test_a_settings_file_with_a_mistake_is_refused_naming_the_key(tmp_path, settings, words):
+    """A settings JSON is checked as a scene is: no key ignored, none contradicting another,
+    every number a number in its range (one line naming the key the user wrote)."""
+    from render_inspect.errors import InputError
+    from render_inspect.io import read_frame_stack
+
+    stack = tmp_path / "frames"
+    stack.mkdir()
+    for i in range(4):
+        Image.fromarray(np.full((8, 8), 60 * i, dtype=np.uint8)).save(stack / f"f{i}.png")
+    (stack / "settings.json").write_text(json.dumps(settings))
+    with pytest.raises(InputError) as e:
+        read_frame_stack(stack)
+    assert words in str(e.value) and "\n" not in str(e.value), str(e.value)

@@ -461,3 +461,28 @@ def test_failing_points_are_recorded_and_the_sweep_goes_on(tmp_path):
                          timeout=LIMIT_S, env=_env())
     assert res.returncode == 1 and "(1 to run, 4 finished before)" in res.stderr
     assert len(_records(tmp_path / "out")) == 5
+
+
+@pytest.mark.slow
+def test_a_plot_of_a_metric_no_point_has_says_so(tmp_path):
+    """A [[plot]] naming a metric the points do not have (a misspelling) draws an empty plot
+    that says which metric, and the sweep says it once, with the name meant."""
+    import logging
+
+    (tmp_path / "pm.toml").write_text(
+        'scene = "sts_sinusoidal_grid"\n[set]\n"simulation.region" = [-0.05, -0.05, 0.05, 0.05]\n'
+        '"simulation.pixel" = 0.005\n"process.workpiece_radius" = 0.6\n'
+        '[grid]\n"tool.nose_radius" = [0.3]\n'
+        '[[plot]]\nkind = "curves"\nx = "tool.nose_radius"\ny = "residual.Sqq_nm"\n')
+    said: list[str] = []
+    handler = logging.Handler()
+    handler.emit = lambda record: said.append(record.getMessage())  # type: ignore[method-assign]
+    log = logging.getLogger("render_inspect")
+    log.addHandler(handler)
+    try:
+        run_sweep(tmp_path / "pm.toml", tmp_path / "out", progress=False)
+    finally:
+        log.removeHandler(handler)
+    assert any("no finished point has the metric 'residual.Sqq_nm'; did you mean "
+               "'residual.Sq_nm'?" in s for s in said), said
+    assert (tmp_path / "out" / "plot_00_curves.png").stat().st_size > 1000

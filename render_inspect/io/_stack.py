@@ -138,18 +138,50 @@ def read_frame_stack(path: str | Path, settings: Any = None, **_: Any) -> Frames
                          f"({type(err).__name__}: {err})") from None
 
 
+#: the keys a settings JSON may hold (the module docstring)
+SETTINGS_KEYS = ("mode", "pixel_size_mm", "pixel_size_um", "wavelength_nm",
+                 "effective_wavelength_nm", "phase_steps_rad", "step_rad", "scan_positions_mm",
+                 "scan_start_mm", "scan_step_nm", "z_ref_mm", "origin_mm", "numerical_aperture",
+                 "objective", "bandwidth_nm", "full_scale")
+#: keys whose values must be numbers (or lists of numbers)
+_NUMBER_KEYS = ("pixel_size_mm", "pixel_size_um", "wavelength_nm", "effective_wavelength_nm",
+                "step_rad", "scan_start_mm", "scan_step_nm", "z_ref_mm", "numerical_aperture",
+                "bandwidth_nm", "full_scale")
+
+
+def _check_settings_keys(s: dict) -> None:
+    """Unknown keys (a misspelling would be ignored), both pixel keys, text for a number:
+    refused in one line."""
+    import difflib
+
+    for k in s:
+        if k not in SETTINGS_KEYS:
+            close = difflib.get_close_matches(str(k), SETTINGS_KEYS, n=1)
+            raise InputError(f"settings: unknown key {k!r}"
+                             + (f"; did you mean {close[0]!r}?" if close else
+                                f"; the keys are {', '.join(SETTINGS_KEYS)}"))
+    if "pixel_size_mm" in s and "pixel_size_um" in s:
+        raise InputError(f"settings give both pixel_size_mm ({s['pixel_size_mm']!r}) and "
+                         f"pixel_size_um ({s['pixel_size_um']!r}): give one")
+    for k in _NUMBER_KEYS:
+        v = s.get(k)
+        if k in s and v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise InputError(f"settings {k} must be a number, received {v!r}")
+
+
 def _stack_frames(path: Path, s: dict) -> Frames:
+    _check_settings_keys(s)
     mode = s.get("mode")
     if mode not in ("psi", "csi"):
         raise InputError(f"settings mode must be 'psi' or 'csi', got {mode!r}")
     if "pixel_size_mm" in s:
-        pixel = float(s["pixel_size_mm"])
+        key, pixel = "pixel_size_mm", float(s["pixel_size_mm"])
     elif "pixel_size_um" in s:
-        pixel = float(s["pixel_size_um"]) * UM_TO_MM
+        key, pixel = "pixel_size_um", float(s["pixel_size_um"]) * UM_TO_MM
     else:
         raise InputError("settings need pixel_size_mm (or pixel_size_um): the pixel on the part")
     if not (math.isfinite(pixel) and pixel > 0):
-        raise InputError(f"settings pixel_size_mm must be > 0, got {pixel!r}")
+        raise InputError(f"settings {key} must be > 0, received {s[key]!r}")
     if "wavelength_nm" not in s:
         raise InputError("settings need wavelength_nm (the source's centre wavelength)")
     wl = float(s["wavelength_nm"])
@@ -160,6 +192,8 @@ def _stack_frames(path: Path, s: dict) -> Frames:
     fs = _full_scale(images, s.get("full_scale"))
     stack = np.stack([a[::-1].astype(np.float32) / np.float32(fs) for a in images])
     lam_eff = float(s.get("effective_wavelength_nm", wl))
+    if not 200 <= lam_eff <= 4000:  # (the NA factor lengthens the fringes, never doubles them)
+        raise InputError(f"settings effective_wavelength_nm must be in [200, 4000], got {lam_eff!r}")
     z_ref = float(s.get("z_ref_mm", 0.0))
     if mode == "psi":
         if "phase_steps_rad" in s:

@@ -99,9 +99,14 @@ def measure_frames(frames: Frames, *, algorithm: str = "auto", csi_refine: str |
     valid = ~saturated & np.all(np.isfinite(stack), axis=0)
     if mode == "psi":
         alg = {"hariharan": "5step"}.get(algorithm, algorithm)
-        res = retrieve_psi(stack, wavelength_nm=lam_eff, steps_rad=frames.phase_steps,
-                           algorithm=alg, valid=valid, min_modulation=min_modulation,
-                           quality=unwrap_quality, false_alarm=false_alarm)
+        try:
+            res = retrieve_psi(stack, wavelength_nm=lam_eff, steps_rad=frames.phase_steps,
+                               algorithm=alg, valid=valid, min_modulation=min_modulation,
+                               quality=unwrap_quality, false_alarm=false_alarm)
+        except InputError as err:  # named as the user asked for it
+            if alg == algorithm:
+                raise
+            raise InputError(str(err).replace(repr(alg), f"{algorithm!r} ({alg!r})")) from None
         res.height = res.height + float(frames.z_ref)
         name = res.meta["algorithm"]
     else:

@@ -10,6 +10,7 @@ client process (the one that calls :func:`run_sweep`) is the only writer of
 from __future__ import annotations
 
 import contextlib
+import difflib
 import json
 import logging
 import os
@@ -24,6 +25,7 @@ from typing import Any
 
 from .. import __version__
 from ..batch import (
+    flatten,
     Progress,
     ResultsLog,
     SweepFile,
@@ -372,7 +374,16 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
     names = []
     for i, p in enumerate(specs if draw else []):
         name = p.name or f"plot_{i:02d}_{p.kind}"
-        atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, plot_rows(mine, p)))
+        rows = plot_rows(mine, p)
+        metric = p.y if p.kind == "curves" else p.value
+        if not rows and done:
+            # finished points, none with the metric: a name the metrics do not have
+            known = sorted({k for r in mine if r.get("status") == "done"
+                            for k in flatten(r.get("metrics") or {})})
+            close = difflib.get_close_matches(str(metric), known, n=1)
+            log.warning("warning: plot %s: no finished point has the metric %r%s", name, metric,
+                        f"; did you mean {close[0]!r}?" if close else "")
+        atomic_write_bytes(out / f"{name}.png", sweep_plot_png(p, rows))
         names.append(f"{name}.png")
     morris_lines = []
     if spec.morris is not None:

@@ -55,7 +55,8 @@ def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_n
         ax.legend(fontsize=8)
     ax.set_title(title or f"{y} vs {x}" + (f" (study {study})" if study else ""), fontsize=10)
     if not rows:
-        ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, f"no finished point has {y}", ha="center", va="center",
+                transform=ax.transAxes)
     return _png(fig, tight_layout=True)
 
 
@@ -92,7 +93,8 @@ def heatmap_png(rows: Sequence[Sequence[Any]], *, x: str, y: str, value: str = "
         cb = fig.colorbar(im, ax=ax)
         cb.set_label(_label(value))
     else:
-        ax.text(0.5, 0.5, "no finished points", ha="center", va="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, f"no finished point has {value}", ha="center", va="center",
+                transform=ax.transAxes)
     ax.set_xlabel(_label(x))
     ax.set_ylabel(_label(y))
     ax.set_title(title or f"{value} over {x} and {y}" + (f" (study {study})" if study else ""),

@@ -387,6 +387,9 @@ def instrument_config(objective: str = "20x", mode: str = "psi",
     for item in overrides or ():
         key = item.split("=", 1)[0].strip()
         if "=" in item and not key.startswith("render.interferometer."):
+            if key.split(".")[0] in scene_sections():
+                raise SceneError(f"--set takes the instrument's keys here ([render.interferometer], "
+                                 f"e.g. numerical_aperture=0.5), received {_shown(key)}")
             item = f"render.interferometer.{item.strip()}"
         items.append(item)
     data = {"design": {"type": "plane"},
