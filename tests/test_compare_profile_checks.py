@@ -105,12 +105,11 @@ def test_profile_compare_summary_shows_numbers_and_warnings():
 
 
 def test_cli_prints_the_profile_compare_summary(capsys, tmp_path):
-    from render_inspect.cli._summary import ROW_SUMMARIES, _print_summary
+    from render_inspect.cli._summary import _print_profile_compare_summary
 
-    assert "compare" in ROW_SUMMARIES
     m = {"kind": "profile", "scene": "s", "input": {"path": "/x/1021-WLI-2D.csv"},
          "profiles": {}, "registration": {}, "filter": {}, "warnings": ["it failed"]}
-    _print_summary("compare", m, str(tmp_path), 1.0)
+    _print_profile_compare_summary(m, str(tmp_path), 1.0)
     text = capsys.readouterr().out
     assert "1021-WLI-2D.csv" in text and "WARNING: it failed" in text
     assert f"report: {tmp_path.resolve() / 'report.html'}" in text

@@ -96,7 +96,7 @@ def _chromium_shot(chromium, html: Path, tmp_path: Path) -> np.ndarray:
 
 @pytest.mark.browser
 @pytest.mark.slow
-def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium):
+def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium, capsys):
     """``compare --measured`` with the 1016 slice (0.01 mm/rev by its program's name) and
     the shipped STS scene (0.01 mm/rev): along the default diameter through the axis, both
     show the feed as their period, the report holds the overlay and the table, and it
@@ -106,6 +106,9 @@ def test_compare_a_real_slice_with_a_shipped_scene(tmp_path, chromium):
     out = tmp_path / "c"
     assert cli_main(["compare", str(SCENES / "sts_sinusoidal_grid.toml"), "--out", str(out),
                      "--measured", str(_real("turned", "1016-WLI-2D.csv")), "--units", "um"]) == 0
+    # the command's one-screen summary on stdout, ending with the report
+    said = capsys.readouterr().out
+    assert "Ra" in said and "simulated cut" in said and f"report: {(out / 'report.html').resolve()}" in said
     m = json.loads((out / "metrics.json").read_text())
     assert m["kind"] == "profile" and "spindle axis" in m["line_from"]
     p = m["profiles"]

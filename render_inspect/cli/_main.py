@@ -24,7 +24,8 @@ from ..core.progress import set_reporter
 from . import _analyze, _batch, _fit, _render, _simulate
 from ._args import _add_verbosity, log
 from ._progress import RichReporter, _reporter, _RichLogHandler
-from ._summary import ROW_SUMMARIES, _print_compare_summary, _print_summary
+from ._summary import (ROW_SUMMARIES, _print_compare_summary, _print_profile_compare_summary,
+                       _print_summary)
 
 #: the command groups, in the order ``render-inspect --help`` lists their commands
 GROUPS = (_simulate, _render, _analyze, _fit, _batch)
@@ -312,9 +313,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             sys.unraisablehook = old_unraisable
         cancel.clear()
     dt = time.perf_counter() - t0
-    if args.command in ("compare", "demo") and isinstance(result, dict) and "variants" in result \
+    if args.command in ("compare", "demo") and isinstance(result, dict) \
             and not getattr(args, "quiet", False):
-        _print_compare_summary(result, args.out, dt)
+        if "variants" in result:
+            _print_compare_summary(result, args.out, dt)
+        elif result.get("kind") == "profile":  # compare --measured PROFILE
+            _print_profile_compare_summary(result, args.out, dt)
     elif args.command in ("measure", "analyze") and isinstance(result, dict) \
             and not getattr(args, "quiet", False):
         _print_summary(args.command, result, args.out, dt)

@@ -65,9 +65,8 @@ def _print_profile_compare_summary(metrics: dict, out: str, seconds: float) -> N
               markup=False)
 
 
-#: commands whose summary rows pipeline.command_summary gives (compare: only
-#: ``compare --measured PROFILE`` comes here, the other compares have "variants")
-ROW_SUMMARIES = ("toolpath", "characterise", "render", "compare")
+#: commands whose summary rows pipeline.command_summary gives
+ROW_SUMMARIES = ("toolpath", "characterise", "render")
 
 
 def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> None:
@@ -79,10 +78,6 @@ def _print_summary(command: str, metrics: dict, out: str, seconds: float) -> Non
     # the pipeline is imported lazily (see _run)
     from ..pipeline import analyze_summary, command_summary, measure_summary
 
-    if command == "compare":
-        if metrics.get("kind") == "profile":
-            _print_profile_compare_summary(metrics, out, seconds)
-        return
     src: Any  # where the numbers come from: the output folder, or the input file
     if command in ROW_SUMMARIES:
         rows, src = command_summary(command, metrics, out), out

@@ -239,11 +239,17 @@ def chunk_files(path: str | Path) -> dict[str, int]:
     root = Path(path)
     out: dict[str, int] = {}
     for top, _dirs, files in os.walk(root, followlinks=False):
-        parts = Path(os.path.relpath(top, root)).parts
-        if "c" in parts and files:
-            arr = "/".join(parts[:parts.index("c")])
-            out[arr] = out.get(arr, 0) + len(files)
+        _count_chunks(out, root, top, len(files))
     return out
+
+
+def _count_chunks(counts: dict[str, int], root: Path, top: str, n: int) -> None:
+    """Add the ``n`` files of the folder ``top`` to their array's count when they are
+    chunks (below the array's ``c`` folder)."""
+    parts = Path(os.path.relpath(top, root)).parts
+    if n and "c" in parts:
+        arr = "/".join(parts[:parts.index("c")])
+        counts[arr] = counts.get(arr, 0) + n
 
 
 @_whole
@@ -262,16 +268,19 @@ MAX_ROOT_METADATA_BYTES = 16 * MIB_TO_BYTES
 MAX_METADATA_BYTES = MIB_TO_BYTES
 
 
-def check_store_tree(path: str | Path, *, what: str = "heightmap store") -> None:
+def check_store_tree(path: str | Path, *, what: str = "heightmap store") -> dict[str, int]:
     """A store read as untrusted input, checked before zarr reads a byte of it: every
     entry inside the folder is a plain folder or a regular file (no symbolic link,
     whatever it points to, so that nothing outside the store is read through it; no
     device, pipe or socket), and no metadata file is larger than
     :data:`MAX_ROOT_METADATA_BYTES` (the root ``zarr.json``) or
     :data:`MAX_METADATA_BYTES` (any other), so that a huge JSON file is refused before it
-    is parsed.  Chunk sizes are checked when an array is read (``_check_array``)."""
+    is parsed.  Chunk sizes are checked when an array is read (``_check_array``).  Returns
+    the chunk files of each array (:func:`chunk_files`, counted in the same walk)."""
     root = Path(path)
+    counts: dict[str, int] = {}
     for top, dirs, files in os.walk(root, followlinks=False):
+        _count_chunks(counts, root, top, len(files))
         for n in dirs + files:
             full = os.path.join(top, n)
             rel = os.path.relpath(full, root)
@@ -295,6 +304,7 @@ def check_store_tree(path: str | Path, *, what: str = "heightmap store") -> None
                     raise InputError(f"{what} {str(root)!r}: {rel!r} is {st.st_size} bytes; "
                                      f"metadata files are at most {limit // MIB_TO_BYTES} MiB "
                                      f"(refused before it is read)")
+    return counts
 
 
 class ZarrHeightMap:
@@ -317,7 +327,7 @@ class ZarrHeightMap:
             raise InputError(f"{what} not found: {str(path)!r}")
         self.path = path
         self.what = what
-        check_store_tree(path, what=what)
+        present = check_store_tree(path, what=what)
         for name in CHANNELS:
             self._check_declared_type(name)
         try:
@@ -354,9 +364,8 @@ class ZarrHeightMap:
         self.chunk_shape = tuple(int(c) for c in arrays["machined"].chunks)
         written = self.attrs.get("chunk_files")
         if isinstance(written, dict):
-            now = chunk_files(path)
-            lost = {a: (now.get(a, 0), n) for a, n in written.items()
-                    if isinstance(n, int) and now.get(a, 0) < n}
+            lost = {a: (present.get(a, 0), n) for a, n in written.items()
+                    if isinstance(n, int) and present.get(a, 0) < n}
             if lost:
                 a, (n_now, n) = next(iter(sorted(lost.items())))
                 raise InputError(f"{what} {str(path)!r}: array {a!r} holds {n_now} chunk files, "

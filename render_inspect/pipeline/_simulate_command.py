@@ -166,28 +166,17 @@ def _progress(label: str, step=None):
     return report
 
 
-class _Advice:
-    """A fix already worked out (:class:`~render_inspect.core.limits.Driver`'s part)."""
-
-    def __init__(self, text: str) -> None:
-        self.text = text
-
-    def advice(self, nbytes: float, budget: float) -> str:
-        return self.text
-
-
 def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, in_flight: int,
                  points: int, workers, scheduler, halo: int = 0) -> int:
     """The memory of a tiled simulation (``bytes_at(tile, in_flight)``: its bytes with tiles
     of that side, that many at once) against the budget.  The message names the largest
-    ``--tile`` (a power of two) that fits, worked out with ``bytes_at`` itself; where none does, what holds the memory:
-    the burr model's ``halo`` of pixels around each tile (it grows as 1 / pixel), or the
-    path."""
+    ``--tile`` (a power of two) that fits, worked out with ``bytes_at`` itself; where none
+    does, what holds the memory (the burr model's ``halo`` of pixels around each tile,
+    which grows as 1 / pixel where the feed sets the smoothing); and the region."""
     where = ("on the cluster's workers" if scheduler else
              f"{in_flight} at once" + ("" if workers else " (one per core)"))
     nbytes = bytes_at(tile, in_flight)
     budget = memory_budget(simulation.max_memory_gb)[0]
-    drivers: list = []
     what = (f"the tiled simulation (tiles of {tile} x {tile} pixels, {where}; "
             f"{format_number(points)} path points")
     if halo:
@@ -198,7 +187,7 @@ def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, 
         fits = next((t for t in reversed(_TILES) if t < tile and bytes_at(t, in_flight) <= budget),
                     None)
         if fits is not None:
-            drivers.append(_Advice(f"--tile {fits} (now {tile})"))
+            hints.append(f"to fit, set --tile {fits} (now {tile})")
         elif halo > tile // 2:
             hints.append(f"the burrs are smoothed over max(feed, 2 pixels), {halo} pixels at "
                          f"simulation.pixel {simulation.pixel:g} mm: a coarser simulation.pixel, "
@@ -208,7 +197,7 @@ def _tiled_check(simulation, bytes_at: Callable[[int, int], int], *, tile: int, 
         # (the path planned and followed is that of the passes that reach the region)
         hints.append("or shrink simulation.region")
     hint = "; ".join(hints) if hints else None
-    return check_budget(simulation, nbytes, what=what, drivers=drivers, hint=hint)
+    return check_budget(simulation, nbytes, what=what, drivers=[], hint=hint)
 
 
 def _may_leave_uncut(region, path, env) -> bool:
