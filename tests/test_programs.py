@@ -117,7 +117,7 @@ def test_lathe_gcode_facing(tmp_path):
     on_face = (r > 0.1) & (r < 5.0)
     assert np.allclose(f[on_face], 0.005, rtol=1e-3)
     assert any("G04" in n for n in imp.facts["notes"])
-    assert imp.inferred["spindle"] == "spindle speed from the program's S words"
+    assert imp.inferred["spindle"] == "spindle speed from the program's S words: 1000 rpm (G97)"
 
 
 def test_lathe_gcode_inch_and_incremental_agree(tmp_path):

@@ -34,7 +34,8 @@ from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
-from ._program_kernel import c_move_times, feed_times, sample_moves, unwrap_c
+from ._program_kernel import c_backward, c_move_times, feed_times, sample_moves, unwrap_c
+from ._program_arcs import expand_arcs as _expand_arcs
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -50,6 +51,11 @@ X_MODES = ("auto", "radius", "diameter")
 #: the most points an imported turning path may have once the spindle's turning is
 #: sampled (process.points_per_rev per revolution)
 MAX_PROGRAM_POINTS = 200_000_000
+#: how far back C (deg, as written) must step to be read as a new revolution: a shorter
+#: step back is the spindle turning backwards
+_WRAP_DEG = 180.0
+#: moves whose C step the points per revolution is the median of (evenly spread)
+_PPR_SAMPLE = 100_001
 _OWN_TURNING = "render_inspect generic C-X-Z turning program"
 _OWN_LINEAR = "render_inspect generic X-Y-Z sculpturing program"
 
@@ -177,97 +183,6 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
     return out
 
 
-# ---------------------------------------------------------------------------- arcs
-def _arc_points(p0, p1, centre, clockwise: bool, tol: float):
-    """Points (excluding the start, including the end) of the arc from ``p0`` to ``p1``
-    about ``centre`` in the plane's (a, b) coordinates; chords within ``tol``."""
-    r0 = math.hypot(p0[0] - centre[0], p0[1] - centre[1])
-    r1 = math.hypot(p1[0] - centre[0], p1[1] - centre[1])
-    a0 = math.atan2(p0[1] - centre[1], p0[0] - centre[0])
-    a1 = math.atan2(p1[1] - centre[1], p1[0] - centre[0])
-    sweep = a1 - a0
-    if clockwise:
-        if sweep >= 0:
-            sweep -= 2 * math.pi
-    elif sweep <= 0:
-        sweep += 2 * math.pi
-    r = 0.5 * (r0 + r1)
-    step = 2 * math.sqrt(max(2 * r * tol - tol * tol, 1e-30)) / max(r, 1e-12)
-    n = max(1, int(math.ceil(abs(sweep) / max(step, 1e-9))))
-    u = np.arange(1, n + 1) / n
-    ang = a0 + sweep * u
-    rad = r0 + (r1 - r0) * u
-    return centre[0] + rad * np.cos(ang), centre[1] + rad * np.sin(ang), u, r0, r1
-
-
-def _expand_arcs(sp: ScannedProgram, rows: np.ndarray, axes: dict, plane_axes, offsets,
-                 tol: float, motion=None):
-    """(index of the source row per point, axes per point, arc fraction per point): the
-    rows with G02 / G03 replaced by chord points of their arcs in the plane
-    ``plane_axes`` = (a, b) (centre offsets ``offsets`` = (ia, ib) from the start, or
-    ``R``; G02 clockwise seen with a to the right and b up).  ``motion``: the rows'
-    motion, where the caller has it."""
-    arcs = np.flatnonzero((sp.motion[rows] if motion is None else motion) >= 2)
-    if arcs.size == 0:
-        return None, axes, None
-    a, b = plane_axes
-    ia, ib = offsets
-    pieces_idx: list = []
-    pieces: dict[str, list] = {k: [] for k in axes}
-    pieces_u = []
-    last = 0
-    for j in arcs.tolist():
-        if j == 0:
-            continue  # the first point: nothing to move from
-        pieces_idx.append(np.arange(last, j))
-        for k in axes:
-            pieces[k].append(axes[k][last:j])
-        pieces_u.append(np.ones(j - last))
-        r = rows[j]
-        p0 = (axes[a][j - 1], axes[b][j - 1])
-        p1 = (axes[a][j], axes[b][j])
-        oa, ob, rr = sp.arc[ia][r], sp.arc[ib][r], sp.arc["R"][r]
-        line = int(sp.line[r])
-        cw = sp.motion[r] == 2
-        if not math.isnan(rr):
-            d = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
-            if d == 0 or abs(rr) < d / 2 - 1e-9:
-                raise InputError(f"{sp.path}:{line}: the arc's R {rr:g} mm cannot join points "
-                                 f"{d:g} mm apart")
-            h = math.sqrt(max(rr * rr - d * d / 4, 0.0))
-            mx, my = (p0[0] + p1[0]) / 2, (p0[1] + p1[1]) / 2
-            ux, uy = (p1[0] - p0[0]) / d, (p1[1] - p0[1]) / d
-            # the centre on the side that makes the arc the short one for R > 0
-            side = (-1 if cw else 1) * (1 if rr > 0 else -1)
-            centre = (mx - side * uy * h, my + side * ux * h)
-        elif not (math.isnan(oa) and math.isnan(ob)):
-            centre = (p0[0] + (0.0 if math.isnan(oa) else oa),
-                      p0[1] + (0.0 if math.isnan(ob) else ob))
-        else:
-            raise InputError(f"{sp.path}:{line}: the arc (G0{sp.motion[r]}) has no centre: give "
-                             f"{ia} / {ib} or R")
-        xa, xb, u, r0, r1 = _arc_points(p0, p1, centre, cw, tol)
-        if abs(r0 - r1) > max(1e-3, 1e-3 * r0):  # not a unit conversion
-            raise InputError(f"{sp.path}:{line}: the arc's end lies {abs(r0 - r1):.4g} mm off "
-                             f"its circle (radius {r0:.6g} mm at the start)")
-        pieces_idx.append(np.full(u.size, j))
-        for k in axes:
-            if k == a:
-                pieces[k].append(xa)
-            elif k == b:
-                pieces[k].append(xb)
-            else:  # the other axes move linearly along the arc
-                pieces[k].append(axes[k][j - 1] + (axes[k][j] - axes[k][j - 1]) * u)
-        pieces_u.append(u)
-        last = j + 1
-    pieces_idx.append(np.arange(last, rows.size))
-    for k in axes:
-        pieces[k].append(axes[k][last:])
-    pieces_u.append(np.ones(rows.size - last))
-    return (np.concatenate(pieces_idx), {k: np.concatenate(v) for k, v in pieces.items()},
-            np.concatenate(pieces_u))
-
-
 # ---------------------------------------------------------------------------- turning
 def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
     """("radius" or "diameter", the sentence saying why)."""
@@ -312,7 +227,9 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         known &= ~np.isnan(sp.axes["C"])
     if not known.any():
         need = "X, Z and C" if has_c else "X and Z"
-        raise InputError(f"{path}: no block places the tool: {need} are never all known")
+        inc = (" (incremental moves, G91 or U / W, need a start written in absolute, G90, "
+               "first)" if 91 in sp.g_codes or sp.words & {"U", "W", "H"} else "")
+        raise InputError(f"{path}: no block places the tool: {need} are never all known{inc}")
     first = int(np.argmax(known))
     # the usual program places the tool in every block from the first on: its columns are
     # read through views (``span``), not gathered
@@ -332,6 +249,12 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     axes = {"X": x, "Z": z}
     if has_c:
         axes["C"] = sp.axes["C"][span].copy()
+    arcs = motion >= 2
+    if arcs.any() and np.any(sp.plane[span][arcs] != 18):
+        k = int(rows[np.flatnonzero(arcs & (sp.plane[span] != 18))[0]])
+        raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
+                         f"in a turning program; select G18")
+    del arcs
     # arcs in the Z-X plane (G18): Z to the right, X up; I and K from the start, in radius
     src, axes, frac = _expand_arcs(sp, rows, axes, ("Z", "X"), ("K", "I"), ARC_TOLERANCE_MM,
                                    motion=motion)
@@ -340,12 +263,6 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     else:
         blk = span = rows[src]
         motion = sp.motion[blk]
-    arcs = motion >= 2
-    if arcs.any() and np.any(sp.plane[span][arcs] != 18):
-        k = int(blk[np.flatnonzero(arcs & (sp.plane[span] != 18))[0]])
-        raise InputError(f"{path}:{int(sp.line[k])}: an arc outside the Z-X plane (G17 / G19) "
-                         f"in a turning program; select G18")
-    del arcs
     x, z = axes["X"], axes["Z"]
     fmode = sp.feed_mode[span]
     has_f = bool(np.isfinite(sp.feed).any())
@@ -364,16 +281,24 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     else:  # no S anywhere: the scene's speed everywhere (views, no memory)
         s_prog = np.broadcast_to(np.float64(math.nan), blk.shape)
         clampv = base = np.broadcast_to(np.float64(spindle_rpm), blk.shape)
+    held = ~css & np.isfinite(sp.held[span]) if np.isfinite(sp.held).any() else None
     if np.isfinite(s_prog).any():
-        inferred["spindle"] = "spindle speed from the program's S words"
+        rpm_words = ~css if held is None else ~css & ~held
+        inferred["spindle"] = "spindle speed from the program's S words" + _stated(
+            s_prog[rpm_words] if rpm_words.any() else s_prog[:0], "rpm (G97)", ": ")
         if (~np.isfinite(s_prog)).any():
             inferred["spindle"] += (f" ({spindle_source} = {spindle_rpm:g} rpm before the "
                                     f"first S)")
     else:
         inferred["spindle"] = f"spindle speed {spindle_rpm:g} rpm from {spindle_source}"
     if css.any():
-        inferred["spindle"] += (" ; constant surface speed (G96) below the clamp (G50 S, or "
+        inferred["spindle"] += (" ; constant surface speed (G96" + _stated(s_prog[css], "m/min", ", S ")
+                                + ") below the clamp (G50 S, or "
                                 f"{spindle_source} where the program sets none)")
+    if held is not None and held.any():
+        base, why = _held_rpm(held, s_prog, sp.clamp_rpm[span], x, base, float(spindle_rpm))
+        inferred["spindle"] += why
+    del held
 
     any_css = bool(css.any())
 
@@ -386,6 +311,14 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     # ---- time of each move (from the point before)
     length = np.hypot(np.diff(x), np.diff(z))
     if has_c:
+        back = int(c_backward(axes["C"], _WRAP_DEG))
+        if back >= 0:
+            k = int(blk[1:][back])
+            c0, c1 = float(axes["C"][back]), float(axes["C"][back + 1])
+            raise InputError(f"{path}:{int(sp.line[k])}: C decreases by {c0 - c1:.6g} deg (C{c0:g} "
+                             f"to C{c1:g}): the spindle would turn backwards; C may step back "
+                             f"only to start a new revolution, by {_WRAP_DEG:g} deg or more "
+                             f"(C359.5 to C0)")
         # C wraps every revolution: each step taken modulo 360 where it falls, summed
         dc, c_cum, n_neg, first_neg = unwrap_c(axes["C"])
         if n_neg > dc.size // 2:
@@ -408,6 +341,11 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} before the first F"
         else:
             inferred["feed"] = "feed from the program's F words"
+        stated = [_stated(fv[(fm == m) & (mo > 0)], unit, "") for m, unit in (
+            (94, "mm/min (G94)"), (95, "mm/rev (G95)"), (93, "per min (inverse time, G93)"))]
+        if any(stated):
+            inferred["feed"] += ": " + ", ".join(t for t in stated if t) + (
+                " (inches read as mm)" if sp.g_codes & {20, 70} else "")
         if dc is not None:  # (has_c) a move cannot turn C faster than the spindle allows
             dt, _ = c_move_times(dc, length, mo, rp, float(feed), float(rapid), dt)
     elif dc is not None:  # (has_c)
@@ -500,13 +438,52 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         inferred["c"] = (f"C from the spindle's turning, sampled at {ppr} points per "
                          f"revolution (process.points_per_rev)")
     meta = {"source": path.name, "dialect": dialect, "x_mode": mode,
-            "sampling": "program", "compensation": "as programmed"}
+            "sampling": "program", "compensation": "as programmed",
+            "points_per_rev": ppr if not has_c else _points_per_rev(theta)}
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
              "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
     line = sp.line[span] if blk is rows else sp.line[blk]
     return ImportedProgram(path, dialect, prog, motion.astype(np.int8, copy=False),
                            line.astype(np.int64, copy=False), inferred, facts)
+
+
+def _stated(v: np.ndarray, unit: str, lead: str = " ") -> str:
+    """`` 0.004 .. 0.005 mm/rev``: the least and largest of the values ``v`` as the
+    program states them (NaN: none stated; "" where there is none)."""
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return ""
+    lo, hi = float(v.min()), float(v.max())
+    return f"{lead}{lo:.6g} {unit}" if lo == hi else f"{lead}{lo:.6g} .. {hi:.6g} {unit}"
+
+
+def _points_per_rev(theta: np.ndarray) -> int | None:
+    """The program's points per revolution: 360 deg over the median C step of the moves
+    that turn C (None where none does)."""
+    if theta.size < 2:
+        return None
+    i = np.unique(np.linspace(0, theta.size - 2, min(theta.size - 1, _PPR_SAMPLE)).astype(np.int64))
+    d = theta[i + 1] - theta[i]   # (evenly spread moves: no copy of the path)
+    d = d[d > 0]
+    return int(round(2 * math.pi / float(np.median(d)))) if d.size else None
+
+
+def _held_rpm(held, s_prog, clamp, x, base, spindle_rpm):
+    """The spindle speed of the moves after G97 without S that follows G96: the speed the
+    spindle had at the switch (the surface speed ``s_prog`` at the radius where the tool
+    stood, below the clamp), kept until the next S.  Returns (speeds, sentence)."""
+    base = np.array(base, dtype=np.float64)
+    idx = np.flatnonzero(held)
+    starts = idx[np.r_[True, np.diff(idx) > 1]]
+    run = np.searchsorted(starts, idx, side="right") - 1
+    at = np.maximum(starts - 1, 0)   # the tool's place when G97 came
+    cl = np.where(np.isfinite(clamp[starts]), clamp[starts], spindle_rpm)
+    rpm = _css_rpm(s_prog[starts], cl, x[at], np.ones(starts.size, bool), cl)
+    base[idx] = rpm[run]
+    speeds = ", ".join(f"{v:.6g}" for v in rpm[:3]) + (" ..." if rpm.size > 3 else "")
+    return base, (f" ; after G97 without S the spindle keeps the speed it had under G96 at "
+                  f"the switch ({speeds} rpm)")
 
 
 def _css_rpm(s, clamp, r, css, rpm):
@@ -543,7 +520,7 @@ def _linear(sp: ScannedProgram, feed, rapid, feed_source) -> ImportedProgram:
         inferred["feed"] = f"feed {feed:g} mm/min from {feed_source} where the program gives no F"
     if np.any((fm == 95) & (mo > 0)):
         k = int(blk[1:][np.flatnonzero((fm == 95) & (mo > 0))[0]])
-        raise InputError(f"{path}:{int(sp.line[k])}: feed per revolution (G95) in an X-Y-Z "
+        raise InputError(f"{path}:{int(sp.line[k])}: feed per revolution (G95 / G99) in an X-Y-Z "
                          f"program (no spindle turns); use G94 or G93")
     dt = np.where(fm == 93, MIN_TO_S / fv, length / fv * MIN_TO_S)
     dt = np.where(mo == 0, length / float(rapid) * MIN_TO_S, dt)

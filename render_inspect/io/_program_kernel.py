@@ -17,22 +17,26 @@ import numpy.typing as npt
 
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.units import MIN_TO_S as _MIN_TO_S  # s per min
+from ..core.units import MM_TO_M as _MM_TO_M  # m per mm
 
 __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
-           "c_move_times", "STATE_SIZE",
+           "c_move_times", "c_backward", "STATE_SIZE",
            "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
 
 # state vector
-_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED = range(14)
-STATE_SIZE = 14
-#: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97
+(_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED,
+ _HELD, _SYSA) = range(16)
+STATE_SIZE = 16
+#: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97; the
+#: last two: the spindle speed held from G96 (G97 without S), Fanuc lathe G98 / G99 seen
 INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
-                       np.nan, np.nan, np.nan, np.nan, 0], dtype=np.float64)
+                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0], dtype=np.float64)
 #: columns of a row (float64; ``rows[k, i]`` is column k of row i): line (in the piece),
 #: motion, X, Y, Z, C, I, J, K, R, F, feed mode, S, spindle mode, clamp, plane, written
-#: (bits X=1 Y=2 Z=4 C=8)
+#: (bits X=1 Y=2 Z=4 C=8), held (1 where G97 came without S after G96: the spindle keeps
+#: the speed it had at the switch, S then the surface speed of G96; NaN otherwise)
 ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
-              "S", "spindle_mode", "clamp", "plane", "written")
+              "S", "spindle_mode", "clamp", "plane", "written", "held")
 _NF = len(ROW_FIELDS)
 
 #: the dtypes :func:`sample_moves` keeps (a program's block index, its motion codes)
@@ -47,7 +51,7 @@ for _g in (0, 1, 2, 3):
     G_GROUP[_g] = 0
 for _g in (90, 91):
     G_GROUP[_g] = 1
-for _g in (93, 94, 95):
+for _g in (93, 94, 95, 98, 99):  # G98 / G99: Fanuc lathe (system A) per minute / per rev
     G_GROUP[_g] = 2
 for _g in (20, 21, 70, 71):
     G_GROUP[_g] = 3
@@ -72,9 +76,11 @@ for _ch in "XYZCUVWHIJKRFSNOTPQDLGM":
 #: error codes
 ERRORS = {1: "bad byte", 2: "no number", 3: "number without letter", 4: "bad number",
           5: "word not taken", 6: "twice", 7: "unknown G", 8: "refused G", 9: "same group",
-          10: "G50 axes", 11: "absolute and incremental"}
+          10: "G50 axes", 11: "absolute and incremental", 12: "system A cycle"}
 
 _INCH = 25.4
+#: one foot, m (S of constant surface speed in inch units is in feet per minute)
+_FOOT_M = 12 * _INCH * _MM_TO_M
 _POW10 = 10.0 ** np.arange(40)
 #: what :func:`clean_piece` does with a byte: 0 keep, 1 drop (space, tab, CR), 2 upper
 #: case, 3 a comment '(', 4 a comment ';', 5 hand the piece to the general way
@@ -152,6 +158,8 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
     dwell = False
     home = False
     clamp = False
+    spindle_was = st[_SPINDLE]
+    cycle_g = False  # G90 or G94: a cycle with axis words in Fanuc lathe system A
     for k in range(ng):
         g = gs[k]
         gi = int(g)
@@ -164,12 +172,18 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         if grp <= 6 and (grp_seen >> grp) & 1:
             return nrow, 9, grp
         grp_seen |= 1 << grp
+        if gi == 90 or gi == 94:
+            cycle_g = True
         if grp == 0:
             st[_MOTION] = g
         elif grp == 1:
             st[_DIST] = g
         elif grp == 2:
-            st[_FEED] = g
+            if gi == 98 or gi == 99:  # Fanuc lathe system A: per minute, per revolution
+                st[_SYSA] = 1.0
+                st[_FEED] = 94.0 if gi == 98 else 95.0
+            else:
+                st[_FEED] = g
         elif grp == 3:
             st[_UNITS] = g
         elif grp == 4:
@@ -196,6 +210,10 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
     inch = st[_UNITS] == 20 or st[_UNITS] == 70
     scale = _INCH if inch else 1.0
     # X, Z, U, W letters: 23, 25, 20, 22
+    if cycle_g and st[_SYSA] != 0:
+        for li in (23, 25, 20, 22):
+            if have[li]:
+                return nrow, 12, li
     if clamp:
         for li in (23, 25, 20, 22):
             if have[li]:
@@ -203,7 +221,13 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         if have[18]:  # S
             st[_CLAMP] = val[18]
     elif have[18]:
-        st[_S] = val[18]
+        # S of constant surface speed in inch units: feet per minute, kept as m/min
+        st[_S] = val[18] * (_FOOT_M if inch and st[_SPINDLE] == 96 else 1.0)
+        st[_HELD] = 0.0
+    elif spindle_was == 96 and st[_SPINDLE] == 97:
+        st[_HELD] = 1.0  # G97 without S: the speed at the switch is kept
+    if st[_SPINDLE] == 96:
+        st[_HELD] = 0.0
     if have[5]:  # F
         st[_F] = val[5] * (1.0 if st[_FEED] == 93 else scale)
     non_motion = dwell or home or clamp
@@ -251,6 +275,7 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         rows[14, r] = st[_CLAMP]
         rows[15, r] = st[_PLANE]
         rows[16, r] = written
+        rows[17, r] = 1.0 if st[_HELD] != 0 else np.nan
         nrow += 1
     return nrow, 0, 0
 
@@ -485,6 +510,17 @@ def unwrap_c(c: npt.NDArray[np.float64]
         s = dc[i] if i == 0 else s + dc[i]
         cum[i + 1] = s + c0
     return dc, cum, nneg, first
+
+
+@njit(cache=True, nogil=True)
+def c_backward(c: npt.NDArray[np.float64], least: float) -> int:
+    """The index of the first move whose C (deg, as written) steps back by less than
+    ``least`` deg (a wrap to a new revolution steps back by more), or -1."""
+    for i in range(c.size - 1):
+        d = c[i + 1] - c[i]
+        if d < 0 and -d < least:
+            return i
+    return -1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy

@@ -36,6 +36,8 @@ _SEMI = re.compile(rb";[^\n]*")
 _PERCENT = re.compile(rb"(?m)^[ \t]*%[^\n]*")
 _COLON = re.compile(rb"(?m)^[ \t]*:[0-9]*")
 _SLASH = re.compile(rb"(?m)^[ \t]*/")
+#: the byte order mark some editors write at the start of a UTF-8 file
+_BOM = b"\xef\xbb\xbf"
 
 _REFUSED = {41: "controller tool-nose radius compensation (G41/G42) moves the tool by an "
                 "offset the program does not state; program the tool centre or tip path",
@@ -61,6 +63,9 @@ class ScannedProgram:
     spindle_mode: np.ndarray    # 96 or 97
     clamp_rpm: np.ndarray       # modal G50 S clamp (NaN: none)
     plane: np.ndarray           # 17, 18 or 19
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1 where G97 came
+    # without S after G96 (the spindle keeps its speed of the switch; ``spindle`` is then
+    # the surface speed of G96, m/min), NaN elsewhere
     header: dict = field(default_factory=dict)   # leading "; key: value" comment lines
     title: str = ""             # the first comment line
     blocks: int = 0             # blocks read (all kinds)
@@ -86,11 +91,19 @@ def _pieces(path: Path, piece_bytes: int):
     """(bytes ending at a line break, line number of its first line, line breaks in it)."""
     line = 1
     rest = b""
+    first, cr_only = True, False
     with path.open("rb") as fh:
         while True:
             data = fh.read(piece_bytes)
             if not data:
                 break
+            if first:  # a byte order mark; lines ended by CR alone (old Mac editors)
+                first = False
+                if data.startswith(_BOM):
+                    data = data[len(_BOM):]
+                cr_only = b"\n" not in data and b"\r" in data
+            if cr_only:
+                data = data.replace(b"\r", b"\n")
             if rest:
                 data = rest + data
             cut = data.rfind(b"\n")
@@ -151,9 +164,6 @@ class _Scanner:
         """The bytes of the piece ``raw`` as :func:`scan_piece` reads them, the general
         way (comments of every form, ``%``, ``:`` and ``/`` at a line's start; one line
         for anything else)."""
-        if np.any(np.frombuffer(raw, np.uint8) > 127):
-            i = int(np.flatnonzero(np.frombuffer(raw, np.uint8) > 127)[0])
-            fail(raw.count(b"\n", 0, i), "a byte that is not ASCII text (is this an NC program?)")
         up = raw.upper()
         if b"(" in up or b")" in up:
             up = _PAREN.sub(b"", up)
@@ -164,6 +174,12 @@ class _Scanner:
                          if ch == b"(" else "a ')' without its '('")
         if b";" in up:
             up = _SEMI.sub(b"", up)
+        # text in comments may be in any encoding (a degree sign, a diameter sign); the
+        # words outside them are ASCII (comments do not span lines: the line numbers stay)
+        if np.any(np.frombuffer(up, np.uint8) > 127):
+            i = int(np.flatnonzero(np.frombuffer(up, np.uint8) > 127)[0])
+            fail(up.count(b"\n", 0, i), "a byte that is not ASCII text outside a comment (is "
+                 "this an NC program?)")
         if b"%" in up:
             up = _PERCENT.sub(b"", up)
         if b":" in up:
@@ -220,7 +236,7 @@ class _Scanner:
                 "arc": {ax: kept(6 + k) for k, ax in enumerate("IJKR")},
                 "feed": kept(10), "feed_mode": r[11].astype(np.int16),
                 "spindle": kept(12), "spindle_mode": r[13].astype(np.int16),
-                "clamp": kept(14), "plane": r[15].astype(np.int16)})
+                "clamp": kept(14), "plane": r[15].astype(np.int16), "held": kept(17)})
 
     def _error(self, err, s, at, detail, line, fail):
         """One line for the error ``err`` of :func:`scan_piece` (see its module)."""
@@ -228,10 +244,18 @@ class _Scanner:
         if err == 1:
             ch = chr(a[at]) if 32 <= a[at] < 127 else f"byte 0x{a[at]:02x}"
             fail(line, f"cannot read {ch!r} (a block holds words: a letter and a number, "
-                       f"e.g. X1.25)")
+                       f"e.g. X1.25; macro variables '#', expressions and named words "
+                       f"such as LIMS= are not taken)")
         letter = chr(65 + detail) if 0 <= detail < 26 else "?"
         if err == 2:
-            fail(line, f"the word {letter!r} has no number")
+            nxt = a[at + 1] if at + 1 < len(a) else 10
+            named = 65 <= nxt <= 90
+            fail(line, f"the word {letter!r} has no number" + (
+                " (a block holds words: a letter and a number; named words such as "
+                "DIAMON, LIMS= or CR= are not taken)" if named else ""))
+        if err == 5 and letter == "E" and at > 0 and (48 <= a[at - 1] <= 57 or a[at - 1] == 46):
+            fail(line, "a number with an exponent ('E'): NC words take plain decimals "
+                       "(write X0.001, not X1.E-3)")
         if err == 3:
             prev = a[at - 1] if at > 0 else 10
             if 48 <= prev <= 57 or prev == 46:
@@ -265,6 +289,10 @@ class _Scanner:
             inc = {"X": "U", "Y": "V", "Z": "W", "C": "H"}[letter]
             fail(line, f"both {letter} and {inc} (absolute and incremental {letter}) in one "
                        f"block")
+        if err == 12:
+            fail(line, "G90 / G94 with axis words in a program with G98 / G99 (Fanuc lathe "
+                       "G-code system A) is the turning / facing cycle, which this reader "
+                       "does not take; program the cycle's moves with G00 / G01")
         fail(line, "cannot read the block")
 
 
@@ -315,6 +343,7 @@ def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES) -> Scanned
         feed=cat("feed", np.float64), feed_mode=cat("feed_mode", np.int16),
         spindle=cat("spindle", np.float64), spindle_mode=cat("spindle_mode", np.int16),
         clamp_rpm=cat("clamp", np.float64), plane=cat("plane", np.int16),
+        held=cat("held", np.float64),
         header=header, title=title, blocks=sc.blocks,
         g_codes={int(g) for g in np.flatnonzero(sc.seen_g)},
         m_codes={int(m) for m in np.flatnonzero(sc.seen_m)},
