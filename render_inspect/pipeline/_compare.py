@@ -216,6 +216,8 @@ def _simulate_variant(v: _Variant, out: Path) -> None:
     d = out / v.name
     d.mkdir(parents=True, exist_ok=True)
     sim = v.sim = simulate(v.scene)
+    for text in sim.metrics.get("tool_edge", {}).get("warnings", []):  # beyond the measured edge
+        log.warning("warning: %s: %s", v.name, text)
     hm = v.heightmap = sim.heightmap
     writer("heightmap", ".exr")(d / "heightmap.exr", hm)
     if sim.toolpath is not None:

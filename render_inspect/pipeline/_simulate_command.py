@@ -120,6 +120,8 @@ def run_simulate(scene: Scene, out: str | Path, *, tiled: bool | None = None,
             drawer.close()
     if "program" in metrics:  # a program read from a file: what was inferred, the findings
         log_program_summary(metrics["program"], "metrics.json")
+    for text in metrics.get("tool_edge", {}).get("warnings", []):  # the cut beyond the measured edge
+        log.warning("warning: %s", text)
     r = metrics["residual"]
     log.info("wrote the outputs in %.2f s; residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s",
              t_write, r["Sq_nm"], r["Sz_nm"], r["min_nm"], out)

@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import logging
+import math
 from pathlib import Path
 
 from ..core.errors import InputError
@@ -15,7 +16,7 @@ from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_progr
                   program_formats, read_nc_blocks)
 from ..processes import Plan, Process, check_budget, findings_summary, process_of
 from ..report import draw_figure
-from ..toolpath import compare_with_plan, plan_memory, verify_blocks
+from ..toolpath import Tool, compare_with_plan, edge_notes, plan_memory, verify_blocks
 from ._metrics import toolpath_metrics, write_metrics
 
 if TYPE_CHECKING:
@@ -175,3 +176,17 @@ def log_program_summary(info: dict, facts_file: str = "toolpath.json") -> None:
                  f["min_um"], f["max_um"], facts_file)
     text = findings_summary(info)
     (log.warning if info.get("findings") else log.info)("program findings: %s", text)
+
+
+def edge_warnings(scene: Scene) -> list[str]:
+    """What the nose arc (``tool.included_angle_deg``) takes from beyond a measured cutting
+    edge (the deviation held at the table's end values), and a fitted radius the cut does
+    not use: one line each, said before a run."""
+    tool = getattr(scene, "tool", None)
+    if tool is None or not (getattr(tool, "edge_profile", None) or getattr(tool, "waviness", None)):
+        return []
+    t = Tool.from_config(tool)
+    if t.edge is None:
+        return []
+    return edge_notes(t.edge, t.nose_radius, (-t.half_angle, t.half_angle),
+                      f"the nose arc of tool.included_angle_deg = {math.degrees(2 * t.half_angle):g}")

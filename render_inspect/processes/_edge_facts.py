@@ -21,6 +21,8 @@ import numpy as np
 from ..core.units import MM_TO_NM
 from ..machining import WEAR_RATES
 
+from ..toolpath import edge_notes
+
 if TYPE_CHECKING:
     from ..toolpath import EdgeProfile
     from ._machine import ProcessScene
@@ -64,10 +66,14 @@ def edge_facts(tool: Any, compensation: str, machined: np.ndarray, design: np.nd
     edge = tool.edge
     theta, imprint = edge_imprint(edge, design, region, pixel)
     err = machined - design
+    lo, hi = float(np.nanmin(theta)), float(np.nanmax(theta))
     facts = {**edge.to_dict(tool.half_angle),
              "compensation": compensation,
-             "contact_angle_range_deg": [float(np.degrees(np.nanmin(theta))),
-                                         float(np.degrees(np.nanmax(theta)))],
+             "contact_angle_range_deg": [math.degrees(lo), math.degrees(hi)],
+             # what the cut took from beyond the measurement (the ends held), a fitted
+             # radius the cut does not use
+             "warnings": edge_notes(edge, tool.nose_radius, (lo, hi),
+                                    "the design's slope on the simulated region (contact angles)"),
              # the imprint the edge leaves on a path planned for the circular nose
              "imprint_predicted_pv_nm": _pv(imprint) * MM_TO_NM,
              "imprint_predicted_rms_nm": _rms(imprint) * MM_TO_NM,

@@ -120,6 +120,12 @@ class SculptProcessConfig(Section):
                 "process.kind = 'sculpt' needs design.type = 'lenslet_array' with cells = 'quad' "
                 f"(sharp-edged cells along the symmetry lines), received design.type = "
                 f"{getattr(d, 'type', None)!r}" + (f", cells = {d.cells!r}" if hasattr(d, "cells") else ""))
+        if scene.tool.edge_profile or scene.tool.waviness:
+            raise ValueError("tool.edge_profile and tool.waviness describe a measured edge the turning "
+                             "processes cut with (sts, fts, hts, rcse); sculpturing sweeps a circular "
+                             "edge of tool.nose_radius: remove them, received "
+                             + ", ".join(f"{k} = {getattr(scene.tool, k)!r}" for k in ("edge_profile", "waviness")
+                                         if getattr(scene.tool, k)))
         if getattr(scene.tool, "wear", False):
             if scene.material.preset not in WEAR_RATES:
                 raise ValueError(f"tool.wear wears the edge at the rates of material.preset, one of "

@@ -19,11 +19,13 @@ class ToolConfig(Section):
     edge_profile: str | None = Field(
         None, description="text file of the measured cutting edge, relative to the scene: a "
                           "header 'angle_deg, deviation_nm' (angle along the edge against the "
-                          "deviation of the nose radius) or 'x_um, z_um' (points of the edge); "
+                          "deviation of the nose radius; angle_rad, _um, _mm, or 'radius_um' for "
+                          "the radius itself) or 'x_um, z_um' (points of the edge); "
                           "None = a circular nose")
     waviness: list[tuple[float, float, float]] | None = Field(
         None, description="edge waviness as harmonics [amplitude nm, period deg, phase deg] "
-                          "of the nose radius along the edge angle (added to edge_profile)")
+                          "of the nose radius along the edge angle (added to edge_profile); "
+                          "amplitude 0-10000 nm, period 0.5-360 deg")
     edge_scale: float = Field(1.0, ge=0, le=100, description="factor on the edge's deviation "
                                                              "(edge_profile and waviness)")
     wear: bool = Field(False, description="wear the edge along the cut (flank wear and edge radius "
@@ -38,8 +40,10 @@ class ToolConfig(Section):
         for k, (a, p, _) in enumerate(self.waviness or ()):
             if not (0 <= a <= 1e4):
                 raise ValueError(f"waviness[{k}] amplitude must be in [0, 10000] nm, received {a}")
-            if not (0 < p <= 360):
-                raise ValueError(f"waviness[{k}] period must be in (0, 360] deg, received {p}")
+            # (the shortest period the cut resolves, toolpath's MIN_WAVINESS_PERIOD_DEG: the
+            # scene package does not import the tool path's)
+            if not (0.5 <= p <= 360):
+                raise ValueError(f"waviness[{k}] period must be in [0.5, 360] deg, received {p}")
         if self.edge_profile is not None and ("\x00" in self.edge_profile or not self.edge_profile.strip()):
             raise ValueError(f"edge_profile must be a file name, received {self.edge_profile!r}")
         return self

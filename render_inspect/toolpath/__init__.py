@@ -32,13 +32,13 @@ from ._rcse import (
 )
 from ._scallop import feed_for_scallop, max_feed_for_scallop, plan_feed, scallop_height
 from ._spiral import SAMPLINGS, chordal_error, chordal_step_for, spiral_ccps
-from ._edge import EdgeProfile, edge_of, read_edge_file
+from ._edge import EdgeProfile, edge_notes, edge_of, read_edge_file
 from ._tool import Tool, pass_margin
 from ._verify import (CUT_TOLERANCE, DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE,
                       MachineLimits, PartModel, compare_with_plan, longest_step, part_top, plan_links,
                       verify_blocks)
 
-__all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "EdgeProfile", "edge_of", "read_edge_file", "spiral_ccps", "chordal_error",
+__all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "EdgeProfile", "edge_notes", "edge_of", "read_edge_file", "spiral_ccps", "chordal_error",
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
            "plan_turning", "sector_plan", "region_radii", "max_curvature", "plan_memory", "turning_point_count",

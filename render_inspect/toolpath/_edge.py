@@ -33,10 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.units import MM_TO_NM, NM_TO_MM, UM_TO_MM
+from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM, UM_TO_MM
 
-__all__ = ["EdgeProfile", "read_edge_file", "edge_of", "NO_EDGE", "TABLE_POINTS",
-           "EDGE_UNITS"]
+__all__ = ["EdgeProfile", "read_edge_file", "edge_of", "edge_notes", "NO_EDGE", "TABLE_POINTS",
+           "EDGE_UNITS", "MIN_WAVINESS_PERIOD_DEG"]
 
 #: the empty edge table: a circular nose (the kernels' circle, bit for bit)
 NO_EDGE = np.zeros(0)
@@ -44,6 +44,15 @@ NO_EDGE = np.zeros(0)
 TABLE_POINTS = 8193
 #: length units a column header may name (suffix -> mm per unit)
 EDGE_UNITS = {"nm": NM_TO_MM, "um": UM_TO_MM, "mm": 1.0}
+#: angle units a column header may name (suffix -> rad per unit)
+ANGLE_UNITS = {"deg": math.pi / 180.0, "rad": 1.0}
+#: shortest waviness period (deg): the kernels' table (:data:`TABLE_POINTS` over at most
+#: the nose's diameter) keeps at least 35 points in it, the harmonics' samples 64
+MIN_WAVINESS_PERIOD_DEG = 0.5
+#: the harmonics' sampling (deg) where every period is 64 samples long or more
+_HARMONIC_STEP_DEG = 0.05
+#: angle (rad) by which the cut may pass the measured part of the edge unremarked
+_COVER_TOLERANCE = math.radians(0.01)
 #: largest |deviation| an edge may have, as a fraction of the nose radius (the kernels'
 #: table assumes the edge stays a graph over the radial offset)
 MAX_DEVIATION_FRACTION = 0.01
@@ -65,12 +74,24 @@ class EdgeProfile:
         Where the edge comes from (a file, or the harmonics), for the outputs.
     fitted_radius : float or None
         mm: the radius of the circle fitted to an (x, z) edge file.
+    measured : (float, float) or None
+        rad: the angles the measurement covers (beyond them the deviation is held at its
+        end values); None: the whole edge (the harmonics, or the table itself).
     """
 
     angle: np.ndarray
     delta: np.ndarray
     source: str = ""
     fitted_radius: float | None = None
+    measured: tuple[float, float] | None = None
+
+    @property
+    def covers(self) -> tuple[float, float]:
+        """The angles (rad) the edge was measured over: the table's, or the file's
+        within a sum with harmonics."""
+        if self.measured is not None:
+            return self.measured
+        return float(self.angle[0]), float(self.angle[-1])
 
     def deviation(self, theta: np.ndarray | float) -> np.ndarray:
         """delta(theta), mm."""
@@ -80,7 +101,15 @@ class EdgeProfile:
     def from_harmonics(cls, harmonics: Sequence[Sequence[float]], *, span_deg: float = 180.0,
                        samples: int = 7201) -> "EdgeProfile":
         """delta(theta) = sum_k a_k cos(2 pi theta / P_k + phi_k) from (a_k nm, P_k degrees,
-        phi_k degrees) triples."""
+        phi_k degrees) triples, sampled 64 times per period at least (every 0.05 deg for
+        periods of 3.2 deg or more)."""
+        for k, (_, period_deg, _) in enumerate(harmonics):
+            if not period_deg >= MIN_WAVINESS_PERIOD_DEG:
+                raise InputError(f"tool.waviness[{k}] period must be >= {MIN_WAVINESS_PERIOD_DEG:g} deg "
+                                 f"(the cut resolves the edge no finer), received {period_deg:g}")
+        p_min = min((float(h[1]) for h in harmonics), default=360.0)
+        if p_min / 64 < _HARMONIC_STEP_DEG:
+            samples = max(samples, int(math.ceil(2 * span_deg / (p_min / 64))) + 1)
         th = np.linspace(-math.radians(span_deg), math.radians(span_deg), samples)
         d = np.zeros_like(th)
         for a_nm, period_deg, phase_deg in harmonics:
@@ -90,7 +119,8 @@ class EdgeProfile:
 
     def scaled(self, factor: float) -> "EdgeProfile":
         """The same edge with the deviation times ``factor``."""
-        return EdgeProfile(self.angle, self.delta * float(factor), self.source, self.fitted_radius)
+        return EdgeProfile(self.angle, self.delta * float(factor), self.source, self.fitted_radius,
+                           self.measured)
 
     def within(self, half_angle: float) -> np.ndarray:
         """The deviations (mm) at the samples within +-half_angle (rad) and at its ends."""
@@ -141,7 +171,8 @@ class EdgeProfile:
         out = {"source": self.source, "samples": int(self.angle.size),
                "angle_range_deg": [math.degrees(float(self.angle[0])), math.degrees(float(self.angle[-1]))],
                "deviation_pv_nm": float((self.delta.max() - self.delta.min()) * MM_TO_NM),
-               "deviation_rms_nm": float(np.sqrt(np.mean(self.delta ** 2)) * MM_TO_NM)}
+               "deviation_rms_nm": float(np.sqrt(np.mean(self.delta ** 2)) * MM_TO_NM),
+               "measured_range_deg": [math.degrees(a) for a in self.covers]}
         if half_angle is not None:
             out["engaged_pv_nm"] = self.pv_nm(half_angle)
         if self.fitted_radius is not None:
@@ -150,18 +181,22 @@ class EdgeProfile:
 
 
 # ------------------------------------------------------------------ edge files
-_HEADER = re.compile(r"^\s*([A-Za-z]+)(?:[_\[\( ]+([A-Za-z]+)[\]\)]?)?\s*$")
+_HEADER = re.compile(r"^\s*([A-Za-z]+)(?:\s*[_\[\(/ ]+\s*([A-Za-z\u00b5\u03bc]+)\s*[\]\)]?)?\s*$")
+#: other spellings of the units a header may name
+_UNIT_SPELLINGS = {"\u00b5m": "um", "\u03bcm": "um", "micron": "um", "microns": "um",
+                   "degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad"}
+#: column names of the angle layout: the angle, the deviation of the radius, the radius
+_ANGLE, _DEVIATION, _RADIUS = ("angle", "theta"), ("deviation", "delta", "dr", "dev"), ("radius",)
 
 
-def _column(name: str, path: str):
-    """(quantity, mm per unit) of a header field ``angle_deg``, ``deviation_nm``,
-    ``x_um`` / ``x [um]``..."""
+def _column(name: str):
+    """(quantity, unit) of a header field ``angle_deg``, ``deviation_nm``, ``x_um`` /
+    ``x [um]`` / ``deviation (µm)``..."""
     m = _HEADER.match(name)
     if not m:
         return None, None
     q, u = m.group(1).lower(), (m.group(2) or "").lower()
-    u = {"µm": "um", "micron": "um", "microns": "um", "degree": "deg", "degrees": "deg"}.get(u, u)
-    return q, u
+    return q, _UNIT_SPELLINGS.get(u, u)
 
 
 def _fail(path, line, what) -> InputError:
@@ -169,39 +204,60 @@ def _fail(path, line, what) -> InputError:
     return InputError(f"tool.edge_profile {where}: {what}")
 
 
+def _numbers(s: str) -> list[str]:
+    """The fields of a data row: split at commas, semicolons, tabs and spaces; a row
+    with semicolons is split at them alone, and its decimal commas read as points."""
+    if ";" in s:
+        f = [x.strip() for x in s.split(";") if x.strip()]
+        return [x.replace(",", ".") if x.count(",") == 1 and "." not in x else x for x in f]
+    return [f for f in re.split(r"[,\t ]+", s) if f]
+
+
+def _names(s: str) -> list[str]:
+    """The fields of a header: split at semicolons, commas or tabs where it has them
+    (a name may then hold a space, 'angle (deg)'), else at spaces."""
+    for sep in (r";", r"[,\t]"):
+        if re.search(sep, s):
+            return [f.strip() for f in re.split(sep, s) if f.strip()]
+    return s.split()
+
+
 def _parse(text: str, path: str):
-    """(quantities, units, rows as (line number, values))."""
+    """(header line, names, (quantity, unit) per name, rows as (line number, values))."""
     rows: list[tuple[int, list[float]]]
     header, rows = None, []
     for ln, raw in enumerate(text.splitlines(), 1):
         s = raw.split("#", 1)[0].strip()
         if not s:
             continue
-        fields = [f for f in re.split(r"[,;\t ]+", s) if f] if "[" not in s and "(" not in s \
-            else [f.strip() for f in re.split(r"[,;\t]+", s) if f.strip()]
-        if header is None and not rows:
-            try:
-                [float(f) for f in fields]
-            except ValueError:
-                header = (ln, fields)
-                continue
-        if len(fields) != 2:
-            raise _fail(path, ln, f"a row must hold 2 numbers, received {len(fields)} ({raw.strip()!r})")
+        fields = _numbers(s)
         try:
             vals = [float(f) for f in fields]
         except ValueError:
-            raise _fail(path, ln, f"a row must hold 2 numbers, received {raw.strip()!r}") from None
+            vals = None
+        if vals is None and header is None and not rows:
+            header = (ln, _names(s))
+            continue
+        if vals is None and not rows and header is not None:
+            raise _fail(path, ln, f"line {header[0]} ({' '.join(header[1])!r}) and this line "
+                                  f"({raw.strip()!r}) are both text: the first line that is not a "
+                                  f"comment must name the two columns; start any other line with '#'")
+        if len(fields) != 2:
+            hint = " (decimal commas? separate the columns with ';')" if "," in s and len(fields) == 4 else ""
+            raise _fail(path, ln, f"a row must hold 2 numbers, received {len(fields)} ({raw.strip()!r}){hint}")
+        if vals is None:
+            raise _fail(path, ln, f"a row must hold 2 numbers, received {raw.strip()!r}")
         if not all(math.isfinite(v) for v in vals):
             raise _fail(path, ln, f"values must be finite numbers, received {raw.strip()!r}")
         rows.append((ln, vals))
     if header is None:
         raise _fail(path, 0, "the first line must name the two columns with their units: "
-                             "'angle_deg, deviation_nm' (or _um, _mm) for angle against radius "
-                             "deviation, or 'x_um, z_um' (or _nm, _mm) for points of the edge")
+                             "'angle_deg, deviation_nm' (or _um, _mm; angle_rad) for angle against "
+                             "radius deviation, or 'x_um, z_um' (or _nm, _mm) for points of the edge")
     ln, names = header
     if len(names) != 2:
         raise _fail(path, ln, f"the header must name 2 columns, received {len(names)} ({' '.join(names)!r})")
-    cols = [_column(n, path) for n in names]
+    cols = [_column(n) for n in names]
     return ln, names, cols, rows
 
 
@@ -235,43 +291,58 @@ def _fit_circle(x, z):
 
 def read_edge_file(path: str | Path, *, nose_radius: float | None = None) -> EdgeProfile:
     """Read a tool-edge measurement: a text table (comma, semicolon, tab or space
-    separated; ``#`` starts a comment) whose first line names the two columns with units.
+    separated, decimal commas where semicolons separate; ``#`` starts a comment) whose
+    first line names the two columns with units, in either order.
 
-    - ``angle_deg, deviation_nm`` (``_um``, ``_mm``): the angle along the edge (degrees,
-      0 at the tool axis, positive towards +X) against the deviation of the nose radius
-      from its nominal value;
+    - ``angle_deg, deviation_nm`` (``angle_rad``; ``_um``, ``_mm``): the angle along the
+      edge (0 at the tool axis, positive towards +X) against the deviation of the nose
+      radius from its nominal value (positive: the edge stands out of the circle);
+      ``angle_deg, radius_um``: against the nose radius itself, whose deviation is taken
+      from ``nose_radius``; the rows in increasing or decreasing angle;
     - ``x_um, z_um`` (``_nm``, ``_mm``): points of the edge in any frame with Z along the
       tool axis (towards the part is -Z, as the tool tip is the edge's lowest point); a
       circle is fitted, and the deviation is each point's distance from its centre less
       its radius, at the angle from the centre.
 
     Any other layout, a row that is not two finite numbers, fewer than 8 rows, angles that
-    do not increase, or (points) a fitted radius more than 5 % from ``nose_radius`` is an
-    :class:`InputError` naming the file, line and value."""
+    repeat or turn back, an angle beyond 90 deg from the tool axis (points: seen from the
+    fitted centre), or a fitted radius (a radius column's median) more than 5 % from
+    ``nose_radius`` is an :class:`InputError` naming the file, line and value."""
     p = Path(path)
     text = _read_text(p)
     hl, names, cols, rows = _parse(text, str(p))
-    (q1, u1), (q2, u2) = cols
     if len(rows) < 8:
         raise _fail(p, 0, f"an edge needs at least 8 rows, received {len(rows)}")
     v = np.array([r[1] for r in rows], dtype=np.float64)
     lines = [r[0] for r in rows]
-    if q1 in ("angle", "theta") and q2 in ("deviation", "delta", "dr", "radius"):
-        if u1 not in ("deg", ""):
-            raise _fail(p, hl, f"the angle column must be in degrees ('angle_deg'), received {names[0]!r}")
+    qs = [c[0] for c in cols]
+    if (qs[1] in _ANGLE and qs[0] in _DEVIATION + _RADIUS) or qs == ["z", "x"]:
+        v, names, cols = v[:, ::-1], names[::-1], cols[::-1]  # the columns in the other order
+    (q1, u1), (q2, u2) = cols
+    if q1 in _ANGLE and q2 in _DEVIATION + _RADIUS:
+        if u1 not in ANGLE_UNITS:
+            raise _fail(p, hl, f"the angle column must name its unit, 'angle_deg' or 'angle_rad', "
+                               f"received {names[0]!r}")
         if u2 not in EDGE_UNITS:
-            raise _fail(p, hl, f"the deviation column must name its unit (one of "
-                               f"{', '.join('deviation_' + u for u in EDGE_UNITS)}), received {names[1]!r}")
-        ang = np.radians(v[:, 0])
+            raise _fail(p, hl, f"the {q2} column must name its unit (one of "
+                               f"{', '.join(q2 + '_' + u for u in EDGE_UNITS)}), received {names[1]!r}")
+        ang = np.radians(v[:, 0]) if u1 == "deg" else v[:, 0] * ANGLE_UNITS[u1]
         dev = v[:, 1] * EDGE_UNITS[u2]
+        if q2 in _RADIUS:
+            dev = _deviation_of_radius(p, hl, names[1], dev, nose_radius)
+        if ang.size > 1 and np.all(np.diff(ang) < 0):  # a table from +X to -X
+            ang, dev, v, lines = ang[::-1].copy(), dev[::-1].copy(), v[::-1], lines[::-1]
         bad = np.flatnonzero(np.diff(ang) <= 0)
         if bad.size:
             k = int(bad[0]) + 1
-            raise _fail(p, lines[k], f"angles must increase, received {v[k, 0]:g} deg after "
-                                     f"{v[k - 1, 0]:g} deg")
+            raise _fail(p, lines[k], f"angles must increase (or all decrease), received {v[k, 0]:g} {u1} "
+                                     f"after {v[k - 1, 0]:g} {u1}")
         if np.any(np.abs(ang) > math.pi / 2):
             k = int(np.flatnonzero(np.abs(ang) > math.pi / 2)[0])
-            raise _fail(p, lines[k], f"angle must be in [-90, 90] deg, received {v[k, 0]:g}")
+            span = "[-90, 90] deg" if u1 == "deg" else f"[-{math.pi / 2:.6g}, {math.pi / 2:.6g}] rad"
+            raise _fail(p, lines[k], f"angle must be in {span} (0 at the tool axis; a table measured "
+                                     f"from one end of the edge: subtract half the included angle), "
+                                     f"received {v[k, 0]:g}")
         return EdgeProfile(ang, dev, source=p.name)
     if q1 == "x" and q2 == "z":
         if u1 not in EDGE_UNITS or u2 not in EDGE_UNITS:
@@ -287,14 +358,65 @@ def read_edge_file(path: str | Path, *, nose_radius: float | None = None) -> Edg
                               f"must be within 5 % of it, received {nose_radius:g} mm")
         # the tip is the lowest point: the centre lies above the points
         ang = np.arctan2(x - xc, zc - z)
+        far = np.flatnonzero(np.abs(ang) > math.pi / 2)
+        if far.size:
+            k = int(far[0])
+            raise _fail(p, lines[k], f"the point ({v[k, 0]:g} {u1}, {v[k, 1]:g} {u2}) lies "
+                                     f"{math.degrees(ang[k]):.4g} deg from the tool axis seen from the "
+                                     f"fitted centre: the points must lie below the centre, within "
+                                     f"[-90, 90] deg (the tip the lowest point; where the file's z "
+                                     f"points towards the part, negate it)")
         dev = np.hypot(x - xc, z - zc) - R
         order = np.argsort(ang, kind="stable")
         ang, dev = ang[order], dev[order]
         if np.any(np.diff(ang) <= 0):
             raise _fail(p, 0, "two points of the edge lie at the same angle from the fitted centre")
         return EdgeProfile(ang, dev, source=p.name, fitted_radius=R)
-    raise _fail(p, hl, f"the header must be 'angle_deg, deviation_nm' or 'x_um, z_um' (units nm, um "
-                       f"or mm), received {', '.join(names)!r}")
+    raise _fail(p, hl, f"the header must be 'angle_deg, deviation_nm', 'angle_deg, radius_um' or "
+                       f"'x_um, z_um' (units nm, um or mm; angle_rad), received {', '.join(names)!r}")
+
+
+def _deviation_of_radius(p: Path, hl: int, name: str, radius: np.ndarray,
+                         nose_radius: float | None) -> np.ndarray:
+    """The deviation (mm) of a column of the nose radius itself from ``nose_radius``."""
+    if nose_radius is None:
+        raise _fail(p, hl, f"the column {name!r} holds the nose radius itself: its deviation is "
+                           f"taken from tool.nose_radius, which is not given")
+    med = float(np.median(radius))
+    if abs(med - nose_radius) > 0.05 * nose_radius:
+        raise _fail(p, hl, f"the column {name!r} holds the nose radius itself (the deviation is "
+                           f"radius - tool.nose_radius): its median must lie within 5 % of "
+                           f"tool.nose_radius = {nose_radius:g} mm, received {med:.6g} mm (a "
+                           f"column of the deviation is named 'deviation_nm')")
+    return radius - float(nose_radius)
+
+
+def edge_notes(edge: EdgeProfile, nose_radius: float, used: tuple[float, float],
+               used_by: str) -> list[str]:
+    """One line for each thing the cut takes from beyond the measured edge: angles of
+    ``used`` (rad, what ``used_by`` names) outside the measurement, where the deviation is
+    held at its end values; a circle fitted to an (x, z) file whose radius differs from
+    ``nose_radius`` by more than the file's deviation (the cut keeps ``nose_radius``)."""
+    out = []
+    a0, a1 = edge.covers
+    lo, hi = float(used[0]), float(used[1])
+    ends = []
+    if lo < a0 - _COVER_TOLERANCE:
+        ends.append(f"{float(edge.deviation(a0)) * MM_TO_NM:.4g} nm from {math.degrees(a0):.4g} deg down")
+    if hi > a1 + _COVER_TOLERANCE:
+        ends.append(f"{float(edge.deviation(a1)) * MM_TO_NM:.4g} nm from {math.degrees(a1):.4g} deg up")
+    if ends:
+        out.append(f"tool edge ({edge.source}) is measured from {math.degrees(a0):.4g} to "
+                   f"{math.degrees(a1):.4g} deg, but {used_by} spans {math.degrees(lo):.4g} to "
+                   f"{math.degrees(hi):.4g} deg: beyond the measurement the deviation is held at "
+                   f"its end values ({'; '.join(ends)})")
+    R = edge.fitted_radius
+    if R is not None and abs(R - nose_radius) > max(float(np.ptp(edge.delta)), 0.0):
+        out.append(f"the circle fitted to tool.edge_profile ({edge.source}) has radius {R:.7g} mm, "
+                   f"{abs(R - nose_radius) * MM_TO_UM:.4g} um from tool.nose_radius = {nose_radius:g} mm: "
+                   f"the cut keeps tool.nose_radius with the file's deviation from its fitted circle "
+                   f"(set tool.nose_radius = {R:.7g} to cut with the measured radius)")
+    return out
 
 
 @functools.lru_cache(maxsize=16)
@@ -321,9 +443,10 @@ def edge_of(edge_profile: str | None, waviness: Sequence[Sequence[float]] | None
         if edge is None:
             edge = wav
         else:
-            th = np.union1d(edge.angle, wav.angle[np.abs(wav.angle) <= max(abs(edge.angle[0]), abs(edge.angle[-1]))])
+            # the harmonics over the whole edge, the file's deviation held beyond its ends
+            th = np.union1d(edge.angle, wav.angle)
             edge = EdgeProfile(th, edge.deviation(th) + wav.deviation(th), f"{edge.source} + {wav.source}",
-                               edge.fitted_radius)
+                               edge.fitted_radius, edge.covers)
     if edge is not None and amplitude_scale != 1.0:
         edge = edge.scaled(amplitude_scale)
     return edge
