@@ -210,3 +210,20 @@ def test_sculpturing_refuses_a_measured_edge_it_would_not_cut():
 
     with pytest.raises(SceneError, match="sculpturing sweeps a circular edge"):
         load_scene("sculpt_quad_mla", ["tool.waviness=[[300, 12, 0]]"])
+
+
+def test_a_note_said_before_the_run_is_not_said_again_after_it(tmp_path, capsys):
+    """The fitted radius the cut does not use is a fact of the file and the scene: said
+    once by ``simulate``, though both the scene's check and the run's results carry it."""
+    from render_inspect.cli import main
+
+    p = tmp_path / "xz.csv"
+    p.write_text(_xz_text(+1))
+    code = main(["simulate", "sts_sinusoidal_grid", "--set", f"tool.edge_profile='{p.as_posix()}'",
+                 "--set", "tool.nose_radius=0.49", "--set", "simulation.region=[0, 0, 0.04, 0.04]",
+                 "--out", str(tmp_path / "out"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count("the circle fitted to tool.edge_profile") == 1, err
+    facts = __import__("json").loads((tmp_path / "out" / "metrics.json").read_text())["tool_edge"]
+    assert any("the circle fitted" in w for w in facts["warnings"])  # kept in the record

@@ -184,6 +184,24 @@ def _setup_logging(args) -> None:
     log.setLevel(level)
 
 
+class _SaidOnce(logging.Filter):
+    """Lets a warning through once per command: the same line said before the run (from
+    the scene) and again in its results (a measured tool edge's notes) is shown once."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._said: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno < logging.WARNING:
+            return True
+        text = record.getMessage()
+        if text in self._said:
+            return False
+        self._said.add(text)
+        return True
+
+
 class _StderrHandler(logging.StreamHandler):
     """Log records on the *current* ``sys.stderr``: a handler holding the stream it was
     made with writes into a closed file once ``sys.stderr`` has been replaced (a second
@@ -221,6 +239,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         rich_handler = _RichLogHandler(reporter._progress.console)
         rich_handler.setFormatter(logging.Formatter("%(message)s"))
         log.handlers = [rich_handler]
+    once = _SaidOnce()
+    for h in log.handlers:
+        h.addFilter(once)
     t_start = time.monotonic()
     try:
         # the handlers are put in place inside this block, so that a signal arriving
@@ -252,6 +273,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise stop from None
             finally:
                 set_reporter(old)
+                for h in log.handlers:
+                    h.removeFilter(once)
                 log.handlers = handlers
     except RenderInspectError as err:
         if show_tb:
