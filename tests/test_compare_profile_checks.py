@@ -6,11 +6,17 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from render_inspect.core.marks import ToolMarks
+from render_inspect.core.units import MM_TO_NM
+from render_inspect.instruments import (Microscope, artefacts, csi_frames, led, objective,
+                                        recommended_subsamples)
+from render_inspect.metrology import line_profile, measure_frames
 from render_inspect.core.toolpath import ToolPath
 from render_inspect.pipeline import _compare as cmp
 from render_inspect.pipeline import _compare_profile as cp
+from render_inspect.pipeline._compare_profile_checks import cut_as_seen
 from render_inspect.pipeline._summaries import profile_compare_summary
 from render_inspect.report._comparison import _variant_rows
 
@@ -165,3 +171,48 @@ def test_program_feed_over_the_region_sets_scallop_and_filter(tmp_path):
     marks = ToolMarks(pattern="circular", period_mm=0.0396, nose_radius_mm=0.2, scallop=True)
     assert cmp._marks_of_programs(marks, feeds).period_mm == feeds["prog"]
     assert cmp._marks_of_programs(marks, {}) is marks
+
+
+@pytest.mark.parametrize("name,n", [("5x", 48), ("2.5x", 32)])
+def test_a_correct_measurement_of_sharp_edges_follows_the_cut_as_the_instrument_sees_it(name, n):
+    """A rectangular grating 600 nm deep (two sharp edges) measured by the full imaging
+    model (coherence scanning; a 5x objective with a 3.5 um camera pixel, a 2.5x with a
+    7 um one) and read along a line at 0.5 um, as a finer measured profile is: the
+    measurement is right (coherence scanning finds the step's fringe order), but against
+    the cut as sampled the objective's rounding of the edges and the interpolation
+    between pixel centres depart at both edges, and the check called it failed; against
+    the cut as the instrument sees it (:func:`cut_as_seen`) it follows, at a fraction of
+    the rms.  The same measurement with a lost fringe order over three camera pixels is
+    failed, and the points that depart are that stretch alone."""
+    mic = Microscope(objective=objective(name), source=led(570.0, bandwidth_nm=100.0))
+    p = mic.objective.pixel
+    s = max(recommended_subsamples(p, mic, max_slope=0.0), 4)
+    a = p / s
+    x0 = -(s - 1) * a / 2  # the first sub-sample's centre; pixel centres at j p
+    h, nrm = artefacts.step((4, n), p, s, height=600e-6)
+    r = measure_frames(csi_frames(h, nrm, pixel=p, subsamples=s, microscope=mic, seed=1))
+    p0, p1, step = (2 * p, 1.5 * p), ((n - 3) * p, 1.5 * p), 0.5e-3
+
+    def along(z, pixel, origin):
+        return line_profile(z, pixel=pixel, origin=origin, p0=p0, p1=p1, step=step)[1]
+
+    meas = along(np.where(r.valid, r.height, np.nan), p, (0.0, 0.0))
+    noise = along(r.height_noise, p, (0.0, 0.0))
+    sampled = along(h, a, (x0, x0))
+    seen = along(cut_as_seen(h, pixel=a, origin=(x0, x0), microscope=mic, camera_pixel=p,
+                             camera_origin=(0.0, 0.0), camera_shape=(4, n)), p, (0.0, 0.0))
+    lam = mic.effective_wavelength_nm()
+    kw = {"lambda_eff_nm": lam, "mode": "csi", "rt_sim": None, "rt_true": None}
+    old = cp._measurement_check(meas, sampled, noise, **kw)
+    assert old["status"] == "failed"
+    ok = cp._measurement_check(meas, seen, noise, **kw)
+    assert ok["status"] == "ok" and ok["departing"] == 0
+    assert ok["rms_departure_nm"] < 0.5 * old["rms_departure_nm"]
+    # a lost fringe order over three camera pixels of the lower terrace
+    lost = np.where(r.valid, r.height, np.nan)
+    lost[:, 4:7] += lam / 2 / MM_TO_NM
+    half = along(lost, p, (0.0, 0.0))
+    moved = int(np.count_nonzero(np.abs(half - meas) > lam / 4 / MM_TO_NM))
+    bad = cp._measurement_check(half, seen, noise, **kw)
+    assert bad["status"] == "failed" and abs(bad["departing"] - moved) <= 2
+    assert cp._measurement_check(half, sampled, noise, **kw)["departing"] > moved + 2

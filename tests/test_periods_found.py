@@ -246,3 +246,48 @@ def test_a_trace_of_four_periods_or_of_four_samples_a_period_is_found(period_mm)
     x = np.arange(4000) * 0.001
     r = dominant_periods(np.sin(2 * np.pi * x / period_mm), spacing=0.001)
     assert r["period_mm"] == pytest.approx(period_mm, rel=0.01) and r["note"] is None
+
+
+# -- a weak period -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("radius_mm", [10.0, 30.0])
+def test_a_period_under_form_beyond_the_range_is_called_weak(tmp_path, radius_mm):
+    """A bowl of 10 or 30 mm radius under 10 um marks of 10 nm, a plane removed: the bowl's
+    power lies at periods longer than the longest searched (50 um) and the spectrum
+    falls towards that end, so nothing said it was left over, while the marks hold 0.1 %
+    or 1 % of the variance.  The period is the marks' and the note calls it weak, says
+    where the rest lies and asks for --form poly2; with a parabola removed the marks
+    hold most of the variance and the note goes."""
+    src = _bowl_with_marks(tmp_path, radius_mm)
+    m = run_analyze(src, tmp_path / "plane")
+    dom = m["periods"]["dominant"]
+    assert dom["period_mm"] == pytest.approx(0.01, rel=0.01)
+    assert dom["fraction_of_variance"] < 0.05
+    assert "weak period" in dom["note"] and "longer than the longest searched (50 um" in dom["note"]
+    assert "--form poly2" in dom["note"]
+    row = dict(analysis_summary(m))["dominant period"]
+    assert "weak period" in row
+    m2 = run_analyze(src, tmp_path / "poly2", form="poly2")
+    dom2 = m2["periods"]["dominant"]
+    assert dom2["fraction_of_variance"] > 0.5 and "note" not in dom2
+
+
+def test_a_profile_under_a_cubic_is_called_weak_and_marks_alone_are_not():
+    """A 1 mm profile: 10 um marks of 10 nm under a cubic of 1 um (form a parabola does not
+    remove) hold 0.4 % of the variance: weak, the rest at longer periods; the marks alone
+    hold nearly all of it and nothing is said."""
+    x = np.arange(1000) * 1e-3
+    marks = 1e-5 * np.sin(2 * np.pi * x / 0.01)
+    p = dominant_periods(1e-3 * ((x - 0.5) / 0.5) ** 3 + marks, spacing=1e-3)
+    assert p["period_mm"] == pytest.approx(0.01, rel=1e-3) and p["weak"]
+    assert p["fraction"] < 0.01 and "weak period" in p["note"] and "longer than" in p["note"]
+    q = dominant_periods(marks, spacing=1e-3)
+    assert not q["weak"] and q["note"] is None
+
+
+def test_random_roughness_is_weak_without_blaming_form():
+    """White noise has no period: its strongest line holds a few per cent, so the note
+    calls it weak, and no form is blamed (the long periods hold their share only)."""
+    z = np.random.default_rng(5).normal(size=1000)
+    p = dominant_periods(z, spacing=1e-3)
+    assert p["weak"] and "weak period" in p["note"] and "longer than" not in p["note"]

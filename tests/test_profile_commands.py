@@ -267,3 +267,42 @@ def test_registration_is_bounded_by_the_spindle_axis_on_the_line():
     assert registration_period(scene, z_meas, spacing=step) == pytest.approx(f, rel=0.05)
     assert registration_period(scene, np.zeros(8), spacing=step) == pytest.approx(
         scene.process.feed_mm_per_min / scene.process.spindle_rpm)
+
+
+@pytest.mark.slow
+def test_a_failed_virtual_measurement_is_not_registered_against(tmp_path):
+    """The turned example scene on its planned spiral (39.6 um per revolution on a
+    paraboloid) imaged by phase shifting, which loses fringe orders on the paraboloid's
+    slopes: the virtual measurement fails.  A profile cut from the simulated cut itself,
+    shifted by 7 um, is then registered against the cut as the instrument sees it (not
+    against the failed measurement, whose lost orders it would align to): the shift comes
+    back within 1 um, the registration beats chance, and the json and the summary say
+    what it was registered against."""
+    from render_inspect.metrology import line_profile
+    from render_inspect.pipeline._compare_profile import _band_scene, run_compare_profile
+    from render_inspect.pipeline._simulate import simulate
+    from render_inspect.pipeline._summaries import profile_compare_summary
+    from render_inspect.scene import load_scene
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "examples" / "turned" / "scene.toml")
+    spiral = tmp_path / "spiral.toml"
+    spiral.write_text("".join(line for line in text.read_text().splitlines(keepends=True)
+                              if not line.startswith("program = ")))
+    scene = load_scene(spiral, [])
+    assert scene.render.interferometer.mode == "psi"
+    band, _ = _band_scene(scene, (-0.4, 0.0), (0.4, 0.0))
+    hm = simulate(band).heightmap
+    s, z = line_profile(hm.machined, pixel=hm.pixel, origin=hm.origin, p0=(-0.393, 0.0),
+                        p1=(0.39, 0.0), step=0.8712e-3)
+    src = tmp_path / "cut.csv"
+    src.write_text("x (um), height (nm)\n"
+                   + "".join(f"{a * 1e3:.6f}, {b * 1e6:.6f}\n" for a, b in zip(s, z)))
+    m = run_compare_profile(scene, tmp_path / "c", measured=src, line="-0.4,0,0.4,0")
+    assert m["virtual_measurement"]["status"] == "failed"
+    reg = m["registration"]
+    assert reg["against"] == "cut_as_seen" and "failed" in reg["against_why"]
+    assert reg["shift_mm"] == pytest.approx(0.007, abs=1e-3)
+    assert reg["reliable"] and reg["correlation"] > reg["null_correlation"]
+    _, lines = profile_compare_summary(m)
+    assert "registration against the cut as the instrument sees it" in lines[0]
+    assert "against the cut as the instrument sees it" in (tmp_path / "c" / "report.html").read_text()

@@ -171,9 +171,9 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
         h_meas = np.where(r.valid, r.height, np.nan)
         s_sim, z_sim = line_profile(h_meas, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1,
                                     step=step)
-        shift, corr, _how = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
-                                      axis_s=axis_on_line(scene, p0, p1,
-                                                          tolerance=(period or step) / 2))
+        shift, corr, _how, _null = _register(
+            s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
+            axis_s=axis_on_line(scene, p0, p1, tolerance=(period or step) / 2))
         # the slice stays where the default line put it (its mirror centre on the axis);
         # compare's registration along the line is recorded beside it, not applied: on these
         # periodic profiles it can lock onto a match some feed periods away

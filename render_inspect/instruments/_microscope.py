@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from ..core.lazy import lazy_attr
 
-from ..core.errors import check_range
+from ..core.errors import InputError, check_range
 from ..core.units import NM_TO_MM
 from ._camera import Camera
 from ._objectives import OBJECTIVES, Objective
@@ -24,6 +24,7 @@ from ._transfer import flat_moments, linear_itf
 
 #: SciPy, imported on first use (render_inspect.core.lazy)
 gaussian_filter = lazy_attr("scipy.ndimage", "gaussian_filter")
+distance_transform_edt = lazy_attr("scipy.ndimage", "distance_transform_edt")
 
 __all__ = ["Disturbances", "Microscope", "recommended_subsamples"]
 
@@ -85,6 +86,55 @@ class Microscope:
         """Instrument transfer function in the linear regime (:func:`linear_itf`) at
         ``frequency`` (cycles/mm), without the camera pixel's box filter."""
         return linear_itf(self.na, self.na_ill, self.obscuration, self.source, frequency)
+
+    def lateral_response(self, heights: ArrayLike, *, pixel: float, camera_pixel: float) -> np.ndarray:
+        """``heights`` (mm; a profile along its only axis, or a map; ``pixel`` mm apart) as
+        the objective and the camera see them laterally: the imaging model's Kirchhoff
+        field ``exp(i K_eff h)`` (docs/instrument.md) filtered by the linear transfer
+        function (:meth:`itf`) times the camera pixel's box filter ``sinc(f w)`` (``w`` its
+        sensitive width, ``sqrt(fill_factor) camera_pixel``, mm, along each axis), its phase
+        read back as heights at the effective wavelength.  Small heights (``K a << 1``)
+        come back filtered by the transfer function itself; a facet the pupil accepts comes
+        back as it is, and a sharp edge or cusp rounded over the objective's resolution,
+        as the instrument's own image rounds it.  One wavenumber (``K_eff``), in focus, no
+        spectrum, acceptance or noise: the lateral response alone.  The returned heights
+        differ from ``heights`` by at most a quarter of the effective wavelength either way
+        (the phase is read modulo one fringe order).  The data are mirrored at their ends
+        (as far as the response reaches) so that the FFT's wrap-around does not join the
+        two ends; NaN (no surface) is filled with the nearest heights for the filter and
+        stays NaN."""
+        check_range("pixel", pixel, 0, None, lo_open=True)
+        check_range("camera_pixel", camera_pixel, 0, None, lo_open=True)
+        z = np.asarray(heights, dtype=np.float64)
+        if z.ndim not in (1, 2) or z.size == 0:
+            raise InputError(f"heights must be a profile or a map, received shape {z.shape}")
+        bad = ~np.isfinite(z)
+        if bad.all():
+            return z.copy()
+        f = _nearest_filled(z, bad) if bad.any() else z
+        w = math.sqrt(self.camera.fill_factor) * camera_pixel
+        k_eff = 4 * math.pi / (self.effective_wavelength_nm() * NM_TO_MM)
+        # the response falls to its tails within a few of its widths: the pixel's and the
+        # optics' (1 / cut-off); the data are mirrored that far beyond each end
+        cutoff = (self.na + self.na_ill) / (self.source.wavelength_nm * NM_TO_MM)
+        reach = int(math.ceil(8 * (w + 1.0 / cutoff) / pixel))
+        pads = [(min(reach, n - 1), min(reach, n - 1)) for n in f.shape]
+        g = np.pad(f - float(np.mean(f)), pads, mode="reflect")
+        field = np.exp(1j * k_eff * g)
+        freqs = [np.fft.fftfreq(n, d=pixel) for n in g.shape]
+        if g.ndim == 1:
+            h = self.itf(freqs[0]) * np.sinc(freqs[0] * w)
+            seen = np.fft.ifft(np.fft.fft(field) * h)
+        else:
+            fy, fx = freqs[0][:, None], freqs[1][None, :]
+            h = self.itf(np.hypot(fy, fx)) * np.sinc(fy * w) * np.sinc(fx * w)
+            seen = np.fft.ifft2(np.fft.fft2(field) * h)
+        # the phase the objective adds to each point, read back as a height
+        dz = np.angle(seen * np.conj(field)) / k_eff
+        dz = dz[tuple(slice(a, a + n) for (a, _), n in zip(pads, f.shape))]
+        out = f + dz
+        out[bad] = np.nan
+        return out
 
     def coherence_sigma(self) -> float:
         """Rms width of the axial frequency for a flat mirror, rad/mm."""
@@ -202,6 +252,12 @@ class Disturbances:
         v = self.vibration_amplitude_nm * NM_TO_MM * np.sin(
             2 * math.pi * self.vibration_frequency_hz * t + phase0)
         return z[:, None] + v
+
+
+def _nearest_filled(z: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """``z`` with each NaN replaced by the nearest finite height."""
+    idx = distance_transform_edt(bad, return_distances=False, return_indices=True)
+    return z[tuple(idx)]
 
 
 def recommended_subsamples(pixel: float, microscope: Microscope, *, max_slope: float | None = None) -> int:

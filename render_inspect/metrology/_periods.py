@@ -13,7 +13,10 @@ form left over rises to the longest period searched, and ``note`` says so (with 
 at all when the range holds no peak).  Harmonics are the lines at
 k times the fundamental (k = 2 .. 6, each looked for within two bins) that rise ten times
 above the spectrum's median.  ``fraction`` is the share of the variance in the
-fundamental and its harmonics (two bins either side of each, the Hann main lobe).
+fundamental and its harmonics (two bins either side of each, the Hann main lobe); a
+period holding less than 5 % is weak and ``note`` says so, with the share that lies at
+periods longer than the range searched (form or waviness left over) when that is most
+of it.
 
 A map's spectrum is the radial average of its 2-D periodogram (Hann window in both
 directions), so marks of any direction (arcs of a turned part) count alike.
@@ -39,6 +42,13 @@ __all__ = ["dominant_periods", "map_periods", "mirror_centre", "profile_periods"
 
 #: a harmonic counts when its line rises this many times above the median of the spectrum
 HARMONIC_ABOVE_MEDIAN = 10.0
+
+#: a period holding less than this share of the variance (fundamental and harmonics) is
+#: weak, and says so: the strongest line of a random profile (white noise) of 1000 points
+#: holds 2-4.5 % (its median and largest share over 50 draws; 4.5-9 % at 500 points), so a
+#: share below this cannot tell feed marks from roughness, or marks from the form or
+#: waviness that holds the rest
+WEAK_PERIOD_FRACTION = 0.05
 
 #: a profile counts as through the spindle axis when its mirror correlation is at least this
 MIRROR_MIN = 0.5
@@ -140,8 +150,20 @@ def _peaks(freq, power, *, spacing, n_total, n_harmonics=6) -> dict:
             harmonics.append({"order": order, "period_mm": float(1.0 / fk),
                               "relative_power": float(power[jj] / power[k])})
             used += share(jj)
+    fraction = float(min(1.0, used / total)) if total > 0 else 0.0
+    weak = fraction < WEAK_PERIOD_FRACTION
+    if weak:
+        longer = float(power[1:ib[0]].sum() / total) if total > 0 else 0.0
+        w = (f"a weak period: it holds {100 * fraction:.2g} % of the variance (under "
+             f"{100 * WEAK_PERIOD_FRACTION:g} %, what the strongest line of random roughness "
+             f"holds)")
+        if longer >= 0.5:
+            w += (f"; {100 * longer:.3g} % lies at periods longer than the longest searched "
+                  f"({rng['longest_mm'] * MM_TO_UM:.4g} um): form or waviness left over, which "
+                  f"removing more form takes away (the period stays, its share rises)")
+        note = w if note is None else f"{note}; {w}"
     return {"period_mm": float(1.0 / f0), "frequency_per_mm": f0,
-            "harmonics": harmonics, "fraction": float(min(1.0, used / total)) if total > 0 else 0.0,
+            "harmonics": harmonics, "fraction": fraction, "weak": weak,
             "above_median": float(power[k] / floor) if floor > 0 else float("inf"),
             "search_mm": rng, "rises_to": rises_to, "note": note}
 
@@ -153,8 +175,10 @@ def dominant_periods(z: np.ndarray, *, spacing: float) -> dict:
     variance in them), ``above_median`` (the line's height over the spectrum's median),
     ``search_mm`` (``shortest_mm``, ``longest_mm``: the range searched), ``rises_to``
     ("longest" or "shortest" when the spectrum is largest at that end of the range, else
-    None) and ``note`` (why there is no period, or that the spectrum rises to an end of
-    the range; None when neither)."""
+    None), ``weak`` (the period holds less than :data:`WEAK_PERIOD_FRACTION` of the
+    variance) and ``note`` (why there is no period, that the spectrum rises to an end of
+    the range, or that the period is weak and where the rest of the variance lies; None
+    when none of these)."""
     check_positive("spacing", spacing)
     f = _filled(z)
     w = np.hanning(f.size)

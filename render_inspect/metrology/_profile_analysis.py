@@ -128,6 +128,11 @@ def _periods_metrics(per: dict) -> dict:
                              for h in d.get("harmonics", [])]}
         if d.get("note"):
             out["note"] = d["note"]
+            if "longer than the longest" in d["note"]:
+                # a profile's spectrum is taken with a parabola removed whatever the form
+                # removal, so only form beyond a parabola can be left over
+                out["note"] += ("; the spectrum already has a parabola removed (whatever "
+                                "--form), so what is left is form of higher order or waviness")
         return out
 
     whole = per["whole"]

@@ -208,7 +208,8 @@ def _map_periods(z, pixel, form) -> dict | None:
            "harmonics": p.get("harmonics", [])}
     if p.get("note"):
         dom["note"] = p["note"]
-        if p.get("rises_to") == "longest" and form in ("none", "plane"):
+        if (p.get("rises_to") == "longest" or "longer than the longest" in p["note"]) \
+                and form in ("none", "plane"):
             dom["note"] += "; try --form poly2"
     out = {"dominant": dom,
            "method": "radially averaged Hann-windowed 2-D periodogram, the strongest peak (a "

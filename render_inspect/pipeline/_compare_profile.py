@@ -8,7 +8,8 @@ the scene is simulated over a thin band about the line and the band imaged by th
 interferometer (``render.interferometer``, its field of view the band); the true profile
 (the simulated cut) and the simulated measurement are sampled along the line at the
 measured spacing; the measured profile is registered along the line to the simulated
-measurement (the shift with the largest correlation, weighted by the overlap's share of the
+measurement (to the cut as the instrument sees it where the simulated measurement does
+not follow the cut; the shift with the largest correlation, weighted by the overlap's share of the
 longest overlap possible, searched within one feed period of the mirror centres' match when both profiles have one, over the whole line otherwise);
 the three get the same form removal (a parabola, the sag of the design over the line)
 and the same ISO 16610-21 filters (ISO 21920-3's choice for the measured profile, or
@@ -30,7 +31,7 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ..instruments import render_interferogram
+from ..instruments import microscope_from_config, render_interferogram
 from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_bytes, atomic_write_text,
                   check_output_dir, is_profile_file, json_safe, read_profile)
 from ..metrology import (analyze_profile, dominant_periods, line_profile, measure_frames, mirror_centre,
@@ -39,6 +40,9 @@ from ..processes import process_of
 from ..report import HtmlReport, profile_figure, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._compare import run_compare
+from ._compare_profile_checks import (NULL_SURROGATES, _fmt, _measurement_check,
+                                      _measurement_warning, _register, _registration_warning,
+                                      cut_as_seen)
 from ._metrics import write_metrics
 from ._simulate import simulate
 
@@ -108,14 +112,6 @@ def _band_scene(scene: Scene, p0, p1):
     return scene_from_dict(d, f"{scene.name} (band about the line)"), fov
 
 
-def _filled(z):
-    ok = np.isfinite(z)
-    i = np.arange(z.size)
-    f = np.interp(i, i[ok], z[ok])
-    c = np.polyfit(i - i.mean(), f, 2)
-    return f - np.polyval(c, i - i.mean())
-
-
 def registration_period(scene: Scene, z_meas: np.ndarray, *, spacing: float) -> float | None:
     """The period (mm) that bounds the registration's search around the mirror centres'
     match: the measured profile's own dominant period (the marks it shows repeat at it,
@@ -148,208 +144,6 @@ def axis_on_line(scene: Scene, p0: Sequence[float], p1: Sequence[float], *,
     return float(along)
 
 
-#: phase-randomised surrogates of the measured profile the registration's correlation is
-#: set against (19: the best of them is the 95 % level of an unrelated profile)
-NULL_SURROGATES = 19
-#: a point of the virtual measurement departs from the cut it measured when it is off by
-#: more than this many of the instrument's own noise (one standard deviation; a Gaussian
-#: excursion this large has a chance of 6e-7 per point)
-DEPARTURE_NOISE_FACTOR = 5.0
-#: ... and by more than this fraction of the effective wavelength: half a fringe order
-#: (a lost fringe order puts a point off by lambda_eff / 2, a whole order)
-DEPARTURE_WAVELENGTH_FRACTION = 0.25
-#: the virtual measurement failed when this many neighbouring points depart together (a lost
-#: fringe order moves a connected run of the profile; a point or two at the edge of a
-#: dropout, or at a steep edge the objective blurs, do not), or ...
-DEPARTURE_MIN_RUN = 3
-#: ... when at least this share of the points depart, run or not
-DEPARTURE_MIN_FRACTION = 0.01
-
-
-def _register(s_meas, z_meas, s_sim, z_sim, *, spacing, period, axis_s=None, seed=0):
-    """The shift (mm) to add to the measured positions so that they best match the
-    simulated measurement, the correlation there and how the search was bounded.
-
-    Feed marks repeat every period, so many scallops match many scallops about equally
-    well: the search is bounded to one period either side of where the measured mirror
-    centre (a trace through the spindle axis) meets the simulated profile's centre: its
-    heights' own mirror centre and, where the line passes through the spindle axis, the
-    axis's place on the line (``axis_s``, mm from the line's start); the best match over
-    both windows is taken."""
-    a = _filled(z_meas)
-    b = _filled(z_sim)
-    ma = mirror_centre(z_meas, spacing=spacing, x0=float(s_meas[0]))
-    mb = mirror_centre(z_sim, spacing=spacing, x0=float(s_sim[0]))
-    n = min(a.size, b.size)
-    # where the simulated profile's centre may be: its heights' mirror centre (a row of
-    # cusps is mirror-symmetric about every cusp, so it can be a period or more off) and,
-    # on a line through the spindle axis, the axis's place on the line
-    centres = []
-    if (mb["symmetry"] or 0) >= 0.5:
-        centres.append((mb["centre_mm"], "the simulated profile's mirror centre"))
-    if axis_s is not None:
-        centres.append((float(axis_s), "the spindle axis on the line"))
-    if (ma["symmetry"] or 0) >= 0.5 and centres and period:
-        reach = int(math.ceil(period / spacing))
-        lags = np.unique(np.concatenate([
-            np.arange(int(round((c - ma["centre_mm"]) / spacing)) - reach,
-                      int(round((c - ma["centre_mm"]) / spacing)) + reach + 1)
-            for c, _ in centres]))
-        how = ("within one period of the measured mirror centre on "
-               + " or on ".join(w for _, w in centres))
-    else:
-        lags = np.arange(-(n // 2), n // 2 + 1)
-        how = "over half the line either way"
-    k_start = int(round((s_meas[0] - s_sim[0]) / spacing))
-    r, lag = _best_lag(a, b, lags, k_start)
-    null = _null_correlation(a, b, lags, k_start, seed=seed)
-    return lag * spacing, r, how, null
-
-
-def _best_lag(a, b, lags, k_start):
-    """(correlation, lag) of the best-scoring lag: the correlation weighted by the
-    overlap's share of the longest overlap possible."""
-    n = min(a.size, b.size)
-    best = (-2.0, 0, -2.0)
-    for lag in lags:
-        # measured sample i lies at simulated sample i + lag (positions from the line start)
-        k0 = k_start + int(lag)
-        i0, i1 = max(0, -k0), min(a.size, b.size - k0)
-        if i1 - i0 < max(16, a.size // 3):
-            continue
-        u, v = a[i0:i1], b[i0 + k0:i1 + k0]
-        su, sv = u.std(), v.std()
-        if su == 0 or sv == 0:
-            continue
-        r = float(np.mean((u - u.mean()) * (v - v.mean())) / (su * sv))
-        # a partial overlap counts for its share of the longest one possible
-        score = r * (i1 - i0) / n
-        if score > best[2]:
-            best = (r, int(lag), score)
-    return best[0], best[1]
-
-
-def _null_correlation(a, b, lags, k_start, *, seed=0, n=NULL_SURROGATES) -> float | None:
-    """The correlation the same search reaches with profiles unrelated to the simulation:
-    the best of ``n`` phase-randomised surrogates of the measured profile (the same power
-    spectrum, so the same feed marks and roughness, with random phases), searched over
-    the same lags.  A registration whose correlation does not beat it has found nothing
-    a profile of the same spectrum would not find by chance."""
-    if a.size < 16:
-        return None
-    rng = np.random.default_rng(seed)
-    spec = np.fft.rfft(a - a.mean())
-    best = []
-    for _ in range(n):
-        ph = rng.uniform(0, 2 * np.pi, spec.size)
-        ph[0] = 0.0
-        if a.size % 2 == 0:
-            ph[-1] = 0.0
-        sur = np.fft.irfft(np.abs(spec) * np.exp(1j * ph), n=a.size)
-        best.append(_best_lag(sur, b, lags, k_start)[0])
-    return float(max(best)) if best else None
-
-
-def _measurement_check(z_sim, z_true, noise, *, lambda_eff_nm, mode, rt_sim, rt_true) -> dict:
-    """Does the virtual measurement along the line follow the cut it measured?  Points of
-    the simulated measurement (its median offset removed: an interferometer's heights are
-    relative) depart from the cut when they are off by more than both
-    :data:`DEPARTURE_NOISE_FACTOR` times the instrument's own noise (the median, along the
-    line, of each pixel's noise estimated from its frames) and
-    :data:`DEPARTURE_WAVELENGTH_FRACTION` of the effective wavelength (half a fringe
-    order), after a line (the instrument's levelling: piston and tilt) is removed; a run of
-    :data:`DEPARTURE_MIN_RUN` neighbouring such points, or :data:`DEPARTURE_MIN_FRACTION`
-    of all: ``status`` "failed".  An approximation: the cut is compared as sampled, not
-    blurred by the objective, so a design with edges steeper than the objective resolves
-    can depart at them without a lost fringe order."""
-    d = (np.asarray(z_sim) - np.asarray(z_true)) * MM_TO_NM
-    ok = np.isfinite(d)
-    out: dict[str, Any] = {"status": "ok", "points": int(ok.sum()), "mode": mode,
-                           "lambda_eff_nm": lambda_eff_nm, "Rt_nm": rt_sim, "Rt_cut_nm": rt_true}
-    nz = np.asarray(noise, float)[ok] * MM_TO_NM if noise is not None else np.zeros(0)
-    nz = nz[np.isfinite(nz)]
-    sigma = float(np.median(nz)) if nz.size else None
-    out["noise_nm"] = sigma
-    if not ok.any():
-        out.update(status="unknown", rms_departure_nm=None, threshold_nm=None, departing=0,
-                   departing_fraction=0.0)
-        return out
-    i = np.flatnonzero(ok)
-    d = d[ok]
-    thr = max(DEPARTURE_WAVELENGTH_FRACTION * lambda_eff_nm,
-              DEPARTURE_NOISE_FACTOR * (sigma or 0.0))
-    # piston and tilt (the instrument's levelling), fitted to the points that follow the
-    # cut (those within the threshold of the median offset, twice over), so that the
-    # points that do not cannot tilt the line
-    r = d - np.median(d)
-    for _ in range(2):
-        inl = np.abs(r) <= thr
-        if inl.sum() < 2:
-            break
-        r = d - np.polyval(np.polyfit(i[inl].astype(float), d[inl], 1), i)
-    d = r
-    off = np.abs(d) > thr
-    far = int(np.count_nonzero(off))
-    run = _longest_run(off, i)
-    out.update(rms_departure_nm=float(np.sqrt(np.mean(d ** 2))), threshold_nm=float(thr),
-               departing=far, departing_fraction=far / d.size,
-               rule=f"a point departs when it is off the cut by more than "
-                    f"{DEPARTURE_NOISE_FACTOR:g} x the instrument's noise and more than half a "
-                    f"fringe order (lambda_eff / 4 = {lambda_eff_nm / 4:.4g} nm), a line "
-                    f"removed; failed with a run of {DEPARTURE_MIN_RUN} neighbouring such "
-                    f"points or {100 * DEPARTURE_MIN_FRACTION:g} % of all",
-               longest_run=run)
-    if run >= DEPARTURE_MIN_RUN or far >= DEPARTURE_MIN_FRACTION * d.size:
-        out["status"] = "failed"
-    return out
-
-
-def _longest_run(flags: np.ndarray, index: np.ndarray) -> int:
-    """The most ``flags`` in a row at neighbouring ``index`` positions (a gap breaks a
-    run)."""
-    best = cur = 0
-    prev = None
-    for f, k in zip(flags, index):
-        cur = cur + 1 if f and prev is not None and k == prev + 1 and cur > 0 else (1 if f else 0)
-        best = max(best, cur)
-        prev = k
-    return best
-
-
-def _measurement_warning(chk: dict) -> str | None:
-    """The one-line warning of a failed virtual measurement (None when it followed the
-    cut)."""
-    if chk.get("status") != "failed":
-        return None
-    noise = "" if chk.get("noise_nm") is None else \
-        f" against the instrument's noise of {chk['noise_nm']:.2g} nm"
-    other = ("coherence scanning (CSI: render.interferometer.mode = \"csi\") follows slopes "
-             "phase shifting cannot, and is how the real parts were measured (a white-light "
-             "interferometer)" if chk.get("mode") == "psi" else
-             "check render.interferometer (objective, mode) against the part's slopes")
-    return (f"the virtual measurement ({str(chk.get('mode')).upper()}) does not follow the cut "
-            f"it measured: {chk['departing']} of {chk['points']} points "
-            f"({100 * chk['departing_fraction']:.3g} %) are off by more than "
-            f"{chk['threshold_nm']:.3g} nm (rms departure {chk['rms_departure_nm']:.4g} nm"
-            f"{noise}; Rt {_fmt(chk.get('Rt_nm'))} nm against the cut's "
-            f"{_fmt(chk.get('Rt_cut_nm'))} nm): lost fringe orders or dropouts, so its column is "
-            f"not what the instrument would report of this part; {other}")
-
-
-def _registration_warning(reg: dict) -> str | None:
-    """The one-line warning of a registration no better than chance (None otherwise)."""
-    if reg.get("reliable", True):
-        return None
-    why = (f"its correlation {reg['correlation']:.3f} is no better than the "
-           f"{reg['null_correlation']:.3f} a profile of the same spectrum unrelated to the "
-           f"simulation reaches in the same search" if not reg.get("beats_chance", True) else
-           f"it aligns the measured profile to a virtual measurement that does not follow the "
-           f"cut (correlation {reg['correlation']:.3f})")
-    return (f"the registration is not reliable: {why}; the profiles overlaid "
-            f"are not aligned point for point (compare their parameters and periods, which "
-            f"do not depend on the registration, not their shapes)")
-
-
 def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
                         line: str | None = None, units: str | None = None,
                         filter_spec: str | tuple | None = None,
@@ -374,7 +168,9 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
     -------
     dict
         The content of ``metrics.json``: ``kind`` = "profile", ``line_mm``, ``line_from``,
-        ``registration`` (``shift_mm``, ``correlation``, ``how``), ``filter``,
+        ``registration`` (``shift_mm``, ``correlation``, ``how``, ``null_correlation``,
+        ``reliable``, ``against``: "virtual_measurement", or "cut_as_seen" when the virtual
+        measurement failed), ``virtual_measurement`` (the check), ``filter``,
         ``profiles`` (``measured``, ``simulated_measured``, ``true``: each the ISO 21920-2
         parameters and periods of :func:`~render_inspect.metrology.analyze_profile`),
         ``input``, ``scene``, ``seed``, ``software_version``, ``timing_s``.
@@ -414,28 +210,44 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
     s_pos = prof.x - prof.x[0]
     period = registration_period(scene, prof.z, spacing=step)
     axis_s = axis_on_line(scene, p0, p1, tolerance=(period or step) / 2)
-    shift, corr, how_reg, null = _register(s_pos, prof.z, s_sim, z_sim, spacing=step,
-                                           period=period, axis_s=axis_s, seed=seed)
-    s_reg = s_pos + shift
+    # the cut as the instrument sees it: through the objective's lateral response, at the
+    # camera's pixels, sampled along the line as the measurement is
+    seen = cut_as_seen(hm.machined, pixel=hm.pixel, origin=hm.origin,
+                       microscope=microscope_from_config(band.render.interferometer),
+                       camera_pixel=float(ig.pixel), camera_origin=ig.origin,
+                       camera_shape=(h_meas.shape[0], h_meas.shape[1]))
+    _, z_seen = line_profile(seen, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1, step=step)
     opts: dict[str, Any] = {"form": "poly2", "lambda_s": s_mm, "lambda_c": l_mm}
-    res = {"measured": analyze_profile(s_reg, prof.z, spacing=step, **opts)}
-    fil = res["measured"]["metrics"]["filter"]
-    same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0, "lambda_c": fil["lambda_c_mm"]}
-    res["simulated_measured"] = analyze_profile(s_sim, z_sim, spacing=step, **same)
-    res["true"] = analyze_profile(s_true, z_true, spacing=step, **same)
+    res = {}
     noise_line = None
     if r.height_noise is not None:
         _, noise_line = line_profile(np.where(r.valid, r.height_noise, np.nan), pixel=ig.pixel,
                                      origin=ig.origin, p0=p0, p1=p1, step=step)
-    check = _measurement_check(z_sim, z_true, noise_line, lambda_eff_nm=float(ig.lambda_eff_nm),
-                               mode=band.render.interferometer.mode,
-                               rt_sim=res["simulated_measured"]["metrics"]["profile"].get("Rt_nm"),
-                               rt_true=res["true"]["metrics"]["profile"].get("Rt_nm"))
+    check = _measurement_check(z_sim, z_seen, noise_line, lambda_eff_nm=float(ig.lambda_eff_nm),
+                               mode=band.render.interferometer.mode, rt_sim=None, rt_true=None)
+    # a measurement that does not follow the cut would align the measured profile to its
+    # failures: the cut as the instrument sees it is registered against instead
+    failed = check["status"] == "failed"
+    against = "cut_as_seen" if failed else "virtual_measurement"
+    shift, corr, how_reg, null = _register(s_pos, prof.z, s_sim, z_seen if failed else z_sim,
+                                           spacing=step, period=period, axis_s=axis_s, seed=seed)
+    s_reg = s_pos + shift
+    res["measured"] = analyze_profile(s_reg, prof.z, spacing=step, **opts)
+    fil = res["measured"]["metrics"]["filter"]
+    same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0, "lambda_c": fil["lambda_c_mm"]}
+    res["simulated_measured"] = analyze_profile(s_sim, z_sim, spacing=step, **same)
+    res["true"] = analyze_profile(s_true, z_true, spacing=step, **same)
+    check["Rt_nm"] = res["simulated_measured"]["metrics"]["profile"].get("Rt_nm")
+    check["Rt_cut_nm"] = res["true"]["metrics"]["profile"].get("Rt_nm")
     reg = {"shift_mm": shift, "correlation": corr, "how": how_reg, "null_correlation": null,
            "beats_chance": null is None or corr > null,
-           # a registration to a measurement that does not follow the cut aligns to its
-           # failures, whatever its correlation
-           "reliable": (null is None or corr > null) and check["status"] != "failed",
+           "reliable": null is None or corr > null,
+           "against": against,
+           "against_why": ("the virtual measurement failed (it does not follow the cut): the "
+                           "measured profile is registered against the cut as the instrument "
+                           "sees it" if failed else
+                           "the virtual measurement follows the cut: the measured profile is "
+                           "registered against it"),
            "rule": f"reliable when the correlation beats the best of {NULL_SURROGATES} "
                    f"phase-randomised surrogates of the measured profile searched the same "
                    f"way (the 95 % level of an unrelated profile of the same spectrum)"}
@@ -496,14 +308,6 @@ _ROWS = (("Ra_nm", "Ra (nm)"), ("Rq_nm", "Rq (nm)"), ("Rp_nm", "Rp (nm)"), ("Rv_
          ("RSm_mm", "RSm (um)"), ("Rdq", "Rdq"))
 
 
-def _fmt(v, key=""):
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "n/a"
-    if key == "RSm_mm":
-        v = v * MM_TO_UM
-    return f"{v:.4g}"
-
-
 def _page(metrics: dict, figs: dict) -> str:
     p = metrics["profiles"]
     f = metrics["filter"]
@@ -550,11 +354,14 @@ def _page(metrics: dict, figs: dict) -> str:
     chk = metrics.get("virtual_measurement") or {}
     null = reg.get("null_correlation")
     notes = [f"registration: measured positions shifted by {reg['shift_mm'] * MM_TO_UM:+.4g} um "
-             f"along the line (correlation {reg['correlation']:.3f}, searched {reg['how']}); "
+             f"along the line against "
+             f"{'the cut as the instrument sees it' if reg.get('against') == 'cut_as_seen' else 'the virtual measurement'}"
+             f" ({reg.get('against_why', '')}; correlation {reg['correlation']:.3f}, searched "
+             f"{reg['how']}); "
              + ("" if null is None else
                 f"{'reliable' if reg.get('reliable') else 'NOT reliable'}: an unrelated profile "
                 f"of the same spectrum reaches {null:.3f} ({reg.get('rule')})"),
-             f"virtual measurement against the cut it measured: "
+             f"virtual measurement against the cut it measured, as the instrument sees it: "
              f"{'FAILED' if chk.get('status') == 'failed' else chk.get('status', 'n/a')}; rms "
              f"departure {_fmt(chk.get('rms_departure_nm'))} nm, instrument noise "
              f"{_fmt(chk.get('noise_nm'))} nm, {chk.get('departing', 0)} points off by more "

@@ -120,7 +120,9 @@ def profile_compare_summary(metrics: dict) -> tuple[list[tuple[str, ...]], list[
     lines = []
     if reg:
         null = reg.get("null_correlation")
-        lines.append(f"registration: shifted {_num((reg.get('shift_mm') or 0) * MM_TO_UM, 'um')}, "
+        on = (" against the cut as the instrument sees it (the virtual measurement failed)"
+              if reg.get("against") == "cut_as_seen" else "")
+        lines.append(f"registration{on}: shifted {_num((reg.get('shift_mm') or 0) * MM_TO_UM, 'um')}, "
                      f"correlation {_num(reg.get('correlation'), fmt='.3f')}"
                      + ("" if null is None else
                         f" ({'reliable' if reg.get('reliable') else 'not reliable'}: an "
