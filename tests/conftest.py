@@ -94,8 +94,8 @@ def chromium() -> str:
 
 # ------------------------------------------------------------------------ real data
 #: The real instrument files and turned parts the tests read (../shared/realdata beside
-#: the repository; see its SOURCES.md).
-REALDATA = REPO.parent / "shared" / "realdata"
+#: the repository, or where RENDER_INSPECT_REALDATA names; see its SOURCES.md).
+REALDATA = Path(os.environ.get("RENDER_INSPECT_REALDATA", REPO.parent / "shared" / "realdata"))
 
 
 def real_file(*parts: str) -> Path:

@@ -112,6 +112,11 @@ def test_arms_line_gives_no_standard_error_where_the_fit_gives_none():
     assert "from the fit" not in text and "combined" not in text
     assert "no standard error" in text and "-1.5 %" in text
     assert "0.19 from the arms" in arms_text("k", comb, 2.644, 2.684, unit=10.0)
+    # each number with its unit where one is given
+    text = arms_text("process.feed_mm_per_min", comb, 2.644, 2.684, unit=10.0,
+                     unit_name="um")
+    assert "the window's arm 26.44 um, the other arm 26.84 um" in text
+    assert "(0.035 um from the fit, 0.19 um from the arms, 0.2 um combined)" in text
 
 
 def _period_check(cut_period_mm):

@@ -17,13 +17,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import REALDATA
+
 from render_inspect.core.errors import InputError
 from render_inspect.fit import (EvaluationCache, Evaluator, FreeParameter, MisfitSpec,
                                 check_after, check_before, fit_record, make_target,
                                 predict_features, profile_marks, solve, summary_lines,
                                 task_hash, waviness)
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "turned"
+REAL = REALDATA / "turned"
 
 
 def _cusps(period, radius, *, n=192, pixel=0.001, centre=(-0.6, 0.05), amp_wave=0.0,
@@ -137,6 +139,25 @@ def test_the_summary_explains_each_misfit_term_and_the_raw_difference():
     assert "misfit term psd (the spectrum" in text and "misfit term map (the waviness" in text
     assert "height difference rms 178 nm: the marks' phase" in text and "is not fitted" in text
     assert f"status: {res.status}: " in text
+
+
+def test_each_value_says_so_where_the_model_does_not_describe_the_measurement():
+    """A map whose marks' period varies across the field: the verdict after the fit says
+    the model does not describe it, and every fitted value in the summary carries that
+    beside its standard error (which holds only for a model that describes the map)."""
+    params = _params(0.0104, 0.47)
+    res, target = _fit(params, verify=False)
+    rec = fit_record(res, target=target, spec=MisfitSpec(), provenance={},
+                     maps={"rms_nm": 1.0}, waviness={"rms_nm": 0.5})
+    z, px = _cusps(0.0104, 0.47)
+    chirp, _ = _cusps(0.0104, 0.47, chirp=0.15)
+    caveat = "(the model does not describe this measurement: see the verdict)"
+    rec["model_check"] = {"after": check_after(z, z, pixel=px, goodness={})}
+    assert caveat not in "\n".join(summary_lines(rec))
+    rec["model_check"] = {"after": check_after(chirp, z, pixel=px, goodness={})}
+    lines = summary_lines(rec)
+    values = [t for t in lines if t.split(" = ")[0] in rec["parameters"]]
+    assert len(values) == len(rec["parameters"]) and all(t.endswith(caveat) for t in values)
 
 
 # ------------------------------------------------------------------ model checks

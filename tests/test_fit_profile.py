@@ -157,6 +157,11 @@ def test_fit_profile_recovers_feed_and_nose_radius(tmp_path):
         assert abs(par["value"] - v) <= 2 * par["stderr"], (k, par)
         assert abs(par["value"] / v - 1) < 0.05, (k, par)
     assert rec["feed_per_rev_mm"]["value"] == pytest.approx(0.036, rel=0.01)
+    # every number of the summary's values with its unit
+    feed_line = next(t for t in rec["summary"] if t.startswith("process.feed_mm_per_min = "))
+    assert feed_line.count("mm/min") == 3, feed_line   # value, standard error, start
+    nose_line = next(t for t in rec["summary"] if t.startswith("tool.nose_radius = "))
+    assert nose_line.count(" mm") == 3, nose_line
     saved = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert saved["kind"] == "profile" and saved["status"] == rec["status"]
     assert (tmp_path / "fit" / "fit.html").is_file()
@@ -182,3 +187,40 @@ def test_fit_profile_through_the_axis_gives_no_confident_number(tmp_path):
     assert rec["parameters"]["process.feed_mm_per_min"]["stderr"] is None
     assert not rec["model_check"]["after"]["describes"]
     assert any("not a measurement" in line for line in rec["summary"])
+
+
+@pytest.mark.slow
+def test_a_profile_the_model_cannot_describe_gives_no_confident_number(tmp_path):
+    """The part measured by another instrument than the scene's: the phase-shifting
+    interferometer's profile (which loses fringe orders on the marks' slopes: its marks'
+    period reads 38.1 um for a 36 um/rev cut) fitted through the white-light one.  The fit
+    ends at some feed (38.4 um/rev), but the verdict says the model does not describe the
+    measurement, and the value is given as no measurement: no standard error, not
+    confident, in fit.json, the summary and fit.html (its standard error under the model,
+    0.61 um/rev, would put the true 36 um/rev four of them away)."""
+    from render_inspect.pipeline import run_fit_profile
+    from render_inspect.pipeline._fit_profile import simulate_profile
+
+    psi = _turned(feed=3.6, nose=0.25)
+    psi = psi.model_copy(update={"render": psi.render.model_copy(update={
+        "interferometer": psi.render.interferometer.model_copy(update={"mode": "psi"})})})
+    s, z = simulate_profile(psi, (0.1, 0.0), (0.5, 0.0), 0.00087, seed=7)
+    p = tmp_path / "profile.csv"
+    _write_profile(p, s, z)
+    rec = run_fit_profile(p, _turned(), ["process.feed_mm_per_min"], tmp_path / "fit",
+                          line="0.1,0,0.5,0", at=(0.3, 0.0), window_mm=0.15,
+                          global_points=0, max_evaluations=30, profile_points=0,
+                          cache=tmp_path / "cache")
+    after = rec["model_check"]["after"]
+    assert not after["describes"], after
+    assert after["verdict"].startswith("this model does not describe this measurement")
+    par = rec["parameters"]["process.feed_mm_per_min"]
+    assert par["stderr"] is None and par["confident"] is False, par
+    assert rec["feed_per_rev_mm"]["stderr"] is None
+    assert rec["status_note"].startswith("not a measurement: the model does not describe")
+    line = next(t for t in rec["summary"] if t.startswith("process.feed_mm_per_min = "))
+    assert "not a measurement" in line and "no standard error" in line and "mm/min" in line
+    saved = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert saved["parameters"]["process.feed_mm_per_min"]["stderr"] is None
+    page = (tmp_path / "fit" / "fit.html").read_text()
+    assert "not a measurement" in page and "does not describe" in page

@@ -79,9 +79,14 @@ def test_json_numbers_from_the_real_files():
                              axis_at_mm=_axis_in_window(scene, win, 1.0 / t.peak))
         assert fam["one_family"] == c["one_family"], (c["part"], fam)
         if c["programmed_feed_um"] is not None:
+            # the radii the window's measured samples cover, the mirror centre on the axis
             r0, r1 = c["radii_mm"]
+            assert tool.window_radii(prof, scene, win) == pytest.approx([r0, r1], abs=1e-12)
             assert tool.program_feed(c["part"], r0, r1) * 1e3 == pytest.approx(
                 c["programmed_feed_um"], rel=1e-9)
+            if c.get("fitted_feed_um"):
+                assert c["feed_difference"] == pytest.approx(
+                    c["fitted_feed_um"] / c["programmed_feed_um"] - 1, rel=1e-9)
 
 
 def test_fit_page_shows_the_checks_of_the_json():
@@ -111,7 +116,7 @@ def test_checks_from_the_real_files():
             else:
                 assert new[k] == v, (old["part"], k)
         assert abs(new["programmed_feed_weighted_um"] / new["programmed_feed_um"] - 1) < 0.01
-    assert tool.program_feed_weighted("1016", 0.2, 0.4) == tool.FEED_1016
+    assert tool.program_feed("1016", 0.2, 0.4, "hann") == tool.FEED_1016
 
 
 def test_fit_page_shows_the_scan_and_it_is_what_the_files_give():
@@ -160,3 +165,30 @@ def test_fit_page_shows_the_arms_of_the_json_and_their_uncertainty():
         assert a["stderr"] == pytest.approx(math.hypot(a["stderr_fit"], a["u_arms"]), rel=1e-6)
         assert c["fitted_feed_stderr_um"] == pytest.approx(a["stderr"], rel=1e-6)
         assert a["disagree"] == (abs(d) > 2 * u_d)
+
+
+def test_fit_page_shows_the_slices_and_they_are_what_the_files_give():
+    """The table of the real slices (each side of the mirror in two halves: the radii, the
+    program's feed over them, the marks' period there) is the json's, and the json's
+    numbers are what the slices and programs give; the program's feed over a half lies
+    within its pointwise steps there."""
+    tool = _tool()
+    data = _data()
+    text = (REPO / "docs" / "fit.md").read_text()
+    i, j = text.index(tool.SLICES_BEGIN), text.index(tool.SLICES_END)
+    assert text[i + len(tool.SLICES_BEGIN):j].strip() == tool.slices_table(data["slices"]).strip()
+    real_file("turned", "1022-WLI-2D.csv")
+    assert tool.slices() == data["slices"]
+    from render_inspect.io import read_program
+    from render_inspect.processes import feed_per_rev
+
+    for row in data["slices"]:
+        if row["part"] not in tool.PROGRAMS:
+            continue
+        r, f = feed_per_rev(read_program(real_file("turned", tool.PROGRAMS[row["part"]]),
+                                         part_radius=1.1).program)
+        for side in row["sides"]:
+            for h in side["halves"]:
+                r0, r1 = h["radii_mm"]
+                sel = (r >= r0) & (r <= r1)
+                assert f[sel].min() * 1e3 <= h["programmed_feed_um"] <= f[sel].max() * 1e3

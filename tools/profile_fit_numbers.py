@@ -6,9 +6,11 @@ radii, and the nose radius fitted with the program's own path.
                                                  # and the tables in docs/fit.md and
                                                  # docs/validation.md
     python tools/profile_fit_numbers.py --docs   # rewrite the tables from the json alone
-    python tools/profile_fit_numbers.py --checks # the checks of the feed's reference and
-                                                 # of the line's other arm (no fits; json
-                                                 # and the table in docs/fit.md)
+    python tools/profile_fit_numbers.py --checks # no fits: the windows' radii and
+                                                 # programmed feed again, the checks of the
+                                                 # feed's reference and of the line's other
+                                                 # arm, the slices' table (json and the
+                                                 # tables in docs/fit.md)
     python tools/profile_fit_numbers.py --only 1023:-0.33,1016:0.30
                                                  # run those cases again, keep the others
                                                  # from the json
@@ -20,6 +22,10 @@ the json's previous row of the case (a fit of one arm, the same one ``--arms one
 instead of running it again.  The fits' caches lie under ``--out``: a run again reuses
 them.
 
+The programmed feed of a window is :func:`program_feed` over the radii its measured samples
+cover (:func:`window_radii`: their distances from where the line passes the spindle axis,
+the slice's mirror centre), one rule for every table.
+
 Each case is what ``render-inspect fit SLICE --units um --scene S --free KEY --at X,0
 --window W`` runs, S being docs/examples/turned/scene.toml with the white-light virtual
 instrument (the slices are white-light measurements) and, for the feed fits, without its
@@ -29,8 +35,9 @@ program (a planned spiral of one feed per revolution, whose feed is fitted).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
-import re
+import os
 import sys
 import tomllib
 from pathlib import Path
@@ -38,7 +45,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO / ".." / "shared" / "realdata" / "turned"
+#: the real files (RENDER_INSPECT_REALDATA names the folder for a checkout that does not sit
+#: beside shared/, as for the tests)
+REAL = Path(os.environ.get("RENDER_INSPECT_REALDATA",
+                           REPO / ".." / "shared" / "realdata")) / "turned"
 JSON = REPO / "docs" / "fit_profiles.json"
 SCENE = REPO / "docs" / "examples" / "turned" / "scene.toml"
 PROGRAMS = {"1021": "1021-spiralPath20230418T214748.nc",
@@ -60,47 +70,92 @@ FEED_1016 = 0.01
 RPM = 100.0
 
 
-def program_feed(part: str, r0: float, r1: float):
-    """The program's mean X step per revolution (mm) between radii r0 < r1: the radial
-    distance over the revolutions the C axis turns between them."""
+def program_feed(part: str, r0: float, r1: float, weighting: str = "plain") -> float:
+    """The feed per revolution (mm) the part's program commands over radii r0 < r1:
+    :func:`render_inspect.processes.feed_over_radii` of the program as ``read_program``
+    reads it (its C and X words), ``plain`` (the radial distance over the revolutions the
+    C axis turns between the radii) or ``hann`` (the marks' local frequency averaged under
+    a Hann window over the radii, inverted: as the fit's spectrum reads a window).  1016's
+    program is not published: its 10 um by its name."""
     if part not in PROGRAMS:
         return FEED_1016
-    x, rev = _program_revolutions(part)
-    ra, rb = np.interp([r0, r1], x, rev)
-    return float((r1 - r0) / abs(ra - rb))
+    from render_inspect.processes import feed_over_radii
+
+    return feed_over_radii(_program_path(part), r0, r1, weighting=weighting)
 
 
-def _program_revolutions(part: str):
-    """(X, revolutions turned since the program's start) of the program's points, sorted
-    by X."""
-    xs, cs = [], []
-    for line in open(REAL / PROGRAMS[part]):
-        d = dict(re.findall(r"([CX])(-?[\d.]+)", line))
-        if "C" in d and "X" in d:
-            cs.append(float(d["C"]))
-            xs.append(float(d["X"]))
-    c = np.array(cs)
-    x = np.array(xs)
-    dc = np.diff(c)
-    dc = np.where(dc < -180, dc + 360, np.where(dc > 180, dc - 360, dc))
-    rev = np.concatenate([[0.0], np.cumsum(np.abs(dc))]) / 360.0
-    order = np.argsort(x)
-    return x[order], rev[order]
+@functools.lru_cache(maxsize=None)
+def _program_path(part: str):
+    from render_inspect.io import read_program
+
+    return read_program(REAL / PROGRAMS[part], part_radius=1.1, spindle_rpm=RPM).program
 
 
-def program_feed_weighted(part: str, r0: float, r1: float) -> float:
-    """The program's X step per revolution (mm) between radii r0 < r1, weighted as the
-    fit's frequency feature weights the window: the marks' local frequency (revolutions per
-    mm of radius) averaged under the Hann window the spectrum is read through, inverted.
-    Equal to :func:`program_feed` where the step is constant; where it varies, the window's
-    centre counts more than its ends."""
-    if part not in PROGRAMS:
-        return FEED_1016
-    x, rev = _program_revolutions(part)
-    r = np.linspace(r0, r1, 2001)
-    n = np.interp(r, x, rev)
-    w = np.hanning(r.size)
-    return float(np.sum(w) / np.sum(w * np.abs(np.gradient(n, r))))
+def window_radii(prof, scene, win) -> list:
+    """The radii (mm) the measured samples of a fit's window cover: their distances from
+    where the line passes the spindle axis (the default line puts the slice's mirror
+    centre there), first and last measured sample."""
+    from render_inspect.pipeline._fit_profile import _axis_in_window
+
+    z = prof.z[win["i0"]:win["i1"]]
+    s = prof.x[win["i0"]:win["i1"]] - prof.x[win["i0"]]
+    ok = np.isfinite(z)
+    axis = _axis_in_window(scene, win, float("inf"))
+    r = np.abs(s[ok] - axis)
+    return [float(r.min()), float(r.max())]
+
+
+def slices(parts=("1016", "1021", "1022", "1023")) -> list:
+    """The table of docs/fit.md's "Real measurements": each slice's mirror (the line's
+    closest point to the spindle axis) and, on each side of it, the two halves' radii,
+    the program's feed per revolution over each half's radii (:func:`program_feed`,
+    plain) and the marks' period there (``profile_marks``, two segments)."""
+    from render_inspect.fit import profile_marks
+    from render_inspect.io import read_profile
+
+    rows = []
+    for part in parts:
+        prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
+        z, px = prof.z, prof.spacing
+        m = profile_marks(z, px)["mirror_at"]
+        row = {"part": part, "mirror_at_mm": float(prof.x[m] - prof.x[0]), "sides": []}
+        for name, side, radii in (("beyond", z[m + 1:], np.arange(1, z.size - m) * px),
+                                  ("before", z[:m][::-1], np.arange(1, m + 1) * px)):
+            marks = profile_marks(side, px, segments=2, mirror=False)
+            bounds = np.linspace(0, side.size, 3).astype(int)
+            halves = []
+            for (a, b), period in zip(zip(bounds[:-1], bounds[1:]), marks["periods_mm"]):
+                ok = np.isfinite(side[a:b])
+                r0, r1 = float(radii[a:b][ok][0]), float(radii[a:b][ok][-1])
+                prog = program_feed(part, r0, r1)
+                halves.append({"radii_mm": [r0, r1], "programmed_feed_um": prog * 1e3,
+                               "period_um": None if period is None else period * 1e3})
+            row["sides"].append({"side": name, "halves": halves,
+                                 "one_family": bool(marks["one_family"]),
+                                 "reason": marks["reason"]})
+        rows.append(row)
+    return rows
+
+
+def slices_table(rows: list) -> str:
+    lines = ["| slice | side of the mirror (mm along the slice) | radii (mm) | programmed "
+             "feed (um/rev) | period found (um) | period / programmed | marks |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        for sd in r["sides"]:
+            where = ("beyond" if sd["side"] == "beyond" else "before") + \
+                f" {r['mirror_at_mm']:.3f}"
+            for k, h in enumerate(sd["halves"]):
+                prog = f"{h['programmed_feed_um']:.2f}" + (" (by its name)" if r["part"] == "1016"
+                                                          else "")
+                per = "n/a" if h["period_um"] is None else f"{h['period_um']:.2f}"
+                ratio = ("n/a" if h["period_um"] is None
+                         else f"{100 * (h['period_um'] / h['programmed_feed_um'] - 1):+.1f} %")
+                marks = ("" if k else "one family" if sd["one_family"] else sd["reason"])
+                lines.append(f"| {r['part'] if k == 0 else ''} | {where if k == 0 else ''} | "
+                             f"{h['radii_mm'][0]:.3f}-{h['radii_mm'][1]:.3f} | {prog} | {per} | "
+                             f"{ratio} | {marks} |")
+    return "\n".join(lines)
 
 
 def arm_checks(data: dict) -> list:
@@ -135,7 +190,7 @@ def arm_checks(data: dict) -> list:
                                  axis_at_mm=_axis_in_window(scene, win, 1.0 / t.peak))
             arms[name] = {"centre_mm": xc, "period_um": 1e3 / t.peak,
                           "one_family": bool(fam["one_family"])}
-        weighted = program_feed_weighted(c["part"], r0, r1) * 1e3
+        weighted = program_feed(c["part"], r0, r1, "hann") * 1e3
         rows.append({"part": c["part"], "radii_mm": [r0, r1], "window_mm": c["window_mm"],
                      "programmed_feed_um": c["programmed_feed_um"],
                      "programmed_feed_weighted_um": weighted,
@@ -176,7 +231,6 @@ def period_scan(part: str, window_mm: float, *, step_mm: float = 0.02,
         r0 = round(float(r0), 4)
         r1 = round(r0 + window_mm, 4)
         row = {"radii_mm": [r0, r1]}
-        ref = program_feed_weighted(part, r0, r1) * 1e3
         for arm, sign in (("minus", -1.0), ("plus", 1.0)):
             try:
                 win = profile_window(prof, scene, at=(sign * (r0 + r1) / 2, 0.0),
@@ -184,6 +238,7 @@ def period_scan(part: str, window_mm: float, *, step_mm: float = 0.02,
             except InputError:
                 row[arm] = None
                 continue
+            ref = program_feed(part, *window_radii(prof, scene, win), "hann") * 1e3
             t = make_profile_target(prof.z[win["i0"]:win["i1"]], spacing=prof.spacing,
                                     lag=0, spec=ProfileSpec())
             row[arm] = 1e3 / t.peak / (ref * k) - 1.0
@@ -219,6 +274,32 @@ def checks_table(rows: list) -> str:
                      f"| {r['fitted_feed_um']:.4g} | {100 * r['difference_weighted']:+.1f} % "
                      f"| {r['period_fitted_arm_um']:.4g} | {other} | {ratio} |")
     return "\n".join(lines)
+
+
+def measured_radii(part: str, xc: float, w: float, free: str, program: bool) -> list:
+    """The radii (mm) a case's window covers (:func:`window_radii`)."""
+    from render_inspect.io import read_profile
+    from render_inspect.pipeline._fit_profile import profile_window
+
+    prof = read_profile(REAL / f"{part}-WLI-2D.csv", units="um")
+    scene = _scene(part, program, free)
+    return window_radii(prof, scene, profile_window(prof, scene, at=(xc, 0.0), window_mm=w))
+
+
+def references(data: dict) -> None:
+    """Each window's radii and programmed feed (and the fitted feed's difference from it)
+    taken again from the files, in place: no fit."""
+    for c in data["cases"]:
+        if c["through_axis"]:
+            continue
+        c["radii_mm"] = measured_radii(c["part"], c["centre_mm"], c["window_mm"], c["free"],
+                                       c["program"])
+        c["programmed_feed_um"] = program_feed(c["part"], *c["radii_mm"]) * 1e3
+        if c.get("fitted_feed_um") and c["programmed_feed_um"]:
+            c["feed_difference"] = c["fitted_feed_um"] / c["programmed_feed_um"] - 1.0
+        detail = c.get("one_arm")
+        if isinstance(detail, dict) and detail.get("fitted_feed_um"):
+            detail["feed_difference"] = detail["fitted_feed_um"] / c["programmed_feed_um"] - 1.0
 
 
 def _scene(part: str, program: bool, free: str):
@@ -317,6 +398,8 @@ def fit_case(out_root: Path, part, xc, w, free, program, *, arms=None) -> dict:
                           cache=out_root / "cache" / out.name, arms=arms)
     r0, r1 = sorted((abs(xc) - w / 2, abs(xc) + w / 2))
     par = rec["parameters"][free]
+    if r0 >= 0:
+        r0, r1 = measured_radii(part, xc, w, free, program)
     fpr = rec.get("feed_per_rev_mm") or {}
     fam = rec["model_check"]["before"]["family"]
     row = {"part": part, "centre_mm": xc, "window_mm": w, "radii_mm": [r0, r1],
@@ -484,6 +567,7 @@ BEGIN, END = "<!-- profile-fit-table -->", "<!-- /profile-fit-table -->"
 ARMS_BEGIN, ARMS_END = "<!-- profile-fit-arms -->", "<!-- /profile-fit-arms -->"
 CHECKS_BEGIN, CHECKS_END = "<!-- profile-fit-checks -->", "<!-- /profile-fit-checks -->"
 SCAN_BEGIN, SCAN_END = "<!-- profile-fit-scan -->", "<!-- /profile-fit-scan -->"
+SLICES_BEGIN, SLICES_END = "<!-- profile-slices -->", "<!-- /profile-slices -->"
 #: the slice whose windows are scanned along both arms, and the window's length (mm)
 SCAN = ("1023", 0.2)
 
@@ -501,6 +585,8 @@ def write_docs(data: dict) -> None:
             text = _replace(text, ARMS_BEGIN, ARMS_END, arms_table(data))
         if data.get("checks") and CHECKS_BEGIN in text:
             text = _replace(text, CHECKS_BEGIN, CHECKS_END, checks_table(data["checks"]))
+        if data.get("slices") and SLICES_BEGIN in text:
+            text = _replace(text, SLICES_BEGIN, SLICES_END, slices_table(data["slices"]))
         if data.get("scan") and SCAN_BEGIN in text:
             text = _replace(text, SCAN_BEGIN, SCAN_END,
                             scan_table(data["scan"]["part"], data["scan"]["rows"]))
@@ -527,7 +613,9 @@ def main(argv=None) -> int:
         old = json.loads(JSON.read_text()) if JSON.is_file() else None
         data = old if a.checks else run(Path(a.out), only=only, old=old,
                                              one_arm_from_json=a.one_arm_from_json)
+        references(data)
         data["checks"] = arm_checks(data)
+        data["slices"] = slices()
         data["scan"] = {"part": SCAN[0], "window_mm": SCAN[1],
                         "curvature_factor": curvature_factor(),
                         "rows": period_scan(*SCAN)}

@@ -341,23 +341,24 @@ def combine_arms(value: float, stderr: float, a: float, sa: float, b: float,
 
 
 def arms_text(key: str, comb: dict, a: float, b: float, *, unit: float = 1.0,
-              name: str = "", stderr: bool = True) -> str:
+              name: str = "", stderr: bool = True, unit_name: str = "") -> str:
     """The arms' disagreement in words for the summary (``stderr`` False: the fit gives no
-    standard error, its marks not being a measurement, and none is printed)."""
+    standard error, its values not being a measurement, and none is printed;
+    ``unit_name``: the unit written after each number)."""
     rel = comb["difference_relative"]
     what = name or key
+    u = f" {unit_name}" if unit_name else ""
+    arms = f"{what}: the window's arm {a * unit:.5g}{u}, the other arm {b * unit:.5g}{u}"
     if not stderr:
-        return (f"{what}: the window's arm {a * unit:.5g}, the other arm {b * unit:.5g} "
-                f"(they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}; no "
-                f"standard error: the marks are not one periodic family, the values are "
-                f"not a measurement)")
-    text = (f"{what}: the window's arm {a * unit:.5g}, the other arm {b * unit:.5g} "
-            f"(they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}, "
+        return (f"{arms} (they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}; "
+                f"no standard error: the values are not a measurement, see the verdict)")
+    text = (f"{arms} (they differ by {'n/a' if rel is None else f'{100 * rel:+.2g} %'}, "
             f"{comb['difference_over_stderr']:.2g} times the difference's standard error)")
     if comb["disagree"]:
         text += ("; the arms disagree by more than their standard errors allow: the "
                  "measurement's spread between the arms is in the standard error "
-                 f"({comb['stderr_fit'] * unit:.2g} from the fit, {comb['u_arms'] * unit:.2g} "
-                 f"from the arms, {comb['stderr'] * unit:.2g} combined)")
+                 f"({comb['stderr_fit'] * unit:.2g}{u} from the fit, "
+                 f"{comb['u_arms'] * unit:.2g}{u} from the arms, "
+                 f"{comb['stderr'] * unit:.2g}{u} combined)")
     return text
 

@@ -138,13 +138,17 @@ def summary_lines(record: dict) -> list[str]:
     none), the status and why, each misfit term against its scale, the verdict of the
     model checks."""
     lines = []
+    after = (record.get("model_check") or {}).get("after") or {}
+    # a standard error holds only where the model describes the measurement
+    caveat = ("" if after.get("describes", True) else
+              " (the model does not describe this measurement: see the verdict)")
     for k, p in record["parameters"].items():
         se = p.get("stderr")
         if se is None and not p.get("determined", True):
             err = "(not determined alone: see the combinations below)"
         else:
             err = "+- n/a" if se is None else f"+- {se:.3g}"
-        lines.append(f"{k} = {p['value']:.6g} {err} (start {p['start']:.6g})")
+        lines.append(f"{k} = {p['value']:.6g} {err} (start {p['start']:.6g}){caveat}")
     ident = record.get("identifiability") or {}
     if ident.get("undetermined"):
         for d in ident["undetermined"]:
@@ -165,7 +169,7 @@ def summary_lines(record: dict) -> list[str]:
     g = record.get("goodness") or {}
     if g.get("ratio") is not None:
         lines.append(f"the misfit is {g['ratio']:.3g} times what the random parts and the "
-                     f"camera's noise alone leave at the true values")
+                     f"camera's noise alone would leave if the model described the measurement")
     if record.get("misfit_rms_nm") is not None:
         lines.append(f"height difference rms {record['misfit_rms_nm']:.3g} nm: the marks' "
                      f"phase (where the spiral began) is not fitted, so the raw maps differ by "

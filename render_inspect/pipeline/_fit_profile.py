@@ -47,7 +47,7 @@ from ..fit import (parse_weights, PROFILE_TERMS, EvaluationCache,
 from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_text, check_output_dir,
                   is_profile_file, read_profile, write_json)
 from ..processes import RANDOM_PART_KEYS, process_of, random_parts
-from ..report import HtmlReport, profile_overlay_figure
+from ..report import HtmlReport, key_unit, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
@@ -390,7 +390,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     record["evaluations"] = int(evaluator.count)
     record["evaluations_budget"]["made"] = int(evaluator.count)
     record["arms"] = _arms_record(two, one_arm_why, result, fit_target, fitted, win, prof,
-                                  measurement=bool(family["one_family"]))
+                                  measurement=bool(family["one_family"] and after["describes"]))
     fold_arms(record)
     if (record["arms"].get("fitted") == "both" and record["arms"].get("estimates_error")
             and family["one_family"]):
@@ -404,6 +404,12 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
         if record["arms"].get("budget"):
             record["status"] = "budget"
     record["feed_per_rev_mm"] = _feed_per_rev(base, fitted, record)
+    verdict = record["model_check"]["after"]
+    if family["one_family"] and not record.get("status_note") and not verdict["describes"]:
+        # a standard error computed under a model that does not describe the window says
+        # nothing of the part: no number is given as a measurement
+        record["status_note"] = ("not a measurement: the model does not describe this "
+                                 "window (" + "; ".join(verdict["findings"]) + ")")
     if not family["one_family"] or record.get("status_note"):
         for p in record["parameters"].values():
             p["stderr"] = None
@@ -489,11 +495,18 @@ def profile_summary_lines(record: dict) -> list[str]:
         if text.startswith("misfit term psd ("):
             text = f"misfit term psd ({_PSD_WORDS})" + text.split(")", 1)[1]
         key = text.split(" = ", 1)[0]
+        unit = f" {key_unit(key)}" if key_unit(key) else ""
         if note and key in record["parameters"]:
             p = record["parameters"][key]
-            text = f"{key} = {p['value']:.6g} ({note}; no standard error)"
+            text = f"{key} = {p['value']:.6g}{unit} ({note}; no standard error)"
         elif key in record["parameters"] and record["parameters"][key].get("not_determined"):
             text = f"{key}: {record['parameters'][key]['not_determined']}"
+        elif key in record["parameters"]:
+            p = record["parameters"][key]
+            se = p.get("stderr")
+            text = (f"{key} = {p['value']:.6g}{unit} "
+                    + ("+- n/a" if se is None else f"+- {se:.3g}{unit}")
+                    + f" (start {p['start']:.6g}{unit})")
         lines.append(text)
     fpr = record.get("feed_per_rev_mm")
     if fpr:
@@ -529,9 +542,9 @@ def _page(record: dict, png: bytes) -> str:
     rows = []
     for k, p in record["parameters"].items():
         rows.append([k, f"{p['value']:.6g}", "n/a" if p["stderr"] is None else
-                     f"{p['stderr']:.3g}", f"{p['start']:.6g}"])
+                     f"{p['stderr']:.3g}", f"{p['start']:.6g}", key_unit(k) or "-"])
     rep.section("Fitted values")
-    rep.table(rows, header=["key", "value", "standard error", "start"])
+    rep.table(rows, header=["key", "value", "standard error", "start", "unit"])
     arms = record.get("arms") or {}
     if arms.get("parameters"):
         rep.section("Both arms of the diameter")

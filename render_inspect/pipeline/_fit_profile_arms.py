@@ -18,6 +18,7 @@ from ..core.units import MM_TO_UM
 from ..fit import (ArmsTarget, arms_features, arms_text, combine_arms, get_value,
                    make_profile_target, profile_family, profile_residual_vector)
 from ..processes import process_of
+from ..report import key_unit
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
 from ._fit_model import MARGIN_PX
 from ._fit_profile_model import MIN_POINTS, ProfileModel, after_verdict
@@ -154,7 +155,8 @@ def _check_after_arms(target: ArmsTarget, pred, families, goodness) -> dict:
         sf = max(t.sigma_frequency or t.spec.sigma_frequency for t in target.arms)
         if abs(rel) > max(5 * sf, 0.01):
             findings.append(f"the fitted marks' period differs from the arms' mean measured "
-                            f"one by {100 * rel:+.3g} % (the free keys cannot reach it)")
+                            f"one by {100 * rel:+.3g} % (no values of the free keys "
+                            f"give the measured period and the marks' shape together)")
     return after_verdict(findings, goodness,
                          "the model describes the marks of this window on both arms")
 
@@ -214,11 +216,13 @@ def _arms_record(two, one_arm_why, result, target, fitted, win, prof, *,
         out_par = dict(comb, window_arm={"value": ea["values"][i], "stderr": ea["stderr"][i]},
                        other_arm={"value": eb["values"][i], "stderr": eb["stderr"][i]})
         out["parameters"][p.key] = out_par
-        unit, name = 1.0, ""
+        unit, name, unit_name = 1.0, "", key_unit(p.key)
         if p.key == "process.feed_mm_per_min" and isinstance(rpm, (int, float)) and rpm > 0:
             unit, name = MM_TO_UM / float(rpm), f"{p.key} as the feed per revolution (um)"
+            unit_name = "um"
         out["summary"].append(arms_text(p.key, comb, ea["values"][i], eb["values"][i],
-                                        unit=unit, name=name, stderr=measurement))
+                                        unit=unit, name=name, stderr=measurement,
+                                        unit_name=unit_name))
     out["steps"] = est.get("steps")
     out["scans"] = est.get("scans")
     return out

@@ -93,5 +93,6 @@ def _check_after(target, best, family, goodness) -> dict:
         sf = target.sigma_frequency or target.spec.sigma_frequency
         if abs(rel) > max(5 * sf, 0.01):
             findings.append(f"the fitted marks' period differs from the measured one by "
-                            f"{100 * rel:+.3g} % (the free keys cannot reach it)")
+                            f"{100 * rel:+.3g} % (no values of the free keys give the "
+                            f"measured period and the marks' shape together)")
     return after_verdict(findings, goodness, "the model describes the marks of this window")

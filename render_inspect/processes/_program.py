@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from ._contract import Plan
 
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
-           "feed_per_rev", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
+           "feed_per_rev", "feed_over_radii", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
 
 #: how far below the design a point of an imported program must lie to be a finding, mm
 #: (the programs' 6 written places round to 0.5 nm; fitted designs are good to a few nm)
@@ -131,6 +131,47 @@ def feed_per_rev(path: ToolPath) -> tuple[np.ndarray, np.ndarray]:
     ok = theta + 2 * math.pi <= theta[-1] + 1e-9
     r_next = np.interp(theta[ok] + 2 * math.pi, theta, rho)
     return rho[ok], rho[ok] - r_next
+
+
+def feed_over_radii(path: ToolPath, r0: float, r1: float, *, weighting: str = "plain") -> float:
+    """The feed per revolution (mm) a program commands over the radii ``r0 < r1`` (mm),
+    from its spindle angle and radius words (the path's ``theta`` and ``rho``).
+
+    ``weighting="plain"``: the radial distance over the revolutions the spindle turns
+    between the two radii, every radius alike: the mean spacing of the marks the program
+    leaves there (their count over the stretch's length).  ``weighting="hann"``: the
+    marks' local frequency (revolutions per mm of radius) averaged under a Hann window
+    over the radii, inverted: what a period read from a Hann-windowed spectrum of the
+    stretch sees, its centre counting more than its ends.  The two agree where the step
+    is constant.  Radii the path does not reach, or a path that turns back in radius
+    between them, are refused."""
+    if weighting not in ("plain", "hann"):
+        raise InputError(f"weighting must be 'plain' or 'hann', got {weighting!r}")
+    theta, rho = np.asarray(path.theta, np.float64), np.asarray(path.rho, np.float64)
+    if not (0.0 <= r0 < r1):
+        raise InputError(f"radii must satisfy 0 <= r0 < r1 (mm), got {r0:g} and {r1:g}")
+    if rho.size < 2 or r0 < rho.min() or r1 > rho.max():
+        lo, hi = (float(rho.min()), float(rho.max())) if rho.size else (0.0, 0.0)
+        raise InputError(f"the program reaches radii {lo:.4g}-{hi:.4g} mm, not "
+                         f"{r0:.4g}-{r1:.4g} mm")
+    inside = np.flatnonzero((rho >= r0) & (rho <= r1))
+    if inside.size == 0:  # the radii lie between two neighbouring points of the program
+        inside = np.flatnonzero(np.diff(np.sign(rho - r0)) != 0)[:1]
+    # the points that hold the radii and one either side (the interpolation's ends)
+    a, b = max(int(inside[0]) - 1, 0), min(int(inside[-1]) + 2, rho.size)
+    d = np.diff(rho[a:b])
+    if not (np.all(d <= 0) or np.all(d >= 0)):
+        raise InputError(f"the program turns back in radius between {r0:.4g} and "
+                         f"{r1:.4g} mm: its feed per revolution there is not one number")
+    # revolutions turned since the program's start, as a function of the radius
+    order = np.argsort(rho[a:b], kind="stable")
+    rr, turns = rho[a:b][order], theta[a:b][order] / (2 * math.pi)
+    if weighting == "plain":
+        na, nb = np.interp([r0, r1], rr, turns)
+        return float((r1 - r0) / abs(nb - na))
+    r = np.linspace(r0, r1, 2001)
+    w = np.hanning(r.size)
+    return float(np.sum(w) / np.sum(w * np.abs(np.gradient(np.interp(r, rr, turns), r))))
 
 
 def feed_per_rev_table(path: ToolPath, bands: int = _BANDS) -> list[dict]:

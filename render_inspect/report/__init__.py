@@ -18,6 +18,7 @@ from ._fit import fit_figures, fit_page, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length
 from ._html import HtmlReport, data_uri, table_html
+from ._keys import key_label, key_unit
 from ._instrument import analysis_summary, characterise_figures, measurement_summary
 from ._kinematics import (axis_motion_figure, kinematics_png, moving_axes, plot_kinematics,
                           turning_axes)
@@ -43,7 +44,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
            "luminance", "fit_figures", "fit_page", "psd_figure", "figure_kinds",
            "register_figure", "registered_figures", "profile_figure",
-           "profile_overlay_figure", "program_section", "program_figure_name"]
+           "profile_overlay_figure", "program_section", "program_figure_name", "key_label", "key_unit"]
 
 # figure kinds added as modules of this package register themselves on import
 import_private_modules(__name__, __path__)
