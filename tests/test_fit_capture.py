@@ -160,6 +160,21 @@ def test_each_value_says_so_where_the_model_does_not_describe_the_measurement():
     assert len(values) == len(rec["parameters"]) and all(t.endswith(caveat) for t in values)
 
 
+def test_the_summary_gives_each_value_and_its_error_their_unit():
+    """A map fit's summary as the command logs it: the key's unit after the value, its
+    standard error and its start (the report's unit of the scene key)."""
+    from render_inspect.report import key_unit
+
+    rec = {"parameters": {"tool.nose_radius": {"value": 0.47, "stderr": 0.002, "start": 0.5},
+                          "machine.error_motion_um": {"value": 0.1, "stderr": None, "start": 0.2,
+                                                      "determined": False}},
+           "status": "converged", "message": "", "misfit": {}, "evaluations": 9}
+    lines = summary_lines(rec, key_unit)
+    assert lines[0] == "tool.nose_radius = 0.47 mm +- 0.002 mm (start 0.5 mm)"
+    assert lines[1].startswith("machine.error_motion_um = 0.1 um (not determined alone")
+    assert summary_lines(rec)[0] == "tool.nose_radius = 0.47 +- 0.002 (start 0.5)"
+
+
 # ------------------------------------------------------------------ model checks
 def _features(z, px, **kw):
     t = make_target(z, pixel=(px, px), origin=(0.0, 0.0), spec=MisfitSpec())

@@ -4,6 +4,7 @@ where everything came from."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import SupportsFloat
 
 import numpy as np
@@ -133,10 +134,10 @@ TERM_WORDS = {
 }
 
 
-def summary_lines(record: dict) -> list[str]:
+def summary_lines(record: dict, unit: Callable[[str], str] | None = None) -> list[str]:
     """The fit's summary in words: each value with its standard error (or why it has
     none), the status and why, each misfit term against its scale, the verdict of the
-    model checks."""
+    model checks.  ``unit``: a key's unit ("" for none), written after its numbers."""
     lines = []
     after = (record.get("model_check") or {}).get("after") or {}
     # a standard error holds only where the model describes the measurement
@@ -144,11 +145,12 @@ def summary_lines(record: dict) -> list[str]:
               " (the model does not describe this measurement: see the verdict)")
     for k, p in record["parameters"].items():
         se = p.get("stderr")
+        u = f" {unit(k)}" if unit is not None and unit(k) else ""
         if se is None and not p.get("determined", True):
             err = "(not determined alone: see the combinations below)"
         else:
-            err = "+- n/a" if se is None else f"+- {se:.3g}"
-        lines.append(f"{k} = {p['value']:.6g} {err} (start {p['start']:.6g}){caveat}")
+            err = "+- n/a" if se is None else f"+- {se:.3g}{u}"
+        lines.append(f"{k} = {p['value']:.6g}{u} {err} (start {p['start']:.6g}{u}){caveat}")
     ident = record.get("identifiability") or {}
     if ident.get("undetermined"):
         for d in ident["undetermined"]:

@@ -345,7 +345,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             (94, "mm/min (G94)"), (95, "mm/rev (G95)"), (93, "per min (inverse time, G93)"))]
         if any(stated):
             inferred["feed"] += ": " + ", ".join(t for t in stated if t) + (
-                " (inches read as mm)" if sp.g_codes & {20, 70} else "")
+                " (the program's inches converted to mm)" if sp.g_codes & {20, 70} else "")
         if dc is not None:  # (has_c) a move cannot turn C faster than the spindle allows
             dt, _ = c_move_times(dc, length, mo, rp, float(feed), float(rapid), dt)
     elif dc is not None:  # (has_c)

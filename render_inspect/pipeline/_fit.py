@@ -41,7 +41,7 @@ from ..fit import (parse_weights, EvaluationCache, Evaluator, MisfitSpec, centre
 from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
 from ..io import write_exr, write_json, write_marker
 from ..processes import RANDOM_PART_KEYS, random_parts
-from ..report import fit_figures, fit_page
+from ..report import fit_figures, fit_page, key_unit
 from ..scene import apply_overrides, scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
                          file_instrument, instrument_settings, passive_omp_wait,
@@ -475,5 +475,5 @@ def _file_notes() -> dict:
 
 
 def _log_summary(record: dict) -> None:
-    for line in summary_lines(record):
+    for line in summary_lines(record, key_unit):
         log.info("%s", line)
