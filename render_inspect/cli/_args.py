@@ -155,12 +155,18 @@ def scene_of(args: argparse.Namespace) -> Scene:
     # pixel that aliases the feed marks): said before the run, which goes on
     for text in unit_warnings(scene, sampling=args.command in ("simulate", "compare", "render")):
         log.warning("warning: %s", text)
+    say_tool_edge(scene)
+    return scene
+
+
+def say_tool_edge(scene: Scene) -> None:
+    """A measured cutting edge the cut cannot take refused, and what the nose arc takes
+    from beyond it said, before the run."""
     tool = getattr(scene, "tool", None)
     if tool is not None and (getattr(tool, "edge_profile", None) or getattr(tool, "waviness", None)):
-        # what the nose arc takes from beyond a measured cutting edge (imported here: the
-        # pipeline's tool-path stage and its kernels load only for a scene with an edge)
+        # (imported here: the pipeline's tool-path stage and its kernels load only for a
+        # scene with an edge)
         from ..pipeline import edge_warnings
 
         for text in edge_warnings(scene):
             log.warning("warning: %s", text)
-    return scene

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..core.errors import InputError
 from ._args import (_add_cluster_args, _add_out_args, _add_program_arg, _add_set_arg, _add_verbosity,
-                    _objective_names, _Registered, refuse_scene_in_out, scene_overrides)
+                    _objective_names, _Registered, refuse_scene_in_out, say_tool_edge, scene_overrides)
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -99,6 +99,7 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
 
     scene = load_scene(args.scene, scene_overrides(args))
     refuse_scene_in_out(args)
+    say_tool_edge(scene)  # a measured edge the cut cannot take: refused before the fit
     # (imported once the input is checked)
     from .. import pipeline
 

@@ -24,7 +24,7 @@ from ..core.toolpath import (
 from ..core.units import MIN_TO_S
 from ..core.toolpath import ToolPath
 
-__all__ = ["nc_comment_text", "program_axes", "program_blocks", "CHUNK_ROWS"]
+__all__ = ["nc_comment_text", "program_axes", "program_blocks", "CHUNK_ROWS", "UTF8_BOM"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
 CHUNK_ROWS = 16384
@@ -33,6 +33,11 @@ _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 _SECTIONS = ("approach", "cut", "link", "exit")
 _TURN_AXES = ("C", "X", "Z")
 _LINEAR_AXES = ("X", "Y", "Z")
+
+
+#: the byte order mark an editor may put before the first line of a UTF-8 file saved
+#: again: the readers pass over it
+UTF8_BOM = b"\xef\xbb\xbf"
 
 
 def nc_comment_text(value: object) -> str:

@@ -23,7 +23,7 @@ from ..core.toolpath import (
     ToolPath,
 )
 from ..core.units import MIN_TO_S
-from ._nc_dialect import _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD
+from ._nc_dialect import _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD, UTF8_BOM
 from ._nc_scan import FORM_LONG, FORM_OK, scan_uniform
 
 __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
@@ -153,6 +153,8 @@ def _pieces(path: Path):
     text); raises UnicodeDecodeError for other bytes."""
     rest = b""
     with path.open("rb") as fh:
+        if fh.read(len(UTF8_BOM)) != UTF8_BOM:  # (a byte order mark an editor put first)
+            fh.seek(0)
         while True:
             data = fh.read(_PIECE_BYTES)
             if not data:
@@ -254,7 +256,7 @@ def _blocks_line_by_line(path: Path) -> Blocks:
     pos: dict[str, list[float]] = {a: [] for a in cur}
     section, line_no, mode = None, -1, 1
     modes = set()
-    with path.open("r", encoding="utf-8", errors="strict") as fh:
+    with path.open("r", encoding="utf-8-sig", errors="strict") as fh:
         for lineno, raw in enumerate(fh, 1):
             text = raw.strip()
             if text.startswith(";"):

@@ -32,6 +32,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
+from ._nc_dialect import UTF8_BOM
 from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
 from ._program_kernel import c_backward, c_move_times, feed_times, sample_moves, unwrap_c
@@ -99,9 +100,10 @@ class ImportedProgram:
 def program_dialect(path: str | Path) -> str:
     """The dialect of ``path`` from its first line: ``"render_inspect turning"``,
     ``"render_inspect linear"`` or ``"G-code"`` (anything else: point lists and G-code
-    are told apart once read)."""
+    are told apart once read).  A UTF-8 byte order mark before it (an editor's, saving the
+    file again) does not matter."""
     with Path(path).open("rb") as fh:
-        first = fh.readline(400).decode("ascii", "replace").strip()
+        first = fh.readline(400).removeprefix(UTF8_BOM).decode("ascii", "replace").strip()
     if first.startswith("; " + _OWN_TURNING):
         return "render_inspect turning"
     if first.startswith("; " + _OWN_LINEAR):

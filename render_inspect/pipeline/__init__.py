@@ -56,7 +56,7 @@ if TYPE_CHECKING:
     from ._summaries import PROFILE_COLUMNS, command_summary, profile_compare_summary
     from ._sweep import (find_sweep, run_point, run_sweep, shipped_sweeps, sweep_failure, sweep_morris,
                          sweep_tasks)
-    from ._toolpath import edge_warnings, plan_program, program_formats, run_toolpath
+    from ._toolpath import check_tool_edge, edge_warnings, plan_program, program_formats, run_toolpath
 
 #: where each name lives (module -> names): a stage's module is imported when one of its
 #: names is first used, so that a command imports only the stages it runs (``simulate``
@@ -95,13 +95,13 @@ _LAZY = {
     '._summaries': ('PROFILE_COLUMNS', 'command_summary', 'profile_compare_summary'),
     '._sweep': ('find_sweep', 'run_point', 'run_sweep', 'shipped_sweeps', 'sweep_failure',
                 'sweep_morris', 'sweep_tasks'),
-    '._toolpath': ('edge_warnings', 'plan_program', 'program_formats', 'run_toolpath'),
+    '._toolpath': ('check_tool_edge', 'edge_warnings', 'plan_program', 'program_formats', 'run_toolpath'),
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
 __all__ = ["completed_outputs", "refuse_inputs_inside", "Simulation", "simulate", "design_heightmap", "write_simulation", "run_simulate",
            "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES",
-           "plan_program", "run_toolpath", "program_formats", "edge_warnings", "run_render", "render_heightmap", "render_kinds",
+           "plan_program", "run_toolpath", "program_formats", "edge_warnings", "check_tool_edge", "run_render", "render_heightmap", "render_kinds",
            "write_interferogram_outputs", "write_instrument_outputs", "write_diffuse_outputs",
            "interferogram_summary",
            "part_heightmap", "part_outline", "render_diffuse_views", "tool_marks",

@@ -63,6 +63,7 @@ from ._metrics import (comparison_metrics, diffuse_summary, variant_metrics, wri
 from ._render import (check_render_limits, part_outline, render_diffuse_views,
                       write_diffuse_outputs, write_instrument_outputs)
 from ._simulate import simulate
+from ._toolpath import check_tool_edge
 from ..core.heightmap import HeightMap
 from ..toolpath import region_radii
 
@@ -454,6 +455,7 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
     for v in variants:
         if not _NAME_OK.match(v.name):
             raise InputError(f"variant name {v.name!r} must use letters, digits, '_', '-', '.'")
+        check_tool_edge(v.scene)  # a measured edge each variant's cut cannot take, before any work
     # the files a variant reads (a program or a height map given with --vary) are inputs too
     inputs = (*inputs, *(f for v in variants for f in scene_files(v.scene)))
     meas_map = None

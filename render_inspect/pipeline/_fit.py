@@ -47,6 +47,7 @@ from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, co
                          file_instrument, instrument_settings, passive_omp_wait,
                          predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
 from ._simulate import simulate, write_simulation
+from ._toolpath import check_tool_edge
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -173,7 +174,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     # the prediction's scene is checked before the fit runs
     predict = list(predict or ())
     if predict:
-        _predicted_scene(base, {p.key: p.start for p in params}, predict, fill)
+        # (and a measured edge its cut cannot take)
+        check_tool_edge(_predicted_scene(base, {p.key: p.start for p in params}, predict, fill))
 
     m = surface if surface is not None else read_surface(measured)
     if surface is not None:

@@ -132,11 +132,39 @@ def comparison_metrics(scene: Scene, *, pair: VariantPair, variants: Sequence[An
     }
     if "lenslets" in metrics[a.name]:
         metrics["lenslets"] = metrics[a.name]["lenslets"]
+    edge = compared_tool_edge({v.name: metrics[v.name].get("tool_edge") for v in variants})
+    if edge is not None:
+        metrics["tool_edge"] = edge
     if measured_file is not None:
         metrics["measured_file"] = measured_file
     metrics["timing_s"] = {"total": total_s}
     metrics["report"] = report
     return metrics
+
+
+#: what ``compare``'s ``tool_edge`` keeps of each variant's
+_EDGE_KEYS = ("source", "measured_range_deg", "compensation", "contact_angle_range_deg",
+              "imprint_predicted_pv_nm", "imprint_predicted_rms_nm", "form_error_pv_nm",
+              "form_error_rms_nm", "warnings")
+
+
+def compared_tool_edge(by_variant: dict) -> dict | None:
+    """``compare``'s top-level ``tool_edge``: the measured edge's ``source`` and
+    ``measured_range_deg`` (those of the variants cut with one; null where their edges
+    differ) and, under ``variants``, each variant's compensation, contact angles,
+    predicted imprint, form error and warnings (null for a variant cut with a circular
+    nose); None when neither variant has a measured edge."""
+    have = [e for e in by_variant.values() if e]
+    if not have:
+        return None
+
+    def common(key: str) -> Any:
+        values = [e.get(key) for e in have]
+        return values[0] if all(v == values[0] for v in values) else None
+
+    return {"source": common("source"), "measured_range_deg": common("measured_range_deg"),
+            "variants": {name: None if not e else {k: e.get(k) for k in _EDGE_KEYS}
+                         for name, e in by_variant.items()}}
 
 
 def toolpath_metrics(scene_name: str, facts: dict) -> dict:

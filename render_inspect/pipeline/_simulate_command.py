@@ -313,7 +313,9 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])
-        facts, cut_plots = process.tiled_facts(cfg, env, stats.cut, stride=stride)
+        # (with the residual's metrics: what facts of the whole map need of them)
+        facts, cut_plots = process.tiled_facts(cfg, env, {**stats.cut, "residual": residual},
+                                               stride=stride)
         metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing, facts=facts)
         metrics["tiles"] = {"count": stats.tiles, "tile_px": tile, "pyramid_levels": levels,
                             "scheduler": scheduler or ("LocalCluster" if workers else
@@ -343,6 +345,8 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         metrics["timing_s"] = dict(timing)
         write_metrics(tmp, metrics)
         atomic_write_text(tmp / "scene.json", json.dumps(scene.to_dict(), indent=2, sort_keys=True))
+    for text in metrics.get("tool_edge", {}).get("warnings", []):  # the cut beyond the measured edge
+        log.warning("warning: %s", text)
     log.info("residual Sq %.3f nm, Sz %.2f nm, min %.2f nm -> %s", residual["Sq_nm"],
              residual["Sz_nm"], residual["min_nm"], out)
     return metrics

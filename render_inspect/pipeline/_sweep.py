@@ -68,6 +68,7 @@ from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
 from ._sweep_morris import morris_table, sweep_morris
+from ._toolpath import check_tool_edge
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
            "column_names", "check_sweep_tasks", "sweep_failure", "sweep_morris"]
@@ -128,7 +129,9 @@ def _base_scene(spec, sweep_path: Path) -> Path:
 
 def _point_memory(scene: Scene, run: dict) -> int:
     """Bytes one point holds at its peak: the process's estimate, checked against the
-    memory budget (a point that cannot fit is not valid), and the renders it runs."""
+    memory budget (a point that cannot fit is not valid), and the renders it runs.  A
+    measured cutting edge the point's cut cannot take makes it not valid too."""
+    check_tool_edge(scene)
     process = process_of(scene)
     cfg = process.inputs_of(scene)
     sim = scene.simulation

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
 __all__ = ["plan_program", "run_toolpath", "program_formats", "verify_program_file",
            "check_links", "write_program_report", "log_program_summary", "nc_memory",
-           "NC_BYTES_PER_POINT"]
+           "NC_BYTES_PER_POINT", "check_tool_edge", "edge_warnings"]
 
 log = logging.getLogger("render_inspect")
 
@@ -178,15 +178,25 @@ def log_program_summary(info: dict, facts_file: str = "toolpath.json") -> None:
     (log.warning if info.get("findings") else log.info)("program findings: %s", text)
 
 
+def check_tool_edge(scene: Scene) -> Tool | None:
+    """The scene's tool with its measured cutting edge (``tool.edge_profile``,
+    ``tool.waviness``) read and checked as the cut will take it, before any work: an edge
+    the cut cannot take (a deviation beyond 1 % of the nose radius, an edge that folds
+    back) is an :class:`InputError` in one line.  None for a circular nose."""
+    tool = getattr(scene, "tool", None)
+    if tool is None or not (getattr(tool, "edge_profile", None) or getattr(tool, "waviness", None)):
+        return None
+    t = Tool.from_config(tool)
+    return t if t.edge is not None else None
+
+
 def edge_warnings(scene: Scene) -> list[str]:
     """What the nose arc (``tool.included_angle_deg``) takes from beyond a measured cutting
     edge (the deviation held at the table's end values), and a fitted radius the cut does
-    not use: one line each, said before a run."""
-    tool = getattr(scene, "tool", None)
-    if tool is None or not (getattr(tool, "edge_profile", None) or getattr(tool, "waviness", None)):
-        return []
-    t = Tool.from_config(tool)
-    if t.edge is None:
+    not use: one line each, said before a run.  An edge the cut cannot take is refused
+    (:func:`check_tool_edge`)."""
+    t = check_tool_edge(scene)
+    if t is None or t.edge is None:
         return []
     return edge_notes(t.edge, t.nose_radius, (-t.half_angle, t.half_angle),
                       f"the nose arc of tool.included_angle_deg = {math.degrees(2 * t.half_angle):g}")

@@ -517,5 +517,6 @@ class Process(ABC, Generic[InputsT]):
     def tiled_facts(self, cfg: InputsT, env: Envelope, cut: dict, *, stride: int) -> tuple[dict, dict]:
         """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
         :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every
-        ``stride``-th row and column); default: ``env.facts`` and ``env.plots``."""
+        ``stride``-th row and column; ``residual``: the whole map's ``metrics.json``
+        ``residual``, from the tiles); default: ``env.facts`` and ``env.plots``."""
         return dict(env.facts), dict(env.plots)

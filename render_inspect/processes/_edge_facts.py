@@ -18,7 +18,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..core.grid import grid_shape
 from ..core.units import MM_TO_NM
+from ..design import make_surface
 from ..machining import WEAR_RATES
 
 from ..toolpath import edge_notes
@@ -27,7 +29,12 @@ if TYPE_CHECKING:
     from ..toolpath import EdgeProfile
     from ._machine import ProcessScene
 
-__all__ = ["edge_facts", "edge_imprint", "check_edge_and_wear"]
+__all__ = ["edge_facts", "edge_facts_tiled", "edge_imprint", "check_edge_and_wear"]
+
+#: what the contact angles are, in the notes of the angles beyond the measured edge
+_CONTACT = "the design's slope on the simulated region (contact angles)"
+#: pixels of the design evaluated at once by :func:`edge_facts_tiled`
+BAND_PIXELS = 1 << 20  # not a unit conversion
 
 
 def edge_imprint(edge: EdgeProfile, design: np.ndarray, region: Sequence[float],
@@ -38,14 +45,76 @@ def edge_imprint(edge: EdgeProfile, design: np.ndarray, region: Sequence[float],
     ny, nx = design.shape
     x = x0 + pixel * np.arange(nx)
     y = y0 + pixel * np.arange(ny)
-    xx, yy = np.meshgrid(x, y)
-    r = np.hypot(xx, yy)
     gy, gx = (np.gradient(design, pixel) if min(ny, nx) > 1 else
               (np.zeros_like(design), np.zeros_like(design)))
+    return _contact(edge, x, y, gx, gy)
+
+
+def _contact(edge: EdgeProfile, x: np.ndarray, y: np.ndarray, gx: np.ndarray,
+             gy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(theta, imprint) at the points (x, y) of the grid where the design's gradient is
+    (gx, gy): the radial slope's angle and -delta(theta) / cos(theta)."""
+    xx, yy = np.meshgrid(x, y)
+    r = np.hypot(xx, yy)
     with np.errstate(invalid="ignore", divide="ignore"):
         slope = np.where(r > 0, (gx * xx + gy * yy) / np.where(r > 0, r, 1.0), 0.0)
     theta = np.arctan(slope)
     return theta, -edge.deviation(theta) / np.cos(theta)
+
+
+def _band_imprints(edge: EdgeProfile, surface: Any, region: Sequence[float], pixel: float,
+                   shape: tuple[int, int], rows: int):
+    """(theta, imprint) of each band of ``rows`` rows of the grid in turn, equal to the
+    same rows of :func:`edge_imprint` on the whole grid: each band's design is evaluated
+    with a row beyond it either side, so its gradient is the whole grid's."""
+    ny, nx = shape
+    x = region[0] + pixel * np.arange(nx)
+    if min(ny, nx) <= 1:  # (no gradient: as edge_imprint, on the whole grid)
+        y = region[1] + pixel * np.arange(ny)
+        design = np.broadcast_to(surface.height(x[None, :], y[:, None]), (ny, nx))
+        yield edge_imprint(edge, np.array(design, dtype=np.float64), region, pixel)
+        return
+    for a in range(0, ny, rows):
+        b = min(a + rows, ny)
+        a0, b0 = max(a - 1, 0), min(b + 1, ny)
+        y = region[1] + pixel * np.arange(a0, b0)
+        band = np.array(np.broadcast_to(surface.height(x[None, :], y[:, None]), (b0 - a0, nx)),
+                        dtype=np.float64)
+        gy, gx = np.gradient(band, pixel)
+        keep = slice(a - a0, a - a0 + (b - a))
+        yield _contact(edge, x, y[keep], gx[keep], gy[keep])
+
+
+def edge_facts_tiled(tool: Any, compensation: str, design: Any, region: Sequence[float],
+                     pixel: float, residual: dict) -> dict:
+    """``metrics["tool_edge"]`` of a map simulated tile by tile, with the keys and the
+    warnings of :func:`edge_facts`: the contact angles and the predicted imprint from the
+    design (``design``: the ``[design]`` section) evaluated band by band (memory bounded
+    by a band), the form error (machined - design, mean removed) from the tiles'
+    ``residual`` metrics (its Sz and Sq)."""
+    edge = tool.edge
+    surface = make_surface(design)
+    shape = grid_shape(region, pixel)
+    rows = max(2, BAND_PIXELS // max(int(shape[1]), 1))
+    lo, hi = math.inf, -math.inf
+    n, mean, m2, imin, imax = 0, 0.0, 0.0, math.inf, -math.inf
+    for theta, imprint in _band_imprints(edge, surface, region, pixel, shape, rows):
+        lo, hi = min(lo, float(np.nanmin(theta))), max(hi, float(np.nanmax(theta)))
+        v = imprint[np.isfinite(imprint)]
+        if v.size:  # (the moments merged band by band: Chan et al.)
+            bm = float(v.mean())
+            bm2 = float(np.sum((v - bm) ** 2))
+            d, k = bm - mean, n + v.size
+            mean, m2, n = mean + d * v.size / k, m2 + bm2 + d * d * n * v.size / k, k
+            imin, imax = min(imin, float(v.min())), max(imax, float(v.max()))
+    return {**edge.to_dict(tool.half_angle),
+            "compensation": compensation,
+            "contact_angle_range_deg": [math.degrees(lo), math.degrees(hi)],
+            "warnings": edge_notes(edge, tool.nose_radius, (lo, hi), _CONTACT),
+            "imprint_predicted_pv_nm": (imax - imin if n else 0.0) * MM_TO_NM,
+            "imprint_predicted_rms_nm": (math.sqrt(m2 / n) if n else 0.0) * MM_TO_NM,
+            "form_error_pv_nm": float(residual["Sz_nm"]),
+            "form_error_rms_nm": float(residual["Sq_nm"])}
 
 
 def _rms(a) -> float:
@@ -72,8 +141,7 @@ def edge_facts(tool: Any, compensation: str, machined: np.ndarray, design: np.nd
              "contact_angle_range_deg": [math.degrees(lo), math.degrees(hi)],
              # what the cut took from beyond the measurement (the ends held), a fitted
              # radius the cut does not use
-             "warnings": edge_notes(edge, tool.nose_radius, (lo, hi),
-                                    "the design's slope on the simulated region (contact angles)"),
+             "warnings": edge_notes(edge, tool.nose_radius, (lo, hi), _CONTACT),
              # the imprint the edge leaves on a path planned for the circular nose
              "imprint_predicted_pv_nm": _pv(imprint) * MM_TO_NM,
              "imprint_predicted_rms_nm": _rms(imprint) * MM_TO_NM,

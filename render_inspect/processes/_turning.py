@@ -41,7 +41,7 @@ from ..toolpath import (
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
-from ._edge_facts import check_edge_and_wear
+from ._edge_facts import check_edge_and_wear, edge_facts_tiled
 from ._machine import ProcessScene, machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
@@ -561,6 +561,11 @@ class TiledTurningProcess(TurningProcess):
             sim = cfg.simulation
             plots.update(following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
                                                sim.pixel * stride, name=cfg.name))
+        tool = Tool.from_config(cfg.tool)
+        if tool.edge is not None and "residual" in cut:  # the whole map's tool_edge facts
+            sim = cfg.simulation
+            facts["tool_edge"] = edge_facts_tiled(tool, str(env.path.meta.get("compensation", "")),
+                                                  cfg.design, tuple(sim.region), sim.pixel, cut["residual"])
         return facts, plots
 
     def tiled_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> tuple[int, int]:

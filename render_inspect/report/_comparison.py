@@ -298,6 +298,23 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
                       f"mean of the repeats {fmt_quantity(rep.get('mean_map_rms_nm'), 'nm')} rms "
                       f"against its noise {fmt_quantity(rep.get('mean_map_floor_nm'), 'nm')}: "
                       f"{(rep.get('mean_map') or {}).get('verdict', 'unknown')}"))
+    edge = metrics.get("tool_edge")
+    if edge:  # a measured cutting edge: what it leaves on each cut, and what it is
+        per = edge["variants"]
+
+        def form(name):
+            e = per.get(name)
+            return fmt_quantity(e.get("form_error_rms_nm"), "nm") if e else "(circular nose)"
+        rows.append(("form error rms (measured edge)", form(va), form(vb)))
+        rng = edge.get("measured_range_deg")
+        imprint = next((e.get("imprint_predicted_rms_nm") for e in per.values() if e), None)
+        said = sum(len((e or {}).get("warnings") or []) for e in per.values())
+        lines.append(("measured cutting edge",
+                      f"{edge.get('source') or 'differs between the variants'}"
+                      + (f", measured {rng[0]:.4g} .. {rng[1]:.4g} deg" if rng else "")
+                      + f"; imprint predicted on a path planned for the circular nose "
+                        f"{fmt_quantity(imprint, 'nm')} rms"
+                      + (f"; {said} warning(s) in metrics.json tool_edge" if said else "")))
     return rows, lines
 
 

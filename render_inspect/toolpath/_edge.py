@@ -133,28 +133,45 @@ class EdgeProfile:
         d = self.within(half_angle)
         return float((d.max() - d.min()) * MM_TO_NM)
 
+    def check(self, nose_radius: float, half_width: float, *, what: str | None = None,
+              points: int = TABLE_POINTS) -> None:
+        """Refuse, in one line (:class:`InputError`), an edge the cut cannot take with a nose
+        of ``nose_radius`` (mm) over the radial half-width ``half_width`` (mm): a largest
+        |deviation| beyond :data:`MAX_DEVIATION_FRACTION` of the nose radius, or an edge that
+        folds back over the radial offset.  ``what`` names the edge in the message (the
+        scene keys it comes from); by default its source.  Called before a run, and again by
+        :meth:`height_table` (of ``points`` points)."""
+        Rc = float(nose_radius)
+        hw = min(float(half_width), Rc)
+        what = what or f"tool edge ({self.source})"
+        if self.delta.size:
+            k = int(np.argmax(np.abs(self.delta)))
+            dmax = abs(float(self.delta[k]))
+            if dmax > MAX_DEVIATION_FRACTION * Rc:
+                raise InputError(f"{what}: |deviation| must be <= {MAX_DEVIATION_FRACTION * Rc * MM_TO_NM:g} nm "
+                                 f"({MAX_DEVIATION_FRACTION * 100:g} % of tool.nose_radius = {Rc:g} mm: the "
+                                 f"cut takes the edge as a graph over the radial offset), received "
+                                 f"{dmax * MM_TO_NM:.6g} nm (the largest, at "
+                                 f"{math.degrees(float(self.angle[k])):.4g} deg)")
+        # the edge point by point, a little beyond the arc's half-width
+        th_max = math.asin(min(hw / Rc, 1.0))
+        th_hi = min(th_max * 1.05 + 0.01, math.pi / 2)
+        th = np.linspace(-th_hi, th_hi, 4 * points + 1)
+        x = (Rc + self.deviation(th)) * np.sin(th)
+        fold = np.flatnonzero(np.diff(x) <= 0)
+        if fold.size:
+            raise InputError(f"{what}: the edge folds back over the radial offset at "
+                             f"{math.degrees(float(th[int(fold[0])])):.4g} deg (its deviation changes "
+                             f"faster than the nose turns); a measured edge must be a smooth graph "
+                             f"over the angle within the nose arc (+-{math.degrees(th_hi):.4g} deg)")
+
     def height_table(self, nose_radius: float, half_width: float, points: int = TABLE_POINTS) -> np.ndarray:
         """The kernels' table: [d0, 1 / step, lowest entry (<= 0), g_0 .. g_(points-1)] with
         g(d) the height (mm) of the edge above the circular arc Rc - sqrt(Rc^2 - d^2) at the
         radial offset d = d0 + i step, d0 = -half_width .. +half_width."""
         Rc = float(nose_radius)
         hw = min(float(half_width), Rc)
-        dmax = float(np.max(np.abs(self.delta))) if self.delta.size else 0.0
-        if dmax > MAX_DEVIATION_FRACTION * Rc:
-            raise InputError(f"tool edge ({self.source}): |deviation| must be <= "
-                             f"{MAX_DEVIATION_FRACTION:g} x tool.nose_radius = "
-                             f"{MAX_DEVIATION_FRACTION * Rc * MM_TO_NM:g} nm, received "
-                             f"{dmax * MM_TO_NM:.6g} nm")
-        # the edge point by point, a little beyond the arc's half-width
-        th_max = math.asin(min(hw / Rc, 1.0))
-        th_hi = min(th_max * 1.05 + 0.01, math.pi / 2)
-        th = np.linspace(-th_hi, th_hi, 4 * points + 1)
-        r = Rc + self.deviation(th)
-        x = r * np.sin(th)
-        if np.any(np.diff(x) <= 0):
-            raise InputError(f"tool edge ({self.source}): the edge folds back over the radial "
-                             f"offset (its deviation changes faster than the nose turns); a "
-                             f"measured edge must be a smooth graph over the angle")
+        self.check(Rc, hw, points=points)
         # the angle of the edge point at each offset d: (Rc + delta(t)) sin t = d, by fixed
         # point from the circle's angle (a contraction: |delta'| tan t << Rc)
         d = np.linspace(-hw, hw, points)
@@ -426,10 +443,12 @@ def _cached(path: str, mtime: float, size: int, nose_radius: float | None) -> Ed
 
 def edge_of(edge_profile: str | None, waviness: Sequence[Sequence[float]] | None, *,
             nose_radius: float | None = None,
-            amplitude_scale: float = 1.0) -> EdgeProfile | None:
+            amplitude_scale: float = 1.0, half_width: float | None = None) -> EdgeProfile | None:
     """The edge a ``[tool]`` section describes (``edge_profile`` file, ``waviness``
     harmonics, both summed), or None for a circular nose.  ``amplitude_scale`` multiplies
-    the deviation."""
+    the deviation.  With ``nose_radius`` and ``half_width`` (the nose arc's radial
+    half-width, mm) the edge is checked as the cut will take it (:meth:`EdgeProfile.check`):
+    one that is not is refused here, in one line naming the scene keys it comes from."""
     edge = None
     if edge_profile:
         p = os.fspath(edge_profile)
@@ -449,4 +468,9 @@ def edge_of(edge_profile: str | None, waviness: Sequence[Sequence[float]] | None
                                edge.fitted_radius, edge.covers)
     if edge is not None and amplitude_scale != 1.0:
         edge = edge.scaled(amplitude_scale)
+    if edge is not None and nose_radius is not None and half_width is not None:
+        keys = [f"tool.edge_profile {os.fspath(edge_profile)}"] if edge_profile else []
+        keys += ["tool.waviness"] if waviness else []
+        scale = f" x tool.edge_scale = {amplitude_scale:g}" if amplitude_scale != 1.0 else ""
+        edge.check(nose_radius, half_width, what=" + ".join(keys) + scale)
     return edge

@@ -40,8 +40,12 @@ class Tool:
 
     @classmethod
     def from_config(cls, cfg: Any) -> "Tool":
+        # (a measured edge is checked against the nose arc it cuts with: refused here, before
+        # any work, when the cut cannot take it)
+        half_width = cfg.nose_radius * math.sin(min(math.radians(cfg.included_angle_deg) / 2, math.pi / 2))
         edge = edge_of(getattr(cfg, "edge_profile", None), getattr(cfg, "waviness", None),
-                       nose_radius=cfg.nose_radius, amplitude_scale=getattr(cfg, "edge_scale", 1.0))
+                       nose_radius=cfg.nose_radius, amplitude_scale=getattr(cfg, "edge_scale", 1.0),
+                       half_width=half_width)
         return cls(cfg.nose_radius, math.radians(cfg.included_angle_deg),
                    math.radians(cfg.rake_angle_deg), math.radians(cfg.clearance_angle_deg), edge)
 
