@@ -51,7 +51,8 @@ def compare(p: dict, progress=_nothing) -> dict:
     pipeline = _pipeline()
 
     return pipeline.compare_scene(p["scene_path"], overrides=p.get("overrides", ()),
-                                  out=p["out"], progress=progress)
+                                  out=p["out"], measured=p.get("measured"),
+                                  units=p.get("units"), line=p.get("line"), progress=progress)
 
 
 def export(p: dict, progress=_nothing) -> dict:

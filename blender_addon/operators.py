@@ -19,7 +19,7 @@ from pathlib import Path
 import bpy
 
 from . import _deps, _jobs, _lib
-from .properties import load_params, overrides, scene_file
+from .properties import FIELD_NAMES, FILE_FIELDS, file_field, load_params, overrides, scene_file
 
 
 #: The custom property on the meshes Simulate makes (``render_inspect.pipeline``'s
@@ -87,7 +87,19 @@ def _variant_source(settings) -> dict:
     return pipeline.surface_info(obj)
 
 
+def check_file(settings, field: str) -> str:
+    """The file in the panel's field ``field`` ('' when empty); one line naming the field
+    when it is not a file."""
+    path = file_field(settings, field)
+    if path and not Path(path).is_file():
+        what = "is a folder" if Path(path).is_dir() else "does not exist"
+        raise AddonError(f"{FIELD_NAMES[field]}: {path!r} {what}; choose a file")
+    return path
+
+
 def _scene_params(settings) -> dict:
+    for field in ("scene_path", *(f for f, _ in FILE_FIELDS)):
+        check_file(settings, field)
     path = scene_file(settings)
     if not path:
         raise AddonError("scene: choose a preset or a scene file (.toml) first")
@@ -142,14 +154,26 @@ class _Work:
             params, _ = self.prepare(context)
         except Exception as err:
             return self._fail(context, err)
-        settings.last_error = ""
+        settings.last_error = settings.last_warnings = ""
         settings.job_label = self.bl_label
         try:
             result = _jobs.run_here(self.task, params)
             message = self.finish(context, params, result)
         except Exception as err:
             return self._fail(context, err)
+        return self._done(context, message, result)
+
+    def _done(self, context, message: str, result) -> set:
+        """Report the result and, as the command line does, each of its warnings (one
+        line each: also kept for the panel)."""
+        settings = _settings(context)
+        warns = [one_line(w) for w in (result or {}).get("warnings") or [] if str(w).strip()]
+        settings.last_warnings = "\n".join(warns)
+        if warns:
+            message += f" ({len(warns)} warning{'s' if len(warns) > 1 else ''}, in the panel)"
         settings.last_message = message
+        for text in warns:
+            self.report({"WARNING"}, text)
         self.report({"INFO"}, message)
         return {"FINISHED"}
 
@@ -164,7 +188,7 @@ class _Work:
         except Exception as err:
             return self._fail(context, err)
         self._params = params
-        settings.last_error = ""
+        settings.last_error = settings.last_warnings = ""
         settings.job_running = True
         settings.cancel_requested = False
         settings.job_label = self.bl_label
@@ -217,12 +241,11 @@ class _Work:
             message = self.finish(context, self._params, job.result)
         except Exception as err:
             return self._fail(context, err)
-        settings.last_message = message
-        self.report({"INFO"}, message)
-        return {"FINISHED"}
+        return self._done(context, message, job.result)
 
     def _fail(self, context, err):
         settings = _settings(context)
+        settings.last_warnings = ""
         settings.last_error = one_line(f"{self.bl_label}: {_error_text(err)}")
         self.report({"ERROR"}, settings.last_error)
         return {"CANCELLED"}
@@ -287,7 +310,8 @@ class RENDER_INSPECT_OT_render(_Work, bpy.types.Operator):
 
         names = pipeline.load_render_images(result)
         notes = "; ".join(result.get("notes", []))
-        return f"rendered {', '.join(names)}" + (f" ({notes})" if notes else "")
+        return (f"rendered {', '.join(names)} -> {Path(result['cycles_png']).parent}"
+                + (f" ({notes})" if notes else ""))
 
 
 class RENDER_INSPECT_OT_compare(_Work, bpy.types.Operator):
@@ -304,6 +328,13 @@ class RENDER_INSPECT_OT_compare(_Work, bpy.types.Operator):
         p = _scene_params(settings)
         out = output_root(settings) / "compare"
         p["out"] = str(out)
+        measured = check_file(settings, "measured_path")
+        if measured:
+            p.update(measured=measured, units=settings.measured_units.strip() or None,
+                     line=settings.measured_line.strip() or None)
+        elif settings.measured_units.strip() or settings.measured_line.strip():
+            raise AddonError("Profile units and Profile line are for a measured profile: "
+                             "choose the Measured file, or empty them")
         return p, [out]
 
     def finish(self, context, params, result):
@@ -312,7 +343,8 @@ class RENDER_INSPECT_OT_compare(_Work, bpy.types.Operator):
         settings.report_path = result["report"]
         if settings.open_report and not bpy.app.background:
             webbrowser.open(Path(result["report"]).as_uri())
-        return f"compared: {result['report']}"
+        against = f" with {Path(params['measured']).name}" if params.get("measured") else ""
+        return f"compared{against}: {result['report']}"
 
 
 class RENDER_INSPECT_OT_export(_Work, bpy.types.Operator):

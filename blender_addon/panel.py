@@ -57,6 +57,9 @@ class RENDER_INSPECT_PT_main(bpy.types.Panel):
         col.prop(settings, "program_path", text="Program")
         if settings.program_path.strip():
             col.label(text="The program is cut instead of the planned path", icon="INFO")
+        col.prop(settings, "edge_path", text="Tool edge")
+        if settings.edge_path.strip():
+            col.label(text="This measured edge replaces the scene's", icon="INFO")
         layout.prop(settings, "output_dir")
         if settings.job_running:
             box = layout.box()
@@ -70,6 +73,11 @@ class RENDER_INSPECT_PT_main(bpy.types.Panel):
             _wrapped(box, settings.last_error, icon="ERROR")
         elif settings.last_message and not settings.job_running:
             _wrapped(layout.box(), settings.last_message, icon="CHECKMARK")
+        if settings.last_warnings and not settings.job_running:
+            box = layout.box()
+            box.alert = True
+            for text in settings.last_warnings.splitlines():
+                _wrapped(box, text, icon="ERROR")
 
         col = layout.column(align=True)
         col.prop(settings, "surface")
@@ -93,6 +101,11 @@ class RENDER_INSPECT_PT_main(bpy.types.Panel):
         row.enabled = _deps.has_mitsuba()
         row.prop(settings, "render_interferogram")
         layout.operator("render_inspect.render", icon="RENDER_STILL")
+        col = layout.column(align=True)
+        col.prop(settings, "measured_path", text="Measured")
+        if settings.measured_path.strip():
+            col.prop(settings, "measured_units")
+            col.prop(settings, "measured_line")
         layout.operator("render_inspect.compare", icon="VIEWZOOM")
         layout.prop(settings, "export_formats", expand=True)
         layout.operator("render_inspect.export", icon="EXPORT")
@@ -148,14 +161,25 @@ class RENDER_INSPECT_PT_results(bpy.types.Panel):
             layout.label(text="Run Compare to see the metrics here")
             return
         names = list(comp.get("variants") or ("compensated", "uncompensated"))
-        grid = layout.grid_flow(columns=3, align=True, row_major=True, even_columns=True)
-        for text in ("", *names):
+        heads = list(comp.get("labels") or names) if comp.get("kind") == "profile" else names
+        grid = layout.grid_flow(columns=1 + len(names), align=True, row_major=True,
+                                even_columns=True)
+        for text in ("", *heads):
             grid.label(text=text)
         for row in comp.get("rows", []):
             values = row.get("values") or [row.get(n) for n in names]
             grid.label(text=f"{row['label']} ({row['unit']})")
             for value in values:
                 grid.label(text=_fmt(value))
+        reg = comp.get("registration") or {}
+        if comp.get("kind") == "profile":
+            if comp.get("virtual_measurement") == "failed":
+                layout.label(text="The virtual measurement failed (see the warnings)",
+                             icon="ERROR")
+            if reg.get("shift_um") is not None:
+                layout.label(text=f"Registered {reg['shift_um']:+.3g} um along the line, "
+                                  f"correlation {_fmt(reg.get('correlation'))}"
+                                  + ("" if reg.get("reliable") else " (not reliable)"))
         if comp.get("difference_rms_nm") is not None:
             layout.label(text=f"Difference RMS: {comp['difference_rms_nm']:.3g} nm")
         layout.operator("render_inspect.open_report", icon="URL")

@@ -21,6 +21,21 @@ from ._scenes import (DEFAULT_PRESET, PARAM_SECTIONS, load_params, preset_path, 
 variant_items = _callbacks.variant_items
 
 
+#: The panel's file fields that become scene keys: (property, scene key).
+FILE_FIELDS = (("program_path", "process.program"), ("edge_path", "tool.edge_profile"))
+#: What the panel calls each file field (its errors name it).
+FIELD_NAMES = {"scene_path": "Scene file", "program_path": "Program file",
+               "edge_path": "Tool edge file", "measured_path": "Measured file",
+               "output_dir": "Output folder"}
+
+
+def file_field(settings, field: str) -> str:
+    """The absolute path in the panel's file field ``field`` ('//' relative to the .blend
+    file), or '' when it is empty."""
+    text = getattr(settings, field).strip()
+    return bpy.path.abspath(text) if text else ""
+
+
 def overrides(settings) -> list[str]:
     """The ``section.key=value`` overrides the panel stands for."""
     out = []
@@ -35,9 +50,10 @@ def overrides(settings) -> list[str]:
                 out.append(f"{item.key}={value!r}")
     if settings.compensation != "SCENE":
         out.append(f'process.compensation="{settings.compensation}"')
-    if settings.program_path.strip():
-        program = bpy.path.abspath(settings.program_path.strip())
-        out.append(f"process.program={json.dumps(program)}")
+    for field, key in FILE_FIELDS:
+        path = file_field(settings, field)
+        if path:
+            out.append(f"{key}={json.dumps(path)}")
     out.extend(item.strip() for item in settings.extra_overrides.split(";") if item.strip())
     return out
 
@@ -63,6 +79,24 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
         name="Program file", subtype="FILE_PATH", default="",
         description="A machine program (NC / G-code / C X Z point list) simulated in place of "
                     "the planned path (process.program; the scene gives the rest)")
+    edge_path: StringProperty(
+        name="Tool edge file", subtype="FILE_PATH", default="",
+        description="The measured cutting edge of your tool (tool.edge_profile: a table "
+                    "'angle_deg, deviation_nm', 'angle_deg, radius_um' or 'x_um, z_um'); "
+                    "empty: the scene's")
+    measured_path: StringProperty(
+        name="Measured file", subtype="FILE_PATH", default="",
+        description="Compare against this measurement (compare --measured): a height map "
+                    "(X3P, EXR, SUR, ...) as a third column, or a profile (text export, "
+                    ".opdx, X3P PRF) along a line of the part")
+    measured_units: StringProperty(
+        name="Profile units", default="",
+        description="A measured profile's units when its file does not state them (compare "
+                    "--units): um, mm, nm or POSITION,HEIGHT, e.g. um,nm")
+    measured_line: StringProperty(
+        name="Profile line", default="",
+        description="The line of a measured profile on the part, X0,Y0,X1,Y1 in mm (compare "
+                    "--line); empty: for a turned part a diameter through the spindle axis")
     output_dir: StringProperty(
         name="Output folder", subtype="DIR_PATH", default="",
         description="Where the simulation, renders, report and exports go (empty: "
@@ -130,6 +164,8 @@ class RenderInspectSettings(bpy.types.PropertyGroup):
     cancel_requested: BoolProperty(name="Cancel requested", default=False)
     last_error: StringProperty(name="Error", default="")
     last_message: StringProperty(name="Message", default="")
+    last_warnings: StringProperty(name="Warnings", default="",
+                                  description="The last run's warnings, one a line")
     output_path: StringProperty(name="Output", default="", subtype="DIR_PATH")
     simulation_json: StringProperty(name="Simulation", default="")
     compare_json: StringProperty(name="Comparison", default="")

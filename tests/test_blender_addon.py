@@ -55,7 +55,7 @@ def settings(addon, tmp_path):
     pipeline.remove_blender_surfaces()
     s = bpy.context.scene.render_inspect
     s.scene_path = ""
-    s.program_path = ""
+    s.program_path = s.edge_path = s.measured_path = s.measured_units = s.measured_line = ""
     s.preset = "sts_sinusoidal_grid"
     addon.properties.load_params(s)
     s.output_dir = str(tmp_path / "out")
@@ -63,7 +63,7 @@ def settings(addon, tmp_path):
     s.exaggeration = 0.0
     s.compensation = "SCENE"
     s.surface = "machined"
-    s.last_error = s.last_message = s.simulation_json = s.compare_json = ""
+    s.last_error = s.last_message = s.last_warnings = s.simulation_json = s.compare_json = ""
     s.variant = "compensated"  # (the variants listed are those of the last Simulate)
     s.job_running = False
     return s
@@ -445,3 +445,133 @@ def test_a_render_in_a_worker_process_reports_cycles_progress(settings, addon, t
     a, _ = read_exr(tmp_path / "r" / "cycles.exr")
     b, _ = read_exr(here["cycles_exr"])
     np.testing.assert_allclose(a["G"], b["G"], atol=1e-6)
+
+
+def _edge_file(path: Path, half_range_deg: float = 10.0) -> Path:
+    """A measured cutting edge covering only +-``half_range_deg`` of the nose."""
+    rows = [(a, 20.0 * np.sin(np.radians(a) * 3.0))
+            for a in np.linspace(-half_range_deg, half_range_deg, 11)]
+    path.write_text("angle_deg, deviation_nm\n" + "".join(f"{a:.3f}, {d:.4f}\n" for a, d in rows))
+    return path
+
+
+def test_a_measured_tool_edge_field_and_the_warnings_the_command_line_gives(settings, addon,
+                                                                             tmp_path):
+    """The Tool edge field becomes tool.edge_profile; Simulate says, as ``simulate``
+    does, that the nose arc reaches beyond the measured angles (the same line
+    ``edge_warnings`` gives for that scene), in the operator's report and in the panel."""
+    import bpy
+
+    from render_inspect.pipeline import edge_warnings
+    from render_inspect.scene import load_scene
+
+    edge = _edge_file(tmp_path / "edge.csv")
+    settings.edge_path = str(edge)
+    ov = addon.properties.overrides(settings)
+    assert f"tool.edge_profile={json.dumps(str(edge))}" in ov
+    expected = edge_warnings(load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml", ov))
+    assert expected and "-10 to 10 deg" in expected[0]
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    shown = settings.last_warnings.splitlines()
+    assert shown[0] == expected[0]
+    assert json.loads(settings.simulation_json)["warnings"][0] == expected[0]
+    assert settings.last_message.endswith(f"({len(shown)} warning{'s' if len(shown) > 1 else ''}, "
+                                          f"in the panel)")
+    drawn = _draw(addon)["RENDER_INSPECT_PT_main"]
+    assert "prop edge_path" in drawn
+    assert any(x.startswith("label tool edge (edge.csv) is measured") for x in drawn)
+    # the measured edge was cut with: the meshes record it
+    rec = json.loads(addon.operators.variant_objects()["compensated"]["render_inspect_scene"])
+    assert rec["tool"]["edge_profile"] == str(edge)
+    # a run without warnings clears them
+    settings.edge_path = ""
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    assert settings.last_warnings == ""
+    assert not any("tool edge" in x for x in _draw(addon)["RENDER_INSPECT_PT_main"])
+
+
+@pytest.mark.parametrize("field, label", [("edge_path", "Tool edge file"),
+                                          ("program_path", "Program file"),
+                                          ("scene_path", "Scene file")])
+def test_a_file_field_that_is_not_a_file_is_named(settings, addon, tmp_path, field, label):
+    import bpy
+
+    for value, what in ((tmp_path / "missing.csv", "does not exist"), (tmp_path, "is a folder")):
+        setattr(settings, field, str(value))
+        with pytest.raises(RuntimeError, match=f"{label}: '{value}' {what}; choose a file"):
+            bpy.ops.render_inspect.simulate()
+        assert settings.last_error.startswith(f"Simulate: {label}:")
+        assert addon.operators.variant_objects() == {}
+        assert not Path(settings.output_dir).exists()
+
+
+def test_simulating_again_leaves_no_stale_data(settings, addon):
+    """Simulate, Render, Simulate again: the meshes, material and images are the same
+    number as after the first Simulate; the image of the render made of the replaced
+    mesh (its file went with the variant's folder) is gone."""
+    import bpy
+
+    def count():  # (Blender's own "Render Result" image is not the add-on's)
+        n = {k: len(getattr(bpy.data, k)) for k in ("objects", "meshes", "materials")}
+        return dict(n, images=sum(i.name != "Render Result" for i in bpy.data.images))
+
+    assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+    first = count()
+    settings.resolution, settings.samples, settings.render_interferogram = 16, 2, False
+    assert bpy.ops.render_inspect.render() == {"FINISHED"}
+    img = bpy.data.images["render_inspect_compensated_cycles"]
+    png = Path(bpy.path.abspath(img.filepath))
+    assert png.is_file() and settings.last_message.endswith(f"-> {png.parent}")
+    for _ in range(2):
+        assert bpy.ops.render_inspect.simulate() == {"FINISHED"}
+        assert not png.exists()
+        assert "render_inspect_compensated_cycles" not in bpy.data.images
+        now = count()
+        assert {k: now[k] for k in ("meshes", "materials", "images")} == \
+            {k: first[k] for k in ("meshes", "materials", "images")}
+
+
+def test_compare_with_a_measured_profile(settings, addon, tmp_path):
+    """The Measured field, with its units and line, runs ``compare --measured PROFILE``:
+    the Comparison panel shows the measured profile, the simulated measurement and the
+    simulated cut side by side, the numbers of the same comparison run here, and its
+    warnings as the command line gives them."""
+    import bpy
+
+    from render_inspect.pipeline import run_compare_command
+    from render_inspect.scene import load_scene
+
+    # the measured profile: the design's sinusoid along the line, 1 um apart, with the
+    # feed marks of a 20 um feed as parabolic scallops (a forward model of a cut)
+    s_um = np.arange(0.0, 200.0, 1.0)
+    z_nm = 50.0 * np.sin(2 * np.pi * s_um / 100.0) + 8.0 * ((s_um % 20.0) - 10.0) ** 2 / 100.0
+    prof = tmp_path / "profile.txt"
+    prof.write_text("".join(f"{a:.3f} {b:.4f}\n" for a, b in zip(s_um, z_nm)))
+    settings.measured_path = str(prof)
+    settings.measured_units = "um,nm"
+    settings.measured_line = "-0.1,0,0.1,0"
+    assert bpy.ops.render_inspect.compare() == {"FINISHED"}
+    comp = json.loads(settings.compare_json)
+    assert comp["kind"] == "profile"
+    assert comp["variants"] == ["measured", "simulated_measured", "true"]
+    ref = run_compare_command(load_scene(REPO / "scenes" / "sts_sinusoidal_grid.toml", SMALL),
+                              tmp_path / "ref", measured=prof, units="um,nm", line="-0.1,0,0.1,0")
+    rq = next(r for r in comp["rows"] if r["label"] == "Rq")
+    assert rq["values"] == pytest.approx(
+        [ref["profiles"][k]["profile"]["Rq_nm"] for k in comp["variants"]], rel=1e-9)
+    assert comp["warnings"] == ref["warnings"]
+    assert settings.last_warnings.splitlines() == ref["warnings"]
+    assert Path(comp["report"]).is_file() and settings.last_message.startswith(
+        "compared with profile.txt:")
+    results = _draw(addon)["RENDER_INSPECT_PT_results"]
+    assert results[1:5] == ["label ", "label measured", "label simulated measurement",
+                            "label simulated cut"]
+    assert any(x.startswith("label Registered") for x in results)
+    assert "prop measured_units" in _draw(addon)["RENDER_INSPECT_PT_main"]
+    # units without a measured profile, and a measured file that is not there, are named
+    settings.measured_path = ""
+    with pytest.raises(RuntimeError, match="Profile units and Profile line are for a measured"):
+        bpy.ops.render_inspect.compare()
+    settings.measured_path = str(tmp_path / "nope.txt")
+    with pytest.raises(RuntimeError, match="Measured file: .*nope.txt' does not exist"):
+        bpy.ops.render_inspect.compare()

@@ -29,6 +29,7 @@ from ..io import (
     write_marker,
     write_x3p,
 )
+from ..core.units import MM_TO_UM
 from ..mesh import export_mesh, heightmap_mesh
 from ..render import (
     PROP_EXAGGERATION,
@@ -40,20 +41,23 @@ from ..render import (
     blend_objects,
     default_output_dir,
     load_image,
+    remove_image,
     remove_object,
     render_object,
     surface_material,
     surface_object,
 )
 from ..scene import compare_pair, load_scene, scene_from_dict, shipped_scenes, variant_scene
-from ._compare import run_compare
+from ._compare_profile import run_compare_command
 from ._render import write_interferogram_outputs
+from ._blender_warnings import note, scene_warnings, variant_warnings, warnings_into
 from ._simulate import simulate, write_simulation
 
 __all__ = ["simulate_into_blender", "simulate_variants", "surfaces_into_blender",
            "blender_surfaces", "surface_info", "remove_blender_surfaces", "render_variant",
            "load_render_images", "compare_scene", "export_variant", "blender_output_dir",
            "blender_presets", "VARIANT_PROPERTY", "EXPORT_FORMATS", "PANEL_METRICS", "SIDE_BY_SIDE_GAP",
+           "RENDER_IMAGES",
            "RENDER_SOURCE"]
 
 #: The custom property naming the variant of a mesh :func:`surfaces_into_blender` made.
@@ -65,6 +69,8 @@ SIDE_BY_SIDE_GAP = 0.15
 #: Name of the temporary mesh :func:`render_variant` renders when the surface is not in
 #: this Blender (a worker process).
 RENDER_SOURCE = "render_inspect_render_source"
+#: The images :func:`load_render_images` makes, ``render_inspect_<variant>_<kind>``.
+RENDER_IMAGES = ("cycles", "interferogram")
 #: Metrics :func:`compare_scene` returns for a panel: (label, path in a variant's
 #: metrics, unit).
 PANEL_METRICS = (
@@ -73,6 +79,19 @@ PANEL_METRICS = (
     ("Deepest overcut", ("residual", "min_nm"), "nm"),
     ("Measured Sq", ("measured", "instrument_residual_Sq_nm"), "nm"),
 )
+
+
+#: Parameters of a measured profile :func:`compare_scene` shows: (label, key in a
+#: profile's ``profile`` metrics, unit, factor from the metric's unit to ``unit``).
+_PROFILE_METRICS = (
+    ("Ra", "Ra_nm", "nm", 1.0),
+    ("Rq", "Rq_nm", "nm", 1.0),
+    ("Rt", "Rt_nm", "nm", 1.0),
+    ("RSm", "RSm_mm", "um", MM_TO_UM),
+)
+#: The columns of a measured profile's comparison: (key in ``profiles``, label).
+_PROFILE_COLUMNS = (("measured", "measured"), ("simulated_measured", "simulated measurement"),
+                   ("true", "simulated cut"))
 
 
 def _quiet(fraction: float, message: str) -> None:
@@ -124,15 +143,29 @@ def simulate_variants(scene_path: str | Path, *, overrides: Iterable[str] = (), 
         ``label``, ``values`` (the scene keys the variant sets), ``compensation`` (the
         tool-radius compensation the process applies; ``"none"`` for sculpturing),
         ``residual`` (metrics),
-        ``shape``, ``pixel_mm``}}.
+        ``shape``, ``pixel_mm``}}; ``warnings``: what ``render-inspect simulate`` warns
+        of, one line each (values that look like unit mistakes, a measured tool edge used
+        beyond its measured angles, a program's findings), prefixed with the variant
+        where it is that variant's.
     """
-    progress = progress or _quiet
+    warns: list[str] = []
+    with warnings_into(warns):
+        result = _simulate_variants(scene_path, overrides, out, surface, exaggeration,
+                                    progress or _quiet, warns)
+    result["warnings"] = warns
+    return result
+
+
+def _simulate_variants(scene_path: str | Path, overrides: Iterable[str], out: str | Path,
+                       surface: str, exaggeration: float | None,
+                       progress: Callable[[float, str], None], warns: list[str]) -> dict:
     if surface not in ("machined", "design", "residual"):
         raise InputError(f"surface must be machined, design or residual, got {surface!r}")
     if exaggeration is not None:
         check_positive("exaggeration", exaggeration)
     progress(0.02, "loading the scene")
     scene = load_scene(scene_path, list(overrides))
+    scene_warnings(scene, warns)
     out = Path(out)
     pair = compare_pair(scene)
     result: dict[str, Any] = {"scene_name": scene.name, "out": str(out.resolve()),
@@ -151,6 +184,7 @@ def simulate_variants(scene_path: str | Path, *, overrides: Iterable[str] = (), 
             first = first or sim.heightmap
             (Path(tmp) / name).mkdir()
             metrics = write_simulation(sim, Path(tmp) / name)
+            variant_warnings(name, metrics, warns)
             # a folder of its own: the renders of this variant are added to it later
             write_marker(Path(tmp) / name, command="simulate", scene=sc)
             result["variants"][name] = {
@@ -173,7 +207,9 @@ def simulate_variants(scene_path: str | Path, *, overrides: Iterable[str] = (), 
 def surfaces_into_blender(result: dict, *, collection: Any = None) -> dict:
     """The meshes of a :func:`simulate_variants` result, side by side in Blender.
 
-    Earlier ones are removed first.  Each is named ``render_inspect_<variant>_x<exaggeration>``
+    Earlier ones are removed first, and with them the images of their renders
+    (``render_inspect_<variant>_cycles`` / ``_interferogram``: their files were in the
+    variants' folders, which a new simulation replaces).  Each is named ``render_inspect_<variant>_x<exaggeration>``
     and carries the custom properties ``render_inspect_variant``,
     ``render_inspect_exaggeration``, ``render_inspect_heightmap_path``,
     ``render_inspect_offset_mm`` (its shift along x: the second variant, e.g. the
@@ -188,6 +224,10 @@ def surfaces_into_blender(result: dict, *, collection: Any = None) -> dict:
     ex = float(result["exaggeration"])
     names = list(result["variants"])  # in the pair's order
     maps = {v: read_heightmap_exr(result["variants"][v]["heightmap"]) for v in names}
+    # the renders of the meshes replaced (their files went with the variants' folders)
+    for variant in set(blender_surfaces()) | set(names):
+        for kind in RENDER_IMAGES:
+            remove_image(f"render_inspect_{variant}_{kind}")
     remove_blender_surfaces()
     made, shift = {}, 0.0
     try:
@@ -248,7 +288,8 @@ def render_variant(heightmap: str | Path, *, variant: str, surface: str = "machi
     dict
         ``variant``, ``cycles_png``, ``cycles_exr``, ``cycles_time_s``, and with the
         interferogram ``interferogram_png``, ``interferogram_exr``, ``interferogram``
-        (its summary); ``notes`` (what was left out and why).
+        (its summary); ``notes`` (what was left out and why); ``warnings`` (what the
+        interferometer warns of, one line each).
     """
     progress = progress or _quiet
     progress(0.02, "loading the height map")
@@ -272,7 +313,17 @@ def render_variant(heightmap: str | Path, *, variant: str, surface: str = "machi
             remove_object(RENDER_SOURCE)
     result: dict[str, Any] = {"variant": variant, "cycles_png": str(res["png"]),
                               "cycles_exr": str(res["exr"]),
-                              "cycles_time_s": float(res["time_s"]), "notes": []}
+                              "cycles_time_s": float(res["time_s"]), "notes": [],
+                              "warnings": []}
+    with warnings_into(result["warnings"]):
+        _interferogram_into(result, hm, path, surface, out, interferogram, progress)
+    progress(1.0, "done")
+    return result
+
+
+def _interferogram_into(result: dict, hm: Any, path: str, surface: str, out: str | Path,
+                        interferogram: bool, progress: Callable[[float, str], None]) -> None:
+    """:func:`render_variant`'s interferogram, its files and summary into ``result``."""
     if interferogram:
         if importlib.util.find_spec("mitsuba") is None:
             result["notes"].append("no interferogram: Mitsuba is not available on this platform")
@@ -294,8 +345,6 @@ def render_variant(heightmap: str | Path, *, variant: str, surface: str = "machi
                           interferogram_exr=str(o / "interferogram.exr"),
                           interferogram={k: v for k, v in summary.items()
                                          if isinstance(v, (int, float, str))})
-    progress(1.0, "done")
-    return result
 
 
 def load_render_images(result: dict) -> list[str]:
@@ -303,7 +352,8 @@ def load_render_images(result: dict) -> list[str]:
     ``render_inspect_<variant>_cycles`` and ``render_inspect_<variant>_interferogram``;
     return their names."""
     names = []
-    for key, suffix in (("cycles_png", "cycles"), ("interferogram_png", "interferogram")):
+    for suffix in RENDER_IMAGES:
+        key = f"{suffix}_png"
         if key in result:
             names.append(load_image(result[key], f"render_inspect_{result['variant']}_{suffix}").name)
     return names
@@ -318,35 +368,89 @@ def _metric(d: Any, path: Iterable[str]) -> int | float | None:
 
 
 def compare_scene(scene_path: str | Path, *, overrides: Iterable[str] = (), out: str | Path,
+                  measured: str | Path | None = None, units: str | None = None,
+                  line: str | None = None,
                   progress: Callable[[float, str], None] | None = None) -> dict:
-    """``render-inspect compare`` (:func:`run_compare`) into ``out``, with the metrics a
-    panel shows.
+    """``render-inspect compare`` (:func:`run_compare_command`) into ``out``, with the
+    metrics a panel shows.
+
+    Parameters
+    ----------
+    scene_path : str or Path
+        A scene file (TOML) or the name of a shipped scene.
+    overrides : sequence of str
+        ``section.key=value`` overrides.
+    out : str or Path
+        Output folder.
+    measured : str, Path or None
+        ``--measured``: a measured height map (a third column beside the two variants) or
+        a measured profile (compared along a line with the simulated measurement and the
+        simulated cut instead of the two variants).
+    units, line : str or None
+        ``--units`` and ``--line`` of a measured profile.
+    progress : callable or None
 
     Returns
     -------
     dict
-        ``report`` (report.html), ``metrics_json``, ``variants`` (the two variant names
-        in order: ``compensated``, ``uncompensated`` for turning; the process's own pair
-        otherwise), ``labels``, ``rows`` ({``label``, ``unit``, ``values`` (one per
-        variant) and the values under the variant names too} for :data:`PANEL_METRICS`)
-        and ``difference_rms_nm``.
+        ``report`` (report.html), ``metrics_json``, ``kind`` (``"variants"`` or
+        ``"profile"``), ``variants`` (the column names: the two variants in order,
+        ``compensated``, ``uncompensated`` for turning, the process's own pair otherwise;
+        for a measured profile ``measured``, ``simulated_measured``, ``true``),
+        ``labels``, ``rows`` ({``label``, ``unit``, ``values`` (one per column) and the
+        values under the column names too}: :data:`PANEL_METRICS`, or
+        Ra, Rq, Rt and RSm for a measured profile), ``difference_rms_nm``, and
+        for a measured profile ``virtual_measurement`` (its check's status) and
+        ``registration`` (``shift_um``, ``correlation``, ``reliable``, ``against``);
+        ``warnings``: what ``render-inspect compare`` warns of, one line each (a measured
+        tool edge used beyond its angles, a virtual measurement that does not follow
+        the cut, a registration that is not reliable, a measured map's checks).
     """
     progress = progress or _quiet
-    progress(0.02, "loading the scene")
-    scene = load_scene(scene_path, list(overrides))
-    progress(0.05, "simulating, rendering and measuring both variants")
-    metrics = run_compare(scene, out)
+    warns: list[str] = []
+    with warnings_into(warns):
+        progress(0.02, "loading the scene")
+        scene = load_scene(scene_path, list(overrides))
+        scene_warnings(scene, warns)
+        progress(0.05, "simulating, rendering and measuring" + (
+            f" against {Path(measured).name}" if measured else " both variants"))
+        metrics = run_compare_command(scene, out, measured=measured, units=units or None,
+                                      line=line or None)
     o = Path(out).resolve()
-    names = [v["name"] for v in metrics["variants"]]
+    res: dict[str, Any] = {"report": str(o / "report.html"),
+                           "metrics_json": str(o / "metrics.json"), "warnings": warns}
+    for text in metrics.get("warnings") or []:
+        note(warns, text)
+    for text in (metrics.get("measured_file") or {}).get("warnings") or []:
+        note(warns, text, "measured file: ")
     rows = []
-    for label, path, unit in PANEL_METRICS:
-        vals = [_metric(metrics.get(v, {}), path) for v in names]
-        if any(v is not None for v in vals):
-            rows.append({"label": label, "unit": unit, "values": vals, **dict(zip(names, vals))})
+    if metrics.get("kind") == "profile":
+        names = [k for k, _ in _PROFILE_COLUMNS]
+        for label, key, unit, factor in _PROFILE_METRICS:
+            vals = [_metric(metrics["profiles"].get(k, {}), ("profile", key)) for k in names]
+            vals = [None if v is None else v * factor for v in vals]
+            if any(v is not None for v in vals):
+                rows.append({"label": label, "unit": unit, "values": vals,
+                             **dict(zip(names, vals))})
+        reg = metrics.get("registration") or {}
+        res.update(kind="profile", variants=names, labels=[lab for _, lab in _PROFILE_COLUMNS],
+                   rows=rows, difference_rms_nm=None,
+                   virtual_measurement=(metrics.get("virtual_measurement") or {}).get("status"),
+                   registration={"shift_um": None if reg.get("shift_mm") is None
+                                 else reg["shift_mm"] * MM_TO_UM,
+                                 **{k: reg.get(k) for k in ("correlation", "reliable", "against")}})
+    else:
+        names = [v["name"] for v in metrics["variants"]]
+        for label, path, unit in PANEL_METRICS:
+            vals = [_metric(metrics.get(v, {}), path) for v in names]
+            if any(v is not None for v in vals):
+                rows.append({"label": label, "unit": unit, "values": vals,
+                             **dict(zip(names, vals))})
+        res.update(kind="variants", variants=names,
+                   labels=[v["label"] for v in metrics["variants"]], rows=rows,
+                   difference_rms_nm=metrics.get("difference", {}).get("machined_rms_nm"))
     progress(1.0, "done")
-    return {"report": str(o / "report.html"), "metrics_json": str(o / "metrics.json"),
-            "variants": names, "labels": [v["label"] for v in metrics["variants"]],
-            "rows": rows, "difference_rms_nm": metrics.get("difference", {}).get("machined_rms_nm")}
+    return res
 
 
 def export_variant(heightmap: str | Path, *, variant: str, surface: str = "machined",

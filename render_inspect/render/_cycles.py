@@ -422,6 +422,14 @@ def load_image(path: str | Path, name: str | None = None) -> Any:
 _load_bpy_image = load_image
 
 
+def remove_image(name: str) -> None:
+    """Remove the image ``name`` from ``bpy.data.images``, if it exists."""
+    bpy = _bpy()
+    img = bpy.data.images.get(name)
+    if img is not None:
+        bpy.data.images.remove(img)
+
+
 def blend_objects() -> list:
     """Every object of the open Blender file."""
     return list(_bpy().data.objects)
