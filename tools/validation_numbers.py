@@ -4,6 +4,7 @@ set against the parts' measured slices.
     python tools/validation_numbers.py                # the runs; docs/validation.json and the doc
     python tools/validation_numbers.py --docs         # only rewrite the doc from the json
     python tools/validation_numbers.py --check        # exit 1 if the doc differs from the json
+    python tools/validation_numbers.py --renumber     # the numbers again from the json's runs
     python tools/validation_numbers.py --figures DIR  # also write the overlaid profiles (PNG)
 
 For each public program of ``../shared/realdata/turned`` (1021, 1022, 1023; SOURCES.md
@@ -13,9 +14,12 @@ along the line its measured slice ``*-WLI-2D.csv`` lies on, exactly as
 ``render_inspect.pipeline._compare_profile``: the default diameter through the spindle
 axis with the slice's mirror centre on it, a band of +-12 um about it, the virtual
 interferometer over the band, the same-line extraction, the parabola and the ISO 16610-21
-filters the measured slice's ISO 21920-3 choice gives; compare's registration along the line
-is computed and recorded, not applied).  The roughness profiles of the measured slice,
-of the simulated measurement and of the simulated cut are then cut into radial bands (both
+filters the measured slice's ISO 21920-3 choice gives; compare's registration along the line,
+against the simulated measurement or, where that fails its check against the cut, against
+the cut as the instrument sees it, is computed with its check against chance and recorded,
+not applied; the shift against the failed image is recorded beside it).  The roughness
+profiles of the measured slice, of the simulated measurement and of the simulated cut are
+then cut into radial bands (both
 sides of the axis together) and their Ra, Rq, Rt, Rsk, Rku and RSm taken there.
 
 What the parts do not say (the material, the spindle speed, the objective) is varied over
@@ -23,7 +27,8 @@ its plausible range rather than chosen: every material preset that diamond turni
 (``ideal``, ``al6061``, ``ofhc_copper``, ``nip``), spindle speeds of 500 and 2000 rpm, and
 the 20x and 50x objectives, each through the virtual interferometer as phase shifting
 (the example scene's mode) and as white-light scanning (the instrument of the slices); the
-doc gives the least and largest value over them.  No preset
+doc gives the least and largest value over them.  The programs' feeds over the bands'
+radii and their steps point by point come from the program files.  No preset
 is changed.  Numbers go to ``docs/validation.json`` and into the marked spans
 ``<!-- n:KEY -->TEXT<!-- /n -->`` of docs/validation.md (the span machinery of
 ``tools/docs_numbers.py``); ``tests/test_validation_doc.py`` checks the spans against the
@@ -37,6 +42,7 @@ import datetime
 import importlib.util
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -45,7 +51,10 @@ REPO = Path(__file__).resolve().parents[1]
 VALIDATION_JSON = REPO / "docs" / "validation.json"
 VALIDATION_MD = REPO / "docs" / "validation.md"
 SCENE = REPO / "docs" / "examples" / "turned" / "scene.toml"
-REALDATA = REPO / ".." / "shared" / "realdata" / "turned"
+#: the published files (RENDER_INSPECT_REALDATA names the folder for a checkout that does
+#: not sit beside ``shared/realdata``)
+REALDATA = Path(os.environ.get("RENDER_INSPECT_REALDATA",
+                               REPO.parent / "shared" / "realdata")) / "turned"
 
 #: part -> (program, measured slice)
 PARTS = {
@@ -53,6 +62,8 @@ PARTS = {
     "1022": ("1022-spiralPath20230418T214917.nc", "1022-WLI-2D.csv"),
     "1023": ("1023-spiralPath20230418T221742.nc", "1023-WLI-2D.csv"),
 }
+#: the parts' radius, mm (the programs' X runs from 1.031 mm to the axis: a radius)
+PART_RADIUS_MM = 1.1
 #: radial bands, um from the spindle axis
 BANDS = {"inner": (20.0, 140.0), "outer": (150.0, 420.0)}
 MATERIALS = ("ideal", "al6061", "ofhc_copper", "nip")
@@ -134,16 +145,21 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
     """``compare SCENE --measured SLICE`` up to its parameters, for each objective: the
     measured slice, the simulated measurement and the simulated cut along the same line,
     with the same form removal and filters (the measured slice's choice); the slice placed
-    with its mirror centre on the axis, compare's registration shift and correlation kept.
-    Returns {(objective, mode): {"line", "axis_mm", "shift_mm", "correlation", "filter",
-    "profiles": {name: analyze_profile's dict}}}."""
+    with its mirror centre on the axis, compare's registration kept (shift, correlation,
+    the surrogates' level, reliable, what it was made against, the virtual measurement's
+    check, and the shift and correlation against the image itself).
+    Returns {(objective, mode): {"line", "axis_mm", "shift_mm", "correlation",
+    "null_correlation", "reliable", "against", "check", "image_shift_mm",
+    "image_correlation", "filter", "profiles": {name: analyze_profile's dict}}}."""
     import numpy as np
 
-    from render_inspect.instruments import render_interferogram
+    from render_inspect.instruments import microscope_from_config, render_interferogram
     from render_inspect.io import read_profile
     from render_inspect.metrology import analyze_profile, line_profile, measure_frames
-    from render_inspect.pipeline._compare_profile import (_band_scene, _register, axis_on_line,
+    from render_inspect.pipeline._compare_profile import (_band_scene, axis_on_line,
                                                            default_line, registration_period)
+    from render_inspect.pipeline._compare_profile_checks import (_measurement_check, _register,
+                                                                 cut_as_seen)
     from render_inspect.pipeline._simulate import simulate
     from render_inspect.processes import process_of
     from render_inspect.scene import scene_from_dict
@@ -171,9 +187,28 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
         h_meas = np.where(r.valid, r.height, np.nan)
         s_sim, z_sim = line_profile(h_meas, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1,
                                     step=step)
-        shift, corr, _how, _null = _register(
-            s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
-            axis_s=axis_on_line(scene, p0, p1, tolerance=(period or step) / 2))
+        # compare's registration: against the virtual measurement, or, where that fails its
+        # check against the cut as the instrument sees it, against the cut as seen
+        seen = cut_as_seen(hm.machined, pixel=hm.pixel, origin=hm.origin,
+                           microscope=microscope_from_config(b.render.interferometer),
+                           camera_pixel=float(ig.pixel), camera_origin=ig.origin,
+                           camera_shape=(h_meas.shape[0], h_meas.shape[1]))
+        _, z_seen = line_profile(seen, pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1, step=step)
+        noise_line = None
+        if r.height_noise is not None:
+            _, noise_line = line_profile(np.where(r.valid, r.height_noise, np.nan),
+                                         pixel=ig.pixel, origin=ig.origin, p0=p0, p1=p1,
+                                         step=step)
+        check = _measurement_check(z_sim, z_seen, noise_line,
+                                   lambda_eff_nm=float(ig.lambda_eff_nm), mode=mode,
+                                   rt_sim=None, rt_true=None)
+        axis_s = axis_on_line(scene, p0, p1, tolerance=(period or step) / 2)
+        image = _register(s_pos, prof.z, s_sim, z_sim, spacing=step, period=period,
+                          axis_s=axis_s, seed=seed)
+        failed = check["status"] == "failed"
+        shift, corr, _how, null = (_register(s_pos, prof.z, s_sim, z_seen, spacing=step,
+                                             period=period, axis_s=axis_s, seed=seed)
+                                   if failed else image)
         # the slice stays where the default line put it (its mirror centre on the axis);
         # compare's registration along the line is recorded beside it, not applied: on these
         # periodic profiles it can lock onto a match some feed periods away
@@ -182,7 +217,11 @@ def profiles_along_slice(part: str, material: str, rpm: float, objectives=OBJECT
         same = {"form": "poly2", "lambda_s": fil["lambda_s_mm"] or 0.0,
                 "lambda_c": fil["lambda_c_mm"]}
         out[(obj, mode)] = {"line": (p0, p1), "axis_mm": float(math.hypot(axis[0] - p0[0], axis[1] - p0[1])),
-                    "shift_mm": shift, "correlation": corr, "filter": same,
+                    "shift_mm": shift, "correlation": corr, "null_correlation": null,
+                    "reliable": null is None or corr > null,
+                    "against": "cut_as_seen" if failed else "virtual_measurement",
+                    "check": check["status"], "image_shift_mm": image[0],
+                    "image_correlation": image[1], "filter": same,
                     "profiles": {"measured": meas,
                                  "simulated_measured": analyze_profile(s_sim, z_sim, spacing=step, **same),
                                  "true": analyze_profile(s_true, z_true, spacing=step, **same)}}
@@ -229,6 +268,11 @@ def _part_rows(part: str, figures: Path | None) -> list[dict]:
                          "mode": mode,
                          "shift_um": res["shift_mm"] * MM_TO_UM,
                          "correlation": res["correlation"],
+                         "null_correlation": res["null_correlation"],
+                         "reliable": res["reliable"], "against": res["against"],
+                         "virtual_measurement": res["check"],
+                         "image_shift_um": res["image_shift_mm"] * MM_TO_UM,
+                         "image_correlation": res["image_correlation"],
                          "lambda_c_mm": res["filter"]["lambda_c"],
                          "lambda_s_mm": res["filter"]["lambda_s"],
                          "bands": _bands_of(res, spacing)})
@@ -241,18 +285,47 @@ def _part_rows(part: str, figures: Path | None) -> list[dict]:
     return rows
 
 
+def program_numbers(part: str) -> dict:
+    """What the part's program commands, from the file as ``read_program`` reads it (its C
+    and X words): the feed per revolution over each band's radii
+    (:func:`render_inspect.processes.feed_over_radii`, the radial distance over the
+    revolutions the spindle turns between the band's radii) and the least and largest
+    step point by point (:func:`render_inspect.processes.feed_per_rev`: how far the radius
+    moves in the revolution that starts at each point, over the whole program)."""
+    from render_inspect.core.units import MM_TO_UM, UM_TO_MM
+    from render_inspect.io import read_program
+    from render_inspect.processes import feed_over_radii, feed_per_rev
+
+    path = read_program(REALDATA / PARTS[part][0], part_radius=PART_RADIUS_MM).program
+    _, step = feed_per_rev(path)
+    out = {f"val.{part}.program.feed_{band}_um":
+           (feed_over_radii(path, lo * UM_TO_MM, hi * UM_TO_MM) * MM_TO_UM, ".3g")
+           for band, (lo, hi) in BANDS.items()}
+    out[f"val.{part}.program.step_min_um"] = (float(step.min()) * MM_TO_UM, ".3g")
+    out[f"val.{part}.program.step_max_um"] = (float(step.max()) * MM_TO_UM, ".3g")
+    return out
+
+
 def make(figures: Path | None = None):
     """Every part over the cases (material, spindle speed) and objectives, the parts in
     parallel; returns the numbers ``{key: (value, format) | text}`` and the raw table."""
-    from render_inspect.core.units import MM_TO_UM
-
-    numbers: dict = {}
+    # imported here: only a full run needs the process pool
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(max_workers=len(PARTS)) as pool:
         futures = {part: pool.submit(_part_rows, part, figures) for part in PARTS}
         table = {part: f.result() for part, f in futures.items()}
+    return numbers_of(table), table
+
+
+def numbers_of(table: dict) -> dict:
+    """The doc's numbers ``{key: (value, format) | text}`` from the runs' table (a part ->
+    its rows) and the programs' files (:func:`program_numbers`)."""
+    from render_inspect.core.units import MM_TO_UM
+
+    numbers: dict = {}
     for part, rows in table.items():
+        numbers.update(program_numbers(part))
         first = rows[0]   # the measured slice's band values: the same in every row
         numbers[f"val.{part}.lambda_c_mm"] = (first["lambda_c_mm"], ".3g")
         numbers[f"val.{part}.lambda_s_um"] = ((first["lambda_s_mm"] or 0) * MM_TO_UM, ".3g")
@@ -261,6 +334,17 @@ def make(figures: Path | None = None):
             numbers[f"val.{part}.corr_{mode}"] = _range(cors, ".2f")
             shifts = [r["shift_um"] for r in rows if r["mode"] == mode]
             numbers[f"val.{part}.shift_{mode}_um"] = _range(shifts, ".3g")
+            numbers[f"val.{part}.null_{mode}"] = _range(
+                [r["null_correlation"] for r in rows if r["mode"] == mode], ".2f")
+            numbers[f"val.{part}.image_corr_{mode}"] = _range(
+                [r["image_correlation"] for r in rows if r["mode"] == mode], ".2f")
+            numbers[f"val.{part}.image_shift_{mode}_um"] = _range(
+                [r["image_shift_um"] for r in rows if r["mode"] == mode], ".3g")
+            of = [r for r in rows if r["mode"] == mode]
+            numbers[f"val.{part}.failed_{mode}"] = (
+                f"{sum(r['virtual_measurement'] == 'failed' for r in of)} of {len(of)}")
+            numbers[f"val.{part}.reliable_{mode}"] = (
+                f"{sum(bool(r['reliable']) for r in of)} of {len(of)}")
         for band in BANDS:
             for key, spec in PARAMS:
                 m = first["bands"]["measured"][band][key]
@@ -276,7 +360,7 @@ def make(figures: Path | None = None):
                              and r["bands"]["measured"][band][key]]
                     if key in ("Ra_nm", "Rq_nm", "Rt_nm"):
                         numbers[f"val.{part}.{band}.ratio_{tag}.{key}"] = _range(ratio, ".2f")
-    return numbers, table
+    return numbers
 
 
 def _range(values, spec: str) -> str:
@@ -312,10 +396,22 @@ def check(data: dict, doc: Path = VALIDATION_MD) -> list[str]:
     return bad
 
 
+def _formatted(numbers: dict) -> dict:
+    """``{key: (value, format) | text}`` -> the json's ``{key: {"text", "value"}}``."""
+    fmt = _docs_numbers().fmt
+    return {k: {"text": fmt(*(v if isinstance(v, tuple) else (v,))),
+                "value": v[0] if isinstance(v, tuple) else None}
+            for k, v in sorted(numbers.items())}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--docs", action="store_true", help="only rewrite the doc from the json")
     ap.add_argument("--check", action="store_true", help="exit 1 if the doc differs from the json")
+    ap.add_argument("--renumber", action="store_true",
+                    help="no runs: the numbers again from the json's table of runs and the "
+                         "programs' files (after a change to how they are summed up), then "
+                         "the doc")
     ap.add_argument("--figures", type=Path, default=None,
                     help="folder for the overlaid profiles (PNG; not part of the repository)")
     args = ap.parse_args(argv)
@@ -326,7 +422,19 @@ def main(argv=None) -> int:
         print("\n".join(bad) or "every marked number is current",
               file=sys.stderr if bad else sys.stdout)
         return 1 if bad else 0
-    if not args.docs:
+    if args.renumber:
+        if not data.get("table"):
+            print("validation_numbers: docs/validation.json holds no table of runs: run "
+                  "the tool without --renumber", file=sys.stderr)
+            return 1
+        if not REALDATA.is_dir():
+            print(f"validation_numbers: {REALDATA} is absent: the programs are read from "
+                  f"there", file=sys.stderr)
+            return 1
+        data["numbers"] = _formatted(numbers_of(data["table"]))
+        VALIDATION_JSON.write_text(json.dumps(data, indent=2, sort_keys=True, allow_nan=False)
+                                   + "\n")
+    elif not args.docs:
         if not REALDATA.is_dir():
             print(f"validation_numbers: {REALDATA} is absent: the measured slices and the "
                   f"programs are read from there", file=sys.stderr)
@@ -340,9 +448,7 @@ def main(argv=None) -> int:
                            "objective": list(OBJECTIVES),
                            "mode": list(MODES)},
                 "bands_um": BANDS,
-                "numbers": {k: {"text": dn.fmt(*(v if isinstance(v, tuple) else (v,))),
-                                "value": v[0] if isinstance(v, tuple) else None}
-                            for k, v in sorted(numbers.items())},
+                "numbers": _formatted(numbers),
                 "table": table,
                 "seconds": round(time.perf_counter() - t0, 1),
                 "date": datetime.date.today().isoformat(), "software_version": __version__}
