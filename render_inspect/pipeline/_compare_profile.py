@@ -243,11 +243,8 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
            "beats_chance": null is None or corr > null,
            "reliable": null is None or corr > null,
            "against": against,
-           "against_why": ("the virtual measurement failed (it does not follow the cut): the "
-                           "measured profile is registered against the cut as the instrument "
-                           "sees it" if failed else
-                           "the virtual measurement follows the cut: the measured profile is "
-                           "registered against it"),
+           "against_why": ("the virtual measurement failed: it does not follow the cut"
+                           if failed else "the virtual measurement follows the cut"),
            "rule": f"reliable when the correlation beats the best of {NULL_SURROGATES} "
                    f"phase-randomised surrogates of the measured profile searched the same "
                    f"way (the 95 % level of an unrelated profile of the same spectrum)"}
