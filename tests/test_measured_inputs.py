@@ -207,3 +207,41 @@ def test_frames_without_a_finite_pixel_are_refused():
     with pytest.raises(InputError, match=r"frames 'f.exr' has no pixel with a finite intensity in "
                                          r"every frame \(42 of 42 pixels"):
         check_frames(np.full((4, 6, 7), np.nan), None, what="frames", path="f.exr")
+
+
+# ------------------------------------------------------------------ Digital Surf z offset
+@pytest.mark.parametrize("unit,to_mm", [("mm", 1.0), ("nm", 1e-6), ("m", 1e3), ("µm", 1e-3)])
+def test_sur_heights_carry_the_z_offset_in_the_unit_of_the_z_step(tmp_path, unit, to_mm):
+    """A .sur height is count x z step + z offset, both in the z step's unit (Gwyddion):
+    a tilted sinusoid written with an offset of 0.25 mm in each unit comes back to the
+    nanometre, its missing point as NaN (surfalize alone adds the offset as micrometres)."""
+    from render_inspect.io._sur import sur_bytes
+
+    ny, nx = 12, 17
+    yy, xx = np.mgrid[0:ny, 0:nx]
+    counts = np.round(20000 * np.sin(2 * np.pi * xx / 8.0) + 300 * yy).astype(np.int64)
+    measured = np.ones((ny, nx), bool)
+    measured[4, 5] = False
+    step_mm, offset_mm = 1e-6, 0.25  # 1 nm per count
+    f = tmp_path / "a.sur"
+    f.write_bytes(sur_bytes(counts, pixel=(2e-3 / to_mm, 3e-3 / to_mm), z_step=step_mm / to_mm,
+                            unit=unit, z_offset=offset_mm / to_mm, measured=measured))
+    m = read_surface(f)
+    expect = np.where(measured, counts * step_mm + offset_mm, np.nan)
+    assert_allclose(m.z, expect, atol=2e-8, rtol=0, equal_nan=True)  # float32 step, offset
+    assert_allclose(m.pixel, (2e-3, 3e-3), rtol=1e-6)
+    assert m.meta["n_invalid"] == 1 and m.meta["z_offset_in_file"]["unit"] == unit
+
+
+def test_sur_without_offset_reads_as_before_and_an_inverted_header_is_said(tmp_path):
+    from render_inspect.io._sur import sur_bytes
+
+    counts = np.arange(30, dtype=np.int64).reshape(5, 6) * 1000
+    f = tmp_path / "b.sur"
+    f.write_bytes(sur_bytes(counts, pixel=(1e-3, 1e-3), z_step=1e-6, unit="mm"))
+    m = read_surface(f)
+    assert_allclose(m.z, counts * 1e-6, atol=5e-9, rtol=0)
+    assert "z_offset_in_file" not in m.meta and not m.meta.get("warnings")
+    f.write_bytes(sur_bytes(counts, pixel=(1e-3, 1e-3), z_step=1e-6, unit="mm", inverted=1))
+    m = read_surface(f)
+    assert any("marks its heights as inverted (code 1)" in w for w in m.meta["warnings"])

@@ -120,3 +120,48 @@ def test_coverage_fraction():
                     0.55 * 0.525)
     with pytest.raises(InputError, match="region"):
         coverage(z, pixel=0.1, origin=(0, 0), region=(1, 0, 0, 1))
+
+
+class OneDimple:
+    """A spherical dimple 2 um deep, 0.4 mm across, centred at (1.5, 0) mm in a flat: the
+    field of one round lenslet, which turns freely about its centre."""
+
+    def height(self, x, y):
+        r2 = (np.asarray(x, float) - 1.5) ** 2 + np.asarray(y, float) ** 2
+        return np.where(r2 < 0.4 ** 2, -0.002 * (1.0 - r2 / 0.4 ** 2), 0.0)
+
+
+def test_a_round_lenslet_is_registered_with_the_rotation_held_and_a_wrong_map_refused(tmp_path):
+    """The field of one round lenslet fixes its centre but not a turn about it: the shift
+    of a free registration is undetermined (a turn about the centre is a shift plus a turn
+    about the origin), which refused the right map.  Now the rotation is held at the
+    file's orientation, the shift recovered and said; a map of another surface of the
+    same size and relief is still refused."""
+    px, n = 0.004, 226
+    x0, y0 = 1.05, -0.45
+    x = x0 + px * np.arange(n)
+    y = y0 + px * np.arange(n)
+    shift = (0.004, -0.003)  # the part sits 4 um in +x and 3 um in -y of its design place
+    z = OneDimple().height(x[None, :] - shift[0], y[:, None] - shift[1])
+    z = z + np.random.default_rng(0).normal(0, 5e-6, z.shape)
+    region = (x0, y0, x0 + px * (n - 1), y0 + px * (n - 1))
+    metrology = MetrologyConfig(form_removal="plane")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = compare_measured((z, px, (x0, y0)), OneDimple(), metrology=metrology, region=region,
+                             expected_sq_mm=5e-6).metrics
+    ch, reg = m["checks"], m["registration"]
+    assert ch["ok"] and ch["rotation_held"] and reg["fitted"] == ["tx", "ty", "tz", "alpha", "beta"]
+    # the design moved onto the part: by the part's shift
+    assert_allclose([reg["tx_mm"], reg["ty_mm"]], shift, atol=2e-4)
+    assert reg.get("gamma_rad", 0.0) == 0.0
+    assert ch["warnings"][0].startswith("the design turns freely about a point in the field")
+    assert "held at the file's orientation" in ch["warnings"][0]
+    assert ch["uncertainty"]["shift_mm"] < px  # registered again with the rotation held
+    # a map of another surface of like relief is still refused: a ripple of 2 um
+    other = 0.002 * np.sin(2 * np.pi * x[None, :] / 0.3) * np.cos(2 * np.pi * y[:, None] / 0.4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(InputError, match="does not match the design"):
+            compare_measured((other, px, (x0, y0)), OneDimple(), metrology=metrology,
+                             region=region, expected_sq_mm=5e-6)

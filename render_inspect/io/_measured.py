@@ -49,6 +49,7 @@ from ._limits import (
 )
 from ._registry import formats, reader, register_reader
 from ._special import not_a_file
+from ._sur import sur_offset_fix
 from ._vendor import read_nms, read_tmd
 from ._x3p import read_x3p_xy
 from ._zarr import ZarrHeightMap, zarr_read_overhead
@@ -331,8 +332,12 @@ def _read_surfalize(path, **_):
     z = np.asarray(s.data, dtype=np.float64) * UM_TO_MM  # surfalize gives micrometres
     md = getattr(s, "metadata", {}) or {}
     declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
-    return z, (float(s.step_x) * UM_TO_MM, float(s.step_y) * UM_TO_MM), (0.0, 0.0), {
-        "format": Path(path).suffix[1:].lower(), "units_in_file": declared}
+    meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": declared}
+    if Path(path).suffix.lower() == ".sur":  # the z offset's unit (render_inspect.io._sur)
+        z, more = sur_offset_fix(z, md, _to_mm(f"{path}: unit of the z step",
+                                               md.get("unit_step_z", "um")))
+        meta.update(more)
+    return z, (float(s.step_x) * UM_TO_MM, float(s.step_y) * UM_TO_MM), (0.0, 0.0), meta
 
 
 @_register(".tmd", name="render_inspect")

@@ -142,6 +142,12 @@ def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *
       lateral structure within the field to register to, e.g. a map read 1000 x too
       small).
 
+    Not refused but warned: a design that turns freely about a point in the field (one
+    round lenslet) leaves the shift undetermined only while the rotation about z is free;
+    with it held the shift is fixed (``uncertainty["shift_mm_rotation_held"]``), and
+    ``free_rotation`` is True (:func:`compare_measured` then registers again with the
+    rotation held).
+
     Warned (``warnings``): the standard uncertainty of the lateral shift exceeds
     ``max_shift_sigma_mm`` (default: one pixel) or that of the rotation about z exceeds
     ``max_rotation_sigma_rad``; no expected roughness given (residual not checked).
@@ -205,7 +211,26 @@ def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *
     unc.update({"shift_mm": s_shift, "rotation_rad": s_rot})
     ny, nx = np.shape(z)
     field_min = min(px * nx, py * ny)
-    if s_shift > 0.1 * field_min:
+    free_turn = False
+    fitted = list(registration.get("fitted") or [k.split("_")[0] for k in RIGID_KEYS])
+    if s_shift > 0.1 * field_min and "gamma" in fitted and len(fitted) > 1:
+        # a design symmetric about a point in the field (one round lenslet) turns about
+        # it freely: a rotation there is a shift plus a rotation about the origin, so the
+        # shift alone is undetermined although the map fits in one place only
+        held = registration_covariance(z, design, {**registration, "fitted": [
+            k for k in fitted if k != "gamma"]}, pixel=(px, py), origin=origin, mask=mask,
+            residual=residual)["sigma"]
+        s_held = float(np.hypot(held.get("tx_mm", 0.0), held.get("ty_mm", 0.0)))
+        unc["shift_mm_rotation_held"] = s_held
+        free_turn = s_held <= 0.1 * field_min
+    if free_turn:
+        warns.append(f"the design turns freely about a point in the field (e.g. one round "
+                     f"lenslet): the rotation about z is undetermined (standard uncertainty "
+                     f"{np.degrees(s_rot):.3g} deg) and with it the shift "
+                     f"({s_shift * MM_TO_UM:.3g} um); with the rotation held the shift's "
+                     f"standard uncertainty is {unc['shift_mm_rotation_held'] * MM_TO_UM:.3g} "
+                     f"um")
+    elif s_shift > 0.1 * field_min:
         refusals.append(f"the lateral registration is undetermined: standard uncertainty of the "
                         f"shift {s_shift * MM_TO_UM:.3g} um > {0.1 * field_min * MM_TO_UM:.3g} um "
                         f"(a tenth "
@@ -214,13 +239,14 @@ def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *
     elif s_shift > max_shift:
         warns.append(f"the lateral registration is uncertain: standard uncertainty "
                      f"{s_shift * MM_TO_UM:.3g} um > {max_shift * MM_TO_UM:.3g} um")
-    if s_rot > max_rotation_sigma_rad:
+    if s_rot > max_rotation_sigma_rad and not free_turn:
         warns.append(f"the rotation about z is uncertain: standard uncertainty "
                      f"{np.degrees(s_rot):.3g} deg > {np.degrees(max_rotation_sigma_rad):.3g} deg")
     return {"ok": not refusals, "refusals": refusals, "warnings": warns, "overlap": ov,
             "residual_rms_mm": rms, "residual_limit_mm": limit, "expected_sq_mm": expected_sq_mm,
             "shift_mm": [float(registration.get("tx_mm", 0.0)), float(registration.get("ty_mm", 0.0))],
             "rotation_rad": float(registration.get("gamma_rad", 0.0)), "uncertainty": unc,
+            "free_rotation": free_turn,
             "thresholds": {"min_overlap": min_overlap, "max_residual_ratio": max_residual_ratio,
                            "residual_floor_mm": residual_floor_mm, "max_shift_sigma_mm": max_shift,
                            "max_rotation_sigma_rad": max_rotation_sigma_rad}}

@@ -329,30 +329,46 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
     valid = np.isfinite(z)
     outl &= valid
     fit_use = valid & ~outl
-    if method == "lsq":
-        reg = register_lsq(z, design_surface, pixel=pixel, origin=origin, mask=fit_use, fit=dof,
-                           seed=seed)
-    elif method == "icp":
-        reg = register_icp(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
-                           seed=seed, oversample=int(_cfg_get(metrology, "template_oversample", 10)))
-        reg["fitted"] = list(_SHORT_ALL)
-    elif method == "none":
-        reg = None
-    else:
-        raise InputError(f"metrology.registration must be 'lsq', 'icp' or 'none', got {method!r}")
-    surf = design_surface if reg is None else MovedSurface(design_surface, reg)
     ny, nx = z.shape
     x = origin[0] + px * np.arange(nx)
     y = origin[1] + py * np.arange(ny)
-    design_map = np.broadcast_to(surf.height(x[None, :], y[:, None]), z.shape).astype(float)
     use = fit_use if out_mode == "sigma" else valid
-    residual = np.where(use, z - design_map, np.nan)
-    checks = None
-    if reg is not None and region is not None:
+    free_note: list = []
+    for _ in range(2):
+        if method == "lsq":
+            reg = register_lsq(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
+                               fit=dof, seed=seed)
+        elif method == "icp":
+            reg = register_icp(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
+                               seed=seed,
+                               oversample=int(_cfg_get(metrology, "template_oversample", 10)))
+            reg["fitted"] = list(_SHORT_ALL)
+        elif method == "none":
+            reg = None
+        else:
+            raise InputError(f"metrology.registration must be 'lsq', 'icp' or 'none', got "
+                             f"{method!r}")
+        surf = design_surface if reg is None else MovedSurface(design_surface, reg)
+        design_map = np.broadcast_to(surf.height(x[None, :], y[:, None]), z.shape).astype(float)
+        residual = np.where(use, z - design_map, np.nan)
+        checks = None
+        if reg is None or region is None:
+            break
         checks = registration_checks(z, design_surface, reg, pixel=pixel, origin=origin,
                                      region=region, expected_sq_mm=expected_sq_mm,
                                      residual=np.where(fit_use, residual, np.nan), mask=fit_use,
                                      min_overlap=min_overlap)
+        if not (checks.get("free_rotation") and method == "lsq"):
+            break
+        # the design turns freely about a point in the field: the rotation about z is held
+        # at the file's orientation and the rest registered again
+        dof = tuple(d for d in dof if d != "gamma")
+        free_note = [w for w in checks["warnings"] if w.startswith("the design turns freely")]
+        free_note = [f"{w}; the rotation about z is therefore held at the file's orientation "
+                     f"and the other {len(dof)} registered" for w in free_note]
+    if checks is not None and reg is not None:
+        checks["rotation_held"] = bool(free_note)
+        checks["warnings"] = free_note + checks["warnings"]
         reg["uncertainty"] = checks["uncertainty"]
         if not checks["ok"] and not force:
             raise InputError("the measured file does not match the design: "

@@ -13,7 +13,9 @@ At the map's edges (``edges=``): ``"normalised"`` (default) uses only the points
 one-sided and passes more of the short wavelengths); ``"mirror"`` extends the map by its
 mirror image (ISO 16610-28's symmetric extension [2]_); ``"cut"`` drops the border where
 the weighting function reaches outside the map: half the nesting index on every side (the
-run-in/run-out of ISO 16610-21 [3]_, 4.7 standard deviations of the Gaussian).
+run-in/run-out of ISO 16610-21 [3]_, 2.7 standard deviations of the Gaussian; the
+weights are computed out to 4 standard deviations, so a little of the border still reaches
+inside).
 
 References
 ----------
