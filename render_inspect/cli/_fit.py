@@ -67,7 +67,9 @@ def add_parsers(sub: Any) -> None:
                       scheduler="run the evaluations on the Dask cluster at ADDRESS")
     p.add_argument("--predict", action="extend", nargs="+", default=[], metavar="KEY=VALUE",
                    help="after the fit, simulate the fitted scene with KEY=VALUE (TOML value) "
-                        "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4")
+                        "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4; the fit's "
+                        "uncertainty is carried to it by 2 simulations per fitted key "
+                        "(outside --max-evaluations)")
     _add_set_arg(p, help="override a scene key before fitting (TOML value syntax)")
     _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "

@@ -16,6 +16,8 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
 * :func:`check_before`, :func:`check_after`, :func:`profile_marks`: whether the scene
   describes the measurement at all (:mod:`._checks`);
 * :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`);
+* :func:`plan_propagation`, :func:`combine_propagation`: the fit's uncertainty carried to a
+  prediction made with the fitted values (:mod:`._propagate`);
 * :class:`ProfileSpec`, :func:`make_profile_target`, :func:`profile_family`: the same
   for a measured profile (:mod:`._profile`), and both arms of a diameter slice together
   (:class:`ArmsTarget`, :func:`arm_estimates`, :func:`combine_arms`: :mod:`._arms`).
@@ -44,6 +46,8 @@ from ._solve import UNRESOLVED, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
 from ._weights import check_weights, parse_weights
+from ._propagate import (COVERAGE_FACTOR, PREDICTED_QUANTITIES, Propagation, SigmaPoint,
+                         combine_propagation, plan_propagation, prediction_lines)
 
 __all__ = ["check_weights", "parse_weights",
            "FreeParameter", "free_parameters", "parse_free", "parse_bounds", "schema_range",
@@ -59,4 +63,6 @@ __all__ = ["check_weights", "parse_weights",
            "predict_profile_features", "profile_family", "profile_residual_vector",
            "set_profile_noise_floor", "within_reach", "ARMS_CHOICES", "ArmsTarget",
            "arm_estimates", "arm_evaluations", "arms_text", "combine_arms", "set_arms_noise_floor",
-           "ArmsPrediction", "arms_features", "amplitude_scan", "set_profile_psd"]
+           "ArmsPrediction", "arms_features", "amplitude_scan", "set_profile_psd",
+           "COVERAGE_FACTOR", "PREDICTED_QUANTITIES", "Propagation", "SigmaPoint",
+           "combine_propagation", "plan_propagation", "prediction_lines"]

@@ -13,6 +13,7 @@ from .. import __version__
 from ..core.units import MM_TO_NM
 from ._features import MisfitSpec, Target
 from ._profile import ProfileSpec, ProfileTarget
+from ._propagate import prediction_lines
 from ._solve import FitResult
 
 __all__ = ["fit_record", "misfit_maps", "summary_lines"]
@@ -181,4 +182,6 @@ def summary_lines(record: dict, unit: Callable[[str], str] | None = None) -> lis
     if mc.get("after"):
         lines.append(mc["after"]["verdict"])
     lines.append(f"{record['evaluations']} evaluations")
+    if record.get("prediction"):
+        lines += prediction_lines(record["prediction"])
     return lines

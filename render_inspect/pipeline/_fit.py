@@ -39,14 +39,14 @@ from ..fit import (parse_weights, EvaluationCache, Evaluator, MisfitSpec, centre
                    set_value, solve,
                    summary_lines)
 from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
-from ..io import write_exr, write_json, write_marker
+from ..io import write_exr, write_json
 from ..processes import RANDOM_PART_KEYS, random_parts
 from ..report import fit_figures, fit_page, key_unit
-from ..scene import apply_overrides, scene_from_dict
+from ..scene import scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
                          file_instrument, instrument_settings, passive_omp_wait,
                          predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
-from ._simulate import simulate, write_simulation
+from ._fit_predict import predict_next_cut, predicted_scene
 from ._toolpath import check_tool_edge
 
 if TYPE_CHECKING:
@@ -175,7 +175,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     predict = list(predict or ())
     if predict:
         # (and a measured edge its cut cannot take)
-        check_tool_edge(_predicted_scene(base, {p.key: p.start for p in params}, predict, fill))
+        check_tool_edge(predicted_scene(base, {p.key: p.start for p in params}, predict, fill))
 
     m = surface if surface is not None else read_surface(measured)
     if surface is not None:
@@ -332,20 +332,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     with atomic_output_dir(out, overwrite=overwrite, command="fit", scene=scene, inputs=inputs) as tmp:
         tmp = Path(tmp)
         if predict:
-            pred_scene = _predicted_scene(fitted, {}, predict, fill)
-            pred_pixel = _evaluation_pixel(pred_scene)
-            pred_scene = scene_from_dict(apply_overrides(
-                pred_scene.to_dict(), [f"simulation.region={json.dumps(window)}",
-                                       f"simulation.pixel={pred_pixel!r}"]), "(predict)")
-            with task("fit: predict the next cut"):
-                sim = simulate(pred_scene)
-            (tmp / "predict").mkdir()
-            pm = write_simulation(sim, tmp / "predict")
-            write_marker(tmp / "predict", command="simulate", scene=pred_scene)
-            record["prediction"] = {"settings": list(predict), "folder": "predict",
-                                    "simulation_pixel_mm": pred_pixel,
-                                    "residual": pm.get("residual"),
-                                    "toolpath": pm.get("toolpath")}
+            record["prediction"] = predict_next_cut(tmp, fitted, predict, fill, window, record,
+                                                    _evaluation_pixel)
         record["timing_s"]["total"] = time.perf_counter() - t_all
         record["files"] = {f: d for f, d in _file_notes().items()
                            if f != "predict/" or predict}
@@ -452,18 +440,6 @@ def _rms(z) -> float:
     return float(np.sqrt(np.mean(z[ok] ** 2))) if ok.any() else 0.0
 
 
-def _predicted_scene(data: dict, values: dict, predict, fill):
-    d = copy.deepcopy(data)
-    for k, v in values.items():
-        set_value(d, k, v, fill=fill)
-    items = []
-    for item in predict:
-        if "=" not in str(item):
-            raise InputError(f"--predict expects KEY=VALUE (TOML value), received {item!r}")
-        items.append(str(item))
-    return scene_from_dict(apply_overrides(d, items), "(--predict)")
-
-
 def _file_notes() -> dict:
     return {"fit.json": "fitted values, standard errors, correlations, misfit, provenance",
             "fit.html": "the fit's page: tables and figures",
@@ -473,7 +449,8 @@ def _file_notes() -> dict:
             "misfit.png": "the misfit along each parameter through the solution",
             "fitted.exr": "channels measured, fitted, residual (mm, form removed)",
             "scene.json": "the scene with the fitted values",
-            "predict/": "the predicted cut (heightmap.exr, metrics.json, ...) for --predict"}
+            "predict/": "the predicted cut (heightmap.exr, metrics.json with the "
+                        "prediction's uncertainty, ...) for --predict"}
 
 
 def _log_summary(record: dict) -> None:

@@ -80,6 +80,39 @@ def _val(v: Any) -> str:  # (as fmt_number takes it)
     return "n/a" if v is None else fmt_number(v, sig=5)
 
 
+def _prediction_section(rep: HtmlReport, pr: dict) -> None:
+    """The prediction of the next cut: its headline numbers with their standard
+    uncertainty (k = 1) and the expanded one (k = 2), or why it carries none."""
+    rep.section("Prediction")
+    settings = ", ".join(pr["settings"])
+    if not pr.get("measurement_backed", True):
+        rep.text(f"Not a measurement-backed forecast: {pr.get('note', '')}.")
+    unc = pr.get("uncertainty")
+    if unc is None:
+        rep.text(f"Settings {settings} on the fitted scene (files in {pr['folder']}/); no "
+                 f"uncertainty: {pr.get('no_uncertainty', '')}.")
+        r = pr.get("residual") or {}
+        rep.text(f"Residual Sq {_val(r.get('Sq_nm'))} nm, Sz {_val(r.get('Sz_nm'))} nm.")
+        return
+    rep.text(f"Settings {settings} on the fitted scene (files in {pr['folder']}/), with the "
+             f"uncertainty of {', '.join(unc['keys'])} propagated ({unc['simulations']} "
+             f"simulations, seed {unc.get('seed')} in each; {unc.get('budget', '')}).")
+    rows = []
+    for q in unc["quantities"].values():
+        rows.append([q["label"], q["unit"], _val(q["value"]), _val(q["u"]), _val(q["U"]),
+                     _val(q.get("u_first_order")), _val(q["second_order_shift"]),
+                     "yes" if q.get("smooth", True) else "no: a rough figure"])
+    rep.table(rows, header=["", "unit", "predicted", "standard uncertainty (k=1)",
+                            f"expanded (k={unc['coverage_factor']:g})", "first order alone",
+                            "second-order shift", "linear over +-1 SE"])
+    notes = [f"without the uncertainty of {k}: {why}" for k, why in unc["without"].items()]
+    rep.list(notes + ["Method: " + unc["method"] + ".",
+                      "The second-order shift is how far the mean of the number over the "
+                      "parameters' spread lies from its value at the fitted values; where the "
+                      "second-order part outweighs the first the number is not linear in the "
+                      "keys over their standard errors and its uncertainty is a rough one."])
+
+
 def fit_page(record: dict, figs: dict) -> str:
     """``fit.html``: the fitted values, correlations, misfit, provenance and figures."""
     rep = HtmlReport(f"render-inspect fit: {record.get('scene', '')}",
@@ -151,12 +184,7 @@ def fit_page(record: dict, figs: dict) -> str:
         if name in figs:
             rep.figure(figs[name], cap)
     if record.get("prediction"):
-        rep.section("Prediction")
-        pr = record["prediction"]
-        r = pr.get("residual") or {}
-        rep.text(f"Settings {', '.join(pr['settings'])} on the fitted scene: residual Sq "
-                 f"{_val(r.get('Sq_nm'))} nm, Sz {_val(r.get('Sz_nm'))} nm "
-                 f"(files in {pr['folder']}/).")
+        _prediction_section(rep, record["prediction"])
     rep.section("Provenance")
     meas = record["measured"]
     rep.table([["measured file", meas["path"]], ["reader", str(meas.get("reader"))],
