@@ -68,12 +68,15 @@ def _compare(args: argparse.Namespace, overwrite: bool) -> dict:
     scene = scene_of(args)
     # (imported once the input is checked)
     from .. import pipeline
+    # (the scene package is loaded by scene_of already; kept local like the pipeline)
+    from ..scene import find_scene
 
     # (a measured profile is compared along a line: pipeline.run_compare_profile)
     return pipeline.run_compare_command(scene, args.out, measured=args.measured,
                                         vary=args.vary, force=args.force, line=args.line,
                                         units=args.units, filter_spec=args.filter,
-                                        repeat=args.repeat, overwrite=overwrite)
+                                        repeat=args.repeat, overwrite=overwrite,
+                                        scene_file=find_scene(args.scene))
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -268,5 +268,5 @@ def characterise_instrument(icfg: InterferometerConfig, *, quick: bool = False, 
                "illumination_na": mic.na_ill,
                "effective_wavelength_nm": mic.effective_wavelength_nm(),
                "itf": itf, "step": step, "slope": slope, "flat": flat, "seed": int(seed),
-               "timing_s": timing}
+               "pixel_mm": pixel, "timing_s": timing}
     return metrics, {"step_profiles": profiles, "flat_difference": diff}

@@ -63,6 +63,7 @@ from ._metrics import (comparison_metrics, diffuse_summary, variant_metrics, wri
 from ._render import (check_render_limits, part_outline, render_diffuse_views,
                       write_diffuse_outputs, write_instrument_outputs)
 from ._simulate import simulate
+from ._provenance import difference_warnings, keeps_warnings, run_inputs, said_warnings
 from ._toolpath import check_tool_edge
 from ..core.heightmap import HeightMap
 from ..toolpath import region_radii
@@ -394,9 +395,10 @@ def _kinematics(a: _Variant, b: _Variant):
     return axis_motion_figure(cols, title="Axis motion of the programs (the axes that move)")
 
 
+@keeps_warnings
 def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = None,
-                vary: str | None = None,
-                force: bool = False, overwrite: bool = False, repeat: int = 1) -> dict:
+                vary: str | None = None, force: bool = False, overwrite: bool = False,
+                repeat: int = 1, scene_file: str | Path | None = None) -> dict:
     """Two variants of a scene (and optionally a measured map): files and report.
 
     Parameters
@@ -421,6 +423,8 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
         Measurements of each variant (1..100): beyond the first, both variants are
         measured again with fresh camera noise and the difference's repeatability is
         reported (``difference.window.measured.repeat``).
+    scene_file : str or Path, optional
+        The scene file the scene was read from, recorded with its SHA-256 in ``inputs``.
 
     Returns
     -------
@@ -569,6 +573,10 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
             measured_file=None if meas is None else meas["metrics"],
             total_s=time.perf_counter() - t_all,
             report=str((Path(out) / "report.html").resolve()))
+        metrics["inputs"] = run_inputs(metrics["scene"], scene_file=scene_file, measured=measured,
+                                       seed=seed, variants=[(v.name, v.scene.to_dict())
+                                                            for v in variants])
+        metrics["warnings"] = said_warnings(difference_warnings(metrics))
         write_metrics(tmp, metrics)
         page = build_page(scene, metrics, figs, notes=notes)
         atomic_write_text(tmp / "report.html", page)

@@ -37,13 +37,15 @@ from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_bytes, atomic
 from ..metrology import (analyze_profile, dominant_periods, line_profile, measure_frames, mirror_centre,
                          parse_profile_filter)
 from ..processes import process_of
-from ..report import HtmlReport, profile_figure, profile_overlay_figure
+from ..report import (HtmlReport, profile_figure, profile_overlay_figure, provenance_section,
+                      warnings_section)
 from ..scene import scene_from_dict
 from ._compare import run_compare
 from ._compare_profile_checks import (NULL_SURROGATES, _fmt, _measurement_check,
                                       _measurement_warning, _register, _registration_warning,
                                       cut_as_seen)
 from ._metrics import write_metrics
+from ._provenance import keeps_warnings, run_inputs, said_warnings
 from ._simulate import simulate
 
 if TYPE_CHECKING:
@@ -144,10 +146,11 @@ def axis_on_line(scene: Scene, p0: Sequence[float], p1: Sequence[float], *,
     return float(along)
 
 
+@keeps_warnings
 def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
                         line: str | None = None, units: str | None = None,
                         filter_spec: str | tuple | None = None,
-                        overwrite: bool = False) -> dict:
+                        overwrite: bool = False, scene_file: str | Path | None = None) -> dict:
     """Compare a measured profile with the same line of the simulated part.
 
     Parameters
@@ -163,6 +166,8 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
         The line on the part (mm); default for a turned part: :func:`default_line`.
     units, filter_spec : optional
         As for ``analyze`` of a profile.
+    scene_file : str or Path, optional
+        The scene file the scene was read from, recorded with its SHA-256 in ``inputs``.
 
     Returns
     -------
@@ -173,7 +178,8 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
         measurement failed), ``virtual_measurement`` (the check), ``filter``,
         ``profiles`` (``measured``, ``simulated_measured``, ``true``: each the ISO 21920-2
         parameters and periods of :func:`~render_inspect.metrology.analyze_profile`),
-        ``input``, ``scene``, ``seed``, ``software_version``, ``timing_s``.
+        ``input``, ``inputs`` (the files read, with their SHA-256), ``scene``, ``seed``,
+        ``software_version``, ``warnings`` (every warning said while it ran), ``timing_s``.
     """
     t0 = time.perf_counter()
     check_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
@@ -267,7 +273,7 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
         "measured_profile": profile_figure(res["measured"]["arrays"], res["measured"]["metrics"],
                                            title=f"measured: {Path(measured).name}"),
     }
-    metrics = {
+    metrics: dict[str, Any] = {
         "command": "compare", "kind": "profile", "scene": scene.name, "seed": seed,
         "software_version": __version__,
         "line_mm": [list(p0), list(p1)], "line_from": how_line,
@@ -289,6 +295,10 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
                   "measured_profile.png": "the measured profile analysed",
                   "report.html": "the report"},
     }
+    metrics["inputs"] = run_inputs(scene.to_dict(), scene_file=scene_file, measured=measured,
+                                   seed=seed)
+    metrics["warnings"] = said_warnings(
+        [f"{lab}: {w}" for k, lab in _NAMES for w in metrics["profiles"][k]["warnings"]])
     with atomic_output_dir(out, overwrite=overwrite, command="compare", scene=scene,
                            inputs=(measured,)) as tmp:
         tmp = Path(tmp)
@@ -312,16 +322,28 @@ def _page(metrics: dict, figs: dict) -> str:
                      f"{Path(metrics['input']['path']).name} along {metrics['line_from']}; "
                      f"lambda_s {f['lambda_s_mm'] or 0:g} mm, lambda_c {f['lambda_c_mm']:g} mm "
                      f"({f['chosen_by']}); parabola removed from each")
-    if metrics.get("warnings"):
-        rep.section("Warnings")
-        rep.list(metrics["warnings"])
+    warnings_section(rep, metrics.get("warnings"))
+    failed = (metrics.get("virtual_measurement") or {}).get("status") == "failed"
+    reg = metrics["registration"]
     rep.section("Profiles overlaid")
     rep.figure(figs["overlay"], "Measured (black), simulated through the virtual "
                "interferometer (blue) and the simulated cut itself (orange, dashed), registered "
-               "along the line; heights in nm, positions along the line in mm.")
-    rep.figure(figs["roughness_overlay"], "The same after the ISO 16610-21 filters, over each "
-               "profile's evaluation length.")
+               "along the line; primary profiles (a parabola removed, lambda_s filter only); "
+               "heights in nm, positions along the line in mm."
+               + (" The virtual measurement FAILED (Warnings): its blue line is not what the "
+                  "instrument would report." if failed else "")
+               + ("" if reg.get("reliable", True) else " The registration is NOT reliable: "
+                  "the profiles are not aligned point for point."))
+    rep.figure(figs["roughness_overlay"], "Roughness profiles: the same after the ISO 16610-21 "
+               f"Gaussian filters (lambda_s {f['lambda_s_mm'] or 0:g} mm, lambda_c "
+               f"{f['lambda_c_mm']:g} mm), over each profile's evaluation length; heights in "
+               "nm, positions in mm.")
     rep.section("Parameters side by side (ISO 21920-2)")
+    rep.text(f"ISO 21920-2 parameters of each roughness profile (a parabola removed, ISO 16610-21 "
+             f"Gaussian lambda_s {f['lambda_s_mm'] or 0:g} mm and lambda_c {f['lambda_c_mm']:g} "
+             f"mm, {f['chosen_by']}; Rsk, Rku and Rdq have no unit): the measured profile as "
+             f"the real instrument reported it, the simulated cut as the virtual "
+             f"interferometer measures it, and the simulated cut itself (the truth).")
     head = ["parameter"] + [lab for _, lab in _NAMES]
     rows = [[lab] + [_fmt(p[k]["profile"].get(key), key) for k, _ in _NAMES]
             for key, lab in _ROWS]
@@ -347,7 +369,6 @@ def _page(metrics: dict, figs: dict) -> str:
     rep.section("Measured profile")
     rep.figure(figs["measured_profile"], "Primary profile and mean line, roughness profile, power "
                "spectrum (feed period and harmonics), material ratio curve.")
-    reg = metrics["registration"]
     chk = metrics.get("virtual_measurement") or {}
     null = reg.get("null_correlation")
     notes = [f"registration: measured positions shifted by {reg['shift_mm'] * MM_TO_UM:+.4g} um "
@@ -372,14 +393,20 @@ def _page(metrics: dict, figs: dict) -> str:
         notes += [f"{lab}: {w}" for w in p[k]["warnings"]]
     rep.section("Notes")
     rep.list(notes)
+    provenance_section(rep, metrics, extra=[
+        ["virtual instrument", f"{metrics['instrument']['objective']} "
+                               f"{metrics['instrument']['mode']}"],
+        ["line on the part (mm)", f"({metrics['line_mm'][0][0]:.6g}, {metrics['line_mm'][0][1]:.6g})"
+                                  f" -> ({metrics['line_mm'][1][0]:.6g}, "
+                                  f"{metrics['line_mm'][1][1]:.6g}), {metrics['line_from']}"]])
     return rep.render()
 
 
 def run_compare_command(scene: Scene, out: str | Path, *, measured: str | Path | None = None,
                         vary: str | None = None, force: bool = False, line: str | None = None,
                         units: str | None = None, filter_spec: str | tuple | None = None,
-                        repeat: int = 1,
-                        overwrite: bool = False) -> dict:
+                        repeat: int = 1, overwrite: bool = False,
+                        scene_file: str | Path | None = None) -> dict:
     """``compare``: :func:`run_compare_profile` when ``measured`` is a profile file,
     :func:`~render_inspect.pipeline.run_compare` otherwise (``line``, ``units`` and
     ``filter_spec`` are then refused, naming the option)."""
@@ -389,10 +416,11 @@ def run_compare_command(scene: Scene, out: str | Path, *, measured: str | Path |
             raise InputError(f"{opt} is for two variants or a measured map; --measured "
                              f"{str(measured)!r} is a profile")
         return run_compare_profile(scene, out, measured=measured, line=line, units=units,
-                                   filter_spec=filter_spec, overwrite=overwrite)
+                                   filter_spec=filter_spec, overwrite=overwrite,
+                                   scene_file=scene_file)
     for opt, v in (("--line", line), ("--units", units), ("--filter", filter_spec)):
         if v is not None:
             raise InputError(f"{opt} is for --measured PROFILE (a profile file); received "
                              f"{opt} {v} with --measured {measured!r}")
     return run_compare(scene, out, measured=measured, vary=vary, force=force,
-                       overwrite=overwrite, repeat=repeat)
+                       overwrite=overwrite, repeat=repeat, scene_file=scene_file)

@@ -7,7 +7,7 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..scene import load_scene, shipped_scenes
+from ..scene import find_scene, load_scene, shipped_scenes
 from ._compare import run_compare
 
 __all__ = ["run_demo", "DEMO_SCENE"]
@@ -27,4 +27,4 @@ def run_demo(out: str | Path, *, quick: bool = False, overwrite: bool = False,
     window = ["simulation.region=[-0.25,-0.25,0.25,0.25]", "simulation.pixel=0.002"] if quick else []
     scene = load_scene(DEMO_SCENE, [*window, *overrides])
     log.info("demo: scene %s -> %s", shipped_scenes()[DEMO_SCENE].name, out)
-    return run_compare(scene, out, overwrite=overwrite)
+    return run_compare(scene, out, overwrite=overwrite, scene_file=find_scene(DEMO_SCENE))

@@ -27,6 +27,7 @@ from ._maps import (image_png, residual_png, residual_preview_image, residual_pr
                     save_height_png, save_map_png)
 from ._page import build_page
 from ._program_page import program_figure_name, program_section
+from ._provenance import provenance_section, warnings_section
 from ._profile_figs import profile_figure, profile_overlay_figure
 from ._quickplot import map_png, maps_png, panels_png
 from ._sweep_plots import curves_png, heatmap_png, sweep_plot_png
@@ -44,7 +45,8 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
            "luminance", "fit_figures", "fit_page", "psd_figure", "figure_kinds",
            "register_figure", "registered_figures", "profile_figure",
-           "profile_overlay_figure", "program_section", "program_figure_name", "key_label", "key_unit"]
+           "profile_overlay_figure", "program_section", "program_figure_name", "key_label", "key_unit",
+           "provenance_section", "warnings_section"]
 
 # figure kinds added as modules of this package register themselves on import
 import_private_modules(__name__, __path__)

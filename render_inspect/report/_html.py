@@ -7,6 +7,7 @@ from collections.abc import Iterable, Sequence
 import base64
 import html
 import json
+import re
 
 from ._format import fmt_number
 
@@ -27,7 +28,16 @@ pre{background:#f6f8fa;padding:10px;font-size:12px;overflow:auto;max-height:420p
 .note{background:#fff8c5;border:1px solid #d4a72c;padding:6px 10px;font-size:13px}
 .good{color:#1a7f37}.bad{color:#cf222e}
 nav a{margin-right:12px;font-size:13px}ul{font-size:14px}
+ul.warn{background:#fff8c5;border:1px solid #d4a72c;padding:6px 10px 6px 28px}
+td.hash{font-family:monospace;font-size:12px;word-break:break-all;text-align:left}
+@media print{body{margin:0;max-width:none;font-size:11pt}nav{display:none}
+figure,table,ul.warn{break-inside:avoid}h2,h3{break-after:avoid}
+figure img{max-width:100%;border:none}pre{max-height:none;overflow:visible;white-space:pre-wrap}}
 """
+
+
+#: a SHA-256 in hex: set in a monospace cell that may break
+_HASH = re.compile(r"[0-9a-f]{64}")
 
 
 def data_uri(png: bytes, mime: str = "image/png") -> str:
@@ -55,7 +65,8 @@ def table_html(rows: Iterable[Sequence[object]], *, header: Sequence[str] | None
     for r in rows:
         cells = []
         for i, c in enumerate(r):
-            cls = ' class="k"' if key_first and i == 0 else ""
+            cls = ' class="k"' if key_first and i == 0 else (
+                ' class="hash"' if isinstance(c, str) and _HASH.fullmatch(c) else "")
             txt = html.escape(str(c)) if key_first and i == 0 else _fmt(c)
             cells.append(f"<td{cls}>{txt}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
@@ -93,8 +104,9 @@ class HtmlReport:
               header: Sequence[str] | None = None) -> None:
         self.parts.append(table_html(rows, header=header))
 
-    def list(self, items: Iterable[object]) -> None:
-        self.parts.append("<ul>" + "".join(f"<li>{html.escape(str(i))}</li>" for i in items)
+    def list(self, items: Iterable[object], *, cls: str | None = None) -> None:
+        c = f' class="{cls}"' if cls else ""
+        self.parts.append(f"<ul{c}>" + "".join(f"<li>{html.escape(str(i))}</li>" for i in items)
                           + "</ul>")
 
     def pre(self, text: str) -> None:

@@ -4,6 +4,8 @@ summaries of ``measure`` and ``analyze``."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..core.units import MM_TO_UM
 from ._figures import line_panels, map_panels
 from ._profile_figs import period_text, profile_summary
@@ -57,8 +59,13 @@ def characterise_figures(m: dict, curves: dict) -> dict:
                                    "y": [r["contrast"] for r in rows], "label": "fringe contrast"}],
                        "vlines": [(sl["slope_limit_deg"], "asin(NA)")], "ylim": (-0.05, 1.05)})
     figs["slope.png"] = line_panels(panels)
-    figs["flat_noise.png"] = map_panels([("flat: difference of two measurements", diff)],
-                                        label="nm", cmap="RdBu_r", symmetric=True)
+    # the camera's pixel spans the map: axes in mm on the part, not pixel indices
+    px = m.get("pixel_mm") or (m.get("objective") or {}).get("pixel")
+    ny, nx = np.shape(diff)
+    figs["flat_noise.png"] = map_panels(
+        [("flat: two measurements subtracted", diff)],
+        extent=None if px is None else (0.0, nx * px, 0.0, ny * px),
+        label="height difference (nm)", cmap="RdBu_r", symmetric=True)
     return figs
 
 

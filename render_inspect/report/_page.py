@@ -22,6 +22,7 @@ from ._page_text import (_diffuse_value, _g, _get, _lowpass_caption, _macro_ligh
                          _value_text)
 from ._params import SECTION_ORDER, meaning, section_rows, settings_rows, value_text
 from ._program_page import program_section
+from ._provenance import provenance_section, warnings_section
 
 __all__ = ["build_page", "ReportedScene"]
 
@@ -72,6 +73,41 @@ _SUMMARY_ROWS = [
     ("instrument: height error PV", "measured.pv_nm", "nm"),
     ("instrument: measured pixels", "measured.valid_fraction", "fraction"),
 ]
+
+#: what each summary row is of, and how it is filtered (the ``{filters}`` of the waviness)
+_SUMMARY_OF = {
+    "residual": ("ISO 25178-2, of the simulated cut (the truth): machined - design over the "
+                 "simulated region at the simulation's pixel, heights about their mean; no S- "
+                 "or L-filter"),
+    "residual.min_nm": ("the lowest point of the simulated cut's machined - design (not "
+                        "levelled): how far the cut goes below the design"),
+    "filtered": "ISO 25178-2, of the simulated cut's waviness: {filters}",
+    "measured.instrument_residual_Sq_nm": (
+        "ISO 25178-2 Sq, as measured by the virtual interferometer: measured - design on the "
+        "camera grid over the common window, piston and tilt removed; no S- or L-filter"),
+    "measured.true_residual_Sq_nm": (
+        "ISO 25178-2 Sq of the simulated cut on the same camera pixels, the same piston and "
+        "tilt removed"),
+    "measured.rms_nm": "virtual interferometer: measured - true height over its measured pixels",
+    "measured.pv_nm": "virtual interferometer: measured - true height over its measured pixels",
+    "measured.valid_fraction": "virtual interferometer: share of the camera's pixels measured",
+}
+
+
+def _summary_of(key: str, filters: str) -> str:
+    """What a summary row's number is of, with its filters and standard."""
+    text = _SUMMARY_OF.get(key) or _SUMMARY_OF.get(key.split(".")[0], "")
+    return text.format(filters=filters)
+
+
+def _filters_words(f: dict) -> str:
+    """The waviness filters in words: S- and L-filter nesting indices, form removed."""
+    s_mm, l_mm = f.get("s_filter_mm"), f.get("l_filter_mm")
+    return (f"ISO 16610-61 Gaussian S-filter "
+            + (_q(s_mm * MM_TO_UM, "um") if s_mm else "none")
+            + ", L-filter " + (_q(l_mm, "mm") if l_mm else "none")
+            + f", form removed first: {f.get('form_removal') or 'none'}")
+
 
 _FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "nm"),
                 ("Sv", "Sv_nm", "nm"), ("Sz", "Sz_nm", "nm"), ("Ssk", "Ssk", ""),
@@ -166,6 +202,8 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
                      f"{metrics['seed']} | Mitsuba {metrics['mitsuba_variant']} | render_inspect "
                      f"{metrics['software_version']}")
 
+    warnings_section(rep, metrics.get("warnings"))
+
     # ---- 1. the difference
     d = metrics["difference"]
     w = d.get("window", {})
@@ -235,7 +273,9 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
 
     # ---- 2. summary
     rep.section("Summary")
-    header = ["quantity", va, vb] + (["measured file"] if mf else [])
+    header = ["quantity", va, vb] + (["measured file"] if mf else []) + [
+        "what it is of (standard, filters)"]
+    fwords = _filters_words(metrics.get("filters") or {})
     rows = []
     for label, key, unit in _SUMMARY_ROWS:
         row = [label, _q(_get(c, key), unit), _q(_get(u, key), unit)]
@@ -243,17 +283,21 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
             mkey = {"residual.Sa_nm": "measured.Sa_nm", "residual.Sq_nm": "measured.Sq_nm",
                     "residual.Sz_nm": "measured.Sz_nm"}.get(key)
             row.append(_q(_get(mf, mkey), unit) if mkey else "not measured")
-        rows.append(row)
+        rows.append(row + [_summary_of(key, fwords)])
     tp_c, tp_u = c.get("toolpath") or {}, u.get("toolpath") or {}
     if tp_c.get("revolutions"):
         rows.append(["tool path points", fmt_number(tp_c.get("points")),
-                     fmt_number(tp_u.get("points"))] + (["not measured"] if mf else []))
+                     fmt_number(tp_u.get("points"))] + (["not measured"] if mf else []) + ["the tool path as simulated"])
         rows.append(["tool path revolutions", fmt_number(tp_c.get("revolutions")),
-                     fmt_number(tp_u.get("revolutions"))] + (["not measured"] if mf else []))
+                     fmt_number(tp_u.get("revolutions"))] + (["not measured"] if mf else []) + ["the tool path as simulated"])
     elif tp_c.get("lines"):
         rows.append(["cutting lines", fmt_number(tp_c.get("lines")),
-                     fmt_number(tp_u.get("lines"))] + (["not measured"] if mf else []))
+                     fmt_number(tp_u.get("lines"))] + (["not measured"] if mf else []) + ["the tool path as simulated"])
     rep.table(rows, header=header)
+    if mf:
+        rep.text("Measured file column: ISO 25178-2 parameters of the measured file minus the "
+                 "design after its registration to the design (heights about their mean, "
+                 "outliers as said under Measured file, no S- or L-filter).")
     rep.text("Instrument rows: the height is retrieved from the rendered frames (phase "
              "shifting with 2-D unwrapping, or the coherence envelope peak) and aligned to the "
              "true height by its mean over the measured pixels. 'Reported' is what the "
@@ -289,6 +333,9 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
     rep.table([[label, _q(c["filtered"].get(k), unit), _q(u["filtered"].get(k), unit)]
                for label, k, unit in _FILTER_KEYS],
               header=["waviness parameter", va, vb])
+    rep.text(f"Waviness parameters: ISO 25178-2 (Sdq: root mean square gradient, no unit; Sdr: "
+             f"developed interfacial area ratio) of the simulated cut's machined - design after "
+             f"the filters above ({fwords}).")
 
     # ---- 4. interferometer
     ic = _get(metrics, "render_settings.interferometer") or {}
@@ -396,14 +443,18 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
     rep.section("Parameters")
     _parameters(rep, scene, metrics)
 
-    rep.section("Scene and provenance")
-    prov = [["software_version", metrics.get("software_version", __version__)],
-            ["seed", str(metrics.get("seed"))], ["mitsuba_variant", metrics.get("mitsuba_variant")],
-            ["compare total", _q(_get(metrics, "timing_s.total"), "s")]]
+    seeds = (((d.get("window") or {}).get("measured") or {}).get("noise") or {}).get("seeds") or {}
+    prov: list[list[object]] = [["Mitsuba variant", metrics.get("mitsuba_variant")]]
+    prov += [[f"camera noise seed, {k}", str(s)] for k, s in seeds.items()]
+    prov.append(["compare total", _q(_get(metrics, "timing_s.total"), "s")])
     for name, v in ((va, c), (vb, u)):
         for k, t in (v.get("timing_s") or {}).items():
             prov.append([f"{name} {k}", _q(t, "s")])
-    rep.table(prov, header=["provenance", "value"])
+    provenance_section(rep, {**metrics, "software_version": metrics.get("software_version",
+                                                                         __version__)},
+                       title="Scene and provenance", extra=prov)
+    rep.text("The scene as run (its keys after --set, presets named), from which the run "
+             "repeats with the same seed:")
     rep.pre(json.dumps(scene.to_dict(), indent=2, sort_keys=True))
     return rep.render()
 

@@ -1,0 +1,171 @@
+"""What a metrologist needs of a report before signing off a part: every warning the
+command said, at the top of the page; where the inputs came from (each file with its
+SHA-256, the scene as run, the seed, the software); what each number is of, with its
+standard and filters; and a page that needs no network and prints."""
+
+from __future__ import annotations
+
+import hashlib
+import html as html_lib
+import json
+import logging
+import re
+from pathlib import Path
+
+import pytest
+
+from render_inspect.cli import main as cli_main
+from render_inspect.pipeline._provenance import (file_record, keeps_warnings, run_inputs,
+                                                 said_warnings, scene_sha256)
+from render_inspect.report import HtmlReport, provenance_section, warnings_section
+from render_inspect.scene import find_scene, load_scene, unit_warnings
+
+from conftest import real_file
+
+#: SHA-256 of the three bytes b"abc" (FIPS 180-2, appendix B.1)
+ABC_SHA256 = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+
+#: sts_mla_2x2 on a small window at a pixel coarser than half its 10 um feed marks (a
+#: sampling the command warns of), rendered small
+ALIASED = ["simulation.region=[0.55,0.55,0.85,0.85]", "simulation.pixel=0.006",
+           "render.interferometer.pixel=0.003", "render.diffuse.resolution=64",
+           "render.diffuse.spp=4"]
+
+
+def _sections(page: str) -> list[str]:
+    return [html_lib.unescape(t) for t in re.findall(r'<h2 id="s\d+">(.*?)</h2>', page)]
+
+
+def _section_text(page: str, title: str) -> str:
+    """The text of the section headed ``title``, tags removed."""
+    parts = re.split(r'<h2 id="s\d+">', page)
+    for p in parts[1:]:
+        head, _, body = p.partition("</h2>")
+        if html_lib.unescape(head) == title:
+            return html_lib.unescape(re.sub(r"<[^>]+>", " ", body))
+    raise AssertionError(f"no section {title!r}: {_sections(page)}")
+
+
+def _sha(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def test_input_files_are_recorded_with_their_sha256(tmp_path):
+    f = tmp_path / "prog.nc"
+    f.write_bytes(b"abc")
+    rec = file_record(f, "machine program")
+    assert rec == {"role": "machine program", "path": str(f.resolve()), "bytes": 3,
+                   "sha256": ABC_SHA256}
+    assert file_record(tmp_path, "measured file")["sha256"] is None      # a store folder
+    g = tmp_path / "other.nc"
+    g.write_bytes(b"abd")
+    scene = {"name": "s", "process": {"program": str(f)}, "tool": {"edge_profile": str(g)}}
+    inp = run_inputs(scene, scene_file=f, measured=g, seed=7)
+    assert inp["seed"] == 7 and inp["scene"]["file"]["sha256"] == ABC_SHA256
+    roles = {r["role"]: r["sha256"] for r in inp["files"]}
+    assert roles == {"measured file": _sha(g), "machine program": ABC_SHA256,
+                     "measured tool edge": _sha(g)}
+    # the scene as run: its canonical JSON, whatever the order of its keys
+    assert inp["scene"]["sha256_as_run"] == scene_sha256(json.loads(json.dumps(scene)[::1]))
+    assert scene_sha256({"a": 1, "b": 2}) == scene_sha256({"b": 2, "a": 1})
+    # two variants that read different programs: each named
+    inp = run_inputs(scene, variants=[("a", scene), ("b", {"process": {"program": str(g)}})])
+    assert sorted(r["role"] for r in inp["files"]) == [
+        "machine program (a)", "machine program (b)", "measured tool edge (a)"]
+
+
+def test_warnings_said_during_a_run_are_kept():
+    scene = load_scene("sts_mla_2x2", ALIASED[:2])
+    said = unit_warnings(scene, sampling=True)
+    assert said and "pixel" in said[0]                      # the marks alias at 6 um
+
+    @keeps_warnings
+    def run(sc, x):
+        logging.getLogger("render_inspect").warning("warning: %s", f"the program read {x}")
+        return said_warnings(["a line the run found in its numbers"])
+
+    found = run(scene, "p.nc")
+    assert found[0] == said[0]                              # before the run, as the CLI says it
+    assert "the program read p.nc" in found and found[-1] == "a line the run found in its numbers"
+    assert said_warnings() == []                             # nothing outside a run
+
+
+def test_warnings_and_provenance_sections():
+    rep = HtmlReport("t")
+    warnings_section(rep, [])
+    provenance_section(rep, {"software_version": "9.9", "seed": 3, "scene": {"name": "s"}})
+    page = rep.render()
+    assert _sections(page) == ["Warnings", "Provenance"]
+    assert "None: the command said no warning" in _section_text(page, "Warnings")
+    prov = _section_text(page, "Provenance")
+    assert "render_inspect 9.9" in prov and "not recorded" in prov
+    rep = HtmlReport("t")
+    warnings_section(rep, ["the <edge> is used beyond its range"])
+    page = rep.render()
+    assert '<ul class="warn"><li>the &lt;edge&gt; is used beyond its range</li></ul>' in page
+    assert "@media print" in page                            # the page prints without its nav
+
+
+def _offline(page: str) -> None:
+    """No network fetch: every src and href is a data URI or an anchor."""
+    for attr in re.findall(r'(?:src|href)="([^"]*)"', page):
+        assert attr.startswith(("data:", "#")), attr[:80]
+    assert "<script" not in page and "@import" not in page
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_compare_report_says_its_warnings_units_and_inputs(tmp_path):
+    out = tmp_path / "out"
+    args = ["compare", "sts_mla_2x2", "--out", str(out), "-q"]
+    for o in ALIASED:
+        args += ["--set", o]
+    assert cli_main(args) == 0
+    page = (out / "report.html").read_text()
+    m = json.loads((out / "metrics.json").read_text())
+    said = unit_warnings(load_scene("sts_mla_2x2", ALIASED), sampling=True)
+    # the warning the command printed, first on the page, before Figure 1
+    assert _sections(page)[0] == "Warnings"
+    assert said[0] in _section_text(page, "Warnings") and said[0] in m["warnings"]
+    assert page.index(html_lib.escape(said[0], quote=False)) < page.index("Figure 1.")
+    # each summary number says what it is of, its standard and filters
+    summary = _section_text(page, "Summary")
+    s_mm = m["filters"]["s_filter_mm"]
+    assert summary.count("ISO 25178-2") >= 7 and "of the simulated cut" in summary
+    assert "as measured by the virtual interferometer" in summary
+    # (marks finer than two pixels get no S-filter: the waviness then names none)
+    assert (f"S-filter {s_mm * 1000:.3g} um" if s_mm else "S-filter none, L-filter none") in summary
+    assert "no S- or L-filter" in summary
+    # provenance: the scene file and its hash, the scene as run, the seed, the software
+    prov = _section_text(page, "Scene and provenance")
+    scene_file = find_scene("sts_mla_2x2")
+    assert str(scene_file) in prov and _sha(scene_file) in prov
+    assert m["inputs"]["scene"]["sha256_as_run"] == scene_sha256(m["scene"]) in prov
+    assert f"render_inspect {m['software_version']}" in prov
+    for name, seed in m["difference"]["window"]["measured"]["noise"]["seeds"].items():
+        assert f"camera noise seed, {name} {seed}" in re.sub(r"\s+", " ", prov)
+    _offline(page)
+
+
+@pytest.mark.slow
+def test_profile_report_says_its_warnings_and_inputs(tmp_path):
+    measured = real_file("turned", "1022-WLI-2D.csv")
+    program = real_file("turned", "1022-spiralPath20230418T214917.nc")
+    scene = Path(__file__).resolve().parents[1] / "docs" / "examples" / "turned" / "scene.toml"
+    out = tmp_path / "out"
+    assert cli_main(["compare", str(scene), "--measured", str(measured), "--units", "um",
+                     "--program", str(program), "--out", str(out), "-q"]) == 0
+    page = (out / "report.html").read_text()
+    m = json.loads((out / "metrics.json").read_text())
+    assert _sections(page)[0] == "Warnings"
+    warn = _section_text(page, "Warnings")
+    # the 20x PSI loses fringe orders on these scallops: said at the top and in the caption
+    assert m["virtual_measurement"]["status"] == "failed"
+    assert "does not follow the cut it measured" in warn
+    assert "The virtual measurement FAILED" in _section_text(page, "Profiles overlaid")
+    params = _section_text(page, "Parameters side by side (ISO 21920-2)")
+    assert "lambda_c 0.08 mm" in params and "as the real instrument reported it" in params
+    prov = _section_text(page, "Provenance")
+    for f in (measured, program, scene):
+        assert str(f.resolve()) in prov and _sha(f) in prov, f
+    _offline(page)
