@@ -239,3 +239,16 @@ def test_kinematic_sq():
     x = np.linspace(-f / 2, f / 2, 200_001)
     prof = x ** 2 / (2 * r)
     assert_allclose(kinematic_sq_mm(f, r), np.std(prof), rtol=1e-4)
+
+
+def test_one_spike_is_said_in_the_singular():
+    from render_inspect.metrology import analyze_profile
+
+    x = np.arange(2000) * 1e-3
+    z = 1e-5 * np.sin(2 * np.pi * x / 0.05)
+    z[500] += 5e-3
+    one = analyze_profile(x, z, spacing=1e-3)["metrics"]["warnings"]
+    assert any(w.startswith("1 point (0.05%) is a spike by the 3-sigma rule; it is kept") for w in one), one
+    z[900] += 5e-3
+    two = analyze_profile(x, z, spacing=1e-3)["metrics"]["warnings"]
+    assert any(w.startswith("2 points (0.10%) are spikes") and "leaves them out" in w for w in two), two

@@ -124,3 +124,17 @@ def test_the_deepest_cut_is_explained_by_its_budget():
                  "by up to 5.00 nm once per turn", "the material (al6082) alone -1.30 nm",
                  "grooves along the cut (0.99 nm rms)", "all together -19.0 nm"):
         assert part in text, part
+
+
+def test_the_page_names_every_mitsuba_variant_it_used():
+    """The interferometer renders in an RGB variant, the turned aluminium's diffuse views in
+    a spectral one: the page names both (it named the first alone)."""
+    from render_inspect.report._page import _variants_text
+
+    m = {"mitsuba_variant": "llvm_ad_rgb",
+         "render_settings": {"diffuse": {"macro": {"mitsuba_variant": "llvm_ad_spectral"},
+                                         "micro": {"mitsuba_variant": "llvm_ad_rgb"}}}}
+    assert _variants_text(m) == "llvm_ad_rgb (interferometer), llvm_ad_spectral (diffuse views)"
+    m["render_settings"]["diffuse"]["macro"]["mitsuba_variant"] = "llvm_ad_rgb"
+    assert _variants_text(m) == "llvm_ad_rgb"
+    assert _variants_text({"mitsuba_variant": "scalar_rgb"}) == "scalar_rgb"

@@ -357,8 +357,11 @@ def analyze_map(z: Any, *, pixel: float | tuple[float, float] | None = None,
                          f"across the field in at least one direction (a lay longer than the field)")
     if outliers == "none" and n_flag:
         frac = n_flag / n_measured
-        warnings_.append(f"{n_flag} points ({frac:.2%}) are spikes by the {outlier_sigma:g}-sigma "
-                         f"rule; they are kept (--outliers sigma leaves them out)")
+        one = n_flag == 1
+        warnings_.append(f"{n_flag} point{'' if one else 's'} ({frac:.2%}) "
+                         f"{'is a spike' if one else 'are spikes'} by the {outlier_sigma:g}-sigma rule; "
+                         f"{'it is' if one else 'they are'} kept (--outliers sigma leaves "
+                         f"{'it' if one else 'them'} out)")
     if not math.isclose(px, py, rel_tol=1e-6):
         warnings_.append(f"non-square pixels ({px * MM_TO_UM:.6g} x {py * MM_TO_UM:.6g} um): slopes and "
                          f"lengths use each axis' own spacing")

@@ -88,9 +88,11 @@ def analyze_profile(x: np.ndarray, z: np.ndarray, *, spacing: float, form: str =
     p = e["parameters"]
     warnings_ = list(e["warnings"])
     if outliers == "none" and n_flag:
-        warnings_.append(f"{n_flag} points ({n_flag / n_meas:.2%}) are spikes by the "
-                         f"{outlier_sigma:g}-sigma rule; they are kept (--outliers sigma leaves "
-                         f"them out)")
+        one = n_flag == 1
+        warnings_.append(f"{n_flag} point{'' if one else 's'} ({n_flag / n_meas:.2%}) "
+                         f"{'is a spike' if one else 'are spikes'} by the {outlier_sigma:g}-sigma rule; "
+                         f"{'it is' if one else 'they are'} kept (--outliers sigma leaves "
+                         f"{'it' if one else 'them'} out)")
     per = profile_periods(x, e["primary"], spacing=spacing)
     mr = p["material_ratio"]
     metrics = {

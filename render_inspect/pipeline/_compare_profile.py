@@ -388,7 +388,7 @@ def _page(metrics: dict, figs: dict) -> str:
              f"{metrics['instrument']['mode']}, pixel {metrics['instrument']['pixel_mm'] * MM_TO_UM:.4g} um",
              f"measured file: {metrics['input']['n_measured']} of {metrics['input']['n_points']} "
              f"points measured, spacing {metrics['input']['spacing_mm'] * MM_TO_UM:.4g} um, units "
-             f"{metrics['input']['units_in_file']} ({metrics['input']['units_from']})"]
+             f"{_units_text(metrics['input']['units_in_file'])} ({metrics['input']['units_from']})"]
     for k, lab in _NAMES:
         notes += [f"{lab}: {w}" for w in p[k]["warnings"]]
     rep.section("Notes")
@@ -424,3 +424,10 @@ def run_compare_command(scene: Scene, out: str | Path, *, measured: str | Path |
                              f"{opt} {v} with --measured {measured!r}")
     return run_compare(scene, out, measured=measured, vary=vary, force=force,
                        overwrite=overwrite, repeat=repeat, scene_file=scene_file)
+
+
+def _units_text(units: object) -> str:
+    """``{"position": "um", "height": "nm"}`` as "position um, height nm" (as given otherwise)."""
+    if isinstance(units, dict):
+        return ", ".join(f"{k} {v if v else 'not stated'}" for k, v in units.items())
+    return str(units)

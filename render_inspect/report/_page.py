@@ -199,7 +199,7 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
     mf = metrics.get("measured_file")
     rep = HtmlReport(f"render_inspect comparison: {scene.name}",
                      f"{scene.description or scene.design.type} | {va}: {la} vs {vb}: {lb} | seed "
-                     f"{metrics['seed']} | Mitsuba {metrics['mitsuba_variant']} | render_inspect "
+                     f"{metrics['seed']} | Mitsuba {_variants_text(metrics)} | render_inspect "
                      f"{metrics['software_version']}")
 
     warnings_section(rep, metrics.get("warnings"))
@@ -444,7 +444,7 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
     _parameters(rep, scene, metrics)
 
     seeds = (((d.get("window") or {}).get("measured") or {}).get("noise") or {}).get("seeds") or {}
-    prov: list[list[object]] = [["Mitsuba variant", metrics.get("mitsuba_variant")]]
+    prov: list[list[object]] = [["Mitsuba variant", _variants_text(metrics)]]
     prov += [[f"camera noise seed, {k}", str(s)] for k, s in seeds.items()]
     prov.append(["compare total", _q(_get(metrics, "timing_s.total"), "s")])
     for name, v in ((va, c), (vb, u)):
@@ -487,3 +487,13 @@ def _parameters(rep: HtmlReport, scene: ReportedScene, metrics: dict) -> None:
             rows = [[k, value_text(k, v)] for k, v in used["material"].items()
                     if not isinstance(v, (dict, list))]
             rep.table(rows, header=["[material] as simulated (the cut's mechanics)", "value"])
+
+
+def _variants_text(metrics: dict) -> str:
+    """The Mitsuba variants the comparison used: the interferometer's, and the diffuse
+    views' where theirs differs (the turned-aluminium material renders spectrally)."""
+    main = str(metrics.get("mitsuba_variant"))
+    diffuse = ((metrics.get("render_settings") or {}).get("diffuse") or {}).values()
+    others = sorted({str(d.get("mitsuba_variant")) for d in diffuse
+                     if d.get("mitsuba_variant") and d.get("mitsuba_variant") != main})
+    return main if not others else f"{main} (interferometer), {', '.join(others)} (diffuse views)"
