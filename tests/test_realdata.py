@@ -94,7 +94,10 @@ def test_units_checked_against_file_metadata(maps):
     decl = {n: maps[n].meta["units_in_file"] for n in EXPECTED}
     assert decl["mountainsmap_x3p-2.x3p"] == {"lateral": "m", "vertical": "m"}
     assert decl["sensofar_plu_neox.plu"]["vertical"] in ("µm", "um")
-    assert decl["wyko_opd-1.opd"] == {"lateral": "mm", "vertical": "mm"}
+    # Wyko: Pixel_size in mm, heights as counts x Wavelength (nm) / Mult; SurfaceTopography
+    # converts them to mm, which is kept apart
+    assert decl["wyko_opd-1.opd"] == {"lateral": "mm", "vertical": "nm"}
+    assert maps["wyko_opd-1.opd"].meta["library_units"] == {"lateral": "mm", "vertical": "mm"}
     assert decl["zygo_metropro-1.dat"] == {"lateral": "m", "vertical": "m"}
     assert decl["digitalsurf_sur-2.sur"] == {"lateral": "mm", "vertical": "mm"}
     assert decl["truemap_tmd-1.tmd"] == {"lateral": "mm", "vertical": "mm"}

@@ -37,6 +37,9 @@ from ..core.limits import (MAX_ABS_MM, MAX_FIELD_MM, MOSTLY_EMPTY_FRACTION, PIXE
 from . import _wyko
 from ._exr import exr_placement, read_exr
 from ._frt import reader_keeps_stored_order
+from ._instrument import (al3d_header, finish, format_name, frt_header,
+                          instrument_text, library_header, metropro_header, opd_header,
+                          plu_header)
 from ._limits import (
     check_file_values,
     check_npy,
@@ -95,8 +98,11 @@ class MeasuredMap:
     origin : (x, y)
         Centre of pixel [0, 0], mm.
     meta : dict
-        ``format``, ``reader``, ``units_in_file`` (what the file declares), ``path``,
-        ``valid_fraction``, ``n_invalid`` and what else the file says about itself.
+        ``format``, ``format_name``, ``reader``, ``units_in_file`` (what the file
+        declares; ``units_in_file_from``: where that is said), ``path``,
+        ``valid_fraction``, ``n_invalid``, ``instrument`` (one line: what the header names,
+        or "not stated in the file"), ``instrument_fields``, ``date`` and what else the
+        file says about itself.
     """
 
     z: np.ndarray
@@ -125,6 +131,8 @@ class MeasuredMap:
 
 #: what the readers' messages call the file
 _WHAT = "measured file"
+#: the instrument of a map render_inspect simulated
+_SIMULATED = "none: a height map simulated by render_inspect"
 
 
 @_register(".x3p", name="x3pio")
@@ -151,7 +159,9 @@ def _read_exr(path, *, channel=None, **_):
     z = ch[channel].astype(np.float64) * _to_mm(f"{path} header 'units'", units)
     return z, pxy, origin, {
         "format": "exr", "channel": channel, "scene": attrs.get("scene"),
-        "units_in_file": {"lateral": "mm", "vertical": units}}
+        "units_in_file": {"lateral": "mm", "vertical": units},
+        "units_in_file_from": "header: pixel_size_mm (mm) and units",
+        **({"instrument": _SIMULATED} if attrs.get("scene") else {})}
 
 
 @_register(".zarr", name="zarr")
@@ -165,7 +175,11 @@ def _read_zarr(path, *, channel=None, region=None, **_):
                  extra_bytes=zarr_read_overhead(z, rows, cols))
     data = z.read(channel, rows, cols).astype(np.float64)
     origin = (z.origin[0] + cols.start * z.pixel, z.origin[1] + rows.start * z.pixel)
-    return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel, "store_shape": list(z.shape)}
+    return data, (z.pixel, z.pixel), origin, {"format": "zarr", "channel": channel,
+                                              "store_shape": list(z.shape),
+                                              "instrument": _SIMULATED,
+                                              "units_in_file": {"lateral": "mm", "vertical": "mm"},
+                                              "units_in_file_from": "the store: mm"}
 
 
 def _finite_number(v) -> bool:
@@ -225,12 +239,17 @@ def _read_numpy(path, *, pixel=None, origin=None, units=None, **_):
         raise
     except (ValueError, OSError, EOFError, zipfile.BadZipFile, TypeError) as err:
         raise InputError(f"{_WHAT} {str(path)!r} cannot be read ({type(err).__name__}: {err})") from None
+    units_arg = units
     pxy, origin, units = _sidecar_values(path, side, pixel, origin, units)
     if pxy is None:
         raise InputError(f"{path}: the pixel size is unknown; write {sidecar.name} with "
                          f'{{"pixel_mm": ..., "origin_mm": [x, y], "units": "mm"}} or pass pixel=')
+    said = ("the units argument" if units_arg else
+            f"{'the .npz' if path.suffix.lower() == '.npz' else sidecar.name}: units"
+            if "units" in side else "not stated: mm assumed")
     return z * _to_mm(f"{path} units", units), pxy, origin, {
-        "format": path.suffix[1:], "units_in_file": {"lateral": "mm", "vertical": units}}
+        "format": path.suffix[1:], "units_in_file": {"lateral": "mm", "vertical": units},
+        "units_in_file_from": said}
 
 
 _ST_READERS = {".dat": "MetroProReader", ".datx": "DATXReader", ".plu": "PLUReader",
@@ -280,8 +299,10 @@ def _read_surface_topography(path, **_):
     info = t.info or {}
     meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": {"lateral": unit,
                                                                        "vertical": unit},
-            "instrument": (info.get("instrument") or {}).get("name", ""),
+            "units_in_file_from": f"SurfaceTopography's {cls.__name__} (its unit)",
+            "library_units": {"lateral": unit, "vertical": unit},
             "date": str(info.get("acquisition_time", ""))}
+    meta.update(_st_header(path, suffix, info))
     if suffix == ".frt":
         # Gwyddion's row order (the file's last stored row first), whichever order the
         # installed SurfaceTopography gives (see render_inspect.io._frt)
@@ -289,6 +310,27 @@ def _read_surface_topography(path, **_):
             z = z[::-1]
         meta["row_order"] = "Gwyddion's: the last stored row first"
     return z, (px, py), (0.0, 0.0), meta
+
+
+#: the header parsers of the formats SurfaceTopography reads (render_inspect.io._instrument)
+_ST_HEADERS = {".dat": lambda path, info: metropro_header(info),
+               ".opd": lambda path, info: opd_header(path),
+               ".plu": lambda path, info: plu_header(path),
+               ".al3d": lambda path, info: al3d_header(info),
+               ".frt": lambda path, info: frt_header(info)}
+
+
+def _st_header(path, suffix: str, info: dict) -> dict:
+    """What the file's header says of the instrument and of its units (the file's own
+    units replace the one SurfaceTopography converted to, which stays in
+    ``library_units``)."""
+    head = _ST_HEADERS.get(suffix, lambda path, info: library_header(info))(path, info)
+    fields = head["fields"]
+    out: dict = {"instrument_fields": finish(fields)}
+    if "units" in head:
+        out["units_in_file"] = head["units"]
+        out["units_in_file_from"] = head["units_from"]
+    return out
 
 
 def _check_plux(path) -> None:
@@ -332,12 +374,30 @@ def _read_surfalize(path, **_):
     z = np.asarray(s.data, dtype=np.float64) * UM_TO_MM  # surfalize gives micrometres
     md = getattr(s, "metadata", {}) or {}
     declared = {"lateral": md.get("unit_step_x", "um"), "vertical": md.get("unit_step_z", "um")}
-    meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": declared}
+    meta = {"format": Path(path).suffix[1:].lower(), "units_in_file": declared,
+            "units_in_file_from": ("header: unit_step_x and unit_step_z" if "unit_step_z" in md
+                                   else "surfalize (micrometres; the file names no unit)"),
+            "instrument_fields": _surfalize_fields(md)}
     if Path(path).suffix.lower() == ".sur":  # the z offset's unit (render_inspect.io._sur)
         z, more = sur_offset_fix(z, md, _to_mm(f"{path}: unit of the z step",
                                                md.get("unit_step_z", "um")))
         meta.update(more)
     return z, (float(s.step_x) * UM_TO_MM, float(s.step_y) * UM_TO_MM), (0.0, 0.0), meta
+
+
+def _surfalize_fields(md: dict) -> dict:
+    """A Digital Surf header's acquisition type (0: unknown, no instrument said) and
+    date; nothing for the formats whose header surfalize does not give."""
+    kind = md.get("acquisition_type")
+    name = getattr(kind, "name", None)
+    fields = {"technique": (name.replace("_", " ").lower()
+                            if name and getattr(kind, "value", 0) else None)}
+    y, mo, d = (md.get(k) for k in ("year", "month", "day"))
+    if isinstance(y, int) and isinstance(mo, int) and isinstance(d, int) and y > 0 \
+            and 1 <= mo <= 12 and 1 <= d <= 31:
+        h, mi, sec = (int(md.get(k) or 0) for k in ("hours", "minutes", "seconds"))
+        fields["acquired"] = f"{y:04d}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{sec:02d}"
+    return finish(fields)
 
 
 @_register(".tmd", name="render_inspect")
@@ -449,6 +509,16 @@ def read_surface(path: str | Path, *, channel: str | None = None,
     if not n_ok:
         raise InputError(f"{path}: the map has no valid (finite) heights")
     meta.setdefault("reader", _library_version(lib))
+    # what the file says of the instrument: its fields on one line, or "not stated"
+    fields = finish(meta.get("instrument_fields") or {})
+    meta["instrument_fields"] = fields
+    if fields.get("acquired"):
+        meta["date"] = fields["acquired"]
+    if any(k in fields for k in ("manufacturer", "model", "system", "serial")) \
+            or not meta.get("instrument"):
+        meta["instrument"] = instrument_text(fields)
+    meta["format_name"] = format_name(path.suffix if path.suffix else ".zarr")
+    meta.setdefault("units_in_file_from", "not stated")
     meta.update({"path": str(path), "valid_fraction": n_ok / ok.size,
                  "n_invalid": int(ok.size - n_ok), "units": {"lateral": "mm", "vertical": "mm"},
                  "pixel_x_mm": px, "pixel_y_mm": py})

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import M_TO_MM, NM_TO_MM, UM_TO_MM
+from ._instrument import date_text, finish, instrument_text, x3p_instrument
 
 __all__ = ["read_tmd", "read_nms", "read_x3p_plain"]
 
@@ -61,7 +62,9 @@ def read_tmd(path: str | Path) -> tuple[np.ndarray, tuple[float, float], tuple[f
     meta = {"format": "tmd", "reader": "render_inspect (TrueMap/GelSight readtmd.m layout)",
             "comment": comment, "length_x_mm": float(lx), "length_y_mm": float(ly),
             "offset_x_mm": float(ox), "offset_y_mm": float(oy),
-            "units_in_file": {"lateral": "mm", "vertical": "mm"}}
+            "units_in_file": {"lateral": "mm", "vertical": "mm"},
+            "units_in_file_from": "the TrueMap format: lengths and heights in mm "
+                                  "(GelSight's readtmd.m)"}
     side = path.with_name(path.name[:-len(path.suffix)] + ".scan.yaml")
     if not side.is_file():
         side = path.parent / "scan.yaml"
@@ -104,7 +107,9 @@ def read_nms(path: str | Path) -> tuple[np.ndarray, tuple[float, float], tuple[f
     date = text[1076:1076 + 16].split(b"\x00")[0].decode("latin-1").strip()
     meta = {"format": "nms", "reader": "render_inspect (NanoFocus @OM_MS_2.0 layout)",
             "content": kind, "date": date, "z_range_um": [float(zmin), float(zmax)],
-            "units_in_file": {"lateral": "nm", "vertical": "um"}}
+            "instrument_fields": finish({"technique": kind, "acquired": date}),
+            "units_in_file": {"lateral": "nm", "vertical": "um"},
+            "units_in_file_from": "the NanoFocus format: steps in nm, z range in um"}
     return z, (dx_nm * NM_TO_MM, dy_nm * NM_TO_MM), (0.0, 0.0), meta
 
 
@@ -197,12 +202,19 @@ def _read_x3p_plain(path: Path):
             z[bits == 0] = np.nan
         r2 = root.find("Record2")
         inst = r2.find("Instrument") if r2 is not None else None
-    instrument = "" if inst is None else " ".join(
-        v for v in (_text(inst, "Manufacturer"), _text(inst, "Model"), _text(inst, "Serial")) if v)
+        probe = r2.find("ProbingSystem") if r2 is not None else None
+    said = [None if inst is None else _text(inst, k)
+            for k in ("Manufacturer", "Model", "Serial", "Version")]
+    said += [None if probe is None else _text(probe, k) for k in ("Identification", "Type")]
+    fields = x3p_instrument(*said)
+    date = _text(r2, "Date", "") if r2 is not None else ""
+    fields["acquired"] = date_text(date)
     meta = {"format": "x3p", "reader": "render_inspect (X3P without namespace)",
-            "pixel_x_mm": px * M_TO_MM, "pixel_y_mm": py * M_TO_MM, "instrument": instrument,
-            "date": _text(r2, "Date", "") if r2 is not None else "",
+            "pixel_x_mm": px * M_TO_MM, "pixel_y_mm": py * M_TO_MM,
+            "instrument": instrument_text(fields), "instrument_fields": finish(fields),
+            "date": date,
             "comment": _text(r2, "Comment") if r2 is not None else None,
             "md5_ok": checksum_ok, "non_conformant": "main.xml root has no ISO 5436-2 namespace",
-            "units_in_file": {"lateral": "m", "vertical": "m"}}
+            "units_in_file": {"lateral": "m", "vertical": "m"},
+            "units_in_file_from": "ISO 25178-72: X3P stores metres"}
     return z * M_TO_MM, (px * M_TO_MM, py * M_TO_MM), (ox * M_TO_MM, oy * M_TO_MM), meta

@@ -60,6 +60,44 @@ def invalid_points(path: str | Path) -> np.ndarray | None:
     return None
 
 
+#: block types whose value is one number or a text (type 15: a tagged value, read when
+#: it holds a text: 0x12 0x01, the length, the characters)
+_SCALARS = {6: "<H", 7: "<f", 12: "<I"}
+
+
+def header_values(path: str | Path) -> dict:
+    """The header's named values of a Wyko OPD file: texts (``MachineID``, ``SerialNum``,
+    ``ObjectiveLabel``, ``MeasMode``, ``Date``, ...) and numbers (``Magnification``,
+    ``Wavelength``, ...); empty when the file has no block directory."""
+    data = Path(path).read_bytes()
+    out: dict = {}
+    if len(data) < 2 + _ENTRY:
+        return out
+    name, kind, dir_len = _entry(data, 2)
+    if name != "Directory" or dir_len % _ENTRY:
+        return out
+    offset = 2 + _ENTRY * (dir_len // _ENTRY)
+    for i in range(dir_len // _ENTRY - 1):
+        name, kind, length = _entry(data, 2 + _ENTRY * (i + 1))
+        if length <= 0:
+            continue
+        raw = data[offset:offset + length]
+        offset += length
+        if kind == 5:
+            out[name] = raw.split(b"\0", 1)[0].decode("latin-1").strip()
+        elif kind in _SCALARS and len(raw) >= struct.calcsize(_SCALARS[kind]):
+            out[name] = struct.unpack_from(_SCALARS[kind], raw)[0]
+        elif kind == 15 and len(raw) >= 3 and raw[:2] == b"\x12\x01" and raw[2] <= len(raw) - 3:
+            out[name] = raw[3:3 + raw[2]].decode("latin-1").strip()
+    return out
+
+
+def _entry(data: bytes, at: int) -> tuple[str, int, int]:
+    name = data[at:at + 16].split(b"\0", 1)[0].decode("latin-1")
+    kind, length, _attr = struct.unpack_from("<hlH", data, at + 16)
+    return name, kind, length
+
+
 def mask_invalid(path: str | Path, z: np.ndarray) -> np.ndarray:
     """``z`` (rows = y, columns = x, as render_inspect's readers return heights) with the
     points the OPD file marks as not measured set to NaN."""

@@ -291,7 +291,10 @@ def _analyze_windowed(store: ZarrHeightMap, path: Path, out, *, need: float, bud
                           pixel=store.pixel, origin=store.origin, form=form, slope=slope,
                           band_rows=rows, spatial=spatial, progress=progress,
                           source={"reader": "zarr", "format": "zarr", "channel": channel,
-                                  "units_in_file": {"lateral": "mm", "vertical": "mm"}})
+                                  "format_name": "height-map store (.zarr)",
+                                  "instrument": "none: a height map simulated by render_inspect",
+                                  "units_in_file": {"lateral": "mm", "vertical": "mm"},
+                                  "units_in_file_from": "the store: mm"})
     files = {"metrics.json": "these metrics",
              "height.png": ("evaluated surface seen at the pyramid level of Sal and Str (area "
                             "means): heights in nm, x and y in mm" if spatial is not None else

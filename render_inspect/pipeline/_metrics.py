@@ -184,10 +184,15 @@ def analysis_metrics(analysis: dict, *, path: str | Path, files: dict, timing: d
     metrics = dict(analysis)
     src = metrics.pop("source", {})
     metrics["input"] = {"path": str(Path(path)), "reader": src.get("reader"),
-                        "format": src.get("format"), "units_in_file": src.get("units_in_file"),
+                        "format": src.get("format"), "format_name": src.get("format_name"),
+                        "units_in_file": src.get("units_in_file"),
+                        "units_in_file_from": src.get("units_in_file_from"),
                         "instrument": src.get("instrument") or None,
+                        "instrument_fields": src.get("instrument_fields") or {},
                         "date": src.get("date") or None, "n_invalid": src.get("n_invalid"),
                         "channel": src.get("channel")}
+    if src.get("library_units"):
+        metrics["input"]["library_units"] = src["library_units"]
     metrics["files"] = files
     metrics["software_version"] = __version__
     metrics["command"] = "analyze"

@@ -315,7 +315,22 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
                       + f"; imprint predicted on a path planned for the circular nose "
                         f"{fmt_quantity(imprint, 'nm')} rms"
                       + (f"; {said} warning(s) in metrics.json tool_edge" if said else "")))
+    src = (metrics.get("measured_file") or {}).get("source") or {}
+    if src:  # the measured file: what it is and what its header names
+        lines.append(("measured file", _measured_file_text(src)))
     return rows, lines
+
+
+def _measured_file_text(src: dict) -> str:
+    """A measured file in one line: its format, the reader, the units it declares and the
+    instrument its header names (``read_surface``'s description of it)."""
+    units = src.get("units_in_file") or {}
+    return (f"{src.get('format_name') or src.get('format') or '?'}, read by "
+            f"{src.get('reader') or '?'}"
+            + (f"; in the file: lateral {units.get('lateral')}, heights {units.get('vertical')}"
+               if units else "")
+            + f"; instrument: {src.get('instrument') or 'not stated in the file'}"
+            + (f", acquired {src['date']}" if src.get("date") else ""))
 
 
 def _short_value(v: object) -> str:

@@ -105,9 +105,16 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     filt = ", ".join(f"{k[0]} {v:g} mm" for k, v in (("S_mm", f.get("S_mm")),
                                                      ("L_mm", f.get("L_mm"))) if v)
     out = metrics.get("outliers", {})
-    rows = [("map", f"{shape[1]} x {shape[0]} points of {fmt_quantity(px[0] * MM_TO_UM, 'um')}"
-                    + (f" x {fmt_quantity(px[1] * MM_TO_UM, 'um')}" if px[1] != px[0] else "")
-                    + f", {_percent(metrics.get('valid_fraction'))} valid"),
+    rows = _input_rows(metrics.get("input") or {})
+    valid = metrics.get("valid_fraction")
+    n_bad = (metrics.get("input") or {}).get("n_invalid")
+    invalid = (f"{n_bad:,} invalid ({_percent(1.0 - float(valid))})"
+               if isinstance(n_bad, int) and valid is not None
+               else f"{_percent(valid)} valid")
+    # (four significant figures: the pixel as the file gives it, non-square ones told apart)
+    rows += [("map", f"{shape[1]} x {shape[0]} points, pixel {px[0] * MM_TO_UM:.4g} x "
+                     f"{px[1] * MM_TO_UM:.4g} um, field {px[0] * shape[1]:.4g} x "
+                     f"{px[1] * shape[0]:.4g} mm (x by y); {invalid}"),
             ("form removed, filter", f"{(metrics.get('form') or {}).get('method')}, "
                                      f"{filt or 'none'}"),
             ("Sa, Sq", f"{fmt_quantity(a.get('Sa_nm'), 'nm')}, {fmt_quantity(a.get('Sq_nm'), 'nm')}"),
@@ -121,6 +128,21 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     if dom and (dom.get("period_mm") or dom.get("note")):
         rows.append(("dominant period", period_text(dom)))
     return rows
+
+
+def _input_rows(inp: dict) -> list[tuple[str, str]]:
+    """The file (its format, the reader, the units it declares) and the instrument its
+    header names (with the acquisition date), from ``metrics["input"]``."""
+    if not inp:
+        return []
+    units = inp.get("units_in_file") or {}
+    fmt = inp.get("format_name") or inp.get("format") or "?"
+    said = (f"; in the file: lateral {units.get('lateral')}, heights "
+            f"{units.get('vertical')}" if units else "")
+    date = inp.get("date")
+    return [("file", f"{fmt}, read by {inp.get('reader') or '?'}{said}"),
+            ("instrument", f"{inp.get('instrument') or 'not stated in the file'}"
+                           + (f"; acquired {date}" if date else ""))]
 
 
 def _percent(v: float | None) -> str:

@@ -126,7 +126,8 @@ def _measured_section(rep: HtmlReport, mf: dict) -> None:
              f"points, pixel {fmt_quantity(_scaled(px[0], 1e3), 'um')} x "
              f"{fmt_quantity(_scaled(px[1], 1e3), 'um')} (x by y); units declared in the file: "
              f"lateral {units.get('lateral', '?')}, vertical {units.get('vertical', '?')}; "
-             f"read as mm.")
+             f"read as mm. Instrument: {src.get('instrument') or 'not stated in the file'}"
+             f"{', acquired ' + str(src['date']) if src.get('date') else ''}.")
     for w in mf.get("warnings") or []:
         rep.text(w, cls="note")
     checks = mf.get("checks") or {}
