@@ -45,7 +45,8 @@ from typing import Any
 from ._wyko import header_values
 
 __all__ = ["NOT_STATED", "instrument_text", "format_name", "date_text", "finish", "metropro_header", "opd_header",
-           "plu_header", "al3d_header", "frt_header", "x3p_instrument", "library_header"]
+           "plu_header", "al3d_header", "frt_header", "x3p_instrument", "x3p_header",
+           "library_header"]
 
 #: what is said of a file whose header names no instrument
 NOT_STATED = "not stated in the file"
@@ -262,6 +263,21 @@ def x3p_instrument(manufacturer: Any, model: Any, serial: Any, version: Any,
     probe = ", ".join(p for p in (ident, f"type {kind}" if kind else None) if p) or None
     return {"manufacturer": _clean(manufacturer), "model": _clean(model),
             "serial": _clean(serial), "version": _clean(version), "probing": probe}
+
+
+def x3p_header(metadata: Any) -> dict:
+    """``instrument_fields``, ``instrument`` (one line) and ``date`` of an X3P file from its
+    ``Record2`` as x3pio reads it (``metadata``: its ``instrument``, ``probing_system``
+    and ``date``; None for a file without one)."""
+    inst = getattr(metadata, "instrument", None)
+    probe = getattr(metadata, "probing_system", None)
+    fields = x3p_instrument(getattr(inst, "manufacturer", None), getattr(inst, "model", None),
+                            getattr(inst, "serial", None), getattr(inst, "version", None),
+                            getattr(probe, "identification", None), getattr(probe, "type", None))
+    date = str(getattr(metadata, "date", "") or "")
+    fields["acquired"] = date_text(date)
+    return {"instrument_fields": finish(fields), "instrument": instrument_text(fields),
+            "date": date}
 
 
 def library_header(info: Mapping | None) -> dict:

@@ -32,6 +32,8 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.units import M_TO_MM, MIB_TO_BYTES, MM_TO_NM, MM_TO_UM
+from ._instrument import (NOT_STATED, date_text, finish, format_name, instrument_text,
+                          library_header, x3p_header)
 from ._limits import check_file_values, check_x3p
 from ._registry import reader, register_reader
 
@@ -61,10 +63,14 @@ class MeasuredProfile:
     z : (n,) float64 array
         Heights, mm; NaN where not measured.
     meta : dict
-        ``format``, ``reader``, ``path``, ``units_in_file`` (``{"position", "height"}``:
-        what the file declares, or what the caller gave, with ``units_from``),
-        ``n_points``, ``n_measured``, ``spacing_mm``, ``length_mm`` and, for text files,
-        ``label`` (the third column's value where there is one).
+        ``format``, ``format_name``, ``reader``, ``path``, ``units_in_file``
+        (``{"position", "height"}``: what the file declares, or what the caller gave, with
+        ``units_from``: "file", "--units" or "file and --units", and
+        ``units_in_file_from`` saying it in words), ``instrument`` (one line: what the
+        file names, or "not stated in the file"), ``instrument_fields``, ``date`` (or
+        None), ``n_points``, ``n_measured``, ``n_invalid``, ``valid_fraction``,
+        ``spacing_mm``, ``length_mm`` and, for text files, ``label`` (the third column's
+        value where there is one).
     """
 
     x: np.ndarray
@@ -207,12 +213,20 @@ def _read_text(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     else:
         raise InputError(_units_refusal(path, x, z, pos_u, h_u))
     meta = {"format": path.suffix[1:].lower() or "text", "reader": "render_inspect",
+            "format_name": f"text profile export ({path.suffix.lower() or 'no suffix'})",
             "units_in_file": {"position": declared[0], "height": declared[1]},
-            "units_from": source, "header": header,
+            "units_from": source, "units_in_file_from": _TEXT_UNITS_FROM[source],
+            "header": header,
             "separator": {None: "spaces", "\t": "tab"}.get(sep, sep)}
     if labels:
         meta["label"] = ", ".join(sorted(labels))
     return x * PROFILE_UNITS[declared[0]], z * PROFILE_UNITS[declared[1]], meta
+
+
+#: where a text profile's units come from, by ``units_from``
+_TEXT_UNITS_FROM = {"file": "the header line",
+                    "--units": "--units (the file does not state them)",
+                    "file and --units": "the header line (what it states) and --units (the rest)"}
 
 
 def _units_refusal(path, x, z, pos_u, h_u) -> str:
@@ -297,8 +311,9 @@ def _read_opdx(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     return x, np.asarray(h, dtype=np.float64) * scale, {
         "format": "opdx", "reader": _version("SurfaceTopography"),
         "units_in_file": {"position": unit, "height": unit}, "units_from": "file",
-        "instrument": (info.get("instrument") or {}).get("name", ""),
-        "date": str(info.get("acquisition_time", ""))}
+        "units_in_file_from": "the file: the height channel's unit and its Extent",
+        "instrument_fields": {**library_header(info)["fields"],
+                              "acquired": date_text(info.get("acquisition_time"))}}
 
 
 def _x3p_feature(path: Path) -> str | None:
@@ -342,7 +357,9 @@ def _read_x3p_profile(path: Path, units) -> tuple[np.ndarray, np.ndarray, dict]:
     if off[2]:
         z = z + off[2]
     return x, z, {"format": "x3p", "reader": _version("x3pio"),
-                  "units_in_file": {"position": "m", "height": "m"}, "units_from": "file"}
+                  "units_in_file": {"position": "m", "height": "m"}, "units_from": "file",
+                  "units_in_file_from": "ISO 25178-72: X3P stores metres",
+                  "instrument_fields": x3p_header(f.metadata)["instrument_fields"]}
 
 
 def _version(dist: str) -> str:
@@ -468,7 +485,15 @@ def read_profile(path: str | Path, *, units: str | None = None) -> MeasuredProfi
         raise InputError(f"{path}: the numbers do not fit a profile in the stated units "
                          f"{meta.get('units_in_file')}: step {dx:.3g} mm (allowed 1e-09 .. 100 "
                          f"mm), heights up to {big:.3g} mm (allowed 100 mm)")
+    # what the file says of the instrument that wrote it (its fields on one line, or "not
+    # stated"), as read_surface says it of a map
+    fields = finish(meta.get("instrument_fields") or {})
+    meta["instrument_fields"] = fields
+    meta["instrument"] = instrument_text(fields) if fields else NOT_STATED
+    meta["date"] = fields.get("acquired")
+    meta.setdefault("format_name", format_name(path.suffix))
     meta.update({"path": str(path), "n_points": int(z.size), "n_measured": int(ok.sum()),
+                 "n_invalid": int(z.size - ok.sum()), "valid_fraction": float(ok.mean()),
                  "spacing_mm": dx, "length_mm": float(x[-1] - x[0]),
                  "units": {"position": "mm", "height": "mm"}})
     return MeasuredProfile(x, z, meta)

@@ -21,7 +21,7 @@ from ..core.units import MM_TO_M, M_TO_MM
 from .. import __version__
 from ..core.errors import InputError, check_positive
 from ._atomic import atomic_write_bytes
-from ._instrument import date_text, finish, instrument_text, x3p_instrument
+from ._instrument import x3p_header
 from ._limits import check_x3p
 from ._vendor import read_x3p_plain
 
@@ -156,17 +156,8 @@ def read_x3p_xy(path: str | Path, *, what: str = "X3P file",
     if off[2]:
         z = z + off[2]
     m = f.metadata
-    inst = getattr(m, "instrument", None) if m else None
-    probe = getattr(m, "probing_system", None) if m else None
-    fields = x3p_instrument(getattr(inst, "manufacturer", None), getattr(inst, "model", None),
-                            getattr(inst, "serial", None), getattr(inst, "version", None),
-                            getattr(probe, "identification", None), getattr(probe, "type", None))
-    date = str(getattr(m, "date", "") or "") if m else ""
-    fields["acquired"] = date_text(date)
     meta = {"format": "x3p", "pixel_x_mm": px_m * M_TO_MM, "pixel_y_mm": py_m * M_TO_MM,
-            "comment": getattr(m, "comment", None) if m else None,
-            "instrument_fields": finish(fields), "instrument": instrument_text(fields),
-            "date": date}
+            "comment": getattr(m, "comment", None) if m else None, **x3p_header(m)}
     meta["reader"] = f"x3pio {getattr(x3pio, '__version__', '')}".strip()
     meta["units_in_file"] = {"lateral": "m", "vertical": "m"}
     meta["units_in_file_from"] = "ISO 25178-72: X3P stores metres"

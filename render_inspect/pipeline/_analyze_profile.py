@@ -55,13 +55,18 @@ def run_analyze_profile(path: str | Path, out: str | Path, *, units: str | None 
     a = analyze_profile(m.x, m.z, spacing=m.spacing, form=form, lambda_s=s_mm, lambda_c=l_mm,
                         outliers=outliers, outlier_sigma=outlier_sigma)
     metrics = dict(a["metrics"])
+    # what was read, under the keys analyze gives a map (docs/formats.md)
     metrics["input"] = {"path": str(path), "reader": m.meta.get("reader"),
-                        "format": m.meta.get("format"),
+                        "format": m.meta.get("format"), "format_name": m.meta.get("format_name"),
                         "units_in_file": m.meta.get("units_in_file"),
                         "units_from": m.meta.get("units_from"),
+                        "units_in_file_from": m.meta.get("units_in_file_from"),
                         "instrument": m.meta.get("instrument") or None,
+                        "instrument_fields": m.meta.get("instrument_fields") or {},
                         "date": m.meta.get("date") or None, "label": m.meta.get("label"),
+                        "n_invalid": int(m.z.size - m.n_measured),
                         "n_not_measured": int(m.z.size - m.n_measured)}
+    metrics["valid_fraction"] = m.n_measured / m.z.size
     metrics["files"] = {"metrics.json": "these metrics",
                         "profile.png": "primary profile and mean line, roughness profile, power "
                                        "spectrum with the feed period, material ratio curve"}

@@ -97,7 +97,7 @@ def analysis_summary(metrics: dict) -> list[tuple[str, str]]:
     """The headline numbers of ``analyze``'s ``metrics.json`` for a one-screen summary:
     (quantity, text) rows (a profile's: :func:`profile_summary`)."""
     if metrics.get("kind") == "profile":
-        return profile_summary(metrics)
+        return _input_rows(metrics.get("input") or {}) + profile_summary(metrics)
     a = metrics.get("areal", {})
     f = metrics.get("filter", {})
     shape = metrics.get("shape") or [0, 0]
@@ -137,8 +137,13 @@ def _input_rows(inp: dict) -> list[tuple[str, str]]:
         return []
     units = inp.get("units_in_file") or {}
     fmt = inp.get("format_name") or inp.get("format") or "?"
-    said = (f"; in the file: lateral {units.get('lateral')}, heights "
-            f"{units.get('vertical')}" if units else "")
+    if "position" in units:  # a profile: positions and heights, said or given
+        where = ("in the file" if inp.get("units_from") == "file" else
+                 f"units from {inp.get('units_in_file_from') or inp.get('units_from')}")
+        said = f"; {where}: positions {units.get('position')}, heights {units.get('height')}"
+    else:
+        said = (f"; in the file: lateral {units.get('lateral')}, heights "
+                f"{units.get('vertical')}" if units else "")
     date = inp.get("date")
     return [("file", f"{fmt}, read by {inp.get('reader') or '?'}{said}"),
             ("instrument", f"{inp.get('instrument') or 'not stated in the file'}"

@@ -45,8 +45,13 @@ def profile_summary(metrics: dict) -> list[tuple[str, str]]:
     per = metrics.get("periods") or {}
     ta = per.get("through_axis")
     out = metrics.get("outliers", {})
-    rows = [("profile", f"{metrics.get('n_measured')} of {metrics.get('n_points')} points "
-                        f"measured, spacing {fmt_quantity(metrics.get('spacing_mm', 0) * MM_TO_UM, 'um')}"),
+    n, n_ok = metrics.get("n_points"), metrics.get("n_measured")
+    bad = (f"{n - n_ok:,} invalid ({100 * (n - n_ok) / n:.1f} %)"
+           if isinstance(n, int) and isinstance(n_ok, int) and n else "invalid points n/a")
+    # (what an areal map's "map" row says: points, sampling, extent, invalid points; four
+    # significant figures, the spacing as the file gives it)
+    rows = [("profile", f"{n} points, spacing {metrics.get('spacing_mm', 0) * MM_TO_UM:.4g} um, "
+                        f"length {metrics.get('length_mm', 0):.4g} mm; {bad}"),
             ("filter", f"lambda_s {f.get('lambda_s_mm') or 0:g} mm, lambda_c "
                        f"{f.get('lambda_c_mm'):g} mm ({f.get('chosen_by')})"),
             ("Ra, Rq", f"{fmt_quantity(p.get('Ra_nm'), 'nm')}, {fmt_quantity(p.get('Rq_nm'), 'nm')}"),
