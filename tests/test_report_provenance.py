@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from render_inspect.cli import main as cli_main
+from render_inspect.core.invocation import command_line, running_command
 from render_inspect.pipeline._provenance import (file_record, keeps_warnings, run_inputs,
                                                  said_warnings, scene_sha256)
 from render_inspect.report import HtmlReport, provenance_section, warnings_section
@@ -72,6 +73,49 @@ def test_input_files_are_recorded_with_their_sha256(tmp_path):
     inp = run_inputs(scene, variants=[("a", scene), ("b", {"process": {"program": str(g)}})])
     assert sorted(r["role"] for r in inp["files"]) == [
         "machine program (a)", "machine program (b)", "measured tool edge (a)"]
+
+
+def test_the_command_line_is_recorded_as_typed(tmp_path, monkeypatch):
+    """``inputs.command``: the ``render-inspect`` words as typed (a relative path stays
+    relative, with the directory it is relative to), None for a run called from Python;
+    the provenance table says which."""
+    scene = {"name": "s"}
+    assert run_inputs(scene)["command"] is None and run_inputs(scene)["working_directory"] is None
+    typed = ["compare", "scenes/my part.toml", "--set", "simulation.pixel=0.002", "--out", "o"]
+    monkeypatch.chdir(tmp_path)
+    with running_command(typed):
+        inp = run_inputs(scene, seed=1)
+        assert command_line() == ["render-inspect", *typed]
+    assert inp["command"] == ["render-inspect", *typed]
+    assert inp["working_directory"] == str(tmp_path)
+    assert command_line() is None                            # undone when the command ends
+    rep = HtmlReport("t")
+    provenance_section(rep, {"seed": 1, "scene": {"name": "s"}, "inputs": inp})
+    prov = re.sub(r"\s+", " ", _section_text(rep.render(), "Provenance"))
+    assert ("render-inspect compare 'scenes/my part.toml' --set simulation.pixel=0.002 --out o"
+            in prov) and str(tmp_path) in prov
+    rep = HtmlReport("t")
+    provenance_section(rep, {"seed": 1, "scene": {"name": "s"}, "inputs": run_inputs(scene)})
+    prov = re.sub(r"\s+", " ", _section_text(rep.render(), "Provenance"))
+    assert "not recorded: the run was made from Python (the render_inspect API)" in prov
+
+
+def test_the_program_sets_the_command_line_for_its_command(tmp_path, monkeypatch):
+    """``render-inspect`` (here its ``main``) runs each command with its own words set:
+    what a command's run_inputs records."""
+    import render_inspect.cli._main as cli_module
+
+    seen = []
+
+    def fake_analyze(args, overwrite):
+        seen.append(run_inputs({"name": "s"})["command"])
+        return {}
+
+    monkeypatch.setitem(cli_module.COMMANDS, "analyze", fake_analyze)
+    typed = ["analyze", "../data/trace.csv", "--units", "um", "--out", "a", "-q"]
+    assert cli_main(typed) == 0
+    assert seen == [["render-inspect", *typed]]
+    assert command_line() is None
 
 
 def test_warnings_said_during_a_run_are_kept():
@@ -153,8 +197,9 @@ def test_profile_report_says_its_warnings_and_inputs(tmp_path):
     program = real_file("turned", "1022-spiralPath20230418T214917.nc")
     scene = Path(__file__).resolve().parents[1] / "docs" / "examples" / "turned" / "scene.toml"
     out = tmp_path / "out"
-    assert cli_main(["compare", str(scene), "--measured", str(measured), "--units", "um",
-                     "--program", str(program), "--out", str(out), "-q"]) == 0
+    typed = ["compare", str(scene), "--measured", str(measured), "--units", "um",
+             "--program", str(program), "--out", str(out), "-q"]
+    assert cli_main(typed) == 0
     page = (out / "report.html").read_text()
     m = json.loads((out / "metrics.json").read_text())
     assert _sections(page)[0] == "Warnings"
@@ -166,6 +211,9 @@ def test_profile_report_says_its_warnings_and_inputs(tmp_path):
     params = _section_text(page, "Parameters side by side (ISO 21920-2)")
     assert "lambda_c 0.08 mm" in params and "as the real instrument reported it" in params
     prov = _section_text(page, "Provenance")
+    # the command line as typed (the paths as given)
+    assert m["inputs"]["command"] == ["render-inspect", *typed]
+    assert " ".join(["render-inspect", *typed]) in re.sub(r"\s+", " ", prov)
     for f in (measured, program, scene):
         assert str(f.resolve()) in prov and _sha(f) in prov, f
     _offline(page)

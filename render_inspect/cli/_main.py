@@ -20,6 +20,7 @@ from ..core import cancel
 from ..core.cancel import Terminated
 from ..core.lazy import freeze_after_pauses
 from ..core.errors import RenderInspectError
+from ..core.invocation import running_command
 from ..core.progress import set_reporter
 from . import _analyze, _batch, _fit, _render, _simulate
 from ._args import _add_verbosity, log
@@ -258,7 +259,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with reporter as rep:
             old = set_reporter(rep)
             try:
-                result = _run(args)
+                # the command line as typed, for the reports' provenance
+                with running_command(sys.argv[1:] if argv is None else argv):
+                    result = _run(args)
                 # a signal whose exception was swallowed (raised inside a __del__ or a
                 # callback that ignores exceptions) still ends the run as an interruption
                 cancel.check()

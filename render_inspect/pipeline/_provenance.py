@@ -1,7 +1,8 @@
 """What a report needs so that its run can be repeated and its warnings are not lost:
-the input files (scene file, machine program, measured file, a height-map design, a
-measured tool edge) each with its SHA-256, the scene as run (after ``--set``), the
-software version and the seed; and every warning the command said while it ran."""
+the command line it was made with (``render-inspect`` only), the input files (scene file,
+machine program, measured file, a height-map design, a measured tool edge) each with its
+SHA-256, the scene as run (after ``--set``), the software version and the seed; and every
+warning the command said while it ran."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
 
 from .. import __version__
+from ..core.invocation import command_line, working_directory
 from ..core.units import MIB_TO_BYTES
 from ._blender_warnings import note, scene_warnings, warnings_into
 
@@ -88,7 +90,10 @@ def run_inputs(scene_dict: dict, *, scene_file: str | Path | None = None,
     ``files`` (a :func:`file_record` of each file the run read: the measured file, each
     variant's program, height-map design and measured tool edge; a variant's name in its
     role where the variants read different files), ``software_version``, ``python``,
-    ``seed``."""
+    ``seed``, ``command`` (the ``render-inspect`` command line as typed, program name
+    first, paths as given: :func:`render_inspect.core.invocation.command_line`; None for
+    a run called from Python) and ``working_directory`` (where that command ran: what its
+    relative paths are relative to; None with it)."""
     files: list[dict] = []
     seen: set[tuple[str, str]] = set()
 
@@ -109,7 +114,8 @@ def run_inputs(scene_dict: dict, *, scene_file: str | Path | None = None,
                       "file": None if scene_file is None else file_record(scene_file, "scene file"),
                       "sha256_as_run": scene_sha256(scene_dict)},
             "files": files, "software_version": __version__,
-            "python": platform.python_version(), "seed": seed}
+            "python": platform.python_version(), "seed": seed,
+            "command": command_line(), "working_directory": working_directory()}
 
 
 def keeps_warnings(fn: Callable[_P, _R]) -> Callable[_P, _R]:

@@ -11,9 +11,9 @@ from ._comparison import (ComparedVariant, comparison_figures, comparison_summar
 from ._draw import FIGURE_KINDS, draw_figure, drawn_data, figure_kinds, preload_drawing, uses_matplotlib
 from ._figure_kinds import register_figure, registered_figures
 from . import _edge_plot  # noqa: F401  (registers the figure kinds tool_edge, tool_wear)
-from ._figures import (annotate_rgb, block_mean, difference_figure, display_map, image_panels,
-                       line_panels, locator_figure, lowpass_map, map_panels, png_bytes,
-                       radial_profile_figure)
+from ._figures import (annotate_rgb, block_mean, display_map, image_panels, line_panels,
+                       lowpass_map, map_panels, png_bytes, radial_profile_figure)
+from ._locator import difference_figure, locator_figure
 from ._fit import fit_figures, fit_page, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length

@@ -11,8 +11,8 @@ import numpy as np
 
 from ..core.heightmap import HeightMap
 from ..core.units import MM_TO_NM, MM_TO_UM
-from ._figures import (difference_figure, image_panels, locator_figure, map_panels,
-                       radial_profile_figure)
+from ._figures import image_panels, map_panels, radial_profile_figure
+from ._locator import difference_figure, height_background, locator_figure
 from ._format import fmt_quantity, nice_length
 from ..core.toolpath import ToolPath
 
@@ -229,7 +229,7 @@ def _locator(a: ComparedVariant, part: dict, window: dict, ig) -> dict:
     pad = 0.04 * max(x1 - x0, y1 - y0)
     loc = {"part": part if part.get("shape") == "rect" else {}, "windows": windows,
            "limits": (x0 - pad, x1 + pad, y0 - pad, y1 + pad),
-           "background": (a.heightmap.design, hm.extent)}
+           **height_background(a.heightmap.design, hm.extent, "design height")}
     if part.get("shape") == "disc":
         R = part["radius"]
         loc["inset"] = {"part": part, "windows": [("region", tuple(r), "C3", "-")],

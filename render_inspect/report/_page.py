@@ -218,7 +218,8 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
         rep.text(f"The two variants are identical: {pair.get('key')} makes no difference to the "
                  f"machined surface of this scene, so no difference maps are shown.", cls="note")
         rep.figure(figs["windows"], f"Where the windows are: the simulated region and the common "
-                                    f"window ({win_txt}).")
+                                    f"window ({win_txt}), x and y in mm on the part, over the "
+                                    f"design's height in grey (colour bar: nm or um as labelled).")
     else:
         tw, mw = w.get("true") or {}, w.get("measured") or {}
         same = w.get("true_same_form_removed") or {}
@@ -230,7 +231,8 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
                    f"Figure 1. {va} - {vb} over one common window ({win_txt}), placed where the "
                    f"two differ most. Left: where every window of this report lies (simulated "
                    f"region, interferometer field = common window, micro diffuse view; inset: "
-                   f"the whole part). Middle: the true height difference of the simulated "
+                   f"the whole part), x and y in mm on the part, over the design's height in "
+                   f"grey (its colour bar: nm or um as labelled). Middle: the true height difference of the simulated "
                    f"surfaces, and the difference of what the virtual interferometer measures, "
                    f"formed from the two measurements alone as instrument software does ({removed} "
                    f"removed; the fringe order of separate regions taken nearest the largest "

@@ -1,9 +1,10 @@
 """The two parts every report page shares: the warnings the command said, at the top, and
-where the run's inputs came from (files with their SHA-256, the scene as run, software
-version, seed), at the end, so that the run can be repeated and checked."""
+where the run's inputs came from (the command line, files with their SHA-256, the scene as
+run, software version, seed), at the end, so that the run can be repeated and checked."""
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Iterable, Sequence
 
 from ._format import fmt_number
@@ -27,15 +28,25 @@ def warnings_section(rep: HtmlReport, warnings: Sequence[str] | None) -> None:
 
 def provenance_section(rep: HtmlReport, metrics: dict, *, title: str = "Provenance",
                        extra: Iterable[Sequence[object]] = ()) -> None:
-    """A section with what repeats the run: the software version, the seed, the scene
-    (its file and SHA-256, and the SHA-256 of the scene as run, after ``--set``), each
-    input file with its role, path, size and SHA-256; ``extra`` rows after them."""
+    """A section with what repeats the run: the command line it was made with (and the
+    directory it ran in), or that it was made from Python; the software version, the
+    seed, the scene (its file and SHA-256, and the SHA-256 of the scene as run, after
+    ``--set``), each input file with its role, path, size and SHA-256; ``extra`` rows
+    after them."""
     inp = metrics.get("inputs") or {}
     sc = inp.get("scene") or {}
     named = metrics.get("scene")
     name = sc.get("name") or (named.get("name") if isinstance(named, dict) else named) or ""
     rep.section(title)
+    cmd = inp.get("command")
     rows: list[list[object]] = [
+        ["command", shlex.join(cmd) if cmd else
+         "not recorded: the run was made from Python (the render_inspect API), not the "
+         "render-inspect command line" if "command" in inp else "not recorded"],
+    ]
+    if cmd and inp.get("working_directory"):
+        rows.append(["run in (relative paths start here)", inp["working_directory"]])
+    rows += [
         ["software", f"render_inspect {metrics.get('software_version') or inp.get('software_version')}"
                      + (f", Python {inp['python']}" if inp.get("python") else "")],
         ["seed (simulation; the camera noise seeds derive from it)", str(metrics.get("seed"))],
