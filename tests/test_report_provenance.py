@@ -214,6 +214,10 @@ def test_profile_report_says_its_warnings_and_inputs(tmp_path):
     # the command line as typed (the paths as given)
     assert m["inputs"]["command"] == ["render-inspect", *typed]
     assert " ".join(["render-inspect", *typed]) in re.sub(r"\s+", " ", prov)
+    # the measured file: its format and the instrument it names (none: a text export)
+    assert m["input"]["instrument"] == "not stated in the file"
+    assert ("measured file: text profile export (.csv), instrument not stated in the file; "
+            "951 of 1047 points measured") in re.sub(r"\s+", " ", _section_text(page, "Notes"))
     for f in (measured, program, scene):
         assert str(f.resolve()) in prov and _sha(f) in prov, f
     _offline(page)

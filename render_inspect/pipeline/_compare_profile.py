@@ -285,8 +285,12 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
                          ("profile", "periods", "evaluation_length_mm", "n_measured",
                           "n_points", "outliers", "warnings")} for k, _ in _NAMES},
         "input": {"path": str(measured), "reader": prof.meta.get("reader"),
+                  "format_name": prof.meta.get("format_name"),
                   "units_in_file": prof.meta.get("units_in_file"),
-                  "units_from": prof.meta.get("units_from"), "n_points": prof.meta["n_points"],
+                  "units_from": prof.meta.get("units_from"),
+                  "instrument": prof.meta.get("instrument"),
+                  "instrument_fields": prof.meta.get("instrument_fields") or {},
+                  "date": prof.meta.get("date"), "n_points": prof.meta["n_points"],
                   "n_measured": prof.n_measured, "spacing_mm": step},
         "instrument": {"objective": band.render.interferometer.objective,
                        "mode": band.render.interferometer.mode, "pixel_mm": float(ig.pixel)},
@@ -386,9 +390,7 @@ def _page(metrics: dict, figs: dict) -> str:
              f"than {_fmt(chk.get('threshold_nm'))} nm ({chk.get('rule', '')})",
              f"virtual instrument: {metrics['instrument']['objective']} "
              f"{metrics['instrument']['mode']}, pixel {metrics['instrument']['pixel_mm'] * MM_TO_UM:.4g} um",
-             f"measured file: {metrics['input']['n_measured']} of {metrics['input']['n_points']} "
-             f"points measured, spacing {metrics['input']['spacing_mm'] * MM_TO_UM:.4g} um, units "
-             f"{_units_text(metrics['input']['units_in_file'])} ({metrics['input']['units_from']})"]
+             _measured_note(metrics["input"])]
     for k, lab in _NAMES:
         notes += [f"{lab}: {w}" for w in p[k]["warnings"]]
     rep.section("Notes")
@@ -424,6 +426,16 @@ def run_compare_command(scene: Scene, out: str | Path, *, measured: str | Path |
                              f"{opt} {v} with --measured {measured!r}")
     return run_compare(scene, out, measured=measured, vary=vary, force=force,
                        overwrite=overwrite, repeat=repeat, scene_file=scene_file)
+
+
+def _measured_note(inp: dict) -> str:
+    """The report's note on the measured file: its format, the instrument it names, its
+    points, spacing and units."""
+    date = f" (acquired {inp['date']})" if inp.get("date") else ""
+    return (f"measured file: {inp.get('format_name')}, instrument {inp.get('instrument')}{date}; "
+            f"{inp['n_measured']} of {inp['n_points']} points measured, spacing "
+            f"{inp['spacing_mm'] * MM_TO_UM:.4g} um, units {_units_text(inp['units_in_file'])} "
+            f"({inp['units_from']})")
 
 
 def _units_text(units: object) -> str:
