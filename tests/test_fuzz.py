@@ -375,7 +375,7 @@ def test_fuzz_program_text(tmp_path):
             if line.startswith(";"):
                 assert ";" not in line[1:] and "(" not in line and ")" not in line
             else:
-                assert re.fullmatch(r"(G90 G93|G90 G94 G21|M30|N\d+ G01( [CXYZF]-?[0-9.e+-]+)+)", line)
+                assert re.fullmatch(r"(G18 G21 G40|G17 G40|G90 G93|G90 G94 G21|M30|N\d+ G01( [CXYZF]-?[0-9.e+-]+)+)", line)
         back = read_nc(f) if i % 2 else read_program_nc(f)
         assert back.points == n
 

@@ -54,7 +54,11 @@ def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
     # (imported once the input is checked)
     from .. import pipeline
 
-    return pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=overwrite)
+    # (the scene package is loaded by scene_of already; kept local like the pipeline)
+    from ..scene import find_scene
+
+    return pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=overwrite,
+                                 scene_file=find_scene(args.scene))
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -6,7 +6,9 @@ built in memory (:func:`program_blocks`, what the simulation checks without a fi
 from __future__ import annotations
 
 import math
+import os
 import re
+from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
@@ -24,7 +26,8 @@ from ..core.toolpath import (
 from ..core.units import MIN_TO_S
 from ..core.toolpath import ToolPath
 
-__all__ = ["nc_comment_text", "program_axes", "program_blocks", "CHUNK_ROWS", "UTF8_BOM"]
+__all__ = ["nc_comment_text", "program_axes", "program_blocks", "created_utc", "CHUNK_ROWS",
+           "UTF8_BOM", "TURNING_MODES", "LINEAR_MODES"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
 CHUNK_ROWS = 16384
@@ -34,6 +37,12 @@ _SECTIONS = ("approach", "cut", "link", "exit")
 _TURN_AXES = ("C", "X", "Z")
 _LINEAR_AXES = ("X", "Y", "Z")
 
+
+#: the modal block each program starts with, before its motion blocks: the plane (G18 the
+#: lathe's Z-X, G17 X-Y), metric units (G21), the control's own tool-nose compensation off
+#: (G40: the nose radius is planned into the path), whatever state the control was left in
+TURNING_MODES = "G18 G21 G40"
+LINEAR_MODES = "G17 G40"
 
 #: the byte order mark an editor may put before the first line of a UTF-8 file saved
 #: again: the readers pass over it
@@ -60,6 +69,27 @@ def nc_comment_text(value: object) -> str:
         else:
             out.append(" ")
     return re.sub(r" {2,}", " ", "".join(out)).strip()
+
+
+#: the last second a date of four digits can name (9999-12-31T23:59:59Z)
+_LAST_EPOCH_S = 253402300799
+
+
+def created_utc() -> str:
+    """The time a program is written, UTC, ISO 8601 to the second (``2025-01-31T12:00:00Z``);
+    the time ``SOURCE_DATE_EPOCH`` gives (seconds since 1970-01-01 UTC, the
+    reproducible-builds convention) when that is set, so that a program written twice from
+    the same scene is the same file."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch is None:
+        when = datetime.now(timezone.utc)
+    else:
+        text = epoch.strip()
+        if not (re.fullmatch(r"\d{1,12}", text) and int(text) <= _LAST_EPOCH_S):
+            raise InputError(f"SOURCE_DATE_EPOCH must be whole seconds since 1970-01-01 UTC "
+                             f"(0 .. {_LAST_EPOCH_S}), received {epoch!r}")
+        when = datetime.fromtimestamp(int(text), timezone.utc)
+    return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def _header_lines(title: str, info: dict) -> list[str]:

@@ -23,7 +23,8 @@ from ..core.toolpath import (
     ToolPath,
 )
 from ..core.units import MIN_TO_S
-from ._nc_dialect import _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD, UTF8_BOM
+from ._nc_dialect import (LINEAR_MODES, TURNING_MODES, _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD,
+                          UTF8_BOM)
 from ._nc_scan import FORM_LONG, FORM_OK, scan_uniform
 
 __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
@@ -37,7 +38,8 @@ _STRICT = re.compile(r"^N(\d+) G0([01])(?: C(-?\d+\.\d+))?(?: X(-?\d+\.\d+))?"
 # where "^; " would be tried at every character of a long program)
 _SECTION_LINE = re.compile(r"; (?<=^; )(approach|cut|link|exit|line \d+)$", re.M)
 _HEADER_LINE = re.compile(r"; (?<=^; )([A-Za-z0-9_]+):(.*)$", re.M)
-_PREAMBLE = {"G90 G93": {90.0, 93.0}, "G90 G94 G21": {90.0, 94.0, 21.0}, "M30": set()}
+_PREAMBLE = {"G90 G93": {90.0, 93.0}, "G90 G94 G21": {90.0, 94.0, 21.0}, "M30": set(),
+             TURNING_MODES: {18.0, 21.0, 40.0}, LINEAR_MODES: {17.0, 40.0}}
 
 
 def read_nc_blocks(path: str | Path) -> Blocks:

@@ -21,11 +21,14 @@ from ._nc_dialect import (
     CHUNK_ROWS,
     _check_links,
     _finite,
+    LINEAR_MODES,
+    TURNING_MODES,
     _header_lines,
     _line_bounds,
     _linear_link,
     _links_header,
     _turning_moves,
+    created_utc,
     nc_comment_text,
 )
 from ..core.toolpath import ToolPath
@@ -35,17 +38,34 @@ __all__ = ["write_nc", "write_program_nc"]
 
 # ------------------------------------------------------------------------ turning
 def _turning_header(header: dict | None, toolpath, links) -> list[str]:
-    info = {"software_version": __version__}
+    info = {"software_version": __version__, "created_utc": created_utc()}
     meta = getattr(toolpath, "meta", {}) or {}
-    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm", "nose_radius"):
+    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm"):
         if k in meta:
             info[k] = meta[k]
+    if "nose_radius" in meta:
+        info["nose_radius_mm"] = meta["nose_radius"]
     info.update(header or {})
     info.update(_links_header(links))
     lines = _header_lines("render_inspect generic C-X-Z turning program", {})
     lines += ["; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]",
-              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]"]
+              "; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]",
+              "; tool: X, Z are the nose's lowest point, the nose radius [nose_radius_mm] planned "
+              "into the path: run with G40, no G41 / G42, the tool set to its tip",
+              "; spindle: C is the spindle as a position-controlled axis [switching it to C-axis "
+              "mode is the machine's own M code, not written], spindle_rpm the planned speed"]
     return lines + _header_lines("", info)[1:]
+
+
+def _block_facts(n_blocks: int, dt: np.ndarray) -> dict:
+    """The header's ``blocks`` (every motion block), ``cut_time_s`` and
+    ``block_rate_max_per_s`` (the blocks per second the control must start at the
+    shortest cutting block, 1 / its time)."""
+    facts: dict[str, Any] = {"blocks": n_blocks}
+    if dt.size:
+        facts["cut_time_s"] = "%.10g" % float(np.sum(dt))
+        facts["block_rate_max_per_s"] = "%.6g" % (1.0 / float(np.min(dt)))
+    return facts
 
 
 def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None, decimals: int = 6,
@@ -90,16 +110,17 @@ def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None
     z = np.asarray(toolpath.z, dtype=np.float64)
     for name, arr in (("theta", c), ("rho", x), ("z", z), ("t", t)):
         _finite(f"ToolPath.{name}", arr)
-    hdr = {"points": n, "t0_s": repr(float(t[0]))}
-    hdr.update(header or {})
-    lines = _turning_header(hdr, toolpath, links)
-    lines.append("G90 G93")
     f = "{:.%df}" % decimals
     if links is not None:
         approach, leave = _turning_moves(c, x, z, links)
         first = 1  # the plunge leaves the tool on point 0
     else:
         approach, leave, first = [], [], 0
+    hdr = {"points": n, "t0_s": repr(float(t[0]))}
+    hdr.update(_block_facts(len(approach) + n - first + len(leave), dt))
+    hdr.update(header or {})
+    lines = _turning_header(hdr, toolpath, links)
+    lines += [TURNING_MODES, "G90 G93"]
 
     def block(k, motion, words, feed_inv=None):
         text = f"N{k} G0{motion} " + " ".join(f"{a}{f.format(v)}" for a, v in words.items())
@@ -157,11 +178,11 @@ def write_program_nc(path: str | Path, program: LinearProgram, *, header: dict |
     if vc is None or isinstance(vc, bool) or not (vc > 0 and math.isfinite(vc)):
         raise InputError(f"feed_mm_per_min must be > 0 for an X-Y-Z program, received {vc!r}")
     _check_links(links)
-    info = {"software_version": __version__}
+    info = {"software_version": __version__, "created_utc": created_utc()}
     info.update(header or {})
     info.update(_links_header(links))
     lines = _header_lines("render_inspect generic X-Y-Z sculpturing program [mm, mm/min]", info)
-    lines.append("G90 G94 G21")
+    lines += [LINEAR_MODES, "G90 G94 G21"]
     x, y, z, ln = program.x, program.y, program.z, program.line
     for name, arr in (("x", x), ("y", y), ("z", z)):
         _finite(f"LinearProgram.{name}", arr)

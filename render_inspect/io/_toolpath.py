@@ -8,12 +8,17 @@ NC program (``toolpath.nc``), a generic, documented dialect (ISO 6983 words):
 ; units: mm, deg [C cumulative: it keeps counting past 360 over the spiral]
 ; time: inverse-time feed G93, F = 1 / [minutes of the move ending at the block]
 ; software_version: 0.1.0
-; scene: rcse_circular_array
+; created_utc: 2025-01-31T12:00:00Z
 ; spindle_rpm: 42
 ; points: 1368001
 ; t0_s: 0.0
+; blocks: 1368005
+; cut_time_s: 1357.142857
+; block_rate_max_per_s: 1008
+; scene: rcse_circular_array
 ; clearance_z_mm: 0.112
 ; plunge_feed_mm_per_min: 10
+G18 G21 G40
 G90 G93
 ; approach
 N1 G00 Z0.112000
@@ -28,6 +33,12 @@ N1368005 G00 C342000.000000 X4.750000 Z0.112000
 M30
 ```
 
+- ``G18 G21 G40`` (the Z-X plane, mm, the control's own nose compensation off: the
+  path is compensated) and ``G90 G93`` (absolute, inverse time) before the first move,
+  ``M30`` at the end; ``; tool:`` and ``; spindle:`` lines say how the tool is set and
+  that C is the spindle under position control (the M code for C-axis mode is the
+  machine's own, not written).  ``created_utc`` is the time of writing, or the time
+  ``SOURCE_DATE_EPOCH`` gives.
 - ``;`` starts a comment (to the end of the line); ``(...)`` comments and ``%`` tape
   marks are also skipped by the reader.
 - ``C`` in degrees, ``X`` (radius) and ``Z`` (tool tip) in mm, ``decimals`` places

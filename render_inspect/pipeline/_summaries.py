@@ -43,6 +43,12 @@ def toolpath_summary(facts: dict) -> list[tuple[str, str]]:
     acc = facts.get("accessibility") or {}
     if "ok" in acc:
         rows.append(("tool reaches the whole region", _num(bool(acc["ok"]))))
+    rate = tp.get("block_rate") or {}
+    if rate.get("max_per_s") is not None:
+        lim = rate.get("limit_per_s")
+        rows.append(("block rate, max", f"{rate['max_per_s']:,.0f} blocks/s "
+                     + (f"(over the limit {lim:,.0f})" if not rate.get("ok", True)
+                        else f"(limit {lim:,.0f})")))
     exceeded = tp.get("limits_exceeded")
     if exceeded is not None:
         rows.append(("machine limits exceeded", ", ".join(map(str, exceeded)) if exceeded else "none"))

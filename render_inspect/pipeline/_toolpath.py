@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+import hashlib
+import json
 import logging
 import math
 from pathlib import Path
@@ -109,8 +111,25 @@ def nc_memory(scene: Scene, points: int) -> int:
                                          "process.arc_length, process.workpiece_radius)")
 
 
+def _program_source(scene: Scene, scene_file: str | Path | None = None) -> dict:
+    """The NC header's record of where a program comes from: ``scene_file`` (its name),
+    ``scene_file_sha256`` (of the file as read) and ``scene_sha256_as_run`` (the scene
+    after its ``--set`` overrides: the SHA-256 of its canonical JSON, the value
+    ``metrics.json`` ``inputs.scene.sha256_as_run`` records)."""
+    head: dict[str, Any] = {}
+    if scene_file is not None:
+        head["scene_file"] = Path(scene_file).name
+        try:
+            head["scene_file_sha256"] = hashlib.sha256(Path(scene_file).read_bytes()).hexdigest()
+        except OSError as err:
+            head["scene_file_sha256"] = f"not read ({err.strerror or err})"
+    text = json.dumps(scene.to_dict(), sort_keys=True, separators=(",", ":"), default=str)
+    head["scene_sha256_as_run"] = hashlib.sha256(text.encode()).hexdigest()
+    return head
+
+
 def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
-                 overwrite: bool = False) -> Any:
+                 overwrite: bool = False, scene_file: str | Path | None = None) -> Any:
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program
@@ -121,7 +140,11 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     An NC program is written with its links (approach, the moves between cuts, exit
     through the clearance plane) and read back and verified block by block before the
     folder is put in place: a program that fails is not written (the error names the
-    block)."""
+    block).  ``scene_file``: the scene file the scene was read from, named with its SHA-256
+    in the program's header (:func:`_program_source`).
+
+    A program whose blocks come faster than ``process.block_rate_limit_per_s`` (default
+    1000 a second) is written, with a warning (``toolpath.block_rate``)."""
     formats = program_formats()
     if fmt not in formats:
         raise InputError(f"--format must be one of {formats}, received {fmt!r}")
@@ -134,8 +157,8 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
         links, part = (None, None) if both is None else both
         if fmt == "nc":  # before the program is written, read back and verified
             nc_memory(scene, plan.program.points)
-        written = export_program(plan.program, Path(tmp), fmt=fmt,
-                                 header=process.program_header(cfg), links=links)
+        header = {**process.program_header(cfg), **_program_source(scene, scene_file)}
+        written = export_program(plan.program, Path(tmp), fmt=fmt, header=header, links=links)
         facts = process.program_facts(cfg, plan)
         if fmt == "nc" and "program" not in facts:
             check = verify_program_file(written, process, cfg, surface, plan, links, part=part)
@@ -148,6 +171,9 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
              f"{facts['toolpath']['points']:,}", out)
     if "program" in facts:
         log_program_summary(facts["program"])
+    rate = facts["toolpath"].get("block_rate") or {}
+    if rate.get("warning"):
+        log.warning("%s", rate["warning"])
     return plan.program
 
 

@@ -23,6 +23,7 @@ from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM
 from ..machining import FollowedPath, material_burr_facts, mechanics_facts, window_margins
 
 from ..toolpath import (
+    BLOCK_RATE_KEY,
     DEFAULT_CLEARANCE,
     DEFAULT_PLUNGE_FEED,
     MIN_CLEARANCE,
@@ -30,6 +31,7 @@ from ..toolpath import (
     PartModel,
     Tool,
     axes_derivatives,
+    block_rate,
     kinematics,
     longest_step,
     limits_from_process,
@@ -97,6 +99,9 @@ class TurningProcessConfig(Section):
     x_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
     z_velocity_limit_mm_s: float | None = Field(None, gt=0)
     z_acceleration_limit_mm_s2: float | None = Field(None, gt=0)
+    block_rate_limit_per_s: float | None = Field(
+        None, gt=0, le=10_000_000, description="blocks per second the machine's control processes; "
+                                        "unset: 1000 (toolpath.block_rate)")
     # the user's own program in place of the planned spiral (docs/programs.md)
     program: str | None = Field(None, min_length=1, max_length=4096,
                                 description="a machine program file (path relative to the "
@@ -108,9 +113,11 @@ class TurningProcessConfig(Section):
 
     @model_serializer(mode="wrap")
     def _without_program_defaults(self, handler):
-        """The program keys are written only when set (scenes without a program dump as
-        before)."""
+        """The program keys and the block rate limit are written only when set (scenes
+        without them dump as before)."""
         data = handler(self)
+        if isinstance(data, dict) and data.get("block_rate_limit_per_s", 0) is None:
+            data.pop("block_rate_limit_per_s")
         if isinstance(data, dict) and data.get("program") is None:
             data.pop("program", None)
             if data.get("program_x") == "auto":
@@ -222,6 +229,9 @@ def toolpath_facts(path: ToolPath, process: Any, *, derivatives: dict | None = N
             valid = np.mod(np.asarray(path.theta) - a0, 2 * np.pi) <= span
         d.update(kinematics(path, limits=limits_from_process(process), valid=valid,
                             derivatives=derivatives))
+    # (the blocks of a program read from a file: its file lines, set by imported_path)
+    d["block_rate"] = block_rate(path.t, lines=getattr(path, "program_lines", None),
+                                 limit=getattr(process, BLOCK_RATE_KEY, None), radius=path.rho)
     return d
 
 
@@ -260,7 +270,7 @@ def turning_header(cfg: TurningInputs) -> dict:
         head["program"] = Path(str(p.program)).name
     else:
         head.update({"feed_per_rev_mm": p.feed_per_rev, "compensation": p.compensation})
-    return {**head, "nose_radius": cfg.tool.nose_radius}
+    return {**head, "nose_radius_mm": cfg.tool.nose_radius}
 
 
 def turning_part(cfg: TurningInputs, surface: Any, path: ToolPath | None = None) -> PartModel:
