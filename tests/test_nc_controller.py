@@ -149,16 +149,24 @@ def test_block_rate_of_a_known_path():
 def test_toolpath_reports_and_warns_the_block_rate(tmp_path, caplog):
     """``toolpath`` on a scene of 400 points per revolution at 300 rpm (2000 blocks/s):
     ``toolpath.block_rate`` says it, the summary row says it, and a warning names the
-    limit; with the scene's limit above it, no warning."""
+    limit (a note over the default, the control unknown; a warning over the scene's own
+    limit); with the scene's limit above it, nothing."""
     base = SMALL + ["process.points_per_rev=400", "process.spindle_rpm=300",
                     "process.feed_mm_per_min=15"]
-    with caplog.at_level(logging.WARNING, logger="render_inspect"):
+    with caplog.at_level(logging.INFO, logger="render_inspect"):
         run_toolpath(load_scene("sts_sinusoidal_grid", base), tmp_path / "a", fmt="nc")
     rate = json.loads((tmp_path / "a" / "toolpath.json").read_text())["toolpath"]["block_rate"]
     assert math.isclose(rate["max_per_s"], 400 * 300 / 60, rel_tol=1e-6)
     assert not rate["ok"] and rate["limit_per_s"] == 1000 and rate["limit_source"].startswith("default")
-    said = [r.getMessage() for r in caplog.records if "blocks/s" in r.getMessage()]
-    assert len(said) == 1 and "process.block_rate_limit_per_s = 1000 (the default)" in said[0]
+    said = [r for r in caplog.records if "blocks/s" in r.getMessage()]
+    assert len(said) == 1 and "process.block_rate_limit_per_s = 1000 (the default)" in said[0].getMessage()
+    assert said[0].levelno == logging.INFO and said[0].getMessage().startswith("note: ")
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="render_inspect"):
+        run_toolpath(load_scene("sts_sinusoidal_grid", base + ["process.block_rate_limit_per_s=1500"]),
+                     tmp_path / "c", fmt="nc")
+    said = [r for r in caplog.records if "blocks/s" in r.getMessage()]
+    assert len(said) == 1 and said[0].levelno == logging.WARNING and "(the scene)" in said[0].getMessage()
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="render_inspect"):
         run_toolpath(load_scene("sts_sinusoidal_grid", base + ["process.block_rate_limit_per_s=2500"]),
