@@ -922,7 +922,7 @@ def test_fuzz_sweep_files(tmp_path, capsys, monkeypatch):
     def no_cluster(**kw):
         yield None
 
-    def fake_run(c, todo, records, results, info, *, total, progress):
+    def fake_run(c, todo, records, results, info, *, total, progress, check=None):
         ran.append(len(todo))  # every point refused or recorded failed: the files still follow
         for t in todo:
             rec = {"id": t["id"], "index": t["index"], "params": t["params"], "studies": t["studies"],

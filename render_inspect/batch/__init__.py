@@ -49,6 +49,8 @@ from ._results import (
                      md_text,
                      summary_table,
 )
+from ._select import (MACHINING_TIME, SelectConfig, machining_time, missing_metrics,
+                      select_lines, select_point)
 from ._summary import RegressionFailed, replaced_dir, write_summary_html
 from ._tiled import TiledStats, run_tiles, tile_client
 from ._sweepfile import (
@@ -81,4 +83,6 @@ __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_
            "read_reference", "write_reference", "IMAGE_NAMES",
            "write_summary_html", "RegressionFailed", "replaced_dir", "run_tiles", "tile_client",
            "TiledStats", "MorrisConfig", "MorrisFactor", "morris_design", "morris_unit_design",
-           "morris_indices", "elementary_effects", "point_key", "MORRIS_STUDY"]
+           "morris_indices", "elementary_effects", "point_key", "MORRIS_STUDY",
+           "SelectConfig", "machining_time", "select_point", "select_lines", "missing_metrics",
+           "MACHINING_TIME"]

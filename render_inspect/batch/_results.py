@@ -228,11 +228,11 @@ def _fmt(v) -> str:
 def summary_table(records: Iterable[dict], param_keys: Sequence[str], *,
                   metrics: Sequence[str] = SUMMARY_METRICS) -> str:
     """A Markdown table: one row per point (sweep keys, status, the chosen metrics,
-    seconds, the error's first line)."""
+    its run time in seconds, the error's first line)."""
     records = list(records)
     shown = [m for m in metrics if any(flatten(r.get("metrics") or {}).get(m) is not None
                                        for r in records)]
-    head = ["point", *param_keys, "status", *shown, "seconds", "error"]
+    head = ["point", *param_keys, "status", *shown, "run time (s)", "error"]
     lines = ["| " + " | ".join(md_text(h) for h in head) + " |", "|" + "---|" * len(head)]
     for r in records:
         f = flatten(r.get("metrics") or {})

@@ -36,6 +36,11 @@ A sweep file is TOML::
     compare = false                       # compensated vs uncompensated, per point
     files = "metrics"                     # "metrics" | "all"
 
+    [select]                              # the point to machine (batch._select)
+    minimize = "machining.time_min"
+    [select.at_most]
+    "residual.Sq_nm" = 2.0
+
     [[plot]]
     kind = "curves"                       # metric against one key, a curve per value of another
     x = "tool.nose_radius"
@@ -49,6 +54,7 @@ its grid / zip / single point, applied to the base scene exactly as ``--set`` wo
 from __future__ import annotations
 
 from collections.abc import Sequence
+import difflib
 import hashlib
 import itertools
 import json
@@ -65,6 +71,7 @@ from ..core.messages import validation_line
 from ..core.errors import InputError
 from ..core.section import Section
 from ._morris import MORRIS_STUDY, MorrisConfig
+from ._select import SelectConfig
 
 __all__ = ["SweepFile", "Study", "RunConfig", "PlotConfig", "SweepPoint", "read_sweep",
            "expand_points", "sweep_keys", "fixed_keys", "count_points", "toml_value",
@@ -121,6 +128,19 @@ def _check_study(set_, grid, zip_, points, sections=None) -> None:
         raise ValueError(f"zip keys must not also be grid keys, received {sorted(both)} in both")
 
 
+def _no_empty_tables(data: Any, info: ValidationInfo, where: str) -> Any:
+    """Refuse a ``[grid]`` or ``[zip]`` written in a sweep file without a key (it would
+    run the base scene alone, not the sweep that was meant); a sweep of the base scene
+    alone has no such table.  Only a file's tables are checked (``info.context`` set)."""
+    if info.context is not None and isinstance(data, dict):
+        for table in ("grid", "zip"):
+            if table in data and data[table] == {}:
+                raise ValueError(f"an empty {table} table{where}: give at least one dotted "
+                                 f"scene key with its list of values (a sweep of the base scene "
+                                 f"alone has no [{table}])")
+    return data
+
+
 class Study(Section):
     """One sub-sweep: ``set`` (fixed keys), ``grid`` (every combination), ``zip`` (lists
     varied together) and ``points`` (single points)."""
@@ -134,6 +154,11 @@ class Study(Section):
     @classmethod
     def _name(cls, v):
         return v if v == "" else check_file_name(v, "study name")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _empty(cls, data: Any, info: ValidationInfo):
+        return _no_empty_tables(data, info, " in [[study]]")
 
     @model_validator(mode="after")
     def _lists(self, info: ValidationInfo):
@@ -232,6 +257,13 @@ class SweepFile(Section):
                                                           "run as the study 'morris'")
     run: RunConfig = Field(default_factory=RunConfig)
     plot: list[PlotConfig] = Field(default_factory=list)
+    select: SelectConfig | None = Field(None, description="the point to machine: bounds on "
+                                                          "metrics and the metric to minimise")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _empty(cls, data: Any, info: ValidationInfo):
+        return _no_empty_tables(data, info, "")
 
     @model_validator(mode="after")
     def _top(self, info: ValidationInfo):
@@ -276,11 +308,34 @@ class SweepPoint:
     index: int = 0
 
 
+def _did_you_mean(loc: Sequence[Any]) -> str:
+    """``; did you mean 'grid'?`` for an unknown key of the sweep file (``loc``: where
+    it is) whose table has a key spelled like it."""
+    model: Any = SweepFile
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        f = getattr(model, "model_fields", {}).get(part)
+        ann = getattr(f, "annotation", None)
+        nested = [a for a in (*getattr(ann, "__args__", ()), ann)
+                  if isinstance(a, type) and issubclass(a, Section)]
+        nested += [a for arg in getattr(ann, "__args__", ()) for a in getattr(arg, "__args__", ())
+                   if isinstance(a, type) and issubclass(a, Section)]
+        if not nested:
+            return ""
+        model = nested[0]
+    close = difflib.get_close_matches(str(loc[-1]), list(getattr(model, "model_fields", {})),
+                                      n=2, cutoff=0.6)
+    return ("; did you mean " + " or ".join(repr(c) for c in close) + "?") if close else ""
+
+
 def _format_error(err: ValidationError, source: str) -> InputError:
     # (messages) every error in the scene's words: the key, what it accepts, the value
     lines = []
     for e in err.errors():
         key, text = validation_line(e, key=".".join(str(p) for p in e["loc"]))
+        if e.get("type") == "extra_forbidden":
+            text += _did_you_mean(e["loc"])
         lines.append(f"{key or '(top level)'}: {text}")
     if len(lines) == 1:
         return InputError(f"invalid sweep file {source}: {lines[0]}")

@@ -22,6 +22,9 @@ def add_parsers(sub: Any) -> None:
                       scheduler="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
                                 "(default: a LocalCluster on this machine)", scheduler_first=True)
     p.add_argument("--retry-failed", action="store_true", help="run the points recorded as failed again")
+    p.add_argument("--yes", action="store_true",
+                   help="run a sweep with more than 500 points still to run (refused without it, "
+                        "with its size and a rough time)")
     _add_verbosity(p)
 
     p = sub.add_parser("regress", help="image regression: render scenes/regression/ and compare with "
@@ -54,7 +57,8 @@ def _sweep(args: argparse.Namespace, overwrite: bool) -> dict:
 
     info = pipeline.run_sweep(pipeline.find_sweep(args.sweep), args.out,
                               scheduler=args.scheduler, workers=args.workers,
-                              retry_failed=args.retry_failed, overwrite=overwrite)
+                              retry_failed=args.retry_failed, overwrite=overwrite,
+                              yes=args.yes)
     failure = pipeline.sweep_failure(info, args.out)
     if failure:
         raise RenderInspectError(failure)

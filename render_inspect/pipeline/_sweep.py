@@ -25,6 +25,8 @@ from typing import Any
 
 from .. import __version__
 from ..batch import (
+    MACHINING_TIME,
+    SUMMARY_METRICS,
     flatten,
     Progress,
     ResultsLog,
@@ -68,6 +70,8 @@ from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
 from ._sweep_morris import morris_table, sweep_morris
+from ._sweep_report import (add_machining_times, check_select_names, check_sweep_size, column_names, estimate_text,
+                            first_record_check, point_seconds, selection, sweep_estimate)
 from ._toolpath import check_tool_edge
 
 __all__ = ["run_sweep", "run_point", "sweep_tasks", "find_sweep", "shipped_sweeps",
@@ -83,12 +87,6 @@ SHOW_TABLE_POINTS = 30
 RENDER_BYTES = 700 * MIB_TO_BYTES
 #: distinct errors a refused sweep lists
 SHOW_ERRORS = 8
-#: units of the scene keys whose names do not say it, as their descriptions begin
-_UNITS = ("mm", "um", "nm", "rad", "deg", "s", "Hz", "%", "1/mm", "mm/s", "mm/min", "N", "GPa",
-          "MPa", "K")
-#: key names that already end in their unit
-_UNIT_SUFFIX = re.compile(r"_(mm|um|nm|deg|rad|s|hz|rpm|gb|percent|per_min|per_rev|"
-                          r"mm_per_min|mm_s|nm_rms)$", re.IGNORECASE)
 
 
 def shipped_sweeps() -> dict[str, Path]:
@@ -154,7 +152,7 @@ def sweep_tasks(spec: SweepFile, sweep_path: str | Path, out: str | Path
         ``id``, ``index``, ``params`` (the sweep keys and the keys ``set`` fixes, as the
         resolved scene has them), ``studies``, ``overrides``, ``scene`` (validated, as a
         dict), ``run``, ``folder`` (absolute path of the point's folder),
-        ``memory_bytes`` (the point's estimated peak).
+        ``memory_bytes`` (the point's estimated peak), ``estimate_s`` (a rough time).
     invalid : list of dict
         Points whose scene does not validate or does not fit the memory budget:
         ``index``, ``overrides``, ``error`` (:func:`run_sweep` refuses a sweep with any).
@@ -188,7 +186,7 @@ def sweep_tasks(spec: SweepFile, sweep_path: str | Path, out: str | Path
                       "params": {k: dotted_get(sd, k) for k in [*keys, *fixed]},
                       "studies": list(p.studies), "overrides": p.overrides, "scene": sd,
                       "run": run, "folder": str(Path(out).resolve() / POINTS / pid),
-                      "memory_bytes": memory}
+                      "memory_bytes": memory, "estimate_s": point_seconds(scene)}
     return list(by_id.values()), invalid, keys
 
 
@@ -229,38 +227,6 @@ def check_sweep_tasks(sweep_path: str | Path, tasks: list, invalid: list) -> Non
     raise InputError(f"sweep file {str(sweep_path)!r}: {len(invalid)} of {total} points are "
                      f"not valid scenes (point numbers count from 0 in the order of the file); "
                      f"nothing was run:\n" + "\n".join(shown))
-
-
-def _unit_of(scene: Scene, key: str) -> str:
-    """The unit of a scene key whose name does not say it ("" when it has none or its
-    name ends in it): the first word of its description when that is a unit."""
-    parts = key.split(".")
-    if _UNIT_SUFFIX.search(parts[-1]):
-        return ""
-    node: Any = scene
-    for part in parts[:-1]:
-        node = getattr(node, part, None)
-        if node is None:
-            return ""
-    fields = getattr(type(node), "model_fields", {})
-    f = fields.get(parts[-1])
-    desc = (getattr(f, "description", None) or "").strip()
-    first = re.split(r"[,;( ]", desc, maxsplit=1)[0] if desc else ""
-    return first if first in _UNITS else ""
-
-
-def column_names(scene: Scene | None, keys: list[str]) -> dict:
-    """``results.csv`` column of each scene key: the key with its unit added when its
-    name does not say it (``tool.nose_radius`` -> ``tool.nose_radius_mm``; a key whose
-    name ends in its unit, such as ``process.feed_mm_per_min``, and a key without a
-    unit keep their name)."""
-    out = {}
-    for k in keys:
-        unit = _unit_of(scene, k) if scene is not None else ""
-        suffix = {"%": "percent", "1/mm": "per_mm", "mm/s": "mm_per_s",
-                  "mm/min": "mm_per_min"}.get(unit, unit)
-        out[k] = f"{k}_{suffix}" if suffix else k
-    return out
 
 
 # ------------------------------------------------------------------------ on a worker
@@ -364,6 +330,7 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
         r["studies"] = studies[r["id"]]
         r["index"] = order[r["id"]]
     others = [r for i, r in records.items() if i not in order]
+    add_machining_times(tasks, mine)
     results.rewrite(mine + others)
     fixed = fixed_keys(spec)
     scene = scene_from_dict(tasks[0]["scene"], source="sweep point") if tasks else None
@@ -402,6 +369,9 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
             "points": total, "done": done, "failed": failed, "pending": total - done - failed,
             "records_from_other_sweeps": len(others), "plots": names,
             "run": spec.run.model_dump(mode="json"), "software_version": __version__}
+    select_text, chosen = selection(spec, keys, mine)
+    info["select"] = chosen
+    info["select_lines"] = select_text
     fixed_text = ", ".join(f"{md_text(k)} = {md_text(toml_value(tasks[0]['params'].get(k)))}"
                            for k in fixed) if tasks else ""
     head = [f"# Sweep {md_text(spec.name)}", "", md_text(spec.description, block=True), "",
@@ -409,7 +379,14 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
             f"Sweep keys: {md_text(', '.join(keys)) or '(none)'}.  "
             f"Fixed for every point: {fixed_text or '(none)'}.  "
             f"Plots: {md_text(', '.join(names))}.", ""]
-    atomic_write_text(out / "summary.md", "\n".join(head) + "\n" + summary_table(mine, keys)
+    if others:
+        head += [f"{len(others)} records in results.jsonl are of points this sweep file no longer "
+                 f"has (an earlier version of it); they are kept there, not in this summary "
+                 f"or results.csv.", ""]
+    head += [*(md_text(line) for line in select_text), ""] if select_text else []
+    shown = [MACHINING_TIME, *SUMMARY_METRICS, *(spec.select.metrics() if spec.select else [])]
+    atomic_write_text(out / "summary.md", "\n".join(head) + "\n"
+                      + summary_table(mine, keys, metrics=list(dict.fromkeys(shown)))
                       + ("\n" + "\n".join(morris_lines) + "\n" if morris_lines else ""))
     write_json(out / "sweep.json", info)
     return info
@@ -423,7 +400,7 @@ def _is_sweep_folder(folder: Path) -> bool:
 
 def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = None,
               workers: int | None = None, client: Any = None, retry_failed: bool = False,
-              progress: bool | None = None, overwrite: bool = False) -> dict:
+              progress: bool | None = None, overwrite: bool = False, yes: bool = False) -> dict:
     """``render-inspect sweep``: run every point of a sweep file on Dask.
 
     The whole sweep is checked before the first point runs: the file, its names, the
@@ -455,6 +432,10 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
     overwrite : bool
         Write the sweep into a non-empty folder that is not a sweep's (its files are left
         in place); without it such a folder is refused before anything runs.
+    yes : bool
+        Run a sweep with more than ``CONFIRM_POINTS`` (500) points still to run in
+        ``out``; without it such a sweep is refused, with its size and a rough time,
+        before anything runs.
 
     Returns
     -------
@@ -480,7 +461,12 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
     # the cluster is reached (or its workers started) before the folder is claimed: a
     # cluster without workers is refused with nothing written
     before = ResultsLog(out / "results.jsonl").read() if out.is_dir() else {}
-    n_todo = sum(pending(t, before) for t in tasks)
+    todo_before = [t for t in tasks if pending(t, before)]
+    n_todo = len(todo_before)
+    estimate = sweep_estimate(todo_before, workers if scheduler is None and client is None
+                              else None, [r for r in before.values()])
+    check_sweep_size(sweep_path, estimate, len(tasks), yes=yes)
+    check_select_names(spec, tasks, [r for r in before.values()], source=sweep_path)
     with contextlib.ExitStack() as stack:
         c = None
         if n_todo:
@@ -500,12 +486,14 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
             info: dict[str, Any] = {"sweep_file": str(sweep_path.resolve()), "out": str(out),
                                     "scheduler": scheduler, "workers": None, "dashboard": None,
                                     "ran": 0, "skipped": skipped, "recovered": recovered}
-            log.info("sweep %s: %d points (%d to run, %d finished before)", spec.name, total,
-                     len(todo), total - len(todo))
+            log.info("sweep %s: %d points (%d to run, %d finished before)%s", spec.name, total,
+                     len(todo), total - len(todo),
+                     f"; {estimate_text(estimate)}" if todo else "")
             stopped = False
             try:
                 if todo and c is not None:
-                    _run_on_dask(c, todo, records, results, info, total=total, progress=progress)
+                    _run_on_dask(c, todo, records, results, info, total=total, progress=progress,
+                                 check=first_record_check(spec, sweep_path))
             except KeyboardInterrupt:
                 stopped = True  # stop within a second or two: no plots (the next run draws them)
                 raise
@@ -514,7 +502,14 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
                 info = _finish(out, spec, keys, tasks, records, results, info,
                                plots=not stopped)
     if info["points"] <= SHOW_TABLE_POINTS:
-        log.info("%s", (out / "summary.md").read_text().split("\n\n", 3)[-1].rstrip())
+        log.info("%s", (out / "summary.md").read_text().split("| point |", 1)[-1].join(
+            ["| point |", ""]).rstrip())
+    if info["records_from_other_sweeps"]:
+        log.info("sweep %s: %d records in %s are of points this sweep file no longer has (an "
+                 "earlier version of it): kept there, left out of results.csv and summary.md",
+                 spec.name, info["records_from_other_sweeps"], out / "results.jsonl")
+    for line in info.get("select_lines") or []:
+        log.info("%s", line)
     log.info("sweep %s: %d done, %d failed of %d points in %.1f s -> %s", spec.name,
              info["done"], info["failed"], info["points"], info["elapsed_s"], out)
     if info["failed"]:
@@ -551,7 +546,7 @@ def _failed(t: dict, err: BaseException, memory_limit) -> dict:
             "error_type": name, "software_version": __version__}
 
 
-def _run_on_dask(c, todo, records, results, info, *, total, progress):
+def _run_on_dask(c, todo, records, results, info, *, total, progress, check=None):
     from distributed import as_completed
 
     ci = cluster_info(c)
@@ -577,6 +572,9 @@ def _run_on_dask(c, todo, records, results, info, *, total, progress):
             records[rec["id"]] = rec
             info["ran"] += 1
             ok = rec["status"] == "done"
+            if ok and check is not None:
+                check(rec, t)  # the first finished point: the [select] metrics exist
+                check = None
             note = (f"{t['id']} Sq {rec['metrics']['residual']['Sq_nm']:.4g} nm" if ok
                     else f"{t['id']} failed: {rec['error'].splitlines()[0][:100]}")
             prog.update(note, failed=not ok)

@@ -11,7 +11,8 @@ __all__ = ["key_label", "key_unit"]
 #: Units of scene keys whose names do not carry one (lengths are mm).
 _UNITS = {"tool.nose_radius": "mm", "process.workpiece_radius": "mm", "simulation.pixel": "mm",
           "process.depth_of_cut": "mm", "process.arc_length": "mm", "process.feed_per_rev": "mm/rev",
-          "tool.edge_radius": "mm", "process.step_over": "mm", "process.pitch": "mm"}
+          "tool.edge_radius": "mm", "process.step_over": "mm", "process.pitch": "mm",
+          "machining.time_min": "min"}
 #: unit suffixes of key names (longest first) and the unit they name
 _SUFFIXES = (("_mm_per_min", "mm/min"), ("_mm_per_rev", "mm/rev"), ("_per_rev", "mm/rev"),
              ("_nm", "nm"), ("_um", "um"), ("_mm", "mm"), ("_deg", "deg"), ("_rad", "rad"),
@@ -19,7 +20,7 @@ _SUFFIXES = (("_mm_per_min", "mm/min"), ("_mm_per_rev", "mm/rev"), ("_per_rev", 
              ("_pct", "%"))
 #: words of key names that read better otherwise
 _WORDS = {"spindle_rpm": "spindle speed", "feed_mm_per_min": "feed rate",
-          "feed_per_rev": "feed per revolution"}
+          "feed_per_rev": "feed per revolution", "time_min": "time"}
 
 
 def key_label(key: str) -> str:

@@ -8,10 +8,21 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._keys import key_label as _label
+from ._keys import key_label as _label, key_unit
 from ._savefig import figure_png
 
 __all__ = ["curves_png", "heatmap_png", "sweep_plot_png"]
+
+
+def _words(key: str | None) -> str:
+    """A key's words without its unit (``process.spindle_rpm`` -> "process spindle speed")."""
+    label = _label(str(key))
+    return label[:label.rindex(" (")] if label.endswith(")") else label
+
+
+def _unit(key: str | None) -> str:
+    u = key_unit(str(key))
+    return f" {u}" if u else ""
 
 
 def _figure(figsize=(6.0, 4.4)):
@@ -45,7 +56,7 @@ def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_n
         pts = sorted(pts)
         col = cmap(i / max(len(groups) - 1, 1))
         ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", color=col, ms=4,
-                label=None if s is None else f"{series} = {s:g}")
+                label=None if s is None else f"{_words(series)} = {s:g}{_unit(series)}")
     ax.set_xlabel(_label(x))
     ax.set_ylabel(_label(y))
     if log:
@@ -53,7 +64,8 @@ def curves_png(rows: Sequence[Sequence[Any]], *, x: str, y: str = "residual.Sq_n
     ax.grid(True, alpha=0.3)
     if series and groups:
         ax.legend(fontsize=8)
-    ax.set_title(title or f"{y} vs {x}" + (f" (study {study})" if study else ""), fontsize=10)
+    ax.set_title(title or f"{_words(y)} vs {_words(x)}" + (f" (study {study})" if study else ""),
+                 fontsize=10)
     if not rows:
         ax.text(0.5, 0.5, f"no finished point has {y}", ha="center", va="center",
                 transform=ax.transAxes)
@@ -97,8 +109,8 @@ def heatmap_png(rows: Sequence[Sequence[Any]], *, x: str, y: str, value: str = "
                 transform=ax.transAxes)
     ax.set_xlabel(_label(x))
     ax.set_ylabel(_label(y))
-    ax.set_title(title or f"{value} over {x} and {y}" + (f" (study {study})" if study else ""),
-                 fontsize=10)
+    ax.set_title(title or f"{_words(value)} over {_words(x)} and {_words(y)}"
+                 + (f" (study {study})" if study else ""), fontsize=10)
     return _png(fig, tight_layout=True)
 
 
