@@ -326,3 +326,18 @@ def test_held_library_messages_leave_the_streams_as_they_were_across_threads():
     assert held.text == ""
     assert (sys.stdout, sys.stderr, os.readlink("/proc/self/fd/1"),
             os.readlink("/proc/self/fd/2")) == before
+
+
+def test_a_region_reaching_off_the_part_is_named():
+    """A square region around a round part of radius 0.1 mm: its corners lie off the part
+    (pi r^2 / (2 x 0.08)^2 of the region is on it), where the map holds the tool's flank."""
+    scene = load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.08,-0.08,0.08,0.08]",
+                                               "process.workpiece_radius=0.1"])
+    (w,) = unit_warnings(scene)
+    on_part = math.pi * 0.1 ** 2 - 4 * (0.1 ** 2 * math.acos(0.8) - 0.08 * 0.06)  # circle inside the square
+    off = 1 - on_part / 0.16 ** 2
+    assert "reaches 0.113137 mm from the spindle axis" in w and "process.workpiece_radius = 0.1 mm" in w
+    share = float(w.split(": ")[1].split("%")[0])
+    assert share == pytest.approx(100 * off, abs=0.3)
+    assert unit_warnings(load_scene("sts_sinusoidal_grid", ["simulation.region=[-0.07,-0.07,0.07,0.07]",
+                                                            "process.workpiece_radius=0.1"])) == []

@@ -10,6 +10,7 @@ that may be meant (the command line prints them before the run)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+import math
 from typing import Protocol, cast
 
 from ..core.units import MM_TO_UM, UM_TO_MM
@@ -29,6 +30,8 @@ MARK_PIXELS_RESOLVE = 4.0
 #: on the part when read as micrometres, was typed in micrometres
 _REGION_FACTOR = 5.0
 _REGION_MM = 50.0
+#: samples per side of the region when its share off the part is counted
+_OFF_PART_SAMPLES = 64
 #: the largest part considered when the process does not state one, mm
 _LARGEST_PART_MM = 1000.0  # not a unit conversion
 
@@ -127,7 +130,35 @@ def unit_warnings(scene: SceneSections, *, sampling: bool = True) -> list[str]:
                 f"{MARK_PIXELS_ALIAS:g} they alias into a false, coarser pattern; set "
                 f"simulation.pixel <= {_fmt(period / MARK_PIXELS_RESOLVE)} mm "
                 f"({MARK_PIXELS_RESOLVE:g} per period) to resolve them{hint}")
+    if sampling:
+        off = _off_the_part(scene)
+        if off:
+            out.append(off)
     return out
+
+
+def _off_the_part(scene: SceneSections) -> str:
+    """The message for a ``simulation.region`` that reaches beyond a turned part's radius
+    (``process.workpiece_radius``): there the map holds the tool's flank or nothing, and
+    the residual's statistics count it.  "" where the region lies on the part."""
+    radius = getattr(scene.process, "workpiece_radius", None)
+    region = getattr(scene.simulation, "region", None)
+    if radius is None or region is None or len(region) != 4:
+        return ""
+    x0, y0, x1, y1 = (float(v) for v in region)
+    reach = max(math.hypot(x, y) for x in (x0, x1) for y in (y0, y1))
+    if reach <= radius:
+        return ""
+    n = _OFF_PART_SAMPLES
+    xs = [x0 + (x1 - x0) * (i + 0.5) / n for i in range(n)]
+    ys = [y0 + (y1 - y0) * (j + 0.5) / n for j in range(n)]
+    off = sum(1 for x in xs for y in ys if math.hypot(x, y) > radius) / (n * n)
+    if off == 0:
+        return ""
+    return (f"simulation.region reaches {_fmt(reach)} mm from the spindle axis, beyond "
+            f"process.workpiece_radius = {_fmt(radius)} mm: {off:.1%} of the region lies off "
+            f"the part, where the map holds the tool's flank or nothing, and the residual's "
+            f"statistics count what is there; keep the region within the part's radius")
 
 
 def _mark_period(scene: SceneSections) -> float | None:
