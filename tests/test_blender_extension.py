@@ -269,8 +269,9 @@ def test_cancelling_a_long_simulate_leaves_nothing(driven):
 
 def test_errors_reach_the_user_in_one_line(driven):
     e = driven["error"]
-    assert "scene file not found" in e["message"]
-    assert e["last_error"].startswith("Simulate: scene file not found")
+    assert "Scene file: " in e["message"] and "does not exist; choose a file" in e["message"]
+    assert e["last_error"].startswith("Simulate: Scene file: ")
+    assert "\n" not in e["last_error"].strip()
     assert e["objects"] == []
 
 
@@ -278,7 +279,7 @@ def test_panels_draw_in_every_state(driven):
     main = {k: driven[k]["RENDER_INSPECT_PT_main"] for k in
             ("panels_before", "panels_error", "panels_after_simulate", "panels_running")}
     assert "operator render_inspect.simulate" in main["panels_before"]
-    assert any("scene file not found" in line for line in main["panels_error"])
+    assert any("Scene file: " in line and "does not exist" in line for line in main["panels_error"])
     assert any(line.startswith("label compensated: Sq") for line in main["panels_after_simulate"])
     assert any(line.startswith("progress") for line in main["panels_running"])
     assert "operator render_inspect.cancel" in main["panels_running"]

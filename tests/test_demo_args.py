@@ -10,8 +10,8 @@ from render_inspect.pipeline import _demo
 def test_set_is_applied_after_the_quick_window(tmp_path, monkeypatch):
     seen = {}
 
-    def fake_compare(scene, out, *, overwrite=False):
-        seen.update(scene=scene, out=out, overwrite=overwrite)
+    def fake_compare(scene, out, *, overwrite=False, **kw):
+        seen.update(scene=scene, out=out, overwrite=overwrite, **kw)
         return {}
 
     monkeypatch.setattr(_demo, "run_compare", fake_compare)
