@@ -13,6 +13,8 @@ from ._analysis import (FORMS, OUTLIER_METHODS, Analysis, analyze_map, analyze_m
                         parse_filter)
 from ._windowed import (WINDOWED_FORMS, analyze_bands, band_bytes_per_point, form_on_grid,
                         windowed_refusal)
+from ._chance import (NULL_POINTS, NULL_SURROGATES, explained_share, phase_surrogate,
+                      registration_against_chance, unreliable_registration_warning)
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
                       correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
 from ._compare import (Comparison, characterise_map, check_same_pixel, compare_measured,
@@ -69,6 +71,8 @@ __all__ = [
     "filter_range", "analyze_memory", "analyze_memory_per_point",
     "registered_overlap", "correlation_area", "registration_checks", "kinematic_sq_mm",
     "DEFAULT_MIN_OVERLAP", "DEFAULT_MAX_RESIDUAL_RATIO", "DEFAULT_RESIDUAL_FLOOR_MM",
+    "NULL_SURROGATES", "NULL_POINTS", "phase_surrogate", "explained_share",
+    "registration_against_chance", "unreliable_registration_warning",
     "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",
     "characterise_msa",
     "characterise_map", "coverage", "check_same_pixel", "resample_map", "sample_map",

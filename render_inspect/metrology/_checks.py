@@ -134,7 +134,8 @@ def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *
 
     - the registered overlap (:func:`registered_overlap`) is below ``min_overlap`` of
       the smaller of the measured area and ``region``;
-    - the registration residual RMS exceeds ``max(max_residual_ratio * expected_sq_mm,
+    - the registration residual RMS (of ``residual`` when given, else the registration's
+      own ``rms_mm``) exceeds ``max(max_residual_ratio * expected_sq_mm,
       residual_floor_mm)``.
 
     - the lateral position is undetermined: the standard uncertainty of the lateral
@@ -192,6 +193,10 @@ def registration_checks(z: np.ndarray, design: np.ndarray, registration: dict, *
                         f"of its area ({ov['measured_area_mm2']:.4g} mm^2) and the design region "
                         f"({ov['region_area_mm2']:.4g} mm^2); at least {min_overlap:.0%} is needed")
     rms = float(registration.get("rms_mm", float("nan")))
+    if residual is not None and np.isfinite(residual).any():
+        # the heights' residual: ICP's own rms is the distance of each point to the nearest
+        # template point's tangent plane, which a map of another surface can make small
+        rms = float(np.sqrt(np.nanmean(np.asarray(residual, dtype=np.float64) ** 2)))
     limit = None
     if expected_sq_mm is None:
         warns.append("no expected roughness known: the registration residual was not checked")

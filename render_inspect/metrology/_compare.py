@@ -15,6 +15,7 @@ from ..core.lazy import lazy_module
 from ..core.errors import InputError
 from ..core.heightmap import HeightMap
 from ..core.units import MM_TO_NM
+from ._chance import registration_against_chance, unreliable_registration_warning
 from ._checks import registration_checks
 from ._filters import l_filter, pixel_xy, remove_form, s_filter
 from ._params import areal_parameters
@@ -236,7 +237,8 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
                      metrology: Any = None, simulated: HeightMap | None = None,
                      region: Sequence[float] | None = None,
                      seed: int = 0, resample_simulated: bool = False,
-                     expected_sq_mm: float | None = None, force: bool = False) -> Comparison:
+                     expected_sq_mm: float | None = None, force: bool = False,
+                     against_chance: bool = True) -> Comparison:
     """Compare a measured height map with the design (and a simulation) of a scene.
 
     Chain: unit sanity check -> outliers
@@ -246,7 +248,8 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
     "lsq", "icp" or "none"; free parameters ``metrology.registration_dof``) -> checks
     (:func:`registration_checks`: overlap after registration, residual against
     ``expected_sq_mm``, uncertainty of the registration) -> residual = measured -
-    registered design -> :func:`characterise_map` with the scene's form removal and
+    registered design -> the registration against chance (``against_chance``) ->
+    :func:`characterise_map` with the scene's form removal and
     filters.  With ``simulated`` (a HeightMap) the simulated residual (machined - design)
     goes through the same :func:`characterise_map`, and the difference of the two
     residuals is characterised too.  Pixels may be non-square: ``(pixel_x, pixel_y)``.
@@ -275,6 +278,14 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
     force : bool
         Go on (with the reasons in ``metrics["checks"]["refusals"]``) when the checks
         refuse the comparison.
+    against_chance : bool
+        Set the registration against chance (:func:`registration_against_chance`: its
+        score against the best of :data:`NULL_SURROGATES` phase-randomised surrogates of
+        the map registered the same way): ``registration.reliable``, ``score``,
+        ``null_score`` and ``chance`` in the metrics, a warning in ``checks.warnings``
+        (or a Python warning without a region) when it does not beat them, and
+        ``registration_reliable`` in ``measured`` and ``difference``.  False (a check
+        that only needs the refusals) leaves them out.
 
     Raises
     ------
@@ -334,15 +345,14 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
     y = origin[1] + py * np.arange(ny)
     use = fit_use if out_mode == "sigma" else valid
     free_note: list = []
+    oversample = int(_cfg_get(metrology, "template_oversample", 10))
     for _ in range(2):
         if method == "lsq":
             reg = register_lsq(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
                                fit=dof, seed=seed)
         elif method == "icp":
             reg = register_icp(z, design_surface, pixel=pixel, origin=origin, mask=fit_use,
-                               seed=seed,
-                               oversample=int(_cfg_get(metrology, "template_oversample", 10)))
-            reg["fitted"] = list(_SHORT_ALL)
+                               fit=dof, seed=seed, oversample=oversample)
         elif method == "none":
             reg = None
         else:
@@ -358,7 +368,7 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
                                      region=region, expected_sq_mm=expected_sq_mm,
                                      residual=np.where(fit_use, residual, np.nan), mask=fit_use,
                                      min_overlap=min_overlap)
-        if not (checks.get("free_rotation") and method == "lsq"):
+        if not checks.get("free_rotation"):
             break
         # the design turns freely about a point in the field: the rotation about z is held
         # at the file's orientation and the rest registered again
@@ -373,6 +383,16 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
         if not checks["ok"] and not force:
             raise InputError("the measured file does not match the design: "
                              + "; ".join(checks["refusals"]) + " (--force compares anyway)")
+    if reg is not None and against_chance:
+        chance = registration_against_chance(z, design_surface, reg, pixel=pixel, origin=origin,
+                                             mask=fit_use, oversample=oversample, seed=seed)
+        reg.update(reliable=chance["reliable"], score=chance["score"],
+                   null_score=chance["null_score"], chance=chance)
+        note = unreliable_registration_warning(chance)
+        if note and checks is not None:
+            checks["warnings"].append(note)
+        elif note:
+            warnings.warn(note, stacklevel=2)
     settings = {"form_removal": _cfg_get(metrology, "form_removal", "plane"),
                     "polynomial_degree": int(_cfg_get(metrology, "polynomial_degree", 2)),
                     "s_filter_mm": _cfg_get(metrology, "s_filter", None),
@@ -385,7 +405,9 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
         return characterise_map(r, pixel=pixel, origin=origin, **s)
 
     n_valid = int(valid.sum())
-    metrics = {"measured": char(residual), "simulated": None, "difference": None,
+    reliable = None if reg is None or "reliable" not in reg else bool(reg["reliable"])
+    metrics = {"measured": {**char(residual), "registration_reliable": reliable},
+               "simulated": None, "difference": None,
                "registration": reg, "coverage": cov, "checks": checks,
                "outliers": {"method": out_mode, "sigma": k, "count": int(outl.sum()),
                             "fraction": float(outl.sum() / max(n_valid, 1)),
@@ -420,11 +442,9 @@ def compare_measured(measured: _MeasuredGrid | tuple, design_surface: Any, *,
                           f"comparison uses the overlap only", stacklevel=2)
         metrics["simulated"] = char(np.where(both, sim_res, np.nan))
         diff = np.where(both, residual - sim_res, np.nan)
-        metrics["difference"] = char(diff)
+        metrics["difference"] = {**char(diff), "registration_reliable": reliable}
         metrics["simulated_overlap"] = frac
         maps["simulated_residual"] = sim_res
         maps["difference"] = diff
     return Comparison(metrics, maps, pixel, origin)
 
-
-_SHORT_ALL = ("tx", "ty", "tz", "alpha", "beta", "gamma")

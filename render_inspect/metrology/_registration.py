@@ -460,20 +460,32 @@ def registration_covariance(z: np.ndarray, design: Any, reg: dict, *,
 def register_icp(z: np.ndarray, design: Any, *, pixel: float | tuple[float, float],
                  origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
                  init: dict | Sequence[float] | None = None,
+                 fit: Sequence[str] = ("tx", "ty", "tz", "alpha", "beta", "gamma"),
                  oversample: int = 10, max_iter: int = 50, tol: float = 1e-10,
                  max_points: int = 100_000, seed: int = 0) -> dict:
     """Point-to-plane ICP registration of a measured map to a dense design template.
 
     The design is sampled at ``pixel / oversample`` over the measured area (plus a margin);
     each iteration pairs every measured point with its nearest template point (k-d tree),
-    leaves out pairs farther than 5 robust sigma, and solves the linearised 6-DOF
-    point-to-plane least squares.  Same conventions and result keys as
-    :func:`register_lsq` (``method`` = "icp", plus ``iterations``).
+    leaves out pairs farther than 5 robust sigma, and solves the linearised point-to-plane
+    least squares for the parameters named in ``fit``; the others stay at ``init`` (each
+    step is solved without them and the transform then set back to ``init`` in them).
+    Same conventions and result keys as :func:`register_lsq` (``method`` = "icp", plus
+    ``iterations``, ``fitted`` and ``template_pixel_mm``).
     """
-    from scipy.spatial import cKDTree
-
+    template = _icp_template(design, np.shape(z), pixel=pixel, origin=origin,
+                             oversample=oversample)
     px, py, pz = _prepare(z, pixel, origin, mask, max_points, seed)
-    ny, nx = np.shape(z)
+    return _icp_solve(np.column_stack([px, py, pz]), template, init=init, fit=fit,
+                      max_iter=max_iter, tol=tol)
+
+
+def _icp_template(design, shape, *, pixel, origin, oversample):
+    """The ICP template of ``design`` over a map of ``shape`` (plus a margin): its k-d
+    tree, points, unit normals and spacing (mm)."""
+    from scipy.spatial import cKDTree  # scipy.spatial loads slowly; only ICP needs a tree
+
+    ny, nx = shape
     sx, sy = pixel_xy(pixel)
     margin = 0.05 * max(nx * sx, ny * sy) + 3 * max(sx, sy)
     region = (origin[0] - margin, origin[1] - margin,
@@ -492,11 +504,24 @@ def register_icp(z: np.ndarray, design: Any, *, pixel: float | tuple[float, floa
     tpts = np.column_stack([txx[keep], tyy[keep], tz[keep]])
     nrm = np.column_stack([-np.asarray(gx)[keep], -np.asarray(gy)[keep], np.ones(keep.sum())])
     nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-    tree = cKDTree(tpts)
-    v = _vec(init)
+    return cKDTree(tpts), tpts, nrm, float(tp)
+
+
+def _icp_solve(pts, template, *, init=None, fit=tuple(_SHORT), max_iter=50, tol=1e-10):
+    """ICP iterations of the measured points ``pts`` (n x 3) against ``template``
+    (:func:`_icp_template`), fitting the parameters ``fit``."""
+    tree, tpts, nrm, tp = template
+    idx = _fit_indices(fit)
+    v0 = _vec(init)
+    held_t = [k for k in range(3) if k not in idx]
+    held_a = [k for k in range(3) if k + 3 not in idx]
+    # unknowns: rotation vector (3) and translation (3) of the step, in the design frame;
+    # a held parameter's column is left out (for the small tilts of a set-up that is the
+    # step's own component), and the transform is set back to ``init`` in it after the step
+    cols = [k for k in range(6) if (k + 3 if k < 3 else k - 3) in idx]
+    v = v0.copy()
     rot = rotation_matrix(*v[3:])
     t = v[:3].copy()
-    pts = np.column_stack([px, py, pz])
     it = 0
     rms = np.nan
     for it in range(1, max_iter + 1):
@@ -508,17 +533,25 @@ def register_icp(z: np.ndarray, design: Any, *, pixel: float | tuple[float, floa
         med = np.median(r)
         sig = 1.4826 * np.median(np.abs(r - med)) + 1e-15
         use = np.abs(r - med) < 5 * sig + 1e-9
-        a = np.column_stack([np.cross(q[use], n[use]), n[use]])
-        sol, *_ = np.linalg.lstsq(a, -r[use], rcond=None)
+        a = np.column_stack([np.cross(q[use], n[use]), n[use]])[:, cols]
+        part, *_ = np.linalg.lstsq(a, -r[use], rcond=None)
+        sol = np.zeros(6)
+        sol[cols] = part
         w, dt = sol[:3], sol[3:]
         dr = Rotation.from_rotvec(w).as_matrix()
         # inverse map q = R^T (p - t) becomes dR R^T (p - t) + dt
         rot_new = rot @ dr.T
         t = rot_new @ (dr @ rot.T @ t - dt)
         rot = rot_new
+        if held_a:
+            ang = Rotation.from_matrix(rot).as_euler("xyz")
+            ang[held_a] = v0[3:][held_a]
+            rot = rotation_matrix(*ang)
+        t[held_t] = v0[held_t]
         rms = float(np.sqrt(np.mean(r[use] ** 2)))
         if np.linalg.norm(w) < tol and np.linalg.norm(dt) < tol:
             break
     ang = Rotation.from_matrix(rot).as_euler("xyz")
+    ang[held_a] = v0[3:][held_a]
     return _result(np.concatenate([t, ang]), rms, pts.shape[0], "icp", iterations=it,
-                   template_pixel_mm=float(tp))
+                   fitted=[k for k in _SHORT if _SHORT[k] in idx], template_pixel_mm=tp)

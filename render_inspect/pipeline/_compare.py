@@ -324,7 +324,8 @@ def check_measured(path: str | Path, scene: Scene, design_surface: Surface, *,
         comp = compare_measured(m, design_surface, metrology=scene.metrology,
                                 region=tuple(scene.simulation.region),
                                 seed=int(scene.simulation.seed),
-                                expected_sq_mm=expected_sq_mm(scene), force=force)
+                                expected_sq_mm=expected_sq_mm(scene), force=force,
+                                against_chance=False)  # set against chance in the column
     return m, comp
 
 

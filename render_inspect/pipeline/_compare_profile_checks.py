@@ -12,7 +12,9 @@ import numpy as np
 
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ..instruments import Microscope
-from ..metrology import mirror_centre
+# NULL_SURROGATES: the phase-randomised surrogates of the measured profile the
+# registration's correlation is set against, as many as a measured map's
+from ..metrology import NULL_SURROGATES, mirror_centre, phase_surrogate
 from ..core.lazy import lazy_attr
 
 #: SciPy, imported on first use (render_inspect.core.lazy)
@@ -55,9 +57,6 @@ def cut_as_seen(machined: np.ndarray, *, pixel: float, origin: tuple[float, floa
     return map_coordinates(seen, [rr, cc], order=1, mode="constant", cval=np.nan)
 
 
-#: phase-randomised surrogates of the measured profile the registration's correlation is
-#: set against (19: the best of them is the 95 % level of an unrelated profile)
-NULL_SURROGATES = 19
 #: a point of the virtual measurement departs from the cut it measured when it is off by
 #: more than this many of the instrument's own noise (one standard deviation; a Gaussian
 #: excursion this large has a chance of 6e-7 per point)
@@ -145,15 +144,8 @@ def _null_correlation(a, b, lags, k_start, *, seed=0, n=NULL_SURROGATES) -> floa
     if a.size < 16:
         return None
     rng = np.random.default_rng(seed)
-    spec = np.fft.rfft(a - a.mean())
-    best = []
-    for _ in range(n):
-        ph = rng.uniform(0, 2 * np.pi, spec.size)
-        ph[0] = 0.0
-        if a.size % 2 == 0:
-            ph[-1] = 0.0
-        sur = np.fft.irfft(np.abs(spec) * np.exp(1j * ph), n=a.size)
-        best.append(_best_lag(sur, b, lags, k_start)[0])
+    amp = np.abs(np.fft.rfft(a - a.mean()))
+    best = [_best_lag(phase_surrogate(a, rng, amp), b, lags, k_start)[0] for _ in range(n)]
     return float(max(best)) if best else None
 
 

@@ -13,7 +13,7 @@ from ..core.heightmap import HeightMap
 from ..core.units import MM_TO_NM, MM_TO_UM
 from ._figures import image_panels, map_panels, radial_profile_figure
 from ._locator import difference_figure, height_background, locator_figure
-from ._format import fmt_quantity, nice_length
+from ._format import fmt_number, fmt_quantity, nice_length
 from ..core.toolpath import ToolPath
 
 __all__ = ["ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption",
@@ -298,6 +298,20 @@ def comparison_summary(metrics: dict) -> tuple[list, list]:
                       f"mean of the repeats {fmt_quantity(rep.get('mean_map_rms_nm'), 'nm')} rms "
                       f"against its noise {fmt_quantity(rep.get('mean_map_floor_nm'), 'nm')}: "
                       f"{(rep.get('mean_map') or {}).get('verdict', 'unknown')}"))
+    mf = metrics.get("measured_file")
+    if mf and mf.get("registration"):  # the measured map: its registration against chance
+        reg = mf["registration"]
+        ch = reg.get("chance") or {}
+        best = reg.get("null_score")
+        lines.append(("measured file, registration",
+                      f"shifted ({fmt_number((reg.get('tx_mm') or 0) * MM_TO_UM)}, "
+                      f"{fmt_number((reg.get('ty_mm') or 0) * MM_TO_UM)}) um; explains "
+                      f"{fmt_number(reg.get('score'), resolution=1e-3)} of the map's variance "
+                      f"against {'n/a' if best is None else fmt_number(best, resolution=1e-3)} "
+                      f"for the best of {ch.get('surrogates', '?')} surrogates (seed "
+                      f"{ch.get('seed', '?')}): "
+                      + ("reliable" if reg.get("reliable") else
+                         "NOT RELIABLE, its differences are not reliable")))
     edge = metrics.get("tool_edge")
     if edge:  # a measured cutting edge: what it leaves on each cut, and what it is
         per = edge["variants"]

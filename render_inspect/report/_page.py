@@ -114,6 +114,17 @@ _FILTER_KEYS = [("Sa", "Sa_nm", "nm"), ("Sq", "Sq_nm", "nm"), ("Sp", "Sp_nm", "n
                 ("Sku", "Sku", ""), ("Sdq", "Sdq", ""), ("Sdr", "Sdr_percent", "%")]
 
 
+def _chance_text(reg: dict) -> str:
+    """The registration's score against chance in words."""
+    if "reliable" not in reg:
+        return "not checked"
+    best = reg.get("null_score")
+    return (f"{'reliable' if reg['reliable'] else 'NOT RELIABLE'}: explains "
+            f"{fmt_number(reg.get('score'), resolution=1e-3)} of the variance against "
+            f"{'n/a' if best is None else fmt_number(best, resolution=1e-3)} for the best of "
+            f"{(reg.get('chance') or {}).get('surrogates', '?')} surrogates")
+
+
 def _measured_section(rep: HtmlReport, mf: dict) -> None:
     """The measured file: checks, coverage, registration with its uncertainty, outliers,
     warnings, parameters, source (lengths in mm or um, heights in nm, angles in deg)."""
@@ -144,6 +155,7 @@ def _measured_section(rep: HtmlReport, mf: dict) -> None:
             ["residual limit", fmt_quantity(_scaled(checks.get("residual_limit_mm"), 1e6), "nm")],
             ["checks", "passed" if checks.get("ok") else
              ("refused, compared with --force" if checks else "not run")],
+            ["registration against chance", _chance_text(reg)],
             [f"outliers (spikes, k = {fmt_number(out.get('sigma'))})",
              f"{fmt_number(out.get('count'))} ({_q(out.get('fraction') or 0.0, 'fraction')}), "
              f"left out of {' and '.join(out.get('left_out_of', [])) or 'nothing'}"]]
@@ -170,10 +182,11 @@ def _measured_section(rep: HtmlReport, mf: dict) -> None:
     meas = mf.get("measured") or {}
     sim = mf.get("simulated") or {}
     dd = mf.get("difference") or {}
+    flag = " (not reliable)" if reg.get("reliable") is False else ""
     rep.table([[label, _q(meas.get(k), unit), _q(sim.get(k), unit), _q(dd.get(k), unit)]
                for label, k, unit in _FILTER_KEYS],
-              header=["parameter", "measured - design", "simulated (same chain)",
-                      "measured - simulated"])
+              header=["parameter", "measured - design" + flag, "simulated (same chain)",
+                      "measured - simulated" + flag])
     rep.table([[k, _value_text(k, v)] for k, v in src.items()], header=["source", "value"])
 
 
