@@ -72,6 +72,7 @@ def test_compare_measured_recovers_residual_and_matches_simulation(tmp_path):
     assert set(cmp_.maps) >= {"measured", "design", "residual", "simulated_residual", "difference"}
 
 
+@pytest.mark.slow  # six comparisons, each setting its registration against 19 surrogates
 def test_compare_bad_input(tmp_path):
     path, sim = _virtual_measurement(tmp_path)
     sim2 = HeightMap(sim.design[::2, ::2], sim.machined[::2, ::2], 2 * PIXEL, ORIGIN)
