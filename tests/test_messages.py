@@ -148,6 +148,7 @@ def test_the_command_line_prints_the_warning_and_runs(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------- measured data
+@pytest.mark.slow  # its comparison sets the registration against 19 surrogates
 def test_force_compares_a_map_in_another_height_unit(tmp_path):
     """A measured map whose heights span 1000 x the design's (micrometres read as mm) is
     refused naming the likely unit and --force; with force it is compared, warned."""

@@ -56,6 +56,7 @@ def _virtual_measurement(tmp_path):
     return path, sim
 
 
+@pytest.mark.slow  # its comparison sets the registration against 19 surrogates
 def test_compare_measured_recovers_residual_and_matches_simulation(tmp_path):
     path, sim = _virtual_measurement(tmp_path)
     cmp_ = compare_measured(read_measured(path), Freeform(), metrology=MetrologyConfig(form_removal="plane"),
