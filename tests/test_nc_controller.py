@@ -20,7 +20,7 @@ from render_inspect.core.toolpath import ToolPath
 from render_inspect.errors import InputError, SceneError
 from render_inspect.io import read_nc, read_nc_blocks, write_nc
 from render_inspect.pipeline import run_toolpath
-from render_inspect.pipeline._provenance import scene_sha256
+from render_inspect.fit import scene_hash as scene_sha256
 from render_inspect.scene import find_scene, load_scene
 from render_inspect.toolpath import DEFAULT_BLOCK_RATE_LIMIT, block_rate
 
@@ -157,7 +157,7 @@ def test_toolpath_reports_and_warns_the_block_rate(tmp_path, caplog):
         run_toolpath(load_scene("sts_sinusoidal_grid", base), tmp_path / "a", fmt="nc")
     rate = json.loads((tmp_path / "a" / "toolpath.json").read_text())["toolpath"]["block_rate"]
     assert math.isclose(rate["max_per_s"], 400 * 300 / 60, rel_tol=1e-6)
-    assert not rate["ok"] and rate["limit_per_s"] == 1000 and rate["limit_source"].startswith("default")
+    assert not rate["ok"] and rate["limit_per_s"] == 1000 and rate["limit_source"].startswith("default") and not rate["limit_from_scene"]
     said = [r for r in caplog.records if "blocks/s" in r.getMessage()]
     assert len(said) == 1 and "process.block_rate_limit_per_s = 1000 (the default)" in said[0].getMessage()
     assert said[0].levelno == logging.INFO and said[0].getMessage().startswith("note: ")

@@ -16,8 +16,10 @@ import pytest
 
 from render_inspect.cli import main as cli_main
 from render_inspect.core.invocation import command_line, running_command
-from render_inspect.pipeline._provenance import (file_record, keeps_warnings, run_inputs,
-                                                 said_warnings, scene_sha256)
+from render_inspect.io import file_record
+from render_inspect.pipeline._provenance import (keeps_warnings, run_inputs,
+                                                 said_warnings)
+from render_inspect.fit import scene_hash as scene_sha256
 from render_inspect.report import HtmlReport, provenance_section, warnings_section
 from render_inspect.scene import find_scene, load_scene, unit_warnings
 

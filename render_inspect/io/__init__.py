@@ -82,6 +82,7 @@ from ._x3p import read_x3p, read_x3p_xy, write_x3p
 from ._zarr import ZarrHeightMap, check_store_tree, chunk_files, create_heightmap_zarr, set_store_attrs
 from ._exr import heightmap_channels, heightmap_overview
 from ._heightmap import grid_attrs
+from ._file_record import file_record
 from ..core.plugins import import_private_modules
 
 # the processes read [process] program files through core (they do not import io)
@@ -90,7 +91,7 @@ register_program_reader(read_program)
 # file formats added as modules of this package register themselves on import
 import_private_modules(__name__, __path__, skip=("_registry", "_atomic", "_limits"))
 
-__all__ = ["discard_unused", "discarding_new_folder", "not_a_file", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
+__all__ = ["file_record", "discard_unused", "discarding_new_folder", "not_a_file", "atomic_output_dir", "atomic_write_bytes", "atomic_write_text", "atomic_write_stream",
            "check_output_path", "check_output_dir", "refuse_inputs_inside", "scene_files", "claim_output_dir", "read_marker", "write_marker", "MARKER",
            "write_json", "json_safe", "open_lock_file",
            "read_exr", "write_exr", "save_png", "png_bytes_with_text", "read_x3p", "write_x3p",

@@ -7,8 +7,6 @@ warning the command said while it ran."""
 from __future__ import annotations
 
 import functools
-import hashlib
-import json
 import platform
 from collections.abc import Callable, Iterable
 from contextvars import ContextVar
@@ -17,10 +15,11 @@ from typing import Any, ParamSpec, TypeVar
 
 from .. import __version__
 from ..core.invocation import command_line, working_directory
-from ..core.units import MIB_TO_BYTES
+from ..fit import scene_hash
+from ..io import file_record
 from ._blender_warnings import note, scene_warnings, warnings_into
 
-__all__ = ["file_record", "run_inputs", "keeps_warnings", "said_warnings", "scene_sha256",
+__all__ = ["run_inputs", "keeps_warnings", "said_warnings",
            "difference_warnings"]
 
 _P = ParamSpec("_P")
@@ -28,38 +27,6 @@ _R = TypeVar("_R")
 
 #: the warnings of the command now running (:func:`keeps_warnings`), None outside one
 _SAID: ContextVar[list[str] | None] = ContextVar("render_inspect_said_warnings", default=None)
-
-#: bytes read at a time while hashing a file
-_CHUNK = MIB_TO_BYTES
-
-
-def file_record(path: str | Path, role: str) -> dict:
-    """``{"role", "path" (absolute), "bytes", "sha256"}`` of an input file; a folder (a
-    ``.zarr`` store) or a file that cannot be read gets ``sha256`` None and ``note`` saying
-    why."""
-    p = Path(path)
-    rec: dict[str, Any] = {"role": role, "path": str(p.resolve()), "bytes": None, "sha256": None}
-    try:
-        if p.is_dir():
-            rec["note"] = "a folder (a store): not hashed"
-            return rec
-        h = hashlib.sha256()
-        with open(p, "rb") as fh:
-            for chunk in iter(lambda: fh.read(_CHUNK), b""):
-                h.update(chunk)
-        rec["sha256"] = h.hexdigest()
-        rec["bytes"] = p.stat().st_size
-    except OSError as err:
-        rec["note"] = f"not read ({err.strerror or err})"
-    return rec
-
-
-def scene_sha256(scene_dict: dict) -> str:
-    """SHA-256 of the scene as run: its canonical JSON (sorted keys, no spaces), the value
-    ``fit.json`` calls ``scene_sha256``."""
-    text = json.dumps(scene_dict, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
-
 
 def _scene_inputs(d: dict) -> list[tuple[str, str]]:
     """(role, path) of the files a scene dictionary reads."""
@@ -86,8 +53,9 @@ def run_inputs(scene_dict: dict, *, scene_file: str | Path | None = None,
                measured: str | Path | None = None, seed: int | None = None,
                variants: Iterable[tuple[str, dict]] = ()) -> dict:
     """The provenance of a run: ``scene`` (``name``, ``file``: the scene file's record or
-    None, ``sha256_as_run``: :func:`scene_sha256` of the scene after its overrides),
-    ``files`` (a :func:`file_record` of each file the run read: the measured file, each
+    None, ``sha256_as_run``: :func:`~render_inspect.fit.scene_hash` of the scene after its
+    overrides, as ``fit.json``'s ``scene_sha256``), ``files`` (a
+    :func:`~render_inspect.io.file_record` of each file the run read: the measured file, each
     variant's program, height-map design and measured tool edge; a variant's name in its
     role where the variants read different files), ``software_version``, ``python``,
     ``seed``, ``command`` (the ``render-inspect`` command line as typed, program name
@@ -112,7 +80,7 @@ def run_inputs(scene_dict: dict, *, scene_file: str | Path | None = None,
             add(path, f"{role} ({name})" if differ and name else role)
     return {"scene": {"name": scene_dict.get("name"),
                       "file": None if scene_file is None else file_record(scene_file, "scene file"),
-                      "sha256_as_run": scene_sha256(scene_dict)},
+                      "sha256_as_run": scene_hash(scene_dict)},
             "files": files, "software_version": __version__,
             "python": platform.python_version(), "seed": seed,
             "command": command_line(), "working_directory": working_directory()}

@@ -6,15 +6,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import hashlib
-import json
 import logging
 import math
 from pathlib import Path
 
 from ..core.errors import InputError
 from ..design import Surface, make_surface
-from ..io import (atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
+from ..fit import scene_hash
+from ..io import (file_record, atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
                   program_formats, read_nc_blocks)
 from ..processes import Plan, Process, check_budget, findings_summary, process_of
 from ..report import draw_figure
@@ -118,13 +117,10 @@ def _program_source(scene: Scene, scene_file: str | Path | None = None) -> dict:
     ``metrics.json`` ``inputs.scene.sha256_as_run`` records)."""
     head: dict[str, Any] = {}
     if scene_file is not None:
+        rec = file_record(scene_file, "scene")
         head["scene_file"] = Path(scene_file).name
-        try:
-            head["scene_file_sha256"] = hashlib.sha256(Path(scene_file).read_bytes()).hexdigest()
-        except OSError as err:
-            head["scene_file_sha256"] = f"not read ({err.strerror or err})"
-    text = json.dumps(scene.to_dict(), sort_keys=True, separators=(",", ":"), default=str)
-    head["scene_sha256_as_run"] = hashlib.sha256(text.encode()).hexdigest()
+        head["scene_file_sha256"] = rec["sha256"] or rec.get("note", "not read")
+    head["scene_sha256_as_run"] = scene_hash(scene.to_dict())
     return head
 
 
@@ -176,7 +172,7 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     if rate.get("warning"):
         # over the scene's own limit: a warning; over the default (the control unknown): a
         # note, since ultra-precision controls take more than one block per millisecond
-        if rate.get("limit_source", "").startswith("process."):
+        if rate.get("limit_from_scene"):
             log.warning("%s", rate["warning"])
         else:
             log.info("note: %s", rate["warning"])

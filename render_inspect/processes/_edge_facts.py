@@ -21,7 +21,7 @@ import numpy as np
 from ..core.grid import grid_shape
 from ..core.units import MM_TO_NM
 from ..design import make_surface
-from ..machining import WEAR_RATES
+from ..machining import WEAR_RATES, merge_moments
 
 from ..toolpath import edge_notes
 
@@ -97,16 +97,15 @@ def edge_facts_tiled(tool: Any, compensation: str, design: Any, region: Sequence
     shape = grid_shape(region, pixel)
     rows = max(2, BAND_PIXELS // max(int(shape[1]), 1))
     lo, hi = math.inf, -math.inf
-    n, mean, m2, imin, imax = 0, 0.0, 0.0, math.inf, -math.inf
+    moments: tuple = (0, 0.0, 0.0, math.inf, -math.inf)
     for theta, imprint in _band_imprints(edge, surface, region, pixel, shape, rows):
         lo, hi = min(lo, float(np.nanmin(theta))), max(hi, float(np.nanmax(theta)))
         v = imprint[np.isfinite(imprint)]
-        if v.size:  # (the moments merged band by band: Chan et al.)
+        if v.size:  # the imprint's moments, band by band
             bm = float(v.mean())
-            bm2 = float(np.sum((v - bm) ** 2))
-            d, k = bm - mean, n + v.size
-            mean, m2, n = mean + d * v.size / k, m2 + bm2 + d * d * n * v.size / k, k
-            imin, imax = min(imin, float(v.min())), max(imax, float(v.max()))
+            moments = merge_moments(moments, (v.size, bm, float(np.sum((v - bm) ** 2)),
+                                              float(v.min()), float(v.max())))
+    n, _, m2, imin, imax = moments
     return {**edge.to_dict(tool.half_angle),
             "compensation": compensation,
             "contact_angle_range_deg": [math.degrees(lo), math.degrees(hi)],

@@ -57,7 +57,8 @@ def block_rate(t: Any, *, lines: Any = None, limit: float | None = None,
     dict
         ``blocks`` (timed blocks: each after the first point), ``max_per_s`` (1 / the
         shortest block's time), ``median_per_s``, ``min_block_time_s``, ``limit_per_s``,
-        ``limit_source`` (the scene key, or the default's reason), ``blocks_over_limit``,
+        ``limit_source`` (the scene key, or the default's reason), ``limit_from_scene``
+        (whether the scene set the limit), ``blocks_over_limit``,
         ``ok`` and ``warning`` (one sentence, None when ``ok``).
     """
     given = limit is not None
@@ -76,6 +77,7 @@ def block_rate(t: Any, *, lines: Any = None, limit: float | None = None,
               f"(set process.{BLOCK_RATE_KEY} to the control's own rate)")
     out: dict[str, Any] = {"blocks": int(dt.size), "max_per_s": None, "median_per_s": None,
                            "min_block_time_s": None, "limit_per_s": lim, "limit_source": source,
+                           "limit_from_scene": given,
                            "blocks_over_limit": 0, "ok": True, "warning": None}
     timed = np.flatnonzero(dt > 0)
     if timed.size == 0:
