@@ -27,6 +27,26 @@ def add_parsers(sub: Any) -> None:
     _add_scene_args(p)
     p.add_argument("--format", choices=_Registered(_program_formats), default="npz",
                    metavar="FORMAT", help="a registered program format: %(choices)s (default npz)")
+    p.add_argument("--nc-comments", dest="nc_comments", choices=("semicolon", "parenthesis"),
+                   default=None, help="--format nc: the comment lines as '; text' (default; "
+                                      "RS274NGC / LinuxCNC, Siemens 840D) or '(text)' (Fanuc-type "
+                                      "controls, where ';' ends a block)")
+    p.add_argument("--nc-block-numbers", dest="nc_block_numbers", type=_block_numbers,
+                   default=None, metavar="STEP|off",
+                   help="--format nc: the increment of the block numbers (default 1: N1, N2, "
+                        "...; 10: N10, N20, ...; at most 1000) or 'off' for none")
+
+
+def _block_numbers(text: str) -> int | str:
+    """``--nc-block-numbers``: 'off' (0) or the increment as a whole number (its range is
+    checked with the scene, one line naming the option)."""
+    t = text.strip().lower()
+    if t in ("off", "none", "0"):
+        return 0
+    try:
+        return int(t)
+    except ValueError:
+        return text  # (refused by the check, naming the option and the value)
 
 
 def _simulate(args: argparse.Namespace, overwrite: bool) -> dict:
@@ -58,7 +78,8 @@ def _toolpath(args: argparse.Namespace, overwrite: bool) -> object:
     from ..scene import find_scene
 
     return pipeline.run_toolpath(scene, args.out, fmt=args.format, overwrite=overwrite,
-                                 scene_file=find_scene(args.scene))
+                                 scene_file=find_scene(args.scene), nc_comments=args.nc_comments,
+                                 nc_block_numbers=args.nc_block_numbers)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

@@ -10,9 +10,11 @@ this module gathers them."""
 
 from __future__ import annotations
 
-from ._nc_dialect import CHUNK_ROWS, nc_comment_text, program_axes, program_blocks
+from ._nc_dialect import (CHUNK_ROWS, COMMENT_STYLES, check_nc_style, nc_comment_text,
+                          program_axes, program_blocks)
 from ._nc_parse import cut_points, read_nc, read_nc_blocks, read_program_nc
 from ._nc_write import write_nc, write_program_nc
 
 __all__ = ["write_nc", "read_nc", "write_program_nc", "read_program_nc", "read_nc_blocks",
-           "program_blocks", "cut_points", "program_axes", "nc_comment_text", "CHUNK_ROWS"]
+           "program_blocks", "cut_points", "program_axes", "nc_comment_text", "CHUNK_ROWS",
+           "COMMENT_STYLES", "check_nc_style"]

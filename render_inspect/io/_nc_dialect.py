@@ -27,7 +27,9 @@ from ..core.units import MIN_TO_S
 from ..core.toolpath import ToolPath
 
 __all__ = ["nc_comment_text", "program_axes", "program_blocks", "created_utc", "CHUNK_ROWS",
-           "UTF8_BOM", "TURNING_MODES", "LINEAR_MODES"]
+           "UTF8_BOM", "TURNING_MODES", "LINEAR_MODES", "COMMENT_STYLES", "check_nc_style",
+           "TURNING_TITLE", "LINEAR_TITLE", "MAX_BLOCK_STEP", "comment_line",
+           "is_own_title"]
 
 #: rows formatted at a time by the writers (their memory does not grow with the program)
 CHUNK_ROWS = 16384
@@ -48,12 +50,57 @@ LINEAR_MODES = "G17 G40"
 #: again: the readers pass over it
 UTF8_BOM = b"\xef\xbb\xbf"
 
+#: the first line (the title comment) of each dialect: how a reader knows the project's
+#: own programs
+TURNING_TITLE = "render_inspect generic C-X-Z turning program"
+LINEAR_TITLE = "render_inspect generic X-Y-Z sculpturing program"
+
+#: how the comment lines are written: ``; text`` (RS274NGC / LinuxCNC, Siemens 840D) or
+#: ``(text)`` (Fanuc and the controls that follow it, where ``;`` ends a block)
+COMMENT_STYLES = ("semicolon", "parenthesis")
+#: the largest increment of the block numbers
+MAX_BLOCK_STEP = 1000  # not a unit conversion
+
+
+def check_nc_style(comments: object, block_numbers: object) -> None:
+    """Refuse a comment style other than :data:`COMMENT_STYLES` or a block-number
+    increment other than a whole number in 0 (no block numbers) .. :data:`MAX_BLOCK_STEP`,
+    in one line naming the option."""
+    if comments not in COMMENT_STYLES:
+        raise InputError(f"the NC comment style (--nc-comments) must be one of "
+                         f"{', '.join(COMMENT_STYLES)}, received {comments!r}")
+    if isinstance(block_numbers, bool) or not isinstance(block_numbers, int) \
+            or not 0 <= block_numbers <= MAX_BLOCK_STEP:
+        raise InputError(f"the NC block-number increment (--nc-block-numbers) must be 'off' or "
+                         f"a whole number in [1, {MAX_BLOCK_STEP}], received {block_numbers!r}")
+
+
+def comment_line(text: object, comments: str = "semicolon") -> str:
+    """One comment line of ``text`` (made safe by :func:`nc_comment_text`: no ``;``,
+    ``(`` or ``)`` inside) as ``; text`` or ``(text)``."""
+    return _wrap(nc_comment_text(text), comments)
+
+
+def _wrap(body: str, comments: str) -> str:
+    """``body`` (text already safe: :func:`nc_comment_text`) as a comment line."""
+    return f"({body})" if comments == "parenthesis" else f"; {body}"
+
+
+def is_own_title(line: str) -> str | None:
+    """The comment style of ``line`` when it is the title of one of the project's own
+    programs (``"semicolon"`` or ``"parenthesis"``), else None."""
+    for style, lead in (("semicolon", "; "), ("parenthesis", "(")):
+        if line.startswith(lead + TURNING_TITLE) or line.startswith(lead + LINEAR_TITLE):
+            return style
+    return None
+
 
 def nc_comment_text(value: object) -> str:
-    """``value`` as text safe inside a ``;`` comment of an NC program: printable ASCII only
-    (every other character, line breaks and carriage returns included, becomes a space),
-    ``;`` -> ``,`` and ``(``/``)`` -> ``[``/``]`` (comment delimiters of common dialects),
-    runs of spaces collapsed."""
+    """``value`` as text safe inside a comment of an NC program, a ``; ...`` line or a
+    ``( ... )`` one: printable ASCII only (every other character, line breaks and carriage
+    returns included, becomes a space), ``;`` -> ``,`` and ``(``/``)`` -> ``[``/``]`` (the
+    comment and block delimiters of common dialects: a parenthesis comment never holds a
+    parenthesis of its own), runs of spaces collapsed."""
     text = str(value)
     out = []
     for ch in text:
@@ -92,12 +139,12 @@ def created_utc() -> str:
     return when.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def _header_lines(title: str, info: dict) -> list[str]:
-    lines = [f"; {nc_comment_text(title)}"]
+def _header_lines(title: str, info: dict, comments: str = "semicolon") -> list[str]:
+    lines = [comment_line(title, comments)]
     for k, v in info.items():
         if not re.fullmatch(r"[A-Za-z0-9_]+", str(k)):
             raise InputError(f"NC header keys must be words of letters, digits and _, received {k!r}")
-        lines.append(f"; {k}: {nc_comment_text(v)}")
+        lines.append(_wrap(f"{k}: {nc_comment_text(v)}", comments))
     return lines
 
 

@@ -121,20 +121,23 @@ def _put_g10(out, o, v):
 
 
 @njit(cache=True, nogil=True)
-def _rows(k0, axes, letters, feed, f_from, suffix, decimals, out, todo):
-    """Blocks ``N<k0 + j> G01 <letters[0]>.. <letters[1]>.. <letters[2]>..`` (``axes``:
-    (3, n)) into out, each followed by ``suffix`` where it is given, else by `` F..``
-    (``feed``) from row f_from on; a block it leaves to Python is noted in todo (its row
-    and the byte where it belongs) and takes no bytes.  Returns (bytes written, blocks
-    noted)."""
+def _rows(k0, step, axes, letters, feed, f_from, suffix, decimals, out, todo):
+    """Blocks ``N<(k0 + j) step> G01 <letters[0]>.. <letters[1]>.. <letters[2]>..``
+    (``axes``: (3, n); without the ``N`` word where ``step`` is 0) into out, each
+    followed by ``suffix`` where it is given, else by `` F..`` (``feed``) from row f_from
+    on; a block it leaves to Python is noted in todo (its row and the byte where it
+    belongs) and takes no bytes.  Returns (bytes written, blocks noted)."""
     m = _POW10[decimals]
     o = 0
     n_todo = 0
     for j in range(axes.shape[1]):
         o0 = o
-        out[o] = 78  # N
-        o = _put_int(out, o + 1, k0 + j)
-        for ch in (_SPACE, 71, 48, 49):  # " G01"
+        if step > 0:
+            out[o] = 78  # N
+            o = _put_int(out, o + 1, (k0 + j) * step)
+            out[o] = _SPACE
+            o += 1
+        for ch in (71, 48, 49):  # "G01"
             out[o] = ch
             o += 1
         for w in range(3):
@@ -162,12 +165,12 @@ def _rows(k0, axes, letters, feed, f_from, suffix, decimals, out, todo):
 
 
 def _blocks(k0: int, axes: tuple, letters: str, feed: np.ndarray, f_from: int, suffix: str,
-            decimals: int) -> bytes:
+            decimals: int, step: int = 1) -> bytes:
     a = np.ascontiguousarray(np.stack(axes), dtype=np.float64)
     feed = np.ascontiguousarray(feed, dtype=np.float64)
     out = np.empty((ROW_BYTES_MAX + len(suffix)) * a.shape[1] + 1, dtype=np.uint8)
     todo = np.empty(2 * a.shape[1], dtype=np.int64)
-    n, n_todo = _rows(k0, a, np.frombuffer(letters.encode("ascii"), dtype=np.uint8), feed, f_from,
+    n, n_todo = _rows(k0, step, a, np.frombuffer(letters.encode("ascii"), dtype=np.uint8), feed, f_from,
                       np.frombuffer(suffix.encode("ascii"), dtype=np.uint8), decimals, out, todo)
     if n_todo == 0:
         return out[:n].tobytes()
@@ -175,7 +178,7 @@ def _blocks(k0: int, axes: tuple, letters: str, feed: np.ndarray, f_from: int, s
     parts = []
     at = 0
     for j, o in todo[:2 * n_todo].reshape(-1, 2).tolist():
-        text = f"N{k0 + j} G01" + "".join(f" {w}{fmt(float(a[i, j]))}" for i, w in enumerate(letters))
+        text = (f"N{(k0 + j) * step} " if step else "") + "G01" + "".join(f" {w}{fmt(float(a[i, j]))}" for i, w in enumerate(letters))
         if suffix:
             text += suffix
         elif j >= f_from:
@@ -187,14 +190,16 @@ def _blocks(k0: int, axes: tuple, letters: str, feed: np.ndarray, f_from: int, s
 
 
 def format_turning_rows(k0: int, c: np.ndarray, x: np.ndarray, z: np.ndarray, feed: np.ndarray,
-                        f_from: int, decimals: int) -> bytes:
-    """The cutting blocks ``N<k0 + j> G01 C<c> X<x> Z<z> F<feed>`` (j = 0 .., C, X and Z
-    with ``decimals`` places, F as ``%.10g``; no F before row ``f_from``), one per line, the
-    bytes Python's formatting writes."""
-    return _blocks(k0, (c, x, z), "CXZ", feed, f_from, "", decimals)
+                        f_from: int, decimals: int, step: int = 1) -> bytes:
+    """The cutting blocks ``N<(k0 + j) step> G01 C<c> X<x> Z<z> F<feed>`` (j = 0 .., C, X
+    and Z with ``decimals`` places, F as ``%.10g``; no F before row ``f_from``; no ``N``
+    word where ``step`` is 0), one per line, the bytes Python's formatting writes."""
+    return _blocks(k0, (c, x, z), "CXZ", feed, f_from, "", decimals, step)
 
 
-def format_linear_rows(k0: int, x: np.ndarray, y: np.ndarray, z: np.ndarray, feed_text: str) -> bytes:
-    """The blocks ``N<k0 + j> G01 X<x> Y<y> Z<z> F<feed_text>`` of an X-Y-Z program (six
-    places), one per line, the bytes Python's ``{:.6f}`` writes."""
-    return _blocks(k0, (x, y, z), "XYZ", np.zeros(0), 0, f" F{feed_text}", 6)
+def format_linear_rows(k0: int, x: np.ndarray, y: np.ndarray, z: np.ndarray, feed_text: str,
+                       step: int = 1) -> bytes:
+    """The blocks ``N<(k0 + j) step> G01 X<x> Y<y> Z<z> F<feed_text>`` of an X-Y-Z program
+    (six places; no ``N`` word where ``step`` is 0), one per line, the bytes Python's
+    ``{:.6f}`` writes."""
+    return _blocks(k0, (x, y, z), "XYZ", np.zeros(0), 0, f" F{feed_text}", 6, step)

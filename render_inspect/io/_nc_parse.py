@@ -24,20 +24,26 @@ from ..core.toolpath import (
 )
 from ..core.units import MIN_TO_S
 from ._nc_dialect import (LINEAR_MODES, TURNING_MODES, _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD,
-                          UTF8_BOM)
+                          UTF8_BOM, is_own_title)
 from ._nc_scan import FORM_LONG, FORM_OK, scan_uniform
 
 __all__ = ["read_nc", "read_program_nc", "read_nc_blocks", "cut_points"]
 
 
 # ------------------------------------------------------------------------ reading
-#: a block as the writers write it (the fast reader's form; anything else is read line by line)
-_STRICT = re.compile(r"^N(\d+) G0([01])(?: C(-?\d+\.\d+))?(?: X(-?\d+\.\d+))?"
+#: a block as the writers write it, with its block number or without (the fast reader's
+#: form; anything else is read line by line)
+_STRICT = re.compile(r"^(?:N(\d+) )?G0([01])(?: C(-?\d+\.\d+))?(?: X(-?\d+\.\d+))?"
                      r"(?: Y(-?\d+\.\d+))?(?: Z(-?\d+\.\d+))?(?: F([0-9][0-9.eE+-]*))?$", re.M)
-# (the "; " first and the line start behind it: the search skips to each "; " at once,
-# where "^; " would be tried at every character of a long program)
-_SECTION_LINE = re.compile(r"; (?<=^; )(approach|cut|link|exit|line \d+)$", re.M)
-_HEADER_LINE = re.compile(r"; (?<=^; )([A-Za-z0-9_]+):(.*)$", re.M)
+# the section and header comment lines of each comment style (the style the program's
+# title is written in).  (The "; " first and the line start behind it: the search skips
+# to each "; " at once, where "^; " would be tried at every character of a long program;
+# the same for "(".)
+_SECTION_LINE = {
+    "semicolon": re.compile(r"; (?<=^; )(approach|cut|link|exit|line \d+)$", re.M),
+    "parenthesis": re.compile(r"\((?<=^\()(approach|cut|link|exit|line \d+)\)$", re.M)}
+_HEADER_LINE = {"semicolon": re.compile(r"; (?<=^; )([A-Za-z0-9_]+):(.*)$", re.M),
+                "parenthesis": re.compile(r"\((?<=^\()([A-Za-z0-9_]+):(.*)\)$", re.M)}
 _PREAMBLE = {"G90 G93": {90.0, 93.0}, "G90 G94 G21": {90.0, 94.0, 21.0}, "M30": set(),
              TURNING_MODES: {18.0, 21.0, 40.0}, LINEAR_MODES: {17.0, 40.0}}
 
@@ -74,33 +80,40 @@ _NUM = r"-?\d+\.\d+"
 _FEED = r"[0-9][0-9.eE+-]*"
 
 
-def _uniform(region: str, words: str):
+def _uniform(region: str, words: str, numbered: bool = True):
     """(n, k) values of a run of blocks that all carry exactly ``words`` (e.g. ``"CXZF"``)
-    in the writers' form, or None.  The plain form (no exponent, up to 15 digits a number)
+    in the writers' form (each after its block number, or none: ``numbered``; -1 for the
+    number of a block without one), or None.  The plain form (no exponent, up to 15 digits a number)
     is checked and read in one compiled pass (:func:`~render_inspect.io._nc_scan.scan_uniform`);
     a run with a longer number, or with F words that have exponents, is checked with one
     regular expression and its numbers read as :func:`float` reads them."""
-    status, read = scan_uniform(region, words)
+    status, read = scan_uniform(region, words, numbered)
     if status == FORM_OK:
         return read
     if status != FORM_LONG:  # not the plain form: the writers' form with F exponents, or not
         if "F" not in words:
             return None
-        blk = r"N\d+ G0[01]" + "".join(f" {w}{_FEED if w == 'F' else _NUM}" for w in words)
+        blk = (r"N\d+ G0[01]" if numbered else r"G0[01]") + "".join(
+            f" {w}{_FEED if w == 'F' else _NUM}" for w in words)
         # possessive: a block ends at its line break, so the repetition has one way to match
         if re.fullmatch(rf"(?:{blk}\n)*+", region) is None:
             return None
     table = str.maketrans({c: " " for c in "NG" + words})
     vals = np.fromstring(region.translate(table), sep=" ")
-    k = 2 + len(words)
+    k = (2 if numbered else 1) + len(words)
     if vals.size % k:
         return None
-    return vals.reshape(-1, k)
+    vals = vals.reshape(-1, k)
+    return vals if numbered else np.c_[np.full(len(vals), -1.0), vals]
 
 
-def _words_of(line: str) -> str | None:
+def _words_of(line: str) -> tuple[str, bool] | None:
+    """The words a block line carries after its motion, and whether it has a block
+    number; None for a line not in the writers' form."""
     m = _STRICT.match(line)
-    return None if m is None else "".join(w for w, v in zip("CXYZF", m.groups()[2:]) if v)
+    if m is None:
+        return None
+    return "".join(w for w, v in zip("CXYZF", m.groups()[2:]) if v), m.group(1) is not None
 
 
 def _line_values(lines) -> np.ndarray | None:
@@ -110,7 +123,8 @@ def _line_values(lines) -> np.ndarray | None:
         if m is None:
             return None
         g = m.groups()
-        vals.append([float(g[0]), float(g[1])] + [float(v) if v else math.nan for v in g[2:]])
+        vals.append([float(g[0]) if g[0] else -1.0, float(g[1])]
+                    + [float(v) if v else math.nan for v in g[2:]])
     return np.asarray(vals, dtype=np.float64).reshape(-1, 7)
 
 
@@ -126,10 +140,11 @@ def _chunk_rows(region: str) -> np.ndarray | None:
         rest = region[head_end:]
         if not rest:
             break
-        words = _words_of(rest[:rest.find("\n")])
-        if words is None:
+        form = _words_of(rest[:rest.find("\n")])
+        if form is None:
             return None
-        vals = _uniform(rest, words)
+        words, numbered = form
+        vals = _uniform(rest, words, numbered)
         if vals is None:
             continue
         full = np.full((vals.shape[0], 7), math.nan)
@@ -181,24 +196,30 @@ def _fast_blocks(path: Path) -> Blocks | None:
     number, motion, feed, section_of, line_of, lineno = [], [], [], [], [], []
     section = None
     lines_before = 0
+    style = None  # the comment style of the program's title (the first line)
     for piece in _pieces(path):
-        for k, v in _HEADER_LINE.findall(piece):
+        if style is None:
+            style = is_own_title(piece[:piece.find("\n")]) or "semicolon"
+        paren = style == "parenthesis"
+        for k, v in _HEADER_LINE[style].findall(piece):
             meta[k] = v.strip()
-        parts = _SECTION_LINE.split(piece)
+        parts = _SECTION_LINE[style].split(piece)
         for name, chunk in [(section, parts[0])] + list(zip(parts[1::2], parts[2::2])):
             section = name
-            first = re.search(r"^N", chunk, flags=re.M)
+            # a block starts a line with its number, or with G00 / G01 where it has none
+            first = re.search(r"^(?:N|G0[01] )", chunk, flags=re.M)
             if first is None:
                 region, around = "", chunk
             else:
-                last = chunk.rfind("\nN")
+                last = max(chunk.rfind("\nN"), chunk.rfind("\nG0"))
                 end = chunk.find("\n", (last + 1) if last >= 0 else first.start())
                 end = len(chunk) - 1 if end < 0 else end
                 region = chunk[first.start():end + 1]
                 around = chunk[:first.start()] + chunk[end + 1:]
             for other in around.split("\n"):
                 other = other.strip()
-                if other.startswith(";") or not other or other == "%":
+                if other.startswith(";") or not other or other == "%" or \
+                        (paren and other.startswith("(") and other.endswith(")")):
                     continue
                 if other not in _PREAMBLE:
                     return None
@@ -220,11 +241,14 @@ def _fast_blocks(path: Path) -> Blocks | None:
                                       dtype=np.int8))
             line_of.append(np.full(len(vals), int(cast(str, name)[5:]) if kind == "cut" and name != "cut"
                                    else -1, dtype=np.int64))
-        # the file line (1-based) of each block of the piece
+        # the file line (1-based) of each block of the piece: the lines that start with N,
+        # or with G0 (no mode line does)
         raw = np.frombuffer(piece.encode("ascii"), dtype=np.uint8)
         newlines = np.flatnonzero(raw == 10)
-        starts = np.flatnonzero(raw == ord("N"))
-        starts = starts[(starts == 0) | (raw[starts - 1] == 10)]  # (an N that starts a line)
+        starts = np.r_[0, newlines + 1]
+        starts = starts[starts < raw.size]
+        lead, after = raw[starts], raw[np.minimum(starts + 1, raw.size - 1)]
+        starts = starts[(lead == ord("N")) | ((lead == ord("G")) & (after == ord("0")))]
         lineno.append(lines_before + np.searchsorted(newlines, starts) + 1)
         lines_before += newlines.size
     if not number:
@@ -258,11 +282,18 @@ def _blocks_line_by_line(path: Path) -> Blocks:
     pos: dict[str, list[float]] = {a: [] for a in cur}
     section, line_no, mode = None, -1, 1
     modes = set()
+    paren = False  # a program of the project's own whose comments are in parentheses
     with path.open("r", encoding="utf-8-sig", errors="strict") as fh:
         for lineno, raw in enumerate(fh, 1):
             text = raw.strip()
+            if lineno == 1:
+                paren = is_own_title(text) == "parenthesis"
+            body = None
             if text.startswith(";"):
                 body = text[1:].strip()
+            elif paren and text.startswith("(") and text.endswith(")"):
+                body = text[1:-1].strip()
+            if body is not None:
                 m = re.fullmatch(r"line (\d+)", body)
                 if m:
                     section, line_no = "cut", int(m.group(1))

@@ -1,7 +1,7 @@
 """The compiled reader of a run of blocks in the writers' own form (``N12 G01 C1.5 X2.25
-Z-0.001 F97.5``, the words in a fixed order): one pass over the bytes that checks every
-line and reads its numbers, in place of a regular expression over the run and numpy's
-passes over its characters.
+Z-0.001 F97.5``, or ``G01 C1.5 ...`` without block numbers, the words in a fixed order):
+one pass over the bytes that checks every line and reads its numbers, in place of a
+regular expression over the run and numpy's passes over its characters.
 
 It takes only the writers' form with plain numbers (block number and motion digits,
 ``-?\\d+\\.\\d+`` for the axes, ``\\d+(\\.\\d+)?`` for ``F``, one space before each
@@ -68,7 +68,7 @@ def _number(raw, p, n, signed, fraction, pow10):
 
 
 @njit(cache=True, nogil=True)
-def _scan(raw, letters, pow10):
+def _scan(raw, letters, pow10, numbered):
     n = raw.size
     lines = 0
     for i in range(n):
@@ -80,19 +80,25 @@ def _scan(raw, letters, pow10):
     p = 0
     row = 0
     while p < n:
-        # N<digits> G0<0|1>
-        if raw[p] != _N:
+        # N<digits> G0<0|1> (G0<0|1> alone in a program without block numbers: -1)
+        if numbered:
+            if raw[p] != _N:
+                return FORM_OTHER, vals[:0]
+            status, v, p = _number(raw, p + 1, n, False, 0, pow10)
+            if status == FORM_OTHER:
+                return FORM_OTHER, vals[:0]
+            long = long or status == FORM_LONG
+            vals[row, 0] = v
+            if p >= n or raw[p] != _SPACE:
+                return FORM_OTHER, vals[:0]
+            p += 1
+        else:
+            vals[row, 0] = -1.0
+        if p + 3 > n or raw[p] != _G or raw[p + 1] != _ZERO \
+                or not (raw[p + 2] == _ZERO or raw[p + 2] == _ONE):
             return FORM_OTHER, vals[:0]
-        status, v, p = _number(raw, p + 1, n, False, 0, pow10)
-        if status == FORM_OTHER:
-            return FORM_OTHER, vals[:0]
-        long = long or status == FORM_LONG
-        vals[row, 0] = v
-        if p + 4 > n or raw[p] != _SPACE or raw[p + 1] != _G or raw[p + 2] != _ZERO \
-                or not (raw[p + 3] == _ZERO or raw[p + 3] == _ONE):
-            return FORM_OTHER, vals[:0]
-        vals[row, 1] = float(raw[p + 3] - _ZERO)
-        p += 4
+        vals[row, 1] = float(raw[p + 2] - _ZERO)
+        p += 3
         for w in range(letters.size):
             if p + 2 > n or raw[p] != _SPACE or raw[p + 1] != letters[w]:
                 return FORM_OTHER, vals[:0]
@@ -109,13 +115,14 @@ def _scan(raw, letters, pow10):
     return (FORM_LONG if long else FORM_OK), vals
 
 
-def scan_uniform(region: str, words: str) -> tuple[int, np.ndarray]:
+def scan_uniform(region: str, words: str, numbered: bool = True) -> tuple[int, np.ndarray]:
     """(status, values) of a run of block lines (ASCII, each ending with a line break)
-    that all carry exactly ``words`` (e.g. ``"CXZF"``, in that order): :data:`FORM_OK`
-    and the (lines, 2 + len(words)) values N, G, then the words'; else
+    that all carry exactly ``words`` (e.g. ``"CXZF"``, in that order), each after its
+    block number (``numbered``) or with none: :data:`FORM_OK` and the (lines, 2 +
+    len(words)) values N (-1 without block numbers), G, then the words'; else
     :data:`FORM_OTHER` (a line not in the writers' plain form) or :data:`FORM_LONG` (a
     number of more than :data:`MAX_DIGITS` digits), with no values."""
     raw = np.frombuffer(region.encode("ascii"), dtype=np.uint8)
     letters = np.frombuffer(words.encode("ascii"), dtype=np.uint8)
-    status, vals = _scan(raw, letters, _EXACT_POW10)
+    status, vals = _scan(raw, letters, _EXACT_POW10, bool(numbered))
     return int(status), vals

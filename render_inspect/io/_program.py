@@ -32,7 +32,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
-from ._nc_dialect import UTF8_BOM
+from ._nc_dialect import UTF8_BOM, LINEAR_TITLE, TURNING_TITLE, is_own_title
 from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
 from ._program_kernel import c_backward, c_move_times, feed_times, sample_moves, unwrap_c
@@ -57,8 +57,6 @@ MAX_PROGRAM_POINTS = 200_000_000
 _WRAP_DEG = 180.0
 #: moves whose C step the points per revolution is the median of (evenly spread)
 _PPR_SAMPLE = 100_001
-_OWN_TURNING = "render_inspect generic C-X-Z turning program"
-_OWN_LINEAR = "render_inspect generic X-Y-Z sculpturing program"
 
 
 @dataclass
@@ -99,15 +97,19 @@ class ImportedProgram:
 
 def program_dialect(path: str | Path) -> str:
     """The dialect of ``path`` from its first line: ``"render_inspect turning"``,
-    ``"render_inspect linear"`` or ``"G-code"`` (anything else: point lists and G-code
-    are told apart once read).  A UTF-8 byte order mark before it (an editor's, saving the
+    ``"render_inspect linear"`` (the title comment ``; ...`` or ``( ... )``, either comment
+    style the project writes) or ``"G-code"`` (anything else: point lists and G-code are
+    told apart once read).  A UTF-8 byte order mark before it (an editor's, saving the
     file again) does not matter."""
     with Path(path).open("rb") as fh:
         first = fh.readline(400).removeprefix(UTF8_BOM).decode("ascii", "replace").strip()
-    if first.startswith("; " + _OWN_TURNING):
-        return "render_inspect turning"
-    if first.startswith("; " + _OWN_LINEAR):
-        return "render_inspect linear"
+    style = is_own_title(first)
+    if style is not None:
+        body = first[2:] if style == "semicolon" else first[1:]
+        if body.startswith(TURNING_TITLE):
+            return "render_inspect turning"
+        if body.startswith(LINEAR_TITLE):
+            return "render_inspect linear"
     return "G-code"
 
 

@@ -69,6 +69,15 @@ Every comment line, the program's own and those carrying scene text (names, comm
 is one ``;`` line of printable ASCII without control characters, with ``;``, ``(`` and
 ``)`` replaced (:func:`nc_comment_text`), so no text can start a block of its own or open
 a comment in a dialect that uses parentheses; scene text never reaches the CSV files.
+
+For a Fanuc-type control (where ``;`` ends a block and only ``( ... )`` is a comment) the
+writers take ``comments="parenthesis"``: every comment line is then ``(text)``, the same
+text (``(render_inspect generic C-X-Z turning program)``, ``(points: 1368001)``,
+``(approach)``, ``(line 3)``), never a parenthesis inside it (``(`` and ``)`` of scene
+text become ``[`` and ``]``).  ``block_numbers`` sets the increment of the block numbers
+(1: ``N1``, ``N2``, ...; 10: ``N10``, ``N20``, ...) or writes none (0: each block starts
+``G00`` / ``G01``).  The readers take every such program as the project's own and read
+the same program from it.
 """
 
 from __future__ import annotations
@@ -82,15 +91,16 @@ from ..core.errors import InputError
 from ..core.toolpath import LinearProgram, ToolPath
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
-from ._nc import (CHUNK_ROWS, cut_points, nc_comment_text, program_axes, program_blocks,
-                  read_nc, read_nc_blocks, read_program_nc, write_nc, write_program_nc)
+from ._nc import (CHUNK_ROWS, COMMENT_STYLES, check_nc_style, cut_points, nc_comment_text,
+                  program_axes, program_blocks, read_nc, read_nc_blocks, read_program_nc, write_nc,
+                  write_program_nc)
 from ._registry import formats, register_writer, writer
 
 __all__ = ["write_nc", "read_nc", "write_csv", "read_csv", "write_toolpath_npz",
            "read_toolpath_npz", "write_program_npz", "write_program_csv", "write_program_nc",
            "export_program", "program_formats", "nc_comment_text", "read_program_nc", "CSV_COLUMNS",
            "PROGRAM_CSV_COLUMNS", "CHUNK_ROWS", "read_nc_blocks", "program_blocks", "cut_points",
-           "program_axes"]
+           "program_axes", "COMMENT_STYLES", "check_nc_style"]
 
 CSV_COLUMNS = ("t_s", "c_deg", "x_mm", "z_mm", "theta_rad", "rho_mm", "y_mm")
 PROGRAM_CSV_COLUMNS = ("t_s", "x_mm", "y_mm", "z_mm", "line")
@@ -170,8 +180,9 @@ def read_toolpath_npz(path: str | Path) -> ToolPath:
 
 register_writer("toolpath", ".csv")(lambda path, toolpath, **_: write_csv(path, toolpath))
 register_writer("toolpath", ".nc")(
-    lambda path, toolpath, *, header=None, links=None, **_: write_nc(path, toolpath, header=header,
-                                                                     links=links))
+    lambda path, toolpath, *, header=None, links=None, comments="semicolon", block_numbers=1,
+    **_: write_nc(path, toolpath, header=header, links=links, comments=comments,
+                  block_numbers=block_numbers))
 
 
 # ---------------------------------------------------------------- sculpturing programs
@@ -218,7 +229,9 @@ def export_program(program: ToolPath | LinearProgram, out_dir: str | Path, *, fm
         NC header lines (``scene``, ``spindle_rpm``, ...); ignored by npz and csv.
     **options
         Passed to the writer (``links``: the clearance plane and plunge feed of an NC
-        program; ``feed_mm_per_min`` for sculpturing NC).
+        program; ``comments`` and ``block_numbers``: how an NC program writes its
+        comments and block numbers, :func:`write_nc`; ``feed_mm_per_min`` for
+        sculpturing NC).
 
     Returns
     -------

@@ -14,7 +14,6 @@ import difflib
 import json
 import logging
 import os
-import re
 import shutil
 import socket
 import time
@@ -69,6 +68,7 @@ from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
+from ._sweep_check import check_sweep_tasks
 from ._sweep_morris import morris_table, sweep_morris
 from ._sweep_report import (add_machining_times, check_select_names, check_sweep_size, column_names, estimate_text,
                             first_record_check, point_seconds, selection, sweep_estimate)
@@ -85,8 +85,6 @@ SHOW_TABLE_POINTS = 30
 #: what a point's renders add to its simulation at the peak (Mitsuba 3, llvm_ad_rgb:
 #: 446 - 658 MB measured above the simulation on the shipped sinusoidal grid; docs/limits.md)
 RENDER_BYTES = 700 * MIB_TO_BYTES
-#: distinct errors a refused sweep lists
-SHOW_ERRORS = 8
 
 
 def shipped_sweeps() -> dict[str, Path]:
@@ -188,45 +186,6 @@ def sweep_tasks(spec: SweepFile, sweep_path: str | Path, out: str | Path
                       "run": run, "folder": str(Path(out).resolve() / POINTS / pid),
                       "memory_bytes": memory, "estimate_s": point_seconds(scene)}
     return list(by_id.values()), invalid, keys
-
-
-def _error_lines(text: str) -> list[str]:
-    """The separate complaints of one error message (a scene's errors are listed one a
-    line under a heading naming the scene file)."""
-    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
-    if len(lines) > 1 and lines[0].endswith(":"):
-        lines = lines[1:]
-    return [re.sub(r"^invalid scene .*?: ", "", ln) for ln in lines] or [str(text)]
-
-
-def check_sweep_tasks(sweep_path: str | Path, tasks: list, invalid: list) -> None:
-    """Refuse a sweep with any point that is not a valid scene (or does not fit the
-    memory budget) before anything runs: one message with each distinct complaint and
-    the points it concerns."""
-    if not invalid:
-        return
-    total = len(tasks) + len(invalid)
-    seen: dict[str, tuple[list[int], list[str]]] = {}
-    for rec in invalid:
-        for line in _error_lines(rec["error"]):
-            what, _, value = line.partition("; received ")
-            idx, values = seen.setdefault(what, ([], []))
-            idx.append(rec["index"])
-            if value and value not in values:
-                values.append(value)
-    shown = []
-    for what, (idx, values) in list(seen.items())[:SHOW_ERRORS]:
-        where = (f"point {idx[0]}" if len(idx) == 1 else
-                 f"{len(idx)} points: {', '.join(str(i) for i in idx[:5])}"
-                 f"{', ...' if len(idx) > 5 else ''}")
-        got = (f"; received {', '.join(values[:5])}{', ...' if len(values) > 5 else ''}"
-               if values else "")
-        shown.append(f"  {what}{got} [{where}]")
-    if len(seen) > SHOW_ERRORS:
-        shown.append(f"  ... and {len(seen) - SHOW_ERRORS} more")
-    raise InputError(f"sweep file {str(sweep_path)!r}: {len(invalid)} of {total} points are "
-                     f"not valid scenes (point numbers count from 0 in the order of the file); "
-                     f"nothing was run:\n" + "\n".join(shown))
 
 
 # ------------------------------------------------------------------------ on a worker

@@ -13,8 +13,8 @@ from pathlib import Path
 from ..core.errors import InputError
 from ..design import Surface, make_surface
 from ..fit import scene_hash
-from ..io import (file_record, atomic_output_dir, atomic_write_text, cut_points, export_program, program_axes, program_blocks,
-                  program_formats, read_nc_blocks)
+from ..io import (file_record, atomic_output_dir, atomic_write_text, check_nc_style, cut_points,
+                  export_program, program_axes, program_blocks, program_formats, read_nc_blocks)
 from ..processes import Plan, Process, check_budget, findings_summary, process_of
 from ..report import draw_figure
 from ..toolpath import Tool, compare_with_plan, edge_notes, plan_memory, verify_blocks
@@ -124,8 +124,25 @@ def _program_source(scene: Scene, scene_file: str | Path | None = None) -> dict:
     return head
 
 
+def _nc_style(fmt: str, comments: str | None, block_numbers: int | None) -> dict:
+    """The writer's ``comments`` and ``block_numbers`` of an NC program, checked (one line
+    naming the option); the options belong to ``--format nc`` alone."""
+    if fmt != "nc":
+        given = [n for n, v in (("--nc-comments", comments), ("--nc-block-numbers", block_numbers))
+                 if v is not None]
+        if given:
+            raise InputError(f"{' and '.join(given)} set how an NC program is written: they need "
+                             f"--format nc, received --format {fmt}")
+        return {}
+    style = {"comments": "semicolon" if comments is None else comments,
+             "block_numbers": 1 if block_numbers is None else block_numbers}
+    check_nc_style(style["comments"], style["block_numbers"])
+    return style
+
+
 def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
-                 overwrite: bool = False, scene_file: str | Path | None = None) -> Any:
+                 overwrite: bool = False, scene_file: str | Path | None = None,
+                 nc_comments: str | None = None, nc_block_numbers: int | None = None) -> Any:
     """``render-inspect toolpath``: the program as ``toolpath.<fmt>`` (npz, csv, nc or any
     format a module of :mod:`render_inspect.io` registers) and ``toolpath.json`` (its
     facts: points, revolutions or lines, kinematics, accessibility; for an NC program
@@ -137,7 +154,11 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     through the clearance plane) and read back and verified block by block before the
     folder is put in place: a program that fails is not written (the error names the
     block).  ``scene_file``: the scene file the scene was read from, named with its SHA-256
-    in the program's header (:func:`_program_source`).
+    in the program's header (:func:`_program_source`).  ``nc_comments`` (``"semicolon"``,
+    the default, or ``"parenthesis"`` for a Fanuc-type control) and ``nc_block_numbers``
+    (the increment of the block numbers, default 1; 0 writes none) set how the NC program
+    writes its comment lines and block numbers (:func:`~render_inspect.io.write_nc`); its
+    content is the same.
 
     A program whose blocks come faster than ``process.block_rate_limit_per_s`` is written,
     with a warning (``toolpath.block_rate``); where the scene sets no limit, faster than 1000
@@ -145,6 +166,7 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
     formats = program_formats()
     if fmt not in formats:
         raise InputError(f"--format must be one of {formats}, received {fmt!r}")
+    style = _nc_style(fmt, nc_comments, nc_block_numbers)
     process = process_of(scene)
     cfg = process.inputs_of(scene)
     with atomic_output_dir(out, overwrite=overwrite, command="toolpath", scene=scene) as tmp:
@@ -155,7 +177,8 @@ def run_toolpath(scene: Scene, out: str | Path, *, fmt: str = "npz",
         if fmt == "nc":  # before the program is written, read back and verified
             nc_memory(scene, plan.program.points)
         header = {**process.program_header(cfg), **_program_source(scene, scene_file)}
-        written = export_program(plan.program, Path(tmp), fmt=fmt, header=header, links=links)
+        written = export_program(plan.program, Path(tmp), fmt=fmt, header=header, links=links,
+                                 **style)
         facts = process.program_facts(cfg, plan)
         if fmt == "nc" and "program" not in facts:
             check = verify_program_file(written, process, cfg, surface, plan, links, part=part)

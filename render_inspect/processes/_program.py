@@ -24,7 +24,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, MIN_TO_S
 from ..core.programs import read_program_file
 from ..core.toolpath import LinearProgram
-from ..toolpath import Tool, region_radii
+from ..toolpath import BLOCK_RATE_KEY, Tool, block_rate, region_radii
 
 if TYPE_CHECKING:
     from ._contract import Plan
@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
            "feed_per_rev", "feed_over_radii", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
 
+#: what a program read from a file can change where its blocks come too fast
+FILE_ADVICE = "write the program with fewer, longer blocks or at a lower feed"
 #: how far below the design a point of an imported program must lie to be a finding, mm
 #: (the programs' 6 written places round to 0.5 nm; fitted designs are good to a few nm)
 FINDING_TOLERANCE_MM = 1e-5
@@ -361,7 +363,12 @@ def imported_sculpt_plan(process: Any, cfg: Any, surface: Any) -> Plan:
     _, line = np.unique(line, return_inverse=True)
     prog2 = LinearProgram(x, y, z, t, line.astype(np.int64), dict(prog.meta))
     plan = process.program_plan(cfg, surface, prog2)
+    # the program's own blocks, timed from its F words (an arc one block), as a turning
+    # program read from a file
+    rate = block_rate(prog.t, lines=imp.file_line, limit=getattr(cfg.process, BLOCK_RATE_KEY, None),
+                      advice=FILE_ADVICE)
     plan.facts["toolpath"] = {"points": int(prog2.points), "lines": int(prog2.lines),
-                              "kind": "sculpt", "cut_time_s": float(plan.data.get("cut_time_s", 0.0))}
+                              "kind": "sculpt", "cut_time_s": float(plan.data.get("cut_time_s", 0.0)),
+                              "block_rate": rate}
     plan.facts["program"] = dict(prog.meta.get("program", {}))
     return plan

@@ -42,7 +42,7 @@ from ..machining import (
     vibration_phases,
 )
 from ..toolpath import (DEFAULT_CLEARANCE, DEFAULT_PLUNGE_FEED, MIN_CLEARANCE, MachineLimits,
-                        PartModel, longest_step)
+                        PartModel, linear_block_rate, longest_step)
 from ._contract import Cut, Inputs, Plan, Process, Traits, Variant, VariantPair, section
 from ._machine import MaterialConfig, ProcessScene, material_of
 from ._program_part import design_part, machine_limits
@@ -89,13 +89,19 @@ class SculptProcessConfig(Section):
                                 description="an X-Y-Z machine program file (path relative to "
                                             "the scene file) simulated in place of the planned "
                                             "lines; docs/programs.md")
+    block_rate_limit_per_s: float | None = Field(
+        None, gt=0, le=10_000_000, description="blocks per second the machine's control processes; "
+                                        "unset: 1000 (toolpath.block_rate)")
 
     @model_serializer(mode="wrap")
     def _without_program(self, handler):
-        """``program`` is written only when set (scenes without one dump as before)."""
+        """``program`` and the block rate limit are written only when set (scenes without
+        them dump as before)."""
         data = handler(self)
         if isinstance(data, dict) and data.get("program") is None:
             data.pop("program", None)
+        if isinstance(data, dict) and data.get("block_rate_limit_per_s", 0) is None:
+            data.pop("block_rate_limit_per_s")
         return data
 
     @model_validator(mode="before")
@@ -209,7 +215,12 @@ def _plan(cfg: SculptInputs, surface, *, region=None) -> Plan:
     facts = {"toolpath": {"points": int(prog.points), "revolutions": 0.0, "feed_per_rev_mm": None,
                           "kind": "sculpt", "lines": len(used),
                           "line_spacing_mm": float(np.median(np.diff(x_lines))) if len(x_lines) > 1 else None,
-                          "cut_time_s": cut_time}}
+                          "cut_time_s": cut_time,
+                          # (the blocks the control reads: each move along a line at the
+                          # programmed feed)
+                          "block_rate": linear_block_rate(
+                              prog.x, prog.y, prog.z, prog.line, cfg.process.feed_mm_per_min,
+                              limit=cfg.process.block_rate_limit_per_s)}}
     data = {"lines": lines, "x_lines": x_lines[used], "y_line_start": y_line_start,
             "cut_time_s": cut_time}
     return Plan(prog, facts, {"toolpath": time.perf_counter() - t0}, data)

@@ -19,7 +19,7 @@ from ._compensation import (
                     normal_compensation,
                     z_compensation,
 )
-from ._block_rate import BLOCK_RATE_KEY, DEFAULT_BLOCK_RATE_LIMIT, block_rate
+from ._block_rate import BLOCK_RATE_KEY, DEFAULT_BLOCK_RATE_LIMIT, block_rate, linear_block_rate
 from ._kinematics import (LIMIT_KEYS, axes_derivatives, axis_derivatives, kinematics,
                           limits_from_process, turning_axes)
 from ._rcse import (
@@ -43,7 +43,7 @@ __all__ = ["ToolPath", "LinearProgram", "Tool", "pass_margin", "EdgeProfile", "e
            "chordal_step_for", "SAMPLINGS", "z_compensation", "normal_compensation",
            "gouge_depth", "contact_window", "check_accessibility", "describe_accessibility",
            "plan_turning", "sector_plan", "region_radii", "max_curvature", "plan_memory", "turning_point_count",
-           "PLAN_BYTES_PER_POINT", "kinematics", "block_rate", "DEFAULT_BLOCK_RATE_LIMIT",
+           "PLAN_BYTES_PER_POINT", "kinematics", "block_rate", "linear_block_rate", "DEFAULT_BLOCK_RATE_LIMIT",
            "BLOCK_RATE_KEY", "axis_derivatives", "axes_derivatives", "turning_axes",
            "limits_from_process", "LIMIT_KEYS", "RingLayout", "RcseCcps", "PointCloudModel",
            "rcse_ccps", "conventional_ccps", "rcse_toolpath", "paper_layout",

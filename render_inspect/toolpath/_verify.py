@@ -21,8 +21,9 @@ part, the design and the machine:
 * every feed is positive and within the machine's limits: the programmed feed, each
   axis's velocity, the spindle speed, the axes' travel.
 
-A failure is an :class:`InputError` naming the block number (``N`` word), what the block
-does and the limit it breaks.  The same checks run on the blocks a program would have
+A failure is an :class:`InputError` naming the block number (``N`` word; in a program
+written without block numbers the block's place among the motion blocks and its file
+line), what the block does and the limit it breaks.  The same checks run on the blocks a program would have
 (:func:`render_inspect.io.program_blocks`) when ``simulate`` plans it: the links are
 part of the simulated program and never touch the part.
 """
@@ -209,7 +210,12 @@ def _fail(what: str, blocks: Blocks, i: int, text: str):
     n = int(blocks.number[i])
     role = ROLE_NAMES[int(blocks.role[i])]
     move = "G00" if blocks.motion[i] == 0 else "G01"
-    where = f"block N{n}" if n >= 0 else f"block {i + 1}"
+    if n >= 0:
+        where = f"block N{n}"
+    else:  # a program without block numbers: the motion block's place (and its file line)
+        lines = blocks.meta.get("_file_line")
+        where = f"block {i + 1}" + (f" (file line {int(lines[i])})"
+                                    if lines is not None and i < len(lines) else "")
     raise InputError(f"{what} {where} ({move}, {role}): {text}")
 
 
@@ -272,7 +278,8 @@ def verify_blocks(blocks: Blocks, part: PartModel, limits: MachineLimits, links:
     if n == 0:
         raise InputError(f"{what}: no motion blocks")
     num = blocks.number
-    if np.any(num < 1) or np.any(np.diff(num) <= 0):
+    # (a program may have no block numbers at all: a control that needs none)
+    if not np.all(num == -1) and (np.any(num < 1) or np.any(np.diff(num) <= 0)):
         i = _first((num < 1) | np.r_[False, np.diff(num) <= 0])
         _fail(what, blocks, cast(int, i), "block numbers must be positive and increase from block to block")
     x, y, z = _tip(blocks)
