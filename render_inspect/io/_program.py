@@ -15,6 +15,10 @@ Dialects (docs/programs.md):
   units, ``U``/``W`` incremental words, comments, ``%``, ``O`` and ``N`` numbers;
 * linear X-Y-Z programs of sculpturing / raster cutting.
 
+Position and angle words without a decimal point are whole mm / inches / degrees, or
+least input increments of an increment system (``integers``; see
+:mod:`~render_inspect.io._program_integers`).
+
 The words are read by :func:`~render_inspect.io._program_scan.scan_program` (streaming,
 vectorised).  Every block it cannot read gets one line naming the file, the line, the
 block and the word.
@@ -37,6 +41,7 @@ from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
 from ._program_kernel import c_backward, c_move_times, feed_times, sample_moves, unwrap_c
 from ._program_arcs import expand_arcs as _expand_arcs
+from ._program_integers import beyond_part_hint, check_integers, integers_facts
 from ._program_scan import ScannedProgram, scan_program
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
@@ -128,7 +133,8 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
                  design_height: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
                  rapid_mm_per_min: float = RAPID_MM_PER_MIN,
                  spindle_source: str = "process.spindle_rpm",
-                 feed_source: str = "process.feed_mm_per_min") -> ImportedProgram:
+                 feed_source: str = "process.feed_mm_per_min",
+                 integers: str = "whole") -> ImportedProgram:
     """Read the machine program ``path`` (see the module docstring).
 
     Parameters
@@ -147,10 +153,18 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
     design_height : callable, optional
         ``height(x, y)`` of the design: decides between radius and diameter when the
         part's size allows both.
+    integers : {"whole", "IS-A", "IS-B", "IS-C", "IS-D", "IS-E"}
+        How position and angle words without a decimal point are read: whole mm, inches
+        and degrees, or least input increments of the increment system (IS-B: X2000 is
+        2 mm); an F word without one is then refused.  The project's own dialects always
+        write decimals and are read as written.  What was read is ``inferred["integers"]``
+        (where it matters), a program read whole that writes such words has a warning in
+        ``facts["warnings"]``.
     """
     path = _check_path(path)
     if x_mode not in X_MODES:
         raise InputError(f"process.program_x must be one of {list(X_MODES)}, received {x_mode!r}")
+    check_integers(integers)
     dialect = program_dialect(path)
     prog: ToolPath | LinearProgram
     if dialect == "render_inspect turning":
@@ -165,7 +179,7 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
                               {"time": "time from the F words (mm/min) along the lines"},
                               {"points": prog.points})
     else:
-        sp = scan_program(path)
+        sp = scan_program(path, integers=integers)
         if sp.count == 0:
             raise InputError(f"{path}: no motion blocks (no X, Y, Z or C words) found")
         if sp.written["Y"].any():
@@ -179,6 +193,12 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
                            part_radius=part_radius, x_mode=x_mode, ppr=points_per_rev,
                            design_height=design_height, rapid=rapid_mm_per_min,
                            spindle_source=spindle_source, feed_source=feed_source)
+        said, warnings = integers_facts(sp, integers)
+        if said is not None:  # (a program that writes every number with its point at the
+            out.inferred["integers"] = said     # default reading: nothing to say)
+            out.facts["integers"] = integers
+        if warnings:
+            out.facts["warnings"] = warnings
     if kind is not None and out.kind != kind:
         what = {"turning": "a turning (C-X-Z or X-Z) program",
                 "linear": "a linear X-Y-Z program"}
@@ -199,7 +219,8 @@ def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
     if big > 3 * r:
         raise InputError(f"{sp.path}: the cutting moves reach X = {big:g} mm, beyond the part "
                          f"(radius {r:g} mm) as a radius and as a diameter; check the program "
-                         f"or process.workpiece_radius (process.program_x sets how X is read)")
+                         f"or process.workpiece_radius (process.program_x sets how X is read)"
+                         + beyond_part_hint(sp, sp.integers, big, 3 * r))
     if big > 1.5 * r:
         return "diameter", (f"X is the diameter: the cutting moves reach X = {big:g} mm, and "
                             f"the part's radius is {r:g} mm (process.program_x = 'radius' "

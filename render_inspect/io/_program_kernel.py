@@ -18,19 +18,23 @@ import numpy.typing as npt
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.units import MIN_TO_S as _MIN_TO_S  # s per min
 from ..core.units import MM_TO_M as _MM_TO_M  # m per mm
+from ._program_integers import POS_LETTERS, undotted_words
 
 __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
-           "c_move_times", "c_backward", "STATE_SIZE",
+           "c_move_times", "c_backward", "STATE_SIZE", "INCR_SLOT",
            "ROW_FIELDS", "ERRORS", "G_GROUP", "GROUP_NAMES", "LETTER_OK", "INIT_STATE"]
 
 # state vector
 (_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED,
- _HELD, _SYSA) = range(16)
-STATE_SIZE = 16
-#: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97; the
-#: last two: the spindle speed held from G96 (G97 without S), Fanuc lathe G98 / G99 seen
+ _HELD, _SYSA, _INCR) = range(17)
+STATE_SIZE = 17
+INCR_SLOT = _INCR
+#: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97; then
+#: the spindle speed held from G96 (G97 without S), Fanuc lathe G98 / G99 seen, and the
+#: places a number without a decimal point counts in mm and deg (0: whole units; the
+#: scanner sets it; inches one place more)
 INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
-                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0], dtype=np.float64)
+                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0, 0], dtype=np.float64)
 #: columns of a row (float64; ``rows[k, i]`` is column k of row i): line (in the piece),
 #: motion, X, Y, Z, C, I, J, K, R, F, feed mode, S, spindle mode, clamp, plane, written
 #: (bits X=1 Y=2 Z=4 C=8), held (1 where G97 came without S after G96: the spindle keeps
@@ -76,7 +80,11 @@ for _ch in "XYZCUVWHIJKRFSNOTPQDLGM":
 #: error codes
 ERRORS = {1: "bad byte", 2: "no number", 3: "number without letter", 4: "bad number",
           5: "word not taken", 6: "twice", 7: "unknown G", 8: "refused G", 9: "same group",
-          10: "G50 axes", 11: "absolute and incremental", 12: "system A cycle"}
+          10: "G50 axes", 11: "absolute and incremental", 12: "system A cycle",
+          13: "F without a decimal point under increments"}
+#: the words that are positions or angles (X Y Z C, U V W H, I J K R)
+_IS_POS = np.zeros(26, dtype=np.bool_)
+_IS_POS[POS_LETTERS] = True
 
 _INCH = 25.4
 #: one foot, m (S of constant surface speed in inch units is in feet per minute)
@@ -151,9 +159,13 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
                val: npt.NDArray[np.float64], gs: npt.NDArray[np.float64], ng: int,
                ms: npt.NDArray[np.float64], nm: int, line: int, rows: npt.NDArray[np.float64],
                nrow: int, seen_g: npt.NDArray[np.bool_], seen_m: npt.NDArray[np.bool_],
-               flags: npt.NDArray[np.bool_]) -> tuple[int, int, int]:
+               flags: npt.NDArray[np.bool_], dot: npt.NDArray[np.bool_],
+               undotted: npt.NDArray[np.float64], n_dot: int, n_undot: int
+               ) -> tuple[int, int, int]:
     """Run one block through the modal state; write its row when it moves. Returns
-    (rows written so far, error code, detail)."""
+    (rows written so far, error code, detail).  ``dot``: whether each word was written
+    with a decimal point; ``n_dot``, ``n_undot``: the block's nonzero position and angle
+    words with and without one; ``undotted``: see :func:`scan_piece`."""
     grp_seen = 0  # bit k: a G code of group k in this block
     dwell = False
     home = False
@@ -228,11 +240,17 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         st[_HELD] = 1.0  # G97 without S: the speed at the switch is kept
     if st[_SPINDLE] == 96:
         st[_HELD] = 0.0
+    places = int(st[_INCR])
+    if have[5] and places and not dot[5] and val[5] != 0:  # F: controls differ
+        return nrow, 13, int(st[_FEED]) + (1000 if inch else 0)
     if have[5]:  # F
         st[_F] = val[5] * (1.0 if st[_FEED] == 93 else scale)
     non_motion = dwell or home or clamp
     written = 0
     if not non_motion:
+        undotted[0] += n_dot
+        if n_undot:  # (a call of its own: the usual block's pass stays as fast)
+            undotted_words(have, val, dot, undotted, n_undot, line, places, inch)
         inc = st[_DIST] == 91
         # (axis letter, incremental letter, state slot, bit, scaled)
         for ax in range(4):
@@ -283,17 +301,24 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
 @njit(cache=True, nogil=True)
 def scan_piece(a: npt.NDArray[np.uint8], st: npt.NDArray[np.float64], rows: npt.NDArray[np.float64],
                seen_g: npt.NDArray[np.bool_], seen_m: npt.NDArray[np.bool_],
-               seen_letter: npt.NDArray[np.bool_], flags: npt.NDArray[np.bool_]
-               ) -> tuple[int, int, int, int, int, int]:
+               seen_letter: npt.NDArray[np.bool_], flags: npt.NDArray[np.bool_],
+               undotted: npt.NDArray[np.float64]) -> tuple[int, int, int, int, int, int]:
     """Scan the bytes ``a`` (see the module docstring) from the state ``st`` (updated in
-    place).  Returns (rows written, blocks, error code, byte position, detail, lines)."""
+    place).  ``undotted`` (6 numbers, updated in place) counts the nonzero position and
+    angle words of the moves written with a decimal point and without one, and holds the
+    first without one: its letter index (-1: none yet), value as written, line in the
+    piece and unit (0 mm, 1 inch, 2 deg).  Returns (rows written, blocks, error code,
+    byte position, detail, lines)."""
     n = a.size
     have = np.zeros(26, dtype=np.bool_)
+    dot = np.zeros(26, dtype=np.bool_)
     val = np.zeros(26)
     gs = np.zeros(32)
     ms = np.zeros(32)
     ng = 0
     nm = 0
+    n_dot = 0
+    n_undot = 0
     nrow = 0
     blocks = 0
     line = 0
@@ -305,12 +330,15 @@ def scan_piece(a: npt.NDArray[np.uint8], st: npt.NDArray[np.float64], rows: npt.
             if any_word:
                 blocks += 1
                 nrow, err, det = _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow,
-                                            seen_g, seen_m, flags)
+                                            seen_g, seen_m, flags, dot, undotted, n_dot,
+                                            n_undot)
                 if err:
                     return nrow, blocks, err, i - 1, det, line
                 have[:] = False
                 ng = 0
                 nm = 0
+                n_dot = 0
+                n_undot = 0
                 any_word = False
                 if st[_ENDED] != 0:
                     return nrow, blocks, 0, i, 0, line
@@ -382,10 +410,16 @@ def scan_piece(a: npt.NDArray[np.uint8], st: npt.NDArray[np.float64], rows: npt.
                 return nrow, blocks, 6, wpos, li, line
             have[li] = True
             val[li] = v
+            dot[li] = ndot > 0
+            if _IS_POS[li] and mant != 0:
+                if ndot:
+                    n_dot += 1
+                else:
+                    n_undot += 1
     if any_word:
         blocks += 1
         nrow, err, det = _end_block(st, have, val, gs, ng, ms, nm, line, rows, nrow,
-                                    seen_g, seen_m, flags)
+                                    seen_g, seen_m, flags, dot, undotted, n_dot, n_undot)
         if err:
             return nrow, blocks, err, n - 1, det, line
     return nrow, blocks, 0, n, 0, line

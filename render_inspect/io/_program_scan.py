@@ -21,8 +21,9 @@ import numpy as np
 
 from ..core.units import MIB_TO_BYTES
 from ..core.errors import InputError
-from ._program_kernel import (G_GROUP, GROUP_NAMES, INIT_STATE, ROW_FIELDS, clean_piece,
-                              scan_piece)
+from ._program_integers import check_integers
+from ._program_kernel import (G_GROUP, GROUP_NAMES, INCR_SLOT, INIT_STATE, ROW_FIELDS,
+                              clean_piece, scan_piece)
 
 __all__ = ["ScannedProgram", "scan_program", "PIECE_BYTES", "INCH_MM"]
 
@@ -74,6 +75,10 @@ class ScannedProgram:
     notes: list = field(default_factory=list)    # what was read but does not move the tool
     words: set = field(default_factory=set)      # letters present
     lines: int = 0              # lines of the file read
+    integers: str = "whole"     # how numbers without a decimal point were read
+    # nonzero position and angle words of the moves "with" and "without" a decimal point;
+    # "first" without one: (word as written, file line, value, unit 0 mm 1 in 2 deg)
+    decimals: dict = field(default_factory=lambda: {"with": 0, "without": 0, "first": None})
 
     @property
     def count(self) -> int:
@@ -145,9 +150,13 @@ def _header(first: bytes) -> tuple[str, dict]:
 
 
 class _Scanner:
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, integers: str = "whole"):
         self.path = path
+        self.integers = integers
         self.state = INIT_STATE.copy()
+        self.state[INCR_SLOT] = check_integers(integers)
+        # (see scan_piece: counts with and without a point; the first without one)
+        self.undotted = np.array([0.0, 0.0, -1.0, math.nan, -1.0, 0.0])
         self.seen_g = np.zeros(100, dtype=np.bool_)
         self.seen_m = np.zeros(100, dtype=np.bool_)
         self.seen_letter = np.zeros(26, dtype=np.bool_)
@@ -211,8 +220,12 @@ class _Scanner:
         if self.rows.shape[1] < newlines + 1:
             self.rows = np.empty((len(ROW_FIELDS), newlines + 1))
         rows = self.rows
+        first_before = self.undotted[2] >= 0
         nrow, blocks, err, at, detail, line = scan_piece(
-            a, self.state, rows, self.seen_g, self.seen_m, self.seen_letter, self.flags)
+            a, self.state, rows, self.seen_g, self.seen_m, self.seen_letter, self.flags,
+            self.undotted)
+        if not first_before and self.undotted[2] >= 0:
+            self.undotted[4] += line0
         self.blocks += int(blocks)
         if err:
             self._error(err, a.tobytes(), int(at), int(detail), int(line), fail)
@@ -293,18 +306,32 @@ class _Scanner:
             fail(line, "G90 / G94 with axis words in a program with G98 / G99 (Fanuc lathe "
                        "G-code system A) is the turning / facing cycle, which this reader "
                        "does not take; program the cycle's moves with G00 / G01")
+        if err == 13:  # detail: the feed mode, + 1000 in inches
+            f = re.search(r"F([-+]?[0-9]+)(?![0-9.])", text)
+            n = f.group(1) if f else "?"
+            fm = detail % 1000
+            unit = "per minute (inverse time, G93)" if fm == 93 else \
+                ("in" if detail >= 1000 else "mm") + ("/rev (G95)" if fm == 95 else "/min (G94)")
+            fail(line, f"F{n} has no decimal point: with process.program_integers = "
+                       f"{self.integers!r} the position words without one count least input "
+                       f"increments, and controls read F without one in different ways; write "
+                       f"the feed with its decimal point (F{n}. for {n} {unit})")
         fail(line, "cannot read the block")
 
 
-def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES) -> ScannedProgram:
-    """Read every block of the NC program ``path`` (see the module docstring).
+def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES,
+                 integers: str = "whole") -> ScannedProgram:
+    """Read every block of the NC program ``path`` (see the module docstring); position
+    and angle words without a decimal point in whole units (``integers="whole"``) or in
+    least input increments of the increment system ``integers`` (``"IS-A"`` ..
+    ``"IS-E"``: :mod:`~render_inspect.io._program_integers`).
 
     Raises :class:`InputError` naming the file, the line, the block and the word of the
     first block it cannot read."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"program file not found: {str(path)!r}")
-    sc = _Scanner(path)
+    sc = _Scanner(path, integers)
     header: dict = {}
     title, lines = "", 0
     for k, (raw, line0, newlines) in enumerate(_pieces(path, piece_bytes)):
@@ -348,4 +375,14 @@ def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES) -> Scanned
         g_codes={int(g) for g in np.flatnonzero(sc.seen_g)},
         m_codes={int(m) for m in np.flatnonzero(sc.seen_m)},
         notes=list(dict.fromkeys(notes)),
-        words={chr(65 + int(k)) for k in np.flatnonzero(sc.seen_letter)}, lines=lines)
+        words={chr(65 + int(k)) for k in np.flatnonzero(sc.seen_letter)}, lines=lines,
+        integers=integers, decimals=_decimals(sc.undotted))
+
+
+def _decimals(u: np.ndarray) -> dict:
+    """:attr:`ScannedProgram.decimals` from the scanner's counts (see :func:`scan_piece`)."""
+    first = None
+    if u[2] >= 0:
+        v = float(u[3])
+        first = (f"{chr(65 + int(u[2]))}{v:.0f}", int(u[4]), v, int(u[5]))
+    return {"with": int(u[0]), "without": int(u[1]), "first": first}

@@ -12,6 +12,7 @@ the moves through the part or below the design as findings.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,6 +29,8 @@ from ..toolpath import BLOCK_RATE_KEY, Tool, block_rate, region_radii
 
 if TYPE_CHECKING:
     from ._contract import Plan
+
+log = logging.getLogger("render_inspect")
 
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
            "feed_per_rev", "feed_over_radii", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
@@ -53,16 +56,19 @@ def program_path(cfg: Any) -> str | None:
 def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = None) -> ToolPath:
     """The turning program of ``process.program`` as the lathe runs it
     (:func:`~render_inspect.io.read_program` with the scene's ``process.spindle_rpm``,
-    ``process.feed_mm_per_min``, ``process.workpiece_radius``, ``process.program_x`` and
-    ``process.points_per_rev``), cut to the points that can reach ``region``; its
-    ``meta["program"]`` holds the dialect and what was inferred, ``meta["feed_per_rev_mm"]``
-    the program's median feed per revolution at the radii ``region`` spans (over the whole
-    program without a region)."""
+    ``process.feed_mm_per_min``, ``process.workpiece_radius``, ``process.program_x``,
+    ``process.program_integers`` and ``process.points_per_rev``), cut to the points that
+    can reach ``region``; its ``meta["program"]`` holds the dialect and what was inferred
+    (and the reader's warnings, said once), ``meta["feed_per_rev_mm"]`` the program's
+    median feed per revolution at the radii ``region`` spans (over the whole program
+    without a region)."""
     p = cfg.process
     imp = read_program_file(p.program, kind="turning", spindle_rpm=float(p.spindle_rpm),
                        feed_mm_per_min=float(p.feed_mm_per_min),
                        part_radius=float(p.workpiece_radius), x_mode=p.program_x,
-                       points_per_rev=int(p.points_per_rev), design_height=surface.height)
+                       points_per_rev=int(p.points_per_rev), design_height=surface.height,
+                       integers=p.program_integers)
+    _warn(imp)
     path = imp.program
     meta = dict(path.meta)
     meta["program"] = {"file": Path(imp.path).name, "dialect": imp.dialect,
@@ -93,6 +99,13 @@ def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = No
     return out
 
 
+def _warn(imp: Any) -> None:
+    """The reader's warnings (numbers without a decimal point read as whole units): said
+    once per command (a command that reads the program again says the same line)."""
+    for text in imp.facts.get("warnings", ()):
+        log.warning("warning: %s", text)
+
+
 def _reaching(path: ToolPath, region, half_width: float):
     """A slice of the points that can reach ``region`` (radii within the nose's half
     width and one revolution's feed of it), or None when all are needed or they are not
@@ -115,7 +128,8 @@ def imported_linear(cfg: Any) -> tuple[LinearProgram, Any]:
     where it gives none)."""
     p = cfg.process
     imp = read_program_file(p.program, kind="linear", feed_mm_per_min=float(p.feed_mm_per_min),
-                       feed_source="process.feed_mm_per_min")
+                       feed_source="process.feed_mm_per_min", integers=p.program_integers)
+    _warn(imp)
     prog = imp.program
     prog.meta["program"] = {"file": Path(imp.path).name, "dialect": imp.dialect,
                             "inferred": dict(imp.inferred), **imp.facts}

@@ -92,16 +92,22 @@ class SculptProcessConfig(Section):
     block_rate_limit_per_s: float | None = Field(
         None, gt=0, le=10_000_000, description="blocks per second the machine's control processes; "
                                         "unset: 1000 (toolpath.block_rate)")
+    program_integers: Literal["whole", "IS-A", "IS-B", "IS-C", "IS-D", "IS-E"] = Field(
+        "whole", description="how the program's numbers without a decimal point are read: "
+                             "whole mm / in / deg, or least input increments of the "
+                             "control's increment system (IS-B: X2000 is 2 mm)")
 
     @model_serializer(mode="wrap")
     def _without_program(self, handler):
-        """``program`` and the block rate limit are written only when set (scenes without
-        them dump as before)."""
+        """``program`` and the block rate limit are written only when set, how the
+        program's integers are read only when not the default (scenes dump as before)."""
         data = handler(self)
         if isinstance(data, dict) and data.get("program") is None:
             data.pop("program", None)
         if isinstance(data, dict) and data.get("block_rate_limit_per_s", 0) is None:
             data.pop("block_rate_limit_per_s")
+        if isinstance(data, dict) and data.get("program_integers") == "whole":
+            data.pop("program_integers")
         return data
 
     @model_validator(mode="before")

@@ -110,11 +110,16 @@ class TurningProcessConfig(Section):
     program_x: Literal["auto", "radius", "diameter"] = Field(
         "auto", description="how the program's X is read: auto infers radius or diameter "
                             "from process.workpiece_radius")
+    program_integers: Literal["whole", "IS-A", "IS-B", "IS-C", "IS-D", "IS-E"] = Field(
+        "whole", description="how the program's numbers without a decimal point are read: "
+                             "whole mm / in / deg, or least input increments of the "
+                             "control's increment system (IS-B: X2000 is 2 mm)")
 
     @model_serializer(mode="wrap")
     def _without_program_defaults(self, handler):
         """The program keys and the block rate limit are written only when set (scenes
-        without them dump as before)."""
+        without them dump as before; how a program's integers are read only when not the
+        default, so scenes with a program dump as before too)."""
         data = handler(self)
         if isinstance(data, dict) and data.get("block_rate_limit_per_s", 0) is None:
             data.pop("block_rate_limit_per_s")
@@ -122,6 +127,8 @@ class TurningProcessConfig(Section):
             data.pop("program", None)
             if data.get("program_x") == "auto":
                 data.pop("program_x", None)
+        if isinstance(data, dict) and data.get("program_integers") == "whole":
+            data.pop("program_integers")
         return data
 
     @model_validator(mode="after")

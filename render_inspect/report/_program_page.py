@@ -109,7 +109,7 @@ def program_section(rep: HtmlReport, metrics: dict, names: Iterable[str], figs: 
             rep.text("Findings: none; no move of the program ends below the design or inside "
                      "the part.")
         rep.table(_check_rows(prog, tp), header=["what a CAM user checks", "value"])
-        for w in tp.get("warnings") or []:
+        for w in [*(prog.get("warnings") or []), *(tp.get("warnings") or [])]:
             rep.text(w, cls="note")
         png = figs.get(program_figure_name(name))
         if png is not None:
