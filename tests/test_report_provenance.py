@@ -10,6 +10,7 @@ import html as html_lib
 import json
 import logging
 import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -223,3 +224,68 @@ def test_profile_report_says_its_warnings_and_inputs(tmp_path):
     for f in (measured, program, scene):
         assert str(f.resolve()) in prov and _sha(f) in prov, f
     _offline(page)
+
+
+# ------------------------------------------------------------------------------- fit
+def _fit_provenance(out: Path, typed: list[str], files: list[Path]) -> dict:
+    """fit.json's ``inputs`` and fit.html's provenance: the command line as typed (paths
+    as given) and where it ran, the scene file and each input file with its SHA-256."""
+    rec = json.loads((out / "fit.json").read_text())
+    inp = rec["inputs"]
+    assert inp["command"] == ["render-inspect", *typed]
+    assert inp["working_directory"] == str(Path.cwd())
+    assert inp["scene"]["sha256_as_run"] == rec["scene_sha256"]
+    page = (out / "fit.html").read_text()
+    prov = re.sub(r"\s+", " ", _section_text(page, "Provenance"))
+    assert shlex.join(["render-inspect", *typed]) in prov and str(Path.cwd()) in prov
+    for f in files:
+        assert str(f.resolve()) in prov and _sha(f) in prov, f
+        assert {"path": str(f.resolve()), "sha256": _sha(f)}.items() <= next(
+            r for r in [inp["scene"]["file"], *inp["files"]] if r["path"] == str(f.resolve())).items()
+    _offline(page)
+    return rec
+
+
+@pytest.mark.mitsuba
+def test_a_fit_of_a_map_records_its_command_line_with_predict(tmp_path, monkeypatch):
+    """``fit MAP --predict``: fit.json's ``inputs``, fit.html's provenance and the
+    prediction's ``predict/metrics.json`` hold the command line that made them."""
+    from test_fit import _measured_file
+
+    monkeypatch.chdir(tmp_path)
+    px = 0.00087890625  # the marks' centre on the spindle axis of the scene
+    meas = _measured_file(Path("height.exr"), origin=(0.3 - 64 * px, -0.05 - 64 * px))
+    typed = ["fit", "height.exr", "--scene", "sts_sinusoidal_grid", "--free", "tool.nose_radius",
+             "--window", "0.11", "--global", "0", "--profile-points", "0", "--max-evaluations", "2",
+             "--predict", "process.feed_mm_per_min=0.4", "--out", "fit", "-q"]
+    assert cli_main(typed) == 0
+    rec = _fit_provenance(tmp_path / "fit", typed, [meas, find_scene("sts_sinusoidal_grid")])
+    assert [r["role"] for r in rec["inputs"]["files"]] == ["measured file"]
+    pred = json.loads((tmp_path / "fit" / "predict" / "metrics.json").read_text())
+    assert pred["inputs"]["command"] == ["render-inspect", *typed]
+    scene = json.loads((tmp_path / "fit" / "predict" / "scene.json").read_text())
+    assert pred["inputs"]["scene"]["sha256_as_run"] == scene_sha256(scene)
+
+
+@pytest.mark.slow
+def test_a_fit_of_a_profile_records_its_command_line(tmp_path, monkeypatch):
+    """``fit PROFILE``: fit.json's ``inputs`` and fit.html's provenance (a scene file of
+    its own, the profile's file) hold the command line that made them."""
+    from test_fit_profile import SCENE, _turned, _write_profile
+
+    from render_inspect.pipeline._fit_profile import simulate_profile
+
+    monkeypatch.chdir(tmp_path)
+    s, z = simulate_profile(_turned(feed=3.6, nose=0.25), (0.1, 0.0), (0.5, 0.0), 0.00087, seed=7)
+    _write_profile(Path("simulated.csv"), s, z)
+    # the example scene with a planned spiral (its program line left out)
+    Path("planned.toml").write_text("".join(
+        line + "\n" for line in SCENE.read_text().splitlines() if not line.startswith("program =")))
+    typed = ["fit", "simulated.csv", "--scene", "planned.toml", "--set",
+             "render.interferometer.mode='csi'", "--set", "process.feed_mm_per_min=3.6",
+             "--free", "tool.nose_radius", "--line", "0.1,0,0.5,0", "--at", "0.3,0",
+             "--window", "0.15", "--global", "0", "--profile-points", "0",
+             "--max-evaluations", "2", "--out", "pfit", "-q"]
+    assert cli_main(typed) == 0
+    rec = _fit_provenance(tmp_path / "pfit", typed, [Path("simulated.csv"), Path("planned.toml")])
+    assert rec["kind"] == "profile"

@@ -97,7 +97,7 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
     # the scene is checked first; the pipeline (numba, SciPy, the writers) is imported
     # after it, not at the top of the module, so that `render-inspect --help` and a
     # mistake in the scene or a key are answered at once
-    from ..scene import load_scene
+    from ..scene import find_scene, load_scene
 
     scene = load_scene(args.scene, scene_overrides(args))
     refuse_scene_in_out(args)
@@ -106,7 +106,7 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
     from .. import pipeline
 
     if pipeline.is_profile_measurement(args.measured):
-        return _fit_profile(args, overwrite, pipeline, scene)
+        return _fit_profile(args, overwrite, pipeline, scene, find_scene(args.scene))
     for opt, v in (("--units", args.units), ("--line", args.line), ("--arms", args.arms)):
         if v is not None:
             raise InputError(f"{opt} is for a measured profile; {args.measured!r} is a map")
@@ -116,10 +116,12 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
         form=args.form, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, predict=args.predict, seed=args.seed,
         global_points=args.global_points, max_evaluations=args.max_evaluations,
-        profile_points=args.profile_points, cache=args.cache, overwrite=overwrite)
+        profile_points=args.profile_points, cache=args.cache, overwrite=overwrite,
+        scene_file=find_scene(args.scene))
 
 
-def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene: Scene) -> dict:
+def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene: Scene,
+                 scene_file: Any) -> dict:
     """``fit`` of a measured profile: the options that are for maps only are refused."""
     for opt, v, default in (("--predict", args.predict, []), ("--form", args.form, "plane")):
         if v != default:
@@ -131,7 +133,7 @@ def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene
         at=args.at, window_mm=args.window, weights=args.weights, workers=args.workers,
         scheduler=args.scheduler, seed=args.seed, global_points=args.global_points,
         max_evaluations=args.max_evaluations, profile_points=args.profile_points,
-        cache=args.cache, overwrite=overwrite, arms=args.arms)
+        cache=args.cache, overwrite=overwrite, arms=args.arms, scene_file=scene_file)
 
 
 #: command -> what runs it, ``(args, overwrite) -> result``

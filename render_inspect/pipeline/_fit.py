@@ -47,6 +47,7 @@ from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, co
                          file_instrument, instrument_settings, passive_omp_wait,
                          predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
 from ._fit_predict import predict_next_cut, predicted_scene
+from ._provenance import run_inputs
 from ._toolpath import check_tool_edge
 
 if TYPE_CHECKING:
@@ -90,7 +91,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
             workers: int | None = None, scheduler: str | None = None, predict: Iterable[str] = (),
             seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
             profile_points: int = 3, cache: str | Path | None = None,
-            overwrite: bool = False) -> dict:
+            overwrite: bool = False, scene_file: str | Path | None = None) -> dict:
     """``render-inspect fit MEASURED --scene SCENE --free KEY,... --out DIR``.
 
     Parameters
@@ -140,6 +141,9 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
     cache : path, optional
         Folder of cached evaluations (default: ``OUT.cache`` beside the output folder).
     overwrite : bool
+    scene_file : path, optional
+        The scene file the scene was read from, recorded with its SHA-256 in fit.json's
+        ``inputs`` (with the command line, the measured file and the files the scene reads).
     """
     t_all = time.perf_counter()
     passive_omp_wait()
@@ -326,6 +330,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                                           if not e.cached and e.meta.get("worker")})}
     record = fit_record(result, target=target, spec=spec, provenance=provenance, maps=misfit,
                         waviness=wavy)
+    record["inputs"] = run_inputs(base, scene_file=scene_file,
+                                  measured=inputs[0] if inputs else None, seed=seed)
     record["model_check"] = {"before": before, "after": after,
                              "measured_starts": starts}
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]
@@ -441,7 +447,8 @@ def _rms(z) -> float:
 
 
 def _file_notes() -> dict:
-    return {"fit.json": "fitted values, standard errors, correlations, misfit, provenance",
+    return {"fit.json": "fitted values, standard errors, correlations, misfit, provenance "
+                        "(inputs: the command line, the input files with their SHA-256)",
             "fit.html": "the fit's page: tables and figures",
             "maps.png": "measured and fitted maps (form removed)",
             "residual.png": "fitted - measured, and the same for the waviness",

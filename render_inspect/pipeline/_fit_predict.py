@@ -14,7 +14,8 @@ from typing import Any
 
 from ..core.errors import InputError
 from ..core.progress import task
-from ..fit import (PREDICTED_QUANTITIES, combine_propagation, plan_propagation, set_value)
+from ..fit import (PREDICTED_QUANTITIES, combine_propagation, plan_propagation, scene_hash,
+                   set_value)
 from ..io import write_marker
 from ..report import key_unit
 from ..scene import apply_overrides, scene_from_dict
@@ -66,7 +67,8 @@ def predict_next_cut(folder: Path, fitted: dict, predict: Sequence[str], fill: A
     then at +-1 standard deviation along each eigen-direction of the fitted keys'
     covariance (the same window, pixel and seed; not counted in ``--max-evaluations``);
     return fit.json's ``prediction``, which ``predict/metrics.json`` also holds under
-    ``prediction``.
+    ``prediction`` (and the fit's ``inputs``: its command line and input files, with the
+    SHA-256 of the predicted scene as run).
 
     Where the fit's verdict says the model does not describe the measurement the
     prediction is marked as no measurement-backed forecast and carries no uncertainty (no
@@ -120,6 +122,11 @@ def predict_next_cut(folder: Path, fitted: dict, predict: Sequence[str], fill: A
     pm_doc = dict(pm)
     pm_doc["prediction"] = {k: v for k, v in prediction.items()
                             if k not in ("residual", "toolpath", "folder")}
+    if record.get("inputs"):
+        # the fit's command line and input files; the scene as run is the predicted one
+        inp = record["inputs"]
+        pm_doc["inputs"] = {**inp, "scene": {**inp["scene"],
+                                             "sha256_as_run": scene_hash(centre_scene.to_dict())}}
     write_metrics(out, pm_doc)
     write_marker(out, command="simulate", scene=centre_scene)
     return prediction

@@ -47,7 +47,7 @@ from ..fit import (parse_weights, PROFILE_TERMS, EvaluationCache,
 from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_text, check_output_dir,
                   is_profile_file, read_profile, write_json)
 from ..processes import RANDOM_PART_KEYS, process_of, random_parts
-from ..report import HtmlReport, key_unit, profile_overlay_figure
+from ..report import HtmlReport, fit_provenance_section, key_unit, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
@@ -58,6 +58,7 @@ from ._fit_profile_checks import _check_after, _check_before, _cut_period
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
 from ._fit_profile_model import compute_profiles as _compute
 from ._fit_profile_random import _check_free_random, _random_part_power, _random_part_verdicts
+from ._provenance import run_inputs
 
 if TYPE_CHECKING:
     from ..scene import Scene
@@ -162,7 +163,8 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                     scheduler: str | None = None,
                     seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
                     profile_points: int = 3, cache: str | Path | None = None,
-                    overwrite: bool = False, arms: str | None = None) -> dict:
+                    overwrite: bool = False, arms: str | None = None,
+                    scene_file: str | Path | None = None) -> dict:
     """``render-inspect fit PROFILE --scene SCENE --free KEY,... --out DIR``.
 
     Parameters
@@ -188,7 +190,8 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
         the disagreement folded into the standard errors (:func:`_arms_record`); ``one``:
         the window's arm only.  Default: both where the line crosses the axis and the
         profile reaches the window's radii on the other arm, else one.
-    Other parameters as :func:`~render_inspect.pipeline.run_fit`.
+    Other parameters (``scene_file``: recorded in fit.json's ``inputs``) as
+    :func:`~render_inspect.pipeline.run_fit`.
     """
     t_all = time.perf_counter()
     out = Path(out)
@@ -382,6 +385,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                               if client is not None else None)}
     record = fit_record(result, target=fit_target, spec=spec, provenance=provenance, maps=maps,
                         waviness={"rms_nm": None})
+    record["inputs"] = run_inputs(base, scene_file=scene_file, measured=measured, seed=seed)
     record["model_check"] = {"before": before, "after": after, "measured_starts": starts}
     record["one_family"] = bool(family["one_family"])
     record["registration_shift_um"] = best.shift * spacing * MM_TO_UM
@@ -441,7 +445,8 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
         (tmp / "profiles.png").write_bytes(png)
         record["timing_s"]["total"] = time.perf_counter() - t_all
         record["files"] = {"fit.json": "fitted values, standard errors, misfit, checks, "
-                                       "provenance",
+                                       "provenance (inputs: the command line, the input "
+                                       "files with their SHA-256)",
                            "fit.html": "the fit's page",
                            "profiles.png": "measured, fitted and start profiles over the window",
                            "scene.json": "the scene with the fitted values"}
@@ -562,4 +567,8 @@ def _page(record: dict, png: bytes) -> str:
         rep.table(rows, header=["key", "the window's arm alone", "the other arm alone",
                                 "difference / its standard error", "fit's standard error",
                                 "from the arms", "combined"])
+    pl = record["placement"]
+    fit_provenance_section(rep, record, extra=[
+        ["fit window", f"{pl['window_mm']:.4g} mm along the line, centred at "
+                       f"({pl['centre_on_part_mm'][0]:.4g}, {pl['centre_on_part_mm'][1]:.4g}) mm"]])
     return rep.render()

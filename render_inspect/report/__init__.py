@@ -14,7 +14,7 @@ from . import _edge_plot  # noqa: F401  (registers the figure kinds tool_edge, t
 from ._figures import (annotate_rgb, block_mean, display_map, image_panels, line_panels,
                        lowpass_map, map_panels, png_bytes, radial_profile_figure)
 from ._locator import difference_figure, locator_figure
-from ._fit import fit_figures, fit_page, psd_figure
+from ._fit import fit_figures, fit_page, fit_provenance_section, psd_figure
 from ._following import plot_following_error, plot_following_error_map
 from ._format import fmt_number, fmt_quantity, nice_length, scale_bar_length
 from ._html import HtmlReport, data_uri, table_html
@@ -43,7 +43,7 @@ __all__ = ["build_page", "HtmlReport", "data_uri", "table_html", "plot_kinematic
            "panels_png", "maps_png", "characterise_figures", "measurement_summary", "analysis_summary",
            "curves_png", "heatmap_png", "sweep_plot_png", "morris_png",
            "ComparedVariant", "comparison_figures", "comparison_summary", "diffuse_caption", "srgb",
-           "luminance", "fit_figures", "fit_page", "psd_figure", "figure_kinds",
+           "luminance", "fit_figures", "fit_page", "fit_provenance_section", "psd_figure", "figure_kinds",
            "register_figure", "registered_figures", "profile_figure",
            "profile_overlay_figure", "program_section", "program_figure_name", "key_label", "key_unit",
            "provenance_section", "warnings_section"]

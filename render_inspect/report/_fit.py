@@ -3,6 +3,7 @@ maps, the areal PSD of both, the misfit along each parameter, and ``fit.html``."
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -12,8 +13,9 @@ from ._figures import _plt, _to_png, line_panels, map_panels
 from ._format import fmt_number
 from ._html import HtmlReport
 from ._keys import key_unit
+from ._provenance import provenance_section
 
-__all__ = ["fit_figures", "fit_page", "psd_figure"]
+__all__ = ["fit_figures", "fit_page", "psd_figure", "fit_provenance_section"]
 
 
 def psd_figure(curves: dict, *, title: str = "", dpi: int = 100) -> bytes:
@@ -185,15 +187,23 @@ def fit_page(record: dict, figs: dict) -> str:
             rep.figure(figs[name], cap)
     if record.get("prediction"):
         _prediction_section(rep, record["prediction"])
-    rep.section("Provenance")
-    meas = record["measured"]
-    rep.table([["measured file", meas["path"]], ["reader", str(meas.get("reader"))],
-               ["placement", record["placement"]["method"]],
-               ["fit window (mm)", ", ".join(f"{v:.5g}" for v in record["placement"]["window_mm"])],
-               ["objective", f"{record['objective']} (from the {record['objective_from']})"],
-               ["seed", record["seed"]], ["scene sha256", record["scene_sha256"][:16]],
-               ["software version", record["software_version"]],
-               ["fit time (s)", _val(record["timing_s"].get("total"))],
-               ["per evaluation (s)", _val(record["timing_s"].get("per_evaluation"))]],
-              header=["", ""])
+    fit_provenance_section(rep, record, extra=[
+        ["placement", record["placement"]["method"]],
+        ["fit window (mm)", ", ".join(f"{v:.5g}" for v in record["placement"]["window_mm"])]])
     return rep.render()
+
+
+def fit_provenance_section(rep: HtmlReport, record: dict,
+                           extra: Iterable[Sequence[object]] = ()) -> None:
+    """The "Provenance" section of a fit's page (a map's or a profile's): the command line
+    it was made with, the scene and the input files with their SHA-256 (``fit.json``'s
+    ``inputs``, :func:`provenance_section`), the measured file and its reader, ``extra``
+    rows (where the fit window lies), the objective and the fit's time."""
+    meas = record["measured"]
+    provenance_section(rep, record, seed_text="seed (the virtual camera's noise and the "
+                                              "global search)", extra=[
+        ["measured file", meas["path"]], ["reader", str(meas.get("reader"))],
+        *[list(r) for r in extra],
+        ["objective", f"{record['objective']} (from the {record['objective_from']})"],
+        ["fit time (s)", _val(record["timing_s"].get("total"))],
+        ["per evaluation (s)", _val(record["timing_s"].get("per_evaluation"))]])

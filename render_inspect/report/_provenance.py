@@ -27,12 +27,14 @@ def warnings_section(rep: HtmlReport, warnings: Sequence[str] | None) -> None:
 
 
 def provenance_section(rep: HtmlReport, metrics: dict, *, title: str = "Provenance",
-                       extra: Iterable[Sequence[object]] = ()) -> None:
+                       extra: Iterable[Sequence[object]] = (),
+                       seed_text: str = "seed (simulation; the camera noise seeds derive "
+                                        "from it)") -> None:
     """A section with what repeats the run: the command line it was made with (and the
     directory it ran in), or that it was made from Python; the software version, the
-    seed, the scene (its file and SHA-256, and the SHA-256 of the scene as run, after
-    ``--set``), each input file with its role, path, size and SHA-256; ``extra`` rows
-    after them."""
+    seed (``seed_text`` says what it seeds), the scene (its file and SHA-256, and the
+    SHA-256 of the scene as run, after ``--set``), each input file with its role, path,
+    size and SHA-256; ``extra`` rows after them."""
     inp = metrics.get("inputs") or {}
     sc = inp.get("scene") or {}
     named = metrics.get("scene")
@@ -49,7 +51,7 @@ def provenance_section(rep: HtmlReport, metrics: dict, *, title: str = "Provenan
     rows += [
         ["software", f"render_inspect {metrics.get('software_version') or inp.get('software_version')}"
                      + (f", Python {inp['python']}" if inp.get("python") else "")],
-        ["seed (simulation; the camera noise seeds derive from it)", str(metrics.get("seed"))],
+        [seed_text, str(metrics.get("seed"))],
         ["scene", str(name)],
     ]
     f = sc.get("file")
