@@ -123,6 +123,53 @@ def test_the_tiled_simulation_says_what_the_whole_map_says_of_the_edge(tmp_path,
     assert t["form_error_rms_nm"] == pytest.approx(facts["tiled_residual"]["Sq_nm"], rel=1e-12)
     assert w["form_error_rms_nm"] == pytest.approx(facts["whole_residual"]["Sq_nm"], rel=1e-9)
     assert t["form_error_pv_nm"] == pytest.approx(w["form_error_pv_nm"], rel=1e-6)
+    # the tiled run draws the whole map's figure of the edge too
+    for name in ("whole", "tiled"):
+        assert (tmp_path / name / "tool_edge.png").stat().st_size > 1000, name
+
+
+def test_the_tiled_figure_of_the_edge_is_the_whole_maps():
+    """``tool_edge.png`` of a map simulated tile by tile: the same figure data as the whole
+    map's (the edge, its contact angles, the section through the middle row against the
+    distance from the axis, the predicted imprint there from the design), the form error
+    from the stored float32 residual's row: equal to float32's precision."""
+    from render_inspect.design import make_surface
+    from render_inspect.processes._edge_facts import edge_facts, edge_facts_tiled, edge_figure_tiled
+    from render_inspect.toolpath import EdgeProfile, Tool
+
+    edge = EdgeProfile(np.radians(np.linspace(-20.0, 20.0, 81)),
+                       40e-6 * np.sin(np.linspace(0.0, 9.0, 81)), "part.csv")
+    tool = Tool(0.5, edge=edge)
+    # a paraboloid of 1 mm radius: contact angles 11 .. 24 deg over the region
+    design_section = {"type": "paraboloid", "radius_x": 1.0, "radius_y": 1.0}
+    region, px = (0.2, -0.011, 0.45, 0.013), 0.002
+    ny, nx = 13, 126
+    x = region[0] + px * np.arange(nx)
+    y = region[1] + px * np.arange(ny)
+    design = np.array(np.broadcast_to(make_surface(design_section).height(x[None, :], y[:, None]),
+                                      (ny, nx)), dtype=np.float64)
+    machined = design + 1e-5 * np.sin(40.0 * x)[None, :] + 2e-6 * np.cos(7.0 * y)[:, None]
+    machined[ny // 2, 5] = np.nan  # a pixel the cut left
+    facts, whole = edge_facts(tool, "z", machined, design, region, px, name="grid")
+    residual = {"Sz_nm": facts["form_error_pv_nm"], "Sq_nm": facts["form_error_rms_nm"]}
+    tiled_facts = edge_facts_tiled(tool, "z", design_section, region, px, residual)
+    stored = (machined - design).astype(np.float32)
+    rows = []
+    tiled = edge_figure_tiled(tool, design_section, region, px, tiled_facts,
+                              lambda r: rows.append(r) or stored[r], name="grid")
+    assert rows == [ny // 2]  # one row read from the store: the middle one
+    w, t = whole["tool_edge.png"], tiled["tool_edge.png"]
+    assert sorted(w) == sorted(t) and t["kind"] == "tool_edge"
+    for key in ("angle_deg", "delta_nm", "r_mm"):
+        np.testing.assert_array_equal(t[key], w[key])
+    assert t["contact_deg"] == pytest.approx(w["contact_deg"], rel=1e-12)
+    np.testing.assert_allclose(t["imprint_nm"], w["imprint_nm"], rtol=0, atol=1e-9)
+    assert np.ptp(w["imprint_nm"]) > 10.0  # (a section that crosses the edge's waviness)
+    np.testing.assert_array_equal(np.isnan(t["error_nm"]), np.isnan(w["error_nm"]))
+    # float32 of heights of ~10 nm: 1e-6 nm
+    np.testing.assert_allclose(t["error_nm"], w["error_nm"], rtol=0, atol=1e-4)
+    assert (t["title"], t["compensation"], t["half_angle_deg"]) == \
+        (w["title"], w["compensation"], w["half_angle_deg"])
 
 
 def test_a_compare_sums_up_the_edge_of_both_cuts():

@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+import functools
 import json
 import logging
 import time
@@ -214,6 +215,13 @@ def _may_leave_uncut(region, path, env) -> bool:
     return bool(r_out > float(rho.max()) + hw or r_in < float(rho.min()) - hw)
 
 
+def _stored_row(store: str, row: int) -> np.ndarray:
+    """Row ``row`` of the residual (machined - design, mm) the tiles stored in ``store``
+    (float32 there; only the chunks that hold the row are read)."""
+    return np.asarray(ZarrHeightMap(store).read("residual", rows=slice(row, row + 1))[0],
+                      dtype=np.float64)
+
+
 def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = None,
                        scheduler: str | None = None,
                        tile: int = TILE, overwrite: bool = False) -> dict:
@@ -314,7 +322,9 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])
         # (with the residual's metrics: what facts of the whole map need of them)
-        facts, cut_plots = process.tiled_facts(cfg, env, {**stats.cut, "residual": residual},
+        facts, cut_plots = process.tiled_facts(cfg, env, {**stats.cut, "residual": residual,
+                                                          "residual_row": functools.partial(
+                                                              _stored_row, store)},
                                                stride=stride)
         metrics = tiled_metrics(scene, plan, traits, residual, shape, origin, timing, facts=facts)
         metrics["tiles"] = {"count": stats.tiles, "tile_px": tile, "pyramid_levels": levels,

@@ -518,5 +518,7 @@ class Process(ABC, Generic[InputsT]):
         """(facts, figures) of a tiled cut from the sums over its tiles (``cut``: see
         :class:`~render_inspect.batch.TiledStats`; its ``pass_theta`` on every
         ``stride``-th row and column; ``residual``: the whole map's ``metrics.json``
-        ``residual``, from the tiles); default: ``env.facts`` and ``env.plots``."""
+        ``residual``, from the tiles; ``residual_row``: a function of a row index giving
+        that row of the stored machined - design, mm); default: ``env.facts`` and
+        ``env.plots``."""
         return dict(env.facts), dict(env.plots)

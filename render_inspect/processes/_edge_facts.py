@@ -13,7 +13,7 @@ a scene shows both cuts)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from ..toolpath import EdgeProfile
     from ._machine import ProcessScene
 
-__all__ = ["edge_facts", "edge_facts_tiled", "edge_imprint", "check_edge_and_wear"]
+__all__ = ["edge_facts", "edge_facts_tiled", "edge_figure_tiled", "edge_imprint",
+           "check_edge_and_wear"]
 
 #: what the contact angles are, in the notes of the angles beyond the measured edge
 _CONTACT = "the design's slope on the simulated region (contact angles)"
@@ -63,19 +64,21 @@ def _contact(edge: EdgeProfile, x: np.ndarray, y: np.ndarray, gx: np.ndarray,
 
 
 def _band_imprints(edge: EdgeProfile, surface: Any, region: Sequence[float], pixel: float,
-                   shape: tuple[int, int], rows: int):
-    """(theta, imprint) of each band of ``rows`` rows of the grid in turn, equal to the
-    same rows of :func:`edge_imprint` on the whole grid: each band's design is evaluated
-    with a row beyond it either side, so its gradient is the whole grid's."""
+                   shape: tuple[int, int], rows: int, start: int = 0, stop: int | None = None):
+    """(theta, imprint) of each band of ``rows`` rows of the grid's rows ``start`` ..
+    ``stop`` - 1 (default: all) in turn, equal to the same rows of :func:`edge_imprint` on
+    the whole grid: each band's design is evaluated with a row beyond it either side, so
+    its gradient is the whole grid's."""
     ny, nx = shape
     x = region[0] + pixel * np.arange(nx)
     if min(ny, nx) <= 1:  # (no gradient: as edge_imprint, on the whole grid)
         y = region[1] + pixel * np.arange(ny)
         design = np.broadcast_to(surface.height(x[None, :], y[:, None]), (ny, nx))
-        yield edge_imprint(edge, np.array(design, dtype=np.float64), region, pixel)
+        theta, imprint = edge_imprint(edge, np.array(design, dtype=np.float64), region, pixel)
+        yield theta[start:stop], imprint[start:stop]
         return
-    for a in range(0, ny, rows):
-        b = min(a + rows, ny)
+    for a in range(start, ny if stop is None else stop, rows):
+        b = min(a + rows, ny if stop is None else stop)
         a0, b0 = max(a - 1, 0), min(b + 1, ny)
         y = region[1] + pixel * np.arange(a0, b0)
         band = np.array(np.broadcast_to(surface.height(x[None, :], y[:, None]), (b0 - a0, nx)),
@@ -147,22 +150,49 @@ def edge_facts(tool: Any, compensation: str, machined: np.ndarray, design: np.nd
              # the simulated surface's form error (machined - design, mean removed)
              "form_error_pv_nm": _pv(err) * MM_TO_NM,
              "form_error_rms_nm": _rms(err) * MM_TO_NM}
-    # one section through the region's middle row, against the distance from the axis
     row = design.shape[0] // 2
-    x = region[0] + pixel * np.arange(design.shape[1])
+    return facts, _figure(tool, facts, imprint[row], err[row], region, pixel, row, name=name)
+
+
+def _figure(tool: Any, facts: dict, imprint: np.ndarray, error: np.ndarray,
+            region: Sequence[float], pixel: float, row: int, *, name: str) -> dict:
+    """{"tool_edge.png": figure spec}: the edge's deviation, and one section through the
+    grid's ``row`` (the region's middle one) against the distance from the axis: the
+    predicted ``imprint`` and the simulated form ``error`` (machined - design) of that
+    row (mm), each with its mean removed."""
+    edge = tool.edge
+    x = region[0] + pixel * np.arange(np.asarray(error).shape[0])
     y = region[1] + pixel * row
     r = np.hypot(x, y)
-    e = err[row]
-    ok = np.isfinite(e)
+    ok = np.isfinite(error)
     spec = {"kind": "tool_edge",
             "angle_deg": np.degrees(edge.angle), "delta_nm": edge.delta * MM_TO_NM,
             "half_angle_deg": math.degrees(tool.half_angle),
             "contact_deg": [facts["contact_angle_range_deg"][0], facts["contact_angle_range_deg"][1]],
-            "r_mm": r, "imprint_nm": (imprint[row] - np.nanmean(imprint[row])) * MM_TO_NM,
-            "error_nm": (e - (np.mean(e[ok]) if ok.any() else 0.0)) * MM_TO_NM,
-            "compensation": compensation,
+            "r_mm": r, "imprint_nm": (imprint - np.nanmean(imprint)) * MM_TO_NM,
+            "error_nm": (error - (np.mean(error[ok]) if ok.any() else 0.0)) * MM_TO_NM,
+            "compensation": facts["compensation"],
             "title": f"{name}: the measured cutting edge ({edge.source})"}
-    return facts, {"tool_edge.png": spec}
+    return {"tool_edge.png": spec}
+
+
+def edge_figure_tiled(tool: Any, design: Any, region: Sequence[float], pixel: float,
+                      facts: dict, residual_row: Callable[[int], np.ndarray], *,
+                      name: str = "") -> dict:
+    """{"tool_edge.png": figure spec} of a map simulated tile by tile: the figure
+    :func:`edge_facts` draws, from what the tiled run keeps.  The section through the
+    region's middle row takes the predicted imprint from the design (``design``: the
+    ``[design]`` section) evaluated on that row and the rows either side of it (the whole
+    grid's gradient: the same numbers as the whole map's), and the form error from
+    ``residual_row(row)``: that row of machined - design as the tiles stored it (mm;
+    float32 in the store, so the error agrees with the whole map's to float32's
+    precision).  ``facts``: :func:`edge_facts_tiled`'s."""
+    shape = grid_shape(region, pixel)
+    row = int(shape[0]) // 2
+    _, imprint = next(_band_imprints(tool.edge, make_surface(design), region, pixel, shape,
+                                         1, row, row + 1))
+    error = np.asarray(residual_row(row), dtype=np.float64)
+    return _figure(tool, facts, imprint[0], error, region, pixel, row, name=name)
 
 
 def check_edge_and_wear(kind: str | None, compensation: str, scene: ProcessScene) -> None:

@@ -43,7 +43,7 @@ from ..toolpath import (
     turning_point_count,
 )
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
-from ._edge_facts import check_edge_and_wear, edge_facts_tiled
+from ._edge_facts import check_edge_and_wear, edge_facts_tiled, edge_figure_tiled
 from ._machine import ProcessScene, machine_of, material_of
 from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
@@ -550,7 +550,7 @@ class TiledTurningProcess(TurningProcess):
         """The Envelope of a followed path (:func:`~render_inspect.processes._mechanics.follow`)."""
         tool = Tool.from_config(cfg.tool)
         resp = material_of(cfg.material)
-        if tool.edge is not None:  # the edge itself (the tiles' maps give no imprint figure)
+        if tool.edge is not None:  # the edge itself (a tiled run adds its facts: tiled_facts)
             facts = {**facts, "tool_edge": {**tool.edge.to_dict(tool.half_angle),
                                             "compensation": cfg.process.compensation}}
         return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
@@ -583,6 +583,9 @@ class TiledTurningProcess(TurningProcess):
             sim = cfg.simulation
             facts["tool_edge"] = edge_facts_tiled(tool, str(env.path.meta.get("compensation", "")),
                                                   cfg.design, tuple(sim.region), sim.pixel, cut["residual"])
+            if "residual_row" in cut:  # and its figure, from the stored residual's middle row
+                plots.update(edge_figure_tiled(tool, cfg.design, tuple(sim.region), sim.pixel,
+                                               facts["tool_edge"], cut["residual_row"], name=cfg.name))
         return facts, plots
 
     def tiled_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> tuple[int, int]:
