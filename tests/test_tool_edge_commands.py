@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from render_inspect.cli import main
+from render_inspect.io import write_measurement_exr
 
 NOSE = 0.514  # the shipped sts_sinusoidal_grid's tool.nose_radius, mm
 REGION = "simulation.region=[0, 0, 0.06, 0.04]"
@@ -81,6 +82,94 @@ def test_each_compared_variant_and_sweep_point_has_its_edge_checked_first(tmp_pa
     assert rc == 1 and "1 of 2 points are not valid" in err and "nothing was run" in err
     assert f"tool.edge_profile {edge}: |deviation| must be <= 1000 nm" in err and "[point 0]" in err, err
     assert not (tmp_path / "sw").exists()
+
+
+# 50 nm per degree over +-30 deg: the largest deviation 1500 nm, 1 % of a 0.15 mm nose
+def _linear(tmp_path):
+    return _edge_file(tmp_path / "linear.csv", lambda a: 50.0 * a, np.arange(-30.0, 30.5, 3.0))
+
+
+@pytest.mark.parametrize("kind", ["map", "profile"])
+@pytest.mark.parametrize("free, bounds, expect", [
+    # the nose radius down to 0.05 mm: 1500 nm is 1 % of 0.15 mm
+    ("tool.nose_radius", ["tool.nose_radius=0.05,1"],
+     ("tool.nose_radius = 0.05 mm", "smallest", 0.15, "mm: set the lower bound there or above")),
+    # the edge's scale up to 5 on the shipped 0.514 mm nose: 5140 nm / 1500 nm = 3.4267
+    ("tool.edge_scale", ["tool.edge_scale=0,5"],
+     ("tool.edge_scale = 5 (", "largest", 0.01 * NOSE / 1.5e-3, ": set the upper bound there or below")),
+    # both: the scale's bound with the radius at its lower bound, 0.2 mm: 2000 nm / 1500 nm
+    ("tool.nose_radius,tool.edge_scale", ["tool.nose_radius=0.2,1", "tool.edge_scale=0,2"],
+     ("tool.edge_scale = 2 with tool.nose_radius at its lower bound 0.2 mm", "largest", 4 / 3,
+      ": set the upper bound there or below")),
+])
+def test_fit_bounds_the_edge_refuses_are_refused_before_any_evaluation(
+        tmp_path, capsys, monkeypatch, kind, free, bounds, expect):
+    """``fit`` with a measured edge and ``--bounds`` reaching where the cut refuses it (its
+    deviation above 1 % of the nose radius): refused before any evaluation, in one line
+    naming the key, its bound and the value the edge allows (the analytic limit, to six
+    digits on the allowed side); exit 1, nothing written."""
+    from render_inspect import processes
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("an evaluation started")
+
+    monkeypatch.setattr(processes.Process, "plan", no_work)
+    monkeypatch.setattr(processes.Process, "plan_window", no_work)
+    edge = _linear(tmp_path)
+    if kind == "map":
+        measured = tmp_path / "height.exr"
+        write_measurement_exr(measured, np.zeros((64, 64)), np.ones((64, 64), bool), pixel=0.001,
+                              origin=(0.3, 0.0), attrs={"objective": "20x", "mode": "psi"})
+    else:
+        measured = tmp_path / "profile.csv"
+        measured.write_text("x (um), height (um)\n"
+                            + "".join(f"{i * 0.87:.3f}, {0.01 * math.sin(i / 7):.5f}\n" for i in range(400)))
+    rc = main(["fit", str(measured), "--scene", "sts_sinusoidal_grid", "--free", free,
+               "--bounds", *bounds, "--set", f"tool.edge_profile='{edge.as_posix()}'",
+               "--out", str(tmp_path / "out"), "-q"])
+    msg = _one_line(capsys, "fit")
+    at, word, limit, tail = expect
+    assert rc == 1 and f"error: --bounds {bounds[-1]}: " in msg, msg
+    assert f"the measured cutting edge is refused at {at}" in msg and "|deviation| must be <=" in msg
+    shown = float(re.search(rf"the {word} value it allows is ([0-9.e+-]+)", msg).group(1))
+    assert shown == pytest.approx(limit, rel=1e-5), msg
+    assert (shown >= limit * (1 - 1e-12)) if word == "smallest" else (shown <= limit * (1 + 1e-12))
+    assert tail in msg, msg
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.cache").exists()
+
+
+def test_fit_bounds_from_the_schema_are_narrowed_to_what_the_edge_allows(tmp_path, caplog):
+    """Bounds the user did not give (the schema's: nose radius down to 5e-8 mm, the edge's
+    scale up to 100, a waviness amplitude over +-1e9 nm) are narrowed to the values the
+    measured edge allows (the analytic limits), with a warning each and a record; bounds
+    inside them, and a scene without an edge, are kept."""
+    from render_inspect.fit import free_parameters
+    from render_inspect.pipeline._fit_edge import edge_bounds
+    from render_inspect.scene import load_scene
+
+    edge = _linear(tmp_path)
+    scene = load_scene("sts_sinusoidal_grid", [f"tool.edge_profile='{edge.as_posix()}'"])
+    for key, want in (("tool.nose_radius", (0.15, 50.0)), ("tool.edge_scale", (0.0, 0.01 * NOSE / 1.5e-3))):
+        caplog.clear()
+        params = free_parameters(scene, [key], {})
+        (p,), narrowed = edge_bounds(scene, params, {})
+        assert (p.lower, p.upper) == pytest.approx(want, rel=1e-5)
+        assert p.start == params[0].start and 0 < p.scale <= 0.5 * (p.upper - p.lower)
+        assert len(narrowed) == 1 and narrowed[0]["key"] == key and narrowed[0]["to"] in (p.lower, p.upper)
+        said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+        assert len(said) == 1 and f"bound of {key}" in said[0] and "(the schema's), narrowed to" in said[0], said
+    # inside what the edge allows: kept as given
+    params = free_parameters(scene, ["tool.nose_radius"], {"tool.nose_radius": (0.2, 1.0)})
+    assert edge_bounds(scene, params, {"tool.nose_radius": (0.2, 1.0)}) == (params, [])
+    # a waviness amplitude (nm): at least 0 (the scene's rule), at most 1 % of the nose
+    wavy = load_scene("sts_sinusoidal_grid", ["tool.waviness=[[1000.0, 10.0, 0.0]]"])
+    (p,), narrowed = edge_bounds(wavy, free_parameters(wavy, ["tool.waviness.0.0"], {}), {})
+    assert (p.lower, p.upper) == pytest.approx((0.0, 0.01 * NOSE * 1e6), rel=1e-5)
+    assert [n["bound"] for n in narrowed] == ["lower", "upper"]
+    # no measured edge: nothing to check
+    plain = load_scene("sts_sinusoidal_grid")
+    params = free_parameters(plain, ["tool.nose_radius"], {})
+    assert edge_bounds(plain, params, {}) == (params, [])
 
 
 def test_an_edge_that_folds_back_is_refused_before_the_run(tmp_path, capsys):

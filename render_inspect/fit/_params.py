@@ -69,6 +69,23 @@ class FreeParameter:
     def from_unit(self, u: float) -> float:
         return self.start + (u - 1.0) * self.scale
 
+    def narrowed(self, lower: float, upper: float) -> "FreeParameter":
+        """The same key between ``lower`` and ``upper`` (around the start), its scale
+        set by the rule of :func:`free_parameters`."""
+        return FreeParameter(self.key, self.start, float(lower), float(upper),
+                             _scale(self.start, lower, upper), self.schema)
+
+
+def _scale(value: float, a: float, b: float, width: float | None = None) -> float:
+    """A parameter's typical size: 10 % of its value, or a tenth of the bounds' width
+    (``width``: of the range before an open bound was moved inside; default b - a) when
+    the value is 0 or when that is more than half the width."""
+    width = b - a if width is None else width
+    scale = 0.1 * abs(value) if value != 0 else 0.1 * min(width, 2 * _MAX_MAGNITUDE)
+    if not scale > 0 or scale > 0.5 * (b - a):
+        scale = 0.1 * (b - a)
+    return float(scale)
+
 
 def _split(key: str) -> list:
     parts = key.split(".")
@@ -263,10 +280,7 @@ def free_parameters(scene: BaseModel, keys: Sequence[str], bounds: dict | None =
         if not a <= value <= b:
             raise InputError(f"--free {key}: the scene's value {value:g} lies outside the fit's "
                              f"bounds [{a:g}, {b:g}]; widen --bounds or --set {key} inside them")
-        scale = 0.1 * abs(value) if value != 0 else 0.1 * min(width, 2 * _MAX_MAGNITUDE)
-        if not scale > 0 or scale > 0.5 * (b - a):
-            scale = 0.1 * (b - a)
-        out.append(FreeParameter(key, value, float(a), float(b), float(scale),
+        out.append(FreeParameter(key, value, float(a), float(b), _scale(value, a, b, width),
                                  (lo, hi)))
     return out
 

@@ -46,6 +46,7 @@ from ..scene import scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
                          file_instrument, instrument_settings, passive_omp_wait,
                          predict_measurement, preset_fill, preset_value, quiet, SameSimulation)
+from ._fit_edge import edge_bounds
 from ._fit_predict import predict_next_cut, predicted_scene
 from ._provenance import run_inputs
 from ._toolpath import check_tool_edge
@@ -166,6 +167,9 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
         if not (isinstance(v, int) and v >= lo):
             raise InputError(f"{name} must be an integer >= {lo}, received {v!r}")
     params = free_parameters(scene, keys, user_bounds, defaults=lambda k: preset_value(scene, k))
+    # a measured cutting edge refused within the bounds: refused or narrowed here, not
+    # evaluation by evaluation
+    params, narrowed = edge_bounds(scene, params, user_bounds)
     random = random_parts(scene)
     free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
     for k in free_random:
@@ -332,6 +336,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                         waviness=wavy)
     record["inputs"] = run_inputs(base, scene_file=scene_file,
                                   measured=inputs[0] if inputs else None, seed=seed)
+    if narrowed:
+        record["bounds_narrowed"] = narrowed
     record["model_check"] = {"before": before, "after": after,
                              "measured_starts": starts}
     record["cache_rejected"] = [{"entry": k, "why": why} for k, why in store.rejected]

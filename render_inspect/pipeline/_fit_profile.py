@@ -51,6 +51,7 @@ from ..report import HtmlReport, fit_provenance_section, key_unit, profile_overl
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
+from ._fit_edge import edge_bounds
 from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
                          preset_value, quiet, SameSimulation)
 from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
@@ -222,8 +223,9 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                         ("--profile-points", profile_points, 0), ("--seed", seed, 0)):
         if not (isinstance(v, int) and v >= lo):
             raise InputError(f"{name} must be an integer >= {lo}, received {v!r}")
-    params = free_parameters(scene, keys, parse_bounds(bounds),
-                             defaults=lambda k: preset_value(scene, k))
+    given = parse_bounds(bounds)
+    params = free_parameters(scene, keys, given, defaults=lambda k: preset_value(scene, k))
+    params, narrowed = edge_bounds(scene, params, given)  # (as run_fit)
     random = random_parts(scene)
     free_random = tuple(p.key for p in params if p.key in RANDOM_PART_KEYS)
     _check_free_random(free_random, random)
@@ -386,6 +388,8 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     record = fit_record(result, target=fit_target, spec=spec, provenance=provenance, maps=maps,
                         waviness={"rms_nm": None})
     record["inputs"] = run_inputs(base, scene_file=scene_file, measured=measured, seed=seed)
+    if narrowed:
+        record["bounds_narrowed"] = narrowed
     record["model_check"] = {"before": before, "after": after, "measured_starts": starts}
     record["one_family"] = bool(family["one_family"])
     record["registration_shift_um"] = best.shift * spacing * MM_TO_UM

@@ -198,12 +198,15 @@ def fit_provenance_section(rep: HtmlReport, record: dict,
     """The "Provenance" section of a fit's page (a map's or a profile's): the command line
     it was made with, the scene and the input files with their SHA-256 (``fit.json``'s
     ``inputs``, :func:`provenance_section`), the measured file and its reader, ``extra``
-    rows (where the fit window lies), the objective and the fit's time."""
+    rows (where the fit window lies), the bounds of the schema's range that a measured
+    cutting edge narrowed, the objective and the fit's time."""
     meas = record["measured"]
     provenance_section(rep, record, seed_text="seed (the virtual camera's noise and the "
                                               "global search)", extra=[
         ["measured file", meas["path"]], ["reader", str(meas.get("reader"))],
         *[list(r) for r in extra],
+        *[[f"{n['key']}: {n['bound']} bound narrowed (the measured cutting edge)",
+           f"{_val(n['from'])} -> {_val(n['to'])}"] for n in record.get("bounds_narrowed") or []],
         ["objective", f"{record['objective']} (from the {record['objective_from']})"],
         ["fit time (s)", _val(record["timing_s"].get("total"))],
         ["per evaluation (s)", _val(record["timing_s"].get("per_evaluation"))]])
