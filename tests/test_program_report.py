@@ -105,16 +105,21 @@ def test_program_section_lists_the_gouge(tmp_path):
 
 @pytest.mark.mitsuba
 @pytest.mark.slow
-def test_compare_report_shows_the_program_gouge(tmp_path):
+def test_compare_report_shows_the_program_gouge(tmp_path, capsys):
     """``compare`` of the program against the planned path: report.html has the program's
     section with the gouge (depth, file line) and the feed-per-revolution figure; the
-    variant's metrics.json holds the finding."""
+    variant's metrics.json holds the finding.  The report's title, the summary's heading
+    and ``run_name`` name the program beside the scene (the program's variant too, the
+    planned one by the scene alone)."""
     from render_inspect.cli import main as cli_main
 
     scene = _scene(tmp_path)
     out = tmp_path / "out"
     assert cli_main(["compare", str(scene), "--out", str(out)]) == 0
     page = (out / "report.html").read_text()
+    name = "program_gouge, program gouge.nc"
+    assert f"<title>render_inspect comparison: {name}</title>" in page
+    assert f"render-inspect compare: {name} (" in capsys.readouterr().out
     assert "Machine program read from a file" in page
     sec = page.split("Machine program read from a file", 2)[-1]
     assert "program: gouge.nc (point list)" in sec
@@ -127,3 +132,5 @@ def test_compare_report_shows_the_program_gouge(tmp_path):
     assert f["kind"] == "below_design" and f["worst_line"] == _GOUGE_INDEX + 1
     assert f["worst_nm"] == pytest.approx(2000, abs=1)
     assert "program" not in m["planned"]
+    assert m["run_name"] == m["program"]["run_name"] == name and m["scene"]["name"] == "program_gouge"
+    assert m["planned"]["run_name"] == "program_gouge"

@@ -602,3 +602,47 @@ N10 M30
     rr, f = feed_per_rev(path)
     sel = (rr > 1.0) & (rr < 9.0)
     assert np.allclose(f[sel], 0.01, rtol=2e-3)
+
+
+def test_a_cut_from_a_program_names_the_program_in_its_outputs(tmp_path, monkeypatch):
+    """``simulate --program`` (the whole map and tiled): ``metrics.json`` ``run_name`` and
+    the titles of ``residual.png`` and of the program's figures name the program's file
+    beside the scene, ``scene_name`` stays the scene's; a planned cut is named by its
+    scene alone."""
+    from render_inspect.pipeline import _simulate, _simulate_command, run_simulate
+    from render_inspect.processes import cut_name
+    from render_inspect.scene import load_scene
+
+    c_cum, x, z, c = _spiral(r0=0.5, feed=0.01, revs=3)
+    p = _write(tmp_path, "cam_spiral.nc", "".join(f"C{c[i]:.4f} X{x[i]:.6f} Z{z[i]:.6f}\n"
+                                                  for i in range(c.size)))
+    region = "simulation.region=[0.46, -0.02, 0.5, 0.02]"
+    scene = load_scene("sts_fig16_overcut", [f"process.program={json.dumps(str(p))}", region])
+    planned = load_scene("sts_fig16_overcut", [region])
+    name = "sts_fig16_overcut, program cam_spiral.nc"
+    assert cut_name(scene) == name and cut_name(planned) == "sts_fig16_overcut"
+    titles: dict = {}
+
+    def keep(fn, key):
+        def draw(*args, **kwargs):
+            spec = args[0] if isinstance(args[0], dict) else {}
+            titles.setdefault(key, []).append(kwargs.get("title") or spec.get("title"))
+            return fn(*args, **kwargs)
+        return draw
+
+    monkeypatch.setattr(_simulate, "residual_preview_png", keep(_simulate.residual_preview_png, "whole"))
+    for k in ("residual_png", "draw_figure"):
+        monkeypatch.setattr(_simulate_command, k, keep(getattr(_simulate_command, k), "tiled"))
+    for tiled in (False, True):
+        out = tmp_path / ("tiled" if tiled else "whole")
+        m = run_simulate(scene, out, tiled=tiled, tile=64)
+        assert m["run_name"] == name and m["scene_name"] == "sts_fig16_overcut"
+        assert json.loads((out / "metrics.json").read_text())["run_name"] == name
+        assert (out / "feed_per_rev.png").is_file()
+    sim = _simulate.simulate(scene)
+    assert sim.figures["feed_per_rev.png"]["title"].startswith(f"{name}: feed per revolution")
+    assert titles["whole"] and all(t.startswith(f"{name}: residual") for t in titles["whole"])
+    # residual.png and every figure the tiled run drew
+    assert len(titles["tiled"]) >= 2 and all(t.startswith(f"{name}: ") for t in titles["tiled"]), titles
+    assert _simulate.simulate(planned).metrics["run_name"] == "sts_fig16_overcut"
+

@@ -223,6 +223,9 @@ def test_profile_report_says_its_warnings_and_inputs(tmp_path):
             "951 of 1047 points measured") in re.sub(r"\s+", " ", _section_text(page, "Notes"))
     for f in (measured, program, scene):
         assert str(f.resolve()) in prov and _sha(f) in prov, f
+    # the title names the program cut beside the scene
+    assert m["run_name"] == f"turned_program_1021, program {program.name}"
+    assert f"<title>{m['run_name']}: measured profile against the simulation</title>" in page
     _offline(page)
 
 

@@ -18,7 +18,8 @@ def _print_compare_summary(metrics: dict, out: str, seconds: float) -> None:
     con = Console(file=sys.stdout, highlight=False)
     rows, diff = compare_summary(metrics)
     va, vb = (v["name"] for v in metrics["variants"])
-    scene = metrics.get("scene", {}).get("name", "")
+    # (the scene's name, with the program's file where the cut is a program read from one)
+    scene = metrics.get("run_name") or metrics.get("scene", {}).get("name", "")
     t = Table(title=f"render-inspect compare: {scene} ({seconds:.0f} s)", title_justify="left",
               show_edge=False)
     # long names (a program file's) fold onto a second line rather than being cut short
@@ -51,7 +52,8 @@ def _print_profile_compare_summary(metrics: dict, out: str, seconds: float) -> N
     con = Console(file=sys.stdout, highlight=False)
     rows, lines = profile_compare_summary(metrics)
     name = Path(str((metrics.get("input") or {}).get("path", ""))).name
-    t = Table(title=f"render-inspect compare: {name} against {metrics.get('scene', '')} "
+    t = Table(title=f"render-inspect compare: {name} against "
+                    f"{metrics.get('run_name') or metrics.get('scene', '')} "
                     f"({seconds:.0f} s)", title_justify="left", show_edge=False)
     t.add_column("", overflow="fold")
     for _, head in PROFILE_COLUMNS:

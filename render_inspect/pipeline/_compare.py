@@ -49,7 +49,7 @@ from ..metrology import (Comparison, areal_nm, characterise_map, common_window, 
                          difference_profiles, fringe_order_check, level_map, line_profile,
                          measurement_seeds, profile_center, sections, waviness_choice, waviness_map)
 from ..metrology import expected_sq_mm as _marks_sq_mm
-from ..processes import process_of
+from ..processes import cut_name, process_of
 from ..render import DiffuseConfig, mitsuba_variant
 from ..report import (ComparedVariant, axis_motion_figure, build_page, comparison_figures,
                       comparison_summary, display_map, draw_figure, program_figure_name,
@@ -466,7 +466,7 @@ def run_compare(scene: Scene, out: str | Path, *, measured: str | Path | None = 
     meas_map = None
     if measured is not None:  # read and check the file before any simulation
         meas_map, _ = check_measured(measured, scene, design_surface, force=force)
-    log.info("compare %s: %s (%s) vs %s (%s)", scene.name, variants[0].name, variants[0].label,
+    log.info("compare %s: %s (%s) vs %s (%s)", cut_name(scene), variants[0].name, variants[0].label,
              variants[1].name, variants[1].label)
     entry, icfg0 = _instrument(scene)
     check_render_limits(scene, kind=entry.name)

@@ -36,7 +36,7 @@ from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_bytes, atomic
                   check_output_dir, is_profile_file, json_safe, read_profile)
 from ..metrology import (analyze_profile, dominant_periods, line_profile, measure_frames, mirror_centre,
                          parse_profile_filter)
-from ..processes import process_of
+from ..processes import cut_name, process_of
 from ..report import (HtmlReport, profile_figure, profile_overlay_figure, provenance_section,
                       warnings_section)
 from ..scene import scene_from_dict
@@ -197,7 +197,7 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
         p0, p1, how_line = d
     band, fov = _band_scene(scene, p0, p1)
     seed = int(scene.simulation.seed)
-    log.info("compare %s with %s along (%g, %g) -> (%g, %g) mm", scene.name, Path(measured).name,
+    log.info("compare %s with %s along (%g, %g) -> (%g, %g) mm", cut_name(scene), Path(measured).name,
              *p0, *p1)
     sim = simulate(band)
     hm = sim.heightmap
@@ -274,7 +274,8 @@ def run_compare_profile(scene: Scene, out: str | Path, *, measured: str | Path,
                                            title=f"measured: {Path(measured).name}"),
     }
     metrics: dict[str, Any] = {
-        "command": "compare", "kind": "profile", "scene": scene.name, "seed": seed,
+        "command": "compare", "kind": "profile", "scene": scene.name,
+        "run_name": cut_name(scene), "seed": seed,
         "software_version": __version__,
         "line_mm": [list(p0), list(p1)], "line_from": how_line,
         "registration": reg, "virtual_measurement": check, "warnings": warns,
@@ -322,7 +323,8 @@ _ROWS = (("Ra_nm", "Ra (nm)"), ("Rq_nm", "Rq (nm)"), ("Rp_nm", "Rp (nm)"), ("Rv_
 def _page(metrics: dict, figs: dict) -> str:
     p = metrics["profiles"]
     f = metrics["filter"]
-    rep = HtmlReport(f"{metrics['scene']}: measured profile against the simulation",
+    rep = HtmlReport(f"{metrics.get('run_name') or metrics['scene']}: measured profile against "
+                     f"the simulation",
                      f"{Path(metrics['input']['path']).name} along {metrics['line_from']}; "
                      f"lambda_s {f['lambda_s_mm'] or 0:g} mm, lambda_c {f['lambda_c_mm']:g} mm "
                      f"({f['chosen_by']}); parabola removed from each")

@@ -40,7 +40,7 @@ from ..fit import (parse_weights, EvaluationCache, Evaluator, MisfitSpec, centre
                    summary_lines)
 from ..io import atomic_output_dir, atomic_write_text, check_output_dir, read_surface
 from ..io import write_exr, write_json
-from ..processes import RANDOM_PART_KEYS, random_parts
+from ..processes import RANDOM_PART_KEYS, cut_name, random_parts
 from ..report import fit_figures, fit_page, key_unit
 from ..scene import scene_from_dict
 from ._fit_model import (FLOOR_DRAWS, LOCAL_THREADS, MARGIN_PX, ForwardModel, compute_all,
@@ -320,7 +320,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
                   "measured": {"path": str(measured), "shape": list(m.z.shape),
                                "pixel_mm": pixel, "reader": m.meta.get("reader"),
                                "format": m.meta.get("format")},
-                  "placement": placement, "scene": scene.name,
+                  "placement": placement, "scene": scene.name, "run_name": cut_name(scene),
                   "simulation": {"region_mm": sim_region, "pixel_mm": sim_pixel},
                   "cache": str(cache_dir),
                   "random_parts": {"held_at_zero_in_evaluations": random,

@@ -47,6 +47,8 @@ EDGE_KEYS = (r"tool\.nose_radius", r"tool\.edge_scale", r"tool\.included_angle_d
 #: most halvings of the interval between a start and a refused bound (they stop below a
 #: thousandth of the limit's sixth significant digit)
 _STEPS = 200
+#: the bisection stops once its interval is below this fraction of the sixth digit
+_FINER = 1e-3  # not a unit conversion
 
 
 def _edge_key(key: str) -> bool:
@@ -107,7 +109,7 @@ def edge_bounds(scene: Scene, params: Sequence[FreeParameter], given: dict
                                  f"({bad[0]}): narrow the bounds of those keys")
             ok, no = p.start, b
             for _ in range(_STEPS):
-                if abs(no - ok) <= 1e-3 * _quantum(ok, p.start):
+                if abs(no - ok) <= _FINER * _quantum(ok, p.start):
                     break
                 mid = 0.5 * (ok + no)
                 if refused(mid) is None:

@@ -46,7 +46,7 @@ from ..fit import (parse_weights, PROFILE_TERMS, EvaluationCache,
                    summary_lines)
 from ..io import (MeasuredProfile, atomic_output_dir, atomic_write_text, check_output_dir,
                   is_profile_file, read_profile, write_json)
-from ..processes import RANDOM_PART_KEYS, process_of, random_parts
+from ..processes import RANDOM_PART_KEYS, cut_name, process_of, random_parts
 from ..report import HtmlReport, fit_provenance_section, key_unit, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
@@ -373,7 +373,7 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
                                "spacing_mm": spacing},
                   "placement": {"method": "line", **win, "window_mm": n * spacing,
                                 "points": int(n), "registration_room_samples": int(lag)},
-                  "scene": scene.name,
+                  "scene": scene.name, "run_name": cut_name(scene),
                   "simulation": {"region_mm": sim_region, "pixel_mm": sim_pixel,
                                  "band_mm": fov},
                   "cache": str(cache_dir),
@@ -536,7 +536,7 @@ def profile_summary_lines(record: dict) -> list[str]:
 
 
 def _page(record: dict, png: bytes) -> str:
-    rep = HtmlReport("fit on a measured profile",
+    rep = HtmlReport(f"fit on a measured profile: {record.get('run_name') or record['scene']}",
                      f"{Path(record['measured']['path']).name}: window of "
                      f"{record['placement']['window_mm']:.4g} mm centred at "
                      f"({record['placement']['centre_on_part_mm'][0]:.4g}, "

@@ -46,9 +46,13 @@ def _merge(dst: dict, src: dict) -> None:
             dst[k] = v
 
 
-def _simulation_head(name: str, traits, seed, shape, pixel, origin, timing: dict,
+def _simulation_head(scene: Scene, traits, seed, shape, pixel, origin, timing: dict,
                      residual: dict) -> dict:
-    return {"software_version": __version__, "scene_name": name, "process": traits.name,
+    # (imported here: the commands that write no simulation, analyze, load no process)
+    from ..processes import cut_name
+
+    return {"software_version": __version__, "scene_name": scene.name,
+            "run_name": cut_name(scene), "process": traits.name,
             "compensation": traits.compensation, "seed": seed,
             "samples": int(shape[0] * shape[1]),
             "grid": {"shape": [int(shape[0]), int(shape[1])], "pixel_mm": float(pixel),
@@ -63,13 +67,14 @@ def _program_facts(m: dict, plan) -> None:
 
 def simulation_metrics(scene: Scene, sim: Any) -> dict:
     """``metrics.json`` of one simulation (:class:`~render_inspect.pipeline.Simulation`):
-    ``software_version``, ``scene_name``, ``process``, ``compensation``, ``seed``,
+    ``software_version``, ``scene_name``, ``run_name`` (what the titles call the cut:
+    :func:`~render_inspect.processes.cut_name`), ``process``, ``compensation``, ``seed``,
     ``samples``, ``grid``, ``timing_s`` (``toolpath``, ``simulate``, ...), ``residual``
     (``Sa_nm, Sq_nm, Sz_nm, Sp_nm, Sv_nm, min_nm``, ...), ``toolpath`` (``points``,
     ``revolutions``, ``feed_per_rev_mm``, kinematics), the process's own facts and, for
     lenslet designs, ``lenslets`` (and ``msa`` for an array on a base)."""
     hm = sim.heightmap
-    m = _simulation_head(scene.name, sim.traits, scene.simulation.seed, hm.shape, hm.pixel,
+    m = _simulation_head(scene, sim.traits, scene.simulation.seed, hm.shape, hm.pixel,
                          hm.origin, sim.timing_s, residual_metrics(hm))
     _program_facts(m, sim.plan)
     _merge(m, sim.cut.facts)
@@ -87,7 +92,7 @@ def tiled_metrics(scene: Scene, plan: Plan, traits: Traits, residual: dict, shap
     ``residual`` reduced across tiles (:func:`~render_inspect.machining.metrics_from_moments`)
     and the cut's ``facts`` (the machine, its following error, the material) summed over
     them."""
-    m = _simulation_head(scene.name, traits, scene.simulation.seed, shape,
+    m = _simulation_head(scene, traits, scene.simulation.seed, shape,
                          scene.simulation.pixel, origin, timing, residual)
     _program_facts(m, plan)
     _merge(m, facts or {})
@@ -116,6 +121,9 @@ def comparison_metrics(scene: Scene, *, pair: VariantPair, variants: Sequence[An
     the difference, the filters, the windows, the render settings and the measured file's
     comparison."""
     a, b = variants
+    # (imported here, as in _simulation_head)
+    from ..processes import cut_name
+
     metrics: dict[str, Any] = {
         "variants": [{"name": v.name, "label": v.label, "values": pv.values}
                      for v, pv in zip(variants, pair.variants)],
@@ -127,7 +135,7 @@ def comparison_metrics(scene: Scene, *, pair: VariantPair, variants: Sequence[An
         "windows": windows,
         "software_version": __version__, "seed": seed,
         "mitsuba_variant": mitsuba_variant,
-        "scene": scene.to_dict(),
+        "scene": scene.to_dict(), "run_name": cut_name(scene),
         "render_settings": render_settings,
     }
     if "lenslets" in metrics[a.name]:

@@ -24,7 +24,7 @@ from ..design import Surface, make_surface
 from ..io import atomic_write_text, export_program, heightmap_overview, writer
 from ..machining import design_grid
 from ..metrology import lenslet_facts
-from ..processes import Cut, Plan, Traits, check_budget, process_of
+from ..processes import Cut, Plan, Traits, check_budget, cut_name, process_of
 from ..report import draw_figure, preload_drawing, residual_preview_image, residual_preview_png, uses_matplotlib
 from ._figure_process import FigureProcess
 from ._metrics import simulation_metrics, write_metrics
@@ -253,7 +253,7 @@ def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = Tr
             r = metrics["residual"]
             written("residual.png", residual_preview_png, out_dir / "residual.png", hm.machined,
                     hm.design, extent=hm.extent, mean_nm=r["mean_nm"],
-                    title=residual_title(scene.name, sim.traits, r), overview=overview)
+                    title=residual_title(cut_name(scene), sim.traits, r), overview=overview)
             for name, spec in sim.figures.items():
                 written(name, draw_figure, spec, out_dir / name)
 
@@ -275,7 +275,7 @@ def write_simulation(sim: Simulation, out_dir: str | Path, *, preview: bool = Tr
             img, factor = residual_preview_image(hm.machined, hm.design, overview=overview)
             drawer.residual("residual.png", out_dir / "residual.png", img, factor,
                             extent=hm.extent, mean_nm=r["mean_nm"],
-                            title=residual_title(scene.name, sim.traits, r))
+                            title=residual_title(cut_name(scene), sim.traits, r))
             files()
 
             def done(name: str) -> None:

@@ -25,7 +25,7 @@ from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_he
                   export_program, grid_attrs, level_count, set_store_attrs, chunk_files)
 from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_moments, plan_tiles,
                          prepare_cut, prepare_envelope, tiled_bytes)
-from ..processes import check_budget, map_figure_stride, process_of
+from ..processes import check_budget, cut_name, map_figure_stride, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
 from ._figure_process import FigureProcess
@@ -347,7 +347,7 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         extent = (origin[0] + gx[0] - sim.pixel / 2, origin[0] + gx[-1] + sim.pixel / 2,
                   origin[1] + gy[0] - sim.pixel / 2, origin[1] + gy[-1] + sim.pixel / 2)
         timed(tw, "residual.png", residual_png, tmp / "residual.png", img, 2 ** k, extent=extent,
-              mean_nm=residual["mean_nm"], title=residual_title(scene.name, traits, residual))
+              mean_nm=residual["mean_nm"], title=residual_title(cut_name(scene), traits, residual))
         for name, spec in {**plan.plots, **cut_plots}.items():
             timed(tw, name, draw_figure, spec, tmp / name)
         timing["write"] = tw

@@ -60,7 +60,7 @@ from ..io import (
     claim_output_dir, discarding_new_folder,
     write_json,
 )
-from ..processes import check_budget, process_of
+from ..processes import check_budget, cut_name, process_of
 from ..scene import Scene, find_scene, load_scene, scene_from_dict, scene_sections
 from ..report import morris_png, save_map_png, sweep_plot_png
 from ._compare import run_compare
@@ -194,7 +194,7 @@ def _residual_png(sim, path: Path) -> None:
     r = sim.metrics["residual"]
     save_map_png(path, (hm.residual - r["mean_nm"] / MM_TO_NM) * MM_TO_NM, extent=hm.extent,
                  cmap="RdBu_r", symmetric=True, label="machined - design (nm)",
-                 title=residual_title(scene.name, sim.traits, r))
+                 title=residual_title(cut_name(scene), sim.traits, r))
 
 
 def _point_outputs(scene: Scene, folder: Path, run: dict) -> dict:

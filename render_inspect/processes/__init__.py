@@ -39,7 +39,7 @@ from ._sculpt import SculptProcessConfig, VibrationConfig, lattice_lines
 from ._settings import (RANDOM_PART_KEYS, machine_settings, material_settings, preset_settings,
                         random_parts)
 from ._servo import ServoProcessConfig
-from ._program import (feed_over_radii, feed_per_rev, feed_per_rev_table, findings_summary, fit_paraboloid,
+from ._program import (cut_name, feed_over_radii, feed_per_rev, feed_per_rev_table, findings_summary, fit_paraboloid,
                        program_checks)
 from ._sts import StsProcessConfig
 from ._turning import (
@@ -76,4 +76,5 @@ __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", 
            "turn", "map_figure_stride", "rcse_comparison", "lattice_lines", "compensation_variants",
            "toolpath_facts", "plan_spiral", "machine_settings", "material_settings",
            "preset_settings", "random_parts", "RANDOM_PART_KEYS", "fit_paraboloid",
-           "program_checks", "feed_over_radii", "feed_per_rev", "feed_per_rev_table", "findings_summary"]
+           "program_checks", "feed_over_radii", "feed_per_rev", "feed_per_rev_table", "findings_summary",
+           "cut_name"]

@@ -53,6 +53,7 @@ from ..toolpath import Tool, scallop_height
 from ._contract import Inputs, section
 from ._edge_facts import edge_facts
 from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
+from ._program import cut_name
 from ._registry import register_section
 from ._settings import machine_settings
 from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
@@ -300,7 +301,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
     # is cut (core.handoff); they stay in the cut's plots too
     error_figures = plots and not fp.ideal
     if error_figures:
-        figs.update(following_error_series_plot(fp, name=cfg.name))
+        figs.update(following_error_series_plot(fp, name=cut_name(cfg)))
         hand_over(figs)
     t0 = time.perf_counter()
     design_out = None
@@ -313,7 +314,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
             stride = map_figure_stride(grid_shape(region, sim.pixel))
             error_map = following_error_map_plot(
                 fp, pass_angle_map(cut_path, region, sim.pixel, stride=stride), region,
-                sim.pixel * stride, name=cfg.name)
+                sim.pixel * stride, name=cut_name(cfg))
             figs.update(error_map)
             hand_over(error_map)
     else:
@@ -326,7 +327,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         maps = None
         pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added")
         if error_figures:
-            error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cfg.name)
+            error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cut_name(cfg))
             figs.update(error_map)
             hand_over(error_map)
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
@@ -376,7 +377,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
             figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
     if tool.edge is not None:
         facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
-                                                   design, region, sim.pixel, name=cfg.name)
+                                                   design, region, sim.pixel, name=cut_name(cfg))
         if plots:
             figs.update(edge_figs)
     return Turned(machined=machined, design=design, timing=timing, facts=facts,

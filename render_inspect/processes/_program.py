@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("render_inspect")
 
 __all__ = ["imported_path", "imported_linear", "program_checks", "feed_per_rev_table", "fit_paraboloid", "findings_summary",
-           "feed_per_rev", "feed_over_radii", "FINDING_TOLERANCE_MM", "feed_per_rev_figure"]
+           "feed_per_rev", "feed_over_radii", "FINDING_TOLERANCE_MM", "feed_per_rev_figure", "cut_name"]
 
 #: what a program read from a file can change where its blocks come too fast
 FILE_ADVICE = "write the program with fewer, longer blocks or at a lower feed"
@@ -51,6 +51,15 @@ _EXAMPLES = 5
 def program_path(cfg: Any) -> str | None:
     """The scene's ``process.program`` (None: the process plans its own)."""
     return getattr(cfg.process, "program", None)
+
+
+def cut_name(scene: Any) -> str:
+    """What the outputs' titles and headings call a cut: the scene's name, and where the
+    path cut is a machine program read from a file (``process.program``, ``--program``)
+    the program's file name too: ``"sts_sinusoidal_grid, program part.nc"``.  ``scene``:
+    a scene or a process's inputs (anything with ``name`` and ``process``)."""
+    program = getattr(getattr(scene, "process", None), "program", None)
+    return f"{scene.name}, program {Path(str(program)).name}" if program else str(scene.name)
 
 
 def imported_path(cfg: Any, surface: Any, *, region: Sequence[float] | None = None) -> ToolPath:

@@ -38,6 +38,7 @@ from ..design import Surface
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._mechanics import Turned, TurningInputs, follow, turn
 from ._machine import ProcessScene
+from ._program import cut_name
 from ._registry import register_process, register_section
 from ._turning import TiledTurningProcess, TurningProcessConfig, toolpath_facts, turning_traits
 
@@ -310,7 +311,7 @@ def _comparison_plots(cfg, rcse_path, conv_path) -> dict:
                 "title": "X-axis motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"},
             "kinematics.png": {
                 "kind": "axes", "columns": [(labels[0], rcse_path, {}), (labels[1], conv_path, {})],
-                "axes": ("X",), "title": f"{cfg.name}: X motion, RCSE vs conventional",
+                "axes": ("X",), "title": f"{cut_name(cfg)}: X motion, RCSE vs conventional",
                 "pair": True,
                 "pair_title": "X motion: RCSE vs conventional (the RCSE study, Figs. 8-9)"}}
 

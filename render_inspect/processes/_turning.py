@@ -45,7 +45,7 @@ from ..toolpath import (
 from ._contract import Cut, Envelope, Plan, Process, Traits, Variant, VariantPair
 from ._edge_facts import check_edge_and_wear, edge_facts_tiled, edge_figure_tiled
 from ._machine import ProcessScene, machine_of, material_of
-from ._program import feed_per_rev_figure, imported_path, program_checks, program_path
+from ._program import cut_name, feed_per_rev_figure, imported_path, program_checks, program_path
 from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
@@ -433,7 +433,7 @@ class TurningProcess(Process[TurningInputs]):
         caller has them."""
         extra = {}
         if program_path(cfg):
-            extra["feed_per_rev.png"] = feed_per_rev_figure(path, cfg.name)
+            extra["feed_per_rev.png"] = feed_per_rev_figure(path, cut_name(cfg))
         # the axes' derivatives taken here, where the compiled kernels are loaded (the
         # figure is drawn from them by the command's figure process, which need not start
         # numba for it)
@@ -443,7 +443,7 @@ class TurningProcess(Process[TurningInputs]):
         return {**extra, "kinematics.png": {"kind": "axes",
                                    "columns": [(f"{cfg.process.kind.upper()} program", path,
                                                 data)],
-                                   "title": f"{cfg.name}: the axes that move"}}
+                                   "title": f"{cut_name(cfg)}: the axes that move"}}
 
     def plan_window(self, cfg: TurningInputs, surface: Any, region: Sequence[float]) -> Plan:
         """The spiral planned in full only over the sectors that reach ``region``
@@ -577,7 +577,7 @@ class TiledTurningProcess(TurningProcess):
         if env.followed is not None and "pass_theta" in cut:
             sim = cfg.simulation
             plots.update(following_error_plots(env.followed, cut["pass_theta"], tuple(sim.region),
-                                               sim.pixel * stride, name=cfg.name))
+                                               sim.pixel * stride, name=cut_name(cfg)))
         tool = Tool.from_config(cfg.tool)
         if tool.edge is not None and "residual" in cut:  # the whole map's tool_edge facts
             sim = cfg.simulation
@@ -585,7 +585,7 @@ class TiledTurningProcess(TurningProcess):
                                                   cfg.design, tuple(sim.region), sim.pixel, cut["residual"])
             if "residual_row" in cut:  # and its figure, from the stored residual's middle row
                 plots.update(edge_figure_tiled(tool, cfg.design, tuple(sim.region), sim.pixel,
-                                               facts["tool_edge"], cut["residual_row"], name=cfg.name))
+                                               facts["tool_edge"], cut["residual_row"], name=cut_name(cfg)))
         return facts, plots
 
     def tiled_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> tuple[int, int]:

@@ -15,6 +15,7 @@ from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_M, MM_TO_NM, NM_TO_MM
 from ..machining import (MM_PER_KM, SPEED_LAW, MaterialResponse, chemical_distance_km,
                          spiral_distance_km, wear_rate, wear_state, worn_path)
+from ._program import cut_name
 
 __all__ = ["wear_path", "roughness_against_radius", "wear_figure", "sculpt_wear", "worn_h_min",
            "WEAR_BANDS"]
@@ -115,7 +116,7 @@ def wear_figure(cfg: Any, wear: dict) -> dict:
     return {"kind": "tool_wear", "r_mm": r, "edge_radius_nm": st["edge_radius_nm"], "flank_um": st["flank_um"],
             "recession_nm": st["recession_nm"],
             "ring_r_mm": [b["radius_mm"] for b in rings], "ring_sa_nm": [b["Sa_nm"] for b in rings],
-            "title": f"{cfg.name}: the edge worn along the cut ({cfg.material.preset}, rates "
+            "title": f"{cut_name(cfg)}: the edge worn along the cut ({cfg.material.preset}, rates "
                      f"{'assumed' if rate.basis == 'A' else 'sourced'})"}
 
 

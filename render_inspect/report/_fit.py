@@ -117,7 +117,7 @@ def _prediction_section(rep: HtmlReport, pr: dict) -> None:
 
 def fit_page(record: dict, figs: dict) -> str:
     """``fit.html``: the fitted values, correlations, misfit, provenance and figures."""
-    rep = HtmlReport(f"render-inspect fit: {record.get('scene', '')}",
+    rep = HtmlReport(f"render-inspect fit: {record.get('run_name') or record.get('scene', '')}",
                      f"{record['measured']['path']}: {len(record['parameters'])} parameters, "
                      f"{record['evaluations']} evaluations, status {record['status']}")
     rep.section("Status")

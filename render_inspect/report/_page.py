@@ -211,7 +211,8 @@ def build_page(scene: ReportedScene, metrics: dict, figs: dict, *, notes: Iterab
     c, u = metrics[va], metrics[vb]
     pair = metrics.get("pair", {})
     mf = metrics.get("measured_file")
-    rep = HtmlReport(f"render_inspect comparison: {scene.name}",
+    # (the scene's name, with the program's file where the cut is a program read from one)
+    rep = HtmlReport(f"render_inspect comparison: {metrics.get('run_name') or scene.name}",
                      f"{scene.description or scene.design.type} | {va}: {la} vs {vb}: {lb} | seed "
                      f"{metrics['seed']} | Mitsuba {_variants_text(metrics)} | render_inspect "
                      f"{metrics['software_version']}")
