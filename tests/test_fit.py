@@ -398,15 +398,15 @@ def quiet_tool_truth(tmp_path_factory):
 def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, tmp_path):
     """Nose radius 0.525 mm and feed 0.51 mm/min (the shipped scene: 0.514, 0.5), the
     random parts set to 0 in truth and model, fitted through the command line from the
-    shipped values; the next cut at another feed is predicted; run again, the fit comes
-    from its cache.  (No Sobol design: the start the marks propose is the best candidate
+    shipped values; the next cut at another feed is predicted (without its uncertainty:
+    --no-prediction-uncertainty); run again, the fit comes from its cache.  (No Sobol design: the start the marks propose is the best candidate
     with or without one, so the solve is the same; the global search has its own test.)"""
     args = ["fit", str(quiet_tool_truth), "--scene", "sts_sinusoidal_grid", "--free",
             "tool.nose_radius,process.feed_mm_per_min", "--seed", "1", "--profile-points", "1",
             "--global", "0", "--cache", str(tmp_path / "cache"),
             "--window", str(TOOL_WINDOW), *[f"--set={s}" for s in QUIET]]
     assert main([*args, "--predict", "process.feed_mm_per_min=0.4",
-                 "--out", str(tmp_path / "fit")]) == 0
+                 "--no-prediction-uncertainty", "--out", str(tmp_path / "fit")]) == 0
     rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
     p = rec["parameters"]
     assert p["tool.nose_radius"]["value"] == pytest.approx(0.525, rel=0.01)
@@ -425,6 +425,8 @@ def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, 
         assert (tmp_path / "fit" / f).is_file(), f
     pred = json.loads((tmp_path / "fit" / "predict" / "metrics.json").read_text())
     assert pred["toolpath"]["feed_per_rev_mm"] == pytest.approx(0.4 / 50)
+    assert rec["prediction"]["uncertainty"] is None and rec["prediction"]["uncertainty_skipped"]
+    assert "--no-prediction-uncertainty" in pred["prediction"]["no_uncertainty"]
     fitted = json.loads((tmp_path / "fit" / "scene.json").read_text())
     assert fitted["tool"]["nose_radius"] == p["tool.nose_radius"]["value"]
     # resumed: every evaluation from the cache, the same values

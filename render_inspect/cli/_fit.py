@@ -68,8 +68,14 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--predict", action="extend", nargs="+", default=[], metavar="KEY=VALUE",
                    help="after the fit, simulate the fitted scene with KEY=VALUE (TOML value) "
                         "into DIR/predict, e.g. --predict process.feed_mm_per_min=0.4; the fit's "
-                        "uncertainty is carried to it by 2 simulations per fitted key "
-                        "(outside --max-evaluations)")
+                        "uncertainty is carried to it by 2 more predictions per fitted key "
+                        "(outside --max-evaluations). Its numbers are means over 4 positions "
+                        "of the fit window across the marks (docs/fit.md)")
+    p.add_argument("--no-prediction-uncertainty", dest="prediction_uncertainty",
+                   action="store_false",
+                   help="with --predict: skip the simulations that carry the fit's "
+                        "uncertainty to the prediction (its numbers then carry none, and "
+                        "the summary and fit.json say it was not computed)")
     _add_set_arg(p, help="override a scene key before fitting (TOML value syntax)")
     _add_program_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual camera's noise and "
@@ -110,11 +116,15 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
     for opt, v in (("--units", args.units), ("--line", args.line), ("--arms", args.arms)):
         if v is not None:
             raise InputError(f"{opt} is for a measured profile; {args.measured!r} is a map")
+    if not args.prediction_uncertainty and not args.predict:
+        raise InputError("--no-prediction-uncertainty is for --predict: no prediction was "
+                         "asked for (add --predict KEY=VALUE)")
     return pipeline.run_fit(
         args.measured, scene, args.free, args.out,
         bounds=args.bounds, objective=args.objective, at=args.at, window_mm=args.window,
         form=args.form, weights=args.weights, workers=args.workers,
-        scheduler=args.scheduler, predict=args.predict, seed=args.seed,
+        scheduler=args.scheduler, predict=args.predict,
+        predict_uncertainty=args.prediction_uncertainty, seed=args.seed,
         global_points=args.global_points, max_evaluations=args.max_evaluations,
         profile_points=args.profile_points, cache=args.cache, overwrite=overwrite,
         scene_file=find_scene(args.scene))
@@ -123,7 +133,8 @@ def _fit(args: argparse.Namespace, overwrite: bool) -> dict:
 def _fit_profile(args: argparse.Namespace, overwrite: bool, pipeline: Any, scene: Scene,
                  scene_file: Any) -> dict:
     """``fit`` of a measured profile: the options that are for maps only are refused."""
-    for opt, v, default in (("--predict", args.predict, []), ("--form", args.form, "plane")):
+    for opt, v, default in (("--predict", args.predict, []), ("--form", args.form, "plane"),
+                            ("--no-prediction-uncertainty", args.prediction_uncertainty, True)):
         if v != default:
             raise InputError(f"{opt} is for a measured map; {args.measured!r} is a profile (its "
                              f"parabola over the fitted window is removed)")

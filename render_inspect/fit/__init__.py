@@ -17,7 +17,9 @@ import of the simulation itself (``render_inspect.pipeline`` chains it).
   describes the measurement at all (:mod:`._checks`);
 * :func:`fit_record`: the content of ``fit.json`` (:mod:`._result`);
 * :func:`plan_propagation`, :func:`combine_propagation`: the fit's uncertainty carried to a
-  prediction made with the fitted values (:mod:`._propagate`);
+  prediction made with the fitted values (:mod:`._propagate`), over the window
+  :func:`prediction_window` gives, its numbers averaged over where the marks fall in it
+  (:func:`phase_average`, :mod:`._predict_window`);
 * :class:`ProfileSpec`, :func:`make_profile_target`, :func:`profile_family`: the same
   for a measured profile (:mod:`._profile`), and both arms of a diameter slice together
   (:class:`ArmsTarget`, :func:`arm_estimates`, :func:`combine_arms`: :mod:`._arms`).
@@ -46,6 +48,8 @@ from ._solve import UNRESOLVED, FitResult, solve
 from ._uncertainty import identifiability, realisation_shifts, search_box
 
 from ._weights import check_weights, parse_weights
+from ._predict_window import (MIN_PERIODS, PHASES, PredictionWindow, phase_average,
+                              prediction_window)
 from ._propagate import (COVERAGE_FACTOR, PREDICTED_QUANTITIES, Propagation, SigmaPoint,
                          combine_propagation, plan_propagation, prediction_lines)
 
@@ -65,4 +69,5 @@ __all__ = ["check_weights", "parse_weights",
            "arm_estimates", "arm_evaluations", "arms_text", "combine_arms", "set_arms_noise_floor",
            "ArmsPrediction", "arms_features", "amplitude_scan", "set_profile_psd",
            "COVERAGE_FACTOR", "PREDICTED_QUANTITIES", "Propagation", "SigmaPoint",
-           "combine_propagation", "plan_propagation", "prediction_lines"]
+           "combine_propagation", "plan_propagation", "prediction_lines", "MIN_PERIODS",
+           "PHASES", "PredictionWindow", "phase_average", "prediction_window"]

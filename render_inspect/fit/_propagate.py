@@ -18,9 +18,11 @@ order) and c_i = (y+ + y- - 2 y0) / 2 the second-order coefficient; then
 second derivatives between directions are not sampled) and sum c_i is the second-order
 shift of the number's mean from its value at the fitted values.  A number whose second-order
 part outweighs its first (``smooth`` false) is not linear in the keys over +-1 s: a number
-that jumps with small changes of the keys (a simulated window's roughness can) reads so, and
-its u is then a rough one.  Only the parameters' uncertainty is carried: the model's own
-error (what it leaves out) is not in it.
+that jumps with small changes of the keys (a window's extreme, Sz, can) reads so, and its u
+is then a rough one.  Each point's numbers are the prediction window's, averaged over its
+positions across the marks as the prediction's are (:mod:`._predict_window`).  Only the
+parameters' uncertainty is carried: the model's own error (what it leaves out) is not in
+it.
 """
 
 from __future__ import annotations
@@ -52,11 +54,12 @@ BOUND_SHARE = 0.5
 #: the method, as fit.json and metrics.json state it
 METHOD = ("law of propagation of uncertainty (GUM, JCGM 100:2008 5.1.2 and 5.2) with the "
           "fitted keys' covariance: u^2 = sum d_i^2 + 2 sum c_i^2, d_i = (y+ - y-) / 2 and "
-          "c_i = (y+ + y- - 2 y0) / 2 from simulations at +-1 standard deviation along "
-          "the covariance's eigen-directions (2 n + 1 simulations of the prediction over the "
-          "same window and pixel, every one with the scene's seed of the random parts, so "
-          "that their differences are the parameters', not another realisation's); the "
-          "parameters' uncertainty only, not the model's own error")
+          "c_i = (y+ + y- - 2 y0) / 2 from predictions at +-1 standard deviation along "
+          "the covariance's eigen-directions (2 n + 1 points, each simulated over the same "
+          "window positions and pixel and averaged over the positions as the prediction is, "
+          "every simulation with the scene's seed of the random parts, so that their "
+          "differences are the parameters', not another realisation's); the parameters' "
+          "uncertainty only, not the model's own error")
 
 
 @dataclass
@@ -190,14 +193,15 @@ def _lookup(metrics: dict, path: str) -> float | None:
 
 def combine_propagation(prop: Propagation, centre: dict, at_points: Sequence[dict | None],
                         *, seed: Any = None,
-                        unit: Callable[[str], str] | None = None) -> dict:
+                        unit: Callable[[str], str] | None = None, positions: int = 1) -> dict:
     """The uncertainty of each of :data:`PREDICTED_QUANTITIES` from the metrics of the
     prediction at the fitted values (``centre``) and at each of ``prop.points``
     (``at_points``, in order; None where that simulation failed): ``{"method", "seed",
     "simulations", "keys", "without", "complete", "quantities": {path: {"label", "unit",
     "value", "u", "U", "coverage_factor", "second_order_shift", "per_key": {key:
     {"sensitivity", "alone"}}}}, "directions": [...]}``.  ``unit`` gives a key's unit for
-    the sensitivities (value unit per key unit)."""
+    the sensitivities (value unit per key unit); ``positions``: the simulations behind each
+    point's metrics (the prediction window's positions), for the count."""
     by_dir: dict[int, dict[int, tuple[float, dict | None]]] = {}
     for pt, m in zip(prop.points, at_points):
         by_dir.setdefault(pt.direction, {})[pt.side] = (pt.step, m)
@@ -249,7 +253,9 @@ def combine_propagation(prop: Propagation, centre: dict, at_points: Sequence[dic
                                  {p: _lookup(m, p) for p, _, _ in PREDICTED_QUANTITIES})
                                 for s, (_, m) in sides.items()},
                      "failed": i in failed})
-    return {"method": METHOD, "seed": seed, "simulations": 1 + len(prop.points),
+    return {"method": METHOD, "seed": seed, "points": 1 + len(prop.points),
+            "window_positions": int(positions),
+            "simulations": (1 + len(prop.points)) * int(positions),
             "coverage_factor": COVERAGE_FACTOR,
             "keys": list(prop.keys),
             "stderr": dict(prop.stderr),
@@ -266,38 +272,62 @@ def _fmt(v: float | None) -> str:
     return "n/a" if v is None else f"{v:.4g}"
 
 
+def _simulations(unc: dict) -> str:
+    positions = int(unc.get("window_positions", 1))
+    if positions <= 1:
+        return f"{unc['simulations']} simulations"
+    return (f"{unc.get('points', unc['simulations'] // positions)} points x {positions} window "
+            f"positions = {unc['simulations']} simulations")
+
+
+def _spread(prediction: dict, path: str, qunit: str) -> str:
+    s = (prediction.get("window_spread") or {}).get(path)
+    return "" if s is None else f"; over where the marks fall in the window: +- {_fmt(s)} {qunit}"
+
+
 def prediction_lines(prediction: dict) -> list[str]:
     """The prediction's summary in words: whether it is backed by a fit that describes the
-    measurement, each headline number with its standard uncertainty (k = 1) and the
-    expanded one (k = 2), the keys that carry none and why."""
+    measurement, the window it was simulated over, each headline number with its standard
+    uncertainty (k = 1) and the expanded one (k = 2) and its spread over where the marks
+    fall in the window, the keys that carry none and why (or that the uncertainty was not
+    computed)."""
     settings = ", ".join(prediction.get("settings", []))
     lines = []
     if not prediction.get("measurement_backed", True):
         lines.append(f"prediction ({settings}): NOT a measurement-backed forecast: "
                      f"{prediction.get('note', '')}")
+    window = (["  " + prediction["window"]["description"]]
+              if (prediction.get("window") or {}).get("description") else [])
     unc = prediction.get("uncertainty")
     if unc is None:
-        lines.append(f"prediction ({settings}): no uncertainty: "
-                     f"{prediction.get('no_uncertainty', '')}")
+        skipped = bool(prediction.get("uncertainty_skipped"))
+        lines.append(f"prediction ({settings}): "
+                     + ("uncertainty not computed: " if skipped else "no uncertainty: ")
+                     + f"{prediction.get('no_uncertainty', '')}")
+        lines += window
         for path, qunit, label in PREDICTED_QUANTITIES:
             v = (prediction.get("values") or {}).get(path)
             if v is not None:
-                lines.append(f"  {label} = {_fmt(v)} {qunit} (uncertainty not known)")
+                lines.append(f"  {label} = {_fmt(v)} {qunit} (uncertainty "
+                             f"{'not computed' if skipped else 'not known'}"
+                             f"{_spread(prediction, path, qunit)})")
         return lines
     lines.append(f"prediction ({settings}), the fitted keys' uncertainty propagated "
-                 f"({', '.join(unc['keys'])}; {unc['simulations']} simulations, seed "
+                 f"({', '.join(unc['keys'])}; {_simulations(unc)}, seed "
                  f"{unc.get('seed')} in each; outside --max-evaluations):")
-    for q in unc["quantities"].values():
+    lines += window
+    for path, q in unc["quantities"].items():
+        spread = _spread(prediction, path, q["unit"])
         if q["u"] is None:
             lines.append(f"  {q['label']} = {_fmt(q['value'])} {q['unit']} (uncertainty not "
-                         f"known: a simulation failed)")
+                         f"known: a simulation failed{spread})")
             continue
         rough = ("" if q.get("smooth", True) else
                  f"; not linear in the keys over +-1 standard error (first order alone +- "
                  f"{_fmt(q['u_first_order'])}): a rough figure")
         lines.append(f"  {q['label']} = {_fmt(q['value'])} +- {_fmt(q['u'])} {q['unit']} "
                      f"(standard uncertainty, k=1; k={COVERAGE_FACTOR:g}: +- {_fmt(q['U'])} "
-                     f"{q['unit']}{rough})")
+                     f"{q['unit']}{rough}{spread})")
     for k, why in unc.get("without", {}).items():
         lines.append(f"  without the uncertainty of {k}: {why}")
     lines.append("  (the parameters' uncertainty only: the model's own error is not in it)")

@@ -90,7 +90,7 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
             at: Any = None, window_mm: float = 0.2, form: str = "plane",
             weights: Iterable[str] | None = None,
             workers: int | None = None, scheduler: str | None = None, predict: Iterable[str] = (),
-            seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
+            predict_uncertainty: bool = True, seed: int = 0, global_points: int = 8, max_evaluations: int = 150,
             profile_points: int = 3, cache: str | Path | None = None,
             overwrite: bool = False, scene_file: str | Path | None = None) -> dict:
     """``render-inspect fit MEASURED --scene SCENE --free KEY,... --out DIR``.
@@ -129,6 +129,9 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
         cluster at ``scheduler`` (default: in this process).
     predict : list of "KEY=VALUE"
         After the fit, simulate the fitted scene with these changes into ``predict/``.
+    predict_uncertainty : bool
+        Carry the fit's uncertainty to the prediction (2 more predictions per fitted key);
+        False: the prediction carries none and says it was not computed.
     seed : int
         Seed of the virtual camera's noise and of the Sobol design.
     global_points : int
@@ -345,7 +348,8 @@ def run_fit(measured: Any, scene: Scene, free: Sequence[str], out: str | Path, *
         tmp = Path(tmp)
         if predict:
             record["prediction"] = predict_next_cut(tmp, fitted, predict, fill, window, record,
-                                                    _evaluation_pixel)
+                                                    _evaluation_pixel,
+                                                    uncertainty=predict_uncertainty)
         record["timing_s"]["total"] = time.perf_counter() - t_all
         record["files"] = {f: d for f, d in _file_notes().items()
                            if f != "predict/" or predict}

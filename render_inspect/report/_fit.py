@@ -90,23 +90,32 @@ def _prediction_section(rep: HtmlReport, pr: dict) -> None:
     if not pr.get("measurement_backed", True):
         rep.text(f"Not a measurement-backed forecast: {pr.get('note', '')}.")
     unc = pr.get("uncertainty")
+    window = (pr.get("window") or {}).get("description")
+    spread = pr.get("window_spread") or {}
     if unc is None:
-        rep.text(f"Settings {settings} on the fitted scene (files in {pr['folder']}/); no "
-                 f"uncertainty: {pr.get('no_uncertainty', '')}.")
+        rep.text(f"Settings {settings} on the fitted scene (files in {pr['folder']}/); "
+                 + ("uncertainty not computed" if pr.get("uncertainty_skipped")
+                    else "no uncertainty") + f": {pr.get('no_uncertainty', '')}.")
+        if window:
+            rep.text(window[0].upper() + window[1:] + ".")
         r = pr.get("residual") or {}
         rep.text(f"Residual Sq {_val(r.get('Sq_nm'))} nm, Sz {_val(r.get('Sz_nm'))} nm.")
         return
     rep.text(f"Settings {settings} on the fitted scene (files in {pr['folder']}/), with the "
              f"uncertainty of {', '.join(unc['keys'])} propagated ({unc['simulations']} "
              f"simulations, seed {unc.get('seed')} in each; {unc.get('budget', '')}).")
+    if window:
+        rep.text(window[0].upper() + window[1:] + ".")
     rows = []
-    for q in unc["quantities"].values():
+    for path, q in unc["quantities"].items():
         rows.append([q["label"], q["unit"], _val(q["value"]), _val(q["u"]), _val(q["U"]),
                      _val(q.get("u_first_order")), _val(q["second_order_shift"]),
-                     "yes" if q.get("smooth", True) else "no: a rough figure"])
+                     "yes" if q.get("smooth", True) else "no: a rough figure",
+                     _val(spread.get(path))])
     rep.table(rows, header=["", "unit", "predicted", "standard uncertainty (k=1)",
                             f"expanded (k={unc['coverage_factor']:g})", "first order alone",
-                            "second-order shift", "linear over +-1 SE"])
+                            "second-order shift", "linear over +-1 SE",
+                            "spread over where the marks fall"])
     notes = [f"without the uncertainty of {k}: {why}" for k, why in unc["without"].items()]
     rep.list(notes + ["Method: " + unc["method"] + ".",
                       "The second-order shift is how far the mean of the number over the "
