@@ -473,9 +473,10 @@ def test_round_trip_same_surface(tmp_path):
 
 
 def test_refused_programs_one_line(tmp_path):
-    down = _write(tmp_path, "down.nc", "".join(f"C{360 - k:.1f} X1.0 Z0\n" for k in range(10)))
-    with pytest.raises(InputError, match=r"down.nc:2: C decreases"):
-        read_program(down, part_radius=1.0)
+    # C turning round: up, then back by less than a revolution's wrap
+    back = _write(tmp_path, "back.nc", "".join(f"C{c:.1f} X1.0 Z0\n" for c in (0, 10, 20, 15)))
+    with pytest.raises(InputError, match=r"back.nc:4: C decreases by 5 deg .* whose C increases"):
+        read_program(back, part_radius=1.0)
     both = _write(tmp_path, "both.nc", "G01 X1 Y0 Z0 F10\nC10 X1 Y1 Z0\n")
     with pytest.raises(InputError, match=r"both.nc:2: a program with both Y and C"):
         read_program(both)

@@ -11,7 +11,15 @@ from . import trig
 from .errors import InputError
 
 __all__ = ["ToolPath", "LinearProgram", "Links", "Blocks", "ROLE_CUT", "ROLE_RAPID",
-           "ROLE_PLUNGE", "ROLE_RETRACT", "ROLE_NAMES"]
+           "ROLE_PLUNGE", "ROLE_RETRACT", "ROLE_NAMES", "SPINDLE_KEY", "turns_m04",
+           "part_angle", "path_from_part"]
+
+#: ``ToolPath.meta`` key whose value ``"M04"`` says the spindle turned counter-clockwise
+#: (absent: M03, the way every planned path turns).  ``theta`` is then the angle the
+#: spindle turned through (non-decreasing, as the cutting kernels need it) and the part's
+#: own angle of each point is ``-theta`` (:func:`part_angle`): the part is the mirror
+#: image (y -> -y) of the one the same path cuts turning M03.
+SPINDLE_KEY = "spindle_direction"
 
 
 @dataclass
@@ -67,6 +75,38 @@ class ToolPath:
     @property
     def revolutions(self) -> float:
         return float((self.theta[-1] - self.theta[0]) / (2 * np.pi)) if self.points else 0.0
+
+
+def turns_m04(path: object) -> bool:
+    """Whether the turning path ``path`` was cut with the spindle turning counter-clockwise
+    (M04, :data:`SPINDLE_KEY`)."""
+    meta = getattr(path, "meta", None)
+    return isinstance(meta, dict) and meta.get(SPINDLE_KEY) == "M04"
+
+
+def part_angle(path: ToolPath) -> np.ndarray:
+    """The part's own angle (rad) of each point of ``path``: ``theta``, or ``-theta`` where
+    the spindle turned M04 (:data:`SPINDLE_KEY`)."""
+    theta = np.asarray(path.theta, dtype=np.float64)
+    if not turns_m04(path):
+        return theta
+    out = np.negative(theta)
+    out += 0.0  # (-0.0 + 0.0 = +0.0: a start at angle 0 stays 0, not -0)
+    return out
+
+
+def path_from_part(angle: np.ndarray, rho: np.ndarray, z: np.ndarray, t: np.ndarray,
+                   meta: dict | None = None) -> ToolPath:
+    """The :class:`ToolPath` of points at the part's own angles ``angle`` (rad, as a file
+    writes them, :func:`part_angle`): angles that decrease (none increasing) are the
+    spindle turning M04 (:data:`SPINDLE_KEY`), read as ``theta = -angle``."""
+    a = np.asarray(angle, dtype=np.float64)
+    meta = dict(meta or {})
+    if a.size >= 2 and a[-1] < a[0] and not np.any(np.diff(a) > 0):
+        meta[SPINDLE_KEY] = "M04"
+        return ToolPath(-a, rho, z, t, meta)
+    meta.pop(SPINDLE_KEY, None)
+    return ToolPath(a, rho, z, t, meta)
 
 
 @dataclass

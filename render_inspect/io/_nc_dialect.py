@@ -24,7 +24,7 @@ from ..core.toolpath import (
     Links,
 )
 from ..core.units import MIN_TO_S
-from ..core.toolpath import ToolPath
+from ..core.toolpath import ToolPath, part_angle
 
 __all__ = ["nc_comment_text", "program_axes", "program_blocks", "created_utc", "CHUNK_ROWS",
            "UTF8_BOM", "TURNING_MODES", "LINEAR_MODES", "COMMENT_STYLES", "check_nc_style",
@@ -213,7 +213,7 @@ def program_axes(program: ToolPath | LinearProgram) -> dict:
     if isinstance(program, LinearProgram):
         return {"X": np.asarray(program.x, np.float64), "Y": np.asarray(program.y, np.float64),
                 "Z": np.asarray(program.z, np.float64)}
-    return {"C": np.degrees(np.asarray(program.theta, np.float64)),
+    return {"C": np.degrees(part_angle(program)),  # (the part's own C, as write_nc writes it)
             "X": np.asarray(program.rho, np.float64), "Z": np.asarray(program.z, np.float64)}
 
 
@@ -226,7 +226,7 @@ def program_blocks(program: ToolPath | LinearProgram, links: Links | None = None
     _check_links(links)
     if isinstance(program, LinearProgram):
         return _linear_blocks(program, links, feed_mm_per_min)
-    c = np.degrees(np.asarray(program.theta, dtype=np.float64))
+    c = np.degrees(part_angle(program))
     x = np.asarray(program.rho, dtype=np.float64)
     z = np.asarray(program.z, dtype=np.float64)
     t = np.asarray(program.t, dtype=np.float64)

@@ -21,6 +21,7 @@ from ..core.toolpath import (
     Blocks,
     LinearProgram,
     ToolPath,
+    path_from_part,
 )
 from ..core.units import MIN_TO_S
 from ._nc_dialect import (LINEAR_MODES, TURNING_MODES, _LINEAR_AXES, _SECTIONS, _TURN_AXES, _WORD,
@@ -426,8 +427,9 @@ def read_nc_lines(path: str | Path) -> tuple[ToolPath, np.ndarray]:
     t = t0 + np.concatenate([[0.0], np.cumsum(MIN_TO_S / f)])
     if "points" in meta and str(meta["points"]).isdigit() and int(meta["points"]) != idx.size:
         raise InputError(f"{path}: header says {meta['points']} points, the program has {idx.size}")
-    return (ToolPath(np.radians(b.axes["C"][idx]), b.axes["X"][idx].copy(), b.axes["Z"][idx].copy(),
-                     t, meta), lines[idx].astype(np.int64))
+    # C decreasing throughout: the spindle turned M04 (core.toolpath.path_from_part)
+    return (path_from_part(np.radians(b.axes["C"][idx]), b.axes["X"][idx].copy(),
+                           b.axes["Z"][idx].copy(), t, meta), lines[idx].astype(np.int64))
 
 
 def read_program_nc(path: str | Path) -> LinearProgram:

@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import __version__
 from ..core.errors import InputError
-from ..core.toolpath import ROLE_RAPID, LinearProgram, Links
+from ..core.toolpath import ROLE_RAPID, SPINDLE_KEY, LinearProgram, Links, part_angle
 from ..core.units import MIN_TO_S
 from ._atomic import atomic_write_stream
 from ._nc_format import format_linear_rows, format_turning_rows
@@ -44,7 +44,7 @@ __all__ = ["write_nc", "write_program_nc"]
 def _turning_header(header: dict | None, toolpath, links, comments: str) -> list[str]:
     info = {"software_version": __version__, "created_utc": created_utc()}
     meta = getattr(toolpath, "meta", {}) or {}
-    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm"):
+    for k in ("spindle_rpm", "compensation", "method", "feed_per_rev_mm", SPINDLE_KEY):
         if k in meta:
             info[k] = meta[k]
     if "nose_radius" in meta:
@@ -126,7 +126,8 @@ def write_nc(path: str | Path, toolpath: ToolPath, *, header: dict | None = None
         i = int(np.flatnonzero(~(dt > 0))[0])
         raise InputError(f"ToolPath.t must be strictly increasing to write inverse-time feeds; "
                          f"t[{i}] = {t[i]!r} s, t[{i + 1}] = {t[i + 1]!r} s")
-    c = np.degrees(np.asarray(toolpath.theta, dtype=np.float64))
+    # C: the part's own angle (decreasing where the spindle turned M04)
+    c = np.degrees(part_angle(toolpath))
     x = np.asarray(toolpath.rho, dtype=np.float64)
     z = np.asarray(toolpath.z, dtype=np.float64)
     for name, arr in (("theta", c), ("rho", x), ("z", z), ("t", t)):

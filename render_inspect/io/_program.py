@@ -12,7 +12,8 @@ Dialects (docs/programs.md):
 * lathe G-code: X-Z moves (``G00`` .. ``G03``) while the spindle turns (C follows from
   the spindle speed, ``S`` under ``G97`` or ``G96``), or C-X-Z moves of a slow tool servo,
   with ``G90``/``G91``, ``G93``/``G94``/``G95`` feeds, ``G20``/``G21`` and ``G70``/``G71``
-  units, ``U``/``W`` incremental words, comments, ``%``, ``O`` and ``N`` numbers;
+  units, ``U``/``W`` incremental words, comments, ``%``, ``O`` and ``N`` numbers; the
+  spindle's M03 / M04 / M05 (:mod:`~render_inspect.io._program_spindle`);
 * linear X-Y-Z programs of sculpturing / raster cutting.
 
 Position and angle words without a decimal point are whole mm / inches / degrees, or
@@ -34,15 +35,18 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.toolpath import LinearProgram, ToolPath
+from ..core.toolpath import SPINDLE_KEY, LinearProgram, ToolPath
 from ..core.units import MIN_TO_S, MM_TO_NM, M_TO_MM
 from ._nc_dialect import UTF8_BOM, LINEAR_TITLE, TURNING_TITLE, is_own_title
 from ._nc_parse import read_nc_lines, read_program_nc_lines
 from ._special import not_a_file
-from ._program_kernel import c_backward, c_move_times, feed_times, sample_moves, unwrap_c
+from ._program_angles import c_move_times, unwrap_c
+from ._program_kernel import feed_times, sample_moves
 from ._program_arcs import expand_arcs as _expand_arcs
 from ._program_integers import beyond_part_hint, check_integers, integers_facts
 from ._program_scan import ScannedProgram, scan_program
+from ._program_spindle import (HANDS, MIRROR, c_mode_note, c_way, own_spindle, spindle_of,
+                               stopped_sentence)
 
 __all__ = ["ImportedProgram", "read_program", "program_dialect", "RAPID_MM_PER_MIN",
            "ARC_TOLERANCE_MM", "X_MODES", "MAX_PROGRAM_POINTS"]
@@ -84,7 +88,8 @@ class ImportedProgram:
     inferred : dict
         What the program does not say and where it came from: name -> one sentence.
     facts : dict
-        Counts and modes (blocks, motion blocks, G and M codes, notes).
+        Counts and modes (blocks, motion blocks, G and M codes, notes; of a turning
+        program ``spindle_direction``, ``"M03"`` or ``"M04"``).
     """
 
     path: Path
@@ -171,8 +176,9 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
         prog, file_line = read_nc_lines(path)
         out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8), file_line,
                               {"x": "X is the radius (the project's own dialect)",
-                               "time": "time from the inverse-time F words (G93)"},
-                              {"points": prog.points})
+                               "time": "time from the inverse-time F words (G93)",
+                               **own_spindle(prog)}, {"points": prog.points})
+        out.facts[SPINDLE_KEY] = HANDS[4 if prog.meta.get(SPINDLE_KEY) == "M04" else 3]
     elif dialect == "render_inspect linear":
         prog, file_line = read_program_nc_lines(path)
         out = ImportedProgram(path, dialect, prog, np.ones(prog.points, np.int8), file_line,
@@ -289,6 +295,10 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         blk = span = rows[src]
         motion = sp.motion[blk]
     x, z = axes["X"], axes["Z"]
+    # M03 / M04 / M05: the spindle's direction while the program cuts, the moves it
+    # stands in (a program with C words turns C by its words)
+    spindle = None if has_c else spindle_of(sp, span, motion)
+    stopped = None if spindle is None else spindle.stopped
     fmode = sp.feed_mode[span]
     has_f = bool(np.isfinite(sp.feed).any())
     # without F words the modal feed is NaN throughout (a view: no copy per block)
@@ -324,6 +334,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         base, why = _held_rpm(held, s_prog, sp.clamp_rpm[span], x, base, float(spindle_rpm))
         inferred["spindle"] += why
     del held
+    if stopped is not None:  # M05: the spindle stands in those moves (rapids only)
+        base = np.where(stopped, 0.0, base)
 
     any_css = bool(css.any())
 
@@ -331,31 +343,36 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         """rpm of the moves ``i`` at radius ``r``."""
         if not any_css:
             return base[i]
-        return _css_rpm(s_prog[i], clampv[i], r, css[i], base[i])
+        v = _css_rpm(s_prog[i], clampv[i], r, css[i], base[i])
+        return v if stopped is None else np.where(stopped[i], 0.0, v)
 
     # ---- time of each move (from the point before)
     length = np.hypot(np.diff(x), np.diff(z))
+    down = False
     if has_c:
-        back = int(c_backward(axes["C"], _WRAP_DEG))
-        if back >= 0:
-            k = int(blk[1:][back])
-            c0, c1 = float(axes["C"][back]), float(axes["C"][back + 1])
-            raise InputError(f"{path}:{int(sp.line[k])}: C decreases by {c0 - c1:.6g} deg (C{c0:g} "
-                             f"to C{c1:g}): the spindle would turn backwards; C may step back "
-                             f"only to start a new revolution, by {_WRAP_DEG:g} deg or more "
-                             f"(C359.5 to C0)")
+        # C decreasing: the spindle turning the other way (as M04), read on as -C
+        down = c_way(axes["C"], sp, blk, _WRAP_DEG)
         # C wraps every revolution: each step taken modulo 360 where it falls, summed
         dc, c_cum, n_neg, first_neg = unwrap_c(axes["C"])
         if n_neg > dc.size // 2:
             k = int(blk[1:][first_neg])
-            raise InputError(f"{path}:{int(sp.line[k])}: C decreases (the spindle turns "
-                             f"backwards, M04); the reader takes programs whose C increases")
+            raise InputError(f"{path}:{int(sp.line[k])}: C steps back by {_WRAP_DEG:g} deg or "
+                             f"more in most of its moves: which way the spindle turns cannot be "
+                             f"told from C's wraps; write C in smaller steps")
         del axes["C"]  # C as written: its unwrapped sum is what the path needs
         if n_neg:
             inferred["c"] = (f"C wraps at 360 deg ({n_neg} times): it is read as "
                              f"turning on")
+        if down:
+            inferred["c"] = (inferred.get("c", "C") + (" ; " if n_neg else " ") +
+                             "decreases: the spindle turns the other way (as M04); " + MIRROR)
+        note = c_mode_note(sp.m_codes, down)
+        if note is not None:
+            sp.notes.append(note)
     else:
         dc = None
+        if spindle is not None and spindle.said:
+            inferred["spindle"] += spindle.said
     fm, fv, mo = fmode[1:], fval[1:], motion[1:]
     # one speed throughout without constant surface speed: a view of the moves' speeds
     rp = spin(0.5 * (x[1:] + x[:-1]), np.arange(1, x.size)) if any_css else base[1:]
@@ -398,6 +415,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         raise InputError(f"{path}:{int(sp.line[k])}: the move never ends: the feed in force "
                          f"is 0 (F must be > 0, or the spindle speed > 0 under G95)")
     del endless
+    if stopped is not None:  # the time the spindle stands, and how it is counted
+        inferred["spindle"] += stopped_sentence(stopped[1:], dt, sp.line[blk[1:][stopped[1:]]])
     zero = ~(dt > 0)
     any_zero = bool(zero.any())
     if any_zero:  # points the tool does not leave (a repeated block)
@@ -412,6 +431,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
         sel = np.flatnonzero(keep)
         x, z, blk, motion, dt_k = x[sel], z[sel], blk[sel], motion[sel], dt[sel[1:] - 1]
         s_prog, css, clampv, base = s_prog[sel], css[sel], clampv[sel], base[sel]
+        if stopped is not None:
+            stopped = stopped[sel]
         if has_c:
             c_cum = c_cum[sel]
     else:  # every point kept (the usual case): no copies
@@ -453,7 +474,8 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
             g95 = (sp.feed_mode[bk] == 95) & (motion[1:][seg] > 0) & css[seg + 1]
             if g95.any():
                 step = np.hypot(x[seg + 1] - x[seg], z[seg + 1] - z[seg]) / n_sub[seg]
-                dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
+                with np.errstate(divide="ignore"):  # (a standing spindle's rapids: not G95)
+                    dts = np.where(g95, step / (sp.feed[bk] * rpm_s) * MIN_TO_S, dts)
             ts = np.cumsum(dts)
             theta = np.r_[0.0, np.cumsum(2 * math.pi * rpm_s / MIN_TO_S * dts)]
             x, z, t = np.r_[x[0], xs], np.r_[z[0], zs], np.r_[0.0, ts]
@@ -465,9 +487,13 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     meta = {"source": path.name, "dialect": dialect, "x_mode": mode,
             "sampling": "program", "compensation": "as programmed",
             "points_per_rev": ppr if not has_c else _points_per_rev(theta)}
+    hand = 4 if down or (spindle is not None and spindle.direction == 4) else 3
+    if hand == 4:  # the path turns on (theta increases), the part's angle is -theta
+        meta[SPINDLE_KEY] = "M04"
     prog = ToolPath(theta, x, z, t, meta)
     facts = {"blocks": sp.blocks, "motion_blocks": sp.count, "lines": sp.lines,
-             "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes}
+             "g_codes": sorted(sp.g_codes), "m_codes": sorted(sp.m_codes), "notes": sp.notes,
+             SPINDLE_KEY: HANDS[hand]}
     line = sp.line[span] if blk is rows else sp.line[blk]
     return ImportedProgram(path, dialect, prog, motion.astype(np.int8, copy=False),
                            line.astype(np.int64, copy=False), inferred, facts)

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.units import MIN_TO_S as _MIN_TO_S  # s per min
 from ..core.units import MM_TO_M as _MM_TO_M  # m per mm
+from ._program_angles import c_backward, c_move_times, unwrap_c
 from ._program_integers import POS_LETTERS, undotted_words
 
 __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c",
@@ -26,21 +27,22 @@ __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c"
 
 # state vector
 (_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED,
- _HELD, _SYSA, _INCR) = range(17)
-STATE_SIZE = 17
+ _HELD, _SYSA, _INCR, _DIR) = range(18)
+STATE_SIZE = 18
 INCR_SLOT = _INCR
 #: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97; then
 #: the spindle speed held from G96 (G97 without S), Fanuc lathe G98 / G99 seen, and the
 #: places a number without a decimal point counts in mm and deg (0: whole units; the
-#: scanner sets it; inches one place more)
+#: scanner sets it; inches one place more), the spindle's last M03 / M04 / M05 (0: none yet)
 INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
-                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0, 0], dtype=np.float64)
+                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0, 0, 0], dtype=np.float64)
 #: columns of a row (float64; ``rows[k, i]`` is column k of row i): line (in the piece),
 #: motion, X, Y, Z, C, I, J, K, R, F, feed mode, S, spindle mode, clamp, plane, written
 #: (bits X=1 Y=2 Z=4 C=8), held (1 where G97 came without S after G96: the spindle keeps
-#: the speed it had at the switch, S then the surface speed of G96; NaN otherwise)
+#: the speed it had at the switch, S then the surface speed of G96; NaN otherwise), the
+#: spindle's last M03 / M04 / M05 (0: none yet; one in the block acts before its move)
 ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
-              "S", "spindle_mode", "clamp", "plane", "written", "held")
+              "S", "spindle_mode", "clamp", "plane", "written", "held", "spindle_dir")
 _NF = len(ROW_FIELDS)
 
 #: the dtypes :func:`sample_moves` keeps (a program's block index, its motion codes)
@@ -215,6 +217,10 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
             seen_m[mi] = True
         if m == 2 or m == 30:
             st[_ENDED] = 1.0
+        elif m == 3 or m == 4 or m == 5:  # the spindle's direction, or stopped
+            st[_DIR] = m
+        elif m == 0 or m == 1:  # program stop, optional stop (flags 2 and 3)
+            flags[2 + mi] = True
     if dwell:
         flags[0] = True
     if home:
@@ -294,6 +300,7 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         rows[15, r] = st[_PLANE]
         rows[16, r] = written
         rows[17, r] = 1.0 if st[_HELD] != 0 else np.nan
+        rows[18, r] = st[_DIR]
         nrow += 1
     return nrow, 0, 0
 
@@ -516,71 +523,3 @@ def feed_times(length: npt.NDArray[np.float64], fmode: npt.NDArray[np.int16],
         else:
             dt[i] = np.nan
     return dt, missing, rapids
-
-
-@njit(cache=True, nogil=True)
-def unwrap_c(c: npt.NDArray[np.float64]
-             ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], int, int]:
-    """C as written (deg, wrapping every revolution) turned on: each move's step (a
-    negative step is a wrap, taken modulo 360) and the summed angle from ``c[0]``.
-    Returns (steps, summed angle, negative steps, index of the first)."""
-    n = c.size - 1
-    dc = np.empty(n)
-    nneg = 0
-    first = -1
-    for i in range(n):
-        d = c[i + 1] - c[i]
-        if d < 0:
-            if nneg == 0:
-                first = i
-            nneg += 1
-            d = d - 360.0 * np.floor(d / 360.0)
-        dc[i] = d
-    cum = np.empty(n + 1)
-    c0 = c[0]
-    cum[0] = 0.0 + c0
-    s = 0.0
-    for i in range(n):
-        s = dc[i] if i == 0 else s + dc[i]
-        cum[i + 1] = s + c0
-    return dc, cum, nneg, first
-
-
-@njit(cache=True, nogil=True)
-def c_backward(c: npt.NDArray[np.float64], least: float) -> int:
-    """The index of the first move whose C (deg, as written) steps back by less than
-    ``least`` deg (a wrap to a new revolution steps back by more), or -1."""
-    for i in range(c.size - 1):
-        d = c[i + 1] - c[i]
-        if d < 0 and -d < least:
-            return i
-    return -1
-
-
-@njit(cache=True, nogil=True, error_model="numpy")  # x / 0: inf, as numpy
-def c_move_times(dc: npt.NDArray[np.float64], length: npt.NDArray[np.float64],
-                 motion: npt.NDArray[np.int8], rpm: npt.NDArray[np.float64], feed: float,
-                 rapid: float, dt: npt.NDArray[np.float64]
-                 ) -> tuple[npt.NDArray[np.float64], bool]:
-    """The time of each move of a program with C words, s: ``dt`` where the program's F
-    words gave it (an empty array otherwise: C at the spindle speed ``rpm``, moves
-    without C at ``feed`` mm/min, rapids at ``rapid`` mm/min), and never less than the
-    spindle takes to turn C by ``dc`` deg.  Returns (times, whether there are rapids)."""
-    n = dc.size
-    out = np.empty(n)
-    given = dt.size == n
-    rapids = False
-    for i in range(n):
-        least = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
-        if given:
-            d = dt[i]
-        elif motion[i] == 0:
-            d = length[i] / rapid * _MIN_TO_S
-            rapids = True
-        elif dc[i] == 0:
-            d = length[i] / feed * _MIN_TO_S
-        else:
-            d = dc[i] / (360.0 * rpm[i]) * _MIN_TO_S
-        # numpy.maximum: the larger, NaN where either is NaN
-        out[i] = d if (d >= least or np.isnan(d)) else least
-    return out, rapids

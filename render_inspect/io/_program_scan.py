@@ -67,6 +67,8 @@ class ScannedProgram:
     held: np.ndarray = field(default_factory=lambda: np.zeros(0))  # 1 where G97 came
     # without S after G96 (the spindle keeps its speed of the switch; ``spindle`` is then
     # the surface speed of G96, m/min), NaN elsewhere
+    spindle_dir: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))  # the
+    # spindle's last M03 / M04 / M05 before the move (3, 4, 5; 0 where none came yet)
     header: dict = field(default_factory=dict)   # leading "; key: value" comment lines
     title: str = ""             # the first comment line
     blocks: int = 0             # blocks read (all kinds)
@@ -160,7 +162,7 @@ class _Scanner:
         self.seen_g = np.zeros(100, dtype=np.bool_)
         self.seen_m = np.zeros(100, dtype=np.bool_)
         self.seen_letter = np.zeros(26, dtype=np.bool_)
-        self.flags = np.zeros(2, dtype=np.bool_)   # dwell, return home
+        self.flags = np.zeros(4, dtype=np.bool_)   # dwell, return home, M00, M01
         self.out: list[dict] = []
         self.buf = np.empty(0, np.uint8)                    # a piece's cleaned bytes
         self.rows = np.empty((len(ROW_FIELDS), 0))          # a piece's rows (reused)
@@ -249,7 +251,8 @@ class _Scanner:
                 "arc": {ax: kept(6 + k) for k, ax in enumerate("IJKR")},
                 "feed": kept(10), "feed_mode": r[11].astype(np.int16),
                 "spindle": kept(12), "spindle_mode": r[13].astype(np.int16),
-                "clamp": kept(14), "plane": r[15].astype(np.int16), "held": kept(17)})
+                "clamp": kept(14), "plane": r[15].astype(np.int16), "held": kept(17),
+                "spindle_dir": r[18].astype(np.int8)})
 
     def _error(self, err, s, at, detail, line, fail):
         """One line for the error ``err`` of :func:`scan_piece` (see its module)."""
@@ -362,6 +365,12 @@ def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES,
     if sc.flags[1]:
         notes.append("returns home (G28) are not simulated (the home position is not known; "
                      "the next move starts from the last point programmed)")
+    stops = [f"{m} ({what})" for m, what, on in (("M00", "program stop", sc.flags[2]),
+                                                 ("M01", "optional stop", sc.flags[3])) if on]
+    if stops:
+        notes.append(f"{' and '.join(stops)}: the program stops there for the operator; the "
+                     f"stop takes no machining time in the model (the program resumes with "
+                     f"the tool where it stood and the spindle as it was)")
     return ScannedProgram(
         path=path, line=cat("line", np.int64), motion=cat("motion", np.int8),
         axes={a: sub("axes", a, np.float64) for a in "XYZC"},
@@ -370,7 +379,7 @@ def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES,
         feed=cat("feed", np.float64), feed_mode=cat("feed_mode", np.int16),
         spindle=cat("spindle", np.float64), spindle_mode=cat("spindle_mode", np.int16),
         clamp_rpm=cat("clamp", np.float64), plane=cat("plane", np.int16),
-        held=cat("held", np.float64),
+        held=cat("held", np.float64), spindle_dir=cat("spindle_dir", np.int8),
         header=header, title=title, blocks=sc.blocks,
         g_codes={int(g) for g in np.flatnonzero(sc.seen_g)},
         m_codes={int(m) for m in np.flatnonzero(sc.seen_m)},

@@ -65,6 +65,11 @@ CSV (``toolpath.csv``), one row per point, header
 (rho cos theta, rho sin theta), ``z_mm`` Z, ``theta_rad`` = C in rad, ``rho_mm`` = X axis.
 Full double precision (``repr``-exact, 17 significant digits).
 
+The angles of every format are the part's own: C decreases for a path cut with the
+spindle turning counter-clockwise (``spindle_direction`` = ``"M04"`` in the path's meta,
+the NC header and the npz), and the readers take C decreasing throughout as that turning
+(:func:`~render_inspect.core.toolpath.path_from_part`).
+
 Every comment line, the program's own and those carrying scene text (names, comments),
 is one ``;`` line of printable ASCII without control characters, with ``;``, ``(`` and
 ``)`` replaced (:func:`nc_comment_text`), so no text can start a block of its own or open
@@ -88,7 +93,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.toolpath import LinearProgram, ToolPath
+from ..core.toolpath import SPINDLE_KEY, LinearProgram, ToolPath, part_angle, path_from_part, turns_m04
 from ._atomic import atomic_write_stream
 from ._limits import check_npz
 from ._nc import (CHUNK_ROWS, COMMENT_STYLES, check_nc_style, cut_points, nc_comment_text,
@@ -121,8 +126,9 @@ def _write_rows(fh, columns, header: str, fmt) -> None:
 
 def write_csv(path: str | Path, toolpath: ToolPath) -> Path:
     """Write ``toolpath`` as CSV with header ``t_s,c_deg,x_mm,z_mm,theta_rad,rho_mm,y_mm``
-    (atomic; full double precision; written in pieces).  Returns the Path."""
-    th = np.asarray(toolpath.theta, dtype=np.float64)
+    (atomic; full double precision; written in pieces), the angles the part's own (they
+    decrease where the spindle turned M04).  Returns the Path."""
+    th = part_angle(toolpath)
     rho = np.asarray(toolpath.rho, dtype=np.float64)
     t = np.asarray(toolpath.t, dtype=np.float64)
     z = np.asarray(toolpath.z, dtype=np.float64)
@@ -133,7 +139,8 @@ def write_csv(path: str | Path, toolpath: ToolPath) -> Path:
 
 
 def read_csv(path: str | Path) -> ToolPath:
-    """Read a CSV written by :func:`write_csv` back into a :class:`ToolPath`."""
+    """Read a CSV written by :func:`write_csv` back into a :class:`ToolPath` (angles that
+    decrease: the spindle turned M04)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"CSV file not found: {str(path)!r}")
@@ -143,8 +150,8 @@ def read_csv(path: str | Path) -> ToolPath:
         raise InputError(f"{path}: CSV header must be {','.join(CSV_COLUMNS)}, received {','.join(head)}")
     d = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     col = {name: d[:, i] for i, name in enumerate(CSV_COLUMNS)}
-    return ToolPath(col["theta_rad"].copy(), col["rho_mm"].copy(), col["z_mm"].copy(),
-                    col["t_s"].copy())
+    return path_from_part(col["theta_rad"].copy(), col["rho_mm"].copy(), col["z_mm"].copy(),
+                          col["t_s"].copy())
 
 
 def _savez(fh, **arrays) -> None:
@@ -162,10 +169,15 @@ def _savez(fh, **arrays) -> None:
 
 @register_writer("toolpath", ".npz")
 def write_toolpath_npz(path: str | Path, toolpath: ToolPath, **_: Any) -> Path:
-    """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic)."""
+    """Write ``toolpath.npz`` with arrays theta, rho, x, y, z, t (atomic), in the part's
+    own angles; a path cut turning M04 has its angles decreasing and the member
+    ``spindle_direction`` = ``"M04"``."""
+    m04 = turns_m04(toolpath)
+    theta, y = (part_angle(toolpath), -toolpath.y) if m04 else (toolpath.theta, toolpath.y)
+    extra = {SPINDLE_KEY: np.array("M04")} if m04 else {}
     return atomic_write_stream(path, lambda fh: _savez(
-        fh, theta=toolpath.theta, rho=toolpath.rho, x=toolpath.x, y=toolpath.y, z=toolpath.z,
-        t=toolpath.t))
+        fh, theta=theta, rho=toolpath.rho, x=toolpath.x, y=y, z=toolpath.z, t=toolpath.t,
+        **extra))
 
 
 def read_toolpath_npz(path: str | Path) -> ToolPath:
@@ -175,7 +187,7 @@ def read_toolpath_npz(path: str | Path) -> ToolPath:
         raise InputError(f"tool-path file not found: {str(path)!r}")
     check_npz(path, what="tool-path file")
     with np.load(path, allow_pickle=False) as d:
-        return ToolPath(d["theta"].copy(), d["rho"].copy(), d["z"].copy(), d["t"].copy())
+        return path_from_part(d["theta"].copy(), d["rho"].copy(), d["z"].copy(), d["t"].copy())
 
 
 register_writer("toolpath", ".csv")(lambda path, toolpath, **_: write_csv(path, toolpath))

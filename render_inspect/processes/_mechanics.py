@@ -56,6 +56,7 @@ from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._program import cut_name
 from ._registry import register_section
 from ._settings import machine_settings
+from ._spindle import MirroredSurface, flip_rows, mirrored_region, part_figure, turns_m04
 from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",
@@ -284,9 +285,21 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
     Returns
     -------
     Turned
+        A path cut turning M04 (:mod:`~render_inspect.processes._spindle`) is cut as the
+        same path turning M03 on the mirrored design over the mirrored region; its maps
+        and figures are flipped back into the part's own coordinates.
     """
     sim = cfg.simulation
     region = tuple(sim.region) if region is None else tuple(region)
+    part_region, mirror = region, turns_m04(path)
+    if mirror:  # the M03 run of the mirror image (its design given flipped too)
+        region = mirrored_region(region, sim.pixel)
+        surface = MirroredSurface(surface)
+        design = None if design is None else flip_rows(np.array(design, dtype=np.float64))
+
+    def framed(spec: dict) -> dict:
+        """A figure of the maps in the part's own coordinates."""
+        return {k: part_figure(v, part_region) for k, v in spec.items()} if mirror else spec
     tool = Tool.from_config(cfg.tool)
     timing, figs = {}, {}
     resp = material_of(cfg.material)
@@ -312,9 +325,9 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
             # the passes' angles on the figure's points only (the same numbers as those
             # points of the whole map, which nothing else needs), drawn meanwhile
             stride = map_figure_stride(grid_shape(region, sim.pixel))
-            error_map = following_error_map_plot(
+            error_map = framed(following_error_map_plot(
                 fp, pass_angle_map(cut_path, region, sim.pixel, stride=stride), region,
-                sim.pixel * stride, name=cut_name(cfg))
+                sim.pixel * stride, name=cut_name(cfg)))
             figs.update(error_map)
             hand_over(error_map)
     else:
@@ -327,7 +340,8 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         maps = None
         pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added")
         if error_figures:
-            error_map = following_error_map_plot(fp, pass_theta, region, sim.pixel, name=cut_name(cfg))
+            error_map = framed(following_error_map_plot(fp, pass_theta, region, sim.pixel,
+                                                        name=cut_name(cfg)))
             figs.update(error_map)
             hand_over(error_map)
         info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
@@ -370,6 +384,8 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
                                                   origin=(region[0], region[1]),
                                                   overwrite=True, **args)
         timing["burrs"] = time.perf_counter() - t0
+    if mirror:  # the part's own coordinates from here on
+        machined, design, region = flip_rows(machined), flip_rows(design), part_region
     if "tool_wear" in facts:
         facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
             cfg, machined, design, region, sim.pixel)

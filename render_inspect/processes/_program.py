@@ -24,7 +24,7 @@ from ..core.errors import InputError
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM, MM_TO_UM, MIN_TO_S
 from ..core.programs import read_program_file
-from ..core.toolpath import LinearProgram
+from ..core.toolpath import LinearProgram, part_angle
 from ..toolpath import BLOCK_RATE_KEY, Tool, block_rate, region_radii
 
 if TYPE_CHECKING:
@@ -263,6 +263,9 @@ def program_checks(cfg: Any, surface: Any, path: ToolPath) -> dict:
         out["c_rate_max_rpm"] = float(rate.max()) if rate.size else 0.0
         out["c_rate_min_rpm"] = float(rate.min()) if rate.size else 0.0
     idx = _sample(rho.size)
+    # where each point lies on the part (its angle the part's own: -theta for M04); the
+    # C rate above is the spindle's speed
+    theta = part_angle(path)
     x, y = rho[idx] * np.cos(theta[idx]), rho[idx] * np.sin(theta[idx])
     design = surface.height(x, y)
     off = z[idx] - design

@@ -33,6 +33,7 @@ from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import ProcessScene, machine_of
 from ._mechanics import TurningInputs, follow, turn
+from ._spindle import MirroredSurface, spindle_meta, refuse_tiles, turns_m04
 from ._registry import register_migration, register_process, register_retired_key
 from ._program import program_path
 from ._turning import imported_facts
@@ -236,6 +237,8 @@ class ServoProcess(TiledTurningProcess):
         path = cast(ToolPath, path)  # (a turning program)
         kind = cfg.process.kind
         base = getattr(surface, "base", None)
+        if base is not None and turns_m04(path):  # the base as the path turns over it
+            base = MirroredSurface(base)
         if kind == "hts" and base is None:
             raise SceneError("process.kind = 'hts' needs design.type = 'compound'")
         t0 = time.perf_counter()
@@ -258,7 +261,7 @@ class ServoProcess(TiledTurningProcess):
         facts = {"servo": servo_m, **t["facts"]}
         meta = {"process": kind, "compensation": cfg.process.compensation,
                 "seed": cfg.simulation.seed, "machine": cfg.machine.preset,
-                "material": cfg.material.preset, **servo_meta}
+                "material": cfg.material.preset, **servo_meta, **spindle_meta(plan.program)}
         return Cut(t["machined"], t["design"], facts, t["timing"], meta, followed=t["followed"],
                    plots=t["plots"])
 
@@ -267,6 +270,7 @@ class ServoProcess(TiledTurningProcess):
         return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
 
     def envelope(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Envelope:
+        refuse_tiles(plan.program)
         cut_path, fp, facts = self.follow_program(cfg, plan)
         servo_m, servo_meta = _servo_facts(cfg, plan, fp)
         return self.envelope_of(cfg, cut_path, fp, {"servo": servo_m, **facts}, meta=servo_meta)

@@ -50,6 +50,7 @@ from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
+from ._spindle import refuse_tiles, spindle_meta
 from ._turning_memory import (_TILED_KEPT_BYTES_PER_TICK, _ticks, machine_bytes,
                               turning_memory, turning_points)
 from ._wear_facts import worn_h_min
@@ -456,7 +457,8 @@ class TurningProcess(Process[TurningInputs]):
 
     def cut(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Cut:
         t = turn(cfg, surface, plan.program)
-        return Cut(t["machined"], t["design"], t["facts"], t["timing"], _meta(cfg),
+        return Cut(t["machined"], t["design"], t["facts"], t["timing"],
+                   _meta(cfg, **spindle_meta(plan.program)),
                    followed=t["followed"], plots=t["plots"])
 
     def estimate_memory(self, cfg: TurningInputs, plan: Plan | None = None) -> int:
@@ -543,6 +545,7 @@ class TiledTurningProcess(TurningProcess):
         return follow(cfg, plan.program)
 
     def envelope(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Envelope:
+        refuse_tiles(plan.program)
         return self.envelope_of(cfg, *self.follow_program(cfg, plan))
 
     def envelope_of(self, cfg: TurningInputs, cut_path: ToolPath, fp: FollowedPath, facts: dict, *,

@@ -15,7 +15,7 @@ from ..io import atomic_write_bytes
 from ._quickplot import panels_png
 from ._savefig import figure_png
 from ..toolpath import axes_derivatives, axis_derivatives, turning_axes
-from ..core.toolpath import ToolPath
+from ..core.toolpath import ToolPath, part_angle
 
 __all__ = ["plot_kinematics", "axis_motion_figure", "kinematics_png", "kinematics_panels", "moving_axes",
            "turning_axes"]
@@ -170,7 +170,7 @@ def plot_kinematics(path: ToolPath, png_path: str | Path, *, reference: ToolPath
     for col, (p, lab) in enumerate(zip(paths, labels)):
         t = np.asarray(p.t, dtype=np.float64)
         vx, ax, _ = axis_derivatives(t, p.rho)
-        c_rev = np.asarray(p.theta, dtype=np.float64) / (2 * math.pi)
+        c_rev = part_angle(p) / (2 * math.pi)  # (the part's C: decreasing turning M04)
         rows = [(c_rev, np.asarray(p.rho), "C (revolutions, cumulative)", "X = radius (mm)"),
                 (t, vx, "time (s)", "X velocity (mm/s)"),
                 (t, ax, "time (s)", "X acceleration (mm/s$^2$)")]

@@ -24,7 +24,7 @@ import numpy as np
 from ..core.lazy import njit  # numba, imported on first use
 
 from ..core.errors import InputError
-from ..core.toolpath import ToolPath
+from ..core.toolpath import ToolPath, turns_m04
 
 __all__ = ["axis_derivatives", "kinematics", "limits_from_process", "LIMIT_KEYS", "turning_axes",
            "axes_derivatives"]
@@ -215,7 +215,7 @@ def limits_from_process(process_cfg: Any) -> dict:
 
 def _at(path, i: int) -> str:
     return (f"t = {path.t[i]:.4f} s, radius {path.rho[i]:.4f} mm, "
-            f"C = {math.degrees(path.theta[i]):.2f} deg")
+            f"C = {math.degrees(-path.theta[i] if turns_m04(path) else path.theta[i]):.2f} deg")
 
 
 def kinematics(path: ToolPath, *, limits: dict | None = None,
