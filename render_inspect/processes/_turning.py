@@ -118,9 +118,8 @@ class TurningProcessConfig(Section):
 
     @model_serializer(mode="wrap")
     def _without_program_defaults(self, handler):
-        """The program keys and the block rate limit are written only when set (scenes
-        without them dump as before; how a program's integers are read only when not the
-        default, so scenes with a program dump as before too)."""
+        """The program keys and the block rate limit are written only when set, how a
+        program's integers are read only when not the default (scenes dump as before)."""
         data = handler(self)
         if isinstance(data, dict) and data.get("block_rate_limit_per_s", 0) is None:
             data.pop("block_rate_limit_per_s")
