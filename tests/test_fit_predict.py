@@ -413,13 +413,18 @@ def test_the_prediction_carries_the_fits_uncertainty(tmp_path, caplog):
     corr = np.array([[rec["correlation"][a][b] for b in keys] for a in keys])
     cov = corr * np.outer(se, se)
     # (Sq, a statistic of the simulated window, to 10 %: a standard error of the feed moves
-    # it by 0.5 %, and what is left of where the marks fall moves it by a few 0.01 %)
+    # it by 0.3-0.6 %, and what is left of where the marks fall moves the mean over the
+    # window's positions by up to 0.1 % of Sq (measured: 0.013 nm of 12.1 nm between the
+    # feed's two brute-force points at +- 0.17 %), an error of the brute-force difference
+    # over the two standard errors that the comparison allows for)
     for path, rel in (("scallop.height_nm", 0.02), ("residual.Sq_nm", 0.10)):
         group, name = path.split(".")
         g = np.array([(brute[k, 1][group][name] - brute[k, -1][group][name]) / (2 * s)
                       for k, s in zip(keys, se)])
+        sampled = 0.0 if path.startswith("scallop") else 1e-3 * q[path]["value"]
         for j, k in enumerate(keys):
-            assert q[path]["per_key"][k]["sensitivity"] == pytest.approx(g[j], rel=rel), path
+            assert abs(q[path]["per_key"][k]["sensitivity"] - g[j]) <= \
+                rel * abs(g[j]) + sampled / (2 * se[j]), (path, k, g[j])
         assert q[path]["u_first_order"] == pytest.approx(math.sqrt(g @ cov @ g), rel=rel)
         assert q[path]["smooth"] and q[path]["u"] > 0, q[path]
     # every brute-force Sq within the expanded uncertainty; Sz, the window's extreme, within
