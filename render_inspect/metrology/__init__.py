@@ -13,7 +13,8 @@ from ._analysis import (FORMS, OUTLIER_METHODS, Analysis, analyze_map, analyze_m
                         parse_filter)
 from ._windowed import (WINDOWED_FORMS, analyze_bands, band_bytes_per_point, form_on_grid,
                         windowed_refusal)
-from ._chance import (NULL_POINTS, NULL_SURROGATES, explained_share, phase_surrogate,
+from ._chance import (NULL_GRID, NULL_POINTS, NULL_SURROGATES, SURROGATE_ITERATIONS,
+                      SURROGATE_TOLERANCE, explained_share, phase_surrogate, plane_free_surrogates,
                       registration_against_chance, unreliable_registration_warning)
 from ._checks import (DEFAULT_MAX_RESIDUAL_RATIO, DEFAULT_MIN_OVERLAP, DEFAULT_RESIDUAL_FLOOR_MM,
                       correlation_area, kinematic_sq_mm, registered_overlap, registration_checks)
@@ -71,7 +72,8 @@ __all__ = [
     "filter_range", "analyze_memory", "analyze_memory_per_point",
     "registered_overlap", "correlation_area", "registration_checks", "kinematic_sq_mm",
     "DEFAULT_MIN_OVERLAP", "DEFAULT_MAX_RESIDUAL_RATIO", "DEFAULT_RESIDUAL_FLOOR_MM",
-    "NULL_SURROGATES", "NULL_POINTS", "phase_surrogate", "explained_share",
+    "NULL_SURROGATES", "NULL_POINTS", "NULL_GRID", "SURROGATE_TOLERANCE", "SURROGATE_ITERATIONS",
+    "phase_surrogate", "plane_free_surrogates", "explained_share",
     "registration_against_chance", "unreliable_registration_warning",
     "LENSLET_KEYS", "lenslet_centers", "separate_msa", "lenslet_table", "base_form_error",
     "characterise_msa",
