@@ -98,6 +98,19 @@ def chromium() -> str:
 REALDATA = Path(os.environ.get("RENDER_INSPECT_REALDATA", REPO.parent / "shared" / "realdata"))
 
 
+def run_main(capsys, *argv) -> tuple[int, str]:
+    """``render-inspect ARGV`` run in this process: (its exit code, what it wrote to stderr);
+    the command's log handlers are cleared around it."""
+    from render_inspect import cli
+
+    cli.log.handlers.clear()
+    try:
+        rc = cli.main([str(a) for a in argv])
+    finally:
+        cli.log.handlers.clear()
+    return rc, capsys.readouterr().err
+
+
 def real_file(*parts: str) -> Path:
     """The path of a real file under ``../shared/realdata``: the test is skipped, with the
     reason, when the whole folder is absent (a checkout without it), and fails when the

@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pytest
 
-from render_inspect import cli
+from conftest import run_main
 from render_inspect.core.toolpath import ToolPath
 from render_inspect.errors import InputError, SceneError
 from render_inspect.io import read_nc, read_nc_blocks, write_nc
@@ -28,15 +28,6 @@ SMALL = ["simulation.region=[-0.05,-0.05,0.05,0.05]", "simulation.pixel=0.005",
          "process.workpiece_radius=0.6"]
 #: 1,000,000,000 s after 1970-01-01 UTC
 EPOCH, EPOCH_UTC = "1000000000", "2001-09-09T01:46:40Z"
-
-
-def _main(capsys, *argv):
-    cli.log.handlers.clear()
-    try:
-        rc = cli.main([str(a) for a in argv])
-    finally:
-        cli.log.handlers.clear()
-    return rc, capsys.readouterr().err
 
 
 def _spiral(n_rev: int, ppr: int, rpm: float, r0: float = 1.0, seed: int = 7) -> ToolPath:
@@ -54,7 +45,7 @@ def test_header_states_modes_source_tool_date_and_the_file_is_clean(tmp_path, ca
     sets = [a for s in SMALL + ["tool.nose_radius=0.37"] for a in ("--set", s)]
     outs = []
     for name in ("a", "b"):
-        rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc",
+        rc, err = run_main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc",
                         "--out", tmp_path / name, *sets)
         assert rc == 0, err
         outs.append((tmp_path / name / "toolpath.nc").read_bytes())

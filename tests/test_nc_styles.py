@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from render_inspect import cli
+from conftest import run_main
 from render_inspect.core.toolpath import LinearProgram, Links, ToolPath
 from render_inspect.errors import InputError
 from render_inspect.io import (program_dialect, read_nc, read_nc_blocks, read_program,
@@ -184,15 +184,6 @@ def test_bad_styles_are_one_line(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def _main(capsys, *argv):
-    cli.log.handlers.clear()
-    try:
-        rc = cli.main([str(a) for a in argv])
-    finally:
-        cli.log.handlers.clear()
-    return rc, capsys.readouterr().err
-
-
 SMALL = ["--set", "simulation.region=[-0.05,-0.05,0.05,0.05]", "--set", "simulation.pixel=0.005",
          "--set", "process.workpiece_radius=0.3", "--set", "process.points_per_rev=360"]
 
@@ -202,10 +193,10 @@ def test_toolpath_command_writes_reads_back_and_verifies_each_style(tmp_path, ca
     program is written, read back and verified (a program without block numbers passes
     the checks), the same program as the default's; bad options are one line, exit 1,
     nothing written."""
-    rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc", "--out",
+    rc, err = run_main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc", "--out",
                     tmp_path / "a", *SMALL)
     assert rc == 0, err
-    rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc", "--out",
+    rc, err = run_main(capsys, "toolpath", "sts_sinusoidal_grid", "--format", "nc", "--out",
                     tmp_path / "b", "--nc-comments", "parenthesis", "--nc-block-numbers", "off",
                     *SMALL)
     assert rc == 0, err
@@ -224,12 +215,12 @@ def test_toolpath_command_writes_reads_back_and_verifies_each_style(tmp_path, ca
             (["--format", "npz", "--nc-comments", "parenthesis"],
              "--nc-comments set how an NC program is written: they need --format nc, "
              "received --format npz")):
-        rc, err = _main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", tmp_path / "c",
+        rc, err = run_main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", tmp_path / "c",
                         *argv, *SMALL)
         assert rc == 1 and want in err and "Traceback" not in err, err
         assert len(err.strip().splitlines()) == 1 and not (tmp_path / "c").exists()
     with pytest.raises(SystemExit) as usage:  # (a usage error: argparse's own)
-        _main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", tmp_path / "c",
+        run_main(capsys, "toolpath", "sts_sinusoidal_grid", "--out", tmp_path / "c",
               "--format", "nc", "--nc-comments", "brace", *SMALL)
     assert usage.value.code == 2 and "--nc-comments: invalid choice: 'brace'" in capsys.readouterr().err
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import re
 
-from render_inspect import cli
+from conftest import run_main
 from render_inspect.pipeline._sweep_check import check_sweep_tasks  # (the message itself)
 from render_inspect.errors import InputError
 
@@ -16,15 +16,6 @@ INNER = [0.0] + [round(5.5 + 0.01 * i, 2) for i in range(19)]
 PPR = [2, 3, 4, 720, 1000, 1200, 1500, 1800, 2000, 2400, 3000, 3600, 4000, 5000, 6000]
 #: nose radii: two not > 0
 NOSE = [-0.5, -0.4, 0.3, 0.5, 0.7]
-
-
-def _main(capsys, *argv):
-    cli.log.handlers.clear()
-    try:
-        rc = cli.main([str(a) for a in argv])
-    finally:
-        cli.log.handlers.clear()
-    return rc, capsys.readouterr().err
 
 
 def test_a_grid_of_thousands_of_points_gives_one_line_per_key(tmp_path, capsys):
@@ -42,7 +33,7 @@ def test_a_grid_of_thousands_of_points_gives_one_line_per_key(tmp_path, capsys):
 "process.points_per_rev" = {PPR}
 "process.spindle_rpm" = [50, 100]
 """)
-    rc, err = _main(capsys, "sweep", tmp_path / "big.toml", "--out", tmp_path / "out")
+    rc, err = run_main(capsys, "sweep", tmp_path / "big.toml", "--out", tmp_path / "out")
     assert rc == 1 and "Traceback" not in err and not (tmp_path / "out").exists()
     lines = err.strip().splitlines()
     assert "2928 of 3000 points are not valid scenes" in lines[0] and "nothing was run" in lines[0]
