@@ -12,11 +12,17 @@ scene in a window of 40 x 40 points (so the machine, servo, material and sculptu
 kernels those scenes use are compiled with the types the commands use) and runs the
 comparison of the demo's scene on a small window (the interferometer's and the phase
 retrieval's kernels).
+
+Run as a program, the work is shared by two processes (this one and one it starts): one
+compiles the shipped scenes' kernels, the other the demo's comparison and the kernels
+called here directly, each from the other's cache where it is already there.  On two
+cores this halves the wait (on one core it costs a little more than one process would).
 """
 
 from __future__ import annotations
 
 import math
+import subprocess
 import sys
 import tempfile
 import time
@@ -97,15 +103,16 @@ _SMALL_COMPARE = ("render.interferometer.field_of_view=[-0.05, -0.05, 0.05, 0.05
                   "render.diffuse.resolution=32", "render.diffuse.spp=4")
 
 
-def warm_up_scenes() -> float:
+def warm_up_scenes(*, compare: bool = True) -> float:
     """Cut both variants of every shipped scene in a small window at the scene's own
     pixel (the kernels they use, with the types they use), and run the demo's
-    comparison on a small window; return the seconds it took."""
+    comparison on a small window (unless ``compare`` is False: :func:`warm_up_compare`);
+    return the seconds it took."""
     # the scenes and the public pipeline, imported when the warm-up runs (the package's
     # __init__ is complete by then; this module is not imported by it)
     from ..scene import load_scene, shipped_scenes
     # (see above)
-    from . import DEMO_SCENE, compare_variants, run_compare, simulate
+    from . import compare_variants, simulate
 
     t0 = time.perf_counter()
     for path in shipped_scenes().values():
@@ -116,6 +123,20 @@ def warm_up_scenes() -> float:
         window = f"simulation.region=[{cx - half!r}, {cy - half!r}, {cx + half!r}, {cy + half!r}]"
         for variant in compare_variants(load_scene(path, [window])):
             simulate(variant)
+    if compare:
+        warm_up_compare()
+    return time.perf_counter() - t0
+
+
+def warm_up_compare() -> float:
+    """Run the demo's comparison on a small window (the interferometer's and the phase
+    retrieval's kernels); return the seconds it took."""
+    # (imported when the warm-up runs, as in warm_up_scenes)
+    from ..scene import load_scene
+    # (see above)
+    from . import DEMO_SCENE, run_compare
+
+    t0 = time.perf_counter()
     scene = load_scene(DEMO_SCENE, ["simulation.region=[-0.05, -0.05, 0.05, 0.05]",
                                     *_SMALL_COMPARE])
     with tempfile.TemporaryDirectory() as tmp:
@@ -123,10 +144,30 @@ def warm_up_scenes() -> float:
     return time.perf_counter() - t0
 
 
-if __name__ == "__main__":
+def _main(argv: list[str]) -> int:
+    """The program: the shipped scenes in a second process, the comparison and the
+    direct kernels in this one (``--part scenes`` is the second process)."""
     import logging
 
     logging.getLogger("render_inspect").setLevel(logging.WARNING)
-    dt = warm_up()
-    dt += warm_up_scenes()
-    print(f"numba kernels compiled or loaded from the cache in {dt:.1f} s", file=sys.stderr)
+    if argv == ["--part", "scenes"]:
+        warm_up_scenes(compare=False)
+        return 0
+    t0 = time.perf_counter()
+    other = subprocess.Popen([sys.executable, "-m", __spec__.name if __spec__ else __name__,
+                              "--part", "scenes"])
+    try:
+        warm_up_compare()
+        warm_up()
+    finally:
+        rc = other.wait()
+    if rc != 0:
+        print(f"the warm-up of the shipped scenes failed (exit code {rc})", file=sys.stderr)
+        return 1
+    print(f"numba kernels compiled or loaded from the cache in {time.perf_counter() - t0:.1f} s "
+          f"(two processes)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_main(sys.argv[1:]))
