@@ -3,6 +3,8 @@ that writes into them."""
 
 from __future__ import annotations
 
+import ctypes
+import mmap
 import sys
 import threading
 
@@ -12,12 +14,17 @@ import pytest
 from render_inspect.core.pages import MIN_BYTES, Prefaulted
 
 
-def _rss_bytes() -> int:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) * 1024
-    raise AssertionError("no VmRSS")
+def _resident(a: np.ndarray) -> np.ndarray:
+    """Whether each system page under ``a`` is in memory (``mincore``): of these very
+    pages, whatever the process's other memory or its counters say."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mincore.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+    page = mmap.PAGESIZE
+    start = a.ctypes.data // page * page
+    n = -(-(a.ctypes.data + a.nbytes - start) // page)
+    vec = (ctypes.c_ubyte * n)()
+    assert libc.mincore(start, n * page, vec) == 0, ctypes.get_errno()
+    return np.frombuffer(vec, np.uint8) & 1 == 1
 
 
 def _page_threads() -> list:
@@ -33,22 +40,42 @@ def test_prefaulted_arrays_have_their_shape_and_are_handed_over_once():
     assert p._thread is None
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status (Linux)")
-def test_prefaulted_pages_are_resident_when_taken():
-    # a fresh 64 MB array is not in memory until written; the prefaulted one is, once
-    # taken, and its thread has ended
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="mincore as Linux has it")
+def test_prefaulted_pages_are_resident_when_taken(monkeypatch):
+    # fresh pages of the system are not in memory until written (a new mapping: the
+    # control that the check can say no); the prefaulted arrays' pages are, every one,
+    # once taken, and their thread has ended.  Two usable CPUs assumed (the thread's
+    # condition), so that the same thing is tested on a machine of one
+    import render_inspect.core.pages as pages
+
     n = (2 * MIN_BYTES) // 8
-    before = _rss_bytes()
-    plain = np.empty(n)
-    assert _rss_bytes() - before < n * 8 // 4
-    before = _rss_bytes()
-    p = Prefaulted((n,), 1)
+    with mmap.mmap(-1, n * 8) as m:
+        fresh = np.frombuffer(m, np.float64)
+        assert not _resident(fresh).any()
+        fresh[:] = 1.0
+        assert _resident(fresh).all()
+        del fresh
+    monkeypatch.setattr(pages, "usable_cpus", lambda: 2)
+    p = Prefaulted((n,), 2)
+    assert p._thread is not None
+    got = p.take()
+    assert len(got) == 2 and all(_resident(a).all() for a in got)
+    assert not _page_threads() and p._thread is None
+    got[0][:] = 1.0
+    assert got[0].sum() == n
+
+
+def test_prefaulted_arrays_on_one_cpu_are_plain_and_made_when_taken(monkeypatch):
+    # a machine of one usable CPU: no thread (it would only share the core); the arrays
+    # are made when taken, of their shape and type
+    import render_inspect.core.pages as pages
+
+    monkeypatch.setattr(pages, "usable_cpus", lambda: 1)
+    n = (2 * MIN_BYTES) // 4
+    p = Prefaulted((n,), 1, dtype=np.float32)
+    assert p._thread is None and p.arrays == []
     (a,) = p.take()
-    assert _rss_bytes() - before > 0.95 * n * 8
-    assert not _page_threads()
-    a[:] = 1.0
-    assert a.sum() == n
-    del plain
+    assert a.shape == (n,) and a.dtype == np.float32 and not _page_threads()
 
 
 def test_the_cut_writes_into_given_maps_the_maps_it_would_make(tmp_path):

@@ -90,6 +90,44 @@ def test_z_compensation_on_a_sphere_is_exact():
     np.testing.assert_allclose(z, centre_z - Rc, atol=1e-9)
 
 
+def test_z_compensation_threads_stop_at_their_next_chunk_when_asked(monkeypatch):
+    # a stop asked for (the command line's handler) ends the compensation's threads at
+    # their next chunk: the call raises it instead of finishing every chunk (the pool's
+    # end waits for its threads, so a thread that went on delayed the stop by the rest)
+    import signal
+
+    from render_inspect.core import cancel
+    import render_inspect.toolpath._compensation as comp
+
+    monkeypatch.setattr(comp, "usable_cpus", lambda: 2)
+    rho = np.linspace(0.0, 1.5, 20_000)
+    calls = []
+    surf = Sphere(5.0)
+    height = surf.height
+
+    def asked_once(x, y):  # the stop comes while the first chunk is searched
+        calls.append(len(x))
+        cancel.request(signal.SIGINT)
+        return height(x, y)
+
+    def counted(x, y):
+        calls.append(len(x))
+        return height(x, y)
+
+    kw = dict(half_width=0.5, chunk=100, max_slope=0.5)
+    monkeypatch.setattr(surf, "height", counted)
+    z_compensation(surf, np.zeros(100), rho[:100], 0.5, **kw)
+    per_chunk, calls[:] = len(calls), []
+    monkeypatch.setattr(surf, "height", asked_once)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            z_compensation(surf, np.zeros_like(rho), rho, 0.5, **kw)
+    finally:
+        cancel.clear()
+    # each of the two threads searched at most the chunk it held (of 200)
+    assert 0 < len(calls) <= 2 * per_chunk, (len(calls), per_chunk)
+
+
 def test_normal_compensation_3d_form_equals_radial_form():
     surf = SinusoidalGrid(0.002, 0.002, 2.5, 2.5)
     rng = np.random.default_rng(0)

@@ -58,6 +58,8 @@ class Prefaulted:
         for a in self.arrays:
             flat = a.reshape(-1)
             flat[::max(1, _PAGE // a.itemsize)] = 0
+            # (an array need not start on a page: its last values may lie on one more)
+            flat[-1:] = 0
 
     def take(self) -> list[np.ndarray]:
         """The arrays, once their pages are written (waits for the thread); arrays not

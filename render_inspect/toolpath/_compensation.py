@@ -38,6 +38,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from ..core import trig
+from ..core.cancel import check
 from ..core.lazy import njit  # numba, imported on first use
 from ..core.limits import usable_cpus
 from ._edge import EdgeProfile
@@ -310,6 +311,8 @@ def z_compensation(surface: Any, theta: np.ndarray, rho: np.ndarray, nose_radius
 
     def chunks():  # the chunks not yet taken by a thread, in order
         while True:
+            # (a stop asked for ends every thread here: the pool's end waits for them)
+            check()
             try:
                 yield todo.get_nowait()
             except queue.Empty:
