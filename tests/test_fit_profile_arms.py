@@ -182,3 +182,23 @@ def test_arm_estimates_find_each_arms_own_period():
     c = combine_arms(0.0406, 0.0001, a["values"][0], a["stderr"][0], b["values"][0],
                      b["stderr"][0])
     assert c["disagree"] and c["stderr"] > 0.0005
+
+
+@pytest.mark.parametrize("s_first", [0.0, 0.123456789, -0.31415926, 1.0 / 3.0])
+def test_the_simulated_band_lies_on_the_lattice_of_its_pixel(s_first):
+    # wherever the stretch of the line lies, the region an evaluation simulates has its
+    # corners on whole multiples of the simulation pixel (the grid's nodes fall under the
+    # marks at the same places), holds the interferometer's field, and is no larger than
+    # the band grown by one pixel more each way
+    from render_inspect.pipeline._fit_profile_arms import _band
+
+    px = 0.00025
+    u = (math.cos(0.3), math.sin(0.3))
+    fov, region, line = _band((0.7, -0.2), u, s_first, 400, 0.0011, px)
+    k = np.asarray(region) / px
+    assert np.allclose(k, np.round(k), rtol=0, atol=1e-9), k
+    assert region[0] <= fov[0] and region[1] <= fov[1] and region[2] >= fov[2] \
+        and region[3] >= fov[3]
+    assert line["s0"] == s_first and line["count"] == 400
+    grown = [fov[0] - region[0], fov[1] - region[1], region[2] - fov[2], region[3] - fov[3]]
+    assert max(grown) - min(grown) < px + 1e-12

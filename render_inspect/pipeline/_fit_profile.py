@@ -50,11 +50,11 @@ from ..processes import RANDOM_PART_KEYS, cut_name, process_of, random_parts
 from ..report import HtmlReport, fit_provenance_section, key_unit, profile_overlay_figure
 from ..scene import scene_from_dict
 from ._fit import _after_failure, _evaluation_pixel, _measured_starts, _parse_at
-from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM, default_line, parse_line
+from ._compare_profile import default_line, parse_line
 from ._fit_edge import edge_bounds
-from ._fit_model import (FLOOR_DRAWS, MARGIN_PX, instrument_settings, preset_fill,
+from ._fit_model import (FLOOR_DRAWS, instrument_settings, preset_fill,
                          preset_value, quiet, SameSimulation)
-from ._fit_profile_arms import _arms_record, _check_after_arms, _two_arms, fold_arms
+from ._fit_profile_arms import _arms_record, _band, _check_after_arms, _two_arms, fold_arms
 from ._fit_profile_checks import _check_after, _check_before, _cut_period
 from ._fit_profile_model import MIN_POINTS, ProfileModel, predict_profile, simulate_profile
 from ._fit_profile_model import compute_profiles as _compute
@@ -251,18 +251,10 @@ def run_fit_profile(measured: str | Path, scene: Scene, free: Sequence[str], out
     p0, u = win["p0"], win["direction"]
     s_first = win["s0_mm"] - lag * spacing
     count = n + 2 * lag
-    s_last = s_first + (count - 1) * spacing
-    ends = [(p0[0] + u[0] * s, p0[1] + u[1] * s) for s in (s_first, s_last)]
-    h = BAND_HALF_MM
-    fov = [min(e[0] for e in ends) - h, min(e[1] for e in ends) - h,
-           max(e[0] for e in ends) + h, max(e[1] for e in ends) + h]
+    sim_pixel = _evaluation_pixel(scene, period)
+    fov, sim_region, line_task = _band(p0, u, s_first, count, spacing, sim_pixel)
     icfg, icfg_source = instrument_settings(scene, {}, objective, spacing, fov,
                                             np.vstack([zseg, zseg]))
-    sim_pixel = _evaluation_pixel(scene, period)
-    grow = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * sim_pixel)
-    sim_region = [fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow]
-    line_task = {"p0": list(p0), "direction": list(u), "s0": s_first, "step": spacing,
-                 "count": count}
     model = ProfileModel(base, fill, sim_region, sim_pixel, icfg, int(seed), random,
                          free_random, line=line_task)
     start_values = {p.key: p.start for p in params}
