@@ -257,16 +257,82 @@ def test_program_files_are_in_the_parts_angles(tmp_path):
         assert np.array_equal(back.rho, m04.rho) or np.allclose(back.rho, m04.rho, atol=5e-7)
 
 
-def test_tiles_refuse_m04(tmp_path):
-    from render_inspect.pipeline import run_simulate
+def _tiled_pair(tmp_path, overrides, tile, program=_FACE, figures=None):
+    """The M04 ``program`` simulated in memory and tile by tile (tiles of ``tile``): the
+    in-memory Simulation, the tiled run's metrics and its store (``figures``: a dict that
+    gets the in-memory run's figure specs)."""
+    from render_inspect.io._zarr import ZarrHeightMap
+    from render_inspect.pipeline import run_simulate, simulate
     from render_inspect.scene import load_scene
-    p = _write(tmp_path, "m04.nc", _FACE.format(m="M04"))
+    p = _write(tmp_path, "m04.nc", program.format(m="M04"))
     sc = load_scene("sts_fig16_overcut", [f"process.program={json.dumps(str(p))}",
-                                          "process.workpiece_radius=0.7",
-                                          "process.points_per_rev=90",
-                                          "simulation.region=[0.1,0.1,0.15,0.15]",
-                                          "machine.preset='ideal'", "material.preset='ideal'"])
-    with pytest.raises(InputError, match=r"counter-clockwise \(M04\), which is simulated in "
-                                         r"memory, not tile by tile"):
-        run_simulate(sc, tmp_path / "out", tiled=True)
-    assert not (tmp_path / "out").exists()
+                                          "process.workpiece_radius=0.7", *overrides])
+    mem = simulate(sc, figures=None if figures is None else figures.update)
+    tiled = run_simulate(sc, tmp_path / "tiled", tiled=True, tile=tile)
+    return mem, tiled, ZarrHeightMap(tmp_path / "tiled" / "heightmap.zarr")
+
+
+def _same_maps(mem, z):
+    """The store holds the in-memory maps as heightmap.exr does (float32; the residual
+    formed in float64)."""
+    hm = mem.heightmap
+    want = {"design": hm.design, "machined": hm.machined, "residual": hm.machined - hm.design}
+    for name, a in want.items():
+        assert np.array_equal(z.read(name), a.astype(np.float32), equal_nan=True), name
+
+
+def test_tiles_cut_m04_as_in_memory(tmp_path):
+    """A program turning M04 tile by tile (the mirror image cut in tiles, the store's rows
+    turned over): the in-memory map to the last bit, in the part's own coordinates (a grid
+    of 276 rows: tiles of 64 do not divide it, the mirrored tiles straddle the stored
+    chunks), its pyramid that of the map, its metadata M04."""
+    from render_inspect.io._pyramid import pyramid
+    region = [0.1, -0.3, 0.2, 0.25]
+    mem, tiled, z = _tiled_pair(tmp_path, [
+        "process.points_per_rev=90", f"simulation.region={region}", "machine.preset='ideal'",
+        "material.preset='ideal'"], 64)
+    assert z.read("machined").shape == (276, 51) and tiled["tiles"]["count"] == 5
+    _same_maps(mem, z)
+    full = z.read("residual")
+    assert z.attrs["levels"] and np.isfinite(full).all()
+    for k, want in enumerate(pyramid(full, len(z.attrs["levels"])), start=1):
+        assert np.array_equal(z.read("residual", level=k), want, equal_nan=True), k
+    assert z.attrs["origin_mm"] == list(mem.heightmap.origin) == region[:2]
+    assert json.loads(z.attrs["meta"])["spindle_direction"] == "M04"
+    assert tiled["program"]["spindle_direction"] == "M04"
+    for k in ("Sq_nm", "Sz_nm", "Sp_nm", "Sv_nm", "min_nm", "mean_nm"):
+        assert tiled["residual"][k] == pytest.approx(mem.metrics["residual"][k], rel=1e-12, abs=1e-9), k
+    assert tiled["residual"]["Sa_nm"] == pytest.approx(mem.metrics["residual"]["Sa_nm"], rel=1e-6)
+
+
+#: the facing cut with a V ring (radii 0.2 .. 0.3 mm, 5 um deep): machined edges, burrs
+_GROOVED = _FACE.replace("G01 X0.0\n", "G01 X0.3\nG01 X0.25 Z-0.005\nG01 X0.2 Z0.0\nG01 X0.0\n")
+
+
+@pytest.mark.slow
+def test_tiles_cut_m04_through_the_lathe_and_aluminium_as_in_memory(tmp_path, monkeypatch):
+    """Through the shipped lathe and aluminium (error motions, texture, grooves, the burrs
+    of a V ring's edges; the following error's map): tile by tile as in memory, to the
+    last bit."""
+    import render_inspect.pipeline._simulate_command as command
+    assert _GROOVED != _FACE
+    drawn, figures = {}, {}
+    monkeypatch.setattr(command, "draw_figure", lambda spec, path: drawn.update({path.name: spec}))
+    mem, tiled, z = _tiled_pair(tmp_path, [
+        f"design={{type='expression', expr='{_DESIGN}'}}", "process.points_per_rev=720",
+        f"simulation.region={_REGION}", f"simulation.pixel={_PIXEL!r}",
+        "machine.preset='sts_lathe'", "material.preset='al6082'"], 64, _GROOVED, figures)
+    _same_maps(mem, z)
+    a, b = figures["following_error_map.png"], drawn["following_error_map.png"]
+    assert b["extent"] == pytest.approx(a["extent"], rel=0, abs=1e-12)
+    for k in ("x_nm", "z_nm"):
+        assert np.array_equal(b[k], a[k], equal_nan=True), k
+    mem = mem.metrics
+    assert mem["burrs"]["edge_pixels"] > 0 and tiled["burrs"].keys() == mem["burrs"].keys()
+    for k, v in mem["burrs"].items():
+        assert tiled["burrs"][k] == (pytest.approx(v, rel=1e-12) if isinstance(v, float) else v), k
+    assert tiled["material"]["grooves_rms_nm"] == pytest.approx(mem["material"]["grooves_rms_nm"],
+                                                                rel=1e-12)
+    for k in ("Sq_nm", "Sz_nm", "min_nm", "mean_nm"):
+        assert tiled["residual"][k] == pytest.approx(mem["residual"][k], rel=1e-12), k
+    assert (tmp_path / "tiled" / "residual.png").is_file()

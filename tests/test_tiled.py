@@ -128,6 +128,65 @@ def test_tiled_pyramid_equals_the_area_means_of_the_whole_map(tiled_case):
     assert z.level_for(100) >= 1
 
 
+def test_a_flipped_run_stores_the_map_with_its_rows_turned_over(tiled_case, tmp_path):
+    """``run_tiles(flip=True)`` (a program turning M04: the mirror image cut tile by tile):
+    the store holds the map with its rows in the other order (row k of the grid cut is row
+    ny - 1 - k; tiles of 128 do not divide its 381 rows), its pyramid that of the flipped
+    map (a level coarser than a tile too), the same statistics."""
+    c = tiled_case
+    shape = c["machined"].shape
+    levels = level_count(shape, smallest=4)
+    assert levels > 7 and shape[0] % 128  # a level coarser than a tile of 128
+    store = str(tmp_path / "flipped.zarr")
+    create_heightmap_zarr(store, shape, chunk=128, levels=levels,
+                          attrs=grid_attrs(c["pixel"], c["region"][:2], None, None))
+    stats = run_tiles(c["ep"], c["surface"], origin=c["region"][:2], pixel=c["pixel"], shape=shape,
+                      store=store, levels=levels, tile=128, flip=True)
+    z = ZarrHeightMap(store)
+    want = {"design": c["design"][::-1], "machined": c["machined"][::-1],
+            "residual": (c["machined"] - c["design"])[::-1]}
+    for name, a in want.items():
+        full = z.read(name)
+        assert np.array_equal(full, a.astype(np.float32), equal_nan=True), name
+        for k, w in enumerate(pyramid(full, levels), start=1):
+            assert np.array_equal(z.read(name, level=k), w, equal_nan=True), (name, k)
+    n, mean, _, lo, hi = stats.moments
+    assert (n, lo, hi) == (c["stats"].moments[0], *c["stats"].moments[3:])
+    assert mean == pytest.approx(c["stats"].moments[1], rel=1e-12)
+    assert stats.histogram[2].tolist() == c["stats"].histogram[2].tolist()
+    assert "flip" in stats.timing_s
+
+
+@pytest.mark.parametrize("ny, nx, chunk", [(257, 70, 64), (256, 64, 64), (63, 70, 64),
+                                           (1, 3, 64), (449, 64, 128)])
+def test_flipping_a_column_holds_a_few_chunks(tmp_path, ny, nx, chunk):
+    """The rows of a store turned over column by column, each chunk written whole: the
+    flipped map and its pyramid, with at most 3 chunks of a column held at once."""
+    from render_inspect.batch._tile_flip import flip_column
+    import zarr
+
+    rng = np.random.default_rng(ny)
+    levels = level_count((ny, nx), smallest=64)
+    store = str(tmp_path / "s.zarr")
+    create_heightmap_zarr(store, (ny, nx), chunk=chunk, levels=levels, attrs=grid_attrs(0.1, (0, 0), None, None))
+    g = zarr.open_group(store, mode="r+")
+    maps = {}
+    for name in ("design", "machined", "residual"):
+        a = rng.standard_normal((ny, nx)).astype(np.float32)
+        a[rng.random((ny, nx)) < 0.1] = np.nan
+        g[name][...] = maps[name] = a
+    tile_levels = min(levels, int(math.log2(chunk)))
+    for col in range(0, nx, chunk):
+        held = {}
+        parts = flip_column(store, (ny, nx), chunk, levels, tile_levels, col, stats=held)
+        assert held["held"] <= 3 and len(parts) == -(-ny // chunk)
+    z = ZarrHeightMap(store)
+    for name, a in maps.items():
+        assert np.array_equal(z.read(name), a[::-1], equal_nan=True), name
+        for k, w in enumerate(pyramid(a[::-1], tile_levels), start=1):
+            assert np.array_equal(z.read(name, level=k), w, equal_nan=True), (name, k)
+
+
 def test_pyramid_averages_instead_of_aliasing():
     # a feed-mark pattern with a 3-pixel period: 8 x 8 block means nearly cancel it, while
     # taking every 8th sample would alias it into a full-amplitude pattern

@@ -9,7 +9,8 @@ to the last bit, as the numpy and :mod:`render_inspect.io` operations they repla
   of a block added as numpy adds them: each row's pair, then the two pairs; the missing
   ones of the last row or column as 0);
 * :func:`block_means` is :func:`render_inspect.io.means` (each mean taken in float64 and
-  rounded to float32; NaN where a block has no sample).
+  rounded to float32; NaN where a block has no sample);
+* :func:`write_tile` writes a tile's float32 maps and their levels into the store.
 
 One tile runs on one core (the tiles run side by side), so the loops are serial and
 release the GIL.
@@ -18,13 +19,15 @@ release the GIL.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 from ..core.lazy import njit  # numba, imported on first use
-from ..io import coarsen
+from ..io import block_sums, coarsen
+from ..machining import Tile
 
-__all__ = ["tile_float32", "coarsen2", "block_means"]
+__all__ = ["tile_float32", "coarsen2", "block_means", "write_tile"]
 
 
 @njit(cache=True, nogil=True)
@@ -131,3 +134,26 @@ def block_means(sums: np.ndarray, counts: np.ndarray) -> np.ndarray:
     out = np.empty(s.shape, dtype=np.float32)
     _means(s, c, out)
     return out
+
+
+def write_tile(group: Any, tile: Tile, arrays: dict, levels: int, tile_levels: int,
+               level1: dict | None = None) -> dict:
+    """Write the tile into the store (full resolution and pyramid levels <= tile_levels);
+    return the block sums and counts at level ``tile_levels`` if coarser levels follow.
+    ``level1``: the arrays' level-1 (sums, counts) when already taken
+    (:func:`tile_float32`)."""
+    r0, c0 = tile.row, tile.col
+    coarse = {}
+    for name, a in arrays.items():
+        group[name][r0:r0 + tile.rows, c0:c0 + tile.cols] = a
+        if levels == 0:
+            continue
+        s, c = level1[name] if level1 is not None else block_sums(a, 2)
+        for k in range(1, tile_levels + 1):
+            if k > 1:
+                s, c = coarsen2(s, c)
+            f = 1 << k
+            group[f"levels/{k}/{name}"][r0 // f:r0 // f + s.shape[0], c0 // f:c0 // f + s.shape[1]] = block_means(s, c)
+        if levels > tile_levels:
+            coarse[name] = (s, c)
+    return coarse

@@ -33,9 +33,10 @@ from ..core.errors import InputError
 from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
-from ._tile_pyramid import block_means, coarsen2, tile_float32
+from ._tile_flip import flip_column
+from ._tile_pyramid import tile_float32, write_tile
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
-from ..io import block_sums, coarsen, means
+from ..io import coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
                          Grooves, merge_moments, plan_tiles, tile_moments)
 
@@ -44,29 +45,6 @@ __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 #: histogram bins of the residual (pass 2)
 BINS = 1024
 CHANNELS = ("design", "machined", "residual")
-
-
-def _write_tile(group, tile: Tile, arrays: dict, levels: int, tile_levels: int,
-                level1: dict | None = None) -> dict:
-    """Write the tile into the store (full resolution and pyramid levels <= tile_levels);
-    return the block sums and counts at level ``tile_levels`` if coarser levels follow.
-    ``level1``: the arrays' level-1 (sums, counts) when already taken
-    (:func:`~._tile_pyramid.tile_float32`)."""
-    r0, c0 = tile.row, tile.col
-    coarse = {}
-    for name, a in arrays.items():
-        group[name][r0:r0 + tile.rows, c0:c0 + tile.cols] = a
-        if levels == 0:
-            continue
-        s, c = level1[name] if level1 is not None else block_sums(a, 2)
-        for k in range(1, tile_levels + 1):
-            if k > 1:
-                s, c = coarsen2(s, c)
-            f = 1 << k
-            group[f"levels/{k}/{name}"][r0 // f:r0 // f + s.shape[0], c0 // f:c0 // f + s.shape[1]] = block_means(s, c)
-        if levels > tile_levels:
-            coarse[name] = (s, c)
-    return coarse
 
 
 # (``surface: Any``: a design's Surface, which this layer does not import; ``client: Any``:
@@ -98,7 +76,7 @@ def tile_task(ep: EnvelopePath | CutPath, surface: Any, origin: Sequence[float],
         # block sums, in one compiled pass
         maps, level1 = tile_float32(design, machined)
         del machined, design
-        coarse = _write_tile(group, tile, maps, levels, tile_levels, level1)
+        coarse = write_tile(group, tile, maps, levels, tile_levels, level1)
         del maps, level1
         out.append({"tile": tile, "moments": moments, "coarse": coarse, "cut": cut})
     return out
@@ -129,7 +107,7 @@ class TiledStats:
     abs_dev : (n, sum |r - mean|) (mm) from the stored residual
     histogram : (lo_mm, hi_mm, counts) of the stored residual
     tiles : number of tiles
-    timing_s : seconds of ``tiles`` (pass 1), ``pass2``, ``levels``
+    timing_s : seconds of ``tiles`` (pass 1), ``flip`` (a flipped store), ``pass2``, ``levels``
     cut : the material's sums over the tiles (a cut with the cutting mechanics):
         ``grooves_sumsq``, ``grooves_n``, ``added_max``, ``edge_pixels``, the texture's
         ``texture_sumsq`` and ``texture_n``, with the material's burrs ``burr_edge_pixels``,
@@ -283,7 +261,7 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
               workers: int | None = None, progress: Callable[[int, int, float], object] | None = None,
               bins: int = BINS, grooves: Grooves | None = None, stride: int = 0,
               texture: tuple[float, float, int] | None = None,
-              burrs: dict[str, Any] | None = None) -> TiledStats:
+              burrs: dict[str, Any] | None = None, flip: bool = False) -> TiledStats:
     """Compute the machined surface of ``ep`` over the grid tile by tile into ``store``.
 
     Parameters
@@ -321,6 +299,13 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
         (the keyword arguments of :func:`~render_inspect.machining.material_burrs` but the
         grid's; each tile is cut with the burr model's halo,
         :func:`~render_inspect.machining.compute_tile`).
+    flip : bool
+        Store the map with its rows in the other order (row k of the grid cut is row
+        ny - 1 - k of the store; the pass angles of ``cut`` too): the grid cut is the
+        mirror (y -> -y) of the store's, the M03 run of the mirror image that a program
+        turning M04 cuts.  The tiles are cut and written as they are, then the store's
+        rows turned over column by column (:func:`~._tile_flip.flip_column`, the pyramid
+        made from the turned map), out of core.
     """
     tiles = plan_tiles(shape, tile)
     tile_levels = min(levels, int(math.log2(tile))) if tile & (tile - 1) == 0 else 0
@@ -337,13 +322,26 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
         runs = [[t] for t in tiles]
     with _kept_heap() if client is None else contextlib.nullcontext(False):
         done = {(p["tile"].row, p["tile"].col): p
-                for r in _run(tile_task, [(r, store, levels, tile_levels) for r in runs],
+                # (a store to flip gets its levels from the flipped map, below)
+                for r in _run(tile_task, [(r, store, 0 if flip else levels, 0 if flip else tile_levels)
+                                          for r in runs],
                               (ep, surface, origin, pixel, grooves, tuple(shape), int(stride), texture, burrs),
                               client=client, workers=workers, progress=progress, total=len(tiles))
                 for p in r}
     # in the tiles' order: the moments are merged in it (the same sums whatever the runs)
     parts = [done[(t.row, t.col)] for t in tiles]
     timing["tiles"] = time.perf_counter() - t0
+    if flip:
+        t0 = time.perf_counter()
+        cols = sorted({t.col for t in tiles})
+        flipped = {(p["tile"].row, p["tile"].col): p["coarse"]
+                   for r in _run(flip_column, [(c,) for c in cols],
+                                 (store, tuple(shape), int(tile), levels, tile_levels),
+                                 client=client, workers=workers)
+                   for p in r}
+        for p in parts:
+            p["coarse"] = flipped[(p["tile"].row, p["tile"].col)]
+        timing["flip"] = time.perf_counter() - t0
     moments = (0, 0.0, 0.0, math.inf, -math.inf)
     for p in parts:
         moments = merge_moments(moments, p["moments"])
@@ -377,11 +375,12 @@ def run_tiles(ep: EnvelopePath | CutPath, surface: Any, *, origin: Sequence[floa
                     group[f"levels/{k}/{name}"][...] = means(s, c)
     timing["levels"] = time.perf_counter() - t0
     return TiledStats(moments, (n2, sa), (lo32, hi32, counts), len(tiles), timing,
-                      _merge_cut(parts, shape, stride) if isinstance(ep, CutPath) else {})
+                      _merge_cut(parts, shape, stride, flip) if isinstance(ep, CutPath) else {})
 
 
-def _merge_cut(parts: list, shape, stride: int) -> dict:
-    """The material's sums over the tiles, and the strided pass-angle map."""
+def _merge_cut(parts: list, shape, stride: int, flip: bool = False) -> dict:
+    """The material's sums over the tiles, and the strided pass-angle map (``flip``: its
+    rows in the other order)."""
     cuts = [p["cut"] for p in parts]
     out = {"grooves_sumsq": math.fsum(c["grooves_sumsq"] for c in cuts),
            "grooves_n": int(sum(c["grooves_n"] for c in cuts)),
@@ -398,7 +397,7 @@ def _merge_cut(parts: list, shape, stride: int) -> dict:
         for c in cuts:
             i0, j0, a = c["pass_theta"]
             pt[i0:i0 + a.shape[0], j0:j0 + a.shape[1]] = a
-        out["pass_theta"] = pt
+        out["pass_theta"] = np.ascontiguousarray(pt[::-1]) if flip else pt
     return out
 
 

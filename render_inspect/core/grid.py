@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-__all__ = ["GridCoordinates", "Grid", "grid_shape"]
+__all__ = ["GridCoordinates", "Grid", "grid_shape", "flip_rows"]
 
 
 def grid_shape(region: Sequence[float], pixel: float) -> tuple[int, int]:
@@ -19,6 +19,17 @@ def grid_shape(region: Sequence[float], pixel: float) -> tuple[int, int]:
     nx = int(round((x1 - x0) / pixel)) + 1
     ny = int(round((y1 - y0) / pixel)) + 1
     return ny, nx
+
+
+def flip_rows(a: np.ndarray) -> np.ndarray:
+    """``a`` with its rows in the opposite order, in place (one row of scratch): the map
+    of a grid mirrored about y (row k of the one is row ny - 1 - k of the other)."""
+    n = a.shape[0]
+    for i in range(n // 2):
+        row = a[i].copy()
+        a[i] = a[n - 1 - i]
+        a[n - 1 - i] = row
+    return a
 
 
 class GridCoordinates:

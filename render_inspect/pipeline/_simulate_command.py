@@ -25,7 +25,7 @@ from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_he
                   export_program, grid_attrs, level_count, set_store_attrs, chunk_files)
 from ..machining import (TILE, CutPath, EnvelopePath, burr_halo, metrics_from_moments, plan_tiles,
                          prepare_cut, prepare_envelope, tiled_bytes)
-from ..processes import check_budget, cut_name, map_figure_stride, process_of
+from ..processes import MirroredSurface, check_budget, cut_name, map_figure_stride, mirrored_region, process_of
 from ..toolpath import region_radii
 from ..report import draw_figure, residual_png
 from ._figure_process import FigureProcess
@@ -311,13 +311,19 @@ def run_simulate_tiled(scene: Scene, out: str | Path, *, workers: int | None = N
         store = str(tmp / "heightmap.zarr")
         create_heightmap_zarr(store, shape, chunk=tile, levels=levels,
                               attrs=grid_attrs(sim.pixel, origin, scene.to_dict(), env.meta))
+        # a program turning M04: the tiles cut the M03 run of the mirror image (the design
+        # mirrored, over the mirrored grid), and the store's rows are turned over after them
+        cut_surface, cut_origin = surface, origin
+        if env.mirror:
+            cut_surface = MirroredSurface(surface)
+            cut_origin = mirrored_region(sim.region, sim.pixel)[:2]
         t0 = time.perf_counter()
         with task(f"{traits.name}: cut {n_tiles} tiles", total=n_tiles) as step:
-            stats = run_tiles(ep, surface, origin=origin, pixel=sim.pixel, shape=shape, store=store,
-                              levels=levels, tile=tile, client=client,
+            stats = run_tiles(ep, cut_surface, origin=cut_origin, pixel=sim.pixel, shape=shape,
+                              store=store, levels=levels, tile=tile, client=client,
                               workers=None if client else workers,
                               progress=_progress("tiles", step), grooves=env.grooves, stride=stride,
-                              texture=env.texture, burrs=env.burrs)
+                              texture=env.texture, burrs=env.burrs, flip=env.mirror)
         timing["simulate"] = time.perf_counter() - t0
         timing.update({f"tiles_{k}": v for k, v in stats.timing_s.items()})
         residual = metrics_from_moments(stats.moments, stats.abs_dev, shape[0] * shape[1])

@@ -39,6 +39,7 @@ from ._sculpt import SculptProcessConfig, VibrationConfig, lattice_lines
 from ._settings import (RANDOM_PART_KEYS, machine_settings, material_settings, preset_settings,
                         random_parts)
 from ._servo import ServoProcessConfig
+from ._spindle import MirroredSurface, mirrored_region
 from ._program import (cut_name, feed_over_radii, feed_per_rev, feed_per_rev_table, findings_summary, fit_paraboloid,
                        program_checks)
 from ._sts import StsProcessConfig
@@ -77,4 +78,4 @@ __all__ = ["Process", "Inputs", "Plan", "Cut", "Traits", "Envelope", "Variant", 
            "toolpath_facts", "plan_spiral", "machine_settings", "material_settings",
            "preset_settings", "random_parts", "RANDOM_PART_KEYS", "fit_paraboloid",
            "program_checks", "feed_over_radii", "feed_per_rev", "feed_per_rev_table", "findings_summary",
-           "cut_name"]
+           "cut_name", "MirroredSurface", "mirrored_region"]

@@ -310,6 +310,11 @@ class Envelope:
     h_min_points : array or None
         The minimum chip thickness (mm) at each point of ``path``: the edge worn along it
         (``tool.wear``); None: the material's one value.
+    mirror : bool
+        The path turns the spindle counter-clockwise (M04): the tiles cut the M03 run of
+        the mirror image (the design mirrored, :class:`~render_inspect.processes.MirroredSurface`,
+        over the mirrored grid, :func:`~render_inspect.processes.mirrored_region`) and the store's rows are then turned over, so that
+        the map is the part's, in its own coordinates (row 0 the smallest y).
     """
 
     path: ToolPath
@@ -325,6 +330,7 @@ class Envelope:
     plots: dict = field(default_factory=dict)
     edge: object = None
     h_min_points: object = None
+    mirror: bool = False
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import numpy as np
 from pydantic import Field
 
 from ..design import DesignConfig
-from ..core.grid import grid_shape
+from ..core.grid import flip_rows, grid_shape
 from ..core.handoff import hand_over
 from ..core.pages import Prefaulted
 from ..core.section import Section
@@ -56,7 +56,7 @@ from ._machine import MachineConfig, MaterialConfig, machine_of, material_of
 from ._program import cut_name
 from ._registry import register_section
 from ._settings import machine_settings
-from ._spindle import MirroredSurface, flip_rows, mirrored_region, part_figure, turns_m04
+from ._spindle import MirroredSurface, mirrored_region, part_figure, turns_m04
 from ._wear_facts import roughness_against_radius, wear_figure, wear_path, worn_h_min
 
 __all__ = ["BurrConfig", "TurningInputs", "turn", "pass_angle_map", "following_error_plots",

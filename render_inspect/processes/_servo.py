@@ -33,7 +33,7 @@ from ..toolpath import Tool
 from ._contract import Cut, Envelope, Plan, Traits, Variant, VariantPair
 from ._machine import ProcessScene, machine_of
 from ._mechanics import TurningInputs, follow, turn
-from ._spindle import MirroredSurface, spindle_meta, refuse_tiles, turns_m04
+from ._spindle import MirroredSurface, spindle_meta, turns_m04
 from ._registry import register_migration, register_process, register_retired_key
 from ._program import program_path
 from ._turning import imported_facts
@@ -270,7 +270,6 @@ class ServoProcess(TiledTurningProcess):
         return follow(cfg, plan.program, z_fts=plan.data["z_fts"])
 
     def envelope(self, cfg: TurningInputs, surface: Surface, plan: Plan) -> Envelope:
-        refuse_tiles(plan.program)
         cut_path, fp, facts = self.follow_program(cfg, plan)
         servo_m, servo_meta = _servo_facts(cfg, plan, fp)
         return self.envelope_of(cfg, cut_path, fp, {"servo": servo_m, **facts}, meta=servo_meta)

@@ -6,10 +6,13 @@ same path cuts turning M03 on the mirrored design.  The cutting kernels take pat
 angle increases, so an M04 path (:func:`~render_inspect.core.toolpath.turns_m04`: its
 ``theta`` the angle the spindle turned through) is cut as that M03 run: the design
 sampled mirrored (:class:`MirroredSurface`), over the mirrored region
-(:func:`mirrored_region`), and the maps and figures flipped back (:func:`flip_rows`,
-:func:`part_figure`), so that every output is in the part's own coordinates.  Everything
-the cut draws at random (the lathe's error motions, the material's texture, grooves and
-burrs) is drawn in the mirrored run: the M04 part is that run's mirror image exactly.
+(:func:`mirrored_region`), and the maps and figures flipped back
+(:func:`~render_inspect.core.grid.flip_rows`, :func:`part_figure`), so that every output
+is in the part's own coordinates.  Everything the cut draws at random (the lathe's error
+motions, the material's texture, grooves and burrs) is drawn in the mirrored run: the M04
+part is that run's mirror image exactly.  Tile by tile the same: the tiles cut the
+mirrored run into the store, whose rows are then turned over
+(:func:`~render_inspect.batch.run_tiles` with ``flip``).
 """
 
 from __future__ import annotations
@@ -19,13 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from ..core.errors import InputError
-from ..core.grid import grid_shape
+from ..core.grid import flip_rows, grid_shape
 from ..core.toolpath import SPINDLE_KEY, turns_m04
 from ..design import Surface
 
 __all__ = ["MirroredSurface", "mirrored_region", "flip_rows", "part_figure", "spindle_meta",
-           "refuse_tiles", "turns_m04"]
+           "turns_m04"]
 
 
 class MirroredSurface(Surface):
@@ -65,16 +67,6 @@ def mirrored_region(region: Sequence[float], pixel: float) -> tuple[float, float
     return (x0, -top, x1, -y0)
 
 
-def flip_rows(a: np.ndarray) -> np.ndarray:
-    """``a`` with its rows in the opposite order, in place (one row of scratch)."""
-    n = a.shape[0]
-    for i in range(n // 2):
-        row = a[i].copy()
-        a[i] = a[n - 1 - i]
-        a[n - 1 - i] = row
-    return a
-
-
 def part_figure(spec: dict, region: Sequence[float]) -> dict:
     """A map figure spec made on the mirrored grid (``x_nm``, ``z_nm``, ``extent``) on the
     part's own grid of ``region``; other specs as they are."""
@@ -93,13 +85,3 @@ def spindle_meta(path: Any) -> dict:
     """What the maps' metadata say of the spindle: ``{"spindle_direction": "M04"}`` for a
     path cut turning M04, nothing otherwise."""
     return {SPINDLE_KEY: "M04"} if turns_m04(path) else {}
-
-
-def refuse_tiles(path: Any) -> None:
-    """A path cut turning M04 is simulated in memory: tile by tile it is refused."""
-    if turns_m04(path):
-        raise InputError("process.program: the program turns the spindle counter-clockwise "
-                         "(M04), which is simulated in memory, not tile by tile: simulate a "
-                         "map of at most 33,554,432 samples that fits simulation.max_memory_gb "
-                         "(simulation.region, simulation.pixel), without --tiled, --workers "
-                         "or --scheduler")

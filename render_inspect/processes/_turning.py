@@ -50,7 +50,7 @@ from ._program_part import design_part, machine_limits
 from ._mechanics import (TurningInputs, follow, following_error_plots, grooves_of,
                          material_burr_args, texture_of, turn)
 from ._registry import check_budget
-from ._spindle import refuse_tiles, spindle_meta
+from ._spindle import spindle_meta, turns_m04
 from ._turning_memory import (_TILED_KEPT_BYTES_PER_TICK, _ticks, machine_bytes,
                               turning_memory, turning_points)
 from ._wear_facts import worn_h_min
@@ -528,7 +528,7 @@ class TiledTurningProcess(TurningProcess):
     machine's axes and error motions act on the whole program, the material's mechanics
     pixel by pixel, the material's burrs within their reach): it can be simulated tile by
     tile.  Burrs of a given height (``[artifacts.burrs] height``) are not added tile by
-    tile."""
+    tile.  A program turning M04: :attr:`~render_inspect.processes.Envelope.mirror`."""
 
     def tile_refusal(self, cfg: TurningInputs) -> str | None:
         if cfg.burrs.height > 0:
@@ -544,7 +544,6 @@ class TiledTurningProcess(TurningProcess):
         return follow(cfg, plan.program)
 
     def envelope(self, cfg: TurningInputs, surface: Any, plan: Plan) -> Envelope:
-        refuse_tiles(plan.program)
         return self.envelope_of(cfg, *self.follow_program(cfg, plan))
 
     def envelope_of(self, cfg: TurningInputs, cut_path: ToolPath, fp: FollowedPath, facts: dict, *,
@@ -555,7 +554,8 @@ class TiledTurningProcess(TurningProcess):
         if tool.edge is not None:  # the edge itself (a tiled run adds its facts: tiled_facts)
             facts = {**facts, "tool_edge": {**tool.edge.to_dict(tool.half_angle),
                                             "compensation": cfg.process.compensation}}
-        return Envelope(cut_path, tool.nose_radius, tool.half_width, {**_meta(cfg), **(meta or {})},
+        return Envelope(cut_path, tool.nose_radius, tool.half_width,
+                        {**_meta(cfg), **(meta or {}), **spindle_meta(cut_path)}, mirror=turns_m04(cut_path),
                         mechanics=resp, grooves=None if resp is None else grooves_of(cfg, resp),
                         texture=None if resp is None else texture_of(cfg, resp),
                         burrs=material_burr_args(cfg, resp, cut_path, tool),
