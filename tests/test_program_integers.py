@@ -173,6 +173,64 @@ def test_beyond_the_part_names_the_increment_systems(tmp_path):
     assert "decimal point" not in str(e.value)
 
 
+#: a facing program without decimal points: its head, then (unit, X of the first rapid) for
+#: each section; the furthest X is that of the last section
+_SECTIONS_HEAD = "G90 G18 G95 G97 S1000\nG01 F5\n"
+
+
+def _sections(*sections) -> str:
+    out = [_SECTIONS_HEAD]
+    for unit, x in sections:
+        out.append(f"{unit}\nG00 X{x} Z100\nG01 Z0\nX{x // 2} Z-12\n")
+    return "".join(out) + "M30\n"
+
+
+def _hint(tmp_path, name, text):
+    with pytest.raises(InputError) as e:
+        _read(tmp_path, name, text, x_mode="auto", part_radius=5.0)
+    text = str(e.value)
+    assert "\n" not in text
+    return text.split("no position word of the program has a decimal point", 1)[1]
+
+
+@pytest.mark.parametrize("sections, reach", [
+    # metric throughout: 4000 IS-B counts of 0.001 mm
+    ([("G21", 4000)], ": read in least input increments the moves reach X = 4 mm as IS-B, "
+                      "X = 0.4 mm as IS-C, within the part"),
+    # inch throughout: 1000 IS-B counts of 0.0001 in = 2.54 mm
+    ([("G20", 1000)], ": read in least input increments the moves reach X = 2.54 mm as IS-B, "
+                      "X = 0.254 mm as IS-C, within the part"),
+    # inch, then the furthest move in mm: counted in mm increments
+    ([("G20", 100), ("G21", 4000)], ": read in least input increments the moves reach X = 4 mm "
+                                    "as IS-B, X = 0.4 mm as IS-C (the furthest move's X is "
+                                    "written in mm, G21 / G71; the program switches units), "
+                                    "within the part"),
+    # mm, then the furthest move in inches (G70: the same as G20)
+    ([("G71", 100), ("G70", 1000)], ": read in least input increments the moves reach X = "
+                                    "2.54 mm as IS-B, X = 0.254 mm as IS-C (the furthest "
+                                    "move's X is written in inches, G20 / G70; the program "
+                                    "switches units), within the part"),
+])
+def test_beyond_the_part_hint_counts_in_the_furthest_moves_unit(tmp_path, sections, reach):
+    """The increments the hint counts are those of the unit the furthest move's X was
+    written in, not the program's other unit: a program that switches from G20 to G21 is
+    not taken as inches throughout."""
+    assert _hint(tmp_path, "units.nc", _sections(*sections)) == (
+        reach + " (set process.program_integers)")
+
+
+def test_beyond_the_part_hint_of_an_x_in_both_units(tmp_path):
+    """The furthest X adds an incremental word in inches to an X written in mm: no one
+    increment system's reading is the whole move; the hint says so, without numbers."""
+    text = _SECTIONS_HEAD + "G21\nG00 X1000 Z100\nG01 Z0\nG20\nU1000\nX0 Z-12\nM30\n"
+    assert _hint(tmp_path, "both.nc", text) == (
+        ", and the furthest move's X adds incremental words written in inches and in mm: "
+        "read in least input increments it may lie within the part (set "
+        "process.program_integers)")
+    sp = scan_program(tmp_path / "both.nc")
+    assert sp.x_unit.tolist() == [0, 0, 2, 1]  # (X0: written again, in inches)
+
+
 @pytest.mark.parametrize("mode, f, unit", [("G95", "5", r"mm/rev \(G95\)"),
                                            ("G94", "500", r"mm/min \(G94\)")])
 def test_feed_without_point_refused_under_increments(tmp_path, mode, f, unit):

@@ -1,10 +1,15 @@
 """A sweep whose grid holds values out of range is refused before anything runs, with one
 line per key: the key, what it must be, how many different values it received and the
-first few of them, and the points concerned; however many points the grid has."""
+first few of them, and the points concerned; however many points the grid has.  Points
+that fail for one reason (before they run or as they run) are one line too, whatever
+numbers their messages hold."""
 
 from __future__ import annotations
 
+import csv
 import re
+
+import pytest
 
 from conftest import run_main
 from render_inspect.pipeline._sweep_check import check_sweep_tasks  # (the message itself)
@@ -79,3 +84,86 @@ def test_checks_of_several_keys_are_grouped_by_what_they_allow():
         "  tool.nose_radius: must be a finite number in (0, 50]; received -1.0 [point 8]",
         "  tool.nose_radus: unknown key [point 9]"]
     assert not any(re.search(r"\(top level\)", ln) for ln in lines)
+
+
+#: a sweep of 8 points whose tool paths are each over a tiny memory budget, each by its
+#: own amount (the feed sets the path's length)
+OVER_BUDGET = """scene = "sts_sinusoidal_grid"
+[set]
+"machine.preset" = "ideal"
+"material.preset" = "ideal"
+"simulation.region" = [-0.05, -0.05, 0.05, 0.05]
+"process.workpiece_radius" = 0.1
+"process.spindle_rpm" = 100
+"simulation.max_memory_gb" = 0.001
+[grid]
+"process.feed_mm_per_min" = [0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1]
+"""
+
+
+def test_points_over_the_memory_budget_are_one_line(tmp_path, capsys):
+    """Eight points over the memory budget, each by its own estimate: one line, the
+    numbers that differ between the points given as their ranges, the eight points."""
+    (tmp_path / "mem.toml").write_text(OVER_BUDGET)
+    rc, err = run_main(capsys, "sweep", tmp_path / "mem.toml", "--out", tmp_path / "out")
+    assert rc == 1 and "Traceback" not in err and not (tmp_path / "out").exists()
+    lines = err.strip().splitlines()
+    assert "8 of 8 points are not valid scenes" in lines[0], lines
+    (line,) = lines[1:]
+    assert re.fullmatch(
+        r"  the tool path \(\S+ \.\. \d+ points\) would need about [\d.]+ \.\. [\d.]+ MiB, "
+        r"more than the memory budget of 1\.02 MiB \(simulation\.max_memory_gb = 0\.001\); "
+        r"to fit, set process\.points_per_rev <= \d+ \.\. \d+ \(now 3600\) or "
+        r"process\.feed_mm_per_min >= [\d.]+ \.\. [\d.]+ mm/min \(now 0\.4 \.\. 1\.1 mm/min\); "
+        r"or shrink simulation\.region / process\.workpiece_radius "
+        r"\[8 points: 0, 1, 2, 3, 4, \.\.\.\]", line), line
+
+
+def test_failed_points_are_one_line_per_reason():
+    """The message of a sweep whose points failed as they ran: one line per reason (the
+    messages alike but for their numbers), its count of the sweep's points, the points,
+    the numbers that differ as their ranges; a reason of one point as it is."""
+    from render_inspect.pipeline import sweep_failure
+    from render_inspect.pipeline._sweep_check import failure_lines
+
+    def off(i, lo):
+        return {"index": i, "status": "failed", "error": (
+            f"simulation.region [0.3, 0.3, 0.35, 0.35] mm lies outside the turned part: the "
+            f"tool reaches it only between {lo} and {lo + 0.13:g} mm from the spindle axis")}
+
+    recs = [off(2, 0.41), off(5, 0.39), {"index": 6, "status": "failed",
+                                         "error": "MemoryError: out of memory"}, off(7, 0.4)]
+    info = {"points": 8, "done": 4, "failed": 4, "pending": 0,
+            "failure_lines": failure_lines(recs, 8)}
+    msg = sweep_failure(info, "out").splitlines()
+    assert msg[0].startswith("4 of 8 points failed (their errors are in out/summary.md and "
+                             "results.csv); 4 points are done; rerun with --retry-failed")
+    assert msg[1:] == [
+        "  3 of 8 points (2, 5, 7): simulation.region [0.3, 0.3, 0.35, 0.35] mm lies outside "
+        "the turned part: the tool reaches it only between 0.39 .. 0.41 and 0.52 .. 0.54 mm "
+        "from the spindle axis",
+        "  1 of 8 points (6): MemoryError: out of memory"]
+
+
+@pytest.mark.slow  # a Dask worker process runs the points
+def test_points_failing_alike_as_they_run_are_one_line(tmp_path, capsys):
+    """Six points whose region lies off the part fail as they run: exit 1, one line for
+    the six (no table of six failed rows); each point's own error in results.csv."""
+    (tmp_path / "off.toml").write_text(OVER_BUDGET.replace(
+        '"simulation.max_memory_gb" = 0.001', "").replace(
+        "[-0.05, -0.05, 0.05, 0.05]", "[0.3, 0.3, 0.35, 0.35]").replace(
+        "[0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1]", "[0.4, 1.0]") + '"tool.nose_radius" = [0.2, 0.5, 1.0]\n')
+    out = tmp_path / "out"
+    rc, err = run_main(capsys, "sweep", tmp_path / "off.toml", "--out", out, "--workers", "1")
+    assert rc == 1 and "Traceback" not in err
+    assert "| point |" not in err
+    tail = err[err.index("render-inspect sweep: error: "):].strip().splitlines()
+    assert tail[0].startswith("render-inspect sweep: error: 6 of 6 points failed")
+    (line,) = tail[1:]
+    assert line.startswith("  6 of 6 points (0, 1, 2, 3, 4, ...): simulation.region [0.3, 0.3, "
+                           "0.35, 0.35] mm lies outside the turned part: the tool reaches it "
+                           "only between "), line
+    with open(out / "results.csv", newline="") as f:
+        errors = [r["error"] for r in csv.DictReader(f)]
+    assert len(errors) == 6 and len(set(errors)) == 6
+    assert all("lies outside the turned part" in e and " .. " not in e for e in errors)

@@ -26,7 +26,8 @@ __all__ = ["available_memory", "default_budget", "memory_budget", "check_memory"
            "PIXEL_RANGE_MM", "MAX_FIELD_MM", "MAX_ABS_MM", "MOSTLY_EMPTY_FRACTION",
            "mostly_empty_warning", "address_space_limit", "address_space_used",
            "address_space_room", "check_address_space", "mitsuba_address_space", "usable_cpus",
-           "ADDRESS_SPACE_HEADROOM", "MITSUBA_ADDRESS_SPACE", "MITSUBA_ADDRESS_SPACE_PER_THREAD"]
+           "ADDRESS_SPACE_HEADROOM", "MITSUBA_ADDRESS_SPACE", "MITSUBA_ADDRESS_SPACE_PER_THREAD",
+           "TILED_SAMPLES"]
 
 #: share of the available memory a command may use when the scene sets no budget
 AUTO_FRACTION = 0.8
@@ -41,6 +42,11 @@ ADDRESS_SPACE_HEADROOM = 32 * MIB_TO_BYTES
 #: Dr.Jit's threads add about 12 MiB each (2 to 32 threads)
 MITSUBA_ADDRESS_SPACE = 640 * MIB_TO_BYTES
 MITSUBA_ADDRESS_SPACE_PER_THREAD = 16 * MIB_TO_BYTES
+#: maps of more samples than this are simulated tile by tile whatever the memory budget
+#: (when the process can): the in-memory run would hold several GiB and write a
+#: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
+#: a Zarr store with its pyramid
+TILED_SAMPLES = 1 << 25  # not a unit conversion
 
 # -- plausibility bounds of measured height maps (the readers and ``analyze`` refuse or
 #    warn beyond them; see docs/limits.md)

@@ -214,11 +214,14 @@ def read_program(path: str | Path, *, kind: str | None = None, spindle_rpm: floa
 
 
 # ---------------------------------------------------------------------------- turning
-def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
-    """("radius" or "diameter", the sentence saying why)."""
+def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z, x_unit):
+    """("radius" or "diameter", the sentence saying why); ``x_unit``: the unit each X was
+    written in (:attr:`ScannedProgram.x_unit`)."""
     if x_mode != "auto":
         return x_mode, f"X is the {x_mode}, as process.program_x says"
-    big = float(np.max(np.abs(x[cut]))) if cut.any() else float(np.max(np.abs(x)))
+    far = np.flatnonzero(cut) if cut.any() else np.arange(x.size)
+    far = int(far[np.argmax(np.abs(x[far]))])
+    big = abs(float(x[far]))
     if part_radius is None:
         return "radius", "X is read as the radius (no part size to infer it from)"
     r = float(part_radius)
@@ -226,7 +229,7 @@ def _x_mode(sp, x, cut, part_radius, x_mode, design_height, z):
         raise InputError(f"{sp.path}: the cutting moves reach X = {big:g} mm, beyond the part "
                          f"(radius {r:g} mm) as a radius and as a diameter; check the program "
                          f"or process.workpiece_radius (process.program_x sets how X is read)"
-                         + beyond_part_hint(sp, sp.integers, big, 3 * r))
+                         + beyond_part_hint(sp, sp.integers, big, 3 * r, int(x_unit[far])))
     if big > 1.5 * r:
         return "diameter", (f"X is the diameter: the cutting moves reach X = {big:g} mm, and "
                             f"the part's radius is {r:g} mm (process.program_x = 'radius' "
@@ -273,7 +276,7 @@ def _turning(sp: ScannedProgram, *, spindle_rpm, feed, part_radius, x_mode, ppr,
     z = sp.axes["Z"][span].copy()
     motion = sp.motion[span]
     cut = motion >= 1
-    mode, why = _x_mode(sp, x, cut, part_radius, x_mode, design_height, z)
+    mode, why = _x_mode(sp, x, cut, part_radius, x_mode, design_height, z, sp.x_unit[span])
     inferred["x"] = why
     if mode == "diameter":
         x *= 0.5

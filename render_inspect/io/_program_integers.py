@@ -84,22 +84,32 @@ def integers_facts(sp: Any, mode: str) -> tuple[str | None, list[str]]:
     return f"integers as whole mm, inches and degrees ({_KEY} = 'whole'): {counted}", [warning]
 
 
-def beyond_part_hint(sp: Any, mode: str, big: float, limit: float) -> str:
+def beyond_part_hint(sp: Any, mode: str, big: float, limit: float, unit: int) -> str:
     """The hint added to the refusal of cutting moves reaching ``big`` mm beyond the
     part (``limit`` mm: the most X may reach): where the program is read as whole units
     and none of its nonzero position words has a decimal point, the increment systems
-    (at most two, the coarsest first) that bring the moves within the part."""
+    (at most two, the coarsest first) that bring the moves within the part.  ``unit`` is
+    the unit the furthest move's X was written in (:attr:`ScannedProgram.x_unit`: 0 mm,
+    1 inch, each counted in its own increments; 2 both, incremental words of each: no
+    single reading, none is given).  A program that writes X in both units says which
+    the furthest move's X is in."""
     d = sp.decimals
     if mode != "whole" or d["with"] or not d["without"]:
         return ""
-    unit = 1 if sp.g_codes & {20, 70} else 0
+    both = {0, 1} <= set(np.unique(getattr(sp, "x_unit", ())).tolist())
+    if unit not in (0, 1):
+        return (f"; no position word of the program has a decimal point, and the furthest "
+                f"move's X adds incremental words written in inches and in mm: read in "
+                f"least input increments it may lie within the part (set {_KEY})")
     fits = [(s, big / 10 ** _places(s, unit)) for s in INCREMENT_PLACES
             if big / 10 ** _places(s, unit) <= limit][:2]
     if not fits:
         return ""
     reach = ", ".join(f"X = {v:.6g} mm as {s}" for s, v in fits)
+    where = (f" (the furthest move's X is written in {('mm, G21 / G71', 'inches, G20 / G70')[unit]}; "
+             f"the program switches units)" if both else "")
     return (f"; no position word of the program has a decimal point: read in least input "
-            f"increments the moves reach {reach}, within the part (set {_KEY})")
+            f"increments the moves reach {reach}{where}, within the part (set {_KEY})")
 
 
 @njit(cache=True, nogil=True)

@@ -27,22 +27,26 @@ __all__ = ["scan_piece", "clean_piece", "sample_moves", "feed_times", "unwrap_c"
 
 # state vector
 (_MOTION, _DIST, _FEED, _UNITS, _PLANE, _SPINDLE, _F, _S, _CLAMP, _X, _Y, _Z, _C, _ENDED,
- _HELD, _SYSA, _INCR, _DIR) = range(18)
-STATE_SIZE = 18
+ _HELD, _SYSA, _INCR, _DIR, _XU) = range(19)
+STATE_SIZE = 19
 INCR_SLOT = _INCR
 #: the modal state at the start of a program: G01, G90, G94 (mm/min), G21, G18, G97; then
 #: the spindle speed held from G96 (G97 without S), Fanuc lathe G98 / G99 seen, and the
 #: places a number without a decimal point counts in mm and deg (0: whole units; the
-#: scanner sets it; inches one place more), the spindle's last M03 / M04 / M05 (0: none yet)
+#: scanner sets it; inches one place more), the spindle's last M03 / M04 / M05 (0: none yet),
+#: the unit X was written in (-1: not yet; 0 mm, 1 inch, 2 both: incremental words of the
+#: other unit added to it)
 INIT_STATE = np.array([1, 90, 94, 21, 18, 97, np.nan, np.nan, np.nan,
-                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0, 0, 0], dtype=np.float64)
+                       np.nan, np.nan, np.nan, np.nan, 0, 0, 0, 0, 0, -1], dtype=np.float64)
 #: columns of a row (float64; ``rows[k, i]`` is column k of row i): line (in the piece),
 #: motion, X, Y, Z, C, I, J, K, R, F, feed mode, S, spindle mode, clamp, plane, written
 #: (bits X=1 Y=2 Z=4 C=8), held (1 where G97 came without S after G96: the spindle keeps
 #: the speed it had at the switch, S then the surface speed of G96; NaN otherwise), the
-#: spindle's last M03 / M04 / M05 (0: none yet; one in the block acts before its move)
+#: spindle's last M03 / M04 / M05 (0: none yet; one in the block acts before its move), the
+#: unit X's value was written in (as the state's: -1 not yet, 0 mm, 1 inch, 2 both)
 ROW_FIELDS = ("line", "motion", "X", "Y", "Z", "C", "I", "J", "K", "R", "F", "feed_mode",
-              "S", "spindle_mode", "clamp", "plane", "written", "held", "spindle_dir")
+              "S", "spindle_mode", "clamp", "plane", "written", "held", "spindle_dir",
+              "x_unit")
 _NF = len(ROW_FIELDS)
 
 #: the dtypes :func:`sample_moves` keeps (a program's block index, its motion codes)
@@ -280,6 +284,9 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
             elif have[lu]:
                 st[slot] = st[slot] + val[lu] * sc
                 written |= bit
+            if ax == 0 and (have[la] or have[lu]):  # the unit X's value is written in
+                u = 1.0 if inch else 0.0
+                st[_XU] = u if (have[la] and not inc) or st[_XU] == u else 2.0
     if written:
         r = nrow
         rows[0, r] = line
@@ -301,6 +308,7 @@ def _end_block(st: npt.NDArray[np.float64], have: npt.NDArray[np.bool_],
         rows[16, r] = written
         rows[17, r] = 1.0 if st[_HELD] != 0 else np.nan
         rows[18, r] = st[_DIR]
+        rows[19, r] = st[_XU]
         nrow += 1
     return nrow, 0, 0
 

@@ -69,6 +69,9 @@ class ScannedProgram:
     # the surface speed of G96, m/min), NaN elsewhere
     spindle_dir: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))  # the
     # spindle's last M03 / M04 / M05 before the move (3, 4, 5; 0 where none came yet)
+    x_unit: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))  # the unit
+    # the move's X was written in: 0 mm (G21 / G71), 1 inch (G20 / G70), 2 both (incremental
+    # words of the other unit added to it), -1 where X is not yet known
     header: dict = field(default_factory=dict)   # leading "; key: value" comment lines
     title: str = ""             # the first comment line
     blocks: int = 0             # blocks read (all kinds)
@@ -252,7 +255,7 @@ class _Scanner:
                 "feed": kept(10), "feed_mode": r[11].astype(np.int16),
                 "spindle": kept(12), "spindle_mode": r[13].astype(np.int16),
                 "clamp": kept(14), "plane": r[15].astype(np.int16), "held": kept(17),
-                "spindle_dir": r[18].astype(np.int8)})
+                "spindle_dir": r[18].astype(np.int8), "x_unit": r[19].astype(np.int8)})
 
     def _error(self, err, s, at, detail, line, fail):
         """One line for the error ``err`` of :func:`scan_piece` (see its module)."""
@@ -380,6 +383,7 @@ def scan_program(path: str | Path, *, piece_bytes: int = PIECE_BYTES,
         spindle=cat("spindle", np.float64), spindle_mode=cat("spindle_mode", np.int16),
         clamp_rpm=cat("clamp", np.float64), plane=cat("plane", np.int16),
         held=cat("held", np.float64), spindle_dir=cat("spindle_dir", np.int8),
+        x_unit=cat("x_unit", np.int8),
         header=header, title=title, blocks=sc.blocks,
         g_codes={int(g) for g in np.flatnonzero(sc.seen_g)},
         m_codes={int(m) for m in np.flatnonzero(sc.seen_m)},

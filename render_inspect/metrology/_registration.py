@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from ..core.lazy import lazy_attr, lazy_module
 
+from ..core.blas import one_blas_thread
 from ..core.errors import InputError
 from ._filters import pixel_xy, valid_mask
 from ._outliers import detect_outliers
@@ -213,6 +214,7 @@ def _result(v, rms, n, method, **extra):
     return d
 
 
+@one_blas_thread()  # (products of points x 6: one thread each; docs/performance.md)
 def register_lsq(z: np.ndarray, design: Any, *, pixel: float | tuple[float, float],
                  origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
                  init: dict | Sequence[float] | None = None,
@@ -360,6 +362,7 @@ def _formal_sigma(j, fun) -> np.ndarray:
     return np.sqrt(np.maximum(np.diag(s2 * _normal_inverse(j)), 0.0))
 
 
+@one_blas_thread()
 def registration_covariance(z: np.ndarray, design: Any, reg: dict, *,
                             pixel: float | tuple[float, float],
                             origin: Sequence[float] = (0.0, 0.0), mask: np.ndarray | None = None,
@@ -507,6 +510,7 @@ def _icp_template(design, shape, *, pixel, origin, oversample):
     return cKDTree(tpts), tpts, nrm, float(tp)
 
 
+@one_blas_thread()
 def _icp_solve(pts, template, *, init=None, fit=tuple(_SHORT), max_iter=50, tol=1e-10):
     """ICP iterations of the measured points ``pts`` (n x 3) against ``template``
     (:func:`_icp_template`), fitting the parameters ``fit``."""

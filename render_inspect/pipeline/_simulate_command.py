@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.grid import grid_shape
-from ..core.limits import format_number, memory_budget, usable_cpus
+from ..core.limits import TILED_SAMPLES, format_number, memory_budget, usable_cpus
 from ..core.progress import task
 from ..design import make_surface
 from ..io import (ZarrHeightMap, atomic_output_dir, atomic_write_text, create_heightmap_zarr,
@@ -39,13 +39,6 @@ if TYPE_CHECKING:
 __all__ = ["run_simulate", "run_simulate_tiled", "wants_tiles", "TILED_SAMPLES"]
 
 log = logging.getLogger("render_inspect")
-
-#: maps of more samples than this are simulated tile by tile whatever the memory budget
-#: (when the process can): the in-memory run would hold several GiB and write a
-#: heightmap.exr of more than 400 MB, the tiled one holds the tiles in flight and writes
-#: a Zarr store with its pyramid
-TILED_SAMPLES = 1 << 25  # not a unit conversion
-
 
 def wants_tiles(scene: Scene, *, tiled: bool | None = None, workers: int | None = None,
                 scheduler: str | None = None) -> bool:

@@ -68,7 +68,7 @@ from ._measure import measure_and_evaluate
 from ._metrics import point_metrics, write_metrics
 from ._render import run_render, sweep_render_names
 from ._simulate import residual_title, simulate, write_simulation
-from ._sweep_check import check_sweep_tasks
+from ._sweep_check import check_sweep_tasks, failure_lines
 from ._sweep_morris import morris_table, sweep_morris
 from ._sweep_report import (add_machining_times, check_select_names, check_sweep_size, column_names, estimate_text,
                             first_record_check, point_seconds, selection, sweep_estimate)
@@ -327,6 +327,7 @@ def _finish(out: Path, spec, keys, tasks, records: dict, results: ResultsLog,
             "fixed_keys": fixed, "columns": columns,
             "points": total, "done": done, "failed": failed, "pending": total - done - failed,
             "records_from_other_sweeps": len(others), "plots": names,
+            "failure_lines": failure_lines([r for r in mine if r["status"] == "failed"], total),
             "run": spec.run.model_dump(mode="json"), "software_version": __version__}
     select_text, chosen = selection(spec, keys, mine)
     info["select"] = chosen
@@ -460,7 +461,7 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
                 info["elapsed_s"] = time.perf_counter() - t_all
                 info = _finish(out, spec, keys, tasks, records, results, info,
                                plots=not stopped)
-    if info["points"] <= SHOW_TABLE_POINTS:
+    if info["points"] <= SHOW_TABLE_POINTS and info["done"]:  # else the failures say it all
         log.info("%s", (out / "summary.md").read_text().split("| point |", 1)[-1].join(
             ["| point |", ""]).rstrip())
     if info["records_from_other_sweeps"]:
@@ -479,7 +480,9 @@ def run_sweep(sweep: str | Path, out: str | Path, *, scheduler: str | None = Non
 
 def sweep_failure(info: dict, out: str | Path) -> str | None:
     """The command line's message for a sweep with failed points (None when none
-    failed): how many failed, how many are done and how many did not run."""
+    failed): how many failed, how many are done and how many did not run, then one line
+    for each reason the points failed (points alike but for the numbers in their
+    messages are one reason), with its points."""
     if not info.get("failed"):
         return None
     done, pending = info.get("done", 0), info.get("pending", 0)
@@ -487,9 +490,13 @@ def sweep_failure(info: dict, out: str | Path) -> str | None:
             "no point is done")
     if pending:
         rest += f", {pending} did not run"
+    lines = info.get("failure_lines") or []
     return (f"{info['failed']} of {info['points']} points failed (their errors are in "
             f"{out}/summary.md and results.csv); {rest}; rerun with --retry-failed to try "
-            f"the failed ones again")
+            f"the failed ones again" + (
+                "; point numbers count from 0 in the order of the sweep file, a number that "
+                "differs between the points of one line is given as its range:\n"
+                + "\n".join(lines) if lines else ""))
 
 
 def _failed(t: dict, err: BaseException, memory_limit) -> dict:
