@@ -202,3 +202,32 @@ def test_the_simulated_band_lies_on_the_lattice_of_its_pixel(s_first):
     assert line["s0"] == s_first and line["count"] == 400
     grown = [fov[0] - region[0], fov[1] - region[1], region[2] - fov[2], region[3] - fov[3]]
     assert max(grown) - min(grown) < px + 1e-12
+
+
+@pytest.mark.slow
+def test_two_windows_of_a_line_see_the_same_cut_where_they_overlap():
+    # the bands of two windows of one line (starting 10.3 pixels apart along it) sample
+    # the same cut at the positions they share: their grids' nodes are the same points of
+    # the part.  (Before, each band's grid sat where its window put it, and the cusps
+    # sampled between its nodes differed by the interpolation: nanometres)
+    from render_inspect.pipeline._fit import _evaluation_pixel
+    from render_inspect.pipeline._fit_profile_arms import _band
+    from render_inspect.pipeline._fit_profile_model import simulated_cut
+
+    scene = _turned()
+    d = scene.model_dump(mode="json")
+    d["machine"] = {"preset": "ideal"}
+    d["material"] = {"preset": "ideal"}
+    px = _evaluation_pixel(scene)
+    p0, u, step, count = (0.1, 0.0), (1.0, 0.0), 0.00087, 60
+    shared = {"p0": list(p0), "direction": list(u), "s0": 0.2 + 10 * step, "step": step,
+              "count": count - 10}
+    cuts = []
+    for s0 in (0.2, 0.2 + 10.3 * px):
+        _, region, _ = _band(p0, u, s0, count, step, px)
+        sim = {**d["simulation"], "region": region, "pixel": px}
+        cuts.append(simulated_cut({"scene": {**d, "simulation": sim}, "seed": 0,
+                                   "line": shared}))
+    assert np.isfinite(cuts[0]).all() and np.isfinite(cuts[1]).all()
+    assert np.ptp(cuts[0]) > 1e-5      # the marks (tens of nm) are there to be sampled
+    np.testing.assert_allclose(cuts[1], cuts[0], rtol=0, atol=1e-12)

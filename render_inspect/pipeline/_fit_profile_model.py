@@ -16,7 +16,7 @@ from ..core.lazy import lazy_module
 from ..fit import MISMATCH, task_hash
 from ..scene import scene_from_dict
 from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
-from ._fit import _evaluation_pixel
+from ._fit import _evaluation_pixel, _on_lattice
 from ._fit_model import (MARGIN_PX, ForwardModel, compute_all, design_surface,
                          predict_measurement, quiet)
 from ._simulate import simulate
@@ -96,7 +96,8 @@ def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spa
     d = scene.model_dump(mode="json")
     px = _evaluation_pixel(scene)
     g = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * px)
-    d["simulation"]["region"] = [fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g]
+    # (on the lattice of the pixel, as a fit's evaluations simulate their band)
+    d["simulation"]["region"] = _on_lattice([fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g], px)
     d["simulation"]["pixel"] = px
     d["render"]["interferometer"].update(pixel=float(spacing), field_of_view=fov,
                                          margin=MARGIN_PX, noise=True)
