@@ -124,3 +124,25 @@ def test_registration_bad_input():
         register_lsq(z, Freeform(), pixel=pixel, origin=origin, fit=("tx", "scale"))
     with pytest.warns(UserWarning, match="10 x"):
         template_surface(Freeform(), region=(-0.1, -0.1, 0.1, 0.1), pixel=0.02, oversample=4)
+
+
+def test_icp_template_too_large_names_the_key_the_largest_value_and_the_received_one():
+    # a map of 593 x 593 pixels of 2 um at the default oversampling would make a template of
+    # 4.3e7 points: refused in one line naming the scene key, the largest oversampling that
+    # fits this map (3: 4.7e6 points) and the value received; a map too large for any
+    class Flat:
+        def height(self, x, y):
+            return np.zeros(np.broadcast(x, y).shape)
+
+        def gradient(self, x, y):
+            z = np.zeros(np.broadcast(x, y).shape)
+            return z, z
+
+    z = np.zeros((593, 593))
+    with pytest.raises(InputError) as e:
+        register_icp(z, Flat(), pixel=0.002, oversample=10, max_iter=1)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith("metrology.template_oversample")
+    assert "must be at most 3 for a map of 593 x 593 pixels" in msg and msg.endswith("received 10")
+    with pytest.raises(InputError, match="cannot be small enough"):
+        register_icp(np.zeros((3000, 3000)), Flat(), pixel=0.002, oversample=2, max_iter=1)

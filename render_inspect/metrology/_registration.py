@@ -483,6 +483,11 @@ def register_icp(z: np.ndarray, design: Any, *, pixel: float | tuple[float, floa
                       max_iter=max_iter, tol=tol)
 
 
+#: the most points an ICP template may have (its points, their normals and its k-d tree
+#: are held together)
+_ICP_TEMPLATE_POINTS = 6_000_000
+
+
 def _icp_template(design, shape, *, pixel, origin, oversample):
     """The ICP template of ``design`` over a map of ``shape`` (plus a margin): its k-d
     tree, points, unit normals and spacing (mm)."""
@@ -493,11 +498,21 @@ def _icp_template(design, shape, *, pixel, origin, oversample):
     margin = 0.05 * max(nx * sx, ny * sy) + 3 * max(sx, sy)
     region = (origin[0] - margin, origin[1] - margin,
               origin[0] + (nx - 1) * sx + margin, origin[1] + (ny - 1) * sy + margin)
+    def points(k: float) -> float:  # the template's points at an oversampling of k
+        t = min(sx, sy) / k
+        return ((region[2] - region[0]) / t + 1) * ((region[3] - region[1]) / t + 1)
+
     tp = min(sx, sy) / oversample
-    n_t = ((region[2] - region[0]) / tp + 1) * ((region[3] - region[1]) / tp + 1)
-    if n_t > 6e6:
-        raise InputError(f"register_icp: the template would have {n_t:.3g} points (> 6e6); "
-                         f"lower oversample ({oversample}) or crop the map")
+    n_t = points(oversample)
+    if n_t > _ICP_TEMPLATE_POINTS:
+        fits = max((k for k in range(1, int(oversample)) if points(k) <= _ICP_TEMPLATE_POINTS),
+                   default=None)
+        room = (f"must be at most {fits}" if fits is not None else
+                "cannot be small enough (crop the map)")
+        raise InputError(f"metrology.template_oversample (the ICP template's density) {room} "
+                         f"for a map of {ny} x {nx} pixels (its template would have "
+                         f"{n_t:.3g} points, more than {_ICP_TEMPLATE_POINTS:,}), received "
+                         f"{oversample}")
     tx = np.arange(region[0], region[2] + tp / 2, tp)
     ty = np.arange(region[1], region[3] + tp / 2, tp)
     txx, tyy = np.meshgrid(tx, ty)
