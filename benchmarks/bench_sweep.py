@@ -1,5 +1,5 @@
-"""Sweep benchmark: the shipped fig15_small sweep (9 points) on a LocalCluster of 1 and of
-2 process workers, and the full Fig. 15 sweep (106 points) on 2 workers.
+"""Sweep benchmark: the shipped fig15_small sweep (9 points) and the full Fig. 15 sweep (106
+points), each on a LocalCluster of 1 and of 2 process workers.
 
 Each run is the ``render-inspect sweep`` command in a fresh folder, wall-clock seconds
 from the start of the command to its end (cluster start-up, worker imports and the plots
@@ -42,6 +42,7 @@ def main(quick: bool = False) -> dict:
     out = {"fig15_small_1_worker": _run("fig15_small", 1),
            "fig15_small_2_workers": _run("fig15_small", 2)}
     if not quick:
+        out["fig15_1_worker"] = _run("fig15", 1)
         out["fig15_2_workers"] = _run("fig15", 2)
     for k, v in out.items():
         print(k, json.dumps(v))
