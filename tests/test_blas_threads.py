@@ -5,6 +5,8 @@ register_lsq, registration_covariance and the ICP's steps run so, with the same 
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 import scipy.optimize  # noqa: F401  (SciPy's OpenBLAS mapped before the blocks run)
@@ -26,11 +28,22 @@ class Wavy:
                 y / 35.0 - 2e-3 * 9.0 * np.sin(12.6 * x) * np.sin(9.0 * y))
 
 
+def _numpy_blas() -> str:
+    """The name of the BLAS numpy was built with ("" where its configuration says none)."""
+    try:
+        return str(np.show_config(mode="dicts")["Build Dependencies"]["blas"]["name"]).lower()
+    except (TypeError, KeyError):
+        return ""
+
+
 @pytest.fixture
 def two_threads():
     """Every OpenBLAS found set to two threads for the test (their counts set back after
     it); the counts seen."""
     switches = blas._switches()
+    if sys.platform.startswith("linux") and "openblas" in _numpy_blas():
+        # numpy's own OpenBLAS is mapped in this process: not finding it is a failure
+        assert switches, "numpy's OpenBLAS was not found among the process's mapped files"
     before = [get() for get, _ in switches]
     for _, put in switches:
         put(2)
@@ -38,7 +51,7 @@ def two_threads():
     if not counts or max(counts) < 2:
         for (_, put), n in zip(switches, before):
             put(n)
-        pytest.skip("no OpenBLAS with more than one thread in this process")
+        pytest.skip("no OpenBLAS that runs more than one thread here (one usable CPU, or no OpenBLAS)")
     yield counts
     for (_, put), n in zip(switches, before):
         put(n)

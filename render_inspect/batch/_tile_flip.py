@@ -23,13 +23,9 @@ import numpy as np
 
 from ..core import cancel
 from ..machining import Tile
-from ._tile_pyramid import write_tile
+from ._tile_pyramid import CHANNELS, write_tile
 
 __all__ = ["flip_column", "flip_order", "column_sources"]
-
-#: the store's maps, turned over one after the other
-CHANNELS = ("design", "machined", "residual")
-
 
 def flip_order(n: int) -> list[int]:
     """The chunks 0 .. n - 1 of a column from both ends inward: 0, n - 1, 1, n - 2, ..."""

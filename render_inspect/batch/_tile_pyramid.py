@@ -27,7 +27,10 @@ from ..core.lazy import njit  # numba, imported on first use
 from ..io import block_sums, coarsen
 from ..machining import Tile
 
-__all__ = ["tile_float32", "coarsen2", "block_means", "write_tile"]
+__all__ = ["CHANNELS", "tile_float32", "coarsen2", "block_means", "write_tile"]
+
+#: the maps of a height-map store, in the order they are written
+CHANNELS = ("design", "machined", "residual")
 
 
 @njit(cache=True, nogil=True)
@@ -68,7 +71,7 @@ def tile_float32(design: np.ndarray, machined: np.ndarray
     if d.shape != m.shape or d.ndim != 2:
         raise ValueError(f"tile_float32: design {d.shape} and machined {m.shape} must be one 2-D shape")
     ny, nx = d.shape
-    maps = {k: np.empty((ny, nx), dtype=np.float32) for k in ("design", "machined", "residual")}
+    maps = {k: np.empty((ny, nx), dtype=np.float32) for k in CHANNELS}
     shape = (3, -(-ny // 2), -(-nx // 2))
     sums = np.zeros(shape)
     counts = np.zeros(shape, dtype=np.int64)

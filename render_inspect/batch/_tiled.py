@@ -34,7 +34,7 @@ from ..core.units import GIB_TO_BYTES, MIB_TO_BYTES
 from ..core.limits import usable_cpus
 from ._store_stats import stored_abs_dev
 from ._tile_flip import flip_column
-from ._tile_pyramid import tile_float32, write_tile
+from ._tile_pyramid import CHANNELS, tile_float32, write_tile
 from ._cluster import call_with_threads, cluster_info, dask_client, open_client, wait_for_workers
 from ..io import coarsen, means
 from ..machining import (TILE, CutPath, EnvelopePath, Tile, compute_tile, load_cut_kernels, load_kernels,
@@ -44,7 +44,6 @@ __all__ = ["run_tiles", "tile_client", "TiledStats", "BINS", "CHANNELS"]
 
 #: histogram bins of the residual (pass 2)
 BINS = 1024
-CHANNELS = ("design", "machined", "residual")
 
 
 # (``surface: Any``: a design's Surface, which this layer does not import; ``client: Any``:

@@ -96,7 +96,7 @@ def beyond_part_hint(sp: Any, mode: str, big: float, limit: float, unit: int) ->
     d = sp.decimals
     if mode != "whole" or d["with"] or not d["without"]:
         return ""
-    both = {0, 1} <= set(np.unique(getattr(sp, "x_unit", ())).tolist())
+    both = {0, 1} <= set(np.unique(sp.x_unit).tolist())
     if unit not in (0, 1):
         return (f"; no position word of the program has a decimal point, and the furthest "
                 f"move's X adds incremental words written in inches and in mm: read in "

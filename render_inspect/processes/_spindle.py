@@ -22,12 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from ..core.grid import flip_rows, grid_shape
+from ..core.grid import grid_shape
 from ..core.toolpath import SPINDLE_KEY, turns_m04
 from ..design import Surface
 
-__all__ = ["MirroredSurface", "mirrored_region", "flip_rows", "part_figure", "spindle_meta",
-           "turns_m04"]
+__all__ = ["MirroredSurface", "mirrored_region", "part_figure", "spindle_meta", "turns_m04"]
 
 
 class MirroredSurface(Surface):
