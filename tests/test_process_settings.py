@@ -6,12 +6,14 @@ for no huge pages (the page faults of a fresh large array, measured)."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -125,3 +127,93 @@ def test_a_multiprocessing_worker_of_the_program_is_not_the_program(monkeypatch)
     monkeypatch.setattr(sys, "orig_argv", [sys.executable, "/usr/local/bin/render-inspect", "sweep"],
                         raising=False)
     assert _early_signals.is_program() is True
+
+
+#: loads kernels from numba's cache as the program (``argv[0]`` "render-inspect") or as a
+#: host: a lazy kernel, a kernel numba's own decorator built (threaded, ``parallel=True``)
+#: and the phase unwrapper's; prints whether numba's compiler set-up (its library of numpy
+#: functions) was imported by then, the results, and a kernel compiled afterwards
+_NUMBA_PROBE = r"""
+import hashlib, json, sys
+import argparse
+if sys.argv[1] == "program":
+    sys.argv[0] = "render-inspect"
+import numpy as np
+import render_inspect
+from render_inspect.cli._main import _run
+
+_run(argparse.Namespace(command="(none: the program's start only)"))
+from render_inspect.toolpath._kinematics import axis_derivatives
+from render_inspect.instruments._kernels import filter_fold
+from render_inspect.metrology._unwrap import unwrap_phase
+from render_inspect.machining._interpolate import THREADED_TICKS, pvt_checked
+
+t = np.linspace(0.0, 1.0, 50)
+d = axis_derivatives(t, np.sin(3.0 * t))
+rng = np.random.default_rng(5)
+n = 16
+spec = (rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n))).astype(np.complex64)
+q2 = (np.arange(n, dtype=np.float32) / 7) ** 2
+sep = np.exp(1j * np.arange(n) / 5).astype(np.complex64)
+cols = np.arange(n, dtype=np.int64)
+out = np.empty((n // 2, n // 2), dtype=np.complex64)
+filter_fold(spec, np.ones(n, dtype=bool), q2, sep, cols, cols % (n // 2), q2, sep,
+            np.linspace(1.0, 0.5, 8).astype(np.float32), np.float32(2.0), 2, out)
+tp = np.cumsum(np.linspace(1e-3, 2e-3, 400))
+pvt = pvt_checked(tp, np.stack([np.sin(tp), np.cos(3 * tp)]),
+                  np.linspace(tp[0], tp[-1], THREADED_TICKS + 5))
+# (what the simulation loads needs none of numba's library of numpy functions)
+simulation_set_up = "numba.np.old_arraymath" in sys.modules
+y, x = np.mgrid[0:40, 0:40]
+phase = np.angle(np.exp(1j * (0.01 * (x - 20) ** 2 + 0.02 * (y - 15) ** 2)))
+unwrapped = unwrap_phase(phase)[0]
+set_up = "numba.np.arraymath" in sys.modules
+h = hashlib.sha256()
+for a in (*d, out, *pvt, unwrapped):
+    h.update(np.ascontiguousarray(a).tobytes())
+import numba
+
+@numba.njit
+def fresh(a):
+    return np.sort(a)[::-1].sum() + np.linalg.norm(a)
+
+v = float(fresh(np.arange(5.0)))
+print(json.dumps({"set_up_before": set_up, "simulation_set_up": simulation_set_up, "hash": h.hexdigest(), "fresh": v,
+                  "set_up_after": "numba.np.arraymath" in sys.modules}))
+"""
+
+
+def _numba_probe(tmp_path, mode):
+    e = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", _NUMBA_PROBE, mode], capture_output=True, text=True,
+                       env=e, cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_the_program_loads_cached_kernels_without_numbas_compiler_set_up(tmp_path):
+    _numba_probe(tmp_path, "host")  # (the kernels in numba's cache, compiled where absent)
+    program, host = _numba_probe(tmp_path, "program"), _numba_probe(tmp_path, "host")
+    # a host process: numba's own order (its set-up before the first load)
+    assert host["set_up_before"] is True
+    # the program: the loads alone, the same machine code (the same results bit for bit),
+    # a lazy kernel, a threaded kernel of numba's own decorator and the unwrapper's alike
+    assert program["set_up_before"] is False
+    assert program["simulation_set_up"] is False
+    assert program["hash"] == host["hash"]
+    # a kernel compiled afterwards gets numba's set-up then, as numba always makes it
+    assert program["set_up_after"] is True
+    assert program["fresh"] == host["fresh"] == 10.0 + float(np.linalg.norm(np.arange(5.0)))
+
+
+def test_a_host_keeps_numbas_own_order():
+    from render_inspect.cli._main import _run
+    from render_inspect.core import lazy
+
+    # a host (the test process, even running a command in it): numba's own order
+    _run(argparse.Namespace(command="(none)"))
+    lazy.load_numba()
+    from numba.core import caching
+
+    assert not getattr(caching.Cache.load_overload, "_quick", False)

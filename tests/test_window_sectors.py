@@ -262,6 +262,21 @@ def test_the_pvt_command_on_threads_is_the_one_pass_to_the_bit():
         assert np.array_equal(a, b, equal_nan=True)
 
 
+def test_the_pvt_commands_segment_search_is_numpys_searchsorted():
+    """The PVT command's binary search gives numpy's ``searchsorted(t, x, side="right")``
+    for every x: before, on and between the times, repeated times, beyond the ends and
+    infinite."""
+    from render_inspect.machining._interpolate import _count_at_most
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 7, 64, 1000):
+        t = np.sort(rng.integers(0, 20, n).astype(np.float64) * 0.25)
+        xs = np.concatenate([t, t - 1e-12, t + 1e-12, rng.uniform(-1, 6, 50),
+                             [-np.inf, np.inf, t[0] - 1.0, t[-1] + 1.0]])
+        for x in xs:
+            assert _count_at_most(t, x) == np.searchsorted(t, x, side="right"), (n, x)
+
+
 @pytest.mark.slow
 def test_the_tiled_simulation_of_a_window_cuts_its_sectors_as_in_memory(tmp_path):
     from render_inspect.io import ZarrHeightMap

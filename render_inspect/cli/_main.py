@@ -18,7 +18,7 @@ from typing import Any, NoReturn
 from .. import __version__, _early_signals
 from ..core import cancel
 from ..core.cancel import Terminated
-from ..core.lazy import freeze_after_pauses
+from ..core.lazy import freeze_after_pauses, quick_cache_loads
 from ..core.errors import RenderInspectError
 from ..core.invocation import running_command
 from ..core.progress import set_reporter
@@ -60,6 +60,9 @@ def _run(args):
     _early_signals.resume_collector()
     if _early_signals.is_program():
         freeze_after_pauses()
+        # (the program's own process: numba's cached kernels load without its compiler's
+        # set-up, which only a compilation needs)
+        quick_cache_loads()
     if run is None:
         return None
     return run(args, bool(getattr(args, "overwrite", False)))

@@ -16,6 +16,9 @@ are declared through this module:
 * :func:`lazy_module` is a module that is imported on its first attribute access
   (``ndimage = lazy_module("scipy.ndimage")``), and :func:`lazy_attr` one of its
   attributes, loaded when first called or looked into (``Rotation``, ``least_squares``).
+* :func:`load_numba` is numba itself, for kernels built with numba's own decorators.  In
+  the ``render-inspect`` program (:func:`quick_cache_loads`), numba loads a kernel from
+  its cache without first setting up its whole compiler, which only a compilation needs.
 
 Only the standard library is imported here.
 """
@@ -27,18 +30,21 @@ import functools
 import gc
 import importlib
 import os
+import sys
 import threading
 import types
 from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
-           "collector_paused", "freeze_after_pauses", "freeze_lasting"]
+           "load_numba", "quick_cache_loads", "collector_paused", "freeze_after_pauses", "freeze_lasting"]
 
 _LOCK = threading.RLock()
 #: blocks running with the collector paused (collector_paused), and whether it was on
 #: before the first of them
 _PAUSES = {"count": 0, "was_on": False, "freeze": False}
+#: numba's cache loads without its compiler's set-up: asked for (quick_cache_loads), made
+_NUMBA = {"quick": False, "made": False}
 
 
 @contextlib.contextmanager
@@ -107,7 +113,70 @@ def prange(*args: int) -> range:
 def _numba() -> Any:  # the numba module (imported here, on first use)
     import numba
 
+    if _NUMBA["quick"] and not _NUMBA["made"]:
+        with _LOCK:
+            if not _NUMBA["made"]:
+                _NUMBA["made"] = True
+                _load_without_set_up()
     return numba
+
+
+def load_numba() -> Any:
+    """The numba module, imported now (for the kernels built with numba's own decorators:
+    numba set up as for the lazy kernels)."""
+    return _numba()
+
+
+def quick_cache_loads() -> None:
+    """From now on, numba loads a CPU kernel from its on-disk cache without first setting
+    up its whole compiler: for the ``render-inspect`` program only (see below).
+
+    Before numba loads a kernel's machine code from its cache, it makes ready everything
+    a compilation needs: it imports its whole library of compilable numpy and Python
+    functions (its linear algebra with SciPy's BLAS, random numbers, typed containers:
+    about 0.25 s and 0.4 CPU-s in every fresh process, more than the loads themselves).
+    Loading code compiled before needs only numba's runtime (its memory management),
+    which is started.  The set-up is not skipped, only put off: numba's compiler makes it
+    at the start of every compilation (a kernel missing from the cache, a new signature),
+    as it always does; a kernel loaded from the cache is the machine code numba wrote,
+    unchanged, so every result is the same.  Only where numba's cache has the layout this
+    was written against (checked; numba's own order otherwise), and never in a host
+    process (Blender, a user's script, a Dask worker), whose numba is shared with
+    whatever else it runs."""
+    with _LOCK:
+        _NUMBA["quick"] = True
+        if "numba" in sys.modules and not _NUMBA["made"]:
+            _NUMBA["made"] = True
+            _load_without_set_up()
+
+
+def _load_without_set_up() -> bool:
+    """numba's cache loads of CPU kernels without the compiler's set-up
+    (:func:`quick_cache_loads`); whether the change was made."""
+    try:
+        from numba.core import caching, cpu
+        from numba.core.runtime import rtsys
+    except ImportError:
+        return False
+    cache = caching.Cache
+    load = cache.__dict__.get("load_overload")
+    if (load is None or getattr(load, "_quick", False) or "_load_overload" not in cache.__dict__
+            or "_guard_against_spurious_io_errors" not in cache.__dict__
+            or not hasattr(rtsys, "initialize")):
+        return False
+
+    def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
+        if not isinstance(target_context, cpu.CPUContext):
+            return load(self, sig, target_context)
+        # what a loaded CPU kernel needs of the set-up: numba's runtime (started once)
+        rtsys.initialize(target_context)
+        with self._guard_against_spurious_io_errors():
+            return self._load_overload(sig, target_context)
+
+    load_overload._quick = True  # type: ignore[attr-defined]
+    load_overload.__doc__ = load.__doc__
+    cache.load_overload = load_overload
+    return True
 
 
 def _realise_globals(namespace: dict[str, Any], seen: set[int]) -> None:

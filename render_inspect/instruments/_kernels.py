@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from ..core.lazy import njit  # numba, imported on first use
+from ..core.lazy import load_numba, njit  # numba, imported on first use
 from ..core.threads import over_rows
 from ..core.smoothing import gaussian_weights
 
@@ -23,7 +23,7 @@ _KERNEL = None
 def _build():
     import math
 
-    import numba
+    numba = load_numba()
 
     @numba.njit(parallel=True, cache=True)
     def kernel(spec, row_ok, qy2, sepy, cols, ccols, qx2, sepx, table, inv_dq, s_fold, out):

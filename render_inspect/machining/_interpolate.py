@@ -137,6 +137,22 @@ def _pvt_velocities(t, q, v):
         v[r, n - 1] = sl
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _count_at_most(t, x):
+    """How many of the increasing times ``t`` are <= x (numpy's ``searchsorted(t, x,
+    side="right")``, the same index for every x; written here so that the kernel loads
+    from numba's cache without numba's library of numpy functions)."""
+    lo = 0
+    hi = t.size
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if t[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 @njit(cache=True, nogil=True)
 def _hermite(t, q, v, tk, pos, vel, acc, k0, k1):
     """The PVT command of each axis (row of ``q``, point velocities ``v``) at the ticks
@@ -148,14 +164,14 @@ def _hermite(t, q, v, tk, pos, vel, acc, k0, k1):
     na = q.shape[0]
     c = 0  # the number of program times <= the tick
     if k1 > k0 and tk[k0] == tk[k0]:
-        c = np.searchsorted(t, tk[k0], side="right")
+        c = _count_at_most(t, tk[k0])
     for k in range(k0, k1):
         x = tk[k]
         if x != x:
             j = n - 2  # (a NaN sorts after every time)
         else:
             if c > 0 and t[c - 1] > x:  # (a tick before the last one)
-                c = np.searchsorted(t, x, side="right")
+                c = _count_at_most(t, x)
             while c < n and t[c] <= x:
                 c += 1
             j = min(max(c - 1, 0), n - 2)

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+from ..core.lazy import load_numba
+
+njit = load_numba().njit
 
 __all__ = ["flood"]
 
