@@ -19,10 +19,7 @@ from ..fit import (ArmsTarget, arms_features, arms_text, combine_arms, get_value
                    make_profile_target, profile_family, profile_residual_vector)
 from ..processes import process_of
 from ..report import key_unit
-from ._compare_profile import BAND_HALF_MM, REGION_MARGIN_MM
-from ._fit import _on_lattice
-from ._fit_model import MARGIN_PX
-from ._fit_profile_model import MIN_POINTS, ProfileModel, after_verdict
+from ._fit_profile_model import MIN_POINTS, ProfileModel, after_verdict, profile_band
 
 if TYPE_CHECKING:
     from ..io import MeasuredProfile
@@ -56,13 +53,7 @@ def _band(win_p0, u, s_first: float, count: int, spacing: float, sim_pixel: floa
     task); the window's own stretch and the other arm's alike."""
     s_last = s_first + (count - 1) * spacing
     ends = [(win_p0[0] + u[0] * s, win_p0[1] + u[1] * s) for s in (s_first, s_last)]
-    h = BAND_HALF_MM
-    fov = [min(e[0] for e in ends) - h, min(e[1] for e in ends) - h,
-           max(e[0] for e in ends) + h, max(e[1] for e in ends) + h]
-    grow = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * sim_pixel)
-    # on the lattice of the simulation pixel through the origin, as a map's fit has it:
-    # the grid's nodes fall under the marks at the same places wherever the band lies
-    region = _on_lattice([fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow], sim_pixel)
+    fov, region = profile_band(ends, spacing, sim_pixel)
     return fov, region, {"p0": list(win_p0), "direction": list(u), "s0": s_first,
                          "step": spacing, "count": count}
 

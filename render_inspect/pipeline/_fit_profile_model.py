@@ -24,7 +24,7 @@ from ._simulate import simulate
 if TYPE_CHECKING:
     from ..scene import Scene
 
-__all__ = ["predict_profile", "simulated_cut", "simulate_profile", "ProfileModel", "MIN_POINTS",
+__all__ = ["predict_profile", "simulated_cut", "simulate_profile", "profile_band", "ProfileModel", "MIN_POINTS",
            "compute_profiles", "after_verdict"]
 
 ndimage = lazy_module("scipy.ndimage")
@@ -90,14 +90,10 @@ def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spa
     length = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
     u = [(p1[0] - p0[0]) / length, (p1[1] - p0[1]) / length]
     count = int(math.floor(length / spacing + 1e-9)) + 1
-    h = BAND_HALF_MM
-    fov = [min(p0[0], p1[0]) - h, min(p0[1], p1[1]) - h, max(p0[0], p1[0]) + h,
-           max(p0[1], p1[1]) + h]
     d = scene.model_dump(mode="json")
     px = _evaluation_pixel(scene)
-    g = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * px)
-    # (on the lattice of the pixel, as a fit's evaluations simulate their band)
-    d["simulation"]["region"] = _on_lattice([fov[0] - g, fov[1] - g, fov[2] + g, fov[3] + g], px)
+    # (the band of a fit's evaluation about the same stretch)
+    fov, d["simulation"]["region"] = profile_band((p0, p1), spacing, px)
     d["simulation"]["pixel"] = px
     d["render"]["interferometer"].update(pixel=float(spacing), field_of_view=fov,
                                          margin=MARGIN_PX, noise=True)
@@ -105,6 +101,20 @@ def simulate_profile(scene: Scene, p0: Sequence[float], p1: Sequence[float], spa
                             "line": {"p0": list(p0), "direction": u, "s0": 0.0,
                                      "step": float(spacing), "count": count}})
     return np.arange(count) * float(spacing), z.ravel()
+
+
+def profile_band(ends: Sequence[Sequence[float]], spacing: float,
+                 sim_pixel: float) -> tuple[list[float], list[float]]:
+    """The band a profile evaluation simulates about the stretch of a line between its two
+    ``ends`` (mm), sampled every ``spacing`` mm: (the interferometer's field, the simulated
+    region), the region on the lattice of the simulation pixel through the origin, as a
+    map's fit has it (the grid's nodes fall under the marks at the same places wherever
+    the band lies)."""
+    h = BAND_HALF_MM
+    fov = [min(e[0] for e in ends) - h, min(e[1] for e in ends) - h,
+           max(e[0] for e in ends) + h, max(e[1] for e in ends) + h]
+    grow = max(REGION_MARGIN_MM, (MARGIN_PX + 2) * spacing + 2 * sim_pixel)
+    return fov, _on_lattice([fov[0] - grow, fov[1] - grow, fov[2] + grow, fov[3] + grow], sim_pixel)
 
 
 @dataclass
