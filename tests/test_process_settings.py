@@ -217,3 +217,12 @@ def test_a_host_keeps_numbas_own_order():
     from numba.core import caching
 
     assert not getattr(caching.Cache.load_overload, "_quick", False)
+
+
+@pytest.mark.parametrize("version,checked", [("0.61.2", True), ("0.61.0rc1", True), ("0.62.0", False),
+                                             ("0.60.0", False), ("1.0", False), ("", False),
+                                             ("0.61", True), ("dev", False)])
+def test_the_quick_cache_loads_are_made_only_for_the_numba_releases_checked(version, checked):
+    from render_inspect.core.lazy import quick_loads_checked
+
+    assert quick_loads_checked(version) is checked

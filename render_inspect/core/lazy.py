@@ -45,6 +45,8 @@ _LOCK = threading.RLock()
 _PAUSES = {"count": 0, "was_on": False, "freeze": False}
 #: numba's cache loads without its compiler's set-up: asked for (quick_cache_loads), made
 _NUMBA = {"quick": False, "made": False}
+#: the numba releases (major, minor) whose cache loads were checked without the set-up
+QUICK_LOAD_RELEASES = ((0, 61),)
 
 
 @contextlib.contextmanager
@@ -139,8 +141,9 @@ def quick_cache_loads() -> None:
     which is started.  The set-up is not skipped, only put off: numba's compiler makes it
     at the start of every compilation (a kernel missing from the cache, a new signature),
     as it always does; a kernel loaded from the cache is the machine code numba wrote,
-    unchanged, so every result is the same.  Only where numba's cache has the layout this
-    was written against (checked; numba's own order otherwise), and never in a host
+    unchanged, so every result is the same.  Only for the numba releases this was checked
+    with (:data:`QUICK_LOAD_RELEASES`, and where numba's cache has that layout; numba's own
+    order otherwise), and never in a host
     process (Blender, a user's script, a Dask worker), whose numba is shared with
     whatever else it runs."""
     with _LOCK:
@@ -153,6 +156,10 @@ def quick_cache_loads() -> None:
 def _load_without_set_up() -> bool:
     """numba's cache loads of CPU kernels without the compiler's set-up
     (:func:`quick_cache_loads`); whether the change was made."""
+    import numba
+
+    if not quick_loads_checked(getattr(numba, "__version__", "")):
+        return False
     try:
         from numba.core import caching, cpu
         from numba.core.runtime import rtsys
@@ -177,6 +184,17 @@ def _load_without_set_up() -> bool:
     load_overload.__doc__ = load.__doc__
     cache.load_overload = load_overload
     return True
+
+
+def quick_loads_checked(version: str) -> bool:
+    """Whether numba ``version`` (e.g. "0.61.2") is a release whose cache loads were
+    checked without the compiler's set-up (:data:`QUICK_LOAD_RELEASES`)."""
+    parts = version.split(".")
+    try:
+        release = (int(parts[0]), int(parts[1]))
+    except (IndexError, ValueError):
+        return False
+    return release in QUICK_LOAD_RELEASES
 
 
 def _realise_globals(namespace: dict[str, Any], seen: set[int]) -> None:
