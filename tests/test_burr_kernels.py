@@ -150,3 +150,20 @@ def test_material_burrs_in_place_give_the_same_map():
     mine = z.copy()
     got, info2 = material_burrs(mine, z, overwrite=True, **kw)
     assert got is mine and np.array_equal(got, ref) and info2 == info
+
+
+def test_the_gaussian_weights_are_scipys_kernel_bit_for_bit():
+    """The smoothing passes' weights, computed without importing SciPy's ndimage, are the
+    kernel SciPy's own ``gaussian_filter1d`` uses (reversed as it reverses it) to the bit,
+    for whole and fractional widths and other truncations."""
+    from scipy.ndimage import _filters
+
+    from render_inspect.core.smoothing import gaussian_weights
+
+    for sigma in (0.3, 0.5, 1.0, 1.7, 2.0, 3.14159, 10.0, 20.0, 33.3, 80.5, 161.0):
+        for truncate in (4.0, 3.0, 2.5):
+            radius = int(truncate * sigma + 0.5)
+            want = np.ascontiguousarray(_filters._gaussian_kernel1d(sigma, 0, radius)[::-1])
+            got = gaussian_weights(sigma, truncate)
+            assert got.dtype == np.float64 and got.flags.c_contiguous
+            assert np.array_equal(got, want), (sigma, truncate)
