@@ -6,6 +6,13 @@ process with a misspelt key (``--set tool.nose_radiuz=1``), a value out of range
 system), the best of ``BENCH_REPEATS`` (default 5) runs.  The heavy libraries the process
 imported are listed with each case (none is expected).
 
+Also how soon a command starts computing: ``simulate sts_sinusoidal_grid -v`` (the shipped
+grid, 1 M samples), the time from the start of the process to the start of its planning
+(the planning step's message arrives when it ends and names its duration), and to the
+process's end; with whether numba's compiler set-up (its library of numpy functions,
+``numba.np.arraymath``) was loaded, which the program leaves to a compilation (the median
+of the runs, and each run).
+
 ``python benchmarks/bench_startup.py [PACKAGE_ROOT ...]``: each root (a checkout holding
 ``render_inspect/``; default this repository) is measured in turn, the runs of the roots
 interleaved, so that an earlier version can be measured beside this one under the same
@@ -16,7 +23,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -45,6 +54,12 @@ runpy.run_module("render_inspect.cli", run_name="__main__", alter_sys=True)
 """ % (HEAVY,)
 
 
+#: the command whose start is timed (the shipped grid as shipped, its steps' messages on)
+START_CASE = ["simulate", "sts_sinusoidal_grid", "-v"]
+#: a module of numba's compiler set-up (present when numba set itself up for compiling)
+NUMBA_SET_UP = "numba.np.arraymath"
+
+
 def _child_cpu() -> float:
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime
@@ -66,6 +81,30 @@ def run_case(root: Path, argv: list, tmp: Path) -> dict:
             "line": line[:160]}
 
 
+def run_start(root: Path, tmp: Path) -> dict:
+    """:data:`START_CASE` in a fresh process: seconds to the start of planning and to the
+    end, and whether numba's compiler set-up was loaded by the end."""
+    report = tmp / "heavy.json"
+    driver = _DRIVER.replace(repr(HEAVY), repr(HEAVY + (NUMBA_SET_UP,)))
+    args = [sys.executable, "-c", driver, str(report), *START_CASE, "--out", str(tmp / "start"),
+            "--overwrite"]
+    env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
+    t0 = time.perf_counter()
+    p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         cwd=tmp, env=env)
+    plan = None
+    assert p.stdout is not None
+    for line in p.stdout:
+        m = re.search(r"plan the tool path: ([0-9.]+) s", line)
+        if m and plan is None:
+            plan = time.perf_counter() - t0 - float(m.group(1))
+    rc = p.wait()
+    end = time.perf_counter() - t0
+    heavy = json.loads(report.read_text()) if report.exists() else []
+    return {"rc": rc, "planning_starts_s": None if plan is None else round(plan, 3),
+            "ends_s": round(end, 3), "numba_set_up_loaded": NUMBA_SET_UP in heavy}
+
+
 def main(roots=None) -> dict:
     roots = [Path(r).resolve() for r in (roots or [REPO])]
     repeats = int(os.environ.get("BENCH_REPEATS", "5"))
@@ -76,6 +115,21 @@ def main(roots=None) -> dict:
             for case, argv in CASES.items():
                 for root in roots:
                     runs[(str(root), case)].append(run_case(root, argv, Path(tmp)))
+        starts = {str(r): [] for r in roots}
+        for _ in range(repeats):
+            for root in roots:
+                starts[str(root)].append(run_start(root, Path(tmp)))
+    for root, rs in starts.items():
+        ok = [r for r in rs if r["rc"] == 0 and r["planning_starts_s"] is not None]
+        if not ok:
+            raise RuntimeError(f"{root}: {START_CASE} failed: {rs}")
+        summary = {"planning_starts_s": statistics.median(r["planning_starts_s"] for r in ok),
+                   "ends_s": statistics.median(r["ends_s"] for r in ok),
+                   "numba_set_up_loaded": sorted({r["numba_set_up_loaded"] for r in ok}), "runs": rs}
+        res.setdefault(root, {})["simulate starts computing"] = summary
+        print(f"{root} | simulate starts computing: planning from {summary['planning_starts_s']:.2f} s, "
+              f"ends {summary['ends_s']:.2f} s (medians), numba's set-up loaded "
+              f"{summary['numba_set_up_loaded']}", flush=True)
     for (root, case), rs in runs.items():
         best = min(rs, key=lambda r: r["cpu_s"])
         best["runs_wall_s"] = [r["wall_s"] for r in rs]
