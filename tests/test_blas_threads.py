@@ -6,6 +6,7 @@ register_lsq, registration_covariance and the ICP's steps run so, with the same 
 from __future__ import annotations
 
 import sys
+import types
 
 import numpy as np
 import pytest
@@ -99,3 +100,20 @@ def test_registration_solves_on_one_thread(two_threads, monkeypatch):
     ones = [1] * len(two_threads)
     assert all(c == ones for calls in seen.values() for c in calls), seen
     assert blas.blas_threads() == two_threads
+
+
+def test_the_mapped_files_are_read_again_only_after_an_import(monkeypatch):
+    """A registration's blocks come one after another: the process's mapped files are read
+    once, and again only once a module was imported (which may load another OpenBLAS)."""
+    reads = []
+    real = blas._mapped_openblas
+    monkeypatch.setattr(blas, "_mapped_openblas", lambda: reads.append(1) or real())
+    monkeypatch.setitem(blas._SCANNED, "modules", -1)
+    for _ in range(5):
+        with blas.one_blas_thread():
+            pass
+    assert len(reads) == 1
+    monkeypatch.setitem(sys.modules, "render_inspect_test_newly_imported", types.ModuleType("x"))
+    with blas.one_blas_thread():
+        pass
+    assert len(reads) == 2

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -32,6 +33,8 @@ _SUFFIXES = ("", "64_", "_64")
 _LOCK = threading.Lock()
 # path -> (get, set) of each OpenBLAS met so far (None: a library without the switch)
 _FOUND: dict[str, tuple[Callable[[], int], Callable[[int], Any]] | None] = {}
+# the number of imported modules when the mapped files were last read
+_SCANNED = {"modules": -1}
 # blocks running now, and the counts to set back when the last one ends
 _DEPTH = 0
 _SAVED: list[tuple[Callable[[int], Any], int]] = []
@@ -73,9 +76,15 @@ def _switch(path: str) -> tuple[Callable[[], int], Callable[[int], Any]] | None:
 
 
 def _switches() -> list[tuple[Callable[[], int], Callable[[int], Any]]]:
-    for path in _mapped_openblas():
-        if path not in _FOUND:
-            _FOUND[path] = _switch(path)
+    """The switches of the OpenBLAS libraries loaded so far.  The mapped files are read
+    again only after a module was imported (an OpenBLAS is loaded by the extension module
+    that links it), not at every block: a registration's blocks come one after another."""
+    modules = len(sys.modules)
+    if modules != _SCANNED["modules"]:
+        for path in _mapped_openblas():
+            if path not in _FOUND:
+                _FOUND[path] = _switch(path)
+        _SCANNED["modules"] = modules
     return [s for s in _FOUND.values() if s is not None]
 
 

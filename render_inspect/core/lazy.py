@@ -119,7 +119,7 @@ def _numba() -> Any:  # the numba module (imported here, on first use)
         with _LOCK:
             if not _NUMBA["made"]:
                 _NUMBA["made"] = True
-                _load_without_set_up()
+                _load_without_set_up(numba)
     return numba
 
 
@@ -143,34 +143,30 @@ def quick_cache_loads() -> None:
     as it always does; a kernel loaded from the cache is the machine code numba wrote,
     unchanged, so every result is the same.  Only for the numba releases this was checked
     with (:data:`QUICK_LOAD_RELEASES`, and where numba's cache has that layout; numba's own
-    order otherwise), and never in a host
-    process (Blender, a user's script, a Dask worker), whose numba is shared with
-    whatever else it runs."""
-    with _LOCK:
-        _NUMBA["quick"] = True
-        if "numba" in sys.modules and not _NUMBA["made"]:
-            _NUMBA["made"] = True
-            _load_without_set_up()
+    order otherwise), and never in a host process (Blender, a user's script, a Dask
+    worker), whose numba is shared with whatever else it runs."""
+    _NUMBA["quick"] = True
+    if "numba" in sys.modules:  # (numba imported already: the change made now)
+        _numba()
 
 
-def _load_without_set_up() -> bool:
+def _load_without_set_up(numba: Any) -> None:
     """numba's cache loads of CPU kernels without the compiler's set-up
-    (:func:`quick_cache_loads`); whether the change was made."""
-    import numba
-
+    (:func:`quick_cache_loads`), where ``numba`` is a release checked and its cache has the
+    layout this was written against."""
     if not quick_loads_checked(getattr(numba, "__version__", "")):
-        return False
+        return
     try:
         from numba.core import caching, cpu
         from numba.core.runtime import rtsys
     except ImportError:
-        return False
+        return
     cache = caching.Cache
     load = cache.__dict__.get("load_overload")
     if (load is None or getattr(load, "_quick", False) or "_load_overload" not in cache.__dict__
             or "_guard_against_spurious_io_errors" not in cache.__dict__
             or not hasattr(rtsys, "initialize")):
-        return False
+        return
 
     def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
         if not isinstance(target_context, cpu.CPUContext):
@@ -183,7 +179,6 @@ def _load_without_set_up() -> bool:
     load_overload._quick = True  # type: ignore[attr-defined]
     load_overload.__doc__ = load.__doc__
     cache.load_overload = load_overload
-    return True
 
 
 def quick_loads_checked(version: str) -> bool:
