@@ -136,16 +136,18 @@ atexit.register(lambda: print(json.dumps(sorted(m for m in heavy if m in sys.mod
 sys.argv = ["render-inspect", *sys.argv[1:]]
 from render_inspect.cli import main
 sys.exit(main())
-""" % (HEAVY + ("PIL",),)
+""" % (HEAVY + ("PIL", "scipy.linalg", "scipy.ndimage"),)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("argv,needs,never", [
     # the figures are drawn by the second process: the command's own imports no drawing
-    # library, no renderer, no cluster or chunked store (an in-memory map)
+    # library, no renderer, no cluster or chunked store (an in-memory map), no SciPy linear
+    # algebra or image filters (the servo loops' matrix exponential and the burrs'
+    # smoothing weights are the package's own: 0.05 s of imports)
     (["simulate", "sts_sinusoidal_grid", "--set", "simulation.region=[-0.2,-0.2,0.2,0.2]"],
      {"numba", "OpenEXR"}, {"matplotlib", "PIL", "mitsuba", "drjit", "dask", "distributed",
-                            "zarr", "trimesh", "bpy"}),
+                            "zarr", "trimesh", "bpy", "scipy.linalg", "scipy.ndimage"}),
     # the interferometer writes its frames and a fringe image (Pillow): no matplotlib, no
     # cluster, no chunked store, no mesh library, no Blender
     (["render", "sts_sinusoidal_grid", "--kind", "interferometer", "--surface", "design",

@@ -317,16 +317,51 @@ class AxisResponse:
         return self.command - self.followed
 
 
-def _discrete_loop(wn: float, zeta: float, dt: float):
-    """Exact zero-order-hold discretisation of e'' + 2 zeta wn e' + wn^2 e = F."""
-    from scipy.linalg import expm
+#: Taylor terms of :func:`_expm`'s series (its matrix scaled to a 1-norm of at most 1/2:
+#: the first term left out is below 0.5^19 / 19! = 1.6e-23 of one)
+_EXPM_TERMS = 18
+#: doublings of :func:`_noise_scale`'s sum at most (its terms fall as |pole|^(2^k))
+_LYAPUNOV_DOUBLINGS = 64
 
-    a = np.array([[0.0, 1.0], [-wn * wn, -2.0 * zeta * wn]])
+
+def _expm(m: np.ndarray) -> np.ndarray:
+    """The exponential of a small square matrix by scaling and squaring: ``m`` divided by
+    2^s (exactly) to a 1-norm of at most 1/2, the Taylor series of that to 18 terms, squared
+    s times (Moler & Van Loan, "Nineteen dubious ways to compute the exponential of a
+    matrix, twenty-five years later", SIAM Review 45 (2003), method 3).  Within a few
+    units in the last place of SciPy's ``expm`` on the servo loops' matrices (tested); it
+    needs no SciPy, whose linear algebra costs a command 0.05 s to import."""
+    m = np.asarray(m, dtype=np.float64)
+    norm = float(np.abs(m).sum(axis=0).max())
+    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    a = m * 2.0 ** -s
+    out = np.eye(m.shape[0])
+    term = np.eye(m.shape[0])
+    for k in range(1, _EXPM_TERMS + 1):
+        term = (term @ a) / k
+        out = out + term
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+def _discrete_loop(wn: float, zeta: float, dt: float):
+    """Exact zero-order-hold discretisation of e'' + 2 zeta wn e' + wn^2 e = F: the state
+    transition Phi = exp(A dt) and the input's Gamma = int_0^dt exp(A t) dt B, both from
+    the exponential of the augmented matrix M = [[A dt, B dt], [0, 0]].  M is balanced
+    first (its error and input rows scaled by a power of 2 near wn and its reciprocal,
+    exactly): the exponential of D M D^-1 is D exp(M) D^-1, and its entries are all of
+    the order of wn dt, where M's span wn^2 dt to dt."""
+    b = 2.0 ** round(math.log2(wn)) if wn > 0 else 1.0
     m = np.zeros((3, 3))
-    m[:2, :2] = a * dt
-    m[1, 2] = dt
-    em = expm(m)
-    return np.ascontiguousarray(em[:2, :2]), np.ascontiguousarray(em[:2, 2])
+    m[0, 1] = b * dt
+    m[1, 0] = -wn * (wn / b) * dt
+    m[1, 1] = -2.0 * zeta * wn * dt
+    m[1, 2] = b * dt
+    em = _expm(m)
+    phi = np.array([[em[0, 0], em[0, 1] / b], [em[1, 0] * b, em[1, 1]]])
+    gam = np.array([em[0, 2] / (b * b), em[1, 2] / b])
+    return phi, gam
 
 
 @njit(cache=True, nogil=True)
@@ -393,10 +428,35 @@ def _track(qc, vc, dist, linear, phi, gam, wn, zeta, ka, kv, amax, vmax, dt, e0,
 
 def _noise_scale(phi, gam, target_rms: float) -> float:
     """Standard deviation of white tick-rate force noise giving ``target_rms`` following
-    error in steady state (discrete Lyapunov equation P = Phi P Phi^T + G G^T)."""
-    from scipy.linalg import solve_discrete_lyapunov
+    error in steady state: P = Phi P Phi^T + G G^T (the discrete Lyapunov equation), P the
+    sum over k of Phi^k G G^T Phi^k^T, summed by doubling (P <- P + A P A^T, A <- A^2:
+    Smith's method; 2^k terms after k doublings, each term's error a rounding of a sum of
+    positive-definite terms).  Within a few units in the last place of SciPy's
+    ``solve_discrete_lyapunov`` on the servo loops (tested).
 
-    p = solve_discrete_lyapunov(phi, np.outer(gam, gam))
+    Raises
+    ------
+    InputError
+        Where the loop's pole is so close to 1 that the sum does not settle in
+        ``_LYAPUNOV_DOUBLINGS`` doublings (a loop decaying over more than about 1e19
+        ticks: a bandwidth of practically zero for the servo rate).
+    """
+    a = np.asarray(phi, dtype=np.float64)
+    g = np.asarray(gam, dtype=np.float64)
+    p = np.outer(g, g)
+    for _ in range(_LYAPUNOV_DOUBLINGS):
+        p_next = p + a @ p @ a.T
+        a = a @ a
+        if np.array_equal(p_next, p):
+            break
+        p = p_next
+    else:
+        # det Phi = exp(-2 zeta wn dt): the loop's bandwidth x damping / servo rate
+        det = float(np.linalg.det(np.asarray(phi, dtype=np.float64)))
+        decay = max(0.0, -math.log(det)) / (4 * math.pi) if det > 0 else math.nan
+        raise InputError("machine axis: bandwidth_hz x damping / servo_rate_hz must be above about 1e-18 "
+                         f"for an axis with noise_rms > 0 (its loop's pole is 1 to double precision), "
+                         f"received {decay:.3g}")
     return target_rms / math.sqrt(max(p[0, 0], 1e-300))
 
 
