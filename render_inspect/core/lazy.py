@@ -20,6 +20,13 @@ are declared through this module:
   the ``render-inspect`` program (:func:`quick_cache_loads`), numba loads a kernel from
   its cache without first setting up its whole compiler, which only a compilation needs.
 
+numba's cache keeps a kernel's machine code with the date and size of the kernel's own
+file, and loads it while that file is unchanged; but the machine code also holds the
+kernels it calls and the numbers it reads from other modules, compiled in.  A kernel of
+:func:`njit` with ``cache=True`` is also stamped with those modules' files
+(:func:`kernel_sources`): a change to any of them compiles it again, where numba's own
+stamp would load the old code.
+
 Only the standard library is imported here.
 """
 
@@ -37,7 +44,8 @@ from collections.abc import Callable, Iterator
 from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 __all__ = ["njit", "prange", "lazy_module", "lazy_attr", "LazyDispatcher", "passive_omp_wait",
-           "load_numba", "quick_cache_loads", "collector_paused", "freeze_after_pauses", "freeze_lasting"]
+           "load_numba", "quick_cache_loads", "collector_paused", "freeze_after_pauses", "freeze_lasting",
+           "kernel_sources"]
 
 _LOCK = threading.RLock()
 #: blocks running with the collector paused (collector_paused), and whether it was on
@@ -47,6 +55,11 @@ _PAUSES = {"count": 0, "was_on": False, "freeze": False}
 _NUMBA = {"quick": False, "made": False}
 #: the numba releases (major, minor) whose cache loads were checked without the set-up
 QUICK_LOAD_RELEASES = ((0, 61),)
+#: the numba releases whose cache index keeps the source stamp :func:`_stamp_sources` extends
+STAMPED_RELEASES = ((0, 61),)
+#: (date, size) of the files the kernels' stamps name, read once per process
+_FILE_STAMPS: dict[str, tuple[float, int]] = {}
+_MISSING = object()
 
 
 @contextlib.contextmanager
@@ -192,6 +205,90 @@ def quick_loads_checked(version: str) -> bool:
     return release in QUICK_LOAD_RELEASES
 
 
+def _code_names(code: types.CodeType) -> set[str]:
+    """The global and attribute names a function's code (and the code it defines) uses."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _code_names(const)
+    return names
+
+
+def _number_like(value: Any) -> bool:
+    """A value numba compiles into a kernel as a constant (a number, a tuple, a numpy
+    array or scalar)."""
+    return isinstance(value, (int, float, complex, tuple)) or type(value).__module__ == "numpy"
+
+
+def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
+    """The files of the modules whose code or numbers a kernel's machine code holds: its
+    own module's; those of the kernels it calls (a lazy kernel or a numba dispatcher among
+    its globals), in turn; of the package's modules it reads attributes of; and, for a
+    number, tuple or array it names, of every module of its package that binds that very
+    object (where it was imported from: a superset, never fewer).  Sorted."""
+    top = py_func.__module__.split(".")[0]
+
+    def ours(name: str) -> bool:
+        return name == top or name.startswith(top + ".")
+
+    modules = [m for n, m in list(sys.modules.items()) if ours(n) and getattr(m, "__file__", None)]
+    files: set[str] = set()
+    seen: set[int] = set()
+    todo = [py_func]
+    while todo:
+        fn = todo.pop()
+        if id(fn) in seen:
+            continue
+        seen.add(id(fn))
+        own = getattr(sys.modules.get(fn.__module__, None), "__file__", None)
+        if own:
+            files.add(own)
+        namespace = fn.__globals__
+        for name in _code_names(fn.__code__):
+            value = namespace.get(name, _MISSING)
+            if value is _MISSING:
+                continue
+            inner = getattr(value, "py_func", None) if not isinstance(value, types.ModuleType) else None
+            if inner is not None and hasattr(inner, "__code__") and hasattr(inner, "__globals__"):
+                todo.append(inner)
+            elif isinstance(value, types.ModuleType):
+                if ours(value.__name__) and getattr(value, "__file__", None):
+                    files.add(value.__file__)
+            elif _number_like(value):
+                files.update(m.__file__ for m in modules if m.__dict__.get(name, _MISSING) is value)
+    return sorted(files)
+
+
+def _file_stamp(path: str) -> tuple[float, int]:
+    stamp = _FILE_STAMPS.get(path)
+    if stamp is None:
+        st = os.stat(path)
+        stamp = _FILE_STAMPS[path] = (st.st_mtime, st.st_size)
+    return stamp
+
+
+def _stamp_sources(dispatcher: Any, py_func: Callable[..., Any], numba: Any) -> None:
+    """numba's stamp of a cached kernel (its own file's date and size) extended with those
+    of :func:`kernel_sources`: the cache entry of a kernel whose callees or imported
+    numbers changed is not loaded but compiled again (and replaced).  For the numba
+    releases whose cache index this was checked against; elsewhere numba's own stamp."""
+    version = getattr(numba, "__version__", "").split(".")
+    try:
+        if (int(version[0]), int(version[1])) not in STAMPED_RELEASES:
+            return
+    except (IndexError, ValueError):
+        return
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if cache_file is None or not hasattr(cache_file, "_source_stamp"):
+        return
+    try:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(sys.modules[py_func.__module__].__file__)))
+        sources = tuple((os.path.relpath(f, root), *_file_stamp(f)) for f in kernel_sources(py_func))
+    except (OSError, KeyError, TypeError, ValueError):
+        return  # (numba's own stamp, as without this)
+    cache_file._source_stamp = (cache_file._source_stamp, sources)
+
+
 def _realise_globals(namespace: dict[str, Any], seen: set[int]) -> None:
     """Put numba's objects in place of the lazy ones among a module's globals (and, in
     turn, among the globals of the modules whose kernels it names)."""
@@ -224,6 +321,8 @@ class LazyDispatcher(Generic[_P, _R]):
             if self._dispatcher is None:
                 numba = _numba()
                 dispatcher = numba.njit(**self._options)(self.py_func)
+                if self._options.get("cache"):
+                    _stamp_sources(dispatcher, self.py_func, numba)
                 # (set before the globals: a kernel naming itself ends the recursion)
                 self._dispatcher = dispatcher
                 _realise_globals(self.py_func.__globals__, set() if seen is None else seen)

@@ -1,0 +1,98 @@
+"""A cached kernel is compiled again when a module whose code or numbers it holds changes,
+not only its own file: numba's cache keeps the machine code of the kernels a kernel calls
+and of the numbers it imports, and by itself checks only the kernel's own file.  Built on a
+small package of two modules in a fresh folder, run in fresh processes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from render_inspect.core.lazy import kernel_sources
+
+REPO = Path(__file__).resolve().parents[1]
+
+_HELPER = """
+from render_inspect.core.lazy import njit
+
+SCALE = {scale}
+
+
+@njit(cache=True)
+def helper(x):
+    return x * {factor}
+"""
+
+_MAIN = """
+from render_inspect.core.lazy import njit
+
+from .helper import SCALE, helper
+
+
+@njit(cache=True)
+def calls(x):
+    return helper(x) + 1.0
+
+
+@njit(cache=True)
+def reads(x):
+    return x * SCALE
+"""
+
+_RUN = """
+import json
+from stalepkg.main import calls, reads
+values = [calls(3.0), reads(3.0)]
+hits = [sum(k._dispatcher._cache_hits.values()) for k in (calls, reads)]
+print(json.dumps({"values": values, "hits": hits}))
+"""
+
+
+def _write_helper(pkg: Path, scale: float, factor: float, when: float) -> None:
+    path = pkg / "helper.py"
+    path.write_text(_HELPER.format(scale=scale, factor=factor))
+    os.utime(path, (when, when))
+
+
+def _run(root: Path) -> dict:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), str(REPO)]))
+    env.pop("NUMBA_CACHE_DIR", None)  # (numba's cache beside the sources, as installed)
+    r = subprocess.run([sys.executable, "-c", _RUN], capture_output=True, text=True, env=env,
+                       cwd=root, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_a_kernel_is_compiled_again_when_a_kernel_or_number_it_imports_changes(tmp_path):
+    pkg = tmp_path / "stalepkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "main.py").write_text(textwrap.dedent(_MAIN))
+    _write_helper(pkg, scale=2.0, factor=2.0, when=1_700_000_000)
+    first = _run(tmp_path)
+    assert first == {"values": [7.0, 6.0], "hits": [0, 0]}            # compiled
+    assert _run(tmp_path) == {"values": [7.0, 6.0], "hits": [1, 1]}  # loaded from the cache
+    # the helper module changes (its kernel and its number); the kernels' own file does not
+    _write_helper(pkg, scale=5.0, factor=4.0, when=1_700_000_100)
+    changed = _run(tmp_path)
+    assert changed == {"values": [13.0, 15.0], "hits": [0, 0]}        # compiled again, not stale
+    assert _run(tmp_path) == {"values": [13.0, 15.0], "hits": [1, 1]}
+
+
+def test_the_sources_of_the_cut_kernel_are_its_helpers_modules():
+    from render_inspect.machining import _cut_kernel
+
+    files = {Path(f).relative_to(REPO / "render_inspect").as_posix()
+             for f in kernel_sources(_cut_kernel._cut_rows)}
+    # its own module, the pass window's, the grooves' and the envelope's step it inlines
+    assert {"machining/_cut_kernel.py", "machining/_cut_window.py", "machining/_cut_grooves.py",
+            "machining/_envelope_step.py", "machining/_envelope.py"} <= files
+    # nothing outside the package (numpy, numba, math)
+    assert all(not f.startswith("..") for f in files)
