@@ -328,9 +328,10 @@ def _expm(m: np.ndarray) -> np.ndarray:
     """The exponential of a small square matrix by scaling and squaring: ``m`` divided by
     2^s (exactly) to a 1-norm of at most 1/2, the Taylor series of that to 18 terms, squared
     s times (Moler & Van Loan, "Nineteen dubious ways to compute the exponential of a
-    matrix, twenty-five years later", SIAM Review 45 (2003), method 3).  Within a few
-    units in the last place of SciPy's ``expm`` on the servo loops' matrices (tested); it
-    needs no SciPy, whose linear algebra costs a command 0.05 s to import."""
+    matrix, twenty-five years later", SIAM Review 45 (2003), method 3).  On the servo
+    loops' balanced matrices (:func:`_discrete_loop`) within a few units in the last place
+    of SciPy's ``expm`` (tested); it needs no SciPy, whose linear algebra costs a command
+    0.05 s to import."""
     m = np.asarray(m, dtype=np.float64)
     norm = float(np.abs(m).sum(axis=0).max())
     s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
@@ -431,14 +432,14 @@ def _noise_scale(phi, gam, target_rms: float) -> float:
     error in steady state: P = Phi P Phi^T + G G^T (the discrete Lyapunov equation), P the
     sum over k of Phi^k G G^T Phi^k^T, summed by doubling (P <- P + A P A^T, A <- A^2:
     Smith's method; 2^k terms after k doublings, each term's error a rounding of a sum of
-    positive-definite terms).  Within a few units in the last place of SciPy's
-    ``solve_discrete_lyapunov`` on the servo loops (tested).
+    positive-definite terms).  Within 2e-14 of SciPy's ``solve_discrete_lyapunov`` on the
+    shipped machines' loops (tested).
 
     Raises
     ------
     InputError
         Where the loop's pole is so close to 1 that the sum does not settle in
-        ``_LYAPUNOV_DOUBLINGS`` doublings (a loop decaying over more than about 1e19
+        ``_LYAPUNOV_DOUBLINGS`` doublings (a loop decaying over more than about 1e17
         ticks: a bandwidth of practically zero for the servo rate).
     """
     a = np.asarray(phi, dtype=np.float64)
