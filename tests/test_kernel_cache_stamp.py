@@ -96,3 +96,21 @@ def test_the_sources_of_the_cut_kernel_are_its_helpers_modules():
             "machining/_envelope_step.py", "machining/_envelope.py"} <= files
     # nothing outside the package (numpy, numba, math)
     assert all(not f.startswith("..") for f in files)
+
+
+
+def test_finding_a_kernels_sources_imports_nothing_lazy():
+    """A lazy module or name among a kernel's globals is not looked into (that would
+    import it: here modules that do not exist, whose import would raise)."""
+    namespace: dict = {"__name__": "render_inspect.not_a_module"}
+    exec(textwrap.dedent("""
+        from render_inspect.core.lazy import lazy_attr, lazy_module
+
+        parse = lazy_attr("render_inspect_no_such_module", "parse")
+        tree = lazy_module("render_inspect_no_such_module_either")
+
+
+        def uses_them(x):
+            return parse(x), tree.fromstring(x)
+        """), namespace)
+    assert kernel_sources(namespace["uses_them"]) == []

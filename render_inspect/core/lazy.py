@@ -215,9 +215,22 @@ def _code_names(code: types.CodeType) -> set[str]:
 
 
 def _number_like(value: Any) -> bool:
-    """A value numba compiles into a kernel as a constant (a number, a tuple, a numpy
-    array or scalar)."""
-    return isinstance(value, (int, float, complex, tuple)) or type(value).__module__ == "numpy"
+    """A value numba compiles into a kernel as a constant (a number, a string, a tuple, a
+    numpy array or scalar)."""
+    return (isinstance(value, (int, float, complex, str, bytes, tuple))
+            or type(value).__module__ == "numpy")
+
+
+def _kernel_function(value: Any) -> Any:
+    """The Python function of a lazy kernel or of a numba dispatcher, else None (looked up
+    on those types only: a lazy module or name is not made to import here)."""
+    if isinstance(value, LazyDispatcher):
+        return value.py_func
+    if type(value).__module__.startswith("numba."):
+        inner = getattr(value, "py_func", None)
+        if hasattr(inner, "__code__") and hasattr(inner, "__globals__"):
+            return inner
+    return None
 
 
 def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
@@ -226,7 +239,7 @@ def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
     its globals), in turn; of the package's modules it reads attributes of; and, for a
     number, tuple or array it names, of every module of its package that binds that very
     object (where it was imported from: a superset, never fewer).  Sorted."""
-    top = py_func.__module__.split(".")[0]
+    top = (py_func.__module__ or "").split(".")[0]
 
     def ours(name: str) -> bool:
         return name == top or name.startswith(top + ".")
@@ -240,7 +253,7 @@ def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
         if id(fn) in seen:
             continue
         seen.add(id(fn))
-        own = getattr(sys.modules.get(fn.__module__, None), "__file__", None)
+        own = getattr(sys.modules.get(fn.__module__ or "", None), "__file__", None)
         if own:
             files.add(own)
         namespace = fn.__globals__
@@ -248,12 +261,12 @@ def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
             value = namespace.get(name, _MISSING)
             if value is _MISSING:
                 continue
-            inner = getattr(value, "py_func", None) if not isinstance(value, types.ModuleType) else None
-            if inner is not None and hasattr(inner, "__code__") and hasattr(inner, "__globals__"):
+            inner = _kernel_function(value)
+            if inner is not None:
                 todo.append(inner)
             elif isinstance(value, types.ModuleType):
-                if ours(value.__name__) and getattr(value, "__file__", None):
-                    files.add(value.__file__)
+                if ours(value.__name__) and value.__dict__.get("__file__"):
+                    files.add(value.__dict__["__file__"])
             elif _number_like(value):
                 files.update(m.__file__ for m in modules if m.__dict__.get(name, _MISSING) is value)
     return sorted(files)
