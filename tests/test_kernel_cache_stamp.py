@@ -114,3 +114,29 @@ def test_finding_a_kernels_sources_imports_nothing_lazy():
             return parse(x), tree.fromstring(x)
         """), namespace)
     assert kernel_sources(namespace["uses_them"]) == []
+
+
+
+def test_a_kernels_sources_are_the_same_whatever_else_the_process_imported(tmp_path, monkeypatch):
+    """The stamp must not change between processes (else each would compile the kernel
+    again): the modules a number came through are read from the sources' imports, not
+    looked for among the modules loaded (a module that imports the same number and is
+    loaded in one process only does not count)."""
+    pkg = tmp_path / "samepkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "main.py").write_text(textwrap.dedent(_MAIN))
+    (pkg / "bystander.py").write_text("from .helper import SCALE\n")
+    _write_helper(pkg, scale=2.0, factor=2.0, when=1_700_000_000)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        import samepkg.main as main
+
+        before = kernel_sources(main.reads.py_func)
+        import samepkg.bystander  # noqa: F401  (binds the very same number)
+
+        after = kernel_sources(main.reads.py_func)
+        assert before == after == sorted(str(pkg / n) for n in ("helper.py", "main.py"))
+    finally:
+        for name in [n for n in sys.modules if n == "samepkg" or n.startswith("samepkg.")]:
+            del sys.modules[name]

@@ -36,7 +36,9 @@ import contextlib
 import functools
 import gc
 import importlib
+import importlib.util
 import os
+import re
 import sys
 import threading
 import types
@@ -59,6 +61,11 @@ QUICK_LOAD_RELEASES = ((0, 61),)
 STAMPED_RELEASES = ((0, 61),)
 #: (date, size) of the files the kernels' stamps name, read once per process
 _FILE_STAMPS: dict[str, tuple[float, int]] = {}
+#: each module's names imported from another module ({name: (module, its name there)}),
+#: read from its source once per process
+_FROM_IMPORTS: dict[str, dict[str, tuple[str, str]]] = {}
+#: ``from MODULE import NAMES`` at the start of a line (NAMES in parentheses over lines)
+_FROM_RE = re.compile(r"^[ \t]*from[ \t]+([\w.]+)[ \t]+import[ \t]+(\([^)]*\)|[^\n]+)", re.M)
 _MISSING = object()
 
 
@@ -233,18 +240,62 @@ def _kernel_function(value: Any) -> Any:
     return None
 
 
+def _from_imports(module: types.ModuleType) -> dict[str, tuple[str, str]]:
+    """``{name: (module, its name there)}`` of the ``from ... import ...`` statements in a
+    module's source (relative modules made absolute); {} where the source is not there."""
+    name = module.__name__
+    found = _FROM_IMPORTS.get(name)
+    if found is None:
+        found = {}
+        try:
+            with open(module.__dict__["__file__"], encoding="utf-8") as f:
+                text = f.read()
+        except (OSError, KeyError, TypeError, UnicodeDecodeError):
+            text = ""
+        package = module.__dict__.get("__package__") or name.rpartition(".")[0]
+        for m in _FROM_RE.finditer(text):
+            source = m.group(1)
+            try:
+                source = importlib.util.resolve_name(source, package) if source.startswith(".") else source
+            except (ImportError, ValueError):
+                continue
+            for part in m.group(2).strip().strip("()").split(","):
+                part = part.split("#")[0].strip()
+                if part and part != "*":
+                    imported, _, alias = part.partition(" as ")
+                    found[(alias or imported).strip()] = (source, imported.strip())
+        _FROM_IMPORTS[name] = found
+    return found
+
+
+def _constant_sources(module: types.ModuleType, name: str, ours: Callable[[str], bool]) -> set[str]:
+    """The files of the package's modules a constant that ``module`` names ``name`` was
+    imported through, to the one that defines it (from the sources' ``from ... import``
+    statements: the same files in every process, whatever else it imported)."""
+    files: set[str] = set()
+    seen: set[tuple[str, str]] = set()
+    while (module.__name__, name) not in seen:
+        seen.add((module.__name__, name))
+        source, name = _from_imports(module).get(name, ("", ""))
+        nxt = sys.modules.get(source) if source and ours(source) else None
+        if nxt is None or not nxt.__dict__.get("__file__"):
+            break
+        files.add(nxt.__dict__["__file__"])
+        module = nxt
+    return files
+
+
 def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
     """The files of the modules whose code or numbers a kernel's machine code holds: its
     own module's; those of the kernels it calls (a lazy kernel or a numba dispatcher among
     its globals), in turn; of the package's modules it reads attributes of; and, for a
-    number, tuple or array it names, of every module of its package that binds that very
-    object (where it was imported from: a superset, never fewer).  Sorted."""
+    number, string, tuple or array it names that its module imports, of the modules it
+    came through from the one that defines it.  Sorted; the same in every process."""
     top = (py_func.__module__ or "").split(".")[0]
 
     def ours(name: str) -> bool:
-        return name == top or name.startswith(top + ".")
+        return bool(top) and (name == top or name.startswith(top + "."))
 
-    modules = [m for n, m in list(sys.modules.items()) if ours(n) and getattr(m, "__file__", None)]
     files: set[str] = set()
     seen: set[int] = set()
     todo = [py_func]
@@ -268,7 +319,9 @@ def kernel_sources(py_func: Callable[..., Any]) -> list[str]:
                 if ours(value.__name__) and value.__dict__.get("__file__"):
                     files.add(value.__dict__["__file__"])
             elif _number_like(value):
-                files.update(m.__file__ for m in modules if m.__dict__.get(name, _MISSING) is value)
+                module = sys.modules.get(fn.__module__ or "")
+                if module is not None:
+                    files |= _constant_sources(module, name, ours)
     return sorted(files)
 
 
