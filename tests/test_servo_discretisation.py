@@ -112,7 +112,8 @@ def test_the_exponential_of_small_matrices():
 
 
 def test_the_shipped_machines_loops_are_scipys_to_a_few_units_in_the_last_place():
-    linalg = pytest.importorskip("scipy.linalg")
+    from scipy import linalg  # (a dependency of the package; only the test imports it here)
+
     n = 0
     for machine in MACHINE_PRESETS.values():
         for name in ("c", "x", "z", "fts"):
