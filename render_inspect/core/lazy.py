@@ -347,10 +347,15 @@ def _stamp_sources(dispatcher: Any, py_func: Callable[..., Any], numba: Any) -> 
     cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
     if cache_file is None or not hasattr(cache_file, "_source_stamp"):
         return
+    own = getattr(sys.modules.get(py_func.__module__ or "", None), "__file__", None)
+    if not isinstance(own, str):
+        return
     try:
-        root = os.path.dirname(os.path.dirname(os.path.abspath(sys.modules[py_func.__module__].__file__)))
+        # (paths relative to the folder above the kernel's module's: the same wherever the
+        # package is installed)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(own)))
         sources = tuple((os.path.relpath(f, root), *_file_stamp(f)) for f in kernel_sources(py_func))
-    except (OSError, KeyError, TypeError, ValueError):
+    except (OSError, ValueError):
         return  # (numba's own stamp, as without this)
     cache_file._source_stamp = (cache_file._source_stamp, sources)
 
