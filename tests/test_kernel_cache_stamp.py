@@ -140,3 +140,26 @@ def test_a_kernels_sources_are_the_same_whatever_else_the_process_imported(tmp_p
     finally:
         for name in [n for n in sys.modules if n == "samepkg" or n.startswith("samepkg.")]:
             del sys.modules[name]
+
+
+def test_the_stamp_is_extended_for_the_numba_release_checked_only():
+    """numba's cache index is internal: its stamp is extended for the releases it was
+    checked against (``STAMPED_RELEASES``), and left as numba made it for any other."""
+    from types import SimpleNamespace
+
+    from render_inspect.core import lazy
+    from render_inspect.machining import _cut_kernel
+
+    def dispatcher():
+        return SimpleNamespace(_cache=SimpleNamespace(_cache_file=SimpleNamespace(_source_stamp=(1.0, 2))))
+
+    checked = "%d.%d.0" % lazy.STAMPED_RELEASES[0]
+    d = dispatcher()
+    lazy._stamp_sources(d, _cut_kernel._cut_rows, SimpleNamespace(__version__=checked))
+    own, sources = d._cache._cache_file._source_stamp
+    assert own == (1.0, 2)
+    assert {p for p, *_ in sources} >= {os.path.join("machining", "_cut_window.py")}
+    for other in ("0.99.1", "1.0.0", "unknown"):
+        d = dispatcher()
+        lazy._stamp_sources(d, _cut_kernel._cut_rows, SimpleNamespace(__version__=other))
+        assert d._cache._cache_file._source_stamp == (1.0, 2)
