@@ -201,15 +201,19 @@ def _load_without_set_up(numba: Any) -> None:
     cache.load_overload = load_overload
 
 
+def _release_in(version: str, releases: tuple[tuple[int, int], ...]) -> bool:
+    """Whether ``version`` (e.g. "0.61.2") is one of ``releases`` ((major, minor) pairs)."""
+    parts = version.split(".")
+    try:
+        return (int(parts[0]), int(parts[1])) in releases
+    except (IndexError, ValueError):
+        return False
+
+
 def quick_loads_checked(version: str) -> bool:
     """Whether numba ``version`` (e.g. "0.61.2") is a release whose cache loads were
     checked without the compiler's set-up (:data:`QUICK_LOAD_RELEASES`)."""
-    parts = version.split(".")
-    try:
-        release = (int(parts[0]), int(parts[1]))
-    except (IndexError, ValueError):
-        return False
-    return release in QUICK_LOAD_RELEASES
+    return _release_in(version, QUICK_LOAD_RELEASES)
 
 
 def _code_names(code: types.CodeType) -> set[str]:
@@ -338,11 +342,7 @@ def _stamp_sources(dispatcher: Any, py_func: Callable[..., Any], numba: Any) -> 
     of :func:`kernel_sources`: the cache entry of a kernel whose callees or imported
     numbers changed is not loaded but compiled again (and replaced).  For the numba
     releases whose cache index this was checked against; elsewhere numba's own stamp."""
-    version = getattr(numba, "__version__", "").split(".")
-    try:
-        if (int(version[0]), int(version[1])) not in STAMPED_RELEASES:
-            return
-    except (IndexError, ValueError):
+    if not _release_in(getattr(numba, "__version__", ""), STAMPED_RELEASES):
         return
     cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
     if cache_file is None or not hasattr(cache_file, "_source_stamp"):
