@@ -585,3 +585,34 @@ def test_the_pass_window_by_multiplications_is_the_windows():
             phi = s_lo - 2 * math.pi * math.floor((s_lo - t_first) / (2 * math.pi)) + rng.choice([0.0, 1e-12, -1e-12])
         want = _window(t_first, t_last, a, cc, phi, r, 1.0, W)
         assert _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, r, W) == want, trial
+
+
+def test_pass_window_near_a_whole_pass_keeps_the_exact_windows_passes():
+    """The window's ends by products with 1 / cc, tested for nearness to a whole pass in
+    floating point, give the passes of the window by divisions on every pixel: ends far from
+    a whole pass, within 1e-6 of one (either side, down to exactly on it), negative and
+    large pass numbers, and a window clipped by the path's ends."""
+    from render_inspect.machining._cut_window import _window, _window_near
+
+    rng = np.random.default_rng(11)
+    f = 0.01
+    cc = f / (2 * math.pi)
+    t_first, a = 0.0, 5.0
+    t_last = a / cc * 0.999
+    near = [0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-7, -1e-7, 1e-6, -1e-6,
+            1.0000001e-6, -1.0000001e-6, 0.3, -0.3, 0.5]
+    checked = 0
+    for _ in range(400):
+        phi = rng.uniform(0.0, 2 * math.pi)
+        W = rng.uniform(0.001, 0.05)
+        k = int(rng.integers(-3, 500))
+        for d in near:
+            # the pixel's radius that puts the window's first end at pass k + d
+            u0 = k + d
+            r = a - W - (2 * math.pi * u0 + phi - t_first) * cc
+            for rr in (r, r + 1e-13, r - 1e-13):
+                want = _window(t_first, t_last, a, cc, phi, rr, 1.0, W)
+                got = _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, rr, W)
+                assert got == want, (phi, rr, W, d)
+                checked += 1
+    assert checked == 400 * len(near) * 3

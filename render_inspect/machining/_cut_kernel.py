@@ -36,7 +36,12 @@ makes it fast:
   (a segment that holds the pass's angle strictly inside is the only one that can hold
   it, so the table's bin and walk, which decide a pass on a path point, are only needed
   where that fails: about 1 pass in 100), and the pass loop is written in the row loop (no
-  call and no reference counting per pixel) with unsigned indices (no wrap-around).
+  call and no reference counting per pixel) with unsigned indices (no wrap-around);
+- each pixel's angle, radius and pass window are computed one pixel ahead, so that their
+  chain of dependent operations (a division, a square root, the window's floors) runs
+  beside the passes of the pixel before instead of after them, and the window's ends are
+  tested for nearness to a whole pass without a round trip through an integer: the same
+  numbers, about a quarter less CPU time on the shipped grid.
 
 A measured cutting edge adds its height table to each arc as in the envelope kernel (the
 pass skip's lower bound takes the table's lowest entry), and a tool wearing along the path
@@ -253,15 +258,31 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     head_off = 0
     head_wait = 0
     proven = rise < np.inf and fall < np.inf
-    for c in range(c_first, col0 + cols):
+    # polar angle: exact at each block of the whole grid, the series step after it (from
+    # the block's first column up to the row's first)
+    for c in range(c_first, col0):
         x = x0 + c * pixel
-        # polar angle: exact at each block of the whole grid, the series step after it
         phi = _polar_step(phi, xp, x, y, c % BLOCK == 0)
         xp = x
-        if c < col0:
-            continue
-        r = math.sqrt(x * x + y * y)
-        Wp = Wd + (0.5 * f if r < 2.0 * f + dev else 0.0)
+    # each pixel's angle, radius and pass window are computed one pixel ahead: their chain
+    # of dependent operations runs beside the passes of the pixel before (the same numbers)
+    c_end = col0 + cols
+    xn = x0 + col0 * pixel
+    phin = _polar_step(phi, xp, xn, y, col0 % BLOCK == 0)
+    rn = math.sqrt(xn * xn + y * y)
+    Wpn = Wd + (0.5 * f if rn < 2.0 * f + dev else 0.0)
+    j0n, j1n = _window_near(t_first, t_last, a, cc, inv_cc, phin, rn, Wpn)
+    jcn = math.floor((t_first + (a - rn) * inv_cc - phin) * INV_2PI)
+    for c in range(col0, c_end):
+        phi, r, Wp, j0, j1, jcf = phin, rn, Wpn, j0n, j1n, jcn
+        if c + 1 < c_end:
+            x = xn
+            xn = x0 + (c + 1) * pixel
+            phin = _polar_step(phi, x, xn, y, (c + 1) % BLOCK == 0)
+            rn = math.sqrt(xn * xn + y * y)
+            Wpn = Wd + (0.5 * f if rn < 2.0 * f + dev else 0.0)
+            j0n, j1n = _window_near(t_first, t_last, a, cc, inv_cc, phin, rn, Wpn)
+            jcn = math.floor((t_first + (a - rn) * inv_cc - phin) * INV_2PI)
         st = _STATE0
         phi2 = phi + math.pi
         if phi2 >= TWO_PI:
@@ -294,7 +315,6 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
             # - the tail: a pass inside the pixel whose bound from the last pass looked up
             #   (jl, tip ztl) lies h_max above the surface changes nothing, nor does any
             #   later one once the bound grows with each pass (dn f >= fall Rc).
-            j0, j1 = _window_near(t_first, t_last, a, cc, inv_cc, phi, r, Wp)
             n = 0
             jl = j0
             ztl = 0.0
@@ -303,7 +323,7 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
             if proofs and head_wait > 0:
                 head_wait -= 1
             elif proofs:
-                jc0 = min(math.floor((t_first + (a - r) * inv_cc - phi) * INV_2PI), j1)
+                jc0 = min(jcf, j1)
                 for t in range(2):
                     jc = jc0 - ((head_off + t) & 1)
                     if jc <= j0:

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..core.lazy import njit  # numba, imported on first use
 from ._envelope_step import INV_2PI, TWO_PI
 
@@ -43,8 +45,14 @@ def _window_near(t_first, t_last, a, cc, inv_cc, phi, r, W):
         s_hi = t_last
     u0 = (s_lo - phi) * INV_2PI
     u1 = (s_hi - phi) * INV_2PI
-    if abs(u0 - round(u0)) > 1e-6 and abs(u1 - round(u1)) > 1e-6 and abs(u0) < 1e9 and abs(u1) < 1e9:
-        return math.ceil(u0), math.floor(u1)
+    # each end's distance from the pass below it, in floating point only (no round trip
+    # through an integer on the way to the test)
+    f0 = np.floor(u0)
+    f1 = np.floor(u1)
+    g0 = u0 - f0
+    g1 = u1 - f1
+    if 1e-6 < g0 < 1.0 - 1e-6 and 1e-6 < g1 < 1.0 - 1e-6 and abs(u0) < 1e9 and abs(u1) < 1e9:
+        return int(f0) + 1, int(f1)
     return _window(t_first, t_last, a, cc, phi, r, 1.0, W)
 
 
