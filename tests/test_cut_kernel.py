@@ -124,6 +124,23 @@ class _Flat:
         return np.zeros(np.broadcast(x, y).shape)
 
 
+def test_cut_without_the_displaced_materials_map_keeps_the_other_maps(cut_case):
+    """``keep_added=False``: the machined heights and the passes' angles the same bits, the
+    largest displaced material the same, no map of it (two maps given, three refused)."""
+    c = cut_case
+    w = c["whole"]
+    shape = w["machined"].shape
+    out = [np.full(shape, 7.0), np.full(shape, 7.0)]
+    got = cut_turning(c["cp"], c["grooves"], region=c["region"], pixel=c["pixel"], out=out, keep_added=False)
+    assert "added" not in got and got["machined"] is out[0] and got["pass_theta"] is out[1]
+    for k in ("machined", "pass_theta"):
+        assert np.array_equal(got[k], w[k], equal_nan=True), k
+    assert got["added_max"] == w["added_max"] > 0
+    with pytest.raises(ValueError, match="2 maps"):
+        cut_turning(c["cp"], c["grooves"], region=c["region"], pixel=c["pixel"], out=out + [np.empty(shape)],
+                    keep_added=False)
+
+
 @pytest.mark.parametrize("tile", [64, 128])
 def test_cut_tiles_with_their_halo_equal_the_whole_grid(cut_case, tile):
     c = cut_case
@@ -585,34 +602,21 @@ def test_the_pass_window_by_multiplications_is_the_windows():
             phi = s_lo - 2 * math.pi * math.floor((s_lo - t_first) / (2 * math.pi)) + rng.choice([0.0, 1e-12, -1e-12])
         want = _window(t_first, t_last, a, cc, phi, r, 1.0, W)
         assert _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, r, W) == want, trial
-
-
-def test_pass_window_near_a_whole_pass_keeps_the_exact_windows_passes():
-    """The window's ends by products with 1 / cc, tested for nearness to a whole pass in
-    floating point, give the passes of the window by divisions on every pixel: ends far from
-    a whole pass, within 1e-6 of one (either side, down to exactly on it), negative and
-    large pass numbers, and a window clipped by the path's ends."""
-    from render_inspect.machining._cut_window import _window, _window_near
-
-    rng = np.random.default_rng(11)
-    f = 0.01
-    cc = f / (2 * math.pi)
+    # the nearness test at its bound: the first end at pass k + d, d from 0 (on the pass)
+    # through 1e-6 of it (either side) to far from it, for negative and large k too (a
+    # window clipped by the path's ends)
+    cc = 0.01 / (2 * math.pi)
     t_first, a = 0.0, 5.0
     t_last = a / cc * 0.999
-    near = [0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-7, -1e-7, 1e-6, -1e-6,
-            1.0000001e-6, -1.0000001e-6, 0.3, -0.3, 0.5]
-    checked = 0
+    near = (0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-7, -1e-7, 1e-6, -1e-6, 1.0000001e-6,
+            -1.0000001e-6, 0.3, -0.3, 0.5)
     for _ in range(400):
         phi = rng.uniform(0.0, 2 * math.pi)
         W = rng.uniform(0.001, 0.05)
         k = int(rng.integers(-3, 500))
         for d in near:
-            # the pixel's radius that puts the window's first end at pass k + d
-            u0 = k + d
-            r = a - W - (2 * math.pi * u0 + phi - t_first) * cc
+            r = a - W - (2 * math.pi * (k + d) + phi - t_first) * cc
             for rr in (r, r + 1e-13, r - 1e-13):
                 want = _window(t_first, t_last, a, cc, phi, rr, 1.0, W)
-                got = _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, rr, W)
-                assert got == want, (phi, rr, W, d)
-                checked += 1
-    assert checked == 400 * len(near) * 3
+                assert _window_near(t_first, t_last, a, cc, 1.0 / cc, phi, rr, W) == want, (phi, rr, W, d)
+

@@ -236,6 +236,8 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
     path's numbers in one tuple (a call of over 30 arguments compiles slowly in numba)."""
     tab_t0, tab_iw, t_first, t_last, a, cc, dev, f, Rc, hw, W, h_min, kappa, rise, fall, h_max = pv
     cols = machined.size
+    # (a row of no columns: the displaced material is not kept, only its largest value)
+    keep_added = added.size > 0
     Rc2 = Rc * Rc
     half_inv_rc = 0.5 / Rc
     inv_cc = 1.0 / cc
@@ -396,13 +398,15 @@ def _cut_row(seg, theta, tab, dist, pv, side_flow, ku, kv, ph, gscale, fast_cos,
                 surf += gs
             machined[ix] = surf
             pass_theta[ix] = sw
-            added[ix] = add
+            if keep_added:
+                added[ix] = add
             if counted and add > amax:
                 amax = add
         else:
             machined[ix] = np.nan
             pass_theta[ix] = np.nan
-            added[ix] = 0.0
+            if keep_added:
+                added[ix] = 0.0
     stats[0], stats[1], stats[2] = g2, ng, amax
 
 
@@ -455,7 +459,8 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
         Grid spacing, mm.
     out : dict
         ``machined``, ``pass_theta``, ``added``: (rows, cols) float64 arrays, pixels
-        [start[0]:start[0] + rows, start[1]:start[1] + cols] of the whole grid.
+        [start[0]:start[0] + rows, start[1]:start[1] + cols] of the whole grid; without
+        ``added`` the displaced material is not written (its largest value still is).
     start : (row, col)
         Index of ``out[...][0, 0]`` in the whole grid (any: each pixel depends only on its
         position).
@@ -480,7 +485,8 @@ def cut_fill(cp: CutPath, grooves: Grooves, origin: Sequence[float], pixel: floa
     gr = grooves
     fast_cos = bool(gr.ku.size == 0 or np.max(np.abs(gr.ku)) * (ep.half_width + 1.0)
                     + np.max(np.abs(gr.kv)) * float(np.max(np.abs(cp.dist))) + TWO_PI < _COS_ARG_MAX)
-    pt, add = out["pass_theta"], out["added"]
+    pt = out["pass_theta"]
+    add = out["added"] if "added" in out else np.empty((rows, 0))
     # the most the tip rises and falls in a revolution, widened for rounding (inf: unknown)
     lo, hi = (float(v) for v in cp.z_rev)
     known = math.isfinite(lo) and math.isfinite(hi)
@@ -513,7 +519,7 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
                 origin: Sequence[float] | None = None,
                 progress: Callable[[int, int], Any] | None = None,
                 block_samples: int = BLOCK_SAMPLES, parallel: bool = True,
-                out: Sequence[np.ndarray] | None = None) -> dict:
+                out: Sequence[np.ndarray] | None = None, keep_added: bool = True) -> dict:
     """The machined surface of ``region`` (x0, y0, x1, y1; mm) with the cutting mechanics
     and grooves, computed in row blocks.
 
@@ -534,15 +540,19 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
         Samples per row block (at least one row).
     parallel : bool
         All cores within each block; False: the calling thread.
-    out : sequence of three arrays, optional
+    out : sequence of arrays, optional
         The maps to write, in the order of :data:`OUT_CHANNELS` (C-contiguous (ny, nx)
-        float64 arrays, any contents), returned in the result; default: new arrays.
+        float64 arrays, any contents; the first two where ``keep_added`` is False),
+        returned in the result; default: new arrays.
+    keep_added : bool
+        Write the map of the displaced material; False: only its largest value
+        (``added_max``), and the result has no ``added`` map.
 
     Returns
     -------
     dict
         ``machined`` (mm), ``pass_theta`` (rad, cumulative spindle angle of the cutting
-        pass), ``added`` (mm): (ny, nx) float64; ``grooves_sumsq`` (mm^2), ``grooves_n``,
+        pass), ``added`` (mm; where kept): (ny, nx) float64; ``grooves_sumsq`` (mm^2), ``grooves_n``,
         ``added_max`` (mm, -inf where nothing was cut).
     """
     x0, y0, x1, y1 = region
@@ -554,12 +564,13 @@ def cut_turning(cp: CutPath, grooves: Grooves, *, region: Sequence[float], pixel
         start = (int(round((y0 - origin[1]) / pixel)), int(round((x0 - origin[0]) / pixel)))
     if cp.ep.cc <= 0:
         return _cut_direct(cp, grooves, region=region, pixel=pixel)
+    channels = OUT_CHANNELS if keep_added else OUT_CHANNELS[:2]
     if out is None:
-        maps = {k: np.empty((ny, nx)) for k in OUT_CHANNELS}
+        maps = {k: np.empty((ny, nx)) for k in channels}
     else:
-        if len(out) != len(OUT_CHANNELS):
-            raise ValueError(f"cut_turning: out must hold {len(OUT_CHANNELS)} maps {OUT_CHANNELS}, got {len(out)}")
-        maps = dict(zip(OUT_CHANNELS, out))
+        if len(out) != len(channels):
+            raise ValueError(f"cut_turning: out must hold {len(channels)} maps {channels}, got {len(out)}")
+        maps = dict(zip(channels, out))
         for k, v in maps.items():
             if not (isinstance(v, np.ndarray) and v.shape == (ny, nx) and v.dtype == np.float64
                     and v.flags.c_contiguous and v.flags.writeable):
