@@ -1,24 +1,31 @@
-"""The part's texture added in one compiled pass gives the numbers of the array
+"""The part's texture: its unit field (row blocks of one matrix product on one OpenBLAS
+thread each) against the sum of its random modes, the same bits on threads side by side, on
+a thread of its own (paused, resumed, its result taken early or late) and for any core
+count; and the texture added in one compiled pass gives the numbers of the array
 expressions it replaced, to the last bit (the heights and the measured rms go into
-heightmap.exr and metrics.json, which are compared bit for bit across changes)."""
+heightmap.exr and metrics.json)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from render_inspect.machining import add_texture_field, texture_field
+from render_inspect.core.blas import blas_threads
+from render_inspect.machining import TextureJob, add_texture_field, texture_field
+from render_inspect.machining._texture import BLOCK_ROWS, TEXTURE_MODES, _modes, unit_field
+
+
+def _modes_sum(x, y, correlation_length, seed):
+    """The unit field by its definition: the sum over the modes of cos(kx x + ky y + p)."""
+    k, ph = _modes(correlation_length, seed)
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    return sum(np.cos(k[i, 0] * xx + k[i, 1] * yy + ph[i]) for i in range(TEXTURE_MODES))
 
 
 def _reference(machined, x, y, *, rms, correlation_length, seed):
-    """The texture added as numpy array expressions (its definition)."""
-    rng = np.random.default_rng(seed)
-    k = rng.normal(0.0, 1.0 / correlation_length, size=(128, 2))
-    ph = rng.uniform(0.0, 2 * math.pi, size=128)
-    ax = np.multiply.outer(k[:, 0], x) + ph[:, None]
-    ay = np.multiply.outer(y, k[:, 1])
-    f = np.cos(ay) @ np.cos(ax) - np.sin(ay) @ np.sin(ax)
-    tex = f * (rms * math.sqrt(2.0 / 128)) if rms else np.zeros(f.shape)
+    """The texture added as numpy array expressions on the unit field."""
+    f = unit_field(x, y, correlation_length, seed)
+    tex = f * (rms * math.sqrt(2.0 / TEXTURE_MODES)) if rms else np.zeros(f.shape)
     ok = np.isfinite(machined)
     out = np.where(ok, machined + tex, machined)
     return out, (float(np.sqrt(np.mean(tex[ok] ** 2))) if ok.any() else 0.0)
@@ -58,6 +65,68 @@ def test_texture_field_keeps_its_numbers():
     y = np.linspace(-0.1, 0.2, 31)
     ref, _ = _reference(np.zeros((31, 57)), x, y, rms=2e-6, correlation_length=0.05, seed=3)
     assert np.array_equal(texture_field(x, y, rms=2e-6, correlation_length=0.05, seed=3) + 0.0, ref)
+
+
+def test_unit_field_is_the_sum_of_its_modes():
+    """The matrix product of the factors (the package's cosine and sine) equals the sum of
+    the modes' cosines to rounding, over several row blocks and a last partial one."""
+    x = np.linspace(-0.3, 0.5, 41)
+    y = np.linspace(-0.2, 0.6, 2 * BLOCK_ROWS + 37)
+    got = unit_field(x, y, 0.03, 9)
+    want = _modes_sum(x, y, 0.03, 9)
+    assert np.max(np.abs(got - want)) < 1e-12 * math.sqrt(TEXTURE_MODES)
+    assert np.std(want) == pytest.approx(math.sqrt(TEXTURE_MODES / 2), rel=0.3)
+
+
+def _grid(ny=3 * BLOCK_ROWS + 11, nx=203):
+    return 0.2 + 0.0007 * np.arange(nx), -0.4 + 0.0009 * np.arange(ny)
+
+
+def test_texture_job_gives_the_unit_fields_bits():
+    """The field computed on a thread of its own: taken at once, after pauses and resumes,
+    with the calling thread's help or after the thread did all: the same bits as on
+    threads side by side; OpenBLAS has its threads back afterwards (on one meanwhile)."""
+    x, y = _grid()
+    want = unit_field(x, y, 0.02, 4)
+    before = blas_threads()
+    job = TextureJob(x, y, 0.02, 4)
+    assert job.result().tobytes() == want.tobytes()
+    job = TextureJob(x, y, 0.02, 4, out=np.full((y.size, x.size), 9.0))
+    job.pause()
+    if before and max(before) > 1:
+        assert max(blas_threads()) == 1
+    job.resume()
+    job.pause()
+    job.resume()
+    got = job.result()
+    assert got.tobytes() == want.tobytes()
+    assert blas_threads() == before
+    job.close()                                  # (once: nothing more)
+    assert blas_threads() == before
+
+
+def test_texture_job_closed_early_stops_and_gives_back_the_threads():
+    x, y = _grid(ny=20 * BLOCK_ROWS)
+    before = blas_threads()
+    job = TextureJob(x, y, 0.02, 4)
+    job.pause()
+    job.close()
+    assert blas_threads() == before
+    assert not job._thread.is_alive()
+
+
+def test_unit_field_does_not_depend_on_the_threads():
+    """Each row block is one product on one OpenBLAS thread: the same bits computed in one
+    thread of the caller (as inside a pool that runs tiles side by side) as on threads."""
+    import threading
+
+    x, y = _grid()
+    want = unit_field(x, y, 0.02, 6)
+    box = {}
+    t = threading.Thread(target=lambda: box.setdefault("f", unit_field(x, y, 0.02, 6)), name="pool-thread")
+    t.start()
+    t.join()
+    assert box["f"].tobytes() == want.tobytes()
 
 
 def test_texture_pass_checks_the_grid():

@@ -26,6 +26,7 @@ from ._cut_kernel import (CutPath, Grooves, cut_fill, cut_turning, cutting_dista
 from ._design_grid import design_grid
 from ._envelope import EnvelopePath, load_kernels, path_radial_slope, prepare_envelope, simulate_turning
 from ._errmotion import ErrorMotions, apply_error_motions
+from ._texture import TextureJob
 from ._material import (
     MATERIAL_PRESETS,
     Material,
@@ -68,7 +69,7 @@ __all__ = ["HeightMap", "PROGRAM_LIMITS", "ProgramLimits", "program_limits_of", 
            "machined_edges", "mechanics_facts", "CutPath", "Grooves", "cut_fill", "cut_turning",
            "cutting_distance", "load_cut_kernels", "prepare_cut",
            "material_burrs", "edge_turns", "burr_height_law", "burr_halo", "material_burr_block", "material_burr_facts",
-           "BURR_WIDTH_PER_CHIP", "texture_field", "add_texture_field", "uncut_chip_thickness", "loop_lag",
+           "BURR_WIDTH_PER_CHIP", "texture_field", "add_texture_field", "TextureJob", "uncut_chip_thickness", "loop_lag",
            "loop_response", "force_noise_rms", "MM_PER_KM", "WEAR_RATES", "WearRate", "spiral_distance_km",
            "wear_rate", "wear_state", "worn_path", "SPEED_LAW", "chemical_distance_km"]
 

@@ -96,9 +96,9 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..core.errors import InputError, check_range
-from ..core.lazy import njit  # numba, imported on first use
-from ..core.threads import over_rows
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM, UM_TO_MM
+# (the part's texture: its own module, its public names here as before)
+from ._texture import add_texture_field, texture_field, textured  # noqa: F401
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
            "material_response", "contact_ratio", "min_chip_thickness", "elastic_recovery",
@@ -115,8 +115,6 @@ _KAPPA_C = math.pi * math.tan(math.radians(INDENTER_HALF_ANGLE_DEG))
 #: elongation at break (%) above which a material counts as fully ductile for burrs
 #: (assumed: the 10-17 % of the wrought aluminium alloys, where burrs are fully formed)
 DUCTILITY_REFERENCE_PERCENT = 10.0
-#: modes of the texture's random field
-_TEXTURE_MODES = 128
 
 
 @dataclass(frozen=True)
@@ -347,144 +345,6 @@ def contact_ratio(cutting_speed: float, amplitude: float = 0.0, frequency_hz: fl
     fresh[0] = True
     fresh[1:] = y[1:] >= run[:-1]
     return float(np.mean(fresh[2 * n:]))
-
-
-def texture_field(x: np.ndarray, y: np.ndarray, *, rms: float, correlation_length: float,
-                  seed: int) -> np.ndarray:
-    """The part's texture on the grid ``x`` (nx,) by ``y`` (ny,) (mm): a unit-variance
-    Gaussian random field of the position with covariance exp(-r^2 / (2 l^2)) (random
-    Fourier modes from ``seed``), times ``rms``.  It depends on the position only: the same
-    seed gives the same texture on any grid and for any tool path.
-
-    Returns
-    -------
-    (ny, nx) float64, mm
-    """
-    check_range("rms", rms, 0.0, 1.0)
-    check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
-    x = np.asarray(x, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
-    if rms == 0:
-        return np.zeros((y.size, x.size))
-    cos_part, sin_part = _texture_products(x, y, correlation_length, seed)
-    return (cos_part - sin_part) * _texture_scale(rms)
-
-
-def _texture_scale(rms: float) -> float:
-    return rms * math.sqrt(2.0 / _TEXTURE_MODES)
-
-
-def _texture_products(x, y, correlation_length: float, seed: int, cache: dict | None = None,
-                      out: tuple = (None, None)):
-    """The two (ny, nx) matrix products whose difference is the unit field of
-    :func:`texture_field`: cos(kx x + ky y + p) = cos(kx x + p) cos(ky y) - sin(kx x +
-    p) sin(ky y), summed over the modes.  ``cache``: a dict that keeps the modes' cosines
-    and sines along ``x`` for the next call with the same ``x`` (the tiles of a column).
-    ``out``: two arrays (or None) the products are written into (the same numbers: one
-    product each, the whole map at once)."""
-    rng = np.random.default_rng(seed)
-    k = rng.normal(0.0, 1.0 / correlation_length, size=(_TEXTURE_MODES, 2))
-    ph = rng.uniform(0.0, 2 * math.pi, size=_TEXTURE_MODES)
-    kept = cache.get("texture_x") if cache is not None else None
-    if kept is not None and kept[0] == (correlation_length, seed) and np.array_equal(kept[1], x):
-        cx, sx = kept[2], kept[3]
-    else:
-        ax = np.multiply.outer(k[:, 0], x) + ph[:, None]
-        cx, sx = np.cos(ax), np.sin(ax)
-        if cache is not None:
-            cache["texture_x"] = ((correlation_length, seed), np.array(x, copy=True), cx, sx)
-    ay = np.multiply.outer(y, k[:, 1])
-    return np.matmul(np.cos(ay), cx, out=out[0]), np.matmul(np.sin(ay), sx, out=out[1])
-
-
-@njit(cache=True, nogil=True)
-def _add_texture_rows(m, cos_part, sin_part, scale, res, finite_rows, i0, i1):
-    """In place: ``res`` (``cos_part`` or ``m`` itself) becomes the map with the texture
-    added where it is finite (unchanged elsewhere), ``sin_part`` the texture's square
-    there and NaN elsewhere; the finite pixels of each row counted (rows i0 .. i1 - 1)."""
-    ny, nx = m.shape
-    for i in range(i0, i1):
-        n = 0
-        for j in range(nx):
-            t = (cos_part[i, j] - sin_part[i, j]) * scale
-            v = m[i, j]
-            if math.isfinite(v):
-                res[i, j] = v + t
-                sin_part[i, j] = t * t
-                n += 1
-            else:
-                res[i, j] = v
-                sin_part[i, j] = math.nan
-        finite_rows[i] = n
-
-
-def textured(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
-             correlation_length: float, seed: int,
-             cache: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(``machined`` with :func:`texture_field` added where it is finite, the texture's
-    square there (other pixels: undefined)), new (ny, nx) arrays; ``machined`` a
-    C-contiguous float64 map and ``rms`` > 0.  The same numbers, to the last bit, as
-    ``np.where(ok, machined + tex, machined)`` and ``tex ** 2`` with numpy.  ``cache``: a
-    dict kept between calls on the same columns ``x`` (the field's factors along x are
-    taken from it: the same numbers)."""
-    check_range("rms", rms, 0.0, 1.0)
-    check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
-    out, sq = _texture_products(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64),
-                                correlation_length, seed, cache)
-    over_rows(_add_texture_rows, machined.shape[0], machined, out, sq, _texture_scale(rms), out,
-              np.empty(machined.shape[0], dtype=np.int64))
-    return out, sq
-
-
-def add_texture_field(machined: np.ndarray, x: np.ndarray, y: np.ndarray, *, rms: float,
-                      correlation_length: float, seed: int, overwrite: bool = False,
-                      buffers: tuple = ()) -> tuple[np.ndarray, float]:
-    """``machined`` (ny, nx) with :func:`texture_field` on the grid ``x`` by ``y`` added
-    where it is finite (a new array; NaN and infinite pixels unchanged), and the added
-    texture's root mean square over those pixels (mm; 0 when there are none).  The same
-    numbers, to the last bit, as adding the field with numpy; one pass over the map.
-
-    ``overwrite``: the texture is added into ``machined`` itself (when it is a
-    C-contiguous float64 array) and that array is returned.  ``buffers``: up to two
-    (ny, nx) arrays whose content the caller no longer needs; the field's two factors are
-    computed into them instead of into new arrays (one that is not C-contiguous float64
-    of the map's shape, or that shares memory with ``machined``, is not used).  Either
-    saves the memory of a map and the time of touching it first."""
-    m = np.ascontiguousarray(machined, dtype=np.float64)
-    if rms == 0 or m.ndim != 2 or m.size == 0:
-        tex = texture_field(x, y, rms=rms, correlation_length=correlation_length, seed=seed)
-        ok = np.isfinite(m)
-        out = np.where(ok, m + tex, m)
-        return out, (float(np.sqrt(np.mean(tex[ok] ** 2))) if ok.any() else 0.0)
-    check_range("rms", rms, 0.0, 1.0)
-    check_range("correlation_length", correlation_length, 0.0, None, lo_open=True)
-    x = np.asarray(x, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
-    if m.shape != (y.size, x.size):
-        raise InputError(f"machined must have the grid's shape {(y.size, x.size)}, "
-                         f"received {m.shape}")
-    free: list = []
-    for b in buffers:
-        if len(free) < 2 and _usable_buffer(b, m) and not any(np.may_share_memory(b, f) for f in free):
-            free.append(b)
-    free += [None] * (2 - len(free))
-    cos_part, sq = _texture_products(x, y, correlation_length, seed, out=(free[0], free[1]))
-    out = m if overwrite and m.flags.writeable and m is machined else cos_part
-    rows = np.empty(m.shape[0], dtype=np.int64)
-    over_rows(_add_texture_rows, m.shape[0], m, cos_part, sq, _texture_scale(rms), out, rows)
-    n_ok = int(rows.sum())
-    if n_ok == 0:
-        return out, 0.0
-    # the mean of the squares as numpy takes it over the finite pixels in order (the
-    # squares are NaN where the map is not finite)
-    squares = sq.ravel() if n_ok == m.size else sq[np.isfinite(sq)]
-    return out, float(np.sqrt(np.mean(squares)))
-
-
-def _usable_buffer(b, m: np.ndarray) -> bool:
-    """Whether ``b`` can take one of the texture's factors for the map ``m``."""
-    return (isinstance(b, np.ndarray) and b.shape == m.shape and b.dtype == np.float64
-            and b.flags.c_contiguous and b.flags.writeable and not np.may_share_memory(b, m))
 
 
 @dataclass(frozen=True)

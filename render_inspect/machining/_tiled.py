@@ -56,7 +56,7 @@ from ._burrs import BURR_WIDTH_PER_CHIP, burr_halo, material_burr_block
 from ._cut_kernel import CutPath, Grooves, cut_fill
 from ._cutting import machined_edges
 from ._envelope import BLOCK, EnvelopePath, envelope_fill
-from ._material import textured
+from ._texture import textured
 
 #: default tile side (pixels): a power of two (pyramid levels stay inside a tile) and a
 #: multiple of the kernel's block (tiles equal the whole-grid run bit for bit)

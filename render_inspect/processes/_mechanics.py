@@ -35,6 +35,7 @@ from ..machining import (
     FollowedPath,
     Grooves,
     MaterialResponse,
+    TextureJob,
     add_texture_field,
     apply_burrs,
     cut_turning,
@@ -222,19 +223,23 @@ def texture_of(cfg: TurningInputs, resp: MaterialResponse) -> tuple[float, float
     return float(resp.texture_rms), float(resp.texture_length), int(cfg.simulation.seed) + 2
 
 
+def texture_grid(region: Sequence[float], pixel: float, shape: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The positions x (nx,) and y (ny,) (mm) of the map of ``shape`` on ``region``'s grid."""
+    ny, nx = shape
+    return region[0] + pixel * np.arange(nx), region[1] + pixel * np.arange(ny)
+
+
 def add_texture(machined: np.ndarray, resp: MaterialResponse, region: Sequence[float],
                 pixel: float, seed: int, *, overwrite: bool = False,
-                buffers: tuple = ()) -> tuple[np.ndarray, float]:
+                buffers: tuple = (), unit: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """``machined`` with the part's texture (:func:`~render_inspect.machining.texture_field`
     of the grid's positions, from ``seed``) added where it is finite; the texture's
-    measured rms (nm).  ``overwrite``, ``buffers``: as
+    measured rms (nm).  ``overwrite``, ``buffers``, ``unit``: as
     :func:`~render_inspect.machining.add_texture_field` (added into ``machined``; maps
-    whose content is no longer needed, to compute in)."""
-    x0, y0, x1, y1 = region
-    ny, nx = machined.shape
-    out, rms = add_texture_field(machined, x0 + pixel * np.arange(nx), y0 + pixel * np.arange(ny),
-                                 rms=resp.texture_rms, correlation_length=resp.texture_length,
-                                 seed=seed, overwrite=overwrite, buffers=buffers)
+    whose content is no longer needed, to compute in; the unit field computed already)."""
+    x, y = texture_grid(region, pixel, machined.shape)
+    out, rms = add_texture_field(machined, x, y, rms=resp.texture_rms, correlation_length=resp.texture_length,
+                                 seed=seed, overwrite=overwrite, buffers=buffers, unit=unit)
     return out, rms * MM_TO_NM
 
 
@@ -301,103 +306,127 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
         """A figure of the maps in the part's own coordinates."""
         return {k: part_figure(v, part_region) for k, v in spec.items()} if mirror else spec
     tool = Tool.from_config(cfg.tool)
-    timing, figs = {}, {}
     resp = material_of(cfg.material)
-    # the cut's three maps get their memory from the system on a spare core while the
-    # machine follows the program (core.pages)
-    maps = Prefaulted(grid_shape(region, sim.pixel), 3) if resp is not None else None
-    t0 = time.perf_counter()
-    cut_path, fp, facts = follow(cfg, path, z_fts=z_fts)
-    timing["machine"] = time.perf_counter() - t0
-    # the following-error figures are handed over as soon as each can be made (the time
-    # series now, the map once the passes' angles are known), to be drawn while the part
-    # is cut (core.handoff); they stay in the cut's plots too
-    error_figures = plots and not fp.ideal
-    if error_figures:
-        figs.update(following_error_series_plot(fp, name=cut_name(cfg)))
-        hand_over(figs)
-    t0 = time.perf_counter()
-    design_out = None
-    if resp is None:
-        machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
-                                    pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
-        if error_figures:
-            # the passes' angles on the figure's points only (the same numbers as those
-            # points of the whole map, which nothing else needs), drawn meanwhile
-            stride = map_figure_stride(grid_shape(region, sim.pixel))
-            error_map = framed(following_error_map_plot(
-                fp, pass_angle_map(cut_path, region, sim.pixel, stride=stride), region,
-                sim.pixel * stride, name=cut_name(cfg)))
-            figs.update(error_map)
-            hand_over(error_map)
-    else:
-        # the fast kernel of the direct model (machining.cut_turning_mechanics +
-        # finish_surface), in row blocks
-        c = cut_turning(material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp)),
-                        grooves_of(cfg, resp),
-                        region=region, pixel=sim.pixel, progress=progress,
-                        out=maps.take() if maps is not None else None)
-        maps = None
-        pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added")
-        if error_figures:
-            error_map = framed(following_error_map_plot(fp, pass_theta, region, sim.pixel,
-                                                        name=cut_name(cfg)))
-            figs.update(error_map)
-            hand_over(error_map)
-        info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
-                               added_max=c["added_max"],
-                               edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
-        # pass_theta (its figure made) and the added material's map are not needed
-        # further: the texture's two factors are computed in them, the texture is added
-        # into the cut's own map, and the design is sampled into the added material's map
-        # (memory already touched, not three new maps)
-        machined, info["texture_measured_rms_nm"] = add_texture(
-            machined, resp, region, sim.pixel, texture_of(cfg, resp)[2], overwrite=True,
-            buffers=(added, pass_theta))
-        pass_theta = None
-        if added.shape == grid_shape(region, sim.pixel) and added.dtype == np.float64 \
-                and added.flags.c_contiguous and not np.may_share_memory(added, machined):
-            design_out = added
-        del c, added
-        facts["material"] = {**resp.to_dict(), **info}
-        if resp.validity:
-            log.warning("%s", resp.validity)
-    timing["envelope"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    if design is None:
-        design = design_grid(surface, region, sim.pixel, out=design_out)
-    del design_out
-    timing["design"] = time.perf_counter() - t0
-    feed = float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
-    facts["scallop"] = feed_scallop(feed, tool.nose_radius)
-    if burrs and cfg.burrs.height > 0:
-        b = cfg.burrs
-        machined, facts["burrs"] = apply_burrs(
-            machined, design, pixel=sim.pixel, origin=(region[0], region[1]), height=b.height,
-            width=b.width, variation=b.variation, edge_angle_deg=b.edge_angle_deg,
-            correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
-            smoothing=max(feed, 2 * sim.pixel))
-    elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
+    shape = grid_shape(region, sim.pixel)
+    # the part's texture is a matrix product that needs nothing of the cut: it is computed
+    # on a thread of its own while the cut's path is prepared and the cut's figures and
+    # facts are made (steps that leave a core idle), and waits while the cut takes every
+    # core (TextureJob)
+    textured = resp is not None and resp.texture_rms > 0
+    job = None
+    try:
+        timing, figs = {}, {}
+        # the cut's maps get their memory from the system on a spare core while the machine
+        # follows the program (core.pages): the machined heights, the passes' angles and the
+        # displaced material or, with the part's texture, its unit field in its place
+        maps = Prefaulted(shape, 3) if resp is not None else None
         t0 = time.perf_counter()
-        # (machined is this cut's own array: the burrs are added in place)
-        machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
-                                                  origin=(region[0], region[1]),
-                                                  overwrite=True, **args)
-        timing["burrs"] = time.perf_counter() - t0
-    if mirror:  # the part's own coordinates from here on
-        machined, design, region = flip_rows(machined), flip_rows(design), part_region
-    if "tool_wear" in facts:
-        facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
-            cfg, machined, design, region, sim.pixel)
-        if plots:
-            figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
-    if tool.edge is not None:
-        facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
-                                                   design, region, sim.pixel, name=cut_name(cfg))
-        if plots:
-            figs.update(edge_figs)
-    return Turned(machined=machined, design=design, timing=timing, facts=facts,
-                  followed=None if fp.ideal else cut_path, followed_path=fp, plots=figs)
+        cut_path, fp, facts = follow(cfg, path, z_fts=z_fts)
+        timing["machine"] = time.perf_counter() - t0
+        # the following-error figures are handed over as soon as each can be made (the time
+        # series now, the map once the passes' angles are known), to be drawn while the part
+        # is cut (core.handoff); they stay in the cut's plots too
+        error_figures = plots and not fp.ideal
+        if error_figures:
+            figs.update(following_error_series_plot(fp, name=cut_name(cfg)))
+            hand_over(figs)
+        t0 = time.perf_counter()
+        design_out = None
+        if resp is None:
+            machined = simulate_turning(cut_path, nose_radius=tool.nose_radius, region=region,
+                                        pixel=sim.pixel, half_width=tool.half_width, edge=tool.edge)
+            if error_figures:
+                # the passes' angles on the figure's points only (the same numbers as those
+                # points of the whole map, which nothing else needs), drawn meanwhile
+                stride = map_figure_stride(grid_shape(region, sim.pixel))
+                error_map = framed(following_error_map_plot(
+                    fp, pass_angle_map(cut_path, region, sim.pixel, stride=stride), region,
+                    sim.pixel * stride, name=cut_name(cfg)))
+                figs.update(error_map)
+                hand_over(error_map)
+        else:
+            # the fast kernel of the direct model (machining.cut_turning_mechanics +
+            # finish_surface), in row blocks; the texture's thread waits meanwhile (the cut
+            # takes every core)
+            out = maps.take() if maps is not None else None
+            if textured and out is not None:
+                job = TextureJob(*texture_grid(region, sim.pixel, shape), resp.texture_length,
+                                 texture_of(cfg, resp)[2], out=out.pop())
+            cp = material_cut_path(cut_path, tool, resp, worn_h_min(cfg, cut_path, resp))
+            if job is not None:
+                job.pause()
+            c = cut_turning(cp, grooves_of(cfg, resp), region=region, pixel=sim.pixel, progress=progress,
+                            out=out, keep_added=job is None)
+            if job is not None:
+                job.resume()
+            maps = out = None
+            del cp
+            pass_theta, machined, added = c.pop("pass_theta"), c.pop("machined"), c.pop("added", None)
+            if error_figures:
+                error_map = framed(following_error_map_plot(fp, pass_theta, region, sim.pixel,
+                                                            name=cut_name(cfg)))
+                figs.update(error_map)
+                hand_over(error_map)
+            info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
+                                   added_max=c["added_max"],
+                                   edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
+            # pass_theta (its figure made) and the added material's map (where kept) are not
+            # needed further: the texture's squares are computed in the first, its unit field
+            # in the second (or taken from its thread), the texture is added into the cut's own
+            # map, and the design is sampled into the unit field's map (memory already touched,
+            # not three new maps)
+            unit = job.result() if job is not None else None
+            machined, info["texture_measured_rms_nm"] = add_texture(
+                machined, resp, region, sim.pixel, texture_of(cfg, resp)[2], overwrite=True,
+                buffers=(pass_theta,) if added is None else (added, pass_theta), unit=unit)
+            pass_theta = None
+            spare = unit if unit is not None else added
+            if spare is not None and spare.shape == shape and spare.dtype == np.float64 \
+                    and spare.flags.c_contiguous and not np.may_share_memory(spare, machined):
+                design_out = spare
+            del c, added, unit, spare
+            facts["material"] = {**resp.to_dict(), **info}
+            if resp.validity:
+                log.warning("%s", resp.validity)
+        timing["envelope"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        if design is None:
+            design = design_grid(surface, region, sim.pixel, out=design_out)
+        del design_out
+        timing["design"] = time.perf_counter() - t0
+        feed = float(path.meta.get("feed_per_rev_mm") or cfg.process.feed_per_rev)
+        facts["scallop"] = feed_scallop(feed, tool.nose_radius)
+        if burrs and cfg.burrs.height > 0:
+            b = cfg.burrs
+            machined, facts["burrs"] = apply_burrs(
+                machined, design, pixel=sim.pixel, origin=(region[0], region[1]), height=b.height,
+                width=b.width, variation=b.variation, edge_angle_deg=b.edge_angle_deg,
+                correlation_length=b.correlation_length, seed=int(sim.seed), edges_from="machined",
+                smoothing=max(feed, 2 * sim.pixel))
+        elif burrs and (args := material_burr_args(cfg, resp, path, tool)) is not None:
+            t0 = time.perf_counter()
+            # (machined is this cut's own array: the burrs are added in place)
+            machined, facts["burrs"] = material_burrs(machined, design, pixel=sim.pixel,
+                                                      origin=(region[0], region[1]),
+                                                      overwrite=True, **args)
+            timing["burrs"] = time.perf_counter() - t0
+        if mirror:  # the part's own coordinates from here on
+            machined, design, region = flip_rows(machined), flip_rows(design), part_region
+        if "tool_wear" in facts:
+            facts["tool_wear"]["roughness_against_radius"] = roughness_against_radius(
+                cfg, machined, design, region, sim.pixel)
+            if plots:
+                figs["tool_wear.png"] = wear_figure(cfg, facts["tool_wear"])
+        if tool.edge is not None:
+            facts["tool_edge"], edge_figs = edge_facts(tool, str(path.meta.get("compensation", "")), machined,
+                                                       design, region, sim.pixel, name=cut_name(cfg))
+            if plots:
+                figs.update(edge_figs)
+        return Turned(machined=machined, design=design, timing=timing, facts=facts,
+                      followed=None if fp.ideal else cut_path, followed_path=fp, plots=figs)
+    finally:
+        if job is not None:
+            job.close()
 
 
 def follow(cfg: TurningInputs, path: Any, *,
