@@ -122,7 +122,7 @@ def test_material_burrs_keep_their_numbers():
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (40, 53)])
 def test_machined_edges_match_the_array_definition(shape):
-    from render_inspect.machining import machined_edges
+    from render_inspect.machining import machined_edge_count, machined_edges
 
     rng = np.random.default_rng(4)
     p = rng.uniform(0.0, 8.0, shape)
@@ -136,6 +136,7 @@ def test_machined_edges_match_the_array_definition(shape):
     ref[:, 1:] |= dx
     ref[:, :-1] |= dx
     assert np.array_equal(machined_edges(p, jump=math.pi), ref)
+    assert machined_edge_count(p, jump=math.pi) == int(ref.sum())
 
 
 def test_material_burrs_in_place_give_the_same_map():

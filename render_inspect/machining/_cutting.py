@@ -46,7 +46,7 @@ from ..core.lazy import njit, prange  # numba, imported on first use
 from ..core.errors import InputError, check_range
 from ..core.toolpath import ToolPath
 from ..core.units import MM_TO_NM
-from ._burr_kernels import pass_jump_mask
+from ._burr_kernels import pass_jump_count, pass_jump_mask
 from ._envelope import _pass_window
 from ._envelope_path import _lookup_table, _nominal_spiral, _nose_arc, path_radial_slope
 from ._envelope_step import _lookup
@@ -54,8 +54,8 @@ from ._envelope_step import _lookup
 if TYPE_CHECKING:
     from ._material import MaterialResponse
 
-__all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "finish_surface",
-           "mechanics_facts", "CutResult"]
+__all__ = ["cut_turning_mechanics", "cut_lines_mechanics", "groove_texture", "machined_edges", "machined_edge_count",
+           "finish_surface", "mechanics_facts", "CutResult"]
 
 TWO_PI = 2 * math.pi
 
@@ -337,6 +337,12 @@ def machined_edges(pass_map: np.ndarray, *, jump: float) -> np.ndarray:
     m[:, 1:] |= dx
     m[:, :-1] |= dx
     return m
+
+
+def machined_edge_count(pass_map: np.ndarray, *, jump: float) -> int:
+    """The number of pixels on a machined edge of a 2-D map (:func:`machined_edges`' mask
+    summed, without the mask)."""
+    return pass_jump_count(np.asarray(pass_map, dtype=np.float64), jump)
 
 
 def finish_surface(cut: CutResult, response: MaterialResponse, *, along: np.ndarray, seed: int,

@@ -42,7 +42,7 @@ from ..machining import (
     design_grid,
     follow_turning,
     following_error_stats,
-    machined_edges,
+    machined_edge_count,
     mask_outside_sector,
     material_burrs,
     mechanics_facts,
@@ -369,7 +369,7 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
                 hand_over(error_map)
             info = mechanics_facts(resp, grooves_sumsq=c["grooves_sumsq"], grooves_n=c["grooves_n"],
                                    added_max=c["added_max"],
-                                   edge_pixels=int(machined_edges(pass_theta, jump=math.pi).sum()))
+                                   edge_pixels=machined_edge_count(pass_theta, jump=math.pi))
             # pass_theta (its figure made) and the added material's map (where kept) are not
             # needed further: the texture's squares are computed in the first, its unit field
             # in the second (or taken from its thread), the texture is added into the cut's own
