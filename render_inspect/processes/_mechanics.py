@@ -308,10 +308,10 @@ def turn(cfg: TurningInputs, surface: Any, path: Any, *, z_fts: np.ndarray | Non
     tool = Tool.from_config(cfg.tool)
     resp = material_of(cfg.material)
     shape = grid_shape(region, sim.pixel)
-    # the part's texture is a matrix product that needs nothing of the cut: it is computed
-    # on a thread of its own while the cut's path is prepared and the cut's figures and
-    # facts are made (steps that leave a core idle), and waits while the cut takes every
-    # core (TextureJob)
+    # the part's texture is a matrix product that needs nothing of the cut: once the machine
+    # has followed the program, it is computed on a thread of its own while the cut's path
+    # is prepared and the cut's figures and facts are made (steps that leave a core idle),
+    # and waits while the cut takes every core (TextureJob; closed whatever happens)
     textured = resp is not None and resp.texture_rms > 0
     job = None
     try:
