@@ -140,7 +140,7 @@ def test_texture_pass_checks_the_grid():
 def test_textured_with_the_factors_kept_along_x_equals_it_without():
     """``textured(..., cache=)`` (the tiles of a column share their columns): the same
     bits as the definition, on rows that follow each other, and after the columns change."""
-    from render_inspect.machining._material import textured
+    from render_inspect.machining._texture import textured
 
     z = _maps()["holes"]
     x = 0.3 + 0.001 * np.arange(z.shape[1])

@@ -27,17 +27,15 @@ from ._cut_kernel import (CutPath, Grooves, cut_fill, cut_turning, cutting_dista
 from ._design_grid import design_grid
 from ._envelope import EnvelopePath, load_kernels, path_radial_slope, prepare_envelope, simulate_turning
 from ._errmotion import ErrorMotions, apply_error_motions
-from ._texture import TextureJob
+from ._texture import TextureJob, add_texture_field, texture_field
 from ._material import (
     MATERIAL_PRESETS,
     Material,
     MaterialResponse,
-    add_texture_field,
     contact_ratio,
     material_preset,
     material_response,
     min_chip_thickness,
-    texture_field,
     uncut_chip_thickness,
 )
 from ._machines import MACHINE_PRESET_NAMES, MACHINE_PRESETS, machine_preset

@@ -97,12 +97,10 @@ import numpy as np
 
 from ..core.errors import InputError, check_range
 from ..core.units import MM_TO_NM, MM_TO_UM, NM_TO_MM, UM_TO_MM
-# (the part's texture: its own module, its public names here as before)
-from ._texture import add_texture_field, texture_field, textured  # noqa: F401
 
 __all__ = ["Material", "MATERIAL_PRESETS", "material_preset", "MaterialResponse",
            "material_response", "contact_ratio", "min_chip_thickness", "elastic_recovery",
-           "uncut_chip_thickness", "texture_field", "add_texture_field", "DIAMOND_E_GPA", "DIAMOND_NU",
+           "uncut_chip_thickness", "DIAMOND_E_GPA", "DIAMOND_NU",
            "INDENTER_HALF_ANGLE_DEG", "DUCTILITY_REFERENCE_PERCENT"]
 
 #: diamond's Young's modulus and Poisson's ratio (Oliver & Pharr 1992)
