@@ -422,15 +422,20 @@ def quiet_tool_truth(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, tmp_path):
+def test_tool_nose_radius_and_feed_come_back_within_their_standard_errors(quiet_tool_truth, tmp_path):
     """Nose radius 0.525 mm and feed 0.51 mm/min (the shipped scene: 0.514, 0.5), the
     random parts set to 0 in truth and model, fitted through the command line from the
     shipped values; the next cut at another feed is predicted (without its uncertainty:
     --no-prediction-uncertainty); run again, the fit comes from its cache.  (No Sobol design: the start the marks propose is the best candidate
     with or without one, so the solve is the same; the global search has its own test.)
-    Both values within 1 % and within two of the fit's own standard errors: the misfit
-    keeps a trace of the marks' phase that can stop the solver a few tenths of a percent
-    of the feed away (docs/fit.md), and the nose radius's standard error (1.4 %) says so."""
+    Both values within two of the fit's own standard errors, those errors at most 2 % of
+    the nose radius and 0.5 % of the feed, and the feed within 1 %.  The misfit keeps a
+    trace of the marks' phase that can stop the solver a few tenths of a percent of the
+    feed away, and the nose radius, correlated with the feed at 0.95, moves with it: where
+    the solver stops depends on the last bits of the machine's mathematics (numpy's and
+    OpenBLAS's functions differ between processors), from -0.24 % to +1.8 % of the nose
+    radius on the machines measured (docs/fit.md), and the fit's standard error of the
+    nose radius (0.9-1.4 %) says so."""
     args = ["fit", str(quiet_tool_truth), "--scene", "sts_sinusoidal_grid", "--free",
             "tool.nose_radius,process.feed_mm_per_min", "--seed", "1", "--profile-points", "1",
             "--global", "0", "--cache", str(tmp_path / "cache"),
@@ -439,10 +444,10 @@ def test_tool_nose_radius_and_feed_come_back_within_1_percent(quiet_tool_truth, 
                  "--no-prediction-uncertainty", "--out", str(tmp_path / "fit")]) == 0
     rec = json.loads((tmp_path / "fit" / "fit.json").read_text())
     p = rec["parameters"]
-    assert p["tool.nose_radius"]["value"] == pytest.approx(0.525, rel=0.01)
     assert p["process.feed_mm_per_min"]["value"] == pytest.approx(0.51, rel=0.01)
-    for k, truth in (("tool.nose_radius", 0.525), ("process.feed_mm_per_min", 0.51)):
+    for k, truth, most in (("tool.nose_radius", 0.525, 0.02), ("process.feed_mm_per_min", 0.51, 0.005)):
         assert abs(p[k]["value"] - truth) <= 2 * p[k]["stderr"], (k, p[k])
+        assert 0 < p[k]["stderr"] <= most * truth, (k, p[k])
     assert p["tool.nose_radius"]["start"] == 0.514 and p["process.feed_mm_per_min"]["start"] == 0.5
     for k in ("value", "stderr", "start", "bounds", "stderr_formal", "stderr_random_parts"):
         assert k in p["tool.nose_radius"]
