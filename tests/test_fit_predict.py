@@ -376,8 +376,10 @@ def test_the_prediction_carries_the_fits_uncertainty(tmp_path, caplog):
     the prediction is): the cusp height's sensitivities to 2 % and Sq's to 10 %, both
     linear in the keys (their second-order part below their first; read over the window at
     one place of the marks, Sq's second order was 17 times its first), and every
-    brute-force Sq within the expanded uncertainty (k = 2) of the predicted value, Sz
-    within it widened by twice its spread over the positions."""
+    brute-force Sq within the expanded uncertainty (k = 2) of the predicted value, or
+    within as many standard uncertainties as the point lies standard deviations of the
+    keys' joint distribution away where that is more, Sz within it widened by twice its
+    spread over the positions."""
     truth = _truth(tmp_path / "truth", quiet=True)
     out = tmp_path / "fit"
     rec, pm, lines = _fit(truth, out, "tool.nose_radius,process.feed_mm_per_min", caplog)
@@ -436,13 +438,20 @@ def test_the_prediction_carries_the_fits_uncertainty(tmp_path, caplog):
         assert q[path]["smooth"] and q[path]["u"] > 0, q[path]
     # every brute-force Sq within the expanded uncertainty; Sz, the window's extreme, within
     # it widened by twice its spread over where the marks fall (its own sampling scatter,
-    # which the parameters' uncertainty does not hold)
+    # which the parameters' uncertainty does not hold).  A brute-force point moves one key
+    # by its standard error with the other held, which the keys' joint distribution makes
+    # unlikely where they are correlated: it lies sqrt(s_k^2 (C^-1)_kk) standard deviations
+    # of that distribution from the fitted values (1 / sqrt(1 - 0.95^2) = 3.2 here), and a
+    # number linear in the keys moves there by at most that many standard uncertainties
+    # (Cauchy-Schwarz); so each point within the larger of k = 2 and its own distance
+    reach = se * np.sqrt(np.diag(np.linalg.inv(cov)))
     spread = pm["prediction"]["window_spread"]
     for path, wide in (("residual.Sq_nm", 0.0), ("residual.Sz_nm", 2 * spread["residual.Sz_nm"])):
         group, name = path.split(".")
-        for m in brute.values():
-            assert abs(m[group][name] - q[path]["value"]) <= q[path]["U"] + wide, (
-                path, m[group][name], q[path])
+        for (k, _), m in brute.items():
+            far = max(q[path]["coverage_factor"], float(reach[keys.index(k)]))
+            assert abs(m[group][name] - q[path]["value"]) <= far * q[path]["u"] + wide, (
+                path, k, m[group][name], q[path])
     # said in the summary and on the page, with units and both coverage factors
     text = "\n".join(lines)
     assert "prediction (process.spindle_rpm=40), the fitted keys' uncertainty propagated" in text
